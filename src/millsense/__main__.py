@@ -1,0 +1,3 @@
+from millsense.cli.main import main
+
+main()

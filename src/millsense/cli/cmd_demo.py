@@ -1,0 +1,1 @@
+"""``millsense demo`` (filled in by the foundation work)."""

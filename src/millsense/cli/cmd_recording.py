@@ -1,0 +1,1 @@
+"""``millsense info`` and ``millsense plot`` (filled in by the foundation work)."""

@@ -1,0 +1,65 @@
+"""The ``millsense`` command.
+
+Every sub-command lives in its own module under :mod:`millsense.cli` and registers itself on
+:data:`app`. User errors (:class:`millsense.core.errors.UserError`) print one line and exit with
+status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.console import Console
+
+from millsense.core.errors import UserError
+
+app = typer.Typer(
+    name="millsense",
+    help="Sensorless monitoring and control of milling from CNC drive signals.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+err_console = Console(stderr=True, highlight=False, soft_wrap=True)
+
+
+@app.callback()
+def _root() -> None:
+    """Sensorless monitoring and control of milling from CNC drive signals."""
+
+
+def _register_commands() -> None:
+    """Import every ``millsense.cli.cmd_*`` module; each registers its commands on ``app``."""
+    import importlib
+    import pkgutil
+
+    import millsense.cli as pkg
+
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name.startswith("cmd_"):
+            importlib.import_module(f"{pkg.__name__}.{info.name}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the CLI, turning user errors into one line and exit status 2."""
+    _register_commands()
+    try:
+        app(args=argv, standalone_mode=False)
+    except UserError as exc:
+        err_console.print(f"millsense: error: {exc}", markup=False)
+        sys.exit(exc.exit_code)
+    except typer.Exit as exc:
+        sys.exit(exc.exit_code)
+    except typer.Abort:
+        err_console.print("millsense: aborted", markup=False)
+        sys.exit(130)
+    except Exception as exc:
+        # Usage errors of the (vendored) click parser: duck-typed, as typer may vendor click.
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
+            message = exc.format_message()
+            if message:
+                err_console.print(f"millsense: error: {message}", markup=False)
+            sys.exit(2)
+        raise

@@ -1,0 +1,1 @@
+"""Core data types: errors, units, recordings, configuration models."""

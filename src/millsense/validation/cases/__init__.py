@@ -1,0 +1,1 @@
+"""Validation case modules, one per package validated; every module here is loaded."""
