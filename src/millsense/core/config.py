@@ -1,0 +1,418 @@
+"""Configuration models: tool, material (cutting coefficients), machine, stock.
+
+Files are TOML in the field's units, with the unit in every key name (``diameter_mm``,
+``ktc_n_mm2``, ``inertia_kg_m2``); each model exposes SI values through ``*_m``/``*_rad``/...
+properties, so conversion happens once, here, and nowhere else.
+
+Invalid input raises :class:`~millsense.core.errors.ConfigError` with one line naming the
+file, the key and the allowed range, e.g.::
+
+    tool.toml: key 'diameter_mm' = -3 is out of range: must be > 0 and <= 200
+
+Usage::
+
+    tool = load_config(ToolConfig, "tool.toml")
+    tool.diameter_m   # SI
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from millsense.core import units
+from millsense.core.errors import ConfigError
+
+
+class _Model(BaseModel):
+    """Base for all configuration models: unknown keys are errors, instances are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# --------------------------------------------------------------------------------------------
+# Tool and material
+# --------------------------------------------------------------------------------------------
+
+
+class ToolConfig(_Model):
+    """An end mill. Geometry follows Altintas' conventions (flat or ball end, helix, pitch)."""
+
+    name: str = "end mill"
+    shape: Literal["flat", "ball"] = "flat"
+    diameter_mm: Annotated[float, Field(gt=0, le=200)]
+    flutes: Annotated[int, Field(ge=1, le=16)]
+    helix_deg: Annotated[float, Field(ge=0, lt=70)] = 0.0
+    pitch_deg: list[Annotated[float, Field(gt=0, lt=360)]] | None = None
+    """Angle from each flute to the next, in degrees; omitted means uniform 360/flutes."""
+    runout_um: Annotated[float, Field(ge=0, le=1000)] = 0.0
+    """Radial offset of the cutter axis from the spindle axis, µm."""
+    runout_angle_deg: Annotated[float, Field(ge=-360, le=360)] = 0.0
+    stickout_mm: Annotated[float, Field(gt=0, le=1000)] | None = None
+
+    @model_validator(mode="after")
+    def _pitch_consistent(self) -> ToolConfig:
+        if self.pitch_deg is not None:
+            if len(self.pitch_deg) != self.flutes:
+                raise ValueError(
+                    f"pitch_deg has {len(self.pitch_deg)} angles but flutes = {self.flutes}"
+                )
+            if not math.isclose(sum(self.pitch_deg), 360.0, abs_tol=1e-6):
+                raise ValueError(f"pitch_deg must sum to 360, got {sum(self.pitch_deg):g}")
+        return self
+
+    @property
+    def diameter_m(self) -> float:
+        return self.diameter_mm * units.MM
+
+    @property
+    def radius_m(self) -> float:
+        return 0.5 * self.diameter_m
+
+    @property
+    def helix_rad(self) -> float:
+        return self.helix_deg * units.DEG
+
+    @property
+    def pitch_rad(self) -> tuple[float, ...]:
+        """Pitch angles in rad (uniform if not given)."""
+        if self.pitch_deg is None:
+            return (2.0 * math.pi / self.flutes,) * self.flutes
+        return tuple(p * units.DEG for p in self.pitch_deg)
+
+    @property
+    def runout_m(self) -> float:
+        return self.runout_um * units.UM
+
+    @property
+    def runout_angle_rad(self) -> float:
+        return self.runout_angle_deg * units.DEG
+
+
+class MaterialConfig(_Model):
+    """Work material and its linear edge-force cutting coefficients (Altintas ch. 2).
+
+    ``K_c`` shearing coefficients in N/mm² (= MPa), ``K_e`` edge coefficients in N/mm.
+    """
+
+    name: str = "material"
+    ktc_n_mm2: Annotated[float, Field(gt=0, le=20000)]
+    krc_n_mm2: Annotated[float, Field(ge=-5000, le=20000)]
+    kac_n_mm2: Annotated[float, Field(ge=-5000, le=20000)] = 0.0
+    kte_n_mm: Annotated[float, Field(ge=0, le=1000)] = 0.0
+    kre_n_mm: Annotated[float, Field(ge=0, le=1000)] = 0.0
+    kae_n_mm: Annotated[float, Field(ge=-1000, le=1000)] = 0.0
+    source: str = ""
+
+    @property
+    def ktc(self) -> float:
+        """Tangential shearing coefficient, N/m²."""
+        return self.ktc_n_mm2 * units.N_PER_MM2
+
+    @property
+    def krc(self) -> float:
+        return self.krc_n_mm2 * units.N_PER_MM2
+
+    @property
+    def kac(self) -> float:
+        return self.kac_n_mm2 * units.N_PER_MM2
+
+    @property
+    def kte(self) -> float:
+        """Tangential edge coefficient, N/m."""
+        return self.kte_n_mm * units.N_PER_MM
+
+    @property
+    def kre(self) -> float:
+        return self.kre_n_mm * units.N_PER_MM
+
+    @property
+    def kae(self) -> float:
+        return self.kae_n_mm * units.N_PER_MM
+
+
+# --------------------------------------------------------------------------------------------
+# Machine
+# --------------------------------------------------------------------------------------------
+
+
+class FrictionConfig(_Model):
+    """Friction on the motor side of a drive, per direction of motion (Aslan Eq. 3.2–3.4).
+
+    Coulomb + viscous is the minimum; the LuGre fields (``sigma0``, ``sigma1``,
+    ``stribeck_velocity``, ``static``) are optional. Tuples are (positive, negative) direction.
+    """
+
+    coulomb_nm: tuple[Annotated[float, Field(ge=0, le=1e4)], Annotated[float, Field(ge=0, le=1e4)]]
+    viscous_nm_s_rad: tuple[
+        Annotated[float, Field(ge=0, le=1e4)], Annotated[float, Field(ge=0, le=1e4)]
+    ]
+    static_nm: (
+        tuple[Annotated[float, Field(ge=0, le=1e4)], Annotated[float, Field(ge=0, le=1e4)]] | None
+    ) = None
+    stribeck_velocity_rad_s: (
+        tuple[Annotated[float, Field(gt=0, le=1e3)], Annotated[float, Field(gt=0, le=1e3)]] | None
+    ) = None
+    sigma0_nm_rad: (
+        tuple[Annotated[float, Field(gt=0, le=1e9)], Annotated[float, Field(gt=0, le=1e9)]] | None
+    ) = None
+    sigma1_nm_s_rad: (
+        tuple[Annotated[float, Field(ge=0, le=1e6)], Annotated[float, Field(ge=0, le=1e6)]] | None
+    ) = None
+    source: str = ""
+
+
+class FeedAxisConfig(_Model):
+    """A feed drive: rigid-body parameters, transmission, friction and servo gains."""
+
+    kind: Literal["linear", "rotary"] = "linear"
+    inertia_kg_m2: Annotated[float, Field(gt=0, le=100)]
+    """Equivalent inertia J_e reflected to the motor (Aslan Table 3.1)."""
+    torque_constant_nm_a: Annotated[float, Field(gt=0, le=100)]
+    lead_mm_rev: Annotated[float, Field(gt=0, le=200)] | None = None
+    """Ball-screw lead h_p for linear axes (Aslan Table 3.3)."""
+    lead_rad_rev: Annotated[float, Field(gt=0, le=6.3)] | None = None
+    """Output angle per motor revolution for rotary axes (worm: 2π/ratio)."""
+    efficiency: Annotated[float, Field(gt=0, le=1)] = 1.0
+    friction: FrictionConfig
+    velocity_kp_nm_s_rad: Annotated[float, Field(gt=0, le=1e4)] | None = None
+    velocity_ki_nm_rad: Annotated[float, Field(ge=0, le=1e7)] | None = None
+    velocity_bandwidth_hz: Annotated[float, Field(gt=0, le=2000)] = 40.0
+    """Used to design the velocity PI when the gains are not given."""
+    current_bandwidth_hz: Annotated[float, Field(gt=0, le=20000)] = 1000.0
+    current_noise_a: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """RMS noise of the current command in an air cut (Aslan Eq. 3.30 R is its square)."""
+    encoder_counts_rev: Annotated[int, Field(ge=16, le=2**32)] = 2**20
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _lead_given(self) -> FeedAxisConfig:
+        if self.kind == "linear" and self.lead_mm_rev is None:
+            raise ValueError("lead_mm_rev is required for a linear axis")
+        if self.kind == "rotary" and self.lead_rad_rev is None:
+            raise ValueError("lead_rad_rev is required for a rotary axis")
+        return self
+
+    @property
+    def transmission_m_rad(self) -> float:
+        """r_g = h_p / 2π: load travel per motor radian (m/rad, or rad/rad for rotary)."""
+        if self.kind == "linear":
+            assert self.lead_mm_rev is not None
+            return self.lead_mm_rev * units.MM / (2.0 * math.pi)
+        assert self.lead_rad_rev is not None
+        return self.lead_rad_rev / (2.0 * math.pi)
+
+
+class SpindleConfig(_Model):
+    """Spindle drive (Aslan Table 5.1/5.2); the drive model itself lives in ``machine``."""
+
+    max_rpm: Annotated[float, Field(gt=0, le=200000)]
+    inertia_kg_m2: Annotated[float, Field(gt=0, le=100)]
+    torque_constant_nm_a: Annotated[float, Field(gt=0, le=100)]
+    viscous_nm_s_rad: Annotated[float, Field(ge=0, le=100)] = 0.0
+    source: str = ""
+
+
+class MachineConfig(_Model):
+    """A machine tool: kinematics, feed axes by name, spindle, CNC sampling."""
+
+    name: str
+    kinematics: Literal["3-axis", "5-axis-trunnion-ac"] = "3-axis"
+    sample_rate_hz: Annotated[float, Field(gt=0, le=1e6)] = 10000.0
+    interpolator_period_ms: Annotated[float, Field(gt=0, le=100)] = 3.0
+    axes: dict[str, FeedAxisConfig]
+    spindle: SpindleConfig | None = None
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _axes_for_kinematics(self) -> MachineConfig:
+        need = {"x", "y", "z"} if self.kinematics == "3-axis" else {"x", "y", "z", "a", "c"}
+        missing = need - set(self.axes)
+        if missing:
+            raise ValueError(
+                f"kinematics '{self.kinematics}' needs axes {sorted(need)}; "
+                f"missing {sorted(missing)}"
+            )
+        return self
+
+    def axis(self, name: str) -> FeedAxisConfig:
+        try:
+            return self.axes[name]
+        except KeyError:
+            raise ConfigError(
+                f"machine '{self.name}': no axis '{name}' (axes: {', '.join(self.axes)})"
+            ) from None
+
+
+# --------------------------------------------------------------------------------------------
+# Stock
+# --------------------------------------------------------------------------------------------
+
+
+class StockConfig(_Model):
+    """Raw stock: an axis-aligned box (mm, machine coordinates), or an STL mesh."""
+
+    kind: Literal["box", "stl"] = "box"
+    min_mm: tuple[float, float, float] | None = None
+    max_mm: tuple[float, float, float] | None = None
+    stl_path: str | None = None
+    material: str = ""
+
+    @model_validator(mode="after")
+    def _box_or_stl(self) -> StockConfig:
+        if self.kind == "box":
+            if self.min_mm is None or self.max_mm is None:
+                raise ValueError("a box stock needs min_mm and max_mm")
+            for lo, hi, ax in zip(self.min_mm, self.max_mm, "xyz", strict=True):
+                if not hi > lo:
+                    raise ValueError(f"max_mm must exceed min_mm in {ax} ({hi:g} <= {lo:g})")
+        elif self.stl_path is None:
+            raise ValueError("an stl stock needs stl_path")
+        return self
+
+
+# --------------------------------------------------------------------------------------------
+# Loading and error messages
+# --------------------------------------------------------------------------------------------
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _strip_optional(ann: Any) -> Any:
+    args = getattr(ann, "__args__", None)
+    if args and type(None) in args and getattr(ann, "__origin__", None) is None:
+        rest = [a for a in args if a is not type(None)]
+        return rest[0] if len(rest) == 1 else ann
+    if args and type(None) in args:  # typing.Optional / Union
+        rest = [a for a in args if a is not type(None)]
+        return rest[0] if len(rest) == 1 else ann
+    return ann
+
+
+def _field_at(model: type[BaseModel], loc: tuple[int | str, ...]) -> tuple[Any, list[Any]]:
+    """The annotation and constraint metadata of the value at ``loc`` inside ``model``."""
+    ann: Any = model
+    metadata: list[Any] = []
+    for part in loc:
+        ann = _strip_optional(ann)
+        metadata = []
+        while getattr(ann, "__metadata__", None) is not None:  # Annotated[...]
+            ann = ann.__origin__
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            if isinstance(part, str) and part in ann.model_fields:
+                f = ann.model_fields[part]
+                ann, metadata = f.annotation, list(f.metadata)
+                continue
+            return None, []
+        origin = getattr(ann, "__origin__", None)
+        args: tuple[Any, ...] = tuple(getattr(ann, "__args__", ()) or ())
+        if origin in (list, set, frozenset) and args:
+            ann = args[0]
+        elif origin is tuple and args:
+            ann = args[0] if (len(args) == 2 and args[1] is Ellipsis) else args[int(part)]
+        elif origin is dict and len(args) == 2:
+            ann = args[1]
+        else:
+            return None, []
+        ann = _strip_optional(ann)
+        metadata = list(getattr(ann, "__metadata__", ()) or ())
+    return ann, metadata
+
+
+def _constraint_text(model: type[BaseModel], loc: tuple[int | str, ...]) -> str:
+    """The allowed range of the value at ``loc``, from its declared constraints."""
+    _, metadata = _field_at(model, loc)
+    flat: list[Any] = []
+    for meta in metadata:  # a FieldInfo inside Annotated carries its constraints in .metadata
+        flat.extend(getattr(meta, "metadata", None) or [meta])
+    bounds = []
+    for meta in flat:
+        for attr, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+            value = getattr(meta, attr, None)
+            if value is not None:
+                bounds.append(f"{sym} {value:g}")
+    return " and ".join(bounds)
+
+
+def _model_in(annotation: Any) -> type[BaseModel] | None:
+    """The BaseModel class inside an annotation such as ``X | None`` or ``dict[str, X]``."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()) or ():
+        found = _model_in(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def format_validation_error(source: str, model: type[BaseModel], err: ValidationError) -> str:
+    """One line naming the source, the key and what is allowed (first error only)."""
+    order = {"extra_forbidden": 0, "missing": 2}
+    first = sorted(err.errors(), key=lambda e: order.get(e.get("type", ""), 1))[0]
+    loc = tuple(first.get("loc", ()))
+    key = ".".join(str(p) for p in loc) or "(top level)"
+    kind = first.get("type", "")
+    value = first.get("input")
+    if kind == "extra_forbidden":
+        parent = _model_in_loc(model, loc[:-1])
+        allowed = ", ".join(parent.model_fields) if parent is not None else ""
+        return f"{source}: unknown key '{key}'" + (f" (allowed: {allowed})" if allowed else "")
+    if kind == "missing":
+        return f"{source}: missing required key '{key}'"
+    if kind in {"greater_than", "greater_than_equal", "less_than", "less_than_equal"}:
+        rng = _constraint_text(model, loc)
+        return f"{source}: key '{key}' = {value!r} is out of range: must be {rng}"
+    msg = first.get("msg", "invalid value")
+    msg = msg.removeprefix("Value error, ")
+    if kind in {"value_error", "assertion_error"}:
+        where = f"key '{key}'" if loc else "configuration"
+        return f"{source}: {where}: {msg}"
+    rng = _constraint_text(model, loc)
+    extra = f" (allowed: {rng})" if rng else ""
+    return f"{source}: key '{key}' = {value!r}: {msg}{extra}"
+
+
+def _model_in_loc(model: type[BaseModel], loc: tuple[int | str, ...]) -> type[BaseModel] | None:
+    ann, _ = _field_at(model, loc)
+    return _model_in(ann) if ann is not None else None
+
+
+def parse_config(model: type[M], data: Mapping[str, Any], source: str) -> M:
+    """Validate ``data`` as ``model``; errors become one-line :class:`ConfigError`."""
+    try:
+        return model.model_validate(dict(data))
+    except ValidationError as err:
+        raise ConfigError(format_validation_error(source, model, err)) from None
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML file; a missing file or a syntax error is a one-line ConfigError."""
+    p = Path(path)
+    try:
+        with p.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{p}: is a directory, expected a TOML file") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{p}: not valid TOML: {err}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not a text file") from None
+
+
+def load_config(model: type[M], path: str | Path, table: str | None = None) -> M:
+    """Load ``model`` from a TOML file, optionally from one of its tables (``[tool]``)."""
+    data = read_toml(path)
+    source = str(path)
+    if table is not None:
+        if table not in data or not isinstance(data[table], dict):
+            raise ConfigError(f"{path}: missing table [{table}]")
+        data = data[table]
+        source = f"{path} [{table}]"
+    return parse_config(model, data, source)

@@ -1,0 +1,54 @@
+"""Embedded presets: machines, tools and materials shipped with millsense.
+
+A preset is addressed by name (``quaser-ux600``) or by a path to a TOML file.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import TypeVar
+
+from pydantic import BaseModel
+
+from millsense.core.config import (
+    MachineConfig,
+    MaterialConfig,
+    ToolConfig,
+    load_config,
+    parse_config,
+    read_toml,
+)
+from millsense.core.errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
+
+_KINDS: dict[type[BaseModel], str] = {
+    MachineConfig: "machines",
+    ToolConfig: "tools",
+    MaterialConfig: "materials",
+}
+
+
+def preset_names(model: type[BaseModel]) -> list[str]:
+    """Names of the embedded presets of one kind."""
+    folder = resources.files("millsense.data").joinpath(_KINDS[model])
+    return sorted(
+        p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml")
+    )
+
+
+def load_preset(model: type[M], name_or_path: str | Path) -> M:
+    """Load an embedded preset by name, or a TOML file by path."""
+    text = str(name_or_path)
+    if text.endswith(".toml") or Path(text).exists():
+        return load_config(model, text)
+    folder = resources.files("millsense.data").joinpath(_KINDS[model])
+    entry = folder.joinpath(f"{text}.toml")
+    if not entry.is_file():
+        raise ConfigError(
+            f"no {_KINDS[model][:-1]} preset '{text}' "
+            f"(presets: {', '.join(preset_names(model))}; or give a .toml path)"
+        )
+    with resources.as_file(entry) as path:
+        return parse_config(model, read_toml(path), f"preset {text}")
