@@ -5,10 +5,12 @@
 1. a live source (:class:`~millsense.machine.slot_cut.SlotCutSource`) simulates the X drive of
    the ``quaser-ux600`` preset cutting a slot in Al7050 with the Ø20 mm 2-flute end mill of
    Aslan V1 (3000 rev/min, 0.2 mm/tooth; air, 2 mm, 4 mm, air);
-2. the streaming engine runs the rigid-body force estimator on the CNC channels only
+2. commissioning: simulated constant-velocity air moves identify the drive friction (the
+   estimator never receives the simulator's friction parameters);
+3. the streaming engine runs the rigid-body force estimator on the CNC channels only
    (current command and motor speed), chunk by chunk, as it would on a live machine;
-3. every chunk, with the estimate, goes to a crash-safe recording while running;
-4. the recording is read back from disk and the error of the estimate against the ground truth
+4. every chunk, with the estimate, goes to a crash-safe recording while running;
+5. the recording is read back from disk and the error of the estimate against the ground truth
    is computed from it; a PNG compares estimate and truth; a summary (JSON) gives the figures.
 """
 
@@ -29,7 +31,8 @@ from millsense.core.presets import load_preset
 from millsense.core.recording import Recording
 from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
 from millsense.io.recording_file import RecordingWriter, read_recording
-from millsense.machine.friction import CoulombViscous
+from millsense.ident.friction import coulomb_viscous_from_moves
+from millsense.machine.rigid_drive import RigidDriveParams, constant_velocity_move
 from millsense.machine.slot_cut import DepthSegment, SlotCutSource
 from millsense.online.block import Chunk, Event
 from millsense.online.engine import Pipeline, run
@@ -87,24 +90,33 @@ def default_configs() -> tuple[MachineConfig, ToolConfig, MaterialConfig]:
     )
 
 
-def nominal_drive_model(machine: MachineConfig, axis: str) -> DriveModel:
-    """The drive model the estimator uses: the preset's nominal rigid-body data.
+COMMISSIONING_SPEEDS_RAD_S = (-16.0, -12.0, -8.0, -4.0, 4.0, 8.0, 12.0, 16.0)
 
-    The simulator runs direction-dependent friction and the same J_e; the estimator is given
-    the *mean* of the two directions' Coulomb and viscous friction, so it does not see the
-    simulator's exact friction (the demo moves in + only, so the mismatch is the half
-    difference of Table 3.2's two columns).
+
+def commissioned_drive_model(machine: MachineConfig, axis: str, seed: int = 100) -> DriveModel:
+    """The drive model the estimator uses, with friction identified on the simulated machine.
+
+    J_e and K_t are the preset's (on the machine they come from the drive software, TNCopt in
+    Aslan C1). Friction is not handed over from the simulator: constant-velocity air moves at
+    ±4…16 rad/s are simulated (with their noise) and Coulomb + viscous friction is fitted per
+    direction from the mean torque over the steady second half of each move
+    (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
     """
     a = machine.axis(axis)
-    fr = a.friction
-    c = 0.5 * (fr.coulomb_nm[0] + fr.coulomb_nm[1])
-    v = 0.5 * (fr.viscous_nm_s_rad[0] + fr.viscous_nm_s_rad[1])
+    params = RigidDriveParams.from_config(a)
+    speeds, torques = [], []
+    for k, w in enumerate(COMMISSIONING_SPEEDS_RAD_S):
+        move = constant_velocity_move(params, w, 0.6, machine.sample_rate_hz, seed=seed + k)
+        steady = slice(len(move["speed"]) // 2, None)
+        speeds.append(float(np.mean(move["speed"][steady])))
+        torques.append(float(np.mean(a.torque_constant_nm_a * move["current_cmd"][steady])))
+    friction = coulomb_viscous_from_moves(np.array(speeds), np.array(torques))
     return DriveModel(
         inertia=a.inertia_kg_m2,
         torque_constant=a.torque_constant_nm_a,
         transmission=a.transmission_m_rad,
         efficiency=a.efficiency,
-        friction=CoulombViscous(c, c, v, v),
+        friction=friction,
     )
 
 
@@ -125,7 +137,7 @@ def build_source(seed: int = 0) -> SlotCutSource:
 
 def build_pipeline() -> Pipeline:
     machine, _, _ = default_configs()
-    est = RigidBodyForceEstimator("x", nominal_drive_model(machine, "x"), ESTIMATOR_CUTOFF_HZ)
+    est = RigidBodyForceEstimator("x", commissioned_drive_model(machine, "x"), ESTIMATOR_CUTOFF_HZ)
     return Pipeline([est])
 
 

@@ -1,1 +1,1 @@
-"""millsense.ident."""
+"""System identification: from recordings to the models the estimators need."""

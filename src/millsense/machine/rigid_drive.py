@@ -209,3 +209,29 @@ class RigidDriveSim:
             "true_speed": out[:, 4],
             "true_angle": out[:, 5],
         }
+
+
+def constant_velocity_move(
+    params: RigidDriveParams,
+    speed_rad_s: float,
+    duration_s: float,
+    sample_rate_hz: float,
+    *,
+    accel_time_s: float = 0.05,
+    seed: int = 0,
+) -> dict[str, np.ndarray]:
+    """Simulate an air move at constant motor speed (commissioning test of Aslan C1).
+
+    Ramps to ``speed_rad_s`` in ``accel_time_s`` then holds it; returns the channels of
+    :meth:`RigidDriveSim.advance` (no load).
+    """
+    n = round(duration_s * sample_rate_hz)
+    t = np.arange(n) / sample_rate_hz
+    vel = np.where(t < accel_time_s, speed_rad_s * t / accel_time_s, speed_rad_s)
+    pos = np.where(
+        t < accel_time_s,
+        0.5 * speed_rad_s * t**2 / accel_time_s,
+        0.5 * speed_rad_s * accel_time_s + speed_rad_s * (t - accel_time_s),
+    )
+    sim = RigidDriveSim(params, sample_rate_hz, seed=seed)
+    return sim.advance(pos, vel, np.zeros(n))

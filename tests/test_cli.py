@@ -1,0 +1,80 @@
+"""CLI: user errors print one line and exit 2; info and plot work on a recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millsense.cli.main import main
+from millsense.core.recording import Recording
+from millsense.io.recording_file import write_recording
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    out, err = capsys.readouterr()
+    code = exc.value.code
+    return (0 if code is None else int(code)), out, err
+
+
+def small_recording(path: Path) -> Path:
+    rec = Recording(10000.0, metadata={"machine": "test", "source": str(path)})
+    t = np.arange(2000) / 10000.0
+    rec.add_channel("x/current_cmd", np.sin(2 * np.pi * 50 * t), "A", "current command")
+    rec.add_channel("truth/x/force", -100 + 10 * np.sin(2 * np.pi * 100 * t), "N", "truth")
+    rec.add_stream("tcp", t[::30], {"x": t[::30] * 0.02}, {"x": "m"})
+    write_recording(path, rec)
+    return path
+
+
+def test_info_lists_channels_and_metadata(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = small_recording(tmp_path / "r.h5")
+    code, out, _ = run_cli(["info", str(p)], capsys)
+    assert code == 0
+    assert "2000 samples at 10000 Hz" in out
+    assert "x/current_cmd" in out and "truth/x/force" in out and "tcp" in out
+
+
+def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = small_recording(tmp_path / "r.h5")
+    png = tmp_path / "p.png"
+    code, _, _ = run_cli(["plot", str(p), "-c", "x/current_cmd", "-c", "truth/x/force", "-o", str(png)], capsys)
+    assert code == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["info", "{tmp}/missing.h5"], "missing.h5"),
+        (["plot", "{rec}", "-c", "nope", "-o", "{tmp}/p.png"], "unknown channel 'nope'"),
+        (["plot", "{rec}", "-c", "x/current_cmd", "-o", "{tmp}/p.pdf"], "give a .png"),
+        (["validate", "--case", "no.such.case"], "no validation case matches"),
+        (["info"], "Missing argument"),
+        (["frobnicate"], "No such command"),
+    ],
+)
+def test_user_errors_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], expected: str
+) -> None:
+    rec = small_recording(tmp_path / "r.h5")
+    args = [a.format(tmp=tmp_path, rec=rec) for a in args]
+    code, _, err = run_cli(args, capsys)
+    assert code == 2
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("millsense: error:")
+    assert expected in lines[0]
+    assert "Traceback" not in err
+
+
+def test_truncated_file_is_one_line_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = small_recording(tmp_path / "r.h5")
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    code, _, err = run_cli(["info", str(p)], capsys)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "r.h5" in err
