@@ -366,12 +366,12 @@ class RecordingWriter:
             raise RecordingError(f"{self.path}: writer is closed")
 
     def _coerce(
-        self, key: str, values: ArrayLike, dtypes: dict[str, np.dtype], what: str
+        self, key: str, values: ArrayLike, dtypes: Mapping[str, np.dtype], what: str
     ) -> np.ndarray:
+        """Copy ``values`` as a 1-D array of the dtype fixed for ``key`` (first chunk's)."""
         arr = as_channel_array(values, key, what)
         dtype = dtypes.get(key)
         if dtype is None:
-            dtypes[key] = arr.dtype
             return np.array(arr, copy=True)
         if not np.can_cast(arr.dtype, dtype, "same_kind"):
             raise InputDataError(
@@ -412,6 +412,8 @@ class RecordingWriter:
                     f"channel '{first}' has {length}"
                 )
             chunk[name] = arr
+        for name, arr in chunk.items():  # only a valid chunk fixes the dtypes
+            self._dtypes.setdefault(name, arr.dtype)
         if not length:
             return
         for name, arr in chunk.items():
@@ -455,8 +457,11 @@ class RecordingWriter:
         if t.size == 0:
             return
         rows = {"time_s": t}
+        dtypes = self._stream_dtypes[name]
         for k in declared:
-            rows[k] = self._coerce(f"{name}.{k}", fields[k], self._stream_dtypes[name], "field")
+            rows[k] = self._coerce(k, fields[k], dtypes, f"stream '{name}' field")
+        for k in declared:
+            dtypes.setdefault(k, rows[k].dtype)
         self._stream_last_t[name] = float(t[-1])
         self._stream_pending[name].append(rows)
 
@@ -611,7 +616,9 @@ def _open_h5(path: Path) -> h5py.File:
     except FileNotFoundError:
         raise RecordingError(f"{path}: no such recording file") from None
     except OSError as exc:
-        reason = str(exc).split(":")[0].strip() or type(exc).__name__
+        text = str(exc)  # e.g. "Unable to ... open file (truncated file: eof = 7, ...)"
+        inner = text.split("(", 1)[1] if "(" in text else text
+        reason = inner.split(":")[0].split(")")[0].strip() or type(exc).__name__
         size = path.stat().st_size if path.exists() else 0
         raise RecordingError(
             f"{path}: not a readable HDF5 file ({reason}; {size} bytes) - truncated or corrupt?"
@@ -746,8 +753,8 @@ def _load_schema(path: Path, partial: Path) -> dict[str, Any]:
     return schema
 
 
-def _scan_segments(path: Path, partial: Path, read: bool) -> tuple[_Segments, list[Segment]]:
-    """List complete, contiguous segments; with ``read`` also return their samples."""
+def _scan_segments(path: Path, partial: Path, keep: bool) -> tuple[_Segments, list[Segment]]:
+    """List complete, verified, contiguous segments; with ``keep`` also return their samples."""
     schema = _load_schema(path, partial)
     numbered = []
     for p in partial.iterdir():
@@ -764,7 +771,7 @@ def _scan_segments(path: Path, partial: Path, read: bool) -> tuple[_Segments, li
             note = f"segment {expect} missing; later segments ignored"
             break
         try:
-            seg = read_segment(p, header_only=not read)
+            seg = read_segment(p)
         except SegmentError as exc:
             note = f"segment {p.name} damaged ({exc}); it and later segments ignored"
             break
@@ -773,7 +780,7 @@ def _scan_segments(path: Path, partial: Path, read: bool) -> tuple[_Segments, li
             break
         n += seg.n_samples
         files.append(p)
-        if read:
+        if keep:
             loaded.append(seg)
     return _Segments(schema, files, n, note), loaded
 
@@ -790,7 +797,7 @@ def _recovery_message(segs: _Segments) -> str:
 
 
 def _read_partial(path: Path, partial: Path) -> Recording:
-    segs, loaded = _scan_segments(path, partial, read=True)
+    segs, loaded = _scan_segments(path, partial, keep=True)
     schema = segs.schema
     try:
         meta = dict(schema.get("metadata", {}))
@@ -883,7 +890,7 @@ def recording_status(path: str | Path) -> RecordingStatus:
         return RecordingStatus(True, n, dur, None, t0 + dur, msg)
     if partial.is_dir():
         try:
-            segs, _ = _scan_segments(path, partial, read=False)
+            segs, _ = _scan_segments(path, partial, keep=False)
         except FileNotFoundError:
             return recording_status(path)
         fs = float(segs.schema["sample_rate_hz"])

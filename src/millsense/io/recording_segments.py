@@ -120,10 +120,8 @@ def _parse_header(blob: bytes, size: int) -> tuple[dict[str, Any], int]:
     return header, _HEAD.size + hlen
 
 
-def read_segment(path: Path, header_only: bool = False) -> Segment:
-    """Read and verify one segment.
-
-    With ``header_only`` only the header and the file size are checked (no samples read).
+def read_segment(path: Path) -> Segment:
+    """Read and verify one segment (size, header and CRC-32).
 
     Raises
     ------
@@ -132,13 +130,6 @@ def read_segment(path: Path, header_only: bool = False) -> Segment:
     OSError
         If the file cannot be read.
     """
-    if header_only:
-        with open(path, "rb") as fh:
-            head = fh.read(_HEAD.size)
-            if len(head) == _HEAD.size and head[:8] == MAGIC:
-                head += fh.read(_HEAD.unpack(head)[1])
-        header, _ = _parse_header(head, path.stat().st_size)
-        return Segment(int(header["start_sample"]), int(header["n_samples"]))
     blob = path.read_bytes()
     header, offset = _parse_header(blob, len(blob))
     (crc,) = _CRC.unpack_from(blob, len(blob) - _CRC.size)
