@@ -360,14 +360,17 @@ def test_chunk_dtypes_follow_first_chunk(tmp_path: Path) -> None:
     assert back.dtype == np.int32 and back.tolist() == [1, 2]
 
 
-def test_writer_refuses_to_shadow_existing_data(tmp_path: Path) -> None:
+def test_writer_overwrites_files_but_never_an_interrupted_recording(tmp_path: Path) -> None:
     path = tmp_path / "r.h5"
     write_recording(path, _sample_recording(10))
     with pytest.raises(RecordingError) as err:
-        RecordingWriter(path, 10.0, [ChannelInfo("a", "A")])
+        RecordingWriter(path, 10.0, [ChannelInfo("a", "A")], overwrite=False)
     _one_line(err, str(path), "file exists")
-    RecordingWriter(path, 10.0, [ChannelInfo("a", "A")], overwrite=True)  # leaves a sidecar
-    with pytest.raises(RecordingError) as err:
+    w = RecordingWriter(path, 10.0, [ChannelInfo("a", "A")])  # default: replace, like a rerun
+    w.append({"a": [1.0]})
+    w.flush()
+    assert read_recording(path).channel_names == ["a"]  # readers see the new one at once
+    with pytest.raises(RecordingError) as err:  # its sidecar is not overwritten
         RecordingWriter(path, 10.0, [ChannelInfo("a", "A")])
     _one_line(err, str(path), "interrupted recording")
     with pytest.raises(RecordingError) as err:

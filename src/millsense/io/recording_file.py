@@ -244,14 +244,16 @@ class RecordingWriter:
         Also ``fsync`` each segment (survives power loss, about 8 ms per flush measured on an
         ext4 virtual disk); SIGKILL-safety does not need it.
     overwrite : bool
-        Replace an existing complete file at ``path`` (removed at once). Without it an
-        existing file is an error, so a live recording never shadows an earlier one.
+        Replace an existing complete file at ``path`` (default, like :func:`write_recording`);
+        it is removed at once so that readers see the new recording in progress. With
+        ``overwrite=False`` an existing file is an error.
 
     Raises
     ------
     RecordingError
         If ``<path>.partial/`` already exists (an interrupted recording: read or remove it),
-        ``path`` exists and ``overwrite`` is false, or the directory is missing.
+        ``path`` exists and ``overwrite`` is false, or the directory is missing. An interrupted
+        recording is never overwritten: it may hold the only copy of its data.
     InputDataError
         For malformed declarations.
 
@@ -272,7 +274,7 @@ class RecordingWriter:
         t0_s: float = 0.0,
         *,
         fsync: bool = False,
-        overwrite: bool = False,
+        overwrite: bool = True,
     ) -> None:
         self.path = Path(path)
         _check_parent(self.path)
@@ -310,7 +312,7 @@ class RecordingWriter:
             )
         if self.path.exists():
             if not overwrite:
-                raise RecordingError(f"{self.path}: file exists (pass overwrite=True)")
+                raise RecordingError(f"{self.path}: file exists (overwrite=False)")
             self.path.unlink()
         try:
             self._partial.mkdir()
