@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _harness import Metric, benchmark
 
+from _harness import Metric, benchmark
 from millsense.core.recording import ChannelInfo
 from millsense.io import RecordingWriter, read_recording
 from millsense.io.recording_file import partial_dir

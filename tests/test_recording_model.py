@@ -94,6 +94,7 @@ def test_length_mismatch_names_channel() -> None:
         ("a/../b", np.zeros(50), "malformed"),
         ("m", np.zeros((50, 2)), "expected a 1-D array"),
         ("s", np.array(["a"] * 50), "expected numbers"),
+        ("a\x00b", np.zeros(50), "malformed"),
     ],
 )
 def test_bad_channels(name: str, data: np.ndarray, pattern: str) -> None:
@@ -101,6 +102,15 @@ def test_bad_channels(name: str, data: np.ndarray, pattern: str) -> None:
     with pytest.raises(InputDataError, match=pattern) as err:
         rec.add_channel(name, data, "1")
     assert "\n" not in str(err.value)
+
+
+def test_nul_in_unit_or_description_refused() -> None:
+    # HDF5 variable-length strings cannot hold NUL: refused at the door, not at write time.
+    rec = Recording(10.0)
+    with pytest.raises(InputDataError, match="channel 'a': description contains a NUL"):
+        rec.add_channel("a", [1.0], "A", "x\x00y")
+    with pytest.raises(InputDataError, match="field 'f': unit contains a NUL"):
+        rec.add_stream("s", [0.0], {"f": [1.0]}, {"f": "m\x00"})
 
 
 def test_bad_streams() -> None:

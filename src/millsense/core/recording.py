@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from millsense.core.errors import InputDataError, RecordingError
 
-__all__ = ["TRUTH_PREFIX", "ChannelInfo", "Recording", "Stream", "check_name"]
+__all__ = ["TRUTH_PREFIX", "ChannelInfo", "Recording", "Stream", "check_name", "check_text"]
 
 #: Prefix of ground-truth channels of a simulation; estimators never read these.
 TRUTH_PREFIX = "truth/"
@@ -74,12 +74,21 @@ def check_name(name: object, what: str = "channel") -> str:
     if not isinstance(name, str) or not name:
         raise InputDataError(f"{what} name must be a non-empty string, got {name!r}")
     parts = name.split("/")
-    if any(p in ("", ".", "..") for p in parts) or name != name.strip():
+    if any(p in ("", ".", "..") for p in parts) or name != name.strip() or "\x00" in name:
         raise InputDataError(
             f"{what} name {name!r} is malformed: use non-empty '/'-separated parts, "
-            "no leading/trailing '/' or spaces, no '.' or '..' parts"
+            "no leading/trailing '/' or spaces, no '.' or '..' parts, no NUL"
         )
     return name
+
+
+def check_text(value: object, what: str) -> str:
+    """Validate a unit or description: a string without NUL (HDF5 strings cannot hold it)."""
+    if not isinstance(value, str):
+        raise InputDataError(f"{what} must be a string, got {type(value).__name__}")
+    if "\x00" in value:
+        raise InputDataError(f"{what} contains a NUL character")
+    return value
 
 
 def _conflicts(name: str, existing: Iterable[str]) -> str | None:
@@ -211,6 +220,8 @@ class Stream:
                 raise InputDataError(f"stream '{name}': field '{field}' has no unit")
             self.fields[field] = _frozen(arr)
             i = info[field]
+            check_text(i.unit, f"stream '{name}': field '{field}': unit")
+            check_text(i.description, f"stream '{name}': field '{field}': description")
             self.info[field] = ChannelInfo(field, i.unit, i.description)
 
     def __len__(self) -> int:
@@ -320,15 +331,15 @@ class Recording:
                 f"{self.source}: channel '{name}' collides with channel '{other}' "
                 "(one name is a group of the other)"
             )
-        if not isinstance(unit, str):
-            raise InputDataError(f"{self.source}: channel '{name}': unit must be a string")
+        check_text(unit, f"{self.source}: channel '{name}': unit")
+        check_text(description, f"{self.source}: channel '{name}': description")
         if self._channels and arr.shape[0] != self.n_samples:
             raise InputDataError(
                 f"{self.source}: channel '{name}' has {arr.shape[0]} samples, "
                 f"existing channels have {self.n_samples}"
             )
         self._channels[name] = _frozen(arr)
-        self._info[name] = ChannelInfo(name, unit, str(description))
+        self._info[name] = ChannelInfo(name, unit, description)
 
     def add_stream(
         self,

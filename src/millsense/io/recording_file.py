@@ -53,6 +53,7 @@ from millsense.core.recording import (
     _conflicts,
     as_channel_array,
     check_name,
+    check_text,
     normalise_metadata,
 )
 from millsense.io import hdf5_chunks
@@ -150,6 +151,8 @@ def _write_root(
     for key, value in metadata.items():
         if key in _RESERVED_ATTRS or "/" in key or key in (".", ""):
             continue
+        if isinstance(value, str) and "\x00" in value:
+            continue  # HDF5 strings cannot hold NUL; the value is in metadata_json
         if isinstance(value, str | bool | int | float) and not (
             isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 2**63
         ):
@@ -289,6 +292,8 @@ class RecordingWriter:
         self._channels: dict[str, ChannelInfo] = {}
         for info in channels:
             name = check_name(info.name)
+            check_text(info.unit, f"{self.path}: channel '{name}': unit")
+            check_text(info.description, f"{self.path}: channel '{name}': description")
             if name in self._channels or _conflicts(name, self._channels) is not None:
                 raise InputDataError(f"{self.path}: channel '{name}' declared twice or collides")
             self._channels[name] = info
@@ -301,6 +306,8 @@ class RecordingWriter:
             for fi in fields:
                 if not fi.name or "/" in fi.name or fi.name == "time_s" or fi.name in fmap:
                     raise InputDataError(f"{self.path}: stream '{sname}': bad field '{fi.name}'")
+                check_text(fi.unit, f"{self.path}: stream '{sname}' field '{fi.name}': unit")
+                check_text(fi.description, f"{self.path}: stream '{sname}': description")
                 fmap[fi.name] = fi
             self._streams[sname] = fmap
 
