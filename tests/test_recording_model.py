@@ -95,6 +95,7 @@ def test_length_mismatch_names_channel() -> None:
         ("m", np.zeros((50, 2)), "expected a 1-D array"),
         ("s", np.array(["a"] * 50), "expected numbers"),
         ("a\x00b", np.zeros(50), "malformed"),
+        ("a\ud800", np.zeros(50), "malformed"),
     ],
 )
 def test_bad_channels(name: str, data: np.ndarray, pattern: str) -> None:

@@ -74,7 +74,8 @@ def check_name(name: object, what: str = "channel") -> str:
     if not isinstance(name, str) or not name:
         raise InputDataError(f"{what} name must be a non-empty string, got {name!r}")
     parts = name.split("/")
-    if any(p in ("", ".", "..") for p in parts) or name != name.strip() or "\x00" in name:
+    bad_text = "\x00" in name or not _utf8(name)
+    if any(p in ("", ".", "..") for p in parts) or name != name.strip() or bad_text:
         raise InputDataError(
             f"{what} name {name!r} is malformed: use non-empty '/'-separated parts, "
             "no leading/trailing '/' or spaces, no '.' or '..' parts, no NUL"
@@ -88,7 +89,17 @@ def check_text(value: object, what: str) -> str:
         raise InputDataError(f"{what} must be a string, got {type(value).__name__}")
     if "\x00" in value:
         raise InputDataError(f"{what} contains a NUL character")
+    if not _utf8(value):
+        raise InputDataError(f"{what} is not valid Unicode text (lone surrogate)")
     return value
+
+
+def _utf8(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _conflicts(name: str, existing: Iterable[str]) -> str | None:

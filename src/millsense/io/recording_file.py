@@ -51,6 +51,7 @@ from millsense.core.recording import (
     Recording,
     Stream,
     _conflicts,
+    _utf8,
     as_channel_array,
     check_name,
     check_text,
@@ -151,8 +152,8 @@ def _write_root(
     for key, value in metadata.items():
         if key in _RESERVED_ATTRS or "/" in key or key in (".", ""):
             continue
-        if isinstance(value, str) and "\x00" in value:
-            continue  # HDF5 strings cannot hold NUL; the value is in metadata_json
+        if isinstance(value, str) and ("\x00" in value or not _utf8(value)):
+            continue  # HDF5 strings cannot hold these; the value is in metadata_json
         if isinstance(value, str | bool | int | float) and not (
             isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 2**63
         ):
