@@ -403,3 +403,16 @@ def test_damaged_segment_stops_recovery_there(tmp_path: Path) -> None:
     assert recording_status(path).n_samples == 4  # status verifies the same way
     w.close()  # the writer still holds every sample: closing makes the complete file
     np.testing.assert_array_equal(read_recording(path)["a"], np.repeat([0.0, 1.0, 2.0], 4))
+
+
+def test_metadata_edited_after_construction_is_checked_on_write(tmp_path: Path) -> None:
+    rec = _sample_recording(10)
+    rec.metadata["spindle_rev_min"] = np.int64(12000)  # numpy scalar: converted, stored
+    write_recording(tmp_path / "ok.h5", rec)
+    assert read_recording(tmp_path / "ok.h5").metadata["spindle_rev_min"] == 12000
+    rec.metadata["bad"] = {1, 2}  # a set has no JSON form
+    path = tmp_path / "bad.h5"
+    with pytest.raises(InputDataError) as err:
+        write_recording(path, rec)
+    _one_line(err, str(path), "metadata key 'bad'")
+    assert not path.exists()

@@ -196,7 +196,10 @@ def write_recording(path: str | Path, rec: Recording, *, fsync: bool = False) ->
     path = Path(path)
     _check_parent(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    meta = _file_metadata(rec.metadata)
+    try:  # metadata may have been edited after construction: check it again
+        meta = _file_metadata(normalise_metadata(rec.metadata))
+    except InputDataError as exc:
+        raise InputDataError(f"{path}: {exc}") from None
     layout = {
         "channels": rec.channel_names,
         "streams": {s: list(rec.stream(s).fields) for s in rec.stream_names},
@@ -283,7 +286,11 @@ class RecordingWriter:
         self.path = Path(path)
         _check_parent(self.path)
         # Validates rate, t0, metadata and channel names exactly as a Recording would.
-        self._proto = Recording(sample_rate_hz, t0_s, _file_metadata(normalise_metadata(metadata)))
+        try:
+            meta = _file_metadata(normalise_metadata(metadata))
+        except InputDataError as exc:
+            raise InputDataError(f"{self.path}: {exc}") from None
+        self._proto = Recording(sample_rate_hz, t0_s, meta)
         if not math.isfinite(flush_every_s) or flush_every_s <= 0:
             raise InputDataError(f"{self.path}: flush_every_s must be > 0, got {flush_every_s}")
         self.sample_rate_hz = self._proto.sample_rate_hz
@@ -885,13 +892,16 @@ def recording_status(path: str | Path) -> RecordingStatus:
     if path.is_file():
         with _open_h5(path) as f:
             _check_format(path, f)
-            fs = float(f.attrs["sample_rate_hz"])
-            t0 = float(f.attrs["t0_s"])
-            layout = _layout(f)
-            if layout["channels"]:
-                n = int(f["channels"][layout["channels"][0]].shape[0])
-            else:
-                n = int(f.attrs.get("n_samples", 0))
+            try:
+                fs = float(f.attrs["sample_rate_hz"])
+                t0 = float(f.attrs["t0_s"])
+                layout = _layout(f)
+                if layout["channels"]:
+                    n = int(f["channels"][layout["channels"][0]].shape[0])
+                else:
+                    n = int(f.attrs.get("n_samples", 0))
+            except (KeyError, ValueError, TypeError, OSError, RuntimeError) as exc:
+                raise RecordingError(f"{path}: damaged recording structure ({exc})") from None
         dur = n / fs
         msg = (
             f"complete: {dur:.6g} s ({n} samples), {len(layout['channels'])} channels, "
