@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import mmap
 import os
 import re
 import shutil
@@ -693,7 +694,31 @@ def _source_metadata(meta: dict[str, object], path: Path) -> dict[str, object]:
     return meta
 
 
+def _map_file(path: Path) -> tuple[mmap.mmap | None, memoryview | None]:
+    """Memory-map ``path`` read-only for zero-copy chunk reads (None if it cannot be)."""
+    try:
+        with open(path, "rb") as fh:
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        return None, None
+    return mm, memoryview(mm)
+
+
 def _read_complete(path: Path) -> Recording:
+    mm, mapped = _map_file(path)
+    try:
+        return _read_complete_h5(path, mapped)
+    finally:
+        if mapped is not None:
+            mapped.release()
+        if mm is not None:
+            try:
+                mm.close()
+            except BufferError:  # a slice is still referenced; closed when collected
+                pass
+
+
+def _read_complete_h5(path: Path, mapped: memoryview | None) -> Recording:
     f = _open_h5(path)
     try:
         with f:
@@ -713,7 +738,7 @@ def _read_complete(path: Path) -> Recording:
                 for name in layout["channels"]:
                     where = f"/channels/{name}"
                     ds = f[where]
-                    arrays.append((name, hdf5_chunks.read_array(ds, pending), ds))
+                    arrays.append((name, hdf5_chunks.read_array(ds, pending, mapped), ds))
                 streams: list[tuple[str, dict[str, np.ndarray], dict[str, ChannelInfo]]] = []
                 for sname, fields in layout["streams"].items():
                     cols: dict[str, np.ndarray] = {}
@@ -721,7 +746,7 @@ def _read_complete(path: Path) -> Recording:
                     for k in ["time_s", *fields]:
                         where = f"/streams/{sname}/{k}"
                         ds = f[where]
-                        cols[k] = hdf5_chunks.read_array(ds, pending)
+                        cols[k] = hdf5_chunks.read_array(ds, pending, mapped)
                         infos[k] = ChannelInfo(
                             k, _attr_str(ds, "unit"), _attr_str(ds, "description")
                         )
