@@ -5,17 +5,19 @@ Every dataset written here declares the ordinary HDF5 filter pipeline *shuffle, 
 ``h5read`` and any HDF5 reader decode it with the stock filters. What differs is who runs the
 filters: instead of HDF5 compressing chunk by chunk under h5py's global lock, chunks are
 shuffled with numpy and deflated with :mod:`zlib` in a thread pool (zlib releases the GIL),
-then stored with ``write_direct_chunk``; reading does the reverse with ``read_direct_chunk``.
+then stored with ``write_direct_chunk``; reading does the reverse, fetching chunks by their
+file offsets from HDF5's chunk index (or ``read_direct_chunk``).
 
 Notes
 -----
 HDF5's shuffle filter stores, for a chunk of :math:`n` elements of :math:`s` bytes, byte
 :math:`j` of element :math:`i` at position :math:`j n + i`; with numpy that is
 ``chunk.view(uint8).reshape(n, s).T``. The deflate filter stores a zlib stream (RFC 1950) of
-the whole, always full-size chunk (edge chunks are padded with the fill value 0). The zlib
-strategy ``Z_RLE`` (matches at distance 1 only) is chosen by measurement on noisy float64
-signals: about 3x the speed of the default strategy at 4 % larger files (see
-``docs/decisions.md``, "Recording files: compression"). Any inflate implementation reads it.
+the whole, always full-size chunk (edge chunks are padded with the fill value 0). Our stream
+emits byte planes whose sampled entropy exceeds 7.8 bit (the noisy low mantissa bytes) as
+stored blocks and deflates the others with strategy ``Z_RLE``; both choices are measured in
+``docs/decisions.md`` ("Recording files: compression and chunking chosen by measurement").
+Any inflate implementation reads the result.
 
 Datasets not written this way (other filters, a skipped filter, an unallocated chunk) are read
 through h5py's normal path, so the reader accepts any valid file.
