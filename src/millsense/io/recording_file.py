@@ -893,10 +893,12 @@ def read_recording(path: str | Path) -> Recording:
         if partial.is_dir():
             try:
                 return _read_partial(path, partial)
-            except (FileNotFoundError, RecordingError):
+            except (OSError, RecordingError) as exc:
                 if path.is_file() or not partial.is_dir():
                     continue  # the writer closed while we read: read the final file
-                raise
+                if isinstance(exc, RecordingError):
+                    raise
+                raise RecordingError(f"{path}: cannot read {partial} ({exc})") from None
         elif path.exists():
             raise RecordingError(f"{path}: not a file")
         else:
@@ -936,8 +938,10 @@ def recording_status(path: str | Path) -> RecordingStatus:
     if partial.is_dir():
         try:
             segs, _ = _scan_segments(path, partial, keep=False)
-        except FileNotFoundError:
-            return recording_status(path)
+        except OSError as exc:
+            if path.is_file() or not partial.is_dir():
+                return recording_status(path)  # the writer closed meanwhile
+            raise RecordingError(f"{path}: cannot read {partial} ({exc})") from None
         fs = float(segs.schema["sample_rate_hz"])
         t0 = float(segs.schema["t0_s"])
         dur = segs.n_samples / fs
