@@ -13,10 +13,12 @@ from millsense.io.recording_file import write_recording
 
 
 def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as exc:
+    code: int | str | None = 0
+    try:
         main(args)
+    except SystemExit as exc:
+        code = exc.code
     out, err = capsys.readouterr()
-    code = exc.value.code
     return (0 if code is None else int(code)), out, err
 
 
