@@ -32,7 +32,9 @@ def small_recording(path: Path) -> Path:
     return path
 
 
-def test_info_lists_channels_and_metadata(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_info_lists_channels_and_metadata(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     p = small_recording(tmp_path / "r.h5")
     code, out, _ = run_cli(["info", str(p)], capsys)
     assert code == 0
@@ -43,7 +45,9 @@ def test_info_lists_channels_and_metadata(tmp_path: Path, capsys: pytest.Capture
 def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = small_recording(tmp_path / "r.h5")
     png = tmp_path / "p.png"
-    code, _, _ = run_cli(["plot", str(p), "-c", "x/current_cmd", "-c", "truth/x/force", "-o", str(png)], capsys)
+    code, _, _ = run_cli(
+        ["plot", str(p), "-c", "x/current_cmd", "-c", "truth/x/force", "-o", str(png)], capsys
+    )
     assert code == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -73,7 +77,9 @@ def test_user_errors_one_line_exit_2(
     assert "Traceback" not in err
 
 
-def test_truncated_file_is_one_line_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_truncated_file_is_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     p = small_recording(tmp_path / "r.h5")
     data = p.read_bytes()
     p.write_bytes(data[: len(data) // 2])

@@ -30,8 +30,8 @@ from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
 from millsense.core.recording import Recording
 from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
-from millsense.io.recording_file import RecordingWriter, read_recording
 from millsense.ident.friction import coulomb_viscous_from_moves
+from millsense.io.recording_file import RecordingWriter, read_recording
 from millsense.machine.rigid_drive import RigidDriveParams, constant_velocity_move
 from millsense.machine.slot_cut import DepthSegment, SlotCutSource
 from millsense.online.block import Chunk, Event
