@@ -111,3 +111,15 @@ def test_presets_listed_and_unknown_named() -> None:
     assert "quaser-ux600" in preset_names(MachineConfig)
     with pytest.raises(ConfigError, match=r"no machine preset 'nosuch'.*quaser-ux600"):
         load_preset(MachineConfig, "nosuch")
+
+
+def test_process_objects_from_config() -> None:
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    tool = load_preset(ToolConfig, "aslan-d20-2flute")
+    em = EndMill.from_config(tool)
+    assert em.diameter_m == pytest.approx(0.020) and em.n_flutes == 2
+    assert em.helix_rad == pytest.approx(math.radians(30.0))
+    k = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    assert k.ktc == pytest.approx(758e6) and k.krc == pytest.approx(379e6)  # Aslan P10, Ch. 5

@@ -39,26 +39,6 @@ class DepthSegment:
     depth_m: float
 
 
-def end_mill_from_config(tool: ToolConfig) -> EndMill:
-    """The process model's tool from a configuration (SI)."""
-    return EndMill(
-        diameter_m=tool.diameter_m,
-        n_flutes=tool.flutes,
-        pitch_angles_rad=tool.pitch_rad,
-        helix_rad=tool.helix_rad,
-        shape=tool.shape,
-        runout_offset_m=tool.runout_m,
-        runout_angle_rad=tool.runout_angle_rad,
-    )
-
-
-def coefficients_from_config(mat: MaterialConfig) -> CuttingCoefficients:
-    """The process model's cutting coefficients from a configuration (SI)."""
-    return CuttingCoefficients(
-        ktc=mat.ktc, krc=mat.krc, kac=mat.kac, kte=mat.kte, kre=mat.kre, kae=mat.kae
-    )
-
-
 class SlotCutSource(Source):
     """Simulated single-axis slot cut producing CNC channels and ``truth/`` channels.
 
@@ -90,8 +70,8 @@ class SlotCutSource(Source):
         self.axis = axis
         self.params = RigidDriveParams.from_config(axis)
         self.drive = RigidDriveSim(self.params, sample_rate_hz, seed=seed)
-        self.tool = end_mill_from_config(tool)
-        self.coeffs = coefficients_from_config(material)
+        self.tool = EndMill.from_config(tool)
+        self.coeffs = CuttingCoefficients.from_config(material)
         self.spindle_rad_s = spindle_rpm * 2.0 * math.pi / 60.0
         self.feed_per_tooth_m = feed_per_tooth_m
         self.feed_m_s = feed_per_tooth_m * tool.flutes * self.spindle_rad_s / (2.0 * math.pi)

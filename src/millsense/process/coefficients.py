@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from millsense.core.config import MaterialConfig
 from millsense.core.errors import ConfigError
 
 
@@ -35,6 +36,18 @@ class CuttingCoefficients:
             v = getattr(self, name)
             if not math.isfinite(v):
                 raise ConfigError(f"cutting coefficients: {name} must be finite, got {v!r}")
+
+    @classmethod
+    def from_config(cls, material: MaterialConfig) -> CuttingCoefficients:
+        """From a material configuration (field units converted to SI there)."""
+        return cls(
+            ktc=material.ktc,
+            krc=material.krc,
+            kac=material.kac,
+            kte=material.kte,
+            kre=material.kre,
+            kae=material.kae,
+        )
 
     def as_tuple(self) -> tuple[float, float, float, float, float, float]:
         """(ktc, krc, kac, kte, kre, kae) in SI."""

@@ -29,6 +29,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.core.config import ToolConfig
 from millsense.core.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
@@ -110,6 +111,19 @@ class EndMill:
     shape: Literal["flat", "ball"] = "flat"
     runout_offset_m: float = 0.0
     runout_angle_rad: float = 0.0
+
+    @classmethod
+    def from_config(cls, tool: ToolConfig) -> EndMill:
+        """From a tool configuration (field units converted to SI there)."""
+        return cls(
+            diameter_m=tool.diameter_m,
+            n_flutes=tool.flutes,
+            pitch_angles_rad=tool.pitch_rad,
+            helix_rad=tool.helix_rad,
+            shape=tool.shape,
+            runout_offset_m=tool.runout_m,
+            runout_angle_rad=tool.runout_angle_rad,
+        )
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.diameter_m) and self.diameter_m > 0):
