@@ -21,8 +21,8 @@ Chatter frequency from the critical multiplier μ (period T of the DDE, f_T = 1/
     f_c = ± f_T arg(μ) / (2π) + k f_T,    k integer,
 
 an infinite family (the monodromy matrix cannot tell them apart); the branch reported is the
-positive one nearest to a natural frequency of the structure (the vibration that grows is
-near a mode). For a flip, arg μ = π and f_c = f_T/2 + k f_T.
+positive one where the structure's receptance is largest (the vibration that grows is the one
+the structure amplifies most; with one mode that is the branch nearest the mode). For a flip, arg μ = π and f_c = f_T/2 + k f_T.
 
 Richardson extrapolation: first-order SDM converges as O(m⁻²) (benchmarks.md §1), so with
 depths w₁ at m and w₂ at 2m the extrapolated depth is ``w₂ + (w₂ − w₁)/3``.
@@ -113,26 +113,27 @@ def critical_depth(
     return CriticalPoint(float(root), mu, classify_multiplier(mu), count)
 
 
-def chatter_frequency(mu: complex, period: float, natural_frequencies_hz: Sequence[float]) -> float:
+def chatter_frequency(
+    mu: complex, period: float, compliance: Callable[[FloatArray], FloatArray], f_max: float
+) -> float:
     """Chatter frequency [Hz] from the critical multiplier (module docstring).
 
     Parameters
     ----------
     mu : critical multiplier.
     period : principal period T of the DDE [s].
-    natural_frequencies_hz : structural natural frequencies [Hz] used to pick the branch.
+    compliance : structural receptance magnitude [m/N] at given frequencies [Hz]; the
+        branch ``± f_T arg(μ)/2π + k f_T`` where the structure is most compliant is chosen.
+    f_max : highest frequency considered [Hz].
     """
     if not np.isfinite(mu.real):
         return math.nan
     fT = 1.0 / period
     base = abs(math.atan2(mu.imag, mu.real)) / (2 * math.pi) * fT
-    fn = np.asarray(natural_frequencies_hz, dtype=float)
-    kmax = int(np.max(fn) / fT) + 2
-    k = np.arange(0, kmax + 1)
+    k = np.arange(0, int(f_max / fT) + 2)
     cands = np.concatenate([base + k * fT, -base + k * fT])
-    cands = cands[cands > 0]
-    dist = np.min(np.abs(cands[:, None] - fn[None, :]), axis=1)
-    return float(cands[np.argmin(dist)])
+    cands = cands[(cands > 0) & (cands <= f_max + fT)]
+    return float(cands[np.argmax(compliance(cands))])
 
 
 @dataclass(frozen=True)
@@ -170,8 +171,9 @@ class LobeResult:
 def sdm_lobes(
     family_at: Callable[[float, int], DepthFamily],
     rpm: Sequence[float] | FloatArray,
-    natural_frequencies_hz: Sequence[float],
-    steps_per_period: int = 40,
+    compliance: Callable[[FloatArray], FloatArray],
+    f_max: float,
+    steps_per_period: int = 20,
     depth_max: float = 0.05,
     depth_start: float = 1e-5,
     extrapolate: bool = False,
@@ -184,7 +186,10 @@ def sdm_lobes(
     family_at : ``(rpm, steps_per_period) -> DepthFamily`` (e.g. a partial of
         :func:`millsense.stability.milling.milling_dde`).
     rpm : spindle speeds [rev/min].
-    natural_frequencies_hz : modes used to pick the chatter-frequency branch [Hz].
+    compliance : structural receptance magnitude [m/N] at frequencies [Hz], picks the
+        chatter-frequency branch (:func:`chatter_frequency`), e.g.
+        ``lambda f: np.abs(structure.frf(f)).max(axis=(-2, -1))``.
+    f_max : highest chatter frequency considered [Hz] (e.g. twice the highest mode).
     steps_per_period : SDM steps per period m.
     depth_max : largest depth searched [m].
     depth_start : first depth tried at the first speed [m].
@@ -213,7 +218,7 @@ def sdm_lobes(
                 cp = CriticalPoint(w, cp2.multiplier, cp2.bifurcation, cp.evaluations)
                 fam = fam2
         depth[i] = cp.depth
-        freq[i] = chatter_frequency(cp.multiplier, fam.period, natural_frequencies_hz)
+        freq[i] = chatter_frequency(cp.multiplier, fam.period, compliance, f_max)
         kinds.append(cp.bifurcation)
         if 0 < cp.depth < math.inf:
             prev = cp.depth
