@@ -49,6 +49,7 @@ ALLOWED: dict[str, str] = {
     "rpm_step": "0 < value",
     "depth_max_mm": "0 < value <= 1000",
     "steps_per_period": "integer 4..2000",
+    "steps_per_cycle": "0 <= value <= 200 (0 disables)",
     "method": "'sdm' or 'zoa'",
     "extrapolate": "true or false",
     "name": "text",
@@ -113,6 +114,7 @@ class LobesSpec(_Model):
     rpm_step: Annotated[float, Field(gt=0)] = 100.0
     depth_max_mm: Annotated[float, Field(gt=0, le=1000)] = 20.0
     steps_per_period: Annotated[int, Field(ge=4, le=2000)] = 20
+    steps_per_cycle: Annotated[float, Field(ge=0, le=200)] = 10.0
     extrapolate: bool = True
     method: Literal["sdm", "zoa"] = "sdm"
 
@@ -141,7 +143,9 @@ class MillingStabilityCase:
     pitch : pitch angles [rad] or None (uniform).
     rpm : default speed grid [rev/min].
     depth_max : largest depth searched [m].
-    steps_per_period : SDM steps per tooth period.
+    steps_per_period : SDM steps per tooth period (at least).
+    steps_per_cycle : SDM steps per cycle of the fastest motion at least
+        (:func:`millsense.stability.lobes.sdm_lobes`).
     extrapolate : Richardson extrapolation from m and 2m.
     method : "sdm" or "zoa".
     """
@@ -157,6 +161,7 @@ class MillingStabilityCase:
     rpm: np.ndarray
     depth_max: float
     steps_per_period: int
+    steps_per_cycle: float
     extrapolate: bool
     method: str
 
@@ -265,6 +270,7 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
         rpm=rpm,
         depth_max=lb.depth_max_mm * units.MM,
         steps_per_period=lb.steps_per_period,
+        steps_per_cycle=lb.steps_per_cycle,
         extrapolate=lb.extrapolate,
         method=lb.method,
     )
@@ -316,4 +322,5 @@ def compute_lobes(
         depth_max=case.depth_max,
         extrapolate=case.extrapolate if extrapolate is None else extrapolate,
         progress=progress,
+        steps_per_cycle=case.steps_per_cycle,
     )

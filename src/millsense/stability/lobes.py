@@ -178,6 +178,7 @@ def sdm_lobes(
     depth_start: float = 1e-5,
     extrapolate: bool = False,
     progress: Callable[[int], None] | None = None,
+    steps_per_cycle: float = 0.0,
 ) -> LobeResult:
     """SDM lobe diagram: root search of the critical depth at every speed.
 
@@ -196,6 +197,12 @@ def sdm_lobes(
     extrapolate : also solve at ``2m`` (bracket seeded by the ``m`` result) and return the
         Richardson-extrapolated depth ``w₂ + (w₂ − w₁)/3`` (O(m⁻²) convergence).
     progress : called with the index of each finished speed.
+    steps_per_cycle : also use at least this many steps per cycle of the chatter vibration
+        found at ``m`` (:func:`chatter_frequency`): at low speeds a period holds many vibration
+        cycles, and at large depths the cutting stiffness raises the vibration frequency, and a
+        fixed ``m`` per period is then too coarse for the Richardson extrapolation to be in its
+        asymptotic range. When the first solution at ``m`` violates it, ``m`` is raised and the
+        speed solved again. 0 disables.
     """
     speeds = np.asarray(rpm, dtype=float)
     depth = np.full(speeds.shape, np.nan)
@@ -204,12 +211,20 @@ def sdm_lobes(
     evals = 0
     prev = depth_start / 0.8
     for i, n in enumerate(speeds):
-        fam = family_at(float(n), steps_per_period)
+        m = steps_per_period
+        fam = family_at(float(n), m)
         start = 0.8 * prev if np.isfinite(prev) and prev > 0 else depth_start
         cp = critical_depth(fam, start, depth_max)
         evals += cp.evaluations
+        if steps_per_cycle > 0 and 0 < cp.depth < math.inf:
+            f_eff = chatter_frequency(cp.multiplier, fam.period, compliance, f_max)
+            if f_eff * fam.h * steps_per_cycle > 1.0:
+                m = math.ceil(m * steps_per_cycle * f_eff * fam.h)
+                fam = family_at(float(n), m)
+                cp = critical_depth(fam, 0.97 * cp.depth, depth_max, growth=1.02)
+                evals += cp.evaluations
         if extrapolate and 0 < cp.depth < math.inf:
-            fam2 = family_at(float(n), 2 * steps_per_period)
+            fam2 = family_at(float(n), 2 * m)
             # finer steps lower the depth by O(1 %): bracket just below the coarse result
             cp2 = critical_depth(fam2, 0.985 * cp.depth, depth_max, growth=1.02)
             evals += cp2.evaluations

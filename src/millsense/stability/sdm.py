@@ -178,12 +178,12 @@ def _expm_one(M: FloatArray, out: FloatArray, tmp: FloatArray) -> None:  # pragm
         norm *= 0.5
         s += 1
     X = M / (2.0**s)
-    # Horner: out = I + X/18, out = I + X out / j for j = 17..1
+    # Horner: out = I + X/14, out = I + X out / j for j = 13..1
     for a in range(k):
         for b in range(k):
-            out[a, b] = X[a, b] / 18.0
+            out[a, b] = X[a, b] / 14.0
         out[a, a] += 1.0
-    for j in range(17, 0, -1):
+    for j in range(13, 0, -1):
         _matmul_into(X, out, tmp)
         for a in range(k):
             for b in range(k):
@@ -198,8 +198,8 @@ def _expm_one(M: FloatArray, out: FloatArray, tmp: FloatArray) -> None:  # pragm
 def expm_stack(M: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Matrix exponential of a stack (m, k, k) of small matrices.
 
-    Scaling and squaring with a degree-18 Taylor polynomial after scaling each matrix's
-    infinity norm below 1/2 (truncation error below 1e-22 relative); compiled, as a lobe
+    Scaling and squaring with a degree-14 Taylor polynomial after scaling each matrix's
+    infinity norm below 1/2 (truncation error below 0.5^15/15! < 3e-17 relative); compiled, as a lobe
     diagram needs hundreds of thousands of these small exponentials.
     """
     out = np.empty_like(M)
