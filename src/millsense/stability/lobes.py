@@ -3,16 +3,17 @@
 SDM lobes find, at each speed, the smallest depth where the spectral radius of the monodromy
 matrix reaches 1 by a ROOT SEARCH (bracket, then Brent), not by a grid scan:
 
-1. start at ``0.8 ×`` the previous speed's critical depth (the first speed starts at
-   ``depth_floor``) and, if that depth is unstable, step DOWN by the growth factor until it is
-   stable;
-2. step UP geometrically (factor ``growth``, default 1.25) until ρ ≥ 1 or ``depth_max``;
-3. Brent's method on ρ(w) − 1 in the last bracket.
+1. at the first speed, start at ``depth_start`` and step UP geometrically (factor ``growth``,
+   default 1.25) until ρ ≥ 1 or ``depth_max`` (stepping DOWN first if the start is unstable);
+   then Brent's method on ρ(w) − 1 in the last bracket;
+2. at the next speeds (continuation), predict the depth g from the last two speeds, probe
+   ρ(0.85 g): if unstable, do the full search of 1. from below the probe; otherwise bracket
+   in g(1 ± 3 %) (moved along the secant of ρ if the root is not inside) and apply Brent.
 
 ρ(w) need not be monotonic in w (at low immersion flip and Hopf lobes cross; stable islands
-exist above the boundary), so the answer is the first crossing met by the upward geometric
-steps: an unstable band narrower than one step (25 %) lying wholly below the previous speed's
-boundary could be missed. Neighbouring speeds share the lower envelope, which is continuous
+exist above the boundary), so the answer is the first crossing met by the upward search: an unstable
+band lying wholly below the probe's depth (85 % of the prediction) and not containing the
+probe could be missed. Neighbouring speeds share the lower envelope, which is continuous
 except where a new lobe dips in, so this is rarely an issue on a fine speed grid; lower
 ``growth`` or ``depth_start`` for a more careful search.
 
@@ -113,6 +114,64 @@ def critical_depth(
     return CriticalPoint(float(root), mu, classify_multiplier(mu), count)
 
 
+class _Rho:
+    """Spectral radius of a depth family with a cache of the multipliers evaluated."""
+
+    def __init__(self, family: DepthFamily) -> None:
+        self.family = family
+        self.mu: dict[float, complex] = {}
+
+    def __call__(self, w: float) -> float:
+        if w not in self.mu:
+            self.mu[w] = dominant_multiplier(self.family, w)
+        return abs(self.mu[w])
+
+    def point(self, root: float) -> CriticalPoint:
+        mu = self.mu[root] if root in self.mu else dominant_multiplier(self.family, root)
+        return CriticalPoint(float(root), mu, classify_multiplier(mu), len(self.mu))
+
+
+def critical_depth_near(
+    family: DepthFamily,
+    guess: float,
+    depth_max: float,
+    halfwidth: float = 0.004,
+    rtol: float = 3e-4,
+    max_step: float = 1.5,
+) -> CriticalPoint:
+    """Critical depth known to lie near ``guess`` [m]: secant-guided bracket, then Brent.
+
+    Evaluates ρ at ``guess (1 ± halfwidth)``; while the pair does not bracket ρ = 1 it moves
+    the pair towards the secant prediction of the crossing (1 % beyond it, at most a factor
+    ``max_step`` per move). Used where the boundary is predicted (continuation in speed, a
+    second discretisation); it does not look for another crossing far below the guess.
+    """
+    rho = _Rho(family)
+    a, b = guess * (1 - halfwidth), guess * (1 + halfwidth)
+    ra, rb = rho(a), rho(b)
+    for _ in range(40):
+        if ra < 1.0 <= rb:
+            root = scipy.optimize.brentq(lambda w: rho(w) - 1.0, a, b, rtol=rtol, xtol=1e-12)
+            return rho.point(root)
+        slope = (rb - ra) / (b - a)
+        pred = a + (1.0 - ra) / slope if slope > 0 else math.nan
+        if ra >= 1.0:  # crossing below a
+            w = pred * 0.99 if np.isfinite(pred) else a / max_step
+            w = min(max(w, a / max_step), a / 1.005)
+            b, rb = a, ra
+            a, ra = w, rho(w)
+            if a < 1e-9:
+                return CriticalPoint(0.0, complex("nan"), "none", len(rho.mu))
+        else:  # crossing above b
+            w = pred * 1.01 if np.isfinite(pred) else b * max_step
+            w = max(min(w, b * max_step), b * 1.005)
+            if b >= depth_max:
+                return CriticalPoint(math.inf, complex("nan"), "none", len(rho.mu))
+            a, ra = b, rb
+            b, rb = min(w, depth_max), rho(min(w, depth_max))
+    return critical_depth(family, guess / 2, depth_max, rtol=rtol)
+
+
 def chatter_frequency(
     mu: complex, period: float, compliance: Callable[[FloatArray], FloatArray], f_max: float
 ) -> float:
@@ -179,6 +238,8 @@ def sdm_lobes(
     extrapolate: bool = False,
     progress: Callable[[int], None] | None = None,
     steps_per_cycle: float = 0.0,
+    rtol: float = 3e-4,
+    refine: float = 2.0,
 ) -> LobeResult:
     """SDM lobe diagram: root search of the critical depth at every speed.
 
@@ -203,40 +264,65 @@ def sdm_lobes(
         fixed ``m`` per period is then too coarse for the Richardson extrapolation to be in its
         asymptotic range. When the first solution at ``m`` violates it, ``m`` is raised and the
         speed solved again. 0 disables.
+    rtol : relative tolerance of each root search (the extrapolated depth carries about
+        twice this).
+    refine : ratio of the second discretisation to the first (``m2 = ceil(refine m)``);
+        the extrapolation is ``w₂ + (w₂ − w₁)/((m₂/m)² − 1)``.
     """
     speeds = np.asarray(rpm, dtype=float)
     depth = np.full(speeds.shape, np.nan)
     freq = np.full(speeds.shape, np.nan)
     kinds: list[str] = []
     evals = 0
-    prev = depth_start / 0.8
+    prev = math.nan
+    trend = 1.0
+    prev_f = math.nan  # chatter frequency at the previous speed [Hz]
+    ratio = 0.985  # w(2m) / w(m) at the previous speed
     for i, n in enumerate(speeds):
         m = steps_per_period
         fam = family_at(float(n), m)
-        start = 0.8 * prev if np.isfinite(prev) and prev > 0 else depth_start
-        cp = critical_depth(fam, start, depth_max)
+        if steps_per_cycle > 0 and np.isfinite(prev_f) and prev_f * fam.h * steps_per_cycle > 1.0:
+            # neighbouring speeds chatter at similar frequencies: size m from the last one
+            m = math.ceil(m * steps_per_cycle * prev_f * fam.h)
+            fam = family_at(float(n), m)
+        if np.isfinite(prev) and prev > 0:
+            # continuation: predict from the last two speeds, probe 15 % below the prediction
+            # for a lower crossing, then refine in a ±3 % bracket
+            guess = prev * trend
+            probe = 0.85 * guess
+            evals += 1
+            if abs(dominant_multiplier(fam, probe)) >= 1.0:
+                cp = critical_depth(fam, probe / 1.25, depth_max, rtol=3 * rtol)
+            else:
+                cp = critical_depth_near(fam, guess, depth_max, 0.03, 3 * rtol)
+        else:
+            cp = critical_depth(fam, depth_start, depth_max, rtol=3 * rtol)
         evals += cp.evaluations
         if steps_per_cycle > 0 and 0 < cp.depth < math.inf:
             f_eff = chatter_frequency(cp.multiplier, fam.period, compliance, f_max)
-            if f_eff * fam.h * steps_per_cycle > 1.0:
+            if f_eff * fam.h * steps_per_cycle > 1.1:
                 m = math.ceil(m * steps_per_cycle * f_eff * fam.h)
                 fam = family_at(float(n), m)
-                cp = critical_depth(fam, 0.97 * cp.depth, depth_max, growth=1.02)
+                cp = critical_depth_near(fam, 0.99 * cp.depth, depth_max, 0.02, rtol)
                 evals += cp.evaluations
         if extrapolate and 0 < cp.depth < math.inf:
-            fam2 = family_at(float(n), 2 * m)
-            # finer steps lower the depth by O(1 %): bracket just below the coarse result
-            cp2 = critical_depth(fam2, 0.985 * cp.depth, depth_max, growth=1.02)
+            m2 = math.ceil(refine * m)
+            fam2 = family_at(float(n), m2)
+            cp2 = critical_depth_near(fam2, ratio * cp.depth, depth_max, rtol=rtol)
             evals += cp2.evaluations
             if 0 < cp2.depth < math.inf:
-                w = cp2.depth + (cp2.depth - cp.depth) / 3.0
+                ratio = cp2.depth / cp.depth
+                w = cp2.depth + (cp2.depth - cp.depth) / ((m2 / m) ** 2 - 1.0)
                 cp = CriticalPoint(w, cp2.multiplier, cp2.bifurcation, cp.evaluations)
                 fam = fam2
         depth[i] = cp.depth
         freq[i] = chatter_frequency(cp.multiplier, fam.period, compliance, f_max)
         kinds.append(cp.bifurcation)
         if 0 < cp.depth < math.inf:
+            trend = float(np.clip(cp.depth / prev, 0.85, 1.2)) if np.isfinite(prev) else 1.0
             prev = cp.depth
+        else:
+            trend = 1.0
         if progress is not None:
             progress(i)
     return LobeResult(speeds, depth, freq, kinds, evals)
