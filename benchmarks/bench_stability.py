@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _harness import Metric, benchmark
 
+from _harness import Metric, benchmark
 from millsense.stability.cases import MillingStabilityCase, compute_lobes, load_case
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "stability"

@@ -72,7 +72,9 @@ class ModeSpec(_Model):
 
     def to_mode(self) -> Mode:
         if self.stiffness_n_m is not None:
-            return Mode.from_stiffness(self.natural_frequency_hz, self.damping_ratio, self.stiffness_n_m)
+            return Mode.from_stiffness(
+                self.natural_frequency_hz, self.damping_ratio, self.stiffness_n_m
+            )
         assert self.residue_alpha_m_n_s2 is not None
         return Mode.from_residues(
             self.natural_frequency_hz,
@@ -231,7 +233,9 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
     D = spec.tool.diameter_mm
     a = spec.operation.radial_immersion_mm
     if not 0 < a <= D:
-        raise _fail(source, "operation.radial_immersion_mm", a, f"0 < value <= tool.diameter_mm = {D:g}")
+        raise _fail(
+            source, "operation.radial_immersion_mm", a, f"0 < value <= tool.diameter_mm = {D:g}"
+        )
     for d, modes in (("x", spec.structure.x), ("y", spec.structure.y)):
         for i, md in enumerate(modes):
             if (md.stiffness_n_m is None) == (md.residue_alpha_m_n_s2 is None):
@@ -240,13 +244,18 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
                     "'residue_alpha_m_n_s2'"
                 )
     if not spec.structure.x and not spec.structure.y:
-        raise ConfigError(f"{source}: key 'structure' has no modes; allowed: at least one [[structure.x]] or [[structure.y]]")
+        raise ConfigError(
+            f"{source}: key 'structure' has no modes; "
+            "allowed: at least one [[structure.x]] or [[structure.y]]"
+        )
     pitch = spec.tool.pitch_deg
     if pitch is not None and (len(pitch) != spec.tool.flutes or abs(sum(pitch) - 360.0) > 1e-6):
         raise _fail(source, "tool.pitch_deg", pitch, ALLOWED["pitch_deg"])
     lb = spec.lobes
     if lb.rpm_min >= lb.rpm_max:
-        raise _fail(source, "lobes.rpm_min", lb.rpm_min, f"0 < value < lobes.rpm_max = {lb.rpm_max:g}")
+        raise _fail(
+            source, "lobes.rpm_min", lb.rpm_min, f"0 < value < lobes.rpm_max = {lb.rpm_max:g}"
+        )
     from millsense.stability.milling import immersion_angles
 
     phi_st, phi_ex = immersion_angles(a * units.MM, D * units.MM, spec.operation.mode)
@@ -297,7 +306,9 @@ def compute_lobes(
     if meth == "zoa":
         if case.pitch is not None:
             raise ConfigError(f"{case.name}: method 'zoa' supports uniform pitch only; use 'sdm'")
-        res = zoa_lobes(case.structure, case.flutes, case.kt, case.kr, case.phi_st, case.phi_ex, speeds)
+        res = zoa_lobes(
+            case.structure, case.flutes, case.kt, case.kr, case.phi_st, case.phi_ex, speeds
+        )
         if progress is not None:
             for i in range(len(speeds)):
                 progress(i)
@@ -307,7 +318,15 @@ def compute_lobes(
 
     def family_at(n: float, m: int) -> Any:
         return milling_dde(
-            case.structure, case.flutes, case.kt, case.kr, case.phi_st, case.phi_ex, n, m, case.pitch
+            case.structure,
+            case.flutes,
+            case.kt,
+            case.kr,
+            case.phi_st,
+            case.phi_ex,
+            n,
+            m,
+            case.pitch,
         )
 
     def compliance(f: np.ndarray) -> np.ndarray:

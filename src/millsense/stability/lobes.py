@@ -23,7 +23,8 @@ Chatter frequency from the critical multiplier μ (period T of the DDE, f_T = 1/
 
 an infinite family (the monodromy matrix cannot tell them apart); the branch reported is the
 positive one where the structure's receptance is largest (the vibration that grows is the one
-the structure amplifies most; with one mode that is the branch nearest the mode). For a flip, arg μ = π and f_c = f_T/2 + k f_T.
+the structure amplifies most; with one mode that is the branch nearest the mode). For a
+flip, arg μ = π and f_c = f_T/2 + k f_T.
 
 Richardson extrapolation: first-order SDM converges as O(m⁻²) (benchmarks.md §1), so with
 depths w₁ at m and w₂ at 2m the extrapolated depth is ``w₂ + (w₂ − w₁)/3``.

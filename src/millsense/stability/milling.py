@@ -141,7 +141,7 @@ class DepthFamily:
         return StepMeans(A, E, self.C, self.delays, self.h)
 
 
-def tooth_delays(pitch: Sequence[float], omega: float) -> FloatArray:
+def tooth_delays(pitch: Sequence[float] | FloatArray, omega: float) -> FloatArray:
     """Delay of each tooth [s]: tooth j follows tooth j−1 by pitch p_{j−1} [rad]."""
     p = np.asarray(pitch, dtype=float)
     return np.roll(p, 1) / omega
@@ -238,14 +238,12 @@ def turning_dde(
     steps_per_period : steps per revolution.
     force_angle : β [rad].
     """
-    from millsense.stability.modal import Mode, ModalModel
+    from millsense.stability.modal import ModalModel, Mode
 
     ms: list[Mode] = [om.mode for om in modes]
     A0, B, C = ModalModel(x=tuple(ms)).state_space()
-    M = len(ms)
     Bu = B[:, :1] * np.array([math.cos(om.angle - force_angle) for om in modes] * 2)[:, None]
     Cu = C[:1] * np.array([math.cos(om.angle) for om in modes] * 2)[None, :]
-    del M
     period = 60.0 / spindle_rpm
     h = period / steps_per_period
     H = np.full((steps_per_period, 1, 1, 1), kf)

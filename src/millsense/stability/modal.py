@@ -81,7 +81,9 @@ class Mode:
     def frf(self, freq_hz: ArrayLike) -> ComplexArray:
         """Receptance Φ(iω) [m/N] at frequencies ``freq_hz`` [Hz]."""
         s = 2j * np.pi * np.asarray(freq_hz, dtype=float)
-        return (self.alpha + self.beta * s) / (s * s + 2 * self.zeta * self.omega * s + self.omega**2)
+        return (self.alpha + self.beta * s) / (
+            s * s + 2 * self.zeta * self.omega * s + self.omega**2
+        )
 
 
 def frf_sum(modes: Sequence[Mode], freq_hz: ArrayLike) -> ComplexArray:
@@ -190,7 +192,9 @@ class OrientedMode:
     angle: float
 
 
-def oriented_frf(modes: Sequence[OrientedMode], freq_hz: ArrayLike, force_angle: float = 0.0) -> ComplexArray:
+def oriented_frf(
+    modes: Sequence[OrientedMode], freq_hz: ArrayLike, force_angle: float = 0.0
+) -> ComplexArray:
     """Oriented FRF of orthogonal cutting / turning [m/N].
 
     Parameters

@@ -22,7 +22,8 @@ On one step, with ``s`` the time since ``t_i``::
 
     x_{i+1} = Phi_i x_i + sum_j [ ((1+f_j) G0_ij - G1_ij / h) C x_{i-r_j}
                                   + (G1_ij / h - f_j G0_ij) C x_{i-r_j+1} ] + g_i,
-    Phi_i = exp(Ā_i h),  G0_ij = ∫_0^h e^{Ā_i (h-s)} ds Ē_ij,  G1_ij = ∫_0^h e^{Ā_i (h-s)} s ds Ē_ij,
+    Phi_i = exp(Ā_i h),
+    G0_ij = ∫_0^h e^{Ā_i (h-s)} ds Ē_ij,   G1_ij = ∫_0^h e^{Ā_i (h-s)} s ds Ē_ij,
     g_i = ∫_0^h e^{Ā_i (h-s)} ds c̄_i,
 
 all three from one matrix exponential of the block matrix
@@ -39,7 +40,6 @@ Insperger T., Stépán G., *Semi-discretization for time-delay systems*, Springe
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -130,7 +130,9 @@ def step_means_from_callables(
     ts = t0 + h * (np.arange(m)[:, None] + 0.5 * (nodes[None, :] + 1.0))  # (m, q)
     w = 0.5 * weights
 
-    def mean_of(f: Callable[[float], FloatArray] | FloatArray, shape: tuple[int, ...]) -> FloatArray:
+    def mean_of(
+        f: Callable[[float], FloatArray] | FloatArray, shape: tuple[int, ...]
+    ) -> FloatArray:
         if not callable(f):
             arr = np.asarray(f, dtype=float)
             return np.broadcast_to(arr, (m, *shape)).copy()
@@ -199,8 +201,8 @@ def expm_stack(M: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Matrix exponential of a stack (m, k, k) of small matrices.
 
     Scaling and squaring with a degree-14 Taylor polynomial after scaling each matrix's
-    infinity norm below 1/2 (truncation error below 0.5^15/15! < 3e-17 relative); compiled, as a lobe
-    diagram needs hundreds of thousands of these small exponentials.
+    infinity norm below 1/2 (truncation error below 0.5^15/15! < 3e-17 relative); compiled,
+    as a lobe diagram needs hundreds of thousands of these small exponentials.
     """
     out = np.empty_like(M)
     tmp = np.empty(M.shape[1:])
@@ -358,7 +360,7 @@ def monodromy(dm: DiscreteMap) -> FloatArray:
 
 def multipliers(M: FloatArray) -> NDArray[np.complex128]:
     """Eigenvalues of a monodromy matrix, largest modulus first."""
-    ev = np.linalg.eigvals(M)
+    ev = np.asarray(np.linalg.eigvals(M), dtype=np.complex128)
     return ev[np.argsort(-np.abs(ev))]
 
 

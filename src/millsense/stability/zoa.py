@@ -53,7 +53,10 @@ def directional_factors(phi_st: float, phi_ex: float, kr_ratio: float) -> FloatA
     def prim(p: float) -> FloatArray:
         c2, s2 = math.cos(2 * p), math.sin(2 * p)
         return 0.5 * np.array(
-            [[c2 - 2 * k * p + k * s2, -s2 - 2 * p + k * c2], [-s2 + 2 * p + k * c2, -c2 - 2 * k * p - k * s2]]
+            [
+                [c2 - 2 * k * p + k * s2, -s2 - 2 * p + k * c2],
+                [-s2 + 2 * p + k * c2, -c2 - 2 * k * p - k * s2],
+            ]
         )
 
     return prim(phi_ex) - prim(phi_st)
@@ -107,7 +110,9 @@ class LobeCurves:
                 if a[q] < best[j]:
                     best[j] = a[q]
                     best_f[j] = f0[hit[q]] + t[q] * (f1[hit[q]] - f0[hit[q]])
-        return LobeResult(speeds, best, best_f, ["hopf" if np.isfinite(b) else "none" for b in best])
+        return LobeResult(
+            speeds, best, best_f, ["hopf" if np.isfinite(b) else "none" for b in best]
+        )
 
 
 def lobe_curves(
@@ -140,7 +145,9 @@ def lobe_curves(
     )
 
 
-def default_frequency_grid(natural_frequencies_hz: Sequence[float], points: int = 6000) -> FloatArray:
+def default_frequency_grid(
+    natural_frequencies_hz: Sequence[float], points: int = 6000
+) -> FloatArray:
     """Chatter-frequency grid [Hz] from 0.5× the lowest to 2× the highest natural frequency."""
     fn = np.asarray(natural_frequencies_hz, dtype=float)
     return np.linspace(0.5 * fn.min(), 2.0 * fn.max(), points)
