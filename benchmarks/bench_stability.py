@@ -1,6 +1,7 @@
 """Stability lobe diagrams: wall time for 200 spindle speeds at 0.5 % accuracy.
 
-Steps per period: m = 20 with Richardson extrapolation from 20 and 40 steps (first-order SDM
+Steps per period: m = 20, raised to at least 10 steps per chatter cycle, with Richardson
+extrapolation from m and 2m steps (first-order SDM
 converges as O(m⁻²), benchmarks.md §1). The accuracy metric is the largest relative deviation,
 at 10 of the 200 speeds, from depths extrapolated from 100 and 200 steps (converged to
 < 0.01 %, see validation case stability.insperger.slot_15870).
@@ -29,7 +30,7 @@ def _run(case: MillingStabilityCase, target_s: float) -> list[Metric]:
     ref = compute_lobes(case, rpm=rpm[idx], steps_per_period=100, extrapolate=True)
     err = float(np.max(np.abs(res.critical_depth_m[idx] / ref.critical_depth_m - 1.0)))
     note = (
-        f"SDM 20/40 steps per tooth period + Richardson, root search per speed; "
+        f"SDM m=20 per tooth period (>=10 per chatter cycle) and 2m, Richardson; root search; "
         f"min depth {res.min_depth_m * 1e3:.4f} mm at {res.min_depth_rpm:.0f} rev/min"
     )
     return [

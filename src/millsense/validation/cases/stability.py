@@ -108,7 +108,7 @@ def _slot_min() -> Measured:
     reference=0.3174,
     unit="mm",
     rel_tol=0.015,
-    quick=False,
+    quick=True,
     description="1-DOF slotting critical depth at 15870 rev/min: convergence study in the "
     "steps per period and Richardson extrapolation",
 )
