@@ -1,0 +1,56 @@
+"""Stability lobe diagrams: wall time for 200 spindle speeds at 0.5 % accuracy.
+
+Steps per period: m = 20, raised to at least 10 steps per chatter cycle, with Richardson
+extrapolation from m and 2m steps (first-order SDM
+converges as O(m⁻²), benchmarks.md §1). The accuracy metric is the largest relative deviation,
+at 10 of the 200 speeds, from depths extrapolated from 100 and 200 steps (converged to
+< 0.01 %, see validation case stability.insperger.slot_15870).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _harness import Metric, benchmark
+from millsense.stability.cases import MillingStabilityCase, compute_lobes, load_case
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "stability"
+
+
+def _run(case: MillingStabilityCase, target_s: float) -> list[Metric]:
+    rpm = np.linspace(5000.0, 25000.0, 200)
+    compute_lobes(case, rpm=rpm[:2])  # compile the numba kernels outside the timing
+    t0 = time.perf_counter()
+    res = compute_lobes(case, rpm=rpm)
+    wall = time.perf_counter() - t0
+    idx = np.arange(5, 200, 20)
+    ref = compute_lobes(case, rpm=rpm[idx], steps_per_period=100, extrapolate=True)
+    err = float(np.max(np.abs(res.critical_depth_m[idx] / ref.critical_depth_m - 1.0)))
+    note = (
+        f"SDM m=20 per tooth period (>=10 per chatter cycle) and 2m, Richardson; root search; "
+        f"min depth {res.min_depth_m * 1e3:.4f} mm at {res.min_depth_rpm:.0f} rev/min"
+    )
+    return [
+        Metric("wall_time", wall, "s", target=target_s, higher_is_better=False, note=note),
+        Metric(
+            "max_depth_error",
+            err,
+            "-",
+            target=0.005,
+            higher_is_better=False,
+            note="vs 100/200-step extrapolated depths at 10 of the speeds",
+        ),
+    ]
+
+
+@benchmark("stability.lobes_1dof_200")
+def _lobes_1dof() -> list[Metric]:
+    return _run(load_case(EXAMPLES / "insperger_1dof_slot.toml"), 2.0)
+
+
+@benchmark("stability.lobes_2dof_3modes_200")
+def _lobes_2dof() -> list[Metric]:
+    return _run(load_case(EXAMPLES / "two_dof_3modes_half_down.toml"), 10.0)
