@@ -326,7 +326,9 @@ def _field_at(model: type[BaseModel], loc: tuple[int | str, ...]) -> tuple[Any, 
 
 def _constraint_text(model: type[BaseModel], loc: tuple[int | str, ...]) -> str:
     """The allowed range of the value at ``loc``, from its declared constraints."""
-    _, metadata = _field_at(model, loc)
+    ann, metadata = _field_at(model, loc)
+    if getattr(ann, "__origin__", None) is Literal:
+        return "one of " + ", ".join(repr(v) for v in ann.__args__)
     flat: list[Any] = []
     for meta in metadata:  # a FieldInfo inside Annotated carries its constraints in .metadata
         flat.extend(getattr(meta, "metadata", None) or [meta])
@@ -363,7 +365,8 @@ def format_validation_error(source: str, model: type[BaseModel], err: Validation
         allowed = ", ".join(parent.model_fields) if parent is not None else ""
         return f"{source}: unknown key '{key}'" + (f" (allowed: {allowed})" if allowed else "")
     if kind == "missing":
-        return f"{source}: missing required key '{key}'"
+        rng = _constraint_text(model, loc)
+        return f"{source}: missing required key '{key}'" + (f" (allowed: {rng})" if rng else "")
     if kind in {"greater_than", "greater_than_equal", "less_than", "less_than_equal"}:
         rng = _constraint_text(model, loc)
         return f"{source}: key '{key}' = {value!r} is out of range: must be {rng}"

@@ -17,44 +17,22 @@ the key and the allowed range.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import AliasChoices, BaseModel, ConfigDict, Field, ValidationError
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field
 
 from millsense.core import units
+from millsense.core.config import parse_config, read_toml
 from millsense.core.errors import ConfigError
 from millsense.stability.modal import ModalModel, Mode
 
-#: Allowed values per key, quoted in error messages.
-ALLOWED: dict[str, str] = {
-    "diameter_mm": "0 < value <= 500",
-    "flutes": "integer 1..16",
-    "pitch_deg": "one angle per flute, each in (0, 360), summing to 360",
-    "kt_n_mm2": "0 < value <= 20000",
-    "kr_n_mm2": "0 <= value <= 20000",
-    "mode": "'down' or 'up'",
-    "radial_immersion_mm": "0 < value <= tool.diameter_mm",
-    "natural_frequency_hz": "0 < value <= 100000",
-    "damping_ratio": "0 <= value < 1",
-    "stiffness_n_m": "0 < value",
-    "residue_alpha_m_n_s2": "0 < value",
-    "residue_beta_m_n_s": "any real",
-    "rpm_min": "0 < value < rpm_max",
-    "rpm_max": "rpm_min < value <= 200000",
-    "rpm_step": "0 < value",
-    "depth_max_mm": "0 < value <= 1000",
-    "steps_per_period": "integer 4..2000",
-    "steps_per_cycle": "0 <= value <= 200 (0 disables)",
-    "method": "'sdm' or 'zoa'",
-    "extrapolate": "true or false",
-    "name": "text",
-    "description": "text",
-}
+#: Allowed values of the cross-field checks, quoted in their error messages (single-field
+#: ranges come from the pydantic constraints through core.config's formatter).
+PITCH_ALLOWED = "one angle per flute, each in (0, 360), summing to 360"
 
 
 class _Model(BaseModel):
@@ -172,33 +150,6 @@ class MillingStabilityCase:
         return [md.natural_frequency_hz for md in self.structure.modes]
 
 
-def _key_text(loc: tuple[int | str, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + part
-    return out
-
-
-def _format_error(source: str, err: ValidationError) -> str:
-    e = err.errors()[0]
-    loc = tuple(p for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-")))
-    key = _key_text(loc)
-    leaf = next((p for p in reversed(loc) if isinstance(p, str)), "")
-    allowed = ALLOWED.get(leaf, "")
-    kind = e["type"]
-    if kind == "missing":
-        what = f"key '{key}' is missing"
-    elif kind == "extra_forbidden":
-        what = f"unknown key '{key}'"
-        allowed = ""
-    else:
-        what = f"key '{key}' = {e.get('input')!r} is invalid ({e['msg']})"
-    return f"{source}: {what}" + (f"; allowed: {allowed}" if allowed else "")
-
-
 def load_case(path: str | Path) -> MillingStabilityCase:
     """Read and validate a stability case file; everything converted to SI.
 
@@ -208,19 +159,7 @@ def load_case(path: str | Path) -> MillingStabilityCase:
         One line naming the file, the key and the allowed range.
     """
     p = Path(path)
-    try:
-        with open(p, "rb") as fh:
-            data: dict[str, Any] = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(f"{p}: no such file") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{p}: is a directory, expected a TOML file") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{p}: not valid TOML: {err}") from None
-    try:
-        spec = CaseSpec.model_validate(data)
-    except ValidationError as err:
-        raise ConfigError(_format_error(str(p), err)) from None
+    spec = parse_config(CaseSpec, read_toml(p), str(p))
     return case_from_spec(spec, str(p))
 
 
@@ -250,7 +189,7 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
         )
     pitch = spec.tool.pitch_deg
     if pitch is not None and (len(pitch) != spec.tool.flutes or abs(sum(pitch) - 360.0) > 1e-6):
-        raise _fail(source, "tool.pitch_deg", pitch, ALLOWED["pitch_deg"])
+        raise _fail(source, "tool.pitch_deg", pitch, PITCH_ALLOWED)
     lb = spec.lobes
     if lb.rpm_min >= lb.rpm_max:
         raise _fail(
