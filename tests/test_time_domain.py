@@ -185,3 +185,25 @@ def test_time_domain_validation_cases() -> None:
     for c in cases:
         r = run_case(c)
         assert r.passed, (c.id, r.measured, r.error)
+
+
+def test_converged_cut_at_flip_lobe_peak_is_stable() -> None:
+    # 8800 rev/min slotting, 0.9 × the SDM flip depth (2.635 mm, spectral radius 0.85 per tooth
+    # at m = 100): the run converges and its Poincaré steps sit at round-off (~3e-9 of the
+    # RMS); the verdict must call that converged, not growing (docs/decisions.md).
+    from millsense.validation.cases.stability_time_domain import _td_sim
+
+    sim = _td_sim(1.0, "down", 8800.0, 0.9 * 2.635e-3)
+    sim.run_revolutions(400)
+    assert sim.verdict(last_revolutions=200).stable
+
+
+def test_flip_chatter_of_two_flute_tool_is_detected() -> None:
+    # Period doubling of a 2-flute uniform tool repeats once per revolution; sampled once per
+    # tooth period it is seen (a/D = 0.05, 18 200 rev/min, SDM flip depth ≈ 1.087 mm).
+    from millsense.validation.cases.stability_time_domain import _td_sim
+
+    sim = _td_sim(0.05, "down", 18200.0, 1.3e-3)
+    assert sim.poincare_period_steps == sim.steps_per_rev // 2
+    sim.run_revolutions(400)
+    assert not sim.verdict(last_revolutions=200).stable
