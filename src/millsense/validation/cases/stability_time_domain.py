@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
@@ -86,7 +87,9 @@ _HALF_SPEEDS = (9000.0, 13000.0, 17000.0, 21727.0, 24500.0)
 _TD_REVOLUTIONS = 400
 
 
-def _td_sim(ratio: float, mode: str, rpm: float, depth_m: float) -> TimeDomainMillingSim:
+def _td_sim(
+    ratio: float, mode: Literal["down", "up"], rpm: float, depth_m: float
+) -> TimeDomainMillingSim:
     """Insperger 1-DOF structure, radial immersion a/D = ``ratio``, at ``rpm`` and depth."""
     d = 10e-3
     eng = Engagement.slot() if ratio >= 1.0 else Engagement.radial(ratio * d, d, mode=mode)
@@ -107,14 +110,16 @@ def _td_sim(ratio: float, mode: str, rpm: float, depth_m: float) -> TimeDomainMi
     )
 
 
-def _td_verdict(ratio: float, mode: str, rpm: float, depth_m: float) -> tuple[bool, float]:
+def _td_verdict(
+    ratio: float, mode: Literal["down", "up"], rpm: float, depth_m: float
+) -> tuple[bool, float]:
     sim = _td_sim(ratio, mode, rpm, depth_m)
     sim.run_revolutions(_TD_REVOLUTIONS)
     v = sim.verdict(last_revolutions=_TD_REVOLUTIONS // 2)
     return v.stable, v.multiplier_per_rev
 
 
-def _agreement(ratio: float, mode: str, speeds: tuple[float, ...]) -> Measured:
+def _agreement(ratio: float, mode: Literal["down", "up"], speeds: tuple[float, ...]) -> Measured:
     import numpy as np
 
     from millsense.validation.cases.stability import insperger_lobes
