@@ -56,7 +56,9 @@ def test_acceleration_never_exceeds_limit_with_feed_changes_and_overrides() -> N
 
 
 def test_chunked_equals_one_run() -> None:
-    pts = np.array([[0, 0, 0, 0, 0], [0.05, 0.02, 0, 0.1, 0.0], [0.05, 0.02, 0, 0.1, 0.5], [0.1, 0, 0, 0, 0.5]])
+    pts = np.array(
+        [[0, 0, 0, 0, 0], [0.05, 0.02, 0, 0.1, 0.0], [0.05, 0.02, 0, 0.1, 0.5], [0.1, 0, 0, 0, 0.5]]
+    )
     a1 = Interpolator(pts, [0.01, 0.2, 0.02], 0.3)
     a1.set_override(0.5, at_time_s=0.3)
     one = a1.advance(900)
@@ -116,7 +118,9 @@ def test_upsampler_linear_and_hermite() -> None:
     out = ip.advance(400)
     lin = Upsampler(30, np.zeros(3))
     herm = Upsampler(30, np.zeros(3), method="hermite")
-    fine_l = np.vstack([lin(out["position"][a:b], out["velocity"][a:b], T) for a, b in [(0, 7), (7, 400)]])
+    fine_l = np.vstack(
+        [lin(out["position"][a:b], out["velocity"][a:b], T) for a, b in [(0, 7), (7, 400)]]
+    )
     fine_h = herm(out["position"], out["velocity"], T)
     assert fine_l.shape == (400 * 30, 3)
     # every 30th fine sample is the coarse sample (both methods interpolate)

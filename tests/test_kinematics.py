@@ -38,7 +38,7 @@ def test_jacobian_matches_printed_rows_3() -> None:
     kin = TrunnionACKinematics(a2_m=0.2, d4_m=0.05)
     q = np.array([0.1, -0.05, 0.12, 0.4, 1.1])
     j = kin.jacobian(q)
-    x, y, z, a, _ = q
+    _, y, z, a, _ = q
     row3 = [0.0, np.sin(a), np.cos(a), y * np.cos(a) - z * np.sin(a) + 0.2 * np.sin(a), 0.0]
     np.testing.assert_allclose(j[2], row3, atol=1e-15)
 

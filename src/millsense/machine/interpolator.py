@@ -109,9 +109,8 @@ def _profile_kernel(
         if v_new < 0.0:
             v_new = 0.0
         s_new = s + (v + v_new) * period / 2.0
-        if s_new >= s_end - 1e-12 * max(1.0, s_end) or (
-            v_new == 0.0 and s_end - s_new < 1e-9 * max(1.0, s_end)
-        ):
+        scale = s_end if s_end > 1.0 else 1.0
+        if s_new >= s_end - 1e-12 * scale or (v_new == 0.0 and s_end - s_new < 1e-9 * scale):
             s_new = s_end
             v_new = 0.0
         while seg < n_seg - 1 and s_new >= cum[seg + 1]:
@@ -169,13 +168,16 @@ class Interpolator:
         self.accel = float(accel)
         self.period = float(period_s)
         self.channel = channel or OverrideChannel.open_cnc()
-        self._horizon = float(self.feed.max() * self.channel.max_override) ** 2 / (
-            2 * self.accel
-        ) + 4 * float(self.feed.max() * self.channel.max_override) * self.period
+        self._horizon = (
+            float(self.feed.max() * self.channel.max_override) ** 2 / (2 * self.accel)
+            + 4 * float(self.feed.max() * self.channel.max_override) * self.period
+        )
         self._state = np.zeros(3)
         self._k = 0
         # effective override schedule: (time it takes effect, realised value)
-        self._events: list[tuple[float, float]] = [(-math.inf, self.channel.quantise(initial_override))]
+        self._events: list[tuple[float, float]] = [
+            (-math.inf, self.channel.quantise(initial_override))
+        ]
 
     @property
     def length(self) -> float:

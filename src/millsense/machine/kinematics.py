@@ -28,7 +28,9 @@ def _as_batch(q: np.ndarray, n: int, what: str) -> tuple[np.ndarray, bool]:
     single = arr.ndim == 1
     arr2 = arr[None, :] if single else arr
     if arr2.ndim != 2 or arr2.shape[1] != n:
-        raise InputDataError(f"kinematics: {what} must have shape ({n},) or (N, {n}), got {arr.shape}")
+        raise InputDataError(
+            f"kinematics: {what} must have shape ({n},) or (N, {n}), got {arr.shape}"
+        )
     return arr2, single
 
 
@@ -230,7 +232,9 @@ class TrunnionACKinematics:
         """
         arr, single = _as_batch(q, 5, "q")
         f, _ = _as_batch(force_tool_n, 3, "force_tool_n")
-        loads = np.einsum("nij,nj->ni", self.load_matrix(arr), np.broadcast_to(f, (arr.shape[0], 3)))
+        loads = np.einsum(
+            "nij,nj->ni", self.load_matrix(arr), np.broadcast_to(f, (arr.shape[0], 3))
+        )
         return loads[0] if single else loads
 
     def tool_force(self, q: np.ndarray, loads: np.ndarray) -> np.ndarray:

@@ -133,7 +133,10 @@ class SpindleDriveParams:
             viscous=cfg.viscous_nm_s_rad,
             coulomb=cfg.coulomb_nm,
             back_emf=cfg.back_emf_v_s_rad if cfg.back_emf_v_s_rad is not None else base.back_emf,
-            ranges=(replace(r1, torque_constant=cfg.torque_constant_nm_a), replace(r2, torque_constant=kt2)),
+            ranges=(
+                replace(r1, torque_constant=cfg.torque_constant_nm_a),
+                replace(r2, torque_constant=kt2),
+            ),
             switch_rad_s=(cfg.range_switch_rpm * units.RPM if cfg.range_switch_rpm else math.inf),
         )
 
@@ -249,7 +252,9 @@ def disturbance_frf(p: SpindleDriveParams, freq_hz: np.ndarray, range_index: int
     return _frf(Acl, Bcl[:, 1:2], CD[0:1, :n], CD[0:1, n + 1 : n + 2], s)[:, 0, 0]
 
 
-def disturbance_frf_printed(p: SpindleDriveParams, freq_hz: np.ndarray, range_index: int = 0) -> np.ndarray:
+def disturbance_frf_printed(
+    p: SpindleDriveParams, freq_hz: np.ndarray, range_index: int = 0
+) -> np.ndarray:
     """G_dτ with the printed closed current loop G_m of Eq. 5.8 (transfer-function form).
 
     ``G_Ω·G_r/(1 + G_Ω·G_m·K_t·G_r + R)`` with ``G_r = 1/(J s + B)`` (decision 1); no back EMF.
@@ -280,7 +285,9 @@ def _first_crossing(f: np.ndarray, mag: np.ndarray, level: float) -> float:
 _F_GRID = np.logspace(-1, math.log10(5000.0), 4000)
 
 
-def current_loop_bandwidth_hz(p: SpindleDriveParams, range_index: int = 0, printed: bool = False) -> float:
+def current_loop_bandwidth_hz(
+    p: SpindleDriveParams, range_index: int = 0, printed: bool = False
+) -> float:
     """−3 dB bandwidth of I_act/I_nom (speed held), Hz; ``printed`` uses Eq. 5.8 as printed."""
     s = 2j * math.pi * _F_GRID
     if printed:
@@ -394,7 +401,9 @@ class SpindleDriveSim:
         self._x = np.zeros(sizes.pop())
         self._ctl = np.zeros(5)
 
-    def advance(self, speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray) -> dict[str, np.ndarray]:
+    def advance(
+        self, speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray
+    ) -> dict[str, np.ndarray]:
         """Simulate ``len(speed_ref_rad_s)`` samples.
 
         Returns
@@ -421,14 +430,18 @@ class SpindleDriveSim:
         }
 
 
-def discrete_disturbance_frf(sim: SpindleDriveSim, freq_hz: np.ndarray, range_index: int = 0) -> np.ndarray:
+def discrete_disturbance_frf(
+    sim: SpindleDriveSim, freq_hz: np.ndarray, range_index: int = 0
+) -> np.ndarray:
     """Exact FRF I_nom/τ_d of the sampled loop when the velocity PI runs every sample.
 
     Independent of the kernel: built from the ZOH matrices and the controller algebra,
     ``H(z) = C (zI − A_cl)⁻¹ B_cl + D`` at ``z = e^{jωh}``.
     """
     if round(sim._prm[3]) != 1:
-        raise InputDataError("spindle: discrete FRF needs velocity_period_s equal to the sample time")
+        raise InputDataError(
+            "spindle: discrete FRF needs velocity_period_s equal to the sample time"
+        )
     ad, bd, cr = sim._ad[range_index], sim._bd[range_index], sim._cr[range_index]
     n = ad.shape[0]
     kp, ki, tv = sim._prm[0], sim._prm[1], sim._prm[2]

@@ -50,7 +50,13 @@ GM_DEN_RANGE1 = (4.973e-10, 6.033e-6, 0.01166, 3.38, 50.5)
 GM_DEN_RANGE2 = (1.79e-10, 1.098e-6, 0.00995, 3.353, 50.5)
 
 #: Attenuation of G_dτ in range 1 stated by Aslan Ch. 5.4: (Hz, dB).
-ATTENUATION_RANGE1 = ((457.0, -32.0), (945.0, -39.0), (1380.0, -31.0), (1811.0, -35.0), (2320.0, -29.0))
+ATTENUATION_RANGE1 = (
+    (457.0, -32.0),
+    (945.0, -39.0),
+    (1380.0, -31.0),
+    (1811.0, -35.0),
+    (2320.0, -29.0),
+)
 
 
 def modal_sum_frf(modes: np.ndarray, s: np.ndarray) -> np.ndarray:
