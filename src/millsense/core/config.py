@@ -216,6 +216,14 @@ class SpindleConfig(_Model):
     torque_constant_nm_a: Annotated[float, Field(gt=0, le=100)]
     viscous_nm_s_rad: Annotated[float, Field(ge=0, le=100)] = 0.0
     source: str = ""
+    torque_constant_range2_nm_a: Annotated[float, Field(gt=0, le=100)] | None = None
+    """K_tS above the winding switch (Aslan Table 5.1 range 2); None: same as range 1."""
+    range_switch_rpm: Annotated[float, Field(gt=0, le=200000)] | None = None
+    """Wye-delta winding switch speed (Aslan Ch. 5: 3300 rev/min); None: one range only."""
+    coulomb_nm: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """Coulomb friction τ_coul,S (Aslan Eq. 5.2; not given in the thesis)."""
+    back_emf_v_s_rad: Annotated[float, Field(ge=0, le=100)] | None = None
+    """Back-EMF constant K_b (Aslan Fig. 5.1: 0.12 V/(rad/s))."""
 
 
 class MachineConfig(_Model):

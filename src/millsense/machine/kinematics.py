@@ -1,0 +1,258 @@
+"""Machine kinematics: 3-axis (identity) and the A/C trunnion table of Aslan Ch. 3.4.
+
+Both classes map axis positions ``q`` (m for x, y, z; rad for θ_A, θ_C) to the tool tip ``P``
+in the workpiece frame, give the position Jacobian ``J = ∂P/∂q`` and map a force at the tool
+(machine/tool frame) to drive loads with the principle of virtual work, ``τ = Jᵀ·T·F_tool``
+(Aslan Eq. 3.40–3.49), and back with the pseudo-inverse (Aslan Eq. 3.51). Every function
+accepts a single pose (shape ``(n,)``) or a batch (shape ``(N, n)``), vectorised.
+
+Loads are generalised forces on the axes: N for x, y, z and N·m about the A and C axes (on the
+table side, before the worm-gear ratio; the drive models apply their transmissions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from millsense.core.errors import InputDataError
+
+#: Trunnion offsets chosen for a UX600-sized table (docs/decisions.md, "Trunnion offsets").
+DEFAULT_A2_M = 0.150
+DEFAULT_D4_M = 0.080
+
+
+def _as_batch(q: np.ndarray, n: int, what: str) -> tuple[np.ndarray, bool]:
+    arr = np.asarray(q, dtype=np.float64)
+    single = arr.ndim == 1
+    arr2 = arr[None, :] if single else arr
+    if arr2.ndim != 2 or arr2.shape[1] != n:
+        raise InputDataError(
+            f"kinematics: {what} must have shape ({n},) or (N, {n}), got {arr.shape}"
+        )
+    return arr2, single
+
+
+@dataclass(frozen=True)
+class ThreeAxisKinematics:
+    """Cartesian 3-axis machine: the tool tip is the axis position (``P = q``, ``J = I``)."""
+
+    n_axes: int = 3
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Tool tip (m) from axis positions (m); identity."""
+        _as_batch(q, 3, "q")
+        return np.array(q, dtype=np.float64, copy=True)
+
+    def inverse(self, p: np.ndarray) -> np.ndarray:
+        """Axis positions (m) from the tool tip (m); identity."""
+        _as_batch(p, 3, "p")
+        return np.array(p, dtype=np.float64, copy=True)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """∂P/∂q, shape (3, 3) or (N, 3, 3): the identity."""
+        arr, single = _as_batch(q, 3, "q")
+        j = np.broadcast_to(np.eye(3), (arr.shape[0], 3, 3)).copy()
+        return j[0] if single else j
+
+    def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
+        """Axis loads (N) of a force at the tool (N): equal to the force."""
+        _as_batch(q, 3, "q")
+        return np.array(force_tool_n, dtype=np.float64, copy=True)
+
+    def tool_force(self, q: np.ndarray, loads: np.ndarray) -> np.ndarray:
+        """Force at the tool (N) from axis loads (N): equal to the loads."""
+        _as_batch(q, 3, "q")
+        return np.array(loads, dtype=np.float64, copy=True)
+
+
+@dataclass(frozen=True)
+class TrunnionACKinematics:
+    """Five-axis machine with an A-tilt / C-rotary trunnion table (Quaser UX600, Aslan 3.4).
+
+    Axis vector ``q = [x, y, z, θ_A, θ_C]`` (m, m, m, rad, rad), Aslan Eq. 3.34.
+
+    Attributes
+    ----------
+    a2_m : distance of the A-axis line from the machine origin along machine z, m.
+    d4_m : distance of the workpiece origin from the A axis along the C axis, m.
+
+    Notes
+    -----
+    Forward kinematics, Aslan Eq. 3.38 as printed: ``P = R·(p − a2·e_z) − d4·e_z`` with
+    ``p = [x, y, z]`` and the rotation ``R`` (rows)::
+
+        [−cC, −cA·sC,  sA·sC]
+        [ sC, −cA·cC,  sA·cC]
+        [  0,     sA,     cA]
+
+    ``R`` is a proper rotation (orthonormal, det +1). The printed inverse (Eq. 3.37) is not the
+    inverse of Eq. 3.38: its (1,1) entry has the wrong sign and its z offset reads
+    ``d4·cA − a2`` instead of ``d4·cA + a2``. Decision (docs/decisions.md, "Trunnion
+    kinematics"): Eq. 3.38 is kept and the inverse is its exact inverse
+    ``p = Rᵀ·(P + d4·e_z) + a2·e_z``; the Jacobian rows printed in Eq. 3.39/3.47 are the
+    derivatives of Eq. 3.38, which confirms that choice.
+
+    Tool orientation in the workpiece frame, Aslan Eq. 3.36: ``O = [cA·sC, cA·cC, −sA]``
+    (= −R·e_y, the spindle axis of Aslan's machine frame), so the inverse is
+    ``θ_A = −asin(O_k)`` (the text's "−sin(O_k)" is a typo, see the digest) and
+    ``θ_C = atan2(O_i, O_j)`` (Eq. 3.35). The tool frame has the machine frame's axes, so the
+    tool-to-workpiece rotation of Eq. 3.45/3.48 is ``T = R``.
+    """
+
+    a2_m: float = DEFAULT_A2_M
+    d4_m: float = DEFAULT_D4_M
+    n_axes: int = 5
+
+    @staticmethod
+    def rotation(theta_a: np.ndarray, theta_c: np.ndarray) -> np.ndarray:
+        """R(θ_A, θ_C) of Aslan Eq. 3.38, shape (..., 3, 3)."""
+        ca, sa = np.cos(theta_a), np.sin(theta_a)
+        cc, sc = np.cos(theta_c), np.sin(theta_c)
+        zero = np.zeros_like(ca)
+        return np.stack(
+            [
+                np.stack([-cc, -ca * sc, sa * sc], axis=-1),
+                np.stack([sc, -ca * cc, sa * cc], axis=-1),
+                np.stack([zero, sa, ca], axis=-1),
+            ],
+            axis=-2,
+        )
+
+    @staticmethod
+    def _rotation_derivatives(
+        theta_a: np.ndarray, theta_c: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        ca, sa = np.cos(theta_a), np.sin(theta_a)
+        cc, sc = np.cos(theta_c), np.sin(theta_c)
+        zero = np.zeros_like(ca)
+        d_a = np.stack(
+            [
+                np.stack([zero, sa * sc, ca * sc], axis=-1),
+                np.stack([zero, sa * cc, ca * cc], axis=-1),
+                np.stack([zero, ca, -sa], axis=-1),
+            ],
+            axis=-2,
+        )
+        d_c = np.stack(
+            [
+                np.stack([sc, -ca * cc, sa * cc], axis=-1),
+                np.stack([cc, ca * sc, -sa * sc], axis=-1),
+                np.stack([zero, zero, zero], axis=-1),
+            ],
+            axis=-2,
+        )
+        return d_a, d_c
+
+    @staticmethod
+    def orientation(theta_a: np.ndarray, theta_c: np.ndarray) -> np.ndarray:
+        """Tool axis O in the workpiece frame (Aslan Eq. 3.36), shape (..., 3)."""
+        ca, sa = np.cos(theta_a), np.sin(theta_a)
+        return np.stack([ca * np.sin(theta_c), ca * np.cos(theta_c), -sa], axis=-1)
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Tool tip P (m, workpiece frame) from axes q = [x, y, z, θ_A, θ_C] (Eq. 3.38)."""
+        arr, single = _as_batch(q, 5, "q")
+        r = self.rotation(arr[:, 3], arr[:, 4])
+        rel = arr[:, :3].copy()
+        rel[:, 2] -= self.a2_m
+        p = np.einsum("nij,nj->ni", r, rel)
+        p[:, 2] -= self.d4_m
+        return p[0] if single else p
+
+    def forward_pose(self, q: np.ndarray) -> np.ndarray:
+        """Tool tip and axis [P_x, P_y, P_z, O_i, O_j, O_k] (m, unit vector) from q."""
+        arr, single = _as_batch(q, 5, "q")
+        pose = np.concatenate([self.forward(arr), self.orientation(arr[:, 3], arr[:, 4])], axis=1)
+        return pose[0] if single else pose
+
+    def inverse(self, pose: np.ndarray) -> np.ndarray:
+        """Axes q from the tool tip and axis ``[P (m), O (unit)]`` in the workpiece frame.
+
+        Notes
+        -----
+        ``θ_A = −asin(O_k)``, ``θ_C = atan2(O_i, O_j)`` (Aslan Eq. 3.35 with the digest's typo
+        fix); positions by the exact inverse of Eq. 3.38 (see the class Notes). O is
+        normalised first. θ_A lies in [−π/2, π/2]; at O_k = ±1 (θ_A = ∓π/2) θ_C is undefined
+        and atan2(0, 0) = 0 is returned.
+        """
+        arr, single = _as_batch(pose, 6, "pose")
+        o = arr[:, 3:6] / np.linalg.norm(arr[:, 3:6], axis=1, keepdims=True)
+        theta_a = -np.arcsin(np.clip(o[:, 2], -1.0, 1.0))
+        theta_c = np.arctan2(o[:, 0], o[:, 1])
+        r = self.rotation(theta_a, theta_c)
+        shifted = arr[:, :3].copy()
+        shifted[:, 2] += self.d4_m
+        p = np.einsum("nji,nj->ni", r, shifted)
+        p[:, 2] += self.a2_m
+        q = np.concatenate([p, theta_a[:, None], theta_c[:, None]], axis=1)
+        return q[0] if single else q
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Position Jacobian ∂P/∂q, shape (3, 5) or (N, 3, 5) (Aslan Eq. 3.39/3.47).
+
+        Notes
+        -----
+        Columns 1–3 are R; column 4 is ``(∂R/∂θ_A)·(p − a2·e_z)``, column 5
+        ``(∂R/∂θ_C)·(p − a2·e_z)``. The orientation rows of the 6×5 Jacobian are omitted, as
+        in the thesis (torques at the tool tip are neglected).
+        """
+        arr, single = _as_batch(q, 5, "q")
+        r = self.rotation(arr[:, 3], arr[:, 4])
+        d_a, d_c = self._rotation_derivatives(arr[:, 3], arr[:, 4])
+        rel = arr[:, :3].copy()
+        rel[:, 2] -= self.a2_m
+        j = np.empty((arr.shape[0], 3, 5))
+        j[:, :, :3] = r
+        j[:, :, 3] = np.einsum("nij,nj->ni", d_a, rel)
+        j[:, :, 4] = np.einsum("nij,nj->ni", d_c, rel)
+        return j[0] if single else j
+
+    def load_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (Aslan Eq. 3.49)."""
+        arr, single = _as_batch(q, 5, "q")
+        j = self.jacobian(arr)
+        r = self.rotation(arr[:, 3], arr[:, 4])
+        m = np.einsum("nji,njk->nik", j, r)
+        return m[0] if single else m
+
+    def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
+        """Axis loads ``τ = Jᵀ·T·F_tool``: [F_x, F_y, F_z (N), τ_A, τ_C (N·m)].
+
+        Parameters
+        ----------
+        q : axis positions, (5,) or (N, 5), m and rad.
+        force_tool_n : force at the tool tip in the tool (machine) frame, (3,) or (N, 3), N.
+
+        Notes
+        -----
+        Aslan Eq. 3.40–3.49 (virtual work). The expanded τ_C of Eq. 3.50 drops an ``x``;
+        this follows the matrix of Eq. 3.49 (tested against its closed form).
+        """
+        arr, single = _as_batch(q, 5, "q")
+        f, _ = _as_batch(force_tool_n, 3, "force_tool_n")
+        loads = np.einsum(
+            "nij,nj->ni", self.load_matrix(arr), np.broadcast_to(f, (arr.shape[0], 3))
+        )
+        return loads[0] if single else loads
+
+    def tool_force(self, q: np.ndarray, loads: np.ndarray) -> np.ndarray:
+        """Force at the tool (N, tool frame) from axis loads: ``[Jᵀ·T]⁺·τ`` (Aslan Eq. 3.51)."""
+        arr, single = _as_batch(q, 5, "q")
+        tau, _ = _as_batch(loads, 5, "loads")
+        pinv = np.linalg.pinv(self.load_matrix(arr))
+        f = np.einsum("nij,nj->ni", pinv, np.broadcast_to(tau, (arr.shape[0], 5)))
+        return f[0] if single else f
+
+
+Kinematics = ThreeAxisKinematics | TrunnionACKinematics
+
+
+def kinematics_for(kind: str, a2_m: float = DEFAULT_A2_M, d4_m: float = DEFAULT_D4_M) -> Kinematics:
+    """The kinematics named by ``MachineConfig.kinematics`` ("3-axis", "5-axis-trunnion-ac")."""
+    if kind == "3-axis":
+        return ThreeAxisKinematics()
+    if kind == "5-axis-trunnion-ac":
+        return TrunnionACKinematics(a2_m=a2_m, d4_m=d4_m)
+    raise InputDataError(f"kinematics: unknown kind '{kind}' (3-axis, 5-axis-trunnion-ac)")
