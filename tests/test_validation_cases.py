@@ -48,3 +48,18 @@ def test_tolerance_relative_or_absolute() -> None:
     assert not c.passes(101.1)  # outside 1 % and outside 0.5 N
     c0 = ValidationCase("demo.z", "test", 0.0, "N", 0.01, 0.5, True, "d", lambda: 0.0)
     assert c0.passes(0.4) and not c0.passes(0.6)  # a zero reference needs the absolute part
+
+
+def test_documented_gap_is_its_own_status() -> None:
+    gap = ValidationCase("demo.g", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 280.0, "why")
+    r = run_case(gap)
+    assert not r.passed and r.status == "gap"
+    assert "gap (documented)" in render_markdown([r], "# V") and "why" in render_markdown([r], "")
+    ok = ValidationCase("demo.h", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 359.0, "why")
+    assert run_case(ok).status == "pass"
+
+    def boom() -> float:
+        raise RuntimeError("broken")
+
+    broken = ValidationCase("demo.i", "t", 1.0, "Hz", 0.1, None, False, "d", boom, "why")
+    assert run_case(broken).status == "fail"  # an error is never excused as a gap
