@@ -380,7 +380,7 @@ class _Machine:
         self, motion: int, vals: dict[str, float], nc: int, raw: str, lineno: int, feed: float
     ) -> None:
         src = self.source
-        (iu, iv, iw), (lu, lv), lw = _PLANE_INFO[self.plane]
+        (iu, iv, _iw), (lu, lv), lw = _PLANE_INFO[self.plane]
         in_plane = _AXES[iu] in vals or _AXES[iv] in vals
         tgt = self.target(vals)
         if lw in vals:

@@ -266,7 +266,7 @@ def sample_path(
     if positive.size == 0:
         return _empty(step)
 
-    n_full = int(math.floor(total / step + 1e-9))
+    n_full = math.floor(total / step + 1e-9)
     s = np.arange(n_full + 1, dtype=np.float64) * step
     s = s[s <= total]
     if total - s[-1] > 1e-9 * step:
