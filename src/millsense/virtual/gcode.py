@@ -47,7 +47,8 @@ _TWO_PI = 2.0 * math.pi
 
 # Modal groups of G codes (key: code x 10, so G90.1 -> 901). Group 0 = non-modal.
 _G_GROUP: dict[int, int] = {
-    0: 1, 10: 1, 20: 1, 30: 1, 800: 1,
+    0: 1, 10: 1, 20: 1, 30: 1,
+    800: 9,
     170: 2, 180: 2, 190: 2,
     900: 3, 910: 3,
     901: 4, 911: 4,
@@ -89,6 +90,7 @@ _GROUP_NAMES = {
     6: "units",
     7: "cutter compensation",
     8: "tool length",
+    9: "canned cycle",
     10: "return mode",
     12: "work offset",
     13: "path control",
@@ -300,10 +302,10 @@ class _Machine:
         if 4 in seen:
             self.arc_incremental = seen[4] == 911
         if motion is not None:
-            if motion == 800:
-                self.motion = None
-            else:
-                self.motion = motion
+            self.motion = motion
+        if 13 in seen:  # path control: blending tolerances P/Q do not change the path
+            vals.pop("P", None)
+            vals.pop("Q", None)
 
         has_axes = any(k in vals for k in ("X", "Y", "Z", "A", "C"))
         if 280 in nonmodal:
@@ -472,16 +474,15 @@ class _Machine:
                 self.source, lineno, raw,
                 "G28 needs the machine reference position (pass home_mm to the interpreter)",
             )  # fmt: skip
-        named = [i for i, ax in enumerate(_AXES) if ax in vals]
-        if "A" in vals or "C" in vals:
-            raise program_error(self.source, lineno, raw, "G28 with rotary axes not supported")
+        named = [i for i, ax in enumerate(("X", "Y", "Z", "A", "C")) if ax in vals]
         mid = self.target(vals)
         if mid != self.pos:
             self.emit(RAPID, mid, math.nan, nc, lineno, 0.0)
             self.pos = mid
         home = self.pos.copy()
-        for i in named if named else range(3):
-            home[i] = self.home[i]
+        ref = (*self.home, 0.0, 0.0)  # rotary axes home at 0 deg
+        for i in named if named else range(5):
+            home[i] = ref[i]
         self.emit(RAPID, home, math.nan, nc, lineno, 0.0)
         self.pos = home
 

@@ -21,7 +21,7 @@ _WORDS = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))|(.)")
 _BLANKS = str.maketrans("", "", " \t\r\n")
 
 #: Letters that can carry a number in the supported subset.
-KNOWN_LETTERS = frozenset("ACFGHIJKMNPRSTXYZ")
+KNOWN_LETTERS = frozenset("ACFGHIJKMNPQRSTXYZ")
 
 
 def program_error(source: str, lineno: int, text: str, reason: str) -> ProgramError:
