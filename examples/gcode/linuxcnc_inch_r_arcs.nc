@@ -19,7 +19,7 @@ g2 x-0.2500 y0.2500 r-0.2500
 ; full circle in centre format around (0.5, 0.25)
 g1 x0.7500 y0.2500
 g3 x0.7500 y0.2500 i-0.2500 j0.0000
-/ g1 x0.7500 y0.2500 z-0.1000 ; optional deeper pass
+/ g1 x0.7500 y0.2500 z-0.0800 ; optional deeper pass
 g4 p0.5 ; dwell 0.5 s
 ; helical bore, two turns in one block with P
 g0 z0.0500

@@ -21,7 +21,7 @@ _WORDS = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))|(.)")
 _BLANKS = str.maketrans("", "", " \t\r\n")
 
 #: Letters that can carry a number in the supported subset.
-KNOWN_LETTERS = frozenset("ACFGHIJKMNPQRSTXYZ")
+KNOWN_LETTERS = frozenset("ACDFGHIJKMNPQRSTXYZ")
 
 
 def program_error(source: str, lineno: int, text: str, reason: str) -> ProgramError:
@@ -67,14 +67,14 @@ def words(block: str, raw: str, source: str, lineno: int) -> list[tuple[str, str
         On any character that is not part of a word (garbage, ``#`` parameters, ``[``
         expressions, a letter without a number, a number without a letter).
     """
+    if "#" in block:
+        raise program_error(source, lineno, raw, "parameters (#) are not supported")
+    if "[" in block:
+        raise program_error(source, lineno, raw, "expressions ([...]) are not supported")
     out: list[tuple[str, str]] = []
     for letter, number, bad in _WORDS.findall(block):
         if bad:
-            if bad == "#":
-                reason = "parameters (#) are not supported"
-            elif bad in "[]":
-                reason = "expressions ([...]) are not supported"
-            elif bad.isalpha():
+            if bad.isalpha():
                 reason = f"letter {bad} without a number"
             else:
                 reason = f"unexpected character {bad!r}"
