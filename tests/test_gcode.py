@@ -106,7 +106,9 @@ def test_heidenhain_iso_rotary_axes() -> None:
 
 
 def test_mastercam_planes_and_offsets() -> None:
-    tp = interpret_file(CORPUS / "mastercam_planes_g55.nc", work_offsets_mm=OFFSETS, home_mm=(0, 0, 0))
+    tp = interpret_file(
+        CORPUS / "mastercam_planes_g55.nc", work_offsets_mm=OFFSETS, home_mm=(0, 0, 0)
+    )
     off = np.array(OFFSETS["G55"]) * MM
     nc = list(tp.nc_line)
     # N122 G18 G90.1: centre absolute (X15, Z0) in G55; semicircle of r = 10 dipping to Z-10.
@@ -129,7 +131,11 @@ def test_incremental_pattern_sums() -> None:
     tp = interpret_file(CORPUS / "incremental_pattern.nc", work_offsets_mm=OFFSETS)
     off = np.array(OFFSETS["G56"]) * MM
     # Three slots at pitch 20 mm, each 10 + 10 mm of line and two half circles of r = 3 mm.
-    cut = (tp.kind != RAPID) & (tp.end[:, 2] < off[2] - 0.5 * MM) & (tp.start[:, 2] < off[2] - 0.5 * MM)
+    cut = (
+        (tp.kind != RAPID)
+        & (tp.end[:, 2] < off[2] - 0.5 * MM)
+        & (tp.start[:, 2] < off[2] - 0.5 * MM)
+    )
     assert tp.lengths()[cut].sum() == pytest.approx(3 * (20 + 2 * math.pi * 3) * MM, rel=1e-12)
     # The last slot ends back at its start: X = 2 x 20 mm in G56.
     last = np.flatnonzero(tp.kind == ARC)[-1]
