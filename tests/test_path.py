@@ -111,7 +111,7 @@ def test_time_along_path_is_length_over_feed() -> None:
     t_end = 40 / 10_000 * 60 + 40 / 400 * 60 + 1.5 + 20 * math.pi / 800 * 60
     assert sp.t[-1] == pytest.approx(t_end, rel=1e-12)
     # At s = 50 mm (10 mm into the feed line): 0.24 s + 10 mm / (400 mm/min).
-    k = int(round(50 / 0.4))
+    k = round(50 / 0.4)
     assert sp.s[k] == pytest.approx(50 * MM)
     assert sp.t[k] == pytest.approx(0.24 + 1.5, rel=1e-12)
     # Flags and per-step fields.
