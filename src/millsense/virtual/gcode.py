@@ -34,7 +34,13 @@ import numpy as np
 
 from millsense.core.errors import ProgramError
 from millsense.core.units import DEG, MM, MM_PER_MIN, RPM
-from millsense.virtual.gcode_lexer import KNOWN_LETTERS, program_error, strip_block, words
+from millsense.virtual.gcode_lexer import (
+    KNOWN_LETTERS,
+    garbage_error,
+    program_error,
+    strip_block,
+    tokens,
+)
 from millsense.virtual.path import ARC, DWELL, LINE, PLANE_XY, PLANE_YZ, PLANE_ZX, RAPID, Toolpath
 
 INCH_MM = 25.4
@@ -102,6 +108,8 @@ _GROUP_NAMES = {
 # M codes: group (4 stop, 6 tool change, 7 spindle, 8 coolant).
 _M_GROUP = {0: 4, 1: 4, 2: 4, 30: 4, 6: 6, 3: 7, 4: 7, 5: 7, 7: 8, 8: 8, 9: 8}
 _AXES = ("X", "Y", "Z")
+_XYZ = frozenset(_AXES)
+_AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2}
 # Plane -> (u, v, w) axis indices and the centre-offset letters of u and v, and of w (refused).
 _PLANE_INFO = {
     PLANE_XY: ((0, 1, 2), ("I", "J"), "K"),
@@ -184,7 +192,9 @@ class _Machine:
         mcodes: list[int] = []
         vals: dict[str, float] = {}
         nc = -1
-        for letter, number in words(s, raw, src, lineno):
+        for letter, number, bad in tokens(s):
+            if bad:
+                raise garbage_error(s, bad, raw, src, lineno)
             if letter == "G":
                 gcodes.append(_gkey(number))
             elif letter == "M":
@@ -202,11 +212,32 @@ class _Machine:
                 raise program_error(src, lineno, raw, f"word {letter} is not supported")
             else:
                 vals[letter] = float(number)
-        if not gcodes and not mcodes and len(vals) <= 3 and self.motion is not None:
-            # Fast path for the commonest CAM block: axis words continuing the motion mode.
-            if all(k in "XYZ" for k in vals) and vals:
-                self.move_block(self.motion, vals, nc, raw, lineno, explicit=False)
+        motion = self.motion
+        if not gcodes and not mcodes and motion is not None and vals and vals.keys() <= _XYZ:
+            # Fast path for the commonest CAM block: x, y, z words continuing G0 or G1.
+            if motion == 10 or motion == 0:
+                pos = self.pos
+                tgt = pos.copy()
+                k = self.scale
+                if self.incremental:
+                    for ax, v in vals.items():
+                        i = _AXIS_INDEX[ax]
+                        tgt[i] = pos[i] + v * k
+                else:
+                    off = self.offset
+                    for ax, v in vals.items():
+                        i = _AXIS_INDEX[ax]
+                        tgt[i] = v * k + off[i]
+                if motion == 0:
+                    self.emit(RAPID, tgt, math.nan, nc, lineno, 0.0)
+                else:
+                    if not self.feed:
+                        self.move_block(motion, vals, nc, raw, lineno, explicit=False)
+                    self.emit(LINE, tgt, self.feed, nc, lineno, 0.0)  # type: ignore[arg-type]
+                self.pos = tgt
                 return
+            self.move_block(motion, vals, nc, raw, lineno, explicit=False)
+            return
         self.full_block(gcodes, mcodes, vals, nc, raw, lineno)
 
     def full_block(

@@ -18,7 +18,6 @@ from millsense.core.errors import ProgramError
 _COMMENTS = re.compile(r"\([^()]*\)|;.*")
 #: A word, or (group 3) any other character, which is garbage.
 _WORDS = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))|(.)")
-_BLANKS = str.maketrans("", "", " \t\r\n")
 
 #: Letters that can carry a number in the supported subset.
 KNOWN_LETTERS = frozenset("ACDFGHIJKMNPQRSTXYZ")
@@ -52,10 +51,36 @@ def strip_block(raw: str, source: str, lineno: int) -> str:
         s = _COMMENTS.sub("", s)
         if "(" in s or ")" in s:
             raise program_error(source, lineno, raw, "unbalanced or nested comment parentheses")
-    s = s.translate(_BLANKS).upper()
+    if " " in s:
+        s = s.replace(" ", "")
+    if "\t" in s:
+        s = s.replace("\t", "")
+    s = s.upper()
     if s.endswith("*"):
         s = s[:-1]
     return s
+
+
+def tokens(block: str) -> list[tuple[str, str, str]]:
+    """Raw ``(letter, number, garbage)`` triples of a stripped block (one regex pass).
+
+    A non-empty third element is a character that belongs to no word; pass it to
+    :func:`garbage_error`.
+    """
+    return _WORDS.findall(block)
+
+
+def garbage_error(block: str, bad: str, raw: str, source: str, lineno: int) -> ProgramError:
+    """The error for a character that is not part of a word."""
+    if "#" in block:
+        reason = "parameters (#) are not supported"
+    elif "[" in block:
+        reason = "expressions ([...]) are not supported"
+    elif bad.isalpha():
+        reason = f"letter {bad} without a number"
+    else:
+        reason = f"unexpected character {bad!r}"
+    return program_error(source, lineno, raw, reason)
 
 
 def words(block: str, raw: str, source: str, lineno: int) -> list[tuple[str, str]]:
@@ -67,17 +92,9 @@ def words(block: str, raw: str, source: str, lineno: int) -> list[tuple[str, str
         On any character that is not part of a word (garbage, ``#`` parameters, ``[``
         expressions, a letter without a number, a number without a letter).
     """
-    if "#" in block:
-        raise program_error(source, lineno, raw, "parameters (#) are not supported")
-    if "[" in block:
-        raise program_error(source, lineno, raw, "expressions ([...]) are not supported")
     out: list[tuple[str, str]] = []
     for letter, number, bad in _WORDS.findall(block):
         if bad:
-            if bad.isalpha():
-                reason = f"letter {bad} without a number"
-            else:
-                reason = f"unexpected character {bad!r}"
-            raise program_error(source, lineno, raw, reason)
+            raise garbage_error(block, bad, raw, source, lineno)
         out.append((letter, number))
     return out
