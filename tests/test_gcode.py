@@ -302,3 +302,27 @@ def test_percent_needs_closing_line_and_file_errors(tmp_path: Path) -> None:
         interpret("G21\nM30\n", source="e.nc")
     with pytest.raises(ProgramError, match="cannot read program"):
         interpret_file(tmp_path / "missing.nc")
+
+
+def test_g53_g28_and_g80_line() -> None:
+    # G55 at (100, 50, -20); G53 Z0 is machine Z0 for one block; G28 G91 Z0 goes straight to
+    # home Z (intermediate point = current); G28 X5 (G90) goes via X5 in G55 to home X.
+    tp = _run(
+        "G0 G17 G40 G49 G80 G90\nG55 G0 X1 Y2 Z3\nG53 G0 Z0\nG0 Z3\nG28 G91 Z0\nG90 G28 X5",
+        work_offsets_mm={"G55": (100, 50, -20)},
+        home_mm=(-400.0, -300.0, 10.0),
+    )
+    assert tp.end[1, 2] == pytest.approx(0.0)  # G53 Z0: machine zero
+    assert tp.end[2, 2] == pytest.approx(-17 * MM)  # back in G55
+    assert tp.end[3, :3] == pytest.approx(np.array([101.0, 52.0, 10.0]) * MM)  # home Z only
+    assert tp.end[4, 0] == pytest.approx(105 * MM)  # intermediate X5 in G55
+    assert tp.end[5, :3] == pytest.approx(np.array([-400.0, 52.0, 10.0]) * MM)
+    assert (tp.kind == RAPID).all()
+
+
+def test_fast_path_matches_explicit_blocks() -> None:
+    # Modal continuation lines (fast path) give the same moves as fully written blocks.
+    a = _run("G1 X1 Y1 F100\nX2\nY3 Z-1\nG0 X0\nY0")
+    b = _run("G1 X1 Y1 F100\nG1 X2 Y1\nG1 X2 Y3 Z-1\nG0 X0 Y3 Z-1\nG0 X0 Y0 Z-1")
+    assert np.array_equal(a.end, b.end) and np.array_equal(a.kind, b.kind)
+    assert np.array_equal(a.feed, b.feed, equal_nan=True)
