@@ -1,0 +1,32 @@
+%
+N10 G90 G17 G21 G40 G94 *
+N20 ; Heidenhain ISO style (signed numbers, * block end), QUASER UX600, A/C trunnion
+N30 T5 M06 *
+N40 S6000 M03 *
+N50 G00 Z+100 *
+N60 G00 X+0 Y+0 A+0 C+0 *
+N70 ; 3+2 indexing: tilt A, turn C, then cut on the inclined face
+N80 G00 A+30.000 C+90.000 *
+N90 G00 X-5.000 Y+10.000 *
+N100 G00 Z+5.000 *
+N110 G01 Z-1.000 F300 *
+N120 G01 X+40.000 F800 *
+N130 G03 X+50.000 Y+20.000 I+0.000 J+10.000 *
+N140 G01 Y+30.000 *
+N150 G03 X+40.000 Y+40.000 I-10.000 J+0.000 *
+N160 G01 X-5.000 *
+N170 G00 Z+100.000 *
+N180 ; simultaneous 5-axis swarf-like pass: A and C move with X, Y, Z
+N190 G00 A+0 C+0 *
+N200 G00 X+0 Y+0 Z+5 *
+N210 G01 Z+0 F500 *
+N220 G01 X+10.000 Y+0.000 Z+0.000 A+5.000 C+10.000 F600 *
+N230 G01 X+20.000 Y+2.000 Z-0.500 A+10.000 C+20.000 *
+N240 G01 X+30.000 Y+6.000 Z-1.000 A+15.000 C+30.000 *
+N250 ; rotary-only feed move: F in deg/min
+N260 G01 C+90.000 F3600 *
+N270 G00 Z+100 *
+N280 G00 A+0 C+0 *
+N290 M05 *
+N300 M30 *
+%
