@@ -227,7 +227,9 @@ class BallScrewConfig(_Model):
         if self.model == "triple" and (
             self.nut_mass_kg is None or self.screw_stiffness_n_um is None
         ):
-            raise ValueError("a triple-inertia ball screw needs nut_mass_kg and screw_stiffness_n_um")
+            raise ValueError(
+                "a triple-inertia ball screw needs nut_mass_kg and screw_stiffness_n_um"
+            )
         return self
 
 

@@ -359,7 +359,17 @@ def feed_drive_kernel(
     qenc = p[_P_QENC]
     qlin = p[_P_QLIN]
     xnew = np.empty(n)
-    u = np.empty(3)
+    u = np.zeros(3)
+    c_th = cy[OUT_THETA].copy()
+    c_om = cy[OUT_OMEGA].copy()
+    c_x = cy[OUT_X].copy()
+    d_x = dy[OUT_X, 2]
+    n_terms = terms.shape[0]
+    has_screw = False
+    for j in range(n_terms):
+        if int(terms[j, 0]) == KIND_SCREW:
+            has_screw = True
+    ds = ip[_IP_DS]
     for k in range(pos_ref.shape[0]):
         idx = ring_idx[0]
         # ---- sensors at the sample instant, after their dead times
@@ -382,10 +392,15 @@ def feed_drive_kernel(
         tau_a = p[_P_LG] * load[k]
         # ---- plant over one sample
         for _ in range(substeps):
-            idx = (idx + 1) % length
+            idx += 1
+            if idx == length:
+                idx = 0
             ring[0, idx] = i_cmd
-            i_ref = ring[0, (idx - ip[_IP_DS]) % length]
-            omega = _dot(cy[OUT_OMEGA], xm)
+            j_s = idx - ds
+            if j_s < 0:
+                j_s += length
+            i_ref = ring[0, j_s]
+            omega = _dot(c_om, xm)
             if ip[_IP_CUR] == 0:
                 sc[_I_ACT] += p[_P_ACUR] * (i_ref - sc[_I_ACT])
             else:
@@ -401,9 +416,13 @@ def feed_drive_kernel(
             else:
                 tau_f = 0.0
             sc[_TAU_F] = tau_f
-            theta = _dot(cy[OUT_THETA], xm)
-            tau_per = _periodic(terms, KIND_TORQUE, theta)
-            u[2] = _periodic(terms, KIND_SCREW, theta)
+            if n_terms > 0:
+                theta = _dot(c_th, xm)
+                tau_per = _periodic(terms, KIND_TORQUE, theta)
+                if has_screw:
+                    u[2] = _periodic(terms, KIND_SCREW, theta)
+            else:
+                tau_per = 0.0
             if nm > 0:
                 tau_c = md * tau_a
                 for j in range(nm):
@@ -427,8 +446,8 @@ def feed_drive_kernel(
                 xnew[i] = acc
             for i in range(n):
                 xm[i] = xnew[i]
-            ring[1, idx] = _dot(cy[OUT_THETA], xm)
-            ring[2, idx] = _dot(cy[OUT_X], xm) + dy[OUT_X, 2] * u[2]
+            ring[1, idx] = _dot(c_th, xm)
+            ring[2, idx] = _dot(c_x, xm) + d_x * u[2]
         ring_idx[0] = idx
         out[k, 0] = i_cmd
         out[k, 1] = sc[_I_ACT]

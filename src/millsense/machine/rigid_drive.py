@@ -91,7 +91,6 @@ class RigidDriveParams:
         """Motor-side load torque of an axis force resisting the motion (Aslan Eq. 3.11)."""
         return self.transmission / self.efficiency * np.asarray(resisting_force_n)
 
-
     def feed_drive_params(self) -> FeedDriveParams:
         """The same drive for the general kernel (:mod:`.feed_drive`): rigid plant whose load
         input is the motor-side load torque, Coulomb + viscous friction, no modes."""

@@ -8,6 +8,7 @@ check of the state-space realisation, the discretisation and the kernel's wiring
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.signal import find_peaks
@@ -86,13 +87,16 @@ def _disturbance_case(axis: str) -> Measured:
     for fk in modes.frequency_hz:
         j = int(np.argmin(np.abs(ps - fk)))
         dev = (ps[j] - fk) / fk
-        rows.append(f"| {fk:g} | {ps[j]:.2f} | {100 * dev:+.1f} % | {'yes' if abs(dev) <= 0.02 else 'no'} |")
+        rows.append(
+            f"| {fk:g} | {ps[j]:.2f} | {100 * dev:+.1f} % | {'yes' if abs(dev) <= 0.02 else 'no'} |"
+        )
     model_vs_sim = max(float(np.min(np.abs(ps - p)) / p) for p in pm)
     details = "\n".join(
         [
             f"Axis {axis.upper()}: dominant simulated peak {f_dom:.2f} Hz; "
             f"static gain of the printed modes Φ_d(0) = {modes.static_gain():.3f} (not 1). "
-            f"Largest offset of a simulated peak from the Eq. 3.13 peaks: {100 * model_vs_sim:.2f} %.",
+            "Largest offset of a simulated peak from the Eq. 3.13 peaks: "
+            f"{100 * model_vs_sim:.2f} %.",
             "",
             *rows,
         ]
@@ -106,6 +110,10 @@ def _dominant_reference(axis: str) -> float:
     return _dominant_mode_hz(ModalStateSpace.from_config(ax.disturbance_modes))
 
 
+def _disturbance_case_for(axis: str) -> Callable[[], Measured]:
+    return lambda: _disturbance_case(axis)
+
+
 for _ax in ("x", "y", "z", "c"):
     case(
         f"machine.quaser_disturbance_frf_peak_{_ax}",
@@ -116,7 +124,7 @@ for _ax in ("x", "y", "z", "c"):
         quick=False,
         description=f"{_ax.upper()} axis: frequency of the largest peak of the simulated τ_a → τ_c "
         "sine-sweep FRF (full drive, LuGre, noise) vs the Table 3.4 mode with the largest peak",
-    )(lambda _a=_ax: _disturbance_case(_a))
+    )(_disturbance_case_for(_ax))
 
 # A axis: with ζ as fractions (0.12–0.69, see docs/decisions.md) the printed modes merge; the
 # largest single mode (50 Hz) shows up at 54.0 Hz in Eq. 3.13 itself, an 8 % gap that no
@@ -195,7 +203,10 @@ def _stribeck() -> Measured:
     means, sems = constant_velocity_sweep(params, STRIBECK_SPEEDS, 10000.0, duration_s=4.0)
     model = params.friction.steady_torque(STRIBECK_SPEEDS)
     z = (means - model) / sems
-    rows = ["| v (rad/s) | mean K_t·i (N·m) | g(v)+σ2·v (N·m) | σ_mean (N·m) |", "|---|---|---|---|"]
+    rows = [
+        "| v (rad/s) | mean K_t·i (N·m) | g(v)+σ2·v (N·m) | σ_mean (N·m) |",
+        "|---|---|---|---|",
+    ]
     rows += [
         f"| {v:g} | {a:.4f} | {b:.4f} | {s:.4f} |"
         for v, a, b, s in zip(STRIBECK_SPEEDS, means, model, sems, strict=True)
