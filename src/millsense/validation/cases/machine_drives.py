@@ -7,6 +7,7 @@ check of the state-space realisation, the discretisation and the kernel's wiring
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 
@@ -212,3 +213,32 @@ def _stribeck() -> Measured:
         for v, a, b, s in zip(STRIBECK_SPEEDS, means, model, sems, strict=True)
     ]
     return Measured(float(np.max(np.abs(z))), "\n".join(rows))
+
+
+@case(
+    "machine.feed_drive_chunk_invariance",
+    source="issue 5 (resumable simulator); bit-identity",
+    reference=0.0,
+    unit="A",
+    abs_tol=0.0,
+    quick=True,
+    description="Largest difference of the current command between one run and a run in uneven "
+    "chunks (Quaser X: modes, LuGre, noise; 0.5 s at 10 kHz)",
+)
+def _chunks() -> float:
+    ax = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    params = FeedDriveParams.from_config(ax)
+    fs = 10000.0
+    n = 5000
+    t = np.arange(n) / fs
+    pos = 30.0 * np.sin(2 * math.pi * t)
+    vel = 30.0 * 2 * math.pi * np.cos(2 * math.pi * t)
+    load = 200.0 * np.sin(2 * math.pi * 80.0 * t)
+    whole = FeedDriveSim(params, fs, seed=2).advance(pos, vel, load)["current_cmd"]
+    sim = FeedDriveSim(params, fs, seed=2)
+    cuts = [0, 1, 13, 400, 2501, 4999, n]
+    parts = [
+        sim.advance(pos[a:b], vel[a:b], load[a:b])["current_cmd"]
+        for a, b in itertools.pairwise(cuts)
+    ]
+    return float(np.max(np.abs(np.concatenate(parts) - whole)))
