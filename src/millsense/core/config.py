@@ -167,6 +167,106 @@ class FrictionConfig(_Model):
     source: str = ""
 
 
+class DisturbanceModesConfig(_Model):
+    """Structural modes between the load at the table and the motor (Aslan Eq. 3.13, Table 3.4).
+
+    ``Φ_d(s) = τ_c/τ_a = feedthrough + Σ (α_k + β_k·s)/(s² + 2ζ_k·ω_k·s + ω_k²)`` with
+    ω_k = 2π·f_k in rad/s. ``damping_ratio`` is a fraction (0.05, not 5 %).
+    """
+
+    natural_frequency_hz: list[Annotated[float, Field(gt=0, le=1e5)]]
+    damping_ratio: list[Annotated[float, Field(ge=0, le=10)]]
+    alpha: list[float]
+    beta: list[float]
+    feedthrough: float = 0.0
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _same_length(self) -> DisturbanceModesConfig:
+        n = len(self.natural_frequency_hz)
+        if n == 0:
+            raise ValueError("natural_frequency_hz must list at least one mode")
+        for key in ("damping_ratio", "alpha", "beta"):
+            if len(getattr(self, key)) != n:
+                raise ValueError(
+                    f"{key} has {len(getattr(self, key))} entries but natural_frequency_hz has {n}"
+                )
+        return self
+
+
+class BallScrewConfig(_Model):
+    """Dual- or triple-inertia ball-screw drive (Yamada Eq. 2-1/2-2, 2-45…2-47, Table 3-3).
+
+    The motor-side inertia J_r is the axis' ``inertia_kg_m2``; this table holds the rest.
+    Translational quantities are on the table side (N/µm, N·s/m, kg).
+    """
+
+    model: Literal["dual", "triple"] = "dual"
+    table_mass_kg: Annotated[float, Field(gt=0, le=1e5)]
+    """M_t."""
+    table_damping_n_s_m: Annotated[float, Field(ge=0, le=1e7)] = 0.0
+    """C_t (viscous damping of the table to ground)."""
+    rotary_damping_nm_s_rad: Annotated[float, Field(ge=0, le=1e3)] = 0.0
+    """D_r (viscous damping of the motor and screw rotation)."""
+    axial_stiffness_n_um: Annotated[float, Field(gt=0, le=1e5)]
+    """K_r (nut–table spring)."""
+    axial_damping_n_s_m: Annotated[float, Field(ge=0, le=1e7)] = 0.0
+    """C_k (nut–table damper)."""
+    nut_mass_kg: Annotated[float, Field(gt=0, le=1e5)] | None = None
+    """M_n (triple inertia only)."""
+    nut_damping_n_s_m: Annotated[float, Field(ge=0, le=1e7)] = 0.0
+    """C_n (triple inertia only)."""
+    screw_stiffness_n_um: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    """K_ω, motor–nut (screw torsion/axial) stiffness (triple inertia only)."""
+    screw_damping_n_s_m: Annotated[float, Field(ge=0, le=1e7)] = 0.0
+    """C_ω (triple inertia only)."""
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _triple_complete(self) -> BallScrewConfig:
+        if self.model == "triple" and (
+            self.nut_mass_kg is None or self.screw_stiffness_n_um is None
+        ):
+            raise ValueError(
+                "a triple-inertia ball screw needs nut_mass_kg and screw_stiffness_n_um"
+            )
+        return self
+
+
+class PeriodicDisturbanceConfig(_Model):
+    """A position-periodic disturbance of a ball-screw drive (Yamada §3.6).
+
+    ``kind``: ``thrust`` (force on the motor side, N, e.g. lead-periodic friction, ball
+    circulation, torque ripple), ``screw_error`` (kinematic lead error between nut and screw,
+    µm), ``motor_encoder`` / ``scale`` (interpolation error of the rotary encoder / linear scale,
+    µm of table travel). The period is ``wavelength_mm`` of table travel or ``per_motor_rev``
+    periods per motor revolution (one of the two).
+    """
+
+    kind: Literal["thrust", "screw_error", "motor_encoder", "scale"]
+    wavelength_mm: Annotated[float, Field(gt=0, le=1e4)] | None = None
+    per_motor_rev: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    amplitude_n: Annotated[float, Field(ge=0, le=1e5)] | None = None
+    amplitude_um: Annotated[float, Field(ge=0, le=1e3)] | None = None
+    phase_deg: float = 0.0
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _one_period_one_amplitude(self) -> PeriodicDisturbanceConfig:
+        if (self.wavelength_mm is None) == (self.per_motor_rev is None):
+            raise ValueError("give exactly one of wavelength_mm and per_motor_rev")
+        if self.kind == "thrust":
+            if self.amplitude_n is None or self.amplitude_um is not None:
+                raise ValueError("a 'thrust' disturbance needs amplitude_n (and no amplitude_um)")
+        elif self.amplitude_um is None or self.amplitude_n is not None:
+            raise ValueError(f"a '{self.kind}' disturbance needs amplitude_um (and no amplitude_n)")
+        return self
+
+    @property
+    def phase_rad(self) -> float:
+        return self.phase_deg * units.DEG
+
+
 class FeedAxisConfig(_Model):
     """A feed drive: rigid-body parameters, transmission, friction and servo gains."""
 
@@ -188,7 +288,30 @@ class FeedAxisConfig(_Model):
     current_noise_a: Annotated[float, Field(ge=0, le=100)] = 0.0
     """RMS noise of the current command in an air cut (Aslan Eq. 3.30 R is its square)."""
     encoder_counts_rev: Annotated[int, Field(ge=16, le=2**32)] = 2**20
+    position_gain_1_s: Annotated[float, Field(gt=0, le=1e4)] | None = None
+    """Position-loop gain K_v (1/s); designed from the velocity bandwidth when absent."""
+    position_feedback: Literal["motor", "scale"] = "motor"
+    """Semi-closed loop (motor encoder) or full-closed loop (linear scale)."""
+    scale_resolution_nm: Annotated[float, Field(gt=0, le=1e5)] | None = None
+    """Linear-scale count, nm; None = no linear scale (required for position_feedback 'scale')."""
+    dead_time_amplifier_ms: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """T_s: current command to current loop (Yamada Table 3-3)."""
+    dead_time_motor_encoder_ms: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """T_m: motor-angle measurement (Yamada Table 3-3)."""
+    dead_time_scale_ms: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """T_t: table-position measurement (Yamada Table 3-3)."""
+    disturbance_modes: DisturbanceModesConfig | None = None
+    """Aslan Table 3.4 modes between the table load and the motor (rigid-body axes)."""
+    ball_screw: BallScrewConfig | None = None
+    """Dual/triple-inertia ball screw (Yamada); replaces the rigid body when given."""
+    periodic_disturbances: list[PeriodicDisturbanceConfig] = []
     source: str = ""
+
+    @model_validator(mode="after")
+    def _scale_for_full_closed(self) -> FeedAxisConfig:
+        if self.position_feedback == "scale" and self.scale_resolution_nm is None:
+            raise ValueError("position_feedback 'scale' needs scale_resolution_nm")
+        return self
 
     @model_validator(mode="after")
     def _lead_given(self) -> FeedAxisConfig:
@@ -230,7 +353,8 @@ class MachineConfig(_Model):
     """A machine tool: kinematics, feed axes by name, spindle, CNC sampling."""
 
     name: str
-    kinematics: Literal["3-axis", "5-axis-trunnion-ac"] = "3-axis"
+    kinematics: Literal["3-axis", "5-axis-trunnion-ac", "1-axis-stage"] = "3-axis"
+    """``1-axis-stage``: a single feed stage on axis x (Yamada's test stands)."""
     sample_rate_hz: Annotated[float, Field(gt=0, le=1e6)] = 10000.0
     interpolator_period_ms: Annotated[float, Field(gt=0, le=100)] = 3.0
     axes: dict[str, FeedAxisConfig]
@@ -239,7 +363,11 @@ class MachineConfig(_Model):
 
     @model_validator(mode="after")
     def _axes_for_kinematics(self) -> MachineConfig:
-        need = {"x", "y", "z"} if self.kinematics == "3-axis" else {"x", "y", "z", "a", "c"}
+        need = {
+            "3-axis": {"x", "y", "z"},
+            "5-axis-trunnion-ac": {"x", "y", "z", "a", "c"},
+            "1-axis-stage": {"x"},
+        }[self.kinematics]
         missing = need - set(self.axes)
         if missing:
             raise ValueError(

@@ -11,10 +11,9 @@ follows as a first-order lag of the given bandwidth. Sensors: the motor encoder 
 to its counts per revolution and the CNC's motor speed is its backward difference, so the
 current command carries the quantisation noise a real drive's does.
 
-The continuous plant is integrated with ``substeps`` semi-implicit Euler steps per sample.
-
-This is the thin drive of the foundation demo; issue 5 adds LuGre dynamics, structural modes,
-dual/triple-inertia ball screws and the interpolator.
+The simulation runs on the general feed-drive kernel (:mod:`.feed_drive`, exact zero-order
+hold of the rigid body over ``substeps`` steps per sample); this module keeps the thin
+parameter set of the foundation demo.
 """
 
 from __future__ import annotations
@@ -22,11 +21,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from millsense.core.config import FeedAxisConfig
-from millsense.machine.friction import CoulombViscous, coulomb_viscous_torque
+from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim, rigid_plant
+from millsense.machine.friction import CoulombViscous
 
 
 @dataclass(frozen=True)
@@ -92,58 +91,30 @@ class RigidDriveParams:
         """Motor-side load torque of an axis force resisting the motion (Aslan Eq. 3.11)."""
         return self.transmission / self.efficiency * np.asarray(resisting_force_n)
 
-
-# state vector layout of the kernel
-_THETA, _OMEGA, _I_ACT, _INTEG, _ENC_PREV = 0, 1, 2, 3, 4
-
-
-@numba.njit(cache=True)
-def _drive_kernel(
-    state: np.ndarray,
-    pos_ref: np.ndarray,
-    vel_ff: np.ndarray,
-    load_torque: np.ndarray,
-    dist_torque: np.ndarray,
-    p: np.ndarray,
-    fric: np.ndarray,
-    dt: float,
-    substeps: int,
-    out: np.ndarray,
-) -> None:
-    """Advance the drive by len(pos_ref) samples; ``out`` columns described in the caller."""
-    J, kt, kp, ki, kv, wcur, q = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
-    h = dt / substeps
-    acur = 1.0 - math.exp(-wcur * h)
-    for k in range(pos_ref.shape[0]):
-        # sensors at the sample instant
-        theta_enc = math.floor(state[_THETA] / q) * q
-        omega_meas = (theta_enc - state[_ENC_PREV]) / dt
-        state[_ENC_PREV] = theta_enc
-        # position P + velocity feed-forward, velocity PI
-        omega_ref = vel_ff[k] + kv * (pos_ref[k] - theta_enc)
-        err = omega_ref - omega_meas
-        state[_INTEG] += ki * err * dt
-        i_cmd = (kp * err + state[_INTEG]) / kt
-        # plant over one sample
-        for _ in range(substeps):
-            state[_I_ACT] += acur * (i_cmd - state[_I_ACT])
-            tau_f = coulomb_viscous_torque(state[_OMEGA], fric)
-            acc = (kt * state[_I_ACT] - tau_f - load_torque[k] - dist_torque[k]) / J
-            state[_OMEGA] += h * acc
-            state[_THETA] += h * state[_OMEGA]
-        out[k, 0] = i_cmd
-        out[k, 1] = state[_I_ACT]
-        out[k, 2] = omega_meas
-        out[k, 3] = theta_enc
-        out[k, 4] = state[_OMEGA]
-        out[k, 5] = state[_THETA]
+    def feed_drive_params(self) -> FeedDriveParams:
+        """The same drive for the general kernel (:mod:`.feed_drive`): rigid plant whose load
+        input is the motor-side load torque, Coulomb + viscous friction, no modes."""
+        return FeedDriveParams(
+            plant=rigid_plant(self.inertia, self.transmission, self.efficiency, load="torque"),
+            torque_constant=self.torque_constant,
+            transmission=self.transmission,
+            efficiency=self.efficiency,
+            friction=self.friction,
+            kp=self.kp,
+            ki=self.ki,
+            kv=self.kv,
+            current_bandwidth_hz=self.current_bandwidth_hz,
+            encoder_counts_rev=self.encoder_counts_rev,
+            torque_noise_nm=self.torque_noise_nm,
+        )
 
 
 class RigidDriveSim:
     """A resumable rigid-body drive: :meth:`advance` continues from where it stopped.
 
     Inputs per sample are motor-side: position reference (rad), velocity feed-forward (rad/s)
-    and load torque (N·m). Results for one long call and many short calls are identical.
+    and load torque (N·m). Results for one long call and many short calls are identical. It
+    runs on the one drive kernel, :class:`~millsense.machine.feed_drive.FeedDriveSim`.
     """
 
     def __init__(
@@ -158,23 +129,13 @@ class RigidDriveSim:
         self.params = params
         self.dt = 1.0 / sample_rate_hz
         self.substeps = substeps
-        self._rng = np.random.default_rng(seed)
-        q = 2.0 * math.pi / params.encoder_counts_rev
-        self._state = np.zeros(5)
-        self._state[_THETA] = initial_angle_rad
-        self._state[_ENC_PREV] = math.floor(initial_angle_rad / q) * q
-        self._p = np.array(
-            [
-                params.inertia,
-                params.torque_constant,
-                params.kp,
-                params.ki,
-                params.kv,
-                2.0 * math.pi * params.current_bandwidth_hz,
-                q,
-            ]
+        self._sim = FeedDriveSim(
+            params.feed_drive_params(),
+            sample_rate_hz,
+            substeps=substeps,
+            seed=seed,
+            initial_angle_rad=initial_angle_rad,
         )
-        self._fric = params.friction.as_array()
 
     def advance(
         self, pos_ref_rad: np.ndarray, vel_ff_rad_s: np.ndarray, load_torque_nm: np.ndarray
@@ -186,29 +147,9 @@ class RigidDriveSim:
         dict with ``current_cmd`` (A), ``current`` (A, actual), ``speed`` (rad/s, measured from
         the encoder), ``angle`` (rad, encoder), ``true_speed`` (rad/s), ``true_angle`` (rad).
         """
-        n = len(pos_ref_rad)
-        out = np.empty((n, 6))
-        dist = self._rng.standard_normal(n) * self.params.torque_noise_nm
-        _drive_kernel(
-            self._state,
-            np.ascontiguousarray(pos_ref_rad, dtype=np.float64),
-            np.ascontiguousarray(vel_ff_rad_s, dtype=np.float64),
-            np.ascontiguousarray(load_torque_nm, dtype=np.float64),
-            dist,
-            self._p,
-            self._fric,
-            self.dt,
-            self.substeps,
-            out,
-        )
-        return {
-            "current_cmd": out[:, 0],
-            "current": out[:, 1],
-            "speed": out[:, 2],
-            "angle": out[:, 3],
-            "true_speed": out[:, 4],
-            "true_angle": out[:, 5],
-        }
+        res = self._sim.advance(pos_ref_rad, vel_ff_rad_s, load_torque_nm)
+        keys = ("current_cmd", "current", "speed", "angle", "true_speed", "true_angle")
+        return {k: res[k] for k in keys}
 
 
 def constant_velocity_move(
