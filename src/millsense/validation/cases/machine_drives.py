@@ -7,6 +7,7 @@ check of the state-space realisation, the discretisation and the kernel's wiring
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Callable
@@ -71,6 +72,7 @@ def _dominant_mode_hz(modes: ModalStateSpace) -> float:
     return float(modes.frequency_hz[int(np.argmax(gain))])
 
 
+@functools.cache
 def _disturbance_case(axis: str) -> Measured:
     r = quaser_disturbance_frf(axis)
     f, hs, hm = r["f"], r["h_sim"], r["h_model"]
@@ -128,18 +130,43 @@ for _ax in ("x", "y", "z", "c"):
     )(_disturbance_case_for(_ax))
 
 # A axis: with ζ as fractions (0.12–0.69, see docs/decisions.md) the printed modes merge; the
-# largest single mode (50 Hz) shows up at 54.0 Hz in Eq. 3.13 itself, an 8 % gap that no
-# simulation can close. The case checks the simulation against the printed model's own peak.
-_A_MODEL_PEAK_HZ = 54.02  # max of |Eq. 3.13| with the Table 3.4 A coefficients, 0.01 Hz grid
+# dominant 50 Hz mode of Table 3.4 peaks at about 54 Hz in Eq. 3.13 itself, an 8 % gap no
+# simulation can close. Two cases: the stated mode (documented gap), and the simulation against
+# the peak of Eq. 3.13 computed here from the printed coefficients (an independent evaluation).
 case(
     "machine.quaser_disturbance_frf_peak_a",
-    source="Aslan Table 3.4, Eq. 3.13 (gap to the 50 Hz mode documented)",
-    reference=_A_MODEL_PEAK_HZ,
+    source="Aslan Table 3.4 (A axis, dominant mode 50 Hz)",
+    reference=50.0,
     unit="Hz",
     rel_tol=0.02,
     quick=False,
-    description="A axis: largest peak of the simulated τ_a → τ_c FRF; Table 3.4's dominant 50 Hz "
-    "mode peaks at 54.0 Hz in Eq. 3.13 with the printed (fraction) damping — gap +8 %",
+    gap="with the printed A-axis coefficients (ζ read as fractions, 0.12-0.69) the modes merge "
+    'and Eq. 3.13 itself peaks near 54 Hz; docs/decisions.md "Table 3.4 damping"',
+    description="A axis: largest peak of the simulated τ_a → τ_c FRF against Table 3.4's "
+    "dominant mode",
+)(lambda: _disturbance_case("a"))
+
+
+def _eq313_peak_hz(axis: str) -> float:
+    """Frequency of the maximum of |Eq. 3.13| with the preset's printed modes (0.01 Hz grid)."""
+    from millsense.machine.modal_ss import ModalStateSpace
+
+    cfg = load_preset(MachineConfig, "quaser-ux600").axis(axis).disturbance_modes
+    assert cfg is not None
+    f = np.arange(1.0, 400.0, 0.01)
+    mag = np.abs(ModalStateSpace.from_config(cfg).frf_modal(f))
+    return float(f[int(np.argmax(mag))])
+
+
+case(
+    "machine.quaser_disturbance_frf_peak_a_vs_eq313",
+    source="Aslan Eq. 3.13 evaluated with the Table 3.4 A-axis coefficients",
+    reference=_eq313_peak_hz("a"),
+    unit="Hz",
+    rel_tol=0.02,
+    quick=False,
+    description="A axis: the simulated sine-sweep FRF peaks where Eq. 3.13 of the printed "
+    "coefficients does (simulation against the analytic model)",
 )(lambda: _disturbance_case("a"))
 
 
