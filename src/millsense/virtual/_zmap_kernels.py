@@ -1,0 +1,514 @@
+"""Compiled kernels of the z-map stock and the cutter–workpiece engagement.
+
+Grid convention (shared with :mod:`millsense.virtual.stock`): ``heights[iy, ix]`` is the top
+of material [m] at the cell centre (x0 + (ix + ½) h, y0 + (iy + ½) h); material fills the
+column from ``bottom`` up to that height. A point is looked up in the cell that contains it;
+points outside the grid hold no material.
+
+Everything here works on plain arrays; the Python modules check the inputs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_TINY = 1e-18
+
+
+@numba.njit(cache=True)
+def sweep_segment(
+    heights: np.ndarray,
+    x0g: float,
+    y0g: float,
+    h: float,
+    p0x: float,
+    p0y: float,
+    p0z: float,
+    p1x: float,
+    p1y: float,
+    p1z: float,
+    radius: float,
+    ball: bool,
+) -> None:
+    """Lower the z-map to the exact lower envelope of a tool swept along a straight segment.
+
+    The tool tip moves linearly from p0 to p1. For every cell centre q within R of the
+    segment in XY the envelope is min over t ∈ [0, 1] of
+    flat: z(t) over the t with |q − p(t)| ≤ R (minimum at an end of that t-interval, z is
+    linear in t); ball: z(t) + R − √(R² − |q − p(t)|²), a convex function of t whose
+    minimiser has the closed form used below. Heights only go down.
+    """
+    ny, nx = heights.shape
+    dx = p1x - p0x
+    dy = p1y - p0y
+    dz = p1z - p0z
+    zlow = min(p0z, p1z)
+    r2 = radius * radius
+    ix_lo = max(int(math.ceil((min(p0x, p1x) - radius - x0g) / h - 0.5)), 0)
+    ix_hi = min(int(math.floor((max(p0x, p1x) + radius - x0g) / h - 0.5)), nx - 1)
+    iy_lo = max(int(math.ceil((min(p0y, p1y) - radius - y0g) / h - 0.5)), 0)
+    iy_hi = min(int(math.floor((max(p0y, p1y) + radius - y0g) / h - 0.5)), ny - 1)
+    if ix_lo > ix_hi or iy_lo > iy_hi:
+        return
+    a = dx * dx + dy * dy
+    vertical = a <= 1e-24
+    ra = math.sqrt(a * (a + dz * dz)) if not vertical else 0.0
+    for iy in range(iy_lo, iy_hi + 1):
+        wy = y0g + (iy + 0.5) * h - p0y
+        for ix in range(ix_lo, ix_hi + 1):
+            hz = heights[iy, ix]
+            if hz <= zlow:
+                continue
+            wx = x0g + (ix + 0.5) * h - p0x
+            if vertical:
+                g = wx * wx + wy * wy
+                if g > r2:
+                    continue
+                if ball:
+                    cand = zlow + radius - math.sqrt(r2 - g)
+                else:
+                    cand = zlow
+            else:
+                tc = (wx * dx + wy * dy) / a
+                e2 = wx * wx + wy * wy - a * tc * tc
+                if e2 < 0.0:
+                    e2 = 0.0
+                if e2 > r2:
+                    continue
+                rho2 = r2 - e2
+                if ball:
+                    t = tc - dz * math.sqrt(rho2) / ra
+                    if t < 0.0:
+                        t = 0.0
+                    elif t > 1.0:
+                        t = 1.0
+                    g = a * (t - tc) * (t - tc) + e2
+                    if g > r2:
+                        continue
+                    cand = p0z + dz * t + radius - math.sqrt(r2 - g)
+                else:
+                    half = math.sqrt(rho2 / a)
+                    t0 = max(tc - half, 0.0)
+                    t1 = min(tc + half, 1.0)
+                    if t0 > t1:
+                        continue
+                    cand = p0z + dz * t0 if dz >= 0.0 else p0z + dz * t1
+            if cand < hz:
+                heights[iy, ix] = cand
+
+
+@numba.njit(cache=True)
+def sweep_path(
+    heights: np.ndarray,
+    x0g: float,
+    y0g: float,
+    h: float,
+    xs: np.ndarray,
+    ys: np.ndarray,
+    zs: np.ndarray,
+    join: np.ndarray,
+    radius: float,
+    ball: bool,
+    zmax: float,
+) -> None:
+    """Sweep the tool along the polyline; ``join[k]`` False starts a new piece at step k."""
+    for k in range(xs.size):
+        if k > 0 and join[k]:
+            if min(zs[k - 1], zs[k]) < zmax:
+                sweep_segment(
+                    heights, x0g, y0g, h, xs[k - 1], ys[k - 1], zs[k - 1],
+                    xs[k], ys[k], zs[k], radius, ball,
+                )  # fmt: skip
+        elif zs[k] < zmax:
+            sweep_segment(
+                heights, x0g, y0g, h, xs[k], ys[k], zs[k], xs[k], ys[k], zs[k], radius, ball
+            )
+
+
+@numba.njit(cache=True)
+def top_surface_from_triangles(
+    heights: np.ndarray, x0g: float, y0g: float, h: float, tri: np.ndarray
+) -> None:
+    """Ray-cast every cell centre vertically against triangles (n, 3, 3); keep the highest hit.
+
+    A centre on a shared edge belongs to both triangles (inclusive barycentric test with a
+    relative tolerance), so closed meshes leave no pin-holes. Vertical triangles are skipped:
+    a vertical ray never crosses them through their interior.
+    """
+    ny, nx = heights.shape
+    for n in range(tri.shape[0]):
+        ax, ay, az = tri[n, 0, 0], tri[n, 0, 1], tri[n, 0, 2]
+        bx, by, bz = tri[n, 1, 0], tri[n, 1, 1], tri[n, 1, 2]
+        cx, cy, cz = tri[n, 2, 0], tri[n, 2, 1], tri[n, 2, 2]
+        det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+        scale = (abs(ax - cx) + abs(bx - cx) + abs(ay - cy) + abs(by - cy)) ** 2
+        if abs(det) <= 1e-12 * scale or scale == 0.0:
+            continue
+        ix_lo = max(int(math.ceil((min(ax, bx, cx) - x0g) / h - 0.5)), 0)
+        ix_hi = min(int(math.floor((max(ax, bx, cx) - x0g) / h - 0.5)), nx - 1)
+        iy_lo = max(int(math.ceil((min(ay, by, cy) - y0g) / h - 0.5)), 0)
+        iy_hi = min(int(math.floor((max(ay, by, cy) - y0g) / h - 0.5)), ny - 1)
+        tol = -1e-9
+        for iy in range(iy_lo, iy_hi + 1):
+            py = y0g + (iy + 0.5) * h
+            for ix in range(ix_lo, ix_hi + 1):
+                px = x0g + (ix + 0.5) * h
+                l1 = ((by - cy) * (px - cx) + (cx - bx) * (py - cy)) / det
+                if l1 < tol:
+                    continue
+                l2 = ((cy - ay) * (px - cx) + (ax - cx) * (py - cy)) / det
+                if l2 < tol:
+                    continue
+                l3 = 1.0 - l1 - l2
+                if l3 < tol:
+                    continue
+                z = l1 * az + l2 * bz + l3 * cz
+                if z > heights[iy, ix]:
+                    heights[iy, ix] = z
+
+
+@numba.njit(cache=True)
+def _height_at(
+    heights: np.ndarray, x0g: float, y0g: float, h: float, px: float, py: float, empty: float
+) -> float:
+    ny, nx = heights.shape
+    fx = (px - x0g) / h
+    fy = (py - y0g) / h
+    if fx < 0.0 or fy < 0.0:
+        return empty
+    ix = int(fx)
+    iy = int(fy)
+    if ix >= nx or iy >= ny:
+        return empty
+    return heights[iy, ix]
+
+
+@numba.njit(cache=True)
+def _runs_to_intervals(
+    flags: np.ndarray,
+    n_bins: int,
+    dphi: float,
+    phi_graze: float,
+    max_iv: int,
+    out: np.ndarray,
+    run_s: np.ndarray,
+    run_e: np.ndarray,
+) -> tuple[int, bool]:
+    """Turn engaged bins into intervals; drop grazing runs; merge the closest if too many."""
+    n = 0
+    b = 0
+    while b < n_bins:
+        if flags[b]:
+            s = b
+            while b + 1 < n_bins and flags[b + 1]:
+                b += 1
+            entry = s * dphi
+            exit_ = (b + 1) * dphi
+            if not (exit_ <= phi_graze + 1e-12 or entry >= math.pi - phi_graze - 1e-12):
+                run_s[n] = s
+                run_e[n] = b
+                n += 1
+        b += 1
+    overflow = False
+    while n > max_iv:
+        overflow = True
+        best = 0
+        gap = n_bins + 1
+        for i in range(n - 1):
+            g = run_s[i + 1] - run_e[i]
+            if g < gap:
+                gap = g
+                best = i
+        run_e[best] = run_e[best + 1]
+        for i in range(best + 1, n - 1):
+            run_s[i] = run_s[i + 1]
+            run_e[i] = run_e[i + 1]
+        n -= 1
+    for i in range(n):
+        out[i, 0] = run_s[i] * dphi
+        out[i, 1] = (run_e[i] + 1) * dphi
+    return n, overflow
+
+
+@numba.njit(cache=True)
+def _engage_layers(
+    heights: np.ndarray,
+    x0g: float,
+    y0g: float,
+    h: float,
+    bottom: float,
+    px: float,
+    py: float,
+    pz: float,
+    ux: float,
+    uy: float,
+    radius: float,
+    ball: bool,
+    depth: float,
+    n_layers: int,
+    n_bins: int,
+    delta: float,
+    eps_z: float,
+    max_iv: int,
+    iv_out: np.ndarray,
+    nv_out: np.ndarray,
+    flags: np.ndarray,
+    run_s: np.ndarray,
+    run_e: np.ndarray,
+) -> tuple[float, bool]:
+    """Engaged intervals of every layer for one tool position and axial depth ``depth``.
+
+    Returns the top (above the tip) of the material seen by engaged bins and an overflow flag.
+    """
+    dphi = math.pi / n_bins
+    dz = depth / n_layers
+    top = 0.0
+    overflow = False
+    vx = -uy  # tool-frame y axis (z × feed)
+    vy = ux
+    for layer in range(n_layers):
+        zc = (layer + 0.5) * dz
+        if ball and zc < radius:
+            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
+        else:
+            r = radius
+        zabs = pz + zc
+        rs = r + delta
+        cosg = (r - 0.5 * h) / rs
+        phi_graze = math.acos(cosg) if cosg > -1.0 else math.pi
+        if zabs <= bottom + eps_z:
+            nv_out[layer] = 0
+            continue
+        for b in range(n_bins):
+            phi = (b + 0.5) * dphi
+            sx = px + rs * (math.sin(phi) * ux + math.cos(phi) * vx)
+            sy = py + rs * (math.sin(phi) * uy + math.cos(phi) * vy)
+            hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf)
+            flags[b] = hz > zabs + eps_z
+        n, ovf = _runs_to_intervals(
+            flags, n_bins, dphi, phi_graze, max_iv, iv_out[layer], run_s, run_e
+        )
+        nv_out[layer] = n
+        overflow = overflow or ovf
+        for i in range(n):
+            b0 = int(round(iv_out[layer, i, 0] / dphi))
+            b1 = int(round(iv_out[layer, i, 1] / dphi))
+            for b in range(b0, b1):
+                if flags[b]:
+                    phi = (b + 0.5) * dphi
+                    sx = px + rs * (math.sin(phi) * ux + math.cos(phi) * vx)
+                    sy = py + rs * (math.sin(phi) * uy + math.cos(phi) * vy)
+                    hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf) - pz
+                    if hz > top:
+                        top = hz
+    return top, overflow
+
+
+@numba.njit(cache=True)
+def _peak_resultant(
+    iv: np.ndarray,
+    nv: np.ndarray,
+    depth: float,
+    radius: float,
+    ball: bool,
+    theta: np.ndarray,
+    kbeta: float,
+    krc_ratio: float,
+    sin0: np.ndarray,
+    cos0: np.ndarray,
+    period: float,
+    fx: np.ndarray,
+    fy: np.ndarray,
+) -> float:
+    """Peak over spindle angle of |F_xy| / (K_tc c) [m] for the mechanistic model.
+
+    Per flute j and layer ℓ in the engagement: dF_t = sin φ Δz, dF_r = ρ sin φ Δz (h db =
+    c sin φ Δz for flat and ball layers), projected as in
+    :func:`millsense.process.forces.milling_forces`. Spindle angles φ0_a = a P/n over one
+    period P (``sin0``/``cos0`` hold their sines and cosines); each interval maps to a range
+    of a, so only engaged edge points are visited.
+    """
+    n_layers = nv.size
+    n = sin0.size
+    step = period / n
+    dz = depth / n_layers
+    two_pi = 2.0 * math.pi
+    for a in range(n):
+        fx[a] = 0.0
+        fy[a] = 0.0
+    for layer in range(n_layers):
+        m = nv[layer]
+        if m == 0:
+            continue
+        zc = (layer + 0.5) * dz
+        if ball and zc < radius:
+            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
+            sk = min(r / radius, 1.0)
+        else:
+            sk = 1.0
+        for j in range(theta.size):
+            c = theta[j] + kbeta * zc  # φ = φ0 − c
+            sc = math.sin(c)
+            cc = math.cos(c)
+            for i in range(m):
+                e0 = iv[layer, i, 0]
+                w = iv[layer, i, 1] - e0
+                lo = c + e0
+                lo = lo - two_pi * math.floor(lo / two_pi)
+                for piece in range(2):
+                    if piece == 0:
+                        p_lo = lo
+                        p_hi = min(lo + w, two_pi)
+                    else:
+                        if lo + w <= two_pi:
+                            break
+                        p_lo = 0.0
+                        p_hi = lo + w - two_pi
+                    a0 = max(int(math.ceil(p_lo / step - 1e-9)), 0)
+                    a1 = min(int(math.floor(p_hi / step + 1e-9)), n - 1)
+                    for a in range(a0, a1 + 1):
+                        s = sin0[a] * cc - cos0[a] * sc
+                        if s <= 0.0:
+                            continue
+                        co = cos0[a] * cc + sin0[a] * sc
+                        dft = s * dz
+                        dfr = krc_ratio * s * dz
+                        fx[a] += -dft * co - dfr * sk * s
+                        fy[a] += dft * s - dfr * sk * co
+    peak = 0.0
+    for a in range(n):
+        res = math.sqrt(fx[a] * fx[a] + fy[a] * fy[a])
+        if res > peak:
+            peak = res
+    return peak
+
+
+@numba.njit(cache=True)
+def cut_and_engage(
+    heights: np.ndarray,
+    x0g: float,
+    y0g: float,
+    h: float,
+    bottom: float,
+    zmax: float,
+    xs: np.ndarray,
+    ys: np.ndarray,
+    zs: np.ndarray,
+    fdx: np.ndarray,
+    fdy: np.ndarray,
+    join: np.ndarray,
+    has_prev: bool,
+    prev_x: float,
+    prev_y: float,
+    prev_z: float,
+    radius: float,
+    ball: bool,
+    n_layers: int,
+    n_bins: int,
+    delta: float,
+    eps_z: float,
+    theta: np.ndarray,
+    kbeta: float,
+    krc_ratio: float,
+    n_gain_angles: int,
+    gain_period: float,
+    iv_out: np.ndarray,
+    nv_out: np.ndarray,
+    depth_out: np.ndarray,
+    gain_out: np.ndarray,
+) -> int:
+    """Per step: sweep the tool from the previous step to this one, then sample engagement.
+
+    Returns the number of steps whose interval count overflowed ``iv_out``'s capacity.
+    """
+    n_steps = xs.size
+    max_iv = iv_out.shape[2]
+    flags = np.zeros(n_bins, dtype=np.bool_)
+    run_s = np.zeros(n_bins, dtype=np.int64)
+    run_e = np.zeros(n_bins, dtype=np.int64)
+    sin0 = np.empty(n_gain_angles)
+    cos0 = np.empty(n_gain_angles)
+    for a in range(n_gain_angles):
+        sin0[a] = math.sin(a * gain_period / n_gain_angles)
+        cos0[a] = math.cos(a * gain_period / n_gain_angles)
+    fxw = np.zeros(n_gain_angles)
+    fyw = np.zeros(n_gain_angles)
+    n_overflow = 0
+    for k in range(n_steps):
+        # 1. material removal up to the current position (tool body occupies it now)
+        if k == 0:
+            if has_prev and join[0]:
+                if min(prev_z, zs[0]) < zmax:
+                    sweep_segment(
+                        heights, x0g, y0g, h, prev_x, prev_y, prev_z,
+                        xs[0], ys[0], zs[0], radius, ball,
+                    )  # fmt: skip
+            elif zs[0] < zmax:
+                sweep_segment(
+                    heights, x0g, y0g, h, xs[0], ys[0], zs[0], xs[0], ys[0], zs[0], radius, ball
+                )
+        elif join[k]:
+            if min(zs[k - 1], zs[k]) < zmax:
+                sweep_segment(
+                    heights, x0g, y0g, h, xs[k - 1], ys[k - 1], zs[k - 1],
+                    xs[k], ys[k], zs[k], radius, ball,
+                )  # fmt: skip
+        elif zs[k] < zmax:
+            sweep_segment(
+                heights, x0g, y0g, h, xs[k], ys[k], zs[k], xs[k], ys[k], zs[k], radius, ball
+            )
+        depth_out[k] = 0.0
+        gain_out[k] = 0.0
+        for layer in range(n_layers):
+            nv_out[k, layer] = 0
+        if zs[k] >= zmax:
+            continue
+        # 2. top of material just outside the tool, front half, at the full radius
+        ux = fdx[k]
+        uy = fdy[k]
+        rs = radius + delta
+        a0 = 0.0
+        dphi = math.pi / n_bins
+        for b in range(n_bins):
+            phi = (b + 0.5) * dphi
+            sx = xs[k] + rs * (math.sin(phi) * ux - math.cos(phi) * uy)
+            sy = ys[k] + rs * (math.sin(phi) * uy + math.cos(phi) * ux)
+            hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf) - zs[k]
+            if hz > a0:
+                a0 = hz
+        if a0 <= eps_z:
+            continue
+        # 3. layers over a0, then once over the top of the engaged material if lower
+        top, ovf = _engage_layers(
+            heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball, a0,
+            n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags, run_s, run_e,
+        )  # fmt: skip
+        depth = a0
+        if top <= eps_z:
+            for layer in range(n_layers):
+                nv_out[k, layer] = 0
+            continue
+        if nv_out[k, n_layers - 1] == 0 and top < a0 * (1.0 - 0.5 / n_layers):
+            depth = top
+            top2, ovf = _engage_layers(
+                heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball,
+                depth, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags,
+                run_s, run_e,
+            )  # fmt: skip
+        any_iv = False
+        for layer in range(n_layers):
+            if nv_out[k, layer] > 0:
+                any_iv = True
+        if not any_iv:
+            continue
+        if ovf:
+            n_overflow += 1
+        depth_out[k] = depth
+        gain_out[k] = _peak_resultant(
+            iv_out[k], nv_out[k], depth, radius, ball, theta, kbeta, krc_ratio,
+            sin0, cos0, gain_period, fxw, fyw,
+        )  # fmt: skip
+    return n_overflow
