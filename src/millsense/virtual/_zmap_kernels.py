@@ -56,9 +56,55 @@ def sweep_segment(
     a = dx * dx + dy * dy
     vertical = a <= 1e-24
     ra = math.sqrt(a * (a + dz * dz)) if not vertical else 0.0
+    la = math.sqrt(a)
+    flat_level = (not ball) and dz == 0.0
     for iy in range(iy_lo, iy_hi + 1):
         wy = y0g + (iy + 0.5) * h - p0y
-        for ix in range(ix_lo, ix_hi + 1):
+        # x-range of the row inside the swept footprint (stadium: two discs and a band)
+        lo = np.inf
+        hi = -np.inf
+        if wy * wy <= r2:
+            half = math.sqrt(r2 - wy * wy)
+            lo = min(lo, p0x - half)
+            hi = max(hi, p0x + half)
+        wy1 = wy - dy
+        if wy1 * wy1 <= r2:
+            half = math.sqrt(r2 - wy1 * wy1)
+            lo = min(lo, p1x - half)
+            hi = max(hi, p1x + half)
+        if not vertical:
+            # 0 ≤ ((x − p0x) dx + wy dy)/a ≤ 1 and |(x − p0x) dy − wy dx| ≤ R √a
+            b_lo = -np.inf
+            b_hi = np.inf
+            if dx != 0.0:
+                u0 = (0.0 - wy * dy) / dx
+                u1 = (a - wy * dy) / dx
+                b_lo = max(b_lo, min(u0, u1))
+                b_hi = min(b_hi, max(u0, u1))
+            elif not (0.0 <= wy * dy <= a):
+                b_hi = -np.inf
+            if dy != 0.0:
+                v0 = (-radius * la + wy * dx) / dy
+                v1 = (radius * la + wy * dx) / dy
+                b_lo = max(b_lo, min(v0, v1))
+                b_hi = min(b_hi, max(v0, v1))
+            elif abs(wy * dx) > radius * la:
+                b_hi = -np.inf
+            if b_lo <= b_hi:
+                lo = min(lo, p0x + b_lo)
+                hi = max(hi, p0x + b_hi)
+        if lo > hi:
+            continue
+        jx_lo = max(int(math.ceil((lo - x0g) / h - 0.5 - 1e-9)), ix_lo)
+        jx_hi = min(int(math.floor((hi - x0g) / h - 0.5 + 1e-9)), ix_hi)
+        if flat_level:
+            # flat tool at constant height: the whole row range goes down to z
+            zf = np.float32(p0z)
+            for ix in range(jx_lo, jx_hi + 1):
+                if heights[iy, ix] > zf:
+                    heights[iy, ix] = zf
+            continue
+        for ix in range(jx_lo, jx_hi + 1):
             hz = heights[iy, ix]
             if hz <= zlow:
                 continue
@@ -258,10 +304,15 @@ def _engage_layers(
     flags: np.ndarray,
     run_s: np.ndarray,
     run_e: np.ndarray,
+    sinb: np.ndarray,
+    cosb: np.ndarray,
+    colh: np.ndarray,
 ) -> tuple[float, bool]:
     """Engaged intervals of every layer for one tool position and axial depth ``depth``.
 
-    Returns the top (above the tip) of the material seen by engaged bins and an overflow flag.
+    ``colh`` holds the material tops sampled at radius R + δ per bin (used for every layer
+    of a flat tool; a ball samples each layer at its own radius). Returns the top (above the
+    tip) of the material seen by engaged bins and an overflow flag.
     """
     dphi = math.pi / n_bins
     dz = depth / n_layers
@@ -283,10 +334,12 @@ def _engage_layers(
             nv_out[layer] = 0
             continue
         for b in range(n_bins):
-            phi = (b + 0.5) * dphi
-            sx = px + rs * (math.sin(phi) * ux + math.cos(phi) * vx)
-            sy = py + rs * (math.sin(phi) * uy + math.cos(phi) * vy)
-            hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf)
+            if ball:
+                sx = px + rs * (sinb[b] * ux + cosb[b] * vx)
+                sy = py + rs * (sinb[b] * uy + cosb[b] * vy)
+                hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf)
+            else:
+                hz = colh[b]
             flags[b] = hz > zabs + eps_z
         n, ovf = _runs_to_intervals(
             flags, n_bins, dphi, phi_graze, max_iv, iv_out[layer], run_s, run_e
@@ -298,10 +351,12 @@ def _engage_layers(
             b1 = int(round(iv_out[layer, i, 1] / dphi))
             for b in range(b0, b1):
                 if flags[b]:
-                    phi = (b + 0.5) * dphi
-                    sx = px + rs * (math.sin(phi) * ux + math.cos(phi) * vx)
-                    sy = py + rs * (math.sin(phi) * uy + math.cos(phi) * vy)
-                    hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf) - pz
+                    if ball:
+                        sx = px + rs * (sinb[b] * ux + cosb[b] * vx)
+                        sy = py + rs * (sinb[b] * uy + cosb[b] * vy)
+                        hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf) - pz
+                    else:
+                        hz = colh[b] - pz
                     if hz > top:
                         top = hz
     return top, overflow
@@ -434,6 +489,12 @@ def cut_and_engage(
     for a in range(n_gain_angles):
         sin0[a] = math.sin(a * gain_period / n_gain_angles)
         cos0[a] = math.cos(a * gain_period / n_gain_angles)
+    sinb = np.empty(n_bins)
+    cosb = np.empty(n_bins)
+    for b in range(n_bins):
+        sinb[b] = math.sin((b + 0.5) * math.pi / n_bins)
+        cosb[b] = math.cos((b + 0.5) * math.pi / n_bins)
+    colh = np.empty(n_bins)
     fxw = np.zeros(n_gain_angles)
     fyw = np.zeros(n_gain_angles)
     n_overflow = 0
@@ -471,12 +532,11 @@ def cut_and_engage(
         uy = fdy[k]
         rs = radius + delta
         a0 = 0.0
-        dphi = math.pi / n_bins
         for b in range(n_bins):
-            phi = (b + 0.5) * dphi
-            sx = xs[k] + rs * (math.sin(phi) * ux - math.cos(phi) * uy)
-            sy = ys[k] + rs * (math.sin(phi) * uy + math.cos(phi) * ux)
-            hz = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf) - zs[k]
+            sx = xs[k] + rs * (sinb[b] * ux - cosb[b] * uy)
+            sy = ys[k] + rs * (sinb[b] * uy + cosb[b] * ux)
+            colh[b] = _height_at(heights, x0g, y0g, h, sx, sy, -np.inf)
+            hz = colh[b] - zs[k]
             if hz > a0:
                 a0 = hz
         if a0 <= eps_z:
@@ -485,6 +545,7 @@ def cut_and_engage(
         top, ovf = _engage_layers(
             heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball, a0,
             n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags, run_s, run_e,
+            sinb, cosb, colh,
         )  # fmt: skip
         depth = a0
         if top <= eps_z:
@@ -496,7 +557,7 @@ def cut_and_engage(
             top2, ovf = _engage_layers(
                 heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball,
                 depth, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags,
-                run_s, run_e,
+                run_s, run_e, sinb, cosb, colh,
             )  # fmt: skip
         any_iv = False
         for layer in range(n_layers):
