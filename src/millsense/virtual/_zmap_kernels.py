@@ -47,10 +47,10 @@ def sweep_segment(
     dz = p1z - p0z
     zlow = min(p0z, p1z)
     r2 = radius * radius
-    ix_lo = max(int(math.ceil((min(p0x, p1x) - radius - x0g) / h - 0.5)), 0)
-    ix_hi = min(int(math.floor((max(p0x, p1x) + radius - x0g) / h - 0.5)), nx - 1)
-    iy_lo = max(int(math.ceil((min(p0y, p1y) - radius - y0g) / h - 0.5)), 0)
-    iy_hi = min(int(math.floor((max(p0y, p1y) + radius - y0g) / h - 0.5)), ny - 1)
+    ix_lo = max(math.ceil((min(p0x, p1x) - radius - x0g) / h - 0.5), 0)
+    ix_hi = min(math.floor((max(p0x, p1x) + radius - x0g) / h - 0.5), nx - 1)
+    iy_lo = max(math.ceil((min(p0y, p1y) - radius - y0g) / h - 0.5), 0)
+    iy_hi = min(math.floor((max(p0y, p1y) + radius - y0g) / h - 0.5), ny - 1)
     if ix_lo > ix_hi or iy_lo > iy_hi:
         return
     a = dx * dx + dy * dy
@@ -95,8 +95,8 @@ def sweep_segment(
                 hi = max(hi, p0x + b_hi)
         if lo > hi:
             continue
-        jx_lo = max(int(math.ceil((lo - x0g) / h - 0.5 - 1e-9)), ix_lo)
-        jx_hi = min(int(math.floor((hi - x0g) / h - 0.5 + 1e-9)), ix_hi)
+        jx_lo = max(math.ceil((lo - x0g) / h - 0.5 - 1e-9), ix_lo)
+        jx_hi = min(math.floor((hi - x0g) / h - 0.5 + 1e-9), ix_hi)
         if flat_level:
             # flat tool at constant height: the whole row range goes down to z
             zf = np.float32(p0z)
@@ -193,10 +193,10 @@ def top_surface_from_triangles(
         scale = (abs(ax - cx) + abs(bx - cx) + abs(ay - cy) + abs(by - cy)) ** 2
         if abs(det) <= 1e-12 * scale or scale == 0.0:
             continue
-        ix_lo = max(int(math.ceil((min(ax, bx, cx) - x0g) / h - 0.5)), 0)
-        ix_hi = min(int(math.floor((max(ax, bx, cx) - x0g) / h - 0.5)), nx - 1)
-        iy_lo = max(int(math.ceil((min(ay, by, cy) - y0g) / h - 0.5)), 0)
-        iy_hi = min(int(math.floor((max(ay, by, cy) - y0g) / h - 0.5)), ny - 1)
+        ix_lo = max(math.ceil((min(ax, bx, cx) - x0g) / h - 0.5), 0)
+        ix_hi = min(math.floor((max(ax, bx, cx) - x0g) / h - 0.5), nx - 1)
+        iy_lo = max(math.ceil((min(ay, by, cy) - y0g) / h - 0.5), 0)
+        iy_hi = min(math.floor((max(ay, by, cy) - y0g) / h - 0.5), ny - 1)
         tol = -1e-9
         for iy in range(iy_lo, iy_hi + 1):
             py = y0g + (iy + 0.5) * h
@@ -347,8 +347,8 @@ def _engage_layers(
         nv_out[layer] = n
         overflow = overflow or ovf
         for i in range(n):
-            b0 = int(round(iv_out[layer, i, 0] / dphi))
-            b1 = int(round(iv_out[layer, i, 1] / dphi))
+            b0 = round(iv_out[layer, i, 0] / dphi)
+            b1 = round(iv_out[layer, i, 1] / dphi)
             for b in range(b0, b1):
                 if flags[b]:
                     if ball:
@@ -422,8 +422,8 @@ def _peak_resultant(
                             break
                         p_lo = 0.0
                         p_hi = lo + w - two_pi
-                    a0 = max(int(math.ceil(p_lo / step - 1e-9)), 0)
-                    a1 = min(int(math.floor(p_hi / step + 1e-9)), n - 1)
+                    a0 = max(math.ceil(p_lo / step - 1e-9), 0)
+                    a1 = min(math.floor(p_hi / step + 1e-9), n - 1)
                     for a in range(a0, a1 + 1):
                         s = sin0[a] * cc - cos0[a] * sc
                         if s <= 0.0:
@@ -554,7 +554,7 @@ def cut_and_engage(
             continue
         if nv_out[k, n_layers - 1] == 0 and top < a0 * (1.0 - 0.5 / n_layers):
             depth = top
-            top2, ovf = _engage_layers(
+            _top2, ovf = _engage_layers(
                 heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball,
                 depth, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags,
                 run_s, run_e, sinb, cosb, colh,

@@ -268,7 +268,7 @@ def compute_engagement(
     gain = np.zeros(n)
     uniform = tool.pitch_angles_rad is None
     period = 2 * math.pi / tool.n_flutes if uniform else 2 * math.pi
-    n_gain = max(int(round(gain_angles_per_rev * period / (2 * math.pi))), 1)
+    n_gain = max(round(gain_angles_per_rev * period / (2 * math.pi)), 1)
     has_prev = previous_xyz_m is not None
     px, py, pz = (float(v) for v in previous_xyz_m) if previous_xyz_m is not None else (0, 0, 0)
     n_ovf = _k.cut_and_engage(
@@ -321,7 +321,7 @@ def compute_engagement(
 def _areas(
     tool: EndMill, iv: NDArray[np.float32], nv: NDArray[np.int16], depth: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    n, n_layers, m, _ = iv.shape
+    _n, n_layers, m, _ = iv.shape
     valid = np.arange(m)[None, None, :] < nv[:, :, None]
     a = iv[..., 0].astype(np.float64)
     b = iv[..., 1].astype(np.float64)

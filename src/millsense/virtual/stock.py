@@ -34,8 +34,8 @@ MAX_CELLS = 200_000_000
 def _grid_shape(extent_x: float, extent_y: float, resolution_m: float) -> tuple[int, int]:
     if not (math.isfinite(resolution_m) and resolution_m > 0):
         raise ConfigError(f"stock: resolution_m must be positive, got {resolution_m!r}")
-    nx = max(int(math.ceil(extent_x / resolution_m - 1e-9)), 1)
-    ny = max(int(math.ceil(extent_y / resolution_m - 1e-9)), 1)
+    nx = max(math.ceil(extent_x / resolution_m - 1e-9), 1)
+    ny = max(math.ceil(extent_y / resolution_m - 1e-9), 1)
     if nx * ny > MAX_CELLS:
         raise ConfigError(
             f"stock: {nx} × {ny} cells at resolution_m={resolution_m!r} exceed "
@@ -150,12 +150,12 @@ class ZMapStock:
     @property
     def x_centres_m(self) -> FloatArray:
         """Cell-centre x coordinates [m], (nx,)."""
-        return self.x0_m + (np.arange(self.nx) + 0.5) * self.resolution_m
+        return np.asarray(self.x0_m + (np.arange(self.nx) + 0.5) * self.resolution_m, np.float64)
 
     @property
     def y_centres_m(self) -> FloatArray:
         """Cell-centre y coordinates [m], (ny,)."""
-        return self.y0_m + (np.arange(self.ny) + 0.5) * self.resolution_m
+        return np.asarray(self.y0_m + (np.arange(self.ny) + 0.5) * self.resolution_m, np.float64)
 
     @property
     def max_height_m(self) -> float:

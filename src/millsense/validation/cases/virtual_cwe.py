@@ -50,7 +50,8 @@ def _cut_x(
 
 def _degrees_table(res: EngagementResult, k: int) -> str:
     rows = [
-        f"| {i} | " + ", ".join(f"[{math.degrees(a):.2f}°, {math.degrees(b):.2f}°]" for a, b in iv)
+        f"| {i} | "
+        + ", ".join(f"[{math.degrees(a):.2f}°, {math.degrees(b):.2f}°]" for a, b in iv)
         + " |"
         for i, iv in enumerate(res.intervals(k))
     ]
@@ -191,9 +192,7 @@ def _depth_step() -> float:
 def _crossing() -> Measured:
     stock = _block(0.06, 0.06)
     ys = np.arange(-0.015, 0.075, 0.4e-3)
-    compute_engagement(
-        stock, _TOOL, np.full(ys.size, 0.03), ys, np.full(ys.size, _TOP - 3e-3)
-    )
+    compute_engagement(stock, _TOOL, np.full(ys.size, 0.03), ys, np.full(ys.size, _TOP - 3e-3))
     x, res = _cut_x(stock, 0.03, _TOP - 3e-3, x1=0.03)
     k = int(np.argmin(np.abs(x - 0.015)))
     exits = {iv[0][1] for iv in res.intervals(k) if len(iv) == 2}
