@@ -442,6 +442,31 @@ def _peak_resultant(
 
 
 @numba.njit(cache=True)
+def _areas(
+    iv: np.ndarray, nv: np.ndarray, depth: float, radius: float, ball: bool
+) -> tuple[float, float]:
+    """Projected engaged area Σ Δz r (cos entry − cos exit) and contact area
+    Σ (Δz / sin κ) r (exit − entry) over layers and intervals [m²]."""
+    n_layers = nv.size
+    dz = depth / n_layers
+    proj = 0.0
+    contact = 0.0
+    for layer in range(n_layers):
+        zc = (layer + 0.5) * dz
+        if ball and zc < radius:
+            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
+        else:
+            r = radius
+        sk = max(min(r / radius, 1.0), 1e-12)
+        for i in range(nv[layer]):
+            a = float(iv[layer, i, 0])
+            b = float(iv[layer, i, 1])
+            proj += dz * r * (math.cos(a) - math.cos(b))
+            contact += dz * r / sk * (b - a)
+    return proj, contact
+
+
+@numba.njit(cache=True)
 def cut_and_engage(
     heights: np.ndarray,
     x0g: float,
@@ -474,6 +499,8 @@ def cut_and_engage(
     nv_out: np.ndarray,
     depth_out: np.ndarray,
     gain_out: np.ndarray,
+    area_out: np.ndarray,
+    contact_out: np.ndarray,
 ) -> int:
     """Per step: sweep the tool from the previous step to this one, then sample engagement.
 
@@ -572,4 +599,5 @@ def cut_and_engage(
             iv_out[k], nv_out[k], depth, radius, ball, theta, kbeta, krc_ratio,
             sin0, cos0, gain_period, fxw, fyw,
         )  # fmt: skip
+        area_out[k], contact_out[k] = _areas(iv_out[k], nv_out[k], depth, radius, ball)
     return n_overflow

@@ -106,6 +106,26 @@ class EngagementResult:
     def __len__(self) -> int:
         return int(self.axial_depth_m.size)
 
+    @classmethod
+    def concatenate(cls, parts: list[EngagementResult]) -> EngagementResult:
+        """Join results of consecutive chunks of one path (same tool and settings)."""
+        if not parts:
+            raise InputDataError("engagement: nothing to concatenate")
+        shapes = {p.intervals_rad.shape[1:] for p in parts}
+        if len(shapes) != 1 or any(p.tool != parts[0].tool for p in parts):
+            raise InputDataError("engagement: chunks differ in tool, layers or interval count")
+        return cls(
+            axial_depth_m=np.concatenate([p.axial_depth_m for p in parts]),
+            intervals_rad=np.concatenate([p.intervals_rad for p in parts]),
+            n_intervals=np.concatenate([p.n_intervals for p in parts]),
+            gain_cwe_m=np.concatenate([p.gain_cwe_m for p in parts]),
+            engaged_area_m2=np.concatenate([p.engaged_area_m2 for p in parts]),
+            contact_area_m2=np.concatenate([p.contact_area_m2 for p in parts]),
+            feed_angle_rad=np.concatenate([p.feed_angle_rad for p in parts]),
+            tool=parts[0].tool,
+            n_overflow=sum(p.n_overflow for p in parts),
+        )
+
     @property
     def n_layers(self) -> int:
         """Number of axial layers L."""
@@ -266,6 +286,8 @@ def compute_engagement(
     nv = np.zeros((n, n_layers), dtype=np.int16)
     depth = np.zeros(n)
     gain = np.zeros(n)
+    eng_area = np.zeros(n)
+    contact = np.zeros(n)
     uniform = tool.pitch_angles_rad is None
     period = 2 * math.pi / tool.n_flutes if uniform else 2 * math.pi
     n_gain = max(round(gain_angles_per_rev * period / (2 * math.pi)), 1)
@@ -303,8 +325,9 @@ def compute_engagement(
         nv,
         depth,
         gain,
+        eng_area,
+        contact,
     )
-    eng_area, contact = _areas(tool, iv, nv, depth)
     return EngagementResult(
         axial_depth_m=depth,
         intervals_rad=iv,
@@ -316,21 +339,3 @@ def compute_engagement(
         tool=tool,
         n_overflow=int(n_ovf),
     )
-
-
-def _areas(
-    tool: EndMill, iv: NDArray[np.float32], nv: NDArray[np.int16], depth: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    _n, n_layers, m, _ = iv.shape
-    valid = np.arange(m)[None, None, :] < nv[:, :, None]
-    a = iv[..., 0].astype(np.float64)
-    b = iv[..., 1].astype(np.float64)
-    proj = np.where(valid, np.cos(a) - np.cos(b), 0.0).sum(axis=2)  # (n, L)
-    span = np.where(valid, b - a, 0.0).sum(axis=2)
-    dz = depth / n_layers
-    zc = (np.arange(n_layers)[None, :] + 0.5) * dz[:, None]
-    r = _layer_radius(tool, zc)
-    sin_k = np.clip(r / tool.radius_m, 1e-12, 1.0)
-    eng = (proj * r).sum(axis=1) * dz
-    contact = (span * r / sin_k).sum(axis=1) * dz
-    return eng, contact
