@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from millsense.process.closed_forms import slot_average_forces
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
@@ -230,4 +231,36 @@ def _v9() -> Measured:
         peak,
         f"Gain_CWE = {res.gain_cwe_mm[k]:.5f} mm; K_tc c Gain_CWE = {closed:.3f} N; "
         f"sliced peak = {peak:.3f} N",
+    )
+
+
+@case(
+    "virtual.cwe_slot_average_force",
+    source="benchmarks.md §3 (closed-form slot averages)",
+    reference=0.0,
+    unit="%",
+    abs_tol=1.0,
+    description="Largest relative error of the mean F_x, F_y of the sliced model on a z-map "
+    "slot engagement (Ø20, 2 flutes, 30° helix, a = 3 mm, c = 0.2 mm, Al7050 preset "
+    "coefficients) against the closed forms",
+)
+def _slot_average() -> Measured:
+    tool = EndMill(2 * _R, 2, helix_rad=math.radians(30.0))
+    x, res = _cut_x(_block(), 0.02, _TOP - 3e-3, tool=tool)
+    k = int(np.argmin(np.abs(x - 0.03)))
+    coeffs = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
+    phi = np.linspace(0.0, 2 * math.pi, 7200, endpoint=False)
+    f = milling_forces(
+        tool, coeffs, res.engagement(k), 0.2e-3, float(res.axial_depth_m[k]), phi, 200
+    )
+    ref = slot_average_forces(2, 3e-3, 0.2e-3, coeffs)
+    got = f.average()[:2]
+    errs = [abs(g - float(r)) / abs(float(r)) * 100 for g, r in zip(got, ref[:2], strict=True)]
+    rows = "\n".join(
+        f"| {ax} | {float(r):.3f} | {g:.3f} | {e:.2e} |"
+        for ax, r, g, e in zip("xy", ref[:2], got, errs, strict=True)
+    )
+    return Measured(
+        max(errs),
+        "| axis | closed form [N] | z-map + sliced [N] | error [%] |\n|---|---|---|---|\n" + rows,
     )
