@@ -36,8 +36,14 @@ represented: the criterion is the XY feed over the periphery, which is where the
 Accuracy (stated tolerances of the tests): an entry or exit angle away from 0 and π is
 within one bin plus ≈ 1.5 h/(r |sin φ|) (boundary quantised to cells plus δ); 0 and π are
 found exactly when the material is there (first pass of a slot), grazing walls as above. An
-axial step in the material shows when the tool's front edge is within h + δ/… of it, i.e.
-within one cell (sample at r + h finds the cell beyond the step one cell early).
+axial step in the material lying on a cell edge shows when the tool's front edge is one cell
+before it (the sample at r + h lands in the first cell beyond the step), i.e. within one
+cell; a step inside a cell is itself quantised to the cell edge (± h/2 more).
+
+Limits: the top of material is sampled at the full radius only (a rib inside a ball's
+footprint, above the ring at R + h, is not seen); one tool per call (split a path at tool
+changes); clockwise spindle (M3). At the last step of an earlier cut the look-ahead sees the
+uncut material beyond it.
 """
 
 from __future__ import annotations
