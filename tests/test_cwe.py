@@ -277,3 +277,22 @@ def test_virtual_quick_cases_pass() -> None:
     for c in cases:
         r = run_case(c)
         assert r.passed, (c.id, r.measured, r.reference, r.error)
+
+
+@pytest.mark.parametrize("slope_deg", [20.0, 35.0, 50.0])
+def test_slanted_edge_gives_one_clean_interval(slope_deg: float) -> None:
+    # Material below a line through (30, 20) mm at slope angle α, staircased by the grid;
+    # tool centre on the line feeding along +x: material where R cos φ < tan α R sin φ, i.e.
+    # φ ∈ [90° − α, 180°]. One interval per layer (staircase gaps narrower than a cell are
+    # joined), entry within the stated tolerance.
+    stock = _block()
+    t = math.tan(math.radians(slope_deg))
+    xc, yc = np.meshgrid(stock.x_centres_m, stock.y_centres_m)
+    stock.heights[yc > 0.02 + t * (xc - 0.03)] = np.float32(0.0)
+    x, y = np.array([0.03]), np.array([0.02])
+    res = compute_engagement(stock, TOOL, x, y, np.full(1, TOP - 3e-3), feed_dir=np.array([[1, 0]]))
+    entry = math.radians(90.0 - slope_deg)
+    for layer in res.intervals(0):
+        assert len(layer) == 1
+        assert layer[0][0] == pytest.approx(entry, abs=_tol(entry))
+        assert layer[0][1] == pytest.approx(math.pi, abs=1e-6)

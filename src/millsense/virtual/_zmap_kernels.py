@@ -238,12 +238,18 @@ def _runs_to_intervals(
     n_bins: int,
     dphi: float,
     phi_graze: float,
+    max_gap: int,
     max_iv: int,
     out: np.ndarray,
     run_s: np.ndarray,
     run_e: np.ndarray,
 ) -> tuple[int, bool]:
-    """Turn engaged bins into intervals; drop grazing runs; merge the closest if too many."""
+    """Turn engaged bins into intervals.
+
+    Runs separated by at most ``max_gap`` empty bins (a gap narrower than one cell, which the
+    grid cannot resolve) are joined; runs lying inside the grazing zones [0, φ_g] or
+    [π − φ_g, π] are dropped; beyond ``max_iv`` runs the closest ones are merged.
+    """
     n = 0
     b = 0
     while b < n_bins:
@@ -251,13 +257,22 @@ def _runs_to_intervals(
             s = b
             while b + 1 < n_bins and flags[b + 1]:
                 b += 1
-            entry = s * dphi
-            exit_ = (b + 1) * dphi
-            if not (exit_ <= phi_graze + 1e-12 or entry >= math.pi - phi_graze - 1e-12):
+            if n > 0 and s - run_e[n - 1] - 1 <= max_gap:
+                run_e[n - 1] = b
+            else:
                 run_s[n] = s
                 run_e[n] = b
                 n += 1
         b += 1
+    m = 0
+    for i in range(n):
+        entry = run_s[i] * dphi
+        exit_ = (run_e[i] + 1) * dphi
+        if not (exit_ <= phi_graze + 1e-12 or entry >= math.pi - phi_graze - 1e-12):
+            run_s[m] = run_s[i]
+            run_e[m] = run_e[i]
+            m += 1
+    n = m
     overflow = False
     while n > max_iv:
         overflow = True
@@ -341,8 +356,9 @@ def _engage_layers(
             else:
                 hz = colh[b]
             flags[b] = hz > zabs + eps_z
+        max_gap = math.floor(h / (rs * dphi) + 1e-9)
         n, ovf = _runs_to_intervals(
-            flags, n_bins, dphi, phi_graze, max_iv, iv_out[layer], run_s, run_e
+            flags, n_bins, dphi, phi_graze, max_gap, max_iv, iv_out[layer], run_s, run_e
         )
         nv_out[layer] = n
         overflow = overflow or ovf
