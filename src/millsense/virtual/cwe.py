@@ -17,7 +17,8 @@ engaged iff the cell containing the point at radius r_ℓ + δ (δ = one cell) a
 angle has material above the layer centre (height > z_tip + z_ℓ + 0.1 µm, and z_tip + z_ℓ
 above the stock bottom). δ = h guarantees the sampled cell's centre lies outside the tool
 (its distance is ≥ r + h − h/√2), so material the tool has just removed is never counted.
-Runs of engaged bins give the intervals (entry, exit) at bin edges.
+Runs of engaged bins give the intervals (entry, exit) at bin edges; runs separated by a gap
+narrower than one cell at the sampling radius are joined (grid staircase of slanted walls).
 
 Grazing filter: a wall left by an earlier pass of the same radius parallel to the feed is
 tangent to the tool at φ = 0 or π; the sample at r + δ reads it up to
