@@ -25,6 +25,27 @@ from numpy.typing import ArrayLike, NDArray
 
 
 @numba.njit(cache=True)
+def _spd_inverse(s: NDArray[np.float64]) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    # Gauss-Jordan on a small symmetric positive-definite matrix (no pivoting needed)
+    m = s.shape[0]
+    a = s.copy()
+    inv = np.eye(m)
+    for i in range(m):
+        piv = a[i, i]
+        for c in range(m):
+            a[i, c] /= piv
+            inv[i, c] /= piv
+        for r in range(m):
+            if r != i:
+                fac = a[r, i]
+                if fac != 0.0:
+                    for c in range(m):
+                        a[r, c] -= fac * a[i, c]
+                        inv[r, c] -= fac * inv[i, c]
+    return inv
+
+
+@numba.njit(cache=True)
 def _tv_kalman_state(
     phi: NDArray[np.float64],
     q: NDArray[np.float64],
@@ -42,34 +63,109 @@ def _tv_kalman_state(
 ]:  # pragma: no cover - compiled
     n_samples, m = z.shape
     n = x0.shape[0]
-    eye = np.eye(n)
     x = x0.copy()
     p = p0.copy()
     x_out = np.empty((n_samples, n))
     z_out = np.empty((n_samples, m))
     p_diag = np.empty((n_samples, n))
+    xm = np.empty(n)
+    pm = np.empty((n, n))
+    tmp = np.empty((n, n))
+    ph = np.empty((n, m))
+    s = np.empty((m, m))
+    kg = np.empty((n, m))
+    innov = np.empty(m)
+    ikh = np.empty((n, n))
     for k in range(n_samples):
-        xm = phi @ x
-        pm = phi @ p @ phi.T + q
-        hk = np.ascontiguousarray(h[k])
+        # predict: x⁻ = Φ x, P⁻ = Φ P Φᵀ + Q
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += phi[i, j] * x[j]
+            xm[i] = acc
+        for i in range(n):
+            for j in range(n):
+                acc = 0.0
+                for l in range(n):
+                    acc += phi[i, l] * p[l, j]
+                tmp[i, j] = acc
+        for i in range(n):
+            for j in range(n):
+                acc = q[i, j]
+                for l in range(n):
+                    acc += tmp[i, l] * phi[j, l]
+                pm[i, j] = acc
         finite = True
         for c in range(m):
             if not np.isfinite(z[k, c]):
                 finite = False
         if finite:
-            s = hk @ pm @ hk.T + r
-            kg = pm @ hk.T @ np.linalg.inv(s)
-            x = xm + kg @ (z[k] - hk @ xm)
-            ikh = eye - kg @ hk
-            p = ikh @ pm @ ikh.T + kg @ r @ kg.T
-            p = 0.5 * (p + p.T)
+            # P⁻Hᵀ, S = H P⁻ Hᵀ + R, K = P⁻Hᵀ S⁻¹
+            for i in range(n):
+                for c in range(m):
+                    acc = 0.0
+                    for l in range(n):
+                        acc += pm[i, l] * h[k, c, l]
+                    ph[i, c] = acc
+            for a in range(m):
+                for c in range(m):
+                    acc = r[a, c]
+                    for l in range(n):
+                        acc += h[k, a, l] * ph[l, c]
+                    s[a, c] = acc
+            sinv = _spd_inverse(s)
+            for i in range(n):
+                for c in range(m):
+                    acc = 0.0
+                    for a in range(m):
+                        acc += ph[i, a] * sinv[a, c]
+                    kg[i, c] = acc
+            for c in range(m):
+                acc = z[k, c]
+                for l in range(n):
+                    acc -= h[k, c, l] * xm[l]
+                innov[c] = acc
+            for i in range(n):
+                acc = xm[i]
+                for c in range(m):
+                    acc += kg[i, c] * innov[c]
+                x[i] = acc
+            # Joseph form: P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
+            for i in range(n):
+                for j in range(n):
+                    acc = 1.0 if i == j else 0.0
+                    for c in range(m):
+                        acc -= kg[i, c] * h[k, c, j]
+                    ikh[i, j] = acc
+            for i in range(n):
+                for j in range(n):
+                    acc = 0.0
+                    for l in range(n):
+                        acc += ikh[i, l] * pm[l, j]
+                    tmp[i, j] = acc
+            for i in range(n):
+                for j in range(i, n):
+                    acc = 0.0
+                    for l in range(n):
+                        acc += tmp[i, l] * ikh[j, l]
+                    for a in range(m):
+                        for c in range(m):
+                            acc += kg[i, a] * r[a, c] * kg[j, c]
+                    p[i, j] = acc
+                    p[j, i] = acc
         else:
-            x = xm
-            p = pm
-        x_out[k] = x
-        z_out[k] = hk @ x
+            for i in range(n):
+                x[i] = xm[i]
+                for j in range(n):
+                    p[i, j] = pm[i, j]
         for i in range(n):
+            x_out[k, i] = x[i]
             p_diag[k, i] = p[i, i]
+        for c in range(m):
+            acc = 0.0
+            for l in range(n):
+                acc += h[k, c, l] * x[l]
+            z_out[k, c] = acc
     return x_out, z_out, p_diag, x, p
 
 
