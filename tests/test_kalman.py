@@ -100,7 +100,7 @@ def test_steady_gain_is_limit_of_riccati_recursion() -> None:
 
 
 def test_innovation_is_white_with_predicted_covariance() -> None:
-    m, d = _small_design()
+    _, d = _small_design()
     n = 200_000
     _, y = _simulate(d, n, seed=3)
     sf = StreamingFilter(d.filter("predicted", innovation=True))

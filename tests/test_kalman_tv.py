@@ -58,7 +58,7 @@ def test_random_walk_tracks_a_step_in_the_parameters() -> None:
     # after 3000 samples of information the estimate is within the noise (σ 0.5 over
     # thousands of samples gives errors ≪ 1) of the true values before and after the step
     np.testing.assert_allclose(out.x[2999], q_true, atol=1.0)
-    np.testing.assert_allclose(out.x[-1], q_true + [100.0, 0, 0, 0], atol=1.0)
+    np.testing.assert_allclose(out.x[-1], q_true + np.array([100.0, 0, 0, 0]), atol=1.0)
 
 
 def test_chunk_size_invariance() -> None:

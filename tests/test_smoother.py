@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_kalman import DT, _batch_se_of_mean, _c_axis_design, _simulate, _small_design
 
 from millsense.estimation.lti_filter import StreamingFilter
 from millsense.estimation.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother
+from test_kalman import DT, _batch_se_of_mean, _c_axis_design, _simulate, _small_design
 
 
 def _rts_window(design, y: np.ndarray, k: int, lag: int) -> float:

@@ -13,17 +13,18 @@ innovations"):
 where ``P`` is the steady prior covariance, ``Σ = C P Cᵀ + R`` and ``e`` the innovation
 (Anderson & Moore, *Optimal Filtering*, §7.3, derived from the orthogonality of the
 innovations). The gains are computed once; per chunk the work is the Kalman filter (numba LTI
-kernel), a delay line and an FIR of L+1 taps on the innovation (``scipy.signal.lfilter`` with
-carried state), so the output is chunk-size invariant and delayed by exactly ``lag`` samples.
+kernel), a delay line and an FIR of L+1 taps on the innovation (a second numba kernel over
+the carried history), so the output is chunk-size invariant and delayed by exactly ``lag``
+samples.
 The smoothed covariance ``P − Σ_j P_j Cᵀ Σ⁻¹ C P_jᵀ`` (``P_j = P (A_d − K_p C)ᵀʲ``) is the
 steady value of Eq. B.3.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from millsense.estimation.kalman import KalmanDesign
 from millsense.estimation.lti_filter import Realisation, StreamingFilter
@@ -64,6 +65,27 @@ def fixed_lag_gains(
     return taps, 0.5 * (cov + cov.T)
 
 
+@numba.njit(cache=True)
+def _delay_fir(
+    pred: NDArray[np.float64], innov: NDArray[np.float64], taps: NDArray[np.float64]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    # pred, innov: history of L samples followed by the chunk; out[k] = pred[k] +
+    # Σ_j taps[j] · innov[k + j], i.e. the estimate of the sample L before the chunk's k-th
+    n_lag = taps.shape[0] - 1
+    n = pred.shape[0] - n_lag
+    d = pred.shape[1]
+    p = innov.shape[1]
+    out = np.empty((n, d))
+    for k in range(n):
+        for r in range(d):
+            acc = pred[k, r]
+            for j in range(n_lag + 1):
+                for c in range(p):
+                    acc += taps[j, r, c] * innov[k + j, c]
+            out[k, r] = acc
+    return out
+
+
 class FixedLagSmoother:
     """Streaming fixed-lag smoother: emits ``S x̂(k−L | k)`` at sample k.
 
@@ -96,8 +118,7 @@ class FixedLagSmoother:
         self._p = design.c.shape[0]
         self.taps, self.covariance = fixed_lag_gains(design, self.lag, s)
         self._kf = StreamingFilter(design.filter("predicted", s, innovation=True), realisation)
-        # FIR on e: out(k) = Σ_i b_i e(k−i) with b_i = taps[L−i]
-        self._b = self.taps[::-1]
+        self._taps = np.ascontiguousarray(self.taps)
         self.reset()
 
     @property
@@ -114,8 +135,8 @@ class FixedLagSmoother:
     def reset(self) -> None:
         """Forget the stream (zero filter state, zero delay line and FIR state)."""
         self._kf.reset()
-        self._delay = np.zeros((self.lag, self._d))
-        self._zi = np.zeros((self._d, self._p, self.lag))
+        self._hist_pred = np.zeros((self.lag, self._d))
+        self._hist_innov = np.zeros((self.lag, self._p))
 
     def process(self, y: ArrayLike) -> NDArray[np.float64]:
         """Smooth one chunk of measurements.
@@ -129,22 +150,10 @@ class FixedLagSmoother:
         (N, d): row k is the smoothed estimate of sample ``k − lag`` of the stream.
         """
         out = self._kf.process(y)
-        pred = out[:, : self._d]
-        innov = out[:, self._d :]
-        n = len(pred)
-        res = np.zeros((n, self._d))
-        if self.lag > 0:
-            allpred = np.concatenate([self._delay, pred])
-            res += allpred[:n]
-            self._delay = allpred[n:]
-        else:
-            res += pred
-        for r in range(self._d):
-            for c in range(self._p):
-                b = self._b[:, r, c]
-                if self.lag > 0:
-                    fir, self._zi[r, c] = signal.lfilter(b, [1.0], innov[:, c], zi=self._zi[r, c])
-                else:
-                    fir = b[0] * innov[:, c]
-                res[:, r] += fir
+        pred = np.concatenate([self._hist_pred, out[:, : self._d]])
+        innov = np.concatenate([self._hist_innov, out[:, self._d :]])
+        res = _delay_fir(pred, innov, self._taps)
+        n_keep = len(pred) - self.lag
+        self._hist_pred = pred[n_keep:]
+        self._hist_innov = innov[n_keep:]
         return res
