@@ -267,3 +267,13 @@ def test_kalman_block_checks_rate_and_channels() -> None:
         block.reset(5000.0)
     with pytest.raises(ConfigError, match="input channels"):
         KalmanBlock("k", ["a", "b"], out, d)
+
+
+def test_measurement_includes_feedthrough_by_default() -> None:
+    # decision "C_exp = [C D]": with D ≠ 0 the disturbance state enters the measurement directly
+    m = StateSpaceModel.from_arrays([[-10.0]], [1.0], [2.0], 0.3761)
+    assert augment_disturbance(m).c[0].tolist() == [2.0, 0.3761]
+    assert augment_disturbance(m, feedthrough=False).c[0].tolist() == [2.0, 0.0]
+    # and the compensated FRF of a filter designed on [C D] is exactly 1 at DC
+    d = design_kalman(augment_disturbance(m), 100.0, 0.1, dt=DT)
+    assert compensated_frf(m, d, [0.0])[0] == pytest.approx(1.0, abs=1e-9)

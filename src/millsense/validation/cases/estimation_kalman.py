@@ -56,7 +56,7 @@ def _axis_results() -> dict[str, tuple[int, float, float, float]]:
 
 def _table() -> str:
     rows = [
-        "| Axis | States | ±3 dB band [Hz] | K (τ_a entry) | printed K [3.31] | worst dB, 0-120 Hz |",
+        "| Axis | States | ±3 dB band [Hz] | K (τ_a) | printed K [3.31] | worst dB 0-120 Hz |",
         "|---|---|---|---|---|---|",
     ]
     for axis, (n, bw, k, worst) in _axis_results().items():
