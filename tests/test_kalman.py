@@ -277,3 +277,19 @@ def test_measurement_includes_feedthrough_by_default() -> None:
     # and the compensated FRF of a filter designed on [C D] is exactly 1 at DC
     d = design_kalman(augment_disturbance(m), 100.0, 0.1, dt=DT)
     assert compensated_frf(m, d, [0.0])[0] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_noise_on_all_states_gives_spindle_form() -> None:
+    # Aslan Eq. 5.20 with Q_s = q·I (Table 5.2): Γ = I, so Q_d is full rank and
+    # tr Q_d = q·∫ tr(e^{Aτ}e^{Aᵀτ}) dτ; Taylor series of the integrand to second order:
+    # q·(n·dt + tr(A)·dt² + tr(A² + 2AAᵀ + Aᵀ²)·dt³/6) + O(dt⁴)
+    m = modal_state_space(ASLAN_C_AXIS_MODES[:2])
+    aug = augment_disturbance(m, noise_on_all_states=True)
+    assert aug.g.shape == (5, 5)
+    d = design_kalman(aug, 2e4, 0.378, dt=DT)
+    a = aug.a
+    f2 = np.trace(a @ a + 2 * a @ a.T + a.T @ a.T)
+    expect = 2e4 * (5 * DT + np.trace(a) * DT**2 + f2 * DT**3 / 6)
+    assert np.trace(d.qd) == pytest.approx(expect, rel=1e-7)
+    assert np.linalg.matrix_rank(d.qd) == 5
+    assert compensated_frf(m, d, [0.0])[0] == pytest.approx(1.0, abs=1e-6)

@@ -214,6 +214,7 @@ def augment_disturbance(
     *,
     harmonic_hz: float | None = None,
     feedthrough: bool = True,
+    noise_on_all_states: bool = False,
 ) -> AugmentedModel:
     """Augment the disturbance path with random-walk (and harmonic) disturbance states.
 
@@ -225,6 +226,9 @@ def augment_disturbance(
         frequency ω_t/2π (Aslan Eq. 3.16–3.20; Ch. 4 uses the spindle frequency, Eq. 4.3).
     feedthrough : measurement ``C_exp = [C D …]`` (True) or ``[C 0 …]`` (Aslan's printed
         Eq. 3.23). The digest notes ``[C D]`` is the correct one when D ≠ 0; it is the default.
+    noise_on_all_states : noise coupling Γ = I (one white noise per augmented state), as in the
+        spindle observer (Aslan Eq. 5.20 with Q_s = q·I₂₁, Table 5.2); default False: noise on
+        the disturbance states only (Eq. 3.23, L = [0 … 0 1]ᵀ).
 
     Returns
     -------
@@ -270,6 +274,8 @@ def augment_disturbance(
             c[:, n + 1] = model.d[:, 0]
         g[n + 1, 1] = 1.0
         dist[0, n + 1] = 1.0
+    if noise_on_all_states:
+        g = np.eye(na)
     return AugmentedModel(a, c, g, dist, model.dt, n, harmonic_hz)
 
 
