@@ -116,7 +116,7 @@ def _kalman_speed() -> list[Metric]:
 
     states = ", ".join(f"{ax.upper()} {dd.n_states}" for ax, dd in feed.items())
     kernels = ", ".join(
-        sorted({sm._kf.realisation for sm in smoothers.values()} | {observer.realisation})
+        sorted({sm.realisation for sm in smoothers.values()} | {observer.realisation})
     )
     note = (
         f"feed axes ({states} states) each with a {LAG}-sample fixed-lag smoother + spindle "

@@ -177,22 +177,29 @@ def real_modal_form(
 
 
 @numba.njit(cache=True)
-def _run_modal(
+def run_lti(
+    modal: bool,
     diag: NDArray[np.float64],
     off: NDArray[np.float64],
     n_pairs: int,
+    f: NDArray[np.float64],
     g: NDArray[np.float64],
     h: NDArray[np.float64],
     j: NDArray[np.float64],
     u: NDArray[np.float64],
     z: NDArray[np.float64],
 ) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    # states 0 .. 2·n_pairs−1 are 2×2 blocks (2i, 2i+1), the rest 1×1 blocks
+    """Run ``z⁺ = F z + G u``, ``y = H z + J u`` over ``u`` (N, m); updates ``z`` in place.
+
+    ``modal``: F is block diagonal, given by ``diag``/``off`` with states 0 .. 2·n_pairs−1 in
+    2×2 blocks (2i, 2i+1) and the rest 1×1 (``f`` unused); otherwise F is the dense ``f``.
+    """
     n_samples, m = u.shape
     p = h.shape[0]
     n = z.shape[0]
     y = np.empty((n_samples, p))
     gu = np.empty(n)
+    zn = np.empty(n)
     for k in range(n_samples):
         for r in range(p):
             acc = 0.0
@@ -206,49 +213,36 @@ def _run_modal(
             for c in range(m):
                 acc += g[i, c] * u[k, c]
             gu[i] = acc
-        for b in range(n_pairs):
-            i = 2 * b
-            z0 = z[i]
-            z1 = z[i + 1]
-            z[i] = diag[i] * z0 + off[i] * z1 + gu[i]
-            z[i + 1] = off[i + 1] * z0 + diag[i + 1] * z1 + gu[i + 1]
-        for i in range(2 * n_pairs, n):
-            z[i] = diag[i] * z[i] + gu[i]
-    return y
-
-
-@numba.njit(cache=True)
-def _run_dense(
-    f: NDArray[np.float64],
-    g: NDArray[np.float64],
-    h: NDArray[np.float64],
-    j: NDArray[np.float64],
-    u: NDArray[np.float64],
-    z: NDArray[np.float64],
-) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    n_samples, m = u.shape
-    p = h.shape[0]
-    n = z.shape[0]
-    y = np.empty((n_samples, p))
-    zn = np.empty(n)
-    for k in range(n_samples):
-        for r in range(p):
-            acc = 0.0
+        if modal:
+            for b in range(n_pairs):
+                i = 2 * b
+                z0 = z[i]
+                z1 = z[i + 1]
+                z[i] = diag[i] * z0 + off[i] * z1 + gu[i]
+                z[i + 1] = off[i + 1] * z0 + diag[i + 1] * z1 + gu[i + 1]
+            for i in range(2 * n_pairs, n):
+                z[i] = diag[i] * z[i] + gu[i]
+        else:
             for i in range(n):
-                acc += h[r, i] * z[i]
-            for c in range(m):
-                acc += j[r, c] * u[k, c]
-            y[k, r] = acc
-        for i in range(n):
-            acc = 0.0
-            for q in range(n):
-                acc += f[i, q] * z[q]
-            for c in range(m):
-                acc += g[i, c] * u[k, c]
-            zn[i] = acc
-        for i in range(n):
-            z[i] = zn[i]
+                acc = gu[i]
+                for q in range(n):
+                    acc += f[i, q] * z[q]
+                zn[i] = acc
+            for i in range(n):
+                z[i] = zn[i]
     return y
+
+
+KernelArgs = tuple[
+    bool,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    int,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+]
 
 
 class StreamingFilter:
@@ -262,10 +256,21 @@ class StreamingFilter:
     """
 
     def __init__(self, filt: LinearFilter, realisation: Realisation = "auto") -> None:
+        if realisation not in ("auto", "modal", "dense"):
+            raise ValueError(f"realisation must be auto, modal or dense, got {realisation!r}")
         self.filter = filt
-        self._modal: tuple[NDArray[np.float64], ...] | None = None
-        self._n_pairs = 0
-        self._t = np.eye(filt.n_states)
+        self._t: NDArray[np.float64] | None = None
+        empty = np.zeros(0)
+        args: KernelArgs = (
+            False,
+            empty,
+            empty,
+            0,
+            np.ascontiguousarray(filt.f),
+            np.ascontiguousarray(filt.g),
+            np.ascontiguousarray(filt.h),
+            np.ascontiguousarray(filt.j),
+        )
         if realisation in ("auto", "modal"):
             try:
                 t, diag, off, partner = real_modal_form(filt.f)
@@ -273,35 +278,47 @@ class StreamingFilter:
                 if realisation == "modal":
                     raise
             else:
-                t_inv = np.linalg.inv(t)
                 self._t = t
-                self._modal = (diag, off, np.ascontiguousarray(t_inv @ filt.g), filt.h @ t)
-                self._n_pairs = int(np.count_nonzero(partner != np.arange(len(partner))) // 2)
-        elif realisation != "dense":
-            raise ValueError(f"realisation must be auto, modal or dense, got {realisation!r}")
-        self._g = np.ascontiguousarray(filt.g)
-        self._h = np.ascontiguousarray(filt.h)
-        self._j = np.ascontiguousarray(filt.j)
-        self._f = np.ascontiguousarray(filt.f)
-        self._z = np.zeros(filt.n_states)
+                n_pairs = int(np.count_nonzero(partner != np.arange(len(partner))) // 2)
+                args = (
+                    True,
+                    diag,
+                    off,
+                    n_pairs,
+                    np.zeros((0, 0)),
+                    np.ascontiguousarray(np.linalg.solve(t, filt.g)),
+                    np.ascontiguousarray(filt.h @ t),
+                    np.ascontiguousarray(filt.j),
+                )
+        self.kernel_args = args
+        self.z = np.zeros(filt.n_states)
 
     @property
     def realisation(self) -> str:
         """``"modal"`` or ``"dense"``, the kernel actually used."""
-        return "modal" if self._modal is not None else "dense"
+        return "modal" if self._t is not None else "dense"
 
     def reset(self, state: ArrayLike | None = None) -> None:
         """Set the filter state ``s`` (in the original coordinates; zero if omitted)."""
         if state is None:
-            self._z = np.zeros(self.filter.n_states)
+            self.z = np.zeros(self.filter.n_states)
             return
         s = np.asarray(state, dtype=float).reshape(self.filter.n_states)
-        self._z = np.linalg.solve(self._t, s) if self._modal is not None else s.copy()
+        self.z = np.linalg.solve(self._t, s) if self._t is not None else s.copy()
 
     @property
     def state(self) -> NDArray[np.float64]:
         """Current state ``s`` in the original coordinates."""
-        return self._t @ self._z if self._modal is not None else self._z.copy()
+        return self._t @ self.z if self._t is not None else self.z.copy()
+
+    def as_input(self, u: ArrayLike) -> NDArray[np.float64]:
+        """``u`` as a C-contiguous (N, m) float array; raises ValueError on a shape mismatch."""
+        arr = np.asarray(u, dtype=float)
+        if arr.ndim == 1:
+            arr = arr[:, None]
+        if arr.ndim != 2 or arr.shape[1] != self.filter.n_inputs:
+            raise ValueError(f"input has shape {np.shape(u)}, expected (N, {self.filter.n_inputs})")
+        return np.ascontiguousarray(arr)
 
     def process(self, u: ArrayLike) -> NDArray[np.float64]:
         """Filter one chunk.
@@ -314,13 +331,4 @@ class StreamingFilter:
         -------
         (N, p) outputs, one row per input sample.
         """
-        arr = np.asarray(u, dtype=float)
-        if arr.ndim == 1:
-            arr = arr[:, None]
-        if arr.ndim != 2 or arr.shape[1] != self.filter.n_inputs:
-            raise ValueError(f"input has shape {np.shape(u)}, expected (N, {self.filter.n_inputs})")
-        arr = np.ascontiguousarray(arr)
-        if self._modal is not None:
-            diag, off, g, h = self._modal
-            return _run_modal(diag, off, self._n_pairs, g, h, self._j, arr, self._z)
-        return _run_dense(self._f, self._g, self._h, self._j, arr, self._z)
+        return run_lti(*self.kernel_args, self.as_input(u), self.z)

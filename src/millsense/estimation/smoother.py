@@ -14,7 +14,7 @@ where ``P`` is the steady prior covariance, ``Σ = C P Cᵀ + R`` and ``e`` the 
 (Anderson & Moore, *Optimal Filtering*, §7.3, derived from the orthogonality of the
 innovations). The gains are computed once; per chunk the work is the Kalman filter (numba LTI
 kernel), a delay line and an FIR of L+1 taps on the innovation (a second numba kernel over
-the carried history), so the output is chunk-size invariant and delayed by exactly ``lag``
+the carried history, fused with the filter in one kernel), so the output is chunk-size invariant and delayed by exactly ``lag``
 samples.
 The smoothed covariance ``P − Σ_j P_j Cᵀ Σ⁻¹ C P_jᵀ`` (``P_j = P (A_d − K_p C)ᵀʲ``) is the
 steady value of Eq. B.3.
@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from millsense.estimation.kalman import KalmanDesign
-from millsense.estimation.lti_filter import Realisation, StreamingFilter
+from millsense.estimation.lti_filter import Realisation, StreamingFilter, run_lti
 
 #: Aslan Appendix B: 60 samples at 10 kHz (6 ms).
 ASLAN_LAG_SAMPLES = 60
@@ -66,23 +66,51 @@ def fixed_lag_gains(
 
 
 @numba.njit(cache=True)
-def _delay_fir(
-    pred: NDArray[np.float64], innov: NDArray[np.float64], taps: NDArray[np.float64]
+def _smooth(
+    modal: bool,
+    diag: NDArray[np.float64],
+    off: NDArray[np.float64],
+    n_pairs: int,
+    f: NDArray[np.float64],
+    g: NDArray[np.float64],
+    h: NDArray[np.float64],
+    j: NDArray[np.float64],
+    u: NDArray[np.float64],
+    z: NDArray[np.float64],
+    taps_t: NDArray[np.float64],
+    hist_pred: NDArray[np.float64],
+    hist_innov: NDArray[np.float64],
 ) -> NDArray[np.float64]:  # pragma: no cover - compiled
-    # pred, innov: history of L samples followed by the chunk; out[k] = pred[k] +
-    # Σ_j taps[j] · innov[k + j], i.e. the estimate of the sample L before the chunk's k-th
-    n_lag = taps.shape[0] - 1
-    n = pred.shape[0] - n_lag
-    d = pred.shape[1]
-    p = innov.shape[1]
-    out = np.empty((n, d))
+    # Kalman filter with outputs [S x̂(k|k−1); e(k)], then out[k] = pred[k] + Σ_c Σ_j
+    # taps_t[:, c, j]·e_c[k + j] over the history of L samples followed by the chunk: the
+    # estimate of the sample L before the chunk's k-th. hist_* are updated in place.
+    d, p, n_taps = taps_t.shape
+    lag = n_taps - 1
+    y = run_lti(modal, diag, off, n_pairs, f, g, h, j, u, z)
+    n = y.shape[0]
+    pred = np.empty((lag + n, d))
+    innov = np.empty((p, lag + n))
+    pred[:lag] = hist_pred
+    innov[:, :lag] = hist_innov
     for k in range(n):
         for r in range(d):
-            acc = pred[k, r]
-            for j in range(n_lag + 1):
-                for c in range(p):
-                    acc += taps[j, r, c] * innov[k + j, c]
-            out[k, r] = acc
+            pred[lag + k, r] = y[k, r]
+        for c in range(p):
+            innov[c, lag + k] = y[k, d + c]
+    out = np.empty((n, d))
+    for r in range(d):
+        for k in range(n):
+            out[k, r] = pred[k, r]
+        for c in range(p):
+            w = taps_t[r, c]
+            e = innov[c]
+            for k in range(n):
+                acc = 0.0
+                for i in range(n_taps):
+                    acc += w[i] * e[k + i]
+                out[k, r] += acc
+    hist_pred[:] = pred[n:]
+    hist_innov[:] = innov[:, n:]
     return out
 
 
@@ -118,8 +146,13 @@ class FixedLagSmoother:
         self._p = design.c.shape[0]
         self.taps, self.covariance = fixed_lag_gains(design, self.lag, s)
         self._kf = StreamingFilter(design.filter("predicted", s, innovation=True), realisation)
-        self._taps = np.ascontiguousarray(self.taps)
+        self._taps_t = np.ascontiguousarray(self.taps.transpose(1, 2, 0))
         self.reset()
+
+    @property
+    def realisation(self) -> str:
+        """Kernel of the underlying filter (``"modal"`` or ``"dense"``)."""
+        return self._kf.realisation
 
     @property
     def delay_samples(self) -> int:
@@ -136,7 +169,7 @@ class FixedLagSmoother:
         """Forget the stream (zero filter state, zero delay line and FIR state)."""
         self._kf.reset()
         self._hist_pred = np.zeros((self.lag, self._d))
-        self._hist_innov = np.zeros((self.lag, self._p))
+        self._hist_innov = np.zeros((self._p, self.lag))
 
     def process(self, y: ArrayLike) -> NDArray[np.float64]:
         """Smooth one chunk of measurements.
@@ -149,11 +182,12 @@ class FixedLagSmoother:
         -------
         (N, d): row k is the smoothed estimate of sample ``k − lag`` of the stream.
         """
-        out = self._kf.process(y)
-        pred = np.concatenate([self._hist_pred, out[:, : self._d]])
-        innov = np.concatenate([self._hist_innov, out[:, self._d :]])
-        res = _delay_fir(pred, innov, self._taps)
-        n_keep = len(pred) - self.lag
-        self._hist_pred = pred[n_keep:]
-        self._hist_innov = innov[n_keep:]
-        return res
+        u = self._kf.as_input(y)
+        return _smooth(
+            *self._kf.kernel_args,
+            u,
+            self._kf.z,
+            self._taps_t,
+            self._hist_pred,
+            self._hist_innov,
+        )
