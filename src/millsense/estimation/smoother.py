@@ -12,10 +12,9 @@ innovations"):
 
 where ``P`` is the steady prior covariance, ``Σ = C P Cᵀ + R`` and ``e`` the innovation
 (Anderson & Moore, *Optimal Filtering*, §7.3, derived from the orthogonality of the
-innovations). The gains are computed once; per chunk the work is the Kalman filter (numba LTI
-kernel), a delay line and an FIR of L+1 taps on the innovation (a second numba kernel over
-the carried history, fused with the filter in one kernel), so the output is chunk-size invariant and delayed by exactly ``lag``
-samples.
+innovations). The gains are computed once; per chunk one numba kernel runs the Kalman filter,
+a delay line and an FIR of L+1 taps on the innovation over the carried history, so the output
+is chunk-size invariant and delayed by exactly ``lag`` samples.
 The smoothed covariance ``P − Σ_j P_j Cᵀ Σ⁻¹ C P_jᵀ`` (``P_j = P (A_d − K_p C)ᵀʲ``) is the
 steady value of Eq. B.3.
 """
