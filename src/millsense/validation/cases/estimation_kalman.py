@@ -1,0 +1,99 @@
+"""Validation of the Kalman toolkit on Aslan's C axis (seed 000, Table 3.4, Eq. 3.30).
+
+The disturbance path Φ_d = τ_c/τ_a of the C axis is realised from the Table 3.4 modes (ζ as
+fractions, digest P5) in 2×2 blocks, augmented with the random-walk disturbance state
+(Eq. 3.21–3.23) and given R = 1.4903 (per-sample variance) and Q = 10000 (spectral density of
+τ̇_a, discretised by Van Loan at 10 kHz). The compensated FRF τ̂_a/τ_a = Φ_d·Φ_KF and its ±3 dB
+band are computed with the model itself as the plant.
+
+The thesis reports 120 Hz for the rotary axes (Fig. 3.8, V3), measured with the *measured*
+Φ_d, which carries dynamics above the fitted band the filter does not model; on the model
+alone the band is wider (docs/decisions.md, "C-axis compensated bandwidth against Aslan's
+120 Hz"). The bandwidth case therefore keeps the thesis's figure as reference and fails
+honestly; the acceptance criterion of issue 7 ("flat within ±3 dB up to 120 Hz") is the second
+case.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+from millsense.validation import Measured, case
+
+F_GRID_HZ = np.linspace(0.0, 1000.0, 20001)
+PRINTED_K_LAST = {"x": 0.6076, "y": 0.9306, "z": 0.656, "a": -0.372, "c": 0.911}
+
+
+@cache
+def _axis_results() -> dict[str, tuple[int, float, float, float]]:
+    """Per axis: (augmented states, bandwidth Hz, K_f of the τ_a state, worst |dB| 0-120 Hz)."""
+    from millsense.estimation._modal_ss import ASLAN_EQ_3_30, ASLAN_TABLE_3_4, modal_state_space
+    from millsense.estimation.kalman import (
+        augment_disturbance,
+        bandwidth_3db,
+        compensated_frf,
+        design_kalman,
+    )
+
+    out = {}
+    for axis, modes in ASLAN_TABLE_3_4.items():
+        model = modal_state_space(modes)
+        r, q = ASLAN_EQ_3_30[axis]
+        design = design_kalman(augment_disturbance(model), q, r, dt=1e-4)
+        h = compensated_frf(model, design, F_GRID_HZ)
+        band = F_GRID_HZ <= 120.0
+        worst = float(np.max(np.abs(20 * np.log10(np.abs(h[band])))))
+        out[axis] = (
+            design.n_states,
+            bandwidth_3db(F_GRID_HZ, h),
+            float(design.k_filter[-1, 0]),
+            worst,
+        )
+    return out
+
+
+def _table() -> str:
+    rows = [
+        "| Axis | States | ±3 dB band [Hz] | K (τ_a) | printed K [3.31] | worst dB 0-120 Hz |",
+        "|---|---|---|---|---|---|",
+    ]
+    for axis, (n, bw, k, worst) in _axis_results().items():
+        rows.append(
+            f"| {axis.upper()} | {n} | {bw:.1f} | {k:.4f} | {PRINTED_K_LAST[axis]} | {worst:.2f} |"
+        )
+    return (
+        "\n".join(rows)
+        + "\n\nModel-only compensated FRFs (Table 3.4 modes as the plant, R and Q of Eq. 3.30, "
+        "Van Loan at 10 kHz). The τ_a entry of the gain is basis independent; the printed "
+        "values are matched with Q scaled by 1.86 (X), 1.86 (Y), 1.82 (Z), 2.0 (A), 1.56 (C), "
+        "so the thesis's Q convention differs from Eq. 3.28 read literally (digest P4)."
+    )
+
+
+@case(
+    "estimation.kalman_c_axis_bandwidth",
+    source="Aslan (seed 000) Fig. 3.8 / V3: 120 Hz on the rotary axes; Table 3.4, Eq. 3.30",
+    reference=120.0,
+    unit="Hz",
+    rel_tol=0.15,
+    quick=False,
+    description="±3 dB band of the C-axis compensated FRF (model as plant, R=1.4903, Q=1e4); "
+    "expected to exceed the thesis's measured-FRF figure (see decisions)",
+)
+def _c_axis_bandwidth() -> Measured:
+    return Measured(_axis_results()["c"][1], _table())
+
+
+@case(
+    "estimation.kalman_c_axis_flat_to_120hz",
+    source="issue 7 acceptance (Aslan V3): flat within ±3 dB up to 120 Hz on rotary axes",
+    reference=0.0,
+    unit="dB",
+    abs_tol=3.0,
+    quick=True,
+    description="largest |20·log10|τ̂_a/τ_a|| of the C-axis compensated FRF over 0-120 Hz",
+)
+def _c_axis_flat() -> Measured:
+    return Measured(_axis_results()["c"][3], _table())
