@@ -17,10 +17,12 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.estimation._modal_ss import ASLAN_EQ_3_30, ASLAN_TABLE_3_4, modal_state_space
 from millsense.estimation.kalman import KalmanDesign, augment_disturbance, design_kalman
 from millsense.estimation.lti_filter import StreamingFilter
+from millsense.estimation.models import aslan_disturbance_model, aslan_r_q, state_space_from_modal
 from millsense.estimation.smoother import FixedLagSmoother
+from millsense.machine.modal_ss import ModalStateSpace
+from millsense.machine.spindle_modes import MODES_RANGE1
 
 FS_HZ = 10_000.0
 DT = 1.0 / FS_HZ
@@ -28,31 +30,19 @@ SECONDS = 10.0
 CHUNK = 100
 LAG = 60
 
+
 #: Aslan Appendix E, G_sp range 1: (f_n Hz, ζ %, α, β)
-_GSP_RANGE1 = (
-    (21.9, 83, 8.6e1, -9.1e-1),
-    (66.8, 94, -9.1e1, -2.9e2),
-    (258.8, 50, 1.8e1, 6.4e1),
-    (457.9, 50, -8.9, -1e1),
-    (640.0, 15, -1.7, 4.4),
-    (875.0, 12, -4.9e-1, -1.8),
-    (1050.0, 12, 6.1e-1, 1.0),
-    (1350.0, 4, -3.5e-1, -9.9e-1),
-    (1800.0, 3, -2.5e-1, 1.3e-2),
-    (2417.0, 5, -4.3e-1, 5.4e-1),
-)
-
-
 def _feed_designs() -> dict[str, KalmanDesign]:
     out = {}
-    for axis, modes in ASLAN_TABLE_3_4.items():
-        r, q = ASLAN_EQ_3_30[axis]
-        out[axis] = design_kalman(augment_disturbance(modal_state_space(modes)), q, r, dt=DT)
+    for axis in ("x", "y", "z", "a", "c"):
+        r, q = aslan_r_q(axis)
+        out[axis] = design_kalman(augment_disturbance(aslan_disturbance_model(axis)), q, r, dt=DT)
     return out
 
 
 def _spindle_design() -> KalmanDesign:
-    model = modal_state_space([(f, z / 100.0, a, b) for f, z, a, b in _GSP_RANGE1])
+    # Appendix E range-1 modes (machine.spindle_modes, ζ as fractions) + the torque state
+    model = state_space_from_modal(ModalStateSpace.from_modes(*MODES_RANGE1.T))
     return design_kalman(augment_disturbance(model, noise_on_all_states=True), 2e4, 0.378, dt=DT)
 
 

@@ -8,7 +8,6 @@ from scipy import integrate, linalg, signal
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation._modal_ss import ASLAN_C_AXIS_MODES, ASLAN_EQ_3_30, modal_state_space
 from millsense.estimation.kalman import (
     StateSpaceModel,
     augment_disturbance,
@@ -21,19 +20,20 @@ from millsense.estimation.kalman import (
 )
 from millsense.estimation.kalman_block import KalmanBlock
 from millsense.estimation.lti_filter import LinearFilter, StreamingFilter, real_modal_form
+from millsense.estimation.models import aslan_disturbance_model, aslan_r_q
 from millsense.online.block import Chunk
 
 DT = 1e-4
 
 
 def _c_axis_design():
-    m = modal_state_space(ASLAN_C_AXIS_MODES)
-    r, q = ASLAN_EQ_3_30["c"]
+    m = aslan_disturbance_model("c")
+    r, q = aslan_r_q("c")
     return m, design_kalman(augment_disturbance(m), q, r, dt=DT)
 
 
 def _small_design(q: float = 1e4, r: float = 0.5):
-    m = modal_state_space(ASLAN_C_AXIS_MODES[:2])
+    m = aslan_disturbance_model("c", slice(2))
     return m, design_kalman(augment_disturbance(m), q, r, dt=DT)
 
 
@@ -58,7 +58,7 @@ def _batch_se_of_mean(x: np.ndarray, n_batches: int = 20) -> float:
 
 
 def test_zoh_matches_numerical_integral() -> None:
-    m = modal_state_space(ASLAN_C_AXIS_MODES)
+    m = aslan_disturbance_model("c")
     d = discretize_zoh(m, DT)
     # B_d = ∫₀^dt e^{Aτ} B dτ, integrated numerically (independent of the block-expm trick)
     bd, _ = integrate.quad_vec(lambda t: linalg.expm(m.a * t) @ m.b, 0.0, DT, epsabs=1e-14)
@@ -67,7 +67,7 @@ def test_zoh_matches_numerical_integral() -> None:
 
 
 def test_van_loan_matches_numerical_integral() -> None:
-    aug = augment_disturbance(modal_state_space(ASLAN_C_AXIS_MODES))
+    aug = augment_disturbance(aslan_disturbance_model("c"))
     q = 1e4
     ad, qd = van_loan(aug.a, aug.g, q, DT)
 
@@ -166,7 +166,7 @@ def test_filter_frf_matches_sine_response() -> None:
 
 
 def test_harmonic_augmentation_has_resonator_transfer() -> None:
-    m = modal_state_space(ASLAN_C_AXIS_MODES[:1])
+    m = aslan_disturbance_model("c", slice(1))
     ft = 120.0
     aug = augment_disturbance(m, harmonic_hz=ft)
     assert aug.n_states == 5
@@ -188,7 +188,7 @@ def test_discrete_design_approaches_continuous_eq_3_26() -> None:
     # with R_c = R·dt the sampled-data filter tends to the ZOH-discretised Kalman-Bucy filter of
     # Aslan Eq. 3.26 as dt → 0; at 10 kHz the compensated FRFs agree closely below 150 Hz
     m, d = _c_axis_design()
-    r, q = ASLAN_EQ_3_30["c"]
+    r, q = aslan_r_q("c")
     _, filt = continuous_kalman_filter(augment_disturbance(m), q, r * DT, DT)
     f = np.linspace(0.0, 150.0, 151)
     hd = compensated_frf(m, d, f)
@@ -221,7 +221,7 @@ def test_bandwidth_3db_of_first_order_lowpass() -> None:
 def test_model_and_design_reject_bad_input() -> None:
     with pytest.raises(ValueError, match="inconsistent shapes"):
         StateSpaceModel(np.eye(2), np.ones((3, 1)), np.ones((1, 2)), np.zeros((1, 1)))
-    aug = augment_disturbance(modal_state_space(ASLAN_C_AXIS_MODES[:1]))
+    aug = augment_disturbance(aslan_disturbance_model("c", slice(1)))
     with pytest.raises(ValueError, match="dt"):
         design_kalman(aug, 1.0, 1.0)
     with pytest.raises(ValueError, match="shape"):
@@ -283,7 +283,7 @@ def test_noise_on_all_states_gives_spindle_form() -> None:
     # Aslan Eq. 5.20 with Q_s = q·I (Table 5.2): Γ = I, so Q_d is full rank and
     # tr Q_d = q·∫ tr(e^{Aτ}e^{Aᵀτ}) dτ; Taylor series of the integrand to second order:
     # q·(n·dt + tr(A)·dt² + tr(A² + 2AAᵀ + Aᵀ²)·dt³/6) + O(dt⁴)
-    m = modal_state_space(ASLAN_C_AXIS_MODES[:2])
+    m = aslan_disturbance_model("c", slice(2))
     aug = augment_disturbance(m, noise_on_all_states=True)
     assert aug.g.shape == (5, 5)
     d = design_kalman(aug, 2e4, 0.378, dt=DT)

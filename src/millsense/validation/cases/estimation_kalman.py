@@ -29,18 +29,18 @@ PRINTED_K_LAST = {"x": 0.6076, "y": 0.9306, "z": 0.656, "a": -0.372, "c": 0.911}
 @cache
 def _axis_results() -> dict[str, tuple[int, float, float, float]]:
     """Per axis: (augmented states, bandwidth Hz, K_f of the τ_a state, worst |dB| 0-120 Hz)."""
-    from millsense.estimation._modal_ss import ASLAN_EQ_3_30, ASLAN_TABLE_3_4, modal_state_space
     from millsense.estimation.kalman import (
         augment_disturbance,
         bandwidth_3db,
         compensated_frf,
         design_kalman,
     )
+    from millsense.estimation.models import aslan_disturbance_model, aslan_r_q
 
     out = {}
-    for axis, modes in ASLAN_TABLE_3_4.items():
-        model = modal_state_space(modes)
-        r, q = ASLAN_EQ_3_30[axis]
+    for axis in ("x", "y", "z", "a", "c"):
+        model = aslan_disturbance_model(axis)
+        r, q = aslan_r_q(axis)
         design = design_kalman(augment_disturbance(model), q, r, dt=1e-4)
         h = compensated_frf(model, design, F_GRID_HZ)
         band = F_GRID_HZ <= 120.0
@@ -79,6 +79,10 @@ def _table() -> str:
     unit="Hz",
     rel_tol=0.15,
     quick=False,
+    gap="the thesis's 120 Hz is the filter applied to the measured drive FRF, which has "
+    "dynamics above the fitted band; with the Table 3.4 model as plant the band is an upper "
+    "bound (docs/decisions.md, C-axis bandwidth); the issue's acceptance (flat within ±3 dB "
+    "to 120 Hz) is estimation.kalman_c_axis_flat_to_120hz",
     description="±3 dB band of the C-axis compensated FRF (model as plant, R=1.4903, Q=1e4); "
     "expected to exceed the thesis's measured-FRF figure (see decisions)",
 )
