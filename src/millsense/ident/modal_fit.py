@@ -170,8 +170,10 @@ class ModalFit:
 
     Attributes
     ----------
-    modes : physical modes, ascending frequency.
+    modes : physical modes in the band, ascending frequency.
     residual : constant residual D [output/input] (out-of-band modes).
+    residual_modes : stable poles outside the band kept as residual terms (not reported as
+        identified modes; included in :meth:`frf` and :meth:`state_space` by default).
     band_hz : fitting band (low, high) [Hz].
     rms_error : relative RMS error of the fitted FRF over the band [-].
     diagram : stabilisation diagram (None when the order was given).
@@ -183,26 +185,39 @@ class ModalFit:
     rms_error: float
     diagram: StabilisationDiagram | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    residual_modes: tuple[FittedMode, ...] = field(default_factory=tuple)
 
-    def to_modes(self) -> list[Mode]:
-        """The modes as :class:`millsense.stability.modal.Mode` (α/β form of Eq. 3.13)."""
-        return [m.to_mode() for m in self.modes]
+    def all_modes(self, include_residual: bool = True) -> tuple[FittedMode, ...]:
+        """Band modes, then the stable out-of-band poles kept as residual terms."""
+        return self.modes + self.residual_modes if include_residual else self.modes
 
-    def frf(self, freq_hz: ArrayLike) -> ComplexArray:
-        """Fitted FRF (modes + residual) at ``freq_hz`` [Hz]."""
+    def to_modes(self, include_residual: bool = False) -> list[Mode]:
+        """The modes as :class:`millsense.stability.modal.Mode` (α/β form of Eq. 3.13).
+
+        ``include_residual`` adds the out-of-band poles (they represent the modes outside the
+        band only approximately; their parameters are not identified values).
+        """
+        return [m.to_mode() for m in self.all_modes(include_residual)]
+
+    def frf(self, freq_hz: ArrayLike, include_residual: bool = True) -> ComplexArray:
+        """Fitted FRF (modes + out-of-band poles + constant residual) at ``freq_hz`` [Hz]."""
         f = np.asarray(freq_hz, dtype=float)
         out = np.full(f.shape, self.residual, dtype=complex)
-        for m in self.modes:
+        for m in self.all_modes(include_residual):
             out = out + m.frf(f)
         return out
 
-    def state_space(self) -> ModalStateSpace:
-        """Minimal real realisation in balanced 2×2 modal blocks (see :class:`ModalStateSpace`)."""
-        n = len(self.modes)
+    def state_space(self, include_residual: bool = True) -> ModalStateSpace:
+        """Minimal real realisation in balanced 2×2 modal blocks (see :class:`ModalStateSpace`).
+
+        Blocks follow :meth:`all_modes`; D is the constant residual.
+        """
+        modes = self.all_modes(include_residual)
+        n = len(modes)
         A = np.zeros((2 * n, 2 * n))
         B = np.zeros((2 * n, 1))
         C = np.zeros((1, 2 * n))
-        for k, m in enumerate(self.modes):
+        for k, m in enumerate(modes):
             i = 2 * k
             sig, wd = m.pole.real, m.pole.imag
             A[i : i + 2, i : i + 2] = [[sig, -wd], [wd, sig]]
@@ -404,6 +419,7 @@ def fit_modes(
     freq_tol: float = 0.01,
     damping_tol: float = 0.05,
     max_damping: float = 0.3,
+    min_contribution: float = 1e-3,
     n_iter: int = 12,
 ) -> ModalFit:
     """Fit modes to an FRF in a band, choosing the model order from a stabilisation diagram.
@@ -422,6 +438,8 @@ def fit_modes(
         (1 + error_tolerance) × the lowest over all orders.
     freq_tol, damping_tol : stabilisation tolerances (relative, ±1 % and ±5 % by default).
     max_damping : poles with a larger damping ratio are not physical modes.
+    min_contribution : modes whose peak magnitude |r|/|Re p| is below this fraction of the
+        largest |H| in the band are dropped (pole-zero cancellations, numerical modes).
     n_iter : maximum Sanathanan–Koerner iterations per order.
 
     Returns
@@ -473,9 +491,11 @@ def fit_modes(
         return e, r, d
 
     def physical(cp: ComplexArray) -> NDArray[np.bool_]:
-        wn = np.abs(cp)
-        z = -cp.real / wn
-        return (wn * w0 >= 2 * np.pi * lo) & (wn * w0 <= 2 * np.pi * hi) & (z < max_damping)
+        return np.asarray(-cp.real / np.abs(cp) < max_damping)
+
+    def in_band(cp: ComplexArray) -> NDArray[np.bool_]:
+        wn = np.abs(cp) * w0
+        return np.asarray((wn >= 2 * np.pi * lo) & (wn <= 2 * np.pi * hi))
 
     diagram: StabilisationDiagram | None = None
     if n_modes is not None:
@@ -491,7 +511,8 @@ def fit_modes(
             poles.append(cp)
             errs.append(err_of(cp)[0])
         best = min(errs)
-        sel_i = next(i for i, e in enumerate(errs) if e <= (1 + error_tolerance) * best)
+        limit = (1 + error_tolerance) * best + 1e-6  # 1e-6: round-off floor of exact data
+        sel_i = next(i for i, e in enumerate(errs) if e <= limit)
         labels: list[tuple[str, ...]] = []
         for i, cp in enumerate(poles):
             prev = poles[i - 1] if i > 0 else np.zeros(0, dtype=complex)
@@ -518,33 +539,77 @@ def fit_modes(
             f"no stable mode found in the band {lo:g}-{hi:g} Hz (check coherence and band)"
         )
     _, r, d = err_of(chosen)
-    poles_rad = chosen * w0 + shift
-    modes = tuple(
-        sorted(
-            (FittedMode(complex(p), complex(ri * w0)) for p, ri in zip(poles_rad, r, strict=True)),
-            key=lambda m: m.omega,
-        )
-    )
-    fit = ModalFit(modes, d, (lo, hi), 0.0, diagram)
-    rel = np.abs(fit.frf(f) - h) / np.maximum(np.abs(h), 1e-300) if shift == 0 else None
-    rms = float(np.sqrt(np.mean(rel**2))) if rel is not None else float("nan")
-    return ModalFit(modes, d, (lo, hi), rms, diagram)
+    # drop poles whose peak contribution |r|/|Re p| is negligible against the FRF
+    peak = np.abs(r) / np.maximum(-chosen.real, 1e-300)
+    keep = peak >= min_contribution * float(np.max(np.abs(h)))
+    if not keep.all() and keep.any():
+        chosen = chosen[keep]
+        _, r, d = err_of(chosen)
+    fitted = [FittedMode(complex(p * w0), complex(ri * w0)) for p, ri in zip(chosen, r, strict=True)]
+    raw = ModalFit(tuple(fitted), d, (lo, hi), 0.0)
+    rel = np.abs(raw.frf(f) - h) / np.maximum(np.abs(h), 1e-300)
+    rms = float(np.sqrt(np.mean(rel**2)))
+    # remove the exponential-window decay (impact tests): p_true = p_fit + 1/τ
+    shifted = sorted((FittedMode(m.pole + shift, m.residue) for m in fitted), key=lambda m: m.omega)
+    band = [m for m, ok in zip(shifted, in_band(np.array([m.pole for m in shifted]) / w0),
+                               strict=True) if ok]  # fmt: skip
+    outside = [m for m in shifted if m not in band]
+    notes = (f"pole shift {shift:g} 1/s of the exponential window removed",) if shift else ()
+    if not band:
+        raise InputDataError(f"no stable mode found in the band {lo:g}-{hi:g} Hz")
+    return ModalFit(tuple(band), d, (lo, hi), rms, diagram, notes, tuple(outside))
+
+
+def _fit_one(args: tuple[int, object, tuple[float, float], dict[str, object]]) -> ModalFit:
+    i, d, band, kwargs = args
+    try:
+        return fit_modes(d, band, **kwargs)  # type: ignore[arg-type]
+    except InputDataError as err:
+        raise InputDataError(f"FRF {i} of the batch: {err}") from err
 
 
 def fit_batch(
     frfs: Sequence[FrfEstimate | tuple[ArrayLike, ArrayLike]],
     band_hz: tuple[float, float],
+    *,
+    workers: int = 1,
     **kwargs: object,
 ) -> list[ModalFit]:
     """Fit each FRF of a batch (e.g. the speed × load map of Aslan Ch. 4) with :func:`fit_modes`.
 
-    Keyword arguments are passed to :func:`fit_modes`. An FRF that cannot be fitted raises
-    :class:`InputDataError` naming its index in the batch.
+    Parameters
+    ----------
+    frfs : FRF estimates or ``(freq_hz, h)`` pairs.
+    band_hz : fitting band [Hz], common to the batch.
+    workers : processes; above 1 the FRFs are fitted in a spawned process pool whose workers
+        run single-threaded BLAS (OPENBLAS/OMP/MKL_NUM_THREADS=1 while the pool lives): the
+        least-squares problems are small, and multi-threaded BLAS on small matrices is slower
+        than one thread per process, markedly so on a loaded machine.
+    kwargs : passed to :func:`fit_modes`.
+
+    Raises
+    ------
+    InputDataError
+        An FRF that cannot be fitted, naming its index in the batch.
     """
-    out = []
-    for i, d in enumerate(frfs):
-        try:
-            out.append(fit_modes(d, band_hz, **kwargs))  # type: ignore[arg-type]
-        except InputDataError as err:
-            raise InputDataError(f"FRF {i} of the batch: {err}") from err
-    return out
+    jobs = [(i, d, band_hz, dict(kwargs)) for i, d in enumerate(frfs)]
+    if workers <= 1 or len(jobs) < 2:
+        return [_fit_one(j) for j in jobs]
+    import concurrent.futures
+    import multiprocessing
+    import os
+
+    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    saved = {k: os.environ.get(k) for k in keys}
+    try:
+        os.environ.update({k: "1" for k in keys})
+        ctx = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            chunk = max(1, len(jobs) // (4 * workers))
+            return list(pool.map(_fit_one, jobs, chunksize=chunk))
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
