@@ -137,10 +137,13 @@ def _clipped(x: FloatArray, clip_level: float | None, run: int) -> str | None:
     if clip_level is not None and peak >= clip_level:
         n = int(np.count_nonzero(np.abs(x) >= clip_level))
         return f"{n} samples at or beyond the full-scale level {clip_level:g}"
-    # A clipped converter holds its extreme code; a natural signal does not stay at its
-    # extreme for `run` consecutive samples.
+    # A clipped converter holds its extreme code: a natural signal neither stays at its extreme
+    # for `run` consecutive samples nor sits exactly at it in 1 % of its samples.
     at_max = np.abs(x) >= peak * (1.0 - 1e-12)
-    if at_max.sum() >= run:
+    n_at = int(at_max.sum())
+    if n_at >= max(run, 0.01 * len(x)):
+        return f"{n_at} samples ({n_at / len(x):.1%}) at its extreme value {peak:g}"
+    if n_at >= run:
         pad = np.concatenate(([0], at_max.astype(np.int8), [0]))
         d = np.diff(pad)
         starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)

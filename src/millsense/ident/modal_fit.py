@@ -415,7 +415,7 @@ def fit_modes(
     max_modes: int = 16,
     weighting: str = "relative",
     use_coherence: bool = True,
-    error_tolerance: float = 0.1,
+    error_tolerance: float = 0.2,
     freq_tol: float = 0.01,
     damping_tol: float = 0.05,
     max_damping: float = 0.3,
@@ -437,7 +437,9 @@ def fit_modes(
     error_tolerance : the selected order is the lowest whose weighted RMS error is at most
         (1 + error_tolerance) × the lowest over all orders.
     freq_tol, damping_tol : stabilisation tolerances (relative, ±1 % and ±5 % by default).
-    max_damping : poles with a larger damping ratio are not physical modes.
+    max_damping : poles with a larger damping ratio are not physical modes. Poles whose
+        half-power bandwidth 2ζf_n is below half the line spacing are noise spikes and are
+        dropped as well (such a mode is not resolved by the FRF).
     min_contribution : modes whose peak magnitude |r|/|Re p| is below this fraction of the
         largest |H| in the band are dropped (pole-zero cancellations, numerical modes).
     n_iter : maximum Sanathanan–Koerner iterations per order.
@@ -490,8 +492,13 @@ def fit_modes(
         e = float(np.sqrt(np.mean(np.abs(w * (fit - h)) ** 2) / np.mean(np.abs(w * h) ** 2)))
         return e, r, d
 
+    df = float(np.median(np.diff(f)))
+
     def physical(cp: ComplexArray) -> NDArray[np.bool_]:
-        return np.asarray(-cp.real / np.abs(cp) < max_damping)
+        # a half-power bandwidth 2ζf_n narrower than half a line spacing is a noise spike
+        z = -cp.real / np.abs(cp)
+        fn = np.abs(cp) * w0 / (2 * np.pi)
+        return np.asarray((z < max_damping) & (2 * z * fn >= 0.5 * df))
 
     def in_band(cp: ComplexArray) -> NDArray[np.bool_]:
         wn = np.abs(cp) * w0
