@@ -174,7 +174,10 @@ def check_records(
     names : channel names used in the messages (input, output).
     clip_levels : full-scale levels of input and output [their units]; None to detect clipping
         only from samples held at the extreme value.
-    clip_run : number of consecutive samples at the extreme value that count as clipping.
+    clip_run : number of consecutive samples at the extreme value that count as clipping;
+        1 % of the samples exactly at the extreme value also counts (a pure tone at fs/4 or
+        another exact sub-multiple of the sampling rate trips this rule: give such records
+        a slight frequency offset).
 
     Raises
     ------
