@@ -21,8 +21,10 @@ Order selection: models with 1..``max_modes`` modes are fitted. A pole at order 
 if order m−1 has a pole within ±1 % in frequency and ±5 % in damping ratio (the stabilisation
 criteria of issue 6). The selected order is the lowest whose weighted error is within
 ``error_tolerance`` of the best; its poles that are stable against the order below or above,
-lie in the band and have ζ < ``max_damping`` are the physical modes, whose residues and D are
-then re-estimated by linear least squares.
+lie in the band, have ζ < ``max_damping`` and a half-power bandwidth of at least half a line
+are the physical modes. Poles of that order outside the band are kept as residual terms (the
+upper/lower residuals of modes outside the band); in-band poles that fail the tests are
+dropped. Residues and D are then re-estimated by linear least squares.
 """
 
 from __future__ import annotations
@@ -507,7 +509,7 @@ def fit_modes(
     diagram: StabilisationDiagram | None = None
     if n_modes is not None:
         cp, _ = vector_fit(s, h, w, _initial_poles(n_modes, w_lo, 1.0), n_iter)
-        chosen = cp[physical(cp)]
+        chosen = cp[(physical(cp) & in_band(cp)) | ~in_band(cp)]
     else:
         max_modes = min(max_modes, max(1, (len(f) - 2) // 4))
         orders = list(range(1, max_modes + 1))
@@ -533,7 +535,8 @@ def fit_modes(
             ],
             dtype=bool,
         )
-        chosen = cp[physical(cp) & stable]
+        # in-band: stable physical poles only; out-of-band poles all kept as residual terms
+        chosen = cp[(physical(cp) & stable & in_band(cp)) | ~in_band(cp)]
         diagram = StabilisationDiagram(
             tuple(orders),
             tuple(p * w0 for p in poles),
@@ -548,7 +551,7 @@ def fit_modes(
     _, r, d = err_of(chosen)
     # drop poles whose peak contribution |r|/|Re p| is negligible against the FRF
     peak = np.abs(r) / np.maximum(-chosen.real, 1e-300)
-    keep = peak >= min_contribution * float(np.max(np.abs(h)))
+    keep = (peak >= min_contribution * float(np.max(np.abs(h)))) | ~in_band(chosen)
     if not keep.all() and keep.any():
         chosen = chosen[keep]
         _, r, d = err_of(chosen)
