@@ -131,9 +131,7 @@ def test_impact_rejects_double_hit_and_overload_and_estimates_frf() -> None:
 
     hits = [(0.1, 100.0), (1.1, 120.0), (2.1, 90.0), (2.115, 40.0), (3.1, 110.0), (4.1, 300.0)]
     f, x, fn, zeta, k = _impact_record(hits)
-    est = impact_frf(
-        f, x, 5000.0, record_s=0.8, double_hit_fraction=0.1, force_clip_level=250.0
-    )
+    est = impact_frf(f, x, 5000.0, record_s=0.8, double_hit_fraction=0.1, force_clip_level=250.0)
     assert est.n_averages == 3  # 5 hits... minus the double hit and the 300 N overload
     assert len(est.notes) == 2
     assert "double hit" in est.notes[0] and "overload" in est.notes[1]
@@ -150,29 +148,29 @@ def test_impact_rejects_double_hit_and_overload_and_estimates_frf() -> None:
 
 def test_impact_with_only_bad_hits_raises_one_line() -> None:
     f, x, *_ = _impact_record([(0.1, 100.0), (0.11, 60.0)])
-    with pytest.raises(InputDataError, match="no usable hit.*double hit") as err:
+    with pytest.raises(InputDataError, match=r"no usable hit.*double hit") as err:
         impact_frf(f, x, 5000.0, record_s=0.5, names=("hammer", "acc"))
     assert "\n" not in str(err.value) and "'hammer'" in str(err.value)
 
 
 def test_bad_records_one_line_errors() -> None:
     u, y = _random_io(1000, 7)
-    with pytest.raises(InputDataError, match="'u'.*1000 samples.*'y'.*999"):
+    with pytest.raises(InputDataError, match=r"'u'.*1000 samples.*'y'.*999"):
         check_records(u, y[:-1], FS, names=("u", "y"))
-    with pytest.raises(InputDataError, match="too short for a 0.5 Hz resolution"):
+    with pytest.raises(InputDataError, match=r"too short for a 0.5 Hz resolution"):
         welch_frf(u, y, FS, resolution_hz=0.5)
-    with pytest.raises(InputDataError, match="no excitation"):
+    with pytest.raises(InputDataError, match=r"no excitation"):
         welch_frf(np.full(1000, 3.0), y, FS, resolution_hz=10.0)
     u_clip = np.clip(u, -1.5, 1.5)  # white noise clipped: many samples at exactly ±1.5
-    with pytest.raises(InputDataError, match="'input' is clipped: .* at its extreme value 1.5"):
+    with pytest.raises(InputDataError, match=r"'input' is clipped: .* at its extreme value 1.5"):
         welch_frf(u_clip, y, FS, resolution_hz=10.0)
     sweep = np.clip(np.sin(2 * np.pi * 5 * np.arange(1000) / FS), -0.9, 0.9)  # smooth, held
-    with pytest.raises(InputDataError, match="'input' is clipped: .*extreme value 0.9"):
+    with pytest.raises(InputDataError, match=r"'input' is clipped: .*extreme value 0.9"):
         check_records(sweep + 0 * u, y, FS)
     # an unclipped sine is not flagged (no run at, and < 1 % of samples on, its peak)
     sine = np.sin(2 * np.pi * 37.3 * np.arange(1000) / FS + 0.3)
     assert check_records(sine, y, FS)[0].shape == (1000,)
-    with pytest.raises(InputDataError, match="'output' is clipped: .*full-scale level 0.5"):
+    with pytest.raises(InputDataError, match=r"'output' is clipped: .*full-scale level 0.5"):
         welch_frf(u, y, FS, resolution_hz=10.0, clip_levels=(None, 0.5))
 
 
@@ -187,9 +185,9 @@ def test_recording_errors_name_the_channel() -> None:
     # largest at the first lines where the FRF slope over one Hann main lobe is steepest
     sel = est.freq_hz >= 20
     assert float(np.max(np.abs(est.h1[sel] / _truth(est.freq_hz[sel]) - 1))) < 0.015
-    with pytest.raises(InputDataError, match="'y/flat' carries no excitation"):
+    with pytest.raises(InputDataError, match=r"'y/flat' carries no excitation"):
         frf_from_recording(rec, "y/flat", "y/torque_c", resolution_hz=10.0)
-    with pytest.raises(InputDataError, match="'y/missing' is not in the recording"):
+    with pytest.raises(InputDataError, match=r"'y/missing' is not in the recording"):
         frf_from_recording(rec, "y/missing", "y/torque_c", resolution_hz=10.0)
-    with pytest.raises(InputDataError, match="'y/torque_a'.*too short"):
+    with pytest.raises(InputDataError, match=r"'y/torque_a'.*too short"):
         frf_from_recording(rec, "y/torque_a", "y/torque_c", resolution_hz=0.1)

@@ -32,6 +32,7 @@ def test_noiseless_fit_recovers_modes_exactly() -> None:
     assert abs(fit.residual) < 1e-8 and fit.rms_error < 1e-8
 
 
+@pytest.mark.filterwarnings("ignore::scipy.signal.BadCoefficients")  # companion form, on purpose
 def test_state_space_is_modal_blocks_and_well_conditioned() -> None:
     fit = fit_modes((F, frf_sum(TRUE, F)), (10.0, 200.0), n_modes=3)
     ss = fit.state_space()
@@ -106,9 +107,9 @@ def test_batch_and_errors() -> None:
     # linear in the data: doubling the FRF doubles α, leaves ω unchanged
     assert fits[1].modes[1].alpha == pytest.approx(2 * fits[0].modes[1].alpha, rel=1e-6)
     assert fits[1].modes[1].omega == pytest.approx(fits[0].modes[1].omega, rel=1e-9)
-    with pytest.raises(InputDataError, match="FRF 1 of the batch: only 3 FRF lines"):
+    with pytest.raises(InputDataError, match=r"FRF 1 of the batch: only 3 FRF lines"):
         fit_batch([(F, h), (F[:3], h[:3])], (10.0, 200.0))
-    with pytest.raises(InputDataError, match="band must satisfy"):
+    with pytest.raises(InputDataError, match=r"band must satisfy"):
         fit_modes((F, h), (200.0, 10.0))
 
 
@@ -125,3 +126,13 @@ def test_plots_written(tmp_path: object) -> None:
     plot_stabilisation(fit, p2, (F, h))
     # a real figure, not an empty canvas: PNGs of several tens of kB
     assert p1.stat().st_size > 20_000 and p2.stat().st_size > 20_000
+
+
+def test_quick_ident_validation_cases_pass() -> None:
+    from millsense.validation import run_case, select_cases
+
+    cases = select_cases("ident.*", quick_only=True)
+    assert len(cases) == 2  # h1_input_noise_bias, stepped_sine_exact
+    for c in cases:
+        res = run_case(c)
+        assert res.passed, (c.id, res)

@@ -200,7 +200,7 @@ def check_records(
             "have different lengths"
         )
     if resolution_hz is not None:
-        need = int(math.ceil(sample_rate_hz / resolution_hz - 1e-9))
+        need = math.ceil(sample_rate_hz / resolution_hz - 1e-9)
         if len(ua) < need:
             raise InputDataError(
                 f"channel {names[0]!r} has {len(ua)} samples, too short for a "
@@ -230,7 +230,7 @@ def chirp_signal(
     method: str = "logarithmic",
 ) -> FloatArray:
     """Swept sine from ``f0_hz`` to ``f1_hz`` [Hz] over ``duration_s`` [s] (seed 001 C11)."""
-    t = np.arange(int(round(duration_s * sample_rate_hz))) / sample_rate_hz
+    t = np.arange(round(duration_s * sample_rate_hz)) / sample_rate_hz
     return np.asarray(
         amplitude * scipy.signal.chirp(t, f0_hz, duration_s, f1_hz, method=method), dtype=float
     )
@@ -255,7 +255,7 @@ def multisine_signal(
     Schroeder phases φ_k = −π k (k − 1) / K for the K excited lines (Schroeder 1970).
     """
     df = sample_rate_hz / period_samples
-    k = np.arange(int(math.ceil(f_lo_hz / df)), int(math.floor(f_hi_hz / df)) + 1)
+    k = np.arange(math.ceil(f_lo_hz / df), math.floor(f_hi_hz / df) + 1)
     k = k[(k > 0) & (k < period_samples // 2)]
     if len(k) == 0:
         raise InputDataError(f"no DFT line in {f_lo_hz:g}-{f_hi_hz:g} Hz for this period")
@@ -264,7 +264,7 @@ def multisine_signal(
     spec[k] = np.exp(-1j * np.pi * idx * (idx - 1) / len(k))
     x = np.fft.irfft(spec, n=period_samples)
     x *= rms / float(np.sqrt(np.mean(x**2)))
-    return np.tile(x, n_periods), k * df
+    return np.tile(x, n_periods), np.asarray(k * df, dtype=float)
 
 
 def stepped_sine_signal(
@@ -278,7 +278,7 @@ def stepped_sine_signal(
 
     Each step starts at zero phase; :func:`stepped_sine_frf` with the same schedule analyses it.
     """
-    n_step = int(round((settle_s + dwell_s) * sample_rate_hz))
+    n_step = round((settle_s + dwell_s) * sample_rate_hz)
     t = np.arange(n_step) / sample_rate_hz
     return np.concatenate([amplitude * np.sin(2 * np.pi * f * t) for f in freqs_hz])
 
@@ -292,8 +292,8 @@ def _from_spectra(
     guu: FloatArray, gyy: FloatArray, guy: ComplexArray
 ) -> tuple[ComplexArray, ComplexArray, FloatArray]:
     tiny = 1e-300
-    h1 = guy / np.maximum(guu, tiny)
-    h2 = gyy / np.where(np.abs(guy) > tiny, np.conj(guy), tiny)
+    h1 = np.asarray(guy / np.maximum(guu, tiny), dtype=np.complex128)
+    h2 = np.asarray(gyy / np.where(np.abs(guy) > tiny, np.conj(guy), tiny), dtype=np.complex128)
     coh = np.abs(guy) ** 2 / np.maximum(guu * gyy, tiny)
     return h1, h2, np.clip(coh, 0.0, 1.0)
 
@@ -329,14 +329,15 @@ def welch_frf(
     ua, ya = check_records(
         u, y, sample_rate_hz, resolution_hz=resolution_hz, names=names, clip_levels=clip_levels
     )
-    nseg = int(round(sample_rate_hz / resolution_hz))
-    nover = int(round(overlap * nseg))
+    nseg = round(sample_rate_hz / resolution_hz)
+    nover = round(overlap * nseg)
     kw = dict(fs=sample_rate_hz, window=window, nperseg=nseg, noverlap=nover, detrend="constant")
-    f, guu = scipy.signal.welch(ua, **kw)  # type: ignore[arg-type]
-    _, gyy = scipy.signal.welch(ya, **kw)  # type: ignore[arg-type]
-    _, guy = scipy.signal.csd(ua, ya, **kw)  # type: ignore[arg-type]
+    f, guu = scipy.signal.welch(ua, **kw)
+    _, gyy = scipy.signal.welch(ya, **kw)
+    _, guy = scipy.signal.csd(ua, ya, **kw)
     h1, h2, coh = _from_spectra(guu, gyy, guy)
     n_avg = 1 + (len(ua) - nseg) // (nseg - nover)
+    f = np.asarray(f, dtype=float)
     return FrfEstimate(f[1:], h1[1:], h2[1:], coh[1:], n_avg, "welch")
 
 
@@ -385,7 +386,7 @@ def multisine_frf(
     a, b = skip_periods * period_samples, (skip_periods + n_per) * period_samples
     U = np.fft.rfft(ua[a:b].reshape(n_per, period_samples), axis=1)
     Y = np.fft.rfft(ya[a:b].reshape(n_per, period_samples), axis=1)
-    f = np.fft.rfftfreq(period_samples, 1.0 / sample_rate_hz)
+    f = np.asarray(np.fft.rfftfreq(period_samples, 1.0 / sample_rate_hz), dtype=float)
     guu = np.mean(np.abs(U) ** 2, axis=0)
     gyy = np.mean(np.abs(Y) ** 2, axis=0)
     guy = np.mean(np.conj(U) * Y, axis=0)
@@ -436,8 +437,8 @@ def stepped_sine_frf(
     coherence returned is the fraction of output variance explained by the fitted sine.
     """
     ua, ya = check_records(u, y, sample_rate_hz, names=names, clip_levels=clip_levels)
-    n_settle = int(round(settle_s * sample_rate_hz))
-    n_step = int(round((settle_s + dwell_s) * sample_rate_hz))
+    n_settle = round(settle_s * sample_rate_hz)
+    n_step = round((settle_s + dwell_s) * sample_rate_hz)
     if len(ua) < n_step * len(freqs_hz):
         raise InputDataError(
             f"channel {names[0]!r} has {len(ua)} samples, fewer than the "
@@ -543,9 +544,9 @@ def impact_frf(
         if not np.all(np.isfinite(arr)):
             raise InputDataError(f"channel {nm!r} has non-finite samples")
     fs = sample_rate_hz
-    n_rec = int(round(record_s * fs))
-    n_pre = int(round(pre_trigger_s * fs))
-    n_pulse = max(2, int(round(pulse_s * fs)))
+    n_rec = round(record_s * fs)
+    n_pre = round(pre_trigger_s * fs)
+    n_pulse = max(2, round(pulse_s * fs))
     if len(fa) < n_rec:
         raise InputDataError(
             f"channel {names[0]!r} has {len(fa)} samples, too short for a {record_s:g} s "
@@ -561,9 +562,12 @@ def impact_frf(
     w_force = np.zeros(n_rec)
     taper = max(1, n_pulse // 4)
     w_force[: n_pre + n_pulse] = 1.0
-    w_force[n_pre + n_pulse : n_pre + n_pulse + taper] = 0.5 * (
-        1 + np.cos(np.pi * np.arange(taper) / taper)
-    )[: max(0, min(taper, n_rec - n_pre - n_pulse))]
+    w_force[n_pre + n_pulse : n_pre + n_pulse + taper] = (
+        0.5
+        * (1 + np.cos(np.pi * np.arange(taper) / taper))[
+            : max(0, min(taper, n_rec - n_pre - n_pulse))
+        ]
+    )
     hits: list[ImpactHit] = []
     F_list, R_list = [], []
     for k, s0 in enumerate(starts):  # loop over hits, not samples
@@ -605,10 +609,8 @@ def impact_frf(
     gyy = np.mean(np.abs(R) ** 2, axis=0)
     guy = np.mean(np.conj(F) * R, axis=0)
     h1, h2, coh = _from_spectra(guu, gyy, guy)
-    f = np.fft.rfftfreq(n_rec, 1.0 / fs)
-    return FrfEstimate(
-        f[1:], h1[1:], h2[1:], coh[1:], len(F_list), "impact", 1.0 / tau, reasons
-    )
+    f = np.asarray(np.fft.rfftfreq(n_rec, 1.0 / fs), dtype=float)
+    return FrfEstimate(f[1:], h1[1:], h2[1:], coh[1:], len(F_list), "impact", 1.0 / tau, reasons)
 
 
 # ---------------------------------------------------------------------------------------------

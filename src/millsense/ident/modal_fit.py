@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 import scipy.linalg
@@ -259,7 +260,7 @@ def _lstsq(a: FloatArray, b: FloatArray) -> FloatArray:
     norm = np.linalg.norm(a, axis=0)
     norm[norm == 0] = 1.0
     n = a.shape[1]
-    r = np.linalg.qr(np.concatenate([a / norm, b[:, None]], axis=1), mode="r")
+    r = cast(FloatArray, np.linalg.qr(np.concatenate([a / norm, b[:, None]], axis=1), mode="r"))
     diag = np.abs(np.diag(r[:n, :n]))
     if diag.min() <= 1e-13 * diag.max():
         x = np.linalg.lstsq(a / norm, b, rcond=None)[0]
@@ -374,7 +375,7 @@ def _residues(
 
 def _initial_poles(n: int, w_lo: float, w_hi: float) -> ComplexArray:
     beta = np.linspace(w_lo, w_hi, n + 2)[1:-1] if n > 0 else np.zeros(0)
-    return np.asarray(-beta / 100.0 + 1j * beta)
+    return np.asarray(-beta / 100.0 + 1j * beta, dtype=np.complex128)
 
 
 def _match(p: complex, others: ComplexArray, f_tol: float, z_tol: float) -> str:
@@ -391,9 +392,7 @@ def _match(p: complex, others: ComplexArray, f_tol: float, z_tol: float) -> str:
     return "s" if zok.any() else "f"
 
 
-def _weights(
-    h: ComplexArray, coherence: FloatArray | None, kind: str, n_avg: int
-) -> FloatArray:
+def _weights(h: ComplexArray, coherence: FloatArray | None, kind: str, n_avg: int) -> FloatArray:
     if kind == "uniform":
         return np.ones(len(h))
     if kind != "relative":
@@ -481,7 +480,7 @@ def fit_modes(
     cw = coh[sel] if coh is not None else None
     w = _weights(h, cw, weighting, n_avg)
     w0 = 2 * np.pi * hi
-    s = 2j * np.pi * f / w0
+    s = np.asarray(2j * np.pi * f / w0, dtype=np.complex128)
     w_lo = max(2 * np.pi * lo, 2 * np.pi * (hi - lo) * 0.01) / w0
 
     def err_of(cp: ComplexArray) -> tuple[float, ComplexArray, float]:
@@ -555,14 +554,16 @@ def fit_modes(
     if not keep.all() and keep.any():
         chosen = chosen[keep]
         _, r, d = err_of(chosen)
-    fitted = [FittedMode(complex(p * w0), complex(ri * w0)) for p, ri in zip(chosen, r, strict=True)]
+    fitted = [
+        FittedMode(complex(p * w0), complex(ri * w0)) for p, ri in zip(chosen, r, strict=True)
+    ]
     raw = ModalFit(tuple(fitted), d, (lo, hi), 0.0)
     rel = np.abs(raw.frf(f) - h) / np.maximum(np.abs(h), 1e-300)
     rms = float(np.sqrt(np.mean(rel**2)))
     # remove the exponential-window decay (impact tests): p_true = p_fit + 1/τ
     shifted = sorted((FittedMode(m.pole + shift, m.residue) for m in fitted), key=lambda m: m.omega)
-    band = [m for m, ok in zip(shifted, in_band(np.array([m.pole for m in shifted]) / w0),
-                               strict=True) if ok]  # fmt: skip
+    ok = in_band(np.array([m.pole / w0 for m in shifted], dtype=np.complex128))
+    band = [m for m, k in zip(shifted, ok, strict=True) if k]
     outside = [m for m in shifted if m not in band]
     notes = (f"pole shift {shift:g} 1/s of the exponential window removed",) if shift else ()
     if not band:

@@ -113,7 +113,7 @@ def y_axis_sweep(
     is discarded as transient and H1 is averaged over the remaining periods.
     """
     fs = 10_000.0
-    n_per = int(round(period_s * fs))
+    n_per = round(period_s * fs)
     modes = aslan_y_modes()
     u, _ = multisine_signal(fs, n_per, 4.0, 260.0, periods, rms=2.0)
     y = simulate_modes(modes, u, fs)
@@ -220,7 +220,8 @@ def spindle_map_modes(direction: str, speed_rpm: float, load_n: float) -> list[M
     X: 320, 625, 980, 1450 Hz in band and 2300 Hz above it; the 980 Hz mode moves linearly to
     800 Hz at 430 N preload and its peak falls by 48 % from 0 to 15000 rev/min (damping raised
     by 1/0.52), the 625 Hz peak rises by 45 %. Y: 300, 600, 980, 1200, 1650 Hz and 2300 Hz; the
-    980 Hz peak falls by 82 % with speed (damping ×2 and stiffness ×2.78), the 600 Hz one rises by 25 %, both fall with load.
+    980 Hz peak falls by 82 % with speed (damping ×2 and stiffness ×2.78), the 600 Hz one
+    rises by 25 %, both fall with load.
     Stiffnesses are of the order of Aslan Tables 5.3/5.4 (10⁷–10⁸ N/m).
     """
     s = speed_rpm / 15000.0
@@ -266,3 +267,53 @@ def spindle_map_frfs(
                 h = h + sd * (rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f)))
                 out.append(((f, h), modes))
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Quick estimator cases (closed forms)
+# ---------------------------------------------------------------------------------------------
+
+
+@case(
+    "ident.h1_input_noise_bias",
+    source="closed form H1 = H·G_uu/(G_uu + G_mm) (Bendat & Piersol §9.1)",
+    reference=0.8,
+    unit="1",
+    abs_tol=0.01,
+    quick=True,
+    description="mean |H1|/|H| with input noise of a quarter of the input variance (Welch)",
+)
+def _h1_bias() -> float:
+    from millsense.ident.frf import welch_frf
+
+    fs = 1000.0
+    b, a = [0.2, 0.1], [1.0, -0.9, 0.2]
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal(400_000)
+    y = scipy.signal.lfilter(b, a, u)
+    est = welch_frf(u + rng.normal(0, 0.5, len(u)), y, fs, resolution_hz=5.0)
+    h = scipy.signal.freqz(b, a, worN=est.freq_hz, fs=fs)[1]
+    return float(np.mean(np.abs(est.h1 / h)))
+
+
+@case(
+    "ident.stepped_sine_exact",
+    source="linear steady state: lock-in fit of a pure sine is exact",
+    reference=0.0,
+    unit="1",
+    abs_tol=1e-9,
+    quick=True,
+    description="max relative error of the stepped-sine FRF of a noiseless discrete resonator "
+    "against freqz at 6 frequencies",
+)
+def _stepped() -> float:
+    from millsense.ident.frf import stepped_sine_frf, stepped_sine_signal
+
+    fs = 1000.0
+    b, a = [0.05, 0.02], [1.0, -2 * 0.98 * math.cos(0.3), 0.98**2]
+    freqs = [5.0, 30.0, 47.7, 48.0, 120.0, 333.3]
+    u = stepped_sine_signal(fs, freqs, settle_s=1.5, dwell_s=0.5, amplitude=2.0)
+    y = scipy.signal.lfilter(b, a, u)
+    est = stepped_sine_frf(u, y, fs, freqs, settle_s=1.5, dwell_s=0.5)
+    exact = scipy.signal.freqz(b, a, worN=freqs, fs=fs)[1]
+    return float(np.max(np.abs(est.h1 / exact - 1)))
