@@ -1,1 +1,51 @@
-"""System identification: from recordings to the models the estimators need."""
+"""System identification: from recordings to the models the estimators need.
+
+FRF estimation (:mod:`millsense.ident.frf`), automated modal fitting
+(:mod:`millsense.ident.modal_fit`) and friction fits (:mod:`millsense.ident.friction`).
+"""
+
+from millsense.ident.frf import (
+    FrfEstimate,
+    ImpactHit,
+    check_records,
+    chirp_signal,
+    frf_from_recording,
+    h1_random_error,
+    impact_frf,
+    multisine_frf,
+    multisine_signal,
+    stepped_sine_frf,
+    stepped_sine_signal,
+    welch_frf,
+)
+from millsense.ident.modal_fit import (
+    FittedMode,
+    ModalFit,
+    ModalStateSpace,
+    StabilisationDiagram,
+    fit_batch,
+    fit_modes,
+    vector_fit,
+)
+
+__all__ = [
+    "FittedMode",
+    "FrfEstimate",
+    "ImpactHit",
+    "ModalFit",
+    "ModalStateSpace",
+    "StabilisationDiagram",
+    "check_records",
+    "chirp_signal",
+    "fit_batch",
+    "fit_modes",
+    "frf_from_recording",
+    "h1_random_error",
+    "impact_frf",
+    "multisine_frf",
+    "multisine_signal",
+    "stepped_sine_frf",
+    "stepped_sine_signal",
+    "vector_fit",
+    "welch_frf",
+]
