@@ -21,7 +21,6 @@ from millsense.ident.frf import (
 from millsense.ident.modal_fit import (
     FittedMode,
     ModalFit,
-    ModalStateSpace,
     StabilisationDiagram,
     fit_batch,
     fit_modes,
@@ -33,7 +32,6 @@ __all__ = [
     "FrfEstimate",
     "ImpactHit",
     "ModalFit",
-    "ModalStateSpace",
     "StabilisationDiagram",
     "check_records",
     "chirp_signal",

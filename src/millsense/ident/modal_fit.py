@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from millsense.core.errors import InputDataError
 from millsense.ident.frf import FrfEstimate
+from millsense.machine.modal_ss import ModalStateSpace
 from millsense.stability.modal import Mode
 
 FloatArray = NDArray[np.float64]
@@ -48,7 +49,6 @@ ComplexArray = NDArray[np.complex128]
 __all__ = [
     "FittedMode",
     "ModalFit",
-    "ModalStateSpace",
     "StabilisationDiagram",
     "fit_batch",
     "fit_modes",
@@ -118,36 +118,6 @@ class FittedMode:
 
 
 @dataclass(frozen=True)
-class ModalStateSpace:
-    """Real state space ``x' = A x + B u``, ``y = C x + D u`` in 2×2 modal blocks.
-
-    Block k has ``A_k = [[σ, −ω_d], [ω_d, σ]]`` (pole σ ± iω_d), ``B_k = [g, 0]ᵀ`` and
-    ``C_k = [2 Re r, −2 Im r] / g`` with ``g = √(2|r|)``, so that input and output couplings of
-    each block have equal size (a balanced modal form, far better conditioned than the
-    companion form of Aslan Appendix A).
-    """
-
-    A: FloatArray
-    B: FloatArray
-    C: FloatArray
-    D: float
-
-    def frf(self, freq_hz: ArrayLike) -> ComplexArray:
-        """``C (sI − A)⁻¹ B + D`` at ``freq_hz`` [Hz] (block by block)."""
-        s = 2j * np.pi * np.asarray(freq_hz, dtype=float)
-        out = np.full(s.shape, self.D, dtype=complex)
-        for k in range(0, self.A.shape[0], 2):
-            a = self.A[k : k + 2, k : k + 2]
-            sig, wd = a[0, 0], a[1, 0]
-            b0 = self.B[k, 0]
-            c0, c1 = self.C[0, k], self.C[0, k + 1]
-            # (sI − A)⁻¹ [b0, 0]ᵀ = b0 [s − σ, ω_d]ᵀ / ((s − σ)² + ω_d²)
-            den = (s - sig) ** 2 + wd**2
-            out = out + b0 * (c0 * (s - sig) + c1 * wd) / den
-        return out
-
-
-@dataclass(frozen=True)
 class StabilisationDiagram:
     """Poles per model order with their stability labels and the fit error per order.
 
@@ -211,24 +181,21 @@ class ModalFit:
         return out
 
     def state_space(self, include_residual: bool = True) -> ModalStateSpace:
-        """Minimal real realisation in balanced 2×2 modal blocks (see :class:`ModalStateSpace`).
+        """Minimal real realisation in balanced 2×2 modal blocks.
 
-        Blocks follow :meth:`all_modes`; D is the constant residual.
+        The project's one modal realisation, :class:`millsense.machine.modal_ss.
+        ModalStateSpace` (Aslan Eq. 3.13 in normal, balanced blocks; far better conditioned
+        than the companion form of Appendix A). Blocks follow :meth:`all_modes`; D is the
+        constant residual.
         """
         modes = self.all_modes(include_residual)
-        n = len(modes)
-        A = np.zeros((2 * n, 2 * n))
-        B = np.zeros((2 * n, 1))
-        C = np.zeros((1, 2 * n))
-        for k, m in enumerate(modes):
-            i = 2 * k
-            sig, wd = m.pole.real, m.pole.imag
-            A[i : i + 2, i : i + 2] = [[sig, -wd], [wd, sig]]
-            g = math.sqrt(2.0 * abs(m.residue)) or 1.0
-            B[i, 0] = g
-            C[0, i] = 2.0 * m.residue.real / g
-            C[0, i + 1] = -2.0 * m.residue.imag / g
-        return ModalStateSpace(A, B, C, float(self.residual))
+        return ModalStateSpace.from_modes(
+            [m.natural_frequency_hz for m in modes],
+            [m.damping_ratio for m in modes],
+            [m.alpha for m in modes],
+            [m.beta for m in modes],
+            float(np.real(self.residual)),
+        )
 
 
 # ---------------------------------------------------------------------------------------------
