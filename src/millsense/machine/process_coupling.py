@@ -131,6 +131,30 @@ class EngagementSchedule:
             return cls.constant(Engagement.radial(ae, diameter_m, mode), depth_m, start_m)  # type: ignore[arg-type]
         raise ConfigError(f"--engagement: '{spec}' (use slot, ae_mm=VALUE or ae_mm=VALUE,up)")
 
+    @classmethod
+    def along_cutting_moves(
+        cls,
+        engagement: Engagement,
+        depth_m: float,
+        arc_length_m: FloatArray,
+        rapid: NDArray[np.bool_],
+    ) -> EngagementSchedule:
+        """``engagement`` at ``depth_m`` on feed moves, air on rapids.
+
+        Parameters
+        ----------
+        arc_length_m : (N,) arc length at the path points, m.
+        rapid : (N−1,) True on rapid segments.
+        """
+        segs: list[EngagementSegment] = []
+        cut_prev: bool | None = None
+        for i, r in enumerate(np.asarray(rapid, dtype=bool)):
+            cut = not r
+            if cut != cut_prev:
+                segs.append(EngagementSegment(float(arc_length_m[i]), 0, depth_m if cut else 0.0))
+                cut_prev = cut
+        return cls((engagement,), tuple(segs))
+
     @property
     def max_depth_m(self) -> float:
         return max((s.depth_m for s in self.segments), default=0.0)

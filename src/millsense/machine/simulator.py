@@ -75,12 +75,14 @@ class Job:
     feed_m_s : (N−1,) programmed path feed per segment, m/s.
     spindle_rad_s : (N−1,) programmed spindle speed per segment, rad/s.
     nc_line : (N−1,) NC line (N number or source line) per segment.
+    rapid : (N−1,) True on rapid (G0) segments, or None (none).
     """
 
     path: FloatArray
     feed_m_s: FloatArray
     spindle_rad_s: FloatArray
     nc_line: IntArray
+    rapid: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
         p = np.asarray(self.path)
@@ -132,7 +134,13 @@ class Job:
             np.asarray(sp.spindle_speed, dtype=np.float64)[idx[1:]]  # type: ignore[attr-defined]
             * np.where(np.asarray(sp.spindle_dir)[idx[1:]] < 0, -1.0, 1.0),  # type: ignore[attr-defined]
             np.asarray(nc, dtype=np.int64)[idx[1:]],
+            np.asarray(sp.rapid, dtype=bool)[idx[1:]],  # type: ignore[attr-defined]
         )
+
+    def arc_length(self) -> FloatArray:
+        """Arc length at every path point (first three columns), m."""
+        seg = np.linalg.norm(np.diff(self.path[:, :3], axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(seg)])
 
 
 @dataclass(frozen=True)
@@ -307,7 +315,13 @@ class MachineSimulator(Source):
             channel=OverrideChannel(0.0, opts.feed_channel.step, opts.feed_channel.max_override),
             initial_override=0.0,
         )
-        spin0 = float(abs(job.spindle_rad_s[0]))
+        # the spindle runs from the start at the first programmed speed (M3 before motion)
+        spin = np.asarray(job.spindle_rad_s, dtype=np.float64).copy()
+        nz = np.nonzero(spin)[0]
+        if len(nz):
+            spin[: nz[0]] = spin[nz[0]]
+        self._spindle_target = spin
+        spin0 = float(abs(spin[0]))
         self.start_s = spin0 / opts.spindle_accel_rad_s2 + opts.spindle_settle_s
         # the feed starts once the spindle is up to speed (applied without latency)
         self.interp.set_override(1.0, at_time_s=self.start_s)
@@ -471,7 +485,11 @@ class MachineSimulator(Source):
     # ------------------------------------------------------------------ commands
     def command(self, event: Event) -> None:
         """Apply ``feed_override`` / ``spindle_override`` (value in percent) or ``feed_hold``
-        (value None or non-zero: hold; 0: release) from the next unread sample on.
+        (value None or non-zero: hold; 0: release).
+
+        The command is issued at ``event.time_s`` if that lies ahead of the reader (a
+        schedule), else at the next unread sample; it takes effect one channel latency later,
+        quantised by the channel.
 
         Raises
         ------
@@ -480,7 +498,9 @@ class MachineSimulator(Source):
         """
         if event.kind != EventKind.OVERRIDE:
             return
-        t_cmd = self._pos / self.sample_rate_hz
+        # the command time: the event's own time if it lies ahead (a schedule), else the
+        # next unread sample (the past cannot change)
+        t_cmd = max(float(event.time_s), self._pos / self.sample_rate_hz)
         ch = self.options.feed_channel
         # the interpolator's own channel has no latency: it gets the effective time, never
         # before the end of the spindle run-up (the start hold)
@@ -544,7 +564,7 @@ class MachineSimulator(Source):
             np.searchsorted(self.interp.cum, s_ref, side="right") - 1, 0, len(self.job.nc_line) - 1
         )
         sovr = self._sovr.at(t)
-        target = self.job.spindle_rad_s[seg] * sovr
+        target = self._spindle_target[seg] * sovr
         spd_ref = np.empty(n)
         self._omega_ref_last = _ramp(
             target, self._omega_ref_last, self.options.spindle_accel_rad_s2 / fs, spd_ref
@@ -607,7 +627,7 @@ class MachineSimulator(Source):
         data: dict[str, np.ndarray] = {}
         table_acc = np.zeros((n, 2))
         q_act_last = np.zeros(n_ax)
-        v_act_last = np.zeros(n_ax)
+        v_err_mean = np.zeros(n_ax)
         for i, ax in enumerate(self.axes):
             rg = self.transmissions[i]
             out = self.drives[i].advance(q_ref[:, i] / rg, v_ref[:, i] / rg, loads[:, i])
@@ -624,7 +644,7 @@ class MachineSimulator(Source):
             if i < 2:
                 table_acc[:, i] = out["true_acceleration"]
             q_act_last[i] = out["true_position"][-1]
-            v_act_last[i] = out["true_velocity"][-1]
+            v_err_mean[i] = float(np.mean(v_ref[:, i] - out["true_velocity"]))
             self._realism_axis(i, out, float(q_act_last[i]))
         sp = self.spindle.advance(spd_ref, torque)
         data["spindle/speed"] = sp["speed"]
@@ -657,7 +677,9 @@ class MachineSimulator(Source):
             data["truth/process/feed_per_tooth"] = z
         # 5. coupling state for the next block
         self._err_q = q_ref[-1] - q_act_last
-        self._err_v = v_ref[-1] - v_act_last
+        # the velocity error averaged over the block: the chip is cut over a tooth period,
+        # the sample-to-sample velocity noise of the drives does not thicken it
+        self._err_v = v_err_mean
         self._q_ref_last = q_ref[-1].copy()
         self._theta = float(sp["angle"][-1])
         self._omega = float(sp["true_speed"][-1])
