@@ -603,7 +603,7 @@ class ProcessCoupling:
         spr = self.modes.steps_per_rev
         if spr <= 0:
             per_rev = _TWO_PI / speed * self.sample_rate_hz
-            spr = max(2 * math.ceil(per_rev), 64)
+            spr = min(max(2 * math.ceil(per_rev), 64), 4096)
         spr = int(math.ceil(spr / self.tool.n_flutes) * self.tool.n_flutes)
         if self._max_depth <= 0:
             raise ConfigError("process: chatter simulation needs a positive axial depth")
@@ -643,6 +643,8 @@ class ProcessCoupling:
             if self._td is not None:
                 self._td = None  # spindle stopped: the surface is forgotten
             return
+        if self._td is None and (idx[0] < 0 or depth[0] <= 0):
+            return  # not in the material yet: the surface starts with the first cut
         if self._td is None:
             self._td = self._make_td(float(t_s[0]), om, float(c[0]))
         td = self._td
