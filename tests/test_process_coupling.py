@@ -45,7 +45,7 @@ def test_per_sample_feed_matches_sample_wise_reference() -> None:
     # each sample with its own c equals milling_forces evaluated at that c alone
     ang = np.array([0.3, 1.1, 2.0, 2.7])
     c = np.array([0.05e-3, 0.1e-3, 0.15e-3, 0.2e-3])
-    fx, fy, fz, tq = block_forces(TOOL, K, Engagement.slot(), c, 3e-3, ang, None, 10)
+    fx, _fy, _fz, tq = block_forces(TOOL, K, Engagement.slot(), c, 3e-3, ang, None, 10)
     for i in range(4):
         r = milling_forces(TOOL, K, Engagement.slot(), c[i], 3e-3, ang[i : i + 1], n_discs=10)
         assert fx[i] == pytest.approx(r.fx_n[0], rel=1e-12, abs=1e-9)

@@ -513,7 +513,7 @@ class ProcessCoupling:
         ):
             sel = (t_s >= ev.time_s) & (depth > 0)
             depth[sel] = ev.depth_m
-        for ev in self.events:
+        for ev in self.events:  # type: ignore[assignment]
             if isinstance(ev, AirCut):
                 depth[(t_s >= ev.start_s) & (t_s < ev.end_s)] = 0.0
         idx[depth <= 0] = -1

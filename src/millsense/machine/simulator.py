@@ -134,7 +134,7 @@ class Job:
             np.asarray(sp.spindle_speed, dtype=np.float64)[idx[1:]]  # type: ignore[attr-defined]
             * np.where(np.asarray(sp.spindle_dir)[idx[1:]] < 0, -1.0, 1.0),  # type: ignore[attr-defined]
             np.asarray(nc, dtype=np.int64)[idx[1:]],
-            np.asarray(sp.rapid, dtype=bool)[idx[1:]],  # type: ignore[attr-defined]
+            np.asarray(sp.rapid, dtype=np.bool_)[idx[1:]],  # type: ignore[attr-defined]
         )
 
     def arc_length(self) -> FloatArray:
@@ -608,7 +608,9 @@ class MachineSimulator(Source):
             # arc length at the actual position: the reference minus the lag along the feed
             p_err = self._tip_error()
             s_est = s_ref - float(p_err @ self._feed_dir)
-            proc_out = self.process.evaluate(t, s_est, theta, omega, speed)
+            proc_out = self.process.evaluate(
+                t, s_est, np.asarray(theta, dtype=np.float64), omega, speed
+            )
             fp = proc_out.force
             f_w = fp[:, :1] * x_p + fp[:, 1:2] * y_p + fp[:, 2:3] * axis
             if isinstance(self.kin, TrunnionACKinematics):
