@@ -43,6 +43,8 @@ PROGRAMMED = 3
 ACCEL_LIMITED = 4
 
 _KINDS = ("force", "torque", "power")
+#: A feed change is written this far [mm] before the row where it applies.
+SPLIT_BEFORE_MM = 1e-3
 _COMMENTS = re.compile(r"\([^()]*\)|;.*")
 _MOTION = re.compile(r"G0*[0123](?![\d.])", re.IGNORECASE)
 _GEOM = re.compile(r"([XYZIJKRF])\s*[-+]?(?:\d+\.?\d*|\.\d+)", re.IGNORECASE)
@@ -222,7 +224,7 @@ def schedule_feed(
 
 
 def _fmt(v: float) -> str:
-    text = f"{v:.4f}".rstrip("0")
+    text = f"{v:.5f}".rstrip("0")
     return "0." if text in ("-0.", "0.") else text
 
 
@@ -343,6 +345,11 @@ def write_scheduled_program(
         for k in change:
             r = int(rows[k])
             pt = np.array([plan["x_mm"][r], plan["y_mm"][r], plan["z_mm"][r]])
+            back = np.array([plan["x_mm"][r - 1], plan["y_mm"][r - 1], plan["z_mm"][r - 1]])
+            # split SPLIT_BEFORE_MM ahead of row r so that the re-sampled row r falls in the
+            # next block (with its feed) despite the rounding of the written coordinates
+            d = back - pt
+            pt = pt + d * (SPLIT_BEFORE_MM / max(float(np.linalg.norm(d)), 1e-12))
             words = [gcode]
             for ax, a, b in zip("XYZ", cur, pt, strict=True):
                 if abs(b - a) > 1e-9 or (is_arc and ax != "Z"):
