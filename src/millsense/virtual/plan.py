@@ -298,8 +298,7 @@ class VirtualPlan:
         A ≥ (1 + rise) A₀ or c ≥ (1 + rise) c₀, or any row in cut when the current row is
         not; *leaving the cut*: in cut now and the rows from some point to the horizon are
         all out of cut; *entering a cavity*: in cut now and, before the cut resumes within
-        the horizon, a row out of cut or with A ≤ (1 − rise) A₀, or a row with more
-        engagement intervals than now (the tool straddles a cavity).
+        the horizon, a row out of cut or with A ≤ (1 − rise) A₀.
         """
         n = len(self)
         if not (0 <= row < n):
@@ -313,11 +312,9 @@ class VirtualPlan:
         cut = self.columns["in_cut"][sl].astype(bool)
         area = self.columns["engaged_area_mm2"][sl]
         cl = self.columns["chip_load_mm"][sl]
-        niv = self.columns["n_intervals"][sl]
         now_cut = bool(self.columns["in_cut"][row])
         a0 = float(self.columns["engaged_area_mm2"][row])
         c0 = float(self.columns["chip_load_mm"][row])
-        n0 = int(self.columns["n_intervals"][row])
         rising_mask = (
             cut & ((area >= (1 + rise) * a0) | (cl >= (1 + rise) * c0)) if now_cut else cut
         )
@@ -328,7 +325,7 @@ class VirtualPlan:
             later_cut = np.flip(np.maximum.accumulate(np.flip(cut)))
             leaving_mask = ~later_cut
             drop = (~cut) | (area <= (1 - rise) * a0)
-            cavity_mask = (drop & later_cut) | (cut & (niv > n0))
+            cavity_mask = drop & later_cut
         rising = bool(rising_mask.any())
         leaving = bool(leaving_mask.any())
         cavity = bool(cavity_mask.any())
