@@ -141,7 +141,7 @@ def test_write_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Non
 def test_read_rejects_other_files(tmp_path: Path) -> None:
     bad = tmp_path / "x.parquet"
     bad.write_text("not parquet")
-    with pytest.raises(InputDataError, match="x.parquet"):
+    with pytest.raises(InputDataError, match=r"x\.parquet"):
         VirtualPlan.read(bad)
 
 

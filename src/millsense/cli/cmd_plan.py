@@ -41,7 +41,6 @@ def _build(
     resolution_mm: float,
     home_mm: str | None,
 ) -> tuple[VirtualPlan, Any]:
-    import numpy as np
     from rich.console import Console
     from rich.progress import Progress
 
@@ -63,7 +62,9 @@ def _build(
     if stock_cfg.kind == "box":
         assert stock_cfg.min_mm is not None and stock_cfg.max_mm is not None
         zmap = ZMapStock.from_box(
-            np.asarray(stock_cfg.min_mm) * MM, np.asarray(stock_cfg.max_mm) * MM, resolution_mm * MM
+            [v * MM for v in stock_cfg.min_mm],
+            [v * MM for v in stock_cfg.max_mm],
+            resolution_mm * MM,
         )
     else:
         assert stock_cfg.stl_path is not None
@@ -194,7 +195,10 @@ def schedule(
     t_prog = float(vp["t_s"][-1])
     dt = (vp["s_mm"][1:] - vp["s_mm"][:-1]) * MM
     rapid = vp["rapid"][:-1].astype(bool)
-    t_new = float((dt[~rapid] / sched.feed_m_s[:-1][~rapid]).sum() + (vp["t_s"][1:] - vp["t_s"][:-1])[rapid].sum())
+    t_new = float(
+        (dt[~rapid] / sched.feed_m_s[:-1][~rapid]).sum()
+        + (vp["t_s"][1:] - vp["t_s"][:-1])[rapid].sum()
+    )
     typer.echo(
         f"{output}: {int((sched.status == AT_LIMIT).sum())} steps at the {kind} limit, "
         f"{added} blocks added; time at programmed feed {t_prog:.1f} s -> {t_new:.1f} s"

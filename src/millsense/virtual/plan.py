@@ -354,8 +354,7 @@ def _check_cutting_states(sp: SampledPath, eng: EngagementResult, source: str) -
     if bad.any():
         k = int(np.argmax(bad))
         raise ProgramError(
-            f"{source}:{int(sp.source_line[k])}: the tool is in material with the spindle "
-            "stopped"
+            f"{source}:{int(sp.source_line[k])}: the tool is in material with the spindle stopped"
         )
     ccw = eng.in_cut & ~sp.rapid & (sp.spindle_dir < 0)
     if ccw.any():

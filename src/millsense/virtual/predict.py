@@ -247,7 +247,7 @@ def force_basis(
     )
     period = _TWO_PI / tool.n_flutes if (uniform and not runout) else _TWO_PI
     n_ang = max(round(angles_per_rev * period / _TWO_PI), 4)
-    angles = np.arange(n_ang) * (period / n_ang)
+    angles: FloatArray = np.arange(n_ang, dtype=np.float64) * (period / n_ang)
     nd = int(n_discs) if n_discs is not None else 2 * eng.n_layers
     sig, rep, c_ref = _signatures(eng, active, chip_load_m, depth_quantum_m, runout)
     n_sig = rep.size
@@ -343,9 +343,7 @@ def evaluate(
     return {name: np.ascontiguousarray(out[:, i]) for i, name in enumerate(STAT_NAMES)}
 
 
-def chip_load(
-    feed_m_s: FloatArray, spindle_speed_rad_s: FloatArray, n_flutes: int
-) -> FloatArray:
+def chip_load(feed_m_s: FloatArray, spindle_speed_rad_s: FloatArray, n_flutes: int) -> FloatArray:
     """Feed per tooth c = v_f / (N Ω/2π) [m]; 0 where the spindle is stopped.
 
     Parameters

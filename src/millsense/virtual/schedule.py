@@ -19,6 +19,7 @@ v_k² ≤ v_{k+1}² + 2 a Δs backwards (both passes only lower feeds, so the li
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -164,9 +165,11 @@ def schedule_feed(
     act = sig >= 0
     omega = plan["spindle_rpm"] * (2 * math.pi / 60.0)
     flutes = int(plan.metadata["tool"]["flutes"])
-    scale = float(plan["ktc_n_mm2"][act][0] / plan.metadata["material"]["ktc_n_mm2"]) if (
-        act.any()
-    ) else 1.0
+    scale = (
+        float(plan["ktc_n_mm2"][act][0] / plan.metadata["material"]["ktc_n_mm2"])
+        if (act.any())
+        else 1.0
+    )
     target = np.full(len(plan), np.inf)
     if kind == "power":
         s_bar = basis.shear[:, :, 3].mean(axis=1) * scale
@@ -206,7 +209,7 @@ def schedule_feed(
                 starts.append(i)
                 ref = f[i]
         bounds = [*starts, idx.size]
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in itertools.pairwise(bounds):
             run_start = a
             f[run_start:b] = f[run_start:b].min()
         before = feed.copy()
@@ -233,8 +236,12 @@ def _strip_words(line: str, letters: str) -> str:
     out = []
     last = 0
     for m in _COMMENTS.finditer(line):
-        out.append(_GEOM.sub(lambda w: "" if w.group(1).upper() in letters else w.group(0),
-                             line[last:m.start()]))
+        out.append(
+            _GEOM.sub(
+                lambda w: "" if w.group(1).upper() in letters else w.group(0),
+                line[last : m.start()],
+            )
+        )
         out.append(m.group(0))
         last = m.end()
     out.append(
@@ -329,9 +336,7 @@ def write_scheduled_program(
         kinds = {int(toolpath.kind[m]) for m in moves}
         single = len(moves) == 1 and kinds <= {LINE, ARC}
         mv = moves[0] if moves else -1
-        arc_ok = single and (
-            int(toolpath.kind[mv]) == LINE or int(toolpath.plane[mv]) == PLANE_XY
-        )
+        arc_ok = single and (int(toolpath.kind[mv]) == LINE or int(toolpath.plane[mv]) == PLANE_XY)
         change = np.flatnonzero(np.diff(f) != 0) + 1
         if change.size == 0 or why is not None or not arc_ok:
             out.append(_strip_words(raw, "F") + f" F{_fmt(float(f.min()))}")

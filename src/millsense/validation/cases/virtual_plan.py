@@ -24,7 +24,9 @@ _FEED = 400.0 / 60e3  # m/s, seed 000: 400 mm/min
 _OMEGA = 1000.0 * 2 * math.pi / 60  # rad/s, 1000 rev/min → c = 0.2 mm/tooth with 2 flutes
 
 
-def _slot(tool: EndMill, depth: float, coeffs: CuttingCoefficients) -> tuple[int, ProcessPrediction]:
+def _slot(
+    tool: EndMill, depth: float, coeffs: CuttingCoefficients
+) -> tuple[int, ProcessPrediction]:
     stock = ZMapStock.from_box((0.0, 0.0, 0.0), (0.06, 0.04, _TOP), 1e-4)
     x = np.arange(-0.015, 0.045, 0.4e-3)
     n = x.size
