@@ -1,0 +1,89 @@
+"""``millsense plan`` / ``schedule``: success on the demo part, one-line errors (exit 2)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from millsense.cli.main import main
+
+DEMO = Path(__file__).resolve().parents[1] / "examples" / "demo_part"
+
+
+def _run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _common() -> list[str]:
+    return [
+        "--stock", str(DEMO / "stock.toml"),
+        "--tool", str(DEMO / "tool.toml"),
+        "--material", str(DEMO / "material.toml"),
+    ]  # fmt: skip
+
+
+def test_plan_bad_program_names_file_and_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    prog = tmp_path / "bad.nc"
+    prog.write_text("G21 G90\nS1000 M3\nG1 X10 Y0 Z0 F400\nG41 X20\nM30\n")
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(["plan", str(prog), *_common(), "-o", str(out)], capsys)
+    assert code == 2
+    assert err.strip().count("\n") == 0 and "bad.nc:4" in err
+    assert not out.exists()  # nothing written after a failure
+
+
+def test_plan_bad_config_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    stock = tmp_path / "stock.toml"
+    stock.write_text('kind = "box"\nmin_mm = [0, 0, 0]\nmax_mm = [10, 10, -1]\n')
+    args = [
+        "plan",
+        str(DEMO / "program.nc"),
+        "--stock",
+        str(stock),
+        "--tool",
+        str(DEMO / "tool.toml"),
+        "--material",
+        "al7050",
+        "-o",
+        str(tmp_path / "p.parquet"),
+    ]
+    code, _, err = _run(args, capsys)
+    assert code == 2 and "stock.toml" in err and err.strip().count("\n") == 0
+
+
+def test_plan_demo_part_writes_parquet_and_plot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from millsense.virtual.plan import VirtualPlan
+
+    out = tmp_path / "p.parquet"
+    png = tmp_path / "p.png"
+    code, _, _ = _run(
+        ["plan", str(DEMO / "program.nc"), *_common(), "-o", str(out), "--plot", str(png)], capsys
+    )
+    assert code == 0 and png.stat().st_size > 10_000
+    plan = VirtualPlan.read(out)
+    assert len(plan) >= 5000  # issue 4: demo part ≥ 5 000 steps
+    # demo at 400 mm/min, 1000 rev/min, 2 flutes → 0.2 mm/tooth wherever F400 cuts
+    cut = plan["in_cut"] & (plan["feed_mm_min"] == 400.0)
+    assert plan["chip_load_mm"][cut].min() == pytest.approx(0.2)
+
+
+def test_schedule_writes_program(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "opt.nc"
+    code, stdout, _ = _run(
+        ["schedule", str(DEMO / "program.nc"), *_common(), "--limit-force-n", "325",
+         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0 and "force limit" in stdout
+    assert out.read_text().count("\n") > 80
+    code, _, err = _run(["schedule", str(DEMO / "program.nc"), *_common(), "-o", str(out)], capsys)
+    assert code == 2 and "exactly one" in err

@@ -1,0 +1,106 @@
+"""Feed scheduling (re-plan holds the limit) and K_tc calibration round trip."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.geometry import EndMill
+from millsense.virtual.calibration import calibrate_ktc, rescale_plan, steady_window
+from millsense.virtual.gcode import interpret, interpret_file
+from millsense.virtual.plan import VirtualPlan, plan_program
+from millsense.virtual.schedule import AT_LIMIT, AT_MAX, schedule_feed, write_scheduled_program
+from millsense.virtual.stock import ZMapStock
+
+TOOL = EndMill(20e-3, 2, helix_rad=math.radians(30.0))
+PROGRAM = """%
+G21 G90 G94 G17
+S1000 M3
+G0 X-15. Y20. Z5.
+G1 Z-1. F400.
+X25.
+G0 Z5.
+G0 X-15. Y20.
+G1 Z-3. F400.
+X45.
+G2 X55. Y30. I0. J10.
+G1 Y50.
+G0 Z20.
+M30
+%
+"""
+
+
+def _coeffs(ktc: float) -> CuttingCoefficients:
+    return CuttingCoefficients(ktc * 1e6, 0.5 * ktc * 1e6, 0.0, 25e3, 35e3)
+
+
+def _plan(text: str, ktc: float = 758.0) -> VirtualPlan:
+    stock = ZMapStock.from_box((0, 0, -0.02), (0.06, 0.06, 0.0), 1e-4)
+    return plan_program(interpret(text, source="s.nc"), stock, TOOL, _coeffs(ktc))
+
+
+def test_schedule_replan_holds_force_limit(tmp_path: Path) -> None:
+    plan = _plan(PROGRAM)
+    limit = 325.0
+    sched = schedule_feed(plan, limit, max_feed_m_s=800 / 60e3, accel_m_s2=1.0)
+    out = tmp_path / "opt.nc"
+    added = write_scheduled_program(PROGRAM, interpret(PROGRAM), plan, sched, out)
+    assert added > 0  # the slot with its depth step needs a split
+    again = plan_program(
+        interpret_file(out),
+        ZMapStock.from_box((0, 0, -0.02), (0.06, 0.06, 0.0), 1e-4),
+        TOOL,
+        _coeffs(758.0),
+    )
+    assert len(again) == len(plan)  # same geometry: split points lie on the path
+    free = (sched.status == AT_LIMIT) | (sched.status == AT_MAX)
+    f = again["fres_peak_n"]
+    # ≤ limit (1 %: F words rounded down to 0.1 mm/min, positions to 0.01 µm) where free
+    assert np.all(f[free] <= limit * 1.01)
+    at = sched.status == AT_LIMIT
+    assert at.sum() > 20
+    # runs share their smallest feed within 2 % (merge tolerance): force ≥ 0.97 limit
+    assert np.all(f[at] >= limit * 0.97)
+
+
+def test_schedule_power_limit_closed_form() -> None:
+    # mean power is linear in the feed: P = Ω (s c T_shear + T_edge) → exact at the limit
+    plan = _plan(PROGRAM)
+    sched = schedule_feed(plan, 300.0, kind="power", max_feed_m_s=2000 / 60e3)
+    at = sched.status == AT_LIMIT
+    c = sched.feed_m_s[at] * 60e3 / (2 * 1000) / 1e3  # m per tooth at 1000 rev/min
+    t = plan["torque_avg_shear_nm"][at] / 0.2e-3 * c + (
+        plan["torque_avg_nm"][at] - plan["torque_avg_shear_nm"][at]
+    )
+    assert at.sum() > 0
+    np.testing.assert_allclose(t * 1000 * 2 * math.pi / 60, 300.0, rtol=0.021)
+
+
+def test_calibration_round_trip(tmp_path: Path) -> None:
+    # plan with 758 N/mm², "measure" the mean torque of a plan made with 900 → 900 (1 %)
+    plan = _plan(PROGRAM, 758.0)
+    truth = _plan(PROGRAM, 900.0)
+    start = int(np.flatnonzero(plan["in_cut"] & (plan["source_line"] == 10))[5])
+    rows = steady_window(plan, start, 10)
+    assert rows.size >= 5
+    measured = float(np.mean(truth["torque_avg_nm"][rows]))
+    cal = calibrate_ktc(plan, rows, measured_torque_nm=measured)
+    assert cal.ktc_n_mm2 == pytest.approx(900.0, rel=0.01)
+    # tangential force form, T = F_t R
+    cal2 = calibrate_ktc(plan, rows, measured_tangential_force_n=measured / 0.01)
+    assert cal2.ktc_n_mm2 == pytest.approx(cal.ktc_n_mm2, rel=1e-12)
+    # rescaled plan equals the plan made with 900: in memory exactly, from a file the
+    # means exactly and the peaks at the stored angle (≤ 0.5 %)
+    mem = rescale_plan(plan, cal.ktc_n_mm2)
+    plan.write(tmp_path / "p.parquet")
+    disk = rescale_plan(VirtualPlan.read(tmp_path / "p.parquet"), cal.ktc_n_mm2)
+    cut = truth["in_cut"] & (truth["ktc_n_mm2"] > 0)
+    for col in ("torque_avg_nm", "fx_avg_n", "fres_peak_n", "power_w"):
+        np.testing.assert_allclose(mem[col][cut], truth[col][cut], rtol=1e-3, atol=1e-6)
+    np.testing.assert_allclose(disk["torque_avg_nm"][cut], truth["torque_avg_nm"][cut], rtol=1e-3)
+    np.testing.assert_allclose(disk["fres_peak_n"][cut], truth["fres_peak_n"][cut], rtol=5e-3)
