@@ -189,3 +189,27 @@ def test_look_ahead_flags() -> None:
     earlier = rows[np.argmin(np.abs(x[rows] - 20.4))]
     assert plan.look_ahead(int(earlier), 0.5, 1.0).flag == 0
     assert plan.look_ahead(int(earlier), 0.5, 2.0).flag == 1
+
+
+def test_engagement_faces_the_next_motion_at_a_reversal() -> None:
+    # A slot runs into the block to X30 and comes back along itself. Leaving X30 the tool
+    # moves back through cut material: the step at the vertex meets nothing (docs/decisions.md
+    # "Engagement faces the next motion"); reading the incoming tangent would see the uncut
+    # wall ahead and predict a full-slot force there.
+    text = """G21 G90 G17
+S1000 M3
+G0 X-15. Y20. Z5.
+G1 Z-2. F400.
+X30.
+X-15.
+G0 Z5.
+M30
+"""
+    plan = _plan(text)
+    x = plan["x_mm"]
+    vertex = int(np.argmax(x))
+    assert x[vertex] == pytest.approx(30.0, abs=0.4)  # the sample nearest the vertex
+    assert not plan["in_cut"][vertex]
+    assert plan["fres_peak_n"][vertex] == 0.0
+    # the steps just before the vertex are still in a full slot
+    assert plan["in_cut"][vertex - 3] and plan["fres_peak_n"][vertex - 3] > 100.0

@@ -35,11 +35,15 @@ def plot_plan(plan: VirtualPlan, path: str | Path, feed_mm_min: np.ndarray | Non
     ax0 = fig.add_subplot(gs[:, 0])
     pts = np.column_stack((x, y)).reshape(-1, 1, 2)
     segs = np.concatenate((pts[:-1], pts[1:]), axis=1)
-    lc = LineCollection(list(segs), cmap="viridis", linewidths=1.6)
-    lc.set_array(f[:-1])
     rapid = plan["rapid"][:-1].astype(bool)
-    lc.set_linestyle(["dotted" if r else "solid" for r in rapid])
+    lc = LineCollection(list(segs[~rapid]), cmap="viridis", linewidths=1.6)
+    lc.set_array(f[:-1][~rapid])
     ax0.add_collection(lc)
+    # rapids: one thin dashed grey polyline per run of rapid steps (a dashed pattern per 0.4 mm
+    # segment would look solid)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], rapid.astype(np.int8), [0]))))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        ax0.plot(x[a : b + 1], y[a : b + 1], "--", lw=0.7, color="0.6")
     ax0.set_xlim(float(x.min()) - 5, float(x.max()) + 5)
     ax0.set_ylim(float(y.min()) - 5, float(y.max()) + 5)
     ax0.set_aspect("equal")

@@ -380,6 +380,25 @@ def _widest(eng: EngagementResult) -> tuple[FloatArray, FloatArray, IntArray]:
     return entry, exit_, eng.n_intervals.max(axis=1).astype(np.int64)
 
 
+def _next_motion_directions(sp: SampledPath) -> NDArray[np.float64]:
+    """Direction of the motion that follows each step, P_{k+1} − P_k (unit-free).
+
+    The engagement of step k is the material the edges meet on the way from P_k to P_{k+1}
+    (docs/decisions.md, engagement criterion), so its front half must face that motion. The
+    incoming tangent differs at the last step of a move: at a corner it faces the wall the
+    previous move ran into, which the tool never cuts, and read it as engaged (false peaks at
+    pocket wall ends; decision "Engagement faces the next motion"). The last step of the path
+    keeps its tangent.
+    """
+    xyz = np.column_stack([sp.x, sp.y, sp.z])
+    d = np.empty_like(xyz)
+    d[:-1] = np.diff(xyz, axis=0)
+    d[-1] = sp.tangent[-1]
+    still = np.hypot(d[:, 0], d[:, 1]) < 1e-12
+    d[still] = sp.tangent[still]  # plunges keep their tangent (cwe keeps the last XY heading)
+    return d
+
+
 def plan_program(
     program: Toolpath,
     stock: ZMapStock,
@@ -435,6 +454,7 @@ def plan_program(
     if n == 0:
         raise ProgramError(f"{program.source}: program has no motion to plan")
     _single_tool(sp, program.source)
+    motion = _next_motion_directions(sp)
     parts: list[EngagementResult] = []
     prev: tuple[float, float, float] | None = None
     total = n + max(n // 10, 1)  # the force prediction counts as a tenth of the work
@@ -447,7 +467,7 @@ def plan_program(
                 sp.x[lo:hi],
                 sp.y[lo:hi],
                 sp.z[lo:hi],
-                sp.tangent[lo:hi],
+                motion[lo:hi],
                 previous_xyz_m=prev,
                 n_layers=n_layers,
             )
