@@ -258,6 +258,43 @@ def butterworth_sos(order: int, cutoff_hz: float, sample_rate_hz: float) -> Floa
     return np.asarray(signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos"))
 
 
+class CurrentLoopModel:
+    """Mean torque current over each sample behind a first-order current loop, streaming.
+
+    For a command I held over a sample and the loop ``ω/(s + ω)``: ``I_a[k+1] = I[k] +
+    (I_a[k] − I[k])·E`` and the mean over the sample ``Ī[k] = I[k] + (I_a[k] − I[k])(1 − E)/x``
+    with ``x = ωT``, ``E = e^{−x}`` — the held input the ZOH-exact rigid sum expects.
+
+    Parameters
+    ----------
+    bandwidth_hz : loop bandwidth ω/2π, Hz (Yamada Table 3-2: 5000 rad/s on Machine B).
+    sample_rate_hz : Hz.
+    """
+
+    def __init__(self, bandwidth_hz: float, sample_rate_hz: float) -> None:
+        self.bandwidth_hz = bandwidth_hz
+        if not bandwidth_hz > 0.0:
+            raise ConfigError(f"current loop: bandwidth_hz must be > 0, got {bandwidth_hz}")
+        self.x = 2.0 * math.pi * bandwidth_hz / sample_rate_hz
+        self.e = math.exp(-self.x)
+        self._state: float | None = None
+
+    def reset(self) -> None:
+        self._state = None
+
+    def process(self, command_a: ArrayLike) -> FloatArray:
+        i = np.asarray(command_a, dtype=float)
+        if i.size == 0:
+            return np.zeros(0)
+        if self._state is None:
+            self._state = float(i[0])
+        # I_a[k] = E·I_a[k−1] + (1 − E)·I[k−1]; the filter state is I_a at the chunk start
+        ia, zf = signal.lfilter([0.0, 1.0 - self.e], [1.0, -self.e], i, zi=[self._state])
+        ia = np.asarray(ia, dtype=float)
+        self._state = float(zf[0])
+        return np.asarray(i + (ia - i) * (1.0 - self.e) / self.x, dtype=float)
+
+
 @dataclass
 class _Tail:
     """Last two samples of the sum's signals (carried between chunks)."""
@@ -280,6 +317,9 @@ class RigidSumObserver:
     coordinate_delays_s : T_2, T_3 … per coordinate, s (default 0).
     disturbance_table : optional position-indexed disturbance (idling table, Yamada §2.9),
         subtracted from the filtered estimate at the table position given to :meth:`process`.
+    current_loop_hz : bandwidth of a first-order current loop between command and torque, Hz
+        (None: ideal, as the thesis assumes, §4.2.2). When given, the current command passes
+        :class:`CurrentLoopModel` (the torque's mean over each sample) before the sum.
 
     Notes
     -----
@@ -298,8 +338,10 @@ class RigidSumObserver:
         current_delay_s: float = 0.0,
         coordinate_delays_s: Sequence[float] | None = None,
         disturbance_table: DisturbanceTable | None = None,
+        current_loop_hz: float | None = None,
     ) -> None:
         self.model = model
+        self.current_loop_hz = current_loop_hz
         self.sample_rate_hz = float(sample_rate_hz)
         self.dt = 1.0 / self.sample_rate_hz
         self.cutoff_hz = float(cutoff_hz)
@@ -326,6 +368,11 @@ class RigidSumObserver:
     def reset(self) -> None:
         """Forget all state."""
         self._d_i = StreamingDelay(self.current_delay_s * self.sample_rate_hz)
+        self._loop = (
+            None
+            if self.current_loop_hz is None
+            else CurrentLoopModel(self.current_loop_hz, self.sample_rate_hz)
+        )
         self._d_x = [StreamingDelay(d * self.sample_rate_hz) for d in self.coordinate_delays_s]
         self._tail: _Tail | None = None
         self._zi: FloatArray | None = None
@@ -354,6 +401,8 @@ class RigidSumObserver:
     def raw(self, current_a: ArrayLike, coordinates_m: Sequence[ArrayLike]) -> FloatArray:
         """Unfiltered estimate of ``P(z)·F`` one sample late, N (updates the state)."""
         cur = self._d_i.process(current_a)
+        if self._loop is not None:
+            cur = self._loop.process(cur)
         n = len(cur)
         if len(coordinates_m) != self.model.n_coordinates:
             raise ValueError(
@@ -422,6 +471,7 @@ def medob_observer(
     delays_s: tuple[float, float, float] = (0.0, 0.0, 0.0),
     table_mass_factor: float = 1.0,
     disturbance_table: DisturbanceTable | None = None,
+    current_loop_hz: float | None = None,
 ) -> RigidSumObserver:
     """MEDOB (Yamada Eq. 2-21) with delays ``(T_1, T_2, T_3)`` on (current, angle, scale)."""
     return RigidSumObserver(
@@ -432,6 +482,7 @@ def medob_observer(
         current_delay_s=delays_s[0],
         coordinate_delays_s=(delays_s[1], delays_s[2]),
         disturbance_table=disturbance_table,
+        current_loop_hz=current_loop_hz,
     )
 
 
@@ -443,6 +494,7 @@ def dob_observer(
     order: int = 4,
     delays_s: tuple[float, float] = (0.0, 0.0),
     disturbance_table: DisturbanceTable | None = None,
+    current_loop_hz: float | None = None,
 ) -> RigidSumObserver:
     """Conventional DOB (Yamada Eq. 2-15) with delays ``(T_1, T_2)`` on (current, angle)."""
     return RigidSumObserver(
@@ -453,6 +505,7 @@ def dob_observer(
         current_delay_s=delays_s[0],
         coordinate_delays_s=(delays_s[1],),
         disturbance_table=disturbance_table,
+        current_loop_hz=current_loop_hz,
     )
 
 
@@ -469,6 +522,7 @@ class MEDOBBlock(Block):
     delays_s : phase-lag compensation (T_1, T_2, T_3), s (T_3 unused by the DOB).
     disturbance_table : idling table position → force (N), subtracted (MEDOB: at the scale
         position; DOB: at ``R·θ_m``).
+    current_loop_hz : first-order current-loop bandwidth, Hz (None: ideal current loop).
     """
 
     def __init__(
@@ -481,6 +535,7 @@ class MEDOBBlock(Block):
         order: int = 4,
         delays_s: tuple[float, float, float] = (0.0, 0.0, 0.0),
         disturbance_table: DisturbanceTable | None = None,
+        current_loop_hz: float | None = None,
     ) -> None:
         if kind not in ("medob", "dob"):
             raise ConfigError(f"observer kind must be medob or dob, got {kind!r}")
@@ -491,6 +546,7 @@ class MEDOBBlock(Block):
         self.order = order
         self.delays_s = delays_s
         self.disturbance_table = disturbance_table
+        self.current_loop_hz = current_loop_hz
         self.name = f"{kind}_{axis}"
         base = (f"{axis}/current_cmd", f"{axis}/motor_angle")
         self.inputs = base + ((f"{axis}/scale",) if kind == "medob" else ())
@@ -517,6 +573,7 @@ class MEDOBBlock(Block):
                 order=self.order,
                 delays_s=self.delays_s,
                 disturbance_table=self.disturbance_table,
+                current_loop_hz=self.current_loop_hz,
             )
         else:
             self._obs = dob_observer(
@@ -526,6 +583,7 @@ class MEDOBBlock(Block):
                 order=self.order,
                 delays_s=(self.delays_s[0], self.delays_s[1]),
                 disturbance_table=self.disturbance_table,
+                current_loop_hz=self.current_loop_hz,
             )
 
     def process(self, chunk: Chunk) -> BlockOutput:
@@ -705,6 +763,8 @@ def identify_drive_parameters(
     lead_m: float,
     delays_s: tuple[float, float, float] = (0.0, 0.0, 0.0),
     band_hz: tuple[float, float] = (5.0, 1000.0),
+    current_loop_hz: float | None = None,
+    stiffness_band_hz: tuple[float, float] | None = None,
 ) -> DriveParameters:
     """Identify J_r, M_t, D_r, C_t, K_r, C_k from an air sweep by linear least squares.
 
@@ -719,6 +779,10 @@ def identify_drive_parameters(
     band_hz : every regressor and the regressand are band-passed (4th-order Butterworth each
         side) to this band — linear filters keep the equations, and remove friction offset,
         lead ripple and quantisation noise.
+    current_loop_hz : first-order current-loop bandwidth, Hz (:class:`CurrentLoopModel`).
+    stiffness_band_hz : band of a second K_r fit (C_k kept from ``band_hz``); a band well below
+        the first unmodelled mode gives the quasi-static stiffness the vibration-mode
+        estimator needs on a stationary axis.
 
     Returns
     -------
@@ -726,21 +790,23 @@ def identify_drive_parameters(
 
     Notes
     -----
-    Time-domain form of Yamada C11 (the thesis fits FRFs): the rigid sum (Eq. 2-20, second
-    differences as in the observer with a = 0) ``K_t·Ī/R = M_r a_m + C_r v_m + M_t a_t +
-    C_t v_t`` gives (M_r, C_r, M_t, C_t); the table equation (Eq. 2-2)
-    ``M_t a_t + C_t v_t = K_r Δx + C_k Δv`` then gives (K_r, C_k).
+    Time-domain form of Yamada C11 (the thesis fits FRFs), second differences at sample k − 1
+    as in the observers: the table equation (Eq. 2-2, no load)
+    ``a_t = (K_r Δx + C_k Δẋ − C_t v_t)/M_t`` gives K_r, C_k, C_t per unit table mass; the
+    rigid sum (Eq. 2-20) ``K_t·Ī/R = M_r a_m + C_r v_m + M_t(a_t + (C_t/M_t) v_t)`` then gives
+    M_r, C_r and M_t. K_r and C_k are then refitted so that the vibration-mode equation
+    (:mod:`.mode_decoupled`, Eq. 2-44) holds in the air sweep: on a drive with more modes than
+    the dual-inertia model this is the stiffness that makes that estimator right in the band.
     """
     fs = float(sample_rate_hz)
     dt = 1.0 / fs
     r = lead_m / (2.0 * math.pi)
     cur = StreamingDelay(delays_s[0] * fs).process(current_a)
+    if current_loop_hz is not None:
+        cur = CurrentLoopModel(current_loop_hz, fs).process(cur)
     xm = StreamingDelay(delays_s[1] * fs).process(r * np.asarray(angle_rad, dtype=float))
     xt = StreamingDelay(delays_s[2] * fs).process(scale_m)
     sos = signal.butter(4, band_hz, btype="bandpass", fs=fs, output="sos")
-
-    def bp(x: FloatArray) -> FloatArray:
-        return np.asarray(signal.sosfiltfilt(sos, x), dtype=float)
 
     # sample k refers to time k − 1: a = Δ²x/T², v = (x_k − x_{k−2})/2T, Ī = (I_{k−1}+I_{k−2})/2
     def acc(x: FloatArray) -> FloatArray:
@@ -751,18 +817,38 @@ def identify_drive_parameters(
 
     thrust = (torque_constant_nm_a / r) * 0.5 * (cur[1:-1] + cur[:-2])
     am, at, vm, vt = acc(xm), acc(xt), vel(xm), vel(xt)
-    trim = slice(int(0.05 * fs), len(am) - int(0.05 * fs))
-    a1 = np.column_stack([bp(c)[trim] for c in (am, vm, at, vt)])
-    rhs = bp(thrust)[trim]
-    sc1 = np.max(np.abs(a1), axis=0)
-    sol1 = np.linalg.lstsq(a1 / sc1, rhs, rcond=None)[0] / sc1
-    mr, cr, mt, ct = (float(v) for v in sol1)
     dx = (xm - xt)[1:-1]
     dv = vm - vt
-    a2 = np.column_stack([bp(c)[trim] for c in (dx, dv)])
-    rhs2 = bp(mt * at + ct * vt)[trim]
-    sc2 = np.max(np.abs(a2), axis=0)
-    sol2 = np.linalg.lstsq(a2 / sc2, rhs2, rcond=None)[0] / sc2
+    trim = slice(int(0.05 * fs), len(am) - int(0.05 * fs))
+
+    sos_k = (
+        sos
+        if stiffness_band_hz is None
+        else signal.butter(4, stiffness_band_hz, btype="bandpass", fs=fs, output="sos")
+    )
+
+    def lsq(cols: tuple[FloatArray, ...], rhs: FloatArray, sos_: FloatArray = sos) -> FloatArray:
+        def f(x: FloatArray) -> FloatArray:
+            return np.asarray(signal.sosfiltfilt(sos_, x), dtype=float)[trim]
+
+        a = np.column_stack([f(c) for c in cols])
+        sc = np.max(np.abs(a), axis=0)
+        return np.asarray(np.linalg.lstsq(a / sc, f(rhs), rcond=None)[0] / sc)
+
+    # table equation per unit table mass: a_t = (K_r Δx + C_k Δv − C_t v_t)/M_t
+    kr_m, ck_m, ct_m = (float(v) for v in lsq((dx, dv, -vt), at))
+    # rigid sum with the table's damping ratio known: K_t Ī/R = M_r a_m + C_r v_m + M_t(a_t + c v_t)
+    mr, cr, mt = (float(v) for v in lsq((am, vm, at + ct_m * vt), thrust))
+    ct = ct_m * mt
+    # K_r, C_k so that the vibration-mode equation (Eq. 2-44 expanded, no load) holds:
+    # (1+α)(K_r Δx + C_k Δẋ) = α K_t Ī/R − M_t(a_m − a_t) − α C_r v_m + C_t v_t
+    alpha = mt / mr
+    rhs_v = alpha * thrust - mt * (am - at) - alpha * cr * vm + ct * vt
+    kr, ck = (float(v) for v in lsq(((1.0 + alpha) * dx, (1.0 + alpha) * dv), rhs_v))
+    if stiffness_band_hz is not None:
+        # C_k from the full band; K_r alone from the quasi-static band
+        kr = float(lsq(((1.0 + alpha) * dx,), rhs_v - (1.0 + alpha) * ck * dv, sos_k)[0])
+    del kr_m, ck_m
     return DriveParameters(
         torque_constant_nm_a=torque_constant_nm_a,
         lead_m=lead_m,
@@ -770,8 +856,8 @@ def identify_drive_parameters(
         table_mass_kg=mt,
         rotary_damping_nm_s_rad=cr * r * r,
         table_damping_n_s_m=ct,
-        axial_stiffness_n_m=float(sol2[0]),
-        axial_damping_n_s_m=float(sol2[1]),
+        axial_stiffness_n_m=kr,
+        axial_damping_n_s_m=ck,
     )
 
 
