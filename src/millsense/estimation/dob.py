@@ -22,7 +22,8 @@ differentiated exactly instead. With ``y = Σ M_i x_i`` and ``w = Σ C_i x_i = a
 ``ÿ + a·ẏ = u − ė`` with ``u = K_t I/R − F``. For ``u`` held over each sample (the CNC's
 zero-order hold) the ZOH map of ``1/(s(s + a))`` gives exactly::
 
-    b₁u_k + b₀u_{k−1} = y_{k+1} − (1 + E)y_k + E·y_{k−1} + (b₁/T)(e_{k+1} − e_k) + (b₀/T)(e_k − e_{k−1})
+    b₁u_k + b₀u_{k−1} = y_{k+1} − (1 + E)y_k + E·y_{k−1}
+                        + (b₁/T)(e_{k+1} − e_k) + (b₀/T)(e_k − e_{k−1})
 
 ``E = e^{−aT}``, ``b₁ = (aT − 1 + E)/a²``, ``b₀ = (1 − E − aT·E)/a²`` (→ T²/2 as a → 0); the
 e-terms (mean of ė over each interval) are the only approximation and vanish under proportional
@@ -602,9 +603,9 @@ class MEDOBBlock(Block):
 # ---------------------------------------------------------------- frequency responses
 
 
-def coordinate_frf(plant: MechanicalPlant, f_hz: ArrayLike, transmission_m_rad: float) -> NDArray[
-    np.complex128
-]:
+def coordinate_frf(
+    plant: MechanicalPlant, f_hz: ArrayLike, transmission_m_rad: float
+) -> NDArray[np.complex128]:
     """Continuous FRF of every generalised coordinate to (motor torque, load force).
 
     Returns
@@ -666,9 +667,9 @@ def rigid_sum_frf(
     return np.asarray(qs * h_f), np.asarray(qs * h_i)
 
 
-def butterworth_analog(order: int, cutoff_hz: float) -> Callable[[NDArray[np.complex128]], NDArray[
-    np.complex128
-]]:
+def butterworth_analog(
+    order: int, cutoff_hz: float
+) -> Callable[[NDArray[np.complex128]], NDArray[np.complex128]]:
     """Q(s) of an analog Butterworth low-pass (Yamada: 4th order)."""
     b, a = signal.butter(order, 2.0 * np.pi * cutoff_hz, analog=True)
 

@@ -71,7 +71,7 @@ def split_delay(delay_samples: float) -> tuple[int, float]:
     whole = math.floor(delay_samples)
     frac = delay_samples - whole
     d = frac + 1.0 if frac < 0.5 else frac
-    return int(round(delay_samples - d)), float(d)
+    return round(delay_samples - d), float(d)
 
 
 def thiran1_coefficient(d: float) -> float:
