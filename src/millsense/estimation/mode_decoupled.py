@@ -33,12 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from millsense.estimation.dob import (
     DisturbanceTable,
     DriveParameters,
     RigidSumObserver,
+    StreamingSOS,
     butterworth_sos,
     medob_observer,
 )
@@ -144,7 +144,7 @@ class VibrationModeObserver:
         """Forget all state."""
         self._d = [StreamingDelay(d * self.fs) for d in self.delays_s]
         self._tail: FloatArray | None = None  # (3, 2): I, x_m, x_t
-        self._zi: FloatArray | None = None
+        self._out = StreamingSOS(self.sos)
 
     def raw(self, current_a: ArrayLike, x_motor_m: ArrayLike, x_table_m: ArrayLike) -> FloatArray:
         """Unfiltered estimate at sample k − 1, N (updates the state)."""
@@ -188,10 +188,7 @@ class VibrationModeObserver:
         r = self.raw(current_a, x_motor_m, xt)
         if r.size == 0:
             return r
-        if self._zi is None:
-            self._zi = signal.sosfilt_zi(self.sos) * r[0]
-        out, self._zi = signal.sosfilt(self.sos, r, zi=self._zi)
-        out = np.asarray(out, dtype=float)
+        out = self._out.process(r)
         if self.disturbance_table is not None:
             out = out - np.asarray(self.disturbance_table(xt), dtype=float)
         return out
