@@ -45,7 +45,7 @@ class RigidBodyFit:
     inertia : J_e, kg·m².
     torque_constant : K_t, N·m/A.
     coulomb : (+, −) Coulomb torque, N·m.
-    viscous : viscous coefficient B, N·m·s/rad.
+    viscous : (+, −) viscous coefficient B, N·m·s/rad.
     gain_ratio : K_t/J_e, the quantity the test observes, A⁻¹·s⁻²·N·m/(kg·m²).
     rms_residual : RMS residual of the windowed speed change, rad/s.
     """
@@ -53,7 +53,7 @@ class RigidBodyFit:
     inertia: float
     torque_constant: float
     coulomb: tuple[float, float]
-    viscous: float
+    viscous: tuple[float, float]
     gain_ratio: float
     rms_residual: float
 
@@ -66,6 +66,7 @@ def rigid_body_from_acceleration(
     torque_constant_nm_a: float | None = None,
     inertia_kg_m2: float | None = None,
     window_s: float = 0.01,
+    min_speed_rad_s: float = 1.0,
 ) -> RigidBodyFit:
     """J_e (or K_t), Coulomb and viscous friction from accelerating and decelerating moves.
 
@@ -77,11 +78,13 @@ def rigid_body_from_acceleration(
     torque_constant_nm_a : K_t if known (catalogue), N·m/A; then J_e is identified.
     inertia_kg_m2 : J_e if known, kg·m²; then K_t is identified. Give exactly one.
     window_s : integration window, s.
+    min_speed_rad_s : windows in which |ω| drops below this are not used (presliding and
+        reversals, where LuGre's bristle damping acts), rad/s.
 
     Notes
     -----
     Over a window ``[t_a, t_b]``: ``ω_b − ω_a = (K_t/J)∫i − (τ_c+/J)∫[ω>0] + (τ_c−/J)∫[ω<0]
-    − (B/J)∫ω`` (Aslan Eq. 3.1 integrated), solved by linear least squares over
+    − (B±/J)∫ω`` (Aslan Eq. 3.1 integrated, friction per direction), solved by linear least squares over
     non-overlapping windows. Integrating avoids differentiating the quantised encoder speed.
     """
     if (torque_constant_nm_a is None) == (inertia_kg_m2 is None):
@@ -89,7 +92,15 @@ def rigid_body_from_acceleration(
             "acceleration test: give exactly one known quantity, the torque constant or the "
             "inertia (current and motion only fix their ratio)"
         )
-    i, w = check_records(current_a, speed_rad_s, sample_rate_hz, names=("current", "speed"))
+    # the current is checked for excitation and clipping; the speed (flat while cruising) only
+    # for length and finite samples
+    i, _ = check_records(current_a, current_a, sample_rate_hz, names=("current", "current"))
+    w = np.asarray(speed_rad_s, dtype=float)
+    if w.shape != i.shape or not np.all(np.isfinite(w)):
+        raise InputDataError(
+            f"acceleration test: channel 'speed' must be finite with {len(i)} samples like "
+            "'current'"
+        )
     dt = 1.0 / sample_rate_hz
     m = max(2, round(window_s * sample_rate_hz))
     n_win = (len(i) - 1) // m
@@ -99,15 +110,32 @@ def rigid_body_from_acceleration(
         )
     if float(np.ptp(w)) <= 0.0:
         raise InputDataError("acceleration test: channel 'speed' never changes (no motion)")
-    # cumulative trapezoid-free sums: speed sample k is the mean over (k−1, k]; current held
-    cols = np.column_stack([i, -(w > 0).astype(float), (w < 0).astype(float), -w]) * dt
-    csum = np.vstack([np.zeros(4), np.cumsum(cols, axis=0)])
+    # windowed integrals; speed sample k is the mean over (k−1, k], the current is held
+    pos, neg = (w > 0).astype(float), (w < 0).astype(float)
+    cols = np.column_stack([i, -pos, neg, -w * pos, -w * neg]) * dt
+    csum = np.vstack([np.zeros(cols.shape[1]), np.cumsum(cols, axis=0)])
     idx = np.arange(n_win + 1) * m
-    # Δω over [idx_j, idx_{j+1}] driven by the inputs held over samples idx_j … idx_{j+1}−1
     a = csum[idx[1:]] - csum[idx[:-1]]
     b = w[idx[1:]] - w[idx[:-1]]
-    coef, *_ = np.linalg.lstsq(a, b, rcond=None)
-    res = a @ coef - b
+    # windows that pass through presliding (|ω| below min_speed) are dropped: there the
+    # bristle damping σ1·dz/dt of LuGre (Aslan Eq. 3.2) acts like a large viscous term
+    slow = np.abs(w) < min_speed_rad_s
+    cs = np.concatenate([[0], np.cumsum(slow)])
+    keep = (cs[idx[1:] + 1] - cs[idx[:-1]]) == 0
+    if keep.sum() < 8:
+        raise InputDataError(
+            f"acceleration test: {int(keep.sum())} windows above {min_speed_rad_s:g} rad/s; "
+            "needs 8 or more"
+        )
+    a, b = a[keep], b[keep]
+    # a direction never visited leaves its columns empty: drop them
+    used = np.flatnonzero(np.any(a != 0.0, axis=0))
+    sol, *_ = np.linalg.lstsq(a[:, used], b, rcond=None)
+    coef = np.zeros(5)
+    coef[used] = sol
+    a = a[:, used]
+    coef_used = sol
+    res = a @ coef_used - b
     ratio = float(coef[0])
     if not ratio > 0:
         raise InputDataError("acceleration test: current and acceleration are not correlated")
@@ -122,7 +150,7 @@ def rigid_body_from_acceleration(
         inertia=j,
         torque_constant=kt,
         coulomb=(float(coef[1]) * j, float(coef[2]) * j),
-        viscous=float(coef[3]) * j,
+        viscous=(float(coef[3]) * j, float(coef[4]) * j),
         gain_ratio=ratio,
         rms_residual=float(np.sqrt(np.mean(res**2))),
     )

@@ -144,19 +144,26 @@ def acceleration_test(
     cfg: MachineConfig,
     axis_name: str,
     *,
-    speed_rad_s: float = 30.0,
+    speeds_rad_s: tuple[float, ...] = (10.0, 20.0, 40.0),
     accel_rad_s2: float = 600.0,
-    cycles: int = 3,
+    cruise_s: float = 0.05,
     seed: int = 0,
 ) -> Recording:
-    """Back-and-forth trapezoidal moves (accelerate, cruise, decelerate, reverse)."""
+    """Back-and-forth trapezoidal moves (accelerate, cruise, decelerate, reverse) per speed.
+
+    Several cruise speeds separate Coulomb from viscous friction in the regression.
+    """
     fs = cfg.sample_rate_hz
     p = _params(cfg, axis_name)
-    n_acc = round(speed_rad_s / accel_rad_s2 * fs)
-    n_cru = n_acc
-    ramp = np.arange(n_acc) / n_acc * speed_rad_s
-    one = np.concatenate([ramp, np.full(n_cru, speed_rad_s), ramp[::-1], np.zeros(n_acc // 2)])
-    vel = np.concatenate([np.concatenate([one, -one]) for _ in range(cycles)])
+    pieces = []
+    for v in speeds_rad_s:
+        n_acc = max(2, round(v / accel_rad_s2 * fs))
+        ramp = np.arange(n_acc) / n_acc * v
+        one = np.concatenate(
+            [ramp, np.full(round(cruise_s * fs), v), ramp[::-1], np.zeros(round(0.02 * fs))]
+        )
+        pieces += [one, -one]
+    vel = np.concatenate(pieces)
     pos, vel = _profile(vel, fs)
     res = FeedDriveSim(p, fs, seed=seed).advance(pos, vel, np.zeros(len(vel)))
     return _recording(fs, axis_name, res, "acceleration", p, {"velocity_ref": vel})
