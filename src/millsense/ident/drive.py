@@ -218,6 +218,7 @@ def reference_frf(
     R, U, Y = spec(r), spec(ua), spec(ya)
     f = np.fft.rfftfreq(period_samples, 1.0 / sample_rate_hz)
     rm = np.mean(np.abs(R) ** 2, axis=0)
+    rm[0] = 0.0  # the mean (a constant speed) is not excitation
     sel = np.flatnonzero((rm > 1e-6 * rm.max()) & (f > 0))
     um, ym = np.mean(U[:, sel], axis=0), np.mean(Y[:, sel], axis=0)
     h = ym / um
