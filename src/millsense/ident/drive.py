@@ -84,8 +84,9 @@ def rigid_body_from_acceleration(
     Notes
     -----
     Over a window ``[t_a, t_b]``: ``ω_b − ω_a = (K_t/J)∫i − (τ_c+/J)∫[ω>0] + (τ_c−/J)∫[ω<0]
-    − (B±/J)∫ω`` (Aslan Eq. 3.1 integrated, friction per direction), solved by linear least squares over
-    non-overlapping windows. Integrating avoids differentiating the quantised encoder speed.
+    − (B±/J)∫ω`` (Aslan Eq. 3.1 integrated, friction per direction), solved by linear least
+    squares over non-overlapping windows. Integrating avoids differentiating the quantised
+    encoder speed.
     """
     if (torque_constant_nm_a is None) == (inertia_kg_m2 is None):
         raise InputDataError(

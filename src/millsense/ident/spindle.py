@@ -194,10 +194,10 @@ def fit_spindle(
     -------
     SpindleFit
     """
-    names = ("speed_ref", "speed")
     h_w = reference_frf(
-        reference, reference, speed, sample_rate_hz, period_samples, names=names + ("speed",)
-    )  # noqa: E501
+        reference, reference, speed, sample_rate_hz, period_samples,
+        names=("speed_ref", "speed_ref", "speed"),
+    )  # fmt: skip
     h_i = reference_frf(
         reference, reference, current_cmd, sample_rate_hz, period_samples,
         names=("speed_ref", "speed_ref", "current_cmd"),
