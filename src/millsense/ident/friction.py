@@ -109,11 +109,31 @@ class StribeckFit:
         return self.coulomb + rise + self.viscous * w
 
 
+def _stribeck_columns(
+    w: np.ndarray, samples: list[np.ndarray] | None, vs: float
+) -> np.ndarray:
+    """Columns of (τ_coul, τ_stat − τ_coul, σ2) for the mean torque of each move.
+
+    Without speed samples: ``[1, exp(−(w/v_s)²), w]``. With them: the mean over the samples
+    of ``[sgn v, sgn v·exp(−(v/v_s)²), v]`` (in the move's direction), so speed fluctuations
+    inside a move are modelled instead of smoothing the Stribeck curve.
+    """
+    if samples is None:
+        return np.column_stack([np.ones_like(w), np.exp(-((w / vs) ** 2)), w])
+    cols = np.empty((len(samples), 3))
+    for j, v in enumerate(samples):
+        sg = np.sign(np.mean(v))
+        vv = v * sg
+        sv = np.sign(vv)
+        cols[j] = (np.mean(sv), np.mean(sv * np.exp(-((vv / vs) ** 2))), np.mean(vv))
+    return cols
+
+
 def _stribeck_linear(
-    w: np.ndarray, tau: np.ndarray, wt: np.ndarray, vs: float
+    w: np.ndarray, tau: np.ndarray, wt: np.ndarray, vs: float, samples: list[np.ndarray] | None
 ) -> tuple[np.ndarray, float]:
     """For a fixed v_s the model is linear in (τ_coul, τ_stat − τ_coul, σ2): weighted LS."""
-    a = np.column_stack([np.ones_like(w), np.exp(-((w / vs) ** 2)), w]) * wt[:, None]
+    a = _stribeck_columns(w, samples, vs) * wt[:, None]
     coef, *_ = np.linalg.lstsq(a, tau * wt, rcond=None)
     res = a @ coef - tau * wt
     return coef, float(res @ res)
@@ -123,6 +143,7 @@ def fit_stribeck(
     speed_rad_s: np.ndarray,
     torque_nm: np.ndarray,
     std_error_nm: np.ndarray | None = None,
+    speed_samples: list[np.ndarray] | None = None,
 ) -> StribeckFit:
     """Coulomb, static, Stribeck velocity and viscous friction of one direction.
 
@@ -132,6 +153,8 @@ def fit_stribeck(
         speeds spanning the Stribeck region and the viscous range).
     torque_nm : mean motor torques ``K_t·ī`` of the same moves, N·m.
     std_error_nm : standard error of each mean, N·m (weights); None for equal weights.
+    speed_samples : per move, its (smoothed) speed samples, rad/s (:func:`move_means`);
+        when given, the model averages the friction over each move's speed fluctuation.
 
     Returns
     -------
@@ -145,7 +168,10 @@ def fit_stribeck(
     best grid point starts a nonlinear least-squares refinement of all four
     (``scipy.optimize.least_squares``, v_s in log). If the rise ``τ_stat − τ_coul`` is below
     three standard errors the Stribeck term is not resolved and a Coulomb + viscous line is
-    returned (decision "Friction identification", docs/decisions.md).
+    returned (decision "Friction identification", docs/decisions.md). Under closed-loop speed
+    control with torque noise the speed fluctuates inside each move; the mean torque is then
+    the Stribeck curve averaged over the fluctuation, which looks like a larger v_s (+15 %
+    on the Aslan Z axis at its noise level). With ``speed_samples`` that average is modelled.
     """
     import scipy.optimize
 
@@ -159,13 +185,15 @@ def fit_stribeck(
         se = np.asarray(std_error_nm, dtype=float)
         wt = 1.0 / np.maximum(se, 1e-6 * max(float(np.max(tau)), 1e-12))
     grid = np.geomspace(0.3 * w.min(), 3.0 * w.max(), 80)
-    costs = [_stribeck_linear(w, tau, wt, vs)[1] for vs in grid]
+    if speed_samples is not None and len(speed_samples) != len(w):
+        raise InputDataError("Stribeck fit: one speed-sample array per move is needed")
+    costs = [_stribeck_linear(w, tau, wt, vs, speed_samples)[1] for vs in grid]
     vs0 = float(grid[int(np.argmin(costs))])
-    c0, _ = _stribeck_linear(w, tau, wt, vs0)
+    c0, _ = _stribeck_linear(w, tau, wt, vs0, speed_samples)
 
     def resid(x: np.ndarray) -> np.ndarray:
         tc, rise, lvs, s2 = x
-        model = tc + rise * np.exp(-((w / math.exp(lvs)) ** 2)) + s2 * w
+        model = _stribeck_columns(w, speed_samples, math.exp(lvs)) @ np.array([tc, rise, s2])
         return np.asarray((model - tau) * wt)
 
     x0 = np.array([c0[0], max(c0[1], 0.0), math.log(vs0), c0[2]])
@@ -229,7 +257,10 @@ class LuGreFit:
 
 
 def lugre_static_from_moves(
-    speed_rad_s: np.ndarray, torque_nm: np.ndarray, std_error_nm: np.ndarray | None = None
+    speed_rad_s: np.ndarray,
+    torque_nm: np.ndarray,
+    std_error_nm: np.ndarray | None = None,
+    speed_samples: list[np.ndarray] | None = None,
 ) -> LuGreFit:
     """Per-direction Stribeck fits (:func:`fit_stribeck`) from moves in both directions.
 
@@ -238,6 +269,7 @@ def lugre_static_from_moves(
     speed_rad_s : mean motor speed per move, rad/s (signed).
     torque_nm : mean motor torque per move, N·m (signed).
     std_error_nm : standard error of each mean torque, N·m, or None.
+    speed_samples : per move, its smoothed speed samples (rad/s), or None.
     """
     w = np.asarray(speed_rad_s, dtype=float)
     tau = np.asarray(torque_nm, dtype=float)
@@ -248,7 +280,8 @@ def lugre_static_from_moves(
             raise InputDataError(
                 f"Stribeck fit: {int(sel.sum())} moves in the {name} direction, needs four or more"
             )
-        fits.append(fit_stribeck(w[sel], tau[sel], None if se is None else se[sel]))
+        smp = None if speed_samples is None else [speed_samples[i] for i in np.flatnonzero(sel)]
+        fits.append(fit_stribeck(w[sel], tau[sel], None if se is None else se[sel], smp))
     return LuGreFit(fits[0], fits[1])
 
 
@@ -296,6 +329,23 @@ def move_means(
         parts = np.array([np.mean(c) for c in np.array_split(tq, n_sub)])
         ses.append(float(np.std(parts, ddof=1) / math.sqrt(n_sub)))
     return np.array(ws), np.array(ts), np.array(ses)
+
+
+def move_speed_samples(
+    speed: np.ndarray, segments: list[slice], smooth_samples: int = 10
+) -> list[np.ndarray]:
+    """Per segment, the speed smoothed by a moving average of ``smooth_samples`` (rad/s).
+
+    The moving average removes the encoder's quantisation steps (one count per sample is a
+    large speed at low speed) and keeps the physical fluctuation, which lies inside the
+    velocity-loop bandwidth.
+    """
+    kernel = np.ones(smooth_samples) / smooth_samples
+    out = []
+    for seg in segments:
+        v = np.asarray(speed[seg], dtype=float)
+        out.append(np.convolve(v, kernel, mode="valid") if len(v) > smooth_samples else v)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

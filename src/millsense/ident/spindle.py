@@ -118,9 +118,12 @@ class SpindleFit:
         return self._inside(f, self.controller_measured, self.controller.frf(f))
 
     def controller_mismatch_db(self) -> float:
-        """Largest |20·log10(G_Ω,measured/G_Ω,gains)| over the sweep, dB (a check on the gains
-        read from the CNC and the error unit)."""
-        ratio = self.controller_measured / self.controller.frf(self.freq_hz)
+        """Largest |20·log10(G_Ω,measured/G_Ω,gains)| below a fifth of the velocity-loop rate,
+        dB: a check on the gains read from the CNC and on the error unit (a wrong unit is
+        16 dB). Nearer the loop's Nyquist frequency multirate effects dominate."""
+        f_max = 0.2 / self.controller.period_s if self.controller.period_s > 0 else math.inf
+        sel = self.freq_hz <= f_max
+        ratio = self.controller_measured[sel] / self.controller.frf(self.freq_hz[sel])
         return float(np.max(np.abs(20.0 * np.log10(np.abs(ratio)))))
 
     def open_loop_frf(self, freq_hz: np.ndarray) -> np.ndarray:
@@ -243,8 +246,9 @@ def fit_spindle(
 
 
 def residual_modes_table(fit: SpindleFit) -> dict[str, object]:
-    """The residual modes with :class:`~millsense.core.config.DisturbanceModesConfig` keys."""
-    modes = fit.residual.all_modes(include_residual=True)
+    """The residual's in-band modes with :class:`~millsense.core.config.DisturbanceModesConfig`
+    keys (the out-of-band poles the fit keeps as residual terms are not identified modes)."""
+    modes = fit.residual.modes
     return {
         "natural_frequency_hz": [m.natural_frequency_hz for m in modes],
         "damping_ratio": [m.damping_ratio for m in modes],

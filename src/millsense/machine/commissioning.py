@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -350,3 +351,56 @@ def spindle_friction_test(
     rec.add_channel("spindle/current", res["current"], "A")
     rec.add_channel("spindle/torque_constant", kt, "N*m/A")
     return rec
+
+
+def write_commissioning_set(
+    machine: str, out_dir: str | Path, axis_name: str = "x", *, spindle: bool = True
+) -> dict[str, Path]:
+    """Run the standard tests on a machine preset and write each recording (HDF5).
+
+    Parameters
+    ----------
+    machine : preset name or machine TOML path.
+    out_dir : directory for the files (created).
+    axis_name : the feed axis tested.
+    spindle : also run the spindle tests when the machine has a spindle.
+
+    Returns
+    -------
+    {test name: file path}. Friction moves use 16 speeds per direction from 0.1 to 30 rad/s (2 s each);
+    the presliding test only runs for an axis with LuGre friction, the drive sweep for a
+    ball-screw axis, the idle runs (3 air cuts at 600 mm/min
+    over 20 mm) for an axis with position-periodic disturbances.
+    """
+    from millsense.core.presets import load_preset
+    from millsense.io.recording_file import write_recording
+
+    cfg = load_preset(MachineConfig, machine)
+    axis = cfg.axis(axis_name)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    speeds = np.geomspace(0.1, 30.0, 16)
+    order = np.ravel(np.column_stack([speeds, -speeds]))
+    recs: dict[str, Recording] = {
+        "friction": friction_test(cfg, axis_name, order, hold_s=2.0),
+        "acceleration": acceleration_test(cfg, axis_name),
+    }
+    if axis.friction.sigma0_nm_rad is not None:
+        recs["presliding"] = presliding_test(cfg, axis_name)
+    if axis.ball_screw is not None:
+        recs["drive_sweep"] = drive_sweep(cfg, axis_name)
+    if axis.periodic_disturbances:
+        for k, rec in enumerate(idle_runs(cfg, axis_name, feed_mm_min=600.0, travel_mm=20.0)):
+            recs[f"idle_{k + 1}"] = rec
+    if spindle and cfg.spindle is not None:
+        sp = SpindleDriveParams.from_config(cfg.spindle)
+        recs["spindle_sweep"] = spindle_sweep(sp)
+        recs["spindle_friction"] = spindle_friction_test(
+            sp, np.array([50.0, 100.0, 150.0, 200.0, 250.0])
+        )
+    paths = {}
+    for name, rec in recs.items():
+        p = out / f"{cfg.name}-{axis_name}-{name}.h5"
+        write_recording(p, rec)
+        paths[name] = p
+    return paths
