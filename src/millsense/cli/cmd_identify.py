@@ -77,7 +77,9 @@ class _Ctx:
 
 
 def _by_test(ctx: _Ctx, test: str) -> list[tuple[Any, Path]]:
-    return [(r, p) for r, p in zip(ctx.recs, ctx.paths, strict=True) if r.metadata.get("test") == test]
+    return [
+        (r, p) for r, p in zip(ctx.recs, ctx.paths, strict=True) if r.metadata.get("test") == test
+    ]
 
 
 def _estimate(rec: Any, path: Path, inp: str, out: str, resolution: float) -> Any:
@@ -121,8 +123,9 @@ def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             "coherence": [float(v) for v in est.coherence],
         }
     }
-    return frag, [f"FRF {o['output']}/{o['input']} from {path} ({est.method}, "
-                  f"{est.n_averages} averages)"]  # fmt: skip
+    return frag, [
+        f"FRF {o['output']}/{o['input']} from {path} ({est.method}, {est.n_averages} averages)"
+    ]
 
 
 def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
@@ -160,8 +163,11 @@ def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str
     from millsense.report.ident_plots import plot_stribeck
 
     a = ctx.axis
-    moves = [(r, p) for r, p in zip(ctx.recs, ctx.paths, strict=True)
-             if r.metadata.get("test") != "presliding"]  # fmt: skip
+    moves = [
+        (r, p)
+        for r, p in zip(ctx.recs, ctx.paths, strict=True)
+        if r.metadata.get("test") != "presliding"
+    ]
     pres = _by_test(ctx, "presliding")
     if not moves:
         raise InputDataError("identify friction: no constant-velocity recording given")
@@ -170,14 +176,19 @@ def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str
     ws, ts, ses = [], [], []
     kt = 0.0
     for rec, path in moves:
-        kt = ctx.known(rec, "torque_constant_nm_a", "the torque constant",
-                       lambda m: m.axis(a).torque_constant_nm_a)  # fmt: skip
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
         ref = ctx.channel(rec, path, f"{a}/velocity_ref")
         segs = fr.steady_segments(ref, min_samples=round(0.2 * rec.sample_rate_hz))
         if not segs:
             raise InputDataError(f"{path}: no constant-velocity plateau of 0.2 s or more")
-        w, t, s = fr.move_means(ctx.channel(rec, path, spd_ch),
-                                kt * ctx.channel(rec, path, cur_ch), segs)  # fmt: skip
+        w, t, s = fr.move_means(
+            ctx.channel(rec, path, spd_ch), kt * ctx.channel(rec, path, cur_ch), segs
+        )
         ws.append(w)
         ts.append(t)
         ses.append(s)
@@ -198,8 +209,10 @@ def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str
             static=fit,
         )
         fit = fr.LuGreFit(fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2)
-        notes.append(f"presliding: peak {pf.peak_angle_rad * 1e3:.3g} mrad, RMS residual "
-                     f"{pf.rms_residual_rad * 1e6:.3g} µrad")  # fmt: skip
+        notes.append(
+            f"presliding: peak {pf.peak_angle_rad * 1e3:.3g} mrad, RMS residual "
+            f"{pf.rms_residual_rad * 1e6:.3g} µrad"
+        )
     if o["plot"] is not None:
         plot_stribeck(w, t, fit, o["plot"], std_error_nm=s)
     table = fit.config_table()
@@ -223,8 +236,12 @@ def _drive(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     notes: list[str] = []
     if accel:
         rec, path = accel[0]
-        kt = ctx.known(rec, "torque_constant_nm_a", "the torque constant",
-                       lambda m: m.axis(a).torque_constant_nm_a)  # fmt: skip
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
         rb = dr.rigid_body_from_acceleration(
             ctx.channel(rec, path, o["input"] or f"{a}/current"),
             ctx.channel(rec, path, o["output"] or f"{a}/speed"),
@@ -232,43 +249,82 @@ def _drive(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             torque_constant_nm_a=kt,
         )
         table.update({"inertia_kg_m2": rb.inertia, "torque_constant_nm_a": kt})
-        notes.append(f"acceleration test: J_e = {rb.inertia:.5g} kg·m² (K_t {kt:g} N·m/A "
-                     f"assumed known), Coulomb {rb.coulomb[0]:.3g}/{rb.coulomb[1]:.3g} N·m")  # fmt: skip
+        notes.append(
+            f"acceleration test: J_e = {rb.inertia:.5g} kg·m² (K_t {kt:g} N·m/A "
+            f"assumed known), Coulomb {rb.coulomb[0]:.3g}/{rb.coulomb[1]:.3g} N·m"
+        )
     if sweeps:
         rec, path = sweeps[0]
         fs = rec.sample_rate_hz
-        kt = ctx.known(rec, "torque_constant_nm_a", "the torque constant",
-                       lambda m: m.axis(a).torque_constant_nm_a)  # fmt: skip
-        lead = ctx.known(rec, "lead_m", "the ball-screw lead",
-                         lambda m: (m.axis(a).lead_mm_rev or 0) * 1e-3 or None)  # fmt: skip
-        bw = ctx.known(rec, "current_bandwidth_hz", "the current-loop bandwidth",
-                       lambda m: m.axis(a).current_bandwidth_hz)  # fmt: skip
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
+        lead = ctx.known(
+            rec,
+            "lead_m",
+            "the ball-screw lead",
+            lambda m: (m.axis(a).lead_mm_rev or 0) * 1e-3 or None,
+        )
+        bw = ctx.known(
+            rec,
+            "current_bandwidth_hz",
+            "the current-loop bandwidth",
+            lambda m: m.axis(a).current_bandwidth_hz,
+        )
         per = rec.metadata.get("period_samples")
         if not isinstance(per, int):
             raise InputDataError(f"{path}: metadata 'period_samples' (sweep period) missing")
         r = ctx.channel(rec, path, f"{a}/injection")
         u = ctx.channel(rec, path, f"{a}/current_cmd")
-        hm = dr.reference_frf(r, u, ctx.channel(rec, path, f"{a}/angle"), fs, per, detrend=True,
-                              names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/angle"))  # fmt: skip
-        ht = dr.reference_frf(r, u, ctx.channel(rec, path, f"{a}/scale"), fs, per, detrend=True,
-                              names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/scale"))  # fmt: skip
+        hm = dr.reference_frf(
+            r,
+            u,
+            ctx.channel(rec, path, f"{a}/angle"),
+            fs,
+            per,
+            detrend=True,
+            names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/angle"),
+        )
+        ht = dr.reference_frf(
+            r,
+            u,
+            ctx.channel(rec, path, f"{a}/scale"),
+            fs,
+            per,
+            detrend=True,
+            names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/scale"),
+        )
         ts = 0.0
         if f"{a}/current" in rec:
             hi = dr.reference_frf(r, u, rec.channel(f"{a}/current"), fs, per)
             ts, _ = dr.fit_amplifier_delay(hi, sample_rate_hz=fs, current_loop_hz=bw)
         band = o["band"] or (10.0, min(1000.0, 0.45 * fs))
-        fit = dr.fit_dual_inertia(hm, ht, lead_m=lead, torque_constant_nm_a=kt,
-                                  current_loop_hz=bw, sample_rate_hz=fs,
-                                  amplifier_delay_s=ts, band_hz=band)  # fmt: skip
+        fit = dr.fit_dual_inertia(
+            hm,
+            ht,
+            lead_m=lead,
+            torque_constant_nm_a=kt,
+            current_loop_hz=bw,
+            sample_rate_hz=fs,
+            amplifier_delay_s=ts,
+            band_hz=band,
+        )
         table.update(dr.drive_config_table(fit, kt))
         p = fit.params
         t1, t2, t3 = dr.compensation_delays(
             max(p.dead_time_amplifier, 0), max(p.dead_time_motor, 0), max(p.dead_time_table, 0)
         )
-        notes.append(f"dual inertia from {path.name}: resonance {p.resonance_hz(lead):.1f} Hz, "
-                     f"RMS log error {fit.rms_log_error:.3g}")  # fmt: skip
-        notes.append(f"phase-lag compensation T1, T2, T3 = {t1 * 1e3:.3f}, {t2 * 1e3:.3f}, "
-                     f"{t3 * 1e3:.3f} ms (Yamada Fig. 2-5)")  # fmt: skip
+        notes.append(
+            f"dual inertia from {path.name}: resonance {p.resonance_hz(lead):.1f} Hz, "
+            f"RMS log error {fit.rms_log_error:.3g}"
+        )
+        notes.append(
+            f"phase-lag compensation T1, T2, T3 = {t1 * 1e3:.3f}, {t2 * 1e3:.3f}, "
+            f"{t3 * 1e3:.3f} ms (Yamada Fig. 2-5)"
+        )
         if o["plot"] is not None:
             plot_drive_fit(fit, o["plot"])
     return {"axes": {a: table}}, notes
@@ -291,15 +347,20 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
     viscous = sp.viscous_nm_s_rad
     if fric:
         rec, path = fric[0]
-        segs = fr.steady_segments(ctx.channel(rec, path, "spindle/speed_ref"),
-                                  min_samples=round(0.5 * rec.sample_rate_hz))  # fmt: skip
+        segs = fr.steady_segments(
+            ctx.channel(rec, path, "spindle/speed_ref"), min_samples=round(0.5 * rec.sample_rate_hz)
+        )
         kt_ch = ctx.channel(rec, path, "spindle/torque_constant")
-        w, t, _ = fr.move_means(ctx.channel(rec, path, "spindle/speed"),
-                                kt_ch * ctx.channel(rec, path, "spindle/current"), segs)  # fmt: skip
+        w, t, _ = fr.move_means(
+            ctx.channel(rec, path, "spindle/speed"),
+            kt_ch * ctx.channel(rec, path, "spindle/current"),
+            segs,
+        )
         coul, viscous = fr.spindle_friction_from_moves(w, t)
         table.update({"coulomb_nm": max(coul, 0.0), "viscous_nm_s_rad": max(viscous, 0.0)})
-        notes.append(f"spindle friction from {len(w)} runs: τ_coul {coul:.4g} N·m, "
-                     f"B {viscous:.4g} N·m·s/rad")  # fmt: skip
+        notes.append(
+            f"spindle friction from {len(w)} runs: τ_coul {coul:.4g} N·m, B {viscous:.4g} N·m·s/rad"
+        )
     if sweeps:
         rec, path = sweeps[0]
         md = rec.metadata
@@ -334,10 +395,12 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
         modes["source"] = f"millsense identify spindle {path.name} (residual R, Aslan App. E)"
         table["residual_modes"] = modes
         g = fit.disturbance_frf(fit.freq_hz)
-        notes.append(f"residual R: {len(fit.residual.modes)} modes, RMS error "
-                     f"{fit.residual.rms_error:.3g}; |G_dτ| {20 * np.log10(abs(g[0])):.1f} dB "
-                     f"at {fit.freq_hz[0]:g} Hz, current loop ≈ {fit.current_loop_hz:.0f} Hz; "
-                     f"CNC gains vs measured G_Ω ≤ {fit.controller_mismatch_db():.2f} dB")  # fmt: skip
+        notes.append(
+            f"residual R: {len(fit.residual.modes)} modes, RMS error "
+            f"{fit.residual.rms_error:.3g}; |G_dτ| {20 * np.log10(abs(g[0])):.1f} dB "
+            f"at {fit.freq_hz[0]:g} Hz, current loop ≈ {fit.current_loop_hz:.0f} Hz; "
+            f"CNC gains vs measured G_Ω ≤ {fit.controller_mismatch_db():.2f} dB"
+        )
         notes.append("residual_modes is not yet a SpindleConfig key (read by ident.spindle)")
         if o["plot"] is not None:
             plot_spindle_fit(fit, o["plot"])
@@ -355,7 +418,9 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
     runs = []
     feed = 0.0
     for rec, path in zip(ctx.recs, ctx.paths, strict=True):
-        r = ctx.known(rec, "transmission_m_rad", "the transmission", lambda m: m.axis(a).transmission_m_rad)  # noqa: E501
+        r = ctx.known(
+            rec, "transmission_m_rad", "the transmission", lambda m: m.axis(a).transmission_m_rad
+        )
         pos_ch = o["input"] or f"{a}/angle"
         pos = ctx.channel(rec, path, pos_ch)
         unit = rec.info(pos_ch).unit
@@ -364,27 +429,36 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
             est = ctx.channel(rec, path, o["output"])
             quantity, est_unit = o["output"].split("/")[-1], rec.info(o["output"]).unit
         else:
-            kt = ctx.known(rec, "torque_constant_nm_a", "the torque constant",
-                           lambda m: m.axis(a).torque_constant_nm_a)  # fmt: skip
+            kt = ctx.known(
+                rec,
+                "torque_constant_nm_a",
+                "the torque constant",
+                lambda m: m.axis(a).torque_constant_nm_a,
+            )
             est = kt * ctx.channel(rec, path, f"{a}/current_cmd") / r
             quantity, est_unit = "thrust", "N"
         sel = slice(None)
         if f"{a}/velocity_ref" in rec:
-            segs = fr.steady_segments(rec.channel(f"{a}/velocity_ref"),
-                                      min_samples=round(0.1 * rec.sample_rate_hz),
-                                      settle_fraction=0.05)  # fmt: skip
+            segs = fr.steady_segments(
+                rec.channel(f"{a}/velocity_ref"),
+                min_samples=round(0.1 * rec.sample_rate_hz),
+                settle_fraction=0.05,
+            )
             if segs:
                 sel = max(segs, key=lambda s: s.stop - s.start)
                 feed = float(rec.channel(f"{a}/velocity_ref")[sel.start]) * r
         runs.append((pos[sel], est[sel]))
-    table = build_idle_table(runs, bin_m=o["bin_um"] * 1e-6, feed_m_s=feed,
-                             quantity=quantity, unit=est_unit, min_runs=2)  # fmt: skip
+    table = build_idle_table(
+        runs, bin_m=o["bin_um"] * 1e-6, feed_m_s=feed, quantity=quantity, unit=est_unit, min_runs=2
+    )
     csv = out.with_name(f"{out.stem}-{a}-idle.csv")
     table.to_csv(csv)
     if o["plot"] is not None:
         plot_idle_table(table, o["plot"], runs)
-    notes = [f"{len(runs)} air cuts averaged over {len(table.position_m)} bins of "
-             f"{o['bin_um']:g} µm; table in {csv.name}"]  # fmt: skip
+    notes = [
+        f"{len(runs)} air cuts averaged over {len(table.position_m)} bins of "
+        f"{o['bin_um']:g} µm; table in {csv.name}"
+    ]
     return {"axes": {a: {"idle_table": table.config_table(csv.name)}}}, notes
 
 

@@ -109,9 +109,7 @@ class StribeckFit:
         return self.coulomb + rise + self.viscous * w
 
 
-def _stribeck_columns(
-    w: np.ndarray, samples: list[np.ndarray] | None, vs: float
-) -> np.ndarray:
+def _stribeck_columns(w: np.ndarray, samples: list[np.ndarray] | None, vs: float) -> np.ndarray:
     """Columns of (τ_coul, τ_stat − τ_coul, σ2) for the mean torque of each move.
 
     Without speed samples: ``[1, exp(−(w/v_s)²), w]``. With them: the mean over the samples

@@ -26,7 +26,7 @@ it; :meth:`SpindleFit.controller_mismatch_db` compares the two.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.optimize
@@ -229,6 +229,11 @@ def fit_spindle(
     coh = np.minimum(h_w.coherence[sel], h_i.coherence[sel])
     est = FrfEstimate(f, resid, resid.copy(), coh, h_w.n_averages, "reference")
     fit = fit_modes(est, band_hz, max_modes=max_modes, max_damping=max_damping)
+    # an undamped out-of-band pole at the band edge (the velocity loop's Nyquist frequency,
+    # where the sweep stops) is a fitting artefact, not structure: drop it
+    fit = replace(
+        fit, residual_modes=tuple(m for m in fit.residual_modes if m.damping_ratio > 1e-3)
+    )
     return SpindleFit(
         residual=fit,
         current_loop_hz=bw,

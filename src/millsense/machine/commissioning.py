@@ -367,8 +367,8 @@ def write_commissioning_set(
 
     Returns
     -------
-    {test name: file path}. Friction moves use 16 speeds per direction from 0.1 to 30 rad/s (2 s each);
-    the presliding test only runs for an axis with LuGre friction, the drive sweep for a
+    {test name: file path}. Friction moves use 16 speeds per direction from 0.1 to 30 rad/s
+    (2 s each); the presliding test only runs for an axis with LuGre friction, the drive sweep for a
     ball-screw axis, the idle runs (3 air cuts at 600 mm/min
     over 20 mm) for an axis with position-periodic disturbances.
     """
