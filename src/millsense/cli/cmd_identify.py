@@ -113,7 +113,7 @@ def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
         est = est.band(*o["band"])
     if o["plot"] is not None:
         plot_frf_fit(est, None, o["plot"], title=f"{o['output']} / {o['input']}")
-    frag = {
+    frag: dict[str, object] = {
         "frf": {
             "input": o["input"],
             "output": o["output"],
@@ -372,7 +372,8 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
         if not isinstance(kp, (int, float)) or not isinstance(ki, (int, float)):
             raise InputDataError("identify spindle: velocity gains unknown; give --kp and --ki")
         unit = o["error_unit"] or str(md.get("velocity_error_unit", "rev/s"))
-        period = float(md.get("velocity_period_s", 2e-4))  # type: ignore[arg-type]
+        vp = md.get("velocity_period_s", 2e-4)
+        period = float(vp) if isinstance(vp, (int, float)) else 2e-4
         ctl = isp.VelocityController(float(kp), float(ki), unit, period)
         per = md.get("period_samples")
         if not isinstance(per, int):

@@ -326,7 +326,10 @@ def _model(
     current_loop_hz: float,
     fs: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    p = DualInertiaParams(*np.exp(x[:6]))
+    m = np.exp(x[:6])
+    p = DualInertiaParams(
+        float(m[0]), float(m[1]), float(m[2]), float(m[3]), float(m[4]), float(m[5])
+    )
     hm, ht = dual_inertia_frf(p, lead_m, f)
     s = 2j * math.pi * f
     wc = 2.0 * math.pi * current_loop_hz
@@ -450,7 +453,12 @@ def fit_dual_inertia(
     d_m, d_t = float(x[6]), float(x[7])
     ts = amplifier_delay_s
     params = DualInertiaParams(
-        *(float(v) for v in mech),
+        screw_inertia=float(mech[0]),
+        table_mass=float(mech[1]),
+        axial_stiffness=float(mech[2]),
+        axial_damping=float(mech[3]),
+        table_damping=float(mech[4]),
+        rotary_damping=float(mech[5]),
         dead_time_amplifier=ts,
         dead_time_motor=d_m - ts,
         dead_time_table=d_t - ts,

@@ -36,7 +36,7 @@ def _value(v: object, where: str) -> str:
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_value(x, where) for x in v) + "]"
     if hasattr(v, "item"):  # numpy scalar
-        return _value(v.item(), where)  # type: ignore[attr-defined]
+        return _value(v.item(), where)
     raise InputDataError(f"fragment key {where}: cannot write a {type(v).__name__}")
 
 
