@@ -15,6 +15,7 @@ from millsense.ident.frf import FrfEstimate
 from millsense.machine import commissioning as cm
 from millsense.machine.ball_screw import dual_inertia_plant
 from millsense.machine.feed_drive import OUT_THETA, OUT_X
+from millsense.validation import ValidationCase, run_case, select_cases
 from millsense.validation.cases.ident_drive import drive_case
 
 _A = dr.DualInertiaParams(3.8e-5, 6.2, 25.7e6, 2500.0, 370.0, 2.3e-3)
@@ -130,3 +131,18 @@ def test_reference_frf_refuses_too_few_periods() -> None:
     r = np.sin(np.arange(1500) * 0.3)
     with pytest.raises(InputDataError, match="periods"):
         dr.reference_frf(r, r, r, 1e4, 1000)
+
+
+_QUICK = [
+    c
+    for c in select_cases("ident.*", quick_only=True)
+    if c.func.__module__ == "millsense.validation.cases.ident_drive"
+]
+
+
+@pytest.mark.parametrize("c", _QUICK, ids=[c.id for c in _QUICK])
+def test_quick_ident_drive_cases_pass(c: ValidationCase) -> None:
+    # each case compares with Table 3-3 / Table 3.1 / the presets' periodic terms (issue 6)
+    assert len(_QUICK) >= 6
+    r = run_case(c)
+    assert r.passed, (r.measured, r.reference, r.error)
