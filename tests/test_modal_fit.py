@@ -133,7 +133,11 @@ def test_plots_written(tmp_path: object) -> None:
 def test_quick_ident_validation_cases_pass() -> None:
     from millsense.validation import run_case, select_cases
 
-    cases = select_cases("ident.*", quick_only=True)
+    cases = [
+        c
+        for c in select_cases("ident.*", quick_only=True)
+        if c.func.__module__ == "millsense.validation.cases.ident"  # items 1-2 only
+    ]
     assert len(cases) == 2  # h1_input_noise_bias, stepped_sine_exact
     for c in cases:
         res = run_case(c)

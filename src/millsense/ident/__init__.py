@@ -1,7 +1,13 @@
 """System identification: from recordings to the models the estimators need.
 
 FRF estimation (:mod:`millsense.ident.frf`), automated modal fitting
-(:mod:`millsense.ident.modal_fit`) and friction fits (:mod:`millsense.ident.friction`).
+(:mod:`millsense.ident.modal_fit`), friction (:mod:`millsense.ident.friction`: Coulomb +
+viscous, LuGre static parameters, presliding, spindle), drive parameters and dead times
+(:mod:`millsense.ident.drive`), the spindle's residual modes and G_dτ
+(:mod:`millsense.ident.spindle`), the idling disturbance table
+(:mod:`millsense.ident.idle_table`) and TOML configuration fragments
+(:mod:`millsense.ident.fragment`). Simulated commissioning tests are in
+:mod:`millsense.machine.commissioning`; the CLI is ``millsense identify``.
 """
 
 from millsense.ident.frf import (

@@ -1,5 +1,6 @@
 """Plots of identification results (PNG): FRF with fitted model and coherence, stabilisation
-diagram. Uses matplotlib's Agg backend (no screen)."""
+diagram, Stribeck curve, dual-inertia fit, spindle residual and G_dτ, idling table. Uses
+matplotlib's Agg backend (no screen)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import ArrayLike
 
+from millsense.ident.drive import DriveFit
 from millsense.ident.frf import FrfEstimate
+from millsense.ident.friction import LuGreFit
+from millsense.ident.idle_table import IdleTable
 from millsense.ident.modal_fit import ModalFit
+from millsense.ident.spindle import SpindleFit
 from millsense.report.plots import _save
 
 
@@ -116,5 +121,132 @@ def plot_stabilisation(
         ax2.set_ylabel("|H| [dB]")
     ax.set_title(title or f"stabilisation diagram: order {dg.selected} selected, "
                  f"{len(fit.modes)} modes (× new, ○ f ±1 %, ● f ±1 % and ζ ±5 %)")  # fmt: skip
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_stribeck(
+    speed_rad_s: ArrayLike,
+    torque_nm: ArrayLike,
+    fit: LuGreFit,
+    path: str | Path,
+    *,
+    std_error_nm: ArrayLike | None = None,
+    title: str = "",
+) -> None:
+    """Stribeck curve: mean friction torque of the constant-velocity moves against speed with
+    the fitted ``g(v) + σ2·v`` per direction (log speed axis, both directions folded)."""
+    w = np.asarray(speed_rad_s, dtype=float)
+    tau = np.asarray(torque_nm, dtype=float)
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    se = None if std_error_nm is None else np.asarray(std_error_nm, dtype=float)
+    for sel, part, col, name in (
+        (w > 0, fit.positive, "tab:blue", "+"),
+        (w < 0, fit.negative, "tab:red", "−"),
+    ):
+        if not sel.any():
+            continue
+        ax.errorbar(np.abs(w[sel]), np.abs(tau[sel]), yerr=None if se is None else se[sel],
+                    fmt="o", color=col, ms=4, label=f"moves ({name})")  # fmt: skip
+        grid = np.geomspace(np.abs(w[sel]).min() * 0.5, np.abs(w[sel]).max() * 1.5, 300)
+        lab = (
+            f"fit ({name}): τc {part.coulomb:.3g}, τs {part.static:.3g} N·m, "
+            f"vs {part.stribeck_velocity:.3g} rad/s, σ2 {part.viscous:.3g} N·m·s/rad"
+        )
+        ax.plot(grid, part.torque(grid), color=col, lw=1.0, label=lab)
+    ax.set_xscale("log")
+    ax.set_xlabel("|motor speed| [rad/s]")
+    ax.set_ylabel("|friction torque| [N·m]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    ax.set_title(title or "Stribeck curve (Aslan Eq. 3.4)")
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_drive_fit(fit: DriveFit, path: str | Path, *, title: str = "") -> None:
+    """Accelerance FRFs current command → motor and → table acceleration with the fitted
+    dual-inertia model (magnitude and phase)."""
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 6))
+    f = fit.freq_hz
+    for h, m, col, name in (
+        (fit.motor_accel, fit.model_motor, "tab:blue", "motor [rad/s²/A]"),
+        (fit.table_accel, fit.model_table, "tab:red", "table [m/s²/A]"),
+    ):
+        axes[0].semilogx(f, 20 * np.log10(np.abs(h)), ".", color=col, ms=2, label=name)
+        axes[0].semilogx(f, 20 * np.log10(np.abs(m)), "-", color=col, lw=0.9)
+        axes[1].semilogx(f, np.degrees(np.unwrap(np.angle(h))), ".", color=col, ms=2)
+        axes[1].semilogx(f, np.degrees(np.unwrap(np.angle(m))), "-", color=col, lw=0.9)
+    axes[0].set_ylabel("|H| [dB]")
+    axes[1].set_ylabel("phase [deg]")
+    axes[1].set_xlabel("frequency [Hz]")
+    axes[0].legend(fontsize=8)
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    p = fit.params
+    fig.suptitle(
+        title
+        or (
+            f"dual inertia: J_r {p.screw_inertia:.3g} kg·m², M_t {p.table_mass:.3g} kg, "
+            f"K_r {p.axial_stiffness * 1e-6:.3g} N/µm; T_s+T_m {fit.motor_delay * 1e3:.3f} ms, "
+            f"T_s+T_t {fit.table_delay * 1e3:.3f} ms"
+        ),
+        fontsize=9,
+    )
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_spindle_fit(
+    fit: SpindleFit,
+    path: str | Path,
+    *,
+    truth: tuple[ArrayLike, ArrayLike] | None = None,
+    title: str = "",
+) -> None:
+    """Measured and fitted residual R, and the formed G_dτ (magnitude and phase)."""
+    f = fit.freq_hz
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8))
+    axes[0].semilogx(f, 20 * np.log10(np.abs(fit.residual_measured)), ".", ms=2, color="0.5",
+                     label="R measured")  # fmt: skip
+    axes[0].semilogx(f, 20 * np.log10(np.abs(fit.residual.frf(f))), "r", lw=0.9,
+                     label=f"R fit, {len(fit.residual.modes)} modes")  # fmt: skip
+    axes[0].set_ylabel("|R| [dB]")
+    g = fit.disturbance_frf(f)
+    axes[1].semilogx(f, 20 * np.log10(np.abs(g)), "b", lw=0.9, label="G_dτ identified")
+    axes[2].semilogx(f, np.degrees(np.angle(g)), "b", lw=0.9)
+    if truth is not None:
+        ft, ht = np.asarray(truth[0], float), np.asarray(truth[1], complex)
+        axes[1].semilogx(ft, 20 * np.log10(np.abs(ht)), "g--", lw=0.9, label="truth")
+        axes[2].semilogx(ft, np.degrees(np.angle(ht)), "g--", lw=0.9)
+    axes[1].set_ylabel("|G_dτ| [dB A/(N·m)]")
+    axes[2].set_ylabel("phase [deg]")
+    axes[2].set_xlabel("frequency [Hz]")
+    for ax in axes[:2]:
+        ax.legend(fontsize=8)
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    fig.suptitle(title or "spindle: residual modes (Aslan App. E form) and G_dτ (Eq. 5.12)")
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_idle_table(
+    table: IdleTable,
+    path: str | Path,
+    runs: list[tuple[np.ndarray, np.ndarray]] | None = None,
+    *,
+    title: str = "",
+) -> None:
+    """The idling table against position with the runs it averages."""
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for k, (x, y) in enumerate(runs or []):
+        ax.plot(np.asarray(x) * 1e3, y, lw=0.4, alpha=0.5, label=f"air cut {k + 1}")
+    ax.plot(table.position_m * 1e3, table.value, "k", lw=0.9, label="table (mean)")
+    ax.set_xlabel("position [mm]")
+    ax.set_ylabel(f"{table.quantity} [{table.unit}]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or f"idling table, {table.n_runs} runs (Yamada §2.9)")
     fig.tight_layout()
     _save(fig, path)

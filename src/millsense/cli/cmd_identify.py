@@ -1,0 +1,529 @@
+"""``millsense identify``: from commissioning recordings to machine-configuration fragments.
+
+``millsense identify KIND RECORDING... -o FRAGMENT.toml [--plot FIT.png]`` with KIND one of
+
+- ``frf``      FRF between ``--input`` and ``--output`` (multisine when the recording states its
+  period, Welch otherwise) → ``[frf]`` table;
+- ``modal``    modal fit of that FRF in ``--band`` → ``[axes.<axis>.disturbance_modes]``;
+- ``friction`` constant-velocity moves (+ a presliding test) → ``[axes.<axis>.friction]``;
+- ``drive``    current-injection sweep (+ an acceleration test) → ``[axes.<axis>]`` and
+  ``[axes.<axis>.ball_screw]``;
+- ``spindle``  velocity-loop sweep (+ constant-speed runs) → ``[spindle]`` and its residual
+  modes;
+- ``idle``     repeated air cuts → a CSV table and ``[axes.<axis>.idle_table]`` referencing it.
+
+Known quantities (torque constant, lead, inertia, current-loop bandwidth, spindle gains) come
+from the recording's metadata or from ``--machine`` (a preset name or machine TOML).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from millsense.cli.main import app
+from millsense.core.errors import ConfigError, InputDataError
+
+_KINDS = ("frf", "modal", "friction", "drive", "spindle", "idle")
+
+
+def _parse_band(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        lo, hi = (float(p) for p in text.split(":"))
+    except ValueError:
+        raise ConfigError(f"--band {text!r}: expected LO:HI in Hz") from None
+    if not (0 <= lo < hi and math.isfinite(hi)):
+        raise ConfigError(f"--band {text!r}: allowed 0 <= LO < HI")
+    return lo, hi
+
+
+class _Ctx:
+    """Recordings, options and the machine, with look-ups that fail with one line."""
+
+    def __init__(self, recs: list[Any], paths: list[Path], axis: str, machine: Any) -> None:
+        self.recs = recs
+        self.paths = paths
+        self.axis = axis
+        self.machine = machine
+
+    def channel(self, rec: Any, path: Path, name: str) -> Any:
+        if name not in rec:
+            raise InputDataError(
+                f"{path}: no channel {name!r} (has: {', '.join(rec.channel_names)})"
+            )
+        return rec.channel(name)
+
+    def known(self, rec: Any, meta_key: str, what: str, from_machine: Any) -> float:
+        v = rec.metadata.get(meta_key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
+        if self.machine is not None:
+            val = from_machine(self.machine)
+            if val is not None:
+                return float(val)
+        raise InputDataError(
+            f"{what} is needed: not in the recording's metadata ({meta_key!r}); give --machine"
+        )
+
+    def axis_cfg(self) -> Any:
+        if self.machine is None:
+            return None
+        return self.machine.axis(self.axis)
+
+
+def _by_test(ctx: _Ctx, test: str) -> list[tuple[Any, Path]]:
+    return [
+        (r, p) for r, p in zip(ctx.recs, ctx.paths, strict=True) if r.metadata.get("test") == test
+    ]
+
+
+def _estimate(rec: Any, path: Path, inp: str, out: str, resolution: float) -> Any:
+    from millsense.ident.frf import check_records, multisine_frf, welch_frf
+
+    if inp not in rec or out not in rec:
+        missing = inp if inp not in rec else out
+        raise InputDataError(
+            f"{path}: no channel {missing!r} (has: {', '.join(rec.channel_names)})"
+        )
+    u, y = rec.channel(inp), rec.channel(out)
+    names = (inp, out)
+    check_records(u, y, rec.sample_rate_hz, names=names)
+    level = float(abs(y).max()) if len(y) else 0.0
+    if float(y.std()) <= 1e-12 * max(level, 1e-300):
+        raise InputDataError(f"{path}: channel {out!r} carries no response (constant)")
+    per = rec.metadata.get("period_samples")
+    if isinstance(per, int) and per > 0:
+        return multisine_frf(u, y, rec.sample_rate_hz, per, names=names)
+    return welch_frf(u, y, rec.sample_rate_hz, resolution_hz=resolution, names=names)
+
+
+def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    from millsense.report.ident_plots import plot_frf_fit
+
+    if not o["input"] or not o["output"]:
+        raise ConfigError("identify frf/modal: give --input and --output channels")
+    rec, path = ctx.recs[0], ctx.paths[0]
+    est = _estimate(rec, path, o["input"], o["output"], o["resolution"])
+    if o["band"] is not None:
+        est = est.band(*o["band"])
+    if o["plot"] is not None:
+        plot_frf_fit(est, None, o["plot"], title=f"{o['output']} / {o['input']}")
+    frag: dict[str, object] = {
+        "frf": {
+            "input": o["input"],
+            "output": o["output"],
+            "freq_hz": [float(v) for v in est.freq_hz],
+            "real": [float(v) for v in est.h1.real],
+            "imag": [float(v) for v in est.h1.imag],
+            "coherence": [float(v) for v in est.coherence],
+        }
+    }
+    return frag, [
+        f"FRF {o['output']}/{o['input']} from {path} ({est.method}, {est.n_averages} averages)"
+    ]
+
+
+def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    from millsense.ident.modal_fit import fit_modes
+    from millsense.report.ident_plots import plot_frf_fit, plot_stabilisation
+
+    if not o["input"] or not o["output"]:
+        raise ConfigError("identify frf/modal: give --input and --output channels")
+    rec, path = ctx.recs[0], ctx.paths[0]
+    est = _estimate(rec, path, o["input"], o["output"], o["resolution"])
+    band = o["band"] or (float(est.freq_hz[0]), float(est.freq_hz[-1]))
+    fit = fit_modes(est, band, max_modes=o["max_modes"])
+    if o["plot"] is not None:
+        plot_frf_fit(est, fit, o["plot"], title=f"{o['output']} / {o['input']}")
+        stab = Path(o["plot"]).with_name(Path(o["plot"]).stem + "-stabilisation.png")
+        if fit.diagram is not None:
+            plot_stabilisation(fit, stab, est)
+    modes = fit.modes
+    table = {
+        "natural_frequency_hz": [m.natural_frequency_hz for m in modes],
+        "damping_ratio": [m.damping_ratio for m in modes],
+        "alpha": [m.alpha for m in modes],
+        "beta": [m.beta for m in modes],
+        "feedthrough": float(fit.residual),
+        "source": f"millsense identify modal {path.name} {band[0]:g}-{band[1]:g} Hz",
+    }
+    notes = [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
+    return {"axes": {ctx.axis: {"disturbance_modes": table}}}, notes
+
+
+def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    import numpy as np
+
+    from millsense.ident import friction as fr
+    from millsense.report.ident_plots import plot_stribeck
+
+    a = ctx.axis
+    moves = [
+        (r, p)
+        for r, p in zip(ctx.recs, ctx.paths, strict=True)
+        if r.metadata.get("test") != "presliding"
+    ]
+    pres = _by_test(ctx, "presliding")
+    if not moves:
+        raise InputDataError("identify friction: no constant-velocity recording given")
+    cur_ch = o["input"] or f"{a}/current"
+    spd_ch = o["output"] or f"{a}/speed"
+    ws, ts, ses = [], [], []
+    kt = 0.0
+    for rec, path in moves:
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
+        ref = ctx.channel(rec, path, f"{a}/velocity_ref")
+        segs = fr.steady_segments(ref, min_samples=round(0.2 * rec.sample_rate_hz))
+        if not segs:
+            raise InputDataError(f"{path}: no constant-velocity plateau of 0.2 s or more")
+        w, t, s = fr.move_means(
+            ctx.channel(rec, path, spd_ch), kt * ctx.channel(rec, path, cur_ch), segs
+        )
+        ws.append(w)
+        ts.append(t)
+        ses.append(s)
+    w, t, s = np.concatenate(ws), np.concatenate(ts), np.concatenate(ses)
+    fit = fr.lugre_static_from_moves(w, t, s)
+    notes = [f"{len(w)} constant-velocity moves, K_t = {kt:g} N·m/A"]
+    if pres:
+        rec, path = pres[0]
+        cfg = ctx.axis_cfg()
+        if cfg is None:
+            raise InputDataError("identify friction: the presliding fit needs --machine (inertia)")
+        pf = fr.fit_presliding(
+            ctx.channel(rec, path, f"{a}/current"),
+            ctx.channel(rec, path, f"{a}/angle"),
+            rec.sample_rate_hz,
+            inertia_kg_m2=cfg.inertia_kg_m2,
+            torque_constant_nm_a=kt,
+            static=fit,
+        )
+        fit = fr.LuGreFit(fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2)
+        notes.append(
+            f"presliding: peak {pf.peak_angle_rad * 1e3:.3g} mrad, RMS residual "
+            f"{pf.rms_residual_rad * 1e6:.3g} µrad"
+        )
+    if o["plot"] is not None:
+        plot_stribeck(w, t, fit, o["plot"], std_error_nm=s)
+    table = fit.config_table()
+    table["source"] = "millsense identify friction"
+    return {"axes": {a: {"friction": table}}}, notes
+
+
+def _drive(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    from millsense.ident import drive as dr
+    from millsense.report.ident_plots import plot_drive_fit
+
+    a = ctx.axis
+    sweeps = _by_test(ctx, "drive_sweep")
+    accel = _by_test(ctx, "acceleration")
+    if not sweeps and not accel:
+        raise InputDataError(
+            "identify drive: needs a drive sweep or an acceleration test recording "
+            "(metadata 'test')"
+        )
+    table: dict[str, object] = {}
+    notes: list[str] = []
+    if accel:
+        rec, path = accel[0]
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
+        rb = dr.rigid_body_from_acceleration(
+            ctx.channel(rec, path, o["input"] or f"{a}/current"),
+            ctx.channel(rec, path, o["output"] or f"{a}/speed"),
+            rec.sample_rate_hz,
+            torque_constant_nm_a=kt,
+        )
+        table.update({"inertia_kg_m2": rb.inertia, "torque_constant_nm_a": kt})
+        notes.append(
+            f"acceleration test: J_e = {rb.inertia:.5g} kg·m² (K_t {kt:g} N·m/A "
+            f"assumed known), Coulomb {rb.coulomb[0]:.3g}/{rb.coulomb[1]:.3g} N·m"
+        )
+    if sweeps:
+        rec, path = sweeps[0]
+        fs = rec.sample_rate_hz
+        kt = ctx.known(
+            rec,
+            "torque_constant_nm_a",
+            "the torque constant",
+            lambda m: m.axis(a).torque_constant_nm_a,
+        )
+        lead = ctx.known(
+            rec,
+            "lead_m",
+            "the ball-screw lead",
+            lambda m: (m.axis(a).lead_mm_rev or 0) * 1e-3 or None,
+        )
+        bw = ctx.known(
+            rec,
+            "current_bandwidth_hz",
+            "the current-loop bandwidth",
+            lambda m: m.axis(a).current_bandwidth_hz,
+        )
+        per = rec.metadata.get("period_samples")
+        if not isinstance(per, int):
+            raise InputDataError(f"{path}: metadata 'period_samples' (sweep period) missing")
+        r = ctx.channel(rec, path, f"{a}/injection")
+        u = ctx.channel(rec, path, f"{a}/current_cmd")
+        hm = dr.reference_frf(
+            r,
+            u,
+            ctx.channel(rec, path, f"{a}/angle"),
+            fs,
+            per,
+            detrend=True,
+            names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/angle"),
+        )
+        ht = dr.reference_frf(
+            r,
+            u,
+            ctx.channel(rec, path, f"{a}/scale"),
+            fs,
+            per,
+            detrend=True,
+            names=(f"{a}/injection", f"{a}/current_cmd", f"{a}/scale"),
+        )
+        ts = 0.0
+        if f"{a}/current" in rec:
+            hi = dr.reference_frf(r, u, rec.channel(f"{a}/current"), fs, per)
+            ts, _ = dr.fit_amplifier_delay(hi, sample_rate_hz=fs, current_loop_hz=bw)
+        band = o["band"] or (10.0, min(1000.0, 0.45 * fs))
+        fit = dr.fit_dual_inertia(
+            hm,
+            ht,
+            lead_m=lead,
+            torque_constant_nm_a=kt,
+            current_loop_hz=bw,
+            sample_rate_hz=fs,
+            amplifier_delay_s=ts,
+            band_hz=band,
+        )
+        table.update(dr.drive_config_table(fit, kt))
+        p = fit.params
+        t1, t2, t3 = dr.compensation_delays(
+            max(p.dead_time_amplifier, 0), max(p.dead_time_motor, 0), max(p.dead_time_table, 0)
+        )
+        notes.append(
+            f"dual inertia from {path.name}: resonance {p.resonance_hz(lead):.1f} Hz, "
+            f"RMS log error {fit.rms_log_error:.3g}"
+        )
+        notes.append(
+            f"phase-lag compensation T1, T2, T3 = {t1 * 1e3:.3f}, {t2 * 1e3:.3f}, "
+            f"{t3 * 1e3:.3f} ms (Yamada Fig. 2-5)"
+        )
+        if o["plot"] is not None:
+            plot_drive_fit(fit, o["plot"])
+    return {"axes": {a: table}}, notes
+
+
+def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    import numpy as np
+
+    from millsense.ident import friction as fr
+    from millsense.ident import spindle as isp
+    from millsense.report.ident_plots import plot_spindle_fit
+
+    sweeps = _by_test(ctx, "spindle_sweep")
+    fric = _by_test(ctx, "spindle_friction")
+    if ctx.machine is None or ctx.machine.spindle is None:
+        raise InputDataError("identify spindle: give --machine with a [spindle] table (J, K_t)")
+    sp = ctx.machine.spindle
+    table: dict[str, object] = {}
+    notes: list[str] = []
+    viscous = sp.viscous_nm_s_rad
+    if fric:
+        rec, path = fric[0]
+        segs = fr.steady_segments(
+            ctx.channel(rec, path, "spindle/speed_ref"), min_samples=round(0.5 * rec.sample_rate_hz)
+        )
+        kt_ch = ctx.channel(rec, path, "spindle/torque_constant")
+        w, t, _ = fr.move_means(
+            ctx.channel(rec, path, "spindle/speed"),
+            kt_ch * ctx.channel(rec, path, "spindle/current"),
+            segs,
+        )
+        coul, viscous = fr.spindle_friction_from_moves(w, t)
+        table.update({"coulomb_nm": max(coul, 0.0), "viscous_nm_s_rad": max(viscous, 0.0)})
+        notes.append(
+            f"spindle friction from {len(w)} runs: τ_coul {coul:.4g} N·m, B {viscous:.4g} N·m·s/rad"
+        )
+    if sweeps:
+        rec, path = sweeps[0]
+        md = rec.metadata
+        kp, ki = md.get("velocity_kp"), md.get("velocity_ki")
+        if o["kp"] is not None:
+            kp = o["kp"]
+        if o["ki"] is not None:
+            ki = o["ki"]
+        if not isinstance(kp, (int, float)) or not isinstance(ki, (int, float)):
+            raise InputDataError("identify spindle: velocity gains unknown; give --kp and --ki")
+        unit = o["error_unit"] or str(md.get("velocity_error_unit", "rev/s"))
+        vp = md.get("velocity_period_s", 2e-4)
+        period = float(vp) if isinstance(vp, (int, float)) else 2e-4
+        ctl = isp.VelocityController(float(kp), float(ki), unit, period)
+        per = md.get("period_samples")
+        if not isinstance(per, int):
+            raise InputDataError(f"{path}: metadata 'period_samples' (sweep period) missing")
+        band = o["band"] or (5.0, min(2500.0, 0.25 * rec.sample_rate_hz))
+        fit = isp.fit_spindle(
+            ctx.channel(rec, path, "spindle/speed_ref"),
+            ctx.channel(rec, path, "spindle/speed"),
+            ctx.channel(rec, path, "spindle/current_cmd"),
+            ctx.channel(rec, path, "spindle/current"),
+            rec.sample_rate_hz,
+            per,
+            controller=ctl,
+            inertia_kg_m2=sp.inertia_kg_m2,
+            viscous_nm_s_rad=viscous,
+            torque_constant_nm_a=sp.torque_constant_nm_a,
+            band_hz=band,
+        )
+        modes = isp.residual_modes_table(fit)
+        modes["source"] = f"millsense identify spindle {path.name} (residual R, Aslan App. E)"
+        table["residual_modes"] = modes
+        g = fit.disturbance_frf(fit.freq_hz)
+        notes.append(
+            f"residual R: {len(fit.residual.modes)} modes, RMS error "
+            f"{fit.residual.rms_error:.3g}; |G_dτ| {20 * np.log10(abs(g[0])):.1f} dB "
+            f"at {fit.freq_hz[0]:g} Hz, current loop ≈ {fit.current_loop_hz:.0f} Hz; "
+            f"CNC gains vs measured G_Ω ≤ {fit.controller_mismatch_db():.2f} dB"
+        )
+        notes.append("residual_modes is not yet a SpindleConfig key (read by ident.spindle)")
+        if o["plot"] is not None:
+            plot_spindle_fit(fit, o["plot"])
+    if not table:
+        raise InputDataError("identify spindle: no spindle_sweep or spindle_friction recording")
+    return {"spindle": table}, notes
+
+
+def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], list[str]]:
+    from millsense.ident import friction as fr
+    from millsense.ident.idle_table import build_idle_table
+    from millsense.report.ident_plots import plot_idle_table
+
+    a = ctx.axis
+    runs = []
+    feed = 0.0
+    for rec, path in zip(ctx.recs, ctx.paths, strict=True):
+        r = ctx.known(
+            rec, "transmission_m_rad", "the transmission", lambda m: m.axis(a).transmission_m_rad
+        )
+        pos_ch = o["input"] or f"{a}/angle"
+        pos = ctx.channel(rec, path, pos_ch)
+        unit = rec.info(pos_ch).unit
+        pos = pos * r if unit == "rad" else pos
+        if o["output"]:
+            est = ctx.channel(rec, path, o["output"])
+            quantity, est_unit = o["output"].split("/")[-1], rec.info(o["output"]).unit
+        else:
+            kt = ctx.known(
+                rec,
+                "torque_constant_nm_a",
+                "the torque constant",
+                lambda m: m.axis(a).torque_constant_nm_a,
+            )
+            est = kt * ctx.channel(rec, path, f"{a}/current_cmd") / r
+            quantity, est_unit = "thrust", "N"
+        sel = slice(None)
+        if f"{a}/velocity_ref" in rec:
+            segs = fr.steady_segments(
+                rec.channel(f"{a}/velocity_ref"),
+                min_samples=round(0.1 * rec.sample_rate_hz),
+                settle_fraction=0.05,
+            )
+            if segs:
+                sel = max(segs, key=lambda s: s.stop - s.start)
+                feed = float(rec.channel(f"{a}/velocity_ref")[sel.start]) * r
+        runs.append((pos[sel], est[sel]))
+    table = build_idle_table(
+        runs, bin_m=o["bin_um"] * 1e-6, feed_m_s=feed, quantity=quantity, unit=est_unit, min_runs=2
+    )
+    csv = out.with_name(f"{out.stem}-{a}-idle.csv")
+    table.to_csv(csv)
+    if o["plot"] is not None:
+        plot_idle_table(table, o["plot"], runs)
+    notes = [
+        f"{len(runs)} air cuts averaged over {len(table.position_m)} bins of "
+        f"{o['bin_um']:g} µm; table in {csv.name}"
+    ]
+    return {"axes": {a: {"idle_table": table.config_table(csv.name)}}}, notes
+
+
+@app.command()
+def identify(
+    kind: str = typer.Argument(..., help="frf | modal | friction | drive | spindle | idle"),
+    recordings: list[Path] = typer.Argument(..., help="Recording files (.h5)."),
+    out: Path = typer.Option(..., "-o", "--out", help="TOML fragment written."),
+    input_ch: str | None = typer.Option(None, "--input", help="Input (or current) channel."),
+    output_ch: str | None = typer.Option(None, "--output", help="Output (or speed) channel."),
+    band: str | None = typer.Option(None, "--band", help="Fitting band LO:HI in Hz."),
+    plot: Path | None = typer.Option(None, "--plot", help="PNG of the fit."),
+    axis: str = typer.Option("x", "--axis", help="Axis name of the fragment."),
+    machine: str | None = typer.Option(
+        None, "--machine", help="Machine preset or TOML for known quantities."
+    ),
+    resolution: float = typer.Option(1.0, "--resolution", help="Welch FRF resolution, Hz."),
+    max_modes: int = typer.Option(16, "--max-modes", help="Largest modal order tried."),
+    kp: float | None = typer.Option(None, "--kp", help="Spindle velocity P gain (CNC)."),
+    ki: float | None = typer.Option(None, "--ki", help="Spindle velocity I gain (CNC)."),
+    error_unit: str | None = typer.Option(None, "--error-unit", help="rev/s or rad/s."),
+    bin_um: float = typer.Option(2.0, "--bin-um", help="Idle-table bin width, µm."),
+) -> None:
+    """Identify machine parameters from recordings and write a TOML configuration fragment."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.ident.fragment import write_fragment
+    from millsense.io.recording_file import read_recording
+
+    if kind not in _KINDS:
+        raise ConfigError(f"identify: unknown kind {kind!r} (use one of {', '.join(_KINDS)})")
+    if error_unit is not None and error_unit not in ("rev/s", "rad/s"):
+        raise ConfigError(f"--error-unit {error_unit!r}: allowed 'rev/s' or 'rad/s'")
+    if not bin_um > 0:
+        raise ConfigError(f"--bin-um {bin_um}: must be positive")
+    recs = [read_recording(p) for p in recordings]
+    mach = load_preset(MachineConfig, machine) if machine is not None else None
+    ctx = _Ctx(recs, list(recordings), axis, mach)
+    o: dict[str, Any] = {
+        "input": input_ch,
+        "output": output_ch,
+        "band": _parse_band(band),
+        "plot": plot,
+        "resolution": resolution,
+        "max_modes": max_modes,
+        "kp": kp,
+        "ki": ki,
+        "error_unit": error_unit,
+        "bin_um": bin_um,
+    }
+    if kind == "frf":
+        frag, notes = _frf(ctx, o)
+    elif kind == "modal":
+        frag, notes = _modal(ctx, o)
+    elif kind == "friction":
+        frag, notes = _friction(ctx, o)
+    elif kind == "drive":
+        frag, notes = _drive(ctx, o)
+    elif kind == "spindle":
+        frag, notes = _spindle(ctx, o)
+    else:
+        frag, notes = _idle(ctx, o, out)
+    head = [f"millsense identify {kind} " + " ".join(p.name for p in recordings), *notes]
+    write_fragment(out, frag, head)
+    for line in notes:
+        typer.echo(line)
+    typer.echo(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))

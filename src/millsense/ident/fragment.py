@@ -1,0 +1,87 @@
+"""TOML fragments of machine configuration written by the identification tools.
+
+A fragment is a nested mapping with the keys of the configuration models
+(:mod:`millsense.core.config`; field units in the key names) — e.g. ``axes.x.friction``,
+``axes.x.disturbance_modes``, ``axes.x.ball_screw`` — that a user merges into a machine file.
+:func:`to_toml` writes the small TOML subset needed (tables, strings, numbers, booleans and
+flat lists of them); :func:`merge` nests results of several tools.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+from millsense.core.errors import InputDataError
+
+
+def _key(k: str) -> str:
+    if k and all(c.isalnum() or c in "_-" for c in k):
+        return k
+    return '"' + k.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _value(v: object, where: str) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise InputDataError(f"fragment key {where}: value {v} is not finite")
+        return repr(float(f"{v:.7g}"))
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x, where) for x in v) + "]"
+    if hasattr(v, "item"):  # numpy scalar
+        return _value(v.item(), where)
+    raise InputDataError(f"fragment key {where}: cannot write a {type(v).__name__}")
+
+
+def to_toml(fragment: Mapping[str, object], comments: list[str] | None = None) -> str:
+    """TOML text of a nested mapping (tables for mappings, ``key = value`` for the rest).
+
+    Parameters
+    ----------
+    fragment : nested mapping of str keys.
+    comments : lines written as ``# …`` at the top (provenance, the numbers of the fit).
+    """
+    lines = [f"# {c}" for c in (comments or [])]
+
+    def emit(table: Mapping[str, object], path: list[str]) -> None:
+        scalars = [(k, v) for k, v in table.items() if not isinstance(v, Mapping)]
+        subs = [(k, v) for k, v in table.items() if isinstance(v, Mapping)]
+        if path and (scalars or not subs):
+            lines.append("")
+            lines.append("[" + ".".join(_key(p) for p in path) + "]")
+        for k, v in scalars:
+            lines.append(f"{_key(k)} = {_value(v, '.'.join([*path, k]))}")
+        for k, v in subs:
+            assert isinstance(v, Mapping)
+            emit(v, [*path, k])
+
+    emit(fragment, [])
+    return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def merge(*fragments: Mapping[str, object]) -> dict[str, object]:
+    """Deep merge (later fragments win on scalar keys)."""
+    out: dict[str, object] = {}
+    for frag in fragments:
+        for k, v in frag.items():
+            if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+                out[k] = merge(out[k], v)  # type: ignore[arg-type]
+            elif isinstance(v, Mapping):
+                out[k] = merge(v)
+            else:
+                out[k] = v
+    return out
+
+
+def write_fragment(
+    path: str | Path, fragment: Mapping[str, object], comments: list[str] | None = None
+) -> None:
+    """Write :func:`to_toml` of ``fragment`` to ``path``."""
+    Path(path).write_text(to_toml(fragment, comments), encoding="utf-8")

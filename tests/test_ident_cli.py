@@ -1,0 +1,179 @@
+"""``millsense identify``: recordings in, TOML fragments with the config models' keys out."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millsense.cli.main import main
+from millsense.core.config import (
+    BallScrewConfig,
+    DisturbanceModesConfig,
+    FrictionConfig,
+    MachineConfig,
+)
+from millsense.core.presets import load_preset
+from millsense.core.recording import Recording
+from millsense.ident.idle_table import IdleTable
+from millsense.io.recording_file import write_recording
+from millsense.machine import commissioning as cm
+from millsense.stability.modal import Mode
+from millsense.validation.cases.ident import simulate_modes
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code: int | str | None = 0
+    try:
+        main(args)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return (0 if code is None else int(code)), out, err
+
+
+def _write(rec: Recording, path: Path) -> str:
+    write_recording(path, rec)
+    return str(path)
+
+
+_MODES = [Mode.from_residues(40.0, 0.03, 2000.0, 1.0), Mode.from_residues(95.0, 0.02, 6000.0, 2.0)]
+
+
+def _modal_recording(path: Path, n: int = 60000, u: np.ndarray | None = None) -> str:
+    rng = np.random.default_rng(1)
+    if u is None:
+        u = rng.standard_normal(n)
+    y = simulate_modes(_MODES, u, 1000.0) + 1e-3 * rng.standard_normal(len(u))
+    rec = Recording(1000.0, metadata={"source": str(path)})
+    rec.add_channel("x/load", u, "N")
+    rec.add_channel("x/torque", y, "N*m")
+    return _write(rec, path)
+
+
+def test_modal_fragment_loads_as_disturbance_modes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = _modal_recording(tmp_path / "m.h5")
+    out, png = tmp_path / "m.toml", tmp_path / "m.png"
+    code, _, err = run_cli(["identify", "modal", rec, "--input", "x/load", "--output",
+                            "x/torque", "--band", "10:200", "--resolution", "0.5",
+                            "-o", str(out), "--plot", str(png)], capsys)  # fmt: skip
+    assert code == 0, err
+    table = tomllib.loads(out.read_text())["axes"]["x"]["disturbance_modes"]
+    dm = DisturbanceModesConfig(**table)
+    # the two simulated modes (40 and 95 Hz), white input, Welch H1 at 0.5 Hz: 1 % in frequency
+    assert sorted(dm.natural_frequency_hz) == pytest.approx([40.0, 95.0], rel=0.01)
+    assert png.exists() and (tmp_path / "m-stabilisation.png").exists()
+
+
+def test_frf_fragment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = _modal_recording(tmp_path / "f.h5", n=20000)
+    out = tmp_path / "f.toml"
+    code, _, err = run_cli(["identify", "frf", rec, "--input", "x/load", "--output", "x/torque",
+                            "--band", "1:300", "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    frf = tomllib.loads(out.read_text())["frf"]
+    k = int(np.argmin(np.abs(np.array(frf["freq_hz"]) - 70.0)))
+    h = complex(frf["real"][k], frf["imag"][k])
+    truth = sum(m.frf(np.array([frf["freq_hz"][k]]))[0] for m in _MODES)
+    # H1 (Welch, 1 Hz lines) of a white-input record between the peaks: 3 % of the truth
+    assert abs(h / truth - 1) < 0.03
+
+
+def test_friction_fragment_loads_as_friction_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cfg = load_preset(MachineConfig, "quaser-ux600")
+    sp = np.geomspace(0.1, 30.0, 8)
+    moves = cm.friction_test(cfg, "z", np.ravel(np.column_stack([sp, -sp])), hold_s=0.6)
+    pre = cm.presliding_test(cfg, "z")
+    out, png = tmp_path / "fr.toml", tmp_path / "fr.png"
+    files = [_write(moves, tmp_path / "m.h5"), _write(pre, tmp_path / "p.h5")]
+    args = ["identify", "friction", *files, "--axis", "z", "--machine", "quaser-ux600"]
+    code, stdout, err = run_cli([*args, "-o", str(out), "--plot", str(png)], capsys)
+    assert code == 0, err
+    fc = FrictionConfig(**tomllib.loads(out.read_text())["axes"]["z"]["friction"])
+    # Table 3.2 Z: Coulomb (2.15, 2.1) N·m within 2 %, σ0 = 475 within 15 % (issue 6)
+    assert fc.coulomb_nm == pytest.approx((2.15, 2.1), rel=0.02)
+    assert fc.sigma0_nm_rad is not None and fc.sigma0_nm_rad[0] == pytest.approx(475, rel=0.15)
+    assert png.exists() and "presliding" in stdout
+
+
+def test_drive_fragment_loads_as_ball_screw(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cfg = load_preset(MachineConfig, "yamada-b")
+    rec = _write(cm.drive_sweep(cfg, "x"), tmp_path / "s.h5")
+    out = tmp_path / "d.toml"
+    code, stdout, err = run_cli(["identify", "drive", rec, "-o", str(out), "--plot",
+                                 str(tmp_path / "d.png")], capsys)  # fmt: skip
+    assert code == 0, err
+    frag = tomllib.loads(out.read_text())["axes"]["x"]
+    bs = BallScrewConfig(**frag["ball_screw"])
+    # Table 3-3 B: K_r 40.5 N/µm, M_t 6.6 kg, J_r 5.2e-5 kg·m² within 5 %
+    assert bs.axial_stiffness_n_um == pytest.approx(40.5, rel=0.05)
+    assert bs.table_mass_kg == pytest.approx(6.6, rel=0.05)
+    assert frag["inertia_kg_m2"] == pytest.approx(5.2e-5, rel=0.05)
+    assert frag["dead_time_motor_encoder_ms"] == pytest.approx(0.2, abs=0.05)
+    assert "T1, T2, T3" in stdout
+
+
+def test_idle_fragment_references_its_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cfg = load_preset(MachineConfig, "yamada-b")
+    runs = cm.idle_runs(cfg, "x", feed_mm_min=600.0, travel_mm=5.0, n_runs=2)
+    paths = [_write(r, tmp_path / f"i{k}.h5") for k, r in enumerate(runs)]
+    out = tmp_path / "idle.toml"
+    code, _, err = run_cli(["identify", "idle", *paths, "-o", str(out)], capsys)
+    assert code == 0, err
+    t = tomllib.loads(out.read_text())["axes"]["x"]["idle_table"]
+    table = IdleTable.from_config(t, tmp_path)
+    # 2 runs of 5 mm at 600 mm/min (0.01 m/s); bins of 2 µm
+    assert table.n_runs == 2 and table.feed_m_s == pytest.approx(0.01, rel=1e-6)
+    assert float(np.ptp(table.position_m)) > 3e-3
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--input", "x/nope", "--output", "x/torque"], "no channel 'x/nope'"),
+        (["--input", "x/load", "--output", "x/torque", "--band", "9:3"], "--band"),
+    ],
+)
+def test_bad_channel_and_band_are_one_line_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    rec = _modal_recording(tmp_path / "e.h5", n=5000)
+    code, _, err = run_cli(["identify", "modal", rec, *args, "-o", str(tmp_path / "o.toml")],
+                           capsys)  # fmt: skip
+    assert code == 2 and message in err and err.count("\n") == 1
+
+
+def test_short_constant_and_clipped_records_are_one_line_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = ["--input", "x/load", "--output", "x/torque", "-o", str(tmp_path / "o.toml")]
+    short = _modal_recording(tmp_path / "short.h5", n=500)
+    code, _, err = run_cli(["identify", "frf", short, *base], capsys)
+    assert code == 2 and "too short" in err and err.count("\n") == 1
+    flat = _modal_recording(tmp_path / "flat.h5", u=np.ones(5000))
+    code, _, err = run_cli(["identify", "frf", flat, *base], capsys)
+    assert code == 2 and "no excitation" in err and err.count("\n") == 1
+    u = np.clip(np.random.default_rng(2).standard_normal(5000), -1.0, 1.0)
+    clipped = _modal_recording(tmp_path / "clip.h5", u=u)
+    code, _, err = run_cli(["identify", "frf", clipped, *base], capsys)
+    assert code == 2 and "clipped" in err and err.count("\n") == 1
+
+
+def test_unknown_kind_and_missing_machine(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = _modal_recording(tmp_path / "k.h5", n=5000)
+    code, _, err = run_cli(["identify", "wobble", rec, "-o", str(tmp_path / "o.toml")], capsys)
+    assert code == 2 and "unknown kind" in err
+    code, _, err = run_cli(["identify", "spindle", rec, "-o", str(tmp_path / "o.toml")], capsys)
+    assert code == 2 and "--machine" in err and err.count("\n") == 1
