@@ -123,3 +123,27 @@ def test_process_objects_from_config() -> None:
     assert em.helix_rad == pytest.approx(math.radians(30.0))
     k = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
     assert k.ktc == pytest.approx(758e6) and k.krc == pytest.approx(379e6)  # Aslan P10, Ch. 5
+
+
+def test_spindle_residual_modes_key_loads() -> None:
+    # `millsense identify spindle` writes [spindle.residual_modes] with DisturbanceModesConfig
+    # keys; the machine model must accept it (Aslan App. E form, ζ as fractions).
+    from millsense.core.config import SpindleConfig, parse_config
+
+    sp = parse_config(
+        SpindleConfig,
+        {
+            "max_rpm": 24000,
+            "inertia_kg_m2": 0.0316,
+            "torque_constant_nm_a": 1.343,
+            "residual_modes": {
+                "natural_frequency_hz": [457.9],
+                "damping_ratio": [0.5],
+                "alpha": [-8.9],
+                "beta": [-10.0],
+            },
+        },
+        "frag.toml",
+    )
+    assert sp.residual_modes is not None
+    assert sp.residual_modes.natural_frequency_hz == [457.9]

@@ -402,7 +402,6 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
             f"at {fit.freq_hz[0]:g} Hz, current loop ≈ {fit.current_loop_hz:.0f} Hz; "
             f"CNC gains vs measured G_Ω ≤ {fit.controller_mismatch_db():.2f} dB"
         )
-        notes.append("residual_modes is not yet a SpindleConfig key (read by ident.spindle)")
         if o["plot"] is not None:
             plot_spindle_fit(fit, o["plot"])
     if not table:

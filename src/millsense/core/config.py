@@ -347,6 +347,9 @@ class SpindleConfig(_Model):
     """Coulomb friction τ_coul,S (Aslan Eq. 5.2; not given in the thesis)."""
     back_emf_v_s_rad: Annotated[float, Field(ge=0, le=100)] | None = None
     """Back-EMF constant K_b (Aslan Fig. 5.1: 0.12 V/(rad/s))."""
+    residual_modes: DisturbanceModesConfig | None = None
+    """Identified residual structural modes G_sp of the velocity loop (``millsense identify
+    spindle``; Aslan Ch. 5.2, App. E form)."""
 
 
 class MachineConfig(_Model):
