@@ -474,6 +474,9 @@ class ProcessCoupling:
     _td_speed: float = field(default=0.0, init=False, repr=False)
     _td_break_done: set[int] = field(default_factory=set, init=False, repr=False)
     _last2: FloatArray = field(default_factory=lambda: np.zeros((2, 2)), init=False)
+    _td_disc_eng: list[tuple[tuple[float, float], ...]] = field(
+        default_factory=list, init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         if self.n_discs < 1:
@@ -647,13 +650,23 @@ class ProcessCoupling:
             return  # not in the material yet: the surface starts with the first cut
         if self._td is None:
             self._td = self._make_td(float(t_s[0]), om, float(c[0]))
+            self._td_disc_eng = [()] * self.n_discs
         td = self._td
         if abs(om - td.spindle_speed_rad_s) > 1e-9 * om:
             # keep the time base: the steps so far ran at the old speed
             self._td_t0 += td.step * (td.dt_s - _TWO_PI / td.steps_per_rev / om)
             td.set_spindle_speed(om)
         td.set_feed_per_tooth(float(c[0]))
-        td.set_engagement(self._layered(int(idx[0]), float(depth[0])))
+        eng = self._layered(int(idx[0]), float(depth[0]))
+        td.set_engagement(eng)
+        # discs entering the material (first cut, depth step up, end of an air cut, new
+        # immersion) get the surface a rigid tool would have left: never a stale surface
+        layers = list(eng.layers)
+        fresh = np.array(
+            [bool(new) and new != old for new, old in zip(layers, self._td_disc_eng, strict=True)]
+        )
+        td.lay_surface(fresh)
+        self._td_disc_eng = layers
         dt = 1.0 / self.sample_rate_hz
         t_end = float(t_s[-1]) + 0.5 * dt
         n_needed = math.floor((t_end - self._td_t0) / td.dt_s) + 1 - td.step

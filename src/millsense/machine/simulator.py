@@ -245,7 +245,8 @@ class MachineSimulator(Source):
     ``spindle/current`` (A); ``cnc/feed`` (m/s, interpolated path speed),
     ``cnc/feed_override``, ``cnc/spindle_override`` (fractions), ``cnc/nc_line``; optional
     ``accel/x``, ``accel/y``, ``mic/pressure``. Truth: ``truth/tool/force_{x,y,z}`` (N, on
-    the tool, machine/tool frame), ``truth/{ax}/load`` (N or N·m, resisting the axis),
+    the tool, machine/tool frame), ``truth/tool/vibration_{x,y}`` (m, tool-mode displacement
+    along machine x, y; 0 without tool modes), ``truth/{ax}/load`` (N or N·m, resisting the axis),
     ``truth/{ax}/position``, ``truth/{ax}/motor_speed``, ``truth/spindle/torque`` (N·m),
     ``truth/spindle/speed``, ``truth/process/chatter``, ``truth/process/broken``,
     ``truth/process/engagement``, ``truth/process/depth`` (m),
@@ -440,6 +441,8 @@ class MachineSimulator(Source):
             ChannelInfo("truth/tool/force_x", "N", "force on the tool, machine x"),
             ChannelInfo("truth/tool/force_y", "N", "force on the tool, machine y"),
             ChannelInfo("truth/tool/force_z", "N", "force on the tool, machine z"),
+            ChannelInfo("truth/tool/vibration_x", "m", "tool vibration (tool modes), machine x"),
+            ChannelInfo("truth/tool/vibration_y", "m", "tool vibration (tool modes), machine y"),
             ChannelInfo("truth/spindle/torque", "N*m", "cutting torque at the spindle"),
             ChannelInfo("truth/spindle/speed", "rad/s", "true spindle speed"),
             ChannelInfo("truth/process/chatter", "1", "1 while chatter (aperiodic vibration)"),
@@ -576,6 +579,7 @@ class MachineSimulator(Source):
         torque = np.zeros(n)
         proc_out = None
         tool_acc_xy = np.zeros((n, 2))
+        tool_vib_xy = np.zeros((n, 2))
         if self.process is not None:
             if isinstance(self.kin, TrunnionACKinematics):
                 jac = self.kin.jacobian(q_est)
@@ -625,6 +629,9 @@ class MachineSimulator(Source):
                 proc_out.vibration_acc[:, :1] * x_p[:, :2]
                 + proc_out.vibration_acc[:, 1:2] * y_p[:, :2]
             )
+            tool_vib_xy = (
+                proc_out.vibration_m[:, :1] * x_p[:, :2] + proc_out.vibration_m[:, 1:2] * y_p[:, :2]
+            )
         # 4. drives and spindle
         data: dict[str, np.ndarray] = {}
         table_acc = np.zeros((n, 2))
@@ -662,6 +669,8 @@ class MachineSimulator(Source):
         data["truth/tool/force_x"] = f_machine[:, 0]
         data["truth/tool/force_y"] = f_machine[:, 1]
         data["truth/tool/force_z"] = f_machine[:, 2]
+        data["truth/tool/vibration_x"] = tool_vib_xy[:, 0]
+        data["truth/tool/vibration_y"] = tool_vib_xy[:, 1]
         data["truth/spindle/torque"] = torque
         data["truth/spindle/speed"] = sp["true_speed"]
         if proc_out is not None:
