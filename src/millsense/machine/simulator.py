@@ -41,7 +41,7 @@ from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
 from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsampler
-from millsense.machine.kinematics import TrunnionACKinematics, kinematics_for
+from millsense.machine.kinematics import TrunnionACMachine, kinematics_for
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.machine.process_coupling import ProcessCoupling
 from millsense.machine.realism import (
@@ -528,12 +528,14 @@ class MachineSimulator(Source):
 
     # ------------------------------------------------------------------ kinematics helpers
     def _axes_from_path(self, pts: FloatArray) -> FloatArray:
-        """Axis positions for path points (tip in the workpiece frame [+ A, C])."""
-        if isinstance(self.kin, TrunnionACKinematics):
-            o = self.kin.orientation(pts[:, 3], pts[:, 4])
-            q = self.kin.inverse(np.concatenate([pts[:, :3], o], axis=1))
-            q[:, 3:] = pts[:, 3:]  # keep the programmed (unwrapped) rotary angles
-            return np.asarray(q)
+        """Axis positions for path points (tip in the workpiece/G-code frame [+ A, C]).
+
+        The programmed (unwrapped) rotary angles are kept as written and the linear axes
+        solved for them, so the forward kinematics of the result is the programmed tip on
+        any branch (decision "Trunnion frames: G-code and drives").
+        """
+        if isinstance(self.kin, TrunnionACMachine):
+            return np.asarray(self.kin.inverse_at(pts[:, :3], pts[:, 3], pts[:, 4]))
         return np.asarray(pts[:, :3], dtype=np.float64).copy()
 
     # ------------------------------------------------------------------ one block
@@ -581,7 +583,7 @@ class MachineSimulator(Source):
         tool_acc_xy = np.zeros((n, 2))
         tool_vib_xy = np.zeros((n, 2))
         if self.process is not None:
-            if isinstance(self.kin, TrunnionACKinematics):
+            if isinstance(self.kin, TrunnionACMachine):
                 jac = self.kin.jacobian(q_est)
                 v_w = np.einsum("nij,nj->ni", jac, v_est)
                 axis = self.kin.orientation(q_est[:, 3], q_est[:, 4])
@@ -617,21 +619,20 @@ class MachineSimulator(Source):
             )
             fp = proc_out.force
             f_w = fp[:, :1] * x_p + fp[:, 1:2] * y_p + fp[:, 2:3] * axis
-            if isinstance(self.kin, TrunnionACKinematics):
+            acc_w = proc_out.vibration_acc[:, :1] * x_p + proc_out.vibration_acc[:, 1:2] * y_p
+            vib_w = proc_out.vibration_m[:, :1] * x_p + proc_out.vibration_m[:, 1:2] * y_p
+            if isinstance(self.kin, TrunnionACMachine):
                 rot = self.kin.rotation(q_est[:, 3], q_est[:, 4])
-                f_machine = np.einsum("nji,nj->ni", rot, f_w)  # Rᵀ·F_w: tool frame
+                f_machine = np.einsum("nji,nj->ni", rot, f_w)  # Tᵀ·F_w: tool frame
                 loads = -self.kin.drive_loads(q_est, f_machine)
+                acc_w = np.einsum("nji,nj->ni", rot, acc_w)
+                vib_w = np.einsum("nji,nj->ni", rot, vib_w)
             else:
                 f_machine = f_w
                 loads = -f_w
+            tool_acc_xy = acc_w[:, :2]
+            tool_vib_xy = vib_w[:, :2]
             torque = proc_out.torque
-            tool_acc_xy = (
-                proc_out.vibration_acc[:, :1] * x_p[:, :2]
-                + proc_out.vibration_acc[:, 1:2] * y_p[:, :2]
-            )
-            tool_vib_xy = (
-                proc_out.vibration_m[:, :1] * x_p[:, :2] + proc_out.vibration_m[:, 1:2] * y_p[:, :2]
-            )
         # 4. drives and spindle
         data: dict[str, np.ndarray] = {}
         table_acc = np.zeros((n, 2))
@@ -726,7 +727,7 @@ class MachineSimulator(Source):
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""
-        if isinstance(self.kin, TrunnionACKinematics):
+        if isinstance(self.kin, TrunnionACMachine):
             q_ref = self._q_ref_last
             return np.asarray(self.kin.forward(q_ref) - self.kin.forward(q_ref - self._err_q))
         return np.asarray(self._err_q[:3])
