@@ -97,6 +97,12 @@ class EngagementSchedule:
                 raise ConfigError(f"engagement schedule: index {seg.index} outside the table")
             if not (seg.depth_m >= 0 and math.isfinite(seg.depth_m)):
                 raise ConfigError(f"engagement schedule: depth {seg.depth_m!r} m must be ≥ 0")
+        # lookup tables of :meth:`at` (built once; the simulator calls it every block)
+        object.__setattr__(self, "_starts", np.array(starts, dtype=np.float64))
+        object.__setattr__(
+            self, "_idx", np.array([s.index for s in self.segments] + [0], dtype=np.int64)
+        )
+        object.__setattr__(self, "_dep", np.array([s.depth_m for s in self.segments] + [0.0]))
 
     @classmethod
     def constant(
@@ -164,12 +170,9 @@ class EngagementSchedule:
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
-        starts = np.array([s.start for s in self.segments])
-        k = np.searchsorted(starts, x, side="right") - 1
-        idx = np.array([s.index for s in self.segments] + [0], dtype=np.int64)
-        dep = np.array([s.depth_m for s in self.segments] + [0.0])
-        k = np.where(k < 0, len(self.segments), k)
-        return idx[k], dep[k]
+        k = np.searchsorted(self._starts, x, side="right") - 1  # type: ignore[attr-defined]
+        k[k < 0] = len(self.segments)
+        return self._idx[k], self._dep[k]  # type: ignore[attr-defined]
 
 
 # --------------------------------------------------------------------------------------------

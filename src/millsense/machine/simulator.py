@@ -206,7 +206,7 @@ class _BlockArrays:
     """Per-sample outputs of the coupled part for a run of blocks (filled block by block)."""
 
     def __init__(self, n: int, n_axes: int) -> None:
-        self.drive = [np.empty((n, N_OUT)) for _ in range(n_axes)]
+        self.drive = np.empty((n_axes, n, N_OUT))
         self.loads = np.zeros((n, n_axes))
         self.force = np.zeros((n, 3))
         self.tool_acc = np.zeros((n, 2))
@@ -736,7 +736,12 @@ class MachineSimulator(Source):
                 safe = np.where(moving[:, None], v_perp / np.maximum(speed, 1e-300)[:, None], 0.0)
                 x_p[:] = np.where((idx >= 0)[:, None], safe[np.maximum(idx, 0)], self._feed_dir)
             self._feed_dir = x_p[-1].copy()
-            y_p = np.cross(axis, x_p)
+            if five:
+                y_p = np.cross(axis, x_p)
+            else:  # z × x_p
+                y_p = np.zeros((n, 3))
+                y_p[:, 0] = -x_p[:, 1]
+                y_p[:, 1] = x_p[:, 0]
             # arc length at the actual position: the reference minus the lag along the feed
             p_err = self._tip_error()
             s_est = s_all[sl] - float(p_err @ self._feed_dir)
@@ -768,16 +773,17 @@ class MachineSimulator(Source):
         else:
             torque = w.torque[sl]
         # drives and spindle
-        loads = w.loads[sl]
+        loads = np.ascontiguousarray(w.loads[sl].T)
         for i in range(len(self.axes)):
-            out = w.drive[i][sl]
-            self.drives[i].advance_into(pos_m[i, sl], vel_m[i, sl], loads[:, i], out)
-            self._err_q[i] = q_all[sl.stop - 1, i] - out[-1, _D_TRUE_POS]
-            # the velocity error averaged over the block: the chip is cut over a tooth
-            # period, the sample-to-sample velocity noise of the drives does not thicken it
-            self._err_v[i] = float(np.mean(v_all[sl, i] - out[:, _D_TRUE_VEL]))
+            out = w.drive[i, sl]
+            self.drives[i].advance_into(pos_m[i, sl], vel_m[i, sl], loads[i], out)
             if self._realism is not None:
                 self._realism_axis(i, out, float(out[-1, _D_TRUE_POS]))
+        blk = w.drive[:, sl]
+        self._err_q = q_all[sl.stop - 1] - blk[:, -1, _D_TRUE_POS]
+        # the velocity error averaged over the block: the chip is cut over a tooth period,
+        # the sample-to-sample velocity noise of the drives does not thicken it
+        self._err_v = (v_all[sl].sum(axis=0) - blk[:, :, _D_TRUE_VEL].sum(axis=1)) / n
         self._q_ref_block = q_all[sl.stop - 1].copy()
         sp = self.spindle.advance(spd_all[sl], torque)
         w.spindle[sl, 0] = sp["current_cmd"]
