@@ -120,14 +120,14 @@ def test_friction_drift_follows_the_law() -> None:
     law = (1 - 0.004 * temp) * (1 + 0.02 * math.sin(2 * math.pi * 0.05 / 0.12 + 0.3))
     assert sc == pytest.approx(law, rel=1e-12)
     # in the machine: the X current at constant speed (friction only, air) scales by the law
-    # τ = 0.2 s to see the drift in a 1 s run; 0.05 K/W: ≈ 400 W of friction at 0.2 m/s
-    # heats by ≈ 20 K (−8 %)
+    # τ = 0.2 s to see the drift in a 1 s run; the X friction at 0.2 m/s is ≈ 20 N·m at
+    # 105 rad/s (2.1 kW, preset Table 3.2 rows), so 0.01 K/W heats by ≈ 20 K (−8 %)
     ro = RealismOptions(
         **{
             **NONE.__dict__,
             "friction_drift": True,
             "thermal_time_constant_s": 0.2,
-            "thermal_resistance_k_w": 0.05,
+            "thermal_resistance_k_w": 0.01,
         }
     )
     sim = _air(ro, duration=1.0)  # still cruising at 1.0 s
