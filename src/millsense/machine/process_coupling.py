@@ -87,6 +87,9 @@ class EngagementSchedule:
     table: tuple[Engagement, ...]
     segments: tuple[EngagementSegment, ...]
     basis: Literal["arc_length", "time"] = "arc_length"
+    _starts: FloatArray = field(init=False, repr=False, compare=False)
+    _idx: IntArray = field(init=False, repr=False, compare=False)
+    _dep: FloatArray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         starts = [s.start for s in self.segments]
@@ -170,9 +173,9 @@ class EngagementSchedule:
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
-        k = np.searchsorted(self._starts, x, side="right") - 1  # type: ignore[attr-defined]
+        k = np.searchsorted(self._starts, x, side="right") - 1
         k[k < 0] = len(self.segments)
-        return self._idx[k], self._dep[k]  # type: ignore[attr-defined]
+        return self._idx[k], self._dep[k]
 
 
 # --------------------------------------------------------------------------------------------
