@@ -585,6 +585,7 @@ class FeedDriveSim:
         # the first speed sample is not a jump from 0 to the initial angle
         self._sc[_ENC_PREV] = math.floor(initial_angle_rad / q) * q
         self.samples_done = 0
+        self._no_injection = np.zeros(0)
 
     @property
     def dead_time_substeps(self) -> tuple[int, int, int]:
@@ -635,11 +636,12 @@ class FeedDriveSim:
         if out.shape != (n, N_OUT) or not out.flags.c_contiguous:
             raise InputDataError(f"feed drive: out must be C-contiguous ({n}, {N_OUT})")
         dist = self._rng.standard_normal(n) * self.params.torque_noise_nm
-        inj = (
-            np.zeros(n)
-            if current_injection_a is None
-            else np.ascontiguousarray(current_injection_a, dtype=np.float64)
-        )
+        if current_injection_a is None:
+            if self._no_injection.shape[0] != n:
+                self._no_injection = np.zeros(n)
+            inj = self._no_injection  # read-only in the kernel
+        else:
+            inj = np.ascontiguousarray(current_injection_a, dtype=np.float64)
         feed_drive_kernel(
             self._xm,
             self._xd,

@@ -497,6 +497,12 @@ class ProcessCoupling:
             if isinstance(ev, DepthStep) and not ev.depth_m >= 0:
                 raise ConfigError(f"process: depth step {ev.depth_m} m must be ≥ 0")
         self._table = list(self.engagement.table)
+        # the events by kind, once (evaluated every block)
+        self._depth_steps = sorted(
+            (e for e in self.events if isinstance(e, DepthStep)), key=lambda e: e.time_s
+        )
+        self._air_cuts = [e for e in self.events if isinstance(e, AirCut)]
+        self._breaks = [e for e in self.events if isinstance(e, ToothBreak)]
         self._static = StaticForceModel(self.tool, self.coeffs, self.n_discs)
         self._max_depth = max(
             [getattr(self.engagement, "max_depth_m", 0.0)]
@@ -515,25 +521,21 @@ class ProcessCoupling:
     def engagement_at(self, s_m: FloatArray, t_s: FloatArray) -> tuple[IntArray, FloatArray]:
         """Engagement index (−1 in air) and depth per sample, after the events."""
         idx, depth = self.engagement.at(s_m, t_s)
-        idx = np.asarray(idx, dtype=np.int64).copy()
-        depth = np.asarray(depth, dtype=np.float64).copy()
-        for ev in sorted(
-            (e for e in self.events if isinstance(e, DepthStep)), key=lambda e: e.time_s
-        ):
+        idx = np.array(idx, dtype=np.int64)
+        depth = np.array(depth, dtype=np.float64)
+        for ev in self._depth_steps:
             sel = (t_s >= ev.time_s) & (depth > 0)
             depth[sel] = ev.depth_m
-        for ev in self.events:  # type: ignore[assignment]
-            if isinstance(ev, AirCut):
-                depth[(t_s >= ev.start_s) & (t_s < ev.end_s)] = 0.0
+        for ev_a in self._air_cuts:
+            depth[(t_s >= ev_a.start_s) & (t_s < ev_a.end_s)] = 0.0
         idx[depth <= 0] = -1
         return idx, depth
 
     def radius_loss(self, t_s: FloatArray) -> FloatArray:
         """(n, N) radius lost per flute at times ``t_s``, m."""
         loss = np.zeros((len(t_s), self.tool.n_flutes))
-        for ev in self.events:
-            if isinstance(ev, ToothBreak):
-                loss[t_s >= ev.time_s, ev.flute] += self._loss(ev)
+        for ev in self._breaks:
+            loss[t_s >= ev.time_s, ev.flute] += self._loss(ev)
         return loss
 
     def evaluate(
@@ -560,14 +562,14 @@ class ProcessCoupling:
         c = np.where(np.abs(spindle_speed_rad_s) > 1e-6, c, 0.0)
         idx, depth = self.engagement_at(s_m, t_s)
         loss = self.radius_loss(t_s)
-        broken = (loss.sum(axis=1) > 0).astype(np.float64)
+        broken = (loss.sum(axis=1) > 0).astype(np.float64) if self._breaks else np.zeros(n)
         force = np.zeros((n, 3))
         torque = np.zeros(n)
         vib = np.zeros((n, 2))
         acc = np.zeros((n, 2))
         chatter = np.zeros(n)
         if self.modes is None:
-            if n and np.all(idx == idx[0]) and np.all(depth == depth[0]):
+            if n and idx.min() == idx.max() and depth.min() == depth.max():
                 groups = [(int(idx[0]), float(depth[0]), slice(None))]
             else:
                 keys = np.stack([idx.astype(np.float64), depth], axis=1)

@@ -751,21 +751,25 @@ class MachineSimulator(Source):
             po = self.process.evaluate(t, s_est, theta, omega, speed)
             fp = po.force
             f_w = fp[:, :1] * x_p + fp[:, 1:2] * y_p + fp[:, 2:3] * axis
-            acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
-            vib_w = po.vibration_m[:, :1] * x_p + po.vibration_m[:, 1:2] * y_p
+            regen = self.process.modes is not None  # tool vibration exists
+            if regen:
+                acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
+                vib_w = po.vibration_m[:, :1] * x_p + po.vibration_m[:, 1:2] * y_p
             if five:
                 assert isinstance(self.kin, TrunnionACMachine)
                 rot = self.kin.rotation(q_est[:, 3], q_est[:, 4])
                 f_machine = np.einsum("nji,nj->ni", rot, f_w)  # Tᵀ·F_w: tool frame
                 w.loads[sl] = -self.kin.drive_loads(q_est, f_machine)
-                acc_w = np.einsum("nji,nj->ni", rot, acc_w)
-                vib_w = np.einsum("nji,nj->ni", rot, vib_w)
+                if regen:
+                    acc_w = np.einsum("nji,nj->ni", rot, acc_w)
+                    vib_w = np.einsum("nji,nj->ni", rot, vib_w)
             else:
                 f_machine = f_w
                 w.loads[sl] = -f_w
             w.force[sl] = f_machine
-            w.tool_acc[sl] = acc_w[:, :2]
-            w.tool_vib[sl] = vib_w[:, :2]
+            if regen:  # else the preallocated zeros stand
+                w.tool_acc[sl] = acc_w[:, :2]
+                w.tool_vib[sl] = vib_w[:, :2]
             torque = po.torque
             w.torque[sl] = torque
             w.chatter[sl] = po.chatter
