@@ -224,6 +224,49 @@ class _BlockArrays:
 
 
 @numba.njit(cache=True)
+def _feed_frame(
+    v_w: np.ndarray,
+    axis: np.ndarray,
+    last_dir: np.ndarray,
+    speed: np.ndarray,
+    x_p: np.ndarray,
+    y_p: np.ndarray,
+) -> None:
+    """Feed frame of the process per sample: ``v⊥ = v − (v·a)·a``, speed ``|v⊥|``,
+    ``x_p = v⊥/|v⊥|`` (the last direction held while ``|v⊥| ≤ 1e-9`` m/s, ``last_dir``
+    updated in place), ``y_p = a × x_p`` (a the tool axis)."""
+    for k in range(v_w.shape[0]):
+        a0, a1, a2 = axis[k, 0], axis[k, 1], axis[k, 2]
+        dot = v_w[k, 0] * a0 + v_w[k, 1] * a1 + v_w[k, 2] * a2
+        p0 = v_w[k, 0] - dot * a0
+        p1 = v_w[k, 1] - dot * a1
+        p2 = v_w[k, 2] - dot * a2
+        sp = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        speed[k] = sp
+        if sp > 1e-9:
+            last_dir[0] = p0 / sp
+            last_dir[1] = p1 / sp
+            last_dir[2] = p2 / sp
+        x0, x1, x2 = last_dir[0], last_dir[1], last_dir[2]
+        x_p[k, 0] = x0
+        x_p[k, 1] = x1
+        x_p[k, 2] = x2
+        y_p[k, 0] = a1 * x2 - a2 * x1
+        y_p[k, 1] = a2 * x0 - a0 * x2
+        y_p[k, 2] = a0 * x1 - a1 * x0
+
+
+@numba.njit(cache=True)
+def _to_frame(
+    f: np.ndarray, x_p: np.ndarray, y_p: np.ndarray, axis: np.ndarray, out: np.ndarray
+) -> None:
+    """``out = f_x·x_p + f_y·y_p + f_z·axis`` per sample (process frame → workpiece frame)."""
+    for k in range(f.shape[0]):
+        for i in range(3):
+            out[k, i] = f[k, 0] * x_p[k, i] + f[k, 1] * y_p[k, i] + f[k, 2] * axis[k, i]
+
+
+@numba.njit(cache=True)
 def _ramp(target: np.ndarray, last: float, step: float, out: np.ndarray) -> float:
     """Rate-limit ``target`` to ``step`` per sample starting from ``last``."""
     for k in range(target.shape[0]):
@@ -723,34 +766,19 @@ class MachineSimulator(Source):
                 assert isinstance(self.kin, TrunnionACMachine)
                 v_w = np.einsum("nij,nj->ni", self.kin.jacobian(q_est), v_est)
                 axis = self.kin.orientation(q_est[:, 3], q_est[:, 4])
-                v_perp = v_w - np.sum(v_w * axis, axis=1, keepdims=True) * axis
             else:
+                v_w = v_est
                 axis = self._z_axis[:n]
-                v_perp = v_est.copy()
-                v_perp[:, 2] = 0.0
-            speed = np.sqrt(np.einsum("ni,ni->n", v_perp, v_perp))
-            moving = speed > 1e-9
-            if moving.all():
-                x_p = v_perp / speed[:, None]
-            else:
-                # hold the last feed direction where the tool stands still
-                x_p = np.empty((n, 3))
-                idx = np.maximum.accumulate(np.where(moving, np.arange(n), -1))
-                safe = np.where(moving[:, None], v_perp / np.maximum(speed, 1e-300)[:, None], 0.0)
-                x_p[:] = np.where((idx >= 0)[:, None], safe[np.maximum(idx, 0)], self._feed_dir)
-            self._feed_dir = x_p[-1].copy()
-            if five:
-                y_p = np.cross(axis, x_p)
-            else:  # z × x_p
-                y_p = np.zeros((n, 3))
-                y_p[:, 0] = -x_p[:, 1]
-                y_p[:, 1] = x_p[:, 0]
+            speed = np.empty(n)
+            x_p = np.empty((n, 3))
+            y_p = np.empty((n, 3))
+            _feed_frame(v_w, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
             # arc length at the actual position: the reference minus the lag along the feed
             p_err = self._tip_error()
             s_est = s_all[sl] - float(p_err @ self._feed_dir)
             po = self.process.evaluate(t, s_est, theta, omega, speed)
-            fp = po.force
-            f_w = fp[:, :1] * x_p + fp[:, 1:2] * y_p + fp[:, 2:3] * axis
+            f_w = np.empty((n, 3))
+            _to_frame(po.force, x_p, y_p, axis, f_w)
             regen = self.process.modes is not None  # tool vibration exists
             if regen:
                 acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
