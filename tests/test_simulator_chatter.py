@@ -122,3 +122,29 @@ def test_depth_step_and_air_cut_do_not_take_a_stale_surface() -> None:
     assert np.max(f[t > 0.2]) < 1.5 * bound
     # and the cut resumes after the air cut with the full depth's force level
     assert np.max(f[(t > 0.41) & (t < 0.5)]) > 0.5 * bound
+
+
+def test_lay_surface_equals_building_with_the_engagement() -> None:
+    # a simulation built in air whose disc is laid when the slot starts is the simulation
+    # built with the slot: the same rigid pre-roll over the two revolutions before step 0
+    from millsense.stability.time_domain import TimeDomainMillingSim
+
+    tool = EndMill(10e-3, 2)
+    coeffs = CuttingCoefficients(ktc=6e8, krc=2e8)
+    modes = DirectionModes.from_arrays([922.0], [0.011], [1.34005e6])
+    args = (tool, coeffs)
+    kw = {"n_discs": 1, "steps_per_rev": 76}
+    air = Engagement(layers=((),))
+    direct = TimeDomainMillingSim(
+        *args, Engagement.slot(), 5e-5, 0.3e-3, OMEGA, modes, DirectionModes.rigid(), **kw
+    )
+    late = TimeDomainMillingSim(
+        *args, air, 5e-5, 0.3e-3, OMEGA, modes, DirectionModes.rigid(), **kw
+    )
+    late.set_engagement(Engagement.slot())
+    late.lay_surface(np.array([True]))
+    a, b = direct.run(300), late.run(300)
+    np.testing.assert_array_equal(a.fx_n, b.fx_n)
+    np.testing.assert_array_equal(a.x_m, b.x_m)
+    # and the chip is the nominal one (≤ c = 0.05 mm), not the never-cut surface
+    assert np.max(b.chip_m) < 0.06e-3
