@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import InputDataError
-from millsense.machine.kinematics import ThreeAxisKinematics, TrunnionACKinematics, kinematics_for
+from millsense.machine.kinematics import (
+    ThreeAxisKinematics,
+    TrunnionACKinematics,
+    TrunnionACMachine,
+    kinematics_for,
+)
 
 RNG = np.random.default_rng(5)
 
@@ -97,6 +102,7 @@ def test_three_axis_identity_and_dispatch() -> None:
     np.testing.assert_array_equal(kin.forward(q), q)
     np.testing.assert_array_equal(kin.jacobian(q)[0], np.eye(3))
     np.testing.assert_array_equal(kin.tool_force(q, kin.drive_loads(q, q)), q)
-    assert isinstance(kinematics_for("5-axis-trunnion-ac"), TrunnionACKinematics)
+    # machine files name the drives: the trunnion in drive / G-code frames
+    assert isinstance(kinematics_for("5-axis-trunnion-ac"), TrunnionACMachine)
     with pytest.raises(InputDataError, match="shape"):
         TrunnionACKinematics().forward(np.zeros(3))

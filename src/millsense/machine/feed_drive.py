@@ -37,6 +37,7 @@ import numpy as np
 import scipy.linalg
 
 from millsense.core.config import FeedAxisConfig
+from millsense.core.errors import InputDataError
 from millsense.machine.friction import CoulombViscous, coulomb_viscous_torque
 from millsense.machine.lugre import LuGre, lugre_step
 from millsense.machine.modal_ss import ModalStateSpace
@@ -480,6 +481,9 @@ _OUT_NAMES = (
     "load_torque_motor",
 )
 
+#: Column names of the per-sample output array of :meth:`FeedDriveSim.advance_into`.
+OUT_NAMES = _OUT_NAMES
+
 
 class FeedDriveSim:
     """A resumable feed drive: :meth:`advance` continues from where it stopped.
@@ -581,6 +585,7 @@ class FeedDriveSim:
         # the first speed sample is not a jump from 0 to the initial angle
         self._sc[_ENC_PREV] = math.floor(initial_angle_rad / q) * q
         self.samples_done = 0
+        self._no_injection = np.zeros(0)
 
     @property
     def dead_time_substeps(self) -> tuple[int, int, int]:
@@ -612,14 +617,31 @@ class FeedDriveSim:
         ``true_velocity``, ``true_motor_acceleration`` rad/s², ``true_acceleration`` (load),
         ``friction_torque`` N·m, ``load_torque_motor`` N·m (τ_c acting on the motor).
         """
+        out = np.empty((len(pos_ref_rad), N_OUT))
+        self.advance_into(pos_ref_rad, vel_ff_rad_s, load, out, current_injection_a)
+        return {name: out[:, j] for j, name in enumerate(_OUT_NAMES)}
+
+    def advance_into(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        out: np.ndarray,
+        current_injection_a: np.ndarray | None = None,
+    ) -> None:
+        """:meth:`advance` writing into ``out`` ((n, N_OUT) C-contiguous, columns in the
+        order of :data:`OUT_NAMES`) instead of returning a dict (no per-call allocations
+        beyond the noise; the simulator's block loop)."""
         n = len(pos_ref_rad)
-        out = np.empty((n, N_OUT))
+        if out.shape != (n, N_OUT) or not out.flags.c_contiguous:
+            raise InputDataError(f"feed drive: out must be C-contiguous ({n}, {N_OUT})")
         dist = self._rng.standard_normal(n) * self.params.torque_noise_nm
-        inj = (
-            np.zeros(n)
-            if current_injection_a is None
-            else np.ascontiguousarray(current_injection_a, dtype=np.float64)
-        )
+        if current_injection_a is None:
+            if self._no_injection.shape[0] != n:
+                self._no_injection = np.zeros(n)
+            inj = self._no_injection  # read-only in the kernel
+        else:
+            inj = np.ascontiguousarray(current_injection_a, dtype=np.float64)
         feed_drive_kernel(
             self._xm,
             self._xd,
@@ -647,7 +669,6 @@ class FeedDriveSim:
             out,
         )
         self.samples_done += n
-        return {name: out[:, j] for j, name in enumerate(_OUT_NAMES)}
 
 
 def _position_direction(plant: MechanicalPlant) -> np.ndarray:

@@ -6,8 +6,11 @@ Every interpolation period T (3 ms, Aslan §0: 333 Hz) the path speed v is advan
 
 with f_i the programmed feed of the current segment, o(t) the effective override and
 ``v_brake`` the look-ahead limit: for every segment boundary j ahead (remaining distance D_j,
-limit ``v_j = min(f_j, f_j+1)·o`` and 0 at the path end) the speed from which a discrete
-deceleration at a stops in D_j: ``v²/(2a) + v·T ≤ D_j − v·T/2 + v_j²/(2a)``, solved for v. So
+limit ``v_j = min(min(f_j, f_j+1)·o, v_corner,j)`` and 0 at the path end, v_corner from the
+corner angle, :func:`junction_speeds`) the larger of v_j and the speed from which a discrete
+deceleration at a reaches v_j in D_j: ``v²/(2a) + v·T ≤ D_j − v·T/2 + v_j²/(2a)``, solved for
+v (a speed at or below v_j needs no braking for that boundary, so collinear vertices of a
+finely sampled path do not slow the feed). So
 |dv/dt| ≤ a always; an override cut or feed hold (o = 0) decelerates at a and stops within
 ``v²/(2a) + v·T`` (the discrete overhead is one period).
 
@@ -71,13 +74,17 @@ def _profile_kernel(
     override: np.ndarray,
     cum: np.ndarray,
     feed: np.ndarray,
+    corner: np.ndarray,
     acc: float,
     period: float,
     horizon: float,
     out_s: np.ndarray,
     out_v: np.ndarray,
 ) -> None:
-    """state = [s, v, segment]; advances len(override) periods writing s and v after each."""
+    """state = [s, v, segment]; advances len(override) periods writing s and v after each.
+
+    ``corner[j]`` is the junction speed limit at the end of segment j (m/s, inf: none).
+    """
     n_seg = feed.shape[0]
     s_end = cum[n_seg]
     for k in range(override.shape[0]):
@@ -93,13 +100,17 @@ def _profile_kernel(
             if j == n_seg - 1:
                 vj = 0.0
             else:
-                vj = min(feed[j], feed[j + 1]) * o
+                vj = min(min(feed[j], feed[j + 1]) * o, corner[j])
             # v²/(2a) + v·T + v_prev·T/2 ≤ d + vj²/(2a)
             rhs = d - v * period / 2.0 + vj * vj / (2.0 * acc)
             if rhs <= 0.0:
                 vb = 0.0
             else:
                 vb = acc * (-period + math.sqrt(period * period + 2.0 * rhs / acc))
+            # at or below vj this boundary never needs braking (its discrete overhead v·T
+            # only applies to a speed that must still come down)
+            if vb < vj:
+                vb = vj
             if vb < cap:
                 cap = vb
             j += 1
@@ -120,6 +131,60 @@ def _profile_kernel(
         out_v[k] = v_new
 
 
+def junction_speeds(
+    delta: np.ndarray, linear: np.ndarray, accel: float, tolerance_m: float
+) -> np.ndarray:
+    """Speed limit at each interior vertex of a polyline from its corner angle, m/s.
+
+    Parameters
+    ----------
+    delta : (n, d) segment vectors (first three columns m; rotary columns rad).
+    linear : (n,) True where a segment moves the linear axes (else a pure rotation).
+    accel : path acceleration limit a, m/s².
+    tolerance_m : corner deviation δ, m.
+
+    Returns
+    -------
+    (n − 1,) limit at the end of segment j (inf for collinear segments).
+
+    Notes
+    -----
+    Junction deviation (the cornering rule of grbl-type CNC planners): the corner is
+    treated as an arc tangent to both segments that passes δ from the vertex; with
+    ``s = sin(θ/2) = √((1 + u_j·u_{j+1})/2)`` (θ the angle between the segments, so s = 1 for
+    collinear ones) its radius is ``R = δ·s/(1 − s)`` and the centripetal limit ``v²/R ≤ a``
+    gives ``v = √(a·R)``. A junction between a pure rotation and a linear move (directions in
+    different spaces) stops (v = 0). Decision "Interpolator junction speed".
+    """
+    n = delta.shape[0]
+    out = np.full(max(n - 1, 0), np.inf)
+    if n < 2:
+        return out
+    lin = delta[:, :3]
+    norm = np.linalg.norm(lin, axis=1)
+    u = lin / np.where(norm > 0, norm, 1.0)[:, None]
+    cos_turn = np.clip(np.sum(u[:-1] * u[1:], axis=1), -1.0, 1.0)
+    s = np.sqrt(0.5 * (1.0 + cos_turn))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = tolerance_m * s / (1.0 - s)
+    v = np.where(s < 1.0, np.sqrt(accel * np.maximum(radius, 0.0)), np.inf)
+    rot_rot = ~linear[:-1] & ~linear[1:]
+    mixed = linear[:-1] != linear[1:]
+    if delta.shape[1] > 3 and np.any(rot_rot):
+        # two pure rotations: the same rule on the rotary directions (rad for m)
+        r = delta[:, 3:]
+        rn = np.linalg.norm(r, axis=1)
+        ur = r / np.where(rn > 0, rn, 1.0)[:, None]
+        cr = np.clip(np.sum(ur[:-1] * ur[1:], axis=1), -1.0, 1.0)
+        sr = np.sqrt(0.5 * (1.0 + cr))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            vr = np.where(sr < 1.0, np.sqrt(accel * tolerance_m * sr / (1.0 - sr)), np.inf)
+        v = np.where(rot_rot, vr, v)
+    v = np.where(mixed, 0.0, v)
+    out[:] = v
+    return out
+
+
 class Interpolator:
     """Resumable feed interpolator along a polyline.
 
@@ -131,6 +196,9 @@ class Interpolator:
     period_s : interpolation period, s (3 ms, Aslan §0).
     channel : override latency and quantisation.
     initial_override : override in effect at t = 0 (fraction), quantised by ``channel``.
+    corner_tolerance_m : corner (junction) deviation δ, m: the speed through a vertex is
+        limited to ``√(a·δ·sin(θ/2)/(1 − sin(θ/2)))`` (θ/2 from the direction change),
+        unlimited for collinear segments (decision "Interpolator junction speed").
     """
 
     def __init__(
@@ -142,6 +210,7 @@ class Interpolator:
         period_s: float = 3e-3,
         channel: OverrideChannel | None = None,
         initial_override: float = 1.0,
+        corner_tolerance_m: float = 1e-5,
     ) -> None:
         pts = np.asarray(path, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] not in (3, 5) or pts.shape[0] < 2:
@@ -164,7 +233,14 @@ class Interpolator:
         self._delta = seg[keep]
         self._len = length[keep]
         self.feed = np.ascontiguousarray(f[keep])
+        if not corner_tolerance_m > 0:
+            raise InputDataError(
+                f"interpolator: corner tolerance must be > 0, got {corner_tolerance_m}"
+            )
         self.cum = np.concatenate([[0.0], np.cumsum(self._len)])
+        self.corner = np.ascontiguousarray(
+            junction_speeds(self._delta, lin[keep] > 1e-12, float(accel), corner_tolerance_m)
+        )
         self.accel = float(accel)
         self.period = float(period_s)
         self.channel = channel or OverrideChannel.open_cnc()
@@ -225,7 +301,16 @@ class Interpolator:
         s = np.empty(n_periods)
         v = np.empty(n_periods)
         _profile_kernel(
-            self._state, ovr, self.cum, self.feed, self.accel, self.period, self._horizon, s, v
+            self._state,
+            ovr,
+            self.cum,
+            self.feed,
+            self.corner,
+            self.accel,
+            self.period,
+            self._horizon,
+            s,
+            v,
         )
         self._k += n_periods
         pos, vel = self.sample_path(s, v)

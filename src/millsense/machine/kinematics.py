@@ -1,5 +1,9 @@
 """Machine kinematics: 3-axis (identity) and the A/C trunnion table of Aslan Ch. 3.4.
 
+The trunnion comes in Aslan's frames (:class:`TrunnionACKinematics`, his equations as
+decided) and in the frames of the drives and of G-code (:class:`TrunnionACMachine`, tool along
++Z at A = C = 0), which the simulator and the machine files use.
+
 Both classes map axis positions ``q`` (m for x, y, z; rad for θ_A, θ_C) to the tool tip ``P``
 in the workpiece frame, give the position Jacobian ``J = ∂P/∂q`` and map a force at the tool
 (machine/tool frame) to drive loads with the principle of virtual work, ``τ = Jᵀ·T·F_tool``
@@ -246,13 +250,163 @@ class TrunnionACKinematics:
         return f[0] if single else f
 
 
-Kinematics = ThreeAxisKinematics | TrunnionACKinematics
+#: Aslan's machine axes from the machine's drive axes at θ_A = −π/2, θ_C = 0 (involution).
+_R0 = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class TrunnionACMachine:
+    """The A/C trunnion table in the frames of the machine's drives and of G-code / CAM.
+
+    Axis vector ``q = [X, Y, Z, A, C]`` (m, m, m, rad, rad) as the CNC and the presets name
+    the drives: Z along the spindle, A = C = 0 with the table level, the tool along workpiece
+    +Z (the CAM convention), and a 3-axis program (A = C = 0) moves X, Y, Z by the programmed
+    amounts. The workpiece frame is the G-code frame and equals Aslan's workpiece frame.
+
+    Notes
+    -----
+    Aslan's Eq. 3.36 puts the tool along workpiece +Y at θ_A = θ_C = 0, with the C axis
+    along workpiece z: his A zero tilts the table by 90° and his machine axis y is the
+    spindle axis. The mapping to :class:`TrunnionACKinematics` (decision docs/decisions.md,
+    "Trunnion frames: G-code and drives") is
+
+    - ``θ_A = A − π/2``, ``θ_C = C``: the tool axis becomes
+      ``O = [sA·sC, sA·cC, cA]`` (the usual A/C trunnion form, C about the table normal);
+    - ``p_Aslan = R0·[X, Y, Z] + [0, −d4, a2]`` with the fixed rotation
+      ``R0 = R(−π/2, 0) = [[−1, 0, 0], [0, 0, −1], [0, −1, 0]]`` (det +1, R0 = R0ᵀ = R0⁻¹):
+      Aslan's x, y, z are the drives' −X, −Z, −Y, and the offset puts the drive zero at the
+      workpiece origin for A = C = 0, so that ``P = [X, Y, Z]`` there.
+
+    Hence ``P = R(θ_A, θ_C)·R0·[X, Y, Z] + R(θ_A, θ_C)·[0, −d4, 0] − d4·e_z``, the tool
+    (drive) frame to workpiece rotation ``T = R(θ_A, θ_C)·R0`` (the identity at A = C = 0),
+    ``J = J_Aslan·diag(R0, 1, 1)`` and the loads ``τ = Jᵀ·T·F = diag(R0, 1, 1)·τ_Aslan``
+    with ``F`` in the drive frame (Aslan Eq. 3.49 in these frames).
+    """
+
+    a2_m: float = DEFAULT_A2_M
+    d4_m: float = DEFAULT_D4_M
+    n_axes: int = 5
+
+    @property
+    def aslan(self) -> TrunnionACKinematics:
+        """The same table in Aslan's frames."""
+        return TrunnionACKinematics(a2_m=self.a2_m, d4_m=self.d4_m)
+
+    def to_aslan(self, q: np.ndarray) -> np.ndarray:
+        """Aslan's axis vector ``[x, y, z, θ_A, θ_C]`` of drive positions ``q``."""
+        arr, single = _as_batch(q, 5, "q")
+        out = np.empty_like(arr)
+        out[:, :3] = arr[:, :3] @ _R0.T
+        out[:, 1] -= self.d4_m
+        out[:, 2] += self.a2_m
+        out[:, 3] = arr[:, 3] - 0.5 * np.pi
+        out[:, 4] = arr[:, 4]
+        return out[0] if single else out
+
+    def from_aslan(self, q_aslan: np.ndarray) -> np.ndarray:
+        """Drive positions from Aslan's axis vector (inverse of :meth:`to_aslan`)."""
+        arr, single = _as_batch(q_aslan, 5, "q_aslan")
+        rel = arr[:, :3].copy()
+        rel[:, 1] += self.d4_m
+        rel[:, 2] -= self.a2_m
+        out = np.empty_like(arr)
+        out[:, :3] = rel @ _R0  # R0⁻¹ = R0ᵀ
+        out[:, 3] = arr[:, 3] + 0.5 * np.pi
+        out[:, 4] = arr[:, 4]
+        return out[0] if single else out
+
+    @staticmethod
+    def rotation(a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Tool (drive) frame to workpiece frame, ``T = R(A − π/2, C)·R0``, (..., 3, 3)."""
+        r = TrunnionACKinematics.rotation(np.asarray(a) - 0.5 * np.pi, np.asarray(c))
+        return np.asarray(r @ _R0)
+
+    @staticmethod
+    def orientation(a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Tool axis in the workpiece frame, ``[sA·sC, sA·cC, cA]``, shape (..., 3)."""
+        sa = np.sin(a)
+        return np.stack([sa * np.sin(c), sa * np.cos(c), np.cos(a)], axis=-1)
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Tool tip (m, workpiece/G-code frame) from drive positions q."""
+        return np.asarray(self.aslan.forward(self.to_aslan(q)))
+
+    def forward_pose(self, q: np.ndarray) -> np.ndarray:
+        """``[P (m), O (unit)]`` in the workpiece frame from drive positions q."""
+        arr, single = _as_batch(q, 5, "q")
+        pose = np.concatenate([self.forward(arr), self.orientation(arr[:, 3], arr[:, 4])], axis=1)
+        return pose[0] if single else pose
+
+    def inverse_at(self, p: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Drive positions that put the tool tip at ``p`` (m) with the rotary axes at A, C.
+
+        The exact inverse of :meth:`forward` for given rotary angles (any branch: a program's
+        A and C words are kept as written, so ``forward(inverse_at(p, a, c)) = p``).
+        """
+        pts, single = _as_batch(p, 3, "p")
+        a_arr = np.broadcast_to(np.asarray(a, dtype=np.float64), (pts.shape[0],))
+        c_arr = np.broadcast_to(np.asarray(c, dtype=np.float64), (pts.shape[0],))
+        r = TrunnionACKinematics.rotation(a_arr - 0.5 * np.pi, c_arr)
+        shifted = pts.copy()
+        shifted[:, 2] += self.d4_m
+        qa = np.empty((pts.shape[0], 5))
+        qa[:, :3] = np.einsum("nji,nj->ni", r, shifted)
+        qa[:, 2] += self.a2_m
+        qa[:, 3] = a_arr - 0.5 * np.pi
+        qa[:, 4] = c_arr
+        q = self.from_aslan(qa)
+        return q[0] if single else q
+
+    def inverse(self, pose: np.ndarray) -> np.ndarray:
+        """Drive positions from ``[P (m), O (unit)]``: ``A = acos(O_k) ∈ [0, π]``,
+        ``C = atan2(O_i, O_j)`` (Aslan Eq. 3.35 with θ_A = A − π/2)."""
+        arr, single = _as_batch(pose, 6, "pose")
+        q = self.from_aslan(self.aslan.inverse(arr))
+        return q[0] if single else q
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """∂P/∂q in drive coordinates, ``J_Aslan·diag(R0, 1, 1)``, (3, 5) or (N, 3, 5)."""
+        arr, single = _as_batch(q, 5, "q")
+        j = np.array(self.aslan.jacobian(self.to_aslan(arr)))
+        j[:, :, :3] = j[:, :, :3] @ _R0
+        return j[0] if single else j
+
+    def load_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (drive frame)."""
+        arr, single = _as_batch(q, 5, "q")
+        m = np.einsum("nji,njk->nik", self.jacobian(arr), self.rotation(arr[:, 3], arr[:, 4]))
+        return m[0] if single else m
+
+    def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
+        """Drive loads ``[F_X, F_Y, F_Z (N), τ_A, τ_C (N·m)]`` of a tool force (drive frame)."""
+        arr, single = _as_batch(q, 5, "q")
+        f, _ = _as_batch(force_tool_n, 3, "force_tool_n")
+        loads = np.einsum(
+            "nij,nj->ni", self.load_matrix(arr), np.broadcast_to(f, (arr.shape[0], 3))
+        )
+        return loads[0] if single else loads
+
+    def tool_force(self, q: np.ndarray, loads: np.ndarray) -> np.ndarray:
+        """Tool force (N, drive frame) from drive loads, ``[Jᵀ·T]⁺·τ`` (Aslan Eq. 3.51)."""
+        arr, single = _as_batch(q, 5, "q")
+        tau, _ = _as_batch(loads, 5, "loads")
+        pinv = np.linalg.pinv(self.load_matrix(arr))
+        f = np.einsum("nij,nj->ni", pinv, np.broadcast_to(tau, (arr.shape[0], 5)))
+        return f[0] if single else f
+
+
+Kinematics = ThreeAxisKinematics | TrunnionACKinematics | TrunnionACMachine
 
 
 def kinematics_for(kind: str, a2_m: float = DEFAULT_A2_M, d4_m: float = DEFAULT_D4_M) -> Kinematics:
-    """The kinematics named by ``MachineConfig.kinematics`` ("3-axis", "5-axis-trunnion-ac")."""
+    """The kinematics named by ``MachineConfig.kinematics`` ("3-axis", "5-axis-trunnion-ac").
+
+    Machine files name the drives as the CNC does, so the trunnion is returned in the drive /
+    G-code frames (:class:`TrunnionACMachine`); Aslan's frames are
+    :class:`TrunnionACKinematics`.
+    """
     if kind == "3-axis":
         return ThreeAxisKinematics()
     if kind == "5-axis-trunnion-ac":
-        return TrunnionACKinematics(a2_m=a2_m, d4_m=d4_m)
+        return TrunnionACMachine(a2_m=a2_m, d4_m=d4_m)
     raise InputDataError(f"kinematics: unknown kind '{kind}' (3-axis, 5-axis-trunnion-ac)")

@@ -87,6 +87,9 @@ class EngagementSchedule:
     table: tuple[Engagement, ...]
     segments: tuple[EngagementSegment, ...]
     basis: Literal["arc_length", "time"] = "arc_length"
+    _starts: FloatArray = field(init=False, repr=False, compare=False)
+    _idx: IntArray = field(init=False, repr=False, compare=False)
+    _dep: FloatArray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         starts = [s.start for s in self.segments]
@@ -97,6 +100,12 @@ class EngagementSchedule:
                 raise ConfigError(f"engagement schedule: index {seg.index} outside the table")
             if not (seg.depth_m >= 0 and math.isfinite(seg.depth_m)):
                 raise ConfigError(f"engagement schedule: depth {seg.depth_m!r} m must be ≥ 0")
+        # lookup tables of :meth:`at` (built once; the simulator calls it every block)
+        object.__setattr__(self, "_starts", np.array(starts, dtype=np.float64))
+        object.__setattr__(
+            self, "_idx", np.array([s.index for s in self.segments] + [0], dtype=np.int64)
+        )
+        object.__setattr__(self, "_dep", np.array([s.depth_m for s in self.segments] + [0.0]))
 
     @classmethod
     def constant(
@@ -164,12 +173,9 @@ class EngagementSchedule:
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
-        starts = np.array([s.start for s in self.segments])
-        k = np.searchsorted(starts, x, side="right") - 1
-        idx = np.array([s.index for s in self.segments] + [0], dtype=np.int64)
-        dep = np.array([s.depth_m for s in self.segments] + [0.0])
-        k = np.where(k < 0, len(self.segments), k)
-        return idx[k], dep[k]
+        k = np.searchsorted(self._starts, x, side="right") - 1
+        k[k < 0] = len(self.segments)
+        return self._idx[k], self._dep[k]
 
 
 # --------------------------------------------------------------------------------------------
@@ -474,6 +480,9 @@ class ProcessCoupling:
     _td_speed: float = field(default=0.0, init=False, repr=False)
     _td_break_done: set[int] = field(default_factory=set, init=False, repr=False)
     _last2: FloatArray = field(default_factory=lambda: np.zeros((2, 2)), init=False)
+    _td_disc_eng: list[tuple[tuple[float, float], ...]] = field(
+        default_factory=list, init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         if self.n_discs < 1:
@@ -488,6 +497,12 @@ class ProcessCoupling:
             if isinstance(ev, DepthStep) and not ev.depth_m >= 0:
                 raise ConfigError(f"process: depth step {ev.depth_m} m must be ≥ 0")
         self._table = list(self.engagement.table)
+        # the events by kind, once (evaluated every block)
+        self._depth_steps = sorted(
+            (e for e in self.events if isinstance(e, DepthStep)), key=lambda e: e.time_s
+        )
+        self._air_cuts = [e for e in self.events if isinstance(e, AirCut)]
+        self._breaks = [e for e in self.events if isinstance(e, ToothBreak)]
         self._static = StaticForceModel(self.tool, self.coeffs, self.n_discs)
         self._max_depth = max(
             [getattr(self.engagement, "max_depth_m", 0.0)]
@@ -506,25 +521,21 @@ class ProcessCoupling:
     def engagement_at(self, s_m: FloatArray, t_s: FloatArray) -> tuple[IntArray, FloatArray]:
         """Engagement index (−1 in air) and depth per sample, after the events."""
         idx, depth = self.engagement.at(s_m, t_s)
-        idx = np.asarray(idx, dtype=np.int64).copy()
-        depth = np.asarray(depth, dtype=np.float64).copy()
-        for ev in sorted(
-            (e for e in self.events if isinstance(e, DepthStep)), key=lambda e: e.time_s
-        ):
+        idx = np.array(idx, dtype=np.int64)
+        depth = np.array(depth, dtype=np.float64)
+        for ev in self._depth_steps:
             sel = (t_s >= ev.time_s) & (depth > 0)
             depth[sel] = ev.depth_m
-        for ev in self.events:  # type: ignore[assignment]
-            if isinstance(ev, AirCut):
-                depth[(t_s >= ev.start_s) & (t_s < ev.end_s)] = 0.0
+        for ev_a in self._air_cuts:
+            depth[(t_s >= ev_a.start_s) & (t_s < ev_a.end_s)] = 0.0
         idx[depth <= 0] = -1
         return idx, depth
 
     def radius_loss(self, t_s: FloatArray) -> FloatArray:
         """(n, N) radius lost per flute at times ``t_s``, m."""
         loss = np.zeros((len(t_s), self.tool.n_flutes))
-        for ev in self.events:
-            if isinstance(ev, ToothBreak):
-                loss[t_s >= ev.time_s, ev.flute] += self._loss(ev)
+        for ev in self._breaks:
+            loss[t_s >= ev.time_s, ev.flute] += self._loss(ev)
         return loss
 
     def evaluate(
@@ -551,14 +562,14 @@ class ProcessCoupling:
         c = np.where(np.abs(spindle_speed_rad_s) > 1e-6, c, 0.0)
         idx, depth = self.engagement_at(s_m, t_s)
         loss = self.radius_loss(t_s)
-        broken = (loss.sum(axis=1) > 0).astype(np.float64)
+        broken = (loss.sum(axis=1) > 0).astype(np.float64) if self._breaks else np.zeros(n)
         force = np.zeros((n, 3))
         torque = np.zeros(n)
         vib = np.zeros((n, 2))
         acc = np.zeros((n, 2))
         chatter = np.zeros(n)
         if self.modes is None:
-            if n and np.all(idx == idx[0]) and np.all(depth == depth[0]):
+            if n and idx.min() == idx.max() and depth.min() == depth.max():
                 groups = [(int(idx[0]), float(depth[0]), slice(None))]
             else:
                 keys = np.stack([idx.astype(np.float64), depth], axis=1)
@@ -647,13 +658,23 @@ class ProcessCoupling:
             return  # not in the material yet: the surface starts with the first cut
         if self._td is None:
             self._td = self._make_td(float(t_s[0]), om, float(c[0]))
+            self._td_disc_eng = [()] * self.n_discs
         td = self._td
         if abs(om - td.spindle_speed_rad_s) > 1e-9 * om:
             # keep the time base: the steps so far ran at the old speed
             self._td_t0 += td.step * (td.dt_s - _TWO_PI / td.steps_per_rev / om)
             td.set_spindle_speed(om)
         td.set_feed_per_tooth(float(c[0]))
-        td.set_engagement(self._layered(int(idx[0]), float(depth[0])))
+        eng = self._layered(int(idx[0]), float(depth[0]))
+        td.set_engagement(eng)
+        # discs entering the material (first cut, depth step up, end of an air cut, new
+        # immersion) get the surface a rigid tool would have left: never a stale surface
+        layers = list(eng.layers)
+        fresh = np.array(
+            [bool(new) and new != old for new, old in zip(layers, self._td_disc_eng, strict=True)]
+        )
+        td.lay_surface(fresh)
+        self._td_disc_eng = layers
         dt = 1.0 / self.sample_rate_hz
         t_end = float(t_s[-1]) + 0.5 * dt
         n_needed = math.floor((t_end - self._td_t0) / td.dt_s) + 1 - td.step

@@ -10,7 +10,8 @@ measurement noise of the spindle current, each from its own seeded generator:
 - microphone: the accelerometer sum through a second-order band-pass (50 Hz – 13 kHz, the
   band of Munasinghe's microphone, limited to 0.45·f_s) scaled to pascals, plus white noise;
 - spindle current: white measurement noise (no seed gives a level; decision "Spindle current
-  noise": 1 % of the Quaser range-1 rated current, 0.05 A).
+  noise": 0.05 A RMS, ≈ 0.07 N·m at K_tS = 1.343 N·m/A, a quarter of the X drive's air-cut
+  torque RMS √R of Aslan Eq. 3.30).
 
 Everything is causal and keeps its filter state between blocks (``scipy.signal.lfilter``
 with ``zi``), so the outputs do not depend on the chunking.

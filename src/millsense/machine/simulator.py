@@ -19,8 +19,10 @@ Composition, per block of one interpolation period (3 ms = 30 samples at 10 kHz)
    (:class:`~.spindle.SpindleDriveSim`) advance the block; sensors and the realism layer
    follow.
 
-Blocks are fixed in absolute sample index and every generator is drawn block by block, so
-the output does not depend on how :meth:`MachineSimulator.read` cuts the stream. A command
+Steps 1–2 (and the sensors and 333 Hz rows) are computed for all the blocks a read needs at
+once; steps 3–5 run block by block (decision "Simulator block size"). Blocks are fixed in
+absolute sample index and every generator is drawn block by block, so the output does not
+depend on how :meth:`MachineSimulator.read` cuts the stream. A command
 (:meth:`MachineSimulator.command`) takes effect at ``t_cmd + latency`` where ``t_cmd`` is the
 time of the next sample to be read; blocks already generated ahead of the reader (at most
 one block) are not recomputed.
@@ -39,9 +41,9 @@ from numpy.typing import NDArray
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.machine.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsampler
-from millsense.machine.kinematics import TrunnionACKinematics, kinematics_for
+from millsense.machine.kinematics import TrunnionACMachine, kinematics_for
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.machine.process_coupling import ProcessCoupling
 from millsense.machine.realism import (
@@ -159,7 +161,8 @@ class SimulatorOptions:
     drive_substeps : plant integration substeps per sample of the feed drives.
     block_periods : interpolation periods per simulation block (the coupling lag and the
         largest extra command delay when reads are not aligned with blocks); 1 is the most
-        faithful, 4 is about twice as fast (decision "Simulator block size").
+        faithful and the default, 4 saves some Python overhead at 9 ms more lag (decision
+        "Simulator block size").
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
     realism : the realism layer.
@@ -188,6 +191,79 @@ class SimulatorOptions:
             raise ConfigError(f"simulator: drive_substeps must be ≥ 1, got {self.drive_substeps}")
         if not self.spindle_settle_s >= 0:
             raise ConfigError("simulator: spindle_settle_s must be ≥ 0")
+
+
+#: Largest number of blocks generated at once (bounds the memory of one read), 1 s at 3 ms.
+_MAX_BLOCKS = 334
+
+_D_CUR_CMD, _D_CUR, _D_SPEED, _D_ANGLE = (OUT_NAMES.index(k) for k in OUT_NAMES[:4])
+_D_SCALE = OUT_NAMES.index("scale")
+_D_TRUE_SPEED = OUT_NAMES.index("true_speed")
+_D_TRUE_POS = OUT_NAMES.index("true_position")
+_D_TRUE_VEL = OUT_NAMES.index("true_velocity")
+_D_TRUE_ACC = OUT_NAMES.index("true_acceleration")
+_D_FRICTION = OUT_NAMES.index("friction_torque")
+
+
+class _BlockArrays:
+    """Per-sample outputs of the coupled part for a run of blocks (filled block by block)."""
+
+    def __init__(self, n: int, n_axes: int) -> None:
+        self.drive = np.empty((n_axes, n, N_OUT))
+        self.loads = np.zeros((n, n_axes))
+        self.force = np.zeros((n, 3))
+        self.tool_acc = np.zeros((n, 2))
+        self.tool_vib = np.zeros((n, 2))
+        self.torque = np.zeros(n)
+        self.spindle = np.empty((n, 4))  # current_cmd, current, speed, true_speed
+        self.chatter = np.zeros(n)
+        self.broken = np.zeros(n)
+        self.engagement = np.full(n, -1, dtype=np.int64)
+        self.depth = np.zeros(n)
+        self.feed_per_tooth = np.zeros(n)
+
+
+@numba.njit(cache=True)
+def _feed_frame(
+    v_w: np.ndarray,
+    axis: np.ndarray,
+    last_dir: np.ndarray,
+    speed: np.ndarray,
+    x_p: np.ndarray,
+    y_p: np.ndarray,
+) -> None:
+    """Feed frame of the process per sample: ``v⊥ = v − (v·a)·a``, speed ``|v⊥|``,
+    ``x_p = v⊥/|v⊥|`` (the last direction held while ``|v⊥| ≤ 1e-9`` m/s, ``last_dir``
+    updated in place), ``y_p = a × x_p`` (a the tool axis)."""
+    for k in range(v_w.shape[0]):
+        a0, a1, a2 = axis[k, 0], axis[k, 1], axis[k, 2]
+        dot = v_w[k, 0] * a0 + v_w[k, 1] * a1 + v_w[k, 2] * a2
+        p0 = v_w[k, 0] - dot * a0
+        p1 = v_w[k, 1] - dot * a1
+        p2 = v_w[k, 2] - dot * a2
+        sp = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        speed[k] = sp
+        if sp > 1e-9:
+            last_dir[0] = p0 / sp
+            last_dir[1] = p1 / sp
+            last_dir[2] = p2 / sp
+        x0, x1, x2 = last_dir[0], last_dir[1], last_dir[2]
+        x_p[k, 0] = x0
+        x_p[k, 1] = x1
+        x_p[k, 2] = x2
+        y_p[k, 0] = a1 * x2 - a2 * x1
+        y_p[k, 1] = a2 * x0 - a0 * x2
+        y_p[k, 2] = a0 * x1 - a1 * x0
+
+
+@numba.njit(cache=True)
+def _to_frame(
+    f: np.ndarray, x_p: np.ndarray, y_p: np.ndarray, axis: np.ndarray, out: np.ndarray
+) -> None:
+    """``out = f_x·x_p + f_y·y_p + f_z·axis`` per sample (process frame → workpiece frame)."""
+    for k in range(f.shape[0]):
+        for i in range(3):
+            out[k, i] = f[k, 0] * x_p[k, i] + f[k, 1] * y_p[k, i] + f[k, 2] * axis[k, i]
 
 
 @numba.njit(cache=True)
@@ -245,7 +321,8 @@ class MachineSimulator(Source):
     ``spindle/current`` (A); ``cnc/feed`` (m/s, interpolated path speed),
     ``cnc/feed_override``, ``cnc/spindle_override`` (fractions), ``cnc/nc_line``; optional
     ``accel/x``, ``accel/y``, ``mic/pressure``. Truth: ``truth/tool/force_{x,y,z}`` (N, on
-    the tool, machine/tool frame), ``truth/{ax}/load`` (N or N·m, resisting the axis),
+    the tool, machine/tool frame), ``truth/tool/vibration_{x,y}`` (m, tool-mode displacement
+    along machine x, y; 0 without tool modes), ``truth/{ax}/load`` (N or N·m, resisting the axis),
     ``truth/{ax}/position``, ``truth/{ax}/motor_speed``, ``truth/spindle/torque`` (N·m),
     ``truth/spindle/speed``, ``truth/process/chatter``, ``truth/process/broken``,
     ``truth/process/engagement``, ``truth/process/depth`` (m),
@@ -379,6 +456,7 @@ class MachineSimulator(Source):
         # ---- coupling state (end of the previous block)
         n_ax = len(self.axes)
         self._q_ref_last = q0.copy()
+        self._q_ref_block = q0.copy()  # reference at the end of the last coupled block
         self._err_q = np.zeros(n_ax)
         self._err_v = np.zeros(n_ax)
         self._theta = 0.0
@@ -395,7 +473,9 @@ class MachineSimulator(Source):
         self._pos = 0
         self._buf: dict[str, list[np.ndarray]] = {}
         self._buf_n = 0
-        self._rows: list[dict[str, float]] = []
+        self._rows: list[dict[str, np.ndarray]] = []
+        self._steps = np.arange(1, self.ratio + 1, dtype=np.float64)
+        self._z_axis = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (self.ratio, 3))
         self._channels = self._declare()
 
     # ------------------------------------------------------------------ declarations
@@ -440,6 +520,8 @@ class MachineSimulator(Source):
             ChannelInfo("truth/tool/force_x", "N", "force on the tool, machine x"),
             ChannelInfo("truth/tool/force_y", "N", "force on the tool, machine y"),
             ChannelInfo("truth/tool/force_z", "N", "force on the tool, machine z"),
+            ChannelInfo("truth/tool/vibration_x", "m", "tool vibration (tool modes), machine x"),
+            ChannelInfo("truth/tool/vibration_y", "m", "tool vibration (tool modes), machine y"),
             ChannelInfo("truth/spindle/torque", "N*m", "cutting torque at the spindle"),
             ChannelInfo("truth/spindle/speed", "rad/s", "true spindle speed"),
             ChannelInfo("truth/process/chatter", "1", "1 while chatter (aperiodic vibration)"),
@@ -525,40 +607,51 @@ class MachineSimulator(Source):
 
     # ------------------------------------------------------------------ kinematics helpers
     def _axes_from_path(self, pts: FloatArray) -> FloatArray:
-        """Axis positions for path points (tip in the workpiece frame [+ A, C])."""
-        if isinstance(self.kin, TrunnionACKinematics):
-            o = self.kin.orientation(pts[:, 3], pts[:, 4])
-            q = self.kin.inverse(np.concatenate([pts[:, :3], o], axis=1))
-            q[:, 3:] = pts[:, 3:]  # keep the programmed (unwrapped) rotary angles
-            return np.asarray(q)
+        """Axis positions for path points (tip in the workpiece/G-code frame [+ A, C]).
+
+        The programmed (unwrapped) rotary angles are kept as written and the linear axes
+        solved for them, so the forward kinematics of the result is the programmed tip on
+        any branch (decision "Trunnion frames: G-code and drives").
+        """
+        if isinstance(self.kin, TrunnionACMachine):
+            return np.asarray(self.kin.inverse_at(pts[:, :3], pts[:, 3], pts[:, 4]))
         return np.asarray(pts[:, :3], dtype=np.float64).copy()
 
-    # ------------------------------------------------------------------ one block
-    def _generate_block(self) -> dict[str, np.ndarray]:
+    # ------------------------------------------------------------------ blocks
+    def _generate(self, n_blocks: int) -> dict[str, np.ndarray]:
+        """The next ``n_blocks`` blocks.
+
+        Everything that does not depend on the drives' state (interpolator, fine
+        interpolation, inverse kinematics, spindle reference, sensors, the 333 Hz rows) is
+        computed for all blocks at once; the coupled part (process at the estimated actual
+        motion → drive loads → drives and spindle) runs block by block in
+        :meth:`_couple_block`, with the coupling of one block as before (decision "Simulator
+        block size"). The result does not depend on ``n_blocks``.
+        """
         fs = self.sample_rate_hz
-        n = self.ratio
-        k = self._block
-        t = (k * n + np.arange(n)) / fs
-        # 1. interpolator: one period at the effective override
-        bp = self.options.block_periods
+        nb = self.ratio
         pp = self.per_period
-        ipo = self.interp.advance(bp)
+        n_per = n_blocks * self.options.block_periods
+        n = n_blocks * nb
+        k0 = self._block
+        t = (k0 * nb + np.arange(n)) / fs
+        # 1. interpolator: the periods at the effective override, refined to the drive rate
+        ipo = self.interp.advance(n_per)
         fine = self.upsampler(ipo["position"], ipo["velocity"], self.period_s)
-        u = np.tile(np.arange(1, pp + 1) / pp, bp)
+        u = np.tile(np.arange(1, pp + 1) / pp, n_per)
         s_end = ipo["s"]
         s_start = np.concatenate([[self._s_prev], s_end[:-1]])
         s_ref = np.repeat(s_start, pp) + u * np.repeat(s_end - s_start, pp)
         self._s_prev = float(s_end[-1])
         feed_fine = np.repeat(ipo["v"], pp)
         ovr_fine = np.repeat(ipo["override"], pp)
+        # 2. axis references
         q_ref = self._axes_from_path(fine)
         q_prev = np.vstack([self._q_ref_last[None, :], q_ref[:-1]])
         v_ref = (q_ref - q_prev) * fs
-        # 2. actual motion estimated for the block
-        q_est = q_ref - self._err_q
-        v_est = v_ref - self._err_v
-        theta = self._theta + self._omega * (np.arange(1, n + 1)) / fs
-        omega = np.full(n, self._omega)
+        self._q_ref_last = q_ref[-1].copy()
+        pos_m = np.ascontiguousarray((q_ref / self.transmissions).T)
+        vel_m = np.ascontiguousarray((v_ref / self.transmissions).T)
         # spindle reference with override and ramp
         seg = np.clip(
             np.searchsorted(self.interp.cum, s_ref, side="right") - 1, 0, len(self.job.nc_line) - 1
@@ -569,161 +662,183 @@ class MachineSimulator(Source):
         self._omega_ref_last = _ramp(
             target, self._omega_ref_last, self.options.spindle_accel_rad_s2 / fs, spd_ref
         )
-        # 3. process
+        # 3. the coupled blocks
         n_ax = len(self.axes)
-        loads = np.zeros((n, n_ax))
-        f_machine = np.zeros((n, 3))
-        torque = np.zeros(n)
-        proc_out = None
-        tool_acc_xy = np.zeros((n, 2))
-        if self.process is not None:
-            if isinstance(self.kin, TrunnionACKinematics):
-                jac = self.kin.jacobian(q_est)
-                v_w = np.einsum("nij,nj->ni", jac, v_est)
-                axis = self.kin.orientation(q_est[:, 3], q_est[:, 4])
-            else:
-                v_w = v_est[:, :3]
-                axis = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (n, 3))
-            v_perp = v_w - np.sum(v_w * axis, axis=1, keepdims=True) * axis
-            speed = np.linalg.norm(v_perp, axis=1)
-            moving = speed > 1e-9
-            x_p = np.empty((n, 3))
-            last = self._feed_dir
-            if moving.all():
-                x_p[:] = v_perp / speed[:, None]
-            else:
-                # hold the last feed direction where the tool stands still
-                idx = np.where(moving, np.arange(n), -1)
-                idx = np.maximum.accumulate(idx)
-                safe = np.where(moving[:, None], v_perp / np.maximum(speed, 1e-300)[:, None], 0.0)
-                x_p[:] = np.where((idx >= 0)[:, None], safe[np.maximum(idx, 0)], last[None, :])
-            self._feed_dir = x_p[-1].copy()
-            y_p = np.column_stack(
-                [
-                    axis[:, 1] * x_p[:, 2] - axis[:, 2] * x_p[:, 1],
-                    axis[:, 2] * x_p[:, 0] - axis[:, 0] * x_p[:, 2],
-                    axis[:, 0] * x_p[:, 1] - axis[:, 1] * x_p[:, 0],
-                ]
+        w = _BlockArrays(n, n_ax)
+        for b in range(n_blocks):
+            self._couple_block(
+                slice(b * nb, (b + 1) * nb), t, s_ref, q_ref, v_ref, pos_m, vel_m, spd_ref, w
             )
-            # arc length at the actual position: the reference minus the lag along the feed
-            p_err = self._tip_error()
-            s_est = s_ref - float(p_err @ self._feed_dir)
-            proc_out = self.process.evaluate(
-                t, s_est, np.asarray(theta, dtype=np.float64), omega, speed
-            )
-            fp = proc_out.force
-            f_w = fp[:, :1] * x_p + fp[:, 1:2] * y_p + fp[:, 2:3] * axis
-            if isinstance(self.kin, TrunnionACKinematics):
-                rot = self.kin.rotation(q_est[:, 3], q_est[:, 4])
-                f_machine = np.einsum("nji,nj->ni", rot, f_w)  # Rᵀ·F_w: tool frame
-                loads = -self.kin.drive_loads(q_est, f_machine)
-            else:
-                f_machine = f_w
-                loads = -f_w
-            torque = proc_out.torque
-            tool_acc_xy = (
-                proc_out.vibration_acc[:, :1] * x_p[:, :2]
-                + proc_out.vibration_acc[:, 1:2] * y_p[:, :2]
-            )
-        # 4. drives and spindle
+        # 4. channels
+        d_out = w.drive
         data: dict[str, np.ndarray] = {}
-        table_acc = np.zeros((n, 2))
-        q_act_last = np.zeros(n_ax)
-        v_err_mean = np.zeros(n_ax)
         for i, ax in enumerate(self.axes):
-            rg = self.transmissions[i]
-            out = self.drives[i].advance(q_ref[:, i] / rg, v_ref[:, i] / rg, loads[:, i])
-            data[f"{ax}/current_cmd"] = out["current_cmd"]
-            data[f"{ax}/current"] = out["current"]
-            data[f"{ax}/motor_speed"] = out["speed"]
-            data[f"{ax}/motor_angle"] = out["angle"]
+            o = d_out[i]
+            data[f"{ax}/current_cmd"] = o[:, _D_CUR_CMD]
+            data[f"{ax}/current"] = o[:, _D_CUR]
+            data[f"{ax}/motor_speed"] = o[:, _D_SPEED]
+            data[f"{ax}/motor_angle"] = o[:, _D_ANGLE]
             data[f"{ax}/position_cmd"] = q_ref[:, i]
             if self.machine.axes[ax].scale_resolution_nm is not None:
-                data[f"{ax}/scale"] = out["scale"]
-            data[f"truth/{ax}/load"] = loads[:, i]
-            data[f"truth/{ax}/position"] = out["true_position"]
-            data[f"truth/{ax}/motor_speed"] = out["true_speed"]
-            if i < 2:
-                table_acc[:, i] = out["true_acceleration"]
-            q_act_last[i] = out["true_position"][-1]
-            v_err_mean[i] = float(np.mean(v_ref[:, i] - out["true_velocity"]))
-            self._realism_axis(i, out, float(q_act_last[i]))
-        sp = self.spindle.advance(spd_ref, torque)
-        data["spindle/speed"] = sp["speed"]
+                data[f"{ax}/scale"] = o[:, _D_SCALE]
+            data[f"truth/{ax}/load"] = w.loads[:, i]
+            data[f"truth/{ax}/position"] = o[:, _D_TRUE_POS]
+            data[f"truth/{ax}/motor_speed"] = o[:, _D_TRUE_SPEED]
+        table_acc = np.zeros((n, 2))
+        for i in range(min(2, n_ax)):
+            table_acc[:, i] = d_out[i][:, _D_TRUE_ACC]
+        sp = w.spindle
+        data["spindle/speed"] = sp[:, 2]
         data["spindle/speed_cmd"] = spd_ref
-        data.update(
-            self.sensors.measure(tool_acc_xy, table_acc, (sp["current_cmd"], sp["current"]))
-        )
+        data.update(self.sensors.measure(w.tool_acc, table_acc, (sp[:, 0], sp[:, 1])))
         data["cnc/feed"] = feed_fine
         data["cnc/feed_override"] = ovr_fine
         data["cnc/spindle_override"] = sovr
-        nc = self.job.nc_line[seg]
-        data["cnc/nc_line"] = nc.astype(np.int64)
-        data["truth/tool/force_x"] = f_machine[:, 0]
-        data["truth/tool/force_y"] = f_machine[:, 1]
-        data["truth/tool/force_z"] = f_machine[:, 2]
-        data["truth/spindle/torque"] = torque
-        data["truth/spindle/speed"] = sp["true_speed"]
-        if proc_out is not None:
-            data["truth/process/chatter"] = proc_out.chatter
-            data["truth/process/broken"] = proc_out.broken
-            data["truth/process/engagement"] = proc_out.engagement_index
-            data["truth/process/depth"] = proc_out.depth_m
-            data["truth/process/feed_per_tooth"] = proc_out.feed_per_tooth_m
+        nc = self.job.nc_line[seg].astype(np.int64)
+        data["cnc/nc_line"] = nc
+        data["truth/tool/force_x"] = w.force[:, 0]
+        data["truth/tool/force_y"] = w.force[:, 1]
+        data["truth/tool/force_z"] = w.force[:, 2]
+        data["truth/tool/vibration_x"] = w.tool_vib[:, 0]
+        data["truth/tool/vibration_y"] = w.tool_vib[:, 1]
+        data["truth/spindle/torque"] = w.torque
+        data["truth/spindle/speed"] = sp[:, 3]
+        data["truth/process/chatter"] = w.chatter
+        data["truth/process/broken"] = w.broken
+        data["truth/process/engagement"] = w.engagement
+        data["truth/process/depth"] = w.depth
+        data["truth/process/feed_per_tooth"] = w.feed_per_tooth
+        # 5. the 333 Hz stream rows (one per period): encoders through forward kinematics
+        ends = np.arange(pp - 1, n, pp)
+        q_meas = np.column_stack(
+            [d_out[i][ends, _D_ANGLE] * self.transmissions[i] for i in range(n_ax)]
+        )
+        tcp = np.atleast_2d(self.kin.forward(q_meas))
+        self._rows.append(
+            {
+                "time_s": t[ends],
+                "tcp_x": tcp[:, 0],
+                "tcp_y": tcp[:, 1],
+                "tcp_z": tcp[:, 2],
+                "nc_line": nc[ends].astype(np.float64),
+                "feed": ipo["v"],
+                "feed_override": ipo["override"],
+                "spindle_override": sovr[ends],
+            }
+        )
+        # 6. the end of the stream: the first block whose last period has the path done
+        if self._end_block is None and self.n_total is None:
+            done = (ipo["s"] >= self.interp.cum[-1]) & (ipo["v"] == 0.0)
+            last = done[self.options.block_periods - 1 :: self.options.block_periods]
+            if last.any():
+                k_end = k0 + int(np.argmax(last))
+                self._end_block = k_end
+                self.n_total = (k_end + 1) * nb + round(0.2 * fs)
+        self._block += n_blocks
+        return data
+
+    def _couple_block(
+        self,
+        sl: slice,
+        t_all: FloatArray,
+        s_all: FloatArray,
+        q_all: FloatArray,
+        v_all: FloatArray,
+        pos_m: FloatArray,
+        vel_m: FloatArray,
+        spd_all: FloatArray,
+        w: _BlockArrays,
+    ) -> None:
+        """One block of the coupled part (decision "Simulator process coupling")."""
+        n = sl.stop - sl.start
+        fs = self.sample_rate_hz
+        five = isinstance(self.kin, TrunnionACMachine)
+        torque: FloatArray
+        if self.process is not None:
+            t = t_all[sl]
+            q_ref = q_all[sl]
+            # actual motion estimated for the block
+            q_est = q_ref - self._err_q
+            v_est = v_all[sl] - self._err_v
+            theta = self._theta + self._omega * self._steps[:n] / fs
+            omega = np.full(n, self._omega)
+            if five:
+                assert isinstance(self.kin, TrunnionACMachine)
+                v_w = np.einsum("nij,nj->ni", self.kin.jacobian(q_est), v_est)
+                axis = self.kin.orientation(q_est[:, 3], q_est[:, 4])
+            else:
+                v_w = v_est
+                axis = self._z_axis[:n]
+            speed = np.empty(n)
+            x_p = np.empty((n, 3))
+            y_p = np.empty((n, 3))
+            _feed_frame(v_w, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
+            # arc length at the actual position: the reference minus the lag along the feed
+            p_err = self._tip_error()
+            s_est = s_all[sl] - float(p_err @ self._feed_dir)
+            po = self.process.evaluate(t, s_est, theta, omega, speed)
+            f_w = np.empty((n, 3))
+            _to_frame(po.force, x_p, y_p, axis, f_w)
+            regen = self.process.modes is not None  # tool vibration exists
+            if regen:
+                acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
+                vib_w = po.vibration_m[:, :1] * x_p + po.vibration_m[:, 1:2] * y_p
+            if five:
+                assert isinstance(self.kin, TrunnionACMachine)
+                rot = self.kin.rotation(q_est[:, 3], q_est[:, 4])
+                f_machine = np.einsum("nji,nj->ni", rot, f_w)  # Tᵀ·F_w: tool frame
+                w.loads[sl] = -self.kin.drive_loads(q_est, f_machine)
+                if regen:
+                    acc_w = np.einsum("nji,nj->ni", rot, acc_w)
+                    vib_w = np.einsum("nji,nj->ni", rot, vib_w)
+            else:
+                f_machine = f_w
+                w.loads[sl] = -f_w
+            w.force[sl] = f_machine
+            if regen:  # else the preallocated zeros stand
+                w.tool_acc[sl] = acc_w[:, :2]
+                w.tool_vib[sl] = vib_w[:, :2]
+            torque = po.torque
+            w.torque[sl] = torque
+            w.chatter[sl] = po.chatter
+            w.broken[sl] = po.broken
+            w.engagement[sl] = po.engagement_index
+            w.depth[sl] = po.depth_m
+            w.feed_per_tooth[sl] = po.feed_per_tooth_m
         else:
-            z = np.zeros(n)
-            data["truth/process/chatter"] = z
-            data["truth/process/broken"] = z
-            data["truth/process/engagement"] = np.full(n, -1, dtype=np.int64)
-            data["truth/process/depth"] = z
-            data["truth/process/feed_per_tooth"] = z
-        # 5. coupling state for the next block
-        self._err_q = q_ref[-1] - q_act_last
+            torque = w.torque[sl]
+        # drives and spindle
+        loads = np.ascontiguousarray(w.loads[sl].T)
+        for i in range(len(self.axes)):
+            out = w.drive[i, sl]
+            self.drives[i].advance_into(pos_m[i, sl], vel_m[i, sl], loads[i], out)
+            if self._realism is not None:
+                self._realism_axis(i, out, float(out[-1, _D_TRUE_POS]))
+        blk = w.drive[:, sl]
+        self._err_q = q_all[sl.stop - 1] - blk[:, -1, _D_TRUE_POS]
         # the velocity error averaged over the block: the chip is cut over a tooth period,
         # the sample-to-sample velocity noise of the drives does not thicken it
-        self._err_v = v_err_mean
-        self._q_ref_last = q_ref[-1].copy()
+        self._err_v = (v_all[sl].sum(axis=0) - blk[:, :, _D_TRUE_VEL].sum(axis=1)) / n
+        self._q_ref_block = q_all[sl.stop - 1].copy()
+        sp = self.spindle.advance(spd_all[sl], torque)
+        w.spindle[sl, 0] = sp["current_cmd"]
+        w.spindle[sl, 1] = sp["current"]
+        w.spindle[sl, 2] = sp["speed"]
+        w.spindle[sl, 3] = sp["true_speed"]
         self._theta = float(sp["angle"][-1])
         self._omega = float(sp["true_speed"][-1])
         self._torque_last = float(np.mean(torque))
         self._realism_tool()
-        # 6. the 333 Hz stream rows (one per period): encoders through forward kinematics
-        ends = np.arange(pp - 1, n, pp)
-        q_meas = np.column_stack(
-            [
-                data[f"{ax}/motor_angle"][ends] * self.transmissions[i]
-                for i, ax in enumerate(self.axes)
-            ]
-        )
-        tcp = np.atleast_2d(self.kin.forward(q_meas))
-        for j, e in enumerate(ends):
-            self._rows.append(
-                {
-                    "time_s": float(t[e]),
-                    "tcp_x": float(tcp[j, 0]),
-                    "tcp_y": float(tcp[j, 1]),
-                    "tcp_z": float(tcp[j, 2]),
-                    "nc_line": float(nc[e]),
-                    "feed": float(ipo["v"][j]),
-                    "feed_override": float(ipo["override"][j]),
-                    "spindle_override": float(sovr[e]),
-                }
-            )
-        if self._end_block is None and self.n_total is None and self.interp.done:
-            self._end_block = k
-            self.n_total = (k + 1) * n + round(0.2 * fs)
-        self._block += 1
-        return data
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""
-        if isinstance(self.kin, TrunnionACKinematics):
-            q_ref = self._q_ref_last
+        if isinstance(self.kin, TrunnionACMachine):
+            q_ref = self._q_ref_block
             return np.asarray(self.kin.forward(q_ref) - self.kin.forward(q_ref - self._err_q))
         return np.asarray(self._err_q[:3])
 
     # ------------------------------------------------------------------ realism per block
-    def _realism_axis(self, i: int, out: dict[str, np.ndarray], q: float) -> None:
+    def _realism_axis(self, i: int, out: FloatArray, q: float) -> None:
         ar = self._axis_real[i]
         opts = self._realism
         if ar is None or opts is None:
@@ -736,7 +851,7 @@ class MachineSimulator(Source):
             drive._mad[:] = mads[j]
             drive._mbd[:] = mbds[j]
         if opts.friction_drift:
-            power = float(np.mean(np.abs(out["friction_torque"] * out["true_speed"])))
+            power = float(np.mean(np.abs(out[:, _D_FRICTION] * out[:, _D_TRUE_SPEED])))
             sc = ar.friction_scale(q, power, self.period_s, opts)
             cols = self._fric_cols[i]
             drive._fric[cols] = self._fric_base[i][cols] * sc
@@ -764,12 +879,19 @@ class MachineSimulator(Source):
     # ------------------------------------------------------------------ Source
     def _fill(self, need: int) -> None:
         while self._buf_n < need:
-            if self.n_total is not None and self._block * self.ratio >= self.n_total:
+            todo = self._block * self.ratio
+            if self.n_total is not None and todo >= self.n_total:
                 break
-            block = self._generate_block()
+            # the blocks that cover the request (at most one block beyond it, as one block at
+            # a time), at most _MAX_BLOCKS at once
+            n_blocks = -(-(need - self._buf_n) // self.ratio)
+            if self.n_total is not None:
+                n_blocks = min(n_blocks, -(-(self.n_total - todo) // self.ratio))
+            n_blocks = max(1, min(n_blocks, _MAX_BLOCKS))
+            block = self._generate(n_blocks)
             for name, arr in block.items():
                 self._buf.setdefault(name, []).append(arr)
-            self._buf_n += self.ratio
+            self._buf_n += n_blocks * self.ratio
 
     def read(self, max_samples: int) -> Chunk | None:
         """The next ``max_samples`` samples (fewer at the end), or None after the end."""
@@ -799,10 +921,13 @@ class MachineSimulator(Source):
         Returns a dict with ``time_s`` and the :meth:`stream_fields` as arrays.
         """
         t_read = self._pos / self.sample_rate_hz
-        rows = [r for r in self._rows if r["time_s"] < t_read]
-        self._rows = [r for r in self._rows if r["time_s"] >= t_read]
         keys = ["time_s"] + [f.name for f in self.stream_fields()]
-        return {k: np.array([r[k] for r in rows], dtype=np.float64) for k in keys}
+        if not self._rows:
+            return {k: np.zeros(0) for k in keys}
+        allr = {k: np.concatenate([r[k] for r in self._rows]) for k in keys}
+        m = int(np.searchsorted(allr["time_s"], t_read, side="left"))
+        self._rows = [{k: v[m:] for k, v in allr.items()}]
+        return {k: np.asarray(v[:m], dtype=np.float64) for k, v in allr.items()}
 
     @property
     def samples_read(self) -> int:

@@ -304,6 +304,42 @@ class TimeDomainMillingSim:
         self.engagement = engagement
         self._eng = engagement.disc_table(self._axial_fraction)
 
+    def lay_surface(self, discs: NDArray[np.bool_], n_rev: int = 2) -> None:
+        """Lay down the surface of the selected discs as a rigid tool would have cut it.
+
+        Parameters
+        ----------
+        discs : (n_discs,) bool
+            Discs whose surface is (re)laid with the current engagement.
+        n_rev : int
+            Revolutions of the rigid pass, ending at the current step.
+
+        Notes
+        -----
+        The same rigid pass as the two revolutions before t = 0 (class Notes), run over the
+        steps ``[step − n_rev·steps_per_rev, step)`` with the current feed, engagement and
+        tool displacement, for the selected discs only. A disc that enters the material after
+        t = 0 (first cut of a resumed simulation, a depth step up, the end of an air cut)
+        otherwise meets a surface that was never cut (−1e30 m) or was left far behind, and the
+        first flute would take that whole distance as its chip; the rigid pass gives it the
+        nominal chip of the steady cut instead (docs/decisions.md, "Simulator regenerative
+        coupling").
+        """
+        mask = np.asarray(discs, dtype=bool)
+        if mask.shape != (self.n_discs,):
+            raise ConfigError(f"simulation: discs mask needs shape ({self.n_discs},)")
+        if not mask.any():
+            return
+        full = self._eng
+        sub = full.copy()
+        sub[~mask, :, 1] = -1.0
+        self._eng = sub
+        try:
+            n = int(n_rev) * self.steps_per_rev
+            self._advance(n, self.step - n, rigid=True)
+        finally:
+            self._eng = full
+
     def run(self, n_steps: int) -> TimeDomainChunk:
         """Simulate ``n_steps`` more steps and return their outputs."""
         if n_steps < 0:
