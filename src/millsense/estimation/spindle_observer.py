@@ -45,6 +45,8 @@ from millsense.estimation.kalman import (
 from millsense.estimation.lti_filter import StreamingFilter
 from millsense.estimation.rational_fit import RationalFit, fit_rational
 from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
+from millsense.ident.friction import fit_line
+from millsense.machine.friction import CoulombViscous
 from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
 from millsense.online.block import Block, BlockOutput, Chunk
 
@@ -227,6 +229,42 @@ def tune_spindle_q(
     )
 
 
+def identify_spindle_friction(
+    params: SpindleDriveParams,
+    designs: dict[int, KalmanDesign],
+    *,
+    speeds_rpm: tuple[float, ...] = (500.0, 1500.0, 2500.0, 3000.0, 4000.0, 5000.0, 6000.0),
+    sample_rate_hz: float = 10_000.0,
+    current_noise_a: float = 0.0,
+    seed: int = 5,
+) -> CoulombViscous:
+    """Spindle friction seen by the observer, from air runs at constant speed (Eq. 5.2).
+
+    At constant speed in air the observer's torque estimate is the friction torque
+    ``τ_coul,S + B_eS·Ω`` (it enters the loop exactly like τ_d); the mean estimate over the
+    steady half of each run, per speed, is fitted by :func:`millsense.ident.friction.fit_line`
+    (one direction; the same values are used for both). The observer subtracts it so that
+    τ̂_d is the cutting torque (C14 needs the cutting part only).
+    """
+    speeds, torques = [], []
+    rng = np.random.default_rng(seed)
+    for rpm in speeds_rpm:
+        w = rpm * 2 * math.pi / 60
+        n = round(1.2 * sample_rate_hz)
+        ref = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
+        out = SpindleDriveSim(params, sample_rate_hz).advance(ref, np.zeros(n))
+        inom = out["current_cmd"] + rng.normal(0.0, current_noise_a, n)
+        design = designs[params.range_index(w)]
+        obs = SpindleTorqueObserver(design, sample_rate_hz)
+        obs.reset(sample_rate_hz)
+        data = {"spindle/current_cmd": inom}
+        tau = obs.process(Chunk(0, sample_rate_hz, 0.0, data)).channels["spindle/torque_est"]
+        speeds.append(float(np.mean(out["speed"][n // 2 :])))
+        torques.append(float(np.mean(tau[n // 2 :])))
+    line = fit_line(np.asarray(speeds), np.asarray(torques))
+    return CoulombViscous(line.intercept, line.intercept, line.slope, line.slope, 1.0)
+
+
 class SpindleTorqueObserver(Block):
     """Streaming spindle torque and resultant-force estimate from the current command.
 
@@ -236,7 +274,10 @@ class SpindleTorqueObserver(Block):
     sample_rate_hz : stream rate, Hz (a multiple ``m`` of the velocity-loop rate: the observer
         runs on every m-th sample, where I_nom is new, and holds its estimate in between).
     tool_radius_m : r of Eq. 5.31, m (None: no force channel).
-    prefix : channel prefix (reads ``{prefix}/current_cmd``).
+    prefix : channel prefix (reads ``{prefix}/current_cmd``, and ``{prefix}/speed`` in rad/s
+        when ``friction`` is given).
+    friction : identified spindle friction (:func:`identify_spindle_friction`) subtracted from
+        the estimate so that it is the cutting torque; None keeps the total disturbance.
 
     Outputs ``{prefix}/torque_est`` (N·m, disturbance torque opposing rotation, Eq. 5.17) and
     ``{prefix}/force_resultant_est`` (N, Eq. 5.34: 1.118·τ̂/r; assumptions in the module notes).
@@ -248,6 +289,7 @@ class SpindleTorqueObserver(Block):
         sample_rate_hz: float,
         tool_radius_m: float | None = None,
         prefix: str = "spindle",
+        friction: CoulombViscous | None = None,
     ) -> None:
         m = sample_rate_hz * design.dt
         if abs(m - round(m)) > 1e-6 or round(m) < 1:
@@ -261,7 +303,10 @@ class SpindleTorqueObserver(Block):
         self.m = round(m)
         self.radius = tool_radius_m
         self.prefix = prefix
+        self.friction = friction
         self.inputs = (f"{prefix}/current_cmd",)
+        if friction is not None:
+            self.inputs = (f"{prefix}/current_cmd", f"{prefix}/speed")
         self._filter = StreamingFilter(design.filter("filtered"))
         self._held = 0.0
 
@@ -308,6 +353,8 @@ class SpindleTorqueObserver(Block):
             self._held = float(est[-1])
         else:
             tau[:] = self._held
+        if self.friction is not None:
+            tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
         out = {f"{self.prefix}/torque_est": tau}
         if self.radius is not None:
             out[f"{self.prefix}/force_resultant_est"] = RESULTANT_FACTOR * tau / self.radius
