@@ -21,7 +21,8 @@ from the encoder angles ``{axis}/motor_angle`` delayed by the smoother lag.
 
 Identification (:func:`identify_feed_axis`) from simulated commissioning tests on the drive
 simulator: Coulomb + viscous friction from constant-velocity air moves (Aslan C1,
-:mod:`millsense.ident.friction`); the inertia by least squares on an accelerating air move;
+:mod:`millsense.ident.friction`) and the LuGre presliding stiffness and damping from an
+open-loop rocking test (C2, :func:`identify_lugre`); the inertia by least squares on an accelerating air move;
 Φ_d from a multisine table force applied during a slow constant-velocity move (the thesis'
 hammer test, C5) by :func:`millsense.ident.frf.multisine_frf` and
 :func:`millsense.ident.modal_fit.fit_modes`; R and Q by :mod:`millsense.estimation.tuning`.
@@ -36,6 +37,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
@@ -55,8 +57,9 @@ from millsense.estimation.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother
 from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
 from millsense.ident.friction import coulomb_viscous_from_moves
 from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
-from millsense.machine.friction import CoulombViscous
-from millsense.machine.kinematics import Kinematics
+from millsense.machine.friction import CoulombViscous, coulomb_viscous_torque
+from millsense.machine.kinematics import Kinematics, TrunnionACKinematics
+from millsense.machine.lugre import LuGre, lugre_step
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.online.block import Block, BlockOutput, Chunk
 
@@ -96,6 +99,8 @@ class FeedAxisModel:
     q : spectral density of τ̇_a, (N·m)²/s (docs/decisions.md "Units of Q and R").
     sample_rate_hz : CNC sample rate, Hz.
     moment_arm_m : d of Eq. 3.12 for a rotary axis (None: no force output, only the torque).
+    lugre : identified LuGre friction (C2) used by the C3 stage instead of ``drive.friction``
+        (static part from the line fit, σ0 and σ1 from a presliding test), or None.
     """
 
     axis: str
@@ -107,6 +112,7 @@ class FeedAxisModel:
     q: float
     sample_rate_hz: float = 10_000.0
     moment_arm_m: float | None = None
+    lugre: LuGre | None = None
 
     @property
     def dt(self) -> float:
@@ -184,6 +190,50 @@ def design_feed_kalman(model: StateSpaceModel, q: float, r: float) -> KalmanDesi
     return design_kalman(augment_disturbance(model), q * model.dt, r)
 
 
+@numba.njit(cache=True)
+def _c3_kernel(
+    current: NDArray[np.float64],
+    speed: NDArray[np.float64],
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    fric_mode: int,
+    fric: NDArray[np.float64],
+    sos: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """Low-passed C3 torque of one chunk (state updated in place).
+
+    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
+    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
+    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
+    """
+    kt, j, fs = drive[0], drive[1], drive[2]
+    h = 1.0 / fs
+    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    for k in range(current.shape[0]):
+        w = speed[k]
+        if state[4] == 0.0:
+            state[0] = w
+        acc = (w - state[0]) * fs
+        state[0] = w
+        if fric_mode == 1:
+            z, tf = lugre_step(state[1], w, h, fric)
+            state[1] = z
+        else:
+            tf = coulomb_viscous_torque(w, fric)
+        tau = kt * current[k] - tf - j * acc
+        if state[4] == 0.0:
+            # start the low-pass in steady state on the first sample
+            g = (b0 + b1 + b2) / (1.0 + a1 + a2)
+            state[2] = tau * (g - b0)
+            state[3] = tau * (b2 - a2 * g)
+            state[4] = 1.0
+        y = b0 * tau + state[2]
+        state[2] = b1 * tau - a1 * y + state[3]
+        state[3] = b2 * tau - a2 * y
+        out[k] = y
+
+
 class C3Torque:
     """Streaming C3 torque (Aslan Eq. 3.10) with the low-pass, state carried across chunks.
 
@@ -192,44 +242,46 @@ class C3Torque:
     drive : the drive model (identified friction and inertia).
     lowpass_hz : Butterworth corner, Hz.
     sample_rate_hz : CNC rate, Hz.
+    lugre : identified LuGre friction (bristle state carried), or None for ``drive.friction``.
+
+    Notes
+    -----
+    One numba kernel per chunk: backward difference of the encoder speed, friction (LuGre
+    integrated exactly for the held speed as in :mod:`millsense.machine.lugre`, or Coulomb +
+    viscous), ``τ_c = K_t·I_nom − τ_f − J_e·Δω/Δt`` and the 2nd-order Butterworth section.
     """
 
-    def __init__(self, drive: DriveModel, lowpass_hz: float, sample_rate_hz: float) -> None:
+    def __init__(
+        self,
+        drive: DriveModel,
+        lowpass_hz: float,
+        sample_rate_hz: float,
+        lugre: LuGre | None = None,
+    ) -> None:
         if not 0 < lowpass_hz < sample_rate_hz / 2:
             raise ConfigError(
                 f"estimator: lowpass_hz must be in (0, {sample_rate_hz / 2:g}) Hz, got {lowpass_hz}"
             )
         self.drive = drive
+        self.lugre = lugre
         self.fs = sample_rate_hz
         self.sos = signal.butter(2, lowpass_hz, fs=sample_rate_hz, output="sos")
+        self._sos = np.ascontiguousarray(self.sos[0], dtype=float)
+        self._drive = np.array([drive.torque_constant, drive.inertia, sample_rate_hz])
+        self._mode = 1 if lugre is not None else 0
+        self._fric = lugre.as_array() if lugre is not None else drive.friction.as_array()
         self.reset()
 
     def reset(self) -> None:
-        self._zi: NDArray[np.float64] | None = None
-        self._prev: float | None = None
-
-    def raw(self, current_a: NDArray[np.float64], speed_rad_s: NDArray[np.float64]) -> NDArray:
-        """Unfiltered τ_c (N·m) of one chunk; advances the stored previous speed."""
-        prev = speed_rad_s[0] if self._prev is None else self._prev
-        accel = np.diff(speed_rad_s, prepend=prev) * self.fs
-        self._prev = float(speed_rad_s[-1])
-        m = self.drive
-        return np.asarray(
-            m.torque_constant * current_a - m.friction.torque(speed_rad_s) - m.inertia * accel
-        )
+        self._state = np.zeros(5)
 
     def process(self, current_a: ArrayLike1, speed_rad_s: ArrayLike1) -> NDArray[np.float64]:
         """Low-passed τ_c (N·m) of one chunk."""
-        cur = np.asarray(current_a, dtype=float)
-        spd = np.asarray(speed_rad_s, dtype=float)
-        if len(cur) == 0:
-            return np.zeros(0)
-        tau = self.raw(cur, spd)
-        if self._zi is None:
-            # start in steady state on the first sample (no start-up transient)
-            self._zi = signal.sosfilt_zi(self.sos) * tau[0]
-        out, self._zi = signal.sosfilt(self.sos, tau, zi=self._zi)
-        return np.asarray(out)
+        cur = np.ascontiguousarray(current_a, dtype=np.float64)
+        spd = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+        out = np.empty(len(cur))
+        _c3_kernel(cur, spd, self._state, self._drive, self._mode, self._fric, self._sos, out)
+        return out
 
 
 ArrayLike1 = NDArray[np.float64] | Sequence[float]
@@ -257,7 +309,7 @@ class FeedAxisEstimator(Block):
         self.inputs = (f"{ax}/current_cmd", f"{ax}/motor_speed")
         self.lag = int(lag)
         self.design = model.design()
-        self._c3 = C3Torque(model.drive, model.lowpass_hz, model.sample_rate_hz)
+        self._c3 = C3Torque(model.drive, model.lowpass_hz, model.sample_rate_hz, model.lugre)
         self._smoother = FixedLagSmoother(self.design, self.lag)
         d = model.drive
         self._gain = d.efficiency / d.transmission
@@ -329,6 +381,8 @@ class ToolForceBlock(Block):
     offsets : axis position at motor angle 0 (m, rad), per axis.
     lag : samples by which the loads lag the encoders (the smoother lag); positions are delayed
         by the same amount so that each load meets the pose it was produced at.
+    pose_every : the (delayed) pose, hence ``[Jᵀ·T]⁺``, is evaluated at stream samples that are
+        multiples of this and held in between (1 = every sample).
 
     Reads ``{axis}/load_est`` and ``{axis}/motor_angle``; writes ``tool/force_x_est`` …
     ``tool/force_z_est`` (N, machine frame).
@@ -341,6 +395,7 @@ class ToolForceBlock(Block):
         transmissions: Sequence[float],
         offsets: Sequence[float] | None = None,
         lag: int = ASLAN_LAG_SAMPLES,
+        pose_every: int = 10,
     ) -> None:
         if len(axes) != 5 or len(transmissions) != 5:
             raise ConfigError("tool force block: needs five axes [x, y, z, a, c]")
@@ -350,6 +405,8 @@ class ToolForceBlock(Block):
         self.rg = np.asarray(transmissions, dtype=float)
         self.offsets = np.zeros(5) if offsets is None else np.asarray(offsets, dtype=float)
         self.lag = int(lag)
+        self.pose_every = max(1, int(pose_every))
+        self._held_pinv: NDArray[np.float64] | None = None
         self.inputs = tuple(f"{a}/load_est" for a in self.axes) + tuple(
             f"{a}/motor_angle" for a in self.axes
         )
@@ -363,6 +420,17 @@ class ToolForceBlock(Block):
 
     def reset(self, sample_rate_hz: float) -> None:
         self._hist = np.zeros((0, 5))
+        self._held_pinv = None
+
+    def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
+        assert isinstance(self.kin, TrunnionACKinematics)
+        if len(q) == 0:
+            return np.zeros((0, 3, 5))
+        m = self.kin.load_matrix(q).reshape(len(q), 5, 3)
+        return np.asarray(
+            np.linalg.solve(np.einsum("nki,nkj->nij", m, m), np.transpose(m, (0, 2, 1)))
+        )
 
     def process(self, chunk: Chunk) -> BlockOutput:
         loads = np.column_stack([np.asarray(chunk.data[f"{a}/load_est"]) for a in self.axes])
@@ -378,7 +446,25 @@ class ToolForceBlock(Block):
         allq = np.vstack([self._hist, q_now])
         q = allq[:n]
         self._hist = allq[n:]
-        f = np.asarray(self.kin.tool_force(q, loads)).reshape(n, 3)
+        if isinstance(self.kin, TrunnionACKinematics):
+            # [Jᵀ·T]⁺·τ by the normal equations (full column rank away from singular poses):
+            # batched 3×3 solves instead of one SVD per sample
+            # the pose is evaluated at stream samples that are multiples of `pose_every` and
+            # held in between (the machine moves < 0.1 mm in 1 ms at cutting feeds)
+            idx = chunk.start + np.arange(n)
+            new = idx % self.pose_every == 0
+            stack = self._pinv(q[new])
+            if self._held_pinv is not None:
+                stack = np.concatenate([self._held_pinv[None], stack])
+                which = np.cumsum(new)
+            else:
+                which = np.maximum(np.cumsum(new) - 1, 0)
+            if len(stack) == 0:
+                stack = self._pinv(q[:1])
+            f = np.einsum("nij,nj->ni", stack[which], loads)
+            self._held_pinv = stack[-1]
+        else:
+            f = np.asarray(self.kin.tool_force(q, loads)).reshape(n, 3)
         return BlockOutput({f"tool/force_{c}_est": f[:, i].copy() for i, c in enumerate("xyz")})
 
 
@@ -415,6 +501,53 @@ def identify_friction(
     tau, _ = constant_velocity_sweep(params, sp, sample_rate_hz, duration_s=0.6, seed=seed)
     fit = coulomb_viscous_from_moves(sp, tau)
     return replace(fit, smoothing_rad_s=DEFAULT_FRICTION_SMOOTHING_RAD_S)
+
+
+def identify_lugre(
+    params: FeedDriveParams,
+    friction: CoulombViscous,
+    inertia: float,
+    sample_rate_hz: float,
+    *,
+    frequency_hz: float = 5.0,
+    fraction: float = 0.2,
+    seed: int = 4,
+) -> LuGre:
+    """LuGre friction (Aslan C2, Eq. 3.2–3.8) from the line fit and a presliding test.
+
+    Static part: τ_coul and σ2 from the constant-velocity line fit; τ_stat = τ_coul (no Stribeck
+    rise identified; v_s is then irrelevant and set to 0.05 rad/s). Presliding: with the servo
+    open, a sinusoidal current of ``fraction·τ_coul/K_t`` at ``frequency_hz`` rocks the motor on
+    its bristles; from the complex ratio T/Θ at that frequency (Eq. 3.6:
+    ``Jθ'' + (σ1+σ2)θ' + σ0θ = u``): ``σ0 = Re(T/Θ) + J ω²`` and ``σ1 = Im(T/Θ)/ω − σ2``
+    (σ1 floored at 0).
+    """
+    fs = sample_rate_hz
+    n = round(2.0 * fs)
+    t = np.arange(n) / fs
+    w = 2 * math.pi * frequency_hz
+    tau_amp = fraction * min(friction.coulomb_pos, friction.coulomb_neg)
+    inj = tau_amp / params.torque_constant * np.sin(w * t)
+    sim = FeedDriveSim(replace(params, closed_loop=False), fs, seed=seed)
+    res = sim.advance(np.zeros(n), np.zeros(n), np.zeros(n), inj)
+    sel = slice(n // 2, n)
+    basis = np.column_stack([np.sin(w * t[sel]), np.cos(w * t[sel]), np.ones(n - n // 2)])
+    ct = np.linalg.lstsq(basis, params.torque_constant * res["current"][sel], rcond=None)[0]
+    ca = np.linalg.lstsq(basis, res["angle"][sel], rcond=None)[0]
+    ratio = complex(ct[0], ct[1]) / complex(ca[0], ca[1])
+    s0 = max(ratio.real + inertia * w**2, 1e-6)
+    s1p, s1n = (
+        max(ratio.imag / w - friction.viscous_pos, 0.0),
+        max(ratio.imag / w - friction.viscous_neg, 0.0),
+    )
+    return LuGre(
+        sigma0=(s0, s0),
+        sigma1=(s1p, s1n),
+        sigma2=(friction.viscous_pos, friction.viscous_neg),
+        static=(friction.coulomb_pos, friction.coulomb_neg),
+        coulomb=(friction.coulomb_pos, friction.coulomb_neg),
+        stribeck_velocity=(0.05, 0.05),
+    )
 
 
 def identify_inertia(
@@ -463,6 +596,7 @@ def disturbance_sweep(
     period_s: float = 1.0,
     n_periods: int = 13,
     seed: int = 2,
+    lugre: LuGre | None = None,
 ) -> SweepResult:
     """Φ_d = τ_c/τ_a from a multisine table load during a slow constant-velocity move (C5).
 
@@ -481,7 +615,7 @@ def disturbance_sweep(
     sim = FeedDriveSim(params, fs, seed=seed)
     full_load = np.concatenate([np.zeros(lead), load])
     res = sim.advance(pos, vel, full_load)
-    c3 = C3Torque(drive, lowpass_hz, fs)
+    c3 = C3Torque(drive, lowpass_hz, fs, lugre)
     tau = c3.process(res["current_cmd"], res["speed"])[lead:]
     tau_a = drive.transmission / drive.efficiency * load
     est = multisine_frf(tau_a, tau, fs, per, skip_periods=1, names=("tau_a", "tau_c"))
@@ -504,6 +638,7 @@ def identify_feed_axis(
     tune: bool = True,
     q_bounds: tuple[float, float] = (1.0, 1e7),
     robust_shift: float = ROBUST_SHIFT,
+    use_lugre: bool = True,
     seed: int = 0,
 ) -> tuple[FeedAxisModel, SweepResult]:
     """Identify a feed axis's estimator model from simulated commissioning tests.
@@ -519,6 +654,8 @@ def identify_feed_axis(
     moment_arm_m : Eq. 3.12 arm for a rotary force output.
     tune : choose Q by :func:`millsense.estimation.tuning.tune_q` (else Q = 1000 (N·m)²/s).
     q_bounds : search range of Q, (N·m)²/s.
+    use_lugre : identify LuGre friction (:func:`identify_lugre`) for the C3 stage (C2);
+        otherwise the static Coulomb + viscous line fit is used.
     robust_shift : Q maximises the smallest bandwidth over the identified modes and the modes
         with frequencies × (1 ± robust_shift) (position-dependent modes); 0 for nominal tuning.
     seed : base seed of the simulated tests.
@@ -540,16 +677,19 @@ def identify_feed_axis(
     drive = DriveModel(inertia, params.torque_constant, params.transmission, params.efficiency, fric)
     lg = params.transmission / params.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
-    sweep = disturbance_sweep(params, drive, fs, lowpass_hz, force_rms=f_rms, seed=seed + 2)
+    lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
+    sweep = disturbance_sweep(
+        params, drive, fs, lowpass_hz, force_rms=f_rms, seed=seed + 2, lugre=lugre
+    )
     modes = sweep.fit
     # R: air cut at a cutting feed (constant speed, no load)
     n = round(1.0 * fs)
     pos, vel = ramp_move(5.0, n, fs)
     res = FeedDriveSim(params, fs, seed=seed + 3).advance(pos, vel, np.zeros(n))
-    c3 = C3Torque(drive, lowpass_hz, fs)
+    c3 = C3Torque(drive, lowpass_hz, fs, lugre)
     tau_air = c3.process(res["current_cmd"], res["speed"])
     r = tuning.air_cut_variance(tau_air[round(0.2 * fs) :])
-    model = FeedAxisModel(axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m)
+    model = FeedAxisModel(axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre)
     if tune:
         plants = [
             measurement_model(modes.scaled(1.0 + s), lowpass_hz, 1.0 / fs)
@@ -580,7 +720,7 @@ def perturbed_drive(
     extra_mode : (f Hz, ζ, α 1/s², β 1/s) of a mode outside the identification band added to Φ_d
         (an unmodelled higher mode), or None.
     """
-    from millsense.machine.lugre import LuGre
+    from millsense.machine.lugre import LuGre, lugre_step
 
     modes = params.modes
     if modes is not None:

@@ -26,6 +26,7 @@ from scipy import signal
 from millsense.core.errors import InputDataError
 from millsense.estimation.kalman import StateSpaceModel
 from millsense.ident.modal_fit import vector_fit
+from millsense.machine.modal_ss import ModalStateSpace
 
 ComplexArray = NDArray[np.complex128]
 
@@ -56,6 +57,28 @@ class RationalFit:
     @property
     def n_states(self) -> int:
         return 2 * len(self.complex_poles) + len(self.real_poles)
+
+    @classmethod
+    def from_modes(cls, modes: ModalStateSpace) -> RationalFit:
+        """The pole–residue form of Eq. 3.13 modes (e.g. Table 3.4 as nominal data).
+
+        ``(α + βs)/(s² + 2ζωs + ω²) = ρ/(s − p) + ρ̄/(s − p̄)`` with ``ρ = (α + βp)/(p − p̄)``.
+        Modes with ζ ≥ 1 are not supported (their poles are real).
+        """
+        w = 2 * np.pi * modes.frequency_hz
+        z = modes.damping_ratio
+        if np.any(z >= 1):
+            raise InputDataError("rational fit: overdamped modes (ζ ≥ 1) have real poles")
+        p = -z * w + 1j * w * np.sqrt(1 - z**2)
+        rho = (modes.alpha + modes.beta * p) / (p - np.conj(p))
+        return cls(
+            np.asarray(p, dtype=np.complex128),
+            np.asarray(rho, dtype=np.complex128),
+            np.zeros(0),
+            np.zeros(0),
+            float(modes.d),
+            0.0,
+        )
 
     def continuous_frf(self, f_hz: ArrayLike) -> ComplexArray:
         """H at s = j2πf (on the warped axis when the fit is warped)."""

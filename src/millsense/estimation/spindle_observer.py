@@ -341,18 +341,16 @@ class SpindleTorqueObserver(Block):
     def process(self, chunk: Chunk) -> BlockOutput:
         y = np.asarray(chunk.data[self.inputs[0]], dtype=float)
         n = len(y)
-        idx = chunk.start + np.arange(n)
-        sel = np.flatnonzero(idx % self.m == 0)
-        tau = np.empty(n)
+        first = (-chunk.start) % self.m  # first sample of the chunk where I_nom is new
+        sel = np.arange(first, n, self.m)
         if len(sel):
             est = self._filter.process(y[sel])[:, 0]
             # hold each estimate until the next I_nom update
-            pos = np.searchsorted(sel, np.arange(n), side="right") - 1
-            prev = np.concatenate([[self._held], est])
-            tau[:] = prev[pos + 1]
+            counts = np.diff(np.concatenate([[0], sel, [n]]))
+            tau = np.repeat(np.concatenate([[self._held], est]), counts)
             self._held = float(est[-1])
         else:
-            tau[:] = self._held
+            tau = np.full(n, self._held)
         if self.friction is not None:
             tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
         out = {f"{self.prefix}/torque_est": tau}
