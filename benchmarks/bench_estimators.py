@@ -53,11 +53,26 @@ def _feed_blocks() -> list[FeedAxisEstimator]:
         a = cfg.axis(ax)
         p = FeedDriveParams.from_config(a)
         assert p.modes is not None and isinstance(p.friction, LuGre)
-        fr = CoulombViscous(a.friction.coulomb_nm[0], a.friction.coulomb_nm[1],
-                            a.friction.viscous_nm_s_rad[0], a.friction.viscous_nm_s_rad[1], 0.3)
+        fr = CoulombViscous(
+            a.friction.coulomb_nm[0],
+            a.friction.coulomb_nm[1],
+            a.friction.viscous_nm_s_rad[0],
+            a.friction.viscous_nm_s_rad[1],
+            0.3,
+        )
         drive = DriveModel(a.inertia_kg_m2, p.torque_constant, p.transmission, p.efficiency, fr)
-        model = FeedAxisModel(ax, a.kind, drive, RationalFit.from_modes(p.modes), 600.0,
-                              0.05, 3000.0, FS_HZ, 0.2 if a.kind == "rotary" else None, p.friction)
+        model = FeedAxisModel(
+            ax,
+            a.kind,
+            drive,
+            RationalFit.from_modes(p.modes),
+            600.0,
+            0.05,
+            3000.0,
+            FS_HZ,
+            0.2 if a.kind == "rotary" else None,
+            p.friction,
+        )
         blocks.append(FeedAxisEstimator(model))
     return blocks
 
@@ -84,9 +99,7 @@ def _run(blocks: list[Block], data: dict[str, np.ndarray], n: int) -> float:
 def _estimators_speed() -> list[Metric]:
     feed = _feed_blocks()
     spindle = _spindle_block()
-    tool = ToolForceBlock(
-        TrunnionACKinematics(), AXES, [b.model.drive.transmission for b in feed]
-    )
+    tool = ToolForceBlock(TrunnionACKinematics(), AXES, [b.model.drive.transmission for b in feed])
     n = int(SECONDS * FS_HZ)
     rng = np.random.default_rng(0)
     data: dict[str, np.ndarray] = {"spindle/current_cmd": rng.normal(size=n)}

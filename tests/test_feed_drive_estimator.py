@@ -115,7 +115,9 @@ def test_estimator_recovers_a_sine_load_above_the_raw_band(x_params: FeedDrivePa
     res = FeedDriveSim(params, FS, seed=0).advance(pos, vel, load)
     est = FeedAxisEstimator(model)
     est.reset(FS)
-    out = est.process(Chunk(0, FS, 0.0, {"x/current_cmd": res["current_cmd"], "x/motor_speed": res["speed"]}))
+    out = est.process(
+        Chunk(0, FS, 0.0, {"x/current_cmd": res["current_cmd"], "x/motor_speed": res["speed"]})
+    )
     le = out.channels["x/load_est"][est.lag :]
     tail = slice(round(0.6 * FS), n - est.lag)
     # amplitude by a least-squares sine fit at 120 Hz (the estimate also carries the broadband

@@ -32,9 +32,7 @@ def test_air_cut_variance_rejects_short_record() -> None:
 
 def test_noise_gain_equals_impulse_response_energy() -> None:
     # independent: run the frozen-gain filter on a unit impulse and sum the squared outputs
-    model = measurement_model(
-        RationalFit.from_modes(aslan_disturbance_modes("c")), 600.0, 1e-4
-    )
+    model = measurement_model(RationalFit.from_modes(aslan_disturbance_modes("c")), 600.0, 1e-4)
     d = _design(model, 5000.0, 0.2)
     filt = d.filter("filtered")
     x = np.zeros(filt.n_states)

@@ -22,10 +22,11 @@ from the encoder angles ``{axis}/motor_angle`` delayed by the smoother lag.
 Identification (:func:`identify_feed_axis`) from simulated commissioning tests on the drive
 simulator: Coulomb + viscous friction from constant-velocity air moves (Aslan C1,
 :mod:`millsense.ident.friction`) and the LuGre presliding stiffness and damping from an
-open-loop rocking test (C2, :func:`identify_lugre`); the inertia by least squares on an accelerating air move;
-Φ_d from a multisine table force applied during a slow constant-velocity move (the thesis'
-hammer test, C5) by :func:`millsense.ident.frf.multisine_frf` and
-:func:`millsense.ident.modal_fit.fit_modes`; R and Q by :mod:`millsense.estimation.tuning`.
+open-loop rocking test (C2, :func:`identify_lugre`); the inertia by least squares on an
+accelerating air move; Φ_d from a multisine table force applied during a constant-velocity
+move (the thesis' hammer test, C5) by :func:`millsense.ident.frf.multisine_frf` and
+:func:`millsense.estimation.rational_fit.fit_rational`; R and Q by
+:mod:`millsense.estimation.tuning`.
 K_t and η are the nameplate/catalogue values (the thesis takes K_t, J_e from TNCopt and η from
 the catalogue for the linear axes): a current-only test cannot separate K_t from a load.
 """
@@ -487,7 +488,9 @@ def ramp_move(
     t = np.arange(n) / fs
     vel = np.where(t < accel_time_s, v * t / accel_time_s, v)
     pos = np.where(
-        t < accel_time_s, 0.5 * v * t**2 / accel_time_s, 0.5 * v * accel_time_s + v * (t - accel_time_s)
+        t < accel_time_s,
+        0.5 * v * t**2 / accel_time_s,
+        0.5 * v * accel_time_s + v * (t - accel_time_s),
     )
     return pos, vel
 
@@ -674,7 +677,9 @@ def identify_feed_axis(
     fs = sample_rate_hz
     fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed)
     inertia = identify_inertia(params, fric, fs, seed=seed + 1)
-    drive = DriveModel(inertia, params.torque_constant, params.transmission, params.efficiency, fric)
+    drive = DriveModel(
+        inertia, params.torque_constant, params.transmission, params.efficiency, fric
+    )
     lg = params.transmission / params.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
     lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
@@ -720,7 +725,7 @@ def perturbed_drive(
     extra_mode : (f Hz, ζ, α 1/s², β 1/s) of a mode outside the identification band added to Φ_d
         (an unmodelled higher mode), or None.
     """
-    from millsense.machine.lugre import LuGre, lugre_step
+    from millsense.machine.lugre import LuGre
 
     modes = params.modes
     if modes is not None:

@@ -132,7 +132,9 @@ def identify_spindle(
     return SpindleIdentification(est, fit, fit.discrete_model(1.0 / fv), max(r, 1e-12), speed_rpm)
 
 
-def design_observer(model: StateSpaceModel, q_states: float, q_torque: float, r: float) -> KalmanDesign:
+def design_observer(
+    model: StateSpaceModel, q_states: float, q_torque: float, r: float
+) -> KalmanDesign:
     """LQE gains (Eq. 5.19–5.21) with ``Q_s = diag(q_states·I_n, q_torque)`` per sample."""
     aug = augment_disturbance(model, noise_on_all_states=True)
     q = np.full(aug.n_states, q_states)

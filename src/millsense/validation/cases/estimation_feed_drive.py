@@ -17,19 +17,24 @@ Mismatch between simulator and estimator (stated beside every figure):
 - "shifted" cases only: all disturbance-mode frequencies 2 % higher (position dependence).
 
 The compensated FRF is measured, not computed: a multisine table load (1–300 Hz, 1 Hz lines,
-5 N·m RMS at the motor, 16 averaged periods) is applied during a constant-velocity move, the estimate (delayed by the
-60-sample smoother, realigned) is divided line by line by the applied load, and the ±3 dB band is
-the first line leaving ±3 dB. The raw figure is the same with the current only,
-``η·K_t·I_nom/r_g``.
+5 N·m RMS at the motor, 16 averaged periods) is applied during a constant-velocity move, the
+estimate (delayed by the 60-sample smoother, realigned) is divided line by line by the applied
+load, and the ±3 dB band is the first line leaving ±3 dB. The raw figure is the same with the
+current only, ``η·K_t·I_nom/r_g``.
 """
 
 from __future__ import annotations
 
 from functools import cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from millsense.validation import Measured, case
+
+if TYPE_CHECKING:
+    from millsense.estimation.feed_drive import FeedAxisModel, SweepResult
+    from millsense.machine.feed_drive import FeedDriveParams
 
 FS_HZ = 10_000.0
 AXES = ("x", "y", "z", "a", "c")
@@ -41,7 +46,7 @@ MOVE_SPEED_RAD_S = 10.0
 
 
 @cache
-def _identified(axis: str) -> object:
+def _identified(axis: str) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.feed_drive import identify_feed_axis
@@ -58,17 +63,15 @@ def compensated_bandwidth(axis: str, frequency_scale: float = 1.0) -> dict[str, 
     """Measured ±3 dB bands (Hz) of the compensated estimate and of the raw current."""
     from millsense.estimation.feed_drive import (
         FeedAxisEstimator,
-        FeedAxisModel,
         perturbed_drive,
         ramp_move,
     )
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
-    from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+    from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
 
-    params, model, _ = _identified(axis)  # type: ignore[misc]
-    assert isinstance(params, FeedDriveParams) and isinstance(model, FeedAxisModel)
+    params, model, _ = _identified(axis)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
     per = round(1.0 * FS_HZ)
     lg = params.transmission / params.efficiency
@@ -226,8 +229,8 @@ def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
     """Per axis and V1 speed: (rev/min, compensated error, raw-current error)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel, perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+    from millsense.estimation.feed_drive import FeedAxisEstimator, perturbed_drive
+    from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
@@ -247,11 +250,12 @@ def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
         )
         feed = 0.2e-3 * tool.n_flutes * rpm / 60  # m/s, table along +X
         # force on the table along +X / +Y (machine.slot_cut frames); the load is its opposite
-        table = {"x": np.concatenate([np.zeros(n_air), cut.fx_n]),
-                 "y": np.concatenate([np.zeros(n_air), cut.fy_n])}
+        table = {
+            "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
+            "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
+        }
         for axis in ("x", "y"):
-            params, model, _ = _identified(axis)  # type: ignore[misc]
-            assert isinstance(params, FeedDriveParams) and isinstance(model, FeedAxisModel)
+            params, model, _ = _identified(axis)
             v = feed / params.transmission if axis == "x" else 0.0
             vel = np.minimum(t / 0.2, 1.0) * v
             pos = np.cumsum(vel) / FS_HZ
@@ -262,8 +266,15 @@ def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
             cur, spd = res["current_cmd"], res["speed"]
             parts = [
                 est.process(
-                    Chunk(s, FS_HZ, 0.0, {f"{axis}/current_cmd": cur[s : s + 100],
-                                          f"{axis}/motor_speed": spd[s : s + 100]})
+                    Chunk(
+                        s,
+                        FS_HZ,
+                        0.0,
+                        {
+                            f"{axis}/current_cmd": cur[s : s + 100],
+                            f"{axis}/motor_speed": spd[s : s + 100],
+                        },
+                    )
                 ).channels[f"{axis}/force_est"]
                 for s in range(0, n, 100)
             ]

@@ -21,10 +21,15 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from millsense.validation import Measured, case
+
+if TYPE_CHECKING:
+    from millsense.estimation.spindle_observer import SpindleIdentification, SpindleTuning
+    from millsense.machine.friction import CoulombViscous
 
 FS_HZ = 10_000.0
 NOISE_A = 0.01
@@ -33,13 +38,13 @@ V6_THESIS = (0.15, 0.18, 0.32, 0.19, 0.27, 0.24)
 
 
 @cache
-def observers() -> dict[int, object]:
+def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
     """Identified and tuned observer design per speed range (0: range 1, 1: range 2)."""
     from millsense.estimation.spindle_observer import identify_spindle, tune_spindle_q
     from millsense.machine.spindle import SpindleDriveParams
 
     params = SpindleDriveParams.aslan_quaser()
-    out: dict[int, object] = {}
+    out: dict[int, tuple[SpindleIdentification, SpindleTuning]] = {}
     for rng, rpm in ((0, 0.0), (1, 4000.0)):
         ident = identify_spindle(
             params, speed_rpm=rpm, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A, seed=rng
@@ -49,12 +54,12 @@ def observers() -> dict[int, object]:
 
 
 @cache
-def friction() -> object:
+def friction() -> CoulombViscous:
     """Spindle friction identified through the observers from air runs."""
     from millsense.estimation.spindle_observer import identify_spindle_friction
     from millsense.machine.spindle import SpindleDriveParams
 
-    designs = {k: v[1].design for k, v in observers().items()}  # type: ignore[index]
+    designs = {k: v[1].design for k, v in observers().items()}
     return identify_spindle_friction(
         SpindleDriveParams.aslan_quaser(), designs, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A
     )
@@ -64,7 +69,7 @@ def friction() -> object:
 def flatness() -> dict[int, tuple[float, float, float]]:
     """Per range: (worst |dB| of the true compensated FRF 1–2500 Hz, ±3 dB band Hz, states)."""
     from millsense.estimation.kalman import bandwidth_3db
-    from millsense.estimation.spindle_observer import SpindleTuning, compensated
+    from millsense.estimation.spindle_observer import compensated
     from millsense.machine.spindle import (
         SpindleDriveParams,
         SpindleDriveSim,
@@ -75,8 +80,7 @@ def flatness() -> dict[int, tuple[float, float, float]]:
     sim_v = SpindleDriveSim(params, 1.0 / params.velocity_period_s)
     f = np.arange(1.0, 2500.0 + 0.5, 1.0)
     out = {}
-    for rng, (_, tun) in observers().items():  # type: ignore[misc]
-        assert isinstance(tun, SpindleTuning)
+    for rng, (_, tun) in observers().items():
         h = compensated(discrete_disturbance_frf(sim_v, f, rng), tun.design, f)
         db = 20 * np.log10(np.abs(h))
         band = bandwidth_3db(np.concatenate([[0.0], f]), np.concatenate([[1.0], h]))
@@ -109,8 +113,7 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
     """Per V6 speed: (rpm, peak error, mean error, RMS-difference error) of F_res."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.spindle_observer import SpindleTorqueObserver, SpindleTuning
-    from millsense.machine.friction import CoulombViscous
+    from millsense.estimation.spindle_observer import SpindleTorqueObserver
     from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
     from millsense.online.block import Chunk
     from millsense.process.coefficients import CuttingCoefficients
@@ -137,10 +140,8 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
         torque = np.concatenate([np.zeros(n_air), cut.torque_nm])
         res = SpindleDriveSim(params, FS_HZ).advance(speed_ref, torque)
         inom = res["current_cmd"] + rng_noise.normal(0.0, NOISE_A, n)
-        _, tun = observers()[params.range_index(w)]  # type: ignore[misc]
-        assert isinstance(tun, SpindleTuning)
+        _, tun = observers()[params.range_index(w)]
         fr = friction()
-        assert isinstance(fr, CoulombViscous)
         obs = SpindleTorqueObserver(tun.design, FS_HZ, radius, friction=fr)
         obs.reset(FS_HZ)
         spd = res["speed"]
