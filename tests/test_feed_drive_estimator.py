@@ -224,3 +224,11 @@ def test_perturbed_drive_changes_what_it_says(x_params: FeedDriveParams) -> None
     assert p.modes.frequency_hz[-1] == 420.0
     assert isinstance(p.friction, LuGre) and isinstance(x_params.friction, LuGre)
     assert p.friction.coulomb[0] == pytest.approx(1.15 * x_params.friction.coulomb[0])
+
+
+def test_presliding_test_declines_when_not_resolved() -> None:
+    # C axis: σ0 = 20 000 N·m/rad rocks the motor by ~2 encoder counts at 20 % of τ_coul, below
+    # the 20-count resolution limit: no LuGre is returned (static model kept)
+    p = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("c"))
+    fr = CoulombViscous(1.24, 1.24, 0.82, 0.82, 0.3)
+    assert identify_lugre(p, fr, 0.00555, FS) is None

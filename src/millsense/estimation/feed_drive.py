@@ -514,8 +514,9 @@ def identify_lugre(
     *,
     frequency_hz: float = 5.0,
     fraction: float = 0.2,
+    min_counts: float = 20.0,
     seed: int = 4,
-) -> LuGre:
+) -> LuGre | None:
     """LuGre friction (Aslan C2, Eq. 3.2–3.8) from the line fit and a presliding test.
 
     Static part: τ_coul and σ2 from the constant-velocity line fit; τ_stat = τ_coul (no Stribeck
@@ -523,7 +524,9 @@ def identify_lugre(
     open, a sinusoidal current of ``fraction·τ_coul/K_t`` at ``frequency_hz`` rocks the motor on
     its bristles; from the complex ratio T/Θ at that frequency (Eq. 3.6:
     ``Jθ'' + (σ1+σ2)θ' + σ0θ = u``): ``σ0 = Re(T/Θ) + J ω²`` and ``σ1 = Im(T/Θ)/ω − σ2``
-    (σ1 floored at 0).
+    (σ1 floored at 0). Returns None when the rocking amplitude is below ``min_counts`` encoder
+    counts: the bristle stiffness is then not resolved by the encoder (the rotary axes, σ0 of
+    2–3·10⁴ N·m/rad, rock by about 2 counts) and the static model is used instead.
     """
     fs = sample_rate_hz
     n = round(2.0 * fs)
@@ -537,6 +540,9 @@ def identify_lugre(
     basis = np.column_stack([np.sin(w * t[sel]), np.cos(w * t[sel]), np.ones(n - n // 2)])
     ct = np.linalg.lstsq(basis, params.torque_constant * res["current"][sel], rcond=None)[0]
     ca = np.linalg.lstsq(basis, res["angle"][sel], rcond=None)[0]
+    counts = abs(complex(ca[0], ca[1])) / (2 * math.pi / params.encoder_counts_rev)
+    if counts < min_counts:
+        return None
     ratio = complex(ct[0], ct[1]) / complex(ca[0], ca[1])
     s0 = max(ratio.real + inertia * w**2, 1e-6)
     s1p, s1n = (
