@@ -129,3 +129,14 @@ def test_resultant_factor_exact_under_its_assumptions() -> None:
     ratio = f.resultant_n()[cut] / (f.torque_nm[cut] / 0.01)
     np.testing.assert_allclose(ratio, math.sqrt(1.25), rtol=1e-9)
     assert RESULTANT_FACTOR == pytest.approx(1.118, abs=5e-4)
+
+
+def test_quick_estimation_cases_pass() -> None:
+    # the quick validation cases of this package (run_case compares with the seed figure)
+    from millsense.validation import run_case, select_cases
+
+    cases = select_cases("estimation.spindle_*", quick_only=True)
+    assert cases, "no quick spindle case registered"
+    for c in cases:
+        r = run_case(c)
+        assert r.passed, (c.id, r.measured, r.reference, r.error)

@@ -192,3 +192,33 @@ def _v6() -> Measured:
     for (rpm, pk, mn, rms), th in zip(res, V6_THESIS, strict=True):
         rows.append(f"| {rpm:.0f} | {th:.0%} | {pk:.1%} | {mn:.1%} | {rms:.1%} |")
     return Measured(max(r[1] for r in res), "\n".join(rows))
+
+
+@case(
+    "estimation.spindle_resultant_factor",
+    source="seed 000 Eq. 5.34 (Aslan Ch. 5.5.2): F_res ≈ 1.11·F_t",
+    reference=1.11,
+    unit="-",
+    rel_tol=0.01,
+    quick=True,
+    description="F_res/(τ/r) from the mechanistic model (process.forces) under Eq. 5.34's "
+    "assumptions (one flute in cut, no helix, no edge forces, K_rc = 0.5 K_tc): √1.25 = 1.118 "
+    "against the printed 1.11",
+)
+def _factor() -> float:
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    tool = EndMill(diameter_m=0.02, n_flutes=1)
+    f = milling_forces(
+        tool,
+        CuttingCoefficients(ktc=758e6, krc=379e6),
+        Engagement.slot(),
+        0.2e-3,
+        4e-3,
+        np.linspace(0.2, 2.9, 10),
+        n_discs=4,
+    )
+    return float(np.mean(f.resultant_n() / (f.torque_nm / tool.radius_m)))
