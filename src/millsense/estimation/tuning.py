@@ -55,7 +55,7 @@ def air_cut_variance(torque_nm: ArrayLike, trend_hz: float = 2.0, fs: float = 10
     return float(np.var(y[trim : len(y) - trim]))
 
 
-def noise_gain(design: KalmanDesign, n_taps: int = 20000) -> float:
+def noise_gain(design: KalmanDesign) -> float:
     """RMS of the filtered disturbance estimate per unit RMS of white measurement noise.
 
     ``sqrt(Σ h_k²)`` of the impulse response of the frozen-gain filter ``y → τ̂_a(k|k)``,
