@@ -1,0 +1,809 @@
+"""Feed-drive cutting-force estimator (Aslan C2–C7): current and encoder → force at the tool.
+
+Per axis (:class:`FeedAxisEstimator`, a streaming :class:`~millsense.online.block.Block` that
+reads only CNC channels ``{axis}/current_cmd`` and ``{axis}/motor_speed``):
+
+1. C3 torque (Aslan Eq. 3.10): ``τ_c = K_t·I_nom − τ_f(ω) − J_e·Δω/Δt``, with the identified
+   friction and inertia, then a 2nd-order Butterworth low-pass at ``lowpass_hz`` (the derivative
+   filter: the backward difference of an encoder-derived speed is dominated by quantisation
+   noise; see :mod:`millsense.estimation.rigid_body` and docs/decisions.md). The low-pass is
+   part of the estimator's model (below), so its lag is compensated, not ignored.
+2. Disturbance Kalman filter (Eq. 3.21–3.29) over the *identified* disturbance path
+   ``Φ_d = τ_c/τ_a`` (Eq. 3.13, modal fit of a simulated commissioning sweep) in series with
+   the low-pass, discretised at the CNC rate, augmented with the random-walk τ_a.
+3. Fixed-lag smoother (Appendix B, 60 samples = 6 ms): output sample k is ``τ̂_a(k − L)``.
+4. Axis load (Eq. 3.11/3.12): ``F = η·τ̂_a/r_g`` (N, linear axes; N·m at the table, rotary);
+   a rotary axis with a moment arm ``d`` also gives ``F = η·τ̂_a/(r_g·d)`` (Eq. 3.12).
+
+Five axes → forces at the tool (:class:`ToolForceBlock`, Eq. 3.51): ``F_tool = [Jᵀ·T]⁺·τ``
+with :meth:`millsense.machine.kinematics.TrunnionACKinematics.tool_force`, axis positions
+from the encoder angles ``{axis}/motor_angle`` delayed by the smoother lag.
+
+Identification (:func:`identify_feed_axis`) from simulated commissioning tests on the drive
+simulator: Coulomb + viscous friction from constant-velocity air moves (Aslan C1,
+:mod:`millsense.ident.friction`) and the LuGre presliding stiffness and damping from an
+open-loop rocking test (C2, :func:`identify_lugre`); the inertia by least squares on an
+accelerating air move; Φ_d from a multisine table force applied during a constant-velocity
+move (the thesis' hammer test, C5) by :func:`millsense.ident.frf.multisine_frf` and
+:func:`millsense.estimation.rational_fit.fit_rational`; R and Q by
+:mod:`millsense.estimation.tuning`.
+K_t and η are the nameplate/catalogue values (the thesis takes K_t, J_e from TNCopt and η from
+the catalogue for the linear axes): a current-only test cannot separate K_t from a load.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.estimation.kalman import (
+    KalmanDesign,
+    StateSpaceModel,
+    augment_disturbance,
+    design_kalman,
+    discretize_zoh,
+)
+from millsense.estimation.rational_fit import RationalFit, fit_rational
+from millsense.estimation.rigid_body import DriveModel
+from millsense.estimation.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother, _smooth
+from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
+from millsense.ident.friction import coulomb_viscous_from_moves
+from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
+from millsense.machine.friction import CoulombViscous, coulomb_viscous_torque
+from millsense.machine.kinematics import Kinematics, TrunnionACKinematics
+from millsense.machine.lugre import LuGre, lugre_step
+from millsense.machine.modal_ss import ModalStateSpace
+from millsense.online.block import Block, BlockOutput, Chunk
+
+#: Low-pass of the C3 torque, Hz (decision "C3 derivative filter inside the Kalman model").
+DEFAULT_LOWPASS_HZ = 600.0
+#: sgn(ω) of the estimator's friction is tanh(ω/ω_s); ω_s = 5 speed quanta of a 2²⁰-count
+#: encoder at 10 kHz (decision "friction sign smoothing in the estimator").
+DEFAULT_FRICTION_SMOOTHING_RAD_S = 0.3
+#: Relative shift of the mode frequencies the tuning must tolerate (decision "robust Q tuning").
+ROBUST_SHIFT = 0.0
+
+
+def scale_modes(modes: ModalStateSpace, frequency_scale: float) -> ModalStateSpace:
+    """Modes with every frequency × ``frequency_scale`` (α × its square: same static gain)."""
+    return ModalStateSpace.from_modes(
+        modes.frequency_hz * frequency_scale,
+        modes.damping_ratio,
+        modes.alpha * frequency_scale**2,
+        modes.beta,
+        modes.d,
+    )
+
+
+@dataclass(frozen=True)
+class FeedAxisModel:
+    """Everything the estimator of one axis believes (identified, never the simulator's).
+
+    Attributes
+    ----------
+    axis : axis name (``x``, ``y``, ``z``, ``a``, ``c``).
+    kind : ``linear`` or ``rotary``.
+    drive : inertia J_e kg·m², K_t N·m/A, r_g m/rad (rad/rad rotary), η, friction (motor side).
+    disturbance : identified Φ_d = τ_c/τ_a (rational fit of the sweep: Eq. 3.13 modes plus the
+        real poles of the loop seen through the C3 torque), dimensionless.
+    lowpass_hz : corner of the C3 low-pass, Hz.
+    r : per-sample variance of the low-passed C3 torque in an air cut, N²·m².
+    q : spectral density of τ̇_a, (N·m)²/s (docs/decisions.md "Units of Q and R").
+    sample_rate_hz : CNC sample rate, Hz.
+    moment_arm_m : d of Eq. 3.12 for a rotary axis (None: no force output, only the torque).
+    lugre : identified LuGre friction (C2) used by the C3 stage instead of ``drive.friction``
+        (static part from the line fit, σ0 and σ1 from a presliding test), or None.
+    """
+
+    axis: str
+    kind: Literal["linear", "rotary"]
+    drive: DriveModel
+    disturbance: RationalFit
+    lowpass_hz: float
+    r: float
+    q: float
+    sample_rate_hz: float = 10_000.0
+    moment_arm_m: float | None = None
+    lugre: LuGre | None = None
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.sample_rate_hz
+
+    def lowpass_sos(self) -> NDArray[np.float64]:
+        """Second-order sections of the Butterworth low-pass at the sample rate."""
+        return np.asarray(
+            signal.butter(2, self.lowpass_hz, fs=self.sample_rate_hz, output="sos"), dtype=float
+        )
+
+    def measurement_model(self) -> StateSpaceModel:
+        """Discrete model τ_a → low-passed C3 torque: see :func:`measurement_model`."""
+        return measurement_model(self.disturbance, self.lowpass_hz, self.dt)
+
+    def design(self, q: float | None = None, r: float | None = None) -> KalmanDesign:
+        """Steady-state Kalman design on :meth:`measurement_model` (q, r default to the model's)."""
+        return design_feed_kalman(
+            self.measurement_model(), self.q if q is None else q, self.r if r is None else r
+        )
+
+
+def measurement_model(
+    modes: ModalStateSpace | RationalFit, lowpass_hz: float, dt: float
+) -> StateSpaceModel:
+    """Discrete path from the disturbance τ_a to the low-passed C3 torque.
+
+    Parameters
+    ----------
+    modes : Φ_d = τ_c/τ_a (Aslan Eq. 3.13 modes, or the identified rational fit), continuous.
+    lowpass_hz : Butterworth corner, Hz (the C3 low-pass; ``inf`` or 0 for none).
+    dt : sample time, s.
+
+    Returns
+    -------
+    Discrete :class:`StateSpaceModel`: ZOH discretisation of Φ_d (τ_a piecewise constant over a
+    sample, Aslan §3.3 "model actually used") in series with the digital low-pass.
+
+    Notes
+    -----
+    Series connection ``x₁⁺ = A₁x₁ + B₁u, y₁ = C₁x₁ + D₁u; x₂⁺ = A₂x₂ + B₂y₁, y = C₂x₂ + D₂y₁``.
+    """
+    if isinstance(modes, RationalFit):
+        cont = modes.continuous_model()
+    else:
+        a, b, c, d = modes.dense()
+        cont = StateSpaceModel.from_arrays(a, b, c, d)
+    phi = discretize_zoh(cont, dt)
+    if not lowpass_hz or not math.isfinite(lowpass_hz):
+        return phi
+    bz, az = signal.butter(2, lowpass_hz, fs=1.0 / dt)
+    al, bl, cl, dl = signal.tf2ss(bz, az)
+    n1, n2 = phi.n_states, al.shape[0]
+    aa = np.zeros((n1 + n2, n1 + n2))
+    aa[:n1, :n1] = phi.a
+    aa[n1:, :n1] = bl @ phi.c
+    aa[n1:, n1:] = al
+    bb = np.vstack([phi.b, bl @ phi.d])
+    cc = np.hstack([dl @ phi.c, cl])
+    dd = dl @ phi.d
+    return StateSpaceModel(aa, bb, cc, dd, dt)
+
+
+def design_feed_kalman(model: StateSpaceModel, q: float, r: float) -> KalmanDesign:
+    """Disturbance Kalman filter (Eq. 3.21–3.29) on a discrete :func:`measurement_model`.
+
+    Parameters
+    ----------
+    model : discrete τ_a → measured torque model.
+    q : spectral density of τ̇_a, (N·m)²/s; the random walk of the discrete model gets the
+        per-sample variance ``q·dt`` (the Van Loan value on the random-walk state).
+    r : per-sample variance of the measured torque, N²·m².
+    """
+    assert model.dt is not None
+    return design_kalman(augment_disturbance(model), q * model.dt, r)
+
+
+@numba.njit(cache=True)
+def _c3_kernel(
+    current: NDArray[np.float64],
+    speed: NDArray[np.float64],
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    fric_mode: int,
+    fric: NDArray[np.float64],
+    sos: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """Low-passed C3 torque of one chunk (state updated in place).
+
+    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
+    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
+    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
+    """
+    kt, j, fs = drive[0], drive[1], drive[2]
+    h = 1.0 / fs
+    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    for k in range(current.shape[0]):
+        w = speed[k]
+        if state[4] == 0.0:
+            state[0] = w
+        acc = (w - state[0]) * fs
+        state[0] = w
+        if fric_mode == 1:
+            z, tf = lugre_step(state[1], w, h, fric)
+            state[1] = z
+        else:
+            tf = coulomb_viscous_torque(w, fric)
+        tau = kt * current[k] - tf - j * acc
+        if state[4] == 0.0:
+            # start the low-pass in steady state on the first sample
+            g = (b0 + b1 + b2) / (1.0 + a1 + a2)
+            state[2] = tau * (g - b0)
+            state[3] = tau * (b2 - a2 * g)
+            state[4] = 1.0
+        y = b0 * tau + state[2]
+        state[2] = b1 * tau - a1 * y + state[3]
+        state[3] = b2 * tau - a2 * y
+        out[k] = y
+
+
+@numba.njit(cache=True)
+def _estimate_kernel(
+    current: NDArray[np.float64],
+    speed: NDArray[np.float64],
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    fric_mode: int,
+    fric: NDArray[np.float64],
+    sos: NDArray[np.float64],
+    modal: bool,
+    diag: NDArray[np.float64],
+    off: NDArray[np.float64],
+    n_pairs: int,
+    f: NDArray[np.float64],
+    g: NDArray[np.float64],
+    h: NDArray[np.float64],
+    j: NDArray[np.float64],
+    z: NDArray[np.float64],
+    taps_t: NDArray[np.float64],
+    hist_pred: NDArray[np.float64],
+    hist_innov: NDArray[np.float64],
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """C3 torque and the fixed-lag smoother in one compiled call (states updated in place)."""
+    n = current.shape[0]
+    tau = np.empty((n, 1))
+    _c3_kernel(current, speed, state, drive, fric_mode, fric, sos, tau[:, 0])
+    out = _smooth(modal, diag, off, n_pairs, f, g, h, j, tau, z, taps_t, hist_pred, hist_innov)
+    return out[:, 0].copy()
+
+
+class C3Torque:
+    """Streaming C3 torque (Aslan Eq. 3.10) with the low-pass, state carried across chunks.
+
+    Parameters
+    ----------
+    drive : the drive model (identified friction and inertia).
+    lowpass_hz : Butterworth corner, Hz.
+    sample_rate_hz : CNC rate, Hz.
+    lugre : identified LuGre friction (bristle state carried), or None for ``drive.friction``.
+
+    Notes
+    -----
+    One numba kernel per chunk: backward difference of the encoder speed, friction (LuGre
+    integrated exactly for the held speed as in :mod:`millsense.machine.lugre`, or Coulomb +
+    viscous), ``τ_c = K_t·I_nom − τ_f − J_e·Δω/Δt`` and the 2nd-order Butterworth section.
+    """
+
+    def __init__(
+        self,
+        drive: DriveModel,
+        lowpass_hz: float,
+        sample_rate_hz: float,
+        lugre: LuGre | None = None,
+    ) -> None:
+        if not 0 < lowpass_hz < sample_rate_hz / 2:
+            raise ConfigError(
+                f"estimator: lowpass_hz must be in (0, {sample_rate_hz / 2:g}) Hz, got {lowpass_hz}"
+            )
+        self.drive = drive
+        self.lugre = lugre
+        self.fs = sample_rate_hz
+        self.sos = signal.butter(2, lowpass_hz, fs=sample_rate_hz, output="sos")
+        self._sos = np.ascontiguousarray(self.sos[0], dtype=float)
+        self._drive = np.array([drive.torque_constant, drive.inertia, sample_rate_hz])
+        self._mode = 1 if lugre is not None else 0
+        self._fric = lugre.as_array() if lugre is not None else drive.friction.as_array()
+        self.reset()
+
+    def reset(self) -> None:
+        self._state = np.zeros(5)
+
+    def process(self, current_a: ArrayLike1, speed_rad_s: ArrayLike1) -> NDArray[np.float64]:
+        """Low-passed τ_c (N·m) of one chunk."""
+        cur = np.ascontiguousarray(current_a, dtype=np.float64)
+        spd = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+        out = np.empty(len(cur))
+        _c3_kernel(cur, spd, self._state, self._drive, self._mode, self._fric, self._sos, out)
+        return out
+
+
+ArrayLike1 = NDArray[np.float64] | Sequence[float]
+
+
+class FeedAxisEstimator(Block):
+    """Streaming estimator of one feed axis: C3 → Kalman → fixed-lag smoother → axis load.
+
+    Parameters
+    ----------
+    model : identified axis model.
+    lag : smoother lag, samples (Aslan Appendix B: 60 = 6 ms at 10 kHz); 0 = filter only.
+
+    Outputs (delayed by ``lag`` samples: sample k is the estimate of sample k − lag):
+    ``{axis}/load_est`` — load resisting +motion, N (linear) or N·m at the table (rotary), the
+    quantity the drive simulator takes as ``load`` and Eq. 3.51 takes as τ;
+    ``{axis}/force_est`` — force on the table along +axis (= −load, linear axes; rotary only
+    with a moment arm, Eq. 3.12).
+    """
+
+    def __init__(self, model: FeedAxisModel, lag: int = ASLAN_LAG_SAMPLES) -> None:
+        self.model = model
+        ax = model.axis
+        self.name = f"feed_force_{ax}"
+        self.inputs = (f"{ax}/current_cmd", f"{ax}/motor_speed")
+        self.lag = int(lag)
+        self.design = model.design()
+        self._c3 = C3Torque(model.drive, model.lowpass_hz, model.sample_rate_hz, model.lugre)
+        self._smoother = FixedLagSmoother(self.design, self.lag)
+        d = model.drive
+        self._gain = d.efficiency / d.transmission
+        self._force_gain: float | None = None
+        if model.kind == "linear":
+            self._force_gain = -self._gain
+        elif model.moment_arm_m is not None:
+            self._force_gain = -self._gain / model.moment_arm_m
+
+    @property
+    def delay_samples(self) -> int:
+        return self.lag
+
+    def output_channels(self) -> list[ChannelInfo]:
+        ax = self.model.axis
+        unit = "N" if self.model.kind == "linear" else "N*m"
+        out = [
+            ChannelInfo(
+                f"{ax}/load_est",
+                unit,
+                f"{ax} axis load resisting +motion from the drive current, Kalman-compensated "
+                f"(Aslan Eq. 3.10-3.29, 3.11/3.12), delayed {self.lag} samples",
+            )
+        ]
+        if self._force_gain is not None:
+            out.append(
+                ChannelInfo(
+                    f"{ax}/force_est",
+                    "N",
+                    f"{ax} force on the table along +axis, Kalman-compensated, delayed "
+                    f"{self.lag} samples",
+                )
+            )
+        return out
+
+    def reset(self, sample_rate_hz: float) -> None:
+        if not math.isclose(sample_rate_hz, self.model.sample_rate_hz, rel_tol=1e-9):
+            raise ConfigError(
+                f"block {self.name}: identified at {self.model.sample_rate_hz:g} Hz, stream is "
+                f"{sample_rate_hz:g} Hz"
+            )
+        self._c3.reset()
+        self._smoother.reset()
+
+    def torque(self, current_a: ArrayLike1, speed_rad_s: ArrayLike1) -> NDArray[np.float64]:
+        """τ̂_a (N·m, motor side) of one chunk, delayed by ``lag`` samples.
+
+        One compiled call runs the C3 stage and the smoother (the smoother's own kernel on its
+        carried state), which keeps the per-chunk overhead at a few microseconds.
+        """
+        cur = np.ascontiguousarray(current_a, dtype=np.float64)
+        if len(cur) == 0:
+            return np.zeros(0)
+        c3, sm = self._c3, self._smoother
+        return np.asarray(
+            _estimate_kernel(
+                cur,
+                np.ascontiguousarray(speed_rad_s, dtype=np.float64),
+                c3._state,
+                c3._drive,
+                c3._mode,
+                c3._fric,
+                c3._sos,
+                *sm._kf.kernel_args,
+                sm._kf.z,
+                sm._taps_t,
+                sm._hist_pred,
+                sm._hist_innov,
+            )
+        )
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        tau = self.torque(chunk.data[self.inputs[0]], chunk.data[self.inputs[1]])
+        ax = self.model.axis
+        out = {f"{ax}/load_est": self._gain * tau}
+        if self._force_gain is not None:
+            out[f"{ax}/force_est"] = self._force_gain * tau
+        return BlockOutput(out)
+
+
+class ToolForceBlock(Block):
+    """Forces at the tool from the five axis loads (Aslan Eq. 3.51, ``[Jᵀ·T]⁺·τ``).
+
+    Parameters
+    ----------
+    kinematics : the machine's kinematics (``tool_force(q, loads)``).
+    axes : the five axes in the order of ``q`` = [x, y, z, θ_A, θ_C].
+    transmissions : r_g per axis (m/rad, rad/rad) to turn motor angles into axis positions.
+    offsets : axis position at motor angle 0 (m, rad), per axis.
+    lag : samples by which the loads lag the encoders (the smoother lag); positions are delayed
+        by the same amount so that each load meets the pose it was produced at.
+    pose_every : the (delayed) pose, hence ``[Jᵀ·T]⁺``, is evaluated at stream samples that are
+        multiples of this and held in between (1 = every sample).
+
+    Reads ``{axis}/load_est`` and ``{axis}/motor_angle``; writes ``tool/force_x_est`` …
+    ``tool/force_z_est`` (N, machine frame).
+    """
+
+    def __init__(
+        self,
+        kinematics: Kinematics,
+        axes: Sequence[str],
+        transmissions: Sequence[float],
+        offsets: Sequence[float] | None = None,
+        lag: int = ASLAN_LAG_SAMPLES,
+        pose_every: int = 10,
+    ) -> None:
+        if len(axes) != 5 or len(transmissions) != 5:
+            raise ConfigError("tool force block: needs five axes [x, y, z, a, c]")
+        self.name = "tool_force"
+        self.kin = kinematics
+        self.axes = tuple(axes)
+        self.rg = np.asarray(transmissions, dtype=float)
+        self.offsets = np.zeros(5) if offsets is None else np.asarray(offsets, dtype=float)
+        self.lag = int(lag)
+        self.pose_every = max(1, int(pose_every))
+        self._held_pinv: NDArray[np.float64] | None = None
+        self.inputs = tuple(f"{a}/load_est" for a in self.axes) + tuple(
+            f"{a}/motor_angle" for a in self.axes
+        )
+        self._hist = np.zeros((0, 5))
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [
+            ChannelInfo(f"tool/force_{c}_est", "N", f"force at the tool along {c} (Eq. 3.51)")
+            for c in "xyz"
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self._hist = np.zeros((0, 5))
+        self._held_pinv = None
+
+    def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
+        assert isinstance(self.kin, TrunnionACKinematics)
+        if len(q) == 0:
+            return np.zeros((0, 3, 5))
+        m = self.kin.load_matrix(q).reshape(len(q), 5, 3)
+        return np.asarray(
+            np.linalg.solve(np.einsum("nki,nkj->nij", m, m), np.transpose(m, (0, 2, 1)))
+        )
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        loads = np.column_stack([np.asarray(chunk.data[f"{a}/load_est"]) for a in self.axes])
+        q_now = np.column_stack(
+            [np.asarray(chunk.data[f"{a}/motor_angle"], dtype=float) for a in self.axes]
+        )
+        q_now = q_now * self.rg + self.offsets
+        n = len(q_now)
+        if n == 0:
+            return BlockOutput({f"tool/force_{c}_est": np.zeros(0) for c in "xyz"})
+        if len(self._hist) == 0:
+            self._hist = np.repeat(q_now[:1], self.lag, axis=0)
+        allq = np.vstack([self._hist, q_now])
+        q = allq[:n]
+        self._hist = allq[n:]
+        if isinstance(self.kin, TrunnionACKinematics):
+            # [Jᵀ·T]⁺·τ by the normal equations (full column rank away from singular poses):
+            # batched 3×3 solves instead of one SVD per sample
+            # the pose is evaluated at stream samples that are multiples of `pose_every` and
+            # held in between (the machine moves < 0.1 mm in 1 ms at cutting feeds)
+            idx = chunk.start + np.arange(n)
+            new = idx % self.pose_every == 0
+            stack = self._pinv(q[new])
+            if self._held_pinv is not None:
+                stack = np.concatenate([self._held_pinv[None], stack])
+                which = np.cumsum(new)
+            else:
+                which = np.maximum(np.cumsum(new) - 1, 0)
+            if len(stack) == 0:
+                stack = self._pinv(q[:1])
+            f = np.einsum("nij,nj->ni", stack[which], loads)
+            self._held_pinv = stack[-1]
+        else:
+            f = np.asarray(self.kin.tool_force(q, loads)).reshape(n, 3)
+        return BlockOutput({f"tool/force_{c}_est": f[:, i].copy() for i, c in enumerate("xyz")})
+
+
+# ---------------------------------------------------------------------------------------------
+# Identification from simulated commissioning tests
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """The simulated disturbance sweep: FRF τ_c/τ_a, its modal fit, the raw-current FRF."""
+
+    frf: FrfEstimate
+    fit: RationalFit
+
+
+def ramp_move(
+    v: float, n: int, fs: float, accel_time_s: float = 0.05
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    t = np.arange(n) / fs
+    vel = np.where(t < accel_time_s, v * t / accel_time_s, v)
+    pos = np.where(
+        t < accel_time_s,
+        0.5 * v * t**2 / accel_time_s,
+        0.5 * v * accel_time_s + v * (t - accel_time_s),
+    )
+    return pos, vel
+
+
+def identify_friction(
+    params: FeedDriveParams, sample_rate_hz: float, speeds_rad_s: Sequence[float], seed: int = 0
+) -> CoulombViscous:
+    """Coulomb + viscous friction from constant-velocity air moves in both directions (C1)."""
+    sp = np.asarray(speeds_rad_s, dtype=float)
+    sp = np.concatenate([sp, -sp])
+    tau, _ = constant_velocity_sweep(params, sp, sample_rate_hz, duration_s=0.6, seed=seed)
+    fit = coulomb_viscous_from_moves(sp, tau)
+    return replace(fit, smoothing_rad_s=DEFAULT_FRICTION_SMOOTHING_RAD_S)
+
+
+def identify_lugre(
+    params: FeedDriveParams,
+    friction: CoulombViscous,
+    inertia: float,
+    sample_rate_hz: float,
+    *,
+    frequency_hz: float = 5.0,
+    fraction: float = 0.2,
+    min_counts: float = 20.0,
+    seed: int = 4,
+) -> LuGre | None:
+    """LuGre friction (Aslan C2, Eq. 3.2–3.8) from the line fit and a presliding test.
+
+    Static part: τ_coul and σ2 from the constant-velocity line fit; τ_stat = τ_coul (no Stribeck
+    rise identified; v_s is then irrelevant and set to 0.05 rad/s). Presliding: with the servo
+    open, a sinusoidal current of ``fraction·τ_coul/K_t`` at ``frequency_hz`` rocks the motor on
+    its bristles; from the complex ratio T/Θ at that frequency (Eq. 3.6:
+    ``Jθ'' + (σ1+σ2)θ' + σ0θ = u``): ``σ0 = Re(T/Θ) + J ω²`` and ``σ1 = Im(T/Θ)/ω − σ2``
+    (σ1 floored at 0). Returns None when the rocking amplitude is below ``min_counts`` encoder
+    counts: the bristle stiffness is then not resolved by the encoder (the rotary axes, σ0 of
+    2–3·10⁴ N·m/rad, rock by about 2 counts) and the static model is used instead.
+    """
+    fs = sample_rate_hz
+    n = round(2.0 * fs)
+    t = np.arange(n) / fs
+    w = 2 * math.pi * frequency_hz
+    tau_amp = fraction * min(friction.coulomb_pos, friction.coulomb_neg)
+    inj = tau_amp / params.torque_constant * np.sin(w * t)
+    sim = FeedDriveSim(replace(params, closed_loop=False), fs, seed=seed)
+    res = sim.advance(np.zeros(n), np.zeros(n), np.zeros(n), inj)
+    sel = slice(n // 2, n)
+    basis = np.column_stack([np.sin(w * t[sel]), np.cos(w * t[sel]), np.ones(n - n // 2)])
+    ct = np.linalg.lstsq(basis, params.torque_constant * res["current"][sel], rcond=None)[0]
+    ca = np.linalg.lstsq(basis, res["angle"][sel], rcond=None)[0]
+    counts = abs(complex(ca[0], ca[1])) / (2 * math.pi / params.encoder_counts_rev)
+    if counts < min_counts:
+        return None
+    ratio = complex(ct[0], ct[1]) / complex(ca[0], ca[1])
+    s0 = max(ratio.real + inertia * w**2, 1e-6)
+    s1p, s1n = (
+        max(ratio.imag / w - friction.viscous_pos, 0.0),
+        max(ratio.imag / w - friction.viscous_neg, 0.0),
+    )
+    return LuGre(
+        sigma0=(s0, s0),
+        sigma1=(s1p, s1n),
+        sigma2=(friction.viscous_pos, friction.viscous_neg),
+        static=(friction.coulomb_pos, friction.coulomb_neg),
+        coulomb=(friction.coulomb_pos, friction.coulomb_neg),
+        stribeck_velocity=(0.05, 0.05),
+    )
+
+
+def identify_inertia(
+    params: FeedDriveParams,
+    friction: CoulombViscous,
+    sample_rate_hz: float,
+    *,
+    speed_rad_s: float = 20.0,
+    seed: int = 1,
+) -> float:
+    """J_e (kg·m²) by least squares on an air move with a sinusoidal speed (2 Hz, ±50 %).
+
+    ``K_t·I_nom − τ_f(ω) = J_e·dω/dt`` (Eq. 3.1 in air); dω/dt from the encoder speed by a
+    central difference of the 20 Hz low-passed speed (zero phase, offline).
+    """
+    fs = sample_rate_hz
+    n = round(1.5 * fs)
+    t = np.arange(n) / fs
+    w = 2 * math.pi * 2.0
+    ramp = np.minimum(t / 0.1, 1.0)
+    vel = speed_rad_s * (ramp + 0.5 * np.sin(w * t) * ramp)
+    pos = np.cumsum(vel) / fs
+    sim = FeedDriveSim(params, fs, seed=seed)
+    res = sim.advance(pos, vel, np.zeros(n))
+    sos = signal.butter(2, 20.0, fs=fs, output="sos")
+    spd = signal.sosfiltfilt(sos, res["speed"])
+    acc = np.gradient(spd, 1.0 / fs)
+    lhs = params.torque_constant * res["current_cmd"] - friction.torque(res["speed"])
+    lhs = signal.sosfiltfilt(sos, lhs)
+    sel = slice(round(0.3 * fs), n - round(0.1 * fs))
+    a, y = acc[sel], lhs[sel]
+    a0, y0 = a - a.mean(), y - y.mean()
+    return float(np.dot(a0, y0) / np.dot(a0, a0))
+
+
+def disturbance_sweep(
+    params: FeedDriveParams,
+    drive: DriveModel,
+    sample_rate_hz: float,
+    lowpass_hz: float,
+    *,
+    force_rms: float,
+    band_hz: tuple[float, float] = (2.0, 300.0),
+    fit_band_hz: tuple[float, float] = (3.0, 260.0),
+    speed_rad_s: float = 10.0,
+    period_s: float = 1.0,
+    n_periods: int = 13,
+    seed: int = 2,
+    lugre: LuGre | None = None,
+) -> SweepResult:
+    """Φ_d = τ_c/τ_a from a multisine table load during a slow constant-velocity move (C5).
+
+    The load (a shaker on the table standing in for the thesis' hammer) is known; τ_a is
+    ``(r_g/η)·F`` with the estimator's r_g, η. The response is the C3 torque of the estimator's
+    own front end, low-passed; the FRF is divided by the known low-pass response, averaged over
+    whole periods (first discarded) and fitted with
+    :func:`~millsense.estimation.rational_fit.fit_rational` (order automatic).
+    """
+    fs = sample_rate_hz
+    per = round(period_s * fs)
+    load, _ = multisine_signal(fs, per, band_hz[0], band_hz[1], n_periods, rms=force_rms)
+    n = len(load)
+    lead = round(0.3 * fs)
+    pos, vel = ramp_move(speed_rad_s, n + lead, fs)
+    sim = FeedDriveSim(params, fs, seed=seed)
+    full_load = np.concatenate([np.zeros(lead), load])
+    res = sim.advance(pos, vel, full_load)
+    c3 = C3Torque(drive, lowpass_hz, fs, lugre)
+    tau = c3.process(res["current_cmd"], res["speed"])[lead:]
+    tau_a = drive.transmission / drive.efficiency * load
+    est = multisine_frf(tau_a, tau, fs, per, skip_periods=1, names=("tau_a", "tau_c"))
+    _, lp = signal.sosfreqz(c3.sos, worN=est.freq_hz, fs=fs)
+    est = replace(est, h1=est.h1 / lp, h2=est.h2 / lp)
+    sel = (est.freq_hz >= fit_band_hz[0]) & (est.freq_hz <= fit_band_hz[1])
+    fit = fit_rational(est.freq_hz[sel], est.h1[sel], coherence=est.coherence[sel], max_pairs=16)
+    return SweepResult(est, fit)
+
+
+def identify_feed_axis(
+    params: FeedDriveParams,
+    axis: str,
+    kind: Literal["linear", "rotary"],
+    *,
+    sample_rate_hz: float = 10_000.0,
+    lowpass_hz: float = DEFAULT_LOWPASS_HZ,
+    sweep_force_rms: float | None = None,
+    moment_arm_m: float | None = None,
+    tune: bool = True,
+    q_bounds: tuple[float, float] = (1.0, 1e7),
+    robust_shift: float = ROBUST_SHIFT,
+    use_lugre: bool = True,
+    seed: int = 0,
+) -> tuple[FeedAxisModel, SweepResult]:
+    """Identify a feed axis's estimator model from simulated commissioning tests.
+
+    Parameters
+    ----------
+    params : the simulated drive (the "machine"; only its CNC channels are used).
+    axis, kind : axis name and ``linear``/``rotary``.
+    sample_rate_hz : CNC rate, Hz.
+    lowpass_hz : C3 low-pass corner, Hz.
+    sweep_force_rms : RMS of the sweep load (N, or N·m rotary); default the load giving 3 N·m
+        RMS of τ_a at the motor.
+    moment_arm_m : Eq. 3.12 arm for a rotary force output.
+    tune : choose Q by :func:`millsense.estimation.tuning.tune_q` (else Q = 1000 (N·m)²/s).
+    q_bounds : search range of Q, (N·m)²/s.
+    use_lugre : identify LuGre friction (:func:`identify_lugre`) for the C3 stage (C2);
+        otherwise the static Coulomb + viscous line fit is used.
+    robust_shift : Q maximises the smallest bandwidth over the identified modes and the modes
+        with frequencies × (1 ± robust_shift) (position-dependent modes); 0 for nominal tuning.
+    seed : base seed of the simulated tests.
+
+    Returns
+    -------
+    (model, sweep): the identified model and the sweep (FRF and modal fit) it came from.
+
+    Notes
+    -----
+    Nameplate values: K_t (motor data), r_g (lead), η (catalogue; Aslan Table 3.3).
+    Identified: friction (C1), J_e, Φ_d (C5), R (air cut), Q (bandwidth optimisation).
+    """
+    from millsense.estimation import tuning
+
+    fs = sample_rate_hz
+    fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed)
+    inertia = identify_inertia(params, fric, fs, seed=seed + 1)
+    drive = DriveModel(
+        inertia, params.torque_constant, params.transmission, params.efficiency, fric
+    )
+    lg = params.transmission / params.efficiency
+    f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
+    lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
+    sweep = disturbance_sweep(
+        params, drive, fs, lowpass_hz, force_rms=f_rms, seed=seed + 2, lugre=lugre
+    )
+    modes = sweep.fit
+    # R: air cut at a cutting feed (constant speed, no load)
+    n = round(1.0 * fs)
+    pos, vel = ramp_move(5.0, n, fs)
+    res = FeedDriveSim(params, fs, seed=seed + 3).advance(pos, vel, np.zeros(n))
+    c3 = C3Torque(drive, lowpass_hz, fs, lugre)
+    tau_air = c3.process(res["current_cmd"], res["speed"])
+    r = tuning.air_cut_variance(tau_air[round(0.2 * fs) :])
+    model = FeedAxisModel(axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre)
+    if tune:
+        plants = [
+            measurement_model(modes.scaled(1.0 + s), lowpass_hz, 1.0 / fs)
+            for s in (-robust_shift, robust_shift)
+            if robust_shift > 0
+        ]
+        q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds, plants=plants).q
+        model = replace(model, q=q)
+    return model, sweep
+
+
+def perturbed_drive(
+    params: FeedDriveParams,
+    *,
+    frequency_scale: float = 1.02,
+    friction_scale: float = 1.15,
+    extra_mode: tuple[float, float, float, float] | None = (420.0, 0.03, 2.0e5, 0.0),
+) -> FeedDriveParams:
+    """The machine as it cuts, differing from the one identified (acceptance mismatch).
+
+    Parameters
+    ----------
+    params : the drive at commissioning.
+    frequency_scale : all disturbance-mode frequencies × this (position-dependent modes: the
+        table elsewhere in its stroke).
+    friction_scale : Coulomb (and LuGre static/Coulomb) friction × this (friction drift:
+        temperature, lubrication).
+    extra_mode : (f Hz, ζ, α 1/s², β 1/s) of a mode outside the identification band added to Φ_d
+        (an unmodelled higher mode), or None.
+    """
+    from millsense.machine.lugre import LuGre
+
+    modes = params.modes
+    if modes is not None:
+        modes = scale_modes(modes, frequency_scale)
+        f, z, al, be = modes.frequency_hz, modes.damping_ratio, modes.alpha, modes.beta
+        if extra_mode is not None:
+            f = np.append(f, extra_mode[0])
+            z = np.append(z, extra_mode[1])
+            al = np.append(al, extra_mode[2])
+            be = np.append(be, extra_mode[3])
+        modes = ModalStateSpace.from_modes(f, z, al, be, modes.d)
+    fr = params.friction
+    if isinstance(fr, LuGre):
+        fr = replace(
+            fr,
+            coulomb=(fr.coulomb[0] * friction_scale, fr.coulomb[1] * friction_scale),
+            static=(fr.static[0] * friction_scale, fr.static[1] * friction_scale),
+        )
+    elif isinstance(fr, CoulombViscous):
+        fr = replace(
+            fr,
+            coulomb_pos=fr.coulomb_pos * friction_scale,
+            coulomb_neg=fr.coulomb_neg * friction_scale,
+        )
+    return replace(params, modes=modes, friction=fr)

@@ -1,0 +1,361 @@
+"""Spindle torque observer on the current command (Aslan C10, C11, C14; Eq. 5.12–5.23, 5.31–5.34).
+
+Identification (C10, :func:`identify_spindle`): a multisine disturbance torque at the tool (the
+thesis' tangential tap test at standstill; range 2 at 4000 rev/min) is applied to the spindle
+simulator and the CNC's velocity-loop output I_nom is recorded at the velocity-loop rate
+(0.2 ms, Aslan P7: I_nom is produced there, so 2500 Hz is its Nyquist frequency). The FRF
+``G_dτ = I_nom/τ_d`` (Eq. 5.12) is estimated by :func:`millsense.ident.frf.multisine_frf` and
+fitted on the bilinear-warped axis with real and complex poles
+(:func:`millsense.estimation.rational_fit.fit_rational`; Tustin back to the discrete loop is
+exact). Ten starting pairs give a 20-state model, 21 states with the torque: the size of the
+thesis' observer (Table 5.2).
+
+Observer (C11): the random-walk torque is appended (Eq. 5.15–5.16) and a steady-state LQE /
+Luenberger gain is computed (Eq. 5.17–5.21) with ``Q_s = diag(q_x·I_n, q_τ)`` (noise on every
+state, Γ_s = I, Eq. 5.20) and R the per-sample variance of I_nom while the spindle runs in air
+(Aslan: "RMS of the current command"). Q_s is tuned by Nelder–Mead (:func:`tune_spindle_q`)
+on the identified model for (i) minimum RMS of the compensated FRF ``G_cτ = G_dτ·G_Lτ``
+(Eq. 5.22–5.23) in dB against 0 dB up to the Nyquist frequency, (ii) the estimate's noise at least
+10 dB below a stated torque level (SNR > 10 dB), (iii) a stable observer (always, by the DARE).
+
+Force (C14, Eq. 5.31–5.34): ``F̂_t = τ̂_d/r`` and ``F_res ≈ √(1 + (K_rc/K_tc)²)·F̂_t`` =
+1.118·τ̂_d/r with the thesis' assumptions: edge forces neglected, K_rc = 0.5·K_tc, and the
+instantaneous chip load shared by the engaged flutes in the same proportion (exact for one flute
+in cut, approximate otherwise). The thesis prints 1.11; √1.25 = 1.118.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import linalg, optimize
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.estimation.kalman import (
+    KalmanDesign,
+    StateSpaceModel,
+    augment_disturbance,
+    bandwidth_3db,
+    design_kalman,
+)
+from millsense.estimation.lti_filter import StreamingFilter
+from millsense.estimation.rational_fit import RationalFit, fit_rational
+from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
+from millsense.ident.friction import fit_line
+from millsense.machine.friction import CoulombViscous
+from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
+from millsense.online.block import Block, BlockOutput, Chunk
+
+#: Eq. 5.34 with K_rc = 0.5·K_tc and no edge forces: √(1 + 0.5²).
+RESULTANT_FACTOR = math.sqrt(1.25)
+
+
+@dataclass(frozen=True)
+class SpindleIdentification:
+    """Result of :func:`identify_spindle`.
+
+    Attributes
+    ----------
+    frf : measured I_nom/τ_d at the velocity-loop rate, A/(N·m).
+    fit : rational fit (warped), A/(N·m).
+    model : discrete model at the velocity-loop period.
+    r : per-sample variance of I_nom in air, A².
+    speed_rpm : spindle speed of the test, rev/min.
+    """
+
+    frf: FrfEstimate
+    fit: RationalFit
+    model: StateSpaceModel
+    r: float
+    speed_rpm: float
+
+
+def _decimation(params: SpindleDriveParams, sample_rate_hz: float) -> int:
+    m = round(params.velocity_period_s * sample_rate_hz)
+    if m < 1 or abs(m - params.velocity_period_s * sample_rate_hz) > 1e-6:
+        raise ConfigError(
+            f"spindle observer: velocity period {params.velocity_period_s} s is not a whole "
+            f"number of samples at {sample_rate_hz:g} Hz"
+        )
+    return m
+
+
+def identify_spindle(
+    params: SpindleDriveParams,
+    *,
+    speed_rpm: float = 0.0,
+    sample_rate_hz: float = 10_000.0,
+    torque_rms_nm: float = 5.0,
+    current_noise_a: float = 0.0,
+    n_pairs: int = 10,
+    period_s: float = 0.5,
+    n_periods: int = 13,
+    seed: int = 0,
+) -> SpindleIdentification:
+    """Identify ``G_dτ = I_nom/τ_d`` from a simulated multisine torque test (Aslan C10).
+
+    Parameters
+    ----------
+    params : the simulated spindle drive (only I_nom is read from it).
+    speed_rpm : spindle speed during the test, rev/min (selects the speed range).
+    sample_rate_hz : CNC sample rate, Hz (a multiple of the velocity-loop rate).
+    torque_rms_nm : RMS of the multisine disturbance torque, N·m (lines 2 Hz … Nyquist).
+    current_noise_a : white noise added to the recorded I_nom, A (the measurement noise of the
+        test; also the noise of the air run that gives R).
+    n_pairs : starting complex pairs of the rational fit.
+    period_s, n_periods : multisine period, s, and periods (the first is discarded).
+    seed : noise seed.
+    """
+    m = _decimation(params, sample_rate_hz)
+    fv = sample_rate_hz / m
+    per = round(period_s * fv)
+    u, _ = multisine_signal(fv, per, 2.0, 0.4996 * fv, n_periods, rms=torque_rms_nm)
+    rng = np.random.default_rng(seed)
+    lead = round((0.8 if speed_rpm == 0 else 2.0) * fv)
+    w = speed_rpm * 2 * math.pi / 60
+    sim = SpindleDriveSim(params, sample_rate_hz)
+    n = (lead + len(u)) * m
+    ramp = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
+    tau = np.repeat(np.concatenate([np.zeros(lead), u]), m)
+    out = sim.advance(ramp, tau)
+    inom = out["current_cmd"][::m] + rng.normal(0.0, current_noise_a, n // m)
+    air = inom[lead - round(0.4 * fv) : lead]  # at speed, before the excitation: R
+    r = float(np.var(air - air.mean()))
+    est = multisine_frf(u, inom[lead:], fv, per, skip_periods=1, names=("tau_d", "I_nom"))
+    fit = fit_rational(
+        est.freq_hz, est.h1, n_pairs=n_pairs, coherence=est.coherence, warped_fs_hz=fv
+    )
+    return SpindleIdentification(est, fit, fit.discrete_model(1.0 / fv), max(r, 1e-12), speed_rpm)
+
+
+def design_observer(
+    model: StateSpaceModel, q_states: float, q_torque: float, r: float
+) -> KalmanDesign:
+    """LQE gains (Eq. 5.19–5.21) with ``Q_s = diag(q_states·I_n, q_torque)`` per sample."""
+    aug = augment_disturbance(model, noise_on_all_states=True)
+    q = np.full(aug.n_states, q_states)
+    q[-1] = q_torque
+    return design_kalman(aug, np.diag(q), r)
+
+
+def observer_noise_std(design: KalmanDesign) -> float:
+    """Standard deviation of τ̂_d (N·m) due to white measurement noise of variance R."""
+    filt = design.filter("filtered")
+    w = linalg.solve_discrete_lyapunov(filt.f, filt.g @ design.r @ filt.g.T)
+    v = filt.h @ w @ filt.h.T + filt.j @ design.r @ filt.j.T
+    return float(math.sqrt(max(float(v[0, 0]), 0.0)))
+
+
+@dataclass(frozen=True)
+class SpindleTuning:
+    """Result of :func:`tune_spindle_q`: Q_s, the criteria, and the design."""
+
+    q_states: float
+    q_torque: float
+    rms_db: float
+    bandwidth_hz: float
+    noise_std_nm: float
+    design: KalmanDesign
+
+
+def compensated(model_frf: NDArray[np.complex128], design: KalmanDesign, f_hz: NDArray) -> NDArray:
+    """``G_cτ = G_dτ·G_Lτ`` (Eq. 5.23) from a plant FRF at ``f_hz`` and the observer."""
+    return np.asarray(model_frf * design.filter("filtered").frf(f_hz)[:, 0, 0])
+
+
+def tune_spindle_q(
+    model: StateSpaceModel,
+    r: float,
+    *,
+    torque_level_nm: float = 2.0,
+    snr_db: float = 10.0,
+    f_top_fraction: float = 1.0,
+    n_freq: int = 400,
+    starts: tuple[tuple[float, float], ...] = ((-6.0, 2.0), (-12.0, 2.0), (-3.0, 0.0)),
+) -> SpindleTuning:
+    """Q_s by Nelder–Mead on ``(log₁₀ q_states, log₁₀ q_torque)`` (Aslan Ch. 5.3 tuning).
+
+    Parameters
+    ----------
+    model : identified discrete G_dτ.
+    r : per-sample variance of I_nom, A².
+    torque_level_nm : RMS torque the estimate must resolve, N·m (criterion ii).
+    snr_db : required SNR: noise std ≤ torque_level·10^(−snr_db/20).
+    f_top_fraction : upper end of the flatness band as a fraction of the Nyquist frequency
+        (1: the thesis' 2500 Hz at the 0.2 ms velocity loop).
+    n_freq : frequencies of the criterion.
+    starts : starting points of the searches (log₁₀ values); the best result is kept (the cost
+        has local minima where the noise constraint binds).
+
+    Notes
+    -----
+    Cost ``RMS_f(20 log₁₀|G_cτ|) + 100·max(0, 20 log₁₀(σ_τ̂ / σ_max))``; the FRF is that of the
+    identified model (the observer cannot know the true one).
+    """
+    assert model.dt is not None
+    nyq = 0.5 / model.dt
+    f = np.linspace(1.0, f_top_fraction * nyq, n_freq)
+    g = model.frf(f)[:, 0, 0]
+    sigma_max = torque_level_nm * 10 ** (-snr_db / 20)
+
+    def cost(x: NDArray[np.float64]) -> float:
+        x = np.clip(x, -14.0, 10.0)
+        d = design_observer(model, 10 ** x[0], 10 ** x[1], r)
+        db = 20 * np.log10(np.abs(compensated(g, d, f)))
+        rms = float(np.sqrt(np.mean(db**2)))
+        excess = 20 * math.log10(max(observer_noise_std(d), 1e-300) / sigma_max)
+        return rms + 100.0 * max(0.0, excess)
+
+    results = [
+        optimize.minimize(
+            cost, np.asarray(s0), method="Nelder-Mead", options={"xatol": 0.05, "fatol": 1e-3}
+        )
+        for s0 in starts
+    ]
+    best = min(results, key=lambda r: float(r.fun))
+    x = np.clip(best.x, -14.0, 10.0)
+    d = design_observer(model, 10 ** x[0], 10 ** x[1], r)
+    h = compensated(g, d, f)
+    db = 20 * np.log10(np.abs(h))
+    return SpindleTuning(
+        float(10 ** x[0]),
+        float(10 ** x[1]),
+        float(np.sqrt(np.mean(db**2))),
+        bandwidth_3db(np.concatenate([[0.0], f]), np.concatenate([[1.0], h])),
+        observer_noise_std(d),
+        d,
+    )
+
+
+def identify_spindle_friction(
+    params: SpindleDriveParams,
+    designs: dict[int, KalmanDesign],
+    *,
+    speeds_rpm: tuple[float, ...] = (500.0, 1500.0, 2500.0, 3000.0, 4000.0, 5000.0, 6000.0),
+    sample_rate_hz: float = 10_000.0,
+    current_noise_a: float = 0.0,
+    seed: int = 5,
+) -> CoulombViscous:
+    """Spindle friction seen by the observer, from air runs at constant speed (Eq. 5.2).
+
+    At constant speed in air the observer's torque estimate is the friction torque
+    ``τ_coul,S + B_eS·Ω`` (it enters the loop exactly like τ_d); the mean estimate over the
+    steady half of each run, per speed, is fitted by :func:`millsense.ident.friction.fit_line`
+    (one direction; the same values are used for both). The observer subtracts it so that
+    τ̂_d is the cutting torque (C14 needs the cutting part only).
+    """
+    speeds, torques = [], []
+    rng = np.random.default_rng(seed)
+    for rpm in speeds_rpm:
+        w = rpm * 2 * math.pi / 60
+        n = round(1.2 * sample_rate_hz)
+        ref = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
+        out = SpindleDriveSim(params, sample_rate_hz).advance(ref, np.zeros(n))
+        inom = out["current_cmd"] + rng.normal(0.0, current_noise_a, n)
+        design = designs[params.range_index(w)]
+        obs = SpindleTorqueObserver(design, sample_rate_hz)
+        obs.reset(sample_rate_hz)
+        data = {"spindle/current_cmd": inom}
+        tau = obs.process(Chunk(0, sample_rate_hz, 0.0, data)).channels["spindle/torque_est"]
+        speeds.append(float(np.mean(out["speed"][n // 2 :])))
+        torques.append(float(np.mean(tau[n // 2 :])))
+    line = fit_line(np.asarray(speeds), np.asarray(torques))
+    return CoulombViscous(line.intercept, line.intercept, line.slope, line.slope, 1.0)
+
+
+class SpindleTorqueObserver(Block):
+    """Streaming spindle torque and resultant-force estimate from the current command.
+
+    Parameters
+    ----------
+    design : observer design at the velocity-loop period.
+    sample_rate_hz : stream rate, Hz (a multiple ``m`` of the velocity-loop rate: the observer
+        runs on every m-th sample, where I_nom is new, and holds its estimate in between).
+    tool_radius_m : r of Eq. 5.31, m (None: no force channel).
+    prefix : channel prefix (reads ``{prefix}/current_cmd``, and ``{prefix}/speed`` in rad/s
+        when ``friction`` is given).
+    friction : identified spindle friction (:func:`identify_spindle_friction`) subtracted from
+        the estimate so that it is the cutting torque; None keeps the total disturbance.
+
+    Outputs ``{prefix}/torque_est`` (N·m, disturbance torque opposing rotation, Eq. 5.17) and
+    ``{prefix}/force_resultant_est`` (N, Eq. 5.34: 1.118·τ̂/r; assumptions in the module notes).
+    """
+
+    def __init__(
+        self,
+        design: KalmanDesign,
+        sample_rate_hz: float,
+        tool_radius_m: float | None = None,
+        prefix: str = "spindle",
+        friction: CoulombViscous | None = None,
+    ) -> None:
+        m = sample_rate_hz * design.dt
+        if abs(m - round(m)) > 1e-6 or round(m) < 1:
+            raise ConfigError(
+                f"spindle observer: stream rate {sample_rate_hz:g} Hz is not a multiple of the "
+                f"observer rate {1 / design.dt:g} Hz"
+            )
+        self.name = "spindle_torque_observer"
+        self.design = design
+        self.fs = sample_rate_hz
+        self.m = round(m)
+        self.radius = tool_radius_m
+        self.prefix = prefix
+        self.friction = friction
+        self.inputs = (f"{prefix}/current_cmd",)
+        if friction is not None:
+            self.inputs = (f"{prefix}/current_cmd", f"{prefix}/speed")
+        self._filter = StreamingFilter(design.filter("filtered"))
+        self._held = 0.0
+
+    def output_channels(self) -> list[ChannelInfo]:
+        out = [
+            ChannelInfo(
+                f"{self.prefix}/torque_est",
+                "N*m",
+                "spindle disturbance (cutting) torque from I_nom by the LQE observer "
+                "(Aslan Eq. 5.17-5.21)",
+            )
+        ]
+        if self.radius is not None:
+            out.append(
+                ChannelInfo(
+                    f"{self.prefix}/force_resultant_est",
+                    "N",
+                    "resultant cutting force 1.118*torque/r (Aslan Eq. 5.31-5.34; K_rc=0.5 "
+                    "K_tc, no edge forces)",
+                )
+            )
+        return out
+
+    def reset(self, sample_rate_hz: float) -> None:
+        if not math.isclose(sample_rate_hz, self.fs, rel_tol=1e-9):
+            raise ConfigError(
+                f"block {self.name}: built for {self.fs:g} Hz, stream is {sample_rate_hz:g} Hz"
+            )
+        self._filter.reset()
+        self._held = 0.0
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        y = np.asarray(chunk.data[self.inputs[0]], dtype=float)
+        n = len(y)
+        first = (-chunk.start) % self.m  # first sample of the chunk where I_nom is new
+        sel = np.arange(first, n, self.m)
+        if len(sel):
+            est = self._filter.process(y[sel])[:, 0]
+            # hold each estimate until the next I_nom update
+            counts = np.diff(np.concatenate([[0], sel, [n]]))
+            tau = np.repeat(np.concatenate([[self._held], est]), counts)
+            self._held = float(est[-1])
+        else:
+            tau = np.full(n, self._held)
+        if self.friction is not None:
+            tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
+        out = {f"{self.prefix}/torque_est": tau}
+        if self.radius is not None:
+            out[f"{self.prefix}/force_resultant_est"] = RESULTANT_FACTOR * tau / self.radius
+        return BlockOutput(out)
