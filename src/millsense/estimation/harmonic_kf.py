@@ -309,7 +309,7 @@ def estimate_harmonic_kf(
     if not f_t > 0:
         raise ConfigError("harmonic KF: spindle_speed_rpm must be > 0")
     f_rev = spindle_speed_rpm / 60.0
-    n_revs = int(math.floor(phi.size * f_rev / sample_rate_hz))
+    n_revs = math.floor(phi.size * f_rev / sample_rate_hz)
     if n_revs < 1:
         raise InputDataError(f"harmonic KF: record shorter than one revolution ({phi.size})")
     n = min(whole_period_length(sample_rate_hz, f_rev, n_revs), phi.size)
@@ -364,7 +364,7 @@ def find_angle_offset(
     phi = np.asarray(spindle_angle_rad, dtype=float)
     f_t = cut.n_flutes * spindle_speed_rpm / 60.0
     f_rev = spindle_speed_rpm / 60.0
-    n_revs = int(math.floor(phi.size * f_rev / sample_rate_hz))
+    n_revs = math.floor(phi.size * f_rev / sample_rate_hz)
     if n_revs < 1:
         raise InputDataError("angle offset: record shorter than one revolution")
     n = min(whole_period_length(sample_rate_hz, f_rev, n_revs), phi.size)
