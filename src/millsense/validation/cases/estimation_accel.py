@@ -10,6 +10,16 @@ model with 2 µm runout (estimator: Eq. 2.38, no runout); residues drifting alon
 16/30/10/10 % (estimator: one FRF tapped mid-pass); 5 % cross accelerance X force → Y
 acceleration; 0.2 m/s² accelerometer noise; a 5.6 kHz mode above the harmonic band; cutting
 coefficients of İlme Table 3.1 (estimator prior: Al7050 preset, K_tc +8 %, K_rc +26 %).
+
+Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm,
+0.1 mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed ×
+load map of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by
+vector fitting in Aslan's 200–1800 Hz band, nearest node (9000 rev/min, 50 N). Mismatch: the
+true load is 37 N (node 50 N: dominant mode 972 vs 959 Hz); a 2300 Hz mode outside the fitting
+band; 37 µm runout; accelerometer noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F)
+over the steady cut, both limited to the identified band (the accelerometers carry nothing
+below the 150 Hz leak of the double integration; above 1800 Hz the model is not identified,
+as in Aslan's discussion of the 2500 Hz harmonic). The full-band figure is in the details.
 """
 
 from __future__ import annotations
@@ -121,3 +131,89 @@ def _ilme_peak() -> float | Measured:
 def _ilme_rms() -> float | Measured:
     worst = max(r[6] for r in _ilme_table())
     return Measured(worst, _ilme_details())
+
+
+ASLAN_SPEEDS_RPM = (7500.0, 9000.0, 10500.0)
+ASLAN_LOADS_N = (0.0, 50.0, 100.0, 230.0, 330.0, 430.0)
+ASLAN_HIGHPASS_HZ = 150.0
+ASLAN_BAND_HZ = (200.0, 1800.0)
+
+
+@cache
+def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
+    import scipy.signal
+
+    from millsense.estimation.fusion import (
+        DoubleIntegrator,
+        DynamicsMap,
+        MapNode,
+        design_fusion,
+        run_fusion,
+    )
+    from millsense.ident.modal_fit import fit_batch
+    from millsense.validation.cases import _accel_sim as sim
+
+    raw = sim.aslan_map(ASLAN_SPEEDS_RPM, ASLAN_LOADS_N)
+    jobs = []
+    for _, _, frfs in raw:
+        for e in frfs:  # accelerance → receptance, then the modal fit
+            jobs.append((e.freq_hz, e.h1 / (-((2 * np.pi * e.freq_hz) ** 2))))
+    fits = fit_batch(jobs, ASLAN_BAND_HZ, max_modes=8)
+    k = 1 + sim.ASLAN_N_SENSORS
+    nodes = tuple(
+        MapNode(n, load, tuple(fits[k * i + 1 : k * i + k]), fits[k * i])
+        for i, (n, load, _) in enumerate(raw)
+    )
+    node = DynamicsMap(nodes).select(9000.0, 37.0)
+    fs = sim.ASLAN_FS_HZ
+    rng = np.random.default_rng(21)
+    r = []
+    for _ in range(sim.ASLAN_N_SENSORS):  # R: air cut, double-integrated noise
+        air = sim.ASLAN_NOISE_RMS * rng.standard_normal(round(fs))
+        r.append(float(np.var(DoubleIntegrator(fs, ASLAN_HIGHPASS_HZ).process(air)[2000:])))
+    filters = design_fusion(node, fs, 9000.0, r, highpass_hz=ASLAN_HIGHPASS_HZ)
+    rec = sim.simulate_aslan_cut(9000.0, 37.0)
+    res = run_fusion(filters, rec.accel)
+    # reference: the truth without what the accelerometers cannot see (the leak high-pass)
+    leak = DoubleIntegrator(fs, ASLAN_HIGHPASS_HZ)
+    ref = scipy.signal.lfilter([1.0, -2.0, 1.0], leak.a, rec.force_true)
+    band = scipy.signal.butter(6, ASLAN_BAND_HZ[1], fs=fs, output="sos")
+    start = round(0.2 * fs)
+    stop = ref.size - res.delay_samples
+
+    def err(est: np.ndarray, delay: int, limit: bool) -> float:
+        e, t = est, ref
+        if limit:
+            e, t = scipy.signal.sosfiltfilt(band, est), scipy.signal.sosfiltfilt(band, ref)
+        e, t = e[start + delay : stop + delay], t[start:stop]
+        return float(np.sqrt(np.mean((e - t) ** 2)) / np.sqrt(np.mean(t**2)) * 100)
+
+    fused_band = err(res.force, res.delay_samples, True)
+    fused_full = err(res.force, res.delay_samples, False)
+    lag = filters.smoother_lag
+    singles = tuple(err(res.force_per_sensor[m], lag, True) for m in range(len(r)))
+    singles_full = tuple(err(res.force_per_sensor[m], lag, False) for m in range(len(r)))
+    details = (
+        f"Node used: {node.speed_rpm:.0f} rev/min, {node.load_n:.0f} N (true 9000, 37 N). "
+        f"Fused error in band {fused_band:.1f} %, full band {fused_full:.1f} %. Single sensors "
+        "in band "
+        + "/".join(f"{v:.1f}" for v in singles)
+        + " %, full band "
+        + "/".join(f"{v:.1f}" for v in singles_full)
+        + " % (Aslan: singles 14/16/15/21/18 %, fused max 8 %)."
+    )
+    return fused_band, fused_full, singles, details
+
+
+@case(
+    "estimation.accel.aslan_quarter_fused_error",
+    source="issue 7 acceptance; Aslan Ch. 4 Case 2 (seed-000 digest V4): fused maximum 8 %",
+    reference=0.0,
+    unit="%",
+    abs_tol=8.0,
+    quick=False,
+    description="Aslan Ch. 4 quarter immersion 9000 rev/min: fused force error (fitted band)",
+)
+def _aslan_fused() -> float | Measured:
+    band, _, _, details = _aslan_quarter()
+    return Measured(band, details)
