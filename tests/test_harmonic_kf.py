@@ -94,7 +94,9 @@ def test_block_streams_with_fixed_delay_and_chunk_invariance() -> None:
             o = blk.process(Chunk(s, FS, 0.0, {"acc": a[s : s + chunk], "phi": phi[s : s + chunk]}))
             for k, v in o.channels.items():
                 outs.setdefault(k, []).append(v)
-        return {k: np.concatenate(v) for k, v in outs.items()} | {"delay": np.array([blk.delay_samples])}
+        return {k: np.concatenate(v) for k, v in outs.items()} | {
+            "delay": np.array([blk.delay_samples])
+        }
 
     r1, r2 = run(37), run(1000)
     d = int(r1["delay"][0])
