@@ -105,7 +105,7 @@ def test_fusion_recovers_a_tooth_force_on_exact_models(two_sensors) -> None:  # 
 
 
 def test_block_matches_record_run(two_sensors) -> None:  # type: ignore[no-untyped-def]
-    (m1, f1), (m2, f2) = two_sensors
+    (_m1, f1), (_m2, f2) = two_sensors
     filt = design_fusion(MapNode(9000.0, 0.0, (f1, f2), f1), FS, 9000.0, [1e-14, 1e-14])
     rng = np.random.default_rng(1)
     acc = rng.standard_normal((2, 3000))

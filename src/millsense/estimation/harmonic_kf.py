@@ -265,7 +265,7 @@ def estimate_harmonic_kf(
     *,
     q: float = 0.1,
     r: float = 0.28,
-    p0: float = 1e6,
+    p0: ArrayLike = 1e6,
     x0: ArrayLike | None = None,
     n_harmonics: int = 20,
     n_harmonics_force: int = 100,
@@ -287,7 +287,8 @@ def estimate_harmonic_kf(
         scalar for all states, Q·I₄; İlme Table 4.3 uses 0.10).
     r : measurement noise variance [(m/s²)²] (İlme: variance of the acceleration in free
         state, Table 4.3: 0.28).
-    p0 : initial covariance, scalar in the scaled units (uninformative by default).
+    p0 : initial covariance in the scaled units, scalar (→ p0·I₄) or (4, 4); uninformative
+        by default.
     x0 : initial q in SI [N/m², N/m², N/m, N/m] (default zeros).
     n_harmonics : tooth harmonics in the reconstruction and in H (20).
     n_harmonics_force : harmonics of the force rebuilt from q̂ (Eq. 2.38; 100 keeps Gibbs
@@ -426,7 +427,7 @@ class HarmonicKalmanBlock(Block):
         *,
         q: float = 0.1,
         r: float = 0.28,
-        p0: float = 1e6,
+        p0: ArrayLike = 1e6,
         x0: ArrayLike | None = None,
         n_harmonics: int = 20,
         n_harmonics_force: int = 100,
