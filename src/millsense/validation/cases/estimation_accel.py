@@ -1,0 +1,220 @@
+"""Validation of the accelerometer estimators (issue 7 item 5).
+
+İlme (seed 003): the 12-test matrix of Table 4.5 replicated in simulation, Y force from the
+angular-harmonic Kalman filter against the simulated truth; peak and RMS errors (Table 4.6
+definitions, |est − true|/true) must be ≤ 10 % in every test. The estimator uses an FRF from a
+simulated impact test (interpolated at the tooth harmonics, no modal fit), R from a simulated
+free-state record, Q = 1e-3 for all tests, and q_0 from the machine's material preset (Al7050)
+with 30 % standard deviation. Mismatch of the simulator against the estimator: sliced force
+model with 2 µm runout (estimator: Eq. 2.38, no runout); residues drifting along the pass by
+16/30/10/10 % (estimator: one FRF tapped mid-pass); 5 % cross accelerance X force → Y
+acceleration; 0.2 m/s² accelerometer noise; a 5.6 kHz mode above the harmonic band; cutting
+coefficients of İlme Table 3.1 (estimator prior: Al7050 preset, K_tc +8 %, K_rc +26 %).
+
+Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm,
+0.1 mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed ×
+load map of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by
+vector fitting in Aslan's 200–1800 Hz band, nearest node (9000 rev/min, 50 N). Mismatch: the
+true load is 37 N (node 50 N: dominant mode 972 vs 959 Hz); a 2300 Hz mode outside the fitting
+band; 37 µm runout; accelerometer noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F)
+over the steady cut, both limited to the identified band (the accelerometers carry nothing
+below the 150 Hz leak of the double integration; above 1800 Hz the model is not identified,
+as in Aslan's discussion of the 2500 Hz harmonic). The full-band figure is in the details.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+from millsense.validation import Measured, case
+
+ILME_Q = 1e-3
+ILME_PRIOR_SD = 0.3
+ILME_SKIP_S = 0.1  # start after the entry transient (İlme cuts the record at a landmark)
+
+
+@cache
+def _ilme_table() -> tuple[tuple[int, float, float, float, float, float, float], ...]:
+    from millsense.core.config import MaterialConfig
+    from millsense.core.presets import load_preset
+    from millsense.estimation.harmonic_kf import STATE_SCALE, CutSetup, estimate_harmonic_kf
+    from millsense.validation.cases import _accel_sim as sim
+
+    mat = load_preset(MaterialConfig, "al7050")
+    prior = np.array([mat.ktc_n_mm2, mat.krc_n_mm2, mat.kte_n_mm, mat.kre_n_mm])
+    frf = sim.ilme_frf()
+    r = sim.ilme_free_state_variance()
+    rows = []
+    for test in sim.ILME_TESTS:
+        rec = sim.simulate_ilme(test, 1.0 + ILME_SKIP_S)
+        k0 = round(ILME_SKIP_S * rec.sample_rate_hz)
+        entry, exit_ = test.immersion_rad
+        cut = CutSetup(
+            test.n_flutes,
+            test.diameter_mm * 1e-3,
+            sim.ILME_HELIX_RAD,
+            test.ap_mm * 1e-3,
+            entry,
+            exit_,
+            test.feed_per_tooth_m,
+        )
+        res = estimate_harmonic_kf(
+            {"y": rec.accel_y[k0:]},
+            rec.spindle_angle_rad[k0:],
+            rec.sample_rate_hz,
+            test.rpm,
+            cut,
+            {"y": (frf.freq_hz, frf.h1)},
+            q=ILME_Q,
+            r=r,
+            x0=prior * STATE_SCALE,
+            p0=np.diag((ILME_PRIOR_SD * prior) ** 2),
+        )
+        n = res.n_used
+        window = slice(n // 2, n)  # the converged second half ("a specific time period")
+        true = rec.force_y_true[k0 : k0 + n][window]
+        est = res.force_y_converged[window]
+        pk_t, pk_e = float(true.max()), float(est.max())
+        rms_t = float(np.sqrt(np.mean(true**2)))
+        rms_e = float(np.sqrt(np.mean(est**2)))
+        rows.append(
+            (
+                test.number,
+                pk_t,
+                pk_e,
+                abs(pk_e - pk_t) / pk_t * 100,
+                rms_t,
+                rms_e,
+                abs(rms_e - rms_t) / rms_t * 100,
+            )
+        )
+    return tuple(rows)
+
+
+def _ilme_details() -> str:
+    lines = [
+        "| Test | Peak true/est [N] | Peak err | RMS true/est [N] | RMS err |",
+        "|---|---|---|---|---|",
+    ]
+    for t, pt, pe, ep, rt, re_, er in _ilme_table():
+        lines.append(
+            f"| {t} | {pt:.1f} / {pe:.1f} | {ep:.1f} % | {rt:.1f} / {re_:.1f} | {er:.1f} % |"
+        )
+    return "\n".join(lines)
+
+
+@case(
+    "estimation.accel.ilme_worst_peak_error",
+    source="issue 7 acceptance; İlme Table 4.6 (10 % success line), seed-003 digest §4.2",
+    reference=0.0,
+    unit="%",
+    abs_tol=10.0,
+    quick=False,
+    description="İlme 12-test matrix in simulation: worst Y peak-force error of the harmonic KF",
+)
+def _ilme_peak() -> float | Measured:
+    worst = max(r[3] for r in _ilme_table())
+    return Measured(worst, _ilme_details())
+
+
+@case(
+    "estimation.accel.ilme_worst_rms_error",
+    source="issue 7 acceptance; İlme Table 4.6 (10 % success line), seed-003 digest §4.2",
+    reference=0.0,
+    unit="%",
+    abs_tol=10.0,
+    quick=False,
+    description="İlme 12-test matrix in simulation: worst Y RMS-force error of the harmonic KF",
+)
+def _ilme_rms() -> float | Measured:
+    worst = max(r[6] for r in _ilme_table())
+    return Measured(worst, _ilme_details())
+
+
+ASLAN_SPEEDS_RPM = (7500.0, 9000.0, 10500.0)
+ASLAN_LOADS_N = (0.0, 50.0, 100.0, 230.0, 330.0, 430.0)
+ASLAN_HIGHPASS_HZ = 150.0
+ASLAN_BAND_HZ = (200.0, 1800.0)
+
+
+@cache
+def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
+    import scipy.signal
+
+    from millsense.estimation.fusion import (
+        DoubleIntegrator,
+        DynamicsMap,
+        MapNode,
+        design_fusion,
+        run_fusion,
+    )
+    from millsense.ident.modal_fit import fit_batch
+    from millsense.validation.cases import _accel_sim as sim
+
+    raw = sim.aslan_map(ASLAN_SPEEDS_RPM, ASLAN_LOADS_N)
+    jobs = []
+    for _, _, frfs in raw:
+        for e in frfs:  # accelerance → receptance, then the modal fit
+            jobs.append((e.freq_hz, e.h1 / (-((2 * np.pi * e.freq_hz) ** 2))))
+    fits = fit_batch(jobs, ASLAN_BAND_HZ, max_modes=8)
+    k = 1 + sim.ASLAN_N_SENSORS
+    nodes = tuple(
+        MapNode(n, load, tuple(fits[k * i + 1 : k * i + k]), fits[k * i])
+        for i, (n, load, _) in enumerate(raw)
+    )
+    node = DynamicsMap(nodes).select(9000.0, 37.0)
+    fs = sim.ASLAN_FS_HZ
+    rng = np.random.default_rng(21)
+    r = []
+    for _ in range(sim.ASLAN_N_SENSORS):  # R: air cut, double-integrated noise
+        air = sim.ASLAN_NOISE_RMS * rng.standard_normal(round(fs))
+        r.append(float(np.var(DoubleIntegrator(fs, ASLAN_HIGHPASS_HZ).process(air)[2000:])))
+    filters = design_fusion(node, fs, 9000.0, r, highpass_hz=ASLAN_HIGHPASS_HZ)
+    rec = sim.simulate_aslan_cut(9000.0, 37.0)
+    res = run_fusion(filters, rec.accel)
+    # reference: the truth without what the accelerometers cannot see (the leak high-pass)
+    wc = 2 * np.pi * ASLAN_HIGHPASS_HZ
+    b_hp, a_hp = scipy.signal.bilinear([1.0, 0.0, 0.0], [1.0, 2 * wc, wc * wc], fs)
+    ref = scipy.signal.lfilter(b_hp, a_hp, rec.force_true)  # analog s²/(s + ω_hp)²
+    band = scipy.signal.butter(6, ASLAN_BAND_HZ[1], fs=fs, output="sos")
+    start = round(0.2 * fs)
+    stop = ref.size - res.delay_samples
+
+    def err(est: np.ndarray, delay: int, limit: bool) -> float:
+        e, t = est, ref
+        if limit:
+            e, t = scipy.signal.sosfiltfilt(band, est), scipy.signal.sosfiltfilt(band, ref)
+        e, t = e[start + delay : stop + delay], t[start:stop]
+        return float(np.sqrt(np.mean((e - t) ** 2)) / np.sqrt(np.mean(t**2)) * 100)
+
+    fused_band = err(res.force, res.delay_samples, True)
+    fused_full = err(res.force, res.delay_samples, False)
+    lag = filters.smoother_lag
+    singles = tuple(err(res.force_per_sensor[m], lag, True) for m in range(len(r)))
+    singles_full = tuple(err(res.force_per_sensor[m], lag, False) for m in range(len(r)))
+    details = (
+        f"Node used: {node.speed_rpm:.0f} rev/min, {node.load_n:.0f} N (true 9000, 37 N). "
+        f"Fused error in band {fused_band:.1f} %, full band {fused_full:.1f} %. Single sensors "
+        "in band "
+        + "/".join(f"{v:.1f}" for v in singles)
+        + " %, full band "
+        + "/".join(f"{v:.1f}" for v in singles_full)
+        + " % (Aslan: singles 14/16/15/21/18 %, fused max 8 %)."
+    )
+    return fused_band, fused_full, singles, details
+
+
+@case(
+    "estimation.accel.aslan_quarter_fused_error",
+    source="issue 7 acceptance; Aslan Ch. 4 Case 2 (seed-000 digest V4): fused maximum 8 %",
+    reference=0.0,
+    unit="%",
+    abs_tol=8.0,
+    quick=False,
+    description="Aslan Ch. 4 quarter immersion 9000 rev/min: fused force error (fitted band)",
+)
+def _aslan_fused() -> float | Measured:
+    band, _, _, details = _aslan_quarter()
+    return Measured(band, details)
