@@ -464,6 +464,10 @@ class MachineSimulator(Source):
         self._omega_ref_last = 0.0
         self._s_prev = 0.0
         self._feed_dir = np.array([1.0, 0.0, 0.0])
+        # tool-centre velocity history for the tooth-period feed (decision "Simulator chip
+        # from the tooth-period feed"), at most 0.1 s
+        self._v_hist = np.zeros((0, 3))
+        self._v_hist_max = max(round(0.1 * fs), 1)
         self._torque_last = 0.0
 
         # ---- stream bookkeeping
@@ -772,7 +776,8 @@ class MachineSimulator(Source):
             speed = np.empty(n)
             x_p = np.empty((n, 3))
             y_p = np.empty((n, 3))
-            _feed_frame(v_w, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
+            v_chip = self._tooth_period_velocity(v_w)
+            _feed_frame(v_chip, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
             # arc length at the actual position: the reference minus the lag along the feed
             p_err = self._tip_error()
             s_est = s_all[sl] - float(p_err @ self._feed_dir)
@@ -829,6 +834,35 @@ class MachineSimulator(Source):
         self._omega = float(sp["true_speed"][-1])
         self._torque_last = float(np.mean(torque))
         self._realism_tool()
+
+    def _tooth_period_velocity(self, v_w: FloatArray) -> FloatArray:
+        """Tool-centre velocity averaged over the last tooth period per sample, m/s.
+
+        The chip a tooth cuts is the path travelled since the previous tooth passed
+        (displacement over one tooth period T = 2π/(N Ω)), not the instantaneous velocity
+        times T: a drive that oscillates at the tooth frequency under the cutting force
+        would otherwise modulate the chip in phase with the force and bias the mean force
+        (−6.5 % on F_x in a Ø20 mm slot at 1000 rev/min). Window: T at the spindle speed of
+        the end of the last block, in whole samples, ≤ 0.1 s; the instantaneous velocity
+        while the spindle stands (decision "Simulator chip from the tooth-period feed").
+        """
+        assert self.process is not None
+        n = v_w.shape[0]
+        om = abs(self._omega)
+        fs = self.sample_rate_hz
+        if om < 1e-3:
+            win = 1
+        else:
+            win = round(2 * math.pi / (self.process.tool.n_flutes * om) * fs)
+            win = min(max(win, 1), self._v_hist_max)
+        seq = np.vstack([self._v_hist, v_w])
+        self._v_hist = seq[-self._v_hist_max :]
+        if win == 1:
+            return v_w
+        cs = np.vstack([np.zeros((1, 3)), np.cumsum(seq, axis=0)])
+        j = np.arange(seq.shape[0] - n, seq.shape[0]) + 1  # end (exclusive) per sample
+        lo = np.maximum(j - win, 0)
+        return np.asarray((cs[j] - cs[lo]) / (j - lo)[:, None])
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""
