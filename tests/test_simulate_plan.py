@@ -96,7 +96,7 @@ def test_tool_and_coefficients_from_metadata(cross_plan: VirtualPlan, tmp_path: 
     for k in ("ktc", "krc", "kac", "kte", "kre", "kae"):
         assert getattr(co, k) == pytest.approx(getattr(COEFFS, k), rel=1e-12, abs=1e-9)
     assert back.metadata["n_discs"] == 20  # 2 × n_layers, predict_states' default
-    with pytest.raises(InputDataError, match="'tool.diameter_mm'"):
+    with pytest.raises(InputDataError, match=r"'tool\.diameter_mm'"):
         tool_from_metadata({"tool": {"flutes": 2}})
 
 
@@ -161,15 +161,15 @@ def test_bad_plan_files_one_line_exit_2(
         (no_layers, "misses column 'intervals_rad'"),
     ]
     for path, text in cases:
-        code, _, err = _run(
-            ["simulate", "--plan", str(path), "-o", str(tmp_path / "r.h5")], capsys
-        )
+        code, _, err = _run(["simulate", "--plan", str(path), "-o", str(tmp_path / "r.h5")], capsys)
         assert code == 2, path
         assert err.strip().count("\n") == 0 and text in err and path.name in err
 
 
 def test_vertex_path_keeps_exact_corners_and_arcs() -> None:
-    prog = "G21 G90 G17\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F600\nX10\nG2 X20 Y-10 I0 J-10\nG1 Y-30\nM30\n"
+    prog = (
+        "G21 G90 G17\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F600\nX10\nG2 X20 Y-10 I0 J-10\nG1 Y-30\nM30\n"
+    )
     tp = interpret(prog)
     vp = vertex_path(tp, chord_tol_m=1e-6)
     xy = np.column_stack([vp.x, vp.y]) / MM
@@ -221,14 +221,16 @@ def test_interpolator_keeps_the_feed_on_plan_rows() -> None:
     assert c.mean() == pytest.approx(0.2e-3, rel=1e-3)
 
 
-def test_cli_simulate_plan_uses_the_plan(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_simulate_plan_uses_the_plan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from millsense.io import read_recording
 
     stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.06, 0.08, 0.0], 0.2e-3)
     plan = plan_program(interpret(SLOT_PROGRAM, source="slot.nc"), stock, TOOL, COEFFS)
     pfile = plan.write(tmp_path / "slot.parquet")
     out = tmp_path / "run.h5"
-    code, stdout, err = _run(
+    code, _, err = _run(
         ["simulate", "--machine", "quaser-ux600", "--plan", str(pfile), "-o", str(out),
          "--duration-s", "4.0"],
         capsys,

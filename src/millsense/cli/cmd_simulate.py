@@ -58,8 +58,9 @@ def simulate(
     With --plan the machine runs the plan's rows (0.4 mm polyline) and cuts with the
     engagement of every row (e.g. `millsense simulate --machine quaser-ux600 --plan
     plan.parquet -o run.h5`); with --program it runs the program's exact vertices and the
-    unit engagement of --engagement/--depth-mm on every feed move. Every chunk is appended to OUT while the simulation runs (flushed every 0.5 s of
-    signal), so a killed run leaves a readable recording of everything flushed.
+    unit engagement of --engagement/--depth-mm on every feed move. Every chunk is appended
+    to OUT while the simulation runs (flushed every 0.5 s of signal), so a killed run leaves
+    a readable recording of everything flushed.
     """
     req = dict(
         machine=machine,

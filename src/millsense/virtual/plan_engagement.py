@@ -164,7 +164,10 @@ class PlanEngagement:
                 iv = u[n_layers:].reshape(n_layers, m, 2).astype(np.float64)
                 table.append(
                     Engagement.from_intervals(
-                        [[(float(a), float(b)) for a, b in iv[k, : cnt[k]]] for k in range(n_layers)]
+                        [
+                            [(float(a), float(b)) for a, b in iv[k, : cnt[k]]]
+                            for k in range(n_layers)
+                        ]
                     )
                 )
             index[active] = inv.reshape(-1)
@@ -216,4 +219,3 @@ class PlanEngagement:
             f"{int((self.row_index >= 0).sum())} rows in cut, {len(self.table)} distinct "
             f"engagements ({kind}), max depth {self.max_depth_m * 1e3:.2f} mm"
         )
-

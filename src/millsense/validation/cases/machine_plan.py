@@ -104,7 +104,9 @@ def simulate_plan(
 
 def _tool_coeffs() -> tuple[EndMill, CuttingCoefficients]:
     tool = EndMill.from_config(load_preset(ToolConfig, str(DEMO / "tool.toml")))
-    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, str(DEMO / "material.toml")))
+    coeffs = CuttingCoefficients.from_config(
+        load_preset(MaterialConfig, str(DEMO / "material.toml"))
+    )
     return tool, coeffs
 
 
@@ -141,8 +143,8 @@ def tooth_period_means(
     n_p = int(period.max()) + 1
     cnt = np.bincount(period, minlength=n_p)
     mean = np.bincount(period, weights=signal, minlength=n_p) / np.maximum(cnt, 1)
-    tc = np.bincount(period, weights=np.arange(signal.size) / fs_hz, minlength=n_p)
-    tc = tc / np.maximum(cnt, 1)
+    t_sum = np.bincount(period, weights=np.arange(signal.size) / fs_hz, minlength=n_p)
+    tc = t_sum / np.maximum(cnt, 1)
     ok = cnt > 0
     ok[0] = ok[-1] = False
     return mean[ok], tc[ok]
@@ -247,9 +249,7 @@ def torque_comparison(run: PlanRun, max_lag_s: float = 0.3) -> dict[str, float]:
     """
     d, p, st = run.data, run.plan, run.stream
     n_fl = int(p.metadata["tool"]["flutes"])
-    mean, tc = tooth_period_means(
-        d["truth/spindle/torque"], d["truth/spindle/speed"], n_fl, FS
-    )
+    mean, tc = tooth_period_means(d["truth/spindle/torque"], d["truth/spindle/speed"], n_fl, FS)
     ts = st["time_s"]
     tcp = np.column_stack([st["tcp_x"], st["tcp_y"], st["tcp_z"]])
     rows = _carried_rows(p.match(tcp))
