@@ -267,6 +267,30 @@ def _to_frame(
 
 
 @numba.njit(cache=True)
+def _window_mean(v: np.ndarray, ring: np.ndarray, count: int, win: int, out: np.ndarray) -> int:
+    """Mean of the last ``win`` rows of the stream of ``v`` per row (fewer at its start).
+
+    ``ring`` (L, 3) holds cumulative sums at absolute row index mod L (L > win); ``count``
+    rows were added before this call; returns the new count.
+    """
+    n_ring = ring.shape[0]
+    a = count
+    for k in range(v.shape[0]):
+        cur = a % n_ring
+        prev = (a - 1) % n_ring
+        for i in range(3):
+            c_prev = ring[prev, i] if a > 0 else 0.0
+            ring[cur, i] = c_prev + v[k, i]
+        w = win if win <= a + 1 else a + 1
+        j = a - w
+        for i in range(3):
+            base = ring[j % n_ring, i] if j >= 0 else 0.0
+            out[k, i] = (ring[cur, i] - base) / w
+        a += 1
+    return a
+
+
+@numba.njit(cache=True)
 def _ramp(target: np.ndarray, last: float, step: float, out: np.ndarray) -> float:
     """Rate-limit ``target`` to ``step`` per sample starting from ``last``."""
     for k in range(target.shape[0]):
@@ -466,8 +490,9 @@ class MachineSimulator(Source):
         self._feed_dir = np.array([1.0, 0.0, 0.0])
         # tool-centre velocity history for the tooth-period feed (decision "Simulator chip
         # from the tooth-period feed"), at most 0.1 s
-        self._v_hist = np.zeros((0, 3))
         self._v_hist_max = max(round(0.1 * fs), 1)
+        self._v_cum = np.zeros((self._v_hist_max + 1, 3))  # ring of cumulative sums
+        self._v_count = 0
         self._torque_last = 0.0
 
         # ---- stream bookkeeping
@@ -847,7 +872,6 @@ class MachineSimulator(Source):
         while the spindle stands (decision "Simulator chip from the tooth-period feed").
         """
         assert self.process is not None
-        n = v_w.shape[0]
         om = abs(self._omega)
         fs = self.sample_rate_hz
         if om < 1e-3:
@@ -855,14 +879,11 @@ class MachineSimulator(Source):
         else:
             win = round(2 * math.pi / (self.process.tool.n_flutes * om) * fs)
             win = min(max(win, 1), self._v_hist_max)
-        seq = np.vstack([self._v_hist, v_w])
-        self._v_hist = seq[-self._v_hist_max :]
-        if win == 1:
-            return v_w
-        cs = np.vstack([np.zeros((1, 3)), np.cumsum(seq, axis=0)])
-        j = np.arange(seq.shape[0] - n, seq.shape[0]) + 1  # end (exclusive) per sample
-        lo = np.maximum(j - win, 0)
-        return np.asarray((cs[j] - cs[lo]) / (j - lo)[:, None])
+        out = np.empty_like(v_w)
+        self._v_count = _window_mean(
+            np.ascontiguousarray(v_w), self._v_cum, self._v_count, win, out
+        )
+        return out
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""
