@@ -18,14 +18,29 @@ if TYPE_CHECKING:
 @app.command()
 def simulate(
     machine: str = typer.Option("quaser-ux600", "--machine", help="Machine preset or .toml."),
-    program: Path | None = typer.Option(None, "--program", help="G-code program (.nc)."),
-    plan: Path | None = typer.Option(None, "--plan", help="Virtual plan (.parquet)."),
-    tool: str = typer.Option("aslan-d20-2flute", "--tool", help="Tool preset or .toml."),
-    material: str = typer.Option("al7050", "--material", help="Material preset or .toml."),
-    engagement: str = typer.Option(
-        "slot", "--engagement", help="slot, ae_mm=VALUE or ae_mm=VALUE,up (unit cases)."
+    program: Path | None = typer.Option(
+        None, "--program", help="G-code program (.nc); engagement from --engagement/--depth-mm."
     ),
-    depth_mm: float = typer.Option(2.0, "--depth-mm", help="Axial depth of cut, mm."),
+    plan: Path | None = typer.Option(
+        None,
+        "--plan",
+        help="Virtual plan (.parquet from `millsense plan`): its path, feed, spindle speed, "
+        "NC lines and per-row engagement; tool and coefficients from the plan.",
+    ),
+    tool: str | None = typer.Option(
+        None,
+        "--tool",
+        help="Tool preset or .toml (default: the plan's tool, else aslan-d20-2flute).",
+    ),
+    material: str | None = typer.Option(
+        None,
+        "--material",
+        help="Material preset or .toml (default: the plan's coefficients, else al7050).",
+    ),
+    engagement: str = typer.Option(
+        "slot", "--engagement", help="With --program: slot, ae_mm=VALUE or ae_mm=VALUE,up."
+    ),
+    depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth, mm."),
     out: Path = typer.Option(..., "--out", "-o", help="Recording to write (.h5)."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this, s."),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
@@ -37,10 +52,15 @@ def simulate(
     microphone: bool = typer.Option(False, "--microphone", help="Add mic/pressure."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk written."),
 ) -> None:
-    """Simulate the virtual machine tool running a program and write a crash-safe recording.
+    """Simulate the virtual machine tool running a program or a virtual plan; write a
+    crash-safe recording with CNC and truth/ channels.
 
-    Every chunk is appended to OUT while the simulation runs (flushed every 0.5 s of
-    signal), so a killed run leaves a readable recording of everything flushed.
+    With --plan the machine runs the plan's rows (0.4 mm polyline) and cuts with the
+    engagement of every row (e.g. `millsense simulate --machine quaser-ux600 --plan
+    plan.parquet -o run.h5`); with --program it runs the program's exact vertices and the
+    unit engagement of --engagement/--depth-mm on every feed move. Every chunk is appended
+    to OUT while the simulation runs (flushed every 0.5 s of signal), so a killed run leaves
+    a readable recording of everything flushed.
     """
     req = dict(
         machine=machine,
@@ -63,6 +83,8 @@ def simulate(
     )
     with progress_bar("simulating", 1.0) as update:
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
+    for note in summary.get("notes", []):
+        typer.echo(f"millsense: note: {note}", err=True)
     typer.echo(
         f"wrote {out}: {summary['samples']} samples ({summary['seconds']:.2f} s) in "
         f"{summary['wall_s']:.1f} s wall ({summary['seconds'] / summary['wall_s']:.1f}x real time)"
@@ -74,8 +96,8 @@ def run_simulation(
     machine: str,
     program: Path | None,
     plan: Path | None,
-    tool: str,
-    material: str,
+    tool: str | None,
+    material: str | None,
     engagement: str,
     depth_mm: float,
     out: Path,
@@ -116,13 +138,12 @@ def run_simulation(
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
     from millsense.virtual.gcode import interpret_file
-    from millsense.virtual.path import sample_path
+    from millsense.virtual.path import vertex_path
 
-    if plan is not None:
-        # the VirtualPlan reader slots in here (an EngagementSource from the plan file)
-        raise ConfigError(f"--plan {plan}: plan files arrive with issue 4; use --program")
-    if program is None:
-        raise ConfigError("simulate: give --program P.nc (or --plan once plans exist)")
+    if plan is not None and program is not None:
+        raise ConfigError("simulate: give --program or --plan, not both")
+    if plan is None and program is None:
+        raise ConfigError("simulate: give --program P.nc or --plan PLAN.parquet")
     if cnc not in ("open", "closed"):
         raise ConfigError(f"--cnc: '{cnc}' (open or closed)")
     if chunk < 1:
@@ -130,26 +151,68 @@ def run_simulation(
     if not (depth_mm > 0):
         raise ConfigError(f"--depth-mm: must be > 0, got {depth_mm}")
     mcfg = load_preset(MachineConfig, machine)
-    tcfg = load_preset(ToolConfig, tool)
-    mat = load_preset(MaterialConfig, material)
-    end_mill = EndMill.from_config(tcfg)
-    sp = sample_path(interpret_file(program))
-    job = Job.from_sampled_path(sp, five_axis=mcfg.kinematics == "5-axis-trunnion-ac")
+    five = mcfg.kinematics == "5-axis-trunnion-ac"
     events: list[ProcessEvent] = []
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
-    unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
-    assert job.rapid is not None
-    schedule = EngagementSchedule.along_cutting_moves(
-        unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
-    )
-    process = ProcessCoupling(
-        end_mill,
-        CuttingCoefficients.from_config(mat),
-        schedule,
-        events=events,
-        sample_rate_hz=mcfg.sample_rate_hz,
-    )
+    notes: list[str] = []
+    meta_extra: dict[str, Any] = {}
+    if plan is not None:
+        from millsense.virtual.plan import (
+            VirtualPlan,
+            coefficients_from_metadata,
+            tool_from_metadata,
+        )
+        from millsense.virtual.plan_engagement import PlanEngagement, plan_path
+
+        vp = VirtualPlan.read(plan)
+        if tool is not None:
+            end_mill = EndMill.from_config(load_preset(ToolConfig, tool))
+        else:
+            end_mill = tool_from_metadata(vp.metadata, str(plan))
+        if material is not None:
+            coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, material))
+        else:
+            coeffs = coefficients_from_metadata(vp.metadata, str(plan))
+        pp = plan_path(vp, five_axis=five)
+        job = Job(pp.path, pp.feed_m_s, pp.spindle_rad_s, pp.nc_line, pp.rapid)
+        source = PlanEngagement(vp)
+        notes += source.notes
+        n_discs = int(vp.metadata.get("n_discs", 10))
+        meta_extra = {
+            "plan": str(plan),
+            "program": str(vp.metadata.get("program", "")),
+            "tool": tool or str(vp.metadata.get("tool_name", "plan")),
+            "material": material or str(vp.metadata.get("material_name", "plan")),
+            "engagement": source.summary(),
+        }
+        process = ProcessCoupling(
+            end_mill,
+            coeffs,
+            source,
+            events=events,
+            n_discs=n_discs,
+            sample_rate_hz=mcfg.sample_rate_hz,
+        )
+    else:
+        assert program is not None
+        tcfg = load_preset(ToolConfig, tool or "aslan-d20-2flute")
+        mat = load_preset(MaterialConfig, material or "al7050")
+        end_mill = EndMill.from_config(tcfg)
+        job = Job.from_sampled_path(vertex_path(interpret_file(program)), five_axis=five)
+        unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
+        assert job.rapid is not None
+        schedule = EngagementSchedule.along_cutting_moves(
+            unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
+        )
+        process = ProcessCoupling(
+            end_mill,
+            CuttingCoefficients.from_config(mat),
+            schedule,
+            events=events,
+            sample_rate_hz=mcfg.sample_rate_hz,
+        )
+        meta_extra = {"program": str(program), "tool": tcfg.name, "material": mat.name}
     channel = OverrideChannel.open_cnc() if cnc == "open" else OverrideChannel.closed_cnc()
     opts = SimulatorOptions(
         feed_channel=channel,
@@ -165,7 +228,7 @@ def run_simulation(
         (float(np.sum(seg / job.feed_m_s)) + sim.start_s + 0.2) * sim.sample_rate_hz
     )
     meta = dict(sim.metadata)
-    meta.update({"program": str(program), "tool": tcfg.name, "material": mat.name})
+    meta.update(meta_extra)
     writer = RecordingWriter(
         out,
         sim.sample_rate_hz,
@@ -190,4 +253,5 @@ def run_simulation(
         "samples": n,
         "seconds": n / sim.sample_rate_hz,
         "wall_s": max(time.perf_counter() - t0, 1e-9),
+        "notes": notes,
     }

@@ -212,4 +212,4 @@ def rescale_plan(plan: VirtualPlan, ktc_n_mm2: float) -> VirtualPlan:
     cols["ktc_n_mm2"] = np.where(act, ktc_n_mm2, 0.0)
     meta = dict(plan.metadata)
     meta["ktc_calibrated_n_mm2"] = ktc_n_mm2
-    return VirtualPlan(cols, meta, plan.basis)
+    return VirtualPlan(cols, meta, plan.basis, plan.layers)

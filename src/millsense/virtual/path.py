@@ -311,6 +311,113 @@ def sample_path(
     )
 
 
+#: Largest chord error of :func:`vertex_path` on arcs [m] by default.
+DEFAULT_CHORD_TOLERANCE = 1e-6
+
+
+def vertex_path(
+    path: Toolpath,
+    chord_tol_m: float = DEFAULT_CHORD_TOLERANCE,
+    *,
+    rapid_rate: float = DEFAULT_RAPID_RATE,
+    rapid_rotary_rate: float = DEFAULT_RAPID_ROTARY_RATE,
+) -> SampledPath:
+    """The toolpath at its programmed vertices (exact corners), arcs split by chord error.
+
+    Parameters
+    ----------
+    path : Toolpath
+        Moves from :func:`millsense.virtual.gcode.interpret`.
+    chord_tol_m : float
+        Largest distance between an arc (or helix) and its chords, m (1 µm).
+    rapid_rate, rapid_rotary_rate : float
+        As :func:`sample_path`.
+
+    Returns
+    -------
+    SampledPath
+        Point 0 is the start of the first move; then the end of every move that moves
+        (x, y, z or a rotary axis), arcs preceded by their interior points. Every point
+        carries the feed, spindle, tool, NC line and rapid flag of the move that *leads to*
+        it (the convention of the simulator's ``Job.from_sampled_path``: a segment takes the
+        state of the point it moves to); the first point those of the first move. ``step``
+        is the chord tolerance.
+
+    Notes
+    -----
+    An arc of radius r and sweep Θ gets ``n = ⌈Θ / (2 arccos(1 − δ/r))⌉`` chords (δ the
+    tolerance), equal in parameter u; its points are those of :func:`sample_path`'s arc
+    formula at ``u = i/n`` (helix and spiral included). Lines keep their end points only, so
+    the machine's interpolator sees the programmed corners rather than the chords of 0.4 mm
+    samples. Rotary-only moves (5-axis) are points too, with the F word as rad/s
+    (``rotary_feed``) or the rapid rotary rate. Dwells add time only.
+    """
+    if not chord_tol_m > 0.0:
+        raise ValueError(f"chord tolerance must be positive, got {chord_tol_m!r} m")
+    n_mv = len(path)
+    if n_mv == 0:
+        return _empty(chord_tol_m)
+    lengths = path.lengths()
+    durations = path.durations(rapid_rate, rapid_rotary_rate)
+    rot = np.max(np.abs(path.end[:, 3:] - path.start[:, 3:]), axis=1)
+    moving = ((lengths > 0.0) | (rot > 0.0)) & (path.kind != DWELL)
+    if not np.any(moving):
+        return _empty(chord_tol_m)
+    arc = (path.kind == ARC) & moving
+    r_max = np.maximum(path.radius_start, path.radius_end)
+    pieces = np.ones(n_mv, dtype=np.int64)
+    if np.any(arc):
+        ratio = np.clip(1.0 - chord_tol_m / np.maximum(r_max[arc], 1e-300), -1.0, 1.0)
+        dphi = 2.0 * np.arccos(ratio)
+        pieces[arc] = np.maximum(np.ceil(path.sweep[arc] / np.maximum(dphi, 1e-12)), 1)
+    pieces[~moving] = 0
+    idx = np.repeat(np.arange(n_mv), pieces)
+    first = np.cumsum(pieces) - pieces
+    u = (np.arange(idx.size) - first[idx] + 1) / pieces[idx]
+    first_move = int(np.argmax(moving))
+    idx = np.concatenate([[first_move], idx])
+    u = np.concatenate([[0.0], u])
+    p0 = path.start[idx]
+    p1 = path.end[idx]
+    pos = p0 + u[:, None] * (p1 - p0)
+    tangent = p1[:, :3] - p0[:, :3]
+    on_arc = path.kind[idx] == ARC
+    if np.any(on_arc):
+        _arc_points(path, idx[on_arc], u[on_arc], pos, tangent, on_arc)
+    norm = np.sqrt(np.einsum("ij,ij->i", tangent, tangent))
+    tangent = tangent / np.where(norm > 0.0, norm, 1.0)[:, None]
+    s_start = np.cumsum(lengths) - lengths
+    t_start = np.cumsum(durations) - durations
+    s = s_start[idx] + u * lengths[idx]
+    t = t_start[idx] + u * durations[idx]
+    rapid = path.kind[idx] == RAPID
+    rot_only = lengths[idx] <= 0.0
+    feed = np.where(
+        rapid,
+        np.where(rot_only, rapid_rotary_rate, rapid_rate),
+        np.where(rot_only, path.rotary_feed[idx], path.feed[idx]),
+    )
+    return SampledPath(
+        s=s,
+        t=t,
+        x=np.ascontiguousarray(pos[:, 0]),
+        y=np.ascontiguousarray(pos[:, 1]),
+        z=np.ascontiguousarray(pos[:, 2]),
+        a=np.ascontiguousarray(pos[:, 3]),
+        c=np.ascontiguousarray(pos[:, 4]),
+        tangent=tangent,
+        feed=feed,
+        rapid=rapid,
+        spindle_speed=path.spindle_speed[idx],
+        spindle_dir=path.spindle_dir[idx],
+        tool=path.tool[idx],
+        nc_line=path.nc_line[idx],
+        source_line=path.source_line[idx],
+        move=idx.astype(np.int64),
+        step=float(chord_tol_m),
+    )
+
+
 def _arc_points(
     path: Toolpath,
     idx: IntArray,

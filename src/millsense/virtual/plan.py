@@ -8,6 +8,14 @@ polars, pandas), field units in the column names (``x_mm``, ``fres_peak_n``,
 ``torque_avg_nm``, ``feed_mm_min``), metadata (program, tool, material, stock, step,
 software version) in the Parquet schema metadata under the key ``millsense``.
 
+Format version 2 (:data:`PLAN_FORMAT_VERSION`) adds the full per-layer engagement in two list
+columns (:data:`LAYER_COLUMNS`, decision "Plan file: per-layer engagement columns"):
+``interval_counts`` (list<int16>, one count per layer, tip upwards) and ``intervals_rad``
+(list<float32>, the valid (entry, exit) pairs of all layers in layer order, flattened), and the
+tool, coefficients, discs and step in the metadata, so a plan drives the virtual machine on its
+own (:mod:`millsense.virtual.plan_engagement`). Version-1 plans (no such columns) still read;
+their engagement is then the widest interval (``entry_deg``/``exit_deg``).
+
 Build one with :func:`plan_program`; query it with :meth:`VirtualPlan.match` (the row of a
 measured tool-centre position) and :meth:`VirtualPlan.look_ahead` (seed 000 §2.10 flags).
 """
@@ -46,6 +54,10 @@ LOOK_AHEAD_S = 0.5
 RISE_FRACTION = 0.15
 #: Schema metadata key holding the JSON metadata.
 META_KEY = b"millsense"
+#: Plan file format version written by this module; versions 1..this are read.
+PLAN_FORMAT_VERSION = 2
+#: Optional list columns with the per-layer engagement (format version ≥ 2).
+LAYER_COLUMNS: tuple[str, str] = ("interval_counts", "intervals_rad")
 
 
 def _stat_column(name: str) -> str:
@@ -119,6 +131,85 @@ class LookAhead:
 
 
 @dataclass
+class LayerIntervals:
+    """Per-step, per-layer immersion intervals of a plan (the CWE of every row).
+
+    Attributes
+    ----------
+    counts : (n, L) int16
+        Intervals per step and layer (layers split the row's axial depth, tip upwards).
+    intervals_rad : (n, L, M, 2) float32
+        (entry, exit) [rad] in the tool feed frame; rows beyond ``counts`` are zero.
+    """
+
+    counts: NDArray[np.int16]
+    intervals_rad: NDArray[np.float32]
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.counts)
+        iv = np.asarray(self.intervals_rad)
+        if c.ndim != 2 or iv.ndim != 4 or iv.shape[:2] != c.shape or iv.shape[3] != 2:
+            raise InputDataError(
+                f"plan: layer intervals of shape {iv.shape} do not fit counts {c.shape}"
+            )
+        if c.size and (int(c.min()) < 0 or int(c.max()) > iv.shape[2]):
+            raise InputDataError("plan: interval counts outside 0..M")
+
+    def __len__(self) -> int:
+        return int(self.counts.shape[0])
+
+    @property
+    def n_layers(self) -> int:
+        """Number of layers L."""
+        return int(self.counts.shape[1])
+
+    @classmethod
+    def from_engagement(cls, eng: EngagementResult) -> LayerIntervals:
+        """The intervals of an :class:`~millsense.virtual.cwe.EngagementResult` (copied)."""
+        iv = eng.intervals_rad.astype(np.float32, copy=True)
+        m = iv.shape[2]
+        iv[np.arange(m)[None, None, :] >= eng.n_intervals[:, :, None]] = 0.0
+        return cls(eng.n_intervals.astype(np.int16, copy=True), iv)
+
+    def flat(self) -> tuple[NDArray[np.int32], NDArray[np.float32]]:
+        """Offsets (n + 1,) into the flattened values and the values (2 Σ counts,) float32.
+
+        Row k holds ``values[offsets[k]:offsets[k+1]]`` = (entry, exit) of every valid
+        interval, layer by layer (tip upwards), interval order kept.
+        """
+        m = self.intervals_rad.shape[2]
+        valid = np.arange(m)[None, None, :] < self.counts[:, :, None]
+        values = self.intervals_rad[valid].reshape(-1)  # C order: row, layer, interval
+        per_row = 2 * self.counts.sum(axis=1, dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(per_row)]).astype(np.int32)
+        return offsets, np.ascontiguousarray(values, dtype=np.float32)
+
+    @classmethod
+    def from_flat(
+        cls, counts: NDArray[Any], offsets: NDArray[Any], values: NDArray[Any], where: str
+    ) -> LayerIntervals:
+        """Inverse of :meth:`flat` (``counts`` (n, L)); InputDataError if inconsistent."""
+        c = np.asarray(counts, dtype=np.int64)
+        off = np.asarray(offsets, dtype=np.int64)
+        v = np.asarray(values, dtype=np.float32)
+        n, n_layers = c.shape
+        if c.size and c.min() < 0:
+            raise InputDataError(f"{where}: negative interval count")
+        if off.shape != (n + 1,) or not np.array_equal(np.diff(off), 2 * c.sum(axis=1)):
+            raise InputDataError(f"{where}: 'intervals_rad' lengths differ from 'interval_counts'")
+        m = max(int(c.max()) if c.size else 0, 1)
+        iv = np.zeros((n, n_layers, m, 2), dtype=np.float32)
+        flat_c = c.reshape(-1)
+        total = int(flat_c.sum())
+        group = np.repeat(np.arange(n * n_layers), flat_c)
+        first = np.concatenate([[0], np.cumsum(flat_c)[:-1]])
+        pos = np.arange(total) - first[group]
+        pairs = v[int(off[0]) : int(off[0]) + 2 * total].reshape(-1, 2)
+        iv[group // n_layers, group % n_layers, pos] = pairs
+        return cls(c.astype(np.int16), iv)
+
+
+@dataclass
 class VirtualPlan:
     """One row per path step; columns of :data:`COLUMNS` (field units in the names).
 
@@ -131,11 +222,15 @@ class VirtualPlan:
     basis : ForceBasis, optional
         Force series per engagement signature (in memory only; lets the scheduler and the
         calibration recompute peaks exactly). ``None`` for a plan read from a file.
+    layers : LayerIntervals, optional
+        Full per-layer engagement of every row (format version 2); ``None`` for a version-1
+        file (only the widest interval is known then).
     """
 
     columns: dict[str, NDArray[Any]]
     metadata: dict[str, Any] = field(default_factory=dict)
     basis: ForceBasis | None = None
+    layers: LayerIntervals | None = None
 
     def __post_init__(self) -> None:
         missing = [c for c in COLUMNS if c not in self.columns]
@@ -144,6 +239,8 @@ class VirtualPlan:
         n = {int(np.shape(v)[0]) for v in self.columns.values()}
         if len(n) != 1:
             raise InputDataError("plan: columns differ in length")
+        if self.layers is not None and len(self.layers) != n.pop():
+            raise InputDataError("plan: layer intervals differ in length from the columns")
 
     def __len__(self) -> int:
         return int(self.columns["x_mm"].shape[0])
@@ -167,9 +264,24 @@ class VirtualPlan:
         import pyarrow.parquet as pq
 
         p = Path(path)
-        meta = {META_KEY: json.dumps(self.metadata, default=str).encode()}
+        md = dict(self.metadata)
+        md["format"] = "millsense-plan"
+        md["format_version"] = PLAN_FORMAT_VERSION if self.layers is not None else 1
+        meta = {META_KEY: json.dumps(md, default=str).encode()}
         arrays = [pa.array(np.asarray(self.columns[c])) for c in COLUMNS]
-        table = pa.Table.from_arrays(arrays, names=list(COLUMNS)).replace_schema_metadata(meta)
+        names = list(COLUMNS)
+        if self.layers is not None:
+            lay = self.layers
+            n, n_layers = lay.counts.shape
+            c_off = np.arange(n + 1, dtype=np.int32) * n_layers
+            counts = pa.ListArray.from_arrays(
+                pa.array(c_off), pa.array(lay.counts.reshape(-1).astype(np.int16))
+            )
+            off, vals = lay.flat()
+            ivs = pa.ListArray.from_arrays(pa.array(off), pa.array(vals, type=pa.float32()))
+            arrays += [counts, ivs]
+            names += list(LAYER_COLUMNS)
+        table = pa.Table.from_arrays(arrays, names=names).replace_schema_metadata(meta)
         tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
         try:
             with open(tmp, "wb") as fh:
@@ -195,7 +307,8 @@ class VirtualPlan:
         except FileNotFoundError:
             raise InputDataError(f"{p}: no such file") from None
         except (pa.ArrowInvalid, OSError) as exc:
-            raise InputDataError(f"{p}: not a Parquet file ({exc})") from None
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise InputDataError(f"{p}: not a Parquet file ({first})") from None
         names = set(table.column_names)
         for c in COLUMNS:
             if c not in names:
@@ -205,8 +318,26 @@ class VirtualPlan:
             meta = json.loads(raw)
         except json.JSONDecodeError:
             raise InputDataError(f"{p}: plan metadata is not valid JSON") from None
+        if not isinstance(meta, dict):
+            raise InputDataError(f"{p}: plan metadata is not a JSON object")
+        version = meta.get("format_version", 1)
+        if (
+            isinstance(version, bool)
+            or not isinstance(version, int)
+            or not (1 <= version <= PLAN_FORMAT_VERSION)
+        ):
+            raise InputDataError(
+                f"{p}: plan format version {version!r} is not supported "
+                f"(this millsense reads 1 to {PLAN_FORMAT_VERSION})"
+            )
         cols = {c: table.column(c).to_numpy() for c in COLUMNS}
-        return cls(cols, meta)
+        layers = None
+        if version >= 2:
+            for c in LAYER_COLUMNS:
+                if c not in names:
+                    raise InputDataError(f"{p}: plan version {version} misses column {c!r}")
+            layers = _read_layers(table, p)
+        return cls(cols, meta, layers=layers)
 
     # ------------------------------------------------------------------ queries
 
@@ -334,6 +465,76 @@ class VirtualPlan:
         event = int(row + 1 + np.argmax(mask)) if flag else -1
         dt = (t[event] - t[row]) / feed_override if event >= 0 else math.inf
         return LookAhead(flag, rising, leaving, cavity, event, float(dt), end - 1)
+
+
+def _read_layers(table: Any, p: Path) -> LayerIntervals:
+    """The layer columns of a version-2 table (InputDataError naming the file if malformed)."""
+    import pyarrow as pa
+
+    try:
+        cnt = table.column(LAYER_COLUMNS[0]).combine_chunks()
+        ivs = table.column(LAYER_COLUMNS[1]).combine_chunks()
+        if not (pa.types.is_list(cnt.type) and pa.types.is_list(ivs.type)):
+            raise TypeError("not list columns")
+        c_off = np.asarray(cnt.offsets.to_numpy(), dtype=np.int64)
+        c_val = np.asarray(cnt.values.to_numpy(zero_copy_only=False), dtype=np.int64)
+        i_off = np.asarray(ivs.offsets.to_numpy(), dtype=np.int64)
+        i_val = np.asarray(ivs.values.to_numpy(zero_copy_only=False), dtype=np.float32)
+    except (TypeError, ValueError, pa.ArrowException) as exc:
+        raise InputDataError(f"{p}: plan layer columns are malformed ({exc})") from None
+    n = table.num_rows
+    per_row = np.diff(c_off)
+    n_layers = int(per_row[0]) if n else 0
+    if n and (n_layers < 1 or np.any(per_row != n_layers)):
+        raise InputDataError(f"{p}: 'interval_counts' must hold the same number of layers per row")
+    counts = c_val[int(c_off[0]) : int(c_off[0]) + n * n_layers].reshape(n, n_layers)
+    return LayerIntervals.from_flat(counts, i_off, i_val, str(p))
+
+
+def tool_from_metadata(meta: Mapping[str, Any], where: str = "plan") -> EndMill:
+    """The :class:`EndMill` stored in a plan's metadata (``tool``: diameter, flutes, helix,
+    pitch, shape, runout); one-line InputDataError naming the missing key."""
+    t = meta.get("tool")
+    if not isinstance(t, Mapping):
+        raise InputDataError(f"{where}: metadata key 'tool' missing (plan written before v2?)")
+    try:
+        pitch = t.get("pitch_deg")
+        return EndMill(
+            diameter_m=float(t["diameter_mm"]) * MM,
+            n_flutes=int(t["flutes"]),
+            pitch_angles_rad=None if pitch is None else tuple(math.radians(v) for v in pitch),
+            helix_rad=math.radians(float(t.get("helix_deg", 0.0))),
+            shape=t.get("shape", "flat"),
+            runout_offset_m=float(t.get("runout_um", 0.0)) * UM,
+            runout_angle_rad=math.radians(float(t.get("runout_angle_deg", 0.0))),
+        )
+    except KeyError as exc:
+        raise InputDataError(f"{where}: metadata key 'tool.{exc.args[0]}' missing") from None
+    except (TypeError, ValueError) as exc:
+        raise InputDataError(f"{where}: metadata 'tool' is invalid ({exc})") from None
+
+
+def coefficients_from_metadata(meta: Mapping[str, Any], where: str = "plan") -> CuttingCoefficients:
+    """The cutting coefficients stored in a plan's metadata (``material``, N/mm² and N/mm),
+    the calibrated K_tc if the plan was calibrated (K_rc, K_ac scaled with it)."""
+    m = meta.get("material")
+    if not isinstance(m, Mapping):
+        raise InputDataError(f"{where}: metadata key 'material' missing")
+    try:
+        ktc = float(m["ktc_n_mm2"])
+        scale = float(meta.get("ktc_calibrated_n_mm2", ktc)) / ktc if ktc > 0 else 1.0
+        return CuttingCoefficients(
+            ktc=ktc * scale * 1e6,
+            krc=float(m["krc_n_mm2"]) * scale * 1e6,
+            kac=float(m["kac_n_mm2"]) * scale * 1e6,
+            kte=float(m["kte_n_mm"]) * 1e3,
+            kre=float(m["kre_n_mm"]) * 1e3,
+            kae=float(m["kae_n_mm"]) * 1e3,
+        )
+    except KeyError as exc:
+        raise InputDataError(f"{where}: metadata key 'material.{exc.args[0]}' missing") from None
+    except (TypeError, ValueError) as exc:
+        raise InputDataError(f"{where}: metadata 'material' is invalid ({exc})") from None
 
 
 # ---------------------------------------------------------------------------- building
@@ -532,7 +733,13 @@ def plan_program(
             "flutes": tool.n_flutes,
             "helix_deg": math.degrees(tool.helix_rad),
             "shape": tool.shape,
+            "pitch_deg": (
+                None
+                if tool.pitch_angles_rad is None
+                else [math.degrees(v) for v in tool.pitch_angles_rad]
+            ),
             "runout_um": tool.runout_offset_m / UM,
+            "runout_angle_deg": math.degrees(tool.runout_angle_rad),
         },
         "material": {
             "ktc_n_mm2": coeffs.ktc / 1e6,
@@ -551,6 +758,7 @@ def plan_program(
         },
         "step_mm": step_m / MM,
         "n_layers": n_layers,
+        "n_discs": 2 * n_layers,  # predict_states' default disc count
         "angles_per_rev": angles_per_rev,
         "period_deg": math.degrees(pred.basis.period_rad),
         "signatures": pred.basis.n_signatures,
@@ -559,4 +767,4 @@ def plan_program(
     }
     if metadata:
         meta.update(dict(metadata))
-    return VirtualPlan(cols, meta, pred.basis)
+    return VirtualPlan(cols, meta, pred.basis, LayerIntervals.from_engagement(eng))
