@@ -57,7 +57,9 @@ def estimate(
         _print_table(summary["comparisons"])
     typer.echo(
         f"wrote {out}: {len(summary['estimates'])} estimates, {summary['samples']} samples "
-        f"({summary['seconds'] / max(summary['wall_s'], 1e-9):.0f}x real time)"
+        f"in {summary['wall_s']:.2f} s "
+        f"({summary['seconds'] / max(summary['wall_s'], 1e-9):.1f}x real time, after "
+        f"{summary['setup_s']:.1f} s building the estimators)"
     )
 
 
@@ -81,7 +83,10 @@ def _print_table(comparisons: list[Any]) -> None:
             f"{100 * c.mean_error:+.1f} %",
             *(f"{100 * e:.0f} %" for e in c.error),
         )
-    Console(soft_wrap=True).print(table)
+    con = Console()
+    if not con.is_terminal:
+        con = Console(width=160)
+    con.print(table)
 
 
 def run_estimate(
@@ -133,6 +138,7 @@ def run_estimate(
             )
     else:
         axis_list = [a.strip() for a in axes.split(",") if a.strip()]
+    t_setup = time.perf_counter()
     built = build_estimators(
         mcfg,
         methods,
@@ -141,6 +147,7 @@ def run_estimate(
         where=machine,
         skip_unavailable=method == "all",
     )
+    setup_s = time.perf_counter() - t_setup
     pipeline = Pipeline(built.blocks)
     source = RecordingSource(rec, name=str(recording))
     pipeline.check_inputs(source.channel_names, str(recording))
@@ -187,6 +194,7 @@ def run_estimate(
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
         "wall_s": wall,
+        "setup_s": setup_s,
         "estimates": built.estimates,
         "comparisons": comparisons,
         "notes": built.notes,
