@@ -93,7 +93,9 @@ def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
 ) -> None:
     feed, raw, png = tmp_path / "feed.h5", tmp_path / "raw.h5", tmp_path / "est.png"
     base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y"]
-    code, out, err = run_cli([*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys)
+    code, out, err = run_cli(
+        [*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys
+    )
     assert code == 0, err
     assert "tooth" in out and png.stat().st_size > 10_000
     code, _, err = run_cli([*base, "--method", "raw", "-o", str(raw)], capsys)
@@ -162,7 +164,9 @@ def test_from_config_r_is_lowpassed_current_noise_and_keys_override() -> None:
     # static gain of the config's Φ_d equals Table 3.4's printed modes (Σ α/ω², X: 0.56)
     dm = cfg.disturbance_modes
     assert dm is not None
-    g0 = sum(a / (2 * math.pi * f) ** 2 for a, f in zip(dm.alpha, dm.natural_frequency_hz))
+    g0 = sum(
+        a / (2 * math.pi * f) ** 2 for a, f in zip(dm.alpha, dm.natural_frequency_hz, strict=True)
+    )
     assert abs(m.disturbance.continuous_frf([0.0])[0]) == pytest.approx(g0, rel=1e-9)
 
 

@@ -33,7 +33,10 @@ def plot_estimates(
     """
     axes = list(truth)
     fig, grid = plt.subplots(
-        len(axes), 3, figsize=(15, 3.0 * len(axes) + 0.8), squeeze=False,
+        len(axes),
+        3,
+        figsize=(15, 3.0 * len(axes) + 0.8),
+        squeeze=False,
         gridspec_kw={"width_ratios": [2.2, 1.6, 1.2]},
     )
     for row, ax_name in enumerate(axes):
