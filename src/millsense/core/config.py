@@ -267,6 +267,22 @@ class PeriodicDisturbanceConfig(_Model):
         return self.phase_deg * units.DEG
 
 
+class FeedEstimatorConfig(_Model):
+    """Tuning of an axis' Kalman force estimator (``[axes.x.estimator]``, all optional).
+
+    Absent keys are chosen at start-up (:meth:`millsense.estimation.feed_drive.FeedAxisModel.
+    from_config`): R from ``current_noise_a`` through the C3 low-pass, Q by the bandwidth
+    optimisation of :func:`millsense.estimation.tuning.tune_q`.
+    """
+
+    r_nm2: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    """Per-sample variance of the low-passed C3 torque in an air cut, N²·m² (Aslan Eq. 3.30)."""
+    q_nm2_s: Annotated[float, Field(gt=0, le=1e12)] | None = None
+    """Spectral density of the disturbance torque's rate, (N·m)²/s (Aslan Eq. 3.30 Q)."""
+    lowpass_hz: Annotated[float, Field(gt=0, le=1e5)] | None = None
+    """Corner of the C3 torque low-pass, Hz (default 600 Hz)."""
+
+
 class FeedAxisConfig(_Model):
     """A feed drive: rigid-body parameters, transmission, friction and servo gains."""
 
@@ -305,6 +321,8 @@ class FeedAxisConfig(_Model):
     ball_screw: BallScrewConfig | None = None
     """Dual/triple-inertia ball screw (Yamada); replaces the rigid body when given."""
     periodic_disturbances: list[PeriodicDisturbanceConfig] = []
+    estimator: FeedEstimatorConfig | None = None
+    """Kalman force-estimator tuning (R, Q, low-pass); absent keys are chosen automatically."""
     source: str = ""
 
     @model_validator(mode="after")

@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
+from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation.kalman import (
@@ -114,6 +115,102 @@ class FeedAxisModel:
     sample_rate_hz: float = 10_000.0
     moment_arm_m: float | None = None
     lugre: LuGre | None = None
+
+    @classmethod
+    def from_config(
+        cls,
+        axis: str,
+        cfg: FeedAxisConfig,
+        *,
+        sample_rate_hz: float = 10_000.0,
+        use_lugre: bool = True,
+        q_bounds: tuple[float, float] = (1.0, 1e7),
+        where: str = "machine",
+    ) -> FeedAxisModel:
+        """The estimator model of one axis from a machine configuration (identified values).
+
+        Parameters
+        ----------
+        axis : axis name (``x`` …), used in channel names and error messages.
+        cfg : the axis table of the machine file (the values a user merged from
+            ``millsense identify`` fragments: friction, disturbance_modes; nameplate J_e, K_t,
+            lead, efficiency).
+        sample_rate_hz : CNC rate of the stream, Hz.
+        use_lugre : use the LuGre friction of the table when all its keys are present
+            (Aslan C2); otherwise Coulomb + viscous (C1).
+        q_bounds : search range of the automatic Q, (N·m)²/s.
+        where : name of the configuration (file or preset) for error messages.
+
+        Returns
+        -------
+        FeedAxisModel with Φ_d = the table's ``disturbance_modes`` (Eq. 3.13, pole–residue form),
+        R and Q from ``[axes.<axis>.estimator]`` when given, else R from ``current_noise_a``
+        and Q from :func:`millsense.estimation.tuning.tune_q`.
+
+        Raises
+        ------
+        ConfigError
+            One line naming the missing key (``axes.<axis>.disturbance_modes``, or
+            ``current_noise_a``/``estimator.r_nm2`` when R cannot be chosen).
+
+        Notes
+        -----
+        Default R (docs/decisions.md, "Estimator R from the configured current noise"): white
+        current noise σ_I (``current_noise_a``, Aslan Eq. 3.30) seen through the C3 low-pass:
+        ``R = (K_t·σ_I)²·Σ h_k²`` with h the impulse response of the 2nd-order Butterworth
+        low-pass (the variance of the low-passed torque measurement the filter is designed on).
+        """
+        from millsense.estimation import tuning
+        from millsense.machine.modal_ss import ModalStateSpace as _Mss
+
+        if cfg.disturbance_modes is None:
+            raise ConfigError(
+                f"{where}: missing key 'axes.{axis}.disturbance_modes' (the feed estimator needs "
+                "the identified disturbance modes: millsense identify modal)"
+            )
+        est = cfg.estimator
+        lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
+        if not 0 < lowpass < sample_rate_hz / 2:
+            raise ConfigError(
+                f"{where}: key 'axes.{axis}.estimator.lowpass_hz' = {lowpass:g} must be below "
+                f"{sample_rate_hz / 2:g} Hz"
+            )
+        fric = CoulombViscous.from_config(cfg.friction, DEFAULT_FRICTION_SMOOTHING_RAD_S)
+        drive = DriveModel(
+            cfg.inertia_kg_m2,
+            cfg.torque_constant_nm_a,
+            cfg.transmission_m_rad,
+            cfg.efficiency,
+            fric,
+        )
+        f = cfg.friction
+        lugre = None
+        if use_lugre and None not in (
+            f.sigma0_nm_rad,
+            f.sigma1_nm_s_rad,
+            f.static_nm,
+            f.stribeck_velocity_rad_s,
+        ):
+            lugre = LuGre.from_config(f, f"{where} axes.{axis}.friction")
+        fit = RationalFit.from_modes(_Mss.from_config(cfg.disturbance_modes))
+        r = est.r_nm2 if est is not None else None
+        if r is None:
+            if cfg.current_noise_a <= 0:
+                raise ConfigError(
+                    f"{where}: missing key 'axes.{axis}.estimator.r_nm2' (or a positive "
+                    f"'axes.{axis}.current_noise_a'): the estimator's R cannot be chosen"
+                )
+            sos = signal.butter(2, lowpass, fs=sample_rate_hz, output="sos")
+            imp = np.zeros(round(sample_rate_hz))  # 1 s: the 2nd-order low-pass has decayed
+            imp[0] = 1.0
+            h = signal.sosfilt(sos, imp)
+            r = float((cfg.torque_constant_nm_a * cfg.current_noise_a) ** 2 * np.sum(h**2))
+        kind: Literal["linear", "rotary"] = cfg.kind
+        model = cls(axis, kind, drive, fit, lowpass, r, 1000.0, sample_rate_hz, None, lugre)
+        q = est.q_nm2_s if est is not None else None
+        if q is None:
+            q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds).q
+        return replace(model, q=float(q))
 
     @property
     def dt(self) -> float:

@@ -1,0 +1,260 @@
+"""``millsense estimate``: replay a recording through the estimators built from a machine file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from millsense.cli.main import app
+from millsense.core.errors import ConfigError
+
+
+def _methods(text: str) -> list[str]:
+    from millsense.estimation.from_config import METHODS
+
+    if text == "all":
+        return list(METHODS)
+    out = [m.strip() for m in text.split(",") if m.strip()]
+    for m in out:
+        if m not in METHODS:
+            raise ConfigError(f"--method: unknown method '{m}' (one of {', '.join(METHODS)}, all)")
+    if not out:
+        raise ConfigError("--method: empty")
+    return out
+
+
+@app.command()
+def estimate(
+    recording: Path = typer.Argument(..., help="Recording to replay (.h5)."),
+    machine: str = typer.Option(..., "--machine", help="Machine preset or .toml (identified)."),
+    method: str = typer.Option("feed", "--method", help="feed, raw, medob, spindle or all."),
+    axes: str | None = typer.Option(None, "--axes", help="Axes, e.g. x,y,z (default: all)."),
+    out: Path = typer.Option(..., "-o", "--out", help="Estimates recording to write (.h5)."),
+    plot: Path | None = typer.Option(None, "--plot", help="PNG of estimate vs truth."),
+    flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
+    chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
+) -> None:
+    """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
+    from millsense.cli.progress import progress_bar
+
+    with progress_bar("estimating", 1.0) as update:
+        summary = run_estimate(
+            recording=recording,
+            machine=machine,
+            method=method,
+            axes=axes,
+            out=out,
+            plot=plot,
+            flutes=flutes,
+            chunk=chunk,
+            on_progress=update,
+        )
+    for note in summary["notes"]:
+        typer.echo(f"millsense: note: {note}", err=True)
+    if summary["comparisons"]:
+        _print_table(summary["comparisons"])
+    typer.echo(
+        f"wrote {out}: {len(summary['estimates'])} estimates, {summary['samples']} samples "
+        f"in {summary['wall_s']:.2f} s "
+        f"({summary['seconds'] / max(summary['wall_s'], 1e-9):.1f}x real time, after "
+        f"{summary['setup_s']:.1f} s building the estimators)"
+    )
+
+
+def _print_table(comparisons: list[Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    n = len(comparisons[0].harmonics)
+    table = Table(title="estimate vs truth (steady cut): amplitude error per tooth harmonic")
+    for col in ("axis", "method", "tooth Hz", "mean est", "mean truth", "mean err"):
+        table.add_column(col, justify="right")
+    for k in range(1, n + 1):
+        table.add_column(f"{k}×", justify="right")
+    for c in comparisons:
+        table.add_row(
+            c.axis,
+            c.method,
+            f"{c.tooth_hz:.1f}",
+            f"{c.mean_est:.2f}",
+            f"{c.mean_true:.2f}",
+            f"{100 * c.mean_error:+.1f} %",
+            *(f"{100 * e:.0f} %" for e in c.error),
+        )
+    con = Console()
+    if not con.is_terminal:
+        con = Console(width=160)
+    con.print(table)
+
+
+def run_estimate(
+    *,
+    recording: Path,
+    machine: str,
+    method: str,
+    axes: str | None,
+    out: Path,
+    plot: Path | None = None,
+    flutes: int | None = None,
+    chunk: int = 1000,
+    on_progress: Any = None,
+) -> dict[str, Any]:
+    """Build the estimators, replay ``recording`` and write ``out`` while running.
+
+    Returns a summary: samples, seconds, wall_s, estimates (method, axis, channel, delay),
+    comparisons (:class:`~millsense.report.estimate_metrics.HarmonicComparison`, empty without
+    truth) and notes.
+
+    Raises
+    ------
+    ConfigError, InputDataError, RecordingError
+        One-line user errors (bad preset or key, unknown method or axis, missing channel).
+    """
+    import json
+    import time
+
+    import numpy as np
+
+    from millsense.core.config import MachineConfig
+    from millsense.core.errors import InputDataError
+    from millsense.core.presets import load_preset
+    from millsense.estimation.from_config import build_estimators
+    from millsense.io import RecordingWriter, read_recording
+    from millsense.online.engine import Pipeline, run
+    from millsense.online.sources import RecordingSource
+
+    if chunk < 1:
+        raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
+    methods = _methods(method)
+    mcfg = load_preset(MachineConfig, machine)
+    rec = read_recording(recording)
+    if axes is None:
+        axis_list = [a for a in mcfg.axes if f"{a}/current_cmd" in rec.channel_names]
+        if not axis_list:
+            raise InputDataError(
+                f"{recording}: no channel '<axis>/current_cmd' for any axis of {mcfg.name}"
+            )
+    else:
+        axis_list = [a.strip() for a in axes.split(",") if a.strip()]
+    t_setup = time.perf_counter()
+    built = build_estimators(
+        mcfg,
+        methods,
+        axis_list,
+        rec.sample_rate_hz,
+        where=machine,
+        skip_unavailable=method == "all",
+    )
+    setup_s = time.perf_counter() - t_setup
+    pipeline = Pipeline(built.blocks)
+    source = RecordingSource(rec, name=str(recording))
+    pipeline.check_inputs(source.channel_names, str(recording))
+    have = set(rec.channel_names)
+    copies = sorted({c for b in built.blocks for c in b.inputs})
+    extra = [f"truth/{a}/load" for a in axis_list] + [
+        "spindle/speed",
+        "truth/process/engagement",
+    ]
+    copies += [c for c in extra if c in have and c not in copies]
+    infos = [rec.info(c) for c in copies] + pipeline.output_channels()
+    meta = {
+        "source": "millsense estimate",
+        "recording": str(recording),
+        "machine": mcfg.name,
+        "machine_file": machine,
+        "methods": ",".join(methods),
+        "estimate_delays_samples": json.dumps({c: d for _, _, c, d in built.estimates}),
+    }
+    writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
+    total = max(rec.n_samples, 1)
+
+    def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
+        data = {c: ch.data[c] for c in copies}
+        data.update(outputs)
+        writer.append(data)
+
+    t0 = time.perf_counter()
+    try:
+        res = run(
+            source,
+            pipeline,
+            chunk,
+            sink=sink,
+            on_progress=(lambda d: on_progress(d / total)) if on_progress else None,
+        )
+    finally:
+        writer.close()
+    wall = time.perf_counter() - t0
+    comparisons = []
+    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
+        comparisons = _compare(rec, res.channels, built.estimates, axis_list, flutes, plot)
+    return {
+        "samples": rec.n_samples,
+        "seconds": rec.n_samples / rec.sample_rate_hz,
+        "wall_s": wall,
+        "setup_s": setup_s,
+        "estimates": built.estimates,
+        "comparisons": comparisons,
+        "notes": built.notes,
+        "channels": res.channels,
+    }
+
+
+def _compare(
+    rec: Any,
+    channels: dict[str, Any],
+    estimates: list[tuple[str, str, str, int]],
+    axis_list: list[str],
+    flutes: int | None,
+    plot: Path | None,
+) -> list[Any]:
+    from millsense.core.errors import InputDataError
+    from millsense.report.estimate_metrics import compare
+
+    have = set(rec.channel_names)
+    truth_axes = [a for a in axis_list if f"truth/{a}/load" in have]
+    if not truth_axes:
+        if plot is not None:
+            raise InputDataError(
+                f"--plot: the recording has no truth channel 'truth/{axis_list[0]}/load'"
+            )
+        return []
+    if "spindle/speed" not in have:
+        raise InputDataError("estimate vs truth: the recording has no channel 'spindle/speed'")
+    n_teeth = flutes
+    if n_teeth is None:
+        md = rec.metadata.get("flutes", 2)
+        n_teeth = int(md) if isinstance(md, (int, float)) else 2
+    if n_teeth < 1:
+        raise InputDataError(f"--flutes: must be ≥ 1, got {n_teeth}")
+    eng = rec.channel("truth/process/engagement") if "truth/process/engagement" in have else None
+    speed = rec.channel("spindle/speed")
+    comps = [
+        compare(
+            m,
+            a,
+            channels[c],
+            rec.channel(f"truth/{a}/load"),
+            speed,
+            rec.sample_rate_hz,
+            n_teeth,
+            delay_samples=d,
+            engagement=eng,
+        )
+        for m, a, c, d in estimates
+        if a in truth_axes
+    ]
+    if plot is not None:
+        from millsense.report.estimate_plots import plot_estimates
+
+        plot_estimates(
+            plot,
+            rec.sample_rate_hz,
+            {a: rec.channel(f"truth/{a}/load") for a in truth_axes},
+            {(m, a): (channels[c], d) for m, a, c, d in estimates if a in truth_axes},
+            comps,
+            {a: rec.info(f"truth/{a}/load").unit for a in truth_axes},
+        )
+    return comps

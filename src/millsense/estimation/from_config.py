@@ -1,0 +1,234 @@
+"""Estimator blocks built from a machine configuration (``millsense estimate``).
+
+Every estimator is built from the machine file alone — the values a user merged into it from
+``millsense identify`` fragments plus the nameplate data — never from the simulator. Each block's
+outputs are renamed to ``est/{method}/{axis}/load`` (load resisting +motion: N on a linear
+axis, N·m at the table on a rotary one; the sign and unit of the simulator's
+``truth/{axis}/load``), so several methods can run side by side in one pipeline.
+
+Methods
+-------
+``feed``  Kalman-compensated feed-drive estimator (Aslan C2–C7,
+          :class:`~millsense.estimation.feed_drive.FeedAxisEstimator`) from
+          :meth:`~millsense.estimation.feed_drive.FeedAxisModel.from_config`.
+``raw``   rigid-body inverse dynamics of the current (Aslan C3, Eq. 3.10–3.11,
+          :class:`~millsense.estimation.rigid_body.RigidBodyForceEstimator`).
+``medob`` multi-encoder DOB of a ball-screw axis (Yamada, :class:`~millsense.estimation.dob.
+          MEDOBBlock`) from ``[axes.x.ball_screw]``, dead times and current-loop bandwidth.
+``spindle`` not buildable from a configuration: see :func:`spindle_unavailable_reason`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from millsense.core.config import MachineConfig
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.online.block import Block, BlockOutput, Chunk
+
+METHODS = ("feed", "raw", "medob", "spindle")
+
+
+def load_channel(method: str, axis: str) -> str:
+    """Name of the load estimate of ``method`` on ``axis``."""
+    return f"est/{method}/{axis}/load"
+
+
+class RenamedBlock(Block):
+    """Wraps a block: its outputs renamed (and scaled) into the ``est/`` namespace.
+
+    Parameters
+    ----------
+    inner : the wrapped block.
+    mapping : inner output name → (new name, factor, unit).
+    name : the wrapper's block name.
+    delay_samples : samples by which the output lags the input (fixed-lag smoother), recorded
+        for the comparison with truth.
+    """
+
+    def __init__(
+        self,
+        inner: Block,
+        mapping: dict[str, tuple[str, float, str]],
+        name: str,
+        delay_samples: int = 0,
+    ) -> None:
+        self.inner = inner
+        self.mapping = mapping
+        self.name = name
+        self.inputs = inner.inputs
+        self.delay_samples = int(delay_samples)
+
+    def output_channels(self) -> list[ChannelInfo]:
+        infos = {c.name: c for c in self.inner.output_channels()}
+        return [
+            ChannelInfo(new, unit, infos[old].description)
+            for old, (new, _, unit) in self.mapping.items()
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.inner.reset(sample_rate_hz)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        out = self.inner.process(chunk)
+        ch = {
+            new: factor * np.asarray(out.channels[old], dtype=float)
+            for old, (new, factor, _) in self.mapping.items()
+        }
+        return BlockOutput(ch, out.events)
+
+
+@dataclass(frozen=True)
+class BuiltEstimators:
+    """Blocks ready for :class:`~millsense.online.engine.Pipeline` and what they estimate.
+
+    Attributes
+    ----------
+    blocks : the wrapped estimator blocks.
+    estimates : (method, axis, channel, delay_samples) per load estimate.
+    notes : one line per method skipped under ``all`` (why it could not be built).
+    """
+
+    blocks: list[RenamedBlock]
+    estimates: list[tuple[str, str, str, int]]
+    notes: list[str]
+
+
+def spindle_unavailable_reason(machine: MachineConfig, where: str) -> str:
+    """Why the spindle observer cannot be built from ``machine`` (one line)."""
+    if machine.spindle is None:
+        return f"{where}: missing table 'spindle' (the spindle observer needs it)"
+    return (
+        f"{where}: the spindle observer cannot be built from the configuration: G_dτ (Aslan "
+        "Eq. 5.12) needs the velocity-loop gains and the current-loop model, which [spindle] "
+        "has no keys for (residual_modes alone is not enough)"
+    )
+
+
+def _feed(axis: str, machine: MachineConfig, where: str, fs: float) -> RenamedBlock:
+    from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
+
+    cfg = machine.axis(axis)
+    model = FeedAxisModel.from_config(axis, cfg, sample_rate_hz=fs, where=where)
+    block = FeedAxisEstimator(model)
+    unit = "N" if cfg.kind == "linear" else "N*m"
+    return RenamedBlock(
+        block,
+        {f"{axis}/load_est": (load_channel("feed", axis), 1.0, unit)},
+        f"feed_{axis}",
+        block.lag,
+    )
+
+
+def _raw(axis: str, machine: MachineConfig, cutoff_hz: float) -> RenamedBlock:
+    from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S
+    from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
+    from millsense.machine.friction import CoulombViscous
+
+    cfg = machine.axis(axis)
+    drive = DriveModel(
+        cfg.inertia_kg_m2,
+        cfg.torque_constant_nm_a,
+        cfg.transmission_m_rad,
+        cfg.efficiency,
+        CoulombViscous.from_config(cfg.friction, DEFAULT_FRICTION_SMOOTHING_RAD_S),
+    )
+    unit = "N" if cfg.kind == "linear" else "N*m"
+    # the block gives the force on the table along +axis; the load resisting motion is −force
+    return RenamedBlock(
+        RigidBodyForceEstimator(axis, drive, cutoff_hz),
+        {f"{axis}/force_est": (load_channel("raw", axis), -1.0, unit)},
+        f"raw_{axis}",
+    )
+
+
+def _medob(axis: str, machine: MachineConfig, where: str) -> RenamedBlock:
+    from millsense.estimation.dob import DriveParameters, MEDOBBlock
+
+    cfg = machine.axis(axis)
+    if cfg.ball_screw is None or cfg.kind != "linear":
+        raise ConfigError(
+            f"{where}: missing key 'axes.{axis}.ball_screw' (the MEDOB needs a ball-screw axis)"
+        )
+    ms = 1e-3
+    block = MEDOBBlock(
+        axis,
+        DriveParameters.from_axis_config(cfg),
+        kind="medob",
+        delays_s=(
+            cfg.dead_time_amplifier_ms * ms,
+            cfg.dead_time_motor_encoder_ms * ms,
+            cfg.dead_time_scale_ms * ms,
+        ),
+        current_loop_hz=cfg.current_bandwidth_hz,
+    )
+    return RenamedBlock(
+        block, {f"{axis}/force_medob": (load_channel("medob", axis), 1.0, "N")}, f"medob_{axis}"
+    )
+
+
+def build_estimators(
+    machine: MachineConfig,
+    methods: Sequence[str],
+    axes: Sequence[str],
+    sample_rate_hz: float,
+    *,
+    where: str = "machine",
+    raw_cutoff_hz: float = 300.0,
+    skip_unavailable: bool = False,
+) -> BuiltEstimators:
+    """Estimator blocks of ``methods`` on ``axes`` from a machine configuration.
+
+    Parameters
+    ----------
+    machine : the machine configuration (identified values merged in).
+    methods : subset of :data:`METHODS`.
+    axes : axis names.
+    sample_rate_hz : stream rate, Hz (must equal the machine's CNC rate).
+    where : configuration name for error messages (file or preset).
+    raw_cutoff_hz : low-pass corner of the raw C3 estimate, Hz.
+    skip_unavailable : under ``all``: a method that cannot be built on an axis is skipped with a
+        note instead of raising.
+
+    Raises
+    ------
+    ConfigError
+        One line: unknown method, unknown axis, or the configuration key a method misses.
+    """
+    for m in methods:
+        if m not in METHODS:
+            raise ConfigError(f"--method: unknown method '{m}' (one of {', '.join(METHODS)}, all)")
+    for a in axes:
+        machine.axis(a)
+    blocks: list[RenamedBlock] = []
+    est: list[tuple[str, str, str, int]] = []
+    notes: list[str] = []
+    for m in methods:
+        if m == "spindle":
+            reason = spindle_unavailable_reason(machine, where)
+            if not skip_unavailable:
+                raise ConfigError(reason)
+            notes.append(reason)
+            continue
+        for a in axes:
+            try:
+                if m == "feed":
+                    b = _feed(a, machine, where, sample_rate_hz)
+                elif m == "raw":
+                    b = _raw(a, machine, raw_cutoff_hz)
+                else:
+                    b = _medob(a, machine, where)
+            except ConfigError as exc:
+                if not skip_unavailable:
+                    raise
+                notes.append(str(exc))
+                continue
+            blocks.append(b)
+            est.append((m, a, load_channel(m, a), b.delay_samples))
+    if not blocks:
+        raise ConfigError(f"{where}: no estimator could be built ({'; '.join(notes)})")
+    return BuiltEstimators(blocks, est, notes)
