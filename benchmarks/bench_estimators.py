@@ -1,7 +1,8 @@
 """Issue 7 performance: five feed-axis force estimators plus the spindle observer at 10 kHz.
 
 The full streaming pipelines as the engine runs them, 10 s of CNC data per channel in chunks of
-1000 samples (0.1 s; also reported at 100 samples = 10 ms): per feed axis :class:`~millsense.estimation.feed_drive.FeedAxisEstimator`
+1000 samples (0.1 s; also reported at 100 samples = 10 ms): per feed axis
+:class:`~millsense.estimation.feed_drive.FeedAxisEstimator`
 (C3 torque with LuGre friction and the Butterworth low-pass, the disturbance Kalman filter over
 the axis's Table 3.4 modes in series with the low-pass — 15/27/19/15/13 states for X/Y/Z/A/C —
 and the 60-sample fixed-lag smoother, Eq. 3.11/3.12 outputs), then the
