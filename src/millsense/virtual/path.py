@@ -290,25 +290,7 @@ def sample_path(
     rapid = kind == RAPID
     feed = np.where(rapid, rapid_rate, path.feed[idx])
     t = t_start[idx] + (s - s_start[idx]) / feed
-    return SampledPath(
-        s=s,
-        t=t,
-        x=np.ascontiguousarray(pos[:, 0]),
-        y=np.ascontiguousarray(pos[:, 1]),
-        z=np.ascontiguousarray(pos[:, 2]),
-        a=np.ascontiguousarray(pos[:, 3]),
-        c=np.ascontiguousarray(pos[:, 4]),
-        tangent=tangent,
-        feed=feed,
-        rapid=rapid,
-        spindle_speed=path.spindle_speed[idx],
-        spindle_dir=path.spindle_dir[idx],
-        tool=path.tool[idx],
-        nc_line=path.nc_line[idx],
-        source_line=path.source_line[idx],
-        move=idx.astype(np.int64),
-        step=float(step),
-    )
+    return _sampled(path, idx, s, t, pos, tangent, feed, rapid, step)
 
 
 #: Largest chord error of :func:`vertex_path` on arcs [m] by default.
@@ -397,25 +379,7 @@ def vertex_path(
         np.where(rot_only, rapid_rotary_rate, rapid_rate),
         np.where(rot_only, path.rotary_feed[idx], path.feed[idx]),
     )
-    return SampledPath(
-        s=s,
-        t=t,
-        x=np.ascontiguousarray(pos[:, 0]),
-        y=np.ascontiguousarray(pos[:, 1]),
-        z=np.ascontiguousarray(pos[:, 2]),
-        a=np.ascontiguousarray(pos[:, 3]),
-        c=np.ascontiguousarray(pos[:, 4]),
-        tangent=tangent,
-        feed=feed,
-        rapid=rapid,
-        spindle_speed=path.spindle_speed[idx],
-        spindle_dir=path.spindle_dir[idx],
-        tool=path.tool[idx],
-        nc_line=path.nc_line[idx],
-        source_line=path.source_line[idx],
-        move=idx.astype(np.int64),
-        step=float(chord_tol_m),
-    )
+    return _sampled(path, idx, s, t, pos, tangent, feed, rapid, chord_tol_m)
 
 
 def _arc_points(
@@ -479,5 +443,38 @@ def _empty(step: float) -> SampledPath:
         nc_line=i,
         source_line=i,
         move=i,
+        step=float(step),
+    )
+
+
+def _sampled(
+    path: Toolpath,
+    idx: NDArray[np.int64],
+    s: NDArray[np.float64],
+    t: NDArray[np.float64],
+    pos: NDArray[np.float64],
+    tangent: NDArray[np.float64],
+    feed: NDArray[np.float64],
+    rapid: NDArray[np.bool_],
+    step: float,
+) -> SampledPath:
+    """A :class:`SampledPath` from sample positions and the move index of every sample."""
+    return SampledPath(
+        s=s,
+        t=t,
+        x=np.ascontiguousarray(pos[:, 0]),
+        y=np.ascontiguousarray(pos[:, 1]),
+        z=np.ascontiguousarray(pos[:, 2]),
+        a=np.ascontiguousarray(pos[:, 3]),
+        c=np.ascontiguousarray(pos[:, 4]),
+        tangent=tangent,
+        feed=feed,
+        rapid=rapid,
+        spindle_speed=path.spindle_speed[idx],
+        spindle_dir=path.spindle_dir[idx],
+        tool=path.tool[idx],
+        nc_line=path.nc_line[idx],
+        source_line=path.source_line[idx],
+        move=idx.astype(np.int64),
         step=float(step),
     )
