@@ -43,7 +43,7 @@ from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.machine.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsampler
-from millsense.machine.kinematics import TrunnionACMachine, kinematics_for
+from millsense.machine.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.machine.process_coupling import ProcessCoupling
 from millsense.machine.realism import (
@@ -64,6 +64,27 @@ IntArray = NDArray[np.int64]
 
 AXES_3 = ("x", "y", "z")
 AXES_5 = ("x", "y", "z", "a", "c")
+AXES_1 = ("x",)
+
+
+class _StageKinematics:
+    """Kinematics of a 1-axis stage (``1-axis-stage``): the tool tip is ``[x, y₀, z₀]``.
+
+    The job is a path in the workpiece frame whose y and z stay at ``y₀, z₀``; only x is a
+    drive (decision "Simulator on a 1-axis stage").
+    """
+
+    n_axes = 1
+
+    def __init__(self, y0_m: float, z0_m: float) -> None:
+        self.y0_m = y0_m
+        self.z0_m = z0_m
+
+    def forward(self, q: FloatArray) -> FloatArray:
+        """Tool tip (m), shape (N, 3), from the x positions (m), shape (N, 1)."""
+        q2 = np.atleast_2d(np.asarray(q, dtype=np.float64))
+        n = q2.shape[0]
+        return np.column_stack([q2[:, 0], np.full(n, self.y0_m), np.full(n, self.z0_m)])
 
 
 @dataclass(frozen=True)
@@ -381,22 +402,36 @@ class MachineSimulator(Source):
         self.per_period = round(ratio)
         self.ratio = self.per_period * opts.block_periods  # samples per block
         self.period_s = period
-        if machine.kinematics == "1-axis-stage":
-            raise ConfigError(
-                f"machine {machine.name}: kinematics '1-axis-stage' has no tool path; "
-                "use millsense.machine.slot_cut"
-            )
-        self.kin = kinematics_for(machine.kinematics)
-        self.axes = AXES_5 if machine.kinematics == "5-axis-trunnion-ac" else AXES_3
-        if job.path.shape[1] != (5 if self.axes == AXES_5 else 3):
-            raise InputDataError(
-                f"job: path has {job.path.shape[1]} columns, machine {machine.name} "
-                f"({machine.kinematics}) needs {len(self.axes)}"
-            )
+        self.stage = machine.kinematics == "1-axis-stage"
+        self.kin: Kinematics | _StageKinematics
+        self.axes: tuple[str, ...]
+        if self.stage:
+            # decision "Simulator on a 1-axis stage": x is the only drive, y and z fixed
+            if job.path.shape[1] != 3:
+                raise InputDataError(
+                    f"job: path has {job.path.shape[1]} columns, machine {machine.name} "
+                    "(1-axis-stage) needs 3 (x, y, z) with y and z constant"
+                )
+            yz = job.path[:, 1:3]
+            if np.any(np.abs(yz - yz[0]) > 1e-9):
+                raise InputDataError(
+                    f"job: machine {machine.name} (1-axis-stage) moves x only; the path "
+                    "moves y or z (program X words only)"
+                )
+            self.kin = _StageKinematics(float(yz[0, 0]), float(yz[0, 1]))
+            self.axes = AXES_1
+        else:
+            self.kin = kinematics_for(machine.kinematics)
+            self.axes = AXES_5 if machine.kinematics == "5-axis-trunnion-ac" else AXES_3
+            if job.path.shape[1] != (5 if self.axes == AXES_5 else 3):
+                raise InputDataError(
+                    f"job: path has {job.path.shape[1]} columns, machine {machine.name} "
+                    f"({machine.kinematics}) needs {len(self.axes)}"
+                )
         missing = [a for a in self.axes if a not in machine.axes]
         if missing:
             raise ConfigError(f"machine {machine.name}: missing axis table [axes.{missing[0]}]")
-        if machine.spindle is None:
+        if machine.spindle is None and not self.stage:
             raise ConfigError(f"machine {machine.name}: missing [spindle] table")
         if duration_s is not None and not (duration_s > 0 and math.isfinite(duration_s)):
             raise InputDataError(f"simulator: duration_s must be > 0, got {duration_s!r}")
@@ -423,7 +458,11 @@ class MachineSimulator(Source):
             spin[: nz[0]] = spin[nz[0]]
         self._spindle_target = spin
         spin0 = float(abs(spin[0]))
-        self.start_s = spin0 / opts.spindle_accel_rad_s2 + opts.spindle_settle_s
+        # without a spindle drive the spindle turns at the programmed speed from the start (an
+        # ideal reference, decision "Simulator on a 1-axis stage"): no run-up to wait for
+        self.has_spindle = machine.spindle is not None
+        ramp_s = spin0 / opts.spindle_accel_rad_s2 if self.has_spindle else 0.0
+        self.start_s = ramp_s + opts.spindle_settle_s
         # the feed starts once the spindle is up to speed (applied without latency)
         self.interp.set_override(1.0, at_time_s=self.start_s)
         self.upsampler = Upsampler(self.per_period, job.path[0])
@@ -469,8 +508,11 @@ class MachineSimulator(Source):
                 self._mode_tables.append(None)
 
         # ---- spindle, sensors
-        self.spindle = SpindleDriveSim(SpindleDriveParams.from_config(machine.spindle), fs)
-        self._spindle_max = machine.spindle.max_rpm * 2 * math.pi / 60
+        self.spindle: SpindleDriveSim | None = None
+        self._spindle_max = math.inf
+        if machine.spindle is not None:
+            self.spindle = SpindleDriveSim(SpindleDriveParams.from_config(machine.spindle), fs)
+            self._spindle_max = machine.spindle.max_rpm * 2 * math.pi / 60
         self.sensors = SensorBank(opts.sensors, fs, np.random.default_rng(seeds[-2]))
         self._tool_modes_base = (
             (process.modes.x, process.modes.y) if process and process.modes else None
@@ -530,8 +572,13 @@ class MachineSimulator(Source):
         ch += [
             ChannelInfo("spindle/speed", "rad/s", "spindle speed (measured)"),
             ChannelInfo("spindle/speed_cmd", "rad/s", "spindle speed reference"),
-            ChannelInfo("spindle/current_cmd", "A", "spindle current command"),
-            ChannelInfo("spindle/current", "A", "spindle actual current"),
+        ]
+        if self.has_spindle:
+            ch += [
+                ChannelInfo("spindle/current_cmd", "A", "spindle current command"),
+                ChannelInfo("spindle/current", "A", "spindle actual current"),
+            ]
+        ch += [
             ChannelInfo("cnc/feed", "m/s", "interpolated path feed"),
             ChannelInfo("cnc/feed_override", "1", "effective feed override (fraction)"),
             ChannelInfo("cnc/spindle_override", "1", "effective spindle override (fraction)"),
@@ -644,6 +691,8 @@ class MachineSimulator(Source):
         """
         if isinstance(self.kin, TrunnionACMachine):
             return np.asarray(self.kin.inverse_at(pts[:, :3], pts[:, 3], pts[:, 4]))
+        if self.stage:
+            return np.asarray(pts[:, :1], dtype=np.float64).copy()
         return np.asarray(pts[:, :3], dtype=np.float64).copy()
 
     # ------------------------------------------------------------------ blocks
@@ -688,9 +737,12 @@ class MachineSimulator(Source):
         sovr = self._sovr.at(t)
         target = self._spindle_target[seg] * sovr
         spd_ref = np.empty(n)
-        self._omega_ref_last = _ramp(
-            target, self._omega_ref_last, self.options.spindle_accel_rad_s2 / fs, spd_ref
-        )
+        if self.has_spindle:
+            self._omega_ref_last = _ramp(
+                target, self._omega_ref_last, self.options.spindle_accel_rad_s2 / fs, spd_ref
+            )
+        else:  # an ideal spindle at the programmed speed (decision "Simulator on a 1-axis stage")
+            spd_ref[:] = target
         # 3. the coupled blocks
         n_ax = len(self.axes)
         w = _BlockArrays(n, n_ax)
@@ -719,7 +771,10 @@ class MachineSimulator(Source):
         sp = w.spindle
         data["spindle/speed"] = sp[:, 2]
         data["spindle/speed_cmd"] = spd_ref
-        data.update(self.sensors.measure(w.tool_acc, table_acc, (sp[:, 0], sp[:, 1])))
+        sensed = self.sensors.measure(w.tool_acc, table_acc, (sp[:, 0], sp[:, 1]))
+        if not self.has_spindle:
+            del sensed["spindle/current_cmd"], sensed["spindle/current"]
+        data.update(sensed)
         data["cnc/feed"] = feed_fine
         data["cnc/feed_override"] = ovr_fine
         data["cnc/spindle_override"] = sovr
@@ -795,6 +850,10 @@ class MachineSimulator(Source):
                 assert isinstance(self.kin, TrunnionACMachine)
                 v_w = np.einsum("nij,nj->ni", self.kin.jacobian(q_est), v_est)
                 axis = self.kin.orientation(q_est[:, 3], q_est[:, 4])
+            elif self.stage:  # x only: y, z of the tool stand still
+                v_w = np.zeros((n, 3))
+                v_w[:, 0] = v_est[:, 0]
+                axis = self._z_axis[:n]
             else:
                 v_w = v_est
                 axis = self._z_axis[:n]
@@ -821,6 +880,11 @@ class MachineSimulator(Source):
                 if regen:
                     acc_w = np.einsum("nji,nj->ni", rot, acc_w)
                     vib_w = np.einsum("nji,nj->ni", rot, vib_w)
+            elif self.stage:
+                # the stage feels the force along its axis; y and z are taken by its guides
+                # (decision "Simulator on a 1-axis stage")
+                f_machine = f_w
+                w.loads[sl] = -f_w[:, :1]
             else:
                 f_machine = f_w
                 w.loads[sl] = -f_w
@@ -850,13 +914,22 @@ class MachineSimulator(Source):
         # the sample-to-sample velocity noise of the drives does not thicken it
         self._err_v = (v_all[sl].sum(axis=0) - blk[:, :, _D_TRUE_VEL].sum(axis=1)) / n
         self._q_ref_block = q_all[sl.stop - 1].copy()
-        sp = self.spindle.advance(spd_all[sl], torque)
-        w.spindle[sl, 0] = sp["current_cmd"]
-        w.spindle[sl, 1] = sp["current"]
-        w.spindle[sl, 2] = sp["speed"]
-        w.spindle[sl, 3] = sp["true_speed"]
-        self._theta = float(sp["angle"][-1])
-        self._omega = float(sp["true_speed"][-1])
+        if self.spindle is not None:
+            sp = self.spindle.advance(spd_all[sl], torque)
+            w.spindle[sl, 0] = sp["current_cmd"]
+            w.spindle[sl, 1] = sp["current"]
+            w.spindle[sl, 2] = sp["speed"]
+            w.spindle[sl, 3] = sp["true_speed"]
+            self._theta = float(sp["angle"][-1])
+            self._omega = float(sp["true_speed"][-1])
+        else:  # ideal spindle: the reference speed, its angle integrated (rectangle rule)
+            spd = spd_all[sl]
+            w.spindle[sl, 0] = 0.0
+            w.spindle[sl, 1] = 0.0
+            w.spindle[sl, 2] = spd
+            w.spindle[sl, 3] = spd
+            self._theta = float(self._theta + np.sum(spd) / fs)
+            self._omega = float(spd[-1])
         self._torque_last = float(np.mean(torque))
         self._realism_tool()
 
@@ -890,6 +963,8 @@ class MachineSimulator(Source):
         if isinstance(self.kin, TrunnionACMachine):
             q_ref = self._q_ref_block
             return np.asarray(self.kin.forward(q_ref) - self.kin.forward(q_ref - self._err_q))
+        if self.stage:
+            return np.array([self._err_q[0], 0.0, 0.0])
         return np.asarray(self._err_q[:3])
 
     # ------------------------------------------------------------------ realism per block
