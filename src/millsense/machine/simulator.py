@@ -351,7 +351,9 @@ class MachineSimulator(Source):
 
     Parameters
     ----------
-    machine : machine configuration (3-axis or 5-axis trunnion, with a spindle).
+    machine : machine configuration (3-axis or 5-axis trunnion, with a spindle; or a
+        1-axis stage: x only, force along x as its load, ideal spindle when the file has no
+        [spindle] — decision "Simulator on a 1-axis stage").
     job : the path to run.
     process : the cutting process, or None for an air run.
     options : settings outside the machine file.
