@@ -172,7 +172,10 @@ def spindle_observer_from_config(
     params = replace(base, ranges=tuple(replace(r, modes=modes) for r in base.ranges))  # type: ignore[arg-type]
     noise = cfg.current_noise_a or DEFAULT_SPINDLE_CURRENT_NOISE_A
     friction = CoulombViscous(
-        cfg.coulomb_nm, cfg.coulomb_nm, cfg.viscous_nm_s_rad, cfg.viscous_nm_s_rad,
+        cfg.coulomb_nm,
+        cfg.coulomb_nm,
+        cfg.viscous_nm_s_rad,
+        cfg.viscous_nm_s_rad,
         params.friction_smoothing_rad_s,
     )
     n_ranges = 2 if math.isfinite(params.switch_rad_s) else 1
