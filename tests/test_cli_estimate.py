@@ -152,7 +152,7 @@ def test_spindle_mean_torque_within_10pct(
     # while the simulated spindle has Aslan's ten App. E residual modes, and the realism layer
     # loads the spindle; the DC gain of G_dτ is 1/K_tS in both (PI integral action), so the mean
     # of the steady cut (3000 rev/min, range 1) is the cutting torque once the configured
-    # viscous friction B_eS·Ω is subtracted: within 10 % (measured ≈ 0.1 %)
+    # viscous friction B_eS·Ω is subtracted: within 10 % (measured 0.014 %)
     assert abs(tau.mean() / truth.mean() - 1) < 0.10
 
 
