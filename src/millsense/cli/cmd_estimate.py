@@ -155,6 +155,7 @@ def run_estimate(
     copies = sorted({c for b in built.blocks for c in b.inputs})
     extra = [f"truth/{a}/load" for a in axis_list] + [
         "spindle/speed",
+        "truth/spindle/torque",
         "truth/process/engagement",
     ]
     copies += [c for c in extra if c in have and c not in copies]

@@ -368,6 +368,32 @@ class SpindleConfig(_Model):
     residual_modes: DisturbanceModesConfig | None = None
     """Identified residual structural modes G_sp of the velocity loop (``millsense identify
     spindle``; Aslan Ch. 5.2, App. E form)."""
+    velocity_kp_a_s_rev: Annotated[float, Field(gt=0, le=1e4)] | None = None
+    """Velocity PI proportional gain K_p, A per rev/s of speed error (Aslan Eq. 5.3: 20; the
+    gains act on rev/s, decision "Spindle drive reading of Aslan Ch. 5")."""
+    velocity_ki_a_rev: Annotated[float, Field(gt=0, le=1e7)] | None = None
+    """Velocity PI integral gain K_i, A/s per rev/s of speed error = A/rev (Eq. 5.3: 600)."""
+    velocity_loop_period_ms: Annotated[float, Field(gt=0, le=100)] | None = None
+    """Velocity-loop sample period T_v, ms (Aslan P7: 0.2 ms)."""
+    current_kp_v_a: Annotated[float, Field(gt=0, le=1e4)] | None = None
+    """Current PI proportional gain, V/A (Aslan Eq. 5.3 G_I: 3.1)."""
+    current_ki_v_a_s: Annotated[float, Field(gt=0, le=1e8)] | None = None
+    """Current PI integral gain, V/(A·s) (Eq. 5.3 G_I: 1010)."""
+    motor_a_v_s2_a: Annotated[float, Field(gt=0, le=1e3)] | None = None
+    """Motor admittance ``I/V = 1/(a s² + b s + c)``: a, V·s²/A, range 1 (Aslan Eq. 5.7)."""
+    motor_b_v_s_a: Annotated[float, Field(gt=0, le=1e3)] | None = None
+    """Motor admittance b, V·s/A, range 1 (Eq. 5.7)."""
+    motor_c_ohm: Annotated[float, Field(ge=0, le=1e3)] | None = None
+    """Motor admittance c, V/A, range 1 (Eq. 5.7)."""
+    motor_a_range2_v_s2_a: Annotated[float, Field(gt=0, le=1e3)] | None = None
+    """Motor admittance a above the winding switch, V·s²/A (Eq. 5.7 range 2); None: range 1."""
+    motor_b_range2_v_s_a: Annotated[float, Field(gt=0, le=1e3)] | None = None
+    """Motor admittance b above the winding switch, V·s/A; None: range 1."""
+    motor_c_range2_ohm: Annotated[float, Field(ge=0, le=1e3)] | None = None
+    """Motor admittance c above the winding switch, V/A; None: range 1."""
+    current_noise_a: Annotated[float, Field(ge=0, le=100)] = 0.0
+    """RMS noise of the current command I_nom in air, A (the spindle observer's R is its square,
+    Aslan Ch. 5.3; 0: the default of :mod:`millsense.estimation.from_config`)."""
 
 
 class MachineConfig(_Model):

@@ -15,13 +15,16 @@ Methods
           :class:`~millsense.estimation.rigid_body.RigidBodyForceEstimator`).
 ``medob`` multi-encoder DOB of a ball-screw axis (Yamada, :class:`~millsense.estimation.dob.
           MEDOBBlock`) from ``[axes.x.ball_screw]``, dead times and current-loop bandwidth.
-``spindle`` not buildable from a configuration: see :func:`spindle_unavailable_reason`.
+``spindle`` spindle torque observer (Aslan C11, :class:`~millsense.estimation.spindle_observer.
+          SpindleTorqueObserver`) on G_dτ (Eq. 5.12) modelled from ``[spindle]``
+          (:func:`spindle_observer_from_config`); output ``est/spindle/spindle/load``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -98,14 +101,95 @@ class BuiltEstimators:
     notes: list[str]
 
 
-def spindle_unavailable_reason(machine: MachineConfig, where: str) -> str:
-    """Why the spindle observer cannot be built from ``machine`` (one line)."""
+#: Keys of ``[spindle]`` the observer's G_dτ model needs (Aslan Eq. 5.3, 5.7, P7).
+SPINDLE_MODEL_KEYS = (
+    "velocity_kp_a_s_rev",
+    "velocity_ki_a_rev",
+    "velocity_loop_period_ms",
+    "current_kp_v_a",
+    "current_ki_v_a_s",
+    "motor_a_v_s2_a",
+    "motor_b_v_s_a",
+    "motor_c_ohm",
+    "back_emf_v_s_rad",
+)
+
+#: R of the spindle observer when ``[spindle] current_noise_a`` is 0, A (RMS of I_nom in air):
+#: 0.02 A, the size of a 16-bit current command over ±600 A (decision "Spindle observer from
+#: the machine file", docs/decisions.md).
+DEFAULT_SPINDLE_CURRENT_NOISE_A = 0.02
+
+
+def spindle_unavailable_reason(machine: MachineConfig, where: str) -> str | None:
+    """Why the spindle observer cannot be built from ``machine`` (one line), or None."""
     if machine.spindle is None:
         return f"{where}: missing table 'spindle' (the spindle observer needs it)"
-    return (
-        f"{where}: the spindle observer cannot be built from the configuration: G_dτ (Aslan "
-        "Eq. 5.12) needs the velocity-loop gains and the current-loop model, which [spindle] "
-        "has no keys for (residual_modes alone is not enough)"
+    for key in SPINDLE_MODEL_KEYS:
+        if getattr(machine.spindle, key) is None:
+            return (
+                f"{where}: missing key 'spindle.{key}' (the spindle observer's G_dτ, Aslan "
+                "Eq. 5.12, needs it)"
+            )
+    return None
+
+
+def spindle_observer_from_config(
+    machine: MachineConfig, where: str, sample_rate_hz: float
+) -> RenamedBlock:
+    """Spindle torque observer built from ``[spindle]`` alone (Aslan C11, Eq. 5.12–5.21).
+
+    Notes
+    -----
+    Per speed range: G_dτ by :func:`~millsense.estimation.spindle_observer.disturbance_model`
+    from :meth:`SpindleDriveParams.from_config` with the residual modes of
+    ``[spindle.residual_modes]`` (the same table in both ranges) or none (rigid-body G_dτ);
+    R = ``current_noise_a``² (default :data:`DEFAULT_SPINDLE_CURRENT_NOISE_A`); Q_s by
+    :func:`~millsense.estimation.spindle_observer.tune_spindle_q`. The configured friction
+    ``τ_coul + B_eS·Ω`` is subtracted so the output is the cutting torque (the observer sees
+    the steady friction current as disturbance).
+    """
+    from millsense.estimation.spindle_observer import (
+        RangeSwitchedSpindleObserver,
+        SpindleTorqueObserver,
+        disturbance_model,
+        tune_spindle_q,
+    )
+    from millsense.machine.friction import CoulombViscous
+    from millsense.machine.spindle import SpindleDriveParams
+
+    reason = spindle_unavailable_reason(machine, where)
+    if reason is not None:
+        raise ConfigError(reason)
+    cfg = machine.spindle
+    assert cfg is not None
+    base = SpindleDriveParams.from_config(cfg)
+    modes = np.zeros((0, 4))
+    feedthrough = 0.0
+    if cfg.residual_modes is not None:
+        rm = cfg.residual_modes
+        modes = np.column_stack([rm.natural_frequency_hz, rm.damping_ratio, rm.alpha, rm.beta])
+        feedthrough = rm.feedthrough
+    params = replace(base, ranges=tuple(replace(r, modes=modes) for r in base.ranges))  # type: ignore[arg-type]
+    noise = cfg.current_noise_a or DEFAULT_SPINDLE_CURRENT_NOISE_A
+    friction = CoulombViscous(
+        cfg.coulomb_nm,
+        cfg.coulomb_nm,
+        cfg.viscous_nm_s_rad,
+        cfg.viscous_nm_s_rad,
+        params.friction_smoothing_rad_s,
+    )
+    n_ranges = 2 if math.isfinite(params.switch_rad_s) else 1
+    obs = []
+    for r in range(n_ranges):
+        tuning = tune_spindle_q(disturbance_model(params, r, feedthrough), noise**2)
+        obs.append(SpindleTorqueObserver(tuning.design, sample_rate_hz, friction=friction))
+    block: Block = obs[0]
+    if n_ranges == 2:
+        block = RangeSwitchedSpindleObserver((obs[0], obs[1]), params.switch_rad_s)
+    return RenamedBlock(
+        block,
+        {"spindle/torque_est": (load_channel("spindle", "spindle"), 1.0, "N*m")},
+        "spindle",
     )
 
 
@@ -209,10 +293,15 @@ def build_estimators(
     notes: list[str] = []
     for m in methods:
         if m == "spindle":
-            reason = spindle_unavailable_reason(machine, where)
-            if not skip_unavailable:
-                raise ConfigError(reason)
-            notes.append(reason)
+            try:
+                b = spindle_observer_from_config(machine, where, sample_rate_hz)
+            except ConfigError as exc:
+                if not skip_unavailable:
+                    raise
+                notes.append(str(exc))
+                continue
+            blocks.append(b)
+            est.append((m, "spindle", load_channel(m, "spindle"), b.delay_samples))
             continue
         for a in axes:
             try:

@@ -47,7 +47,7 @@ from millsense.estimation.rational_fit import RationalFit, fit_rational
 from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
 from millsense.ident.friction import fit_line
 from millsense.machine.friction import CoulombViscous
-from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
+from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim, plant_matrices
 from millsense.online.block import Block, BlockOutput, Chunk
 
 #: Eq. 5.34 with K_rc = 0.5·K_tc and no edge forces: √(1 + 0.5²).
@@ -359,3 +359,94 @@ class SpindleTorqueObserver(Block):
         if self.radius is not None:
             out[f"{self.prefix}/force_resultant_est"] = RESULTANT_FACTOR * tau / self.radius
         return BlockOutput(out)
+
+
+def disturbance_model(
+    params: SpindleDriveParams, range_index: int = 0, residual_feedthrough: float = 0.0
+) -> StateSpaceModel:
+    """Discrete ``G_dτ = I_nom/τ_d`` at the velocity-loop period from the drive's parameters.
+
+    Parameters
+    ----------
+    params : spindle drive (gains, inertia, viscous, K_tS, admittance, residual modes).
+    range_index : speed range, 0 or 1.
+    residual_feedthrough : constant term of the residual R (``Ω_meas = Ω + R·e``), 1.
+
+    Returns
+    -------
+    Discrete model (dt = velocity period) from τ_d (N·m) to I_nom (A); states: the plant of
+    :func:`~millsense.machine.spindle.plant_matrices` without the angle, then the PI integrator.
+
+    Notes
+    -----
+    Aslan Eq. 5.12 with R in the open velocity loop (decision 1 of
+    :mod:`millsense.machine.spindle`): the continuous plant (Eq. 5.1, 5.7, current PI, back
+    EMF, modes) is ZOH-discretised at T_v with I_nom, e and τ_d held; the velocity PI runs as
+    in the drive: ``z⁺ = z + K_i·T_v·e``, ``I_nom = K_p·e + z⁺`` with
+    ``e = −(Ω + c_r·x)/(1 + R_∞)`` (speed reference constant: it does not enter the deviation).
+    """
+    a_c, b_c, cr = plant_matrices(params, range_index)
+    keep = np.arange(1, a_c.shape[0])  # drop the spindle angle: it feeds nothing
+    a_c, b_c, cr = a_c[np.ix_(keep, keep)], b_c[keep], cr[keep]
+    tv = params.velocity_period_s
+    n, m_in = b_c.shape
+    big = np.zeros((n + m_in, n + m_in))
+    big[:n, :n] = a_c * tv
+    big[:n, n:] = b_c * tv
+    e = linalg.expm(big)
+    ad, bd = e[:n, :n], e[:n, n:]
+    meas = cr.copy()
+    meas[0] += 1.0  # Ω is the first state after dropping θ
+    meas /= 1.0 + residual_feedthrough
+    kp, ki = params.velocity_gains
+    g = kp + ki * tv
+    a = np.zeros((n + 1, n + 1))
+    a[:n, :n] = ad - np.outer(bd[:, 0] * g + bd[:, 1], meas)
+    a[:n, n] = bd[:, 0]
+    a[n, :n] = -ki * tv * meas
+    a[n, n] = 1.0
+    b = np.concatenate([bd[:, 2], [0.0]])
+    c = np.concatenate([-g * meas, [1.0]])
+    return StateSpaceModel.from_arrays(a, b, c, 0.0, dt=tv)
+
+
+class RangeSwitchedSpindleObserver(Block):
+    """One :class:`SpindleTorqueObserver` per speed range, the output chosen per sample.
+
+    Parameters
+    ----------
+    observers : observer of range 1 and of range 2 (both read the same channels).
+    switch_rad_s : |speed command| at and above which range 2's estimate is used, rad/s.
+    prefix : channel prefix (reads ``{prefix}/speed_cmd`` in rad/s besides the observers').
+
+    Notes
+    -----
+    Both observers run on every sample (each is a linear filter on I_nom), so the estimate has
+    no switching transient: the range follows the speed command as in the drive (Aslan Ch. 5.2).
+    """
+
+    def __init__(
+        self,
+        observers: tuple[SpindleTorqueObserver, SpindleTorqueObserver],
+        switch_rad_s: float,
+        prefix: str = "spindle",
+    ) -> None:
+        self.name = "spindle_torque_observer"
+        self.observers = observers
+        self.switch = float(switch_rad_s)
+        self.prefix = prefix
+        self.inputs = (*observers[0].inputs, f"{prefix}/speed_cmd")
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return self.observers[0].output_channels()
+
+    def reset(self, sample_rate_hz: float) -> None:
+        for o in self.observers:
+            o.reset(sample_rate_hz)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        lo = self.observers[0].process(chunk).channels
+        hi = self.observers[1].process(chunk).channels
+        use_hi = np.abs(np.asarray(chunk.data[f"{self.prefix}/speed_cmd"], dtype=float))
+        sel = use_hi >= self.switch
+        return BlockOutput({k: np.where(sel, hi[k], lo[k]) for k in lo})

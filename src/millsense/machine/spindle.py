@@ -123,19 +123,54 @@ class SpindleDriveParams:
 
     @classmethod
     def from_config(cls, cfg: SpindleConfig) -> SpindleDriveParams:
-        """Quaser defaults overridden by the configured inertia, K_tS, friction and switch."""
+        """Quaser defaults overridden by the configured values.
+
+        Inertia, K_tS, friction and switch always; back EMF, the velocity PI (per rev/s of
+        speed error, decision 2), its period, the current PI and the Eq. 5.7 admittance per
+        range when their keys are present (absent keys keep Aslan's Quaser values). The
+        residual modes stay App. E's (``residual_modes`` is read by the estimator only).
+        """
         base = cls.aslan_quaser()
         kt2 = cfg.torque_constant_range2_nm_a or cfg.torque_constant_nm_a
         r1, r2 = base.ranges
+
+        def pick(value: float | None, default: float) -> float:
+            return default if value is None else float(value)
+
+        adm1 = (
+            pick(cfg.motor_a_v_s2_a, r1.admittance[0]),
+            pick(cfg.motor_b_v_s_a, r1.admittance[1]),
+            pick(cfg.motor_c_ohm, r1.admittance[2]),
+        )
+        given2 = (cfg.motor_a_range2_v_s2_a, cfg.motor_b_range2_v_s_a, cfg.motor_c_range2_ohm)
+        adm1_given = (cfg.motor_a_v_s2_a, cfg.motor_b_v_s_a, cfg.motor_c_ohm)
+        # range 2 falls back to the configured range 1 if only range 1 is given
+        fallback2 = adm1 if any(v is not None for v in adm1_given) else r2.admittance
+        adm2 = (
+            pick(given2[0], fallback2[0]),
+            pick(given2[1], fallback2[1]),
+            pick(given2[2], fallback2[2]),
+        )
+        ms = 1e-3
         return replace(
             base,
             inertia=cfg.inertia_kg_m2,
             viscous=cfg.viscous_nm_s_rad,
             coulomb=cfg.coulomb_nm,
-            back_emf=cfg.back_emf_v_s_rad if cfg.back_emf_v_s_rad is not None else base.back_emf,
+            back_emf=pick(cfg.back_emf_v_s_rad, base.back_emf),
+            velocity_kp=pick(cfg.velocity_kp_a_s_rev, base.velocity_kp),
+            velocity_ki=pick(cfg.velocity_ki_a_rev, base.velocity_ki),
+            current_kp=pick(cfg.current_kp_v_a, base.current_kp),
+            current_ki=pick(cfg.current_ki_v_a_s, base.current_ki),
+            velocity_period_s=(
+                base.velocity_period_s
+                if cfg.velocity_loop_period_ms is None
+                else cfg.velocity_loop_period_ms * ms
+            ),
+            velocity_error_unit="rev/s",
             ranges=(
-                replace(r1, torque_constant=cfg.torque_constant_nm_a),
-                replace(r2, torque_constant=kt2),
+                replace(r1, torque_constant=cfg.torque_constant_nm_a, admittance=adm1),
+                replace(r2, torque_constant=kt2, admittance=adm2),
             ),
             switch_rad_s=(cfg.range_switch_rpm * units.RPM if cfg.range_switch_rpm else math.inf),
         )
