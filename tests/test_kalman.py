@@ -293,3 +293,30 @@ def test_noise_on_all_states_gives_spindle_form() -> None:
     assert np.trace(d.qd) == pytest.approx(expect, rel=1e-7)
     assert np.linalg.matrix_rank(d.qd) == 5
     assert compensated_frf(m, d, [0.0])[0] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_output_covariance_equals_impulse_response_sum() -> None:
+    # Independent check: W = Σ_k F^k G Σ Gᵀ (F^k)ᵀ summed directly, for a filter with a pole at
+    # −0.999 (where scipy's default bilinear Lyapunov solver divides by F + I ≈ 0) and a
+    # lightly damped pair near z = 1.
+
+    r, th = 0.999, 0.01
+    f = np.array(
+        [
+            [-0.999, 0.0, 0.0],
+            [0.0, r * np.cos(th), -r * np.sin(th)],
+            [0.0, r * np.sin(th), r * np.cos(th)],
+        ]
+    )
+    g = np.array([[1.0], [0.5], [-0.2]])
+    h = np.array([[0.3, 1.0, 0.7]])
+    j = np.array([[0.1]])
+    filt = LinearFilter(f, g, h, j, 1e-4)
+    sigma = np.array([[2.0]])
+    w = np.zeros((3, 3))
+    fk = np.eye(3)
+    for _ in range(40000):  # |λ|^40000 < 1e-17
+        w += fk @ g @ sigma @ g.T @ fk.T
+        fk = fk @ f
+    expected = h @ w @ h.T + j @ sigma @ j.T
+    np.testing.assert_allclose(filt.output_covariance(sigma), expected, rtol=1e-9)

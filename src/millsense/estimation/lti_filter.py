@@ -96,6 +96,30 @@ class LinearFilter:
             out[i] = self.h @ np.linalg.solve(zi * eye - self.f, self.g) + self.j
         return out
 
+    def output_covariance(self, input_cov: ArrayLike) -> NDArray[np.float64]:
+        """Steady-state output covariance for white inputs of covariance ``input_cov``.
+
+        ``H W Hᵀ + J Σ Jᵀ`` with ``W = F W Fᵀ + G Σ Gᵀ`` (discrete Lyapunov equation), solved
+        exactly in the eigenbasis of F: ``W̃_ij = Q̃_ij / (1 − λ_i λ̄_j)``. scipy's default
+        (bilinear) solver maps F through ``(F + I)⁻¹`` and breaks down when F has an
+        eigenvalue near −1, as the Kalman filters of fast-sampled modes do (rcond 1e-25 seen on
+        the spindle observer); the direct Kronecker solver is the fallback when the
+        eigenvectors are ill-conditioned. This is the noise gain every tuning criterion uses.
+        """
+        sigma = np.atleast_2d(np.asarray(input_cov, dtype=float))
+        q = self.g @ sigma @ self.g.T
+        lam, v = np.linalg.eig(self.f)
+        if np.linalg.cond(v) < 1e8:
+            vi = np.linalg.inv(v)
+            qt = vi @ q @ vi.conj().T
+            wt = qt / (1.0 - np.outer(lam, lam.conj()))
+            w = np.real(v @ wt @ v.conj().T)
+        else:
+            from scipy import linalg
+
+            w = linalg.solve_discrete_lyapunov(self.f, q, method="direct")
+        return np.asarray(self.h @ w @ self.h.T + self.j @ sigma @ self.j.T)
+
     def is_stable(self) -> bool:
         """All eigenvalues of F strictly inside the unit circle."""
         return bool(np.max(np.abs(np.linalg.eigvals(self.f))) < 1.0)

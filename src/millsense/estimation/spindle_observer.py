@@ -144,9 +144,7 @@ def design_observer(
 
 def observer_noise_std(design: KalmanDesign) -> float:
     """Standard deviation of τ̂_d (N·m) due to white measurement noise of variance R."""
-    filt = design.filter("filtered")
-    w = linalg.solve_discrete_lyapunov(filt.f, filt.g @ design.r @ filt.g.T)
-    v = filt.h @ w @ filt.h.T + filt.j @ design.r @ filt.j.T
+    v = design.filter("filtered").output_covariance(design.r)
     return float(math.sqrt(max(float(v[0, 0]), 0.0)))
 
 

@@ -59,14 +59,12 @@ def noise_gain(design: KalmanDesign) -> float:
     """RMS of the filtered disturbance estimate per unit RMS of white measurement noise.
 
     ``sqrt(Σ h_k²)`` of the impulse response of the frozen-gain filter ``y → τ̂_a(k|k)``,
-    computed exactly from the discrete Lyapunov equation of the filter.
+    computed exactly from the discrete Lyapunov equation of the filter
+    (:meth:`~millsense.estimation.lti_filter.LinearFilter.output_covariance`).
     """
-    from scipy import linalg
-
     filt = design.filter("filtered")
-    f, g, h, j = filt.f, filt.g, filt.h, filt.j
-    w = linalg.solve_discrete_lyapunov(f, g @ g.T)
-    return float(math.sqrt(max(float((h @ w @ h.T + j @ j.T)[0, 0]), 0.0)))
+    v = filt.output_covariance(np.eye(filt.n_inputs))
+    return float(math.sqrt(max(float(v[0, 0]), 0.0)))
 
 
 @dataclass(frozen=True)
