@@ -35,6 +35,16 @@ def estimate(
     plot: Path | None = typer.Option(None, "--plot", help="PNG of estimate vs truth."),
     flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
+    idle: str = typer.Option(
+        "none",
+        "--idle",
+        help="Idle (air-cut) compensation: none; auto (the air phase at cutting feed before "
+        "the cut, from the recording's metadata or --air-s); or an air-run recording FILE.h5. "
+        "The estimates' mean in air per direction of motion is subtracted.",
+    ),
+    air_s: str | None = typer.Option(
+        None, "--air-s", help="Air phase START:END in s (of the recording or the --idle FILE)."
+    ),
 ) -> None:
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
@@ -49,6 +59,8 @@ def estimate(
             plot=plot,
             flutes=flutes,
             chunk=chunk,
+            idle=idle,
+            air_s=air_s,
             on_progress=update,
         )
     for note in summary["notes"]:
@@ -99,13 +111,22 @@ def run_estimate(
     plot: Path | None = None,
     flutes: int | None = None,
     chunk: int = 1000,
+    idle: str = "none",
+    air_s: str | None = None,
     on_progress: Any = None,
 ) -> dict[str, Any]:
     """Build the estimators, replay ``recording`` and write ``out`` while running.
 
     Returns a summary: samples, seconds, wall_s, estimates (method, axis, channel, delay),
     comparisons (:class:`~millsense.report.estimate_metrics.HarmonicComparison`, empty without
-    truth) and notes.
+    truth), notes and idle ((method, axis) → :class:`~millsense.ident.idle_table.DirectionIdle`
+    subtracted, empty with ``idle="none"``).
+
+    ``idle``: ``none``; ``auto`` — the air phase of ``recording`` itself
+    (:func:`~millsense.estimation.idle_compensation.find_air_window`, or ``air_s``); a path —
+    an air-run recording (its air phase found the same way, or ``air_s``). The same estimators
+    run over the air phase first; their mean there per direction of the commanded velocity is
+    subtracted from the estimates (decision "Idle compensation in estimate").
 
     Raises
     ------
@@ -147,8 +168,19 @@ def run_estimate(
         where=machine,
         skip_unavailable=method == "all",
     )
+    idle_tables, idle_notes = _idle_tables(
+        idle, air_s, rec, recording, mcfg, methods, axis_list, machine, chunk, method == "all"
+    )
     setup_s = time.perf_counter() - t_setup
-    pipeline = Pipeline(built.blocks)
+    blocks: list[Any] = list(built.blocks)
+    if idle_tables:
+        from millsense.estimation.idle_compensation import IdleCompensatedBlock
+
+        blocks = [
+            IdleCompensatedBlock(b, a, c, idle_tables[(m, a)], d)
+            for b, (m, a, c, d) in zip(built.blocks, built.estimates, strict=True)
+        ]
+    pipeline = Pipeline(blocks)
     source = RecordingSource(rec, name=str(recording))
     pipeline.check_inputs(source.channel_names, str(recording))
     have = set(rec.channel_names)
@@ -167,7 +199,13 @@ def run_estimate(
         "machine_file": machine,
         "methods": ",".join(methods),
         "estimate_delays_samples": json.dumps({c: d for _, _, c, d in built.estimates}),
+        "idle": idle,
     }
+    if idle_tables:
+        meta["idle_tables"] = json.dumps(
+            {f"{m}/{a}": dict(zip(("negative", "rest", "positive"), t.value, strict=True))
+             for (m, a), t in idle_tables.items()}
+        )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
 
@@ -198,9 +236,70 @@ def run_estimate(
         "setup_s": setup_s,
         "estimates": built.estimates,
         "comparisons": comparisons,
-        "notes": built.notes,
+        "notes": built.notes + idle_notes,
         "channels": res.channels,
+        "idle": idle_tables,
     }
+
+
+def _idle_tables(
+    idle: str,
+    air_s: str | None,
+    rec: Any,
+    recording: Path,
+    mcfg: Any,
+    methods: list[str],
+    axis_list: list[str],
+    machine: str,
+    chunk: int,
+    skip: bool,
+) -> tuple[dict[tuple[str, str], Any], list[str]]:
+    """Idle tables of every estimate from the air phase named by ``--idle``/``--air-s``."""
+    from millsense.core.errors import InputDataError
+    from millsense.estimation.from_config import build_estimators
+    from millsense.estimation.idle_compensation import (
+        find_air_window,
+        measure_idle,
+        parse_air_window,
+    )
+    from millsense.io import read_recording
+
+    if idle == "none":
+        if air_s is not None:
+            raise InputDataError("--air-s: needs --idle auto or --idle FILE.h5")
+        return {}, []
+    if idle == "auto":
+        src, where = rec, str(recording)
+    else:
+        path = Path(idle)
+        if path.suffix != ".h5":
+            raise InputDataError(f"--idle {idle!r}: none, auto or an air-run recording (.h5)")
+        if not path.is_file():
+            raise InputDataError(f"--idle: no file {path}")
+        src, where = read_recording(path), str(path)
+        if src.sample_rate_hz != rec.sample_rate_hz:
+            raise InputDataError(
+                f"--idle {path}: sampled at {src.sample_rate_hz:g} Hz, the recording at "
+                f"{rec.sample_rate_hz:g} Hz"
+            )
+    window = parse_air_window(air_s, src, where) if air_s else find_air_window(src, where)
+    fresh = build_estimators(
+        mcfg, methods, axis_list, src.sample_rate_hz, where=machine,
+        skip_unavailable=skip,
+    )  # fmt: skip
+    tables = measure_idle(src, fresh.blocks, fresh.estimates, window, where, chunk)
+    fs = src.sample_rate_hz
+    notes = [
+        f"idle: air phase {window.start / fs:.3f}-{window.stop / fs:.3f} s of {where}"
+    ]
+    for (m, a), t in tables.items():
+        vals = ", ".join(
+            f"{d} {v:+.3g} {t.unit}"
+            for d, v, n in zip(("−", "0", "+"), t.value, t.samples, strict=True)
+            if n > 0
+        )
+        notes.append(f"idle {m} {a}: {vals or 'no direction seen (not compensated)'}")
+    return tables, notes
 
 
 def _compare(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +42,12 @@ def simulate(
         "slot", "--engagement", help="With --program: slot, ae_mm=VALUE or ae_mm=VALUE,up."
     ),
     depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth, mm."),
+    air_mm: float = typer.Option(
+        0.0,
+        "--air-mm",
+        help="With --program: the first AIR_MM of feed motion cut air (the stock starts that "
+        "far along the first feed move): an air phase at cutting feed for `estimate --idle`.",
+    ),
     out: Path = typer.Option(..., "--out", "-o", help="Recording to write (.h5)."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this, s."),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
@@ -70,6 +77,7 @@ def simulate(
         material=material,
         engagement=engagement,
         depth_mm=depth_mm,
+        air_mm=air_mm,
         out=out,
         duration_s=duration_s,
         seed=seed,
@@ -101,6 +109,7 @@ def run_simulation(
     engagement: str,
     depth_mm: float,
     out: Path,
+    air_mm: float = 0.0,
     duration_s: float | None,
     seed: int,
     cnc: str,
@@ -113,6 +122,11 @@ def run_simulation(
     on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
+
+    The recording's metadata ``first_engagement_path_m`` is the path length (m, along the
+    programmed path from its start, the integral of ``cnc/feed``) at which the tool first
+    enters the stock — what the CAM plan or the program's set-up tells the CNC, no truth
+    channel — so that ``millsense estimate --idle auto`` can find the air phase before it.
 
     Raises
     ------
@@ -150,6 +164,10 @@ def run_simulation(
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     if not (depth_mm > 0):
         raise ConfigError(f"--depth-mm: must be > 0, got {depth_mm}")
+    if not (air_mm >= 0 and np.isfinite(air_mm)):
+        raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
+    if air_mm > 0 and plan is not None:
+        raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
     mcfg = load_preset(MachineConfig, machine)
     five = mcfg.kinematics == "5-axis-trunnion-ac"
     events: list[ProcessEvent] = []
@@ -179,6 +197,8 @@ def run_simulation(
         source = PlanEngagement(vp)
         notes += source.notes
         n_discs = int(vp.metadata.get("n_discs", 10))
+        cut_rows = np.flatnonzero(source.row_index >= 0)
+        first_cut = float(source.row_s_m[cut_rows[0]]) if len(cut_rows) else None
         meta_extra = {
             "plan": str(plan),
             "program": str(vp.metadata.get("program", "")),
@@ -186,6 +206,8 @@ def run_simulation(
             "material": material or str(vp.metadata.get("material_name", "plan")),
             "engagement": source.summary(),
         }
+        if first_cut is not None:
+            meta_extra["first_engagement_path_m"] = first_cut
         process = ProcessCoupling(
             end_mill,
             coeffs,
@@ -205,6 +227,7 @@ def run_simulation(
         schedule = EngagementSchedule.along_cutting_moves(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
         )
+        schedule, first_cut = _with_air(schedule, air_mm * 1e-3)
         process = ProcessCoupling(
             end_mill,
             CuttingCoefficients.from_config(mat),
@@ -213,6 +236,10 @@ def run_simulation(
             sample_rate_hz=mcfg.sample_rate_hz,
         )
         meta_extra = {"program": str(program), "tool": tcfg.name, "material": mat.name}
+        if first_cut is not None:
+            meta_extra["first_engagement_path_m"] = first_cut
+        if air_mm > 0:
+            meta_extra["air_mm"] = air_mm
     channel = OverrideChannel.open_cnc() if cnc == "open" else OverrideChannel.closed_cnc()
     opts = SimulatorOptions(
         feed_channel=channel,
@@ -255,3 +282,39 @@ def run_simulation(
         "wall_s": max(time.perf_counter() - t0, 1e-9),
         "notes": notes,
     }
+
+
+def _with_air(schedule: Any, air_m: float) -> tuple[Any, float | None]:
+    """The schedule with its first cutting run starting ``air_m`` later, and that start.
+
+    Parameters
+    ----------
+    schedule : :class:`~millsense.machine.process_coupling.EngagementSchedule` by arc length.
+    air_m : air travel at cutting feed before the stock, m (0: unchanged).
+
+    Returns
+    -------
+    (schedule, first engagement path length m, or None when nothing cuts).
+
+    Raises
+    ------
+    ConfigError
+        When the first run of feed moves is not longer than ``air_m`` (one line).
+    """
+    from dataclasses import replace
+
+    from millsense.core.errors import ConfigError
+
+    segs = list(schedule.segments)
+    first = next((i for i, s in enumerate(segs) if s.depth_m > 0), None)
+    if first is None:
+        return schedule, None
+    start = segs[first].start + air_m
+    end = segs[first + 1].start if first + 1 < len(segs) else math.inf
+    if air_m > 0 and not start < end:
+        raise ConfigError(
+            f"--air-mm: {air_m * 1e3:g} mm is not shorter than the first run of feed moves "
+            f"({(end - segs[first].start) * 1e3:.3g} mm)"
+        )
+    segs[first] = replace(segs[first], start=start)
+    return replace(schedule, segments=tuple(segs)), start

@@ -233,3 +233,107 @@ def periodic_amplitude(position_m: np.ndarray, signal: np.ndarray, wavelength_m:
     basis = np.column_stack([np.sin(k * x), np.cos(k * x), np.ones_like(x)])
     coef, *_ = np.linalg.lstsq(basis, np.asarray(signal, dtype=float), rcond=None)
     return float(math.hypot(coef[0], coef[1]))
+
+
+#: Bins of :class:`DirectionIdle`: motion in −direction, at rest, in +direction.
+DIRECTIONS = ("negative", "rest", "positive")
+
+
+@dataclass(frozen=True)
+class DirectionIdle:
+    """Idle load of an estimate per direction of motion: the velocity-indexed idle table.
+
+    An air phase at one cutting feed samples the idle (friction) load at one speed per
+    direction, so the velocity index reduces to the sign of the commanded velocity: negative,
+    at rest (|v| ≤ ``deadband``), positive (Aslan C2: friction depends on direction; Yamada §2.9:
+    "observer output in idling = disturbance", constant in Ch. 6).
+
+    Attributes
+    ----------
+    value : mean estimate in air per bin of :data:`DIRECTIONS` (estimate unit), NaN where the
+        air phase holds no sample of that bin.
+    variance : variance of the estimate about that mean per bin (unit²), NaN where unseen.
+    samples : air samples per bin.
+    deadband : |v| at or below which the axis is at rest (axis unit/s: m/s or rad/s).
+    unit : unit of the estimate (``N``, ``N*m``).
+    """
+
+    value: tuple[float, float, float]
+    variance: tuple[float, float, float]
+    samples: tuple[int, int, int]
+    deadband: float
+    unit: str
+
+    def bins(self, velocity: np.ndarray) -> np.ndarray:
+        """Bin index (0 −, 1 rest, 2 +) per velocity sample."""
+        v = np.asarray(velocity, dtype=float)
+        return np.asarray(
+            np.where(v > self.deadband, 2, np.where(v < -self.deadband, 0, 1)), dtype=np.int64
+        )
+
+    def __call__(self, velocity: np.ndarray) -> np.ndarray:
+        """Idle load per sample (0 in a bin the air phase did not see), estimate unit."""
+        table = np.nan_to_num(np.asarray(self.value, dtype=float), nan=0.0)
+        return np.asarray(table[self.bins(velocity)])
+
+    def compensate(self, velocity: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """``estimate − idle(velocity)``, sample by sample."""
+        est = np.asarray(estimate, dtype=float)
+        if est.shape != np.shape(velocity):
+            raise InputDataError(
+                f"idle compensation: estimate {est.shape} and velocity {np.shape(velocity)} "
+                "differ in shape"
+            )
+        return np.asarray(est - self(velocity))
+
+    def seen(self) -> list[str]:
+        """Names of the bins the air phase saw."""
+        return [d for d, n in zip(DIRECTIONS, self.samples, strict=True) if n > 0]
+
+
+def build_direction_idle(
+    velocity: np.ndarray,
+    estimate: np.ndarray,
+    *,
+    deadband: float,
+    unit: str = "N",
+    min_samples: int = 100,
+) -> DirectionIdle:
+    """Mean and variance of an estimate in air per direction of the commanded velocity.
+
+    Parameters
+    ----------
+    velocity : commanded axis velocity per air sample, m/s or rad/s.
+    estimate : the estimator's output per air sample (aligned with ``velocity``).
+    deadband : |v| at or below which the axis counts as at rest, m/s or rad/s.
+    unit : unit of the estimate.
+    min_samples : fewest samples for a bin to count as seen (fewer: NaN, not compensated).
+
+    Notes
+    -----
+    Per bin b: ``value_b = mean(est | bin b)`` and ``variance_b = var(est | bin b)`` (Aslan
+    Eq. 3.30: R is the fluctuation of the torque in an air cut); bins with fewer than
+    ``min_samples`` samples are left NaN (the compensation leaves them untouched).
+    """
+    v = np.asarray(velocity, dtype=float)
+    y = np.asarray(estimate, dtype=float)
+    if v.shape != y.shape or v.ndim != 1:
+        raise InputDataError("idle: velocity and estimate must be equal 1-D arrays")
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(y))):
+        raise InputDataError("idle: the air phase has non-finite samples")
+    probe = DirectionIdle((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0, 0, 0), deadband, unit)
+    b = probe.bins(v)
+    vals, vars_, counts = [], [], []
+    for k in range(3):
+        sel = y[b == k]
+        ok = len(sel) >= min_samples
+        vals.append(float(sel.mean()) if ok else math.nan)
+        vars_.append(float(sel.var()) if ok else math.nan)
+        counts.append(int(len(sel)) if ok else 0)
+    return DirectionIdle(
+        (vals[0], vals[1], vals[2]),
+        (vars_[0], vars_[1], vars_[2]),
+        (counts[0], counts[1], counts[2]),
+        float(deadband),
+        unit,
+    )
