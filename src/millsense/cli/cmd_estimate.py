@@ -160,6 +160,15 @@ def run_estimate(
     else:
         axis_list = [a.strip() for a in axes.split(",") if a.strip()]
     t_setup = time.perf_counter()
+    air = _air_phase(idle, air_s, rec, recording)
+    idle_notes: list[str] = []
+    if air is not None and "feed" in methods:
+        from millsense.estimation.idle_compensation import with_air_r
+
+        mcfg, r_air = with_air_r(mcfg, axis_list, air[0], air[1], air[2])
+        idle_notes += [
+            f"idle: feed {a}: R from the air phase {r:.3g} N²·m²" for a, r in r_air.items()
+        ]
     built = build_estimators(
         mcfg,
         methods,
@@ -168,9 +177,10 @@ def run_estimate(
         where=machine,
         skip_unavailable=method == "all",
     )
-    idle_tables, idle_notes = _idle_tables(
-        idle, air_s, rec, recording, mcfg, methods, axis_list, machine, chunk, method == "all"
-    )
+    idle_tables: dict[tuple[str, str], Any] = {}
+    if air is not None:
+        idle_tables, notes = _idle_tables(air, built, chunk)
+        idle_notes += notes
     setup_s = time.perf_counter() - t_setup
     blocks: list[Any] = list(built.blocks)
     if idle_tables:
@@ -184,7 +194,7 @@ def run_estimate(
     source = RecordingSource(rec, name=str(recording))
     pipeline.check_inputs(source.channel_names, str(recording))
     have = set(rec.channel_names)
-    copies = sorted({c for b in built.blocks for c in b.inputs})
+    copies = sorted({c for b in blocks for c in b.inputs})
     extra = [f"truth/{a}/load" for a in axis_list] + [
         "spindle/speed",
         "truth/spindle/torque",
@@ -203,8 +213,13 @@ def run_estimate(
     }
     if idle_tables:
         meta["idle_tables"] = json.dumps(
-            {f"{m}/{a}": dict(zip(("negative", "rest", "positive"), t.value, strict=True))
-             for (m, a), t in idle_tables.items()}
+            {
+                f"{m}/{a}": {
+                    d: (None if np.isnan(v) else v)
+                    for d, v in zip(("negative", "rest", "positive"), t.value, strict=True)
+                }
+                for (m, a), t in idle_tables.items()
+            }
         )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
@@ -242,32 +257,18 @@ def run_estimate(
     }
 
 
-def _idle_tables(
-    idle: str,
-    air_s: str | None,
-    rec: Any,
-    recording: Path,
-    mcfg: Any,
-    methods: list[str],
-    axis_list: list[str],
-    machine: str,
-    chunk: int,
-    skip: bool,
-) -> tuple[dict[tuple[str, str], Any], list[str]]:
-    """Idle tables of every estimate from the air phase named by ``--idle``/``--air-s``."""
+def _air_phase(
+    idle: str, air_s: str | None, rec: Any, recording: Path
+) -> tuple[Any, slice, str] | None:
+    """(recording holding the air phase, its samples, its name) for ``--idle``, or None."""
     from millsense.core.errors import InputDataError
-    from millsense.estimation.from_config import build_estimators
-    from millsense.estimation.idle_compensation import (
-        find_air_window,
-        measure_idle,
-        parse_air_window,
-    )
+    from millsense.estimation.idle_compensation import find_air_window, parse_air_window
     from millsense.io import read_recording
 
     if idle == "none":
         if air_s is not None:
             raise InputDataError("--air-s: needs --idle auto or --idle FILE.h5")
-        return {}, []
+        return None
     if idle == "auto":
         src, where = rec, str(recording)
     else:
@@ -283,19 +284,27 @@ def _idle_tables(
                 f"{rec.sample_rate_hz:g} Hz"
             )
     window = parse_air_window(air_s, src, where) if air_s else find_air_window(src, where)
-    fresh = build_estimators(
-        mcfg, methods, axis_list, src.sample_rate_hz, where=machine,
-        skip_unavailable=skip,
-    )  # fmt: skip
+    return src, window, where
+
+
+def _idle_tables(
+    air: tuple[Any, slice, str], built: Any, chunk: int
+) -> tuple[dict[tuple[str, str], Any], list[str]]:
+    """Idle tables of every estimate over the air phase (copies of the built, unused
+    estimator blocks: they are reset before the run), and notes."""
+    import copy
+
+    from millsense.estimation.idle_compensation import measure_idle
+
+    src, window, where = air
+    fresh = copy.deepcopy(built)
     tables = measure_idle(src, fresh.blocks, fresh.estimates, window, where, chunk)
     fs = src.sample_rate_hz
-    notes = [
-        f"idle: air phase {window.start / fs:.3f}-{window.stop / fs:.3f} s of {where}"
-    ]
+    notes = [f"idle: air phase {window.start / fs:.3f}-{window.stop / fs:.3f} s of {where}"]
     for (m, a), t in tables.items():
         vals = ", ".join(
-            f"{d} {v:+.3g} {t.unit}"
-            for d, v, n in zip(("−", "0", "+"), t.value, t.samples, strict=True)
+            f"{d} {v:+.4g} {t.unit}"
+            for d, v, n in zip(("v<0:", "at rest:", "v>0:"), t.value, t.samples, strict=True)
             if n > 0
         )
         notes.append(f"idle {m} {a}: {vals or 'no direction seen (not compensated)'}")

@@ -241,7 +241,9 @@ def rigid_limit(cfg: FeedAxisConfig) -> tuple[float, float]:
     return cfg.inertia_kg_m2 + mass * r * r, bs.rotary_damping_nm_s_rad + damp * r * r
 
 
-def _raw(axis: str, machine: MachineConfig, cutoff_hz: float) -> RenamedBlock:
+def raw_estimator(axis: str, machine: MachineConfig, cutoff_hz: float) -> RenamedBlock:
+    """The raw C3 estimate of ``axis`` (Aslan Eq. 3.10–3.11, :func:`rigid_limit` drive),
+    output ``est/raw/{axis}/load`` low-passed at ``cutoff_hz`` (2nd-order Butterworth)."""
     from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S
     from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
     from millsense.machine.friction import CoulombViscous
@@ -346,7 +348,7 @@ def build_estimators(
                 if m == "feed":
                     b = _feed(a, machine, where, sample_rate_hz)
                 elif m == "raw":
-                    b = _raw(a, machine, raw_cutoff_hz)
+                    b = raw_estimator(a, machine, raw_cutoff_hz)
                 else:
                     b = _medob(a, machine, where)
             except ConfigError as exc:

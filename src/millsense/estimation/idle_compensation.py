@@ -19,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from millsense.core.config import FeedEstimatorConfig, MachineConfig
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo, Recording
 from millsense.ident.idle_table import DirectionIdle, build_direction_idle
@@ -239,9 +240,7 @@ class IdleCompensatedBlock(Block):
         self.delay_samples = self.delay
         self.name = f"{inner.name}_idle"
         self._vel = velocity_source(axis)
-        self.inputs = tuple(inner.inputs) + (
-            (self._vel,) if self._vel not in inner.inputs else ()
-        )
+        self.inputs = tuple(inner.inputs) + ((self._vel,) if self._vel not in inner.inputs else ())
         self._prev: float | None = None
         self._hist = np.zeros(self.delay)
         self._fs = 0.0
@@ -271,3 +270,60 @@ class IdleCompensatedBlock(Block):
         ch = dict(out.channels)
         ch[self.channel] = self.idle.compensate(line[:n], np.asarray(ch[self.channel]))
         return BlockOutput(ch, out.events)
+
+
+def with_air_r(
+    machine: MachineConfig,
+    axes: Sequence[str],
+    rec: Recording,
+    window: slice,
+    where: str,
+) -> tuple[MachineConfig, dict[str, float]]:
+    """The machine with the feed estimators' R measured in the air phase (Aslan Eq. 3.30).
+
+    Parameters
+    ----------
+    machine : the machine configuration.
+    axes : axes whose R is measured (those whose ``[axes.<a>.estimator] r_nm2`` is set keep it).
+    rec, window : the recording and its air samples.
+    where : file name for error messages.
+
+    Returns
+    -------
+    (machine with ``estimator.r_nm2`` set, axis → R in N²·m²).
+
+    Notes
+    -----
+    Aslan: "R = RMS of the torque fluctuation in an air cut". Here R is the per-sample variance
+    of the C3 torque ``K_t·I − τ_f − J_e·dω/dt`` through the feed estimator's own low-pass
+    (``estimator.lowpass_hz``, default 600 Hz) over the air phase, about its mean per direction
+    of motion (pooled within-direction variance, so a direction change is not counted as
+    noise); the force variance of the raw estimate times ``(r_g/η)²``. With Q tuned at
+    start-up (:func:`~millsense.estimation.tuning.tune_q`) the Kalman gain depends on Q/R only
+    and the estimate does not change; with a configured ``q_nm2_s`` it does.
+    """
+    from millsense.estimation.feed_drive import DEFAULT_LOWPASS_HZ
+    from millsense.estimation.from_config import load_channel, raw_estimator
+
+    axes_cfg = dict(machine.axes)
+    found: dict[str, float] = {}
+    for a in axes:
+        cfg = machine.axis(a)
+        est = cfg.estimator
+        if est is not None and est.r_nm2 is not None:
+            continue
+        lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
+        block = raw_estimator(a, machine, lowpass)
+        table = measure_idle(rec, [block], [("raw", a, load_channel("raw", a), 0)], window, where)
+        t = table[("raw", a)]
+        n = np.asarray(t.samples, dtype=float)
+        var = np.nan_to_num(np.asarray(t.variance, dtype=float))
+        if n.sum() <= 0:
+            continue
+        r = float(np.sum(n * var) / n.sum()) * (cfg.transmission_m_rad / cfg.efficiency) ** 2
+        if not r > 0:
+            continue
+        found[a] = r
+        new_est = (est or FeedEstimatorConfig()).model_copy(update={"r_nm2": r})
+        axes_cfg[a] = cfg.model_copy(update={"estimator": new_est})
+    return machine.model_copy(update={"axes": axes_cfg}), found

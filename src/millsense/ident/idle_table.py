@@ -329,7 +329,7 @@ def build_direction_idle(
         ok = len(sel) >= min_samples
         vals.append(float(sel.mean()) if ok else math.nan)
         vars_.append(float(sel.var()) if ok else math.nan)
-        counts.append(int(len(sel)) if ok else 0)
+        counts.append(len(sel) if ok else 0)
     return DirectionIdle(
         (vals[0], vals[1], vals[2]),
         (vars_[0], vars_[1], vars_[2]),
