@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -227,7 +226,7 @@ def run_simulation(
         schedule = EngagementSchedule.along_cutting_moves(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
         )
-        schedule, first_cut = _with_air(schedule, air_mm * 1e-3)
+        schedule, first_cut = _with_air(schedule, air_mm * 1e-3, float(job.arc_length()[-1]))
         process = ProcessCoupling(
             end_mill,
             CuttingCoefficients.from_config(mat),
@@ -284,13 +283,14 @@ def run_simulation(
     }
 
 
-def _with_air(schedule: Any, air_m: float) -> tuple[Any, float | None]:
+def _with_air(schedule: Any, air_m: float, path_end_m: float) -> tuple[Any, float | None]:
     """The schedule with its first cutting run starting ``air_m`` later, and that start.
 
     Parameters
     ----------
     schedule : :class:`~millsense.machine.process_coupling.EngagementSchedule` by arc length.
     air_m : air travel at cutting feed before the stock, m (0: unchanged).
+    path_end_m : length of the whole path, m (the end of a last run of feed moves).
 
     Returns
     -------
@@ -310,7 +310,7 @@ def _with_air(schedule: Any, air_m: float) -> tuple[Any, float | None]:
     if first is None:
         return schedule, None
     start = segs[first].start + air_m
-    end = segs[first + 1].start if first + 1 < len(segs) else math.inf
+    end = segs[first + 1].start if first + 1 < len(segs) else path_end_m
     if air_m > 0 and not start < end:
         raise ConfigError(
             f"--air-mm: {air_m * 1e3:g} mm is not shorter than the first run of feed moves "
