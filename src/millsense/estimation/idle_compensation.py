@@ -157,6 +157,25 @@ def parse_air_window(text: str, rec: Recording, where: str) -> slice:
     return slice(round(t0 * fs), min(round(t1 * fs), rec.n_samples))
 
 
+def _run_prefix(
+    rec: Recording, blocks: Sequence[Block], stop: int, where: str, chunk: int
+) -> tuple[dict[str, np.ndarray], Pipeline]:
+    """Outputs of ``blocks`` (reset first) over samples ``[0, stop)`` of ``rec``."""
+    fs = rec.sample_rate_hz
+    pipe = Pipeline(list(blocks))
+    pipe.check_inputs(rec.channel_names, where)
+    pipe.reset(fs)
+    names = sorted({c for b in blocks for c in b.inputs})
+    pieces: dict[str, list[np.ndarray]] = {}
+    for a in range(0, stop, chunk):
+        b = min(stop, a + chunk)
+        data = {c: np.asarray(rec.channel(c)[a:b]) for c in names}
+        outputs, _ = pipe.process(Chunk(a, fs, rec.t0_s, data))
+        for k, v in outputs.items():
+            pieces.setdefault(k, []).append(np.asarray(v))
+    return {k: np.concatenate(v) for k, v in pieces.items()}, pipe
+
+
 def measure_idle(
     rec: Recording,
     blocks: Sequence[Block],
@@ -181,20 +200,8 @@ def measure_idle(
     (method, axis) → :class:`DirectionIdle` of the estimate over the window, binned by the
     commanded velocity (:func:`commanded_velocity`).
     """
-    fs = rec.sample_rate_hz
-    pipe = Pipeline(list(blocks))
-    pipe.check_inputs(rec.channel_names, where)
-    pipe.reset(fs)
     stop = min(rec.n_samples, window.stop + max((d for *_, d in estimates), default=0))
-    names = sorted({c for b in blocks for c in b.inputs})
-    pieces: dict[str, list[np.ndarray]] = {}
-    for a in range(0, stop, chunk):
-        b = min(stop, a + chunk)
-        data = {c: np.asarray(rec.channel(c)[a:b]) for c in names}
-        outputs, _ = pipe.process(Chunk(a, fs, rec.t0_s, data))
-        for k, v in outputs.items():
-            pieces.setdefault(k, []).append(np.asarray(v))
-    outs = {k: np.concatenate(v) for k, v in pieces.items()}
+    outs, pipe = _run_prefix(rec, blocks, stop, where, chunk)
     units = {c.name: c.unit for c in pipe.output_channels()}
     tables: dict[tuple[str, str], DirectionIdle] = {}
     for m, ax, ch, d in estimates:
@@ -294,16 +301,17 @@ def with_air_r(
 
     Notes
     -----
-    Aslan: "R = RMS of the torque fluctuation in an air cut". Here R is the per-sample variance
-    of the C3 torque ``K_t·I − τ_f − J_e·dω/dt`` through the feed estimator's own low-pass
-    (``estimator.lowpass_hz``, default 600 Hz) over the air phase, about its mean per direction
-    of motion (pooled within-direction variance, so a direction change is not counted as
-    noise); the force variance of the raw estimate times ``(r_g/η)²``. With Q tuned at
+    Aslan: "R = RMS of the torque fluctuation in an air cut". Here R is
+    :func:`~millsense.estimation.tuning.air_cut_variance` (slow trend removed) of the C3 torque
+    ``K_t·I − τ_f − J_e·dω/dt`` through the feed estimator's own low-pass
+    (``estimator.lowpass_hz``, default 600 Hz) over the air phase: the raw estimate's force
+    times ``r_g/η``. With Q tuned at
     start-up (:func:`~millsense.estimation.tuning.tune_q`) the Kalman gain depends on Q/R only
     and the estimate does not change; with a configured ``q_nm2_s`` it does.
     """
     from millsense.estimation.feed_drive import DEFAULT_LOWPASS_HZ
     from millsense.estimation.from_config import load_channel, raw_estimator
+    from millsense.estimation.tuning import air_cut_variance
 
     axes_cfg = dict(machine.axes)
     found: dict[str, float] = {}
@@ -313,14 +321,10 @@ def with_air_r(
         if est is not None and est.r_nm2 is not None:
             continue
         lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
-        block = raw_estimator(a, machine, lowpass)
-        table = measure_idle(rec, [block], [("raw", a, load_channel("raw", a), 0)], window, where)
-        t = table[("raw", a)]
-        n = np.asarray(t.samples, dtype=float)
-        var = np.nan_to_num(np.asarray(t.variance, dtype=float))
-        if n.sum() <= 0:
-            continue
-        r = float(np.sum(n * var) / n.sum()) * (cfg.transmission_m_rad / cfg.efficiency) ** 2
+        ch = load_channel("raw", a)
+        outs, _ = _run_prefix(rec, [raw_estimator(a, machine, lowpass)], window.stop, where, 1000)
+        torque = -outs[ch][window] * cfg.transmission_m_rad / cfg.efficiency
+        r = air_cut_variance(torque, fs=rec.sample_rate_hz)
         if not r > 0:
             continue
         found[a] = r
