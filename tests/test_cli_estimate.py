@@ -340,7 +340,11 @@ def test_r_from_the_air_phase(run_h5: Path) -> None:
     w = find_air_window(rec, "run")
     m = load_preset(MachineConfig, "quaser-ux600")
     m2, r = with_air_r(m, ["x"], rec, w, "run")
-    r_noise = FeedAxisModel.from_config("x", m.axis("x"), sample_rate_hz=1e4).r
+    # the default R in closed form: (K_t·σ_I)² through the 600 Hz 2nd-order Butterworth
+    ax = m.axis("x")
+    sos = signal.butter(2, 600.0, fs=1e4, output="sos")
+    h = signal.sosfilt(sos, np.r_[1.0, np.zeros(9999)])
+    r_noise = float((ax.torque_constant_nm_a * ax.current_noise_a) ** 2 * np.sum(h**2))
     # Aslan Eq. 3.30: R is the torque fluctuation in air. It holds the current noise the
     # default R is made of (current_noise_a through the 600 Hz low-pass) plus what the model
     # lacks: the realism layer's friction position ripple and the encoder noise through
