@@ -448,8 +448,11 @@ class HarmonicKalmanBlock(Block):
     acceleration_channels : {"x"|"y": channel} measured acceleration channels [m/s²].
     angle_channel : spindle angle channel [rad] (encoder, synchronised).
     spindle_speed_rpm : nominal spindle speed [rev/min] (sets f_t and the block length).
-    cut, frfs, q, r, p0, x0, n_harmonics, n_harmonics_force, reaction :
-        as in :func:`estimate_harmonic_kf`.
+    cut, frfs, q, r, p0, x0, n_harmonics, n_harmonics_force, reaction, model_error :
+        as in :func:`estimate_harmonic_kf`; with ``model_error`` each block is one independent
+        look at the model error (R_eff from the block's length and variance), so over many
+        blocks the data gain weight: the FRF changes along the pass, so the error of
+        successive blocks is not the same one.
     block_periods : tooth periods per reconstruction block.
     prefix : prefix of the output channel names.
 
@@ -480,8 +483,12 @@ class HarmonicKalmanBlock(Block):
         reaction: bool = True,
         block_periods: int = 16,
         prefix: str = "ilme_",
+        model_error: float = 0.0,
     ) -> None:
         _check_settings(q, r, n_harmonics)
+        if not model_error >= 0:
+            raise ConfigError(f"block {name}: model_error must be ≥ 0")
+        self.model_error = float(model_error)
         if set(acceleration_channels) != set(frfs):
             raise ConfigError(f"block {name}: acceleration channels and FRFs name other axes")
         if block_periods < 1:
@@ -497,6 +504,7 @@ class HarmonicKalmanBlock(Block):
         self._angle = angle_channel
         self.block_periods = block_periods
         self._kf_args = (q, r, p0, None if x0 is None else np.asarray(x0, float) / STATE_SCALE)
+        self._r = float(r)
         self.n_harmonics = n_harmonics
         self.prefix = prefix
         self._names = [f"{prefix}{s}" for s in ("fx", "fy", "ktc", "krc", "kte", "kre")]
@@ -531,6 +539,7 @@ class HarmonicKalmanBlock(Block):
                 for j in range(blk.shape[1] - 1)
             ]
         )
+        self._kf.r = effective_measurement_noise(z, self._r, self.model_error)
         out = self._kf.process(z, self._model.h_meas(phi))
         f = np.einsum("nij,nj->ni", self._model.h_force(phi), out.x)
         return np.column_stack([f, out.x * STATE_SCALE])
