@@ -9,8 +9,9 @@ record (the FRF varies by up to 25 % along the pass, İlme §4.1), Q = 1e-3 for 
 q_0 from the machine's material preset (Al7050) with 30 % standard deviation. Mismatch of the
 simulator against the estimator: sliced force model with 2 µm runout (estimator: Eq. 2.38,
 no runout); residues drifting along the pass by 16/30/10/10 % (estimator: one FRF tapped
-mid-pass); 5 % cross accelerance X force → Y acceleration; 0.2 m/s² accelerometer noise; a 5.6 kHz mode above the harmonic band; cutting
-coefficients of İlme Table 3.1 (estimator prior: Al7050 preset, K_tc +8 %, K_rc +26 %).
+mid-pass); 5 % cross accelerance X force → Y acceleration; 0.2 m/s² accelerometer noise; a
+5.6 kHz mode above the harmonic band; cutting coefficients of İlme Table 3.1 (estimator prior:
+Al7050 preset, K_tc +8 %, K_rc +26 %).
 
 Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm,
 0.1 mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed ×
