@@ -62,6 +62,7 @@ __all__ = [
     "CutSetup",
     "HarmonicKalmanBlock",
     "HarmonicKalmanResult",
+    "effective_measurement_noise",
     "estimate_harmonic_kf",
     "find_angle_offset",
     "frf_at",
@@ -176,6 +177,35 @@ def reconstruct_harmonics(
     return np.fft.irfft(spec, n)
 
 
+def effective_measurement_noise(z: ArrayLike, r: float, model_error: float) -> FloatArray:
+    """Per-sample R of the filter: sensor noise plus a persistent, relative model error.
+
+    Parameters
+    ----------
+    z : (n,) or (n, m) reconstructed acceleration of the record (or block) [m/s²].
+    r : sensor-noise variance per sample [(m/s²)²] (İlme: free-state variance).
+    model_error : relative rms ε of the model error of z [-].
+
+    Returns
+    -------
+    (m, m) diagonal R_eff = r + n·ε²·mean(z_j²) [(m/s²)²].
+
+    Notes
+    -----
+    The reconstructed acceleration differs from b_h H(φ) q by a model error e (FRF error,
+    position drift, runout, cross accelerance) that repeats every revolution: averaging n
+    samples does not shrink it. Treating it as white noise of variance ε² var(z) would credit
+    the filter with n independent looks at it; the record is worth one, so the white-noise
+    variance that gives the filter the right information is n·ε²·var(z) (a batch filter with
+    Φ = I, Q = 0 then weighs the data by (Σ Hᵀ H / n)/(ε² var z), the information of one
+    revolution-averaged look). Decision "İlme filter: persistent model error in R".
+    """
+    za = np.asarray(z, dtype=float)
+    za = za.reshape(-1, 1) if za.ndim == 1 else za
+    n = za.shape[0]
+    return np.diag(r + n * model_error**2 * np.mean(za**2, axis=0))
+
+
 @dataclass(frozen=True)
 class HarmonicKalmanResult:
     """Outputs of :func:`estimate_harmonic_kf` (one row per sample used).
@@ -270,6 +300,7 @@ def estimate_harmonic_kf(
     n_harmonics: int = 20,
     n_harmonics_force: int = 100,
     reaction: bool = True,
+    model_error: float = 0.0,
 ) -> HarmonicKalmanResult:
     """İlme's offline estimator over one record (§4.3.2 steps 2–5).
 
@@ -294,6 +325,12 @@ def estimate_harmonic_kf(
     n_harmonics_force : harmonics of the force rebuilt from q̂ (Eq. 2.38; 100 keeps Gibbs
         ripple small).
     reaction : the sensor is on the workpiece (loaded by −F); False for a sensor loaded by F.
+    model_error : relative rms ε [-] of the persistent model error of the reconstructed
+        acceleration (FRF error and its drift along the pass, runout, cross accelerance). It
+        repeats every revolution, so it does not average out: the record is worth one
+        independent look at it, and the filter uses R_eff = r + n·ε²·var(z) per sample
+        (:func:`effective_measurement_noise`). 0 gives İlme's R = r. İlme reports the FRF
+        gain varying by up to 25 % along the pass (§4.1); the validation uses 0.2.
 
     Returns
     -------
@@ -303,8 +340,16 @@ def estimate_harmonic_kf(
     -----
     İlme Eq. 3.5 (acceleration harmonics), Eq. 3.6–3.14 (Kalman filter, Φ = I), Eq. 3.9 row y
     derived from K_4 (digest erratum 1), Eq. 2.38 for the force (DC included).
+
+    With ``model_error`` > 0 the data move q̂ away from the prior (x0, p0) only along the
+    directions whose acceleration signature is larger than the model error; where H carries
+    no such information (the 4-flute half-immersion cuts: smallest singular value ~4e-4 of
+    the largest) q̂ stays at the prior and the force error is the prior's. Decision "İlme
+    filter: persistent model error in R" (docs/decisions.md).
     """
     _check_settings(q, r, n_harmonics)
+    if not model_error >= 0:
+        raise ConfigError("harmonic KF: model_error must be ≥ 0")
     phi = np.asarray(spindle_angle_rad, dtype=float)
     f_t = cut.n_flutes * spindle_speed_rpm / 60.0
     if not f_t > 0:
@@ -324,7 +369,8 @@ def estimate_harmonic_kf(
         ]
     )
     x0s = None if x0 is None else np.asarray(x0, dtype=float) / STATE_SCALE
-    kf = TimeVaryingKalman(4, q, r, x0=x0s, p0=p0, n_measurements=len(model.directions))
+    r_eff = effective_measurement_noise(z, r, model_error)
+    kf = TimeVaryingKalman(4, q, r_eff, x0=x0s, p0=p0, n_measurements=len(model.directions))
     out = kf.process(z, model.h_meas(phi[:n]))
     hf = model.h_force(phi[:n])
     f_run = np.einsum("nij,nj->ni", hf, out.x)
@@ -402,8 +448,11 @@ class HarmonicKalmanBlock(Block):
     acceleration_channels : {"x"|"y": channel} measured acceleration channels [m/s²].
     angle_channel : spindle angle channel [rad] (encoder, synchronised).
     spindle_speed_rpm : nominal spindle speed [rev/min] (sets f_t and the block length).
-    cut, frfs, q, r, p0, x0, n_harmonics, n_harmonics_force, reaction :
-        as in :func:`estimate_harmonic_kf`.
+    cut, frfs, q, r, p0, x0, n_harmonics, n_harmonics_force, reaction, model_error :
+        as in :func:`estimate_harmonic_kf`; with ``model_error`` each block is one independent
+        look at the model error (R_eff from the block's length and variance), so over many
+        blocks the data gain weight: the FRF changes along the pass, so the error of
+        successive blocks is not the same one.
     block_periods : tooth periods per reconstruction block.
     prefix : prefix of the output channel names.
 
@@ -434,8 +483,12 @@ class HarmonicKalmanBlock(Block):
         reaction: bool = True,
         block_periods: int = 16,
         prefix: str = "ilme_",
+        model_error: float = 0.0,
     ) -> None:
         _check_settings(q, r, n_harmonics)
+        if not model_error >= 0:
+            raise ConfigError(f"block {name}: model_error must be ≥ 0")
+        self.model_error = float(model_error)
         if set(acceleration_channels) != set(frfs):
             raise ConfigError(f"block {name}: acceleration channels and FRFs name other axes")
         if block_periods < 1:
@@ -451,6 +504,7 @@ class HarmonicKalmanBlock(Block):
         self._angle = angle_channel
         self.block_periods = block_periods
         self._kf_args = (q, r, p0, None if x0 is None else np.asarray(x0, float) / STATE_SCALE)
+        self._r = float(r)
         self.n_harmonics = n_harmonics
         self.prefix = prefix
         self._names = [f"{prefix}{s}" for s in ("fx", "fy", "ktc", "krc", "kte", "kre")]
@@ -485,6 +539,7 @@ class HarmonicKalmanBlock(Block):
                 for j in range(blk.shape[1] - 1)
             ]
         )
+        self._kf.r = effective_measurement_noise(z, self._r, self.model_error)
         out = self._kf.process(z, self._model.h_meas(phi))
         f = np.einsum("nij,nj->ni", self._model.h_force(phi), out.x)
         return np.column_stack([f, out.x * STATE_SCALE])

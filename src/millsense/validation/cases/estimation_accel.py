@@ -4,12 +4,14 @@
 angular-harmonic Kalman filter against the simulated truth; peak and RMS errors (Table 4.6
 definitions, |est − true|/true) must be ≤ 10 % in every test. The estimator uses an FRF from a
 simulated impact test (interpolated at the tooth harmonics, no modal fit), R from a simulated
-free-state record, Q = 1e-3 for all tests, and q_0 from the machine's material preset (Al7050)
-with 30 % standard deviation. Mismatch of the simulator against the estimator: sliced force
-model with 2 µm runout (estimator: Eq. 2.38, no runout); residues drifting along the pass by
-16/30/10/10 % (estimator: one FRF tapped mid-pass); 5 % cross accelerance X force → Y
-acceleration; 0.2 m/s² accelerometer noise; a 5.6 kHz mode above the harmonic band; cutting
-coefficients of İlme Table 3.1 (estimator prior: Al7050 preset, K_tc +8 %, K_rc +26 %).
+free-state record plus a persistent model error of 20 % of the acceleration counted once per
+record (the FRF varies by up to 25 % along the pass, İlme §4.1), Q = 1e-3 for all tests, and
+q_0 from the machine's material preset (Al7050) with 30 % standard deviation. Mismatch of the
+simulator against the estimator: sliced force model with 2 µm runout (estimator: Eq. 2.38,
+no runout); residues drifting along the pass by 16/30/10/10 % (estimator: one FRF tapped
+mid-pass); 5 % cross accelerance X force → Y acceleration; 0.2 m/s² accelerometer noise; a
+5.6 kHz mode above the harmonic band; cutting coefficients of İlme Table 3.1 (estimator prior:
+Al7050 preset, K_tc +8 %, K_rc +26 %).
 
 Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm,
 0.1 mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed ×
@@ -32,6 +34,10 @@ from millsense.validation import Measured, case
 
 ILME_Q = 1e-3
 ILME_PRIOR_SD = 0.3
+#: Relative persistent model error of the reconstructed acceleration, one value for all tests:
+#: İlme §4.1 reports the FRF gain varying by up to 25 % along the pass (decision "İlme filter:
+#: persistent model error in R").
+ILME_MODEL_ERROR = 0.2
 ILME_SKIP_S = 0.1  # start after the entry transient (İlme cuts the record at a landmark)
 
 
@@ -71,6 +77,7 @@ def _ilme_table() -> tuple[tuple[int, float, float, float, float, float, float],
             r=r,
             x0=prior * STATE_SCALE,
             p0=np.diag((ILME_PRIOR_SD * prior) ** 2),
+            model_error=ILME_MODEL_ERROR,
         )
         n = res.n_used
         window = slice(n // 2, n)  # the converged second half ("a specific time period")
