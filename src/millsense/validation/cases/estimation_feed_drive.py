@@ -203,9 +203,11 @@ V1_THESIS = {
     "y": ((0.06, 0.06, 0.04, 0.07, 0.11, 0.19), (0.42, 1.03, 1.13, 0.54, 0.32, 1.75)),
 }
 V1_MAX_HARMONIC_HZ = 200.0
+#: V1 run: air before the cut and the cut, samples at FS_HZ
+V1_AIR_SAMPLES, V1_CUT_SAMPLES = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
 
 
-def _harmonic_error(est: np.ndarray, true: np.ndarray, per: int, n_flutes: int) -> float:
+def _harmonic_error(est: np.ndarray, true: np.ndarray, per: int) -> float:
     """Relative error of the complex amplitudes at the tooth harmonics ≤ 200 Hz.
 
     ``sqrt(Σ_k |Ê_k − E_k|²) / sqrt(Σ_k |E_k|²)`` over k·f_t ≤ 200 Hz (at least k = 1), from the
@@ -220,18 +222,13 @@ def _harmonic_error(est: np.ndarray, true: np.ndarray, per: int, n_flutes: int) 
     idx = [k * periods for k in ks]
     num = np.sqrt(np.sum(np.abs(e_hat[idx] - e_true[idx]) ** 2))
     den = np.sqrt(np.sum(np.abs(e_true[idx]) ** 2))
-    del n_flutes
     return float(num / den)
 
 
-@cache
-def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
-    """Per axis and V1 speed: (rev/min, compensated error, raw-current error)."""
+def _v1_cut(rpm: float) -> tuple[dict[str, np.ndarray], float, int]:
+    """V1 slot: table forces along +X/+Y (N), the feed (m/s) and the tooth period (samples)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import FeedAxisEstimator, perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
@@ -239,60 +236,85 @@ def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
 
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    out: dict[str, list[tuple[float, float, float]]] = {"x": [], "y": []}
-    for rpm in V1_RPM:
-        w = rpm * 2 * np.pi / 60
-        n_air, n_cut = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
-        n = n_air + n_cut
-        t = np.arange(n) / FS_HZ
-        cut = milling_forces(
-            tool, coeffs, Engagement.slot(), 0.2e-3, 4e-3, w * t[n_air:], n_discs=20
-        )
-        feed = 0.2e-3 * tool.n_flutes * rpm / 60  # m/s, table along +X
-        # force on the table along +X / +Y (machine.slot_cut frames); the load is its opposite
-        table = {
-            "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
-            "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
-        }
-        for axis in ("x", "y"):
-            params, model, _ = _identified(axis)
-            v = feed / params.transmission if axis == "x" else 0.0
-            vel = np.minimum(t / 0.2, 1.0) * v
-            pos = np.cumsum(vel) / FS_HZ
-            sim = FeedDriveSim(perturbed_drive(params, frequency_scale=1.0), FS_HZ, seed=21)
-            res = sim.advance(pos, vel, -table[axis])
-            est = FeedAxisEstimator(model)
-            est.reset(FS_HZ)
-            cur, spd = res["current_cmd"], res["speed"]
-            parts = [
-                est.process(
-                    Chunk(
-                        s,
-                        FS_HZ,
-                        0.0,
-                        {
-                            f"{axis}/current_cmd": cur[s : s + 100],
-                            f"{axis}/motor_speed": spd[s : s + 100],
-                        },
-                    )
-                ).channels[f"{axis}/force_est"]
-                for s in range(0, n, 100)
-            ]
-            f_est = np.concatenate(parts)
-            lag = est.lag
-            raw = -params.efficiency / params.transmission * params.torque_constant * cur
-            per = round(FS_HZ * 60 / rpm / tool.n_flutes)
-            k0 = n_air + round(0.3 * FS_HZ)
-            true = table[axis][k0 : n - lag]
-            comp = f_est[k0 + lag : n]
-            raw_s = raw[k0 : n - lag]
-            out[axis].append(
-                (
-                    rpm,
-                    _harmonic_error(comp, true, per, tool.n_flutes),
-                    _harmonic_error(raw_s - raw_s.mean(), true, per, tool.n_flutes),
-                )
+    w = rpm * 2 * np.pi / 60
+    n_air, n_cut = V1_AIR_SAMPLES, V1_CUT_SAMPLES
+    t = np.arange(n_air + n_cut) / FS_HZ
+    cut = milling_forces(tool, coeffs, Engagement.slot(), 0.2e-3, 4e-3, w * t[n_air:], n_discs=20)
+    feed = 0.2e-3 * tool.n_flutes * rpm / 60  # m/s, table along +X
+    # force on the table along +X / +Y (machine.slot_cut frames); the load is its opposite
+    table = {
+        "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
+        "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
+    }
+    return table, feed, round(FS_HZ * 60 / rpm / tool.n_flutes)
+
+
+def v1_run(
+    axis: str,
+    rpm: float,
+    model: FeedAxisModel,
+    machine: FeedDriveParams,
+    *,
+    lag: int | None = None,
+    seed: int = 21,
+) -> tuple[float, float]:
+    """One V1 speed on one axis: (compensated error, raw-current error) at the tooth harmonics.
+
+    ``model`` is the estimator's belief, ``machine`` the simulated drive that cuts (both
+    explicit so that an error budget can swap either); X feeds at the V1 feed, Y holds position.
+    """
+    from millsense.estimation.feed_drive import FeedAxisEstimator
+    from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
+    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.online.block import Chunk
+
+    table, feed, per = _v1_cut(rpm)
+    n = len(table[axis])
+    t = np.arange(n) / FS_HZ
+    v = feed / machine.transmission if axis == "x" else 0.0
+    vel = np.minimum(t / 0.2, 1.0) * v
+    pos = np.cumsum(vel) / FS_HZ
+    res = FeedDriveSim(machine, FS_HZ, seed=seed).advance(pos, vel, -table[axis])
+    est = FeedAxisEstimator(model, ASLAN_LAG_SAMPLES if lag is None else lag)
+    est.reset(FS_HZ)
+    cur, spd = res["current_cmd"], res["speed"]
+    parts = [
+        est.process(
+            Chunk(
+                s,
+                FS_HZ,
+                0.0,
+                {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]},
             )
+        ).channels[f"{axis}/force_est"]
+        for s in range(0, n, 100)
+    ]
+    f_est = np.concatenate(parts)
+    lag_ = est.lag
+    d = model.drive
+    raw = -d.efficiency / d.transmission * d.torque_constant * cur
+    k0 = V1_AIR_SAMPLES + round(0.3 * FS_HZ)
+    true = table[axis][k0 : n - lag_]
+    comp = f_est[k0 + lag_ : n]
+    raw_s = raw[k0 : n - lag_]
+    return (
+        _harmonic_error(comp, true, per),
+        _harmonic_error(raw_s - raw_s.mean(), true, per),
+    )
+
+
+@cache
+def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
+    """Per axis and V1 speed: (rev/min, compensated error, raw-current error)."""
+    from millsense.estimation.feed_drive import perturbed_drive
+
+    out: dict[str, list[tuple[float, float, float]]] = {"x": [], "y": []}
+    for axis in ("x", "y"):
+        params, model, _ = _identified(axis)
+        machine = perturbed_drive(params, frequency_scale=1.0)
+        for rpm in V1_RPM:
+            comp, raw = v1_run(axis, rpm, model, machine)
+            out[axis].append((rpm, comp, raw))
     return out
 
 
