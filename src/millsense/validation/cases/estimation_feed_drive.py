@@ -33,7 +33,7 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
-    from millsense.estimation.feed_drive import FeedAxisModel, SweepResult
+    from millsense.estimation.feed_drive import FeedAxisModel, OperatingCondition, SweepResult
     from millsense.machine.feed_drive import FeedDriveParams
 
 FS_HZ = 10_000.0
@@ -46,7 +46,9 @@ MOVE_SPEED_RAD_S = 10.0
 
 
 @cache
-def _identified(axis: str) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
+def _identified(
+    axis: str, condition: OperatingCondition = "moving"
+) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.feed_drive import identify_feed_axis
@@ -54,7 +56,9 @@ def _identified(axis: str) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]
 
     ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
     params = FeedDriveParams.from_config(ax)
-    model, sweep = identify_feed_axis(params, axis, ax.kind, sample_rate_hz=FS_HZ)
+    model, sweep = identify_feed_axis(
+        params, axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
+    )
     return params, model, sweep
 
 
@@ -303,16 +307,36 @@ def v1_run(
     )
 
 
+def v1_condition(axis: str, rpm: float) -> OperatingCondition:
+    """Operating condition of ``axis`` in the V1 cut at ``rpm``, from the commanded speed only.
+
+    The CNC commands the feed on X and nothing on Y (it holds position), so
+    :func:`~millsense.estimation.feed_drive.operating_condition` of the commanded motor speed
+    picks the moving model for X and the at-rest model for Y.
+    """
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.estimation.feed_drive import operating_condition
+
+    _, feed, _ = _v1_cut(rpm)
+    lead = load_preset(MachineConfig, "quaser-ux600").axis(axis).transmission_m_rad
+    return operating_condition(feed / lead if axis == "x" else 0.0)
+
+
 @cache
 def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
-    """Per axis and V1 speed: (rev/min, compensated error, raw-current error)."""
+    """Per axis and V1 speed: (rev/min, compensated error, raw-current error).
+
+    Each axis's estimator is the model identified in the operating condition the CNC commands
+    (:func:`v1_condition`: X moving, Y at rest).
+    """
     from millsense.estimation.feed_drive import perturbed_drive
 
     out: dict[str, list[tuple[float, float, float]]] = {"x": [], "y": []}
     for axis in ("x", "y"):
-        params, model, _ = _identified(axis)
-        machine = perturbed_drive(params, frequency_scale=1.0)
         for rpm in V1_RPM:
+            params, model, _ = _identified(axis, v1_condition(axis, rpm))
+            machine = perturbed_drive(params, frequency_scale=1.0)
             comp, raw = v1_run(axis, rpm, model, machine)
             out[axis].append((rpm, comp, raw))
     return out
