@@ -211,26 +211,50 @@ V1_MAX_HARMONIC_HZ = 200.0
 V1_AIR_SAMPLES, V1_CUT_SAMPLES = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
 
 
-def _harmonic_error(est: np.ndarray, true: np.ndarray, per: int) -> float:
+def whole_period_block(tooth_hz: float, fs: float = FS_HZ, max_periods: int = 1000) -> tuple[int, int]:
+    """Shortest record of whole tooth periods on the sample grid: (samples, periods).
+
+    The tooth period ``fs/f_t`` need not be a whole number of samples (5500 rev/min, 2 flutes:
+    54.55 samples); ``p`` periods span ``p·fs/f_t`` samples, the first whole number wins, so
+    every tooth harmonic falls exactly on a DFT line of a record made of such blocks.
+
+    Raises
+    ------
+    InputDataError
+        When no ``p ≤ max_periods`` makes ``p·fs/f_t`` whole (to 10⁻⁶ sample).
+    """
+    from millsense.core.errors import InputDataError
+
+    per = fs / tooth_hz
+    for p in range(1, max_periods + 1):
+        n = p * per
+        if abs(n - round(n)) < 1e-6:
+            return round(n), p
+    raise InputDataError(f"V1: tooth frequency {tooth_hz:g} Hz has no whole-period block")
+
+
+def _harmonic_error(est: np.ndarray, true: np.ndarray, tooth_hz: float) -> float:
     """Relative error of the complex amplitudes at the tooth harmonics ≤ 200 Hz.
 
     ``sqrt(Σ_k |Ê_k − E_k|²) / sqrt(Σ_k |E_k|²)`` over k·f_t ≤ 200 Hz (at least k = 1), from the
-    DFT of whole tooth periods of the steady cut (the estimate realigned by the smoother lag).
+    DFT of whole tooth periods of the steady cut (the estimate realigned by the smoother lag);
+    the record is a whole number of :func:`whole_period_block` blocks, so the harmonics sit on
+    DFT lines even when the tooth period is not a whole number of samples.
     """
-    n = (len(true) // per) * per
+    block, periods_per_block = whole_period_block(tooth_hz)
+    n = (len(true) // block) * block
     e_hat = np.fft.rfft(est[:n])
     e_true = np.fft.rfft(true[:n])
-    periods = n // per
-    f_t = FS_HZ / per
-    ks = [k for k in range(1, 10) if k * f_t <= V1_MAX_HARMONIC_HZ] or [1]
+    periods = (n // block) * periods_per_block
+    ks = [k for k in range(1, 10) if k * tooth_hz <= V1_MAX_HARMONIC_HZ + 1e-9] or [1]
     idx = [k * periods for k in ks]
     num = np.sqrt(np.sum(np.abs(e_hat[idx] - e_true[idx]) ** 2))
     den = np.sqrt(np.sum(np.abs(e_true[idx]) ** 2))
     return float(num / den)
 
 
-def _v1_cut(rpm: float) -> tuple[dict[str, np.ndarray], float, int]:
-    """V1 slot: table forces along +X/+Y (N), the feed (m/s) and the tooth period (samples)."""
+def _v1_cut(rpm: float) -> tuple[dict[str, np.ndarray], float, float]:
+    """V1 slot: table forces along +X/+Y (N), the feed (m/s) and the tooth frequency (Hz)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
@@ -250,7 +274,7 @@ def _v1_cut(rpm: float) -> tuple[dict[str, np.ndarray], float, int]:
         "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
         "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
     }
-    return table, feed, round(FS_HZ * 60 / rpm / tool.n_flutes)
+    return table, feed, rpm / 60 * tool.n_flutes
 
 
 def v1_run(
@@ -272,7 +296,7 @@ def v1_run(
     from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
 
-    table, feed, per = _v1_cut(rpm)
+    table, feed, tooth_hz = _v1_cut(rpm)
     n = len(table[axis])
     t = np.arange(n) / FS_HZ
     v = feed / machine.transmission if axis == "x" else 0.0
@@ -302,8 +326,8 @@ def v1_run(
     comp = f_est[k0 + lag_ : n]
     raw_s = raw[k0 : n - lag_]
     return (
-        _harmonic_error(comp, true, per),
-        _harmonic_error(raw_s - raw_s.mean(), true, per),
+        _harmonic_error(comp, true, tooth_hz),
+        _harmonic_error(raw_s - raw_s.mean(), true, tooth_hz),
     )
 
 
