@@ -856,6 +856,10 @@ def identify_feed_axis(
     """
     from millsense.estimation import tuning
 
+    if condition not in ("moving", "at_rest"):
+        raise ConfigError(
+            f"identify {axis}: condition must be 'moving' or 'at_rest', got {condition!r}"
+        )
     fs = sample_rate_hz
     fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed)
     inertia = identify_inertia(params, fric, fs, seed=seed + 1)
@@ -865,10 +869,6 @@ def identify_feed_axis(
     lg = params.transmission / params.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
     lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
-    if condition not in ("moving", "at_rest"):
-        raise ConfigError(
-            f"identify {axis}: condition must be 'moving' or 'at_rest', got {condition!r}"
-        )
     move_speed = SWEEP_SPEED_RAD_S if condition == "moving" else 0.0
     sweep = disturbance_sweep(
         params,
