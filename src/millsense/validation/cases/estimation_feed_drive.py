@@ -211,12 +211,20 @@ V1_MAX_HARMONIC_HZ = 200.0
 V1_AIR_SAMPLES, V1_CUT_SAMPLES = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
 
 
-def whole_period_block(tooth_hz: float, fs: float = FS_HZ, max_periods: int = 1000) -> tuple[int, int]:
+def whole_period_block(
+    tooth_hz: float, fs: float = FS_HZ, max_periods: int = 1000
+) -> tuple[int, int]:
     """Shortest record of whole tooth periods on the sample grid: (samples, periods).
 
     The tooth period ``fs/f_t`` need not be a whole number of samples (5500 rev/min, 2 flutes:
     54.55 samples); ``p`` periods span ``p·fs/f_t`` samples, the first whole number wins, so
     every tooth harmonic falls exactly on a DFT line of a record made of such blocks.
+
+    Parameters
+    ----------
+    tooth_hz : tooth-passing frequency f_t, Hz.
+    fs : sample rate, Hz.
+    max_periods : largest number of periods tried.
 
     Raises
     ------
