@@ -391,7 +391,9 @@ def _v1(axis: str) -> Measured:
 _V1_DESC = (
     "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz over "
     "1000-5500 rev/min (passes when millsense is at or below the thesis at every speed); "
-    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position. " + _MISMATCH
+    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position; each axis "
+    "uses the model identified in the condition its commanded speed selects (X moving, Y at "
+    "rest; docs/decisions.md 'Holding axis'). " + _MISMATCH
 )
 
 
