@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from millsense.core.config import FeedAxisConfig
-from millsense.core.errors import ConfigError
+from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation.kalman import (
     KalmanDesign,
@@ -72,6 +72,15 @@ DEFAULT_LOWPASS_HZ = 600.0
 DEFAULT_FRICTION_SMOOTHING_RAD_S = 0.3
 #: Relative shift of the mode frequencies the tuning must tolerate (decision "robust Q tuning").
 ROBUST_SHIFT = 0.0
+#: Operating condition an estimator model is identified in (decision "Holding axis: Φ_d and R
+#: identified at rest").
+OperatingCondition = Literal["moving", "at_rest"]
+#: Commanded motor speed below which an axis holds position, rad/s (decision as above).
+REST_SPEED_RAD_S = 0.01
+#: Motor speed of the constant-velocity identification move (sweep), rad/s.
+SWEEP_SPEED_RAD_S = 10.0
+#: Motor speed of the air cut that gives R for a moving axis, rad/s.
+AIR_CUT_SPEED_RAD_S = 5.0
 
 
 def scale_modes(modes: ModalStateSpace, frequency_scale: float) -> ModalStateSpace:
@@ -103,6 +112,9 @@ class FeedAxisModel:
     moment_arm_m : d of Eq. 3.12 for a rotary axis (None: no force output, only the torque).
     lugre : identified LuGre friction (C2) used by the C3 stage instead of ``drive.friction``
         (static part from the line fit, σ0 and σ1 from a presliding test), or None.
+    condition : operating condition Φ_d and R were identified in: ``moving`` (sweep during a
+        constant-velocity move, R from an air cut) or ``at_rest`` (sweep and R with the servo on
+        and the axis holding position; :func:`operating_condition` picks the model).
     """
 
     axis: str
@@ -115,6 +127,7 @@ class FeedAxisModel:
     sample_rate_hz: float = 10_000.0
     moment_arm_m: float | None = None
     lugre: LuGre | None = None
+    condition: OperatingCondition = "moving"
 
     @classmethod
     def from_config(
@@ -748,15 +761,17 @@ def disturbance_sweep(
     force_rms: float,
     band_hz: tuple[float, float] = (2.0, 300.0),
     fit_band_hz: tuple[float, float] = (3.0, 260.0),
-    speed_rad_s: float = 10.0,
+    speed_rad_s: float = SWEEP_SPEED_RAD_S,
     period_s: float = 1.0,
     n_periods: int = 13,
     seed: int = 2,
     lugre: LuGre | None = None,
 ) -> SweepResult:
-    """Φ_d = τ_c/τ_a from a multisine table load during a slow constant-velocity move (C5).
+    """Φ_d = τ_c/τ_a from a multisine table load during a constant-velocity move (C5).
 
-    The load (a shaker on the table standing in for the thesis' hammer) is known; τ_a is
+    ``speed_rad_s`` = 0 runs the sweep with the servo on and the axis holding position (the
+    thesis' impact tests, servo on, axis at rest; decision "Holding axis: Φ_d and R identified
+    at rest"). The load (a shaker on the table standing in for the thesis' hammer) is known; τ_a is
     ``(r_g/η)·F`` with the estimator's r_g, η. The response is the C3 torque of the estimator's
     own front end, low-passed; the FRF is divided by the known low-pass response, averaged over
     whole periods (first discarded) and fitted with
@@ -796,6 +811,7 @@ def identify_feed_axis(
     robust_shift: float = ROBUST_SHIFT,
     use_lugre: bool = True,
     seed: int = 0,
+    condition: OperatingCondition = "moving",
 ) -> tuple[FeedAxisModel, SweepResult]:
     """Identify a feed axis's estimator model from simulated commissioning tests.
 
@@ -815,6 +831,11 @@ def identify_feed_axis(
     robust_shift : Q maximises the smallest bandwidth over the identified modes and the modes
         with frequencies × (1 ± robust_shift) (position-dependent modes); 0 for nominal tuning.
     seed : base seed of the simulated tests.
+    condition : ``moving`` — the sweep runs during a constant-velocity move at
+        ``SWEEP_SPEED_RAD_S`` and R comes from an air cut at ``AIR_CUT_SPEED_RAD_S`` (an axis
+        that feeds while cutting); ``at_rest`` — the sweep and the R record run with the servo
+        on and the axis holding position (an axis that holds while the others cut). Friction,
+        J_e and the LuGre presliding test are the same in both.
 
     Returns
     -------
@@ -824,9 +845,21 @@ def identify_feed_axis(
     -----
     Nameplate values: K_t (motor data), r_g (lead), η (catalogue; Aslan Table 3.3).
     Identified: friction (C1), J_e, Φ_d (C5), R (air cut), Q (bandwidth optimisation).
+
+    Operating condition (decision "Holding axis: Φ_d and R identified at rest"): the measured
+    path is ``τ_c,C3/τ_a`` of the estimator's own C3 stage, i.e. Φ_d plus whatever the C3
+    friction model leaves of the friction the motor feels. In a move that residue is the small
+    sliding (viscous) error; at rest the bristles (LuGre σ0, σ1, Eq. 3.2–3.3) carry part of the
+    load through the servo-held motor, and the identified σ0, σ1 are amplitude-dependent, so the
+    residue is a different linear path. Aslan identified Φ_d from impact tests with the servo on
+    and the axis at rest; the model used for an axis must come from the condition it runs in.
     """
     from millsense.estimation import tuning
 
+    if condition not in ("moving", "at_rest"):
+        raise ConfigError(
+            f"identify {axis}: condition must be 'moving' or 'at_rest', got {condition!r}"
+        )
     fs = sample_rate_hz
     fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed)
     inertia = identify_inertia(params, fric, fs, seed=seed + 1)
@@ -836,18 +869,28 @@ def identify_feed_axis(
     lg = params.transmission / params.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
     lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
+    move_speed = SWEEP_SPEED_RAD_S if condition == "moving" else 0.0
     sweep = disturbance_sweep(
-        params, drive, fs, lowpass_hz, force_rms=f_rms, seed=seed + 2, lugre=lugre
+        params,
+        drive,
+        fs,
+        lowpass_hz,
+        force_rms=f_rms,
+        seed=seed + 2,
+        lugre=lugre,
+        speed_rad_s=move_speed,
     )
     modes = sweep.fit
-    # R: air cut at a cutting feed (constant speed, no load)
+    # R: air cut at a cutting feed (constant speed, no load), or holding position at rest
     n = round(1.0 * fs)
-    pos, vel = ramp_move(5.0, n, fs)
+    pos, vel = ramp_move(AIR_CUT_SPEED_RAD_S if condition == "moving" else 0.0, n, fs)
     res = FeedDriveSim(params, fs, seed=seed + 3).advance(pos, vel, np.zeros(n))
     c3 = C3Torque(drive, lowpass_hz, fs, lugre)
     tau_air = c3.process(res["current_cmd"], res["speed"])
     r = tuning.air_cut_variance(tau_air[round(0.2 * fs) :])
-    model = FeedAxisModel(axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre)
+    model = FeedAxisModel(
+        axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre, condition
+    )
     if tune:
         plants = [
             measurement_model(modes.scaled(1.0 + s), lowpass_hz, 1.0 / fs)
@@ -857,6 +900,37 @@ def identify_feed_axis(
         q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds, plants=plants).q
         model = replace(model, q=q)
     return model, sweep
+
+
+def operating_condition(
+    commanded_speed_rad_s: NDArray[np.float64] | Sequence[float] | float,
+    rest_speed_rad_s: float = REST_SPEED_RAD_S,
+) -> OperatingCondition:
+    """Which identified model an axis's estimator uses, from what the CNC commands.
+
+    Parameters
+    ----------
+    commanded_speed_rad_s : the CNC's commanded motor speed of the axis over the segment to be
+        estimated (velocity feed-forward of the interpolator), rad/s.
+    rest_speed_rad_s : largest |commanded speed| of an axis that holds position, rad/s. The
+        default 0.01 rad/s (19 µm/s on a 12 mm lead) needs 0.3 s to cross the bristle range
+        τ_coul/σ0 ≈ 3·10⁻³ rad of the Quaser X/Y axes (Aslan Table 3.2), longer than the tooth
+        periods the estimator resolves, so the bristles stay in presliding.
+
+    Returns
+    -------
+    ``at_rest`` when every commanded speed is within ±rest_speed_rad_s, else ``moving``.
+
+    Notes
+    -----
+    Decision "Holding axis: Φ_d and R identified at rest" (docs/decisions.md): the condition is
+    chosen by the command, never by the measured current or speed (a loaded axis at rest
+    trembles by a few encoder counts; a command is exact).
+    """
+    v = np.abs(np.asarray(commanded_speed_rad_s, dtype=float))
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        raise InputDataError("operating condition: need finite commanded speeds")
+    return "at_rest" if float(np.max(v)) <= rest_speed_rad_s else "moving"
 
 
 def perturbed_drive(

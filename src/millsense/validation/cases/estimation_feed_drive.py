@@ -33,7 +33,7 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
-    from millsense.estimation.feed_drive import FeedAxisModel, SweepResult
+    from millsense.estimation.feed_drive import FeedAxisModel, OperatingCondition, SweepResult
     from millsense.machine.feed_drive import FeedDriveParams
 
 FS_HZ = 10_000.0
@@ -46,7 +46,9 @@ MOVE_SPEED_RAD_S = 10.0
 
 
 @cache
-def _identified(axis: str) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
+def _identified(
+    axis: str, condition: OperatingCondition = "moving"
+) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.feed_drive import identify_feed_axis
@@ -54,7 +56,9 @@ def _identified(axis: str) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]
 
     ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
     params = FeedDriveParams.from_config(ax)
-    model, sweep = identify_feed_axis(params, axis, ax.kind, sample_rate_hz=FS_HZ)
+    model, sweep = identify_feed_axis(
+        params, axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
+    )
     return params, model, sweep
 
 
@@ -203,35 +207,64 @@ V1_THESIS = {
     "y": ((0.06, 0.06, 0.04, 0.07, 0.11, 0.19), (0.42, 1.03, 1.13, 0.54, 0.32, 1.75)),
 }
 V1_MAX_HARMONIC_HZ = 200.0
+#: V1 run: air before the cut and the cut, samples at FS_HZ
+V1_AIR_SAMPLES, V1_CUT_SAMPLES = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
 
 
-def _harmonic_error(est: np.ndarray, true: np.ndarray, per: int, n_flutes: int) -> float:
+def whole_period_block(
+    tooth_hz: float, fs: float = FS_HZ, max_periods: int = 1000
+) -> tuple[int, int]:
+    """Shortest record of whole tooth periods on the sample grid: (samples, periods).
+
+    The tooth period ``fs/f_t`` need not be a whole number of samples (5500 rev/min, 2 flutes:
+    54.55 samples); ``p`` periods span ``p·fs/f_t`` samples, the first whole number wins, so
+    every tooth harmonic falls exactly on a DFT line of a record made of such blocks.
+
+    Parameters
+    ----------
+    tooth_hz : tooth-passing frequency f_t, Hz.
+    fs : sample rate, Hz.
+    max_periods : largest number of periods tried.
+
+    Raises
+    ------
+    InputDataError
+        When no ``p ≤ max_periods`` makes ``p·fs/f_t`` whole (to 10⁻⁶ sample).
+    """
+    from millsense.core.errors import InputDataError
+
+    per = fs / tooth_hz
+    for p in range(1, max_periods + 1):
+        n = p * per
+        if abs(n - round(n)) < 1e-6:
+            return round(n), p
+    raise InputDataError(f"V1: tooth frequency {tooth_hz:g} Hz has no whole-period block")
+
+
+def _harmonic_error(est: np.ndarray, true: np.ndarray, tooth_hz: float) -> float:
     """Relative error of the complex amplitudes at the tooth harmonics ≤ 200 Hz.
 
     ``sqrt(Σ_k |Ê_k − E_k|²) / sqrt(Σ_k |E_k|²)`` over k·f_t ≤ 200 Hz (at least k = 1), from the
-    DFT of whole tooth periods of the steady cut (the estimate realigned by the smoother lag).
+    DFT of whole tooth periods of the steady cut (the estimate realigned by the smoother lag);
+    the record is a whole number of :func:`whole_period_block` blocks, so the harmonics sit on
+    DFT lines even when the tooth period is not a whole number of samples.
     """
-    n = (len(true) // per) * per
+    block, periods_per_block = whole_period_block(tooth_hz)
+    n = (len(true) // block) * block
     e_hat = np.fft.rfft(est[:n])
     e_true = np.fft.rfft(true[:n])
-    periods = n // per
-    f_t = FS_HZ / per
-    ks = [k for k in range(1, 10) if k * f_t <= V1_MAX_HARMONIC_HZ] or [1]
+    periods = (n // block) * periods_per_block
+    ks = [k for k in range(1, 10) if k * tooth_hz <= V1_MAX_HARMONIC_HZ + 1e-9] or [1]
     idx = [k * periods for k in ks]
     num = np.sqrt(np.sum(np.abs(e_hat[idx] - e_true[idx]) ** 2))
     den = np.sqrt(np.sum(np.abs(e_true[idx]) ** 2))
-    del n_flutes
     return float(num / den)
 
 
-@cache
-def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
-    """Per axis and V1 speed: (rev/min, compensated error, raw-current error)."""
+def _v1_cut(rpm: float) -> tuple[dict[str, np.ndarray], float, float]:
+    """V1 slot: table forces along +X/+Y (N), the feed (m/s) and the tooth frequency (Hz)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import FeedAxisEstimator, perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
@@ -239,60 +272,105 @@ def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
 
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    out: dict[str, list[tuple[float, float, float]]] = {"x": [], "y": []}
-    for rpm in V1_RPM:
-        w = rpm * 2 * np.pi / 60
-        n_air, n_cut = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
-        n = n_air + n_cut
-        t = np.arange(n) / FS_HZ
-        cut = milling_forces(
-            tool, coeffs, Engagement.slot(), 0.2e-3, 4e-3, w * t[n_air:], n_discs=20
-        )
-        feed = 0.2e-3 * tool.n_flutes * rpm / 60  # m/s, table along +X
-        # force on the table along +X / +Y (machine.slot_cut frames); the load is its opposite
-        table = {
-            "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
-            "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
-        }
-        for axis in ("x", "y"):
-            params, model, _ = _identified(axis)
-            v = feed / params.transmission if axis == "x" else 0.0
-            vel = np.minimum(t / 0.2, 1.0) * v
-            pos = np.cumsum(vel) / FS_HZ
-            sim = FeedDriveSim(perturbed_drive(params, frequency_scale=1.0), FS_HZ, seed=21)
-            res = sim.advance(pos, vel, -table[axis])
-            est = FeedAxisEstimator(model)
-            est.reset(FS_HZ)
-            cur, spd = res["current_cmd"], res["speed"]
-            parts = [
-                est.process(
-                    Chunk(
-                        s,
-                        FS_HZ,
-                        0.0,
-                        {
-                            f"{axis}/current_cmd": cur[s : s + 100],
-                            f"{axis}/motor_speed": spd[s : s + 100],
-                        },
-                    )
-                ).channels[f"{axis}/force_est"]
-                for s in range(0, n, 100)
-            ]
-            f_est = np.concatenate(parts)
-            lag = est.lag
-            raw = -params.efficiency / params.transmission * params.torque_constant * cur
-            per = round(FS_HZ * 60 / rpm / tool.n_flutes)
-            k0 = n_air + round(0.3 * FS_HZ)
-            true = table[axis][k0 : n - lag]
-            comp = f_est[k0 + lag : n]
-            raw_s = raw[k0 : n - lag]
-            out[axis].append(
-                (
-                    rpm,
-                    _harmonic_error(comp, true, per, tool.n_flutes),
-                    _harmonic_error(raw_s - raw_s.mean(), true, per, tool.n_flutes),
-                )
+    w = rpm * 2 * np.pi / 60
+    n_air, n_cut = V1_AIR_SAMPLES, V1_CUT_SAMPLES
+    t = np.arange(n_air + n_cut) / FS_HZ
+    cut = milling_forces(tool, coeffs, Engagement.slot(), 0.2e-3, 4e-3, w * t[n_air:], n_discs=20)
+    feed = 0.2e-3 * tool.n_flutes * rpm / 60  # m/s, table along +X
+    # force on the table along +X / +Y (machine.slot_cut frames); the load is its opposite
+    table = {
+        "x": np.concatenate([np.zeros(n_air), cut.fx_n]),
+        "y": np.concatenate([np.zeros(n_air), cut.fy_n]),
+    }
+    return table, feed, rpm / 60 * tool.n_flutes
+
+
+def v1_run(
+    axis: str,
+    rpm: float,
+    model: FeedAxisModel,
+    machine: FeedDriveParams,
+    *,
+    lag: int | None = None,
+    seed: int = 21,
+) -> tuple[float, float]:
+    """One V1 speed on one axis: (compensated error, raw-current error) at the tooth harmonics.
+
+    ``model`` is the estimator's belief, ``machine`` the simulated drive that cuts (both
+    explicit so that an error budget can swap either); X feeds at the V1 feed, Y holds position.
+    """
+    from millsense.estimation.feed_drive import FeedAxisEstimator
+    from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
+    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.online.block import Chunk
+
+    table, feed, tooth_hz = _v1_cut(rpm)
+    n = len(table[axis])
+    t = np.arange(n) / FS_HZ
+    v = feed / machine.transmission if axis == "x" else 0.0
+    vel = np.minimum(t / 0.2, 1.0) * v
+    pos = np.cumsum(vel) / FS_HZ
+    res = FeedDriveSim(machine, FS_HZ, seed=seed).advance(pos, vel, -table[axis])
+    est = FeedAxisEstimator(model, ASLAN_LAG_SAMPLES if lag is None else lag)
+    est.reset(FS_HZ)
+    cur, spd = res["current_cmd"], res["speed"]
+    parts = [
+        est.process(
+            Chunk(
+                s,
+                FS_HZ,
+                0.0,
+                {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]},
             )
+        ).channels[f"{axis}/force_est"]
+        for s in range(0, n, 100)
+    ]
+    f_est = np.concatenate(parts)
+    lag_ = est.lag
+    d = model.drive
+    raw = -d.efficiency / d.transmission * d.torque_constant * cur
+    k0 = V1_AIR_SAMPLES + round(0.3 * FS_HZ)
+    true = table[axis][k0 : n - lag_]
+    comp = f_est[k0 + lag_ : n]
+    raw_s = raw[k0 : n - lag_]
+    return (
+        _harmonic_error(comp, true, tooth_hz),
+        _harmonic_error(raw_s - raw_s.mean(), true, tooth_hz),
+    )
+
+
+def v1_condition(axis: str, rpm: float) -> OperatingCondition:
+    """Operating condition of ``axis`` in the V1 cut at ``rpm``, from the commanded speed only.
+
+    The CNC commands the feed on X and nothing on Y (it holds position), so
+    :func:`~millsense.estimation.feed_drive.operating_condition` of the commanded motor speed
+    picks the moving model for X and the at-rest model for Y.
+    """
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.estimation.feed_drive import operating_condition
+
+    _, feed, _ = _v1_cut(rpm)
+    lead = load_preset(MachineConfig, "quaser-ux600").axis(axis).transmission_m_rad
+    return operating_condition(feed / lead if axis == "x" else 0.0)
+
+
+@cache
+def v1_errors() -> dict[str, list[tuple[float, float, float]]]:
+    """Per axis and V1 speed: (rev/min, compensated error, raw-current error).
+
+    Each axis's estimator is the model identified in the operating condition the CNC commands
+    (:func:`v1_condition`: X moving, Y at rest).
+    """
+    from millsense.estimation.feed_drive import perturbed_drive
+
+    out: dict[str, list[tuple[float, float, float]]] = {"x": [], "y": []}
+    for axis in ("x", "y"):
+        for rpm in V1_RPM:
+            params, model, _ = _identified(axis, v1_condition(axis, rpm))
+            machine = perturbed_drive(params, frequency_scale=1.0)
+            comp, raw = v1_run(axis, rpm, model, machine)
+            out[axis].append((rpm, comp, raw))
     return out
 
 
@@ -313,7 +391,9 @@ def _v1(axis: str) -> Measured:
 _V1_DESC = (
     "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz over "
     "1000-5500 rev/min (passes when millsense is at or below the thesis at every speed); "
-    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position. " + _MISMATCH
+    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position; each axis "
+    "uses the model identified in the condition its commanded speed selects (X moving, Y at "
+    "rest; docs/decisions.md 'Holding axis'). " + _MISMATCH
 )
 
 
