@@ -81,6 +81,22 @@ REST_SPEED_RAD_S = 0.01
 SWEEP_SPEED_RAD_S = 10.0
 #: Motor speed of the air cut that gives R for a moving axis, rad/s.
 AIR_CUT_SPEED_RAD_S = 5.0
+#: Channel of the CNC's commanded spindle speed, rad/s (the harmonic design reads it).
+SPINDLE_SPEED_CMD = "spindle/speed_cmd"
+#: Highest tooth harmonic k·f_t given its own disturbance state pair, Hz (decision
+#: "Tooth-harmonic disturbance model in the feed estimator").
+MAX_HARMONIC_HZ = 200.0
+#: Spectral density of each harmonic pair's noise w_AC per unit of the random-walk q (same
+#: decision): one rule for every axis, speed and harmonic.
+HARMONIC_Q_RATIO = 0.1
+#: Below this tooth frequency, Hz, only the random walk is used (a pair that slow is the random
+#: walk's own band; the spindle is stopped or running up).
+MIN_TOOTH_HZ = 5.0
+#: Relative width of the tooth-frequency bins designs are cached by (0.1 %).
+TOOTH_BIN_REL = 1e-3
+#: The commanded spindle speed must stay in one bin this long before its harmonic design is used,
+#: s (a speed ramp runs on the random-walk design).
+HARMONIC_HOLD_S = 0.01
 
 
 def scale_modes(modes: ModalStateSpace, frequency_scale: float) -> ModalStateSpace:
@@ -239,10 +255,25 @@ class FeedAxisModel:
         """Discrete model τ_a → low-passed C3 torque: see :func:`measurement_model`."""
         return measurement_model(self.disturbance, self.lowpass_hz, self.dt)
 
-    def design(self, q: float | None = None, r: float | None = None) -> KalmanDesign:
-        """Steady-state Kalman design on :meth:`measurement_model` (q, r default to the model's)."""
+    def design(
+        self,
+        q: float | None = None,
+        r: float | None = None,
+        *,
+        harmonics_hz: Sequence[float] = (),
+        harmonic_q_ratio: float = HARMONIC_Q_RATIO,
+    ) -> KalmanDesign:
+        """Steady-state Kalman design on :meth:`measurement_model` (q, r default to the model's).
+
+        ``harmonics_hz`` (Hz, e.g. :func:`tooth_harmonics`) adds one harmonic disturbance pair
+        per frequency (Aslan Eq. 3.16–3.20), see :func:`design_feed_kalman`.
+        """
         return design_feed_kalman(
-            self.measurement_model(), self.q if q is None else q, self.r if r is None else r
+            self.measurement_model(),
+            self.q if q is None else q,
+            self.r if r is None else r,
+            harmonics_hz=harmonics_hz,
+            harmonic_q_ratio=harmonic_q_ratio,
         )
 
 
@@ -287,7 +318,22 @@ def measurement_model(
     return StateSpaceModel(aa, bb, cc, dd, dt)
 
 
-def design_feed_kalman(model: StateSpaceModel, q: float, r: float) -> KalmanDesign:
+def tooth_harmonics(tooth_hz: float, max_hz: float = MAX_HARMONIC_HZ) -> tuple[float, ...]:
+    """The tooth frequency and its multiples ``k·f_t ≤ max_hz`` (Hz); empty when f_t > max_hz."""
+    if not (math.isfinite(tooth_hz) and tooth_hz > 0):
+        raise InputDataError(f"tooth frequency must be positive, got {tooth_hz}")
+    kmax = math.floor(max_hz / tooth_hz * (1 + 1e-12))
+    return tuple(k * tooth_hz for k in range(1, kmax + 1))
+
+
+def design_feed_kalman(
+    model: StateSpaceModel,
+    q: float,
+    r: float,
+    *,
+    harmonics_hz: Sequence[float] = (),
+    harmonic_q_ratio: float = HARMONIC_Q_RATIO,
+) -> KalmanDesign:
     """Disturbance Kalman filter (Eq. 3.21–3.29) on a discrete :func:`measurement_model`.
 
     Parameters
@@ -296,9 +342,28 @@ def design_feed_kalman(model: StateSpaceModel, q: float, r: float) -> KalmanDesi
     q : spectral density of τ̇_a, (N·m)²/s; the random walk of the discrete model gets the
         per-sample variance ``q·dt`` (the Van Loan value on the random-walk state).
     r : per-sample variance of the measured torque, N²·m².
+    harmonics_hz : tooth harmonics (Hz) given a harmonic disturbance pair each (Aslan's full
+        model, Eq. 3.16–3.20); empty: the random walk alone (Eq. 3.21–3.23, the thesis' filter).
+    harmonic_q_ratio : κ, the spectral density of each pair's noise w_AC is ``κ·q``.
+
+    Notes
+    -----
+    Each pair's noise enters its first state with the per-sample variance ``κ·q·dt``, the
+    random-walk convention (the leading term of Van Loan for ``s/(s² + ω²)``, whose high-frequency
+    asymptote is the random walk's ``1/s``): with κ = 1 the disturbance model says the amplitude
+    of every tooth harmonic drifts as fast as the mean load (decision "Tooth-harmonic
+    disturbance model in the feed estimator"). The pairs are undamped, so the steady-state
+    compensated transfer ``Φ_d·Φ_KF`` is exactly 1 at each included harmonic (internal model).
     """
     assert model.dt is not None
-    return design_kalman(augment_disturbance(model), q * model.dt, r)
+    if not harmonic_q_ratio > 0:
+        raise ConfigError(f"harmonic_q_ratio must be positive, got {harmonic_q_ratio}")
+    aug = augment_disturbance(model, harmonics_hz=tuple(harmonics_hz))
+    nh = len(aug.harmonics_hz)
+    if nh == 0:
+        return design_kalman(aug, q * model.dt, r)
+    qd = np.diag([q * model.dt] + [harmonic_q_ratio * q * model.dt] * nh)
+    return design_kalman(aug, qd, r)
 
 
 @numba.njit(cache=True)
@@ -428,6 +493,16 @@ class C3Torque:
 ArrayLike1 = NDArray[np.float64] | Sequence[float]
 
 
+@dataclass
+class _HarmonicDesign:
+    """A cached harmonic design: its smoother, tooth frequency (Hz) and harmonic orders."""
+
+    smoother: FixedLagSmoother
+    tooth_hz: float
+    orders: tuple[int, ...]
+    n_plant: int
+
+
 class FeedAxisEstimator(Block):
     """Streaming estimator of one feed axis: C3 → Kalman → fixed-lag smoother → axis load.
 
@@ -435,23 +510,75 @@ class FeedAxisEstimator(Block):
     ----------
     model : identified axis model.
     lag : smoother lag, samples (Aslan Appendix B: 60 = 6 ms at 10 kHz); 0 = filter only.
+    teeth : number of cutter teeth; given, the block also reads the CNC's commanded spindle
+        speed (``spindle/speed_cmd``, rad/s) and adds the tooth harmonics ``k·f_t ≤
+        max_harmonic_hz`` to the disturbance model (Aslan's full model, Eq. 3.16–3.20, see
+        :func:`design_feed_kalman`); None (default): the random walk alone (Eq. 3.21–3.23).
+    max_harmonic_hz : highest harmonic given a state pair, Hz.
+    harmonic_q_ratio : κ of the harmonic pairs' noise (``κ·q``).
 
     Outputs (delayed by ``lag`` samples: sample k is the estimate of sample k − lag):
     ``{axis}/load_est`` — load resisting +motion, N (linear) or N·m at the table (rotary), the
     quantity the drive simulator takes as ``load`` and Eq. 3.51 takes as τ;
     ``{axis}/force_est`` — force on the table along +axis (= −load, linear axes; rotary only
     with a moment arm, Eq. 3.12).
+
+    Notes
+    -----
+    Harmonic design and spindle speed (decision "Tooth-harmonic disturbance model in the feed
+    estimator"): the tooth frequency ``f_t = teeth·|Ω_cmd|/2π`` is binned to 0.1 %
+    (:data:`TOOTH_BIN_REL`); once the command has stayed in one bin for
+    :data:`HARMONIC_HOLD_S`, the design for that bin (made at the first tooth frequency seen in
+    it, cached) takes over; while the speed ramps, below :data:`MIN_TOOTH_HZ` or above
+    ``max_harmonic_hz`` the random-walk design runs. At every switch the estimate is carried
+    in physical coordinates (the modal kernel state z is mapped to x̂ by the eigenvectors and
+    back): the plant states and τ_DC are kept; a harmonic of order k present in both designs
+    keeps its amplitude and phase (``[τ_AC, ∫τ_AC]`` with the integral rescaled by
+    ``ω_old/ω_new``); a harmonic the new design lacks is folded into τ_DC and a new one starts
+    at 0, so τ̂_a is continuous. The smoother's delay line and innovation history are carried;
+    for the ``lag`` samples after a switch its correction combines the old design's innovations
+    with the new gains (a transient no longer than the lag).
     """
 
-    def __init__(self, model: FeedAxisModel, lag: int = ASLAN_LAG_SAMPLES) -> None:
+    def __init__(
+        self,
+        model: FeedAxisModel,
+        lag: int = ASLAN_LAG_SAMPLES,
+        *,
+        teeth: int | None = None,
+        max_harmonic_hz: float = MAX_HARMONIC_HZ,
+        harmonic_q_ratio: float = HARMONIC_Q_RATIO,
+    ) -> None:
         self.model = model
         ax = model.axis
         self.name = f"feed_force_{ax}"
-        self.inputs = (f"{ax}/current_cmd", f"{ax}/motor_speed")
+        self.inputs: tuple[str, ...] = (f"{ax}/current_cmd", f"{ax}/motor_speed")
         self.lag = int(lag)
         self.design = model.design()
         self._c3 = C3Torque(model.drive, model.lowpass_hz, model.sample_rate_hz, model.lugre)
         self._smoother = FixedLagSmoother(self.design, self.lag)
+        if teeth is not None and (int(teeth) != teeth or teeth < 1):
+            raise ConfigError(f"block {self.name}: teeth must be a positive integer, got {teeth}")
+        if not max_harmonic_hz > 0:
+            raise ConfigError(
+                f"block {self.name}: max_harmonic_hz must be positive, got {max_harmonic_hz}"
+            )
+        if not harmonic_q_ratio > 0:
+            raise ConfigError(
+                f"block {self.name}: harmonic_q_ratio must be positive, got {harmonic_q_ratio}"
+            )
+        self.teeth = None if teeth is None else int(teeth)
+        self.max_harmonic_hz = float(max_harmonic_hz)
+        self.harmonic_q_ratio = float(harmonic_q_ratio)
+        if self.teeth is not None:
+            self.inputs = (*self.inputs, SPINDLE_SPEED_CMD)
+        self._hold = max(1, round(HARMONIC_HOLD_S * model.sample_rate_hz))
+        self._base = _HarmonicDesign(self._smoother, 0.0, (), self.design.n_states - 1)
+        self._cache: dict[int, _HarmonicDesign] = {}
+        self._key = -1
+        self._active = self._base
+        self._last_bin = -1
+        self._run = 0
         d = model.drive
         self._gain = d.efficiency / d.transmission
         self._force_gain: float | None = None
@@ -494,16 +621,129 @@ class FeedAxisEstimator(Block):
             )
         self._c3.reset()
         self._smoother.reset()
+        for h in self._cache.values():
+            h.smoother.reset()
+        self._key = -1
+        self._active = self._base
+        self._last_bin = -1
+        self._run = 0
 
-    def torque(self, current_a: ArrayLike1, speed_rad_s: ArrayLike1) -> NDArray[np.float64]:
+    @property
+    def harmonic_design(self) -> KalmanDesign:
+        """The design running at the end of the last chunk (the random-walk one by default)."""
+        return self._active.smoother.design
+
+    @property
+    def tooth_hz(self) -> float:
+        """Tooth frequency of the running harmonic design, Hz (0 on the random-walk design)."""
+        return self._active.tooth_hz
+
+    def _bins(
+        self, speed_cmd: NDArray[np.float64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Effective design bin per sample (−1: random walk) and the tooth frequency, Hz."""
+        assert self.teeth is not None
+        ft = np.abs(np.asarray(speed_cmd, dtype=float)) * self.teeth / (2 * math.pi)
+        ok = np.isfinite(ft) & (ft >= MIN_TOOTH_HZ) & (ft <= self.max_harmonic_hz)
+        safe = np.where(ok, ft, 1.0)
+        b = np.where(ok, np.rint(np.log(safe) / math.log1p(TOOTH_BIN_REL)), -1).astype(np.int64)
+        # samples since the bin was entered (run length carried across chunks)
+        n = len(b)
+        change = np.empty(n, dtype=bool)
+        change[0] = b[0] != self._last_bin
+        change[1:] = b[1:] != b[:-1]
+        idx = np.arange(n)
+        start = np.maximum.accumulate(np.where(change, idx, 0))
+        run = idx - start + 1
+        if not change[0]:
+            first = ~np.cumsum(change).astype(bool)
+            run = np.where(first, run + self._run, run)
+        self._last_bin = int(b[-1])
+        self._run = int(run[-1])
+        eff = np.where((run >= self._hold) & (b >= 0), b, -1)
+        return eff, ft
+
+    def _design_for(self, key: int, tooth_hz: float) -> _HarmonicDesign:
+        if key < 0:
+            return self._base
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        freqs = tooth_harmonics(tooth_hz, self.max_harmonic_hz)
+        design = self.model.design(harmonics_hz=freqs, harmonic_q_ratio=self.harmonic_q_ratio)
+        n_plant = design.n_states - 1 - 2 * len(freqs)
+        entry = _HarmonicDesign(
+            FixedLagSmoother(design, self.lag),
+            tooth_hz,
+            tuple(range(1, len(freqs) + 1)),
+            n_plant,
+        )
+        if len(self._cache) >= 32:  # a long program with many speeds: drop the oldest
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[key] = entry
+        return entry
+
+    def _switch(self, key: int, tooth_hz: float) -> None:
+        """Make the design of ``key`` the running one, carrying the estimate across."""
+        if key == self._key:
+            return
+        old, new = self._active, self._design_for(key, tooth_hz)
+        x_old = old.smoother._kf.state
+        n0 = old.n_plant + 1
+        x_new = np.zeros(new.smoother.design.n_states)
+        x_new[:n0] = x_old[:n0]
+        w_old = {k: 2 * math.pi * k * old.tooth_hz for k in old.orders}
+        for i, k in enumerate(old.orders):
+            pair = x_old[n0 + 2 * i : n0 + 2 * i + 2]
+            if k in new.orders:
+                j = n0 + 2 * new.orders.index(k)
+                x_new[j] = pair[0]
+                x_new[j + 1] = pair[1] * w_old[k] / (2 * math.pi * k * new.tooth_hz)
+            else:
+                x_new[old.n_plant] += pair[0]
+        sm_new, sm_old = new.smoother, old.smoother
+        sm_new._kf.reset(x_new)
+        sm_new._hist_pred = sm_old._hist_pred.copy()
+        sm_new._hist_innov = sm_old._hist_innov.copy()
+        self._active, self._key = new, key
+
+    def _torque_harmonic(
+        self, cur: NDArray[np.float64], spd: NDArray[np.float64], speed_cmd: ArrayLike1
+    ) -> NDArray[np.float64]:
+        tau = self._c3.process(cur, spd)
+        keys, ft = self._bins(np.asarray(speed_cmd, dtype=float))
+        bounds = np.flatnonzero(np.diff(keys)) + 1
+        starts = np.concatenate([[0], bounds]).astype(int)
+        ends = np.concatenate([bounds, [len(tau)]]).astype(int)
+        out = np.empty(len(tau))
+        for s0, s1 in zip(starts, ends, strict=True):
+            self._switch(int(keys[s0]), float(ft[s0]))
+            out[s0:s1] = self._active.smoother.process(tau[s0:s1])[:, 0]
+        return out
+
+    def torque(
+        self,
+        current_a: ArrayLike1,
+        speed_rad_s: ArrayLike1,
+        spindle_speed_cmd_rad_s: ArrayLike1 | None = None,
+    ) -> NDArray[np.float64]:
         """τ̂_a (N·m, motor side) of one chunk, delayed by ``lag`` samples.
 
-        One compiled call runs the C3 stage and the smoother (the smoother's own kernel on its
-        carried state), which keeps the per-chunk overhead at a few microseconds.
+        ``spindle_speed_cmd_rad_s`` (rad/s, the CNC's commanded spindle speed) is required when
+        the block was built with ``teeth``. On the random-walk design one compiled call runs
+        the C3 stage and the smoother (the smoother's own kernel on its carried state), which
+        keeps the per-chunk overhead at a few microseconds.
         """
         cur = np.ascontiguousarray(current_a, dtype=np.float64)
         if len(cur) == 0:
             return np.zeros(0)
+        if self.teeth is not None:
+            if spindle_speed_cmd_rad_s is None:
+                raise InputDataError(
+                    f"block {self.name}: the harmonic design needs channel '{SPINDLE_SPEED_CMD}'"
+                )
+            spd = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+            return self._torque_harmonic(cur, spd, spindle_speed_cmd_rad_s)
         c3, sm = self._c3, self._smoother
         return np.asarray(
             _estimate_kernel(
@@ -523,7 +763,8 @@ class FeedAxisEstimator(Block):
         )
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        tau = self.torque(chunk.data[self.inputs[0]], chunk.data[self.inputs[1]])
+        sp = chunk.data[SPINDLE_SPEED_CMD] if self.teeth is not None else None
+        tau = self.torque(chunk.data[self.inputs[0]], chunk.data[self.inputs[1]], sp)
         ax = self.model.axis
         out = {f"{ax}/load_est": self._gain * tau}
         if self._force_gain is not None:

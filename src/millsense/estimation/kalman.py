@@ -6,7 +6,8 @@ Pipeline (Aslan §3.3, §5.3):
    discrete: ``ẋ = A x + B τ_a``, ``y = C x + D τ_a`` (Aslan Eq. 3.15, 5.14).
 2. :func:`augment_disturbance` — adds the disturbance as a random-walk state (Eq. 3.21–3.23:
    ``x_exp = [x; τ_a]``, ``A_exp = [[A, B], [0, 0]]``, ``L = [0 … 0 1]ᵀ``), optionally with a
-   harmonic state pair at the tooth frequency (Eq. 3.16–3.20: ``A_F = [[0, −ω_t²], [1, 0]]``).
+   harmonic state pair per given frequency, e.g. the tooth frequency and its multiples
+   (Eq. 3.16–3.20: ``A_F = [[0, −ω_t²], [1, 0]]``).
 3. :func:`design_kalman` — exact ZOH discretisation of the augmented model with the process
    noise covariance by Van Loan, then the steady-state gains from
    ``scipy.linalg.solve_discrete_are``.
@@ -28,6 +29,7 @@ itself is the ZOH discretisation of the *continuous* Kalman–Bucy filter, avail
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -193,7 +195,7 @@ class AugmentedModel:
     disturbance : (d, n) rows giving the disturbance estimate (C0 of Eq. 3.24).
     dt : None for a continuous model, else the sample time, s.
     n_plant : number of plant states before augmentation.
-    harmonic_hz : frequency of the harmonic disturbance pair, Hz, or None.
+    harmonics_hz : frequencies of the harmonic disturbance pairs, Hz (empty: random walk only).
     """
 
     a: NDArray[np.float64]
@@ -202,17 +204,30 @@ class AugmentedModel:
     disturbance: NDArray[np.float64]
     dt: float | None
     n_plant: int
-    harmonic_hz: float | None = None
+    harmonics_hz: tuple[float, ...] = ()
 
     @property
     def n_states(self) -> int:
         return int(self.a.shape[0])
+
+    @property
+    def harmonic_hz(self) -> float | None:
+        """The first harmonic frequency, Hz, or None (single-pair API of Eq. 3.16–3.20)."""
+        return self.harmonics_hz[0] if self.harmonics_hz else None
+
+    def harmonic_states(self, i: int) -> slice:
+        """Indices of the i-th harmonic pair ``[τ_AC,i, ∫τ_AC,i]`` in the augmented state."""
+        if not 0 <= i < len(self.harmonics_hz):
+            raise IndexError(f"harmonic pair {i} of {len(self.harmonics_hz)}")
+        start = self.n_plant + 1 + 2 * i
+        return slice(start, start + 2)
 
 
 def augment_disturbance(
     model: StateSpaceModel,
     *,
     harmonic_hz: float | None = None,
+    harmonics_hz: Sequence[float] | None = None,
     feedthrough: bool = True,
     noise_on_all_states: bool = False,
 ) -> AugmentedModel:
@@ -222,8 +237,12 @@ def augment_disturbance(
     ----------
     model : disturbance-to-measurement model Φ_d (single disturbance input), continuous or
         discrete.
-    harmonic_hz : if given, also a harmonic disturbance at this frequency (Hz), e.g. the tooth
-        frequency ω_t/2π (Aslan Eq. 3.16–3.20; Ch. 4 uses the spindle frequency, Eq. 4.3).
+    harmonic_hz : one harmonic disturbance at this frequency (Hz), e.g. the tooth frequency
+        ω_t/2π (Aslan Eq. 3.16–3.20; Ch. 4 uses the spindle frequency, Eq. 4.3). Shorthand for
+        ``harmonics_hz=[harmonic_hz]``; give one or the other.
+    harmonics_hz : several harmonic disturbances (Hz), e.g. the tooth frequency and its
+        multiples k·f_t; one state pair each, in the given order. Each must be positive and
+        below the Nyquist frequency of a discrete model, and no two may coincide.
     feedthrough : measurement ``C_exp = [C D …]`` (True) or ``[C 0 …]`` (Aslan's printed
         Eq. 3.23). The digest notes ``[C D]`` is the correct one when D ≠ 0; it is the default.
     noise_on_all_states : noise coupling Γ = I (one white noise per augmented state), as in the
@@ -232,22 +251,39 @@ def augment_disturbance(
 
     Returns
     -------
-    AugmentedModel with states ``[x; τ_DC]`` or ``[x; τ_DC; x_F]``; noise inputs
-    ``[w_DC]`` or ``[w_DC, w_AC]``; disturbance row(s) ``τ̂_a = τ_DC (+ C_F x_F)``.
+    AugmentedModel with states ``[x; τ_DC; x_F,1; …; x_F,h]``; noise inputs
+    ``[w_DC, w_AC,1, …, w_AC,h]``; disturbance row ``τ̂_a = τ_DC + Σᵢ C_F x_F,i``.
 
     Notes
     -----
-    Continuous: ``A_exp = [[A, B, B C_F], [0, 0, 0], [0, 0, A_F]]``, ``A_F = [[0, −ω_t²], [1, 0]]``,
-    ``C_F = [1, 0]``, noise ``w_AC`` entering the first harmonic state so that
-    ``τ_AC / w_AC = s / (s² + ω_t²)`` (Eq. 3.18–3.19). Discrete: the random walk is
-    ``τ(k+1) = τ(k) + w`` and the harmonic pair is ``e^{A_F dt}``.
+    Continuous: ``A_exp = [[A, B, B C_F, …], [0, 0, 0, …], [0, 0, A_F,1, …], …]``,
+    ``A_F,i = [[0, −ω_i²], [1, 0]]``, ``C_F = [1, 0]``, noise ``w_AC,i`` entering the first state
+    of pair i so that ``τ_AC,i / w_AC,i = s / (s² + ω_i²)`` (Eq. 3.18–3.19; the thesis writes one
+    pair at ω_t, several pairs are the same generator repeated at the tooth harmonics).
+    Discrete: the random walk is ``τ(k+1) = τ(k) + w`` and each harmonic pair is
+    ``e^{A_F,i dt}``, whose eigenvalues ``e^{±jω_i dt}`` lie on the unit circle (an undamped
+    internal model of the sinusoid, exact for the sampled sinusoid).
     """
     if model.b.shape[1] != 1:
         raise ValueError(f"the disturbance model must have one input, has {model.b.shape[1]}")
+    if harmonic_hz is not None and harmonics_hz is not None:
+        raise ValueError("give harmonic_hz or harmonics_hz, not both")
+    freqs: tuple[float, ...] = (
+        (float(harmonic_hz),)
+        if harmonic_hz is not None
+        else tuple(float(f) for f in (harmonics_hz or ()))
+    )
+    for f in freqs:
+        if not f > 0:
+            raise ValueError(f"harmonic frequencies must be positive, got {f}")
+        if model.dt is not None and not f < 0.5 / model.dt:
+            raise ValueError(f"harmonic {f} Hz is not below the Nyquist frequency")
+    if len(set(freqs)) != len(freqs):
+        raise ValueError(f"harmonic frequencies must be distinct, got {freqs}")
     n = model.n_states
     p = model.c.shape[0]
-    n_h = 0 if harmonic_hz is None else 2
-    na = n + 1 + n_h
+    nh = len(freqs)
+    na = n + 1 + 2 * nh
     a = np.zeros((na, na))
     a[:n, :n] = model.a
     a[:n, n] = model.b[:, 0]
@@ -255,28 +291,27 @@ def augment_disturbance(
     c[:, :n] = model.c
     if feedthrough:
         c[:, n] = model.d[:, 0]
-    g = np.zeros((na, 1 + (1 if n_h else 0)))
+    g = np.zeros((na, 1 + nh))
     dist = np.zeros((1, na))
     dist[0, n] = 1.0
     if model.is_discrete:
         a[n, n] = 1.0
     g[n, 0] = 1.0
-    if harmonic_hz is not None:
-        if not harmonic_hz > 0:
-            raise ValueError(f"harmonic_hz must be positive, got {harmonic_hz}")
-        w = 2 * np.pi * harmonic_hz
+    for i, f in enumerate(freqs):
+        k = n + 1 + 2 * i
+        w = 2 * np.pi * f
         af = np.array([[0.0, -(w**2)], [1.0, 0.0]])
         if model.dt is not None:
             af = linalg.expm(af * model.dt)
-        a[n + 1 :, n + 1 :] = af
-        a[:n, n + 1] = model.b[:, 0]  # B·C_F with C_F = [1, 0]
+        a[k : k + 2, k : k + 2] = af
+        a[:n, k] = model.b[:, 0]  # B·C_F with C_F = [1, 0]
         if feedthrough:
-            c[:, n + 1] = model.d[:, 0]
-        g[n + 1, 1] = 1.0
-        dist[0, n + 1] = 1.0
+            c[:, k] = model.d[:, 0]
+        g[k, 1 + i] = 1.0
+        dist[0, k] = 1.0
     if noise_on_all_states:
         g = np.eye(na)
-    return AugmentedModel(a, c, g, dist, model.dt, n, harmonic_hz)
+    return AugmentedModel(a, c, g, dist, model.dt, n, freqs)
 
 
 @dataclass(frozen=True)

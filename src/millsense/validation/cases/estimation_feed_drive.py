@@ -207,6 +207,8 @@ V1_THESIS = {
     "y": ((0.06, 0.06, 0.04, 0.07, 0.11, 0.19), (0.42, 1.03, 1.13, 0.54, 0.32, 1.75)),
 }
 V1_MAX_HARMONIC_HZ = 200.0
+#: teeth of the V1 cutter (Ø20 mm 2-flute, preset aslan-d20-2flute)
+V1_TEETH = 2
 #: V1 run: air before the cut and the cut, samples at FS_HZ
 V1_AIR_SAMPLES, V1_CUT_SAMPLES = round(0.5 * FS_HZ), round(1.0 * FS_HZ)
 
@@ -293,13 +295,23 @@ def v1_run(
     *,
     lag: int | None = None,
     seed: int = 21,
+    harmonics: bool = False,
+    harmonic_q_ratio: float | None = None,
 ) -> tuple[float, float]:
     """One V1 speed on one axis: (compensated error, raw-current error) at the tooth harmonics.
 
     ``model`` is the estimator's belief, ``machine`` the simulated drive that cuts (both
     explicit so that an error budget can swap either); X feeds at the V1 feed, Y holds position.
+    ``harmonics``: the estimator adds the tooth harmonics ≤ 200 Hz (Aslan's full model,
+    Eq. 3.16–3.20) from the commanded spindle speed ``spindle/speed_cmd`` (the V1 speed from
+    the start of the record, i.e. through the 0.5 s air phase) and the 2 teeth;
+    ``harmonic_q_ratio`` overrides κ (default the estimator's).
     """
-    from millsense.estimation.feed_drive import FeedAxisEstimator
+    from millsense.estimation.feed_drive import (
+        HARMONIC_Q_RATIO,
+        SPINDLE_SPEED_CMD,
+        FeedAxisEstimator,
+    )
     from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
     from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
@@ -311,20 +323,21 @@ def v1_run(
     vel = np.minimum(t / 0.2, 1.0) * v
     pos = np.cumsum(vel) / FS_HZ
     res = FeedDriveSim(machine, FS_HZ, seed=seed).advance(pos, vel, -table[axis])
-    est = FeedAxisEstimator(model, ASLAN_LAG_SAMPLES if lag is None else lag)
+    est = FeedAxisEstimator(
+        model,
+        ASLAN_LAG_SAMPLES if lag is None else lag,
+        teeth=V1_TEETH if harmonics else None,
+        harmonic_q_ratio=HARMONIC_Q_RATIO if harmonic_q_ratio is None else harmonic_q_ratio,
+    )
     est.reset(FS_HZ)
     cur, spd = res["current_cmd"], res["speed"]
-    parts = [
-        est.process(
-            Chunk(
-                s,
-                FS_HZ,
-                0.0,
-                {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]},
-            )
-        ).channels[f"{axis}/force_est"]
-        for s in range(0, n, 100)
-    ]
+    sp_cmd = np.full(n, rpm * 2 * np.pi / 60)
+    parts = []
+    for s in range(0, n, 100):
+        data = {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]}
+        if harmonics:
+            data[SPINDLE_SPEED_CMD] = sp_cmd[s : s + 100]
+        parts.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/force_est"])
     f_est = np.concatenate(parts)
     lag_ = est.lag
     d = model.drive
