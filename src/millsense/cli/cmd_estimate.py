@@ -45,6 +45,13 @@ def estimate(
     air_s: str | None = typer.Option(
         None, "--air-s", help="Air phase START:END in s (of the recording or the --idle FILE)."
     ),
+    harmonics: bool = typer.Option(
+        False,
+        "--harmonics",
+        help="feed: add the tooth harmonics (<= 200 Hz) of the commanded spindle speed "
+        "(spindle/speed_cmd) to the disturbance model (Aslan Eq. 3.16-3.20); teeth from "
+        "--flutes or the recording's metadata.",
+    ),
 ) -> None:
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
@@ -61,6 +68,7 @@ def estimate(
             chunk=chunk,
             idle=idle,
             air_s=air_s,
+            harmonics=harmonics,
             on_progress=update,
         )
     for note in summary["notes"]:
@@ -113,6 +121,7 @@ def run_estimate(
     chunk: int = 1000,
     idle: str = "none",
     air_s: str | None = None,
+    harmonics: bool = False,
     on_progress: Any = None,
 ) -> dict[str, Any]:
     """Build the estimators, replay ``recording`` and write ``out`` while running.
@@ -121,6 +130,9 @@ def run_estimate(
     comparisons (:class:`~millsense.report.estimate_metrics.HarmonicComparison`, empty without
     truth), notes and idle ((method, axis) → :class:`~millsense.ident.idle_table.DirectionIdle`
     subtracted, empty with ``idle="none"``).
+
+    ``harmonics``: the ``feed`` estimators add the tooth harmonics of the commanded spindle
+    speed (teeth: ``flutes``, else the recording's ``flutes`` metadata, else 2).
 
     ``idle``: ``none``; ``auto`` — the air phase of ``recording`` itself
     (:func:`~millsense.estimation.idle_compensation.find_air_window`, or ``air_s``); a path —
@@ -176,6 +188,7 @@ def run_estimate(
         rec.sample_rate_hz,
         where=machine,
         skip_unavailable=method == "all",
+        harmonic_teeth=_teeth(flutes, rec) if harmonics else None,
     )
     idle_tables: dict[tuple[str, str], Any] = {}
     if air is not None:
@@ -311,6 +324,19 @@ def _idle_tables(
     return tables, notes
 
 
+def _teeth(flutes: int | None, rec: Any) -> int:
+    """Cutter teeth: ``--flutes``, else the recording's ``flutes`` metadata, else 2."""
+    from millsense.core.errors import InputDataError
+
+    n_teeth = flutes
+    if n_teeth is None:
+        md = rec.metadata.get("flutes", 2)
+        n_teeth = int(md) if isinstance(md, (int, float)) else 2
+    if n_teeth < 1:
+        raise InputDataError(f"--flutes: must be ≥ 1, got {n_teeth}")
+    return n_teeth
+
+
 def _compare(
     rec: Any,
     channels: dict[str, Any],
@@ -332,12 +358,7 @@ def _compare(
         return []
     if "spindle/speed" not in have:
         raise InputDataError("estimate vs truth: the recording has no channel 'spindle/speed'")
-    n_teeth = flutes
-    if n_teeth is None:
-        md = rec.metadata.get("flutes", 2)
-        n_teeth = int(md) if isinstance(md, (int, float)) else 2
-    if n_teeth < 1:
-        raise InputDataError(f"--flutes: must be ≥ 1, got {n_teeth}")
+    n_teeth = _teeth(flutes, rec)
     eng = rec.channel("truth/process/engagement") if "truth/process/engagement" in have else None
     speed = rec.channel("spindle/speed")
     comps = [

@@ -10,7 +10,8 @@ Methods
 -------
 ``feed``  Kalman-compensated feed-drive estimator (Aslan C2–C7,
           :class:`~millsense.estimation.feed_drive.FeedAxisEstimator`) from
-          :meth:`~millsense.estimation.feed_drive.FeedAxisModel.from_config`.
+          :meth:`~millsense.estimation.feed_drive.FeedAxisModel.from_config`; with
+          ``harmonic_teeth`` also the tooth harmonics of the commanded spindle speed.
 ``raw``   rigid-body inverse dynamics of the current (Aslan C3, Eq. 3.10–3.11,
           :class:`~millsense.estimation.rigid_body.RigidBodyForceEstimator`).
 ``medob`` multi-encoder DOB of a ball-screw axis (Yamada, :class:`~millsense.estimation.dob.
@@ -193,12 +194,14 @@ def spindle_observer_from_config(
     )
 
 
-def _feed(axis: str, machine: MachineConfig, where: str, fs: float) -> RenamedBlock:
+def _feed(
+    axis: str, machine: MachineConfig, where: str, fs: float, teeth: int | None = None
+) -> RenamedBlock:
     from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
 
     cfg = machine.axis(axis)
     model = FeedAxisModel.from_config(axis, cfg, sample_rate_hz=fs, where=where)
-    block = FeedAxisEstimator(model)
+    block = FeedAxisEstimator(model, teeth=teeth)
     unit = "N" if cfg.kind == "linear" else "N*m"
     return RenamedBlock(
         block,
@@ -304,6 +307,7 @@ def build_estimators(
     where: str = "machine",
     raw_cutoff_hz: float = 300.0,
     skip_unavailable: bool = False,
+    harmonic_teeth: int | None = None,
 ) -> BuiltEstimators:
     """Estimator blocks of ``methods`` on ``axes`` from a machine configuration.
 
@@ -317,6 +321,10 @@ def build_estimators(
     raw_cutoff_hz : low-pass corner of the raw C3 estimate, Hz.
     skip_unavailable : under ``all``: a method that cannot be built on an axis is skipped with a
         note instead of raising.
+    harmonic_teeth : cutter teeth; given, the ``feed`` estimators add the tooth harmonics from
+        the commanded spindle speed ``spindle/speed_cmd`` (Aslan Eq. 3.16–3.20,
+        :class:`~millsense.estimation.feed_drive.FeedAxisEstimator` ``teeth``); None: the
+        random-walk design.
 
     Raises
     ------
@@ -346,7 +354,7 @@ def build_estimators(
         for a in axes:
             try:
                 if m == "feed":
-                    b = _feed(a, machine, where, sample_rate_hz)
+                    b = _feed(a, machine, where, sample_rate_hz, harmonic_teeth)
                 elif m == "raw":
                     b = raw_estimator(a, machine, raw_cutoff_hz)
                 else:
