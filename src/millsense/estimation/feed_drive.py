@@ -10,7 +10,9 @@ reads only CNC channels ``{axis}/current_cmd`` and ``{axis}/motor_speed``):
    part of the estimator's model (below), so its lag is compensated, not ignored.
 2. Disturbance Kalman filter (Eq. 3.21–3.29) over the *identified* disturbance path
    ``Φ_d = τ_c/τ_a`` (Eq. 3.13, modal fit of a simulated commissioning sweep) in series with
-   the low-pass, discretised at the CNC rate, augmented with the random-walk τ_a.
+   the low-pass, discretised at the CNC rate, augmented with the random-walk τ_a; optionally
+   (``teeth``) also with undamped pairs at the tooth harmonics ≤ 200 Hz of the commanded
+   spindle speed ``spindle/speed_cmd`` (Aslan's full model, Eq. 3.16–3.20).
 3. Fixed-lag smoother (Appendix B, 60 samples = 6 ms): output sample k is ``τ̂_a(k − L)``.
 4. Axis load (Eq. 3.11/3.12): ``F = η·τ̂_a/r_g`` (N, linear axes; N·m at the table, rotary);
    a rotary axis with a moment arm ``d`` also gives ``F = η·τ̂_a/(r_g·d)`` (Eq. 3.12).
