@@ -70,8 +70,12 @@ DEFAULT_LOWPASS_HZ = 600.0
 #: sgn(ω) of the estimator's friction is tanh(ω/ω_s); ω_s = 5 speed quanta of a 2²⁰-count
 #: encoder at 10 kHz (decision "friction sign smoothing in the estimator").
 DEFAULT_FRICTION_SMOOTHING_RAD_S = 0.3
-#: Relative shift of the mode frequencies the tuning must tolerate (decision "robust Q tuning").
-ROBUST_SHIFT = 0.0
+#: Relative shift of the mode frequencies the tuning must tolerate (decision "Robust feed
+#: estimator for position-dependent modes"): modes anywhere within ±2 % of the identified ones.
+ROBUST_SHIFT = 0.02
+#: Band the compensated FRF must be flat in (Aslan Fig. 3.8, C6), Hz: the robust tuning's
+#: tie-break between designs of equal worst-case band.
+TARGET_BAND_HZ = {"linear": 180.0, "rotary": 120.0}
 
 
 def scale_modes(modes: ModalStateSpace, frequency_scale: float) -> ModalStateSpace:
@@ -103,6 +107,9 @@ class FeedAxisModel:
     moment_arm_m : d of Eq. 3.12 for a rotary axis (None: no force output, only the torque).
     lugre : identified LuGre friction (C2) used by the C3 stage instead of ``drive.friction``
         (static part from the line fit, σ0 and σ1 from a presliding test), or None.
+    design_damping : γ of :func:`millsense.estimation.tuning.robust_fit`: the Kalman filter is
+        designed on Φ_d with every mode's pole moved left by γ·|p| (robust to position-dependent
+        mode frequencies); 0 = the identified Φ_d itself.
     """
 
     axis: str
@@ -115,6 +122,7 @@ class FeedAxisModel:
     sample_rate_hz: float = 10_000.0
     moment_arm_m: float | None = None
     lugre: LuGre | None = None
+    design_damping: float = 0.0
 
     @classmethod
     def from_config(
@@ -145,7 +153,9 @@ class FeedAxisModel:
         -------
         FeedAxisModel with Φ_d = the table's ``disturbance_modes`` (Eq. 3.13, pole–residue form),
         R and Q from ``[axes.<axis>.estimator]`` when given, else R from ``current_noise_a``
-        and Q from :func:`millsense.estimation.tuning.tune_q`.
+        and Q from :func:`millsense.estimation.tuning.tune_robust` for the key
+        ``estimator.mode_shift_pct`` (default 2 %; the design damping is always chosen there
+        when the key is > 0) or :func:`millsense.estimation.tuning.tune_q` when it is 0.
 
         Raises
         ------
@@ -208,6 +218,19 @@ class FeedAxisModel:
         kind: Literal["linear", "rotary"] = cfg.kind
         model = cls(axis, kind, drive, fit, lowpass, r, 1000.0, sample_rate_hz, None, lugre)
         q = est.q_nm2_s if est is not None else None
+        shift = (est.mode_shift_pct if est is not None else 100.0 * ROBUST_SHIFT) / 100.0
+        if shift > 0:
+            rob = tuning.tune_robust(
+                fit,
+                lambda m: measurement_model(m, lowpass, 1.0 / sample_rate_hz),
+                r,
+                shift=shift,
+                q=q,
+                bounds=q_bounds,
+                lag=ASLAN_LAG_SAMPLES,
+                f_target_hz=TARGET_BAND_HZ[kind],
+            )
+            return replace(model, q=rob.q, design_damping=rob.damping)
         if q is None:
             q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds).q
         return replace(model, q=float(q))
@@ -223,8 +246,16 @@ class FeedAxisModel:
         )
 
     def measurement_model(self) -> StateSpaceModel:
-        """Discrete model τ_a → low-passed C3 torque: see :func:`measurement_model`."""
-        return measurement_model(self.disturbance, self.lowpass_hz, self.dt)
+        """Discrete design model τ_a → low-passed C3 torque: see :func:`measurement_model`.
+
+        Φ_d is :attr:`disturbance` with :attr:`design_damping` added to its modes.
+        """
+        from millsense.estimation.tuning import robust_fit
+
+        fit = self.disturbance
+        if self.design_damping > 0:
+            fit = robust_fit(fit, self.design_damping)
+        return measurement_model(fit, self.lowpass_hz, self.dt)
 
     def design(self, q: float | None = None, r: float | None = None) -> KalmanDesign:
         """Steady-state Kalman design on :meth:`measurement_model` (q, r default to the model's)."""
@@ -812,8 +843,10 @@ def identify_feed_axis(
     q_bounds : search range of Q, (N·m)²/s.
     use_lugre : identify LuGre friction (:func:`identify_lugre`) for the C3 stage (C2);
         otherwise the static Coulomb + viscous line fit is used.
-    robust_shift : Q maximises the smallest bandwidth over the identified modes and the modes
-        with frequencies × (1 ± robust_shift) (position-dependent modes); 0 for nominal tuning.
+    robust_shift : δ, relative uncertainty of the mode frequencies (position dependence): Q and
+        the design damping are chosen by :func:`millsense.estimation.tuning.tune_robust` to
+        maximise the smallest ±3 dB band over the modes × κ, κ ∈ [1 − δ, 1 + δ]; 0 for the
+        nominal :func:`~millsense.estimation.tuning.tune_q`.
     seed : base seed of the simulated tests.
 
     Returns
@@ -848,13 +881,19 @@ def identify_feed_axis(
     tau_air = c3.process(res["current_cmd"], res["speed"])
     r = tuning.air_cut_variance(tau_air[round(0.2 * fs) :])
     model = FeedAxisModel(axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre)
-    if tune:
-        plants = [
-            measurement_model(modes.scaled(1.0 + s), lowpass_hz, 1.0 / fs)
-            for s in (-robust_shift, robust_shift)
-            if robust_shift > 0
-        ]
-        q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds, plants=plants).q
+    if tune and robust_shift > 0:
+        rob = tuning.tune_robust(
+            modes,
+            lambda m: measurement_model(m, lowpass_hz, 1.0 / fs),
+            r,
+            shift=robust_shift,
+            bounds=q_bounds,
+            lag=ASLAN_LAG_SAMPLES,
+            f_target_hz=TARGET_BAND_HZ[kind],
+        )
+        model = replace(model, q=rob.q, design_damping=rob.damping)
+    elif tune:
+        q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds).q
         model = replace(model, q=q)
     return model, sweep
 
