@@ -364,7 +364,8 @@ def tune_robust(
     shift : δ, relative mode-frequency uncertainty (0.02 = modes anywhere within ±2 %).
     n_family : members of :func:`mode_family`.
     damping_fractions : added damping γ tried, as fractions of δ (0 = the identified model).
-    q : fixed Q, (N·m)²/s (only γ is chosen), or None to search Q too.
+    q : fixed Q, (N·m)²/s (only γ is chosen, the user's Q is not checked against the noise
+        limit), or None to search Q too.
     bounds, q_per_decade : log grid of Q, (N·m)²/s.
     f_max_hz, df_hz, fine_to_hz : frequency grid 0 … f_max_hz, Hz, with step df_hz up to
         fine_to_hz (the lightly damped modes have half-power widths of about 1 Hz) and 1 Hz above.
@@ -406,7 +407,7 @@ def tune_robust(
             assert model.dt is not None
             d = design_kalman(aug, qi * model.dt, r)
             ng = noise_gain(d)
-            if ng > max_noise_gain:
+            if ng > max_noise_gain and q is None:
                 continue
             est = estimator_frf(d, f, lag)
             band = min(bandwidth_3db(f, p * est) for p in plants)
