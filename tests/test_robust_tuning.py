@@ -13,7 +13,7 @@ from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig, MachineCo
 from millsense.core.presets import load_preset
 from millsense.estimation import tuning
 from millsense.estimation.feed_drive import FeedAxisModel, measurement_model
-from millsense.estimation.kalman import augment_disturbance, design_kalman
+from millsense.estimation.kalman import StateSpaceModel, augment_disturbance, design_kalman
 from millsense.estimation.models import aslan_disturbance_modes
 from millsense.estimation.rational_fit import RationalFit
 from millsense.estimation.smoother import FixedLagSmoother
@@ -21,7 +21,7 @@ from millsense.estimation.smoother import FixedLagSmoother
 DT = 1e-4
 
 
-def _meas(fit: RationalFit):  # type: ignore[no-untyped-def]
+def _meas(fit: RationalFit) -> StateSpaceModel:
     return measurement_model(fit, 600.0, DT)
 
 
@@ -51,7 +51,9 @@ def test_robust_fit_is_the_cauchy_mean_of_a_mode_with_uncertain_frequency() -> N
 
         def term(eps: float, part: int, s: complex = s) -> float:
             w = gamma / (math.pi * (eps**2 + gamma**2))
-            h = rho / (s - p - 1j * abs(p) * eps) + np.conj(rho) / (s - np.conj(p) + 1j * abs(p) * eps)
+            h = rho / (s - p - 1j * abs(p) * eps) + np.conj(rho) / (
+                s - np.conj(p) + 1j * abs(p) * eps
+            )
             return float((h.real if part == 0 else h.imag) * w)
 
         re = integrate.quad(term, -np.inf, np.inf, args=(0,), limit=400, epsabs=1e-12)[0]
@@ -103,7 +105,9 @@ def test_robust_design_beats_the_nominal_design_on_the_family() -> None:
     assert nom.damping == 0.0 and rob.damping > 0.0
     assert rob.worst_db < nom.worst_db - 1.0
     assert rob.bandwidth_hz > 3.0 * nom.bandwidth_hz
-    assert rob.bandwidth_hz <= rob.bound_band_hz + 0.1 and rob.bandwidth_hz > 0.98 * rob.bound_band_hz
+    assert (
+        rob.bandwidth_hz <= rob.bound_band_hz + 0.1 and rob.bandwidth_hz > 0.98 * rob.bound_band_hz
+    )
     assert rob.worst_db >= rob.bound_db - 1e-9
     assert rob.noise_gain <= math.sqrt(10.0)
 
