@@ -318,6 +318,8 @@ class RobustTuning:
     nominal_bandwidth_hz : ±3 dB band on the identified model, Hz.
     worst_db : largest deviation over the family in 1 Hz … ``f_target_hz``, dB.
     nominal_worst_db : the same on the identified model, dB.
+    nominal_error : RMS over 1 Hz … ``f_target_hz`` of ``|Φ_d·Φ_KF − 1|`` on the identified
+        model (complex: magnitude and phase of the time-aligned estimate), dimensionless.
     bound_db, bound_band_hz : :func:`flatness_bound` of the family (no LTI estimator does better).
     noise_gain : white-noise gain of the filter.
     """
@@ -329,6 +331,7 @@ class RobustTuning:
     nominal_bandwidth_hz: float
     worst_db: float
     nominal_worst_db: float
+    nominal_error: float
     bound_db: float
     bound_band_hz: float
     noise_gain: float
@@ -370,13 +373,15 @@ def tune_robust(
     f_max_hz, df_hz, fine_to_hz : frequency grid 0 … f_max_hz, Hz, with step df_hz up to
         fine_to_hz (the lightly damped modes have half-power widths of about 1 Hz) and 1 Hz above.
     f_target_hz : target band of the axis, Hz: the tie-break between designs of equal family
-        band is the nominal flatness over 1 Hz … f_target_hz.
+        band is the nominal error over 1 Hz … f_target_hz.
     lag : smoother lag the estimator runs with (the criterion uses its FRF), samples.
     max_noise_gain : largest admissible white-noise gain (as :func:`tune_q`).
     band_tolerance : designs whose family band is within this fraction of the best are
-        equivalent; among them the smallest nominal deviation over 1 Hz … f_target_hz wins
-        (the family band is often capped by :func:`flatness_bound` for many designs, which then
-        differ only in how well they compensate the identified model), then the smallest Q.
+        equivalent; among them the smallest RMS complex error ``|Φ_d·Φ_KF − 1|`` on the
+        identified model over 1 Hz … f_target_hz wins (the family band is often capped by
+        :func:`flatness_bound` for many designs, which then differ only in how well they
+        compensate the identified model, in magnitude and phase: the smoothed estimate is time
+        aligned), then the smallest Q.
 
     Notes
     -----
@@ -398,7 +403,7 @@ def tune_robust(
         qs = 10.0 ** np.linspace(lo, hi, max(2, round((hi - lo) * q_per_decade) + 1))
     else:
         qs = np.array([float(q)])
-    rows: list[tuple[float, float, float, float, float, float, float]] = []
+    rows: list[tuple[float, float, float, float, float, float, float, float]] = []
     for frac in damping_fractions:
         gamma = float(frac) * shift
         model = measurement(robust_fit(fit, gamma))
@@ -418,6 +423,7 @@ def tune_robust(
                     band,
                     bandwidth_3db(f, nom),
                     float(np.max(deviation_db(nom[tgt]))),
+                    float(np.sqrt(np.mean(np.abs(nom[tgt] - 1.0) ** 2))),
                     worst,
                     gamma,
                     float(qi),
@@ -430,7 +436,9 @@ def tune_robust(
         )
     best_band = max(rw[0] for rw in rows)
     ok = [rw for rw in rows if rw[0] >= (1.0 - band_tolerance) * best_band]
-    band, nom_band, nom_worst, worst, gamma, qb, ng = min(ok, key=lambda rw: (rw[2], rw[5]))
+    band, nom_band, nom_worst, nom_err, worst, gamma, qb, ng = min(
+        ok, key=lambda rw: (rw[3], rw[6])
+    )
     return RobustTuning(
-        qb, gamma, shift, band, nom_band, worst, nom_worst, bound_db, bound_band, ng
+        qb, gamma, shift, band, nom_band, worst, nom_worst, nom_err, bound_db, bound_band, ng
     )
