@@ -271,8 +271,8 @@ class FeedEstimatorConfig(_Model):
     """Tuning of an axis' Kalman force estimator (``[axes.x.estimator]``, all optional).
 
     Absent keys are chosen at start-up (:meth:`millsense.estimation.feed_drive.FeedAxisModel.
-    from_config`): R from ``current_noise_a`` through the C3 low-pass, Q by the bandwidth
-    optimisation of :func:`millsense.estimation.tuning.tune_q`.
+    from_config`): R from ``current_noise_a`` through the C3 low-pass, Q (and the design damping)
+    by the robust bandwidth optimisation of :func:`millsense.estimation.tuning.tune_robust`.
     """
 
     r_nm2: Annotated[float, Field(gt=0, le=1e6)] | None = None
@@ -281,6 +281,11 @@ class FeedEstimatorConfig(_Model):
     """Spectral density of the disturbance torque's rate, (N·m)²/s (Aslan Eq. 3.30 Q)."""
     lowpass_hz: Annotated[float, Field(gt=0, le=1e5)] | None = None
     """Corner of the C3 torque low-pass, Hz (default 600 Hz)."""
+    mode_shift_pct: Annotated[float, Field(ge=0, le=20)] = 0.0
+    """Robustness margin: the disturbance-mode frequencies may lie anywhere within ± this
+    percentage of the identified ones (position dependence); Q and the design damping maximise
+    the worst-case ±3 dB band over that family (:func:`millsense.estimation.tuning.tune_robust`).
+    0 = nominal tuning on the identified modes only."""
 
 
 class FeedAxisConfig(_Model):

@@ -16,11 +16,12 @@ does not depend on the chunking.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal
 
+from millsense.core.config import FeedAxisConfig
 from millsense.core.recording import ChannelInfo
 from millsense.machine.friction import CoulombViscous
 from millsense.online.block import Block, BlockOutput, Chunk
@@ -39,6 +40,52 @@ class DriveModel:
     transmission: float
     efficiency: float
     friction: CoulombViscous
+
+    @classmethod
+    def from_config(cls, cfg: FeedAxisConfig, friction_smoothing_rad_s: float) -> DriveModel:
+        """The rigid-body drive of an axis table: nameplate K_t, r_g, η; J_e and the viscous
+        friction of :func:`rigid_limit` (a ball-screw axis's table inertia and damping
+        included); Coulomb + viscous friction with sgn(ω) smoothed over
+        ``friction_smoothing_rad_s``."""
+        inertia, damping = rigid_limit(cfg)
+        fric = CoulombViscous.from_config(cfg.friction, friction_smoothing_rad_s)
+        fric = replace(
+            fric, viscous_pos=fric.viscous_pos + damping, viscous_neg=fric.viscous_neg + damping
+        )
+        return cls(inertia, cfg.torque_constant_nm_a, cfg.transmission_m_rad, cfg.efficiency, fric)
+
+
+def rigid_limit(cfg: FeedAxisConfig) -> tuple[float, float]:
+    """Inertia and viscous damping of an axis seen rigidly at the motor (Aslan Eq. 3.10 terms).
+
+    Parameters
+    ----------
+    cfg : the axis table.
+
+    Returns
+    -------
+    (J_e kg·m², D_e N·m·s/rad) : J_e = ``inertia_kg_m2`` and D_e = 0 for an axis without
+    ``[axes.<a>.ball_screw]`` (its viscous friction is the friction table's); with a ball
+    screw the rigid-body limit of Yamada's plant.
+
+    Notes
+    -----
+    Dual inertia (Yamada Eq. 2-1/2-2) with the screw rigid (x_t = R·θ_m): the two equations
+    summed give ``(J_r + M_t·R²)·θ̈ + (D_r + C_t·R²)·θ̇ = τ_m − F·R`` (the axial spring and its
+    damping C_k act on R·θ − x_t = 0 only). Triple inertia (Eq. 2-45…2-47) likewise:
+    ``J_r + (M_n + M_t)·R²`` and ``D_r + (C_n + C_t)·R²``. ``inertia_kg_m2`` of a ball-screw
+    axis is J_r alone (the table is in ``ball_screw``), so the C3 estimate that used it missed
+    the table's inertia and, at constant feed, the damping thrust ``D_r·ω/R + C_t·v`` (decision
+    "Raw estimate of a ball-screw axis", docs/decisions.md).
+    """
+    bs = cfg.ball_screw
+    if bs is None:
+        return cfg.inertia_kg_m2, 0.0
+    r = cfg.transmission_m_rad
+    triple = bs.model == "triple"
+    mass = bs.table_mass_kg + ((bs.nut_mass_kg or 0.0) if triple else 0.0)
+    damp = bs.table_damping_n_s_m + (bs.nut_damping_n_s_m if triple else 0.0)
+    return cfg.inertia_kg_m2 + mass * r * r, bs.rotary_damping_nm_s_rad + damp * r * r
 
 
 class RigidBodyForceEstimator(Block):

@@ -13,13 +13,22 @@
   the measurement's — the thesis' "SNR > 10 dB" criterion of Ch. 5.3 read on the noise side).
   Robust option: the bandwidth is the smallest over the design model and variants of it
   (``plants``, e.g. the identified modes shifted by ±2 % for position dependence).
+- Robust design for position-dependent modes (issue 7, :func:`tune_robust`): the estimator knows
+  that its modes move by up to ±δ with the axis position but not where they are. The design
+  maximises the smallest ±3 dB band over the family of plants with every mode frequency × κ,
+  κ ∈ [1 − δ, 1 + δ] (:func:`mode_family`), over two variables: Q and an added damping γ of the
+  estimator's own model (:func:`robust_fit`, every complex pole moved left by γ·|p|: the
+  expected FRF when the relative mode frequency is Cauchy-distributed with scale γ, i.e. the
+  mean plant of the family instead of its nominal member). :func:`flatness_bound` gives the
+  limit no linear time-invariant estimator can beat on such a family (docs/decisions.md,
+  "Robust feed estimator for position-dependent modes").
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,6 +43,8 @@ from millsense.estimation.kalman import (
     compensated_frf,
     design_kalman,
 )
+from millsense.estimation.rational_fit import RationalFit
+from millsense.estimation.smoother import fixed_lag_gains
 
 
 def air_cut_variance(torque_nm: ArrayLike, trend_hz: float = 2.0, fs: float = 10_000.0) -> float:
@@ -144,3 +155,292 @@ def tune_q(
     best_logq, best_bw = (float(res.x), -float(res.fun)) if -res.fun > bw[i] else (grid[i], bw[i])
     d = _design(model, 10.0**best_logq, r)
     return QTuning(10.0**best_logq, float(best_bw), noise_gain(d), 10.0**grid, bw)
+
+
+# ---------------------------------------------------------------------------------------------
+# Robust design for position-dependent modes
+# ---------------------------------------------------------------------------------------------
+
+#: Relative mode-frequency uncertainty the feed estimators are designed for by default (±2 %).
+DEFAULT_MODE_SHIFT = 0.02
+#: Added damping of the design model tried by :func:`tune_robust`, as fractions of the shift δ.
+DAMPING_FRACTIONS = (0.0, 0.125, 0.25, 0.5, 1.0)
+
+
+def mode_family(fit: RationalFit, shift: float, n: int = 9) -> list[RationalFit]:
+    """The identified model with every mode frequency × κ, κ evenly in [1 − shift, 1 + shift].
+
+    Parameters
+    ----------
+    fit : identified Φ_d (pole–residue form).
+    shift : relative frequency uncertainty δ (0.02 = ±2 %), ≥ 0.
+    n : members (odd n includes the nominal κ = 1); 1 gives the nominal model only.
+
+    Notes
+    -----
+    Complex pole p → κ·p and residue ρ → κ·ρ (the term ρ/(s − p) + c.c. keeps its static gain,
+    as the simulator's ``scale_modes`` keeps α/ω²); real poles (loop dynamics seen through the
+    C3 torque, not structural modes) and the constant term are unchanged.
+    """
+    if not shift >= 0:
+        raise InputDataError(f"mode family: shift must be >= 0, got {shift}")
+    kappas = np.linspace(1.0 - shift, 1.0 + shift, n) if n > 1 else np.ones(1)
+    return [
+        replace(fit, complex_poles=fit.complex_poles * k, complex_residues=fit.complex_residues * k)
+        for k in kappas
+    ]
+
+
+def robust_fit(fit: RationalFit, damping: float) -> RationalFit:
+    """Design model with every complex pole moved left by ``damping·|p|`` (residues unchanged).
+
+    Parameters
+    ----------
+    fit : identified Φ_d.
+    damping : γ, dimensionless (added damping ratio, approximately: ζ → ζ + γ), ≥ 0.
+
+    Notes
+    -----
+    If the relative frequency of a mode is uncertain, its pole moves along the imaginary axis,
+    p → p + j|p|ε (≈ p·(1 + ε) for a lightly damped mode; the conjugate pole mirrored), and ε is
+    Cauchy-distributed with scale γ, then for s on the imaginary axis (Re(s − p) > 0)
+    ``E[ρ/(s − p − j|p|ε)] = ρ/(s − p + γ|p|)`` (close the contour in the half plane of the
+    Cauchy pole ε = jγ): the mean FRF is the same mode with its pole moved left by γ|p|. The
+    estimator inverting this mean plant does not trust the sharp resonance it cannot locate.
+    Tested by quadrature in ``tests/test_robust_tuning.py``.
+    """
+    if not damping >= 0:
+        raise InputDataError(f"robust model: damping must be >= 0, got {damping}")
+    p = fit.complex_poles
+    return replace(fit, complex_poles=p - damping * np.abs(p))
+
+
+def _frf_eig(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    c: NDArray[np.float64],
+    d: float,
+    dt: float,
+    f: NDArray[np.float64],
+) -> NDArray[np.complex128]:
+    """SISO discrete FRF ``c (zI − a)⁻¹ b + d`` on many frequencies via the eigenbasis of a."""
+    lam, v = np.linalg.eig(a)
+    vb = np.linalg.solve(v, b.reshape(-1))
+    cv = c.reshape(-1) @ v
+    z = np.exp(2j * np.pi * f * dt)
+    return np.asarray((cv * vb) @ (1.0 / (z[None, :] - lam[:, None])) + d, dtype=complex)
+
+
+def model_frf(model: StateSpaceModel, f_hz: ArrayLike) -> NDArray[np.complex128]:
+    """FRF of a discrete SISO model (vectorised equivalent of ``model.frf(f)[:, 0, 0]``)."""
+    if model.dt is None:
+        raise InputDataError("model_frf needs a discrete model")
+    f = np.asarray(f_hz, dtype=float)
+    return _frf_eig(model.a, model.b, model.c, float(model.d[0, 0]), model.dt, f)
+
+
+def estimator_frf(design: KalmanDesign, f_hz: ArrayLike, lag: int = 0) -> NDArray[np.complex128]:
+    """FRF measured torque → τ̂_a of the filter (lag 0) or of the fixed-lag smoother, realigned.
+
+    Parameters
+    ----------
+    design : steady-state Kalman design.
+    f_hz : frequencies, Hz.
+    lag : smoother lag L, samples (0: filtered estimate ``τ̂_a(k|k)``).
+
+    Notes
+    -----
+    Smoother (:mod:`millsense.estimation.smoother`): ``τ̂(k−L|k) = S x̂(k−L|k−L−1) +
+    Σ_j g_j e(k−L+j)``; advanced by L samples its FRF is ``S X̂_p(z) + Σ_j g_j z^j E(z)`` with
+    ``X̂_p`` and ``E`` the predictor-state and innovation responses to the measurement.
+    """
+    f = np.asarray(f_hz, dtype=float)
+    if lag == 0:
+        filt = design.filter("filtered")
+        return _frf_eig(filt.f, filt.g, filt.h, float(filt.j[0, 0]), design.dt, f)
+    taps, _ = fixed_lag_gains(design, lag)
+    acl, kp = design.closed_loop, design.k_predictor[:, 0]
+    lam, v = np.linalg.eig(acl)
+    vk = np.linalg.solve(v, kp)
+    z = np.exp(2j * np.pi * f * design.dt)
+    modal = vk[None, :] / (z[:, None] - lam[None, :])  # (nf, n): predicted state, eigenbasis
+    e = 1.0 - modal @ (design.c[0] @ v)
+    poly = np.polynomial.polynomial.polyval(z, taps[:, 0, 0])
+    return np.asarray(modal @ (design.disturbance[0] @ v) + poly * e, dtype=complex)
+
+
+def deviation_db(h: ArrayLike) -> NDArray[np.float64]:
+    """``|20·log₁₀|H||``, dB (the deviation of a compensated FRF from 0 dB)."""
+    return np.asarray(np.abs(20 * np.log10(np.maximum(np.abs(np.asarray(h)), 1e-300))))
+
+
+def flatness_bound(
+    plant_frfs: ArrayLike, f_hz: ArrayLike, f_max_hz: float, tol_db: float = 3.0
+) -> tuple[float, float]:
+    """Best worst-case flatness any LTI estimator can reach on a family of plants.
+
+    Parameters
+    ----------
+    plant_frfs : (members, nf) FRFs of the family at ``f_hz``.
+    f_hz : frequencies, Hz.
+    f_max_hz : upper end of the flatness check, Hz (from 1 Hz).
+    tol_db : band half-width, dB.
+
+    Returns
+    -------
+    (worst_db, band_hz): the smallest achievable largest deviation over the family in
+    1 Hz … ``f_max_hz``, dB; and the largest achievable common ±``tol_db`` band, Hz
+    (``f_hz[-1]`` if never limited).
+
+    Notes
+    -----
+    At each frequency an estimator is one complex gain C; the family's compensated values are
+    ``Φ_κ·C``. ``max_κ |log|Φ_κ C||`` is smallest for ``|C| = (max|Φ_κ|·min|Φ_κ|)^(-1/2)`` and then
+    equals ``½·20·log₁₀(max|Φ_κ| / min|Φ_κ|)``; no causal estimator does better.
+    """
+    mag = np.abs(np.atleast_2d(np.asarray(plant_frfs)))
+    f = np.asarray(f_hz, dtype=float)
+    half = 10.0 * np.log10(mag.max(axis=0) / np.maximum(mag.min(axis=0), 1e-300))
+    sel = (f >= 1.0) & (f <= f_max_hz)
+    worst = float(np.max(half[sel])) if np.any(sel) else 0.0
+    out = np.nonzero((half >= tol_db) & (f >= 1.0))[0]
+    return worst, float(f[out[0]]) if len(out) else float(f[-1])
+
+
+@dataclass(frozen=True)
+class RobustTuning:
+    """Result of :func:`tune_robust`.
+
+    Attributes
+    ----------
+    q : spectral density of τ̇_a, (N·m)²/s.
+    damping : added damping γ of the design model (:func:`robust_fit`).
+    shift : the relative mode-frequency uncertainty δ designed for.
+    bandwidth_hz : smallest ±3 dB band over the family, Hz.
+    nominal_bandwidth_hz : ±3 dB band on the identified model, Hz.
+    worst_db : largest deviation over the family in 1 Hz … ``f_target_hz``, dB.
+    nominal_worst_db : the same on the identified model, dB.
+    nominal_error : RMS over 1 Hz … ``f_target_hz`` of ``|Φ_d·Φ_KF − 1|`` on the identified
+        model (complex: magnitude and phase of the time-aligned estimate), dimensionless.
+    bound_db, bound_band_hz : :func:`flatness_bound` of the family (no LTI estimator does better).
+    noise_gain : white-noise gain of the filter.
+    """
+
+    q: float
+    damping: float
+    shift: float
+    bandwidth_hz: float
+    nominal_bandwidth_hz: float
+    worst_db: float
+    nominal_worst_db: float
+    nominal_error: float
+    bound_db: float
+    bound_band_hz: float
+    noise_gain: float
+
+
+def tune_robust(
+    fit: RationalFit,
+    measurement: Callable[[RationalFit], StateSpaceModel],
+    r: float,
+    *,
+    shift: float = DEFAULT_MODE_SHIFT,
+    n_family: int = 9,
+    damping_fractions: Sequence[float] = DAMPING_FRACTIONS,
+    q: float | None = None,
+    bounds: tuple[float, float] = (1.0, 1e7),
+    q_per_decade: int = 4,
+    f_max_hz: float = 1000.0,
+    df_hz: float = 0.1,
+    fine_to_hz: float = 300.0,
+    f_target_hz: float = 180.0,
+    lag: int = 0,
+    max_noise_gain: float = math.sqrt(10.0),
+    band_tolerance: float = 0.01,
+) -> RobustTuning:
+    """Q and design-model damping maximising the smallest ±3 dB band over a mode-shift family.
+
+    Parameters
+    ----------
+    fit : identified Φ_d.
+    measurement : builds the discrete τ_a → measurement model from a Φ_d (e.g.
+        ``lambda m: feed_drive.measurement_model(m, lowpass_hz, dt)``).
+    r : per-sample measurement variance, N²·m².
+    shift : δ, relative mode-frequency uncertainty (0.02 = modes anywhere within ±2 %).
+    n_family : members of :func:`mode_family`.
+    damping_fractions : added damping γ tried, as fractions of δ (0 = the identified model).
+    q : fixed Q, (N·m)²/s (only γ is chosen, the user's Q is not checked against the noise
+        limit), or None to search Q too.
+    bounds, q_per_decade : log grid of Q, (N·m)²/s.
+    f_max_hz, df_hz, fine_to_hz : frequency grid 0 … f_max_hz, Hz, with step df_hz up to
+        fine_to_hz (the lightly damped modes have half-power widths of about 1 Hz) and 1 Hz above.
+    f_target_hz : target band of the axis, Hz: the tie-break between designs of equal family
+        band is the nominal error over 1 Hz … f_target_hz.
+    lag : smoother lag the estimator runs with (the criterion uses its FRF), samples.
+    max_noise_gain : largest admissible white-noise gain (as :func:`tune_q`).
+    band_tolerance : designs whose family band is within this fraction of the best are
+        equivalent; among them the smallest RMS complex error ``|Φ_d·Φ_KF − 1|`` on the
+        identified model over 1 Hz … f_target_hz wins (the family band is often capped by
+        :func:`flatness_bound` for many designs, which then differ only in how well they
+        compensate the identified model, in magnitude and phase: the smoothed estimate is time
+        aligned), then the smallest Q.
+
+    Notes
+    -----
+    Criterion: ``max_{γ,Q} min_κ bandwidth_3db(Φ_κ·Φ_KF(γ, Q))`` subject to the noise limit, with
+    ``Φ_KF(γ, Q)`` the estimator designed on :func:`robust_fit` ``(fit, γ)``. With ``shift`` 0 the
+    family is the nominal model alone and γ = 0 is chosen unless damping widens the band.
+    """
+    if not r > 0:
+        raise InputDataError(f"tuning: R must be > 0, got {r}")
+    fine = np.arange(0.0, min(fine_to_hz, f_max_hz), df_hz)
+    f = np.concatenate([fine, np.arange(fine[-1] + 1.0, f_max_hz + 0.5, 1.0)])
+    family = mode_family(fit, shift, n_family if shift > 0 else 1)
+    plants = np.array([model_frf(measurement(m), f) for m in family])
+    nominal = model_frf(measurement(fit), f)
+    bound_db, bound_band = flatness_bound(plants, f, f_target_hz)
+    tgt = (f >= 1.0) & (f <= f_target_hz)
+    if q is None:
+        lo, hi = math.log10(bounds[0]), math.log10(bounds[1])
+        qs = 10.0 ** np.linspace(lo, hi, max(2, round((hi - lo) * q_per_decade) + 1))
+    else:
+        qs = np.array([float(q)])
+    rows: list[tuple[float, float, float, float, float, float, float, float]] = []
+    for frac in damping_fractions:
+        gamma = float(frac) * shift
+        model = measurement(robust_fit(fit, gamma))
+        aug = augment_disturbance(model)
+        for qi in qs:
+            assert model.dt is not None
+            d = design_kalman(aug, qi * model.dt, r)
+            ng = noise_gain(d)
+            if ng > max_noise_gain and q is None:
+                continue
+            est = estimator_frf(d, f, lag)
+            band = min(bandwidth_3db(f, p * est) for p in plants)
+            worst = max(float(np.max(deviation_db(p[tgt] * est[tgt]))) for p in plants)
+            nom = nominal * est
+            rows.append(
+                (
+                    band,
+                    bandwidth_3db(f, nom),
+                    float(np.max(deviation_db(nom[tgt]))),
+                    float(np.sqrt(np.mean(np.abs(nom[tgt] - 1.0) ** 2))),
+                    worst,
+                    gamma,
+                    float(qi),
+                    ng,
+                )
+            )
+    if not rows:
+        raise InputDataError(
+            f"robust tuning: no Q in {bounds} meets the noise gain limit {max_noise_gain:g}"
+        )
+    best_band = max(rw[0] for rw in rows)
+    ok = [rw for rw in rows if rw[0] >= (1.0 - band_tolerance) * best_band]
+    band, nom_band, nom_worst, nom_err, worst, gamma, qb, ng = min(
+        ok, key=lambda rw: (rw[3], rw[6])
+    )
+    return RobustTuning(
+        qb, gamma, shift, band, nom_band, worst, nom_worst, nom_err, bound_db, bound_band, ng
+    )

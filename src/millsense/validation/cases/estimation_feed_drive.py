@@ -11,10 +11,16 @@ Mismatch between simulator and estimator (stated beside every figure):
 - identified, not true parameters (friction line fit, J_e, a rational fit of a noisy sweep);
 - the simulator runs LuGre friction (Table 3.2), the estimator Coulomb + viscous, and the
   simulator's Coulomb and static friction are 15 % higher than at identification (drift);
-- an unmodelled mode at 420 Hz (ζ 3 %, α 2·10⁵) above the identification band;
+- an unmodelled mode at 420 Hz (ζ 3 %, α 2·10⁵) above the 3–260 Hz fit band, in the machine at
+  commissioning and while cutting (:func:`~millsense.estimation.feed_drive.commissioning_drive`);
 - torque noise (Eq. 3.30), 2²⁰-count encoder quantisation, the 1 kHz current loop between the
   current command the estimator reads and the motor torque;
-- "shifted" cases only: all disturbance-mode frequencies 2 % higher (position dependence).
+- "shifted" cases only: all disturbance-mode frequencies 2 % higher, or lower (position
+  dependence). The estimator is designed for modes anywhere within ±2 % of the identified ones
+  (:func:`millsense.estimation.tuning.tune_robust`); ``estimation.feed_robust_band_at_lti_limit``
+  compares its worst-case band with the limit of any linear estimator
+  (:func:`~millsense.estimation.tuning.flatness_bound`) and tabulates the analytic deviation
+  per shift (docs/decisions.md, "Robust feed estimator for position-dependent modes").
 
 The compensated FRF is measured, not computed: a multisine table load (1–300 Hz, 1 Hz lines,
 5 N·m RMS at the motor, 16 averaged periods) is applied during a constant-velocity move, the
@@ -51,13 +57,13 @@ def _identified(
 ) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import identify_feed_axis
+    from millsense.estimation.feed_drive import commissioning_drive, identify_feed_axis
     from millsense.machine.feed_drive import FeedDriveParams
 
     ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
     params = FeedDriveParams.from_config(ax)
     model, sweep = identify_feed_axis(
-        params, axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
+        commissioning_drive(params), axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
     )
     return params, model, sweep
 
@@ -131,7 +137,8 @@ def _table(frequency_scale: float) -> str:
 _MISMATCH = (
     "Mismatch: identified parameters (rational fit of a simulated sweep, friction line fit, "
     "J_e from an accelerating move), LuGre friction +15 % in the simulator vs Coulomb+viscous in "
-    "the estimator, unmodelled 420 Hz mode, torque noise (Eq. 3.30), encoder quantisation, "
+    "the estimator, unmodelled 420 Hz mode (present at identification, not in the model), "
+    "torque noise (Eq. 3.30), encoder quantisation, "
     "1 kHz current loop"
 )
 
@@ -198,6 +205,127 @@ def _linear_shift() -> Measured:
 def _raw() -> Measured:
     worst = max(compensated_bandwidth(a, 1.0)["raw_hz"] for a in AXES)
     return Measured(worst, _table(1.0))
+
+
+@case(
+    "estimation.feed_linear_flat_to_180hz_modes_shifted_minus_2pct",
+    source="seed 000 V3; sensitivity to position-dependent modes (not in the thesis)",
+    reference=0.0,
+    unit="dB",
+    abs_tol=3.0,
+    quick=False,
+    description="as estimation.feed_linear_flat_to_180hz with every disturbance-mode "
+    "frequency 2 % lower in the simulator than at identification (Z's 183 Hz mode, ζ 0.3 %, "
+    "then lies at 179.6 Hz; tuning.flatness_bound: no LTI estimator stays within 6.9 dB of it "
+    "for modes anywhere in ±2 %). " + _MISMATCH,
+)
+def _linear_shift_minus() -> Measured:
+    return _worst_db("linear", 0.98)
+
+
+#: relative mode shifts of the analytic robustness table
+ANALYTIC_SHIFTS = (-0.02, -0.01, 0.0, 0.01, 0.02)
+
+
+@cache
+def robustness(axis: str) -> dict[str, float]:
+    """Analytic compensated FRF (estimator × shifted identified model), robust vs nominal design.
+
+    Plants: the identified Φ_d with every mode frequency × (1 + s) in series with the C3
+    low-pass (what the estimator's own tuning evaluates); estimators: the smoothed output of the
+    robust design (:func:`~millsense.estimation.tuning.tune_robust` for ±2 %, the
+    ``mode_shift_pct = 2`` option) and of the design tuned on the identified model alone
+    (``tune_q``, the default).
+    """
+    from millsense.estimation import tuning
+    from millsense.estimation.feed_drive import ASLAN_LAG_SAMPLES, measurement_model
+    from millsense.estimation.kalman import augment_disturbance, bandwidth_3db, design_kalman
+
+    _, model, _ = _identified(axis)
+    fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
+    target = 180.0 if model.kind == "linear" else 120.0
+    f = np.concatenate([np.arange(0.0, 300.0, 0.05), np.arange(300.0, 1000.5, 1.0)])
+    sel = (f >= 1.0) & (f <= target)
+    fam = tuning.mode_family(fit, 0.02, 9)
+    plants = np.array([tuning.model_frf(measurement_model(m, lp, dt), f) for m in fam])
+    bound_db, bound_band = tuning.flatness_bound(plants, f, target)
+    nominal_model = measurement_model(fit, lp, dt)
+    q_nom = tuning.tune_q(nominal_model, model.r).q
+    rob = tuning.tune_robust(
+        fit,
+        lambda m: measurement_model(m, lp, dt),
+        model.r,
+        shift=0.02,
+        lag=ASLAN_LAG_SAMPLES,
+        f_target_hz=target,
+    )
+    robust_model = measurement_model(tuning.robust_fit(fit, rob.damping), lp, dt)
+    designs = {
+        "robust": design_kalman(augment_disturbance(robust_model), rob.q * dt, model.r),
+        "nominal": design_kalman(augment_disturbance(nominal_model), q_nom * dt, model.r),
+    }
+    out = {
+        "bound_db": bound_db,
+        "bound_band_hz": bound_band,
+        "damping": rob.damping,
+        "q": rob.q,
+        "q_nominal": q_nom,
+    }
+    for name, d in designs.items():
+        est = tuning.estimator_frf(d, f, ASLAN_LAG_SAMPLES)
+        comp = plants * est[None, :]
+        out[f"{name}_family_band_hz"] = min(bandwidth_3db(f, h) for h in comp)
+        out[f"{name}_family_db"] = max(float(np.max(tuning.deviation_db(h[sel]))) for h in comp)
+        for s in ANALYTIC_SHIFTS:
+            h = tuning.model_frf(nominal_model, f)
+            if s != 0.0:
+                m = tuning.mode_family(fit, abs(s), 3)[0 if s < 0 else 2]
+                h = tuning.model_frf(measurement_model(m, lp, dt), f)
+            out[f"{name}_{s:+.2f}_db"] = float(np.max(tuning.deviation_db((h * est)[sel])))
+    return out
+
+
+def _robust_table() -> str:
+    shifts = " | ".join(f"{s:+.0%}" for s in ANALYTIC_SHIFTS)
+    rows = [
+        f"| Axis | design | γ | Q [(Nm)²/s] | worst dB to target at mode shift {shifts} | "
+        "worst dB over ±2 % | common ±3 dB band over ±2 % [Hz] | LTI limit dB / band [Hz] |",
+        "|---|---|---|---|" + "---|" * len(ANALYTIC_SHIFTS) + "---|---|---|",
+    ]
+    for ax in AXES:
+        r = robustness(ax)
+        for name in ("nominal", "robust"):
+            vals = " | ".join(f"{r[f'{name}_{s:+.2f}_db']:.2f}" for s in ANALYTIC_SHIFTS)
+            gamma = 0.0 if name == "nominal" else r["damping"]
+            q = r["q_nominal"] if name == "nominal" else r["q"]
+            rows.append(
+                f"| {ax.upper()} | {name} | {gamma:.4f} | {q:.0f} | {vals} | "
+                f"{r[f'{name}_family_db']:.2f} | {r[f'{name}_family_band_hz']:.1f} | "
+                f"{r['bound_db']:.2f} / {r['bound_band_hz']:.1f} |"
+            )
+    return "\n".join(rows)
+
+
+@case(
+    "estimation.feed_robust_band_at_lti_limit",
+    source="issue 7 (position-dependent modes); tuning.flatness_bound (closed form)",
+    reference=1.0,
+    unit="-",
+    abs_tol=0.02,
+    quick=False,
+    description="smallest over the five axes of (common ±3 dB band of the robust design over "
+    "modes ±2 %, capped at the axis target) / (the largest any LTI estimator can reach, "
+    "tuning.flatness_bound, capped likewise); analytic: identified Φ_d scaled, C3 low-pass, "
+    "smoothed estimator FRF. Details: worst deviation per shift, robust vs the design tuned on "
+    "the identified model only",
+)
+def _robust_at_limit() -> Measured:
+    ratios = []
+    for ax in AXES:
+        r = robustness(ax)
+        tgt = 180.0 if ax in "xyz" else 120.0
+        ratios.append(min(r["robust_family_band_hz"], tgt) / min(r["bound_band_hz"], tgt))
+    return Measured(min(ratios), _robust_table())
 
 
 V1_RPM = (1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 5500.0)
