@@ -328,6 +328,13 @@ class FeedAxisConfig(_Model):
     periodic_disturbances: list[PeriodicDisturbanceConfig] = []
     estimator: FeedEstimatorConfig | None = None
     """Kalman force-estimator tuning (R, Q, low-pass); absent keys are chosen automatically."""
+    mode_shift_pct_per_100mm: Annotated[float, Field(ge=-50, le=50)] = 0.0
+    """Position-dependent disturbance modes (linear axes, simulator only): every mode frequency
+    changes by this percentage per 100 mm of table travel from ``mode_reference_mm``,
+    ``f_k(x) = f_k0·(1 + κ·(x − x_ref))`` (κ = value/100 per 100 mm; docs/decisions.md
+    "Position-dependent disturbance modes"). 0 (default): no position dependence."""
+    mode_reference_mm: Annotated[float, Field(ge=-1e4, le=1e4)] = 0.0
+    """Table position at which ``disturbance_modes`` hold, mm (machine coordinates)."""
     source: str = ""
 
     @model_validator(mode="after")
@@ -342,6 +349,12 @@ class FeedAxisConfig(_Model):
             raise ValueError("lead_mm_rev is required for a linear axis")
         if self.kind == "rotary" and self.lead_rad_rev is None:
             raise ValueError("lead_rad_rev is required for a rotary axis")
+        return self
+
+    @model_validator(mode="after")
+    def _mode_shift_linear_only(self) -> FeedAxisConfig:
+        if self.kind == "rotary" and self.mode_shift_pct_per_100mm != 0.0:
+            raise ValueError("mode_shift_pct_per_100mm applies to linear axes only")
         return self
 
     @property

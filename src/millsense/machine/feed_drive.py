@@ -19,6 +19,14 @@ the motor electrics ``L di/dt = u − R i − K_e ω``. Sensors: motor encoder q
 counts, linear scale to its resolution, each after its interpolation error and dead time
 (T_m, T_t; Yamada Table 3-3).
 
+Position-dependent modes (optional, decision "Position-dependent disturbance modes"): every
+mode frequency follows the true load position x, ``f_k(x) = f_k0·λ(x)``, ``λ = 1 + κ·(x − x_ref)``,
+with the mode shape kept (``Φ_k(s; λ) = Φ_k0(s/λ)``: α × λ², β × λ, ζ and the static gain
+unchanged). In the balanced block of :mod:`.modal_ss` with B held at its reference value this is
+``A = λ·A_0``, ``C = λ·C_0``; the blocks are re-discretised in closed form (rotation × decay)
+from the position at the start of every ``mode_update_s`` (1 ms: < 0.1 mm of travel at cutting
+feeds), counted in absolute samples so that chunking does not matter.
+
 Integration: ``substeps`` steps per sample; the linear mechanics and each modal block are
 advanced by their exact zero-order-hold maps, friction and position-periodic terms held over a
 substep (LuGre's bristle state integrated exactly for the held speed, :mod:`.lugre`). Dead
@@ -36,8 +44,9 @@ import numba
 import numpy as np
 import scipy.linalg
 
+from millsense.core import units
 from millsense.core.config import FeedAxisConfig
-from millsense.core.errors import InputDataError
+from millsense.core.errors import ConfigError, InputDataError
 from millsense.machine.friction import CoulombViscous, coulomb_viscous_torque
 from millsense.machine.lugre import LuGre, lugre_step
 from millsense.machine.modal_ss import ModalStateSpace
@@ -188,6 +197,10 @@ class FeedDriveParams:
     modes : structural disturbance modes Φ_d (rigid plants), or None.
     periodic : position-periodic terms.
     closed_loop : False runs the drive on the injected current alone (controller off).
+    mode_shift_per_m : κ, relative change of every disturbance-mode frequency per unit of load
+        position, 1/m (1/rad rotary); 0 = modes independent of position.
+    mode_reference_position : x_ref, load position at which ``modes`` hold, m (rad rotary).
+    mode_update_s : interval at which the modes follow the position, s (rounded to samples).
     """
 
     plant: MechanicalPlant
@@ -210,6 +223,32 @@ class FeedDriveParams:
     modes: ModalStateSpace | None = None
     periodic: tuple[PeriodicTerm, ...] = field(default_factory=tuple)
     closed_loop: bool = True
+    mode_shift_per_m: float = 0.0
+    mode_reference_position: float = 0.0
+    mode_update_s: float = 1e-3
+
+    def mode_scale(self, position: float | np.ndarray) -> float | np.ndarray:
+        """λ(x) = 1 + κ·(x − x_ref): the factor on every mode frequency at load position x (m,
+        rad rotary)."""
+        return 1.0 + self.mode_shift_per_m * (np.asarray(position) - self.mode_reference_position)
+
+    def modes_at(self, position: float) -> ModalStateSpace | None:
+        """The disturbance modes at a fixed load position x (m; rad rotary), Eq. 3.13 form.
+
+        Frequencies × λ(x), α × λ², β × λ (the same mode shape on a scaled frequency axis,
+        ``Φ(s/λ)``), damping ratios and feed-through unchanged; None without modes.
+        """
+        if self.modes is None:
+            return None
+        lam = float(self.mode_scale(position))
+        if not lam > 0:
+            raise InputDataError(
+                f"feed drive: mode frequency factor {lam:g} at position {position:g} (need > 0)"
+            )
+        m = self.modes
+        return ModalStateSpace.from_modes(
+            m.frequency_hz * lam, m.damping_ratio, m.alpha * lam**2, m.beta * lam, m.d
+        )
 
     @classmethod
     def from_config(
@@ -287,6 +326,8 @@ class FeedDriveParams:
             dead_time_scale_s=axis.dead_time_scale_ms * 1e-3,
             modes=mss,
             periodic=terms,
+            mode_shift_per_m=axis.mode_shift_pct_per_100mm / 100.0 / (100.0 * units.MM),
+            mode_reference_position=axis.mode_reference_mm * units.MM,
         )
 
 
@@ -320,6 +361,42 @@ def _periodic(terms: np.ndarray, kind: int, q: float) -> float:
 
 
 @numba.njit(cache=True)
+def _rescale_modes(
+    lam: float,
+    ma0: np.ndarray,
+    mb0: np.ndarray,
+    mc0: np.ndarray,
+    h: float,
+    mad: np.ndarray,
+    mbd: np.ndarray,
+    mc: np.ndarray,
+) -> None:
+    """Exact ZOH of the blocks ``A = λ·A_0 = [[σ, ω_d], [−ω_d, σ]]``, ``B = B_0``, ``C = λ·C_0``.
+
+    ``e^{Ah} = e^{σh}·[[cos ω_d h, sin ω_d h], [−sin ω_d h, cos ω_d h]]`` and
+    ``B_d = A⁻¹(e^{Ah} − I)·B_0`` with ``A⁻¹ = [[σ, −ω_d], [ω_d, σ]]/(σ² + ω_d²)``.
+    """
+    for j in range(ma0.shape[0]):
+        sig = lam * ma0[j, 0, 0]
+        wd = lam * ma0[j, 0, 1]
+        e = math.exp(sig * h)
+        c = e * math.cos(wd * h)
+        s = e * math.sin(wd * h)
+        mad[j, 0, 0] = c
+        mad[j, 0, 1] = s
+        mad[j, 1, 0] = -s
+        mad[j, 1, 1] = c
+        m00, m01, m10, m11 = c - 1.0, s, -s, c - 1.0
+        v0 = m00 * mb0[j, 0] + m01 * mb0[j, 1]
+        v1 = m10 * mb0[j, 0] + m11 * mb0[j, 1]
+        den = sig * sig + wd * wd
+        mbd[j, 0] = (sig * v0 - wd * v1) / den
+        mbd[j, 1] = (wd * v0 + sig * v1) / den
+        mc[j, 0] = lam * mc0[j, 0]
+        mc[j, 1] = lam * mc0[j, 1]
+
+
+@numba.njit(cache=True)
 def feed_drive_kernel(
     xm: np.ndarray,
     xd: np.ndarray,
@@ -345,11 +422,21 @@ def feed_drive_kernel(
     ip: np.ndarray,
     dt: float,
     out: np.ndarray,
+    ma0: np.ndarray,
+    mb0: np.ndarray,
+    mc0: np.ndarray,
+    sched: np.ndarray,
+    sched_block: int,
+    n_done: int,
 ) -> None:
     """Advance the drive by ``len(pos_ref)`` samples (state arrays updated in place).
 
     ``ring`` is (3, L): current command, motor angle and load position at substep resolution,
     for the dead times; ``out`` columns are described in :meth:`FeedDriveSim.advance`.
+    Position-dependent modes: when ``sched[0]`` (κ) is not 0 the blocks (``mad``, ``mbd``,
+    ``mc``) are recomputed from the reference blocks (``ma0``, ``mb0``, ``mc0``) at
+    ``λ = 1 + κ·(x − sched[1])`` at every absolute sample ``n_done + k`` that is a multiple
+    of ``sched_block``, x the true load position at that instant.
     """
     n = xm.shape[0]
     nm = xd.shape[0]
@@ -371,8 +458,14 @@ def feed_drive_kernel(
         if int(terms[j, 0]) == KIND_SCREW:
             has_screw = True
     ds = ip[_IP_DS]
+    kappa = sched[0]
     for k in range(pos_ref.shape[0]):
         idx = ring_idx[0]
+        if kappa != 0.0 and nm > 0 and (n_done + k) % sched_block == 0:
+            lam = 1.0 + kappa * (ring[2, idx] - sched[1])
+            if lam < 0.05:
+                lam = 0.05  # beyond any stroke: keep the blocks stable (checked in Python)
+            _rescale_modes(lam, ma0, mb0, mc0, h, mad, mbd, mc)
         # ---- sensors at the sample instant, after their dead times
         th_d = ring[1, (idx - ip[_IP_DM]) % length]
         th_m = th_d + _periodic(terms, KIND_MOTOR_ENCODER, th_d)
@@ -520,17 +613,34 @@ class FeedDriveSim:
         x0_unit = _position_direction(plant)
         x0[:] = x0_unit * initial_angle_rad
         self._xm = x0
+        self._sched = np.array([params.mode_shift_per_m, params.mode_reference_position])
+        self._sched_block = max(1, round(params.mode_update_s * sample_rate_hz))
         if params.modes is not None:
             self._mad, self._mbd = params.modes.discretise(h)
-            self._mc = np.ascontiguousarray(params.modes.c)
+            # a private copy: the kernel rescales it in place (position-dependent modes)
+            self._mc = np.array(params.modes.c, dtype=np.float64, order="C", copy=True)
             self._md = params.modes.d
             self._xd = np.zeros((params.modes.a.shape[0], 2))
+            a0 = params.modes.a
+            if params.mode_shift_per_m != 0.0 and not (
+                np.allclose(a0[:, 0, 0], a0[:, 1, 1]) and np.allclose(a0[:, 0, 1], -a0[:, 1, 0])
+            ):
+                raise ConfigError(
+                    "feed drive: position-dependent modes (mode_shift_pct_per_100mm) need every "
+                    "disturbance mode underdamped (damping_ratio < 1)"
+                )
+            self._ma0 = np.ascontiguousarray(a0)
+            self._mb0 = np.ascontiguousarray(params.modes.b)
+            self._mc0 = self._mc.copy()
         else:
             self._mad = np.zeros((0, 2, 2))
             self._mbd = np.zeros((0, 2))
             self._mc = np.zeros((0, 2))
             self._md = 0.0
             self._xd = np.zeros((0, 2))
+            self._ma0 = np.zeros((0, 2, 2))
+            self._mb0 = np.zeros((0, 2))
+            self._mc0 = np.zeros((0, 2))
         fp = params.friction
         if isinstance(fp, LuGre):
             fric_mode, self._fric = 1, fp.as_array()
@@ -667,6 +777,12 @@ class FeedDriveSim:
             self._ip,
             self.dt,
             out,
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            self._sched_block,
+            self.samples_done,
         )
         self.samples_done += n
 
