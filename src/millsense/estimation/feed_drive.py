@@ -1037,6 +1037,7 @@ def disturbance_sweep(
     n_periods: int = 13,
     seed: int = 2,
     lugre: LuGre | None = None,
+    start_position: float = 0.0,
 ) -> SweepResult:
     """Φ_d = τ_c/τ_a from a multisine table load during a constant-velocity move (C5).
 
@@ -1047,6 +1048,9 @@ def disturbance_sweep(
     own front end, low-passed; the FRF is divided by the known low-pass response, averaged over
     whole periods (first discarded) and fitted with
     :func:`~millsense.estimation.rational_fit.fit_rational` (order automatic).
+
+    ``start_position`` (m, rad rotary: load position) is where the move starts (identification
+    at a position along the stroke, :mod:`millsense.estimation.feed_schedule`).
     """
     fs = sample_rate_hz
     per = round(period_s * fs)
@@ -1054,7 +1058,9 @@ def disturbance_sweep(
     n = len(load)
     lead = round(0.3 * fs)
     pos, vel = ramp_move(speed_rad_s, n + lead, fs)
-    sim = FeedDriveSim(params, fs, seed=seed)
+    q0 = start_position / params.transmission
+    pos = pos + q0
+    sim = FeedDriveSim(params, fs, seed=seed, initial_angle_rad=q0)
     full_load = np.concatenate([np.zeros(lead), load])
     res = sim.advance(pos, vel, full_load)
     c3 = C3Torque(drive, lowpass_hz, fs, lugre)
@@ -1083,6 +1089,8 @@ def identify_feed_axis(
     use_lugre: bool = True,
     seed: int = 0,
     condition: OperatingCondition = "moving",
+    start_position: float = 0.0,
+    sweep_speed_rad_s: float = SWEEP_SPEED_RAD_S,
 ) -> tuple[FeedAxisModel, SweepResult]:
     """Identify a feed axis's estimator model from simulated commissioning tests.
 
@@ -1109,6 +1117,10 @@ def identify_feed_axis(
         that feeds while cutting); ``at_rest`` — the sweep and the R record run with the servo
         on and the axis holding position (an axis that holds while the others cut). Friction,
         J_e and the LuGre presliding test are the same in both.
+    start_position : load position (m, rad rotary) where the sweep and the R record start
+        (identification at a position along the stroke; friction and J_e moves start at 0).
+    sweep_speed_rad_s : motor speed of the moving sweep, rad/s (a slower sweep stays closer to
+        ``start_position``: 13.3 s × speed × r_g of travel).
 
     Returns
     -------
@@ -1142,7 +1154,7 @@ def identify_feed_axis(
     lg = params.transmission / params.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
     lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
-    move_speed = SWEEP_SPEED_RAD_S if condition == "moving" else 0.0
+    move_speed = sweep_speed_rad_s if condition == "moving" else 0.0
     sweep = disturbance_sweep(
         params,
         drive,
@@ -1152,12 +1164,16 @@ def identify_feed_axis(
         seed=seed + 2,
         lugre=lugre,
         speed_rad_s=move_speed,
+        start_position=start_position,
     )
     modes = sweep.fit
     # R: air cut at a cutting feed (constant speed, no load), or holding position at rest
     n = round(1.0 * fs)
     pos, vel = ramp_move(AIR_CUT_SPEED_RAD_S if condition == "moving" else 0.0, n, fs)
-    res = FeedDriveSim(params, fs, seed=seed + 3).advance(pos, vel, np.zeros(n))
+    q0 = start_position / params.transmission
+    res = FeedDriveSim(params, fs, seed=seed + 3, initial_angle_rad=q0).advance(
+        pos + q0, vel, np.zeros(n)
+    )
     c3 = C3Torque(drive, lowpass_hz, fs, lugre)
     tau_air = c3.process(res["current_cmd"], res["speed"])
     r = tuning.air_cut_variance(tau_air[round(0.2 * fs) :])

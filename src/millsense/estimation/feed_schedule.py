@@ -1,0 +1,450 @@
+"""Position-scheduled feed-axis estimator: a bank of models identified along the stroke.
+
+The disturbance modes Φ_d of a feed axis move with the table (issue 7; the simulator's
+``mode_shift_per_m``, :mod:`millsense.machine.feed_drive`). No single linear estimator can be
+flat to 180 Hz for modes anywhere within ±2 % (:func:`millsense.estimation.tuning.flatness_bound`),
+so, as a commissioning engineer would, Φ_d is identified at N positions along the stroke
+(:func:`identify_feed_bank`) and the estimator uses the model of where the axis is commanded to
+be (:class:`ScheduledFeedEstimator`).
+
+Scheduling (docs/decisions.md "Position-scheduled feed estimator"): every member of the bank is a
+full :class:`~millsense.estimation.feed_drive.FeedAxisEstimator` running on the same CNC channels,
+each with its own state, so a switch is bumpless (the member switched to has been tracking the
+same signal all along). The output is the estimate of the member identified nearest to the
+CNC's commanded position ``{axis}/position_cmd`` (never a measured or true position), cross-faded
+linearly over ``crossfade`` × the spacing around each midpoint between identification positions.
+The position used is the command delayed by the smoother lag, i.e. the position at the instant
+the delayed estimate refers to.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from itertools import pairwise
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import optimize
+
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.core.recording import ChannelInfo
+from millsense.estimation import tuning
+from millsense.estimation.feed_drive import (
+    SWEEP_SPEED_RAD_S,
+    TARGET_BAND_HZ,
+    FeedAxisEstimator,
+    FeedAxisModel,
+    SweepResult,
+    disturbance_sweep,
+    identify_feed_axis,
+    measurement_model,
+    ramp_move,
+)
+from millsense.estimation.kalman import augment_disturbance, design_kalman
+from millsense.estimation.rational_fit import RationalFit
+from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
+from millsense.machine.feed_drive import FeedDriveParams
+from millsense.online.block import Block, BlockOutput, Chunk
+
+#: Cross-fade width around each midpoint, as a fraction of the spacing (decision
+#: "Position-scheduled feed estimator": chosen analytically by :func:`interval_worst_db`).
+DEFAULT_CROSSFADE = 1.0
+#: Multisine periods of a bank sweep (1 s each, first discarded), as
+#: :func:`~millsense.estimation.feed_drive.disturbance_sweep`'s default.
+SWEEP_PERIODS = 13
+#: Lead-in of a sweep before the multisine starts, s (as disturbance_sweep).
+SWEEP_LEAD_S = 0.3
+
+Design = Literal["nominal", "robust"]
+DesignChoice = Literal["nominal", "robust", "auto"]
+
+
+def scale_fit(fit: RationalFit, frequency_scale: float) -> RationalFit:
+    """Φ_d with every complex (structural-mode) pole and residue × ``frequency_scale``.
+
+    Real poles (the loop seen through the C3 torque) and the constant stay, as in
+    :func:`millsense.estimation.tuning.mode_family`.
+    """
+    return replace(
+        fit,
+        complex_poles=fit.complex_poles * frequency_scale,
+        complex_residues=fit.complex_residues * frequency_scale,
+    )
+
+
+def relative_shift(fit_a: RationalFit, sweep_b: SweepResult, band_hz: tuple[float, float]) -> float:
+    """Relative mode-frequency change from the model ``fit_a`` to the sweep ``sweep_b``.
+
+    The λ − 1 minimising ``Σ |H_b(f) − Φ_a(f; λ)|²`` over the measured lines of ``sweep_b`` in
+    ``band_hz`` (Hz), with ``Φ_a(·; λ)`` = :func:`scale_fit` (bounded search, λ in 0.8…1.2).
+    """
+    est = sweep_b.frf
+    sel = (est.freq_hz >= band_hz[0]) & (est.freq_hz <= band_hz[1])
+    f, h = est.freq_hz[sel], est.h1[sel]
+    if len(f) < 3:
+        raise InputDataError("relative shift: fewer than 3 FRF lines in the band")
+
+    def cost(lam: float) -> float:
+        return float(np.sum(np.abs(h - scale_fit(fit_a, lam).continuous_frf(f)) ** 2))
+
+    res = optimize.minimize_scalar(
+        cost, bounds=(0.8, 1.2), method="bounded", options={"xatol": 1e-6}
+    )
+    return float(res.x) - 1.0
+
+
+@dataclass(frozen=True)
+class FeedModelBank:
+    """Estimator models of one axis identified at positions along its stroke.
+
+    Attributes
+    ----------
+    positions : identification positions (load position, m; rad rotary), strictly ascending.
+    models : one :class:`~millsense.estimation.feed_drive.FeedAxisModel` per position.
+    half_shifts : per member, the relative mode change to its farther neighbour midpoint (half
+        of the measured neighbour shift, :func:`relative_shift`); what a robust member is
+        designed for.
+    crossfade : cross-fade width around each midpoint, fraction of the local spacing (0, 1];
+        1 = linear interpolation between neighbouring members.
+    design : how the members were tuned (``nominal`` or ``robust``).
+    analytic_db : (nominal, robust) analytic worst deviation over an interval, dB
+        (:func:`interval_worst_db`, ``auto`` design only; NaN otherwise).
+    """
+
+    positions: tuple[float, ...]
+    models: tuple[FeedAxisModel, ...]
+    half_shifts: tuple[float, ...]
+    crossfade: float = DEFAULT_CROSSFADE
+    design: str = "nominal"
+    analytic_db: tuple[float, float] = (math.nan, math.nan)
+
+    def __post_init__(self) -> None:
+        if len(self.positions) != len(self.models) or len(self.models) == 0:
+            raise ConfigError("model bank: need one model per position (at least one)")
+        if any(b <= a for a, b in pairwise(self.positions)):
+            raise ConfigError("model bank: positions must be strictly ascending")
+        if not 0 < self.crossfade <= 1:
+            raise ConfigError(f"model bank: crossfade must be in (0, 1], got {self.crossfade}")
+        if len({m.axis for m in self.models}) != 1:
+            raise ConfigError("model bank: all models must belong to one axis")
+
+    @property
+    def axis(self) -> str:
+        return self.models[0].axis
+
+    def weights(self, position: ArrayLike1) -> NDArray[np.float64]:
+        """(n, N) member weights at commanded positions (m; rad rotary); rows sum to 1.
+
+        Nearest identification position, cross-faded linearly over ``crossfade`` × spacing around
+        each midpoint; beyond the end positions the end member alone.
+        """
+        x = np.asarray(position, dtype=float)
+        if not np.all(np.isfinite(x)):
+            raise InputDataError(f"model bank {self.axis}: non-finite commanded position")
+        p = np.asarray(self.positions)
+        w = np.zeros((x.size, p.size))
+        if p.size == 1:
+            w[:, 0] = 1.0
+            return w
+        i = np.clip(np.searchsorted(p, x, side="right") - 1, 0, p.size - 2)
+        u = (x - p[i]) / (p[i + 1] - p[i])
+        hi = np.clip((u - 0.5) / self.crossfade + 0.5, 0.0, 1.0)
+        rows = np.arange(x.size)
+        w[rows, i] = 1.0 - hi
+        w[rows, i + 1] += hi
+        return w
+
+
+ArrayLike1 = NDArray[np.float64] | Sequence[float]
+
+
+def sweep_travel(params: FeedDriveParams, speed_rad_s: float, sample_rate_hz: float) -> float:
+    """Load travel of a moving bank sweep (lead-in + :data:`SWEEP_PERIODS` 1 s periods), m/rad."""
+    n = round((SWEEP_LEAD_S + SWEEP_PERIODS) * sample_rate_hz)
+    pos, _ = ramp_move(speed_rad_s, n, sample_rate_hz)
+    return float(pos[-1] * params.transmission)
+
+
+def design_member(model: FeedAxisModel, design: Design, half_shift: float) -> FeedAxisModel:
+    """Q (and design damping) of one bank member.
+
+    ``nominal``: :func:`~millsense.estimation.tuning.tune_q` on the member's own Φ_d;
+    ``robust``: :func:`~millsense.estimation.tuning.tune_robust` for modes within
+    ±``half_shift`` of the member's (its residual uncertainty: the mode change to the midpoint
+    to its neighbour).
+    """
+    fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
+    if design == "nominal" or half_shift <= 0:
+        q = tuning.tune_q(measurement_model(fit, lp, dt), model.r).q
+        return replace(model, q=q, design_damping=0.0)
+    rob = tuning.tune_robust(
+        fit,
+        lambda m: measurement_model(m, lp, dt),
+        model.r,
+        shift=half_shift,
+        lag=ASLAN_LAG_SAMPLES,
+        f_target_hz=TARGET_BAND_HZ[model.kind],
+    )
+    return replace(model, q=rob.q, design_damping=rob.damping)
+
+
+def identify_feed_bank(
+    params: FeedDriveParams,
+    axis: str,
+    kind: Literal["linear", "rotary"],
+    positions: Sequence[float],
+    *,
+    sample_rate_hz: float = 10_000.0,
+    sweep_speed_rad_s: float = SWEEP_SPEED_RAD_S,
+    sweep_force_rms: float | None = None,
+    design: DesignChoice = "auto",
+    crossfade: float = DEFAULT_CROSSFADE,
+    seed: int = 0,
+) -> tuple[FeedModelBank, list[SweepResult]]:
+    """Identify Φ_d at each position (friction, J_e, LuGre and R shared) → a model bank.
+
+    Parameters
+    ----------
+    params : the simulated drive at commissioning (only its CNC channels are used).
+    axis, kind : axis name and ``linear``/``rotary``.
+    positions : identification positions, load position m (rad rotary), ascending; each sweep
+        is a constant-velocity move centred on its position (travel :func:`sweep_travel`).
+    sample_rate_hz : CNC rate, Hz.
+    sweep_speed_rad_s : motor speed of the sweeps, rad/s.
+    sweep_force_rms : RMS of the sweep load, N (N·m rotary); default 3 N·m of τ_a at the motor.
+    design : ``robust`` (each member by :func:`design_member` for half its measured neighbour
+        shift), ``nominal``, or ``auto``: the one with the smaller analytic worst deviation
+        over an interval (:func:`interval_worst_db` on the middle member with its half shift).
+    crossfade : see :class:`FeedModelBank`.
+    seed : base seed of the simulated tests.
+
+    Returns
+    -------
+    (bank, sweeps): the bank and the sweep (FRF and fit) of each position.
+
+    Notes
+    -----
+    The first position runs :func:`~millsense.estimation.feed_drive.identify_feed_axis` (all
+    commissioning tests); the others only
+    :func:`~millsense.estimation.feed_drive.disturbance_sweep` from their start position, with
+    the first position's drive model, LuGre and R (friction, inertia and noise do not depend on
+    the position). The neighbour shift is measured from the sweeps (:func:`relative_shift`), not
+    taken from the simulator.
+    """
+    pos = [float(p) for p in positions]
+    if len(pos) == 0 or any(b <= a for a, b in pairwise(pos)):
+        raise ConfigError(f"identify bank {axis}: positions must be ascending and non-empty")
+    fs = sample_rate_hz
+    half = 0.5 * sweep_travel(params, sweep_speed_rad_s, fs)
+    lg = params.transmission / params.efficiency
+    f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
+    first, sweep0 = identify_feed_axis(
+        params,
+        axis,
+        kind,
+        sample_rate_hz=fs,
+        sweep_force_rms=f_rms,
+        tune=False,
+        seed=seed,
+        start_position=pos[0] - half,
+        sweep_speed_rad_s=sweep_speed_rad_s,
+    )
+    raw: list[FeedAxisModel] = [first]
+    sweeps = [sweep0]
+    for k, x in enumerate(pos[1:], start=1):
+        sw = disturbance_sweep(
+            params,
+            first.drive,
+            fs,
+            first.lowpass_hz,
+            force_rms=f_rms,
+            seed=seed + 2 + 10 * k,
+            lugre=first.lugre,
+            speed_rad_s=sweep_speed_rad_s,
+            start_position=x - half,
+        )
+        raw.append(replace(first, disturbance=sw.fit))
+        sweeps.append(sw)
+    band = (3.0, 260.0)
+    shifts = [
+        abs(relative_shift(raw[i].disturbance, sweeps[i + 1], band)) for i in range(len(raw) - 1)
+    ]
+    halves = []
+    for i in range(len(raw)):
+        nb = [shifts[j] for j in (i - 1, i) if 0 <= j < len(shifts)]
+        halves.append(0.5 * max(nb) if nb else 0.0)
+    chosen: Design
+    analytic = (math.nan, math.nan)
+    if design == "auto":
+        mid = len(raw) // 2
+        if halves[mid] > 0:
+            worst = {
+                d: interval_worst_db(raw[mid], halves[mid], design=d, crossfade=crossfade)[
+                    "worst_db"
+                ]
+                for d in ("nominal", "robust")
+            }
+            chosen = "robust" if worst["robust"] < worst["nominal"] else "nominal"
+            analytic = (worst["nominal"], worst["robust"])
+        else:
+            chosen = "nominal"
+    else:
+        chosen = design
+    models = tuple(design_member(m, chosen, h) for m, h in zip(raw, halves, strict=True))
+    return FeedModelBank(tuple(pos), models, tuple(halves), crossfade, chosen, analytic), sweeps
+
+
+def interval_worst_db(
+    model: FeedAxisModel,
+    half_shift: float,
+    *,
+    design: Design = "robust",
+    crossfade: float = DEFAULT_CROSSFADE,
+    n_positions: int = 41,
+) -> dict[str, float]:
+    """Analytic worst deviation (dB, 1 Hz … target) of the scheduled estimator over one interval.
+
+    Two members identified at mode scales 1 − h and 1 + h around ``model``'s Φ_d (h =
+    ``half_shift``), each designed by :func:`design_member`; the plant moves linearly from one to
+    the other (scale ``1 − h + 2h·u``, u ∈ [0, 1]) and the output is the weighted sum of the two
+    smoothed estimators with the weights of :meth:`FeedModelBank.weights`. Compensated FRF
+    ``Φ(u)·Σ w_j(u)·Φ_KF,j`` (C3 low-pass in both; the smoother's FRF realigned).
+
+    Returns
+    -------
+    ``worst_db`` over all positions; ``midpoint_db`` at u = ½; ``hard_switch_db`` the worst
+    without cross-fade (one member at the full half shift h); ``lti_bound_db``
+    :func:`~millsense.estimation.tuning.flatness_bound` of a single LTI estimator for modes in ±h.
+    """
+    fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
+    target = TARGET_BAND_HZ[model.kind]
+    f = np.concatenate([np.arange(0.0, 300.0, 0.05), np.arange(300.0, 1000.5, 1.0)])
+    sel = (f >= 1.0) & (f <= target)
+    members = [
+        design_member(replace(model, disturbance=scale_fit(fit, 1.0 + s)), design, half_shift)
+        for s in (-half_shift, half_shift)
+    ]
+    ests = [
+        tuning.estimator_frf(
+            design_kalman(augment_disturbance(m.measurement_model()), m.q * dt, m.r),
+            f,
+            ASLAN_LAG_SAMPLES,
+        )
+        for m in members
+    ]
+    bank = FeedModelBank((0.0, 1.0), tuple(members), (half_shift,) * 2, crossfade)
+    u = np.linspace(0.0, 1.0, n_positions)
+    w = bank.weights(u)
+    worst, mid = 0.0, 0.0
+    for k, uk in enumerate(u):
+        plant = tuning.model_frf(
+            measurement_model(scale_fit(fit, 1.0 - half_shift + 2 * half_shift * uk), lp, dt), f
+        )
+        dev = float(
+            np.max(tuning.deviation_db((plant * (w[k, 0] * ests[0] + w[k, 1] * ests[1]))[sel]))
+        )
+        worst = max(worst, dev)
+        if math.isclose(uk, 0.5):
+            mid = dev
+    plant_mid = tuning.model_frf(measurement_model(fit, lp, dt), f)
+    hard = max(float(np.max(tuning.deviation_db((plant_mid * e)[sel]))) for e in ests)
+    fam = tuning.mode_family(fit, half_shift, 9)
+    bound, _ = tuning.flatness_bound(
+        np.array([tuning.model_frf(measurement_model(m, lp, dt), f) for m in fam]), f, target
+    )
+    return {"worst_db": worst, "midpoint_db": mid, "hard_switch_db": hard, "lti_bound_db": bound}
+
+
+class ScheduledFeedEstimator(Block):
+    """Feed-axis estimator scheduled on the CNC's commanded position (a bank of estimators).
+
+    Parameters
+    ----------
+    bank : models identified along the stroke.
+    lag : smoother lag of every member, samples.
+
+    Reads ``{axis}/current_cmd``, ``{axis}/motor_speed`` and ``{axis}/position_cmd`` (load
+    position commanded by the interpolator, m; rad rotary). Writes the same channels as
+    :class:`~millsense.estimation.feed_drive.FeedAxisEstimator` (``{axis}/load_est``,
+    ``{axis}/force_est``), delayed by ``lag`` samples.
+
+    Notes
+    -----
+    All members run on every sample (their states stay consistent: switching is bumpless); the
+    output is ``Σ_j w_j(x_cmd(k − L))·τ̂_j`` with the weights of :meth:`FeedModelBank.weights` at
+    the commanded position delayed by the lag L (the delay line is carried across chunks, so
+    streaming equals batch). Members share drive model, friction and R: they differ in Φ_d and Q.
+    """
+
+    def __init__(self, bank: FeedModelBank, lag: int = ASLAN_LAG_SAMPLES) -> None:
+        self.bank = bank
+        ax = bank.axis
+        self.name = f"feed_force_{ax}_scheduled"
+        self.inputs: tuple[str, ...] = (
+            f"{ax}/current_cmd",
+            f"{ax}/motor_speed",
+            f"{ax}/position_cmd",
+        )
+        self.lag = int(lag)
+        self.members = [FeedAxisEstimator(m, self.lag) for m in bank.models]
+        m0 = bank.models[0]
+        d = m0.drive
+        self._gain = d.efficiency / d.transmission
+        self._force_gain: float | None = None
+        if m0.kind == "linear":
+            self._force_gain = -self._gain
+        elif m0.moment_arm_m is not None:
+            self._force_gain = -self._gain / m0.moment_arm_m
+        self._pos_hist = np.zeros(0)
+
+    @property
+    def delay_samples(self) -> int:
+        return self.lag
+
+    def output_channels(self) -> list[ChannelInfo]:
+        out = self.members[0].output_channels()
+        return [
+            ChannelInfo(c.name, c.unit, c.description + ", position-scheduled bank") for c in out
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        for m in self.members:
+            m.reset(sample_rate_hz)
+        self._pos_hist = np.zeros(0)
+
+    def torque(
+        self, current_a: ArrayLike1, speed_rad_s: ArrayLike1, position_cmd: ArrayLike1
+    ) -> NDArray[np.float64]:
+        """Scheduled τ̂_a (N·m, motor side) of one chunk, delayed by ``lag`` samples."""
+        cur = np.ascontiguousarray(current_a, dtype=np.float64)
+        spd = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
+        pos = np.asarray(position_cmd, dtype=np.float64)
+        if not (len(cur) == len(spd) == len(pos)):
+            raise InputDataError(f"block {self.name}: input channels differ in length")
+        if len(cur) == 0:
+            return np.zeros(0)
+        if self._pos_hist.size == 0:
+            # before the first sample the axis stood at its first commanded position
+            self._pos_hist = np.full(self.lag, pos[0])
+        hist = np.concatenate([self._pos_hist, pos])
+        delayed = hist[: len(pos)]
+        self._pos_hist = hist[len(pos) :]
+        w = self.bank.weights(delayed)
+        out = np.zeros(len(cur))
+        for j, m in enumerate(self.members):
+            tau = m.torque(cur, spd)
+            out += w[:, j] * tau
+        return out
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        tau = self.torque(
+            chunk.data[self.inputs[0]], chunk.data[self.inputs[1]], chunk.data[self.inputs[2]]
+        )
+        ax = self.bank.axis
+        out = {f"{ax}/load_est": self._gain * tau}
+        if self._force_gain is not None:
+            out[f"{ax}/force_est"] = self._force_gain * tau
+        return BlockOutput(out)
