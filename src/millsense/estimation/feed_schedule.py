@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 from itertools import pairwise
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
@@ -57,6 +58,13 @@ DEFAULT_CROSSFADE = 1.0
 SWEEP_PERIODS = 13
 #: Lead-in of a sweep before the multisine starts, s (as disturbance_sweep).
 SWEEP_LEAD_S = 0.3
+#: Torque history replayed into a member when it starts running, s (decision
+#: "Position-scheduled feed estimator": the slowest filter pole, a Table 3.4 mode's own decay
+#: of about 5 1/s that the filter barely moves, has decayed to < 1 % over it).
+WARMUP_S = 1.0
+#: A member also runs this fraction of the spacing beyond its weight support (no switching on
+#: and off at the support's edge, where its weight is zero anyway).
+ACTIVE_MARGIN = 0.1
 
 Design = Literal["nominal", "robust"]
 DesignChoice = Literal["nominal", "robust", "auto"]
@@ -156,6 +164,18 @@ class FeedModelBank:
         w[rows, i] = 1.0 - hi
         w[rows, i + 1] += hi
         return w
+
+    def active(self, position: ArrayLike1, margin: float) -> NDArray[np.bool_]:
+        """(n, N): member j's weight support (p_{j−1}, p_{j+1}) widened by ``margin`` × the
+        adjacent spacing on each side (unbounded beyond the end members)."""
+        x = np.asarray(position, dtype=float)[:, None]
+        p = np.asarray(self.positions)
+        if p.size == 1:
+            return np.ones((x.shape[0], 1), dtype=bool)
+        gap = np.diff(p)
+        lo = np.concatenate([[-np.inf], p[:-2] - margin * gap[:-1], [p[-2] - margin * gap[-1]]])
+        hi = np.concatenate([[p[1] + margin * gap[0]], p[2:] + margin * gap[1:], [np.inf]])
+        return np.asarray((x > lo[None, :]) & (x < hi[None, :]))
 
 
 ArrayLike1 = NDArray[np.float64] | Sequence[float]
@@ -358,13 +378,71 @@ def interval_worst_db(
     return {"worst_db": worst, "midpoint_db": mid, "hard_switch_db": hard, "lti_bound_db": bound}
 
 
+@numba.njit(cache=True)
+def _schedule_kernel(
+    pos: NDArray[np.float64],
+    hist: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    crossfade: float,
+    margin: float,
+    w: NDArray[np.float64],
+    act: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
+    """Delay the commanded position by ``len(hist)`` samples (``hist`` updated in place) and
+    write the member weights (:meth:`FeedModelBank.weights`) and running set
+    (:meth:`FeedModelBank.active`) of every sample of a chunk."""
+    n = pos.shape[0]
+    lag = hist.shape[0]
+    m = positions.shape[0]
+    for k in range(n):
+        x = hist[k] if k < lag else pos[k - lag]
+        for j in range(m):
+            w[k, j] = 0.0
+            act[k, j] = False
+        if m == 1:
+            w[k, 0] = 1.0
+            act[k, 0] = True
+            continue
+        i = 0
+        while i < m - 2 and x >= positions[i + 1]:
+            i += 1
+        gap = positions[i + 1] - positions[i]
+        u = (x - positions[i]) / gap
+        hi = min(max((u - 0.5) / crossfade + 0.5, 0.0), 1.0)
+        w[k, i] = 1.0 - hi
+        w[k, i + 1] += hi
+        for j in range(m):
+            lo_ok = True
+            hi_ok = True
+            if j > 0:
+                lo_ok = x > positions[j - 1] - margin * (positions[j] - positions[j - 1])
+            if j < m - 1:
+                hi_ok = x < positions[j + 1] + margin * (positions[j + 1] - positions[j])
+            act[k, j] = lo_ok and hi_ok
+    # new history: the last lag samples of [hist, pos]
+    if lag > 0:
+        if n >= lag:
+            for k in range(lag):
+                hist[k] = pos[n - lag + k]
+        else:
+            for k in range(lag - n):
+                hist[k] = hist[k + n]
+            for k in range(n):
+                hist[lag - n + k] = pos[k]
+
+
 class ScheduledFeedEstimator(Block):
     """Feed-axis estimator scheduled on the CNC's commanded position (a bank of estimators).
 
     Parameters
     ----------
-    bank : models identified along the stroke.
+    bank : models identified along the stroke (sharing drive model, friction, low-pass and
+        sample rate: they differ in Φ_d and Q).
     lag : smoother lag of every member, samples.
+    warmup_s : history replayed into a member when it starts running, s.
+    margin : a member runs while the (delayed) commanded position is within its weight support
+        widened by this fraction of the spacing on each side.
+    all_members : run every member on every sample (no warm-up needed; N× the cost).
 
     Reads ``{axis}/current_cmd``, ``{axis}/motor_speed`` and ``{axis}/position_cmd`` (load
     position commanded by the interpolator, m; rad rotary). Writes the same channels as
@@ -373,13 +451,28 @@ class ScheduledFeedEstimator(Block):
 
     Notes
     -----
-    All members run on every sample (their states stay consistent: switching is bumpless); the
-    output is ``Σ_j w_j(x_cmd(k − L))·τ̂_j`` with the weights of :meth:`FeedModelBank.weights` at
-    the commanded position delayed by the lag L (the delay line is carried across chunks, so
-    streaming equals batch). Members share drive model, friction and R: they differ in Φ_d and Q.
+    One C3 stage (Aslan Eq. 3.10, shared) feeds one fixed-lag smoother per member; the output is
+    ``Σ_j w_j(x_cmd(k − L))·τ̂_j`` with the weights of :meth:`FeedModelBank.weights` at the
+    commanded position delayed by the lag L. A member runs only while the position is within
+    its support plus ``margin`` (with linear interpolation at most two members carry weight);
+    when it starts, it is reset and the last ``warmup_s`` of C3 torque are replayed through it
+    first, so it enters (at zero weight) with the state it would have had running all along,
+    to within the decay of its slowest filter pole over the replay (bumpless). Activation is
+    decided per sample and the torque history is carried, so streaming equals batch.
     """
 
-    def __init__(self, bank: FeedModelBank, lag: int = ASLAN_LAG_SAMPLES) -> None:
+    def __init__(
+        self,
+        bank: FeedModelBank,
+        lag: int = ASLAN_LAG_SAMPLES,
+        *,
+        warmup_s: float = WARMUP_S,
+        margin: float = ACTIVE_MARGIN,
+        all_members: bool = False,
+    ) -> None:
+        from millsense.estimation.feed_drive import C3Torque
+        from millsense.estimation.smoother import FixedLagSmoother
+
         self.bank = bank
         ax = bank.axis
         self.name = f"feed_force_{ax}_scheduled"
@@ -389,8 +482,27 @@ class ScheduledFeedEstimator(Block):
             f"{ax}/position_cmd",
         )
         self.lag = int(lag)
-        self.members = [FeedAxisEstimator(m, self.lag) for m in bank.models]
         m0 = bank.models[0]
+        for m in bank.models[1:]:
+            if (m.drive, m.lugre, m.lowpass_hz, m.sample_rate_hz, m.kind) != (
+                m0.drive,
+                m0.lugre,
+                m0.lowpass_hz,
+                m0.sample_rate_hz,
+                m0.kind,
+            ):
+                raise ConfigError(
+                    f"block {self.name}: bank members must share drive, friction, low-pass and "
+                    "sample rate"
+                )
+        if not (warmup_s >= 0 and margin >= 0):
+            raise ConfigError(f"block {self.name}: warmup_s and margin must be >= 0")
+        self._template = FeedAxisEstimator(m0, self.lag)
+        self._c3 = C3Torque(m0.drive, m0.lowpass_hz, m0.sample_rate_hz, m0.lugre)
+        self.smoothers = [FixedLagSmoother(m.design(), self.lag) for m in bank.models]
+        self.warmup = round(warmup_s * m0.sample_rate_hz)
+        self.margin = float(margin)
+        self.all_members = bool(all_members)
         d = m0.drive
         self._gain = d.efficiency / d.transmission
         self._force_gain: float | None = None
@@ -398,22 +510,34 @@ class ScheduledFeedEstimator(Block):
             self._force_gain = -self._gain
         elif m0.moment_arm_m is not None:
             self._force_gain = -self._gain / m0.moment_arm_m
+        self._running = np.zeros(len(self.smoothers), dtype=bool)
+        self._positions = np.asarray(bank.positions, dtype=np.float64)
         self._pos_hist = np.zeros(0)
+        self._tau_hist = np.zeros(0)
+        self._buf = np.empty(2 * self.warmup)
+        self._fill = 0
+        self._started = False
 
     @property
     def delay_samples(self) -> int:
         return self.lag
 
     def output_channels(self) -> list[ChannelInfo]:
-        out = self.members[0].output_channels()
+        out = self._template.output_channels()
         return [
             ChannelInfo(c.name, c.unit, c.description + ", position-scheduled bank") for c in out
         ]
 
     def reset(self, sample_rate_hz: float) -> None:
-        for m in self.members:
-            m.reset(sample_rate_hz)
+        self._template.reset(sample_rate_hz)  # checks the rate
+        self._c3.reset()
+        for sm in self.smoothers:
+            sm.reset()
+        self._running[:] = False
         self._pos_hist = np.zeros(0)
+        self._tau_hist = np.zeros(0)
+        self._fill = 0
+        self._started = False
 
     def torque(
         self, current_a: ArrayLike1, speed_rad_s: ArrayLike1, position_cmd: ArrayLike1
@@ -422,22 +546,75 @@ class ScheduledFeedEstimator(Block):
         cur = np.ascontiguousarray(current_a, dtype=np.float64)
         spd = np.ascontiguousarray(speed_rad_s, dtype=np.float64)
         pos = np.asarray(position_cmd, dtype=np.float64)
-        if not (len(cur) == len(spd) == len(pos)):
+        n = len(cur)
+        if not (n == len(spd) == len(pos)):
             raise InputDataError(f"block {self.name}: input channels differ in length")
-        if len(cur) == 0:
+        if n == 0:
             return np.zeros(0)
-        if self._pos_hist.size == 0:
+        if not np.all(np.isfinite(pos)):
+            raise InputDataError(f"block {self.name}: non-finite commanded position")
+        if not self._started:
             # before the first sample the axis stood at its first commanded position
             self._pos_hist = np.full(self.lag, pos[0])
-        hist = np.concatenate([self._pos_hist, pos])
-        delayed = hist[: len(pos)]
-        self._pos_hist = hist[len(pos) :]
-        w = self.bank.weights(delayed)
-        out = np.zeros(len(cur))
-        for j, m in enumerate(self.members):
-            tau = m.torque(cur, spd)
-            out += w[:, j] * tau
+        m = len(self.smoothers)
+        w = np.empty((n, m))
+        active = np.empty((n, m), dtype=np.bool_)
+        _schedule_kernel(
+            np.ascontiguousarray(pos),
+            self._pos_hist,
+            self._positions,
+            self.bank.crossfade,
+            self.margin,
+            w,
+            active,
+        )
+        if self.all_members:
+            active[:] = True
+        tau = self._c3.process(cur, spd)
+        base = self._append_history(tau)
+        tau_all = self._tau_hist
+        out = np.zeros(n)
+        for j, sm in enumerate(self.smoothers):
+            col = active[:, j]
+            if col[0] and col[-1] and col.all():
+                edges = np.array([0, n])
+            elif not col.any():
+                self._running[j] = False
+                continue
+            else:
+                a = col.astype(np.int8)
+                edges = np.flatnonzero(np.diff(np.concatenate([[0], a, [0]])))
+            for s0, s1 in zip(edges[::2], edges[1::2], strict=True):
+                if not (s0 == 0 and self._running[j]):
+                    sm.reset()
+                    if self._started or s0 > 0:
+                        sm.process(tau_all[max(0, base + s0 - self.warmup) : base + s0])
+                y = sm.process(tau[s0:s1])[:, 0]
+                out[s0:s1] += w[s0:s1, j] * y
+            self._running[j] = bool(col[-1])
+        self._started = True
         return out
+
+    def _append_history(self, tau: NDArray[np.float64]) -> int:
+        """Append a chunk's C3 torque to the history buffer; returns the chunk's start index in
+        ``self._tau_hist`` (at least ``warmup`` samples, or all since the start, precede it).
+
+        The buffer keeps room for 2·warmup samples and moves the last ``warmup`` to its front
+        only when full (amortised cost per sample O(1), no per-chunk copy of the history).
+        """
+        n = len(tau)
+        buf = self._buf
+        if self._fill + n > len(buf):
+            keep = min(self._fill, self.warmup)
+            cap = max(2 * self.warmup, keep + n)
+            new = np.empty(cap)
+            new[:keep] = buf[self._fill - keep : self._fill]
+            self._buf, buf, self._fill = new, new, keep
+        base = self._fill
+        buf[base : base + n] = tau
+        self._fill = base + n
+        self._tau_hist = buf[: self._fill]
+        return base
 
     def process(self, chunk: Chunk) -> BlockOutput:
         tau = self.torque(
