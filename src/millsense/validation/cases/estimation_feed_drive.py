@@ -400,8 +400,10 @@ def _scheduled_table() -> tuple[float, str]:
     "the stroke, linear), estimated by the position-scheduled bank (Φ_d identified at the "
     f"centres of {N_BANK} stroke segments, model chosen by the commanded position, cross-faded "
     "at the midpoints), during moves midway between two identification positions and at both "
-    "stroke ends; details: the same moves with one model identified at the stroke centre, "
-    "and the LTI limit for one estimator over ±2 %. " + _MISMATCH,
+    "stroke ends (2 rad/s, 2 N·m RMS multisine at the motor); details: the same moves with one "
+    "model identified at the stroke centre, and the LTI limit for one estimator over ±2 %. "
+    "Rotary axes: no angle dependence is modelled (decision 'Position-dependent disturbance "
+    "modes'), their acceptance is estimation.feed_rotary_flat_to_120hz. " + _MISMATCH,
 )
 def _linear_scheduled() -> Measured:
     worst, table = _scheduled_table()
