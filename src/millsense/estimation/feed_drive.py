@@ -201,7 +201,6 @@ class FeedAxisModel:
         ``R = (K_t·σ_I)²·Σ h_k²`` with h the impulse response of the 2nd-order Butterworth
         low-pass (the variance of the low-passed torque measurement the filter is designed on).
         """
-        from millsense.estimation import tuning
         from millsense.machine.modal_ss import ModalStateSpace as _Mss
 
         if cfg.disturbance_modes is None:
@@ -243,21 +242,42 @@ class FeedAxisModel:
         model = cls(axis, kind, drive, fit, lowpass, r, 1000.0, sample_rate_hz, None, lugre)
         q = est.q_nm2_s if est is not None else None
         shift = (est.mode_shift_pct if est is not None else 100.0 * ROBUST_SHIFT) / 100.0
+        return model.tuned(shift, q=q, q_bounds=q_bounds)
+
+    def tuned(
+        self,
+        shift: float,
+        *,
+        q: float | None = None,
+        q_bounds: tuple[float, float] = (1.0, 1e7),
+    ) -> FeedAxisModel:
+        """This model with Q (and the design damping) chosen.
+
+        Parameters
+        ----------
+        shift : relative mode-frequency uncertainty δ; > 0 chooses Q and γ by
+            :func:`millsense.estimation.tuning.tune_robust` over modes × [1 − δ, 1 + δ], 0 chooses
+            Q by :func:`millsense.estimation.tuning.tune_q` on the identified model.
+        q : Q fixed by the user, (N·m)²/s (then only γ is chosen), or None.
+        q_bounds : search range of Q, (N·m)²/s.
+        """
+        from millsense.estimation import tuning
+
         if shift > 0:
             rob = tuning.tune_robust(
-                fit,
-                lambda m: measurement_model(m, lowpass, 1.0 / sample_rate_hz),
-                r,
+                self.disturbance,
+                lambda m: measurement_model(m, self.lowpass_hz, self.dt),
+                self.r,
                 shift=shift,
                 q=q,
                 bounds=q_bounds,
                 lag=ASLAN_LAG_SAMPLES,
-                f_target_hz=TARGET_BAND_HZ[kind],
+                f_target_hz=TARGET_BAND_HZ[self.kind],
             )
-            return replace(model, q=rob.q, design_damping=rob.damping)
+            return replace(self, q=rob.q, design_damping=rob.damping)
         if q is None:
-            q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds).q
-        return replace(model, q=float(q))
+            q = tuning.tune_q(self.measurement_model(), self.r, bounds=q_bounds).q
+        return replace(self, q=float(q), design_damping=0.0)
 
     @property
     def dt(self) -> float:
@@ -1180,20 +1200,8 @@ def identify_feed_axis(
     model = FeedAxisModel(
         axis, kind, drive, modes, lowpass_hz, r, 1000.0, fs, moment_arm_m, lugre, condition
     )
-    if tune and robust_shift > 0:
-        rob = tuning.tune_robust(
-            modes,
-            lambda m: measurement_model(m, lowpass_hz, 1.0 / fs),
-            r,
-            shift=robust_shift,
-            bounds=q_bounds,
-            lag=ASLAN_LAG_SAMPLES,
-            f_target_hz=TARGET_BAND_HZ[kind],
-        )
-        model = replace(model, q=rob.q, design_damping=rob.damping)
-    elif tune:
-        q = tuning.tune_q(model.measurement_model(), r, bounds=q_bounds).q
-        model = replace(model, q=q)
+    if tune:
+        model = model.tuned(robust_shift, q_bounds=q_bounds)
     return model, sweep
 
 

@@ -194,21 +194,11 @@ def design_member(model: FeedAxisModel, design: Design, half_shift: float) -> Fe
     ``nominal``: :func:`~millsense.estimation.tuning.tune_q` on the member's own Φ_d;
     ``robust``: :func:`~millsense.estimation.tuning.tune_robust` for modes within
     ±``half_shift`` of the member's (its residual uncertainty: the mode change to the midpoint
-    to its neighbour).
+    to its neighbour); both through :meth:`FeedAxisModel.tuned`.
     """
-    fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
     if design == "nominal" or half_shift <= 0:
-        q = tuning.tune_q(measurement_model(fit, lp, dt), model.r).q
-        return replace(model, q=q, design_damping=0.0)
-    rob = tuning.tune_robust(
-        fit,
-        lambda m: measurement_model(m, lp, dt),
-        model.r,
-        shift=half_shift,
-        lag=ASLAN_LAG_SAMPLES,
-        f_target_hz=TARGET_BAND_HZ[model.kind],
-    )
-    return replace(model, q=rob.q, design_damping=rob.damping)
+        return model.tuned(0.0)
+    return model.tuned(half_shift)
 
 
 def identify_feed_bank(

@@ -138,6 +138,11 @@ class RationalFit:
         )
 
 
+#: Poles faster than this multiple of the top fitted frequency are dropped before the residues
+#: are solved (decision "Rational fit: poles far above the band").
+FAR_POLE_RATIO = 10.0
+
+
 def _basis(s: ComplexArray, cp: ComplexArray, rp: NDArray[np.float64]) -> ComplexArray:
     g1 = 1.0 / (s[:, None] - cp[None, :])
     g2 = 1.0 / (s[:, None] - np.conj(cp)[None, :])
@@ -151,6 +156,8 @@ def _fit_order(
 ) -> tuple[ComplexArray, NDArray[np.float64], NDArray[np.float64], float]:
     beta = np.geomspace(w_lo, 1.0, n_pairs)
     cp, rp = vector_fit(s, h, w, np.asarray(-beta / 100 + 1j * beta), 30)
+    # poles far above the band are constants there: fold them into the feedthrough
+    cp, rp = cp[np.abs(cp) <= FAR_POLE_RATIO], rp[np.abs(rp) <= FAR_POLE_RATIO]
     basis = _basis(s, cp, rp) * w[:, None]
     lhs = np.vstack([basis.real, basis.imag])
     rhs = np.concatenate([(w * h).real, (w * h).imag])

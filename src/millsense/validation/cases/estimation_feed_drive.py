@@ -516,6 +516,12 @@ def _robust_at_limit() -> Measured:
 
 
 V1_RPM = (1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 5500.0)
+#: Seeds of the simulated noise (torque noise, quantisation phase) the V1 errors are averaged
+#: over: one realisation scatters by ±1 point at 3000 rev/min on Y (decision "V1 figure: mean
+#: over noise realisations").
+V1_SEEDS = (21, 22, 23, 24, 25)
+#: (axis, rev/min) → (min, max) harmonic-design error over V1_SEEDS, filled by v1_errors.
+V1_SPREAD: dict[tuple[str, float], tuple[float, float]] = {}
 #: Aslan V1 compensated and raw errors at the tooth frequency and harmonics (digest §4)
 V1_THESIS = {
     "x": ((0.18, 0.06, 0.04, 0.12, 0.32, 0.17), (1.61, 3.41, 0.22, 0.64, 1.58, 0.49)),
@@ -685,7 +691,9 @@ def v1_condition(axis: str, rpm: float) -> OperatingCondition:
 
 @cache
 def v1_errors() -> dict[str, list[tuple[float, float, float, float]]]:
-    """Per axis and V1 speed: (rev/min, random-walk error, harmonic error, raw-current error).
+    """Per axis and V1 speed: (rev/min, random-walk error, harmonic error, raw-current error),
+    each the mean over the noise realisations :data:`V1_SEEDS` (decision "V1 figure: mean over
+    noise realisations"; the harmonic design's range is kept in :data:`V1_SPREAD`).
 
     Each axis's estimator is the model identified in the operating condition the CNC commands
     (:func:`v1_condition`: X moving, Y at rest), run twice on the same simulated cut: the
@@ -699,9 +707,18 @@ def v1_errors() -> dict[str, list[tuple[float, float, float, float]]]:
         for rpm in V1_RPM:
             params, model, _ = _identified(axis, v1_condition(axis, rpm))
             machine = perturbed_drive(params, frequency_scale=1.0)
-            comp_rw, raw = v1_run(axis, rpm, model, machine)
-            comp_h, _ = v1_run(axis, rpm, model, machine, harmonics=True)
-            out[axis].append((rpm, comp_rw, comp_h, raw))
+            runs = np.array(
+                [
+                    (
+                        *v1_run(axis, rpm, model, machine, seed=s),
+                        *v1_run(axis, rpm, model, machine, seed=s, harmonics=True),
+                    )
+                    for s in V1_SEEDS
+                ]
+            )  # columns: random walk, raw, harmonic, raw (same cut)
+            comp_rw, raw, comp_h = runs[:, 0].mean(), runs[:, 1].mean(), runs[:, 2].mean()
+            out[axis].append((rpm, float(comp_rw), float(comp_h), float(raw)))
+            V1_SPREAD[(axis, rpm)] = (float(runs[:, 2].min()), float(runs[:, 2].max()))
     return out
 
 
@@ -709,19 +726,25 @@ def _v1(axis: str) -> Measured:
     res = v1_errors()[axis]
     comp_th, raw_th = V1_THESIS[axis]
     rows = [
-        "| rev/min | harmonic (full model, Eq. 3.16-3.20) | random walk (thesis' model, "
+        "| rev/min | harmonic (full model, Eq. 3.16-3.20), mean (range) | random walk (thesis' "
+        "model, "
         "Eq. 3.21-3.23) | thesis compensated | raw current | thesis raw |",
         "|---|---|---|---|---|---|",
     ]
     excess = []
     for (rpm, c_rw, c_h, r), ct, rt in zip(res, comp_th, raw_th, strict=True):
-        rows.append(f"| {rpm:.0f} | {c_h:.1%} | {c_rw:.1%} | {ct:.0%} | {r:.1%} | {rt:.0%} |")
+        lo, hi = V1_SPREAD[(axis, rpm)]
+        rows.append(
+            f"| {rpm:.0f} | {c_h:.1%} ({lo:.1%}-{hi:.1%}) | {c_rw:.1%} | {ct:.0%} | {r:.1%} | "
+            f"{rt:.0%} |"
+        )
         excess.append(c_h - ct)
     return Measured(max(excess), "\n".join(rows))
 
 
 _V1_DESC = (
-    "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz over "
+    "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz, mean "
+    "over 5 noise realisations (seeds of the simulated noise), over "
     "1000-5500 rev/min of the HARMONIC estimator (Aslan's full disturbance model Eq. "
     "3.16-3.20: random walk plus one undamped pair per tooth harmonic ≤ 200 Hz, from the "
     "commanded spindle speed and the 2 teeth; passes when it is at or below the thesis at "
