@@ -209,10 +209,11 @@ MODE_CHANGE_OVER_STROKE = 0.04
 #: Identification positions per axis (decision "Position-scheduled feed estimator": the
 #: smallest N whose analytic worst case over an interval is within 3 dB − 0.5 dB margin).
 N_BANK = 3
-#: Motor speed of the bank sweeps and of the acceptance moves, rad/s (2 rad/s = 3.8 mm/s: the
-#: 13.3 s sweep travels 51 mm, a twelfth of the 10 rad/s sweep's) and the RMS load at the motor
-#: of both, N·m (keeps the motor from reversing under the load at that speed).
-SCHED_SPEED_RAD_S = 2.0
+#: Motor speed of the bank sweeps and of the acceptance moves per axis, rad/s, and the RMS load
+#: at the motor of both, N·m: the slowest speed at which that load does not reverse the motor
+#: (measured minimum motor speed, details table; X at 2 rad/s dips to −0.2 rad/s). 2 rad/s =
+#: 3.8 mm/s: the 13.3 s sweep travels 51 mm, a fifth of the 10 rad/s sweep's 254 mm.
+SCHED_SPEED_RAD_S = {"x": 3.0, "y": 2.0, "z": 2.0}
 SCHED_EXCITATION_NM = 2.0
 
 
@@ -239,7 +240,7 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
     from millsense.estimation.feed_schedule import sweep_travel
 
     s = STROKE_M[axis]
-    d = 0.5 * sweep_travel(scheduled_params(axis), SCHED_SPEED_RAD_S, FS_HZ)
+    d = 0.5 * sweep_travel(scheduled_params(axis), SCHED_SPEED_RAD_S[axis], FS_HZ)
     return tuple(float(x) for x in np.linspace(-s / 2 + d, s / 2 - d, n))
 
 
@@ -256,7 +257,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
         "linear",
         bank_positions(axis, n) if n > 1 else (0.0,),
         sample_rate_hz=FS_HZ,
-        sweep_speed_rad_s=SCHED_SPEED_RAD_S,
+        sweep_speed_rad_s=SCHED_SPEED_RAD_S[axis],
         sweep_force_rms=SCHED_EXCITATION_NM / lg,
         design="auto",
     )
@@ -268,7 +269,7 @@ def _test_travel(axis: str) -> float:
 
     p = scheduled_params(axis)
     n = round((0.3 + N_PERIODS + 0.01) * FS_HZ)
-    return float(ramp_move(SCHED_SPEED_RAD_S, n, FS_HZ)[0][-1] * p.transmission)
+    return float(ramp_move(SCHED_SPEED_RAD_S[axis], n, FS_HZ)[0][-1] * p.transmission)
 
 
 def test_places(axis: str) -> dict[str, float]:
@@ -309,7 +310,7 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     total = len(load) + lead + est.lag
     start = centre_m - 0.5 * _test_travel(axis)
     q0 = start / params.transmission
-    pos, vel = ramp_move(SCHED_SPEED_RAD_S, total, FS_HZ)
+    pos, vel = ramp_move(SCHED_SPEED_RAD_S[axis], total, FS_HZ)
     pos = pos + q0
     full = np.concatenate([np.zeros(lead), load, np.zeros(est.lag)])
     res = FeedDriveSim(machine, FS_HZ, seed=11, initial_angle_rad=q0).advance(pos, vel, full)
@@ -397,10 +398,11 @@ def _scheduled_table() -> tuple[float, str]:
     quick=False,
     description="largest |deviation| from 0 dB of the measured compensated X/Y/Z force FRF over "
     "1-180 Hz with every disturbance-mode frequency following the table position (±2 % over "
-    "the stroke, linear), estimated by the position-scheduled bank (Φ_d identified at the "
-    f"centres of {N_BANK} stroke segments, model chosen by the commanded position, cross-faded "
-    "at the midpoints), during moves midway between two identification positions and at both "
-    "stroke ends (2 rad/s, 2 N·m RMS multisine at the motor); details: the same moves with one "
+    "the stroke, linear), estimated by the position-scheduled bank (Φ_d identified at "
+    f"{N_BANK} positions from end to end of the stroke, estimates interpolated linearly by the "
+    "commanded position), during moves midway between two identification positions and at both "
+    "stroke ends (X 3, Y/Z 2 rad/s; 2 N·m RMS multisine at the motor); details: the same moves "
+    "with one "
     "model identified at the stroke centre, and the LTI limit for one estimator over ±2 %. "
     "Rotary axes: no angle dependence is modelled (decision 'Position-dependent disturbance "
     "modes'), their acceptance is estimation.feed_rotary_flat_to_120hz. " + _MISMATCH,
