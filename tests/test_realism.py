@@ -195,3 +195,19 @@ def test_spindle_load_scales_the_tool_modes() -> None:
     assert proc._td is not None
     np.testing.assert_allclose(proc._td.modes_x.natural_hz, 980.0 * sc, rtol=1e-12)
     np.testing.assert_allclose(proc._td.modes_y.natural_hz, 980.0 * sc, rtol=1e-12)
+
+
+def test_machine_position_profile_takes_precedence_over_the_seeded_one() -> None:
+    # an axis with its own `mode_shift_pct_per_100mm` gets no seeded realism mode table (the
+    # drive kernel applies the machine file's profile every 1 ms; two schemes writing the same
+    # modal matrices would fight); the other axes keep theirs
+    m = _machine3()
+    x = m.axes["x"].model_copy(update={"mode_shift_pct_per_100mm": 0.5})
+    m = m.model_copy(update={"axes": {**m.axes, "x": x}})
+    job = Job.straight([0, 0, 0], [0.05, 0, 0], 0.2, 600.0)
+    opts = SimulatorOptions(
+        seed=1, realism=RealismOptions(**{**NONE.__dict__, "position_modes": True})
+    )
+    sim = MachineSimulator(m, job, None, opts, duration_s=0.1)
+    assert sim._mode_tables[0] is None
+    assert sim._mode_tables[1] is not None

@@ -502,7 +502,13 @@ class MachineSimulator(Source):
                 ar = AxisRealism.seeded(real_rng, float(centre[i]), 0.5 * float(span[i]) + 0.05, rg)
                 self._axis_real.append(ar)
                 table = None
-                if self._realism.position_modes and params.modes is not None:
+                # a machine file's own position profile (``mode_shift_pct_per_100mm``, applied by
+                # the drive kernel every millisecond) takes precedence over the seeded one
+                if (
+                    self._realism.position_modes
+                    and params.modes is not None
+                    and params.mode_shift_per_m == 0.0
+                ):
                     table = _mode_table(params.modes, ar, params, opts.drive_substeps, fs)
                 self._mode_tables.append(table)
             else:
