@@ -227,7 +227,7 @@ def _feed_axis_scheduled_speed() -> list[Metric]:
     the whole bank in 10 s at 10 kHz, so members start (with their 1 s warm-up replay) and stop
     during the run; one shared C3 stage, at most two or three smoothers running at a time.
     """
-    from millsense.estimation.feed_schedule import FeedModelBank, ScheduledFeedEstimator, scale_fit
+    from millsense.estimation.feed_schedule import FeedModelBank, ScheduledFeedEstimator
 
     base = next(b for b in _feed_blocks() if b.model.axis == "y").model
     n = int(SECONDS * FS_HZ)
@@ -240,7 +240,9 @@ def _feed_axis_scheduled_speed() -> list[Metric]:
     out: list[Metric] = []
     for n_bank in (3, 5):
         scales = np.linspace(0.99, 1.01, n_bank)
-        models = tuple(replace(base, disturbance=scale_fit(base.disturbance, k)) for k in scales)
+        models = tuple(
+            replace(base, disturbance=base.disturbance.with_modes_scaled(k)) for k in scales
+        )
         bank = FeedModelBank(tuple(np.linspace(-0.2, 0.2, n_bank)), models, (0.005,) * n_bank)
         block = ScheduledFeedEstimator(bank)
         _run([block], {k: v[: 10 * CHUNK] for k, v in data.items()}, 10 * CHUNK)  # compile

@@ -17,7 +17,6 @@ from millsense.estimation.feed_schedule import (
     ScheduledFeedEstimator,
     interval_worst_db,
     relative_shift,
-    scale_fit,
 )
 from millsense.ident.frf import FrfEstimate
 from millsense.online.block import Chunk
@@ -35,7 +34,8 @@ def _model() -> FeedAxisModel:
 def _bank(crossfade: float = 1.0) -> FeedModelBank:
     m = _model()
     models = tuple(
-        replace(m, disturbance=scale_fit(m.disturbance, k), q=m.q * k) for k in (0.99, 1.0, 1.01)
+        replace(m, disturbance=m.disturbance.with_modes_scaled(k), q=m.q * k)
+        for k in (0.99, 1.0, 1.01)
     )
     return FeedModelBank((-0.1, 0.0, 0.1), models, (0.005,) * 3, crossfade)
 
@@ -120,7 +120,7 @@ def test_relative_shift_recovers_a_known_scale() -> None:
     # noiseless "sweep" of the model with every mode × 1.013: the fit finds 0.013 (to 1e-5)
     fit = _model().disturbance
     f = np.arange(3.0, 261.0, 1.0)
-    h = scale_fit(fit, 1.013).continuous_frf(f)
+    h = fit.with_modes_scaled(1.013).continuous_frf(f)
     ones = np.ones_like(f)
     sweep = SweepResult(FrfEstimate(f, h, h, ones, 1, "multisine"), fit)
     assert relative_shift(fit, sweep, (3.0, 260.0)) == pytest.approx(0.013, abs=1e-5)

@@ -70,24 +70,12 @@ Design = Literal["nominal", "robust"]
 DesignChoice = Literal["nominal", "robust", "auto"]
 
 
-def scale_fit(fit: RationalFit, frequency_scale: float) -> RationalFit:
-    """Φ_d with every complex (structural-mode) pole and residue × ``frequency_scale``.
-
-    Real poles (the loop seen through the C3 torque) and the constant stay, as in
-    :func:`millsense.estimation.tuning.mode_family`.
-    """
-    return replace(
-        fit,
-        complex_poles=fit.complex_poles * frequency_scale,
-        complex_residues=fit.complex_residues * frequency_scale,
-    )
-
-
 def relative_shift(fit_a: RationalFit, sweep_b: SweepResult, band_hz: tuple[float, float]) -> float:
     """Relative mode-frequency change from the model ``fit_a`` to the sweep ``sweep_b``.
 
     The λ − 1 minimising ``Σ |H_b(f) − Φ_a(f; λ)|²`` over the measured lines of ``sweep_b`` in
-    ``band_hz`` (Hz), with ``Φ_a(·; λ)`` = :func:`scale_fit` (bounded search, λ in 0.8…1.2).
+    ``band_hz`` (Hz), with ``Φ_a(·; λ)`` = :meth:`RationalFit.with_modes_scaled` (bounded
+    search, λ in 0.8…1.2).
     """
     est = sweep_b.frf
     sel = (est.freq_hz >= band_hz[0]) & (est.freq_hz <= band_hz[1])
@@ -96,7 +84,7 @@ def relative_shift(fit_a: RationalFit, sweep_b: SweepResult, band_hz: tuple[floa
         raise InputDataError("relative shift: fewer than 3 FRF lines in the band")
 
     def cost(lam: float) -> float:
-        return float(np.sum(np.abs(h - scale_fit(fit_a, lam).continuous_frf(f)) ** 2))
+        return float(np.sum(np.abs(h - fit_a.with_modes_scaled(lam).continuous_frf(f)) ** 2))
 
     res = optimize.minimize_scalar(
         cost, bounds=(0.8, 1.2), method="bounded", options={"xatol": 1e-6}
@@ -334,7 +322,9 @@ def interval_worst_db(
     f = np.concatenate([np.arange(0.0, 300.0, 0.05), np.arange(300.0, 1000.5, 1.0)])
     sel = (f >= 1.0) & (f <= target)
     members = [
-        design_member(replace(model, disturbance=scale_fit(fit, 1.0 + s)), design, half_shift)
+        design_member(
+            replace(model, disturbance=fit.with_modes_scaled(1.0 + s)), design, half_shift
+        )
         for s in (-half_shift, half_shift)
     ]
     ests = [
@@ -351,7 +341,10 @@ def interval_worst_db(
     worst, mid = 0.0, 0.0
     for k, uk in enumerate(u):
         plant = tuning.model_frf(
-            measurement_model(scale_fit(fit, 1.0 - half_shift + 2 * half_shift * uk), lp, dt), f
+            measurement_model(
+                fit.with_modes_scaled(1.0 - half_shift + 2 * half_shift * uk), lp, dt
+            ),
+            f,
         )
         dev = float(
             np.max(tuning.deviation_db((plant * (w[k, 0] * ests[0] + w[k, 1] * ests[1]))[sel]))

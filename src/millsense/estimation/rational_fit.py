@@ -17,7 +17,7 @@ the Tustin transform, which is exact: ``H(e^{jωT}) = H_c(j·(2/T)·tan(ωT/2))`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -124,17 +124,17 @@ class RationalFit:
         ad, bd, cd, dd, _ = signal.cont2discrete((cm.a, cm.b, cm.c, cm.d), dt, method="bilinear")
         return StateSpaceModel(np.asarray(ad), np.asarray(bd), np.asarray(cd), np.asarray(dd), dt)
 
-    def scaled(self, frequency_scale: float) -> RationalFit:
-        """Every pole × ``frequency_scale`` and residues × it (same static gain per term)."""
-        s = frequency_scale
-        return RationalFit(
-            self.complex_poles * s,
-            self.complex_residues * s,
-            self.real_poles * s,
-            self.real_residues * s,
-            self.d,
-            self.rms_error,
-            self.warped_fs_hz,
+    def with_modes_scaled(self, frequency_scale: float) -> RationalFit:
+        """Every complex (structural-mode) pole and residue × ``frequency_scale``.
+
+        ``ρ/(s − p) + c.c.`` keeps its static gain (as the simulator's position-dependent modes
+        keep α/ω²); real poles (the loop seen through the C3 torque, not structural) and the
+        constant stay.
+        """
+        return replace(
+            self,
+            complex_poles=self.complex_poles * frequency_scale,
+            complex_residues=self.complex_residues * frequency_scale,
         )
 
 

@@ -185,10 +185,7 @@ def mode_family(fit: RationalFit, shift: float, n: int = 9) -> list[RationalFit]
     if not shift >= 0:
         raise InputDataError(f"mode family: shift must be >= 0, got {shift}")
     kappas = np.linspace(1.0 - shift, 1.0 + shift, n) if n > 1 else np.ones(1)
-    return [
-        replace(fit, complex_poles=fit.complex_poles * k, complex_residues=fit.complex_residues * k)
-        for k in kappas
-    ]
+    return [fit.with_modes_scaled(float(k)) for k in kappas]
 
 
 def robust_fit(fit: RationalFit, damping: float) -> RationalFit:
