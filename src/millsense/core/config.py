@@ -17,6 +17,7 @@ Usage::
 
 from __future__ import annotations
 
+import itertools
 import math
 import tomllib
 from collections.abc import Mapping
@@ -267,6 +268,14 @@ class PeriodicDisturbanceConfig(_Model):
         return self.phase_deg * units.DEG
 
 
+class DisturbanceModesAtConfig(DisturbanceModesConfig):
+    """Disturbance modes identified with the table at one position (one entry of
+    ``[[axes.<axis>.disturbance_modes_at]]``, the position-scheduled feed estimator)."""
+
+    position_mm: Annotated[float, Field(ge=-1e4, le=1e4)]
+    """Table position of the identification, mm (machine coordinates, as ``position_cmd``)."""
+
+
 class FeedEstimatorConfig(_Model):
     """Tuning of an axis' Kalman force estimator (``[axes.x.estimator]``, all optional).
 
@@ -323,6 +332,12 @@ class FeedAxisConfig(_Model):
     """T_t: table-position measurement (Yamada Table 3-3)."""
     disturbance_modes: DisturbanceModesConfig | None = None
     """Aslan Table 3.4 modes between the table load and the motor (rigid-body axes)."""
+    disturbance_modes_at: list[DisturbanceModesAtConfig] = []
+    """Φ_d identified at several table positions, ascending (linear axes): ``millsense
+    estimate --method feed`` then runs the position-scheduled estimator
+    (:mod:`millsense.estimation.feed_schedule`, docs/decisions.md "Position-scheduled feed
+    estimator") interpolating by the commanded position; ``disturbance_modes`` is not used by
+    the estimator then."""
     ball_screw: BallScrewConfig | None = None
     """Dual/triple-inertia ball screw (Yamada); replaces the rigid body when given."""
     periodic_disturbances: list[PeriodicDisturbanceConfig] = []
@@ -341,6 +356,14 @@ class FeedAxisConfig(_Model):
     def _scale_for_full_closed(self) -> FeedAxisConfig:
         if self.position_feedback == "scale" and self.scale_resolution_nm is None:
             raise ValueError("position_feedback 'scale' needs scale_resolution_nm")
+        if self.disturbance_modes_at:
+            if self.kind != "linear":
+                raise ValueError("disturbance_modes_at is for linear axes only")
+            pos = [m.position_mm for m in self.disturbance_modes_at]
+            if any(b <= a for a, b in itertools.pairwise(pos)):
+                raise ValueError(
+                    f"disturbance_modes_at: position_mm must be strictly ascending, got {pos}"
+                )
         return self
 
     @model_validator(mode="after")

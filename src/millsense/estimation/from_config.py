@@ -200,12 +200,52 @@ def _feed(
     from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
 
     cfg = machine.axis(axis)
+    unit = "N" if cfg.kind == "linear" else "N*m"
+    if cfg.disturbance_modes_at:
+        return _scheduled_feed(axis, machine, where, fs, teeth)
     model = FeedAxisModel.from_config(axis, cfg, sample_rate_hz=fs, where=where)
     block = FeedAxisEstimator(model, teeth=teeth)
-    unit = "N" if cfg.kind == "linear" else "N*m"
     return RenamedBlock(
         block,
         {f"{axis}/load_est": (load_channel("feed", axis), 1.0, unit)},
+        f"feed_{axis}",
+        block.lag,
+    )
+
+
+def _scheduled_feed(
+    axis: str, machine: MachineConfig, where: str, fs: float, teeth: int | None
+) -> RenamedBlock:
+    """The position-scheduled feed estimator of an axis with ``disturbance_modes_at``: one
+    :class:`~millsense.estimation.feed_drive.FeedAxisModel` per identified position (each tuned
+    as ``FeedAxisModel.from_config`` tunes one), interpolated linearly by the commanded position
+    (:class:`~millsense.estimation.feed_schedule.ScheduledFeedEstimator`)."""
+    from millsense.core import units
+    from millsense.core.config import DisturbanceModesConfig
+    from millsense.estimation.feed_drive import FeedAxisModel
+    from millsense.estimation.feed_schedule import FeedModelBank, ScheduledFeedEstimator
+
+    cfg = machine.axis(axis)
+    if teeth is not None:
+        raise ConfigError(
+            f"{where}: axes.{axis}.disturbance_modes_at: the position-scheduled estimator has no "
+            "tooth-harmonic option (--harmonics)"
+        )
+    models = []
+    for i, at in enumerate(cfg.disturbance_modes_at):
+        modes = DisturbanceModesConfig.model_validate(at.model_dump(exclude={"position_mm"}))
+        member = cfg.model_copy(update={"disturbance_modes": modes, "disturbance_modes_at": []})
+        models.append(
+            FeedAxisModel.from_config(
+                axis, member, sample_rate_hz=fs, where=f"{where} disturbance_modes_at[{i}]"
+            )
+        )
+    positions = tuple(at.position_mm * units.MM for at in cfg.disturbance_modes_at)
+    bank = FeedModelBank(positions, tuple(models), tuple(0.0 for _ in models))
+    block = ScheduledFeedEstimator(bank)
+    return RenamedBlock(
+        block,
+        {f"{axis}/load_est": (load_channel("feed", axis), 1.0, "N")},
         f"feed_{axis}",
         block.lag,
     )
