@@ -12,6 +12,7 @@ from millsense.cli.main import main
 from millsense.core.config import (
     BallScrewConfig,
     DisturbanceModesConfig,
+    FeedAxisConfig,
     FrictionConfig,
     MachineConfig,
 )
@@ -177,3 +178,45 @@ def test_unknown_kind_and_missing_machine(
     assert code == 2 and "unknown kind" in err
     code, _, err = run_cli(["identify", "spindle", rec, "-o", str(tmp_path / "o.toml")], capsys)
     assert code == 2 and "--machine" in err and err.count("\n") == 1
+
+
+def test_modal_fragment_per_position_loads_as_disturbance_modes_at(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # two sweeps with the table held at +120 and -80 mm (x/position_cmd, m): one table each,
+    # sorted by position, loadable as [[axes.x.disturbance_modes_at]] of a linear axis; the
+    # second sweep's modes are 4 % higher (Welch H1 at 0.5 Hz resolves them to 1 %)
+    rng = np.random.default_rng(2)
+    paths = []
+    for pos_m, scale in ((0.12, 1.04), (-0.08, 1.0)):
+        modes = [Mode.from_residues(m.natural_frequency_hz * scale, m.zeta,
+                                    m.alpha * scale**2, m.beta) for m in _MODES]  # fmt: skip
+        u = rng.standard_normal(60000)
+        y = simulate_modes(modes, u, 1000.0) + 1e-3 * rng.standard_normal(len(u))
+        rec = Recording(1000.0, metadata={})
+        rec.add_channel("x/load", u, "N")
+        rec.add_channel("x/torque", y, "N*m")
+        rec.add_channel("x/position_cmd", np.full(len(u), pos_m), "m")
+        paths.append(_write(rec, tmp_path / f"s{len(paths)}.h5"))
+    out = tmp_path / "at.toml"
+    code, _, err = run_cli(["identify", "modal", *paths, "--input", "x/load", "--output",
+                            "x/torque", "--band", "10:200", "--resolution", "0.5",
+                            "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    tables = tomllib.loads(out.read_text())["axes"]["x"]["disturbance_modes_at"]
+    assert [t["position_mm"] for t in tables] == pytest.approx([-80.0, 120.0], abs=1e-9)
+    ax = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = FeedAxisConfig.model_validate(ax.model_dump() | {"disturbance_modes_at": tables})
+    low, high = cfg.disturbance_modes_at
+    assert sorted(low.natural_frequency_hz) == pytest.approx([40.0, 95.0], rel=0.01)
+    assert sorted(high.natural_frequency_hz) == pytest.approx([41.6, 98.8], rel=0.01)
+
+
+def test_modal_per_position_needs_the_commanded_position(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = _modal_recording(tmp_path / "a.h5", n=5000)
+    b = _modal_recording(tmp_path / "b.h5", n=5000)
+    code, _, err = run_cli(["identify", "modal", a, b, "--input", "x/load", "--output",
+                            "x/torque", "-o", str(tmp_path / "o.toml")], capsys)  # fmt: skip
+    assert code == 2 and "x/position_cmd" in err and len(err.strip().splitlines()) == 1

@@ -4,7 +4,9 @@
 
 - ``frf``      FRF between ``--input`` and ``--output`` (multisine when the recording states its
   period, Welch otherwise) → ``[frf]`` table;
-- ``modal``    modal fit of that FRF in ``--band`` → ``[axes.<axis>.disturbance_modes]``;
+- ``modal``    modal fit of that FRF in ``--band`` → ``[axes.<axis>.disturbance_modes]``; with
+  one sweep per table position, ``[[axes.<axis>.disturbance_modes_at]]`` at the mean
+  commanded position of each (the position-scheduled feed estimator);
 - ``friction`` constant-velocity moves (+ a presliding test) → ``[axes.<axis>.friction]``;
 - ``drive``    current-injection sweep (+ an acceleration test) → ``[axes.<axis>]`` and
   ``[axes.<axis>.ball_screw]``;
@@ -18,6 +20,7 @@ from the recording's metadata or from ``--machine`` (a preset name or machine TO
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 from typing import Any
@@ -129,18 +132,51 @@ def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
 
 
 def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    if not o["input"] or not o["output"]:
+        raise ConfigError("identify frf/modal: give --input and --output channels")
+    if len(ctx.recs) == 1:
+        one, one_notes = _modal_table(ctx, o, ctx.recs[0], ctx.paths[0], o["plot"])
+        return {"axes": {ctx.axis: {"disturbance_modes": one}}}, one_notes
+    # one sweep per table position: [[axes.<axis>.disturbance_modes_at]], the position being the
+    # mean commanded position of each record (docs/decisions.md "Position-scheduled estimator
+    # from the machine file")
+    import numpy as np
+
+    from millsense.core import units
+
+    tables: list[tuple[float, dict[str, object]]] = []
+    notes: list[str] = []
+    for i, (rec, path) in enumerate(zip(ctx.recs, ctx.paths, strict=True)):
+        pos = np.asarray(ctx.channel(rec, path, f"{ctx.axis}/position_cmd"), dtype=float)
+        plot = o["plot"]
+        if plot is not None:
+            plot = Path(plot).with_name(f"{Path(plot).stem}-{i}{Path(plot).suffix}")
+        table, n = _modal_table(ctx, o, rec, path, plot)
+        position_mm = float(np.mean(pos)) / units.MM
+        tables.append((position_mm, {"position_mm": position_mm, **table}))
+        notes += [f"{path.name} at {position_mm:.1f} mm: {n[0]}"]
+    tables.sort(key=lambda t: t[0])
+    pos_mm = [p for p, _ in tables]
+    if any(b <= a for a, b in itertools.pairwise(pos_mm)):
+        raise InputDataError(
+            f"identify modal: two sweeps at the same commanded position ({pos_mm} mm)"
+        )
+    return {"axes": {ctx.axis: {"disturbance_modes_at": [t for _, t in tables]}}}, notes
+
+
+def _modal_table(
+    ctx: _Ctx, o: dict[str, Any], rec: Any, path: Path, plot: Path | None
+) -> tuple[dict[str, object], list[str]]:
+    """Modal fit of one sweep recording → the keys of a ``disturbance_modes`` table."""
     from millsense.ident.modal_fit import fit_modes
     from millsense.report.ident_plots import plot_frf_fit, plot_stabilisation
 
-    if not o["input"] or not o["output"]:
-        raise ConfigError("identify frf/modal: give --input and --output channels")
-    rec, path = ctx.recs[0], ctx.paths[0]
     est = _estimate(rec, path, o["input"], o["output"], o["resolution"])
     band = o["band"] or (float(est.freq_hz[0]), float(est.freq_hz[-1]))
     fit = fit_modes(est, band, max_modes=o["max_modes"])
-    if o["plot"] is not None:
-        plot_frf_fit(est, fit, o["plot"], title=f"{o['output']} / {o['input']}")
-        stab = Path(o["plot"]).with_name(Path(o["plot"]).stem + "-stabilisation.png")
+    if plot is not None:
+        plot_frf_fit(est, fit, plot, title=f"{o['output']} / {o['input']}")
+        stab = Path(plot).with_name(Path(plot).stem + "-stabilisation.png")
         if fit.diagram is not None:
             plot_stabilisation(fit, stab, est)
     modes = fit.modes
@@ -152,8 +188,7 @@ def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
         "feedthrough": float(fit.residual),
         "source": f"millsense identify modal {path.name} {band[0]:g}-{band[1]:g} Hz",
     }
-    notes = [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
-    return {"axes": {ctx.axis: {"disturbance_modes": table}}}, notes
+    return table, [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
 
 
 def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:

@@ -41,7 +41,8 @@ def _value(v: object, where: str) -> str:
 
 
 def to_toml(fragment: Mapping[str, object], comments: list[str] | None = None) -> str:
-    """TOML text of a nested mapping (tables for mappings, ``key = value`` for the rest).
+    """TOML text of a nested mapping (tables for mappings, arrays of tables ``[[…]]`` for lists
+    of mappings, ``key = value`` for the rest).
 
     Parameters
     ----------
@@ -50,17 +51,30 @@ def to_toml(fragment: Mapping[str, object], comments: list[str] | None = None) -
     """
     lines = [f"# {c}" for c in (comments or [])]
 
-    def emit(table: Mapping[str, object], path: list[str]) -> None:
-        scalars = [(k, v) for k, v in table.items() if not isinstance(v, Mapping)]
+    def is_array_of_tables(v: object) -> bool:
+        return isinstance(v, (list, tuple)) and bool(v) and all(isinstance(x, Mapping) for x in v)
+
+    def emit(table: Mapping[str, object], path: list[str], array: bool = False) -> None:
+        scalars = [
+            (k, v)
+            for k, v in table.items()
+            if not isinstance(v, Mapping) and not is_array_of_tables(v)
+        ]
         subs = [(k, v) for k, v in table.items() if isinstance(v, Mapping)]
-        if path and (scalars or not subs):
+        arrays = [(k, v) for k, v in table.items() if is_array_of_tables(v)]
+        if path and (scalars or array or not (subs or arrays)):
             lines.append("")
-            lines.append("[" + ".".join(_key(p) for p in path) + "]")
+            name = ".".join(_key(p) for p in path)
+            lines.append(f"[[{name}]]" if array else f"[{name}]")
         for k, v in scalars:
             lines.append(f"{_key(k)} = {_value(v, '.'.join([*path, k]))}")
         for k, v in subs:
             assert isinstance(v, Mapping)
             emit(v, [*path, k])
+        for k, v in arrays:
+            assert isinstance(v, (list, tuple))
+            for item in v:
+                emit(item, [*path, k], array=True)
 
     emit(fragment, [])
     return "\n".join(lines).lstrip("\n") + "\n"

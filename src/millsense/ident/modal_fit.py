@@ -485,24 +485,33 @@ def fit_modes(
             cp, _ = vector_fit(s, h, w, _initial_poles(m, w_lo, 1.0), n_iter)
             poles.append(cp)
             errs.append(err_of(cp)[0])
-        best = min(errs)
-        limit = (1 + error_tolerance) * best + 1e-6  # 1e-6: round-off floor of exact data
-        sel_i = next(i for i, e in enumerate(errs) if e <= limit)
         labels: list[tuple[str, ...]] = []
         for i, cp in enumerate(poles):
             prev = poles[i - 1] if i > 0 else np.zeros(0, dtype=complex)
             labels.append(tuple(_match(p, prev, freq_tol, damping_tol) for p in cp))
-        cp = poles[sel_i]
-        nxt = poles[sel_i + 1] if sel_i + 1 < len(poles) else np.zeros(0, dtype=complex)
-        stable = np.array(
-            [
-                labels[sel_i][j] == "s" or _match(p, nxt, freq_tol, damping_tol) == "s"
-                for j, p in enumerate(cp)
-            ],
-            dtype=bool,
-        )
-        # in-band: stable physical poles only; out-of-band poles all kept as residual terms
-        chosen = cp[(physical(cp) & stable & in_band(cp)) | ~in_band(cp)]
+
+        def kept(i: int) -> ComplexArray:
+            # in-band: stable physical poles only; out-of-band poles all kept as residual terms
+            cp = poles[i]
+            nxt = poles[i + 1] if i + 1 < len(poles) else np.zeros(0, dtype=complex)
+            stable = np.array(
+                [
+                    labels[i][j] == "s" or _match(p, nxt, freq_tol, damping_tol) == "s"
+                    for j, p in enumerate(cp)
+                ],
+                dtype=bool,
+            )
+            return np.asarray(cp[(physical(cp) & stable & in_band(cp)) | ~in_band(cp)])
+
+        # the order is chosen on the error of the poles it keeps (decision "Modal fit: order
+        # chosen on the kept poles"): a noise-fitting order can split a mode into two unstable
+        # poles, and its low error then says nothing of what is returned
+        kept_sets = [kept(i) for i in range(len(poles))]
+        kept_errs = [err_of(k)[0] if len(k) else math.inf for k in kept_sets]
+        best = min(kept_errs)
+        limit = (1 + error_tolerance) * best + 1e-6  # 1e-6: round-off floor of exact data
+        sel_i = next(i for i, e in enumerate(kept_errs) if e <= limit)
+        chosen = kept_sets[sel_i]
         diagram = StabilisationDiagram(
             tuple(orders),
             tuple(p * w0 for p in poles),
