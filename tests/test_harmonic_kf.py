@@ -203,5 +203,5 @@ def test_model_error_blends_prior_and_data_where_observable() -> None:
 
 def test_model_error_is_checked() -> None:
     phi, a = _synthetic(0.1, 0.1)
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match="model_error"):
         estimate_harmonic_kf({"y": a}, phi, FS, RPM, CUT, {"y": g1}, model_error=-0.1)

@@ -280,9 +280,11 @@ class _HarmonicModel:
         return h * STATE_SCALE  # (n, 2, 4)
 
 
-def _check_settings(q: float, r: float, n_harmonics: int) -> None:
+def _check_settings(q: float, r: float, n_harmonics: int, model_error: float, who: str) -> None:
     if not (q >= 0 and r > 0 and n_harmonics >= 1):
-        raise ConfigError("harmonic KF: q ≥ 0, r > 0 and n_harmonics ≥ 1 are required")
+        raise ConfigError(f"{who}: q ≥ 0, r > 0 and n_harmonics ≥ 1 are required")
+    if not model_error >= 0:
+        raise ConfigError(f"{who}: model_error must be ≥ 0")
 
 
 def estimate_harmonic_kf(
@@ -347,9 +349,7 @@ def estimate_harmonic_kf(
     the largest) q̂ stays at the prior and the force error is the prior's. Decision "İlme
     filter: persistent model error in R" (docs/decisions.md).
     """
-    _check_settings(q, r, n_harmonics)
-    if not model_error >= 0:
-        raise ConfigError("harmonic KF: model_error must be ≥ 0")
+    _check_settings(q, r, n_harmonics, model_error, "harmonic KF")
     phi = np.asarray(spindle_angle_rad, dtype=float)
     f_t = cut.n_flutes * spindle_speed_rpm / 60.0
     if not f_t > 0:
@@ -485,9 +485,7 @@ class HarmonicKalmanBlock(Block):
         prefix: str = "ilme_",
         model_error: float = 0.0,
     ) -> None:
-        _check_settings(q, r, n_harmonics)
-        if not model_error >= 0:
-            raise ConfigError(f"block {name}: model_error must be ≥ 0")
+        _check_settings(q, r, n_harmonics, model_error, f"block {name}")
         self.model_error = float(model_error)
         if set(acceleration_channels) != set(frfs):
             raise ConfigError(f"block {name}: acceleration channels and FRFs name other axes")

@@ -112,7 +112,6 @@ def tune_q(
     n_freq: int = 2001,
     max_noise_gain: float = math.sqrt(10.0),
     n_grid: int = 29,
-    plants: Sequence[StateSpaceModel] = (),
 ) -> QTuning:
     """Q maximising the compensated ±3 dB bandwidth on the (identified) design model.
 
@@ -125,9 +124,6 @@ def tune_q(
     n_freq : grid points.
     max_noise_gain : largest admissible white-noise gain (:func:`noise_gain`).
     n_grid : coarse log-spaced grid points.
-    plants : further plants the design must compensate (robust tuning, e.g. the identified
-        modes shifted by the expected position dependence); the score is the smallest bandwidth
-        over ``model`` and these.
 
     Notes
     -----
@@ -143,7 +139,7 @@ def tune_q(
         d = _design(model, 10.0**logq, r)
         if noise_gain(d) > max_noise_gain:
             return 0.0
-        return min(bandwidth_3db(f, compensated_frf(pl, d, f)) for pl in (model, *plants))
+        return bandwidth_3db(f, compensated_frf(model, d, f))
 
     grid = np.linspace(math.log10(bounds[0]), math.log10(bounds[1]), n_grid)
     bw = np.array([score(g) for g in grid])
