@@ -23,11 +23,7 @@ import numpy as np
 from _harness import Metric, benchmark
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import (
-    FeedAxisEstimator,
-    FeedAxisModel,
-    ToolForceBlock,
-)
+from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel, ToolForceBlock
 from millsense.estimation.rational_fit import RationalFit
 from millsense.estimation.rigid_body import DriveModel
 from millsense.estimation.spindle_observer import (

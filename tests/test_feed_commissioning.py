@@ -6,14 +6,9 @@ import numpy as np
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import (
-    DEFAULT_FRICTION_SMOOTHING_RAD_S,
-    UNMODELLED_MODE,
-    FeedAxisModel,
-    commissioning_drive,
-    perturbed_drive,
-)
+from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S, FeedAxisModel
 from millsense.estimation.rigid_body import rigid_limit
+from millsense.machine.drive_mismatch import UNMODELLED_MODE, commissioning_drive, perturbed_drive
 from millsense.machine.feed_drive import FeedDriveParams
 from millsense.machine.friction import CoulombViscous
 

@@ -16,16 +16,14 @@ from millsense.estimation.feed_drive import (
     FeedAxisEstimator,
     FeedAxisModel,
     ToolForceBlock,
-    identify_friction,
-    identify_lugre,
     measurement_model,
-    perturbed_drive,
-    ramp_move,
     sampled_fit_at,
 )
+from millsense.estimation.feed_identification import identify_friction, identify_lugre, ramp_move
 from millsense.estimation.kalman import StateSpaceModel, discretize_zoh
 from millsense.estimation.rational_fit import RationalFit, fit_rational
 from millsense.estimation.rigid_body import DriveModel
+from millsense.machine.drive_mismatch import perturbed_drive
 from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
 from millsense.machine.friction import CoulombViscous
 from millsense.machine.kinematics import TrunnionACKinematics

@@ -10,13 +10,12 @@ import pytest
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import (
-    REST_SPEED_RAD_S,
+from millsense.estimation.feed_drive import REST_SPEED_RAD_S, operating_condition
+from millsense.estimation.feed_identification import (
     disturbance_sweep,
     identify_feed_axis,
     identify_friction,
     identify_lugre,
-    operating_condition,
 )
 from millsense.estimation.rigid_body import DriveModel
 from millsense.machine.feed_drive import FeedDriveParams

@@ -11,7 +11,8 @@ import pytest
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel, SweepResult
+from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
+from millsense.estimation.feed_identification import SweepResult
 from millsense.estimation.feed_schedule import (
     FeedModelBank,
     ScheduledFeedEstimator,

@@ -34,14 +34,16 @@ from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation import tuning
 from millsense.estimation.feed_drive import (
-    SWEEP_SPEED_RAD_S,
     TARGET_BAND_HZ,
     FeedAxisEstimator,
     FeedAxisModel,
+    measurement_model,
+)
+from millsense.estimation.feed_identification import (
+    SWEEP_SPEED_RAD_S,
     SweepResult,
     disturbance_sweep,
     identify_feed_axis,
-    measurement_model,
     ramp_move,
 )
 from millsense.estimation.kalman import augment_disturbance, design_kalman
@@ -54,7 +56,7 @@ from millsense.online.block import Block, BlockOutput, Chunk
 #: "Position-scheduled feed estimator": chosen analytically by :func:`interval_worst_db`).
 DEFAULT_CROSSFADE = 1.0
 #: Multisine periods of a bank sweep (1 s each, first discarded), as
-#: :func:`~millsense.estimation.feed_drive.disturbance_sweep`'s default.
+#: :func:`~millsense.estimation.feed_identification.disturbance_sweep`'s default.
 SWEEP_PERIODS = 13
 #: Lead-in of a sweep before the multisine starts, s (as disturbance_sweep).
 SWEEP_LEAD_S = 0.3
@@ -225,9 +227,10 @@ def identify_feed_bank(
 
     Notes
     -----
-    The first position runs :func:`~millsense.estimation.feed_drive.identify_feed_axis` (all
-    commissioning tests); the others only
-    :func:`~millsense.estimation.feed_drive.disturbance_sweep` from their start position, with
+    The first position runs
+    :func:`~millsense.estimation.feed_identification.identify_feed_axis` (all commissioning
+    tests); the others only :func:`~millsense.estimation.feed_identification.disturbance_sweep`
+    from their start position, with
     the first position's drive model, LuGre and R (friction, inertia and noise do not depend on
     the position). The neighbour shift is measured from the sweeps (:func:`relative_shift`), not
     taken from the simulator.

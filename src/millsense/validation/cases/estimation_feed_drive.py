@@ -1,10 +1,11 @@
 """Acceptance of the feed-drive force estimator on the simulated Quaser UX600 (issue 7 item 2).
 
 Every figure is end to end: the estimator of each axis is *identified* on the drive simulator
-(:func:`millsense.estimation.feed_drive.identify_feed_axis`: friction from constant-velocity
-moves, J_e from an accelerating move, Φ_d from a multisine table-load sweep, R from an air cut,
-Q by bandwidth optimisation), then run as a streaming block on the CNC channels of a *different*
-simulated machine (:func:`~millsense.estimation.feed_drive.perturbed_drive`).
+(:func:`~millsense.estimation.feed_identification.identify_feed_axis`: friction from
+constant-velocity moves, J_e from an accelerating move, Φ_d from a multisine table-load sweep,
+R from an air cut, Q by bandwidth optimisation), then run as a streaming block on the CNC
+channels of a *different* simulated machine
+(:func:`~millsense.machine.drive_mismatch.perturbed_drive`).
 
 Mismatch between simulator and estimator (stated beside every figure):
 
@@ -12,7 +13,7 @@ Mismatch between simulator and estimator (stated beside every figure):
 - the simulator runs LuGre friction (Table 3.2), the estimator Coulomb + viscous, and the
   simulator's Coulomb and static friction are 15 % higher than at identification (drift);
 - an unmodelled mode at 420 Hz (ζ 3 %, α 2·10⁵) above the 3–260 Hz fit band, in the machine at
-  commissioning and while cutting (:func:`~millsense.estimation.feed_drive.commissioning_drive`);
+  commissioning and while cutting (:func:`~millsense.machine.drive_mismatch.commissioning_drive`);
 - torque noise (Eq. 3.30), 2²⁰-count encoder quantisation, the 1 kHz current loop between the
   current command the estimator reads and the motor torque;
 - position-scheduled case only: every disturbance-mode frequency follows the table position
@@ -40,7 +41,8 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
-    from millsense.estimation.feed_drive import FeedAxisModel, OperatingCondition, SweepResult
+    from millsense.estimation.feed_drive import FeedAxisModel, OperatingCondition
+    from millsense.estimation.feed_identification import SweepResult
     from millsense.estimation.feed_schedule import FeedModelBank
     from millsense.machine.feed_drive import FeedDriveParams
 
@@ -59,7 +61,8 @@ def _identified(
 ) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import commissioning_drive, identify_feed_axis
+    from millsense.estimation.feed_identification import identify_feed_axis
+    from millsense.machine.drive_mismatch import commissioning_drive
     from millsense.machine.feed_drive import FeedDriveParams
 
     ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
@@ -73,13 +76,11 @@ def _identified(
 @cache
 def compensated_bandwidth(axis: str, frequency_scale: float = 1.0) -> dict[str, float]:
     """Measured ±3 dB bands (Hz) of the compensated estimate and of the raw current."""
-    from millsense.estimation.feed_drive import (
-        FeedAxisEstimator,
-        perturbed_drive,
-        ramp_move,
-    )
+    from millsense.estimation.feed_drive import FeedAxisEstimator
+    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
 
@@ -246,8 +247,8 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
 
 @cache
 def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
-    from millsense.estimation.feed_drive import commissioning_drive
     from millsense.estimation.feed_schedule import identify_feed_bank
+    from millsense.machine.drive_mismatch import commissioning_drive
 
     params = scheduled_params(axis)
     lg = params.transmission / params.efficiency
@@ -265,7 +266,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
 
 
 def _test_travel(axis: str) -> float:
-    from millsense.estimation.feed_drive import ramp_move
+    from millsense.estimation.feed_identification import ramp_move
 
     p = scheduled_params(axis)
     n = round((0.3 + N_PERIODS + 0.01) * FS_HZ)
@@ -288,14 +289,15 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     machine with position-dependent modes, during a move centred at ``centre_m``.
 
     The multisine test of :func:`compensated_bandwidth` at :data:`SCHED_SPEED_RAD_S` and
-    :data:`SCHED_EXCITATION_NM`, on :func:`~millsense.estimation.feed_drive.perturbed_drive` of
+    :data:`SCHED_EXCITATION_NM`, on :func:`~millsense.machine.drive_mismatch.perturbed_drive` of
     :func:`scheduled_params` (friction +15 %, the 420 Hz mode, noise, quantisation, current
     loop); the block reads the commanded position ``{axis}/position_cmd``.
     """
-    from millsense.estimation.feed_drive import perturbed_drive, ramp_move
+    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.feed_schedule import ScheduledFeedEstimator
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
 
@@ -702,7 +704,7 @@ def v1_errors() -> dict[str, list[tuple[float, float, float, float]]]:
     random-walk design (Aslan Eq. 3.21–3.23, the model the thesis used) and the harmonic
     design (Eq. 3.16–3.20, tooth harmonics ≤ 200 Hz from the commanded spindle speed).
     """
-    from millsense.estimation.feed_drive import perturbed_drive
+    from millsense.machine.drive_mismatch import perturbed_drive
 
     out: dict[str, list[tuple[float, float, float, float]]] = {"x": [], "y": []}
     for axis in ("x", "y"):
@@ -801,12 +803,12 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     from millsense.estimation.feed_drive import (
         SPINDLE_SPEED_CMD,
         FeedAxisEstimator,
-        perturbed_drive,
-        ramp_move,
         tooth_harmonics,
     )
+    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
     from millsense.online.block import Chunk
 
