@@ -356,3 +356,25 @@ def test_r_from_the_air_phase(run_h5: Path) -> None:
     fixed = m.axis("x").model_copy(update={"estimator": FeedEstimatorConfig(r_nm2=0.5)})
     m3 = m.model_copy(update={"axes": {**m.axes, "x": fixed}})
     assert with_air_r(m3, ["x"], rec, w, "run")[1] == {}
+
+
+def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
+    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    wide, banded = tmp_path / "wide.h5", tmp_path / "banded.h5"
+    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x", "--method"]
+    code, _, err = run_cli([*base, "feed", "-o", str(wide)], capsys)
+    assert code == 0, err
+    code, _, err = run_cli([*base, "feed", "--band-hz", "200", "-o", str(banded)], capsys)
+    assert code == 0, err
+    rw, rb = read_recording(wide), read_recording(banded)
+    # the air phase before the cut (6 mm at 1200 mm/min = 0.3 s, after the 60-sample lag and a
+    # 0.1 s settling): the estimate there is noise; the 200 Hz rule's white-noise gain on the
+    # X Table 3.4 model is < 0.6 of the widest band's (test_tuning_least_noise), so its RMS is
+    # clearly lower
+    air = slice(1000 + 60, 3000)
+    nw = float(np.std(np.diff(rw.channel("est/feed/x/load")[air])))
+    nb = float(np.std(np.diff(rb.channel("est/feed/x/load")[air])))
+    assert nb < 0.6 * nw, (nb, nw)
+    code, _, err = run_cli([*base, "feed", "--band-hz", "900", "-o", str(banded)], capsys)
+    assert code == 2 and "axes.x.estimator.band_hz" in err and len(err.strip().splitlines()) == 1

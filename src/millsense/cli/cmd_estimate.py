@@ -52,6 +52,13 @@ def estimate(
         "(spindle/speed_cmd) to the disturbance model (Aslan Eq. 3.16-3.20); teeth from "
         "--flutes or the recording's metadata.",
     ),
+    band_hz: float | None = typer.Option(
+        None,
+        "--band-hz",
+        help="feed: tune each estimator for the least noise that keeps its compensated FRF "
+        "within ±1 dB up to this band on the identified model (default: the widest ±3 dB band "
+        "under the noise limit); overrides the machine file's estimator q_nm2_s/band_hz.",
+    ),
 ) -> None:
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
@@ -69,6 +76,7 @@ def estimate(
             idle=idle,
             air_s=air_s,
             harmonics=harmonics,
+            band_hz=band_hz,
             on_progress=update,
         )
     for note in summary["notes"]:
@@ -122,6 +130,7 @@ def run_estimate(
     idle: str = "none",
     air_s: str | None = None,
     harmonics: bool = False,
+    band_hz: float | None = None,
     on_progress: Any = None,
 ) -> dict[str, Any]:
     """Build the estimators, replay ``recording`` and write ``out`` while running.
@@ -133,6 +142,9 @@ def run_estimate(
 
     ``harmonics``: the ``feed`` estimators add the tooth harmonics of the commanded spindle
     speed (teeth: ``flutes``, else the recording's ``flutes`` metadata, else 2).
+
+    ``band_hz``: the ``feed`` estimators get the least-noise Q that keeps this band
+    (:func:`~millsense.estimation.from_config.with_feed_band`); None keeps the machine file's rule.
 
     ``idle``: ``none``; ``auto`` — the air phase of ``recording`` itself
     (:func:`~millsense.estimation.idle_compensation.find_air_window`, or ``air_s``); a path —
@@ -172,6 +184,10 @@ def run_estimate(
     else:
         axis_list = [a.strip() for a in axes.split(",") if a.strip()]
     t_setup = time.perf_counter()
+    if band_hz is not None:
+        from millsense.estimation.from_config import with_feed_band
+
+        mcfg = with_feed_band(mcfg, axis_list, band_hz)
     air = _air_phase(idle, air_s, rec, recording)
     idle_notes: list[str] = []
     if air is not None and "feed" in methods:

@@ -295,6 +295,20 @@ class FeedEstimatorConfig(_Model):
     percentage of the identified ones (position dependence); Q and the design damping maximise
     the worst-case ±3 dB band over that family (:func:`millsense.estimation.tuning.tune_robust`).
     0 = nominal tuning on the identified modes only."""
+    band_hz: Annotated[float, Field(gt=0, lt=1000)] | None = None
+    """Band the estimate must keep, Hz: Q is the least-noise value whose compensated FRF on the
+    identified model stays within ±1 dB up to here
+    (:func:`millsense.estimation.tuning.least_noise_q`); absent: the widest ±3 dB band under
+    the noise limit. Leave about 25 % above the band needed on the machine (decision
+    "Least-noise Q for a requested band")."""
+
+    @model_validator(mode="after")
+    def _one_q_rule(self) -> FeedEstimatorConfig:
+        if self.band_hz is not None and self.q_nm2_s is not None:
+            raise ValueError("give q_nm2_s or band_hz, not both")
+        if self.band_hz is not None and self.mode_shift_pct > 0:
+            raise ValueError("band_hz applies to the nominal tuning (mode_shift_pct = 0)")
+        return self
 
 
 class FeedAxisConfig(_Model):

@@ -216,7 +216,11 @@ class FeedAxisModel:
         model = cls(axis, kind, drive, fit, lowpass, r, 1000.0, sample_rate_hz, None, lugre)
         q = est.q_nm2_s if est is not None else None
         shift = (est.mode_shift_pct if est is not None else 100.0 * ROBUST_SHIFT) / 100.0
-        return model.tuned(shift, q=q, q_bounds=q_bounds)
+        band = est.band_hz if est is not None else None
+        try:
+            return model.tuned(shift, q=q, q_bounds=q_bounds, band_hz=band)
+        except InputDataError as exc:
+            raise ConfigError(f"{where}: axes.{axis}.estimator.band_hz: {exc}") from None
 
     def tuned(
         self,
@@ -224,6 +228,7 @@ class FeedAxisModel:
         *,
         q: float | None = None,
         q_bounds: tuple[float, float] = (1.0, 1e7),
+        band_hz: float | None = None,
     ) -> FeedAxisModel:
         """This model with Q (and the design damping) chosen.
 
@@ -234,9 +239,27 @@ class FeedAxisModel:
             Q by :func:`millsense.estimation.tuning.tune_q` on the identified model.
         q : Q fixed by the user, (N·m)²/s (then only γ is chosen), or None.
         q_bounds : search range of Q, (N·m)²/s.
+        band_hz : band to keep, Hz: Q by :func:`millsense.estimation.tuning.least_noise_q`
+            (the least-noise Q flat within ±1 dB to ``band_hz`` on the identified model) instead
+            of the widest band; only with ``shift`` = 0 and no ``q``.
+
+        Raises
+        ------
+        ConfigError
+            ``band_hz`` with ``q`` or with ``shift`` > 0.
+        InputDataError
+            No Q keeps ``band_hz`` under the noise limit.
         """
         from millsense.estimation import tuning
 
+        if band_hz is not None:
+            if q is not None or shift > 0:
+                raise ConfigError(
+                    f"estimator {self.axis}: band_hz is a nominal tuning rule (no fixed Q, no "
+                    "mode-shift margin)"
+                )
+            q = tuning.least_noise_q(self.measurement_model(), self.r, band_hz, bounds=q_bounds).q
+            return replace(self, q=float(q), design_damping=0.0)
         if shift > 0:
             rob = tuning.tune_robust(
                 self.disturbance,

@@ -293,6 +293,32 @@ def _medob(axis: str, machine: MachineConfig, where: str) -> RenamedBlock:
     )
 
 
+def with_feed_band(machine: MachineConfig, axes: Sequence[str], band_hz: float) -> MachineConfig:
+    """The machine with the feed estimators of ``axes`` tuned for ``band_hz`` (Hz).
+
+    Sets ``[axes.<a>.estimator] band_hz`` (the least-noise Q flat within ±1 dB to the band,
+    :func:`millsense.estimation.tuning.least_noise_q`) and clears what it replaces (a fixed
+    ``q_nm2_s``, a ``mode_shift_pct`` margin): the command-line choice wins over the file's.
+
+    Raises
+    ------
+    ConfigError
+        ``band_hz`` not in (0, 1000) Hz.
+    """
+    from millsense.core.config import FeedEstimatorConfig
+
+    if not 0 < band_hz < 1000:
+        raise ConfigError(f"--band-hz: must be in (0, 1000) Hz, got {band_hz:g}")
+    axes_cfg = dict(machine.axes)
+    for a in axes:
+        cfg = machine.axis(a)
+        est = (cfg.estimator or FeedEstimatorConfig()).model_copy(
+            update={"band_hz": float(band_hz), "q_nm2_s": None, "mode_shift_pct": 0.0}
+        )
+        axes_cfg[a] = cfg.model_copy(update={"estimator": est})
+    return machine.model_copy(update={"axes": axes_cfg})
+
+
 def build_estimators(
     machine: MachineConfig,
     methods: Sequence[str],
