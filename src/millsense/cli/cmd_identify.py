@@ -7,6 +7,9 @@
 - ``modal``    modal fit of that FRF in ``--band`` → ``[axes.<axis>.disturbance_modes]``; with
   one sweep per table position, ``[[axes.<axis>.disturbance_modes_at]]`` at the mean
   commanded position of each (the position-scheduled feed estimator);
+- ``path``     table-load sweep (``--input`` the measured table load) through the feed
+  estimator's own C3 front end (``--machine``: K_t, lead, η, friction, inertia) → rational fit
+  on the sampled axis → ``[axes.<axis>.estimator.disturbance_path]`` (Aslan C5);
 - ``friction`` constant-velocity moves (+ a presliding test) → ``[axes.<axis>.friction]``;
 - ``drive``    current-injection sweep (+ an acceleration test) → ``[axes.<axis>]`` and
   ``[axes.<axis>.ball_screw]``;
@@ -30,7 +33,7 @@ import typer
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError, InputDataError
 
-_KINDS = ("frf", "modal", "friction", "drive", "spindle", "idle")
+_KINDS = ("frf", "modal", "path", "friction", "drive", "spindle", "idle")
 
 
 def _parse_band(text: str | None) -> tuple[float, float] | None:
@@ -189,6 +192,77 @@ def _modal_table(
         "source": f"millsense identify modal {path.name} {band[0]:g}-{band[1]:g} Hz",
     }
     return table, [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
+
+
+def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    """Φ_d of the feed estimator from one table-load sweep (decision "Identified disturbance
+    path in the machine file")."""
+    import numpy as np
+
+    from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S, DEFAULT_LOWPASS_HZ
+    from millsense.estimation.feed_identification import fit_disturbance_path
+    from millsense.estimation.rigid_body import DriveModel
+    from millsense.machine.lugre import LuGre
+    from millsense.report.ident_plots import plot_frf_fit
+
+    if ctx.machine is None:
+        raise ConfigError(
+            "identify path: give --machine (torque constant, lead, efficiency, friction and "
+            "inertia of the estimator's C3 stage)"
+        )
+    if not o["input"]:
+        raise ConfigError("identify path: give --input, the measured table-load channel")
+    if len(ctx.recs) != 1:
+        raise ConfigError("identify path: give one sweep recording")
+    rec, path, a = ctx.recs[0], ctx.paths[0], ctx.axis
+    cfg = ctx.axis_cfg()
+    load = np.asarray(ctx.channel(rec, path, o["input"]), dtype=float)
+    current = np.asarray(ctx.channel(rec, path, f"{a}/current_cmd"), dtype=float)
+    speed_name = f"{a}/motor_speed" if f"{a}/motor_speed" in rec else f"{a}/speed"
+    speed = np.asarray(ctx.channel(rec, path, speed_name), dtype=float)
+    if float(np.std(load)) == 0.0:
+        raise InputDataError(f"{path}: channel {o['input']!r} carries no load (constant)")
+    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
+    f = cfg.friction
+    lugre = None
+    if None not in (f.sigma0_nm_rad, f.sigma1_nm_s_rad, f.static_nm, f.stribeck_velocity_rad_s):
+        lugre = LuGre.from_config(f, f"{ctx.machine.name} axes.{a}.friction")
+    est_cfg = cfg.estimator
+    lowpass = (est_cfg.lowpass_hz if est_cfg is not None else None) or DEFAULT_LOWPASS_HZ
+    per = rec.metadata.get("period_samples")
+    band = o["band"] or (3.0, 260.0)
+    sweep = fit_disturbance_path(
+        load,
+        current,
+        speed,
+        drive,
+        lowpass,
+        rec.sample_rate_hz,
+        period_samples=per if isinstance(per, int) and per > 0 else None,
+        lugre=lugre,
+        fit_band_hz=band,
+        welch_resolution_hz=o["resolution"],
+    )
+    fit = sweep.fit
+    if o["plot"] is not None:
+        fb = np.linspace(band[0], band[1], 3000)
+        plot_frf_fit(
+            sweep.frf,
+            None,
+            o["plot"],
+            overlay=(fb, fit.frf(fb), f"rational fit, {fit.n_states} states"),
+            title=f"Φ_d = τ_c/τ_a of {a} ({path.name})",
+        )
+    table = fit.config_table(
+        f"millsense identify path {path.name} {band[0]:g}-{band[1]:g} Hz "
+        f"({'LuGre' if lugre is not None else 'Coulomb + viscous'} C3 stage)"
+    )
+    notes = [
+        f"{len(fit.complex_poles)} complex pairs + {len(fit.real_poles)} real poles, relative "
+        f"RMS error {fit.rms_error:.3g} over {band[0]:g}-{band[1]:g} Hz ({sweep.frf.method}, "
+        f"{sweep.frf.n_averages} averages)"
+    ]
+    return {"axes": {a: {"estimator": {"disturbance_path": table}}}}, notes
 
 
 def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
@@ -499,7 +573,7 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
 
 @app.command()
 def identify(
-    kind: str = typer.Argument(..., help="frf | modal | friction | drive | spindle | idle"),
+    kind: str = typer.Argument(..., help="frf | modal | path | friction | drive | spindle | idle"),
     recordings: list[Path] = typer.Argument(..., help="Recording files (.h5)."),
     out: Path = typer.Option(..., "-o", "--out", help="TOML fragment written."),
     input_ch: str | None = typer.Option(None, "--input", help="Input (or current) channel."),
@@ -548,6 +622,8 @@ def identify(
         frag, notes = _frf(ctx, o)
     elif kind == "modal":
         frag, notes = _modal(ctx, o)
+    elif kind == "path":
+        frag, notes = _path(ctx, o)
     elif kind == "friction":
         frag, notes = _friction(ctx, o)
     elif kind == "drive":

@@ -195,6 +195,51 @@ class DisturbanceModesConfig(_Model):
         return self
 
 
+class DisturbancePathConfig(_Model):
+    """Identified path τ_a → C3 torque of a feed estimator (``millsense identify path``).
+
+    A rational fit of the sampled FRF measured with the estimator's own C3 front end (Aslan C5;
+    decision "Discretisation of the identified disturbance model")::
+
+        Φ_d(s) = constant + Σ_k r_k/(s + 2π·g_k) + Σ_j [ρ_j/(s − p_j) + ρ̄_j/(s − p̄_j)]
+
+    with ``p_j = ω_j·(−ζ_j + i·√(1 − ζ_j²))``, ``ω_j = 2π·natural_frequency_hz[j]``,
+    ``ρ_j = residue_real_1_s[j] + i·residue_imag_1_s[j]``, ``g_k = real_pole_hz[k]``,
+    ``r_k = real_residue_1_s[k]``, s in rad/s on the bilinear-warped axis of
+    ``sample_rate_hz`` (the estimator discretises it by Tustin at that rate, exactly). Unlike
+    ``disturbance_modes`` it keeps the real poles (the velocity loop seen through the C3 torque)
+    and it is the estimator's model only, never the simulator's.
+    """
+
+    natural_frequency_hz: list[Annotated[float, Field(gt=0, le=1e5)]] = []
+    damping_ratio: list[Annotated[float, Field(gt=0, lt=1)]] = []
+    residue_real_1_s: list[float] = []
+    residue_imag_1_s: list[float] = []
+    real_pole_hz: list[Annotated[float, Field(gt=0, le=1e6)]] = []
+    real_residue_1_s: list[float] = []
+    constant: float = 0.0
+    sample_rate_hz: Annotated[float, Field(gt=0, le=1e6)]
+    rms_error: Annotated[float, Field(ge=0)] = 0.0
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _same_length(self) -> DisturbancePathConfig:
+        n = len(self.natural_frequency_hz)
+        for key in ("damping_ratio", "residue_real_1_s", "residue_imag_1_s"):
+            if len(getattr(self, key)) != n:
+                raise ValueError(
+                    f"{key} has {len(getattr(self, key))} entries but natural_frequency_hz has {n}"
+                )
+        if len(self.real_residue_1_s) != len(self.real_pole_hz):
+            raise ValueError(
+                f"real_residue_1_s has {len(self.real_residue_1_s)} entries but real_pole_hz has "
+                f"{len(self.real_pole_hz)}"
+            )
+        if n + len(self.real_pole_hz) == 0:
+            raise ValueError("the path needs at least one pole")
+        return self
+
+
 class BallScrewConfig(_Model):
     """Dual- or triple-inertia ball-screw drive (Yamada Eq. 2-1/2-2, 2-45…2-47, Table 3-3).
 
@@ -295,6 +340,9 @@ class FeedEstimatorConfig(_Model):
     percentage of the identified ones (position dependence); Q and the design damping maximise
     the worst-case ±3 dB band over that family (:func:`millsense.estimation.tuning.tune_robust`).
     0 = nominal tuning on the identified modes only."""
+    disturbance_path: DisturbancePathConfig | None = None
+    """Identified τ_a → C3-torque path (``millsense identify path``); when given, the estimator
+    uses it instead of the axis' ``disturbance_modes``."""
     band_hz: Annotated[float, Field(gt=0, lt=1000)] | None = None
     """Band the estimate must keep, Hz: Q is the least-noise value whose compensated FRF on the
     identified model stays within ±1 dB up to here
@@ -386,6 +434,15 @@ class FeedAxisConfig(_Model):
             raise ValueError("lead_mm_rev is required for a linear axis")
         if self.kind == "rotary" and self.lead_rad_rev is None:
             raise ValueError("lead_rad_rev is required for a rotary axis")
+        return self
+
+    @model_validator(mode="after")
+    def _one_estimator_path(self) -> FeedAxisConfig:
+        if self.disturbance_modes_at and self.estimator and self.estimator.disturbance_path:
+            raise ValueError(
+                "give disturbance_modes_at (position-scheduled) or estimator.disturbance_path, "
+                "not both"
+            )
         return self
 
     @model_validator(mode="after")

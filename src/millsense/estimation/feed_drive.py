@@ -156,7 +156,9 @@ class FeedAxisModel:
 
         Returns
         -------
-        FeedAxisModel with Φ_d = the table's ``disturbance_modes`` (Eq. 3.13, pole–residue form),
+        FeedAxisModel with Φ_d = ``estimator.disturbance_path`` when given (the identified
+        rational path, Tustin at the stream rate), else the table's ``disturbance_modes``
+        (Eq. 3.13, pole–residue form, ZOH),
         R and Q from ``[axes.<axis>.estimator]`` when given, else R from ``current_noise_a``
         and Q from :func:`millsense.estimation.tuning.tune_robust` for the key
         ``estimator.mode_shift_pct`` (default 2 %; the design damping is always chosen there
@@ -177,12 +179,19 @@ class FeedAxisModel:
         """
         from millsense.machine.modal_ss import ModalStateSpace as _Mss
 
-        if cfg.disturbance_modes is None:
+        est = cfg.estimator
+        path = est.disturbance_path if est is not None else None
+        if cfg.disturbance_modes is None and path is None:
             raise ConfigError(
                 f"{where}: missing key 'axes.{axis}.disturbance_modes' (the feed estimator needs "
-                "the identified disturbance modes: millsense identify modal)"
+                "the identified disturbance path: millsense identify path, or modes: millsense "
+                "identify modal)"
             )
-        est = cfg.estimator
+        if path is not None and not math.isclose(path.sample_rate_hz, sample_rate_hz):
+            raise ConfigError(
+                f"{where}: axes.{axis}.estimator.disturbance_path was identified at "
+                f"{path.sample_rate_hz:g} Hz but the stream runs at {sample_rate_hz:g} Hz"
+            )
         lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
         if not 0 < lowpass < sample_rate_hz / 2:
             raise ConfigError(
@@ -199,7 +208,11 @@ class FeedAxisModel:
             f.stribeck_velocity_rad_s,
         ):
             lugre = LuGre.from_config(f, f"{where} axes.{axis}.friction")
-        fit = RationalFit.from_modes(_Mss.from_config(cfg.disturbance_modes))
+        if path is not None:
+            fit = RationalFit.from_config(path)
+        else:
+            assert cfg.disturbance_modes is not None
+            fit = RationalFit.from_modes(_Mss.from_config(cfg.disturbance_modes))
         r = est.r_nm2 if est is not None else None
         if r is None:
             if cfg.current_noise_a <= 0:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,6 +28,9 @@ from millsense.core.errors import InputDataError
 from millsense.estimation.kalman import StateSpaceModel
 from millsense.ident.modal_fit import vector_fit
 from millsense.machine.modal_ss import ModalStateSpace
+
+if TYPE_CHECKING:
+    from millsense.core.config import DisturbancePathConfig
 
 ComplexArray = NDArray[np.complex128]
 
@@ -123,6 +127,54 @@ class RationalFit:
         cm = self.continuous_model()
         ad, bd, cd, dd, _ = signal.cont2discrete((cm.a, cm.b, cm.c, cm.d), dt, method="bilinear")
         return StateSpaceModel(np.asarray(ad), np.asarray(bd), np.asarray(cd), np.asarray(dd), dt)
+
+    @classmethod
+    def from_config(cls, cfg: DisturbancePathConfig) -> RationalFit:
+        """The fit a ``[axes.<a>.estimator.disturbance_path]`` table describes (its inverse is
+        :meth:`config_table`)."""
+        w = 2 * math.pi * np.asarray(cfg.natural_frequency_hz, dtype=float)
+        z = np.asarray(cfg.damping_ratio, dtype=float)
+        poles = w * (-z + 1j * np.sqrt(1.0 - z**2))
+        res = np.asarray(cfg.residue_real_1_s, dtype=float) + 1j * np.asarray(
+            cfg.residue_imag_1_s, dtype=float
+        )
+        return cls(
+            np.asarray(poles, dtype=np.complex128),
+            np.asarray(res, dtype=np.complex128),
+            -2 * math.pi * np.asarray(cfg.real_pole_hz, dtype=float),
+            np.asarray(cfg.real_residue_1_s, dtype=float),
+            float(cfg.constant),
+            float(cfg.rms_error),
+            float(cfg.sample_rate_hz),
+        )
+
+    def config_table(self, source: str = "") -> dict[str, object]:
+        """The keys of a ``disturbance_path`` table (field units: Hz, 1/s) for this fit.
+
+        Raises
+        ------
+        InputDataError
+            The fit is not on a warped axis (a continuous fit has no sampled-path meaning), or
+            a pole is unstable or a complex pole overdamped (|ζ| ≥ 1 cannot be a pair).
+        """
+        if self.warped_fs_hz is None:
+            raise InputDataError("disturbance path: the fit must be of a sampled FRF (warped)")
+        w = np.abs(self.complex_poles)
+        z = -self.complex_poles.real / np.maximum(w, 1e-300)
+        if np.any(z <= 0) or np.any(z >= 1) or np.any(self.real_poles >= 0):
+            raise InputDataError("disturbance path: the fit has an unstable or overdamped pole")
+        return {
+            "natural_frequency_hz": [float(v) for v in w / (2 * math.pi)],
+            "damping_ratio": [float(v) for v in z],
+            "residue_real_1_s": [float(v) for v in self.complex_residues.real],
+            "residue_imag_1_s": [float(v) for v in self.complex_residues.imag],
+            "real_pole_hz": [float(v) for v in -self.real_poles / (2 * math.pi)],
+            "real_residue_1_s": [float(v) for v in self.real_residues],
+            "constant": float(self.d),
+            "sample_rate_hz": float(self.warped_fs_hz),
+            "rms_error": float(self.rms_error),
+            "source": source,
+        }
 
     def with_modes_scaled(self, frequency_scale: float) -> RationalFit:
         """Every complex (structural-mode) pole and residue × ``frequency_scale``.

@@ -15,6 +15,7 @@ Tests (seed 000 C1/Ch. 3.2.1 and Ch. 5; seed 001 C8, C11):
 - :func:`presliding_test` — current steps below breakaway with the loops open;
 - :func:`acceleration_test` — back-and-forth trapezoidal moves;
 - :func:`drive_sweep` — a periodic current injection (multisine) on a constant-velocity move;
+- :func:`table_load_sweep` — a multisine table load (shaker) on a move or at rest, for Φ_d;
 - :func:`spindle_sweep` and :func:`spindle_friction_test` — velocity-loop sweep and
   constant-speed runs of the spindle;
 - :func:`idle_runs` — repeated air cuts with the same trajectory and feed.
@@ -55,6 +56,7 @@ def _recording(
     params: FeedDriveParams,
     extra: dict[str, np.ndarray],
     metadata: dict[str, object] | None = None,
+    extra_units: dict[str, str] | None = None,
 ) -> Recording:
     meta: dict[str, object] = {
         "test": test,
@@ -68,7 +70,7 @@ def _recording(
     for key, name, unit in _CHANNELS:
         rec.add_channel(f"{axis_name}/{name}", res[key], unit)
     for name, arr in extra.items():
-        unit = "A" if name == "injection" else "rad/s"
+        unit = (extra_units or {}).get(name, "A" if name == "injection" else "rad/s")
         rec.add_channel(f"{axis_name}/{name}", arr, unit)
     for key, unit in _TRUTH:
         rec.add_channel(f"truth/{axis_name}/{key}", res[key], unit)
@@ -243,6 +245,61 @@ def drive_sweep(
     )
 
 
+def table_load_sweep(
+    cfg: MachineConfig,
+    axis_name: str,
+    *,
+    speed_rad_s: float = 10.0,
+    torque_rms_nm: float = 3.0,
+    period_s: float = 1.0,
+    n_periods: int = 13,
+    f_lo_hz: float = 2.0,
+    f_hi_hz: float = 300.0,
+    lead_s: float = 0.3,
+    seed: int = 2,
+) -> Recording:
+    """Multisine table load (a shaker on the table, its force measured) during a move (C5).
+
+    The disturbance path Φ_d = τ_c/τ_a of the feed estimator is identified from this test
+    (``millsense identify path``; Aslan measured it with impact tests, servo on). The load
+    (channel ``<axis>/load``, N or N·m at the table, positive resisting +motion) has
+    ``torque_rms_nm`` RMS at the motor, equal lines over ``f_lo_hz``–``f_hi_hz``, Schroeder
+    phases; the axis moves at ``speed_rad_s`` (motor; 0 holds position, the condition of an axis
+    that holds while the others cut). The record starts after ``lead_s`` of run-in; the first
+    period is a run-in of the multisine as well.
+    """
+    from millsense.ident.frf import multisine_signal
+
+    fs = cfg.sample_rate_hz
+    axis = cfg.axis(axis_name)
+    p = _params(cfg, axis_name)
+    per = round(period_s * fs)
+    lg = p.transmission / p.efficiency
+    load, _ = multisine_signal(fs, per, f_lo_hz, f_hi_hz, n_periods, rms=torque_rms_nm / lg)
+    lead = round(lead_s * fs)
+    n = len(load) + lead
+    t = np.arange(n) / fs
+    vel = speed_rad_s * np.minimum(t / 0.05, 1.0)
+    pos, vel = _profile(vel, fs)
+    full = np.concatenate([np.zeros(lead), load])
+    res = FeedDriveSim(p, fs, seed=seed).advance(pos, vel, full)
+    res = {k: v[lead:] for k, v in res.items()}
+    return _recording(
+        fs,
+        axis_name,
+        res,
+        "table_load_sweep",
+        p,
+        {"load": load, "velocity_ref": vel[lead:]},
+        {
+            "period_samples": per,
+            "lead_m": (axis.lead_mm_rev or 0.0) * 1e-3,
+            "speed_rad_s": speed_rad_s,
+        },
+        {"load": "N" if axis.kind == "linear" else "N*m"},
+    )
+
+
 def idle_runs(
     cfg: MachineConfig,
     axis_name: str,
@@ -368,9 +425,10 @@ def write_commissioning_set(
     Returns
     -------
     {test name: file path}. Friction moves use 16 speeds per direction from 0.1 to 30 rad/s
-    (2 s each); the presliding test only runs for an axis with LuGre friction, the drive sweep for a
-    ball-screw axis, the idle runs (3 air cuts at 600 mm/min
-    over 20 mm) for an axis with position-periodic disturbances.
+    (2 s each); the presliding test only runs for an axis with LuGre friction, the drive sweep
+    for a ball-screw axis, the table-load sweep for a rigid axis with disturbance modes, the
+    idle runs (3 air cuts at 600 mm/min over 20 mm) for an axis with position-periodic
+    disturbances.
     """
     from millsense.core.presets import load_preset
     from millsense.io.recording_file import write_recording
@@ -389,6 +447,8 @@ def write_commissioning_set(
         recs["presliding"] = presliding_test(cfg, axis_name)
     if axis.ball_screw is not None:
         recs["drive_sweep"] = drive_sweep(cfg, axis_name)
+    elif axis.disturbance_modes is not None:
+        recs["table_load_sweep"] = table_load_sweep(cfg, axis_name)
     if axis.periodic_disturbances:
         for k, rec in enumerate(idle_runs(cfg, axis_name, feed_mm_min=600.0, travel_mm=20.0)):
             recs[f"idle_{k + 1}"] = rec

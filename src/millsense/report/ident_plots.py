@@ -31,6 +31,7 @@ def plot_frf_fit(
     truth: tuple[ArrayLike, ArrayLike] | None = None,
     title: str = "",
     unit: str = "",
+    overlay: tuple[ArrayLike, ArrayLike, str] | None = None,
 ) -> None:
     """Magnitude [dB], phase [deg] and (for an estimate) coherence against frequency [Hz].
 
@@ -41,6 +42,7 @@ def plot_frf_fit(
     path : PNG file written.
     truth : optional reference ``(freq_hz, h)`` (simulation truth).
     title, unit : figure title and FRF unit for the magnitude label.
+    overlay : another model ``(freq_hz, h, label)`` drawn like the fit (e.g. a rational fit).
     """
     if isinstance(data, FrfEstimate):
         f, h, coh = data.freq_hz, data.h1, data.coherence
@@ -54,6 +56,10 @@ def plot_frf_fit(
         ft, ht = np.asarray(truth[0], float), np.asarray(truth[1], complex)
         axes[0].plot(ft, 20 * np.log10(np.abs(ht)), "g--", lw=0.9, label="truth")
         axes[1].plot(ft, np.degrees(np.angle(ht)), "g--", lw=0.9)
+    if overlay is not None:
+        fo, ho = np.asarray(overlay[0], float), np.asarray(overlay[1], complex)
+        axes[0].plot(fo, 20 * np.log10(np.abs(ho)), "r", lw=1.0, label=overlay[2])
+        axes[1].plot(fo, np.degrees(np.angle(ho)), "r", lw=1.0)
     if fit is not None:
         lo, hi = fit.band_hz
         fb = np.linspace(lo, hi, 3000)

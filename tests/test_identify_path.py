@@ -1,0 +1,151 @@
+"""``millsense identify path``: the feed estimator's identified Φ_d in the machine file.
+
+Scenario: the Quaser UX600 X axis, a table-load sweep (3 N·m RMS at the motor, 2-300 Hz,
+1 Hz lines, 13 periods, 10 rad/s move; machine.commissioning.table_load_sweep) identified
+through the estimator's C3 stage of the preset (LuGre, K_t, lead, η, J_e); then a V1-like slot
+(Ø20 mm 2-flute, 4 mm, 3000 rev/min, 1200 mm/min → 100 Hz tooth frequency) estimated with the
+harmonic design from (a) the preset's Table 3.4 modes and (b) the identified path.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from millsense.cli.main import main
+from millsense.core.config import FeedAxisConfig, MachineConfig
+from millsense.core.errors import ConfigError
+from millsense.core.presets import load_preset
+from millsense.estimation.feed_drive import FeedAxisModel, measurement_model
+from millsense.estimation.rational_fit import RationalFit
+from millsense.ident.fragment import merge, write_fragment
+from millsense.io import read_recording
+from millsense.io.recording_file import write_recording
+from millsense.machine import commissioning as cm
+
+FS = 10_000.0
+SLOT = """G21 G90 G94
+G0 X-15 Y0 Z0
+S3000 M3
+G1 X60 F1200
+M5
+M30
+"""
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code: int | str | None = 0
+    try:
+        main(args)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return (0 if code is None else int(code)), out, err
+
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
+    d = tmp_path_factory.mktemp("path")
+    cfg = load_preset(MachineConfig, "quaser-ux600")
+    write_recording(d / "sweep.h5", cm.table_load_sweep(cfg, "x"))
+    frag = d / "path.toml"
+    main(["identify", "path", str(d / "sweep.h5"), "--machine", "quaser-ux600", "--axis", "x",
+          "--input", "x/load", "-o", str(frag), "--plot", str(d / "path.png")])  # fmt: skip
+    with frag.open("rb") as fh:
+        table = tomllib.load(fh)
+    assert (d / "path.png").stat().st_size > 10_000
+    merged = merge(cfg.model_dump(mode="json"), table)
+    return d, merged
+
+
+def test_fragment_round_trip_and_tustin_model(identified: tuple[Path, dict[str, object]]) -> None:
+    _, merged = identified
+    machine = MachineConfig.model_validate(merged)
+    est = machine.axis("x").estimator
+    assert est is not None and est.disturbance_path is not None
+    path = est.disturbance_path
+    assert path.sample_rate_hz == FS and path.rms_error < 0.02
+    fit = RationalFit.from_config(path)
+    # the fragment's table is the fit's: written and read back, the same FRF (7 digits)
+    again = RationalFit.from_config(type(path).model_validate(fit.config_table()))
+    f = np.array([20.0, 100.0, 200.0])
+    np.testing.assert_allclose(again.frf(f), fit.frf(f), rtol=1e-9)
+    # the estimator built from the file runs that path, Tustin at the stream rate, in series
+    # with the 600 Hz C3 low-pass (independent: fit.frf × scipy's digital Butterworth)
+    model = FeedAxisModel.from_config("x", machine.axis("x"), sample_rate_hz=FS)
+    _, lp = signal.sosfreqz(signal.butter(2, 600.0, fs=FS, output="sos"), worN=f, fs=FS)
+    got = measurement_model(model.disturbance, 600.0, 1 / FS).frf(f)[:, 0, 0]
+    np.testing.assert_allclose(got, fit.frf(f) * lp, rtol=1e-8)
+
+
+def _harmonic_errors(est: np.ndarray, truth: np.ndarray, i0: int, i1: int) -> np.ndarray:
+    """|Ê_k/E_k − 1| at 100 and 200 Hz over whole tooth periods (100 samples), lag removed."""
+    lag = 60
+    e = np.fft.rfft(est[i0 + lag : i1 + lag])
+    t = np.fft.rfft(truth[i0:i1])
+    k = (i1 - i0) // 100
+    return np.abs(e[[k, 2 * k]] / t[[k, 2 * k]] - 1)
+
+
+def test_identified_path_estimates_the_tooth_harmonics_better_than_table_3_4(
+    identified: tuple[Path, dict[str, object]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, merged = identified
+    machine_toml = d / "quaser_identified.toml"
+    write_fragment(machine_toml, _drop_none(merged), ["quaser-ux600 + identify path"])
+    (d / "slot.nc").write_text(SLOT)
+    run = d / "slot.h5"
+    code, _, err = run_cli(["simulate", "--machine", "quaser-ux600", "--program",
+                            str(d / "slot.nc"), "--depth-mm", "4", "--air-mm", "6",
+                            "--duration-s", "1.5", "-o", str(run)], capsys)  # fmt: skip
+    assert code == 0, err
+    errs = {}
+    for name, mach in (("modes", "quaser-ux600"), ("path", str(machine_toml))):
+        out = d / f"{name}.h5"
+        args = ["estimate", str(run), "--machine", mach, "--axes", "x", "--method", "feed"]
+        code, _, err = run_cli([*args, "--harmonics", "-o", str(out)], capsys)
+        assert code == 0, err
+        rec, tr = read_recording(out), read_recording(run)
+        truth = tr.channel("truth/x/load")
+        cut = np.flatnonzero(tr.channel("truth/process/engagement") >= 0)
+        i0 = int(cut[0]) + 3000
+        i1 = i0 + 100 * ((int(cut[-1]) - 200 - i0) // 100)
+        errs[name] = _harmonic_errors(rec.channel("est/feed/x/load"), truth, i0, i1)
+    # the path carries the current loop and the backward-difference timing the C3 torque sees
+    # (Table 3.4 does not): measured ≈ 1 %/3 % at 100/200 Hz against ≈ 7 %/11 % from the
+    # modes; the validated identified-model figure at 3000 rev/min on X is 1.4 %
+    assert np.all(errs["path"] < 0.05), errs
+    assert np.all(errs["path"] < 0.5 * errs["modes"]), errs
+
+
+def _drop_none(x: object) -> object:
+    if isinstance(x, dict):
+        return {k: _drop_none(v) for k, v in x.items() if v is not None}
+    if isinstance(x, list):
+        return [_drop_none(v) for v in x]
+    return x
+
+
+def test_path_user_errors(
+    identified: tuple[Path, dict[str, object]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, merged = identified
+    sweep, o = str(d / "sweep.h5"), str(tmp_path / "f.toml")
+    for args, text in (
+        (["--axis", "x", "--input", "x/load"], "give --machine"),
+        (["--machine", "quaser-ux600", "--axis", "x"], "give --input"),
+        (["--machine", "quaser-ux600", "--axis", "x", "--input", "x/nope"], "no channel 'x/nope'"),
+    ):
+        code, _, err = run_cli(["identify", "path", sweep, *args, "-o", o], capsys)
+        assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
+    machine = MachineConfig.model_validate(merged)
+    with pytest.raises(ConfigError, match="identified at 10000 Hz but the stream runs at 8000"):
+        FeedAxisModel.from_config("x", machine.axis("x"), sample_rate_hz=8000.0)
+    ax = dict(merged["axes"]["x"])  # type: ignore[index]
+    ax["disturbance_modes_at"] = [{"position_mm": 0.0, **ax["disturbance_modes"]}]
+    with pytest.raises(ValueError, match=r"disturbance_modes_at .* or estimator\.disturbance_path"):
+        FeedAxisConfig.model_validate(_drop_none(ax))
