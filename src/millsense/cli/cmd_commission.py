@@ -1,0 +1,65 @@
+"""``millsense commission``: the standard commissioning tests of one axis on the virtual machine.
+
+Writes one recording per test (:func:`millsense.machine.commissioning.write_commissioning_set`)
+and prints the ``millsense identify`` command that reads each, so that the identification
+workflow a machine needs (friction, drive or disturbance path, spindle, idle table) can be run
+end to end on the simulator before it is run on a machine.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from millsense.cli.main import app
+from millsense.core.errors import ConfigError
+
+
+def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[str]:
+    """The ``millsense identify`` command line for each group of commissioning recordings."""
+    m = f"--machine {machine} --axis {axis}"
+    out = []
+    if "friction" in files:
+        rec = " ".join(str(files[k]) for k in ("friction", "presliding") if k in files)
+        out.append(f"millsense identify friction {rec} {m} -o {axis}_friction.toml")
+    if "drive_sweep" in files:
+        rec = " ".join(str(files[k]) for k in ("drive_sweep", "acceleration") if k in files)
+        out.append(f"millsense identify drive {rec} {m} -o {axis}_drive.toml")
+    elif "acceleration" in files:
+        out.append(f"millsense identify drive {files['acceleration']} {m} -o {axis}_inertia.toml")
+    if "table_load_sweep" in files:
+        out.append(
+            f"millsense identify path {files['table_load_sweep']} {m} --input {axis}/load "
+            f"-o {axis}_path.toml"
+        )
+    idle = [str(p) for k, p in sorted(files.items()) if k.startswith("idle_")]
+    if idle:
+        out.append(f"millsense identify idle {' '.join(idle)} {m} -o {axis}_idle.toml")
+    if "spindle_sweep" in files:
+        rec = " ".join(str(files[k]) for k in ("spindle_sweep", "spindle_friction") if k in files)
+        out.append(f"millsense identify spindle {rec} --machine {machine} -o spindle.toml")
+    return out
+
+
+@app.command()
+def commission(
+    machine: str = typer.Option(..., "--machine", help="Machine preset or .toml."),
+    axis: str = typer.Option("x", "--axis", help="Feed axis tested."),
+    out: Path = typer.Option(..., "-o", "--out", help="Directory the recordings go to."),
+    spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
+) -> None:
+    """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.machine.commissioning import write_commissioning_set
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"-o {out}: exists and is not a directory")
+    load_preset(MachineConfig, machine).axis(axis)  # one-line errors before anything is written
+    files = write_commissioning_set(machine, out, axis, spindle=spindle)
+    for name, path in files.items():
+        typer.echo(f"wrote {path} ({name})")
+    typer.echo("identify with:")
+    for line in identify_commands(machine, axis, files):
+        typer.echo(f"  {line}")
