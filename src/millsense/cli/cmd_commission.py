@@ -61,5 +61,10 @@ def commission(
     for name, path in files.items():
         typer.echo(f"wrote {path} ({name})")
     typer.echo("identify with:")
-    for line in identify_commands(machine, axis, files):
+    commands = identify_commands(machine, axis, files)
+    for line in commands:
         typer.echo(f"  {line}")
+    outs = " ".join(line.rsplit(" -o ", 1)[1] for line in commands)
+    typer.echo(
+        f"then merge into a machine file:\n  millsense merge {machine} {outs} -o machine.toml"
+    )

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
@@ -15,7 +15,6 @@ from millsense.core.config import (
     MachineConfig,
     MaterialConfig,
     ToolConfig,
-    load_config,
     parse_config,
     read_toml,
 )
@@ -38,11 +37,17 @@ def preset_names(model: type[BaseModel]) -> list[str]:
     )
 
 
-def load_preset(model: type[M], name_or_path: str | Path) -> M:
-    """Load an embedded preset by name, or a TOML file by path."""
+def preset_data(model: type[BaseModel], name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+    """The raw TOML mapping of a preset (by name) or file (by path), and its name for messages.
+
+    Raises
+    ------
+    ConfigError
+        Unknown preset, missing or unreadable file (one line).
+    """
     text = str(name_or_path)
     if text.endswith(".toml") or Path(text).exists():
-        return load_config(model, text)
+        return read_toml(text), text
     folder = resources.files("millsense.data").joinpath(_KINDS[model])
     entry = folder.joinpath(f"{text}.toml")
     if not entry.is_file():
@@ -51,4 +56,10 @@ def load_preset(model: type[M], name_or_path: str | Path) -> M:
             f"(presets: {', '.join(preset_names(model))}; or give a .toml path)"
         )
     with resources.as_file(entry) as path:
-        return parse_config(model, read_toml(path), f"preset {text}")
+        return read_toml(path), f"preset {text}"
+
+
+def load_preset(model: type[M], name_or_path: str | Path) -> M:
+    """Load an embedded preset by name, or a TOML file by path."""
+    data, source = preset_data(model, name_or_path)
+    return parse_config(model, data, source)

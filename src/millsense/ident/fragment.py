@@ -94,6 +94,32 @@ def merge(*fragments: Mapping[str, object]) -> dict[str, object]:
     return out
 
 
+def kept_keys(base: Mapping[str, object], fragment: Mapping[str, object]) -> list[str]:
+    """What :func:`merge` keeps of ``base`` in the leaf tables ``fragment`` rewrites.
+
+    A leaf table (no sub-tables in the base or the fragment, e.g. ``axes.x.friction``) that the
+    fragment gives only in part keeps the base's other keys: identified Coulomb friction next
+    to the base's LuGre stiffness, say. One line per such table, ``"axes.x.friction: a, b"``.
+    """
+    out: list[str] = []
+
+    def walk(b: Mapping[str, object], f: Mapping[str, object], path: list[str]) -> None:
+        for k, fv in f.items():
+            bv = b.get(k)
+            if not (isinstance(fv, Mapping) and isinstance(bv, Mapping)):
+                continue
+            leaf = not any(isinstance(v, Mapping) for v in (*fv.values(), *bv.values()))
+            if leaf:
+                kept = [key for key in bv if key not in fv and key != "source"]
+                if kept:
+                    out.append(f"{'.'.join([*path, k])}: {', '.join(kept)}")
+            else:
+                walk(bv, fv, [*path, k])
+
+    walk(base, fragment, [])
+    return out
+
+
 def write_fragment(
     path: str | Path, fragment: Mapping[str, object], comments: list[str] | None = None
 ) -> None:
