@@ -189,7 +189,9 @@ def test_tool_force_inverts_drive_loads() -> None:
     )
     q = angles * np.asarray(rg)
     force = np.array([120.0, -80.0, 40.0])
-    loads = np.tile(kin.drive_loads(q[0], force), (n, 1))
+    # the drives' loads resist the motion: τ = −Jᵀ·T·F (decision "Forces at the tool in
+    # estimate", the simulator's convention)
+    loads = -np.tile(kin.drive_loads(q[0], force), (n, 1))
     block = ToolForceBlock(kin, ("x", "y", "z", "a", "c"), rg, lag=5, pose_every=1)
     block.reset(FS)
     data = {f"{a}/load_est": loads[:, i] for i, a in enumerate("xyzac")}

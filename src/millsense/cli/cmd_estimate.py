@@ -82,7 +82,7 @@ def estimate(
     for note in summary["notes"]:
         typer.echo(f"millsense: note: {note}", err=True)
     if summary["comparisons"]:
-        _print_table(summary["comparisons"])
+        _print_table(summary["comparisons"], summary["units"])
     typer.echo(
         f"wrote {out}: {len(summary['estimates'])} estimates, {summary['samples']} samples "
         f"in {summary['wall_s']:.2f} s "
@@ -91,25 +91,47 @@ def estimate(
     )
 
 
-def _print_table(comparisons: list[Any]) -> None:
+#: A relative error is shown only where the truth is at least this fraction of the largest
+#: truth quantity (mean or harmonic amplitude) of its unit: a relative error of a force that
+#: is not there (Z of a flat slot, a harmonic of ~0 N) says nothing.
+SIGNIFICANT_FRACTION = 0.01
+
+
+def _print_table(comparisons: list[Any], units: dict[str, str]) -> None:
     from rich.console import Console
     from rich.table import Table
 
     n = len(comparisons[0].harmonics)
-    table = Table(title="estimate vs truth (steady cut): amplitude error per tooth harmonic")
-    for col in ("axis", "method", "tooth Hz", "mean est", "mean truth", "mean err"):
+    largest: dict[str, float] = {}
+    for c in comparisons:
+        u = units.get(c.axis, "")
+        top = max(abs(c.mean_true), float(max(c.true_amp, default=0.0)))
+        largest[u] = max(largest.get(u, 0.0), top)
+
+    def rel(err: float, truth: float, unit: str, fmt: str) -> str:
+        if abs(truth) < SIGNIFICANT_FRACTION * largest[unit] or largest[unit] == 0.0:
+            return "–"
+        return f"{100 * err:{fmt}} %"
+
+    table = Table(
+        title="estimate vs truth (steady cut): amplitude error per tooth harmonic",
+        caption="– : truth below 1 % of the largest of its unit (no relative error)",
+    )
+    for col in ("axis", "unit", "method", "tooth Hz", "mean est", "mean truth", "mean err"):
         table.add_column(col, justify="right")
     for k in range(1, n + 1):
         table.add_column(f"{k}×", justify="right")
     for c in comparisons:
+        u = units.get(c.axis, "")
         table.add_row(
             c.axis,
+            u,
             c.method,
             f"{c.tooth_hz:.1f}",
             f"{c.mean_est:.2f}",
             f"{c.mean_true:.2f}",
-            f"{100 * c.mean_error:+.1f} %",
-            *(f"{100 * e:.0f} %" for e in c.error),
+            rel(c.mean_error, c.mean_true, u, "+.1f"),
+            *(rel(e, t, u, ".0f") for e, t in zip(c.error, c.true_amp, strict=True)),
         )
     con = Console()
     if not con.is_terminal:
@@ -165,7 +187,7 @@ def run_estimate(
     from millsense.core.config import MachineConfig
     from millsense.core.errors import InputDataError
     from millsense.core.presets import load_preset
-    from millsense.estimation.from_config import build_estimators
+    from millsense.estimation.from_config import build_estimators, truth_channel
     from millsense.io import RecordingWriter, read_recording
     from millsense.online.engine import Pipeline, run
     from millsense.online.sources import RecordingSource
@@ -212,6 +234,7 @@ def run_estimate(
         idle_notes += notes
     setup_s = time.perf_counter() - t_setup
     blocks: list[Any] = list(built.blocks)
+    all_estimates = built.estimates + built.derived_estimates
     if idle_tables:
         from millsense.estimation.idle_compensation import IdleCompensatedBlock
 
@@ -219,12 +242,13 @@ def run_estimate(
             IdleCompensatedBlock(b, a, c, idle_tables[(m, a)], d)
             for b, (m, a, c, d) in zip(built.blocks, built.estimates, strict=True)
         ]
+    blocks += built.derived
     pipeline = Pipeline(blocks)
     source = RecordingSource(rec, name=str(recording))
     pipeline.check_inputs(source.channel_names, str(recording))
     have = set(rec.channel_names)
-    copies = sorted({c for b in blocks for c in b.inputs})
-    extra = [f"truth/{a}/load" for a in axis_list] + [
+    copies = sorted({c for b in blocks for c in b.inputs if c in have})
+    extra = [truth_channel(a) for a in dict.fromkeys(a for _, a, _, _ in all_estimates)] + [
         "spindle/speed",
         "truth/spindle/torque",
         "truth/process/engagement",
@@ -237,7 +261,7 @@ def run_estimate(
         "machine": mcfg.name,
         "machine_file": machine,
         "methods": ",".join(methods),
-        "estimate_delays_samples": json.dumps({c: d for _, _, c, d in built.estimates}),
+        "estimate_delays_samples": json.dumps({c: d for _, _, c, d in all_estimates}),
         "idle": idle,
     }
     if idle_tables:
@@ -272,13 +296,18 @@ def run_estimate(
     wall = time.perf_counter() - t0
     comparisons = []
     if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
-        comparisons = _compare(rec, res.channels, built.estimates, axis_list, flutes, plot)
+        comparisons = _compare(rec, res.channels, all_estimates, axis_list, flutes, plot)
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
         "wall_s": wall,
         "setup_s": setup_s,
-        "estimates": built.estimates,
+        "estimates": all_estimates,
+        "units": {
+            a: rec.info(truth_channel(a)).unit
+            for a in dict.fromkeys(a for _, a, _, _ in all_estimates)
+            if truth_channel(a) in have
+        },
         "comparisons": comparisons,
         "notes": built.notes + idle_notes,
         "channels": res.channels,
@@ -362,10 +391,12 @@ def _compare(
     plot: Path | None,
 ) -> list[Any]:
     from millsense.core.errors import InputDataError
+    from millsense.estimation.from_config import truth_channel
     from millsense.report.estimate_metrics import compare
 
     have = set(rec.channel_names)
-    truth_axes = [a for a in axis_list if f"truth/{a}/load" in have]
+    est_axes = list(dict.fromkeys(a for _, a, _, _ in estimates))
+    truth_axes = [a for a in est_axes if truth_channel(a) in have]
     if not truth_axes:
         if plot is not None:
             raise InputDataError(
@@ -382,7 +413,7 @@ def _compare(
             m,
             a,
             channels[c],
-            rec.channel(f"truth/{a}/load"),
+            rec.channel(truth_channel(a)),
             speed,
             rec.sample_rate_hz,
             n_teeth,
@@ -398,9 +429,9 @@ def _compare(
         plot_estimates(
             plot,
             rec.sample_rate_hz,
-            {a: rec.channel(f"truth/{a}/load") for a in truth_axes},
+            {a: rec.channel(truth_channel(a)) for a in truth_axes},
             {(m, a): (channels[c], d) for m, a, c, d in estimates if a in truth_axes},
             comps,
-            {a: rec.info(f"truth/{a}/load").unit for a in truth_axes},
+            {a: rec.info(truth_channel(a)).unit for a in truth_axes},
         )
     return comps

@@ -51,7 +51,7 @@ from millsense.estimation.rational_fit import RationalFit
 from millsense.estimation.rigid_body import DriveModel
 from millsense.estimation.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother, _smooth
 from millsense.machine.friction import coulomb_viscous_torque
-from millsense.machine.kinematics import Kinematics, TrunnionACKinematics
+from millsense.machine.kinematics import Kinematics, TrunnionACKinematics, TrunnionACMachine
 from millsense.machine.lugre import LuGre, lugre_step
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.online.block import Block, BlockOutput, Chunk
@@ -849,11 +849,13 @@ class FeedAxisEstimator(Block):
 
 
 class ToolForceBlock(Block):
-    """Forces at the tool from the five axis loads (Aslan Eq. 3.51, ``[Jᵀ·T]⁺·τ``).
+    """Forces on the tool from the five axis loads (Aslan Eq. 3.51, ``F = −[Jᵀ·T]⁺·τ``).
 
     Parameters
     ----------
-    kinematics : the machine's kinematics (``tool_force(q, loads)``).
+    kinematics : the machine's kinematics (:class:`~millsense.machine.kinematics.
+        TrunnionACMachine` in the drives' frames, or Aslan's :class:`~millsense.machine.
+        kinematics.TrunnionACKinematics`).
     axes : the five axes in the order of ``q`` = [x, y, z, θ_A, θ_C].
     transmissions : r_g per axis (m/rad, rad/rad) to turn motor angles into axis positions.
     offsets : axis position at motor angle 0 (m, rad), per axis.
@@ -861,9 +863,17 @@ class ToolForceBlock(Block):
         by the same amount so that each load meets the pose it was produced at.
     pose_every : the (delayed) pose, hence ``[Jᵀ·T]⁺``, is evaluated at stream samples that are
         multiples of this and held in between (1 = every sample).
+    load_channels : the five load inputs (default ``{axis}/load_est``).
 
-    Reads ``{axis}/load_est`` and ``{axis}/motor_angle``; writes ``tool/force_x_est`` …
-    ``tool/force_z_est`` (N, machine frame).
+    Reads the loads and ``{axis}/motor_angle``; writes ``tool/force_x_est`` …
+    ``tool/force_z_est`` (N, the frame of ``kinematics``: drive frame for the machine).
+
+    Notes
+    -----
+    Sign (decision "Forces at the tool in estimate"): the loads are the estimators' axis loads,
+    positive when they resist positive motion, i.e. ``τ = −Jᵀ·T·F`` for a force F on the tool
+    (what the drives feel is the reaction of the cut); Eq. 3.51 then gives
+    ``F = −[Jᵀ·T]⁺·τ``.
     """
 
     def __init__(
@@ -874,9 +884,15 @@ class ToolForceBlock(Block):
         offsets: Sequence[float] | None = None,
         lag: int = ASLAN_LAG_SAMPLES,
         pose_every: int = 10,
+        load_channels: Sequence[str] | None = None,
     ) -> None:
         if len(axes) != 5 or len(transmissions) != 5:
             raise ConfigError("tool force block: needs five axes [x, y, z, a, c]")
+        if not isinstance(kinematics, (TrunnionACKinematics, TrunnionACMachine)):
+            raise ConfigError("tool force block: needs the 5-axis trunnion kinematics")
+        self.load_channels = tuple(load_channels or (f"{a}/load_est" for a in axes))
+        if len(self.load_channels) != 5:
+            raise ConfigError("tool force block: needs five load channels")
         self.name = "tool_force"
         self.kin = kinematics
         self.axes = tuple(axes)
@@ -885,9 +901,7 @@ class ToolForceBlock(Block):
         self.lag = int(lag)
         self.pose_every = max(1, int(pose_every))
         self._held_pinv: NDArray[np.float64] | None = None
-        self.inputs = tuple(f"{a}/load_est" for a in self.axes) + tuple(
-            f"{a}/motor_angle" for a in self.axes
-        )
+        self.inputs = self.load_channels + tuple(f"{a}/motor_angle" for a in self.axes)
         self._hist = np.zeros((0, 5))
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -902,7 +916,7 @@ class ToolForceBlock(Block):
 
     def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
-        assert isinstance(self.kin, TrunnionACKinematics)
+        assert isinstance(self.kin, (TrunnionACKinematics, TrunnionACMachine))
         if len(q) == 0:
             return np.zeros((0, 3, 5))
         m = self.kin.load_matrix(q).reshape(len(q), 5, 3)
@@ -911,7 +925,9 @@ class ToolForceBlock(Block):
         )
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        loads = np.column_stack([np.asarray(chunk.data[f"{a}/load_est"]) for a in self.axes])
+        loads = -np.column_stack(
+            [np.asarray(chunk.data[c], dtype=float) for c in self.load_channels]
+        )
         q_now = np.column_stack(
             [np.asarray(chunk.data[f"{a}/motor_angle"], dtype=float) for a in self.axes]
         )
@@ -924,25 +940,22 @@ class ToolForceBlock(Block):
         allq = np.vstack([self._hist, q_now])
         q = allq[:n]
         self._hist = allq[n:]
-        if isinstance(self.kin, TrunnionACKinematics):
-            # [Jᵀ·T]⁺·τ by the normal equations (full column rank away from singular poses):
-            # batched 3×3 solves instead of one SVD per sample
-            # the pose is evaluated at stream samples that are multiples of `pose_every` and
-            # held in between (the machine moves < 0.1 mm in 1 ms at cutting feeds)
-            idx = chunk.start + np.arange(n)
-            new = idx % self.pose_every == 0
-            stack = self._pinv(q[new])
-            if self._held_pinv is not None:
-                stack = np.concatenate([self._held_pinv[None], stack])
-                which = np.cumsum(new)
-            else:
-                which = np.maximum(np.cumsum(new) - 1, 0)
-            if len(stack) == 0:
-                stack = self._pinv(q[:1])
-            f = np.einsum("nij,nj->ni", stack[which], loads)
-            self._held_pinv = stack[-1]
+        # [Jᵀ·T]⁺·(−τ) by the normal equations (full column rank away from singular poses):
+        # batched 3×3 solves instead of one SVD per sample; the pose is evaluated at stream
+        # samples that are multiples of `pose_every` and held in between (the machine moves
+        # < 0.1 mm in 1 ms at cutting feeds)
+        idx = chunk.start + np.arange(n)
+        new = idx % self.pose_every == 0
+        stack = self._pinv(q[new])
+        if self._held_pinv is not None:
+            stack = np.concatenate([self._held_pinv[None], stack])
+            which = np.cumsum(new)
         else:
-            f = np.asarray(self.kin.tool_force(q, loads)).reshape(n, 3)
+            which = np.maximum(np.cumsum(new) - 1, 0)
+        if len(stack) == 0:
+            stack = self._pinv(q[:1])
+        f = np.einsum("nij,nj->ni", stack[which], loads)
+        self._held_pinv = stack[-1]
         return BlockOutput({f"tool/force_{c}_est": f[:, i].copy() for i, c in enumerate("xyz")})
 
 

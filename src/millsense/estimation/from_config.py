@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -95,11 +95,16 @@ class BuiltEstimators:
     blocks : the wrapped estimator blocks.
     estimates : (method, axis, channel, delay_samples) per load estimate.
     notes : one line per method skipped under ``all`` (why it could not be built).
+    derived, derived_estimates : blocks that read the estimates above, run after them (the
+        forces at the tool from the five feed loads, :func:`tool_force_block`), and what they
+        estimate (``(method, "tool_x"|"tool_y"|"tool_z", channel, delay)``).
     """
 
     blocks: list[RenamedBlock]
     estimates: list[tuple[str, str, str, int]]
     notes: list[str]
+    derived: list[RenamedBlock] = field(default_factory=list)
+    derived_estimates: list[tuple[str, str, str, int]] = field(default_factory=list)
 
 
 #: Keys of ``[spindle]`` the observer's G_dτ model needs (Aslan Eq. 5.3, 5.7, P7).
@@ -293,6 +298,58 @@ def _medob(axis: str, machine: MachineConfig, where: str) -> RenamedBlock:
     )
 
 
+#: The axes whose feed loads give the forces at the tool (Aslan Eq. 3.51), in the order of q.
+TOOL_FORCE_AXES = ("x", "y", "z", "a", "c")
+
+
+def tool_axis(component: str) -> str:
+    """Name of a tool-force estimate in ``BuiltEstimators`` (``tool_x``, …)."""
+    return f"tool_{component}"
+
+
+def truth_channel(axis: str) -> str:
+    """Ground-truth channel an estimate of ``axis`` is compared with (``tool_x`` →
+    ``truth/tool/force_x``, else ``truth/{axis}/load``)."""
+    if axis.startswith("tool_"):
+        return f"truth/tool/force_{axis.removeprefix('tool_')}"
+    return f"truth/{axis}/load"
+
+
+def tool_force_block(
+    machine: MachineConfig, method: str, delay_samples: int
+) -> tuple[RenamedBlock, list[tuple[str, str, str, int]]]:
+    """Forces on the tool from the five feed loads of ``method`` (Aslan Eq. 3.51).
+
+    :class:`~millsense.estimation.feed_drive.ToolForceBlock` on the machine's trunnion
+    kinematics in the drives' frames, reading ``est/{method}/{axis}/load`` and the encoders
+    ``{axis}/motor_angle`` (positions ``r_g·angle``, delayed by ``delay_samples`` to meet the
+    smoothed loads); outputs ``est/{method}/tool/force_{x,y,z}`` (N, drive frame).
+
+    Raises
+    ------
+    ConfigError
+        The machine is not a 5-axis trunnion.
+    """
+    from millsense.estimation.feed_drive import ToolForceBlock
+    from millsense.machine.kinematics import kinematics_for
+
+    if machine.kinematics != "5-axis-trunnion-ac":
+        raise ConfigError(
+            f"forces at the tool: machine '{machine.name}' is {machine.kinematics}, "
+            "Eq. 3.51 needs the 5-axis trunnion"
+        )
+    block = ToolForceBlock(
+        kinematics_for(machine.kinematics),
+        TOOL_FORCE_AXES,
+        [machine.axis(a).transmission_m_rad for a in TOOL_FORCE_AXES],
+        lag=delay_samples,
+        load_channels=[load_channel(method, a) for a in TOOL_FORCE_AXES],
+    )
+    mapping = {f"tool/force_{c}_est": (f"est/{method}/tool/force_{c}", 1.0, "N") for c in "xyz"}
+    est = [(method, tool_axis(c), f"est/{method}/tool/force_{c}", delay_samples) for c in "xyz"]
+    return RenamedBlock(block, mapping, f"{method}_tool_force", delay_samples), est
+
+
 def with_feed_band(machine: MachineConfig, axes: Sequence[str], band_hz: float) -> MachineConfig:
     """The machine with the feed estimators of ``axes`` tuned for ``band_hz`` (Hz).
 
@@ -389,4 +446,15 @@ def build_estimators(
             est.append((m, a, load_channel(m, a), b.delay_samples))
     if not blocks:
         raise ConfigError(f"{where}: no estimator could be built ({'; '.join(notes)})")
-    return BuiltEstimators(blocks, est, notes)
+    derived: list[RenamedBlock] = []
+    derived_est: list[tuple[str, str, str, int]] = []
+    feed_delay = {a: d for m, a, _, d in est if m == "feed"}
+    if machine.kinematics == "5-axis-trunnion-ac" and all(a in feed_delay for a in TOOL_FORCE_AXES):
+        delays = {feed_delay[a] for a in TOOL_FORCE_AXES}
+        if len(delays) == 1:
+            b, e = tool_force_block(machine, "feed", delays.pop())
+            derived.append(b)
+            derived_est += e
+        else:
+            notes.append("forces at the tool: the five feed estimates lag differently; skipped")
+    return BuiltEstimators(blocks, est, notes, derived, derived_est)

@@ -78,7 +78,12 @@ def plot_estimates(
             a_zoom.plot(te, est, lw=0.9, label=method)
             shown.append((te, est))
         unit = units.get(ax_name, "")
-        a_full.set_ylabel(f"{ax_name} load [{unit}]")
+        what = (
+            f"tool force {ax_name.removeprefix('tool_')}"
+            if ax_name.startswith("tool_")
+            else f"{ax_name} load"
+        )
+        a_full.set_ylabel(f"{what} [{unit}]")
         lo, hi = value_limits([y for _, y in shown], FULL_PERCENTILES)
         a_full.set_ylim(lo, hi)
         clipped = sum(int(np.count_nonzero((y < lo) | (y > hi))) for _, y in shown)
