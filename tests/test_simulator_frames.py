@@ -120,3 +120,42 @@ def test_tilted_cut_loads_are_virtual_work_of_the_tool_force() -> None:
     # tool gives the slot force a z part (sin 20° of the force across the tool, ≈ 0.34)
     f_w = np.einsum("nij,nj->ni", kin.rotation(q[:, 3], q[:, 4]), f)
     assert np.median(np.abs(f_w[:, 2])) > 0.1 * np.median(np.linalg.norm(f, axis=1))
+
+
+def test_rotary_positioning_before_a_cut_does_not_cut() -> None:
+    # G0 A30 C45 turns the table while the tip stays put: the interpolator's path parameter
+    # advances by the rotation (0.94 rad) but the tip's arc length does not, and the engagement
+    # schedule is laid out on the tip's arc length (decision "Path parameter and tip arc
+    # length"). Before the fix the 0.94 "m" of rotation put the tool 'in the cut' from the
+    # first rapid on (±5 kN on the drives while positioning).
+    prog = "G21 G90 G17\nS6000 M3\nG0 A30 C45\nG0 X-5 Y0 Z0\nG1 X8 F1200\nM30\n"
+    _, d, job = _run(prog, 2e-3)
+    line = d["cnc/nc_line"]
+    eng = d["truth/process/engagement"]
+    rapid = line < 5  # the G0 lines (3 and 4) and before
+    assert rapid.sum() > 1000 and (~rapid).sum() > 1000
+    # no cutting while positioning: air on every rapid sample, zero load on every drive
+    assert np.all(eng[rapid] < 0)
+    for ax in "xyzac":
+        assert np.max(np.abs(d[f"truth/{ax}/load"][rapid])) == 0.0, ax
+    # the slot begins once the feed move reaches the stock (the whole G1 cuts here): within
+    # the first 0.1 s of line 5, and then the force is the slot's (hundreds of N)
+    first = int(np.argmax(line == 5))
+    cut = np.flatnonzero(eng >= 0)
+    assert first <= cut[0] < first + 1000
+    assert np.median(np.abs(d["truth/tool/force_x"][cut[0] + 2000 :])) > 50.0
+
+
+def test_tip_arc_length_does_not_advance_over_rotary_positioning() -> None:
+    # path: 10 mm along X, then A 0 → 0.5 rad in place, then 5 mm along Y (closed form)
+    from millsense.machine.interpolator import Interpolator
+
+    path = np.array(
+        [[0, 0, 0, 0, 0], [0.01, 0, 0, 0, 0], [0.01, 0, 0, 0.5, 0], [0.01, 0.005, 0, 0.5, 0]],
+        dtype=float,
+    )
+    ip = Interpolator(path, np.full(3, 0.02), 2.0)
+    s = np.array([0.0, 0.005, 0.01, 0.26, 0.51, 0.5125, 0.515])
+    np.testing.assert_allclose(
+        ip.tip_arc_length(s), [0.0, 0.005, 0.01, 0.01, 0.01, 0.0125, 0.015], atol=1e-15
+    )

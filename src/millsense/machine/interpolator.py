@@ -257,8 +257,25 @@ class Interpolator:
 
     @property
     def length(self) -> float:
-        """Total arc length, m."""
+        """Total path parameter (m; a rotary-only segment counts its rotation in rad)."""
         return float(self.cum[-1])
+
+    def tip_arc_length(self, s: np.ndarray) -> np.ndarray:
+        """Tool-tip arc length (m, first three coordinates only) at path parameters ``s``.
+
+        The interpolator's parameter advances over a rotary-only segment (A/C positioning) by
+        its rotation, so that the segment takes time; the tip does not move along the path
+        there. Engagement schedules are laid out on the tip's arc length
+        (:meth:`millsense.machine.simulator.Job.arc_length`), so the process must be looked
+        up with this map (decision "Path parameter and tip arc length").
+        """
+        lin = np.linalg.norm(self._delta[:, :3], axis=1)
+        lin = np.where(lin > 1e-12, lin, 0.0)
+        arc = np.concatenate([[0.0], np.cumsum(lin)])
+        ss = np.asarray(s, dtype=np.float64)
+        seg = np.clip(np.searchsorted(self.cum, ss, side="right") - 1, 0, len(self._len) - 1)
+        frac = np.clip((ss - self.cum[seg]) / self._len[seg], 0.0, 1.0)
+        return np.asarray(arc[seg] + frac * lin[seg])
 
     @property
     def time_s(self) -> float:

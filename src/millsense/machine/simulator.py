@@ -872,7 +872,11 @@ class MachineSimulator(Source):
             _feed_frame(v_chip, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
             # arc length at the actual position: the reference minus the lag along the feed
             p_err = self._tip_error()
-            s_est = s_all[sl] - float(p_err @ self._feed_dir)
+            # the tip's arc length (rotary-only positioning does not advance it) less the
+            # tracking lag along the feed; never ahead of the reference (decision "Path
+            # parameter and tip arc length")
+            s_tip = self.interp.tip_arc_length(s_all[sl])
+            s_est = np.minimum(s_tip - float(p_err @ self._feed_dir), s_tip)
             po = self.process.evaluate(t, s_est, theta, omega, speed)
             f_w = np.empty((n, 3))
             _to_frame(po.force, x_p, y_p, axis, f_w)
