@@ -129,7 +129,7 @@ def test_rotary_positioning_before_a_cut_does_not_cut() -> None:
     # length"). Before the fix the 0.94 "m" of rotation put the tool 'in the cut' from the
     # first rapid on (±5 kN on the drives while positioning).
     prog = "G21 G90 G17\nS6000 M3\nG0 A30 C45\nG0 X-5 Y0 Z0\nG1 X8 F1200\nM30\n"
-    _, d, job = _run(prog, 2e-3)
+    _, d, _ = _run(prog, 2e-3)
     line = d["cnc/nc_line"]
     eng = d["truth/process/engagement"]
     rapid = line < 5  # the G0 lines (3 and 4) and before
