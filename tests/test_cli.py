@@ -7,19 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from millsense.cli.main import main
+from cli_run import run_cli
 from millsense.core.recording import Recording
 from millsense.io.recording_file import write_recording
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code: int | str | None = 0
-    try:
-        main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return (0 if code is None else int(code)), out, err
 
 
 def small_recording(path: Path) -> Path:

@@ -8,19 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from millsense.cli.main import main
+from cli_run import run_cli
 from millsense.core.config import DisturbancePathConfig, FrictionConfig
 from millsense.io import read_recording
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code: int | str | None = 0
-    try:
-        main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return (0 if code is None else int(code)), out, err
 
 
 def test_commission_writes_the_tests_and_its_identify_commands_run(

@@ -7,21 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from millsense.cli.main import main
+from cli_run import run_cli
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
 from millsense.ident.fragment import kept_keys
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code: int | str | None = 0
-    try:
-        main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return (0 if code is None else int(code)), out, err
-
 
 FRICTION = """[axes.x.friction]
 coulomb_nm = [1.8, 1.9]

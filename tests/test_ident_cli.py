@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from millsense.cli.main import main
+from cli_run import run_cli
 from millsense.core.config import (
     BallScrewConfig,
     DisturbanceModesConfig,
@@ -23,16 +23,6 @@ from millsense.io.recording_file import write_recording
 from millsense.machine import commissioning as cm
 from millsense.stability.modal import Mode
 from millsense.validation.cases.ident import simulate_modes
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code: int | str | None = 0
-    try:
-        main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return (0 if code is None else int(code)), out, err
 
 
 def _write(rec: Recording, path: Path) -> str:

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from cli_run import run_cli
 from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
@@ -35,16 +36,6 @@ G1 X60 F1200
 M5
 M30
 """
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code: int | str | None = 0
-    try:
-        main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return (0 if code is None else int(code)), out, err
 
 
 @pytest.fixture(scope="module")
