@@ -424,3 +424,28 @@ def test_forces_at_the_tool_on_a_tilted_table(
         got = re_.channel(f"est/feed/tool/force_{c}")[i0 + 60 : i1 + 60]
         assert abs(truth.mean()) > 50.0
         assert abs(got.mean() / truth.mean() - 1) < 0.05, c
+
+
+def test_json_summary_is_the_table_in_numbers(
+    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    out = tmp_path / "j.h5"
+    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "y", "-o", str(out)]
+    code, stdout, err = run_cli([*base, "--json", "-"], capsys)
+    assert code == 0, err
+    doc = json.loads(stdout)  # stdout is the JSON alone
+    (row,) = doc["comparisons"]
+    # tooth frequency from the measured spindle speed: 3000 rev/min × 2 teeth within 0.01 %
+    assert row["axis"] == "y" and row["unit"] == "N"
+    assert row["tooth_hz"] == pytest.approx(100.0, rel=1e-4)
+    # the relative errors are the amplitudes' (independently recomputed from the two lists)
+    est, tru = np.array(row["amplitude_est"]), np.array(row["amplitude_truth"])
+    np.testing.assert_allclose(row["error"], np.abs(est / tru - 1), rtol=1e-9)
+    assert doc["estimates"] == [
+        {"method": "feed", "axis": "y", "channel": "est/feed/y/load", "delay_samples": 60}
+    ]
+    js = tmp_path / "s.json"
+    code, stdout, err = run_cli([*base, "--json", str(js)], capsys)
+    assert code == 0 and "tooth" in stdout and json.loads(js.read_text())["samples"] > 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,11 @@ def estimate(
         "(spindle/speed_cmd) to the disturbance model (Aslan Eq. 3.16-3.20); teeth from "
         "--flutes or the recording's metadata.",
     ),
+    json_out: str | None = typer.Option(
+        None,
+        "--json",
+        help="Write the estimates and the comparison with truth as JSON (- = stdout).",
+    ),
     band_hz: float | None = typer.Option(
         None,
         "--band-hz",
@@ -81,6 +87,14 @@ def estimate(
         )
     for note in summary["notes"]:
         typer.echo(f"millsense: note: {note}", err=True)
+    if json_out is not None:
+        text = json.dumps(summary_json(summary, out)) + "\n"
+        if json_out == "-":
+            typer.echo(text, nl=False)
+        else:
+            Path(json_out).write_text(text)
+        if json_out == "-":
+            return
     if summary["comparisons"]:
         _print_table(summary["comparisons"], summary["units"])
     typer.echo(
@@ -89,6 +103,45 @@ def estimate(
         f"({summary['seconds'] / max(summary['wall_s'], 1e-9):.1f}x real time, after "
         f"{summary['setup_s']:.1f} s building the estimators)"
     )
+
+
+def summary_json(summary: dict[str, Any], out: Path) -> dict[str, Any]:
+    """The run as JSON-ready data: estimates, comparison with truth, notes, timing.
+
+    ``comparisons`` rows carry the amplitudes (N or N·m) at the tooth harmonics beside the
+    relative errors, so that a script can apply its own significance rule.
+    """
+    rows = []
+    for c in summary["comparisons"]:
+        rows.append(
+            {
+                "method": c.method,
+                "axis": c.axis,
+                "unit": summary["units"].get(c.axis, ""),
+                "tooth_hz": c.tooth_hz,
+                "window_samples": [int(c.window[0]), int(c.window[1])],
+                "mean_est": c.mean_est,
+                "mean_truth": c.mean_true,
+                "mean_error": c.mean_error,
+                "harmonics": [int(k) for k in c.harmonics],
+                "amplitude_est": [float(v) for v in c.est_amp],
+                "amplitude_truth": [float(v) for v in c.true_amp],
+                "error": [float(v) for v in c.error],
+            }
+        )
+    return {
+        "out": str(out),
+        "samples": summary["samples"],
+        "seconds": summary["seconds"],
+        "wall_s": summary["wall_s"],
+        "setup_s": summary["setup_s"],
+        "estimates": [
+            {"method": m, "axis": a, "channel": ch, "delay_samples": d}
+            for m, a, ch, d in summary["estimates"]
+        ],
+        "comparisons": rows,
+        "notes": list(summary["notes"]),
+    }
 
 
 #: A relative error is shown only where the truth is at least this fraction of the largest
