@@ -25,14 +25,20 @@ def test_commission_writes_the_tests_and_its_identify_commands_run(
     names = sorted(p.name for p in Path("c").iterdir())
     assert names == [
         f"quaser-ux600-y-{t}.h5"
-        for t in ("acceleration", "friction", "presliding", "table_load_sweep")
+        for t in (
+            "acceleration",
+            "friction",
+            "presliding",
+            "table_load_sweep",
+            "table_load_sweep_at_rest",
+        )
     ]
     sweep = read_recording(Path("c") / "quaser-ux600-y-table_load_sweep.h5")
     assert sweep.metadata["period_samples"] == 10_000 and "y/load" in sweep.channel_names
     commands = [
         ln.strip() for ln in out.splitlines() if ln.strip().startswith("millsense identify")
     ]
-    assert [shlex.split(c)[2] for c in commands] == ["friction", "drive", "path"]
+    assert [shlex.split(c)[2] for c in commands] == ["friction", "drive", "path", "path"]
     for c in commands:
         code, _, err = run_cli(shlex.split(c)[1:], capsys)
         assert code == 0, (c, err)
@@ -46,6 +52,9 @@ def test_commission_writes_the_tests_and_its_identify_commands_run(
     assert fr.coulomb_nm == pytest.approx((1.78, 1.86), rel=0.02)
     path = tomllib.loads(Path("y_path.toml").read_text())["axes"]["y"]["estimator"]
     assert DisturbancePathConfig(**path["disturbance_path"]).rms_error < 0.05
+    # the sweep at rest is recognised by its command and fills the at-rest key
+    rest = tomllib.loads(Path("y_path_at_rest.toml").read_text())["axes"]["y"]["estimator"]
+    assert list(rest) == ["disturbance_path_at_rest"]
 
 
 def test_commission_user_errors_write_nothing(

@@ -28,11 +28,12 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
         out.append(f"millsense identify drive {rec} {m} -o {axis}_drive.toml")
     elif "acceleration" in files:
         out.append(f"millsense identify drive {files['acceleration']} {m} -o {axis}_inertia.toml")
-    if "table_load_sweep" in files:
-        out.append(
-            f"millsense identify path {files['table_load_sweep']} {m} --input {axis}/load "
-            f"-o {axis}_path.toml"
-        )
+    for key, suffix in (("table_load_sweep", ""), ("table_load_sweep_at_rest", "_at_rest")):
+        if key in files:
+            out.append(
+                f"millsense identify path {files[key]} {m} --input {axis}/load "
+                f"-o {axis}_path{suffix}.toml"
+            )
     idle = [str(p) for k, p in sorted(files.items()) if k.startswith("idle_")]
     if idle:
         out.append(f"millsense identify idle {' '.join(idle)} {m} -o {axis}_idle.toml")

@@ -253,16 +253,38 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             overlay=(fb, fit.frf(fb), f"rational fit, {fit.n_states} states"),
             title=f"Φ_d = τ_c/τ_a of {a} ({path.name})",
         )
+    condition = _commanded_condition(rec, path, a, cfg.transmission_m_rad)
     table = fit.config_table(
         f"millsense identify path {path.name} {band[0]:g}-{band[1]:g} Hz "
-        f"({'LuGre' if lugre is not None else 'Coulomb + viscous'} C3 stage)"
+        f"({'LuGre' if lugre is not None else 'Coulomb + viscous'} C3 stage, {condition})"
     )
+    key = "disturbance_path_at_rest" if condition == "at_rest" else "disturbance_path"
     notes = [
         f"{len(fit.complex_poles)} complex pairs + {len(fit.real_poles)} real poles, relative "
         f"RMS error {fit.rms_error:.3g} over {band[0]:g}-{band[1]:g} Hz ({sweep.frf.method}, "
-        f"{sweep.frf.n_averages} averages)"
+        f"{sweep.frf.n_averages} averages); axis {condition.replace('_', ' ')} → {key}"
     ]
-    return {"axes": {a: {"estimator": {"disturbance_path": table}}}}, notes
+    return {"axes": {a: {"estimator": {key: table}}}}, notes
+
+
+def _commanded_condition(rec: Any, path: Path, axis: str, transmission: float) -> str:
+    """``moving`` or ``at_rest`` from the sweep's commanded motion (decision "Holding axis"):
+    ``{axis}/velocity_ref`` (motor rad/s) or ``{axis}/position_cmd`` (m, rad rotary)."""
+    import numpy as np
+
+    from millsense.estimation.feed_drive import operating_condition
+
+    if f"{axis}/velocity_ref" in rec:
+        v = np.asarray(rec.channel(f"{axis}/velocity_ref"), dtype=float)
+    elif f"{axis}/position_cmd" in rec:
+        x = np.asarray(rec.channel(f"{axis}/position_cmd"), dtype=float)
+        v = np.diff(x) * rec.sample_rate_hz / transmission
+    else:
+        raise InputDataError(
+            f"{path}: no channel '{axis}/velocity_ref' or '{axis}/position_cmd': the sweep's "
+            "commanded motion decides whether it is the moving or the at-rest path"
+        )
+    return operating_condition(v if len(v) else np.zeros(1))
 
 
 def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:

@@ -341,8 +341,12 @@ class FeedEstimatorConfig(_Model):
     the worst-case ±3 dB band over that family (:func:`millsense.estimation.tuning.tune_robust`).
     0 = nominal tuning on the identified modes only."""
     disturbance_path: DisturbancePathConfig | None = None
-    """Identified τ_a → C3-torque path (``millsense identify path``); when given, the estimator
-    uses it instead of the axis' ``disturbance_modes``."""
+    """Identified τ_a → C3-torque path (``millsense identify path``, a sweep during a move);
+    when given, the estimator uses it instead of the axis' ``disturbance_modes``."""
+    disturbance_path_at_rest: DisturbancePathConfig | None = None
+    """The same identified with the axis holding position (``millsense identify path`` of a
+    sweep at rest); when given, the estimator runs both and follows the commanded speed
+    (:class:`millsense.estimation.feed_condition.OperatingConditionFeedEstimator`)."""
     band_hz: Annotated[float, Field(gt=0, lt=1000)] | None = None
     """Band the estimate must keep, Hz: Q is the least-noise value whose compensated FRF on the
     identified model stays within ±1 dB up to here
@@ -438,10 +442,15 @@ class FeedAxisConfig(_Model):
 
     @model_validator(mode="after")
     def _one_estimator_path(self) -> FeedAxisConfig:
-        if self.disturbance_modes_at and self.estimator and self.estimator.disturbance_path:
+        est = self.estimator
+        if (
+            self.disturbance_modes_at
+            and est
+            and (est.disturbance_path or est.disturbance_path_at_rest)
+        ):
             raise ValueError(
-                "give disturbance_modes_at (position-scheduled) or estimator.disturbance_path, "
-                "not both"
+                "give disturbance_modes_at (position-scheduled) or estimator.disturbance_path "
+                "(and _at_rest), not both"
             )
         return self
 

@@ -209,12 +209,33 @@ def _feed(
     if cfg.disturbance_modes_at:
         return _scheduled_feed(axis, machine, where, fs, teeth)
     model = FeedAxisModel.from_config(axis, cfg, sample_rate_hz=fs, where=where)
-    block = FeedAxisEstimator(model, teeth=teeth)
+    moving = FeedAxisEstimator(model, teeth=teeth)
+    block: Block = moving
+    est = cfg.estimator
+    if est is not None and est.disturbance_path_at_rest is not None:
+        from millsense.estimation.feed_condition import OperatingConditionFeedEstimator
+
+        rest_cfg = cfg.model_copy(
+            update={
+                "estimator": est.model_copy(
+                    update={"disturbance_path": est.disturbance_path_at_rest}
+                )
+            }
+        )
+        rest = replace(
+            FeedAxisModel.from_config(
+                axis, rest_cfg, sample_rate_hz=fs, where=f"{where} (at rest)"
+            ),
+            condition="at_rest",
+        )
+        block = OperatingConditionFeedEstimator(
+            moving, FeedAxisEstimator(rest, teeth=teeth), cfg.transmission_m_rad
+        )
     return RenamedBlock(
         block,
         {f"{axis}/load_est": (load_channel("feed", axis), 1.0, unit)},
         f"feed_{axis}",
-        block.lag,
+        moving.lag,
     )
 
 

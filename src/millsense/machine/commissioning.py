@@ -426,7 +426,8 @@ def write_commissioning_set(
     -------
     {test name: file path}. Friction moves use 16 speeds per direction from 0.1 to 30 rad/s
     (2 s each); the presliding test only runs for an axis with LuGre friction, the drive sweep
-    for a ball-screw axis, the table-load sweep for a rigid axis with disturbance modes, the
+    for a ball-screw axis, the table-load sweeps (moving, at rest) for a rigid axis with
+    disturbance modes, the
     idle runs (3 air cuts at 600 mm/min over 20 mm) for an axis with position-periodic
     disturbances.
     """
@@ -449,6 +450,7 @@ def write_commissioning_set(
         recs["drive_sweep"] = drive_sweep(cfg, axis_name)
     elif axis.disturbance_modes is not None:
         recs["table_load_sweep"] = table_load_sweep(cfg, axis_name)
+        recs["table_load_sweep_at_rest"] = table_load_sweep(cfg, axis_name, speed_rad_s=0.0)
     if axis.periodic_disturbances:
         for k, rec in enumerate(idle_runs(cfg, axis_name, feed_mm_min=600.0, travel_mm=20.0)):
             recs[f"idle_{k + 1}"] = rec

@@ -1,0 +1,96 @@
+"""Feed estimator following the operating condition (estimation.feed_condition)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from millsense.core.config import MachineConfig
+from millsense.core.presets import load_preset
+from millsense.estimation.feed_condition import OperatingConditionFeedEstimator
+from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
+from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.online.block import Chunk
+
+FS = 10_000.0
+LAG = 60
+
+
+@pytest.fixture(scope="module")
+def models() -> tuple[FeedAxisModel, FeedAxisModel, float]:
+    cfg = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    moving = FeedAxisModel.from_config("y", cfg, sample_rate_hz=FS)
+    # a different at-rest model (Φ_d's modes 3 % lower): enough to tell the two apart
+    rest = replace(moving, disturbance=moving.disturbance.with_modes_scaled(0.97))
+    return moving, rest, cfg.transmission_m_rad
+
+
+def _block(models: tuple[FeedAxisModel, FeedAxisModel, float]) -> OperatingConditionFeedEstimator:
+    moving, rest, rg = models
+    b = OperatingConditionFeedEstimator(
+        FeedAxisEstimator(moving, LAG),
+        FeedAxisEstimator(replace(rest, condition="at_rest"), LAG),
+        rg,
+    )
+    b.reset(FS)
+    return b
+
+
+def test_rest_weight_is_the_centred_window_at_the_estimated_sample(
+    models: tuple[FeedAxisModel, FeedAxisModel, float],
+) -> None:
+    # rest for 1000 samples, then a move at 5 rad/s (motor): the at-rest weight of output k
+    # is the fraction of rest commands over [k − L − h, k − L + h], h = 25 (5 ms window)
+    b = _block(models)
+    rg = models[2]
+    n = 2000
+    v = np.where(np.arange(n) < 1000, 0.0, 5.0)
+    pos = np.cumsum(v) / FS * rg
+    w = b.rest_weight(pos)
+    rest = (np.arange(n) < 1000).astype(float)  # pos = cumsum(v): sample 1000 moves
+    h = 25
+    idx = np.arange(n) - LAG
+    expect = np.array([np.mean(rest[np.clip(np.arange(i - h, i + h + 1), 0, n - 1)]) for i in idx])
+    # before the stream the axis stood in its first condition (rest): clip at 0 is exact
+    np.testing.assert_allclose(w, expect, atol=1e-12)
+    assert w[1000 + LAG - h - 1] == 1.0 and w[1000 + LAG + h + 1] == 0.0
+
+
+def test_blend_is_each_model_in_its_condition_and_streams_like_batch(
+    models: tuple[FeedAxisModel, FeedAxisModel, float],
+) -> None:
+    moving, rest, rg = models
+    cfg = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    n = 6000
+    v = np.where(np.arange(n) < 3000, 0.0, 3.0)  # hold, then move at 3 rad/s
+    pos = np.cumsum(v) / FS
+    t = np.arange(n) / FS
+    load = 300.0 * np.sin(2 * np.pi * 100.0 * t) + 200.0
+    res = FeedDriveSim(FeedDriveParams.from_config(cfg), FS, seed=3).advance(pos, v, load)
+    data = {
+        "y/current_cmd": res["current_cmd"],
+        "y/motor_speed": res["speed"],
+        "y/position_cmd": pos * rg,
+    }
+
+    def run(block: object, step: int) -> np.ndarray:
+        block.reset(FS)  # type: ignore[attr-defined]
+        outs = [
+            block.process(  # type: ignore[attr-defined]
+                Chunk(s, FS, 0.0, {k: x[s : s + step] for k, x in data.items()})
+            ).channels["y/load_est"]
+            for s in range(0, n, step)
+        ]
+        return np.concatenate(outs)
+
+    blend = run(_block(models), n)
+    only_rest = run(FeedAxisEstimator(replace(rest, condition="at_rest"), LAG), n)
+    only_moving = run(FeedAxisEstimator(moving, LAG), n)
+    # holding: the at-rest model's estimate exactly; moving (after the window): the moving one
+    np.testing.assert_allclose(blend[: 3000 + LAG - 30], only_rest[: 3000 + LAG - 30], atol=1e-9)
+    np.testing.assert_allclose(blend[3000 + LAG + 30 :], only_moving[3000 + LAG + 30 :], atol=1e-9)
+    assert np.max(np.abs(only_rest - only_moving)) > 1.0  # the two models do differ
+    for step in (7, 100, 1001):
+        np.testing.assert_allclose(run(_block(models), step), blend, rtol=0, atol=1e-9)
