@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from millsense.estimation.feed_identification import SweepResult
     from millsense.estimation.feed_schedule import FeedModelBank
     from millsense.machine.feed_drive import FeedDriveParams
+    from millsense.online.block import Block
 
 FS_HZ = 10_000.0
 AXES = ("x", "y", "z", "a", "c")
@@ -73,6 +74,29 @@ def _identified(
     return params, model, sweep
 
 
+def stream_estimate(
+    est: Block,
+    channels: dict[str, np.ndarray],
+    output: str,
+    chunk: int = 100,
+) -> np.ndarray:
+    """Run a (reset) estimator block over CNC channels in chunks; one output channel, whole.
+
+    ``channels`` maps input channel names to equal-length arrays (at ``FS_HZ``); the block
+    sees each chunk as the engine would hand it (10 ms by default).
+    """
+    from millsense.online.block import Chunk
+
+    n = len(next(iter(channels.values())))
+    parts = [
+        est.process(
+            Chunk(s, FS_HZ, 0.0, {k: v[s : s + chunk] for k, v in channels.items()})
+        ).channels[output]
+        for s in range(0, n, chunk)
+    ]
+    return np.concatenate(parts)
+
+
 @cache
 def compensated_bandwidth(
     axis: str, frequency_scale: float = 1.0, band_hz: float | None = None
@@ -88,7 +112,6 @@ def compensated_bandwidth(
     from millsense.ident.frf import multisine_frf, multisine_signal
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
 
     params, model, _ = _identified(axis)
     if band_hz is not None:
@@ -104,11 +127,9 @@ def compensated_bandwidth(
     res = FeedDriveSim(machine, FS_HZ, seed=11).advance(pos, vel, full)
     est.reset(FS_HZ)
     cur, spd = res["current_cmd"], res["speed"]
-    chunks = []
-    for s in range(0, len(cur), 100):
-        data = {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]}
-        chunks.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/load_est"])
-    load_est = np.concatenate(chunks)[lead + est.lag : lead + est.lag + len(load)]
+    cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
+    load_est = stream_estimate(est, cnc, f"{axis}/load_est")
+    load_est = load_est[lead + est.lag : lead + est.lag + len(load)]
     raw = (params.efficiency / params.transmission * params.torque_constant * cur)[
         lead : lead + len(load)
     ]
@@ -223,7 +244,6 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     from millsense.estimation.feed_identification import ramp_move
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
 
     params, model, _ = _identified(axis)
     if band_hz is not None:
@@ -233,14 +253,8 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     res = FeedDriveSim(perturbed_drive(params), FS_HZ, seed=31).advance(pos, vel, np.zeros(n))
     est = FeedAxisEstimator(model)
     est.reset(FS_HZ)
-    parts = []
-    for s in range(0, n, 100):
-        data = {
-            f"{axis}/current_cmd": res["current_cmd"][s : s + 100],
-            f"{axis}/motor_speed": res["speed"][s : s + 100],
-        }
-        parts.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/load_est"])
-    tail = np.concatenate(parts)[round(0.5 * FS_HZ) :]
+    cnc = {f"{axis}/current_cmd": res["current_cmd"], f"{axis}/motor_speed": res["speed"]}
+    tail = stream_estimate(est, cnc, f"{axis}/load_est")[round(0.5 * FS_HZ) :]
     return float(np.std(tail))
 
 
@@ -390,7 +404,6 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     from millsense.ident.frf import multisine_frf, multisine_signal
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
 
     params = scheduled_params(axis)
     bank = _bank(axis, n)
@@ -409,14 +422,12 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     res = FeedDriveSim(machine, FS_HZ, seed=11, initial_angle_rad=q0).advance(pos, vel, full)
     est.reset(FS_HZ)
     cur, spd, x_cmd = res["current_cmd"], res["speed"], pos * params.transmission
-    chunks = []
-    for s in range(0, len(cur), 100):
-        data = {
-            f"{axis}/current_cmd": cur[s : s + 100],
-            f"{axis}/motor_speed": spd[s : s + 100],
-            f"{axis}/position_cmd": x_cmd[s : s + 100],
-        }
-        chunks.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/load_est"])
+    cnc = {
+        f"{axis}/current_cmd": cur,
+        f"{axis}/motor_speed": spd,
+        f"{axis}/position_cmd": x_cmd,
+    }
+    chunks = [stream_estimate(est, cnc, f"{axis}/load_est")]
     load_est = np.concatenate(chunks)[lead + est.lag : lead + est.lag + len(load)]
     h = multisine_frf(load, load_est, FS_HZ, per, skip_periods=1)
     db = 20 * np.log10(np.abs(h.h1))
@@ -730,7 +741,6 @@ def v1_run(
     )
     from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
     from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
 
     table, feed, tooth_hz = _v1_cut(rpm)
     n = len(table[axis])
@@ -747,14 +757,10 @@ def v1_run(
     )
     est.reset(FS_HZ)
     cur, spd = res["current_cmd"], res["speed"]
-    sp_cmd = np.full(n, rpm * 2 * np.pi / 60)
-    parts = []
-    for s in range(0, n, 100):
-        data = {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]}
-        if harmonics:
-            data[SPINDLE_SPEED_CMD] = sp_cmd[s : s + 100]
-        parts.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/force_est"])
-    f_est = np.concatenate(parts)
+    cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
+    if harmonics:
+        cnc[SPINDLE_SPEED_CMD] = np.full(n, rpm * 2 * np.pi / 60)
+    f_est = stream_estimate(est, cnc, f"{axis}/force_est")
     lag_ = est.lag
     d = model.drive
     raw = -d.efficiency / d.transmission * d.torque_constant * cur
@@ -901,7 +907,6 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     from millsense.ident.frf import multisine_frf, multisine_signal
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
-    from millsense.online.block import Chunk
 
     params, model, _ = _identified(axis)
     machine = perturbed_drive(params, frequency_scale=1.0)
@@ -915,14 +920,11 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     res = FeedDriveSim(machine, FS_HZ, seed=11).advance(pos, vel, full)
     est.reset(FS_HZ)
     cur, spd = res["current_cmd"], res["speed"]
-    sp = np.full(len(cur), rpm * 2 * np.pi / 60)
-    chunks = []
-    for s in range(0, len(cur), 100):
-        data = {f"{axis}/current_cmd": cur[s : s + 100], f"{axis}/motor_speed": spd[s : s + 100]}
-        if harmonics:
-            data[SPINDLE_SPEED_CMD] = sp[s : s + 100]
-        chunks.append(est.process(Chunk(s, FS_HZ, 0.0, data)).channels[f"{axis}/load_est"])
-    load_est = np.concatenate(chunks)[lead + est.lag : lead + est.lag + len(load)]
+    cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
+    if harmonics:
+        cnc[SPINDLE_SPEED_CMD] = np.full(len(cur), rpm * 2 * np.pi / 60)
+    load_est = stream_estimate(est, cnc, f"{axis}/load_est")
+    load_est = load_est[lead + est.lag : lead + est.lag + len(load)]
     h = multisine_frf(load, load_est, FS_HZ, per, skip_periods=1)
     f = h.freq_hz
     db = 20 * np.log10(np.abs(h.h1))
