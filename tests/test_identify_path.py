@@ -133,6 +133,25 @@ def test_path_user_errors(
     ):
         code, _, err = run_cli(["identify", "path", sweep, *args, "-o", o], capsys)
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
+    # a sweep recorded without its command: the condition cannot be read, unless given
+    from millsense.core.recording import Recording
+
+    full = read_recording(d / "sweep.h5")
+    bare = Recording(full.sample_rate_hz, metadata=dict(full.metadata))
+    for ch in ("x/load", "x/current_cmd", "x/speed"):
+        bare.add_channel(ch, full.channel(ch), full.info(ch).unit)
+    write_recording(tmp_path / "bare.h5", bare)
+    args = ["identify", "path", str(tmp_path / "bare.h5"), "--machine", "quaser-ux600"]
+    args += ["--axis", "x", "--input", "x/load", "-o", o]
+    code, _, err = run_cli(args, capsys)
+    assert code == 2 and "--condition moving|at_rest" in err
+    code, _, err = run_cli([*args, "--condition", "at_rest"], capsys)
+    assert code == 0, err
+    assert (
+        "disturbance_path_at_rest" in tomllib.loads(Path(o).read_text())["axes"]["x"]["estimator"]
+    )
+    code, _, err = run_cli([*args, "--condition", "stopped"], capsys)
+    assert code == 2 and "--condition 'stopped'" in err
     machine = MachineConfig.model_validate(merged)
     with pytest.raises(ConfigError, match="identified at 10000 Hz but the stream runs at 8000"):
         FeedAxisModel.from_config("x", machine.axis("x"), sample_rate_hz=8000.0)

@@ -253,7 +253,9 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             overlay=(fb, fit.frf(fb), f"rational fit, {fit.n_states} states"),
             title=f"Φ_d = τ_c/τ_a of {a} ({path.name})",
         )
-    condition = _commanded_condition(rec, path, a, cfg.transmission_m_rad)
+    condition = o["condition"]
+    if condition == "auto":
+        condition = _commanded_condition(rec, path, a, cfg.transmission_m_rad)
     table = fit.config_table(
         f"millsense identify path {path.name} {band[0]:g}-{band[1]:g} Hz "
         f"({'LuGre' if lugre is not None else 'Coulomb + viscous'} C3 stage, {condition})"
@@ -282,7 +284,8 @@ def _commanded_condition(rec: Any, path: Path, axis: str, transmission: float) -
     else:
         raise InputDataError(
             f"{path}: no channel '{axis}/velocity_ref' or '{axis}/position_cmd': the sweep's "
-            "commanded motion decides whether it is the moving or the at-rest path"
+            "commanded motion decides whether it is the moving or the at-rest path (or give "
+            "--condition moving|at_rest)"
         )
     return operating_condition(v if len(v) else np.zeros(1))
 
@@ -612,6 +615,12 @@ def identify(
     ki: float | None = typer.Option(None, "--ki", help="Spindle velocity I gain (CNC)."),
     error_unit: str | None = typer.Option(None, "--error-unit", help="rev/s or rad/s."),
     bin_um: float = typer.Option(2.0, "--bin-um", help="Idle-table bin width, µm."),
+    condition: str = typer.Option(
+        "auto",
+        "--condition",
+        help="path: the axis during the sweep, moving or at_rest; auto reads the sweep's "
+        "commanded motion.",
+    ),
 ) -> None:
     """Identify machine parameters from recordings and write a TOML configuration fragment."""
     from millsense.core.config import MachineConfig
@@ -625,6 +634,8 @@ def identify(
         raise ConfigError(f"--error-unit {error_unit!r}: allowed 'rev/s' or 'rad/s'")
     if not bin_um > 0:
         raise ConfigError(f"--bin-um {bin_um}: must be positive")
+    if condition not in ("auto", "moving", "at_rest"):
+        raise ConfigError(f"--condition {condition!r}: allowed auto, moving or at_rest")
     recs = [read_recording(p) for p in recordings]
     mach = load_preset(MachineConfig, machine) if machine is not None else None
     ctx = _Ctx(recs, list(recordings), axis, mach)
@@ -639,6 +650,7 @@ def identify(
         "ki": ki,
         "error_unit": error_unit,
         "bin_um": bin_um,
+        "condition": condition,
     }
     if kind == "frf":
         frag, notes = _frf(ctx, o)
