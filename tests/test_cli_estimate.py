@@ -446,6 +446,9 @@ def test_json_summary_is_the_table_in_numbers(
     assert doc["estimates"] == [
         {"method": "feed", "axis": "y", "channel": "est/feed/y/load", "delay_samples": 60}
     ]
+    # a folder is not a JSON file: refused before anything runs
+    code, _, err = run_cli([*base, "--json", str(tmp_path)], capsys)
+    assert code == 2 and "not a file in an existing folder" in err
     js = tmp_path / "s.json"
     code, stdout, err = run_cli([*base, "--json", str(js)], capsys)
     assert code == 0 and "tooth" in stdout and json.loads(js.read_text())["samples"] > 0

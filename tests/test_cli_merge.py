@@ -65,3 +65,9 @@ def test_merge_errors_name_the_fragment_and_write_nothing(
     assert bad.read_text().startswith("[axes.x.friction]")
     code, _, err = run_cli(["merge", "no-such", str(bad), "-o", str(out)], capsys)
     assert code == 2 and "no machine preset 'no-such'" in err
+    # an output in a folder that does not exist: one line naming it (any command, cli.main)
+    good = tmp_path / "good.toml"
+    good.write_text("[axes.x]\ninertia_kg_m2 = 0.0137\n")
+    missing = tmp_path / "no" / "m.toml"
+    code, _, err = run_cli(["merge", "quaser-ux600", str(good), "-o", str(missing)], capsys)
+    assert code == 2 and str(missing) in err and len(err.strip().splitlines()) == 1

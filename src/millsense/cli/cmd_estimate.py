@@ -69,6 +69,11 @@ def estimate(
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
 
+    if json_out not in (None, "-"):
+        target = Path(str(json_out))
+        if target.is_dir() or not target.parent.is_dir():
+            raise ConfigError(f"--json {json_out}: not a file in an existing folder")
+
     with progress_bar("estimating", 1.0) as update:
         summary = run_estimate(
             recording=recording,

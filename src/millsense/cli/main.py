@@ -55,6 +55,12 @@ def main(argv: list[str] | None = None) -> None:
     except typer.Abort:
         err_console.print("millsense: aborted", markup=False)
         sys.exit(130)
+    except OSError as exc:
+        # a file the user named cannot be read or written (a directory, no such folder, no
+        # permission, disk full): one line naming it, like any other user error
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        err_console.print(f"millsense: error: {where}{exc.strerror or exc}", markup=False)
+        sys.exit(2)
     except Exception as exc:
         # Usage errors of the (vendored) click parser: duck-typed, as typer may vendor click.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
