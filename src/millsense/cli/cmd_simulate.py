@@ -54,6 +54,13 @@ def simulate(
     break_at_s: float | None = typer.Option(None, "--break-at-s", help="Break a tooth at, s."),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
     realism: bool = typer.Option(False, "--realism", help="Switch on the realism layer."),
+    tool_modes: Path | None = typer.Option(
+        None,
+        "--tool-modes",
+        help="TOML with the tool's [[structure.x]]/[[structure.y]] modes (natural_frequency_hz, "
+        "damping_ratio, stiffness_n_m; x along the feed; a stability case file works): "
+        "regenerative chatter, tool vibration, accelerometer and microphone content.",
+    ),
     accelerometer: bool = typer.Option(False, "--accelerometer", help="Add accel/x, accel/y."),
     microphone: bool = typer.Option(False, "--microphone", help="Add mic/pressure."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk written."),
@@ -85,6 +92,7 @@ def simulate(
         break_flute=break_flute,
         realism=realism,
         accelerometer=accelerometer,
+        tool_modes=tool_modes,
         microphone=microphone,
         chunk=chunk,
     )
@@ -119,6 +127,7 @@ def run_simulation(
     microphone: bool,
     chunk: int,
     on_progress: Callable[[float], None] | None = None,
+    tool_modes: Path | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
 
@@ -174,6 +183,11 @@ def run_simulation(
         events.append(ToothBreak(break_at_s, break_flute))
     notes: list[str] = []
     meta_extra: dict[str, Any] = {}
+    modes = None
+    if tool_modes is not None:
+        from millsense.machine.process_coupling import ToolModes
+
+        modes = ToolModes.from_toml(tool_modes)
     if plan is not None:
         from millsense.virtual.plan import (
             VirtualPlan,
@@ -213,6 +227,7 @@ def run_simulation(
             source,
             events=events,
             n_discs=n_discs,
+            modes=modes,
             sample_rate_hz=mcfg.sample_rate_hz,
         )
     else:
@@ -232,6 +247,7 @@ def run_simulation(
             CuttingCoefficients.from_config(mat),
             schedule,
             events=events,
+            modes=modes,
             sample_rate_hz=mcfg.sample_rate_hz,
         )
         meta_extra = {"program": str(program), "tool": tcfg.name, "material": mat.name}
@@ -255,6 +271,8 @@ def run_simulation(
     )
     meta = dict(sim.metadata)
     meta.update(meta_extra)
+    if tool_modes is not None:
+        meta["tool_modes"] = str(tool_modes)
     writer = RecordingWriter(
         out,
         sim.sample_rate_hz,

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal, Protocol
 
 import numba
@@ -433,6 +434,50 @@ class ToolModes:
     x: DirectionModes
     y: DirectionModes
     steps_per_rev: int = 0  #: 0 = choose from the sample rate (≥ 2 steps per sample)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> ToolModes:
+        """The ``[[structure.x]]``/``[[structure.y]]`` modes of a TOML file (a stability case
+        file works: only its ``[structure]`` table is read).
+
+        Each mode gives ``natural_frequency_hz``, ``damping_ratio`` and ``stiffness_n_m`` (or
+        ``residue_alpha_m_n_s2`` with ``residue_beta_m_n_s`` = 0, stiffness ω²/α); x is along
+        the feed, y normal to it, as in the stability cases. A direction without modes is
+        rigid.
+
+        Raises
+        ------
+        ConfigError
+            Missing ``[structure]``, a bad mode (one line naming file and key), a velocity
+            residue (the time-domain tool model has none), or no mode at all.
+        """
+        from millsense.core.config import parse_config, read_toml
+        from millsense.stability.cases import StructureSpec
+
+        data = read_toml(path)
+        if not isinstance(data.get("structure"), dict):
+            raise ConfigError(f"{path}: missing table [structure] ([[structure.x]] modes)")
+        spec = parse_config(StructureSpec, data["structure"], f"{path} [structure]")
+        if not spec.x and not spec.y:
+            raise ConfigError(f"{path}: [structure] has no [[structure.x]] or [[structure.y]] mode")
+        out = []
+        for d, modes in (("x", spec.x), ("y", spec.y)):
+            if not modes:
+                out.append(DirectionModes.rigid())
+                continue
+            f, z, k = [], [], []
+            for i, m in enumerate(modes):
+                if m.residue_beta_m_n_s != 0.0:
+                    raise ConfigError(
+                        f"{path}: structure.{d}[{i}]: residue_beta_m_n_s must be 0 for the "
+                        "simulated tool (give stiffness_n_m)"
+                    )
+                mode = m.to_mode()
+                f.append(m.natural_frequency_hz)
+                z.append(m.damping_ratio)
+                k.append(mode.omega**2 / mode.alpha)
+            out.append(DirectionModes.from_arrays(f, z, k))
+        return cls(out[0], out[1])
 
 
 @dataclass
