@@ -19,10 +19,11 @@ from millsense.estimation.feed_drive import (
     measurement_model,
     sampled_fit_at,
 )
-from millsense.estimation.feed_identification import identify_friction, identify_lugre, ramp_move
+from millsense.estimation.feed_identification import identify_friction, identify_lugre
 from millsense.estimation.kalman import StateSpaceModel, discretize_zoh
 from millsense.estimation.rational_fit import RationalFit, fit_rational
 from millsense.estimation.rigid_body import DriveModel
+from millsense.machine.commissioning import ramp_move
 from millsense.machine.drive_mismatch import perturbed_drive
 from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
 from millsense.machine.friction import CoulombViscous

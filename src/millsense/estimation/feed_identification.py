@@ -38,6 +38,7 @@ from millsense.estimation.rational_fit import RationalFit, fit_rational
 from millsense.estimation.rigid_body import DriveModel
 from millsense.ident.frf import FrfEstimate, multisine_frf, multisine_signal
 from millsense.ident.friction import coulomb_viscous_from_moves
+from millsense.machine.commissioning import ramp_move, run_table_load_sweep
 from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
 from millsense.machine.friction import CoulombViscous
 from millsense.machine.lugre import LuGre
@@ -54,19 +55,6 @@ class SweepResult:
 
     frf: FrfEstimate
     fit: RationalFit
-
-
-def ramp_move(
-    v: float, n: int, fs: float, accel_time_s: float = 0.05
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    t = np.arange(n) / fs
-    vel = np.where(t < accel_time_s, v * t / accel_time_s, v)
-    pos = np.where(
-        t < accel_time_s,
-        0.5 * v * t**2 / accel_time_s,
-        0.5 * v * accel_time_s + v * (t - accel_time_s),
-    )
-    return pos, vel
 
 
 def identify_friction(
@@ -198,14 +186,9 @@ def disturbance_sweep(
     fs = sample_rate_hz
     per = round(period_s * fs)
     load, _ = multisine_signal(fs, per, band_hz[0], band_hz[1], n_periods, rms=force_rms)
-    n = len(load)
-    lead = round(0.3 * fs)
-    pos, vel = ramp_move(speed_rad_s, n + lead, fs)
-    q0 = start_position / params.transmission
-    pos = pos + q0
-    sim = FeedDriveSim(params, fs, seed=seed, initial_angle_rad=q0)
-    full_load = np.concatenate([np.zeros(lead), load])
-    res = sim.advance(pos, vel, full_load)
+    res, _, lead = run_table_load_sweep(
+        params, fs, load, speed_rad_s=speed_rad_s, seed=seed, start_position=start_position
+    )
     return fit_disturbance_path(
         load,
         res["current_cmd"][lead:],

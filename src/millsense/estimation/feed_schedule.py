@@ -44,11 +44,11 @@ from millsense.estimation.feed_identification import (
     SweepResult,
     disturbance_sweep,
     identify_feed_axis,
-    ramp_move,
 )
 from millsense.estimation.kalman import augment_disturbance, design_kalman
 from millsense.estimation.rational_fit import RationalFit
 from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
+from millsense.machine.commissioning import ramp_move
 from millsense.machine.feed_drive import FeedDriveParams
 from millsense.online.block import Block, BlockOutput, Chunk
 

@@ -263,7 +263,7 @@ def mode_family(fit: RationalFit, shift: float, n: int = 9) -> list[RationalFit]
     Notes
     -----
     Complex pole p → κ·p and residue ρ → κ·ρ (the term ρ/(s − p) + c.c. keeps its static gain,
-    as the simulator's ``scale_modes`` keeps α/ω²); real poles (loop dynamics seen through the
+    as ``ModalStateSpace.frequency_scaled`` keeps α/ω²); real poles (loop dynamics seen through the
     C3 torque, not structural modes) and the constant term are unchanged.
     """
     if not shift >= 0:

@@ -15,7 +15,8 @@ Tests (seed 000 C1/Ch. 3.2.1 and Ch. 5; seed 001 C8, C11):
 - :func:`presliding_test` — current steps below breakaway with the loops open;
 - :func:`acceleration_test` — back-and-forth trapezoidal moves;
 - :func:`drive_sweep` — a periodic current injection (multisine) on a constant-velocity move;
-- :func:`table_load_sweep` — a multisine table load (shaker) on a move or at rest, for Φ_d;
+- :func:`table_load_sweep` — a multisine table load (shaker) on a move or at rest, for Φ_d
+  (:func:`run_table_load_sweep`, which the acceptance identification runs too);
 - :func:`spindle_sweep` and :func:`spindle_friction_test` — velocity-loop sweep and
   constant-speed runs of the spindle;
 - :func:`idle_runs` — repeated air cuts with the same trajectory and feed.
@@ -245,6 +246,50 @@ def drive_sweep(
     )
 
 
+def ramp_move(
+    v: float, n: int, fs: float, accel_time_s: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity of a move from rest to ``v`` (constant acceleration over
+    ``accel_time_s``, then constant speed), ``n`` samples at ``fs`` (units of ``v``·s)."""
+    t = np.arange(n) / fs
+    vel = np.where(t < accel_time_s, v * t / accel_time_s, v)
+    pos = np.where(
+        t < accel_time_s,
+        0.5 * v * t**2 / accel_time_s,
+        0.5 * v * accel_time_s + v * (t - accel_time_s),
+    )
+    return pos, vel
+
+
+def run_table_load_sweep(
+    params: FeedDriveParams,
+    sample_rate_hz: float,
+    load: np.ndarray,
+    *,
+    speed_rad_s: float,
+    lead_s: float = 0.3,
+    seed: int = 2,
+    start_position: float = 0.0,
+) -> tuple[dict[str, np.ndarray], np.ndarray, int]:
+    """The drive under a known table load (a shaker on the table) while it moves or holds.
+
+    The axis starts at ``start_position`` (load position, m; rad rotary), ramps to
+    ``speed_rad_s`` (motor; 0 holds position) by :func:`ramp_move`, and ``load`` (table load,
+    N or N·m, positive resisting +motion) is applied after ``lead_s`` of run-in.
+
+    Returns
+    -------
+    (simulator result over run-in + load, commanded motor speed, run-in samples).
+    """
+    fs = sample_rate_hz
+    lead = round(lead_s * fs)
+    pos, vel = ramp_move(speed_rad_s, len(load) + lead, fs)
+    q0 = start_position / params.transmission
+    sim = FeedDriveSim(params, fs, seed=seed, initial_angle_rad=q0)
+    res = sim.advance(pos + q0, vel, np.concatenate([np.zeros(lead), load]))
+    return res, vel, lead
+
+
 def table_load_sweep(
     cfg: MachineConfig,
     axis_name: str,
@@ -264,25 +309,20 @@ def table_load_sweep(
     (``millsense identify path``; Aslan measured it with impact tests, servo on). The load
     (channel ``<axis>/load``, N or N·m at the table, positive resisting +motion) has
     ``torque_rms_nm`` RMS at the motor, equal lines over ``f_lo_hz``–``f_hi_hz``, Schroeder
-    phases; the axis moves at ``speed_rad_s`` (motor; 0 holds position, the condition of an axis
-    that holds while the others cut). The record starts after ``lead_s`` of run-in; the first
+    phases (:func:`shaped_multisine`, flat); the axis moves at ``speed_rad_s`` (motor; 0 holds
+    position, the condition of an axis that holds while the others cut) by
+    :func:`run_table_load_sweep`. The record starts after ``lead_s`` of run-in; the first
     period is a run-in of the multisine as well.
     """
-    from millsense.ident.frf import multisine_signal
-
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
     p = _params(cfg, axis_name)
     per = round(period_s * fs)
-    lg = p.transmission / p.efficiency
-    load, _ = multisine_signal(fs, per, f_lo_hz, f_hi_hz, n_periods, rms=torque_rms_nm / lg)
-    lead = round(lead_s * fs)
-    n = len(load) + lead
-    t = np.arange(n) / fs
-    vel = speed_rad_s * np.minimum(t / 0.05, 1.0)
-    pos, vel = _profile(vel, fs)
-    full = np.concatenate([np.zeros(lead), load])
-    res = FeedDriveSim(p, fs, seed=seed).advance(pos, vel, full)
+    load = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1.0, 1.0, n_periods, 0.0)
+    load *= torque_rms_nm * p.efficiency / p.transmission / float(np.std(load[:per]))
+    res, vel, lead = run_table_load_sweep(
+        p, fs, load, speed_rad_s=speed_rad_s, lead_s=lead_s, seed=seed
+    )
     res = {k: v[lead:] for k, v in res.items()}
     return _recording(
         fs,

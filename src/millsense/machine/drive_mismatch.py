@@ -3,8 +3,8 @@
 An estimator validated on the simulator must not run its own model back to itself:
 :func:`commissioning_drive` is the machine the commissioning tests run on (the preset drive plus
 an unmodelled higher mode, :data:`UNMODELLED_MODE`), :func:`perturbed_drive` the machine as it
-cuts (modes shifted, friction drifted, the same higher mode), :func:`scale_modes` the mode shift
-itself. Decisions "Unmodelled higher mode present at commissioning" and "Feed-drive acceptance"
+cuts (modes shifted by ``ModalStateSpace.frequency_scaled``, friction drifted, the same higher
+mode). Decisions "Unmodelled higher mode present at commissioning" and "Feed-drive acceptance"
 (docs/decisions.md).
 """
 
@@ -18,18 +18,6 @@ from millsense.machine.feed_drive import FeedDriveParams
 from millsense.machine.friction import CoulombViscous
 from millsense.machine.lugre import LuGre
 from millsense.machine.modal_ss import ModalStateSpace
-
-
-def scale_modes(modes: ModalStateSpace, frequency_scale: float) -> ModalStateSpace:
-    """Modes with every frequency × ``frequency_scale`` (α × its square: same static gain)."""
-    return ModalStateSpace.from_modes(
-        modes.frequency_hz * frequency_scale,
-        modes.damping_ratio,
-        modes.alpha * frequency_scale**2,
-        modes.beta,
-        modes.d,
-    )
-
 
 #: The higher mode the acceptance machine has and the estimator's model does not (f Hz, ζ,
 #: α 1/s², β 1/s): above the 3-260 Hz fit band (decision "Unmodelled higher mode present at
@@ -50,7 +38,7 @@ def commissioning_drive(
     the identification band is part of the machine during the sweep as well; the estimator does
     not model it (the rational fit ends at 260 Hz and absorbs only its in-band tail). A mode
     that appears only after identification is a change of the machine (position or set-up
-    dependence) and is covered by the shifted-mode cases.
+    dependence) and is covered by the position-scheduled case.
     """
     return perturbed_drive(params, frequency_scale=1.0, friction_scale=1.0, extra_mode=extra_mode)
 
@@ -76,7 +64,7 @@ def perturbed_drive(
     """
     modes = params.modes
     if modes is not None:
-        modes = scale_modes(modes, frequency_scale)
+        modes = modes.frequency_scaled(frequency_scale)
         f, z, al, be = modes.frequency_hz, modes.damping_ratio, modes.alpha, modes.beta
         if extra_mode is not None:
             f = np.append(f, extra_mode[0])

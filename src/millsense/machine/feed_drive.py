@@ -245,10 +245,7 @@ class FeedDriveParams:
             raise InputDataError(
                 f"feed drive: mode frequency factor {lam:g} at position {position:g} (need > 0)"
             )
-        m = self.modes
-        return ModalStateSpace.from_modes(
-            m.frequency_hz * lam, m.damping_ratio, m.alpha * lam**2, m.beta * lam, m.d
-        )
+        return self.modes.frequency_scaled(lam)
 
     @classmethod
     def from_config(

@@ -89,6 +89,24 @@ class ModalStateSpace:
             cfg.natural_frequency_hz, cfg.damping_ratio, cfg.alpha, cfg.beta, cfg.feedthrough
         )
 
+    def frequency_scaled(self, scale: float) -> ModalStateSpace:
+        """The same modes on a scaled frequency axis, ``Φ(s/λ)`` with λ = ``scale`` (> 0).
+
+        Frequencies × λ, α × λ², β × λ; damping ratios, static gains α/ω² and the
+        feed-through unchanged (position-dependent modes, decision "Position-dependent
+        disturbance modes").
+        """
+        lam = float(scale)
+        if not lam > 0:
+            raise ValueError(f"modes: frequency scale must be > 0, got {lam:g}")
+        return ModalStateSpace.from_modes(
+            self.frequency_hz * lam,
+            self.damping_ratio,
+            self.alpha * lam**2,
+            self.beta * lam,
+            self.d,
+        )
+
     @property
     def n_states(self) -> int:
         return 2 * self.a.shape[0]

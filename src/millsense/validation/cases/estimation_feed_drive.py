@@ -107,9 +107,9 @@ def compensated_bandwidth(
     (``FeedAxisModel.tuned(0, band_hz=...)``) instead of the widest-band Q.
     """
     from millsense.estimation.feed_drive import FeedAxisEstimator
-    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.commissioning import ramp_move
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
@@ -241,7 +241,7 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     filter, quantisation, friction-model error).
     """
     from millsense.estimation.feed_drive import FeedAxisEstimator
-    from millsense.estimation.feed_identification import ramp_move
+    from millsense.machine.commissioning import ramp_move
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
@@ -371,7 +371,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
 
 
 def _test_travel(axis: str) -> float:
-    from millsense.estimation.feed_identification import ramp_move
+    from millsense.machine.commissioning import ramp_move
 
     p = scheduled_params(axis)
     n = round((0.3 + N_PERIODS + 0.01) * FS_HZ)
@@ -398,10 +398,10 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     :func:`scheduled_params` (friction +15 %, the 420 Hz mode, noise, quantisation, current
     loop); the block reads the commanded position ``{axis}/position_cmd``.
     """
-    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.feed_schedule import ScheduledFeedEstimator
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.commissioning import ramp_move
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
@@ -902,9 +902,9 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
         FeedAxisEstimator,
         tooth_harmonics,
     )
-    from millsense.estimation.feed_identification import ramp_move
     from millsense.estimation.kalman import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
+    from millsense.machine.commissioning import ramp_move
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
