@@ -165,3 +165,14 @@ def test_override_events_reach_the_source() -> None:
     )
     assert len(src.commands) == len(res.events) > 0
     assert all(c.value == 80.0 for c in src.commands)
+
+
+def test_replay_stopped_early_is_the_prefix_of_the_whole() -> None:
+    # a replay that ends at sample 1234 gives exactly the first 1234 outputs of the full replay
+    # (the idle compensation runs its estimators over the air phase this way)
+    rec = make_recording()
+    whole = run(RecordingSource(rec), pipeline(), 100).channels
+    part = run(RecordingSource(rec, stop_sample=1234), pipeline(), 100).channels
+    for name, values in part.items():
+        assert len(values) == 1234
+        np.testing.assert_array_equal(values, whole[name][:1234])

@@ -237,7 +237,6 @@ def run_estimate(
     ConfigError, InputDataError, RecordingError
         One-line user errors (bad preset or key, unknown method or axis, missing channel).
     """
-    import json
     import time
 
     import numpy as np
@@ -246,6 +245,7 @@ def run_estimate(
     from millsense.core.errors import InputDataError
     from millsense.core.presets import load_preset
     from millsense.estimation.from_config import build_estimators, truth_channel
+    from millsense.ident.idle_table import DIRECTIONS
     from millsense.io import RecordingWriter, read_recording
     from millsense.online.engine import Pipeline, run
     from millsense.online.sources import RecordingSource
@@ -327,7 +327,7 @@ def run_estimate(
             {
                 f"{m}/{a}": {
                     d: (None if np.isnan(v) else v)
-                    for d, v in zip(("negative", "rest", "positive"), t.value, strict=True)
+                    for d, v in zip(DIRECTIONS, t.value, strict=True)
                 }
                 for (m, a), t in idle_tables.items()
             }

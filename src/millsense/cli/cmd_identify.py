@@ -274,20 +274,20 @@ def _commanded_condition(rec: Any, path: Path, axis: str, transmission: float) -
     ``{axis}/velocity_ref`` (motor rad/s) or ``{axis}/position_cmd`` (m, rad rotary)."""
     import numpy as np
 
+    from millsense.estimation.commanded import commanded_velocity
     from millsense.estimation.feed_drive import operating_condition
 
     if f"{axis}/velocity_ref" in rec:
         v = np.asarray(rec.channel(f"{axis}/velocity_ref"), dtype=float)
     elif f"{axis}/position_cmd" in rec:
-        x = np.asarray(rec.channel(f"{axis}/position_cmd"), dtype=float)
-        v = np.diff(x) * rec.sample_rate_hz / transmission
+        v = commanded_velocity(rec, axis, str(path)) / transmission
     else:
         raise InputDataError(
             f"{path}: no channel '{axis}/velocity_ref' or '{axis}/position_cmd': the sweep's "
             "commanded motion decides whether it is the moving or the at-rest path (or give "
             "--condition moving|at_rest)"
         )
-    return operating_condition(v if len(v) else np.zeros(1))
+    return operating_condition(v)
 
 
 def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:

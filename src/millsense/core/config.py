@@ -325,8 +325,9 @@ class FeedEstimatorConfig(_Model):
     """Tuning of an axis' Kalman force estimator (``[axes.x.estimator]``, all optional).
 
     Absent keys are chosen at start-up (:meth:`millsense.estimation.feed_drive.FeedAxisModel.
-    from_config`): R from ``current_noise_a`` through the C3 low-pass, Q (and the design damping)
-    by the robust bandwidth optimisation of :func:`millsense.estimation.tuning.tune_robust`.
+    from_config`): R from ``current_noise_a`` through the C3 low-pass, Q by the widest-band
+    rule of :func:`millsense.estimation.tuning.tune_q` (``band_hz``: the least-noise rule;
+    ``mode_shift_pct`` > 0: the robust design of :func:`millsense.estimation.tuning.tune_robust`).
     """
 
     r_nm2: Annotated[float, Field(gt=0, le=1e6)] | None = None

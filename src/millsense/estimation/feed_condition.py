@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
+from millsense.estimation.commanded import CommandedVelocity
 from millsense.estimation.feed_drive import REST_SPEED_RAD_S, FeedAxisEstimator
 from millsense.online.block import Block, BlockOutput, Chunk
 
@@ -66,12 +67,12 @@ class OperatingConditionFeedEstimator(Block):
         self.transmission = float(transmission)
         self.rest_speed = float(rest_speed_rad_s)
         self.crossfade_s = float(crossfade_s)
-        self.position_channel = f"{ax}/position_cmd"
+        self._cmd = CommandedVelocity(ax)
+        self.position_channel = self._cmd.channel
         self.inputs = tuple(dict.fromkeys((*moving.inputs, *at_rest.inputs, self.position_channel)))
         self._half = 0
         self._hist: NDArray[np.float64] = np.zeros(0)
-        self._last_pos: float | None = None
-        self._fs = 0.0
+        self._started = False
 
     @property
     def delay_samples(self) -> int:
@@ -86,10 +87,10 @@ class OperatingConditionFeedEstimator(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self.moving.reset(sample_rate_hz)
         self.at_rest.reset(sample_rate_hz)
-        self._fs = float(sample_rate_hz)
+        self._cmd.reset(sample_rate_hz)
         self._half = min(self.lag, round(0.5 * self.crossfade_s * sample_rate_hz))
         self._hist = np.zeros(0)
-        self._last_pos = None
+        self._started = False
 
     def rest_weight(self, position_cmd: NDArray[np.float64]) -> NDArray[np.float64]:
         """Weight of the at-rest model for the output samples of one chunk (state carried)."""
@@ -99,13 +100,12 @@ class OperatingConditionFeedEstimator(Block):
         n = len(pos)
         if n == 0:
             return np.zeros(0)
-        prev = pos[0] if self._last_pos is None else self._last_pos
-        speed = np.diff(np.concatenate([[prev], pos])) * self._fs / self.transmission
+        speed = self._cmd(pos) / self.transmission
         rest = (np.abs(speed) <= self.rest_speed).astype(np.float64)
-        if self._last_pos is None:
+        if not self._started:
             # before the stream the axis stood in the condition of its first command
             self._hist = np.full(self.lag + self._half, rest[0])
-        self._last_pos = float(pos[-1])
+            self._started = True
         allr = np.concatenate([self._hist, rest])
         # output sample j of this chunk belongs to input (global) j − L: its window is
         # [j − L − h, j − L + h]; allr index of global input i is i − start + len(hist)

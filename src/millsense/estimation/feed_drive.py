@@ -160,9 +160,9 @@ class FeedAxisModel:
         rational path, Tustin at the stream rate), else the table's ``disturbance_modes``
         (Eq. 3.13, pole–residue form, ZOH),
         R and Q from ``[axes.<axis>.estimator]`` when given, else R from ``current_noise_a``
-        and Q from :func:`millsense.estimation.tuning.tune_robust` for the key
-        ``estimator.mode_shift_pct`` (default 2 %; the design damping is always chosen there
-        when the key is > 0) or :func:`millsense.estimation.tuning.tune_q` when it is 0.
+        and Q by :meth:`tuned`: the widest band (:func:`~millsense.estimation.tuning.tune_q`,
+        the default), the least noise for ``band_hz``, or the robust design (with its damping)
+        for ``mode_shift_pct`` > 0.
 
         Raises
         ------

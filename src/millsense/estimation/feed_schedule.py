@@ -7,11 +7,11 @@ so, as a commissioning engineer would, Φ_d is identified at N positions along t
 (:func:`identify_feed_bank`) and the estimator uses the model of where the axis is commanded to
 be (:class:`ScheduledFeedEstimator`).
 
-Scheduling (docs/decisions.md "Position-scheduled feed estimator"): every member of the bank is a
-full :class:`~millsense.estimation.feed_drive.FeedAxisEstimator` running on the same CNC channels,
-each with its own state, so a switch is bumpless (the member switched to has been tracking the
-same signal all along). The output is the estimate of the member identified nearest to the
-CNC's commanded position ``{axis}/position_cmd`` (never a measured or true position), cross-faded
+Scheduling (docs/decisions.md "Position-scheduled feed estimator"): the members share one C3
+stage and each has its own Kalman filter and smoother, run while the commanded position is near
+its identification position and warmed up by replaying the recent C3 torque when it starts, so
+a switch is bumpless. The output is the estimate of the member identified nearest to the CNC's
+commanded position ``{axis}/position_cmd`` (never a measured or true position), cross-faded
 linearly over ``crossfade`` × the spacing around each midpoint between identification positions.
 The position used is the command delayed by the smoother lag, i.e. the position at the instant
 the delayed estimate refers to.
@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 from itertools import pairwise
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
@@ -45,7 +44,6 @@ from millsense.estimation.feed_identification import (
     disturbance_sweep,
     identify_feed_axis,
 )
-from millsense.estimation.kalman import augment_disturbance, design_kalman
 from millsense.estimation.rational_fit import RationalFit
 from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
 from millsense.machine.commissioning import ramp_move
@@ -86,7 +84,7 @@ def relative_shift(fit_a: RationalFit, sweep_b: SweepResult, band_hz: tuple[floa
         raise InputDataError("relative shift: fewer than 3 FRF lines in the band")
 
     def cost(lam: float) -> float:
-        return float(np.sum(np.abs(h - fit_a.with_modes_scaled(lam).continuous_frf(f)) ** 2))
+        return float(np.sum(np.abs(h - fit_a.with_modes_scaled(lam).frf(f)) ** 2))
 
     res = optimize.minimize_scalar(
         cost, bounds=(0.8, 1.2), method="bounded", options={"xatol": 1e-6}
@@ -330,14 +328,7 @@ def interval_worst_db(
         )
         for s in (-half_shift, half_shift)
     ]
-    ests = [
-        tuning.estimator_frf(
-            design_kalman(augment_disturbance(m.measurement_model()), m.q * dt, m.r),
-            f,
-            ASLAN_LAG_SAMPLES,
-        )
-        for m in members
-    ]
+    ests = [tuning.estimator_frf(m.design(), f, ASLAN_LAG_SAMPLES) for m in members]
     bank = FeedModelBank((0.0, 1.0), tuple(members), (half_shift,) * 2, crossfade)
     u = np.linspace(0.0, 1.0, n_positions)
     w = bank.weights(u)
@@ -362,59 +353,6 @@ def interval_worst_db(
         np.array([tuning.model_frf(measurement_model(m, lp, dt), f) for m in fam]), f, target
     )
     return {"worst_db": worst, "midpoint_db": mid, "hard_switch_db": hard, "lti_bound_db": bound}
-
-
-@numba.njit(cache=True)
-def _schedule_kernel(
-    pos: NDArray[np.float64],
-    hist: NDArray[np.float64],
-    positions: NDArray[np.float64],
-    crossfade: float,
-    margin: float,
-    w: NDArray[np.float64],
-    act: NDArray[np.bool_],
-) -> None:  # pragma: no cover - compiled
-    """Delay the commanded position by ``len(hist)`` samples (``hist`` updated in place) and
-    write the member weights (:meth:`FeedModelBank.weights`) and running set
-    (:meth:`FeedModelBank.active`) of every sample of a chunk."""
-    n = pos.shape[0]
-    lag = hist.shape[0]
-    m = positions.shape[0]
-    for k in range(n):
-        x = hist[k] if k < lag else pos[k - lag]
-        for j in range(m):
-            w[k, j] = 0.0
-            act[k, j] = False
-        if m == 1:
-            w[k, 0] = 1.0
-            act[k, 0] = True
-            continue
-        i = 0
-        while i < m - 2 and x >= positions[i + 1]:
-            i += 1
-        gap = positions[i + 1] - positions[i]
-        u = (x - positions[i]) / gap
-        hi = min(max((u - 0.5) / crossfade + 0.5, 0.0), 1.0)
-        w[k, i] = 1.0 - hi
-        w[k, i + 1] += hi
-        for j in range(m):
-            lo_ok = True
-            hi_ok = True
-            if j > 0:
-                lo_ok = x > positions[j - 1] - margin * (positions[j] - positions[j - 1])
-            if j < m - 1:
-                hi_ok = x < positions[j + 1] + margin * (positions[j + 1] - positions[j])
-            act[k, j] = lo_ok and hi_ok
-    # new history: the last lag samples of [hist, pos]
-    if lag > 0:
-        if n >= lag:
-            for k in range(lag):
-                hist[k] = pos[n - lag + k]
-        else:
-            for k in range(lag - n):
-                hist[k] = hist[k + n]
-            for k in range(n):
-                hist[lag - n + k] = pos[k]
 
 
 class ScheduledFeedEstimator(Block):
@@ -497,7 +435,6 @@ class ScheduledFeedEstimator(Block):
         elif m0.moment_arm_m is not None:
             self._force_gain = -self._gain / m0.moment_arm_m
         self._running = np.zeros(len(self.smoothers), dtype=bool)
-        self._positions = np.asarray(bank.positions, dtype=np.float64)
         self._pos_hist = np.zeros(0)
         self._tau_hist = np.zeros(0)
         self._buf = np.empty(2 * self.warmup)
@@ -542,18 +479,11 @@ class ScheduledFeedEstimator(Block):
         if not self._started:
             # before the first sample the axis stood at its first commanded position
             self._pos_hist = np.full(self.lag, pos[0])
-        m = len(self.smoothers)
-        w = np.empty((n, m))
-        active = np.empty((n, m), dtype=np.bool_)
-        _schedule_kernel(
-            np.ascontiguousarray(pos),
-            self._pos_hist,
-            self._positions,
-            self.bank.crossfade,
-            self.margin,
-            w,
-            active,
-        )
+        # the commanded position delayed by the lag: the position the estimate refers to
+        allx = np.concatenate([self._pos_hist, pos])
+        x, self._pos_hist = allx[:n], allx[n:]
+        w = self.bank.weights(x)
+        active = self.bank.active(x, self.margin)
         if self.all_members:
             active[:] = True
         tau = self._c3.process(cur, spd)

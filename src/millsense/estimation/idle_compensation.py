@@ -22,6 +22,7 @@ import numpy as np
 from millsense.core.config import FeedEstimatorConfig, MachineConfig
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo, Recording
+from millsense.estimation.commanded import CommandedVelocity, commanded_velocity
 from millsense.ident.idle_table import DirectionIdle, build_direction_idle
 from millsense.online.block import Block, BlockOutput, Chunk
 from millsense.online.engine import Pipeline
@@ -43,28 +44,6 @@ SPINDLE_TOLERANCE = 0.02
 MIN_AIR_S = 0.05
 #: Metadata key: path length (m, ∫ cnc/feed dt from the start) where the tool enters the stock.
 FIRST_ENGAGEMENT_KEY = "first_engagement_path_m"
-
-
-def velocity_source(axis: str) -> str:
-    """Channel giving the commanded velocity of ``axis``: its position command (differenced)
-    or, for the spindle, the speed reference."""
-    return "spindle/speed_cmd" if axis == "spindle" else f"{axis}/position_cmd"
-
-
-def commanded_velocity(rec: Recording, axis: str, where: str) -> np.ndarray:
-    """Commanded velocity of ``axis`` per sample (m/s, rad/s), from CNC channels only.
-
-    Raises
-    ------
-    InputDataError naming the missing channel.
-    """
-    ch = velocity_source(axis)
-    if ch not in rec:
-        raise InputDataError(f"{where}: no channel '{ch}' (--idle needs the commanded velocity)")
-    x = np.asarray(rec.channel(ch), dtype=float)
-    if axis == "spindle":
-        return x
-    return np.diff(x, prepend=x[:1]) * rec.sample_rate_hz
 
 
 def find_air_window(rec: Recording, where: str) -> slice:
@@ -161,19 +140,12 @@ def _run_prefix(
     rec: Recording, blocks: Sequence[Block], stop: int, where: str, chunk: int
 ) -> tuple[dict[str, np.ndarray], Pipeline]:
     """Outputs of ``blocks`` (reset first) over samples ``[0, stop)`` of ``rec``."""
-    fs = rec.sample_rate_hz
+    from millsense.online.engine import run
+    from millsense.online.sources import RecordingSource
+
     pipe = Pipeline(list(blocks))
-    pipe.check_inputs(rec.channel_names, where)
-    pipe.reset(fs)
-    names = sorted({c for b in blocks for c in b.inputs})
-    pieces: dict[str, list[np.ndarray]] = {}
-    for a in range(0, stop, chunk):
-        b = min(stop, a + chunk)
-        data = {c: np.asarray(rec.channel(c)[a:b]) for c in names}
-        outputs, _ = pipe.process(Chunk(a, fs, rec.t0_s, data))
-        for k, v in outputs.items():
-            pieces.setdefault(k, []).append(np.asarray(v))
-    return {k: np.concatenate(v) for k, v in pieces.items()}, pipe
+    res = run(RecordingSource(rec, where, stop_sample=stop), pipe, chunk)
+    return res.channels, pipe
 
 
 def measure_idle(
@@ -224,7 +196,8 @@ class IdleCompensatedBlock(Block):
     Parameters
     ----------
     inner : the estimator block (outputs ``channel``, ``delay_samples`` behind its input).
-    axis : axis of the estimate (velocity from :func:`velocity_source`).
+    axis : axis of the estimate (its commanded velocity:
+        :class:`~millsense.estimation.commanded.CommandedVelocity`).
     channel : the load channel to compensate.
     idle : the idle table.
     delay_samples : output lag of ``inner``, samples (the velocity is delayed alike).
@@ -246,31 +219,22 @@ class IdleCompensatedBlock(Block):
         self.delay = int(delay_samples)
         self.delay_samples = self.delay
         self.name = f"{inner.name}_idle"
-        self._vel = velocity_source(axis)
+        self._cmd = CommandedVelocity(axis)
+        self._vel = self._cmd.channel
         self.inputs = tuple(inner.inputs) + ((self._vel,) if self._vel not in inner.inputs else ())
-        self._prev: float | None = None
         self._hist = np.zeros(self.delay)
-        self._fs = 0.0
 
     def output_channels(self) -> list[ChannelInfo]:
         return self.inner.output_channels()
 
     def reset(self, sample_rate_hz: float) -> None:
         self.inner.reset(sample_rate_hz)
-        self._fs = sample_rate_hz
-        self._prev = None
+        self._cmd.reset(sample_rate_hz)
         self._hist = np.zeros(self.delay)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         out = self.inner.process(chunk)
-        x = np.asarray(chunk.data[self._vel], dtype=float)
-        if self.axis == "spindle":
-            v = x
-        else:
-            prev = (x[0] if len(x) else 0.0) if self._prev is None else self._prev
-            v = np.diff(x, prepend=prev) * self._fs
-            if len(x):
-                self._prev = float(x[-1])
+        v = self._cmd(np.asarray(chunk.data[self._vel], dtype=float))
         line = np.concatenate([self._hist, v])
         n = len(v)
         self._hist = line[n:]

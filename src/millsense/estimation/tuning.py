@@ -208,7 +208,7 @@ def least_noise_q(
     def evaluate(logq: float) -> tuple[bool, float]:
         d = _design(model, 10.0**logq, r)
         h = compensated_frf(model, d, f)
-        worst = float(np.max(np.abs(20.0 * np.log10(np.abs(h[in_band])))))
+        worst = float(np.max(deviation_db(h[in_band])))
         ok = worst <= flatness_db and noise_gain(d) <= max_noise_gain
         return ok, bandwidth_3db(f, h)
 
@@ -245,7 +245,8 @@ def least_noise_q(
 # Robust design for position-dependent modes
 # ---------------------------------------------------------------------------------------------
 
-#: Relative mode-frequency uncertainty the feed estimators are designed for by default (±2 %).
+#: Relative mode-frequency uncertainty :func:`tune_robust` designs for when none is given (±2 %;
+#: the feed estimators use it only with ``mode_shift_pct`` > 0, the default is nominal).
 DEFAULT_MODE_SHIFT = 0.02
 #: Added damping of the design model tried by :func:`tune_robust`, as fractions of the shift δ.
 DAMPING_FRACTIONS = (0.0, 0.125, 0.25, 0.5, 1.0)

@@ -36,13 +36,20 @@ class Source(ABC):
 
 
 class RecordingSource(Source):
-    """Replays a :class:`Recording` chunk by chunk (overrides are recorded, not applied)."""
+    """Replays a :class:`Recording` chunk by chunk (overrides are recorded, not applied).
 
-    def __init__(self, recording: Recording, name: str | None = None) -> None:
+    ``stop_sample``: the replay ends before this sample (None: at the end of the recording).
+    """
+
+    def __init__(
+        self, recording: Recording, name: str | None = None, stop_sample: int | None = None
+    ) -> None:
         self.recording = recording
         self.name = name or str(recording.metadata.get("source", "recording"))
         self.sample_rate_hz = recording.sample_rate_hz
         self.t0_s = recording.t0_s
+        n = recording.n_samples
+        self._stop = n if stop_sample is None else max(0, min(int(stop_sample), n))
         self._pos = 0
         self.commands: list[Event] = []
 
@@ -51,7 +58,7 @@ class RecordingSource(Source):
         return [self.recording.info(n) for n in self.recording.channel_names]
 
     def read(self, max_samples: int) -> Chunk | None:
-        n_total = self.recording.n_samples
+        n_total = self._stop
         if self._pos >= n_total:
             return None
         stop = min(n_total, self._pos + max_samples)

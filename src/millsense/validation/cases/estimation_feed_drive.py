@@ -532,7 +532,7 @@ def robustness(axis: str) -> dict[str, float]:
     """
     from millsense.estimation import tuning
     from millsense.estimation.feed_drive import ASLAN_LAG_SAMPLES, measurement_model
-    from millsense.estimation.kalman import augment_disturbance, bandwidth_3db, design_kalman
+    from millsense.estimation.kalman import bandwidth_3db
 
     _, model, _ = _identified(axis)
     fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
@@ -542,28 +542,16 @@ def robustness(axis: str) -> dict[str, float]:
     fam = tuning.mode_family(fit, 0.02, 9)
     plants = np.array([tuning.model_frf(measurement_model(m, lp, dt), f) for m in fam])
     bound_db, bound_band = tuning.flatness_bound(plants, f, target)
-    nominal_model = measurement_model(fit, lp, dt)
-    q_nom = tuning.tune_q(nominal_model, model.r).q
-    rob = tuning.tune_robust(
-        fit,
-        lambda m: measurement_model(m, lp, dt),
-        model.r,
-        shift=0.02,
-        lag=ASLAN_LAG_SAMPLES,
-        f_target_hz=target,
-    )
-    robust_model = measurement_model(tuning.robust_fit(fit, rob.damping), lp, dt)
-    designs = {
-        "robust": design_kalman(augment_disturbance(robust_model), rob.q * dt, model.r),
-        "nominal": design_kalman(augment_disturbance(nominal_model), q_nom * dt, model.r),
-    }
+    nominal, robust = model.tuned(0.0), model.tuned(0.02)
+    designs = {"robust": robust.design(), "nominal": nominal.design()}
     out = {
         "bound_db": bound_db,
         "bound_band_hz": bound_band,
-        "damping": rob.damping,
-        "q": rob.q,
-        "q_nominal": q_nom,
+        "damping": robust.design_damping,
+        "q": robust.q,
+        "q_nominal": nominal.q,
     }
+    nominal_model = nominal.measurement_model()
     for name, d in designs.items():
         est = tuning.estimator_frf(d, f, ASLAN_LAG_SAMPLES)
         comp = plants * est[None, :]
