@@ -199,10 +199,8 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     path in the machine file")."""
     import numpy as np
 
-    from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S, DEFAULT_LOWPASS_HZ
+    from millsense.estimation.feed_drive import c3_front_end
     from millsense.estimation.feed_identification import fit_disturbance_path
-    from millsense.estimation.rigid_body import DriveModel
-    from millsense.machine.lugre import LuGre
     from millsense.report.ident_plots import plot_frf_fit
 
     if ctx.machine is None:
@@ -222,13 +220,7 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     speed = np.asarray(ctx.channel(rec, path, speed_name), dtype=float)
     if float(np.std(load)) == 0.0:
         raise InputDataError(f"{path}: channel {o['input']!r} carries no load (constant)")
-    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
-    f = cfg.friction
-    lugre = None
-    if None not in (f.sigma0_nm_rad, f.sigma1_nm_s_rad, f.static_nm, f.stribeck_velocity_rad_s):
-        lugre = LuGre.from_config(f, f"{ctx.machine.name} axes.{a}.friction")
-    est_cfg = cfg.estimator
-    lowpass = (est_cfg.lowpass_hz if est_cfg is not None else None) or DEFAULT_LOWPASS_HZ
+    drive, lugre, lowpass = c3_front_end(a, cfg, rec.sample_rate_hz, ctx.machine.name)
     per = rec.metadata.get("period_samples")
     band = o["band"] or (3.0, 260.0)
     sweep = fit_disturbance_path(

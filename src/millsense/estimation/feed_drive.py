@@ -192,22 +192,7 @@ class FeedAxisModel:
                 f"{where}: axes.{axis}.estimator.disturbance_path was identified at "
                 f"{path.sample_rate_hz:g} Hz but the stream runs at {sample_rate_hz:g} Hz"
             )
-        lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
-        if not 0 < lowpass < sample_rate_hz / 2:
-            raise ConfigError(
-                f"{where}: key 'axes.{axis}.estimator.lowpass_hz' = {lowpass:g} must be below "
-                f"{sample_rate_hz / 2:g} Hz"
-            )
-        drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
-        f = cfg.friction
-        lugre = None
-        if use_lugre and None not in (
-            f.sigma0_nm_rad,
-            f.sigma1_nm_s_rad,
-            f.static_nm,
-            f.stribeck_velocity_rad_s,
-        ):
-            lugre = LuGre.from_config(f, f"{where} axes.{axis}.friction")
+        drive, lugre, lowpass = c3_front_end(axis, cfg, sample_rate_hz, where, use_lugre=use_lugre)
         if path is not None:
             fit = RationalFit.from_config(path)
         else:
@@ -331,6 +316,48 @@ class FeedAxisModel:
             harmonics_hz=harmonics_hz,
             harmonic_q_ratio=harmonic_q_ratio,
         )
+
+
+def c3_front_end(
+    axis: str,
+    cfg: FeedAxisConfig,
+    sample_rate_hz: float,
+    where: str = "machine",
+    *,
+    use_lugre: bool = True,
+) -> tuple[DriveModel, LuGre | None, float]:
+    """The C3 stage (Aslan Eq. 3.10) of an axis from its machine-file table.
+
+    Returns
+    -------
+    (drive, lugre, lowpass_hz): :meth:`DriveModel.from_config` (rigid-body limit, friction sign
+    smoothed), the LuGre friction when the table has all its keys and ``use_lugre`` (else None:
+    Coulomb + viscous), and the low-pass corner (``estimator.lowpass_hz``, default
+    :data:`DEFAULT_LOWPASS_HZ`).
+
+    Raises
+    ------
+    ConfigError
+        A low-pass corner at or above the Nyquist frequency (one line naming the key).
+    """
+    est = cfg.estimator
+    lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
+    if not 0 < lowpass < sample_rate_hz / 2:
+        raise ConfigError(
+            f"{where}: key 'axes.{axis}.estimator.lowpass_hz' = {lowpass:g} must be below "
+            f"{sample_rate_hz / 2:g} Hz"
+        )
+    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
+    f = cfg.friction
+    lugre = None
+    if use_lugre and None not in (
+        f.sigma0_nm_rad,
+        f.sigma1_nm_s_rad,
+        f.static_nm,
+        f.stribeck_velocity_rad_s,
+    ):
+        lugre = LuGre.from_config(f, f"{where} axes.{axis}.friction")
+    return drive, lugre, lowpass
 
 
 def measurement_model(

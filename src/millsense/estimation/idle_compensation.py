@@ -273,7 +273,7 @@ def with_air_r(
     start-up (:func:`~millsense.estimation.tuning.tune_q`) the Kalman gain depends on Q/R only
     and the estimate does not change; with a configured ``q_nm2_s`` it does.
     """
-    from millsense.estimation.feed_drive import DEFAULT_LOWPASS_HZ
+    from millsense.estimation.feed_drive import c3_front_end
     from millsense.estimation.from_config import load_channel, raw_estimator
     from millsense.estimation.tuning import air_cut_variance
 
@@ -284,7 +284,7 @@ def with_air_r(
         est = cfg.estimator
         if est is not None and est.r_nm2 is not None:
             continue
-        lowpass = (est.lowpass_hz if est is not None else None) or DEFAULT_LOWPASS_HZ
+        _, _, lowpass = c3_front_end(a, cfg, rec.sample_rate_hz, where)
         ch = load_channel("raw", a)
         outs, _ = _run_prefix(rec, [raw_estimator(a, machine, lowpass)], window.stop, where, 1000)
         torque = -outs[ch][window] * cfg.transmission_m_rad / cfg.efficiency

@@ -472,10 +472,9 @@ class ToolModes:
                         f"{path}: structure.{d}[{i}]: residue_beta_m_n_s must be 0 for the "
                         "simulated tool (give stiffness_n_m)"
                     )
-                mode = m.to_mode()
                 f.append(m.natural_frequency_hz)
                 z.append(m.damping_ratio)
-                k.append(mode.omega**2 / mode.alpha)
+                k.append(m.to_mode().stiffness)
             out.append(DirectionModes.from_arrays(f, z, k))
         return cls(out[0], out[1])
 
