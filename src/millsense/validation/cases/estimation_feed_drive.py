@@ -74,6 +74,14 @@ def _identified(
     return params, model, sweep
 
 
+@cache
+def _tuned_for(axis: str, band_hz: float | None) -> tuple[FeedDriveParams, FeedAxisModel]:
+    """The identified (moving) model of ``axis``: widest-band Q, or least-noise Q for
+    ``band_hz`` (tuned once for the FRF and the air-noise measurements)."""
+    params, model, _ = _identified(axis)
+    return params, model if band_hz is None else model.tuned(0.0, band_hz=band_hz)
+
+
 def stream_estimate(
     est: Block,
     channels: dict[str, np.ndarray],
@@ -113,9 +121,7 @@ def compensated_bandwidth(
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
-    params, model, _ = _identified(axis)
-    if band_hz is not None:
-        model = model.tuned(0.0, band_hz=band_hz)
+    params, model = _tuned_for(axis, band_hz)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
     per = round(1.0 * FS_HZ)
     lg = params.transmission / params.efficiency
@@ -245,9 +251,7 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     from millsense.machine.drive_mismatch import perturbed_drive
     from millsense.machine.feed_drive import FeedDriveSim
 
-    params, model, _ = _identified(axis)
-    if band_hz is not None:
-        model = model.tuned(0.0, band_hz=band_hz)
+    params, model = _tuned_for(axis, band_hz)
     n = round(1.5 * FS_HZ)
     pos, vel = ramp_move(MOVE_SPEED_RAD_S, n, FS_HZ)
     res = FeedDriveSim(perturbed_drive(params), FS_HZ, seed=31).advance(pos, vel, np.zeros(n))
