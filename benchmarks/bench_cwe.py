@@ -59,9 +59,9 @@ def synthetic_path(n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _child(n_steps: int) -> None:
+    from millsense.plan.cwe import compute_engagement
+    from millsense.plan.stock import ZMapStock
     from millsense.process.geometry import EndMill
-    from millsense.virtual.cwe import compute_engagement
-    from millsense.virtual.stock import ZMapStock
 
     tool = EndMill(20e-3, 2, helix_rad=math.radians(30.0))
     warm = ZMapStock.from_box((0, 0, 0), (0.02, 0.02, 0.01), 1e-4)

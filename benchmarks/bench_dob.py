@@ -15,10 +15,10 @@ import numpy as np
 from _harness import Metric, benchmark
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.dob import DriveParameters, medob_observer
-from millsense.estimation.mode_decoupled import VibrationModeObserver
-from millsense.estimation.notch import NotchBank, NotchBankSpec
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.estimation.dob.mode_decoupled import VibrationModeObserver
+from millsense.estimation.dob.notch import NotchBank, NotchBankSpec
+from millsense.estimation.dob.observers import DriveParameters, medob_observer
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 FS_HZ = 10_000.0
 SECONDS = 10.0

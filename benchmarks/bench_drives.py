@@ -1,4 +1,4 @@
-"""Benchmarks of the feed-drive simulator (millsense.machine.feed_drive)."""
+"""Benchmarks of the feed-drive simulator (millsense.simulator.feed_drive)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from _harness import Metric, benchmark
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 
 @benchmark("machine.feed_drive_speed")

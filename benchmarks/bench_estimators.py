@@ -2,11 +2,11 @@
 
 The full streaming pipelines as the engine runs them, 10 s of CNC data per channel in chunks of
 1000 samples (0.1 s; also reported at 100 samples = 10 ms): per feed axis
-:class:`~millsense.estimation.feed_drive.FeedAxisEstimator`
+:class:`~millsense.estimation.feed.estimator.FeedAxisEstimator`
 (C3 torque with LuGre friction and the Butterworth low-pass, the disturbance Kalman filter over
 the axis's Table 3.4 modes in series with the low-pass — 15/27/19/15/13 states for X/Y/Z/A/C —
 and the 60-sample fixed-lag smoother, Eq. 3.11/3.12 outputs), then the
-:class:`~millsense.estimation.feed_drive.ToolForceBlock` (Eq. 3.51 per sample), and the
+:class:`~millsense.estimation.feed.estimator.ToolForceBlock` (Eq. 3.51 per sample), and the
 21-state :class:`~millsense.estimation.spindle_observer.SpindleTorqueObserver` identified from a
 simulated sweep (it runs on every second sample, where the 0.2 ms velocity loop updates I_nom).
 The feed models use the preset's modes rather than an identification to keep the set-up short;
@@ -21,22 +21,19 @@ from dataclasses import replace
 import numpy as np
 
 from _harness import Metric, benchmark
+from millsense.bench.spindle_commissioning import identify_spindle
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel, ToolForceBlock
-from millsense.estimation.rational_fit import RationalFit
-from millsense.estimation.rigid_body import DriveModel
-from millsense.estimation.spindle_observer import (
-    SpindleTorqueObserver,
-    design_observer,
-    identify_spindle,
-)
-from millsense.machine.feed_drive import FeedDriveParams
-from millsense.machine.friction import CoulombViscous
-from millsense.machine.kinematics import TrunnionACKinematics
-from millsense.machine.lugre import LuGre
-from millsense.machine.spindle import SpindleDriveParams
-from millsense.online.block import Block, Chunk
+from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel, ToolForceBlock
+from millsense.estimation.feed.rigid_body import DriveModel
+from millsense.estimation.kalman.rational_fit import RationalFit
+from millsense.estimation.spindle_observer import SpindleTorqueObserver, design_observer
+from millsense.models.friction import CoulombViscous
+from millsense.models.kinematics import TrunnionACKinematics
+from millsense.models.lugre import LuGre
+from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.streaming.block import Block, Chunk
 
 FS_HZ = 10_000.0
 SECONDS = 10.0
@@ -157,8 +154,8 @@ def _feed_axis_harmonic_speed() -> list[Metric]:
     spindle speed is constant, so after the 10 ms hold one cached design runs (the per-speed
     design time is reported separately).
     """
-    from millsense.estimation.feed_drive import SPINDLE_SPEED_CMD, tooth_harmonics
-    from millsense.estimation.smoother import FixedLagSmoother
+    from millsense.estimation.feed.estimator import SPINDLE_SPEED_CMD, tooth_harmonics
+    from millsense.estimation.kalman.smoother import FixedLagSmoother
 
     base = next(b for b in _feed_blocks() if b.model.axis == "y")
     block = FeedAxisEstimator(base.model, teeth=2)
@@ -218,12 +215,12 @@ def _feed_axis_harmonic_speed() -> list[Metric]:
 def _feed_axis_scheduled_speed() -> list[Metric]:
     """One position-scheduled feed axis (issue 7): a bank of N = 3 and N = 5 Y estimators.
 
-    :class:`~millsense.estimation.feed_schedule.ScheduledFeedEstimator`: members are the Y
+    :class:`~millsense.estimation.feed.schedule.ScheduledFeedEstimator`: members are the Y
     model (27 states) with its modes scaled by 0.99…1.01; the commanded position ramps across
     the whole bank in 10 s at 10 kHz, so members start (with their 1 s warm-up replay) and stop
     during the run; one shared C3 stage, at most two or three smoothers running at a time.
     """
-    from millsense.estimation.feed_schedule import FeedModelBank, ScheduledFeedEstimator
+    from millsense.estimation.feed.schedule import FeedModelBank, ScheduledFeedEstimator
 
     base = next(b for b in _feed_blocks() if b.model.axis == "y").model
     n = int(SECONDS * FS_HZ)
@@ -270,12 +267,12 @@ def _feed_axis_scheduled_speed() -> list[Metric]:
 def _feed_axis_condition_speed() -> list[Metric]:
     """One feed axis following its operating condition (moving / at rest, issue 7).
 
-    :class:`~millsense.estimation.feed_condition.OperatingConditionFeedEstimator` with two Y
+    :class:`~millsense.estimation.feed.condition.OperatingConditionFeedEstimator` with two Y
     estimators (27 states each, the at-rest one with its modes 3 % lower) running side by side,
     the commanded position holding for 5 s and moving for 5 s; the at-rest weight from the
     commanded speed over a 5 ms window. The baseline is one Y estimator on the same data.
     """
-    from millsense.estimation.feed_condition import OperatingConditionFeedEstimator
+    from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
 
     base = next(b for b in _feed_blocks() if b.model.axis == "y").model
     rest = replace(base, disturbance=base.disturbance.with_modes_scaled(0.97), condition="at_rest")

@@ -1,7 +1,7 @@
 """G-code interpretation throughput: a 1 000 000-line program like CAM output.
 
 The program is generated to a temporary file (not timed) and interpreted with
-:func:`millsense.virtual.gcode.interpret_file` (timed: read, tokenise, interpret, build the
+:func:`millsense.plan.gcode.interpret_file` (timed: read, tokenise, interpret, build the
 arrays). The mix imitates a 3-axis finishing post: header, tool change, then blocks of
 modal G1 moves (``X.. Y..``, ``G1 X.. Y.. Z..`` with F) and G2/G3 IJK arcs with N numbers,
 about 25 % arcs. Best of two runs (the machine is shared).
@@ -72,7 +72,7 @@ def write_program(path: Path, n_lines: int = N_LINES) -> int:
 
 @benchmark("virtual.gcode_1M_lines")
 def _gcode_1m() -> list[Metric]:
-    from millsense.virtual.gcode import interpret_file
+    from millsense.plan.gcode import interpret_file
 
     with tempfile.TemporaryDirectory() as tmp:
         prog = Path(tmp) / "bench_1M.nc"

@@ -56,11 +56,11 @@ def _child(which: str) -> None:
     import numpy as np
 
     from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
+    from millsense.plan.gcode import interpret, interpret_file
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
-    from millsense.virtual.gcode import interpret, interpret_file
-    from millsense.virtual.plan import plan_program
-    from millsense.virtual.stock import ZMapStock
 
     tool = EndMill.from_config(load_config(ToolConfig, DEMO / "tool.toml"))
     coeffs = CuttingCoefficients.from_config(load_config(MaterialConfig, DEMO / "material.toml"))

@@ -8,10 +8,10 @@ import time
 from _harness import Metric, benchmark
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
-from millsense.machine.process_coupling import EngagementSchedule, ProcessCoupling
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling
 
 SIM_S = 60.0
 

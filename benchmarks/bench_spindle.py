@@ -8,8 +8,9 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.machine.interpolator import Interpolator, Upsampler
-from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
+from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator.interpolator import Interpolator, Upsampler
+from millsense.simulator.spindle import SpindleDriveSim
 
 
 @benchmark("machine.spindle_realtime")

@@ -9,20 +9,15 @@ import pytest
 
 from millsense.core.config import MachineConfig, PeriodicDisturbanceConfig
 from millsense.core.presets import load_preset
-from millsense.machine.ball_screw import (
+from millsense.models.ball_screw import (
     dual_inertia_plant,
     periodic_terms,
     plant_from_config,
     resonance_hz,
     triple_inertia_plant,
 )
-from millsense.machine.feed_drive import (
-    KIND_SCALE,
-    KIND_TORQUE,
-    OUT_ALPHA,
-    FeedDriveParams,
-    FeedDriveSim,
-)
+from millsense.models.drive_plant import KIND_TORQUE
+from millsense.simulator.feed_drive import KIND_SCALE, OUT_ALPHA, FeedDriveParams, FeedDriveSim
 
 R = 5e-3 / (2 * math.pi)
 

@@ -24,7 +24,7 @@ from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import FeedAxisModel
+from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.from_config import build_estimators
 from millsense.io import read_recording
 
@@ -239,7 +239,7 @@ def test_idle_auto_removes_the_x_friction_bias(
 
 
 def test_air_window_is_before_the_cut_at_cutting_feed(run_h5: Path) -> None:
-    from millsense.estimation.idle_compensation import (
+    from millsense.estimation.feed.idle_compensation import (
         AIR_GUARD_M,
         AIR_SETTLE_S,
         find_air_window,
@@ -325,7 +325,7 @@ def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 def test_r_from_the_air_phase(run_h5: Path) -> None:
     from millsense.core.config import FeedEstimatorConfig
-    from millsense.estimation.idle_compensation import find_air_window, with_air_r
+    from millsense.estimation.feed.idle_compensation import find_air_window, with_air_r
 
     rec = read_recording(run_h5)
     w = find_air_window(rec, "run")

@@ -166,8 +166,8 @@ def test_raw_mean_matches_truth_on_the_ball_screw_stage(runs: dict[str, Path]) -
 
 
 def test_rigid_limit_equals_the_plant_at_low_frequency() -> None:
-    from millsense.estimation.rigid_body import rigid_limit
-    from millsense.machine.ball_screw import plant_from_config
+    from millsense.estimation.feed.rigid_body import rigid_limit
+    from millsense.models.ball_screw import plant_from_config
 
     ax = load_preset(MachineConfig, "yamada-b").axis("x")
     inertia, damping = rigid_limit(ax)

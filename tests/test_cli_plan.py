@@ -63,7 +63,7 @@ def test_plan_bad_config_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
 def test_plan_demo_part_writes_parquet_and_plot(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from millsense.virtual.plan import VirtualPlan
+    from millsense.plan.virtual_plan import VirtualPlan
 
     out = tmp_path / "p.parquet"
     png = tmp_path / "p.png"

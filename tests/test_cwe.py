@@ -1,6 +1,6 @@
 """Cutter–workpiece engagement on the z-map: analytic cases, Gain_CWE, Aslan V9.
 
-Tolerances (module docstring of millsense.virtual.cwe): grid h = 0.1 mm, bins of 0.5°, tool
+Tolerances (module docstring of millsense.plan.cwe): grid h = 0.1 mm, bins of 0.5°, tool
 radius R = 10 mm. An entry/exit angle at a straight material boundary is within one bin plus
 1.5 h/(R |sin φ|) rad (boundary on a cell edge, sample one cell outside the tool); 0 and π
 are exact when the material is there.
@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError, InputDataError
+from millsense.plan.cwe import EngagementResult, compute_engagement
+from millsense.plan.stock import ZMapStock
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
 from millsense.validation import run_case, select_cases
-from millsense.virtual.cwe import EngagementResult, compute_engagement
-from millsense.virtual.stock import ZMapStock
 
 H = 1e-4
 R = 10e-3

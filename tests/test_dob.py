@@ -11,7 +11,12 @@ from scipy import signal
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.dob import (
+from millsense.estimation.dob.mode_decoupled import (
+    VibrationModeObserver,
+    modal_coordinates,
+    modal_parameters,
+)
+from millsense.estimation.dob.observers import (
     CurrentLoopModel,
     DriveParameters,
     MEDOBBlock,
@@ -26,15 +31,10 @@ from millsense.estimation.dob import (
     triple_medob_model,
     zoh_weights,
 )
-from millsense.estimation.mode_decoupled import (
-    VibrationModeObserver,
-    modal_coordinates,
-    modal_parameters,
-)
-from millsense.estimation.phase_lag import StreamingDelay, split_delay, sync_delays
-from millsense.machine.ball_screw import dual_inertia_plant, triple_inertia_plant
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
-from millsense.online.block import Chunk
+from millsense.estimation.dob.phase_lag import StreamingDelay, split_delay, sync_delays
+from millsense.models.ball_screw import dual_inertia_plant, triple_inertia_plant
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.streaming.block import Chunk
 
 FS = 10000.0
 

@@ -6,11 +6,11 @@ import numpy as np
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S, FeedAxisModel
-from millsense.estimation.rigid_body import rigid_limit
-from millsense.machine.drive_mismatch import UNMODELLED_MODE, commissioning_drive, perturbed_drive
-from millsense.machine.feed_drive import FeedDriveParams
-from millsense.machine.friction import CoulombViscous
+from millsense.estimation.feed.estimator import DEFAULT_FRICTION_SMOOTHING_RAD_S, FeedAxisModel
+from millsense.estimation.feed.rigid_body import rigid_limit
+from millsense.models.friction import CoulombViscous
+from millsense.simulator.drive_mismatch import UNMODELLED_MODE, commissioning_drive, perturbed_drive
+from millsense.simulator.feed_drive import FeedDriveParams
 
 
 def test_commissioning_machine_has_the_unmodelled_mode_without_drift() -> None:

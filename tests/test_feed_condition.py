@@ -9,10 +9,10 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_condition import OperatingConditionFeedEstimator
-from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
-from millsense.online.block import Chunk
+from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
+from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 LAG = 60

@@ -10,8 +10,8 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine.feed_drive import ElectricalCurrentLoop, FeedDriveParams, FeedDriveSim
-from millsense.machine.lugre import LuGre
+from millsense.models.lugre import LuGre
+from millsense.simulator.feed_drive import ElectricalCurrentLoop, FeedDriveParams, FeedDriveSim
 
 
 def axis_params(machine: str, axis: str = "x", **kw: object) -> FeedDriveParams:

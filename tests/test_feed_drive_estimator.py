@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from millsense.bench.feed_commissioning import identify_friction, identify_lugre
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import (
+from millsense.estimation.feed.estimator import (
     C3Torque,
     FeedAxisEstimator,
     FeedAxisModel,
@@ -19,17 +20,16 @@ from millsense.estimation.feed_drive import (
     measurement_model,
     sampled_fit_at,
 )
-from millsense.estimation.feed_identification import identify_friction, identify_lugre
-from millsense.estimation.kalman import StateSpaceModel, discretize_zoh
-from millsense.estimation.rational_fit import RationalFit, fit_rational
-from millsense.estimation.rigid_body import DriveModel
-from millsense.machine.commissioning import ramp_move
-from millsense.machine.drive_mismatch import perturbed_drive
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
-from millsense.machine.friction import CoulombViscous
-from millsense.machine.kinematics import TrunnionACKinematics
-from millsense.machine.lugre import LuGre
-from millsense.online.block import Chunk
+from millsense.estimation.feed.rigid_body import DriveModel
+from millsense.estimation.kalman.design import StateSpaceModel, discretize_zoh
+from millsense.estimation.kalman.rational_fit import RationalFit, fit_rational
+from millsense.models.friction import CoulombViscous
+from millsense.models.kinematics import TrunnionACKinematics
+from millsense.models.lugre import LuGre
+from millsense.simulator.commissioning import ramp_move
+from millsense.simulator.drive_mismatch import perturbed_drive
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 

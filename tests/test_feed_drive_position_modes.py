@@ -11,7 +11,7 @@ import pytest
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 FS = 10_000.0
 
@@ -99,7 +99,7 @@ def test_position_dependence_is_chunking_invariant() -> None:
 
 
 def test_overdamped_modes_rejected() -> None:
-    from millsense.machine.modal_ss import ModalStateSpace
+    from millsense.models.modal_ss import ModalStateSpace
 
     p = replace(
         FeedDriveParams.from_config(_axis()),

@@ -14,7 +14,7 @@ import pytest
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import (
+from millsense.estimation.feed.estimator import (
     HARMONIC_HOLD_S,
     HARMONIC_Q_RATIO,
     SPINDLE_SPEED_CMD,
@@ -23,22 +23,22 @@ from millsense.estimation.feed_drive import (
     FeedAxisModel,
     tooth_harmonics,
 )
-from millsense.estimation.kalman import (
+from millsense.estimation.feed.rigid_body import DriveModel
+from millsense.estimation.feed.thesis_models import aslan_disturbance_model
+from millsense.estimation.feed.tuning import noise_gain
+from millsense.estimation.kalman.design import (
     StateSpaceModel,
     augment_disturbance,
     compensated_frf,
     design_kalman,
     discretize_zoh,
 )
-from millsense.estimation.lti_filter import LinearFilter, StreamingFilter
-from millsense.estimation.models import aslan_disturbance_model
-from millsense.estimation.rational_fit import RationalFit
-from millsense.estimation.rigid_body import DriveModel
-from millsense.estimation.smoother import FixedLagSmoother
-from millsense.estimation.tuning import noise_gain
-from millsense.machine.feed_drive import FeedDriveParams
-from millsense.machine.friction import CoulombViscous
-from millsense.online.block import Chunk
+from millsense.estimation.kalman.lti_filter import LinearFilter, StreamingFilter
+from millsense.estimation.kalman.rational_fit import RationalFit
+from millsense.estimation.kalman.smoother import FixedLagSmoother
+from millsense.models.friction import CoulombViscous
+from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 LAG = 60

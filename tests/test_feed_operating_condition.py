@@ -7,19 +7,19 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.errors import ConfigError, InputDataError
-from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import REST_SPEED_RAD_S, operating_condition
-from millsense.estimation.feed_identification import (
+from millsense.bench.feed_commissioning import (
     disturbance_sweep,
     identify_feed_axis,
     identify_friction,
     identify_lugre,
 )
-from millsense.estimation.rigid_body import DriveModel
-from millsense.machine.feed_drive import FeedDriveParams
-from millsense.machine.friction import CoulombViscous
+from millsense.core.config import MachineConfig
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.core.presets import load_preset
+from millsense.estimation.feed.estimator import REST_SPEED_RAD_S, operating_condition
+from millsense.estimation.feed.rigid_body import DriveModel
+from millsense.models.friction import CoulombViscous
+from millsense.simulator.feed_drive import FeedDriveParams
 from millsense.validation.cases.estimation_feed_drive import (
     FS_HZ,
     _harmonic_error,

@@ -11,16 +11,16 @@ import pytest
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
-from millsense.estimation.feed_identification import SweepResult
-from millsense.estimation.feed_schedule import (
+from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel
+from millsense.estimation.feed.path_fit import SweepResult
+from millsense.estimation.feed.schedule import (
     FeedModelBank,
     ScheduledFeedEstimator,
     interval_worst_db,
     relative_shift,
 )
 from millsense.ident.frf import FrfEstimate
-from millsense.online.block import Chunk
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 

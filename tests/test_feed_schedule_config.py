@@ -9,9 +9,9 @@ import pytest
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_schedule import ScheduledFeedEstimator
+from millsense.estimation.feed.schedule import ScheduledFeedEstimator
 from millsense.estimation.from_config import build_estimators, load_channel
-from millsense.online.block import Chunk
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from millsense.estimation.fusion import (
+from millsense.estimation.accel.fusion import (
     AccelFusionBlock,
     DoubleIntegrator,
     DynamicsMap,
@@ -19,7 +19,7 @@ from millsense.estimation.fusion import (
     weight_firs,
 )
 from millsense.ident.modal_fit import fit_modes
-from millsense.online.block import Chunk
+from millsense.streaming.block import Chunk
 from millsense.validation.cases._accel_sim import ModeSet, simulate_foh
 
 FS = 8192.0

@@ -10,8 +10,8 @@ import pytest
 
 from millsense.core.errors import ProgramError
 from millsense.core.units import DEG, MM, MM_PER_MIN, RPM
-from millsense.virtual.gcode import interpret, interpret_file
-from millsense.virtual.path import ARC, DWELL, LINE, PLANE_YZ, PLANE_ZX, RAPID, sample_path
+from millsense.plan.gcode import interpret, interpret_file
+from millsense.plan.path import ARC, DWELL, LINE, PLANE_YZ, PLANE_ZX, RAPID, sample_path
 
 CORPUS = Path(__file__).resolve().parents[1] / "examples" / "gcode"
 OFFSETS = {"G55": (100.0, 50.0, -20.0), "G56": (10.0, 10.0, 0.0)}

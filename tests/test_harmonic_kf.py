@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.estimation.harmonic_kf import (
+from millsense.estimation.accel.harmonic_kf import (
     STATE_SCALE,
     CutSetup,
     HarmonicKalmanBlock,
@@ -18,8 +18,8 @@ from millsense.estimation.harmonic_kf import (
     frf_at,
     reconstruct_harmonics,
 )
-from millsense.online.block import Chunk
 from millsense.process.harmonic import measurement_matrix
+from millsense.streaming.block import Chunk
 
 FS = 12800.0
 RPM = 3300.0  # İlme Table 3.2

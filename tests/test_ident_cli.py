@@ -20,7 +20,7 @@ from millsense.core.presets import load_preset
 from millsense.core.recording import Recording
 from millsense.ident.idle_table import IdleTable
 from millsense.io.recording_file import write_recording
-from millsense.machine import commissioning as cm
+from millsense.simulator import commissioning as cm
 from millsense.stability.modal import Mode
 from millsense.validation.cases.ident import simulate_modes
 

@@ -9,7 +9,7 @@ from millsense.core.config import MachineConfig
 from millsense.core.errors import InputDataError
 from millsense.core.presets import load_preset
 from millsense.ident.friction import coulomb_viscous_from_moves, fit_line
-from millsense.machine.rigid_drive import RigidDriveParams, constant_velocity_move
+from millsense.simulator.rigid_drive import RigidDriveParams, constant_velocity_move
 
 
 def test_line_fit_exact_on_a_line() -> None:
@@ -49,10 +49,10 @@ def test_recovers_table_3_2_friction_from_simulated_moves() -> None:
 import dataclasses  # noqa: E402
 
 from millsense.ident import friction as fr  # noqa: E402
-from millsense.machine import commissioning as cm  # noqa: E402
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim  # noqa: E402
-from millsense.machine.lugre import LuGre  # noqa: E402
-from millsense.machine.spindle import SpindleDriveParams  # noqa: E402
+from millsense.models.lugre import LuGre  # noqa: E402
+from millsense.models.spindle_plant import SpindleDriveParams  # noqa: E402
+from millsense.simulator import commissioning as cm  # noqa: E402
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim  # noqa: E402
 
 _Z = LuGre((475.0, 475.0), (10.0, 10.0), (0.065, 0.082), (2.3, 2.3), (2.15, 2.1), (0.571, 0.222))
 
@@ -100,7 +100,7 @@ def test_steady_segments_find_plateaus() -> None:
 def test_static_parameters_from_noise_free_moves() -> None:
     axis = load_preset(MachineConfig, "quaser-ux600").axis("z")
     p = dataclasses.replace(FeedDriveParams.from_config(axis), torque_noise_nm=0.0)
-    from millsense.machine.feed_drive import constant_velocity_sweep
+    from millsense.simulator.feed_drive import constant_velocity_sweep
 
     sp = np.geomspace(0.1, 30.0, 9)
     speeds = np.concatenate([sp, -sp])

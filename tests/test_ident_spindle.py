@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from millsense.ident import spindle as isp
-from millsense.machine import commissioning as cm
-from millsense.machine.spindle import SpindleDriveParams, measured_frf
+from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator import commissioning as cm
+from millsense.simulator.spindle import measured_frf
 
 
 def test_controller_error_unit() -> None:

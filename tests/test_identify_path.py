@@ -21,12 +21,12 @@ from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.estimation.feed_drive import FeedAxisModel, measurement_model
-from millsense.estimation.rational_fit import RationalFit
+from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
+from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.ident.fragment import merge, write_fragment
 from millsense.io import read_recording
 from millsense.io.recording_file import write_recording
-from millsense.machine import commissioning as cm
+from millsense.simulator import commissioning as cm
 
 FS = 10_000.0
 SLOT = """G21 G90 G94

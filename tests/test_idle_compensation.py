@@ -7,9 +7,9 @@ import pytest
 
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.idle_compensation import IdleCompensatedBlock
+from millsense.estimation.feed.idle_compensation import IdleCompensatedBlock
 from millsense.ident.idle_table import build_direction_idle
-from millsense.online.block import Block, BlockOutput, Chunk
+from millsense.streaming.block import Block, BlockOutput, Chunk
 
 FS = 10_000.0
 

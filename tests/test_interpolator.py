@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import InputDataError
-from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsampler
+from millsense.simulator.interpolator import Interpolator, OverrideChannel, Upsampler
 
 T = 3e-3
 

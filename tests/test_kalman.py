@@ -8,7 +8,9 @@ from scipy import integrate, linalg, signal
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.kalman import (
+from millsense.estimation.feed.thesis_models import aslan_disturbance_model, aslan_r_q
+from millsense.estimation.kalman.block import KalmanBlock
+from millsense.estimation.kalman.design import (
     StateSpaceModel,
     augment_disturbance,
     bandwidth_3db,
@@ -18,10 +20,12 @@ from millsense.estimation.kalman import (
     discretize_zoh,
     van_loan,
 )
-from millsense.estimation.kalman_block import KalmanBlock
-from millsense.estimation.lti_filter import LinearFilter, StreamingFilter, real_modal_form
-from millsense.estimation.models import aslan_disturbance_model, aslan_r_q
-from millsense.online.block import Chunk
+from millsense.estimation.kalman.lti_filter import (
+    LinearFilter,
+    StreamingFilter,
+    real_modal_form,
+)
+from millsense.streaming.block import Chunk
 
 DT = 1e-4
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from millsense.estimation.kalman_tv import TimeVaryingKalman
+from millsense.estimation.kalman.time_varying import TimeVaryingKalman
 
 
 def _ilme_like(n: int, seed: int):

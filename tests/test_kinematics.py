@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import InputDataError
-from millsense.machine.kinematics import (
+from millsense.models.kinematics import (
     ThreeAxisKinematics,
     TrunnionACKinematics,
     TrunnionACMachine,

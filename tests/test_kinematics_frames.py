@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.machine.kinematics import TrunnionACKinematics, TrunnionACMachine
+from millsense.models.kinematics import TrunnionACKinematics, TrunnionACMachine
 
 RNG = np.random.default_rng(11)
 KIN = TrunnionACMachine()

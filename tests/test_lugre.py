@@ -10,7 +10,7 @@ import pytest
 from millsense.core.config import FrictionConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.machine.lugre import LuGre
+from millsense.models.lugre import LuGre
 
 
 def axis_lugre(axis: str) -> LuGre:

@@ -12,7 +12,7 @@ import scipy.signal
 from millsense.core.config import DisturbanceModesConfig, MachineConfig, parse_config
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
-from millsense.machine.modal_ss import ModalStateSpace
+from millsense.models.modal_ss import ModalStateSpace
 
 AXES = ("x", "y", "z", "a", "c")
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.estimation.notch import (
+from millsense.estimation.dob.notch import (
     NotchBank,
     NotchBankSpec,
     NotchBlock,
     encoder_notch_frequencies,
 )
-from millsense.online.block import Chunk
+from millsense.streaming.block import Chunk
 
 FS = 10000.0
 LAM = 5e-3 / 512.0  # rotary encoder signal period in travel (Yamada §2.8)

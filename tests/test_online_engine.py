@@ -10,10 +10,10 @@ from scipy import signal
 
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo, Recording
-from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
-from millsense.machine.friction import CoulombViscous
-from millsense.online import Block, BlockOutput, Chunk, Event, EventKind, Pipeline, run
-from millsense.online.sources import RecordingSource
+from millsense.estimation.feed.rigid_body import DriveModel, RigidBodyForceEstimator
+from millsense.models.friction import CoulombViscous
+from millsense.streaming import Block, BlockOutput, Chunk, Event, EventKind, Pipeline, run
+from millsense.streaming.sources import RecordingSource
 
 FS = 10000.0
 

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from millsense.core.units import MM, MM_PER_MIN, RPM
-from millsense.virtual.gcode import interpret
-from millsense.virtual.path import DEFAULT_STEP, sample_path
+from millsense.plan.gcode import interpret
+from millsense.plan.path import DEFAULT_STEP, sample_path
 
 # (u, v, w) axis letters of G17, G18, G19 and the centre-offset letters of u and v.
 _PLANES = {17: ("XYZ", "IJ"), 18: ("ZXY", "KI"), 19: ("YZX", "JK")}

@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import InputDataError
+from millsense.plan.cwe import compute_engagement
+from millsense.plan.gcode import interpret
+from millsense.plan.predict import predict_states
+from millsense.plan.stock import ZMapStock
+from millsense.plan.virtual_plan import VirtualPlan, plan_program
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
 from millsense.validation import run_case, select_cases
-from millsense.virtual.cwe import compute_engagement
-from millsense.virtual.gcode import interpret
-from millsense.virtual.plan import VirtualPlan, plan_program
-from millsense.virtual.predict import predict_states
-from millsense.virtual.stock import ZMapStock
 
 TOOL = EndMill(20e-3, 2, helix_rad=math.radians(30.0))
 COEFFS = CuttingCoefficients(758e6, 379e6, 100e6, 25e3, 35e3, 5e3)

@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError
-from millsense.machine.process_coupling import (
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.engagement import Engagement
+from millsense.process.forces import milling_forces
+from millsense.process.geometry import EndMill
+from millsense.simulator.process_coupling import (
     AirCut,
     DepthStep,
     EngagementSchedule,
@@ -17,10 +21,6 @@ from millsense.machine.process_coupling import (
     ToothBreak,
     block_forces,
 )
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.engagement import Engagement
-from millsense.process.forces import milling_forces
-from millsense.process.geometry import EndMill
 
 TOOL = EndMill(20e-3, 2, helix_rad=0.5, runout_offset_m=10e-6)
 K = CuttingCoefficients(ktc=758e6, krc=379e6, kac=100e6, kte=25e3, kre=35e3, kae=5e3)

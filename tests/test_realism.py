@@ -10,12 +10,12 @@ import pytest
 
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
-from millsense.machine.feed_drive import FeedDriveSim
-from millsense.machine.process_coupling import EngagementSchedule, ProcessCoupling, ToolModes
-from millsense.machine.realism import LOAD_SHIFT, AxisRealism, RealismOptions, tool_mode_scale
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
+from millsense.simulator.feed_drive import FeedDriveSim
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToolModes
+from millsense.simulator.realism import LOAD_SHIFT, AxisRealism, RealismOptions, tool_mode_scale
 from millsense.stability.time_domain import DirectionModes
 
 FS = 10000.0

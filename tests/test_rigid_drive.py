@@ -9,7 +9,7 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine.rigid_drive import RigidDriveParams, RigidDriveSim
+from millsense.simulator.rigid_drive import RigidDriveParams, RigidDriveSim
 
 FS = 10000.0
 

@@ -11,12 +11,16 @@ from scipy import integrate
 
 from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig, MachineConfig
 from millsense.core.presets import load_preset
-from millsense.estimation import tuning
-from millsense.estimation.feed_drive import FeedAxisModel, measurement_model
-from millsense.estimation.kalman import StateSpaceModel, augment_disturbance, design_kalman
-from millsense.estimation.models import aslan_disturbance_modes
-from millsense.estimation.rational_fit import RationalFit
-from millsense.estimation.smoother import FixedLagSmoother
+from millsense.estimation.feed import tuning
+from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
+from millsense.estimation.feed.thesis_models import aslan_disturbance_modes
+from millsense.estimation.kalman.design import (
+    StateSpaceModel,
+    augment_disturbance,
+    design_kalman,
+)
+from millsense.estimation.kalman.rational_fit import RationalFit
+from millsense.estimation.kalman.smoother import FixedLagSmoother
 
 DT = 1e-4
 

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from millsense.plan.calibration import calibrate_ktc, rescale_plan, steady_window
+from millsense.plan.gcode import interpret, interpret_file
+from millsense.plan.schedule import AT_LIMIT, AT_MAX, schedule_feed, write_scheduled_program
+from millsense.plan.stock import ZMapStock
+from millsense.plan.virtual_plan import VirtualPlan, plan_program
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
-from millsense.virtual.calibration import calibrate_ktc, rescale_plan, steady_window
-from millsense.virtual.gcode import interpret, interpret_file
-from millsense.virtual.plan import VirtualPlan, plan_program
-from millsense.virtual.schedule import AT_LIMIT, AT_MAX, schedule_feed, write_scheduled_program
-from millsense.virtual.stock import ZMapStock
 
 TOOL = EndMill(20e-3, 2, helix_rad=math.radians(30.0))
 PROGRAM = """%

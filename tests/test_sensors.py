@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError
-from millsense.machine.sensors import SensorBank, SensorOptions
+from millsense.simulator.sensors import SensorBank, SensorOptions
 
 
 def _run(opts: SensorOptions, sizes: list[int]) -> dict[str, np.ndarray]:

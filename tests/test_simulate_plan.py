@@ -14,13 +14,11 @@ import pytest
 from millsense.cli.main import main
 from millsense.core.errors import InputDataError
 from millsense.core.units import MM
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.geometry import EndMill
-from millsense.validation import run_case, select_cases
-from millsense.validation.cases.machine_plan import SLOT_PROGRAM, SLOT_WINDOW, slot_run
-from millsense.virtual.gcode import interpret
-from millsense.virtual.path import vertex_path
-from millsense.virtual.plan import (
+from millsense.plan.gcode import interpret
+from millsense.plan.path import vertex_path
+from millsense.plan.plan_engagement import PlanEngagement, plan_path
+from millsense.plan.stock import ZMapStock
+from millsense.plan.virtual_plan import (
     LAYER_COLUMNS,
     META_KEY,
     PLAN_FORMAT_VERSION,
@@ -29,8 +27,10 @@ from millsense.virtual.plan import (
     plan_program,
     tool_from_metadata,
 )
-from millsense.virtual.plan_engagement import PlanEngagement, plan_path
-from millsense.virtual.stock import ZMapStock
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.geometry import EndMill
+from millsense.validation import run_case, select_cases
+from millsense.validation.cases.machine_plan import SLOT_PROGRAM, SLOT_WINDOW, slot_run
 
 TOOL = EndMill(20e-3, 2, helix_rad=math.radians(30), runout_offset_m=5e-6)
 COEFFS = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)

@@ -17,12 +17,12 @@ from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import load_preset
 from millsense.io import read_recording
-from millsense.machine.interpolator import OverrideChannel
-from millsense.machine.process_coupling import EngagementSchedule, ProcessCoupling, ToothBreak
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
-from millsense.online.block import Event, EventKind
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
+from millsense.simulator.interpolator import OverrideChannel
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToothBreak
+from millsense.streaming.block import Event, EventKind
 
 FS = 10000.0
 RPM = 6000.0

@@ -15,18 +15,18 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine.process_coupling import (
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.engagement import Engagement
+from millsense.process.geometry import EndMill
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import (
     AirCut,
     DepthStep,
     EngagementSchedule,
     ProcessCoupling,
     ToolModes,
 )
-from millsense.machine.sensors import SensorOptions
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.engagement import Engagement
-from millsense.process.geometry import EndMill
+from millsense.simulator.sensors import SensorOptions
 from millsense.stability.time_domain import DirectionModes
 
 FS = 10000.0

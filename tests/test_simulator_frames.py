@@ -6,13 +6,13 @@ import numpy as np
 
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
-from millsense.machine.kinematics import TrunnionACMachine
-from millsense.machine.process_coupling import EngagementSchedule, ProcessCoupling
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
+from millsense.models.kinematics import TrunnionACMachine
+from millsense.plan.gcode import interpret
+from millsense.plan.path import Toolpath, sample_path
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
-from millsense.virtual.gcode import interpret
-from millsense.virtual.path import Toolpath, sample_path
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling
 
 FS = 10000.0
 
@@ -148,7 +148,7 @@ def test_rotary_positioning_before_a_cut_does_not_cut() -> None:
 
 def test_tip_arc_length_does_not_advance_over_rotary_positioning() -> None:
     # path: 10 mm along X, then A 0 → 0.5 rad in place, then 5 mm along Y (closed form)
-    from millsense.machine.interpolator import Interpolator
+    from millsense.simulator.interpolator import Interpolator
 
     path = np.array(
         [[0, 0, 0, 0, 0], [0.01, 0, 0, 0, 0], [0.01, 0, 0, 0.5, 0], [0.01, 0.005, 0, 0.5, 0]],

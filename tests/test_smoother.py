@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from millsense.estimation.lti_filter import StreamingFilter
-from millsense.estimation.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother
+from millsense.estimation.kalman.lti_filter import StreamingFilter
+from millsense.estimation.kalman.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother
 from test_kalman import DT, _batch_se_of_mean, _c_axis_design, _simulate, _small_design
 
 

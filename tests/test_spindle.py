@@ -10,23 +10,24 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine import spindle as S
-from millsense.machine.spindle_modes import ATTENUATION_RANGE1
+from millsense.models.spindle_modes import ATTENUATION_RANGE1
+from millsense.models import spindle_plant as SP
+from millsense.simulator import spindle as S
 
-P = S.SpindleDriveParams.aslan_quaser()
+P = SP.SpindleDriveParams.aslan_quaser()
 
 
 def test_closed_loop_is_stable_in_both_ranges() -> None:
     for r in (0, 1):
         # decision 1 (residual in the open velocity loop) must give a stable loop
-        assert S.closed_loop_poles(P, r).real.max() < -10.0
+        assert SP.closed_loop_poles(P, r).real.max() < -10.0
 
 
 def test_additive_gsp_reading_would_be_unstable() -> None:
     # The rejected reading: modes added to the mechanical G_sp = 1/(Js+B) + Σ modes, with the
     # printed Eq. 5.8 G_m. Characteristic polynomial den_L + num_L (polynomial algebra, an
     # independent construction): a right-half-plane root, for either G_Ω unit reading.
-    from millsense.machine.spindle_modes import GM_DEN_RANGE1, GM_NUM, MODES_RANGE1
+    from millsense.models.spindle_modes import GM_DEN_RANGE1, GM_NUM, MODES_RANGE1
 
     num_m, den_m = np.array([0.0]), np.array([1.0])
     for f_n, zeta, alpha, beta in MODES_RANGE1:
@@ -45,11 +46,11 @@ def test_additive_gsp_reading_would_be_unstable() -> None:
 
 def test_current_loop_bandwidth_gap_is_documented() -> None:
     # printed Eq. 5.8: the digest computes ≈ 286 Hz / 1590 Hz; PI + Eq. 5.7 gives the same
-    assert S.current_loop_bandwidth_hz(P, 0, printed=True) == pytest.approx(286.0, rel=0.02)
-    assert S.current_loop_bandwidth_hz(P, 1, printed=True) == pytest.approx(1590.0, rel=0.02)
-    bw1 = S.current_loop_bandwidth_hz(P, 0)
-    bw2 = S.current_loop_bandwidth_hz(P, 1)
-    assert bw1 == pytest.approx(S.current_loop_bandwidth_hz(P, 0, printed=True), rel=0.02)
+    assert SP.current_loop_bandwidth_hz(P, 0, printed=True) == pytest.approx(286.0, rel=0.02)
+    assert SP.current_loop_bandwidth_hz(P, 1, printed=True) == pytest.approx(1590.0, rel=0.02)
+    bw1 = SP.current_loop_bandwidth_hz(P, 0)
+    bw2 = SP.current_loop_bandwidth_hz(P, 1)
+    assert bw1 == pytest.approx(SP.current_loop_bandwidth_hz(P, 0, printed=True), rel=0.02)
     # documented gap (docs/decisions.md): stated simulated 360 Hz and 1240 Hz
     assert 360.0 - bw1 == pytest.approx(80.0, abs=5.0)
     assert bw2 - 1240.0 == pytest.approx(344.0, abs=10.0)
@@ -59,27 +60,27 @@ def test_velocity_loop_bandwidth_gap_is_documented() -> None:
     # stated (range 1): 34 Hz simulated, 38 Hz measured; this model gives ≈ 91 Hz (the
     # printed residual modes raise the loop gain between 30 and 300 Hz); rigid body alone
     # with G_Ω per rev/s gives ≈ 27 Hz (digest P7 caveat: 27–29 Hz)
-    assert S.velocity_loop_bandwidth_hz(P, 0) == pytest.approx(91.2, rel=0.03)
+    assert SP.velocity_loop_bandwidth_hz(P, 0) == pytest.approx(91.2, rel=0.03)
     rigid = replace(P, ranges=tuple(replace(r, modes=r.modes[:0]) for r in P.ranges))  # type: ignore[arg-type]
-    assert S.velocity_loop_bandwidth_hz(rigid, 0) == pytest.approx(28.0, rel=0.06)
+    assert SP.velocity_loop_bandwidth_hz(rigid, 0) == pytest.approx(28.0, rel=0.06)
 
 
 def test_attenuation_table_gaps() -> None:
     f = np.array([hz for hz, _ in ATTENUATION_RANGE1])
     stated = np.array([db for _, db in ATTENUATION_RANGE1])
-    model = 20 * np.log10(np.abs(S.disturbance_frf(P, f)))
+    model = 20 * np.log10(np.abs(SP.disturbance_frf(P, f)))
     # The printed coefficients cannot reproduce the table; gaps (model − stated, dB) recorded
     # in docs/decisions.md: +3.2, +3.7, −7.7, −6.0, −14.2
     np.testing.assert_allclose(model - stated, [3.2, 3.7, -7.7, -6.0, -14.2], atol=0.3)
     # the state-space FRF and the transfer-function form with printed Eq. 5.8 agree (0.1 dB):
     # two independent constructions of G_dτ
-    printed = 20 * np.log10(np.abs(S.disturbance_frf_printed(P, f)))
+    printed = 20 * np.log10(np.abs(SP.disturbance_frf_printed(P, f)))
     np.testing.assert_allclose(model, printed, atol=0.1)
 
 
 def test_low_frequency_gain_is_inverse_torque_constant() -> None:
     # within the velocity bandwidth the controller balances τ_d: I_nom/τ_d → 1/K_tS
-    assert abs(S.disturbance_frf(P, [0.01])[0]) == pytest.approx(1 / 1.343, rel=1e-3)
+    assert abs(SP.disturbance_frf(P, [0.01])[0]) == pytest.approx(1 / 1.343, rel=1e-3)
 
 
 @pytest.mark.parametrize("f_hz", [20.0, 457.0, 2320.0])
@@ -97,7 +98,7 @@ def test_sampled_loop_magnitude_close_to_continuous() -> None:
     # within 0.5 dB up to 945 Hz (measured 0.08/0.24/0.45 dB)
     for f_hz in (100.0, 457.0, 945.0):
         db_sim = 20 * math.log10(abs(S.measured_frf(P, f_hz)))
-        db_cont = 20 * math.log10(abs(S.disturbance_frf(P, [f_hz])[0]))
+        db_cont = 20 * math.log10(abs(SP.disturbance_frf(P, [f_hz])[0]))
         assert abs(db_sim - db_cont) < 0.5
 
 
@@ -122,6 +123,6 @@ def test_resumable_chunks_and_range_switch() -> None:
 def test_from_preset() -> None:
     m = load_preset(MachineConfig, "quaser-ux600")
     assert m.spindle is not None
-    p = S.SpindleDriveParams.from_config(m.spindle)
+    p = SP.SpindleDriveParams.from_config(m.spindle)
     assert p.ranges[1].torque_constant == 1.571
     assert p.switch_rad_s == pytest.approx(3300 * 2 * math.pi / 60)

@@ -8,23 +8,24 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from millsense.estimation.kalman import StateSpaceModel
-from millsense.estimation.rational_fit import RationalFit, fit_rational
+from millsense.bench.spindle_commissioning import identify_spindle
+from millsense.estimation.kalman.design import StateSpaceModel
+from millsense.estimation.kalman.rational_fit import RationalFit, fit_rational
 from millsense.estimation.spindle_observer import (
     RESULTANT_FACTOR,
     SpindleTorqueObserver,
     compensated,
     design_observer,
-    identify_spindle,
     tune_spindle_q,
 )
-from millsense.machine.modal_ss import ModalStateSpace
-from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim, discrete_disturbance_frf
-from millsense.online.block import Chunk
+from millsense.models.modal_ss import ModalStateSpace
+from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
+from millsense.simulator.spindle import SpindleDriveSim, discrete_disturbance_frf
+from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 
@@ -98,7 +99,7 @@ def test_observer_block_decimates_holds_and_is_chunk_invariant(ident_r1: object)
     d = design_observer(model, 1e-12, 100.0, 1e-4)
     rng = np.random.default_rng(2)
     y = rng.normal(size=500)
-    from millsense.estimation.lti_filter import StreamingFilter
+    from millsense.estimation.kalman.lti_filter import StreamingFilter
 
     ref = np.repeat(StreamingFilter(d.filter("filtered")).process(y[::2])[:, 0], 2)[:500]
 

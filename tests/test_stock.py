@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.virtual.stock import ZMapStock, read_stl, write_stl
+from millsense.plan.stock import ZMapStock, read_stl, write_stl
 
 H = 1e-4  # 0.1 mm cells
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import InputDataError
-from millsense.estimation.feed_drive import measurement_model
-from millsense.estimation.kalman import bandwidth_3db, compensated_frf
-from millsense.estimation.models import aslan_disturbance_modes
-from millsense.estimation.rational_fit import RationalFit
-from millsense.estimation.tuning import _design, air_cut_variance, noise_gain, tune_q
+from millsense.estimation.feed.estimator import measurement_model
+from millsense.estimation.feed.thesis_models import aslan_disturbance_modes
+from millsense.estimation.feed.tuning import _design, air_cut_variance, noise_gain, tune_q
+from millsense.estimation.kalman.design import bandwidth_3db, compensated_frf
+from millsense.estimation.kalman.rational_fit import RationalFit
 
 
 def test_air_cut_variance_removes_trend_and_offset() -> None:

@@ -8,11 +8,11 @@ import pytest
 from millsense.core.config import FeedEstimatorConfig, MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import load_preset
-from millsense.estimation import tuning
-from millsense.estimation.feed_drive import FeedAxisModel, measurement_model
+from millsense.estimation.feed import tuning
+from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
 from millsense.estimation.from_config import with_feed_band
-from millsense.estimation.rational_fit import RationalFit
-from millsense.machine.modal_ss import ModalStateSpace
+from millsense.estimation.kalman.rational_fit import RationalFit
+from millsense.models.modal_ss import ModalStateSpace
 
 FS = 10_000.0
 #: Aslan Eq. 3.30 R of the X axis, N²·m²

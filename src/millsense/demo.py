@@ -2,7 +2,7 @@
 
 ``millsense demo`` runs :func:`run_demo`:
 
-1. a live source (:class:`~millsense.machine.slot_cut.SlotCutSource`) simulates the X drive of
+1. a live source (:class:`~millsense.simulator.slot_cut.SlotCutSource`) simulates the X drive of
    the ``quaser-ux600`` preset cutting a slot in Al7050 with the Ø20 mm 2-flute end mill of
    Aslan V1 (3000 rev/min, 0.2 mm/tooth; air, 2 mm, 4 mm, air);
 2. commissioning: simulated constant-velocity air moves identify the drive friction (the
@@ -29,13 +29,13 @@ from millsense import __version__
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
 from millsense.core.recording import Recording
-from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
+from millsense.estimation.feed.rigid_body import DriveModel, RigidBodyForceEstimator
 from millsense.ident.friction import coulomb_viscous_from_moves
 from millsense.io.recording_file import RecordingWriter, read_recording
-from millsense.machine.rigid_drive import RigidDriveParams, constant_velocity_move
-from millsense.machine.slot_cut import DepthSegment, SlotCutSource
-from millsense.online.block import Chunk, Event
-from millsense.online.engine import Pipeline, run
+from millsense.simulator.rigid_drive import RigidDriveParams, constant_velocity_move
+from millsense.simulator.slot_cut import DepthSegment, SlotCutSource
+from millsense.streaming.block import Chunk, Event
+from millsense.streaming.engine import Pipeline, run
 
 SPINDLE_RPM = 3000.0  #: Aslan V1 speed set includes 3000 rev/min (tooth frequency 100 Hz)
 FEED_PER_TOOTH_MM = 0.2  #: Aslan V1

@@ -1,6 +1,6 @@
 """``millsense commission``: the standard commissioning tests of one axis on the virtual machine.
 
-Writes one recording per test (:func:`millsense.machine.commissioning.write_commissioning_set`)
+Writes one recording per test (:func:`millsense.simulator.commissioning.write_commissioning_set`)
 and prints the ``millsense identify`` command that reads each, so that the identification
 workflow a machine needs (friction, drive or disturbance path, spindle, idle table) can be run
 end to end on the simulator before it is run on a machine.
@@ -53,7 +53,7 @@ def commission(
     """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.machine.commissioning import write_commissioning_set
+    from millsense.simulator.commissioning import write_commissioning_set
 
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")

@@ -227,7 +227,7 @@ def run_estimate(
     (:func:`~millsense.estimation.from_config.with_feed_band`); None keeps the machine file's rule.
 
     ``idle``: ``none``; ``auto`` — the air phase of ``recording`` itself
-    (:func:`~millsense.estimation.idle_compensation.find_air_window`, or ``air_s``); a path —
+    (:func:`~millsense.estimation.feed.idle_compensation.find_air_window`, or ``air_s``); a path —
     an air-run recording (its air phase found the same way, or ``air_s``). The same estimators
     run over the air phase first; their mean there per direction of the commanded velocity is
     subtracted from the estimates (decision "Idle compensation in estimate").
@@ -247,8 +247,8 @@ def run_estimate(
     from millsense.estimation.from_config import build_estimators, truth_channel
     from millsense.ident.idle_table import DIRECTIONS
     from millsense.io import RecordingWriter, read_recording
-    from millsense.online.engine import Pipeline, run
-    from millsense.online.sources import RecordingSource
+    from millsense.streaming.engine import Pipeline, run
+    from millsense.streaming.sources import RecordingSource
 
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
@@ -271,7 +271,7 @@ def run_estimate(
     air = _air_phase(idle, air_s, rec, recording)
     idle_notes: list[str] = []
     if air is not None and "feed" in methods:
-        from millsense.estimation.idle_compensation import with_air_r
+        from millsense.estimation.feed.idle_compensation import with_air_r
 
         mcfg, r_air = with_air_r(mcfg, axis_list, air[0], air[1], air[2])
         idle_notes += [
@@ -294,7 +294,7 @@ def run_estimate(
     blocks: list[Any] = list(built.blocks)
     all_estimates = built.estimates + built.derived_estimates
     if idle_tables:
-        from millsense.estimation.idle_compensation import IdleCompensatedBlock
+        from millsense.estimation.feed.idle_compensation import IdleCompensatedBlock
 
         blocks = [
             IdleCompensatedBlock(b, a, c, idle_tables[(m, a)], d)
@@ -378,7 +378,7 @@ def _air_phase(
 ) -> tuple[Any, slice, str] | None:
     """(recording holding the air phase, its samples, its name) for ``--idle``, or None."""
     from millsense.core.errors import InputDataError
-    from millsense.estimation.idle_compensation import find_air_window, parse_air_window
+    from millsense.estimation.feed.idle_compensation import find_air_window, parse_air_window
     from millsense.io import read_recording
 
     if idle == "none":
@@ -410,7 +410,7 @@ def _idle_tables(
     estimator blocks: they are reset before the run), and notes."""
     import copy
 
-    from millsense.estimation.idle_compensation import measure_idle
+    from millsense.estimation.feed.idle_compensation import measure_idle
 
     src, window, where = air
     fresh = copy.deepcopy(built)

@@ -199,8 +199,8 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     path in the machine file")."""
     import numpy as np
 
-    from millsense.estimation.feed_drive import c3_front_end
-    from millsense.estimation.feed_identification import fit_disturbance_path
+    from millsense.estimation.feed.estimator import c3_front_end
+    from millsense.estimation.feed.path_fit import fit_disturbance_path
     from millsense.report.ident_plots import plot_frf_fit
 
     if ctx.machine is None:
@@ -266,8 +266,8 @@ def _commanded_condition(rec: Any, path: Path, axis: str, transmission: float) -
     ``{axis}/velocity_ref`` (motor rad/s) or ``{axis}/position_cmd`` (m, rad rotary)."""
     import numpy as np
 
-    from millsense.estimation.commanded import commanded_velocity
-    from millsense.estimation.feed_drive import operating_condition
+    from millsense.estimation.feed.commanded import commanded_velocity
+    from millsense.estimation.feed.estimator import operating_condition
 
     if f"{axis}/velocity_ref" in rec:
         v = np.asarray(rec.channel(f"{axis}/velocity_ref"), dtype=float)

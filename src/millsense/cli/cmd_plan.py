@@ -12,7 +12,7 @@ from millsense.cli.main import app
 from millsense.core.errors import ConfigError
 
 if TYPE_CHECKING:
-    from millsense.virtual.plan import VirtualPlan
+    from millsense.plan.virtual_plan import VirtualPlan
 
 
 def _home(text: str | None) -> tuple[float, float, float] | None:
@@ -47,11 +47,11 @@ def _build(
     from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
     from millsense.core.presets import load_preset
     from millsense.core.units import MM
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
-    from millsense.virtual.gcode import interpret_file
-    from millsense.virtual.plan import plan_program
-    from millsense.virtual.stock import ZMapStock
 
     _positive("--step-mm", step_mm)
     _positive("--resolution-mm", resolution_mm)
@@ -161,7 +161,7 @@ def schedule(
 ) -> None:
     """Feed per step holding a force, torque or power limit; write an optimised program."""
     from millsense.core.units import MM, MM_PER_MIN
-    from millsense.virtual.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
+    from millsense.plan.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
 
     limits = [
         (k, v)

@@ -147,20 +147,20 @@ def run_simulation(
     from millsense.core.errors import ConfigError, InputDataError
     from millsense.core.presets import load_preset
     from millsense.io import RecordingWriter
-    from millsense.machine.interpolator import OverrideChannel
-    from millsense.machine.process_coupling import (
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.path import vertex_path
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.interpolator import OverrideChannel
+    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.process_coupling import (
         EngagementSchedule,
         ProcessCoupling,
         ProcessEvent,
         ToothBreak,
     )
-    from millsense.machine.realism import RealismOptions
-    from millsense.machine.sensors import SensorOptions
-    from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.geometry import EndMill
-    from millsense.virtual.gcode import interpret_file
-    from millsense.virtual.path import vertex_path
+    from millsense.simulator.realism import RealismOptions
+    from millsense.simulator.sensors import SensorOptions
 
     if plan is not None and program is not None:
         raise ConfigError("simulate: give --program or --plan, not both")
@@ -185,16 +185,16 @@ def run_simulation(
     meta_extra: dict[str, Any] = {}
     modes = None
     if tool_modes is not None:
-        from millsense.machine.process_coupling import ToolModes
+        from millsense.simulator.process_coupling import ToolModes
 
         modes = ToolModes.from_toml(tool_modes)
     if plan is not None:
-        from millsense.virtual.plan import (
+        from millsense.plan.plan_engagement import PlanEngagement, plan_path
+        from millsense.plan.virtual_plan import (
             VirtualPlan,
             coefficients_from_metadata,
             tool_from_metadata,
         )
-        from millsense.virtual.plan_engagement import PlanEngagement, plan_path
 
         vp = VirtualPlan.read(plan)
         if tool is not None:
@@ -306,7 +306,7 @@ def _with_air(schedule: Any, air_m: float, path_end_m: float) -> tuple[Any, floa
 
     Parameters
     ----------
-    schedule : :class:`~millsense.machine.process_coupling.EngagementSchedule` by arc length.
+    schedule : :class:`~millsense.simulator.process_coupling.EngagementSchedule` by arc length.
     air_m : air travel at cutting feed before the stock, m (0: unchanged).
     path_end_m : length of the whole path, m (the end of a last run of feed moves).
 

@@ -324,10 +324,11 @@ class DisturbanceModesAtConfig(DisturbanceModesConfig):
 class FeedEstimatorConfig(_Model):
     """Tuning of an axis' Kalman force estimator (``[axes.x.estimator]``, all optional).
 
-    Absent keys are chosen at start-up (:meth:`millsense.estimation.feed_drive.FeedAxisModel.
+    Absent keys are chosen at start-up (:meth:`millsense.estimation.feed.estimator.FeedAxisModel.
     from_config`): R from ``current_noise_a`` through the C3 low-pass, Q by the widest-band
-    rule of :func:`millsense.estimation.tuning.tune_q` (``band_hz``: the least-noise rule;
-    ``mode_shift_pct`` > 0: the robust design of :func:`millsense.estimation.tuning.tune_robust`).
+    rule of :func:`millsense.estimation.feed.tuning.tune_q` (``band_hz``: the least-noise rule;
+    ``mode_shift_pct`` > 0: the robust design of
+    :func:`millsense.estimation.feed.tuning.tune_robust`).
     """
 
     r_nm2: Annotated[float, Field(gt=0, le=1e6)] | None = None
@@ -339,7 +340,8 @@ class FeedEstimatorConfig(_Model):
     mode_shift_pct: Annotated[float, Field(ge=0, le=20)] = 0.0
     """Robustness margin: the disturbance-mode frequencies may lie anywhere within ± this
     percentage of the identified ones (position dependence); Q and the design damping maximise
-    the worst-case ±3 dB band over that family (:func:`millsense.estimation.tuning.tune_robust`).
+    the worst-case ±3 dB band over that family
+    (:func:`millsense.estimation.feed.tuning.tune_robust`).
     0 = nominal tuning on the identified modes only."""
     disturbance_path: DisturbancePathConfig | None = None
     """Identified τ_a → C3-torque path (``millsense identify path``, a sweep during a move);
@@ -347,11 +349,11 @@ class FeedEstimatorConfig(_Model):
     disturbance_path_at_rest: DisturbancePathConfig | None = None
     """The same identified with the axis holding position (``millsense identify path`` of a
     sweep at rest); when given, the estimator runs both and follows the commanded speed
-    (:class:`millsense.estimation.feed_condition.OperatingConditionFeedEstimator`)."""
+    (:class:`millsense.estimation.feed.condition.OperatingConditionFeedEstimator`)."""
     band_hz: Annotated[float, Field(gt=0, lt=1000)] | None = None
     """Band the estimate must keep, Hz: Q is the least-noise value whose compensated FRF on the
     identified model stays within ±1 dB up to here
-    (:func:`millsense.estimation.tuning.least_noise_q`); absent: the widest ±3 dB band under
+    (:func:`millsense.estimation.feed.tuning.least_noise_q`); absent: the widest ±3 dB band under
     the noise limit. Leave about 25 % above the band needed on the machine (decision
     "Least-noise Q for a requested band")."""
 
@@ -402,7 +404,7 @@ class FeedAxisConfig(_Model):
     disturbance_modes_at: list[DisturbanceModesAtConfig] = []
     """Φ_d identified at several table positions, ascending (linear axes): ``millsense
     estimate --method feed`` then runs the position-scheduled estimator
-    (:mod:`millsense.estimation.feed_schedule`, docs/decisions.md "Position-scheduled feed
+    (:mod:`millsense.estimation.feed.schedule`, docs/decisions.md "Position-scheduled feed
     estimator") interpolating by the commanded position; ``disturbance_modes`` is not used by
     the estimator then."""
     ball_screw: BallScrewConfig | None = None

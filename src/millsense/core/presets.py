@@ -11,13 +11,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
-from millsense.core.config import (
-    MachineConfig,
-    MaterialConfig,
-    ToolConfig,
-    parse_config,
-    read_toml,
-)
+from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig, parse_config, read_toml
 from millsense.core.errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)

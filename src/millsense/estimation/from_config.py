@@ -9,12 +9,13 @@ axis, N·m at the table on a rotary one; the sign and unit of the simulator's
 Methods
 -------
 ``feed``  Kalman-compensated feed-drive estimator (Aslan C2–C7,
-          :class:`~millsense.estimation.feed_drive.FeedAxisEstimator`) from
-          :meth:`~millsense.estimation.feed_drive.FeedAxisModel.from_config`; with
+          :class:`~millsense.estimation.feed.estimator.FeedAxisEstimator`) from
+          :meth:`~millsense.estimation.feed.estimator.FeedAxisModel.from_config`; with
           ``harmonic_teeth`` also the tooth harmonics of the commanded spindle speed.
 ``raw``   rigid-body inverse dynamics of the current (Aslan C3, Eq. 3.10–3.11,
-          :class:`~millsense.estimation.rigid_body.RigidBodyForceEstimator`).
-``medob`` multi-encoder DOB of a ball-screw axis (Yamada, :class:`~millsense.estimation.dob.
+          :class:`~millsense.estimation.feed.rigid_body.RigidBodyForceEstimator`).
+``medob`` multi-encoder DOB of a ball-screw axis (Yamada,
+:class:`~millsense.estimation.dob.observers.
           MEDOBBlock`) from ``[axes.x.ball_screw]``, dead times and current-loop bandwidth.
 ``spindle`` spindle torque observer (Aslan C11, :class:`~millsense.estimation.spindle_observer.
           SpindleTorqueObserver`) on G_dτ (Eq. 5.12) modelled from ``[spindle]``
@@ -32,7 +33,7 @@ import numpy as np
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.online.block import Block, BlockOutput, Chunk
+from millsense.streaming.block import Block, BlockOutput, Chunk
 
 METHODS = ("feed", "raw", "medob", "spindle")
 
@@ -88,7 +89,7 @@ class RenamedBlock(Block):
 
 @dataclass(frozen=True)
 class BuiltEstimators:
-    """Blocks ready for :class:`~millsense.online.engine.Pipeline` and what they estimate.
+    """Blocks ready for :class:`~millsense.streaming.engine.Pipeline` and what they estimate.
 
     Attributes
     ----------
@@ -160,8 +161,8 @@ def spindle_observer_from_config(
         disturbance_model,
         tune_spindle_q,
     )
-    from millsense.machine.friction import CoulombViscous
-    from millsense.machine.spindle import SpindleDriveParams
+    from millsense.models.friction import CoulombViscous
+    from millsense.models.spindle_plant import SpindleDriveParams
 
     reason = spindle_unavailable_reason(machine, where)
     if reason is not None:
@@ -202,7 +203,7 @@ def spindle_observer_from_config(
 def _feed(
     axis: str, machine: MachineConfig, where: str, fs: float, teeth: int | None = None
 ) -> RenamedBlock:
-    from millsense.estimation.feed_drive import FeedAxisEstimator, FeedAxisModel
+    from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel
 
     cfg = machine.axis(axis)
     unit = "N" if cfg.kind == "linear" else "N*m"
@@ -213,7 +214,7 @@ def _feed(
     block: Block = moving
     est = cfg.estimator
     if est is not None and est.disturbance_path_at_rest is not None:
-        from millsense.estimation.feed_condition import OperatingConditionFeedEstimator
+        from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
 
         rest_cfg = cfg.model_copy(
             update={
@@ -243,13 +244,13 @@ def _scheduled_feed(
     axis: str, machine: MachineConfig, where: str, fs: float, teeth: int | None
 ) -> RenamedBlock:
     """The position-scheduled feed estimator of an axis with ``disturbance_modes_at``: one
-    :class:`~millsense.estimation.feed_drive.FeedAxisModel` per identified position (each tuned
+    :class:`~millsense.estimation.feed.estimator.FeedAxisModel` per identified position (each tuned
     as ``FeedAxisModel.from_config`` tunes one), interpolated linearly by the commanded position
-    (:class:`~millsense.estimation.feed_schedule.ScheduledFeedEstimator`)."""
+    (:class:`~millsense.estimation.feed.schedule.ScheduledFeedEstimator`)."""
     from millsense.core import units
     from millsense.core.config import DisturbanceModesConfig
-    from millsense.estimation.feed_drive import FeedAxisModel
-    from millsense.estimation.feed_schedule import FeedModelBank, ScheduledFeedEstimator
+    from millsense.estimation.feed.estimator import FeedAxisModel
+    from millsense.estimation.feed.schedule import FeedModelBank, ScheduledFeedEstimator
 
     cfg = machine.axis(axis)
     if teeth is not None:
@@ -280,8 +281,8 @@ def _scheduled_feed(
 def raw_estimator(axis: str, machine: MachineConfig, cutoff_hz: float) -> RenamedBlock:
     """The raw C3 estimate of ``axis`` (Aslan Eq. 3.10–3.11, :func:`rigid_limit` drive),
     output ``est/raw/{axis}/load`` low-passed at ``cutoff_hz`` (2nd-order Butterworth)."""
-    from millsense.estimation.feed_drive import DEFAULT_FRICTION_SMOOTHING_RAD_S
-    from millsense.estimation.rigid_body import DriveModel, RigidBodyForceEstimator
+    from millsense.estimation.feed.estimator import DEFAULT_FRICTION_SMOOTHING_RAD_S
+    from millsense.estimation.feed.rigid_body import DriveModel, RigidBodyForceEstimator
 
     cfg = machine.axis(axis)
     drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
@@ -295,7 +296,7 @@ def raw_estimator(axis: str, machine: MachineConfig, cutoff_hz: float) -> Rename
 
 
 def _medob(axis: str, machine: MachineConfig, where: str) -> RenamedBlock:
-    from millsense.estimation.dob import DriveParameters, MEDOBBlock
+    from millsense.estimation.dob.observers import DriveParameters, MEDOBBlock
 
     cfg = machine.axis(axis)
     if cfg.ball_screw is None or cfg.kind != "linear":
@@ -341,7 +342,7 @@ def tool_force_block(
 ) -> tuple[RenamedBlock, list[tuple[str, str, str, int]]]:
     """Forces on the tool from the five feed loads of ``method`` (Aslan Eq. 3.51).
 
-    :class:`~millsense.estimation.feed_drive.ToolForceBlock` on the machine's trunnion
+    :class:`~millsense.estimation.feed.estimator.ToolForceBlock` on the machine's trunnion
     kinematics in the drives' frames, reading ``est/{method}/{axis}/load`` and the encoders
     ``{axis}/motor_angle`` (positions ``r_g·angle``, delayed by ``delay_samples`` to meet the
     smoothed loads); outputs ``est/{method}/tool/force_{x,y,z}`` (N, drive frame).
@@ -351,8 +352,8 @@ def tool_force_block(
     ConfigError
         The machine is not a 5-axis trunnion.
     """
-    from millsense.estimation.feed_drive import ToolForceBlock
-    from millsense.machine.kinematics import kinematics_for
+    from millsense.estimation.feed.estimator import ToolForceBlock
+    from millsense.models.kinematics import kinematics_for
 
     if machine.kinematics != "5-axis-trunnion-ac":
         raise ConfigError(
@@ -375,7 +376,7 @@ def with_feed_band(machine: MachineConfig, axes: Sequence[str], band_hz: float) 
     """The machine with the feed estimators of ``axes`` tuned for ``band_hz`` (Hz).
 
     Sets ``[axes.<a>.estimator] band_hz`` (the least-noise Q flat within ±1 dB to the band,
-    :func:`millsense.estimation.tuning.least_noise_q`) and clears what it replaces (a fixed
+    :func:`millsense.estimation.feed.tuning.least_noise_q`) and clears what it replaces (a fixed
     ``q_nm2_s``, a ``mode_shift_pct`` margin): the command-line choice wins over the file's.
 
     Raises
@@ -422,7 +423,7 @@ def build_estimators(
         note instead of raising.
     harmonic_teeth : cutter teeth; given, the ``feed`` estimators add the tooth harmonics from
         the commanded spindle speed ``spindle/speed_cmd`` (Aslan Eq. 3.16–3.20,
-        :class:`~millsense.estimation.feed_drive.FeedAxisEstimator` ``teeth``); None: the
+        :class:`~millsense.estimation.feed.estimator.FeedAxisEstimator` ``teeth``); None: the
         random-walk design.
 
     Raises

@@ -7,7 +7,7 @@ viscous, LuGre static parameters, presliding, spindle), drive parameters and dea
 (:mod:`millsense.ident.spindle`), the idling disturbance table
 (:mod:`millsense.ident.idle_table`) and TOML configuration fragments
 (:mod:`millsense.ident.fragment`). Simulated commissioning tests are in
-:mod:`millsense.machine.commissioning`; the CLI is ``millsense identify``.
+:mod:`millsense.simulator.commissioning`; the CLI is ``millsense identify``.
 """
 
 from millsense.ident.frf import (

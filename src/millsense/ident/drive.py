@@ -494,7 +494,7 @@ def fit_amplifier_delay(
     current_loop_hz : the bandwidth if known (then only T_s is fitted), Hz.
     band_hz : band used, Hz.
     current_sampled_at_end : the recorded actual current of sample k is the value at the end
-        of the control period (as :class:`~millsense.machine.feed_drive.FeedDriveSim` records
+        of the control period (as :class:`~millsense.simulator.feed_drive.FeedDriveSim` records
         it), one period after the command it responds to is issued.
 
     Returns

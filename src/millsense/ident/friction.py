@@ -19,8 +19,8 @@ import numba
 import numpy as np
 
 from millsense.core.errors import InputDataError
-from millsense.machine.friction import CoulombViscous
-from millsense.machine.lugre import lugre_step
+from millsense.models.friction import CoulombViscous
+from millsense.models.lugre import lugre_step
 
 
 @dataclass(frozen=True)
@@ -416,7 +416,7 @@ def fit_presliding(
     Notes
     -----
     Model: ``J·θ̈ = K_t·i − τ_f`` with LuGre τ_f (Aslan Eq. 3.2–3.4) integrated from rest with
-    :func:`millsense.machine.lugre.lugre_step`; nonlinear least squares on the angle
+    :func:`millsense.models.lugre.lugre_step`; nonlinear least squares on the angle
     (``scipy.optimize.least_squares``, σ0 and σ1 in log). Below breakaway the motion is the
     bristle spring: deflection ``τ/σ0`` at rest and a resonance ``√(σ0/J)`` damped by σ1 + σ2
     (Aslan Eq. 3.8). The presliding regime does not tell the two directions apart (the bristle

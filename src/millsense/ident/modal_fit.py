@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from millsense.core.errors import InputDataError
 from millsense.ident.frf import FrfEstimate
-from millsense.machine.modal_ss import ModalStateSpace
+from millsense.models.modal_ss import ModalStateSpace
 from millsense.stability.modal import Mode
 
 FloatArray = NDArray[np.float64]
@@ -183,7 +183,7 @@ class ModalFit:
     def state_space(self, include_residual: bool = True) -> ModalStateSpace:
         """Minimal real realisation in balanced 2×2 modal blocks.
 
-        The project's one modal realisation, :class:`millsense.machine.modal_ss.
+        The project's one modal realisation, :class:`millsense.models.modal_ss.
         ModalStateSpace` (Aslan Eq. 3.13 in normal, balanced blocks; far better conditioned
         than the companion form of Appendix A). Blocks follow :meth:`all_modes`; D is the
         constant residual.

@@ -1,18 +1,4 @@
-"""The block-streaming engine: blocks, pipeline, sources, and the run loop."""
-
-from millsense.online.block import Block, BlockOutput, Chunk, Event, EventKind
-from millsense.online.engine import Pipeline, RunResult, run
-from millsense.online.sources import RecordingSource, Source
-
-__all__ = [
-    "Block",
-    "BlockOutput",
-    "Chunk",
-    "Event",
-    "EventKind",
-    "Pipeline",
-    "RecordingSource",
-    "RunResult",
-    "Source",
-    "run",
-]
+"""The integrated online session (seed 000 ch. 6, seed 002 ch. 4–5): the virtual plan and
+the on-line monitors side by side, arbitration of actions, the event log. To come (issue 16);
+the streaming contract it runs on is :mod:`millsense.streaming`.
+"""

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection
 
-from millsense.virtual.plan import VirtualPlan
+from millsense.plan.virtual_plan import VirtualPlan
 
 
 def plot_plan(plan: VirtualPlan, path: str | Path, feed_mm_min: np.ndarray | None = None) -> None:

@@ -2,7 +2,7 @@
 
 Not an estimator: it plays the machine. Forces come from the sliced mechanistic model
 (:func:`millsense.process.forces.milling_forces`), structures from modal sums realised by
-:class:`millsense.machine.modal_ss.ModalStateSpace`, stepped exactly for a force that is
+:class:`millsense.models.modal_ss.ModalStateSpace`, stepped exactly for a force that is
 linear between samples (first-order hold) at an oversampled rate, then low-passed without
 phase (a delay-compensated DAQ anti-alias filter) and decimated. FRFs the estimators use come
 from simulated impact tests through :func:`millsense.ident.frf.impact_frf`, never from the
@@ -21,7 +21,7 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from millsense.ident.frf import FrfEstimate, impact_frf
-from millsense.machine.modal_ss import ModalStateSpace
+from millsense.models.modal_ss import ModalStateSpace
 
 FloatArray = NDArray[np.float64]
 

@@ -45,7 +45,7 @@ ILME_SKIP_S = 0.1  # start after the entry transient (İlme cuts the record at a
 def _ilme_table() -> tuple[tuple[int, float, float, float, float, float, float], ...]:
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.harmonic_kf import STATE_SCALE, CutSetup, estimate_harmonic_kf
+    from millsense.estimation.accel.harmonic_kf import STATE_SCALE, CutSetup, estimate_harmonic_kf
     from millsense.validation.cases import _accel_sim as sim
 
     mat = load_preset(MaterialConfig, "al7050")
@@ -150,7 +150,7 @@ ASLAN_BAND_HZ = (200.0, 1800.0)
 def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
     import scipy.signal
 
-    from millsense.estimation.fusion import (
+    from millsense.estimation.accel.fusion import (
         DoubleIntegrator,
         DynamicsMap,
         MapNode,

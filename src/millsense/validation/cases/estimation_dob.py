@@ -43,8 +43,9 @@ from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
     from millsense.core.config import FeedAxisConfig
-    from millsense.estimation.dob import DriveParameters
-    from millsense.machine.feed_drive import FeedDriveParams, MechanicalPlant
+    from millsense.estimation.dob.observers import DriveParameters
+    from millsense.models.drive_plant import MechanicalPlant
+    from millsense.simulator.feed_drive import FeedDriveParams
 
 FS_B = 10000.0
 CUTOFF_B = 500.0  # Table 4-3: 4th-order Butterworth 500 Hz
@@ -101,7 +102,7 @@ def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) ->
     natural frequencies (Eq. 2-56: their sum and product of ω²); damping proportional
     (α_c of the preset) plus C_k, and C_ω for 2 % on the torsional mode.
     """
-    from millsense.machine.ball_screw import triple_inertia_plant
+    from millsense.models.ball_screw import triple_inertia_plant
 
     ax = _axis()
     bs = ax.ball_screw
@@ -137,8 +138,8 @@ def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) ->
 
 @cache
 def _drive(friction_factor: float = 1.0) -> FeedDriveParams:
-    from millsense.machine.feed_drive import FeedDriveParams
-    from millsense.machine.friction import CoulombViscous
+    from millsense.models.friction import CoulombViscous
+    from millsense.simulator.feed_drive import FeedDriveParams
 
     ax = _axis()
     fp = FeedDriveParams.from_config(ax)
@@ -158,7 +159,7 @@ def _drive(friction_factor: float = 1.0) -> FeedDriveParams:
 
 
 def _delays(compensate: bool) -> tuple[float, float, float]:
-    from millsense.estimation.phase_lag import sync_delays
+    from millsense.estimation.dob.phase_lag import sync_delays
 
     if not compensate:
         return (0.0, 0.0, 0.0)
@@ -185,8 +186,8 @@ def _identified() -> DriveParameters:
     simulator's non-idealities)."""
     from scipy import signal
 
-    from millsense.estimation.dob import identify_drive_parameters
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.estimation.dob.observers import identify_drive_parameters
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     fp = _drive()
     n = int(2.5 * FS_B)
@@ -241,7 +242,7 @@ def _cutting_load(c: Condition) -> NDArray[np.float64]:
 
 @cache
 def _run(c: Condition, cut: bool, seed: int) -> dict[str, NDArray[np.float64]]:
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     fp = _drive(1.05 if cut else 1.0)
     n = int(DURATION_S * FS_B)
@@ -286,8 +287,8 @@ def _estimate(
     mass: float,
     notch: bool,
 ) -> NDArray[np.float64]:
-    from millsense.estimation.dob import medob_observer, with_table_mass
-    from millsense.estimation.notch import NotchBank, NotchBankSpec
+    from millsense.estimation.dob.notch import NotchBank, NotchBankSpec
+    from millsense.estimation.dob.observers import medob_observer, with_table_mass
 
     p = with_table_mass(_identified(), mass)
     r = p.transmission_m_rad
@@ -301,7 +302,7 @@ def _estimate(
     if kind == "medob":
         est = obs.process(out["current_cmd"], [r * out["angle"], out["scale"]])
     else:  # thrust force K_t I/R through the same output filter, delayed by T_1 as the MEDOB's
-        from millsense.estimation.phase_lag import StreamingDelay
+        from millsense.estimation.dob.phase_lag import StreamingDelay
 
         cur = StreamingDelay(_delays(sync)[0] * FS_B).process(out["current_cmd"])
         est = obs.output_filter(p.force_constant_n_a * cur)
@@ -322,7 +323,7 @@ def table47(
     key: int, kind: str = "medob", sync: bool = True, mass: float = 1.0, notch: bool = True
 ) -> tuple[float, float]:
     """(error std, compensated-disturbance std) in N for one Table 4-7 entry."""
-    from millsense.estimation.phase_lag import StreamingDelay  # noqa: F401
+    from millsense.estimation.dob.phase_lag import StreamingDelay  # noqa: F401
 
     c = CONDITIONS[key]
     idles = [_run(c, False, s) for s in (1, 2, 3)]
@@ -331,7 +332,7 @@ def table47(
     table = idle_table_from_runs([o["scale"] for o in idles], idle_est)
     cut = _run(c, True, 7)
     est = _estimate(kind, c, cut, **kw) - table(cut["scale"])  # type: ignore[arg-type]
-    from millsense.estimation.dob import medob_observer
+    from millsense.estimation.dob.observers import medob_observer
 
     ref_obs = medob_observer(_identified(), FS_B, cutoff_hz=CUTOFF_B)
     ref = ref_obs.output_filter(cut["load"])
@@ -350,13 +351,13 @@ def table47(
 
 def medob_frf_analytic_deviation() -> float:
     """max over 1 Hz–2 kHz of |F̂/F ÷ Q − 1| and |F̂/I|·R/K_t, continuous, exact parameters."""
-    from millsense.estimation.dob import (
+    from millsense.estimation.dob.observers import (
         DriveParameters,
         butterworth_analog,
         medob_model,
         rigid_sum_frf,
     )
-    from millsense.machine.ball_screw import plant_from_config
+    from millsense.models.ball_screw import plant_from_config
 
     ax = _axis()
     p = DriveParameters.from_axis_config(ax)
@@ -387,9 +388,9 @@ def medob_sweep_records() -> tuple[
     """
     from scipy import signal
 
-    from millsense.estimation.dob import DriveParameters, medob_observer
-    from millsense.machine.ball_screw import dual_inertia_plant
-    from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim
+    from millsense.estimation.dob.observers import DriveParameters, medob_observer
+    from millsense.models.ball_screw import dual_inertia_plant
+    from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
     ax = _axis()
     p0 = DriveParameters.from_axis_config(ax)
@@ -439,7 +440,7 @@ def medob_sweep_deviation() -> tuple[float, float]:
 
 
 def _sweep_output_filter_frf(f: NDArray[np.float64]) -> NDArray[np.complex128]:
-    from millsense.estimation.dob import DriveParameters, medob_observer
+    from millsense.estimation.dob.observers import DriveParameters, medob_observer
 
     p0 = DriveParameters.from_axis_config(_axis())
     ac = p0.table_damping_n_s_m / p0.table_mass_kg
@@ -604,7 +605,7 @@ TABLE45 = {
     description="Largest relative deviation of the predicted notch frequencies from Table 4-5",
 )
 def _table45() -> Measured:
-    from millsense.estimation.notch import encoder_notch_frequencies
+    from millsense.estimation.dob.notch import encoder_notch_frequencies
 
     worst = 0.0
     lines = []
@@ -632,12 +633,15 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
     normal force of the cut. Both estimates are tared on the air interval before the cut (no
     idling test, as in the thesis).
     """
-    from millsense.estimation.mode_decoupled import VibrationModeObserver, rigid_mode_observer
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.estimation.dob.mode_decoupled import (
+        VibrationModeObserver,
+        rigid_mode_observer,
+    )
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     p = _identified()
     fp = _drive()

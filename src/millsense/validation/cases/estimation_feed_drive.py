@@ -1,11 +1,11 @@
 """Acceptance of the feed-drive force estimator on the simulated Quaser UX600 (issue 7 item 2).
 
 Every figure is end to end: the estimator of each axis is *identified* on the drive simulator
-(:func:`~millsense.estimation.feed_identification.identify_feed_axis`: friction from
+(:func:`~millsense.bench.feed_commissioning.identify_feed_axis`: friction from
 constant-velocity moves, J_e from an accelerating move, Φ_d from a multisine table-load sweep,
 R from an air cut, Q by bandwidth optimisation), then run as a streaming block on the CNC
 channels of a *different* simulated machine
-(:func:`~millsense.machine.drive_mismatch.perturbed_drive`).
+(:func:`~millsense.simulator.drive_mismatch.perturbed_drive`).
 
 Mismatch between simulator and estimator (stated beside every figure):
 
@@ -13,16 +13,16 @@ Mismatch between simulator and estimator (stated beside every figure):
 - the simulator runs LuGre friction (Table 3.2), the estimator Coulomb + viscous, and the
   simulator's Coulomb and static friction are 15 % higher than at identification (drift);
 - an unmodelled mode at 420 Hz (ζ 3 %, α 2·10⁵) above the 3–260 Hz fit band, in the machine at
-  commissioning and while cutting (:func:`~millsense.machine.drive_mismatch.commissioning_drive`);
+  commissioning and while cutting (:func:`~millsense.simulator.drive_mismatch.commissioning_drive`);
 - torque noise (Eq. 3.30), 2²⁰-count encoder quantisation, the 1 kHz current loop between the
   current command the estimator reads and the motor torque;
 - position-scheduled case only: every disturbance-mode frequency follows the table position
   (±2 % over the stroke, :func:`scheduled_params`); the estimator is a bank of models
   identified at :data:`N_BANK` positions and scheduled on the commanded position
-  (:mod:`millsense.estimation.feed_schedule`; docs/decisions.md "Position-dependent disturbance
+  (:mod:`millsense.estimation.feed.schedule`; docs/decisions.md "Position-dependent disturbance
   modes", "Position-scheduled feed estimator"). ``estimation.feed_robust_band_at_lti_limit``
   compares the single robust design's worst-case band over ±2 % with the limit of any linear
-  estimator (:func:`~millsense.estimation.tuning.flatness_bound`).
+  estimator (:func:`~millsense.estimation.feed.tuning.flatness_bound`).
 
 The compensated FRF is measured, not computed: a multisine table load (1–300 Hz, 1 Hz lines,
 5 N·m RMS at the motor, 16 averaged periods) is applied during a constant-velocity move, the
@@ -41,11 +41,11 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
-    from millsense.estimation.feed_drive import FeedAxisModel, OperatingCondition
-    from millsense.estimation.feed_identification import SweepResult
-    from millsense.estimation.feed_schedule import FeedModelBank
-    from millsense.machine.feed_drive import FeedDriveParams
-    from millsense.online.block import Block
+    from millsense.estimation.feed.estimator import FeedAxisModel, OperatingCondition
+    from millsense.estimation.feed.path_fit import SweepResult
+    from millsense.estimation.feed.schedule import FeedModelBank
+    from millsense.simulator.feed_drive import FeedDriveParams
+    from millsense.streaming.block import Block
 
 FS_HZ = 10_000.0
 AXES = ("x", "y", "z", "a", "c")
@@ -60,11 +60,11 @@ MOVE_SPEED_RAD_S = 10.0
 def _identified(
     axis: str, condition: OperatingCondition = "moving"
 ) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
+    from millsense.bench.feed_commissioning import identify_feed_axis
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_identification import identify_feed_axis
-    from millsense.machine.drive_mismatch import commissioning_drive
-    from millsense.machine.feed_drive import FeedDriveParams
+    from millsense.simulator.drive_mismatch import commissioning_drive
+    from millsense.simulator.feed_drive import FeedDriveParams
 
     ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
     params = FeedDriveParams.from_config(ax)
@@ -93,7 +93,7 @@ def stream_estimate(
     ``channels`` maps input channel names to equal-length arrays (at ``FS_HZ``); the block
     sees each chunk as the engine would hand it (10 ms by default).
     """
-    from millsense.online.block import Chunk
+    from millsense.streaming.block import Chunk
 
     n = len(next(iter(channels.values())))
     parts = [
@@ -114,12 +114,12 @@ def compensated_bandwidth(
     ``band_hz``: the identified model re-tuned by the least-noise rule for that band
     (``FeedAxisModel.tuned(0, band_hz=...)``) instead of the widest-band Q.
     """
-    from millsense.estimation.feed_drive import FeedAxisEstimator
-    from millsense.estimation.kalman import bandwidth_3db
+    from millsense.estimation.feed.estimator import FeedAxisEstimator
+    from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
-    from millsense.machine.commissioning import ramp_move
-    from millsense.machine.drive_mismatch import perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.simulator.commissioning import ramp_move
+    from millsense.simulator.drive_mismatch import perturbed_drive
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     params, model = _tuned_for(axis, band_hz)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
@@ -242,14 +242,14 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
 
     The identified model (widest-band Q, or re-tuned for ``band_hz`` as in
     :func:`compensated_bandwidth`) streams 1.5 s of a constant-velocity air move at the V1 X
-    feed's motor speed on :func:`~millsense.machine.drive_mismatch.perturbed_drive`; the RMS
+    feed's motor speed on :func:`~millsense.simulator.drive_mismatch.perturbed_drive`; the RMS
     about the mean over the last second is the estimate's noise (current noise through the
     filter, quantisation, friction-model error).
     """
-    from millsense.estimation.feed_drive import FeedAxisEstimator
-    from millsense.machine.commissioning import ramp_move
-    from millsense.machine.drive_mismatch import perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.estimation.feed.estimator import FeedAxisEstimator
+    from millsense.simulator.commissioning import ramp_move
+    from millsense.simulator.drive_mismatch import perturbed_drive
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     params, model = _tuned_for(axis, band_hz)
     n = round(1.5 * FS_HZ)
@@ -333,7 +333,7 @@ def scheduled_params(axis: str) -> FeedDriveParams:
 
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.machine.feed_drive import FeedDriveParams
+    from millsense.simulator.feed_drive import FeedDriveParams
 
     params = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis(axis))
     return replace(
@@ -347,7 +347,7 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
     """Identification positions, m: ``n`` evenly spaced from one stroke end to the other, each
     end inset by half a sweep's travel (the sweep is a move centred on its position and must
     stay inside the stroke)."""
-    from millsense.estimation.feed_schedule import sweep_travel
+    from millsense.bench.feed_bank import sweep_travel
 
     s = STROKE_M[axis]
     d = 0.5 * sweep_travel(scheduled_params(axis), SCHED_SPEED_RAD_S[axis], FS_HZ)
@@ -356,8 +356,8 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
 
 @cache
 def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
-    from millsense.estimation.feed_schedule import identify_feed_bank
-    from millsense.machine.drive_mismatch import commissioning_drive
+    from millsense.bench.feed_bank import identify_feed_bank
+    from millsense.simulator.drive_mismatch import commissioning_drive
 
     params = scheduled_params(axis)
     lg = params.transmission / params.efficiency
@@ -375,7 +375,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
 
 
 def _test_travel(axis: str) -> float:
-    from millsense.machine.commissioning import ramp_move
+    from millsense.simulator.commissioning import ramp_move
 
     p = scheduled_params(axis)
     n = round((0.3 + N_PERIODS + 0.01) * FS_HZ)
@@ -398,16 +398,16 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
     machine with position-dependent modes, during a move centred at ``centre_m``.
 
     The multisine test of :func:`compensated_bandwidth` at :data:`SCHED_SPEED_RAD_S` and
-    :data:`SCHED_EXCITATION_NM`, on :func:`~millsense.machine.drive_mismatch.perturbed_drive` of
+    :data:`SCHED_EXCITATION_NM`, on :func:`~millsense.simulator.drive_mismatch.perturbed_drive` of
     :func:`scheduled_params` (friction +15 %, the 420 Hz mode, noise, quantisation, current
     loop); the block reads the commanded position ``{axis}/position_cmd``.
     """
-    from millsense.estimation.feed_schedule import ScheduledFeedEstimator
-    from millsense.estimation.kalman import bandwidth_3db
+    from millsense.estimation.feed.schedule import ScheduledFeedEstimator
+    from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
-    from millsense.machine.commissioning import ramp_move
-    from millsense.machine.drive_mismatch import perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.simulator.commissioning import ramp_move
+    from millsense.simulator.drive_mismatch import perturbed_drive
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     params = scheduled_params(axis)
     bank = _bank(axis, n)
@@ -450,8 +450,8 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
 def _lti_bound_over_stroke(axis: str) -> float:
     """flatness_bound of the centre model's Φ_d for modes anywhere within ±2 % (one LTI
     estimator over the whole stroke), dB over 1-180 Hz."""
-    from millsense.estimation import tuning
-    from millsense.estimation.feed_drive import measurement_model
+    from millsense.estimation.feed import tuning
+    from millsense.estimation.feed.estimator import measurement_model
 
     m = _bank(axis, 1).models[0]
     f = np.concatenate([np.arange(0.0, 300.0, 0.05), np.arange(300.0, 1000.5, 1.0)])
@@ -530,13 +530,13 @@ def robustness(axis: str) -> dict[str, float]:
 
     Plants: the identified Φ_d with every mode frequency × (1 + s) in series with the C3
     low-pass (what the estimator's own tuning evaluates); estimators: the smoothed output of the
-    robust design (:func:`~millsense.estimation.tuning.tune_robust` for ±2 %, the
+    robust design (:func:`~millsense.estimation.feed.tuning.tune_robust` for ±2 %, the
     ``mode_shift_pct = 2`` option) and of the design tuned on the identified model alone
     (``tune_q``, the default).
     """
-    from millsense.estimation import tuning
-    from millsense.estimation.feed_drive import ASLAN_LAG_SAMPLES, measurement_model
-    from millsense.estimation.kalman import bandwidth_3db
+    from millsense.estimation.feed import tuning
+    from millsense.estimation.feed.estimator import ASLAN_LAG_SAMPLES, measurement_model
+    from millsense.estimation.kalman.design import bandwidth_3db
 
     _, model, _ = _identified(axis)
     fit, lp, dt = model.disturbance, model.lowpass_hz, model.dt
@@ -726,13 +726,13 @@ def v1_run(
     the start of the record, i.e. through the 0.5 s air phase) and the 2 teeth;
     ``harmonic_q_ratio`` overrides κ (default the estimator's).
     """
-    from millsense.estimation.feed_drive import (
+    from millsense.estimation.feed.estimator import (
         HARMONIC_Q_RATIO,
         SPINDLE_SPEED_CMD,
         FeedAxisEstimator,
     )
-    from millsense.estimation.smoother import ASLAN_LAG_SAMPLES
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.estimation.kalman.smoother import ASLAN_LAG_SAMPLES
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     table, feed, tooth_hz = _v1_cut(rpm)
     n = len(table[axis])
@@ -770,12 +770,12 @@ def v1_condition(axis: str, rpm: float) -> OperatingCondition:
     """Operating condition of ``axis`` in the V1 cut at ``rpm``, from the commanded speed only.
 
     The CNC commands the feed on X and nothing on Y (it holds position), so
-    :func:`~millsense.estimation.feed_drive.operating_condition` of the commanded motor speed
+    :func:`~millsense.estimation.feed.estimator.operating_condition` of the commanded motor speed
     picks the moving model for X and the at-rest model for Y.
     """
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.estimation.feed_drive import operating_condition
+    from millsense.estimation.feed.estimator import operating_condition
 
     _, feed, _ = _v1_cut(rpm)
     lead = load_preset(MachineConfig, "quaser-ux600").axis(axis).transmission_m_rad
@@ -793,7 +793,7 @@ def v1_errors() -> dict[str, list[tuple[float, float, float, float]]]:
     random-walk design (Aslan Eq. 3.21–3.23, the model the thesis used) and the harmonic
     design (Eq. 3.16–3.20, tooth harmonics ≤ 200 Hz from the commanded spindle speed).
     """
-    from millsense.machine.drive_mismatch import perturbed_drive
+    from millsense.simulator.drive_mismatch import perturbed_drive
 
     out: dict[str, list[tuple[float, float, float, float]]] = {"x": [], "y": []}
     for axis in ("x", "y"):
@@ -889,16 +889,16 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     1 Hz lines on the tooth harmonics; ``band_hz``: the ±3 dB band; ``at_lines``: largest
     complex error |H − 1| on the tooth-harmonic lines.
     """
-    from millsense.estimation.feed_drive import (
+    from millsense.estimation.feed.estimator import (
         SPINDLE_SPEED_CMD,
         FeedAxisEstimator,
         tooth_harmonics,
     )
-    from millsense.estimation.kalman import bandwidth_3db
+    from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
-    from millsense.machine.commissioning import ramp_move
-    from millsense.machine.drive_mismatch import perturbed_drive
-    from millsense.machine.feed_drive import FeedDriveSim
+    from millsense.simulator.commissioning import ramp_move
+    from millsense.simulator.drive_mismatch import perturbed_drive
+    from millsense.simulator.feed_drive import FeedDriveSim
 
     params, model, _ = _identified(axis)
     machine = perturbed_drive(params, frequency_scale=1.0)

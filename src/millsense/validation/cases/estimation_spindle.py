@@ -1,7 +1,7 @@
 """Acceptance of the spindle torque observer on the simulated Quaser spindle (issue 7 item 3).
 
 The observer is identified on the spindle simulator (Aslan Ch. 5 model, machine.spindle) by
-:func:`millsense.estimation.spindle_observer.identify_spindle` — range 1 at standstill, range 2
+:func:`millsense.bench.spindle_commissioning.identify_spindle` — range 1 at standstill, range 2
 at 4000 rev/min, as in the thesis' sweeps (digest P7) — and tuned by Nelder–Mead
 (:func:`~millsense.estimation.spindle_observer.tune_spindle_q`); it never sees the simulator's
 matrices.
@@ -29,7 +29,7 @@ from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
     from millsense.estimation.spindle_observer import SpindleIdentification, SpindleTuning
-    from millsense.machine.friction import CoulombViscous
+    from millsense.models.friction import CoulombViscous
 
 FS_HZ = 10_000.0
 NOISE_A = 0.01
@@ -40,8 +40,9 @@ V6_THESIS = (0.15, 0.18, 0.32, 0.19, 0.27, 0.24)
 @cache
 def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
     """Identified and tuned observer design per speed range (0: range 1, 1: range 2)."""
-    from millsense.estimation.spindle_observer import identify_spindle, tune_spindle_q
-    from millsense.machine.spindle import SpindleDriveParams
+    from millsense.bench.spindle_commissioning import identify_spindle
+    from millsense.estimation.spindle_observer import tune_spindle_q
+    from millsense.models.spindle_plant import SpindleDriveParams
 
     params = SpindleDriveParams.aslan_quaser()
     out: dict[int, tuple[SpindleIdentification, SpindleTuning]] = {}
@@ -56,8 +57,8 @@ def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
 @cache
 def friction() -> CoulombViscous:
     """Spindle friction identified through the observers from air runs."""
-    from millsense.estimation.spindle_observer import identify_spindle_friction
-    from millsense.machine.spindle import SpindleDriveParams
+    from millsense.bench.spindle_commissioning import identify_spindle_friction
+    from millsense.models.spindle_plant import SpindleDriveParams
 
     designs = {k: v[1].design for k, v in observers().items()}
     return identify_spindle_friction(
@@ -68,13 +69,10 @@ def friction() -> CoulombViscous:
 @cache
 def flatness() -> dict[int, tuple[float, float, float]]:
     """Per range: (worst |dB| of the true compensated FRF 1–2500 Hz, ±3 dB band Hz, states)."""
-    from millsense.estimation.kalman import bandwidth_3db
+    from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.estimation.spindle_observer import compensated
-    from millsense.machine.spindle import (
-        SpindleDriveParams,
-        SpindleDriveSim,
-        discrete_disturbance_frf,
-    )
+    from millsense.models.spindle_plant import SpindleDriveParams
+    from millsense.simulator.spindle import SpindleDriveSim, discrete_disturbance_frf
 
     params = SpindleDriveParams.aslan_quaser()
     sim_v = SpindleDriveSim(params, 1.0 / params.velocity_period_s)
@@ -114,12 +112,13 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.spindle_observer import SpindleTorqueObserver
-    from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
-    from millsense.online.block import Chunk
+    from millsense.models.spindle_plant import SpindleDriveParams
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
+    from millsense.simulator.spindle import SpindleDriveSim
+    from millsense.streaming.block import Chunk
 
     params = SpindleDriveParams.aslan_quaser()
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))

@@ -1,6 +1,6 @@
 """Validation cases of :mod:`millsense.ident` items 3–6 (issue 6): friction, drive, spindle, idle.
 
-Every case runs the simulated commissioning test (:mod:`millsense.machine.commissioning`) on
+Every case runs the simulated commissioning test (:mod:`millsense.simulator.commissioning`) on
 a preset with known truth and the preset's noise, identifies, and compares with the preset:
 
 - friction: Aslan Z axis (the X/Y rows of Table 3.2 have no Stribeck rise, decision "Quaser
@@ -8,7 +8,7 @@ a preset with known truth and the preset's noise, identifies, and compares with 
 - drive: Yamada machines A and B (Table 3-3), encoder/scale quantisation and the §3.6
   position-periodic disturbances as the noise;
 - spindle: the Quaser spindle of Aslan Ch. 5; truth = the simulator's own steady-state sine
-  response (:func:`millsense.machine.spindle.measured_frf`);
+  response (:func:`millsense.simulator.spindle.measured_frf`);
 - idle: Yamada A and B air cuts at 600 mm/min, a 50 N cut at the same feed.
 """
 
@@ -26,8 +26,9 @@ from millsense.ident import drive as dr
 from millsense.ident import friction as fr
 from millsense.ident import spindle as isp
 from millsense.ident.idle_table import build_idle_table, periodic_amplitude
-from millsense.machine import commissioning as cm
-from millsense.machine.spindle import SpindleDriveParams, measured_frf
+from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator import commissioning as cm
+from millsense.simulator.spindle import measured_frf
 from millsense.validation import Measured, case
 
 _SRC_F = "seed 000 Table 3.2 (Z axis), Eq. 3.2-3.4; issue 6 item 3"

@@ -1,4 +1,4 @@
-"""Validation cases of the feed drives (:mod:`millsense.machine.feed_drive` and friends).
+"""Validation cases of the feed drives (:mod:`millsense.simulator.feed_drive` and friends).
 
 Every FRF here is measured the way a machine is: a sine sweep through the time-domain simulator,
 then the ratio of the Fourier transforms of the recorded output and input — an independent
@@ -17,9 +17,9 @@ from scipy.signal import find_peaks
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.machine.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
-from millsense.machine.lugre import LuGre
-from millsense.machine.modal_ss import ModalStateSpace
+from millsense.models.lugre import LuGre
+from millsense.models.modal_ss import ModalStateSpace
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
 from millsense.validation import Measured, case
 
 
@@ -149,7 +149,7 @@ case(
 
 def _eq313_peak_hz(axis: str) -> float:
     """Frequency of the maximum of |Eq. 3.13| with the preset's printed modes (0.01 Hz grid)."""
-    from millsense.machine.modal_ss import ModalStateSpace
+    from millsense.models.modal_ss import ModalStateSpace
 
     cfg = load_preset(MachineConfig, "quaser-ux600").axis(axis).disturbance_modes
     assert cfg is not None

@@ -26,7 +26,7 @@ def _poses(n: int = 200) -> np.ndarray:
     description="max |J − finite-difference ∂P/∂q| over 200 random trunnion poses, h = 1e-6",
 )
 def _jacobian_fd() -> Measured:
-    from millsense.machine.kinematics import TrunnionACKinematics
+    from millsense.models.kinematics import TrunnionACKinematics
 
     kin = TrunnionACKinematics()
     q = _poses()
@@ -51,7 +51,7 @@ def _jacobian_fd() -> Measured:
     description="max |F − pinv(Jᵀ·T)·Jᵀ·T·F| for 200 poses and random 500 N forces",
 )
 def _force_roundtrip() -> float:
-    from millsense.machine.kinematics import TrunnionACKinematics
+    from millsense.models.kinematics import TrunnionACKinematics
 
     kin = TrunnionACKinematics()
     q = _poses()

@@ -1,10 +1,10 @@
 """Validation cases of the plan-driven virtual machine (issues 4 and 5 joined).
 
-A virtual plan (:func:`millsense.virtual.plan.plan_program`) drives the simulator: its rows
-are the path, :class:`~millsense.virtual.plan_engagement.PlanEngagement` the engagement, the
+A virtual plan (:func:`millsense.plan.virtual_plan.plan_program`) drives the simulator: its rows
+are the path, :class:`~millsense.plan.plan_engagement.PlanEngagement` the engagement, the
 plan's metadata the tool and coefficients. The simulated truth channels are compared with the
 plan's predictions, and the simulated 333 Hz TCP stream is matched back to the plan
-(:meth:`~millsense.virtual.plan.VirtualPlan.match`, seed 000 C15).
+(:meth:`~millsense.plan.virtual_plan.VirtualPlan.match`, seed 000 C15).
 
 Machine: ``quaser-ux600`` reduced to its X, Y, Z drives (the demo part and the slot are
 3-axis programs at A = C = 0; the level trunnion table is the 3-axis machine, decision
@@ -24,20 +24,20 @@ import numpy as np
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
 from millsense.core.units import MM
-from millsense.machine.process_coupling import ProcessCoupling
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.geometry import EndMill
-from millsense.validation import Measured, case
-from millsense.virtual.gcode import interpret, interpret_file
-from millsense.virtual.plan import (
+from millsense.plan.gcode import interpret, interpret_file
+from millsense.plan.plan_engagement import PlanEngagement, plan_path
+from millsense.plan.stock import ZMapStock
+from millsense.plan.virtual_plan import (
     VirtualPlan,
     coefficients_from_metadata,
     plan_program,
     tool_from_metadata,
 )
-from millsense.virtual.plan_engagement import PlanEngagement, plan_path
-from millsense.virtual.stock import ZMapStock
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.geometry import EndMill
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import ProcessCoupling
+from millsense.validation import Measured, case
 
 FS = 10000.0
 DEMO = Path(__file__).resolve().parents[4] / "examples" / "demo_part"

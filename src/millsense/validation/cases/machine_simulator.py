@@ -1,4 +1,4 @@
-"""Validation cases of the virtual machine (:mod:`millsense.machine.simulator`)."""
+"""Validation cases of the virtual machine (:mod:`millsense.simulator.machine`)."""
 
 from __future__ import annotations
 
@@ -8,17 +8,17 @@ import numpy as np
 
 from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
-from millsense.machine.process_coupling import (
+from millsense.process.coefficients import CuttingCoefficients
+from millsense.process.engagement import Engagement
+from millsense.process.geometry import EndMill
+from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.process_coupling import (
     EngagementSchedule,
     ProcessCoupling,
     ToolModes,
     ToothBreak,
 )
-from millsense.machine.sensors import SensorOptions
-from millsense.machine.simulator import Job, MachineSimulator, SimulatorOptions
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.engagement import Engagement
-from millsense.process.geometry import EndMill
+from millsense.simulator.sensors import SensorOptions
 from millsense.stability.time_domain import DirectionModes
 from millsense.validation import Measured, case
 
@@ -174,8 +174,8 @@ def _flags() -> Measured:
     "acceleration ramps (was 19.04 mm/s with a stop-anticipating limit at every vertex)",
 )
 def _sampled_path_feed() -> Measured:
-    from millsense.virtual.gcode import interpret
-    from millsense.virtual.path import sample_path
+    from millsense.plan.gcode import interpret
+    from millsense.plan.path import sample_path
 
     prog = "G21 G90 G17\nS6000 M3\nG1 X0 Y0 Z0 F1200\nG1 X20\nG2 X40 Y0 R50\nM30\n"
     job = Job.from_sampled_path(sample_path(interpret(prog)), five_axis=True)

@@ -17,7 +17,7 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
-    from millsense.machine.spindle import SpindleDriveParams
+    from millsense.models.spindle_plant import SpindleDriveParams
 
 _GAP = (
     "the printed coefficients of Aslan Eq. 5.3, 5.7, 5.8 and App. E do not reproduce the "
@@ -29,7 +29,7 @@ _STATED_ATT = ((457.0, -32.0), (945.0, -39.0), (1380.0, -31.0), (1811.0, -35.0),
 
 
 def _params() -> SpindleDriveParams:
-    from millsense.machine.spindle import SpindleDriveParams
+    from millsense.models.spindle_plant import SpindleDriveParams
 
     return SpindleDriveParams.aslan_quaser()
 
@@ -48,7 +48,8 @@ def _attenuation_case(f_hz: float, stated_db: float) -> None:
         "(documented gap, not tuned)",
     )
     def _att() -> Measured:
-        from millsense.machine.spindle import disturbance_frf, measured_frf
+        from millsense.models.spindle_plant import disturbance_frf
+        from millsense.simulator.spindle import measured_frf
 
         p = _params()
         model_db = 20 * math.log10(abs(disturbance_frf(p, np.array([f_hz]))[0]))
@@ -76,7 +77,7 @@ for _f, _db in _STATED_ATT:
     gap=_GAP,
 )
 def _cur_bw1() -> float:
-    from millsense.machine.spindle import current_loop_bandwidth_hz
+    from millsense.models.spindle_plant import current_loop_bandwidth_hz
 
     return current_loop_bandwidth_hz(_params(), 0)
 
@@ -92,7 +93,7 @@ def _cur_bw1() -> float:
     gap=_GAP,
 )
 def _cur_bw2() -> float:
-    from millsense.machine.spindle import current_loop_bandwidth_hz
+    from millsense.models.spindle_plant import current_loop_bandwidth_hz
 
     return current_loop_bandwidth_hz(_params(), 1)
 
@@ -108,7 +109,7 @@ def _cur_bw2() -> float:
     gap=_GAP,
 )
 def _vel_bw1() -> float:
-    from millsense.machine.spindle import velocity_loop_bandwidth_hz
+    from millsense.models.spindle_plant import velocity_loop_bandwidth_hz
 
     return velocity_loop_bandwidth_hz(_params(), 0)
 
@@ -123,7 +124,7 @@ def _vel_bw1() -> float:
     description="−3 dB bandwidth of the printed G_m1 (Eq. 5.8), independent of the model build",
 )
 def _printed_bw() -> float:
-    from millsense.machine.spindle import current_loop_bandwidth_hz
+    from millsense.models.spindle_plant import current_loop_bandwidth_hz
 
     return current_loop_bandwidth_hz(_params(), 0, printed=True)
 
@@ -141,7 +142,7 @@ def _printed_bw() -> float:
 def _time_vs_frf() -> Measured:
     from dataclasses import replace
 
-    from millsense.machine.spindle import SpindleDriveSim, discrete_disturbance_frf, measured_frf
+    from millsense.simulator.spindle import SpindleDriveSim, discrete_disturbance_frf, measured_frf
 
     p = replace(_params(), velocity_period_s=1e-4)
     sim = SpindleDriveSim(p)

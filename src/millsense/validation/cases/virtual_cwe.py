@@ -1,8 +1,8 @@
-"""Validation cases of :mod:`millsense.virtual` engagement (z-map CWE) — issue 4 acceptance.
+"""Validation cases of :mod:`millsense.plan` engagement (z-map CWE) — issue 4 acceptance.
 
 Set-up shared by the cases: a block from z = 0 to 20 mm on a 0.1 mm grid, a straight
 2-flute Ø20 mm flat end mill (seed 000's tool without helix), 0.4 mm path steps along +x,
-0.5° angle bins. Angle tolerances follow :mod:`millsense.virtual.cwe`: one bin plus
+0.5° angle bins. Angle tolerances follow :mod:`millsense.plan.cwe`: one bin plus
 1.5 h/(R |sin φ|) at a boundary crossing the periphery at φ.
 """
 
@@ -12,13 +12,13 @@ import math
 
 import numpy as np
 
+from millsense.plan.cwe import EngagementResult, compute_engagement
+from millsense.plan.stock import ZMapStock
 from millsense.process.closed_forms import slot_average_forces
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
 from millsense.validation import Measured, case
-from millsense.virtual.cwe import EngagementResult, compute_engagement
-from millsense.virtual.stock import ZMapStock
 
 _H = 1e-4
 _R = 10e-3

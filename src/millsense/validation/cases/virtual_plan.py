@@ -2,7 +2,7 @@
 
 Set-up: a block z ∈ [0, 20] mm on a 0.1 mm grid, 0.4 mm path steps along +x, slotting at
 y = 20 mm; the figures are read at x = 30 mm (steady). Predictions come from
-:func:`millsense.virtual.predict.predict_states` (signature grouping, machine frame).
+:func:`millsense.plan.predict.predict_states` (signature grouping, machine frame).
 """
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ import math
 
 import numpy as np
 
+from millsense.plan.cwe import compute_engagement
+from millsense.plan.predict import ProcessPrediction, predict_states
+from millsense.plan.stock import ZMapStock
 from millsense.process.closed_forms import slot_average_forces
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.validation import Measured, case
-from millsense.virtual.cwe import compute_engagement
-from millsense.virtual.predict import ProcessPrediction, predict_states
-from millsense.virtual.stock import ZMapStock
 
 _TOP = 0.02
 _FEED = 400.0 / 60e3  # m/s, seed 000: 400 mm/min

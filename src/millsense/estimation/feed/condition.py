@@ -1,0 +1,124 @@
+"""Feed-axis estimator that follows the axis' operating condition (moving or holding).
+
+Decision "Holding axis: Φ_d and R identified at rest" (docs/decisions.md): an axis that holds
+position while the others cut feels the load partly through its friction bristles (LuGre
+presliding, Aslan Eq. 3.2–3.3), so its disturbance path differs from the one measured in a
+move; the model must come from the condition the axis runs in, chosen by the CNC's command.
+:class:`OperatingConditionFeedEstimator` runs the moving and the at-rest estimators of one
+axis side by side and blends their outputs by the commanded motor speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.core.recording import ChannelInfo
+from millsense.estimation.feed.commanded import CommandedVelocity
+from millsense.estimation.feed.estimator import REST_SPEED_RAD_S, FeedAxisEstimator
+from millsense.streaming.block import Block, BlockOutput, Chunk
+
+#: Width of the blend between the two models around a change of condition, s.
+CROSSFADE_S = 0.005
+
+
+class OperatingConditionFeedEstimator(Block):
+    """The moving and the at-rest feed estimators of an axis, blended by the command.
+
+    Parameters
+    ----------
+    moving, at_rest : the axis' estimators on the models identified in a move and at rest
+        (same axis, same smoother lag, same outputs).
+    transmission : r_g of the axis, m/rad (rad/rad rotary): the commanded motor speed is
+        ``Δx_cmd·f_s/r_g``.
+    rest_speed_rad_s : largest |commanded motor speed| of an axis that holds, rad/s
+        (:data:`~millsense.estimation.feed.estimator.REST_SPEED_RAD_S`).
+    crossfade_s : width of the centred blend around a change of condition, s (at most twice
+        the lag: the blend for output sample k uses commands up to k).
+
+    Reads both estimators' inputs and ``{axis}/position_cmd`` (the interpolator's commanded
+    position, m; rad rotary); writes their outputs, delayed by the common lag L: output sample
+    k is ``w·at_rest + (1 − w)·moving`` with ``w`` the fraction of the commanded speeds
+    within ±rest_speed over the ``crossfade_s`` window centred on sample k − L (the sample the
+    estimate belongs to). Both estimators run on every sample, so a change of condition needs
+    no start-up and streaming equals batch.
+    """
+
+    def __init__(
+        self,
+        moving: FeedAxisEstimator,
+        at_rest: FeedAxisEstimator,
+        transmission: float,
+        *,
+        rest_speed_rad_s: float = REST_SPEED_RAD_S,
+        crossfade_s: float = CROSSFADE_S,
+    ) -> None:
+        ax = moving.model.axis
+        self.name = f"feed_force_{ax}_condition"
+        if at_rest.model.axis != ax or at_rest.lag != moving.lag:
+            raise ConfigError(f"block {self.name}: the two estimators differ in axis or lag")
+        if not (transmission > 0 and rest_speed_rad_s >= 0 and crossfade_s >= 0):
+            raise ConfigError(
+                f"block {self.name}: transmission > 0, rest speed and crossfade >= 0 needed"
+            )
+        self.moving, self.at_rest = moving, at_rest
+        self.lag = moving.lag
+        self.transmission = float(transmission)
+        self.rest_speed = float(rest_speed_rad_s)
+        self.crossfade_s = float(crossfade_s)
+        self._cmd = CommandedVelocity(ax)
+        self.position_channel = self._cmd.channel
+        self.inputs = tuple(dict.fromkeys((*moving.inputs, *at_rest.inputs, self.position_channel)))
+        self._half = 0
+        self._hist: NDArray[np.float64] = np.zeros(0)
+        self._started = False
+
+    @property
+    def delay_samples(self) -> int:
+        return self.lag
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [
+            ChannelInfo(c.name, c.unit, c.description + ", moving/at-rest by the command")
+            for c in self.moving.output_channels()
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.moving.reset(sample_rate_hz)
+        self.at_rest.reset(sample_rate_hz)
+        self._cmd.reset(sample_rate_hz)
+        self._half = min(self.lag, round(0.5 * self.crossfade_s * sample_rate_hz))
+        self._hist = np.zeros(0)
+        self._started = False
+
+    def rest_weight(self, position_cmd: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Weight of the at-rest model for the output samples of one chunk (state carried)."""
+        pos = np.asarray(position_cmd, dtype=np.float64)
+        if not np.all(np.isfinite(pos)):
+            raise InputDataError(f"block {self.name}: non-finite {self.position_channel}")
+        n = len(pos)
+        if n == 0:
+            return np.zeros(0)
+        speed = self._cmd(pos) / self.transmission
+        rest = (np.abs(speed) <= self.rest_speed).astype(np.float64)
+        if not self._started:
+            # before the stream the axis stood in the condition of its first command
+            self._hist = np.full(self.lag + self._half, rest[0])
+            self._started = True
+        allr = np.concatenate([self._hist, rest])
+        # output sample j of this chunk belongs to input (global) j − L: its window is
+        # [j − L − h, j − L + h]; allr index of global input i is i − start + len(hist)
+        width = 2 * self._half + 1
+        csum = np.concatenate([[0.0], np.cumsum(allr)])
+        first = np.arange(n)  # window start in allr for output j: j + len(hist) − L − h = j
+        w = (csum[first + width] - csum[first]) / width
+        self._hist = allr[-(self.lag + self._half) :] if self.lag + self._half else np.zeros(0)
+        return np.asarray(w)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        w = self.rest_weight(np.asarray(chunk.data[self.position_channel], dtype=np.float64))
+        om = self.moving.process(chunk).channels
+        orr = self.at_rest.process(chunk).channels
+        out = {k: w * np.asarray(orr[k]) + (1.0 - w) * np.asarray(v) for k, v in om.items()}
+        return BlockOutput(out)

@@ -1,1 +1,0 @@
-"""millsense.machine."""

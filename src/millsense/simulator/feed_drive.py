@@ -1,0 +1,754 @@
+"""Feed-drive simulator: one kernel for rigid, structural-mode and ball-screw drives.
+
+Plant. A linear mechanical part ``ẋ = A x + B u`` with inputs ``u = [τ_m, F, δ]`` — net motor
+torque (N·m), load at the table (N for linear axes, N·m for rotary; positive resists +motion)
+and kinematic screw error (m) — built by :func:`rigid_plant` (Aslan Eq. 3.1) or by
+:mod:`.ball_screw` (Yamada Eq. 2-1/2-2 dual inertia, Eq. 2-45…2-47 triple inertia). Nonlinear
+and position-dependent parts act on the motor: friction (Coulomb + viscous, or LuGre Aslan
+Eq. 3.2–3.9), position-periodic torques (Yamada §3.6), white torque noise (Aslan Eq. 3.30).
+Optionally the load reaches the motor through structural disturbance modes
+``τ_c = Φ_d(s)·τ_a`` with ``τ_a = (r_g/η)·F`` (Aslan Eq. 3.11, 3.13, Table 3.4), realised in
+balanced 2×2 modal blocks (:mod:`.modal_ss`): then the motor equation is
+``J_e·dω/dt = K_t·i − τ_f − τ_c`` (Eq. 3.1) and the load does not act on the plant directly.
+
+Controller at the sample rate: position P (gain K_v; motor encoder or linear scale feedback),
+velocity PI (K_p, K_i) on the backward difference of the motor encoder, velocity
+feed-forward; ``i_cmd = τ_cmd/K_t`` plus an optional injected current (for sine sweeps).
+Actuation: dead time T_s, then a current loop — first order of the given bandwidth, or a PI on
+the motor electrics ``L di/dt = u − R i − K_e ω``. Sensors: motor encoder quantised to its
+counts, linear scale to its resolution, each after its interpolation error and dead time
+(T_m, T_t; Yamada Table 3-3).
+
+Position-dependent modes (optional, decision "Position-dependent disturbance modes"): every
+mode frequency follows the true load position x, ``f_k(x) = f_k0·λ(x)``, ``λ = 1 + κ·(x − x_ref)``,
+with the mode shape kept (``Φ_k(s; λ) = Φ_k0(s/λ)``: α × λ², β × λ, ζ and the static gain
+unchanged). In the balanced block of :mod:`.modal_ss` with B held at its reference value this is
+``A = λ·A_0``, ``C = λ·C_0``; the blocks are re-discretised in closed form (rotation × decay)
+from the position at the start of every ``mode_update_s`` (1 ms: < 0.1 mm of travel at cutting
+feeds), counted in absolute samples so that chunking does not matter.
+
+Integration: ``substeps`` steps per sample; the linear mechanics and each modal block are
+advanced by their exact zero-order-hold maps, friction and position-periodic terms held over a
+substep (LuGre's bristle state integrated exactly for the held speed, :mod:`.lugre`). Dead
+times are rounded to whole substeps. All state lives in arrays, so :meth:`FeedDriveSim.advance`
+called chunk by chunk is bit-identical to one call.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numba
+import numpy as np
+import scipy.linalg
+
+from millsense.core import units
+from millsense.core.config import FeedAxisConfig
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.models.drive_plant import (
+    KIND_MOTOR_ENCODER,
+    KIND_SCALE,
+    KIND_SCREW,
+    KIND_TORQUE,
+    OUT_A,
+    OUT_ALPHA,
+    OUT_OMEGA,
+    OUT_THETA,
+    OUT_V,
+    OUT_X,
+    MechanicalPlant,
+    PeriodicTerm,
+    rigid_plant,
+)
+from millsense.models.friction import CoulombViscous, coulomb_viscous_torque
+from millsense.models.lugre import LuGre, lugre_step
+from millsense.models.modal_ss import ModalStateSpace
+
+
+@dataclass(frozen=True)
+class ElectricalCurrentLoop:
+    """PI current loop on the motor electrics ``L di/dt = u − R·i − K_e·ω``.
+
+    Attributes: resistance Ω, inductance H, back_emf V·s/rad, kp V/A, ki V/(A·s).
+    ``designed`` sets ``kp = L·ω_cc``, ``ki = R·ω_cc`` (pole–zero cancellation, closed loop
+    ω_cc/(s + ω_cc) apart from the back-EMF).
+    """
+
+    resistance: float
+    inductance: float
+    back_emf: float
+    kp: float
+    ki: float
+
+    @classmethod
+    def designed(
+        cls, resistance: float, inductance: float, back_emf: float, bandwidth_hz: float
+    ) -> ElectricalCurrentLoop:
+        wc = 2.0 * math.pi * bandwidth_hz
+        return cls(resistance, inductance, back_emf, inductance * wc, resistance * wc)
+
+
+@dataclass(frozen=True)
+class FeedDriveParams:
+    """SI parameters of a feed drive, its friction, sensors and cascade controller.
+
+    Attributes
+    ----------
+    plant : linear mechanics.
+    torque_constant : K_t, N·m/A.
+    transmission : r_g, m/rad (rad/rad rotary).
+    efficiency : η.
+    friction : Coulomb + viscous, LuGre, or None.
+    kp : velocity-loop proportional gain, N·m·s/rad.
+    ki : velocity-loop integral gain, N·m/rad.
+    kv : position-loop gain, 1/s.
+    current_bandwidth_hz : first-order current loop, Hz (ignored when ``current_loop`` set).
+    encoder_counts_rev : motor encoder counts per revolution.
+    torque_noise_nm : RMS white torque disturbance per sample, N·m.
+    current_loop : PI loop on motor electrics, or None for the first-order loop.
+    scale_resolution_m : linear-scale count, m (None: no scale, the channel is the true one).
+    position_feedback : ``motor`` (semi-closed) or ``scale`` (full-closed).
+    dead_time_amplifier_s, dead_time_motor_encoder_s, dead_time_scale_s : T_s, T_m, T_t, s.
+    modes : structural disturbance modes Φ_d (rigid plants), or None.
+    periodic : position-periodic terms.
+    closed_loop : False runs the drive on the injected current alone (controller off).
+    mode_shift_per_m : κ, relative change of every disturbance-mode frequency per unit of load
+        position, 1/m (1/rad rotary); 0 = modes independent of position.
+    mode_reference_position : x_ref, load position at which ``modes`` hold, m (rad rotary).
+    mode_update_s : interval at which the modes follow the position, s (rounded to samples).
+    """
+
+    plant: MechanicalPlant
+    torque_constant: float
+    transmission: float
+    efficiency: float
+    friction: CoulombViscous | LuGre | None
+    kp: float
+    ki: float
+    kv: float
+    current_bandwidth_hz: float
+    encoder_counts_rev: int
+    torque_noise_nm: float = 0.0
+    current_loop: ElectricalCurrentLoop | None = None
+    scale_resolution_m: float | None = None
+    position_feedback: Literal["motor", "scale"] = "motor"
+    dead_time_amplifier_s: float = 0.0
+    dead_time_motor_encoder_s: float = 0.0
+    dead_time_scale_s: float = 0.0
+    modes: ModalStateSpace | None = None
+    periodic: tuple[PeriodicTerm, ...] = field(default_factory=tuple)
+    closed_loop: bool = True
+    mode_shift_per_m: float = 0.0
+    mode_reference_position: float = 0.0
+    mode_update_s: float = 1e-3
+
+    def mode_scale(self, position: float | np.ndarray) -> float | np.ndarray:
+        """λ(x) = 1 + κ·(x − x_ref): the factor on every mode frequency at load position x (m,
+        rad rotary)."""
+        return 1.0 + self.mode_shift_per_m * (np.asarray(position) - self.mode_reference_position)
+
+    def modes_at(self, position: float) -> ModalStateSpace | None:
+        """The disturbance modes at a fixed load position x (m; rad rotary), Eq. 3.13 form.
+
+        Frequencies × λ(x), α × λ², β × λ (the same mode shape on a scaled frequency axis,
+        ``Φ(s/λ)``), damping ratios and feed-through unchanged; None without modes.
+        """
+        if self.modes is None:
+            return None
+        lam = float(self.mode_scale(position))
+        if not lam > 0:
+            raise InputDataError(
+                f"feed drive: mode frequency factor {lam:g} at position {position:g} (need > 0)"
+            )
+        return self.modes.frequency_scaled(lam)
+
+    @classmethod
+    def from_config(
+        cls,
+        axis: FeedAxisConfig,
+        *,
+        friction: Literal["auto", "lugre", "coulomb_viscous", "none"] = "auto",
+        modes: bool = True,
+        periodic: bool = True,
+    ) -> FeedDriveParams:
+        """From a machine axis (rigid or ball screw, with its modes and disturbances).
+
+        Parameters
+        ----------
+        axis : the axis table of a machine file.
+        friction : ``auto`` uses LuGre when the friction table has all LuGre keys, else
+            Coulomb + viscous.
+        modes : include ``disturbance_modes`` if the axis has them.
+        periodic : include ``periodic_disturbances``.
+
+        Notes
+        -----
+        Servo gains as in :class:`~millsense.simulator.rigid_drive.RigidDriveParams` (decision
+        "feed-drive servo gains"), with the total reflected inertia of the plant:
+        ``K_p = J·ω_c``, ``K_i = K_p·ω_c/4``, ``K_v = ω_c/4`` unless given.
+        """
+        from millsense.models import ball_screw
+
+        if axis.ball_screw is not None:
+            plant = ball_screw.plant_from_config(axis)
+        else:
+            plant = rigid_plant(axis.inertia_kg_m2, axis.transmission_m_rad, axis.efficiency)
+        fric: CoulombViscous | LuGre | None
+        lugre_keys = (
+            axis.friction.sigma0_nm_rad,
+            axis.friction.sigma1_nm_s_rad,
+            axis.friction.static_nm,
+            axis.friction.stribeck_velocity_rad_s,
+        )
+        if friction == "none":
+            fric = None
+        elif friction == "lugre" or (friction == "auto" and all(k is not None for k in lugre_keys)):
+            fric = LuGre.from_config(axis.friction, "axis friction")
+        else:
+            fric = CoulombViscous.from_config(axis.friction)
+        wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
+        kp = axis.velocity_kp_nm_s_rad or plant.inertia * wc
+        ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0
+        mss = None
+        if modes and axis.disturbance_modes is not None:
+            mss = ModalStateSpace.from_config(axis.disturbance_modes)
+        terms = (
+            ball_screw.periodic_terms(axis.periodic_disturbances, axis.transmission_m_rad)
+            if periodic
+            else ()
+        )
+        return cls(
+            plant=plant,
+            torque_constant=axis.torque_constant_nm_a,
+            transmission=axis.transmission_m_rad,
+            efficiency=axis.efficiency,
+            friction=fric,
+            kp=kp,
+            ki=ki,
+            kv=axis.position_gain_1_s or wc / 4.0,
+            current_bandwidth_hz=axis.current_bandwidth_hz,
+            encoder_counts_rev=axis.encoder_counts_rev,
+            torque_noise_nm=axis.current_noise_a * axis.torque_constant_nm_a,
+            scale_resolution_m=(
+                axis.scale_resolution_nm * 1e-9 if axis.scale_resolution_nm is not None else None
+            ),
+            position_feedback=axis.position_feedback,
+            dead_time_amplifier_s=axis.dead_time_amplifier_ms * 1e-3,
+            dead_time_motor_encoder_s=axis.dead_time_motor_encoder_ms * 1e-3,
+            dead_time_scale_s=axis.dead_time_scale_ms * 1e-3,
+            modes=mss,
+            periodic=terms,
+            mode_shift_per_m=axis.mode_shift_pct_per_100mm / 100.0 / (100.0 * units.MM),
+            mode_reference_position=axis.mode_reference_mm * units.MM,
+        )
+
+
+# scalar state layout
+_Z, _I_ACT, _I_INT, _V_INT, _ENC_PREV, _TAU_F, _TAU_C = 0, 1, 2, 3, 4, 5, 6
+_N_SCALARS = 7
+# integer parameters
+_IP_SUB, _IP_DS, _IP_DM, _IP_DT, _IP_FRIC, _IP_CUR, _IP_FB, _IP_CLOSED = range(8)
+# float parameters
+(_P_KT, _P_KP, _P_KI, _P_KV, _P_ACUR, _P_QENC, _P_QLIN, _P_RG, _P_LG) = range(9)
+(_P_L, _P_R, _P_KE, _P_KPI, _P_KII) = range(9, 14)
+_N_P = 14
+N_OUT = 13
+
+
+@numba.njit(cache=True)
+def _dot(row: np.ndarray, x: np.ndarray) -> float:
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += row[i] * x[i]
+    return acc
+
+
+@numba.njit(cache=True)
+def _periodic(terms: np.ndarray, kind: int, q: float) -> float:
+    acc = 0.0
+    for j in range(terms.shape[0]):
+        if int(terms[j, 0]) == kind:
+            acc += terms[j, 2] * math.sin(terms[j, 1] * q + terms[j, 3])
+    return acc
+
+
+@numba.njit(cache=True)
+def _rescale_modes(
+    lam: float,
+    ma0: np.ndarray,
+    mb0: np.ndarray,
+    mc0: np.ndarray,
+    h: float,
+    mad: np.ndarray,
+    mbd: np.ndarray,
+    mc: np.ndarray,
+) -> None:
+    """Exact ZOH of the blocks ``A = λ·A_0 = [[σ, ω_d], [−ω_d, σ]]``, ``B = B_0``, ``C = λ·C_0``.
+
+    ``e^{Ah} = e^{σh}·[[cos ω_d h, sin ω_d h], [−sin ω_d h, cos ω_d h]]`` and
+    ``B_d = A⁻¹(e^{Ah} − I)·B_0`` with ``A⁻¹ = [[σ, −ω_d], [ω_d, σ]]/(σ² + ω_d²)``.
+    """
+    for j in range(ma0.shape[0]):
+        sig = lam * ma0[j, 0, 0]
+        wd = lam * ma0[j, 0, 1]
+        e = math.exp(sig * h)
+        c = e * math.cos(wd * h)
+        s = e * math.sin(wd * h)
+        mad[j, 0, 0] = c
+        mad[j, 0, 1] = s
+        mad[j, 1, 0] = -s
+        mad[j, 1, 1] = c
+        m00, m01, m10, m11 = c - 1.0, s, -s, c - 1.0
+        v0 = m00 * mb0[j, 0] + m01 * mb0[j, 1]
+        v1 = m10 * mb0[j, 0] + m11 * mb0[j, 1]
+        den = sig * sig + wd * wd
+        mbd[j, 0] = (sig * v0 - wd * v1) / den
+        mbd[j, 1] = (wd * v0 + sig * v1) / den
+        mc[j, 0] = lam * mc0[j, 0]
+        mc[j, 1] = lam * mc0[j, 1]
+
+
+@numba.njit(cache=True)
+def feed_drive_kernel(
+    xm: np.ndarray,
+    xd: np.ndarray,
+    sc: np.ndarray,
+    ring: np.ndarray,
+    ring_idx: np.ndarray,
+    pos_ref: np.ndarray,
+    vel_ff: np.ndarray,
+    load: np.ndarray,
+    inject: np.ndarray,
+    dist: np.ndarray,
+    ad: np.ndarray,
+    bd: np.ndarray,
+    cy: np.ndarray,
+    dy: np.ndarray,
+    mad: np.ndarray,
+    mbd: np.ndarray,
+    mc: np.ndarray,
+    md: float,
+    fric: np.ndarray,
+    terms: np.ndarray,
+    p: np.ndarray,
+    ip: np.ndarray,
+    dt: float,
+    out: np.ndarray,
+    ma0: np.ndarray,
+    mb0: np.ndarray,
+    mc0: np.ndarray,
+    sched: np.ndarray,
+    sched_block: int,
+    n_done: int,
+) -> None:
+    """Advance the drive by ``len(pos_ref)`` samples (state arrays updated in place).
+
+    ``ring`` is (3, L): current command, motor angle and load position at substep resolution,
+    for the dead times; ``out`` columns are described in :meth:`FeedDriveSim.advance`.
+    Position-dependent modes: when ``sched[0]`` (κ) is not 0 the blocks (``mad``, ``mbd``,
+    ``mc``) are recomputed from the reference blocks (``ma0``, ``mb0``, ``mc0``) at
+    ``λ = 1 + κ·(x − sched[1])`` at every absolute sample ``n_done + k`` that is a multiple
+    of ``sched_block``, x the true load position at that instant.
+    """
+    n = xm.shape[0]
+    nm = xd.shape[0]
+    substeps = ip[_IP_SUB]
+    h = dt / substeps
+    length = ring.shape[1]
+    kt = p[_P_KT]
+    qenc = p[_P_QENC]
+    qlin = p[_P_QLIN]
+    xnew = np.empty(n)
+    u = np.zeros(3)
+    c_th = cy[OUT_THETA].copy()
+    c_om = cy[OUT_OMEGA].copy()
+    c_x = cy[OUT_X].copy()
+    d_x = dy[OUT_X, 2]
+    n_terms = terms.shape[0]
+    has_screw = False
+    for j in range(n_terms):
+        if int(terms[j, 0]) == KIND_SCREW:
+            has_screw = True
+    ds = ip[_IP_DS]
+    kappa = sched[0]
+    for k in range(pos_ref.shape[0]):
+        idx = ring_idx[0]
+        if kappa != 0.0 and nm > 0 and (n_done + k) % sched_block == 0:
+            lam = 1.0 + kappa * (ring[2, idx] - sched[1])
+            if lam < 0.05:
+                lam = 0.05  # beyond any stroke: keep the blocks stable (checked in Python)
+            _rescale_modes(lam, ma0, mb0, mc0, h, mad, mbd, mc)
+        # ---- sensors at the sample instant, after their dead times
+        th_d = ring[1, (idx - ip[_IP_DM]) % length]
+        th_m = th_d + _periodic(terms, KIND_MOTOR_ENCODER, th_d)
+        theta_enc = math.floor(th_m / qenc) * qenc
+        x_d = ring[2, (idx - ip[_IP_DT]) % length]
+        x_m = x_d + _periodic(terms, KIND_SCALE, x_d)
+        x_scale = math.floor(x_m / qlin) * qlin if qlin > 0.0 else x_m
+        omega_meas = (theta_enc - sc[_ENC_PREV]) / dt
+        sc[_ENC_PREV] = theta_enc
+        # ---- cascade controller
+        i_cmd = inject[k]
+        if ip[_IP_CLOSED] == 1:
+            pos_fb = theta_enc if ip[_IP_FB] == 0 else x_scale / p[_P_RG]
+            omega_ref = vel_ff[k] + p[_P_KV] * (pos_ref[k] - pos_fb)
+            err = omega_ref - omega_meas
+            sc[_V_INT] += p[_P_KI] * err * dt
+            i_cmd += (p[_P_KP] * err + sc[_V_INT]) / kt
+        tau_a = p[_P_LG] * load[k]
+        # ---- plant over one sample
+        for _ in range(substeps):
+            idx += 1
+            if idx == length:
+                idx = 0
+            ring[0, idx] = i_cmd
+            j_s = idx - ds
+            if j_s < 0:
+                j_s += length
+            i_ref = ring[0, j_s]
+            omega = _dot(c_om, xm)
+            if ip[_IP_CUR] == 0:
+                sc[_I_ACT] += p[_P_ACUR] * (i_ref - sc[_I_ACT])
+            else:
+                e_i = i_ref - sc[_I_ACT]
+                sc[_I_INT] += p[_P_KII] * e_i * h
+                volt = p[_P_KPI] * e_i + sc[_I_INT]
+                sc[_I_ACT] += h * (volt - p[_P_R] * sc[_I_ACT] - p[_P_KE] * omega) / p[_P_L]
+            if ip[_IP_FRIC] == 1:
+                z, tau_f = lugre_step(sc[_Z], omega, h, fric)
+                sc[_Z] = z
+            elif ip[_IP_FRIC] == 0:
+                tau_f = coulomb_viscous_torque(omega, fric)
+            else:
+                tau_f = 0.0
+            sc[_TAU_F] = tau_f
+            if n_terms > 0:
+                theta = _dot(c_th, xm)
+                tau_per = _periodic(terms, KIND_TORQUE, theta)
+                if has_screw:
+                    u[2] = _periodic(terms, KIND_SCREW, theta)
+            else:
+                tau_per = 0.0
+            if nm > 0:
+                tau_c = md * tau_a
+                for j in range(nm):
+                    tau_c += mc[j, 0] * xd[j, 0] + mc[j, 1] * xd[j, 1]
+                for j in range(nm):
+                    a0 = mad[j, 0, 0] * xd[j, 0] + mad[j, 0, 1] * xd[j, 1] + mbd[j, 0] * tau_a
+                    a1 = mad[j, 1, 0] * xd[j, 0] + mad[j, 1, 1] * xd[j, 1] + mbd[j, 1] * tau_a
+                    xd[j, 0] = a0
+                    xd[j, 1] = a1
+                u[1] = 0.0
+                u[0] = kt * sc[_I_ACT] - tau_f - tau_per - dist[k] - tau_c
+            else:
+                tau_c = tau_a
+                u[1] = load[k]
+                u[0] = kt * sc[_I_ACT] - tau_f - tau_per - dist[k]
+            sc[_TAU_C] = tau_c
+            for i in range(n):
+                acc = bd[i, 0] * u[0] + bd[i, 1] * u[1] + bd[i, 2] * u[2]
+                for j2 in range(n):
+                    acc += ad[i, j2] * xm[j2]
+                xnew[i] = acc
+            for i in range(n):
+                xm[i] = xnew[i]
+            ring[1, idx] = _dot(c_th, xm)
+            ring[2, idx] = _dot(c_x, xm) + d_x * u[2]
+        ring_idx[0] = idx
+        out[k, 0] = i_cmd
+        out[k, 1] = sc[_I_ACT]
+        out[k, 2] = omega_meas
+        out[k, 3] = theta_enc
+        out[k, 4] = _dot(cy[OUT_OMEGA], xm)
+        out[k, 5] = _dot(cy[OUT_THETA], xm)
+        out[k, 6] = x_scale
+        out[k, 7] = ring[2, idx]
+        out[k, 8] = _dot(cy[OUT_V], xm)
+        out[k, 9] = _dot(cy[OUT_ALPHA], xm) + dy[OUT_ALPHA, 0] * u[0] + dy[OUT_ALPHA, 1] * u[1]
+        out[k, 10] = _dot(cy[OUT_A], xm) + dy[OUT_A, 0] * u[0] + dy[OUT_A, 1] * u[1]
+        out[k, 11] = sc[_TAU_F]
+        out[k, 12] = sc[_TAU_C]
+
+
+_OUT_NAMES = (
+    "current_cmd",
+    "current",
+    "speed",
+    "angle",
+    "true_speed",
+    "true_angle",
+    "scale",
+    "true_position",
+    "true_velocity",
+    "true_motor_acceleration",
+    "true_acceleration",
+    "friction_torque",
+    "load_torque_motor",
+)
+
+#: Column names of the per-sample output array of :meth:`FeedDriveSim.advance_into`.
+OUT_NAMES = _OUT_NAMES
+
+
+class FeedDriveSim:
+    """A resumable feed drive: :meth:`advance` continues from where it stopped.
+
+    Parameters
+    ----------
+    params : the drive.
+    sample_rate_hz : CNC sample (control) rate, Hz.
+    substeps : plant integration steps per sample.
+    seed : seed of the torque-noise generator.
+    initial_angle_rad : motor angle at t = 0, rad (the load position follows through r_g).
+    """
+
+    def __init__(
+        self,
+        params: FeedDriveParams,
+        sample_rate_hz: float,
+        *,
+        substeps: int = 10,
+        seed: int = 0,
+        initial_angle_rad: float = 0.0,
+    ) -> None:
+        self.params = params
+        self.dt = 1.0 / sample_rate_hz
+        self.substeps = substeps
+        h = self.dt / substeps
+        self._rng = np.random.default_rng(seed)
+        plant = params.plant
+        self._ad, self._bd = plant.discretise(h)
+        self._cy = np.ascontiguousarray(plant.c)
+        self._dy = np.ascontiguousarray(plant.d)
+        # initial state: every coordinate at the motor angle's position (unstressed)
+        x0 = np.zeros(plant.a.shape[0])
+        x0_unit = _position_direction(plant)
+        x0[:] = x0_unit * initial_angle_rad
+        self._xm = x0
+        self._sched = np.array([params.mode_shift_per_m, params.mode_reference_position])
+        self._sched_block = max(1, round(params.mode_update_s * sample_rate_hz))
+        if params.modes is not None:
+            self._mad, self._mbd = params.modes.discretise(h)
+            # a private copy: the kernel rescales it in place (position-dependent modes)
+            self._mc = np.array(params.modes.c, dtype=np.float64, order="C", copy=True)
+            self._md = params.modes.d
+            self._xd = np.zeros((params.modes.a.shape[0], 2))
+            a0 = params.modes.a
+            if params.mode_shift_per_m != 0.0 and not (
+                np.allclose(a0[:, 0, 0], a0[:, 1, 1]) and np.allclose(a0[:, 0, 1], -a0[:, 1, 0])
+            ):
+                raise ConfigError(
+                    "feed drive: position-dependent modes (mode_shift_pct_per_100mm) need every "
+                    "disturbance mode underdamped (damping_ratio < 1)"
+                )
+            self._ma0 = np.ascontiguousarray(a0)
+            self._mb0 = np.ascontiguousarray(params.modes.b)
+            self._mc0 = self._mc.copy()
+        else:
+            self._mad = np.zeros((0, 2, 2))
+            self._mbd = np.zeros((0, 2))
+            self._mc = np.zeros((0, 2))
+            self._md = 0.0
+            self._xd = np.zeros((0, 2))
+            self._ma0 = np.zeros((0, 2, 2))
+            self._mb0 = np.zeros((0, 2))
+            self._mc0 = np.zeros((0, 2))
+        fp = params.friction
+        if isinstance(fp, LuGre):
+            fric_mode, self._fric = 1, fp.as_array()
+        elif isinstance(fp, CoulombViscous):
+            fric_mode, self._fric = 0, fp.as_array()
+        else:
+            fric_mode, self._fric = 2, np.zeros(1)
+        self._terms = np.array(
+            [[t.kind, t.wavenumber, t.amplitude, t.phase] for t in params.periodic],
+            dtype=np.float64,
+        ).reshape(-1, 4)
+        d_s = round(params.dead_time_amplifier_s / h)
+        d_m = round(params.dead_time_motor_encoder_s / h)
+        d_t = round(params.dead_time_scale_s / h)
+        length = max(d_s, d_m, d_t) + 1
+        self._ring = np.zeros((3, length))
+        self._ring[1, :] = initial_angle_rad
+        self._ring[2, :] = self._cy[OUT_X] @ self._xm
+        self._ring_idx = np.zeros(1, dtype=np.int64)
+        q = 2.0 * math.pi / params.encoder_counts_rev
+        cl = params.current_loop
+        self._p = np.zeros(_N_P)
+        self._p[_P_KT] = params.torque_constant
+        self._p[_P_KP] = params.kp
+        self._p[_P_KI] = params.ki
+        self._p[_P_KV] = params.kv
+        self._p[_P_ACUR] = 1.0 - math.exp(-2.0 * math.pi * params.current_bandwidth_hz * h)
+        self._p[_P_QENC] = q
+        self._p[_P_QLIN] = params.scale_resolution_m or 0.0
+        self._p[_P_RG] = params.transmission
+        self._p[_P_LG] = params.transmission / params.efficiency
+        if cl is not None:
+            self._p[_P_L] = cl.inductance
+            self._p[_P_R] = cl.resistance
+            self._p[_P_KE] = cl.back_emf
+            self._p[_P_KPI] = cl.kp
+            self._p[_P_KII] = cl.ki
+        self._ip = np.array(
+            [
+                substeps,
+                d_s,
+                d_m,
+                d_t,
+                fric_mode,
+                0 if cl is None else 1,
+                0 if params.position_feedback == "motor" else 1,
+                1 if params.closed_loop else 0,
+            ],
+            dtype=np.int64,
+        )
+        self._sc = np.zeros(_N_SCALARS)
+        # the first speed sample is not a jump from 0 to the initial angle
+        self._sc[_ENC_PREV] = math.floor(initial_angle_rad / q) * q
+        self.samples_done = 0
+        self._no_injection = np.zeros(0)
+
+    @property
+    def dead_time_substeps(self) -> tuple[int, int, int]:
+        """(T_s, T_m, T_t) as used, in substeps."""
+        return int(self._ip[_IP_DS]), int(self._ip[_IP_DM]), int(self._ip[_IP_DT])
+
+    def advance(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        current_injection_a: np.ndarray | None = None,
+    ) -> dict[str, np.ndarray]:
+        """Simulate ``len(pos_ref_rad)`` samples.
+
+        Parameters
+        ----------
+        pos_ref_rad : motor-side position reference, rad.
+        vel_ff_rad_s : velocity feed-forward, rad/s.
+        load : load at the table resisting motion, N (N·m rotary; or N·m at the motor for a
+            plant built with ``load='torque'``).
+        current_injection_a : current added to the controller's command, A (sine sweeps).
+
+        Returns
+        -------
+        dict of per-sample arrays: ``current_cmd`` A (total command), ``current`` A (actual),
+        ``speed`` rad/s (encoder difference), ``angle`` rad (encoder), ``scale`` (linear scale,
+        m), ``true_speed``, ``true_angle``, ``true_position`` (load, m or rad),
+        ``true_velocity``, ``true_motor_acceleration`` rad/s², ``true_acceleration`` (load),
+        ``friction_torque`` N·m, ``load_torque_motor`` N·m (τ_c acting on the motor).
+        """
+        out = np.empty((len(pos_ref_rad), N_OUT))
+        self.advance_into(pos_ref_rad, vel_ff_rad_s, load, out, current_injection_a)
+        return {name: out[:, j] for j, name in enumerate(_OUT_NAMES)}
+
+    def advance_into(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        out: np.ndarray,
+        current_injection_a: np.ndarray | None = None,
+    ) -> None:
+        """:meth:`advance` writing into ``out`` ((n, N_OUT) C-contiguous, columns in the
+        order of :data:`OUT_NAMES`) instead of returning a dict (no per-call allocations
+        beyond the noise; the simulator's block loop)."""
+        n = len(pos_ref_rad)
+        if out.shape != (n, N_OUT) or not out.flags.c_contiguous:
+            raise InputDataError(f"feed drive: out must be C-contiguous ({n}, {N_OUT})")
+        dist = self._rng.standard_normal(n) * self.params.torque_noise_nm
+        if current_injection_a is None:
+            if self._no_injection.shape[0] != n:
+                self._no_injection = np.zeros(n)
+            inj = self._no_injection  # read-only in the kernel
+        else:
+            inj = np.ascontiguousarray(current_injection_a, dtype=np.float64)
+        feed_drive_kernel(
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            np.ascontiguousarray(pos_ref_rad, dtype=np.float64),
+            np.ascontiguousarray(vel_ff_rad_s, dtype=np.float64),
+            np.ascontiguousarray(load, dtype=np.float64),
+            inj,
+            dist,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            self._md,
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            self.dt,
+            out,
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            self._sched_block,
+            self.samples_done,
+        )
+        self.samples_done += n
+
+
+def _position_direction(plant: MechanicalPlant) -> np.ndarray:
+    """State of the plant at rest with the motor at 1 rad and no spring stressed."""
+    n = plant.a.shape[0]
+    # a rigid displacement is in the null space of the stiffness part of A (positions are the
+    # first n/2 states, velocities the rest)
+    half = n // 2
+    stiff = plant.a[half:, :half]
+    if half == 1:
+        vec = np.array([1.0])
+    else:
+        ns = scipy.linalg.null_space(stiff)
+        vec = ns[:, 0]
+    vec = vec / (plant.c[OUT_THETA, :half] @ vec)
+    full = np.zeros(n)
+    full[:half] = vec
+    return full
+
+
+def constant_velocity_sweep(
+    params: FeedDriveParams,
+    speeds_rad_s: np.ndarray,
+    sample_rate_hz: float,
+    *,
+    duration_s: float = 1.0,
+    accel_time_s: float = 0.1,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean motor torque ``K_t·i`` over the steady half of constant-speed moves (Aslan C1).
+
+    Each speed is a separate air move from rest (ramp over ``accel_time_s``, hold to
+    ``duration_s``). Returns (mean torque N·m, standard error of the mean N·m) per speed,
+    the latter from the spread of 10 sub-window means.
+    """
+    n = round(duration_s * sample_rate_hz)
+    t = np.arange(n) / sample_rate_hz
+    means = np.empty(len(speeds_rad_s))
+    sems = np.empty(len(speeds_rad_s))
+    for j, v in enumerate(np.asarray(speeds_rad_s, dtype=float)):
+        vel = np.where(t < accel_time_s, v * t / accel_time_s, v)
+        pos = np.where(
+            t < accel_time_s,
+            0.5 * v * t**2 / accel_time_s,
+            0.5 * v * accel_time_s + v * (t - accel_time_s),
+        )
+        sim = FeedDriveSim(params, sample_rate_hz, seed=seed + j)
+        res = sim.advance(pos, vel, np.zeros(n))
+        tau = params.torque_constant * res["current"][n // 2 :]
+        means[j] = float(np.mean(tau))
+        parts = np.array([np.mean(c) for c in np.array_split(tau, 10)])
+        sems[j] = float(np.std(parts, ddof=1) / math.sqrt(len(parts)))
+    return means, sems
