@@ -27,6 +27,7 @@ test: $(STAMP_DEV)
 	$(BIN)/python -m pytest
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src/millsense
+	$(BIN)/lint-imports
 
 validate: $(STAMP_RUN)
 	$(BIN)/millsense validate --quick

@@ -16,8 +16,8 @@ from millsense.models.ball_screw import (
     resonance_hz,
     triple_inertia_plant,
 )
-from millsense.models.drive_plant import KIND_TORQUE
-from millsense.simulator.feed_drive import KIND_SCALE, OUT_ALPHA, FeedDriveParams, FeedDriveSim
+from millsense.models.drive_plant import KIND_SCALE, KIND_TORQUE, OUT_ALPHA
+from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 R = 5e-3 / (2 * math.pi)
 

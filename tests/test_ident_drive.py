@@ -13,9 +13,8 @@ from millsense.core.presets import load_preset
 from millsense.ident import drive as dr
 from millsense.ident.frf import FrfEstimate
 from millsense.models.ball_screw import dual_inertia_plant
-from millsense.models.drive_plant import OUT_THETA
+from millsense.models.drive_plant import OUT_THETA, OUT_X
 from millsense.simulator import commissioning as cm
-from millsense.simulator.feed_drive import OUT_X
 from millsense.validation import ValidationCase, run_case, select_cases
 from millsense.validation.cases.ident_drive import drive_case
 

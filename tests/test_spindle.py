@@ -10,8 +10,8 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.models.spindle_modes import ATTENUATION_RANGE1
 from millsense.models import spindle_plant as SP
+from millsense.models.spindle_modes import ATTENUATION_RANGE1
 from millsense.simulator import spindle as S
 
 P = SP.SpindleDriveParams.aslan_quaser()

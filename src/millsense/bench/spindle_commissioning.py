@@ -1,5 +1,4 @@
-"""Spindle observer identification from simulated commissioning tests (Aslan C10, Ch. 5).
-"""
+"""Spindle observer identification from simulated commissioning tests (Aslan C10, Ch. 5)."""
 
 from __future__ import annotations
 

@@ -31,16 +31,19 @@ from collections.abc import Sequence
 import numpy as np
 
 from millsense.core.config import BallScrewConfig, FeedAxisConfig, PeriodicDisturbanceConfig
-from millsense.models.drive_plant import KIND_TORQUE, OUT_THETA, MechanicalPlant, PeriodicTerm
-from millsense.simulator.feed_drive import (
+from millsense.models.drive_plant import (
     KIND_MOTOR_ENCODER,
     KIND_SCALE,
     KIND_SCREW,
+    KIND_TORQUE,
     OUT_A,
     OUT_ALPHA,
     OUT_OMEGA,
+    OUT_THETA,
     OUT_V,
     OUT_X,
+    MechanicalPlant,
+    PeriodicTerm,
 )
 
 

@@ -23,7 +23,6 @@ _N_BASE = 5
 _F_GRID = np.logspace(-1, math.log10(5000.0), 4000)
 
 
-
 @dataclass(frozen=True)
 class SpindleRange:
     """One speed range of the spindle motor.

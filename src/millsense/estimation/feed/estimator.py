@@ -882,7 +882,7 @@ class ToolForceBlock(Block):
     Parameters
     ----------
     kinematics : the machine's kinematics (:class:`~millsense.models.kinematics.
-        TrunnionACMachine` in the drives' frames, or Aslan's :class:`~millsense.simulator.
+        TrunnionACMachine` in the drives' frames, or Aslan's :class:`~millsense.models.
         kinematics.TrunnionACKinematics`).
     axes : the five axes in the order of ``q`` = [x, y, z, θ_A, θ_C].
     transmissions : r_g per axis (m/rad, rad/rad) to turn motor angles into axis positions.

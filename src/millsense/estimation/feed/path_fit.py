@@ -1,5 +1,4 @@
-"""Φ_d = τ_c/τ_a of a table-load sweep through the estimator's own C3 stage (Aslan C5).
-"""
+"""Φ_d = τ_c/τ_a of a table-load sweep through the estimator's own C3 stage (Aslan C5)."""
 
 from __future__ import annotations
 
