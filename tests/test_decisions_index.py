@@ -108,7 +108,7 @@ def test_stale_index_fails_the_check(tree: Path) -> None:
         ("- Status: accepted", "- Status: superseded by 0042", "0042, which has no file"),
         ("We chose one.\n", "", "'## Decision' is empty"),
         ("test_x.py::test_holds", "test_x.py::test_gone", "test_x.py::test_gone not found"),
-        ("- `tests/test_x.py::test_holds`", "see the tests", "not a test, case or 'None yet'"),
+        ("- `tests/test_x.py::test_holds`", "see the tests", "names no `tests/x.py::test_name`"),
         ("# 0001. A decision", "# 0003. A decision", "differs from the file name"),
     ],
 )
@@ -134,3 +134,19 @@ def test_none_yet_is_accepted_and_shown(tree: Path) -> None:
     assert row == [
         "| [0001](0001-a-decision.md) | [A decision](0001-a-decision.md) | accepted | None yet |"
     ]
+
+
+def test_test_reference_with_a_reason_and_several_per_line(tree: Path) -> None:
+    # the form of the common brief: the reference followed by why it holds the decision
+    f = tree / "0001-a-decision.md"
+    line = (
+        "`tests/test_x.py::test_holds` (the test that would fail if the decision were undone), "
+        "`tests/test_x.py::test_also[case-1]`"
+    )
+    (tree.parents[1] / "tests" / "test_x.py").write_text(
+        "def test_holds():\n    pass\n\n\ndef test_also():\n    pass\n", "utf-8"
+    )
+    f.write_text(GOOD.replace("- `tests/test_x.py::test_holds`", line), encoding="utf-8")
+    decisions, problems = make_index.collect(tree)
+    assert problems == []
+    assert decisions[0].tests == ("`tests/test_x.py::test_holds`", "`tests/test_x.py::test_also`")

@@ -17,16 +17,17 @@ A decision file is ``NNNN-short-slug.md`` in this folder with this layout::
     ## Consequence
     ## Test
 
-Each section must have text. The Test section starts with ``None yet`` or a list of what holds
-the decision, one item a line::
+Each section must have text. The Test section's first paragraph is ``None yet`` or names what
+holds the decision, one item a line, optionally with a short reason after it::
 
     - `tests/test_x.py::test_name`
     - validation case `package.case_id` (`src/millsense/validation/cases/x.py`)
     - benchmark `package.case_id` (`benchmarks/bench_x.py`)
 
-and each named test function must exist in its file and each case id (a trailing ``*`` matches
-a family) must occur in the file named for it. Superseding numbers must name existing files.
-Any problem is one line naming the file; exit status 1 (``--check``: also a stale index).
+Each named test function (``tests/x.py::Class::test_name`` too) must exist in its file and each
+case id (a trailing ``*`` matches a family) must occur in the file named for it. Superseding
+numbers must name existing files. Any problem is one line naming the file; exit status 1
+(``--check``: also a stale index).
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ _STATUS = re.compile(
     r"^(accepted|superseded by (\d{4})|superseded in part by (\d{4}(?:, \d{4})*))$"
 )
 _DATE = re.compile(r"^\d{4}-\d{2}-\d{2}$")
-_TEST_ITEM = re.compile(r"^- `(tests/[\w/]+\.py)::(\w+)`$")
-_CASE_ITEM = re.compile(r"^- (validation case|benchmark) `([\w.*]+)` \(`([\w/]+\.py)`\)$")
+_TEST_REF = re.compile(r"`(tests/[\w/]+\.py)::(\w+(?:::\w+)?)(?:\[[^\]`]*\])?`")
+_CASE_REF = re.compile(r"(validation case|benchmark) `([\w.*]+)` \(`([\w/]+\.py)`\)")
 
 INTRO = """\
 # Decisions
@@ -128,33 +129,35 @@ def parse(path: Path, root: Path, problems: list[str]) -> Decision | None:
 
 
 def _tests(name: str, body: list[str], root: Path, problems: list[str]) -> tuple[str, ...]:
-    text = [ln for ln in body if ln.strip()]
-    if not text:
-        return ()
-    if text[0].strip() == "None yet":
+    """References of the Test section's first paragraph, each checked against the tree."""
+    first: list[str] = []
+    for ln in body:
+        if ln.strip():
+            first.append(ln)
+        elif first:
+            break
+    if not first or first[0].strip().startswith("None yet"):
         return ()
     items: list[str] = []
-    for ln in body:
-        if not ln.strip() and items:
-            break
-        if not ln.strip():
-            continue
-        tm, cm = _TEST_ITEM.match(ln), _CASE_ITEM.match(ln)
-        if tm:
-            f = root / tm.group(1)
+    for ln in first:
+        for tm in _TEST_REF.finditer(ln):
+            path, names = tm.group(1), tm.group(2).split("::")
+            f = root / path
             if not f.is_file() or not re.search(
-                rf"^\s*def {tm.group(2)}\(", f.read_text("utf-8"), re.M
+                rf"^\s*(?:async )?def {names[-1]}\(", f.read_text("utf-8"), re.M
             ):
-                problems.append(f"{name}: test {tm.group(1)}::{tm.group(2)} not found")
-            items.append(f"`{tm.group(1)}::{tm.group(2)}`")
-        elif cm:
+                problems.append(f"{name}: test {path}::{tm.group(2)} not found")
+            items.append(f"`{path}::{tm.group(2)}`")
+        for cm in _CASE_REF.finditer(ln):
             f, cid = root / cm.group(3), cm.group(2)
             if not f.is_file() or cid.rstrip("*") not in f.read_text("utf-8"):
                 problems.append(f"{name}: {cm.group(1)} {cid} not found in {cm.group(3)}")
             items.append(f"{cm.group(1).split()[-1]} `{cid}`")
-        else:
-            problems.append(f"{name}: Test section line is not a test, case or 'None yet': {ln!r}")
-            break
+    if not items:
+        problems.append(
+            f"{name}: Test section names no `tests/x.py::test_name`, case or 'None yet': "
+            f"{first[0]!r}"
+        )
     return tuple(items)
 
 
