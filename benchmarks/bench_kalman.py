@@ -22,11 +22,7 @@ from millsense.estimation.feed.thesis_models import (
     aslan_r_q,
     state_space_from_modal,
 )
-from millsense.estimation.kalman.design import (
-    KalmanDesign,
-    augment_disturbance,
-    design_kalman,
-)
+from millsense.estimation.kalman.design import KalmanDesign, augment_disturbance, design_kalman
 from millsense.estimation.kalman.lti_filter import StreamingFilter
 from millsense.estimation.kalman.smoother import FixedLagSmoother
 from millsense.models.modal_ss import ModalStateSpace

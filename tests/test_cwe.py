@@ -77,7 +77,8 @@ def test_slot_full_immersion(direction_deg: float) -> None:
     # engaged (projected) area of a slot = a D; contact area = a π R
     assert res.engaged_area_m2[k] == pytest.approx(2e-3 * 2 * R, rel=1e-6)
     assert res.contact_area_m2[k] == pytest.approx(2e-3 * math.pi * R, rel=1e-6)
-    # one straight tooth in a slot: peak resultant K_tc c a √(1 + 0.5²) (decisions.md V9)
+    # one straight tooth in a slot: peak resultant K_tc c a √(1 + 0.5²)
+    # (docs/decisions/0015-aslan-v9-shape-check.md)
     assert res.gain_cwe_m[k] == pytest.approx(2e-3 * math.sqrt(1.25), rel=1e-6)
     assert res.feed_angle_rad[k] == pytest.approx(d)
 

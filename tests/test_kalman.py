@@ -20,11 +20,7 @@ from millsense.estimation.kalman.design import (
     discretize_zoh,
     van_loan,
 )
-from millsense.estimation.kalman.lti_filter import (
-    LinearFilter,
-    StreamingFilter,
-    real_modal_form,
-)
+from millsense.estimation.kalman.lti_filter import LinearFilter, StreamingFilter, real_modal_form
 from millsense.streaming.block import Chunk
 
 DT = 1e-4

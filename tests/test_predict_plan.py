@@ -193,9 +193,9 @@ def test_look_ahead_flags() -> None:
 
 def test_engagement_faces_the_next_motion_at_a_reversal() -> None:
     # A slot runs into the block to X30 and comes back along itself. Leaving X30 the tool
-    # moves back through cut material: the step at the vertex meets nothing (docs/decisions.md
-    # "Engagement faces the next motion"); reading the incoming tangent would see the uncut
-    # wall ahead and predict a full-slot force there.
+    # moves back through cut material: the step at the vertex meets nothing
+    # (docs/decisions/0066-engagement-faces-the-next-motion.md); reading the incoming tangent
+    # would see the uncut wall ahead and predict a full-slot force there.
     text = """G21 G90 G17
 S1000 M3
 G0 X-15. Y20. Z5.

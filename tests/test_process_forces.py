@@ -82,7 +82,8 @@ def test_identification_round_trip_with_noise() -> None:
 
 
 def test_runout_chip_thickness_closed_form() -> None:
-    # Derived closed form (Lee Eq. 2.4/2.5 in our convention, docs/decisions.md):
+    # Derived closed form (Lee Eq. 2.4/2.5 in our convention,
+    # docs/decisions/0010-process-angle-and-runout-convention.md):
     # h_j = c sin φ_j − 2ρ sin(π/N) sin(θ_j − π/N + ψ − λ) when every flute cuts.
     rho, lam, c = 4e-6, 0.7, 0.1e-3
     tool = EndMill(10e-3, 4, helix_rad=0.6, runout_offset_m=rho, runout_angle_rad=lam)

@@ -4,11 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.estimation.kalman.rational_fit import (
-    FAR_POLE_RATIO,
-    RationalFit,
-    fit_rational,
-)
+from millsense.estimation.kalman.rational_fit import FAR_POLE_RATIO, RationalFit, fit_rational
 
 
 def test_far_pole_folded_into_constant() -> None:

@@ -51,7 +51,8 @@ def test_current_loop_bandwidth_gap_is_documented() -> None:
     bw1 = SP.current_loop_bandwidth_hz(P, 0)
     bw2 = SP.current_loop_bandwidth_hz(P, 1)
     assert bw1 == pytest.approx(SP.current_loop_bandwidth_hz(P, 0, printed=True), rel=0.02)
-    # documented gap (docs/decisions.md): stated simulated 360 Hz and 1240 Hz
+    # documented gap (docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md): stated simulated
+    # 360 Hz and 1240 Hz
     assert 360.0 - bw1 == pytest.approx(80.0, abs=5.0)
     assert bw2 - 1240.0 == pytest.approx(344.0, abs=10.0)
 
@@ -70,7 +71,7 @@ def test_attenuation_table_gaps() -> None:
     stated = np.array([db for _, db in ATTENUATION_RANGE1])
     model = 20 * np.log10(np.abs(SP.disturbance_frf(P, f)))
     # The printed coefficients cannot reproduce the table; gaps (model − stated, dB) recorded
-    # in docs/decisions.md: +3.2, +3.7, −7.7, −6.0, −14.2
+    # in docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md: +3.2, +3.7, −7.7, −6.0, −14.2
     np.testing.assert_allclose(model - stated, [3.2, 3.7, -7.7, -6.0, -14.2], atol=0.3)
     # the state-space FRF and the transfer-function form with printed Eq. 5.8 agree (0.1 dB):
     # two independent constructions of G_dτ

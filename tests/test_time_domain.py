@@ -190,7 +190,8 @@ def test_time_domain_validation_cases() -> None:
 def test_converged_cut_at_flip_lobe_peak_is_stable() -> None:
     # 8800 rev/min slotting, 0.9 × the SDM flip depth (2.635 mm, spectral radius 0.85 per tooth
     # at m = 100): the run converges and its Poincaré steps sit at round-off (~3e-9 of the
-    # RMS); the verdict must call that converged, not growing (docs/decisions.md).
+    # RMS); the verdict must call that converged, not growing
+    # (docs/decisions/0017-time-domain-stability-verdict.md).
     from millsense.validation.cases.stability_time_domain import _td_sim
 
     sim = _td_sim(1.0, "down", 8800.0, 0.9 * 2.635e-3)

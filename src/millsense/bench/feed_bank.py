@@ -16,9 +16,7 @@ from millsense.bench.feed_commissioning import (
     identify_feed_axis,
 )
 from millsense.core.errors import ConfigError
-from millsense.estimation.feed.estimator import (
-    FeedAxisModel,
-)
+from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.feed.path_fit import SweepResult
 from millsense.estimation.feed.schedule import (
     DEFAULT_CROSSFADE,

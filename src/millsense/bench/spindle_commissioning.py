@@ -6,9 +6,7 @@ import math
 
 import numpy as np
 
-from millsense.estimation.kalman.design import (
-    KalmanDesign,
-)
+from millsense.estimation.kalman.design import KalmanDesign
 from millsense.estimation.kalman.rational_fit import fit_rational
 from millsense.estimation.spindle_observer import (
     SpindleIdentification,

@@ -141,8 +141,8 @@ def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
         one, one_notes = _modal_table(ctx, o, ctx.recs[0], ctx.paths[0], o["plot"])
         return {"axes": {ctx.axis: {"disturbance_modes": one}}}, one_notes
     # one sweep per table position: [[axes.<axis>.disturbance_modes_at]], the position being the
-    # mean commanded position of each record (docs/decisions.md "Position-scheduled estimator
-    # from the machine file")
+    # mean commanded position of each record
+    # (docs/decisions/0117-position-scheduled-estimator-from-the-machine-file-issue-7.md)
     import numpy as np
 
     from millsense.core import units

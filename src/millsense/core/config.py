@@ -404,9 +404,9 @@ class FeedAxisConfig(_Model):
     disturbance_modes_at: list[DisturbanceModesAtConfig] = []
     """Φ_d identified at several table positions, ascending (linear axes): ``millsense
     estimate --method feed`` then runs the position-scheduled estimator
-    (:mod:`millsense.estimation.feed.schedule`, docs/decisions.md "Position-scheduled feed
-    estimator") interpolating by the commanded position; ``disturbance_modes`` is not used by
-    the estimator then."""
+    (:mod:`millsense.estimation.feed.schedule`,
+    docs/decisions/0116-position-scheduled-feed-estimator.md) interpolating by the commanded
+    position; ``disturbance_modes`` is not used by the estimator then."""
     ball_screw: BallScrewConfig | None = None
     """Dual/triple-inertia ball screw (Yamada); replaces the rigid body when given."""
     periodic_disturbances: list[PeriodicDisturbanceConfig] = []
@@ -415,8 +415,9 @@ class FeedAxisConfig(_Model):
     mode_shift_pct_per_100mm: Annotated[float, Field(ge=-50, le=50)] = 0.0
     """Position-dependent disturbance modes (linear axes, simulator only): every mode frequency
     changes by this percentage per 100 mm of table travel from ``mode_reference_mm``,
-    ``f_k(x) = f_k0·(1 + κ·(x − x_ref))`` (κ = value/100 per 100 mm; docs/decisions.md
-    "Position-dependent disturbance modes"). 0 (default): no position dependence."""
+    ``f_k(x) = f_k0·(1 + κ·(x − x_ref))`` (κ = value/100 per 100 mm;
+    docs/decisions/0115-position-dependent-disturbance-modes-simulator.md). 0 (default): no position
+    dependence."""
     mode_reference_mm: Annotated[float, Field(ge=-1e4, le=1e4)] = 0.0
     """Table position at which ``disturbance_modes`` hold, mm (machine coordinates)."""
     source: str = ""

@@ -122,8 +122,8 @@ SPINDLE_MODEL_KEYS = (
 )
 
 #: R of the spindle observer when ``[spindle] current_noise_a`` is 0, A (RMS of I_nom in air):
-#: 0.02 A, the size of a 16-bit current command over ±600 A (decision "Spindle observer from
-#: the machine file", docs/decisions.md).
+#: 0.02 A, the size of a 16-bit current command over ±600 A (decision
+#: docs/decisions/0102-spindle-observer-from-the-machine-file-issue-7.md).
 DEFAULT_SPINDLE_CURRENT_NOISE_A = 0.02
 
 

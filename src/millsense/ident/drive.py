@@ -6,8 +6,8 @@ Two tests:
   accelerating moves; the rigid-body balance ``J_e·dω/dt = K_t·i − τ_c·sgn ω − B·ω`` (Aslan
   Eq. 3.1, Yamada Eq. 2-7) integrated over windows is linear in ``K_t/J_e``, ``τ_c/J_e`` and
   ``B/J_e``. Only the ratio ``K_t/J_e`` is observable from current and motion: one of the two
-  must be known (the motor's catalogue K_t, or a known inertia — decision "Drive
-  identification", docs/decisions.md).
+  must be known (the motor's catalogue K_t, or a known inertia — decision
+  docs/decisions/0074-drive-identification-issue-6-item-4.md).
 - **Swept FRFs** (:func:`fit_dual_inertia`): current command → motor angle and → table position
   from a periodic current injection on top of a constant-velocity move (the velocity never
   reverses, so Coulomb friction is a constant). The FRFs are estimated against the injected

@@ -166,10 +166,10 @@ def fit_stribeck(
     best grid point starts a nonlinear least-squares refinement of all four
     (``scipy.optimize.least_squares``, v_s in log). If the rise ``τ_stat − τ_coul`` is below
     three standard errors the Stribeck term is not resolved and a Coulomb + viscous line is
-    returned (decision "Friction identification", docs/decisions.md). Under closed-loop speed
-    control with torque noise the speed fluctuates inside each move; the mean torque is then
-    the Stribeck curve averaged over the fluctuation, which looks like a larger v_s (+15 %
-    on the Aslan Z axis at its noise level). With ``speed_samples`` that average is modelled.
+    returned (decision docs/decisions/0073-friction-identification-issue-6-item-3.md). Under
+    closed-loop speed control with torque noise the speed fluctuates inside each move; the mean
+    torque is then the Stribeck curve averaged over the fluctuation, which looks like a larger v_s
+    (+15 % on the Aslan Z axis at its noise level). With ``speed_samples`` that average is modelled.
     """
     import scipy.optimize
 

@@ -6,8 +6,8 @@ trajectory and feed as the cut (three in Yamada) give the estimator's output in 
 average over the runs, indexed by the table position, is subtracted from the estimate during
 the cut at the same position (:meth:`IdleTable.compensate`).
 
-Storage (decision "Idling table storage", docs/decisions.md): a CSV file
-(``position_mm,value``) next to the machine file, referenced from the axis' TOML table
+Storage (decision docs/decisions/0076-idling-table-storage-and-indexing-issue-6-item-6.md): a CSV
+file (``position_mm,value``) next to the machine file, referenced from the axis' TOML table
 ``[axes.<name>.idle_table]`` with the file name, the quantity and unit of the values, the
 feed (mm/min) and the number of runs. A table holds thousands of bins (tens of µm over the
 stroke): too many for readable TOML, trivial as CSV.

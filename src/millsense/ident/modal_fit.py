@@ -9,9 +9,9 @@ chooses the number of modes from a stabilisation diagram, and returns a :class:`
 convertible to :class:`millsense.stability.modal.Mode` and to a real state space made of 2×2
 modal blocks. :func:`fit_batch` fits many FRFs (the speed × load map of Aslan Ch. 4).
 
-Method (docs/decisions.md, "Modal fitting by relaxed vector fitting"): vector fitting with
-relaxed Sanathanan–Koerner iterations (Gustavsen & Semlyen 1999; Gustavsen 2006), the method
-of MATLAB's ``modalfit`` used in Aslan Ch. 4. Each iteration solves the linear least-squares
+Method (docs/decisions/0051-modal-fitting-by-relaxed-vector-fitting-issue-6-item-2.md): vector
+fitting with relaxed Sanathanan–Koerner iterations (Gustavsen & Semlyen 1999; Gustavsen 2006), the
+method of MATLAB's ``modalfit`` used in Aslan Ch. 4. Each iteration solves the linear least-squares
 problem ``w·(σ(s) H(s) − p(s)) ≈ 0`` with ``σ(s) = Σ c̃_i φ_i(s) + d̃`` on the current poles
 (real basis φ for conjugate pairs) and a relaxation row fixing the mean of σ; the zeros of σ
 (eigenvalues of ``Λ − b c̃ᵀ / d̃``) become the next poles, unstable ones reflected. Frequencies

@@ -8,19 +8,20 @@ velocity-controller gains read from the CNC:
 2. Open velocity loop ``G_oΩ = Ω_meas/e`` with ``e = r − Ω_meas`` (Aslan Eq. 5.9), current
    loop ``G_m = I_act/I_nom``.
 3. Residual ``R = G_oΩ − G_Ω·G_m·K_t·G_r`` with the rigid body ``G_r = 1/(J s + B)`` (Eq. 5.1,
-   5.10): the structural dynamics left after the rigid-body model (decision "Spindle drive
-   reading of Aslan Ch. 5", docs/decisions.md: R lives in the open velocity loop, the
-   measured speed is ``Ω + R·e``). R is fitted by :func:`millsense.ident.modal_fit.fit_modes`
-   in the α/β form of Appendix E.
+   5.10): the structural dynamics left after the rigid-body model (decision
+   docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md: R lives in the open velocity loop,
+   the measured speed is ``Ω + R·e``). R is fitted by :func:`millsense.ident.modal_fit.fit_modes` in
+   the α/β form of Appendix E.
 4. ``G_dτ = I_nom/τ_d = G_Ω·G_r/(1 + G_oΩ)`` (Eq. 5.12) with the fitted R and the measured
    current loop (a first-order fit with dead time outside the sweep band).
 
 ``G_Ω`` is the CNC's PI ``K_p + K_i/s`` on the speed error (in rev/s per decision 2 of the
 spindle reading, or rad/s), sampled every ``velocity_period_s`` and held. Inside the sweep
 band the identification uses the measured ``I_nom/e`` (the PI as it acts on the recorded
-signals, sample-and-hold and multirate effects included; decision "Spindle identification",
-docs/decisions.md), and the gains' model ``(K_p + K_i/s)·(1 − e^{−sT_v})/(sT_v)`` outside
-it; :meth:`SpindleFit.controller_mismatch_db` compares the two.
+signals, sample-and-hold and multirate effects included; decision
+docs/decisions/0075-spindle-identification-issue-6-item-5.md), and the gains' model
+``(K_p + K_i/s)·(1 − e^{−sT_v})/(sT_v)`` outside it; :meth:`SpindleFit.controller_mismatch_db`
+compares the two.
 """
 
 from __future__ import annotations

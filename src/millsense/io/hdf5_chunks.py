@@ -16,7 +16,7 @@ HDF5's shuffle filter stores, for a chunk of :math:`n` elements of :math:`s` byt
 the whole, always full-size chunk (edge chunks are padded with the fill value 0). Our stream
 emits byte planes whose sampled entropy exceeds 7.8 bit (the noisy low mantissa bytes) as
 stored blocks and deflates the others with strategy ``Z_RLE``; both choices are measured in
-``docs/decisions.md`` ("Recording files: compression and chunking chosen by measurement").
+``docs/decisions/0020-recording-files-compression-and-chunking-chosen-by.md``.
 Any inflate implementation reads the result.
 
 Datasets not written this way (other filters, a skipped filter, an unallocated chunk) are read
@@ -43,7 +43,8 @@ __all__ = [
     "write_array",
 ]
 
-#: Samples per HDF5 chunk (65536 float64 = 512 KiB); chosen by measurement, see decisions.md.
+#: Samples per HDF5 chunk (65536 float64 = 512 KiB); chosen by measurement,
+#: see docs/decisions/0020-recording-files-compression-and-chunking-chosen-by.md.
 CHUNK_SAMPLES = 65536
 #: zlib level; with the Z_RLE strategy the level barely changes size or speed.
 DEFLATE_LEVEL = 1

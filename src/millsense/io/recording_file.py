@@ -22,7 +22,8 @@ sidecar directory ``<path>.partial/``:
 ``close()`` finishes the final file, renames it to ``<path>`` and removes the sidecar. If the
 writer was killed, :func:`read_recording` of ``<path>`` rebuilds the recording from the
 complete segments and marks it ``metadata['recovered'] = True``; :func:`recording_status`
-says where the data end. Why not HDF5 SWMR: see ``docs/decisions.md``.
+says where the data end. Why not HDF5 SWMR: see
+``docs/decisions/0018-recording-files-crash-safety-by-atomic-segments-not-hdf5.md``.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ A :class:`~millsense.io.recording_file.RecordingWriter` writes each flush as one
 whole or absent whatever moment the writer dies. Segments are transient (removed when the
 final HDF5 file is complete), so they use the cheapest format that is still self-describing
 and verifiable; measured: 0.6 ms per 1 s x 16 channels at 10 kHz against 2.5 ms for a small
-HDF5 file with 16 datasets (``docs/decisions.md``, "Recording files: segments are raw
-checksummed binary").
+HDF5 file with 16 datasets
+(``docs/decisions/0019-recording-files-segments-are-raw-checksummed-binary-the.md``).
 
 Layout (little-endian)::
 

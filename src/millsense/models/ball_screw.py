@@ -19,7 +19,7 @@ the dual model's spring stretches by ``Rθ_m + δ − x_t``, the triple model's 
 ``x_n − Rθ_m − δ``. Only its stiffness force is applied (its rate term C·δ̇ is neglected: δ
 varies over millimetres of travel, so δ̇ is small beside the relative velocities).
 
-Decision (docs/decisions.md, "Yamada presets"): Table 3-3 does not give K_t, the friction or
+Decision (docs/decisions/0040-yamada-presets.md): Table 3-3 does not give K_t, the friction or
 the amplitudes of the §3.6 disturbances; the presets choose them and say so.
 """
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from millsense.core.errors import InputDataError
 
-#: Trunnion offsets chosen for a UX600-sized table (docs/decisions.md, "Trunnion offsets").
+#: Trunnion offsets chosen for a UX600-sized table (docs/decisions/0031-trunnion-offsets-a2-d4.md).
 DEFAULT_A2_M = 0.150
 DEFAULT_D4_M = 0.080
 
@@ -93,10 +93,10 @@ class TrunnionACKinematics:
 
     ``R`` is a proper rotation (orthonormal, det +1). The printed inverse (Eq. 3.37) is not the
     inverse of Eq. 3.38: its (1,1) entry has the wrong sign and its z offset reads
-    ``d4·cA − a2`` instead of ``d4·cA + a2``. Decision (docs/decisions.md, "Trunnion
-    kinematics"): Eq. 3.38 is kept and the inverse is its exact inverse
-    ``p = Rᵀ·(P + d4·e_z) + a2·e_z``; the Jacobian rows printed in Eq. 3.39/3.47 are the
-    derivatives of Eq. 3.38, which confirms that choice.
+    ``d4·cA − a2`` instead of ``d4·cA + a2``. Decision
+    (docs/decisions/0030-trunnion-kinematics-aslan-eq-3-35-3-51.md): Eq. 3.38 is kept and the
+    inverse is its exact inverse ``p = Rᵀ·(P + d4·e_z) + a2·e_z``; the Jacobian rows printed in
+    Eq. 3.39/3.47 are the derivatives of Eq. 3.38, which confirms that choice.
 
     Tool orientation in the workpiece frame, Aslan Eq. 3.36: ``O = [cA·sC, cA·cC, −sA]``
     (= −R·e_y, the spindle axis of Aslan's machine frame), so the inverse is
@@ -267,8 +267,8 @@ class TrunnionACMachine:
     -----
     Aslan's Eq. 3.36 puts the tool along workpiece +Y at θ_A = θ_C = 0, with the C axis
     along workpiece z: his A zero tilts the table by 90° and his machine axis y is the
-    spindle axis. The mapping to :class:`TrunnionACKinematics` (decision docs/decisions.md,
-    "Trunnion frames: G-code and drives") is
+    spindle axis. The mapping to :class:`TrunnionACKinematics` (decision
+    docs/decisions/0078-trunnion-frames-g-code-and-drives.md) is
 
     - ``θ_A = A − π/2``, ``θ_C = C``: the tool axis becomes
       ``O = [sA·sC, sA·cC, cA]`` (the usual A/C trunnion form, C about the table normal);

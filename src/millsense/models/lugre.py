@@ -5,9 +5,9 @@
 ``g(v) = τ_coul + (τ_stat − τ_coul)·exp(−(v/v_s)²)`` (Eq. 3.4); every parameter is picked by the
 sign of v (Aslan Table 3.2 gives a (+, −) pair for each).
 
-Integration (decision "LuGre integration", docs/decisions.md): Aslan's forward-Euler update
-(Eq. 3.9) is unstable once ``|v|·σ0·t_s/g > 2`` — for the A axis (σ0 = 28 000 N·m/rad) that is
-|v| > 2 rad/s at a 10 µs step. Over one step v is held, so Eq. 3.3 is linear in z and is
+Integration (decision docs/decisions/0037-lugre-integration-aslan-eq-3-9.md): Aslan's forward-Euler
+update (Eq. 3.9) is unstable once ``|v|·σ0·t_s/g > 2`` — for the A axis (σ0 = 28 000 N·m/rad) that
+is |v| > 2 rad/s at a 10 µs step. Over one step v is held, so Eq. 3.3 is linear in z and is
 integrated exactly: ``z⁺ = z_ss + (z − z_ss)·exp(−a·h)`` with ``a = |v|σ0/g(v)`` and
 ``z_ss = sgn(v)·g(v)/σ0``; dz/dt is the step's mean ``(z⁺ − z)/h``. For ``a·h ≪ 1`` this is
 Eq. 3.9; for any step it is stable and converges to the steady sliding torque

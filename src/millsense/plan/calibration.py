@@ -3,7 +3,7 @@
 Seed 000 C16 calibrates K_tc over the first 10 revolutions "from the CWE information and the
 measured tangential force" without a formula; V9 suggests F_res = K_tc c Gain_CWE.
 millsense uses the mean torque, which is exactly linear in the shear coefficients
-(docs/decisions.md "K_tc calibration"):
+(docs/decisions/0064-k-tc-calibration-seed-000-c16.md):
 
     T̄ = s T̄_shear + T̄_edge,   s = K_tc,new / K_tc,plan,
 

@@ -6,7 +6,7 @@ from the stock as left by everything before: that is the material the cutting ed
 the tool feeds on from this position. One compiled call handles the whole path (or a chunk of
 it, resumable with ``previous_xyz_m``).
 
-Engagement criterion (decision, docs/decisions.md "Z-map engagement criterion")
+Engagement criterion (decision docs/decisions/0042-z-map-engagement-criterion.md)
 ------------------------------------------------------------------------------
 Tool feed frame: x along the XY feed direction f, y = z × f, so immersion φ (clockwise from
 +y, :mod:`millsense.process.geometry`) puts an edge point at P + r (sin φ f + cos φ (z × f)).
@@ -265,7 +265,7 @@ def compute_engagement(
     Notes
     -----
     Criterion, filter, axial depth and tolerances: module docstring. Gain_CWE (Aslan V9,
-    F_res = K_tc c Gain_CWE; docs/decisions.md "Gain_CWE definition"): with chip thickness
+    F_res = K_tc c Gain_CWE; docs/decisions/0043-gain-cwe-definition.md): with chip thickness
     h = c sin φ_j(z) sin κ and chip width Δz/sin κ, dF_t = K_tc c sin φ Δz and
     dF_r = 0.5 K_tc c sin φ Δz; F_x = Σ −dF_t cos φ − dF_r sin κ sin φ,
     F_y = Σ dF_t sin φ − dF_r sin κ cos φ over flutes and layers in the engagement (the

@@ -628,12 +628,13 @@ def interpret(
     Notes
     -----
     RS274/NGC v3 (Kramer, Proctor, Messina 2000) semantics as implemented by LinuxCNC; the
-    decisions where posts differ are in ``docs/decisions.md`` ("G-code interpreter ...").
-    Arcs: with IJK the distances centre-start and centre-end may differ by the tolerance
-    (0.002 mm, 0.0002 inch); the move is then a spiral whose radius changes linearly with the
-    angle, so it still ends exactly on the programmed point. R arcs take the centre left of
-    the chord for G3 and right for G2 when R > 0 (sweep ≤ 180°), the other side for R < 0.
-    A feed move of rotary axes only reads F as deg/min.
+    decisions where posts differ are in
+    ``docs/decisions/0035-g-code-interpreter-dialect-choices-issue-4-item-1.md``. Arcs: with IJK the
+    distances centre-start and centre-end may differ by the tolerance (0.002 mm, 0.0002 inch); the
+    move is then a spiral whose radius changes linearly with the angle, so it still ends exactly on
+    the programmed point. R arcs take the centre left of the chord for G3 and right for G2 when
+    R > 0 (sweep ≤ 180°), the other side for R < 0. A feed move of rotary axes only reads F as
+    deg/min.
     """
     offsets = _offsets(work_offsets_mm)
     home = None

@@ -424,8 +424,8 @@ class VirtualPlan:
 
         Notes
         -----
-        Decision (docs/decisions.md "Virtual plan look-ahead"): with A the engaged area and c
-        the chip load of the current row, *rising* is a later row in cut with
+        Decision (docs/decisions/0063-virtual-plan-look-ahead-seed-000-2-10.md): with A the engaged
+        area and c the chip load of the current row, *rising* is a later row in cut with
         A ≥ (1 + rise) A₀ or c ≥ (1 + rise) c₀, or any row in cut when the current row is
         not; *leaving the cut*: in cut now and the rows from some point to the horizon are
         all out of cut; *entering a cavity*: in cut now and, before the cut resumes within
@@ -585,11 +585,12 @@ def _next_motion_directions(sp: SampledPath) -> NDArray[np.float64]:
     """Direction of the motion that follows each step, P_{k+1} − P_k (unit-free).
 
     The engagement of step k is the material the edges meet on the way from P_k to P_{k+1}
-    (docs/decisions.md, engagement criterion), so its front half must face that motion. The
-    incoming tangent differs at the last step of a move: at a corner it faces the wall the
-    previous move ran into, which the tool never cuts, and read it as engaged (false peaks at
-    pocket wall ends; decision "Engagement faces the next motion"). The last step of the path
-    keeps its tangent.
+    (docs/decisions/0042-z-map-engagement-criterion.md,
+    docs/decisions/0066-engagement-faces-the-next-motion.md), so its front half must face that
+    motion. The incoming tangent differs at the last step of a move: at a corner it faces the wall
+    the previous move ran into, which the tool never cuts, and read it as engaged (false peaks at
+    pocket wall ends; decision "Engagement faces the next motion"). The last step of the path keeps
+    its tangent.
     """
     xyz = np.column_stack([sp.x, sp.y, sp.z])
     d = np.empty_like(xyz)

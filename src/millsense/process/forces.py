@@ -284,8 +284,8 @@ def milling_forces(
         dF_z = +dF_r cos κ + dF_a sin κ,      dT = r_j dF_t.
 
     For a flat end mill (κ = π/2) the slot averages are those of benchmarks.md §3. The ball
-    end axial sign is chosen so that κ = π/2 reduces to the flat case (docs/decisions.md,
-    "Ball-end force directions").
+    end axial sign is chosen so that κ = π/2 reduces to the flat case
+    (docs/decisions/0012-ball-end-force-directions.md).
     """
     if not (feed_per_tooth_m >= 0 and math.isfinite(feed_per_tooth_m)):
         raise ConfigError(f"cut: feed_per_tooth_m must be ≥ 0, got {feed_per_tooth_m!r}")

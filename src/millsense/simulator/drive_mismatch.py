@@ -4,8 +4,8 @@ An estimator validated on the simulator must not run its own model back to itsel
 :func:`commissioning_drive` is the machine the commissioning tests run on (the preset drive plus
 an unmodelled higher mode, :data:`UNMODELLED_MODE`), :func:`perturbed_drive` the machine as it
 cuts (modes shifted by ``ModalStateSpace.frequency_scaled``, friction drifted, the same higher
-mode). Decisions "Unmodelled higher mode present at commissioning" and "Feed-drive acceptance"
-(docs/decisions.md).
+mode). Decisions docs/decisions/0111-unmodelled-higher-mode-present-at-commissioning-issue-7.md and
+docs/decisions/0086-feed-drive-acceptance-measured-end-to-end-with-stated.md.
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ def commissioning_drive(
 
     Notes
     -----
-    Decision "Unmodelled higher mode present at commissioning" (docs/decisions.md): a mode above
-    the identification band is part of the machine during the sweep as well; the estimator does
-    not model it (the rational fit ends at 260 Hz and absorbs only its in-band tail). A mode
+    Decision docs/decisions/0111-unmodelled-higher-mode-present-at-commissioning-issue-7.md: a mode
+    above the identification band is part of the machine during the sweep as well; the estimator
+    does not model it (the rational fit ends at 260 Hz and absorbs only its in-band tail). A mode
     that appears only after identification is a change of the machine (position or set-up
     dependence) and is covered by the position-scheduled case.
     """

@@ -19,9 +19,10 @@ Override commands reach the interpolator after a latency and are quantised
 override switch 10 % steps, ≤ 200 %, ≈ 120 ms (Munasinghe §M9).
 
 Arc length is measured on the first three columns (m); a segment with no linear motion (pure
-rotation of a 5-axis path) is measured in rad with its feed in rad/s (docs/decisions.md,
-"Interpolator arc length"). Results are resumable: :meth:`Interpolator.advance` called chunk
-by chunk gives the same samples as one call when the override commands are the same.
+rotation of a 5-axis path) is measured in rad with its feed in rad/s
+(docs/decisions/0034-interpolator-arc-length-look-ahead-and-overrides.md). Results are resumable:
+:meth:`Interpolator.advance` called chunk by chunk gives the same samples as one call when the
+override commands are the same.
 """
 
 from __future__ import annotations

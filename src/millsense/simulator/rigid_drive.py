@@ -66,10 +66,11 @@ class RigidDriveParams:
 
         Notes
         -----
-        Aslan gives no feed-drive servo gains. Decision (docs/decisions.md, "feed-drive servo
-        gains"): crossover ω_c = 2π·f_v with ``K_p = J_e·ω_c``, integral corner at ω_c/4
-        (``K_i = K_p·ω_c/4``), position gain ``K_v = ω_c/4`` — a conventional cascade tuning
-        that keeps each outer loop about four times slower than the inner one.
+        Aslan gives no feed-drive servo gains. Decision
+        (docs/decisions/0001-feed-drive-servo-gains-foundation.md): crossover ω_c = 2π·f_v with
+        ``K_p = J_e·ω_c``, integral corner at ω_c/4 (``K_i = K_p·ω_c/4``), position gain
+        ``K_v = ω_c/4`` — a conventional cascade tuning that keeps each outer loop about four
+        times slower than the inner one.
         """
         wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
         kp = axis.velocity_kp_nm_s_rad or axis.inertia_kg_m2 * wc

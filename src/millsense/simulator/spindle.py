@@ -13,7 +13,7 @@ Blocks (Aslan Fig. 5.1, Eq. 5.1–5.13):
 Two speed ranges (wye-delta switch at 3300 rev/min) change K_tS, the admittance and the modes;
 the range follows the speed reference.
 
-Decisions (docs/decisions.md, "Spindle drive reading of Aslan Ch. 5"):
+Decisions (docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md):
 
 1. R is the residual between the measured and rigid-body *open velocity loop* FRFs (the text:
    "subtracted from the measured one … the remaining FRF is identified"), so
@@ -41,12 +41,7 @@ import numba
 import numpy as np
 
 from millsense.core.errors import InputDataError
-from millsense.models.spindle_plant import (
-    SpindleDriveParams,
-    _frf,
-    _zoh,
-    plant_matrices,
-)
+from millsense.models.spindle_plant import SpindleDriveParams, _frf, _zoh, plant_matrices
 
 
 @numba.njit(cache=True)

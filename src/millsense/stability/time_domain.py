@@ -322,8 +322,8 @@ class TimeDomainMillingSim:
         t = 0 (first cut of a resumed simulation, a depth step up, the end of an air cut)
         otherwise meets a surface that was never cut (−1e30 m) or was left far behind, and the
         first flute would take that whole distance as its chip; the rigid pass gives it the
-        nominal chip of the steady cut instead (docs/decisions.md, "Simulator regenerative
-        coupling").
+        nominal chip of the steady cut instead
+        (docs/decisions/0077-simulator-regenerative-coupling.md).
         """
         mask = np.asarray(discs, dtype=bool)
         if mask.shape != (self.n_discs,):
@@ -376,8 +376,8 @@ class TimeDomainMillingSim:
 
         A period-doubling (flip) chatter of an N-flute tool with uniform pitch repeats every
         two tooth periods; for N = 2 that is once per revolution, where once-per-revolution
-        samples would stand still and call a flip limit cycle stable (docs/decisions.md,
-        "Time-domain stability verdict").
+        samples would stand still and call a flip limit cycle stable
+        (docs/decisions/0017-time-domain-stability-verdict.md).
         """
         n = self.tool.n_flutes
         uniform = np.allclose(self.tool.pitches_rad, 2.0 * math.pi / n, rtol=0, atol=1e-12)
@@ -419,7 +419,7 @@ class TimeDomainMillingSim:
         A decaying transient with multiplier μ per revolution is called stable only when
         μ^(n(1−1/W)) is below the threshold (n revolutions, W windows): near the boundary run
         longer
-        (docs/decisions.md, "Time-domain stability verdict").
+        (docs/decisions/0017-time-domain-stability-verdict.md).
         """
         per_rev = self.steps_per_rev // self.poincare_period_steps
         p = self.poincare_xy_m[-(last_revolutions * per_rev + 1) :]

@@ -39,7 +39,7 @@ class ValidationCase:
     description : one sentence on what is computed.
     func : computes the measured value (float or :class:`Measured`).
     gap : non-empty for a documented gap: the seed states ``reference`` but its own printed
-        coefficients cannot reproduce it (docs/decisions.md says why). Outside tolerance such a
+        coefficients cannot reproduce it (docs/decisions/ says why). Outside tolerance such a
         case has status ``gap``, not ``fail``; a pytest pins the measured gap so that a change
         of the model is still caught.
     """

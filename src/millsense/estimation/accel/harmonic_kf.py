@@ -30,8 +30,8 @@ test on the workpiece (acceleration per hammer force).
 Streaming (:class:`HarmonicKalmanBlock`): the reconstruction is a block operation, so the block
 collects ``block_periods`` tooth periods (rounded to whole samples), reconstructs that block by
 FFT, runs the filter over it and emits the results with a fixed delay of one block length
-(``delay_samples``); the first block of the stream is NaN. Decision in docs/decisions.md,
-"İlme reconstruction streamed in whole tooth-period blocks".
+(``delay_samples``); the first block of the stream is NaN. Decision
+docs/decisions/0090-ilme-reconstruction-streamed-in-whole-tooth-period-blocks.md.
 """
 
 from __future__ import annotations
@@ -346,8 +346,8 @@ def estimate_harmonic_kf(
     With ``model_error`` > 0 the data move q̂ away from the prior (x0, p0) only along the
     directions whose acceleration signature is larger than the model error; where H carries
     no such information (the 4-flute half-immersion cuts: smallest singular value ~4e-4 of
-    the largest) q̂ stays at the prior and the force error is the prior's. Decision "İlme
-    filter: persistent model error in R" (docs/decisions.md).
+    the largest) q̂ stays at the prior and the force error is the prior's. Decision
+    docs/decisions/0105-ilme-filter-persistent-model-error-in-r.md.
     """
     _check_settings(q, r, n_harmonics, model_error, "harmonic KF")
     phi = np.asarray(spindle_angle_rad, dtype=float)

@@ -10,13 +10,12 @@ model (the screw torsional mode, 778.5 Hz).
 
 Each notch is the biquad ``g·(1 − 2cos ω₀ z⁻¹ + z⁻²)/(1 − 2r cos ω₀ z⁻¹ + r² z⁻²)`` with pole
 radius ``r = e^{−π·B/f_s}`` (−3 dB width ≈ B Hz) and ``g`` making the DC gain 1, run in
-transposed direct form II with coefficients recomputed per sample in numba (decision in
-docs/decisions.md, "predictive notch bank"). A notch whose frequency is below ``min_hz`` or
-above ``max_hz`` (or 0.45 f_s) passes the signal unchanged but keeps its state, so a notch
-fades in and out without a switch transient beyond the filter's own. The feed speed is the
-backward difference of the motor angle times R, low-passed by a first-order filter
-(``speed_cutoff_hz``), inside the same kernel; state is carried, so the output is identical
-whatever the chunking.
+transposed direct form II with coefficients recomputed per sample in numba (decision
+docs/decisions/0072-predictive-notch-bank.md). A notch whose frequency is below ``min_hz`` or above
+``max_hz`` (or 0.45 f_s) passes the signal unchanged but keeps its state, so a notch fades in and
+out without a switch transient beyond the filter's own. The feed speed is the backward difference of
+the motor angle times R, low-passed by a first-order filter (``speed_cutoff_hz``), inside the same
+kernel; state is carried, so the output is identical whatever the chunking.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ nut, table; ``R = ℓ/2π``)::
 - Triple inertia (Eq. 2-49): ``(x_m, x_n, x_t)`` with ``(M_r, M_n, M_t)``; reduced comparators
   (Eq. 2-64, 2-65) lump the nut into the motor coordinate.
 
-Discretisation (decision in docs/decisions.md, "exact discrete MEDOB"): the thesis
+Discretisation (decision docs/decisions/0067-exact-discrete-medob-seed-001-observers.md): the thesis
 pseudo-differentiates each signal (``s·g/(s + g)``) and low-passes the sum. Here the sum is
 differentiated exactly instead. With ``y = Σ M_i x_i`` and ``w = Σ C_i x_i = a·y + e`` (``a =
 ΣC_i/ΣM_i``; e = 0 under proportional damping, Yamada Eq. 2-29/2-30), Eq. 2-20 reads

@@ -11,14 +11,14 @@ i.e. ``T_1 = T_s + max(T_m, T_t)``: Machine A (0.35, 0.45, 0.1) ms → (0.8, 0, 
 Machine B (0.2, 0.2, 0.2) ms → (0.4, 0, 0) ms (Table 3-3; §2.4.2's "(0.2, 0, 0) ms" is a typo,
 digest §7).
 
-Delay realisation (decision in docs/decisions.md, "fractional delays of the phase-lag
-compensation"): a delay of D samples is a ring of whole samples plus, when D is not an integer,
-a first-order Thiran allpass ``(a + z⁻¹)/(1 + a·z⁻¹)``, ``a = (1 − d)/(1 + d)``, whose phase
-delay is d samples at DC (d ∈ [0.5, 1.5) where possible, so |a| ≤ 1/3). An allpass keeps the
-magnitude exactly 1 at every frequency: the observers subtract large inertia terms from the
-thrust near the resonance, and the magnitude droop of linear interpolation (cos(ωT/2) at half a
-sample) would leave a residue there. The thesis' delays are whole samples at its sampling rates
-(0.4 ms at 10 kHz, 0.8/0.35 ms at 20 kHz), for which the ring alone is exact.
+Delay realisation (decision docs/decisions/0068-fractional-delays-of-the-phase-lag-compensation.md):
+a delay of D samples is a ring of whole samples plus, when D is not an integer, a first-order Thiran
+allpass ``(a + z⁻¹)/(1 + a·z⁻¹)``, ``a = (1 − d)/(1 + d)``, whose phase delay is d samples at DC
+(d ∈ [0.5, 1.5) where possible, so |a| ≤ 1/3). An allpass keeps the magnitude exactly 1 at every
+frequency: the observers subtract large inertia terms from the thrust near the resonance, and the
+magnitude droop of linear interpolation (cos(ωT/2) at half a sample) would leave a residue there.
+The thesis' delays are whole samples at its sampling rates (0.4 ms at 10 kHz, 0.8/0.35 ms at 20
+kHz), for which the ring alone is exact.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Feed-axis estimator that follows the axis' operating condition (moving or holding).
 
-Decision "Holding axis: Φ_d and R identified at rest" (docs/decisions.md): an axis that holds
-position while the others cut feels the load partly through its friction bristles (LuGre
+Decision docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md: an axis that
+holds position while the others cut feels the load partly through its friction bristles (LuGre
 presliding, Aslan Eq. 3.2–3.3), so its disturbance path differs from the one measured in a
 move; the model must come from the condition the axis runs in, chosen by the CNC's command.
 :class:`OperatingConditionFeedEstimator` runs the moving and the at-rest estimators of one

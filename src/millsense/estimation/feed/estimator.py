@@ -6,8 +6,9 @@ reads only CNC channels ``{axis}/current_cmd`` and ``{axis}/motor_speed``):
 1. C3 torque (Aslan Eq. 3.10): ``τ_c = K_t·I_nom − τ_f(ω) − J_e·Δω/Δt``, with the identified
    friction and inertia, then a 2nd-order Butterworth low-pass at ``lowpass_hz`` (the derivative
    filter: the backward difference of an encoder-derived speed is dominated by quantisation
-   noise; see :mod:`millsense.estimation.feed.rigid_body` and docs/decisions.md). The low-pass is
-   part of the estimator's model (below), so its lag is compensated, not ignored.
+   noise; see :mod:`millsense.estimation.feed.rigid_body` and
+   docs/decisions/0083-c3-derivative-filter-inside-the-kalman-model-friction-sign.md). The low-pass
+   is part of the estimator's model (below), so its lag is compensated, not ignored.
 2. Disturbance Kalman filter (Eq. 3.21–3.29) over the *identified* disturbance path
    ``Φ_d = τ_c/τ_a`` (Eq. 3.13, modal fit of a simulated commissioning sweep) in series with
    the low-pass, discretised at the CNC rate, augmented with the random-walk τ_a; optionally
@@ -103,7 +104,8 @@ class FeedAxisModel:
         real poles of the loop seen through the C3 torque), dimensionless.
     lowpass_hz : corner of the C3 low-pass, Hz.
     r : per-sample variance of the low-passed C3 torque in an air cut, N²·m².
-    q : spectral density of τ̇_a, (N·m)²/s (docs/decisions.md "Units of Q and R").
+    q : spectral density of τ̇_a, (N·m)²/s
+        (docs/decisions/0044-units-of-q-and-r-of-the-disturbance-kalman-filter-aslan-eq.md).
     sample_rate_hz : CNC sample rate, Hz.
     moment_arm_m : d of Eq. 3.12 for a rotary axis (None: no force output, only the torque).
     lugre : identified LuGre friction (C2) used by the C3 stage instead of ``drive.friction``
@@ -172,7 +174,8 @@ class FeedAxisModel:
 
         Notes
         -----
-        Default R (docs/decisions.md, "Estimator R from the configured current noise"): white
+        Default R
+        (docs/decisions/0100-estimators-built-from-the-machine-file-millsense-estimate.md): white
         current noise σ_I (``current_noise_a``, Aslan Eq. 3.30) seen through the C3 low-pass:
         ``R = (K_t·σ_I)²·Σ h_k²`` with h the impulse response of the 2nd-order Butterworth
         low-pass (the variance of the low-passed torque measurement the filter is designed on).
@@ -1008,9 +1011,9 @@ def operating_condition(
 
     Notes
     -----
-    Decision "Holding axis: Φ_d and R identified at rest" (docs/decisions.md): the condition is
-    chosen by the command, never by the measured current or speed (a loaded axis at rest
-    trembles by a few encoder counts; a command is exact).
+    Decision docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md: the
+    condition is chosen by the command, never by the measured current or speed (a loaded axis at
+    rest trembles by a few encoder counts; a command is exact).
     """
     v = np.abs(np.asarray(commanded_speed_rad_s, dtype=float))
     if v.size == 0 or not np.all(np.isfinite(v)):

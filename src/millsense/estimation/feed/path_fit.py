@@ -8,9 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from millsense.estimation.feed.estimator import (
-    C3Torque,
-)
+from millsense.estimation.feed.estimator import C3Torque
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.rational_fit import RationalFit, fit_rational
 from millsense.ident.frf import FrfEstimate, multisine_frf

@@ -5,13 +5,13 @@ Aslan Eq. 3.10: ``τ_c = K_t·I_nom − τ_f(ω) − J_e·dω/dt``, then Eq. 3.1
 is limited (10–15 Hz on the Quaser with its structural modes); the Kalman compensation of the
 drive's disturbance dynamics (C5–C6) builds on it in issue 7.
 
-Derivative filter (the thesis specifies none; decision in docs/decisions.md, "derivative filter
-of the rigid-body estimator"): dω/dt is the backward difference of the CNC's motor speed, and
-the whole torque estimate is low-passed by a 2nd-order Butterworth filter at ``cutoff_hz``
-(the difference of an encoder-derived speed is otherwise dominated by quantisation noise: one
-count of a 2²⁰-count encoder at 10 kHz is 0.06 rad/s, i.e. 600 rad/s² in the difference).
-Both are exact streaming operations (stored previous sample, ``sosfilt`` state), so the output
-does not depend on the chunking.
+Derivative filter (the thesis specifies none; decision
+docs/decisions/0005-derivative-filter-of-the-rigid-body-force-estimator-aslan.md): dω/dt is the
+backward difference of the CNC's motor speed, and the whole torque estimate is low-passed by a
+2nd-order Butterworth filter at ``cutoff_hz`` (the difference of an encoder-derived speed is
+otherwise dominated by quantisation noise: one count of a 2²⁰-count encoder at 10 kHz is 0.06 rad/s,
+i.e. 600 rad/s² in the difference). Both are exact streaming operations (stored previous sample,
+``sosfilt`` state), so the output does not depend on the chunking.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def rigid_limit(cfg: FeedAxisConfig) -> tuple[float, float]:
     ``J_r + (M_n + M_t)·R²`` and ``D_r + (C_n + C_t)·R²``. ``inertia_kg_m2`` of a ball-screw
     axis is J_r alone (the table is in ``ball_screw``), so the C3 estimate that used it missed
     the table's inertia and, at constant feed, the damping thrust ``D_r·ω/R + C_t·v`` (decision
-    "Raw estimate of a ball-screw axis", docs/decisions.md).
+    docs/decisions/0103-raw-estimate-of-a-ball-screw-axis-issue-7-item-b.md).
     """
     bs = cfg.ball_screw
     if bs is None:

@@ -8,7 +8,7 @@ so, as a commissioning engineer would, Φ_d is identified at N positions along t
 (:func:`identify_feed_bank`) and the estimator uses the model of where the axis is commanded to
 be (:class:`ScheduledFeedEstimator`).
 
-Scheduling (docs/decisions.md "Position-scheduled feed estimator"): the members share one C3
+Scheduling (docs/decisions/0116-position-scheduled-feed-estimator.md): the members share one C3
 stage and each has its own Kalman filter and smoother, run while the commanded position is near
 its identification position and warmed up by replaying the recent C3 torque when it starts, so
 a switch is bumpless. The output is the estimate of the member identified nearest to the CNC's

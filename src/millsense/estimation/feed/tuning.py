@@ -2,7 +2,9 @@
 
 - R (Aslan §3.3: "RMS of the torque fluctuation in an air cut"): :func:`air_cut_variance`, the
   per-sample variance of the estimator's own torque measurement during an air cut, after the
-  slow trend is removed (docs/decisions.md, "Units of Q and R": R is a variance).
+  slow trend is removed
+  (docs/decisions/0044-units-of-q-and-r-of-the-disturbance-kalman-filter-aslan-eq.md: R is a
+  variance).
 - Q (Aslan Eq. 3.30, hand-tuned): :func:`tune_q` maximises the ±3 dB bandwidth of the
   compensated FRF ``Φ_d·Φ_KF`` computed on the *identified* model (the estimator cannot see the
   true one), over log Q: a coarse grid (the bandwidth is piecewise smooth in Q, with jumps where
@@ -20,8 +22,8 @@
   estimator's own model (:func:`robust_fit`, every complex pole moved left by γ·|p|: the
   expected FRF when the relative mode frequency is Cauchy-distributed with scale γ, i.e. the
   mean plant of the family instead of its nominal member). :func:`flatness_bound` gives the
-  limit no linear time-invariant estimator can beat on such a family (docs/decisions.md,
-  "Robust feed estimator for position-dependent modes").
+  limit no linear time-invariant estimator can beat on such a family
+  (docs/decisions/0109-robust-feed-estimator-for-position-dependent-modes-issue-7.md).
 """
 
 from __future__ import annotations

@@ -14,12 +14,13 @@ Pipeline (Aslan §3.3, §5.3):
 4. :meth:`KalmanDesign.filter` — the frozen-gain filter as a :class:`~millsense.estimation.
    lti_filter.LinearFilter` run by :class:`~millsense.estimation.kalman.lti_filter.StreamingFilter`.
 
-Noise conventions (decision in docs/decisions.md, "units of Q and R of the disturbance Kalman
-filter"): for a continuous model, ``q`` is the spectral density of the white noise driving the
-disturbance (Eq. 3.28 is a continuous Riccati equation), converted to the per-sample covariance
-by Van Loan; ``r`` is always the per-sample variance of the measurement (Aslan: "RMS of the
-air-cut torque fluctuation", which docs/decisions.md reads as a variance). For a discrete
-model, ``q`` is already the per-sample covariance.
+Noise conventions (decision
+docs/decisions/0044-units-of-q-and-r-of-the-disturbance-kalman-filter-aslan-eq.md): for a continuous
+model, ``q`` is the spectral density of the white noise driving the disturbance (Eq. 3.28 is a
+continuous Riccati equation), converted to the per-sample covariance by Van Loan; ``r`` is always
+the per-sample variance of the measurement (Aslan: "RMS of the air-cut torque fluctuation", which
+docs/decisions/0003-current-noise-from-aslan-eq-3-30.md reads as a variance). For a discrete model,
+``q`` is already the per-sample covariance.
 
 Forms (Notes of :func:`design_kalman`): the predictor form ``x̂(k+1|k) = (A_d − K_p C) x̂(k|k−1)
 + K_p y(k)`` has the structure of Aslan Eq. 3.26 and of the Luenberger form Eq. 5.17; Eq. 3.26

@@ -9,7 +9,7 @@ with a few inputs (measurements) and a few outputs (disturbance estimates, innov
 ``scipy.signal.lfilter`` runs only single-input single-output filters, and a transfer function
 of order 25 is numerically poor, so the state update runs in a numba kernel.
 
-Realisation (decision in docs/decisions.md, "real modal form of the steady-state filter"): F
+Realisation (decision docs/decisions/0047-real-modal-form-of-the-steady-state-filter.md): F
 is brought to real block-diagonal (modal) form, 1×1 blocks for real eigenvalues and 2×2 blocks
 ``[[a, b], [−b, a]]`` for complex pairs ``a ± jb``, so a sample costs about ``n·(3 + m) +
 p·(n + m)`` multiply-adds instead of ``n² + n·m + p·(n + m)``. The transformation is used only

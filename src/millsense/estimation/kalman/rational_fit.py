@@ -7,7 +7,7 @@ PI of the spindle, the current loop of a feed drive seen through the C3 torque).
 runs the same relaxed vector fitting (:func:`millsense.ident.modal_fit.vector_fit`) keeping the
 real poles, chooses the order by the fit error, and realises the result as a
 :class:`~millsense.estimation.kalman.design.StateSpaceModel` (2×2 blocks for pairs, 1×1 for real
-poles). Decision in docs/decisions.md, "Rational fit keeping real poles for the estimators".
+poles). Decision docs/decisions/0082-feed-drive-estimator-model-identified-through-the-c3-path.md.
 
 For a sampled loop (the spindle's I_nom is produced at the velocity-loop rate) the FRF is fitted
 on the bilinear-warped axis ``f_w = (f_s/π)·tan(π f/f_s)`` and the continuous fit mapped back by

@@ -5,8 +5,8 @@ samples (6 ms at 10 kHz) so that the compensated force of each axis follows the 
 6 ms late but with the phase of the disturbance path corrected. Run over a sliding window whose
 backward pass starts from the newest filtered estimate, RTS returns ``x̂(k−L | k)``: the
 fixed-lag smoothed estimate. millsense computes that estimate directly, in steady state, from
-the innovations (decision in docs/decisions.md, "fixed-lag smoother as an FIR on the
-innovations"):
+the innovations (decision
+docs/decisions/0048-fixed-lag-smoother-as-an-fir-on-the-innovations-aslan.md):
 
     x̂(k−L | k) = x̂(k−L | k−L−1) + Σ_{j=0..L} P (A_d − K_p C)ᵀʲ Cᵀ Σ⁻¹ · e(k−L+j),
 

@@ -9,10 +9,10 @@ in a numba kernel; the state (estimate and covariance) is carried across chunks.
 Per sample (İlme Eq. 3.10–3.14, predict then update):
 ``q⁻ = Φ q``, ``P⁻ = Φ P Φᵀ + Q``, ``S = H P⁻ Hᵀ + R``, ``K = P⁻ Hᵀ S⁻¹``,
 ``q = q⁻ + K (z − H q⁻)``, and the covariance in Joseph form
-``P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`` (decision in docs/decisions.md, "Joseph form in the
-time-varying Kalman filter": algebraically equal to İlme's Eq. 3.14 ``(I − K H) P⁻`` but it
-stays symmetric positive semi-definite in floating point over millions of samples). A sample
-whose measurement is NaN is a prediction only (no update).
+``P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`` (decision
+docs/decisions/0049-joseph-form-and-missing-samples-in-the-time-varying-kalman.md: algebraically
+equal to İlme's Eq. 3.14 ``(I − K H) P⁻`` but it stays symmetric positive semi-definite in floating
+point over millions of samples). A sample whose measurement is NaN is a prediction only (no update).
 """
 
 from __future__ import annotations

@@ -2,9 +2,10 @@
 
 The reference is the closed-form slot average force (Altintas, *Manufacturing Automation*
 ch. 2; benchmarks.md §3): ``F̄x = −(N·a·K_rc/4)·c − N·a·K_re/π`` on the tool in its feed frame,
-which is the force on the table along +X in the demo's frame (docs/decisions.md). Nobody tuned
-the estimator to it: the estimate comes from the current command and motor speed alone, with
-friction identified from simulated air moves.
+which is the force on the table along +X in the demo's frame
+(docs/decisions/0007-force-sign-and-frame-of-the-demo.md). Nobody tuned the estimator to it: the
+estimate comes from the current command and motor speed alone, with friction identified from
+simulated air moves.
 """
 
 from __future__ import annotations

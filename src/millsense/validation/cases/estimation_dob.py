@@ -9,7 +9,7 @@
    thrust force, beside the thesis's.
 3. Table 4-5: predictive notch frequencies.
 
-Scenario for Table 4-7 (docs/decisions.md, "Table 4-7 scenario"): Al A5052 with the
+Scenario for Table 4-7 (docs/decisions/0071-table-4-7-scenario-seed-001.md): Al A5052 with the
 coefficients of Yamada Table 4-2 (K_tc, K_rc, K_ac = 1800, 820, 170 N/mm², no edge terms),
 Ø6 mm 2-flute end mill, zero helix, down milling with radial depth r (slot for condition
 <2>), force from :func:`millsense.process.forces.milling_forces` along the feed on the table.
@@ -463,7 +463,8 @@ def _medob_analytic() -> float:
 
 @case(
     "estimation.dob.medob_frf_equals_lpf_sweep",
-    source="Yamada (2017) §2.3 (time-domain check of the discrete MEDOB, docs/decisions.md)",
+    source="Yamada (2017) §2.3 (time-domain check of the discrete MEDOB, "
+    "docs/decisions/0067-exact-discrete-medob-seed-001-observers.md)",
     reference=0.0,
     unit="relative",
     abs_tol=1e-9,
@@ -633,10 +634,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
     normal force of the cut. Both estimates are tared on the air interval before the cut (no
     idling test, as in the thesis).
     """
-    from millsense.estimation.dob.mode_decoupled import (
-        VibrationModeObserver,
-        rigid_mode_observer,
-    )
+    from millsense.estimation.dob.mode_decoupled import VibrationModeObserver, rigid_mode_observer
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces

@@ -19,10 +19,12 @@ Mismatch between simulator and estimator (stated beside every figure):
 - position-scheduled case only: every disturbance-mode frequency follows the table position
   (±2 % over the stroke, :func:`scheduled_params`); the estimator is a bank of models
   identified at :data:`N_BANK` positions and scheduled on the commanded position
-  (:mod:`millsense.estimation.feed.schedule`; docs/decisions.md "Position-dependent disturbance
-  modes", "Position-scheduled feed estimator"). ``estimation.feed_robust_band_at_lti_limit``
-  compares the single robust design's worst-case band over ±2 % with the limit of any linear
-  estimator (:func:`~millsense.estimation.feed.tuning.flatness_bound`).
+  (:mod:`millsense.estimation.feed.schedule`;
+  docs/decisions/0115-position-dependent-disturbance-modes-simulator.md,
+  docs/decisions/0116-position-scheduled-feed-estimator.md).
+  ``estimation.feed_robust_band_at_lti_limit`` compares the single robust design's worst-case band
+  over ±2 % with the limit of any linear estimator
+  (:func:`~millsense.estimation.feed.tuning.flatness_bound`).
 
 The compensated FRF is measured, not computed: a multisine table load (1–300 Hz, 1 Hz lines,
 5 N·m RMS at the motor, 16 averaged periods) is applied during a constant-velocity move, the
@@ -844,7 +846,8 @@ _V1_DESC = (
     "every speed); the table also shows the random-walk estimator (Eq. 3.21-3.23, the model "
     "the thesis used) on the same cut. Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X "
     "feeds, Y holds position; each axis uses the model identified in the condition its "
-    "commanded speed selects (X moving, Y at rest; docs/decisions.md 'Holding axis'). " + _MISMATCH
+    "commanded speed selects (X moving, Y at rest; "
+    "docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md). " + _MISMATCH
 )
 
 

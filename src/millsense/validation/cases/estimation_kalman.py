@@ -8,10 +8,10 @@ band are computed with the model itself as the plant.
 
 The thesis reports 120 Hz for the rotary axes (Fig. 3.8, V3), measured with the *measured*
 Φ_d, which carries dynamics above the fitted band the filter does not model; on the model
-alone the band is wider (docs/decisions.md, "C-axis compensated bandwidth against Aslan's
-120 Hz"). The bandwidth case therefore keeps the thesis's figure as reference and fails
-honestly; the acceptance criterion of issue 7 ("flat within ±3 dB up to 120 Hz") is the second
-case.
+alone the band is wider
+(docs/decisions/0050-c-axis-compensated-bandwidth-against-aslan-s-120-hz.md). The bandwidth case
+therefore keeps the thesis's figure as reference and fails honestly; the acceptance criterion of
+issue 7 ("flat within ±3 dB up to 120 Hz") is the second case.
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def _table() -> str:
     quick=False,
     gap="the thesis's 120 Hz is the filter applied to the measured drive FRF, which has "
     "dynamics above the fitted band; with the Table 3.4 model as plant the band is an upper "
-    "bound (docs/decisions.md, C-axis bandwidth); the issue's acceptance (flat within ±3 dB "
-    "to 120 Hz) is estimation.kalman_c_axis_flat_to_120hz",
+    "bound (docs/decisions/0050-c-axis-compensated-bandwidth-against-aslan-s-120-hz.md); the "
+    "issue's acceptance (flat within ±3 dB to 120 Hz) is estimation.kalman_c_axis_flat_to_120hz",
     description="±3 dB band of the C-axis compensated FRF (model as plant, R=1.4903, Q=1e4); "
     "expected to exceed the thesis's measured-FRF figure (see decisions)",
 )

@@ -3,7 +3,7 @@
 The Y-axis case rebuilds the 12-mode drive disturbance FRF of Aslan Table 3.4 (ζ in % for Y,
 seed 000 digest P5), simulates its response to a periodic multisine at 10 kHz with measurement
 noise of the Y-axis air-cut level (Aslan Eq. 3.30, R = 0.1159 read as a variance in N²·m²,
-docs/decisions.md "Current noise from Aslan Eq. 3.30"), estimates H1 and fits modes
+docs/decisions/0003-current-noise-from-aslan-eq-3-30.md), estimates H1 and fits modes
 automatically. The helpers here are also used by the tests and by ``benchmarks/bench_ident.py``.
 """
 

@@ -320,7 +320,7 @@ def _t1() -> float:
 #: check frequencies, Hz: up to 2490 Hz, the last sweep line below 2.5 kHz. At exactly 2.5 kHz
 #: (the Nyquist frequency of the 0.2 ms velocity loop) the sampled loop's response to a sine
 #: depends on the sine's phase against the sampling, so no FRF exists there (decision
-#: "Spindle identification", docs/decisions.md).
+#: docs/decisions/0075-spindle-identification-issue-6-item-5.md).
 SPINDLE_CHECK_HZ = (
     10.0,
     30.0,

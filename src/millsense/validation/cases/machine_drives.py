@@ -129,10 +129,11 @@ for _ax in ("x", "y", "z", "c"):
         "sine-sweep FRF (full drive, LuGre, noise) vs the Table 3.4 mode with the largest peak",
     )(_disturbance_case_for(_ax))
 
-# A axis: with ζ as fractions (0.12–0.69, see docs/decisions.md) the printed modes merge; the
-# dominant 50 Hz mode of Table 3.4 peaks at about 54 Hz in Eq. 3.13 itself, an 8 % gap no
-# simulation can close. Two cases: the stated mode (documented gap), and the simulation against
-# the peak of Eq. 3.13 computed here from the printed coefficients (an independent evaluation).
+# A axis: with ζ as fractions (0.12–0.69, see
+# docs/decisions/0038-aslan-table-3-4-damping-and-static-gain.md) the printed modes merge; the
+# dominant 50 Hz mode of Table 3.4 peaks at about 54 Hz in Eq. 3.13 itself, an 8 % gap no simulation
+# can close. Two cases: the stated mode (documented gap), and the simulation against the peak of Eq.
+# 3.13 computed here from the printed coefficients (an independent evaluation).
 case(
     "machine.quaser_disturbance_frf_peak_a",
     source="Aslan Table 3.4 (A axis, dominant mode 50 Hz)",
@@ -141,7 +142,8 @@ case(
     rel_tol=0.02,
     quick=False,
     gap="with the printed A-axis coefficients (ζ read as fractions, 0.12-0.69) the modes merge "
-    'and Eq. 3.13 itself peaks near 54 Hz; docs/decisions.md "Table 3.4 damping"',
+    "and Eq. 3.13 itself peaks near 54 Hz; "
+    "docs/decisions/0038-aslan-table-3-4-damping-and-static-gain.md",
     description="A axis: largest peak of the simulated τ_a → τ_c FRF against Table 3.4's "
     "dominant mode",
 )(lambda: _disturbance_case("a"))

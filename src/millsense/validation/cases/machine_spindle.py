@@ -2,7 +2,7 @@
 
 The stated figures (attenuation table, bandwidths) are compared with what the printed
 coefficients give; the digest warns they do not agree. Those cases are ``quick=False`` and are
-expected to show the gap (docs/decisions.md, "Spindle drive reading of Aslan Ch. 5") — the
+expected to show the gap (docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md) — the
 model is not tuned to them. The quick cases check the implementation against independent
 computations.
 """
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 _GAP = (
     "the printed coefficients of Aslan Eq. 5.3, 5.7, 5.8 and App. E do not reproduce the "
-    'stated figure (digest P7 caveat); docs/decisions.md "Spindle drive reading of Aslan Ch. 5"; '
+    "stated figure (digest P7 caveat); docs/decisions/0032-spindle-drive-reading-of-aslan-ch-5.md; "
     "pinned by tests/test_spindle.py"
 )
 

@@ -212,7 +212,7 @@ def _crossing() -> Measured:
     "with Gain_CWE = 0.976 mm (K_tc = 758 N/mm², K_rc = 0.5 K_tc, c = 0.2 mm)",
 )
 def _v9() -> Measured:
-    depth = 0.976e-3 / math.sqrt(1.25)  # docs/decisions.md "Aslan V9 shape check"
+    depth = 0.976e-3 / math.sqrt(1.25)  # docs/decisions/0015-aslan-v9-shape-check.md
     x, res = _cut_x(_block(), 0.02, _TOP - depth)
     k = int(np.argmin(np.abs(x - 0.03)))
     ktc = 758e6
