@@ -271,8 +271,8 @@ def test_bad_arguments() -> None:
 
 def test_virtual_quick_cases_pass() -> None:
     # The registered acceptance figures of this package (each with its own reference).
-    cases = select_cases("virtual.cwe*", quick_only=True) + select_cases(
-        "virtual.aslan*", quick_only=True
+    cases = select_cases("plan.cwe*", quick_only=True) + select_cases(
+        "plan.aslan*", quick_only=True
     )
     assert len(cases) >= 6
     for c in cases:

@@ -102,12 +102,12 @@ def test_constant_speed_torque_balance_with_modes() -> None:
 def test_drive_validation_cases_registered_and_quick_ones_pass() -> None:
     from millsense.validation import run_case, select_cases
 
-    ids = {c.id for c in select_cases("machine.*")}
-    want = {f"machine.quaser_disturbance_frf_peak_{a}" for a in "xyzac"}
-    want |= {"machine.yamada_a_resonance", "machine.yamada_b_resonance"}
-    want |= {"machine.lugre_stribeck_sweep"}
+    ids = {c.id for c in select_cases("simulator.*")}
+    want = {f"simulator.quaser_disturbance_frf_peak_{a}" for a in "xyzac"}
+    want |= {"simulator.yamada_a_resonance", "simulator.yamada_b_resonance"}
+    want |= {"simulator.lugre_stribeck_sweep"}
     assert want <= ids
     # the Yamada resonances (335/408 Hz ± 2 %, Table 3-3) are quick
-    for c in select_cases("machine.yamada_*", quick_only=True):
+    for c in select_cases("simulator.yamada_*", quick_only=True):
         r = run_case(c)
         assert r.passed, (c.id, r.measured, r.error)

@@ -69,7 +69,7 @@ def test_runout_tool_uses_revolution_period_and_matches_model() -> None:
 
 
 def test_quick_validation_cases_pass() -> None:
-    for c in select_cases("virtual.plan_*"):
+    for c in select_cases("plan.plan_*"):
         assert run_case(c).passed, c.id
 
 

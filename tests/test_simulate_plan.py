@@ -200,9 +200,9 @@ def test_plan_path_segments_take_the_next_row(cross_plan: VirtualPlan) -> None:
 
 
 def test_quick_plan_cases_pass() -> None:
-    ids = {c.id for c in select_cases("machine.plan_*", quick_only=True)}
-    assert ids == {"machine.plan_slot_average_force", "machine.plan_slot_peak_resultant"}
-    for c in select_cases("machine.plan_*", quick_only=True):
+    ids = {c.id for c in select_cases("simulator.plan_*", quick_only=True)}
+    assert ids == {"simulator.plan_slot_average_force", "simulator.plan_slot_peak_resultant"}
+    for c in select_cases("simulator.plan_*", quick_only=True):
         res = run_case(c)
         assert res.passed, (c.id, res.measured, res.details, res.error)
 

@@ -8,5 +8,5 @@ from millsense.validation import select_cases
 def test_quick_simulator_cases_are_collected() -> None:
     # tests/test_validation_cases.py runs every quick case (run_case(c).passed); the
     # simulator's quick cases must be among them
-    ids = {c.id for c in select_cases("machine.simulator*", quick_only=True)}
-    assert ids == {"machine.simulator_breakage_current_step", "machine.simulator_sampled_path_feed"}
+    ids = {c.id for c in select_cases("simulator.simulator*", quick_only=True)}
+    assert ids == {"simulator.simulator_breakage_current_step", "simulator.simulator_sampled_path_feed"}

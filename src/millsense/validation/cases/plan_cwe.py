@@ -60,7 +60,7 @@ def _degrees_table(res: EngagementResult, k: int) -> str:
 
 
 @case(
-    "virtual.cwe_slot_interval_error",
+    "plan.cwe_slot_interval_error",
     source="issue 4 acceptance (straight slot 0°→180°)",
     reference=0.0,
     unit="°",
@@ -90,7 +90,7 @@ def _entry_exit(y_centre: float, which: int) -> Measured:
 
 
 @case(
-    "virtual.cwe_half_immersion_down_entry",
+    "plan.cwe_half_immersion_down_entry",
     source="benchmarks.md §1: down milling enters at arccos(2 a_e/D − 1) = 90° for a_e = R",
     reference=90.0,
     unit="°",
@@ -102,7 +102,7 @@ def _half_down() -> Measured:
 
 
 @case(
-    "virtual.cwe_half_immersion_up_exit",
+    "plan.cwe_half_immersion_up_exit",
     source="benchmarks.md §1: up milling exits at arccos(1 − 2 a_e/D) = 90° for a_e = R",
     reference=90.0,
     unit="°",
@@ -114,7 +114,7 @@ def _half_up() -> Measured:
 
 
 @case(
-    "virtual.cwe_quarter_immersion_down_entry",
+    "plan.cwe_quarter_immersion_down_entry",
     source="benchmarks.md §1: arccos(2·¼ − 1) = 120° for a_e = D/4",
     reference=120.0,
     unit="°",
@@ -126,7 +126,7 @@ def _quarter_down() -> Measured:
 
 
 @case(
-    "virtual.cwe_ball_axial_depth",
+    "plan.cwe_ball_axial_depth",
     source="issue 4 acceptance (ball end mill at known depth)",
     reference=3.0,
     unit="mm",
@@ -148,7 +148,7 @@ def _ball() -> Measured:
 
 
 @case(
-    "virtual.cwe_second_pass_steps_in_cut",
+    "plan.cwe_second_pass_steps_in_cut",
     source="issue 4 acceptance (second pass over already-cut material)",
     reference=0.0,
     unit="steps",
@@ -163,7 +163,7 @@ def _second_pass() -> float:
 
 
 @case(
-    "virtual.cwe_depth_step_position",
+    "plan.cwe_depth_step_position",
     source="issue 4 acceptance (a step in depth within one grid cell)",
     reference=0.0,
     unit="mm",
@@ -182,7 +182,7 @@ def _depth_step() -> float:
 
 
 @case(
-    "virtual.cwe_slot_crossing_exit",
+    "plan.cwe_slot_crossing_exit",
     source="issue 4 (tool crossing a slot: two intervals); R sin φ = R/2 at 1.5 R before it",
     reference=30.0,
     unit="°",
@@ -203,7 +203,7 @@ def _crossing() -> Measured:
 
 
 @case(
-    "virtual.aslan_v9_cwe_slot",
+    "plan.aslan_v9_cwe_slot",
     source="seed 000 V9 (Aslan Fig. 6.4): F_res = K_tc c Gain_CWE = 758 × 0.2 × 0.976",
     reference=147.96,
     unit="N",
@@ -235,7 +235,7 @@ def _v9() -> Measured:
 
 
 @case(
-    "virtual.cwe_slot_average_force",
+    "plan.cwe_slot_average_force",
     source="benchmarks.md §3 (closed-form slot averages)",
     reference=0.0,
     unit="%",

@@ -170,7 +170,7 @@ def _slot_window(run: PlanRun) -> tuple[np.ndarray, np.ndarray]:
 
 
 @case(
-    "machine.plan_slot_average_force",
+    "simulator.plan_slot_average_force",
     source="issue 4/5 joint acceptance: plan prediction (benchmarks.md §3 closed form, 1 %)",
     reference=0.0,
     unit="relative error",
@@ -203,7 +203,7 @@ def _slot_average() -> Measured:
 
 
 @case(
-    "machine.plan_slot_peak_resultant",
+    "simulator.plan_slot_peak_resultant",
     source="issue 4/5 joint acceptance (plan peak XY resultant, Aslan Eq. 5.33)",
     reference=0.0,
     unit="relative error",
@@ -279,7 +279,7 @@ def torque_comparison(run: PlanRun, max_lag_s: float = 0.3) -> dict[str, float]:
 
 
 @case(
-    "machine.plan_demo_torque_rms",
+    "simulator.plan_demo_torque_rms",
     source="issue 4/5 joint acceptance; seed 000 §6 (expected tooth-period mean torque)",
     reference=0.0,
     unit="N·m",
@@ -303,7 +303,7 @@ def _demo_torque() -> Measured:
 
 
 @case(
-    "machine.plan_demo_torque_lag",
+    "simulator.plan_demo_torque_lag",
     source="issue 4/5 joint acceptance; decision 'Simulator process coupling' (one block lag)",
     reference=0.0,
     unit="ms",
@@ -348,7 +348,7 @@ def match_statistics(run: PlanRun) -> dict[str, float]:
 
 
 @case(
-    "machine.plan_demo_match_fraction",
+    "simulator.plan_demo_match_fraction",
     source="seed 000 C15 (±10 µm per axis synchronisation); issue 4/5 joint acceptance",
     reference=1.0,
     unit="fraction",

@@ -48,7 +48,7 @@ def _v9(gain_mm: float) -> Measured:
 
 
 @case(
-    "virtual.plan_aslan_v9_slot",
+    "plan.plan_aslan_v9_slot",
     source="seed 000 V9 (Aslan Fig. 6.4): F_res = K_tc c Gain_CWE = 758 × 0.2 × 0.976",
     reference=147.96,
     unit="N",
@@ -62,7 +62,7 @@ def _v9_shallow() -> Measured:
 
 
 @case(
-    "virtual.plan_aslan_v9_deep_slot",
+    "plan.plan_aslan_v9_deep_slot",
     source="seed 000 V9 (Aslan Fig. 6.4): 758 × 0.2 × 2.498 = 378.7 N (deeper step)",
     reference=378.7,
     unit="N",
@@ -75,7 +75,7 @@ def _v9_deep() -> Measured:
 
 
 @case(
-    "virtual.plan_slot_average_force",
+    "plan.plan_slot_average_force",
     source="benchmarks.md §3 (closed-form slot averages)",
     reference=0.0,
     unit="%",

@@ -39,7 +39,7 @@ def _run(sim: MachineSimulator) -> dict[str, np.ndarray]:
 
 
 @case(
-    "machine.simulator_breakage_current_step",
+    "simulator.simulator_breakage_current_step",
     source="issue 5 acceptance; Munasinghe digest V1 (tooth-period averages)",
     reference=0.0,
     unit="tooth periods",
@@ -113,7 +113,7 @@ def _chatter_peak_hz(x: np.ndarray, omega: float) -> float:
 
 
 @case(
-    "machine.simulator_chatter_frequency",
+    "simulator.simulator_chatter_frequency",
     source="benchmarks.md §1 (Insperger 2003); stability.time_domain_insperger_chatter_hz",
     reference=932.0,
     unit="Hz",
@@ -140,7 +140,7 @@ def _chatter_hz() -> Measured:
 
 
 @case(
-    "machine.simulator_chatter_flag_below_above",
+    "simulator.simulator_chatter_flag_below_above",
     source="benchmarks.md §1 (Insperger 2003)",
     reference=2.0,
     unit="agreeing verdicts",
@@ -163,7 +163,7 @@ def _flags() -> Measured:
 
 
 @case(
-    "machine.simulator_sampled_path_feed",
+    "simulator.simulator_sampled_path_feed",
     source="issue 5 (interpolator at the programmed feed); Aslan's 0.4 mm virtual-file spacing",
     reference=20.0,
     unit="mm/s",

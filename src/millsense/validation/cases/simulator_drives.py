@@ -119,7 +119,7 @@ def _disturbance_case_for(axis: str) -> Callable[[], Measured]:
 
 for _ax in ("x", "y", "z", "c"):
     case(
-        f"machine.quaser_disturbance_frf_peak_{_ax}",
+        f"simulator.quaser_disturbance_frf_peak_{_ax}",
         source="Aslan Table 3.4, Eq. 3.13",
         reference=_dominant_reference(_ax),
         unit="Hz",
@@ -135,7 +135,7 @@ for _ax in ("x", "y", "z", "c"):
 # can close. Two cases: the stated mode (documented gap), and the simulation against the peak of Eq.
 # 3.13 computed here from the printed coefficients (an independent evaluation).
 case(
-    "machine.quaser_disturbance_frf_peak_a",
+    "simulator.quaser_disturbance_frf_peak_a",
     source="Aslan Table 3.4 (A axis, dominant mode 50 Hz)",
     reference=50.0,
     unit="Hz",
@@ -161,7 +161,7 @@ def _eq313_peak_hz(axis: str) -> float:
 
 
 case(
-    "machine.quaser_disturbance_frf_peak_a_vs_eq313",
+    "simulator.quaser_disturbance_frf_peak_a_vs_eq313",
     source="Aslan Eq. 3.13 evaluated with the Table 3.4 A-axis coefficients",
     reference=_eq313_peak_hz("a"),
     unit="Hz",
@@ -195,7 +195,7 @@ def _yamada_case(machine: str) -> Measured:
 
 
 case(
-    "machine.yamada_a_resonance",
+    "simulator.yamada_a_resonance",
     source="Yamada Table 3-3 (Machine A)",
     reference=335.0,
     unit="Hz",
@@ -204,7 +204,7 @@ case(
     description="Peak of the simulated I_cmd → table-acceleration FRF, dual-inertia stage A",
 )(lambda: _yamada_case("yamada-a"))
 case(
-    "machine.yamada_b_resonance",
+    "simulator.yamada_b_resonance",
     source="Yamada Table 3-3 (Machine B)",
     reference=408.0,
     unit="Hz",
@@ -217,7 +217,7 @@ STRIBECK_SPEEDS = np.array([-4.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0, 4.0])
 
 
 @case(
-    "machine.lugre_stribeck_sweep",
+    "simulator.lugre_stribeck_sweep",
     source="Aslan Eq. 3.2–3.4, Table 3.2 (Z axis)",
     reference=0.0,
     unit="σ",
@@ -245,7 +245,7 @@ def _stribeck() -> Measured:
 
 
 @case(
-    "machine.feed_drive_chunk_invariance",
+    "simulator.feed_drive_chunk_invariance",
     source="issue 5 (resumable simulator); bit-identity",
     reference=0.0,
     unit="A",

@@ -17,7 +17,7 @@ def _poses(n: int = 200) -> np.ndarray:
 
 
 @case(
-    "machine.kinematics_jacobian_fd",
+    "models.kinematics_jacobian_fd",
     source="central differences of Aslan Eq. 3.38 (digest §6 test list)",
     reference=0.0,
     unit="m/rad",
@@ -42,7 +42,7 @@ def _jacobian_fd() -> Measured:
 
 
 @case(
-    "machine.kinematics_force_roundtrip",
+    "models.kinematics_force_roundtrip",
     source="Aslan Eq. 3.49/3.51: [Jᵀ·T]⁺·(Jᵀ·T·F) = F",
     reference=0.0,
     unit="N",

@@ -36,7 +36,7 @@ def _params() -> SpindleDriveParams:
 
 def _attenuation_case(f_hz: float, stated_db: float) -> None:
     @case(
-        f"machine.spindle_attenuation_{int(f_hz)}hz",
+        f"simulator.spindle_attenuation_{int(f_hz)}hz",
         source="Aslan Ch. 5.4 text (G_dτ attenuation, range 1); printed coefficients Eq. 5.3, "
         "5.7, 5.8, App. E",
         reference=stated_db,
@@ -66,7 +66,7 @@ for _f, _db in _STATED_ATT:
 
 
 @case(
-    "machine.spindle_current_bw_range1",
+    "simulator.spindle_current_bw_range1",
     source="Aslan Fig. 5.2a (simulated 360 Hz, measured 385 Hz)",
     reference=360.0,
     unit="Hz",
@@ -83,7 +83,7 @@ def _cur_bw1() -> float:
 
 
 @case(
-    "machine.spindle_current_bw_range2",
+    "simulator.spindle_current_bw_range2",
     source="Aslan Fig. 5.2b (simulated 1240 Hz, measured 1190 Hz)",
     reference=1240.0,
     unit="Hz",
@@ -99,7 +99,7 @@ def _cur_bw2() -> float:
 
 
 @case(
-    "machine.spindle_velocity_bw_range1",
+    "simulator.spindle_velocity_bw_range1",
     source="Aslan Fig. 5.4 (simulated 34 Hz, measured 38 Hz)",
     reference=34.0,
     unit="Hz",
@@ -115,7 +115,7 @@ def _vel_bw1() -> float:
 
 
 @case(
-    "machine.spindle_current_bw_printed_eq58",
+    "simulator.spindle_current_bw_printed_eq58",
     source="seed-000 digest P7 derived caveat: printed Eq. 5.8 gives ≈ 286 Hz",
     reference=286.0,
     unit="Hz",
@@ -130,7 +130,7 @@ def _printed_bw() -> float:
 
 
 @case(
-    "machine.spindle_time_vs_discrete_frf",
+    "simulator.spindle_time_vs_discrete_frf",
     source="exact z-domain FRF of the ZOH-discretised loop (independent of the kernel)",
     reference=0.0,
     unit="",
