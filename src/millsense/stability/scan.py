@@ -18,14 +18,14 @@ radial immersion a period-doubling (flip) lobe makes an unstable band below a st
 
 1. start at the small-gain depth (:func:`small_gain_depth`), below which the continuous
    DDE is provably stable, and evaluate ρ on the geometric grid ``w_k = w_0 q^k`` up to the
-   ceiling (``q`` = ``ratio``, default 1.08);
+   ceiling (``q`` = ``ratio``, default 1.1);
 2. every sign change of ρ − 1 between neighbouring grid depths is refined by Brent's method;
 3. every sampled local maximum of ρ with ``hump <= ρ < 1`` (default 0.8) is maximised over
    its two neighbouring grid intervals; if the maximum reaches 1 the band it reveals is
    refined on both sides (and symmetrically, local minima with ``1 <= ρ < 1/hump`` reveal
    narrow stable islands).
 
-What it cannot see (decision 0901): an unstable band narrower than the grid ratio ``q`` (8 %
+What it cannot see (decision 0901): an unstable band narrower than the grid ratio ``q`` (10 %
 of its depth) that lies wholly between two grid depths AND leaves no local maximum of the
 sampled ρ above ``hump``, i.e. a band of a multiplier that is not the dominant one at either
 neighbouring grid depth. Such a band is also narrower than any depth a user can hold on a
@@ -49,7 +49,7 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
 #: Default ratio of neighbouring depths of the scan grid (decision 0901).
-SCAN_RATIO = 1.08
+SCAN_RATIO = 1.1
 #: Sampled local maxima of ρ at or above this are maximised to look for a narrow band.
 HUMP = 0.8
 
@@ -142,8 +142,7 @@ def structure_peak_gain(family: DepthFamily) -> float:
     wn = np.unique(np.abs(lam.imag[lam.imag > 0]))
     wmax = float(max(np.max(np.abs(lam)), 1.0))
     grid = np.concatenate(
-        [np.linspace(0.0, 3 * wmax, 4000)]
-        + [w * (1 + np.linspace(-0.05, 0.05, 401)) for w in wn]
+        [np.linspace(0.0, 3 * wmax, 4000)] + [w * (1 + np.linspace(-0.05, 0.05, 401)) for w in wn]
     )
     n = family.A0.shape[0]
     s = 1j * grid
@@ -217,6 +216,32 @@ class _Scalar:
         return self.cache[w][1]
 
 
+def _golden_probe(f: _Scalar, a: float, x: float, b: float, sign: float) -> float:
+    """Golden-section search for max ρ (sign −1) or min ρ (sign +1) in (a, b) around x.
+
+    Stops as soon as ρ crosses 1 (the band or island is then proven) or the bracket is
+    below 1e-3 of the depth.
+    """
+    g = 0.381966011250105
+    fx = sign * f(x)
+    while b - a > 1e-3 * a:
+        if (sign < 0 and -fx >= 1.0) or (sign > 0 and fx < 1.0):
+            break
+        u = x + g * (b - x) if (b - x) > (x - a) else x - g * (x - a)
+        fu = sign * f(u)
+        if fu < fx:
+            if u > x:
+                a = x
+            else:
+                b = x
+            x, fx = u, fu
+        elif u > x:
+            b = u
+        else:
+            a = u
+    return x
+
+
 def unstable_bands(
     family: DepthFamily,
     w_start: float,
@@ -258,7 +283,7 @@ def unstable_bands(
     ws = [lo]
     rs = [float(r0[0])]
     top = ceiling
-    chunk = 12
+    chunk = 8
     while ws[-1] < top:
         k = np.arange(1, chunk + 1)
         new = np.minimum(ws[-1] * ratio**k, top)
@@ -280,7 +305,6 @@ def unstable_bands(
                         count_batch += 1
                         ws.append(top)
                         rs.append(float(r[0]))
-        chunk = 24
     W = np.asarray(ws)
     R = np.asarray(rs)
     for w, r in zip(W, R, strict=True):
@@ -288,9 +312,7 @@ def unstable_bands(
     edges: list[tuple[float, int]] = []  # (depth, +1 entering instability / -1 leaving)
 
     def root(a: float, b: float) -> float:
-        return float(
-            scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13)
-        )
+        return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
 
     for i in range(len(W) - 1):
         a_unst, b_unst = R[i] >= 1.0, R[i + 1] >= 1.0
@@ -307,11 +329,7 @@ def unstable_bands(
         else:
             continue
         a, b = float(W[i - 1]), float(W[i + 1])
-        opt = scipy.optimize.minimize_scalar(
-            lambda x, s=sign: s * f(x), bounds=(a, b), method="bounded",
-            options={"xatol": rtol * a},
-        )
-        x = float(opt.x)
+        x = _golden_probe(f, a, float(W[i]), b, sign)
         fx = f(x)
         if (sign < 0 and fx >= 1.0) or (sign > 0 and fx < 1.0):
             e1, e2 = root(a, x), root(x, b)
@@ -333,3 +351,35 @@ def unstable_bands(
         mults.append(f.mu(start))
     evals = count_batch + sum(1 for v in f.cache.values() if np.isfinite(v[1].real))
     return Bands(unstable, mults, float(W[-1]), evals)
+
+
+def near_root(
+    family: DepthFamily, guess: float, rtol: float = 2e-4, lo: float = 0.975, hi: float = 0.999
+) -> tuple[float, complex, int]:
+    """Crossing ρ = 1 of ``family`` near ``guess`` [m]: (depth, multiplier, evaluations).
+
+    For a finer discretisation of a boundary already found by :func:`unstable_bands`
+    (first-order SDM converges from above, so the bracket starts at ``[lo, hi]·guess`` and
+    widens geometrically on whichever side the crossing lies). It does not look for other
+    crossings far below the guess: the scan at the coarser discretisation did.
+    """
+    f = _Scalar(family)
+    a, b = guess * lo, guess * hi
+    ra, rb = f(a), f(b)
+    step = 1.03
+    for _ in range(60):
+        if ra < 1.0 <= rb:
+            break
+        if ra >= 1.0:
+            b, rb = a, ra
+            a = a / step
+            ra = f(a)
+        else:
+            a, ra = b, rb
+            b = b * step
+            rb = f(b)
+        step = min(step * 1.5, 2.0)
+    else:
+        return math.nan, complex("nan"), len(f.cache)
+    w = float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
+    return w, f.mu(w), len(f.cache)
