@@ -212,3 +212,19 @@ def test_modal_mass_key_equals_stiffness(tmp_path: Path) -> None:
     )
     with pytest.raises(ConfigError, match="exactly one of"):
         load_case(bad)
+
+
+def test_cli_blas_threads_set_to_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # decision 0907: the command runs the loaded OpenBLAS on one thread (2 before, here)
+    import numpy as np
+
+    from millsense.cli import cmd_lobes
+
+    np.linalg.eigvals(np.eye(3))  # OpenBLAS loaded
+    before = cmd_lobes._limit_blas_threads(2)
+    if before is None:
+        pytest.skip("no OpenBLAS in this numpy")
+    p = _write(tmp_path, GOOD)
+    code, _, _ = _run(["lobes", str(p), "--rpm", "21700"], capsys)
+    assert code == 0
+    assert cmd_lobes._limit_blas_threads(None) == 1

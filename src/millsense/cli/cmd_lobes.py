@@ -27,8 +27,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 
-def _limit_blas_threads(threads: int) -> int | None:
-    """Set the thread count of every OpenBLAS already loaded in this process.
+def _limit_blas_threads(threads: int | None) -> int | None:
+    """Set the thread count of every OpenBLAS already loaded in this process (None: only read).
 
     Returns the count the library reports afterwards (None if no OpenBLAS is loaded).
     """
@@ -47,10 +47,10 @@ def _limit_blas_threads(threads: int) -> int | None:
             for suffix in ("", "64_"):
                 setter = getattr(handle, f"{prefix}openblas_set_num_threads{suffix}", None)
                 getter = getattr(handle, f"{prefix}openblas_get_num_threads{suffix}", None)
-                if setter is not None:
+                if setter is not None and threads is not None:
                     setter(ctypes.c_int(threads))
-                    if getter is not None:
-                        got = int(getter())
+                if getter is not None:
+                    got = int(getter())
     return got
 
 
