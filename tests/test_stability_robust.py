@@ -25,13 +25,13 @@ from millsense.validation.cases.stability import FLUTES, FN, INSPERGER, KN, KT
 def _family(ratio: float, mode: str, structure: ModalModel = INSPERGER, flutes: int = FLUTES):
     st, ex = immersion_angles(ratio, 1.0, mode)
 
-    def fam(n: float, m: int):  # noqa: ANN202
+    def fam(n: float, m: int):
         return milling_dde(structure, flutes, KT, KN, st, ex, n, m)
 
     return fam
 
 
-def _rho(fam, w: float) -> float:  # noqa: ANN001
+def _rho(fam, w: float) -> float:
     """Independent per-depth spectral radius (sdm.analyse, no batching)."""
     return analyse(fam.step_means(w)).spectral_radius
 
@@ -84,7 +84,7 @@ def test_narrow_band_below_the_boundary_is_found_half_up_20100() -> None:
     assert len(b.unstable) >= 2 and b.stable_bands()  # an island above the band
 
 
-def _random_case(rng: np.random.Generator):  # noqa: ANN202
+def _random_case(rng: np.random.Generator):
     def mode() -> Mode:
         return Mode.from_stiffness(
             float(rng.uniform(400, 2500)),
@@ -101,7 +101,7 @@ def _random_case(rng: np.random.Generator):  # noqa: ANN202
     kt = float(rng.uniform(4e8, 1.2e9))
     kr = float(rng.uniform(0.1, 0.5)) * kt
 
-    def fam(n: float, m: int):  # noqa: ANN202
+    def fam(n: float, m: int):
         return milling_dde(structure, flutes, kt, kr, st, ex, n, m)
 
     f_max = 2.0 * max(md_.natural_frequency_hz for md_ in structure.modes)
