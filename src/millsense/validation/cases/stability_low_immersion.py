@@ -133,6 +133,24 @@ def _td_case(ratio: float, mode: Mode) -> Measured:
     return Measured(float(agree), head + "\n".join(rows))
 
 
+def _chatter_case(ratio: float, mode: Mode) -> Measured:
+    from millsense.stability.robust import solve_speed
+    from millsense.stability.scan import structure_peak_gain
+    from millsense.validation.cases.stability_time_domain import _td_sim
+
+    n_ref, w_ref = REFERENCE[(ratio, mode)]
+    fam = _family(ratio, mode)
+    sol = solve_speed(fam, n_ref, 2 * FN, 20, 0.02, structure_peak_gain(fam(n_ref, 20)))
+    sim = _td_sim(ratio, mode, n_ref, 1.1 * w_ref * 1e-3)
+    out = sim.run_revolutions(400)
+    f_td = sim.chatter_frequency_hz(out.x_m[-100 * sim.steps_per_rev :], exclude_harmonics=False)
+    details = (
+        f"{n_ref:.1f} rev/min: SDM {sol.bifurcation}, critical eigenvector "
+        f"{sol.chatter_hz:.2f} Hz; time domain at 1.1x the depth {f_td:.2f} Hz (last 100 revolutions)"
+    )
+    return Measured(abs(f_td / sol.chatter_hz - 1.0), details)
+
+
 def _register(ratio: float, mode: Mode) -> None:
     tag = f"ad{str(ratio).replace('.', '')}_{mode}"
     n_ref, w_ref = REFERENCE[(ratio, mode)]
@@ -163,6 +181,19 @@ def _register(ratio: float, mode: Mode) -> None:
     )
     def _td() -> Measured:
         return _td_case(ratio, mode)
+
+    @case(
+        f"stability.low_immersion.{tag}_chatter_branch",
+        source="time-domain regenerative simulation (decision 0903)",
+        reference=0.0,
+        unit="relative difference",
+        abs_tol=0.01,
+        quick=False,
+        description=f"1-DOF a/D = {ratio} {mode} milling at {n_ref:.0f} rev/min: chatter "
+        "frequency of the critical eigenvector vs the simulation's dominant frequency at 1.1x",
+    )
+    def _branch() -> Measured:
+        return _chatter_case(ratio, mode)
 
 
 for _ratio, _mode in REFERENCE:
