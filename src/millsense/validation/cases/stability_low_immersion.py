@@ -146,7 +146,8 @@ def _chatter_case(ratio: float, mode: Mode) -> Measured:
     f_td = sim.chatter_frequency_hz(out.x_m[-100 * sim.steps_per_rev :], exclude_harmonics=False)
     details = (
         f"{n_ref:.1f} rev/min: SDM {sol.bifurcation}, critical eigenvector "
-        f"{sol.chatter_hz:.2f} Hz; time domain at 1.1x the depth {f_td:.2f} Hz (last 100 revolutions)"
+        f"{sol.chatter_hz:.2f} Hz; "
+        f"time domain at 1.1x the depth {f_td:.2f} Hz (last 100 revolutions)"
     )
     return Measured(abs(f_td / sol.chatter_hz - 1.0), details)
 
