@@ -36,14 +36,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from millsense.stability.lobes import LobeResult
+from millsense.stability.lobes import LobeResult, chatter_frequency
 from millsense.stability.milling import DepthFamily
 from millsense.stability.scan import (
     Bands,
+    StructureGain,
     monodromies,
     near_root,
     small_gain_depth,
-    structure_peak_gain,
+    structure_gain,
     unstable_bands,
 )
 from millsense.stability.sdm import classify_multiplier
@@ -135,6 +136,18 @@ class SpeedSolution:
         return b.stable_bands()
 
 
+def compliance_of(family: DepthFamily) -> Callable[[FloatArray], FloatArray]:
+    """Largest receptance magnitude of the family's structure at frequencies [Hz]."""
+
+    def comp(f: FloatArray) -> FloatArray:
+        s = 2j * np.pi * np.atleast_1d(np.asarray(f, dtype=float))
+        n = family.A0.shape[0]
+        G = family.C @ np.linalg.solve(s[:, None, None] * np.eye(n) - family.A0, family.Bd)
+        return np.asarray(np.abs(G).max(axis=(-2, -1)))
+
+    return comp
+
+
 def _cycle_steps(m: int, f_hz: float, family: DepthFamily, steps_per_cycle: float) -> int:
     """``m`` raised so that a cycle of ``f_hz`` spans at least ``steps_per_cycle`` steps."""
     if steps_per_cycle <= 0 or not math.isfinite(f_hz):
@@ -149,7 +162,7 @@ def solve_speed(
     f_max: float,
     steps_per_period: int,
     depth_max: float,
-    peak_gain: float,
+    peak_gain: float | StructureGain,
     steps_per_cycle: float = 10.0,
     extrapolate: bool = True,
     tol: float = TOLERANCE,
@@ -167,7 +180,8 @@ def solve_speed(
     f_max : highest chatter frequency considered [Hz].
     steps_per_period : SDM steps per tooth period m (at least).
     depth_max : largest depth searched [m].
-    peak_gain : structure's peak receptance [m/N] (:func:`structure_peak_gain`).
+    peak_gain : the structure's gain (:func:`~millsense.stability.scan.structure_gain`), or
+        its peak receptance [m/N] (then the small-gain depth uses ``2 ||G||∞``).
     steps_per_cycle : at least this many steps per chatter cycle (0 disables).
     extrapolate : Richardson extrapolation with adaptive m.
     tol : tolerance of the extrapolated depth (estimated relative error bound).
@@ -183,7 +197,7 @@ def solve_speed(
     if m != steps_per_period:
         fam = family_at(rpm, m)
     w0 = small_gain_depth(fam, peak_gain)
-    bands = unstable_bands(fam, w0, depth_max, stop_after_first=bands_up_to, rtol=rtol)
+    bands = unstable_bands(fam, w0, depth_max, stop_after_first=bands_up_to, rtol=1.5 * rtol)
     evals += bands.evaluations
     w1 = bands.limit
     if not (0 < w1 < math.inf):
@@ -191,7 +205,9 @@ def solve_speed(
         return SpeedSolution(
             rpm, w1, complex("nan"), kind, math.nan, 0.0, m, bands.unstable, bands.ceiling, evals
         )
-    f1 = eigen_chatter_frequency(fam, w1, f_max)
+    # sizing m needs only the order of the chatter frequency: the cheap branch of largest
+    # receptance (the eigenvector decides the reported frequency at the end)
+    f1 = chatter_frequency(bands.multipliers[0], fam.period, compliance_of(fam), f_max)
     m_new = _cycle_steps(m, f1, fam, steps_per_cycle)
     if m_new != m:
         m = m_new
@@ -374,7 +390,7 @@ def robust_lobes(
     least two speeds); ``bands_up_to`` = inf searches islands up to ``depth_max``.
     """
     speeds = np.asarray(rpm, dtype=float)
-    gain = structure_peak_gain(family_at(float(speeds[0]), steps_per_period))
+    gain = structure_gain(family_at(float(speeds[0]), steps_per_period))
     prev_f = math.nan
 
     def solve(n: float, pf: float, bands: float) -> SpeedSolution:

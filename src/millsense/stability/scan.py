@@ -74,33 +74,56 @@ def _propagate_batch(
     return out
 
 
-def monodromies(family: DepthFamily, depths: FloatArray) -> FloatArray:
+@dataclass(frozen=True)
+class _Prepared:
+    """Depth-independent parts of :func:`monodromies` for one family."""
+
+    family: DepthFamily
+    BHC: FloatArray  # (m, n, n)
+    BH: FloatArray  # (m, J, n, p)
+    lags: NDArray[np.int64]
+    fr: FloatArray
+    C: FloatArray
+    g: FloatArray
+
+
+def _prepare(family: DepthFamily) -> _Prepared:
+    h = family.h
+    splits = [delay_split(float(t), h) for t in family.delays]
+    if any(r < 1 for r, _ in splits):
+        raise ValueError("every delay must be at least one step h; use more steps per period")
+    return _Prepared(
+        family,
+        np.einsum("nd,mde,ek->mnk", family.Bd, family.H.sum(axis=1), family.C),
+        np.einsum("nd,mjde->mjne", family.Bd, family.H),
+        np.array([r for r, _ in splits], dtype=np.int64),
+        np.array([f for _, f in splits]),
+        np.ascontiguousarray(family.C),
+        np.zeros((family.H.shape[0], family.A0.shape[0])),
+    )
+
+
+def monodromies(family: DepthFamily | _Prepared, depths: FloatArray) -> FloatArray:
     """Monodromy matrices (K, N, N) of ``family`` at ``depths`` (K,) [m].
 
     Same step maps as ``discretize(family.step_means(w))`` for each depth (module docstring).
     """
+    prep = family if isinstance(family, _Prepared) else _prepare(family)
+    fam = prep.family
     w = np.asarray(depths, dtype=float)
     K = w.size
-    Hsum = family.H.sum(axis=1)
-    m, J = family.H.shape[0], family.H.shape[1]
-    n = family.A0.shape[0]
-    p = family.C.shape[0]
-    h = family.h
-    BHC = np.einsum("nd,mde,ek->mnk", family.Bd, Hsum, family.C)  # (m, n, n)
-    BH = np.einsum("nd,mjde->mjne", family.Bd, family.H)  # (m, J, n, p)
-    splits = [delay_split(float(t), h) for t in family.delays]
-    if any(r < 1 for r, _ in splits):
-        raise ValueError("every delay must be at least one step h; use more steps per period")
-    lags = np.array([r for r, _ in splits], dtype=np.int64)
-    fr = np.array([f for _, f in splits])
+    m, J = fam.H.shape[0], fam.H.shape[1]
+    n = fam.A0.shape[0]
+    p = fam.C.shape[0]
+    h = fam.h
     k = n + 2 * p * J
     big = np.zeros((K, m, k, k))
-    A = family.A0[None, None] - w[:, None, None, None] * BHC[None]  # (K, m, n, n)
+    A = fam.A0[None, None] - w[:, None, None, None] * prep.BHC[None]  # (K, m, n, n)
     big[:, :, :n, :n] = A * h
     anorm = np.maximum(np.max(np.abs(A * h), axis=(1, 2, 3)), 1e-3)  # (K,)
     escale = np.ones((K, J))
     for j in range(J):
-        Ej = w[:, None, None, None] * BH[None, :, j] * h  # (K, m, n, p)
+        Ej = w[:, None, None, None] * prep.BH[None, :, j] * h  # (K, m, n, p)
         en = np.max(np.abs(Ej), axis=(1, 2, 3))
         escale[:, j] = np.where(en > anorm, en / anorm, 1.0)
         big[:, :, :n, n + j * p : n + (j + 1) * p] = Ej / escale[:, j, None, None, None]
@@ -114,14 +137,15 @@ def monodromies(family: DepthFamily, depths: FloatArray) -> FloatArray:
     for j in range(J):
         G0 = ex[:, :, :n, n + j * p : n + (j + 1) * p]
         G1 = ex[:, :, :n, n + p * J + j * p : n + p * J + (j + 1) * p]
-        s = escale[:, j, None, None, None]
-        Wa[:, :, j] = s * ((1.0 + fr[j]) * G0 - G1 / h)
-        Wb[:, :, j] = s * (G1 / h - fr[j] * G0)
-    g = np.zeros((m, n))
-    return _propagate_batch(Phi, Wa, Wb, lags, np.ascontiguousarray(family.C), g)
+        sc = escale[:, j, None, None, None]
+        Wa[:, :, j] = sc * ((1.0 + prep.fr[j]) * G0 - G1 / h)
+        Wb[:, :, j] = sc * (G1 / h - prep.fr[j] * G0)
+    return _propagate_batch(Phi, Wa, Wb, prep.lags, prep.C, prep.g)
 
 
-def spectral_radii(family: DepthFamily, depths: FloatArray) -> tuple[FloatArray, ComplexArray]:
+def spectral_radii(
+    family: DepthFamily | _Prepared, depths: FloatArray
+) -> tuple[FloatArray, ComplexArray]:
     """Spectral radius ρ (K,) and dominant multiplier μ (K,) at ``depths`` [m]."""
     w = np.atleast_1d(np.asarray(depths, dtype=float))
     if w.size == 0:
@@ -132,37 +156,77 @@ def spectral_radii(family: DepthFamily, depths: FloatArray) -> tuple[FloatArray,
     return np.abs(mu), mu
 
 
-def structure_peak_gain(family: DepthFamily) -> float:
-    """Largest singular value of the structure's receptance C (sI − A0)⁻¹ Bd over frequency.
+@dataclass(frozen=True)
+class StructureGain:
+    """Largest singular value σ(ω) of the structure's receptance on a frequency grid.
 
-    Evaluated at the damped natural frequencies of ``A0`` and on a dense grid around and
-    between them (light damping puts the peak within ζω of the natural frequency).
+    Attributes
+    ----------
+    omega : (F,) angular frequencies [rad/s], dense around every damped natural frequency.
+    sigma : (F,) largest singular value of ``C (iω − A0)⁻¹ Bd`` [m/N].
+    """
+
+    omega: FloatArray
+    sigma: FloatArray
+
+    @property
+    def peak(self) -> float:
+        """||G||∞ [m/N]."""
+        return float(self.sigma.max())
+
+    def loop_gain(self, delays: FloatArray) -> float:
+        """L2 gain of the LTI part of the regenerative loop per unit of ``w ||H||`` [m/N].
+
+        One delay τ: ``max_ω |1 − e^{−iωτ}| σ(ω)`` (the loop ``G·H(t)·(1 − D)`` is stable
+        with its cyclic permutation ``(1 − D)·G·H(t)``, whose LTI part is one transfer
+        function); several delays: ``2 ||G||∞``.
+        """
+        if len(delays) == 1:
+            tau = float(delays[0])
+            return float(np.max(np.abs(1.0 - np.exp(-1j * self.omega * tau)) * self.sigma))
+        return 2.0 * self.peak
+
+
+def structure_gain(family: DepthFamily) -> StructureGain:
+    """:class:`StructureGain` of a family's structure (``A0``, ``Bd``, ``C``; speed-independent).
+
+    The grid holds the damped natural frequencies of ``A0`` with ±5 % around them in steps of
+    0.025 % (light damping puts the peak within ζω of them) and 8000 points up to 3× the
+    highest.
     """
     lam = np.linalg.eigvals(family.A0)
     wn = np.unique(np.abs(lam.imag[lam.imag > 0]))
     wmax = float(max(np.max(np.abs(lam)), 1.0))
     grid = np.concatenate(
-        [np.linspace(0.0, 3 * wmax, 4000)] + [w * (1 + np.linspace(-0.05, 0.05, 401)) for w in wn]
+        [np.linspace(0.0, 3 * wmax, 8000)] + [w * (1 + np.linspace(-0.05, 0.05, 401)) for w in wn]
     )
+    grid = np.unique(grid)
     n = family.A0.shape[0]
     s = 1j * grid
     G = family.C @ np.linalg.solve(s[:, None, None] * np.eye(n) - family.A0, family.Bd)
-    return float(np.max(np.linalg.svd(G, compute_uv=False)))
+    return StructureGain(grid, np.linalg.svd(G, compute_uv=False)[:, 0])
 
 
-def small_gain_depth(family: DepthFamily, peak_gain: float | None = None) -> float:
+def structure_peak_gain(family: DepthFamily) -> float:
+    """Largest singular value of the structure's receptance over frequency, ||G||∞ [m/N]."""
+    return structure_gain(family).peak
+
+
+def small_gain_depth(family: DepthFamily, peak_gain: float | StructureGain | None = None) -> float:
     """Depth [m] below which the milling DDE is stable by the small-gain theorem.
 
-    The regenerative loop is ``r = G F``, ``F = −w Σ_j H_j(t) [r(t) − r(t − τ_j)]``; the
-    operator r ↦ F has L2 gain at most ``2 w max_t Σ_j ||H_j(t)||``, so the loop is stable for
-    ``w < 1 / (2 ||G||∞ max_t Σ_j ||H_j(t)||)``. The step means of H stand for max_t (they
-    are within one step of it), and the scan checks ρ < 1 there anyway.
+    The regenerative loop is ``r = G F``, ``F = −w Σ_j H_j(t) [r(t) − r(t − τ_j)]``; it is
+    stable when ``w · max_t Σ_j ||H_j(t)|| · γ < 1`` with ``γ`` the gain of the LTI part
+    (:meth:`StructureGain.loop_gain`; ``2 ||G||∞`` when only the peak ``peak_gain`` is
+    given). The step means of H stand for max_t (they are within one step of it), and the
+    scan checks ρ < 1 there anyway.
     """
-    g = structure_peak_gain(family) if peak_gain is None else peak_gain
+    sg = structure_gain(family) if peak_gain is None else peak_gain
+    gamma = sg.loop_gain(family.delays) if isinstance(sg, StructureGain) else 2.0 * sg
     hn = np.linalg.norm(family.H, ord=2, axis=(-2, -1)).sum(axis=1).max()
-    if not (g > 0 and hn > 0):
+    if not (gamma > 0 and hn > 0):
         return math.inf
-    return float(1.0 / (2.0 * g * hn))
+    return float(1.0 / (gamma * hn))
 
 
 @dataclass(frozen=True)
@@ -201,8 +265,8 @@ class Bands:
 class _Scalar:
     """ρ at single depths with a cache (for Brent and the hump maximisation)."""
 
-    def __init__(self, family: DepthFamily) -> None:
-        self.family = family
+    def __init__(self, family: DepthFamily | _Prepared) -> None:
+        self.family = family if isinstance(family, _Prepared) else _prepare(family)
         self.cache: dict[float, tuple[float, complex]] = {}
 
     def __call__(self, w: float) -> float:
@@ -268,6 +332,7 @@ def unstable_bands(
     floor : smallest depth considered [m].
     """
     f = _Scalar(family)
+    family = f.family  # type: ignore[assignment]
     ceiling = float(ceiling)
     lo = min(float(w_start), ceiling)
     count_batch = 0
