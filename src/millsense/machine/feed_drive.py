@@ -174,6 +174,29 @@ class ElectricalCurrentLoop:
 
 
 @dataclass(frozen=True)
+class PlantSchedule:
+    """Position-dependent mechanics: the plant at load positions on a uniform grid.
+
+    The kernel interpolates the discretised plants (Ad, Bd and the output maps) linearly
+    between neighbouring grid positions at the true load position, re-evaluated every
+    ``mode_update_s`` like the disturbance modes (decision 0974); ``plant`` of the drive is the
+    plant at the initial position. Every plant has the same states and the same position-
+    independent rows for θ_m, ω_m and the load position.
+    """
+
+    positions: np.ndarray
+    plants: tuple[MechanicalPlant, ...]
+
+    def __post_init__(self) -> None:
+        x = np.asarray(self.positions, dtype=float)
+        if x.ndim != 1 or len(x) != len(self.plants) or len(x) < 2:
+            raise ConfigError("plant schedule: need ≥ 2 positions, one plant each")
+        step = np.diff(x)
+        if not (np.all(step > 0) and np.allclose(step, step[0], rtol=1e-9, atol=0.0)):
+            raise ConfigError("plant schedule: positions must be uniform and ascending")
+
+
+@dataclass(frozen=True)
 class FeedDriveParams:
     """SI parameters of a feed drive, its friction, sensors and cascade controller.
 
@@ -201,6 +224,7 @@ class FeedDriveParams:
         position, 1/m (1/rad rotary); 0 = modes independent of position.
     mode_reference_position : x_ref, load position at which ``modes`` hold, m (rad rotary).
     mode_update_s : interval at which the modes follow the position, s (rounded to samples).
+    plant_schedule : position-dependent mechanics (:class:`PlantSchedule`), or None.
     """
 
     plant: MechanicalPlant
@@ -226,6 +250,7 @@ class FeedDriveParams:
     mode_shift_per_m: float = 0.0
     mode_reference_position: float = 0.0
     mode_update_s: float = 1e-3
+    plant_schedule: PlantSchedule | None = None
 
     def mode_scale(self, position: float | np.ndarray) -> float | np.ndarray:
         """λ(x) = 1 + κ·(x − x_ref): the factor on every mode frequency at load position x (m,
@@ -394,6 +419,46 @@ def _rescale_modes(
 
 
 @numba.njit(cache=True)
+def _interpolate_plant(
+    x: float,
+    pgrid: np.ndarray,
+    pad: np.ndarray,
+    pbd: np.ndarray,
+    pcy: np.ndarray,
+    pdy: np.ndarray,
+    ad: np.ndarray,
+    bd: np.ndarray,
+    cy: np.ndarray,
+    dy: np.ndarray,
+) -> None:
+    """The discretised plant at load position x: linear between the grid's neighbours
+    (clamped at the ends of the grid), written in place into (ad, bd, cy, dy)."""
+    g = pad.shape[0]
+    u = (x - pgrid[0]) / pgrid[1]
+    if u <= 0.0:
+        i, w = 0, 0.0
+    elif u >= g - 1:
+        i, w = g - 2, 1.0
+    else:
+        i = int(math.floor(u))
+        if i > g - 2:
+            i = g - 2
+        w = u - i
+    v = 1.0 - w
+    n = ad.shape[0]
+    for r in range(n):
+        for c in range(n):
+            ad[r, c] = v * pad[i, r, c] + w * pad[i + 1, r, c]
+        for c in range(3):
+            bd[r, c] = v * pbd[i, r, c] + w * pbd[i + 1, r, c]
+    for r in range(cy.shape[0]):
+        for c in range(n):
+            cy[r, c] = v * pcy[i, r, c] + w * pcy[i + 1, r, c]
+        for c in range(3):
+            dy[r, c] = v * pdy[i, r, c] + w * pdy[i + 1, r, c]
+
+
+@numba.njit(cache=True)
 def feed_drive_kernel(
     xm: np.ndarray,
     xd: np.ndarray,
@@ -425,6 +490,11 @@ def feed_drive_kernel(
     sched: np.ndarray,
     sched_block: int,
     n_done: int,
+    pad: np.ndarray,
+    pbd: np.ndarray,
+    pcy: np.ndarray,
+    pdy: np.ndarray,
+    pgrid: np.ndarray,
 ) -> None:
     """Advance the drive by ``len(pos_ref)`` samples (state arrays updated in place).
 
@@ -456,8 +526,11 @@ def feed_drive_kernel(
             has_screw = True
     ds = ip[_IP_DS]
     kappa = sched[0]
+    n_grid = pad.shape[0]
     for k in range(pos_ref.shape[0]):
         idx = ring_idx[0]
+        if n_grid > 1 and (n_done + k) % sched_block == 0:
+            _interpolate_plant(ring[2, idx], pgrid, pad, pbd, pcy, pdy, ad, bd, cy, dy)
         if kappa != 0.0 and nm > 0 and (n_done + k) % sched_block == 0:
             lam = 1.0 + kappa * (ring[2, idx] - sched[1])
             if lam < 0.05:
@@ -603,8 +676,26 @@ class FeedDriveSim:
         self._rng = np.random.default_rng(seed)
         plant = params.plant
         self._ad, self._bd = plant.discretise(h)
-        self._cy = np.ascontiguousarray(plant.c)
-        self._dy = np.ascontiguousarray(plant.d)
+        self._cy = np.array(plant.c, dtype=np.float64, order="C", copy=True)
+        self._dy = np.array(plant.d, dtype=np.float64, order="C", copy=True)
+        sch = params.plant_schedule
+        if sch is not None:
+            disc = [p.discretise(h) for p in sch.plants]
+            self._pad = np.ascontiguousarray(np.stack([e[0] for e in disc]))
+            self._pbd = np.ascontiguousarray(np.stack([e[1] for e in disc]))
+            self._pcy = np.ascontiguousarray(np.stack([p.c for p in sch.plants]))
+            self._pdy = np.ascontiguousarray(np.stack([p.d for p in sch.plants]))
+            pos = np.asarray(sch.positions, dtype=float)
+            self._pgrid = np.array([pos[0], pos[1] - pos[0]])
+            if self._pad.shape[1:] != self._ad.shape:
+                raise ConfigError("feed drive: the plant schedule's states differ from the plant")
+        else:
+            n0 = self._ad.shape[0]
+            self._pad = np.zeros((1, n0, n0))
+            self._pbd = np.zeros((1, n0, 3))
+            self._pcy = np.zeros((1, 6, n0))
+            self._pdy = np.zeros((1, 6, 3))
+            self._pgrid = np.array([0.0, 1.0])
         # initial state: every coordinate at the motor angle's position (unstressed)
         x0 = np.zeros(plant.a.shape[0])
         x0_unit = _position_direction(plant)
@@ -780,6 +871,11 @@ class FeedDriveSim:
             self._sched,
             self._sched_block,
             self.samples_done,
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
         )
         self.samples_done += n
 

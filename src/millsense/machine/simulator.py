@@ -46,6 +46,7 @@ from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsamp
 from millsense.machine.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.machine.process_coupling import ProcessCoupling
+from millsense.machine.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 from millsense.machine.realism import (
     AxisRealism,
     RealismOptions,
@@ -186,7 +187,11 @@ class SimulatorOptions:
         "Simulator block size").
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
-    realism : the realism layer.
+    realism : the realism layer (on by default).
+    ideal : debugging only — run today's one-way model of the machine file (rigid body +
+        printed disturbance modes Φ_d, Aslan Eq. 3.1/3.13) with the realism layer off, instead
+        of the simulator's own truth (coupled lumped-mass drives of
+        :mod:`~millsense.machine.truth_machine`, for presets that have one; decision 0976).
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -202,6 +207,7 @@ class SimulatorOptions:
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
     realism: RealismOptions = field(default_factory=RealismOptions)
+    ideal: bool = False
 
     def __post_init__(self) -> None:
         if not (self.path_accel_m_s2 > 0 and self.spindle_accel_rad_s2 > 0):
@@ -439,7 +445,13 @@ class MachineSimulator(Source):
             raise InputDataError(f"simulator: duration_s must be > 0, got {duration_s!r}")
         seeds = np.random.SeedSequence(opts.seed).spawn(len(self.axes) + 2)
         real_rng = np.random.default_rng(seeds[-1])
-        self._realism = opts.realism if opts.realism.enabled else None
+        self._realism = opts.realism if opts.realism.enabled and not opts.ideal else None
+        truth = (
+            load_truth(machine.name)
+            if not opts.ideal and machine.name in TRUTH_PRESETS
+            else {}
+        )
+        self.truth_axes = tuple(ax for ax in self.axes if ax in truth)
 
         # ---- interpolator and initial axis positions
         self._sovr = _OverrideSchedule(opts.spindle_channel, 1.0)
@@ -485,7 +497,9 @@ class MachineSimulator(Source):
             cfg = machine.axes[ax]
             if self._realism is not None and self._realism.high_modes:
                 cfg = _with_high_modes(cfg, real_rng)
-            params = FeedDriveParams.from_config(cfg)
+            params = (
+                truth_feed_params(cfg, truth[ax]) if ax in truth else FeedDriveParams.from_config(cfg)
+            )
             rg = params.transmission
             self.transmissions[i] = rg
             drive = FeedDriveSim(
@@ -644,6 +658,7 @@ class MachineSimulator(Source):
             "seed": self.options.seed,
             "breakage_time_s": brk if brk is not None else "none",
             "realism": self._realism is not None,
+            "truth_plant": "coupled" if self.truth_axes else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
         }
