@@ -54,7 +54,7 @@ def simulate(
     break_at_s: float | None = typer.Option(None, "--break-at-s", help="Break a tooth at, s."),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
     realism: bool = typer.Option(
-        True, "--realism/--no-realism", help="The realism layer (friction drift, ...): on by default."
+        True, "--realism/--no-realism", help="The realism layer (friction drift...): on by default."
     ),
     ideal: bool = typer.Option(
         False,

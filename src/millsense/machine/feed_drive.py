@@ -440,7 +440,7 @@ def _interpolate_plant(
     elif u >= g - 1:
         i, w = g - 2, 1.0
     else:
-        i = int(math.floor(u))
+        i = int(u)  # u > 0 here: truncation is the floor
         if i > g - 2:
             i = g - 2
         w = u - i

@@ -46,7 +46,6 @@ from millsense.machine.interpolator import Interpolator, OverrideChannel, Upsamp
 from millsense.machine.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.machine.modal_ss import ModalStateSpace
 from millsense.machine.process_coupling import ProcessCoupling
-from millsense.machine.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 from millsense.machine.realism import (
     AxisRealism,
     RealismOptions,
@@ -56,6 +55,7 @@ from millsense.machine.realism import (
 )
 from millsense.machine.sensors import SensorBank, SensorOptions
 from millsense.machine.spindle import SpindleDriveParams, SpindleDriveSim
+from millsense.machine.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 from millsense.online.block import Chunk, Event, EventKind
 from millsense.online.sources import Source
 from millsense.stability.time_domain import DirectionModes
@@ -446,11 +446,7 @@ class MachineSimulator(Source):
         seeds = np.random.SeedSequence(opts.seed).spawn(len(self.axes) + 2)
         real_rng = np.random.default_rng(seeds[-1])
         self._realism = opts.realism if opts.realism.enabled and not opts.ideal else None
-        truth = (
-            load_truth(machine.name)
-            if not opts.ideal and machine.name in TRUTH_PRESETS
-            else {}
-        )
+        truth = load_truth(machine.name) if not opts.ideal and machine.name in TRUTH_PRESETS else {}
         self.truth_axes = tuple(ax for ax in self.axes if ax in truth)
 
         # ---- interpolator and initial axis positions
@@ -497,15 +493,16 @@ class MachineSimulator(Source):
             cfg = machine.axes[ax]
             if self._realism is not None and self._realism.high_modes:
                 cfg = _with_high_modes(cfg, real_rng)
-            params = (
-                truth_feed_params(cfg, truth[ax]) if ax in truth else FeedDriveParams.from_config(cfg)
-            )
+            if ax in truth:
+                params = truth_feed_params(cfg, truth[ax])
+            else:
+                params = FeedDriveParams.from_config(cfg)
             rg = params.transmission
             self.transmissions[i] = rg
             drive = FeedDriveSim(
                 params,
                 fs,
-                substeps=opts.drive_substeps,
+                substeps=truth[ax].substeps if ax in truth else opts.drive_substeps,
                 seed=int(seeds[i].generate_state(1)[0]),
                 initial_angle_rad=float(q0[i] / rg),
             )

@@ -7,9 +7,9 @@ chooses the unprinted ones — coupling stiffness, nut stiffness, column mass an
 substructures' masses and stiffnesses — by nonlinear least squares (``scipy.optimize
 .least_squares``) on two groups of residuals:
 
-1. ``20·ln(f_locked,k/f_table,k)`` for the n printed modes against the n lowest modes of the
-   motor-locked structure (one per cent of frequency error weighs like 20 % of FRF magnitude);
-2. ``3·ln(|Φ_d,sim(jω)|/|Φ_d,table(jω)|)/√N`` on N = 60 log-spaced frequencies from 20 to
+1. ``40·ln(f_locked,k/f_table,k)`` for the n printed modes against the n lowest modes of the
+   motor-locked structure;
+2. ``4·ln(|Φ_d,sim(jω)|/|Φ_d,table(jω)|)/√N`` on N = 60 log-spaced frequencies from 20 to
    250 Hz, Φ_d,sim the closed-loop disturbance FRF of :func:`.truth_drive.disturbance_frf`
    (the way Aslan measured it, under the CNC's control at rest).
 
@@ -38,7 +38,7 @@ from millsense.machine.truth_drive import CoupledDrive, ScrewGeometry, ServoLoop
 #: Frequency grid of the FRF residuals, Hz.
 FIT_BAND_HZ = (20.0, 250.0)
 N_GRID = 60
-W_FREQ = 20.0
+W_FREQ = 40.0
 W_MAG = 4.0
 
 # catalogue-like screw for the linear axes (Ø40 × 12 ball screw, decision 0972)
@@ -77,8 +77,9 @@ def servo_for(axis: FeedAxisConfig, inertia: float, dead_time_s: float = 0.0) ->
     wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
     kp = axis.velocity_kp_nm_s_rad or inertia * wc
     ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0
-    return ServoLoop(kp, ki, axis.position_gain_1_s or wc / 4.0, axis.current_bandwidth_hz,
-                     dead_time_s)
+    return ServoLoop(
+        kp, ki, axis.position_gain_1_s or wc / 4.0, axis.current_bandwidth_hz, dead_time_s
+    )
 
 
 def motor_inertia(name: str, axis: FeedAxisConfig) -> float:
@@ -126,9 +127,7 @@ class _Layout:
         k_base = base_mass * w(f_base) ** 2
         k_c = self.js * w(4.0 * self.f_target[-1]) ** 2
         z_att = np.log(frac)
-        return np.concatenate(
-            [np.log([k_c, k_drive, base_mass, k_base]), np.log(k_att), z_att]
-        )
+        return np.concatenate([np.log([k_c, k_drive, base_mass, k_base]), np.log(k_att), z_att])
 
     def drive(self, p: np.ndarray) -> CoupledDrive:
         kc, kdrive, mb, kb = np.exp(p[:4])
@@ -168,6 +167,24 @@ class _Layout:
         )
 
 
+def velocity_bandwidth_hz(drive: CoupledDrive | None, servo: ServoLoop, inertia: float) -> float:
+    """−3 dB bandwidth of the closed velocity loop ``G_τ·C_v/(1 + G_τ·C_v)`` with
+    ``C_v = H_i·e^{−sT}·(K_p + K_i/s)``, Hz; ``drive=None`` is the rigid body of inertia J."""
+    f = np.geomspace(1.0, 2000.0, 4000)
+    s = 2j * math.pi * f
+    if drive is None:
+        g = 1.0 / (inertia * s)
+    else:
+        from millsense.machine.truth_drive import _resolvent_rows
+
+        g = _resolvent_rows(drive.plant(), s, (0,), 1)[:, 0]
+    wc = 2.0 * math.pi * servo.current_bandwidth_hz
+    cv = wc / (s + wc) * np.exp(-s * servo.dead_time_s) * (servo.kp + servo.ki / s)
+    t = np.abs(g * cv / (1.0 + g * cv))
+    below = np.nonzero(t < 1.0 / math.sqrt(2.0))[0]
+    return float(f[below[0]]) if len(below) else float(f[-1])
+
+
 def fit_report(name: str, axis: FeedAxisConfig, drive: CoupledDrive) -> dict[str, object]:
     """Fit errors of a drive against the printed Table 3.4 modes of the axis."""
     lay = _Layout(name, axis)
@@ -179,15 +196,17 @@ def fit_report(name: str, axis: FeedAxisConfig, drive: CoupledDrive) -> dict[str
     return {
         "table_frequency_hz": [float(v) for v in lay.f_target],
         "locked_frequency_hz": [round(float(v), 3) for v in f_sim],
-        "frequency_error_pct": [
-            round(float(v), 3) for v in 100 * (f_sim / lay.f_target - 1.0)
-        ],
-        "max_abs_frequency_error_pct": round(float(np.max(np.abs(f_sim / lay.f_target - 1))) * 100, 3),
+        "frequency_error_pct": [round(float(v), 3) for v in 100 * (f_sim / lay.f_target - 1.0)],
+        "max_abs_frequency_error_pct": round(
+            float(np.max(np.abs(f_sim / lay.f_target - 1))) * 100, 3
+        ),
         "band_hz": list(FIT_BAND_HZ),
         "rms_magnitude_error_db": round(float(np.sqrt(np.mean(db**2))), 3),
         "min_magnitude_error_db": round(float(db.min()), 3),
         "max_magnitude_error_db": round(float(db.max()), 3),
-        "static_gain_truth": round(float(np.abs(disturbance_frf(drive, np.array([1e-3]), None))[0]), 4),
+        "static_gain_truth": round(
+            float(np.abs(disturbance_frf(drive, np.array([1e-3]), None))[0]), 4
+        ),
         "static_gain_table": round(table_phi(axis).static_gain(), 4),
     }
 
@@ -218,8 +237,9 @@ def fit_axis(name: str, axis: FeedAxisConfig, max_nfev: int = 400) -> CoupledDri
     lo[4 + na :] = math.log(0.02)
     hi[4 + na :] = math.log(min(0.3, 0.9 / max(na, 1)))
     p0 = np.clip(p0, lo + 1e-9, hi - 1e-9)
-    sol = scipy.optimize.least_squares(residuals, p0, bounds=(lo, hi), max_nfev=max_nfev,
-                                       x_scale=1.0)
+    sol = scipy.optimize.least_squares(
+        residuals, p0, bounds=(lo, hi), max_nfev=max_nfev, x_scale=1.0
+    )
     return lay.drive(sol.x)
 
 

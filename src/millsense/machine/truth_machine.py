@@ -57,6 +57,7 @@ class TruthAxis:
     current_noise_a: float
     stroke: tuple[float, float]
     grid_points: int
+    substeps: int = 4
 
 
 def _read(name: str) -> dict[str, Any]:
@@ -159,6 +160,7 @@ def load_truth(machine_name: str) -> dict[str, TruthAxis]:
                 current_noise_a=float(mot["current_noise_a"]),
                 stroke=(float(lo) * scale, float(hi) * scale),
                 grid_points=int(tab.get("grid_points", 33)),
+                substeps=int(tab.get("substeps", 4)),
             )
         except KeyError as exc:
             raise ConfigError(f"{where}: missing key {exc}") from exc
