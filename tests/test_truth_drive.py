@@ -261,7 +261,7 @@ def test_truth_is_not_the_preset() -> None:
         fr = TRUTH[name].friction
         assert min(fr.static[0] / fr.coulomb[0], fr.static[1] / fr.coulomb[1]) >= 1.15
         # the total reflected inertia is Table 3.1's J_e (the fit keeps it)
-        assert p.plant.inertia == pytest.approx(ax.inertia_kg_m2, rel=1e-9)
+        assert p.plant.inertia == pytest.approx(ax.inertia_kg_m2, rel=1e-5)  # 6 digits stored
 
 
 def test_four_substeps_match_twenty() -> None:

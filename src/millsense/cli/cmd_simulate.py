@@ -60,7 +60,7 @@ def simulate(
         False,
         "--ideal",
         help="Debugging only: today's one-way model of the machine file (rigid body + printed "
-        "disturbance modes) with realism off, instead of the simulator's own truth.",
+        "disturbance modes), realism off, instead of the simulator's own truth.",
     ),
     tool_modes: Path | None = typer.Option(
         None,
@@ -271,7 +271,7 @@ def run_simulation(
         spindle_channel=channel,
         seed=seed,
         sensors=SensorOptions(accelerometer=accelerometer, microphone=microphone),
-        realism=RealismOptions(enabled=realism),
+        realism=RealismOptions(enabled=realism and not ideal),
         ideal=ideal,
     )
     sim = MachineSimulator(mcfg, job, process, opts, duration_s=duration_s)

@@ -187,11 +187,12 @@ class SimulatorOptions:
         "Simulator block size").
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
-    realism : the realism layer (on by default).
+    realism : the realism layer; None (default) = on, or off with ``ideal``.
     ideal : debugging only — run today's one-way model of the machine file (rigid body +
-        printed disturbance modes Φ_d, Aslan Eq. 3.1/3.13) with the realism layer off, instead
-        of the simulator's own truth (coupled lumped-mass drives of
-        :mod:`~millsense.machine.truth_machine`, for presets that have one; decision 0976).
+        printed disturbance modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth
+        (coupled lumped-mass drives of :mod:`~millsense.machine.truth_machine`, for presets
+        that have one); with ``realism`` left None the realism layer is then off too, which is
+        exactly the simulator before issue 12 (decision 0976).
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -206,8 +207,15 @@ class SimulatorOptions:
     block_periods: int = 1
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
-    realism: RealismOptions = field(default_factory=RealismOptions)
+    realism: RealismOptions | None = None
     ideal: bool = False
+
+    @property
+    def realism_in_effect(self) -> RealismOptions:
+        """The realism options that apply: as given, else on (off with ``ideal``)."""
+        if self.realism is not None:
+            return self.realism
+        return RealismOptions(enabled=not self.ideal)
 
     def __post_init__(self) -> None:
         if not (self.path_accel_m_s2 > 0 and self.spindle_accel_rad_s2 > 0):
@@ -445,7 +453,8 @@ class MachineSimulator(Source):
             raise InputDataError(f"simulator: duration_s must be > 0, got {duration_s!r}")
         seeds = np.random.SeedSequence(opts.seed).spawn(len(self.axes) + 2)
         real_rng = np.random.default_rng(seeds[-1])
-        self._realism = opts.realism if opts.realism.enabled and not opts.ideal else None
+        ro = opts.realism_in_effect
+        self._realism = ro if ro.enabled else None
         truth = load_truth(machine.name) if not opts.ideal and machine.name in TRUTH_PRESETS else {}
         self.truth_axes = tuple(ax for ax in self.axes if ax in truth)
 
