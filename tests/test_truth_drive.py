@@ -278,3 +278,41 @@ def test_four_substeps_match_twenty() -> None:
     got = FeedDriveSim(p, fs, substeps=TRUTH["x"].substeps, seed=1).advance(pos, vel, load)
     rel = np.sqrt(np.mean((got["current"] - ref) ** 2) / np.mean(ref**2))
     assert 1e-4 < rel < 0.01
+
+
+def _held_table_position(p: object, load: float, seconds: float = 0.6) -> float:
+    """Table position with the servo holding the motor at 0 under a constant table load
+    (mean of the last 0.1 s; no torque noise)."""
+    import dataclasses
+
+    q = dataclasses.replace(p, torque_noise_nm=0.0, periodic=())  # type: ignore[type-var]
+    fs = 10000.0
+    n = round(seconds * fs)
+    ramp = np.minimum(np.arange(n) / (0.2 * fs), 1.0) * load
+    r = FeedDriveSim(q, fs, substeps=4).advance(np.zeros(n), np.zeros(n), ramp)  # type: ignore[arg-type]
+    return float(np.mean(r["true_position"][-1000:]))
+
+
+def test_backlash_and_preload_lift_off() -> None:
+    """A: the table angle between +T and −T held loads exceeds the elastic difference of the
+    same drive without backlash by the backlash (12″) within 2 %. X: beyond the lift-off force
+    2.83·F_p the table's compliance grows by exactly 1/(ratio·k) − 1/k (decision 0978)."""
+    import dataclasses
+
+    pa = truth_feed_params(MACHINE.axes["a"], TRUTH["a"])
+    assert pa.lost_motion is not None
+    gap = 12.0 * math.pi / 648000.0
+    no_gap = dataclasses.replace(pa, lost_motion=None)
+    t = 40.0  # N·m at the table
+    with_gap = _held_table_position(pa, -t) - _held_table_position(pa, t)
+    elastic = _held_table_position(no_gap, -t) - _held_table_position(no_gap, t)
+    assert with_gap - elastic == pytest.approx(gap, rel=0.02)
+    px = truth_feed_params(MACHINE.axes["x"], TRUTH["x"])
+    lm = px.lost_motion
+    assert lm is not None and lm.half_gap == 0.0 and 0.5 < lm.ratio < 1.0
+    k = TRUTH["x"].drive.transmission_stiffness(0.0)
+    lift_n = 2.83 * 2500.0
+    assert lm.lift * k == pytest.approx(lift_n, rel=1e-12)
+    below = _held_table_position(px, 2000.0) - _held_table_position(px, 4000.0)
+    above = _held_table_position(px, 9000.0) - _held_table_position(px, 11000.0)
+    assert above - below == pytest.approx(2000.0 * (1 / (lm.ratio * k) - 1 / k), rel=0.02)

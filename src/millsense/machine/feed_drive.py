@@ -197,6 +197,26 @@ class PlantSchedule:
 
 
 @dataclass(frozen=True)
+class LostMotion:
+    """Backlash and preload lift-off of the element whose stretch is ``e = stretch·x + δ``
+    (the screw–nut or worm–wheel spring of a coupled plant, decision 0978).
+
+    The element's force is ``k·φ(e)`` instead of ``k·e``: no force inside the gap |e| ≤ b, then
+    ``e' = e − b·sgn(e)``, and beyond the preload lift-off |e'| > e_L the stiffness drops to
+    ``ratio·k``: ``φ = sgn(e')·(e_L + ratio·(|e'| − e_L))``. The kernel applies it through the
+    kinematic-offset input, ``δ_eff = δ + φ(e) − e``, held over a substep.
+
+    Attributes: stretch (n,) row on the plant state; half_gap b; lift e_L (stretch units: m,
+    rad); ratio (0, 1].
+    """
+
+    stretch: np.ndarray
+    half_gap: float
+    lift: float
+    ratio: float
+
+
+@dataclass(frozen=True)
 class FeedDriveParams:
     """SI parameters of a feed drive, its friction, sensors and cascade controller.
 
@@ -225,6 +245,8 @@ class FeedDriveParams:
     mode_reference_position : x_ref, load position at which ``modes`` hold, m (rad rotary).
     mode_update_s : interval at which the modes follow the position, s (rounded to samples).
     plant_schedule : position-dependent mechanics (:class:`PlantSchedule`), or None.
+    lost_motion : backlash / preload lift-off of the transmission (:class:`LostMotion`), or
+        None.
     """
 
     plant: MechanicalPlant
@@ -251,6 +273,7 @@ class FeedDriveParams:
     mode_reference_position: float = 0.0
     mode_update_s: float = 1e-3
     plant_schedule: PlantSchedule | None = None
+    lost_motion: LostMotion | None = None
 
     def mode_scale(self, position: float | np.ndarray) -> float | np.ndarray:
         """λ(x) = 1 + κ·(x − x_ref): the factor on every mode frequency at load position x (m,
@@ -361,7 +384,8 @@ _IP_SUB, _IP_DS, _IP_DM, _IP_DT, _IP_FRIC, _IP_CUR, _IP_FB, _IP_CLOSED = range(8
 # float parameters
 (_P_KT, _P_KP, _P_KI, _P_KV, _P_ACUR, _P_QENC, _P_QLIN, _P_RG, _P_LG) = range(9)
 (_P_L, _P_R, _P_KE, _P_KPI, _P_KII) = range(9, 14)
-_N_P = 14
+(_P_GAP, _P_LIFT, _P_SOFT) = range(14, 17)
+_N_P = 17
 N_OUT = 13
 
 
@@ -416,6 +440,17 @@ def _rescale_modes(
         mbd[j, 1] = (wd * v0 + sig * v1) / den
         mc[j, 0] = lam * mc0[j, 0]
         mc[j, 1] = lam * mc0[j, 1]
+
+
+@numba.njit(cache=True)
+def _lost_motion(e: float, half_gap: float, lift: float, ratio: float) -> float:
+    """φ(e) of :class:`LostMotion`: the stretch the element's spring actually carries."""
+    a = abs(e) - half_gap
+    if a <= 0.0:
+        return 0.0
+    if a > lift:
+        a = lift + ratio * (a - lift)
+    return a if e > 0.0 else -a
 
 
 @numba.njit(cache=True)
@@ -495,6 +530,7 @@ def feed_drive_kernel(
     pcy: np.ndarray,
     pdy: np.ndarray,
     pgrid: np.ndarray,
+    c_e: np.ndarray,
 ) -> None:
     """Advance the drive by ``len(pos_ref)`` samples (state arrays updated in place).
 
@@ -527,6 +563,7 @@ def feed_drive_kernel(
     ds = ip[_IP_DS]
     kappa = sched[0]
     n_grid = pad.shape[0]
+    lost = c_e.shape[0] > 0
     for k in range(pos_ref.shape[0]):
         idx = ring_idx[0]
         if n_grid > 1 and (n_done + k) % sched_block == 0:
@@ -587,6 +624,11 @@ def feed_drive_kernel(
                     u[2] = _periodic(terms, KIND_SCREW, theta)
             else:
                 tau_per = 0.0
+            if lost:
+                if not has_screw:
+                    u[2] = 0.0
+                e = _dot(c_e, xm) + u[2]
+                u[2] += _lost_motion(e, p[_P_GAP], p[_P_LIFT], p[_P_SOFT]) - e
             if nm > 0:
                 tau_c = md * tau_a
                 for j in range(nm):
@@ -766,6 +808,16 @@ class FeedDriveSim:
             self._p[_P_KE] = cl.back_emf
             self._p[_P_KPI] = cl.kp
             self._p[_P_KII] = cl.ki
+        lm = params.lost_motion
+        if lm is not None:
+            self._c_e = np.ascontiguousarray(lm.stretch, dtype=np.float64)
+            if self._c_e.shape != (plant.a.shape[0],):
+                raise ConfigError("feed drive: lost_motion.stretch must have one entry per state")
+            self._p[_P_GAP] = lm.half_gap
+            self._p[_P_LIFT] = lm.lift
+            self._p[_P_SOFT] = lm.ratio
+        else:
+            self._c_e = np.zeros(0)
         self._ip = np.array(
             [
                 substeps,
@@ -876,6 +928,7 @@ class FeedDriveSim:
             self._pcy,
             self._pdy,
             self._pgrid,
+            self._c_e,
         )
         self.samples_done += n
 

@@ -228,6 +228,10 @@ class CoupledDrive:
             k += kj * np.outer(gj, gj)
         return k
 
+    def stretch(self) -> np.ndarray:
+        """∂e/∂q of the screw–nut (worm–wheel) stretch e = r_g·θ_s + x_b − x_t."""
+        return self._stretch()
+
     def _stretch(self) -> np.ndarray:
         """∂e/∂q of the screw–nut stretch e = r_g·θ_s + x_b − x_t."""
         g = np.zeros(self.n_dof)

@@ -33,6 +33,7 @@ from millsense.machine.feed_drive import (
     KIND_TORQUE,
     ElectricalCurrentLoop,
     FeedDriveParams,
+    LostMotion,
     PeriodicTerm,
     PlantSchedule,
 )
@@ -58,6 +59,8 @@ class TruthAxis:
     stroke: tuple[float, float]
     grid_points: int
     substeps: int = 4
+    backlash: float = 0.0
+    preload_lift: float = math.inf
 
 
 def _read(name: str) -> dict[str, Any]:
@@ -161,6 +164,12 @@ def load_truth(machine_name: str) -> dict[str, TruthAxis]:
                 stroke=(float(lo) * scale, float(hi) * scale),
                 grid_points=int(tab.get("grid_points", 33)),
                 substeps=int(tab.get("substeps", 4)),
+                backlash=float(tab.get("backlash_arcsec", 0.0)) * math.pi / 648000.0
+                if drive.kind == "rotary"
+                else float(tab.get("backlash_um", 0.0)) * 1e-6,
+                preload_lift=2.83 * float(tab["nut_preload_n"])
+                if "nut_preload_n" in tab
+                else math.inf,
             )
         except KeyError as exc:
             raise ConfigError(f"{where}: missing key {exc}") from exc
@@ -177,6 +186,26 @@ def plant_schedule(truth: TruthAxis) -> PlantSchedule | None:
         return None
     xs = np.linspace(truth.stroke[0], truth.stroke[1], truth.grid_points)
     return PlantSchedule(xs, tuple(d.plant(float(x)) for x in xs))
+
+
+def lost_motion(truth: TruthAxis) -> LostMotion | None:
+    """Backlash of the transmission and preload lift-off of a linear axis' nut (decision
+    0978): the lift-off force 2.83·F_p (a double nut preloaded by F_p unloads one half) as a
+    stretch at the reference stiffness; beyond it the nut's stiffness halves, the series
+    stiffness of shaft, nut and bearing drops to ``ratio``."""
+    d = truth.drive
+    if truth.backlash <= 0.0 and not math.isfinite(truth.preload_lift):
+        return None
+    row = np.zeros(2 * d.n_dof)
+    row[: d.n_dof] = d.stretch()
+    k = d.transmission_stiffness(d.reference_position)
+    lift, ratio = 1e9, 1.0
+    if math.isfinite(truth.preload_lift) and d.screw is not None:
+        sc = d.screw
+        ks = float(sc.shaft_stiffness(d.reference_position))
+        soft = 1.0 / (1.0 / ks + 2.0 / sc.nut_stiffness_n_m + 1.0 / sc.bearing_stiffness_n_m)
+        lift, ratio = truth.preload_lift / k, soft / k
+    return LostMotion(row, 0.5 * truth.backlash, lift, ratio)
 
 
 def truth_feed_params(axis: FeedAxisConfig, truth: TruthAxis) -> FeedDriveParams:
@@ -216,4 +245,5 @@ def truth_feed_params(axis: FeedAxisConfig, truth: TruthAxis) -> FeedDriveParams
         modes=None,
         periodic=truth.ripple,
         plant_schedule=sched,
+        lost_motion=lost_motion(truth),
     )
