@@ -57,7 +57,6 @@ def _truth_drive() -> list[Metric]:
             "x_realtime",
             seconds / w_new,
             "x",
-            target=50.0,
             higher_is_better=True,
             note=f"X truth: {states} mechanical states scheduled on "
             f"{len(new.plant_schedule.positions)} positions, LuGre, PI current loop, dead "
