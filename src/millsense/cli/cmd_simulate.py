@@ -53,7 +53,15 @@ def simulate(
     cnc: str = typer.Option("open", "--cnc", help="Override channel: open or closed."),
     break_at_s: float | None = typer.Option(None, "--break-at-s", help="Break a tooth at, s."),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
-    realism: bool = typer.Option(False, "--realism", help="Switch on the realism layer."),
+    realism: bool = typer.Option(
+        True, "--realism/--no-realism", help="The realism layer (friction drift...): on by default."
+    ),
+    ideal: bool = typer.Option(
+        False,
+        "--ideal",
+        help="Debugging only: today's one-way model of the machine file (rigid body + printed "
+        "disturbance modes), realism off, instead of the simulator's own truth.",
+    ),
     tool_modes: Path | None = typer.Option(
         None,
         "--tool-modes",
@@ -91,6 +99,7 @@ def simulate(
         break_at_s=break_at_s,
         break_flute=break_flute,
         realism=realism,
+        ideal=ideal,
         accelerometer=accelerometer,
         tool_modes=tool_modes,
         microphone=microphone,
@@ -127,6 +136,7 @@ def run_simulation(
     microphone: bool,
     chunk: int,
     on_progress: Callable[[float], None] | None = None,
+    ideal: bool = False,
     tool_modes: Path | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
@@ -261,7 +271,8 @@ def run_simulation(
         spindle_channel=channel,
         seed=seed,
         sensors=SensorOptions(accelerometer=accelerometer, microphone=microphone),
-        realism=RealismOptions(enabled=realism),
+        realism=RealismOptions(enabled=realism and not ideal),
+        ideal=ideal,
     )
     sim = MachineSimulator(mcfg, job, process, opts, duration_s=duration_s)
     # expected length for the progress bar when the run ends with the path

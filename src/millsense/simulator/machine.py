@@ -56,6 +56,7 @@ from millsense.simulator.realism import (
 )
 from millsense.simulator.sensors import SensorBank, SensorOptions
 from millsense.simulator.spindle import SpindleDriveSim
+from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 from millsense.stability.time_domain import DirectionModes
 from millsense.streaming.block import Chunk, Event, EventKind
 from millsense.streaming.sources import Source
@@ -187,7 +188,12 @@ class SimulatorOptions:
         "Simulator block size").
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
-    realism : the realism layer.
+    realism : the realism layer; None (default) = on, or off with ``ideal``.
+    ideal : debugging only — run today's one-way model of the machine file (rigid body +
+        printed disturbance modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth
+        (coupled lumped-mass drives of :mod:`~millsense.simulator.truth_machine`, for presets
+        that have one); with ``realism`` left None the realism layer is then off too, which is
+        exactly the simulator before issue 12 (decision 0976).
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -202,7 +208,15 @@ class SimulatorOptions:
     block_periods: int = 1
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
-    realism: RealismOptions = field(default_factory=RealismOptions)
+    realism: RealismOptions | None = None
+    ideal: bool = False
+
+    @property
+    def realism_in_effect(self) -> RealismOptions:
+        """The realism options that apply: as given, else on (off with ``ideal``)."""
+        if self.realism is not None:
+            return self.realism
+        return RealismOptions(enabled=not self.ideal)
 
     def __post_init__(self) -> None:
         if not (self.path_accel_m_s2 > 0 and self.spindle_accel_rad_s2 > 0):
@@ -440,7 +454,10 @@ class MachineSimulator(Source):
             raise InputDataError(f"simulator: duration_s must be > 0, got {duration_s!r}")
         seeds = np.random.SeedSequence(opts.seed).spawn(len(self.axes) + 2)
         real_rng = np.random.default_rng(seeds[-1])
-        self._realism = opts.realism if opts.realism.enabled else None
+        ro = opts.realism_in_effect
+        self._realism = ro if ro.enabled else None
+        truth = load_truth(machine.name) if not opts.ideal and machine.name in TRUTH_PRESETS else {}
+        self.truth_axes = tuple(ax for ax in self.axes if ax in truth)
 
         # ---- interpolator and initial axis positions
         self._sovr = _OverrideSchedule(opts.spindle_channel, 1.0)
@@ -486,13 +503,16 @@ class MachineSimulator(Source):
             cfg = machine.axes[ax]
             if self._realism is not None and self._realism.high_modes:
                 cfg = _with_high_modes(cfg, real_rng)
-            params = FeedDriveParams.from_config(cfg)
+            if ax in truth:
+                params = truth_feed_params(cfg, truth[ax])
+            else:
+                params = FeedDriveParams.from_config(cfg)
             rg = params.transmission
             self.transmissions[i] = rg
             drive = FeedDriveSim(
                 params,
                 fs,
-                substeps=opts.drive_substeps,
+                substeps=truth[ax].substeps if ax in truth else opts.drive_substeps,
                 seed=int(seeds[i].generate_state(1)[0]),
                 initial_angle_rad=float(q0[i] / rg),
             )
@@ -645,6 +665,7 @@ class MachineSimulator(Source):
             "seed": self.options.seed,
             "breakage_time_s": brk if brk is not None else "none",
             "realism": self._realism is not None,
+            "truth_plant": "coupled" if self.truth_axes else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
         }
