@@ -224,14 +224,14 @@ def check_modes(
     for i in range(f.size):  # a handful of modes, not a signal
         tag = f"{where}[{i}]"
         if not (math.isfinite(f[i]) and f[i] > 0):
-            raise ConfigError(f"{tag}: natural_frequency_hz = {f[i]!r} must be > 0")
+            raise ConfigError(f"{tag}: natural_frequency_hz = {f[i]:g} must be > 0")
         if not (math.isfinite(z[i]) and z[i] > 0):
             raise ConfigError(
-                f"{tag}: damping_ratio = {z[i]!r} must be > 0 (an undamped mode never decays)"
+                f"{tag}: damping_ratio = {z[i]:g} must be > 0 (an undamped mode never decays)"
             )
         if not (math.isfinite(k[i]) and k[i] >= STIFFNESS_ERROR_N_M):
             raise ConfigError(
-                f"{tag}: stiffness_n_m = {k[i]!r} must be ≥ {STIFFNESS_ERROR_N_M:g} N/m "
+                f"{tag}: stiffness_n_m = {k[i]:g} must be ≥ {STIFFNESS_ERROR_N_M:g} N/m "
                 "(1 N/mm: softer is no machine-tool structure)"
             )
         if k[i] < STIFFNESS_WARN_N_M:
