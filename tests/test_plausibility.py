@@ -56,7 +56,7 @@ def test_depth_beyond_stickout_is_an_error() -> None:
 
 def test_width_beyond_the_diameter_is_an_error() -> None:
     check_width(20.0, 20.0, "--engagement")  # a slot is a_e = D
-    with pytest.raises(ConfigError, match="radial width 20.5 mm exceeds the tool diameter"):
+    with pytest.raises(ConfigError, match=r"radial width 20.5 mm exceeds the tool diameter"):
         check_width(20.5, 20.0, "--engagement")
 
 
@@ -78,7 +78,7 @@ def test_feed_per_tooth_ranges() -> None:
 
 
 def test_cutting_with_the_spindle_stopped_is_an_error() -> None:
-    with pytest.raises(ProgramError, match="p.nc:11: the tool cuts with the spindle stopped"):
+    with pytest.raises(ProgramError, match=r"p.nc:11: the tool cuts with the spindle stopped"):
         check_cutting_moves(
             [400.0, 400.0], [1000.0, 0.0], 2, 20.0, _label, Findings(), error=ProgramError
         )
@@ -92,7 +92,7 @@ def test_spindle_above_the_machine_maximum_is_an_error() -> None:
 def test_feed_limit_machine_or_absolute() -> None:
     lim = MachineLimitsConfig(max_feed_mm_min=36000.0)
     check_feed_limit([np.nan, 36000.0], _label, lim)  # a rapid (NaN) and exactly the limit
-    with pytest.raises(ConfigError, match="p.nc:11: feed 36001 mm/min exceeds 36000"):
+    with pytest.raises(ConfigError, match=r"p.nc:11: feed 36001 mm/min exceeds 36000"):
         check_feed_limit([400.0, 36001.0], _label, lim)
     # no machine: 100 m/min
     check_feed_limit([99_999.0], _label, None)
@@ -150,7 +150,7 @@ def test_vertex_path_of_a_huge_arc_is_refused() -> None:
 
 def test_signal_ceiling() -> None:
     budget.check_signal(budget.MAX_SIGNAL_S, "--duration-s", "shorter", ConfigError)
-    with pytest.raises(ConfigError, match="--duration-s: 1e\\+09 s of signal.*shorter"):
+    with pytest.raises(ConfigError, match=r"--duration-s: 1e\+09 s of signal.*shorter"):
         budget.check_signal(1e9, "--duration-s", "shorter", ConfigError)
 
 
