@@ -258,10 +258,14 @@ def run_simulation(
         check_depth(
             depth_mm, tcfg.diameter_mm, "--depth-mm", findings, stickout_mm=tcfg.stickout_mm
         )
-        unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
         if engagement.strip().lower().startswith("ae_mm="):
-            ae_mm = float(engagement.strip().lower().removeprefix("ae_mm=").split(",")[0])
-            check_width(ae_mm, tcfg.diameter_mm, f"--engagement {engagement}")
+            try:
+                ae_mm = float(engagement.strip().lower().removeprefix("ae_mm=").split(",")[0])
+            except ValueError:
+                ae_mm = None  # from_spec names the option
+            if ae_mm is not None:
+                check_width(ae_mm, tcfg.diameter_mm, f"--engagement {engagement}")
+        unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
         toolpath = interpret_file(program)
         check_program(
             toolpath,
