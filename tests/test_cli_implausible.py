@@ -149,7 +149,7 @@ def test_schedule_unreachable_force_limit_warns(
     args = _plan_args(prog, out)
     args[0] = "schedule"
     # 5 N: the edge forces alone (K_te 25 N/mm, K_re 35 N/mm over 1 mm depth) exceed it
-    code, stdout, err = run_cli([*args, "--limit-force-n", "5"], capsys)
+    code, _, err = run_cli([*args, "--limit-force-n", "5"], capsys)
     assert code == 0, err
     warn = [ln for ln in err.splitlines() if ln.startswith("millsense: warning: ")]
     assert len(warn) == 1 and "--limit-force-n 5 N: no feed reaches it" in warn[0]
