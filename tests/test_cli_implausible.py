@@ -112,8 +112,7 @@ def test_simulate_tool_modes_without_damping_or_stiffness_refused(
 ) -> None:
     text = (STAB / "insperger_1dof_slot.toml").read_text()
     lines = [
-        f"{key} = {value}" if ln.strip().startswith(f"{key} =") else ln
-        for ln in text.splitlines()
+        f"{key} = {value}" if ln.strip().startswith(f"{key} =") else ln for ln in text.splitlines()
     ]
     modes = tmp_path / "modes.toml"
     modes.write_text("\n".join(lines) + "\n")

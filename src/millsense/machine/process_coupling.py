@@ -477,9 +477,7 @@ class ToolModes:
                     )
                 f.append(m.natural_frequency_hz)
                 z.append(m.damping_ratio)
-                k.append(
-                    m.stiffness_n_m if m.stiffness_n_m is not None else m.to_mode().stiffness
-                )
+                k.append(m.stiffness_n_m if m.stiffness_n_m is not None else m.to_mode().stiffness)
             check_modes(f, z, k, f"{path} [structure] {d}", findings or Findings())
             out.append(DirectionModes.from_arrays(f, z, k))
         return cls(out[0], out[1])
