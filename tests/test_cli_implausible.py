@@ -13,6 +13,7 @@ from cli_run import run_cli
 
 DEMO = Path(__file__).resolve().parents[1] / "examples" / "demo_part"
 STAB = Path(__file__).resolve().parents[1] / "examples" / "stability"
+DATA = Path(__file__).resolve().parents[1] / "src" / "millsense" / "data"
 HEAD = "%\nG21 G90 G94 G17\n"
 
 
@@ -201,3 +202,37 @@ def test_simulate_crash_events_in_output_and_metadata(
     assert isinstance(events, list) and events[0]["kind"] == "crash"  # type: ignore[index]
     assert events[0]["name"] == "axis_force" and events[0]["value"] > 9600  # type: ignore[index]
     assert _sums(prog) == before
+
+
+def test_estimate_beyond_axis_force_limit_warns_in_output_and_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    prog = tmp_path / "ok.nc"
+    prog.write_text(HEAD + "S6000 M3\nG0 X-15 Y5 Z5\nG1 Z-1 F600\nG1 X20\nM30\n%\n")
+    run = tmp_path / "run.h5"
+    code, _, err = run_cli(
+        ["simulate", "--program", str(prog), "--duration-s", "0.4", "-o", str(run)], capsys
+    )
+    assert code == 0, err
+    # the UX600 with a 1 N axis force limit: every estimate of a cut exceeds it
+    text = (DATA / "machines" / "quaser-ux600.toml").read_text()
+    machine = tmp_path / "weak.toml"
+    machine.write_text(text.replace("axis_force_n = 9600.0", "axis_force_n = 1.0"))
+    before = _sums(run, machine)
+    js = tmp_path / "e.json"
+    args = ["estimate", str(run), "--machine", str(machine), "--method", "raw", "--axes", "x"]
+    code, _, err = run_cli([*args, "-o", str(tmp_path / "e.h5"), "--json", str(js)], capsys)
+    assert code == 0, err
+    warn = [ln.removeprefix("millsense: warning: ") for ln in err.splitlines() if "warning" in ln]
+    assert len(warn) == 1 and "raw estimate of axis x" in warn[0]
+    assert "beyond" not in warn[0] and "exceeds the machine's axis_force_n 1 N" in warn[0]
+    assert json.loads(js.read_text())["warnings"] == warn
+    assert _sums(run, machine) == before
+    # the preset's 9.6 kN: a 1 mm slot at 0.05 mm/tooth is far below, no warning
+    code, _, err = run_cli(
+        ["estimate", str(run), "--machine", "quaser-ux600", "--method", "raw", "--axes", "x",
+         "-o", str(tmp_path / "e2.h5")], capsys,
+    )  # fmt: skip
+    assert code == 0 and "warning" not in err
