@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cli_run import run_cli
@@ -236,3 +237,28 @@ def test_estimate_beyond_axis_force_limit_warns_in_output_and_json(
          "-o", str(tmp_path / "e2.h5")], capsys,
     )  # fmt: skip
     assert code == 0 and "warning" not in err
+
+
+@pytest.mark.parametrize(
+    ("exc", "needle"),
+    [
+        (np.linalg.LinAlgError("Singular matrix"), "numerical failure (LinAlgError: Singular"),
+        (FloatingPointError("overflow encountered"), "numerical failure (FloatingPointError"),
+        (MemoryError(), "out of memory; reduce the input"),
+    ],
+)
+def test_numerical_failures_are_one_line_at_the_edge(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    exc: BaseException,
+    needle: str,
+) -> None:
+    import millsense.cli.cmd_simulate as cmd
+
+    def fail(**_: object) -> None:
+        raise exc
+
+    monkeypatch.setattr(cmd, "run_simulation", fail)
+    code, _, err = run_cli(["simulate", "--program", "p.nc", "-o", str(tmp_path / "s.h5")], capsys)
+    _one_line_error(code, err, "simulate: ", needle)
