@@ -130,7 +130,7 @@ _BLOCK = st.one_of(
 )
 
 
-@settings(FUZZ, max_examples=30)
+@settings(FUZZ, max_examples=40)
 @given(blocks=st.lists(_BLOCK, max_size=8), target=st.sampled_from(["plan", "plan", "simulate"]))
 def test_fuzz_gcode(blocks: list[str], target: str, capsys: pytest.CaptureFixture[str]) -> None:
     with _tmpdir() as d:
@@ -241,7 +241,7 @@ _KINDS = {
 }
 
 
-@settings(FUZZ, max_examples=30)
+@settings(FUZZ, max_examples=80)
 @given(kind=st.sampled_from(sorted(_KINDS)), raw=st.booleans(), data=st.data())
 def test_fuzz_tool_material_stock_toml(
     kind: str, raw: bool, data: st.DataObject, capsys: pytest.CaptureFixture[str]
@@ -274,7 +274,7 @@ def test_fuzz_tool_material_stock_toml(
         _check(args, [prog, bad], [bad.name], capsys)
 
 
-@settings(FUZZ, max_examples=12)
+@settings(FUZZ, max_examples=40)
 @given(data=st.data())
 def test_fuzz_machine_toml(data: st.DataObject, capsys: pytest.CaptureFixture[str]) -> None:
     base = tomllib.loads((DATA / "machines" / "quaser-ux600.toml").read_text())
@@ -372,7 +372,7 @@ def _damage(path: Path, how: str, data: st.DataObject) -> None:
                     f.attrs[key] = bad
 
 
-@settings(FUZZ, max_examples=20)
+@settings(FUZZ, max_examples=25)
 @given(how=st.sampled_from(_DAMAGE), command=st.sampled_from(["info", "estimate"]), data=st.data())
 def test_fuzz_recordings(
     recording: Path,
@@ -495,7 +495,7 @@ def _base_args(command: str, d: Path, prog: Path, rec: Path) -> tuple[list[str],
     ], [rec]
 
 
-@settings(FUZZ, max_examples=30)
+@settings(FUZZ, max_examples=80)
 @given(command=st.sampled_from(sorted(_OPTIONS)), data=st.data())
 def test_fuzz_cli_arguments(
     recording: Path, command: str, data: st.DataObject, capsys: pytest.CaptureFixture[str]

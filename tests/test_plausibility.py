@@ -221,3 +221,11 @@ def test_crash_beyond_the_spindle_power_limit() -> None:
     # block mean of torque × speed from the recorded truth (block = sim.ratio samples)
     p = float(np.mean(data["truth/spindle/torque"][k : k + sim.ratio])) * OMEGA
     assert ev.value == pytest.approx(p, rel=0.02) and ev.value > 200.0
+
+
+def test_zmap_beyond_the_cell_ceiling_is_refused() -> None:
+    from millsense.virtual.stock import ZMapStock
+
+    # 100 × 80 mm at 1 µm: 1e5 × 8e4 = 8e9 cells > 2e8
+    with pytest.raises(ConfigError, match=r"100000 × 80000 cells, beyond the ceiling of 2e\+08"):
+        ZMapStock.from_box([0, 0, -0.03], [0.1, 0.08, 0], 1e-6)
