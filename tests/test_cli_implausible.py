@@ -264,3 +264,25 @@ def test_numerical_failures_are_one_line_at_the_edge(
     monkeypatch.setattr(cmd, "run_simulation", fail)
     code, _, err = run_cli(["simulate", "--program", "p.nc", "-o", str(tmp_path / "s.h5")], capsys)
     _one_line_error(code, err, "simulate: ", needle)
+
+
+@pytest.mark.parametrize(
+    ("opts", "needle"),
+    [
+        (["--min-feed-mm-min", "1000"], "--min-feed-mm-min 1000.0: schedule: minimum feed"),
+        (["--min-feed-mm-min", "-5"], "--min-feed-mm-min -5.0: must be > 0"),
+        (["--min-feed-mm-min", "500", "--max-feed-mm-min", "300"], "exceeds --max-feed-mm-min"),
+    ],
+)
+def test_schedule_feed_bounds_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opts: list[str], needle: str
+) -> None:
+    # found by the fuzz suite: "schedule: minimum feed exceeds the maximum feed" named no option
+    prog = tmp_path / "ok.nc"
+    prog.write_text(HEAD + "S1000 M3\nG0 X-15 Y5 Z5\nG1 Z-1 F400\nG1 X50\nM30\n%\n")
+    out = tmp_path / "opt.nc"
+    args = _plan_args(prog, out)
+    args[0] = "schedule"
+    code, _, err = run_cli([*args, "--limit-force-n", "300", *opts], capsys)
+    _one_line_error(code, err, needle)
+    assert not out.exists()

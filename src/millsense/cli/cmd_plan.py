@@ -194,6 +194,9 @@ def schedule(
     machine: str | None = _MACHINE,
 ) -> None:
     """Feed per step holding a force, torque or power limit; write an optimised program."""
+    import math
+
+    from millsense.core.errors import InputDataError
     from millsense.core.units import MM, MM_PER_MIN
     from millsense.virtual.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
 
@@ -211,17 +214,36 @@ def schedule(
     kind, value = limits[0]
     _positive(f"--limit-{kind}", float(value))
     _positive("--accel-mm-s2", accel_mm_s2)
+    for name, feed in (
+        ("--min-feed-mm-min", min_feed_mm_min),
+        ("--max-feed-mm-min", max_feed_mm_min),
+    ):
+        if feed is not None and not (math.isfinite(feed) and feed > 0):
+            raise ConfigError(f"{name} {feed!r}: must be > 0")
+    if min_feed_mm_min is not None and max_feed_mm_min is not None:
+        if min_feed_mm_min > max_feed_mm_min:
+            raise ConfigError(
+                f"--min-feed-mm-min {min_feed_mm_min:g} exceeds --max-feed-mm-min "
+                f"{max_feed_mm_min:g}"
+            )
     vp, toolpath, findings = _build(
         program, stock, tool, material, step_mm, resolution_mm, home_mm, machine
     )
-    sched = schedule_feed(
-        vp,
-        float(value),
-        kind=kind,
-        max_feed_m_s=None if max_feed_mm_min is None else max_feed_mm_min * MM_PER_MIN,
-        min_feed_m_s=None if min_feed_mm_min is None else min_feed_mm_min * MM_PER_MIN,
-        accel_m_s2=accel_mm_s2 * MM,
-    )
+    try:
+        sched = schedule_feed(
+            vp,
+            float(value),
+            kind=kind,
+            max_feed_m_s=None if max_feed_mm_min is None else max_feed_mm_min * MM_PER_MIN,
+            min_feed_m_s=None if min_feed_mm_min is None else min_feed_mm_min * MM_PER_MIN,
+            accel_m_s2=accel_mm_s2 * MM,
+        )
+    except InputDataError as exc:
+        # the only bound the options can still break: a minimum above a programmed feed
+        raise ConfigError(
+            f"--min-feed-mm-min {min_feed_mm_min}: {exc} (the programmed feed of "
+            f"{program} where --max-feed-mm-min is not given)"
+        ) from None
     _unreachable(vp, sched, kind, float(value), findings)
     _print_warnings(findings)
     text = Path(program).read_text(encoding="utf-8", errors="replace")
