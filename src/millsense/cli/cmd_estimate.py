@@ -92,6 +92,8 @@ def estimate(
         )
     for note in summary["notes"]:
         typer.echo(f"millsense: note: {note}", err=True)
+    for warning in summary["warnings"]:
+        typer.echo(f"millsense: warning: {warning}", err=True)
     if json_out is not None:
         text = json.dumps(summary_json(summary, out)) + "\n"
         if json_out == "-":
@@ -146,6 +148,7 @@ def summary_json(summary: dict[str, Any], out: Path) -> dict[str, Any]:
         ],
         "comparisons": rows,
         "notes": list(summary["notes"]),
+        "warnings": list(summary.get("warnings", [])),
     }
 
 
@@ -334,11 +337,22 @@ def run_estimate(
         )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
+    # running peak |estimate| and non-finite count per estimate, for the plausibility checks
+    peaks: dict[str, float] = {}
+    bad: dict[str, int] = {}
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
         data = {c: ch.data[c] for c in copies}
         data.update(outputs)
         writer.append(data)
+        for _, _, c, _ in all_estimates:
+            v = outputs.get(c)
+            if v is None or not len(v):
+                continue
+            fin = np.isfinite(v)
+            bad[c] = bad.get(c, 0) + int(v.size - fin.sum())
+            if fin.any():
+                peaks[c] = max(peaks.get(c, 0.0), float(np.abs(v[fin]).max()))
 
     t0 = time.perf_counter()
     try:
@@ -352,9 +366,17 @@ def run_estimate(
     finally:
         writer.close()
     wall = time.perf_counter() - t0
+    findings = _estimate_findings(mcfg, all_estimates, peaks, bad, str(recording))
     comparisons = []
     if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
-        comparisons = _compare(rec, res.channels, all_estimates, axis_list, flutes, plot)
+        try:
+            comparisons = _compare(rec, res.channels, all_estimates, axis_list, flutes, plot)
+        except InputDataError as exc:
+            # the estimates are written; a recording whose truth cannot be compared (it never
+            # cuts, the steady cut is too short) is a note, unless a plot was asked for
+            if plot is not None:
+                raise InputDataError(f"{recording}: --plot: {exc}") from None
+            findings.warn(f"{recording}: no comparison with truth: {exc}")
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
@@ -368,9 +390,31 @@ def run_estimate(
         },
         "comparisons": comparisons,
         "notes": built.notes + idle_notes,
+        "warnings": findings.warnings,
         "channels": res.channels,
         "idle": idle_tables,
     }
+
+
+def _estimate_findings(
+    mcfg: Any, estimates: list[Any], peaks: dict[str, float], bad: dict[str, int], where: str
+) -> Any:
+    """Plausibility of the estimates (decision 0941): non-finite samples, and the peak load
+    of a linear axis against the machine's ``limits.axis_force_n`` (an estimate beyond what the
+    drives can push points at a wrong machine file: K_t, lead, or the recording of another
+    machine)."""
+    from millsense.core.plausibility import Findings, check_against_limits
+
+    findings = Findings()
+    for m, a, c, _ in estimates:
+        if bad.get(c, 0):
+            findings.warn(f"{where}: {m} estimate of {a} has {bad[c]} non-finite samples")
+        cfg = mcfg.axes.get(a)
+        if cfg is not None and cfg.kind == "linear" and c in peaks:
+            check_against_limits(
+                mcfg.limits, f"{where}: {m} estimate of axis {a}", findings, peak_force_n=peaks[c]
+            )
+    return findings
 
 
 def _air_phase(

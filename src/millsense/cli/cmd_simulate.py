@@ -14,6 +14,8 @@ from millsense.cli.progress import progress_bar
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from millsense.streaming.block import Event
+
 
 @app.command()
 def simulate(
@@ -109,6 +111,8 @@ def simulate(
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
     for note in summary.get("notes", []):
         typer.echo(f"millsense: note: {note}", err=True)
+    for warning in summary.get("warnings", []):
+        typer.echo(f"millsense: warning: {warning}", err=True)
     typer.echo(
         f"wrote {out}: {summary['samples']} samples ({summary['seconds']:.2f} s) in "
         f"{summary['wall_s']:.1f} s wall ({summary['seconds'] / summary['wall_s']:.1f}x real time)"
@@ -153,10 +157,13 @@ def run_simulation(
     """
     import time
 
+    from millsense.core.budget import check_signal
     from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
-    from millsense.core.errors import ConfigError, InputDataError
+    from millsense.core.errors import ConfigError, InputDataError, ProgramError
+    from millsense.core.plausibility import Findings, check_depth, check_width
     from millsense.core.presets import load_preset
     from millsense.io import RecordingWriter
+    from millsense.plan.checks import check_plan, check_program
     from millsense.plan.gcode import interpret_file
     from millsense.plan.path import vertex_path
     from millsense.process.coefficients import CuttingCoefficients
@@ -186,8 +193,13 @@ def run_simulation(
         raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
     if air_mm > 0 and plan is not None:
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
+    if duration_s is not None:
+        check_signal(
+            duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
+        )
     mcfg = load_preset(MachineConfig, machine)
     five = mcfg.kinematics == "5-axis-trunnion-ac"
+    findings = Findings()
     events: list[ProcessEvent] = []
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
@@ -197,7 +209,7 @@ def run_simulation(
     if tool_modes is not None:
         from millsense.simulator.process_coupling import ToolModes
 
-        modes = ToolModes.from_toml(tool_modes)
+        modes = ToolModes.from_toml(tool_modes, findings)
     if plan is not None:
         from millsense.plan.plan_engagement import PlanEngagement, plan_path
         from millsense.plan.virtual_plan import (
@@ -207,6 +219,14 @@ def run_simulation(
         )
 
         vp = VirtualPlan.read(plan)
+        check_plan(vp, findings, machine=mcfg)
+        if duration_s is None:
+            check_signal(
+                float(vp["t_s"][-1]) if len(vp) else 0.0,
+                f"--plan {plan}",
+                "give --duration-s to simulate its start, or plan part of the program",
+                ProgramError,
+            )
         if tool is not None:
             end_mill = EndMill.from_config(load_preset(ToolConfig, tool))
         else:
@@ -245,8 +265,34 @@ def run_simulation(
         tcfg = load_preset(ToolConfig, tool or "aslan-d20-2flute")
         mat = load_preset(MaterialConfig, material or "al7050")
         end_mill = EndMill.from_config(tcfg)
-        job = Job.from_sampled_path(vertex_path(interpret_file(program)), five_axis=five)
+        check_depth(
+            depth_mm, tcfg.diameter_mm, "--depth-mm", findings, stickout_mm=tcfg.stickout_mm
+        )
+        if engagement.strip().lower().startswith("ae_mm="):
+            try:
+                ae_mm = float(engagement.strip().lower().removeprefix("ae_mm=").split(",")[0])
+            except ValueError:
+                ae_mm = None  # from_spec names the option
+            if ae_mm is not None:
+                check_width(ae_mm, tcfg.diameter_mm, f"--engagement {engagement}")
         unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
+        toolpath = interpret_file(program)
+        check_program(
+            toolpath,
+            findings,
+            machine=mcfg,
+            cuts=True,
+            flutes=tcfg.flutes,
+            diameter_mm=tcfg.diameter_mm,
+        )
+        if duration_s is None:
+            check_signal(
+                float(toolpath.durations().sum()),
+                f"--program {program}",
+                "give --duration-s to simulate its start, or split the program",
+                ProgramError,
+            )
+        job = Job.from_sampled_path(vertex_path(toolpath), five_axis=five)
         assert job.rapid is not None
         schedule = EngagementSchedule.along_cutting_moves(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
@@ -293,8 +339,10 @@ def run_simulation(
         flush_every_s=0.5,
     )
     t0 = time.perf_counter()
+    crashes: list[Event] = []
     while (c := sim.read(chunk)) is not None:
         writer.append(c.data)
+        crashes += sim.take_events()
         rows = sim.take_stream_rows()
         if len(rows["time_s"]):
             writer.append_stream(
@@ -302,6 +350,11 @@ def run_simulation(
             )
         if on_progress is not None:
             on_progress(min(1.0, sim.samples_read / max(expect, 1)))
+    crashes += sim.take_events()
+    findings.extend(e.message for e in crashes)
+    writer.update_metadata(
+        {"warnings": findings.warnings, "crash_events": [e.as_dict() for e in crashes]}
+    )
     writer.close()
     n = sim.samples_read
     return {
@@ -309,6 +362,8 @@ def run_simulation(
         "seconds": n / sim.sample_rate_hz,
         "wall_s": max(time.perf_counter() - t0, 1e-9),
         "notes": notes,
+        "warnings": findings.warnings,
+        "crash_events": crashes,
     }
 
 

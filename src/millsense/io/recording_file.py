@@ -379,6 +379,17 @@ class RecordingWriter:
         """Samples per channel appended so far (flushed or still buffered)."""
         return self._appended
 
+    def update_metadata(self, metadata: Mapping[str, object]) -> None:
+        """Add or replace metadata keys of the final file (written at :meth:`close`), e.g. the
+        warnings and crash events a run raised; the sidecar of a killed run keeps the
+        metadata given at construction."""
+        self._check_open()
+        try:
+            extra = normalise_metadata(metadata)
+        except InputDataError as exc:
+            raise InputDataError(f"{self.path}: {exc}") from None
+        self._proto.metadata.update(extra)
+
     # ------------------------------------------------------------------ appending
     def _check_open(self) -> None:
         if self._closed:

@@ -44,6 +44,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator.crash import CrashMonitor
 from millsense.simulator.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.simulator.interpolator import Interpolator, OverrideChannel, Upsampler
 from millsense.simulator.process_coupling import ProcessCoupling
@@ -577,6 +578,8 @@ class MachineSimulator(Source):
         self._steps = np.arange(1, self.ratio + 1, dtype=np.float64)
         self._z_axis = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (self.ratio, 3))
         self._channels = self._declare()
+        # crash events (decision 0942): engaged with the spindle stopped, beyond the limits
+        self.crashes = CrashMonitor(machine, self.axes)
 
     # ------------------------------------------------------------------ declarations
     def _declare(self) -> list[ChannelInfo]:
@@ -933,6 +936,13 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
+            self.crashes.check(
+                t,
+                (po.engagement_index >= 0) & (po.depth_m > 0),
+                self._omega,
+                w.loads[sl],
+                torque,
+            )
         else:
             torque = w.torque[sl]
         # drives and spindle
@@ -1096,6 +1106,14 @@ class MachineSimulator(Source):
     @property
     def samples_read(self) -> int:
         return self._pos
+
+    def take_events(self) -> list[Event]:
+        """Crash events (kind ``crash``) raised since the last call, removed from the queue.
+
+        Events are raised as blocks are computed, so they may lead the samples read by up to
+        one generated batch.
+        """
+        return self.crashes.take_events()
 
 
 def _with_high_modes(cfg: FeedAxisConfig, rng: np.random.Generator) -> FeedAxisConfig:
