@@ -32,7 +32,7 @@ def _finite_or_none(v: float, scale: float = 1.0, digits: int = 6) -> float | No
 def lobes(
     case_file: Path = typer.Argument(..., help="Stability case (TOML), see examples/stability/."),
     method: str | None = typer.Option(None, "--method", help="zoa or sdm (default: the case's)."),
-    rpm: str | None = typer.Option(None, "--rpm", help="MIN:MAX:STEP in rev/min."),
+    rpm: str | None = typer.Option(None, "--rpm", help="Speeds MIN:MAX:STEP [rev/min]."),
     steps_per_period: int | None = typer.Option(
         None, "--steps-per-period", help="SDM steps per tooth period (default: the case's)."
     ),
@@ -49,8 +49,10 @@ def lobes(
     from rich.console import Console
     from rich.progress import Progress
 
+    from millsense.io.safe_output import atomic_path, check_outputs, write_text
     from millsense.stability.cases import compute_lobes, load_case
 
+    check_outputs({"the case file": case_file}, {"--plot": plot, "--json": json_out})
     case = load_case(case_file)
     if method is not None and method not in ("zoa", "sdm"):
         raise ConfigError(f"--method {method!r}: allowed 'sdm' or 'zoa'")
@@ -92,7 +94,7 @@ def lobes(
         if json_out == "-":
             sys.stdout.write(text)
         else:
-            Path(json_out).write_text(text)
+            write_text(json_out, text)
     if plot is not None:
         import matplotlib
 
@@ -111,5 +113,8 @@ def lobes(
         ax.set_title(f"{case.name} ({out['method']})")
         ax.legend(loc="upper left")
         fig.tight_layout()
-        fig.savefig(plot, dpi=120)
-        plt.close(fig)
+        try:
+            with atomic_path(plot) as tmp:
+                fig.savefig(tmp, dpi=120, format="png")
+        finally:
+            plt.close(fig)
