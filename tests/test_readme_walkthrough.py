@@ -14,6 +14,7 @@ section uses placeholders (``RUN.h5``, ``P.nc``) and is not meant to run.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 import shlex
@@ -50,7 +51,7 @@ def named_outputs(blocks: list[str]) -> list[str]:
         for line in block.replace("\\\n", " ").splitlines():
             code, _, comment = line.partition("#")
             words = shlex.split(code) if code.strip() else []
-            for opt, val in zip(words, words[1:], strict=False):
+            for opt, val in itertools.pairwise(words):
                 if opt in _OUT_OPTS and val != "-":
                     out.append(val)
             m = re.search(r"\bwrites ([^;]+)", comment)

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_run import run_cli
 
+from cli_run import run_cli
 from millsense.core.errors import ConfigError
 from millsense.io import read_recording, write_recording
 from millsense.io.recording_file import partial_dir
@@ -60,21 +60,35 @@ CASES = [
     ("estimate {run.h5} --machine quaser-ux600 -o {out.h5} --json {run.h5}", "run.h5"),
     ("estimate {run.h5} --machine {base.toml} -o {base.toml}", "base.toml"),
     ("estimate {out.h5} --machine quaser-ux600 --idle {run.h5} -o {run.h5}", "run.h5"),
-    ("schedule {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
-     "--limit-force-n 300 -o {part.nc}", "part.nc"),
-    ("schedule {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
-     "--limit-force-n 300 -o {o.nc} --plot {stock.toml}", "stock.toml"),
-    ("plan {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
-     "-o {part.nc}", "part.nc"),
-    ("plan {part.nc} --stock {stock.toml} --tool {base.toml} --material al7050 "
-     "-o {p.parquet} --plot {base.toml}", "base.toml"),
+    (
+        "schedule {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
+        "--limit-force-n 300 -o {part.nc}",
+        "part.nc",
+    ),
+    (
+        "schedule {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
+        "--limit-force-n 300 -o {o.nc} --plot {stock.toml}",
+        "stock.toml",
+    ),
+    (
+        "plan {part.nc} --stock {stock.toml} --tool aslan-d20-2flute --material al7050 "
+        "-o {part.nc}",
+        "part.nc",
+    ),
+    (
+        "plan {part.nc} --stock {stock.toml} --tool {base.toml} --material al7050 "
+        "-o {p.parquet} --plot {base.toml}",
+        "base.toml",
+    ),
     ("simulate --program {part.nc} -o {part.nc}", "part.nc"),
     ("simulate --plan {plan.parquet} -o {plan.parquet}", "plan.parquet"),
     ("simulate --program {part.nc} --tool-modes {case.toml} -o {case.toml}", "case.toml"),
     ("simulate --machine {base.toml} --program {part.nc} -o {base.toml}", "base.toml"),
     ("identify friction {run.h5} -o {run.h5}", "run.h5"),
-    ("identify frf {run.h5} --input-channel a --output-channel b -o {f.toml} --plot {run.h5}",
-     "run.h5"),
+    (
+        "identify frf {run.h5} --input-channel a --output-channel b -o {f.toml} --plot {run.h5}",
+        "run.h5",
+    ),
     ("identify idle {run.h5} -o {run.h5}", "run.h5"),
     ("merge {base.toml} {frag.toml} -o {frag.toml}", "frag.toml"),
     ("merge {base.toml} {frag.toml} -o {base.toml}", "base.toml"),

@@ -29,7 +29,7 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
 
     console = Console()
     if not recording.exists() and partial_dir(recording).is_dir() and not writer_alive(recording):
-        _print_recovered(console, recording, None)
+        _print_recovered(recording, None)
     status = recording_status(recording)
     rec = read_recording(recording)
     console.print(f"[bold]{recording}[/]", markup=True)
@@ -89,23 +89,18 @@ def plot(
     Console().print(f"wrote {out}")
 
 
-def _print_recovered(console: Console, recording: Path, output: Path | None) -> None:
+def _print_recovered(recording: Path, output: Path | None) -> None:
+    """Recover ``recording`` into a plain file and say so, with what was lost (plain lines)."""
     from millsense.io.recovery import recover as recover_file
 
     r = recover_file(recording, output)
-    console.print(
+    typer.echo(
         f"recovered {r.duration_s:.6g} s ({r.n_samples} samples) of the interrupted recording "
-        f"{recording} into {r.output} (plain HDF5)",
-        markup=False,
-        highlight=False,
+        f"{recording} into {r.output} (plain HDF5)"
     )
-    console.print(r.lost, markup=False, highlight=False)
+    typer.echo(r.lost)
     if not r.partial_removed:
-        console.print(
-            f"kept {recording}.partial/ (remove it once {r.output} is checked)",
-            markup=False,
-            highlight=False,
-        )
+        typer.echo(f"kept {recording}.partial/ (remove it once {r.output} is checked)")
 
 
 @app.command()
@@ -125,4 +120,4 @@ def recover(
 
     if output is not None:
         check_outputs({"the recording": recording}, {"-o": output})
-    _print_recovered(Console(), recording, output)
+    _print_recovered(recording, output)
