@@ -104,6 +104,7 @@ def _run_section(title: str, tmp_path: Path) -> None:
     assert not missing, f"files the README says are written do not exist: {missing}"
 
 
+@pytest.mark.slow  # about 1.5 min of CPU (16 min wall measured with 6 agents on 2 cores)
 @pytest.mark.skipif(VENV is None, reason="needs to run in the project's virtual environment")
 def test_readme_walkthrough_runs_verbatim(tmp_path: Path) -> None:
     _run_section("Walkthrough", tmp_path)
