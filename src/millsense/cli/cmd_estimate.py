@@ -32,7 +32,7 @@ def estimate(
     machine: str = typer.Option(..., "--machine", help="Machine preset or .toml (identified)."),
     method: str = typer.Option("feed", "--method", help="feed, raw, medob, spindle or all."),
     axes: str | None = typer.Option(None, "--axes", help="Axes, e.g. x,y,z (default: all)."),
-    out: Path = typer.Option(..., "-o", "--out", help="Estimates recording to write (.h5)."),
+    out: Path = typer.Option(..., "-o", "--output", help="Estimates recording to write (.h5)."),
     plot: Path | None = typer.Option(None, "--plot", help="PNG of estimate vs truth."),
     flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
@@ -44,7 +44,7 @@ def estimate(
         "The estimates' mean in air per direction of motion is subtracted.",
     ),
     air_s: str | None = typer.Option(
-        None, "--air-s", help="Air phase START:END in s (of the recording or the --idle FILE)."
+        None, "--air-s", help="Air phase START:END [s] (of the recording or the --idle FILE)."
     ),
     harmonics: bool = typer.Option(
         False,
@@ -61,14 +61,21 @@ def estimate(
     band_hz: float | None = typer.Option(
         None,
         "--band-hz",
-        help="feed: tune each estimator for the least noise that keeps its compensated FRF "
+        help="feed [Hz]: tune each estimator for the least noise that keeps its compensated FRF "
         "within ±1 dB up to this band on the identified model (default: the widest ±3 dB band "
         "under the noise limit); overrides the machine file's estimator q_nm2_s/band_hz.",
     ),
 ) -> None:
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
+    from millsense.io.safe_output import check_outputs, write_text
 
+    inputs: dict[str, str | Path] = {
+        "the recording": recording,
+        "the machine file": machine,
+        "the --idle recording": idle,
+    }
+    check_outputs(inputs, {"-o": out, "--plot": plot, "--json": json_out})
     if json_out not in (None, "-"):
         target = Path(str(json_out))
         if target.is_dir() or not target.parent.is_dir():
@@ -99,7 +106,7 @@ def estimate(
         if json_out == "-":
             typer.echo(text, nl=False)
         else:
-            Path(json_out).write_text(text)
+            write_text(json_out, text)
         if json_out == "-":
             return
     if summary["comparisons"]:

@@ -128,9 +128,11 @@ def lobes(
     from rich.console import Console
     from rich.progress import Progress
 
+    from millsense.io.safe_output import check_outputs, write_text
     from millsense.stability.cases import compute_lobes, load_case
     from millsense.stability.zoa import flip_lobes_expected
 
+    check_outputs({"the case file": case_file}, {"--plot": plot, "--json": json_out})
     if not 1 <= threads <= 256:
         raise ConfigError(f"--threads {threads}: allowed 1..256")
     _limit_blas_threads(threads)
@@ -256,13 +258,15 @@ def lobes(
         if json_out == "-":
             sys.stdout.write(text)
         else:
-            Path(json_out).write_text(text)
+            write_text(json_out, text)
     if plot is not None:
         _plot(plot, res, case.name, meth, sols)
 
 
 def _plot(path: Path, res: Any, name: str, meth: str, sols: list[Any]) -> None:
     import matplotlib
+
+    from millsense.io.safe_output import atomic_path
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -300,5 +304,8 @@ def _plot(path: Path, res: Any, name: str, meth: str, sols: list[Any]) -> None:
     ax.set_ylim(0, top)
     ax.legend(loc="upper left")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=120, format="png")
+    finally:
+        plt.close(fig)

@@ -28,6 +28,31 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
     return (vals[0], vals[1], vals[2])
 
 
+def _guard(
+    program: Path, stock: Path, tool: Path, material: Path, outputs: dict[str, Path | None]
+) -> None:
+    """Refuse an output that is an input: the program, stock (and its STL), tool, material."""
+    from millsense.io.safe_output import check_outputs
+
+    inputs: dict[str, Path | None] = {
+        "the program": program,
+        "the stock file": stock,
+        "the tool file": tool,
+        "the material file": material,
+    }
+    try:
+        from millsense.core.config import StockConfig, load_config
+
+        stl = load_config(StockConfig, stock).stl_path
+    except Exception:  # a bad stock file is reported, with its line, by _build
+        stl = None
+    if stl is not None:
+        inputs["the stock's STL"] = (
+            Path(stl) if Path(stl).is_absolute() else Path(stock).parent / stl
+        )
+    check_outputs(inputs, outputs)
+
+
 def _positive(name: str, value: float) -> None:
     if not value > 0:
         raise ConfigError(f"{name} {value!r}: must be > 0")
@@ -152,6 +177,7 @@ def plan(
     """Virtual plan: engagement and predicted forces, torque, power per path step."""
     import time
 
+    _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     t0 = time.perf_counter()
     vp, _, findings = _build(
         program, stock, tool, material, step_mm, resolution_mm, home_mm, machine
@@ -177,16 +203,18 @@ def schedule(
     tool: Path = _TOOL,
     material: Path = _MATERIAL,
     output: Path = typer.Option(..., "-o", "--output", help="Optimised program."),
-    limit_force_n: float | None = typer.Option(None, "--limit-force-n", help="Peak XY force."),
-    limit_torque_nm: float | None = typer.Option(None, "--limit-torque-nm", help="Peak torque."),
-    limit_power_w: float | None = typer.Option(None, "--limit-power-w", help="Mean power."),
+    limit_force_n: float | None = typer.Option(None, "--limit-force-n", help="Peak XY force [N]."),
+    limit_torque_nm: float | None = typer.Option(
+        None, "--limit-torque-nm", help="Peak torque [N·m]."
+    ),
+    limit_power_w: float | None = typer.Option(None, "--limit-power-w", help="Mean power [W]."),
     max_feed_mm_min: float | None = typer.Option(
-        None, "--max-feed-mm-min", help="Upper feed bound (default: programmed)."
+        None, "--max-feed-mm-min", help="Upper feed bound [mm/min] (default: programmed)."
     ),
     min_feed_mm_min: float | None = typer.Option(
-        None, "--min-feed-mm-min", help="Lower feed bound (default: 10 % of programmed)."
+        None, "--min-feed-mm-min", help="Lower feed bound [mm/min] (default: 10 % of programmed)."
     ),
-    accel_mm_s2: float = typer.Option(1000.0, "--accel-mm-s2", help="Path acceleration."),
+    accel_mm_s2: float = typer.Option(1000.0, "--accel-mm-s2", help="Path acceleration [mm/s²]."),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG with the feeds."),
     step_mm: float = _STEP,
     resolution_mm: float = _RES,
@@ -211,6 +239,7 @@ def schedule(
     ]
     if len(limits) != 1:
         raise ConfigError("give exactly one of --limit-force-n, --limit-torque-nm, --limit-power-w")
+    _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     kind, value = limits[0]
     _positive(f"--limit-{kind}", float(value))
     _positive("--accel-mm-s2", accel_mm_s2)

@@ -42,18 +42,20 @@ def simulate(
     engagement: str = typer.Option(
         "slot", "--engagement", help="With --program: slot, ae_mm=VALUE or ae_mm=VALUE,up."
     ),
-    depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth, mm."),
+    depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth [mm]."),
     air_mm: float = typer.Option(
         0.0,
         "--air-mm",
-        help="With --program: the first AIR_MM of feed motion cut air (the stock starts that "
+        help="With --program: the first AIR_MM [mm] of feed motion cut air (the stock starts that "
         "far along the first feed move): an air phase at cutting feed for `estimate --idle`.",
     ),
-    out: Path = typer.Option(..., "--out", "-o", help="Recording to write (.h5)."),
-    duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this, s."),
+    out: Path = typer.Option(..., "-o", "--output", help="Recording to write (.h5)."),
+    duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
     cnc: str = typer.Option("open", "--cnc", help="Override channel: open or closed."),
-    break_at_s: float | None = typer.Option(None, "--break-at-s", help="Break a tooth at, s."),
+    break_at_s: float | None = typer.Option(
+        None, "--break-at-s", help="Break a tooth at this time [s]."
+    ),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
     realism: bool = typer.Option(
         True, "--realism/--no-realism", help="The realism layer (friction drift...): on by default."
@@ -85,6 +87,19 @@ def simulate(
     to OUT while the simulation runs (flushed every 0.5 s of signal), so a killed run leaves
     a readable recording of everything flushed.
     """
+    from millsense.io.safe_output import check_outputs
+
+    check_outputs(
+        {
+            "the machine file": machine,
+            "the program": program,
+            "the plan": plan,
+            "the tool file": tool,
+            "the material file": material,
+            "the --tool-modes file": tool_modes,
+        },
+        {"-o": out},
+    )
     req = dict(
         machine=machine,
         program=program,

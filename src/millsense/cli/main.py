@@ -21,6 +21,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # plain click help: flags without '<bool>', '[mm]' not eaten as markup (decision 0923)
+    rich_markup_mode=None,
 )
 
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)

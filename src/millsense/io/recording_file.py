@@ -68,9 +68,11 @@ __all__ = [
     "RecordingStatus",
     "RecordingWriter",
     "partial_dir",
+    "read_interrupted",
     "read_recording",
     "recording_status",
     "write_recording",
+    "writer_alive",
 ]
 
 FORMAT = "millsense-recording"
@@ -128,6 +130,43 @@ def _atomic_json(path: Path, obj: object, fsync: bool) -> None:
             fh.flush()
             os.fsync(fh.fileno())
     os.replace(tmp, path)
+
+
+_LOCK = "writer.lock"
+
+
+def _hold_writer_lock(partial: Path) -> Any:
+    """Open ``partial/writer.lock`` and hold an exclusive lock on it while the writer lives.
+
+    The operating system drops the lock when the process dies (``kill -9`` included), so
+    :func:`writer_alive` tells a running writer from an interrupted one.
+    """
+    fh = open(partial / _LOCK, "w")
+    try:
+        import fcntl
+
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except (ImportError, OSError):  # no flock (Windows, some network file systems)
+        pass
+    return fh
+
+
+def writer_alive(path: str | Path) -> bool:
+    """True if a live process is still writing the recording ``path`` (holds its lock)."""
+    lock = partial_dir(path) / _LOCK
+    if not lock.is_file():
+        return False
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - no flock: cannot tell, assume interrupted
+        return False
+    with open(lock) as fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    return False
 
 
 def _check_parent(path: Path) -> None:
@@ -254,7 +293,9 @@ class RecordingWriter:
         ext4 virtual disk); SIGKILL-safety does not need it.
     overwrite : bool
         Replace an existing complete file at ``path`` (default, like :func:`write_recording`);
-        it is removed at once so that readers see the new recording in progress. With
+        it stays whole until :meth:`close` renames the new file onto it (``os.replace``), so
+        a writer killed meanwhile leaves it intact (decision 0921). While this writer lives,
+        :func:`read_recording` returns the new recording in progress. With
         ``overwrite=False`` an existing file is an error.
 
     Raises
@@ -325,21 +366,26 @@ class RecordingWriter:
         if self._partial.exists():
             raise RecordingError(
                 f"{self.path}: {self._partial} exists (an interrupted recording); "
-                "read it with read_recording and remove it first"
+                f"recover it with 'millsense recover {self.path}' or remove that folder"
             )
         if self.path.exists():
             if not overwrite:
                 raise RecordingError(f"{self.path}: file exists (overwrite=False)")
-            self.path.unlink()
+            if not self.path.is_file():
+                raise RecordingError(f"{self.path}: exists and is not a file")
+            # kept until close() renames the new file onto it: a run killed meanwhile leaves
+            # the previous recording whole (decision 0921)
         try:
             self._partial.mkdir()
         except OSError as exc:
             raise RecordingError(f"{self.path}: cannot create {self._partial}: {exc}") from exc
+        self._lock = _hold_writer_lock(self._partial)
         schema = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
             "sample_rate_hz": self.sample_rate_hz,
             "t0_s": self.t0_s,
+            "flush_every_samples": self._flush_samples,
             "channels": [[c.name, c.unit, c.description] for c in self._channels.values()],
             "streams": {
                 s: [[fi.name, fi.unit, fi.description] for fi in f.values()]
@@ -596,6 +642,7 @@ class RecordingWriter:
             if f.id.valid:
                 f.close()
         shutil.rmtree(self._partial, ignore_errors=True)
+        self._lock.close()
 
     def __enter__(self) -> RecordingWriter:
         return self
@@ -850,8 +897,10 @@ def _recovery_message(segs: _Segments) -> str:
     return msg + (f"; {segs.note}" if segs.note else "")
 
 
-def _read_partial(path: Path, partial: Path) -> Recording:
+def _read_partial(path: Path, partial: Path, found: list[_Segments] | None = None) -> Recording:
     segs, loaded = _scan_segments(path, partial, keep=True)
+    if found is not None:
+        found.append(segs)
     schema = segs.schema
     try:
         meta = dict(schema.get("metadata", {}))
@@ -874,6 +923,29 @@ def _read_partial(path: Path, partial: Path) -> Recording:
         return rec
     except (KeyError, ValueError, TypeError, InputDataError) as exc:
         raise RecordingError(f"{path}: cannot recover from {partial} ({exc})") from None
+
+
+def read_interrupted(path: str | Path) -> tuple[Recording, dict[str, Any]]:
+    """The recording in ``<path>.partial/`` even when a complete ``path`` exists beside it.
+
+    Returns the recording (as :func:`read_recording` recovers it) and what recovery knows
+    about the loss: ``schema`` (dict), ``segments`` (int), ``note`` (why reading stopped
+    early, or ""), ``unfinished`` (names of half-written segment files, discarded).
+    """
+    path = Path(path)
+    partial = partial_dir(path)
+    if not partial.is_dir():
+        raise RecordingError(f"{path}: no interrupted recording ({partial} does not exist)")
+    found: list[_Segments] = []
+    rec = _read_partial(path, partial, found)
+    segs = found[0]
+    unfinished = sorted(p.name for p in partial.iterdir() if p.name.endswith(".bin.tmp"))
+    return rec, {
+        "schema": segs.schema,
+        "segments": len(segs.files),
+        "note": segs.note,
+        "unfinished": unfinished,
+    }
 
 
 def read_recording(path: str | Path) -> Recording:
@@ -900,7 +972,7 @@ def read_recording(path: str | Path) -> Recording:
     path = Path(path)
     partial = partial_dir(path)
     for _ in range(3):
-        if path.is_file():
+        if path.is_file() and not (partial.is_dir() and writer_alive(path)):
             return _read_complete(path)
         if partial.is_dir():
             try:
@@ -928,7 +1000,7 @@ def recording_status(path: str | Path) -> RecordingStatus:
     """
     path = Path(path)
     partial = partial_dir(path)
-    if path.is_file():
+    if path.is_file() and not (partial.is_dir() and writer_alive(path)):
         with _open_h5(path) as f:
             _check_format(path, f)
             try:

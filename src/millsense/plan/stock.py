@@ -326,7 +326,6 @@ def write_stl(path: str | os.PathLike[str], triangles: FloatArray) -> None:
     arr["normal"] = nrm
     arr["v"] = tri
     header = b"millsense binary STL".ljust(80, b" ")
-    with open(path, "wb") as fh:
-        fh.write(header)
-        fh.write(np.uint32(tri.shape[0]).tobytes())
-        fh.write(arr.tobytes())
+    from millsense.io.safe_output import write_bytes
+
+    write_bytes(path, header + np.uint32(tri.shape[0]).tobytes() + arr.tobytes())
