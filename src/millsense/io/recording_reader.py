@@ -105,7 +105,9 @@ class RecordingReader:
                     f"samples, '{first}' has {n})"
                 )
             self._datasets[name] = ds
-            self._info[name] = ChannelInfo(name, _attr_str(ds, "unit"), _attr_str(ds, "description"))
+            self._info[name] = ChannelInfo(
+                name, _attr_str(ds, "unit"), _attr_str(ds, "description")
+            )
         self.n_samples = int(n or 0)
         self._streams: dict[str, list[str]] = dict(layout["streams"])
 
