@@ -163,9 +163,7 @@ def run(
         if on_progress is not None:
             on_progress(done)
     channels = (
-        {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in pieces.items()}
-        if collect
-        else {}
+        {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in pieces.items()} if collect else {}
     )
     return RunResult(
         sample_rate_hz=source.sample_rate_hz,
