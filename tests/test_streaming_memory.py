@@ -255,3 +255,22 @@ def test_estimate_peak_memory_does_not_grow_with_the_recording(tmp_path: Path) -
         est = read_recording(tmp_path / f"e{seconds}.h5")
         assert est.n_samples == seconds * FS
     assert peaks[80] <= 1.2 * peaks[20] + 20.0, peaks
+
+
+def test_air_window_scan_is_block_invariant_and_closed_form(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # feed 0 until sample 1000, then 1200 mm/min (0.02 m/s); the stock at 20.001 mm of path:
+    # the path reaches it at sample 11000 and the guard (0.5 mm before) at 10750; the steady
+    # run starts at 1000, plus 0.05 s of settling: slice(1500, 10750), whatever the blocks
+    from millsense.core.recording import Recording
+    from millsense.estimation import idle_compensation as ic
+
+    n = 20_000
+    rec = Recording(FS, 0.0, {ic.FIRST_ENGAGEMENT_KEY: 0.020001})
+    rec.add_channel("cnc/feed", np.where(np.arange(n) >= 1000, 0.02, 0.0), "m/s")
+    rec.add_channel("spindle/speed_cmd", np.full(n, OMEGA), "rad/s")
+    rec.add_channel("spindle/speed", np.full(n, OMEGA), "rad/s")
+    for block in (65536, 7, 1000):
+        monkeypatch.setattr(ic, "SCAN_BLOCK", block)
+        assert ic.find_air_window(rec, "run.h5") == slice(1500, 10750)
