@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Any
@@ -247,24 +248,74 @@ def run_estimate(
     ConfigError, InputDataError, RecordingError
         One-line user errors (bad preset or key, unknown method or axis, missing channel).
     """
-    import time
-
-    import numpy as np
-
     from millsense.core.config import MachineConfig
     from millsense.core.errors import InputDataError
     from millsense.core.presets import load_preset
-    from millsense.estimation.from_config import build_estimators, truth_channel
-    from millsense.ident.idle_table import DIRECTIONS
-    from millsense.io import RecordingWriter, read_recording
-    from millsense.streaming.engine import Pipeline, run
-    from millsense.streaming.sources import RecordingSource
+    from millsense.io.recording_reader import open_recording
 
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     methods = _methods(method)
     mcfg = load_preset(MachineConfig, machine)
-    rec = read_recording(recording)
+    with contextlib.ExitStack() as stack:
+        rec = open_recording(recording)
+        if hasattr(rec, "close"):
+            stack.callback(rec.close)
+        return _run_estimate(
+            rec,
+            stack,
+            recording=recording,
+            machine=machine,
+            mcfg=mcfg,
+            methods=methods,
+            method=method,
+            axes=axes,
+            out=out,
+            plot=plot,
+            flutes=flutes,
+            chunk=chunk,
+            idle=idle,
+            air_s=air_s,
+            harmonics=harmonics,
+            band_hz=band_hz,
+            on_progress=on_progress,
+        )
+
+
+def _run_estimate(
+    rec: Any,
+    stack: contextlib.ExitStack,
+    *,
+    recording: Path,
+    machine: str,
+    mcfg: Any,
+    methods: list[str],
+    method: str,
+    axes: str | None,
+    out: Path,
+    plot: Path | None,
+    flutes: int | None,
+    chunk: int,
+    idle: str,
+    air_s: str | None,
+    harmonics: bool,
+    band_hz: float | None,
+    on_progress: Any,
+) -> dict[str, Any]:
+    """:func:`run_estimate` on an opened recording (``rec``: a windowed reader or, for an
+    interrupted recording, the recovered one in memory); files it opens are closed by
+    ``stack``. Nothing per sample of the whole record is held (decision 0961)."""
+    import time
+
+    import numpy as np
+
+    from millsense.core.errors import InputDataError
+    from millsense.estimation.from_config import build_estimators, truth_channel
+    from millsense.ident.idle_table import DIRECTIONS
+    from millsense.io import RecordingWriter
+    from millsense.streaming.engine import Pipeline, run
+    from millsense.streaming.sources import RecordingSource
+
     if axes is None:
         axis_list = [a for a in mcfg.axes if f"{a}/current_cmd" in rec.channel_names]
         if not axis_list:
@@ -278,7 +329,7 @@ def run_estimate(
         from millsense.estimation.from_config import with_feed_band
 
         mcfg = with_feed_band(mcfg, axis_list, band_hz)
-    air = _air_phase(idle, air_s, rec, recording)
+    air = _air_phase(idle, air_s, rec, recording, stack)
     idle_notes: list[str] = []
     if air is not None and "feed" in methods:
         from millsense.estimation.feed.idle_compensation import with_air_r
@@ -312,8 +363,7 @@ def run_estimate(
         ]
     blocks += built.derived
     pipeline = Pipeline(blocks)
-    source = RecordingSource(rec, name=str(recording))
-    pipeline.check_inputs(source.channel_names, str(recording))
+    pipeline.check_inputs(rec.channel_names, str(recording))
     have = set(rec.channel_names)
     copies = sorted({c for b in blocks for c in b.inputs if c in have})
     extra = [truth_channel(a) for a in dict.fromkeys(a for _, a, _, _ in all_estimates)] + [
@@ -322,6 +372,19 @@ def run_estimate(
         "truth/process/engagement",
     ]
     copies += [c for c in extra if c in have and c not in copies]
+    # only the channels written or read are replayed; the others are never read
+    source = RecordingSource(rec, name=str(recording), channels=copies)
+    streamed, traces = None, None
+    pre_warnings: list[str] = []
+    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
+        try:
+            streamed, traces = _compare_setup(rec, all_estimates, axis_list, flutes, plot)
+        except InputDataError as exc:
+            # a recording whose truth cannot be compared (it never cuts, the steady cut is too
+            # short) is still estimated, with a warning, unless a plot was asked for
+            if plot is not None:
+                raise InputDataError(f"{recording}: --plot: {exc}") from None
+            pre_warnings.append(f"{recording}: no comparison with truth: {exc}")
     infos = [rec.info(c) for c in copies] + pipeline.output_channels()
     meta = {
         "source": "millsense estimate",
@@ -360,6 +423,10 @@ def run_estimate(
             bad[c] = bad.get(c, 0) + int(v.size - fin.sum())
             if fin.any():
                 peaks[c] = max(peaks.get(c, 0.0), float(np.abs(v[fin]).max()))
+        if streamed is not None:
+            streamed.add(ch.start, data)
+        if traces is not None:
+            traces.add(ch.start, data)
 
     t0 = time.perf_counter()
     try:
@@ -369,21 +436,20 @@ def run_estimate(
             chunk,
             sink=sink,
             on_progress=(lambda d: on_progress(d / total)) if on_progress else None,
+            collect=False,
         )
     finally:
         writer.close()
     wall = time.perf_counter() - t0
     findings = _estimate_findings(mcfg, all_estimates, peaks, bad, str(recording))
-    comparisons = []
-    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
-        try:
-            comparisons = _compare(rec, res.channels, all_estimates, axis_list, flutes, plot)
-        except InputDataError as exc:
-            # the estimates are written; a recording whose truth cannot be compared (it never
-            # cuts, the steady cut is too short) is a note, unless a plot was asked for
-            if plot is not None:
-                raise InputDataError(f"{recording}: --plot: {exc}") from None
-            findings.warn(f"{recording}: no comparison with truth: {exc}")
+    for w in pre_warnings:
+        findings.warn(w)
+    comparisons = streamed.results() if streamed is not None else []
+    if plot is not None and traces is not None:
+        from millsense.report.estimate_plots import plot_traces
+
+        units = {e.axis: rec.info(e.truth).unit for e in streamed.estimates} if streamed else {}
+        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units)
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
@@ -398,8 +464,8 @@ def run_estimate(
         "comparisons": comparisons,
         "notes": built.notes + idle_notes,
         "warnings": findings.warnings,
-        "channels": res.channels,
         "idle": idle_tables,
+        "events": res.events,
     }
 
 
@@ -425,12 +491,13 @@ def _estimate_findings(
 
 
 def _air_phase(
-    idle: str, air_s: str | None, rec: Any, recording: Path
+    idle: str, air_s: str | None, rec: Any, recording: Path, stack: contextlib.ExitStack
 ) -> tuple[Any, slice, str] | None:
-    """(recording holding the air phase, its samples, its name) for ``--idle``, or None."""
+    """(recording holding the air phase, its samples, its name) for ``--idle``, or None; an
+    air-run file is opened for windowed reads and closed by ``stack``."""
     from millsense.core.errors import InputDataError
     from millsense.estimation.feed.idle_compensation import find_air_window, parse_air_window
-    from millsense.io import read_recording
+    from millsense.io.recording_reader import open_recording
 
     if idle == "none":
         if air_s is not None:
@@ -444,7 +511,9 @@ def _air_phase(
             raise InputDataError(f"--idle {idle!r}: none, auto or an air-run recording (.h5)")
         if not path.is_file():
             raise InputDataError(f"--idle: no file {path}")
-        src, where = read_recording(path), str(path)
+        src, where = open_recording(path), str(path)
+        if hasattr(src, "close"):
+            stack.callback(src.close)
         if src.sample_rate_hz != rec.sample_rate_hz:
             raise InputDataError(
                 f"--idle {path}: sampled at {src.sample_rate_hz:g} Hz, the recording at "
@@ -491,17 +560,29 @@ def _teeth(flutes: int | None, rec: Any) -> int:
     return n_teeth
 
 
-def _compare(
+def _compare_setup(
     rec: Any,
-    channels: dict[str, Any],
     estimates: list[tuple[str, str, str, int]],
     axis_list: list[str],
     flutes: int | None,
     plot: Path | None,
-) -> list[Any]:
+) -> tuple[Any, Any]:
+    """The streamed estimate-vs-truth comparison and plot traces, set up before the run
+    (cut window and spindle speed read in blocks), or (None, None) without truth.
+
+    The figures are those of :func:`~millsense.report.estimate_metrics.compare` on the whole
+    arrays (decision 0961); errors are raised before anything is written.
+    """
     from millsense.core.errors import InputDataError
     from millsense.estimation.from_config import truth_channel
-    from millsense.report.estimate_metrics import compare
+    from millsense.io.recording_reader import channel_window
+    from millsense.report.estimate_stream import (
+        PlotTraces,
+        StreamedComparison,
+        StreamedEstimate,
+        scan_cut_window,
+        window_mean,
+    )
 
     have = set(rec.channel_names)
     est_axes = list(dict.fromkeys(a for _, a, _, _ in estimates))
@@ -511,36 +592,35 @@ def _compare(
             raise InputDataError(
                 f"--plot: the recording has no truth channel 'truth/{axis_list[0]}/load'"
             )
-        return []
+        return None, None
     if "spindle/speed" not in have:
         raise InputDataError("estimate vs truth: the recording has no channel 'spindle/speed'")
     n_teeth = _teeth(flutes, rec)
-    eng = rec.channel("truth/process/engagement") if "truth/process/engagement" in have else None
-    speed = rec.channel("spindle/speed")
-    comps = [
-        compare(
-            m,
-            a,
-            channels[c],
-            rec.channel(truth_channel(a)),
-            speed,
-            rec.sample_rate_hz,
-            n_teeth,
-            delay_samples=d,
-            engagement=eng,
-        )
+    n = rec.n_samples
+    fs = rec.sample_rate_hz
+
+    def reader(name: str) -> Any:
+        return lambda a, b: channel_window(rec, name, a, b)
+
+    eng = reader("truth/process/engagement") if "truth/process/engagement" in have else None
+    window = scan_cut_window(eng, n)
+    chosen = [
+        StreamedEstimate(m, a, c, d, truth_channel(a))
         for m, a, c, d in estimates
         if a in truth_axes
     ]
+    speed = reader("spindle/speed")
+    streamed = StreamedComparison(
+        chosen, fs, n, window, lambda i0, i1: window_mean(speed, i0, i1), n_teeth
+    )
+    traces = None
     if plot is not None:
-        from millsense.report.estimate_plots import plot_estimates
-
-        plot_estimates(
-            plot,
-            rec.sample_rate_hz,
-            {a: rec.channel(truth_channel(a)) for a in truth_axes},
-            {(m, a): (channels[c], d) for m, a, c, d in estimates if a in truth_axes},
-            comps,
-            {a: rec.info(truth_channel(a)).unit for a in truth_axes},
-        )
-    return comps
+        centre: dict[str, float] = {}
+        tooth = 0.0
+        for e in chosen:
+            i0, i1 = streamed.windows[e.delay]
+            if e.axis not in centre:
+                centre[e.axis] = 0.5 * (i0 + i1)
+            tooth = tooth or streamed.tooth_hz[e.delay]
+        traces = PlotTraces(chosen, n, fs, centre, tooth)
+    return streamed, traces

@@ -404,7 +404,6 @@ class RecordingWriter:
         self._stream_pending: dict[str, list[dict[str, np.ndarray]]] = {
             s: [] for s in self._streams
         }
-        self._stream_all: dict[str, list[dict[str, np.ndarray]]] = {s: [] for s in self._streams}
         self._stream_last_t: dict[str, float] = {s: -math.inf for s in self._streams}
         self._flushed = 0
         self._appended = 0
@@ -413,6 +412,7 @@ class RecordingWriter:
         self._final = h5py.File(self._partial / _INPROGRESS, "w")
         self._final.create_group("channels")
         self._appenders: dict[str, hdf5_chunks.ChunkAppender] = {}
+        self._stream_appenders: dict[tuple[str, str], hdf5_chunks.ChunkAppender] = {}
 
     # ------------------------------------------------------------------ properties
     @property
@@ -573,10 +573,10 @@ class RecordingWriter:
         self._flushed += self._pending_n
         self._pending = {n: [] for n in self._channels}
         self._pending_n = 0
-        for sname, cols in stream_block.items():
-            self._stream_all[sname].append(cols)
+        for sname in stream_block:
             self._stream_pending[sname] = []
         self._consolidate(block)
+        self._consolidate_streams(stream_block)
 
     def _consolidate(self, block: Mapping[str, np.ndarray]) -> None:
         """Feed flushed samples to the final file being built (compressed in the pool)."""
@@ -590,6 +590,26 @@ class RecordingWriter:
                 _set_info(ds, self._channels[name])
                 appender = self._appenders[name] = hdf5_chunks.ChunkAppender(ds)
             appender.append(arr)
+
+    def _stream_appender(
+        self, sname: str, field: str, dtype: np.dtype, info: ChannelInfo
+    ) -> hdf5_chunks.ChunkAppender:
+        key = (sname, field)
+        appender = self._stream_appenders.get(key)
+        if appender is None:
+            group = self._final.require_group("streams").require_group(sname)
+            ds = hdf5_chunks.create_chunked(group, field, dtype, hdf5_chunks.CHUNK_SAMPLES)
+            _set_info(ds, info)
+            appender = self._stream_appenders[key] = hdf5_chunks.ChunkAppender(ds)
+        return appender
+
+    def _consolidate_streams(self, stream_block: Mapping[str, Mapping[str, np.ndarray]]) -> None:
+        """Feed flushed stream rows to the final file as they come (not kept until close:
+        a shift of 333 Hz rows would otherwise grow the writer's memory, decision 0961)."""
+        for sname, cols in stream_block.items():
+            for k, arr in cols.items():
+                info = self._streams[sname].get(k) or ChannelInfo("time_s", "s", "row time")
+                self._stream_appender(sname, k, arr.dtype, info).append(arr)
 
     # ------------------------------------------------------------------ closing
     def close(self) -> None:
@@ -610,16 +630,16 @@ class RecordingWriter:
                     _set_info(ds, info)
                 else:
                     self._appenders[name].finish()
-            f.create_group("streams")
+            f.require_group("streams")
             for sname, fields in self._streams.items():
-                parts = self._stream_all[sname]
-                cols = {
-                    k: (np.concatenate([p[k] for p in parts]) if parts else np.zeros(0))
-                    for k in ["time_s", *fields]
-                }
-                _write_stream(
-                    f, Stream(sname, cols["time_s"], {k: cols[k] for k in fields}, fields)
-                )
+                infos = {"time_s": ChannelInfo("time_s", "s", "row time"), **fields}
+                for k, info in infos.items():
+                    if (sname, k) in self._stream_appenders:
+                        self._stream_appenders[(sname, k)].finish()
+                    else:  # no row ever appended
+                        dtype = self._stream_dtypes[sname].get(k, np.dtype(np.float64))
+                        group = f["streams"].require_group(sname)
+                        _set_info(hdf5_chunks.create_chunked(group, k, dtype, 1), info)
             layout = {
                 "channels": list(self._channels),
                 "streams": {s: list(fl) for s, fl in self._streams.items()},
