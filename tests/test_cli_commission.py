@@ -45,7 +45,7 @@ def test_commission_writes_the_tests_and_its_identify_commands_run(
     merge = next(ln.strip() for ln in out.splitlines() if ln.strip().startswith("millsense merge"))
     code, _, err = run_cli(shlex.split(merge)[1:], capsys)
     assert code == 0, err
-    assert Path("simulator.toml").exists()
+    assert Path("machine.toml").exists()
     frag = tomllib.loads(Path("y_friction.toml").read_text())
     fr = FrictionConfig(**frag["axes"]["y"]["friction"])
     # Aslan Table 3.2 Y Coulomb friction (1.78/1.86 N·m) back within 2 % (issue 6 figure)
