@@ -61,10 +61,12 @@ def simulate(
         True, "--realism/--no-realism", help="The realism layer (friction drift...): on by default."
     ),
     ideal: bool = typer.Option(
-        False,
-        "--ideal",
-        help="Debugging only: today's one-way model of the machine file (rigid body + printed "
-        "disturbance modes), realism off, instead of the simulator's own truth.",
+        True,
+        "--ideal/--truth",
+        help="--truth: the simulator's own truth plant (coupled lumped-mass drives, true K_t, "
+        "friction, ripple, current loop, dead times; realism on). Default --ideal: the machine "
+        "file's one-way model with realism off, until identification runs on the truth "
+        "(decision 1061).",
     ),
     tool_modes: Path | None = typer.Option(
         None,
