@@ -37,6 +37,7 @@ UNIT_SUFFIXES = (
 UNITLESS_FLOATS = {
     "--kp": "a gain whose unit follows --error-unit (rev/s or rad/s), stated in its help",
     "--ki": "a gain whose unit follows --error-unit (rev/s or rad/s), stated in its help",
+    "--tolerance": "a relative error bound (dimensionless fraction), stated in its help",
 }
 
 

@@ -106,7 +106,7 @@ def lobes(
     case_file: Path = typer.Argument(..., help="Stability case (TOML), see examples/stability/."),
     method: str | None = typer.Option(None, "--method", help="zoa or sdm (default: the case's)."),
     rpm: str | None = typer.Option(
-        None, "--rpm", help="N (one speed: every band) or MIN:MAX:STEP in rev/min."
+        None, "--rpm", help="N (one speed: every band) or MIN:MAX:STEP [rev/min]."
     ),
     steps_per_period: int | None = typer.Option(
         None, "--steps-per-period", help="SDM steps per tooth period (default: the case's)."
@@ -117,7 +117,9 @@ def lobes(
         help="Richardson extrapolation from M and 2M steps (default: the case's).",
     ),
     tolerance: float = typer.Option(
-        0.01, "--tolerance", help="Relative error bound each SDM depth must meet (adaptive M)."
+        0.01,
+        "--tolerance",
+        help="Relative error bound each SDM depth must meet (adaptive M) [fraction, 0.01 = 1 %].",
     ),
     threads: int = typer.Option(1, "--threads", help="BLAS threads (1 is fastest here)."),
     plot: Path | None = typer.Option(None, "--plot", help="Write the lobe diagram as PNG."),
