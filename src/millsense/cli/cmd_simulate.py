@@ -57,8 +57,11 @@ def simulate(
         None, "--break-at-s", help="Break a tooth at this time [s]."
     ),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
-    realism: bool = typer.Option(
-        True, "--realism/--no-realism", help="The realism layer (friction drift...): on by default."
+    realism: bool | None = typer.Option(
+        None,
+        "--realism/--no-realism",
+        help="The realism layer (friction drift, position-dependent modes...); default: on with "
+        "--truth, off with --ideal.",
     ),
     ideal: bool = typer.Option(
         True,
@@ -152,7 +155,7 @@ def run_simulation(
     cnc: str,
     break_at_s: float | None,
     break_flute: int,
-    realism: bool,
+    realism: bool | None,
     accelerometer: bool,
     microphone: bool,
     chunk: int,
@@ -334,7 +337,7 @@ def run_simulation(
         spindle_channel=channel,
         seed=seed,
         sensors=SensorOptions(accelerometer=accelerometer, microphone=microphone),
-        realism=RealismOptions(enabled=realism and not ideal),
+        realism=RealismOptions(enabled=(not ideal) if realism is None else realism),
         ideal=ideal,
     )
     sim = MachineSimulator(mcfg, job, process, opts, duration_s=duration_s)
