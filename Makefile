@@ -21,7 +21,7 @@ $(STAMP_DEV): pyproject.toml | $(BIN)/python
 	touch $@ $(STAMP_RUN)
 
 demo: $(STAMP_RUN)
-	$(BIN)/millsense demo --out demo-output
+	$(BIN)/millsense demo -o demo-output
 
 test: $(STAMP_DEV)
 	$(BIN)/python -m pytest

@@ -1,5 +1,9 @@
 """Stability lobe diagrams: wall time for 200 spindle speeds at 0.5 % accuracy.
 
+The robust search of issue 14 (:mod:`millsense.stability.robust`) is timed next to the
+earlier continuation search (``compute_lobes(..., robust=False)``); ``robust_cost_ratio`` is
+the ratio of the two, run side by side on the same machine.
+
 Steps per period: m = 20, raised to at least 10 steps per chatter cycle, with Richardson
 extrapolation from m and 2m steps (first-order SDM
 converges as O(m⁻²), benchmarks.md §1). The accuracy metric is the largest relative deviation,
@@ -23,18 +27,31 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "stability"
 def _run(case: MillingStabilityCase, target_s: float) -> list[Metric]:
     rpm = np.linspace(5000.0, 25000.0, 200)
     compute_lobes(case, rpm=rpm[:2])  # compile the numba kernels outside the timing
+    compute_lobes(case, rpm=rpm[:2], robust=False)
     t0 = time.perf_counter()
-    res = compute_lobes(case, rpm=rpm)
+    res = compute_lobes(case, rpm=rpm, refine_minima=False)
     wall = time.perf_counter() - t0
+    # the earlier continuation search (issue 14's "today"), run side by side
+    t0 = time.perf_counter()
+    compute_lobes(case, rpm=rpm, robust=False)
+    wall_old = time.perf_counter() - t0
     idx = np.arange(5, 200, 20)
-    ref = compute_lobes(case, rpm=rpm[idx], steps_per_period=100, extrapolate=True)
+    ref = compute_lobes(case, rpm=rpm[idx], steps_per_period=100, extrapolate=True, robust=False)
     err = float(np.max(np.abs(res.critical_depth_m[idx] / ref.critical_depth_m - 1.0)))
     note = (
-        f"SDM m=20 per tooth period (>=10 per chatter cycle) and 2m, Richardson; root search; "
-        f"min depth {res.min_depth_m * 1e3:.4f} mm at {res.min_depth_rpm:.0f} rev/min"
+        f"robust depth scan (ratio 1.1 from the small-gain depth, islands to 3x the limit), "
+        f"SDM m=20 per tooth period (>=10 per chatter cycle), adaptive Richardson to 1 %; "
+        f"grid min depth {res.min_depth_m * 1e3:.4f} mm at {res.min_depth_rpm:.0f} rev/min"
     )
     return [
         Metric("wall_time", wall, "s", target=target_s, higher_is_better=False, note=note),
+        Metric(
+            "robust_cost_ratio",
+            wall / wall_old,
+            "x",
+            baseline="continuation search (sdm_lobes, before issue 14), same speeds",
+            note=f"robust {wall:.2f} s / continuation {wall_old:.2f} s, run side by side",
+        ),
         Metric(
             "max_depth_error",
             err,
@@ -54,3 +71,19 @@ def _lobes_1dof() -> list[Metric]:
 @benchmark("stability.lobes_2dof_3modes_200")
 def _lobes_2dof() -> list[Metric]:
     return _run(load_case(EXAMPLES / "two_dof_3modes_half_down.toml"), 10.0)
+
+
+@benchmark("stability.lobes_1dof_200_refined")
+def _lobes_1dof_refined() -> list[Metric]:
+    """The same chart with every local minimum refined to 1 rev/min (what the CLI runs)."""
+    case = load_case(EXAMPLES / "insperger_1dof_slot.toml")
+    rpm = np.linspace(5000.0, 25000.0, 200)
+    compute_lobes(case, rpm=rpm[:2])
+    t0 = time.perf_counter()
+    res = compute_lobes(case, rpm=rpm)
+    wall = time.perf_counter() - t0
+    note = (
+        f"{len(res.minima)} local minima refined to 1 rev/min; "
+        f"min {res.min_depth_m * 1e3:.4f} mm at {res.min_depth_rpm:.0f} rev/min"
+    )
+    return [Metric("wall_time", wall, "s", higher_is_better=False, note=note)]

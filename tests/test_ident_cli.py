@@ -49,8 +49,9 @@ def test_modal_fragment_loads_as_disturbance_modes(
 ) -> None:
     rec = _modal_recording(tmp_path / "m.h5")
     out, png = tmp_path / "m.toml", tmp_path / "m.png"
-    code, _, err = run_cli(["identify", "modal", rec, "--input", "x/load", "--output",
-                            "x/torque", "--band", "10:200", "--resolution", "0.5",
+    code, _, err = run_cli(["identify", "modal", rec, "--input-channel", "x/load",
+                            "--output-channel",
+                            "x/torque", "--band-hz", "10:200", "--resolution-hz", "0.5",
                             "-o", str(out), "--plot", str(png)], capsys)  # fmt: skip
     assert code == 0, err
     table = tomllib.loads(out.read_text())["axes"]["x"]["disturbance_modes"]
@@ -63,8 +64,9 @@ def test_modal_fragment_loads_as_disturbance_modes(
 def test_frf_fragment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = _modal_recording(tmp_path / "f.h5", n=20000)
     out = tmp_path / "f.toml"
-    code, _, err = run_cli(["identify", "frf", rec, "--input", "x/load", "--output", "x/torque",
-                            "--band", "1:300", "-o", str(out)], capsys)  # fmt: skip
+    code, _, err = run_cli(["identify", "frf", rec, "--input-channel", "x/load",
+                            "--output-channel", "x/torque",
+                            "--band-hz", "1:300", "-o", str(out)], capsys)  # fmt: skip
     assert code == 0, err
     frf = tomllib.loads(out.read_text())["frf"]
     k = int(np.argmin(np.abs(np.array(frf["freq_hz"]) - 70.0)))
@@ -131,8 +133,11 @@ def test_idle_fragment_references_its_csv(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--input", "x/nope", "--output", "x/torque"], "no channel 'x/nope'"),
-        (["--input", "x/load", "--output", "x/torque", "--band", "9:3"], "--band"),
+        (["--input-channel", "x/nope", "--output-channel", "x/torque"], "no channel 'x/nope'"),
+        (
+            ["--input-channel", "x/load", "--output-channel", "x/torque", "--band-hz", "9:3"],
+            "--band-hz",
+        ),
     ],
 )
 def test_bad_channel_and_band_are_one_line_errors(
@@ -147,7 +152,14 @@ def test_bad_channel_and_band_are_one_line_errors(
 def test_short_constant_and_clipped_records_are_one_line_errors(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    base = ["--input", "x/load", "--output", "x/torque", "-o", str(tmp_path / "o.toml")]
+    base = [
+        "--input-channel",
+        "x/load",
+        "--output-channel",
+        "x/torque",
+        "-o",
+        str(tmp_path / "o.toml"),
+    ]
     short = _modal_recording(tmp_path / "short.h5", n=500)
     code, _, err = run_cli(["identify", "frf", short, *base], capsys)
     assert code == 2 and "too short" in err and err.count("\n") == 1
@@ -189,8 +201,9 @@ def test_modal_fragment_per_position_loads_as_disturbance_modes_at(
         rec.add_channel("x/position_cmd", np.full(len(u), pos_m), "m")
         paths.append(_write(rec, tmp_path / f"s{len(paths)}.h5"))
     out = tmp_path / "at.toml"
-    code, _, err = run_cli(["identify", "modal", *paths, "--input", "x/load", "--output",
-                            "x/torque", "--band", "10:200", "--resolution", "0.5",
+    code, _, err = run_cli(["identify", "modal", *paths, "--input-channel", "x/load",
+                            "--output-channel",
+                            "x/torque", "--band-hz", "10:200", "--resolution-hz", "0.5",
                             "-o", str(out)], capsys)  # fmt: skip
     assert code == 0, err
     tables = tomllib.loads(out.read_text())["axes"]["x"]["disturbance_modes_at"]
@@ -207,6 +220,7 @@ def test_modal_per_position_needs_the_commanded_position(
 ) -> None:
     a = _modal_recording(tmp_path / "a.h5", n=5000)
     b = _modal_recording(tmp_path / "b.h5", n=5000)
-    code, _, err = run_cli(["identify", "modal", a, b, "--input", "x/load", "--output",
+    code, _, err = run_cli(["identify", "modal", a, b, "--input-channel", "x/load",
+                            "--output-channel",
                             "x/torque", "-o", str(tmp_path / "o.toml")], capsys)  # fmt: skip
     assert code == 2 and "x/position_cmd" in err and len(err.strip().splitlines()) == 1

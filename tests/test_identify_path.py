@@ -45,7 +45,7 @@ def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str
     write_recording(d / "sweep.h5", cm.table_load_sweep(cfg, "x"))
     frag = d / "path.toml"
     main(["identify", "path", str(d / "sweep.h5"), "--machine", "quaser-ux600", "--axis", "x",
-          "--input", "x/load", "-o", str(frag), "--plot", str(d / "path.png")])  # fmt: skip
+          "--input-channel", "x/load", "-o", str(frag), "--plot", str(d / "path.png")])  # fmt: skip
     with frag.open("rb") as fh:
         table = tomllib.load(fh)
     assert (d / "path.png").stat().st_size > 10_000
@@ -127,9 +127,12 @@ def test_path_user_errors(
     d, merged = identified
     sweep, o = str(d / "sweep.h5"), str(tmp_path / "f.toml")
     for args, text in (
-        (["--axis", "x", "--input", "x/load"], "give --machine"),
+        (["--axis", "x", "--input-channel", "x/load"], "give --machine"),
         (["--machine", "quaser-ux600", "--axis", "x"], "give --input"),
-        (["--machine", "quaser-ux600", "--axis", "x", "--input", "x/nope"], "no channel 'x/nope'"),
+        (
+            ["--machine", "quaser-ux600", "--axis", "x", "--input-channel", "x/nope"],
+            "no channel 'x/nope'",
+        ),
     ):
         code, _, err = run_cli(["identify", "path", sweep, *args, "-o", o], capsys)
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
@@ -142,7 +145,7 @@ def test_path_user_errors(
         bare.add_channel(ch, full.channel(ch), full.info(ch).unit)
     write_recording(tmp_path / "bare.h5", bare)
     args = ["identify", "path", str(tmp_path / "bare.h5"), "--machine", "quaser-ux600"]
-    args += ["--axis", "x", "--input", "x/load", "-o", o]
+    args += ["--axis", "x", "--input-channel", "x/load", "-o", o]
     code, _, err = run_cli(args, capsys)
     assert code == 2 and "--condition moving|at_rest" in err
     code, _, err = run_cli([*args, "--condition", "at_rest"], capsys)
@@ -175,7 +178,7 @@ def test_holding_axis_uses_the_path_identified_at_rest(
         write_recording(rec, cm.table_load_sweep(cfg, "y", speed_rad_s=speed))
         frag = tmp_path / f"{name}.toml"
         args = ["identify", "path", str(rec), "--machine", "quaser-ux600", "--axis", "y"]
-        code, out, err = run_cli([*args, "--input", "y/load", "-o", str(frag)], capsys)
+        code, out, err = run_cli([*args, "--input-channel", "y/load", "-o", str(frag)], capsys)
         assert code == 0, err
         frags.append(frag)
     assert "at rest → disturbance_path_at_rest" in out

@@ -32,6 +32,7 @@ from millsense.core.recording import Recording
 from millsense.estimation.feed.rigid_body import DriveModel, RigidBodyForceEstimator
 from millsense.ident.friction import coulomb_viscous_from_moves
 from millsense.io.recording_file import RecordingWriter, read_recording
+from millsense.io.safe_output import write_text
 from millsense.simulator.rigid_drive import RigidDriveParams, constant_velocity_move
 from millsense.simulator.slot_cut import DepthSegment, SlotCutSource
 from millsense.streaming.block import Chunk, Event
@@ -273,5 +274,5 @@ def run_demo(
         peak_truth_n=figures.peak_truth_n,
         estimator_cutoff_hz=ESTIMATOR_CUTOFF_HZ,
     )
-    (out / "summary.json").write_text(json.dumps(summary.as_dict(), indent=2) + "\n")
+    write_text(out / "summary.json", json.dumps(summary.as_dict(), indent=2) + "\n")
     return summary

@@ -31,7 +31,7 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
     for key, suffix in (("table_load_sweep", ""), ("table_load_sweep_at_rest", "_at_rest")):
         if key in files:
             out.append(
-                f"millsense identify path {files[key]} {m} --input {axis}/load "
+                f"millsense identify path {files[key]} {m} --input-channel {axis}/load "
                 f"-o {axis}_path{suffix}.toml"
             )
     idle = [str(p) for k, p in sorted(files.items()) if k.startswith("idle_")]
@@ -47,14 +47,16 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
 def commission(
     machine: str = typer.Option(..., "--machine", help="Machine preset or .toml."),
     axis: str = typer.Option("x", "--axis", help="Feed axis tested."),
-    out: Path = typer.Option(..., "-o", "--out", help="Directory the recordings go to."),
+    out: Path = typer.Option(..., "-o", "--output", help="Directory the recordings go to."),
     spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
 ) -> None:
     """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
+    from millsense.io.safe_output import check_outputs
     from millsense.simulator.commissioning import write_commissioning_set
 
+    check_outputs({"the machine file": machine}, {"-o": out})
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")
     load_preset(MachineConfig, machine).axis(axis)  # one-line errors before anything is written

@@ -14,16 +14,19 @@ from millsense.cli.progress import progress_bar
 
 @app.command()
 def demo(
-    out: Path = typer.Option(Path("demo-output"), "--out", "-o", help="Output folder."),
+    out: Path = typer.Option(Path("demo-output"), "-o", "--output", help="Output folder."),
     seed: int = typer.Option(0, help="Seed of the simulated noise."),
 ) -> None:
     """Simulate a slot cut on the X drive, estimate the force from the current command, report.
 
-    Writes OUT/demo.h5 (recording with truth/ channels and the estimate), OUT/demo_force.png
+    Writes OUTPUT/demo.h5 (recording with truth/ channels and the estimate), OUT/demo_force.png
     (estimate against truth) and OUT/summary.json (errors computed from the recording).
     """
+    from millsense.core.errors import ConfigError
     from millsense.demo import run_demo
 
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"-o {out}: exists and is not a folder")
     console = Console()
     with progress_bar("simulating and estimating", 1) as update:
         summary = run_demo(out, seed=seed, on_progress=lambda n, total: update(n / total))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Any
@@ -32,7 +33,7 @@ def estimate(
     machine: str = typer.Option(..., "--machine", help="Machine preset or .toml (identified)."),
     method: str = typer.Option("feed", "--method", help="feed, raw, medob, spindle or all."),
     axes: str | None = typer.Option(None, "--axes", help="Axes, e.g. x,y,z (default: all)."),
-    out: Path = typer.Option(..., "-o", "--out", help="Estimates recording to write (.h5)."),
+    out: Path = typer.Option(..., "-o", "--output", help="Estimates recording to write (.h5)."),
     plot: Path | None = typer.Option(None, "--plot", help="PNG of estimate vs truth."),
     flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
@@ -44,7 +45,7 @@ def estimate(
         "The estimates' mean in air per direction of motion is subtracted.",
     ),
     air_s: str | None = typer.Option(
-        None, "--air-s", help="Air phase START:END in s (of the recording or the --idle FILE)."
+        None, "--air-s", help="Air phase START:END [s] (of the recording or the --idle FILE)."
     ),
     harmonics: bool = typer.Option(
         False,
@@ -61,14 +62,21 @@ def estimate(
     band_hz: float | None = typer.Option(
         None,
         "--band-hz",
-        help="feed: tune each estimator for the least noise that keeps its compensated FRF "
+        help="feed [Hz]: tune each estimator for the least noise that keeps its compensated FRF "
         "within ±1 dB up to this band on the identified model (default: the widest ±3 dB band "
         "under the noise limit); overrides the machine file's estimator q_nm2_s/band_hz.",
     ),
 ) -> None:
     """Estimate cutting loads from drive signals (same streaming engine as live runs)."""
     from millsense.cli.progress import progress_bar
+    from millsense.io.safe_output import check_outputs, write_text
 
+    inputs: dict[str, str | Path] = {
+        "the recording": recording,
+        "the machine file": machine,
+        "the --idle recording": idle,
+    }
+    check_outputs(inputs, {"-o": out, "--plot": plot, "--json": json_out})
     if json_out not in (None, "-"):
         target = Path(str(json_out))
         if target.is_dir() or not target.parent.is_dir():
@@ -92,12 +100,14 @@ def estimate(
         )
     for note in summary["notes"]:
         typer.echo(f"millsense: note: {note}", err=True)
+    for warning in summary["warnings"]:
+        typer.echo(f"millsense: warning: {warning}", err=True)
     if json_out is not None:
         text = json.dumps(summary_json(summary, out)) + "\n"
         if json_out == "-":
             typer.echo(text, nl=False)
         else:
-            Path(json_out).write_text(text)
+            write_text(json_out, text)
         if json_out == "-":
             return
     if summary["comparisons"]:
@@ -146,6 +156,7 @@ def summary_json(summary: dict[str, Any], out: Path) -> dict[str, Any]:
         ],
         "comparisons": rows,
         "notes": list(summary["notes"]),
+        "warnings": list(summary.get("warnings", [])),
     }
 
 
@@ -237,24 +248,74 @@ def run_estimate(
     ConfigError, InputDataError, RecordingError
         One-line user errors (bad preset or key, unknown method or axis, missing channel).
     """
-    import time
-
-    import numpy as np
-
     from millsense.core.config import MachineConfig
     from millsense.core.errors import InputDataError
     from millsense.core.presets import load_preset
-    from millsense.estimation.from_config import build_estimators, truth_channel
-    from millsense.ident.idle_table import DIRECTIONS
-    from millsense.io import RecordingWriter, read_recording
-    from millsense.streaming.engine import Pipeline, run
-    from millsense.streaming.sources import RecordingSource
+    from millsense.io.recording_reader import open_recording
 
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     methods = _methods(method)
     mcfg = load_preset(MachineConfig, machine)
-    rec = read_recording(recording)
+    with contextlib.ExitStack() as stack:
+        rec = open_recording(recording)
+        if hasattr(rec, "close"):
+            stack.callback(rec.close)
+        return _run_estimate(
+            rec,
+            stack,
+            recording=recording,
+            machine=machine,
+            mcfg=mcfg,
+            methods=methods,
+            method=method,
+            axes=axes,
+            out=out,
+            plot=plot,
+            flutes=flutes,
+            chunk=chunk,
+            idle=idle,
+            air_s=air_s,
+            harmonics=harmonics,
+            band_hz=band_hz,
+            on_progress=on_progress,
+        )
+
+
+def _run_estimate(
+    rec: Any,
+    stack: contextlib.ExitStack,
+    *,
+    recording: Path,
+    machine: str,
+    mcfg: Any,
+    methods: list[str],
+    method: str,
+    axes: str | None,
+    out: Path,
+    plot: Path | None,
+    flutes: int | None,
+    chunk: int,
+    idle: str,
+    air_s: str | None,
+    harmonics: bool,
+    band_hz: float | None,
+    on_progress: Any,
+) -> dict[str, Any]:
+    """:func:`run_estimate` on an opened recording (``rec``: a windowed reader or, for an
+    interrupted recording, the recovered one in memory); files it opens are closed by
+    ``stack``. Nothing per sample of the whole record is held (decision 0961)."""
+    import time
+
+    import numpy as np
+
+    from millsense.core.errors import InputDataError
+    from millsense.estimation.from_config import build_estimators, truth_channel
+    from millsense.ident.idle_table import DIRECTIONS
+    from millsense.io import RecordingWriter
+    from millsense.streaming.engine import Pipeline, run
+    from millsense.streaming.sources import RecordingSource
+
     if axes is None:
         axis_list = [a for a in mcfg.axes if f"{a}/current_cmd" in rec.channel_names]
         if not axis_list:
@@ -268,7 +329,7 @@ def run_estimate(
         from millsense.estimation.from_config import with_feed_band
 
         mcfg = with_feed_band(mcfg, axis_list, band_hz)
-    air = _air_phase(idle, air_s, rec, recording)
+    air = _air_phase(idle, air_s, rec, recording, stack)
     idle_notes: list[str] = []
     if air is not None and "feed" in methods:
         from millsense.estimation.feed.idle_compensation import with_air_r
@@ -302,8 +363,7 @@ def run_estimate(
         ]
     blocks += built.derived
     pipeline = Pipeline(blocks)
-    source = RecordingSource(rec, name=str(recording))
-    pipeline.check_inputs(source.channel_names, str(recording))
+    pipeline.check_inputs(rec.channel_names, str(recording))
     have = set(rec.channel_names)
     copies = sorted({c for b in blocks for c in b.inputs if c in have})
     extra = [truth_channel(a) for a in dict.fromkeys(a for _, a, _, _ in all_estimates)] + [
@@ -312,6 +372,19 @@ def run_estimate(
         "truth/process/engagement",
     ]
     copies += [c for c in extra if c in have and c not in copies]
+    # only the channels written or read are replayed; the others are never read
+    source = RecordingSource(rec, name=str(recording), channels=copies)
+    streamed, traces = None, None
+    pre_warnings: list[str] = []
+    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
+        try:
+            streamed, traces = _compare_setup(rec, all_estimates, axis_list, flutes, plot)
+        except InputDataError as exc:
+            # a recording whose truth cannot be compared (it never cuts, the steady cut is too
+            # short) is still estimated, with a warning, unless a plot was asked for
+            if plot is not None:
+                raise InputDataError(f"{recording}: --plot: {exc}") from None
+            pre_warnings.append(f"{recording}: no comparison with truth: {exc}")
     infos = [rec.info(c) for c in copies] + pipeline.output_channels()
     meta = {
         "source": "millsense estimate",
@@ -334,11 +407,26 @@ def run_estimate(
         )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
+    # running peak |estimate| and non-finite count per estimate, for the plausibility checks
+    peaks: dict[str, float] = {}
+    bad: dict[str, int] = {}
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
         data = {c: ch.data[c] for c in copies}
         data.update(outputs)
         writer.append(data)
+        for _, _, c, _ in all_estimates:
+            v = outputs.get(c)
+            if v is None or not len(v):
+                continue
+            fin = np.isfinite(v)
+            bad[c] = bad.get(c, 0) + int(v.size - fin.sum())
+            if fin.any():
+                peaks[c] = max(peaks.get(c, 0.0), float(np.abs(v[fin]).max()))
+        if streamed is not None:
+            streamed.add(ch.start, data)
+        if traces is not None:
+            traces.add(ch.start, data)
 
     t0 = time.perf_counter()
     try:
@@ -348,13 +436,20 @@ def run_estimate(
             chunk,
             sink=sink,
             on_progress=(lambda d: on_progress(d / total)) if on_progress else None,
+            collect=False,
         )
     finally:
         writer.close()
     wall = time.perf_counter() - t0
-    comparisons = []
-    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
-        comparisons = _compare(rec, res.channels, all_estimates, axis_list, flutes, plot)
+    findings = _estimate_findings(mcfg, all_estimates, peaks, bad, str(recording))
+    for w in pre_warnings:
+        findings.warn(w)
+    comparisons = streamed.results() if streamed is not None else []
+    if plot is not None and traces is not None:
+        from millsense.report.estimate_plots import plot_traces
+
+        units = {e.axis: rec.info(e.truth).unit for e in streamed.estimates} if streamed else {}
+        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units)
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
@@ -368,18 +463,41 @@ def run_estimate(
         },
         "comparisons": comparisons,
         "notes": built.notes + idle_notes,
-        "channels": res.channels,
+        "warnings": findings.warnings,
         "idle": idle_tables,
+        "events": res.events,
     }
 
 
+def _estimate_findings(
+    mcfg: Any, estimates: list[Any], peaks: dict[str, float], bad: dict[str, int], where: str
+) -> Any:
+    """Plausibility of the estimates (decision 0941): non-finite samples, and the peak load
+    of a linear axis against the machine's ``limits.axis_force_n`` (an estimate beyond what the
+    drives can push points at a wrong machine file: K_t, lead, or the recording of another
+    machine)."""
+    from millsense.core.plausibility import Findings, check_against_limits
+
+    findings = Findings()
+    for m, a, c, _ in estimates:
+        if bad.get(c, 0):
+            findings.warn(f"{where}: {m} estimate of {a} has {bad[c]} non-finite samples")
+        cfg = mcfg.axes.get(a)
+        if cfg is not None and cfg.kind == "linear" and c in peaks:
+            check_against_limits(
+                mcfg.limits, f"{where}: {m} estimate of axis {a}", findings, peak_force_n=peaks[c]
+            )
+    return findings
+
+
 def _air_phase(
-    idle: str, air_s: str | None, rec: Any, recording: Path
+    idle: str, air_s: str | None, rec: Any, recording: Path, stack: contextlib.ExitStack
 ) -> tuple[Any, slice, str] | None:
-    """(recording holding the air phase, its samples, its name) for ``--idle``, or None."""
+    """(recording holding the air phase, its samples, its name) for ``--idle``, or None; an
+    air-run file is opened for windowed reads and closed by ``stack``."""
     from millsense.core.errors import InputDataError
     from millsense.estimation.feed.idle_compensation import find_air_window, parse_air_window
-    from millsense.io import read_recording
+    from millsense.io.recording_reader import open_recording
 
     if idle == "none":
         if air_s is not None:
@@ -393,7 +511,9 @@ def _air_phase(
             raise InputDataError(f"--idle {idle!r}: none, auto or an air-run recording (.h5)")
         if not path.is_file():
             raise InputDataError(f"--idle: no file {path}")
-        src, where = read_recording(path), str(path)
+        src, where = open_recording(path), str(path)
+        if hasattr(src, "close"):
+            stack.callback(src.close)
         if src.sample_rate_hz != rec.sample_rate_hz:
             raise InputDataError(
                 f"--idle {path}: sampled at {src.sample_rate_hz:g} Hz, the recording at "
@@ -440,17 +560,29 @@ def _teeth(flutes: int | None, rec: Any) -> int:
     return n_teeth
 
 
-def _compare(
+def _compare_setup(
     rec: Any,
-    channels: dict[str, Any],
     estimates: list[tuple[str, str, str, int]],
     axis_list: list[str],
     flutes: int | None,
     plot: Path | None,
-) -> list[Any]:
+) -> tuple[Any, Any]:
+    """The streamed estimate-vs-truth comparison and plot traces, set up before the run
+    (cut window and spindle speed read in blocks), or (None, None) without truth.
+
+    The figures are those of :func:`~millsense.report.estimate_metrics.compare` on the whole
+    arrays (decision 0961); errors are raised before anything is written.
+    """
     from millsense.core.errors import InputDataError
     from millsense.estimation.from_config import truth_channel
-    from millsense.report.estimate_metrics import compare
+    from millsense.io.recording_reader import channel_window
+    from millsense.report.estimate_stream import (
+        PlotTraces,
+        StreamedComparison,
+        StreamedEstimate,
+        scan_cut_window,
+        window_mean,
+    )
 
     have = set(rec.channel_names)
     est_axes = list(dict.fromkeys(a for _, a, _, _ in estimates))
@@ -460,36 +592,35 @@ def _compare(
             raise InputDataError(
                 f"--plot: the recording has no truth channel 'truth/{axis_list[0]}/load'"
             )
-        return []
+        return None, None
     if "spindle/speed" not in have:
         raise InputDataError("estimate vs truth: the recording has no channel 'spindle/speed'")
     n_teeth = _teeth(flutes, rec)
-    eng = rec.channel("truth/process/engagement") if "truth/process/engagement" in have else None
-    speed = rec.channel("spindle/speed")
-    comps = [
-        compare(
-            m,
-            a,
-            channels[c],
-            rec.channel(truth_channel(a)),
-            speed,
-            rec.sample_rate_hz,
-            n_teeth,
-            delay_samples=d,
-            engagement=eng,
-        )
+    n = rec.n_samples
+    fs = rec.sample_rate_hz
+
+    def reader(name: str) -> Any:
+        return lambda a, b: channel_window(rec, name, a, b)
+
+    eng = reader("truth/process/engagement") if "truth/process/engagement" in have else None
+    window = scan_cut_window(eng, n)
+    chosen = [
+        StreamedEstimate(m, a, c, d, truth_channel(a))
         for m, a, c, d in estimates
         if a in truth_axes
     ]
+    speed = reader("spindle/speed")
+    streamed = StreamedComparison(
+        chosen, fs, n, window, lambda i0, i1: window_mean(speed, i0, i1), n_teeth
+    )
+    traces = None
     if plot is not None:
-        from millsense.report.estimate_plots import plot_estimates
-
-        plot_estimates(
-            plot,
-            rec.sample_rate_hz,
-            {a: rec.channel(truth_channel(a)) for a in truth_axes},
-            {(m, a): (channels[c], d) for m, a, c, d in estimates if a in truth_axes},
-            comps,
-            {a: rec.info(truth_channel(a)).unit for a in truth_axes},
-        )
-    return comps
+        centre: dict[str, float] = {}
+        tooth = 0.0
+        for e in chosen:
+            i0, i1 = streamed.windows[e.delay]
+            if e.axis not in centre:
+                centre[e.axis] = 0.5 * (i0 + i1)
+            tooth = tooth or streamed.tooth_hz[e.delay]
+        traces = PlotTraces(chosen, n, fs, centre, tooth)
+    return streamed, traces

@@ -2,12 +2,12 @@
 
 ``millsense identify KIND RECORDING... -o FRAGMENT.toml [--plot FIT.png]`` with KIND one of
 
-- ``frf``      FRF between ``--input`` and ``--output`` (multisine when the recording states its
-  period, Welch otherwise) → ``[frf]`` table;
+- ``frf``      FRF between ``--input-channel`` and ``--output-channel`` (multisine when the
+  recording states its period, Welch otherwise) → ``[frf]`` table;
 - ``modal``    modal fit of that FRF in ``--band`` → ``[axes.<axis>.disturbance_modes]``; with
   one sweep per table position, ``[[axes.<axis>.disturbance_modes_at]]`` at the mean
   commanded position of each (the position-scheduled feed estimator);
-- ``path``     table-load sweep (``--input`` the measured table load) through the feed
+- ``path``     table-load sweep (``--input-channel`` the measured table load) through the feed
   estimator's own C3 front end (``--machine``: K_t, lead, η, friction, inertia) → rational fit
   on the sampled axis → ``[axes.<axis>.estimator.disturbance_path]`` (Aslan C5);
 - ``friction`` constant-velocity moves (+ a presliding test) → ``[axes.<axis>.friction]``;
@@ -42,9 +42,9 @@ def _parse_band(text: str | None) -> tuple[float, float] | None:
     try:
         lo, hi = (float(p) for p in text.split(":"))
     except ValueError:
-        raise ConfigError(f"--band {text!r}: expected LO:HI in Hz") from None
+        raise ConfigError(f"--band-hz {text!r}: expected LO:HI in Hz") from None
     if not (0 <= lo < hi and math.isfinite(hi)):
-        raise ConfigError(f"--band {text!r}: allowed 0 <= LO < HI")
+        raise ConfigError(f"--band-hz {text!r}: allowed 0 <= LO < HI")
     return lo, hi
 
 
@@ -112,7 +112,7 @@ def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     from millsense.report.ident_plots import plot_frf_fit
 
     if not o["input"] or not o["output"]:
-        raise ConfigError("identify frf/modal: give --input and --output channels")
+        raise ConfigError("identify frf/modal: give --input-channel and --output-channel")
     rec, path = ctx.recs[0], ctx.paths[0]
     est = _estimate(rec, path, o["input"], o["output"], o["resolution"])
     if o["band"] is not None:
@@ -136,7 +136,7 @@ def _frf(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
 
 def _modal(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     if not o["input"] or not o["output"]:
-        raise ConfigError("identify frf/modal: give --input and --output channels")
+        raise ConfigError("identify frf/modal: give --input-channel and --output-channel")
     if len(ctx.recs) == 1:
         one, one_notes = _modal_table(ctx, o, ctx.recs[0], ctx.paths[0], o["plot"])
         return {"axes": {ctx.axis: {"disturbance_modes": one}}}, one_notes
@@ -209,7 +209,7 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             "inertia of the estimator's C3 stage)"
         )
     if not o["input"]:
-        raise ConfigError("identify path: give --input, the measured table-load channel")
+        raise ConfigError("identify path: give --input-channel, the measured table-load channel")
     if len(ctx.recs) != 1:
         raise ConfigError("identify path: give one sweep recording")
     rec, path, a = ctx.recs[0], ctx.paths[0], ctx.axis
@@ -535,6 +535,11 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
     return {"spindle": table}, notes
 
 
+def _idle_csv(out: Path, axis: str) -> Path:
+    """The CSV of an idle table beside its fragment ``out``."""
+    return out.with_name(f"{out.stem}-{axis}-idle.csv")
+
+
 def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], list[str]]:
     from millsense.ident import friction as fr
     from millsense.ident.idle_table import build_idle_table
@@ -577,7 +582,7 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
     table = build_idle_table(
         runs, bin_m=o["bin_um"] * 1e-6, feed_m_s=feed, quantity=quantity, unit=est_unit, min_runs=2
     )
-    csv = out.with_name(f"{out.stem}-{a}-idle.csv")
+    csv = _idle_csv(out, a)
     table.to_csv(csv)
     if o["plot"] is not None:
         plot_idle_table(table, o["plot"], runs)
@@ -592,21 +597,31 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
 def identify(
     kind: str = typer.Argument(..., help="frf | modal | path | friction | drive | spindle | idle"),
     recordings: list[Path] = typer.Argument(..., help="Recording files (.h5)."),
-    out: Path = typer.Option(..., "-o", "--out", help="TOML fragment written."),
-    input_ch: str | None = typer.Option(None, "--input", help="Input (or current) channel."),
-    output_ch: str | None = typer.Option(None, "--output", help="Output (or speed) channel."),
-    band: str | None = typer.Option(None, "--band", help="Fitting band LO:HI in Hz."),
+    out: Path = typer.Option(..., "-o", "--output", help="TOML fragment written."),
+    input_ch: str | None = typer.Option(
+        None, "--input-channel", help="Input (or current) channel of the recordings."
+    ),
+    output_ch: str | None = typer.Option(
+        None, "--output-channel", help="Output (or speed) channel of the recordings."
+    ),
+    band: str | None = typer.Option(None, "--band-hz", help="Fitting band LO:HI [Hz]."),
     plot: Path | None = typer.Option(None, "--plot", help="PNG of the fit."),
     axis: str = typer.Option("x", "--axis", help="Axis name of the fragment."),
     machine: str | None = typer.Option(
         None, "--machine", help="Machine preset or TOML for known quantities."
     ),
-    resolution: float = typer.Option(1.0, "--resolution", help="Welch FRF resolution, Hz."),
+    resolution: float = typer.Option(1.0, "--resolution-hz", help="Welch FRF resolution [Hz]."),
     max_modes: int = typer.Option(16, "--max-modes", help="Largest modal order tried."),
-    kp: float | None = typer.Option(None, "--kp", help="Spindle velocity P gain (CNC)."),
-    ki: float | None = typer.Option(None, "--ki", help="Spindle velocity I gain (CNC)."),
-    error_unit: str | None = typer.Option(None, "--error-unit", help="rev/s or rad/s."),
-    bin_um: float = typer.Option(2.0, "--bin-um", help="Idle-table bin width, µm."),
+    kp: float | None = typer.Option(
+        None, "--kp", help="Spindle velocity P gain of the CNC [A·s per unit of --error-unit]."
+    ),
+    ki: float | None = typer.Option(
+        None, "--ki", help="Spindle velocity I gain of the CNC [A per unit of --error-unit·s]."
+    ),
+    error_unit: str | None = typer.Option(
+        None, "--error-unit", help="Unit of the spindle velocity error: rev/s or rad/s."
+    ),
+    bin_um: float = typer.Option(2.0, "--bin-um", help="Idle-table bin width [µm]."),
     condition: str = typer.Option(
         "auto",
         "--condition",
@@ -628,6 +643,14 @@ def identify(
         raise ConfigError(f"--bin-um {bin_um}: must be positive")
     if condition not in ("auto", "moving", "at_rest"):
         raise ConfigError(f"--condition {condition!r}: allowed auto, moving or at_rest")
+    from millsense.io.safe_output import check_outputs
+
+    inputs: list[tuple[str, Path | str | None]] = [("one of the recordings", p) for p in recordings]
+    inputs.append(("the machine file", machine))
+    outputs: dict[str, Path | None] = {"-o": out, "--plot": plot}
+    if kind == "idle":
+        outputs["the idle table"] = _idle_csv(out, axis)
+    check_outputs(inputs, outputs)
     recs = [read_recording(p) for p in recordings]
     mach = load_preset(MachineConfig, machine) if machine is not None else None
     ctx = _Ctx(recs, list(recordings), axis, mach)

@@ -15,28 +15,25 @@ from pathlib import Path
 import typer
 
 from millsense.cli.main import app
-from millsense.core.errors import ConfigError
 
 
 @app.command()
 def merge(
     base: str = typer.Argument(..., help="Machine preset or .toml the fragments go into."),
     fragments: list[Path] = typer.Argument(..., help="Fragments from millsense identify."),
-    out: Path = typer.Option(..., "-o", "--out", help="Machine TOML written."),
+    out: Path = typer.Option(..., "-o", "--output", help="Machine TOML written."),
 ) -> None:
     """Merge identify fragments into a machine file (validated before it is written)."""
     from millsense.core.config import MachineConfig, parse_config, read_toml
     from millsense.core.presets import preset_data
     from millsense.ident.fragment import kept_keys, write_fragment
     from millsense.ident.fragment import merge as deep_merge
+    from millsense.io.safe_output import check_outputs
 
-    resolved = out.resolve()
-    for f in fragments:
-        if f.resolve() == resolved:
-            raise ConfigError(f"-o {out}: is one of the fragments; write to another file")
+    inputs: list[tuple[str, Path | str | None]] = [("one of the fragments", f) for f in fragments]
+    inputs.append(("the base machine file", base))
+    check_outputs(inputs, {"-o": out})
     data, source = preset_data(MachineConfig, base)
-    if Path(base).exists() and Path(base).resolve() == resolved:
-        raise ConfigError(f"-o {out}: is the base machine file; write to another file")
     merged = data
     notes: list[str] = []
     for f in fragments:

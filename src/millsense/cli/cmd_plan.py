@@ -10,6 +10,7 @@ import typer
 
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError
+from millsense.core.plausibility import Findings
 
 if TYPE_CHECKING:
     from millsense.plan.virtual_plan import VirtualPlan
@@ -27,6 +28,31 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
     return (vals[0], vals[1], vals[2])
 
 
+def _guard(
+    program: Path, stock: Path, tool: Path, material: Path, outputs: dict[str, Path | None]
+) -> None:
+    """Refuse an output that is an input: the program, stock (and its STL), tool, material."""
+    from millsense.io.safe_output import check_outputs
+
+    inputs: dict[str, Path | None] = {
+        "the program": program,
+        "the stock file": stock,
+        "the tool file": tool,
+        "the material file": material,
+    }
+    try:
+        from millsense.core.config import StockConfig, load_config
+
+        stl = load_config(StockConfig, stock).stl_path
+    except Exception:  # a bad stock file is reported, with its line, by _build
+        stl = None
+    if stl is not None:
+        inputs["the stock's STL"] = (
+            Path(stl) if Path(stl).is_absolute() else Path(stock).parent / stl
+        )
+    check_outputs(inputs, outputs)
+
+
 def _positive(name: str, value: float) -> None:
     if not value > 0:
         raise ConfigError(f"{name} {value!r}: must be > 0")
@@ -40,13 +66,23 @@ def _build(
     step_mm: float,
     resolution_mm: float,
     home_mm: str | None,
-) -> tuple[VirtualPlan, Any]:
+    machine: str | None = None,
+) -> tuple[VirtualPlan, Any, Findings]:
+    """Plan the program; impossible input raises one line, implausible input is a warning
+    (printed, and kept in the plan's metadata ``warnings``)."""
     from rich.console import Console
     from rich.progress import Progress
 
-    from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
+    from millsense.core.config import (
+        MachineConfig,
+        MaterialConfig,
+        StockConfig,
+        ToolConfig,
+        load_config,
+    )
     from millsense.core.presets import load_preset
     from millsense.core.units import MM
+    from millsense.plan.checks import check_plan, check_program
     from millsense.plan.gcode import interpret_file
     from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
@@ -58,7 +94,10 @@ def _build(
     tool_cfg = load_preset(ToolConfig, tool)
     mat_cfg = load_preset(MaterialConfig, material)
     stock_cfg = load_config(StockConfig, stock)
+    mcfg = None if machine is None else load_preset(MachineConfig, machine)
     toolpath = interpret_file(program, home_mm=_home(home_mm))
+    findings = Findings()
+    check_program(toolpath, findings, machine=mcfg)
     if stock_cfg.kind == "box":
         assert stock_cfg.min_mm is not None and stock_cfg.max_mm is not None
         zmap = ZMapStock.from_box(
@@ -94,9 +133,18 @@ def _build(
                 "stock_file": str(stock),
             },
         )
+    check_plan(plan, findings, machine=mcfg, stickout_mm=tool_cfg.stickout_mm)
+    plan.metadata["warnings"] = list(findings.warnings)
+    if machine is not None:
+        plan.metadata["machine"] = machine
     for note in plan.metadata.get("notes", []):
         console.print(f"millsense: note: {note}", markup=False)
-    return plan, toolpath
+    return plan, toolpath, findings
+
+
+def _print_warnings(findings: Findings) -> None:
+    for w in findings.warnings:
+        typer.echo(f"millsense: warning: {w}", err=True)
 
 
 _STOCK = typer.Option(..., "--stock", help="Stock TOML (box or STL).")
@@ -105,6 +153,12 @@ _MATERIAL = typer.Option(..., "--material", help="Material TOML or preset name."
 _STEP = typer.Option(0.4, "--step-mm", help="Path step [mm] (0.4, seed 000).")
 _RES = typer.Option(0.1, "--resolution-mm", help="Z-map cell [mm].")
 _HOME = typer.Option(None, "--home-mm", help="G28 reference X,Y,Z [mm].")
+_MACHINE = typer.Option(
+    None,
+    "--machine",
+    help="Machine preset or .toml: feeds, spindle speed, forces and power are checked against "
+    "its [limits] and max_rpm (default: no machine, only physical ranges).",
+)
 
 
 @app.command()
@@ -118,12 +172,17 @@ def plan(
     step_mm: float = _STEP,
     resolution_mm: float = _RES,
     home_mm: str | None = _HOME,
+    machine: str | None = _MACHINE,
 ) -> None:
     """Virtual plan: engagement and predicted forces, torque, power per path step."""
     import time
 
+    _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     t0 = time.perf_counter()
-    vp, _ = _build(program, stock, tool, material, step_mm, resolution_mm, home_mm)
+    vp, _, findings = _build(
+        program, stock, tool, material, step_mm, resolution_mm, home_mm, machine
+    )
+    _print_warnings(findings)
     vp.write(output)
     if plot is not None:
         from millsense.report.plan_plots import plot_plan
@@ -144,22 +203,28 @@ def schedule(
     tool: Path = _TOOL,
     material: Path = _MATERIAL,
     output: Path = typer.Option(..., "-o", "--output", help="Optimised program."),
-    limit_force_n: float | None = typer.Option(None, "--limit-force-n", help="Peak XY force."),
-    limit_torque_nm: float | None = typer.Option(None, "--limit-torque-nm", help="Peak torque."),
-    limit_power_w: float | None = typer.Option(None, "--limit-power-w", help="Mean power."),
+    limit_force_n: float | None = typer.Option(None, "--limit-force-n", help="Peak XY force [N]."),
+    limit_torque_nm: float | None = typer.Option(
+        None, "--limit-torque-nm", help="Peak torque [N·m]."
+    ),
+    limit_power_w: float | None = typer.Option(None, "--limit-power-w", help="Mean power [W]."),
     max_feed_mm_min: float | None = typer.Option(
-        None, "--max-feed-mm-min", help="Upper feed bound (default: programmed)."
+        None, "--max-feed-mm-min", help="Upper feed bound [mm/min] (default: programmed)."
     ),
     min_feed_mm_min: float | None = typer.Option(
-        None, "--min-feed-mm-min", help="Lower feed bound (default: 10 % of programmed)."
+        None, "--min-feed-mm-min", help="Lower feed bound [mm/min] (default: 10 % of programmed)."
     ),
-    accel_mm_s2: float = typer.Option(1000.0, "--accel-mm-s2", help="Path acceleration."),
+    accel_mm_s2: float = typer.Option(1000.0, "--accel-mm-s2", help="Path acceleration [mm/s²]."),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG with the feeds."),
     step_mm: float = _STEP,
     resolution_mm: float = _RES,
     home_mm: str | None = _HOME,
+    machine: str | None = _MACHINE,
 ) -> None:
     """Feed per step holding a force, torque or power limit; write an optimised program."""
+    import math
+
+    from millsense.core.errors import InputDataError
     from millsense.core.units import MM, MM_PER_MIN
     from millsense.plan.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
 
@@ -174,18 +239,42 @@ def schedule(
     ]
     if len(limits) != 1:
         raise ConfigError("give exactly one of --limit-force-n, --limit-torque-nm, --limit-power-w")
+    _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     kind, value = limits[0]
     _positive(f"--limit-{kind}", float(value))
     _positive("--accel-mm-s2", accel_mm_s2)
-    vp, toolpath = _build(program, stock, tool, material, step_mm, resolution_mm, home_mm)
-    sched = schedule_feed(
-        vp,
-        float(value),
-        kind=kind,
-        max_feed_m_s=None if max_feed_mm_min is None else max_feed_mm_min * MM_PER_MIN,
-        min_feed_m_s=None if min_feed_mm_min is None else min_feed_mm_min * MM_PER_MIN,
-        accel_m_s2=accel_mm_s2 * MM,
+    for name, feed in (
+        ("--min-feed-mm-min", min_feed_mm_min),
+        ("--max-feed-mm-min", max_feed_mm_min),
+    ):
+        if feed is not None and not (math.isfinite(feed) and feed > 0):
+            raise ConfigError(f"{name} {feed!r}: must be > 0")
+    if min_feed_mm_min is not None and max_feed_mm_min is not None:
+        if min_feed_mm_min > max_feed_mm_min:
+            raise ConfigError(
+                f"--min-feed-mm-min {min_feed_mm_min:g} exceeds --max-feed-mm-min "
+                f"{max_feed_mm_min:g}"
+            )
+    vp, toolpath, findings = _build(
+        program, stock, tool, material, step_mm, resolution_mm, home_mm, machine
     )
+    try:
+        sched = schedule_feed(
+            vp,
+            float(value),
+            kind=kind,
+            max_feed_m_s=None if max_feed_mm_min is None else max_feed_mm_min * MM_PER_MIN,
+            min_feed_m_s=None if min_feed_mm_min is None else min_feed_mm_min * MM_PER_MIN,
+            accel_m_s2=accel_mm_s2 * MM,
+        )
+    except InputDataError as exc:
+        # the only bound the options can still break: a minimum above a programmed feed
+        raise ConfigError(
+            f"--min-feed-mm-min {min_feed_mm_min}: {exc} (the programmed feed of "
+            f"{program} where --max-feed-mm-min is not given)"
+        ) from None
+    _unreachable(vp, sched, kind, float(value), findings)
+    _print_warnings(findings)
     text = Path(program).read_text(encoding="utf-8", errors="replace")
     added = write_scheduled_program(text, toolpath, vp, sched, output)
     if plot is not None:
@@ -202,4 +291,36 @@ def schedule(
     typer.echo(
         f"{output}: {int((sched.status == AT_LIMIT).sum())} steps at the {kind} limit, "
         f"{added} blocks added; time at programmed feed {t_prog:.1f} s -> {t_new:.1f} s"
+    )
+
+
+_UNITS = {"force": "N", "torque": "N·m", "power": "W"}
+
+
+def _unreachable(vp: VirtualPlan, sched: Any, kind: str, limit: float, findings: Findings) -> None:
+    """Warn when the limit cannot be held: steps whose scheduled feed (clipped at the minimum
+    feed) is above the feed that holds it, or where the edge forces alone exceed it (the feed
+    holding it is 0). No feed in the allowed range reaches the limit there."""
+    import numpy as np
+
+    from millsense.core.units import MM_PER_MIN
+
+    cut = (sched.target_m_s < sched.feed_m_s * (1 - 1e-6)) & ~vp["rapid"].astype(bool)
+    if not cut.any():
+        return
+    k = int(np.flatnonzero(cut)[0])
+    lines = sorted({int(v) for v in vp["source_line"][cut]})
+    where = ", ".join(str(v) for v in lines[:5]) + (" ..." if len(lines) > 5 else "")
+    unit = _UNITS[kind]
+    hold = float(sched.target_m_s[k]) / MM_PER_MIN
+    why = (
+        "the edge forces alone exceed it at any feed"
+        if hold <= 0
+        else f"it needs {hold:.4g} mm/min, below --min-feed-mm-min"
+    )
+    findings.warn(
+        f"--limit-{kind}-{'n' if kind == 'force' else 'nm' if kind == 'torque' else 'w'} "
+        f"{limit:g} {unit}: no feed reaches it on {int(cut.sum())} steps (lines {where}): "
+        f"{why}; those steps run at the minimum feed "
+        f"{float(sched.feed_m_s[k]) / MM_PER_MIN:.4g} mm/min and exceed the limit"
     )

@@ -1,4 +1,5 @@
-"""``millsense info`` and ``millsense plot``: look into a recording."""
+"""``millsense info``, ``millsense plot`` and ``millsense recover``: look into a recording, and
+turn an interrupted one into a plain HDF5 file (decision 0922)."""
 
 from __future__ import annotations
 
@@ -14,13 +15,24 @@ from millsense.core.errors import UserError
 
 @app.command()
 def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) -> None:
-    """Channels, rates, duration and metadata of a recording (recovers cut-off files)."""
-    from millsense.io.recording_file import read_recording, recording_status
+    """Channels, rates, duration and metadata of a recording.
 
+    A recording cut off by a crash (only RECORDING.partial/ exists) is first recovered into
+    RECORDING, a plain HDF5 file, as `millsense recover` does.
+    """
+    from millsense.io.recording_file import (
+        partial_dir,
+        read_recording,
+        recording_status,
+        writer_alive,
+    )
+
+    console = Console()
+    if not recording.exists() and partial_dir(recording).is_dir() and not writer_alive(recording):
+        _print_recovered(recording, None)
     status = recording_status(recording)
     rec = read_recording(recording)
-    console = Console()
-    console.print(f"[bold]{recording}[/]")
+    console.print(f"[bold]{recording}[/]", markup=True)
     console.print(
         f"{rec.n_samples} samples at {rec.sample_rate_hz:g} Hz = {rec.duration_s:.4g} s "
         f"from t0 = {rec.t0_s:g} s"
@@ -51,14 +63,16 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
 def plot(
     recording: Path = typer.Argument(..., help="Recording file (.h5)."),
     channel: list[str] = typer.Option(..., "--channel", "-c", help="Channel to plot (repeat)."),
-    out: Path = typer.Option(..., "-o", "--out", help="PNG file to write."),
-    t_start: float | None = typer.Option(None, "--from", help="Start time, s."),
-    t_end: float | None = typer.Option(None, "--to", help="End time, s."),
+    out: Path = typer.Option(..., "-o", "--output", help="PNG file to write."),
+    t_start: float | None = typer.Option(None, "--from-s", help="Start time [s]."),
+    t_end: float | None = typer.Option(None, "--to-s", help="End time [s]."),
 ) -> None:
     """Plot channels of a recording against time into a PNG (one panel per unit)."""
     from millsense.io.recording_file import read_recording
+    from millsense.io.safe_output import check_outputs
     from millsense.report.plots import plot_channels
 
+    check_outputs({"the recording": recording}, {"-o": out})
     if out.suffix.lower() != ".png":
         raise UserError(f"{out}: the plot is written as PNG; give a .png file name")
     rec = read_recording(recording)
@@ -69,7 +83,41 @@ def plot(
         t0 = rec.t0_s if t_start is None else t_start
         t1 = rec.t0_s + rec.duration_s if t_end is None else t_end
         if t1 <= t0:
-            raise UserError(f"--from {t0:g} s must be before --to {t1:g} s")
+            raise UserError(f"--from-s {t0:g} must be before --to-s {t1:g}")
         t_range = (t0, t1)
     plot_channels(rec, channel, out, t_range)
     Console().print(f"wrote {out}")
+
+
+def _print_recovered(recording: Path, output: Path | None) -> None:
+    """Recover ``recording`` into a plain file and say so, with what was lost (plain lines)."""
+    from millsense.io.recovery import recover as recover_file
+
+    r = recover_file(recording, output)
+    typer.echo(
+        f"recovered {r.duration_s:.6g} s ({r.n_samples} samples) of the interrupted recording "
+        f"{recording} into {r.output} (plain HDF5)"
+    )
+    typer.echo(r.lost)
+    if not r.partial_removed:
+        typer.echo(f"kept {recording}.partial/ (remove it once {r.output} is checked)")
+
+
+@app.command()
+def recover(
+    recording: Path = typer.Argument(
+        ..., help="Interrupted recording (RUN.h5, data in RUN.h5.partial/)."
+    ),
+    output: Path | None = typer.Option(
+        None, "-o", "--output", help="File to write (default: RECORDING itself)."
+    ),
+) -> None:
+    """Write an interrupted recording as a plain HDF5 file, with a note of what was lost.
+
+    The note is printed and stored in the file (root attributes recovered, recovery_lost).
+    """
+    from millsense.io.safe_output import check_outputs
+
+    if output is not None:
+        check_outputs({"the recording": recording}, {"-o": output})
+    _print_recovered(recording, output)

@@ -14,6 +14,8 @@ from millsense.cli.progress import progress_bar
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from millsense.streaming.block import Event
+
 
 @app.command()
 def simulate(
@@ -40,20 +42,35 @@ def simulate(
     engagement: str = typer.Option(
         "slot", "--engagement", help="With --program: slot, ae_mm=VALUE or ae_mm=VALUE,up."
     ),
-    depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth, mm."),
+    depth_mm: float = typer.Option(2.0, "--depth-mm", help="With --program: axial depth [mm]."),
     air_mm: float = typer.Option(
         0.0,
         "--air-mm",
-        help="With --program: the first AIR_MM of feed motion cut air (the stock starts that "
+        help="With --program: the first AIR_MM [mm] of feed motion cut air (the stock starts that "
         "far along the first feed move): an air phase at cutting feed for `estimate --idle`.",
     ),
-    out: Path = typer.Option(..., "--out", "-o", help="Recording to write (.h5)."),
-    duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this, s."),
+    out: Path = typer.Option(..., "-o", "--output", help="Recording to write (.h5)."),
+    duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
     cnc: str = typer.Option("open", "--cnc", help="Override channel: open or closed."),
-    break_at_s: float | None = typer.Option(None, "--break-at-s", help="Break a tooth at, s."),
+    break_at_s: float | None = typer.Option(
+        None, "--break-at-s", help="Break a tooth at this time [s]."
+    ),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
-    realism: bool = typer.Option(False, "--realism", help="Switch on the realism layer."),
+    realism: bool | None = typer.Option(
+        None,
+        "--realism/--no-realism",
+        help="The realism layer (friction drift, position-dependent modes...); default: on with "
+        "--truth, off with --ideal.",
+    ),
+    ideal: bool = typer.Option(
+        True,
+        "--ideal/--truth",
+        help="--truth: the simulator's own truth plant (coupled lumped-mass drives, true K_t, "
+        "friction, ripple, current loop, dead times; realism on). Default --ideal: the machine "
+        "file's one-way model with realism off, until identification runs on the truth "
+        "(decision 1061).",
+    ),
     tool_modes: Path | None = typer.Option(
         None,
         "--tool-modes",
@@ -75,6 +92,19 @@ def simulate(
     to OUT while the simulation runs (flushed every 0.5 s of signal), so a killed run leaves
     a readable recording of everything flushed.
     """
+    from millsense.io.safe_output import check_outputs
+
+    check_outputs(
+        {
+            "the machine file": machine,
+            "the program": program,
+            "the plan": plan,
+            "the tool file": tool,
+            "the material file": material,
+            "the --tool-modes file": tool_modes,
+        },
+        {"-o": out},
+    )
     req = dict(
         machine=machine,
         program=program,
@@ -91,6 +121,7 @@ def simulate(
         break_at_s=break_at_s,
         break_flute=break_flute,
         realism=realism,
+        ideal=ideal,
         accelerometer=accelerometer,
         tool_modes=tool_modes,
         microphone=microphone,
@@ -100,6 +131,8 @@ def simulate(
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
     for note in summary.get("notes", []):
         typer.echo(f"millsense: note: {note}", err=True)
+    for warning in summary.get("warnings", []):
+        typer.echo(f"millsense: warning: {warning}", err=True)
     typer.echo(
         f"wrote {out}: {summary['samples']} samples ({summary['seconds']:.2f} s) in "
         f"{summary['wall_s']:.1f} s wall ({summary['seconds'] / summary['wall_s']:.1f}x real time)"
@@ -122,11 +155,12 @@ def run_simulation(
     cnc: str,
     break_at_s: float | None,
     break_flute: int,
-    realism: bool,
+    realism: bool | None,
     accelerometer: bool,
     microphone: bool,
     chunk: int,
     on_progress: Callable[[float], None] | None = None,
+    ideal: bool = False,
     tool_modes: Path | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
@@ -143,10 +177,13 @@ def run_simulation(
     """
     import time
 
+    from millsense.core.budget import check_signal
     from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
-    from millsense.core.errors import ConfigError, InputDataError
+    from millsense.core.errors import ConfigError, InputDataError, ProgramError
+    from millsense.core.plausibility import Findings, check_depth, check_width
     from millsense.core.presets import load_preset
     from millsense.io import RecordingWriter
+    from millsense.plan.checks import check_plan, check_program
     from millsense.plan.gcode import interpret_file
     from millsense.plan.path import vertex_path
     from millsense.process.coefficients import CuttingCoefficients
@@ -176,8 +213,13 @@ def run_simulation(
         raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
     if air_mm > 0 and plan is not None:
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
+    if duration_s is not None:
+        check_signal(
+            duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
+        )
     mcfg = load_preset(MachineConfig, machine)
     five = mcfg.kinematics == "5-axis-trunnion-ac"
+    findings = Findings()
     events: list[ProcessEvent] = []
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
@@ -187,7 +229,7 @@ def run_simulation(
     if tool_modes is not None:
         from millsense.simulator.process_coupling import ToolModes
 
-        modes = ToolModes.from_toml(tool_modes)
+        modes = ToolModes.from_toml(tool_modes, findings)
     if plan is not None:
         from millsense.plan.plan_engagement import PlanEngagement, plan_path
         from millsense.plan.virtual_plan import (
@@ -197,6 +239,14 @@ def run_simulation(
         )
 
         vp = VirtualPlan.read(plan)
+        check_plan(vp, findings, machine=mcfg)
+        if duration_s is None:
+            check_signal(
+                float(vp["t_s"][-1]) if len(vp) else 0.0,
+                f"--plan {plan}",
+                "give --duration-s to simulate its start, or plan part of the program",
+                ProgramError,
+            )
         if tool is not None:
             end_mill = EndMill.from_config(load_preset(ToolConfig, tool))
         else:
@@ -235,8 +285,34 @@ def run_simulation(
         tcfg = load_preset(ToolConfig, tool or "aslan-d20-2flute")
         mat = load_preset(MaterialConfig, material or "al7050")
         end_mill = EndMill.from_config(tcfg)
-        job = Job.from_sampled_path(vertex_path(interpret_file(program)), five_axis=five)
+        check_depth(
+            depth_mm, tcfg.diameter_mm, "--depth-mm", findings, stickout_mm=tcfg.stickout_mm
+        )
+        if engagement.strip().lower().startswith("ae_mm="):
+            try:
+                ae_mm = float(engagement.strip().lower().removeprefix("ae_mm=").split(",")[0])
+            except ValueError:
+                ae_mm = None  # from_spec names the option
+            if ae_mm is not None:
+                check_width(ae_mm, tcfg.diameter_mm, f"--engagement {engagement}")
         unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
+        toolpath = interpret_file(program)
+        check_program(
+            toolpath,
+            findings,
+            machine=mcfg,
+            cuts=True,
+            flutes=tcfg.flutes,
+            diameter_mm=tcfg.diameter_mm,
+        )
+        if duration_s is None:
+            check_signal(
+                float(toolpath.durations().sum()),
+                f"--program {program}",
+                "give --duration-s to simulate its start, or split the program",
+                ProgramError,
+            )
+        job = Job.from_sampled_path(vertex_path(toolpath), five_axis=five)
         assert job.rapid is not None
         schedule = EngagementSchedule.along_cutting_moves(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
@@ -261,7 +337,8 @@ def run_simulation(
         spindle_channel=channel,
         seed=seed,
         sensors=SensorOptions(accelerometer=accelerometer, microphone=microphone),
-        realism=RealismOptions(enabled=realism),
+        realism=RealismOptions(enabled=(not ideal) if realism is None else realism),
+        ideal=ideal,
     )
     sim = MachineSimulator(mcfg, job, process, opts, duration_s=duration_s)
     # expected length for the progress bar when the run ends with the path
@@ -282,8 +359,10 @@ def run_simulation(
         flush_every_s=0.5,
     )
     t0 = time.perf_counter()
+    crashes: list[Event] = []
     while (c := sim.read(chunk)) is not None:
         writer.append(c.data)
+        crashes += sim.take_events()
         rows = sim.take_stream_rows()
         if len(rows["time_s"]):
             writer.append_stream(
@@ -291,6 +370,11 @@ def run_simulation(
             )
         if on_progress is not None:
             on_progress(min(1.0, sim.samples_read / max(expect, 1)))
+    crashes += sim.take_events()
+    findings.extend(e.message for e in crashes)
+    writer.update_metadata(
+        {"warnings": findings.warnings, "crash_events": [e.as_dict() for e in crashes]}
+    )
     writer.close()
     n = sim.samples_read
     return {
@@ -298,6 +382,8 @@ def run_simulation(
         "seconds": n / sim.sample_rate_hz,
         "wall_s": max(time.perf_counter() - t0, 1e-9),
         "notes": notes,
+        "warnings": findings.warnings,
+        "crash_events": crashes,
     }
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import typer
 from rich.console import Console
@@ -29,15 +28,21 @@ def validate(
     case: str = typer.Option("*", "--case", help="Glob over case ids, e.g. 'stability.*'."),
     quick: bool = typer.Option(False, "--quick", help="Only the cases that run in seconds."),
     json_out: str | None = typer.Option(None, "--json", help="Write results as JSON (- = stdout)."),
-    markdown: Path | None = typer.Option(None, "--markdown", help="(Re)write this Markdown file."),
+    markdown: str | None = typer.Option(
+        None, "--markdown", help="(Re)write this Markdown file (- = stdout)."
+    ),
 ) -> None:
     """Run validation cases and report reference, measured value, tolerance and pass/fail."""
+    from millsense.io.safe_output import check_outputs, write_text
     from millsense.validation.registry import render_markdown, run_case, select_cases
+
+    check_outputs({}, {"--json": json_out, "--markdown": markdown})
 
     cases = select_cases(case, quick_only=quick)
     if not cases:
         raise UserError(f"no validation case matches '{case}'")
-    console = Console(stderr=json_out == "-")
+    # a table on stdout would corrupt JSON or Markdown written there
+    console = Console(stderr="-" in (json_out, markdown))
     results = []
     with console.status("validating") as status:
         for c in cases:
@@ -62,8 +67,13 @@ def validate(
         if json_out == "-":
             sys.stdout.write(text)
         else:
-            Path(json_out).write_text(text)
+            write_text(json_out, text)
     if markdown is not None:
-        markdown.write_text(render_markdown(results, VALIDATION_HEADER))
+        # '-' is standard output (it once made a file named '-', decision 0924)
+        md = render_markdown(results, VALIDATION_HEADER)
+        if markdown == "-":
+            sys.stdout.write(md)
+        else:
+            write_text(markdown, md)
     if any(r.status == "fail" for r in results):
         raise typer.Exit(1)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 import typer
+from numpy.linalg import LinAlgError as _LinAlgError
 from rich.console import Console
 
 from millsense.core.errors import UserError
@@ -20,6 +21,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # plain click help: flags without '<bool>', '[mm]' not eaten as markup (decision 0923)
+    rich_markup_mode=None,
 )
 
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
@@ -42,6 +45,12 @@ def _register_commands() -> None:
             importlib.import_module(f"{pkg.__name__}.{info.name}")
 
 
+def _command(argv: list[str] | None) -> str:
+    """The sub-command of ``argv`` (or of the process arguments) for a message."""
+    args = sys.argv[1:] if argv is None else argv
+    return next((a for a in args if not a.startswith("-")), "millsense")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning user errors into one line and exit status 2."""
     _register_commands()
@@ -60,6 +69,22 @@ def main(argv: list[str] | None = None) -> None:
         # permission, disk full): one line naming it, like any other user error
         where = f"{exc.filename}: " if exc.filename is not None else ""
         err_console.print(f"millsense: error: {where}{exc.strerror or exc}", markup=False)
+        sys.exit(2)
+    except MemoryError:
+        # the work ceilings (millsense.core.budget) should refuse this first: one line anyway
+        err_console.print(
+            f"millsense: error: {_command(argv)}: out of memory; reduce the input (a shorter "
+            "program or recording, a coarser --step-mm/--resolution-mm)",
+            markup=False,
+        )
+        sys.exit(2)
+    except (ArithmeticError, _LinAlgError) as exc:
+        # a numerical failure the plausibility layer did not foresee (decision 0941): one line
+        err_console.print(
+            f"millsense: error: {_command(argv)}: numerical failure ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())}); check the inputs' physical values",
+            markup=False,
+        )
         sys.exit(2)
     except Exception as exc:
         # Usage errors of the (vendored) click parser: duck-typed, as typer may vendor click.

@@ -521,6 +521,24 @@ class SpindleConfig(_Model):
     Aslan Ch. 5.3; 0: the default of :mod:`millsense.estimation.from_config`)."""
 
 
+class MachineLimitsConfig(_Model):
+    """What the machine can deliver (``[limits]``): the plausibility layer
+    (:mod:`millsense.core.plausibility`) warns when a plan exceeds them and the simulator raises
+    a crash event when the cut does (decision 0942 "Machine limits and crash events").
+
+    Every key is optional; an absent key is not checked.
+    """
+
+    spindle_power_kw: Annotated[float, Field(gt=0, le=1000)] | None = None
+    """Continuous (S1) spindle motor power, kW: the mean cutting power must stay below it."""
+    axis_force_n: Annotated[float, Field(gt=0, le=1e7)] | None = None
+    """Largest force a linear feed axis can push against (drive peak torque through the ball
+    screw), N: the load on any linear axis must stay below it."""
+    max_feed_mm_min: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    """Largest programmable path feed (the rapid traverse rate), mm/min."""
+    source: str = ""
+
+
 class MachineConfig(_Model):
     """A machine tool: kinematics, feed axes by name, spindle, CNC sampling."""
 
@@ -531,6 +549,8 @@ class MachineConfig(_Model):
     interpolator_period_ms: Annotated[float, Field(gt=0, le=100)] = 3.0
     axes: dict[str, FeedAxisConfig]
     spindle: SpindleConfig | None = None
+    limits: MachineLimitsConfig | None = None
+    """Power, force and feed limits (``[limits]``); None: nothing checked against the machine."""
     source: str = ""
 
     @model_validator(mode="after")

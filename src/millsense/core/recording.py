@@ -334,6 +334,8 @@ class Recording:
 
     def _insert_channel(self, name: str, arr: np.ndarray, unit: str, description: str) -> None:
         """Add ``arr`` without copying (used by readers that own freshly read arrays)."""
+        if arr.ndim != 1 or arr.dtype.kind not in "iuf":  # a file written by another tool
+            arr = as_channel_array(arr, name)
         if name in self._channels:
             raise InputDataError(f"{self.source}: channel '{name}' already exists")
         other = _conflicts(name, self._channels)

@@ -15,7 +15,8 @@ Methods
 ``raw``   rigid-body inverse dynamics of the current (Aslan C3, Eq. 3.10–3.11,
           :class:`~millsense.estimation.feed.rigid_body.RigidBodyForceEstimator`).
 ``medob`` multi-encoder DOB of a ball-screw axis (Yamada,
-          :class:`~millsense.estimation.dob.observers.MEDOBBlock`) from ``[axes.x.ball_screw]``, dead times and current-loop bandwidth.
+          :class:`~millsense.estimation.dob.observers.MEDOBBlock`) from ``[axes.x.ball_screw]``,
+          dead times and current-loop bandwidth.
 ``spindle`` spindle torque observer (Aslan C11, :class:`~millsense.estimation.spindle_observer.
           SpindleTorqueObserver`) on G_dτ (Eq. 5.12) modelled from ``[spindle]``
           (:func:`spindle_observer_from_config`); output ``est/spindle/spindle/load``.

@@ -123,5 +123,7 @@ def kept_keys(base: Mapping[str, object], fragment: Mapping[str, object]) -> lis
 def write_fragment(
     path: str | Path, fragment: Mapping[str, object], comments: list[str] | None = None
 ) -> None:
-    """Write :func:`to_toml` of ``fragment`` to ``path``."""
-    Path(path).write_text(to_toml(fragment, comments), encoding="utf-8")
+    """Write :func:`to_toml` of ``fragment`` to ``path`` (atomically, decision 0921)."""
+    from millsense.io.safe_output import write_text
+
+    write_text(path, to_toml(fragment, comments))

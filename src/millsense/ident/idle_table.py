@@ -102,7 +102,10 @@ class IdleTable:
         p = Path(path)
         data = np.column_stack([self.position_m * 1e3, self.value])
         header = f"position_mm,{self.quantity}_{self.unit}"
-        np.savetxt(p, data, delimiter=",", header=header, comments="", fmt="%.9g")
+        from millsense.io.safe_output import atomic_path
+
+        with atomic_path(p) as tmp:  # an existing table is replaced whole or not at all
+            np.savetxt(tmp, data, delimiter=",", header=header, comments="", fmt="%.9g")
 
     def config_table(self, csv_name: str) -> dict[str, object]:
         """Keys of ``[axes.<name>.idle_table]`` referencing the CSV (field units)."""

@@ -68,9 +68,11 @@ __all__ = [
     "RecordingStatus",
     "RecordingWriter",
     "partial_dir",
+    "read_interrupted",
     "read_recording",
     "recording_status",
     "write_recording",
+    "writer_alive",
 ]
 
 FORMAT = "millsense-recording"
@@ -128,6 +130,43 @@ def _atomic_json(path: Path, obj: object, fsync: bool) -> None:
             fh.flush()
             os.fsync(fh.fileno())
     os.replace(tmp, path)
+
+
+_LOCK = "writer.lock"
+
+
+def _hold_writer_lock(partial: Path) -> Any:
+    """Open ``partial/writer.lock`` and hold an exclusive lock on it while the writer lives.
+
+    The operating system drops the lock when the process dies (``kill -9`` included), so
+    :func:`writer_alive` tells a running writer from an interrupted one.
+    """
+    fh = open(partial / _LOCK, "w")
+    try:
+        import fcntl
+
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except (ImportError, OSError):  # no flock (Windows, some network file systems)
+        pass
+    return fh
+
+
+def writer_alive(path: str | Path) -> bool:
+    """True if a live process is still writing the recording ``path`` (holds its lock)."""
+    lock = partial_dir(path) / _LOCK
+    if not lock.is_file():
+        return False
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - no flock: cannot tell, assume interrupted
+        return False
+    with open(lock) as fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    return False
 
 
 def _check_parent(path: Path) -> None:
@@ -254,7 +293,9 @@ class RecordingWriter:
         ext4 virtual disk); SIGKILL-safety does not need it.
     overwrite : bool
         Replace an existing complete file at ``path`` (default, like :func:`write_recording`);
-        it is removed at once so that readers see the new recording in progress. With
+        it stays whole until :meth:`close` renames the new file onto it (``os.replace``), so
+        a writer killed meanwhile leaves it intact (decision 0921). While this writer lives,
+        :func:`read_recording` returns the new recording in progress. With
         ``overwrite=False`` an existing file is an error.
 
     Raises
@@ -325,21 +366,26 @@ class RecordingWriter:
         if self._partial.exists():
             raise RecordingError(
                 f"{self.path}: {self._partial} exists (an interrupted recording); "
-                "read it with read_recording and remove it first"
+                f"recover it with 'millsense recover {self.path}' or remove that folder"
             )
         if self.path.exists():
             if not overwrite:
                 raise RecordingError(f"{self.path}: file exists (overwrite=False)")
-            self.path.unlink()
+            if not self.path.is_file():
+                raise RecordingError(f"{self.path}: exists and is not a file")
+            # kept until close() renames the new file onto it: a run killed meanwhile leaves
+            # the previous recording whole (decision 0921)
         try:
             self._partial.mkdir()
         except OSError as exc:
             raise RecordingError(f"{self.path}: cannot create {self._partial}: {exc}") from exc
+        self._lock = _hold_writer_lock(self._partial)
         schema = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
             "sample_rate_hz": self.sample_rate_hz,
             "t0_s": self.t0_s,
+            "flush_every_samples": self._flush_samples,
             "channels": [[c.name, c.unit, c.description] for c in self._channels.values()],
             "streams": {
                 s: [[fi.name, fi.unit, fi.description] for fi in f.values()]
@@ -358,7 +404,6 @@ class RecordingWriter:
         self._stream_pending: dict[str, list[dict[str, np.ndarray]]] = {
             s: [] for s in self._streams
         }
-        self._stream_all: dict[str, list[dict[str, np.ndarray]]] = {s: [] for s in self._streams}
         self._stream_last_t: dict[str, float] = {s: -math.inf for s in self._streams}
         self._flushed = 0
         self._appended = 0
@@ -367,6 +412,7 @@ class RecordingWriter:
         self._final = h5py.File(self._partial / _INPROGRESS, "w")
         self._final.create_group("channels")
         self._appenders: dict[str, hdf5_chunks.ChunkAppender] = {}
+        self._stream_appenders: dict[tuple[str, str], hdf5_chunks.ChunkAppender] = {}
 
     # ------------------------------------------------------------------ properties
     @property
@@ -378,6 +424,17 @@ class RecordingWriter:
     def samples_appended(self) -> int:
         """Samples per channel appended so far (flushed or still buffered)."""
         return self._appended
+
+    def update_metadata(self, metadata: Mapping[str, object]) -> None:
+        """Add or replace metadata keys of the final file (written at :meth:`close`), e.g. the
+        warnings and crash events a run raised; the sidecar of a killed run keeps the
+        metadata given at construction."""
+        self._check_open()
+        try:
+            extra = normalise_metadata(metadata)
+        except InputDataError as exc:
+            raise InputDataError(f"{self.path}: {exc}") from None
+        self._proto.metadata.update(extra)
 
     # ------------------------------------------------------------------ appending
     def _check_open(self) -> None:
@@ -516,10 +573,10 @@ class RecordingWriter:
         self._flushed += self._pending_n
         self._pending = {n: [] for n in self._channels}
         self._pending_n = 0
-        for sname, cols in stream_block.items():
-            self._stream_all[sname].append(cols)
+        for sname in stream_block:
             self._stream_pending[sname] = []
         self._consolidate(block)
+        self._consolidate_streams(stream_block)
 
     def _consolidate(self, block: Mapping[str, np.ndarray]) -> None:
         """Feed flushed samples to the final file being built (compressed in the pool)."""
@@ -533,6 +590,26 @@ class RecordingWriter:
                 _set_info(ds, self._channels[name])
                 appender = self._appenders[name] = hdf5_chunks.ChunkAppender(ds)
             appender.append(arr)
+
+    def _stream_appender(
+        self, sname: str, field: str, dtype: np.dtype, info: ChannelInfo
+    ) -> hdf5_chunks.ChunkAppender:
+        key = (sname, field)
+        appender = self._stream_appenders.get(key)
+        if appender is None:
+            group = self._final.require_group("streams").require_group(sname)
+            ds = hdf5_chunks.create_chunked(group, field, dtype, hdf5_chunks.CHUNK_SAMPLES)
+            _set_info(ds, info)
+            appender = self._stream_appenders[key] = hdf5_chunks.ChunkAppender(ds)
+        return appender
+
+    def _consolidate_streams(self, stream_block: Mapping[str, Mapping[str, np.ndarray]]) -> None:
+        """Feed flushed stream rows to the final file as they come (not kept until close:
+        a shift of 333 Hz rows would otherwise grow the writer's memory, decision 0961)."""
+        for sname, cols in stream_block.items():
+            for k, arr in cols.items():
+                info = self._streams[sname].get(k) or ChannelInfo("time_s", "s", "row time")
+                self._stream_appender(sname, k, arr.dtype, info).append(arr)
 
     # ------------------------------------------------------------------ closing
     def close(self) -> None:
@@ -553,16 +630,16 @@ class RecordingWriter:
                     _set_info(ds, info)
                 else:
                     self._appenders[name].finish()
-            f.create_group("streams")
+            f.require_group("streams")
             for sname, fields in self._streams.items():
-                parts = self._stream_all[sname]
-                cols = {
-                    k: (np.concatenate([p[k] for p in parts]) if parts else np.zeros(0))
-                    for k in ["time_s", *fields]
-                }
-                _write_stream(
-                    f, Stream(sname, cols["time_s"], {k: cols[k] for k in fields}, fields)
-                )
+                infos = {"time_s": ChannelInfo("time_s", "s", "row time"), **fields}
+                for k, info in infos.items():
+                    if (sname, k) in self._stream_appenders:
+                        self._stream_appenders[(sname, k)].finish()
+                    else:  # no row ever appended
+                        dtype = self._stream_dtypes[sname].get(k, np.dtype(np.float64))
+                        group = f["streams"].require_group(sname)
+                        _set_info(hdf5_chunks.create_chunked(group, k, dtype, 1), info)
             layout = {
                 "channels": list(self._channels),
                 "streams": {s: list(fl) for s, fl in self._streams.items()},
@@ -585,6 +662,7 @@ class RecordingWriter:
             if f.id.valid:
                 f.close()
         shutil.rmtree(self._partial, ignore_errors=True)
+        self._lock.close()
 
     def __enter__(self) -> RecordingWriter:
         return self
@@ -839,8 +917,10 @@ def _recovery_message(segs: _Segments) -> str:
     return msg + (f"; {segs.note}" if segs.note else "")
 
 
-def _read_partial(path: Path, partial: Path) -> Recording:
+def _read_partial(path: Path, partial: Path, found: list[_Segments] | None = None) -> Recording:
     segs, loaded = _scan_segments(path, partial, keep=True)
+    if found is not None:
+        found.append(segs)
     schema = segs.schema
     try:
         meta = dict(schema.get("metadata", {}))
@@ -863,6 +943,29 @@ def _read_partial(path: Path, partial: Path) -> Recording:
         return rec
     except (KeyError, ValueError, TypeError, InputDataError) as exc:
         raise RecordingError(f"{path}: cannot recover from {partial} ({exc})") from None
+
+
+def read_interrupted(path: str | Path) -> tuple[Recording, dict[str, Any]]:
+    """The recording in ``<path>.partial/`` even when a complete ``path`` exists beside it.
+
+    Returns the recording (as :func:`read_recording` recovers it) and what recovery knows
+    about the loss: ``schema`` (dict), ``segments`` (int), ``note`` (why reading stopped
+    early, or ""), ``unfinished`` (names of half-written segment files, discarded).
+    """
+    path = Path(path)
+    partial = partial_dir(path)
+    if not partial.is_dir():
+        raise RecordingError(f"{path}: no interrupted recording ({partial} does not exist)")
+    found: list[_Segments] = []
+    rec = _read_partial(path, partial, found)
+    segs = found[0]
+    unfinished = sorted(p.name for p in partial.iterdir() if p.name.endswith(".bin.tmp"))
+    return rec, {
+        "schema": segs.schema,
+        "segments": len(segs.files),
+        "note": segs.note,
+        "unfinished": unfinished,
+    }
 
 
 def read_recording(path: str | Path) -> Recording:
@@ -889,7 +992,7 @@ def read_recording(path: str | Path) -> Recording:
     path = Path(path)
     partial = partial_dir(path)
     for _ in range(3):
-        if path.is_file():
+        if path.is_file() and not (partial.is_dir() and writer_alive(path)):
             return _read_complete(path)
         if partial.is_dir():
             try:
@@ -917,7 +1020,7 @@ def recording_status(path: str | Path) -> RecordingStatus:
     """
     path = Path(path)
     partial = partial_dir(path)
-    if path.is_file():
+    if path.is_file() and not (partial.is_dir() and writer_alive(path)):
         with _open_h5(path) as f:
             _check_format(path, f)
             try:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.core.budget import check_path_points, check_path_steps
 from millsense.core.units import MM, MM_PER_MIN
 
 #: Move kinds (``Toolpath.kind``).
@@ -265,6 +266,7 @@ def sample_path(
     positive = np.flatnonzero(lengths > 0.0)
     if positive.size == 0:
         return _empty(step)
+    check_path_steps(total, step, path.source, _longest(path, lengths))
 
     n_full = math.floor(total / step + 1e-9)
     s = np.arange(n_full + 1, dtype=np.float64) * step
@@ -353,6 +355,7 @@ def vertex_path(
         dphi = 2.0 * np.arccos(ratio)
         pieces[arc] = np.maximum(np.ceil(path.sweep[arc] / np.maximum(dphi, 1e-12)), 1)
     pieces[~moving] = 0
+    check_path_points(float(pieces.sum()), path.source, _longest(path, lengths))
     idx = np.repeat(np.arange(n_mv), pieces)
     first = np.cumsum(pieces) - pieces
     u = (np.arange(idx.size) - first[idx] + 1) / pieces[idx]
@@ -380,6 +383,12 @@ def vertex_path(
         np.where(rot_only, path.rotary_feed[idx], path.feed[idx]),
     )
     return _sampled(path, idx, s, t, pos, tangent, feed, rapid, chord_tol_m)
+
+
+def _longest(path: Toolpath, lengths: FloatArray) -> str:
+    """The longest move of ``path`` as ``line N, L m`` for a work-ceiling message."""
+    k = int(np.argmax(np.where(np.isfinite(lengths), lengths, np.inf)))
+    return f"line {int(path.source_line[k])}, {float(lengths[k]):.4g} m"
 
 
 def _arc_points(

@@ -38,8 +38,9 @@ def _grid_shape(extent_x: float, extent_y: float, resolution_m: float) -> tuple[
     ny = max(math.ceil(extent_y / resolution_m - 1e-9), 1)
     if nx * ny > MAX_CELLS:
         raise ConfigError(
-            f"stock: {nx} × {ny} cells at resolution_m={resolution_m!r} exceed "
-            f"{MAX_CELLS} cells; use a coarser resolution"
+            f"stock: {extent_x * 1e3:.4g} × {extent_y * 1e3:.4g} mm at a "
+            f"{resolution_m * 1e3:g} mm resolution is {nx} × {ny} cells, beyond the ceiling "
+            f"of {MAX_CELLS:.3g} (decision 0943); give a coarser --resolution-mm"
         )
     return nx, ny
 
@@ -325,7 +326,6 @@ def write_stl(path: str | os.PathLike[str], triangles: FloatArray) -> None:
     arr["normal"] = nrm
     arr["v"] = tri
     header = b"millsense binary STL".ljust(80, b" ")
-    with open(path, "wb") as fh:
-        fh.write(header)
-        fh.write(np.uint32(tri.shape[0]).tobytes())
-        fh.write(arr.tobytes())
+    from millsense.io.safe_output import write_bytes
+
+    write_bytes(path, header + np.uint32(tri.shape[0]).tobytes() + arr.tobytes())

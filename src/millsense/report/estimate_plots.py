@@ -4,12 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from millsense.report.estimate_metrics import HarmonicComparison
 from millsense.report.plots import _save, plt
+
+if TYPE_CHECKING:
+    from millsense.report.estimate_stream import PlotTraces
 
 #: Percentiles of the samples the whole-record panel's y-axis spans: the inertia term makes the
 #: estimate spike at rapid-move accelerations (truth is zero there), and a scale set by those
@@ -53,30 +57,71 @@ def plot_estimates(
     estimates : (method, axis) → (estimate, delay samples); plotted shifted back by the delay.
     comparisons : results of :func:`millsense.report.estimate_metrics.compare`.
     units : axis → unit of its load.
+
+    The whole arrays are passed through the same min/max envelopes as a streamed run
+    (:func:`plot_traces`), so both draw the same figure.
     """
-    axes = list(truth)
+    from millsense.report.estimate_stream import PlotTraces, StreamedEstimate
+
+    n = max((len(v) for v in truth.values()), default=0)
+    est = [
+        StreamedEstimate(m, a, f"{m}/{a}", d, f"truth/{a}")
+        for (m, a), (_, d) in estimates.items()
+        if a in truth
+    ]
+    first: dict[str, float] = {}
+    for c in comparisons:
+        first.setdefault(c.axis, 0.5 * (c.window[0] + c.window[1]))
+    tooth = comparisons[0].tooth_hz if comparisons else 0.0
+    traces = PlotTraces(est, n, fs, first or None, tooth)
+    data = {f"truth/{a}": np.asarray(v, dtype=float) for a, v in truth.items()}
+    data.update({f"{m}/{a}": np.asarray(v, dtype=float) for (m, a), (v, _) in estimates.items()})
+    traces.add(0, data)
+    plot_traces(path, fs, traces, comparisons, units)
+
+
+def plot_traces(
+    path: str | Path,
+    fs: float,
+    traces: PlotTraces,
+    comparisons: Sequence[HarmonicComparison],
+    units: Mapping[str, str],
+) -> None:
+    """The estimate-vs-truth PNG from streamed traces (:class:`~millsense.report.
+    estimate_stream.PlotTraces`): whole record as min/max envelopes (no peak dropped), zoom
+    of 12 tooth periods from the raw samples, amplitudes at the tooth harmonics.
+
+    The whole-record y-scale spans :data:`FULL_PERCENTILES` of the envelope points (each
+    bin's minimum and maximum; decision 0961), and the legend counts the envelope points off
+    that scale.
+    """
+    axes = list(traces.axes)
     fig, grid = plt.subplots(
-        len(axes),
+        max(len(axes), 1),
         3,
-        figsize=(15, 3.0 * len(axes) + 0.8),
+        figsize=(15, 3.0 * max(len(axes), 1) + 0.8),
         squeeze=False,
         gridspec_kw={"width_ratios": [2.2, 1.6, 1.2]},
     )
     for row, ax_name in enumerate(axes):
-        tru = truth[ax_name]
-        t = np.arange(len(tru)) / fs
+        tr = traces.axes[ax_name]
         comps = [c for c in comparisons if c.axis == ax_name]
         a_full, a_zoom, a_spec = grid[row]
-        a_full.plot(t, tru, "k", lw=0.8, label="truth")
-        a_zoom.plot(t, tru, "k", lw=1.2, label="truth")
-        shown: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = [(t, tru)]
-        for (method, axis), (est, delay) in estimates.items():
-            if axis != ax_name:
-                continue
-            te = (np.arange(len(est)) - delay) / fs
-            a_full.plot(te, est, lw=0.6, alpha=0.8, label=method)
-            a_zoom.plot(te, est, lw=0.9, label=method)
-            shown.append((te, est))
+        t, y = tr.truth.xy(fs)
+        a_full.plot(t, y, "k", lw=0.8, label="truth")
+        tz = tr.truth_zoom
+        t_zoom = np.arange(tz.start, tz.stop) / fs
+        a_zoom.plot(t_zoom, tz.values, "k", lw=1.2, label="truth")
+        shown = [y]
+        inside = [tz.values]
+        for (method, _), (env, zoom, delay) in tr.estimates.items():
+            te, ye = env.xy(fs, delay)
+            a_full.plot(te, ye, lw=0.6, alpha=0.8, label=method)
+            a_zoom.plot(
+                (np.arange(zoom.start, zoom.stop) - delay) / fs, zoom.values, lw=0.9, label=method
+            )
+            shown.append(ye)
+            inside.append(zoom.values)
         unit = units.get(ax_name, "")
         what = (
             f"tool force {ax_name.removeprefix('tool_')}"
@@ -84,18 +129,15 @@ def plot_estimates(
             else f"{ax_name} load"
         )
         a_full.set_ylabel(f"{what} [{unit}]")
-        lo, hi = value_limits([y for _, y in shown], FULL_PERCENTILES)
+        lo, hi = value_limits(shown, FULL_PERCENTILES)
         a_full.set_ylim(lo, hi)
-        clipped = sum(int(np.count_nonzero((y < lo) | (y > hi))) for _, y in shown)
+        clipped = sum(int(np.count_nonzero((v < lo) | (v > hi))) for v in shown)
         if clipped:
-            a_full.plot([], [], " ", label=f"{clipped} samples off scale")
+            a_full.plot([], [], " ", label=f"{clipped} envelope points off scale")
         a_full.legend(loc="upper right", fontsize=7)
-        if comps:
+        if comps and tr.zoom_s is not None:
             c0 = comps[0]
-            mid = 0.5 * (c0.window[0] + c0.window[1]) / fs
-            span = 12.0 / c0.tooth_hz
-            a_zoom.set_xlim(mid - span / 2, mid + span / 2)
-            inside = [y[(x >= mid - span / 2) & (x <= mid + span / 2)] for x, y in shown]
+            a_zoom.set_xlim(*tr.zoom_s)
             a_zoom.set_ylim(*value_limits(inside))
             a_full.axvspan(c0.window[0] / fs, c0.window[1] / fs, color="0.9", zorder=0)
             h = c0.harmonics

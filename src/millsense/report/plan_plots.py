@@ -74,8 +74,10 @@ def plot_plan(plan: VirtualPlan, path: str | Path, feed_mm_min: np.ndarray | Non
     last.set_xlabel("path length s [mm]")
     fig.suptitle(str(plan.metadata.get("program", "")), fontsize=10)
     fig.tight_layout()
-    p = Path(path)
-    tmp = p.with_name(p.name + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(p)
+    from millsense.io.safe_output import atomic_path
+
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)

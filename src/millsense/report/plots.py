@@ -16,12 +16,14 @@ from millsense.core.recording import Recording
 
 
 def _save(fig: plt.Figure, path: str | Path) -> None:
-    """Write atomically: a failed save leaves no half-written PNG."""
-    p = Path(path)
-    tmp = p.with_name(p.name + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(p)
+    """Write atomically: a failed save leaves no half-written PNG (decision 0921)."""
+    from millsense.io.safe_output import atomic_path
+
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=120, format="png")
+    finally:
+        plt.close(fig)
 
 
 def plot_channels(

@@ -44,6 +44,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.simulator.crash import CrashMonitor
 from millsense.simulator.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.simulator.interpolator import Interpolator, OverrideChannel, Upsampler
 from millsense.simulator.process_coupling import ProcessCoupling
@@ -56,6 +57,7 @@ from millsense.simulator.realism import (
 )
 from millsense.simulator.sensors import SensorBank, SensorOptions
 from millsense.simulator.spindle import SpindleDriveSim
+from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 from millsense.stability.time_domain import DirectionModes
 from millsense.streaming.block import Chunk, Event, EventKind
 from millsense.streaming.sources import Source
@@ -187,7 +189,14 @@ class SimulatorOptions:
         "Simulator block size").
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
-    realism : the realism layer.
+    realism : the realism layer; None (default) = on, or off with ``ideal``.
+    ideal : run the one-way model of the machine file (rigid body + printed disturbance
+        modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth (coupled lumped-mass
+        drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one); with
+        ``realism`` left None the realism layer is then off too. Default True for now: the
+        commissioning/identification path does not yet run on the truth, so the shipped
+        estimate workflow would be judged against a plant it cannot have learnt (decision
+        1061); ``ideal=False`` selects the truth.
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -202,7 +211,15 @@ class SimulatorOptions:
     block_periods: int = 1
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
-    realism: RealismOptions = field(default_factory=RealismOptions)
+    realism: RealismOptions | None = None
+    ideal: bool = True
+
+    @property
+    def realism_in_effect(self) -> RealismOptions:
+        """The realism options that apply: as given, else on (off with ``ideal``)."""
+        if self.realism is not None:
+            return self.realism
+        return RealismOptions(enabled=not self.ideal)
 
     def __post_init__(self) -> None:
         if not (self.path_accel_m_s2 > 0 and self.spindle_accel_rad_s2 > 0):
@@ -440,7 +457,10 @@ class MachineSimulator(Source):
             raise InputDataError(f"simulator: duration_s must be > 0, got {duration_s!r}")
         seeds = np.random.SeedSequence(opts.seed).spawn(len(self.axes) + 2)
         real_rng = np.random.default_rng(seeds[-1])
-        self._realism = opts.realism if opts.realism.enabled else None
+        ro = opts.realism_in_effect
+        self._realism = ro if ro.enabled else None
+        truth = load_truth(machine.name) if not opts.ideal and machine.name in TRUTH_PRESETS else {}
+        self.truth_axes = tuple(ax for ax in self.axes if ax in truth)
 
         # ---- interpolator and initial axis positions
         self._sovr = _OverrideSchedule(opts.spindle_channel, 1.0)
@@ -486,13 +506,16 @@ class MachineSimulator(Source):
             cfg = machine.axes[ax]
             if self._realism is not None and self._realism.high_modes:
                 cfg = _with_high_modes(cfg, real_rng)
-            params = FeedDriveParams.from_config(cfg)
+            if ax in truth:
+                params = truth_feed_params(cfg, truth[ax])
+            else:
+                params = FeedDriveParams.from_config(cfg)
             rg = params.transmission
             self.transmissions[i] = rg
             drive = FeedDriveSim(
                 params,
                 fs,
-                substeps=opts.drive_substeps,
+                substeps=truth[ax].substeps if ax in truth else opts.drive_substeps,
                 seed=int(seeds[i].generate_state(1)[0]),
                 initial_angle_rad=float(q0[i] / rg),
             )
@@ -557,6 +580,8 @@ class MachineSimulator(Source):
         self._steps = np.arange(1, self.ratio + 1, dtype=np.float64)
         self._z_axis = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (self.ratio, 3))
         self._channels = self._declare()
+        # crash events (decision 0942): engaged with the spindle stopped, beyond the limits
+        self.crashes = CrashMonitor(machine, self.axes)
 
     # ------------------------------------------------------------------ declarations
     def _declare(self) -> list[ChannelInfo]:
@@ -645,6 +670,7 @@ class MachineSimulator(Source):
             "seed": self.options.seed,
             "breakage_time_s": brk if brk is not None else "none",
             "realism": self._realism is not None,
+            "truth_plant": "coupled" if self.truth_axes else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
         }
@@ -912,6 +938,13 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
+            self.crashes.check(
+                t,
+                (po.engagement_index >= 0) & (po.depth_m > 0),
+                self._omega,
+                w.loads[sl],
+                torque,
+            )
         else:
             torque = w.torque[sl]
         # drives and spindle
@@ -1075,6 +1108,14 @@ class MachineSimulator(Source):
     @property
     def samples_read(self) -> int:
         return self._pos
+
+    def take_events(self) -> list[Event]:
+        """Crash events (kind ``crash``) raised since the last call, removed from the queue.
+
+        Events are raised as blocks are computed, so they may lead the samples read by up to
+        one generated batch.
+        """
+        return self.crashes.take_events()
 
 
 def _with_high_modes(cfg: FeedAxisConfig, rng: np.random.Generator) -> FeedAxisConfig:

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from millsense.core.errors import ConfigError
+from millsense.core.plausibility import Findings
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.forces import previous_flute_table
@@ -436,14 +437,15 @@ class ToolModes:
     steps_per_rev: int = 0  #: 0 = choose from the sample rate (≥ 2 steps per sample)
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> ToolModes:
+    def from_toml(cls, path: str | Path, findings: Findings | None = None) -> ToolModes:
         """The ``[[structure.x]]``/``[[structure.y]]`` modes of a TOML file (a stability case
         file works: only its ``[structure]`` table is read).
 
         Each mode gives ``natural_frequency_hz``, ``damping_ratio`` and ``stiffness_n_m`` (or
         ``residue_alpha_m_n_s2`` with ``residue_beta_m_n_s`` = 0, stiffness ω²/α); x is along
         the feed, y normal to it, as in the stability cases. A direction without modes is
-        rigid.
+        rigid. Every mode passes :func:`millsense.core.plausibility.check_modes` (damping and
+        stiffness > 0; over-damped modes are warnings added to ``findings``).
 
         Raises
         ------
@@ -452,6 +454,7 @@ class ToolModes:
             residue (the time-domain tool model has none), or no mode at all.
         """
         from millsense.core.config import parse_config, read_toml
+        from millsense.core.plausibility import check_modes
         from millsense.stability.cases import StructureSpec
 
         data = read_toml(path)
@@ -474,7 +477,8 @@ class ToolModes:
                     )
                 f.append(m.natural_frequency_hz)
                 z.append(m.damping_ratio)
-                k.append(m.to_mode().stiffness)
+                k.append(m.stiffness_n_m if m.stiffness_n_m is not None else m.to_mode().stiffness)
+            check_modes(f, z, k, f"{path} [structure] {d}", findings or Findings())
             out.append(DirectionModes.from_arrays(f, z, k))
         return cls(out[0], out[1])
 

@@ -36,9 +36,9 @@ LOAD_SHIFT = 1.0 - 800.0 / 980.0
 
 @dataclass(frozen=True)
 class RealismOptions:
-    """Switches of the realism layer (all on when ``enabled``)."""
+    """Switches of the realism layer (all on when ``enabled``; on by default, decision 0976)."""
 
-    enabled: bool = False
+    enabled: bool = True
     position_modes: bool = True
     friction_drift: bool = True
     high_modes: bool = True

@@ -6,8 +6,9 @@ key names and converted once, here::
     [tool]        diameter_mm, flutes, pitch_deg (optional list, angle from each flute to the next)
     [cutting]     kt_n_mm2 (alias ktc_n_mm2), kr_n_mm2 (aliases kn_n_mm2, krc_n_mm2)
     [operation]   mode = "down" | "up", radial_immersion_mm (0 < a <= diameter_mm)
-    [[structure.x]], [[structure.y]]  modes: natural_frequency_hz, damping_ratio and either
-                  stiffness_n_m or residue_alpha_m_n_s2 (+ residue_beta_m_n_s, Aslan Eq. 3.13)
+    [[structure.x]], [[structure.y]]  modes: natural_frequency_hz, damping_ratio and one of
+                  stiffness_n_m, modal_mass_kg or residue_alpha_m_n_s2 (+ residue_beta_m_n_s,
+                  Aslan Eq. 3.13)
     [lobes]       rpm_min, rpm_max, rpm_step, depth_max_mm, steps_per_period, method
 
 A bad file raises :class:`~millsense.core.errors.ConfigError` with one line naming the file,
@@ -33,6 +34,9 @@ from millsense.stability.modal import ModalModel, Mode
 #: Allowed values of the cross-field checks, quoted in their error messages (single-field
 #: ranges come from the pydantic constraints through core.config's formatter).
 PITCH_ALLOWED = "one angle per flute, each in (0, 360), summing to 360"
+#: Most spindle speeds in one chart (each needs a depth scan of ~50 spectral radii; minima
+#: are refined to 1 rev/min anyway, so finer charts add nothing; decision 0906).
+MAX_SPEEDS = 4001
 
 
 class _Model(BaseModel):
@@ -43,15 +47,23 @@ class ModeSpec(_Model):
     """One mode: natural frequency, damping and stiffness or residues (Aslan Eq. 3.13)."""
 
     natural_frequency_hz: Annotated[float, Field(gt=0, le=1e5)]
-    damping_ratio: Annotated[float, Field(ge=0, lt=1)]
-    stiffness_n_m: Annotated[float, Field(gt=0)] | None = None
-    residue_alpha_m_n_s2: Annotated[float, Field(gt=0)] | None = None
+    # an undamped mode chatters at a vanishing depth at its lobe speeds (decision 0906)
+    damping_ratio: Annotated[float, Field(ge=1e-4, lt=1)]
+    # tool-tip modal stiffness of real machines: 1e4..1e10 N/m (decision 0906)
+    stiffness_n_m: Annotated[float, Field(ge=1e3, le=1e11)] | None = None
+    modal_mass_kg: Annotated[float, Field(ge=1e-5, le=1e5)] | None = None
+    residue_alpha_m_n_s2: Annotated[float, Field(gt=0, le=1e6)] | None = None
     residue_beta_m_n_s: float = 0.0
 
     def to_mode(self) -> Mode:
         if self.stiffness_n_m is not None:
             return Mode.from_stiffness(
                 self.natural_frequency_hz, self.damping_ratio, self.stiffness_n_m
+            )
+        if self.modal_mass_kg is not None:
+            # residue form α = 1/m (Aslan Eq. 3.13, mass-normalised mode)
+            return Mode.from_residues(
+                self.natural_frequency_hz, self.damping_ratio, 1.0 / self.modal_mass_kg
             )
         assert self.residue_alpha_m_n_s2 is not None
         return Mode.from_residues(
@@ -177,10 +189,28 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
         )
     for d, modes in (("x", spec.structure.x), ("y", spec.structure.y)):
         for i, md in enumerate(modes):
-            if (md.stiffness_n_m is None) == (md.residue_alpha_m_n_s2 is None):
+            given = [
+                k
+                for k in ("stiffness_n_m", "modal_mass_kg", "residue_alpha_m_n_s2")
+                if getattr(md, k) is not None
+            ]
+            if len(given) != 1:
                 raise ConfigError(
-                    f"{source}: structure.{d}[{i}]: give exactly one of 'stiffness_n_m' or "
-                    "'residue_alpha_m_n_s2'"
+                    f"{source}: structure.{d}[{i}]: give exactly one of 'stiffness_n_m', "
+                    "'modal_mass_kg' or 'residue_alpha_m_n_s2'"
+                )
+            if md.modal_mass_kg is not None and md.residue_beta_m_n_s != 0.0:
+                raise ConfigError(
+                    f"{source}: structure.{d}[{i}]: 'residue_beta_m_n_s' needs "
+                    "'residue_alpha_m_n_s2', not 'modal_mass_kg'"
+                )
+            k_eff = md.to_mode().stiffness  # ω²/α [N/m]
+            if not 1e3 <= k_eff <= 1e11:
+                raise _fail(
+                    source,
+                    f"structure.{d}[{i}]",
+                    f"stiffness (2π f_n)²·m = {k_eff:.3g} N/m",
+                    "a modal stiffness in [1e3, 1e11] N/m",
                 )
     if not spec.structure.x and not spec.structure.y:
         raise ConfigError(
@@ -202,6 +232,16 @@ def case_from_spec(spec: CaseSpec, source: str) -> MillingStabilityCase:
     if pitch_rad is not None:
         s = sum(pitch_rad)
         pitch_rad = tuple(v * 2 * math.pi / s for v in pitch_rad)  # exact closure
+    n_speeds = math.floor((lb.rpm_max - lb.rpm_min) / lb.rpm_step + 0.5) + 1
+    if n_speeds > MAX_SPEEDS:
+        raise _fail(
+            source,
+            "lobes.rpm_step",
+            lb.rpm_step,
+            f">= (rpm_max - rpm_min)/{MAX_SPEEDS - 1} = "
+            f"{(lb.rpm_max - lb.rpm_min) / (MAX_SPEEDS - 1):.4g} rev/min "
+            f"(at most {MAX_SPEEDS} speeds per chart)",
+        )
     rpm = np.arange(lb.rpm_min, lb.rpm_max + 0.5 * lb.rpm_step, lb.rpm_step)
     return MillingStabilityCase(
         name=spec.name or Path(source).stem,
@@ -231,13 +271,23 @@ def compute_lobes(
     steps_per_period: int | None = None,
     extrapolate: bool | None = None,
     progress: Callable[[int], None] | None = None,
+    robust: bool = True,
+    refine_minima: bool = True,
+    bands_up_to: float | None = None,
+    tol: float | None = None,
 ) -> Any:
     """Lobe diagram of a case (:class:`millsense.stability.lobes.LobeResult`).
 
-    Parameters default to the case file's ``[lobes]`` table.
+    Parameters default to the case file's ``[lobes]`` table. SDM charts use the robust search
+    of :mod:`millsense.stability.robust` (a :class:`~millsense.stability.robust.RobustLobeResult`
+    with bands, tolerances and refined minima); ``robust=False`` gives the earlier
+    continuation search (:func:`millsense.stability.lobes.sdm_lobes`), kept as the baseline
+    of the benchmarks. ``bands_up_to``: islands searched up to this multiple of the limit
+    (default 3 for a chart, all of ``depth_max`` for a single speed).
     """
     from millsense.stability.lobes import sdm_lobes
     from millsense.stability.milling import milling_dde
+    from millsense.stability.robust import TOLERANCE, robust_lobes
     from millsense.stability.zoa import zoa_lobes
 
     meth = method or case.method
@@ -271,6 +321,22 @@ def compute_lobes(
     def compliance(f: np.ndarray) -> np.ndarray:
         return np.asarray(np.abs(case.structure.frf(f)).max(axis=(-2, -1)))
 
+    if robust:
+        single = speeds.size == 1
+        up_to = bands_up_to if bands_up_to is not None else (math.inf if single else 3.0)
+        return robust_lobes(
+            family_at,
+            speeds,
+            2.0 * max(case.natural_frequencies_hz),
+            steps_per_period or case.steps_per_period,
+            depth_max=case.depth_max,
+            steps_per_cycle=case.steps_per_cycle,
+            extrapolate=case.extrapolate if extrapolate is None else extrapolate,
+            tol=TOLERANCE if tol is None else tol,
+            bands_up_to=up_to,
+            refine_minima=refine_minima and not single,
+            progress=progress,
+        )
     return sdm_lobes(
         family_at,
         speeds,

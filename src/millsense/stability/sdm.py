@@ -157,13 +157,18 @@ def step_means_from_callables(
 
 @numba.njit(cache=True)
 def _matmul_into(a: FloatArray, b: FloatArray, out: FloatArray) -> None:  # pragma: no cover
+    # row-by-row (i, q, j) order: the inner loop runs over contiguous memory and skips the
+    # zero entries of the sparse Van Loan block matrices; each out[i, j] sums over q in the
+    # same order as the textbook (i, j, q) loop, so the result is bit-for-bit the same
     k = a.shape[0]
     for i in range(k):
         for j in range(k):
-            acc = 0.0
-            for q in range(k):
-                acc += a[i, q] * b[q, j]
-            out[i, j] = acc
+            out[i, j] = 0.0
+        for q in range(k):
+            aiq = a[i, q]
+            if aiq != 0.0:
+                for j in range(k):
+                    out[i, j] += aiq * b[q, j]
 
 
 @numba.njit(cache=True)

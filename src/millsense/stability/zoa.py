@@ -241,3 +241,25 @@ def tlusty_limit(frf: ComplexArray, freq_hz: FloatArray, kf: float) -> tuple[flo
     if re >= 0:
         return math.inf, math.nan
     return -1.0 / (2.0 * kf * re), float(freq_hz[i])
+
+
+#: Engaged fraction of the tooth period at or below which flip lobes are expected (0909).
+FLIP_ENGAGED_FRACTION = 0.5
+
+
+def engaged_fraction(flutes: int, phi_st: float, phi_ex: float) -> float:
+    """Fraction of each tooth period during which a tooth cuts: N (φ_ex − φ_st) / 2π."""
+    return flutes * (phi_ex - phi_st) / (2 * math.pi)
+
+
+def flip_lobes_expected(flutes: int, phi_st: float, phi_ex: float) -> bool:
+    """True when cutting is interrupted enough for period-doubling (flip) lobes (decision 0909).
+
+    ZOA averages the directional matrix over the tooth period and so has only Hopf lobes. The
+    time-varying part that creates flip lobes grows as the engaged fraction shrinks
+    (Insperger et al. 2003, Merdol & Altintas 2004); for the Insperger 1-DOF benchmark SDM
+    charts (5000–25000 rev/min) flip points appear on the lower envelope from a/D = 0.5
+    (engaged fraction 0.5 with 2 flutes) down, so the warning starts at an engaged fraction
+    of 0.5.
+    """
+    return engaged_fraction(flutes, phi_st, phi_ex) <= FLIP_ENGAGED_FRACTION + 1e-12

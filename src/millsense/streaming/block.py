@@ -29,6 +29,8 @@ class EventKind(StrEnum):
     ALARM = "alarm"  #: a condition the operator must see (chatter, breakage)
     OVERRIDE = "override"  #: a feed/spindle override or feed-hold command for the source
     NOTE = "note"  #: information (calibration done, segment entered)
+    CRASH = "crash"  #: the machine would crash (tool engaged with the spindle stopped, a force
+    #: or power beyond the machine's limits): raised by the simulator
 
 
 @dataclass(frozen=True)
@@ -38,7 +40,7 @@ class Event:
     Attributes
     ----------
     time_s : time of the sample that triggered it, s.
-    kind : alarm, override or note.
+    kind : alarm, override, note or crash.
     source : name of the block that emitted it.
     message : one human-readable line.
     name : machine-readable name (``chatter``, ``feed_override``...).

@@ -124,6 +124,7 @@ def run(
     *,
     sink: ChunkSink | None = None,
     on_progress: Callable[[int], None] | None = None,
+    collect: bool = True,
 ) -> RunResult:
     """Feed ``pipeline`` from ``source`` in chunks of ``chunk_samples`` until it ends.
 
@@ -131,6 +132,10 @@ def run(
     source applies them with its own latency; a replay records them). ``sink`` receives every
     chunk with its outputs as soon as they exist (e.g. a live recording writer), and
     ``on_progress`` the number of samples processed so far.
+
+    ``collect``: keep every output sample for :attr:`RunResult.channels` (the default). With
+    ``collect=False`` the outputs exist only chunk by chunk in ``sink`` and the result's
+    ``channels`` are empty: memory does not grow with the length of the stream (decision 0961).
     """
     if chunk_samples < 1:
         raise ValueError("chunk_samples must be >= 1")
@@ -145,8 +150,9 @@ def run(
         if chunk is None or chunk.n == 0:
             break
         outputs, chunk_events = pipeline.process(chunk)
-        for name, values in outputs.items():
-            pieces.setdefault(name, []).append(np.asarray(values))
+        if collect:
+            for name, values in outputs.items():
+                pieces.setdefault(name, []).append(np.asarray(values))
         events.extend(chunk_events)
         for ev in chunk_events:
             if ev.kind is EventKind.OVERRIDE:
@@ -156,7 +162,9 @@ def run(
         done += chunk.n
         if on_progress is not None:
             on_progress(done)
-    channels = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in pieces.items()}
+    channels = (
+        {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in pieces.items()} if collect else {}
+    )
     return RunResult(
         sample_rate_hz=source.sample_rate_hz,
         t0_s=source.t0_s,

@@ -16,13 +16,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from millsense.core.config import FeedEstimatorConfig, MachineConfig
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo, Recording
-from millsense.estimation.feed.commanded import CommandedVelocity, commanded_velocity
+from millsense.estimation.feed.commanded import CommandedVelocity, velocity_source
 from millsense.ident.idle_table import DirectionIdle, build_direction_idle
 from millsense.streaming.block import Block, BlockOutput, Chunk
 from millsense.streaming.engine import Pipeline
@@ -44,16 +45,19 @@ SPINDLE_TOLERANCE = 0.02
 MIN_AIR_S = 0.05
 #: Metadata key: path length (m, ∫ cnc/feed dt from the start) where the tool enters the stock.
 FIRST_ENGAGEMENT_KEY = "first_engagement_path_m"
+#: Samples read at once when scanning a recording for its air phase.
+SCAN_BLOCK = 65536
 
 
-def find_air_window(rec: Recording, where: str) -> slice:
+def find_air_window(rec: Recording | Any, where: str) -> slice:
     """The air phase at cutting feed before the first engagement, from CNC-visible data.
 
     Parameters
     ----------
-    rec : the recording; its metadata :data:`FIRST_ENGAGEMENT_KEY` (written by ``millsense
-        simulate`` from the program's set-up or the plan) says where along the path the tool
-        enters the stock, ``cnc/feed`` gives the path length travelled.
+    rec : the recording (in memory, or a :class:`~millsense.io.recording_reader.
+        RecordingReader` read in blocks); its metadata :data:`FIRST_ENGAGEMENT_KEY` (written
+        by ``millsense simulate`` from the program's set-up or the plan) says where along the
+        path the tool enters the stock, ``cnc/feed`` gives the path length travelled.
     where : file name for error messages.
 
     Returns
@@ -67,7 +71,16 @@ def find_air_window(rec: Recording, where: str) -> slice:
     ------
     InputDataError (one line) when the metadata or a channel is missing or the phase is shorter
     than :data:`MIN_AIR_S`.
+
+    Notes
+    -----
+    Two passes over blocks of :data:`SCAN_BLOCK` samples, nothing kept per sample (decision
+    0961): the first integrates the path (``cumsum`` carried across blocks, the same
+    sequential sum as over the whole channel) up to the stock; the second tracks the last run
+    of steady samples before it.
     """
+    from millsense.io.recording_reader import channel_window
+
     s_eng = rec.metadata.get(FIRST_ENGAGEMENT_KEY)
     if not isinstance(s_eng, (int, float)) or isinstance(s_eng, bool) or not s_eng >= 0:
         raise InputDataError(
@@ -77,29 +90,52 @@ def find_air_window(rec: Recording, where: str) -> slice:
     if "cnc/feed" not in rec:
         raise InputDataError(f"{where}: no channel 'cnc/feed' (--idle auto needs the path feed)")
     fs = rec.sample_rate_hz
-    feed = np.asarray(rec.channel("cnc/feed"), dtype=float)
-    n = len(feed)
-    path = np.cumsum(feed) / fs
-    i_eng = int(np.searchsorted(path, float(s_eng)))
-    i_end = int(np.searchsorted(path, float(s_eng) - AIR_GUARD_M))
-    feed_cut = float(feed[min(i_eng, n - 1)]) if n else 0.0
+    n = rec.n_samples
+
+    def feed_at(a: int, b: int) -> np.ndarray:
+        return np.asarray(channel_window(rec, "cnc/feed", a, b), dtype=float)
+
+    # pass 1: first samples whose path length reaches the stock (minus the guard)
+    i_eng = i_end = n
+    carry = 0.0
+    for a in range(0, n, SCAN_BLOCK):
+        b = min(n, a + SCAN_BLOCK)
+        acc = np.cumsum(np.concatenate([[carry], feed_at(a, b)]))
+        carry = float(acc[-1])
+        path = acc[1:] / fs
+        if i_end == n and path[-1] >= float(s_eng) - AIR_GUARD_M:
+            i_end = a + int(np.searchsorted(path, float(s_eng) - AIR_GUARD_M))
+        if path[-1] >= float(s_eng):
+            i_eng = a + int(np.searchsorted(path, float(s_eng)))
+            break
+    feed_cut = float(feed_at(min(i_eng, n - 1), min(i_eng, n - 1) + 1)[0]) if n else 0.0
     if not feed_cut > 0:
         raise InputDataError(f"{where}: --idle auto: no feed where the cut starts")
-    ok = np.abs(feed - feed_cut) <= FEED_TOLERANCE * feed_cut
-    if "spindle/speed_cmd" in rec and "spindle/speed" in rec:
-        cmd = np.asarray(rec.channel("spindle/speed_cmd"), dtype=float)
-        spd = np.asarray(rec.channel("spindle/speed"), dtype=float)
-        ok &= (cmd != 0) & (np.abs(spd - cmd) <= SPINDLE_TOLERANCE * np.abs(cmd))
-    ok[i_end:] = False
-    idx = np.flatnonzero(ok)
-    if not len(idx):
+    spindle = "spindle/speed_cmd" in rec and "spindle/speed" in rec
+    # pass 2: the last run of steady samples before i_end
+    run_start = last = -1
+    prev = False
+    for a in range(0, i_end, SCAN_BLOCK):
+        b = min(i_end, a + SCAN_BLOCK)
+        feed = feed_at(a, b)
+        ok = np.abs(feed - feed_cut) <= FEED_TOLERANCE * feed_cut
+        if spindle:
+            cmd = np.asarray(channel_window(rec, "spindle/speed_cmd", a, b), dtype=float)
+            spd = np.asarray(channel_window(rec, "spindle/speed", a, b), dtype=float)
+            ok &= (cmd != 0) & (np.abs(spd - cmd) <= SPINDLE_TOLERANCE * np.abs(cmd))
+        starts = np.flatnonzero(np.diff(np.concatenate([[prev], ok]).astype(np.int8)) == 1)
+        if len(starts):
+            run_start = a + int(starts[-1])
+        idx = np.flatnonzero(ok)
+        if len(idx):
+            last = a + int(idx[-1])
+        prev = bool(ok[-1])
+    if last < 0:
         raise InputDataError(
             f"{where}: --idle auto: no sample at the cutting feed ({feed_cut * 6e4:.0f} mm/min) "
             "with the spindle at speed before the cut"
         )
-    breaks = np.flatnonzero(np.diff(idx) > 1)
-    start = int(idx[breaks[-1] + 1]) if len(breaks) else int(idx[0])
-    stop = int(idx[-1]) + 1
+    start, stop = run_start, last + 1
     start += round(AIR_SETTLE_S * fs)
     if (stop - start) < MIN_AIR_S * fs:
         raise InputDataError(
@@ -110,7 +146,7 @@ def find_air_window(rec: Recording, where: str) -> slice:
     return slice(start, stop)
 
 
-def parse_air_window(text: str, rec: Recording, where: str) -> slice:
+def parse_air_window(text: str, rec: Recording | Any, where: str) -> slice:
     """``START:END`` (s from the start of the recording) as a slice of samples.
 
     Raises
@@ -137,19 +173,55 @@ def parse_air_window(text: str, rec: Recording, where: str) -> slice:
 
 
 def _run_prefix(
-    rec: Recording, blocks: Sequence[Block], stop: int, where: str, chunk: int
+    rec: Recording | Any,
+    blocks: Sequence[Block],
+    stop: int,
+    where: str,
+    chunk: int,
+    keep: slice,
 ) -> tuple[dict[str, np.ndarray], Pipeline]:
-    """Outputs of ``blocks`` (reset first) over samples ``[0, stop)`` of ``rec``."""
+    """Outputs of ``blocks`` (reset first) run over samples ``[0, stop)`` of ``rec``, kept only
+    for the samples ``keep`` (the air phase): memory bounded by the air phase, not by where in
+    the recording it lies (decision 0961). The returned arrays start at ``keep.start``."""
     from millsense.streaming.engine import run
     from millsense.streaming.sources import RecordingSource
 
     pipe = Pipeline(list(blocks))
-    res = run(RecordingSource(rec, where, stop_sample=stop), pipe, chunk)
-    return res.channels, pipe
+    k0, k1 = keep.start, min(keep.stop, stop)
+    pieces: dict[str, list[np.ndarray]] = {c.name: [] for c in pipe.output_channels()}
+
+    def sink(ch: Chunk, outputs: dict[str, np.ndarray], _ev: object) -> None:
+        a, b = max(k0, ch.start), min(k1, ch.start + ch.n)
+        if b > a:
+            for name, values in outputs.items():
+                pieces[name].append(np.asarray(values[a - ch.start : b - ch.start]))
+
+    needed = {c for b in blocks for c in b.inputs}
+    source = RecordingSource(rec, where, stop_sample=stop, channels=sorted(needed))
+    run(source, pipe, chunk, sink=sink, collect=False)
+    outs = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in pieces.items()}
+    return outs, pipe
+
+
+def _commanded_window(
+    rec: Recording | Any, axis: str, where: str, start: int, stop: int
+) -> np.ndarray:
+    """Samples ``[start, stop)`` of :func:`commanded_velocity` (the same values: the
+    difference reads the sample before ``start``; sample 0 reads 0)."""
+    from millsense.io.recording_reader import channel_window
+
+    ch = velocity_source(axis)
+    if ch not in rec:
+        raise InputDataError(f"{where}: no channel '{ch}' (the commanded velocity of {axis})")
+    stream = CommandedVelocity(axis)
+    stream.reset(rec.sample_rate_hz)
+    a = max(start - 1, 0)
+    v = stream(np.asarray(channel_window(rec, ch, a, stop), dtype=float))
+    return v[start - a :]
 
 
 def measure_idle(
-    rec: Recording,
+    rec: Recording | Any,
     blocks: Sequence[Block],
     estimates: Sequence[tuple[str, str, str, int]],
     window: slice,
@@ -160,7 +232,7 @@ def measure_idle(
 
     Parameters
     ----------
-    rec : the recording holding the air phase.
+    rec : the recording holding the air phase (in memory or a windowed reader).
     blocks : estimator blocks not used elsewhere (they are reset and run here).
     estimates : (method, axis, channel, delay_samples) of ``blocks``.
     window : air samples (input time); each output is read ``delay_samples`` later.
@@ -173,16 +245,16 @@ def measure_idle(
     commanded velocity (:func:`commanded_velocity`).
     """
     stop = min(rec.n_samples, window.stop + max((d for *_, d in estimates), default=0))
-    outs, pipe = _run_prefix(rec, blocks, stop, where, chunk)
+    outs, pipe = _run_prefix(rec, blocks, stop, where, chunk, slice(window.start, stop))
     units = {c.name: c.unit for c in pipe.output_channels()}
     tables: dict[tuple[str, str], DirectionIdle] = {}
     for m, ax, ch, d in estimates:
         i0, i1 = window.start + d, min(window.stop + d, stop)
         n = i1 - i0
-        vel = commanded_velocity(rec, ax, where)[window.start : window.start + n]
+        vel = _commanded_window(rec, ax, where, window.start, window.start + n)
         tables[(m, ax)] = build_direction_idle(
             vel,
-            outs[ch][i0:i1],
+            outs[ch][i0 - window.start : i1 - window.start],
             deadband=VELOCITY_DEADBAND,
             unit=units[ch],
             min_samples=min(100, max(n // 2, 1)),
@@ -246,7 +318,7 @@ class IdleCompensatedBlock(Block):
 def with_air_r(
     machine: MachineConfig,
     axes: Sequence[str],
-    rec: Recording,
+    rec: Recording | Any,
     window: slice,
     where: str,
 ) -> tuple[MachineConfig, dict[str, float]]:
@@ -286,8 +358,10 @@ def with_air_r(
             continue
         _, _, lowpass = c3_front_end(a, cfg, rec.sample_rate_hz, where)
         ch = load_channel("raw", a)
-        outs, _ = _run_prefix(rec, [raw_estimator(a, machine, lowpass)], window.stop, where, 1000)
-        torque = -outs[ch][window] * cfg.transmission_m_rad / cfg.efficiency
+        outs, _ = _run_prefix(
+            rec, [raw_estimator(a, machine, lowpass)], window.stop, where, 1000, window
+        )
+        torque = -outs[ch] * cfg.transmission_m_rad / cfg.efficiency
         r = air_cut_variance(torque, fs=rec.sample_rate_hz)
         if not r > 0:
             continue
