@@ -64,7 +64,7 @@ def _sweep_peak(drive_like: FeedDriveSim, lo: float, hi: float) -> tuple[np.ndar
     return f[band], np.abs(h[band])
 
 
-def test_on_by_default_and_all_switches_off_change_nothing() -> None:
+def test_realism_follows_the_plant_and_all_switches_off_change_nothing() -> None:
     assert RealismOptions().enabled
     assert SimulatorOptions(ideal=False).realism_in_effect.enabled
     assert not SimulatorOptions(ideal=True).realism_in_effect.enabled
