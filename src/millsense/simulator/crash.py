@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from millsense.core.config import MachineConfig
 from millsense.core.plausibility import SPINDLE_STOPPED_RPM
-from millsense.streaming.block import Event, EventKind
+from millsense.streaming.block import Event, EventKind, Severity
 
 FloatArray = NDArray[np.float64]
 
@@ -63,7 +63,15 @@ class CrashMonitor:
         last = self._last_on.get(name)
         if last is None or time_s - last > REARM_S:
             self.events.append(
-                Event(time_s, EventKind.CRASH, self.source, message, name=name, value=value)
+                Event(
+                    time_s,
+                    EventKind.CRASH,
+                    self.source,
+                    message,
+                    name=name,
+                    value=value,
+                    severity=Severity.CRITICAL,
+                )
             )
         self._last_on[name] = time_s
 

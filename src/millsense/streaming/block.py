@@ -33,9 +33,18 @@ class EventKind(StrEnum):
     #: or power beyond the machine's limits): raised by the simulator
 
 
+class Severity(StrEnum):
+    """How urgent an event is (issue 15: one event model for monitors and controllers)."""
+
+    INFO = "info"  #: nothing to do (a calibration finished, a segment entered)
+    WARNING = "warning"  #: the operator should look (chatter onset, a recommendation)
+    CRITICAL = "critical"  #: the process must be acted on now (breakage, crash, feed hold)
+
+
 @dataclass(frozen=True)
 class Event:
-    """A time-stamped event emitted by a block.
+    """A time-stamped event emitted by a block: the one event model shared by monitors,
+    controllers and the simulator (issue 15, item 5).
 
     Attributes
     ----------
@@ -43,8 +52,13 @@ class Event:
     kind : alarm, override, note or crash.
     source : name of the block that emitted it.
     message : one human-readable line.
-    name : machine-readable name (``chatter``, ``feed_override``...).
-    value : optional number (an override in percent, a frequency in Hz...).
+    name : machine-readable name (``chatter``, ``breakage``, ``feed_override``...).
+    value : the event's main number (an override in percent, a chatter frequency in Hz...).
+    sample : index of that sample since the start of the stream (-1: not known).
+    severity : info, warning or critical.
+    values : further named numbers, units in the names (``energy_ratio``, ``tooth``...).
+    nc_line : the part-program line being executed (from the virtual plan), if known.
+    x_mm, y_mm, z_mm : tool-tip position on the tool path (from the plan), if known.
     """
 
     time_s: float
@@ -53,14 +67,28 @@ class Event:
     message: str
     name: str = ""
     value: float | None = None
+    sample: int = -1
+    severity: Severity = Severity.INFO
+    values: Mapping[str, float] = field(default_factory=dict)
+    nc_line: int | None = None
+    x_mm: float | None = None
+    y_mm: float | None = None
+    z_mm: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return {
             "time_s": self.time_s,
+            "sample": self.sample,
             "kind": str(self.kind),
+            "severity": str(self.severity),
             "source": self.source,
             "name": self.name,
             "value": self.value,
+            "values": dict(self.values),
+            "nc_line": self.nc_line,
+            "x_mm": self.x_mm,
+            "y_mm": self.y_mm,
+            "z_mm": self.z_mm,
             "message": self.message,
         }
 

@@ -1,0 +1,77 @@
+"""The event log (issue 15, item 5): one Parquet row per event, read back unchanged, readable
+with pandas; bad files named."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from millsense.core.errors import ConfigError
+from millsense.streaming import Event, EventKind, Severity, read_event_log, write_event_log
+from millsense.streaming.event_log import default_event_log_path
+
+
+def _events() -> list[Event]:
+    return [
+        Event(
+            1.25,
+            EventKind.ALARM,
+            "chatter.comb",
+            "chatter at 938 Hz",
+            name="chatter",
+            value=938.0,
+            sample=12500,
+            severity=Severity.WARNING,
+            values={"energy_ratio": 2.4, "tooth_passing_hz": 400.0},
+            nc_line=17,
+            x_mm=12.5,
+            y_mm=-3.0,
+            z_mm=-2.0,
+        ),
+        Event(0.5, EventKind.NOTE, "plan", "segment entered", name="segment"),
+        Event(
+            2.0,
+            EventKind.OVERRIDE,
+            "afc",
+            "feed hold",
+            name="feed_hold",
+            value=0.0,
+            severity=Severity.CRITICAL,
+            values={"nan_value": math.nan},
+        ),
+    ]
+
+
+def test_round_trip_sorted_by_time(tmp_path):
+    p = write_event_log(tmp_path / "run.events.parquet", _events())
+    back = read_event_log(p)
+    assert [e.time_s for e in back] == [0.5, 1.25, 2.0]  # sorted by time on writing
+    chatter = back[1]
+    assert chatter == Event(**{**_events()[0].__dict__})
+    assert back[0].nc_line is None and back[0].x_mm is None and back[0].sample == -1
+    assert back[2].severity is Severity.CRITICAL
+    assert math.isnan(back[2].values["nan_value"])  # non-finite numbers stored as null
+
+
+def test_plain_parquet_columns(tmp_path):
+    """Any Parquet reader (pandas, duckdb, pyarrow) sees plain typed columns."""
+    import pyarrow.parquet as pq
+
+    p = write_event_log(tmp_path / "e.parquet", _events())
+    t = pq.read_table(p).to_pydict()
+    assert t["name"] == ["segment", "chatter", "feed_hold"]
+    assert t["value"][1] == 938.0
+    assert t["nc_line"] == [None, 17, None]
+    assert pq.read_schema(p).metadata[b"millsense_event_log_schema_version"] == b"1"
+
+
+def test_default_path_beside_recording(tmp_path):
+    assert default_event_log_path(tmp_path / "run.h5") == tmp_path / "run.events.parquet"
+
+
+def test_not_an_event_log_is_named(tmp_path):
+    bad = tmp_path / "bad.parquet"
+    bad.write_text("not parquet")
+    with pytest.raises(ConfigError, match=r"bad\.parquet"):
+        read_event_log(bad)
