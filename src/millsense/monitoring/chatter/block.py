@@ -1,0 +1,364 @@
+"""The chatter monitor: a streaming block running one chatter criterion on any channel.
+
+Input: one signal channel (compensated spindle torque/current, a compensated feed-drive
+force, an accelerometer or microphone), the spindle speed (a channel in rad/s or rev/min, or a
+constant), optionally the CNC's NC-line channel. Every ``hop`` samples (0.1 s, seed 000's
+update period) the last ``window`` samples of the raw signal and of its comb-filtered version
+(:mod:`.comb`) are transformed and judged by the method (:mod:`.methods`).
+
+Outputs, one value per sample, held between decisions: ``{name}/chatter`` (0/1),
+``{name}/chatter_hz`` (Hz, NaN without chatter) and ``{name}/energy_ratio`` (the method's
+ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARNING, value
+the chatter frequency) is raised when a run of chatter windows starts, a NOTE
+``chatter_end`` when it ends.
+
+Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
+and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
+persists between chunks, so chunks of 1, 7, 100 samples or the whole stream give identical
+outputs and events.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring.chatter.comb import comb_coefficients, ingest
+from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+#: Where an event happened on the tool path: (time s, NC line or None) → (NC line, x, y, z mm).
+Locator = Callable[[float, int | None], tuple[int | None, float | None, float | None, float | None]]
+
+#: Background learning time constants, s (decision 1504).
+BACKGROUND_TAU_S = 2.0
+BACKGROUND_TAU_AIR_S = 0.5
+BACKGROUND_TAU_NOVEL_S = 30.0
+#: A comb component is new when above this many times its background (decision 1504).
+NOVELTY_FACTOR = 2.0
+#: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
+CUTTING_GATE = 3.0
+#: Largest relative spread of the spindle speed over a window for a decision.
+STEADY_SPEED = 0.02
+#: Calibration of the threshold method: first seconds of the run, factor on their maximum.
+CALIBRATION_S = 1.0
+CALIBRATION_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class ChatterSettings:
+    """Settings of a :class:`ChatterMonitor`.
+
+    Attributes
+    ----------
+    method : ``chatter-comb``, ``chatter-sdft`` or ``chatter-threshold``.
+    signal : channel analysed.
+    n_flutes : teeth of the tool (tooth-passing frequency = flutes × spindle frequency).
+    speed_channel : spindle-speed channel, or None for ``speed_rpm``.
+    speed_unit : unit of ``speed_channel``: ``rad/s`` or ``rev/min``.
+    speed_rpm : constant spindle speed when there is no speed channel, rev/min.
+    nc_line_channel : the CNC's NC-line channel, or None.
+    band_hz : frequencies searched for chatter (the upper one is limited to 0.45·f_s).
+    hop_s : time between decisions, s (0.1 s, seed 000).
+    threshold : the method's threshold (None: the seed's; calibrated for the threshold
+        method).
+    min_speed_rpm : below this the spindle counts as stopped (no decision), rev/min.
+    """
+
+    method: str = "chatter-comb"
+    signal: str = "spindle/torque_est"
+    n_flutes: int = 2
+    speed_channel: str | None = "spindle/speed"
+    speed_unit: str = "rad/s"
+    speed_rpm: float | None = None
+    nc_line_channel: str | None = None
+    band_hz: tuple[float, float] = (50.0, 5000.0)
+    hop_s: float = 0.1
+    threshold: float | None = None
+    min_speed_rpm: float = 300.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError(
+                f"chatter monitor: unknown method {self.method!r} (known: {', '.join(METHODS)})"
+            )
+        if self.n_flutes < 1:
+            raise ConfigError(f"chatter monitor: flutes must be ≥ 1, got {self.n_flutes}")
+        if self.speed_channel is None and not (self.speed_rpm and self.speed_rpm > 0):
+            raise ConfigError("chatter monitor: give a spindle-speed channel or a speed > 0 rev/min")
+        if self.speed_unit not in ("rad/s", "rev/min"):
+            raise ConfigError(f"chatter monitor: speed unit {self.speed_unit!r} (rad/s, rev/min)")
+        lo, hi = self.band_hz
+        if not 0 <= lo < hi:
+            raise ConfigError(f"chatter monitor: band {self.band_hz} Hz must be 0 ≤ low < high")
+        if not self.hop_s > 0:
+            raise ConfigError(f"chatter monitor: hop {self.hop_s} s must be > 0")
+
+
+class ChatterMonitor(Block):
+    """Streaming chatter detection by one criterion (see the module notes).
+
+    Parameters
+    ----------
+    settings : what to read and which criterion.
+    locate : maps (time, NC line) to the NC line and tool-tip position on the path (from the
+        virtual plan), or None.
+    name : block name (default: the method's name); prefixes the output channels.
+    """
+
+    def __init__(
+        self, settings: ChatterSettings, locate: Locator | None = None, name: str | None = None
+    ) -> None:
+        self.settings = s = settings
+        self.method: ChatterMethod = METHODS[s.method]
+        if s.threshold is not None:
+            from dataclasses import replace
+
+            self.method = replace(self.method, threshold=float(s.threshold))
+        self.name = name or s.method
+        self.locate = locate
+        ins = [s.signal]
+        if s.speed_channel is not None:
+            ins.append(s.speed_channel)
+        if s.nc_line_channel is not None:
+            ins.append(s.nc_line_channel)
+        self.inputs = tuple(ins)
+        self._alpha, self._beta = comb_coefficients()
+        self._fs = 0.0
+
+    # ------------------------------------------------------------------ contract
+    def output_channels(self) -> list[ChannelInfo]:
+        m = self.method
+        return [
+            ChannelInfo(f"{self.name}/chatter", "1", f"1 while chatter ({m.seed} {m.name})"),
+            ChannelInfo(f"{self.name}/chatter_hz", "Hz", "chatter frequency (NaN: none)"),
+            ChannelInfo(
+                f"{self.name}/energy_ratio", "1", f"{m.name} ratio (chatter above the threshold)"
+            ),
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        s = self.settings
+        fs = self._fs = float(sample_rate_hz)
+        self._hop = max(1, round(s.hop_s * fs))
+        n = self.method.window
+        d_max = fs * 60.0 / s.min_speed_rpm
+        size = 1 << math.ceil(math.log2(max(n, d_max + 8)))
+        self._ring_x = np.zeros(size)
+        self._ring_y = np.zeros(size)
+        self._state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
+        self._ranges: list[tuple[float, float]] = []
+        self._pos = 0
+        self._smooth = 1.0 - math.exp(-1.0 / (0.01 * fs))  # 10 ms speed smoothing
+        # the raw spectrum (tooth-passing line, threshold method) is Hann-tapered (−1.4 dB
+        # scalloping at most); the comb-filtered one is rectangular as Eq. 5.30 and the SDFT:
+        # it holds no strong harmonics to leak, and the newest samples keep full weight, which
+        # is what the detection latency depends on (decision 1502)
+        self._taper = np.hanning(n)
+        self._scale = 2.0 / float(np.sum(self._taper))
+        self._comb_taper = np.hanning(n) if self.method.taper == "hann" else np.ones(n)
+        self._comb_scale = 2.0 / float(np.sum(self._comb_taper))
+        f = np.fft.rfftfreq(n, 1.0 / fs)
+        self._f = f
+        lo, hi = s.band_hz
+        self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
+        self._background: np.ndarray | None = None
+        self._flag = 0.0
+        self._freq = math.nan
+        self._ratio = 0.0
+        self._run_start: float | None = None  # time of the first window of a rising run
+        self._calib: list[float] = []
+        self._calibrated: float | None = None
+        if s.speed_channel is None:
+            self._const_speed = abs(float(s.speed_rpm or 0.0)) / 60.0
+        self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        s = self.settings
+        x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
+        n = len(x)
+        if s.speed_channel is not None:
+            spd = np.asarray(chunk.data[s.speed_channel], dtype=np.float64) * self._speed_factor
+        else:
+            spd = np.full(n, self._const_speed)
+        spd = np.ascontiguousarray(spd)
+        flag = np.empty(n)
+        freq = np.empty(n)
+        ratio = np.empty(n)
+        events: list[Event] = []
+        i = 0
+        hop = self._hop
+        while i < n:
+            k_abs = chunk.start + i
+            to_decision = (hop - 1 - k_abs) % hop  # samples before the next decision sample
+            j = min(n, i + to_decision + 1)
+            ingest(
+                x[i:j], spd[i:j], self._fs, self._alpha, self._beta, self._ring_x, self._ring_y,
+                self._pos, self._state, s.min_speed_rpm / 60.0, self._smooth,
+            )  # fmt: skip
+            self._pos += j - i
+            decided = (chunk.start + j) % hop == 0
+            if decided:
+                # outputs before the decision sample hold the old values
+                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = (
+                    self._flag,
+                    self._freq,
+                    self._ratio,
+                )
+                nc = None
+                if s.nc_line_channel is not None:
+                    nc = int(chunk.data[s.nc_line_channel][j - 1])
+                events.extend(self._decide(chunk.start + j - 1, chunk, nc))
+                flag[j - 1], freq[j - 1], ratio[j - 1] = self._flag, self._freq, self._ratio
+            else:
+                flag[i:j], freq[i:j], ratio[i:j] = self._flag, self._freq, self._ratio
+            i = j
+        return BlockOutput(
+            {
+                f"{self.name}/chatter": flag,
+                f"{self.name}/chatter_hz": freq,
+                f"{self.name}/energy_ratio": ratio,
+            },
+            events,
+        )
+
+    # ------------------------------------------------------------------ decision
+    def _spectra(self) -> Spectra | None:
+        st = self._state
+        f_rev = st[1] / st[2] if st[2] > 0 else 0.0
+        n = self.method.window
+        self._ranges.append((float(st[3]), float(st[4])))
+        del self._ranges[: -(n // self._hop + 2)]
+        st[1] = st[2] = st[4] = 0.0
+        st[3] = np.inf
+        if self._pos < n:
+            return None
+        lo = min(r[0] for r in self._ranges)
+        hi = max(r[1] for r in self._ranges)
+        if not hi <= (1.0 + STEADY_SPEED) * lo:
+            return None  # speed changing within the window: no decision (decision 1504)
+        size = len(self._ring_x)
+        idx = (self._pos - n + np.arange(n)) & (size - 1)
+        xr = self._ring_x[idx]
+        xr = xr - xr.mean()
+        xc = self._ring_y[idx]
+        raw = np.abs(np.fft.rfft(xr * self._taper)) * self._scale
+        raw_rect = None
+        if self.method.taper == "rect":
+            raw_rect = np.abs(np.fft.rfft(xr)) * (2.0 / n)
+        comb = np.abs(np.fft.rfft(xc * self._comb_taper)) * self._comb_scale
+        f = self._f
+        f_t = self.settings.n_flutes * f_rev
+        df = f[1]
+        near = np.abs(f - f_t) <= max(2.0 * df, 0.005 * f_t)
+        tooth = float(raw[near].max()) if f_rev * 60.0 >= self.settings.min_speed_rpm else 0.0
+        med = float(np.median(raw[self._band])) if self._band.any() else 0.0
+        cutting = tooth > CUTTING_GATE * med and tooth > 0.0
+        if self._background is None:
+            # learned from air only: a first window already in the cut (chatter may start
+            # with the cut) must not become the background
+            self._background = np.zeros_like(comb) if cutting else comb.copy()
+        novel = comb - NOVELTY_FACTOR * self._background
+        if f_rev > 0:
+            # chatter is never on a spindle harmonic (that is forced vibration): bins within
+            # the comb's notch width or 2 bins of one are not searched
+            off = np.abs(f - f_rev * np.rint(f / f_rev))
+            novel = np.where(off <= max(2.0 * df, 0.5 * f_rev / 10.0), -1.0, novel)
+        return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+
+    def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
+        """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
+        bins that are new (possible chatter) in 30 s, the others in 2 s."""
+        assert self._background is not None
+        hop = self.settings.hop_s
+        if not cutting:
+            a: np.ndarray | float = min(1.0, hop / BACKGROUND_TAU_AIR_S)
+        else:
+            a = np.where(
+                novel > 0.0,
+                min(1.0, hop / BACKGROUND_TAU_NOVEL_S),
+                min(1.0, hop / BACKGROUND_TAU_S),
+            )
+        self._background += a * (comb - self._background)
+
+    def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
+        sp = self._spectra()
+        t = chunk.t0_s + k / chunk.sample_rate_hz
+        if sp is None:
+            return []
+        v: Verdict
+        if self.method.name == "chatter-threshold" and self.method.threshold is None:
+            if t < chunk.t0_s + CALIBRATION_S and sp.f_rev_hz * 60 >= self.settings.min_speed_rpm:
+                self._calib.append(float(np.max(np.where(sp.band, sp.raw, 0.0))))
+            elif self._calibrated is None and self._calib:
+                self._calibrated = CALIBRATION_FACTOR * max(self._calib)
+        v = self.method.decide(sp, self._calibrated)
+        if self.method.learns_background:
+            self._learn(sp.comb, sp.novel, sp.cutting)
+        was = bool(self._flag)
+        now = v.chatter
+        if v.ratio > 0.5 * v.threshold:
+            if self._run_start is None:
+                self._run_start = t
+        else:
+            self._run_start = None
+        self._ratio = v.ratio
+        self._freq = v.frequency_hz if now else math.nan
+        self._flag = 1.0 if now else 0.0
+        if now and not was:
+            return [self._alarm(t, k, sp, v, nc)]
+        if was and not now:
+            return [
+                Event(
+                    t, EventKind.NOTE, self.name, f"chatter ended ({self.method.name})",
+                    name="chatter_end", sample=k, severity=Severity.INFO,
+                )  # fmt: skip
+            ]
+        return []
+
+    def _alarm(self, t: float, k: int, sp: Spectra, v: Verdict, nc: int | None) -> Event:
+        s = self.settings
+        f_c = v.frequency_hz
+        f_t = sp.f_tooth_hz
+        rpm = sp.f_rev_hz * 60.0
+        # the controller's data (Smith-Tlusty): the tooth frequency that puts the chatter
+        # frequency on a whole number of tooth periods per vibration wave, one lobe faster
+        lobe = f_c / f_t if f_t > 0 else math.nan
+        j = max(1, math.floor(lobe)) if math.isfinite(lobe) else 1
+        suggested = 60.0 * f_c / (s.n_flutes * j) if math.isfinite(f_c) else math.nan
+        onset = self._run_start if self._run_start is not None else t
+        values = {
+            "energy_ratio": v.ratio,
+            "threshold": v.threshold,
+            "chatter_hz": f_c,
+            "tooth_passing_hz": f_t,
+            "spindle_rpm": rpm,
+            "flutes": float(s.n_flutes),
+            "lobe_number": lobe,
+            "suggested_spindle_rpm": suggested,
+            "onset_s": onset,
+        }
+        loc: tuple[int | None, float | None, float | None, float | None] = (nc, None, None, None)
+        if self.locate is not None:
+            loc = self.locate(t, nc)
+        return Event(
+            t,
+            EventKind.ALARM,
+            self.name,
+            f"chatter at {f_c:.1f} Hz ({self.method.name}: ratio {v.ratio:.2f} > "
+            f"{v.threshold:g}; tooth passing {f_t:.1f} Hz, {rpm:.0f} rev/min)",
+            name="chatter",
+            value=f_c,
+            sample=k,
+            severity=Severity.WARNING,
+            values=values,
+            nc_line=loc[0],
+            x_mm=loc[1],
+            y_mm=loc[2],
+            z_mm=loc[3],
+        )
