@@ -45,6 +45,8 @@ NOVELTY_FACTOR = 2.0
 CUTTING_GATE = 3.0
 #: Largest relative spread of the spindle speed over a window for a decision.
 STEADY_SPEED = 0.02
+#: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
+STEADY_MEAN = 0.5
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -168,6 +170,7 @@ class ChatterMonitor(Block):
         lo, hi = s.band_hz
         self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
         self._background: np.ndarray | None = None
+        self._air_floor: float | None = None
         self._flag = 0.0
         self._freq = math.nan
         self._ratio = 0.0
@@ -258,7 +261,17 @@ class ChatterMonitor(Block):
         near = np.abs(f - f_t) <= max(2.0 * df, 0.005 * f_t)
         tooth = float(raw[near].max()) if f_rev * 60.0 >= self.settings.min_speed_rpm else 0.0
         med = float(np.median(raw[self._band])) if self._band.any() else 0.0
-        cutting = tooth > CUTTING_GATE * med and tooth > 0.0
+        # in the cut when the tooth line stands out of the spectrum's median, or of the median
+        # learned out of the cut (heavy chatter raises the median of the spectrum itself)
+        floor = med if self._air_floor is None else min(med, self._air_floor)
+        cutting = tooth > CUTTING_GATE * floor and tooth > 0.0
+        if not cutting and tooth > 0.0:
+            a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
+            self._air_floor = med if self._air_floor is None else self._air_floor + a * (
+                med - self._air_floor
+            )
+        if cutting and not self._steady_mean(xr, n, tooth):
+            return None  # entry, exit or a large step inside the window: no decision
         if self._background is None:
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
@@ -270,6 +283,15 @@ class ChatterMonitor(Block):
             off = np.abs(f - f_rev * np.rint(f / f_rev))
             novel = np.where(off <= max(2.0 * df, 0.5 * f_rev / 10.0), -1.0, novel)
         return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+
+    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float) -> bool:
+        """The means of the window's older and newer halves differ by less than
+        :data:`STEADY_MEAN` × the tooth-passing line (decision 1504). A step of the mean (the
+        entry into or the exit from the cut, a large depth step) drives the comb filter into a
+        transient that is not chatter; such a window is not judged. Signals without a mean
+        (accelerometer, microphone) always pass."""
+        h = n // 2
+        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= STEADY_MEAN * tooth
 
     def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
         """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
