@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
@@ -40,7 +41,7 @@ BACKGROUND_TAU_S = 2.0
 BACKGROUND_TAU_AIR_S = 0.5
 BACKGROUND_TAU_NOVEL_S = 30.0
 #: A comb component is new when above this many times its background (decision 1504).
-NOVELTY_FACTOR = 2.0
+NOVELTY_FACTOR = 5.0
 #: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
 CUTTING_GATE = 3.0
 #: Largest relative spread of the spindle speed over a window for a decision.
@@ -169,6 +170,8 @@ class ChatterMonitor(Block):
         self._f = f
         lo, hi = s.band_hz
         self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
+        nz = np.flatnonzero(self._band)
+        self._band_slice = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
         self._background: np.ndarray | None = None
         self._air_floor: float | None = None
         self._flag = 0.0
@@ -180,33 +183,48 @@ class ChatterMonitor(Block):
         if s.speed_channel is None:
             self._const_speed = abs(float(s.speed_rpm or 0.0)) / 60.0
         self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
+        self._min_rev_s = s.min_speed_rpm / 60.0
+        self._ch_flag = f"{self.name}/chatter"
+        self._ch_hz = f"{self.name}/chatter_hz"
+        self._ch_ratio = f"{self.name}/energy_ratio"
+        self._mask_f_rev = -1.0
+        self._harm_mask = np.zeros(len(f), dtype=bool)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         s = self.settings
         x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
         n = len(x)
         if s.speed_channel is not None:
-            spd = np.asarray(chunk.data[s.speed_channel], dtype=np.float64) * self._speed_factor
+            spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
+            if self._speed_factor != 1.0:
+                spd = spd * self._speed_factor
         else:
             spd = np.full(n, self._const_speed)
-        spd = np.ascontiguousarray(spd)
+        hop = self._hop
+        first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
+        if first >= n:  # no decision in this chunk (the common case for short chunks)
+            ingest(x, spd, self._fs, self._alpha, self._beta, self._ring_x, self._ring_y,
+                   self._pos, self._state, self._min_rev_s, self._smooth)  # fmt: skip
+            self._pos += n
+            return BlockOutput(
+                {
+                    self._ch_flag: np.full(n, self._flag),
+                    self._ch_hz: np.full(n, self._freq),
+                    self._ch_ratio: np.full(n, self._ratio),
+                }
+            )
         flag = np.empty(n)
         freq = np.empty(n)
         ratio = np.empty(n)
         events: list[Event] = []
         i = 0
-        hop = self._hop
-        while i < n:
-            k_abs = chunk.start + i
-            to_decision = (hop - 1 - k_abs) % hop  # samples before the next decision sample
-            j = min(n, i + to_decision + 1)
-            ingest(
-                x[i:j], spd[i:j], self._fs, self._alpha, self._beta, self._ring_x, self._ring_y,
-                self._pos, self._state, s.min_speed_rpm / 60.0, self._smooth,
-            )  # fmt: skip
+        for j in [*range(first + 1, n + 1, hop), n]:
+            if j <= i:
+                continue
+            ingest(x[i:j], spd[i:j], self._fs, self._alpha, self._beta, self._ring_x,
+                   self._ring_y, self._pos, self._state, self._min_rev_s, self._smooth)  # fmt: skip
             self._pos += j - i
-            decided = (chunk.start + j) % hop == 0
-            if decided:
+            if (chunk.start + j) % hop == 0:
                 # outputs before the decision sample hold the old values
                 flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = (
                     self._flag,
@@ -221,14 +239,7 @@ class ChatterMonitor(Block):
             else:
                 flag[i:j], freq[i:j], ratio[i:j] = self._flag, self._freq, self._ratio
             i = j
-        return BlockOutput(
-            {
-                f"{self.name}/chatter": flag,
-                f"{self.name}/chatter_hz": freq,
-                f"{self.name}/energy_ratio": ratio,
-            },
-            events,
-        )
+        return BlockOutput({self._ch_flag: flag, self._ch_hz: freq, self._ch_ratio: ratio}, events)
 
     # ------------------------------------------------------------------ decision
     def _spectra(self) -> Spectra | None:
@@ -245,22 +256,20 @@ class ChatterMonitor(Block):
         hi = max(r[1] for r in self._ranges)
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
-        size = len(self._ring_x)
-        idx = (self._pos - n + np.arange(n)) & (size - 1)
-        xr = self._ring_x[idx]
+        xr = self._window(self._ring_x, n)
         xr = xr - xr.mean()
-        xc = self._ring_y[idx]
-        raw = np.abs(np.fft.rfft(xr * self._taper)) * self._scale
-        raw_rect = None
-        if self.method.taper == "rect":
-            raw_rect = np.abs(np.fft.rfft(xr)) * (2.0 / n)
-        comb = np.abs(np.fft.rfft(xc * self._comb_taper)) * self._comb_scale
+        raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
         f = self._f
-        f_t = self.settings.n_flutes * f_rev
         df = f[1]
-        near = np.abs(f - f_t) <= max(2.0 * df, 0.005 * f_t)
-        tooth = float(raw[near].max()) if f_rev * 60.0 >= self.settings.min_speed_rpm else 0.0
-        med = float(np.median(raw[self._band])) if self._band.any() else 0.0
+        f_t = self.settings.n_flutes * f_rev
+        tooth = 0.0
+        if f_rev * 60.0 >= self.settings.min_speed_rpm:
+            half = max(2.0 * df, 0.005 * f_t)
+            k0 = max(0, math.ceil((f_t - half) / df))
+            k1 = min(len(f), math.floor((f_t + half) / df) + 1)
+            tooth = float(raw[k0:k1].max()) if k1 > k0 else 0.0
+        b0, b1 = self._band_slice
+        med = float(np.median(raw[b0:b1])) if b1 > b0 else 0.0
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
@@ -270,8 +279,17 @@ class ChatterMonitor(Block):
             self._air_floor = med if self._air_floor is None else self._air_floor + a * (
                 med - self._air_floor
             )
+        if not self.method.learns_background:  # the threshold method reads the raw spectrum
+            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
         if cutting and not self._steady_mean(xr, n, tooth):
             return None  # entry, exit or a large step inside the window: no decision
+        xc = self._window(self._ring_y, n)
+        raw_rect = None
+        if self.method.taper == "rect":
+            comb = np.abs(sfft.rfft(xc)) * self._comb_scale
+            raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
+        else:
+            comb = np.abs(sfft.rfft(xc * self._comb_taper)) * self._comb_scale
         if self._background is None:
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
@@ -280,9 +298,20 @@ class ChatterMonitor(Block):
         if f_rev > 0:
             # chatter is never on a spindle harmonic (that is forced vibration): bins within
             # the comb's notch width or 2 bins of one are not searched
-            off = np.abs(f - f_rev * np.rint(f / f_rev))
-            novel = np.where(off <= max(2.0 * df, 0.5 * f_rev / 10.0), -1.0, novel)
+            if abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
+                off = np.abs(f - f_rev * np.rint(f / f_rev))
+                self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
+                self._mask_f_rev = f_rev
+            novel[self._harm_mask] = -1.0
         return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+
+    def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
+        """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
+        size = len(ring)
+        a = (self._pos - n) & (size - 1)
+        if a + n <= size:
+            return ring[a : a + n].copy()
+        return np.concatenate([ring[a:], ring[: a + n - size]])
 
     def _steady_mean(self, xr: np.ndarray, n: int, tooth: float) -> bool:
         """The means of the window's older and newer halves differ by less than

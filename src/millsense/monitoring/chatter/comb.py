@@ -54,18 +54,14 @@ _DEN = np.array(
 
 @numba.njit(cache=True, nogil=True)
 def _weights(mu: float, den: FloatArray, out: FloatArray) -> None:  # pragma: no cover
-    """Lagrange weights of the nodes −3 … 4 at ``mu`` ∈ [0, 1) (prefix/suffix products)."""
+    """Lagrange weights of the nodes −3 … 4 at ``mu`` ∈ [0, 1) (no allocation)."""
     n = len(den)
-    pre = np.empty(n + 1)
-    suf = np.empty(n + 1)
-    pre[0] = 1.0
     for j in range(n):
-        pre[j + 1] = pre[j] * (mu - (j + 1 - n // 2))
-    suf[n] = 1.0
-    for j in range(n - 1, -1, -1):
-        suf[j] = suf[j + 1] * (mu - (j + 1 - n // 2))
-    for j in range(n):
-        out[j] = pre[j] * suf[j + 1] * den[j]
+        acc = den[j]
+        for m in range(n):
+            if m != j:
+                acc *= mu - (m + 1 - n // 2)
+        out[j] = acc
 
 
 @numba.njit(cache=True, nogil=True)
