@@ -188,6 +188,7 @@ class ChatterMonitor(Block):
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
         self._mask_f_rev = -1.0
+        self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
 
     def process(self, chunk: Chunk) -> BlockOutput:
@@ -206,13 +207,7 @@ class ChatterMonitor(Block):
             ingest(x, spd, self._fs, self._alpha, self._beta, self._ring_x, self._ring_y,
                    self._pos, self._state, self._min_rev_s, self._smooth)  # fmt: skip
             self._pos += n
-            return BlockOutput(
-                {
-                    self._ch_flag: np.full(n, self._flag),
-                    self._ch_hz: np.full(n, self._freq),
-                    self._ch_ratio: np.full(n, self._ratio),
-                }
-            )
+            return BlockOutput(self._held_outputs(n))
         flag = np.empty(n)
         freq = np.empty(n)
         ratio = np.empty(n)
@@ -240,6 +235,20 @@ class ChatterMonitor(Block):
                 flag[i:j], freq[i:j], ratio[i:j] = self._flag, self._freq, self._ratio
             i = j
         return BlockOutput({self._ch_flag: flag, self._ch_hz: freq, self._ch_ratio: ratio}, events)
+
+    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
+        """The held outputs for ``n`` samples: views of arrays that are never written again
+        (new ones are made when a value changes or a longer chunk comes)."""
+        # NaN (no chatter frequency) compares unequal to itself: key it as −1
+        key = (self._flag, -1.0 if math.isnan(self._freq) else self._freq, self._ratio)
+        held = self._held
+        if held is None or held[0] != key or len(held[1][0]) < n:
+            size = max(n, 1024)
+            arrays = (np.full(size, self._flag), np.full(size, self._freq),
+                      np.full(size, self._ratio))  # fmt: skip
+            held = self._held = (key, arrays)
+        a = held[1]
+        return {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
 
     # ------------------------------------------------------------------ decision
     def _spectra(self) -> Spectra | None:
@@ -287,7 +296,8 @@ class ChatterMonitor(Block):
         raw_rect = None
         if self.method.taper == "rect":
             comb = np.abs(sfft.rfft(xc)) * self._comb_scale
-            raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
+            if self.method.name == "chatter-sdft":  # Parseval needs the same taper
+                raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
         else:
             comb = np.abs(sfft.rfft(xc * self._comb_taper)) * self._comb_scale
         if self._background is None:

@@ -98,6 +98,7 @@ def ingest(
     d_max = len(ring_x) - 2.0 * _NODES
     den = _DEN
     w = np.empty(_NODES)
+    last_q = -1
     for i in range(len(x)):
         p = (pos + i) & mask
         xi = x[i]
@@ -114,8 +115,13 @@ def ingest(
         if s >= min_speed_rev_s:
             d = fs / s
             if _HALF + 1.0 <= d <= d_max:
-                k = int(d)
-                _weights(d - k, den, w)
+                # the delay on a 1/4096-sample grid (a phase error below 4e-4 rad at 2.5 kHz):
+                # the weights are recomputed only when it moves
+                q = int(d * 4096.0 + 0.5)
+                k = q >> 12
+                if q != last_q:
+                    _weights((q & 4095) / 4096.0, den, w)
+                    last_q = q
                 xd = _delayed(ring_x, p, k, w, mask)
                 yd = _delayed(ring_y, p, k, w, mask)
                 y = alpha * yd + beta * (xi - xd)
