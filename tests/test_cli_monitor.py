@@ -46,7 +46,9 @@ def _plan(path: Path, program: str = "part.nc") -> Path:
     return path
 
 
-def test_monitor_microphone_only_with_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_monitor_microphone_only_with_plot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     rec = _recording(tmp_path / "run.h5", speed=False)
     out, png = tmp_path / "ev.parquet", tmp_path / "m.png"
     code, stdout, err = run_cli(["monitor", str(rec), "--spindle-rpm", "6000", "--methods",
@@ -62,7 +64,9 @@ def test_monitor_microphone_only_with_plot(tmp_path: Path, capsys: pytest.Captur
     assert "chatter-comb: 1 chatter alarm" in stdout
 
 
-def test_monitor_with_plan_locates_the_event(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_monitor_with_plan_locates_the_event(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     rec = _recording(tmp_path / "run.h5")
     plan = _plan(tmp_path / "plan.parquet")
     out = tmp_path / "ev.parquet"

@@ -30,6 +30,7 @@ def _signal(
     tone: tuple[float, float] | None = None,
     rpm_after: tuple[float, float] | None = None,
     seed: int = 0,
+    cut_start: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     n = int(dur * FS)
@@ -41,7 +42,7 @@ def _signal(
     x = np.zeros(n)
     for ell in range(1, 40):
         x += (1.0 if ell % 4 == 0 else 0.1) / (1 + 0.05 * ell) * np.cos(ell * ang + 0.3 * ell)
-    x *= t >= 1.0
+    x *= t >= cut_start
     x += 5.0 + 0.5 * t + 0.05 * rng.standard_normal(n)
     if onset is not None:
         amp = np.clip((t - onset) / 0.02, 0, 1) * chatter_amp
@@ -189,7 +190,7 @@ def test_event_carries_nc_line_and_position() -> None:
         return line, 100.0 + t, -5.0, -2.0
 
     _, ev = _run(x, spd, locate=locate, nc=nc)
-    e = [e for e in ev if e.name == "chatter"][0]
+    e = next(e for e in ev if e.name == "chatter")
     assert e.nc_line == 12
     assert e.x_mm == pytest.approx(100.0 + e.time_s) and e.z_mm == -2.0
     assert e.values["onset_s"] <= e.time_s
@@ -214,3 +215,16 @@ def test_speed_channel_in_rev_per_min_and_constant_speed() -> None:
             data = {"s": x[s : s + 1000], "rpm": spd[s : s + 1000] * 60 / (2 * math.pi)}
             ev += b.process(Chunk(s, FS, 0.0, {k: data[k] for k in b.inputs})).events
         assert [round(e.value or 0) for e in ev if e.name == "chatter"] == [937]
+
+
+def test_threshold_method_calibrates_on_the_first_second() -> None:
+    # seed 002: a fixed threshold "set from stable cuts"; here 2 × the largest spectrum maximum
+    # of the first second (decision 1507). Stable from t = 0, chatter 4 × the tooth line at 2.5 s
+    x, spd = _signal(cut_start=0.0)
+    out, ev = _run(x, spd, "chatter-threshold")
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1 and 2.5 < alarms[0].time_s <= 2.7
+    # the 256-point spectrum has 39 Hz bins: the frequency is only that good
+    assert alarms[0].value == pytest.approx(937.0, abs=40.0)
+    ratio = out["chatter-threshold/energy_ratio"]
+    assert 0.3 < np.max(ratio[int(1.1 * FS) : int(2.5 * FS)]) < 1.0  # stable: below threshold

@@ -29,8 +29,9 @@ OBSERVER_CHANNEL = "est/spindle/spindle/load"
 def monitor(
     recording: Path = typer.Argument(..., help="Recording to monitor (.h5)."),
     out: Path = typer.Option(..., "-o", "--output", help="Event log to write (.parquet)."),
-    plan: Path | None = typer.Option(None, "--plan", help="Virtual plan (.parquet): NC line and "
-                                     "x/y/z of each event."),  # fmt: skip
+    plan: Path | None = typer.Option(
+        None, "--plan", help="Virtual plan (.parquet): NC line and x/y/z of each event."
+    ),
     machine: str | None = typer.Option(
         None, "--machine", help="Machine preset or .toml: runs its spindle torque observer."
     ),
@@ -38,14 +39,17 @@ def monitor(
         "chatter-comb", "--methods", help="Comma-separated monitors (see --list), or 'all'."
     ),
     channel: str | None = typer.Option(
-        None, "--channel", help="Signal channel (default: compensated spindle torque, current, "
-        "accelerometer, microphone: the first present)."
-    ),  # fmt: skip
+        None,
+        "--channel",
+        help="Signal channel (default: compensated spindle torque, current, "
+        "accelerometer, microphone: the first present).",
+    ),
     flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
     spindle_rpm: float | None = typer.Option(
-        None, "--spindle-rpm", help="Spindle speed [rev/min] when the recording has no speed "
-        "channel."
-    ),  # fmt: skip
+        None,
+        "--spindle-rpm",
+        help="Spindle speed [rev/min] when the recording has no speed channel.",
+    ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: spectrogram with chatter marked."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
 ) -> None:
@@ -73,7 +77,9 @@ def _methods(text: str) -> list[str]:
     out = [m.strip() for m in text.split(",") if m.strip()]
     for m in out:
         if m not in MONITORS:
-            raise ConfigError(f"--methods: unknown monitor '{m}' (one of {', '.join(MONITORS)}, all)")
+            raise ConfigError(
+                f"--methods: unknown monitor '{m}' (one of {', '.join(MONITORS)}, all)"
+            )
     if not out:
         raise ConfigError("--methods: empty")
     return out
@@ -206,8 +212,11 @@ def _run(
     n_flutes = _flutes(flutes, rec, vp)
     pre: list[Any] = []
     signal = channel
-    if machine is not None and "spindle/current_cmd" in channels and channel in (None,
-                                                                               OBSERVER_CHANNEL):
+    if (
+        machine is not None
+        and "spindle/current_cmd" in channels
+        and channel in (None, OBSERVER_CHANNEL)
+    ):
         from millsense.core.config import MachineConfig
         from millsense.core.presets import load_preset
         from millsense.estimation.from_config import spindle_observer_from_config

@@ -20,7 +20,9 @@ class PlanLocator:
     def __init__(self, plan: VirtualPlan) -> None:
         self.t = np.asarray(plan["t_s"], dtype=float)
         self.nc = np.asarray(plan["nc_line"], dtype=np.int64)
-        self.xyz = np.column_stack([np.asarray(plan[c], dtype=float) for c in ("x_mm", "y_mm", "z_mm")])
+        self.xyz = np.column_stack(
+            [np.asarray(plan[c], dtype=float) for c in ("x_mm", "y_mm", "z_mm")]
+        )
 
     def __call__(
         self, time_s: float, nc_line: int | None = None

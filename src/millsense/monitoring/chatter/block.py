@@ -93,7 +93,9 @@ class ChatterSettings:
         if self.n_flutes < 1:
             raise ConfigError(f"chatter monitor: flutes must be ≥ 1, got {self.n_flutes}")
         if self.speed_channel is None and not (self.speed_rpm and self.speed_rpm > 0):
-            raise ConfigError("chatter monitor: give a spindle-speed channel or a speed > 0 rev/min")
+            raise ConfigError(
+                "chatter monitor: give a spindle-speed channel or a speed > 0 rev/min"
+            )
         if self.speed_unit not in ("rad/s", "rev/min"):
             raise ConfigError(f"chatter monitor: speed unit {self.speed_unit!r} (rad/s, rev/min)")
         lo, hi = self.band_hz
@@ -166,8 +168,8 @@ class ChatterMonitor(Block):
         self._scale = 2.0 / float(np.sum(self._taper))
         self._comb_taper = np.hanning(n) if self.method.taper == "hann" else np.ones(n)
         self._comb_scale = 2.0 / float(np.sum(self._comb_taper))
-        f = np.fft.rfftfreq(n, 1.0 / fs)
-        self._f = f
+        f = np.asarray(np.fft.rfftfreq(n, 1.0 / fs), dtype=np.float64)
+        self._f: np.ndarray = f
         lo, hi = s.band_hz
         self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
         nz = np.flatnonzero(self._band)
@@ -285,8 +287,8 @@ class ChatterMonitor(Block):
         cutting = tooth > CUTTING_GATE * floor and tooth > 0.0
         if not cutting and tooth > 0.0:
             a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
-            self._air_floor = med if self._air_floor is None else self._air_floor + a * (
-                med - self._air_floor
+            self._air_floor = (
+                med if self._air_floor is None else self._air_floor + a * (med - self._air_floor)
             )
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
@@ -376,9 +378,14 @@ class ChatterMonitor(Block):
         if was and not now:
             return [
                 Event(
-                    t, EventKind.NOTE, self.name, f"chatter ended ({self.method.name})",
-                    name="chatter_end", sample=k, severity=Severity.INFO,
-                )  # fmt: skip
+                    t,
+                    EventKind.NOTE,
+                    self.name,
+                    f"chatter ended ({self.method.name})",
+                    name="chatter_end",
+                    sample=k,
+                    severity=Severity.INFO,
+                )
             ]
         return []
 

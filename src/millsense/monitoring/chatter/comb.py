@@ -65,7 +65,9 @@ def _weights(mu: float, den: FloatArray, out: FloatArray) -> None:  # pragma: no
 
 
 @numba.njit(cache=True, nogil=True)
-def _delayed(ring: FloatArray, p: int, k: int, w: FloatArray, mask: int) -> float:  # pragma: no cover
+def _delayed(
+    ring: FloatArray, p: int, k: int, w: FloatArray, mask: int
+) -> float:  # pragma: no cover
     """``ring`` at delay ``k + mu`` behind position ``p`` with the weights ``w`` of ``mu``."""
     n = len(w)
     acc = 0.0

@@ -3,30 +3,30 @@
 Each method turns the window's spectra (the raw signal's and the comb-filtered one's, see
 :mod:`.comb`) into an *energy ratio* compared with its threshold and a chatter frequency:
 
-- ``chatter-comb`` (seed 000, Aslan §5.4, Eq. 5.26–5.30): 4096-point Hann spectrum; the
+- ``chatter-comb`` (seed 000, Aslan §5.4, Eq. 5.26–5.30): 4096-point spectrum (Eq. 5.30); the
   ratio is the largest comb-filtered (non-harmonic) peak over the raw signal's tooth-passing
   line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c.
 - ``chatter-sdft`` (seed 001, Yamada §2.10, Eq. 6-12): sliding DFT over a rectangular
   window and the moving variance. The variance of a window is its total PSD without DC
   (Parseval, Koike's moving variance); the ratio is the variance of the comb residual in the
   band (the non-harmonic, chatter variance) over the variance of the spindle harmonics
-  (raw-signal variance minus residual variance), chatter above **1.0** (the thesis gives no
-  threshold: decision 1503); the band's largest SDFT bin is f_c. The SDFT recursion
+  (raw-signal variance minus residual variance), chatter above **0.5** (the thesis gives no
+  threshold: decision 1503, 0.5); the band's largest SDFT bin is f_c. The SDFT recursion
   ``S_k[n] = e^{j2πk/N}(S_k[n−1] + y[n] − y[n−N])`` gives at sample n exactly the DFT of the
   last N samples; it is read only at the decision instants, where it is computed by one FFT
   (identical values, decision 1503).
 - ``chatter-threshold`` (seed 002, Munasinghe §2.6): the maximum of a 256-point windowed
   spectrum of the raw signal against a fixed threshold (given, or 2 × the largest maximum
-  over the first second of the run, "set from stable cuts"). A baseline: it knows nothing of
-  harmonics, tones or depth changes.
+  over the first second of the run, "set from stable cuts"; decision 1507). A baseline: it
+  knows nothing of harmonics, tones or depth changes.
 
-Robustness shared by the first two (decision 1504): a per-bin *background* of the comb-
-filtered spectrum is learned (exponential average, 2 s; 30 s while chatter is flagged) from
-the first window on, in air and in stable cutting alike. A component counts as chatter only
-where the spectrum exceeds twice its background, so steady tones and stable resonances present
-before the cut or constant over time are not called chatter; and only while the tooth-passing
-line stands 5 × above the raw spectrum's median (the tool is cutting), so air, run-up and a
-stopped spindle give no alarm.
+Robustness shared by the first two (decision 1504, in :mod:`.block`): a per-bin *background*
+of the comb-filtered spectrum is learned (out of the cut in 0.5 s, in the cut in 2 s, new
+components in 30 s); a component counts as chatter only where the spectrum exceeds 5 × its
+background, so steady tones and stable resonances present before the cut or constant over
+time are not called chatter; decisions are taken only while the tooth-passing line stands 3 ×
+above the spectrum's median (the tool is cutting), the window's mean is steady (no entry or
+exit step) and the speed is steady; bins on the spindle harmonics are not searched.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ class Spectra:
     tooth : amplitude of the raw tooth-passing line.
     f_tooth_hz, f_rev_hz : tooth-passing and spindle frequencies over the last hop.
     cutting : the tooth-passing line stands out (the tool is in the material).
-    novel : comb amplitude above twice its learned background (≤ 0: nothing new).
+    novel : comb amplitude above 5 × its learned background (≤ 0: nothing new).
     raw_rect : the raw window's rectangular spectrum (same taper as ``comb``; for Parseval).
     """
 
@@ -141,8 +141,7 @@ class ChatterMethod:
         return Verdict(chat / max(harm, floor), f_c, thr)
 
 
-#: The chatter criteria by name (window lengths for a 10 kHz stream are scaled with the rate
-#: by :func:`method_for_rate`).
+#: The chatter criteria by name (window lengths in samples, chosen for a 10 kHz stream).
 METHODS: dict[str, ChatterMethod] = {
     "chatter-comb": ChatterMethod("chatter-comb", 4096, "rect", SEED000_RATIO, True, "seed 000"),
     "chatter-sdft": ChatterMethod("chatter-sdft", 2048, "rect", 0.5, True, "seed 001"),

@@ -89,8 +89,15 @@ def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
         seed=11, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)
     )
     sim = MachineSimulator(m, job, proc, opts, duration_s=AIR_S + CUT_S + 0.15)
-    keep = ("spindle/current_cmd", "spindle/speed", "accel/x", "truth/spindle/torque",
-            "truth/tool/vibration_x", "truth/tool/vibration_y", "truth/process/chatter")  # fmt: skip
+    keep = (
+        "spindle/current_cmd",
+        "spindle/speed",
+        "accel/x",
+        "truth/spindle/torque",
+        "truth/tool/vibration_x",
+        "truth/tool/vibration_y",
+        "truth/process/chatter",
+    )
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keep}
     while (c := sim.read(2000)) is not None:
         for k in keep:
@@ -129,8 +136,8 @@ def detect(
     events: list[Any] = []
     ratio = []
     for s in range(0, len(x), 1000):
-        o = b.process(Chunk(s, FS_HZ, 0.0, {"s": x[s : s + 1000],
-                                            "spindle/speed": speed_rad_s[s : s + 1000]}))  # fmt: skip
+        data = {"s": x[s : s + 1000], "spindle/speed": speed_rad_s[s : s + 1000]}
+        o = b.process(Chunk(s, FS_HZ, 0.0, data))
         events += [e for e in o.events if e.name == "chatter"]
         ratio.append(o.channels[f"{method}/energy_ratio"])
     return events, np.concatenate(ratio)
@@ -143,7 +150,7 @@ def simulated_chatter_hz(x: np.ndarray, rpm: float) -> float:
 
     w = x[-4096:] - np.mean(x[-4096:])
     spec = np.abs(np.fft.rfft(w * np.hanning(len(w))))
-    f = np.fft.rfftfreq(len(w), 1.0 / FS_HZ)
+    f = np.asarray(np.fft.rfftfreq(len(w), 1.0 / FS_HZ), dtype=np.float64)
     f_rev = rpm / 60.0
     masked = spec.copy()
     masked[(np.abs(f / f_rev - np.rint(f / f_rev)) * f_rev <= 3 * f[1]) | (f < 100)] = 0.0
@@ -257,8 +264,7 @@ def stable_alarms() -> list[tuple[str, float, int, int, float]]:
 
 @case(
     "monitoring.chatter.v5_stable_cuts_no_alarm",
-    source="seed 000 V5 / Fig. 5.18: stable cuts T1 1.5, T2 2, T3 0.5, T4 0.5 mm, all ratios "
-    "< 1.5",
+    source="seed 000 V5 / Fig. 5.18: stable cuts T1 1.5, T2 2, T3 0.5, T4 0.5 mm, all ratios < 1.5",
     reference=0.0,
     abs_tol=0.0,
     unit="alarms",
@@ -330,8 +336,6 @@ def latency() -> tuple[float, float, float]:
     flag = d["truth/process/chatter"] > 0
     settled = int((t_cut + 0.5) * FS_HZ)
     onset = float((settled + np.argmax(flag[settled:])) / FS_HZ)
-    global _LAST
-    _LAST = d
     ev, _ = detect(d["accel/x"], d["spindle/speed"], 2)
     t_alarm = ev[0].time_s if ev else math.inf
     return onset, t_alarm, float(ev[0].value) if ev else math.nan
@@ -440,11 +444,11 @@ def false_alarms() -> dict[str, int]:
     d = stable_stream(600.0, seed=3)
     obs = SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction())
     obs.reset(FS_HZ)
-    comp = np.concatenate([
-        obs.process(Chunk(s, FS_HZ, 0.0, {"spindle/current_cmd": d["spindle/current_cmd"][s : s + 10000],
-                                          "spindle/speed": d["spindle/speed"][s : s + 10000]})).channels["spindle/torque_est"]
-        for s in range(0, len(d["sensor"]), 10000)
-    ])  # fmt: skip
+    parts = []
+    for s in range(0, len(d["sensor"]), 10000):
+        data = {k: d[k][s : s + 10000] for k in ("spindle/current_cmd", "spindle/speed")}
+        parts.append(obs.process(Chunk(s, FS_HZ, 0.0, data)).channels["spindle/torque_est"])
+    comp = np.concatenate(parts)
     out = {}
     for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
         for method in ("chatter-comb", "chatter-sdft"):
@@ -467,5 +471,7 @@ def false_alarms() -> dict[str, int]:
 )
 def _false() -> Measured:
     res = false_alarms()
-    rows = ["| signal / method | alarms |", "|---|---|"] + [f"| {k} | {v} |" for k, v in res.items()]
+    rows = ["| signal / method | alarms |", "|---|---|"] + [
+        f"| {k} | {v} |" for k, v in res.items()
+    ]
     return Measured(float(sum(res.values())), "\n".join(rows))
