@@ -228,3 +228,41 @@ def test_threshold_method_calibrates_on_the_first_second() -> None:
     assert alarms[0].value == pytest.approx(937.0, abs=40.0)
     ratio = out["chatter-threshold/energy_ratio"]
     assert 0.3 < np.max(ratio[int(1.1 * FS) : int(2.5 * FS)]) < 1.0  # stable: below threshold
+
+
+def test_group_equals_the_monitors_alone() -> None:
+    # the three criteria sharing one comb filter (ChatterGroup) give exactly the outputs and
+    # events of each monitor run alone, whatever the chunking
+    from millsense.monitoring.chatter import ChatterGroup
+
+    x, spd = _signal(dur=3.2, tone=(1234.0, 3.3))
+    alone: dict[str, np.ndarray] = {}
+    ev_alone = []
+    for m in ("chatter-comb", "chatter-sdft", "chatter-threshold"):
+        out, ev = _run(x, spd, m, chunk=len(x))
+        alone.update(out)
+        ev_alone += ev
+    for chunk in (7, 1000):
+        g = ChatterGroup(
+            [
+                ChatterMonitor(ChatterSettings(method=m, signal="s", n_flutes=4))
+                for m in ("chatter-comb", "chatter-sdft", "chatter-threshold")
+            ]
+        )
+        g.reset(FS)
+        parts: dict[str, list[np.ndarray]] = {}
+        ev_g = []
+        for s in range(0, len(x), chunk):
+            o = g.process(
+                Chunk(s, FS, 0.0, {"s": x[s : s + chunk], "spindle/speed": spd[s : s + chunk]})
+            )
+            ev_g += o.events
+            for k, v in o.channels.items():
+                parts.setdefault(k, []).append(v)
+        for k, v in alone.items():
+            np.testing.assert_array_equal(np.concatenate(parts[k]), v)
+        key = lambda e: (e.source, e.time_s)  # noqa: E731
+        assert [e.as_dict() for e in sorted(ev_g, key=key)] == [
+            e.as_dict() for e in sorted(ev_alone, key=key)
+        ]
+        assert {e.source for e in ev_g if e.name == "chatter"} >= {"chatter-comb", "chatter-sdft"}

@@ -237,7 +237,7 @@ def _run(
         nc_line_channel=nc_channel, locate=locate, plan=vp, source=where,
     )  # fmt: skip
     blocks = [MONITORS[n](ctx) for n in names]
-    pipeline = Pipeline([*pre, *blocks])
+    pipeline = Pipeline([*pre, *_grouped(blocks)])
     needed = sorted({c for b in pipeline.blocks for c in b.inputs if c in rec.channel_names})
     source = RecordingSource(rec, name=where, channels=needed)
     sig_name = getattr(blocks[0], "settings", None)
@@ -278,6 +278,18 @@ def _run(
         _plot(plot, data, fs, res.t0_s, str(sig_name), [b.name for b in blocks], res.events)
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
+
+
+def _grouped(blocks: list[Any]) -> list[Any]:
+    """Chatter monitors on the same signal run as one :class:`ChatterGroup` (one comb filter
+    for all criteria: same outputs and events, less work); other monitors unchanged."""
+    from millsense.monitoring.chatter import ChatterGroup, ChatterMonitor
+
+    chatter = [b for b in blocks if isinstance(b, ChatterMonitor)]
+    if len(chatter) < 2:
+        return blocks
+    others = [b for b in blocks if not isinstance(b, ChatterMonitor)]
+    return [ChatterGroup(chatter), *others]
 
 
 def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:

@@ -21,7 +21,7 @@ outputs and events.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +105,28 @@ class ChatterSettings:
             raise ConfigError(f"chatter monitor: hop {self.hop_s} s must be > 0")
 
 
+class _Stage:
+    """The per-sample part shared by monitors reading one signal: rings of the raw and the
+    comb-filtered signal, the speed statistics of the current hop, the samples written."""
+
+    def __init__(self, size: int) -> None:
+        self.ring_x = np.zeros(size)
+        self.ring_y = np.zeros(size)
+        self.state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
+        self.pos = 0
+        self.ranges: list[tuple[float, float]] = []
+        self.f_rev = 0.0
+
+    def close_hop(self, keep: int) -> None:
+        """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
+        st = self.state
+        self.f_rev = st[1] / st[2] if st[2] > 0 else 0.0
+        self.ranges.append((float(st[3]), float(st[4])))
+        del self.ranges[:-keep]
+        st[1] = st[2] = st[4] = 0.0
+        st[3] = np.inf
+
+
 class ChatterMonitor(Block):
     """Streaming chatter detection by one criterion (see the module notes).
 
@@ -153,12 +175,8 @@ class ChatterMonitor(Block):
         self._hop = max(1, round(s.hop_s * fs))
         n = self.method.window
         d_max = fs * 60.0 / s.min_speed_rpm
-        size = 1 << math.ceil(math.log2(max(n, d_max + 8)))
-        self._ring_x = np.zeros(size)
-        self._ring_y = np.zeros(size)
-        self._state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
-        self._ranges: list[tuple[float, float]] = []
-        self._pos = 0
+        self._size = 1 << math.ceil(math.log2(max(n, d_max + 8)))
+        self._stage = _Stage(self._size)
         self._smooth = 1.0 - math.exp(-1.0 / (0.01 * fs))  # 10 ms speed smoothing
         # the raw spectrum (tooth-passing line, threshold method) is Hann-tapered (−1.4 dB
         # scalloping at most); the comb-filtered one is rectangular as Eq. 5.30 and the SDFT:
@@ -186,6 +204,7 @@ class ChatterMonitor(Block):
             self._const_speed = abs(float(s.speed_rpm or 0.0)) / 60.0
         self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
         self._min_rev_s = s.min_speed_rpm / 60.0
+        self._keep_hops = n // self._hop + 2
         self._ch_flag = f"{self.name}/chatter"
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
@@ -194,49 +213,7 @@ class ChatterMonitor(Block):
         self._harm_mask = np.zeros(len(f), dtype=bool)
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        s = self.settings
-        x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
-        n = len(x)
-        if s.speed_channel is not None:
-            spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
-            if self._speed_factor != 1.0:
-                spd = spd * self._speed_factor
-        else:
-            spd = np.full(n, self._const_speed)
-        hop = self._hop
-        first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
-        if first >= n:  # no decision in this chunk (the common case for short chunks)
-            ingest(x, spd, self._fs, self._alpha, self._beta, self._ring_x, self._ring_y,
-                   self._pos, self._state, self._min_rev_s, self._smooth)  # fmt: skip
-            self._pos += n
-            return BlockOutput(self._held_outputs(n))
-        flag = np.empty(n)
-        freq = np.empty(n)
-        ratio = np.empty(n)
-        events: list[Event] = []
-        i = 0
-        for j in [*range(first + 1, n + 1, hop), n]:
-            if j <= i:
-                continue
-            ingest(x[i:j], spd[i:j], self._fs, self._alpha, self._beta, self._ring_x,
-                   self._ring_y, self._pos, self._state, self._min_rev_s, self._smooth)  # fmt: skip
-            self._pos += j - i
-            if (chunk.start + j) % hop == 0:
-                # outputs before the decision sample hold the old values
-                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = (
-                    self._flag,
-                    self._freq,
-                    self._ratio,
-                )
-                nc = None
-                if s.nc_line_channel is not None:
-                    nc = int(chunk.data[s.nc_line_channel][j - 1])
-                events.extend(self._decide(chunk.start + j - 1, chunk, nc))
-                flag[j - 1], freq[j - 1], ratio[j - 1] = self._flag, self._freq, self._ratio
-            else:
-                flag[i:j], freq[i:j], ratio[i:j] = self._flag, self._freq, self._ratio
-            i = j
-        return BlockOutput({self._ch_flag: flag, self._ch_hz: freq, self._ch_ratio: ratio}, events)
+        return _run_chunk([self], chunk)
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held outputs for ``n`` samples: views of arrays that are never written again
@@ -253,21 +230,24 @@ class ChatterMonitor(Block):
         return {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
 
     # ------------------------------------------------------------------ decision
+    def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
+        g = self._stage
+        ingest(x, spd, self._fs, self._alpha, self._beta, g.ring_x, g.ring_y, g.pos, g.state,
+               self._min_rev_s, self._smooth)  # fmt: skip
+        g.pos += len(x)
+
     def _spectra(self) -> Spectra | None:
-        st = self._state
-        f_rev = st[1] / st[2] if st[2] > 0 else 0.0
+        g = self._stage
+        f_rev = g.f_rev
         n = self.method.window
-        self._ranges.append((float(st[3]), float(st[4])))
-        del self._ranges[: -(n // self._hop + 2)]
-        st[1] = st[2] = st[4] = 0.0
-        st[3] = np.inf
-        if self._pos < n:
+        if g.pos < n:
             return None
-        lo = min(r[0] for r in self._ranges)
-        hi = max(r[1] for r in self._ranges)
+        ranges = g.ranges[-(n // self._hop + 2) :]
+        lo = min(r[0] for r in ranges)
+        hi = max(r[1] for r in ranges)
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
-        xr = self._window(self._ring_x, n)
+        xr = self._window(self._stage.ring_x, n)
         xr = xr - xr.mean()
         raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
         f = self._f
@@ -294,7 +274,7 @@ class ChatterMonitor(Block):
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
         if cutting and not self._steady_mean(xr, n, tooth):
             return None  # entry, exit or a large step inside the window: no decision
-        xc = self._window(self._ring_y, n)
+        xc = self._window(self._stage.ring_y, n)
         raw_rect = None
         if self.method.taper == "rect":
             comb = np.abs(sfft.rfft(xc)) * self._comb_scale
@@ -320,7 +300,7 @@ class ChatterMonitor(Block):
     def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
         """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
         size = len(ring)
-        a = (self._pos - n) & (size - 1)
+        a = (self._stage.pos - n) & (size - 1)
         if a + n <= size:
             return ring[a : a + n].copy()
         return np.concatenate([ring[a:], ring[: a + n - size]])
@@ -430,3 +410,98 @@ class ChatterMonitor(Block):
             y_mm=loc[2],
             z_mm=loc[3],
         )
+
+
+def _run_chunk(monitors: Sequence[ChatterMonitor], chunk: Chunk) -> BlockOutput:
+    """Feed ``chunk`` to monitors sharing one stage (the first one's inputs and hop): one
+    ingest per run of samples, each monitor's decision at the decision samples."""
+    lead = monitors[0]
+    s = lead.settings
+    x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
+    n = len(x)
+    if s.speed_channel is not None:
+        spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
+        if lead._speed_factor != 1.0:
+            spd = spd * lead._speed_factor
+    else:
+        spd = np.full(n, lead._const_speed)
+    hop = lead._hop
+    first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
+    if first >= n:  # no decision in this chunk (the common case for short chunks)
+        lead._ingest(x, spd)
+        if len(monitors) == 1:
+            return BlockOutput(lead._held_outputs(n))
+        out: dict[str, np.ndarray] = {}
+        for m in monitors:
+            out.update(m._held_outputs(n))
+        return BlockOutput(out)
+    arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
+    events: list[Event] = []
+    keep = max(m._keep_hops for m in monitors)
+    i = 0
+    for j in [*range(first + 1, n + 1, hop), n]:
+        if j <= i:
+            continue
+        lead._ingest(x[i:j], spd[i:j])
+        decided = (chunk.start + j) % hop == 0
+        if decided:
+            lead._stage.close_hop(keep)
+            nc = None
+            if s.nc_line_channel is not None:
+                nc = int(chunk.data[s.nc_line_channel][j - 1])
+        for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
+            if decided:
+                # outputs before the decision sample hold the old values
+                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = m._flag, m._freq, m._ratio
+                events.extend(m._decide(chunk.start + j - 1, chunk, nc))
+                flag[j - 1], freq[j - 1], ratio[j - 1] = m._flag, m._freq, m._ratio
+            else:
+                flag[i:j], freq[i:j], ratio[i:j] = m._flag, m._freq, m._ratio
+        i = j
+    out = {}
+    for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
+        out.update({m._ch_flag: flag, m._ch_hz: freq, m._ch_ratio: ratio})
+    return BlockOutput(out, events)
+
+
+class ChatterGroup(Block):
+    """Several chatter monitors on the same signal and speed as one block: the rings, the comb
+    filter and the speed statistics are computed once (the criteria differ only in their
+    windows and decisions). Outputs and events are those of the members, unchanged.
+
+    Parameters
+    ----------
+    monitors : monitors reading the same signal, speed, NC-line channel, with the same hop.
+    name : block name.
+    """
+
+    def __init__(self, monitors: Sequence[ChatterMonitor], name: str = "chatter") -> None:
+        if not monitors:
+            raise ConfigError("chatter group: no monitor")
+        ref = monitors[0].settings
+        for m in monitors[1:]:
+            t = m.settings
+            if (t.signal, t.speed_channel, t.speed_unit, t.speed_rpm, t.nc_line_channel,
+                    t.hop_s, t.min_speed_rpm) != (ref.signal, ref.speed_channel, ref.speed_unit,
+                                                  ref.speed_rpm, ref.nc_line_channel,
+                                                  ref.hop_s, ref.min_speed_rpm):  # fmt: skip
+                raise ConfigError(
+                    f"chatter group: monitor '{m.name}' reads other channels or settings than "
+                    f"'{monitors[0].name}'"
+                )
+        self.monitors = list(monitors)
+        self.name = name
+        self.inputs = monitors[0].inputs
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [c for m in self.monitors for c in m.output_channels()]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        for m in self.monitors:
+            m.reset(sample_rate_hz)
+        stage = _Stage(max(m._size for m in self.monitors))
+        for m in self.monitors:
+            m._stage = stage
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        return _run_chunk(self.monitors, chunk)
