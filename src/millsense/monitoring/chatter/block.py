@@ -42,6 +42,8 @@ BACKGROUND_TAU_AIR_S = 0.5
 BACKGROUND_TAU_NOVEL_S = 30.0
 #: A comb component is new when above this many times its background (decision 1504).
 NOVELTY_FACTOR = 5.0
+#: ... and, while chatter is flagged, above this many times (hysteresis, decision 1504).
+NOVELTY_HOLD = 2.0
 #: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
 CUTTING_GATE = 3.0
 #: Largest relative spread of the spindle speed over a window for a decision.
@@ -286,7 +288,9 @@ class ChatterMonitor(Block):
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
             self._background = np.zeros_like(comb) if cutting else comb.copy()
-        novel = comb - NOVELTY_FACTOR * self._background
+        # hysteresis: while chatter is flagged a component stays new above 2 × its background
+        factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+        novel = comb - factor * self._background
         if f_rev > 0:
             # chatter is never on a spindle harmonic (that is forced vibration): bins within
             # the comb's notch width or 2 bins of one are not searched

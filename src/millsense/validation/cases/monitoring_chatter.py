@@ -26,8 +26,8 @@ import numpy as np
 from millsense.validation import Measured, case
 
 FS_HZ = 10_000.0
-#: Tool: (diameter m, flutes, rev/min, chatter depth mm, stable depth mm, thesis Hz, X modes,
-#: Y modes) with modes (Hz, ζ %, k N/m); Aslan Tables 5.3–5.4, V5, Fig. 5.18.
+#: Tool: (diameter m, flutes, rev/min, chatter depth mm, thesis stable depth mm, thesis Hz,
+#: X modes, Y modes) with modes (Hz, ζ %, k N/m); Aslan Tables 5.3–5.4, V5, Fig. 5.18.
 TOOLS: dict[str, tuple[Any, ...]] = {
     "T1": (50e-3, 5, 6000.0, 2.25, 1.5, 570.0,
            [(282, 5.3, 5.9e7), (546, 2.8, 1.2e7), (1621, 1.5, 2.8e8)],
@@ -249,35 +249,51 @@ def _t3_raw() -> Measured:
     return Measured(v5()["T3"]["raw_ratio"], _v5_table())
 
 
+#: Stable cuts of the replicas (depth mm): the thesis's (Fig. 5.18) where the replica is stable
+#: there (T1 1.5, T3 0.5); T2 and T4 chatter in the replica at the thesis's 2 and 0.5 mm
+#: (vibration 17 and 54 µm RMS), so their stable cuts are taken at 1.0 and 0.25 mm.
+STABLE_MM = {"T1": 1.5, "T2": 1.0, "T3": 0.5, "T4": 0.25}
+#: The thesis's stable depths that chatter in the replica (listed, not counted as stable).
+THESIS_STABLE_CHATTERING_MM = {"T2": 2.0, "T4": 0.5}
+
+
 @cache
 def stable_alarms() -> list[tuple[str, float, int, int, float]]:
-    """Per tool at the thesis's stable depth: (tool, depth, comp alarms, raw alarms, sim
-    chatter fraction)."""
+    """Per cut: (tool, depth mm, comp. alarms, raw alarms, simulated chatter fraction over the
+    last 0.8 s); the replica-stable cuts first, then the thesis-stable ones that chatter."""
     out = []
-    for tool, (_, n, _, _, depth, *_r) in TOOLS.items():
+    cuts = [*STABLE_MM.items(), *THESIS_STABLE_CHATTERING_MM.items()]
+    for tool, depth in cuts:
+        n = TOOLS[tool][1]
         d = simulate(tool, depth)
         ev_c, _ = detect(compensated(tool, depth), d["spindle/speed"], n)
         ev_r, _ = detect(d["spindle/current_cmd"], d["spindle/speed"], n)
-        out.append((tool, depth, len(ev_c), len(ev_r), float(np.mean(d["truth/process/chatter"]))))
+        frac = float(np.mean(d["truth/process/chatter"][-int(0.8 * FS_HZ) :]))
+        out.append((tool, depth, len(ev_c), len(ev_r), frac))
     return out
 
 
 @case(
     "monitoring.chatter.v5_stable_cuts_no_alarm",
-    source="seed 000 V5 / Fig. 5.18: stable cuts T1 1.5, T2 2, T3 0.5, T4 0.5 mm, all ratios < 1.5",
+    source="seed 000 V5 / Fig. 5.18: stable cuts give ratios < 1.5 (no alarm)",
     reference=0.0,
     abs_tol=0.0,
     unit="alarms",
     quick=False,
     description="chatter-comb alarms on the compensated and the raw spindle current over the "
-    "four stable replicas (0.8 s air, 1.4 s cut each)",
+    "four replica cuts that are stable in the simulation (T1 1.5, T2 1.0, T3 0.5, T4 0.25 mm; "
+    "0.8 s air, 1.4 s cut); the thesis's T2 2 mm and T4 0.5 mm chatter in the replica and are "
+    "listed, not counted",
 )
 def _stable() -> Measured:
     res = stable_alarms()
-    rows = ["| tool | depth mm | alarms comp. | alarms raw | sim chatter fraction |",
-            "|---|---|---|---|---|"]  # fmt: skip
-    rows += [f"| {t} | {a:g} | {c} | {r} | {f:.2f} |" for t, a, c, r, f in res]
-    return Measured(float(sum(c + r for _, _, c, r, _ in res)), "\n".join(rows))
+    rows = [
+        "| tool | depth mm | sim chatter fraction (last 0.8 s) | alarms comp. | alarms raw |",
+        "|---|---|---|---|---|",
+    ]
+    rows += [f"| {t} | {a:g} | {f:.2f} | {c} | {r} |" for t, a, c, r, f in res]
+    counted = res[: len(STABLE_MM)]
+    return Measured(float(sum(c + r for _, _, c, r, _ in counted)), "\n".join(rows))
 
 
 # ------------------------------------------------------------------------------------------
