@@ -70,14 +70,15 @@ def simulate_torque(
     noise: TorqueNoise | None = None,
     seed: int = 0,
     block: int = 20000,
-) -> tuple[FloatArray, FloatArray]:
-    """True cutting torque and observed torque (N·m) at times ``t_s`` along arc length
-    ``s_of_t`` at constant spindle speed ``rpm``."""
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """True cutting torque, observed torque (N·m) and true force on the tool (n, 3; feed,
+    normal, axis; N) at times ``t_s`` along arc length ``s_of_t`` at constant ``rpm``."""
     if tool is None or coeffs is None:
         tool, coeffs = aslan_tool_and_coeffs()
     pc = ProcessCoupling(tool, coeffs, source, events=events, n_discs=8, sample_rate_hz=FS)
     omega = rpm * 2 * math.pi / 60.0
     true = np.zeros(len(t_s))
+    force = np.zeros((len(t_s), 3))
     for i in range(0, len(t_s), block):
         sl = slice(i, i + block)
         tt = t_s[sl]
@@ -85,5 +86,6 @@ def simulate_torque(
             tt, s_of_t[sl], omega * tt, np.full(len(tt), omega), np.asarray(feed_m_s)[sl]
         )
         true[sl] = po.torque
+        force[sl] = po.force
     obs = observed_torque(true, t_s, omega, noise or TorqueNoise(), seed)
-    return true, obs
+    return true, obs, force
