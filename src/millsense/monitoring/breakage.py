@@ -163,6 +163,7 @@ class BreakageBlock(Block):
             ins.extend(tcp_channels)
         self.inputs = tuple(ins)
         self.fs = 0.0
+        self._names = [info.name for info in self.output_channels()]
 
     # ------------------------------------------------------------------ contract
 
@@ -215,8 +216,8 @@ class BreakageBlock(Block):
         )
         out = BlockOutput()
         if k == 0:
-            for j, info in enumerate(self.output_channels()):
-                out.channels[info.name] = np.full(n, self._held[j])
+            for j, nm in enumerate(self._names):
+                out.channels[nm] = np.full(n, self._held[j])
             return out
         x = np.hypot(m0[:k], m1[:k]) if b.shape[0] else m0[:k].copy()
         if self.expected_channel is not None:
@@ -256,8 +257,8 @@ class BreakageBlock(Block):
         )
         per_period = np.stack([x, eps1, lim1, eps2, lim2])  # (5, k)
         table = np.concatenate([self._held[:, None], per_period], axis=1)
-        for j, info in enumerate(self.output_channels()):
-            out.channels[info.name] = table[j, held]
+        for j, nm in enumerate(self._names):
+            out.channels[nm] = table[j, held]
         self._held = per_period[:, -1].copy()
         first = self._first_violation
         for i in range(k):
@@ -268,8 +269,18 @@ class BreakageBlock(Block):
                 first = -1
             if alarm[i]:
                 out.events.append(
-                    self._event(chunk, int(end[i]), int(index[i]), first, x[i], expected[i],
-                                eps1[i], lim1[i], eps2[i], lim2[i])
+                    self._event(
+                        chunk,
+                        int(end[i]),
+                        int(index[i]),
+                        first,
+                        x[i],
+                        expected[i],
+                        eps1[i],
+                        lim1[i],
+                        eps2[i],
+                        lim2[i],
+                    )
                 )
         self._first_violation = first
         return out
@@ -319,10 +330,12 @@ class BreakageBlock(Block):
             values[f"expected_{s}"] = float(expected)
         nc_line = x_mm = y_mm = z_mm = None
         if self.plan is not None:
-            row = int(self.plan.match(
-                np.array([[float(np.asarray(chunk.data[c])[at]) for c in self.tcp_channels]]),
-                from_row=max(self._row - 50, 0),
-            )[0])
+            row = int(
+                self.plan.match(
+                    np.array([[float(np.asarray(chunk.data[c])[at]) for c in self.tcp_channels]]),
+                    from_row=max(self._row - 50, 0),
+                )[0]
+            )
             if row < 0:
                 row = self._row
             nc_line = int(self.plan["nc_line"][row])

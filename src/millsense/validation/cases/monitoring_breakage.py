@@ -130,13 +130,18 @@ def _split(events: list[Event], break_s: float) -> tuple[list[Event], list[Event
 
 
 def _describe(run: V7Run) -> str:
-    lines = ["| detector | alarms before the break (time s, NC line) | first alarm after |", "|---|---|---|"]
+    lines = [
+        "| detector | alarms before the break (time s, NC line) | first alarm after |",
+        "|---|---|---|",
+    ]
     for k, ev in run.events.items():
         before, after = _split(ev, run.break_s)
         b = ", ".join(f"{e.time_s:.2f} s (N{e.nc_line})" for e in before) or "none"
         a = f"{after[0].time_s:.4f} s" if after else "none"
         lines.append(f"| {k} | {b} | {a} |")
-    lines.append(f"\nBreak of flute 0 at {run.break_s:.4f} s (tooth period {TOOTH_S_V7 * 1e3:.0f} ms).")
+    lines.append(
+        f"\nBreak of flute 0 at {run.break_s:.4f} s (tooth period {TOOTH_S_V7 * 1e3:.0f} ms)."
+    )
     return "\n".join(lines)
 
 
@@ -165,7 +170,7 @@ def _v7_virtual_false() -> Measured:
     unit="tooth periods",
     abs_tol=0.05,
     quick=False,
-    description="Break (at a tooth-period boundary) to the virtual detector's alarm, tooth periods.",
+    description="Break (at a tooth-period boundary) to the virtual detector's alarm.",
 )
 def _v7_virtual_latency() -> Measured:
     run = v7_run()
@@ -224,7 +229,9 @@ def _geometry_schedule(diameter_m: float, depth_m: float) -> object:
     table = []
     segs = []
     for i, (t, w) in enumerate(widths):
-        eng = Engagement.slot() if w >= 1.0 else Engagement.radial(w * diameter_m, diameter_m, "down")
+        eng = (
+            Engagement.slot() if w >= 1.0 else Engagement.radial(w * diameter_m, diameter_m, "down")
+        )
         table.append(eng)
         segs.append(EngagementSegment(t, i, depth_m))
     return EngagementSchedule(tuple(table), tuple(segs), basis="time")
