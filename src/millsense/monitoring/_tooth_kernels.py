@@ -253,3 +253,30 @@ def detect_periods(
         run = run + 1.0 if v else 0.0
         state[DET_RUN] = run
         alarm[m] = v and int(run) == confirm
+
+
+@numba.njit(cache=True)
+def accumulate_revolutions(
+    speed: FloatArray, fs: float, state: FloatArray, out_angle: FloatArray, out_rev: IntArray
+) -> None:
+    """Spindle angle within the revolution (rad) and revolution index of every sample.
+
+    ``state = [fraction of a revolution, revolution index]``; the angle advances by |Ω|/f_s
+    per sample (sample k carries the angle reached at k), sequentially, so any chunking gives
+    the same result bit for bit.
+    """
+    frac = state[0]
+    rev = state[1]
+    scale = 1.0 / (2.0 * math.pi * fs)
+    for k in range(speed.shape[0]):
+        if k > 0 or rev >= 0:
+            frac += abs(speed[k]) * scale
+        if rev < 0:
+            rev = 0.0
+        while frac >= 1.0:
+            frac -= 1.0
+            rev += 1.0
+        out_angle[k] = 2.0 * math.pi * frac
+        out_rev[k] = int(rev)
+    state[0] = frac
+    state[1] = rev
