@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from scipy import optimize
 
 FloatArray = NDArray[np.float64]
+FloatLike = NDArray[np.float64] | float
 ComplexArray = NDArray[np.complex128]
 
 
@@ -56,15 +57,16 @@ class ToolGeometry:
         return 2 * math.pi * self.radius_m / (self.n_flutes * self.tan_beta)
 
 
-def g_coeff(m: FloatArray, th_st: FloatArray, th_ex: FloatArray) -> ComplexArray:
+def g_coeff(m: FloatLike, th_st: FloatLike, th_ex: FloatLike) -> ComplexArray:
     """G_m = (1/2π)∫_{θst}^{θex} e^{−imu} du (broadcasting)."""
     m = np.asarray(m, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         val = (np.exp(-1j * m * th_st) - np.exp(-1j * m * th_ex)) / (1j * m)
-    return np.where(m == 0, (th_ex - th_st) + 0j, val) / (2 * math.pi)
+    out = np.where(m == 0, np.asarray(th_ex) - th_st + 0j, val) / (2 * math.pi)
+    return np.asarray(out, dtype=np.complex128)
 
 
-def l_coeff(m: FloatArray, depth_m: FloatArray, geom: ToolGeometry) -> ComplexArray:
+def l_coeff(m: FloatLike, depth_m: FloatLike, geom: ToolGeometry) -> ComplexArray:
     """L_m = ∫_0^{d_a} e^{−imψ(z)} dz (broadcasting)."""
     m = np.asarray(m, dtype=np.float64)
     k = geom.tan_beta / geom.radius_m
@@ -74,14 +76,14 @@ def l_coeff(m: FloatArray, depth_m: FloatArray, geom: ToolGeometry) -> ComplexAr
 
 
 def static_harmonics(
-    k: FloatArray,
-    depth_m: FloatArray,
-    th_st: FloatArray,
-    th_ex: FloatArray,
+    k: FloatLike,
+    depth_m: FloatLike,
+    th_st: FloatLike,
+    th_ex: FloatLike,
     geom: ToolGeometry,
     kt_n_m2: float = 1.0,
     feed_per_tooth_m: float = 1.0,
-    edge_ratio: FloatArray | float = 0.0,
+    edge_ratio: FloatLike | float = 0.0,
 ) -> ComplexArray:
     """T_k of the runout-free torque for harmonics k ≡ 0 (mod N) (module notes), with an edge
     force K_e = e·K_t·c per unit length of engaged edge (``edge_ratio`` e; decision 1525)."""
@@ -150,7 +152,7 @@ class EngagementEstimate:
 
 
 def _basis(
-    k: FloatArray, depth_m: FloatArray, th_st: FloatArray, th_ex: FloatArray, geom: ToolGeometry
+    k: FloatLike, depth_m: FloatLike, th_st: FloatLike, th_ex: FloatLike, geom: ToolGeometry
 ) -> tuple[ComplexArray, ComplexArray]:
     """Shear and edge basis of the static harmonics: T_k = α A_k + β B_k with
     α = r N K_t c, β = r N K_e (module notes; broadcasting)."""
@@ -219,7 +221,6 @@ class SpectrumIdentifier:
         self.edge = edge
         self.max_depth_m = max_depth_fraction * geom.axial_pitch_m
         self.k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
-        dap = geom.axial_pitch_m
         d = np.linspace(0.03, 0.97, 48) * self.max_depth_m
         ang = np.linspace(0.0, math.pi, 61)
         st, ex = np.meshgrid(ang, ang, indexing="ij")
@@ -293,7 +294,7 @@ class SpectrumIdentifier:
         ke = float(beta) / rn
         w = solve_runout(t1, d, st, ex, geom, kt)
         notch = dap / d
-        m = min(max(int(math.floor(notch)), 1), x.size)
+        m = min(max(math.floor(notch), 1), x.size)
         model = np.abs(float(alpha) * a[:m] + float(beta) * b[:m])
         meas = np.abs(x[:m])
         sigma = 1.0 - float(np.sum(np.abs(meas - model)) / np.sum(meas))
