@@ -45,3 +45,22 @@ def test_contact_bad_input():
         detect_contact(cut[:-1], air, pos, FS, PERIOD_S)
     with pytest.raises(InputDataError, match="reference revolution"):
         detect_contact(cut[:1000], air[:1000], pos[:1000], FS, PERIOD_S)
+
+
+def test_contact_block_streams_like_the_batch_detector():
+    from millsense.monitoring.contact import make_contact_block
+    from millsense.streaming.block import Chunk
+
+    cut, air, pos = simulate_contact(5)
+    ref = detect_contact(cut, air, pos, FS, PERIOD_S)
+    data = {"spindle/torque_cmd": cut, "x/position": pos}
+    for chunk in (1000, 7777):
+        block = make_contact_block(air_torque_nm=air, period_s=PERIOD_S)
+        block.reset(FS)
+        events = []
+        for i in range(0, cut.size, chunk):
+            out = block.process(Chunk(i, FS, 0.0, {k: v[i : i + chunk] for k, v in data.items()}))
+            events += out.events
+        assert len(events) == 1 and events[0].name == "contact"
+        # the centred average near A is complete: the same contact as the whole record
+        assert events[0].value == pytest.approx(ref.position, abs=1e-9)

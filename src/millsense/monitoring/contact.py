@@ -23,12 +23,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
 
-from millsense.core.errors import InputDataError
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.core.recording import ChannelInfo
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
 FloatArray = NDArray[np.float64]
 
@@ -192,3 +195,129 @@ def fit_circle(x: FloatArray, y: FloatArray, tol: float = 1e-12, max_iter: int =
         res,
         it,
     )
+
+
+class ContactBlock(Block):
+    """Streaming contact detector for one cut motion (seed 004 Fig. 3.6).
+
+    The stream starts at the spindle start t₀ of the cut motion; ``air_torque_nm`` is the
+    torque of the matching air-cut motion on the same clock (recorded before). Samples are
+    buffered; once Δτ has stayed above η + 4κ for one moving-average length, and one more
+    length of samples has arrived (so the centred average near point A no longer depends on
+    where the stream was cut), :func:`detect_contact` runs on the buffer and a ``contact``
+    NOTE event carries t_C and the position. One event per motion.
+
+    Parameters
+    ----------
+    air_torque_nm : air-cut torque from t₀, N·m (at least as long as the cut motion).
+    period_s : rotation period T, s.
+    torque_channel, position_channel : torque command (N·m) and axis position (m).
+    """
+
+    def __init__(
+        self,
+        air_torque_nm: FloatArray,
+        period_s: float,
+        torque_channel: str = "spindle/torque_cmd",
+        position_channel: str = "x/position",
+        moving_average: int = MOVING_AVERAGE,
+        k_sigma: float = K_SIGMA,
+        preliminary_revs: int = PRELIMINARY_REVS,
+        name: str = "contact",
+    ) -> None:
+        if not (period_s > 0 and math.isfinite(period_s)):
+            raise ConfigError(f"contact: period_s must be positive, got {period_s!r}")
+        self.air = np.asarray(air_torque_nm, dtype=np.float64)
+        self.period_s = float(period_s)
+        self.torque_channel = torque_channel
+        self.position_channel = position_channel
+        self.moving_average = max(int(moving_average), 1)
+        self.k_sigma = float(k_sigma)
+        self.preliminary_revs = int(preliminary_revs)
+        self.name = name
+        self.inputs = (torque_channel, position_channel)
+        self.result: Contact | None = None
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return []
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.fs = float(sample_rate_hz)
+        self._cut = np.empty(self.air.size)
+        self._pos = np.empty(self.air.size)
+        self._n = 0
+        self._ref: tuple[float, float] | None = None
+        self._run = 0
+        self._found_at = -1
+        self.result = None
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        out = BlockOutput()
+        if self.result is not None:
+            return out
+        cut = np.asarray(chunk.data[self.torque_channel], dtype=np.float64)
+        start = self._n
+        if start + cut.size > self.air.size:
+            raise InputDataError(
+                f"{self.name}: the cut motion is longer than the air-cut reference "
+                f"({self.air.size} samples)"
+            )
+        self._cut[start : start + cut.size] = cut
+        self._pos[start : start + cut.size] = chunk.data[self.position_channel]
+        self._n += cut.size
+        i1 = round(self.preliminary_revs * self.period_s * self.fs)
+        ma = self.moving_average
+        if self._found_at < 0 and self._n > i1 + ma:
+            # cheap screening on the raw difference smoothed causally; the exact detection
+            # below runs on the whole buffer with the centred average
+            lo = max(start, i1) - ma
+            seg = self._cut[lo : self._n] - self.air[lo : self._n]
+            sm = np.convolve(seg, np.ones(ma) / ma, mode="valid")
+            if self._ref is None:
+                i0 = round((self.preliminary_revs - 1) * self.period_s * self.fs)
+                d = self._cut[i0:i1] - self.air[i0:i1]
+                ref = np.convolve(d, np.ones(ma) / ma, mode="valid")
+                self._ref = (float(np.mean(ref)), float(np.std(ref)))
+            eta, kappa = self._ref
+            over = sm > eta + self.k_sigma * kappa
+            idx = np.arange(over.size)
+            last_false = np.maximum.accumulate(np.where(over, -1, idx))
+            run = np.where(last_false < 0, idx + 1 + self._run, idx - last_false)
+            hit = np.nonzero(run >= ma)[0]
+            if hit.size:
+                self._found_at = lo + ma - 1 + int(hit[0])
+            else:
+                self._run = int(run[-1]) if run.size else self._run
+        if self._found_at >= 0 and self._n >= self._found_at + 2 * ma:
+            n = self._found_at + 2 * ma
+            c = detect_contact(
+                self._cut[:n],
+                self.air[:n],
+                self._pos[:n],
+                self.fs,
+                self.period_s,
+                self.moving_average,
+                self.k_sigma,
+                self.preliminary_revs,
+            )
+            self.result = c
+            sample = round(c.time_s * self.fs)
+            out.events.append(
+                Event(
+                    time_s=chunk.t0_s + c.time_s,
+                    kind=EventKind.NOTE,
+                    source=self.name,
+                    message=f"tool-workpiece contact at {c.position:.6g} (t = {c.time_s:.5f} s)",
+                    name="contact",
+                    value=c.position,
+                    sample=sample,
+                    severity=Severity.INFO,
+                    values={"eta_nm": c.eta, "kappa_nm": c.kappa, "slope_nm_s": c.slope},
+                )
+            )
+        return out
+
+
+def make_contact_block(**options: Any) -> Block:
+    """Seed 004 ch. 3 contact detector (needs ``air_torque_nm`` and ``period_s``)."""
+    return ContactBlock(**options)
