@@ -19,6 +19,7 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
+from millsense.monitoring import _spectrum_kernels as _sk
 from millsense.monitoring import _tooth_kernels as _k
 from millsense.monitoring.torque_spectrum import (
     EngagementEstimate,
@@ -136,7 +137,8 @@ class EngagementBlock(Block):
         est: EngagementEstimate | None = None
         omega = float(np.mean(np.abs(sp)))
         if float(np.mean(x)) >= self.min_torque_nm and omega > 0:
-            coeff = np.exp(-1j * self._k[:, None] * ang[None, :]) @ x / x.size
+            coeff = np.empty(self._k.size, dtype=np.complex128)
+            _sk.revolution_harmonics(x, ang, self.geom.n_flutes, coeff)
             c = self.c_m
             if c is None:
                 assert fd is not None

@@ -27,12 +27,14 @@ d_r = r (cos θ_st − cos θ_ex) (digest §2.4 [S]; = r(1 + cos θ_st) in down 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
+
+from millsense.monitoring import _spectrum_kernels as _sk
 
 FloatArray = NDArray[np.float64]
 FloatLike = NDArray[np.float64] | float
@@ -116,16 +118,23 @@ def solve_runout(
     t1: complex, depth_m: float, th_st: float, th_ex: float, geom: ToolGeometry, kt_n_m2: float
 ) -> complex:
     """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`)."""
+    g1 = complex(g_coeff(np.array(1.0), th_st, th_ex))
+    l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
+    return _runout_from(t1, depth_m, geom, kt_n_m2, g1, l2)
+
+
+def _runout_from(
+    t1: complex, depth_m: float, geom: ToolGeometry, kt_n_m2: float, g1: complex, l2: complex
+) -> complex:
     n = geom.n_flutes
     if n == 1:
         return complex(math.nan, math.nan)
-    base = geom.radius_m * kt_n_m2 * complex(g_coeff(np.array(1.0), th_st, th_ex)) * n
-    if abs(base) == 0:
+    base = geom.radius_m * kt_n_m2 * g1 * n
+    if abs(base) == 0 or not math.isfinite(abs(base)):
         return complex(math.nan, math.nan)
     if n >= 3:
-        return t1 / (base * depth_m * (1 - np.exp(-2j * math.pi / n)) / 2)
+        return complex(t1 / (base * depth_m * (1 - np.exp(-2j * math.pi / n)) / 2))
     q = t1 / base
-    l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
     p, s = l2.real, l2.imag
     mat = np.array([[depth_m + p, s], [s, depth_m - p]])
     # d_a² − |L_2|² → 0 for a small helix lag: then only one component of w is observable;
@@ -183,6 +192,22 @@ def _project(
     return alpha, beta, x - alpha[..., None] * a - beta[..., None] * b
 
 
+@functools.lru_cache(maxsize=16)
+def _grid(
+    geom: ToolGeometry, n_harmonics: int, max_depth_m: float
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray], ComplexArray, ComplexArray]:
+    """Coarse grid of (d_a, θ_st, θ_ex) and its shear and edge bases (cached per tool)."""
+    d = np.linspace(0.03, 0.97, 48) * max_depth_m
+    ang = np.linspace(0.0, math.pi, 61)
+    st, ex = np.meshgrid(ang, ang, indexing="ij")
+    keep = ex > st + 1e-9
+    st, ex = st[keep], ex[keep]
+    grid = (np.repeat(d, st.size), np.tile(st, d.size), np.tile(ex, d.size))
+    k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
+    a, b = _basis(k[None, :], grid[0][:, None], grid[1][:, None], grid[2][:, None], geom)
+    return grid, a, b
+
+
 #: Harmonics of the spindle frequency covered by the coarse grid and the first least-squares
 #: stage (16 ω_n: 4 tooth harmonics of a 4-flute tool, 16 of a 1-flute one).
 GRID_ORDER = 16
@@ -221,21 +246,9 @@ class SpectrumIdentifier:
         self.edge = edge
         self.max_depth_m = max_depth_fraction * geom.axial_pitch_m
         self.k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
-        d = np.linspace(0.03, 0.97, 48) * self.max_depth_m
-        ang = np.linspace(0.0, math.pi, 61)
-        st, ex = np.meshgrid(ang, ang, indexing="ij")
-        keep = ex > st + 1e-9
-        st, ex = st[keep], ex[keep]
-        self._grid = (np.repeat(d, st.size), np.tile(st, d.size), np.tile(ex, d.size))
         self.k_grid = self.k[: max(min(GRID_ORDER // geom.n_flutes, self.k.size), 2)]
-        a, b = _basis(
-            self.k_grid[None, :],
-            self._grid[0][:, None],
-            self._grid[1][:, None],
-            self._grid[2][:, None],
-            geom,
-        )
-        self._ga, self._gb = a, (b if edge else None)
+        self._grid, self._ga, gb = _grid(geom, self.k_grid.size, self.max_depth_m)
+        self._gb = gb if edge else None
         self._prev: FloatArray | None = None
         #: relative misfit below which the previous revolution's start is kept (no grid)
         self.accept = 1e-3
@@ -260,14 +273,25 @@ class SpectrumIdentifier:
         hi = np.array([self.max_depth_m, math.pi, math.pi])
         norm = float(np.sum(np.abs(xn) ** 2))
 
-        def fit(p0: FloatArray, n: int | None = None) -> optimize.OptimizeResult:
-            p0 = np.clip(p0, lo + 1e-9, hi - 1e-9)
-            return optimize.least_squares(
-                self._residual, p0, args=(xn[:n],), bounds=(lo, hi), x_scale=[dap, 1.0, 1.0]
+        kb = geom.tan_beta / geom.radius_m
+        scl = np.array([dap, 1.0, 1.0])
+
+        def fit(p0: FloatArray, n: int | None = None) -> tuple[FloatArray, float]:
+            nn = xn.size if n is None else n
+            return _sk.lm_fit(
+                np.asarray(p0, dtype=np.float64),
+                np.ascontiguousarray(xn[:nn]),
+                self.k[:nn],
+                kb,
+                self.edge,
+                lo,
+                hi,
+                scl,
+                60,
             )
 
         best = fit(self._prev) if self._prev is not None else None
-        if best is None or 2 * best.cost / norm > self.accept:
+        if best is None or 2 * best[1] / norm > self.accept:
             # the previous revolution's solution does not explain this one: grid starts too
             ng = self.k_grid.size
             _, _, r = _project(xn[None, :ng], self._ga, self._gb)
@@ -277,25 +301,26 @@ class SpectrumIdentifier:
                 # coarse to fine: the low harmonics pin the angles before the high ones, whose
                 # phases turn k N times faster with θ, are added
                 low = fit(np.array([g[j] for g in self._grid]), ng)
-                sol = fit(low.x)
-                if best is None or sol.cost < best.cost:
+                sol = fit(low[0])
+                if best is None or sol[1] < best[1]:
                     best = sol
-                if 2 * best.cost / norm < 1e-8:
+                if 2 * best[1] / norm < 1e-8:
                     break
         assert best is not None
-        d, st, ex = (float(v) for v in best.x)
+        d, st, ex = (float(v) for v in best[0])
         if ex < st:
             st, ex = ex, st
         self._prev = np.array([d, st, ex])
-        a, b = _basis(self.k, d, st, ex, geom)
-        alpha, beta, _ = _project(x, a, b if self.edge else None)
-        rn = geom.radius_m * geom.n_flutes
-        kt = float(alpha) / (rn * feed_per_tooth_m)
-        ke = float(beta) / rn
-        w = solve_runout(t1, d, st, ex, geom, kt)
         notch = dap / d
         m = min(max(math.floor(notch), 1), x.size)
-        model = np.abs(float(alpha) * a[:m] + float(beta) * b[:m])
+        model = np.empty(m)
+        alpha, beta, g1, l2 = _sk.amplitudes(
+            np.array([d, st, ex]), np.ascontiguousarray(x), self.k, kb, self.edge, model
+        )
+        rn = geom.radius_m * geom.n_flutes
+        kt = alpha / (rn * feed_per_tooth_m)
+        ke = beta / rn
+        w = _runout_from(t1, d, geom, kt, g1, l2)
         meas = np.abs(x[:m])
         sigma = 1.0 - float(np.sum(np.abs(meas - model)) / np.sum(meas))
         return EngagementEstimate(
@@ -308,6 +333,6 @@ class SpectrumIdentifier:
             runout_angle_rad=float(-np.angle(w)) % (2 * math.pi),
             reliability=sigma,
             notch_index=notch,
-            cost=float(2 * best.cost / norm),
+            cost=float(2 * best[1] / norm),
             edge_n_m=ke,
         )
