@@ -139,7 +139,7 @@ def lm_fit(
             if c2 < cost:
                 small = True
                 for i in range(3):
-                    if abs(q[i] - p[i]) > 1e-10 * scale[i]:
+                    if abs(q[i] - p[i]) > 1e-7 * scale[i]:
                         small = False
                 p = q
                 r[:] = rt
@@ -147,7 +147,7 @@ def lm_fit(
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
                 improved = True
-                if small or rel < 1e-10:
+                if small or rel < 1e-8:
                     return p, cost
                 break
             lam *= 10.0
