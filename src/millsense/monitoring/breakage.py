@@ -187,6 +187,30 @@ class BreakageBlock(Block):
         self._first_violation = -1
         self._row = 0
         self._empty = np.zeros(0)
+        self._params = np.array(
+            [
+                self.forgetting,
+                self.p_max,
+                self.sigma_tb,
+                self.min_expected_nm,
+                self.reference,
+                self.alpha,
+                self.learn_from,
+            ]
+        )
+        self._iparams = np.array(
+            [
+                self.n_flutes,
+                _MODES[self.method],
+                int(self.check_deviation),
+                self.learn_periods,
+                self.confirm,
+            ],
+            dtype=np.int64,
+        )
+        self._pp = np.empty((8, 0))
+        self._pi = np.empty((2, 0), dtype=np.int64)
+        self._pb = np.empty((2, 0), dtype=np.bool_)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
@@ -203,63 +227,46 @@ class BreakageBlock(Block):
             if self.expected_channel is not None
             else self._empty
         )
-        cap = int(n * self.n_flutes * 5e3 / self.fs) + 2  # ≤ 300 000 rev/min worth of periods
-        cap = min(cap, n + 1)
-        m0 = np.empty(cap)
-        m1 = np.empty(cap)
-        me = np.empty(cap)
-        end = np.empty(cap, dtype=np.int64)
-        index = np.empty(cap, dtype=np.int64)
+        cap = min(int(n * self.n_flutes * 5e3 / self.fs) + 2, n + 1)  # ≤ 300 000 rev/min
+        if cap > self._pp.shape[1]:
+            self._pp = np.empty((8, 2 * cap))
+            self._pi = np.empty((2, 2 * cap), dtype=np.int64)
+            self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
+        pp, pi, pb = self._pp, self._pi, self._pb
         held = np.empty(n, dtype=np.int64)
+        # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2
         k = _k.segment_periods(
-            a, b, e, speed, self.fs, self.n_flutes, self._seg, m0, m1, me, end, index, held
+            a,
+            b,
+            e,
+            speed,
+            self.fs,
+            self.n_flutes,
+            self._seg,
+            pp[0],
+            pp[1],
+            pp[2],
+            pi[0],
+            pi[1],
+            held,
         )
         out = BlockOutput()
-        if k == 0:
-            for j, nm in enumerate(self._names):
-                out.channels[nm] = np.full(n, self._held[j])
-            return out
-        x = np.hypot(m0[:k], m1[:k]) if b.shape[0] else m0[:k].copy()
-        if self.expected_channel is not None:
-            expected = me[:k].copy()
-        elif self.plan is not None:
-            expected = self._plan_expected(d, end[:k])
-        else:
-            expected = np.zeros(k)
-        eps1 = np.empty(k)
-        eps2 = np.empty(k)
-        lim1 = np.empty(k)
-        lim2 = np.empty(k)
-        viol = np.empty(k, dtype=np.bool_)
-        alarm = np.empty(k, dtype=np.bool_)
-        _k.detect_periods(
-            x,
-            expected,
-            self.n_flutes,
-            _MODES[self.method],
-            self.forgetting,
-            self.p_max,
-            self.sigma_tb,
-            self.min_expected_nm,
-            self.check_deviation,
-            self.reference,
-            self.alpha,
-            self.learn_periods,
-            self.learn_from,
-            self.confirm,
-            self._det,
-            eps1,
-            eps2,
-            lim1,
-            lim2,
-            viol,
-            alarm,
-        )
-        per_period = np.stack([x, eps1, lim1, eps2, lim2])  # (5, k)
-        table = np.concatenate([self._held[:, None], per_period], axis=1)
+        values = np.empty((5, n))
+        if k:
+            if b.shape[0]:
+                np.hypot(pp[0, :k], pp[1, :k], out=pp[3, :k])
+            else:
+                pp[3, :k] = pp[0, :k]
+            if self.plan is not None and self.expected_channel is None:
+                pp[2, :k] = self._plan_expected(d, pi[0, :k])
+            _k.detect_periods(pp, pb, k, self._params, self._iparams, self._det)
+        _k.fill_outputs(self._held, pp[3:], k, held, values)
         for j, nm in enumerate(self._names):
-            out.channels[nm] = table[j, held]
-        self._held = per_period[:, -1].copy()
+            out.channels[nm] = values[j]
+        if k == 0:
+            return out
+        x, expected, eps1, lim1, eps2, lim2 = pp[3], pp[2], pp[4], pp[5], pp[6], pp[7]
+        end, index, viol, alarm = pi[0], pi[1], pb[0], pb[1]
         first = self._first_violation
         for i in range(k):
             if viol[i]:
