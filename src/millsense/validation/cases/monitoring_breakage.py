@@ -118,7 +118,7 @@ def v7_run() -> V7Run:
     run = V7Run(data, plan, BREAK_V7_S)
     blocks = {
         "virtual": BreakageBlock(N_V7, "virtual", plan=plan),
-        "constant": BreakageBlock(N_V7, "constant", learn_from=0.5),
+        "constant": BreakageBlock(N_V7, "constant", learn_from=0.5, plan=plan),
     }
     for k, b in blocks.items():
         run.events[k] = run_block(b, data, 1000)[0]
