@@ -116,6 +116,8 @@ def test_bad_options_and_stopped_spindle():
         BreakageBlock(2, "virtual")
     with pytest.raises(ConfigError, match="n_flutes"):
         BreakageBlock(0, "dual")
+    with pytest.raises(ConfigError, match="min_expected_nm"):
+        BreakageBlock(2, "virtual", expected_channel="plan/torque", min_expected_nm=0.0)
     with pytest.raises(ConfigError, match="method"):
         BreakageBlock(2, "magic")  # type: ignore[arg-type]
     with pytest.raises(InputDataError, match="spindle/speed"):

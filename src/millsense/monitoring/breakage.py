@@ -9,9 +9,10 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     virtual plan expects in that tooth period (Eq. 6.6). A violation must also show in the
     measured torque itself (|τ_sa − τ_sa,sim| > σ_TB τ_sa,sim; digest: "an alert needs both the
     measured torque and the residual to violate their limits") and is confirmed over 3 tooth
-    periods (C17 step 5). Tooth periods whose expected torque is below ``min_expected_nm``
-    (air, the first touch of an entry) are not judged: there the virtual limit goes to zero
-    (decision 1522).
+    periods (C17 step 5): a run starts where both violate and continues while the torque does,
+    the alarm comes with its third tooth period. Tooth periods whose expected torque is below ``min_expected_nm``
+    (default 10 % of the plan's largest; air, the first touch of an entry) are not judged:
+    there the virtual limit goes to zero (decision 1522).
 ``constant`` — the constant threshold the thesis compares against in V7: the same detector with
     τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
     revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523).
@@ -22,7 +23,8 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     figures show ±thresholds).
 
 Residuals are a-priori (φ̂ of the previous tooth period; decision 1521). The RLS covariance is
-capped at P₀ so that a long steady cut (regressor ≈ 0) cannot wind it up.
+capped (``rls_p_max``) so that a long steady cut (regressor ≈ 0) cannot wind it up and the AR(1)
+parameter follows a new pattern over several tooth periods rather than one.
 
 Tooth periods come from the spindle speed channel (integrated phase, so speed changes and
 overrides are followed); the flute index in the event counts from the stream start. Per sample
@@ -47,6 +49,10 @@ Method = Literal["virtual", "constant", "dual"]
 _MODES = {"virtual": _k.MODE_VIRTUAL, "constant": _k.MODE_CONSTANT, "dual": _k.MODE_DUAL}
 #: Seed 000 Eq. 6.6: virtual threshold fraction σ_TB.
 SIGMA_TB = 0.40
+#: Tooth periods whose expected torque is below this fraction of the plan's largest (or below
+#: MIN_EXPECTED_NM without a plan) are not judged (decision 1522).
+MIN_EXPECTED_FRACTION = 0.10
+MIN_EXPECTED_NM = 0.5
 #: Seed 000 C17: violations needed in a row before the alarm.
 CONFIRM_PERIODS = 3
 #: Seed 002 §2.5: threshold factor and learning length.
@@ -78,7 +84,9 @@ class BreakageBlock(Block):
         tooth period is the expected torque, and the event gets the NC line and position.
     tcp_channels : TCP position channels (m) matched to the plan.
     sigma_tb : virtual threshold fraction (0.4).
-    min_expected_nm : expected torques below this are not judged (``virtual``).
+    min_expected_nm : expected (or constant reference) torques below this are not judged;
+        default: 10 % of the plan's largest expected torque when a plan is given, else 0.5 N·m
+        (set it for small tools).
     check_deviation : also require |τ_sa − τ_sim| > σ_TB τ_sim (``virtual``).
     confirm_periods : violations in a row before the alarm (3; 1 for ``dual``).
     reference : constant reference τ_ref in the signal's unit (``constant``; 0 = the mean of the
@@ -101,7 +109,7 @@ class BreakageBlock(Block):
         plan: VirtualPlan | None = None,
         tcp_channels: tuple[str, str, str] = ("tcp_x", "tcp_y", "tcp_z"),
         sigma_tb: float = SIGMA_TB,
-        min_expected_nm: float = 0.5,
+        min_expected_nm: float | None = None,
         check_deviation: bool = True,
         confirm_periods: int | None = None,
         reference: float = 0.0,
@@ -137,6 +145,17 @@ class BreakageBlock(Block):
         self.plan = plan
         self.tcp_channels = tcp_channels
         self.sigma_tb = float(sigma_tb)
+        if min_expected_nm is None:
+            if plan is not None and len(plan):
+                tq = np.asarray(plan["torque_avg_nm"], dtype=np.float64)
+                min_expected_nm = MIN_EXPECTED_FRACTION * float(np.nanmax(tq, initial=0.0))
+            else:
+                min_expected_nm = MIN_EXPECTED_NM
+        if not (min_expected_nm > 0):
+            raise ConfigError(
+                f"breakage: min_expected_nm must be positive (a zero expected torque gives a "
+                f"zero limit), got {min_expected_nm!r}"
+            )
         self.min_expected_nm = float(min_expected_nm)
         self.check_deviation = bool(check_deviation)
         default_confirm = 1 if method == "dual" else CONFIRM_PERIODS
