@@ -10,8 +10,9 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     measured torque itself (|τ_sa − τ_sa,sim| > σ_TB τ_sa,sim; digest: "an alert needs both the
     measured torque and the residual to violate their limits") and is confirmed over 3 tooth
     periods (C17 step 5): a run starts where both violate and continues while the torque does,
-    the alarm comes with its third tooth period. Tooth periods whose expected torque is below ``min_expected_nm``
-    (default 10 % of the plan's largest; air, the first touch of an entry) are not judged:
+    the alarm comes with its third tooth period. Tooth periods whose expected torque is below
+    ``min_expected_nm`` (default 10 % of the plan's largest; air, the first touch of an entry)
+    are not judged:
     there the virtual limit goes to zero (decision 1522).
 ``constant`` — the constant threshold the thesis compares against in V7: the same detector with
     τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
