@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from millsense.process.coefficients import CuttingCoefficients
 from millsense.stability.lobes import critical_depth
 from millsense.stability.milling import immersion_angles, milling_dde
 from millsense.stability.modal import ModalModel, Mode
@@ -19,6 +21,7 @@ from millsense.stability.scan import (
     unstable_bands,
 )
 from millsense.stability.sdm import analyse
+from millsense.stability.time_domain import TimeDomainMillingSim
 from millsense.validation.cases.stability import FLUTES, FN, INSPERGER, KN, KT
 
 
@@ -151,3 +154,54 @@ def test_eigenvector_chatter_frequency_hopf_slot() -> None:
     assert sol.chatter_hz == pytest.approx(932.0, abs=5.0)
     f2 = eigen_chatter_frequency(fam(15870.0, 80), sol.depth, 2 * FN)
     assert f2 == pytest.approx(sol.chatter_hz, abs=2.0)
+
+
+def _ramped_18900(
+    sim: TimeDomainMillingSim, k0: CuttingCoefficients, target: float, hold_rev: int
+) -> None:
+    """Approach ``target`` × the depth of ``sim`` from half of it by a slow ramp of the
+    coefficients (a depth ramp on one straight disc), then hold."""
+    sim.set_coefficients(replace(k0, ktc=0.5 * k0.ktc, krc=0.5 * k0.krc))
+    sim.run_revolutions(200)
+    for k in range(1, 51):
+        s = 0.5 + (target - 0.5) * k / 50
+        sim.set_coefficients(replace(k0, ktc=s * k0.ktc, krc=s * k0.krc))
+        sim.run_revolutions(2)
+    sim.run_revolutions(hold_rev)
+
+
+def test_flip_at_18900_slot_against_the_time_domain() -> None:
+    """Decision 0910: at 18 900 rev/min slotting the critical multiplier is a flip (−1) at
+    2.80 mm, chatter frequency f_T/2 = 315 Hz (+ k f_T). The time domain confirms the limit and
+    the multiplier when the depth is approached slowly; a start at full depth instead jumps to a
+    coexisting large-amplitude motion (the tool leaves the cut) well below the linear limit."""
+    from millsense.stability.scan import monodromies
+    from millsense.validation.cases.stability_time_domain import _K, _td_sim
+
+    fam = _family(1.0, "down")
+    n = 18900.0
+    sol = solve_speed(fam, n, 2 * FN, 20, 0.02, structure_peak_gain(fam(n, 20)))
+    assert sol.bifurcation == "flip"
+    assert sol.depth * 1e3 == pytest.approx(2.802, rel=5e-3)  # this chart's converged figure
+    assert sol.chatter_hz == pytest.approx(n * FLUTES / 60.0 / 2.0, abs=1e-6)  # 315 Hz
+    # below the limit, approached slowly: the tooth-period section settles (period 1)
+    sim = _td_sim(1.0, "down", n, sol.depth)
+    _ramped_18900(sim, _K, 0.95, 200)
+    steps = np.diff(sim.run_revolutions(20).x_m[:: sim.steps_per_rev // FLUTES])
+    assert np.max(np.abs(steps)) < 1e-9  # m, against a 50 µm feed per tooth
+    # just above: the section's steps grow by the flip multiplier per tooth period; the SDM's
+    # (m = 40) at the same depth within 2 %
+    sim = _td_sim(1.0, "down", n, sol.depth)
+    _ramped_18900(sim, _K, 1.0, 100)
+    sim.set_coefficients(replace(_K, ktc=1.03 * _K.ktc, krc=1.03 * _K.krc))
+    steps = np.diff(sim.run_revolutions(40).x_m[:: sim.steps_per_rev // FLUTES])
+    ratio = float(np.median(steps[21:60] / steps[20:59]))
+    mu = np.linalg.eigvals(monodromies(fam(n, 40), np.array([1.03 * sol.depth]))[0])
+    mu_max = mu[np.argmax(np.abs(mu))]
+    assert abs(mu_max.imag) < 1e-9 and mu_max.real < -1.0  # SDM: a real multiplier below −1
+    assert ratio == pytest.approx(mu_max.real, rel=0.02)
+    # a start at full depth at 0.8 × the limit chatters: the entry transient (free vibration of
+    # the 922 Hz mode) leaves the cut and the motion stays on the large attractor
+    sim = _td_sim(1.0, "down", n, 0.8 * sol.depth)
+    steps = np.diff(sim.run_revolutions(300).x_m[:: sim.steps_per_rev // FLUTES][-100:])
+    assert np.median(np.abs(steps)) > 20e-6

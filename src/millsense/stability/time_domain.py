@@ -299,6 +299,16 @@ class TimeDomainMillingSim:
         f_rev = self.tool.n_flutes * self.feed_per_tooth_m
         return self._feed_x0 + f_rev * ((n - self._n_base) * self._dphi) / _TWO_PI
 
+    def set_coefficients(self, coeffs: CuttingCoefficients) -> None:
+        """Change the cutting coefficients from the next step on (a material change).
+
+        With a straight-fluted tool on one disc and no edge forces, scaling K_tc and K_rc by s
+        is a change of the axial depth by s; a slow ramp of it approaches a depth without the
+        entry transient of a start at full depth (decision 0910).
+        """
+        self.coeffs = coeffs
+        self._coeffs = np.array(coeffs.as_tuple(), dtype=float)
+
     def set_engagement(self, engagement: Engagement) -> None:
         """Change the immersion intervals from the next step on (same discs)."""
         self.engagement = engagement

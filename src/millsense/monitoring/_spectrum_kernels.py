@@ -1,0 +1,195 @@
+"""Compiled kernels of the engagement monitor: revolution harmonics and the per-revolution
+Levenberg–Marquardt fit of :mod:`millsense.monitoring.torque_spectrum` (same equations as its
+numpy functions ``g_coeff``, ``l_coeff``, ``_basis`` and ``_project``, which the tests compare)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+
+@numba.njit(cache=True)
+def revolution_harmonics(x: FloatArray, ang: FloatArray, n_flutes: int, out: ComplexArray) -> None:
+    """out[0] = mean(x e^{−iφ}), out[k] = mean(x e^{−ikNφ}) for k = 1 … len(out) − 1."""
+    nk = out.shape[0]
+    for j in range(nk):
+        out[j] = 0.0
+    n = x.shape[0]
+    for s in range(n):
+        b = complex(math.cos(ang[s]), -math.sin(ang[s]))
+        out[0] += x[s] * b
+        bn = b**n_flutes
+        z = bn
+        for j in range(1, nk):
+            out[j] += x[s] * z
+            z *= bn
+    for j in range(nk):
+        out[j] /= n
+
+
+@numba.njit(cache=True)
+def _g(m: float, st: float, ex: float) -> complex:
+    if m == 0.0:
+        return complex(ex - st, 0.0) / (2.0 * math.pi)
+    e1 = complex(math.cos(m * st), -math.sin(m * st))
+    e2 = complex(math.cos(m * ex), -math.sin(m * ex))
+    return (e1 - e2) / complex(0.0, m) / (2.0 * math.pi)
+
+
+@numba.njit(cache=True)
+def _l(m: float, d: float, kb: float) -> complex:
+    if m == 0.0:
+        return complex(d, 0.0)
+    a = m * kb * d
+    return (1.0 - complex(math.cos(a), -math.sin(a))) / complex(0.0, m * kb)
+
+
+@numba.njit(cache=True)
+def residual(
+    p: FloatArray, xn: ComplexArray, k: FloatArray, kb: float, edge: bool, res: FloatArray
+) -> float:
+    """Projected residual of the harmonics ``xn`` for p = (d_a, θ_st, θ_ex) (real and
+    imaginary parts in ``res``); returns ½‖res‖²."""
+    n = xn.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    d, st, ex = p[0], p[1], p[2]
+    for j in range(n):
+        lk = _l(k[j], d, kb)
+        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b[j] = _g(k[j], st, ex) * lk
+    aa = 0.0
+    ab = 0.0
+    bb = 0.0
+    ax = 0.0
+    bx = 0.0
+    for j in range(n):
+        aa += a[j].real ** 2 + a[j].imag ** 2
+        bb += b[j].real ** 2 + b[j].imag ** 2
+        ab += (a[j].conjugate() * b[j]).real
+        ax += (a[j].conjugate() * xn[j]).real
+        bx += (b[j].conjugate() * xn[j]).real
+    alpha = 0.0
+    beta = 0.0
+    if edge:
+        det = aa * bb - ab * ab
+        if det > 0:
+            alpha = (bb * ax - ab * bx) / det
+            beta = (aa * bx - ab * ax) / det
+    elif aa > 0:
+        alpha = ax / aa
+    cost = 0.0
+    for j in range(n):
+        r = xn[j] - alpha * a[j] - beta * b[j]
+        res[j] = r.real
+        res[n + j] = r.imag
+        cost += r.real**2 + r.imag**2
+    return 0.5 * cost
+
+
+@numba.njit(cache=True)
+def lm_fit(
+    p0: FloatArray,
+    xn: ComplexArray,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    max_iter: int,
+) -> tuple[FloatArray, float]:
+    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (clipping)."""
+    n = xn.shape[0]
+    p = p0.copy()
+    for i in range(3):
+        p[i] = min(max(p[i], lo[i]), hi[i])
+    r = np.empty(2 * n)
+    rt = np.empty(2 * n)
+    jac = np.empty((2 * n, 3))
+    cost = residual(p, xn, k, kb, edge, r)
+    lam = 1e-3
+    for _ in range(max_iter):
+        for i in range(3):
+            h = 1e-7 * scale[i]
+            q = p.copy()
+            q[i] = q[i] + h if q[i] + h <= hi[i] else q[i] - h
+            step = q[i] - p[i]
+            residual(q, xn, k, kb, edge, rt)
+            for j in range(2 * n):
+                jac[j, i] = (rt[j] - r[j]) / step
+        jtj = jac.T @ jac
+        g = jac.T @ r
+        improved = False
+        for _t in range(8):
+            m = jtj.copy()
+            for i in range(3):
+                m[i, i] += lam * (jtj[i, i] + 1e-30)
+            dp = np.linalg.solve(m, -g)
+            q = p + dp
+            for i in range(3):
+                q[i] = min(max(q[i], lo[i]), hi[i])
+            c2 = residual(q, xn, k, kb, edge, rt)
+            if c2 < cost:
+                small = True
+                for i in range(3):
+                    if abs(q[i] - p[i]) > 1e-7 * scale[i]:
+                        small = False
+                p = q
+                r[:] = rt
+                rel = (cost - c2) / max(cost, 1e-300)
+                cost = c2
+                lam = max(lam * 0.3, 1e-12)
+                improved = True
+                if small or rel < 1e-8:
+                    return p, cost
+                break
+            lam *= 10.0
+        if not improved:
+            break
+    return p, cost
+
+
+@numba.njit(cache=True)
+def amplitudes(
+    p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool, model_abs: FloatArray
+) -> tuple[float, float, complex, complex]:
+    """Real amplitudes α, β of x ≈ α A + β B at p = (d_a, θ_st, θ_ex), |α A_k + β B_k| for the
+    first len(model_abs) harmonics, and G_1, L_2 (for the runout)."""
+    n = x.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    d, st, ex = p[0], p[1], p[2]
+    for j in range(n):
+        lk = _l(k[j], d, kb)
+        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b[j] = _g(k[j], st, ex) * lk
+    aa = 0.0
+    ab = 0.0
+    bb = 0.0
+    ax = 0.0
+    bx = 0.0
+    for j in range(n):
+        aa += a[j].real ** 2 + a[j].imag ** 2
+        bb += b[j].real ** 2 + b[j].imag ** 2
+        ab += (a[j].conjugate() * b[j]).real
+        ax += (a[j].conjugate() * x[j]).real
+        bx += (b[j].conjugate() * x[j]).real
+    alpha = 0.0
+    beta = 0.0
+    if edge:
+        det = aa * bb - ab * ab
+        if det > 0:
+            alpha = (bb * ax - ab * bx) / det
+            beta = (aa * bx - ab * ax) / det
+    elif aa > 0:
+        alpha = ax / aa
+    for j in range(model_abs.shape[0]):
+        model_abs[j] = abs(alpha * a[j] + beta * b[j])
+    return alpha, beta, _g(1.0, st, ex), _l(2.0, d, kb)

@@ -1,0 +1,300 @@
+"""Compiled per-sample and per-tooth-period kernels of the breakage monitors.
+
+Two jobs, both resumable across chunks through a small float64 state vector so that a stream
+cut into chunks of any size gives the same result as the whole stream:
+
+* :func:`segment_periods` — integrate the spindle speed into a phase counted in tooth periods
+  (phase += |Ω|·N/(2π f_s) per sample) and average the signal(s) over each complete tooth
+  period (Aslan Eq. 6.1; Munasinghe Eqs. 3.43–3.44). A period ends at the sample whose phase
+  crosses the next integer; it is reported at that sample (one sample after its last one).
+* :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
+  residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
+  thresholds of the three detectors and the confirmation count.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+# segment state layout
+SEG_PHASE = 0  # fractional phase in tooth periods, [0, 1)
+SEG_INDEX = 1  # index of the current (incomplete) tooth period since the stream start
+SEG_COUNT = 2  # samples accumulated in the current period
+SEG_SUM0 = 3  # sums of channel 0, channel 1, expected torque in the current period
+SEG_SUM1 = 4
+SEG_SUME = 5
+SEG_SIZE = 6
+
+
+@numba.njit(cache=True)
+def segment_periods(
+    a: FloatArray,
+    b: FloatArray,
+    expected: FloatArray,
+    speed: FloatArray,
+    fs: float,
+    n_flutes: int,
+    state: FloatArray,
+    out_mean0: FloatArray,
+    out_mean1: FloatArray,
+    out_mean_e: FloatArray,
+    out_end: IntArray,
+    out_index: IntArray,
+    held: IntArray,
+) -> int:
+    """Average ``a`` (and ``b``, ``expected`` when non-empty) over complete tooth periods.
+
+    ``out_*`` are sized ≥ the number of periods that can end in the chunk; ``out_end`` is the
+    chunk sample at which each period is reported, ``out_index`` its index since the stream
+    start; ``held[k]`` is the number of periods reported up to and including sample k.
+    Returns the number of periods completed in this chunk.
+    """
+    n = a.shape[0]
+    has_b = b.shape[0] == n
+    has_e = expected.shape[0] == n
+    scale = n_flutes / (2.0 * math.pi * fs)
+    phase = state[SEG_PHASE]
+    idx = state[SEG_INDEX]
+    cnt = state[SEG_COUNT]
+    s0 = state[SEG_SUM0]
+    s1 = state[SEG_SUM1]
+    se = state[SEG_SUME]
+    m = 0
+    for k in range(n):
+        phase += abs(speed[k]) * scale
+        if phase >= 1.0 and cnt > 0:
+            # period `idx` is complete with the samples before this one
+            out_mean0[m] = s0 / cnt
+            out_mean1[m] = s1 / cnt if has_b else 0.0
+            out_mean_e[m] = se / cnt if has_e else 0.0
+            out_end[m] = k
+            out_index[m] = int(idx)
+            m += 1
+            idx += 1.0
+            cnt = 0.0
+            s0 = 0.0
+            s1 = 0.0
+            se = 0.0
+        if phase >= 1.0:
+            phase -= math.floor(phase)
+        cnt += 1.0
+        s0 += a[k]
+        if has_b:
+            s1 += b[k]
+        if has_e:
+            se += expected[k]
+        held[k] = m
+    state[SEG_PHASE] = phase
+    state[SEG_INDEX] = idx
+    state[SEG_COUNT] = cnt
+    state[SEG_SUM0] = s0
+    state[SEG_SUM1] = s1
+    state[SEG_SUME] = se
+    return m
+
+
+# detector state layout
+DET_PHI1 = 0
+DET_P1 = 1
+DET_PHI2 = 2
+DET_P2 = 3
+DET_D1_PREV = 4  # Δx(m−1)
+DET_DN_PREV = 5  # Δ_N x(m−1)
+DET_SEEN = 6  # periods seen
+DET_RUN = 7  # consecutive violating periods
+DET_LEARN = 8  # periods learnt so far (−1: learning not started)
+DET_MAX1 = 9
+DET_MAX2 = 10
+DET_THR1 = 11  # learnt thresholds (0 until learnt)
+DET_THR2 = 12
+DET_MEAN = 13  # sum of x over the learning periods
+DET_REF = 14  # learnt constant reference torque (mean over the learning periods)
+DET_BASE = 15  # ring buffer of the last N period values follows
+
+MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
+MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the first revolutions)
+MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
+
+
+def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
+    """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
+    st = np.zeros(DET_BASE + n_flutes)
+    st[DET_PHI1] = phi0
+    st[DET_PHI2] = phi0
+    st[DET_P1] = p0
+    st[DET_P2] = p0
+    st[DET_LEARN] = -1.0
+    return st
+
+
+@numba.njit(cache=True)
+def _rls_ar1(
+    e_x: float, x_prev: float, phi: float, p: float, lam: float, p_max: float
+) -> tuple[float, float, float]:
+    """One step of RLS for x(m) = φ x(m−1) + ε: a-priori residual, new φ and P."""
+    eps = e_x - phi * x_prev
+    gain = p * x_prev / (lam + x_prev * x_prev * p)
+    phi_new = phi + gain * eps
+    p_new = (p - gain * x_prev * p) / lam
+    if p_new > p_max:
+        p_new = p_max
+    return eps, phi_new, p_new
+
+
+@numba.njit(cache=True)
+def detect_periods(
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    k: int,
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+) -> None:
+    """Residuals, thresholds and decisions for consecutive tooth-period values ``x``.
+
+    Residuals (a-priori, i.e. with φ̂ of the previous period, then φ̂ is updated):
+    ε1(m) = Δx(m) − φ̂1 Δx(m−1), Δx(m) = x(m) − x(m−1) (Aslan 6.2–6.3, Munasinghe 3.46–3.47);
+    ε2(m) = Δ_N x(m) − φ̂2 Δ_N x(m−1), Δ_N x(m) = x(m) − x(m−N) (Aslan 6.4, Munasinghe
+    3.48–3.49). ``alarm[m]`` is True at the period where a run of violations reaches
+    ``confirm`` (one alarm per run). For the virtual and constant modes a run starts when the
+    residual and the torque both violate σ_TB·τ_ref and continues while the torque does
+    (``check_deviation``), else while the residual does. ``expected`` is overwritten with the
+    reference used (τ_sim, or the constant τ_ref).
+
+    Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
+    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2 (columns :k); ``pb`` rows
+    0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
+    learn_from); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
+    """
+    lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
+    reference, alpha, learn_from = params[4], params[5], params[6]
+    nf, mode, check_deviation = iparams[0], iparams[1], iparams[2] != 0
+    learn_periods, confirm = iparams[3], iparams[4]
+    x = pp[3]
+    expected = pp[2]
+    eps1 = pp[4]
+    lim1 = pp[5]
+    eps2 = pp[6]
+    lim2 = pp[7]
+    viol = pb[0]
+    alarm = pb[1]
+    for m in range(k):
+        seen = int(state[DET_SEEN])
+        xm = x[m]
+        x1 = state[DET_BASE + (seen - 1) % nf] if seen >= 1 else 0.0
+        xn = state[DET_BASE + (seen - nf) % nf] if seen >= nf else 0.0
+        d1 = xm - x1 if seen >= 1 else 0.0
+        dn = xm - xn if seen >= nf else 0.0
+        e1, phi1, p1 = _rls_ar1(d1, state[DET_D1_PREV], state[DET_PHI1], state[DET_P1], lam, p_max)
+        e2, phi2, p2 = _rls_ar1(dn, state[DET_DN_PREV], state[DET_PHI2], state[DET_P2], lam, p_max)
+        if seen >= 2:
+            state[DET_PHI1] = phi1
+            state[DET_P1] = p1
+        else:
+            e1 = 0.0
+        if seen >= nf + 1:
+            state[DET_PHI2] = phi2
+            state[DET_P2] = p2
+        else:
+            e2 = 0.0
+        state[DET_D1_PREV] = d1
+        state[DET_DN_PREV] = dn
+        state[DET_BASE + seen % nf] = xm
+        state[DET_SEEN] = seen + 1
+        eps1[m] = e1
+        eps2[m] = e2
+        v = False
+        run = state[DET_RUN]
+        learn = state[DET_LEARN]
+        if learn < 0 and seen >= nf + 1 and abs(xm) >= learn_from:
+            learn = 0.0
+        if learn >= 0 and learn < learn_periods:
+            # learning: mean of x (constant reference) and max |ε| (dual thresholds)
+            state[DET_MEAN] += xm
+            state[DET_MAX1] = max(state[DET_MAX1], abs(e1))
+            state[DET_MAX2] = max(state[DET_MAX2], abs(e2))
+            learn += 1.0
+            if learn >= learn_periods:
+                state[DET_REF] = state[DET_MEAN] / learn_periods
+                state[DET_THR1] = alpha * state[DET_MAX1]
+                state[DET_THR2] = alpha * state[DET_MAX2]
+        state[DET_LEARN] = learn
+        ready = learn >= learn_periods
+        if mode == MODE_DUAL:
+            lim1[m] = state[DET_THR1] if ready else math.nan
+            lim2[m] = state[DET_THR2] if ready else math.nan
+            v = ready and abs(e1) > state[DET_THR1] and abs(e2) > state[DET_THR2]
+        else:
+            if mode == MODE_VIRTUAL:
+                ex = expected[m]
+                judge = ex >= min_expected and seen >= 2
+            else:
+                ex = reference if reference > 0 else state[DET_REF]
+                judge = (reference > 0 or ready) and ex >= min_expected and seen >= 2
+            limit = sigma_tb * ex
+            lim1[m] = limit if judge else math.nan
+            lim2[m] = limit if judge else math.nan
+            if judge:
+                v_res = abs(e1) > limit
+                v_tq = abs(xm - ex) > limit
+                if check_deviation:
+                    # trigger on the residual, confirm on the torque itself (Aslan §6.3)
+                    v = (v_res and v_tq) if run == 0 else v_tq
+                else:
+                    v = v_res
+        expected[m] = ex if mode != MODE_DUAL else 0.0
+        viol[m] = v
+        run = run + 1.0 if v else 0.0
+        state[DET_RUN] = run
+        alarm[m] = v and int(run) == confirm
+
+
+@numba.njit(cache=True)
+def accumulate_revolutions(
+    speed: FloatArray, fs: float, state: FloatArray, out_angle: FloatArray, out_rev: IntArray
+) -> None:
+    """Spindle angle within the revolution (rad) and revolution index of every sample.
+
+    ``state = [fraction of a revolution, revolution index]``; the angle advances by |Ω|/f_s
+    per sample (sample k carries the angle reached at k), sequentially, so any chunking gives
+    the same result bit for bit.
+    """
+    frac = state[0]
+    rev = state[1]
+    scale = 1.0 / (2.0 * math.pi * fs)
+    for k in range(speed.shape[0]):
+        if k > 0 or rev >= 0:
+            frac += abs(speed[k]) * scale
+        if rev < 0:
+            rev = 0.0
+        while frac >= 1.0:
+            frac -= 1.0
+            rev += 1.0
+        out_angle[k] = 2.0 * math.pi * frac
+        out_rev[k] = int(rev)
+    state[0] = frac
+    state[1] = rev
+
+
+@numba.njit(cache=True)
+def fill_outputs(
+    held_prev: FloatArray, per_period: FloatArray, k: int, held: IntArray, out: FloatArray
+) -> None:
+    """out[:, s] = the values of the last period reported at or before sample s (columns of
+    ``per_period[:, :k]``), or ``held_prev`` before the first one; then ``held_prev`` ← the
+    last column."""
+    rows = out.shape[0]
+    for s in range(held.shape[0]):
+        h = held[s]
+        for j in range(rows):
+            out[j, s] = held_prev[j] if h == 0 else per_period[j, h - 1]
+    if k > 0:
+        for j in range(rows):
+            held_prev[j] = per_period[j, k - 1]

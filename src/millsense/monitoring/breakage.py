@@ -1,0 +1,414 @@
+"""Tool-breakage monitors on the average torque (or resultant force) per tooth period.
+
+Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
+
+``virtual`` — seed 000 (Aslan ch. 6.3, digest §2.9, C17): the spindle torque is averaged over
+    each tooth period (Eq. 6.1), differenced (Eq. 6.2) and whitened by an adaptive AR(1) filter
+    whose parameter is re-estimated by RLS every tooth period (Eq. 6.3). The threshold is
+    *virtual feedback*: LIMIT1(m) = σ_TB · τ_sa,sim(m) with σ_TB = 40 % of the torque the
+    virtual plan expects in that tooth period (Eq. 6.6). A violation must also show in the
+    measured torque itself (|τ_sa − τ_sa,sim| > σ_TB τ_sa,sim; digest: "an alert needs both the
+    measured torque and the residual to violate their limits") and is confirmed over 3 tooth
+    periods (C17 step 5): a run starts where both violate and continues while the torque does,
+    the alarm comes with its third tooth period. Tooth periods whose expected torque is below
+    ``min_expected_nm`` (default 10 % of the plan's largest; air, the first touch of an entry)
+    are not judged:
+    there the virtual limit goes to zero (decision 1522).
+``constant`` — the constant threshold the thesis compares against in V7: the same detector with
+    τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
+    revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523).
+``dual`` — seed 002 (Munasinghe Eqs. 3.43–3.49, digest §2.5): the same first-difference
+    residual ε1 and a second AR(1) residual ε2 on the lag-N difference x(m) − x(m−N) (N
+    flutes, which removes runout); thresholds 2 × max|ε_k| over the first 5 revolutions;
+    breakage when |ε1| > thr1 AND |ε2| > thr2 in the same tooth period (|ε|, as the thesis'
+    figures show ±thresholds).
+
+Residuals are a-priori (φ̂ of the previous tooth period; decision 1521). The RLS covariance is
+capped (``rls_p_max``) so that a long steady cut (regressor ≈ 0) cannot wind it up and the AR(1)
+parameter follows a new pattern over several tooth periods rather than one.
+
+Tooth periods come from the spindle speed channel (integrated phase, so speed changes and
+overrides are followed); the flute index in the event counts from the stream start. Per sample
+the work is one compiled loop (:mod:`millsense.monitoring._tooth_kernels`); per tooth period a
+second one.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+import numpy as np
+
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring import _tooth_kernels as _k
+from millsense.plan.virtual_plan import VirtualPlan
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+Method = Literal["virtual", "constant", "dual"]
+_MODES = {"virtual": _k.MODE_VIRTUAL, "constant": _k.MODE_CONSTANT, "dual": _k.MODE_DUAL}
+#: Seed 000 Eq. 6.6: virtual threshold fraction σ_TB.
+SIGMA_TB = 0.40
+#: Tooth periods whose expected torque is below this fraction of the plan's largest (or below
+#: MIN_EXPECTED_NM without a plan) are not judged (decision 1522).
+MIN_EXPECTED_FRACTION = 0.10
+MIN_EXPECTED_NM = 0.5
+#: Seed 000 C17: violations needed in a row before the alarm.
+CONFIRM_PERIODS = 3
+#: Seed 002 §2.5: threshold factor and learning length.
+ALPHA = 2.0
+LEARN_REVOLUTIONS = 5
+#: Seed 002 §2.5 initial values φ₀ and P₀.
+PHI0 = 0.01
+P0 = 10.0
+#: Cap of the RLS covariance for a torque in N·m (1/(N·m)²; forces in N: × 1e-4, i.e. a
+#: scale of 100 N per N·m). Decision 1521: the adaptation gain stays ≤ x²P/(1 + x²P), so the
+#: AR(1) parameter follows a breakage pattern over several tooth periods, not in one.
+P_MAX_TORQUE = 0.01
+
+
+class BreakageBlock(Block):
+    """Streaming tool-breakage detector (see the module notes for the three methods).
+
+    Parameters
+    ----------
+    n_flutes : number of flutes N (tooth period 2π/N).
+    method : ``virtual`` (seed 000), ``constant`` (classic constant threshold) or ``dual``
+        (seed 002).
+    signal_channels : one channel (torque, N·m) or two (force x and y, N; their tooth-period
+        averages are combined into the resultant, Munasinghe Eq. 3.45).
+    speed_channel : spindle speed, rad/s.
+    expected_channel : per-sample expected cutting torque from the plan, N·m (``virtual``;
+        alternative to ``plan``).
+    plan : virtual plan: its ``torque_avg_nm`` at the row matched to the TCP at the end of each
+        tooth period is the expected torque, and the event gets the NC line and position.
+    tcp_channels : TCP position channels (m) matched to the plan.
+    sigma_tb : virtual threshold fraction (0.4).
+    min_expected_nm : expected (or constant reference) torques below this are not judged;
+        default: 10 % of the plan's largest expected torque when a plan is given, else 0.5 N·m
+        (set it for small tools).
+    check_deviation : also require |τ_sa − τ_sim| > σ_TB τ_sim (``virtual``).
+    confirm_periods : violations in a row before the alarm (3; 1 for ``dual``).
+    reference : constant reference τ_ref in the signal's unit (``constant``; 0 = the mean of the
+        tooth-period averages over the learning revolutions).
+    alpha, learn_revolutions, learn_from : learning over that many revolutions, starting at the
+        first tooth period whose average is ≥ ``learn_from``: the constant reference, and the
+        dual thresholds α·max|ε_k|.
+    forgetting : RLS forgetting factor λ (Munasinghe does not state it; 0.98).
+    rls_p_max : cap (and initial value) of the RLS covariance, 1/unit² (decision 1521).
+    name : block name (channel prefix and event source).
+    """
+
+    def __init__(
+        self,
+        n_flutes: int,
+        method: Method = "virtual",
+        signal_channels: tuple[str, ...] = ("spindle/torque_est",),
+        speed_channel: str = "spindle/speed",
+        expected_channel: str | None = None,
+        plan: VirtualPlan | None = None,
+        tcp_channels: tuple[str, str, str] = ("tcp_x", "tcp_y", "tcp_z"),
+        sigma_tb: float = SIGMA_TB,
+        min_expected_nm: float | None = None,
+        check_deviation: bool = True,
+        confirm_periods: int | None = None,
+        reference: float = 0.0,
+        alpha: float = ALPHA,
+        learn_revolutions: int = LEARN_REVOLUTIONS,
+        learn_from: float = 0.0,
+        forgetting: float = 0.98,
+        rls_p_max: float | None = None,
+        name: str | None = None,
+    ) -> None:
+        if int(n_flutes) != n_flutes or n_flutes < 1:
+            raise ConfigError(f"breakage: n_flutes must be an integer ≥ 1, got {n_flutes!r}")
+        if method not in _MODES:
+            raise ConfigError(f"breakage: method must be one of {sorted(_MODES)}, got {method!r}")
+        if len(signal_channels) not in (1, 2):
+            raise ConfigError("breakage: signal_channels takes one torque or two force channels")
+        if method == "virtual" and (expected_channel is None) == (plan is None):
+            raise ConfigError(
+                "breakage: the virtual threshold needs the plan's expected torque: give exactly "
+                "one of expected_channel or plan"
+            )
+        if not (0.0 < forgetting <= 1.0):
+            raise ConfigError(f"breakage: forgetting must be in (0, 1], got {forgetting!r}")
+        if not (0.0 < sigma_tb < 10.0):
+            raise ConfigError(f"breakage: sigma_tb must be in (0, 10), got {sigma_tb!r}")
+        if learn_revolutions < 1:
+            raise ConfigError(f"breakage: learn_revolutions must be ≥ 1, got {learn_revolutions}")
+        self.n_flutes = int(n_flutes)
+        self.method: Method = method
+        self.signal_channels = tuple(signal_channels)
+        self.speed_channel = speed_channel
+        self.expected_channel = expected_channel if method == "virtual" else None
+        self.plan = plan
+        self.tcp_channels = tcp_channels
+        self.sigma_tb = float(sigma_tb)
+        if min_expected_nm is None:
+            if plan is not None and len(plan):
+                tq = np.asarray(plan["torque_avg_nm"], dtype=np.float64)
+                min_expected_nm = MIN_EXPECTED_FRACTION * float(np.nanmax(tq, initial=0.0))
+            else:
+                min_expected_nm = MIN_EXPECTED_NM
+        if not (min_expected_nm > 0):
+            raise ConfigError(
+                f"breakage: min_expected_nm must be positive (a zero expected torque gives a "
+                f"zero limit), got {min_expected_nm!r}"
+            )
+        self.min_expected_nm = float(min_expected_nm)
+        self.check_deviation = bool(check_deviation)
+        default_confirm = 1 if method == "dual" else CONFIRM_PERIODS
+        self.confirm = int(confirm_periods if confirm_periods is not None else default_confirm)
+        if self.confirm < 1:
+            raise ConfigError(f"breakage: confirm_periods must be ≥ 1, got {confirm_periods}")
+        self.reference = float(reference)
+        self.alpha = float(alpha)
+        self.learn_periods = int(learn_revolutions) * self.n_flutes
+        self.learn_from = float(learn_from)
+        self.forgetting = float(forgetting)
+        self.unit = "N*m" if len(self.signal_channels) == 1 else "N"
+        if rls_p_max is None:
+            rls_p_max = P_MAX_TORQUE if self.unit == "N*m" else P_MAX_TORQUE * 1e-4
+        if not (rls_p_max > 0):
+            raise ConfigError(f"breakage: rls_p_max must be positive, got {rls_p_max!r}")
+        self.p_max = float(rls_p_max)
+        self.name = name or f"breakage.{method}"
+        self._suffix = "nm" if self.unit == "N*m" else "n"
+        ins = [*self.signal_channels, speed_channel]
+        if self.expected_channel is not None:
+            ins.append(self.expected_channel)
+        if self.plan is not None:
+            ins.extend(tcp_channels)
+        self.inputs = tuple(ins)
+        self.fs = 0.0
+        self._names = [info.name for info in self.output_channels()]
+
+    # ------------------------------------------------------------------ contract
+
+    def output_channels(self) -> list[ChannelInfo]:
+        u = self.unit
+        return [
+            ChannelInfo(f"{self.name}/tooth_avg", u, "signal averaged over the last tooth period"),
+            ChannelInfo(f"{self.name}/residual1", u, "AR(1) residual of the first difference"),
+            ChannelInfo(f"{self.name}/limit1", u, "threshold of residual 1 (NaN: none yet)"),
+            ChannelInfo(f"{self.name}/residual2", u, "AR(1) residual of the lag-N difference"),
+            ChannelInfo(f"{self.name}/limit2", u, "threshold of residual 2 (NaN: none yet)"),
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
+            raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
+        self.fs = float(sample_rate_hz)
+        self._seg = np.zeros(_k.SEG_SIZE)
+        self._det = _k.detector_state(self.n_flutes, PHI0, self.p_max)
+        self._held = np.array([math.nan, 0.0, math.nan, 0.0, math.nan])
+        self._first_violation = -1
+        self._row = 0
+        self._empty = np.zeros(0)
+        self._params = np.array(
+            [
+                self.forgetting,
+                self.p_max,
+                self.sigma_tb,
+                self.min_expected_nm,
+                self.reference,
+                self.alpha,
+                self.learn_from,
+            ]
+        )
+        self._iparams = np.array(
+            [
+                self.n_flutes,
+                _MODES[self.method],
+                int(self.check_deviation),
+                self.learn_periods,
+                self.confirm,
+            ],
+            dtype=np.int64,
+        )
+        self._pp = np.empty((8, 0))
+        self._pi = np.empty((2, 0), dtype=np.int64)
+        self._pb = np.empty((2, 0), dtype=np.bool_)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        a = np.asarray(d[self.signal_channels[0]], dtype=np.float64)
+        n = a.shape[0]
+        b = (
+            np.asarray(d[self.signal_channels[1]], dtype=np.float64)
+            if len(self.signal_channels) == 2
+            else self._empty
+        )
+        speed = np.asarray(d[self.speed_channel], dtype=np.float64)
+        e = (
+            np.asarray(d[self.expected_channel], dtype=np.float64)
+            if self.expected_channel is not None
+            else self._empty
+        )
+        cap = min(int(n * self.n_flutes * 5e3 / self.fs) + 2, n + 1)  # ≤ 300 000 rev/min
+        if cap > self._pp.shape[1]:
+            self._pp = np.empty((8, 2 * cap))
+            self._pi = np.empty((2, 2 * cap), dtype=np.int64)
+            self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
+        pp, pi, pb = self._pp, self._pi, self._pb
+        held = np.empty(n, dtype=np.int64)
+        # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2
+        k = _k.segment_periods(
+            a,
+            b,
+            e,
+            speed,
+            self.fs,
+            self.n_flutes,
+            self._seg,
+            pp[0],
+            pp[1],
+            pp[2],
+            pi[0],
+            pi[1],
+            held,
+        )
+        out = BlockOutput()
+        values = np.empty((5, n))
+        if k:
+            if b.shape[0]:
+                np.hypot(pp[0, :k], pp[1, :k], out=pp[3, :k])
+            else:
+                pp[3, :k] = pp[0, :k]
+            if self.plan is not None and self.expected_channel is None:
+                pp[2, :k] = self._plan_expected(d, pi[0, :k])
+            _k.detect_periods(pp, pb, k, self._params, self._iparams, self._det)
+        _k.fill_outputs(self._held, pp[3:], k, held, values)
+        for j, nm in enumerate(self._names):
+            out.channels[nm] = values[j]
+        if k == 0:
+            return out
+        x, expected, eps1, lim1, eps2, lim2 = pp[3], pp[2], pp[4], pp[5], pp[6], pp[7]
+        end, index, viol, alarm = pi[0], pi[1], pb[0], pb[1]
+        first = self._first_violation
+        for i in range(k):
+            if viol[i]:
+                if first < 0:
+                    first = int(index[i])
+            else:
+                first = -1
+            if alarm[i]:
+                out.events.append(
+                    self._event(
+                        chunk,
+                        int(end[i]),
+                        int(index[i]),
+                        first,
+                        x[i],
+                        expected[i],
+                        eps1[i],
+                        lim1[i],
+                        eps2[i],
+                        lim2[i],
+                    )
+                )
+        self._first_violation = first
+        return out
+
+    # ------------------------------------------------------------------ helpers
+
+    def _plan_expected(self, d: Any, end: np.ndarray) -> np.ndarray:
+        """Expected torque per tooth period from the plan row matched at its end sample."""
+        assert self.plan is not None
+        xyz = np.column_stack([np.asarray(d[c], dtype=np.float64)[end] for c in self.tcp_channels])
+        rows = self.plan.match(xyz, from_row=self._row)
+        self._rows = rows
+        good = rows >= 0
+        if good.any():
+            self._row = int(rows[good][-1])
+        tq = np.asarray(self.plan["torque_avg_nm"], dtype=np.float64)
+        return np.where(good, tq[np.maximum(rows, 0)], math.nan)
+
+    def _event(
+        self,
+        chunk: Chunk,
+        at: int,
+        period: int,
+        first: int,
+        x: float,
+        expected: float,
+        e1: float,
+        l1: float,
+        e2: float,
+        l2: float,
+    ) -> Event:
+        sample = chunk.start + at
+        t = chunk.t0_s + sample / chunk.sample_rate_hz
+        tooth = period % self.n_flutes
+        s = self._suffix
+        values = {
+            "tooth": float(tooth),
+            "tooth_period": float(period),
+            "first_violation_period": float(first),
+            f"tooth_avg_{s}": float(x),
+            f"residual1_{s}": float(e1),
+            f"limit1_{s}": float(l1),
+            f"residual2_{s}": float(e2),
+            f"limit2_{s}": float(l2),
+        }
+        if self.method == "virtual":
+            values[f"expected_{s}"] = float(expected)
+        nc_line = x_mm = y_mm = z_mm = None
+        if self.plan is not None:
+            row = int(
+                self.plan.match(
+                    np.array([[float(np.asarray(chunk.data[c])[at]) for c in self.tcp_channels]]),
+                    from_row=max(self._row - 50, 0),
+                )[0]
+            )
+            if row < 0:
+                row = self._row
+            nc_line = int(self.plan["nc_line"][row])
+            x_mm = float(self.plan["x_mm"][row])
+            y_mm = float(self.plan["y_mm"][row])
+            z_mm = float(self.plan["z_mm"][row])
+        return Event(
+            time_s=t,
+            kind=EventKind.ALARM,
+            source=self.name,
+            message=(
+                f"tool breakage ({self.method}): flute {tooth} at tooth period {period}, "
+                f"|residual| {abs(e1):.3g} > {l1:.3g} {self.unit}"
+            ),
+            name="breakage",
+            value=float(tooth),
+            sample=sample,
+            severity=Severity.CRITICAL,
+            values=values,
+            nc_line=nc_line,
+            x_mm=x_mm,
+            y_mm=y_mm,
+            z_mm=z_mm,
+        )
+
+
+def check_speed(speed_rad_s: np.ndarray, channel: str) -> None:
+    """One-line error if the spindle never turns (the tooth period is undefined)."""
+    if not np.any(np.abs(speed_rad_s) > 1e-3):
+        raise InputDataError(
+            f"breakage: spindle speed channel '{channel}' is zero throughout; tooth periods "
+            "are undefined"
+        )
+
+
+def make_breakage_virtual_block(**options: Any) -> Block:
+    """Seed 000 virtual-threshold detector (needs ``n_flutes`` and ``plan`` or
+    ``expected_channel``)."""
+    return BreakageBlock(method="virtual", **options)
+
+
+def make_breakage_constant_block(**options: Any) -> Block:
+    """Classic constant-threshold detector (seed 000 Eq. 6.5; the V7 comparison)."""
+    return BreakageBlock(method="constant", **options)
+
+
+def make_breakage_dual_block(**options: Any) -> Block:
+    """Seed 002 dual-residual detector (lag-1 and lag-N residuals, 2 × max over 5 revs)."""
+    return BreakageBlock(method="dual", **options)

@@ -1,0 +1,196 @@
+"""Streaming depth-of-cut, runout and K_t monitor (seed 004 ch. 2), once per revolution.
+
+The spindle angle is integrated from the speed channel (decision 1524: the angle reference of
+the runout direction is the stream start, flute 0 at angle 0; a spindle index pulse would fix
+it on a real machine). At the end of every revolution the samples of that revolution give the
+Fourier-series coefficients T_k = mean(τ e^{−ikφ}) at k = 1 and at the tooth-passing harmonics
+k = N…KN, and :class:`~millsense.monitoring.torque_spectrum.SpectrumIdentifier` returns
+d_a, d_r, θ_st, θ_ex, K_t, ε, θ_ec and the reliability index σ (Lee Fig. 2.9). Revolutions
+whose mean torque is below ``min_torque_nm`` (air) give NaN. The values are held on the
+output channels from the sample after the revolution ends until the next one.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring import _spectrum_kernels as _sk
+from millsense.monitoring import _tooth_kernels as _k
+from millsense.monitoring.torque_spectrum import (
+    EngagementEstimate,
+    SpectrumIdentifier,
+    ToolGeometry,
+)
+from millsense.streaming.block import Block, BlockOutput, Chunk
+
+_FIELDS = (
+    ("axial_depth", "m", "axial depth of cut d_a (Lee Eq. 2.14 by harmonic fit)"),
+    ("radial_depth", "m", "radial depth of cut d_r = r(cos θst − cos θex)"),
+    ("entry_angle", "rad", "entry angle θ_st"),
+    ("exit_angle", "rad", "exit angle θ_ex"),
+    ("kt", "N/m^2", "specific cutting force K_t (Lee Eq. 2.19)"),
+    ("runout", "m", "runout ε (Lee Eq. 2.18 / 2.20-2.22 re-derived)"),
+    ("runout_angle", "rad", "runout direction λ (geometry convention)"),
+    ("reliability", "1", "reliability index σ (Lee Eq. 2.23)"),
+)
+
+
+class EngagementBlock(Block):
+    """Per-revolution engagement monitor on the spindle torque (module notes).
+
+    Parameters
+    ----------
+    n_flutes, diameter_mm, helix_deg : the tool (field units).
+    torque_channel, speed_channel : N·m and rad/s.
+    feed_channel : path feed, m/s (feed per tooth c = 2π v/(N Ω)); or give
+        ``feed_per_tooth_mm``.
+    n_harmonics : tooth-passing harmonics used.
+    min_torque_nm : revolutions with a lower mean torque are not evaluated.
+    edge, max_depth_fraction : see :class:`~millsense.monitoring.torque_spectrum.
+        SpectrumIdentifier`.
+    name : block name (channel prefix).
+    """
+
+    def __init__(
+        self,
+        n_flutes: int,
+        diameter_mm: float,
+        helix_deg: float,
+        torque_channel: str = "spindle/torque_est",
+        speed_channel: str = "spindle/speed",
+        feed_channel: str | None = None,
+        feed_per_tooth_mm: float | None = None,
+        n_harmonics: int = 12,
+        min_torque_nm: float = 1e-4,
+        edge: bool = True,
+        max_depth_fraction: float = 0.5,
+        name: str = "engagement",
+    ) -> None:
+        if int(n_flutes) != n_flutes or n_flutes < 1:
+            raise ConfigError(f"engagement: n_flutes must be an integer ≥ 1, got {n_flutes!r}")
+        if not (diameter_mm > 0 and math.isfinite(diameter_mm)):
+            raise ConfigError(f"engagement: diameter_mm must be positive, got {diameter_mm!r}")
+        if not (0 < helix_deg < 90):
+            raise ConfigError(
+                f"engagement: helix_deg must be in (0, 90) (the axial depth comes from the "
+                f"helix), got {helix_deg!r}"
+            )
+        if (feed_channel is None) == (feed_per_tooth_mm is None):
+            raise ConfigError("engagement: give exactly one of feed_channel or feed_per_tooth_mm")
+        if feed_per_tooth_mm is not None and not feed_per_tooth_mm > 0:
+            raise ConfigError(
+                f"engagement: feed_per_tooth_mm must be positive, got {feed_per_tooth_mm!r}"
+            )
+        if n_harmonics < 2:
+            raise ConfigError(f"engagement: n_harmonics must be ≥ 2, got {n_harmonics}")
+        self.geom = ToolGeometry(int(n_flutes), 0.5e-3 * diameter_mm, math.radians(helix_deg))
+        self.n_harmonics = int(n_harmonics)
+        if not (0 < max_depth_fraction < 1):
+            raise ConfigError(
+                f"engagement: max_depth_fraction must be in (0, 1), got {max_depth_fraction!r}"
+            )
+        self.edge = bool(edge)
+        self.max_depth_fraction = float(max_depth_fraction)
+        self.torque_channel = torque_channel
+        self.speed_channel = speed_channel
+        self.feed_channel = feed_channel
+        self.c_m = None if feed_per_tooth_mm is None else 1e-3 * feed_per_tooth_mm
+        self.min_torque_nm = float(min_torque_nm)
+        self.name = name
+        ins = [torque_channel, speed_channel]
+        if feed_channel is not None:
+            ins.append(feed_channel)
+        self.inputs = tuple(ins)
+        self._names = [f"{name}/{f}" for f, _, _ in _FIELDS]
+        n = self.geom.n_flutes
+        self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
+        self.estimates: list[tuple[float, EngagementEstimate | None]] = []
+        self.fs = 0.0
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [ChannelInfo(nm, u, d) for nm, (_, u, d) in zip(self._names, _FIELDS, strict=True)]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
+            raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
+        self.fs = float(sample_rate_hz)
+        self._ident = SpectrumIdentifier(
+            self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
+        )
+        self._state = np.array([0.0, -1.0])
+        self._buf: list[tuple[np.ndarray, ...]] = []
+        self._held = np.full(len(_FIELDS), math.nan)
+        self._cur_rev = -1
+        self.estimates = []
+
+    def _finish(self, t_end: float) -> None:
+        x = np.concatenate([b[0] for b in self._buf])
+        ang = np.concatenate([b[1] for b in self._buf])
+        sp = np.concatenate([b[2] for b in self._buf])
+        fd = np.concatenate([b[3] for b in self._buf]) if self.feed_channel else None
+        self._buf = []
+        est: EngagementEstimate | None = None
+        omega = float(np.mean(np.abs(sp)))
+        if float(np.mean(x)) >= self.min_torque_nm and omega > 0:
+            coeff = np.empty(self._k.size, dtype=np.complex128)
+            _sk.revolution_harmonics(x, ang, self.geom.n_flutes, coeff)
+            c = self.c_m
+            if c is None:
+                assert fd is not None
+                c = 2 * math.pi * float(np.mean(np.abs(fd))) / (self.geom.n_flutes * omega)
+            if c > 0 and abs(coeff[1]) > 0:
+                est = self._ident.identify(coeff[1:], complex(coeff[0]), c)
+        self.estimates.append((t_end, est))
+        if est is None:
+            self._held = np.full(len(_FIELDS), math.nan)
+        else:
+            self._held = np.array(
+                [
+                    est.axial_depth_m,
+                    est.radial_depth_m,
+                    est.entry_rad,
+                    est.exit_rad,
+                    est.kt_n_m2,
+                    est.runout_m,
+                    est.runout_angle_rad,
+                    est.reliability,
+                ]
+            )
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        x = np.asarray(d[self.torque_channel], dtype=np.float64)
+        sp = np.asarray(d[self.speed_channel], dtype=np.float64)
+        fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
+        n = x.size
+        ang = np.empty(n)
+        rev = np.empty(n, dtype=np.int64)
+        _k.accumulate_revolutions(sp, self.fs, self._state, ang, rev)
+        out = np.empty((len(_FIELDS), n))
+        bounds = (np.nonzero(np.diff(rev))[0] + 1).tolist()
+        if n and self._cur_rev >= 0 and rev[0] != self._cur_rev:
+            bounds.insert(0, 0)
+        pos = 0
+        for s in bounds:
+            if s > pos:
+                self._buf.append((x[pos:s], ang[pos:s], sp[pos:s], fd[pos:s]))
+                out[:, pos:s] = self._held[:, None]
+            if self._buf:
+                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz)
+            pos = s
+        if pos < n:
+            self._buf.append((x[pos:], ang[pos:], sp[pos:], fd[pos:]))
+            out[:, pos:] = self._held[:, None]
+        if n:
+            self._cur_rev = int(rev[-1])
+        return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
+
+
+def make_engagement_block(**options: Any) -> Block:
+    """Seed 004 ch. 2 monitor (needs ``n_flutes``, ``diameter_mm``, ``helix_deg`` and the feed)."""
+    return EngagementBlock(**options)

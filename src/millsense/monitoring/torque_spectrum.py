@@ -1,0 +1,338 @@
+"""Depths of cut, runout and K_t from the harmonics of one revolution of cutting torque.
+
+Seed 004 ch. 2 (Lee; digest §2.1–2.6 with errata V1–V3), re-derived in the convention of
+:mod:`millsense.process.geometry` (immersion φ_j(z) = φ − θ_j − ψ(z), ψ = z tanβ/r, chip
+h_j = c sin φ_j + r_j − r_{j−1}, r_j = r + ρ cos(θ_j + ψ − λ)) and with the Fourier-series
+coefficients of numpy's sign, T_k = (1/2π)∫τ(φ) e^{−ikφ} dφ (decision 1524):
+
+* G_m = (1/2π)∫_{θst}^{θex} e^{−imu} du (Lee's G, Eq. 2.12, as a series coefficient);
+* L_m = ∫_0^{d_a} e^{−imψ(z)} dz = (1 − e^{−imΨ})/(im tanβ/r), Ψ = d_a tanβ/r, L_0 = d_a
+  (Lee's Λ with the height r/tanβ and the factor N of V1 restored);
+* static torque (Eq. 2.11, T_s): T_k = r K_t N S_k L_k for k ≡ 0 (mod N), with
+  S_k = (c/2i)(G_{k−1} − G_{k+1}) (the series coefficient of g·c sin);
+* runout torque (T_ec, Eqs. 2.17, 2.20–2.22 re-derived as V2/V3): with w = ρ e^{−iλ},
+  T_1 = r K_t G_1 N d_a (1 − e^{−i2π/N}) w / 2 for N ≥ 3, and
+  T_1 = r K_t G_1 N (w d_a + w̄ L_2) for N = 2 (the 2 × 2 real system of V3); N = 1: none.
+
+Identification per revolution (Fig. 2.9 order ADOC → RDOC → K_t and runout → σ): the thesis
+locates the notch of |L| between tooth-passing harmonics (not said how) and inverts
+Ψ = (T_2N/L_2N)(L_N/T_N) through lookup tables (resolution not given). Here (digest §2.9 [S],
+decision 1524) (d_a, θ_st, θ_ex) are fitted jointly to the complex ratios T_kN/T_N, k = 2…K,
+by least squares from the best point of a coarse grid — the same information (K_t and c cancel
+as in Ψ), with sub-harmonic resolution of the notch. Then K_t from |T_N| (Eq. 2.19 physically
+normalised, V1), the runout from T_1, and the reliability index (Eq. 2.23) with
+m = ⌊ω_notch/ω_N⌋ (the prose; the printed ⌊ω_notch/ω_n⌋ agrees only for N = 1; decision 1525).
+d_r = r (cos θ_st − cos θ_ex) (digest §2.4 [S]; = r(1 + cos θ_st) in down milling).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millsense.monitoring import _spectrum_kernels as _sk
+
+FloatArray = NDArray[np.float64]
+FloatLike = NDArray[np.float64] | float
+ComplexArray = NDArray[np.complex128]
+
+
+@dataclass(frozen=True)
+class ToolGeometry:
+    """What the method knows of the tool: flutes, nominal radius (m), helix angle (rad)."""
+
+    n_flutes: int
+    radius_m: float
+    helix_rad: float
+
+    @property
+    def tan_beta(self) -> float:
+        return math.tan(self.helix_rad)
+
+    @property
+    def axial_pitch_m(self) -> float:
+        """d_a,p = 2π r/(N tanβ): the largest axial depth the notch can tell (Lee Sec. 2.3.1)."""
+        return 2 * math.pi * self.radius_m / (self.n_flutes * self.tan_beta)
+
+
+def g_coeff(m: FloatLike, th_st: FloatLike, th_ex: FloatLike) -> ComplexArray:
+    """G_m = (1/2π)∫_{θst}^{θex} e^{−imu} du (broadcasting)."""
+    m = np.asarray(m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        val = (np.exp(-1j * m * th_st) - np.exp(-1j * m * th_ex)) / (1j * m)
+    out = np.where(m == 0, np.asarray(th_ex) - th_st + 0j, val) / (2 * math.pi)
+    return np.asarray(out, dtype=np.complex128)
+
+
+def l_coeff(m: FloatLike, depth_m: FloatLike, geom: ToolGeometry) -> ComplexArray:
+    """L_m = ∫_0^{d_a} e^{−imψ(z)} dz (broadcasting)."""
+    m = np.asarray(m, dtype=np.float64)
+    k = geom.tan_beta / geom.radius_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        val = (1 - np.exp(-1j * m * k * depth_m)) / (1j * m * k)
+    return np.where(m == 0, depth_m + 0j, val)
+
+
+def static_harmonics(
+    k: FloatLike,
+    depth_m: FloatLike,
+    th_st: FloatLike,
+    th_ex: FloatLike,
+    geom: ToolGeometry,
+    kt_n_m2: float = 1.0,
+    feed_per_tooth_m: float = 1.0,
+    edge_ratio: FloatLike | float = 0.0,
+) -> ComplexArray:
+    """T_k of the runout-free torque for harmonics k ≡ 0 (mod N) (module notes), with an edge
+    force K_e = e·K_t·c per unit length of engaged edge (``edge_ratio`` e; decision 1525)."""
+    s = (g_coeff(k - 1, th_st, th_ex) - g_coeff(k + 1, th_st, th_ex)) / 2j
+    s = s + np.asarray(edge_ratio) * g_coeff(k, th_st, th_ex)
+    return (
+        geom.radius_m * kt_n_m2 * feed_per_tooth_m * geom.n_flutes * s * l_coeff(k, depth_m, geom)
+    )
+
+
+def runout_harmonic(
+    w: complex, depth_m: float, th_st: float, th_ex: float, geom: ToolGeometry, kt_n_m2: float
+) -> complex:
+    """T_1 of the runout torque for w = ρ e^{−iλ} (module notes)."""
+    n = geom.n_flutes
+    base = geom.radius_m * kt_n_m2 * complex(g_coeff(np.array(1.0), th_st, th_ex)) * n
+    if n == 1:
+        return 0j
+    if n == 2:
+        l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
+        return base * (w * depth_m + np.conj(w) * l2)
+    return base * depth_m * (1 - np.exp(-2j * math.pi / n)) * w / 2
+
+
+#: Relative singular-value cut-off of the N = 2 runout system (decision 1525).
+RUNOUT_RCOND = 0.05
+
+
+def solve_runout(
+    t1: complex, depth_m: float, th_st: float, th_ex: float, geom: ToolGeometry, kt_n_m2: float
+) -> complex:
+    """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`)."""
+    g1 = complex(g_coeff(np.array(1.0), th_st, th_ex))
+    l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
+    return _runout_from(t1, depth_m, geom, kt_n_m2, g1, l2)
+
+
+def _runout_from(
+    t1: complex, depth_m: float, geom: ToolGeometry, kt_n_m2: float, g1: complex, l2: complex
+) -> complex:
+    n = geom.n_flutes
+    if n == 1:
+        return complex(math.nan, math.nan)
+    base = geom.radius_m * kt_n_m2 * g1 * n
+    if abs(base) == 0 or not math.isfinite(abs(base)):
+        return complex(math.nan, math.nan)
+    if n >= 3:
+        return complex(t1 / (base * depth_m * (1 - np.exp(-2j * math.pi / n)) / 2))
+    q = t1 / base
+    p, s = l2.real, l2.imag
+    mat = np.array([[depth_m + p, s], [s, depth_m - p]])
+    # d_a² − |L_2|² → 0 for a small helix lag: then only one component of w is observable;
+    # the minimum-norm solution keeps it and drops the other (decision 1525)
+    sol, *_ = np.linalg.lstsq(mat, np.array([q.real, q.imag]), rcond=RUNOUT_RCOND)
+    return complex(sol[0], sol[1])
+
+
+@dataclass(frozen=True)
+class EngagementEstimate:
+    """One revolution's estimate (SI): depths m, angles rad, K_t N/m², runout m."""
+
+    axial_depth_m: float
+    radial_depth_m: float
+    entry_rad: float
+    exit_rad: float
+    kt_n_m2: float
+    runout_m: float
+    runout_angle_rad: float
+    reliability: float
+    notch_index: float  #: ω_notch/ω_N = d_a,p/d_a
+    cost: float
+    edge_n_m: float = 0.0  #: edge-force coefficient K_e = e K_t c, N/m
+
+
+def _basis(
+    k: FloatLike, depth_m: FloatLike, th_st: FloatLike, th_ex: FloatLike, geom: ToolGeometry
+) -> tuple[ComplexArray, ComplexArray]:
+    """Shear and edge basis of the static harmonics: T_k = α A_k + β B_k with
+    α = r N K_t c, β = r N K_e (module notes; broadcasting)."""
+    a = (g_coeff(k - 1, th_st, th_ex) - g_coeff(k + 1, th_st, th_ex)) / 2j
+    lk = l_coeff(k, depth_m, geom)
+    return a * lk, g_coeff(k, th_st, th_ex) * lk
+
+
+def _project(
+    x: ComplexArray, a: ComplexArray, b: ComplexArray | None
+) -> tuple[FloatArray, FloatArray, ComplexArray]:
+    """Real least-squares amplitudes (α, β) of x ≈ α a + β b along the last axis, and the
+    residual (variable projection)."""
+    aa = np.sum(np.abs(a) ** 2, axis=-1)
+    ax = np.sum((np.conj(a) * x).real, axis=-1)
+    if b is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            alpha = ax / aa
+        beta = np.zeros_like(alpha)
+        return alpha, beta, x - alpha[..., None] * a
+    bb = np.sum(np.abs(b) ** 2, axis=-1)
+    ab = np.sum((np.conj(a) * b).real, axis=-1)
+    bx = np.sum((np.conj(b) * x).real, axis=-1)
+    det = aa * bb - ab**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = (bb * ax - ab * bx) / det
+        beta = (aa * bx - ab * ax) / det
+    return alpha, beta, x - alpha[..., None] * a - beta[..., None] * b
+
+
+@functools.lru_cache(maxsize=16)
+def _grid(
+    geom: ToolGeometry, n_harmonics: int, max_depth_m: float
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray], ComplexArray, ComplexArray]:
+    """Coarse grid of (d_a, θ_st, θ_ex) and its shear and edge bases (cached per tool)."""
+    d = np.linspace(0.03, 0.97, 48) * max_depth_m
+    ang = np.linspace(0.0, math.pi, 61)
+    st, ex = np.meshgrid(ang, ang, indexing="ij")
+    keep = ex > st + 1e-9
+    st, ex = st[keep], ex[keep]
+    grid = (np.repeat(d, st.size), np.tile(st, d.size), np.tile(ex, d.size))
+    k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
+    a, b = _basis(k[None, :], grid[0][:, None], grid[1][:, None], grid[2][:, None], geom)
+    return grid, a, b
+
+
+#: Harmonics of the spindle frequency covered by the coarse grid and the first least-squares
+#: stage (16 ω_n: 4 tooth harmonics of a 4-flute tool, 16 of a 1-flute one).
+GRID_ORDER = 16
+
+
+class SpectrumIdentifier:
+    """Identify (d_a, θ_st, θ_ex), K_t, K_e, runout and σ from tooth-passing harmonics.
+
+    Parameters
+    ----------
+    geom : flutes, radius, helix.
+    n_harmonics : K, tooth-passing harmonics used (k N, k = 1…K).
+    edge : also fit an edge-force coefficient K_e (decision 1525); False is the thesis'
+        single-mechanism model.
+    max_depth_fraction : largest axial depth searched, as a fraction of the axial pitch d_a,p.
+        d_a and d_a,p − d_a give nearly the same harmonics (their |L| are mirror images at the
+        tooth-passing harmonics; the angles absorb the phases), so by default the search stays
+        below d_a,p/2, which holds every row of Tables 2.3–2.5 (decision 1524).
+
+    The complex harmonics are fitted as α A_k(d_a, θ_st, θ_ex) + β B_k(d_a, θ_st, θ_ex) with
+    the real amplitudes α, β eliminated by linear least squares (variable projection), so the
+    nonlinear search is over (d_a, θ_st, θ_ex) only; with β = 0 this is the information of
+    the thesis' ratio Ψ and notch. Each revolution starts from the previous one's solution; if
+    that leaves a relative misfit above ``accept``, least squares also starts from the best
+    ``n_starts`` points of a coarse grid (48 depths × 1830 angle pairs, 3°, up to 16 ω_n).
+    """
+
+    def __init__(
+        self,
+        geom: ToolGeometry,
+        n_harmonics: int = 12,
+        edge: bool = True,
+        max_depth_fraction: float = 0.5,
+    ) -> None:
+        self.geom = geom
+        self.edge = edge
+        self.max_depth_m = max_depth_fraction * geom.axial_pitch_m
+        self.k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
+        self.k_grid = self.k[: max(min(GRID_ORDER // geom.n_flutes, self.k.size), 2)]
+        self._grid, self._ga, gb = _grid(geom, self.k_grid.size, self.max_depth_m)
+        self._gb = gb if edge else None
+        self._prev: FloatArray | None = None
+        #: relative misfit below which the previous revolution's start is kept (no grid)
+        self.accept = 1e-3
+        #: least-squares starts taken from the best grid points
+        self.n_starts = 6
+
+    def reset(self) -> None:
+        """Forget the previous revolution (a new stream)."""
+        self._prev = None
+
+    def _residual(self, p: FloatArray, x: ComplexArray) -> FloatArray:
+        a, b = _basis(self.k[: x.size], p[0], p[1], p[2], self.geom)
+        _, _, r = _project(x, a, b if self.edge else None)
+        return np.concatenate([r.real, r.imag])
+
+    def identify(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> EngagementEstimate:
+        """Estimate from the measured T_kN (k = 1…K, ``x``) and T_1 (``t1``)."""
+        geom = self.geom
+        xn = x / abs(x[0])
+        dap = geom.axial_pitch_m
+        lo = np.array([1e-3 * dap, 0.0, 0.0])
+        hi = np.array([self.max_depth_m, math.pi, math.pi])
+        norm = float(np.sum(np.abs(xn) ** 2))
+
+        kb = geom.tan_beta / geom.radius_m
+        scl = np.array([dap, 1.0, 1.0])
+
+        def fit(p0: FloatArray, n: int | None = None) -> tuple[FloatArray, float]:
+            nn = xn.size if n is None else n
+            return _sk.lm_fit(
+                np.asarray(p0, dtype=np.float64),
+                np.ascontiguousarray(xn[:nn]),
+                self.k[:nn],
+                kb,
+                self.edge,
+                lo,
+                hi,
+                scl,
+                60,
+            )
+
+        best = fit(self._prev) if self._prev is not None else None
+        if best is None or 2 * best[1] / norm > self.accept:
+            # the previous revolution's solution does not explain this one: grid starts too
+            ng = self.k_grid.size
+            _, _, r = _project(xn[None, :ng], self._ga, self._gb)
+            cost = np.sum(np.abs(r) ** 2, axis=1)
+            cost[~np.isfinite(cost)] = np.inf
+            for j in np.argsort(cost)[: self.n_starts]:
+                # coarse to fine: the low harmonics pin the angles before the high ones, whose
+                # phases turn k N times faster with θ, are added
+                low = fit(np.array([g[j] for g in self._grid]), ng)
+                sol = fit(low[0])
+                if best is None or sol[1] < best[1]:
+                    best = sol
+                if 2 * best[1] / norm < 1e-8:
+                    break
+        assert best is not None
+        d, st, ex = (float(v) for v in best[0])
+        if ex < st:
+            st, ex = ex, st
+        self._prev = np.array([d, st, ex])
+        notch = dap / d
+        m = min(max(math.floor(notch), 1), x.size)
+        model = np.empty(m)
+        alpha, beta, g1, l2 = _sk.amplitudes(
+            np.array([d, st, ex]), np.ascontiguousarray(x), self.k, kb, self.edge, model
+        )
+        rn = geom.radius_m * geom.n_flutes
+        kt = alpha / (rn * feed_per_tooth_m)
+        ke = beta / rn
+        w = _runout_from(t1, d, geom, kt, g1, l2)
+        meas = np.abs(x[:m])
+        sigma = 1.0 - float(np.sum(np.abs(meas - model)) / np.sum(meas))
+        return EngagementEstimate(
+            axial_depth_m=d,
+            radial_depth_m=geom.radius_m * (math.cos(st) - math.cos(ex)),
+            entry_rad=st,
+            exit_rad=ex,
+            kt_n_m2=kt,
+            runout_m=abs(w),
+            runout_angle_rad=float(-np.angle(w)) % (2 * math.pi),
+            reliability=sigma,
+            notch_index=notch,
+            cost=float(2 * best[1] / norm),
+            edge_n_m=ke,
+        )

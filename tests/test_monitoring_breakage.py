@@ -1,0 +1,127 @@
+"""Tool-breakage monitors: chunk invariance, the seed 000 virtual threshold against the
+constant one at a depth step and an air cut, the seed 002 residual pattern, bad input."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from millsense.core.errors import ConfigError, InputDataError
+from millsense.monitoring.breakage import BreakageBlock, check_speed, make_breakage_dual_block
+from millsense.process.engagement import Engagement
+from millsense.simulator.process_coupling import EngagementSchedule, EngagementSegment, ToothBreak
+from millsense.validation.cases._torque_sim import FS, simulate_torque
+from millsense.validation.cases.monitoring_breakage import run_block
+
+RPM = 1000.0
+TOOTH_S = 0.03  # 2 flutes at 1000 rev/min
+BREAK_S = 267 * TOOTH_S  # 8.01 s, a tooth-period boundary
+
+
+@functools.lru_cache(maxsize=1)
+def _stream() -> dict[str, np.ndarray]:
+    """Slot 2 mm from 0.2 s, depth step to 3 mm at 3 s, air 6-6.5 s, flute 0 broken at 8.01 s.
+    The expected torque is the intact tool's torque averaged over a revolution (a plan)."""
+    sched = EngagementSchedule(
+        (Engagement.slot(),),
+        (
+            EngagementSegment(0.2, 0, 2e-3),
+            EngagementSegment(3.0, 0, 3e-3),
+            EngagementSegment(6.0, 0, 0.0),
+            EngagementSegment(6.5, 0, 3e-3),
+        ),
+        basis="time",
+    )
+    t = np.arange(int(10.0 * FS)) / FS
+    feed = np.full(len(t), 400 / 60e3)
+    _, obs, _ = simulate_torque(sched, feed * t, t, RPM, feed, (ToothBreak(BREAK_S, 0),))
+    intact, _, _ = simulate_torque(sched, feed * t, t, RPM, feed)
+    w = int(FS * 60 / RPM)
+    expected = np.convolve(intact, np.ones(w) / w, mode="same")
+    return {
+        "spindle/torque_est": obs,
+        "spindle/speed": np.full(len(t), RPM * 2 * math.pi / 60),
+        "plan/torque": expected,
+    }
+
+
+def _virtual() -> BreakageBlock:
+    return BreakageBlock(2, "virtual", expected_channel="plan/torque")
+
+
+def test_virtual_threshold_no_false_alarm_and_three_period_latency():
+    events, ch = run_block(_virtual(), _stream(), 1000)
+    # one alarm, after the break: not at the depth step (3 s), the air cut or the re-entry
+    assert len(events) == 1
+    ev = events[0]
+    assert ev.name == "breakage" and ev.severity == "critical" and ev.kind == "alarm"
+    # confirmation over 3 tooth periods (Aslan C17): alarm 3 periods (+1 sample) after the break
+    assert (ev.time_s - BREAK_S) / TOOTH_S == pytest.approx(3.0, abs=0.01)
+    assert ev.values["limit1_nm"] == pytest.approx(0.4 * ev.values["expected_nm"], rel=1e-9)
+    # the limit follows the plan: 40 % of the expected torque at 3 mm (≈ 3.6 N·m → ≈ 1.46 N·m)
+    assert np.nanmedian(ch["breakage.virtual/limit1"][int(4 * FS) : int(5 * FS)]) == pytest.approx(
+        0.4 * np.mean(_stream()["plan/torque"][int(4 * FS) : int(5 * FS)]), rel=0.02
+    )
+
+
+def test_constant_threshold_false_alarm_at_the_depth_step():
+    events, _ = run_block(BreakageBlock(2, "constant", learn_from=0.5), _stream(), 1000)
+    times = [e.time_s for e in events]
+    # the step 2 → 3 mm at 3.0 s raises the torque by 50 % > 40 % of the learnt 2 mm reference
+    assert any(3.0 <= t < 3.2 for t in times)
+    # the torque then stays > 40 % off the constant reference: the run (and its one alarm) lasts,
+    # so the break gets no alarm of its own — the constant threshold is blind after the step
+    assert not any(BREAK_S <= t < BREAK_S + 5 * TOOTH_S for t in times)
+
+
+def test_chunk_size_invariance():
+    data = {k: v[: int(8.5 * FS)] for k, v in _stream().items()}
+    ref_ev, ref_ch = run_block(_virtual(), data, len(data["spindle/speed"]))
+    assert len(ref_ev) == 1
+    for chunk in (7, 100):
+        ev, ch = run_block(_virtual(), data, chunk)
+        assert [(e.sample, e.values) for e in ev] == [(e.sample, e.values) for e in ref_ev]
+        for k in ref_ch:
+            np.testing.assert_allclose(ch[k], ref_ch[k], rtol=1e-12, atol=1e-12)
+    short = {k: v[int(7.9 * FS) : int(8.3 * FS)] for k, v in data.items()}
+    ev1, ch1 = run_block(_virtual(), short, 1)
+    evw, chw = run_block(_virtual(), short, len(short["spindle/speed"]))
+    assert [e.sample for e in ev1] == [e.sample for e in evw]
+    np.testing.assert_allclose(ch1["breakage.virtual/residual1"], chw["breakage.virtual/residual1"])
+
+
+def test_dual_residual_pattern_lag_n_adapts_first_difference_stays():
+    """Munasinghe §2.5: after a breakage ε1 stays high while ε2 spikes and adapts after about
+    one revolution (2 tooth periods here)."""
+    data = {k: v for k, v in _stream().items() if k != "plan/torque"}
+    data = {k: v[int(6.6 * FS) :] for k, v in data.items()}  # start in cut (3 mm)
+    events, ch = run_block(make_breakage_dual_block(n_flutes=2), data, 1000)
+    assert len(events) >= 1
+    t_break = BREAK_S - 6.6
+    assert 0 <= events[0].time_s - t_break <= 2 * TOOTH_S + 1e-3
+    i = int((t_break + 0.5) * FS)
+    e1 = np.abs(ch["breakage.dual/residual1"][i : i + 3000])
+    e2 = np.abs(ch["breakage.dual/residual2"][i : i + 3000])
+    thr1 = ch["breakage.dual/limit1"][i]
+    thr2 = ch["breakage.dual/limit2"][i]
+    assert np.median(e1) > thr1  # ε1 stays above its threshold (2-flute: alternating chips)
+    assert np.median(e2) < 0.2 * thr2  # ε2 has adapted
+
+
+def test_bad_options_and_stopped_spindle():
+    with pytest.raises(ConfigError, match="expected torque"):
+        BreakageBlock(2, "virtual")
+    with pytest.raises(ConfigError, match="n_flutes"):
+        BreakageBlock(0, "dual")
+    with pytest.raises(ConfigError, match="min_expected_nm"):
+        BreakageBlock(2, "virtual", expected_channel="plan/torque", min_expected_nm=0.0)
+    with pytest.raises(ConfigError, match="method"):
+        BreakageBlock(2, "magic")  # type: ignore[arg-type]
+    with pytest.raises(InputDataError, match="spindle/speed"):
+        check_speed(np.zeros(10), "spindle/speed")
+    data = {"spindle/torque_est": np.ones(5000), "spindle/speed": np.zeros(5000)}
+    events, ch = run_block(make_breakage_dual_block(n_flutes=2), data, 500)
+    assert events == [] and np.all(np.isnan(ch["breakage.dual/tooth_avg"]))
