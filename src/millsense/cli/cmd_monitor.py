@@ -1,0 +1,364 @@
+"""``millsense monitor``: run process monitors over a recording and write the event log.
+
+Monitors are chosen by name from :data:`millsense.monitoring.MONITORS` (``--methods``); they
+run in the same streaming engine as live runs. With ``--machine`` and a spindle current in the
+recording the spindle torque observer of the machine file runs first, so the chatter monitors
+read the compensated spindle torque (seed 000 §2.7); ``--channel`` chooses any other channel
+(a feed-drive force estimate, ``accel/x``, ``mic/pressure``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from millsense.cli.main import app
+
+#: Spindle-speed channels, preferred first.
+SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
+#: Compensated spindle torque produced by the machine file's observer.
+OBSERVER_CHANNEL = "est/spindle/spindle/load"
+
+
+@app.command()
+def monitor(
+    recording: Path = typer.Argument(..., help="Recording to monitor (.h5)."),
+    out: Path = typer.Option(..., "-o", "--output", help="Event log to write (.parquet)."),
+    plan: Path | None = typer.Option(
+        None, "--plan", help="Virtual plan (.parquet): NC line and x/y/z of each event."
+    ),
+    machine: str | None = typer.Option(
+        None, "--machine", help="Machine preset or .toml: runs its spindle torque observer."
+    ),
+    methods: str = typer.Option(
+        "chatter-comb", "--methods", help="Comma-separated monitors (see --list), or 'all'."
+    ),
+    channel: str | None = typer.Option(
+        None,
+        "--channel",
+        help="Signal channel (default: compensated spindle torque, current, "
+        "accelerometer, microphone: the first present).",
+    ),
+    flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
+    spindle_rpm: float | None = typer.Option(
+        None,
+        "--spindle-rpm",
+        help="Spindle speed [rev/min] when the recording has no speed channel.",
+    ),
+    plot: Path | None = typer.Option(None, "--plot", help="PNG: spectrogram with chatter marked."),
+    chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
+) -> None:
+    """Detect chatter (and further registered monitors) in a recording; write the event log."""
+    from millsense.io.safe_output import check_outputs
+
+    check_outputs(
+        {"the recording": recording, "the plan": plan, "the machine file": machine},
+        {"-o": out, "--plot": plot},
+    )
+    summary = run_monitor(
+        recording=recording, out=out, plan=plan, machine=machine, methods=methods,
+        channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
+    )  # fmt: skip
+    for line in summary["lines"]:
+        typer.echo(line)
+
+
+def _methods(text: str) -> list[str]:
+    from millsense.core.errors import ConfigError
+    from millsense.monitoring import MONITORS
+
+    if text.strip() == "all":
+        return list(MONITORS)
+    out = [m.strip() for m in text.split(",") if m.strip()]
+    for m in out:
+        if m not in MONITORS:
+            raise ConfigError(
+                f"--methods: unknown monitor '{m}' (one of {', '.join(MONITORS)}, all)"
+            )
+    if not out:
+        raise ConfigError("--methods: empty")
+    return out
+
+
+def _speed_unit(unit: str, name: str, where: str) -> str:
+    from millsense.core.errors import InputDataError
+
+    u = unit.strip().lower().replace(" ", "")
+    if u in ("rad/s", "rad*s^-1", "1/s*rad"):
+        return "rad/s"
+    if u in ("rev/min", "rpm", "1/min", "min^-1"):
+        return "rev/min"
+    raise InputDataError(f"{where}: channel '{name}' has unit '{unit}' (need rad/s or rev/min)")
+
+
+def _check_plan(vp: Any, plan: Path, rec: Any, recording: Path) -> None:
+    """A plan of another program, or one much longer than the recording, is refused."""
+    from millsense.core.errors import InputDataError
+
+    p_prog = str(vp.metadata.get("program", "") or "")
+    r_prog = str(rec.metadata.get("program", "") or "")
+    if p_prog and r_prog and Path(p_prog).name != Path(r_prog).name:
+        raise InputDataError(
+            f"{plan}: plan of program '{Path(p_prog).name}', but {recording} was recorded "
+            f"running '{Path(r_prog).name}'"
+        )
+    t = np.asarray(vp["t_s"], dtype=float)
+    plan_s = float(t[-1] - t[0]) if len(t) else 0.0
+    rec_s = rec.n_samples / rec.sample_rate_hz
+    # overrides up to 150 % shorten the run by a third at most; 2× leaves room for a run
+    # recorded at the highest override
+    if plan_s > 2.0 * rec_s + 1.0:
+        raise InputDataError(
+            f"{plan}: the plan lasts {plan_s:.1f} s but {recording} only {rec_s:.1f} s "
+            "(a plan of another program?)"
+        )
+
+
+def run_monitor(
+    *,
+    recording: Path,
+    out: Path,
+    plan: Path | None = None,
+    machine: str | None = None,
+    methods: str = "chatter-comb",
+    channel: str | None = None,
+    flutes: int | None = None,
+    spindle_rpm: float | None = None,
+    plot: Path | None = None,
+    chunk: int = 1000,
+) -> dict[str, Any]:
+    """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
+
+    Returns a summary: ``events`` (list of Event), ``lines`` (printed summary), ``wall_s``.
+
+    Raises
+    ------
+    ConfigError, InputDataError, RecordingError
+        One-line user errors: unknown monitor, missing channel, a plan of another program, a
+        spindle that never turns.
+    """
+    from millsense.core.errors import InputDataError
+    from millsense.io.recording_reader import open_recording
+
+    if chunk < 1:
+        raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
+    names = _methods(methods)
+    with contextlib.ExitStack() as stack:
+        rec = open_recording(recording)
+        if hasattr(rec, "close"):
+            stack.callback(rec.close)
+        return _run(rec, recording, out, plan, machine, names, channel, flutes, spindle_rpm,
+                    plot, chunk)  # fmt: skip
+
+
+def _run(
+    rec: Any,
+    recording: Path,
+    out: Path,
+    plan: Path | None,
+    machine: str | None,
+    names: list[str],
+    channel: str | None,
+    flutes: int | None,
+    spindle_rpm: float | None,
+    plot: Path | None,
+    chunk: int,
+) -> dict[str, Any]:
+    from millsense.core.errors import InputDataError
+    from millsense.io.recording_reader import channel_window
+    from millsense.monitoring import MONITORS, MonitorContext
+    from millsense.streaming import Pipeline, RecordingSource, run, write_event_log
+
+    where = str(recording)
+    fs = float(rec.sample_rate_hz)
+    channels = {c: rec.info(c).unit for c in rec.channel_names}
+    if channel is not None and channel not in channels:
+        raise InputDataError(
+            f"{where}: --channel '{channel}' is not in the recording (it holds: "
+            f"{', '.join(sorted(channels))})"
+        )
+    vp = None
+    locate = None
+    if plan is not None:
+        from millsense.monitoring.locate import PlanLocator
+        from millsense.plan.virtual_plan import VirtualPlan
+
+        vp = VirtualPlan.read(plan)
+        _check_plan(vp, plan, rec, recording)
+        locate = PlanLocator(vp)
+    # spindle speed: a channel, else --spindle-rpm, else the plan's programmed speed
+    speed_channel = next((c for c in SPEED_CHANNELS if c in channels), None)
+    speed_unit = "rad/s"
+    if speed_channel is not None:
+        speed_unit = _speed_unit(channels[speed_channel], speed_channel, where)
+        spd = np.asarray(channel_window(rec, speed_channel, 0, rec.n_samples), dtype=float)
+        top = float(np.max(np.abs(spd))) if len(spd) else 0.0
+        top_rpm = top * (60.0 / (2 * np.pi) if speed_unit == "rad/s" else 1.0)
+        if top_rpm < 1.0:
+            raise InputDataError(
+                f"{where}: spindle speed is zero throughout (channel '{speed_channel}'): "
+                "nothing to monitor"
+            )
+    elif spindle_rpm is None and vp is not None:
+        rpm = np.abs(np.asarray(vp["spindle_rpm"], dtype=float))
+        spindle_rpm = float(np.median(rpm[rpm > 0])) if (rpm > 0).any() else None
+    if speed_channel is None and spindle_rpm is not None and not spindle_rpm > 0:
+        raise InputDataError(f"--spindle-rpm: must be > 0, got {spindle_rpm}")
+    n_flutes = _flutes(flutes, rec, vp)
+    pre: list[Any] = []
+    signal = channel
+    if (
+        machine is not None
+        and "spindle/current_cmd" in channels
+        and channel in (None, OBSERVER_CHANNEL)
+    ):
+        from millsense.core.config import MachineConfig
+        from millsense.core.presets import load_preset
+        from millsense.estimation.from_config import spindle_observer_from_config
+
+        if "spindle/speed" not in channels or "spindle/speed_cmd" not in channels:
+            raise InputDataError(
+                f"{where}: the spindle observer needs channels 'spindle/speed' and "
+                "'spindle/speed_cmd' besides 'spindle/current_cmd'"
+            )
+        mcfg = load_preset(MachineConfig, machine)
+        pre.append(spindle_observer_from_config(mcfg, machine, fs))
+        channels[OBSERVER_CHANNEL] = "N*m"
+        signal = OBSERVER_CHANNEL
+    nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
+    ctx = MonitorContext(
+        channels=channels, sample_rate_hz=fs, signal=signal, speed_channel=speed_channel,
+        speed_unit=speed_unit, speed_rpm=spindle_rpm, n_flutes=n_flutes,
+        nc_line_channel=nc_channel, locate=locate, plan=vp, source=where,
+    )  # fmt: skip
+    blocks = [MONITORS[n](ctx) for n in names]
+    pipeline = Pipeline([*pre, *_grouped(blocks)])
+    needed = sorted({c for b in pipeline.blocks for c in b.inputs if c in rec.channel_names})
+    source = RecordingSource(rec, name=where, channels=needed)
+    sig_name = getattr(blocks[0], "settings", None)
+    sig_name = getattr(sig_name, "signal", None)
+    keep: dict[str, list[np.ndarray]] = {}
+
+    def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
+        if plot is None:
+            return
+        if sig_name is not None:
+            src = outputs.get(sig_name, ch.data.get(sig_name))
+            if src is not None:
+                keep.setdefault("signal", []).append(np.asarray(src))
+        for k, v in outputs.items():
+            if k.endswith("/chatter") or k.endswith("/chatter_hz") or k.endswith("/energy_ratio"):
+                keep.setdefault(k, []).append(np.asarray(v))
+
+    t0 = time.perf_counter()
+    res = run(source, pipeline, chunk, sink=sink, collect=False)
+    wall = time.perf_counter() - t0
+    write_event_log(out, res.events)
+    seconds = rec.n_samples / fs
+    lines = [
+        f"wrote {out}: {len(res.events)} events from {', '.join(names)} on "
+        f"{seconds:.1f} s of {recording.name} in {wall:.2f} s ({seconds / max(wall, 1e-9):.0f}x "
+        "real time)"
+    ]
+    for b in blocks:
+        alarms = [e for e in res.events if e.source == b.name and e.name == "chatter"]
+        if alarms:
+            f = ", ".join(f"{e.time_s:.2f} s {e.value:.0f} Hz" for e in alarms[:5])
+            more = f" (+{len(alarms) - 5} more)" if len(alarms) > 5 else ""
+            lines.append(f"  {b.name}: {len(alarms)} chatter alarm(s): {f}{more}")
+        else:
+            lines.append(f"  {b.name}: no alarm")
+    if plot is not None:
+        data = {k: np.concatenate(v) for k, v in keep.items()}
+        _plot(plot, data, fs, res.t0_s, str(sig_name), [b.name for b in blocks], res.events)
+        lines.append(f"wrote {plot}")
+    return {"events": res.events, "lines": lines, "wall_s": wall}
+
+
+def _grouped(blocks: list[Any]) -> list[Any]:
+    """Chatter monitors on the same signal run as one :class:`ChatterGroup` (one comb filter
+    for all criteria: same outputs and events, less work); other monitors unchanged."""
+    from millsense.monitoring.chatter import ChatterGroup, ChatterMonitor
+
+    chatter = [b for b in blocks if isinstance(b, ChatterMonitor)]
+    if len(chatter) < 2:
+        return blocks
+    others = [b for b in blocks if not isinstance(b, ChatterMonitor)]
+    return [ChatterGroup(chatter), *others]
+
+
+def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:
+    from millsense.core.errors import InputDataError
+
+    n = flutes
+    if n is None:
+        md = rec.metadata.get("flutes")
+        if isinstance(md, (int, float)):
+            n = int(md)
+        elif vp is not None and isinstance(vp.metadata.get("tool"), dict):
+            n = int(vp.metadata["tool"].get("flutes", 2))
+        else:
+            n = 2
+    if n < 1:
+        raise InputDataError(f"--flutes: must be ≥ 1, got {n}")
+    return n
+
+
+def _plot(
+    path: Path,
+    data: dict[str, np.ndarray],
+    fs: float,
+    t0: float,
+    signal: str,
+    monitors: list[str],
+    events: list[Any],
+) -> None:
+    """Spectrogram of the monitored signal with the chatter marked; ratios below."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.signal import spectrogram
+
+    from millsense.io.safe_output import atomic_path
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True,
+                                   gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
+    x = data.get("signal")
+    if x is not None and len(x) >= 512:
+        f, t, s = spectrogram(x - np.mean(x), fs=fs, nperseg=1024, noverlap=768)
+        ax1.pcolormesh(t + t0, f, 10 * np.log10(s + 1e-30), shading="auto", cmap="viridis")
+    ax1.set_ylabel("frequency [Hz]")
+    ax1.set_title(f"{signal}: spectrogram, chatter detections marked")
+    for name in monitors:
+        hz = data.get(f"{name}/chatter_hz")
+        if hz is not None:
+            tt = t0 + np.arange(len(hz)) / fs
+            sel = np.isfinite(hz)
+            step = max(1, int(fs * 0.05))
+            ax1.plot(tt[sel][::step], hz[sel][::step], ".", ms=4, label=f"{name} chatter")
+        r = data.get(f"{name}/energy_ratio")
+        if r is not None:
+            tt = t0 + np.arange(len(r)) / fs
+            ax2.plot(tt, r, label=name)
+    for e in events:
+        if e.name == "chatter":
+            ax1.axvline(e.time_s, color="r", lw=0.8)
+            th = e.values.get("threshold")
+            if th is not None:
+                ax2.axhline(th, color="r", lw=0.5, ls="--")
+    if any(data.get(f"{n}/chatter_hz") is not None for n in monitors):
+        ax1.legend(loc="upper right", fontsize=8)
+    ax2.set_ylabel("ratio")
+    ax2.set_xlabel("time [s]")
+    ax2.set_yscale("symlog", linthresh=0.1)
+    ax2.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)

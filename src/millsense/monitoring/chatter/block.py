@@ -1,0 +1,511 @@
+"""The chatter monitor: a streaming block running one chatter criterion on any channel.
+
+Input: one signal channel (compensated spindle torque/current, a compensated feed-drive
+force, an accelerometer or microphone), the spindle speed (a channel in rad/s or rev/min, or a
+constant), optionally the CNC's NC-line channel. Every ``hop`` samples (0.1 s, seed 000's
+update period) the last ``window`` samples of the raw signal and of its comb-filtered version
+(:mod:`.comb`) are transformed and judged by the method (:mod:`.methods`).
+
+Outputs, one value per sample, held between decisions: ``{name}/chatter`` (0/1),
+``{name}/chatter_hz`` (Hz, NaN without chatter) and ``{name}/energy_ratio`` (the method's
+ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARNING, value
+the chatter frequency) is raised when a run of chatter windows starts, a NOTE
+``chatter_end`` when it ends.
+
+Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
+and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
+persists between chunks, so chunks of 1, 7, 100 samples or the whole stream give identical
+outputs and events.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring.chatter.comb import comb_coefficients, ingest
+from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+#: Where an event happened on the tool path: (time s, NC line or None) → (NC line, x, y, z mm).
+Locator = Callable[[float, int | None], tuple[int | None, float | None, float | None, float | None]]
+
+#: Background learning time constants, s (decision 1504).
+BACKGROUND_TAU_S = 2.0
+BACKGROUND_TAU_AIR_S = 0.5
+BACKGROUND_TAU_NOVEL_S = 30.0
+#: A comb component is new when above this many times its background (decision 1504).
+NOVELTY_FACTOR = 5.0
+#: ... and, while chatter is flagged, above this many times (hysteresis, decision 1504).
+NOVELTY_HOLD = 2.0
+#: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
+CUTTING_GATE = 3.0
+#: Largest relative spread of the spindle speed over a window for a decision.
+STEADY_SPEED = 0.02
+#: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
+STEADY_MEAN = 0.5
+#: Calibration of the threshold method: first seconds of the run, factor on their maximum.
+CALIBRATION_S = 1.0
+CALIBRATION_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class ChatterSettings:
+    """Settings of a :class:`ChatterMonitor`.
+
+    Attributes
+    ----------
+    method : ``chatter-comb``, ``chatter-sdft`` or ``chatter-threshold``.
+    signal : channel analysed.
+    n_flutes : teeth of the tool (tooth-passing frequency = flutes × spindle frequency).
+    speed_channel : spindle-speed channel, or None for ``speed_rpm``.
+    speed_unit : unit of ``speed_channel``: ``rad/s`` or ``rev/min``.
+    speed_rpm : constant spindle speed when there is no speed channel, rev/min.
+    nc_line_channel : the CNC's NC-line channel, or None.
+    band_hz : frequencies searched for chatter (the upper one is limited to 0.45·f_s).
+    hop_s : time between decisions, s (0.1 s, seed 000).
+    threshold : the method's threshold (None: the seed's; calibrated for the threshold
+        method).
+    min_speed_rpm : below this the spindle counts as stopped (no decision), rev/min.
+    """
+
+    method: str = "chatter-comb"
+    signal: str = "spindle/torque_est"
+    n_flutes: int = 2
+    speed_channel: str | None = "spindle/speed"
+    speed_unit: str = "rad/s"
+    speed_rpm: float | None = None
+    nc_line_channel: str | None = None
+    band_hz: tuple[float, float] = (50.0, 5000.0)
+    hop_s: float = 0.1
+    threshold: float | None = None
+    min_speed_rpm: float = 300.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError(
+                f"chatter monitor: unknown method {self.method!r} (known: {', '.join(METHODS)})"
+            )
+        if self.n_flutes < 1:
+            raise ConfigError(f"chatter monitor: flutes must be ≥ 1, got {self.n_flutes}")
+        if self.speed_channel is None and not (self.speed_rpm and self.speed_rpm > 0):
+            raise ConfigError(
+                "chatter monitor: give a spindle-speed channel or a speed > 0 rev/min"
+            )
+        if self.speed_unit not in ("rad/s", "rev/min"):
+            raise ConfigError(f"chatter monitor: speed unit {self.speed_unit!r} (rad/s, rev/min)")
+        lo, hi = self.band_hz
+        if not 0 <= lo < hi:
+            raise ConfigError(f"chatter monitor: band {self.band_hz} Hz must be 0 ≤ low < high")
+        if not self.hop_s > 0:
+            raise ConfigError(f"chatter monitor: hop {self.hop_s} s must be > 0")
+
+
+class _Stage:
+    """The per-sample part shared by monitors reading one signal: rings of the raw and the
+    comb-filtered signal, the speed statistics of the current hop, the samples written."""
+
+    def __init__(self, size: int) -> None:
+        self.ring_x = np.zeros(size)
+        self.ring_y = np.zeros(size)
+        self.state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
+        self.pos = 0
+        self.ranges: list[tuple[float, float]] = []
+        self.f_rev = 0.0
+
+    def close_hop(self, keep: int) -> None:
+        """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
+        st = self.state
+        self.f_rev = st[1] / st[2] if st[2] > 0 else 0.0
+        self.ranges.append((float(st[3]), float(st[4])))
+        del self.ranges[:-keep]
+        st[1] = st[2] = st[4] = 0.0
+        st[3] = np.inf
+
+
+class ChatterMonitor(Block):
+    """Streaming chatter detection by one criterion (see the module notes).
+
+    Parameters
+    ----------
+    settings : what to read and which criterion.
+    locate : maps (time, NC line) to the NC line and tool-tip position on the path (from the
+        virtual plan), or None.
+    name : block name (default: the method's name); prefixes the output channels.
+    """
+
+    def __init__(
+        self, settings: ChatterSettings, locate: Locator | None = None, name: str | None = None
+    ) -> None:
+        self.settings = s = settings
+        self.method: ChatterMethod = METHODS[s.method]
+        if s.threshold is not None:
+            from dataclasses import replace
+
+            self.method = replace(self.method, threshold=float(s.threshold))
+        self.name = name or s.method
+        self.locate = locate
+        ins = [s.signal]
+        if s.speed_channel is not None:
+            ins.append(s.speed_channel)
+        if s.nc_line_channel is not None:
+            ins.append(s.nc_line_channel)
+        self.inputs = tuple(ins)
+        self._alpha, self._beta = comb_coefficients()
+        self._fs = 0.0
+
+    # ------------------------------------------------------------------ contract
+    def output_channels(self) -> list[ChannelInfo]:
+        m = self.method
+        return [
+            ChannelInfo(f"{self.name}/chatter", "1", f"1 while chatter ({m.seed} {m.name})"),
+            ChannelInfo(f"{self.name}/chatter_hz", "Hz", "chatter frequency (NaN: none)"),
+            ChannelInfo(
+                f"{self.name}/energy_ratio", "1", f"{m.name} ratio (chatter above the threshold)"
+            ),
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        s = self.settings
+        fs = self._fs = float(sample_rate_hz)
+        self._hop = max(1, round(s.hop_s * fs))
+        n = self.method.window
+        d_max = fs * 60.0 / s.min_speed_rpm
+        self._size = 1 << math.ceil(math.log2(max(n, d_max + 8)))
+        self._stage = _Stage(self._size)
+        self._smooth = 1.0 - math.exp(-1.0 / (0.01 * fs))  # 10 ms speed smoothing
+        # the raw spectrum (tooth-passing line, threshold method) is Hann-tapered (−1.4 dB
+        # scalloping at most); the comb-filtered one is rectangular as Eq. 5.30 and the SDFT:
+        # it holds no strong harmonics to leak, and the newest samples keep full weight, which
+        # is what the detection latency depends on (decision 1502)
+        self._taper = np.hanning(n)
+        self._scale = 2.0 / float(np.sum(self._taper))
+        self._comb_taper = np.hanning(n) if self.method.taper == "hann" else np.ones(n)
+        self._comb_scale = 2.0 / float(np.sum(self._comb_taper))
+        f = np.asarray(np.fft.rfftfreq(n, 1.0 / fs), dtype=np.float64)
+        self._f: np.ndarray = f
+        lo, hi = s.band_hz
+        self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
+        nz = np.flatnonzero(self._band)
+        self._band_slice = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
+        self._background: np.ndarray | None = None
+        self._air_floor: float | None = None
+        self._flag = 0.0
+        self._freq = math.nan
+        self._ratio = 0.0
+        self._run_start: float | None = None  # time of the first window of a rising run
+        self._calib: list[float] = []
+        self._calibrated: float | None = None
+        if s.speed_channel is None:
+            self._const_speed = abs(float(s.speed_rpm or 0.0)) / 60.0
+        self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
+        self._min_rev_s = s.min_speed_rpm / 60.0
+        self._keep_hops = n // self._hop + 2
+        self._ch_flag = f"{self.name}/chatter"
+        self._ch_hz = f"{self.name}/chatter_hz"
+        self._ch_ratio = f"{self.name}/energy_ratio"
+        self._mask_f_rev = -1.0
+        self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
+        self._harm_mask = np.zeros(len(f), dtype=bool)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        return _run_chunk([self], chunk)
+
+    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
+        """The held outputs for ``n`` samples: views of arrays that are never written again
+        (new ones are made when a value changes or a longer chunk comes)."""
+        # NaN (no chatter frequency) compares unequal to itself: key it as −1
+        key = (self._flag, -1.0 if math.isnan(self._freq) else self._freq, self._ratio)
+        held = self._held
+        if held is None or held[0] != key or len(held[1][0]) < n:
+            size = max(n, 1024)
+            arrays = (np.full(size, self._flag), np.full(size, self._freq),
+                      np.full(size, self._ratio))  # fmt: skip
+            held = self._held = (key, arrays)
+        a = held[1]
+        return {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
+
+    # ------------------------------------------------------------------ decision
+    def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
+        g = self._stage
+        ingest(x, spd, self._fs, self._alpha, self._beta, g.ring_x, g.ring_y, g.pos, g.state,
+               self._min_rev_s, self._smooth)  # fmt: skip
+        g.pos += len(x)
+
+    def _spectra(self) -> Spectra | None:
+        g = self._stage
+        f_rev = g.f_rev
+        n = self.method.window
+        if g.pos < n:
+            return None
+        ranges = g.ranges[-(n // self._hop + 2) :]
+        lo = min(r[0] for r in ranges)
+        hi = max(r[1] for r in ranges)
+        if not hi <= (1.0 + STEADY_SPEED) * lo:
+            return None  # speed changing within the window: no decision (decision 1504)
+        xr = self._window(self._stage.ring_x, n)
+        xr = xr - xr.mean()
+        raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
+        f = self._f
+        df = f[1]
+        f_t = self.settings.n_flutes * f_rev
+        tooth = 0.0
+        if f_rev * 60.0 >= self.settings.min_speed_rpm:
+            half = max(2.0 * df, 0.005 * f_t)
+            k0 = max(0, math.ceil((f_t - half) / df))
+            k1 = min(len(f), math.floor((f_t + half) / df) + 1)
+            tooth = float(raw[k0:k1].max()) if k1 > k0 else 0.0
+        b0, b1 = self._band_slice
+        med = float(np.median(raw[b0:b1])) if b1 > b0 else 0.0
+        # in the cut when the tooth line stands out of the spectrum's median, or of the median
+        # learned out of the cut (heavy chatter raises the median of the spectrum itself)
+        floor = med if self._air_floor is None else min(med, self._air_floor)
+        cutting = tooth > CUTTING_GATE * floor and tooth > 0.0
+        if not cutting and tooth > 0.0:
+            a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
+            self._air_floor = (
+                med if self._air_floor is None else self._air_floor + a * (med - self._air_floor)
+            )
+        if not self.method.learns_background:  # the threshold method reads the raw spectrum
+            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
+        if cutting and not self._steady_mean(xr, n, tooth):
+            return None  # entry, exit or a large step inside the window: no decision
+        xc = self._window(self._stage.ring_y, n)
+        raw_rect = None
+        if self.method.taper == "rect":
+            comb = np.abs(sfft.rfft(xc)) * self._comb_scale
+            if self.method.name == "chatter-sdft":  # Parseval needs the same taper
+                raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
+        else:
+            comb = np.abs(sfft.rfft(xc * self._comb_taper)) * self._comb_scale
+        if self._background is None:
+            # learned from air only: a first window already in the cut (chatter may start
+            # with the cut) must not become the background
+            self._background = np.zeros_like(comb) if cutting else comb.copy()
+        # hysteresis: while chatter is flagged a component stays new above 2 × its background
+        factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+        novel = comb - factor * self._background
+        if f_rev > 0:
+            # chatter is never on a spindle harmonic (that is forced vibration): bins within
+            # the comb's notch width or 2 bins of one are not searched
+            if abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
+                off = np.abs(f - f_rev * np.rint(f / f_rev))
+                self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
+                self._mask_f_rev = f_rev
+            novel[self._harm_mask] = -1.0
+        return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+
+    def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
+        """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
+        size = len(ring)
+        a = (self._stage.pos - n) & (size - 1)
+        if a + n <= size:
+            return ring[a : a + n].copy()
+        return np.concatenate([ring[a:], ring[: a + n - size]])
+
+    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float) -> bool:
+        """The means of the window's older and newer halves differ by less than
+        :data:`STEADY_MEAN` × the tooth-passing line (decision 1504). A step of the mean (the
+        entry into or the exit from the cut, a large depth step) drives the comb filter into a
+        transient that is not chatter; such a window is not judged. Signals without a mean
+        (accelerometer, microphone) always pass."""
+        h = n // 2
+        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= STEADY_MEAN * tooth
+
+    def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
+        """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
+        bins that are new (possible chatter) in 30 s, the others in 2 s."""
+        assert self._background is not None
+        hop = self.settings.hop_s
+        if not cutting:
+            a: np.ndarray | float = min(1.0, hop / BACKGROUND_TAU_AIR_S)
+        else:
+            a = np.where(
+                novel > 0.0,
+                min(1.0, hop / BACKGROUND_TAU_NOVEL_S),
+                min(1.0, hop / BACKGROUND_TAU_S),
+            )
+        self._background += a * (comb - self._background)
+
+    def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
+        sp = self._spectra()
+        t = chunk.t0_s + k / chunk.sample_rate_hz
+        if sp is None:
+            return []
+        v: Verdict
+        if self.method.name == "chatter-threshold" and self.method.threshold is None:
+            if t < chunk.t0_s + CALIBRATION_S and sp.f_rev_hz * 60 >= self.settings.min_speed_rpm:
+                self._calib.append(float(np.max(np.where(sp.band, sp.raw, 0.0))))
+            elif self._calibrated is None and self._calib:
+                self._calibrated = CALIBRATION_FACTOR * max(self._calib)
+        v = self.method.decide(sp, self._calibrated)
+        if self.method.learns_background:
+            self._learn(sp.comb, sp.novel, sp.cutting)
+        was = bool(self._flag)
+        now = v.chatter
+        if v.ratio > 0.5 * v.threshold:
+            if self._run_start is None:
+                self._run_start = t
+        else:
+            self._run_start = None
+        self._ratio = v.ratio
+        self._freq = v.frequency_hz if now else math.nan
+        self._flag = 1.0 if now else 0.0
+        if now and not was:
+            return [self._alarm(t, k, sp, v, nc)]
+        if was and not now:
+            return [
+                Event(
+                    t,
+                    EventKind.NOTE,
+                    self.name,
+                    f"chatter ended ({self.method.name})",
+                    name="chatter_end",
+                    sample=k,
+                    severity=Severity.INFO,
+                )
+            ]
+        return []
+
+    def _alarm(self, t: float, k: int, sp: Spectra, v: Verdict, nc: int | None) -> Event:
+        s = self.settings
+        f_c = v.frequency_hz
+        f_t = sp.f_tooth_hz
+        rpm = sp.f_rev_hz * 60.0
+        # the controller's data (Smith-Tlusty): the tooth frequency that puts the chatter
+        # frequency on a whole number of tooth periods per vibration wave, one lobe faster
+        lobe = f_c / f_t if f_t > 0 else math.nan
+        j = max(1, math.floor(lobe)) if math.isfinite(lobe) else 1
+        suggested = 60.0 * f_c / (s.n_flutes * j) if math.isfinite(f_c) else math.nan
+        onset = self._run_start if self._run_start is not None else t
+        values = {
+            "energy_ratio": v.ratio,
+            "threshold": v.threshold,
+            "chatter_hz": f_c,
+            "tooth_passing_hz": f_t,
+            "spindle_rpm": rpm,
+            "flutes": float(s.n_flutes),
+            "lobe_number": lobe,
+            "suggested_spindle_rpm": suggested,
+            "onset_s": onset,
+        }
+        loc: tuple[int | None, float | None, float | None, float | None] = (nc, None, None, None)
+        if self.locate is not None:
+            loc = self.locate(t, nc)
+        return Event(
+            t,
+            EventKind.ALARM,
+            self.name,
+            f"chatter at {f_c:.1f} Hz ({self.method.name}: ratio {v.ratio:.2f} > "
+            f"{v.threshold:g}; tooth passing {f_t:.1f} Hz, {rpm:.0f} rev/min)",
+            name="chatter",
+            value=f_c,
+            sample=k,
+            severity=Severity.WARNING,
+            values=values,
+            nc_line=loc[0],
+            x_mm=loc[1],
+            y_mm=loc[2],
+            z_mm=loc[3],
+        )
+
+
+def _run_chunk(monitors: Sequence[ChatterMonitor], chunk: Chunk) -> BlockOutput:
+    """Feed ``chunk`` to monitors sharing one stage (the first one's inputs and hop): one
+    ingest per run of samples, each monitor's decision at the decision samples."""
+    lead = monitors[0]
+    s = lead.settings
+    x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
+    n = len(x)
+    if s.speed_channel is not None:
+        spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
+        if lead._speed_factor != 1.0:
+            spd = spd * lead._speed_factor
+    else:
+        spd = np.full(n, lead._const_speed)
+    hop = lead._hop
+    first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
+    if first >= n:  # no decision in this chunk (the common case for short chunks)
+        lead._ingest(x, spd)
+        if len(monitors) == 1:
+            return BlockOutput(lead._held_outputs(n))
+        out: dict[str, np.ndarray] = {}
+        for m in monitors:
+            out.update(m._held_outputs(n))
+        return BlockOutput(out)
+    arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
+    events: list[Event] = []
+    keep = max(m._keep_hops for m in monitors)
+    i = 0
+    for j in [*range(first + 1, n + 1, hop), n]:
+        if j <= i:
+            continue
+        lead._ingest(x[i:j], spd[i:j])
+        decided = (chunk.start + j) % hop == 0
+        if decided:
+            lead._stage.close_hop(keep)
+            nc = None
+            if s.nc_line_channel is not None:
+                nc = int(chunk.data[s.nc_line_channel][j - 1])
+        for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
+            if decided:
+                # outputs before the decision sample hold the old values
+                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = m._flag, m._freq, m._ratio
+                events.extend(m._decide(chunk.start + j - 1, chunk, nc))
+                flag[j - 1], freq[j - 1], ratio[j - 1] = m._flag, m._freq, m._ratio
+            else:
+                flag[i:j], freq[i:j], ratio[i:j] = m._flag, m._freq, m._ratio
+        i = j
+    out = {}
+    for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
+        out.update({m._ch_flag: flag, m._ch_hz: freq, m._ch_ratio: ratio})
+    return BlockOutput(out, events)
+
+
+class ChatterGroup(Block):
+    """Several chatter monitors on the same signal and speed as one block: the rings, the comb
+    filter and the speed statistics are computed once (the criteria differ only in their
+    windows and decisions). Outputs and events are those of the members, unchanged.
+
+    Parameters
+    ----------
+    monitors : monitors reading the same signal, speed, NC-line channel, with the same hop.
+    name : block name.
+    """
+
+    def __init__(self, monitors: Sequence[ChatterMonitor], name: str = "chatter") -> None:
+        if not monitors:
+            raise ConfigError("chatter group: no monitor")
+        ref = monitors[0].settings
+        for m in monitors[1:]:
+            t = m.settings
+            if (t.signal, t.speed_channel, t.speed_unit, t.speed_rpm, t.nc_line_channel,
+                    t.hop_s, t.min_speed_rpm) != (ref.signal, ref.speed_channel, ref.speed_unit,
+                                                  ref.speed_rpm, ref.nc_line_channel,
+                                                  ref.hop_s, ref.min_speed_rpm):  # fmt: skip
+                raise ConfigError(
+                    f"chatter group: monitor '{m.name}' reads other channels or settings than "
+                    f"'{monitors[0].name}'"
+                )
+        self.monitors = list(monitors)
+        self.name = name
+        self.inputs = monitors[0].inputs
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [c for m in self.monitors for c in m.output_channels()]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        for m in self.monitors:
+            m.reset(sample_rate_hz)
+        stage = _Stage(max(m._size for m in self.monitors))
+        for m in self.monitors:
+            m._stage = stage
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        return _run_chunk(self.monitors, chunk)

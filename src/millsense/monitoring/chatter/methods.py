@@ -1,0 +1,149 @@
+"""The chatter criteria, one per seed, on the spectra of one analysis window.
+
+Each method turns the window's spectra (the raw signal's and the comb-filtered one's, see
+:mod:`.comb`) into an *energy ratio* compared with its threshold and a chatter frequency:
+
+- ``chatter-comb`` (seed 000, Aslan §5.4, Eq. 5.26–5.30): 4096-point spectrum (Eq. 5.30); the
+  ratio is the largest comb-filtered (non-harmonic) peak over the raw signal's tooth-passing
+  line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c.
+- ``chatter-sdft`` (seed 001, Yamada §2.10, Eq. 6-12): sliding DFT over a rectangular
+  window and the moving variance. The variance of a window is its total PSD without DC
+  (Parseval, Koike's moving variance); the ratio is the variance of the comb residual in the
+  band (the non-harmonic, chatter variance) over the variance of the spindle harmonics
+  (raw-signal variance minus residual variance), chatter above **0.5** (the thesis gives no
+  threshold: decision 1503, 0.5); the band's largest SDFT bin is f_c. The SDFT recursion
+  ``S_k[n] = e^{j2πk/N}(S_k[n−1] + y[n] − y[n−N])`` gives at sample n exactly the DFT of the
+  last N samples; it is read only at the decision instants, where it is computed by one FFT
+  (identical values, decision 1503).
+- ``chatter-threshold`` (seed 002, Munasinghe §2.6): the maximum of a 256-point windowed
+  spectrum of the raw signal against a fixed threshold (given, or 2 × the largest maximum
+  over the first second of the run, "set from stable cuts"; decision 1507). A baseline: it
+  knows nothing of harmonics, tones or depth changes.
+
+Robustness shared by the first two (decision 1504, in :mod:`.block`): a per-bin *background*
+of the comb-filtered spectrum is learned (out of the cut in 0.5 s, in the cut in 2 s, new
+components in 30 s); a component counts as chatter only where the spectrum exceeds 5 × its
+background, so steady tones and stable resonances present before the cut or constant over
+time are not called chatter; decisions are taken only while the tooth-passing line stands 3 ×
+above the spectrum's median (the tool is cutting), the window's mean is steady (no entry or
+exit step) and the speed is steady; bins on the spindle harmonics are not searched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: Seed 000 decision threshold (Aslan §5.4, digest P10).
+SEED000_RATIO = 1.5
+
+
+@dataclass(frozen=True)
+class Spectra:
+    """Spectra of one analysis window (one-sided amplitude, channel units).
+
+    Attributes
+    ----------
+    f_hz : bin frequencies.
+    raw, comb : amplitude spectra of the raw (mean removed) and comb-filtered window.
+    band : bins searched for chatter.
+    tooth : amplitude of the raw tooth-passing line.
+    f_tooth_hz, f_rev_hz : tooth-passing and spindle frequencies over the last hop.
+    cutting : the tooth-passing line stands out (the tool is in the material).
+    novel : comb amplitude above 5 × its learned background (≤ 0: nothing new).
+    raw_rect : the raw window's rectangular spectrum (same taper as ``comb``; for Parseval).
+    """
+
+    f_hz: FloatArray
+    raw: FloatArray
+    comb: FloatArray
+    band: NDArray[np.bool_]
+    tooth: float
+    f_tooth_hz: float
+    f_rev_hz: float
+    cutting: bool
+    novel: FloatArray
+    raw_rect: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz."""
+
+    ratio: float
+    frequency_hz: float
+    threshold: float
+
+    @property
+    def chatter(self) -> bool:
+        return bool(self.ratio > self.threshold)
+
+
+def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
+    """Frequency of the peak at bin ``k`` by parabolic interpolation of log amplitudes."""
+    if 0 < k < len(amp) - 1 and amp[k - 1] > 0 and amp[k] > 0 and amp[k + 1] > 0:
+        a, b, c = np.log(amp[k - 1 : k + 2])
+        den = a - 2 * b + c
+        if den < 0:
+            return float(f_hz[k] + 0.5 * (a - c) / den * (f_hz[1] - f_hz[0]))
+    return float(f_hz[k])
+
+
+@dataclass(frozen=True)
+class ChatterMethod:
+    """One criterion: its analysis window and decision rule.
+
+    Attributes
+    ----------
+    name : registry name (``chatter-comb``...).
+    window : samples per analysis window (at the stream rate).
+    taper : ``hann`` or ``rect`` (the SDFT is rectangular).
+    threshold : ratio above which the window is chatter (None for the threshold method:
+        calibrated on the run).
+    learns_background : use the learned background and the cutting gate.
+    seed : the seed the criterion comes from (for messages).
+    """
+
+    name: str
+    window: int
+    taper: str
+    threshold: float | None
+    learns_background: bool
+    seed: str
+
+    def decide(self, s: Spectra, calibrated: float | None) -> Verdict:
+        """The verdict on one window (``calibrated``: threshold of the threshold method)."""
+        if self.name == "chatter-threshold":
+            thr = self.threshold if self.threshold is not None else calibrated
+            amp = np.where(s.band, s.raw, 0.0)
+            k = int(np.argmax(amp))
+            if thr is None or not thr > 0:
+                return Verdict(0.0, peak_frequency(s.f_hz, s.raw, k), 1.0)
+            return Verdict(float(amp[k]) / thr, peak_frequency(s.f_hz, s.raw, k), 1.0)
+        thr = float(self.threshold if self.threshold is not None else SEED000_RATIO)
+        novel = np.where(s.band, s.novel, 0.0)
+        k = int(np.argmax(novel))
+        if not s.cutting or novel[k] <= 0.0 or s.tooth <= 0.0:
+            return Verdict(0.0, float("nan"), thr)
+        f_c = peak_frequency(s.f_hz, s.comb, k)
+        if self.name == "chatter-comb":
+            return Verdict(float(s.comb[k]) / s.tooth, f_c, thr)
+        # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
+        # amplitudes a → variance a²/2)
+        chat = float(np.sum(np.where(s.band, np.maximum(s.novel, 0.0), 0.0) ** 2)) / 2.0
+        raw = s.raw_rect if s.raw_rect is not None else s.raw
+        harm = max(float(np.sum(np.where(s.band, raw**2 - s.comb**2, 0.0))) / 2.0, 0.0)
+        floor = 1e-30 + 1e-12 * float(np.sum(np.where(s.band, raw**2, 0.0)))
+        return Verdict(chat / max(harm, floor), f_c, thr)
+
+
+#: The chatter criteria by name (window lengths in samples, chosen for a 10 kHz stream).
+METHODS: dict[str, ChatterMethod] = {
+    "chatter-comb": ChatterMethod("chatter-comb", 4096, "rect", SEED000_RATIO, True, "seed 000"),
+    "chatter-sdft": ChatterMethod("chatter-sdft", 2048, "rect", 0.5, True, "seed 001"),
+    "chatter-threshold": ChatterMethod("chatter-threshold", 256, "hann", None, False, "seed 002"),
+}

@@ -1,0 +1,493 @@
+"""Acceptance of the chatter monitors (issue 15): seed 000 V5 replicas, stable cuts, false
+alarms over 10 minutes of stable cutting, detection latency.
+
+V5 replicas (digest P9, V5): tools T1–T4 with their modal tables (X normal, Y feed, ζ in %),
+Al7050 (preset), full immersion, 0.1 mm/tooth, the thesis's speeds and depths, on the virtual
+machine (Quaser UX600 preset, its Aslan spindle drive; regenerative time-domain process with
+the tool modes). T3 has 2 flutes (digest P9: 166.67 Hz at 5000 rev/min; the table's 4 is
+taken as a misprint, decision 1501). Each run: spindle run-up, 0.8 s in air at speed (the
+monitors learn their background there), then the cut. The compensated spindle torque is the
+spindle observer identified and tuned on the simulator (as
+:mod:`millsense.validation.cases.estimation_spindle`); the raw signal is the current command
+I_nom. The simulation's own chatter frequency is the largest non-harmonic peak of the
+simulated cutting torque (the signal the spindle detectors see) over the last 0.41 s; the tool
+vibration's peak is listed beside it (they differ when a sideband ω_c ± N·Ω dominates the
+torque, T4). The thesis's 570/938/771/1979 Hz are context, not references.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from millsense.validation import Measured, case
+
+FS_HZ = 10_000.0
+#: Tool: (diameter m, flutes, rev/min, chatter depth mm, thesis stable depth mm, thesis Hz,
+#: X modes, Y modes) with modes (Hz, ζ %, k N/m); Aslan Tables 5.3–5.4, V5, Fig. 5.18.
+TOOLS: dict[str, tuple[Any, ...]] = {
+    "T1": (50e-3, 5, 6000.0, 2.25, 1.5, 570.0,
+           [(282, 5.3, 5.9e7), (546, 2.8, 1.2e7), (1621, 1.5, 2.8e8)],
+           [(300, 1.1, 6.6e7), (546, 2.5, 1.3e7), (1607, 2.9, 2.9e8)]),
+    "T2": (25e-3, 4, 4000.0, 3.5, 2.0, 938.0,
+           [(871, 4.2, 1.7e8), (932, 4.4, 2.9e7), (1196, 3.6, 3.1e8), (2003, 9, 1e8),
+            (2805, 2.2, 1.3e8)],
+           [(821, 4.5, 6.9e7), (928, 4.1, 4.5e7), (1169, 4.3, 1.6e8), (1983, 6.8, 1.4e8),
+            (2812, 1.9, 1.4e8)]),
+    "T3": (20e-3, 2, 5000.0, 1.0, 0.5, 771.0,
+           [(717, 3.5, 1.3e7), (817, 4.8, 1.5e7), (1364, 1.8, 2.9e7)],
+           [(734, 3.6, 2.5e6), (1026, 0.3, 3.3e7), (1355, 1.8, 2.8e7)]),
+    "T4": (10e-3, 2, 10000.0, 2.0, 0.5, 1979.0,
+           [(1413, 2, 2.1e7), (1915, 4.5, 3e6), (2400, 5.9, 1.9e7), (2550, 0.03, 4.3e10)],
+           [(1446, 1.5, 3.8e7), (1924, 3, 5e6), (2219, 4.5, 6.1e6), (2540, 3, 3.6e7)]),
+}  # fmt: skip
+AIR_S = 0.8
+CUT_S = 1.4
+
+
+def _modes(rows: list[tuple[float, float, float]]) -> Any:
+    from millsense.stability.time_domain import DirectionModes
+
+    f, z, k = zip(*rows, strict=True)
+    return DirectionModes.from_arrays(f, np.asarray(z) / 100.0, k)
+
+
+@cache
+def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
+    """One V5 replica run: the channels the monitors and the judgement need."""
+    from millsense.core.config import MachineConfig, MaterialConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.process_coupling import (
+        EngagementSchedule,
+        ProcessCoupling,
+        ToolModes,
+    )
+    from millsense.simulator.sensors import SensorOptions
+
+    d, n, rpm, _, _, _, mx, my = TOOLS[tool]
+    m = load_preset(MachineConfig, "quaser-ux600")
+    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    feed = 0.1e-3 * n * rpm / 60.0
+    # process frame: x along the feed (thesis Y), y normal to it (thesis X)
+    proc = ProcessCoupling(
+        EndMill(d, n),
+        coeffs,
+        EngagementSchedule.constant(Engagement.slot(), depth_mm * 1e-3, start=feed * AIR_S),
+        n_discs=1,
+        modes=ToolModes(_modes(my), _modes(mx)),
+    )
+    job = Job.straight([0, 0, 0], [1.0, 0, 0], feed, rpm * 2 * math.pi / 60.0)
+    opts = SimulatorOptions(
+        seed=11, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)
+    )
+    sim = MachineSimulator(m, job, proc, opts, duration_s=AIR_S + CUT_S + 0.15)
+    keep = (
+        "spindle/current_cmd",
+        "spindle/speed",
+        "accel/x",
+        "truth/spindle/torque",
+        "truth/tool/vibration_x",
+        "truth/tool/vibration_y",
+        "truth/process/chatter",
+    )
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in keep}
+    while (c := sim.read(2000)) is not None:
+        for k in keep:
+            parts[k].append(c.data[k])
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+@cache
+def compensated(tool: str, depth_mm: float) -> np.ndarray:
+    """Compensated spindle torque: the identified range-2 observer on I_nom."""
+    from millsense.estimation.spindle_observer import SpindleTorqueObserver
+    from millsense.streaming.block import Chunk
+    from millsense.validation.cases.estimation_spindle import friction, observers
+
+    d = simulate(tool, depth_mm)
+    obs = SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction())
+    obs.reset(FS_HZ)
+    out = []
+    n = len(d["spindle/current_cmd"])
+    for s in range(0, n, 1000):
+        data = {"spindle/current_cmd": d["spindle/current_cmd"][s : s + 1000],
+                "spindle/speed": d["spindle/speed"][s : s + 1000]}  # fmt: skip
+        out.append(obs.process(Chunk(s, FS_HZ, 0.0, data)).channels["spindle/torque_est"])
+    return np.concatenate(out)
+
+
+def detect(
+    x: np.ndarray, speed_rad_s: np.ndarray, flutes: int, method: str = "chatter-comb"
+) -> tuple[list[Any], np.ndarray]:
+    """Chatter events and the per-sample energy ratio of ``method`` on ``x``."""
+    from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
+    from millsense.streaming.block import Chunk
+
+    b = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=flutes))
+    b.reset(FS_HZ)
+    events: list[Any] = []
+    ratio = []
+    for s in range(0, len(x), 1000):
+        data = {"s": x[s : s + 1000], "spindle/speed": speed_rad_s[s : s + 1000]}
+        o = b.process(Chunk(s, FS_HZ, 0.0, data))
+        events += [e for e in o.events if e.name == "chatter"]
+        ratio.append(o.channels[f"{method}/energy_ratio"])
+    return events, np.concatenate(ratio)
+
+
+def simulated_chatter_hz(x: np.ndarray, rpm: float) -> float:
+    """Largest peak above 100 Hz away from the spindle harmonics (±3 bins) of the last 4096
+    samples, Hz (parabolic interpolation)."""
+    from millsense.monitoring.chatter.methods import peak_frequency
+
+    w = x[-4096:] - np.mean(x[-4096:])
+    spec = np.abs(np.fft.rfft(w * np.hanning(len(w))))
+    f = np.asarray(np.fft.rfftfreq(len(w), 1.0 / FS_HZ), dtype=np.float64)
+    f_rev = rpm / 60.0
+    masked = spec.copy()
+    masked[(np.abs(f / f_rev - np.rint(f / f_rev)) * f_rev <= 3 * f[1]) | (f < 100)] = 0.0
+    return peak_frequency(f, spec, int(np.argmax(masked)))
+
+
+@cache
+def v5() -> dict[str, dict[str, float]]:
+    """Per tool: simulated torque and vibration chatter Hz, detector outcomes (raw, comp)."""
+    out = {}
+    for tool, (_, n, rpm, depth, *_rest) in TOOLS.items():
+        d = simulate(tool, depth)
+        steady = slice(-int(0.8 * FS_HZ), None)
+        row = {
+            "sim_torque_hz": simulated_chatter_hz(d["truth/spindle/torque"], rpm),
+            "sim_vibration_hz": simulated_chatter_hz(d["truth/tool/vibration_x"], rpm),
+            "sim_chatter_fraction": float(np.mean(d["truth/process/chatter"][steady])),
+        }
+        for name, x in (("raw", d["spindle/current_cmd"]), ("comp", compensated(tool, depth))):
+            ev, ratio = detect(x, d["spindle/speed"], n)
+            row[f"{name}_hz"] = float(ev[0].value) if ev else math.nan
+            row[f"{name}_ratio"] = float(np.median(ratio[steady]))
+        out[tool] = row
+    return out
+
+
+def _v5_table() -> str:
+    rows = [
+        "| tool | thesis Hz | sim torque Hz | sim vibration Hz | comp. detected Hz | comp. ratio | "
+        "raw detected Hz | raw ratio |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for tool, r in v5().items():
+        rows.append(
+            f"| {tool} | {TOOLS[tool][5]:.0f} | {r['sim_torque_hz']:.1f} | "
+            f"{r['sim_vibration_hz']:.1f} | {r['comp_hz']:.1f} | {r['comp_ratio']:.2f} | "
+            f"{r['raw_hz']:.1f} | {r['raw_ratio']:.2f} |"
+        )
+    return "\n".join(rows)
+
+
+def _freq_case(tool: str, gap: str = "") -> None:
+    @case(
+        f"monitoring.chatter.v5_{tool.lower()}_compensated_hz",
+        source=f"seed 000 V5 (Aslan Ch. 5.4, Tables 5.3-5.4) {tool}: chatter detected on the "
+        "compensated spindle current",
+        reference=0.0,
+        unit="-",
+        abs_tol=0.02,
+        quick=False,
+        description=f"relative error of the chatter frequency reported by chatter-comb on the "
+        f"compensated spindle torque against the simulated torque's chatter peak, {tool} replica "
+        "(module notes); table of all four tools",
+        gap=gap,
+    )
+    def _f() -> Measured:
+        r = v5()[tool]
+        return Measured(abs(r["comp_hz"] / r["sim_torque_hz"] - 1.0), _v5_table())
+
+
+for _tool in ("T1", "T2", "T3"):
+    _freq_case(_tool)
+_freq_case(
+    "T4",
+    gap="in the replica the chatter line of the cutting torque (a sideband at ω_c + N·Ω) is "
+    "only ≈ 1.3-1.6 × the tooth-passing line and the observer's noise near 2.3 kHz is as large: "
+    "the compensated ratio stays below 1.5 (decision 1506)",
+)
+
+
+@case(
+    "monitoring.chatter.v5_t2_raw_ratio",
+    source="seed 000 V5 (Aslan Ch. 5.4): T2 raw current finds 935 Hz but the ratio is < 1.5",
+    reference=0.75,
+    abs_tol=0.75,
+    unit="-",
+    quick=False,
+    description="median chatter-comb ratio on the raw spindle current (I_nom) over the last "
+    "0.8 s of the T2 replica; passes in 0-1.5 (the thesis: below 1.5, detection fails)",
+)
+def _t2_raw() -> Measured:
+    return Measured(v5()["T2"]["raw_ratio"], _v5_table())
+
+
+@case(
+    "monitoring.chatter.v5_t3_raw_ratio",
+    source="seed 000 V5 (Aslan Ch. 5.4): T3 raw ratio < 1, compensated about 6",
+    reference=0.5,
+    abs_tol=0.5,
+    unit="-",
+    quick=False,
+    description="median chatter-comb ratio on the raw spindle current over the last 0.8 s of "
+    "the T3 replica; passes in 0-1 (the thesis: below 1)",
+)
+def _t3_raw() -> Measured:
+    return Measured(v5()["T3"]["raw_ratio"], _v5_table())
+
+
+#: Stable cuts of the replicas (depth mm): the thesis's (Fig. 5.18) where the replica is stable
+#: there (T1 1.5, T3 0.5); T2 and T4 chatter in the replica at the thesis's 2 and 0.5 mm
+#: (vibration 17 and 54 µm RMS), so their stable cuts are taken at 1.0 and 0.25 mm.
+STABLE_MM = {"T1": 1.5, "T2": 1.0, "T3": 0.5, "T4": 0.25}
+#: The thesis's stable depths that chatter in the replica (listed, not counted as stable).
+THESIS_STABLE_CHATTERING_MM = {"T2": 2.0, "T4": 0.5}
+
+
+@cache
+def stable_alarms() -> list[tuple[str, float, int, int, float]]:
+    """Per cut: (tool, depth mm, comp. alarms, raw alarms, simulated chatter fraction over the
+    last 0.8 s); the replica-stable cuts first, then the thesis-stable ones that chatter."""
+    out = []
+    cuts = [*STABLE_MM.items(), *THESIS_STABLE_CHATTERING_MM.items()]
+    for tool, depth in cuts:
+        n = TOOLS[tool][1]
+        d = simulate(tool, depth)
+        ev_c, _ = detect(compensated(tool, depth), d["spindle/speed"], n)
+        ev_r, _ = detect(d["spindle/current_cmd"], d["spindle/speed"], n)
+        frac = float(np.mean(d["truth/process/chatter"][-int(0.8 * FS_HZ) :]))
+        out.append((tool, depth, len(ev_c), len(ev_r), frac))
+    return out
+
+
+@case(
+    "monitoring.chatter.v5_stable_cuts_no_alarm",
+    source="seed 000 V5 / Fig. 5.18: stable cuts give ratios < 1.5 (no alarm)",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="alarms",
+    quick=False,
+    description="chatter-comb alarms on the compensated and the raw spindle current over the "
+    "four replica cuts that are stable in the simulation (T1 1.5, T2 1.0, T3 0.5, T4 0.25 mm; "
+    "0.8 s air, 1.4 s cut); the thesis's T2 2 mm and T4 0.5 mm chatter in the replica and are "
+    "listed, not counted",
+)
+def _stable() -> Measured:
+    res = stable_alarms()
+    rows = [
+        "| tool | depth mm | sim chatter fraction (last 0.8 s) | alarms comp. | alarms raw |",
+        "|---|---|---|---|---|",
+    ]
+    rows += [f"| {t} | {a:g} | {f:.2f} | {c} | {r} |" for t, a, c, r, f in res]
+    counted = res[: len(STABLE_MM)]
+    return Measured(float(sum(c + r for _, _, c, r, _ in counted)), "\n".join(rows))
+
+
+# ------------------------------------------------------------------------------------------
+# latency: chatter arising inside a cut (depth ramp through the stability limit)
+# ------------------------------------------------------------------------------------------
+
+
+@cache
+def latency() -> tuple[float, float, float]:
+    """(truth onset s, alarm s, alarm Hz): Insperger 1-DOF slot (benchmarks.md §1), depth
+    raised in 5 % steps every 0.1 s from 0.4 to 1.2 × the SDM limit 0.3174 mm, accelerometer."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.process_coupling import (
+        DepthStep,
+        EngagementSchedule,
+        ProcessCoupling,
+        ToolModes,
+    )
+    from millsense.simulator.sensors import SensorOptions
+    from millsense.stability.time_domain import DirectionModes
+
+    rpm, a_crit = 15870.0, 0.3174e-3
+    omega = rpm * 2 * math.pi / 60
+    t_cut = 0.5
+    steps = [DepthStep(t_cut + 0.6 + 0.1 * i, (0.45 + 0.05 * i) * a_crit) for i in range(16)]
+    feed = 0.05e-3 * 2 * rpm / 60
+    proc = ProcessCoupling(
+        EndMill(10e-3, 2),
+        CuttingCoefficients(ktc=6e8, krc=2e8),
+        EngagementSchedule.constant(Engagement.slot(), 0.4 * a_crit, start=feed * t_cut),
+        n_discs=1,
+        modes=ToolModes(
+            DirectionModes.from_arrays([922.0], [0.011], [1.34005e6]), DirectionModes.rigid()
+        ),
+        events=steps,
+    )
+    m = load_preset(MachineConfig, "quaser-ux600")
+    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    job = Job.straight([0, 0, 0], [1.0, 0, 0], feed, omega)
+    opts = SimulatorOptions(
+        seed=5, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)
+    )
+    sim = MachineSimulator(m, job, proc, opts, duration_s=3.0)
+    parts: dict[str, list[np.ndarray]] = {}
+    while (c := sim.read(2000)) is not None:
+        for k in ("accel/x", "spindle/speed", "truth/process/chatter", "truth/process/depth"):
+            parts.setdefault(k, []).append(c.data[k])
+    d = {k: np.concatenate(v) for k, v in parts.items()}
+    # onset: the truth flag's first rise after the entry transient has died out (the flag also
+    # fires for a few revolutions at the entry, where the vibration is not yet periodic)
+    flag = d["truth/process/chatter"] > 0
+    settled = int((t_cut + 0.5) * FS_HZ)
+    onset = float((settled + np.argmax(flag[settled:])) / FS_HZ)
+    ev, _ = detect(d["accel/x"], d["spindle/speed"], 2)
+    t_alarm = ev[0].time_s if ev else math.inf
+    return onset, t_alarm, float(ev[0].value) if ev else math.nan
+
+
+@case(
+    "monitoring.chatter.latency",
+    source="issue 15 acceptance: chatter onset to event ≤ 0.2 s",
+    reference=0.1,
+    abs_tol=0.1,
+    unit="s",
+    quick=False,
+    description="time from the simulation's own chatter onset (truth flag) to the chatter-comb "
+    "alarm on the accelerometer, Insperger 1-DOF slot with the depth ramped through the limit "
+    "inside the cut; passes in 0-0.2 s",
+)
+def _latency() -> Measured:
+    onset, alarm, hz = latency()
+    return Measured(
+        alarm - onset,
+        f"truth onset {onset:.3f} s, alarm {alarm:.3f} s at {hz:.1f} Hz (SDM: 932 Hz)",
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# false alarms: long stable cutting with speed changes, overrides, depth steps, air cuts,
+# a steady tone and a stable resonance
+# ------------------------------------------------------------------------------------------
+
+TONE_HZ = 1234.0
+RESONANCE_HZ = 1500.0
+
+
+def stable_stream(duration_s: float, seed: int = 0, spindle: bool = True) -> dict[str, np.ndarray]:
+    """A stable cut (static mechanistic forces: no regeneration) of ``duration_s``.
+
+    5 s segments: programmed speed 4500-7000 rev/min × override 80/100/120 % (ramped at
+    5000 rev/min/s), slot depth 0.5-2 mm or air (one segment in five), Ø20 mm 2-flute (preset
+    aslan-d20-2flute) in Al7050 at 0.1 mm/tooth. Channels: ``sensor`` (the feed force through
+    a stable 1500 Hz resonance, ζ = 2 %, plus a steady 1234 Hz tone and white noise, in N),
+    ``spindle/speed`` (rad/s, measured) and, with ``spindle``, ``spindle/current_cmd`` (A) of
+    the Aslan spindle drive driven by the cutting torque (0.05 A noise).
+    """
+    import scipy.signal
+
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    rng = np.random.default_rng(seed)
+    tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    n = int(duration_s * FS_HZ)
+    seg = int(5.0 * FS_HZ)
+    n_seg = -(-n // seg)
+    rpm_prog = rng.choice([4500.0, 5000.0, 5500.0, 6000.0, 6500.0, 7000.0], n_seg)
+    rpm_seg = rpm_prog * rng.choice([0.8, 1.0, 1.2], n_seg)
+    depth = rng.choice([0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3], n_seg) * (rng.random(n_seg) > 0.2)
+    depth[0] = 0.0  # start in air
+    target = np.repeat(rpm_seg, seg)[:n]
+    rpm = np.empty(n)
+    step = 5000.0 / FS_HZ
+    cur = rpm_seg[0]
+    for i0 in range(0, n, seg):  # ramp at the start of each segment (vectorised per segment)
+        tgt = target[i0]
+        k = np.arange(min(seg, n - i0))
+        rpm[i0 : i0 + len(k)] = cur + np.clip(k * step, 0, abs(tgt - cur)) * np.sign(tgt - cur)
+        cur = tgt
+    speed = rpm * 2 * math.pi / 60.0
+    angle = np.cumsum(speed) / FS_HZ
+    torque = np.zeros(n)
+    force = np.zeros(n)
+    for j, i0 in enumerate(range(0, n, seg)):
+        if depth[j] > 0:
+            sl = slice(i0, min(n, i0 + seg))
+            cf = milling_forces(tool, coeffs, Engagement.slot(), 0.1e-3, float(depth[j]),
+                                angle[sl], n_discs=5)  # fmt: skip
+            torque[sl] = cf.torque_nm
+            force[sl] = cf.fx_n
+    w = 2 * math.pi * RESONANCE_HZ
+    b, a = scipy.signal.bilinear([w**2], [1.0, 2 * 0.02 * w, w**2], fs=FS_HZ)
+    t = np.arange(n) / FS_HZ
+    sensor = scipy.signal.lfilter(b, a, force) + 20.0 * np.cos(2 * math.pi * TONE_HZ * t)
+    sensor += 2.0 * rng.standard_normal(n)
+    out = {"sensor": sensor, "spindle/speed": speed}
+    if spindle:
+        from millsense.models.spindle_plant import SpindleDriveParams
+        from millsense.simulator.spindle import SpindleDriveSim
+
+        res = SpindleDriveSim(SpindleDriveParams.aslan_quaser(), FS_HZ).advance(speed, torque)
+        out["spindle/current_cmd"] = res["current_cmd"] + 0.05 * rng.standard_normal(n)
+        out["spindle/speed"] = res["speed"]
+    return out
+
+
+@cache
+def false_alarms() -> dict[str, int]:
+    """Chatter alarms per (signal, method) over 10 minutes of :func:`stable_stream`."""
+    from millsense.estimation.spindle_observer import SpindleTorqueObserver
+    from millsense.streaming.block import Chunk
+    from millsense.validation.cases.estimation_spindle import friction, observers
+
+    d = stable_stream(600.0, seed=3)
+    obs = SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction())
+    obs.reset(FS_HZ)
+    parts = []
+    for s in range(0, len(d["sensor"]), 10000):
+        data = {k: d[k][s : s + 10000] for k in ("spindle/current_cmd", "spindle/speed")}
+        parts.append(obs.process(Chunk(s, FS_HZ, 0.0, data)).channels["spindle/torque_est"])
+    comp = np.concatenate(parts)
+    out = {}
+    for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
+        for method in ("chatter-comb", "chatter-sdft"):
+            ev, _ = detect(x, d["spindle/speed"], 2, method)
+            out[f"{sig} / {method}"] = len(ev)
+    return out
+
+
+@case(
+    "monitoring.chatter.false_alarms_10min",
+    source="issue 15 acceptance: zero false alarms over 10 minutes of stable cutting",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="alarms",
+    quick=False,
+    description="chatter alarms of chatter-comb and chatter-sdft over 600 s of stable slotting "
+    "(static forces) with speed changes, 80-120 % overrides, depth steps, air cuts, a steady "
+    "1234 Hz tone and a 1500 Hz resonance on a sensor channel, and on the compensated "
+    "spindle torque (stable_stream)",
+)
+def _false() -> Measured:
+    res = false_alarms()
+    rows = ["| signal / method | alarms |", "|---|---|"] + [
+        f"| {k} | {v} |" for k, v in res.items()
+    ]
+    return Measured(float(sum(res.values())), "\n".join(rows))

@@ -1,0 +1,268 @@
+"""Chatter monitors (issue 15 item 1) on synthetic signals with a known answer.
+
+The signal: spindle harmonics of a 4-flute cutter (tooth-passing line strongest) after a
+1 s air phase, a drifting offset, white noise, and from ``onset`` a chatter component at
+``fc`` (amplitude-modulated by the revolution, as Aslan Eq. 5.25: energy at ω_c ± lΩ). The
+chatter frequency is therefore known exactly; thresholds are the seeds' (1.5, seed 000).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings, comb_coefficients
+from millsense.monitoring.chatter.comb import ingest
+from millsense.streaming.block import Chunk, EventKind, Severity
+
+FS = 10000.0
+
+
+def _signal(
+    dur: float = 4.0,
+    rpm: float = 6000.0,
+    onset: float | None = 2.5,
+    fc: float = 937.0,
+    chatter_amp: float = 4.0,
+    tone: tuple[float, float] | None = None,
+    rpm_after: tuple[float, float] | None = None,
+    seed: int = 0,
+    cut_start: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    n = int(dur * FS)
+    t = np.arange(n) / FS
+    rpm_t = np.full(n, rpm)
+    if rpm_after is not None:
+        rpm_t[t >= rpm_after[0]] = rpm_after[1]
+    ang = np.cumsum(rpm_t / 60 * 2 * np.pi) / FS
+    x = np.zeros(n)
+    for ell in range(1, 40):
+        x += (1.0 if ell % 4 == 0 else 0.1) / (1 + 0.05 * ell) * np.cos(ell * ang + 0.3 * ell)
+    x *= t >= cut_start
+    x += 5.0 + 0.5 * t + 0.05 * rng.standard_normal(n)
+    if onset is not None:
+        amp = np.clip((t - onset) / 0.02, 0, 1) * chatter_amp
+        x += amp * np.cos(2 * np.pi * fc * t) * (1 + 0.3 * np.cos(ang))
+    if tone is not None:
+        x += tone[1] * np.cos(2 * np.pi * tone[0] * t)
+    return x, rpm_t * 2 * np.pi / 60
+
+
+def _run(x, spd, method="chatter-comb", chunk=1000, locate=None, nc=None):  # type: ignore[no-untyped-def]
+    b = ChatterMonitor(
+        ChatterSettings(method=method, signal="s", n_flutes=4,
+                        nc_line_channel=None if nc is None else "cnc/nc_line"),
+        locate=locate,
+    )  # fmt: skip
+    b.reset(FS)
+    events, parts = [], {}
+    for s in range(0, len(x), chunk):
+        data = {"s": x[s : s + chunk], "spindle/speed": spd[s : s + chunk]}
+        if nc is not None:
+            data["cnc/nc_line"] = nc[s : s + chunk]
+        o = b.process(Chunk(s, FS, 0.0, data))
+        events += o.events
+        for k, v in o.channels.items():
+            parts.setdefault(k, []).append(v)
+    return {k: np.concatenate(v) for k, v in parts.items()}, events
+
+
+def test_comb_coefficients_are_the_digest_values() -> None:
+    # digest §2.7 (derived): Q = 10, |G| = 0.708 → γ = 0.1580, α = 0.7271, β = 0.8636
+    a, b = comb_coefficients()
+    assert a == pytest.approx(0.7271, abs=1e-4)
+    assert b == pytest.approx(0.8636, abs=1e-4)
+
+
+@pytest.mark.parametrize("rpm", [6000.0, 7123.0])  # 100 and 83.6... samples per rev: whole, not
+def test_comb_notches_the_harmonics_and_passes_between(rpm: float) -> None:
+    # steady-state gain of Eq. 5.26: 0 on every harmonic l·f_rev, β·2/(1+α) = 1 midway. The
+    # 20th harmonic (2000 / 2374 Hz) with a fractional revolution: the 8-point Lagrange delay
+    # keeps the notch below −26 dB (0.05) where a rounded d (84 for 84.24) leaves ≈ 0.3
+    a, b = comb_coefficients()
+    f_rev = rpm / 60
+    n = 40000
+    t = np.arange(n) / FS
+    for f, expect, tol in ((20 * f_rev, 0.0, 0.05), (20.5 * f_rev, 2 * b / (1 + a), 0.03)):
+        x = np.cos(2 * np.pi * f * t)
+        ring_x, ring_y = np.zeros(8192), np.zeros(8192)
+        y = np.zeros(n)
+        st = np.array([f_rev, 0.0, 0.0, np.inf, 0.0])
+        for s in range(0, n, 1000):
+            ingest(x[s : s + 1000], np.full(1000, f_rev), FS, a, b, ring_x, ring_y, s, st,
+                   1.0, 1.0)  # fmt: skip
+            y[s : s + 1000] = ring_y[(s + np.arange(1000)) & 8191]
+        gain = np.std(y[-5000:]) / np.std(x[-5000:])
+        assert gain == pytest.approx(expect, abs=tol)
+
+
+def test_sdft_recursion_equals_the_window_dft() -> None:
+    # seed 001 Eq. 6-12 (Jacobsen-Lyons form): S_k[n] = e^{j2πk/N}(S_k[n-1] + y[n] - y[n-N]) is
+    # the DFT of the last N samples; the monitor reads it at decision instants by one FFT
+    rng = np.random.default_rng(1)
+    n_win, k = 64, np.arange(10, 20)
+    y = rng.standard_normal(300)
+    s = np.zeros(len(k), complex)
+    for i in range(len(y)):
+        s = np.exp(2j * np.pi * k / n_win) * (s + y[i] - (y[i - n_win] if i >= n_win else 0.0))
+    direct = np.fft.fft(y[-n_win:])[k]
+    assert np.max(np.abs(s - direct)) < 1e-9 * np.max(np.abs(direct))
+
+
+@pytest.mark.parametrize("method", ["chatter-comb", "chatter-sdft"])
+def test_detects_chatter_at_its_frequency_within_the_latency(method: str) -> None:
+    x, spd = _signal()
+    out, ev = _run(x, spd, method)
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1
+    e = alarms[0]
+    assert e.kind is EventKind.ALARM and e.severity is Severity.WARNING
+    assert e.value == pytest.approx(937.0, rel=0.005)  # 1.22 Hz bins, parabolic peak
+    assert 0.0 < e.time_s - 2.5 <= 0.2  # issue 15: onset → event ≤ 0.2 s
+    assert e.values["tooth_passing_hz"] == pytest.approx(400.0, rel=0.001)
+    assert e.values["spindle_rpm"] == pytest.approx(6000.0, rel=0.001)
+    # Smith-Tlusty: 937/400 = 2.34 → j = 2 → 60·937/(4·2) = 7027.5 rev/min
+    assert e.values["suggested_spindle_rpm"] == pytest.approx(60 * e.value / 8, rel=1e-9)
+    flag = out[f"{method}/chatter"]
+    assert flag[: int(2.5 * FS)].max() == 0.0 and flag[-1] == 1.0
+
+
+@pytest.mark.parametrize("method", ["chatter-comb", "chatter-sdft", "chatter-threshold"])
+def test_chunk_size_invariance(method: str) -> None:
+    x, spd = _signal(dur=3.2, onset=2.5)
+    ref, ev_ref = _run(x, spd, method, chunk=len(x))
+    for chunk in (1, 7, 100):
+        out, ev = _run(x, spd, method, chunk=chunk)
+        for k in ref:
+            np.testing.assert_array_equal(out[k], ref[k])
+        assert [e.as_dict() for e in ev] == [e.as_dict() for e in ev_ref]
+
+
+def test_stable_cut_with_tone_offset_drift_and_resonance_gives_no_alarm() -> None:
+    # a steady 1234 Hz tone 4× the tooth line present from the start (learned in air), and a
+    # 1800 Hz resonance excited by the cut (band noise from the entry on): no chatter
+    x, spd = _signal(dur=8.0, onset=None, tone=(1234.0, 3.3))
+    rng = np.random.default_rng(5)
+    b, a = scipy.signal.iirpeak(1800.0, 30.0, fs=FS)
+    res = scipy.signal.lfilter(b, a, rng.standard_normal(len(x))) * 0.5
+    x = x + res * (np.arange(len(x)) >= FS)
+    for method in ("chatter-comb", "chatter-sdft"):
+        out, ev = _run(x, spd, method)
+        assert [e for e in ev if e.name == "chatter"] == []
+        assert np.max(out[f"{method}/energy_ratio"]) < 1.0
+
+
+def test_tone_is_not_chatter_but_chatter_beside_it_is() -> None:
+    x, spd = _signal(tone=(1234.0, 3.3))
+    _, ev = _run(x, spd)
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1 and alarms[0].value == pytest.approx(937.0, rel=0.005)
+
+
+def test_speed_override_is_followed() -> None:
+    # 6000 → 7200 rev/min (120 % override) at 2 s in a stable cut; chatter at 3.2 s
+    x, spd = _signal(dur=4.5, onset=3.2, rpm_after=(2.0, 7200.0))
+    _, ev = _run(x, spd)
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1
+    assert alarms[0].values["tooth_passing_hz"] == pytest.approx(480.0, rel=0.002)
+    assert alarms[0].value == pytest.approx(937.0, rel=0.005)
+
+
+def test_notch_filter_in_the_chain_does_not_hide_chatter() -> None:
+    # a 50 Hz-wide notch at 1500 Hz (a drive's current-loop notch) in the signal chain
+    x, spd = _signal()
+    b, a = scipy.signal.iirnotch(1500.0, 30.0, fs=FS)
+    _, ev = _run(scipy.signal.lfilter(b, a, x), spd)
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1 and alarms[0].value == pytest.approx(937.0, rel=0.005)
+
+
+def test_event_carries_nc_line_and_position() -> None:
+    x, spd = _signal()
+    nc = np.where(np.arange(len(x)) < 2.0 * FS, 10, 12).astype(float)
+
+    def locate(t: float, line: int | None):  # type: ignore[no-untyped-def]
+        return line, 100.0 + t, -5.0, -2.0
+
+    _, ev = _run(x, spd, locate=locate, nc=nc)
+    e = next(e for e in ev if e.name == "chatter")
+    assert e.nc_line == 12
+    assert e.x_mm == pytest.approx(100.0 + e.time_s) and e.z_mm == -2.0
+    assert e.values["onset_s"] <= e.time_s
+
+
+def test_stopped_spindle_gives_no_decision() -> None:
+    x, spd = _signal(onset=1.0)
+    _, ev = _run(x, 0.0 * spd)
+    assert ev == []
+
+
+def test_speed_channel_in_rev_per_min_and_constant_speed() -> None:
+    x, spd = _signal()
+    for settings in (
+        ChatterSettings(signal="s", n_flutes=4, speed_channel="rpm", speed_unit="rev/min"),
+        ChatterSettings(signal="s", n_flutes=4, speed_channel=None, speed_rpm=6000.0),
+    ):
+        b = ChatterMonitor(settings)
+        b.reset(FS)
+        ev = []
+        for s in range(0, len(x), 1000):
+            data = {"s": x[s : s + 1000], "rpm": spd[s : s + 1000] * 60 / (2 * math.pi)}
+            ev += b.process(Chunk(s, FS, 0.0, {k: data[k] for k in b.inputs})).events
+        assert [round(e.value or 0) for e in ev if e.name == "chatter"] == [937]
+
+
+def test_threshold_method_calibrates_on_the_first_second() -> None:
+    # seed 002: a fixed threshold "set from stable cuts"; here 2 × the largest spectrum maximum
+    # of the first second (decision 1507). Stable from t = 0, chatter 4 × the tooth line at 2.5 s
+    x, spd = _signal(cut_start=0.0)
+    out, ev = _run(x, spd, "chatter-threshold")
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1 and 2.5 < alarms[0].time_s <= 2.7
+    # the 256-point spectrum has 39 Hz bins: the frequency is only that good
+    assert alarms[0].value == pytest.approx(937.0, abs=40.0)
+    ratio = out["chatter-threshold/energy_ratio"]
+    assert 0.3 < np.max(ratio[int(1.1 * FS) : int(2.5 * FS)]) < 1.0  # stable: below threshold
+
+
+def test_group_equals_the_monitors_alone() -> None:
+    # the three criteria sharing one comb filter (ChatterGroup) give exactly the outputs and
+    # events of each monitor run alone, whatever the chunking
+    from millsense.monitoring.chatter import ChatterGroup
+
+    x, spd = _signal(dur=3.2, tone=(1234.0, 3.3))
+    alone: dict[str, np.ndarray] = {}
+    ev_alone = []
+    for m in ("chatter-comb", "chatter-sdft", "chatter-threshold"):
+        out, ev = _run(x, spd, m, chunk=len(x))
+        alone.update(out)
+        ev_alone += ev
+    for chunk in (7, 1000):
+        g = ChatterGroup(
+            [
+                ChatterMonitor(ChatterSettings(method=m, signal="s", n_flutes=4))
+                for m in ("chatter-comb", "chatter-sdft", "chatter-threshold")
+            ]
+        )
+        g.reset(FS)
+        parts: dict[str, list[np.ndarray]] = {}
+        ev_g = []
+        for s in range(0, len(x), chunk):
+            o = g.process(
+                Chunk(s, FS, 0.0, {"s": x[s : s + chunk], "spindle/speed": spd[s : s + chunk]})
+            )
+            ev_g += o.events
+            for k, v in o.channels.items():
+                parts.setdefault(k, []).append(v)
+        for k, v in alone.items():
+            np.testing.assert_array_equal(np.concatenate(parts[k]), v)
+        key = lambda e: (e.source, e.time_s)  # noqa: E731
+        assert [e.as_dict() for e in sorted(ev_g, key=key)] == [
+            e.as_dict() for e in sorted(ev_alone, key=key)
+        ]
+        assert {e.source for e in ev_g if e.name == "chatter"} >= {"chatter-comb", "chatter-sdft"}
