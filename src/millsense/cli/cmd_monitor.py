@@ -172,7 +172,7 @@ def _run(
     from millsense.core.errors import InputDataError
     from millsense.io.recording_reader import channel_window
     from millsense.monitoring import MONITORS, MonitorContext
-    from millsense.streaming import Pipeline, RecordingSource, run, write_event_log
+    from millsense.streaming import EventKind, Pipeline, RecordingSource, run, write_event_log
 
     where = str(recording)
     fs = float(rec.sample_rate_hz)
@@ -236,7 +236,19 @@ def _run(
         speed_unit=speed_unit, speed_rpm=spindle_rpm, n_flutes=n_flutes,
         nc_line_channel=nc_channel, locate=locate, plan=vp, source=where,
     )  # fmt: skip
-    blocks = [MONITORS[n](ctx) for n in names]
+    # 'all': every registered monitor the recording can feed; those it cannot are named
+    every = set(names) == set(MONITORS) and len(names) > 1
+    blocks, skipped = [], []
+    for n in names:
+        try:
+            blocks.append(MONITORS[n](ctx))
+        except InputDataError as exc:
+            if not every:
+                raise
+            skipped.append(f"  {n}: skipped ({str(exc).removeprefix(where + ': ')})")
+    if not blocks:
+        raise InputDataError(f"{where}: no monitor can run on this recording")
+    names = [b.name for b in blocks]
     pipeline = Pipeline([*pre, *_grouped(blocks)])
     needed = sorted({c for b in pipeline.blocks for c in b.inputs if c in rec.channel_names})
     source = RecordingSource(rec, name=where, channels=needed)
@@ -266,13 +278,20 @@ def _run(
         "real time)"
     ]
     for b in blocks:
-        alarms = [e for e in res.events if e.source == b.name and e.name == "chatter"]
+        alarms = [e for e in res.events if e.source == b.name and e.kind == EventKind.ALARM]
         if alarms:
-            f = ", ".join(f"{e.time_s:.2f} s {e.value:.0f} Hz" for e in alarms[:5])
+            unit = {"chatter": " Hz"}
+            f = ", ".join(
+                f"{e.time_s:.2f} s"
+                + ("" if e.value is None else f" {e.value:.0f}{unit.get(e.name, '')}")
+                for e in alarms[:5]
+            )
             more = f" (+{len(alarms) - 5} more)" if len(alarms) > 5 else ""
-            lines.append(f"  {b.name}: {len(alarms)} chatter alarm(s): {f}{more}")
+            kinds = "/".join(sorted({e.name for e in alarms}))
+            lines.append(f"  {b.name}: {len(alarms)} {kinds} alarm(s): {f}{more}")
         else:
             lines.append(f"  {b.name}: no alarm")
+    lines += skipped
     if plot is not None:
         data = {k: np.concatenate(v) for k, v in keep.items()}
         _plot(plot, data, fs, res.t0_s, str(sig_name), [b.name for b in blocks], res.events)

@@ -122,3 +122,53 @@ def _chatter_factory(method: str) -> Factory:
 
 for _m in ("chatter-comb", "chatter-sdft", "chatter-threshold"):
     register(_m, _chatter_factory(_m))
+
+
+#: Torque channels a breakage monitor uses when none is chosen, best first: the spindle
+#: observer's compensated load (``monitor --machine``), an estimated spindle torque.
+BREAKAGE_SIGNALS = ("est/spindle/spindle/load", "spindle/torque_est")
+
+
+def _breakage_factory(method: str) -> Factory:
+    name = f"breakage-{method}"
+
+    def make(ctx: MonitorContext) -> Block:
+        from millsense.monitoring.breakage import BreakageBlock
+
+        signal = ctx.signal or next((c for c in BREAKAGE_SIGNALS if c in ctx.channels), None)
+        if signal is None:
+            raise InputDataError(
+                f"{ctx.source}: monitor '{name}' needs a spindle torque channel (one of "
+                f"{', '.join(BREAKAGE_SIGNALS)}: give --machine for the spindle observer, or "
+                "--channel)"
+            )
+        ctx.require([signal], name)
+        if ctx.speed_channel is None or ctx.speed_unit != "rad/s":
+            raise InputDataError(
+                f"{ctx.source}: monitor '{name}' needs a spindle-speed channel in rad/s "
+                "(spindle/speed) to cut the signal into tooth periods"
+            )
+        ctx.require([ctx.speed_channel], name)
+        expected = ctx.options.get("breakage.expected_channel")
+        if method == "virtual":
+            if expected is None:
+                raise InputDataError(
+                    f"{ctx.source}: monitor '{name}' needs the plan's expected torque per "
+                    "sample (option breakage.expected_channel); use breakage-constant or "
+                    "breakage-dual without it"
+                )
+            ctx.require([expected], name)
+        return BreakageBlock(
+            ctx.n_flutes,
+            method=method,  # type: ignore[arg-type]
+            signal_channels=(signal,),
+            speed_channel=ctx.speed_channel,
+            expected_channel=expected if method == "virtual" else None,
+            name=name,
+        )
+
+    return make
+
+
+for _b in ("virtual", "constant", "dual"):
+    register(f"breakage-{_b}", _breakage_factory(_b))
