@@ -209,7 +209,13 @@ class CaseResult:
             )
         if self.status == "calibrated":
             assert self.calibration is not None
-            return f"calibrated (fitted here: {self.calibration.parameter}; not a pass)"
+            text = f"calibrated (fitted here: {self.calibration.parameter}; not a pass)"
+            if self.too_good_factor is not None and self.better_by > self.too_good_factor:
+                text += (
+                    f"; also {self.better_by:.3g}× better than the reference, more than "
+                    f"{self.too_good_factor:g}× — check realism"
+                )
+            return text
         if self.status == "fail" and self.error:
             return f"fail ({self.error})"
         if self.status == "pass" and self.self_check:
