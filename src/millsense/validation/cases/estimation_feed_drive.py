@@ -883,16 +883,15 @@ def _v1(axis: str) -> Measured:
 
 
 _V1_DESC = (
-    "largest compensated error at the tooth harmonics ≤ 200 Hz, mean "
-    "over 5 noise realisations (seeds of the simulated noise), over "
-    "1000-5500 rev/min of the HARMONIC estimator (Aslan's full disturbance model Eq. "
-    "3.16-3.20: random walk plus one undamped pair per tooth harmonic ≤ 200 Hz, from the "
-    "commanded spindle speed and the 2 teeth), against the thesis's largest over the same "
-    "speeds: two-sided ±50 %, more than 2× better is flagged as too good (issue 12: the "
-    "simulated cut has no runout and is perfectly periodic); the table also shows the "
-    "random-walk estimator (Eq. 3.21-3.23, the model the thesis used) on the same cut. Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X "
-    "feeds, Y holds position; each axis uses the model identified in the condition its "
-    "commanded speed selects (X moving, Y at rest; "
+    "largest compensated error at the tooth harmonics ≤ 200 Hz, mean over 5 noise realisations "
+    "(seeds of the simulated noise), over 1000-5500 rev/min of the HARMONIC estimator (Aslan's "
+    "full disturbance model Eq. 3.16-3.20: random walk plus one undamped pair per tooth harmonic "
+    "≤ 200 Hz, from the commanded spindle speed and the 2 teeth), against the thesis's largest "
+    "over the same speeds: two-sided ±50 %, more than 2× better is flagged as too good (issue "
+    "12: the simulated cut has no runout and is perfectly periodic); the table also shows the "
+    "random-walk estimator (Eq. 3.21-3.23, the model the thesis used) on the same cut. "
+    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position; each axis uses "
+    "the model identified in the condition its commanded speed selects (X moving, Y at rest; "
     "docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md). " + _MISMATCH
 )
 
