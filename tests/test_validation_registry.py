@@ -106,8 +106,10 @@ def test_calibration_cannot_pass_its_own_figure() -> None:
     rf, rh = run_case(fitted), run_case(held)
     assert rf.status == "calibrated" and not rf.passed and not rf.failed
     assert rh.status == "pass"
-    # a calibrated figure that misses even after the fit is a plain failure
+    # a calibrated figure that misses even after the fit is a failure like any other
     assert run_case(_case(20.0, id="demo.fitted", calibration=cal)).status == "fail"
+    too = _case(4.0, id="demo.fitted", calibration=cal, too_good_factor=2.0)  # 2.5× better
+    assert run_case(too).status == "too_good"
     # and a fitted figure far better than the thesis is still only 'calibrated'
     assert (
         run_case(

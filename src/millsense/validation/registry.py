@@ -14,7 +14,8 @@ Outcome of a case (:attr:`CaseResult.status`, docs/decisions/1021-honest-validat
     measured original says the simulation is too benign (check realism); a failure.
 ``calibrated``
     the case is the figure a calibrated parameter was fitted on: agreement there is by
-    construction, so it is neither a pass nor a failure (outside tolerance it fails).
+    construction, so within tolerance it is neither a pass nor a failure (outside tolerance it is
+    ``too_good`` or ``fail`` like any other case).
 """
 
 from __future__ import annotations
@@ -265,8 +266,8 @@ def classify(c: ValidationCase, measured: float, error: str = "") -> str:
     if error or not math.isfinite(measured):
         return "fail"
     within = c.passes(measured)
-    if c.fitted_here:
-        return "calibrated" if within else "fail"
+    if c.fitted_here and within:
+        return "calibrated"  # agreement by construction: never a pass (too good is noted)
     if c.too_good(measured):
         return "too_good"
     if within:
