@@ -30,8 +30,8 @@ def test_acceptance_figures_registered() -> None:
 
 
 def test_ids_start_with_a_package() -> None:
-    packages = {"core", "process", "stability", "plan", "simulator", "models", "ident"}
-    packages |= {"estimation", "monitoring", "control", "streaming", "demo"}
+    packages = {"core", "process", "stability", "virtual", "machine", "ident", "estimation"}
+    packages |= {"monitoring", "control", "online", "demo"}
     assert all(c.id.split(".")[0] in packages for c in select_cases("*"))
 
 
