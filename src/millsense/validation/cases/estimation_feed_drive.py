@@ -196,6 +196,7 @@ def _worst_db(kind: str, frequency_scale: float) -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    ci=True,
     description="largest |deviation| from 0 dB of the measured compensated X/Y/Z force FRF "
     "over 1-180 Hz (flat within ±3 dB to 180 Hz). " + _MISMATCH,
 )
@@ -210,6 +211,7 @@ def _linear() -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    ci=True,
     description="largest |deviation| from 0 dB of the measured compensated A/C torque FRF "
     "over 1-120 Hz (flat within ±3 dB to 120 Hz). " + _MISMATCH,
 )
@@ -217,20 +219,63 @@ def _rotary() -> Measured:
     return _worst_db("rotary", 1.0)
 
 
-@case(
-    "estimation.feed_raw_current_band",
-    source="seed 000 V3 / C3: raw current flat only to about 10-15 Hz",
-    reference=12.5,
-    unit="Hz",
-    abs_tol=2.5,
-    quick=False,
-    description="largest ±3 dB band of the raw current force over the five axes (thesis: "
-    "10-15 Hz; the printed Table 3.4 static gains 0.49-1.02 put X and Z near -5 dB at DC, "
-    "so their raw band is ~0 Hz)",
+#: Thesis figures of the raw current (seed 000 V3 / C3: flat only to about 10-15 Hz) and of the
+#: compensated estimate (Fig. 3.8, C6: 180 Hz linear, 120 Hz rotary).
+RAW_BAND_HZ = 12.5
+TARGET_HZ = {"x": 180.0, "y": 180.0, "z": 180.0, "a": 120.0, "c": 120.0}
+#: Axes whose raw-current band is a known failure, and why (issue 12 item 1).
+RAW_BAND_GAP = (
+    "the simulated feed drive is Aslan Eq. 3.1 + Eq. 3.13 with the printed Table 3.4 modes as a "
+    "one-way filter, whose static gains (X 0.56, Z 0.49, A -1.02, C 0.72) act as physical and "
+    "put the raw current outside ±3 dB from about 1 Hz; a coupled lumped-mass drive gives "
+    "Φ_d(0) ≈ 1 by physics (issue 12 item 1)"
 )
-def _raw() -> Measured:
-    worst = max(compensated_bandwidth(a, 1.0)["raw_hz"] for a in AXES)
-    return Measured(worst, _table(1.0))
+
+
+def _raw_case(axis: str) -> None:
+    # every axis judged (issue 12): one case per axis, not the best of five
+    @case(
+        f"estimation.feed_raw_current_band_{axis}",
+        source="seed 000 V3 / C3: raw current flat only to about 10-15 Hz",
+        reference=RAW_BAND_HZ,
+        unit="Hz",
+        abs_tol=2.5,
+        quick=False,
+        gap=RAW_BAND_GAP if axis != "y" else "",
+        issue=12 if axis != "y" else None,
+        description=f"{axis.upper()} axis: ±3 dB band of the raw current force η·K_t·I/r_g "
+        "(thesis: 10-15 Hz)",
+    )
+    def _raw() -> Measured:
+        return Measured(compensated_bandwidth(axis, 1.0)["raw_hz"], _table(1.0))
+
+
+def _band_case(axis: str) -> None:
+    tgt = TARGET_HZ[axis]
+
+    @case(
+        f"estimation.feed_compensated_band_{axis}",
+        source=f"seed 000 V3 (Aslan Fig. 3.8, C6): {tgt:g} Hz on the "
+        f"{'linear' if axis in 'xyz' else 'rotary'} axes",
+        reference=tgt,
+        unit="Hz",
+        rel_tol=0.25,
+        too_good_factor=1.5,
+        lower_is_better=False,
+        quick=False,
+        ci=axis in ("y", "a"),
+        description=f"{axis.upper()} axis: measured ±3 dB band of the compensated estimate "
+        f"(multisine 1-300 Hz, so 300 Hz means at least 300) against the thesis's {tgt:g} Hz: "
+        "two-sided ±25 %, more than 1.5× wider is flagged as too good (a replica far wider than "
+        "the thesis's measured band says the simulated plant is too benign). " + _MISMATCH,
+    )
+    def _band() -> Measured:
+        return Measured(compensated_bandwidth(axis, 1.0)["compensated_hz"], _table(1.0))
+
+
+for _ax in AXES:
+    _raw_case(_ax)
+    _band_case(_ax)
 
 
 #: Band asked of the least-noise tuning, × the axis target (decision "Least-noise Q for a
@@ -595,11 +640,13 @@ def _robust_table() -> str:
 
 @case(
     "estimation.feed_robust_band_at_lti_limit",
-    source="issue 7 (position-dependent modes); tuning.flatness_bound (closed form)",
+    source="self-consistency check, not an acceptance figure: the reference is the project's "
+    "own bound (tuning.flatness_bound, closed form), no external figure exists (issue 12)",
     reference=1.0,
     unit="-",
     abs_tol=0.02,
     quick=False,
+    self_check=True,
     description="smallest over the five axes of (common ±3 dB band of the robust design over "
     "modes ±2 %, capped at the axis target) / (the largest any LTI estimator can reach, "
     "tuning.flatness_bound, capped likewise); analytic: identified Φ_d scaled, C3 low-pass, "
@@ -826,36 +873,37 @@ def _v1(axis: str) -> Measured:
         "Eq. 3.21-3.23) | thesis compensated | raw current | thesis raw |",
         "|---|---|---|---|---|---|",
     ]
-    excess = []
+    worst = 0.0
     for (rpm, c_rw, c_h, r), ct, rt in zip(res, comp_th, raw_th, strict=True):
         lo, hi = V1_SPREAD[(axis, rpm)]
         rows.append(
             f"| {rpm:.0f} | {c_h:.1%} ({lo:.1%}-{hi:.1%}) | {c_rw:.1%} | {ct:.0%} | {r:.1%} | "
             f"{rt:.0%} |"
         )
-        excess.append(c_h - ct)
-    return Measured(max(excess), "\n".join(rows))
+        worst = max(worst, c_h)
+    return Measured(worst, "\n".join(rows))
 
 
 _V1_DESC = (
-    "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz, mean "
-    "over 5 noise realisations (seeds of the simulated noise), over "
-    "1000-5500 rev/min of the HARMONIC estimator (Aslan's full disturbance model Eq. "
-    "3.16-3.20: random walk plus one undamped pair per tooth harmonic ≤ 200 Hz, from the "
-    "commanded spindle speed and the 2 teeth; passes when it is at or below the thesis at "
-    "every speed); the table also shows the random-walk estimator (Eq. 3.21-3.23, the model "
-    "the thesis used) on the same cut. Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X "
-    "feeds, Y holds position; each axis uses the model identified in the condition its "
-    "commanded speed selects (X moving, Y at rest; "
+    "largest compensated error at the tooth harmonics ≤ 200 Hz, mean over 5 noise realisations "
+    "(seeds of the simulated noise), over 1000-5500 rev/min of the HARMONIC estimator (Aslan's "
+    "full disturbance model Eq. 3.16-3.20: random walk plus one undamped pair per tooth harmonic "
+    "≤ 200 Hz, from the commanded spindle speed and the 2 teeth), against the thesis's largest "
+    "over the same speeds: two-sided ±50 %, more than 2× better is flagged as too good (issue "
+    "12: the simulated cut has no runout and is perfectly periodic); the table also shows the "
+    "random-walk estimator (Eq. 3.21-3.23, the model the thesis used) on the same cut. "
+    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position; each axis uses "
+    "the model identified in the condition its commanded speed selects (X moving, Y at rest; "
     "docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md). " + _MISMATCH
 )
 
 
 @case(
     "estimation.feed_v1_x_harmonic_errors",
-    source="seed 000 V1 (Aslan Ch. 3.5): X 18/6/4/12/32/17 %",
-    reference=-0.5,
-    abs_tol=0.5,
+    source="seed 000 V1 (Aslan Ch. 3.5), largest 32%: X 18/6/4/12/32/17 %",
+    reference=max(V1_THESIS["x"][0]),
+    rel_tol=0.5,
+    too_good_factor=2.0,
     unit="-",
     quick=False,
     description=_V1_DESC,
@@ -866,9 +914,10 @@ def _v1x() -> Measured:
 
 @case(
     "estimation.feed_v1_y_harmonic_errors",
-    source="seed 000 V1 (Aslan Ch. 3.5): Y 6/6/4/7/11/19 %",
-    reference=-0.5,
-    abs_tol=0.5,
+    source="seed 000 V1 (Aslan Ch. 3.5), largest 19%: Y 6/6/4/7/11/19 %",
+    reference=max(V1_THESIS["y"][0]),
+    rel_tol=0.5,
+    too_good_factor=2.0,
     unit="-",
     quick=False,
     description=_V1_DESC,

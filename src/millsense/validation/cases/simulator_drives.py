@@ -144,6 +144,7 @@ case(
     gap="with the printed A-axis coefficients (ζ read as fractions, 0.12-0.69) the modes merge "
     "and Eq. 3.13 itself peaks near 54 Hz; "
     "docs/decisions/0038-aslan-table-3-4-damping-and-static-gain.md",
+    issue=12,
     description="A axis: largest peak of the simulated τ_a → τ_c FRF against Table 3.4's "
     "dominant mode",
 )(lambda: _disturbance_case("a"))
