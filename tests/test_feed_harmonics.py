@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from millsense.bench.thesis_models import aslan_disturbance_model
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import load_preset
@@ -24,7 +25,6 @@ from millsense.estimation.feed.estimator import (
     tooth_harmonics,
 )
 from millsense.estimation.feed.rigid_body import DriveModel
-from millsense.estimation.feed.thesis_models import aslan_disturbance_model
 from millsense.estimation.feed.tuning import noise_gain
 from millsense.estimation.kalman.design import (
     StateSpaceModel,

@@ -9,11 +9,11 @@ import pydantic
 import pytest
 from scipy import integrate
 
+from millsense.bench.thesis_models import aslan_disturbance_modes
 from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig, MachineConfig
 from millsense.core.presets import load_preset
 from millsense.estimation.feed import tuning
 from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
-from millsense.estimation.feed.thesis_models import aslan_disturbance_modes
 from millsense.estimation.kalman.design import StateSpaceModel, augment_disturbance, design_kalman
 from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.estimation.kalman.smoother import FixedLagSmoother

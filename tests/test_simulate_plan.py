@@ -10,6 +10,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from millsense.validation.cases.machine_plan import SLOT_PROGRAM, SLOT_WINDOW, slot_run
 
 from millsense.cli.main import main
 from millsense.core.errors import InputDataError
@@ -30,7 +31,6 @@ from millsense.plan.virtual_plan import (
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.validation import run_case, select_cases
-from millsense.validation.cases.machine_plan import SLOT_PROGRAM, SLOT_WINDOW, slot_run
 
 TOOL = EndMill(20e-3, 2, helix_rad=math.radians(30), runout_offset_m=5e-6)
 COEFFS = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)

@@ -51,13 +51,12 @@ def commission(
     spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
 ) -> None:
     """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
     from millsense.simulator.commissioning import write_commissioning_set
+    from millsense.simulator.machine_file import simulator_machine
 
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")
-    load_preset(MachineConfig, machine).axis(axis)  # one-line errors before anything is written
+    simulator_machine(machine).axis(axis)  # one-line errors before anything is written
     files = write_commissioning_set(machine, out, axis, spindle=spindle)
     for name, path in files.items():
         typer.echo(f"wrote {path} ({name})")

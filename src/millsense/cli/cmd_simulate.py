@@ -143,7 +143,7 @@ def run_simulation(
     """
     import time
 
-    from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
+    from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.errors import ConfigError, InputDataError
     from millsense.core.presets import load_preset
     from millsense.io import RecordingWriter
@@ -153,6 +153,7 @@ def run_simulation(
     from millsense.process.geometry import EndMill
     from millsense.simulator.interpolator import OverrideChannel
     from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
     from millsense.simulator.process_coupling import (
         EngagementSchedule,
         ProcessCoupling,
@@ -176,7 +177,7 @@ def run_simulation(
         raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
     if air_mm > 0 and plan is not None:
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
-    mcfg = load_preset(MachineConfig, machine)
+    mcfg = simulator_machine(machine)
     five = mcfg.kinematics == "5-axis-trunnion-ac"
     events: list[ProcessEvent] = []
     if break_at_s is not None:

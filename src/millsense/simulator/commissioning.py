@@ -136,7 +136,8 @@ def presliding_test(
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
     p = replace(_params(cfg, axis_name), closed_loop=False)
-    static = axis.friction.static_nm or axis.friction.coulomb_nm
+    fr = axis.friction_table(cfg.name, axis_name)
+    static = fr.static_nm or fr.coulomb_nm
     level = fraction * min(static) / axis.torque_constant_nm_a
     n = round(step_s * fs)
     inj = np.repeat(np.array([1.0, 0.0, -1.0, 0.0, 0.6, -0.6, 0.3, 0.0]), n) * level
@@ -458,7 +459,8 @@ def write_commissioning_set(
 
     Parameters
     ----------
-    machine : preset name or machine TOML path.
+    machine : preset name (the simulator's own description of it,
+        :func:`millsense.simulator.machine_file.simulator_machine`) or machine TOML path.
     out_dir : directory for the files (created).
     axis_name : the feed axis tested.
     spindle : also run the spindle tests when the machine has a spindle.
@@ -472,10 +474,10 @@ def write_commissioning_set(
     idle runs (3 air cuts at 600 mm/min over 20 mm) for an axis with position-periodic
     disturbances.
     """
-    from millsense.core.presets import load_preset
     from millsense.io.recording_file import write_recording
+    from millsense.simulator.machine_file import simulator_machine
 
-    cfg = load_preset(MachineConfig, machine)
+    cfg = simulator_machine(machine)
     axis = cfg.axis(axis_name)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -485,7 +487,7 @@ def write_commissioning_set(
         "friction": friction_test(cfg, axis_name, order, hold_s=2.0),
         "acceleration": acceleration_test(cfg, axis_name),
     }
-    if axis.friction.sigma0_nm_rad is not None:
+    if axis.friction is not None and axis.friction.sigma0_nm_rad is not None:
         recs["presliding"] = presliding_test(cfg, axis_name)
     if axis.ball_screw is not None:
         recs["drive_sweep"] = drive_sweep(cfg, axis_name)

@@ -196,18 +196,22 @@ class FeedDriveParams:
         else:
             plant = rigid_plant(axis.inertia_kg_m2, axis.transmission_m_rad, axis.efficiency)
         fric: CoulombViscous | LuGre | None
-        lugre_keys = (
-            axis.friction.sigma0_nm_rad,
-            axis.friction.sigma1_nm_s_rad,
-            axis.friction.static_nm,
-            axis.friction.stribeck_velocity_rad_s,
-        )
         if friction == "none":
             fric = None
-        elif friction == "lugre" or (friction == "auto" and all(k is not None for k in lugre_keys)):
-            fric = LuGre.from_config(axis.friction, "axis friction")
         else:
-            fric = CoulombViscous.from_config(axis.friction)
+            ft = axis.friction_table("simulated machine")
+            lugre_keys = (
+                ft.sigma0_nm_rad,
+                ft.sigma1_nm_s_rad,
+                ft.static_nm,
+                ft.stribeck_velocity_rad_s,
+            )
+            if friction == "lugre" or (
+                friction == "auto" and all(k is not None for k in lugre_keys)
+            ):
+                fric = LuGre.from_config(ft, "axis friction")
+            else:
+                fric = CoulombViscous.from_config(ft)
         wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
         kp = axis.velocity_kp_nm_s_rad or plant.inertia * wc
         ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0

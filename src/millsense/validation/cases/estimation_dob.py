@@ -88,10 +88,9 @@ THESIS = {
 
 
 def _axis() -> FeedAxisConfig:
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
+    from millsense.simulator.machine_file import simulator_machine
 
-    return load_preset(MachineConfig, "yamada-b").axis("x")
+    return simulator_machine("yamada-b").axis("x")
 
 
 def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) -> MechanicalPlant:
