@@ -103,9 +103,9 @@ def commissioned_drive_model(
     ``machine`` is the simulated machine (only driven); J_e, K_t, r_g and η are the nameplate's
     (``nameplate``, default the ``quaser-ux600`` preset: catalogue values with their errors,
     docs/decisions/0991-nameplate-machine-files.md). Friction is not handed over from the
-    simulator: constant-velocity air moves at ±4…16 rad/s are simulated (with their noise) and Coulomb + viscous friction is fitted per
-    direction from the mean torque over the steady second half of each move
-    (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
+    simulator: constant-velocity air moves at ±4…16 rad/s are simulated (with their noise) and
+    Coulomb + viscous friction is fitted per direction from the mean torque over the steady
+    second half of each move (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
     """
     a = (nameplate or load_preset(MachineConfig, "quaser-ux600")).axis(axis)
     params = RigidDriveParams.from_config(machine.axis(axis))
