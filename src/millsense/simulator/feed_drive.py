@@ -731,8 +731,12 @@ def constant_velocity_sweep(
     duration_s: float = 1.0,
     accel_time_s: float = 0.1,
     seed: int = 0,
+    torque_constant: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean motor torque ``K_t·i`` over the steady half of constant-speed moves (Aslan C1).
+
+    ``torque_constant`` is the K_t the measured current is multiplied by: the one the
+    identification believes (a nameplate value), default the simulated drive's own.
 
     Each speed is a separate air move from rest (ramp over ``accel_time_s``, hold to
     ``duration_s``). Returns (mean torque N·m, standard error of the mean N·m) per speed,
@@ -751,7 +755,8 @@ def constant_velocity_sweep(
         )
         sim = FeedDriveSim(params, sample_rate_hz, seed=seed + j)
         res = sim.advance(pos, vel, np.zeros(n))
-        tau = params.torque_constant * res["current"][n // 2 :]
+        kt = params.torque_constant if torque_constant is None else torque_constant
+        tau = kt * res["current"][n // 2 :]
         means[j] = float(np.mean(tau))
         parts = np.array([np.mean(c) for c in np.array_split(tau, 10)])
         sems[j] = float(np.std(parts, ddof=1) / math.sqrt(len(parts)))

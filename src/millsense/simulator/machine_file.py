@@ -12,9 +12,13 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from millsense.core.config import MachineConfig, parse_config, read_toml
 from millsense.core.errors import ConfigError
+
+if TYPE_CHECKING:
+    from millsense.simulator.feed_drive import FeedDriveParams
 
 
 def simulated_machine_names() -> list[str]:
@@ -47,3 +51,15 @@ def simulator_machine(name_or_path: str | Path) -> MachineConfig:
         )
     with resources.as_file(entry) as path:
         return parse_config(MachineConfig, read_toml(path), f"simulator machine {text}")
+
+
+def simulated_feed_drive(machine: str | Path, axis: str) -> FeedDriveParams:
+    """The feed drive of ``axis`` the virtual machine runs, as the bench drives it.
+
+    Today the drive of the simulator's machine file (:func:`simulator_machine`); the truth
+    plant of issue 12 replaces it here (one place), so that the acceptance bench and its cases
+    drive whatever the simulator runs.
+    """
+    from millsense.simulator.feed_drive import FeedDriveParams
+
+    return FeedDriveParams.from_config(simulator_machine(machine).axis(axis))
