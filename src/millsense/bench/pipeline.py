@@ -297,3 +297,42 @@ def feed_model(
     )
     model = FeedAxisModel.from_config(axis, rest, sample_rate_hz=fs, where=f"{where} (at rest)")
     return replace(model, condition="at_rest")
+
+
+def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResult:
+    """Nameplate → commission (drive sweep) → identify drive → merge for a ball-screw axis.
+
+    The steps of ``millsense identify drive`` on a ``drive_sweep`` recording
+    (:func:`millsense.ident.drive.reference_frf`, ``fit_amplifier_delay``, ``fit_dual_inertia``,
+    ``drive_config_table``) with the nameplate's K_t, lead and current-loop bandwidth: the merged axis carries the
+    identified dual-inertia parameters (``ball_screw``, J_r) and dead times (Yamada C11).
+    """
+    base, source = preset_data(MachineConfig, machine)
+    nameplate = parse_config(MachineConfig, base, source)
+    ax = nameplate.axis(axis)
+    rec = com.drive_sweep(simulator_machine(machine), axis)
+    fs = rec.sample_rate_hz
+    per = rec.metadata.get("period_samples")
+    if not isinstance(per, int):
+        raise ConfigError(f"bench pipeline {axis}: drive sweep without its period")
+    kt, bw = ax.torque_constant_nm_a, ax.current_bandwidth_hz
+    lead = (ax.lead_mm_rev or 0.0) * 1e-3
+    r, u = _ch(rec, f"{axis}/injection"), _ch(rec, f"{axis}/current_cmd")
+    hm = ident_drive.reference_frf(r, u, _ch(rec, f"{axis}/angle"), fs, per, detrend=True)
+    ht = ident_drive.reference_frf(r, u, _ch(rec, f"{axis}/scale"), fs, per, detrend=True)
+    hi = ident_drive.reference_frf(r, u, _ch(rec, f"{axis}/current"), fs, per)
+    ts, _ = ident_drive.fit_amplifier_delay(hi, sample_rate_hz=fs, current_loop_hz=bw)
+    fit = ident_drive.fit_dual_inertia(
+        hm,
+        ht,
+        lead_m=lead,
+        torque_constant_nm_a=kt,
+        current_loop_hz=bw,
+        sample_rate_hz=fs,
+        amplifier_delay_s=ts,
+        band_hz=(10.0, min(1000.0, 0.45 * fs)),
+    )
+    frag = {"axes": {axis: ident_drive.drive_config_table(fit, kt)}}
+    notes = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
+    merged = parse_config(MachineConfig, merge(base, frag), f"{source} + identified {axis}")
+    return PipelineResult(merged, nameplate, {axis: AxisIdentification(frag, {}, notes)})
