@@ -10,8 +10,6 @@ import pytest
 from scipy import signal
 
 from millsense.bench.feed_commissioning import identify_friction, identify_lugre
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import (
     C3Torque,
     FeedAxisEstimator,
@@ -29,6 +27,7 @@ from millsense.models.lugre import LuGre
 from millsense.simulator.commissioning import ramp_move
 from millsense.simulator.drive_mismatch import perturbed_drive
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
@@ -36,7 +35,7 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def x_params() -> FeedDriveParams:
-    return FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("x"))
+    return FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("x"))
 
 
 def _x_model(params: FeedDriveParams, q: float = 2000.0, r: float = 0.03) -> FeedAxisModel:
@@ -257,6 +256,6 @@ def test_perturbed_drive_changes_what_it_says(x_params: FeedDriveParams) -> None
 def test_presliding_test_declines_when_not_resolved() -> None:
     # C axis: σ0 = 20 000 N·m/rad rocks the motor by ~2 encoder counts at 20 % of τ_coul, below
     # the 20-count resolution limit: no LuGre is returned (static model kept)
-    p = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("c"))
+    p = FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("c"))
     fr = CoulombViscous(1.24, 1.24, 0.82, 0.82, 0.3)
     assert identify_lugre(p, fr, 0.00555, FS) is None

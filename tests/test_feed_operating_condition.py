@@ -13,13 +13,12 @@ from millsense.bench.feed_commissioning import (
     identify_friction,
     identify_lugre,
 )
-from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import REST_SPEED_RAD_S, operating_condition
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.models.friction import CoulombViscous
 from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.simulator.machine_file import simulator_machine
 from millsense.validation.cases.estimation_feed_drive import (
     FS_HZ,
     _harmonic_error,
@@ -31,7 +30,7 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def y_params() -> FeedDriveParams:
-    return FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("y"))
+    return FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("y"))
 
 
 def test_operating_condition_from_the_command() -> None:

@@ -304,8 +304,9 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
 
     The steps of ``millsense identify drive`` on a ``drive_sweep`` recording
     (:func:`millsense.ident.drive.reference_frf`, ``fit_amplifier_delay``, ``fit_dual_inertia``,
-    ``drive_config_table``) with the nameplate's K_t, lead and current-loop bandwidth: the merged axis carries the
-    identified dual-inertia parameters (``ball_screw``, J_r) and dead times (Yamada C11).
+    ``drive_config_table``) with the nameplate's K_t, lead and current-loop bandwidth: the merged
+    axis carries the identified dual-inertia parameters (``ball_screw``, J_r) and dead times
+    (Yamada C11).
     """
     base, source = preset_data(MachineConfig, machine)
     nameplate = parse_config(MachineConfig, base, source)

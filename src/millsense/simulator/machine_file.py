@@ -63,3 +63,12 @@ def simulated_feed_drive(machine: str | Path, axis: str) -> FeedDriveParams:
     from millsense.simulator.feed_drive import FeedDriveParams
 
     return FeedDriveParams.from_config(simulator_machine(machine).axis(axis))
+
+
+def simulator_machine_path(name: str) -> Path:
+    """Path of the simulator's own machine file of ``name`` (for tools and tests that need a
+    fully specified machine file, e.g. the CLI's own tests)."""
+    entry = resources.files("millsense.simulator").joinpath("data", "machines", f"{name}.toml")
+    if not entry.is_file():
+        raise ConfigError(f"no machine '{name}' in the simulator")
+    return Path(str(entry))
