@@ -52,7 +52,13 @@ def test_operating_condition_from_the_command() -> None:
 def test_identify_rejects_unknown_condition(y_params: FeedDriveParams) -> None:
     # checked before any simulated test runs, one line naming the axis
     with pytest.raises(ConfigError, match="identify y: condition"):
-        identify_feed_axis(y_params, "y", "linear", condition="parked")  # type: ignore[arg-type]
+        identify_feed_axis(
+            y_params,
+            "y",
+            "linear",
+            condition="parked",  # type: ignore[arg-type]
+            nameplate=simulator_machine("quaser-ux600").axis("y"),
+        )
 
 
 def _sweeps(
@@ -91,9 +97,10 @@ def test_at_rest_sweep_sees_the_bristles(y_params: FeedDriveParams) -> None:
     # 5 periods; 10 % with the identification seeds and noise); threshold 3 %, far above the
     # 0.12 % at-rest/moving agreement without friction (test above).
     p = replace(y_params, torque_noise_nm=0.0)
-    fric = identify_friction(p, FS, (2.0, 5.0, 10.0, 20.0, 40.0))
+    sim_y = simulator_machine("quaser-ux600").axis("y")  # the values the drive runs with
+    fric = identify_friction(p, FS, (2.0, 5.0, 10.0, 20.0, 40.0), nameplate=sim_y)
     drive = DriveModel(p.plant.inertia, p.torque_constant, p.transmission, p.efficiency, fric)
-    lugre = identify_lugre(p, fric, p.plant.inertia, FS, seed=4)
+    lugre = identify_lugre(p, fric, p.plant.inertia, FS, seed=4, nameplate=sim_y)
     assert lugre is not None
     f, rest, move = _sweeps(p, drive, lugre)
     low = f <= 30.0
