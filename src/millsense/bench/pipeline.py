@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from millsense.core.config import MachineConfig, parse_config
-from millsense.core.errors import ConfigError
+from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import preset_data
 from millsense.core.recording import Recording
 from millsense.estimation.feed.estimator import (
@@ -165,17 +165,23 @@ def identify_axis(
     fit = ident_friction.lugre_static_from_moves(w, t, s)
     if "presliding" in recs:
         pr = recs["presliding"]
-        pf = ident_friction.fit_presliding(
-            _ch(pr, f"{axis}/current"),
-            _ch(pr, f"{axis}/angle"),
-            fs,
-            inertia_kg_m2=rb.inertia,
-            torque_constant_nm_a=kt,
-            static=fit,
-        )
-        fit = ident_friction.LuGreFit(
-            fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2
-        )
+        try:
+            pf = ident_friction.fit_presliding(
+                _ch(pr, f"{axis}/current"),
+                _ch(pr, f"{axis}/angle"),
+                fs,
+                inertia_kg_m2=rb.inertia,
+                torque_constant_nm_a=kt,
+                static=fit,
+            )
+        except InputDataError as exc:
+            # what a user does when `identify friction` refuses the presliding record: run it
+            # on the constant-velocity moves alone (static friction, no bristle parameters)
+            notes.append(f"presliding not identified ({exc}); static friction only")
+        else:
+            fit = ident_friction.LuGreFit(
+                fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2
+            )
     table = fit.config_table()
     table["source"] = "millsense identify friction (bench pipeline)"
     ax_frag["friction"] = table
