@@ -6,11 +6,12 @@ import math
 import time
 
 from _harness import Metric, benchmark
-from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
+from millsense.core.config import MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling
 
 SIM_S = 60.0
@@ -24,7 +25,7 @@ def _process() -> ProcessCoupling:
 
 
 def _run(five_axis: bool) -> tuple[float, float, float]:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     rpm = 6000.0
     om = rpm * 2 * math.pi / 60
     feed = 0.1e-3 * 2 * rpm / 60

@@ -21,12 +21,16 @@ from scipy import signal
 
 from cli_run import run_cli
 from millsense.cli.main import main
-from millsense.core.config import FeedAxisConfig, MachineConfig
+from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.from_config import build_estimators
 from millsense.io import read_recording
+from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
+
+#: The simulator's own quaser-ux600 file: these tests exercise the CLI on a fully specified machine
+#: (the nameplate preset has no identified values; decision 0991).
+SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
 
 SLOT = """G21 G90 G94
 G0 X-15 Y0 Z0
@@ -48,7 +52,7 @@ def run_h5(tmp_path_factory: pytest.TempPathFactory) -> Path:
             [
                 "simulate",
                 "--machine",
-                "quaser-ux600",
+                SIM_QUASER,
                 "--program",
                 str(prog),
                 "--depth-mm",
@@ -87,7 +91,7 @@ def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     feed, raw, png = tmp_path / "feed.h5", tmp_path / "raw.h5", tmp_path / "est.png"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y"]
+    base = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "x,y"]
     code, out, err = run_cli(
         [*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys
     )
@@ -120,10 +124,10 @@ def test_user_errors_exit_2(
 ) -> None:
     o = str(tmp_path / "e.h5")
     cases = [
-        (["--machine", "quaser-ux600", "--method", "magic"], "unknown method 'magic'"),
+        (["--machine", SIM_QUASER, "--method", "magic"], "unknown method 'magic'"),
         (["--machine", "no-such-machine"], "no machine preset 'no-such-machine'"),
-        (["--machine", "quaser-ux600", "--method", "medob", "--axes", "x"], "axes.x.ball_screw"),
-        (["--machine", "quaser-ux600", "--axes", "q"], "no axis 'q'"),
+        (["--machine", SIM_QUASER, "--method", "medob", "--axes", "x"], "axes.x.ball_screw"),
+        (["--machine", SIM_QUASER, "--axes", "q"], "no axis 'q'"),
     ]
     for args, text in cases:
         code, _, err = run_cli(["estimate", str(run_h5), *args, "-o", o], capsys)
@@ -134,7 +138,7 @@ def test_spindle_mean_torque_within_10pct(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     est = tmp_path / "sp.h5"
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--method", "spindle"]
+    args = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--method", "spindle"]
     code, _, err = run_cli([*args, "-o", str(est)], capsys)
     assert code == 0, err
     re_, rt = read_recording(est), read_recording(run_h5)
@@ -153,7 +157,7 @@ def test_spindle_mean_torque_within_10pct(
 def test_spindle_missing_key_named(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     assert m.spindle is not None
     bad = m.model_copy(update={"spindle": m.spindle.model_copy(update={"current_kp_v_a": None})})
     with pytest.raises(ConfigError, match=r"missing key 'spindle.current_kp_v_a'"):
@@ -168,13 +172,13 @@ def test_missing_channel_named(tmp_path: Path, capsys: pytest.CaptureFixture[str
     rec.add_channel("x/current_cmd", np.zeros(100), "A")
     p = tmp_path / "r.h5"
     write_recording(p, rec)
-    args = ["estimate", str(p), "--machine", "quaser-ux600", "--method", "raw", "--axes", "x"]
+    args = ["estimate", str(p), "--machine", SIM_QUASER, "--method", "raw", "--axes", "x"]
     code, _, err = run_cli([*args, "-o", str(tmp_path / "e.h5")], capsys)
     assert code == 2 and "'x/motor_speed'" in err and len(err.strip().splitlines()) == 1
 
 
 def test_from_config_r_is_lowpassed_current_noise_and_keys_override() -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = simulator_machine("quaser-ux600").axes["x"]
     # the TOML key [axes.x.estimator] q_nm2_s, validated as a machine file would be
     tuned = FeedAxisConfig.model_validate(cfg.model_dump() | {"estimator": {"q_nm2_s": 500.0}})
     m = FeedAxisModel.from_config("x", tuned, sample_rate_hz=1e4)
@@ -195,7 +199,7 @@ def test_from_config_r_is_lowpassed_current_noise_and_keys_override() -> None:
 
 
 def test_from_config_missing_modes_names_key() -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = simulator_machine("quaser-ux600").axes["x"]
     with pytest.raises(ConfigError, match=r"axes\.x\.disturbance_modes"):
         FeedAxisModel.from_config("x", cfg.model_copy(update={"disturbance_modes": None}))
 
@@ -203,7 +207,7 @@ def test_from_config_missing_modes_names_key() -> None:
 def _estimate_x(
     run_h5: Path, out: Path, capsys: pytest.CaptureFixture[str], *extra: str
 ) -> tuple[int, str]:
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x"]
+    args = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "x"]
     code, _, err = run_cli([*args, *extra, "-o", str(out)], capsys)
     return code, err
 
@@ -307,7 +311,7 @@ def test_idle_user_errors_exit_2(
         (bare, ["--idle", "auto"], "metadata 'first_engagement_path_m'"),
     ]
     for path, extra, text in cases:
-        args = ["estimate", str(path), "--machine", "quaser-ux600", "--axes", "x"]
+        args = ["estimate", str(path), "--machine", SIM_QUASER, "--axes", "x"]
         code, _, err = run_cli([*args, "--method", "raw", *extra, "-o", str(o)], capsys)
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
 
@@ -315,7 +319,7 @@ def test_idle_user_errors_exit_2(
 def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     prog = tmp_path / "slot.nc"
     prog.write_text(SLOT)
-    base = ["simulate", "--machine", "quaser-ux600", "--program", str(prog), "-o"]
+    base = ["simulate", "--machine", SIM_QUASER, "--program", str(prog), "-o"]
     # the feed move is 75 mm long (X−15 → X60)
     for air, text in (("80", "not shorter than the first run of feed moves (75 mm)"),
                       ("-1", "--air-mm: must be ≥ 0")):  # fmt: skip
@@ -329,7 +333,7 @@ def test_r_from_the_air_phase(run_h5: Path) -> None:
 
     rec = read_recording(run_h5)
     w = find_air_window(rec, "run")
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     m2, r = with_air_r(m, ["x"], rec, w, "run")
     # the default R in closed form: (K_t·σ_I)² through the 600 Hz 2nd-order Butterworth
     ax = m.axis("x")
@@ -353,7 +357,7 @@ def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     wide, banded = tmp_path / "wide.h5", tmp_path / "banded.h5"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x", "--method"]
+    base = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "x", "--method"]
     code, _, err = run_cli([*base, "feed", "-o", str(wide)], capsys)
     assert code == 0, err
     code, _, err = run_cli([*base, "feed", "--band-hz", "200", "-o", str(banded)], capsys)
@@ -376,7 +380,7 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
 ) -> None:
     out = tmp_path / "all.h5"
     code, stdout, err = run_cli(
-        ["estimate", str(run_h5), "--machine", "quaser-ux600", "--method", "feed", "-o", str(out)],
+        ["estimate", str(run_h5), "--machine", SIM_QUASER, "--method", "feed", "-o", str(out)],
         capsys,
     )
     assert code == 0, err
@@ -393,7 +397,7 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
     assert np.sign(truth.mean()) == -np.sign(rt.channel("truth/y/load")[i0:i1].mean())
     # fewer than five axes: no forces at the tool, no error
     part = tmp_path / "xy.h5"
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y", "-o"]
+    args = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "x,y", "-o"]
     code, _, err = run_cli([*args, str(part)], capsys)
     assert code == 0, err
     assert "est/feed/tool/force_y" not in read_recording(part).channel_names
@@ -408,12 +412,12 @@ def test_forces_at_the_tool_on_a_tilted_table(
     prog = tmp_path / "tilt.nc"
     prog.write_text(SLOT.replace("G0 X-15 Y0 Z0", "G0 A30 C45\nG0 X-15 Y0 Z0"))
     run, est = tmp_path / "tilt.h5", tmp_path / "est.h5"
-    code, _, err = run_cli(["simulate", "--machine", "quaser-ux600", "--program", str(prog),
+    code, _, err = run_cli(["simulate", "--machine", SIM_QUASER, "--program", str(prog),
                             "--depth-mm", "4", "--air-mm", "6", "--duration-s", "3.6", "-o",
                             str(run)], capsys)  # fmt: skip
     assert code == 0, err
     code, _, err = run_cli(
-        ["estimate", str(run), "--machine", "quaser-ux600", "--method", "feed", "-o", str(est)],
+        ["estimate", str(run), "--machine", SIM_QUASER, "--method", "feed", "-o", str(est)],
         capsys,
     )
     assert code == 0, err
@@ -432,7 +436,7 @@ def test_json_summary_is_the_table_in_numbers(
     import json
 
     out = tmp_path / "j.h5"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "y", "-o", str(out)]
+    base = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "y", "-o", str(out)]
     code, stdout, err = run_cli([*base, "--json", "-"], capsys)
     assert code == 0, err
     doc = json.loads(stdout)  # stdout is the JSON alone

@@ -16,7 +16,12 @@ import pytest
 from millsense.cli.main import main
 from millsense.core.recording import Recording
 from millsense.io import read_recording, write_recording
+from millsense.simulator.machine_file import simulator_machine_path
 from test_cli_estimate import SLOT, _steady, run_cli
+
+#: The simulator's own quaser-ux600 file: these tests exercise the CLI on a fully specified machine
+#: (the nameplate preset has no identified values; decision 0991).
+SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +30,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
     prog = d / "slot.nc"
     prog.write_text(SLOT)
     run = d / "run.h5"
-    args = ["--machine", "quaser-ux600", "--program", str(prog), "--depth-mm", "4"]
+    args = ["--machine", SIM_QUASER, "--program", str(prog), "--depth-mm", "4"]
     args += ["--air-mm", "6", "--duration-s", "1.3", "--realism", "-o", str(run)]
     out = {name: d / f"{name}.h5" for name in ("rw", "h")}
     try:
@@ -33,7 +38,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
     except SystemExit as exc:
         assert not exc.code
     for name, extra in (("rw", []), ("h", ["--harmonics"])):
-        est = ["estimate", str(run), "--machine", "quaser-ux600", "--axes", "x,y"]
+        est = ["estimate", str(run), "--machine", SIM_QUASER, "--axes", "x,y"]
         try:
             main([*est, "--method", "feed", *extra, "-o", str(out[name])])
         except SystemExit as exc:
@@ -76,6 +81,6 @@ def test_harmonics_need_the_spindle_command(
     rec.add_channel("x/motor_speed", np.zeros(100), "rad/s")
     p = tmp_path / "r.h5"
     write_recording(p, rec)
-    args = ["estimate", str(p), "--machine", "quaser-ux600", "--axes", "x", "--harmonics"]
+    args = ["estimate", str(p), "--machine", SIM_QUASER, "--axes", "x", "--harmonics"]
     code, _, err = run_cli([*args, "-o", str(tmp_path / "e.h5")], capsys)
     assert code == 2 and "'spindle/speed_cmd'" in err and len(err.strip().splitlines()) == 1

@@ -20,13 +20,13 @@ from cli_run import run_cli
 from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
 from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.ident.fragment import merge, write_fragment
 from millsense.io import read_recording
 from millsense.io.recording_file import write_recording
 from millsense.simulator import commissioning as cm
+from millsense.simulator.machine_file import simulator_machine
 
 FS = 10_000.0
 SLOT = """G21 G90 G94
@@ -41,7 +41,7 @@ M30
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
     d = tmp_path_factory.mktemp("path")
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     write_recording(d / "sweep.h5", cm.table_load_sweep(cfg, "x"))
     frag = d / "path.toml"
     main(["identify", "path", str(d / "sweep.h5"), "--machine", "quaser-ux600", "--axis", "x",
@@ -171,7 +171,7 @@ def test_holding_axis_uses_the_path_identified_at_rest(
     # the friction bristles, so the path measured at rest fits it better than the one measured
     # in a move (decision "Holding axis: Φ_d and R identified at rest"); the file carries both
     # and the estimator follows the command
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     frags = []
     for name, speed in (("moving", 10.0), ("rest", 0.0)):
         rec = tmp_path / f"sweep_{name}.h5"

@@ -15,6 +15,7 @@ from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.feed_drive import FeedDriveSim
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToolModes
 from millsense.simulator.realism import LOAD_SHIFT, AxisRealism, RealismOptions, tool_mode_scale
 from millsense.stability.time_domain import DirectionModes
@@ -26,7 +27,7 @@ NONE = RealismOptions(
 
 
 def _machine3() -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 

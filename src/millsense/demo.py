@@ -83,9 +83,11 @@ class DemoSummary:
 
 
 def default_configs() -> tuple[MachineConfig, ToolConfig, MaterialConfig]:
-    """The embedded default: Quaser UX600, Ø20 mm 2-flute end mill, Al7050."""
+    """The embedded default: the simulator's Quaser UX600, Ø20 mm 2-flute end mill, Al7050."""
+    from millsense.simulator.machine_file import simulator_machine
+
     return (
-        load_preset(MachineConfig, "quaser-ux600"),
+        simulator_machine("quaser-ux600"),
         load_preset(ToolConfig, "aslan-d20-2flute"),
         load_preset(MaterialConfig, "al7050"),
     )
@@ -94,17 +96,20 @@ def default_configs() -> tuple[MachineConfig, ToolConfig, MaterialConfig]:
 COMMISSIONING_SPEEDS_RAD_S = (-16.0, -12.0, -8.0, -4.0, 4.0, 8.0, 12.0, 16.0)
 
 
-def commissioned_drive_model(machine: MachineConfig, axis: str, seed: int = 100) -> DriveModel:
+def commissioned_drive_model(
+    machine: MachineConfig, axis: str, seed: int = 100, nameplate: MachineConfig | None = None
+) -> DriveModel:
     """The drive model the estimator uses, with friction identified on the simulated machine.
 
-    J_e and K_t are the preset's (on the machine they come from the drive software, TNCopt in
-    Aslan C1). Friction is not handed over from the simulator: constant-velocity air moves at
-    ±4…16 rad/s are simulated (with their noise) and Coulomb + viscous friction is fitted per
-    direction from the mean torque over the steady second half of each move
-    (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
+    ``machine`` is the simulated machine (only driven); J_e, K_t, r_g and η are the nameplate's
+    (``nameplate``, default the ``quaser-ux600`` preset: catalogue values with their errors,
+    docs/decisions/0991-nameplate-machine-files.md). Friction is not handed over from the
+    simulator: constant-velocity air moves at ±4…16 rad/s are simulated (with their noise) and
+    Coulomb + viscous friction is fitted per direction from the mean torque over the steady
+    second half of each move (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
     """
-    a = machine.axis(axis)
-    params = RigidDriveParams.from_config(a)
+    a = (nameplate or load_preset(MachineConfig, "quaser-ux600")).axis(axis)
+    params = RigidDriveParams.from_config(machine.axis(axis))
     speeds, torques = [], []
     for k, w in enumerate(COMMISSIONING_SPEEDS_RAD_S):
         move = constant_velocity_move(params, w, 0.6, machine.sample_rate_hz, seed=seed + k)

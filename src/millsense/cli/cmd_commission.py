@@ -17,22 +17,37 @@ from millsense.core.errors import ConfigError
 
 
 def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[str]:
-    """The ``millsense identify`` command line for each group of commissioning recordings."""
+    """The ``millsense identify`` command line for each group of commissioning recordings, in
+    the order they run.
+
+    ``machine`` is the nameplate the identification starts from (decision
+    docs/decisions/0991-nameplate-machine-files.md): friction and the drive are identified with
+    it; the disturbance path needs the C3 stage (friction, J_e), so a ``millsense merge`` of
+    those two fragments into ``<axis>_stage1.toml`` comes first and the path commands read it.
+    """
     m = f"--machine {machine} --axis {axis}"
     out = []
+    stage1: list[str] = []
     if "friction" in files:
         rec = " ".join(str(files[k]) for k in ("friction", "presliding") if k in files)
         out.append(f"millsense identify friction {rec} {m} -o {axis}_friction.toml")
+        stage1.append(f"{axis}_friction.toml")
     if "drive_sweep" in files:
         rec = " ".join(str(files[k]) for k in ("drive_sweep", "acceleration") if k in files)
         out.append(f"millsense identify drive {rec} {m} -o {axis}_drive.toml")
+        stage1.append(f"{axis}_drive.toml")
     elif "acceleration" in files:
         out.append(f"millsense identify drive {files['acceleration']} {m} -o {axis}_inertia.toml")
-    for key, suffix in (("table_load_sweep", ""), ("table_load_sweep_at_rest", "_at_rest")):
-        if key in files:
+        stage1.append(f"{axis}_inertia.toml")
+    paths = [k for k in ("table_load_sweep", "table_load_sweep_at_rest") if k in files]
+    if paths:
+        staged = f"{axis}_stage1.toml"
+        out.append(f"millsense merge {machine} {' '.join(stage1)} -o {staged}")
+        for key in paths:
+            suffix = key.removeprefix("table_load_sweep")
             out.append(
-                f"millsense identify path {files[key]} {m} --input-channel {axis}/load "
-                f"-o {axis}_path{suffix}.toml"
+                f"millsense identify path {files[key]} --machine {staged} --axis {axis} "
+                f"--input-channel {axis}/load -o {axis}_path{suffix}.toml"
             )
     idle = [str(p) for k, p in sorted(files.items()) if k.startswith("idle_")]
     if idle:
@@ -51,15 +66,14 @@ def commission(
     spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
 ) -> None:
     """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
     from millsense.io.safe_output import check_outputs
     from millsense.simulator.commissioning import write_commissioning_set
+    from millsense.simulator.machine_file import simulator_machine
 
     check_outputs({"the machine file": machine}, {"-o": out})
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")
-    load_preset(MachineConfig, machine).axis(axis)  # one-line errors before anything is written
+    simulator_machine(machine).axis(axis)  # one-line errors before anything is written
     files = write_commissioning_set(machine, out, axis, spindle=spindle)
     for name, path in files.items():
         typer.echo(f"wrote {path} ({name})")
@@ -67,7 +81,11 @@ def commission(
     commands = identify_commands(machine, axis, files)
     for line in commands:
         typer.echo(f"  {line}")
-    outs = " ".join(line.rsplit(" -o ", 1)[1] for line in commands)
+    outs = " ".join(
+        line.rsplit(" -o ", 1)[1]
+        for line in commands
+        if line.startswith("millsense identify")
+    )
     typer.echo(
         f"then merge into a machine file:\n  millsense merge {machine} {outs} -o machine.toml"
     )

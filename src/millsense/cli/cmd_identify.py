@@ -65,13 +65,16 @@ class _Ctx:
         return rec.channel(name)
 
     def known(self, rec: Any, meta_key: str, what: str, from_machine: Any) -> float:
-        v = rec.metadata.get(meta_key)
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            return float(v)
+        """A value the identification is given: the machine file's (``--machine``, the
+        user's belief, e.g. the nameplate K_t) first, else the recording's metadata (decision
+        docs/decisions/0992-bench-reads-the-nameplate.md)."""
         if self.machine is not None:
             val = from_machine(self.machine)
             if val is not None:
                 return float(val)
+        v = rec.metadata.get(meta_key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
         raise InputDataError(
             f"{what} is needed: not in the recording's metadata ({meta_key!r}); give --machine"
         )

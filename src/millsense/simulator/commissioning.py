@@ -65,7 +65,6 @@ def _recording(
         "axis": axis_name,
         "source": f"simulated {test} ({axis_name})",
         "transmission_m_rad": params.transmission,
-        "torque_constant_nm_a": params.torque_constant,
     }
     meta.update(metadata or {})
     rec = Recording(fs, metadata=meta)
@@ -79,7 +78,13 @@ def _recording(
     return rec
 
 
-def _params(cfg: MachineConfig, axis_name: str, **kw: object) -> FeedDriveParams:
+def _params(
+    cfg: MachineConfig, axis_name: str, drive: FeedDriveParams | None = None, **kw: object
+) -> FeedDriveParams:
+    """The simulated drive of an axis: ``drive`` when given (a drive the bench built, e.g. with
+    an unmodelled mode), else the machine file's."""
+    if drive is not None:
+        return drive
     return FeedDriveParams.from_config(cfg.axis(axis_name), **kw)  # type: ignore[arg-type]
 
 
@@ -96,6 +101,7 @@ def friction_test(
     hold_s: float = 1.0,
     ramp_s: float = 0.1,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
     friction: str = "auto",
 ) -> Recording:
     """Constant-velocity moves at each speed (motor rad/s, signed), one after the other.
@@ -104,7 +110,7 @@ def friction_test(
     command (the identification finds the plateaus from it).
     """
     fs = cfg.sample_rate_hz
-    p = _params(cfg, axis_name, friction=friction)
+    p = _params(cfg, axis_name, drive, friction=friction)
     n_hold, n_ramp = round(hold_s * fs), round(ramp_s * fs)
     pieces = []
     prev = 0.0
@@ -127,6 +133,7 @@ def presliding_test(
     fraction: float = 0.5,
     step_s: float = 0.05,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
 ) -> Recording:
     """Current steps of ±``fraction``·breakaway and back to zero, position/velocity loops open.
 
@@ -135,8 +142,9 @@ def presliding_test(
     """
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
-    p = replace(_params(cfg, axis_name), closed_loop=False)
-    static = axis.friction.static_nm or axis.friction.coulomb_nm
+    p = replace(_params(cfg, axis_name, drive), closed_loop=False)
+    fr = axis.friction_table(cfg.name, axis_name)
+    static = fr.static_nm or fr.coulomb_nm
     level = fraction * min(static) / axis.torque_constant_nm_a
     n = round(step_s * fs)
     inj = np.repeat(np.array([1.0, 0.0, -1.0, 0.0, 0.6, -0.6, 0.3, 0.0]), n) * level
@@ -153,13 +161,14 @@ def acceleration_test(
     accel_rad_s2: float = 600.0,
     cruise_s: float = 0.05,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
 ) -> Recording:
     """Back-and-forth trapezoidal moves (accelerate, cruise, decelerate, reverse) per speed.
 
     Several cruise speeds separate Coulomb from viscous friction in the regression.
     """
     fs = cfg.sample_rate_hz
-    p = _params(cfg, axis_name)
+    p = _params(cfg, axis_name, drive)
     pieces = []
     for v in speeds_rad_s:
         n_acc = max(2, round(v / accel_rad_s2 * fs))
@@ -303,6 +312,7 @@ def table_load_sweep(
     f_hi_hz: float = 300.0,
     lead_s: float = 0.3,
     seed: int = 2,
+    drive: FeedDriveParams | None = None,
 ) -> Recording:
     """Multisine table load (a shaker on the table, its force measured) during a move (C5).
 
@@ -317,7 +327,7 @@ def table_load_sweep(
     """
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
-    p = _params(cfg, axis_name)
+    p = _params(cfg, axis_name, drive)
     per = round(period_s * fs)
     load = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1.0, 1.0, n_periods, 0.0)
     load *= torque_rms_nm * p.efficiency / p.transmission / float(np.std(load[:per]))
@@ -338,6 +348,30 @@ def table_load_sweep(
             "speed_rad_s": speed_rad_s,
         },
         {"load": "N" if axis.kind == "linear" else "N*m"},
+    )
+
+
+def air_cut_test(
+    cfg: MachineConfig,
+    axis_name: str,
+    *,
+    speed_rad_s: float = 5.0,
+    duration_s: float = 1.0,
+    start_position: float = 0.0,
+    seed: int = 3,
+    drive: FeedDriveParams | None = None,
+) -> Recording:
+    """An air cut: a move from rest to ``speed_rad_s`` (motor; 0 holds position) without load,
+    from ``start_position`` (load position, m; rad rotary). The estimator's R comes from it
+    (Aslan Eq. 3.28–3.30: the variance of the torque measurement in air)."""
+    fs = cfg.sample_rate_hz
+    p = _params(cfg, axis_name, drive)
+    n = round(duration_s * fs)
+    pos, vel = ramp_move(speed_rad_s, n, fs)
+    q0 = start_position / p.transmission
+    res = FeedDriveSim(p, fs, seed=seed, initial_angle_rad=q0).advance(pos + q0, vel, np.zeros(n))
+    return _recording(
+        fs, axis_name, res, "air_cut", p, {"velocity_ref": vel}, {"speed_rad_s": speed_rad_s}
     )
 
 
@@ -458,7 +492,8 @@ def write_commissioning_set(
 
     Parameters
     ----------
-    machine : preset name or machine TOML path.
+    machine : preset name (the simulator's own description of it,
+        :func:`millsense.simulator.machine_file.simulator_machine`) or machine TOML path.
     out_dir : directory for the files (created).
     axis_name : the feed axis tested.
     spindle : also run the spindle tests when the machine has a spindle.
@@ -472,10 +507,10 @@ def write_commissioning_set(
     idle runs (3 air cuts at 600 mm/min over 20 mm) for an axis with position-periodic
     disturbances.
     """
-    from millsense.core.presets import load_preset
     from millsense.io.recording_file import write_recording
+    from millsense.simulator.machine_file import simulator_machine
 
-    cfg = load_preset(MachineConfig, machine)
+    cfg = simulator_machine(machine)
     axis = cfg.axis(axis_name)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -485,7 +520,7 @@ def write_commissioning_set(
         "friction": friction_test(cfg, axis_name, order, hold_s=2.0),
         "acceleration": acceleration_test(cfg, axis_name),
     }
-    if axis.friction.sigma0_nm_rad is not None:
+    if axis.friction is not None and axis.friction.sigma0_nm_rad is not None:
         recs["presliding"] = presliding_test(cfg, axis_name)
     if axis.ball_screw is not None:
         recs["drive_sweep"] = drive_sweep(cfg, axis_name)

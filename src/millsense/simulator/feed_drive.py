@@ -244,18 +244,22 @@ class FeedDriveParams:
         else:
             plant = rigid_plant(axis.inertia_kg_m2, axis.transmission_m_rad, axis.efficiency)
         fric: CoulombViscous | LuGre | None
-        lugre_keys = (
-            axis.friction.sigma0_nm_rad,
-            axis.friction.sigma1_nm_s_rad,
-            axis.friction.static_nm,
-            axis.friction.stribeck_velocity_rad_s,
-        )
         if friction == "none":
             fric = None
-        elif friction == "lugre" or (friction == "auto" and all(k is not None for k in lugre_keys)):
-            fric = LuGre.from_config(axis.friction, "axis friction")
         else:
-            fric = CoulombViscous.from_config(axis.friction)
+            ft = axis.friction_table("simulated machine")
+            lugre_keys = (
+                ft.sigma0_nm_rad,
+                ft.sigma1_nm_s_rad,
+                ft.static_nm,
+                ft.stribeck_velocity_rad_s,
+            )
+            if friction == "lugre" or (
+                friction == "auto" and all(k is not None for k in lugre_keys)
+            ):
+                fric = LuGre.from_config(ft, "axis friction")
+            else:
+                fric = CoulombViscous.from_config(ft)
         wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
         kp = axis.velocity_kp_nm_s_rad or plant.inertia * wc
         ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0
@@ -942,8 +946,12 @@ def constant_velocity_sweep(
     duration_s: float = 1.0,
     accel_time_s: float = 0.1,
     seed: int = 0,
+    torque_constant: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean motor torque ``K_t·i`` over the steady half of constant-speed moves (Aslan C1).
+
+    ``torque_constant`` is the K_t the measured current is multiplied by: the one the
+    identification believes (a nameplate value), default the simulated drive's own.
 
     Each speed is a separate air move from rest (ramp over ``accel_time_s``, hold to
     ``duration_s``). Returns (mean torque N·m, standard error of the mean N·m) per speed,
@@ -962,7 +970,8 @@ def constant_velocity_sweep(
         )
         sim = FeedDriveSim(params, sample_rate_hz, seed=seed + j)
         res = sim.advance(pos, vel, np.zeros(n))
-        tau = params.torque_constant * res["current"][n // 2 :]
+        kt = params.torque_constant if torque_constant is None else torque_constant
+        tau = kt * res["current"][n // 2 :]
         means[j] = float(np.mean(tau))
         parts = np.array([np.mean(c) for c in np.array_split(tau, 10)])
         sems[j] = float(np.std(parts, ddof=1) / math.sqrt(len(parts)))

@@ -80,7 +80,7 @@ class RigidDriveParams:
             torque_constant=axis.torque_constant_nm_a,
             transmission=axis.transmission_m_rad,
             efficiency=axis.efficiency,
-            friction=CoulombViscous.from_config(axis.friction),
+            friction=CoulombViscous.from_config(axis.friction_table()),
             kp=kp,
             ki=ki,
             kv=wc / 4.0,

@@ -88,10 +88,20 @@ THESIS = {
 
 
 def _axis() -> FeedAxisConfig:
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
+    """The simulated stage (the virtual machine's yamada-b): drives the plant only."""
+    from millsense.simulator.machine_file import simulator_machine
 
-    return load_preset(MachineConfig, "yamada-b").axis("x")
+    return simulator_machine("yamada-b").axis("x")
+
+
+@cache
+def _belief() -> FeedAxisConfig:
+    """What the estimators are given (issue 12, decision 0993): the yamada-b nameplate (K_t,
+    lead, current-loop bandwidth) merged with ``identify drive`` on a simulated drive sweep
+    (dead times T_s, T_m, T_t; :func:`millsense.bench.pipeline.identified_ball_screw_machine`)."""
+    from millsense.bench.pipeline import identified_ball_screw_machine
+
+    return identified_ball_screw_machine("yamada-b").machine.axis("x")
 
 
 def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) -> MechanicalPlant:
@@ -163,7 +173,7 @@ def _delays(compensate: bool) -> tuple[float, float, float]:
 
     if not compensate:
         return (0.0, 0.0, 0.0)
-    ax = _axis()
+    ax = _belief()
     return sync_delays(
         ax.dead_time_amplifier_ms * 1e-3,
         ax.dead_time_motor_encoder_ms * 1e-3,
@@ -202,7 +212,7 @@ def _identified() -> DriveParameters:
     sel = slice(int(0.3 * FS_B), n)
     if np.min(out["true_velocity"][sel]) <= 0.0:
         raise RuntimeError("identification sweep: the table velocity reversed")
-    ax = _axis()
+    ax = _belief()
     return identify_drive_parameters(
         out["current_cmd"][sel],
         out["angle"][sel],
@@ -297,7 +307,7 @@ def _estimate(
         FS_B,
         cutoff_hz=CUTOFF_B,
         delays_s=_delays(sync),
-        current_loop_hz=_axis().current_bandwidth_hz,
+        current_loop_hz=_belief().current_bandwidth_hz,
     )
     if kind == "medob":
         est = obs.process(out["current_cmd"], [r * out["angle"], out["scale"]])
@@ -336,7 +346,7 @@ def table47(
 
     ref_obs = medob_observer(_identified(), FS_B, cutoff_hz=CUTOFF_B)
     ref = ref_obs.output_filter(cut["load"])
-    lag = round(_axis().dead_time_motor_encoder_ms * 1e-3 * FS_B)
+    lag = round(_belief().dead_time_motor_encoder_ms * 1e-3 * FS_B)
     ref = np.concatenate([np.full(lag, ref[0]), ref[: len(ref) - lag]])
     w = slice(int((CUT_START_S + SETTLE_S) * FS_B), len(ref))
     err = est[w] - ref[w]
@@ -692,7 +702,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
     out = FeedDriveSim(fp, FS_B, seed=11).advance(np.zeros(n), np.zeros(n), load)
     r = p.transmission_m_rad
     d = _delays(True)
-    loop = _axis().current_bandwidth_hz
+    loop = _belief().current_bandwidth_hz
     xm, xt = r * out["angle"], out["scale"]
     vib = VibrationModeObserver(p, FS_B, cutoff_hz=CUTOFF_B, delays_s=d).process(
         out["current_cmd"], xm, xt
@@ -701,7 +711,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
         p, FS_B, cutoff_hz=CUTOFF_B, delays_s=d, current_loop_hz=loop
     ).process(out["current_cmd"], [xm, xt])
     ref = rigid_mode_observer(p, FS_B, cutoff_hz=CUTOFF_B).output_filter(load)
-    lag = round(_axis().dead_time_motor_encoder_ms * 1e-3 * FS_B)
+    lag = round(_belief().dead_time_motor_encoder_ms * 1e-3 * FS_B)
     ref = np.concatenate([np.full(lag, ref[0]), ref[: n - lag]])
     w = slice(int((CUT_START_S + SETTLE_S) * FS_B), n)
     air = slice(int(0.1 * FS_B), int(CUT_START_S * FS_B))

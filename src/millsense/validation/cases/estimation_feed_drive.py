@@ -43,6 +43,8 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
+    from millsense.bench.pipeline import PipelineResult
+    from millsense.core.config import FeedAxisConfig
     from millsense.estimation.feed.estimator import FeedAxisModel, OperatingCondition
     from millsense.estimation.feed.path_fit import SweepResult
     from millsense.estimation.feed.schedule import FeedModelBank
@@ -58,22 +60,44 @@ N_PERIODS = 17
 MOVE_SPEED_RAD_S = 10.0
 
 
+def _nameplate_axis(axis: str) -> FeedAxisConfig:
+    """The nameplate axis table of the Quaser preset (catalogue values, decision 0991)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+
+    return load_preset(MachineConfig, "quaser-ux600").axis(axis)
+
+
+@cache
+def _pipeline(axis: str, condition: OperatingCondition = "moving") -> PipelineResult:
+    """Nameplate → commission → identify → merge for one axis (decision 0993): the
+    commissioning machine is the simulator's drive with the unmodelled 420 Hz mode
+    (:func:`~millsense.simulator.drive_mismatch.commissioning_drive`)."""
+    from millsense.bench.pipeline import identified_machine
+    from millsense.simulator.drive_mismatch import commissioning_drive
+    from millsense.simulator.machine_file import simulated_feed_drive
+
+    params = simulated_feed_drive("quaser-ux600", axis)
+    return identified_machine(
+        "quaser-ux600",
+        [axis],
+        drives={axis: commissioning_drive(params)},
+        conditions=(condition,),
+    )
+
+
 @cache
 def _identified(
     axis: str, condition: OperatingCondition = "moving"
 ) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
-    from millsense.bench.feed_commissioning import identify_feed_axis
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
-    from millsense.simulator.drive_mismatch import commissioning_drive
-    from millsense.simulator.feed_drive import FeedDriveParams
+    """(the simulated drive, the estimator's model built from the merged machine file as
+    ``millsense estimate`` builds it, the path sweep it was identified from)."""
+    from millsense.bench.pipeline import feed_model
+    from millsense.simulator.machine_file import simulated_feed_drive
 
-    ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
-    params = FeedDriveParams.from_config(ax)
-    model, sweep = identify_feed_axis(
-        commissioning_drive(params), axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
-    )
-    return params, model, sweep
+    res = _pipeline(axis, condition)
+    model = feed_model(res, axis, condition, sample_rate_hz=FS_HZ)
+    return simulated_feed_drive("quaser-ux600", axis), model, res.axes[axis].sweeps[condition]
 
 
 @cache
@@ -126,7 +150,8 @@ def compensated_bandwidth(
     params, model = _tuned_for(axis, band_hz)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
     per = round(1.0 * FS_HZ)
-    lg = params.transmission / params.efficiency
+    d = model.drive  # nameplate K_t, r_g, η (the estimator's belief), identified J_e
+    lg = d.transmission / d.efficiency
     load, _ = multisine_signal(FS_HZ, per, 1.0, 300.0, N_PERIODS, rms=EXCITATION_NM / lg)
     lead = round(0.3 * FS_HZ)
     est = FeedAxisEstimator(model)
@@ -138,9 +163,7 @@ def compensated_bandwidth(
     cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
     load_est = stream_estimate(est, cnc, f"{axis}/load_est")
     load_est = load_est[lead + est.lag : lead + est.lag + len(load)]
-    raw = (params.efficiency / params.transmission * params.torque_constant * cur)[
-        lead : lead + len(load)
-    ]
+    raw = (d.efficiency / d.transmission * d.torque_constant * cur)[lead : lead + len(load)]
     h = multisine_frf(load, load_est, FS_HZ, per, skip_periods=1)
     hr = multisine_frf(load, raw, FS_HZ, per, skip_periods=1)
     f = np.concatenate([[0.0], h.freq_hz])
@@ -378,11 +401,9 @@ def scheduled_params(axis: str) -> FeedDriveParams:
     """The preset drive with position-dependent modes: ±2 % over the stroke about its centre."""
     from dataclasses import replace
 
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
-    from millsense.simulator.feed_drive import FeedDriveParams
+    from millsense.simulator.machine_file import simulated_feed_drive
 
-    params = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis(axis))
+    params = simulated_feed_drive("quaser-ux600", axis)
     return replace(
         params,
         mode_shift_per_m=MODE_CHANGE_OVER_STROKE / STROKE_M[axis],
@@ -397,7 +418,8 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
     from millsense.bench.feed_bank import sweep_travel
 
     s = STROKE_M[axis]
-    d = 0.5 * sweep_travel(scheduled_params(axis), SCHED_SPEED_RAD_S[axis], FS_HZ)
+    lead = _nameplate_axis(axis).transmission_m_rad
+    d = 0.5 * sweep_travel(lead, SCHED_SPEED_RAD_S[axis], FS_HZ)
     return tuple(float(x) for x in np.linspace(-s / 2 + d, s / 2 - d, n))
 
 
@@ -407,7 +429,8 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
     from millsense.simulator.drive_mismatch import commissioning_drive
 
     params = scheduled_params(axis)
-    lg = params.transmission / params.efficiency
+    nameplate = _nameplate_axis(axis)
+    lg = nameplate.transmission_m_rad / nameplate.efficiency
     bank, _ = identify_feed_bank(
         commissioning_drive(params),
         axis,
@@ -417,6 +440,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
         sweep_speed_rad_s=SCHED_SPEED_RAD_S[axis],
         sweep_force_rms=SCHED_EXCITATION_NM / lg,
         design="auto",
+        nameplate=nameplate,
     )
     return bank
 
@@ -955,7 +979,7 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     params, model, _ = _identified(axis)
     machine = perturbed_drive(params, frequency_scale=1.0)
     per = round(1.0 * FS_HZ)
-    lg = params.transmission / params.efficiency
+    lg = model.drive.transmission / model.drive.efficiency
     load, _ = multisine_signal(FS_HZ, per, 1.0, 300.0, N_PERIODS, rms=EXCITATION_NM / lg)
     lead = round(0.3 * FS_HZ)
     est = FeedAxisEstimator(model, teeth=V1_TEETH if harmonics else None)
