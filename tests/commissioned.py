@@ -4,11 +4,12 @@
 friction, drive (inertia), path moving and at rest, per axis → ``millsense merge`` into the
 preset. Only CNC channels and the machine file reach the identification, so the estimators
 built from the result know the truth only through identification (issue 12). Built once per
-test session (import :func:`commissioned_machine` into a test module to use it).
+test session (import :func:`commissioned_fixture`, the fixture `commissioned`, to use it).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -52,7 +53,15 @@ def commission_axes(out: Path, axes: str) -> Path:
     return merged
 
 
-@pytest.fixture(scope="session")
-def commissioned_machine(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """quaser-ux600 with every feed axis commissioned on the truth (≈ 10 min on one core)."""
-    return commission_axes(tmp_path_factory.mktemp("commissioned"), "xyzac")
+@pytest.fixture(scope="session", name="commissioned")
+def commissioned_fixture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Directory with ``machine.toml`` (quaser-ux600, every feed axis commissioned on the
+    truth; ≈ 10 min on one core) and the fragments ``<axis>_{friction,inertia,path,
+    path_at_rest}.toml``. ``MILLSENSE_TEST_COMMISSIONED=DIR`` reuses (or first fills) DIR
+    across sessions while iterating; unset, every session commissions afresh."""
+    keep = os.environ.get("MILLSENSE_TEST_COMMISSIONED")
+    out = Path(keep) if keep else tmp_path_factory.mktemp("commissioned")
+    if not (out / "machine.toml").exists():
+        out.mkdir(parents=True, exist_ok=True)
+        commission_axes(out, "xyzac")
+    return out

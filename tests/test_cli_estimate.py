@@ -20,6 +20,7 @@ import pytest
 from scipy import signal
 
 from cli_run import run_cli
+from commissioned import commissioned_fixture  # noqa: F401  (fixture)
 from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
@@ -84,10 +85,12 @@ def _tooth_amp(x: np.ndarray) -> float:
 
 
 def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     feed, raw, png = tmp_path / "feed.h5", tmp_path / "raw.h5", tmp_path / "est.png"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y"]
+    # the machine file a user makes: commission → identify → merge (tests/commissioned.py)
+    machine = str(commissioned / "machine.toml")
+    base = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y"]
     code, out, err = run_cli(
         [*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys
     )
@@ -201,19 +204,24 @@ def test_from_config_missing_modes_names_key() -> None:
 
 
 def _estimate_x(
-    run_h5: Path, out: Path, capsys: pytest.CaptureFixture[str], *extra: str
+    run_h5: Path,
+    out: Path,
+    capsys: pytest.CaptureFixture[str],
+    *extra: str,
+    machine: str = "quaser-ux600",
 ) -> tuple[int, str]:
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x"]
+    args = ["estimate", str(run_h5), "--machine", machine, "--axes", "x"]
     code, _, err = run_cli([*args, *extra, "-o", str(out)], capsys)
     return code, err
 
 
 def test_idle_auto_removes_the_x_friction_bias(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     none, auto = tmp_path / "none.h5", tmp_path / "auto.h5"
-    assert _estimate_x(run_h5, none, capsys, "--method", "feed")[0] == 0
-    code, err = _estimate_x(run_h5, auto, capsys, "--method", "feed", "--idle", "auto")
+    m = str(commissioned / "machine.toml")
+    assert _estimate_x(run_h5, none, capsys, "--method", "feed", machine=m)[0] == 0
+    code, err = _estimate_x(run_h5, auto, capsys, "--method", "feed", "--idle", "auto", machine=m)
     assert code == 0, err
     rt = read_recording(run_h5)
     i0, i1 = _steady(run_h5)
@@ -263,7 +271,7 @@ def test_air_window_is_before_the_cut_at_cutting_feed(run_h5: Path) -> None:
 
 
 def test_idle_file_and_window_agree_with_auto(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     import json
 
@@ -274,7 +282,9 @@ def test_idle_file_and_window_agree_with_auto(
         ("window", ["--idle", "auto", "--air-s", "0.43:0.64"]),
     ):
         p = tmp_path / f"{name}.h5"
-        code, err = _estimate_x(run_h5, p, capsys, "--method", "raw", *extra)
+        code, err = _estimate_x(
+            run_h5, p, capsys, "--method", "raw", *extra, machine=str(commissioned / "machine.toml")
+        )
         assert code == 0, err
         outs[name] = json.loads(str(read_recording(p).metadata["idle_tables"]))["raw/x"]
     # the same recording as FILE: the same air phase, bit for bit
@@ -323,13 +333,13 @@ def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
 
 
-def test_r_from_the_air_phase(run_h5: Path) -> None:
+def test_r_from_the_air_phase(run_h5: Path, commissioned: Path) -> None:
     from millsense.core.config import FeedEstimatorConfig
     from millsense.estimation.feed.idle_compensation import find_air_window, with_air_r
 
     rec = read_recording(run_h5)
     w = find_air_window(rec, "run")
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = load_preset(MachineConfig, str(commissioned / "machine.toml"))
     m2, r = with_air_r(m, ["x"], rec, w, "run")
     # the default R in closed form: (K_t·σ_I)² through the 600 Hz 2nd-order Butterworth
     ax = m.axis("x")
@@ -372,11 +382,12 @@ def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
 
 
 def test_forces_at_the_tool_from_the_five_feed_estimates(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "all.h5"
+    machine = str(commissioned / "machine.toml")
     code, stdout, err = run_cli(
-        ["estimate", str(run_h5), "--machine", "quaser-ux600", "--method", "feed", "-o", str(out)],
+        ["estimate", str(run_h5), "--machine", machine, "--method", "feed", "-o", str(out)],
         capsys,
     )
     assert code == 0, err
@@ -393,14 +404,14 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
     assert np.sign(truth.mean()) == -np.sign(rt.channel("truth/y/load")[i0:i1].mean())
     # fewer than five axes: no forces at the tool, no error
     part = tmp_path / "xy.h5"
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y", "-o"]
+    args = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y", "-o"]
     code, _, err = run_cli([*args, str(part)], capsys)
     assert code == 0, err
     assert "est/feed/tool/force_y" not in read_recording(part).channel_names
 
 
 def test_forces_at_the_tool_on_a_tilted_table(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # the same slot with the table at A 30°, C 45° (the drives share the feed and the load):
     # Eq. 3.51 at a general pose brings the five drive loads back to the tool's force, the
@@ -412,8 +423,9 @@ def test_forces_at_the_tool_on_a_tilted_table(
                             "--depth-mm", "4", "--air-mm", "6", "--duration-s", "3.6", "-o",
                             str(run)], capsys)  # fmt: skip
     assert code == 0, err
+    machine = str(commissioned / "machine.toml")
     code, _, err = run_cli(
-        ["estimate", str(run), "--machine", "quaser-ux600", "--method", "feed", "-o", str(est)],
+        ["estimate", str(run), "--machine", machine, "--method", "feed", "-o", str(est)],
         capsys,
     )
     assert code == 0, err

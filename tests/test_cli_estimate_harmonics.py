@@ -1,9 +1,11 @@
 """``millsense estimate --harmonics`` on the simulated slot of test_cli_estimate.
 
-Same scenario and mismatch as tests/test_cli_estimate.py (quaser-ux600, Ø20 mm 2-flute slot
-along +X at 3000 rev/min, tooth frequency 100 Hz, realism layer on; the estimator built from the
-preset's tables): the harmonic design reads ``spindle/speed_cmd`` and the 2 teeth (no
-``flutes`` metadata: the default), so the 100 and 200 Hz lines get their own state pairs.
+Same scenario as tests/test_cli_estimate.py (quaser-ux600, Ø20 mm 2-flute slot along +X at
+3000 rev/min, tooth frequency 100 Hz, the simulator's truth with the realism layer on; the
+estimator built from the machine file commissioned on the simulator, tests/commissioned.py,
+as a user must: commission → identify → merge → estimate): the harmonic design reads
+``spindle/speed_cmd`` and the 2 teeth (no ``flutes`` metadata: the default), so the 100 and
+200 Hz lines get their own state pairs.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from commissioned import commissioned_fixture  # noqa: F401  (fixture)
 from millsense.cli.main import main
 from millsense.core.recording import Recording
 from millsense.io import read_recording, write_recording
@@ -20,7 +23,7 @@ from test_cli_estimate import SLOT, _steady, run_cli
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+def runs(tmp_path_factory: pytest.TempPathFactory, commissioned: Path) -> tuple[Path, Path, Path]:
     d = tmp_path_factory.mktemp("estimate_harmonics")
     prog = d / "slot.nc"
     prog.write_text(SLOT)
@@ -33,7 +36,8 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
     except SystemExit as exc:
         assert not exc.code
     for name, extra in (("rw", []), ("h", ["--harmonics"])):
-        est = ["estimate", str(run), "--machine", "quaser-ux600", "--axes", "x,y"]
+        machine = str(commissioned / "machine.toml")
+        est = ["estimate", str(run), "--machine", machine, "--axes", "x,y"]
         try:
             main([*est, "--method", "feed", *extra, "-o", str(out[name])])
         except SystemExit as exc:
