@@ -7,7 +7,7 @@ import pytest
 
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
-from millsense.simulator.commissioning import friction_test
+from millsense.simulator.commissioning import friction_test, presliding_test
 from millsense.simulator.truth_machine import load_truth
 
 
@@ -37,3 +37,13 @@ def test_friction_test_runs_the_truth_and_ideal_the_machine_file() -> None:
     assert down_i == pytest.approx(-(1.84 + 20.0 * 0.15) / 1.964, rel=5e-3)  # Table 3.2 X−
     # the truth is measurably not the machine file (3-4 % more current on this move)
     assert up / up_i - 1.0 > 0.03
+
+
+def test_presliding_steps_stay_below_the_coulomb_level_identify_checks() -> None:
+    # A: Table 3.2-like static 2.7 N·m but Coulomb 1.05 N·m (machine file); identify friction
+    # refuses steps at or above the breakaway it measures in the friction moves (the Coulomb
+    # level past the Stribeck hump), so the steps are half the smaller Coulomb torque
+    cfg = load_preset(MachineConfig, "quaser-ux600")
+    rec = presliding_test(cfg, "a")
+    peak = float(np.max(np.abs(np.asarray(rec["a/injection"])))) * 2.106  # Table 3.1 K_t of A
+    assert peak == pytest.approx(0.5 * 1.05, rel=1e-9)

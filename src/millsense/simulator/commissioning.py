@@ -160,15 +160,20 @@ def presliding_test(
     """Current steps of ±``fraction``·breakaway and back to zero, position/velocity loops open.
 
     Pattern (in units of the step): +1, 0, −1, 0, +0.6, −0.6, +0.3, 0, each ``step_s`` long.
-    The breakaway torque is the smaller static torque of the axis' friction table.
+    The breakaway torque is the smallest static or Coulomb torque of the axis' friction table:
+    ``identify friction`` checks the steps against the breakaway it measured in the friction
+    moves (≥ 0.1 rad/s, past the Stribeck hump: the Coulomb level), so a level from the static
+    torque alone (A: 2.7 N·m against 1.05 N·m Coulomb) would be refused (decision 1041).
     """
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
     p = _params(cfg, axis_name)
     plant, sub = plant_params(cfg, axis_name, ideal=ideal)
     plant = replace(plant, closed_loop=False)
-    static = axis.friction.static_nm or axis.friction.coulomb_nm
-    level = fraction * min(static) / axis.torque_constant_nm_a
+    static = min(
+        min(axis.friction.static_nm or axis.friction.coulomb_nm), min(axis.friction.coulomb_nm)
+    )
+    level = fraction * static / axis.torque_constant_nm_a
     n = round(step_s * fs)
     inj = np.repeat(np.array([1.0, 0.0, -1.0, 0.0, 0.6, -0.6, 0.3, 0.0]), n) * level
     z = np.zeros(len(inj))
