@@ -427,6 +427,12 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
     assert "est/feed/tool/force_y" not in read_recording(part).channel_names
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth with the commissioned file at A 30°, C 45° the tool's X force "
+    "mean is within 5 % but Y is +23.7 % (138 N vs 112 N): the A/C axes' identified paths "
+    "(C at rest fits to 16 % RMS) and friction carry a bias that Eq. 3.51 spreads onto Y",
+)
 def test_forces_at_the_tool_on_a_tilted_table(
     commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
