@@ -64,6 +64,11 @@ def commission(
     axis: str = typer.Option("x", "--axis", help="Feed axis tested."),
     out: Path = typer.Option(..., "-o", "--output", help="Directory the recordings go to."),
     spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
+    ideal: bool = typer.Option(
+        False,
+        "--ideal",
+        help="Debugging only: test the machine file's model, not the simulator's truth.",
+    ),
 ) -> None:
     """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
     from millsense.io.safe_output import check_outputs
@@ -74,7 +79,7 @@ def commission(
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")
     simulator_machine(machine).axis(axis)  # one-line errors before anything is written
-    files = write_commissioning_set(machine, out, axis, spindle=spindle)
+    files = write_commissioning_set(machine, out, axis, spindle=spindle, ideal=ideal)
     for name, path in files.items():
         typer.echo(f"wrote {path} ({name})")
     typer.echo("identify with:")
