@@ -1,7 +1,8 @@
 """A quaser-ux600 machine file commissioned on the simulator, as a user must make one.
 
-``millsense commission`` (on the simulator's truth, decision 1041) → ``millsense identify``
-friction, drive (inertia), path moving and at rest, per axis → ``millsense merge`` into the
+``millsense commission --identify`` (on the simulator's truth, decision 1041): per axis the
+tests, then the printed ``millsense identify`` friction, drive (inertia), the stage-1 merge,
+the path moving and at rest, and ``millsense merge`` of every fragment into the nameplate
 preset. Only CNC channels and the machine file reach the identification, so the estimators
 built from the result know the truth only through identification (issue 12). Built once per
 test session (import :func:`commissioned_fixture`, the fixture `commissioned`, to use it).
@@ -27,37 +28,19 @@ def _cli(args: list[str]) -> None:
 
 
 def commission_axes(out: Path, axes: str) -> Path:
-    """Commission, identify and merge ``axes`` (e.g. ``"xyzac"``); the merged file's path."""
-    frags: list[str] = []
-    for ax in axes:
-        d = out / f"com_{ax}"
-        _cli(["commission", "--machine", PRESET, "--axis", ax, "-o", str(d), "--no-spindle"])
-        f = d / f"{PRESET}-{ax}"
-        m = ["--machine", PRESET, "--axis", ax]
-        pres = [str(f) + "-presliding.h5"] if Path(str(f) + "-presliding.h5").exists() else []
-        steps = (
-            ("friction", ["friction", str(f) + "-friction.h5", *pres]),
-            ("inertia", ["drive", str(f) + "-acceleration.h5"]),
-            ("path", ["path", str(f) + "-table_load_sweep.h5", "--input-channel", f"{ax}/load"]),
-            (
-                "path_at_rest",
-                ["path", str(f) + "-table_load_sweep_at_rest.h5", "--input-channel", f"{ax}/load"],
-            ),
-        )
-        for name, args in steps:
-            frag = out / f"{ax}_{name}.toml"
-            _cli(["identify", *args, *m, "-o", str(frag)])
-            frags.append(str(frag))
-    merged = out / "machine.toml"
-    _cli(["merge", PRESET, *frags, "-o", str(merged)])
-    return merged
+    """``millsense commission --axis <axes> --no-spindle --identify -o out`` (the printed
+    identify and merge commands run verbatim); the merged file's path."""
+    _cli(["commission", "--machine", PRESET, "--axis", ",".join(axes), "--no-spindle",
+          "--identify", "-o", str(out)])  # fmt: skip
+    return out / "machine.toml"
 
 
 @pytest.fixture(scope="session", name="commissioned")
 def commissioned_fixture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Directory with ``machine.toml`` (quaser-ux600, every feed axis commissioned on the
     truth; ≈ 10 min on one core) and the fragments ``<axis>_{friction,inertia,path,
-    path_at_rest}.toml``. ``MILLSENSE_TEST_COMMISSIONED=DIR`` reuses (or first fills) DIR
+    path_at_rest}.toml`` (and ``<axis>_stage1.toml``, the friction and inertia merged).
+    ``MILLSENSE_TEST_COMMISSIONED=DIR`` reuses (or first fills) DIR
     across sessions while iterating; unset, every session commissions afresh."""
     keep = os.environ.get("MILLSENSE_TEST_COMMISSIONED")
     out = Path(keep) if keep else tmp_path_factory.mktemp("commissioned")

@@ -80,8 +80,11 @@ def test_friction_fragment_loads_as_friction_config(
 ) -> None:
     cfg = simulator_machine("quaser-ux600")
     sp = np.geomspace(0.1, 30.0, 8)
-    moves = cm.friction_test(cfg, "z", np.ravel(np.column_stack([sp, -sp])), hold_s=0.6)
-    pre = cm.presliding_test(cfg, "z")
+    # the identification's mechanics on the simulator file's model (ideal), whose Table 3.2
+    # values the test knows; commissioning on the truth is tests/test_cli_commission.py
+    speeds = np.ravel(np.column_stack([sp, -sp]))
+    moves = cm.friction_test(cfg, "z", speeds, hold_s=0.6, ideal=True)
+    pre = cm.presliding_test(cfg, "z", ideal=True)
     out, png = tmp_path / "fr.toml", tmp_path / "fr.png"
     files = [_write(moves, tmp_path / "m.h5"), _write(pre, tmp_path / "p.h5")]
     # the simulator's own file as --machine: the fit is checked against the K_t it ran with

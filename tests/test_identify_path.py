@@ -27,7 +27,7 @@ from millsense.ident.fragment import merge
 from millsense.io import read_recording
 from millsense.io.recording_file import write_recording
 from millsense.simulator import commissioning as cm
-from millsense.simulator.machine_file import simulator_machine
+from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
 
 FS = 10_000.0
 SLOT = """G21 G90 G94
@@ -43,9 +43,12 @@ M30
 def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
     d = tmp_path_factory.mktemp("path")
     cfg = simulator_machine("quaser-ux600")
-    write_recording(d / "sweep.h5", cm.table_load_sweep(cfg, "x"))
+    # the fragment's mechanics on the simulator file's model (ideal) and that file as the
+    # machine; the path commissioned on the truth is the `commissioned` fixture's
+    write_recording(d / "sweep.h5", cm.table_load_sweep(cfg, "x", ideal=True))
     frag = d / "path.toml"
-    main(["identify", "path", str(d / "sweep.h5"), "--machine", "quaser-ux600", "--axis", "x",
+    sim = str(simulator_machine_path("quaser-ux600"))
+    main(["identify", "path", str(d / "sweep.h5"), "--machine", sim, "--axis", "x",
           "--input-channel", "x/load", "-o", str(frag), "--plot", str(d / "path.png")])  # fmt: skip
     with frag.open("rb") as fh:
         table = tomllib.load(fh)

@@ -69,8 +69,8 @@ def test_realism_follows_the_plant_and_all_switches_off_change_nothing() -> None
     assert RealismOptions().enabled
     assert SimulatorOptions(ideal=False).realism_in_effect.enabled
     assert not SimulatorOptions(ideal=True).realism_in_effect.enabled
-    # the default is the ideal model for now (decision 1061)
-    assert not SimulatorOptions().realism_in_effect.enabled
+    # the default is the truth with realism on (decision 1062)
+    assert not SimulatorOptions().ideal and SimulatorOptions().realism_in_effect.enabled
     base = _air(RealismOptions(enabled=False), duration=0.3)
     assert base.metadata["realism"] is False
     d0 = _collect(base)

@@ -58,19 +58,53 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
     return out
 
 
+def run_identification(machine: str, out: Path, commands: list[str]) -> Path:
+    """Run ``commands`` (the printed identify/merge lines, recordings given by absolute path)
+    in ``out`` and merge every fragment into ``out/machine.toml``; its path."""
+    import contextlib
+    import shlex
+
+    from millsense.cli.main import main
+
+    def cli(line: str) -> None:
+        typer.echo(f"$ {line}")
+        try:
+            main(shlex.split(line)[1:])
+        except SystemExit as exc:
+            if exc.code:
+                msg = f"commission --identify: '{line}' failed (exit {exc.code})"
+                raise ConfigError(msg) from None
+
+    frags = [ln.rsplit(" -o ", 1)[1] for ln in commands if ln.startswith("millsense identify")]
+    with contextlib.chdir(out):
+        for line in commands:
+            cli(line)
+        cli(f"millsense merge {machine} {' '.join(frags)} -o machine.toml")
+    return out / "machine.toml"
+
+
 @app.command()
 def commission(
     machine: str = typer.Option(..., "--machine", help="Machine preset or .toml."),
-    axis: str = typer.Option("x", "--axis", help="Feed axis tested."),
+    axis: str = typer.Option(
+        "x", "--axis", help="Feed axis tested, or several separated by commas (x,y,z,a,c)."
+    ),
     out: Path = typer.Option(..., "-o", "--output", help="Directory the recordings go to."),
     spindle: bool = typer.Option(True, "--spindle/--no-spindle", help="Also the spindle tests."),
+    identify: bool = typer.Option(
+        False,
+        "--identify",
+        help="Also run the printed identify and merge commands in the output directory: "
+        "DIR/machine.toml is the commissioned machine file.",
+    ),
     ideal: bool = typer.Option(
         False,
         "--ideal",
         help="Debugging only: test the machine file's model, not the simulator's truth.",
     ),
 ) -> None:
-    """Simulate the commissioning tests of an axis (and the spindle) and write the recordings."""
+    """Simulate the commissioning tests of one or more axes (and the spindle), write the
+    recordings and print (or, with --identify, run) the identification commands."""
     from millsense.io.safe_output import check_outputs
     from millsense.simulator.commissioning import write_commissioning_set
     from millsense.simulator.machine_file import simulator_machine
@@ -78,18 +112,28 @@ def commission(
     check_outputs({"the machine file": machine}, {"-o": out})
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a directory")
-    simulator_machine(machine).axis(axis)  # one-line errors before anything is written
-    files = write_commissioning_set(machine, out, axis, spindle=spindle, ideal=ideal)
-    for name, path in files.items():
-        typer.echo(f"wrote {path} ({name})")
+    axes = [a.strip() for a in axis.split(",") if a.strip()]
+    if not axes:
+        raise ConfigError("--axis: give at least one axis")
+    sim = simulator_machine(machine)
+    for a in axes:
+        sim.axis(a)  # one-line errors before anything is written
+    where = out.resolve() if identify else out
+    commands: list[str] = []
+    for k, a in enumerate(axes):
+        files = write_commissioning_set(machine, where, a, spindle=spindle and k == 0, ideal=ideal)
+        for name, path in files.items():
+            typer.echo(f"wrote {path} ({name})")
+        commands += identify_commands(machine, a, files)
+    if identify:
+        merged = run_identification(machine, where, commands)
+        typer.echo(f"commissioned machine file: {merged}")
+        return
     typer.echo("identify with:")
-    commands = identify_commands(machine, axis, files)
     for line in commands:
         typer.echo(f"  {line}")
     outs = " ".join(
-        line.rsplit(" -o ", 1)[1]
-        for line in commands
-        if line.startswith("millsense identify")
+        line.rsplit(" -o ", 1)[1] for line in commands if line.startswith("millsense identify")
     )
     typer.echo(
         f"then merge into a machine file:\n  millsense merge {machine} {outs} -o machine.toml"

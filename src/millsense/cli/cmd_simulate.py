@@ -64,12 +64,11 @@ def simulate(
         "--truth, off with --ideal.",
     ),
     ideal: bool = typer.Option(
-        True,
+        False,
         "--ideal/--truth",
-        help="--truth: the simulator's own truth plant (coupled lumped-mass drives, true K_t, "
-        "friction, ripple, current loop, dead times; realism on). Default --ideal: the machine "
-        "file's one-way model with realism off, until identification runs on the truth "
-        "(decision 1061).",
+        help="Default --truth: the simulator's own truth plant (coupled lumped-mass drives, "
+        "true K_t, friction, ripple, current loop, dead times; realism on). --ideal, for "
+        "debugging only: the simulator file's one-way model with realism off (decision 1062).",
     ),
     tool_modes: Path | None = typer.Option(
         None,

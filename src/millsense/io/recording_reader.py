@@ -32,6 +32,7 @@ from millsense.io.recording_file import (
     _check_format,
     _layout,
     _open_h5,
+    _root_times,
     _source_metadata,
     read_recording,
 )
@@ -81,8 +82,7 @@ class RecordingReader:
         try:
             meta = json.loads(_attr_str(f, "metadata_json") or "{}")
             layout = _layout(f)
-            self.sample_rate_hz = float(f.attrs["sample_rate_hz"])
-            self.t0_s = float(f.attrs["t0_s"])
+            self.sample_rate_hz, self.t0_s = _root_times(path, f)
         except (KeyError, ValueError, TypeError) as exc:
             raise RecordingError(f"{path}: damaged root attributes ({exc})") from None
         self.metadata: dict[str, object] = _source_metadata(dict(meta), path)

@@ -193,10 +193,9 @@ class SimulatorOptions:
     ideal : run the one-way model of the machine file (rigid body + printed disturbance
         modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth (coupled lumped-mass
         drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one); with
-        ``realism`` left None the realism layer is then off too. Default True for now: the
-        commissioning/identification path does not yet run on the truth, so the shipped
-        estimate workflow would be judged against a plant it cannot have learnt (decision
-        1061); ``ideal=False`` selects the truth.
+        ``realism`` left None the realism layer is then off too. Default False: the truth
+        with realism on, now that commissioning and identification run on it (decision 1062,
+        superseding 1061); ``ideal=True`` is for debugging only.
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -212,7 +211,7 @@ class SimulatorOptions:
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
     realism: RealismOptions | None = None
-    ideal: bool = True
+    ideal: bool = False
 
     @property
     def realism_in_effect(self) -> RealismOptions:
