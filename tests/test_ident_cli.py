@@ -230,3 +230,34 @@ def test_modal_per_position_needs_the_commanded_position(
                             "--output-channel",
                             "x/torque", "-o", str(tmp_path / "o.toml")], capsys)  # fmt: skip
     assert code == 2 and "x/position_cmd" in err and len(err.strip().splitlines()) == 1
+
+
+def test_noise_fragment_is_the_air_cut_torque_variance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`identify noise` (Aslan Eq. 3.28-3.30): on the simulator file's model (ideal, no
+    realism) the C3 torque in air holds the current noise through the 600 Hz C3 low-pass,
+    (K_t·σ_I)²·Σh², plus the encoder noise through J·dω/dt; R lies between that closed form
+    and ten times it (the bound of tests/test_cli_estimate.py), and the fragment carries it as
+    estimator.r_nm2."""
+    from scipy import signal
+
+    cfg = simulator_machine("quaser-ux600")
+    rec = _write(cm.air_cut_test(cfg, "x", speed_rad_s=10.0, duration_s=1.5, ideal=True),
+                 tmp_path / "air.h5")  # fmt: skip
+    out = tmp_path / "noise.toml"
+    sim = str(simulator_machine_path("quaser-ux600"))
+    code, stdout, err = run_cli(
+        ["identify", "noise", rec, "--machine", sim, "--axis", "x", "-o", str(out)], capsys
+    )
+    assert code == 0, err
+    r = tomllib.loads(out.read_text())["axes"]["x"]["estimator"]["r_nm2"]
+    ax = cfg.axis("x")
+    assert ax.current_noise_a is not None
+    h = signal.sosfilt(signal.butter(2, 600.0, fs=1e4, output="sos"), np.r_[1.0, np.zeros(9999)])
+    r_noise = float((ax.torque_constant_nm_a * ax.current_noise_a) ** 2 * np.sum(h**2))
+    assert r_noise < r < 10 * r_noise, (r, r_noise)  # measured 5.3x (encoder noise in J·dω/dt)
+    assert "R =" in stdout
+    # without a machine file there is no C3 stage: one line naming what to give
+    code, _, err = run_cli(["identify", "noise", rec, "-o", str(tmp_path / "n2.toml")], capsys)
+    assert code == 2 and "give --machine" in err

@@ -22,8 +22,9 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
 
     ``machine`` is the nameplate the identification starts from (decision
     docs/decisions/0991-nameplate-machine-files.md): friction and the drive are identified with
-    it; the disturbance path needs the C3 stage (friction, J_e), so a ``millsense merge`` of
-    those two fragments into ``<axis>_stage1.toml`` comes first and the path commands read it.
+    it; the estimator's noise R (from the air cut) and its disturbance path need the C3 stage
+    (friction, J_e), so a ``millsense merge`` of those two fragments into
+    ``<axis>_stage1.toml`` comes first and the noise and path commands read it.
     """
     m = f"--machine {machine} --axis {axis}"
     out = []
@@ -40,9 +41,17 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
         out.append(f"millsense identify drive {files['acceleration']} {m} -o {axis}_inertia.toml")
         stage1.append(f"{axis}_inertia.toml")
     paths = [k for k in ("table_load_sweep", "table_load_sweep_at_rest") if k in files]
-    if paths:
-        staged = f"{axis}_stage1.toml"
+    # R of the feed estimator (rigid-body C3 stage; a ball screw's observers need none)
+    noise = "air_cut" in files and "drive_sweep" not in files
+    staged = f"{axis}_stage1.toml"
+    if paths or noise:
         out.append(f"millsense merge {machine} {' '.join(stage1)} -o {staged}")
+    if noise:
+        out.append(
+            f"millsense identify noise {files['air_cut']} --machine {staged} --axis {axis} "
+            f"-o {axis}_noise.toml"
+        )
+    if paths:
         for key in paths:
             suffix = key.removeprefix("table_load_sweep")
             out.append(

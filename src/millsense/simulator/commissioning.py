@@ -579,6 +579,8 @@ def write_commissioning_set(
     }
     if axis.friction is not None and axis.friction.sigma0_nm_rad is not None:
         recs["presliding"] = presliding_test(cfg, axis_name, ideal=ideal)
+    # an air cut at a cutting speed: the estimator's R (`identify noise`, Aslan Eq. 3.28-3.30)
+    recs["air_cut"] = air_cut_test(cfg, axis_name, speed_rad_s=10.0, duration_s=1.5, ideal=ideal)
     if axis.ball_screw is not None:
         recs["drive_sweep"] = drive_sweep(cfg, axis_name, ideal=ideal)
     elif axis.disturbance_modes is not None:
