@@ -29,6 +29,7 @@ def test_commission_writes_the_tests_and_its_identify_commands_run(
         f"quaser-ux600-y-{t}.h5"
         for t in (
             "acceleration",
+            "air_cut",
             "friction",
             "presliding",
             "table_load_sweep",
@@ -39,11 +40,13 @@ def test_commission_writes_the_tests_and_its_identify_commands_run(
     assert sweep.metadata["period_samples"] == 10_000 and "y/load" in sweep.channel_names
     lines = out.split("identify with:")[1].split("then merge")[0].splitlines()
     commands = [ln.strip() for ln in lines if ln.strip().startswith("millsense ")]
-    # from the nameplate: friction, drive; their merge (the C3 stage) feeds the path fits
+    # from the nameplate: friction, drive; their merge (the C3 stage) feeds the noise R (air
+    # cut) and the path fits
     assert [shlex.split(c)[1:3] for c in commands] == [
         ["identify", "friction"],
         ["identify", "drive"],
         ["merge", "quaser-ux600"],
+        ["identify", "noise"],
         ["identify", "path"],
         ["identify", "path"],
     ]

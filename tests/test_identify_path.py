@@ -157,7 +157,8 @@ def test_path_user_errors(
     for ch in ("x/load", "x/current_cmd", "x/speed"):
         bare.add_channel(ch, full.channel(ch), full.info(ch).unit)
     write_recording(tmp_path / "bare.h5", bare)
-    args = ["identify", "path", str(tmp_path / "bare.h5"), "--machine", "quaser-ux600"]
+    sim = str(simulator_machine_path("quaser-ux600"))  # a C3 stage to fit through
+    args = ["identify", "path", str(tmp_path / "bare.h5"), "--machine", sim]
     args += ["--axis", "x", "--input-channel", "x/load", "-o", o]
     code, _, err = run_cli(args, capsys)
     assert code == 2 and "--condition moving|at_rest" in err

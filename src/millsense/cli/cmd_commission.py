@@ -67,6 +67,16 @@ def identify_commands(machine: str, axis: str, files: dict[str, Path]) -> list[s
     return out
 
 
+def mergeable_fragments(commands: list[str]) -> list[str]:
+    """The fragments of the identify commands that go into the machine file: all but the idle
+    tables (``identify idle``: a position-indexed table with its CSV, not a machine-file key)."""
+    return [
+        ln.rsplit(" -o ", 1)[1]
+        for ln in commands
+        if ln.startswith("millsense identify") and not ln.startswith("millsense identify idle")
+    ]
+
+
 def run_identification(machine: str, out: Path, commands: list[str]) -> Path:
     """Run ``commands`` (the printed identify/merge lines, recordings given by absolute path)
     in ``out`` and merge every fragment into ``out/machine.toml``; its path."""
@@ -84,7 +94,7 @@ def run_identification(machine: str, out: Path, commands: list[str]) -> Path:
                 msg = f"commission --identify: '{line}' failed (exit {exc.code})"
                 raise ConfigError(msg) from None
 
-    frags = [ln.rsplit(" -o ", 1)[1] for ln in commands if ln.startswith("millsense identify")]
+    frags = mergeable_fragments(commands)
     with contextlib.chdir(out):
         for line in commands:
             cli(line)
@@ -141,9 +151,7 @@ def commission(
     typer.echo("identify with:")
     for line in commands:
         typer.echo(f"  {line}")
-    outs = " ".join(
-        line.rsplit(" -o ", 1)[1] for line in commands if line.startswith("millsense identify")
-    )
+    outs = " ".join(mergeable_fragments(commands))
     typer.echo(
         f"then merge into a machine file:\n  millsense merge {machine} {outs} -o machine.toml"
     )

@@ -722,6 +722,16 @@ def _open_h5(path: Path) -> h5py.File:
         ) from None
 
 
+def _root_metadata(path: Path, f: h5py.File) -> dict[str, Any]:
+    """The file's metadata_json as a mapping, or a RecordingError naming the file."""
+    meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+    if not isinstance(meta, dict):
+        raise RecordingError(
+            f"{path}: damaged root attribute metadata_json (a {type(meta).__name__}, not a table)"
+        )
+    return meta
+
+
 def _root_times(path: Path, f: h5py.File) -> tuple[float, float]:
     """The file's sample rate (finite, > 0) and start time (finite), or a RecordingError
     naming the file (a damaged attribute must not surface as an unnamed error later)."""
@@ -815,7 +825,7 @@ def _read_complete_h5(path: Path, mapped: memoryview | None) -> Recording:
         with f:
             _check_format(path, f)
             try:
-                meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+                meta = _root_metadata(path, f)
                 layout = _layout(f)
                 fs, t0 = _root_times(path, f)
             except (KeyError, ValueError, TypeError) as exc:

@@ -17,7 +17,6 @@ length is what one run wrote before it died. Both answer the same questions
 
 from __future__ import annotations
 
-import json
 import zlib
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,7 @@ from millsense.io.recording_file import (
     _check_format,
     _layout,
     _open_h5,
+    _root_metadata,
     _root_times,
     _source_metadata,
     read_recording,
@@ -80,7 +80,7 @@ class RecordingReader:
         f, path = self._file, self.path
         _check_format(path, f)
         try:
-            meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+            meta = _root_metadata(path, f)
             layout = _layout(f)
             self.sample_rate_hz, self.t0_s = _root_times(path, f)
         except (KeyError, ValueError, TypeError) as exc:
