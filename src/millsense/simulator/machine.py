@@ -45,6 +45,14 @@ from millsense.models.kinematics import Kinematics, TrunnionACMachine, kinematic
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.crash import CrashMonitor
+from millsense.simulator.fast_block import (
+    block_errors,
+    mean_abs_product,
+    rotate_back,
+    trunnion_block,
+    trunnion_loads,
+    trunnion_tip_error,
+)
 from millsense.simulator.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.simulator.interpolator import Interpolator, OverrideChannel, Upsampler
 from millsense.simulator.process_coupling import ProcessCoupling
@@ -190,6 +198,10 @@ class SimulatorOptions:
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
     realism : the realism layer; None (default) = on, or off with ``ideal``.
+    reference_loop : run the coupled part with the NumPy block loop of before the speed work
+        (decision 1081) instead of the compiled one; the same recordings to float round-off,
+        kept so that the benchmark measures the speed-up side by side and the golden tests
+        compare the two. Default False.
     ideal : run the one-way model of the machine file (rigid body + printed disturbance
         modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth (coupled lumped-mass
         drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one); with
@@ -212,6 +224,7 @@ class SimulatorOptions:
     sensors: SensorOptions = field(default_factory=SensorOptions)
     realism: RealismOptions | None = None
     ideal: bool = False
+    reference_loop: bool = False
 
     @property
     def realism_in_effect(self) -> RealismOptions:
@@ -581,6 +594,20 @@ class MachineSimulator(Source):
         self._channels = self._declare()
         # crash events (decision 0942): engaged with the spindle stopped, beyond the limits
         self.crashes = CrashMonitor(machine, self.axes)
+        # scratch of the compiled block loop (decision 1081)
+        nb = self.ratio
+        self._fb_vw = np.empty((nb, 3))
+        self._fb_axis = np.empty((nb, 3))
+        self._fb_rot = np.empty((nb, 3, 3))
+        self._fb_lm = np.empty((nb, 5, 3))
+        self._fb_speed = np.empty(nb)
+        self._fb_xp = np.empty((nb, 3))
+        self._fb_yp = np.empty((nb, 3))
+        self._fb_fw = np.empty((nb, 3))
+        self._fb_perr = np.empty(3)
+        self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
+        if any(len(c) != sl.stop - sl.start for c, sl in zip(self._fric_cols, self._fric_slices, strict=True)):
+            raise ConfigError("simulator: friction drift columns must be contiguous")
 
     # ------------------------------------------------------------------ declarations
     def _declare(self) -> list[ChannelInfo]:
@@ -780,10 +807,23 @@ class MachineSimulator(Source):
         # 3. the coupled blocks
         n_ax = len(self.axes)
         w = _BlockArrays(n, n_ax)
-        for b in range(n_blocks):
-            self._couple_block(
-                slice(b * nb, (b + 1) * nb), t, s_ref, q_ref, v_ref, pos_m, vel_m, spd_ref, w
-            )
+        if self.options.reference_loop:
+            for b in range(n_blocks):
+                self._couple_block(
+                    slice(b * nb, (b + 1) * nb), t, s_ref, q_ref, v_ref, pos_m, vel_m, spd_ref, w
+                )
+        else:
+            # what does not depend on the drives' state, for all blocks at once: the tip's arc
+            # length of the reference and every drive's torque noise (the generators' next
+            # draws, as block by block)
+            s_tip = self.interp.tip_arc_length(s_ref) if self.process is not None else s_ref
+            noise = np.empty((n_ax, n))
+            for i, drive in enumerate(self.drives):
+                noise[i] = drive.draw_noise(n)
+            for b in range(n_blocks):
+                self._couple_block_fast(
+                    b * nb, (b + 1) * nb, t, s_tip, q_ref, v_ref, pos_m, vel_m, spd_ref, noise, w
+                )
         # 4. channels
         d_out = w.drive
         data: dict[str, np.ndarray] = {}
@@ -977,6 +1017,147 @@ class MachineSimulator(Source):
             self._omega = float(spd[-1])
         self._torque_last = float(np.mean(torque))
         self._realism_tool()
+
+    def _couple_block_fast(
+        self,
+        a: int,
+        b: int,
+        t_all: FloatArray,
+        s_tip_all: FloatArray,
+        q_all: FloatArray,
+        v_all: FloatArray,
+        pos_m: FloatArray,
+        vel_m: FloatArray,
+        spd_all: FloatArray,
+        noise: FloatArray,
+        w: _BlockArrays,
+    ) -> None:
+        """:meth:`_couple_block` with compiled kinematics, loads, errors and checks and the
+        drives' noise drawn ahead (decision 1081): the same coupling and the same recordings
+        to float round-off."""
+        sl = slice(a, b)
+        n = b - a
+        fs = self.sample_rate_hz
+        kin = self.kin
+        five = isinstance(kin, TrunnionACMachine)
+        torque: FloatArray
+        if self.process is not None:
+            t = t_all[sl]
+            q_est = q_all[sl] - self._err_q
+            v_est = v_all[sl] - self._err_v
+            theta = self._theta + self._omega * self._steps[:n] / fs
+            omega = np.full(n, self._omega)
+            rot = self._fb_rot[:n]
+            if five:
+                assert isinstance(kin, TrunnionACMachine)
+                v_w = self._fb_vw[:n]
+                axis = self._fb_axis[:n]
+                trunnion_block(q_est, v_est, kin.a2_m, kin.d4_m, v_w, axis, rot, self._fb_lm[:n])
+                trunnion_tip_error(
+                    self._q_ref_block, self._err_q, kin.a2_m, kin.d4_m, self._fb_perr
+                )
+                p_err = self._fb_perr
+            elif self.stage:
+                v_w = np.zeros((n, 3))
+                v_w[:, 0] = v_est[:, 0]
+                axis = self._z_axis[:n]
+                p_err = np.array([self._err_q[0], 0.0, 0.0])
+            else:
+                v_w = v_est
+                axis = self._z_axis[:n]
+                p_err = self._err_q[:3]
+            speed = self._fb_speed[:n]
+            x_p = self._fb_xp[:n]
+            y_p = self._fb_yp[:n]
+            v_chip = self._tooth_period_velocity(v_w)
+            _feed_frame(v_chip, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
+            s_tip = s_tip_all[sl]
+            s_est = np.minimum(s_tip - float(p_err @ self._feed_dir), s_tip)
+            po = self.process.evaluate(t, s_est, theta, omega, speed)
+            f_w = self._fb_fw[:n]
+            _to_frame(po.force, x_p, y_p, axis, f_w)
+            regen = self.process.modes is not None
+            loads_blk = w.loads[sl]
+            if five:
+                trunnion_loads(rot, self._fb_lm[:n], f_w, w.force[sl], loads_blk)
+                if regen:
+                    rotate_back(rot, x_p, y_p, po.vibration_acc, w.tool_acc[sl])
+                    rotate_back(rot, x_p, y_p, po.vibration_m, w.tool_vib[sl])
+            else:
+                if self.stage:
+                    loads_blk[:, 0] = -f_w[:, 0]
+                else:
+                    loads_blk[:] = -f_w
+                w.force[sl] = f_w
+                if regen:
+                    acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
+                    vib_w = po.vibration_m[:, :1] * x_p + po.vibration_m[:, 1:2] * y_p
+                    w.tool_acc[sl] = acc_w[:, :2]
+                    w.tool_vib[sl] = vib_w[:, :2]
+            torque = po.torque
+            w.torque[sl] = torque
+            w.chatter[sl] = po.chatter
+            w.broken[sl] = po.broken
+            w.engagement[sl] = po.engagement_index
+            w.depth[sl] = po.depth_m
+            w.feed_per_tooth[sl] = po.feed_per_tooth_m
+            self.crashes.check_block(
+                t, (po.engagement_index >= 0) & (po.depth_m > 0), self._omega, loads_blk, torque
+            )
+        else:
+            torque = w.torque[sl]
+        # drives and spindle
+        loads = np.ascontiguousarray(w.loads[sl].T)
+        for i, drive in enumerate(self.drives):
+            out = w.drive[i, sl]
+            drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
+            if self._realism is not None:
+                self._realism_axis_fast(i, out)
+        err_q = np.empty(len(self.drives))
+        err_v = np.empty(len(self.drives))
+        block_errors(q_all[b - 1], v_all, w.drive, a, b, _D_TRUE_POS, _D_TRUE_VEL, err_q, err_v)
+        self._err_q = err_q
+        self._err_v = err_v
+        self._q_ref_block = q_all[b - 1].copy()
+        if self.spindle is not None:
+            sp = self.spindle.advance(spd_all[sl], torque)
+            w.spindle[sl, 0] = sp["current_cmd"]
+            w.spindle[sl, 1] = sp["current"]
+            w.spindle[sl, 2] = sp["speed"]
+            w.spindle[sl, 3] = sp["true_speed"]
+            self._theta = float(sp["angle"][-1])
+            self._omega = float(sp["true_speed"][-1])
+        else:
+            spd = spd_all[sl]
+            w.spindle[sl, 0] = 0.0
+            w.spindle[sl, 1] = 0.0
+            w.spindle[sl, 2] = spd
+            w.spindle[sl, 3] = spd
+            self._theta = float(self._theta + np.sum(spd) / fs)
+            self._omega = float(spd[-1])
+        self._torque_last = float(np.mean(torque))
+        self._realism_tool()
+
+    def _realism_axis_fast(self, i: int, out: FloatArray) -> None:
+        """:meth:`_realism_axis` with the friction power by a compiled mean and the friction
+        columns as one slice."""
+        ar = self._axis_real[i]
+        opts = self._realism
+        if ar is None or opts is None:
+            return
+        q = float(out[-1, _D_TRUE_POS])
+        drive = self.drives[i]
+        table = self._mode_tables[i]
+        if table is not None:
+            scales, mads, mbds = table
+            j = int(np.argmin(np.abs(scales - ar.mode_scale(q))))
+            drive._mad[:] = mads[j]
+            drive._mbd[:] = mbds[j]
+        if opts.friction_drift:
+            power = mean_abs_product(out, _D_FRICTION, _D_TRUE_SPEED)
+            sc = ar.friction_scale(q, power, self.period_s, opts)
+            cols = self._fric_slices[i]
+            drive._fric[cols] = self._fric_base[i][cols] * sc
 
     def _tooth_period_velocity(self, v_w: FloatArray) -> FloatArray:
         """Tool-centre velocity averaged over the last tooth period per sample, m/s.
