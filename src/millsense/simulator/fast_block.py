@@ -108,7 +108,9 @@ def trunnion_loads(
 
 
 @numba.njit(cache=True)
-def rotate_back(rot: np.ndarray, x_p: np.ndarray, y_p: np.ndarray, a: np.ndarray, out: np.ndarray) -> None:
+def rotate_back(
+    rot: np.ndarray, x_p: np.ndarray, y_p: np.ndarray, a: np.ndarray, out: np.ndarray
+) -> None:
     """``out = Tᵀ·(a_x·x_p + a_y·y_p)`` per sample: a process-frame vector (the tool modes'
     x, y) in the workpiece frame, then in the tool (drive) frame; first two components."""
     for k in range(a.shape[0]):
@@ -138,7 +140,9 @@ def trunnion_tip(q: np.ndarray, a2: float, d4: float, out: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
-def trunnion_tip_error(q_ref: np.ndarray, err_q: np.ndarray, a2: float, d4: float, out: np.ndarray) -> None:
+def trunnion_tip_error(
+    q_ref: np.ndarray, err_q: np.ndarray, a2: float, d4: float, out: np.ndarray
+) -> None:
     """``P(q_ref) − P(q_ref − err_q)`` (m, workpiece frame): the tool tip's tracking error."""
     pa = np.empty(3)
     pb = np.empty(3)

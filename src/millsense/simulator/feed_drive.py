@@ -919,7 +919,6 @@ class FeedDriveSim:
         )
         self.samples_done += n
 
-
     def draw_noise(self, n: int) -> np.ndarray:
         """The torque noise of the next ``n`` samples, N·m (the generator's next draws: the
         same values :meth:`advance_into` would draw over the same samples in any cuts)."""

@@ -606,7 +606,10 @@ class MachineSimulator(Source):
         self._fb_fw = np.empty((nb, 3))
         self._fb_perr = np.empty(3)
         self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
-        if any(len(c) != sl.stop - sl.start for c, sl in zip(self._fric_cols, self._fric_slices, strict=True)):
+        if any(
+            len(c) != sl.stop - sl.start
+            for c, sl in zip(self._fric_cols, self._fric_slices, strict=True)
+        ):
             raise ConfigError("simulator: friction drift columns must be contiguous")
 
     # ------------------------------------------------------------------ declarations
