@@ -19,6 +19,8 @@ import math
 import numba
 import numpy as np
 
+from millsense.simulator.feed_drive import feed_drive_kernel
+
 _HALF_PI = 0.5 * math.pi
 
 
@@ -204,3 +206,58 @@ def peak_abs(loads: np.ndarray, linear: np.ndarray) -> tuple[float, int, int]:
                     bj = jj
                 jj += 1
     return best, bi, bj
+
+
+@numba.njit(cache=True)
+def drives_block(
+    states,  # numba typed List of FeedDriveSim.kernel_state() tuples
+    n_done: np.ndarray,
+    pos_m: np.ndarray,
+    vel_m: np.ndarray,
+    loads: np.ndarray,
+    noise: np.ndarray,
+    out: np.ndarray,
+    a: int,
+    b: int,
+    real: np.ndarray,
+    temperature: np.ndarray,
+    fric_base: np.ndarray,
+    thermal: np.ndarray,
+    col_pos: int,
+    col_fric: int,
+    col_speed: int,
+) -> None:
+    """Every feed drive over samples ``a:b`` in one call: the kernel of each drive (the
+    arguments of :meth:`~millsense.simulator.feed_drive.FeedDriveSim.advance_block`), then the
+    realism layer's friction drift of :meth:`~millsense.simulator.realism.AxisRealism.friction_scale`
+    for the next block.
+
+    ``loads`` (n_axes, n) and ``noise`` (n_axes, n) per axis, ``out`` (n_axes, n, N_OUT);
+    ``n_done`` the samples each drive has done (advanced in place). ``real`` per axis
+    ``[drift on, ripple r, wavelength λ, phase ψ, first, end friction column]``,
+    ``temperature`` the axes' temperature rises (K, advanced in place), ``fric_base`` the
+    friction arrays before the drift, ``thermal`` ``[R_th (K/W), τ (s), c_T (1/K), block s]``.
+    """
+    n = b - a
+    for i in range(len(states)):
+        st = states[i]
+        o = out[i, a:b]
+        feed_drive_kernel(
+            st[0], st[1], st[2], st[3], st[4],
+            pos_m[i, a:b], vel_m[i, a:b], loads[i], st[5], noise[i, a:b],
+            st[6], st[7], st[8], st[9], st[10], st[11], st[12], st[13], st[14], st[15],
+            st[16], st[17], st[18], o, st[19], st[20], st[21], st[22], st[23], n_done[i],
+            st[24], st[25], st[26], st[27], st[28], st[29], st[30],
+        )
+        n_done[i] += n
+        if real[i, 0] != 0.0:
+            q = o[n - 1, col_pos]
+            power = mean_abs_product(o, col_fric, col_speed)
+            t_ss = thermal[0] * power
+            decay = math.exp(-thermal[3] / thermal[1])
+            temperature[i] = t_ss + (temperature[i] - t_ss) * decay
+            ripple = 1.0 + real[i, 1] * math.sin(2 * math.pi * q / real[i, 2] + real[i, 3])
+            sc = (1.0 - thermal[2] * temperature[i]) * ripple
+            fric = st[14]
+            for c in range(int(real[i, 4]), int(real[i, 5])):
+                fric[c] = fric_base[i, c] * sc

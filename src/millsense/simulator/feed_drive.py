@@ -924,6 +924,46 @@ class FeedDriveSim:
         same values :meth:`advance_into` would draw over the same samples in any cuts)."""
         return self._rng.standard_normal(n) * self.params.torque_noise_nm
 
+    def kernel_state(self, n: int) -> tuple[object, ...]:
+        """The kernel's arguments that persist between calls (state arrays updated in place,
+        parameters), in the order :func:`millsense.simulator.fast_block.drives_block` passes
+        them; ``n`` the block length (a zero current injection of that length)."""
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        return (
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            self._no_injection,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            float(self._md),
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            float(self.dt),
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            int(self._sched_block),
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
+            self._c_e,
+            self._ripple,
+        )
+
     def advance_block(
         self,
         pos_ref_rad: np.ndarray,

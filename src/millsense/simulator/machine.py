@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+from numba.typed import List as NumbaList
 from numpy.typing import NDArray
 
 from millsense.core.config import FeedAxisConfig, MachineConfig
@@ -47,6 +48,7 @@ from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.crash import CrashMonitor
 from millsense.simulator.fast_block import (
     block_errors,
+    drives_block,
     mean_abs_product,
     rotate_back,
     trunnion_block,
@@ -611,6 +613,45 @@ class MachineSimulator(Source):
             for c, sl in zip(self._fric_cols, self._fric_slices, strict=True)
         ):
             raise ConfigError("simulator: friction drift columns must be contiguous")
+        self._fb_states = self._drive_batch()
+
+    def _drive_batch(self) -> object | None:
+        """The drives' kernel states for :func:`~.fast_block.drives_block` (all axes in one
+        compiled call per block), or None where that call does not apply — an axis whose
+        realism rescales its modes from a table, or drives whose kernel arguments differ in
+        type — and the loop over :meth:`FeedDriveSim.advance_block` runs instead."""
+        if any(t is not None for t in self._mode_tables):
+            return None
+        states = NumbaList()
+        try:
+            for d in self.drives:
+                states.append(d.kernel_state(self.ratio))
+        except Exception:  # noqa: BLE001 - numba reports a type mismatch in several ways
+            return None
+        n_ax = len(self.drives)
+        opts = self._realism
+        width = max(len(f) for f in self._fric_base)
+        self._fb_fric_base = np.zeros((n_ax, width))
+        self._fb_real = np.zeros((n_ax, 6))
+        self._fb_temp = np.zeros(n_ax)
+        for i, ar in enumerate(self._axis_real):
+            self._fb_fric_base[i, : len(self._fric_base[i])] = self._fric_base[i]
+            if ar is not None and opts is not None and opts.friction_drift:
+                sl = self._fric_slices[i]
+                self._fb_real[i] = [
+                    1.0, ar.ripple, ar.ripple_wavelength, ar.ripple_phase, sl.start, sl.stop
+                ]
+                self._fb_temp[i] = ar.temperature_k
+        self._fb_thermal = np.array(
+            [
+                opts.thermal_resistance_k_w if opts else 0.0,
+                opts.thermal_time_constant_s if opts else 1.0,
+                opts.friction_temp_coeff_1_k if opts else 0.0,
+                self.period_s,
+            ]
+        )
+        self._fb_ndone = np.zeros(n_ax, dtype=np.int64)
+        return states
 
     # ------------------------------------------------------------------ declarations
     def _declare(self) -> list[ChannelInfo]:
@@ -823,10 +864,19 @@ class MachineSimulator(Source):
             noise = np.empty((n_ax, n))
             for i, drive in enumerate(self.drives):
                 noise[i] = drive.draw_noise(n)
+            if self._fb_states is not None:
+                for i, drive in enumerate(self.drives):
+                    self._fb_ndone[i] = drive.samples_done
             for b in range(n_blocks):
                 self._couple_block_fast(
                     b * nb, (b + 1) * nb, t, s_tip, q_ref, v_ref, pos_m, vel_m, spd_ref, noise, w
                 )
+            if self._fb_states is not None:  # the drives' counters and the axes' temperatures
+                for i, drive in enumerate(self.drives):
+                    drive.samples_done = int(self._fb_ndone[i])
+                    ar = self._axis_real[i]
+                    if ar is not None and self._fb_real[i, 0] != 0.0:
+                        ar.temperature_k = float(self._fb_temp[i])
         # 4. channels
         d_out = w.drive
         data: dict[str, np.ndarray] = {}
@@ -1111,11 +1161,31 @@ class MachineSimulator(Source):
             torque = w.torque[sl]
         # drives and spindle
         loads = np.ascontiguousarray(w.loads[sl].T)
-        for i, drive in enumerate(self.drives):
-            out = w.drive[i, sl]
-            drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
-            if self._realism is not None:
-                self._realism_axis_fast(i, out)
+        if self._fb_states is not None:
+            drives_block(
+                self._fb_states,
+                self._fb_ndone,
+                pos_m,
+                vel_m,
+                loads,
+                noise,
+                w.drive,
+                a,
+                b,
+                self._fb_real,
+                self._fb_temp,
+                self._fb_fric_base,
+                self._fb_thermal,
+                _D_TRUE_POS,
+                _D_FRICTION,
+                _D_TRUE_SPEED,
+            )
+        else:
+            for i, drive in enumerate(self.drives):
+                out = w.drive[i, sl]
+                drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
+                if self._realism is not None:
+                    self._realism_axis_fast(i, out)
         err_q = np.empty(len(self.drives))
         err_v = np.empty(len(self.drives))
         block_errors(q_all[b - 1], v_all, w.drive, a, b, _D_TRUE_POS, _D_TRUE_VEL, err_q, err_v)
