@@ -118,15 +118,20 @@ class CrashMonitor:
     def check_block(
         self,
         t: FloatArray,
-        engaged: NDArray[np.bool_],
+        engagement_index: NDArray[np.int64],
+        depth_m: FloatArray,
         omega_rad_s: float,
         loads: FloatArray,
         torque_nm: FloatArray,
+        mean_torque_nm: float | None = None,
     ) -> None:
-        """:meth:`check` with the peak load found by a compiled scan (the simulator's block
-        loop, decision 1081): the same events, without the per-block temporaries."""
+        """:meth:`check` with the peak load found by a compiled scan and the engagement mask
+        (``engagement_index ≥ 0`` and ``depth_m > 0``) formed only with the spindle stopped
+        (the simulator's block loop, decision 1081): the same events without the per-block
+        temporaries; ``mean_torque_nm``: the block's mean torque when the caller has it)."""
         rpm = abs(omega_rad_s) * 60.0 / (2.0 * math.pi)
-        if rpm < SPINDLE_STOPPED_RPM and engaged.any():
+        engaged = (engagement_index >= 0) & (depth_m > 0) if rpm < SPINDLE_STOPPED_RPM else None
+        if engaged is not None and engaged.any():
             k = int(np.argmax(engaged))
             self._raise(
                 "spindle_stopped",
@@ -146,7 +151,8 @@ class CrashMonitor:
                 )
                 self._raise("axis_force", True, float(t[i]), peak, msg)
         if self.power_limit_w is not None:
-            power = float(np.mean(torque_nm)) * abs(omega_rad_s)
+            mean = float(np.mean(torque_nm)) if mean_torque_nm is None else mean_torque_nm
+            power = mean * abs(omega_rad_s)
             if power > self.power_limit_w:
                 self._raise(
                     "spindle_power",

@@ -229,7 +229,8 @@ def drives_block(
 ) -> None:
     """Every feed drive over samples ``a:b`` in one call: the kernel of each drive (the
     arguments of :meth:`~millsense.simulator.feed_drive.FeedDriveSim.advance_block`), then the
-    realism layer's friction drift of :meth:`~millsense.simulator.realism.AxisRealism.friction_scale`
+    realism friction drift of
+    :meth:`~millsense.simulator.realism.AxisRealism.friction_scale`
     for the next block.
 
     ``loads`` (n_axes, n) and ``noise`` (n_axes, n) per axis, ``out`` (n_axes, n, N_OUT);
@@ -243,11 +244,43 @@ def drives_block(
         st = states[i]
         o = out[i, a:b]
         feed_drive_kernel(
-            st[0], st[1], st[2], st[3], st[4],
-            pos_m[i, a:b], vel_m[i, a:b], loads[i], st[5], noise[i, a:b],
-            st[6], st[7], st[8], st[9], st[10], st[11], st[12], st[13], st[14], st[15],
-            st[16], st[17], st[18], o, st[19], st[20], st[21], st[22], st[23], n_done[i],
-            st[24], st[25], st[26], st[27], st[28], st[29], st[30],
+            st[0],
+            st[1],
+            st[2],
+            st[3],
+            st[4],
+            pos_m[i, a:b],
+            vel_m[i, a:b],
+            loads[i],
+            st[5],
+            noise[i, a:b],
+            st[6],
+            st[7],
+            st[8],
+            st[9],
+            st[10],
+            st[11],
+            st[12],
+            st[13],
+            st[14],
+            st[15],
+            st[16],
+            st[17],
+            st[18],
+            o,
+            st[19],
+            st[20],
+            st[21],
+            st[22],
+            st[23],
+            n_done[i],
+            st[24],
+            st[25],
+            st[26],
+            st[27],
+            st[28],
+            st[29],
+            st[30],
         )
         n_done[i] += n
         if real[i, 0] != 0.0:

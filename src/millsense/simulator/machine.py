@@ -607,6 +607,8 @@ class MachineSimulator(Source):
         self._fb_yp = np.empty((nb, 3))
         self._fb_fw = np.empty((nb, 3))
         self._fb_perr = np.empty(3)
+        self._fb_omega = np.empty(nb)
+        self._fb_spindle = np.empty((nb, 6))
         self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
         if any(
             len(c) != sl.stop - sl.start
@@ -626,7 +628,7 @@ class MachineSimulator(Source):
         try:
             for d in self.drives:
                 states.append(d.kernel_state(self.ratio))
-        except Exception:  # noqa: BLE001 - numba reports a type mismatch in several ways
+        except Exception:  # numba reports a type mismatch in several ways
             return None
         n_ax = len(self.drives)
         opts = self._realism
@@ -639,7 +641,12 @@ class MachineSimulator(Source):
             if ar is not None and opts is not None and opts.friction_drift:
                 sl = self._fric_slices[i]
                 self._fb_real[i] = [
-                    1.0, ar.ripple, ar.ripple_wavelength, ar.ripple_phase, sl.start, sl.stop
+                    1.0,
+                    ar.ripple,
+                    ar.ripple_wavelength,
+                    ar.ripple_phase,
+                    sl.start,
+                    sl.stop,
                 ]
                 self._fb_temp[i] = ar.temperature_k
         self._fb_thermal = np.array(
@@ -1099,7 +1106,8 @@ class MachineSimulator(Source):
             q_est = q_all[sl] - self._err_q
             v_est = v_all[sl] - self._err_v
             theta = self._theta + self._omega * self._steps[:n] / fs
-            omega = np.full(n, self._omega)
+            omega = self._fb_omega[:n]
+            omega.fill(self._omega)
             rot = self._fb_rot[:n]
             if five:
                 assert isinstance(kin, TrunnionACMachine)
@@ -1154,11 +1162,13 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
+            mean_torque = float(np.mean(torque))
             self.crashes.check_block(
-                t, (po.engagement_index >= 0) & (po.depth_m > 0), self._omega, loads_blk, torque
+                t, po.engagement_index, po.depth_m, self._omega, loads_blk, torque, mean_torque
             )
         else:
             torque = w.torque[sl]
+            mean_torque = float(np.mean(torque))
         # drives and spindle
         loads = np.ascontiguousarray(w.loads[sl].T)
         if self._fb_states is not None:
@@ -1193,13 +1203,11 @@ class MachineSimulator(Source):
         self._err_v = err_v
         self._q_ref_block = q_all[b - 1].copy()
         if self.spindle is not None:
-            sp = self.spindle.advance(spd_all[sl], torque)
-            w.spindle[sl, 0] = sp["current_cmd"]
-            w.spindle[sl, 1] = sp["current"]
-            w.spindle[sl, 2] = sp["speed"]
-            w.spindle[sl, 3] = sp["true_speed"]
-            self._theta = float(sp["angle"][-1])
-            self._omega = float(sp["true_speed"][-1])
+            sp_out = self._fb_spindle[:n]
+            self.spindle.advance_into(spd_all[sl], np.ascontiguousarray(torque), sp_out)
+            w.spindle[sl] = sp_out[:, :4]  # current_cmd, current, speed, true_speed
+            self._theta = float(sp_out[n - 1, 4])
+            self._omega = float(sp_out[n - 1, 3])
         else:
             spd = spd_all[sl]
             w.spindle[sl, 0] = 0.0
@@ -1208,7 +1216,7 @@ class MachineSimulator(Source):
             w.spindle[sl, 3] = spd
             self._theta = float(self._theta + np.sum(spd) / fs)
             self._omega = float(spd[-1])
-        self._torque_last = float(np.mean(torque))
+        self._torque_last = mean_torque
         self._realism_tool()
 
     def _realism_axis_fast(self, i: int, out: FloatArray) -> None:
