@@ -25,6 +25,7 @@ from millsense.simulator.fast_block import trunnion_block, trunnion_loads, trunn
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
 from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToolModes
+from millsense.simulator.realism import RealismOptions
 from millsense.stability.time_domain import DirectionModes
 
 RTOL = 1e-9
@@ -50,8 +51,11 @@ def _process(tool_modes: bool) -> ProcessCoupling:
 
 def _machine(kind: str) -> tuple[MachineConfig, Job]:
     m = simulator_machine("quaser-ux600")
-    if kind == "5":
+    if kind in ("5", "5-ideal"):
         return m, Job.straight([0, 0, 0, 0, 0], [0.3, 0.02, 0, 0.2, 0.5], FEED, OMEGA)
+    if kind == "3":
+        m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+        return m, Job.straight([0, 0, 0], [0.3, 0.02, 0.0], FEED, OMEGA)
     m = m.model_copy(update={"kinematics": "1-axis-stage", "axes": {"x": m.axes["x"]}})
     return m, Job.straight([0, 0, 0], [0.3, 0.0, 0.0], FEED, OMEGA)
 
@@ -60,10 +64,20 @@ def _record(
     kind: str, reference: bool, tool_modes: bool, seconds: float
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int]:
     m, job = _machine(kind)
-    # a fast spindle run-up puts the cut inside a short run
-    opts = SimulatorOptions(seed=7, spindle_accel_rad_s2=20000.0, reference_loop=reference)
+    # a fast spindle run-up puts the cut inside a short run; "5-ideal": the machine file's
+    # one-way drives with the realism layer's position-dependent mode tables (the per-axis
+    # fallback of the batched drive call)
+    ideal = kind == "5-ideal"
+    opts = SimulatorOptions(
+        seed=7,
+        spindle_accel_rad_s2=20000.0,
+        reference_loop=reference,
+        ideal=ideal,
+        realism=RealismOptions() if ideal else None,
+    )
     sim = MachineSimulator(m, job, _process(tool_modes), opts, duration_s=seconds)
-    assert sim.truth_axes and sim.metadata["realism"]  # the default plant
+    assert sim.metadata["realism"] and bool(sim.truth_axes) != ideal
+    assert (sim._fb_states is None) == ideal  # which drive path the compiled loop takes
     parts: dict[str, list[np.ndarray]] = {}
     while (c := sim.read(997)) is not None:  # reads not aligned with the 30-sample blocks
         for k, v in c.data.items():
@@ -89,8 +103,8 @@ def _worst(ref: dict[str, np.ndarray], new: dict[str, np.ndarray]) -> tuple[str,
 
 @pytest.mark.parametrize(
     ("kind", "tool_modes"),
-    [("5", False), ("5", True), ("1", False)],
-    ids=["5axis", "5axis-modes", "1axis"],
+    [("5", False), ("5", True), ("1", False), ("3", True), ("5-ideal", False)],
+    ids=["5axis", "5axis-modes", "1axis", "3axis-modes", "5axis-ideal-realism"],
 )
 def test_fast_loop_matches_reference(kind: str, tool_modes: bool) -> None:
     ref, rows_ref, ev_ref = _record(kind, True, tool_modes, 0.4)
