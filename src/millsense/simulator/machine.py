@@ -1162,7 +1162,7 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
-            mean_torque = float(np.mean(torque))
+            mean_torque = float(torque.sum()) / n  # = np.mean
             self.crashes.check_block(
                 t, po.engagement_index, po.depth_m, self._omega, loads_blk, torque, mean_torque
             )
