@@ -20,7 +20,9 @@ Composition, per block of one interpolation period (3 ms = 30 samples at 10 kHz)
    follow.
 
 Steps 1–2 (and the sensors and 333 Hz rows) are computed for all the blocks a read needs at
-once; steps 3–5 run block by block (decision "Simulator block size"). Blocks are fixed in
+once; steps 3–5 run block by block (decision "Simulator block size"), in compiled kernels
+(:mod:`.fast_block`, decision 1081; ``SimulatorOptions.reference_loop`` keeps the NumPy loop
+for comparison). Blocks are fixed in
 absolute sample index and every generator is drawn block by block, so the output does not
 depend on how :meth:`MachineSimulator.read` cuts the stream. A command
 (:meth:`MachineSimulator.command`) takes effect at ``t_cmd + latency`` where ``t_cmd`` is the
