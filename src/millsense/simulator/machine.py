@@ -359,6 +359,83 @@ def _ramp(target: np.ndarray, last: float, step: float, out: np.ndarray) -> floa
     return last
 
 
+@numba.njit(cache=True)
+def _pre_block(
+    kind: int,
+    q_ref: np.ndarray,
+    v_ref: np.ndarray,
+    err_q: np.ndarray,
+    err_v: np.ndarray,
+    q_ref_block: np.ndarray,
+    a2: float,
+    d4: float,
+    theta0: float,
+    omega0: float,
+    steps: np.ndarray,
+    fs: float,
+    v_cum: np.ndarray,
+    v_count: int,
+    win: int,
+    feed_dir: np.ndarray,
+    s_tip: np.ndarray,
+    theta: np.ndarray,
+    omega: np.ndarray,
+    v_w: np.ndarray,
+    axis: np.ndarray,
+    rot: np.ndarray,
+    lm: np.ndarray,
+    v_chip: np.ndarray,
+    speed: np.ndarray,
+    x_p: np.ndarray,
+    y_p: np.ndarray,
+    s_est: np.ndarray,
+) -> int:
+    """The process inputs of one block in one compiled call (decision 1081), the steps of
+    :meth:`MachineSimulator._couple_block` before the process: the actual motion estimated
+    from the last block's errors, the spindle angle advanced at the last speed, the tool-tip
+    velocity and axis (``kind`` 0: 3-axis, 1: 1-axis stage, 2: trunnion, with its rotation and
+    load matrix), the tooth-period velocity (returns the new history count), the feed frame
+    (``feed_dir`` updated) and the arc length at the actual position."""
+    n = q_ref.shape[0]
+    na = q_ref.shape[1]
+    q_est = np.empty((n, na))
+    v_est = np.empty((n, na))
+    for k in range(n):
+        theta[k] = theta0 + omega0 * steps[k] / fs
+        omega[k] = omega0
+        for i in range(na):
+            q_est[k, i] = q_ref[k, i] - err_q[i]
+            v_est[k, i] = v_ref[k, i] - err_v[i]
+    p_err = np.zeros(3)
+    if kind == 2:
+        trunnion_block(q_est, v_est, a2, d4, v_w, axis, rot, lm)
+        trunnion_tip_error(q_ref_block, err_q, a2, d4, p_err)
+    else:
+        for k in range(n):
+            if kind == 1:
+                v_w[k, 0] = v_est[k, 0]
+                v_w[k, 1] = 0.0
+                v_w[k, 2] = 0.0
+            else:
+                for i in range(3):
+                    v_w[k, i] = v_est[k, i]
+            axis[k, 0] = 0.0
+            axis[k, 1] = 0.0
+            axis[k, 2] = 1.0
+        if kind == 1:
+            p_err[0] = err_q[0]
+        else:
+            for i in range(3):
+                p_err[i] = err_q[i]
+    count = _window_mean(v_w, v_cum, v_count, win, v_chip)
+    _feed_frame(v_chip, axis, feed_dir, speed, x_p, y_p)
+    lag = p_err[0] * feed_dir[0] + p_err[1] * feed_dir[1] + p_err[2] * feed_dir[2]
+    for k in range(n):
+        s = s_tip[k] - lag
+        s_est[k] = s if s < s_tip[k] else s_tip[k]
+    return count
+
+
 class _OverrideSchedule:
     """Effective override versus time for one channel (latency and quantisation)."""
 
@@ -610,6 +687,11 @@ class MachineSimulator(Source):
         self._fb_fw = np.empty((nb, 3))
         self._fb_perr = np.empty(3)
         self._fb_omega = np.empty(nb)
+        self._fb_theta = np.empty(nb)
+        self._fb_sest = np.empty(nb)
+        self._fb_vchip = np.empty((nb, 3))
+        self._a2 = self.kin.a2_m if isinstance(self.kin, TrunnionACMachine) else 0.0
+        self._d4 = self.kin.d4_m if isinstance(self.kin, TrunnionACMachine) else 0.0
         self._fb_spindle = np.empty((nb, 6))
         self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
         if any(
@@ -1105,37 +1187,44 @@ class MachineSimulator(Source):
         torque: FloatArray
         if self.process is not None:
             t = t_all[sl]
-            q_est = q_all[sl] - self._err_q
-            v_est = v_all[sl] - self._err_v
-            theta = self._theta + self._omega * self._steps[:n] / fs
+            theta = self._fb_theta[:n]
             omega = self._fb_omega[:n]
-            omega.fill(self._omega)
             rot = self._fb_rot[:n]
-            if five:
-                assert isinstance(kin, TrunnionACMachine)
-                v_w = self._fb_vw[:n]
-                axis = self._fb_axis[:n]
-                trunnion_block(q_est, v_est, kin.a2_m, kin.d4_m, v_w, axis, rot, self._fb_lm[:n])
-                trunnion_tip_error(
-                    self._q_ref_block, self._err_q, kin.a2_m, kin.d4_m, self._fb_perr
-                )
-                p_err = self._fb_perr
-            elif self.stage:
-                v_w = np.zeros((n, 3))
-                v_w[:, 0] = v_est[:, 0]
-                axis = self._z_axis[:n]
-                p_err = np.array([self._err_q[0], 0.0, 0.0])
-            else:
-                v_w = v_est
-                axis = self._z_axis[:n]
-                p_err = self._err_q[:3]
+            axis = self._fb_axis[:n]
             speed = self._fb_speed[:n]
             x_p = self._fb_xp[:n]
             y_p = self._fb_yp[:n]
-            v_chip = self._tooth_period_velocity(v_w)
-            _feed_frame(v_chip, axis, self._feed_dir, speed, x_p, y_p)  # updates _feed_dir
-            s_tip = s_tip_all[sl]
-            s_est = np.minimum(s_tip - float(p_err @ self._feed_dir), s_tip)
+            s_est = self._fb_sest[:n]
+            self._v_count = _pre_block(
+                2 if five else (1 if self.stage else 0),
+                q_all[sl],
+                v_all[sl],
+                self._err_q,
+                self._err_v,
+                self._q_ref_block,
+                self._a2,
+                self._d4,
+                self._theta,
+                self._omega,
+                self._steps,
+                fs,
+                self._v_cum,
+                self._v_count,
+                self._tooth_window(),
+                self._feed_dir,
+                s_tip_all[sl],
+                theta,
+                omega,
+                self._fb_vw[:n],
+                axis,
+                rot,
+                self._fb_lm[:n],
+                self._fb_vchip[:n],
+                speed,
+                x_p,
+                y_p,
+                s_est,
+            )
             po = self.process.evaluate(t, s_est, theta, omega, speed)
             f_w = self._fb_fw[:n]
             _to_frame(po.force, x_p, y_p, axis, f_w)
@@ -1253,19 +1342,21 @@ class MachineSimulator(Source):
         the end of the last block, in whole samples, ≤ 0.1 s; the instantaneous velocity
         while the spindle stands (decision "Simulator chip from the tooth-period feed").
         """
-        assert self.process is not None
-        om = abs(self._omega)
-        fs = self.sample_rate_hz
-        if om < 1e-3:
-            win = 1
-        else:
-            win = round(2 * math.pi / (self.process.tool.n_flutes * om) * fs)
-            win = min(max(win, 1), self._v_hist_max)
+        win = self._tooth_window()
         out = np.empty_like(v_w)
         self._v_count = _window_mean(
             np.ascontiguousarray(v_w), self._v_cum, self._v_count, win, out
         )
         return out
+
+    def _tooth_window(self) -> int:
+        """The window of :meth:`_tooth_period_velocity`, samples."""
+        assert self.process is not None
+        om = abs(self._omega)
+        if om < 1e-3:
+            return 1
+        win = round(2 * math.pi / (self.process.tool.n_flutes * om) * self.sample_rate_hz)
+        return int(min(max(win, 1), self._v_hist_max))
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""
