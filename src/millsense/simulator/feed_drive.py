@@ -919,6 +919,106 @@ class FeedDriveSim:
         )
         self.samples_done += n
 
+    def draw_noise(self, n: int) -> np.ndarray:
+        """The torque noise of the next ``n`` samples, N·m (the generator's next draws: the
+        same values :meth:`advance_into` would draw over the same samples in any cuts)."""
+        return self._rng.standard_normal(n) * self.params.torque_noise_nm
+
+    def kernel_state(self, n: int) -> tuple[object, ...]:
+        """The kernel's arguments that persist between calls (state arrays updated in place,
+        parameters), in the order :func:`millsense.simulator.fast_block.drives_block` passes
+        them; ``n`` the block length (a zero current injection of that length)."""
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        return (
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            self._no_injection,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            float(self._md),
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            float(self.dt),
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            int(self._sched_block),
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
+            self._c_e,
+            self._ripple,
+        )
+
+    def advance_block(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        dist: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        """:meth:`advance_into` without the checks, with the torque noise ``dist`` drawn by
+        :meth:`draw_noise` ahead (the simulator's block loop; every array C-contiguous
+        float64 of the block's length, ``out`` (n, N_OUT))."""
+        n = pos_ref_rad.shape[0]
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        feed_drive_kernel(
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            pos_ref_rad,
+            vel_ff_rad_s,
+            load,
+            self._no_injection,
+            dist,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            self._md,
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            self.dt,
+            out,
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            self._sched_block,
+            self.samples_done,
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
+            self._c_e,
+            self._ripple,
+        )
+        self.samples_done += n
+
 
 def _position_direction(plant: MechanicalPlant) -> np.ndarray:
     """State of the plant at rest with the motor at 1 rad and no spring stressed."""
