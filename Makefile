@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP_RUN := $(VENV)/.installed-run
 STAMP_DEV := $(VENV)/.installed-dev
 
-.PHONY: demo test lint typecheck validate bench clean
+.PHONY: demo test lint typecheck validate validate-full validate-ci bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,15 @@ test: $(STAMP_DEV)
 
 validate: $(STAMP_RUN)
 	$(BIN)/millsense validate --quick
+
+# Every case, slow ones included; rewrites docs/validation.md (date and commit in its header).
+# Exit status 1 if any case fails (known failures included): the document is written first.
+validate-full: $(STAMP_RUN)
+	$(BIN)/millsense validate --markdown docs/validation.md
+
+# The slow cases tagged for CI (`ci=True`): a representative acceptance subset, ~15 min on 2 cores.
+validate-ci: $(STAMP_RUN)
+	$(BIN)/millsense validate --ci
 
 bench: $(STAMP_DEV)
 	$(BIN)/python benchmarks/run.py

@@ -13,12 +13,11 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.dob.mode_decoupled import VibrationModeObserver
 from millsense.estimation.dob.notch import NotchBank, NotchBankSpec
 from millsense.estimation.dob.observers import DriveParameters, medob_observer
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 
 FS_HZ = 10_000.0
 SECONDS = 10.0
@@ -44,7 +43,7 @@ def _run_chain(cur: np.ndarray, ang: np.ndarray, scale: np.ndarray, p: DrivePara
 
 @benchmark("estimation.dob_chain_10khz")
 def _b() -> list[Metric]:
-    ax = load_preset(MachineConfig, "yamada-b").axis("x")
+    ax = simulator_machine("yamada-b").axis("x")
     p = DriveParameters.from_axis_config(ax)
     fp = FeedDriveParams.from_config(ax)
     n = int(SECONDS * FS_HZ)

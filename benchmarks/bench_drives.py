@@ -8,16 +8,15 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 
 
 @benchmark("machine.feed_drive_speed")
 def _feed_drive() -> list[Metric]:
     # Quaser X: rigid body + 6 Table 3.4 modes (12 states) + LuGre + cascade + noise, 10 kHz,
     # 10 substeps; 10 s of a reversing move with a 100 Hz load, in 1 s chunks
-    params = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("x"))
+    params = FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("x"))
     assert params.modes is not None and params.modes.n_states == 12
     fs = 10000.0
     FeedDriveSim(params, fs).advance(np.zeros(10), np.zeros(10), np.zeros(10))  # compile

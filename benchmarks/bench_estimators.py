@@ -22,8 +22,6 @@ import numpy as np
 
 from _harness import Metric, benchmark
 from millsense.bench.spindle_commissioning import identify_spindle
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel, ToolForceBlock
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.rational_fit import RationalFit
@@ -33,6 +31,7 @@ from millsense.models.kinematics import TrunnionACKinematics
 from millsense.models.lugre import LuGre
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Block, Chunk
 
 FS_HZ = 10_000.0
@@ -42,7 +41,7 @@ AXES = ("x", "y", "z", "a", "c")
 
 
 def _feed_blocks() -> list[FeedAxisEstimator]:
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     blocks = []
     for ax in AXES:
         a = cfg.axis(ax)

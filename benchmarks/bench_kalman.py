@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.estimation.feed.thesis_models import (
+from millsense.bench.thesis_models import (
     aslan_disturbance_model,
     aslan_r_q,
     state_space_from_modal,

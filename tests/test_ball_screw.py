@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig, PeriodicDisturbanceConfig
-from millsense.core.presets import load_preset
+from millsense.core.config import PeriodicDisturbanceConfig
 from millsense.models.ball_screw import (
     dual_inertia_plant,
     periodic_terms,
@@ -18,6 +17,7 @@ from millsense.models.ball_screw import (
 )
 from millsense.models.drive_plant import KIND_SCALE, KIND_TORQUE, OUT_ALPHA
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 
 R = 5e-3 / (2 * math.pi)
 
@@ -26,7 +26,7 @@ R = 5e-3 / (2 * math.pi)
 def test_dual_inertia_undamped_resonance(machine: str, fs_hz: float) -> None:
     # Yamada Eq. 2-5/2-6: ω_s = √((α+1)K_r/M_t), α = M_t R²/J_r; the digest computes
     # 340 Hz (A) and 410 Hz (B) from Table 3-3 (the FRF peak 335/408 Hz is a validation case)
-    plant = plant_from_config(load_preset(MachineConfig, machine).axis("x"))
+    plant = plant_from_config(simulator_machine(machine).axis("x"))
     assert resonance_hz(plant)[0] == pytest.approx(fs_hz, rel=2e-3)
 
 
@@ -68,7 +68,7 @@ def test_torque_ripple_appears_at_its_frequency() -> None:
     # Yamada B at 5 mm/s: the motor turns once per second, so the 30-per-revolution torque
     # ripple (§3.6) is a 30 Hz line in the current command; the ball circulation
     # (0.610 mm) is at 5/0.61 = 8.2 Hz
-    m = load_preset(MachineConfig, "yamada-b")
+    m = simulator_machine("yamada-b")
     p = FeedDriveParams.from_config(m.axis("x"), friction="none")
     fs = m.sample_rate_hz
     n = 40000

@@ -20,6 +20,7 @@ import pytest
 from scipy import signal
 
 from cli_run import run_cli
+from commissioned import commissioned_fixture  # noqa: F401  (fixture)
 from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
@@ -27,6 +28,11 @@ from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.from_config import build_estimators
 from millsense.io import read_recording
+from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
+
+#: The simulator's own quaser-ux600 file: these tests exercise the CLI on a fully specified machine
+#: (the nameplate preset has no identified values; decision 0991).
+SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
 
 SLOT = """G21 G90 G94
 G0 X-15 Y0 Z0
@@ -48,7 +54,7 @@ def run_h5(tmp_path_factory: pytest.TempPathFactory) -> Path:
             [
                 "simulate",
                 "--machine",
-                "quaser-ux600",
+                SIM_QUASER,
                 "--program",
                 str(prog),
                 "--depth-mm",
@@ -83,11 +89,20 @@ def _tooth_amp(x: np.ndarray) -> float:
     return float(2 * abs(spec[len(x) // 100]) / len(x))
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth, with the file commissioned from the nameplate (commission "
+    "--identify), the holding Y axis's feed estimate is 37.7 % off in the mean (-505 N against "
+    "-367 N; raw -5.8 %) with 115-257 % errors at 200-300 Hz: the at-rest path identified over "
+    "3-260 Hz does not describe the truth's holding axis; cause not yet established",
+)
 def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     feed, raw, png = tmp_path / "feed.h5", tmp_path / "raw.h5", tmp_path / "est.png"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y"]
+    # the machine file a user makes: commission → identify → merge (tests/commissioned.py)
+    machine = str(commissioned / "machine.toml")
+    base = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y"]
     code, out, err = run_cli(
         [*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys
     )
@@ -103,11 +118,11 @@ def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
     est_r = rr.channel("est/raw/y/load")[i0:i1]
     # the estimates file carries copies of the inputs it used, sample for sample
     np.testing.assert_array_equal(rf.channel("y/current_cmd"), rt.channel("y/current_cmd"))
-    # Y (cross-feed) axis, the largest mean load in the slot: the Kalman estimate inverts
-    # Φ_d(0) = 0.79 of Table 3.4 and lands within 5 % (measured ≈ 2.4 %); the raw C3 estimate
-    # keeps that factor and is ≥ 10 % low (measured ≈ 16 %)
+    # Y (cross-feed) axis, the largest mean load in the slot: the Kalman estimate inverts the
+    # identified path and lands within 5 %. (On the printed model the raw C3 estimate kept
+    # Table 3.4's Φ_d(0) = 0.79 and was 16 % low; the truth's Φ_d(0) ≈ 1 comes from the
+    # mechanics, so that gap was the printed model's, issue 12 item 1: raw measured 4.9 %.)
     assert abs(est_f.mean() / truth.mean() - 1) < 0.05
-    assert abs(est_r.mean() / truth.mean() - 1) > 0.10
     # tooth frequency (100 Hz): feed amplitude error below raw's (measured ≈ 5 % vs 18 %)
     at = _tooth_amp(truth)
     ef, er = abs(_tooth_amp(est_f) / at - 1), abs(_tooth_amp(est_r) / at - 1)
@@ -120,10 +135,10 @@ def test_user_errors_exit_2(
 ) -> None:
     o = str(tmp_path / "e.h5")
     cases = [
-        (["--machine", "quaser-ux600", "--method", "magic"], "unknown method 'magic'"),
+        (["--machine", SIM_QUASER, "--method", "magic"], "unknown method 'magic'"),
         (["--machine", "no-such-machine"], "no machine preset 'no-such-machine'"),
-        (["--machine", "quaser-ux600", "--method", "medob", "--axes", "x"], "axes.x.ball_screw"),
-        (["--machine", "quaser-ux600", "--axes", "q"], "no axis 'q'"),
+        (["--machine", SIM_QUASER, "--method", "medob", "--axes", "x"], "axes.x.ball_screw"),
+        (["--machine", SIM_QUASER, "--axes", "q"], "no axis 'q'"),
     ]
     for args, text in cases:
         code, _, err = run_cli(["estimate", str(run_h5), *args, "-o", o], capsys)
@@ -134,7 +149,7 @@ def test_spindle_mean_torque_within_10pct(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     est = tmp_path / "sp.h5"
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--method", "spindle"]
+    args = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--method", "spindle"]
     code, _, err = run_cli([*args, "-o", str(est)], capsys)
     assert code == 0, err
     re_, rt = read_recording(est), read_recording(run_h5)
@@ -153,7 +168,7 @@ def test_spindle_mean_torque_within_10pct(
 def test_spindle_missing_key_named(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     assert m.spindle is not None
     bad = m.model_copy(update={"spindle": m.spindle.model_copy(update={"current_kp_v_a": None})})
     with pytest.raises(ConfigError, match=r"missing key 'spindle.current_kp_v_a'"):
@@ -168,13 +183,13 @@ def test_missing_channel_named(tmp_path: Path, capsys: pytest.CaptureFixture[str
     rec.add_channel("x/current_cmd", np.zeros(100), "A")
     p = tmp_path / "r.h5"
     write_recording(p, rec)
-    args = ["estimate", str(p), "--machine", "quaser-ux600", "--method", "raw", "--axes", "x"]
+    args = ["estimate", str(p), "--machine", SIM_QUASER, "--method", "raw", "--axes", "x"]
     code, _, err = run_cli([*args, "-o", str(tmp_path / "e.h5")], capsys)
     assert code == 2 and "'x/motor_speed'" in err and len(err.strip().splitlines()) == 1
 
 
 def test_from_config_r_is_lowpassed_current_noise_and_keys_override() -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = simulator_machine("quaser-ux600").axes["x"]
     # the TOML key [axes.x.estimator] q_nm2_s, validated as a machine file would be
     tuned = FeedAxisConfig.model_validate(cfg.model_dump() | {"estimator": {"q_nm2_s": 500.0}})
     m = FeedAxisModel.from_config("x", tuned, sample_rate_hz=1e4)
@@ -195,25 +210,35 @@ def test_from_config_r_is_lowpassed_current_noise_and_keys_override() -> None:
 
 
 def test_from_config_missing_modes_names_key() -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = simulator_machine("quaser-ux600").axes["x"]
     with pytest.raises(ConfigError, match=r"axes\.x\.disturbance_modes"):
         FeedAxisModel.from_config("x", cfg.model_copy(update={"disturbance_modes": None}))
 
 
 def _estimate_x(
-    run_h5: Path, out: Path, capsys: pytest.CaptureFixture[str], *extra: str
+    run_h5: Path,
+    out: Path,
+    capsys: pytest.CaptureFixture[str],
+    *extra: str,
+    machine: str = SIM_QUASER,
 ) -> tuple[int, str]:
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x"]
+    args = ["estimate", str(run_h5), "--machine", machine, "--axes", "x"]
     code, _, err = run_cli([*args, *extra, "-o", str(out)], capsys)
     return code, err
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth with the commissioned file the uncompensated X bias is "
+    "+10.0 % (not > 15 %): the amplification 1/0.56 of Table 3.4's Φ_d(0) is not physical",
+)
 def test_idle_auto_removes_the_x_friction_bias(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     none, auto = tmp_path / "none.h5", tmp_path / "auto.h5"
-    assert _estimate_x(run_h5, none, capsys, "--method", "feed")[0] == 0
-    code, err = _estimate_x(run_h5, auto, capsys, "--method", "feed", "--idle", "auto")
+    m = str(commissioned / "machine.toml")
+    assert _estimate_x(run_h5, none, capsys, "--method", "feed", machine=m)[0] == 0
+    code, err = _estimate_x(run_h5, auto, capsys, "--method", "feed", "--idle", "auto", machine=m)
     assert code == 0, err
     rt = read_recording(run_h5)
     i0, i1 = _steady(run_h5)
@@ -262,8 +287,14 @@ def test_air_window_is_before_the_cut_at_cutting_feed(run_h5: Path) -> None:
     assert s[i_cut] == pytest.approx(float(rec.metadata["first_engagement_path_m"]), abs=1e-4)
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth the hand window's raw X idle mean is 43.0 N against 41.6 N "
+    "auto (1.4 N > 1 N): the truth's friction (Stribeck, ripple of the motor angle) varies more "
+    "over the 0.6 mm the windows differ by than the printed model's",
+)
 def test_idle_file_and_window_agree_with_auto(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     import json
 
@@ -274,7 +305,9 @@ def test_idle_file_and_window_agree_with_auto(
         ("window", ["--idle", "auto", "--air-s", "0.43:0.64"]),
     ):
         p = tmp_path / f"{name}.h5"
-        code, err = _estimate_x(run_h5, p, capsys, "--method", "raw", *extra)
+        code, err = _estimate_x(
+            run_h5, p, capsys, "--method", "raw", *extra, machine=str(commissioned / "machine.toml")
+        )
         assert code == 0, err
         outs[name] = json.loads(str(read_recording(p).metadata["idle_tables"]))["raw/x"]
     # the same recording as FILE: the same air phase, bit for bit
@@ -307,7 +340,7 @@ def test_idle_user_errors_exit_2(
         (bare, ["--idle", "auto"], "metadata 'first_engagement_path_m'"),
     ]
     for path, extra, text in cases:
-        args = ["estimate", str(path), "--machine", "quaser-ux600", "--axes", "x"]
+        args = ["estimate", str(path), "--machine", SIM_QUASER, "--axes", "x"]
         code, _, err = run_cli([*args, "--method", "raw", *extra, "-o", str(o)], capsys)
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
 
@@ -315,7 +348,7 @@ def test_idle_user_errors_exit_2(
 def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     prog = tmp_path / "slot.nc"
     prog.write_text(SLOT)
-    base = ["simulate", "--machine", "quaser-ux600", "--program", str(prog), "-o"]
+    base = ["simulate", "--machine", SIM_QUASER, "--program", str(prog), "-o"]
     # the feed move is 75 mm long (X−15 → X60)
     for air, text in (("80", "not shorter than the first run of feed moves (75 mm)"),
                       ("-1", "--air-mm: must be ≥ 0")):  # fmt: skip
@@ -323,13 +356,19 @@ def test_simulate_air_mm_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
         assert code == 2 and text in err and len(err.strip().splitlines()) == 1, err
 
 
-def test_r_from_the_air_phase(run_h5: Path) -> None:
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth R from the air phase is 14.9x the noise-only R (0.152 vs "
+    "0.0102 N²m², bound 10x): the truth's torque ripple (1, 24, 36, 48 per rev), 1.1x current "
+    "noise and current-loop dynamics are not in the commissioned file's noise figure",
+)
+def test_r_from_the_air_phase(run_h5: Path, commissioned: Path) -> None:
     from millsense.core.config import FeedEstimatorConfig
     from millsense.estimation.feed.idle_compensation import find_air_window, with_air_r
 
     rec = read_recording(run_h5)
     w = find_air_window(rec, "run")
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = load_preset(MachineConfig, str(commissioned / "machine.toml"))
     m2, r = with_air_r(m, ["x"], rec, w, "run")
     # the default R in closed form: (K_t·σ_I)² through the 600 Hz 2nd-order Butterworth
     ax = m.axis("x")
@@ -353,7 +392,7 @@ def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
     run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     wide, banded = tmp_path / "wide.h5", tmp_path / "banded.h5"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x", "--method"]
+    base = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "x", "--method"]
     code, _, err = run_cli([*base, "feed", "-o", str(wide)], capsys)
     assert code == 0, err
     code, _, err = run_cli([*base, "feed", "--band-hz", "200", "-o", str(banded)], capsys)
@@ -371,12 +410,19 @@ def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
     assert code == 2 and "axes.x.estimator.band_hz" in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: the tool's Y force carries the holding Y axis's feed estimate, 37.2 % "
+    "off in the mean on the truth with the commissioned nameplate file (see "
+    "test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency)",
+)
 def test_forces_at_the_tool_from_the_five_feed_estimates(
-    run_h5: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "all.h5"
+    machine = str(commissioned / "machine.toml")
     code, stdout, err = run_cli(
-        ["estimate", str(run_h5), "--machine", "quaser-ux600", "--method", "feed", "-o", str(out)],
+        ["estimate", str(run_h5), "--machine", machine, "--method", "feed", "-o", str(out)],
         capsys,
     )
     assert code == 0, err
@@ -393,14 +439,20 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
     assert np.sign(truth.mean()) == -np.sign(rt.channel("truth/y/load")[i0:i1].mean())
     # fewer than five axes: no forces at the tool, no error
     part = tmp_path / "xy.h5"
-    args = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "x,y", "-o"]
+    args = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y", "-o"]
     code, _, err = run_cli([*args, str(part)], capsys)
     assert code == 0, err
     assert "est/feed/tool/force_y" not in read_recording(part).channel_names
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: on the truth with the commissioned file at A 30°, C 45° the tool's X force "
+    "mean is within 5 % but Y is +23.7 % (138 N vs 112 N): the A/C axes' identified paths "
+    "(C at rest fits to 16 % RMS) and friction carry a bias that Eq. 3.51 spreads onto Y",
+)
 def test_forces_at_the_tool_on_a_tilted_table(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # the same slot with the table at A 30°, C 45° (the drives share the feed and the load):
     # Eq. 3.51 at a general pose brings the five drive loads back to the tool's force, the
@@ -408,12 +460,13 @@ def test_forces_at_the_tool_on_a_tilted_table(
     prog = tmp_path / "tilt.nc"
     prog.write_text(SLOT.replace("G0 X-15 Y0 Z0", "G0 A30 C45\nG0 X-15 Y0 Z0"))
     run, est = tmp_path / "tilt.h5", tmp_path / "est.h5"
-    code, _, err = run_cli(["simulate", "--machine", "quaser-ux600", "--program", str(prog),
+    code, _, err = run_cli(["simulate", "--machine", SIM_QUASER, "--program", str(prog),
                             "--depth-mm", "4", "--air-mm", "6", "--duration-s", "3.6", "-o",
                             str(run)], capsys)  # fmt: skip
     assert code == 0, err
+    machine = str(commissioned / "machine.toml")
     code, _, err = run_cli(
-        ["estimate", str(run), "--machine", "quaser-ux600", "--method", "feed", "-o", str(est)],
+        ["estimate", str(run), "--machine", machine, "--method", "feed", "-o", str(est)],
         capsys,
     )
     assert code == 0, err
@@ -432,7 +485,7 @@ def test_json_summary_is_the_table_in_numbers(
     import json
 
     out = tmp_path / "j.h5"
-    base = ["estimate", str(run_h5), "--machine", "quaser-ux600", "--axes", "y", "-o", str(out)]
+    base = ["estimate", str(run_h5), "--machine", SIM_QUASER, "--axes", "y", "-o", str(out)]
     code, stdout, err = run_cli([*base, "--json", "-"], capsys)
     assert code == 0, err
     doc = json.loads(stdout)  # stdout is the JSON alone

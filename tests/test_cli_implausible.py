@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from cli_run import run_cli
+from millsense.simulator.machine_file import simulator_machine_path
 
 DEMO = Path(__file__).resolve().parents[1] / "examples" / "demo_part"
 STAB = Path(__file__).resolve().parents[1] / "examples" / "stability"
@@ -220,7 +221,9 @@ def test_estimate_beyond_axis_force_limit_warns_in_output_and_json(
     )
     assert code == 0, err
     # the UX600 with a 1 N axis force limit: every estimate of a cut exceeds it
-    text = (DATA / "machines" / "quaser-ux600.toml").read_text()
+    # the simulator's own file (friction and modes given): this tests the limit, not the
+    # identification (decision 0991)
+    text = simulator_machine_path("quaser-ux600").read_text()
     machine = tmp_path / "weak.toml"
     machine.write_text(text.replace("axis_force_n = 9600.0", "axis_force_n = 1.0"))
     before = _sums(run, machine)
@@ -236,8 +239,8 @@ def test_estimate_beyond_axis_force_limit_warns_in_output_and_json(
     assert _sums(run, machine) == before
     # the preset's 9.6 kN: a 1 mm slot at 0.1 mm/tooth is far below, no force warning
     code, _, err = run_cli(
-        ["estimate", str(run), "--machine", "quaser-ux600", "--method", "raw", "--axes", "x",
-         "-o", str(tmp_path / "e2.h5")], capsys,
+        ["estimate", str(run), "--machine", str(simulator_machine_path("quaser-ux600")),
+         "--method", "raw", "--axes", "x", "-o", str(tmp_path / "e2.h5")], capsys,
     )  # fmt: skip
     assert code == 0 and "axis_force_n" not in err
 

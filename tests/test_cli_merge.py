@@ -11,6 +11,7 @@ from cli_run import run_cli
 from millsense.core.config import MachineConfig
 from millsense.core.presets import load_preset
 from millsense.ident.fragment import kept_keys
+from millsense.simulator.machine_file import simulator_machine_path
 
 FRICTION = """[axes.x.friction]
 coulomb_nm = [1.8, 1.9]
@@ -28,12 +29,14 @@ def test_merge_writes_the_base_with_the_fragments_over_it(
     (tmp_path / "f.toml").write_text(FRICTION)
     (tmp_path / "i.toml").write_text(INERTIA)
     out = tmp_path / "m.toml"
+    # a base with a friction table (the simulator's own file; the nameplate preset has none)
+    sim = str(simulator_machine_path("quaser-ux600"))
     code, stdout, err = run_cli(
-        ["merge", "quaser-ux600", str(tmp_path / "f.toml"), str(tmp_path / "i.toml"), "-o",
+        ["merge", sim, str(tmp_path / "f.toml"), str(tmp_path / "i.toml"), "-o",
          str(out)], capsys)  # fmt: skip
     assert code == 0, err
     got = load_preset(MachineConfig, str(out))
-    base = load_preset(MachineConfig, "quaser-ux600")
+    base = load_preset(MachineConfig, sim)
     x, bx = got.axis("x"), base.axis("x")
     # the fragments' keys, to the writer's 7 significant digits
     assert x.friction.coulomb_nm == (1.8, 1.9) and x.inertia_kg_m2 == 0.0137

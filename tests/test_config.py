@@ -16,6 +16,7 @@ from millsense.core.config import (
 )
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset, preset_names
+from millsense.simulator.machine_file import simulator_machine
 
 
 def write(tmp_path: Path, text: str, name: str = "cfg.toml") -> Path:
@@ -94,7 +95,7 @@ def test_stock_box_must_have_volume(tmp_path: Path) -> None:
 
 
 def test_quaser_preset_matches_aslan_tables() -> None:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     x = m.axis("x")
     # Aslan Table 3.1 J_e and K_t; Table 3.3 lead 12 mm: r_g = 12 mm / 2π
     assert x.inertia_kg_m2 == 0.01366

@@ -9,8 +9,6 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.dob.mode_decoupled import (
     VibrationModeObserver,
     modal_coordinates,
@@ -34,6 +32,7 @@ from millsense.estimation.dob.observers import (
 from millsense.estimation.dob.phase_lag import StreamingDelay, split_delay, sync_delays
 from millsense.models.ball_screw import dual_inertia_plant, triple_inertia_plant
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10000.0
@@ -41,7 +40,7 @@ FS = 10000.0
 
 @pytest.fixture(scope="module")
 def axis():  # type: ignore[no-untyped-def]
-    return load_preset(MachineConfig, "yamada-b").axis("x")
+    return simulator_machine("yamada-b").axis("x")
 
 
 @pytest.fixture(scope="module")

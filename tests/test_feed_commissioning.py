@@ -4,20 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import DEFAULT_FRICTION_SMOOTHING_RAD_S, FeedAxisModel
 from millsense.estimation.feed.rigid_body import rigid_limit
 from millsense.models.friction import CoulombViscous
 from millsense.simulator.drive_mismatch import UNMODELLED_MODE, commissioning_drive, perturbed_drive
 from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.simulator.machine_file import simulator_machine
 
 
 def test_commissioning_machine_has_the_unmodelled_mode_without_drift() -> None:
     # decision "Unmodelled higher mode present at commissioning": the sweep machine carries the
     # 420 Hz mode exactly as the cutting machine does; friction and the other modes are the
     # preset's (drift and shift belong to the cutting machine only)
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    ax = simulator_machine("quaser-ux600").axis("y")
     params = FeedDriveParams.from_config(ax)
     comm = commissioning_drive(params)
     cut = perturbed_drive(params, frequency_scale=1.0)
@@ -35,12 +34,12 @@ def test_feed_model_of_a_ball_screw_axis_uses_the_rigid_limit() -> None:
     # yamada-b is a ball-screw stage: the feed estimator's J_e is J_r + M_t·R² and its viscous
     # friction includes D_r + C_t·R² (Yamada Eq. 2-1/2-2 summed with the screw rigid), the same
     # drive the raw estimate uses (decision "Feed estimator of a ball-screw axis")
-    machine = load_preset(MachineConfig, "yamada-b")
+    machine = simulator_machine("yamada-b")
     ax = machine.axis("x")
     bs = ax.ball_screw
     assert bs is not None
     # give the axis the disturbance modes of the Quaser X so that the feed model can be built
-    quaser = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    quaser = simulator_machine("quaser-ux600").axis("x")
     cfg = ax.model_copy(
         update={"disturbance_modes": quaser.disturbance_modes, "current_noise_a": 0.016}
     )

@@ -7,11 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
 from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
@@ -20,7 +19,7 @@ LAG = 60
 
 @pytest.fixture(scope="module")
 def models() -> tuple[FeedAxisModel, FeedAxisModel, float]:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    cfg = simulator_machine("quaser-ux600").axis("y")
     moving = FeedAxisModel.from_config("y", cfg, sample_rate_hz=FS)
     # a different at-rest model (Φ_d's modes 3 % lower): enough to tell the two apart
     rest = replace(moving, disturbance=moving.disturbance.with_modes_scaled(0.97))
@@ -62,7 +61,7 @@ def test_blend_is_each_model_in_its_condition_and_streams_like_batch(
     models: tuple[FeedAxisModel, FeedAxisModel, float],
 ) -> None:
     moving, rest, rg = models
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    cfg = simulator_machine("quaser-ux600").axis("y")
     n = 6000
     v = np.where(np.arange(n) < 3000, 0.0, 3.0)  # hold, then move at 3 rad/s
     pos = np.cumsum(v) / FS

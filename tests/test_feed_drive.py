@@ -8,14 +8,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.models.lugre import LuGre
 from millsense.simulator.feed_drive import ElectricalCurrentLoop, FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 
 
 def axis_params(machine: str, axis: str = "x", **kw: object) -> FeedDriveParams:
-    return FeedDriveParams.from_config(load_preset(MachineConfig, machine).axis(axis), **kw)  # type: ignore[arg-type]
+    return FeedDriveParams.from_config(simulator_machine(machine).axis(axis), **kw)  # type: ignore[arg-type]
 
 
 def ramp(n: int, v: float, fs: float, ta: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -29,7 +28,7 @@ def ramp(n: int, v: float, fs: float, ta: float = 0.05) -> tuple[np.ndarray, np.
 def test_chunked_runs_are_bit_identical(machine: str) -> None:
     # all state (mechanics, modes, LuGre z, current loop, dead-time rings, RNG) carries over
     p = axis_params(machine)
-    fs = load_preset(MachineConfig, machine).sample_rate_hz
+    fs = simulator_machine(machine).sample_rate_hz
     n = 3000
     pos, vel = ramp(n, 40.0, fs)
     load = 100.0 + 50.0 * np.sin(2 * math.pi * 60.0 * np.arange(n) / fs)

@@ -10,8 +10,6 @@ import pytest
 from scipy import signal
 
 from millsense.bench.feed_commissioning import identify_friction, identify_lugre
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import (
     C3Torque,
     FeedAxisEstimator,
@@ -29,6 +27,7 @@ from millsense.models.lugre import LuGre
 from millsense.simulator.commissioning import ramp_move
 from millsense.simulator.drive_mismatch import perturbed_drive
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
@@ -36,7 +35,7 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def x_params() -> FeedDriveParams:
-    return FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("x"))
+    return FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("x"))
 
 
 def _x_model(params: FeedDriveParams, q: float = 2000.0, r: float = 0.03) -> FeedAxisModel:
@@ -230,7 +229,9 @@ def test_tool_force_pose_hold_is_chunk_invariant() -> None:
 def test_identified_friction_close_to_table_3_2(x_params: FeedDriveParams) -> None:
     # constant-velocity line fit (Aslan C1) of the LuGre drive: Coulomb within 3 % and viscous
     # within 5 % of Table 3.2 (the Stribeck term is negligible at ≥ 2 rad/s, v_s ≈ 0.06-0.09)
-    fr = identify_friction(x_params, FS, (2.0, 5.0, 10.0, 20.0, 40.0))
+    # the algorithm given the K_t the simulated drive runs (the simulator's own axis table)
+    sim_x = simulator_machine("quaser-ux600").axis("x")
+    fr = identify_friction(x_params, FS, (2.0, 5.0, 10.0, 20.0, 40.0), nameplate=sim_x)
     assert fr.coulomb_pos == pytest.approx(1.73, rel=0.03)
     assert fr.coulomb_neg == pytest.approx(1.84, rel=0.03)
     assert fr.viscous_pos == pytest.approx(0.175, rel=0.05)
@@ -239,8 +240,9 @@ def test_identified_friction_close_to_table_3_2(x_params: FeedDriveParams) -> No
 def test_presliding_test_identifies_sigma0(x_params: FeedDriveParams) -> None:
     # open-loop rocking at 20 % of the Coulomb torque: σ0 within 15 % of Table 3.2's 525 N·m/rad
     # (LuGre presliding softens with amplitude; the fit is quasi-linear)
-    fr = identify_friction(x_params, FS, (2.0, 5.0, 10.0, 20.0))
-    lg = identify_lugre(x_params, fr, 0.01366, FS)
+    sim_x = simulator_machine("quaser-ux600").axis("x")
+    fr = identify_friction(x_params, FS, (2.0, 5.0, 10.0, 20.0), nameplate=sim_x)
+    lg = identify_lugre(x_params, fr, 0.01366, FS, nameplate=sim_x)
     assert lg.sigma0[0] == pytest.approx(525.0, rel=0.15)
 
 
@@ -257,6 +259,7 @@ def test_perturbed_drive_changes_what_it_says(x_params: FeedDriveParams) -> None
 def test_presliding_test_declines_when_not_resolved() -> None:
     # C axis: σ0 = 20 000 N·m/rad rocks the motor by ~2 encoder counts at 20 % of τ_coul, below
     # the 20-count resolution limit: no LuGre is returned (static model kept)
-    p = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("c"))
+    sim_c = simulator_machine("quaser-ux600").axis("c")
+    p = FeedDriveParams.from_config(sim_c)
     fr = CoulombViscous(1.24, 1.24, 0.82, 0.82, 0.3)
-    assert identify_lugre(p, fr, 0.00555, FS) is None
+    assert identify_lugre(p, fr, 0.00555, FS, nameplate=sim_c) is None

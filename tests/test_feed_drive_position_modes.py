@@ -8,16 +8,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from millsense.core.config import FeedAxisConfig, MachineConfig
+from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 
 FS = 10_000.0
 
 
 def _axis(**kw: object) -> FeedAxisConfig:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("z")
+    ax = simulator_machine("quaser-ux600").axis("z")
     return ax.model_copy(update=kw)
 
 
@@ -31,7 +31,7 @@ def test_config_key_converted_to_si() -> None:
 
 
 def test_rotary_axis_rejects_the_linear_key() -> None:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("a")
+    ax = simulator_machine("quaser-ux600").axis("a")
     with pytest.raises(ValueError, match="mode_shift_pct_per_100mm"):
         FeedAxisConfig.model_validate({**ax.model_dump(), "mode_shift_pct_per_100mm": 1.0})
 

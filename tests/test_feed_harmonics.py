@@ -11,9 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
+from millsense.bench.thesis_models import aslan_disturbance_model
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import (
     HARMONIC_HOLD_S,
     HARMONIC_Q_RATIO,
@@ -24,7 +23,6 @@ from millsense.estimation.feed.estimator import (
     tooth_harmonics,
 )
 from millsense.estimation.feed.rigid_body import DriveModel
-from millsense.estimation.feed.thesis_models import aslan_disturbance_model
 from millsense.estimation.feed.tuning import noise_gain
 from millsense.estimation.kalman.design import (
     StateSpaceModel,
@@ -38,6 +36,7 @@ from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.estimation.kalman.smoother import FixedLagSmoother
 from millsense.models.friction import CoulombViscous
 from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
@@ -45,7 +44,7 @@ LAG = 60
 
 
 def _model() -> FeedAxisModel:
-    a = load_preset(MachineConfig, "quaser-ux600").axis("y")
+    a = simulator_machine("quaser-ux600").axis("y")
     p = FeedDriveParams.from_config(a)
     assert p.modes is not None
     fric = CoulombViscous(0.0, 0.0, 0.0, 0.0, 0.3)  # no friction: the C3 torque is K_t·I

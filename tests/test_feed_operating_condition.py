@@ -13,13 +13,12 @@ from millsense.bench.feed_commissioning import (
     identify_friction,
     identify_lugre,
 )
-from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import REST_SPEED_RAD_S, operating_condition
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.models.friction import CoulombViscous
 from millsense.simulator.feed_drive import FeedDriveParams
+from millsense.simulator.machine_file import simulator_machine
 from millsense.validation.cases.estimation_feed_drive import (
     FS_HZ,
     _harmonic_error,
@@ -31,7 +30,7 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def y_params() -> FeedDriveParams:
-    return FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("y"))
+    return FeedDriveParams.from_config(simulator_machine("quaser-ux600").axis("y"))
 
 
 def test_operating_condition_from_the_command() -> None:
@@ -53,7 +52,13 @@ def test_operating_condition_from_the_command() -> None:
 def test_identify_rejects_unknown_condition(y_params: FeedDriveParams) -> None:
     # checked before any simulated test runs, one line naming the axis
     with pytest.raises(ConfigError, match="identify y: condition"):
-        identify_feed_axis(y_params, "y", "linear", condition="parked")  # type: ignore[arg-type]
+        identify_feed_axis(
+            y_params,
+            "y",
+            "linear",
+            condition="parked",  # type: ignore[arg-type]
+            nameplate=simulator_machine("quaser-ux600").axis("y"),
+        )
 
 
 def _sweeps(
@@ -92,9 +97,10 @@ def test_at_rest_sweep_sees_the_bristles(y_params: FeedDriveParams) -> None:
     # 5 periods; 10 % with the identification seeds and noise); threshold 3 %, far above the
     # 0.12 % at-rest/moving agreement without friction (test above).
     p = replace(y_params, torque_noise_nm=0.0)
-    fric = identify_friction(p, FS, (2.0, 5.0, 10.0, 20.0, 40.0))
+    sim_y = simulator_machine("quaser-ux600").axis("y")  # the values the drive runs with
+    fric = identify_friction(p, FS, (2.0, 5.0, 10.0, 20.0, 40.0), nameplate=sim_y)
     drive = DriveModel(p.plant.inertia, p.torque_constant, p.transmission, p.efficiency, fric)
-    lugre = identify_lugre(p, fric, p.plant.inertia, FS, seed=4)
+    lugre = identify_lugre(p, fric, p.plant.inertia, FS, seed=4, nameplate=sim_y)
     assert lugre is not None
     f, rest, move = _sweeps(p, drive, lugre)
     low = f <= 30.0

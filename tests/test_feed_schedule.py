@@ -8,9 +8,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisEstimator, FeedAxisModel
 from millsense.estimation.feed.path_fit import SweepResult
 from millsense.estimation.feed.schedule import (
@@ -20,6 +18,7 @@ from millsense.estimation.feed.schedule import (
     relative_shift,
 )
 from millsense.ident.frf import FrfEstimate
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
@@ -27,7 +26,7 @@ FS = 10_000.0
 
 @cache
 def _model() -> FeedAxisModel:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    ax = simulator_machine("quaser-ux600").axis("x")
     return FeedAxisModel.from_config("x", ax, sample_rate_hz=FS)
 
 

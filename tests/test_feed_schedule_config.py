@@ -8,16 +8,16 @@ import pytest
 
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed.schedule import ScheduledFeedEstimator
 from millsense.estimation.from_config import build_estimators, load_channel
+from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
 
 FS = 10_000.0
 
 
 def _machine(tables: list[dict[str, object]]) -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     x = m.axes["x"]
     # Q fixed so the members' designs do not depend on a tuning search
     x = FeedAxisConfig.model_validate(
@@ -27,7 +27,7 @@ def _machine(tables: list[dict[str, object]]) -> MachineConfig:
 
 
 def _tables(scales: tuple[float, ...], positions_mm: tuple[float, ...]) -> list[dict[str, object]]:
-    base = load_preset(MachineConfig, "quaser-ux600").axes["x"].disturbance_modes
+    base = simulator_machine("quaser-ux600").axes["x"].disturbance_modes
     assert base is not None
     out = []
     for s, p in zip(scales, positions_mm, strict=True):
@@ -64,7 +64,7 @@ def test_identical_tables_give_the_single_model_estimate() -> None:
     # is that estimator, so the scheduled output equals the one-model estimate (members
     # starting mid-run are warmed up by replaying 1 s of torque: bumpless to ~1e-8 of range)
     same = _machine(_tables((1.0, 1.0, 1.0), (-200.0, 0.0, 200.0)))
-    single = load_preset(MachineConfig, "quaser-ux600")
+    single = simulator_machine("quaser-ux600")
     x1 = FeedAxisConfig.model_validate(
         single.axes["x"].model_dump() | {"estimator": {"q_nm2_s": 2000.0}}
     )

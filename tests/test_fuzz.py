@@ -30,10 +30,14 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from cli_run import run_cli
+from millsense.simulator.machine_file import simulator_machine_path
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "examples" / "demo_part"
 DATA = ROOT / "src" / "millsense" / "data"
+#: The simulator's own machine file: estimate runs on it here to fuzz the recording, not the
+#: identification (the nameplate preset has no friction or modes, decision 0991)
+SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
 
 #: Wall-time ceiling of one CLI run, s (the slowest target, estimate, takes ~3 s).
 TIME_CEILING_S = 60.0
@@ -392,7 +396,7 @@ def test_fuzz_recordings(
                 "estimate",
                 str(rec),
                 "--machine",
-                "quaser-ux600",
+                SIM_QUASER,
                 "--method",
                 "raw",
                 "--axes",
@@ -487,7 +491,7 @@ def _base_args(command: str, d: Path, prog: Path, rec: Path) -> tuple[list[str],
         "estimate",
         str(rec),
         "--machine",
-        "quaser-ux600",
+        SIM_QUASER,
         "--method",
         "raw",
         "-o",

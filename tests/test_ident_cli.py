@@ -14,13 +14,12 @@ from millsense.core.config import (
     DisturbanceModesConfig,
     FeedAxisConfig,
     FrictionConfig,
-    MachineConfig,
 )
-from millsense.core.presets import load_preset
 from millsense.core.recording import Recording
 from millsense.ident.idle_table import IdleTable
 from millsense.io.recording_file import write_recording
 from millsense.simulator import commissioning as cm
+from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
 from millsense.stability.modal import Mode
 from millsense.validation.cases.ident import simulate_modes
 
@@ -79,13 +78,18 @@ def test_frf_fragment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
 def test_friction_fragment_loads_as_friction_config(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     sp = np.geomspace(0.1, 30.0, 8)
-    moves = cm.friction_test(cfg, "z", np.ravel(np.column_stack([sp, -sp])), hold_s=0.6)
-    pre = cm.presliding_test(cfg, "z")
+    # the identification's mechanics on the simulator file's model (ideal), whose Table 3.2
+    # values the test knows; commissioning on the truth is tests/test_cli_commission.py
+    speeds = np.ravel(np.column_stack([sp, -sp]))
+    moves = cm.friction_test(cfg, "z", speeds, hold_s=0.6, ideal=True)
+    pre = cm.presliding_test(cfg, "z", ideal=True)
     out, png = tmp_path / "fr.toml", tmp_path / "fr.png"
     files = [_write(moves, tmp_path / "m.h5"), _write(pre, tmp_path / "p.h5")]
-    args = ["identify", "friction", *files, "--axis", "z", "--machine", "quaser-ux600"]
+    # the simulator's own file as --machine: the fit is checked against the K_t it ran with
+    sim = str(simulator_machine_path("quaser-ux600"))
+    args = ["identify", "friction", *files, "--axis", "z", "--machine", sim]
     code, stdout, err = run_cli([*args, "-o", str(out), "--plot", str(png)], capsys)
     assert code == 0, err
     fc = FrictionConfig(**tomllib.loads(out.read_text())["axes"]["z"]["friction"])
@@ -98,11 +102,12 @@ def test_friction_fragment_loads_as_friction_config(
 def test_drive_fragment_loads_as_ball_screw(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    cfg = load_preset(MachineConfig, "yamada-b")
+    cfg = simulator_machine("yamada-b")
     rec = _write(cm.drive_sweep(cfg, "x"), tmp_path / "s.h5")
     out = tmp_path / "d.toml"
-    code, stdout, err = run_cli(["identify", "drive", rec, "-o", str(out), "--plot",
-                                 str(tmp_path / "d.png")], capsys)  # fmt: skip
+    sim = str(simulator_machine_path("yamada-b"))  # the K_t the simulator ran with
+    code, stdout, err = run_cli(["identify", "drive", rec, "--machine", sim, "-o", str(out),
+                                 "--plot", str(tmp_path / "d.png")], capsys)  # fmt: skip
     assert code == 0, err
     frag = tomllib.loads(out.read_text())["axes"]["x"]
     bs = BallScrewConfig(**frag["ball_screw"])
@@ -117,11 +122,12 @@ def test_drive_fragment_loads_as_ball_screw(
 def test_idle_fragment_references_its_csv(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    cfg = load_preset(MachineConfig, "yamada-b")
+    cfg = simulator_machine("yamada-b")
     runs = cm.idle_runs(cfg, "x", feed_mm_min=600.0, travel_mm=5.0, n_runs=2)
     paths = [_write(r, tmp_path / f"i{k}.h5") for k, r in enumerate(runs)]
     out = tmp_path / "idle.toml"
-    code, _, err = run_cli(["identify", "idle", *paths, "-o", str(out)], capsys)
+    sim = str(simulator_machine_path("yamada-b"))
+    code, _, err = run_cli(["identify", "idle", *paths, "--machine", sim, "-o", str(out)], capsys)
     assert code == 0, err
     t = tomllib.loads(out.read_text())["axes"]["x"]["idle_table"]
     table = IdleTable.from_config(t, tmp_path)
@@ -208,7 +214,7 @@ def test_modal_fragment_per_position_loads_as_disturbance_modes_at(
     assert code == 0, err
     tables = tomllib.loads(out.read_text())["axes"]["x"]["disturbance_modes_at"]
     assert [t["position_mm"] for t in tables] == pytest.approx([-80.0, 120.0], abs=1e-9)
-    ax = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    ax = simulator_machine("quaser-ux600").axes["x"]
     cfg = FeedAxisConfig.model_validate(ax.model_dump() | {"disturbance_modes_at": tables})
     low, high = cfg.disturbance_modes_at
     assert sorted(low.natural_frequency_hz) == pytest.approx([40.0, 95.0], rel=0.01)
@@ -224,3 +230,34 @@ def test_modal_per_position_needs_the_commanded_position(
                             "--output-channel",
                             "x/torque", "-o", str(tmp_path / "o.toml")], capsys)  # fmt: skip
     assert code == 2 and "x/position_cmd" in err and len(err.strip().splitlines()) == 1
+
+
+def test_noise_fragment_is_the_air_cut_torque_variance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`identify noise` (Aslan Eq. 3.28-3.30): on the simulator file's model (ideal, no
+    realism) the C3 torque in air holds the current noise through the 600 Hz C3 low-pass,
+    (K_t·σ_I)²·Σh², plus the encoder noise through J·dω/dt; R lies between that closed form
+    and ten times it (the bound of tests/test_cli_estimate.py), and the fragment carries it as
+    estimator.r_nm2."""
+    from scipy import signal
+
+    cfg = simulator_machine("quaser-ux600")
+    rec = _write(cm.air_cut_test(cfg, "x", speed_rad_s=10.0, duration_s=1.5, ideal=True),
+                 tmp_path / "air.h5")  # fmt: skip
+    out = tmp_path / "noise.toml"
+    sim = str(simulator_machine_path("quaser-ux600"))
+    code, stdout, err = run_cli(
+        ["identify", "noise", rec, "--machine", sim, "--axis", "x", "-o", str(out)], capsys
+    )
+    assert code == 0, err
+    r = tomllib.loads(out.read_text())["axes"]["x"]["estimator"]["r_nm2"]
+    ax = cfg.axis("x")
+    assert ax.current_noise_a is not None
+    h = signal.sosfilt(signal.butter(2, 600.0, fs=1e4, output="sos"), np.r_[1.0, np.zeros(9999)])
+    r_noise = float((ax.torque_constant_nm_a * ax.current_noise_a) ** 2 * np.sum(h**2))
+    assert r_noise < r < 10 * r_noise, (r, r_noise)  # measured 5.3x (encoder noise in J·dω/dt)
+    assert "R =" in stdout
+    # without a machine file there is no C3 stage: one line naming what to give
+    code, _, err = run_cli(["identify", "noise", rec, "-o", str(tmp_path / "n2.toml")], capsys)
+    assert code == 2 and "give --machine" in err

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
 from millsense.core.errors import InputDataError
-from millsense.core.presets import load_preset
 from millsense.ident.friction import coulomb_viscous_from_moves, fit_line
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.rigid_drive import RigidDriveParams, constant_velocity_move
 
 
@@ -25,7 +24,7 @@ def test_one_speed_is_refused() -> None:
 
 
 def test_recovers_table_3_2_friction_from_simulated_moves() -> None:
-    axis = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    axis = simulator_machine("quaser-ux600").axis("x")
     p = RigidDriveParams.from_config(axis)
     speeds, torques = [], []
     for k, w in enumerate((-16.0, -8.0, -4.0, 4.0, 8.0, 16.0)):
@@ -98,7 +97,7 @@ def test_steady_segments_find_plateaus() -> None:
 
 
 def test_static_parameters_from_noise_free_moves() -> None:
-    axis = load_preset(MachineConfig, "quaser-ux600").axis("z")
+    axis = simulator_machine("quaser-ux600").axis("z")
     p = dataclasses.replace(FeedDriveParams.from_config(axis), torque_noise_nm=0.0)
     from millsense.simulator.feed_drive import constant_velocity_sweep
 
@@ -115,7 +114,7 @@ def test_static_parameters_from_noise_free_moves() -> None:
 
 
 def test_presliding_recovers_bristle_stiffness_noise_free() -> None:
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     axis = cfg.axis("z")
     p = dataclasses.replace(FeedDriveParams.from_config(axis), torque_noise_nm=0.0,
                             closed_loop=False)  # fmt: skip

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy import integrate, linalg, signal
 
+from millsense.bench.thesis_models import aslan_disturbance_model, aslan_r_q
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.feed.thesis_models import aslan_disturbance_model, aslan_r_q
 from millsense.estimation.kalman.block import KalmanBlock
 from millsense.estimation.kalman.design import (
     StateSpaceModel,

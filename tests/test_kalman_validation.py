@@ -2,16 +2,26 @@
 
 from __future__ import annotations
 
+import pytest
+
 from millsense.validation import run_case, select_cases
 
 
 def test_quick_kalman_cases_pass() -> None:
     cases = select_cases("estimation.kalman_*", quick_only=True)
-    assert [c.id for c in cases] == ["estimation.kalman_c_axis_flat_to_120hz"]
-    for c in cases:
-        # C-axis compensated FRF within ±3 dB up to 120 Hz (issue 7 acceptance, Aslan V3)
-        r = run_case(c)
-        assert r.passed, (r.measured, r.reference)
+    ids = [c.id for c in cases]
+    assert ids == [
+        "estimation.kalman_a_axis_flat_to_120hz",
+        "estimation.kalman_c_axis_flat_to_120hz",
+    ]
+    # C-axis compensated FRF within ±3 dB up to 120 Hz (issue 7 acceptance, Aslan V3)
+    r = run_case(cases[1])
+    assert r.passed, (r.measured, r.reference)
+    # A axis, same rule: a known failure (issue 12); the printed modes give 5.98 dB at ≤ 120 Hz
+    # (docs/validation.md table), pinned so that a model change is seen
+    a = run_case(cases[0])
+    assert a.status == "known" and a.issue == 12
+    assert a.measured == pytest.approx(5.98, abs=0.05)
 
 
 def test_c_axis_bandwidth_case_registered_against_thesis_figure() -> None:

@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from millsense.core.config import FrictionConfig, MachineConfig
+from millsense.core.config import FrictionConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.models.lugre import LuGre
+from millsense.simulator.machine_file import simulator_machine
 
 
 def axis_lugre(axis: str) -> LuGre:
-    return LuGre.from_config(load_preset(MachineConfig, "quaser-ux600").axis(axis).friction)
+    return LuGre.from_config(simulator_machine("quaser-ux600").axis(axis).friction)
 
 
 def test_steady_sliding_torque_is_the_stribeck_curve() -> None:

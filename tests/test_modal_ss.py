@@ -9,16 +9,16 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
-from millsense.core.config import DisturbanceModesConfig, MachineConfig, parse_config
+from millsense.core.config import DisturbanceModesConfig, parse_config
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.models.modal_ss import ModalStateSpace
+from millsense.simulator.machine_file import simulator_machine
 
 AXES = ("x", "y", "z", "a", "c")
 
 
 def quaser_modes(axis: str) -> ModalStateSpace:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis(axis).disturbance_modes
+    cfg = simulator_machine("quaser-ux600").axis(axis).disturbance_modes
     assert cfg is not None
     return ModalStateSpace.from_config(cfg)
 

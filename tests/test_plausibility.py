@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from millsense.core import budget
-from millsense.core.config import MachineConfig, MachineLimitsConfig, MaterialConfig, ToolConfig
+from millsense.core.config import MachineLimitsConfig, MaterialConfig, ToolConfig
 from millsense.core.errors import ConfigError, ProgramError
 from millsense.core.plausibility import (
     Findings,
@@ -25,6 +25,7 @@ from millsense.plan.path import sample_path, vertex_path
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling
 from millsense.streaming.block import EventKind
 
@@ -122,7 +123,7 @@ def test_limits_warn_on_force_and_power() -> None:
 
 
 def test_quaser_preset_has_limits() -> None:
-    lim = load_preset(MachineConfig, "quaser-ux600").limits
+    lim = simulator_machine("quaser-ux600").limits
     assert lim is not None
     # decision 0942: 20 N·m through a 12 mm lead at efficiency 0.92
     assert lim.axis_force_n == pytest.approx(20 * 2 * math.pi / 0.012 * 0.92, rel=0.01)
@@ -163,7 +164,7 @@ OMEGA = 6000 * 2 * math.pi / 60
 def _sim(omega: float, limits: MachineLimitsConfig | None, duration: float) -> MachineSimulator:
     """A 2 mm slot from 1 mm along a straight move; at 6000 rev/min the spindle run-up and
     settling take 0.30 s before the feed starts."""
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     m = m.model_copy(
         update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}, "limits": limits}
     )
@@ -197,7 +198,7 @@ def test_crash_when_the_tool_engages_with_the_spindle_stopped() -> None:
 
 def test_no_crash_in_a_plain_slot() -> None:
     # 2 mm slot at 0.1 mm/tooth: ~0.4 kN and ~1.5 kW, far below the UX600 limits
-    _, events = _run(_sim(OMEGA, load_preset(MachineConfig, "quaser-ux600").limits, 0.55))
+    _, events = _run(_sim(OMEGA, simulator_machine("quaser-ux600").limits, 0.55))
     assert events == []
 
 

@@ -15,6 +15,7 @@ from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.feed_drive import FeedDriveSim
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToolModes
 from millsense.simulator.realism import LOAD_SHIFT, AxisRealism, RealismOptions, tool_mode_scale
 from millsense.stability.time_domain import DirectionModes
@@ -26,7 +27,7 @@ NONE = RealismOptions(
 
 
 def _machine3() -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 
@@ -68,8 +69,8 @@ def test_realism_follows_the_plant_and_all_switches_off_change_nothing() -> None
     assert RealismOptions().enabled
     assert SimulatorOptions(ideal=False).realism_in_effect.enabled
     assert not SimulatorOptions(ideal=True).realism_in_effect.enabled
-    # the default is the ideal model for now (decision 1061)
-    assert not SimulatorOptions().realism_in_effect.enabled
+    # the default is the truth with realism on (decision 1062)
+    assert not SimulatorOptions().ideal and SimulatorOptions().realism_in_effect.enabled
     base = _air(RealismOptions(enabled=False), duration=0.3)
     assert base.metadata["realism"] is False
     d0 = _collect(base)

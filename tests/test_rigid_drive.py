@@ -7,15 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.rigid_drive import RigidDriveParams, RigidDriveSim
 
 FS = 10000.0
 
 
 def params() -> RigidDriveParams:
-    return RigidDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis("x"))
+    return RigidDriveParams.from_config(simulator_machine("quaser-ux600").axis("x"))
 
 
 def ramp(n: int, v: float, ta: float = 0.05) -> tuple[np.ndarray, np.ndarray]:

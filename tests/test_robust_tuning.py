@@ -9,14 +9,14 @@ import pydantic
 import pytest
 from scipy import integrate
 
-from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig, MachineConfig
-from millsense.core.presets import load_preset
+from millsense.bench.thesis_models import aslan_disturbance_modes
+from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig
 from millsense.estimation.feed import tuning
 from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
-from millsense.estimation.feed.thesis_models import aslan_disturbance_modes
 from millsense.estimation.kalman.design import StateSpaceModel, augment_disturbance, design_kalman
 from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.estimation.kalman.smoother import FixedLagSmoother
+from millsense.simulator.machine_file import simulator_machine
 
 DT = 1e-4
 
@@ -119,7 +119,7 @@ def test_mode_shift_pct_key_default_and_nominal_switch() -> None:
     assert FeedEstimatorConfig().mode_shift_pct == 0.0
     with pytest.raises(pydantic.ValidationError):
         FeedEstimatorConfig(mode_shift_pct=-1.0)
-    cfg = load_preset(MachineConfig, "quaser-ux600").axes["x"]
+    cfg = simulator_machine("quaser-ux600").axes["x"]
     fixed = FeedAxisConfig.model_validate(
         cfg.model_dump() | {"estimator": {"q_nm2_s": 800.0, "mode_shift_pct": 2.0}}
     )

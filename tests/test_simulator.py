@@ -21,6 +21,7 @@ from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.interpolator import OverrideChannel
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling, ToothBreak
 from millsense.streaming.block import Event, EventKind
 
@@ -31,7 +32,7 @@ FEED = 0.1e-3 * 2 * RPM / 60  # 0.1 mm/tooth, 2 flutes: 20 mm/s
 
 
 def _machine3() -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import (
     AirCut,
     DepthStep,
@@ -37,7 +37,7 @@ F_CHATTER = 932.0  # SDM chatter frequency at 15 870 rev/min, benchmarks.md §1
 
 
 def _machine3() -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 

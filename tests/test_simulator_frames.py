@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
+from millsense.core.config import MaterialConfig, ToolConfig
 from millsense.core.presets import load_preset
 from millsense.models.kinematics import TrunnionACMachine
 from millsense.plan.gcode import interpret
@@ -12,6 +12,7 @@ from millsense.plan.path import Toolpath, sample_path
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import EngagementSchedule, ProcessCoupling
 
 FS = 10000.0
@@ -20,12 +21,12 @@ FS = 10000.0
 def _run(
     program: str, depth_m: float, start_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
 ) -> tuple[MachineSimulator, dict[str, np.ndarray], Job]:
-    assert load_preset(MachineConfig, "quaser-ux600").kinematics == "5-axis-trunnion-ac"
+    assert simulator_machine("quaser-ux600").kinematics == "5-axis-trunnion-ac"
     return _run_tp(interpret(program, initial_position_mm=start_mm), depth_m)
 
 
 def _run_tp(tp: Toolpath, depth_m: float) -> tuple[MachineSimulator, dict[str, np.ndarray], Job]:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     job = Job.from_sampled_path(sample_path(tp), five_axis=True)
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))

@@ -8,11 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.models import spindle_plant as SP
 from millsense.models.spindle_modes import ATTENUATION_RANGE1
 from millsense.simulator import spindle as S
+from millsense.simulator.machine_file import simulator_machine
 
 P = SP.SpindleDriveParams.aslan_quaser()
 
@@ -122,7 +121,7 @@ def test_resumable_chunks_and_range_switch() -> None:
 
 
 def test_from_preset() -> None:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     assert m.spindle is not None
     p = SP.SpindleDriveParams.from_config(m.spindle)
     assert p.ranges[1].torque_constant == 1.571

@@ -27,6 +27,7 @@ from millsense.report.estimate_stream import (
     scan_cut_window,
     window_mean,
 )
+from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
 from millsense.streaming.engine import Pipeline, run
 from millsense.streaming.sources import RecordingSource
 
@@ -169,13 +170,11 @@ def _write_run(path: Path, seconds: float, fillers: int = FILLERS) -> None:
 def test_windowed_replay_equals_the_in_memory_replay(tmp_path: Path) -> None:
     # the raw estimator run from file windows in 333-sample chunks (read-ahead 16384) and from
     # the recording in memory in one chunk: the same samples in, so the same numbers out
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
     from millsense.estimation.from_config import raw_estimator
 
     path = tmp_path / "run.h5"
     _write_run(path, 3.0, fillers=1)
-    machine = load_preset(MachineConfig, "quaser-ux600")
+    machine = simulator_machine("quaser-ux600")
     rec = read_recording(path)
     whole = run(RecordingSource(rec), Pipeline([raw_estimator("x", machine, 600.0)]), 10**9)
     with open_recording(path) as reader:
@@ -235,7 +234,7 @@ def test_estimate_peak_memory_does_not_grow_with_the_recording(tmp_path: Path) -
                 "estimate",
                 str(rec),
                 "--machine",
-                "quaser-ux600",
+                str(simulator_machine_path("quaser-ux600")),
                 "--method",
                 "raw",
                 "--axes",

@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.simulator.feed_drive import FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.truth_drive import (
     Q_SCREW,
     CoupledDrive,
@@ -129,7 +128,7 @@ def test_axial_mode_follows_the_screw_stiffness(support: str) -> None:
     assert abs(f_end / f_mid - 1) > 0.03
 
 
-MACHINE = load_preset(MachineConfig, "quaser-ux600")
+MACHINE = simulator_machine("quaser-ux600")
 TRUTH = load_truth("quaser-ux600")
 #: Documented tolerances of the fit (decision 0973): locked-mode frequencies within 3 % of
 #: Table 3.4; the closed-loop Φ_d magnitude within 20 dB of Table 3.4 in 20–250 Hz and its RMS

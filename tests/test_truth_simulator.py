@@ -6,17 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.models.lugre import LuGre
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.truth_machine import load_truth
 
 FEED = 0.02  # m/s
 
 
 def _run(opts: SimulatorOptions) -> tuple[MachineSimulator, dict[str, np.ndarray]]:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
     job = Job.straight([0, 0, 0], [0.2, 0, 0], FEED, 0.0)
     sim = MachineSimulator(m, job, None, opts, duration_s=0.8)
@@ -32,7 +31,7 @@ def test_default_is_the_truth_and_ideal_is_the_machine_file() -> None:
     of the model that runs (closed form sgn(v)·g(v) + σ2·v, Aslan Eq. 3.2–3.4): the truth's
     K_t and friction by default, the machine file's with ``ideal=True``; the two differ by
     more than 3 %."""
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     truth = load_truth("quaser-ux600")["x"]
     preset_fric = LuGre.from_config(m.axes["x"].friction)
     means = {}

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from millsense.core.config import FeedEstimatorConfig, MachineConfig
+from millsense.core.config import FeedEstimatorConfig
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.core.presets import load_preset
 from millsense.estimation.feed import tuning
 from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
 from millsense.estimation.from_config import with_feed_band
 from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.models.modal_ss import ModalStateSpace
+from millsense.simulator.machine_file import simulator_machine
 
 FS = 10_000.0
 #: Aslan Eq. 3.30 R of the X axis, N²·m²
@@ -21,7 +21,7 @@ R_X = 0.0776
 
 @pytest.fixture(scope="module")
 def x_model() -> object:
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    cfg = simulator_machine("quaser-ux600").axis("x")
     assert cfg.disturbance_modes is not None
     fit = RationalFit.from_modes(ModalStateSpace.from_config(cfg.disturbance_modes))
     return measurement_model(fit, 600.0, 1 / FS)
@@ -65,7 +65,7 @@ def test_band_key_excludes_a_fixed_q_and_a_mode_shift_margin() -> None:
 
 
 def test_machine_band_rule_reaches_the_estimator(x_model: object) -> None:
-    machine = load_preset(MachineConfig, "quaser-ux600")
+    machine = simulator_machine("quaser-ux600")
     banded = with_feed_band(machine, ["x"], 200.0)
     model = FeedAxisModel.from_config("x", banded.axis("x"), sample_rate_hz=FS)
     expect = tuning.least_noise_q(model.measurement_model(), model.r, 200.0).q

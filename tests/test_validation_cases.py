@@ -17,7 +17,10 @@ def test_quick_case_passes(c: ValidationCase) -> None:
     # Each case compares with its own reference (seed table, closed form, benchmark) and
     # its stated tolerance; see docs/validation.md.
     r = run_case(c)
-    assert r.passed, (r.measured, r.reference, r.error)
+    if c.gap:  # a known failure (issue 12): reported as one; its value is pinned in its tests
+        assert r.status in ("pass", "known"), (r.measured, r.reference, r.error)
+    else:
+        assert r.passed, (r.measured, r.reference, r.error)
 
 
 def test_acceptance_figures_registered() -> None:
@@ -57,16 +60,22 @@ def test_tolerance_relative_or_absolute() -> None:
     assert c0.passes(0.4) and not c0.passes(0.6)  # a zero reference needs the absolute part
 
 
-def test_documented_gap_is_its_own_status() -> None:
-    gap = ValidationCase("demo.g", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 280.0, "why")
+def test_documented_gap_is_a_failure_with_its_reason() -> None:
+    # issue 12: a gap is a failure with a written reason and an issue, never a pass
+    gap = ValidationCase(
+        "demo.g", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 280.0, "why", issue=12
+    )
     r = run_case(gap)
-    assert not r.passed and r.status == "gap"
-    assert "gap (documented)" in render_markdown([r], "# V") and "why" in render_markdown([r], "")
-    ok = ValidationCase("demo.h", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 359.0, "why")
+    assert not r.passed and r.failed and r.status == "known"
+    md = render_markdown([r], "# V")
+    assert "**NO** (known, issue 12)" in md and "why" in md
+    ok = ValidationCase(
+        "demo.h", "t", 360.0, "Hz", 0.1, None, False, "d", lambda: 359.0, "why", issue=12
+    )
     assert run_case(ok).status == "pass"
 
     def boom() -> float:
         raise RuntimeError("broken")
 
-    broken = ValidationCase("demo.i", "t", 1.0, "Hz", 0.1, None, False, "d", boom, "why")
+    broken = ValidationCase("demo.i", "t", 1.0, "Hz", 0.1, None, False, "d", boom, "why", issue=12)
     assert run_case(broken).status == "fail"  # an error is never excused as a gap

@@ -83,9 +83,11 @@ class DemoSummary:
 
 
 def default_configs() -> tuple[MachineConfig, ToolConfig, MaterialConfig]:
-    """The embedded default: Quaser UX600, Ø20 mm 2-flute end mill, Al7050."""
+    """The embedded default: the simulator's Quaser UX600, Ø20 mm 2-flute end mill, Al7050."""
+    from millsense.simulator.machine_file import simulator_machine
+
     return (
-        load_preset(MachineConfig, "quaser-ux600"),
+        simulator_machine("quaser-ux600"),
         load_preset(ToolConfig, "aslan-d20-2flute"),
         load_preset(MaterialConfig, "al7050"),
     )
@@ -94,27 +96,53 @@ def default_configs() -> tuple[MachineConfig, ToolConfig, MaterialConfig]:
 COMMISSIONING_SPEEDS_RAD_S = (-16.0, -12.0, -8.0, -4.0, 4.0, 8.0, 12.0, 16.0)
 
 
-def commissioned_drive_model(machine: MachineConfig, axis: str, seed: int = 100) -> DriveModel:
-    """The drive model the estimator uses, with friction identified on the simulated machine.
+#: Known table force of the force-gain calibration (a calibrated weight or spring balance), N.
+CALIBRATION_FORCE_N = 200.0
 
-    J_e and K_t are the preset's (on the machine they come from the drive software, TNCopt in
-    Aslan C1). Friction is not handed over from the simulator: constant-velocity air moves at
-    ±4…16 rad/s are simulated (with their noise) and Coulomb + viscous friction is fitted per
-    direction from the mean torque over the steady second half of each move
-    (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
+
+def commissioned_drive_model(
+    machine: MachineConfig, axis: str, seed: int = 100, nameplate: MachineConfig | None = None
+) -> DriveModel:
+    """The drive model the estimator uses, identified on the simulated machine.
+
+    ``machine`` is the simulated machine (only driven); J_e, r_g and η are the nameplate's
+    (``nameplate``, default the ``quaser-ux600`` preset: catalogue values with their errors,
+    docs/decisions/0991-nameplate-machine-files.md). Nothing else is handed over from the
+    simulator:
+
+    - the force gain K_t·η/r_g, which a catalogue K_t (±5 %) and η get wrong by several per
+      cent, is calibrated with a known table force (:data:`CALIBRATION_FORCE_N`, e.g. a
+      calibrated weight) at ±8 rad/s against the same moves in air; the product is what the
+      rigid-body estimate needs, so the error is put into K_t with the nameplate η and r_g
+      (decision 0994);
+    - Coulomb + viscous friction is fitted per direction from the mean torque of
+      constant-velocity air moves at ±4…16 rad/s over the steady second half of each move
+      (:func:`millsense.ident.friction.coulomb_viscous_from_moves`).
     """
-    a = machine.axis(axis)
-    params = RigidDriveParams.from_config(a)
+    a = (nameplate or load_preset(MachineConfig, "quaser-ux600")).axis(axis)
+    params = RigidDriveParams.from_config(machine.axis(axis))
+    fs = machine.sample_rate_hz
+
+    def mean_current(w: float, k: int, force_n: float) -> tuple[float, float]:
+        move = constant_velocity_move(params, w, 0.6, fs, seed=seed + k, table_force_n=force_n)
+        steady = slice(len(move["speed"]) // 2, None)
+        return float(np.mean(move["speed"][steady])), float(np.mean(move["current_cmd"][steady]))
+
+    # force gain: F = −η K_t Δi / r_g for the known force (the estimator's sign convention)
+    gains = []
+    for k, w in enumerate((-8.0, 8.0)):
+        d_i = mean_current(w, 50 + k, CALIBRATION_FORCE_N)[1] - mean_current(w, 60 + k, 0.0)[1]
+        gains.append(-CALIBRATION_FORCE_N / d_i)
+    torque_constant = float(np.mean(gains)) * a.transmission_m_rad / a.efficiency
     speeds, torques = [], []
     for k, w in enumerate(COMMISSIONING_SPEEDS_RAD_S):
-        move = constant_velocity_move(params, w, 0.6, machine.sample_rate_hz, seed=seed + k)
-        steady = slice(len(move["speed"]) // 2, None)
-        speeds.append(float(np.mean(move["speed"][steady])))
-        torques.append(float(np.mean(a.torque_constant_nm_a * move["current_cmd"][steady])))
+        speed, current = mean_current(w, k, 0.0)
+        speeds.append(speed)
+        torques.append(torque_constant * current)
     friction = coulomb_viscous_from_moves(np.array(speeds), np.array(torques))
     return DriveModel(
         inertia=a.inertia_kg_m2,
-        torque_constant=a.torque_constant_nm_a,
+        torque_constant=torque_constant,
         transmission=a.transmission_m_rad,
         efficiency=a.efficiency,
         friction=friction,

@@ -15,6 +15,7 @@ from millsense.bench.feed_commissioning import (
     disturbance_sweep,
     identify_feed_axis,
 )
+from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError
 from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.feed.path_fit import SweepResult
@@ -33,11 +34,12 @@ from millsense.simulator.commissioning import ramp_move
 from millsense.simulator.feed_drive import FeedDriveParams
 
 
-def sweep_travel(params: FeedDriveParams, speed_rad_s: float, sample_rate_hz: float) -> float:
-    """Load travel of a moving bank sweep (lead-in + :data:`SWEEP_PERIODS` 1 s periods), m/rad."""
+def sweep_travel(transmission: float, speed_rad_s: float, sample_rate_hz: float) -> float:
+    """Load travel of a moving bank sweep (lead-in + :data:`SWEEP_PERIODS` 1 s periods), m/rad;
+    ``transmission`` r_g, m/rad (rad/rad rotary)."""
     n = round((SWEEP_LEAD_S + SWEEP_PERIODS) * sample_rate_hz)
     pos, _ = ramp_move(speed_rad_s, n, sample_rate_hz)
-    return float(pos[-1] * params.transmission)
+    return float(pos[-1] * transmission)
 
 
 def identify_feed_bank(
@@ -52,6 +54,7 @@ def identify_feed_bank(
     design: DesignChoice = "auto",
     crossfade: float = DEFAULT_CROSSFADE,
     seed: int = 0,
+    nameplate: FeedAxisConfig,
 ) -> tuple[FeedModelBank, list[SweepResult]]:
     """Identify Φ_d at each position (friction, J_e, LuGre and R shared) → a model bank.
 
@@ -59,6 +62,7 @@ def identify_feed_bank(
     ----------
     params : the simulated drive at commissioning (only its CNC channels are used).
     axis, kind : axis name and ``linear``/``rotary``.
+    nameplate : the nameplate axis table (K_t, lead, η, encoder counts the estimator is given).
     positions : identification positions, load position m (rad rotary), ascending; each sweep
         is a constant-velocity move centred on its position (travel :func:`sweep_travel`).
     sample_rate_hz : CNC rate, Hz.
@@ -88,8 +92,8 @@ def identify_feed_bank(
     if len(pos) == 0 or any(b <= a for a, b in pairwise(pos)):
         raise ConfigError(f"identify bank {axis}: positions must be ascending and non-empty")
     fs = sample_rate_hz
-    half = 0.5 * sweep_travel(params, sweep_speed_rad_s, fs)
-    lg = params.transmission / params.efficiency
+    half = 0.5 * sweep_travel(nameplate.transmission_m_rad, sweep_speed_rad_s, fs)
+    lg = nameplate.transmission_m_rad / nameplate.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
     first, sweep0 = identify_feed_axis(
         params,
@@ -101,6 +105,7 @@ def identify_feed_bank(
         seed=seed,
         start_position=pos[0] - half,
         sweep_speed_rad_s=sweep_speed_rad_s,
+        nameplate=nameplate,
     )
     raw: list[FeedAxisModel] = [first]
     sweeps = [sweep0]

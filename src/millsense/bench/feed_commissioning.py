@@ -12,6 +12,12 @@ air cut and Q by :mod:`millsense.estimation.feed.tuning`. The result is a
 :class:`~millsense.estimation.feed.estimator.FeedAxisModel`.
 K_t and η are the nameplate/catalogue values (the thesis takes K_t, J_e from TNCopt and η from
 the catalogue for the linear axes): a current-only test cannot separate K_t from a load.
+
+Issue 12 (docs/decisions/0992-bench-reads-the-nameplate.md): every value the estimator is
+*given* — K_t, r_g, η, encoder counts — comes from the nameplate axis table (``nameplate``, a
+:class:`~millsense.core.config.FeedAxisConfig` of ``millsense/data/machines/<name>.toml``), never
+from the simulated drive; the simulated drive ``params`` is only the machine that is driven
+(commands in, CNC channels out).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from typing import Literal
 import numpy as np
 from scipy import signal
 
+from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError
 from millsense.estimation.feed.estimator import (
     DEFAULT_FRICTION_SMOOTHING_RAD_S,
@@ -49,12 +56,25 @@ AIR_CUT_SPEED_RAD_S = 5.0
 
 
 def identify_friction(
-    params: FeedDriveParams, sample_rate_hz: float, speeds_rad_s: Sequence[float], seed: int = 0
+    params: FeedDriveParams,
+    sample_rate_hz: float,
+    speeds_rad_s: Sequence[float],
+    seed: int = 0,
+    *,
+    nameplate: FeedAxisConfig,
 ) -> CoulombViscous:
-    """Coulomb + viscous friction from constant-velocity air moves in both directions (C1)."""
+    """Coulomb + viscous friction from constant-velocity air moves in both directions (C1);
+    torque = nameplate K_t × measured current."""
     sp = np.asarray(speeds_rad_s, dtype=float)
     sp = np.concatenate([sp, -sp])
-    tau, _ = constant_velocity_sweep(params, sp, sample_rate_hz, duration_s=0.6, seed=seed)
+    tau, _ = constant_velocity_sweep(
+        params,
+        sp,
+        sample_rate_hz,
+        duration_s=0.6,
+        seed=seed,
+        torque_constant=nameplate.torque_constant_nm_a,
+    )
     fit = coulomb_viscous_from_moves(sp, tau)
     return replace(fit, smoothing_rad_s=DEFAULT_FRICTION_SMOOTHING_RAD_S)
 
@@ -69,6 +89,7 @@ def identify_lugre(
     fraction: float = 0.2,
     min_counts: float = 20.0,
     seed: int = 4,
+    nameplate: FeedAxisConfig,
 ) -> LuGre | None:
     """LuGre friction (Aslan C2, Eq. 3.2–3.8) from the line fit and a presliding test.
 
@@ -86,14 +107,15 @@ def identify_lugre(
     t = np.arange(n) / fs
     w = 2 * math.pi * frequency_hz
     tau_amp = fraction * min(friction.coulomb_pos, friction.coulomb_neg)
-    inj = tau_amp / params.torque_constant * np.sin(w * t)
+    kt = nameplate.torque_constant_nm_a
+    inj = tau_amp / kt * np.sin(w * t)
     sim = FeedDriveSim(replace(params, closed_loop=False), fs, seed=seed)
     res = sim.advance(np.zeros(n), np.zeros(n), np.zeros(n), inj)
     sel = slice(n // 2, n)
     basis = np.column_stack([np.sin(w * t[sel]), np.cos(w * t[sel]), np.ones(n - n // 2)])
-    ct = np.linalg.lstsq(basis, params.torque_constant * res["current"][sel], rcond=None)[0]
+    ct = np.linalg.lstsq(basis, kt * res["current"][sel], rcond=None)[0]
     ca = np.linalg.lstsq(basis, res["angle"][sel], rcond=None)[0]
-    counts = abs(complex(ca[0], ca[1])) / (2 * math.pi / params.encoder_counts_rev)
+    counts = abs(complex(ca[0], ca[1])) / (2 * math.pi / nameplate.encoder_counts_rev)
     if counts < min_counts:
         return None
     ratio = complex(ct[0], ct[1]) / complex(ca[0], ca[1])
@@ -119,6 +141,7 @@ def identify_inertia(
     *,
     speed_rad_s: float = 20.0,
     seed: int = 1,
+    nameplate: FeedAxisConfig,
 ) -> float:
     """J_e (kg·m²) by least squares on an air move with a sinusoidal speed (2 Hz, ±50 %).
 
@@ -137,7 +160,7 @@ def identify_inertia(
     sos = signal.butter(2, 20.0, fs=fs, output="sos")
     spd = signal.sosfiltfilt(sos, res["speed"])
     acc = np.gradient(spd, 1.0 / fs)
-    lhs = params.torque_constant * res["current_cmd"] - friction.torque(res["speed"])
+    lhs = nameplate.torque_constant_nm_a * res["current_cmd"] - friction.torque(res["speed"])
     lhs = signal.sosfiltfilt(sos, lhs)
     sel = slice(round(0.3 * fs), n - round(0.1 * fs))
     a, y = acc[sel], lhs[sel]
@@ -212,6 +235,7 @@ def identify_feed_axis(
     condition: OperatingCondition = "moving",
     start_position: float = 0.0,
     sweep_speed_rad_s: float = SWEEP_SPEED_RAD_S,
+    nameplate: FeedAxisConfig,
 ) -> tuple[FeedAxisModel, SweepResult]:
     """Identify a feed axis's estimator model from simulated commissioning tests.
 
@@ -219,6 +243,8 @@ def identify_feed_axis(
     ----------
     params : the simulated drive (the "machine"; only its CNC channels are used).
     axis, kind : axis name and ``linear``/``rotary``.
+    nameplate : the axis table of the nameplate machine file: K_t, lead (r_g), η and the
+        encoder counts the estimator is given (decision 0992).
     sample_rate_hz : CNC rate, Hz.
     lowpass_hz : C3 low-pass corner, Hz.
     sweep_force_rms : RMS of the sweep load (N, or N·m rotary); default the load giving 3 N·m
@@ -249,7 +275,8 @@ def identify_feed_axis(
 
     Notes
     -----
-    Nameplate values: K_t (motor data), r_g (lead), η (catalogue; Aslan Table 3.3).
+    Nameplate values (``nameplate``, not the simulated drive's): K_t (motor data), r_g (lead),
+    η (catalogue), encoder counts.
     Identified: friction (C1), J_e, Φ_d (C5), R (air cut), Q (bandwidth optimisation).
 
     Operating condition (decision "Holding axis: Φ_d and R identified at rest"): the measured
@@ -267,14 +294,18 @@ def identify_feed_axis(
             f"identify {axis}: condition must be 'moving' or 'at_rest', got {condition!r}"
         )
     fs = sample_rate_hz
-    fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed)
-    inertia = identify_inertia(params, fric, fs, seed=seed + 1)
-    drive = DriveModel(
-        inertia, params.torque_constant, params.transmission, params.efficiency, fric
-    )
-    lg = params.transmission / params.efficiency
+    np_ = nameplate
+    fric = identify_friction(params, fs, (2.0, 5.0, 10.0, 20.0, 40.0), seed=seed, nameplate=np_)
+    inertia = identify_inertia(params, fric, fs, seed=seed + 1, nameplate=np_)
+    rg = np_.transmission_m_rad
+    drive = DriveModel(inertia, np_.torque_constant_nm_a, rg, np_.efficiency, fric)
+    lg = rg / np_.efficiency
     f_rms = sweep_force_rms if sweep_force_rms is not None else 3.0 / lg
-    lugre = identify_lugre(params, fric, inertia, fs, seed=seed + 4) if use_lugre else None
+    lugre = (
+        identify_lugre(params, fric, inertia, fs, seed=seed + 4, nameplate=np_)
+        if use_lugre
+        else None
+    )
     move_speed = sweep_speed_rad_s if condition == "moving" else 0.0
     sweep = disturbance_sweep(
         params,
@@ -291,7 +322,7 @@ def identify_feed_axis(
     # R: air cut at a cutting feed (constant speed, no load), or holding position at rest
     n = round(1.0 * fs)
     pos, vel = ramp_move(AIR_CUT_SPEED_RAD_S if condition == "moving" else 0.0, n, fs)
-    q0 = start_position / params.transmission
+    q0 = start_position / rg
     res = FeedDriveSim(params, fs, seed=seed + 3, initial_angle_rad=q0).advance(
         pos + q0, vel, np.zeros(n)
     )

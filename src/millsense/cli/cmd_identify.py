@@ -33,7 +33,7 @@ import typer
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError, InputDataError
 
-_KINDS = ("frf", "modal", "path", "friction", "drive", "spindle", "idle")
+_KINDS = ("frf", "modal", "path", "friction", "drive", "spindle", "idle", "noise")
 
 
 def _parse_band(text: str | None) -> tuple[float, float] | None:
@@ -65,13 +65,16 @@ class _Ctx:
         return rec.channel(name)
 
     def known(self, rec: Any, meta_key: str, what: str, from_machine: Any) -> float:
-        v = rec.metadata.get(meta_key)
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            return float(v)
+        """A value the identification is given: the machine file's (``--machine``, the
+        user's belief, e.g. the nameplate K_t) first, else the recording's metadata (decision
+        docs/decisions/0992-bench-reads-the-nameplate.md)."""
         if self.machine is not None:
             val = from_machine(self.machine)
             if val is not None:
                 return float(val)
+        v = rec.metadata.get(meta_key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
         raise InputDataError(
             f"{what} is needed: not in the recording's metadata ({meta_key!r}); give --machine"
         )
@@ -259,6 +262,37 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
         f"{sweep.frf.n_averages} averages); axis {condition.replace('_', ' ')} → {key}"
     ]
     return {"axes": {a: {"estimator": {key: table}}}}, notes
+
+
+def _noise(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
+    """R of the feed estimator from an air cut: the variance of the C3 torque after the first
+    0.2 s, its slow trend removed (Aslan Eq. 3.28–3.30; the same computation as the bench
+    pipeline, decision 0993)."""
+    import numpy as np
+
+    from millsense.estimation.feed.estimator import C3Torque, c3_front_end
+    from millsense.estimation.feed.tuning import air_cut_variance
+
+    if ctx.machine is None:
+        raise ConfigError(
+            "identify noise: give --machine (torque constant, lead, efficiency, friction and "
+            "inertia of the estimator's C3 stage)"
+        )
+    if len(ctx.recs) != 1:
+        raise ConfigError("identify noise: give one air-cut recording")
+    rec, path, a = ctx.recs[0], ctx.paths[0], ctx.axis
+    fs = rec.sample_rate_hz
+    current = np.asarray(ctx.channel(rec, path, f"{a}/current_cmd"), dtype=float)
+    speed_name = f"{a}/motor_speed" if f"{a}/motor_speed" in rec else f"{a}/speed"
+    speed = np.asarray(ctx.channel(rec, path, speed_name), dtype=float)
+    skip = round(0.2 * fs)
+    if len(current) < skip + round(0.5 * fs):
+        raise InputDataError(f"{path}: an air cut of at least 0.7 s is needed for R")
+    drive, lugre, lowpass = c3_front_end(a, ctx.axis_cfg(), fs, ctx.machine.name)
+    tau = C3Torque(drive, lowpass, fs, lugre).process(current, speed)
+    r = air_cut_variance(tau[skip:], fs=fs)
+    notes = [f"R = {r:.4g} N²·m² (C3 torque variance in air over {(len(tau) - skip) / fs:.2f} s)"]
+    return {"axes": {a: {"estimator": {"r_nm2": float(r)}}}}, notes
 
 
 def _commanded_condition(rec: Any, path: Path, axis: str, transmission: float) -> str:
@@ -595,7 +629,9 @@ def _idle(ctx: _Ctx, o: dict[str, Any], out: Path) -> tuple[dict[str, object], l
 
 @app.command()
 def identify(
-    kind: str = typer.Argument(..., help="frf | modal | path | friction | drive | spindle | idle"),
+    kind: str = typer.Argument(
+        ..., help="frf | modal | path | friction | drive | spindle | idle | noise"
+    ),
     recordings: list[Path] = typer.Argument(..., help="Recording files (.h5)."),
     out: Path = typer.Option(..., "-o", "--output", help="TOML fragment written."),
     input_ch: str | None = typer.Option(
@@ -679,6 +715,8 @@ def identify(
         frag, notes = _drive(ctx, o)
     elif kind == "spindle":
         frag, notes = _spindle(ctx, o)
+    elif kind == "noise":
+        frag, notes = _noise(ctx, o)
     else:
         frag, notes = _idle(ctx, o, out)
     head = [f"millsense identify {kind} " + " ".join(p.name for p in recordings), *notes]

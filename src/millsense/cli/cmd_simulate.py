@@ -64,12 +64,11 @@ def simulate(
         "--truth, off with --ideal.",
     ),
     ideal: bool = typer.Option(
-        True,
+        False,
         "--ideal/--truth",
-        help="--truth: the simulator's own truth plant (coupled lumped-mass drives, true K_t, "
-        "friction, ripple, current loop, dead times; realism on). Default --ideal: the machine "
-        "file's one-way model with realism off, until identification runs on the truth "
-        "(decision 1061).",
+        help="Default --truth: the simulator's own truth plant (coupled lumped-mass drives, "
+        "true K_t, friction, ripple, current loop, dead times; realism on). --ideal, for "
+        "debugging only: the simulator file's one-way model with realism off (decision 1062).",
     ),
     tool_modes: Path | None = typer.Option(
         None,
@@ -178,7 +177,7 @@ def run_simulation(
     import time
 
     from millsense.core.budget import check_signal
-    from millsense.core.config import MachineConfig, MaterialConfig, ToolConfig
+    from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.errors import ConfigError, InputDataError, ProgramError
     from millsense.core.plausibility import Findings, check_depth, check_width
     from millsense.core.presets import load_preset
@@ -190,6 +189,7 @@ def run_simulation(
     from millsense.process.geometry import EndMill
     from millsense.simulator.interpolator import OverrideChannel
     from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
     from millsense.simulator.process_coupling import (
         EngagementSchedule,
         ProcessCoupling,
@@ -217,7 +217,7 @@ def run_simulation(
         check_signal(
             duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
         )
-    mcfg = load_preset(MachineConfig, machine)
+    mcfg = simulator_machine(machine)
     five = mcfg.kinematics == "5-axis-trunnion-ac"
     findings = Findings()
     events: list[ProcessEvent] = []

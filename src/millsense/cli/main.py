@@ -55,7 +55,11 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning user errors into one line and exit status 2."""
     _register_commands()
     try:
-        app(args=argv, standalone_mode=False)
+        # without standalone mode click *returns* the code of a `typer.Exit` (validate's
+        # "a case failed" = 1) instead of raising it: pass it on as the exit status
+        code = app(args=argv, standalone_mode=False)
+        if isinstance(code, int) and code != 0:
+            sys.exit(code)
     except UserError as exc:
         err_console.print(f"millsense: error: {exc}", markup=False)
         sys.exit(exc.exit_code)

@@ -378,7 +378,9 @@ class FeedAxisConfig(_Model):
     lead_rad_rev: Annotated[float, Field(gt=0, le=6.3)] | None = None
     """Output angle per motor revolution for rotary axes (worm: 2π/ratio)."""
     efficiency: Annotated[float, Field(gt=0, le=1)] = 1.0
-    friction: FrictionConfig
+    friction: FrictionConfig | None = None
+    """Identified friction (``millsense identify friction``); absent in a nameplate file
+    (docs/decisions/0991-nameplate-machine-files.md): see :meth:`friction_table`."""
     velocity_kp_nm_s_rad: Annotated[float, Field(gt=0, le=1e4)] | None = None
     velocity_ki_nm_rad: Annotated[float, Field(ge=0, le=1e7)] | None = None
     velocity_bandwidth_hz: Annotated[float, Field(gt=0, le=2000)] = 40.0
@@ -421,6 +423,21 @@ class FeedAxisConfig(_Model):
     mode_reference_mm: Annotated[float, Field(ge=-1e4, le=1e4)] = 0.0
     """Table position at which ``disturbance_modes`` hold, mm (machine coordinates)."""
     source: str = ""
+
+    def friction_table(self, where: str = "machine", axis: str = "") -> FrictionConfig:
+        """The friction table, or a one-line ConfigError naming the identification it needs.
+
+        A nameplate machine file has no friction (decision
+        docs/decisions/0991-nameplate-machine-files.md); whatever needs it (a simulated drive,
+        the C3 stage of an estimator) says so instead of assuming a value.
+        """
+        if self.friction is None:
+            key = f"axes.{axis}.friction" if axis else "friction"
+            raise ConfigError(
+                f"{where}: missing table '{key}' (identify it: millsense commission, then "
+                "millsense identify friction, then millsense merge)"
+            )
+        return self.friction
 
     @model_validator(mode="after")
     def _scale_for_full_closed(self) -> FeedAxisConfig:

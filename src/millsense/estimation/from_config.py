@@ -285,7 +285,9 @@ def raw_estimator(axis: str, machine: MachineConfig, cutoff_hz: float) -> Rename
     from millsense.estimation.feed.rigid_body import DriveModel, RigidBodyForceEstimator
 
     cfg = machine.axis(axis)
-    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
+    drive = DriveModel.from_config(
+        cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S, where=f"machine {machine.name}", axis=axis
+    )
     unit = "N" if cfg.kind == "linear" else "N*m"
     # the block gives the force on the table along +axis; the load resisting motion is −force
     return RenamedBlock(

@@ -722,6 +722,28 @@ def _open_h5(path: Path) -> h5py.File:
         ) from None
 
 
+def _root_metadata(path: Path, f: h5py.File) -> dict[str, Any]:
+    """The file's metadata_json as a mapping, or a RecordingError naming the file."""
+    meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+    if not isinstance(meta, dict):
+        raise RecordingError(
+            f"{path}: damaged root attribute metadata_json (a {type(meta).__name__}, not a table)"
+        )
+    return meta
+
+
+def _root_times(path: Path, f: h5py.File) -> tuple[float, float]:
+    """The file's sample rate (finite, > 0) and start time (finite), or a RecordingError
+    naming the file (a damaged attribute must not surface as an unnamed error later)."""
+    fs = float(f.attrs["sample_rate_hz"])
+    t0 = float(f.attrs["t0_s"])
+    if not (math.isfinite(fs) and fs > 0):
+        raise RecordingError(f"{path}: damaged root attribute sample_rate_hz = {fs!r}")
+    if not math.isfinite(t0):
+        raise RecordingError(f"{path}: damaged root attribute t0_s = {t0!r}")
+    return fs, t0
+
+
 def _check_format(path: Path, f: h5py.File) -> None:
     fmt = f.attrs.get("format")
     if isinstance(fmt, bytes):
@@ -803,10 +825,9 @@ def _read_complete_h5(path: Path, mapped: memoryview | None) -> Recording:
         with f:
             _check_format(path, f)
             try:
-                meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+                meta = _root_metadata(path, f)
                 layout = _layout(f)
-                fs = float(f.attrs["sample_rate_hz"])
-                t0 = float(f.attrs["t0_s"])
+                fs, t0 = _root_times(path, f)
             except (KeyError, ValueError, TypeError) as exc:
                 raise RecordingError(f"{path}: damaged root attributes ({exc})") from None
             rec = Recording(fs, t0, _source_metadata(meta, path))
@@ -1024,8 +1045,7 @@ def recording_status(path: str | Path) -> RecordingStatus:
         with _open_h5(path) as f:
             _check_format(path, f)
             try:
-                fs = float(f.attrs["sample_rate_hz"])
-                t0 = float(f.attrs["t0_s"])
+                fs, t0 = _root_times(path, f)
                 layout = _layout(f)
                 if layout["channels"]:
                     n = int(f["channels"][layout["channels"][0]].shape[0])

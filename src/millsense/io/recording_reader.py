@@ -17,7 +17,6 @@ length is what one run wrote before it died. Both answer the same questions
 
 from __future__ import annotations
 
-import json
 import zlib
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,8 @@ from millsense.io.recording_file import (
     _check_format,
     _layout,
     _open_h5,
+    _root_metadata,
+    _root_times,
     _source_metadata,
     read_recording,
 )
@@ -79,10 +80,9 @@ class RecordingReader:
         f, path = self._file, self.path
         _check_format(path, f)
         try:
-            meta = json.loads(_attr_str(f, "metadata_json") or "{}")
+            meta = _root_metadata(path, f)
             layout = _layout(f)
-            self.sample_rate_hz = float(f.attrs["sample_rate_hz"])
-            self.t0_s = float(f.attrs["t0_s"])
+            self.sample_rate_hz, self.t0_s = _root_times(path, f)
         except (KeyError, ValueError, TypeError) as exc:
             raise RecordingError(f"{path}: damaged root attributes ({exc})") from None
         self.metadata: dict[str, object] = _source_metadata(dict(meta), path)

@@ -20,6 +20,15 @@ Tests (seed 000 C1/Ch. 3.2.1 and Ch. 5; seed 001 C8, C11):
 - :func:`spindle_sweep` and :func:`spindle_friction_test` — velocity-loop sweep and
   constant-speed runs of the spindle;
 - :func:`idle_runs` — repeated air cuts with the same trajectory and feed.
+
+Every feed-axis test drives the plant ``millsense simulate`` runs: for a preset with a truth
+(:data:`~millsense.simulator.truth_machine.TRUTH_PRESETS`) the coupled truth axis of
+:func:`~millsense.simulator.truth_machine.truth_feed_params` with its substeps, else (or with
+``ideal=True``, debugging only) the machine file's one-way model. Test design (injection and
+load amplitudes, the presliding level) and the metadata (transmission, K_t) use only the
+machine file, what a user commissioning a real machine knows; the identification then learns
+the truth from the CNC channels (decision 1041). The realism layer's thermal friction drift
+(time constant 600 s) is not applied to these runs of a few seconds each.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ from millsense.core.recording import Recording
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 from millsense.simulator.spindle import SpindleDriveSim
+from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 
 _CHANNELS = (
     ("current_cmd", "current_cmd", "A"),
@@ -65,7 +75,6 @@ def _recording(
         "axis": axis_name,
         "source": f"simulated {test} ({axis_name})",
         "transmission_m_rad": params.transmission,
-        "torque_constant_nm_a": params.torque_constant,
     }
     meta.update(metadata or {})
     rec = Recording(fs, metadata=meta)
@@ -80,7 +89,31 @@ def _recording(
 
 
 def _params(cfg: MachineConfig, axis_name: str, **kw: object) -> FeedDriveParams:
+    """The simulator's machine-file model of the axis (test design and metadata)."""
     return FeedDriveParams.from_config(cfg.axis(axis_name), **kw)  # type: ignore[arg-type]
+
+
+def plant_params(
+    cfg: MachineConfig,
+    axis_name: str,
+    *,
+    ideal: bool = False,
+    drive: FeedDriveParams | None = None,
+    **kw: object,
+) -> tuple[FeedDriveParams, int]:
+    """The plant the tests drive and its kernel substeps: ``drive`` when given (a drive the
+    bench built, e.g. with an unmodelled mode), else the simulator's truth of the axis when the
+    preset has one and not ``ideal`` (as :class:`~.machine.MachineSimulator` builds it), else
+    the simulator's machine-file model (``kw`` go to ``FeedDriveParams.from_config``)."""
+    if drive is not None:
+        return drive, 10
+    if not ideal and cfg.name in TRUTH_PRESETS:
+        truth = load_truth(cfg.name)
+        if axis_name in truth:
+            return truth_feed_params(cfg.axis(axis_name), truth[axis_name]), truth[
+                axis_name
+            ].substeps
+    return _params(cfg, axis_name, **kw), 10
 
 
 def _profile(vel: np.ndarray, fs: float, start_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -96,7 +129,9 @@ def friction_test(
     hold_s: float = 1.0,
     ramp_s: float = 0.1,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
     friction: str = "auto",
+    ideal: bool = False,
 ) -> Recording:
     """Constant-velocity moves at each speed (motor rad/s, signed), one after the other.
 
@@ -105,6 +140,7 @@ def friction_test(
     """
     fs = cfg.sample_rate_hz
     p = _params(cfg, axis_name, friction=friction)
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive, friction=friction)
     n_hold, n_ramp = round(hold_s * fs), round(ramp_s * fs)
     pieces = []
     prev = 0.0
@@ -115,7 +151,7 @@ def friction_test(
     pieces.append(np.linspace(prev, 0.0, n_ramp))
     vel = np.concatenate(pieces)
     pos, vel = _profile(vel, fs)
-    sim = FeedDriveSim(p, fs, seed=seed)
+    sim = FeedDriveSim(plant, fs, substeps=sub, seed=seed)
     res = sim.advance(pos, vel, np.zeros(len(vel)))
     return _recording(fs, axis_name, res, "friction", p, {"velocity_ref": vel})
 
@@ -127,21 +163,29 @@ def presliding_test(
     fraction: float = 0.5,
     step_s: float = 0.05,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
+    ideal: bool = False,
 ) -> Recording:
     """Current steps of ±``fraction``·breakaway and back to zero, position/velocity loops open.
 
     Pattern (in units of the step): +1, 0, −1, 0, +0.6, −0.6, +0.3, 0, each ``step_s`` long.
-    The breakaway torque is the smaller static torque of the axis' friction table.
+    The breakaway torque is the smallest static or Coulomb torque of the axis' friction table:
+    ``identify friction`` checks the steps against the breakaway it measured in the friction
+    moves (≥ 0.1 rad/s, past the Stribeck hump: the Coulomb level), so a level from the static
+    torque alone (A: 2.7 N·m against 1.05 N·m Coulomb) would be refused (decision 1041).
     """
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
-    p = replace(_params(cfg, axis_name), closed_loop=False)
-    static = axis.friction.static_nm or axis.friction.coulomb_nm
-    level = fraction * min(static) / axis.torque_constant_nm_a
+    p = _params(cfg, axis_name)
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
+    plant = replace(plant, closed_loop=False)
+    fr = axis.friction_table(cfg.name, axis_name)
+    static = min(min(fr.static_nm or fr.coulomb_nm), min(fr.coulomb_nm))
+    level = fraction * static / axis.torque_constant_nm_a
     n = round(step_s * fs)
     inj = np.repeat(np.array([1.0, 0.0, -1.0, 0.0, 0.6, -0.6, 0.3, 0.0]), n) * level
     z = np.zeros(len(inj))
-    res = FeedDriveSim(p, fs, seed=seed).advance(z, z, z, inj)
+    res = FeedDriveSim(plant, fs, substeps=sub, seed=seed).advance(z, z, z, inj)
     return _recording(fs, axis_name, res, "presliding", p, {"injection": inj}, {"step_samples": n})
 
 
@@ -153,6 +197,8 @@ def acceleration_test(
     accel_rad_s2: float = 600.0,
     cruise_s: float = 0.05,
     seed: int = 0,
+    drive: FeedDriveParams | None = None,
+    ideal: bool = False,
 ) -> Recording:
     """Back-and-forth trapezoidal moves (accelerate, cruise, decelerate, reverse) per speed.
 
@@ -170,7 +216,8 @@ def acceleration_test(
         pieces += [one, -one]
     vel = np.concatenate(pieces)
     pos, vel = _profile(vel, fs)
-    res = FeedDriveSim(p, fs, seed=seed).advance(pos, vel, np.zeros(len(vel)))
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
+    res = FeedDriveSim(plant, fs, substeps=sub, seed=seed).advance(pos, vel, np.zeros(len(vel)))
     return _recording(fs, axis_name, res, "acceleration", p, {"velocity_ref": vel})
 
 
@@ -212,6 +259,7 @@ def drive_sweep(
     f_hi_hz: float = 1000.0,
     amplitude_a: float | None = None,
     seed: int = 0,
+    ideal: bool = False,
 ) -> Recording:
     """Periodic current injection (shaped multisine) during a constant-velocity move.
 
@@ -231,7 +279,10 @@ def drive_sweep(
     inj *= min(1.0, 0.5 * abs(feed_rad_s) / max(float(np.ptp(dev)) / 2.0, 1e-300))
     vel = np.full(len(inj), feed_rad_s)
     pos, vel = _profile(vel, fs)
-    res = FeedDriveSim(p, fs, seed=seed).advance(pos, vel, np.zeros(len(inj)), inj)
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal)
+    res = FeedDriveSim(plant, fs, substeps=sub, seed=seed).advance(
+        pos, vel, np.zeros(len(inj)), inj
+    )
     return _recording(
         fs,
         axis_name,
@@ -271,6 +322,7 @@ def run_table_load_sweep(
     lead_s: float = 0.3,
     seed: int = 2,
     start_position: float = 0.0,
+    substeps: int = 10,
 ) -> tuple[dict[str, np.ndarray], np.ndarray, int]:
     """The drive under a known table load (a shaker on the table) while it moves or holds.
 
@@ -286,7 +338,7 @@ def run_table_load_sweep(
     lead = round(lead_s * fs)
     pos, vel = ramp_move(speed_rad_s, len(load) + lead, fs)
     q0 = start_position / params.transmission
-    sim = FeedDriveSim(params, fs, seed=seed, initial_angle_rad=q0)
+    sim = FeedDriveSim(params, fs, substeps=substeps, seed=seed, initial_angle_rad=q0)
     res = sim.advance(pos + q0, vel, np.concatenate([np.zeros(lead), load]))
     return res, vel, lead
 
@@ -303,6 +355,8 @@ def table_load_sweep(
     f_hi_hz: float = 300.0,
     lead_s: float = 0.3,
     seed: int = 2,
+    drive: FeedDriveParams | None = None,
+    ideal: bool = False,
 ) -> Recording:
     """Multisine table load (a shaker on the table, its force measured) during a move (C5).
 
@@ -321,8 +375,9 @@ def table_load_sweep(
     per = round(period_s * fs)
     load = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1.0, 1.0, n_periods, 0.0)
     load *= torque_rms_nm * p.efficiency / p.transmission / float(np.std(load[:per]))
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
     res, vel, lead = run_table_load_sweep(
-        p, fs, load, speed_rad_s=speed_rad_s, lead_s=lead_s, seed=seed
+        plant, fs, load, speed_rad_s=speed_rad_s, lead_s=lead_s, seed=seed, substeps=sub
     )
     res = {k: v[lead:] for k, v in res.items()}
     return _recording(
@@ -341,6 +396,33 @@ def table_load_sweep(
     )
 
 
+def air_cut_test(
+    cfg: MachineConfig,
+    axis_name: str,
+    *,
+    speed_rad_s: float = 5.0,
+    duration_s: float = 1.0,
+    start_position: float = 0.0,
+    seed: int = 3,
+    drive: FeedDriveParams | None = None,
+    ideal: bool = False,
+) -> Recording:
+    """An air cut: a move from rest to ``speed_rad_s`` (motor; 0 holds position) without load,
+    from ``start_position`` (load position, m; rad rotary). The estimator's R comes from it
+    (Aslan Eq. 3.28–3.30: the variance of the torque measurement in air)."""
+    fs = cfg.sample_rate_hz
+    p = _params(cfg, axis_name)
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
+    n = round(duration_s * fs)
+    pos, vel = ramp_move(speed_rad_s, n, fs)
+    q0 = start_position / p.transmission
+    sim = FeedDriveSim(plant, fs, substeps=sub, seed=seed, initial_angle_rad=q0)
+    res = sim.advance(pos + q0, vel, np.zeros(n))
+    return _recording(
+        fs, axis_name, res, "air_cut", p, {"velocity_ref": vel}, {"speed_rad_s": speed_rad_s}
+    )
+
+
 def idle_runs(
     cfg: MachineConfig,
     axis_name: str,
@@ -350,6 +432,7 @@ def idle_runs(
     n_runs: int = 3,
     load_n: float = 0.0,
     seed: int = 0,
+    ideal: bool = False,
 ) -> list[Recording]:
     """Repeated moves over the same travel at the same feed (air cuts when ``load_n`` is 0).
 
@@ -364,9 +447,11 @@ def idle_runs(
     n_cru = round((travel_mm * 1e-3 / r / v - 0.05) * fs)
     vel = np.concatenate([np.arange(n_acc) / n_acc * v, np.full(n_cru, v), np.zeros(n_acc)])
     pos, vel = _profile(vel, fs)
+    plant, sub = plant_params(cfg, axis_name, ideal=ideal)
     out = []
     for k in range(n_runs):
-        res = FeedDriveSim(p, fs, seed=seed + k).advance(pos, vel, np.full(len(vel), load_n))
+        sim = FeedDriveSim(plant, fs, substeps=sub, seed=seed + k)
+        res = sim.advance(pos, vel, np.full(len(vel), load_n))
         out.append(
             _recording(
                 fs,
@@ -452,16 +537,23 @@ def spindle_friction_test(
 
 
 def write_commissioning_set(
-    machine: str, out_dir: str | Path, axis_name: str = "x", *, spindle: bool = True
+    machine: str,
+    out_dir: str | Path,
+    axis_name: str = "x",
+    *,
+    spindle: bool = True,
+    ideal: bool = False,
 ) -> dict[str, Path]:
     """Run the standard tests on a machine preset and write each recording (HDF5).
 
     Parameters
     ----------
-    machine : preset name or machine TOML path.
+    machine : preset name (the simulator's own description of it,
+        :func:`millsense.simulator.machine_file.simulator_machine`) or machine TOML path.
     out_dir : directory for the files (created).
     axis_name : the feed axis tested.
     spindle : also run the spindle tests when the machine has a spindle.
+    ideal : debugging only — drive the machine file's model instead of the simulator's truth.
 
     Returns
     -------
@@ -472,28 +564,33 @@ def write_commissioning_set(
     idle runs (3 air cuts at 600 mm/min over 20 mm) for an axis with position-periodic
     disturbances.
     """
-    from millsense.core.presets import load_preset
     from millsense.io.recording_file import write_recording
+    from millsense.simulator.machine_file import simulator_machine
 
-    cfg = load_preset(MachineConfig, machine)
+    cfg = simulator_machine(machine)
     axis = cfg.axis(axis_name)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     speeds = np.geomspace(0.1, 30.0, 16)
     order = np.ravel(np.column_stack([speeds, -speeds]))
     recs: dict[str, Recording] = {
-        "friction": friction_test(cfg, axis_name, order, hold_s=2.0),
-        "acceleration": acceleration_test(cfg, axis_name),
+        "friction": friction_test(cfg, axis_name, order, hold_s=2.0, ideal=ideal),
+        "acceleration": acceleration_test(cfg, axis_name, ideal=ideal),
     }
-    if axis.friction.sigma0_nm_rad is not None:
-        recs["presliding"] = presliding_test(cfg, axis_name)
+    if axis.friction is not None and axis.friction.sigma0_nm_rad is not None:
+        recs["presliding"] = presliding_test(cfg, axis_name, ideal=ideal)
+    # an air cut at a cutting speed: the estimator's R (`identify noise`, Aslan Eq. 3.28-3.30)
+    recs["air_cut"] = air_cut_test(cfg, axis_name, speed_rad_s=10.0, duration_s=1.5, ideal=ideal)
     if axis.ball_screw is not None:
-        recs["drive_sweep"] = drive_sweep(cfg, axis_name)
+        recs["drive_sweep"] = drive_sweep(cfg, axis_name, ideal=ideal)
     elif axis.disturbance_modes is not None:
-        recs["table_load_sweep"] = table_load_sweep(cfg, axis_name)
-        recs["table_load_sweep_at_rest"] = table_load_sweep(cfg, axis_name, speed_rad_s=0.0)
+        recs["table_load_sweep"] = table_load_sweep(cfg, axis_name, ideal=ideal)
+        recs["table_load_sweep_at_rest"] = table_load_sweep(
+            cfg, axis_name, speed_rad_s=0.0, ideal=ideal
+        )
     if axis.periodic_disturbances:
-        for k, rec in enumerate(idle_runs(cfg, axis_name, feed_mm_min=600.0, travel_mm=20.0)):
+        idle = idle_runs(cfg, axis_name, feed_mm_min=600.0, travel_mm=20.0, ideal=ideal)
+        for k, rec in enumerate(idle):
             recs[f"idle_{k + 1}"] = rec
     if spindle and cfg.spindle is not None:
         sp = SpindleDriveParams.from_config(cfg.spindle)

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from millsense.core.config import MachineConfig
 from millsense.core.plausibility import SPINDLE_STOPPED_RPM
+from millsense.simulator.fast_block import peak_abs
 from millsense.streaming.block import Event, EventKind, Severity
 
 FloatArray = NDArray[np.float64]
@@ -54,6 +55,8 @@ class CrashMonitor:
         )
         self.linear = np.array([machine.axes[a].kind == "linear" for a in axes], dtype=bool)
         self.axes = axes
+        self._any_linear = bool(self.linear.any())
+        self._linear_axes = [a for a, m in zip(axes, self.linear, strict=True) if m]
         self._last_on: dict[str, float] = {}  # time each condition was last seen, s
         self.events: list[Event] = []
 
@@ -119,6 +122,54 @@ class CrashMonitor:
                 f"crash at {t[0]:.4f} s: cutting power {power / 1e3:.4g} kW beyond the "
                 f"machine's spindle_power_kw {self.power_limit_w / 1e3:g} kW",
             )
+
+    def check_block(
+        self,
+        t: FloatArray,
+        engagement_index: NDArray[np.int64],
+        depth_m: FloatArray,
+        omega_rad_s: float,
+        loads: FloatArray,
+        torque_nm: FloatArray,
+        mean_torque_nm: float | None = None,
+    ) -> None:
+        """:meth:`check` with the peak load found by a compiled scan and the engagement mask
+        (``engagement_index ≥ 0`` and ``depth_m > 0``) formed only with the spindle stopped
+        (the simulator's block loop, decision 1081): the same events without the per-block
+        temporaries; ``mean_torque_nm``: the block's mean torque when the caller has it)."""
+        rpm = abs(omega_rad_s) * 60.0 / (2.0 * math.pi)
+        engaged = (engagement_index >= 0) & (depth_m > 0) if rpm < SPINDLE_STOPPED_RPM else None
+        if engaged is not None and engaged.any():
+            k = int(np.argmax(engaged))
+            self._raise(
+                "spindle_stopped",
+                True,
+                float(t[k]),
+                rpm,
+                f"crash at {t[k]:.4f} s: the tool engages the stock with the spindle stopped "
+                f"({rpm:.3g} rev/min)",
+            )
+        if self.force_limit_n is not None and self._any_linear:
+            peak, i, j = peak_abs(loads, self.linear)
+            if peak > self.force_limit_n:
+                axis = self._linear_axes[j]
+                msg = (
+                    f"crash at {t[i]:.4f} s: {peak:.4g} N on axis {axis}, beyond the "
+                    f"machine's axis_force_n {self.force_limit_n:g} N"
+                )
+                self._raise("axis_force", True, float(t[i]), peak, msg)
+        if self.power_limit_w is not None:
+            mean = float(np.mean(torque_nm)) if mean_torque_nm is None else mean_torque_nm
+            power = mean * abs(omega_rad_s)
+            if power > self.power_limit_w:
+                self._raise(
+                    "spindle_power",
+                    True,
+                    float(t[0]),
+                    power,
+                    f"crash at {t[0]:.4f} s: cutting power {power / 1e3:.4g} kW beyond the "
+                    f"machine's spindle_power_kw {self.power_limit_w / 1e3:g} kW",
+                )
 
     def take_events(self) -> list[Event]:
         """The events raised since the last call (removed from the queue)."""

@@ -244,18 +244,22 @@ class FeedDriveParams:
         else:
             plant = rigid_plant(axis.inertia_kg_m2, axis.transmission_m_rad, axis.efficiency)
         fric: CoulombViscous | LuGre | None
-        lugre_keys = (
-            axis.friction.sigma0_nm_rad,
-            axis.friction.sigma1_nm_s_rad,
-            axis.friction.static_nm,
-            axis.friction.stribeck_velocity_rad_s,
-        )
         if friction == "none":
             fric = None
-        elif friction == "lugre" or (friction == "auto" and all(k is not None for k in lugre_keys)):
-            fric = LuGre.from_config(axis.friction, "axis friction")
         else:
-            fric = CoulombViscous.from_config(axis.friction)
+            ft = axis.friction_table("simulated machine")
+            lugre_keys = (
+                ft.sigma0_nm_rad,
+                ft.sigma1_nm_s_rad,
+                ft.static_nm,
+                ft.stribeck_velocity_rad_s,
+            )
+            if friction == "lugre" or (
+                friction == "auto" and all(k is not None for k in lugre_keys)
+            ):
+                fric = LuGre.from_config(ft, "axis friction")
+            else:
+                fric = CoulombViscous.from_config(ft)
         wc = 2.0 * math.pi * axis.velocity_bandwidth_hz
         kp = axis.velocity_kp_nm_s_rad or plant.inertia * wc
         ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0
@@ -915,6 +919,106 @@ class FeedDriveSim:
         )
         self.samples_done += n
 
+    def draw_noise(self, n: int) -> np.ndarray:
+        """The torque noise of the next ``n`` samples, N·m (the generator's next draws: the
+        same values :meth:`advance_into` would draw over the same samples in any cuts)."""
+        return self._rng.standard_normal(n) * self.params.torque_noise_nm
+
+    def kernel_state(self, n: int) -> tuple[object, ...]:
+        """The kernel's arguments that persist between calls (state arrays updated in place,
+        parameters), in the order :func:`millsense.simulator.fast_block.drives_block` passes
+        them; ``n`` the block length (a zero current injection of that length)."""
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        return (
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            self._no_injection,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            float(self._md),
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            float(self.dt),
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            int(self._sched_block),
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
+            self._c_e,
+            self._ripple,
+        )
+
+    def advance_block(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        dist: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        """:meth:`advance_into` without the checks, with the torque noise ``dist`` drawn by
+        :meth:`draw_noise` ahead (the simulator's block loop; every array C-contiguous
+        float64 of the block's length, ``out`` (n, N_OUT))."""
+        n = pos_ref_rad.shape[0]
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        feed_drive_kernel(
+            self._xm,
+            self._xd,
+            self._sc,
+            self._ring,
+            self._ring_idx,
+            pos_ref_rad,
+            vel_ff_rad_s,
+            load,
+            self._no_injection,
+            dist,
+            self._ad,
+            self._bd,
+            self._cy,
+            self._dy,
+            self._mad,
+            self._mbd,
+            self._mc,
+            self._md,
+            self._fric,
+            self._terms,
+            self._p,
+            self._ip,
+            self.dt,
+            out,
+            self._ma0,
+            self._mb0,
+            self._mc0,
+            self._sched,
+            self._sched_block,
+            self.samples_done,
+            self._pad,
+            self._pbd,
+            self._pcy,
+            self._pdy,
+            self._pgrid,
+            self._c_e,
+            self._ripple,
+        )
+        self.samples_done += n
+
 
 def _position_direction(plant: MechanicalPlant) -> np.ndarray:
     """State of the plant at rest with the motor at 1 rad and no spring stressed."""
@@ -942,8 +1046,12 @@ def constant_velocity_sweep(
     duration_s: float = 1.0,
     accel_time_s: float = 0.1,
     seed: int = 0,
+    torque_constant: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean motor torque ``K_t·i`` over the steady half of constant-speed moves (Aslan C1).
+
+    ``torque_constant`` is the K_t the measured current is multiplied by: the one the
+    identification believes (a nameplate value), default the simulated drive's own.
 
     Each speed is a separate air move from rest (ramp over ``accel_time_s``, hold to
     ``duration_s``). Returns (mean torque N·m, standard error of the mean N·m) per speed,
@@ -962,7 +1070,8 @@ def constant_velocity_sweep(
         )
         sim = FeedDriveSim(params, sample_rate_hz, seed=seed + j)
         res = sim.advance(pos, vel, np.zeros(n))
-        tau = params.torque_constant * res["current"][n // 2 :]
+        kt = params.torque_constant if torque_constant is None else torque_constant
+        tau = kt * res["current"][n // 2 :]
         means[j] = float(np.mean(tau))
         parts = np.array([np.mean(c) for c in np.array_split(tau, 10)])
         sems[j] = float(np.std(parts, ddof=1) / math.sqrt(len(parts)))

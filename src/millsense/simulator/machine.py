@@ -20,7 +20,9 @@ Composition, per block of one interpolation period (3 ms = 30 samples at 10 kHz)
    follow.
 
 Steps 1–2 (and the sensors and 333 Hz rows) are computed for all the blocks a read needs at
-once; steps 3–5 run block by block (decision "Simulator block size"). Blocks are fixed in
+once; steps 3–5 run block by block (decision "Simulator block size"), in compiled kernels
+(:mod:`.fast_block`, decision 1081; ``SimulatorOptions.reference_loop`` keeps the NumPy loop
+for comparison). Blocks are fixed in
 absolute sample index and every generator is drawn block by block, so the output does not
 depend on how :meth:`MachineSimulator.read` cuts the stream. A command
 (:meth:`MachineSimulator.command`) takes effect at ``t_cmd + latency`` where ``t_cmd`` is the
@@ -36,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+from numba.typed import List as NumbaList
 from numpy.typing import NDArray
 
 from millsense.core.config import FeedAxisConfig, MachineConfig
@@ -45,6 +48,15 @@ from millsense.models.kinematics import Kinematics, TrunnionACMachine, kinematic
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.crash import CrashMonitor
+from millsense.simulator.fast_block import (
+    block_errors,
+    drives_block,
+    mean_abs_product,
+    rotate_back,
+    trunnion_block,
+    trunnion_loads,
+    trunnion_tip_error,
+)
 from millsense.simulator.feed_drive import N_OUT, OUT_NAMES, FeedDriveParams, FeedDriveSim
 from millsense.simulator.interpolator import Interpolator, OverrideChannel, Upsampler
 from millsense.simulator.process_coupling import ProcessCoupling
@@ -190,13 +202,16 @@ class SimulatorOptions:
     seed : root seed of every generator (drives, sensors, realism).
     sensors : optional sensors.
     realism : the realism layer; None (default) = on, or off with ``ideal``.
+    reference_loop : run the coupled part with the NumPy block loop of before the speed work
+        (decision 1081) instead of the compiled one; the same recordings to float round-off,
+        kept so that the benchmark measures the speed-up side by side and the golden tests
+        compare the two. Default False.
     ideal : run the one-way model of the machine file (rigid body + printed disturbance
         modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth (coupled lumped-mass
         drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one); with
-        ``realism`` left None the realism layer is then off too. Default True for now: the
-        commissioning/identification path does not yet run on the truth, so the shipped
-        estimate workflow would be judged against a plant it cannot have learnt (decision
-        1061); ``ideal=False`` selects the truth.
+        ``realism`` left None the realism layer is then off too. Default False: the truth
+        with realism on, now that commissioning and identification run on it (decision 1062,
+        superseding 1061); ``ideal=True`` is for debugging only.
     tool_modes_feed_frame : the tool modes of the process are along the feed (x) and its
         normal (y); the simulator maps their accelerations to machine x, y with the feed
         direction.
@@ -212,7 +227,8 @@ class SimulatorOptions:
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
     realism: RealismOptions | None = None
-    ideal: bool = True
+    ideal: bool = False
+    reference_loop: bool = False
 
     @property
     def realism_in_effect(self) -> RealismOptions:
@@ -341,6 +357,83 @@ def _ramp(target: np.ndarray, last: float, step: float, out: np.ndarray) -> floa
         last += d
         out[k] = last
     return last
+
+
+@numba.njit(cache=True)
+def _pre_block(
+    kind: int,
+    q_ref: np.ndarray,
+    v_ref: np.ndarray,
+    err_q: np.ndarray,
+    err_v: np.ndarray,
+    q_ref_block: np.ndarray,
+    a2: float,
+    d4: float,
+    theta0: float,
+    omega0: float,
+    steps: np.ndarray,
+    fs: float,
+    v_cum: np.ndarray,
+    v_count: int,
+    win: int,
+    feed_dir: np.ndarray,
+    s_tip: np.ndarray,
+    theta: np.ndarray,
+    omega: np.ndarray,
+    v_w: np.ndarray,
+    axis: np.ndarray,
+    rot: np.ndarray,
+    lm: np.ndarray,
+    v_chip: np.ndarray,
+    speed: np.ndarray,
+    x_p: np.ndarray,
+    y_p: np.ndarray,
+    s_est: np.ndarray,
+) -> int:
+    """The process inputs of one block in one compiled call (decision 1081), the steps of
+    :meth:`MachineSimulator._couple_block` before the process: the actual motion estimated
+    from the last block's errors, the spindle angle advanced at the last speed, the tool-tip
+    velocity and axis (``kind`` 0: 3-axis, 1: 1-axis stage, 2: trunnion, with its rotation and
+    load matrix), the tooth-period velocity (returns the new history count), the feed frame
+    (``feed_dir`` updated) and the arc length at the actual position."""
+    n = q_ref.shape[0]
+    na = q_ref.shape[1]
+    q_est = np.empty((n, na))
+    v_est = np.empty((n, na))
+    for k in range(n):
+        theta[k] = theta0 + omega0 * steps[k] / fs
+        omega[k] = omega0
+        for i in range(na):
+            q_est[k, i] = q_ref[k, i] - err_q[i]
+            v_est[k, i] = v_ref[k, i] - err_v[i]
+    p_err = np.zeros(3)
+    if kind == 2:
+        trunnion_block(q_est, v_est, a2, d4, v_w, axis, rot, lm)
+        trunnion_tip_error(q_ref_block, err_q, a2, d4, p_err)
+    else:
+        for k in range(n):
+            if kind == 1:
+                v_w[k, 0] = v_est[k, 0]
+                v_w[k, 1] = 0.0
+                v_w[k, 2] = 0.0
+            else:
+                for i in range(3):
+                    v_w[k, i] = v_est[k, i]
+            axis[k, 0] = 0.0
+            axis[k, 1] = 0.0
+            axis[k, 2] = 1.0
+        if kind == 1:
+            p_err[0] = err_q[0]
+        else:
+            for i in range(3):
+                p_err[i] = err_q[i]
+    count = _window_mean(v_w, v_cum, v_count, win, v_chip)
+    _feed_frame(v_chip, axis, feed_dir, speed, x_p, y_p)
+    lag = p_err[0] * feed_dir[0] + p_err[1] * feed_dir[1] + p_err[2] * feed_dir[2]
+    for k in range(n):
+        s = s_tip[k] - lag
+        s_est[k] = s if s < s_tip[k] else s_tip[k]
+    return count
 
 
 class _OverrideSchedule:
@@ -582,6 +675,74 @@ class MachineSimulator(Source):
         self._channels = self._declare()
         # crash events (decision 0942): engaged with the spindle stopped, beyond the limits
         self.crashes = CrashMonitor(machine, self.axes)
+        # scratch of the compiled block loop (decision 1081)
+        nb = self.ratio
+        self._fb_vw = np.empty((nb, 3))
+        self._fb_axis = np.empty((nb, 3))
+        self._fb_rot = np.empty((nb, 3, 3))
+        self._fb_lm = np.empty((nb, 5, 3))
+        self._fb_speed = np.empty(nb)
+        self._fb_xp = np.empty((nb, 3))
+        self._fb_yp = np.empty((nb, 3))
+        self._fb_fw = np.empty((nb, 3))
+        self._fb_perr = np.empty(3)
+        self._fb_omega = np.empty(nb)
+        self._fb_theta = np.empty(nb)
+        self._fb_sest = np.empty(nb)
+        self._fb_vchip = np.empty((nb, 3))
+        self._a2 = self.kin.a2_m if isinstance(self.kin, TrunnionACMachine) else 0.0
+        self._d4 = self.kin.d4_m if isinstance(self.kin, TrunnionACMachine) else 0.0
+        self._fb_spindle = np.empty((nb, 6))
+        self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
+        if any(
+            len(c) != sl.stop - sl.start
+            for c, sl in zip(self._fric_cols, self._fric_slices, strict=True)
+        ):
+            raise ConfigError("simulator: friction drift columns must be contiguous")
+        self._fb_states = self._drive_batch()
+
+    def _drive_batch(self) -> object | None:
+        """The drives' kernel states for :func:`~.fast_block.drives_block` (all axes in one
+        compiled call per block), or None where that call does not apply — an axis whose
+        realism rescales its modes from a table, or drives whose kernel arguments differ in
+        type — and the loop over :meth:`FeedDriveSim.advance_block` runs instead."""
+        if any(t is not None for t in self._mode_tables):
+            return None
+        states = NumbaList()
+        try:
+            for d in self.drives:
+                states.append(d.kernel_state(self.ratio))
+        except Exception:  # numba reports a type mismatch in several ways
+            return None
+        n_ax = len(self.drives)
+        opts = self._realism
+        width = max(len(f) for f in self._fric_base)
+        self._fb_fric_base = np.zeros((n_ax, width))
+        self._fb_real = np.zeros((n_ax, 6))
+        self._fb_temp = np.zeros(n_ax)
+        for i, ar in enumerate(self._axis_real):
+            self._fb_fric_base[i, : len(self._fric_base[i])] = self._fric_base[i]
+            if ar is not None and opts is not None and opts.friction_drift:
+                sl = self._fric_slices[i]
+                self._fb_real[i] = [
+                    1.0,
+                    ar.ripple,
+                    ar.ripple_wavelength,
+                    ar.ripple_phase,
+                    sl.start,
+                    sl.stop,
+                ]
+                self._fb_temp[i] = ar.temperature_k
+        self._fb_thermal = np.array(
+            [
+                opts.thermal_resistance_k_w if opts else 0.0,
+                opts.thermal_time_constant_s if opts else 1.0,
+                opts.friction_temp_coeff_1_k if opts else 0.0,
+                self.period_s,
+            ]
+        )
+        self._fb_ndone = np.zeros(n_ax, dtype=np.int64)
+        return states
 
     # ------------------------------------------------------------------ declarations
     def _declare(self) -> list[ChannelInfo]:
@@ -781,10 +942,32 @@ class MachineSimulator(Source):
         # 3. the coupled blocks
         n_ax = len(self.axes)
         w = _BlockArrays(n, n_ax)
-        for b in range(n_blocks):
-            self._couple_block(
-                slice(b * nb, (b + 1) * nb), t, s_ref, q_ref, v_ref, pos_m, vel_m, spd_ref, w
-            )
+        if self.options.reference_loop:
+            for b in range(n_blocks):
+                self._couple_block(
+                    slice(b * nb, (b + 1) * nb), t, s_ref, q_ref, v_ref, pos_m, vel_m, spd_ref, w
+                )
+        else:
+            # what does not depend on the drives' state, for all blocks at once: the tip's arc
+            # length of the reference and every drive's torque noise (the generators' next
+            # draws, as block by block)
+            s_tip = self.interp.tip_arc_length(s_ref) if self.process is not None else s_ref
+            noise = np.empty((n_ax, n))
+            for i, drive in enumerate(self.drives):
+                noise[i] = drive.draw_noise(n)
+            if self._fb_states is not None:
+                for i, drive in enumerate(self.drives):
+                    self._fb_ndone[i] = drive.samples_done
+            for b in range(n_blocks):
+                self._couple_block_fast(
+                    b * nb, (b + 1) * nb, t, s_tip, q_ref, v_ref, pos_m, vel_m, spd_ref, noise, w
+                )
+            if self._fb_states is not None:  # the drives' counters and the axes' temperatures
+                for i, drive in enumerate(self.drives):
+                    drive.samples_done = int(self._fb_ndone[i])
+                    ar = self._axis_real[i]
+                    if ar is not None and self._fb_real[i, 0] != 0.0:
+                        ar.temperature_k = float(self._fb_temp[i])
         # 4. channels
         d_out = w.drive
         data: dict[str, np.ndarray] = {}
@@ -979,6 +1162,175 @@ class MachineSimulator(Source):
         self._torque_last = float(np.mean(torque))
         self._realism_tool()
 
+    def _couple_block_fast(
+        self,
+        a: int,
+        b: int,
+        t_all: FloatArray,
+        s_tip_all: FloatArray,
+        q_all: FloatArray,
+        v_all: FloatArray,
+        pos_m: FloatArray,
+        vel_m: FloatArray,
+        spd_all: FloatArray,
+        noise: FloatArray,
+        w: _BlockArrays,
+    ) -> None:
+        """:meth:`_couple_block` with compiled kinematics, loads, errors and checks and the
+        drives' noise drawn ahead (decision 1081): the same coupling and the same recordings
+        to float round-off."""
+        sl = slice(a, b)
+        n = b - a
+        fs = self.sample_rate_hz
+        kin = self.kin
+        five = isinstance(kin, TrunnionACMachine)
+        torque: FloatArray
+        if self.process is not None:
+            t = t_all[sl]
+            theta = self._fb_theta[:n]
+            omega = self._fb_omega[:n]
+            rot = self._fb_rot[:n]
+            axis = self._fb_axis[:n]
+            speed = self._fb_speed[:n]
+            x_p = self._fb_xp[:n]
+            y_p = self._fb_yp[:n]
+            s_est = self._fb_sest[:n]
+            self._v_count = _pre_block(
+                2 if five else (1 if self.stage else 0),
+                q_all[sl],
+                v_all[sl],
+                self._err_q,
+                self._err_v,
+                self._q_ref_block,
+                self._a2,
+                self._d4,
+                self._theta,
+                self._omega,
+                self._steps,
+                fs,
+                self._v_cum,
+                self._v_count,
+                self._tooth_window(),
+                self._feed_dir,
+                s_tip_all[sl],
+                theta,
+                omega,
+                self._fb_vw[:n],
+                axis,
+                rot,
+                self._fb_lm[:n],
+                self._fb_vchip[:n],
+                speed,
+                x_p,
+                y_p,
+                s_est,
+            )
+            po = self.process.evaluate(t, s_est, theta, omega, speed)
+            f_w = self._fb_fw[:n]
+            _to_frame(po.force, x_p, y_p, axis, f_w)
+            regen = self.process.modes is not None
+            loads_blk = w.loads[sl]
+            if five:
+                trunnion_loads(rot, self._fb_lm[:n], f_w, w.force[sl], loads_blk)
+                if regen:
+                    rotate_back(rot, x_p, y_p, po.vibration_acc, w.tool_acc[sl])
+                    rotate_back(rot, x_p, y_p, po.vibration_m, w.tool_vib[sl])
+            else:
+                if self.stage:
+                    loads_blk[:, 0] = -f_w[:, 0]
+                else:
+                    loads_blk[:] = -f_w
+                w.force[sl] = f_w
+                if regen:
+                    acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
+                    vib_w = po.vibration_m[:, :1] * x_p + po.vibration_m[:, 1:2] * y_p
+                    w.tool_acc[sl] = acc_w[:, :2]
+                    w.tool_vib[sl] = vib_w[:, :2]
+            torque = po.torque
+            w.torque[sl] = torque
+            w.chatter[sl] = po.chatter
+            w.broken[sl] = po.broken
+            w.engagement[sl] = po.engagement_index
+            w.depth[sl] = po.depth_m
+            w.feed_per_tooth[sl] = po.feed_per_tooth_m
+            mean_torque = float(torque.sum()) / n  # = np.mean
+            self.crashes.check_block(
+                t, po.engagement_index, po.depth_m, self._omega, loads_blk, torque, mean_torque
+            )
+        else:
+            torque = w.torque[sl]
+            mean_torque = float(np.mean(torque))
+        # drives and spindle
+        loads = np.ascontiguousarray(w.loads[sl].T)
+        if self._fb_states is not None:
+            drives_block(
+                self._fb_states,
+                self._fb_ndone,
+                pos_m,
+                vel_m,
+                loads,
+                noise,
+                w.drive,
+                a,
+                b,
+                self._fb_real,
+                self._fb_temp,
+                self._fb_fric_base,
+                self._fb_thermal,
+                _D_TRUE_POS,
+                _D_FRICTION,
+                _D_TRUE_SPEED,
+            )
+        else:
+            for i, drive in enumerate(self.drives):
+                out = w.drive[i, sl]
+                drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
+                if self._realism is not None:
+                    self._realism_axis_fast(i, out)
+        err_q = np.empty(len(self.drives))
+        err_v = np.empty(len(self.drives))
+        block_errors(q_all[b - 1], v_all, w.drive, a, b, _D_TRUE_POS, _D_TRUE_VEL, err_q, err_v)
+        self._err_q = err_q
+        self._err_v = err_v
+        self._q_ref_block = q_all[b - 1].copy()
+        if self.spindle is not None:
+            sp_out = self._fb_spindle[:n]
+            self.spindle.advance_into(spd_all[sl], np.ascontiguousarray(torque), sp_out)
+            w.spindle[sl] = sp_out[:, :4]  # current_cmd, current, speed, true_speed
+            self._theta = float(sp_out[n - 1, 4])
+            self._omega = float(sp_out[n - 1, 3])
+        else:
+            spd = spd_all[sl]
+            w.spindle[sl, 0] = 0.0
+            w.spindle[sl, 1] = 0.0
+            w.spindle[sl, 2] = spd
+            w.spindle[sl, 3] = spd
+            self._theta = float(self._theta + np.sum(spd) / fs)
+            self._omega = float(spd[-1])
+        self._torque_last = mean_torque
+        self._realism_tool()
+
+    def _realism_axis_fast(self, i: int, out: FloatArray) -> None:
+        """:meth:`_realism_axis` with the friction power by a compiled mean and the friction
+        columns as one slice."""
+        ar = self._axis_real[i]
+        opts = self._realism
+        if ar is None or opts is None:
+            return
+        q = float(out[-1, _D_TRUE_POS])
+        drive = self.drives[i]
+        table = self._mode_tables[i]
+        if table is not None:
+            scales, mads, mbds = table
+            j = int(np.argmin(np.abs(scales - ar.mode_scale(q))))
+            drive._mad[:] = mads[j]
+            drive._mbd[:] = mbds[j]
+        if opts.friction_drift:
+            power = mean_abs_product(out, _D_FRICTION, _D_TRUE_SPEED)
+            sc = ar.friction_scale(q, power, self.period_s, opts)
+            cols = self._fric_slices[i]
+            drive._fric[cols] = self._fric_base[i][cols] * sc
+
     def _tooth_period_velocity(self, v_w: FloatArray) -> FloatArray:
         """Tool-centre velocity averaged over the last tooth period per sample, m/s.
 
@@ -990,19 +1342,21 @@ class MachineSimulator(Source):
         the end of the last block, in whole samples, ≤ 0.1 s; the instantaneous velocity
         while the spindle stands (decision "Simulator chip from the tooth-period feed").
         """
-        assert self.process is not None
-        om = abs(self._omega)
-        fs = self.sample_rate_hz
-        if om < 1e-3:
-            win = 1
-        else:
-            win = round(2 * math.pi / (self.process.tool.n_flutes * om) * fs)
-            win = min(max(win, 1), self._v_hist_max)
+        win = self._tooth_window()
         out = np.empty_like(v_w)
         self._v_count = _window_mean(
             np.ascontiguousarray(v_w), self._v_cum, self._v_count, win, out
         )
         return out
+
+    def _tooth_window(self) -> int:
+        """The window of :meth:`_tooth_period_velocity`, samples."""
+        assert self.process is not None
+        om = abs(self._omega)
+        if om < 1e-3:
+            return 1
+        win = round(2 * math.pi / (self.process.tool.n_flutes * om) * self.sample_rate_hz)
+        return int(min(max(win, 1), self._v_hist_max))
 
     def _tip_error(self) -> FloatArray:
         """Tracking error of the tool tip at the end of the last block (workpiece frame), m."""

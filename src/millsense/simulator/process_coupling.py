@@ -292,6 +292,27 @@ def block_forces(
 
 
 @numba.njit(cache=True)
+def _feed_per_tooth(feed: np.ndarray, speed: np.ndarray, n_flutes: float, out: np.ndarray) -> None:
+    """Feed per tooth ``c = 2π·|v| / (N·max(|Ω|, 1e-9))``, 0 where ``|Ω| ≤ 1e-6`` rad/s."""
+    for k in range(feed.shape[0]):
+        s = abs(speed[k])
+        if s > 1e-6:
+            om = s if s > 1e-9 else 1e-9
+            out[k] = _TWO_PI * abs(feed[k]) / (n_flutes * om)
+        else:
+            out[k] = 0.0
+
+
+@numba.njit(cache=True)
+def _uniform(idx: np.ndarray, depth: np.ndarray) -> bool:
+    """True when every sample has the first sample's engagement index and depth."""
+    for k in range(1, idx.shape[0]):
+        if idx[k] != idx[0] or depth[k] != depth[0]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
 def _forces_kernel(
     phi_s: np.ndarray,
     c: np.ndarray,
@@ -605,9 +626,13 @@ class ProcessCoupling:
             m/s (feed per tooth ``c = 2π v / (N Ω)``).
         """
         n = len(t_s)
-        omega = np.maximum(np.abs(spindle_speed_rad_s), 1e-9)
-        c = _TWO_PI * np.abs(feed_speed_m_s) / (self.tool.n_flutes * omega)
-        c = np.where(np.abs(spindle_speed_rad_s) > 1e-6, c, 0.0)
+        c = np.empty(n)
+        _feed_per_tooth(
+            np.asarray(feed_speed_m_s, dtype=np.float64),
+            np.asarray(spindle_speed_rad_s, dtype=np.float64),
+            float(self.tool.n_flutes),
+            c,
+        )
         idx, depth = self.engagement_at(s_m, t_s)
         loss = self.radius_loss(t_s)
         broken = (loss.sum(axis=1) > 0).astype(np.float64) if self._breaks else np.zeros(n)
@@ -617,7 +642,7 @@ class ProcessCoupling:
         acc = np.zeros((n, 2))
         chatter = np.zeros(n)
         if self.modes is None:
-            if n and idx.min() == idx.max() and depth.min() == depth.max():
+            if n and _uniform(idx, depth):
                 groups = [(int(idx[0]), float(depth[0]), slice(None))]
             else:
                 keys = np.stack([idx.astype(np.float64), depth], axis=1)

@@ -80,7 +80,7 @@ class RigidDriveParams:
             torque_constant=axis.torque_constant_nm_a,
             transmission=axis.transmission_m_rad,
             efficiency=axis.efficiency,
-            friction=CoulombViscous.from_config(axis.friction),
+            friction=CoulombViscous.from_config(axis.friction_table()),
             kp=kp,
             ki=ki,
             kv=wc / 4.0,
@@ -162,11 +162,14 @@ def constant_velocity_move(
     *,
     accel_time_s: float = 0.05,
     seed: int = 0,
+    table_force_n: float = 0.0,
 ) -> dict[str, np.ndarray]:
-    """Simulate an air move at constant motor speed (commissioning test of Aslan C1).
+    """Simulate a move at constant motor speed (commissioning test of Aslan C1).
 
     Ramps to ``speed_rad_s`` in ``accel_time_s`` then holds it; returns the channels of
-    :meth:`RigidDriveSim.advance` (no load).
+    :meth:`RigidDriveSim.advance`. ``table_force_n`` is a constant known force on the table in
+    the sign convention of a cutting force along the axis (the slot cut's; 0: an air move),
+    e.g. a calibrated weight or spring balance for the force-gain calibration of the demo.
     """
     n = round(duration_s * sample_rate_hz)
     t = np.arange(n) / sample_rate_hz
@@ -177,4 +180,4 @@ def constant_velocity_move(
         0.5 * speed_rad_s * accel_time_s + speed_rad_s * (t - accel_time_s),
     )
     sim = RigidDriveSim(params, sample_rate_hz, seed=seed)
-    return sim.advance(pos, vel, np.zeros(n))
+    return sim.advance(pos, vel, params.load_torque(np.full(n, -table_force_n)))

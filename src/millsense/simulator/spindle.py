@@ -157,6 +157,24 @@ class SpindleDriveSim:
             "speed_range": out[:, 5].astype(np.int8),
         }
 
+    def advance_into(
+        self, speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray, out: np.ndarray
+    ) -> None:
+        """:meth:`advance` into ``out`` ((n, 6) C-contiguous: current_cmd, current, speed,
+        true_speed, angle, speed_range) without the checks (the simulator's block loop;
+        both inputs C-contiguous float64 of length n)."""
+        _spindle_kernel(
+            self._x,
+            self._ctl,
+            speed_ref_rad_s,
+            torque_dist_nm,
+            self._ad,
+            self._bd,
+            self._cr,
+            self._prm,
+            out,
+        )
+
 
 def discrete_disturbance_frf(
     sim: SpindleDriveSim, freq_hz: np.ndarray, range_index: int = 0

@@ -6,6 +6,8 @@
 - :mod:`.path_fit` — identification of Φ_d from a table-load sweep (C5);
 - :mod:`.tuning` — R from air cuts, Q for the widest band or least noise (Eq. 3.28–3.30);
 - :mod:`.schedule`, :mod:`.condition` — position-scheduled and moving/at-rest estimators;
-- :mod:`.commanded`, :mod:`.idle_compensation` — commanded velocity, idle-load subtraction;
-- :mod:`.thesis_models` — the thesis's printed designs (Table 3.4, Eq. 3.30).
+- :mod:`.commanded`, :mod:`.idle_compensation` — commanded velocity, idle-load subtraction.
+
+The thesis's printed designs (Table 3.4, Eq. 3.30) are the bench's
+(:mod:`millsense.bench.thesis_models`): they are the simulator's data, not the estimators'.
 """

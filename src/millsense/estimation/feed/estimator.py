@@ -351,8 +351,8 @@ def c3_front_end(
             f"{where}: key 'axes.{axis}.estimator.lowpass_hz' = {lowpass:g} must be below "
             f"{sample_rate_hz / 2:g} Hz"
         )
-    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S)
-    f = cfg.friction
+    drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S, where=where, axis=axis)
+    f = cfg.friction_table(where, axis)
     lugre = None
     if use_lugre and None not in (
         f.sigma0_nm_rad,

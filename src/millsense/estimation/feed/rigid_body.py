@@ -42,13 +42,21 @@ class DriveModel:
     friction: CoulombViscous
 
     @classmethod
-    def from_config(cls, cfg: FeedAxisConfig, friction_smoothing_rad_s: float) -> DriveModel:
+    def from_config(
+        cls,
+        cfg: FeedAxisConfig,
+        friction_smoothing_rad_s: float,
+        *,
+        where: str = "machine",
+        axis: str = "",
+    ) -> DriveModel:
         """The rigid-body drive of an axis table: nameplate K_t, r_g, η; J_e and the viscous
         friction of :func:`rigid_limit` (a ball-screw axis's table inertia and damping
         included); Coulomb + viscous friction with sgn(ω) smoothed over
-        ``friction_smoothing_rad_s``."""
+        ``friction_smoothing_rad_s``. A table without identified friction (a nameplate file)
+        raises a one-line ConfigError naming ``axes.<axis>.friction``."""
         inertia, damping = rigid_limit(cfg)
-        fric = CoulombViscous.from_config(cfg.friction, friction_smoothing_rad_s)
+        fric = CoulombViscous.from_config(cfg.friction_table(where, axis), friction_smoothing_rad_s)
         fric = replace(
             fric, viscous_pos=fric.viscous_pos + damping, viscous_neg=fric.viscous_neg + damping
         )

@@ -30,7 +30,7 @@ from functools import cache
 
 import numpy as np
 
-from millsense.validation import Measured, case
+from millsense.validation import Calibration, Measured, case
 
 ILME_Q = 1e-3
 ILME_PRIOR_SD = 0.3
@@ -38,6 +38,18 @@ ILME_PRIOR_SD = 0.3
 #: İlme §4.1 reports the FRF gain varying by up to 25 % along the pass (decision "İlme filter:
 #: persistent model error in R").
 ILME_MODEL_ERROR = 0.2
+#: ε = 0.2 was picked from a sweep on this very 12-test matrix (decision 0105: 0.05 → 18.8 %,
+#: 0.2 → 8.8 % worst peak error), so the İlme figures are calibrations, not validations; the
+#: prior alone already gives 4-9 % (issue 12). No held-out İlme case exists yet.
+ILME_CALIBRATION = Calibration(
+    "İlme persistent model error ε = 0.2 (estimate_harmonic_kf model_error)",
+    ("estimation.accel.ilme_worst_peak_error", "estimation.accel.ilme_worst_rms_error"),
+    "picked by a sweep of ε on the simulated 12-test matrix (decision 0105)",
+)
+#: Thesis worst over the 12 tests (seed-003 digest §4.2, Table 4.6): peak 19.8 % (Test 3),
+#: RMS 28.6 % (Test 6); its mean: 7.4 % and 8.4 %.
+ILME_THESIS_WORST = {"peak": 19.8, "rms": 28.6}
+ILME_THESIS_MEAN = {"peak": 7.4, "rms": 8.4}
 ILME_SKIP_S = 0.1  # start after the entry transient (İlme cuts the record at a landmark)
 
 
@@ -101,11 +113,17 @@ def _ilme_table() -> tuple[tuple[int, float, float, float, float, float, float],
 
 
 def _ilme_details() -> str:
+    rows = _ilme_table()
+    mean_pk = float(np.mean([r[3] for r in rows]))
+    mean_rms = float(np.mean([r[6] for r in rows]))
     lines = [
+        f"Mean over the 12 tests: peak {mean_pk:.1f} % (thesis {ILME_THESIS_MEAN['peak']} %), "
+        f"RMS {mean_rms:.1f} % (thesis {ILME_THESIS_MEAN['rms']} %).",
+        "",
         "| Test | Peak true/est [N] | Peak err | RMS true/est [N] | RMS err |",
         "|---|---|---|---|---|",
     ]
-    for t, pt, pe, ep, rt, re_, er in _ilme_table():
+    for t, pt, pe, ep, rt, re_, er in rows:
         lines.append(
             f"| {t} | {pt:.1f} / {pe:.1f} | {ep:.1f} % | {rt:.1f} / {re_:.1f} | {er:.1f} % |"
         )
@@ -114,12 +132,15 @@ def _ilme_details() -> str:
 
 @case(
     "estimation.accel.ilme_worst_peak_error",
-    source="issue 7 acceptance; İlme Table 4.6 (10 % success line), seed-003 digest §4.2",
-    reference=0.0,
+    source=f"İlme Table 4.6, seed-003 digest §4.2: worst peak error {ILME_THESIS_WORST['peak']} %",
+    reference=ILME_THESIS_WORST["peak"],
     unit="%",
-    abs_tol=10.0,
+    rel_tol=0.5,
+    too_good_factor=2.0,
     quick=False,
-    description="İlme 12-test matrix in simulation: worst Y peak-force error of the harmonic KF",
+    calibration=ILME_CALIBRATION,
+    description="İlme 12-test matrix in simulation: worst Y peak-force error of the harmonic KF "
+    "against the thesis's worst (two-sided ±50 %, more than 2× better flagged); ε fitted here",
 )
 def _ilme_peak() -> float | Measured:
     worst = max(r[3] for r in _ilme_table())
@@ -128,12 +149,15 @@ def _ilme_peak() -> float | Measured:
 
 @case(
     "estimation.accel.ilme_worst_rms_error",
-    source="issue 7 acceptance; İlme Table 4.6 (10 % success line), seed-003 digest §4.2",
-    reference=0.0,
+    source=f"İlme Table 4.6, seed-003 digest §4.2: worst rms error {ILME_THESIS_WORST['rms']} %",
+    reference=ILME_THESIS_WORST["rms"],
     unit="%",
-    abs_tol=10.0,
+    rel_tol=0.5,
+    too_good_factor=2.0,
     quick=False,
-    description="İlme 12-test matrix in simulation: worst Y RMS-force error of the harmonic KF",
+    calibration=ILME_CALIBRATION,
+    description="İlme 12-test matrix in simulation: worst Y RMS-force error of the harmonic KF "
+    "against the thesis's worst (two-sided ±50 %, more than 2× better flagged); ε fitted here",
 )
 def _ilme_rms() -> float | Measured:
     worst = max(r[6] for r in _ilme_table())
@@ -215,12 +239,14 @@ def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
 
 @case(
     "estimation.accel.aslan_quarter_fused_error",
-    source="issue 7 acceptance; Aslan Ch. 4 Case 2 (seed-000 digest V4): fused maximum 8 %",
-    reference=0.0,
+    source="Aslan Ch. 4 Case 2 (seed-000 digest V4): fused maximum 8 % (singles 14-21 %)",
+    reference=8.0,
     unit="%",
-    abs_tol=8.0,
+    rel_tol=0.5,
+    too_good_factor=2.0,
     quick=False,
-    description="Aslan Ch. 4 quarter immersion 9000 rev/min: fused force error (fitted band)",
+    description="Aslan Ch. 4 quarter immersion 9000 rev/min: fused force error (fitted band) "
+    "against the thesis's 8 % (two-sided ±50 %; below 4 %, more than 2× better, flagged)",
 )
 def _aslan_fused() -> float | Measured:
     band, _, _, details = _aslan_quarter()

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from millsense.validation import Measured, case
+from millsense.validation import Calibration, Measured, case
 
 if TYPE_CHECKING:
     from millsense.core.config import FeedAxisConfig
@@ -88,10 +88,20 @@ THESIS = {
 
 
 def _axis() -> FeedAxisConfig:
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
+    """The simulated stage (the virtual machine's yamada-b): drives the plant only."""
+    from millsense.simulator.machine_file import simulator_machine
 
-    return load_preset(MachineConfig, "yamada-b").axis("x")
+    return simulator_machine("yamada-b").axis("x")
+
+
+@cache
+def _belief() -> FeedAxisConfig:
+    """What the estimators are given (issue 12, decision 0993): the yamada-b nameplate (K_t,
+    lead, current-loop bandwidth) merged with ``identify drive`` on a simulated drive sweep
+    (dead times T_s, T_m, T_t; :func:`millsense.bench.pipeline.identified_ball_screw_machine`)."""
+    from millsense.bench.pipeline import identified_ball_screw_machine
+
+    return identified_ball_screw_machine("yamada-b").machine.axis("x")
 
 
 def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) -> MechanicalPlant:
@@ -163,7 +173,7 @@ def _delays(compensate: bool) -> tuple[float, float, float]:
 
     if not compensate:
         return (0.0, 0.0, 0.0)
-    ax = _axis()
+    ax = _belief()
     return sync_delays(
         ax.dead_time_amplifier_ms * 1e-3,
         ax.dead_time_motor_encoder_ms * 1e-3,
@@ -202,7 +212,7 @@ def _identified() -> DriveParameters:
     sel = slice(int(0.3 * FS_B), n)
     if np.min(out["true_velocity"][sel]) <= 0.0:
         raise RuntimeError("identification sweep: the table velocity reversed")
-    ax = _axis()
+    ax = _belief()
     return identify_drive_parameters(
         out["current_cmd"][sel],
         out["angle"][sel],
@@ -297,7 +307,7 @@ def _estimate(
         FS_B,
         cutoff_hz=CUTOFF_B,
         delays_s=_delays(sync),
-        current_loop_hz=_axis().current_bandwidth_hz,
+        current_loop_hz=_belief().current_bandwidth_hz,
     )
     if kind == "medob":
         est = obs.process(out["current_cmd"], [r * out["angle"], out["scale"]])
@@ -336,7 +346,7 @@ def table47(
 
     ref_obs = medob_observer(_identified(), FS_B, cutoff_hz=CUTOFF_B)
     ref = ref_obs.output_filter(cut["load"])
-    lag = round(_axis().dead_time_motor_encoder_ms * 1e-3 * FS_B)
+    lag = round(_belief().dead_time_motor_encoder_ms * 1e-3 * FS_B)
     ref = np.concatenate([np.full(lag, ref[0]), ref[: len(ref) - lag]])
     w = slice(int((CUT_START_S + SETTLE_S) * FS_B), len(ref))
     err = est[w] - ref[w]
@@ -531,6 +541,21 @@ def _table47_markdown() -> str:
     return "\n".join(rows)
 
 
+#: The one calibrated parameter of Table 4-7 (module docstring): the current-noise amplitude,
+#: fitted on the "compensated disturbance" column of condition <1> (2.0 N in the thesis).
+NOISE_CALIBRATION = Calibration(
+    "current noise 16 mA RMS per sample (yamada-b Table 4-7 scenario)",
+    ("estimation.dob.table47_c1_disturbance",),
+    "the one amplitude that makes the compensated-disturbance column of condition <1> come out "
+    "at the thesis's 2.0 N (the thesis gives no noise level)",
+)
+#: Two-sided tolerance around each thesis value (Table 4-7 is one measurement per condition,
+#: no spread given: ±50 %), and the realism flag: an error std below half the thesis's says the
+#: simulated mismatch is more benign than the real machine (issue 12).
+TABLE47_REL_TOL = 0.5
+TABLE47_TOO_GOOD = 2.0
+
+
 def _make_table47_case(key: int) -> None:
     c = CONDITIONS[key]
     ref = THESIS[key]["medob"]
@@ -538,20 +563,38 @@ def _make_table47_case(key: int) -> None:
     @case(
         f"estimation.dob.table47_c{key}",
         source=f"Yamada (2017) Table 4-7 condition {c.label}: {ref} N",
-        reference=0.5,
-        unit="× thesis",
-        abs_tol=0.5,
+        reference=ref,
+        unit="N",
+        rel_tol=TABLE47_REL_TOL,
+        too_good_factor=TABLE47_TOO_GOOD,
         quick=False,
-        description=f"MEDOB error std / thesis's {ref} N on yamada-b, condition {c.label} "
-        "(passes in [0, 1])",
+        calibration=NOISE_CALIBRATION,
+        ci=key in (4, 5),
+        description=f"MEDOB error std on yamada-b, condition {c.label}, against the thesis's "
+        f"{ref} N (two-sided ±50 %; more than 2× better is flagged as too good)",
     )
     def _c() -> Measured:
         s = table47_summary(key)
-        return Measured(s["medob"] / ref, _table47_markdown())
+        return Measured(s["medob"], _table47_markdown())
 
 
 for _k in CONDITIONS:
     _make_table47_case(_k)
+
+
+@case(
+    "estimation.dob.table47_c1_disturbance",
+    source="Yamada (2017) Table 4-7 condition <1>: compensated disturbance 2.0 N",
+    reference=2.0,
+    unit="N",
+    rel_tol=0.1,
+    quick=False,
+    calibration=NOISE_CALIBRATION,
+    description="Error std of the compensated disturbance, condition <1>: the figure the 16 mA "
+    "current noise was fitted on (a calibration, not a validation)",
+)
+def _c1_disturbance() -> Measured:
+    return Measured(table47_summary(1)["disturbance"], _table47_markdown())
 
 
 @case(
@@ -561,6 +604,7 @@ for _k in CONDITIONS:
     unit="ratio",
     abs_tol=8.2 / 5.7 - 1.05,
     quick=False,
+    calibration=NOISE_CALIBRATION,
     description="Error std without / with phase-lag compensation, condition <1> (≥ 1.05: "
     "measurably worse)",
 )
@@ -658,7 +702,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
     out = FeedDriveSim(fp, FS_B, seed=11).advance(np.zeros(n), np.zeros(n), load)
     r = p.transmission_m_rad
     d = _delays(True)
-    loop = _axis().current_bandwidth_hz
+    loop = _belief().current_bandwidth_hz
     xm, xt = r * out["angle"], out["scale"]
     vib = VibrationModeObserver(p, FS_B, cutoff_hz=CUTOFF_B, delays_s=d).process(
         out["current_cmd"], xm, xt
@@ -667,7 +711,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
         p, FS_B, cutoff_hz=CUTOFF_B, delays_s=d, current_loop_hz=loop
     ).process(out["current_cmd"], [xm, xt])
     ref = rigid_mode_observer(p, FS_B, cutoff_hz=CUTOFF_B).output_filter(load)
-    lag = round(_axis().dead_time_motor_encoder_ms * 1e-3 * FS_B)
+    lag = round(_belief().dead_time_motor_encoder_ms * 1e-3 * FS_B)
     ref = np.concatenate([np.full(lag, ref[0]), ref[: n - lag]])
     w = slice(int((CUT_START_S + SETTLE_S) * FS_B), n)
     air = slice(int(0.1 * FS_B), int(CUT_START_S * FS_B))
@@ -683,12 +727,16 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
 @case(
     "estimation.dob.stationary_vibration_mode",
     source="Yamada (2017) §5.4, Fig. 5-31: vibration-mode mean and std of error ≤ ~10 N",
-    reference=5.0,
+    reference=10.0,
     unit="N",
-    abs_tol=5.0,
+    rel_tol=0.5,
+    too_good_factor=2.0,
     quick=False,
+    calibration=NOISE_CALIBRATION,
+    ci=True,
     description="Stationary X axis, cross-feed force: worst |mean| or std of the "
-    "vibration-mode error over Table 5-1 conditions (passes in [0, 10] N)",
+    "vibration-mode error over Table 5-1 conditions, against the thesis's ~10 N read from Fig. "
+    "5-31 (two-sided ±50 %; below 5 N, more than 2× better, is flagged as too good)",
 )
 def _stationary() -> Measured:
     worst = 0.0

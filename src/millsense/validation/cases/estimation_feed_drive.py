@@ -43,6 +43,8 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
+    from millsense.bench.pipeline import PipelineResult
+    from millsense.core.config import FeedAxisConfig
     from millsense.estimation.feed.estimator import FeedAxisModel, OperatingCondition
     from millsense.estimation.feed.path_fit import SweepResult
     from millsense.estimation.feed.schedule import FeedModelBank
@@ -58,22 +60,44 @@ N_PERIODS = 17
 MOVE_SPEED_RAD_S = 10.0
 
 
+def _nameplate_axis(axis: str) -> FeedAxisConfig:
+    """The nameplate axis table of the Quaser preset (catalogue values, decision 0991)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+
+    return load_preset(MachineConfig, "quaser-ux600").axis(axis)
+
+
+@cache
+def _pipeline(axis: str, condition: OperatingCondition = "moving") -> PipelineResult:
+    """Nameplate → commission → identify → merge for one axis (decision 0993): the
+    commissioning machine is the simulator's drive with the unmodelled 420 Hz mode
+    (:func:`~millsense.simulator.drive_mismatch.commissioning_drive`)."""
+    from millsense.bench.pipeline import identified_machine
+    from millsense.simulator.drive_mismatch import commissioning_drive
+    from millsense.simulator.machine_file import simulated_feed_drive
+
+    params = simulated_feed_drive("quaser-ux600", axis)
+    return identified_machine(
+        "quaser-ux600",
+        [axis],
+        drives={axis: commissioning_drive(params)},
+        conditions=(condition,),
+    )
+
+
 @cache
 def _identified(
     axis: str, condition: OperatingCondition = "moving"
 ) -> tuple[FeedDriveParams, FeedAxisModel, SweepResult]:
-    from millsense.bench.feed_commissioning import identify_feed_axis
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
-    from millsense.simulator.drive_mismatch import commissioning_drive
-    from millsense.simulator.feed_drive import FeedDriveParams
+    """(the simulated drive, the estimator's model built from the merged machine file as
+    ``millsense estimate`` builds it, the path sweep it was identified from)."""
+    from millsense.bench.pipeline import feed_model
+    from millsense.simulator.machine_file import simulated_feed_drive
 
-    ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
-    params = FeedDriveParams.from_config(ax)
-    model, sweep = identify_feed_axis(
-        commissioning_drive(params), axis, ax.kind, sample_rate_hz=FS_HZ, condition=condition
-    )
-    return params, model, sweep
+    res = _pipeline(axis, condition)
+    model = feed_model(res, axis, condition, sample_rate_hz=FS_HZ)
+    return simulated_feed_drive("quaser-ux600", axis), model, res.axes[axis].sweeps[condition]
 
 
 @cache
@@ -126,7 +150,8 @@ def compensated_bandwidth(
     params, model = _tuned_for(axis, band_hz)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
     per = round(1.0 * FS_HZ)
-    lg = params.transmission / params.efficiency
+    d = model.drive  # nameplate K_t, r_g, η (the estimator's belief), identified J_e
+    lg = d.transmission / d.efficiency
     load, _ = multisine_signal(FS_HZ, per, 1.0, 300.0, N_PERIODS, rms=EXCITATION_NM / lg)
     lead = round(0.3 * FS_HZ)
     est = FeedAxisEstimator(model)
@@ -138,9 +163,7 @@ def compensated_bandwidth(
     cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
     load_est = stream_estimate(est, cnc, f"{axis}/load_est")
     load_est = load_est[lead + est.lag : lead + est.lag + len(load)]
-    raw = (params.efficiency / params.transmission * params.torque_constant * cur)[
-        lead : lead + len(load)
-    ]
+    raw = (d.efficiency / d.transmission * d.torque_constant * cur)[lead : lead + len(load)]
     h = multisine_frf(load, load_est, FS_HZ, per, skip_periods=1)
     hr = multisine_frf(load, raw, FS_HZ, per, skip_periods=1)
     f = np.concatenate([[0.0], h.freq_hz])
@@ -196,6 +219,7 @@ def _worst_db(kind: str, frequency_scale: float) -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    ci=True,
     description="largest |deviation| from 0 dB of the measured compensated X/Y/Z force FRF "
     "over 1-180 Hz (flat within ±3 dB to 180 Hz). " + _MISMATCH,
 )
@@ -210,6 +234,7 @@ def _linear() -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    ci=True,
     description="largest |deviation| from 0 dB of the measured compensated A/C torque FRF "
     "over 1-120 Hz (flat within ±3 dB to 120 Hz). " + _MISMATCH,
 )
@@ -217,20 +242,63 @@ def _rotary() -> Measured:
     return _worst_db("rotary", 1.0)
 
 
-@case(
-    "estimation.feed_raw_current_band",
-    source="seed 000 V3 / C3: raw current flat only to about 10-15 Hz",
-    reference=12.5,
-    unit="Hz",
-    abs_tol=2.5,
-    quick=False,
-    description="largest ±3 dB band of the raw current force over the five axes (thesis: "
-    "10-15 Hz; the printed Table 3.4 static gains 0.49-1.02 put X and Z near -5 dB at DC, "
-    "so their raw band is ~0 Hz)",
+#: Thesis figures of the raw current (seed 000 V3 / C3: flat only to about 10-15 Hz) and of the
+#: compensated estimate (Fig. 3.8, C6: 180 Hz linear, 120 Hz rotary).
+RAW_BAND_HZ = 12.5
+TARGET_HZ = {"x": 180.0, "y": 180.0, "z": 180.0, "a": 120.0, "c": 120.0}
+#: Axes whose raw-current band is a known failure, and why (issue 12 item 1).
+RAW_BAND_GAP = (
+    "the simulated feed drive is Aslan Eq. 3.1 + Eq. 3.13 with the printed Table 3.4 modes as a "
+    "one-way filter, whose static gains (X 0.56, Z 0.49, A -1.02, C 0.72) act as physical and "
+    "put the raw current outside ±3 dB from about 1 Hz; a coupled lumped-mass drive gives "
+    "Φ_d(0) ≈ 1 by physics (issue 12 item 1)"
 )
-def _raw() -> Measured:
-    worst = max(compensated_bandwidth(a, 1.0)["raw_hz"] for a in AXES)
-    return Measured(worst, _table(1.0))
+
+
+def _raw_case(axis: str) -> None:
+    # every axis judged (issue 12): one case per axis, not the best of five
+    @case(
+        f"estimation.feed_raw_current_band_{axis}",
+        source="seed 000 V3 / C3: raw current flat only to about 10-15 Hz",
+        reference=RAW_BAND_HZ,
+        unit="Hz",
+        abs_tol=2.5,
+        quick=False,
+        gap=RAW_BAND_GAP if axis != "y" else "",
+        issue=12 if axis != "y" else None,
+        description=f"{axis.upper()} axis: ±3 dB band of the raw current force η·K_t·I/r_g "
+        "(thesis: 10-15 Hz)",
+    )
+    def _raw() -> Measured:
+        return Measured(compensated_bandwidth(axis, 1.0)["raw_hz"], _table(1.0))
+
+
+def _band_case(axis: str) -> None:
+    tgt = TARGET_HZ[axis]
+
+    @case(
+        f"estimation.feed_compensated_band_{axis}",
+        source=f"seed 000 V3 (Aslan Fig. 3.8, C6): {tgt:g} Hz on the "
+        f"{'linear' if axis in 'xyz' else 'rotary'} axes",
+        reference=tgt,
+        unit="Hz",
+        rel_tol=0.25,
+        too_good_factor=1.5,
+        lower_is_better=False,
+        quick=False,
+        ci=axis in ("y", "a"),
+        description=f"{axis.upper()} axis: measured ±3 dB band of the compensated estimate "
+        f"(multisine 1-300 Hz, so 300 Hz means at least 300) against the thesis's {tgt:g} Hz: "
+        "two-sided ±25 %, more than 1.5× wider is flagged as too good (a replica far wider than "
+        "the thesis's measured band says the simulated plant is too benign). " + _MISMATCH,
+    )
+    def _band() -> Measured:
+        return Measured(compensated_bandwidth(axis, 1.0)["compensated_hz"], _table(1.0))
+
+
+for _ax in AXES:
+    _raw_case(_ax)
+    _band_case(_ax)
 
 
 #: Band asked of the least-noise tuning, × the axis target (decision "Least-noise Q for a
@@ -333,11 +401,9 @@ def scheduled_params(axis: str) -> FeedDriveParams:
     """The preset drive with position-dependent modes: ±2 % over the stroke about its centre."""
     from dataclasses import replace
 
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
-    from millsense.simulator.feed_drive import FeedDriveParams
+    from millsense.simulator.machine_file import simulated_feed_drive
 
-    params = FeedDriveParams.from_config(load_preset(MachineConfig, "quaser-ux600").axis(axis))
+    params = simulated_feed_drive("quaser-ux600", axis)
     return replace(
         params,
         mode_shift_per_m=MODE_CHANGE_OVER_STROKE / STROKE_M[axis],
@@ -352,7 +418,8 @@ def bank_positions(axis: str, n: int = N_BANK) -> tuple[float, ...]:
     from millsense.bench.feed_bank import sweep_travel
 
     s = STROKE_M[axis]
-    d = 0.5 * sweep_travel(scheduled_params(axis), SCHED_SPEED_RAD_S[axis], FS_HZ)
+    lead = _nameplate_axis(axis).transmission_m_rad
+    d = 0.5 * sweep_travel(lead, SCHED_SPEED_RAD_S[axis], FS_HZ)
     return tuple(float(x) for x in np.linspace(-s / 2 + d, s / 2 - d, n))
 
 
@@ -362,7 +429,8 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
     from millsense.simulator.drive_mismatch import commissioning_drive
 
     params = scheduled_params(axis)
-    lg = params.transmission / params.efficiency
+    nameplate = _nameplate_axis(axis)
+    lg = nameplate.transmission_m_rad / nameplate.efficiency
     bank, _ = identify_feed_bank(
         commissioning_drive(params),
         axis,
@@ -372,6 +440,7 @@ def _bank(axis: str, n: int = N_BANK) -> FeedModelBank:
         sweep_speed_rad_s=SCHED_SPEED_RAD_S[axis],
         sweep_force_rms=SCHED_EXCITATION_NM / lg,
         design="auto",
+        nameplate=nameplate,
     )
     return bank
 
@@ -595,11 +664,13 @@ def _robust_table() -> str:
 
 @case(
     "estimation.feed_robust_band_at_lti_limit",
-    source="issue 7 (position-dependent modes); tuning.flatness_bound (closed form)",
+    source="self-consistency check, not an acceptance figure: the reference is the project's "
+    "own bound (tuning.flatness_bound, closed form), no external figure exists (issue 12)",
     reference=1.0,
     unit="-",
     abs_tol=0.02,
     quick=False,
+    self_check=True,
     description="smallest over the five axes of (common ±3 dB band of the robust design over "
     "modes ±2 %, capped at the axis target) / (the largest any LTI estimator can reach, "
     "tuning.flatness_bound, capped likewise); analytic: identified Φ_d scaled, C3 low-pass, "
@@ -826,36 +897,37 @@ def _v1(axis: str) -> Measured:
         "Eq. 3.21-3.23) | thesis compensated | raw current | thesis raw |",
         "|---|---|---|---|---|---|",
     ]
-    excess = []
+    worst = 0.0
     for (rpm, c_rw, c_h, r), ct, rt in zip(res, comp_th, raw_th, strict=True):
         lo, hi = V1_SPREAD[(axis, rpm)]
         rows.append(
             f"| {rpm:.0f} | {c_h:.1%} ({lo:.1%}-{hi:.1%}) | {c_rw:.1%} | {ct:.0%} | {r:.1%} | "
             f"{rt:.0%} |"
         )
-        excess.append(c_h - ct)
-    return Measured(max(excess), "\n".join(rows))
+        worst = max(worst, c_h)
+    return Measured(worst, "\n".join(rows))
 
 
 _V1_DESC = (
-    "largest (millsense - thesis) compensated error at the tooth harmonics ≤ 200 Hz, mean "
-    "over 5 noise realisations (seeds of the simulated noise), over "
-    "1000-5500 rev/min of the HARMONIC estimator (Aslan's full disturbance model Eq. "
-    "3.16-3.20: random walk plus one undamped pair per tooth harmonic ≤ 200 Hz, from the "
-    "commanded spindle speed and the 2 teeth; passes when it is at or below the thesis at "
-    "every speed); the table also shows the random-walk estimator (Eq. 3.21-3.23, the model "
-    "the thesis used) on the same cut. Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X "
-    "feeds, Y holds position; each axis uses the model identified in the condition its "
-    "commanded speed selects (X moving, Y at rest; "
+    "largest compensated error at the tooth harmonics ≤ 200 Hz, mean over 5 noise realisations "
+    "(seeds of the simulated noise), over 1000-5500 rev/min of the HARMONIC estimator (Aslan's "
+    "full disturbance model Eq. 3.16-3.20: random walk plus one undamped pair per tooth harmonic "
+    "≤ 200 Hz, from the commanded spindle speed and the 2 teeth), against the thesis's largest "
+    "over the same speeds: two-sided ±50 %, more than 2× better is flagged as too good (issue "
+    "12: the simulated cut has no runout and is perfectly periodic); the table also shows the "
+    "random-walk estimator (Eq. 3.21-3.23, the model the thesis used) on the same cut. "
+    "Ø20 mm 2-flute slot, 4 mm, 0.2 mm/tooth, Al7050; X feeds, Y holds position; each axis uses "
+    "the model identified in the condition its commanded speed selects (X moving, Y at rest; "
     "docs/decisions/0106-holding-axis-phi-d-and-r-identified-at-rest-issue-7-v1.md). " + _MISMATCH
 )
 
 
 @case(
     "estimation.feed_v1_x_harmonic_errors",
-    source="seed 000 V1 (Aslan Ch. 3.5): X 18/6/4/12/32/17 %",
-    reference=-0.5,
-    abs_tol=0.5,
+    source="seed 000 V1 (Aslan Ch. 3.5), largest 32%: X 18/6/4/12/32/17 %",
+    reference=max(V1_THESIS["x"][0]),
+    rel_tol=0.5,
+    too_good_factor=2.0,
     unit="-",
     quick=False,
     description=_V1_DESC,
@@ -866,9 +938,10 @@ def _v1x() -> Measured:
 
 @case(
     "estimation.feed_v1_y_harmonic_errors",
-    source="seed 000 V1 (Aslan Ch. 3.5): Y 6/6/4/7/11/19 %",
-    reference=-0.5,
-    abs_tol=0.5,
+    source="seed 000 V1 (Aslan Ch. 3.5), largest 19%: Y 6/6/4/7/11/19 %",
+    reference=max(V1_THESIS["y"][0]),
+    rel_tol=0.5,
+    too_good_factor=2.0,
     unit="-",
     quick=False,
     description=_V1_DESC,
@@ -906,7 +979,7 @@ def harmonic_frf_departure(axis: str, rpm: float, harmonics: bool = True) -> dic
     params, model, _ = _identified(axis)
     machine = perturbed_drive(params, frequency_scale=1.0)
     per = round(1.0 * FS_HZ)
-    lg = params.transmission / params.efficiency
+    lg = model.drive.transmission / model.drive.efficiency
     load, _ = multisine_signal(FS_HZ, per, 1.0, 300.0, N_PERIODS, rms=EXCITATION_NM / lg)
     lead = round(0.3 * FS_HZ)
     est = FeedAxisEstimator(model, teeth=V1_TEETH if harmonics else None)

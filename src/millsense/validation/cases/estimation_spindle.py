@@ -172,13 +172,15 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
 @case(
     "estimation.spindle_v6_resultant_force",
     source="seed 000 V6 (Aslan Ch. 5.5.2): errors 15/18/32/19/27/24 % at 1000-5500 rev/min",
-    reference=0.16,
-    abs_tol=0.16,
+    reference=0.32,
+    rel_tol=0.5,
+    too_good_factor=2.0,
     unit="-",
     quick=False,
     description="largest relative error of the peak resultant force per tooth period (mean over "
     "the steady cut) from the spindle observer, Ø20 mm 2-flute slot 4 mm, 0.2 mm/tooth, Al7050, "
-    "1000-5500 rev/min; passes at or below the thesis's worst 32 % (0-32 %). Mismatch: see the "
+    "1000-5500 rev/min, against the thesis's worst 32 % (two-sided ±50 %; below 16 %, more "
+    "than 2× better, is flagged as too good). Mismatch: see the "
     "module (fit of a noisy sweep, 10 kHz plant, speeds off the identification speeds, Eq. 5.34 "
     "vs the full mechanistic force)",
 )

@@ -20,14 +20,13 @@ from functools import cache
 
 import numpy as np
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.ident import drive as dr
 from millsense.ident import friction as fr
 from millsense.ident import spindle as isp
 from millsense.ident.idle_table import build_idle_table, periodic_amplitude
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator import commissioning as cm
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.spindle import measured_frf
 from millsense.validation import Measured, case
 
@@ -39,7 +38,7 @@ FRICTION_SPEEDS = np.geomspace(0.1, 30.0, 16)
 @cache
 def friction_case(seed: int = 0) -> tuple[fr.LuGreFit, fr.PreslidingFit]:
     """Static LuGre fit (both directions) and presliding fit of the Quaser Z axis."""
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     axis = cfg.axis("z")
     order = np.ravel(np.column_stack([FRICTION_SPEEDS, -FRICTION_SPEEDS]))
     rec = cm.friction_test(cfg, "z", order, hold_s=2.0, seed=seed)
@@ -64,8 +63,8 @@ def _pct(a: float, b: float) -> float:
 
 
 def _friction_table(kind: str) -> Measured:
-    axis = load_preset(MachineConfig, "quaser-ux600").axis("z")
-    f = axis.friction
+    axis = simulator_machine("quaser-ux600").axis("z")
+    f = axis.friction_table()
     fit, pf = friction_case()
     pairs = {
         "coulomb": (fit.positive.coulomb, fit.negative.coulomb, f.coulomb_nm),
@@ -175,7 +174,7 @@ def _spindle_friction() -> float:
 @cache
 def rigid_case() -> float:
     """J_e of the Quaser X axis from the acceleration test (K_t known)."""
-    cfg = load_preset(MachineConfig, "quaser-ux600")
+    cfg = simulator_machine("quaser-ux600")
     rec = cm.acceleration_test(cfg, "x")
     fit = dr.rigid_body_from_acceleration(
         rec["x/current"], rec["x/speed"], rec.sample_rate_hz, torque_constant_nm_a=1.964
@@ -204,7 +203,7 @@ def _rigid() -> float:
 @cache
 def drive_case(machine: str) -> tuple[dr.DriveFit, float]:
     """Sweep, FRFs against the injection, T_s, dual-inertia fit. Returns (fit, lead m)."""
-    cfg = load_preset(MachineConfig, machine)
+    cfg = simulator_machine(machine)
     axis = cfg.axis("x")
     rec = cm.drive_sweep(cfg, "x")
     fs = rec.sample_rate_hz
@@ -228,7 +227,7 @@ def drive_case(machine: str) -> tuple[dr.DriveFit, float]:
 
 
 def _truth(machine: str) -> dict[str, float]:
-    axis = load_preset(MachineConfig, machine).axis("x")
+    axis = simulator_machine(machine).axis("x")
     bs = axis.ball_screw
     assert bs is not None
     return {
@@ -409,7 +408,7 @@ def _thrust_runs(rec: object, kt: float, r: float) -> tuple[np.ndarray, np.ndarr
 def idle_case(machine: str) -> list[tuple[float, float, float]]:
     """Per thrust term (wavelength mm, true amplitude N, residual amplitude N) after the
     table from 3 air cuts is subtracted from a 50 N cut's thrust estimate ``K_t·i/R``."""
-    cfg = load_preset(MachineConfig, machine)
+    cfg = simulator_machine(machine)
     axis = cfg.axis("x")
     r, kt = axis.transmission_m_rad, axis.torque_constant_nm_a
     runs = cm.idle_runs(cfg, "x", feed_mm_min=600.0, travel_mm=40.0, n_runs=3)

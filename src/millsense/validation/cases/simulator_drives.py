@@ -15,11 +15,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.signal import find_peaks
 
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.models.lugre import LuGre
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim, constant_velocity_sweep
+from millsense.simulator.machine_file import simulator_machine
 from millsense.validation import Measured, case
 
 
@@ -52,7 +51,7 @@ def peak_frequencies(f: np.ndarray, h: np.ndarray, lo: float, hi: float) -> np.n
 def quaser_disturbance_frf(axis: str, *, lugre: bool = True) -> dict[str, np.ndarray]:
     """Sweep the load of a Quaser axis (full drive: cascade, LuGre, noise) and return the
     simulated τ_a → τ_c FRF and the model's (Eq. 3.13) on the same grid."""
-    ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
+    ax = simulator_machine("quaser-ux600").axis(axis)
     params = FeedDriveParams.from_config(ax, friction="lugre" if lugre else "none")
     assert params.modes is not None
     fs = 10000.0
@@ -80,7 +79,7 @@ def _disturbance_case(axis: str) -> Measured:
     f_dom = float(f[band][np.argmax(np.abs(hs[band]))])
     ps = peak_frequencies(f, hs, 10.0, 300.0)
     pm = peak_frequencies(f, hm, 10.0, 300.0)
-    ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
+    ax = simulator_machine("quaser-ux600").axis(axis)
     assert ax.disturbance_modes is not None
     modes = ModalStateSpace.from_config(ax.disturbance_modes)
     rows = [
@@ -108,7 +107,7 @@ def _disturbance_case(axis: str) -> Measured:
 
 
 def _dominant_reference(axis: str) -> float:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis(axis)
+    ax = simulator_machine("quaser-ux600").axis(axis)
     assert ax.disturbance_modes is not None
     return _dominant_mode_hz(ModalStateSpace.from_config(ax.disturbance_modes))
 
@@ -144,6 +143,7 @@ case(
     gap="with the printed A-axis coefficients (ζ read as fractions, 0.12-0.69) the modes merge "
     "and Eq. 3.13 itself peaks near 54 Hz; "
     "docs/decisions/0038-aslan-table-3-4-damping-and-static-gain.md",
+    issue=12,
     description="A axis: largest peak of the simulated τ_a → τ_c FRF against Table 3.4's "
     "dominant mode",
 )(lambda: _disturbance_case("a"))
@@ -153,7 +153,7 @@ def _eq313_peak_hz(axis: str) -> float:
     """Frequency of the maximum of |Eq. 3.13| with the preset's printed modes (0.01 Hz grid)."""
     from millsense.models.modal_ss import ModalStateSpace
 
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis(axis).disturbance_modes
+    cfg = simulator_machine("quaser-ux600").axis(axis).disturbance_modes
     assert cfg is not None
     f = np.arange(1.0, 400.0, 0.01)
     mag = np.abs(ModalStateSpace.from_config(cfg).frf_modal(f))
@@ -176,7 +176,7 @@ def yamada_table_accel_frf(machine: str) -> tuple[np.ndarray, np.ndarray]:
     """Current-command sweep on a Yamada stage in closed loop (P-P cascade, dead times,
     current loop, encoders; friction and periodic disturbances off as in Yamada §4.1):
     (f, FRF I_cmd → table acceleration)."""
-    m = load_preset(MachineConfig, machine)
+    m = simulator_machine(machine)
     params = FeedDriveParams.from_config(m.axis("x"), friction="none", periodic=False)
     fs = m.sample_rate_hz
     inj = 0.3 * log_chirp(50.0, 1000.0, 8.0, 0.5, fs)
@@ -227,7 +227,7 @@ STRIBECK_SPEEDS = np.array([-4.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0, 4.0])
     "mean torque from g(v) + σ2·v, in standard errors of the mean",
 )
 def _stribeck() -> Measured:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("z")
+    ax = simulator_machine("quaser-ux600").axis("z")
     params = FeedDriveParams.from_config(ax, friction="lugre")
     assert isinstance(params.friction, LuGre)
     means, sems = constant_velocity_sweep(params, STRIBECK_SPEEDS, 10000.0, duration_s=4.0)
@@ -255,7 +255,7 @@ def _stribeck() -> Measured:
     "chunks (Quaser X: modes, LuGre, noise; 0.5 s at 10 kHz)",
 )
 def _chunks() -> float:
-    ax = load_preset(MachineConfig, "quaser-ux600").axis("x")
+    ax = simulator_machine("quaser-ux600").axis("x")
     params = FeedDriveParams.from_config(ax)
     fs = 10000.0
     n = 5000

@@ -12,6 +12,7 @@ from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import (
     EngagementSchedule,
     ProcessCoupling,
@@ -26,7 +27,7 @@ FS = 10000.0
 
 
 def _machine3() -> MachineConfig:
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 
@@ -179,7 +180,7 @@ def _sampled_path_feed() -> Measured:
 
     prog = "G21 G90 G17\nS6000 M3\nG1 X0 Y0 Z0 F1200\nG1 X20\nG2 X40 Y0 R50\nM30\n"
     job = Job.from_sampled_path(sample_path(interpret(prog)), five_axis=True)
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     opts = SimulatorOptions(seed=6, spindle_accel_rad_s2=20000.0)
     d = _run(MachineSimulator(m, job, None, opts))
     feed = d["cnc/feed"]

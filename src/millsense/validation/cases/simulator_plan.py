@@ -36,6 +36,7 @@ from millsense.plan.virtual_plan import (
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.geometry import EndMill
 from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.process_coupling import ProcessCoupling
 from millsense.validation import Measured, case
 
@@ -54,7 +55,7 @@ SLOT_WINDOW = (0.010, 0.030)
 
 def machine_3axis() -> MachineConfig:
     """``quaser-ux600`` with its X, Y, Z drives only (3-axis kinematics)."""
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
 
 

@@ -44,6 +44,7 @@ def _attenuation_case(f_hz: float, stated_db: float) -> None:
         abs_tol=3.0,
         quick=False,
         gap=_GAP,
+        issue=12,
         description=f"|G_dτ| = |I_nom/τ_d| at {f_hz:g} Hz, range 1, from the printed model "
         "(documented gap, not tuned)",
     )
@@ -75,6 +76,7 @@ for _f, _db in _STATED_ATT:
     description="−3 dB bandwidth of the current loop G_I + Eq. 5.7 admittance, range 1 "
     "(documented gap: ≈ 280 Hz)",
     gap=_GAP,
+    issue=12,
 )
 def _cur_bw1() -> float:
     from millsense.models.spindle_plant import current_loop_bandwidth_hz
@@ -91,6 +93,7 @@ def _cur_bw1() -> float:
     quick=False,
     description="−3 dB bandwidth of the current loop, range 2 (documented gap: ≈ 1584 Hz)",
     gap=_GAP,
+    issue=12,
 )
 def _cur_bw2() -> float:
     from millsense.models.spindle_plant import current_loop_bandwidth_hz
@@ -107,6 +110,7 @@ def _cur_bw2() -> float:
     quick=False,
     description="−3 dB bandwidth of the closed velocity loop, range 1 (documented gap: ≈ 91 Hz)",
     gap=_GAP,
+    issue=12,
 )
 def _vel_bw1() -> float:
     from millsense.models.spindle_plant import velocity_loop_bandwidth_hz

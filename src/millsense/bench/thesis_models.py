@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.core.presets import load_preset
 from millsense.estimation.kalman.design import StateSpaceModel
 from millsense.models.modal_ss import ModalStateSpace
+from millsense.simulator.machine_file import simulator_machine
 
 #: Aslan Eq. 3.30: process-noise intensity Q of the disturbance Kalman filter per axis.
 ASLAN_EQ_3_30_Q: dict[str, float] = {"x": 200.0, "y": 700.0, "z": 2000.0, "a": 800.0, "c": 10000.0}
@@ -31,7 +30,7 @@ def state_space_from_modal(modes: ModalStateSpace) -> StateSpaceModel:
 
 def aslan_disturbance_modes(axis: str, modes: slice | None = None) -> ModalStateSpace:
     """Table 3.4 disturbance modes Φ_d = τ_c/τ_a of a Quaser axis (optionally a subset)."""
-    cfg = load_preset(MachineConfig, "quaser-ux600").axis(axis).disturbance_modes
+    cfg = simulator_machine("quaser-ux600").axis(axis).disturbance_modes
     if cfg is None:
         raise ConfigError(f"preset quaser-ux600: axis '{axis}' has no disturbance_modes")
     sel = slice(None) if modes is None else modes
@@ -50,5 +49,5 @@ def aslan_disturbance_model(axis: str, modes: slice | None = None) -> StateSpace
 
 def aslan_r_q(axis: str) -> tuple[float, float]:
     """(R, Q) of Aslan Eq. 3.30 for an axis: R = (current_noise_a·K_t)² from the preset."""
-    a = load_preset(MachineConfig, "quaser-ux600").axis(axis)
+    a = simulator_machine("quaser-ux600").axis(axis)
     return (a.current_noise_a * a.torque_constant_nm_a) ** 2, ASLAN_EQ_3_30_Q[axis]
