@@ -1,0 +1,554 @@
+"""Adaptive feed control per spindle revolution with the virtual look-ahead (seed 000 §2.10,
+Ch. 6.4; seed 002 §2.2–2.4, M4).
+
+Once per spindle revolution the block takes the peak of the regulated quantity over that
+revolution — the resultant XY force (seed 000 and 002), the spindle torque, or the spindle
+power (what Heidenhain AFC regulates) — identifies the plant z⁻¹B/A (Aslan Eq. 6.7,
+Munasinghe Eq. 3.23) with :class:`~millsense.control.rls.ConstantTraceRLS` on normalised
+signals (y = peak / reference, u = feed override as a fraction of the programmed feed,
+decision 1601) and computes the new override with :class:`~millsense.control.gpc.GPC`
+(N1/N2/Nu = 1/4/1, λ = 0.25, Eq. 6.14). Around it (decisions 1611–1616):
+
+- limits 20–150 % (seed 000), dead band ±5 % of the reference (no move while the peak is in
+  the band, seed 000 §2.10);
+- seed 002's air-cut rule: peak ≤ the air threshold (80 N) → V_max (150 %); on re-entry V_max/3
+  for 3 revolutions (Munasinghe per-revolution wrapper, steps 4–5);
+- the virtual look-ahead of seed 000 (:meth:`~millsense.plan.virtual_plan.VirtualPlan.look_ahead`,
+  0.5 s at the current override): flag 1 (engagement or chip load rising ≥ 15 %) → the plan's
+  predicted peak force over the next revolutions (edge and shear parts, the shear part scaled
+  by the override, calibrated to the measurement over the first 10 revolutions in cut) sets
+  a ceiling on the override so the predicted force does not exceed the reference
+  (feed-forward, decision 1613); flag 2 (cavity or exit) → the override is held at its value
+  when the flag rose or lower, never raised, and the air rule is suspended (decision 1614);
+- safety: a revolution with a non-finite sample, a signal frozen at a non-zero value for
+  ``stall_s``, or no revolution completing within ``stall_s`` after the expected end → the
+  safe action min(override, 100 %) and an ALARM; the override is never raised by a fault
+  (decision 1615).
+
+Chunk-size invariance: the spindle angle is accumulated as an integer (2⁻³² revolution units),
+so revolution ends fall on the same samples however the stream is cut; peaks are running maxima
+carried between chunks; the watchdog and the frozen-signal detector are per-sample with carried
+state. Only per-revolution decisions run in Python (≈ 17 per second at 1000 rev/min).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millsense.control.gpc import GPC
+from millsense.control.rls import ConstantTraceRLS
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+FloatArray = NDArray[np.float64]
+
+QUANTITIES = ("force", "torque", "power")
+_UNITS = {"force": "N", "torque": "N*m", "power": "W"}
+#: Spindle angle resolution of the integer revolution counter (2⁻³² rev).
+_ANGLE_BITS = 32
+_ANGLE_ONE = 1 << _ANGLE_BITS
+
+
+@dataclass(frozen=True)
+class AdaptiveFeedOptions:
+    """Settings of :class:`AdaptiveFeedBlock` (field units in the names).
+
+    Attributes
+    ----------
+    reference : set point of the per-revolution peak, in the quantity's unit (N, N·m, W);
+        seed 000 V8: 325 N.
+    quantity : ``force`` (peak resultant of the two force channels), ``torque`` or ``power``
+        (torque × |spindle speed|).
+    min_override_pct, max_override_pct : override limits (seed 000: 20–150 %).
+    dead_band : relative band around the reference without a move (seed 000: ±5 %).
+    air_threshold : peak at or below which the tool is in air, quantity's unit; None: 80 N
+        for force (seed 002), 80/325 of the reference otherwise (decision 1612).
+    reentry_revs : revolutions at V_max/3 after an air cut (seed 002: 3).
+    lam, n2 : GPC move weight and output horizon (seed 000: 0.25, 4).
+    rls_delta : RLS dead zone on the normalised peak (0.005 = 0.5 % of the reference).
+    look_ahead : use the plan's look-ahead (flags 1/2) when a plan is given.
+    look_ahead_s, rise : look-ahead horizon and rise threshold (seed 000: 0.5 s, 15 %).
+    feedforward_revs : revolutions of travel whose predicted force the flag-1 ceiling covers.
+    calibration_revs : revolutions in steady cut over which the plan's force is calibrated to
+        the measurement (seed 000 C16: the first 10).
+    stall_s : frozen-signal and missing-revolution timeout, s.
+    min_change_pct : smallest override change that is sent as an event.
+    """
+
+    reference: float = 325.0
+    quantity: str = "force"
+    min_override_pct: float = 20.0
+    max_override_pct: float = 150.0
+    dead_band: float = 0.05
+    air_threshold: float | None = None
+    reentry_revs: int = 3
+    lam: float = 0.25
+    n2: int = 4
+    rls_delta: float = 0.005
+    look_ahead: bool = True
+    look_ahead_s: float = LOOK_AHEAD_S
+    rise: float = RISE_FRACTION
+    feedforward_revs: float = 2.0
+    calibration_revs: int = 10
+    stall_s: float = 0.1
+    min_change_pct: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.quantity not in QUANTITIES:
+            raise ConfigError(
+                f"adaptive feed: quantity must be one of {', '.join(QUANTITIES)}, "
+                f"got {self.quantity!r}"
+            )
+        if not (self.reference > 0 and math.isfinite(self.reference)):
+            raise ConfigError(f"adaptive feed: reference must be > 0, got {self.reference!r}")
+        if not (0 < self.min_override_pct < self.max_override_pct):
+            raise ConfigError(
+                "adaptive feed: need 0 < min_override_pct < max_override_pct, got "
+                f"{self.min_override_pct!r}, {self.max_override_pct!r}"
+            )
+        if not (0 <= self.dead_band < 1):
+            raise ConfigError(f"adaptive feed: dead_band must be in [0, 1), got {self.dead_band}")
+        if self.reentry_revs < 0 or self.calibration_revs < 1:
+            raise ConfigError("adaptive feed: reentry_revs ≥ 0 and calibration_revs ≥ 1 needed")
+        if not (self.stall_s > 0 and self.look_ahead_s >= 0 and self.feedforward_revs > 0):
+            raise ConfigError(
+                "adaptive feed: stall_s > 0, look_ahead_s ≥ 0, feedforward_revs > 0 needed"
+            )
+
+    @property
+    def air(self) -> float:
+        if self.air_threshold is not None:
+            return float(self.air_threshold)
+        return 80.0 if self.quantity == "force" else 80.0 / 325.0 * self.reference
+
+
+@dataclass
+class _Loop:
+    """Controller state between revolutions (normalised signals)."""
+
+    u: float = 1.0  #: commanded override (fraction) now in force
+    y_hist: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # y(k), y(k-1), y(k-2)
+    u_hist: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])  # u(k-1), u(k-2), u(k-3)
+    du_hist: list[float] = field(default_factory=lambda: [0.0, 0.0])  # Δu(k-1), Δu(k-2)
+    air: bool = True  #: seed 002's fflag: the tool was in air
+    reentry: int = 0  #: revolutions done at V_max/3
+    engaged: bool = False  #: a revolution in cut has been seen (watchdog armed)
+    identified: bool = False  #: RLS initialised from a revolution in cut
+    hold: float | None = None  #: flag-2 ceiling (override at the flag's rise)
+    fault: bool = False
+    kappa_sum: float = 0.0
+    kappa_n: int = 0
+    row: int = 0
+    flag: int = 0
+    ff_until: int = -1  #: the flag-1 ceiling holds until the tool passes this plan row
+
+
+class AdaptiveFeedBlock(Block):
+    """Per-revolution adaptive feed control (RLS + GPC) with the virtual look-ahead.
+
+    Parameters
+    ----------
+    options : :class:`AdaptiveFeedOptions`.
+    plan : the virtual plan (look-ahead, NC line and position of the events); None: the
+        conventional adaptive control of seed 002 (no look-ahead).
+    force_channels : the two XY force channels (N) for ``quantity = "force"``.
+    torque_channel : spindle torque channel (N·m) for ``torque`` and ``power``.
+    speed_channel : spindle speed (rad/s): revolutions are counted on it.
+    tcp_channels : tool-centre position channels (m) matched to the plan.
+    name : block name (channel prefix).
+
+    Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
+    revolution's peak, quantity's unit), ``{name}/reference``, ``{name}/flag`` (look-ahead
+    flag 0/1/2, 3 while a fault holds the safe action). Events: OVERRIDE ``feed_override``
+    (value in percent) when the commanded override changes by ≥ ``min_change_pct``; ALARM
+    ``adaptive_feed_fault`` when an input fault forces the safe action.
+    """
+
+    reads_truth = False
+
+    def __init__(
+        self,
+        options: AdaptiveFeedOptions | None = None,
+        plan: VirtualPlan | None = None,
+        *,
+        force_channels: tuple[str, str] = ("force_x", "force_y"),
+        torque_channel: str = "spindle/torque_est",
+        speed_channel: str = "spindle/speed",
+        tcp_channels: tuple[str, str, str] = ("x/position_cmd", "y/position_cmd", "z/position_cmd"),
+        name: str = "adaptive_feed",
+    ) -> None:
+        self.opts = opts = options or AdaptiveFeedOptions()
+        self.plan = plan
+        self.name = name
+        self.force_channels = force_channels
+        self.torque_channel = torque_channel
+        self.speed_channel = speed_channel
+        self.tcp_channels = tcp_channels
+        if opts.quantity == "force":
+            ins: list[str] = list(force_channels)
+        else:
+            ins = [torque_channel]
+        ins.append(speed_channel)
+        if plan is not None:
+            if len(plan) < 2:
+                raise ConfigError("adaptive feed: the plan has fewer than 2 rows")
+            ins.extend(tcp_channels)
+            self._plan_cols = _plan_force_columns(plan)
+        self.inputs = tuple(dict.fromkeys(ins))
+        self.reads_truth = any(c.startswith("truth/") for c in self.inputs)
+        self.gpc = GPC(n2=opts.n2, nu=1, lam=opts.lam)
+        self.reset(10000.0)
+
+    # ------------------------------------------------------------------ contract
+    def output_channels(self) -> list[ChannelInfo]:
+        unit = _UNITS[self.opts.quantity]
+        n = self.name
+        return [
+            ChannelInfo(f"{n}/override", "1", "commanded feed override (fraction)"),
+            ChannelInfo(f"{n}/peak", unit, f"peak {self.opts.quantity} of the last revolution"),
+            ChannelInfo(f"{n}/reference", unit, f"reference peak {self.opts.quantity}"),
+            ChannelInfo(f"{n}/flag", "1", "look-ahead flag 0/1/2 (3: fault, safe action)"),
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.fs = float(sample_rate_hz)
+        o = self.opts
+        self.u_min = o.min_override_pct / 100.0
+        self.u_max = o.max_override_pct / 100.0
+        self.rls = ConstantTraceRLS(theta0=[0.0, 0.0, 1.0, 0.0, 0.0], delta=o.rls_delta)
+        self.loop = _Loop()
+        self._angle = 0  # integer angle, 2⁻³² rev
+        self._run_max = -math.inf
+        self._run_bad = False
+        self._rev_start = 0  # sample index where the running revolution began
+        self._last_rev_len = 0
+        self._last_val = math.nan
+        self._frozen = 0  # samples the signal has been frozen (non-zero)
+        self._watch_fired = False
+        self._peak = 0.0
+        self._n_stall = max(round(o.stall_s * self.fs), 1)
+
+    # ------------------------------------------------------------------ streaming
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        n = chunk.n
+        q = self._quantity(d)
+        speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
+        good_speed = np.isfinite(speed)
+        inc = np.where(good_speed, speed, 0.0) / (2 * math.pi * self.fs) * _ANGLE_ONE
+        ang = self._angle + np.cumsum(np.round(inc).astype(np.int64))
+        rev = ang >> _ANGLE_BITS
+        prev_rev = np.concatenate([[self._angle >> _ANGLE_BITS], rev[:-1]])
+        ends = np.flatnonzero(rev > prev_rev)  # first sample of each new revolution
+        self._angle = int(ang[-1]) if n else self._angle
+        bad = ~np.isfinite(q) | ~good_speed
+        qf = np.where(bad, -np.inf, q)
+        frozen_at = self._frozen_samples(q)
+        events: list[Event] = []
+        ov = np.empty(n)
+        pk = np.empty(n)
+        fl = np.empty(n)
+        pos = 0
+        for e in [*ends.tolist(), n]:
+            seg = slice(pos, e)
+            if e > pos:
+                self._run_max = max(self._run_max, float(np.max(qf[seg])))
+                self._run_bad = self._run_bad or bool(bad[seg].any())
+                # safety checks inside the running revolution, sample by sample in time order
+                self._check_faults(chunk, pos, e, frozen_at, events)
+            ov[seg] = self.loop.u
+            pk[seg] = self._peak
+            fl[seg] = 3 if self.loop.fault else self.loop.flag
+            if e == n:
+                break
+            self._revolution_end(chunk, e, events)
+            pos = e
+        return BlockOutput(
+            {
+                f"{self.name}/override": ov,
+                f"{self.name}/peak": pk,
+                f"{self.name}/reference": np.full(n, self.opts.reference),
+                f"{self.name}/flag": fl,
+            },
+            events,
+        )
+
+    # ------------------------------------------------------------------ signal
+    def _quantity(self, d: Any) -> FloatArray:
+        if self.opts.quantity == "force":
+            fx = np.asarray(d[self.force_channels[0]], dtype=np.float64)
+            fy = np.asarray(d[self.force_channels[1]], dtype=np.float64)
+            return np.asarray(np.hypot(fx, fy))
+        tq = np.asarray(d[self.torque_channel], dtype=np.float64)
+        if self.opts.quantity == "torque":
+            return np.abs(tq)
+        return np.abs(tq * np.asarray(d[self.speed_channel], dtype=np.float64))
+
+    def _frozen_samples(self, q: FloatArray) -> FloatArray:
+        """Per sample, how many consecutive samples (up to it) the signal has been frozen at
+        the same non-zero value (bit-identical), carried between chunks."""
+        n = q.size
+        if n == 0:
+            return np.zeros(0)
+        prev = np.concatenate([[self._last_val], q[:-1]])
+        same = (q == prev) & (q != 0) & np.isfinite(q)
+        # run length of `same` with the carried count
+        idx = np.arange(n)
+        breaks = np.where(~same, idx, -1)
+        last_break = np.maximum.accumulate(breaks)
+        run = np.where(last_break >= 0, idx - last_break, idx + 1 + self._frozen).astype(float)
+        run = np.where(same, run, 0.0)
+        self._frozen = int(run[-1])
+        self._last_val = float(q[-1])
+        return run
+
+    # ------------------------------------------------------------------ safety
+    def _check_faults(
+        self, chunk: Chunk, a: int, b: int, frozen: FloatArray, events: list[Event]
+    ) -> None:
+        lp = self.loop
+        if lp.fault or not lp.engaged:
+            return
+        hit = np.flatnonzero(frozen[a:b] >= self._n_stall)
+        why = ""
+        at = -1
+        if hit.size:
+            at, why = a + int(hit[0]), "signal frozen"
+        if self._last_rev_len > 0 and not self._watch_fired:
+            deadline = self._rev_start + self._last_rev_len + self._n_stall - chunk.start
+            if a <= deadline < b and (at < 0 or deadline < at):
+                at, why = deadline, "no spindle revolution"
+        if at >= 0:
+            if why == "no spindle revolution":
+                self._watch_fired = True
+            self._safe(chunk, at, why, events)
+
+    def _safe(self, chunk: Chunk, at: int, why: str, events: list[Event]) -> None:
+        """The safe action: min(override, 100 %) and an alarm (decision 1615)."""
+        lp = self.loop
+        lp.fault = True
+        t = chunk.t0_s + (chunk.start + at) / chunk.sample_rate_hz
+        events.append(
+            Event(
+                t,
+                EventKind.ALARM,
+                self.name,
+                f"adaptive feed: {why} on '{self._signal_name()}'; safe feed held",
+                name="adaptive_feed_fault",
+                value=None,
+                sample=chunk.start + at,
+                severity=Severity.WARNING,
+            )
+        )
+        self._command(chunk, at, min(lp.u, 1.0), events, Severity.WARNING, force=True)
+
+    def _signal_name(self) -> str:
+        if self.opts.quantity == "force":
+            return "/".join(self.force_channels)
+        return self.torque_channel
+
+    # ------------------------------------------------------------------ control
+    def _revolution_end(self, chunk: Chunk, e: int, events: list[Event]) -> None:
+        """Revolution complete at sample ``e`` (first sample of the next): one decision."""
+        o = self.opts
+        lp = self.loop
+        peak, was_bad = self._run_max, self._run_bad
+        self._last_rev_len = chunk.start + e - self._rev_start
+        self._rev_start = chunk.start + e
+        self._run_max, self._run_bad = -math.inf, False
+        self._watch_fired = False
+        if was_bad or not math.isfinite(peak):
+            if lp.engaged and not lp.fault:
+                self._safe(chunk, e, "non-finite samples", events)
+            return
+        self._peak = peak
+        frozen_now = self._frozen >= self._n_stall
+        if lp.fault:
+            if frozen_now:
+                return
+            lp.fault = False  # a clean revolution: resume from the held (safe) override
+        y = peak / o.reference
+        lp.y_hist = [y, lp.y_hist[0], lp.y_hist[1]]
+        flag, cap = self._look(chunk, e)
+        in_air = peak <= o.air
+        if in_air and flag == 2 and lp.engaged:
+            u = lp.u  # leaving the cut: the air rule would speed up, hold instead
+        elif in_air:
+            lp.air, lp.reentry = True, 0
+            u = self.u_max
+        elif lp.air and lp.reentry < o.reentry_revs:
+            lp.engaged = True
+            lp.reentry += 1
+            u = self.u_max / 3.0
+            if lp.reentry >= o.reentry_revs:
+                lp.air = False
+        else:
+            lp.air = False
+            lp.engaged = True
+            u = self._gpc(y)
+        if not in_air:
+            self._calibrate(y, flag)
+        if flag == 2:
+            if lp.hold is None:
+                lp.hold = lp.u
+            u = min(u, lp.hold)
+        else:
+            lp.hold = None
+        if flag == 1 and not in_air:
+            u = min(u, lp.u)  # never faster into a rising engagement
+        if cap is not None:
+            u = min(u, cap)
+        u = min(max(u, self.u_min), self.u_max)
+        lp.flag = flag
+        sev = Severity.WARNING if flag else Severity.INFO
+        self._command(chunk, e, u, events, sev)
+
+    def _gpc(self, y: float) -> float:
+        """RLS update and the GPC move (Munasinghe 3.27–3.31, 3.41; Aslan 6.14)."""
+        o = self.opts
+        lp = self.loop
+        y0, y1, y2 = lp.y_hist
+        u1, u2, u3 = lp.u_hist
+        if not lp.identified:
+            # decision 1611: θ̂₀ from the first revolution in cut (static gain y/u)
+            self.rls.theta0 = [0.0, 0.0, y0 / max(u1, 1e-6), 0.0, 0.0]
+            self.rls.reset()
+            lp.identified = True
+        else:
+            self.rls.update([-y1, -y2, u1, u2, u3], y0)
+        th = self.rls.theta
+        a, b = th[:2], th[2:]
+        if abs(y0 - 1.0) <= o.dead_band:
+            return lp.u
+        if float(np.sum(b)) <= 1e-6 * (1.0 + abs(float(np.sum(a)))):
+            # a non-physical model (force falling with feed): no adaptive move this revolution
+            return lp.u
+        du = self.gpc.move(a, b, [y0, y1, y2], lp.du_hist, 1.0)
+        if not math.isfinite(du):
+            return lp.u
+        return lp.u + du
+
+    def _command(
+        self,
+        chunk: Chunk,
+        e: int,
+        u: float,
+        events: list[Event],
+        severity: Severity,
+        force: bool = False,
+    ) -> None:
+        lp = self.loop
+        du = u - lp.u
+        lp.du_hist = [du, lp.du_hist[0]]
+        lp.u_hist = [u, lp.u_hist[0], lp.u_hist[1]]
+        if not force and abs(du) * 100.0 < self.opts.min_change_pct:
+            lp.u_hist[0] = lp.u  # the move was not sent: the plant saw the old override
+            lp.du_hist[0] = 0.0
+            return
+        lp.u = u
+        t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
+        nc = x = y = z = None
+        if self.plan is not None:
+            r = lp.row
+            nc = int(self.plan["nc_line"][r])
+            x, y, z = (float(self.plan[c][r]) for c in ("x_mm", "y_mm", "z_mm"))
+        events.append(
+            Event(
+                t,
+                EventKind.OVERRIDE,
+                self.name,
+                f"adaptive feed: override {100 * u:.1f} % (peak {self._peak:.4g} "
+                f"{_UNITS[self.opts.quantity]}, flag {lp.flag})",
+                name="feed_override",
+                value=100.0 * u,
+                sample=chunk.start + e,
+                severity=severity,
+                values={"peak": self._peak, "reference": self.opts.reference, "flag": lp.flag},
+                nc_line=nc,
+                x_mm=x,
+                y_mm=y,
+                z_mm=z,
+            )
+        )
+
+    # ------------------------------------------------------------------ look-ahead
+    def _look(self, chunk: Chunk, e: int) -> tuple[int, float | None]:
+        """Look-ahead flag and the flag-1 override ceiling (None: no ceiling)."""
+        if self.plan is None:
+            return 0, None
+        lp = self.loop
+        tcp = np.array([[float(np.asarray(chunk.data[c])[e]) for c in self.tcp_channels]])
+        if not np.all(np.isfinite(tcp)):
+            return lp.flag, None
+        row = int(self.plan.match(tcp, from_row=lp.row)[0])
+        if row >= 0:
+            lp.row = row
+        if not self.opts.look_ahead:
+            return 0, None
+        la = self.plan.look_ahead(
+            lp.row, self.opts.look_ahead_s, max(lp.u, 1e-3), self.opts.rise
+        )
+        if la.flag == 1:
+            lp.ff_until = max(lp.ff_until, la.last_row)
+        if la.flag == 2 or lp.row > lp.ff_until:
+            return la.flag, None
+        return la.flag, self._ceiling(lp.row)
+
+    def _ceiling(self, row: int) -> float | None:
+        """Largest override whose predicted peak force over the next ``feedforward_revs``
+        revolutions of travel stays at the reference (decision 1613)."""
+        lp = self.loop
+        t = self._plan_cols["t_s"]
+        rev_s = self._last_rev_len / self.fs if self._last_rev_len else 0.06
+        end = int(np.searchsorted(t, t[row] + lp.u * self.opts.feedforward_revs * rev_s, "right"))
+        sl = slice(row, max(end, row + 2))
+        ex, ey = self._plan_cols["edge_x"][sl], self._plan_cols["edge_y"][sl]
+        sx, sy = self._plan_cols["shear_x"][sl], self._plan_cols["shear_y"][sl]
+        kappa = lp.kappa_sum / lp.kappa_n if lp.kappa_n else 1.0
+        c = self.opts.reference / max(kappa, 1e-6)
+        # |E + u S| = c  →  (S·S) u² + 2 (E·S) u + (E·E − c²) = 0, largest root
+        aa = sx * sx + sy * sy
+        bb = ex * sx + ey * sy
+        cc = ex * ex + ey * ey - c * c
+        ok = aa > 1e-12
+        if not ok.any():
+            return None
+        disc = np.maximum(bb[ok] ** 2 - aa[ok] * cc[ok], 0.0)
+        u = (-bb[ok] + np.sqrt(disc)) / aa[ok]
+        return float(max(np.min(u), 0.0))
+
+    def _calibrate(self, y: float, flag: int) -> None:
+        """κ = measured / predicted peak force over the first revolutions in steady cut."""
+        lp = self.loop
+        if self.plan is None or flag != 0 or lp.kappa_n >= self.opts.calibration_revs:
+            return
+        r = lp.row
+        ex, ey = self._plan_cols["edge_x"][r], self._plan_cols["edge_y"][r]
+        sx, sy = self._plan_cols["shear_x"][r], self._plan_cols["shear_y"][r]
+        u = lp.u_hist[0]
+        pred = math.hypot(ex + u * sx, ey + u * sy)
+        if pred > self.opts.air:
+            lp.kappa_sum += y * self.opts.reference / pred
+            lp.kappa_n += 1
+
+
+def _plan_force_columns(plan: VirtualPlan) -> dict[str, FloatArray]:
+    """The plan's peak resultant force split into its edge part E and shear part S (the
+    shear part scales with the chip thickness, i.e. the feed override): F(u) = |E + u·S|."""
+    cols = {
+        "t_s": np.asarray(plan["t_s"], dtype=np.float64),
+        "fx": np.asarray(plan["fres_peak_x_n"], dtype=np.float64),
+        "fy": np.asarray(plan["fres_peak_y_n"], dtype=np.float64),
+        "shear_x": np.asarray(plan["fres_peak_shear_x_n"], dtype=np.float64),
+        "shear_y": np.asarray(plan["fres_peak_shear_y_n"], dtype=np.float64),
+    }
+    cols["edge_x"] = cols["fx"] - cols["shear_x"]
+    cols["edge_y"] = cols["fy"] - cols["shear_y"]
+    return cols
