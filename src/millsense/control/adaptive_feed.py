@@ -137,7 +137,7 @@ class _Loop:
     y_hist: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # y(k), y(k-1), y(k-2)
     u_hist: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])  # u(k-1), u(k-2), u(k-3)
     du_hist: list[float] = field(default_factory=lambda: [0.0, 0.0])  # Δu(k-1), Δu(k-2)
-    air: bool = True  #: seed 002's fflag: the tool was in air
+    air: bool = False  #: seed 002's fflag: the tool was in air (a stream starts as if cutting)
     reentry: int = 0  #: revolutions done at V_max/3
     engaged: bool = False  #: a revolution in cut has been seen (watchdog armed)
     identified: bool = False  #: RLS initialised from a revolution in cut
