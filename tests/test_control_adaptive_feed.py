@@ -104,7 +104,7 @@ def test_regulates_to_reference_without_offset() -> None:
     # plant 250 N per unit override: F_r = 325 N needs 130 %; the CARIMA integrator removes
     # the offset, so the steady peak is within the ±5 % dead band and the override at
     # 325/250 within that band too
-    src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0)
+    _src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0)
     peaks = rev_peaks(res)[-10:]
     assert np.all(np.abs(peaks / 325.0 - 1.0) <= 0.05)
     assert abs(res.channels["cnc/feed_override"][-1] - 1.3) <= 0.05 * 1.3
@@ -113,7 +113,7 @@ def test_regulates_to_reference_without_offset() -> None:
 @pytest.mark.parametrize("gain, limit", [(100.0, 1.5), (5000.0, 0.2)])
 def test_override_limits(gain: float, limit: float) -> None:
     # 100 N per unit: 325 N would need 325 %, clipped at 150 %; 5000 N: 6.5 %, clipped at 20 %
-    src, _, res = run_plant(lambda t: np.full(t.size, gain), 2.0)
+    _src, _, res = run_plant(lambda t: np.full(t.size, gain), 2.0)
     ov = res.channels["adaptive_feed/override"]
     assert ov.max() <= 1.5 + 1e-12 and ov.min() >= 0.2 - 1e-12
     assert ov[-1] == pytest.approx(limit, abs=1e-9)
@@ -140,7 +140,7 @@ def test_air_cut_rule_seed_002() -> None:
     i50 = [k for k, v in enumerate(vals) if v == pytest.approx(50.0)]
     assert len(i50) == 1
     ov = res.channels["adaptive_feed/override"]
-    k0 = int(round(times[i50[0]] * FS))
+    k0 = round(times[i50[0]] * FS)
     n50 = int(np.sum(np.isclose(ov[k0:], 0.5)))
     assert n50 == pytest.approx(3 * REV * FS, abs=2)  # three revolutions at 50 %
 
@@ -150,7 +150,7 @@ def test_power_quantity_regulates_torque_times_speed() -> None:
     # 2.5 N·m/unit·Ω = 261.8 W/unit... choose the reference for 120 %: 1.2 × 0.01 × 250 × Ω
     ref = 1.2 * 0.01 * 250.0 * OMEGA
     opts = AdaptiveFeedOptions(reference=ref, quantity="power")
-    src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
+    _src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
     assert abs(res.channels["cnc/feed_override"][-1] - 1.2) <= 0.05 * 1.2
     assert abs(rev_peaks(res)[-1] / ref - 1.0) <= 0.05
 
@@ -220,7 +220,7 @@ def test_safe_action_from_high_override_is_programmed_feed() -> None:
     ev, ch = feed(blk, data, 100)
     ov = ch["adaptive_feed/override"]
     assert ov[int(1.2 * FS) - 1] == pytest.approx(1.5)
-    al = [e for e in ev if e.kind is EventKind.ALARM][0]
+    al = next(e for e in ev if e.kind is EventKind.ALARM)
     assert ov[al.sample] == pytest.approx(1.0)
 
 
@@ -267,7 +267,9 @@ def test_dynamometer_noise_chunk_invariant() -> None:
     whole = d.process(Chunk(0, FS, 0.0, {"truth/tool/force_x": x, "truth/tool/force_y": x}))
     parts = [
         d.process(
-            Chunk(i, FS, 0.0, {"truth/tool/force_x": x[i : i + 7], "truth/tool/force_y": x[i : i + 7]})
+            Chunk(
+                i, FS, 0.0, {"truth/tool/force_x": x[i : i + 7], "truth/tool/force_y": x[i : i + 7]}
+            )
         ).channels["force_x"]
         for i in range(0, 1000, 7)
     ]

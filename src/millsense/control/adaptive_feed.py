@@ -492,9 +492,7 @@ class AdaptiveFeedBlock(Block):
             lp.row = row
         if not self.opts.look_ahead:
             return 0, None
-        la = self.plan.look_ahead(
-            lp.row, self.opts.look_ahead_s, max(lp.u, 1e-3), self.opts.rise
-        )
+        la = self.plan.look_ahead(lp.row, self.opts.look_ahead_s, max(lp.u, 1e-3), self.opts.rise)
         if la.flag == 1:
             lp.ff_until = max(lp.ff_until, la.last_row)
         if la.flag == 2 or lp.row > lp.ff_until:

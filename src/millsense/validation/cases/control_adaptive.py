@@ -295,7 +295,6 @@ def _describe_v6(runs: dict[str, LoopRun]) -> str:
         "override channel; Munasinghe's ≈ 10 % implies a step the controller saw grow over "
         "several revolutions, which the thesis does not describe (decision 1617)"
     ),
-
     description=(
         "Force rise above F_r at a × 1.38 depth step, conventional RLS + GPC, open-CNC "
         "override (2.5 ms, continuous)."
@@ -354,5 +353,6 @@ def settle_s(run: LoopRun, reference_n: float = F_REF_V8) -> float:
 def _v6_settle() -> Measured:
     runs = _v6_runs()
     a, b = settle_s(runs["open CNC"]), settle_s(runs["closed CNC"])
-    return Measured(float(b >= 2.0 * a), _describe_v6(runs) + f"\n\nSettling: open {a:.2f} s, "
-                    f"closed {b:.2f} s.")
+    return Measured(
+        float(b >= 2.0 * a), _describe_v6(runs) + f"\n\nSettling: open {a:.2f} s, closed {b:.2f} s."
+    )
