@@ -181,8 +181,17 @@ def feed(block: AdaptiveFeedBlock, data: dict[str, np.ndarray], chunk: int):
     return ev, {k: np.concatenate(v) for k, v in chans.items()}
 
 
-def test_chunk_size_invariance() -> None:
-    data = synthetic_stream()
+def frozen_stream() -> dict[str, np.ndarray]:
+    """A cut at 250 N per unit whose force freezes at 1.0 s and resumes at 1.5 s."""
+    t = np.arange(int(2.0 * FS)) / FS
+    f = 250.0 * tooth_shape(t)
+    f[int(1.0 * FS) : int(1.5 * FS)] = f[int(1.0 * FS)]
+    return {"force_x": f, "force_y": 0 * f, "spindle/speed": np.full(t.size, OMEGA)}
+
+
+@pytest.mark.parametrize("make", [synthetic_stream, frozen_stream])
+def test_chunk_size_invariance(make) -> None:
+    data = make()
     ref_ev, ref_ch = feed(AdaptiveFeedBlock(), data, len(data["force_x"]))
     assert any(e.kind is EventKind.OVERRIDE for e in ref_ev)
     assert any(e.kind is EventKind.ALARM for e in ref_ev)

@@ -28,7 +28,9 @@ decision 1601) and computes the new override with :class:`~millsense.control.gpc
 Chunk-size invariance: the spindle angle is accumulated as an integer (2⁻³² revolution units),
 so revolution ends fall on the same samples however the stream is cut; peaks are running maxima
 carried between chunks; the watchdog and the frozen-signal detector are per-sample with carried
-state. Only per-revolution decisions run in Python (≈ 17 per second at 1000 rev/min).
+state, and a fault inside a revolution takes effect at its own sample. The per-sample pass is
+one compiled loop (:func:`_scan`); only the per-revolution decisions run in Python (≈ 17 per
+second at 1000 rev/min).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,6 +51,7 @@ from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 QUANTITIES = ("force", "torque", "power")
 _UNITS = {"force": "N", "torque": "N*m", "power": "W"}
@@ -224,14 +228,15 @@ class AdaptiveFeedBlock(Block):
         self.u_max = o.max_override_pct / 100.0
         self.rls = ConstantTraceRLS(theta0=[0.0, 0.0, 1.0, 0.0, 0.0], delta=o.rls_delta)
         self.loop = _Loop()
-        self._angle = 0  # integer angle, 2⁻³² rev
-        self._run_max = -math.inf
-        self._run_bad = False
+        # scan state: [integer spindle angle (2⁻³² rev), frozen run length],
+        # [running peak, last sample, running revolution holds a bad sample]
+        self._st_i = np.zeros(2, dtype=np.int64)
+        self._st_f = np.array([-np.inf, np.nan, 0.0])
+        self._scale = _ANGLE_ONE / (2 * math.pi * self.fs)
         self._rev_start = 0  # sample index where the running revolution began
         self._last_rev_len = 0
-        self._last_val = math.nan
-        self._frozen = 0  # samples the signal has been frozen (non-zero)
         self._watch_fired = False
+        self._why = ""
         self._peak = 0.0
         self._n_stall = max(round(o.stall_s * self.fs), 1)
 
@@ -239,36 +244,40 @@ class AdaptiveFeedBlock(Block):
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         n = chunk.n
-        q = self._quantity(d)
-        speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
-        good_speed = np.isfinite(speed)
-        inc = np.where(good_speed, speed, 0.0) / (2 * math.pi * self.fs) * _ANGLE_ONE
-        ang = self._angle + np.cumsum(np.round(inc).astype(np.int64))
-        rev = ang >> _ANGLE_BITS
-        prev_rev = np.concatenate([[self._angle >> _ANGLE_BITS], rev[:-1]])
-        ends = np.flatnonzero(rev > prev_rev)  # first sample of each new revolution
-        self._angle = int(ang[-1]) if n else self._angle
-        bad = ~np.isfinite(q) | ~good_speed
-        qf = np.where(bad, -np.inf, q)
-        frozen_at = self._frozen_samples(q)
+        q = np.ascontiguousarray(self._quantity(d), dtype=np.float64)
+        speed = np.ascontiguousarray(d[self.speed_channel], dtype=np.float64)
+        ends = np.empty(n + 1, dtype=np.int64)
+        peaks = np.empty(n + 1)
+        bads = np.empty(n + 1, dtype=np.bool_)
+        frozen_end = np.empty(n + 1, dtype=np.int64)
+        hits = np.empty(n + 1, dtype=np.int64)
+        n_end, n_hit = _scan(
+            q, speed, self._scale, self._n_stall, self._st_i, self._st_f,
+            ends, peaks, bads, frozen_end, hits,
+        )  # fmt: skip
         events: list[Event] = []
         ov = np.empty(n)
         pk = np.empty(n)
         fl = np.empty(n)
+        hit_list = hits[:n_hit].tolist()
         pos = 0
-        for e in [*ends.tolist(), n]:
-            seg = slice(pos, e)
-            if e > pos:
-                self._run_max = max(self._run_max, float(np.max(qf[seg])))
-                self._run_bad = self._run_bad or bool(bad[seg].any())
-                # safety checks inside the running revolution, sample by sample in time order
-                self._check_faults(chunk, pos, e, frozen_at, events)
-            ov[seg] = self.loop.u
-            pk[seg] = self._peak
-            fl[seg] = 3 if self.loop.fault else self.loop.flag
-            if e == n:
+        for j in range(n_end + 1):
+            e = int(ends[j]) if j < n_end else n
+            # safety checks inside the running revolution (a fault splits the fill)
+            at = self._check_faults(chunk, pos, e, hit_list, events) if e > pos else -1
+            if at > pos:
+                self._fill(ov, pk, fl, slice(pos, at))
+                self._apply_fault(chunk, at, events)
+                self._fill(ov, pk, fl, slice(at, e))
+            else:
+                if at == pos:
+                    self._apply_fault(chunk, at, events)
+                self._fill(ov, pk, fl, slice(pos, e))
+            if j == n_end:
                 break
-            self._revolution_end(chunk, e, events)
+            self._revolution_end(
+                chunk, e, float(peaks[j]), bool(bads[j]), int(frozen_end[j]), events
+            )
             pos = e
         return BlockOutput(
             {
@@ -279,6 +288,11 @@ class AdaptiveFeedBlock(Block):
             },
             events,
         )
+
+    def _fill(self, ov: FloatArray, pk: FloatArray, fl: FloatArray, seg: slice) -> None:
+        ov[seg] = self.loop.u
+        pk[seg] = self._peak
+        fl[seg] = 3 if self.loop.fault else self.loop.flag
 
     # ------------------------------------------------------------------ signal
     def _quantity(self, d: Any) -> FloatArray:
@@ -291,44 +305,31 @@ class AdaptiveFeedBlock(Block):
             return np.abs(tq)
         return np.abs(tq * np.asarray(d[self.speed_channel], dtype=np.float64))
 
-    def _frozen_samples(self, q: FloatArray) -> FloatArray:
-        """Per sample, how many consecutive samples (up to it) the signal has been frozen at
-        the same non-zero value (bit-identical), carried between chunks."""
-        n = q.size
-        if n == 0:
-            return np.zeros(0)
-        prev = np.concatenate([[self._last_val], q[:-1]])
-        same = (q == prev) & (q != 0) & np.isfinite(q)
-        # run length of `same` with the carried count
-        idx = np.arange(n)
-        breaks = np.where(~same, idx, -1)
-        last_break = np.maximum.accumulate(breaks)
-        run = np.where(last_break >= 0, idx - last_break, idx + 1 + self._frozen).astype(float)
-        run = np.where(same, run, 0.0)
-        self._frozen = int(run[-1])
-        self._last_val = float(q[-1])
-        return run
-
     # ------------------------------------------------------------------ safety
     def _check_faults(
-        self, chunk: Chunk, a: int, b: int, frozen: FloatArray, events: list[Event]
-    ) -> None:
+        self, chunk: Chunk, a: int, b: int, hits: list[int], events: list[Event]
+    ) -> int:
+        """First sample in [a, b) where a fault starts (−1: none); notes its reason."""
         lp = self.loop
         if lp.fault or not lp.engaged:
-            return
-        hit = np.flatnonzero(frozen[a:b] >= self._n_stall)
-        why = ""
+            return -1
         at = -1
-        if hit.size:
-            at, why = a + int(hit[0]), "signal frozen"
+        why = ""
+        for h in hits:
+            if a <= h < b:
+                at, why = h, "signal frozen"
+                break
         if self._last_rev_len > 0 and not self._watch_fired:
             deadline = self._rev_start + self._last_rev_len + self._n_stall - chunk.start
             if a <= deadline < b and (at < 0 or deadline < at):
                 at, why = deadline, "no spindle revolution"
-        if at >= 0:
-            if why == "no spindle revolution":
-                self._watch_fired = True
-            self._safe(chunk, at, why, events)
+        self._why = why
+        return at
+
+    def _apply_fault(self, chunk: Chunk, at: int, events: list[Event]) -> None:
+        if self._why == "no spindle revolution":
+            self._watch_fired = True
+        self._safe(chunk, at, self._why, events)
 
     def _safe(self, chunk: Chunk, at: int, why: str, events: list[Event]) -> None:
         """The safe action: min(override, 100 %) and an alarm (decision 1615)."""
@@ -355,24 +356,28 @@ class AdaptiveFeedBlock(Block):
         return self.torque_channel
 
     # ------------------------------------------------------------------ control
-    def _revolution_end(self, chunk: Chunk, e: int, events: list[Event]) -> None:
-        """Revolution complete at sample ``e`` (first sample of the next): one decision."""
+    def _revolution_end(
+        self, chunk: Chunk, e: int, peak: float, was_bad: bool, frozen: int, events: list[Event]
+    ) -> None:
+        """Revolution complete at sample ``e`` (first sample of the next): one decision.
+
+        ``peak``: its largest sample; ``was_bad``: it held a non-finite sample; ``frozen``:
+        how long the signal had been frozen at its last sample."""
         o = self.opts
         lp = self.loop
-        peak, was_bad = self._run_max, self._run_bad
         self._last_rev_len = chunk.start + e - self._rev_start
         self._rev_start = chunk.start + e
-        self._run_max, self._run_bad = -math.inf, False
         self._watch_fired = False
         if was_bad or not math.isfinite(peak):
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "non-finite samples", events)
             return
         self._peak = peak
-        frozen_now = self._frozen >= self._n_stall
+        if frozen >= self._n_stall:
+            if lp.engaged and not lp.fault:
+                self._safe(chunk, e, "signal frozen", events)
+            return
         if lp.fault:
-            if frozen_now:
-                return
             lp.fault = False  # a clean revolution: resume from the held (safe) override
         y = peak / o.reference
         lp.y_hist = [y, lp.y_hist[0], lp.y_hist[1]]
@@ -550,3 +555,66 @@ def _plan_force_columns(plan: VirtualPlan) -> dict[str, FloatArray]:
     cols["edge_x"] = cols["fx"] - cols["shear_x"]
     cols["edge_y"] = cols["fy"] - cols["shear_y"]
     return cols
+
+
+@numba.njit(cache=True)
+def _scan(
+    q: FloatArray,
+    speed: FloatArray,
+    scale: float,
+    n_stall: int,
+    st_i: IntArray,
+    st_f: FloatArray,
+    ends: IntArray,
+    peaks: FloatArray,
+    bads: NDArray[np.bool_],
+    frozen_end: IntArray,
+    hits: IntArray,
+) -> tuple[int, int]:
+    """One pass over a chunk: revolution ends (first sample of each new revolution, integer
+    spindle angle so chunking cannot move them), each ended revolution's peak, whether it held
+    a non-finite sample, how long the signal had been frozen at its last sample; and the
+    samples where a bit-identical non-zero value has repeated ``n_stall`` times. State carried
+    in ``st_i`` = [angle, frozen run] and ``st_f`` = [running peak, last sample, bad flag]."""
+    angle = st_i[0]
+    cnt = st_i[1]
+    run_max = st_f[0]
+    last = st_f[1]
+    run_bad = st_f[2] != 0.0
+    n_end = 0
+    n_hit = 0
+    for k in range(q.size):
+        s = speed[k]
+        ok_s = np.isfinite(s)
+        inc = np.int64(np.round(abs(s) * scale)) if ok_s else np.int64(0)
+        new = angle + inc
+        if (new >> 32) > (angle >> 32):
+            ends[n_end] = k
+            peaks[n_end] = run_max
+            bads[n_end] = run_bad
+            frozen_end[n_end] = cnt
+            n_end += 1
+            run_max = -np.inf
+            run_bad = False
+        angle = new
+        v = q[k]
+        fin = np.isfinite(v)
+        if fin and ok_s:
+            if v > run_max:
+                run_max = v
+        else:
+            run_bad = True
+        if fin and v != 0.0 and v == last:
+            cnt += 1
+        else:
+            cnt = 0
+        last = v
+        if cnt == n_stall:
+            hits[n_hit] = k
+            n_hit += 1
+    st_i[0] = angle
+    st_i[1] = cnt
+    st_f[0] = run_max
+    st_f[1] = last
+    st_f[2] = 1.0 if run_bad else 0.0
+    return n_end, n_hit
