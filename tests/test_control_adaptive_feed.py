@@ -284,3 +284,16 @@ def test_dynamometer_noise_chunk_invariant() -> None:
     ]
     np.testing.assert_array_equal(np.concatenate(parts)[:1000], whole.channels["force_x"])
     assert np.std(whole.channels["force_x"]) == pytest.approx(2.0, rel=0.1)  # N(0, 2²), n = 1000
+
+
+def test_override_events_round_trip_the_event_log(tmp_path) -> None:
+    # the controller's events are the shared event model (issue 15 item 5): Parquet and back
+    from millsense.streaming.event_log import read_event_log, write_event_log
+
+    src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 1.0)
+    assert res.overrides()
+    back = read_event_log(write_event_log(tmp_path / "events.parquet", res.events))
+    assert [(e.sample, e.name, e.value, e.severity) for e in back] == [
+        (e.sample, e.name, e.value, e.severity) for e in res.events
+    ]
+    assert back[0].values["reference"] == pytest.approx(325.0)

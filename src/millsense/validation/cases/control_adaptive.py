@@ -163,11 +163,21 @@ def exit_speedup_pct(run: LoopRun) -> float:
     return float(100.0 * (np.max(ov) - ov[0]))
 
 
+def within_band(run: LoopRun, reference_n: float = F_REF_V8) -> float:
+    """Fraction of the revolutions in full cut (X −5 … 50 mm, past the entry, before the
+    exit) whose peak is within ±5 % of the reference (one sample of the held peak per
+    revolution at 1000 rev/min)."""
+    mask = (run.x_mm > -5.0) & (run.x_mm < 50.0)
+    pk = run.peak[mask][:: int(0.06 * FS)]
+    return float(np.mean(np.abs(pk / reference_n - 1.0) <= 0.05)) if pk.size else math.nan
+
+
 def _describe(runs: dict[str, LoopRun]) -> str:
     lines = [
         "| run | largest peak force N | at X mm | steady peak after the jump N | "
-        "override before/after jump % | exit override rise % | override events |",
-        "|---|---|---|---|---|---|---|",
+        "override before/after jump % | exit override rise % | revolutions within ±5 % | "
+        "override events |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for k, r in runs.items():
         i = int(np.argmax(r.force))
@@ -178,7 +188,7 @@ def _describe(runs: dict[str, LoopRun]) -> str:
             f"{np.max(r.force[steady]) if steady.any() else math.nan:.0f} | "
             f"{100 * np.median(r.override[pre]):.0f} / "
             f"{100 * np.median(r.override[steady]):.0f} | "
-            f"{exit_speedup_pct(r):+.1f} | {r.n_events} |"
+            f"{exit_speedup_pct(r):+.1f} | {100 * within_band(r):.0f} % | {r.n_events} |"
         )
     return "\n".join(lines)
 
