@@ -290,7 +290,7 @@ def test_override_events_round_trip_the_event_log(tmp_path) -> None:
     # the controller's events are the shared event model (issue 15 item 5): Parquet and back
     from millsense.streaming.event_log import read_event_log, write_event_log
 
-    src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 1.0)
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 1.0)
     assert res.overrides()
     back = read_event_log(write_event_log(tmp_path / "events.parquet", res.events))
     assert [(e.sample, e.name, e.value, e.severity) for e in back] == [
