@@ -40,12 +40,16 @@ def test_conventional_speeds_up_at_the_exit(runs: dict[str, ca.LoopRun]) -> None
     assert ca.exit_speedup_pct(runs["conventional"]) > 10.0
 
 
-def test_plan_events_carry_nc_line_and_position() -> None:
-    # the override events of the look-ahead run name the NC line and the plan position
-    from millsense.control.adaptive_feed import AdaptiveFeedBlock
-    from millsense.plan.virtual_plan import VirtualPlan
-
-    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
-    assert isinstance(plan, VirtualPlan)
-    blk = AdaptiveFeedBlock(plan=plan)
-    assert set(blk.inputs) >= {"x/position_cmd", "y/position_cmd", "z/position_cmd"}
+def test_plan_events_carry_nc_line_and_position(runs: dict[str, ca.LoopRun]) -> None:
+    # every override event of the look-ahead run names the NC line and the plan position; the
+    # first move near the step-down is the feed-forward: a cut of the override, a warning, on
+    # source line 7 (X25) before the tool reaches the step-down at X = 25 mm; the step-down
+    # block itself (line 8, X25.4 Z-3) is named by the moves during it
+    ev = [e for e in runs["with look-ahead"].events if e.name == "feed_override"]
+    assert ev and all(e.nc_line is not None and e.x_mm is not None for e in ev)
+    assert all(e.nc_line >= 1 for e in ev if e.nc_line is not None)
+    step = [e for e in ev if e.x_mm is not None and 20.0 <= e.x_mm <= 26.0]
+    first = step[0]
+    assert first.nc_line == 7 and first.x_mm is not None and first.x_mm < ca.STEP_X_MM
+    assert first.severity == "warning" and (first.value or 0.0) < 0.8 * 136.0
+    assert any(e.nc_line == 8 for e in step)

@@ -463,6 +463,8 @@ class AdaptiveFeedBlock(Block):
         if self.plan is not None:
             r = lp.row
             nc = int(self.plan["nc_line"][r])
+            if nc < 0:  # a block without an N number: its source line
+                nc = int(self.plan["source_line"][r])
             x, y, z = (float(self.plan[c][r]) for c in ("x_mm", "y_mm", "z_mm"))
         events.append(
             Event(

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from millsense.streaming.block import Event
 from millsense.validation import Measured, case
 
 FS = 10000.0
@@ -93,6 +94,7 @@ class LoopRun:
     x_mm: np.ndarray
     flag: np.ndarray
     n_events: int
+    events: tuple[Event, ...] = ()
 
 
 @functools.lru_cache(maxsize=8)
@@ -149,6 +151,7 @@ def closed_loop_run(
         c["x/position_cmd"] * 1e3,
         c[f"{blk.name}/flag"],
         len(res.overrides()),
+        tuple(res.events),
     )
 
 
