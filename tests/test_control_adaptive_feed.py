@@ -146,11 +146,23 @@ def test_air_cut_rule_seed_002() -> None:
 
 
 def test_power_quantity_regulates_torque_times_speed() -> None:
-    # torque channel = 0.01 × force; power = torque × Ω; reference 2.0 kW: 250 N/unit →
-    # 2.5 N·m/unit·Ω = 261.8 W/unit... choose the reference for 120 %: 1.2 × 0.01 × 250 × Ω
+    # torque channel = 0.01 × force, power = torque × Ω; peak statistic: a reference of
+    # 1.2 × 0.01 × 250 N × Ω needs 120 %
     ref = 1.2 * 0.01 * 250.0 * OMEGA
-    opts = AdaptiveFeedOptions(reference=ref, quantity="power")
-    _src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
+    opts = AdaptiveFeedOptions(reference=ref, quantity="power", statistic="peak")
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
+    assert abs(res.channels["cnc/feed_override"][-1] - 1.2) <= 0.05 * 1.2
+    assert abs(rev_peaks(res)[-1] / ref - 1.0) <= 0.05
+
+
+def test_torque_default_is_the_mean_per_revolution() -> None:
+    # decision 1619: torque and power are regulated on their revolution mean; the mean of
+    # |sin(2Ωt)| over a revolution is 2/π, so a mean reference of 0.01 × 250 N × 2/π × 1.2 also
+    # needs 120 %
+    ref = 1.2 * 0.01 * 250.0 * 2.0 / math.pi
+    opts = AdaptiveFeedOptions(reference=ref, quantity="torque")
+    assert opts.per_revolution == "mean"
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
     assert abs(res.channels["cnc/feed_override"][-1] - 1.2) <= 0.05 * 1.2
     assert abs(rev_peaks(res)[-1] / ref - 1.0) <= 0.05
 

@@ -70,6 +70,10 @@ class AdaptiveFeedOptions:
         seed 000 V8: 325 N.
     quantity : ``force`` (peak resultant of the two force channels), ``torque`` or ``power``
         (torque × |spindle speed|).
+    statistic : what is taken of each revolution, ``peak`` or ``mean``; None: the peak for
+        force (seed 000 and 002), the mean for torque and power (decision 1619: the spindle
+        power AFC regulates is a mean, and the peak of an observer's broadband estimate is
+        its noise).
     min_override_pct, max_override_pct : override limits (seed 000: 20–150 %).
     dead_band : relative band around the reference without a move (seed 000: ±5 %).
     air_threshold : peak at or below which the tool is in air, quantity's unit; None: 80 N
@@ -88,6 +92,7 @@ class AdaptiveFeedOptions:
 
     reference: float = 325.0
     quantity: str = "force"
+    statistic: str | None = None
     min_override_pct: float = 20.0
     max_override_pct: float = 150.0
     dead_band: float = 0.05
@@ -110,6 +115,10 @@ class AdaptiveFeedOptions:
                 f"adaptive feed: quantity must be one of {', '.join(QUANTITIES)}, "
                 f"got {self.quantity!r}"
             )
+        if self.statistic not in (None, "peak", "mean"):
+            raise ConfigError(
+                f"adaptive feed: statistic must be peak or mean, got {self.statistic!r}"
+            )
         if not (self.reference > 0 and math.isfinite(self.reference)):
             raise ConfigError(f"adaptive feed: reference must be > 0, got {self.reference!r}")
         if not (0 < self.min_override_pct < self.max_override_pct):
@@ -125,6 +134,13 @@ class AdaptiveFeedOptions:
             raise ConfigError(
                 "adaptive feed: stall_s > 0, look_ahead_s ≥ 0, feedforward_revs > 0 needed"
             )
+
+    @property
+    def per_revolution(self) -> str:
+        """``peak`` or ``mean`` (the default of the quantity when ``statistic`` is None)."""
+        if self.statistic is not None:
+            return self.statistic
+        return "peak" if self.quantity == "force" else "mean"
 
     @property
     def air(self) -> float:
@@ -204,20 +220,22 @@ class AdaptiveFeedBlock(Block):
             if len(plan) < 2:
                 raise ConfigError("adaptive feed: the plan has fewer than 2 rows")
             ins.extend(tcp_channels)
-            self._plan_cols = _plan_force_columns(plan)
+            self._plan_cols = _plan_force_columns(plan, opts.quantity, opts.per_revolution)
         self.inputs = tuple(dict.fromkeys(ins))
         self.reads_truth = any(c.startswith("truth/") for c in self.inputs)
         self.gpc = GPC(n2=opts.n2, nu=1, lam=opts.lam)
+        self._use_mean = opts.per_revolution == "mean"
         self.reset(10000.0)
 
     # ------------------------------------------------------------------ contract
     def output_channels(self) -> list[ChannelInfo]:
         unit = _UNITS[self.opts.quantity]
+        st = self.opts.per_revolution
         n = self.name
         return [
             ChannelInfo(f"{n}/override", "1", "commanded feed override (fraction)"),
-            ChannelInfo(f"{n}/peak", unit, f"peak {self.opts.quantity} of the last revolution"),
-            ChannelInfo(f"{n}/reference", unit, f"reference peak {self.opts.quantity}"),
+            ChannelInfo(f"{n}/peak", unit, f"{st} {self.opts.quantity} of the last revolution"),
+            ChannelInfo(f"{n}/reference", unit, f"reference {st} {self.opts.quantity}"),
             ChannelInfo(f"{n}/flag", "1", "look-ahead flag 0/1/2 (3: fault, safe action)"),
         ]
 
@@ -230,8 +248,8 @@ class AdaptiveFeedBlock(Block):
         self.loop = _Loop()
         # scan state: [integer spindle angle (2⁻³² rev), frozen run length],
         # [running peak, last sample, running revolution holds a bad sample]
-        self._st_i = np.zeros(2, dtype=np.int64)
-        self._st_f = np.array([-np.inf, np.nan, 0.0])
+        self._st_i = np.zeros(3, dtype=np.int64)
+        self._st_f = np.array([-np.inf, np.nan, 0.0, 0.0])
         self._scale = _ANGLE_ONE / (2 * math.pi * self.fs)
         self._rev_start = 0  # sample index where the running revolution began
         self._last_rev_len = 0
@@ -252,7 +270,7 @@ class AdaptiveFeedBlock(Block):
         frozen_end = np.empty(n + 1, dtype=np.int64)
         hits = np.empty(n + 1, dtype=np.int64)
         n_end, n_hit = _scan(
-            q, speed, self._scale, self._n_stall, self._st_i, self._st_f,
+            q, speed, self._scale, self._n_stall, self._st_i, self._st_f, self._use_mean,
             ends, peaks, bads, frozen_end, hits,
         )  # fmt: skip
         events: list[Event] = []
@@ -544,19 +562,37 @@ class AdaptiveFeedBlock(Block):
             lp.kappa_n += 1
 
 
-def _plan_force_columns(plan: VirtualPlan) -> dict[str, FloatArray]:
-    """The plan's peak resultant force split into its edge part E and shear part S (the
-    shear part scales with the chip thickness, i.e. the feed override): F(u) = |E + u·S|."""
-    cols = {
-        "t_s": np.asarray(plan["t_s"], dtype=np.float64),
-        "fx": np.asarray(plan["fres_peak_x_n"], dtype=np.float64),
-        "fy": np.asarray(plan["fres_peak_y_n"], dtype=np.float64),
-        "shear_x": np.asarray(plan["fres_peak_shear_x_n"], dtype=np.float64),
-        "shear_y": np.asarray(plan["fres_peak_shear_y_n"], dtype=np.float64),
-    }
-    cols["edge_x"] = cols["fx"] - cols["shear_x"]
-    cols["edge_y"] = cols["fy"] - cols["shear_y"]
-    return cols
+def _plan_force_columns(
+    plan: VirtualPlan, quantity: str = "force", statistic: str = "peak"
+) -> dict[str, FloatArray]:
+    """The plan's predicted peak of the regulated quantity split into its edge part E and its
+    shear part S (the shear part scales with the chip thickness, i.e. the feed override):
+    F(u) = |E + u·S|. Force: the XY components at the resultant's peak (``fres_peak_{x,y}_n``
+    and their shear parts); torque: ``torque_peak_nm`` and ``torque_peak_shear_nm`` (y = 0);
+    power: the torque times the planned spindle speed; with ``statistic = "mean"`` the mean
+    torque (``torque_avg_nm``, ``torque_avg_shear_nm``) or the mean resultant force
+    (``fres_avg_n``, all of it scaled with the feed: the plan holds no edge part of it)."""
+    t = np.asarray(plan["t_s"], dtype=np.float64)
+    if quantity == "force" and statistic == "mean":
+        fx = np.asarray(plan["fres_avg_n"], dtype=np.float64)
+        sx = fx.copy()
+        fy = np.zeros(len(plan))
+        sy = np.zeros(len(plan))
+    elif quantity == "force":
+        fx = np.asarray(plan["fres_peak_x_n"], dtype=np.float64)
+        fy = np.asarray(plan["fres_peak_y_n"], dtype=np.float64)
+        sx = np.asarray(plan["fres_peak_shear_x_n"], dtype=np.float64)
+        sy = np.asarray(plan["fres_peak_shear_y_n"], dtype=np.float64)
+    else:
+        scale = np.ones(len(plan))
+        if quantity == "power":
+            scale = np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64)) * 2 * math.pi / 60
+        key = "torque_peak" if statistic == "peak" else "torque_avg"
+        fx = np.abs(np.asarray(plan[f"{key}_nm"], dtype=np.float64)) * scale
+        sx = np.abs(np.asarray(plan[f"{key}_shear_nm"], dtype=np.float64)) * scale
+        fy = np.zeros(len(plan))
+        sy = np.zeros(len(plan))
+    return {"t_s": t, "edge_x": fx - sx, "edge_y": fy - sy, "shear_x": sx, "shear_y": sy}
 
 
 @numba.njit(cache=True)
@@ -567,6 +603,7 @@ def _scan(
     n_stall: int,
     st_i: IntArray,
     st_f: FloatArray,
+    use_mean: bool,
     ends: IntArray,
     peaks: FloatArray,
     bads: NDArray[np.bool_],
@@ -577,12 +614,16 @@ def _scan(
     spindle angle so chunking cannot move them), each ended revolution's peak, whether it held
     a non-finite sample, how long the signal had been frozen at its last sample; and the
     samples where a bit-identical non-zero value has repeated ``n_stall`` times. State carried
-    in ``st_i`` = [angle, frozen run] and ``st_f`` = [running peak, last sample, bad flag]."""
+    in ``st_i`` = [angle, frozen run, samples in the running revolution] and ``st_f`` =
+    [running peak, last sample, bad flag, running sum]; with ``use_mean`` the revolution's mean
+    is reported instead of its peak."""
     angle = st_i[0]
     cnt = st_i[1]
     run_max = st_f[0]
     last = st_f[1]
     run_bad = st_f[2] != 0.0
+    run_sum = st_f[3]
+    run_n = st_i[2]
     n_end = 0
     n_hit = 0
     for k in range(q.size):
@@ -592,18 +633,25 @@ def _scan(
         new = angle + inc
         if (new >> 32) > (angle >> 32):
             ends[n_end] = k
-            peaks[n_end] = run_max
+            if use_mean:
+                peaks[n_end] = run_sum / run_n if run_n > 0 else -np.inf
+            else:
+                peaks[n_end] = run_max
             bads[n_end] = run_bad
             frozen_end[n_end] = cnt
             n_end += 1
             run_max = -np.inf
             run_bad = False
+            run_sum = 0.0
+            run_n = 0
         angle = new
         v = q[k]
         fin = np.isfinite(v)
         if fin and ok_s:
             if v > run_max:
                 run_max = v
+            run_sum += v
+            run_n += 1
         else:
             run_bad = True
         if fin and v != 0.0 and v == last:
@@ -619,4 +667,6 @@ def _scan(
     st_f[0] = run_max
     st_f[1] = last
     st_f[2] = 1.0 if run_bad else 0.0
+    st_f[3] = run_sum
+    st_i[2] = run_n
     return n_end, n_hit

@@ -106,7 +106,8 @@ def closed_loop_run(
     wall: bool = False,
     reference_n: float = F_REF_V8,
 ) -> LoopRun:
-    """Simulate the slot in closed loop with the adaptive feed controller."""
+    """Simulate the slot in closed loop with the adaptive feed controller regulating the peak
+    resultant force of the dynamometer (decision 1616)."""
     from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
     from millsense.control.closed_loop import Dynamometer, run_closed_loop
     from millsense.plan.plan_engagement import PlanEngagement, plan_path
