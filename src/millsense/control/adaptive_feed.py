@@ -1,13 +1,14 @@
 """Adaptive feed control per spindle revolution with the virtual look-ahead (seed 000 §2.10,
 Ch. 6.4; seed 002 §2.2–2.4, M4).
 
-Once per spindle revolution the block takes the peak of the regulated quantity over that
-revolution — the resultant XY force (seed 000 and 002), the spindle torque, or the spindle
-power (what Heidenhain AFC regulates) — identifies the plant z⁻¹B/A (Aslan Eq. 6.7,
-Munasinghe Eq. 3.23) with :class:`~millsense.control.rls.ConstantTraceRLS` on normalised
-signals (y = peak / reference, u = feed override as a fraction of the programmed feed,
-decision 1601) and computes the new override with :class:`~millsense.control.gpc.GPC`
-(N1/N2/Nu = 1/4/1, λ = 0.25, Eq. 6.14). Around it (decisions 1611–1616):
+Once per spindle revolution the block takes the peak (or, for torque and power, the mean:
+decision 1619) of the regulated quantity over that revolution — the resultant XY force (seed
+000 and 002), the spindle torque, or the spindle power (what Heidenhain AFC regulates) —
+identifies the plant z⁻¹B/A (Aslan Eq. 6.7, Munasinghe Eq. 3.23) with
+:class:`~millsense.control.rls.ConstantTraceRLS` on normalised signals (y = peak / reference,
+u = feed override as a fraction of the programmed feed, decision 1601) and computes the new
+override with :class:`~millsense.control.gpc.GPC`
+(N1/N2/Nu = 1/4/1, λ = 0.25, Eq. 6.14). Around it (decisions 1611–1616, 1619):
 
 - limits 20–150 % (seed 000), dead band ±5 % of the reference (no move while the peak is in
   the band, seed 000 §2.10);
