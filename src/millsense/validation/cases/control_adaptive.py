@@ -1,0 +1,372 @@
+"""Acceptance of the adaptive feed control in closed loop on the virtual machine (issue 16,
+item 2; seed 000 V8, seed 002 V6).
+
+Part (both cases): the demo part's tool and material (Ø20 mm 2-flute 30° helix, Al7050,
+1000 rev/min, 400 mm/min programmed — the conditions of seed 000 V8) slotting along X through a
+60 × 80 mm block: shallow first (``DEPTH_LOW``), then the program steps down within 0.4 mm of
+travel (the engagement jump "A" of Aslan Fig. 6.13) and the slot runs on and leaves the part
+at X = 60 (the exit "C"). The virtual plan of the program is the controller's plan; the
+simulator (``quaser-ux600`` X/Y/Z, seed 0) is the live source, the controller's override
+events go back to it every 10 ms chunk (:func:`~millsense.control.closed_loop.run_closed_loop`).
+The regulated quantity is the peak resultant XY force per revolution, measured by a
+dynamometer on the virtual machine (the simulator's true tool force, decision 1616).
+
+V8 (seed 000): F_r = 325 N. With the virtual look-ahead the largest per-revolution peak must
+stay within +5 % of the reference and the override must not rise while the tool leaves the part;
+without it (the conventional RLS + GPC controller) the jump overshoots — the thesis shows about
+800 N — and the feed rises at the exit.
+
+V6 (seed 002): the same controller without look-ahead through the open-CNC override channel
+(2.5 ms, continuous) and through the closed-CNC override switch (10 % steps, 120 ms) on a
+depth step of the ratio of Munasinghe's test IIM (7.62 → 10.5 mm, × 1.38): the force rise above
+the reference at the step. The thesis: ≈ 10 % (open, HOAM milling) and ≈ 75 % (closed, a Fanuc
+lathe with the same algorithm).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from millsense.streaming.block import Event
+from millsense.validation import Measured, case
+
+FS = 10000.0
+F_REF_V8 = 325.0
+DEPTH_LOW_MM = 1.2
+DEPTH_HIGH_MM = 3.0
+#: seed 002 test IIM: 7.62 → 10.5 mm
+V6_RATIO = 10.5 / 7.62
+STEP_X_MM = 25.0
+#: V6: the stock's step (wall) at X = 30 mm; the tool's front meets it at X = 20 mm.
+WALL_X_MM = 30.0
+EXIT_X_MM = 60.0
+
+
+def program(depth_low_mm: float, depth_high_mm: float, wall: bool = False) -> str:
+    """The slot with its step-down at X = 25 mm and its exit at X = 60 mm; ``wall``: a slot at
+    the full depth whose stock is lower before X = 30 mm (the depth step is met by the tool's
+    front half, over a tool radius of travel)."""
+    if wall:
+        return (
+            "(adaptive control: depth step at a wall of the stock)\n"
+            "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\n"
+            f"G1 Z{-depth_high_mm:.3f} F400\nX72\nG0 Z5\nM30\n"
+        )
+    return (
+        "(adaptive control: engagement jump and exit)\n"
+        "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\n"
+        f"G1 Z{-depth_low_mm:.3f} F400\nX{STEP_X_MM:.1f}\n"
+        f"X{STEP_X_MM + 0.4:.1f} Z{-depth_high_mm:.3f}\nX72\nG0 Z5\nM30\n"
+    )
+
+
+@functools.lru_cache(maxsize=4)
+def step_plan(depth_low_mm: float, depth_high_mm: float, wall: bool = False) -> object:
+    """The virtual plan of :func:`program` on the 60 × 80 × 30 mm block (0.1 mm z-map); with
+    ``wall`` the block's top is lowered by the depth difference for X < 30 mm."""
+    from millsense.core.units import MM
+    from millsense.plan.gcode import interpret
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.validation.cases.simulator_plan import _tool_coeffs
+
+    tool, coeffs = _tool_coeffs()
+    stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.06, 0.08, 0.0], 0.1 * MM)
+    if wall:
+        lower = stock.x_centres_m < WALL_X_MM * MM
+        stock.heights[:, lower] = -(depth_high_mm - depth_low_mm) * MM
+    prog = interpret(program(depth_low_mm, depth_high_mm, wall), source="adaptive_step.nc")
+    return plan_program(prog, stock, tool, coeffs)
+
+
+@dataclass
+class LoopRun:
+    """Per-sample channels of one closed-loop run and its override events."""
+
+    t: np.ndarray
+    force: np.ndarray  # true resultant XY force, N
+    peak: np.ndarray  # controller's per-revolution peak (held), N
+    override: np.ndarray  # effective override (fraction)
+    x_mm: np.ndarray
+    flag: np.ndarray
+    n_events: int
+    events: tuple[Event, ...] = ()
+
+
+@functools.lru_cache(maxsize=8)
+def closed_loop_run(
+    look_ahead: bool,
+    channel: str = "open",
+    depth_low_mm: float = DEPTH_LOW_MM,
+    depth_high_mm: float = DEPTH_HIGH_MM,
+    wall: bool = False,
+    reference_n: float = F_REF_V8,
+) -> LoopRun:
+    """Simulate the slot in closed loop with the adaptive feed controller regulating the peak
+    resultant force of the dynamometer (decision 1616)."""
+    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+    from millsense.control.closed_loop import Dynamometer, run_closed_loop
+    from millsense.plan.plan_engagement import PlanEngagement, plan_path
+    from millsense.plan.virtual_plan import (
+        VirtualPlan,
+        coefficients_from_metadata,
+        tool_from_metadata,
+    )
+    from millsense.simulator.interpolator import OverrideChannel
+    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.process_coupling import ProcessCoupling
+    from millsense.validation.cases.simulator_plan import machine_3axis
+
+    plan = step_plan(depth_low_mm, depth_high_mm, wall)
+    assert isinstance(plan, VirtualPlan)
+    m = machine_3axis()
+    pp = plan_path(plan)
+    job = Job(pp.path, pp.feed_m_s, pp.spindle_rad_s, pp.nc_line, pp.rapid)
+    proc = ProcessCoupling(
+        tool_from_metadata(plan.metadata),
+        coefficients_from_metadata(plan.metadata),
+        PlanEngagement(plan),
+        n_discs=int(plan.metadata.get("n_discs", 10)),
+        sample_rate_hz=m.sample_rate_hz,
+    )
+    ch = OverrideChannel.open_cnc() if channel == "open" else OverrideChannel.closed_cnc()
+    sim = MachineSimulator(m, job, proc, SimulatorOptions(feed_channel=ch, seed=0))
+    opts = AdaptiveFeedOptions(reference=reference_n, look_ahead=look_ahead)
+    blk = AdaptiveFeedBlock(opts, plan)
+    res = run_closed_loop(
+        sim,
+        [Dynamometer(), blk],
+        keep=("cnc/feed_override", "x/position_cmd"),
+        chunk_samples=100,
+    )
+    c = res.channels
+    return LoopRun(
+        res.time_s,
+        np.hypot(c["force_x"], c["force_y"]),
+        c[f"{blk.name}/peak"],
+        c["cnc/feed_override"],
+        c["x/position_cmd"] * 1e3,
+        c[f"{blk.name}/flag"],
+        len(res.overrides()),
+        tuple(res.events),
+    )
+
+
+def exit_speedup_pct(run: LoopRun) -> float:
+    """Largest rise of the effective override while the tool still cuts after the last
+    engagement maximum before the exit (X > 45 mm, force > 5 N), percentage points."""
+    cut = (run.x_mm > EXIT_X_MM - 15.0) & (run.force > 5.0)
+    if not cut.any():
+        return math.nan
+    idx = np.flatnonzero(cut)
+    ov = run.override[idx[0] : idx[-1] + 1]
+    return float(100.0 * (np.max(ov) - ov[0]))
+
+
+def within_band(run: LoopRun, reference_n: float = F_REF_V8) -> float:
+    """Fraction of the revolutions in full cut (X −5 … 50 mm, past the entry, before the
+    exit) whose peak is within ±5 % of the reference (one sample of the held peak per
+    revolution at 1000 rev/min)."""
+    mask = (run.x_mm > -5.0) & (run.x_mm < 50.0)
+    pk = run.peak[mask][:: int(0.06 * FS)]
+    return float(np.mean(np.abs(pk / reference_n - 1.0) <= 0.05)) if pk.size else math.nan
+
+
+def _describe(runs: dict[str, LoopRun]) -> str:
+    lines = [
+        "| run | largest peak force N | at X mm | steady peak after the jump N | "
+        "override before/after jump % | exit override rise % | revolutions within ±5 % | "
+        "override events |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for k, r in runs.items():
+        i = int(np.argmax(r.force))
+        steady = (r.x_mm > 35.0) & (r.x_mm < 45.0)
+        pre = (r.x_mm > 15.0) & (r.x_mm < 20.0)
+        lines.append(
+            f"| {k} | {r.force[i]:.0f} | {r.x_mm[i]:.1f} | "
+            f"{np.max(r.force[steady]) if steady.any() else math.nan:.0f} | "
+            f"{100 * np.median(r.override[pre]):.0f} / "
+            f"{100 * np.median(r.override[steady]):.0f} | "
+            f"{exit_speedup_pct(r):+.1f} | {100 * within_band(r):.0f} % | {r.n_events} |"
+        )
+    return "\n".join(lines)
+
+
+def _v8_runs() -> dict[str, LoopRun]:
+    return {
+        "with look-ahead": closed_loop_run(True),
+        "conventional": closed_loop_run(False),
+    }
+
+
+@case(
+    "control.v8_lookahead_peak_force",
+    source="seed 000 V8 (Aslan Fig. 6.13): ACwithVF stays within ±5 % of F_r = 325 N",
+    reference=F_REF_V8,
+    unit="N",
+    rel_tol=0.05,
+    quick=False,
+    description=(
+        "Largest resultant force over the slot (entry, step-down, exit) in closed loop with "
+        "the virtual look-ahead."
+    ),
+)
+def _v8_la_peak() -> Measured:
+    runs = _v8_runs()
+    return Measured(float(np.max(runs["with look-ahead"].force)), _describe(runs))
+
+
+@case(
+    "control.v8_lookahead_exit_no_speedup",
+    source="seed 000 V8: ACwithVF does not speed up at the exit C (no burr)",
+    reference=0.0,
+    unit="% points",
+    abs_tol=0.5,
+    quick=False,
+    description="Rise of the effective override while the tool leaves the part, look-ahead on.",
+)
+def _v8_la_exit() -> Measured:
+    runs = _v8_runs()
+    return Measured(exit_speedup_pct(runs["with look-ahead"]), _describe(runs))
+
+
+@case(
+    "control.v8_conventional_overshoot",
+    source="seed 000 V8: conventional AC overshoots to about 800 N at the engagement jump A",
+    reference=800.0,
+    unit="N",
+    rel_tol=0.15,
+    quick=False,
+    description=(
+        "Largest resultant force without the look-ahead (RLS + GPC alone); the thesis' figure "
+        "is read off a plot (≈ 800 N), hence ±15 %."
+    ),
+)
+def _v8_conv_peak() -> Measured:
+    runs = _v8_runs()
+    return Measured(float(np.max(runs["conventional"].force)), _describe(runs))
+
+
+@case(
+    "control.v8_conventional_exit_speedup",
+    source="seed 000 V8: conventional AC speeds up at the exit C, leaving burrs",
+    reference=1.0,
+    unit="1 = speeds up",
+    abs_tol=0.0,
+    quick=False,
+    description="1 if the override rises by more than 10 % points while leaving the part.",
+)
+def _v8_conv_exit() -> Measured:
+    runs = _v8_runs()
+    return Measured(float(exit_speedup_pct(runs["conventional"]) > 10.0), _describe(runs))
+
+
+# ------------------------------------------------------------------------------ seed 002 V6
+
+
+def _v6_runs() -> dict[str, LoopRun]:
+    low = DEPTH_LOW_MM
+    high = round(DEPTH_LOW_MM * V6_RATIO, 3)
+    return {
+        "open CNC": closed_loop_run(False, "open", low, high, True),
+        "closed CNC": closed_loop_run(False, "closed", low, high, True),
+    }
+
+
+def step_rise_pct(run: LoopRun, reference_n: float = F_REF_V8) -> float:
+    """Largest force from the tool's first touch of the wall to 10 mm past it, above the
+    reference, %."""
+    win = (run.x_mm > WALL_X_MM - 10.5) & (run.x_mm < WALL_X_MM + 10.0)
+    return float(100.0 * (np.max(run.force[win]) / reference_n - 1.0))
+
+
+def _describe_v6(runs: dict[str, LoopRun]) -> str:
+    lines = [
+        "| channel | force rise at the depth step % | settling into ±5 % s | override events |",
+        "|---|---|---|---|",
+    ]
+    for k, r in runs.items():
+        lines.append(f"| {k} | {step_rise_pct(r):.1f} | {settle_s(r):.2f} | {r.n_events} |")
+    return "\n".join(lines)
+
+
+@case(
+    "control.v6_open_cnc_step_rise",
+    source="seed 002 V6 (Munasinghe Figs 5.17–5.26, test IIM): ≈ 10 % through the open CNC",
+    reference=10.0,
+    unit="%",
+    abs_tol=5.0,
+    quick=False,
+    gap=(
+        "a depth step met by a milling cutter engages the deeper layer at the front of the tool "
+        "(φ ≈ 90°, full chip) at once, so the first revolution after it carries the whole step "
+        "(× 1.38 → ≈ +38 %) before any once-per-revolution controller can act, whatever the "
+        "override channel; Munasinghe's ≈ 10 % implies a step the controller saw grow over "
+        "several revolutions, which the thesis does not describe (decision 1617)"
+    ),
+    description=(
+        "Force rise above F_r at a × 1.38 depth step, conventional RLS + GPC, open-CNC "
+        "override (2.5 ms, continuous)."
+    ),
+)
+def _v6_open() -> Measured:
+    runs = _v6_runs()
+    return Measured(step_rise_pct(runs["open CNC"]), _describe_v6(runs))
+
+
+@case(
+    "control.v6_closed_cnc_step_rise",
+    source="seed 002 V6 (test IIL): ≈ 75 % through the closed-CNC override switch",
+    reference=75.0,
+    unit="%",
+    abs_tol=20.0,
+    quick=False,
+    gap=(
+        "the closed-CNC figure is from a lathe (2.5 → 4 mm, × 1.6, on a Fanuc switch); on the "
+        "milled × 1.38 step the first revolution carries the step through either channel, and "
+        "the closed channel's 120 ms and 10 % steps show in the settling, not in the first peak "
+        "(control.v6_closed_cnc_settles_longer; decision 1617)"
+    ),
+    description=(
+        "Force rise above F_r at the same depth step through the closed-CNC override switch "
+        "(10 % steps, 120 ms)."
+    ),
+)
+def _v6_closed() -> Measured:
+    runs = _v6_runs()
+    return Measured(step_rise_pct(runs["closed CNC"]), _describe_v6(runs))
+
+
+def settle_s(run: LoopRun, reference_n: float = F_REF_V8) -> float:
+    """From the tool's first touch of the wall until the per-revolution peak is within ±5 % of
+    the reference for good (up to 15 mm past the wall), s."""
+    win = np.flatnonzero((run.x_mm > WALL_X_MM - 10.0) & (run.x_mm < WALL_X_MM + 15.0))
+    out = np.abs(run.peak[win] / reference_n - 1.0) > 0.05
+    if not out.any():
+        return 0.0
+    return float(run.t[win[np.flatnonzero(out)[-1]]] - run.t[win[0]])
+
+
+@case(
+    "control.v6_closed_cnc_settles_longer",
+    source="seed 002 V6: transients last longer with the closed CNC (120 ms, 10 % steps)",
+    reference=1.0,
+    unit="1 = longer",
+    abs_tol=0.0,
+    quick=False,
+    description=(
+        "1 if the force settles into ±5 % of F_r after the depth step at least twice as slowly "
+        "through the closed-CNC switch as through the open CNC."
+    ),
+)
+def _v6_settle() -> Measured:
+    runs = _v6_runs()
+    a, b = settle_s(runs["open CNC"]), settle_s(runs["closed CNC"])
+    return Measured(
+        float(b >= 2.0 * a), _describe_v6(runs) + f"\n\nSettling: open {a:.2f} s, closed {b:.2f} s."
+    )

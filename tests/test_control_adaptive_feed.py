@@ -1,0 +1,311 @@
+"""Adaptive feed control block (issue 16 item 2): chunk invariance, the GPC loop on a plant
+with a known gain, limits, dead band, seed 002's air-cut rule, the safe action on bad input,
+and the look-ahead ceiling against a plan's closed-form force."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+from millsense.control.closed_loop import Dynamometer, run_closed_loop
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.streaming.block import Chunk, Event, EventKind
+from millsense.streaming.sources import Source
+
+FS = 10000.0
+RPM = 1000.0
+OMEGA = RPM * 2 * math.pi / 60.0
+REV = 60.0 / RPM
+
+
+def tooth_shape(t: np.ndarray) -> np.ndarray:
+    """A 2-flute force pattern with peak 1 per tooth period (|sin| of the spindle angle×2)."""
+    return np.abs(np.sin(2 * OMEGA * t))
+
+
+class PlantSource(Source):
+    """A live source: the peak force per revolution is gain(t)·override(t − latency) (+ an
+    edge part); the override is what the controller commanded, applied after ``latency_s``."""
+
+    name = "plant"
+
+    def __init__(
+        self,
+        gain,  # callable t → N per unit override
+        duration_s: float,
+        latency_s: float = 2.5e-3,
+        edge_n: float = 0.0,
+        torque: bool = False,
+    ) -> None:
+        self.gain = gain
+        self.n_total = int(duration_s * FS)
+        self.latency_s = latency_s
+        self.edge_n = edge_n
+        self.torque = torque
+        self.sample_rate_hz = FS
+        self.t0_s = 0.0
+        self.pos = 0
+        self.times = [-math.inf]
+        self.values = [1.0]
+        self.commands: list[Event] = []
+
+    @property
+    def channel_info(self) -> list[ChannelInfo]:
+        names = ["force_x", "force_y", "spindle/speed", "spindle/torque_est", "cnc/feed_override"]
+        return [ChannelInfo(n, "", "") for n in names]
+
+    def read(self, max_samples: int) -> Chunk | None:
+        if self.pos >= self.n_total:
+            return None
+        n = min(max_samples, self.n_total - self.pos)
+        t = (self.pos + np.arange(n)) / FS
+        idx = np.searchsorted(np.array(self.times), t, side="right") - 1
+        u = np.array(self.values)[idx]
+        f = (self.gain(t) * u + self.edge_n) * tooth_shape(t)
+        data = {
+            "force_x": f * 0.6,
+            "force_y": f * 0.8,
+            "spindle/speed": np.full(n, OMEGA),
+            "spindle/torque_est": f * 0.01,
+            "cnc/feed_override": u,
+        }
+        c = Chunk(self.pos, FS, 0.0, data)
+        self.pos += n
+        return c
+
+    def command(self, event: Event) -> None:
+        if event.kind is not EventKind.OVERRIDE or event.name != "feed_override":
+            return
+        assert event.value is not None
+        self.commands.append(event)
+        t = max(event.time_s, self.pos / FS) + self.latency_s
+        self.times.append(t)
+        self.values.append(event.value / 100.0)
+
+
+def run_plant(gain, duration_s=3.0, options=None, **kw):
+    src = PlantSource(gain, duration_s, **kw)
+    blk = AdaptiveFeedBlock(options or AdaptiveFeedOptions())
+    res = run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    return src, blk, res
+
+
+def rev_peaks(res, name="adaptive_feed") -> np.ndarray:
+    """The per-revolution peaks the block reported (its held channel sampled once per rev)."""
+    pk = res.channels[f"{name}/peak"]
+    return pk[:: int(REV * FS)]
+
+
+def test_regulates_to_reference_without_offset() -> None:
+    # plant 250 N per unit override: F_r = 325 N needs 130 %; the CARIMA integrator removes
+    # the offset, so the steady peak is within the ±5 % dead band and the override at
+    # 325/250 within that band too
+    _src, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0)
+    peaks = rev_peaks(res)[-10:]
+    assert np.all(np.abs(peaks / 325.0 - 1.0) <= 0.05)
+    assert abs(res.channels["cnc/feed_override"][-1] - 1.3) <= 0.05 * 1.3
+
+
+@pytest.mark.parametrize("gain, limit", [(100.0, 1.5), (5000.0, 0.2)])
+def test_override_limits(gain: float, limit: float) -> None:
+    # 100 N per unit: 325 N would need 325 %, clipped at 150 %; 5000 N: 6.5 %, clipped at 20 %
+    _src, _, res = run_plant(lambda t: np.full(t.size, gain), 2.0)
+    ov = res.channels["adaptive_feed/override"]
+    assert ov.max() <= 1.5 + 1e-12 and ov.min() >= 0.2 - 1e-12
+    assert ov[-1] == pytest.approx(limit, abs=1e-9)
+
+
+def test_dead_band_no_move() -> None:
+    # 320 N at 100 %: within ±5 % of 325 N from the first revolution, never a move
+    src, _, res = run_plant(lambda t: np.full(t.size, 320.0), 1.5)
+    assert src.commands == []
+    assert np.all(res.channels["adaptive_feed/override"] == 1.0)
+
+
+def test_air_cut_rule_seed_002() -> None:
+    # air (50 N ≤ 80 N) until 0.5 s, then a cut of 250 N per unit: in air V_max = 150 %, the
+    # first revolution in cut still at 150 % (decided in air), then exactly 3 revolutions at
+    # V_max/3 = 50 %, then the GPC
+    def gain(t: np.ndarray) -> np.ndarray:
+        return np.where(t < 0.5, 50.0, 250.0)
+
+    src, _, res = run_plant(gain, 2.0)
+    vals = [e.value for e in src.commands]
+    times = [e.time_s for e in src.commands]
+    assert vals[0] == pytest.approx(150.0)
+    i50 = [k for k, v in enumerate(vals) if v == pytest.approx(50.0)]
+    assert len(i50) == 1
+    ov = res.channels["adaptive_feed/override"]
+    k0 = round(times[i50[0]] * FS)
+    n50 = int(np.sum(np.isclose(ov[k0:], 0.5)))
+    assert n50 == pytest.approx(3 * REV * FS, abs=2)  # three revolutions at 50 %
+
+
+def test_power_quantity_regulates_torque_times_speed() -> None:
+    # torque channel = 0.01 × force, power = torque × Ω; peak statistic: a reference of
+    # 1.2 × 0.01 × 250 N × Ω needs 120 %
+    ref = 1.2 * 0.01 * 250.0 * OMEGA
+    opts = AdaptiveFeedOptions(reference=ref, quantity="power", statistic="peak")
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
+    assert abs(res.channels["cnc/feed_override"][-1] - 1.2) <= 0.05 * 1.2
+    assert abs(rev_peaks(res)[-1] / ref - 1.0) <= 0.05
+
+
+def test_torque_default_is_the_mean_per_revolution() -> None:
+    # decision 1619: torque and power are regulated on their revolution mean; the mean of
+    # |sin(2Ωt)| over a revolution is 2/π, so a mean reference of 0.01 × 250 N × 2/π × 1.2 also
+    # needs 120 %
+    ref = 1.2 * 0.01 * 250.0 * 2.0 / math.pi
+    opts = AdaptiveFeedOptions(reference=ref, quantity="torque")
+    assert opts.per_revolution == "mean"
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 3.0, options=opts)
+    assert abs(res.channels["cnc/feed_override"][-1] - 1.2) <= 0.05 * 1.2
+    assert abs(rev_peaks(res)[-1] / ref - 1.0) <= 0.05
+
+
+def synthetic_stream(duration_s: float = 2.0) -> dict[str, np.ndarray]:
+    """An open-loop stream with a step in the force at 1 s, NaNs at 1.5 s and a speed ripple."""
+    t = np.arange(int(duration_s * FS)) / FS
+    g = np.where(t < 1.0, 250.0, 400.0)
+    f = g * tooth_shape(t) + np.random.default_rng(3).normal(0, 2.0, t.size)
+    f[int(1.5 * FS) : int(1.5 * FS) + 5] = np.nan
+    return {
+        "force_x": f * 0.6,
+        "force_y": f * 0.8,
+        "spindle/speed": OMEGA * (1 + 0.002 * np.sin(2 * math.pi * 3 * t)),
+    }
+
+
+def feed(block: AdaptiveFeedBlock, data: dict[str, np.ndarray], chunk: int):
+    block.reset(FS)
+    n = len(data["force_x"])
+    ev: list[Event] = []
+    chans: dict[str, list[np.ndarray]] = {}
+    for i in range(0, n, chunk):
+        out = block.process(Chunk(i, FS, 0.0, {k: data[k][i : i + chunk] for k in block.inputs}))
+        ev.extend(out.events)
+        for k, v in out.channels.items():
+            chans.setdefault(k, []).append(v)
+    return ev, {k: np.concatenate(v) for k, v in chans.items()}
+
+
+def frozen_stream() -> dict[str, np.ndarray]:
+    """A cut at 250 N per unit whose force freezes at 1.0 s and resumes at 1.5 s."""
+    t = np.arange(int(2.0 * FS)) / FS
+    f = 250.0 * tooth_shape(t)
+    f[int(1.0 * FS) : int(1.5 * FS)] = f[int(1.0 * FS)]
+    return {"force_x": f, "force_y": 0 * f, "spindle/speed": np.full(t.size, OMEGA)}
+
+
+@pytest.mark.parametrize("make", [synthetic_stream, frozen_stream])
+def test_chunk_size_invariance(make) -> None:
+    data = make()
+    ref_ev, ref_ch = feed(AdaptiveFeedBlock(), data, len(data["force_x"]))
+    assert any(e.kind is EventKind.OVERRIDE for e in ref_ev)
+    assert any(e.kind is EventKind.ALARM for e in ref_ev)
+    for chunk in (1, 7, 100):
+        ev, ch = feed(AdaptiveFeedBlock(), data, chunk)
+        assert [(e.sample, e.kind, e.value) for e in ev] == [
+            (e.sample, e.kind, e.value) for e in ref_ev
+        ]
+        for k in ref_ch:
+            np.testing.assert_array_equal(ch[k], ref_ch[k])
+
+
+def test_nan_gives_safe_action_never_higher() -> None:
+    data = synthetic_stream()
+    ev, ch = feed(AdaptiveFeedBlock(), data, 100)
+    nan_k = int(1.5 * FS)
+    alarms = [e for e in ev if e.kind is EventKind.ALARM]
+    assert len(alarms) == 1
+    # the revolution holding the NaNs ends within one revolution of them
+    assert 0 <= alarms[0].sample - nan_k <= REV * FS
+    ov = ch["adaptive_feed/override"]
+    before = ov[nan_k - 1]
+    after = ov[alarms[0].sample]
+    assert after == pytest.approx(min(before, 1.0))
+    assert after <= before
+
+
+def test_safe_action_from_high_override_is_programmed_feed() -> None:
+    # 150 N/unit: the controller runs at 150 % (limit); NaNs → programmed feed 100 %, alarm
+    t = np.arange(int(2.0 * FS)) / FS
+    f = 150.0 * tooth_shape(t)
+    f[int(1.2 * FS)] = np.nan
+    data = {"force_x": f, "force_y": 0 * f, "spindle/speed": np.full(t.size, OMEGA)}
+    blk = AdaptiveFeedBlock()
+    ev, ch = feed(blk, data, 100)
+    ov = ch["adaptive_feed/override"]
+    assert ov[int(1.2 * FS) - 1] == pytest.approx(1.5)
+    al = next(e for e in ev if e.kind is EventKind.ALARM)
+    assert ov[al.sample] == pytest.approx(1.0)
+
+
+def test_frozen_signal_alarm_after_stall_time() -> None:
+    t = np.arange(int(2.0 * FS)) / FS
+    f = 250.0 * tooth_shape(t)
+    k0 = int(1.0 * FS)
+    f[k0:] = f[k0]  # the sensor freezes at a non-zero value
+    data = {"force_x": f, "force_y": 0 * f, "spindle/speed": np.full(t.size, OMEGA)}
+    ev, _ = feed(AdaptiveFeedBlock(), data, 64)
+    al = [e for e in ev if e.kind is EventKind.ALARM]
+    assert len(al) == 1 and "frozen" in al[0].message
+    # frozen run counted from the first repeated sample: alarm exactly stall_s = 0.1 s later
+    assert al[0].sample - k0 == pytest.approx(0.1 * FS, abs=1)
+
+
+def test_spindle_stop_watchdog() -> None:
+    t = np.arange(int(2.0 * FS)) / FS
+    f = 250.0 * tooth_shape(t) + 1.0
+    w = np.where(t < 1.0, OMEGA, 0.0)
+    data = {"force_x": f, "force_y": 0 * f, "spindle/speed": w}
+    ev, _ = feed(AdaptiveFeedBlock(), data, 100)
+    al = [e for e in ev if e.kind is EventKind.ALARM]
+    assert len(al) == 1 and "no spindle revolution" in al[0].message
+    # the last revolution ended at 0.96 s (16 × 60 ms); deadline = its end + one revolution +
+    # 0.1 s
+    last_end = int(np.floor(1.0 / REV)) * REV
+    assert al[0].time_s == pytest.approx(last_end + REV + 0.1, abs=2 / FS)
+
+
+def test_bad_options() -> None:
+    with pytest.raises(ConfigError, match="quantity"):
+        AdaptiveFeedOptions(quantity="speed")
+    with pytest.raises(ConfigError, match="reference"):
+        AdaptiveFeedOptions(reference=-1.0)
+    with pytest.raises(ConfigError, match="min_override_pct"):
+        AdaptiveFeedOptions(min_override_pct=160.0)
+
+
+def test_dynamometer_noise_chunk_invariant() -> None:
+    d = Dynamometer(noise_n=2.0, seed=5)
+    d.reset(FS)
+    x = np.zeros(1000)
+    whole = d.process(Chunk(0, FS, 0.0, {"truth/tool/force_x": x, "truth/tool/force_y": x}))
+    parts = [
+        d.process(
+            Chunk(
+                i, FS, 0.0, {"truth/tool/force_x": x[i : i + 7], "truth/tool/force_y": x[i : i + 7]}
+            )
+        ).channels["force_x"]
+        for i in range(0, 1000, 7)
+    ]
+    np.testing.assert_array_equal(np.concatenate(parts)[:1000], whole.channels["force_x"])
+    assert np.std(whole.channels["force_x"]) == pytest.approx(2.0, rel=0.1)  # N(0, 2²), n = 1000
+
+
+def test_override_events_round_trip_the_event_log(tmp_path) -> None:
+    # the controller's events are the shared event model (issue 15 item 5): Parquet and back
+    from millsense.streaming.event_log import read_event_log, write_event_log
+
+    _, _, res = run_plant(lambda t: np.full(t.size, 250.0), 1.0)
+    assert res.overrides()
+    back = read_event_log(write_event_log(tmp_path / "events.parquet", res.events))
+    assert [(e.sample, e.name, e.value, e.severity) for e in back] == [
+        (e.sample, e.name, e.value, e.severity) for e in res.events
+    ]
+    assert back[0].values["reference"] == pytest.approx(325.0)
