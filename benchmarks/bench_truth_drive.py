@@ -9,9 +9,8 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.core.config import MachineConfig
-from millsense.core.presets import load_preset
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
+from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.truth_machine import load_truth, truth_feed_params
 
 
@@ -35,7 +34,7 @@ def _run(params: FeedDriveParams, seconds: float, fs: float, substeps: int) -> t
 
 @benchmark("machine.truth_drive_speed")
 def _truth_drive() -> list[Metric]:
-    machine = load_preset(MachineConfig, "quaser-ux600")
+    machine = simulator_machine("quaser-ux600")
     truth = load_truth("quaser-ux600")
     fs, seconds = 10000.0, 10.0
     old = FeedDriveParams.from_config(machine.axis("x"))

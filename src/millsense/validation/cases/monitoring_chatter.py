@@ -58,12 +58,13 @@ def _modes(rows: list[tuple[float, float, float]]) -> Any:
 @cache
 def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
     """One V5 replica run: the channels the monitors and the judgement need."""
-    from millsense.core.config import MachineConfig, MaterialConfig
+    from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.geometry import EndMill
     from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
     from millsense.simulator.process_coupling import (
         EngagementSchedule,
         ProcessCoupling,
@@ -72,7 +73,7 @@ def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
     from millsense.simulator.sensors import SensorOptions
 
     d, n, rpm, _, _, _, mx, my = TOOLS[tool]
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
     feed = 0.1e-3 * n * rpm / 60.0
@@ -305,12 +306,11 @@ def _stable() -> Measured:
 def latency() -> tuple[float, float, float]:
     """(truth onset s, alarm s, alarm Hz): Insperger 1-DOF slot (benchmarks.md §1), depth
     raised in 5 % steps every 0.1 s from 0.4 to 1.2 × the SDM limit 0.3174 mm, accelerometer."""
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.geometry import EndMill
     from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
     from millsense.simulator.process_coupling import (
         DepthStep,
         EngagementSchedule,
@@ -335,7 +335,7 @@ def latency() -> tuple[float, float, float]:
         ),
         events=steps,
     )
-    m = load_preset(MachineConfig, "quaser-ux600")
+    m = simulator_machine("quaser-ux600")
     m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
     job = Job.straight([0, 0, 0], [1.0, 0, 0], feed, omega)
     opts = SimulatorOptions(
