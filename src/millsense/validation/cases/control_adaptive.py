@@ -302,6 +302,7 @@ def _describe_v6(runs: dict[str, LoopRun]) -> str:
     unit="%",
     abs_tol=5.0,
     quick=False,
+    issue=16,
     gap=(
         "a depth step met by a milling cutter engages the deeper layer at the front of the tool "
         "(φ ≈ 90°, full chip) at once, so the first revolution after it carries the whole step "
@@ -326,6 +327,7 @@ def _v6_open() -> Measured:
     unit="%",
     abs_tol=20.0,
     quick=False,
+    issue=16,
     gap=(
         "the closed-CNC figure is from a lathe (2.5 → 4 mm, × 1.6, on a Fanuc switch); on the "
         "milled × 1.38 step the first revolution carries the step through either channel, and "

@@ -205,6 +205,7 @@ def _freq_case(tool: str, gap: str = "") -> None:
         description=f"relative error of the chatter frequency reported by chatter-comb on the "
         f"compensated spindle torque against the simulated torque's chatter peak, {tool} replica "
         "(module notes); table of all four tools",
+        issue=15 if gap else None,
         gap=gap,
     )
     def _f() -> Measured:

@@ -131,6 +131,7 @@ def _centre_y() -> Measured:
     abs_tol=0.012,
     quick=False,
     description="Diameter of the circle fit of the 5 printed points.",
+    issue=15,
     gap=(
         "The printed points give 61.991 mm (digest V5, residuals ≤ 1.2 µm); the thesis' 61.968 "
         "mm implies an unstated correction (decision 1527)."
