@@ -140,6 +140,18 @@ def test_presliding_refuses_torque_above_breakaway() -> None:
                           torque_constant_nm_a=2.0, static=static)  # fmt: skip
 
 
+def test_presliding_refuses_a_record_that_is_not_a_bristle_spring() -> None:
+    """Decision 1603: steps below breakaway whose angle creeps steadily (no spring: slip of
+    2 mrad over the record, the kind of record the truth's rotary axes give) are not fitted
+    into an absurd σ0; the one-line refusal lets identify friction go on without it."""
+    static = fr.LuGreFit(*(fr.StribeckFit(1.2, 1.9, 0.016, 0.8, 0.0, True),) * 2)
+    i = np.repeat([1.0, 0.0, -1.0, 0.0], 500) * 0.3
+    creep = np.linspace(0.0, 2e-3, i.size)  # rad, monotonic whatever the current's sign
+    with pytest.raises(fr.PreslidingNotIdentified, match="does not describe the record"):
+        fr.fit_presliding(i, creep, 1e4, inertia_kg_m2=0.005, torque_constant_nm_a=1.5,
+                          static=static)  # fmt: skip
+
+
 def test_spindle_coulomb_and_viscous() -> None:
     p = dataclasses.replace(SpindleDriveParams.aslan_quaser(), coulomb=0.5)
     rec = cm.spindle_friction_test(p, np.array([60.0, 120.0, 240.0]), hold_s=1.0)

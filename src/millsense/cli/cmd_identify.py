@@ -360,19 +360,23 @@ def _friction(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str
         cfg = ctx.axis_cfg()
         if cfg is None:
             raise InputDataError("identify friction: the presliding fit needs --machine (inertia)")
-        pf = fr.fit_presliding(
-            ctx.channel(rec, path, f"{a}/current"),
-            ctx.channel(rec, path, f"{a}/angle"),
-            rec.sample_rate_hz,
-            inertia_kg_m2=cfg.inertia_kg_m2,
-            torque_constant_nm_a=kt,
-            static=fit,
-        )
-        fit = fr.LuGreFit(fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2)
-        notes.append(
-            f"presliding: peak {pf.peak_angle_rad * 1e3:.3g} mrad, RMS residual "
-            f"{pf.rms_residual_rad * 1e6:.3g} µrad"
-        )
+        try:
+            pf = fr.fit_presliding(
+                ctx.channel(rec, path, f"{a}/current"),
+                ctx.channel(rec, path, f"{a}/angle"),
+                rec.sample_rate_hz,
+                inertia_kg_m2=cfg.inertia_kg_m2,
+                torque_constant_nm_a=kt,
+                static=fit,
+            )
+        except fr.PreslidingNotIdentified as exc:
+            notes.append(f"presliding not identified ({exc}): static friction only")
+        else:
+            fit = fr.LuGreFit(fit.positive, fit.negative, (pf.sigma0,) * 2, (pf.sigma1,) * 2)
+            notes.append(
+                f"presliding: peak {pf.peak_angle_rad * 1e3:.3g} mrad, RMS residual "
+                f"{pf.rms_residual_rad * 1e6:.3g} µrad"
+            )
     if o["plot"] is not None:
         plot_stribeck(w, t, fit, o["plot"], std_error_nm=s)
     table = fit.config_table()

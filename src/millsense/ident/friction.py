@@ -386,6 +386,11 @@ class PreslidingFit:
     peak_angle_rad: float
 
 
+class PreslidingNotIdentified(InputDataError):
+    """The presliding record does not identify σ0 (decision 1603): the friction is identified
+    without it (static parameters only) and the user is told."""
+
+
 def fit_presliding(
     current_a: np.ndarray,
     angle_rad: np.ndarray,
@@ -485,12 +490,20 @@ def fit_presliding(
             best = sol
     assert best is not None
     r = resid(best.x) * peak
-    return PreslidingFit(
-        float(math.exp(best.x[0])),
-        float(math.exp(best.x[1])),
-        float(np.sqrt(np.mean(r**2))),
-        peak,
-    )
+    sigma0 = float(math.exp(best.x[0]))
+    # the fit must be the bristle spring the record shows (decision 1603): the quasi-static
+    # deflection of the largest step within a decade of the measured peak, and the angle
+    # explained to half its peak; else the record does not identify σ0 (a truth whose motion
+    # below breakaway is not LuGre's, an encoder too coarse for it)
+    deflection = float(np.max(np.abs(tau))) / sigma0
+    rms = float(np.sqrt(np.mean(r**2)))
+    if not (0.1 * peak <= deflection <= 10.0 * peak) or rms > 0.5 * peak:
+        raise PreslidingNotIdentified(
+            f"presliding test: the fit (σ0 {sigma0:.3g} N·m/rad: deflection {deflection:.3g} rad "
+            f"against the measured {peak:.3g} rad, residual {rms / peak:.0%} of it) does not "
+            "describe the record; identify friction without it"
+        )
+    return PreslidingFit(sigma0, float(math.exp(best.x[1])), rms, peak)
 
 
 # ---------------------------------------------------------------------------------------------
