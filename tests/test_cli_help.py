@@ -30,7 +30,7 @@ UNIT_SUFFIXES = (
     ("-n", "[N]"),
     ("-w", "[W]"),
     ("-s", "[s]"),
-    ("--rpm", "[rev/min]"),
+    ("-rpm", "[rev/min]"),
 )
 
 #: float options without a unit suffix, and why

@@ -273,6 +273,15 @@ def _raw_case(axis: str) -> None:
         return Measured(compensated_bandwidth(axis, 1.0)["raw_hz"], _table(1.0))
 
 
+#: Axes whose compensated band on the truth plant (decision 1062) is outside the thesis's
+#: ±25 % (measured 2026-11-25 through the nameplate → commission → identify pipeline)
+BAND_GAP = {
+    "a": "on the truth plant the identified A-axis estimate is flat to 157 Hz, wider than the "
+    "thesis's 120 Hz by more than 25 %: the truth's A-axis modes (fitted to Table 3.4's "
+    "frequencies, decision 0973) are not the thesis machine's measured rotary dynamics",
+}
+
+
 def _band_case(axis: str) -> None:
     tgt = TARGET_HZ[axis]
 
@@ -286,7 +295,9 @@ def _band_case(axis: str) -> None:
         too_good_factor=1.5,
         lower_is_better=False,
         quick=False,
-        ci=axis in ("y", "a"),
+        ci=axis == "y",
+        gap=BAND_GAP.get(axis, ""),
+        issue=12 if axis in BAND_GAP else None,
         description=f"{axis.upper()} axis: measured ±3 dB band of the compensated estimate "
         f"(multisine 1-300 Hz, so 300 Hz means at least 300) against the thesis's {tgt:g} Hz: "
         "two-sided ±25 %, more than 1.5× wider is flagged as too good (a replica far wider than "
