@@ -195,7 +195,9 @@ def plant_matrices(p: SpindleDriveParams, r: int) -> tuple[np.ndarray, np.ndarra
     return A, B, cr
 
 
-def _zoh(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+def zoh(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation (A_d, B_d) of ẋ = A x + B u over a step h (one matrix
+    exponential of the augmented [[A, B], [0, 0]]·h)."""
     n, m = B.shape
     M = np.zeros((n + m, n + m))
     M[:n, :n] = A * h
@@ -233,7 +235,10 @@ def _closed_loop(p: SpindleDriveParams, r: int) -> tuple[np.ndarray, np.ndarray,
     return Acl, Bcl, np.hstack([C, D])
 
 
-def _frf(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, s: np.ndarray) -> np.ndarray:
+def state_space_frf(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, s: np.ndarray
+) -> np.ndarray:
+    """C (sI − A)⁻¹ B + D at each complex frequency of ``s``: (len(s), outputs, inputs)."""
     n = A.shape[0]
     out = np.empty((len(s), C.shape[0], B.shape[1]), dtype=complex)
     eye = np.eye(n)
@@ -254,7 +259,7 @@ def disturbance_frf(p: SpindleDriveParams, freq_hz: np.ndarray, range_index: int
     Acl, Bcl, CD = _closed_loop(p, range_index)
     n = Acl.shape[0]
     s = 2j * math.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float))
-    return _frf(Acl, Bcl[:, 1:2], CD[0:1, :n], CD[0:1, n + 1 : n + 2], s)[:, 0, 0]
+    return state_space_frf(Acl, Bcl[:, 1:2], CD[0:1, :n], CD[0:1, n + 1 : n + 2], s)[:, 0, 0]
 
 
 def disturbance_frf_printed(
@@ -307,7 +312,7 @@ def velocity_loop_bandwidth_hz(p: SpindleDriveParams, range_index: int = 0) -> f
     Acl, Bcl, CD = _closed_loop(p, range_index)
     n = Acl.shape[0]
     s = 2j * math.pi * _F_GRID
-    h = _frf(Acl, Bcl[:, 0:1], CD[1:2, :n], CD[1:2, n : n + 1], s)[:, 0, 0]
+    h = state_space_frf(Acl, Bcl[:, 0:1], CD[1:2, :n], CD[1:2, n : n + 1], s)[:, 0, 0]
     mag = np.abs(h)
     return _first_crossing(_F_GRID, mag, mag[0] / math.sqrt(2.0))
 

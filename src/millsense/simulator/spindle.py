@@ -41,7 +41,12 @@ import numba
 import numpy as np
 
 from millsense.core.errors import InputDataError
-from millsense.models.spindle_plant import SpindleDriveParams, _frf, _zoh, plant_matrices
+from millsense.models.spindle_plant import (
+    SpindleDriveParams,
+    plant_matrices,
+    state_space_frf,
+    zoh,
+)
 
 
 @numba.njit(cache=True)
@@ -110,7 +115,7 @@ class SpindleDriveSim:
         sizes = {m[0].shape[0] for m in mats}
         if len(sizes) != 1:
             raise InputDataError("spindle: both speed ranges need the same number of modes")
-        disc = [_zoh(A, B, self.dt) for A, B, _ in mats]
+        disc = [zoh(A, B, self.dt) for A, B, _ in mats]
         self._ad = np.ascontiguousarray(np.stack([d[0] for d in disc]))
         self._bd = np.ascontiguousarray(np.stack([d[1] for d in disc]))
         self._cr = np.ascontiguousarray(np.stack([m[2] for m in mats]))
@@ -205,7 +210,7 @@ def discrete_disturbance_frf(
     C[0, :n] = -g * meas
     C[0, n] = 1.0
     z = np.exp(2j * math.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float)) * sim.dt)
-    return _frf(A, B, C, np.zeros((1, 1)), z)[:, 0, 0]
+    return state_space_frf(A, B, C, np.zeros((1, 1)), z)[:, 0, 0]
 
 
 def measured_frf(
