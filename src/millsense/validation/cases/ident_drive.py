@@ -37,16 +37,21 @@ FRICTION_SPEEDS = np.geomspace(0.1, 30.0, 16)
 
 @cache
 def friction_case(seed: int = 0) -> tuple[fr.LuGreFit, fr.PreslidingFit]:
-    """Static LuGre fit (both directions) and presliding fit of the Quaser Z axis."""
+    """Static LuGre fit (both directions) and presliding fit of the Quaser Z axis.
+
+    The tests drive the simulator file's model (``ideal``): these cases judge the identification
+    algorithm against the parameters it should recover (Aslan Table 3.2); since the simulator's
+    default became the truth plant (decision 1062), whose friction is not Table 3.2's,
+    commissioning on the truth is judged in `tests/test_cli_commission.py` against the truth."""
     cfg = simulator_machine("quaser-ux600")
     axis = cfg.axis("z")
     order = np.ravel(np.column_stack([FRICTION_SPEEDS, -FRICTION_SPEEDS]))
-    rec = cm.friction_test(cfg, "z", order, hold_s=2.0, seed=seed)
+    rec = cm.friction_test(cfg, "z", order, hold_s=2.0, seed=seed, ideal=True)
     segs = fr.steady_segments(rec["z/velocity_ref"], min_samples=1000)
     kt = axis.torque_constant_nm_a
     w, t, s = fr.move_means(rec["z/speed"], kt * rec["z/current"], segs)
     static = fr.lugre_static_from_moves(w, t, s)
-    pre = cm.presliding_test(cfg, "z", seed=seed)
+    pre = cm.presliding_test(cfg, "z", seed=seed, ideal=True)
     pf = fr.fit_presliding(
         pre["z/current"],
         pre["z/angle"],
