@@ -41,13 +41,12 @@ from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.presets import preset_data
 from millsense.core.recording import Recording
 from millsense.estimation.feed.estimator import (
-    C3Torque,
     FeedAxisModel,
     OperatingCondition,
     c3_front_end,
 )
 from millsense.estimation.feed.path_fit import SweepResult, fit_disturbance_path
-from millsense.estimation.feed.tuning import air_cut_variance
+from millsense.estimation.feed.tuning import air_cut_r
 from millsense.ident import drive as ident_drive
 from millsense.ident import friction as ident_friction
 from millsense.ident.fragment import merge
@@ -213,9 +212,9 @@ def identify_axis(
             f"(bench pipeline, {cond})"
         )
         air = recs[f"air_cut{sfx}"]
-        c3 = C3Torque(drive, lowpass, fs, lugre)
-        tau = c3.process(_ch(air, f"{axis}/current_cmd"), _ch(air, f"{axis}/speed"))
-        r = air_cut_variance(tau[round(0.2 * fs) :], fs=fs)
+        r = air_cut_r(
+            _ch(air, f"{axis}/current_cmd"), _ch(air, f"{axis}/speed"), drive, lowpass, fs, lugre
+        )
         est[f"r_nm2{sfx}"] = r
         notes.append(
             f"{cond}: path RMS error {sw.fit.rms_error:.3g} ({sw.fit.n_states} states), "

@@ -270,8 +270,8 @@ def _noise(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     pipeline, decision 0993)."""
     import numpy as np
 
-    from millsense.estimation.feed.estimator import C3Torque, c3_front_end
-    from millsense.estimation.feed.tuning import air_cut_variance
+    from millsense.estimation.feed.estimator import c3_front_end
+    from millsense.estimation.feed.tuning import air_cut_r
 
     if ctx.machine is None:
         raise ConfigError(
@@ -289,9 +289,10 @@ def _noise(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     if len(current) < skip + round(0.5 * fs):
         raise InputDataError(f"{path}: an air cut of at least 0.7 s is needed for R")
     drive, lugre, lowpass = c3_front_end(a, ctx.axis_cfg(), fs, ctx.machine.name)
-    tau = C3Torque(drive, lowpass, fs, lugre).process(current, speed)
-    r = air_cut_variance(tau[skip:], fs=fs)
-    notes = [f"R = {r:.4g} N²·m² (C3 torque variance in air over {(len(tau) - skip) / fs:.2f} s)"]
+    r = air_cut_r(current, speed, drive, lowpass, fs, lugre, skip_s=skip / fs)
+    notes = [
+        f"R = {r:.4g} N²·m² (C3 torque variance in air over {(len(current) - skip) / fs:.2f} s)"
+    ]
     return {"axes": {a: {"estimator": {"r_nm2": float(r)}}}}, notes
 
 

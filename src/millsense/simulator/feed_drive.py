@@ -878,46 +878,14 @@ class FeedDriveSim:
             inj = self._no_injection  # read-only in the kernel
         else:
             inj = np.ascontiguousarray(current_injection_a, dtype=np.float64)
-        feed_drive_kernel(
-            self._xm,
-            self._xd,
-            self._sc,
-            self._ring,
-            self._ring_idx,
+        self._run_kernel(
             np.ascontiguousarray(pos_ref_rad, dtype=np.float64),
             np.ascontiguousarray(vel_ff_rad_s, dtype=np.float64),
             np.ascontiguousarray(load, dtype=np.float64),
             inj,
             dist,
-            self._ad,
-            self._bd,
-            self._cy,
-            self._dy,
-            self._mad,
-            self._mbd,
-            self._mc,
-            self._md,
-            self._fric,
-            self._terms,
-            self._p,
-            self._ip,
-            self.dt,
             out,
-            self._ma0,
-            self._mb0,
-            self._mc0,
-            self._sched,
-            self._sched_block,
-            self.samples_done,
-            self._pad,
-            self._pbd,
-            self._pcy,
-            self._pdy,
-            self._pgrid,
-            self._c_e,
-            self._ripple,
         )
-        self.samples_done += n
 
     def draw_noise(self, n: int) -> np.ndarray:
         """The torque noise of the next ``n`` samples, N·m (the generator's next draws: the
@@ -964,20 +932,17 @@ class FeedDriveSim:
             self._ripple,
         )
 
-    def advance_block(
+    def _run_kernel(
         self,
         pos_ref_rad: np.ndarray,
         vel_ff_rad_s: np.ndarray,
         load: np.ndarray,
+        inj: np.ndarray,
         dist: np.ndarray,
         out: np.ndarray,
     ) -> None:
-        """:meth:`advance_into` without the checks, with the torque noise ``dist`` drawn by
-        :meth:`draw_noise` ahead (the simulator's block loop; every array C-contiguous
-        float64 of the block's length, ``out`` (n, N_OUT))."""
-        n = pos_ref_rad.shape[0]
-        if self._no_injection.shape[0] != n:
-            self._no_injection = np.zeros(n)
+        """The one call of :func:`feed_drive_kernel` on this drive's state (C-contiguous
+        float64 inputs of one length, ``out`` (n, N_OUT))."""
         feed_drive_kernel(
             self._xm,
             self._xd,
@@ -987,7 +952,7 @@ class FeedDriveSim:
             pos_ref_rad,
             vel_ff_rad_s,
             load,
-            self._no_injection,
+            inj,
             dist,
             self._ad,
             self._bd,
@@ -1017,7 +982,23 @@ class FeedDriveSim:
             self._c_e,
             self._ripple,
         )
-        self.samples_done += n
+        self.samples_done += pos_ref_rad.shape[0]
+
+    def advance_block(
+        self,
+        pos_ref_rad: np.ndarray,
+        vel_ff_rad_s: np.ndarray,
+        load: np.ndarray,
+        dist: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        """:meth:`advance_into` without the checks, with the torque noise ``dist`` drawn by
+        :meth:`draw_noise` ahead (the simulator's block loop; every array C-contiguous
+        float64 of the block's length, ``out`` (n, N_OUT))."""
+        n = pos_ref_rad.shape[0]
+        if self._no_injection.shape[0] != n:
+            self._no_injection = np.zeros(n)
+        self._run_kernel(pos_ref_rad, vel_ff_rad_s, load, self._no_injection, dist, out)
 
 
 def _position_direction(plant: MechanicalPlant) -> np.ndarray:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -66,6 +67,27 @@ def air_cut_variance(torque_nm: ArrayLike, trend_hz: float = 2.0, fs: float = 10
     y = signal.sosfiltfilt(sos, x - x.mean())
     trim = min(len(y) // 10, round(fs / trend_hz))
     return float(np.var(y[trim : len(y) - trim]))
+
+
+def air_cut_r(
+    current_a: ArrayLike,
+    speed_rad_s: ArrayLike,
+    drive: Any,
+    lowpass: Any,
+    fs: float,
+    lugre: Any = None,
+    skip_s: float = 0.2,
+) -> float:
+    """R of the feed estimator from an air cut (Aslan Eq. 3.28–3.30): the variance of the C3
+    torque (:class:`~millsense.estimation.feed.estimator.C3Torque` of ``drive``, ``lowpass``,
+    ``lugre``) after the first ``skip_s`` (the start of the move), by
+    :func:`air_cut_variance`; the one computation of ``identify noise`` and the bench."""
+    from millsense.estimation.feed.estimator import C3Torque
+
+    tau = C3Torque(drive, lowpass, fs, lugre).process(
+        np.asarray(current_a, dtype=float), np.asarray(speed_rad_s, dtype=float)
+    )
+    return air_cut_variance(tau[round(skip_s * fs) :], fs=fs)
 
 
 def noise_gain(design: KalmanDesign) -> float:
