@@ -51,12 +51,12 @@ def _l(m: float, d: float, kb: float) -> complex:
 
 
 @numba.njit(cache=True)
-def residual(
-    p: FloatArray, xn: ComplexArray, k: FloatArray, kb: float, edge: bool, res: FloatArray
-) -> float:
-    """Projected residual of the harmonics ``xn`` for p = (d_a, θ_st, θ_ex) (real and
-    imaginary parts in ``res``); returns ½‖res‖²."""
-    n = xn.shape[0]
+def _fit_basis(
+    p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool
+) -> tuple[ComplexArray, ComplexArray, float, float]:
+    """The two harmonic bases A_k, B_k at p = (d_a, θ_st, θ_ex) and the real least-squares
+    amplitudes α, β of x ≈ α A + β B (β = 0 without the edge term)."""
+    n = x.shape[0]
     a = np.empty(n, dtype=np.complex128)
     b = np.empty(n, dtype=np.complex128)
     d, st, ex = p[0], p[1], p[2]
@@ -73,8 +73,8 @@ def residual(
         aa += a[j].real ** 2 + a[j].imag ** 2
         bb += b[j].real ** 2 + b[j].imag ** 2
         ab += (a[j].conjugate() * b[j]).real
-        ax += (a[j].conjugate() * xn[j]).real
-        bx += (b[j].conjugate() * xn[j]).real
+        ax += (a[j].conjugate() * x[j]).real
+        bx += (b[j].conjugate() * x[j]).real
     alpha = 0.0
     beta = 0.0
     if edge:
@@ -84,6 +84,17 @@ def residual(
             beta = (aa * bx - ab * ax) / det
     elif aa > 0:
         alpha = ax / aa
+    return a, b, alpha, beta
+
+
+@numba.njit(cache=True)
+def residual(
+    p: FloatArray, xn: ComplexArray, k: FloatArray, kb: float, edge: bool, res: FloatArray
+) -> float:
+    """Projected residual of the harmonics ``xn`` for p = (d_a, θ_st, θ_ex) (real and
+    imaginary parts in ``res``); returns ½‖res‖²."""
+    a, b, alpha, beta = _fit_basis(p, xn, k, kb, edge)
+    n = xn.shape[0]
     cost = 0.0
     for j in range(n):
         r = xn[j] - alpha * a[j] - beta * b[j]
@@ -162,34 +173,8 @@ def amplitudes(
 ) -> tuple[float, float, complex, complex]:
     """Real amplitudes α, β of x ≈ α A + β B at p = (d_a, θ_st, θ_ex), |α A_k + β B_k| for the
     first len(model_abs) harmonics, and G_1, L_2 (for the runout)."""
-    n = x.shape[0]
-    a = np.empty(n, dtype=np.complex128)
-    b = np.empty(n, dtype=np.complex128)
+    a, b, alpha, beta = _fit_basis(p, x, k, kb, edge)
     d, st, ex = p[0], p[1], p[2]
-    for j in range(n):
-        lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
-        b[j] = _g(k[j], st, ex) * lk
-    aa = 0.0
-    ab = 0.0
-    bb = 0.0
-    ax = 0.0
-    bx = 0.0
-    for j in range(n):
-        aa += a[j].real ** 2 + a[j].imag ** 2
-        bb += b[j].real ** 2 + b[j].imag ** 2
-        ab += (a[j].conjugate() * b[j]).real
-        ax += (a[j].conjugate() * x[j]).real
-        bx += (b[j].conjugate() * x[j]).real
-    alpha = 0.0
-    beta = 0.0
-    if edge:
-        det = aa * bb - ab * ab
-        if det > 0:
-            alpha = (bb * ax - ab * bx) / det
-            beta = (aa * bx - ab * ax) / det
-    elif aa > 0:
-        alpha = ax / aa
     for j in range(model_abs.shape[0]):
         model_abs[j] = abs(alpha * a[j] + beta * b[j])
     return alpha, beta, _g(1.0, st, ex), _l(2.0, d, kb)
