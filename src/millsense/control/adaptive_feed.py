@@ -258,6 +258,17 @@ class AdaptiveFeedBlock(Block):
         self._why = ""
         self._peak = 0.0
         self._n_stall = max(round(o.stall_s * self.fs), 1)
+        self._ceiling_ext: float | None = None
+
+    def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
+        """From an arbiter (:class:`~millsense.control.arbitration.Supervisor`): the largest
+        override this block may propose from now on (None: its own limits only), and the
+        override the machine was actually sent (the block's state follows it when the arbiter
+        did not pass a proposal, so the next GPC move starts from what the plant saw)."""
+        self._ceiling_ext = ceiling
+        if abs(commanded - self.loop.u) > 1e-12:
+            self.loop.u = commanded
+            self.loop.u_hist[0] = commanded
 
     # ------------------------------------------------------------------ streaming
     def process(self, chunk: Chunk) -> BlockOutput:
@@ -429,6 +440,8 @@ class AdaptiveFeedBlock(Block):
             u = min(u, lp.u)  # never faster into a rising engagement
         if cap is not None:
             u = min(u, cap)
+        if self._ceiling_ext is not None:
+            u = min(u, self._ceiling_ext)
         u = min(max(u, self.u_min), self.u_max)
         lp.flag = flag
         sev = Severity.WARNING if flag else Severity.INFO

@@ -1,0 +1,355 @@
+"""``millsense run`` and ``millsense replay``: the integrated on-line system (issue 16 item 5).
+
+``run`` plans the part program, runs the virtual machine in closed loop with the estimators,
+the plan, the monitors and the controllers (:mod:`millsense.online.session`), records the run
+with its event log and prints a summary; ``replay`` runs the same blocks on a recording (the
+overrides are recorded, not applied).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from millsense.cli.main import app
+
+_MACHINE_FILE = typer.Option(
+    None,
+    "--machine-file",
+    help="Machine file of the estimators (made by `millsense commission --identify`): the "
+    "spindle torque observer and, with --force-from estimate, the feed-drive estimators.",
+)
+
+
+def _options(
+    adaptive: bool,
+    regulate: str,
+    reference: float | None,
+    force_from: str,
+    look_ahead: bool,
+    chatter: bool,
+    act_on_chatter: bool,
+    breakage: bool,
+) -> Any:
+    from millsense.control.adaptive_feed import QUANTITIES
+    from millsense.core.errors import ConfigError
+    from millsense.online.session import SessionOptions
+
+    if regulate not in QUANTITIES:
+        raise ConfigError(f"--regulate: one of {', '.join(QUANTITIES)}, got {regulate!r}")
+    if reference is not None and not (reference > 0):
+        raise ConfigError(f"--reference: must be > 0, got {reference}")
+    return SessionOptions(
+        adaptive=adaptive, quantity=regulate, reference=reference, force_from=force_from,
+        look_ahead=look_ahead, chatter=chatter, avoid_chatter=act_on_chatter, breakage=breakage,
+    )  # fmt: skip
+
+
+@app.command()
+def run(
+    program: Path | None = typer.Option(None, "--program", help="Part program (G-code)."),
+    stock: Path | None = typer.Option(None, "--stock", help="Stock TOML (with --program)."),
+    tool: str | None = typer.Option(None, "--tool", help="Tool TOML or preset (with --program)."),
+    material: str | None = typer.Option(
+        None, "--material", help="Material TOML or preset (with --program)."
+    ),
+    plan: Path | None = typer.Option(
+        None, "--plan", help="A virtual plan (.parquet) instead of --program/--stock/..."
+    ),
+    machine: str = typer.Option(
+        "quaser-ux600", "--machine", help="Virtual machine (the simulator's preset)."
+    ),
+    machine_file: Path | None = _MACHINE_FILE,
+    out: Path = typer.Option(..., "-o", "--output", help="Recording to write (.h5)."),
+    events_out: Path | None = typer.Option(
+        None, "--events", help="Event log (.parquet; default: beside the recording)."
+    ),
+    plan_out: Path | None = typer.Option(
+        None, "--plan-out", help="Write the plan made from --program here (.parquet)."
+    ),
+    plot: Path | None = typer.Option(None, "--plot", help="PNG: feed, force, speed, events."),
+    adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive", help="Adaptive feed."),
+    regulate: str = typer.Option("force", "--regulate", help="force, torque or power."),
+    reference: float | None = typer.Option(
+        None, "--reference", help="Set point [N, N·m or W] (default: 90 % of the plan's peak)."
+    ),
+    force_from: str = typer.Option(
+        "estimate", "--force-from", help="estimate (sensorless) or dynamometer (a sensor)."
+    ),
+    look_ahead: bool = typer.Option(True, "--look-ahead/--no-look-ahead", help="Plan look-ahead."),
+    chatter: bool = typer.Option(True, "--chatter/--no-chatter", help="Chatter monitor."),
+    act_on_chatter: bool = typer.Option(
+        True, "--avoid-chatter/--recommend-only", help="Change the spindle speed on chatter."
+    ),
+    breakage: bool = typer.Option(True, "--breakage/--no-breakage", help="Breakage monitor."),
+    break_at_s: float | None = typer.Option(
+        None, "--break-at-s", help="Break a tooth of the virtual tool at this time [s]."
+    ),
+    break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
+    tool_modes: Path | None = typer.Option(
+        None, "--tool-modes", help="Tool modal table (TOML): regenerative chatter."
+    ),
+    fault: list[str] = typer.Option(
+        [], "--fault", help="Inject a link fault KIND@START_S[:DURATION_S][:CHANNEL]."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
+    duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
+    step_mm: float = typer.Option(0.4, "--step-mm", help="Plan step [mm]."),
+    resolution_mm: float = typer.Option(0.2, "--resolution-mm", help="Z-map cell [mm]."),
+) -> None:
+    """Run the integrated system on the virtual machine: plan, closed-loop simulation with
+    estimators, monitors and controllers, recording with its event log, and a summary."""
+    from millsense.io.safe_output import check_outputs
+
+    check_outputs(
+        {"the program": program, "the stock": stock, "the plan": plan,
+         "the machine file": machine_file, "the tool-modes file": tool_modes},
+        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot},
+    )  # fmt: skip
+    opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
+                    act_on_chatter, breakage)  # fmt: skip
+    summary = run_online(
+        program=program, stock=stock, tool=tool, material=material, plan=plan,
+        machine=machine, machine_file=machine_file, out=out, events_out=events_out,
+        plan_out=plan_out, plot=plot, options=opts, break_at_s=break_at_s,
+        break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
+        duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm,
+    )  # fmt: skip
+    for line in summary["lines"]:
+        typer.echo(line)
+
+
+@app.command()
+def replay(
+    recording: Path = typer.Argument(..., help="Recording to replay (.h5)."),
+    plan: Path = typer.Option(..., "--plan", help="Virtual plan of the program (.parquet)."),
+    machine_file: Path | None = _MACHINE_FILE,
+    out: Path | None = typer.Option(None, "-o", "--output", help="Block outputs (.h5)."),
+    events_out: Path = typer.Option(..., "--events", help="Event log to write (.parquet)."),
+    regulate: str = typer.Option("force", "--regulate", help="force, torque or power."),
+    reference: float | None = typer.Option(None, "--reference", help="Set point."),
+    force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
+    chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
+) -> None:
+    """Run the on-line blocks on a recording (overrides recorded, not applied)."""
+    from millsense.io.safe_output import check_outputs
+
+    check_outputs(
+        {"the recording": recording, "the plan": plan, "the machine file": machine_file},
+        {"-o": out, "--events": events_out},
+    )
+    opts = _options(True, regulate, reference, force_from, True, True, True, True)
+    summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    for line in summary["lines"]:
+        typer.echo(line)
+
+
+def _belief(machine_file: Path | None, sim_machine: Any) -> Any:
+    """The estimators' machine file, cut to the simulator's axes and kinematics."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.errors import ConfigError
+    from millsense.core.presets import load_preset
+
+    if machine_file is None:
+        raise ConfigError(
+            "run: give --machine-file: the estimators know the machine only through a file "
+            "made by commissioning (millsense commission --machine M --axis x,y,z --identify "
+            "-o DIR writes DIR/machine.toml)"
+        )
+    cfg = load_preset(MachineConfig, str(machine_file))
+    missing = [a for a in sim_machine.axes if a not in cfg.axes]
+    if missing:
+        raise ConfigError(f"{machine_file}: no axes {', '.join(missing)} of {sim_machine.name}")
+    axes = {a: cfg.axes[a] for a in sim_machine.axes}
+    return cfg.model_copy(update={"kinematics": sim_machine.kinematics, "axes": axes})
+
+
+def run_online(
+    *,
+    program: Path | None,
+    stock: Path | None,
+    tool: str | None,
+    material: str | None,
+    plan: Path | None,
+    machine: str,
+    machine_file: Path | None,
+    out: Path,
+    events_out: Path | None,
+    plan_out: Path | None,
+    plot: Path | None,
+    options: Any,
+    break_at_s: float | None = None,
+    break_flute: int = 0,
+    tool_modes: Path | None = None,
+    faults: list[str] | None = None,
+    seed: int = 0,
+    duration_s: float | None = None,
+    step_mm: float = 0.4,
+    resolution_mm: float = 0.2,
+    chunk: int = 100,
+) -> dict[str, Any]:
+    """Plan, simulate in closed loop, monitor, control and record (the body of ``run``)."""
+    from millsense.core.errors import ConfigError
+    from millsense.core.plausibility import Findings
+    from millsense.online.faults import FaultyLink, LinkFault
+    from millsense.online.session import run_session, session_blocks
+    from millsense.plan.checks import check_plan
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.process_coupling import ProcessEvent, ToolModes, ToothBreak
+    from millsense.streaming.event_log import default_event_log_path
+
+    from .cmd_simulate import plan_job
+
+    link_faults = [LinkFault.parse(f) for f in faults or []]
+    if plan is not None and program is not None:
+        raise ConfigError("run: give --program (with --stock, --tool, --material) or --plan")
+    findings = Findings()
+    if plan is None:
+        if program is None or stock is None or tool is None or material is None:
+            raise ConfigError("run: --program needs --stock, --tool and --material")
+        from .cmd_plan import _build
+
+        vp, _, findings = _build(
+            program, stock, Path(tool), Path(material), step_mm, resolution_mm, None
+        )
+        if plan_out is not None:
+            vp.write(plan_out)
+        plan_name = str(plan_out or program)
+    else:
+        vp = VirtualPlan.read(plan)
+        plan_name = str(plan)
+    sim_cfg = simulator_machine(machine)
+    check_plan(vp, findings, machine=sim_cfg)
+    belief = _belief(machine_file, sim_cfg)
+    events: list[ProcessEvent] = []
+    if break_at_s is not None:
+        events.append(ToothBreak(break_at_s, break_flute))
+    modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
+    job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
+    sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
+                           duration_s=duration_s)  # fmt: skip
+    built = session_blocks(vp, belief, sim.sample_rate_hz, options, where=str(machine_file),
+                           channels=sim.channel_names)  # fmt: skip
+    source: Any = FaultyLink(sim, link_faults) if link_faults else sim
+    ev_path = events_out or default_event_log_path(out)
+    meta.update(dict(sim.metadata))
+    meta.update({"source": "millsense run", "machine_file": str(machine_file),
+                 "faults": [f.__dict__ for f in link_faults]})  # fmt: skip
+    expect = sim.n_total or int((float(vp["t_s"][-1]) + sim.start_s + 0.5) * sim.sample_rate_hz)
+    res = _with_progress(
+        "running", expect,
+        lambda cb: run_session(source, built.blocks, out=out, events_out=ev_path, metadata=meta,
+                               chunk_samples=chunk, on_progress=cb),
+        built.supervisor,
+    )  # fmt: skip
+    lines = [f"millsense: note: {n}" for n in notes + built.notes]
+    lines += [f"millsense: warning: {w}" for w in findings.warnings]
+    lines += _summary_lines(res, out, ev_path)
+    if plot is not None:
+        from millsense.report.online_plots import plot_run
+
+        plot_run(out, res.events, plot)
+        lines.append(f"wrote {plot}")
+    return {"lines": lines, "result": res}
+
+
+def replay_online(
+    recording: Path,
+    plan: Path,
+    machine_file: Path | None,
+    out: Path | None,
+    events_out: Path,
+    options: Any,
+    chunk: int,
+) -> dict[str, Any]:
+    """The on-line blocks on a recording (the body of ``replay``)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.errors import ConfigError
+    from millsense.core.presets import load_preset
+    from millsense.io.recording_reader import open_recording
+    from millsense.online.session import run_session, session_blocks
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.streaming.sources import RecordingSource
+
+    if chunk < 1:
+        raise ConfigError(f"--chunk: must be ≥ 1, got {chunk}")
+    if machine_file is None:
+        raise ConfigError("replay: give --machine-file (the estimators' commissioned file)")
+    vp = VirtualPlan.read(plan)
+    cfg = load_preset(MachineConfig, str(machine_file))
+    rec = open_recording(recording)
+    try:
+        kin = str(rec.metadata.get("kinematics", cfg.kinematics))
+        axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
+        cfg = cfg.model_copy(update={"kinematics": kin, "axes": {a: cfg.axes[a] for a in axes}})
+        built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=str(machine_file),
+                               channels=rec.channel_names)  # fmt: skip
+        src = RecordingSource(rec, name=str(recording))
+        res = _with_progress(
+            "replaying", rec.n_samples,
+            lambda cb: run_session(src, built.blocks, out=out, events_out=events_out,
+                                   metadata={"source": "millsense replay",
+                                             "recording": str(recording)},
+                                   chunk_samples=chunk, keep=(), on_progress=cb),
+            built.supervisor,
+        )  # fmt: skip
+    finally:
+        close = getattr(rec, "close", None)
+        if callable(close):
+            close()
+    lines = [f"millsense: note: {n}" for n in built.notes]
+    lines += _summary_lines(res, out, events_out)
+    return {"lines": lines, "result": res}
+
+
+def _with_progress(what: str, total: int, job: Any, supervisor: Any) -> Any:
+    """Run ``job(callback)`` under a progress bar with the live feed and spindle overrides."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.fields[live]}"),
+        TimeRemainingColumn(),
+        transient=True,
+    ) as bar:
+        task = bar.add_task(what, total=max(total, 1), live="")
+
+        def update(done: int) -> None:
+            sp = supervisor.spindle
+            spindle = "" if sp != sp else f" spindle {100 * sp:.0f} %"
+            live = (f"t {done / supervisor.fs:6.2f} s  feed {100 * supervisor.feed:5.1f} %"
+                    f"{spindle}  mode {('normal', 'chatter', 'fault', 'HOLD')[supervisor.mode]}")
+            bar.update(task, completed=min(done, total), live=live)
+
+        return job(update)
+
+
+def _summary_lines(res: Any, out: Path | None, events_path: Path) -> list[str]:
+    from collections import Counter
+
+    from millsense.streaming.block import EventKind
+
+    counts = Counter(e.name for e in res.events)
+    lines = [
+        f"{res.seconds:.2f} s of signal in {res.wall_s:.1f} s wall "
+        f"({res.seconds / max(res.wall_s, 1e-9):.1f}x real time)"
+    ]
+    for e in res.events:
+        if e.kind in (EventKind.ALARM, EventKind.CRASH) or e.name in (
+            "feed_hold", "spindle_override", "ktc_calibrated", "chatter_end"
+        ):  # fmt: skip
+            where = f" line {e.nc_line}" if e.nc_line is not None else ""
+            lines.append(f"  {e.time_s:8.3f} s {e.severity:8s} {e.name}{where}: {e.message}")
+    lines.append(
+        "events: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())) if counts else
+        "events: none"
+    )  # fmt: skip
+    if out is not None:
+        lines.append(f"wrote {out}")
+    lines.append(f"wrote {events_path}")
+    return lines

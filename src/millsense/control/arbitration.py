@@ -1,0 +1,368 @@
+"""Arbitration of the on-line monitors and controllers, and the safety layer (seed 000 §6.5,
+Fig. 6.16; issue 16 item 4).
+
+:class:`Supervisor` is a composite :class:`~millsense.streaming.block.Block`: it runs its
+children (chatter monitor or chatter avoidance, breakage monitor, adaptive feed control, in
+any order; each sees the chunk plus the earlier children's outputs, as in a pipeline), passes
+their channels and ALARM/NOTE events on, and is the only block that sends OVERRIDE events to
+the machine. Once per control period (10 ms by default, aligned on absolute sample indices so
+that the decisions do not depend on how the stream is cut into chunks) it decides, with seed
+000's priorities (decision 1621):
+
+1. **chatter first** — while a chatter episode is open (a ``chatter`` alarm not yet followed
+   by ``chatter_end``), ``spindle_override`` proposals pass and the feed may fall but not
+   rise (the adaptive controller's ceiling is its override at the onset);
+2. **then breakage if stable** — a ``breakage`` alarm with no chatter open gives a feed hold
+   at once (CRITICAL) that latches for the rest of the run; a breakage alarm during chatter
+   is held pending and acted on when the episode closes (the chatter corrupts the
+   tooth-period torque the detector judges; a broken tool stays broken, so the hold is only
+   deferred, never dropped);
+3. **then adaptive control if chatter-free and intact** — ``feed_override`` proposals pass.
+
+The safety layer: the source's fault channel (``guard/fault`` of
+:class:`~millsense.online.guard.GuardedSource`: NaNs, a dropped chunk, a stalled stream) turns
+into the safe action within one control period — the
+feed at min(override, 100 %) and an ALARM; where breakage is possible (a breakage monitor is
+running and the tool is in cut, or nothing says it is not) a feed hold instead. The feed is
+never raised by a fault (decision 1615), and it is not raised again before the input has
+been clean for ``fault_clear_s`` (0.1 s). A controller's own input faults
+(``adaptive_feed_fault``) are its own safe action (decision 1615), which passes as a proposal
+like any other.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+#: Codes of the source's fault channel (:mod:`millsense.online.guard`).
+FAULT_NAMES = {1: "non-finite samples", 2: "samples lost", 3: "stream stalled", 4: "source lost"}
+
+#: Modes of the supervisor (its ``/mode`` channel).
+MODE_NORMAL, MODE_CHATTER, MODE_FAULT, MODE_HOLD = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class SupervisorOptions:
+    """Settings of :class:`Supervisor`.
+
+    Attributes
+    ----------
+    period_s : control period, s (the decisions fall on whole periods of absolute samples;
+        10 ms: one CNC interpolation block of seed 000's 100 Hz loop).
+    hold_on_breakage : send a feed hold on a breakage alarm (else an alarm only).
+    hold_on_fault : a fault where breakage is possible gives a feed hold (else the feed at
+        min(override, 100 %)).
+    chatter_timeout_s : a chatter episode with no ``chatter_end`` closes after this long
+        without a new chatter alarm (a monitor that stopped reporting must not freeze the
+        feed for ever).
+    fault_clear_s : a source fault clears after this long without a faulty sample (a burst
+        of NaNs or a flickering link must not let the feed rise in between).
+    """
+
+    period_s: float = 0.01
+    hold_on_breakage: bool = True
+    hold_on_fault: bool = True
+    chatter_timeout_s: float = 5.0
+    fault_clear_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not (self.period_s > 0 and math.isfinite(self.period_s)):
+            raise ConfigError(f"supervisor: period_s must be > 0, got {self.period_s!r}")
+        if not (self.chatter_timeout_s > 0 and self.fault_clear_s >= 0):
+            raise ConfigError("supervisor: chatter_timeout_s > 0 and fault_clear_s ≥ 0 needed")
+
+
+class Supervisor(Block):
+    """Runs monitor and controller children and arbitrates their commands (see the module).
+
+    Parameters
+    ----------
+    children : blocks run in order on every chunk (names must differ).
+    options : :class:`SupervisorOptions`.
+    fault_channel : per-sample fault code of the source (0 = good), or None.
+    in_cut_channel : per-sample 1/0 "the plan says the tool is in cut", or None (unknown:
+        breakage is taken as possible).
+    name : block name (channel prefix, event source).
+
+    Outputs: ``{name}/feed_override`` and ``{name}/spindle_override`` (commanded, fraction;
+    NaN for the spindle until a spindle command), ``{name}/mode`` (0 normal, 1 chatter,
+    2 fault, 3 feed hold), plus every child's channels. Events: the children's ALARM and NOTE
+    events; OVERRIDE events only from the supervisor (``feed_override``, ``spindle_override``,
+    ``feed_hold``), each naming the child whose proposal it carries; ALARMs ``input_fault``,
+    NOTEs of suppressed proposals are not written (they would flood the log): the ``/mode``
+    channel shows why a proposal did not pass.
+    """
+
+    def __init__(
+        self,
+        children: Sequence[Block],
+        options: SupervisorOptions | None = None,
+        *,
+        fault_channel: str | None = "guard/fault",
+        in_cut_channel: str | None = "plan/in_cut",
+        name: str = "supervisor",
+    ) -> None:
+        self.children = list(children)
+        names = [c.name for c in self.children]
+        if len(set(names)) != len(names) or name in names:
+            raise ConfigError(f"supervisor: child names must be unique, got {names}")
+        self.opts = options or SupervisorOptions()
+        self.name = name
+        self.fault_channel = fault_channel
+        self.in_cut_channel = in_cut_channel
+        produced: set[str] = set()
+        ins: list[str] = []
+        for c in self.children:
+            ins += [i for i in c.inputs if i not in produced]
+            produced.update(info.name for info in c.output_channels())
+        ins += [i for i in (fault_channel, in_cut_channel) if i is not None]
+        self.inputs = tuple(dict.fromkeys(ins))
+        self.reads_truth = any(c.reads_truth for c in self.children)
+        self.breakage_possible = any(_is_breakage_monitor(c) for c in self.children)
+        self.reset(10000.0)
+
+    # ------------------------------------------------------------------ contract
+    def output_channels(self) -> list[ChannelInfo]:
+        own = [
+            ChannelInfo(f"{self.name}/feed_override", "1", "commanded feed override (fraction)"),
+            ChannelInfo(
+                f"{self.name}/spindle_override", "1", "commanded spindle override (fraction)"
+            ),
+            ChannelInfo(f"{self.name}/mode", "1", "0 normal, 1 chatter, 2 fault, 3 feed hold"),
+        ]
+        return own + [info for c in self.children for info in c.output_channels()]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.fs = float(sample_rate_hz)
+        self.period = max(1, round(self.opts.period_s * self.fs))
+        for c in self.children:
+            c.reset(sample_rate_hz)
+        self.feed = 1.0
+        self.spindle = math.nan
+        self.mode = MODE_NORMAL
+        self.chatter_open = False
+        self.chatter_last_s = -math.inf
+        self.breakage_pending: Event | None = None
+        self.held = False
+        self.fault = False
+        self.in_cut = True
+        self._pending: list[Event] = []
+        self._fault_seen = 0
+        self._fault_sample = -1
+        self._fault_last = -1
+        self._clear = round(self.opts.fault_clear_s * self.fs)
+
+    # ------------------------------------------------------------------ streaming
+    def process(self, chunk: Chunk) -> BlockOutput:
+        n = chunk.n
+        out: dict[str, list[np.ndarray]] = {}
+        events: list[Event] = []
+        feed = np.empty(n)
+        spindle = np.empty(n)
+        mode = np.empty(n)
+        pos = 0
+        while pos < n:
+            a = chunk.start + pos
+            stop = min(n, pos + self.period - a % self.period)
+            piece = _slice(chunk, pos, stop)
+            data = dict(piece.data)
+            for c in self.children:
+                res = c.process(Chunk(piece.start, piece.sample_rate_hz, piece.t0_s,
+                                      {k: data[k] for k in c.inputs}))  # fmt: skip
+                data.update(res.channels)
+                for k, v in res.channels.items():
+                    out.setdefault(k, []).append(np.asarray(v))
+                for ev in res.events:
+                    if ev.kind is EventKind.OVERRIDE:
+                        self._pending.append(ev)
+                    else:
+                        events.append(ev)
+                        self._pending.append(ev)
+            self._watch_inputs(piece)
+            feed[pos:stop] = self.feed
+            spindle[pos:stop] = self.spindle
+            mode[pos:stop] = self.mode
+            if (chunk.start + stop) % self.period == 0:
+                self._decide(chunk, stop, events)
+            pos = stop
+        channels = {k: np.concatenate(v) for k, v in out.items()}
+        channels[f"{self.name}/feed_override"] = feed
+        channels[f"{self.name}/spindle_override"] = spindle
+        channels[f"{self.name}/mode"] = mode
+        return BlockOutput(channels, events)
+
+    def _watch_inputs(self, piece: Chunk) -> None:
+        d = piece.data
+        if self.fault_channel is not None:
+            f = np.asarray(d[self.fault_channel])
+            bad = np.flatnonzero(f != 0)
+            if bad.size:
+                self._fault_last = piece.start + int(bad[-1])
+                if self._fault_seen == 0:
+                    self._fault_seen = int(f[bad[0]])
+                    self._fault_sample = piece.start + int(bad[0])
+        if self.in_cut_channel is not None and piece.n:
+            v = float(np.asarray(d[self.in_cut_channel])[-1])
+            if math.isfinite(v):
+                self.in_cut = v > 0.5
+
+    # ------------------------------------------------------------------ decisions
+    def _decide(self, chunk: Chunk, e: int, events: list[Event]) -> None:
+        """One decision at the end of a control period (sample ``e`` of ``chunk``)."""
+        t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
+        k = chunk.start + e
+        pending, self._pending = self._pending, []
+        feed_prop: Event | None = None
+        spindle_prop: Event | None = None
+        for ev in pending:  # in time order within the period
+            if ev.name == "chatter" and ev.kind is EventKind.ALARM:
+                self.chatter_open = True
+                self.chatter_last_s = ev.time_s
+            elif ev.name == "chatter_end":
+                self.chatter_open = False
+            elif ev.name == "breakage" and ev.kind is EventKind.ALARM:
+                if self.breakage_pending is None:
+                    self.breakage_pending = ev
+            elif ev.kind is EventKind.OVERRIDE and ev.name == "feed_override":
+                feed_prop = ev
+            elif ev.kind is EventKind.OVERRIDE and ev.name == "spindle_override":
+                spindle_prop = ev
+        if self.chatter_open and t - self.chatter_last_s > self.opts.chatter_timeout_s:
+            self.chatter_open = False
+        if self.held:
+            self.mode = MODE_HOLD
+            return
+        # safety: a fault of the source
+        if self._fault_seen:
+            code, at = self._fault_seen, self._fault_sample
+            self._fault_seen = 0
+            self._on_fault(chunk, t, k, code, at, events)
+            if self.held:
+                return
+        elif self.fault and k - 1 - self._fault_last >= self._clear:
+            # fault_clear_s without a faulty sample: the fault clears
+            self.fault = False
+            self._fault_sample = -1
+            events.append(Event(t, EventKind.NOTE, self.name, "input fault cleared",
+                                name="input_fault_cleared", sample=k))  # fmt: skip
+        # 1. chatter
+        if spindle_prop is not None:
+            self._spindle(t, k, spindle_prop, events)
+        # 2. breakage, once stable
+        if self.breakage_pending is not None and not self.chatter_open:
+            self._hold_for_breakage(t, k, self.breakage_pending, events)
+            return
+        # 3. adaptive control
+        if feed_prop is not None and feed_prop.value is not None:
+            u = float(feed_prop.value) / 100.0
+            if self.chatter_open or self.fault:
+                u = min(u, self.feed)  # may fall, never rise
+            if abs(u - self.feed) > 1e-12:
+                self._feed(t, k, u, feed_prop, events)
+        self._set_ceilings()
+        self.mode = MODE_FAULT if self.fault else (MODE_CHATTER if self.chatter_open else 0)
+
+    def _on_fault(
+        self, chunk: Chunk, t: float, k: int, code: int, at: int, events: list[Event]
+    ) -> None:
+        """The safe action for a source fault (decision 1621)."""
+        why = FAULT_NAMES.get(code, f"fault {code}")
+        t_at = chunk.t0_s + at / chunk.sample_rate_hz
+        first = not self.fault
+        self.fault = True
+        if self.opts.hold_on_fault and self.breakage_possible and self.in_cut:
+            events.append(Event(t, EventKind.ALARM, self.name,
+                                f"input fault at {t_at:.4f} s ({why}) while breakage is possible: "
+                                "feed hold", name="input_fault", value=float(code), sample=k,
+                                severity=Severity.CRITICAL, values={"fault_s": t_at}))  # fmt: skip
+            self._hold(t, k, "input fault: breakage could go unseen", events)
+            return
+        if first:
+            events.append(Event(t, EventKind.ALARM, self.name,
+                                f"input fault at {t_at:.4f} s ({why}): feed at "
+                                f"{100 * min(self.feed, 1.0):.0f} %, not raised until the input "
+                                "is clean", name="input_fault", value=float(code), sample=k,
+                                severity=Severity.WARNING, values={"fault_s": t_at}))  # fmt: skip
+        if self.feed > 1.0:
+            self._feed(t, k, 1.0, None, events)
+        self._set_ceilings()
+        self.mode = MODE_FAULT
+
+    def _spindle(self, t: float, k: int, prop: Event, events: list[Event]) -> None:
+        assert prop.value is not None
+        self.spindle = float(prop.value) / 100.0
+        events.append(Event(t, EventKind.OVERRIDE, self.name,
+                            f"spindle override {prop.value:.1f} % ({prop.source}: "
+                            f"{prop.message})", name="spindle_override", value=prop.value,
+                            sample=k, severity=prop.severity, values=dict(prop.values),
+                            nc_line=prop.nc_line, x_mm=prop.x_mm, y_mm=prop.y_mm,
+                            z_mm=prop.z_mm))  # fmt: skip
+
+    def _feed(self, t: float, k: int, u: float, prop: Event | None, events: list[Event]) -> None:
+        self.feed = u
+        src = prop.source if prop is not None else "safety"
+        events.append(Event(t, EventKind.OVERRIDE, self.name,
+                            f"feed override {100 * u:.1f} % ({src})", name="feed_override",
+                            value=100.0 * u, sample=k,
+                            severity=prop.severity if prop is not None else Severity.WARNING,
+                            values=dict(prop.values) if prop is not None else {},
+                            nc_line=prop.nc_line if prop is not None else None,
+                            x_mm=prop.x_mm if prop is not None else None,
+                            y_mm=prop.y_mm if prop is not None else None,
+                            z_mm=prop.z_mm if prop is not None else None))  # fmt: skip
+
+    def _hold_for_breakage(self, t: float, k: int, alarm: Event, events: list[Event]) -> None:
+        self.breakage_pending = None
+        if not self.opts.hold_on_breakage:
+            return
+        late = t - alarm.time_s
+        self._hold(t, k, f"breakage ({alarm.source}, {late * 1000:.0f} ms after its alarm)",
+                   events, alarm)  # fmt: skip
+
+    def _hold(
+        self, t: float, k: int, why: str, events: list[Event], cause: Event | None = None
+    ) -> None:
+        self.held = True
+        self.mode = MODE_HOLD
+        self._set_ceilings()
+        events.append(Event(t, EventKind.OVERRIDE, self.name, f"feed hold: {why}",
+                            name="feed_hold", value=1.0, sample=k, severity=Severity.CRITICAL,
+                            values=dict(cause.values) if cause is not None else {},
+                            nc_line=cause.nc_line if cause is not None else None,
+                            x_mm=cause.x_mm if cause is not None else None,
+                            y_mm=cause.y_mm if cause is not None else None,
+                            z_mm=cause.z_mm if cause is not None else None))  # fmt: skip
+
+    def _set_ceilings(self) -> None:
+        """Tell adaptive children how far they may go: nothing above the commanded feed while
+        chatter, a fault or a hold stands (their own state then follows what was sent)."""
+        limit: float | None = None
+        if self.held:
+            limit = 0.0
+        elif self.chatter_open or self.fault:
+            limit = self.feed
+        for c in self.children:
+            setter = getattr(c, "set_ceiling", None)
+            if setter is not None:
+                setter(limit, self.feed)
+
+
+def _is_breakage_monitor(block: Block) -> bool:
+    from millsense.monitoring.breakage import BreakageBlock
+
+    return isinstance(block, BreakageBlock)
+
+
+def _slice(chunk: Chunk, a: int, b: int) -> Chunk:
+    if a == 0 and b == chunk.n:
+        return chunk
+    data = {k: v[a:b] for k, v in chunk.data.items()}
+    return Chunk(chunk.start + a, chunk.sample_rate_hz, chunk.t0_s, data)

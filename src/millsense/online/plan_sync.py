@@ -1,0 +1,240 @@
+"""The virtual plan beside the machine: synchronisation by tool-centre position and the K_tc
+calibration of the predicted torque (seed 000 C15, C16; issue 16 item 5).
+
+:class:`PlanSync` matches the measured tool-centre point to the plan's rows (±10 µm per axis,
+:meth:`~millsense.plan.virtual_plan.VirtualPlan.match`, seed 000 C15) at the CNC's 333 Hz
+(every ``decimate``-th absolute sample, so the chunking cannot move a match) and gives every
+sample the plan's row, NC line, in-cut flag and the **expected cutting torque**
+
+    T_exp = T_edge + s · u · T_shear,
+
+with T_edge and T_shear the plan's predicted mean torque split into its edge and shear parts
+(columns ``torque_avg_nm`` and ``torque_avg_shear_nm``), u the effective feed override (the
+shear part is linear in the chip thickness) and s = K_tc,new / K_tc,plan the calibration:
+over the first ``calibration_revs`` revolutions in cut (seed 000 C16: 10; the first
+``settle_revs`` after the entry skipped) the mean measured torque T̄ gives
+s = (T̄ − T̄_edge)/T̄_shear (:mod:`millsense.plan.calibration`, decision 0064). The breakage
+monitor's virtual threshold reads T_exp (seed 000 §2.9: 40 % of the expected torque).
+
+:class:`TcpFromAxes` gives the tool-centre point from the axis position commands by the
+machine's forward kinematics (a CNC's TCP), for machines whose axes are not the part frame.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.models.kinematics import Kinematics
+from millsense.plan.virtual_plan import VirtualPlan
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+#: Range of the calibration ratio K_tc,new/K_tc,plan accepted; outside it the plan is kept and a
+#: warning says the measurement does not describe the plan (a wrong tool, material or signal).
+SCALE_RANGE = (0.33, 3.0)
+
+
+class TcpFromAxes(Block):
+    """``tcp/x``, ``tcp/y``, ``tcp/z`` (m) from axis position channels by forward kinematics."""
+
+    def __init__(self, kinematics: Kinematics, position_channels: Sequence[str]) -> None:
+        self.kin = kinematics
+        self.inputs = tuple(position_channels)
+        self.name = "tcp"
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [ChannelInfo(f"tcp/{a}", "m", f"tool-centre point {a}") for a in "xyz"]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        pass
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        q = np.column_stack([np.asarray(chunk.data[c], dtype=np.float64) for c in self.inputs])
+        if chunk.n == 0:
+            return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
+        p = np.atleast_2d(self.kin.forward(q))
+        return BlockOutput({f"tcp/{a}": np.ascontiguousarray(p[:, i]) for i, a in enumerate("xyz")})
+
+
+class PlanSync(Block):
+    """Plan row, NC line, in-cut flag and calibrated expected torque per sample (module).
+
+    Parameters
+    ----------
+    plan : the virtual plan of the program being run.
+    tcp_channels : measured tool-centre point (m).
+    torque_channel : measured or estimated spindle cutting torque (N·m) for the calibration,
+        or None (no calibration: s = 1).
+    speed_channel : spindle speed (rad/s), to count revolutions.
+    override_channel : effective feed override (fraction), or None (1).
+    decimate : samples between matches (30: the CNC's 333 Hz at 10 kHz).
+    calibration_revs, settle_revs : revolutions averaged, and skipped after the entry.
+    name : channel prefix ``plan``.
+    """
+
+    def __init__(
+        self,
+        plan: VirtualPlan,
+        tcp_channels: tuple[str, str, str] = ("tcp/x", "tcp/y", "tcp/z"),
+        torque_channel: str | None = "est/spindle/spindle/load",
+        speed_channel: str = "spindle/speed",
+        override_channel: str | None = "cnc/feed_override",
+        decimate: int = 30,
+        calibration_revs: float = 10.0,
+        settle_revs: float = 1.0,
+        name: str = "plan",
+    ) -> None:
+        if len(plan) < 2:
+            raise ConfigError("plan sync: the plan has fewer than 2 rows")
+        if decimate < 1 or not (calibration_revs > 0 and settle_revs >= 0):
+            raise ConfigError("plan sync: decimate ≥ 1, calibration_revs > 0, settle_revs ≥ 0")
+        self.plan = plan
+        self.tcp_channels = tcp_channels
+        self.torque_channel = torque_channel
+        self.speed_channel = speed_channel
+        self.override_channel = override_channel
+        self.decimate = int(decimate)
+        self.cal_revs = float(calibration_revs)
+        self.settle_revs = float(settle_revs)
+        self.name = name
+        ins = [*tcp_channels, speed_channel]
+        if torque_channel is not None:
+            ins.append(torque_channel)
+        if override_channel is not None:
+            ins.append(override_channel)
+        self.inputs = tuple(ins)
+        tq = np.asarray(plan["torque_avg_nm"], dtype=np.float64)
+        sh = np.asarray(plan["torque_avg_shear_nm"], dtype=np.float64)
+        self._shear = np.nan_to_num(sh)
+        self._edge = np.nan_to_num(tq - sh)
+        self._in_cut = np.asarray(plan["in_cut"], dtype=bool)
+        nc = np.asarray(plan["nc_line"], dtype=np.int64)
+        self._nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
+        self.reset(10000.0)
+
+    def output_channels(self) -> list[ChannelInfo]:
+        n = self.name
+        return [
+            ChannelInfo(f"{n}/row", "1", "matched plan row (-1 before the first match)"),
+            ChannelInfo(f"{n}/nc_line", "1", "NC line of the matched row"),
+            ChannelInfo(f"{n}/in_cut", "1", "1 where the plan says the tool is in cut"),
+            ChannelInfo(f"{n}/expected_torque", "N*m", "expected mean cutting torque (calibrated)"),
+            ChannelInfo(f"{n}/ktc_scale", "1", "K_tc calibration ratio (1 until calibrated)"),
+        ]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.fs = float(sample_rate_hz)
+        self.row = -1
+        self.scale = 1.0
+        self.calibrated = False
+        self._revs_in_cut = 0.0
+        self._acc = np.zeros(4)  # Σ measured, Σ edge, Σ u·shear, samples
+
+    @property
+    def metres_per_row(self) -> float:
+        return float(self.plan.metadata.get("step_mm", 0.4)) * 1e-3
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        n = chunk.n
+        rows = np.empty(n, dtype=np.int64)
+        if n:
+            ks = np.arange(n)
+            at = ks[(chunk.start + ks) % self.decimate == 0]
+            matched = np.full(at.size, -1, dtype=np.int64)
+            if at.size:
+                tcp = np.column_stack(
+                    [np.asarray(d[c], dtype=np.float64)[at] for c in self.tcp_channels]
+                )
+                ok = np.all(np.isfinite(tcp), axis=1)
+                if ok.any():
+                    sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
+                    matched[ok] = sub
+            # hold the last match between match samples (and through unmatched ones)
+            hold = np.full(n, -1, dtype=np.int64)
+            hold[at] = matched
+            idx = np.where(hold >= 0, ks, -1)
+            idx = np.maximum.accumulate(idx)
+            rows[:] = np.where(idx >= 0, hold[np.maximum(idx, 0)], self.row)
+            if rows[-1] >= 0:
+                self.row = int(rows[-1])
+        safe = np.maximum(rows, 0)
+        in_cut = np.where(rows >= 0, self._in_cut[safe], False)
+        u = (
+            np.asarray(d[self.override_channel], dtype=np.float64)
+            if self.override_channel is not None
+            else np.ones(n)
+        )
+        edge = np.where(rows >= 0, self._edge[safe], 0.0)
+        shear = np.where(rows >= 0, self._shear[safe], 0.0) * u
+        scale = np.full(n, self.scale)
+        events: list[Event] = []
+        if not self.calibrated and self.torque_channel is not None and n:
+            k_done = self._calibrate(chunk, in_cut, edge, shear, events)
+            if k_done >= 0:
+                scale[k_done:] = self.scale
+        nc = np.where(rows >= 0, self._nc[safe], -1)
+        return BlockOutput(
+            {
+                f"{self.name}/row": rows.astype(np.float64),
+                f"{self.name}/nc_line": nc.astype(np.float64),
+                f"{self.name}/in_cut": in_cut.astype(np.float64),
+                f"{self.name}/expected_torque": edge + scale * shear,
+                f"{self.name}/ktc_scale": scale,
+            },
+            events,
+        )
+
+    def _calibrate(
+        self,
+        chunk: Chunk,
+        in_cut: np.ndarray,
+        edge: np.ndarray,
+        shear: np.ndarray,
+        events: list[Event],
+    ) -> int:
+        """Accumulate the window; the sample where the calibration completes (−1: not yet)."""
+        assert self.torque_channel is not None
+        d = chunk.data
+        speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
+        tq = np.asarray(d[self.torque_channel], dtype=np.float64)
+        drev = np.where(in_cut, speed / (2 * math.pi * self.fs), 0.0)
+        revs = self._revs_in_cut + np.cumsum(drev)
+        use = in_cut & (revs > self.settle_revs) & np.isfinite(tq)
+        end = self.settle_revs + self.cal_revs
+        done = np.flatnonzero(revs >= end)
+        k_done = int(done[0]) if done.size else -1
+        if k_done >= 0:
+            use[k_done:] = False
+        self._acc += [tq[use].sum(), edge[use].sum(), shear[use].sum(), use.sum()]
+        self._revs_in_cut = float(revs[-1])
+        if k_done < 0:
+            return -1
+        m, e, s, cnt = self._acc
+        self.calibrated = True
+        t = chunk.t0_s + (chunk.start + k_done) / chunk.sample_rate_hz
+        ktc_plan = float(np.nanmax(np.asarray(self.plan["ktc_n_mm2"], dtype=np.float64)))
+        ratio = (m - e) / s if s > 0 and cnt > 0 else math.nan
+        if not (SCALE_RANGE[0] <= ratio <= SCALE_RANGE[1]):
+            events.append(Event(t, EventKind.ALARM, self.name,
+                                f"K_tc calibration refused: measured/plan shear torque {ratio:.3g} "
+                                f"outside {SCALE_RANGE[0]}–{SCALE_RANGE[1]} (mean measured "
+                                f"{m / max(cnt, 1):.3g} N·m against {(e + s) / max(cnt, 1):.3g} "
+                                "N·m planned): the plan is kept", name="ktc_calibration_refused",
+                                value=ratio, sample=chunk.start + k_done,
+                                severity=Severity.WARNING))  # fmt: skip
+            return -1
+        self.scale = float(ratio)
+        events.append(Event(t, EventKind.NOTE, self.name,
+                            f"K_tc calibrated over {self.cal_revs:g} revolutions: "
+                            f"{ktc_plan * ratio:.0f} N/mm² (plan {ktc_plan:.0f}, × {ratio:.3f})",
+                            name="ktc_calibrated", value=ktc_plan * ratio,
+                            sample=chunk.start + k_done, severity=Severity.INFO,
+                            values={"ktc_plan_n_mm2": ktc_plan, "scale": ratio,
+                                    "torque_meas_nm": m / cnt,
+                                    "torque_pred_nm": (e + s) / cnt}))  # fmt: skip
+        return k_done

@@ -1,0 +1,351 @@
+"""The integrated on-line session: estimators, the virtual plan, monitors and controllers
+side by side on one stream (seed 000 ch. 6, Fig. 6.16; seed 002 ch. 4–5; issue 16 item 5).
+
+:func:`session_blocks` builds the blocks in the order the data flows:
+
+1. the estimators of a commissioned machine file (the spindle torque observer; for force
+   regulation the five feed-drive estimators and the forces at the tool, Aslan Eq. 3.51), or
+   a table dynamometer on the virtual machine (``force_from="dynamometer"``, a sensor);
+2. the tool-centre point from the axis positions and :class:`~millsense.online.plan_sync.
+   PlanSync` (plan row, NC line, in cut, K_tc-calibrated expected torque);
+3. the :class:`~millsense.control.arbitration.Supervisor` with its children: chatter
+   avoidance around a chatter monitor on the compensated spindle torque (seed 000 §2.7),
+   the breakage monitor with the virtual threshold (seed 000 §2.9), and the adaptive feed
+   control with the virtual look-ahead (seed 000 §2.10) — the only block whose OVERRIDE
+   events reach the machine.
+
+:func:`run_session` runs them on any source (the virtual machine in closed loop, a
+recording in replay, a CNC link), behind the :class:`~millsense.online.guard.GuardedSource`,
+writes the recording chunk by chunk (crash-safe) with the event log beside it, and returns a
+summary. Nothing recorded is lost when the source fails: the writer is closed in every case.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+from millsense.control.arbitration import Supervisor, SupervisorOptions
+from millsense.core.config import MachineConfig
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring.breakage import BreakageBlock
+from millsense.online.guard import FAULT_CHANNEL, GuardedSource
+from millsense.online.plan_sync import PlanSync, TcpFromAxes
+from millsense.plan.virtual_plan import VirtualPlan
+from millsense.streaming.block import Block, Chunk, Event, EventKind
+from millsense.streaming.engine import Pipeline, run
+from millsense.streaming.sources import Source
+
+#: The compensated spindle torque of the machine file's observer (chatter, breakage, K_tc).
+TORQUE_CHANNEL = "est/spindle/spindle/load"
+FORCE_SOURCES = ("estimate", "dynamometer")
+
+
+@dataclass(frozen=True)
+class SessionOptions:
+    """What runs in a session (field units in the names).
+
+    Attributes
+    ----------
+    adaptive : run the adaptive feed control.
+    quantity : regulated quantity (``force``, ``torque``, ``power``).
+    reference : its set point (N, N·m, W); None: 90 % of the plan's largest predicted
+        per-revolution value in cut (peak force, mean torque or power).
+    force_from : ``estimate`` (the feed-drive estimators, sensorless) or ``dynamometer``
+        (the virtual machine's table dynamometer, a sensor).
+    look_ahead : the virtual look-ahead of seed 000.
+    chatter : run the chatter monitor; ``chatter_method`` which one; ``avoid_chatter``: act
+        (spindle override) rather than recommend.
+    breakage : run the breakage monitor (virtual threshold); ``hold_on_breakage``: feed hold.
+    period_s : control period of the supervisor, s.
+    """
+
+    adaptive: bool = True
+    quantity: str = "force"
+    reference: float | None = None
+    force_from: str = "estimate"
+    look_ahead: bool = True
+    chatter: bool = True
+    chatter_method: str = "chatter-comb"
+    avoid_chatter: bool = True
+    breakage: bool = True
+    hold_on_breakage: bool = True
+    period_s: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.force_from not in FORCE_SOURCES:
+            raise ConfigError(
+                f"--force-from: one of {', '.join(FORCE_SOURCES)}, got {self.force_from!r}"
+            )
+
+
+@dataclass
+class SessionBlocks:
+    """The blocks of a session and what the summary reads of them."""
+
+    blocks: list[Block]
+    supervisor: Supervisor
+    plan_sync: PlanSync
+    notes: list[str] = field(default_factory=list)
+
+
+def default_reference(plan: VirtualPlan, quantity: str, statistic: str) -> float:
+    """90 % of the plan's largest predicted per-revolution value in cut (the controller then
+    works where the program is heaviest and leaves the lighter cuts to the override limit)."""
+    cut = np.asarray(plan["in_cut"], dtype=bool)
+    if not cut.any():
+        raise ConfigError("run: the plan never cuts; give --reference explicitly")
+    if quantity == "force":
+        col = "fres_peak_n" if statistic == "peak" else "fres_avg_n"
+        v = np.asarray(plan[col], dtype=np.float64)
+    else:
+        v = np.abs(np.asarray(plan["torque_avg_nm"], dtype=np.float64))
+        if quantity == "power":
+            v = v * np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64)) * 2 * np.pi / 60
+    return 0.9 * float(np.nanmax(v[cut]))
+
+
+def session_blocks(
+    plan: VirtualPlan,
+    machine: MachineConfig,
+    sample_rate_hz: float,
+    options: SessionOptions,
+    *,
+    where: str = "machine file",
+    channels: Sequence[str] = (),
+) -> SessionBlocks:
+    """The blocks of a session on ``machine`` (the estimators' machine file) running ``plan``.
+
+    ``channels``: what the source provides (to choose the spindle torque signal and check
+    that the dynamometer is there).
+    """
+    from millsense.estimation.from_config import build_estimators
+    from millsense.models.kinematics import kinematics_for
+
+    o = options
+    notes: list[str] = []
+    have = set(channels)
+    blocks: list[Block] = []
+    built = build_estimators(machine, ["spindle"], [], sample_rate_hz, where=where)
+    blocks += built.blocks
+    force_ch: tuple[str, str] = ("force_x", "force_y")
+    if o.adaptive and o.quantity == "force":
+        if o.force_from == "dynamometer":
+            from millsense.control.closed_loop import Dynamometer
+
+            if "truth/tool/force_x" not in have:
+                raise ConfigError("--force-from dynamometer: only on the virtual machine")
+            blocks.append(Dynamometer(noise_n=2.0))
+        else:
+            axes = list(machine.axes)
+            feed = build_estimators(machine, ["feed"], axes, sample_rate_hz, where=where)
+            blocks += feed.blocks
+            blocks += feed.derived
+            names = [c for _, a, c, _ in feed.derived_estimates]
+            if machine.kinematics == "5-axis-trunnion-ac" and len(names) == 3:
+                force_ch = (names[0], names[1])
+            elif machine.kinematics == "3-axis":
+                force_ch = ("est/feed/x/load", "est/feed/y/load")
+            else:
+                raise ConfigError(
+                    f"{where}: forces at the tool from the feed estimators need a 3-axis or a "
+                    f"5-axis trunnion machine ({'; '.join(feed.notes) or machine.kinematics})"
+                )
+    axes_pos = [f"{a}/position_cmd" for a in machine.axes]
+    blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
+    sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL)
+    blocks.append(sync)
+    flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
+    children: list[Block] = []
+    if o.chatter:
+        children.append(_chatter_child(o, flutes))
+    if o.breakage:
+        children.append(
+            BreakageBlock(
+                flutes,
+                "virtual",
+                signal_channels=(TORQUE_CHANNEL,),
+                expected_channel="plan/expected_torque",
+                min_expected_nm=0.1 * float(np.nanmax(np.abs(plan["torque_avg_nm"]), initial=0)),
+                name="breakage",
+            )
+        )
+    if o.adaptive:
+        stat = "peak" if o.quantity == "force" else "mean"
+        ref = o.reference if o.reference is not None else default_reference(plan, o.quantity, stat)
+        if o.reference is None:
+            notes.append(f"adaptive feed: reference {ref:.4g} (90 % of the plan's largest)")
+        children.append(
+            AdaptiveFeedBlock(
+                AdaptiveFeedOptions(reference=ref, quantity=o.quantity, look_ahead=o.look_ahead),
+                plan,
+                force_channels=force_ch,
+                torque_channel=TORQUE_CHANNEL,
+                tcp_channels=("tcp/x", "tcp/y", "tcp/z"),
+            )
+        )
+    sup = Supervisor(
+        children,
+        SupervisorOptions(period_s=o.period_s, hold_on_breakage=o.hold_on_breakage),
+        fault_channel=FAULT_CHANNEL,
+        in_cut_channel="plan/in_cut",
+    )
+    blocks.append(sup)
+    return SessionBlocks(blocks, sup, sync, notes)
+
+
+def _chatter_child(o: SessionOptions, flutes: int) -> Block:
+    from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
+
+    monitor = ChatterMonitor(
+        ChatterSettings(
+            method=o.chatter_method,
+            signal=TORQUE_CHANNEL,
+            n_flutes=flutes,
+            speed_channel="spindle/speed",
+            speed_unit="rad/s",
+        )
+    )
+    try:
+        from millsense.control.chatter_avoidance import ChatterAvoidanceBlock
+    except ImportError:  # pragma: no cover - until the avoidance lands
+        return monitor
+    return ChatterAvoidanceBlock(monitor, act=o.avoid_chatter)
+
+
+class StopAfterHold(Source):
+    """Ends a live stream ``after_s`` after a feed hold was sent to it: the machine is
+    stopped and waits for the operator, so the session records the stop and closes (a
+    replay ends with its recording anyway)."""
+
+    def __init__(self, inner: Source, after_s: float = 0.5) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.sample_rate_hz = inner.sample_rate_hz
+        self.t0_s = inner.t0_s
+        self.after = max(1, round(after_s * inner.sample_rate_hz))
+        self.stop_at: int | None = None
+        self._pos = 0
+
+    @property
+    def channel_info(self) -> list[ChannelInfo]:
+        return self.inner.channel_info
+
+    def __getattr__(self, name: str) -> object:
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def command(self, event: Event) -> None:
+        self.inner.command(event)
+        if event.name == "feed_hold" and (event.value is None or event.value != 0):
+            if self.stop_at is None:
+                self.stop_at = self._pos + self.after
+
+    def read(self, max_samples: int) -> Chunk | None:
+        if self.stop_at is not None:
+            max_samples = min(max_samples, self.stop_at - self._pos)
+            if max_samples <= 0:
+                return None
+        c = self.inner.read(max_samples)
+        if c is not None:
+            self._pos = c.start + c.n
+        return c
+
+
+@dataclass
+class SessionResult:
+    """What a session did: samples, events (blocks' and the guard's), wall time."""
+
+    samples: int
+    sample_rate_hz: float
+    events: list[Event]
+    wall_s: float
+    recording: Path | None = None
+    event_log: Path | None = None
+
+    @property
+    def seconds(self) -> float:
+        return self.samples / self.sample_rate_hz
+
+    def named(self, name: str) -> list[Event]:
+        return [e for e in self.events if e.name == name]
+
+
+def run_session(
+    source: Source,
+    blocks: Sequence[Block],
+    *,
+    out: Path | None = None,
+    events_out: Path | None = None,
+    metadata: dict[str, Any] | None = None,
+    chunk_samples: int = 100,
+    keep: Sequence[str] | None = None,
+    on_progress: Callable[[int], None] | None = None,
+    guard: bool = True,
+    stop_after_hold_s: float | None = 0.5,
+) -> SessionResult:
+    """Run ``blocks`` on ``source`` (override events fed back), recording as it goes.
+
+    ``out``: the recording (the source's channels named in ``keep``, all when None, and every
+    block output), appended chunk by chunk and closed whatever happens; ``events_out``: the
+    event log (Parquet) written at the end, also after a failure of the source;
+    ``stop_after_hold_s``: a live run ends this long after a feed hold (None: runs on).
+    """
+    from millsense.io import RecordingWriter
+    from millsense.streaming.event_log import write_event_log
+
+    src: Source = GuardedSource(source) if guard else source
+    if stop_after_hold_s is not None:
+        src = StopAfterHold(src, stop_after_hold_s)
+    pipe = Pipeline(blocks)
+    infos = src.channel_info
+    kept = [c for c in infos if keep is None or c.name in keep or c.name == FAULT_CHANNEL]
+    writer = None
+    if out is not None:
+        writer = RecordingWriter(
+            out,
+            src.sample_rate_hz,
+            kept + pipe.output_channels(),
+            metadata=dict(metadata or {}),
+            flush_every_s=0.5,
+        )
+    names = [c.name for c in kept]
+
+    count = [0]
+
+    def sink(chunk: Chunk, outputs: dict[str, np.ndarray], events: list[Event]) -> None:
+        count[0] += chunk.n
+        if writer is not None:
+            data = {k: chunk.data[k] for k in names}
+            data.update(outputs)
+            writer.append(data)
+
+    t0 = time.perf_counter()
+    events: list[Event] = []
+    try:
+        res = run(src, pipe, chunk_samples, sink=sink, on_progress=on_progress, collect=False)
+        events = list(res.events)
+    finally:
+        guarded = src.inner if isinstance(src, StopAfterHold) else src
+        if isinstance(guarded, GuardedSource):
+            events += guarded.events
+        take = getattr(source, "take_events", None)
+        if callable(take):
+            events += [e for e in take() if e.kind is EventKind.CRASH]
+        events.sort(key=lambda e: (e.time_s, e.sample))
+        if writer is not None:
+            writer.update_metadata({"events": len(events)})
+            writer.close()
+        if events_out is not None:
+            write_event_log(events_out, events)
+    return SessionResult(
+        count[0], src.sample_rate_hz, events, time.perf_counter() - t0, out, events_out
+    )

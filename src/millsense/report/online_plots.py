@@ -1,0 +1,101 @@
+"""The plot of an on-line run (``millsense run --plot``): what the controllers did and why.
+
+Four panels over time: the feed override (commanded by the supervisor and in effect on the
+machine), the regulated quantity against its reference (and the true resultant force on the
+virtual machine), the spindle speed, and the spindle torque (estimated, expected from the
+calibrated plan, true); the events are marked (chatter, breakage, feed hold, faults).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from millsense.report.plots import _save
+from millsense.streaming.block import Event
+
+#: Points drawn per line at most (the recording is decimated by a stride).
+MAX_POINTS = 20000
+_MARKS = {
+    "chatter": ("tab:red", "chatter"),
+    "breakage": ("black", "breakage"),
+    "feed_hold": ("tab:purple", "feed hold"),
+    "spindle_override": ("tab:orange", "spindle change"),
+    "input_fault": ("tab:brown", "input fault"),
+    "source_lost": ("tab:brown", "source lost"),
+}
+
+
+def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -> None:
+    """Write the PNG of a run's recording and events."""
+    from millsense.io.recording_reader import open_recording
+
+    rec = open_recording(recording)
+    try:
+        names = set(rec.channel_names)
+        n = rec.n_samples
+        stride = max(1, n // MAX_POINTS)
+
+        def get(name: str) -> np.ndarray | None:
+            if name not in names:
+                return None
+            return np.asarray(rec.channel(name))[::stride]
+
+        t = np.arange(0, n, stride) / rec.sample_rate_hz
+        fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
+        _line(ax[0], t, get("supervisor/feed_override"), "commanded", 100.0)
+        _line(ax[0], t, get("cnc/feed_override"), "in effect", 100.0)
+        ax[0].set_ylabel("feed override [%]")
+        _line(ax[1], t, get("adaptive_feed/peak"), "regulated (per revolution)")
+        _line(ax[1], t, get("adaptive_feed/reference"), "reference")
+        fx, fy = get("truth/tool/force_x"), get("truth/tool/force_y")
+        if fx is not None and fy is not None:
+            ax[1].plot(t, np.hypot(fx, fy), lw=0.3, alpha=0.4, color="grey", label="true |F_xy|")
+        ax[1].set_ylabel("regulated")
+        sp = get("spindle/speed")
+        if sp is not None:
+            ax[2].plot(t, sp * 60 / (2 * np.pi), lw=0.8, label="spindle speed")
+        ax[2].set_ylabel("spindle [rev/min]")
+        _line(ax[3], t, get("est/spindle/spindle/load"), "estimated", alpha=0.5)
+        _line(ax[3], t, get("plan/expected_torque"), "expected (plan, calibrated)")
+        _line(ax[3], t, get("truth/spindle/torque"), "true", alpha=0.5)
+        ax[3].set_ylabel("cutting torque [N·m]")
+        ax[3].set_xlabel("time [s]")
+        seen: set[str] = set()
+        for e in events:
+            mark = _MARKS.get(e.name)
+            if mark is None:
+                continue
+            for a in ax:
+                a.axvline(e.time_s, color=mark[0], lw=1.0, ls="--",
+                          label=mark[1] if a is ax[0] and mark[1] not in seen else None)
+            seen.add(mark[1])
+        for a in ax:
+            if a.get_legend_handles_labels()[0]:
+                a.legend(loc="upper right", fontsize=7)
+            a.grid(alpha=0.3)
+        ax[0].set_title(f"{Path(recording).name}: on-line run")
+        fig.tight_layout()
+        _save(fig, path)
+    finally:
+        close = getattr(rec, "close", None)
+        if callable(close):
+            close()
+
+
+def _line(
+    ax: plt.Axes,
+    t: np.ndarray,
+    v: np.ndarray | None,
+    label: str,
+    scale: float = 1.0,
+    alpha: float = 1.0,
+) -> None:
+    if v is not None:
+        ax.plot(t[: len(v)], v[: len(t)] * scale, lw=0.8, alpha=alpha, label=label)

@@ -1,0 +1,199 @@
+"""The supervisor's priorities and safety layer (issue 16 item 4; seed 000 Fig. 6.16;
+decision 1621) on scripted children: every rule is checked on the events it sends, and the
+decisions do not depend on the chunking."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from millsense.control.arbitration import (
+    MODE_CHATTER,
+    MODE_FAULT,
+    MODE_HOLD,
+    MODE_NORMAL,
+    Supervisor,
+    SupervisorOptions,
+)
+from millsense.core.recording import ChannelInfo
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+
+FS = 10000.0
+
+
+class Scripted(Block):
+    """Emits the scripted events (sample → (kind, name, value)) when their sample passes."""
+
+    def __init__(self, name: str, script: dict[int, tuple[EventKind, str, float | None]]):
+        self.name = name
+        self.script = script
+        self.inputs = ("sig",)
+        self.ceilings: list[tuple[int, float | None, float]] = []
+        self._pos = 0
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [ChannelInfo(f"{self.name}/echo", "1", "input echoed")]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self._pos = 0
+        self.ceilings = []
+
+    def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
+        self.ceilings.append((self._pos, ceiling, commanded))
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        ev = []
+        for k in range(chunk.start, chunk.start + chunk.n):
+            if k in self.script:
+                kind, name, value = self.script[k]
+                ev.append(Event(k / FS, kind, self.name, name, name=name, value=value, sample=k))
+        self._pos = chunk.start + chunk.n
+        return BlockOutput({f"{self.name}/echo": np.asarray(chunk.data["sig"]) * 2}, ev)
+
+
+def _run(
+    sup: Supervisor,
+    n: int,
+    chunk: int,
+    fault: np.ndarray | None = None,
+    in_cut: np.ndarray | None = None,
+) -> tuple[dict[str, np.ndarray], list[Event]]:
+    sup.reset(FS)
+    data = {
+        "sig": np.arange(n, dtype=float),
+        "guard/fault": np.zeros(n) if fault is None else fault,
+        "plan/in_cut": np.ones(n) if in_cut is None else in_cut,
+    }
+    outs: dict[str, list[np.ndarray]] = {}
+    events: list[Event] = []
+    for a in range(0, n, chunk):
+        b = min(n, a + chunk)
+        res = sup.process(Chunk(a, FS, 0.0, {k: v[a:b] for k, v in data.items()}))
+        for k, v in res.channels.items():
+            outs.setdefault(k, []).append(v)
+        events += res.events
+    return {k: np.concatenate(v) for k, v in outs.items()}, events
+
+
+def _overrides(events: list[Event]) -> list[tuple[int, str, float | None]]:
+    return [(e.sample, e.name, e.value) for e in events if e.kind is EventKind.OVERRIDE]
+
+
+OVR, ALM, NOTE = EventKind.OVERRIDE, EventKind.ALARM, EventKind.NOTE
+
+
+def _children() -> list[Block]:
+    chatter = Scripted("chatter", {
+        2050: (ALM, "chatter", 600.0),
+        2060: (OVR, "spindle_override", 112.0),
+        4000: (NOTE, "chatter_end", None),
+    })  # fmt: skip
+    breakage = Scripted("breakage", {3000: (ALM, "breakage", None)})
+    adaptive = Scripted("adaptive_feed", {
+        1005: (OVR, "feed_override", 130.0),
+        2500: (OVR, "feed_override", 140.0),  # during chatter: not raised
+        2600: (OVR, "feed_override", 90.0),  # during chatter: may fall
+        5000: (OVR, "feed_override", 120.0),  # after the hold: nothing passes
+    })  # fmt: skip
+    return [chatter, breakage, adaptive]
+
+
+def test_priorities_chatter_then_breakage_then_adaptive() -> None:
+    """Seed 000 Fig. 6.16: the feed may fall but not rise during chatter; a breakage alarm
+    during chatter waits for the episode's end, then a feed hold latches; every decision falls
+    on the next 10 ms boundary (100 samples)."""
+    sup = Supervisor(_children(), fault_channel="guard/fault", in_cut_channel="plan/in_cut")
+    ch, events = _run(sup, 6000, 100)
+    assert _overrides(events) == [
+        (1100, "feed_override", 130.0),  # adaptive, next boundary after 1005
+        (2100, "spindle_override", 112.0),  # chatter remedy passes
+        (2700, "feed_override", 90.0),  # a fall during chatter passes; 140 % at 2500 did not
+        (4100, "feed_hold", 1.0),  # breakage (3000) held until chatter_end (4000)
+    ]
+    mode = ch["supervisor/mode"]
+    assert mode[1500] == MODE_NORMAL and mode[2500] == MODE_CHATTER and mode[5500] == MODE_HOLD
+    assert ch["supervisor/feed_override"][1200] == pytest.approx(1.3)
+    assert ch["supervisor/spindle_override"][2200] == pytest.approx(1.12)
+    assert math.isnan(ch["supervisor/spindle_override"][100])
+    assert np.array_equal(ch["adaptive_feed/echo"], 2 * np.arange(6000.0))  # children's outputs
+    alarms = [e.name for e in events if e.kind is EventKind.ALARM]
+    assert alarms == ["chatter", "breakage"]  # passed on unchanged
+
+
+def test_adaptive_child_gets_the_ceiling_during_chatter_and_hold() -> None:
+    kids = _children()
+    sup = Supervisor(kids)
+    _run(sup, 6000, 100)
+    adaptive = kids[2]
+    assert isinstance(adaptive, Scripted)
+    by_sample = {s: (c, u) for s, c, u in adaptive.ceilings}
+    assert by_sample[1500] == (None, pytest.approx(1.3))  # normal: its own limits
+    assert by_sample[2500] == (pytest.approx(1.3), pytest.approx(1.3))  # chatter: no rise
+    # once held, the ceilings stop changing: the last one set is 0 (nothing may move)
+    assert adaptive.ceilings[-1][1] == 0.0
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 100, 333, 6000])
+def test_decisions_do_not_depend_on_the_chunking(chunk: int) -> None:
+    ref_ch, ref_ev = _run(Supervisor(_children()), 6000, 100)
+    ch, ev = _run(Supervisor(_children()), 6000, chunk)
+    assert _overrides(ev) == _overrides(ref_ev)
+    for k in ref_ch:
+        assert np.array_equal(ch[k], ref_ch[k], equal_nan=True), k
+
+
+def test_breakage_when_stable_holds_at_the_next_boundary() -> None:
+    """A breakage alarm with no chatter: feed hold within one control period (10 ms), far
+    inside issue 16's 3 tooth periods (60 ms at 1000 rev/min, 2 flutes)."""
+    sup = Supervisor([Scripted("breakage", {3042: (ALM, "breakage", None)})])
+    _, events = _run(sup, 4000, 100)
+    holds = [e for e in events if e.name == "feed_hold"]
+    assert len(holds) == 1 and holds[0].sample == 3100
+    assert holds[0].severity is Severity.CRITICAL
+    assert (holds[0].sample - 3042) / FS <= 0.010
+
+
+def test_fault_in_cut_with_breakage_possible_gives_a_feed_hold() -> None:
+    from millsense.monitoring.breakage import BreakageBlock
+
+    brk = BreakageBlock(2, "constant", signal_channels=("sig",), speed_channel="sig")
+    sup = Supervisor([brk])
+    fault = np.zeros(3000)
+    fault[1234:1300] = 3  # a stalled stream
+    _, events = _run(sup, 3000, 100, fault=fault)
+    names = [(e.sample, e.name) for e in events]
+    assert (1300, "input_fault") in names and (1300, "feed_hold") in names
+    assert (1300 - 1234) / FS <= 0.1  # issue 16: the safe action within 100 ms
+
+
+def test_fault_without_breakage_risk_caps_the_feed_at_programmed_and_clears() -> None:
+    """Decision 1615/1621: the feed falls to 100 % from above, is never raised while the
+    fault stands, and the fault clears after a clean period."""
+    adaptive = Scripted("adaptive_feed", {
+        500: (OVR, "feed_override", 140.0),
+        1550: (OVR, "feed_override", 145.0),  # during the fault: refused
+        2550: (OVR, "feed_override", 120.0),  # after: passes
+    })  # fmt: skip
+    sup = Supervisor([adaptive])
+    fault = np.zeros(3000)
+    fault[1420:1480] = 1
+    ch, events = _run(sup, 3000, 100, fault=fault)
+    assert _overrides(events) == [
+        (600, "feed_override", 140.0),
+        (1500, "feed_override", 100.0),
+        (2600, "feed_override", 120.0),
+    ]
+    assert ch["supervisor/mode"][1550] == MODE_FAULT
+    kinds = [e.name for e in events if e.kind is not EventKind.OVERRIDE]
+    assert kinds == ["input_fault", "input_fault_cleared"]
+
+
+def test_options_are_checked() -> None:
+    from millsense.core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="period_s"):
+        SupervisorOptions(period_s=0.0)
+    with pytest.raises(ConfigError, match="unique"):
+        Supervisor([Scripted("a", {}), Scripted("a", {})])
