@@ -15,6 +15,9 @@ import typer
 
 from millsense.cli.main import app
 
+#: Truth channels a replay of a simulated run keeps for the plot and the comparison.
+PLOT_TRUTH = ("truth/spindle/torque", "truth/tool/force_x", "truth/tool/force_y")
+
 _MACHINE_FILE = typer.Option(
     None,
     "--machine-file",
@@ -71,7 +74,7 @@ def run(
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: feed, force, speed, events."),
     adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive", help="Adaptive feed."),
-    regulate: str = typer.Option("force", "--regulate", help="force, torque or power."),
+    regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
     reference: float | None = typer.Option(
         None, "--reference", help="Set point [N, N·m or W] (default: 90 % of the plan's peak)."
     ),
@@ -128,7 +131,7 @@ def replay(
     machine_file: Path | None = _MACHINE_FILE,
     out: Path | None = typer.Option(None, "-o", "--output", help="Block outputs (.h5)."),
     events_out: Path = typer.Option(..., "--events", help="Event log to write (.parquet)."),
-    regulate: str = typer.Option("force", "--regulate", help="force, torque or power."),
+    regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
     reference: float | None = typer.Option(None, "--reference", help="Set point."),
     force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
     chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
@@ -271,6 +274,7 @@ def replay_online(
     from millsense.core.errors import ConfigError
     from millsense.core.presets import load_preset
     from millsense.io.recording_reader import open_recording
+    from millsense.online.guard import FAULT_CHANNEL
     from millsense.online.session import run_session, session_blocks
     from millsense.plan.virtual_plan import VirtualPlan
     from millsense.streaming.sources import RecordingSource
@@ -288,13 +292,20 @@ def replay_online(
         cfg = cfg.model_copy(update={"kinematics": kin, "axes": {a: cfg.axes[a] for a in axes}})
         built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=str(machine_file),
                                channels=rec.channel_names)  # fmt: skip
-        src = RecordingSource(rec, name=str(recording))
+        # only what the blocks read (and the truth the plot shows): a recording of an earlier
+        # run also holds that run's block outputs, which these blocks recompute
+        have = set(rec.channel_names)
+        made = {c.name for b in built.blocks for c in b.output_channels()} | {FAULT_CHANNEL}
+        wanted = {c for b in built.blocks for c in b.inputs if c in have and c not in made}
+        wanted |= {c for c in ("cnc/feed_override", *PLOT_TRUTH) if c in have}
+        src = RecordingSource(rec, name=str(recording), channels=sorted(wanted))
         res = _with_progress(
             "replaying", rec.n_samples,
             lambda cb: run_session(src, built.blocks, out=out, events_out=events_out,
                                    metadata={"source": "millsense replay",
                                              "recording": str(recording)},
-                                   chunk_samples=chunk, keep=(), on_progress=cb),
+                                   chunk_samples=chunk, on_progress=cb,
+                                   stop_after_hold_s=None),
             built.supervisor,
         )  # fmt: skip
     finally:

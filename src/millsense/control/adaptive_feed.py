@@ -183,6 +183,9 @@ class AdaptiveFeedBlock(Block):
     torque_channel : spindle torque channel (N·m) for ``torque`` and ``power``.
     speed_channel : spindle speed (rad/s): revolutions are counted on it.
     tcp_channels : tool-centre position channels (m) matched to the plan.
+    enable_channel : optional 1/0 channel; a revolution ending where it is 0 makes no decision
+        (the override is held: e.g. while the spindle runs up, when a torque observer's
+        estimate holds the acceleration torque), or None.
     name : block name (channel prefix).
 
     Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
@@ -203,6 +206,7 @@ class AdaptiveFeedBlock(Block):
         torque_channel: str = "spindle/torque_est",
         speed_channel: str = "spindle/speed",
         tcp_channels: tuple[str, str, str] = ("x/position_cmd", "y/position_cmd", "z/position_cmd"),
+        enable_channel: str | None = None,
         name: str = "adaptive_feed",
     ) -> None:
         self.opts = opts = options or AdaptiveFeedOptions()
@@ -217,6 +221,9 @@ class AdaptiveFeedBlock(Block):
         else:
             ins = [torque_channel]
         ins.append(speed_channel)
+        self.enable_channel = enable_channel
+        if enable_channel is not None:
+            ins.append(enable_channel)
         if plan is not None:
             if len(plan) < 2:
                 raise ConfigError("adaptive feed: the plan has fewer than 2 rows")
@@ -403,6 +410,9 @@ class AdaptiveFeedBlock(Block):
                 self._safe(chunk, e, "non-finite samples", events)
             return
         self._peak = peak
+        if self.enable_channel is not None:
+            if float(np.asarray(chunk.data[self.enable_channel])[e]) < 0.5:
+                return  # not enabled at this revolution's end: no decision, override held
         if frozen >= self._n_stall:
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "signal frozen", events)

@@ -11,10 +11,13 @@ sample the plan's row, NC line, in-cut flag and the **expected cutting torque**
 with T_edge and T_shear the plan's predicted mean torque split into its edge and shear parts
 (columns ``torque_avg_nm`` and ``torque_avg_shear_nm``), u the effective feed override (the
 shear part is linear in the chip thickness) and s = K_tc,new / K_tc,plan the calibration:
-over the first ``calibration_revs`` revolutions in cut (seed 000 C16: 10; the first
-``settle_revs`` after the entry skipped) the mean measured torque T̄ gives
+over the first ``calibration_revs`` revolutions in cut with an expected torque of at least
+:data:`MIN_CALIBRATION` of the plan's largest (seed 000 C16: 10; the first ``settle_revs``
+skipped) the mean measured torque T̄ gives
 s = (T̄ − T̄_edge)/T̄_shear (:mod:`millsense.plan.calibration`, decision 0064). The breakage
-monitor's virtual threshold reads T_exp (seed 000 §2.9: 40 % of the expected torque).
+monitor's virtual threshold (seed 000 §2.9: 40 % of the expected torque) reads T_exp where the
+plan is steady and 0 (not judged) in its transients — entries, steps, ramps, exits
+(:func:`steady_rows`, decision 1622) — as ``judged_torque``.
 
 :class:`TcpFromAxes` gives the tool-centre point from the axis position commands by the
 machine's forward kinematics (a CNC's TCP), for machines whose axes are not the part frame.
@@ -36,6 +39,30 @@ from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKin
 #: Range of the calibration ratio K_tc,new/K_tc,plan accepted; outside it the plan is kept and a
 #: warning says the measurement does not describe the plan (a wrong tool, material or signal).
 SCALE_RANGE = (0.33, 3.0)
+#: Fraction of the plan's largest mean torque below which a revolution is not calibrated on.
+MIN_CALIBRATION = 0.3
+
+
+def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np.ndarray:
+    """Rows whose predicted mean torque varies by at most 20 % of its largest value over the
+    rows travelled in ``revs`` revolutions either side (at up to ``max_override`` of the
+    programmed feed): entries, steps, ramps and exits are transients where the measured torque
+    and the plan's may disagree by their timing alone, so a breakage threshold would judge the
+    plan's timing, not the tool (decision 1622)."""
+    tq = np.nan_to_num(np.asarray(plan["torque_avg_nm"], dtype=np.float64))
+    step = float(plan.metadata.get("step_mm", 0.4))
+    feed = np.asarray(plan["feed_mm_min"], dtype=np.float64)
+    rpm = np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64))
+    cut = np.asarray(plan["in_cut"], dtype=bool)
+    travel = np.where(cut & (rpm > 0), feed / np.maximum(rpm, 1e-9), 0.0) * revs * max_override
+    w = int(np.ceil(np.nanmax(travel, initial=0.0) / step)) if tq.size else 0
+    w = max(w, 1)
+    n = tq.size
+    pad_hi = np.concatenate([np.full(w, tq[0] if n else 0.0), tq, np.full(w, tq[-1] if n else 0.0)])
+    win = np.lib.stride_tricks.sliding_window_view(pad_hi, 2 * w + 1)
+    hi = win.max(axis=1)
+    lo = win.min(axis=1)
+    return np.asarray(hi - lo <= 0.2 * np.maximum(hi, 1e-12), dtype=bool)
 
 
 class TcpFromAxes(Block):
@@ -73,6 +100,8 @@ class PlanSync(Block):
     override_channel : effective feed override (fraction), or None (1).
     decimate : samples between matches (30: the CNC's 333 Hz at 10 kHz).
     calibration_revs, settle_revs : revolutions averaged, and skipped after the entry.
+    transient_revs : revolutions of travel either side of a row over which the plan's torque
+        must be steady for the row to be judged (``judged_torque``).
     name : channel prefix ``plan``.
     """
 
@@ -86,6 +115,7 @@ class PlanSync(Block):
         decimate: int = 30,
         calibration_revs: float = 10.0,
         settle_revs: float = 1.0,
+        transient_revs: float = 3.0,
         name: str = "plan",
     ) -> None:
         if len(plan) < 2:
@@ -112,6 +142,10 @@ class PlanSync(Block):
         self._shear = np.nan_to_num(sh)
         self._edge = np.nan_to_num(tq - sh)
         self._in_cut = np.asarray(plan["in_cut"], dtype=bool)
+        self._steady = steady_rows(plan, transient_revs)
+        #: only revolutions whose expected torque is at least this are calibrated on: at a
+        #: light load an observer's offset and noise would set the ratio (decision 1622)
+        self._min_cal = MIN_CALIBRATION * float(np.nanmax(np.abs(tq), initial=0.0))
         nc = np.asarray(plan["nc_line"], dtype=np.int64)
         self._nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
         self.reset(10000.0)
@@ -123,6 +157,9 @@ class PlanSync(Block):
             ChannelInfo(f"{n}/nc_line", "1", "NC line of the matched row"),
             ChannelInfo(f"{n}/in_cut", "1", "1 where the plan says the tool is in cut"),
             ChannelInfo(f"{n}/expected_torque", "N*m", "expected mean cutting torque (calibrated)"),
+            ChannelInfo(
+                f"{n}/judged_torque", "N*m", "expected torque where the plan is steady, else 0"
+            ),
             ChannelInfo(f"{n}/ktc_scale", "1", "K_tc calibration ratio (1 until calibrated)"),
         ]
 
@@ -178,12 +215,15 @@ class PlanSync(Block):
             if k_done >= 0:
                 scale[k_done:] = self.scale
         nc = np.where(rows >= 0, self._nc[safe], -1)
+        expected = edge + scale * shear
+        steady = (rows >= 0) & self._steady[safe]
         return BlockOutput(
             {
                 f"{self.name}/row": rows.astype(np.float64),
                 f"{self.name}/nc_line": nc.astype(np.float64),
                 f"{self.name}/in_cut": in_cut.astype(np.float64),
-                f"{self.name}/expected_torque": edge + scale * shear,
+                f"{self.name}/expected_torque": expected,
+                f"{self.name}/judged_torque": np.where(steady, expected, 0.0),
                 f"{self.name}/ktc_scale": scale,
             },
             events,
@@ -202,9 +242,10 @@ class PlanSync(Block):
         d = chunk.data
         speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
         tq = np.asarray(d[self.torque_channel], dtype=np.float64)
-        drev = np.where(in_cut, speed / (2 * math.pi * self.fs), 0.0)
+        heavy = (edge + shear) >= self._min_cal
+        drev = np.where(in_cut & heavy, speed / (2 * math.pi * self.fs), 0.0)
         revs = self._revs_in_cut + np.cumsum(drev)
-        use = in_cut & (revs > self.settle_revs) & np.isfinite(tq)
+        use = in_cut & heavy & (revs > self.settle_revs) & np.isfinite(tq)
         end = self.settle_revs + self.cal_revs
         done = np.flatnonzero(revs >= end)
         k_done = int(done[0]) if done.size else -1

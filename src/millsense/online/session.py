@@ -36,6 +36,7 @@ from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring.breakage import BreakageBlock
+from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
 from millsense.online.plan_sync import PlanSync, TcpFromAxes
 from millsense.plan.virtual_plan import VirtualPlan
@@ -46,6 +47,9 @@ from millsense.streaming.sources import Source
 #: The compensated spindle torque of the machine file's observer (chatter, breakage, K_tc).
 TORQUE_CHANNEL = "est/spindle/spindle/load"
 FORCE_SOURCES = ("estimate", "dynamometer")
+#: Expected torques below this fraction of the plan's largest are not judged for breakage: the
+#: tooth-period average of an observer's estimate is too noisy there (decision 1622).
+MIN_JUDGED = 0.3
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,8 @@ class SessionOptions:
     Attributes
     ----------
     adaptive : run the adaptive feed control.
-    quantity : regulated quantity (``force``, ``torque``, ``power``).
+    quantity : regulated quantity (``force``, ``torque``, ``power``); by default the spindle
+        power from the spindle torque observer (what Heidenhain AFC regulates; decision 1622).
     reference : its set point (N, N·m, W); None: 90 % of the plan's largest predicted
         per-revolution value in cut (peak force, mean torque or power).
     force_from : ``estimate`` (the feed-drive estimators, sensorless) or ``dynamometer``
@@ -68,7 +73,7 @@ class SessionOptions:
     """
 
     adaptive: bool = True
-    quantity: str = "force"
+    quantity: str = "power"
     reference: float | None = None
     force_from: str = "estimate"
     look_ahead: bool = True
@@ -158,6 +163,7 @@ def session_blocks(
                     f"{where}: forces at the tool from the feed estimators need a 3-axis or a "
                     f"5-axis trunnion machine ({'; '.join(feed.notes) or machine.kinematics})"
                 )
+    blocks.append(SpindleAtSpeed())
     axes_pos = [f"{a}/position_cmd" for a in machine.axes]
     blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
     sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL)
@@ -172,8 +178,8 @@ def session_blocks(
                 flutes,
                 "virtual",
                 signal_channels=(TORQUE_CHANNEL,),
-                expected_channel="plan/expected_torque",
-                min_expected_nm=0.1 * float(np.nanmax(np.abs(plan["torque_avg_nm"]), initial=0)),
+                expected_channel="plan/judged_torque",
+                min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),
                 name="breakage",
             )
         )
@@ -189,6 +195,7 @@ def session_blocks(
                 force_channels=force_ch,
                 torque_channel=TORQUE_CHANNEL,
                 tcp_channels=("tcp/x", "tcp/y", "tcp/z"),
+                enable_channel="spindle/at_speed",
             )
         )
     sup = Supervisor(
@@ -199,6 +206,10 @@ def session_blocks(
     )
     blocks.append(sup)
     return SessionBlocks(blocks, sup, sync, notes)
+
+
+def _largest(plan: VirtualPlan, column: str) -> float:
+    return float(np.nanmax(np.abs(np.asarray(plan[column], dtype=np.float64)), initial=0.0))
 
 
 def _chatter_child(o: SessionOptions, flutes: int) -> Block:

@@ -1,0 +1,180 @@
+"""The on-line session's pieces (issue 16 item 5): the spindle gate, plan synchronisation and
+the K_tc calibration against independent computations, and ``millsense run``/``replay`` end to
+end on a short slot of the virtual machine, with their one-line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tests.cli_run import run_cli
+
+from millsense.core.units import MM
+from millsense.online.gates import SpindleAtSpeed
+from millsense.online.plan_sync import PlanSync
+from millsense.streaming.block import Chunk
+
+FS = 10000.0
+ROOT = Path(__file__).resolve().parents[1]
+MACHINE_FILE = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
+
+
+def _feed(block: object, data: dict[str, np.ndarray], chunk: int) -> dict[str, np.ndarray]:
+    block.reset(FS)  # type: ignore[attr-defined]
+    n = len(next(iter(data.values())))
+    out: dict[str, list[np.ndarray]] = {}
+    for a in range(0, n, chunk):
+        c = Chunk(a, FS, 0.0, {k: v[a : a + chunk] for k, v in data.items()})
+        for k, v in block.process(c).channels.items():  # type: ignore[attr-defined]
+            out.setdefault(k, []).append(v)
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def test_spindle_gate_holds_through_run_up() -> None:
+    """Run-up 0 → 100 rad/s over 0.2 s: the gate opens 0.1 s (settle) after the speed enters
+    ±3 % of the command (at 0.194 s), whatever the chunking."""
+    t = np.arange(5000) / FS
+    cmd = np.full(t.size, 100.0)
+    w = np.minimum(t / 0.2, 1.0) * 100.0
+    data = {"spindle/speed": w, "spindle/speed_cmd": cmd}
+    ref = _feed(SpindleAtSpeed(), data, 5000)["spindle/at_speed"]
+    first = int(np.argmax(ref > 0))
+    enter = int(np.argmax(np.abs(w - cmd) <= 3.0))  # 0.194 s
+    assert first == enter + 1000  # settle_s = 0.1 s at 10 kHz, then open
+    for chunk in (1, 7, 333):
+        assert np.array_equal(_feed(SpindleAtSpeed(), data, chunk)["spindle/at_speed"], ref)
+
+
+@pytest.fixture(scope="module")
+def v8_plan() -> object:
+    from millsense.validation.cases.control_adaptive import step_plan
+
+    return step_plan(1.2, 3.0)
+
+
+def _along_plan(plan: object, u: float = 1.0) -> dict[str, np.ndarray]:
+    """The tool centre moving along the plan's rows at its feed × ``u``, 1000 rev/min."""
+    x, y, z, ts = (np.asarray(plan[c], dtype=float) for c in ("x_mm", "y_mm", "z_mm", "t_s"))  # type: ignore[index]
+    t = np.arange(0.0, ts[-1] / u, 1 / FS)
+    return {
+        "tcp/x": np.interp(t * u, ts, x) * MM,
+        "tcp/y": np.interp(t * u, ts, y) * MM,
+        "tcp/z": np.interp(t * u, ts, z) * MM,
+        "spindle/speed": np.full(t.size, 1000 * 2 * np.pi / 60),
+        "cnc/feed_override": np.full(t.size, u),
+    }
+
+
+def test_plan_sync_follows_the_path_and_calibrates_ktc(v8_plan: object) -> None:
+    """A torque of T_edge + 1.25·u·T_shear along the plan (an independent synthetic
+    measurement) gives the calibration ratio 1.25; the rows advance monotonically and the NC
+    lines are the program's."""
+    data = _along_plan(v8_plan, u=0.8)
+    ps = PlanSync(v8_plan)  # type: ignore[arg-type]
+    rows = np.asarray(
+        _feed(ps, {**data, "est/spindle/spindle/load": np.zeros(len(data["tcp/x"]))}, 1000)[
+            "plan/row"
+        ]
+    )
+    r = rows.astype(int)
+    assert (r >= 0).mean() > 0.95 and np.all(np.diff(r[r >= 0]) >= 0)
+    tq = np.asarray(v8_plan["torque_avg_nm"], float)  # type: ignore[index]
+    sh = np.asarray(v8_plan["torque_avg_shear_nm"], float)  # type: ignore[index]
+    rr = np.maximum(r, 0)
+    meas = np.where(r >= 0, (tq - sh)[rr] + 1.25 * 0.8 * sh[rr], 0.0)
+    for chunk in (100, 777):
+        out = _feed(PlanSync(v8_plan), {**data, "est/spindle/spindle/load": meas}, chunk)  # type: ignore[arg-type]
+        assert out["plan/ktc_scale"][-1] == pytest.approx(1.25, rel=1e-9)
+        cut = out["plan/in_cut"] > 0
+        # after the calibration the expected torque is the synthetic measurement itself
+        done = int(np.argmax(out["plan/ktc_scale"] != 1.0))
+        assert np.allclose(out["plan/expected_torque"][done:][cut[done:]], meas[done:][cut[done:]])
+    nc = set(out["plan/nc_line"][r >= 0].astype(int).tolist())
+    assert nc <= set(np.asarray(v8_plan["source_line"]).tolist()) | set(
+        np.asarray(v8_plan["nc_line"]).tolist()
+    )  # type: ignore[index]
+
+
+def test_steady_rows_exclude_the_step_down_and_the_exit(v8_plan: object) -> None:
+    """The V8 slot: steady in the shallow and the deep part, a transient around the step-down
+    at X = 25 mm and the exit at X = 60 mm (3 revolutions at 150 % of 0.4 mm/rev: ±5 rows)."""
+    from millsense.online.plan_sync import steady_rows
+
+    st = steady_rows(v8_plan, 3.0)  # type: ignore[arg-type]
+    x = np.asarray(v8_plan["x_mm"], dtype=float)  # type: ignore[index]
+    cut = np.asarray(v8_plan["in_cut"], dtype=bool)  # type: ignore[index]
+    assert st[cut & (x > 12) & (x < 22)].all()
+    assert st[cut & (x > 32) & (x < 45)].all()
+    assert not st[(x > 24.6) & (x < 26)].any()
+    assert not st[cut & (x > 50.5) & (x < 51)].any()  # the tool's front leaves the block at 50
+
+
+def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``millsense run`` in closed loop (a tooth broken at 5 s) then ``replay`` of its
+    recording: the hold stops the run, the recording holds every sample, the event logs read
+    back, and the replay's breakage alarm falls within 3 tooth periods of the
+    run's (same blocks, same signals)."""
+    from millsense.io.recording_reader import open_recording
+    from millsense.streaming.event_log import read_event_log
+
+    prog = tmp_path / "slot.nc"
+    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
+    demo = ROOT / "examples/demo_part"
+    code, _out, err = run_cli(
+        ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
+         "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
+         str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--plan-out",
+         str(tmp_path / "plan.parquet"), "--break-at-s", "5.0", "--plot",
+         str(tmp_path / "run.png")],
+        capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    holds = [e.time_s for e in ev if e.name == "feed_hold"]
+    brk = [e.time_s for e in ev if e.name == "breakage"]
+    assert len(brk) == 1 and len(holds) == 1
+    assert 5.0 < brk[0] < 5.0 + 10 * 0.03
+    assert holds[0] - brk[0] <= 3 * 0.03
+    with open_recording(tmp_path / "run.h5") as rec:
+        n = rec.n_samples
+        assert abs(n / FS - (holds[0] + 0.5)) < 0.02  # stopped 0.5 s after
+    assert (tmp_path / "run.png").stat().st_size > 10000
+    code, _out, err = run_cli(
+        ["replay", str(tmp_path / "run.h5"), "--plan", str(tmp_path / "plan.parquet"),
+         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "replay.parquet")],
+        capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    rbrk = [e.time_s for e in read_event_log(tmp_path / "replay.parquet") if e.name == "breakage"]
+    assert len(rbrk) == 1
+    assert abs(rbrk[0] - brk[0]) <= 3 * 0.03
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--plan", "p.parquet", "--program", "x.nc", "-o", "o.h5"], "not both|or --plan"),
+        (["run", "--program", "{prog}", "-o", "o.h5"], "needs --stock"),
+        (["run", "--program", "{prog}", "--stock", "{stock}", "--tool", "aslan-d20-2flute",
+          "--material", "al7050", "-o", "o.h5"], "--machine-file"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--fault", "melt@1"], "kind must be"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--regulate", "speed"], "--regulate"),
+    ],
+)  # fmt: skip
+def test_run_bad_input_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    import re
+
+    prog = tmp_path / "x.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nM30\n")
+    (tmp_path / "p.parquet").write_bytes(b"")
+    stock = ROOT / "examples/demo_part/stock.toml"
+    argv = [a.format(prog=prog, stock=stock) for a in args]
+    argv = [str(tmp_path / a) if a in ("o.h5", "p.parquet", "x.nc") else a for a in argv]
+    code, _out, err = run_cli(argv, capsys)
+    assert code == 2
+    assert re.search(message, err), err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o.h5").exists()
