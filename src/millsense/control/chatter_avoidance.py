@@ -392,9 +392,9 @@ class ChatterAvoidanceBlock(Block):
         if hz is not None and n:
             prev = np.concatenate([[self._last_hz], hz[:-1]])
             same = (hz == prev) | (np.isnan(hz) & np.isnan(prev))
-            for k in np.flatnonzero(~same & np.isfinite(hz)):
-                if int(k) not in alarm_at:
-                    triggers.append((int(k), None, float(hz[k])))
+            for i in np.flatnonzero(~same & np.isfinite(hz)).tolist():
+                if i not in alarm_at:
+                    triggers.append((i, None, float(hz[i])))
             self._last_hz = float(hz[-1])
         triggers.sort(key=lambda tr: tr[0])
         for k, ev, f_c in triggers:
