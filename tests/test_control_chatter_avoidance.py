@@ -90,7 +90,7 @@ def _t1(depth_mm: float) -> StabilityModel:
 
     if not _MODEL:
         _MODEL.append(StabilityModel(stability_case(), 1.0))
-    return StabilityModel(_MODEL[0].case, depth_mm, _MODEL[0]._cache)
+    return _MODEL[0].at_depth(depth_mm)
 
 
 def test_with_model_the_largest_margin_wins_and_is_stable() -> None:
@@ -216,6 +216,25 @@ def test_chunk_size_invariance(chunk: int) -> None:
     assert any(e.kind is EventKind.OVERRIDE for e in ev)
     for k, v in whole_ch.items():
         np.testing.assert_array_equal(ch[k], v, err_msg=k)
+
+
+def test_block_with_a_model_never_commands_a_speed_predicted_unstable() -> None:
+    """At 5 mm no lobe speed of the T1 case is stable inside 50-150 %: the block warns and
+    advises a depth reduction (seed 002) instead of changing the speed."""
+    x, spd = _signal()
+    mon = ChatterMonitor(ChatterSettings(method="chatter-comb", signal="s", n_flutes=5))
+    block = ChatterAvoidanceBlock(mon, model=_t1(5.0))
+    _, ev = _run(block, x, spd, 1000)
+    assert not [e for e in ev if e.kind is EventKind.OVERRIDE]
+    warn = [e for e in ev if e.name == "no_stable_speed"]
+    assert len(warn) == 1 and warn[0].severity is Severity.WARNING
+    assert "reduce the depth" in warn[0].message
+    assert warn[0].values["margin_mm"] < 0
+    # at 1.2 mm the same alarm gives the lobe-1 speed with a positive margin
+    block = ChatterAvoidanceBlock(mon, model=_t1(1.2))
+    _, ev = _run(block, x, spd, 1000)
+    cmd = next(e for e in ev if e.kind is EventKind.OVERRIDE)
+    assert cmd.values["lobe_number"] == 1 and cmd.values["margin_mm"] > 1.0
 
 
 def test_events_carry_the_monitor_location() -> None:

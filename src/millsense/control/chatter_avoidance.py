@@ -98,6 +98,10 @@ class StabilityModel:
         if not self.depth_mm > 0:
             raise ConfigError(f"chatter avoidance: depth {self.depth_mm!r} mm must be > 0")
 
+    def at_depth(self, depth_mm: float) -> StabilityModel:
+        """The same lobes for another cut depth (the computed speeds are shared)."""
+        return StabilityModel(self.case, depth_mm, self._cache)
+
     def lowest_unstable_depth_mm(self, rpm: Sequence[float] | np.ndarray) -> np.ndarray:
         """Lowest unstable axial depth at each speed, mm (inf: stable up to the case's
         ``depth_max``), from :func:`millsense.stability.robust.robust_lobes` (first unstable
