@@ -53,7 +53,7 @@ def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np
     step = float(plan.metadata.get("step_mm", 0.4))
     feed = np.asarray(plan["feed_mm_min"], dtype=np.float64)
     rpm = np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64))
-    cut = np.asarray(plan["in_cut"], dtype=bool)
+    cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
     travel = np.where(cut & (rpm > 0), feed / np.maximum(rpm, 1e-9), 0.0) * revs * max_override
     w = int(np.ceil(np.nanmax(travel, initial=0.0) / step)) if tq.size else 0
     w = max(w, 1)

@@ -171,7 +171,7 @@ def session_blocks(
     flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
     children: list[Block] = []
     if o.chatter:
-        children.append(_chatter_child(o, flutes))
+        children.append(_chatter_child(o, flutes, have))
     if o.breakage:
         children.append(
             BreakageBlock(
@@ -212,7 +212,11 @@ def _largest(plan: VirtualPlan, column: str) -> float:
     return float(np.nanmax(np.abs(np.asarray(plan[column], dtype=np.float64)), initial=0.0))
 
 
-def _chatter_child(o: SessionOptions, flutes: int) -> Block:
+def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
+    """The chatter monitor on the compensated spindle torque inside the chatter avoidance
+    (seed 000 §2.7; the new speed by :func:`~millsense.control.chatter_avoidance.
+    choose_spindle_speed`, commanded or only recommended)."""
+    from millsense.control.chatter_avoidance import AvoidanceSettings, ChatterAvoidanceBlock
     from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
 
     monitor = ChatterMonitor(
@@ -224,11 +228,10 @@ def _chatter_child(o: SessionOptions, flutes: int) -> Block:
             speed_unit="rad/s",
         )
     )
-    try:
-        from millsense.control.chatter_avoidance import ChatterAvoidanceBlock
-    except ImportError:  # pragma: no cover - until the avoidance lands
-        return monitor
-    return ChatterAvoidanceBlock(monitor, act=o.avoid_chatter)
+    ovr = "cnc/spindle_override" if "cnc/spindle_override" in have else None
+    return ChatterAvoidanceBlock(
+        monitor, AvoidanceSettings(act=o.avoid_chatter, override_channel=ovr)
+    )
 
 
 class StopAfterHold(Source):
