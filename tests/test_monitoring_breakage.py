@@ -125,3 +125,33 @@ def test_bad_options_and_stopped_spindle():
     data = {"spindle/torque_est": np.ones(5000), "spindle/speed": np.zeros(5000)}
     events, ch = run_block(make_breakage_dual_block(n_flutes=2), data, 500)
     assert events == [] and np.all(np.isnan(ch["breakage.dual/tooth_avg"]))
+
+
+def test_break_during_an_unjudged_gap_is_reported_when_judging_resumes() -> None:
+    """Decision 1625: a 2-flute tool cutting 3 N·m per tooth period; for periods 10–49 the
+    plan is in a transient (expected 0: not judged) and flute 0 breaks at period 14, so the
+    tooth-period torques alternate 0.2 and 6 N·m from there. When judging resumes at period 50
+    the residual has learnt the pattern; the virtual threshold still alarms on the third judged
+    period."""
+    import math
+
+    from millsense.monitoring.breakage import BreakageBlock
+    from millsense.streaming.block import Chunk
+
+    fs, rpm, n_fl = 10000.0, 1000.0, 2
+    w = rpm * 2 * math.pi / 60
+    tooth = round(fs * 60 / rpm / n_fl)  # 300 samples
+    n = 90 * tooth
+    k = np.arange(n)
+    period = k // tooth
+    expected = np.where((period >= 10) & (period < 50), 0.0, 3.0)
+    broken = period >= 14  # in the gap
+    tq = np.where(broken, np.where(period % 2 == 0, 0.2, 6.0), 3.0)
+    blk = BreakageBlock(n_fl, "virtual", signal_channels=("tq",), speed_channel="w",
+                        expected_channel="ex", min_expected_nm=0.5)  # fmt: skip
+    blk.reset(fs)
+    data = {"tq": tq, "w": np.full(n, w), "ex": expected}
+    events = blk.process(Chunk(0, fs, 0.0, data)).events
+    assert len(events) == 1
+    # judging resumes at period 50; the third violating period in a row is period 52
+    assert events[0].time_s == pytest.approx(53 * tooth / fs, abs=2 * tooth / fs)

@@ -46,6 +46,26 @@ def test_spindle_gate_holds_through_run_up() -> None:
         assert np.array_equal(_feed(SpindleAtSpeed(), data, chunk)["spindle/at_speed"], ref)
 
 
+def test_mean_power_of_a_noisy_estimate_is_not_rectified() -> None:
+    """Decision 1624: zero-mean noise of 3 N·m at 1000 rev/min gives a per-revolution mean
+    power near 0 (rectified it would be E|n|·Ω = 3·√(2/π)·104.7 ≈ 250 W), and 2 N·m of cutting
+    torque gives 2·104.7 W = 209 W within the noise's standard error."""
+    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+
+    rng = np.random.default_rng(1)
+    n = 30000
+    w = 1000 * 2 * np.pi / 60
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=600.0, quantity="power"),
+                            torque_channel="tq", speed_channel="w")  # fmt: skip
+    for level, expect in ((0.0, 0.0), (2.0, 2.0 * w)):
+        data = {"tq": level + 3.0 * rng.standard_normal(n), "w": np.full(n, w)}
+        peak = _feed(blk, data, 1000)["adaptive_feed/peak"]
+        revs = peak[-10000:]  # the last second: 16 revolutions of 600 samples
+        # standard error of a revolution's mean: 3 N·m/√600 · Ω ≈ 12.8 W; 4 of them
+        assert np.all(np.abs(revs - expect) < 4 * 3.0 / np.sqrt(600) * w)
+    assert blk.opts.air == pytest.approx(60.0)  # a tenth of the reference
+
+
 @pytest.fixture(scope="module")
 def v8_plan() -> object:
     from millsense.validation.cases.control_adaptive import step_plan

@@ -78,7 +78,8 @@ class AdaptiveFeedOptions:
     min_override_pct, max_override_pct : override limits (seed 000: 20–150 %).
     dead_band : relative band around the reference without a move (seed 000: ±5 %).
     air_threshold : peak at or below which the tool is in air, quantity's unit; None: 80 N
-        for force (seed 002), 80/325 of the reference otherwise (decision 1612).
+        for force (seed 002), 80/325 of the reference for a torque or power peak (decision
+        1612), a tenth of it for their per-revolution mean (decision 1624).
     reentry_revs : revolutions at V_max/3 after an air cut (seed 002: 3).
     lam, n2 : GPC move weight and output horizon (seed 000: 0.25, 4).
     rls_delta : RLS dead zone on the normalised peak (0.005 = 0.5 % of the reference).
@@ -147,7 +148,11 @@ class AdaptiveFeedOptions:
     def air(self) -> float:
         if self.air_threshold is not None:
             return float(self.air_threshold)
-        return 80.0 if self.quantity == "force" else 80.0 / 325.0 * self.reference
+        if self.quantity == "force":
+            return 80.0
+        # a per-revolution mean of a signed estimate is near 0 in air: a tenth of the reference
+        # separates air from light cuts; a peak needs seed 002's 80/325 (decision 1624)
+        return (0.1 if self.per_revolution == "mean" else 80.0 / 325.0) * self.reference
 
 
 @dataclass
@@ -338,9 +343,14 @@ class AdaptiveFeedBlock(Block):
             fy = np.asarray(d[self.force_channels[1]], dtype=np.float64)
             return np.asarray(np.hypot(fx, fy))
         tq = np.asarray(d[self.torque_channel], dtype=np.float64)
+        speed = np.asarray(d[self.speed_channel], dtype=np.float64)
+        if self._use_mean:
+            # signed, so that the noise of an estimate averages out over the revolution; the
+            # revolution's |mean| is taken in _scan (decision 1624)
+            return tq if self.opts.quantity == "torque" else tq * np.abs(speed)
         if self.opts.quantity == "torque":
             return np.abs(tq)
-        return np.abs(tq * np.asarray(d[self.speed_channel], dtype=np.float64))
+        return np.abs(tq * speed)
 
     # ------------------------------------------------------------------ safety
     def _check_faults(
@@ -658,7 +668,7 @@ def _scan(
         if (new >> 32) > (angle >> 32):
             ends[n_end] = k
             if use_mean:
-                peaks[n_end] = run_sum / run_n if run_n > 0 else -np.inf
+                peaks[n_end] = abs(run_sum / run_n) if run_n > 0 else -np.inf
             else:
                 peaks[n_end] = run_max
             bads[n_end] = run_bad

@@ -116,7 +116,8 @@ DET_THR1 = 11  # learnt thresholds (0 until learnt)
 DET_THR2 = 12
 DET_MEAN = 13  # sum of x over the learning periods
 DET_REF = 14  # learnt constant reference torque (mean over the learning periods)
-DET_BASE = 15  # ring buffer of the last N period values follows
+DET_GAP = 15  # 1: the previous period was not judged (start, or a transient of the plan)
+DET_BASE = 16  # ring buffer of the last N period values follows
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
 MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the first revolutions)
@@ -131,6 +132,7 @@ def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     st[DET_P1] = p0
     st[DET_P2] = p0
     st[DET_LEARN] = -1.0
+    st[DET_GAP] = 1.0
     return st
 
 
@@ -245,10 +247,16 @@ def detect_periods(
                 v_res = abs(e1) > limit
                 v_tq = abs(xm - ex) > limit
                 if check_deviation:
-                    # trigger on the residual, confirm on the torque itself (Aslan §6.3)
-                    v = (v_res and v_tq) if run == 0 else v_tq
+                    # trigger on the residual, confirm on the torque itself (Aslan §6.3); after
+                    # periods not judged the change may lie in the gap, where the residual saw
+                    # it unjudged: the torque alone starts a run (decision 1625)
+                    gap = state[DET_GAP] != 0.0 and mode == MODE_VIRTUAL
+                    v = (v_res and v_tq) if run == 0 and not gap else v_tq
                 else:
                     v = v_res
+                state[DET_GAP] = 0.0
+            elif seen >= 2:
+                state[DET_GAP] = 1.0
         expected[m] = ex if mode != MODE_DUAL else 0.0
         viol[m] = v
         run = run + 1.0 if v else 0.0

@@ -33,6 +33,7 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics
+from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
@@ -98,6 +99,10 @@ class PlanSync(Block):
         or None (no calibration: s = 1).
     speed_channel : spindle speed (rad/s), to count revolutions.
     override_channel : effective feed override (fraction), or None (1).
+    at_speed_channel : 1/0 "spindle settled at speed" (:class:`~millsense.online.gates.
+        SpindleAtSpeed`); given with ``torque_channel``, the air-cut reference of the torque is
+        learned where the plan says air (:class:`~millsense.online.gates.AirReference`) and
+        ``{name}/cutting_torque`` = torque − reference is what the calibration uses.
     decimate : samples between matches (30: the CNC's 333 Hz at 10 kHz).
     calibration_revs, settle_revs : revolutions averaged, and skipped after the entry.
     transient_revs : revolutions of travel either side of a row over which the plan's torque
@@ -112,6 +117,7 @@ class PlanSync(Block):
         torque_channel: str | None = "est/spindle/spindle/load",
         speed_channel: str = "spindle/speed",
         override_channel: str | None = "cnc/feed_override",
+        at_speed_channel: str | None = None,
         decimate: int = 30,
         calibration_revs: float = 10.0,
         settle_revs: float = 1.0,
@@ -136,6 +142,11 @@ class PlanSync(Block):
             ins.append(torque_channel)
         if override_channel is not None:
             ins.append(override_channel)
+        self.air: AirReference | None = None
+        if at_speed_channel is not None and torque_channel is not None:
+            ins.append(at_speed_channel)
+            self.air = AirReference(torque_channel, f"{name}/in_cut", at_speed_channel,
+                                    out=f"{name}/cutting_torque", name=f"{name}/air")  # fmt: skip
         self.inputs = tuple(ins)
         tq = np.asarray(plan["torque_avg_nm"], dtype=np.float64)
         sh = np.asarray(plan["torque_avg_shear_nm"], dtype=np.float64)
@@ -161,7 +172,7 @@ class PlanSync(Block):
                 f"{n}/judged_torque", "N*m", "expected torque where the plan is steady, else 0"
             ),
             ChannelInfo(f"{n}/ktc_scale", "1", "K_tc calibration ratio (1 until calibrated)"),
-        ]
+        ] + (self.air.output_channels() if self.air is not None else [])
 
     def reset(self, sample_rate_hz: float) -> None:
         self.fs = float(sample_rate_hz)
@@ -170,6 +181,8 @@ class PlanSync(Block):
         self.calibrated = False
         self._revs_in_cut = 0.0
         self._acc = np.zeros(4)  # Σ measured, Σ edge, Σ u·shear, samples
+        if self.air is not None:
+            self.air.reset(sample_rate_hz)
 
     @property
     def metres_per_row(self) -> float:
@@ -210,13 +223,31 @@ class PlanSync(Block):
         shear = np.where(rows >= 0, self._shear[safe], 0.0) * u
         scale = np.full(n, self.scale)
         events: list[Event] = []
+        extra: dict[str, np.ndarray] = {}
+        torque = None
+        if self.air is not None:
+            assert self.torque_channel is not None
+            air_in = {c: d[c] for c in self.air.inputs if c in d}
+            air_in[f"{self.name}/in_cut"] = in_cut.astype(np.float64)
+            extra = self.air.process(Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s,
+                                           air_in)).channels  # fmt: skip
+            torque = extra[f"{self.name}/cutting_torque"]
+        k_cal = 0
         if not self.calibrated and self.torque_channel is not None and n:
-            k_done = self._calibrate(chunk, in_cut, edge, shear, events)
+            k_done = self._calibrate(chunk, in_cut, edge, shear, events, torque)
             if k_done >= 0:
                 scale[k_done:] = self.scale
+            k_cal = k_done if k_done >= 0 else n
         nc = np.where(rows >= 0, self._nc[safe], -1)
         expected = edge + scale * shear
         steady = (rows >= 0) & self._steady[safe]
+        if self.torque_channel is not None:
+            # the virtual threshold judges the tool once the plan is calibrated to it (a plan
+            # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622)
+            ready = np.zeros(n, dtype=bool)
+            if self.calibrated:
+                ready[max(k_cal, 0):] = True
+            steady &= ready
         return BlockOutput(
             {
                 f"{self.name}/row": rows.astype(np.float64),
@@ -225,6 +256,7 @@ class PlanSync(Block):
                 f"{self.name}/expected_torque": expected,
                 f"{self.name}/judged_torque": np.where(steady, expected, 0.0),
                 f"{self.name}/ktc_scale": scale,
+                **extra,
             },
             events,
         )
@@ -236,6 +268,7 @@ class PlanSync(Block):
         edge: np.ndarray,
         shear: np.ndarray,
         events: list[Event],
+        torque: np.ndarray | None = None,
     ) -> int:
         """Accumulate the window; the sample where the calibration completes (−1: not yet)."""
         assert self.torque_channel is not None

@@ -46,6 +46,8 @@ from millsense.streaming.sources import Source
 
 #: The compensated spindle torque of the machine file's observer (chatter, breakage, K_tc).
 TORQUE_CHANNEL = "est/spindle/spindle/load"
+#: The same less its air-cut reference (:class:`~millsense.online.gates.AirReference`).
+CUTTING_TORQUE = "plan/cutting_torque"
 FORCE_SOURCES = ("estimate", "dynamometer")
 #: Expected torques below this fraction of the plan's largest are not judged for breakage: the
 #: tooth-period average of an observer's estimate is too noisy there (decision 1622).
@@ -166,7 +168,7 @@ def session_blocks(
     blocks.append(SpindleAtSpeed())
     axes_pos = [f"{a}/position_cmd" for a in machine.axes]
     blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
-    sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL)
+    sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL, at_speed_channel="spindle/at_speed")
     blocks.append(sync)
     flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
     children: list[Block] = []
@@ -177,7 +179,7 @@ def session_blocks(
             BreakageBlock(
                 flutes,
                 "virtual",
-                signal_channels=(TORQUE_CHANNEL,),
+                signal_channels=(CUTTING_TORQUE,),
                 expected_channel="plan/judged_torque",
                 min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),
                 name="breakage",
@@ -193,7 +195,7 @@ def session_blocks(
                 AdaptiveFeedOptions(reference=ref, quantity=o.quantity, look_ahead=o.look_ahead),
                 plan,
                 force_channels=force_ch,
-                torque_channel=TORQUE_CHANNEL,
+                torque_channel=CUTTING_TORQUE,
                 tcp_channels=("tcp/x", "tcp/y", "tcp/z"),
                 enable_channel="spindle/at_speed",
             )
