@@ -17,10 +17,15 @@ def demo(
     out: Path = typer.Option(Path("demo-output"), "-o", "--output", help="Output folder."),
     seed: int = typer.Option(0, help="Seed of the simulated noise."),
 ) -> None:
-    """Simulate a slot cut on the X drive, estimate the force from the current command, report.
+    """The two halves of millsense on the virtual machine: force from a drive's current, then
+    the integrated on-line system on the demo part, with and without control.
 
-    Writes OUTPUT/demo.h5 (recording with truth/ channels and the estimate), OUT/demo_force.png
-    (estimate against truth) and OUT/summary.json (errors computed from the recording).
+    Part 1 writes OUTPUT/demo.h5 (a slot on the X drive with truth/ channels and the force
+    estimated from the current command), demo_force.png and summary.json. Part 2 plans a short
+    program on the demo stock (a cavity, an entry, a depth step, an exit; a tooth breaks late)
+    and runs it in closed loop with the estimators, the plan, the monitors and the controllers,
+    and once more without sending their commands: online.h5, online.events.parquet,
+    online_open.events.parquet, online_demo.nc, online_demo.png and online_summary.json.
     """
     from millsense.core.errors import ConfigError
     from millsense.demo import run_demo
@@ -50,3 +55,28 @@ def demo(
         f"(peak {summary.peak_truth_n:.0f} N)."
     )
     console.print(f"wrote {summary.recording}, {summary.plot}, {out / 'summary.json'}")
+    _online(out, console)
+
+
+def _online(out: Path, console: Console) -> None:
+    """Part 2: the on-line system with and without control (:mod:`millsense.demo_online`)."""
+    from millsense.demo_online import run_online_demo
+
+    with progress_bar("on-line system: controlled, then open", 1) as update:
+        summary = run_online_demo(out, on_progress=update)
+    table = Table(title="On-line system on the demo part (a tooth breaks at "
+                  f"{summary['break_s']:g} s)")  # fmt: skip
+    for col in ("run", "signal [s]", "mean power in cut [W]", "peak |F| [N]",
+                "breakage alarm [s]", "feed hold [s]", "cut with broken tool [s]"):  # fmt: skip
+        table.add_column(col, justify="right")
+    for key, r in summary["runs"].items():
+        hold = "-" if key == "open" else _s(r["feed_hold_s"])
+        table.add_row(key, f"{r['seconds']:.1f}", f"{r['mean_power_w']:.0f}",
+                      f"{r['peak_force_n']:.0f}", _s(r["breakage_alarm_s"]), hold,
+                      f"{r['cut_with_broken_tool_s']:.2f}")  # fmt: skip
+    console.print(table)
+    console.print(f"wrote {summary['recording']}, {summary['plot']}, {out / 'online_summary.json'}")
+
+
+def _s(v: float | None) -> str:
+    return "-" if v is None else f"{v:.2f}"

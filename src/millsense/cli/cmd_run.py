@@ -14,6 +14,7 @@ from typing import Any
 import typer
 
 from millsense.cli.main import app
+from millsense.core.errors import ConfigError
 
 #: Truth channels a replay of a simulated run keeps for the plot and the comparison.
 PLOT_TRUTH = ("truth/spindle/torque", "truth/tool/force_x", "truth/tool/force_y")
@@ -149,24 +150,31 @@ def replay(
         typer.echo(line)
 
 
-def _belief(machine_file: Path | None, sim_machine: Any) -> Any:
-    """The estimators' machine file, cut to the simulator's axes and kinematics."""
-    from millsense.core.config import MachineConfig
-    from millsense.core.errors import ConfigError
-    from millsense.core.presets import load_preset
-
-    if machine_file is None:
-        raise ConfigError(
-            "run: give --machine-file: the estimators know the machine only through a file "
-            "made by commissioning (millsense commission --machine M --axis x,y,z --identify "
-            "-o DIR writes DIR/machine.toml)"
-        )
-    cfg = load_preset(MachineConfig, str(machine_file))
+def _belief(machine_file: Path | None, sim_machine: Any) -> tuple[Any, str]:
+    """The estimators' machine file (``--machine-file``, else the commissioned file shipped for
+    the machine), cut to the simulator's axes and kinematics, and its name."""
+    cfg, where = _machine_file(machine_file, sim_machine.name)
     missing = [a for a in sim_machine.axes if a not in cfg.axes]
     if missing:
-        raise ConfigError(f"{machine_file}: no axes {', '.join(missing)} of {sim_machine.name}")
+        raise ConfigError(f"{where}: no axes {', '.join(missing)} of {sim_machine.name}")
     axes = {a: cfg.axes[a] for a in sim_machine.axes}
-    return cfg.model_copy(update={"kinematics": sim_machine.kinematics, "axes": axes})
+    return cfg.model_copy(update={"kinematics": sim_machine.kinematics, "axes": axes}), where
+
+
+def _machine_file(machine_file: Path | None, name: str) -> tuple[Any, str]:
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import commissioned_machine, load_preset
+
+    if machine_file is not None:
+        return load_preset(MachineConfig, str(machine_file)), str(machine_file)
+    shipped = commissioned_machine(name)
+    if shipped is None:
+        raise ConfigError(
+            f"give --machine-file: no commissioned file ships for '{name}', and the estimators "
+            "know the machine only through one made by commissioning (millsense commission "
+            f"--machine {name} --axis x,y,z --identify -o DIR writes DIR/machine.toml)"
+        )
+    return shipped
 
 
 def run_online(
@@ -227,7 +235,7 @@ def run_online(
         plan_name = str(plan)
     sim_cfg = simulator_machine(machine)
     check_plan(vp, findings, machine=sim_cfg)
-    belief = _belief(machine_file, sim_cfg)
+    belief, belief_name = _belief(machine_file, sim_cfg)
     events: list[ProcessEvent] = []
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
@@ -235,12 +243,12 @@ def run_online(
     job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
     sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
                            duration_s=duration_s)  # fmt: skip
-    built = session_blocks(vp, belief, sim.sample_rate_hz, options, where=str(machine_file),
+    built = session_blocks(vp, belief, sim.sample_rate_hz, options, where=belief_name,
                            channels=sim.channel_names)  # fmt: skip
     source: Any = FaultyLink(sim, link_faults) if link_faults else sim
     ev_path = events_out or default_event_log_path(out)
     meta.update(dict(sim.metadata))
-    meta.update({"source": "millsense run", "machine_file": str(machine_file),
+    meta.update({"source": "millsense run", "machine_file": belief_name,
                  "faults": [f.__dict__ for f in link_faults]})  # fmt: skip
     expect = sim.n_total or int((float(vp["t_s"][-1]) + sim.start_s + 0.5) * sim.sample_rate_hz)
     res = _with_progress(
@@ -270,9 +278,7 @@ def replay_online(
     chunk: int,
 ) -> dict[str, Any]:
     """The on-line blocks on a recording (the body of ``replay``)."""
-    from millsense.core.config import MachineConfig
     from millsense.core.errors import ConfigError
-    from millsense.core.presets import load_preset
     from millsense.io.recording_reader import open_recording
     from millsense.online.guard import FAULT_CHANNEL
     from millsense.online.session import run_session, session_blocks
@@ -281,16 +287,14 @@ def replay_online(
 
     if chunk < 1:
         raise ConfigError(f"--chunk: must be ≥ 1, got {chunk}")
-    if machine_file is None:
-        raise ConfigError("replay: give --machine-file (the estimators' commissioned file)")
     vp = VirtualPlan.read(plan)
-    cfg = load_preset(MachineConfig, str(machine_file))
     rec = open_recording(recording)
     try:
+        cfg, where = _machine_file(machine_file, str(rec.metadata.get("machine", "")))
         kin = str(rec.metadata.get("kinematics", cfg.kinematics))
         axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
         cfg = cfg.model_copy(update={"kinematics": kin, "axes": {a: cfg.axes[a] for a in axes}})
-        built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=str(machine_file),
+        built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=where,
                                channels=rec.channel_names)  # fmt: skip
         # only what the blocks read (and the truth the plot shows): a recording of an earlier
         # run also holds that run's block outputs, which these blocks recompute

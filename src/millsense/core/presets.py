@@ -57,3 +57,20 @@ def load_preset(model: type[M], name_or_path: str | Path) -> M:
     """Load an embedded preset by name, or a TOML file by path."""
     data, source = preset_data(model, name_or_path)
     return parse_config(model, data, source)
+
+
+def commissioned_machine(name: str) -> tuple[MachineConfig, str] | None:
+    """The machine file shipped as commissioned for the preset ``name``, and where it is from.
+
+    ``millsense/data/commissioned/<name>.toml`` is what ``millsense commission --machine NAME
+    --axis x,y,z,a,c --identify`` wrote on the virtual machine (the nameplate plus friction,
+    inertia, noise, disturbance paths and spindle identified on the simulator's truth): the
+    machine as a user would have commissioned it, so that ``millsense run`` and ``demo`` work
+    out of the box. None when no such file is shipped.
+    """
+    entry = resources.files("millsense.data").joinpath("commissioned", f"{name}.toml")
+    if not entry.is_file():
+        return None
+    with resources.as_file(entry) as path:
+        where = f"commissioned {name} (millsense/data/commissioned/{name}.toml)"
+        return parse_config(MachineConfig, read_toml(path), where), where

@@ -99,3 +99,48 @@ def _line(
 ) -> None:
     if v is not None:
         ax.plot(t[: len(v)], v[: len(t)] * scale, lw=0.8, alpha=alpha, label=label)
+
+
+def plot_comparison(
+    data: dict[str, dict[str, np.ndarray]],
+    events: dict[str, Sequence[Event]],
+    path: str | Path,
+    title: str,
+    sample_rate_hz: float = 10000.0,
+) -> None:
+    """Runs side by side (e.g. ``controlled`` and ``open``): the feed override in effect, the
+    regulated spindle power per revolution against its reference, and the true resultant force
+    (per-revolution maximum), with each run's breakage alarm and feed hold marked."""
+    fig, ax = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
+    colours = {"controlled": "tab:blue", "open": "tab:grey"}
+    for key, d in data.items():
+        col = colours.get(key, None)
+        n = len(d["cnc/feed_override"])
+        t = np.arange(n) / sample_rate_hz
+        stride = max(1, n // MAX_POINTS)
+        ax[0].plot(t[::stride], 100 * d["cnc/feed_override"][::stride], color=col, lw=1.0,
+                   label=key)  # fmt: skip
+        ax[1].plot(t[::stride], d["adaptive_feed/peak"][::stride], color=col, lw=1.0, label=key)
+        f = np.hypot(d["truth/tool/force_x"], d["truth/tool/force_y"])
+        rev = int(sample_rate_hz * 0.06)  # one revolution at 1000 rev/min
+        m = (n // rev) * rev
+        fmax = f[:m].reshape(-1, rev).max(axis=1)
+        ax[2].plot(t[:m:rev], fmax, color=col, lw=1.0, label=key)
+        for e in events.get(key, ()):
+            if e.name in ("breakage", "feed_hold"):
+                style = "--" if e.name == "breakage" else "-"
+                for a in ax:
+                    a.axvline(e.time_s, color=col, ls=style, lw=0.9, alpha=0.8)
+    ref = next(iter(data.values()))["adaptive_feed/reference"]
+    if len(ref):
+        ax[1].axhline(float(ref[-1]), color="tab:orange", lw=1.0, label="reference")
+    ax[0].set_ylabel("feed override in effect [%]")
+    ax[1].set_ylabel("spindle power per rev. [W]")
+    ax[2].set_ylabel("true |F_xy| per rev. [N]")
+    ax[2].set_xlabel("time [s]  (dashed: breakage alarm, solid: feed hold)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(loc="upper right", fontsize=8)
+    ax[0].set_title(title)
+    fig.tight_layout()
+    _save(fig, path)

@@ -1,0 +1,242 @@
+"""The integrated system on the demo part: the second half of ``millsense demo`` (issue 16
+item 6).
+
+A short program on the demo stock (Al7050, 100 × 80 × 30 mm; Ø20 mm 2-flute, 1000 rev/min,
+400 mm/min, the conditions of seed 000 V7–V9): a channel along Y (the cavity), then a slot
+along X with an entry, a step-down from 1.5 to 3.5 mm, the crossing of the cavity and the exit
+of the part. Flute 0 of the virtual tool breaks late, while the tool crosses the cavity. The
+virtual machine (the simulator's truth of the quaser-ux600) runs the plan twice with the same
+on-line session (:mod:`millsense.online.session`: the spindle observer of the commissioned
+machine file, plan sync and K_tc calibration, chatter and breakage monitors, adaptive feed on
+the spindle power with the virtual look-ahead, the supervisor):
+
+- **controlled**: the supervisor's commands reach the machine;
+- **open**: the same monitors and controllers run, but nothing is sent (the CNC as
+  programmed), so the breakage alarm is raised and the program cuts on with the broken tool.
+
+Outputs in the folder: ``online.h5`` (the controlled run: CNC channels, truth and every block
+output), ``online.events.parquet``, ``online_open.events.parquet``, ``online_demo.nc`` (the
+program), ``online_demo.png`` (feed, spindle power and true force with and without control,
+events marked) and ``online_summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from millsense.streaming.block import Event
+
+PROGRAM = """\
+%
+O2051 (MILLSENSE ON-LINE DEMO - AL7050 BLOCK 100 X 80 X 30, TOP AT Z0)
+(T1 D=20. 2FL 30DEG HELIX, 1000 REV/MIN, 400 MM/MIN)
+N10 G90 G94 G17 G21 G54
+N15 T1 M6
+N20 S1000 M3
+(CAVITY - A CHANNEL ALONG Y AT X60, 6 MM DEEP)
+N25 G0 X60. Y-12.
+N30 G0 Z5.
+N35 G1 Z-6. F400.
+N40 Y45.
+N45 G0 Z5.
+(SLOT - ALONG X AT Y25: ENTRY, STEP DOWN 1.5 -> 3.5 MM AT X25, CROSSES THE CAVITY, EXITS)
+N50 G0 X-12. Y25.
+N55 G1 Z-1.5 F400.
+N60 X25.
+N65 X25.4 Z-3.5
+N70 X112.
+N75 G0 Z5.
+N80 M5
+N85 M30
+%
+"""
+MACHINE = "quaser-ux600"
+#: Flute 0 breaks at this time of the controlled run, s (the tool in the cavity).
+BREAK_S = 20.0
+#: Source channels kept in the recording (the rest of the CNC's and the truth are not needed).
+KEEP = (
+    "spindle/current_cmd",
+    "spindle/speed",
+    "spindle/speed_cmd",
+    "cnc/feed",
+    "cnc/feed_override",
+    "cnc/spindle_override",
+    "cnc/nc_line",
+    "x/position_cmd",
+    "y/position_cmd",
+    "z/position_cmd",
+    "truth/spindle/torque",
+    "truth/tool/force_x",
+    "truth/tool/force_y",
+    "truth/process/broken",
+)
+
+
+@dataclass
+class RunFigures:
+    """What one run did (the summary's per-run figures)."""
+
+    seconds: float
+    program_end_s: float | None
+    peak_force_n: float
+    mean_power_w: float
+    breakage_alarm_s: float | None
+    feed_hold_s: float | None
+    cut_with_broken_tool_s: float
+    events: dict[str, int]
+
+
+def _plan(out: Path) -> Any:
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.core.units import MM
+    from millsense.plan.gcode import interpret
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    (out / "online_demo.nc").write_text(PROGRAM)
+    tool = load_preset(ToolConfig, "aslan-d20-2flute")
+    mat = load_preset(MaterialConfig, "al7050")
+    stock = ZMapStock.from_box([0.0, 0.0, -30 * MM], [100 * MM, 80 * MM, 0.0], 0.2 * MM)
+    return plan_program(
+        interpret(PROGRAM, source="online_demo.nc"),
+        stock,
+        EndMill.from_config(tool),
+        CuttingCoefficients.from_config(mat),
+        metadata={"tool_name": tool.name, "material_name": mat.name},
+    )
+
+
+class _Open:
+    """A source that records the commands instead of applying them (the CNC as programmed)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    def command(self, event: Event) -> None:
+        pass
+
+
+def _run(
+    plan: Any,
+    controlled: bool,
+    out: Path,
+    events_out: Path,
+    on_progress: Callable[[int], None] | None,
+) -> Any:
+    """One closed-loop run of the session on the virtual machine; the session's result."""
+    from millsense.cli.cmd_simulate import plan_job
+    from millsense.core.presets import commissioned_machine
+    from millsense.online.session import SessionOptions, run_session, session_blocks
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.process_coupling import ToothBreak
+    from millsense.streaming.sources import Source
+
+    sim_cfg = simulator_machine(MACHINE)
+    shipped = commissioned_machine(MACHINE)
+    assert shipped is not None
+    belief, where = shipped
+    job, proc, meta, _ = plan_job(plan, sim_cfg, "online_demo.nc", events=[ToothBreak(BREAK_S, 0)])
+    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
+    built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
+                           channels=sim.channel_names)  # fmt: skip
+    source: Source = sim if controlled else _Open(sim)  # type: ignore[assignment]
+    meta.update(dict(sim.metadata))
+    meta.update({"source": "millsense demo (on-line system)", "machine_file": where,
+                 "controlled": controlled})  # fmt: skip
+    res = run_session(source, built.blocks, out=out, events_out=events_out, metadata=meta,
+                      keep=KEEP, on_progress=on_progress,
+                      stop_after_hold_s=0.5 if controlled else None)  # fmt: skip
+    return res
+
+
+def _figures(res: Any, data: dict[str, np.ndarray]) -> RunFigures:
+    from collections import Counter
+
+    names = Counter(e.name for e in res.events)
+    brk = next((e.time_s for e in res.events if e.name == "breakage"), None)
+    hold = next((e.time_s for e in res.events if e.name == "feed_hold"), None)
+    fs = res.sample_rate_hz
+    broken = data["truth/process/broken"] > 0.5
+    fxy = np.hypot(data["truth/tool/force_x"], data["truth/tool/force_y"])
+    cutting = fxy > 50.0
+    power = data["plan/cutting_torque"] * data["spindle/speed"]
+    end = None if hold is not None else res.seconds
+    return RunFigures(
+        seconds=res.seconds,
+        program_end_s=end,
+        peak_force_n=float(fxy.max(initial=0.0)),
+        mean_power_w=float(np.mean(power[cutting])) if cutting.any() else 0.0,
+        breakage_alarm_s=brk,
+        feed_hold_s=hold,
+        cut_with_broken_tool_s=float(np.count_nonzero(broken & cutting) / fs),
+        events=dict(names),
+    )
+
+
+def run_online_demo(
+    out_dir: str | Path, on_progress: Callable[[float], None] | None = None
+) -> dict[str, Any]:
+    """Plan, run controlled and open, compare; writes the files named in the module notes."""
+    import tempfile
+
+    from millsense.io.recording_reader import open_recording
+    from millsense.io.safe_output import write_text
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plan = _plan(out)
+    expect = int((float(plan["t_s"][-1]) + 1.0) * 10000)
+
+    def progress(offset: float) -> Callable[[int], None] | None:
+        if on_progress is None:
+            return None
+        return lambda n: on_progress(min(1.0, offset + 0.5 * n / expect))
+
+    runs: dict[str, tuple[Any, dict[str, np.ndarray]]] = {}
+    with tempfile.TemporaryDirectory(dir=out) as tmp:
+        for key, controlled, rec_path, ev_path, offset in (
+            ("controlled", True, out / "online.h5", out / "online.events.parquet", 0.0),
+            ("open", False, Path(tmp) / "open.h5", out / "online_open.events.parquet", 0.5),
+        ):
+            res = _run(plan, controlled, rec_path, ev_path, progress(offset))
+            rec = open_recording(rec_path)
+            try:
+                cols = (*KEEP, "plan/cutting_torque", "supervisor/feed_override",
+                        "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
+                data = {c: np.asarray(rec.channel(c)) for c in cols}
+            finally:
+                close = getattr(rec, "close", None)
+                if callable(close):
+                    close()
+            runs[key] = (res, data)
+    figs = {k: _figures(r, d) for k, (r, d) in runs.items()}
+    from millsense.report.online_plots import plot_comparison
+
+    plot_comparison(
+        {k: d for k, (_, d) in runs.items()},
+        {k: r.events for k, (r, _) in runs.items()},
+        out / "online_demo.png",
+        title="On-line system on the demo part: with and without control",
+    )
+    summary = {
+        "program": str(out / "online_demo.nc"),
+        "break_s": BREAK_S,
+        "runs": {k: f.__dict__ for k, f in figs.items()},
+        "recording": str(out / "online.h5"),
+        "plot": str(out / "online_demo.png"),
+    }
+    write_text(out / "online_summary.json", json.dumps(summary, indent=2) + "\n")
+    return summary
