@@ -46,6 +46,11 @@ NOVELTY_FACTOR = 5.0
 NOVELTY_HOLD = 2.0
 #: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
 CUTTING_GATE = 3.0
+#: Load gate: the window's mean away from the mean learned out of the cut, in air-floor units
+#: (the median raw amplitude learned out of the cut; decision 1531).
+LOAD_GATE = 10.0
+#: Noise allowance of the steady-mean gate, in air-floor units (decision 1531).
+STEADY_NOISE = 5.0
 #: Largest relative spread of the spindle speed over a window for a decision.
 STEADY_SPEED = 0.02
 #: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
@@ -196,6 +201,8 @@ class ChatterMonitor(Block):
         self._band_slice = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
         self._background: np.ndarray | None = None
         self._air_floor: float | None = None
+        self._air_mean: float | None = None
+        self._air_f_rev = 0.0
         self._flag = 0.0
         self._freq = math.nan
         self._ratio = 0.0
@@ -250,7 +257,8 @@ class ChatterMonitor(Block):
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
         xr = self._window(self._stage.ring_x, n)
-        xr = xr - xr.mean()
+        level = float(xr.mean())
+        xr = xr - level
         raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
         f = self._f
         df = f[1]
@@ -266,15 +274,36 @@ class ChatterMonitor(Block):
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
-        cutting = tooth > CUTTING_GATE * floor and tooth > 0.0
+        # ... or when the load moved the window's mean away from the mean learned out of the
+        # cut at this speed (a torque or current carries the load as its mean; a cut whose
+        # teeth sum to a nearly constant torque, as a 5-flute slot, has almost no tooth line)
+        loaded = (
+            self._air_mean is not None
+            and self._air_floor is not None
+            and abs(f_rev - self._air_f_rev) <= STEADY_SPEED * self._air_f_rev
+            and abs(level - self._air_mean) > LOAD_GATE * self._air_floor
+        )
+        cutting = tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)
         if not cutting and tooth > 0.0:
             a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
             self._air_floor = (
                 med if self._air_floor is None else self._air_floor + a * (med - self._air_floor)
             )
+            if (
+                self._air_mean is None
+                or abs(f_rev - self._air_f_rev) > STEADY_SPEED * self._air_f_rev
+            ):
+                self._air_mean = level  # the air level at a new speed (friction changes)
+            else:
+                self._air_mean += a * (level - self._air_mean)
+            self._air_f_rev = f_rev
+        # the reference of the ratio: the tooth line, but no less than the smallest line the
+        # cutting gate resolves (a line lost in the noise, in a cut found by its load, must not
+        # turn a noise peak into chatter; decision 1531)
+        tooth_ref = max(tooth, CUTTING_GATE * floor) if cutting else tooth
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
-        if cutting and not self._steady_mean(xr, n, tooth):
+        if cutting and not self._steady_mean(xr, n, tooth, floor):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
@@ -299,7 +328,7 @@ class ChatterMonitor(Block):
                 self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
                 self._mask_f_rev = f_rev
             novel[self._harm_mask] = -1.0
-        return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+        return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect)
 
     def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
         """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
@@ -309,14 +338,18 @@ class ChatterMonitor(Block):
             return ring[a : a + n].copy()
         return np.concatenate([ring[a:], ring[: a + n - size]])
 
-    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float) -> bool:
+    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float, floor: float) -> bool:
         """The means of the window's older and newer halves differ by less than
-        :data:`STEADY_MEAN` × the tooth-passing line (decision 1504). A step of the mean (the
-        entry into or the exit from the cut, a large depth step) drives the comb filter into a
-        transient that is not chatter; such a window is not judged. Signals without a mean
-        (accelerometer, microphone) always pass."""
+        :data:`STEADY_MEAN` × the tooth-passing line or :data:`STEADY_NOISE` × the noise floor
+        ``floor`` (decisions 1504, 1531). A step of the mean (the entry into or the exit from
+        the cut, a large depth step) drives the comb filter into a transient that is not
+        chatter; such a window is not judged. The noise allowance keeps a noisy signal with a
+        weak tooth line (the halves' means of white noise differ by ≈ 1.4 × the median Hann
+        amplitude) from never being judged. Signals without a mean (accelerometer, microphone)
+        always pass."""
         h = n // 2
-        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= STEADY_MEAN * tooth
+        tol = max(STEADY_MEAN * tooth, STEADY_NOISE * floor)
+        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= tol
 
     def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
         """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,

@@ -51,7 +51,8 @@ class Spectra:
     f_hz : bin frequencies.
     raw, comb : amplitude spectra of the raw (mean removed) and comb-filtered window.
     band : bins searched for chatter.
-    tooth : amplitude of the raw tooth-passing line.
+    tooth : amplitude of the raw tooth-passing line, in the cut at least 3 × the noise floor
+        (the cutting gate's level, decision 1531).
     f_tooth_hz, f_rev_hz : tooth-passing and spindle frequencies over the last hop.
     cutting : the tooth-passing line stands out (the tool is in the material).
     novel : comb amplitude above 5 × its learned background (≤ 0: nothing new).
