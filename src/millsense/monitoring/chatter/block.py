@@ -29,6 +29,7 @@ import scipy.fft as sfft
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
+from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
 from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
@@ -259,18 +260,19 @@ class ChatterMonitor(Block):
         xr = self._window(self._stage.ring_x, n)
         level = float(xr.mean())
         xr = xr - level
-        raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
         f = self._f
         df = f[1]
         f_t = self.settings.n_flutes * f_rev
-        tooth = 0.0
+        k0 = k1 = 0
         if f_rev * 60.0 >= self.settings.min_speed_rpm:
             half = max(2.0 * df, 0.005 * f_t)
             k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = min(len(f), math.floor((f_t + half) / df) + 1)
-            tooth = float(raw[k0:k1].max()) if k1 > k0 else 0.0
+            k1 = max(k0, min(len(f), math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        med = float(np.median(raw[b0:b1])) if b1 > b0 else 0.0
+        raw = np.empty(len(f))
+        tooth, med = _kn.amplitude_line_median(
+            sfft.rfft(xr * self._taper), self._scale, k0, k1, b0, b1, raw
+        )
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
@@ -302,24 +304,26 @@ class ChatterMonitor(Block):
         # turn a noise peak into chatter; decision 1531)
         tooth_ref = max(tooth, CUTTING_GATE * floor) if cutting else tooth
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
-            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
+            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
+                           band_slice=(b0, b1))  # fmt: skip
         if cutting and not self._steady_mean(xr, n, tooth, floor):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
+        comb = np.empty(len(f))
         if self.method.taper == "rect":
-            comb = np.abs(sfft.rfft(xc)) * self._comb_scale
+            _kn.amplitude(sfft.rfft(xc), self._comb_scale, comb)
             if self.method.name == "chatter-sdft":  # Parseval needs the same taper
-                raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
+                raw_rect = np.empty(len(f))
+                _kn.amplitude(sfft.rfft(xr), 2.0 / n, raw_rect)
         else:
-            comb = np.abs(sfft.rfft(xc * self._comb_taper)) * self._comb_scale
+            _kn.amplitude(sfft.rfft(xc * self._comb_taper), self._comb_scale, comb)
         if self._background is None:
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
             self._background = np.zeros_like(comb) if cutting else comb.copy()
         # hysteresis: while chatter is flagged a component stays new above 2 × its background
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        novel = comb - factor * self._background
         if f_rev > 0:
             # chatter is never on a spindle harmonic (that is forced vibration): bins within
             # the comb's notch width or 2 bins of one are not searched
@@ -327,8 +331,10 @@ class ChatterMonitor(Block):
                 off = np.abs(f - f_rev * np.rint(f / f_rev))
                 self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
                 self._mask_f_rev = f_rev
-            novel[self._harm_mask] = -1.0
-        return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect)
+        novel = np.empty(len(f))
+        _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
+        return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
+                       band_slice=(b0, b1))  # fmt: skip
 
     def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
         """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
@@ -357,14 +363,10 @@ class ChatterMonitor(Block):
         assert self._background is not None
         hop = self.settings.hop_s
         if not cutting:
-            a: np.ndarray | float = min(1.0, hop / BACKGROUND_TAU_AIR_S)
+            a = a_new = min(1.0, hop / BACKGROUND_TAU_AIR_S)
         else:
-            a = np.where(
-                novel > 0.0,
-                min(1.0, hop / BACKGROUND_TAU_NOVEL_S),
-                min(1.0, hop / BACKGROUND_TAU_S),
-            )
-        self._background += a * (comb - self._background)
+            a, a_new = min(1.0, hop / BACKGROUND_TAU_S), min(1.0, hop / BACKGROUND_TAU_NOVEL_S)
+        _kn.learn(self._background, comb, novel, a, a_new)
 
     def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
         sp = self._spectra()
