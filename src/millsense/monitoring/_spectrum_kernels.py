@@ -178,3 +178,40 @@ def amplitudes(
     for j in range(model_abs.shape[0]):
         model_abs[j] = abs(alpha * a[j] + beta * b[j])
     return alpha, beta, _g(1.0, st, ex), _l(2.0, d, kb)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def grid_costs(
+    x: ComplexArray, a: ComplexArray, b: ComplexArray, edge: bool, out: FloatArray
+) -> None:  # pragma: no cover - compiled
+    """Projected misfit Σ|x − αA − βB|² of every grid row of the bases ``a``, ``b`` (rows ×
+    harmonics; ``b`` unused without the edge term), as :func:`..torque_spectrum._project`
+    does along the last axis; a singular row gives +inf."""
+    rows, m = a.shape
+    for j in range(rows):
+        aa = 0.0
+        ax = 0.0
+        bb = 0.0
+        ab = 0.0
+        bx = 0.0
+        for i in range(m):
+            aa += a[j, i].real ** 2 + a[j, i].imag ** 2
+            ax += (a[j, i].conjugate() * x[i]).real
+            if edge:
+                bb += b[j, i].real ** 2 + b[j, i].imag ** 2
+                ab += (a[j, i].conjugate() * b[j, i]).real
+                bx += (b[j, i].conjugate() * x[i]).real
+        if edge:
+            det = aa * bb - ab * ab
+            alpha = (bb * ax - ab * bx) / det
+            beta = (aa * bx - ab * ax) / det
+        else:
+            alpha = ax / aa
+            beta = 0.0
+        c = 0.0
+        for i in range(m):
+            r = x[i] - alpha * a[j, i]
+            if edge:
+                r -= beta * b[j, i]
+            c += r.real**2 + r.imag**2
+        out[j] = c if math.isfinite(c) else math.inf

@@ -221,6 +221,7 @@ class ChatterMonitor(Block):
         self._mask_f_rev = -1.0
         self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
+        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk([self], chunk)
@@ -228,6 +229,9 @@ class ChatterMonitor(Block):
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held outputs for ``n`` samples: views of arrays that are never written again
         (new ones are made when a value changes or a longer chunk comes)."""
+        views = self._held_views
+        if views is not None and views[0] == n:  # nothing decided since: the same views
+            return dict(views[1])
         # NaN (no chatter frequency) compares unequal to itself: key it as −1
         key = (self._flag, -1.0 if math.isnan(self._freq) else self._freq, self._ratio)
         held = self._held
@@ -237,7 +241,9 @@ class ChatterMonitor(Block):
                       np.full(size, self._ratio))  # fmt: skip
             held = self._held = (key, arrays)
         a = held[1]
-        return {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
+        out = {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
+        self._held_views = (n, out)
+        return dict(out)
 
     # ------------------------------------------------------------------ decision
     def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
@@ -369,6 +375,7 @@ class ChatterMonitor(Block):
         _kn.learn(self._background, comb, novel, a, a_new)
 
     def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
+        self._held_views = None  # the held values may change
         sp = self._spectra()
         t = chunk.t0_s + k / chunk.sample_rate_hz
         if sp is None:
