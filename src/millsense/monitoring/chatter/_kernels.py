@@ -99,3 +99,33 @@ def variance_sums(
         harm += r2 - comb[i] * comb[i]
         tot += r2
     return chat, harm, tot
+
+
+@numba.njit(cache=True, nogil=True)
+def centred_window(
+    ring: FloatArray, pos: int, taper: FloatArray, out: FloatArray, out_tapered: FloatArray
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The last ``len(out)`` samples written to ``ring`` before ``pos`` (a power-of-two ring),
+    oldest first, less their mean, in ``out`` and times ``taper`` in ``out_tapered``; returns
+    the mean and the difference of the means of the newer and the older half."""
+    n = out.shape[0]
+    mask = ring.shape[0] - 1
+    start = pos - n
+    total = 0.0
+    for i in range(n):
+        v = ring[(start + i) & mask]
+        out[i] = v
+        total += v
+    level = total / n
+    h = n // 2
+    old = 0.0
+    new = 0.0
+    for i in range(n):
+        v = out[i] - level
+        out[i] = v
+        out_tapered[i] = v * taper[i]
+        if i < h:
+            old += v
+        else:
+            new += v
+    return level, new / (n - h) - old / h

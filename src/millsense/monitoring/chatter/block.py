@@ -263,9 +263,9 @@ class ChatterMonitor(Block):
         hi = max(r[1] for r in ranges)
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
-        xr = self._window(self._stage.ring_x, n)
-        level = float(xr.mean())
-        xr = xr - level
+        xr = np.empty(n)
+        xr_tapered = np.empty(n)
+        level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, xr_tapered)
         f = self._f
         df = f[1]
         f_t = self.settings.n_flutes * f_rev
@@ -277,7 +277,7 @@ class ChatterMonitor(Block):
         b0, b1 = self._band_slice
         raw = np.empty(len(f))
         tooth, med = _kn.amplitude_line_median(
-            sfft.rfft(xr * self._taper), self._scale, k0, k1, b0, b1, raw
+            sfft.rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw
         )
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
@@ -312,7 +312,7 @@ class ChatterMonitor(Block):
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
                            band_slice=(b0, b1))  # fmt: skip
-        if cutting and not self._steady_mean(xr, n, tooth, floor):
+        if cutting and not self._steady_mean(half_step, tooth, floor):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
@@ -350,7 +350,7 @@ class ChatterMonitor(Block):
             return ring[a : a + n].copy()
         return np.concatenate([ring[a:], ring[: a + n - size]])
 
-    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float, floor: float) -> bool:
+    def _steady_mean(self, half_step: float, tooth: float, floor: float) -> bool:
         """The means of the window's older and newer halves differ by less than
         :data:`STEADY_MEAN` × the tooth-passing line or :data:`STEADY_NOISE` × the noise floor
         ``floor`` (decisions 1504, 1531). A step of the mean (the entry into or the exit from
@@ -359,9 +359,8 @@ class ChatterMonitor(Block):
         weak tooth line (the halves' means of white noise differ by ≈ 1.4 × the median Hann
         amplitude) from never being judged. Signals without a mean (accelerometer, microphone)
         always pass."""
-        h = n // 2
         tol = max(STEADY_MEAN * tooth, STEADY_NOISE * floor)
-        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= tol
+        return abs(half_step) <= tol
 
     def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
         """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
