@@ -103,3 +103,133 @@ def test_monitor_bad_input_one_line_exit_2(
     assert code == 2
     assert needle in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "ev.parquet").exists()
+
+
+def _engagement_recording(path: Path) -> Path:
+    """2 s of the spindle torque of a Ø20 mm 2-flute 30° cut (the preset aslan-d20-2flute):
+    down milling, 5 mm radial, 2 mm axial, 0.2 mm/tooth, 1000 rev/min, σ 0.05 N·m noise."""
+    import math
+
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    n = int(2.0 * FS)
+    omega = 1000 * 2 * math.pi / 60
+    tool = EndMill(20e-3, 2, helix_rad=math.radians(30))
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
+    phi = 2 * math.pi * np.arange(600) / 600
+    eng = Engagement.radial(5e-3, 20e-3, "down")
+    rev = milling_forces(tool, co, eng, 0.2e-3, 2e-3, phi).torque_nm
+    tq = np.interp(np.mod(omega * np.arange(n) / FS, 2 * math.pi), phi, rev, period=2 * math.pi)
+    rec = Recording(FS, 0.0, {"program": "part.nc"})
+    rec.add_channel("spindle/torque_est", tq + 0.05 * np.random.default_rng(1).standard_normal(n),
+                    "N*m")  # fmt: skip
+    rec.add_channel("spindle/speed", np.full(n, omega), "rad/s")
+    write_recording(path, rec)
+    return path
+
+
+def test_monitor_engagement_from_the_tool_preset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    out = tmp_path / "ev.parquet"
+    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
+                                 "aslan-d20-2flute", "--feed-per-tooth", "0.2", "-o", str(out)],
+                                capsys)  # fmt: skip
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    # 33 revolutions in 2 s; the medians of the seed 004 estimates: the noise (σ 0.05 N·m on a
+    # ≈ 3 N·m torque) leaves d_a within ≈ 1 % (tests/test_monitoring_engagement.py)
+    words = line.replace(",", "").split()
+    assert int(words[1]) >= 30
+    assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, abs=0.05)
+    assert float(words[words.index("radial") + 2]) == pytest.approx(5.0, abs=0.1)
+    assert float(words[words.index("K_t") + 1]) == pytest.approx(758.0, rel=0.03)
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ([], "--tool"),
+        (["--tool", "aslan-d20-2flute"], "--feed-per-tooth"),
+        (["--tool", "aslan-d20-2flute", "--feed-per-tooth", "-1"], "--feed-per-tooth"),
+    ],
+)
+def test_monitor_engagement_names_what_is_missing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], needle: str
+) -> None:
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    out = tmp_path / "ev.parquet"
+    code, _, err = run_cli(["monitor", str(rec), "--methods", "engagement", "-o", str(out),
+                            *extra], capsys)  # fmt: skip
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+#: Contact recording: 10 kHz, spindle period 0.05 s, the X feed starting after 5 revolutions
+#: at 2 mm/s from 0.5 mm above the surface at X = 0 (contact 0.5 s into the cut motion).
+_C_PERIOD, _C_MOTION_S = 0.05, 0.8
+
+
+def _contact_recording(path: Path) -> tuple[Path, np.ndarray, np.ndarray, np.ndarray]:
+    import math
+
+    rng = np.random.default_rng(7)
+    m = int(_C_MOTION_S * FS)
+    t = np.arange(m) / FS
+    theta = 2 * math.pi * t / _C_PERIOD
+    ripple = 0.2 * np.sin(theta + 0.3) + 0.05 * np.sin(3 * theta + 1.1)  # repeatable
+    x = 0.5 - 2.0 * np.maximum(t - 5 * _C_PERIOD, 0.0)
+    air = ripple + 0.01 * rng.standard_normal(m)
+    cut = ripple + 10.0 * np.clip(-x, 0.0, None) ** 1.5 + 0.01 * rng.standard_normal(m)
+    rec = Recording(FS, 0.0, {"program": "probe.nc"})
+    rec.add_channel("spindle/torque_cmd", np.concatenate([air, cut]), "N*m")
+    rec.add_channel("x/position", np.concatenate([np.full(m, 0.5), x]), "mm")
+    rec.add_channel("spindle/speed", np.full(2 * m, 2 * math.pi / _C_PERIOD), "rad/s")
+    write_recording(path, rec)
+    return path, cut, air, x
+
+
+def test_monitor_contact_with_the_air_cut_window(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from millsense.monitoring.contact import detect_contact
+
+    rec, cut, air, x = _contact_recording(tmp_path / "probe.h5")
+    out = tmp_path / "ev.parquet"
+    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "contact", "--air-s",
+                                 f"0:{_C_MOTION_S}", "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    ev = [e for e in read_event_log(out) if e.name == "contact"]
+    assert len(ev) == 1
+    # the same contact as the batch detector on the cut motion alone, on the recording's clock
+    ref = detect_contact(cut, air, x, FS, _C_PERIOD)
+    assert ev[0].value == pytest.approx(ref.position, abs=1e-12)
+    assert ev[0].time_s == pytest.approx(_C_MOTION_S + ref.time_s, abs=1e-9)
+    assert ev[0].value == pytest.approx(0.0, abs=0.01)  # the surface, within 10 µm
+    assert "contact at" in stdout
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ([], "--air-s"),
+        (["--air-s", "0.5"], "--air-s"),
+        (["--air-s", "0:9"], "--air-s"),
+        (["--air-s", f"0:{_C_MOTION_S}", "--position", "y/scale"], "y/scale"),
+    ],
+)
+def test_monitor_contact_names_what_is_missing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], needle: str
+) -> None:
+    rec, *_ = _contact_recording(tmp_path / "probe.h5")
+    out = tmp_path / "ev.parquet"
+    code, _, err = run_cli(["monitor", str(rec), "--methods", "contact", "-o", str(out),
+                            *extra], capsys)  # fmt: skip
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

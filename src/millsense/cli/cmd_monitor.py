@@ -52,17 +52,34 @@ def monitor(
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: spectrogram with chatter marked."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
+    tool: str | None = typer.Option(
+        None, "--tool", help="Tool preset or .toml (engagement; default: the plan's tool)."
+    ),
+    feed_per_tooth: float | None = typer.Option(
+        None, "--feed-per-tooth", help="Feed per tooth [mm] (engagement; default: the plan's)."
+    ),
+    air_s: str | None = typer.Option(
+        None, "--air-s", help="Air-cut motion's time window A:B [s] (contact reference)."
+    ),
+    cut_s: float | None = typer.Option(
+        None, "--cut-s", help="Start of the cut motion [s] (contact; default: end of --air-s)."
+    ),
+    position: str | None = typer.Option(
+        None, "--position", help="Axis-position channel of the contact (default: x/scale...)."
+    ),
 ) -> None:
     """Detect chatter (and further registered monitors) in a recording; write the event log."""
     from millsense.io.safe_output import check_outputs
 
     check_outputs(
-        {"the recording": recording, "the plan": plan, "the machine file": machine},
+        {"the recording": recording, "the plan": plan, "the machine file": machine,
+         "the tool file": tool},
         {"-o": out, "--plot": plot},
-    )
+    )  # fmt: skip
     summary = run_monitor(
         recording=recording, out=out, plan=plan, machine=machine, methods=methods,
         channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
+        tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s, position=position,
     )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
@@ -131,6 +148,11 @@ def run_monitor(
     spindle_rpm: float | None = None,
     plot: Path | None = None,
     chunk: int = 1000,
+    tool: str | None = None,
+    feed_per_tooth: float | None = None,
+    air_s: str | None = None,
+    cut_s: float | None = None,
+    position: str | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
 
@@ -148,12 +170,48 @@ def run_monitor(
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     names = _methods(methods)
+    options = _monitor_options(feed_per_tooth, air_s, cut_s, position)
+    tool_cfg = None
+    if tool is not None:
+        from millsense.core.config import ToolConfig
+        from millsense.core.presets import load_preset
+
+        tool_cfg = load_preset(ToolConfig, tool)
     with contextlib.ExitStack() as stack:
         rec = open_recording(recording)
         if hasattr(rec, "close"):
             stack.callback(rec.close)
         return _run(rec, recording, out, plan, machine, names, channel, flutes, spindle_rpm,
-                    plot, chunk)  # fmt: skip
+                    plot, chunk, tool_cfg, options)  # fmt: skip
+
+
+def _monitor_options(
+    feed_per_tooth: float | None, air_s: str | None, cut_s: float | None, position: str | None
+) -> dict[str, Any]:
+    """The options of the engagement and contact monitors, checked (one-line errors)."""
+    from millsense.core.errors import ConfigError
+
+    opts: dict[str, Any] = {}
+    if feed_per_tooth is not None:
+        if not (feed_per_tooth > 0 and np.isfinite(feed_per_tooth)):
+            raise ConfigError(f"--feed-per-tooth: must be > 0 mm, got {feed_per_tooth}")
+        opts["engagement.feed_per_tooth_mm"] = float(feed_per_tooth)
+    if air_s is not None:
+        parts = air_s.split(":")
+        try:
+            a, b = (float(p) for p in parts)
+        except ValueError:
+            raise ConfigError(
+                f"--air-s: expected A:B in seconds (e.g. 0.5:1.5), got '{air_s}'"
+            ) from None
+        if not (np.isfinite(a) and np.isfinite(b) and b > a):
+            raise ConfigError(f"--air-s: need A < B, got '{air_s}'")
+        opts["contact.air_s"] = (a, b)
+    if cut_s is not None:
+        opts["contact.cut_s"] = float(cut_s)
+    if position is not None:
+        opts["contact.position_channel"] = position
+    return opts
 
 
 def _run(
@@ -168,6 +226,8 @@ def _run(
     spindle_rpm: float | None,
     plot: Path | None,
     chunk: int,
+    tool_cfg: Any = None,
+    options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     from millsense.core.errors import InputDataError
     from millsense.io.recording_reader import channel_window
@@ -231,10 +291,27 @@ def _run(
         channels[OBSERVER_CHANNEL] = "N*m"
         signal = OBSERVER_CHANNEL
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
+    if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
+        from millsense.core.config import ToolConfig, parse_config
+
+        t = vp.metadata["tool"]
+        tool_cfg = parse_config(
+            ToolConfig,
+            {k: t[k] for k in ("diameter_mm", "flutes", "helix_deg") if k in t},
+            f"{plan} (tool)",
+        )
+    if tool_cfg is not None and flutes is None:
+        n_flutes = int(tool_cfg.flutes)
+
+    def read(name: str, i0: int, i1: int) -> np.ndarray:
+        return np.asarray(channel_window(rec, name, i0, i1), dtype=np.float64)
+
     ctx = MonitorContext(
         channels=channels, sample_rate_hz=fs, signal=signal, speed_channel=speed_channel,
         speed_unit=speed_unit, speed_rpm=spindle_rpm, n_flutes=n_flutes,
         nc_line_channel=nc_channel, locate=locate, plan=vp, source=where,
+        options=dict(options or {}), tool=tool_cfg, read=read, t0_s=float(rec.t0_s),
+        n_samples=int(rec.n_samples),
     )  # fmt: skip
     # 'all': every registered monitor the recording can feed; those it cannot are named
     every = set(names) == set(MONITORS) and len(names) > 1
@@ -279,7 +356,13 @@ def _run(
     ]
     for b in blocks:
         alarms = [e for e in res.events if e.source == b.name and e.kind == EventKind.ALARM]
-        if alarms:
+        contacts = [e for e in res.events if e.source == b.name and e.name == "contact"]
+        if contacts:
+            e = contacts[0]
+            lines.append(f"  {b.name}: contact at {e.time_s:.5f} s, position {e.value:.6g}")
+        elif b.name == "engagement":
+            lines.append(_engagement_summary(b))
+        elif alarms:
             unit = {"chatter": " Hz"}
             f = ", ".join(
                 f"{e.time_s:.2f} s"
@@ -297,6 +380,25 @@ def _run(
         _plot(plot, data, fs, res.t0_s, str(sig_name), [b.name for b in blocks], res.events)
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
+
+
+def _engagement_summary(block: Any) -> str:
+    """One line: revolutions evaluated and the medians of the seed 004 estimates."""
+    est = [e for _, e in getattr(block, "estimates", []) if e is not None]
+    if not est:
+        return f"  {block.name}: no revolution evaluated (no cut, or the torque is too low)"
+
+    def med(v: list[float]) -> float:
+        return float(np.median(v))
+
+    return (
+        f"  {block.name}: {len(est)} revolutions: median axial depth "
+        f"{1e3 * med([e.axial_depth_m for e in est]):.3f} mm, radial depth "
+        f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
+        f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
+        f"{1e6 * med([e.runout_m for e in est]):.1f} µm, reliability "
+        f"{med([e.reliability for e in est]):.3f}"
+    )
 
 
 def _grouped(blocks: list[Any]) -> list[Any]:

@@ -8,9 +8,11 @@ for a linear filter). Over the revolution before the feed starts (t₀+4T ≤ t 
 and standard deviation κ of Δτ are taken; the first sample after it above η + 4κ is point A
 (decision 1526: the first that stays above for one moving-average length, so that a noise
 excursion of the smoothed difference — a few in a million samples at 4κ — is not a contact); the
-walk back from A to the last sample at or below η is point B; a least-squares line through
-Δτ on [B, A] crosses η at point C, the contact time t_C, and the axis position at t_C is the
-contact coordinate.
+walk back from A to the last sample at or below η + κ is point B (decision 1533: the thesis
+walks back to η, which the smoothed noise crosses repeatedly just before the rise, so B landed
+up to 6 µm of approach early); a least-squares line through Δτ from B to the end of the
+confirming run (A + one moving-average length) crosses η at point C, the contact time t_C, and
+the axis position at t_C is the contact coordinate.
 
 Rotational centre (Lee Sec. 3.3.3, digest §2.8 [S]): a geometric circle fit by Gauss–Newton
 (Gander, Golub & Strebel 1994) of ≥ 3 contact points: residual r_i = ‖p_i − c‖ − R, Jacobian
@@ -51,7 +53,7 @@ class Contact:
     time_s : contact time t_C since the spindle start t₀, s.
     position : axis position at t_C (unit of the position signal).
     eta, kappa : mean and standard deviation of Δτ over the reference revolution.
-    index_a, index_b : samples of points A (threshold crossing) and B (walk-back).
+    index_a, index_b : samples of points A (threshold crossing) and B (walk-back to η + κ).
     slope : slope of the regression line, torque unit per s.
     """
 
@@ -118,12 +120,16 @@ def detect_contact(
             f"({eta + k_sigma * kappa:.4g}) after the reference revolution: no contact"
         )
     a = i1 + int(above[0])
-    below = np.nonzero(d[i1 : a + 1] <= eta)[0]
+    # B: where the rise leaves the noise band, the last sample at or below η + κ (decision
+    # 1533; the smoothed noise crosses η itself again and again just before the rise); the
+    # line runs through the rise from B to the end of the confirming run
+    below = np.nonzero(d[i1 : a + 1] <= eta + kappa)[0]
     b = i1 + int(below[-1]) if below.size else i1
     if a - b < 2:
         b = max(a - 2, 0)
-    t = np.arange(b, a + 1) / fs
-    slope, intercept = np.polyfit(t, d[b : a + 1], 1)
+    end = min(a + persist - 1, d.size - 1)
+    t = np.arange(b, end + 1) / fs
+    slope, intercept = np.polyfit(t, d[b : end + 1], 1)
     if not slope > 0:
         raise InputDataError("contact: the torque does not rise between points B and A")
     t_c = (eta - intercept) / slope

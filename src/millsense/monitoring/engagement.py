@@ -125,6 +125,8 @@ class EngagementBlock(Block):
         self._state = np.array([0.0, -1.0])
         self._buf: list[tuple[np.ndarray, ...]] = []
         self._held = np.full(len(_FIELDS), math.nan)
+        self._held_arrays: np.ndarray | None = None
+        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
         self._cur_rev = -1
         self.estimates = []
 
@@ -146,6 +148,7 @@ class EngagementBlock(Block):
             if c > 0 and abs(coeff[1]) > 0:
                 est = self._ident.identify(coeff[1:], complex(coeff[0]), c)
         self.estimates.append((t_end, est))
+        self._held_views = None
         if est is None:
             self._held = np.full(len(_FIELDS), math.nan)
         else:
@@ -162,6 +165,19 @@ class EngagementBlock(Block):
                 ]
             )
 
+    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
+        """The held values for ``n`` samples as views of arrays never written again (new ones
+        when the values change, once per revolution, or a longer chunk comes)."""
+        views = self._held_views
+        if views is not None and views[0] == n:  # no revolution ended since: the same views
+            return dict(views[1])
+        a = self._held_arrays
+        if a is None or a.shape[1] < n or not np.array_equal(a[:, 0], self._held, equal_nan=True):
+            a = self._held_arrays = np.repeat(self._held[:, None], max(n, 1024), axis=1)
+        out = {nm: a[j, :n] for j, nm in enumerate(self._names)}
+        self._held_views = (n, out)
+        return dict(out)
+
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
@@ -171,6 +187,10 @@ class EngagementBlock(Block):
         ang = np.empty(n)
         rev = np.empty(n, dtype=np.int64)
         _k.accumulate_revolutions(sp, self.fs, self._state, ang, rev)
+        if n and rev[0] == rev[-1] == self._cur_rev:
+            # no revolution ends in this chunk (the common case for short chunks)
+            self._buf.append((x, ang, sp, fd))
+            return BlockOutput(channels=self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
         bounds = (np.nonzero(np.diff(rev))[0] + 1).tolist()
         if n and self._cur_rev >= 0 and rev[0] != self._cur_rev:

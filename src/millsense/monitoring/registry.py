@@ -3,8 +3,11 @@
 A monitor is registered as ``name → factory(context) → Block``; the CLI builds the
 :class:`MonitorContext` from the recording, the plan and the options, and every factory takes
 what it needs from it (raising a one-line :class:`~millsense.core.errors.InputDataError` when
-something is missing). Further monitors (breakage, engagement, contact) are added with
-:func:`register`.
+something is missing). Registered: the chatter criteria (seeds 000, 001, 002), the breakage
+detectors (seeds 000, 002), ``engagement`` (seed 004 ch. 2: depths, K_t, runout per revolution;
+needs the tool geometry and the feed per tooth) and ``contact`` (seed 004 ch. 3: contact time
+and position of one cut motion; needs an air-cut reference window). Further monitors are added
+with :func:`register`.
 """
 
 from __future__ import annotations
@@ -13,8 +16,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from millsense.core.errors import InputDataError
-from millsense.streaming.block import Block
+from millsense.core.recording import ChannelInfo
+from millsense.streaming.block import Block, BlockOutput, Chunk
 
 
 @dataclass(frozen=True)
@@ -34,7 +40,14 @@ class MonitorContext:
     locate : (time s, NC line) → (NC line, x, y, z mm) on the plan's path, or None.
     plan : the virtual plan (:class:`~millsense.plan.virtual_plan.VirtualPlan`), or None.
     source : name of the recording (for messages).
-    options : further named settings for specific monitors.
+    options : further named settings for specific monitors (``engagement.feed_per_tooth_mm``,
+        ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
+        ``breakage.expected_channel``, ``<chatter method>.threshold``).
+    tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
+        None.
+    read : reads samples ``[i0, i1)`` of a channel of the recording, or None (live).
+    t0_s : time of the first sample, s.
+    n_samples : samples in the recording (0: unknown).
     """
 
     channels: dict[str, str]
@@ -49,6 +62,10 @@ class MonitorContext:
     plan: Any = None
     source: str = "recording"
     options: dict[str, Any] = field(default_factory=dict)
+    tool: Any = None
+    read: Callable[[str, int, int], np.ndarray] | None = None
+    t0_s: float = 0.0
+    n_samples: int = 0
 
     def require(self, names: Sequence[str], monitor: str) -> None:
         """One-line error if a channel ``monitor`` needs is not in the recording."""
@@ -172,3 +189,178 @@ def _breakage_factory(method: str) -> Factory:
 
 for _b in ("virtual", "constant", "dual"):
     register(f"breakage-{_b}", _breakage_factory(_b))
+
+
+#: Torque channels the engagement monitor uses when none is chosen (N·m), best first.
+ENGAGEMENT_SIGNALS = BREAKAGE_SIGNALS
+
+
+def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
+    """Median programmed feed per tooth of the plan's cutting steps, mm (None: none)."""
+    try:
+        feed = np.asarray(plan["feed_mm_min"], dtype=float)
+        rpm = np.abs(np.asarray(plan["spindle_rpm"], dtype=float))
+        cut = np.asarray(plan["in_cut"], dtype=bool)
+    except (KeyError, TypeError):
+        return None
+    ok = cut & (rpm > 0) & (feed > 0)
+    if not ok.any():
+        return None
+    return float(np.median(feed[ok] / (flutes * rpm[ok])))
+
+
+def _engagement(ctx: MonitorContext) -> Block:
+    """Seed 004 ch. 2 (Lee Fig. 2.9) from the registry: tool from ``--tool`` or the plan, feed
+    per tooth from ``--feed-per-tooth`` or the plan."""
+    from millsense.monitoring.engagement import EngagementBlock
+
+    name = "engagement"
+    signal = ctx.signal or next((c for c in ENGAGEMENT_SIGNALS if c in ctx.channels), None)
+    if signal is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs a spindle torque channel in N·m (one of "
+            f"{', '.join(ENGAGEMENT_SIGNALS)}: give --machine for the spindle observer, or "
+            "--channel)"
+        )
+    ctx.require([signal], name)
+    if ctx.speed_channel is None or ctx.speed_unit != "rad/s":
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs a spindle-speed channel in rad/s "
+            "(spindle/speed) for the spindle angle"
+        )
+    ctx.require([ctx.speed_channel], name)
+    tool = ctx.tool
+    if tool is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs the tool's diameter, flutes and helix: give "
+            "--tool (preset or .toml) or a --plan built with the tool"
+        )
+    fz = ctx.options.get("engagement.feed_per_tooth_mm")
+    if fz is None and ctx.plan is not None:
+        fz = _plan_feed_per_tooth_mm(ctx.plan, int(tool.flutes))
+    if fz is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs the feed per tooth: give --feed-per-tooth "
+            "(mm) or a --plan with the programmed feed"
+        )
+    return EngagementBlock(
+        int(tool.flutes),
+        float(tool.diameter_mm),
+        float(tool.helix_deg),
+        torque_channel=signal,
+        speed_channel=ctx.speed_channel,
+        feed_per_tooth_mm=float(fz),
+        name=name,
+    )
+
+
+register("engagement", _engagement)
+
+#: Torque channels of the contact detector, best first: the spindle torque command (Lee §3.2),
+#: the observer's load, the current command (proportional to the torque command).
+CONTACT_SIGNALS = ("spindle/torque_cmd", "est/spindle/spindle/load", "spindle/current_cmd")
+#: Axis-position channels of the contact detector, best first (the X axis, Lee §3.2).
+CONTACT_POSITIONS = ("x/scale", "x/position", "x/position_cmd")
+
+
+class WindowedBlock(Block):
+    """Runs ``block`` on the samples ``[start, stop)`` of the stream only, as a stream of its
+    own (its sample 0 is ``start``): for detectors of one motion, as the contact detector of
+    a cut motion that starts at the spindle start t₀ (Lee Fig. 3.6). Event times and samples
+    are given on the outer stream."""
+
+    def __init__(self, block: Block, start: int, stop: int) -> None:
+        self.block = block
+        self.start, self.stop = int(start), int(stop)
+        self.name = getattr(block, "name", "windowed")
+        self.inputs = tuple(block.inputs)
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return []
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.block.reset(sample_rate_hz)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        import dataclasses
+
+        n = len(next(iter(chunk.data.values()))) if chunk.data else 0
+        a = max(self.start, chunk.start)
+        b = min(self.stop, chunk.start + n)
+        if b <= a:
+            return BlockOutput()
+        data = {k: chunk.data[k][a - chunk.start : b - chunk.start] for k in self.inputs}
+        t0 = chunk.t0_s + self.start / chunk.sample_rate_hz
+        out = self.block.process(Chunk(a - self.start, chunk.sample_rate_hz, t0, data))
+        events = [
+            e if e.sample < 0 else dataclasses.replace(e, sample=e.sample + self.start)
+            for e in out.events
+        ]
+        return BlockOutput({}, events)
+
+
+def _contact(ctx: MonitorContext) -> Block:
+    """Seed 004 ch. 3 (Lee Fig. 3.6) from the registry: the air-cut motion is the window
+    ``--air-s A:B`` of the recording, the cut motion starts at ``--cut-s`` (default B) and is
+    as long as the air-cut window."""
+    from millsense.monitoring.contact import ContactBlock
+
+    name = "contact"
+    air = ctx.options.get("contact.air_s")
+    if air is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs the air-cut reference: give --air-s A:B "
+            "(the air-cut motion's time window, s; the cut motion follows at B or --cut-s)"
+        )
+    signal = ctx.signal or next((c for c in CONTACT_SIGNALS if c in ctx.channels), None)
+    if signal is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs a spindle torque command (one of "
+            f"{', '.join(CONTACT_SIGNALS)}, or --channel)"
+        )
+    pos = ctx.options.get("contact.position_channel") or next(
+        (c for c in CONTACT_POSITIONS if c in ctx.channels), None
+    )
+    if pos is None:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs an axis-position channel (one of "
+            f"{', '.join(CONTACT_POSITIONS)}, or --position)"
+        )
+    ctx.require([signal, pos], name)
+    if ctx.read is None or ctx.n_samples <= 0:
+        raise InputDataError(f"{ctx.source}: monitor '{name}' needs a recording (air-cut window)")
+    fs = ctx.sample_rate_hz
+    a_s, b_s = (float(v) for v in air)
+    c_s = float(ctx.options.get("contact.cut_s") or b_s)
+    i_a, i_b = round((a_s - ctx.t0_s) * fs), round((b_s - ctx.t0_s) * fs)
+    i_c = round((c_s - ctx.t0_s) * fs)
+    if not (0 <= i_a < i_b <= ctx.n_samples):
+        end = ctx.t0_s + ctx.n_samples / fs
+        raise InputDataError(
+            f"{ctx.source}: --air-s {a_s:g}:{b_s:g} is not a window inside the recording "
+            f"({ctx.t0_s:g}-{end:g} s)"
+        )
+    if not (0 <= i_c < ctx.n_samples):
+        raise InputDataError(f"{ctx.source}: --cut-s {c_s:g} s is outside the recording")
+    length = min(i_b - i_a, ctx.n_samples - i_c)
+    if ctx.speed_channel is not None:
+        spd = np.abs(ctx.read(ctx.speed_channel, i_a, i_b))
+        rev_s = float(np.mean(spd)) * (1 / (2 * np.pi) if ctx.speed_unit == "rad/s" else 1 / 60)
+    else:
+        rev_s = (ctx.speed_rpm or 0.0) / 60.0
+    if not rev_s > 0:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs the spindle turning in the air-cut window "
+            "(its period T); give --spindle-rpm without a speed channel"
+        )
+    block = ContactBlock(
+        ctx.read(signal, i_a, i_a + length),
+        1.0 / rev_s,
+        torque_channel=signal,
+        position_channel=pos,
+        name=name,
+    )
+    return WindowedBlock(block, i_c, i_c + length)
+
+
+register("contact", _contact)

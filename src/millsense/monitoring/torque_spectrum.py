@@ -294,10 +294,11 @@ class SpectrumIdentifier:
         if best is None or 2 * best[1] / norm > self.accept:
             # the previous revolution's solution does not explain this one: grid starts too
             ng = self.k_grid.size
-            _, _, r = _project(xn[None, :ng], self._ga, self._gb)
-            cost = np.sum(np.abs(r) ** 2, axis=1)
-            cost[~np.isfinite(cost)] = np.inf
-            for j in np.argsort(cost)[: self.n_starts]:
+            cost = np.empty(self._ga.shape[0])
+            _sk.grid_costs(np.ascontiguousarray(xn[:ng]), self._ga,
+                           self._ga if self._gb is None else self._gb, self.edge, cost)  # fmt: skip
+            best_rows = np.argpartition(cost, self.n_starts)[: self.n_starts]
+            for j in best_rows[np.argsort(cost[best_rows])]:
                 # coarse to fine: the low harmonics pin the angles before the high ones, whose
                 # phases turn k N times faster with θ, are added
                 low = fit(np.array([g[j] for g in self._grid]), ng)

@@ -29,6 +29,7 @@ import scipy.fft as sfft
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
+from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
 from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
@@ -46,6 +47,11 @@ NOVELTY_FACTOR = 5.0
 NOVELTY_HOLD = 2.0
 #: Cutting gate: the tooth-passing line over the raw spectrum's median in the band.
 CUTTING_GATE = 3.0
+#: Load gate: the window's mean away from the mean learned out of the cut, in air-floor units
+#: (the median raw amplitude learned out of the cut; decision 1531).
+LOAD_GATE = 10.0
+#: Noise allowance of the steady-mean gate, in air-floor units (decision 1531).
+STEADY_NOISE = 5.0
 #: Largest relative spread of the spindle speed over a window for a decision.
 STEADY_SPEED = 0.02
 #: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
@@ -196,6 +202,8 @@ class ChatterMonitor(Block):
         self._band_slice = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
         self._background: np.ndarray | None = None
         self._air_floor: float | None = None
+        self._air_mean: float | None = None
+        self._air_f_rev = 0.0
         self._flag = 0.0
         self._freq = math.nan
         self._ratio = 0.0
@@ -213,6 +221,7 @@ class ChatterMonitor(Block):
         self._mask_f_rev = -1.0
         self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
+        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk([self], chunk)
@@ -220,6 +229,9 @@ class ChatterMonitor(Block):
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held outputs for ``n`` samples: views of arrays that are never written again
         (new ones are made when a value changes or a longer chunk comes)."""
+        views = self._held_views
+        if views is not None and views[0] == n:  # nothing decided since: the same views
+            return dict(views[1])
         # NaN (no chatter frequency) compares unequal to itself: key it as −1
         key = (self._flag, -1.0 if math.isnan(self._freq) else self._freq, self._ratio)
         held = self._held
@@ -229,7 +241,9 @@ class ChatterMonitor(Block):
                       np.full(size, self._ratio))  # fmt: skip
             held = self._held = (key, arrays)
         a = held[1]
-        return {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
+        out = {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
+        self._held_views = (n, out)
+        return dict(out)
 
     # ------------------------------------------------------------------ decision
     def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
@@ -249,48 +263,73 @@ class ChatterMonitor(Block):
         hi = max(r[1] for r in ranges)
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
-        xr = self._window(self._stage.ring_x, n)
-        xr = xr - xr.mean()
-        raw = np.abs(sfft.rfft(xr * self._taper)) * self._scale
+        xr = np.empty(n)
+        xr_tapered = np.empty(n)
+        level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, xr_tapered)
         f = self._f
         df = f[1]
         f_t = self.settings.n_flutes * f_rev
-        tooth = 0.0
+        k0 = k1 = 0
         if f_rev * 60.0 >= self.settings.min_speed_rpm:
             half = max(2.0 * df, 0.005 * f_t)
             k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = min(len(f), math.floor((f_t + half) / df) + 1)
-            tooth = float(raw[k0:k1].max()) if k1 > k0 else 0.0
+            k1 = max(k0, min(len(f), math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        med = float(np.median(raw[b0:b1])) if b1 > b0 else 0.0
+        raw = np.empty(len(f))
+        tooth, med = _kn.amplitude_line_median(
+            sfft.rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw
+        )
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
-        cutting = tooth > CUTTING_GATE * floor and tooth > 0.0
+        # ... or when the load moved the window's mean away from the mean learned out of the
+        # cut at this speed (a torque or current carries the load as its mean; a cut whose
+        # teeth sum to a nearly constant torque, as a 5-flute slot, has almost no tooth line)
+        loaded = (
+            self._air_mean is not None
+            and self._air_floor is not None
+            and abs(f_rev - self._air_f_rev) <= STEADY_SPEED * self._air_f_rev
+            and abs(level - self._air_mean) > LOAD_GATE * self._air_floor
+        )
+        cutting = tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)
         if not cutting and tooth > 0.0:
             a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
             self._air_floor = (
                 med if self._air_floor is None else self._air_floor + a * (med - self._air_floor)
             )
+            if (
+                self._air_mean is None
+                or abs(f_rev - self._air_f_rev) > STEADY_SPEED * self._air_f_rev
+            ):
+                self._air_mean = level  # the air level at a new speed (friction changes)
+            else:
+                self._air_mean += a * (level - self._air_mean)
+            self._air_f_rev = f_rev
+        # the reference of the ratio: the tooth line, but no less than the smallest line the
+        # cutting gate resolves (a line lost in the noise, in a cut found by its load, must not
+        # turn a noise peak into chatter; decision 1531)
+        tooth_ref = max(tooth, CUTTING_GATE * floor) if cutting else tooth
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
-            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw)
-        if cutting and not self._steady_mean(xr, n, tooth):
+            return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
+                           band_slice=(b0, b1))  # fmt: skip
+        if cutting and not self._steady_mean(half_step, tooth, floor):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
+        comb = np.empty(len(f))
         if self.method.taper == "rect":
-            comb = np.abs(sfft.rfft(xc)) * self._comb_scale
+            _kn.amplitude(sfft.rfft(xc), self._comb_scale, comb)
             if self.method.name == "chatter-sdft":  # Parseval needs the same taper
-                raw_rect = np.abs(sfft.rfft(xr)) * (2.0 / n)
+                raw_rect = np.empty(len(f))
+                _kn.amplitude(sfft.rfft(xr), 2.0 / n, raw_rect)
         else:
-            comb = np.abs(sfft.rfft(xc * self._comb_taper)) * self._comb_scale
+            _kn.amplitude(sfft.rfft(xc * self._comb_taper), self._comb_scale, comb)
         if self._background is None:
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
             self._background = np.zeros_like(comb) if cutting else comb.copy()
         # hysteresis: while chatter is flagged a component stays new above 2 × its background
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        novel = comb - factor * self._background
         if f_rev > 0:
             # chatter is never on a spindle harmonic (that is forced vibration): bins within
             # the comb's notch width or 2 bins of one are not searched
@@ -298,8 +337,10 @@ class ChatterMonitor(Block):
                 off = np.abs(f - f_rev * np.rint(f / f_rev))
                 self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
                 self._mask_f_rev = f_rev
-            novel[self._harm_mask] = -1.0
-        return Spectra(f, raw, comb, self._band, tooth, f_t, f_rev, cutting, novel, raw_rect)
+        novel = np.empty(len(f))
+        _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
+        return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
+                       band_slice=(b0, b1))  # fmt: skip
 
     def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
         """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
@@ -309,14 +350,17 @@ class ChatterMonitor(Block):
             return ring[a : a + n].copy()
         return np.concatenate([ring[a:], ring[: a + n - size]])
 
-    def _steady_mean(self, xr: np.ndarray, n: int, tooth: float) -> bool:
+    def _steady_mean(self, half_step: float, tooth: float, floor: float) -> bool:
         """The means of the window's older and newer halves differ by less than
-        :data:`STEADY_MEAN` × the tooth-passing line (decision 1504). A step of the mean (the
-        entry into or the exit from the cut, a large depth step) drives the comb filter into a
-        transient that is not chatter; such a window is not judged. Signals without a mean
-        (accelerometer, microphone) always pass."""
-        h = n // 2
-        return abs(float(np.mean(xr[h:]) - np.mean(xr[:h]))) <= STEADY_MEAN * tooth
+        :data:`STEADY_MEAN` × the tooth-passing line or :data:`STEADY_NOISE` × the noise floor
+        ``floor`` (decisions 1504, 1531). A step of the mean (the entry into or the exit from
+        the cut, a large depth step) drives the comb filter into a transient that is not
+        chatter; such a window is not judged. The noise allowance keeps a noisy signal with a
+        weak tooth line (the halves' means of white noise differ by ≈ 1.4 × the median Hann
+        amplitude) from never being judged. Signals without a mean (accelerometer, microphone)
+        always pass."""
+        tol = max(STEADY_MEAN * tooth, STEADY_NOISE * floor)
+        return abs(half_step) <= tol
 
     def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
         """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
@@ -324,16 +368,13 @@ class ChatterMonitor(Block):
         assert self._background is not None
         hop = self.settings.hop_s
         if not cutting:
-            a: np.ndarray | float = min(1.0, hop / BACKGROUND_TAU_AIR_S)
+            a = a_new = min(1.0, hop / BACKGROUND_TAU_AIR_S)
         else:
-            a = np.where(
-                novel > 0.0,
-                min(1.0, hop / BACKGROUND_TAU_NOVEL_S),
-                min(1.0, hop / BACKGROUND_TAU_S),
-            )
-        self._background += a * (comb - self._background)
+            a, a_new = min(1.0, hop / BACKGROUND_TAU_S), min(1.0, hop / BACKGROUND_TAU_NOVEL_S)
+        _kn.learn(self._background, comb, novel, a, a_new)
 
     def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
+        self._held_views = None  # the held values may change
         sp = self._spectra()
         t = chunk.t0_s + k / chunk.sample_rate_hz
         if sp is None:

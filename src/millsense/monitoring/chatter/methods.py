@@ -36,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.monitoring.chatter import _kernels as _kn
+
 FloatArray = NDArray[np.float64]
 
 #: Seed 000 decision threshold (Aslan §5.4, digest P10).
@@ -51,11 +53,13 @@ class Spectra:
     f_hz : bin frequencies.
     raw, comb : amplitude spectra of the raw (mean removed) and comb-filtered window.
     band : bins searched for chatter.
-    tooth : amplitude of the raw tooth-passing line.
+    tooth : amplitude of the raw tooth-passing line, in the cut at least 3 × the noise floor
+        (the cutting gate's level, decision 1531).
     f_tooth_hz, f_rev_hz : tooth-passing and spindle frequencies over the last hop.
     cutting : the tooth-passing line stands out (the tool is in the material).
     novel : comb amplitude above 5 × its learned background (≤ 0: nothing new).
     raw_rect : the raw window's rectangular spectrum (same taper as ``comb``; for Parseval).
+    band_slice : ``band`` as the bins ``b0:b1`` (it is contiguous), or None to derive it.
     """
 
     f_hz: FloatArray
@@ -68,6 +72,7 @@ class Spectra:
     cutting: bool
     novel: FloatArray
     raw_rect: FloatArray | None = None
+    band_slice: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -125,20 +130,24 @@ class ChatterMethod:
                 return Verdict(0.0, peak_frequency(s.f_hz, s.raw, k), 1.0)
             return Verdict(float(amp[k]) / thr, peak_frequency(s.f_hz, s.raw, k), 1.0)
         thr = float(self.threshold if self.threshold is not None else SEED000_RATIO)
-        novel = np.where(s.band, s.novel, 0.0)
-        k = int(np.argmax(novel))
-        if not s.cutting or novel[k] <= 0.0 or s.tooth <= 0.0:
+        if s.band_slice is not None:
+            b0, b1 = s.band_slice
+        else:
+            nz = np.flatnonzero(s.band)
+            b0, b1 = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
+        k = _kn.band_argmax(s.novel, b0, b1)
+        if not s.cutting or not b0 <= k < b1 or s.novel[k] <= 0.0 or s.tooth <= 0.0:
             return Verdict(0.0, float("nan"), thr)
         f_c = peak_frequency(s.f_hz, s.comb, k)
         if self.name == "chatter-comb":
             return Verdict(float(s.comb[k]) / s.tooth, f_c, thr)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
-        chat = float(np.sum(np.where(s.band, np.maximum(s.novel, 0.0), 0.0) ** 2)) / 2.0
         raw = s.raw_rect if s.raw_rect is not None else s.raw
-        harm = max(float(np.sum(np.where(s.band, raw**2 - s.comb**2, 0.0))) / 2.0, 0.0)
-        floor = 1e-30 + 1e-12 * float(np.sum(np.where(s.band, raw**2, 0.0)))
-        return Verdict(chat / max(harm, floor), f_c, thr)
+        chat2, harm2, tot2 = _kn.variance_sums(s.novel, raw, s.comb, b0, b1)
+        harm = max(harm2 / 2.0, 0.0)
+        floor = 1e-30 + 1e-12 * tot2
+        return Verdict(chat2 / 2.0 / max(harm, floor), f_c, thr)
 
 
 #: The chatter criteria by name (window lengths in samples, chosen for a 10 kHz stream).

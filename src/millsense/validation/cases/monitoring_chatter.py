@@ -6,8 +6,11 @@ Al7050 (preset), full immersion, 0.1 mm/tooth, the thesis's speeds and depths, o
 machine (Quaser UX600 preset, its Aslan spindle drive; regenerative time-domain process with
 the tool modes). T3 has 2 flutes (digest P9: 166.67 Hz at 5000 rev/min; the table's 4 is
 taken as a misprint, decision 1501). Each run: spindle run-up, 0.8 s in air at speed (the
-monitors learn their background there), then the cut. The compensated spindle torque is the
-spindle observer identified and tuned on the simulator (as
+monitors learn their background there), then the cut. On the truth plant (decision 1062) the
+tool modes soften under load (realism), so the thesis's T2 chatter depth, 3.5 mm, is stable
+there: T2's chatter cut is taken at 5 mm, the first depth on a 0.5 mm grid from 3.5 mm up at
+which the simulated torque itself passes the seed's criterion (decision 1531). The compensated
+spindle torque is the spindle observer identified and tuned on the simulator (as
 :mod:`millsense.validation.cases.estimation_spindle`); the raw signal is the current command
 I_nom. The simulation's own chatter frequency is the largest non-harmonic peak of the
 simulated cutting torque (the signal the spindle detectors see) over the last 0.41 s; the tool
@@ -32,7 +35,7 @@ TOOLS: dict[str, tuple[Any, ...]] = {
     "T1": (50e-3, 5, 6000.0, 2.25, 1.5, 570.0,
            [(282, 5.3, 5.9e7), (546, 2.8, 1.2e7), (1621, 1.5, 2.8e8)],
            [(300, 1.1, 6.6e7), (546, 2.5, 1.3e7), (1607, 2.9, 2.9e8)]),
-    "T2": (25e-3, 4, 4000.0, 3.5, 2.0, 938.0,
+    "T2": (25e-3, 4, 4000.0, 5.0, 2.0, 938.0,
            [(871, 4.2, 1.7e8), (932, 4.4, 2.9e7), (1196, 3.6, 3.1e8), (2003, 9, 1e8),
             (2805, 2.2, 1.3e8)],
            [(821, 4.5, 6.9e7), (928, 4.1, 4.5e7), (1169, 4.3, 1.6e8), (1983, 6.8, 1.4e8),
@@ -193,6 +196,11 @@ def _v5_table() -> str:
     return "\n".join(rows)
 
 
+def _relative_error(found_hz: float, simulated_hz: float) -> float:
+    """|found/simulated − 1|; no alarm (NaN) counts as 1, a frequency missed entirely."""
+    return abs(found_hz / simulated_hz - 1.0) if math.isfinite(found_hz) else 1.0
+
+
 def _freq_case(tool: str, gap: str = "") -> None:
     @case(
         f"monitoring.chatter.v5_{tool.lower()}_compensated_hz",
@@ -204,22 +212,23 @@ def _freq_case(tool: str, gap: str = "") -> None:
         quick=False,
         description=f"relative error of the chatter frequency reported by chatter-comb on the "
         f"compensated spindle torque against the simulated torque's chatter peak, {tool} replica "
-        "(module notes); table of all four tools",
+        "(module notes; no alarm counts as 1); table of all four tools",
         issue=15 if gap else None,
         gap=gap,
     )
     def _f() -> Measured:
         r = v5()[tool]
-        return Measured(abs(r["comp_hz"] / r["sim_torque_hz"] - 1.0), _v5_table())
+        return Measured(_relative_error(r["comp_hz"], r["sim_torque_hz"]), _v5_table())
 
 
 for _tool in ("T1", "T2", "T3"):
     _freq_case(_tool)
 _freq_case(
     "T4",
-    gap="in the replica the chatter line of the cutting torque (a sideband at ω_c + N·Ω) is "
-    "only ≈ 1.3-1.6 × the tooth-passing line and the observer's noise near 2.3 kHz is as large: "
-    "the compensated ratio stays below 1.5 (decision 1506)",
+    gap="in the replica the chatter line of the cutting torque (a sideband at ω_c + N·Ω, "
+    "≈ 0.43 N·m on the truth plant) is no stronger than the observer's noise lines between 1.2 "
+    "and 2.4 kHz (0.33-0.40 N·m): it is not new against the learned background and the "
+    "compensated ratio stays below 1.5, so no alarm (decisions 1506, 1531)",
 )
 
 
@@ -251,12 +260,30 @@ def _t3_raw() -> Measured:
     return Measured(v5()["T3"]["raw_ratio"], _v5_table())
 
 
-#: Stable cuts of the replicas (depth mm): the thesis's (Fig. 5.18) where the replica is stable
-#: there (T1 1.5, T3 0.5); T2 and T4 chatter in the replica at the thesis's 2 and 0.5 mm
-#: (vibration 17 and 54 µm RMS), so their stable cuts are taken at 1.0 and 0.25 mm.
-STABLE_MM = {"T1": 1.5, "T2": 1.0, "T3": 0.5, "T4": 0.25}
+@case(
+    "monitoring.chatter.v5_t4_raw_misses",
+    source="seed 000 V5 (Aslan Ch. 5.4): on T4 the raw current reports a wrong frequency",
+    reference=0.51,
+    abs_tol=0.49,
+    unit="-",
+    quick=False,
+    description="relative error of the chatter frequency reported by chatter-comb on the raw "
+    "spindle current against the simulated torque's chatter peak, T4 replica (no alarm counts "
+    "as 1); passes in 0.02-1, i.e. the raw current does not find the chatter (the thesis: a "
+    "wrong frequency)",
+)
+def _t4_raw() -> Measured:
+    r = v5()["T4"]
+    return Measured(_relative_error(r["raw_hz"], r["sim_torque_hz"]), _v5_table())
+
+
+#: Stable cuts of the replicas on the truth plant (tool, depth mm): the thesis's (Fig. 5.18)
+#: where the replica is stable there (T1 1.5, T2 2, T3 0.5) and T2 at the thesis's chatter
+#: depth 3.5 mm, stable on the truth plant (decision 1531); T4 chatters in the replica at the
+#: thesis's 0.5 mm (vibration 54 µm RMS), so its stable cut is taken at 0.25 mm.
+STABLE_CUTS = (("T1", 1.5), ("T2", 2.0), ("T2", 3.5), ("T3", 0.5), ("T4", 0.25))
 #: The thesis's stable depths that chatter in the replica (listed, not counted as stable).
-THESIS_STABLE_CHATTERING_MM = {"T2": 2.0, "T4": 0.5}
+THESIS_STABLE_CHATTERING = (("T4", 0.5),)
 
 
 @cache
@@ -264,7 +291,7 @@ def stable_alarms() -> list[tuple[str, float, int, int, float]]:
     """Per cut: (tool, depth mm, comp. alarms, raw alarms, simulated chatter fraction over the
     last 0.8 s); the replica-stable cuts first, then the thesis-stable ones that chatter."""
     out = []
-    cuts = [*STABLE_MM.items(), *THESIS_STABLE_CHATTERING_MM.items()]
+    cuts = [*STABLE_CUTS, *THESIS_STABLE_CHATTERING]
     for tool, depth in cuts:
         n = TOOLS[tool][1]
         d = simulate(tool, depth)
@@ -283,9 +310,9 @@ def stable_alarms() -> list[tuple[str, float, int, int, float]]:
     unit="alarms",
     quick=False,
     description="chatter-comb alarms on the compensated and the raw spindle current over the "
-    "four replica cuts that are stable in the simulation (T1 1.5, T2 1.0, T3 0.5, T4 0.25 mm; "
-    "0.8 s air, 1.4 s cut); the thesis's T2 2 mm and T4 0.5 mm chatter in the replica and are "
-    "listed, not counted",
+    "five replica cuts that are stable in the simulation on the truth plant (T1 1.5, T2 2 and "
+    "3.5, T3 0.5, T4 0.25 mm; 0.8 s air, 1.4 s cut); the thesis's T4 0.5 mm chatters in the "
+    "replica and is listed, not counted",
 )
 def _stable() -> Measured:
     res = stable_alarms()
@@ -294,7 +321,7 @@ def _stable() -> Measured:
         "|---|---|---|---|---|",
     ]
     rows += [f"| {t} | {a:g} | {f:.2f} | {c} | {r} |" for t, a, c, r, f in res]
-    counted = res[: len(STABLE_MM)]
+    counted = res[: len(STABLE_CUTS)]
     return Measured(float(sum(c + r for _, _, c, r, _ in counted)), "\n".join(rows))
 
 

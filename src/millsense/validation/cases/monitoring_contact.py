@@ -79,11 +79,11 @@ def _repeatability() -> Measured:
     return Measured(
         float(np.std(e, ddof=1)),
         f"Mean error {np.mean(e):+.2f} µm (the line fit's bias against the nonlinear rise; "
-        f"thesis: +13.46 µm measured with its real rise), σ {np.std(e, ddof=1):.2f} µm. The "
-        "spread comes from point B: the 100-sample average of the noise hovers around η "
-        "just before the rise, so the walk back from A stops up to ~150 samples (6 µm of "
-        "approach) early; it scales with approach speed × averaging length, hardly with the "
-        "noise level (σ 2.7-3.9 µm for 0.0025-0.02 N·m of noise).",
+        f"thesis: +13.46 µm measured with its real rise), σ {np.std(e, ddof=1):.2f} µm. Point "
+        "B is where the rise leaves the noise band (η + κ) and the line runs through the "
+        "confirming run after A (decision 1533); walking back to η itself, as the thesis, "
+        "gave σ 3.11 µm: the 100-sample average of the noise hovers around η just before the "
+        "rise, so B landed up to ~150 samples (6 µm of approach) early.",
     )
 
 

@@ -1,0 +1,64 @@
+"""Benchmark of all process monitors together on one 10 kHz stream (issue 15).
+
+The three chatter criteria as one group, the three breakage blocks and the per-revolution
+engagement monitor run on 60 s of the synthetic stream of ``bench_monitoring_breakage`` (a
+2-flute Ø20 mm cut's torque at 1000 rev/min), in 10 ms and 0.1 s chunks, after compilation;
+each block gets its declared channels per chunk as the pipeline hands them.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from _harness import Metric, benchmark
+from _monitoring_stream import _blocks, _stream
+from millsense.monitoring.chatter import METHODS, ChatterGroup, ChatterMonitor, ChatterSettings
+from millsense.streaming.block import Block, Chunk
+
+FS = 10000.0
+
+
+def _all_blocks() -> list[Block]:
+    group = ChatterGroup(
+        [
+            ChatterMonitor(ChatterSettings(method=m, signal="spindle/torque_est", n_flutes=2))
+            for m in METHODS
+        ]
+    )
+    return [group, *_blocks(True)]
+
+
+def _run(data: dict[str, np.ndarray], chunk: int) -> float:
+    blocks = _all_blocks()
+    for b in blocks:
+        b.reset(FS)
+    n = len(data["spindle/speed"])
+    t0 = time.perf_counter()
+    for i in range(0, n, chunk):
+        for b in blocks:
+            b.process(Chunk(i, FS, 0.0, {k: data[k][i : i + chunk] for k in b.inputs}))
+    return time.perf_counter() - t0
+
+
+@benchmark("monitoring.all_speed")
+def _speed() -> list[Metric]:
+    _run(_stream(2.0), 100)  # compile / load the numba cache
+    seconds = 60.0
+    data = _stream(seconds)
+    out = []
+    for chunk, label in ((100, "10ms"), (1000, "100ms")):
+        wall = _run(data, chunk)
+        out.append(
+            Metric(
+                f"x_realtime_{label}",
+                seconds / wall,
+                "x",
+                target=500.0,
+                note=f"chatter-comb + chatter-sdft + chatter-threshold (one group), 3 breakage "
+                f"blocks, engagement (1000 rev/min), {seconds:.0f} s at 10 kHz, {label} chunks, "
+                "one core",
+            )
+        )
+    return out
