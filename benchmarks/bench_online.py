@@ -34,9 +34,9 @@ MACHINE_FILE = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
 
 @functools.lru_cache(maxsize=1)
 def _stream() -> tuple[dict[str, np.ndarray], object]:
-    from millsense.cli.cmd_simulate import plan_job
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.plan_job import plan_job
     from millsense.validation.cases.control_adaptive import DEPTH_HIGH_MM, DEPTH_LOW_MM, step_plan
 
     plan = step_plan(DEPTH_LOW_MM, DEPTH_HIGH_MM)

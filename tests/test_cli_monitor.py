@@ -137,7 +137,7 @@ def test_monitor_engagement_from_the_tool_preset(
     rec = _engagement_recording(tmp_path / "eng.h5")
     out = tmp_path / "ev.parquet"
     code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
-                                 "aslan-d20-2flute", "--feed-per-tooth", "0.2", "-o", str(out)],
+                                 "aslan-d20-2flute", "--feed-per-tooth-mm", "0.2", "-o", str(out)],
                                 capsys)  # fmt: skip
     assert code == 0, err
     line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
@@ -154,8 +154,8 @@ def test_monitor_engagement_from_the_tool_preset(
     ("extra", "needle"),
     [
         ([], "--tool"),
-        (["--tool", "aslan-d20-2flute"], "--feed-per-tooth"),
-        (["--tool", "aslan-d20-2flute", "--feed-per-tooth", "-1"], "--feed-per-tooth"),
+        (["--tool", "aslan-d20-2flute"], "--feed-per-tooth-mm"),
+        (["--tool", "aslan-d20-2flute", "--feed-per-tooth-mm", "-1"], "--feed-per-tooth-mm"),
     ],
 )
 def test_monitor_engagement_names_what_is_missing(

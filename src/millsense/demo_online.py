@@ -136,11 +136,11 @@ def _run(
     on_progress: Callable[[int], None] | None,
 ) -> Any:
     """One closed-loop run of the session on the virtual machine; the session's result."""
-    from millsense.cli.cmd_simulate import plan_job
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.plan_job import plan_job
     from millsense.simulator.process_coupling import ToothBreak
     from millsense.streaming.sources import Source
 

@@ -56,7 +56,7 @@ def monitor(
         None, "--tool", help="Tool preset or .toml (engagement; default: the plan's tool)."
     ),
     feed_per_tooth: float | None = typer.Option(
-        None, "--feed-per-tooth", help="Feed per tooth [mm] (engagement; default: the plan's)."
+        None, "--feed-per-tooth-mm", help="Feed per tooth [mm] (engagement; default: the plan's)."
     ),
     air_s: str | None = typer.Option(
         None, "--air-s", help="Air-cut motion's time window A:B [s] (contact reference)."
@@ -194,7 +194,7 @@ def _monitor_options(
     opts: dict[str, Any] = {}
     if feed_per_tooth is not None:
         if not (feed_per_tooth > 0 and np.isfinite(feed_per_tooth)):
-            raise ConfigError(f"--feed-per-tooth: must be > 0 mm, got {feed_per_tooth}")
+            raise ConfigError(f"--feed-per-tooth-mm: must be > 0, got {feed_per_tooth}")
         opts["engagement.feed_per_tooth_mm"] = float(feed_per_tooth)
     if air_s is not None:
         parts = air_s.split(":")

@@ -77,7 +77,9 @@ def run(
     adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive", help="Adaptive feed."),
     regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
     reference: float | None = typer.Option(
-        None, "--reference", help="Set point [N, N·m or W] (default: 90 % of the plan's peak)."
+        None,
+        "--reference",
+        help="Set point [W, N·m or N, as --regulate] (default: 90 % of the plan's largest).",
     ),
     force_from: str = typer.Option(
         "estimate", "--force-from", help="estimate (sensorless) or dynamometer (a sensor)."
@@ -133,7 +135,9 @@ def replay(
     out: Path | None = typer.Option(None, "-o", "--output", help="Block outputs (.h5)."),
     events_out: Path = typer.Option(..., "--events", help="Event log to write (.parquet)."),
     regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
-    reference: float | None = typer.Option(None, "--reference", help="Set point."),
+    reference: float | None = typer.Option(
+        None, "--reference", help="Set point [W, N·m or N, as --regulate]."
+    ),
     force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
     chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
 ) -> None:
@@ -210,10 +214,9 @@ def run_online(
     from millsense.plan.virtual_plan import VirtualPlan
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.plan_job import plan_job
     from millsense.simulator.process_coupling import ProcessEvent, ToolModes, ToothBreak
     from millsense.streaming.event_log import default_event_log_path
-
-    from .cmd_simulate import plan_job
 
     link_faults = [LinkFault.parse(f) for f in faults or []]
     if plan is not None and program is not None:

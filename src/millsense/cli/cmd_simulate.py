@@ -242,6 +242,8 @@ def run_simulation(
                 "give --duration-s to simulate its start, or plan part of the program",
                 ProgramError,
             )
+        from millsense.simulator.plan_job import plan_job
+
         job, process, meta_extra, plan_notes = plan_job(
             vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes
         )
@@ -351,66 +353,6 @@ def run_simulation(
         "warnings": findings.warnings,
         "crash_events": crashes,
     }
-
-
-def plan_job(
-    vp: Any,
-    mcfg: Any,
-    plan_name: str,
-    *,
-    tool: str | None = None,
-    material: str | None = None,
-    events: Any = (),
-    modes: Any = None,
-) -> tuple[Any, Any, dict[str, Any], list[str]]:
-    """The virtual machine's job and process of a virtual plan: its path, feed, spindle
-    speed and NC lines, cutting with the engagement of every row; tool and coefficients from
-    the plan unless ``tool``/``material`` (presets or TOML) are given. Returns the job, the
-    process coupling, the recording metadata and notes (shared by ``simulate --plan`` and
-    ``run``)."""
-    from millsense.core.config import MaterialConfig, ToolConfig
-    from millsense.core.presets import load_preset
-    from millsense.plan.plan_engagement import PlanEngagement, plan_path
-    from millsense.plan.virtual_plan import coefficients_from_metadata, tool_from_metadata
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.geometry import EndMill
-    from millsense.simulator.machine import Job
-    from millsense.simulator.process_coupling import ProcessCoupling
-
-    five = mcfg.kinematics == "5-axis-trunnion-ac"
-    if tool is not None:
-        end_mill = EndMill.from_config(load_preset(ToolConfig, tool))
-    else:
-        end_mill = tool_from_metadata(vp.metadata, plan_name)
-    if material is not None:
-        coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, material))
-    else:
-        coeffs = coefficients_from_metadata(vp.metadata, plan_name)
-    pp = plan_path(vp, five_axis=five)
-    job = Job(pp.path, pp.feed_m_s, pp.spindle_rad_s, pp.nc_line, pp.rapid)
-    source = PlanEngagement(vp)
-    n_discs = int(vp.metadata.get("n_discs", 10))
-    cut_rows = np.flatnonzero(source.row_index >= 0)
-    first_cut = float(source.row_s_m[cut_rows[0]]) if len(cut_rows) else None
-    meta_extra: dict[str, Any] = {
-        "plan": plan_name,
-        "program": str(vp.metadata.get("program", "")),
-        "tool": tool or str(vp.metadata.get("tool_name", "plan")),
-        "material": material or str(vp.metadata.get("material_name", "plan")),
-        "engagement": source.summary(),
-    }
-    if first_cut is not None:
-        meta_extra["first_engagement_path_m"] = first_cut
-    process = ProcessCoupling(
-        end_mill,
-        coeffs,
-        source,
-        events=list(events),
-        n_discs=n_discs,
-        modes=modes,
-        sample_rate_hz=mcfg.sample_rate_hz,
-    )
-    return job, process, meta_extra, list(source.notes)
 
 
 def _with_air(schedule: Any, air_m: float, path_end_m: float) -> tuple[Any, float | None]:

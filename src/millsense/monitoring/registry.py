@@ -211,7 +211,7 @@ def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
 
 def _engagement(ctx: MonitorContext) -> Block:
     """Seed 004 ch. 2 (Lee Fig. 2.9) from the registry: tool from ``--tool`` or the plan, feed
-    per tooth from ``--feed-per-tooth`` or the plan."""
+    per tooth from ``--feed-per-tooth-mm`` or the plan."""
     from millsense.monitoring.engagement import EngagementBlock
 
     name = "engagement"
@@ -240,7 +240,7 @@ def _engagement(ctx: MonitorContext) -> Block:
         fz = _plan_feed_per_tooth_mm(ctx.plan, int(tool.flutes))
     if fz is None:
         raise InputDataError(
-            f"{ctx.source}: monitor '{name}' needs the feed per tooth: give --feed-per-tooth "
+            f"{ctx.source}: monitor '{name}' needs the feed per tooth: give --feed-per-tooth-mm "
             "(mm) or a --plan with the programmed feed"
         )
     return EngagementBlock(
