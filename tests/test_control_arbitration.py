@@ -31,6 +31,7 @@ class Scripted(Block):
         self.script = script
         self.inputs = ("sig",)
         self.ceilings: list[tuple[int, float | None, float]] = []
+        self.rearmed: list[int] = []
         self._pos = 0
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -39,9 +40,13 @@ class Scripted(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self._pos = 0
         self.ceilings = []
+        self.rearmed = []
 
     def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
         self.ceilings.append((self._pos, ceiling, commanded))
+
+    def rearm(self) -> None:
+        self.rearmed.append(self._pos)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         ev = []
@@ -90,42 +95,51 @@ def _children() -> list[Block]:
         2060: (OVR, "spindle_override", 112.0),
         4000: (NOTE, "chatter_end", None),
     })  # fmt: skip
-    breakage = Scripted("breakage", {3000: (ALM, "breakage", None)})
+    breakage = Scripted("breakage", {
+        3000: (ALM, "breakage", None),  # during chatter: set aside
+        7500: (ALM, "breakage", None),  # re-armed, still broken: acted on
+    })  # fmt: skip
     adaptive = Scripted("adaptive_feed", {
         1005: (OVR, "feed_override", 130.0),
         2500: (OVR, "feed_override", 140.0),  # during chatter: not raised
         2600: (OVR, "feed_override", 90.0),  # during chatter: may fall
-        5000: (OVR, "feed_override", 120.0),  # after the hold: nothing passes
+        5000: (OVR, "feed_override", 120.0),  # while re-judging (chatter mode): no rise
     })  # fmt: skip
     return [chatter, breakage, adaptive]
 
 
 def test_priorities_chatter_then_breakage_then_adaptive() -> None:
     """Seed 000 Fig. 6.16: the feed may fall but not rise during chatter; a breakage alarm
-    during chatter waits for the episode's end, then a feed hold latches; every decision falls
-    on the next 10 ms boundary (100 samples)."""
-    sup = Supervisor(_children(), fault_channel="guard/fault", in_cut_channel="plan/in_cut")
-    ch, events = _run(sup, 6000, 100)
+    during chatter is set aside and the breakage monitor re-armed 0.3 s after the episode's end
+    (decision 1621); the alarm it raises then gives a feed hold that latches; every decision
+    falls on the next 10 ms boundary (100 samples)."""
+    kids = _children()
+    sup = Supervisor(kids, fault_channel="guard/fault", in_cut_channel="plan/in_cut")
+    ch, events = _run(sup, 8000, 100)
     assert _overrides(events) == [
         (1100, "feed_override", 130.0),  # adaptive, next boundary after 1005
         (2100, "spindle_override", 112.0),  # chatter remedy passes
         (2700, "feed_override", 90.0),  # a fall during chatter passes; 140 % at 2500 did not
-        (4100, "feed_hold", 1.0),  # breakage (3000) held until chatter_end (4000)
+        (7600, "feed_hold", 1.0),  # the re-armed monitor's alarm (7500); 5000's 120 % refused
     ]
     mode = ch["supervisor/mode"]
-    assert mode[1500] == MODE_NORMAL and mode[2500] == MODE_CHATTER and mode[5500] == MODE_HOLD
+    assert mode[1500] == MODE_NORMAL and mode[2500] == MODE_CHATTER and mode[7700] == MODE_HOLD
+    assert mode[6500] == MODE_CHATTER  # the 0.3 s after the episode: still not stable
+    assert [e.sample for e in events if e.name == "breakage_set_aside"] == [3100]
+    breakage = kids[1]
+    assert isinstance(breakage, Scripted) and breakage.rearmed == [7000]
     assert ch["supervisor/feed_override"][1200] == pytest.approx(1.3)
     assert ch["supervisor/spindle_override"][2200] == pytest.approx(1.12)
     assert math.isnan(ch["supervisor/spindle_override"][100])
-    assert np.array_equal(ch["adaptive_feed/echo"], 2 * np.arange(6000.0))  # children's outputs
+    assert np.array_equal(ch["adaptive_feed/echo"], 2 * np.arange(8000.0))  # children's outputs
     alarms = [e.name for e in events if e.kind is EventKind.ALARM]
-    assert alarms == ["chatter", "breakage"]  # passed on unchanged
+    assert alarms == ["chatter", "breakage", "breakage"]  # passed on unchanged
 
 
 def test_adaptive_child_gets_the_ceiling_during_chatter_and_hold() -> None:
     kids = _children()
     sup = Supervisor(kids)
-    _run(sup, 6000, 100)
+    _run(sup, 8000, 100)
     adaptive = kids[2]
     assert isinstance(adaptive, Scripted)
     by_sample = {s: (c, u) for s, c, u in adaptive.ceilings}
@@ -135,10 +149,10 @@ def test_adaptive_child_gets_the_ceiling_during_chatter_and_hold() -> None:
     assert adaptive.ceilings[-1][1] == 0.0
 
 
-@pytest.mark.parametrize("chunk", [1, 7, 100, 333, 6000])
+@pytest.mark.parametrize("chunk", [1, 7, 100, 333, 8000])
 def test_decisions_do_not_depend_on_the_chunking(chunk: int) -> None:
-    ref_ch, ref_ev = _run(Supervisor(_children()), 6000, 100)
-    ch, ev = _run(Supervisor(_children()), 6000, chunk)
+    ref_ch, ref_ev = _run(Supervisor(_children()), 8000, 100)
+    ch, ev = _run(Supervisor(_children()), 8000, chunk)
     assert _overrides(ev) == _overrides(ref_ev)
     for k in ref_ch:
         assert np.array_equal(ch[k], ref_ch[k], equal_nan=True), k

@@ -237,6 +237,30 @@ def test_block_with_a_model_never_commands_a_speed_predicted_unstable() -> None:
     assert cmd.values["lobe_number"] == 1 and cmd.values["margin_mm"] > 1.0
 
 
+def test_depth_channel_judges_the_lobes_at_the_plans_depth() -> None:
+    """The model built at 1.2 mm but the plan's depth channel at 5 mm where it chatters: the
+    block judges at 5 mm (no stable speed, as the model built at 5 mm says); at 1.2 mm from the
+    channel it commands the lobe-1 speed."""
+    from dataclasses import replace
+
+    x, spd = _signal()
+    mon = ChatterMonitor(ChatterSettings(method="chatter-comb", signal="s", n_flutes=5))
+    settings = AvoidanceSettings(depth_channel="plan/axial_depth")
+    for depth_m, expect_cmd in ((5.0e-3, False), (1.2e-3, True)):
+        block = ChatterAvoidanceBlock(mon, replace(settings), model=_t1(1.2))
+        block.reset(FS)
+        events = []
+        for a in range(0, len(x), 1000):
+            data = {"s": x[a : a + 1000], "spindle/speed": spd[a : a + 1000],
+                    "plan/axial_depth": np.full(len(x[a : a + 1000]), depth_m)}  # fmt: skip
+            events += block.process(Chunk(a, FS, 0.0, data)).events
+        cmds = [e for e in events if e.kind is EventKind.OVERRIDE]
+        assert bool(cmds) is expect_cmd
+        if not expect_cmd:
+            warn = [e for e in events if e.name == "no_stable_speed"]
+            assert warn and warn[0].values["margin_mm"] < 0
+
+
 def test_events_carry_the_monitor_location() -> None:
     x, spd = _signal()
 

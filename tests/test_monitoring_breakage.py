@@ -155,3 +155,28 @@ def test_break_during_an_unjudged_gap_is_reported_when_judging_resumes() -> None
     assert len(events) == 1
     # judging resumes at period 50; the third violating period in a row is period 52
     assert events[0].time_s == pytest.approx(53 * tooth / fs, abs=2 * tooth / fs)
+
+
+def test_rearm_lets_a_persisting_breakage_alarm_again() -> None:
+    """An arbiter sets an alarm aside (chatter) and re-arms the monitor (decision 1621): the
+    tool still broken, the next alarm comes 3 judged tooth periods after the re-arm."""
+    import math
+
+    from millsense.monitoring.breakage import BreakageBlock
+    from millsense.streaming.block import Chunk
+
+    fs, rpm, n_fl = 10000.0, 1000.0, 2
+    tooth = round(fs * 60 / rpm / n_fl)
+    n = 80 * tooth
+    period = np.arange(n) // tooth
+    tq = np.where(period >= 20, np.where(period % 2 == 0, 0.2, 6.0), 3.0)
+    blk = BreakageBlock(n_fl, "virtual", signal_channels=("tq",), speed_channel="w",
+                        expected_channel="ex", min_expected_nm=0.5)  # fmt: skip
+    blk.reset(fs)
+    data = {"tq": tq, "w": np.full(n, rpm * 2 * math.pi / 60), "ex": np.full(n, 3.0)}
+    first = blk.process(Chunk(0, fs, 0.0, {k: v[: 50 * tooth] for k, v in data.items()})).events
+    assert len(first) == 1  # the break at period 20, confirmed 3 periods on
+    blk.rearm()
+    again = blk.process(Chunk(50 * tooth, fs, 0.0, {k: v[50 * tooth :] for k, v in data.items()}))
+    assert len(again.events) == 1
+    assert again.events[0].time_s == pytest.approx(53 * tooth / fs, abs=2 * tooth / fs)

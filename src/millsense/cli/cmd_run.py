@@ -95,7 +95,10 @@ def run(
     ),
     break_flute: int = typer.Option(0, "--break-flute", help="Flute that breaks."),
     tool_modes: Path | None = typer.Option(
-        None, "--tool-modes", help="Tool modal table (TOML): regenerative chatter."
+        None,
+        "--tool-modes",
+        help="Tool modes (a stability case TOML): the virtual tool chatters; a full case file "
+        "(tool, coefficients, immersion) is also the lobes the chatter avoidance checks.",
     ),
     fault: list[str] = typer.Option(
         [], "--fault", help="Inject a link fault KIND@START_S[:DURATION_S][:CHANNEL]."
@@ -243,6 +246,16 @@ def run_online(
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
     modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
+    notes_pre: list[str] = []
+    if tool_modes is not None:
+        from dataclasses import replace
+
+        from millsense.stability.cases import load_case
+
+        try:
+            options = replace(options, stability_case=load_case(tool_modes))
+        except ConfigError as exc:
+            notes_pre.append(f"chatter avoidance without lobes ({exc}): nearest faster lobe")
     job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
     sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
                            duration_s=duration_s)  # fmt: skip
@@ -260,7 +273,7 @@ def run_online(
                                chunk_samples=chunk, on_progress=cb),
         built.supervisor,
     )  # fmt: skip
-    lines = [f"millsense: note: {n}" for n in notes + built.notes]
+    lines = [f"millsense: note: {n}" for n in notes_pre + notes + built.notes]
     lines += [f"millsense: warning: {w}" for w in findings.warnings]
     lines += _summary_lines(res, out, ev_path)
     if plot is not None:

@@ -13,10 +13,11 @@ that the decisions do not depend on how the stream is cut into chunks) it decide
    by ``chatter_end``), ``spindle_override`` proposals pass and the feed may fall but not
    rise (the adaptive controller's ceiling is its override at the onset);
 2. **then breakage if stable** — a ``breakage`` alarm with no chatter open gives a feed hold
-   at once (CRITICAL) that latches for the rest of the run; a breakage alarm during chatter
-   is held pending and acted on when the episode closes (the chatter corrupts the
-   tooth-period torque the detector judges; a broken tool stays broken, so the hold is only
-   deferred, never dropped);
+   at once (CRITICAL) that latches for the rest of the run; a breakage alarm during chatter,
+   or within ``rejudge_s`` after its end (the speed change settling), is not acted on: the
+   chatter corrupts the tooth-period torque the detector judges. Instead the breakage
+   monitors are re-armed when the episode has closed and settled (``rearm``), so a tool that
+   is still broken alarms again on the torque it then cuts with;
 3. **then adaptive control if chatter-free and intact** — ``feed_override`` proposals pass.
 
 The safety layer: the source's fault channel (``guard/fault`` of
@@ -65,6 +66,8 @@ class SupervisorOptions:
         feed for ever).
     fault_clear_s : a source fault clears after this long without a faulty sample (a burst
         of NaNs or a flickering link must not let the feed rise in between).
+    rejudge_s : after a chatter episode closes, breakage alarms are still set aside for this
+        long; then the breakage monitors are re-armed.
     """
 
     period_s: float = 0.01
@@ -72,6 +75,7 @@ class SupervisorOptions:
     hold_on_fault: bool = True
     chatter_timeout_s: float = 5.0
     fault_clear_s: float = 0.1
+    rejudge_s: float = 0.3
 
     def __post_init__(self) -> None:
         if not (self.period_s > 0 and math.isfinite(self.period_s)):
@@ -151,6 +155,8 @@ class Supervisor(Block):
         self.chatter_open = False
         self.chatter_last_s = -math.inf
         self.breakage_pending: Event | None = None
+        self.set_aside = 0  # breakage alarms not acted on (raised during chatter)
+        self.rejudge_at: float | None = None  # time the breakage monitors are re-armed
         self.held = False
         self.fault = False
         self.in_cut = True
@@ -227,9 +233,17 @@ class Supervisor(Block):
                 self.chatter_open = True
                 self.chatter_last_s = ev.time_s
             elif ev.name == "chatter_end":
+                if self.chatter_open:
+                    self.rejudge_at = ev.time_s + self.opts.rejudge_s
                 self.chatter_open = False
             elif ev.name == "breakage" and ev.kind is EventKind.ALARM:
-                if self.breakage_pending is None:
+                if self.chatter_open or self.rejudge_at is not None:
+                    self.set_aside += 1  # judged on a torque the chatter corrupted
+                    events.append(Event(t, EventKind.NOTE, self.name,
+                                        f"breakage alarm of {ev.source} at {ev.time_s:.3f} s set "
+                                        "aside: chatter; the monitor is re-armed once stable",
+                                        name="breakage_set_aside", sample=k))  # fmt: skip
+                elif self.breakage_pending is None:
                     self.breakage_pending = ev
             elif ev.kind is EventKind.OVERRIDE and ev.name == "feed_override":
                 feed_prop = ev
@@ -237,6 +251,13 @@ class Supervisor(Block):
                 spindle_prop = ev
         if self.chatter_open and t - self.chatter_last_s > self.opts.chatter_timeout_s:
             self.chatter_open = False
+            self.rejudge_at = t + self.opts.rejudge_s
+        if self.rejudge_at is not None and not self.chatter_open and t >= self.rejudge_at:
+            self.rejudge_at = None
+            for c in self.children:
+                rearm = getattr(c, "rearm", None)
+                if rearm is not None:
+                    rearm()
         if self.held:
             self.mode = MODE_HOLD
             return
@@ -257,18 +278,22 @@ class Supervisor(Block):
         if spindle_prop is not None:
             self._spindle(t, k, spindle_prop, events)
         # 2. breakage, once stable
-        if self.breakage_pending is not None and not self.chatter_open:
+        if self.breakage_pending is not None:
             self._hold_for_breakage(t, k, self.breakage_pending, events)
             return
         # 3. adaptive control
         if feed_prop is not None and feed_prop.value is not None:
             u = float(feed_prop.value) / 100.0
-            if self.chatter_open or self.fault:
+            if self._unsettled() or self.fault:
                 u = min(u, self.feed)  # may fall, never rise
             if abs(u - self.feed) > 1e-12:
                 self._feed(t, k, u, feed_prop, events)
         self._set_ceilings()
-        self.mode = MODE_FAULT if self.fault else (MODE_CHATTER if self.chatter_open else 0)
+        self.mode = MODE_FAULT if self.fault else (MODE_CHATTER if self._unsettled() else 0)
+
+    def _unsettled(self) -> bool:
+        """A chatter episode is open or has not settled for ``rejudge_s``."""
+        return self.chatter_open or self.rejudge_at is not None
 
     def _on_fault(
         self, chunk: Chunk, t: float, k: int, code: int, at: int, events: list[Event]
@@ -347,7 +372,7 @@ class Supervisor(Block):
         limit: float | None = None
         if self.held:
             limit = 0.0
-        elif self.chatter_open or self.fault:
+        elif self._unsettled() or self.fault:
             limit = self.feed
         for c in self.children:
             setter = getattr(c, "set_ceiling", None)

@@ -304,6 +304,9 @@ class AvoidanceSettings:
     max_lobe : largest lobe number tried.
     require_stable : with a model, act only on a candidate predicted stable (else a WARNING
         ``no_stable_speed`` advising a depth reduction).
+    depth_channel : channel with the current axial depth of cut, m (the virtual plan's, e.g.
+        ``plan/axial_depth``): the model's lobes are judged at that depth when the chatter is
+        acted on; None: the model's own depth.
     """
 
     act: bool = True
@@ -312,6 +315,7 @@ class AvoidanceSettings:
     override_channel: str | None = None
     max_lobe: int = 20
     require_stable: bool = True
+    depth_channel: str | None = None
 
     def __post_init__(self) -> None:
         if not self.settle_s >= 0:
@@ -354,6 +358,8 @@ class ChatterAvoidanceBlock(Block):
         ins = list(monitor.inputs)
         if s.override_channel is not None and s.override_channel not in ins:
             ins.append(s.override_channel)
+        if s.depth_channel is not None and s.depth_channel not in ins:
+            ins.append(s.depth_channel)
         self.inputs = tuple(ins)
         self._hz_channel = f"{monitor.name}/chatter_hz"
         self._out = f"{name}/spindle_override_pct"
@@ -436,8 +442,13 @@ class ChatterAvoidanceBlock(Block):
         if self._flutes < 1 or not self._programmed > 0:
             return None
         rpm_now = self._programmed * ovr
+        model = self.model
+        if model is not None and s.depth_channel is not None:
+            depth = float(np.asarray(chunk.data[s.depth_channel])[k])
+            if depth > 0 and math.isfinite(depth):
+                model = model.at_depth(depth * 1e3)  # the cut's depth where it chatters
         rec = choose_spindle_speed(
-            f_c, self._flutes, rpm_now, self._programmed, s.limits, self.model, s.max_lobe
+            f_c, self._flutes, rpm_now, self._programmed, s.limits, model, s.max_lobe
         )
         sample = chunk.start + k
         self._last_action = t  # one decision per settle time, whatever it was

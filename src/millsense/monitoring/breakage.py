@@ -197,6 +197,14 @@ class BreakageBlock(Block):
             ChannelInfo(f"{self.name}/limit2", u, "threshold of residual 2 (NaN: none yet)"),
         ]
 
+    def rearm(self) -> None:
+        """Forget the running violation and judge afresh (an arbiter's call after a disturbance
+        that invalidated the tooth-period torque, e.g. chatter): a tool that is still broken
+        alarms again after ``confirm`` periods, on the torque deviation alone (decision 1625)."""
+        self._det[_k.DET_RUN] = 0.0
+        self._det[_k.DET_GAP] = 1.0
+        self._first_violation = -1
+
     def reset(self, sample_rate_hz: float) -> None:
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")

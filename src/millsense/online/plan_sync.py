@@ -154,6 +154,7 @@ class PlanSync(Block):
         self._edge = np.nan_to_num(tq - sh)
         self._in_cut = np.asarray(plan["in_cut"], dtype=bool)
         self._steady = steady_rows(plan, transient_revs)
+        self._depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
         #: only revolutions whose expected torque is at least this are calibrated on: at a
         #: light load an observer's offset and noise would set the ratio (decision 1622)
         self._min_cal = MIN_CALIBRATION * float(np.nanmax(np.abs(tq), initial=0.0))
@@ -172,6 +173,7 @@ class PlanSync(Block):
                 f"{n}/judged_torque", "N*m", "expected torque where the plan is steady, else 0"
             ),
             ChannelInfo(f"{n}/ktc_scale", "1", "K_tc calibration ratio (1 until calibrated)"),
+            ChannelInfo(f"{n}/axial_depth", "m", "axial depth of cut of the matched row"),
         ] + (self.air.output_channels() if self.air is not None else [])
 
     def reset(self, sample_rate_hz: float) -> None:
@@ -256,6 +258,7 @@ class PlanSync(Block):
                 f"{self.name}/expected_torque": expected,
                 f"{self.name}/judged_torque": np.where(steady, expected, 0.0),
                 f"{self.name}/ktc_scale": scale,
+                f"{self.name}/axial_depth": np.where(rows >= 0, self._depth[safe], 0.0),
                 **extra,
             },
             events,

@@ -72,6 +72,10 @@ class SessionOptions:
         (spindle override) rather than recommend.
     breakage : run the breakage monitor (virtual threshold); ``hold_on_breakage``: feed hold.
     period_s : control period of the supervisor, s.
+    stability_case : the lobes' case (:class:`~millsense.stability.cases.
+        MillingStabilityCase`: tool modes, flutes, coefficients, immersion) the chatter
+        avoidance checks its speeds on, at the plan's axial depth where it chatters; None: the
+        nearest faster lobe, unchecked (Smith–Tlusty).
     """
 
     adaptive: bool = True
@@ -85,6 +89,7 @@ class SessionOptions:
     breakage: bool = True
     hold_on_breakage: bool = True
     period_s: float = 0.01
+    stability_case: Any = None
 
     def __post_init__(self) -> None:
         if self.force_from not in FORCE_SOURCES:
@@ -218,7 +223,11 @@ def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
     """The chatter monitor on the compensated spindle torque inside the chatter avoidance
     (seed 000 §2.7; the new speed by :func:`~millsense.control.chatter_avoidance.
     choose_spindle_speed`, commanded or only recommended)."""
-    from millsense.control.chatter_avoidance import AvoidanceSettings, ChatterAvoidanceBlock
+    from millsense.control.chatter_avoidance import (
+        AvoidanceSettings,
+        ChatterAvoidanceBlock,
+        StabilityModel,
+    )
     from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
 
     monitor = ChatterMonitor(
@@ -231,9 +240,13 @@ def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
         )
     )
     ovr = "cnc/spindle_override" if "cnc/spindle_override" in have else None
-    return ChatterAvoidanceBlock(
-        monitor, AvoidanceSettings(act=o.avoid_chatter, override_channel=ovr)
-    )
+    model = None
+    depth = None
+    if o.stability_case is not None:
+        model = StabilityModel(o.stability_case, 1.0)  # judged at the plan's depth
+        depth = "plan/axial_depth"
+    settings = AvoidanceSettings(act=o.avoid_chatter, override_channel=ovr, depth_channel=depth)
+    return ChatterAvoidanceBlock(monitor, settings, model)
 
 
 class StopAfterHold(Source):

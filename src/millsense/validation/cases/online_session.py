@@ -219,3 +219,145 @@ for _kind in FAULTS:
             "guard's hold on the command path); infinite if the recording misses samples."
         ),
     )(_make)
+
+
+# ---------------------------------------------------------------- chatter in the session
+#: The chatter-prone pass: the V5 T1 replica (Ø50 mm 5-flute, its modal table) slotting Al7050
+#: at 4500 rev/min, 1.2 mm deep, 0.1 mm/tooth (the case of ``control.chatter_avoidance_*``),
+#: here planned and run through ``millsense run``'s session with the lobes of the tool table.
+CHATTER_RPM = 4500.0
+CHATTER_DEPTH_MM = 1.2
+
+
+@functools.lru_cache(maxsize=1)
+def chatter_run() -> dict[str, object]:
+    """The T1 slot through the session; the speed commands, alarms and the truth's chatter."""
+    from millsense.core.config import MaterialConfig
+    from millsense.core.presets import commissioned_machine, load_preset
+    from millsense.core.units import MM
+    from millsense.io.recording_reader import open_recording
+    from millsense.online.session import SessionOptions, run_session, session_blocks
+    from millsense.plan.gcode import interpret
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.plan_job import plan_job
+    from millsense.simulator.process_coupling import ToolModes
+    from millsense.validation.cases.control_chatter_avoidance import stability_case
+    from millsense.validation.cases.monitoring_chatter import TOOLS, _modes
+    from millsense.validation.cases.simulator_plan import machine_3axis
+
+    d, n, _, _, _, _, mx, my = TOOLS["T1"]
+    feed = 0.1 * n * CHATTER_RPM
+    prog = (
+        f"G21 G90 G17\nT1 M6\nS{CHATTER_RPM:.0f} M3\nG0 X-40 Y0 Z5\n"
+        f"G1 Z{-CHATTER_DEPTH_MM} F{feed:.0f}\nX200\nG0 Z5\nM30\n"
+    )
+    stock = ZMapStock.from_box([0.0, -0.05, -0.03], [0.25, 0.05, 0.0], 0.5 * MM)
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    plan = plan_program(interpret(prog, source="t1_slot.nc"), stock, EndMill(d, n), coeffs,
+                        step_m=1.0 * MM)  # fmt: skip
+    m = machine_3axis()
+    job, proc, _, _ = plan_job(plan, m, "t1_slot.nc", modes=ToolModes(_modes(my), _modes(mx)))
+    sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=11))
+    shipped = commissioned_machine("quaser-ux600")
+    assert shipped is not None
+    belief = shipped[0].model_copy(
+        update={"kinematics": "3-axis", "axes": {a: shipped[0].axes[a] for a in "xyz"}}
+    )
+    opts = SessionOptions(stability_case=stability_case())
+    built = session_blocks(plan, belief, m.sample_rate_hz, opts, channels=sim.channel_names)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "t1.h5"
+        res = run_session(sim, built.blocks, out=out, keep=("truth/process/chatter",))
+        rec = open_recording(out)
+        try:
+            chatter = np.asarray(rec.channel("truth/process/chatter")) > 0.5
+        finally:
+            close = getattr(rec, "close", None)
+            if callable(close):
+                close()
+    return {"events": res.events, "chatter": chatter, "fs": m.sample_rate_hz}
+
+
+def _chatter_table(r: dict[str, object]) -> str:
+    ev = r["events"]
+    assert isinstance(ev, list)
+    rows = [
+        f"| {e.time_s:.3f} | {e.name} | {e.message[:110]} |"
+        for e in ev
+        if e.name in ("chatter", "chatter_end", "spindle_override", "breakage_set_aside",
+                      "feed_hold", "breakage")
+    ]  # fmt: skip
+    return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
+
+
+@case(
+    "online.chatter_gone_after_last_speed_change_s",
+    source="issue 16: chatter detected on the chatter-prone pass is gone within 1 s after the "
+    "speed change (seed 000 C13)",
+    reference=0.5,
+    unit="s",
+    abs_tol=0.5,
+    quick=False,
+    description=(
+        "T1 replica slot at 4500 rev/min, 1.2 mm, through the session: last chatter sample of "
+        "the simulator's truth after the last spindle-speed command, s (0–1 s accepted)."
+    ),
+)
+def _chatter_gone() -> Measured:
+    r = chatter_run()
+    ev = r["events"]
+    assert isinstance(ev, list)
+    cmds = [e for e in ev if e.name == "spindle_override"]
+    if not cmds:
+        return Measured(float("nan"), "no speed change\n\n" + _chatter_table(r))
+    chatter = r["chatter"]
+    fs = r["fs"]
+    assert isinstance(chatter, np.ndarray) and isinstance(fs, float)
+    k0 = round(cmds[-1].time_s * fs)
+    after = np.flatnonzero(chatter[k0:])
+    gone = 0.0 if after.size == 0 else float(after[-1] + 1) / fs
+    if after.size and after[-1] + 1 >= chatter.size - k0:
+        gone = float("inf")  # still chattering at the end of the pass
+    return Measured(gone, _chatter_table(r))
+
+
+@case(
+    "online.chatter_speed_changes_until_stable",
+    source="seed 000 C13 / issue 16: one speed change to a stable pocket of the lobes",
+    reference=1.0,
+    unit="changes",
+    abs_tol=0.0,
+    quick=False,
+    gap=(
+        "the first speed (lobe 1, stable on the tool table's lobes) chatters on the virtual "
+        "machine, whose tool modes soften under load (decision 1531); the second change "
+        "settles it"
+    ),
+    issue=16,
+    description="Spindle-speed commands of the chatter avoidance in the session on the T1 slot.",
+)
+def _chatter_changes() -> Measured:
+    r = chatter_run()
+    ev = r["events"]
+    assert isinstance(ev, list)
+    return Measured(float(sum(1 for e in ev if e.name == "spindle_override")), _chatter_table(r))
+
+
+@case(
+    "online.chatter_no_false_hold",
+    source="seed 000 Fig. 6.16: breakage is judged only when stable (decision 1621)",
+    reference=0.0,
+    unit="feed holds",
+    abs_tol=0.0,
+    quick=False,
+    description="Feed holds in the T1 chatter run (the tool is intact).",
+)
+def _chatter_no_hold() -> Measured:
+    r = chatter_run()
+    ev = r["events"]
+    assert isinstance(ev, list)
+    return Measured(float(sum(1 for e in ev if e.name == "feed_hold")), _chatter_table(r))
