@@ -23,7 +23,8 @@ _MACHINE_FILE = typer.Option(
     None,
     "--machine-file",
     help="Machine file of the estimators (made by `millsense commission --identify`): the "
-    "spindle torque observer and, with --force-from estimate, the feed-drive estimators.",
+    "spindle torque observer and, with --force-from estimate, the feed-drive estimators "
+    "(default: the commissioned file millsense ships for the machine).",
 )
 
 
@@ -101,7 +102,10 @@ def run(
         "(tool, coefficients, immersion) is also the lobes the chatter avoidance checks.",
     ),
     fault: list[str] = typer.Option(
-        [], "--fault", help="Inject a link fault KIND@START_S[:DURATION_S][:CHANNEL]."
+        [],
+        "--fault",
+        metavar="KIND@START_S[:DURATION_S][:CHANNEL]",
+        help="Inject a link fault (nan, drop, stall, lost), e.g. stall@2.0:0.3; repeatable.",
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
