@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from millsense.streaming.block import Event
+from millsense.streaming.sources import SourceWrapper
 
 PROGRAM = """\
 %
@@ -115,14 +116,8 @@ def _plan(out: Path) -> Any:
     )
 
 
-class _Open:
-    """A source that records the commands instead of applying them (the CNC as programmed)."""
-
-    def __init__(self, inner: Any) -> None:
-        self.inner = inner
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)
+class _Open(SourceWrapper):
+    """The virtual machine with its commands dropped (the CNC as programmed)."""
 
     def command(self, event: Event) -> None:
         pass
@@ -152,7 +147,7 @@ def _run(
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
     built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
                            channels=sim.channel_names)  # fmt: skip
-    source: Source = sim if controlled else _Open(sim)  # type: ignore[assignment]
+    source: Source = sim if controlled else _Open(sim)
     meta.update(dict(sim.metadata))
     meta.update({"source": "millsense demo (on-line system)", "machine_file": where,
                  "controlled": controlled})  # fmt: skip
@@ -192,7 +187,7 @@ def run_online_demo(
     """Plan, run controlled and open, compare; writes the files named in the module notes."""
     import tempfile
 
-    from millsense.io.recording_reader import open_recording
+    from millsense.io.recording_reader import opened_recording
     from millsense.io.safe_output import write_text
 
     out = Path(out_dir)
@@ -212,15 +207,10 @@ def run_online_demo(
             ("open", False, Path(tmp) / "open.h5", out / "online_open.events.parquet", 0.5),
         ):
             res = _run(plan, controlled, rec_path, ev_path, progress(offset))
-            rec = open_recording(rec_path)
-            try:
-                cols = (*KEEP, "plan/cutting_torque", "supervisor/feed_override",
-                        "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
+            cols = (*KEEP, "plan/cutting_torque", "supervisor/feed_override",
+                    "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
+            with opened_recording(rec_path) as rec:
                 data = {c: np.asarray(rec.channel(c)) for c in cols}
-            finally:
-                close = getattr(rec, "close", None)
-                if callable(close):
-                    close()
             runs[key] = (res, data)
     figs = {k: _figures(r, d) for k, (r, d) in runs.items()}
     from millsense.report.online_plots import plot_comparison

@@ -299,7 +299,7 @@ def replay_online(
 ) -> dict[str, Any]:
     """The on-line blocks on a recording (the body of ``replay``)."""
     from millsense.core.errors import ConfigError
-    from millsense.io.recording_reader import open_recording
+    from millsense.io.recording_reader import opened_recording
     from millsense.online.guard import FAULT_CHANNEL
     from millsense.online.session import run_session, session_blocks
     from millsense.plan.virtual_plan import VirtualPlan
@@ -308,8 +308,7 @@ def replay_online(
     if chunk < 1:
         raise ConfigError(f"--chunk: must be ≥ 1, got {chunk}")
     vp = VirtualPlan.read(plan)
-    rec = open_recording(recording)
-    try:
+    with opened_recording(recording) as rec:
         cfg, where = _machine_file(machine_file, str(rec.metadata.get("machine", "")))
         kin = str(rec.metadata.get("kinematics", cfg.kinematics))
         axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
@@ -332,10 +331,6 @@ def replay_online(
                                    stop_after_hold_s=None),
             built.supervisor,
         )  # fmt: skip
-    finally:
-        close = getattr(rec, "close", None)
-        if callable(close):
-            close()
     lines = [f"millsense: note: {n}" for n in built.notes]
     lines += _summary_lines(res, out, events_out)
     return {"lines": lines, "result": res}

@@ -18,6 +18,8 @@ length is what one run wrote before it died. Both answer the same questions
 from __future__ import annotations
 
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -219,6 +221,18 @@ def open_recording(path: str | Path) -> RecordingReader | Recording:
     if p.is_file():
         return RecordingReader(p)
     return read_recording(p)
+
+
+@contextmanager
+def opened_recording(path: str | Path) -> Iterator[RecordingReader | Recording]:
+    """:func:`open_recording` as a context: the file is closed on leaving (a recovered
+    in-memory recording has nothing to close)."""
+    rec = open_recording(path)
+    try:
+        yield rec
+    finally:
+        if isinstance(rec, RecordingReader):
+            rec.close()
 
 
 def channel_window(rec: Any, name: str, start: int, stop: int) -> np.ndarray:

@@ -21,9 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from millsense.core.errors import ConfigError
-from millsense.core.recording import ChannelInfo
-from millsense.streaming.block import Chunk, Event
-from millsense.streaming.sources import Source
+from millsense.streaming.block import Chunk
+from millsense.streaming.sources import Source, SourceWrapper
 
 KINDS = ("nan", "drop", "stall", "lost")
 
@@ -64,15 +63,12 @@ class LinkFault:
         return cls(kind.strip(), start, dur, parts[2] if len(parts) > 2 else "")
 
 
-class FaultyLink(Source):
+class FaultyLink(SourceWrapper):
     """``inner`` delivered through a link that fails as ``faults`` schedule."""
 
     def __init__(self, inner: Source, faults: Sequence[LinkFault]) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.faults = list(faults)
-        self.name = inner.name
-        self.sample_rate_hz = inner.sample_rate_hz
-        self.t0_s = inner.t0_s
         names = inner.channel_names
         for f in self.faults:
             if f.channel and f.channel not in names:
@@ -82,18 +78,6 @@ class FaultyLink(Source):
                 )
         self._measured = [n for n in names if not n.startswith("truth/")]
         self._frozen: dict[str, float] = {}
-
-    @property
-    def channel_info(self) -> list[ChannelInfo]:
-        return self.inner.channel_info
-
-    def command(self, event: Event) -> None:
-        self.inner.command(event)
-
-    def __getattr__(self, name: str) -> object:
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def read(self, max_samples: int) -> Chunk | None:
         while True:

@@ -25,7 +25,7 @@ import numpy as np
 
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Chunk, Event, EventKind, Severity
-from millsense.streaming.sources import Source
+from millsense.streaming.sources import Source, SourceWrapper
 
 FAULT_CHANNEL = "guard/fault"
 NAN, GAP, STALL, LOST = 1, 2, 3, 4
@@ -34,7 +34,7 @@ NAN, GAP, STALL, LOST = 1, 2, 3, 4
 LINK_ERRORS: tuple[type[BaseException], ...] = (ConnectionError, TimeoutError, OSError, EOFError)
 
 
-class GuardedSource(Source):
+class GuardedSource(SourceWrapper):
     """``inner`` with non-finite values held, gaps filled, stalls and loss detected.
 
     Parameters
@@ -46,10 +46,7 @@ class GuardedSource(Source):
     """
 
     def __init__(self, inner: Source, stall_s: float = 0.05, hold_on_loss: bool = True) -> None:
-        self.inner = inner
-        self.name = inner.name
-        self.sample_rate_hz = inner.sample_rate_hz
-        self.t0_s = inner.t0_s
+        super().__init__(inner)
         self.hold_on_loss = hold_on_loss
         self.n_stall = max(1, round(stall_s * self.sample_rate_hz))
         self.events: list[Event] = []
@@ -72,12 +69,6 @@ class GuardedSource(Source):
     def command(self, event: Event) -> None:
         if not self._lost:
             self.inner.command(event)
-
-    def __getattr__(self, name: str) -> object:
-        # what the session asks of a live source (its events, stream rows, metadata)
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     # ------------------------------------------------------------------ reading
     def read(self, max_samples: int) -> Chunk | None:

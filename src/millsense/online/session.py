@@ -34,7 +34,6 @@ from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptio
 from millsense.control.arbitration import Supervisor, SupervisorOptions
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.core.recording import ChannelInfo
 from millsense.monitoring.breakage import BreakageBlock
 from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
@@ -42,7 +41,7 @@ from millsense.online.plan_sync import PlanSync, TcpFromAxes
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block, Chunk, Event, EventKind
 from millsense.streaming.engine import Pipeline, run
-from millsense.streaming.sources import Source
+from millsense.streaming.sources import Source, SourceWrapper
 
 #: The compensated spindle torque of the machine file's observer (chatter, breakage, K_tc).
 TORQUE_CHANNEL = "est/spindle/spindle/load"
@@ -249,28 +248,16 @@ def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
     return ChatterAvoidanceBlock(monitor, settings, model)
 
 
-class StopAfterHold(Source):
+class StopAfterHold(SourceWrapper):
     """Ends a live stream ``after_s`` after a feed hold was sent to it: the machine is
     stopped and waits for the operator, so the session records the stop and closes (a
     replay ends with its recording anyway)."""
 
     def __init__(self, inner: Source, after_s: float = 0.5) -> None:
-        self.inner = inner
-        self.name = inner.name
-        self.sample_rate_hz = inner.sample_rate_hz
-        self.t0_s = inner.t0_s
+        super().__init__(inner)
         self.after = max(1, round(after_s * inner.sample_rate_hz))
         self.stop_at: int | None = None
         self._pos = 0
-
-    @property
-    def channel_info(self) -> list[ChannelInfo]:
-        return self.inner.channel_info
-
-    def __getattr__(self, name: str) -> object:
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def command(self, event: Event) -> None:
         self.inner.command(event)

@@ -34,10 +34,9 @@ _MARKS = {
 
 def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -> None:
     """Write the PNG of a run's recording and events."""
-    from millsense.io.recording_reader import open_recording
+    from millsense.io.recording_reader import opened_recording
 
-    rec = open_recording(recording)
-    try:
+    with opened_recording(recording) as rec:
         names = set(rec.channel_names)
         n = rec.n_samples
         stride = max(1, n // MAX_POINTS)
@@ -83,10 +82,6 @@ def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -
         ax[0].set_title(f"{Path(recording).name}: on-line run")
         fig.tight_layout()
         _save(fig, path)
-    finally:
-        close = getattr(rec, "close", None)
-        if callable(close):
-            close()
 
 
 def _line(

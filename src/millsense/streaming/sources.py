@@ -111,3 +111,30 @@ class RecordingSource(Source):
 
     def command(self, event: Event) -> None:
         self.commands.append(event)
+
+
+class SourceWrapper(Source):
+    """A source in front of another (a guard, an injected fault, a stop condition): by default
+    the inner source's rate, start, channels, chunks and commands; what a live source offers
+    beyond the contract (its events, stream rows, metadata) is passed on by attribute."""
+
+    def __init__(self, inner: Source) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.sample_rate_hz = inner.sample_rate_hz
+        self.t0_s = inner.t0_s
+
+    @property
+    def channel_info(self) -> list[ChannelInfo]:
+        return self.inner.channel_info
+
+    def read(self, max_samples: int) -> Chunk | None:
+        return self.inner.read(max_samples)
+
+    def command(self, event: Event) -> None:
+        self.inner.command(event)
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":  # not yet set (copy, unpickling): no recursion
+            raise AttributeError(name)
+        return getattr(self.inner, name)

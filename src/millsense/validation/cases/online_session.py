@@ -60,33 +60,21 @@ def session_run(fault: str = "", break_s: float | None = None) -> SessionRun:
     tooth break."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
-    from millsense.io.recording_reader import open_recording
+    from millsense.io.recording_reader import opened_recording
     from millsense.online.faults import FaultyLink, LinkFault
     from millsense.online.session import SessionOptions, run_session, session_blocks
-    from millsense.plan.plan_engagement import PlanEngagement, plan_path
-    from millsense.plan.virtual_plan import (
-        VirtualPlan,
-        coefficients_from_metadata,
-        tool_from_metadata,
-    )
-    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
-    from millsense.simulator.process_coupling import ProcessCoupling, ToothBreak
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.plan_job import plan_job
+    from millsense.simulator.process_coupling import ToothBreak
     from millsense.validation.cases.control_adaptive import DEPTH_HIGH_MM, DEPTH_LOW_MM, step_plan
     from millsense.validation.cases.simulator_plan import machine_3axis
 
     plan = step_plan(DEPTH_LOW_MM, DEPTH_HIGH_MM)
     assert isinstance(plan, VirtualPlan)
     m = machine_3axis()
-    pp = plan_path(plan)
-    job = Job(pp.path, pp.feed_m_s, pp.spindle_rad_s, pp.nc_line, pp.rapid)
-    proc = ProcessCoupling(
-        tool_from_metadata(plan.metadata),
-        coefficients_from_metadata(plan.metadata),
-        PlanEngagement(plan),
-        events=[ToothBreak(break_s, 0)] if break_s is not None else [],
-        n_discs=int(plan.metadata.get("n_discs", 10)),
-        sample_rate_hz=m.sample_rate_hz,
-    )
+    breaks = [ToothBreak(break_s, 0)] if break_s is not None else []
+    job, proc, _, _ = plan_job(plan, m, "v8_slot", events=breaks)
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=0))
     belief = load_preset(MachineConfig, str(MACHINE_FILE))
     belief = belief.model_copy(
@@ -98,14 +86,9 @@ def session_run(fault: str = "", break_s: float | None = None) -> SessionRun:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run.h5"
         res = run_session(source, built.blocks, out=out, keep=("cnc/feed",))
-        rec = open_recording(out)
-        try:
+        with opened_recording(out) as rec:
             recorded = rec.n_samples
             feed = np.asarray(rec.channel("cnc/feed"), dtype=np.float64)
-        finally:
-            close = getattr(rec, "close", None)
-            if callable(close):
-                close()
     return SessionRun(res.events, res.samples, recorded, feed, m.sample_rate_hz)
 
 
@@ -235,7 +218,7 @@ def chatter_run() -> dict[str, object]:
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import commissioned_machine, load_preset
     from millsense.core.units import MM
-    from millsense.io.recording_reader import open_recording
+    from millsense.io.recording_reader import opened_recording
     from millsense.online.session import SessionOptions, run_session, session_blocks
     from millsense.plan.gcode import interpret
     from millsense.plan.stock import ZMapStock
@@ -272,13 +255,8 @@ def chatter_run() -> dict[str, object]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "t1.h5"
         res = run_session(sim, built.blocks, out=out, keep=("truth/process/chatter",))
-        rec = open_recording(out)
-        try:
+        with opened_recording(out) as rec:
             chatter = np.asarray(rec.channel("truth/process/chatter")) > 0.5
-        finally:
-            close = getattr(rec, "close", None)
-            if callable(close):
-                close()
     return {"events": res.events, "chatter": chatter, "fs": m.sample_rate_hz}
 
 
