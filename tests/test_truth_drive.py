@@ -82,10 +82,15 @@ def test_modes_are_the_eigenvalues_of_the_assembled_m_k() -> None:
     w2, _ = scipy.linalg.eig(d.stiffness_matrix(0.1), d.mass_matrix())
     w_ref = np.sort(np.sqrt(np.clip(w2.real, 0, None)))
     poles = np.linalg.eigvals(d.plant(0.1).a)
-    w_plant = np.sort(np.abs(poles.imag[poles.imag >= -1e-9]))
     assert np.all(np.abs(poles.real) < 1e-6 * np.abs(poles).max())
-    np.testing.assert_allclose(w_plant[1:], w_ref[1:], rtol=1e-8)
-    assert w_ref[0] < 1e-3 and w_plant[0] < 1e-3  # the rigid body
+    # the rigid body is a defective double pole at 0, found only to √eps and with either sign
+    # of a tiny imaginary part depending on the LAPACK build: the modes are the poles away
+    # from 0, one per conjugate pair
+    rigid = np.abs(poles) < 1e-3
+    assert np.count_nonzero(rigid) == 2
+    w_plant = np.sort(poles.imag[~rigid & (poles.imag > 0)])
+    np.testing.assert_allclose(w_plant, w_ref[1:], rtol=1e-8)
+    assert w_ref[0] < 1e-3  # the rigid body
     dd = _drive(eta=0.92, zeta=0.04)
     m, k, c = dd.mass_matrix(), dd.stiffness_matrix(0.1), dd.damping_matrix()
     n = m.shape[0]
