@@ -317,6 +317,8 @@ def _propagate(
     """Product of the step maps, applied to the identity plus one affine column.
 
     Returns the (N, N + 1) matrix ``[monodromy | affine part]`` with ``N = n + R p``.
+    A delayed term whose weights ``Wa[i, j]`` and ``Wb[i, j]`` are both exactly zero (the
+    tooth is out of the cut on that step) is skipped: it would add exact zeros.
     """
     m, n, _ = Phi.shape
     J = lags.shape[0]
@@ -339,6 +341,13 @@ def _propagate(
         cur = np.dot(C, X)
         Xn = np.dot(Phi[i], X)
         for j in range(J):
+            active = False
+            for a in range(n):
+                for b in range(p):
+                    if Wa[i, j, a, b] != 0.0 or Wb[i, j, a, b] != 0.0:
+                        active = True
+            if not active:
+                continue
             r = lags[j]
             Da = ring[(ptr + r - 1) % R]
             Xn += np.dot(Wa[i, j], Da)
