@@ -43,7 +43,7 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from millsense.stability.milling import DepthFamily
-from millsense.stability.sdm import _propagate, delay_split, expm_stack
+from millsense.stability.sdm import _expm_one, _propagate, delay_split, expm_stack
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -52,26 +52,6 @@ ComplexArray = NDArray[np.complex128]
 SCAN_RATIO = 1.1
 #: Sampled local maxima of ρ at or above this are maximised to look for a narrow band.
 HUMP = 0.8
-
-
-@numba.njit(cache=True)
-def _propagate_batch(
-    Phi: FloatArray,
-    Wa: FloatArray,
-    Wb: FloatArray,
-    lags: NDArray[np.int64],
-    C: FloatArray,
-    g: FloatArray,
-) -> FloatArray:  # pragma: no cover - compiled
-    """Monodromy matrices (K, N, N) of K step-map sets (K, m, ...)."""
-    K = Phi.shape[0]
-    first = _propagate(Phi[0], Wa[0], Wb[0], lags, C, g)
-    N = first.shape[0]
-    out = np.empty((K, N, N))
-    out[0] = first[:, :N]
-    for k in range(1, K):
-        out[k] = _propagate(Phi[k], Wa[k], Wb[k], lags, C, g)[:, :N]
-    return out
 
 
 @dataclass(frozen=True)
@@ -131,56 +111,117 @@ def _prepare(family: DepthFamily) -> _Prepared:
     )
 
 
+@numba.njit(cache=True)
+def _monodromies_kernel(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    w: FloatArray,
+    h: float,
+    fr: FloatArray,
+    lags: NDArray[np.int64],
+    C: FloatArray,
+    g: FloatArray,
+) -> FloatArray:  # pragma: no cover - compiled
+    """Monodromy matrices (K, N, N): the arithmetic of ``discretize`` + ``monodromy`` per depth."""
+    K = w.shape[0]
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], C.shape[0]
+    k = n + 2 * p * J
+    R = 0
+    for j in range(J):
+        R = max(R, lags[j])
+    N = n + R * p
+    free = False
+    for i in range(m):
+        if not cut[i]:
+            free = True
+    out = np.empty((K, N, N))
+    A = np.empty((m, n, n))
+    Phi = np.empty((m, n, n))
+    Wa = np.zeros((m, J, n, p))
+    Wb = np.zeros((m, J, n, p))
+    big = np.zeros((k, k))
+    for j in range(J):
+        for b in range(p):
+            big[n + j * p + b, n + p * J + j * p + b] = h
+    ex = np.empty((k, k))
+    tmp = np.empty((k, k))
+    escale = np.empty(J)
+    for kk in range(K):
+        wk = w[kk]
+        # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
+        anorm = 0.0
+        for i in range(m):
+            if cut[i]:
+                for a in range(n):
+                    for b in range(n):
+                        A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
+                        anorm = max(anorm, abs(A[i, a, b] * h))
+        if free:
+            anorm = max(anorm, a0_norm)
+        anorm = max(anorm, 1e-3)
+        for j in range(J):
+            en = 0.0
+            for i in range(m):
+                if cut[i]:
+                    for a in range(n):
+                        for b in range(p):
+                            en = max(en, abs(wk * BH[i, j, a, b] * h))
+            escale[j] = en / anorm if en > anorm else 1.0
+        for i in range(m):
+            if not cut[i]:
+                Phi[i] = free_ex[:n, :n]
+                Wa[i] = 0.0
+                Wb[i] = 0.0
+                continue
+            for a in range(n):
+                for b in range(n):
+                    big[a, b] = A[i, a, b] * h
+                for j in range(J):
+                    for b in range(p):
+                        big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
+            _expm_one(big, ex, tmp)
+            Phi[i] = ex[:n, :n]
+            for j in range(J):
+                for a in range(n):
+                    for b in range(p):
+                        G0 = ex[a, n + j * p + b]
+                        G1 = ex[a, n + p * J + j * p + b]
+                        Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
+                        Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+        out[kk] = _propagate(Phi, Wa, Wb, lags, C, g)[:, :N]
+    return out
+
+
 def monodromies(family: DepthFamily | _Prepared, depths: FloatArray) -> FloatArray:
     """Monodromy matrices (K, N, N) of ``family`` at ``depths`` (K,) [m].
 
     Same step maps as ``discretize(family.step_means(w))`` for each depth (module docstring),
-    bit for bit: the matrix exponentials are taken only on the steps in the cut, the
-    out-of-cut steps reuse the one exponential of :class:`_Prepared` (the same block matrix
-    at every depth), and the block scaling uses the norm over all steps as ``discretize``.
+    bit for bit, in one compiled pass: the matrix exponentials are taken only on the steps in
+    the cut, the out-of-cut steps reuse the one exponential of :class:`_Prepared` (the same
+    block matrix at every depth), and the block scaling uses the norm over all steps as
+    ``discretize`` does.
     """
     prep = family if isinstance(family, _Prepared) else _prepare(family)
     fam = prep.family
-    w = np.asarray(depths, dtype=float)
-    K = w.size
-    m, J = fam.H.shape[0], fam.H.shape[1]
-    n = fam.A0.shape[0]
-    p = fam.C.shape[0]
-    h = fam.h
-    k = n + 2 * p * J
-    ci = np.flatnonzero(prep.cut)
-    mc = ci.size
-    Phi = np.empty((K, m, n, n))
-    Wa = np.zeros((K, m, J, n, p))
-    Wb = np.zeros((K, m, J, n, p))
-    free = ~prep.cut
-    Phi[:, free] = prep.free_ex[:n, :n]
-    if mc:
-        big = np.zeros((K, mc, k, k))
-        A = fam.A0[None, None] - w[:, None, None, None] * prep.BHC[None, ci]  # (K, mc, n, n)
-        big[:, :, :n, :n] = A * h
-        anorm = np.max(np.abs(A * h), axis=(1, 2, 3))  # (K,)
-        if mc < m:  # the out-of-cut steps hold A0 h
-            anorm = np.maximum(anorm, prep.a0_norm)
-        anorm = np.maximum(anorm, 1e-3)
-        escale = np.ones((K, J))
-        for j in range(J):
-            Ej = w[:, None, None, None] * prep.BH[None, ci, j] * h  # (K, mc, n, p)
-            en = np.max(np.abs(Ej), axis=(1, 2, 3))
-            escale[:, j] = np.where(en > anorm, en / anorm, 1.0)
-            big[:, :, :n, n + j * p : n + (j + 1) * p] = Ej / escale[:, j, None, None, None]
-            big[:, :, n + j * p : n + (j + 1) * p, n + p * J + j * p : n + p * J + (j + 1) * p] = (
-                np.eye(p) * h
-            )
-        ex = expm_stack(big.reshape(K * mc, k, k)).reshape(K, mc, k, k)
-        Phi[:, ci] = ex[:, :, :n, :n]
-        for j in range(J):
-            G0 = ex[:, :, :n, n + j * p : n + (j + 1) * p]
-            G1 = ex[:, :, :n, n + p * J + j * p : n + p * J + (j + 1) * p]
-            sc = escale[:, j, None, None, None]
-            Wa[:, ci, j] = sc * ((1.0 + prep.fr[j]) * G0 - G1 / h)
-            Wb[:, ci, j] = sc * (G1 / h - prep.fr[j] * G0)
-    return _propagate_batch(Phi, Wa, Wb, prep.lags, prep.C, prep.g)
+    return _monodromies_kernel(
+        np.ascontiguousarray(fam.A0),
+        prep.BHC,
+        prep.BH,
+        prep.cut,
+        prep.free_ex,
+        prep.a0_norm,
+        np.ascontiguousarray(np.atleast_1d(np.asarray(depths, dtype=float))),
+        float(fam.h),
+        prep.fr,
+        prep.lags,
+        prep.C,
+        prep.g,
+    )
 
 
 def deflate(M: FloatArray) -> FloatArray:
@@ -556,9 +597,14 @@ def unstable_bands(
     W = np.asarray(ws)
     L = np.asarray(los)
     H = np.asarray(his)
-    # the sampled humps and dips need ρ where the bounds do not decide them: computed in
-    # one batch; every decision is then that of exact values (grid_bounds)
+    # the sampled humps and dips need ρ where the bounds do not decide them, and Brent the
+    # values at both ends of a sign change: computed in one batch; every decision is then
+    # that of exact values (grid_bounds)
+    unst = L >= 1.0
     need = np.zeros(W.size, dtype=bool)
+    change = np.flatnonzero(unst[:-1] != unst[1:])
+    need[change] = True
+    need[change + 1] = True
     for i in range(1, len(W) - 1):
         pp, pr, dp, dr = _hump_or_dip(L, H, i, hump)
         if (pp and not pr) or (dp and not dr):
@@ -577,10 +623,8 @@ def unstable_bands(
     def root(a: float, b: float) -> float:
         return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
 
-    for i in range(len(W) - 1):
-        a_unst, b_unst = L[i] >= 1.0, L[i + 1] >= 1.0
-        if a_unst != b_unst:
-            edges.append((root(W[i], W[i + 1]), 1 if b_unst else -1))
+    for c in change.tolist():
+        edges.append((root(W[c], W[c + 1]), 1 if unst[c + 1] else -1))
     # narrow humps (bands) and dips (islands) between grid depths
     for i in range(1, len(W) - 1):
         _, peak, _, dip = _hump_or_dip(L, H, i, hump)
