@@ -263,8 +263,8 @@ def _dominant(M: FloatArray) -> tuple[FloatArray, ComplexArray]:
     return np.abs(mu), mu
 
 
-#: At most this many squarings (powers ``M^(2^s)``, s <= 12) bound ρ in :func:`radius_bounds`.
-BOUND_SQUARINGS = 12
+#: At most this many squarings (powers ``M^(2^s)``, s <= 14) bound ρ in :func:`radius_bounds`.
+BOUND_SQUARINGS = 14
 #: Squaring stops once the bounds are this close (relative), about what separates ρ at two
 #: neighbouring grid depths.
 BOUND_WIDTH = 2e-4
@@ -671,7 +671,9 @@ def near_root(
     """
     f = _Scalar(family)
     a, b = guess * lo, guess * hi
-    ra, rb = f(a), f(b)
+    ra = f(a)
+    # ρ(b) only matters when ρ(a) < 1: otherwise the bracket moves below a at once
+    rb = f(b) if ra < 1.0 else math.nan
     step = 1.03
     for _ in range(60):
         if ra < 1.0 <= rb:
