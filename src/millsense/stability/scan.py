@@ -3,12 +3,18 @@
 Batched evaluation
 ------------------
 :func:`spectral_radii` computes the monodromy matrices of one speed at ``K`` depths in one
-pass: the Van Loan block matrices of all ``K·m`` steps go through one compiled matrix
-exponential, the ``K`` products of the step maps through one compiled loop, and the ``K``
-eigenvalue problems through one batched LAPACK call. The arithmetic is that of
+compiled pass (:func:`monodromies`: the Van Loan block matrices of the steps in the cut, their
+exponentials, the step weights and the products of the step maps; an out-of-cut step has the
+same block matrix at every depth, so its exponential is taken once per speed), and the ``K``
+eigenvalue problems in one batched LAPACK call, after removing the delayed samples no step uses
+(:func:`deflate`, same non-zero multipliers). The arithmetic is that of
 :func:`millsense.stability.sdm.discretize` and :func:`~millsense.stability.sdm.monodromy`
-(first-order semi-discretisation, Insperger & Stépán 2011 ch. 3); only the Python overhead per
-depth is gone.
+(first-order semi-discretisation, Insperger & Stépán 2011 ch. 3), bit for bit.
+
+The grid of the scan does not need ρ itself at most depths, only decisions about it (its sign,
+and whether it is a sampled local maximum in ``[hump, 1)`` or minimum in ``[1, 1/hump)``):
+:func:`grid_bounds` bounds ρ from powers of the monodromy matrix (:func:`radius_bounds`) and
+computes it exactly only where the bounds leave a decision open (decision 0911).
 
 Unstable bands (the robust search, issue 14)
 ---------------------------------------------
