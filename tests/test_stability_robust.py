@@ -228,9 +228,11 @@ def test_spectral_radius_bounds_hold_and_decide_the_grid_as_exact_radii() -> Non
         lo, hi = scan.radius_bounds(M)
         r, _ = spectral_radii(fam, ws)
         assert np.all(lo <= r * (1 + 1e-12)) and np.all(r <= hi * (1 + 1e-12))
-        assert np.median((hi - lo) / r) < 5e-3  # tight enough to order most neighbouring depths
+        # tight enough to order most neighbouring depths (what the scan needs them for)
+        apart = (lo[1:] > hi[:-1]) | (hi[1:] < lo[:-1])
+        assert np.mean(apart) > 0.8
 
-    def exact_grid(family, depths, hump):  # ρ everywhere, as before decision 0911
+    def exact_grid(family, depths, hump, left=None):  # ρ everywhere, as before decision 0911
         r, _ = spectral_radii(family, depths)
         return r, r.copy(), np.ones(r.size, dtype=bool)
 

@@ -282,12 +282,19 @@ BOUND_MARGIN = 1e-5
 
 @numba.njit(cache=True)
 def _radius_bounds(
-    M: FloatArray, below: float, above: float, width: float, squarings: int
+    M: FloatArray,
+    below: float,
+    above: float,
+    width: float,
+    squarings: int,
+    left_lo: float,
+    left_hi: float,
 ) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
     K, N = M.shape[0], M.shape[1]
     lo = np.zeros(K)
     hi = np.full(K, np.inf)
     for i in range(K):
+        llo, lhi = (left_lo, left_hi) if i == 0 else (lo[i - 1], hi[i - 1])
         P = M[i].copy()
         logs = 0.0
         kpow = 1.0
@@ -304,6 +311,12 @@ def _radius_bounds(
                 lo[i] = max(lo[i], np.exp((np.log(abs(tr) / N) + logs) / kpow))
             if hi[i] < below or lo[i] > above or hi[i] - lo[i] <= width * hi[i]:
                 break
+            # apart from the left neighbour by more than its own width, with a known sign:
+            # the next matrix separates itself from this one in turn
+            if hi[i] < 1.0 or lo[i] >= 1.0:
+                gap = max(lo[i] - lhi, llo - hi[i])
+                if gap > 0.0 and hi[i] - lo[i] <= gap:
+                    break
             if s == squarings:
                 break
             P = P / nrm
@@ -319,6 +332,7 @@ def radius_bounds(
     above: float = math.inf,
     width: float = BOUND_WIDTH,
     squarings: int = BOUND_SQUARINGS,
+    left: tuple[float, float] = (math.nan, math.nan),
 ) -> tuple[FloatArray, FloatArray]:
     """Lower and upper bounds (K,) of the spectral radius of ``M`` (K, N, N) by squaring.
 
@@ -326,31 +340,44 @@ def radius_bounds(
     formula makes it tight as k grows) and ``ρ ≥ (|tr M^k| / N)^(1/k)`` (``tr M^k = Σ μ_i^k``
     over the N multipliers); ``k = 1, 2, 4, …, 2^squarings``, each power normalised (its
     scale kept as a logarithm). Squaring stops for a matrix once its upper bound is below
-    ``below``, its lower bound above ``above`` or the two within ``width`` (relative). A
-    squaring costs 1/100 (N ≈ 20) to 1/20 (N ≈ 100) of a nonsymmetric eigenvalue problem.
-    The bounds are as computed (no margin for rounding: :data:`BOUND_MARGIN`).
+    ``below``, its lower bound above ``above`` or the two within ``width`` (relative), or
+    (grid order, ``M[i - 1]`` the left neighbour of ``M[i]``, ``left`` the bounds of the
+    one before ``M[0]``) once the sign of ρ − 1 is known and the interval lies apart from
+    its left neighbour's by more than its own width. A squaring costs 1/100 (N ≈ 20) to
+    1/20 (N ≈ 100) of a nonsymmetric eigenvalue problem. The bounds are as computed (no
+    margin for rounding: :data:`BOUND_MARGIN`).
     """
     K = M.shape[0]
     if M.shape[1] == 0:
         return np.zeros(K), np.zeros(K)
     lo, hi = _radius_bounds(
-        np.ascontiguousarray(M), float(below), float(above), float(width), int(squarings)
+        np.ascontiguousarray(M),
+        float(below),
+        float(above),
+        float(width),
+        int(squarings),
+        float(left[0]),
+        float(left[1]),
     )
     return np.asarray(lo), np.asarray(hi)
 
 
 def grid_bounds(
-    family: DepthFamily | _Prepared, depths: FloatArray, hump: float
+    family: DepthFamily | _Prepared,
+    depths: FloatArray,
+    hump: float,
+    left: tuple[float, float] = (math.nan, math.nan),
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
     """Bounds ``lo <= ρ <= hi`` at the grid depths of :func:`unstable_bands`.
 
     From :func:`radius_bounds`, widened by :data:`BOUND_MARGIN`; where they do not decide
-    the sign of ρ − 1, ρ is computed exactly (then ``lo = hi = ρ``). Returns (lo, hi, exact).
+    the sign of ρ − 1, ρ is computed exactly (then ``lo = hi = ρ``). ``left``: the bounds at
+    the grid depth before ``depths[0]``. Returns (lo, hi, exact).
     """
     M = deflate(monodromies(family, depths))
     below = hump * (1.0 - BOUND_MARGIN)
     above = (1.0 / hump) * (1.0 + BOUND_MARGIN)
-    lo, hi = radius_bounds(M, below, above)
+    lo, hi = radius_bounds(M, below, above, left=left)
     lo = lo * (1.0 - BOUND_MARGIN)
     hi = hi * (1.0 + BOUND_MARGIN)
     exact = (lo < 1.0) & (hi >= 1.0)
@@ -577,7 +604,7 @@ def unstable_bands(
         k = np.arange(1, chunk + 1)
         new = np.minimum(ws[-1] * ratio**k, top)
         new = new[np.concatenate([[True], np.diff(new) > 0])]
-        lo_b, hi_b, ex = grid_bounds(family, new, hump)
+        lo_b, hi_b, ex = grid_bounds(family, new, hump, (los[-1], his[-1]))
         count_batch += new.size
         ws.extend(float(v) for v in new)
         los.extend(float(v) for v in lo_b)
