@@ -380,7 +380,7 @@ def grid_bounds(
     lo, hi = radius_bounds(M, below, above, left=left)
     lo = lo * (1.0 - BOUND_MARGIN)
     hi = hi * (1.0 + BOUND_MARGIN)
-    exact = (lo < 1.0) & (hi >= 1.0)
+    exact = ~((hi < 1.0) | (lo >= 1.0))  # undecided, or not finite (eigvals then raises)
     if exact.any():
         r = _dominant(M[exact])[0]
         lo[exact] = r
