@@ -240,7 +240,7 @@ def test_spectral_radius_bounds_hold_and_decide_the_grid_as_exact_radii() -> Non
         w0 = small_gain_depth(fam)
         with_bounds = unstable_bands(fam, w0, 0.02)
         saved = scan.grid_bounds
-        scan.grid_bounds = exact_grid  # type: ignore[assignment]
+        scan.grid_bounds = exact_grid
         try:
             exact = unstable_bands(fam, w0, 0.02)
         finally:
