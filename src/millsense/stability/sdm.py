@@ -317,10 +317,11 @@ def _propagate(
     """Product of the step maps, applied to the identity plus one affine column.
 
     Returns the (N, N + 1) matrix ``[monodromy | affine part]`` with ``N = n + R p``.
-    Explicit loops over preallocated buffers (no temporaries per step), restricted to the
-    columns that can be non-zero: those of ``x_0``, the affine one, and the delayed samples
-    used so far — a step with lag ``r`` uses the samples ``r − i`` and ``r − i − 1`` steps
-    old, so the used ones form a suffix of the history columns that grows by one per step.
+    Preallocated buffers; for a small state (n < 6) explicit loops restricted to the columns
+    that can be non-zero (those of ``x_0``, the affine one, and the delayed samples used so
+    far — a step with lag ``r`` uses the samples ``r − i`` and ``r − i − 1`` steps
+    old, so the used ones form a suffix of the history columns that grows by one per step),
+    for a larger one BLAS products (faster there despite the zero columns).
     A delayed term whose weights ``Wa[i, j]`` and ``Wb[i, j]`` are both exactly zero (the
     tooth is out of the cut on that step) is skipped: it would add exact zeros.
     """
@@ -350,30 +351,34 @@ def _propagate(
             if lags[j] - i >= 1:  # the older sample is still one of the initial history
                 kmin = max(lags[j] - i - 1, 1)
                 c0 = min(c0, n + (kmin - 1) * p)
-        for b in range(p):
-            for c in range(n):
-                cur[b, c] = 0.0
-            for c in range(c0, cols):
-                cur[b, c] = 0.0
+        if n >= 6:  # BLAS beats the loops from about this size of state on
+            cur[:, :] = np.dot(C, X)
+            Xn[:, :] = np.dot(Phi[i], X)
+        else:
+            for b in range(p):
+                for c in range(n):
+                    cur[b, c] = 0.0
+                for c in range(c0, cols):
+                    cur[b, c] = 0.0
+                for a in range(n):
+                    cba = C[b, a]
+                    if cba != 0.0:
+                        for c in range(n):
+                            cur[b, c] += cba * X[a, c]
+                        for c in range(c0, cols):
+                            cur[b, c] += cba * X[a, c]
             for a in range(n):
-                cba = C[b, a]
-                if cba != 0.0:
-                    for c in range(n):
-                        cur[b, c] += cba * X[a, c]
-                    for c in range(c0, cols):
-                        cur[b, c] += cba * X[a, c]
-        for a in range(n):
-            for c in range(n):
-                Xn[a, c] = 0.0
-            for c in range(c0, cols):
-                Xn[a, c] = 0.0
-            for q in range(n):
-                paq = Phi[i, a, q]
-                if paq != 0.0:
-                    for c in range(n):
-                        Xn[a, c] += paq * X[q, c]
-                    for c in range(c0, cols):
-                        Xn[a, c] += paq * X[q, c]
+                for c in range(n):
+                    Xn[a, c] = 0.0
+                for c in range(c0, cols):
+                    Xn[a, c] = 0.0
+                for q in range(n):
+                    paq = Phi[i, a, q]
+                    if paq != 0.0:
+                        for c in range(n):
+                            Xn[a, c] += paq * X[q, c]
+                        for c in range(c0, cols):
+                            Xn[a, c] += paq * X[q, c]
         for j in range(J):
             active = False
             for a in range(n):
