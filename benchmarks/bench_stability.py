@@ -13,6 +13,7 @@ at 10 of the 200 speeds, from depths extrapolated from 100 and 200 steps (conver
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -31,12 +32,19 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "stability"
 def _one_blas_thread() -> Iterator[None]:
     """BLAS on one thread while timing, as ``millsense lobes`` runs it (decision 0907).
 
-    On a shared two-core host a two-thread OpenBLAS made the batched eigenvalue calls of the
-    robust search up to 4x slower than the continuation search's single ones; the earlier
-    count is restored afterwards for the other benchmarks.
+    On a shared two-core host a two-thread OpenBLAS made the robust 2-DOF chart 4.2x the
+    continuation search instead of 2.8x (decision 0911); the earlier count and the BLAS
+    environment variables are restored afterwards for the other benchmarks.
     """
-    from millsense.cli.cmd_lobes import _limit_blas_threads
+    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    env = {k: os.environ.get(k) for k in keys}
+    from millsense.cli.cmd_lobes import _limit_blas_threads  # sets these when unset
 
+    for k, v in env.items():  # later benchmarks' subprocesses keep their defaults
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
     before = _limit_blas_threads(None)
     _limit_blas_threads(1)
     try:
