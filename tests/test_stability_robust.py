@@ -205,3 +205,56 @@ def test_flip_at_18900_slot_against_the_time_domain() -> None:
     sim = _td_sim(1.0, "down", n, 0.8 * sol.depth)
     steps = np.diff(sim.run_revolutions(300).x_m[:: sim.steps_per_rev // FLUTES][-100:])
     assert np.median(np.abs(steps)) > 20e-6
+
+
+def test_spectral_radius_bounds_hold_and_decide_the_grid_as_exact_radii() -> None:
+    # decision 0911: the bounds from repeated squaring contain ρ, and the scan that uses them
+    # gives the same bands, edges and multipliers as one that computes ρ at every grid depth
+    import millsense.stability.scan as scan
+
+    two = ModalModel(
+        x=(Mode.from_stiffness(922.0, 0.011, 1.34e6),), y=(Mode.from_stiffness(880.0, 0.02, 2e6),)
+    )
+    st, ex = immersion_angles(0.3, 1.0, "up")
+    fams = [
+        _family(1.0, "down")(15870.0, 20),
+        _family(0.05, "down")(18000.0, 20),
+        _family(0.5, "up")(20100.0, 40),
+        milling_dde(two, 3, KT, KN, st, ex, 12000.0, 17),
+    ]
+    for fam in fams:
+        ws = np.geomspace(small_gain_depth(fam), 0.01, 40)
+        M = scan.deflate(monodromies(fam, ws))
+        lo, hi = scan.radius_bounds(M)
+        r, _ = spectral_radii(fam, ws)
+        assert np.all(lo <= r * (1 + 1e-12)) and np.all(r <= hi * (1 + 1e-12))
+        # tight enough to order most neighbouring depths (what the scan needs them for)
+        apart = (lo[1:] > hi[:-1]) | (hi[1:] < lo[:-1])
+        assert np.mean(apart) > 0.8
+
+    def exact_grid(family, depths, hump, left=None):  # ρ everywhere, as before decision 0911
+        r, _ = spectral_radii(family, depths)
+        return r, r.copy(), np.ones(r.size, dtype=bool)
+
+    for fam in fams:
+        w0 = small_gain_depth(fam)
+        with_bounds = unstable_bands(fam, w0, 0.02)
+        saved = scan.grid_bounds
+        scan.grid_bounds = exact_grid
+        try:
+            exact = unstable_bands(fam, w0, 0.02)
+        finally:
+            scan.grid_bounds = saved
+        assert with_bounds.unstable == exact.unstable
+        assert with_bounds.multipliers == exact.multipliers
+        assert with_bounds.ceiling == exact.ceiling
+
+
+def test_chatter_eigenvector_by_inverse_iteration_equals_eig() -> None:
+    # the chart passes the multiplier it already has: inverse iteration then replaces
+    # numpy.linalg.eig for the eigenvector; the frequency is the same
+    fam = _family(1.0, "down")
+    for n, w in ((15870.0, 0.33e-3), (18900.0, 2.9e-3), (9000.0, 0.5e-3)):
+        f = fam(n, 40)
+        mu = spectral_radii(f, np.array([w]))[1][0]
+        assert eigen_chatter_frequency(f, w, 2 * FN, mu) == eigen_chatter_frequency(f, w, 2 * FN)

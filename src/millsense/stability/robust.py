@@ -34,6 +34,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from millsense.stability.lobes import LobeResult, chatter_frequency
@@ -59,7 +60,32 @@ TOLERANCE = 0.01
 BANDS_UP_TO = 3.0
 
 
-def eigen_chatter_frequency(family: DepthFamily, depth: float, f_max: float) -> float:
+def _eigenvector(M: FloatArray, mu: complex) -> NDArray[np.complex128] | None:
+    """Eigenvector of ``M`` for its known eigenvalue ``mu`` by inverse iteration.
+
+    Two solves with ``M − σ I``, ``σ = μ (1 + 1e-10)`` (Golub & Van Loan, *Matrix
+    Computations*, 4th ed., §7.6.1): the component of any other eigenvalue ``λ`` shrinks by
+    ``(|σ − μ| / |λ − σ|)²`` — one LU factorisation instead of a full eigendecomposition.
+    Returns None if the solve fails (the caller then uses ``numpy.linalg.eig``).
+    """
+    N = M.shape[0]
+    sigma = mu * (1.0 + 1e-10) if mu != 0 else 1e-300
+    b = np.asarray(np.random.default_rng(0).standard_normal(N), dtype=np.complex128)
+    try:
+        lu = scipy.linalg.lu_factor(M - sigma * np.eye(N), check_finite=False)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    v = b
+    for _ in range(2):
+        v = scipy.linalg.lu_solve(lu, v / np.linalg.norm(v), check_finite=False)
+        if not np.all(np.isfinite(v)) or not np.any(v):
+            return None
+    return np.asarray(v / np.linalg.norm(v), dtype=np.complex128)
+
+
+def eigen_chatter_frequency(
+    family: DepthFamily, depth: float, f_max: float, mu: complex | None = None
+) -> float:
     """Chatter frequency [Hz] from the critical eigenvector of the monodromy matrix.
 
     The discrete state is ``[x_0, C x_{-1}, ..., C x_{-R}]``: the eigenvector of the dominant
@@ -68,13 +94,22 @@ def eigen_chatter_frequency(family: DepthFamily, depth: float, f_max: float) -> 
     each harmonic ``l`` is the squared projection of ``d`` on ``exp(i 2π (f₀ + l/T) t_k)``
     (orthogonal over one period for uniform pitch); powers of ``±f`` are added (a real
     vibration) and the frequency of most power up to ``f_max`` is returned.
+
+    ``mu``: the dominant multiplier at ``depth`` if already known (the root search computed
+    it); its eigenvector then comes from inverse iteration (:func:`_eigenvector`).
     """
     if not (0 < depth < math.inf):
         return math.nan
     M = monodromies(family, np.array([depth]))[0]
-    ev, vec = np.linalg.eig(M)
-    i = int(np.argmax(np.abs(ev)))
-    mu, v = complex(ev[i]), vec[:, i]
+    vv = None
+    if mu is not None and math.isfinite(mu.real) and math.isfinite(mu.imag):
+        vv = _eigenvector(M, complex(mu))
+    if vv is None:
+        ev, vec = np.linalg.eig(M)
+        i = int(np.argmax(np.abs(ev)))
+        mu, vv = complex(ev[i]), vec[:, i]
+    assert mu is not None
+    v = vv
     n, p = family.A0.shape[0], family.C.shape[0]
     R = (v.size - n) // p
     d = np.empty((R + 1, p), dtype=complex)
@@ -255,7 +290,7 @@ def solve_speed(
             if tolerance <= tol or 2 * m2 > m_max:
                 break
             m, w1 = m2, w2
-    f_c = eigen_chatter_frequency(fam_final, root, f_max)
+    f_c = eigen_chatter_frequency(fam_final, root, f_max, mu)
     unst = [(depth, bands.unstable[0][1]), *bands.unstable[1:]] if bands.unstable else []
     return SpeedSolution(
         rpm,

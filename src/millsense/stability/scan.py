@@ -3,12 +3,18 @@
 Batched evaluation
 ------------------
 :func:`spectral_radii` computes the monodromy matrices of one speed at ``K`` depths in one
-pass: the Van Loan block matrices of all ``K·m`` steps go through one compiled matrix
-exponential, the ``K`` products of the step maps through one compiled loop, and the ``K``
-eigenvalue problems through one batched LAPACK call. The arithmetic is that of
+compiled pass (:func:`monodromies`: the Van Loan block matrices of the steps in the cut, their
+exponentials, the step weights and the products of the step maps; an out-of-cut step has the
+same block matrix at every depth, so its exponential is taken once per speed), and the ``K``
+eigenvalue problems in one batched LAPACK call, after removing the delayed samples no step uses
+(:func:`deflate`, same non-zero multipliers). The arithmetic is that of
 :func:`millsense.stability.sdm.discretize` and :func:`~millsense.stability.sdm.monodromy`
-(first-order semi-discretisation, Insperger & Stépán 2011 ch. 3); only the Python overhead per
-depth is gone.
+(first-order semi-discretisation, Insperger & Stépán 2011 ch. 3), bit for bit.
+
+The grid of the scan does not need ρ itself at most depths, only decisions about it (its sign,
+and whether it is a sampled local maximum in ``[hump, 1)`` or minimum in ``[1, 1/hump)``):
+:func:`grid_bounds` bounds ρ from powers of the monodromy matrix (:func:`radius_bounds`) and
+computes it exactly only where the bounds leave a decision open (decision 0911).
 
 Unstable bands (the robust search, issue 14)
 ---------------------------------------------
@@ -43,7 +49,7 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from millsense.stability.milling import DepthFamily
-from millsense.stability.sdm import _propagate, delay_split, expm_stack
+from millsense.stability.sdm import _expm_one, _propagate, delay_split, expm_stack
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -54,29 +60,14 @@ SCAN_RATIO = 1.1
 HUMP = 0.8
 
 
-@numba.njit(cache=True)
-def _propagate_batch(
-    Phi: FloatArray,
-    Wa: FloatArray,
-    Wb: FloatArray,
-    lags: NDArray[np.int64],
-    C: FloatArray,
-    g: FloatArray,
-) -> FloatArray:  # pragma: no cover - compiled
-    """Monodromy matrices (K, N, N) of K step-map sets (K, m, ...)."""
-    K = Phi.shape[0]
-    first = _propagate(Phi[0], Wa[0], Wb[0], lags, C, g)
-    N = first.shape[0]
-    out = np.empty((K, N, N))
-    out[0] = first[:, :N]
-    for k in range(1, K):
-        out[k] = _propagate(Phi[k], Wa[k], Wb[k], lags, C, g)[:, :N]
-    return out
-
-
 @dataclass(frozen=True)
 class _Prepared:
-    """Depth-independent parts of :func:`monodromies` for one family."""
+    """Depth-independent parts of :func:`monodromies` for one family.
+
+    ``cut`` marks the steps where some tooth is in the cut (``H`` not zero); on the other
+    steps the Van Loan block matrix is the same at every depth (``A = A0``, no delayed
+    input), so its exponential ``free_ex`` is computed once per family, not once per depth.
+    """
 
     family: DepthFamily
     BHC: FloatArray  # (m, n, n)
@@ -85,6 +76,24 @@ class _Prepared:
     fr: FloatArray
     C: FloatArray
     g: FloatArray
+    cut: NDArray[np.bool_]  # (m,)
+    free_ex: FloatArray  # (k, k) exponential of an out-of-cut step's block matrix
+    a0_norm: float  # max |A0 h|
+
+
+def _van_loan_free(family: DepthFamily) -> FloatArray:
+    """Block matrix of :func:`monodromies` for a step with no delayed input, times ``h``."""
+    n = family.A0.shape[0]
+    J, p = family.H.shape[1], family.C.shape[0]
+    h = family.h
+    k = n + 2 * p * J
+    big = np.zeros((k, k))
+    big[:n, :n] = family.A0 * h
+    for j in range(J):
+        big[n + j * p : n + (j + 1) * p, n + p * J + j * p : n + p * J + (j + 1) * p] = (
+            np.eye(p) * h
+        )
+    return big
 
 
 def _prepare(family: DepthFamily) -> _Prepared:
@@ -92,6 +101,8 @@ def _prepare(family: DepthFamily) -> _Prepared:
     splits = [delay_split(float(t), h) for t in family.delays]
     if any(r < 1 for r, _ in splits):
         raise ValueError("every delay must be at least one step h; use more steps per period")
+    cut = np.any(family.H != 0.0, axis=(1, 2, 3))
+    free = _van_loan_free(family)
     return _Prepared(
         family,
         np.einsum("nd,mde,ek->mnk", family.Bd, family.H.sum(axis=1), family.C),
@@ -100,47 +111,142 @@ def _prepare(family: DepthFamily) -> _Prepared:
         np.array([f for _, f in splits]),
         np.ascontiguousarray(family.C),
         np.zeros((family.H.shape[0], family.A0.shape[0])),
+        cut,
+        expm_stack(free[None])[0] if not cut.all() else free,
+        float(np.max(np.abs(family.A0 * h))),
     )
+
+
+@numba.njit(cache=True)
+def _monodromies_kernel(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    w: FloatArray,
+    h: float,
+    fr: FloatArray,
+    lags: NDArray[np.int64],
+    C: FloatArray,
+    g: FloatArray,
+) -> FloatArray:  # pragma: no cover - compiled
+    """Monodromy matrices (K, N, N): the arithmetic of ``discretize`` + ``monodromy`` per depth."""
+    K = w.shape[0]
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], C.shape[0]
+    k = n + 2 * p * J
+    R = 0
+    for j in range(J):
+        R = max(R, lags[j])
+    N = n + R * p
+    free = False
+    for i in range(m):
+        if not cut[i]:
+            free = True
+    out = np.empty((K, N, N))
+    A = np.empty((m, n, n))
+    Phi = np.empty((m, n, n))
+    Wa = np.zeros((m, J, n, p))
+    Wb = np.zeros((m, J, n, p))
+    big = np.zeros((k, k))
+    for j in range(J):
+        for b in range(p):
+            big[n + j * p + b, n + p * J + j * p + b] = h
+    ex = np.empty((k, k))
+    tmp = np.empty((k, k))
+    escale = np.empty(J)
+    for kk in range(K):
+        wk = w[kk]
+        # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
+        anorm = 0.0
+        for i in range(m):
+            if cut[i]:
+                for a in range(n):
+                    for b in range(n):
+                        A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
+                        anorm = max(anorm, abs(A[i, a, b] * h))
+        if free:
+            anorm = max(anorm, a0_norm)
+        anorm = max(anorm, 1e-3)
+        for j in range(J):
+            en = 0.0
+            for i in range(m):
+                if cut[i]:
+                    for a in range(n):
+                        for b in range(p):
+                            en = max(en, abs(wk * BH[i, j, a, b] * h))
+            escale[j] = en / anorm if en > anorm else 1.0
+        for i in range(m):
+            if not cut[i]:
+                Phi[i] = free_ex[:n, :n]
+                Wa[i] = 0.0
+                Wb[i] = 0.0
+                continue
+            for a in range(n):
+                for b in range(n):
+                    big[a, b] = A[i, a, b] * h
+                for j in range(J):
+                    for b in range(p):
+                        big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
+            _expm_one(big, ex, tmp)
+            Phi[i] = ex[:n, :n]
+            for j in range(J):
+                for a in range(n):
+                    for b in range(p):
+                        G0 = ex[a, n + j * p + b]
+                        G1 = ex[a, n + p * J + j * p + b]
+                        Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
+                        Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+        out[kk] = _propagate(Phi, Wa, Wb, lags, C, g)[:, :N]
+    return out
 
 
 def monodromies(family: DepthFamily | _Prepared, depths: FloatArray) -> FloatArray:
     """Monodromy matrices (K, N, N) of ``family`` at ``depths`` (K,) [m].
 
-    Same step maps as ``discretize(family.step_means(w))`` for each depth (module docstring).
+    Same step maps as ``discretize(family.step_means(w))`` for each depth (module docstring),
+    bit for bit, in one compiled pass: the matrix exponentials are taken only on the steps in
+    the cut, the out-of-cut steps reuse the one exponential of :class:`_Prepared` (the same
+    block matrix at every depth), and the block scaling uses the norm over all steps as
+    ``discretize`` does.
     """
     prep = family if isinstance(family, _Prepared) else _prepare(family)
     fam = prep.family
-    w = np.asarray(depths, dtype=float)
-    K = w.size
-    m, J = fam.H.shape[0], fam.H.shape[1]
-    n = fam.A0.shape[0]
-    p = fam.C.shape[0]
-    h = fam.h
-    k = n + 2 * p * J
-    big = np.zeros((K, m, k, k))
-    A = fam.A0[None, None] - w[:, None, None, None] * prep.BHC[None]  # (K, m, n, n)
-    big[:, :, :n, :n] = A * h
-    anorm = np.maximum(np.max(np.abs(A * h), axis=(1, 2, 3)), 1e-3)  # (K,)
-    escale = np.ones((K, J))
-    for j in range(J):
-        Ej = w[:, None, None, None] * prep.BH[None, :, j] * h  # (K, m, n, p)
-        en = np.max(np.abs(Ej), axis=(1, 2, 3))
-        escale[:, j] = np.where(en > anorm, en / anorm, 1.0)
-        big[:, :, :n, n + j * p : n + (j + 1) * p] = Ej / escale[:, j, None, None, None]
-        big[:, :, n + j * p : n + (j + 1) * p, n + p * J + j * p : n + p * J + (j + 1) * p] = (
-            np.eye(p) * h
-        )
-    ex = expm_stack(big.reshape(K * m, k, k)).reshape(K, m, k, k)
-    Phi = np.ascontiguousarray(ex[:, :, :n, :n])
-    Wa = np.empty((K, m, J, n, p))
-    Wb = np.empty((K, m, J, n, p))
-    for j in range(J):
-        G0 = ex[:, :, :n, n + j * p : n + (j + 1) * p]
-        G1 = ex[:, :, :n, n + p * J + j * p : n + p * J + (j + 1) * p]
-        sc = escale[:, j, None, None, None]
-        Wa[:, :, j] = sc * ((1.0 + prep.fr[j]) * G0 - G1 / h)
-        Wb[:, :, j] = sc * (G1 / h - prep.fr[j] * G0)
-    return _propagate_batch(Phi, Wa, Wb, prep.lags, prep.C, prep.g)
+    return _monodromies_kernel(
+        np.ascontiguousarray(fam.A0),
+        prep.BHC,
+        prep.BH,
+        prep.cut,
+        prep.free_ex,
+        prep.a0_norm,
+        np.ascontiguousarray(np.atleast_1d(np.asarray(depths, dtype=float))),
+        float(fam.h),
+        prep.fr,
+        prep.lags,
+        prep.C,
+        prep.g,
+    )
+
+
+def deflate(M: FloatArray) -> FloatArray:
+    """``M`` (K, N, N) without the indices whose columns are zero in every matrix of the batch.
+
+    A zero column ``j`` (a delayed sample no step uses: its tooth is out of the cut) makes
+    ``M`` block lower triangular after moving ``j`` last, ``[[M11, 0], [m21, 0]]``, so the
+    eigenvalues of ``M`` are those of ``M11`` (row and column ``j`` removed) plus a zero.
+    Repeated until no zero column is left; the non-zero multipliers are unchanged and the
+    eigenvalue problem shrinks (about ``n + p m·(cut fraction)`` unknowns).
+    """
+    keep = np.arange(M.shape[1])
+    sub = M
+    while True:
+        nz = np.any(sub != 0.0, axis=(0, 1))
+        if nz.all() or not nz.any():
+            return sub if nz.any() else sub[:, :0, :0]
+        keep = keep[nz]
+        sub = M[:, keep][:, :, keep]
 
 
 def spectral_radii(
@@ -150,10 +256,153 @@ def spectral_radii(
     w = np.atleast_1d(np.asarray(depths, dtype=float))
     if w.size == 0:
         return np.zeros(0), np.zeros(0, dtype=complex)
-    ev = np.linalg.eigvals(monodromies(family, w))
+    return _dominant(deflate(monodromies(family, w)))
+
+
+def _dominant(M: FloatArray) -> tuple[FloatArray, ComplexArray]:
+    """ρ and μ of a batch of (deflated) monodromy matrices (one batched eigenvalue call)."""
+    if M.shape[1] == 0:
+        return np.zeros(M.shape[0]), np.zeros(M.shape[0], dtype=complex)
+    ev = np.linalg.eigvals(M)
     idx = np.argmax(np.abs(ev), axis=1)
-    mu = ev[np.arange(w.size), idx].astype(np.complex128)
+    mu = ev[np.arange(M.shape[0]), idx].astype(np.complex128)
     return np.abs(mu), mu
+
+
+#: At most this many squarings (powers ``M^(2^s)``, s <= 14) bound ρ in :func:`radius_bounds`.
+BOUND_SQUARINGS = 14
+#: Squaring stops once the bounds are this close (relative), about what separates ρ at two
+#: neighbouring grid depths.
+BOUND_WIDTH = 2e-4
+#: Relative widening of every bound before it proves anything (rounding of the powers: the
+#: relative error of ``fl(M^k)`` is at most about ``k N ε`` times the growth of the
+#: normalised squares, and the ``1/k``-th root divides it by ``k`` again).
+BOUND_MARGIN = 1e-5
+
+
+@numba.njit(cache=True)
+def _radius_bounds(
+    M: FloatArray,
+    below: float,
+    above: float,
+    width: float,
+    squarings: int,
+    left_lo: float,
+    left_hi: float,
+) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
+    K, N = M.shape[0], M.shape[1]
+    lo = np.zeros(K)
+    hi = np.full(K, np.inf)
+    for i in range(K):
+        llo, lhi = (left_lo, left_hi) if i == 0 else (lo[i - 1], hi[i - 1])
+        P = M[i].copy()
+        logs = 0.0
+        kpow = 1.0
+        for s in range(squarings + 1):
+            nrm = np.sqrt(np.sum(P * P))
+            if nrm == 0.0:
+                hi[i] = 0.0
+                break
+            tr = 0.0
+            for a in range(N):
+                tr += P[a, a]
+            hi[i] = min(hi[i], np.exp((np.log(nrm) + logs) / kpow))
+            if abs(tr) >= 1e-6 * nrm:  # a trace lost in rounding proves nothing
+                lo[i] = max(lo[i], np.exp((np.log(abs(tr) / N) + logs) / kpow))
+            if hi[i] < below or lo[i] > above or hi[i] - lo[i] <= width * hi[i]:
+                break
+            # apart from the left neighbour by more than its own width, with a known sign:
+            # the next matrix separates itself from this one in turn
+            if hi[i] < 1.0 or lo[i] >= 1.0:
+                gap = max(lo[i] - lhi, llo - hi[i])
+                if gap > 0.0 and hi[i] - lo[i] <= gap:
+                    break
+            if s == squarings:
+                break
+            P = P / nrm
+            P = np.dot(P, P)
+            logs = 2.0 * (logs + np.log(nrm))
+            kpow *= 2.0
+    return lo, hi
+
+
+def radius_bounds(
+    M: FloatArray,
+    below: float = 0.0,
+    above: float = math.inf,
+    width: float = BOUND_WIDTH,
+    squarings: int = BOUND_SQUARINGS,
+    left: tuple[float, float] = (math.nan, math.nan),
+) -> tuple[FloatArray, FloatArray]:
+    """Lower and upper bounds (K,) of the spectral radius of ``M`` (K, N, N) by squaring.
+
+    For every ``k``: ``ρ ≤ ||M^k||_F^(1/k)`` (any norm bounds the spectral radius; Gelfand's
+    formula makes it tight as k grows) and ``ρ ≥ (|tr M^k| / N)^(1/k)`` (``tr M^k = Σ μ_i^k``
+    over the N multipliers); ``k = 1, 2, 4, …, 2^squarings``, each power normalised (its
+    scale kept as a logarithm). Squaring stops for a matrix once its upper bound is below
+    ``below``, its lower bound above ``above`` or the two within ``width`` (relative), or
+    (grid order, ``M[i - 1]`` the left neighbour of ``M[i]``, ``left`` the bounds of the
+    one before ``M[0]``) once the sign of ρ − 1 is known and the interval lies apart from
+    its left neighbour's by more than its own width. A squaring costs 1/100 (N ≈ 20) to
+    1/20 (N ≈ 100) of a nonsymmetric eigenvalue problem. The bounds are as computed (no
+    margin for rounding: :data:`BOUND_MARGIN`).
+    """
+    K = M.shape[0]
+    if M.shape[1] == 0:
+        return np.zeros(K), np.zeros(K)
+    lo, hi = _radius_bounds(
+        np.ascontiguousarray(M),
+        float(below),
+        float(above),
+        float(width),
+        int(squarings),
+        float(left[0]),
+        float(left[1]),
+    )
+    return np.asarray(lo), np.asarray(hi)
+
+
+def grid_bounds(
+    family: DepthFamily | _Prepared,
+    depths: FloatArray,
+    hump: float,
+    left: tuple[float, float] = (math.nan, math.nan),
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Bounds ``lo <= ρ <= hi`` at the grid depths of :func:`unstable_bands`.
+
+    From :func:`radius_bounds`, widened by :data:`BOUND_MARGIN`; where they do not decide
+    the sign of ρ − 1, ρ is computed exactly (then ``lo = hi = ρ``). ``left``: the bounds at
+    the grid depth before ``depths[0]``. Returns (lo, hi, exact).
+    """
+    M = deflate(monodromies(family, depths))
+    below = hump * (1.0 - BOUND_MARGIN)
+    above = (1.0 / hump) * (1.0 + BOUND_MARGIN)
+    lo, hi = radius_bounds(M, below, above, left=left)
+    lo = lo * (1.0 - BOUND_MARGIN)
+    hi = hi * (1.0 + BOUND_MARGIN)
+    exact = ~((hi < 1.0) | (lo >= 1.0))  # undecided, or not finite (eigvals then raises)
+    if exact.any():
+        r = _dominant(M[exact])[0]
+        lo[exact] = r
+        hi[exact] = r
+    return lo, hi, exact
+
+
+def _hump_or_dip(
+    lo: FloatArray, hi: FloatArray, i: int, hump: float
+) -> tuple[bool, bool, bool, bool]:
+    """(peak possible, peak proven, dip possible, dip proven) at grid index ``i``.
+
+    A peak is ``R[i] >= R[i±1]`` with ``hump <= R[i] < 1``, a dip ``R[i] <= R[i±1]`` with
+    ``1 <= R[i] < 1/hump`` (module docstring, step 3), judged on intervals ``[lo, hi]`` that
+    hold ρ; with exact values (``lo = hi``) possible and proven are the plain comparisons.
+    """
+    j, k = i - 1, i + 1
+    peak_pos = hi[i] >= hump and lo[i] < 1.0 and hi[i] >= lo[j] and hi[i] >= lo[k]
+    peak_pro = lo[i] >= hump and hi[i] < 1.0 and lo[i] >= hi[j] and lo[i] >= hi[k]
+    dip_pos = hi[i] >= 1.0 and lo[i] < 1.0 / hump and lo[i] <= hi[j] and lo[i] <= hi[k]
+    dip_pro = lo[i] >= 1.0 and hi[i] < 1.0 / hump and hi[i] <= lo[j] and hi[i] <= lo[k]
+    return peak_pos, peak_pro, dip_pos, dip_pro
 
 
 @dataclass(frozen=True)
@@ -346,50 +595,75 @@ def unstable_bands(
         r0, mu0 = spectral_radii(family, np.array([lo]))
         count_batch += 1
     ws = [lo]
-    rs = [float(r0[0])]
+    los = [float(r0[0])]
+    his = [float(r0[0])]
+    exact = [True]
     top = ceiling
     chunk = 8
     while ws[-1] < top:
         k = np.arange(1, chunk + 1)
         new = np.minimum(ws[-1] * ratio**k, top)
         new = new[np.concatenate([[True], np.diff(new) > 0])]
-        r, _ = spectral_radii(family, new)
+        lo_b, hi_b, ex = grid_bounds(family, new, hump, (los[-1], his[-1]))
         count_batch += new.size
         ws.extend(float(v) for v in new)
-        rs.extend(float(v) for v in r)
+        los.extend(float(v) for v in lo_b)
+        his.extend(float(v) for v in hi_b)
+        exact.extend(bool(v) for v in ex)
         if math.isfinite(stop_after_first) and top == ceiling:
-            hit = np.flatnonzero(np.asarray(rs) >= 1.0)
+            hit = np.flatnonzero(np.asarray(los) >= 1.0)  # the sign of ρ − 1 is decided
             if hit.size:
                 top = min(ceiling, stop_after_first * ws[int(hit[0])])
                 keep = np.asarray(ws) <= top
                 if not keep.all():
                     ws = [w for w, kk in zip(ws, keep, strict=True) if kk]
-                    rs = [v for v, kk in zip(rs, keep, strict=True) if kk]
+                    los = [v for v, kk in zip(los, keep, strict=True) if kk]
+                    his = [v for v, kk in zip(his, keep, strict=True) if kk]
+                    exact = [v for v, kk in zip(exact, keep, strict=True) if kk]
                     if ws[-1] < top:
                         r, _ = spectral_radii(family, np.array([top]))
                         count_batch += 1
                         ws.append(top)
-                        rs.append(float(r[0]))
+                        los.append(float(r[0]))
+                        his.append(float(r[0]))
+                        exact.append(True)
     W = np.asarray(ws)
-    R = np.asarray(rs)
-    for w, r in zip(W, R, strict=True):
-        f.cache.setdefault(float(w), (float(r), complex("nan")))
+    L = np.asarray(los)
+    H = np.asarray(his)
+    # the sampled humps and dips need ρ where the bounds do not decide them, and Brent the
+    # values at both ends of a sign change: computed in one batch; every decision is then
+    # that of exact values (grid_bounds)
+    unst = L >= 1.0
+    need = np.zeros(W.size, dtype=bool)
+    change = np.flatnonzero(unst[:-1] != unst[1:])
+    need[change] = True
+    need[change + 1] = True
+    for i in range(1, len(W) - 1):
+        pp, pr, dp, dr = _hump_or_dip(L, H, i, hump)
+        if (pp and not pr) or (dp and not dr):
+            need[i - 1 : i + 2] = True
+    need &= ~np.asarray(exact)
+    if need.any():
+        r, _ = spectral_radii(family, W[need])
+        L[need] = r
+        H[need] = r
+        exact = list(np.asarray(exact) | need)
+    for w, r, ex_ in zip(W, L, exact, strict=True):
+        if ex_:  # bounds stand in for ρ only in the grid decisions, never for Brent
+            f.cache.setdefault(float(w), (float(r), complex("nan")))
     edges: list[tuple[float, int]] = []  # (depth, +1 entering instability / -1 leaving)
 
     def root(a: float, b: float) -> float:
         return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
 
-    for i in range(len(W) - 1):
-        a_unst, b_unst = R[i] >= 1.0, R[i + 1] >= 1.0
-        if a_unst != b_unst:
-            edges.append((root(W[i], W[i + 1]), 1 if b_unst else -1))
+    for c in change.tolist():
+        edges.append((root(W[c], W[c + 1]), 1 if unst[c + 1] else -1))
     # narrow humps (bands) and dips (islands) between grid depths
     for i in range(1, len(W) - 1):
-        peak = R[i] >= R[i - 1] and R[i] >= R[i + 1]
-        dip = R[i] <= R[i - 1] and R[i] <= R[i + 1]
-        if peak and hump <= R[i] < 1.0:
+        _, peak, _, dip = _hump_or_dip(L, H, i, hump)
+        if peak:
             sign = -1.0
-        elif dip and 1.0 <= R[i] < 1.0 / hump:
+        elif dip:
             sign = 1.0
         else:
             continue
@@ -430,7 +704,9 @@ def near_root(
     """
     f = _Scalar(family)
     a, b = guess * lo, guess * hi
-    ra, rb = f(a), f(b)
+    ra = f(a)
+    # ρ(b) only matters when ρ(a) < 1: otherwise the bracket moves below a at once
+    rb = f(b) if ra < 1.0 else math.nan
     step = 1.03
     for _ in range(60):
         if ra < 1.0 <= rb:

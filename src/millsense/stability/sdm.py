@@ -317,6 +317,13 @@ def _propagate(
     """Product of the step maps, applied to the identity plus one affine column.
 
     Returns the (N, N + 1) matrix ``[monodromy | affine part]`` with ``N = n + R p``.
+    Preallocated buffers; for a small state (n < 6) explicit loops restricted to the columns
+    that can be non-zero (those of ``x_0``, the affine one, and the delayed samples used so
+    far — a step with lag ``r`` uses the samples ``r − i`` and ``r − i − 1`` steps
+    old, so the used ones form a suffix of the history columns that grows by one per step),
+    for a larger one BLAS products (faster there despite the zero columns).
+    A delayed term whose weights ``Wa[i, j]`` and ``Wb[i, j]`` are both exactly zero (the
+    tooth is out of the cut on that step) is skipped: it would add exact zeros.
     """
     m, n, _ = Phi.shape
     J = lags.shape[0]
@@ -328,29 +335,84 @@ def _propagate(
     N = n + R * p
     cols = N + 1
     X = np.zeros((n, cols))
+    Xn = np.zeros((n, cols))
+    cur = np.zeros((p, cols))
     for a in range(n):
         X[a, a] = 1.0
     ring = np.zeros((R, p, cols))  # lag k lives in ring[(ptr + k - 1) % R]
     for k in range(1, R + 1):
         for b in range(p):
             ring[k - 1, b, n + (k - 1) * p + b] = 1.0
+    c0 = N  # first history column that may be non-zero in X
     ptr = 0
     for i in range(m):
-        cur = np.dot(C, X)
-        Xn = np.dot(Phi[i], X)
+        # the samples of lag r - i and r - i - 1 (1-based in the history) enter on this step
         for j in range(J):
+            if lags[j] - i >= 1:  # the older sample is still one of the initial history
+                kmin = max(lags[j] - i - 1, 1)
+                c0 = min(c0, n + (kmin - 1) * p)
+        if n >= 6:  # BLAS beats the loops from about this size of state on
+            cur[:, :] = np.dot(C, X)
+            Xn[:, :] = np.dot(Phi[i], X)
+        else:
+            for b in range(p):
+                for c in range(n):
+                    cur[b, c] = 0.0
+                for c in range(c0, cols):
+                    cur[b, c] = 0.0
+                for a in range(n):
+                    cba = C[b, a]
+                    if cba != 0.0:
+                        for c in range(n):
+                            cur[b, c] += cba * X[a, c]
+                        for c in range(c0, cols):
+                            cur[b, c] += cba * X[a, c]
+            for a in range(n):
+                for c in range(n):
+                    Xn[a, c] = 0.0
+                for c in range(c0, cols):
+                    Xn[a, c] = 0.0
+                for q in range(n):
+                    paq = Phi[i, a, q]
+                    if paq != 0.0:
+                        for c in range(n):
+                            Xn[a, c] += paq * X[q, c]
+                        for c in range(c0, cols):
+                            Xn[a, c] += paq * X[q, c]
+        for j in range(J):
+            active = False
+            for a in range(n):
+                for b in range(p):
+                    if Wa[i, j, a, b] != 0.0 or Wb[i, j, a, b] != 0.0:
+                        active = True
+            if not active:
+                continue
             r = lags[j]
-            Da = ring[(ptr + r - 1) % R]
-            Xn += np.dot(Wa[i, j], Da)
-            if r == 1:
-                Xn += np.dot(Wb[i, j], cur)
-            else:
-                Xn += np.dot(Wb[i, j], ring[(ptr + r - 2) % R])
+            ia = (ptr + r - 1) % R
+            ib = (ptr + r - 2) % R
+            for a in range(n):
+                for b in range(p):
+                    wa = Wa[i, j, a, b]
+                    wb = Wb[i, j, a, b]
+                    for c in range(n):
+                        Xn[a, c] += wa * ring[ia, b, c]
+                    for c in range(c0, cols):
+                        Xn[a, c] += wa * ring[ia, b, c]
+                    if r == 1:
+                        for c in range(n):
+                            Xn[a, c] += wb * cur[b, c]
+                        for c in range(c0, cols):
+                            Xn[a, c] += wb * cur[b, c]
+                    else:
+                        for c in range(n):
+                            Xn[a, c] += wb * ring[ib, b, c]
+                        for c in range(c0, cols):
+                            Xn[a, c] += wb * ring[ib, b, c]
         for a in range(n):
             Xn[a, cols - 1] += g[i, a]
         ptr = (ptr - 1) % R
         ring[ptr] = cur
-        X = Xn
+        X, Xn = Xn, X
     out = np.empty((N, cols))
     out[:n] = X
     for k in range(1, R + 1):
