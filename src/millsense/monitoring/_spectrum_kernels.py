@@ -52,25 +52,17 @@ def _l(m: float, d: float, kb: float) -> complex:
 
 
 @numba.njit(cache=True)
-def _fit_basis(
-    p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool
-) -> tuple[ComplexArray, ComplexArray, float, float]:
-    """The two harmonic bases A_k, B_k at p = (d_a, θ_st, θ_ex) and the real least-squares
-    amplitudes α, β of x ≈ α A + β B (β = 0 without the edge term)."""
-    n = x.shape[0]
-    a = np.empty(n, dtype=np.complex128)
-    b = np.empty(n, dtype=np.complex128)
-    d, st, ex = p[0], p[1], p[2]
-    for j in range(n):
-        lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
-        b[j] = _g(k[j], st, ex) * lk
+def _least_squares(
+    a: ComplexArray, b: ComplexArray, x: ComplexArray, edge: bool
+) -> tuple[float, float]:
+    """Real amplitudes (α, β) minimising |x − α a − β b|² (β = 0 without the edge term): the
+    2×2 normal equations of the seed 004 harmonic fit, shared by the fit and its residual."""
     aa = 0.0
     ab = 0.0
     bb = 0.0
     ax = 0.0
     bx = 0.0
-    for j in range(n):
+    for j in range(x.shape[0]):
         aa += a[j].real ** 2 + a[j].imag ** 2
         bb += b[j].real ** 2 + b[j].imag ** 2
         ab += (a[j].conjugate() * b[j]).real
@@ -85,6 +77,24 @@ def _fit_basis(
             beta = (aa * bx - ab * ax) / det
     elif aa > 0:
         alpha = ax / aa
+    return alpha, beta
+
+
+@numba.njit(cache=True)
+def _fit_basis(
+    p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool
+) -> tuple[ComplexArray, ComplexArray, float, float]:
+    """The two harmonic bases A_k, B_k at p = (d_a, θ_st, θ_ex) and the real least-squares
+    amplitudes α, β of x ≈ α A + β B (β = 0 without the edge term)."""
+    n = x.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    d, st, ex = p[0], p[1], p[2]
+    for j in range(n):
+        lk = _l(k[j], d, kb)
+        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b[j] = _g(k[j], st, ex) * lk
+    alpha, beta = _least_squares(a, b, x, edge)
     return a, b, alpha, beta
 
 
@@ -175,26 +185,7 @@ def _residual_from(
         g_hi = _g_of(m[i_hi], e1[i_hi], e2[i_hi], st, ex)
         a[j] = (g_lo - g_hi) / complex(0.0, 2.0) * lk[j]
         b[j] = _g_of(m[i_k], e1[i_k], e2[i_k], st, ex) * lk[j]
-    aa = 0.0
-    ab = 0.0
-    bb = 0.0
-    ax = 0.0
-    bx = 0.0
-    for j in range(n):
-        aa += a[j].real ** 2 + a[j].imag ** 2
-        bb += b[j].real ** 2 + b[j].imag ** 2
-        ab += (a[j].conjugate() * b[j]).real
-        ax += (a[j].conjugate() * xn[j]).real
-        bx += (b[j].conjugate() * xn[j]).real
-    alpha = 0.0
-    beta = 0.0
-    if edge:
-        det = aa * bb - ab * ab
-        if det > 0:
-            alpha = (bb * ax - ab * bx) / det
-            beta = (aa * bx - ab * ax) / det
-    elif aa > 0:
-        alpha = ax / aa
+    alpha, beta = _least_squares(a, b, xn, edge)
     cost = 0.0
     for j in range(n):
         r = xn[j] - alpha * a[j] - beta * b[j]
