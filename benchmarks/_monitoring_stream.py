@@ -4,6 +4,8 @@ benchmarks (``bench_monitoring_breakage``, ``bench_monitoring_all``)."""
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -13,7 +15,7 @@ from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.forces import milling_forces
 from millsense.process.geometry import EndMill
-from millsense.streaming.block import Block
+from millsense.streaming.block import Block, Chunk
 
 FS = 10000.0
 
@@ -48,3 +50,16 @@ def _blocks(engagement: bool) -> list[Block]:
     if engagement:
         out.append(EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=15))
     return out
+
+
+def _time_blocks(blocks: Sequence[Block], data: dict[str, np.ndarray], chunk: int) -> float:
+    """Wall time of ``blocks`` (reset first) fed ``data`` in chunks of ``chunk`` samples."""
+    fs = 10000.0
+    for b in blocks:
+        b.reset(fs)
+    n = len(data["spindle/speed"])
+    t0 = time.perf_counter()
+    for i in range(0, n, chunk):
+        for b in blocks:
+            b.process(Chunk(i, fs, 0.0, {k: data[k][i : i + chunk] for k in b.inputs}))
+    return time.perf_counter() - t0

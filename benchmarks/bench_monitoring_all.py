@@ -8,14 +8,12 @@ each block gets its declared channels per chunk as the pipeline hands them.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from _harness import Metric, benchmark
-from _monitoring_stream import _blocks, _stream
+from _monitoring_stream import _blocks, _stream, _time_blocks
 from millsense.monitoring.chatter import METHODS, ChatterGroup, ChatterMonitor, ChatterSettings
-from millsense.streaming.block import Block, Chunk
+from millsense.streaming.block import Block
 
 FS = 10000.0
 
@@ -31,15 +29,7 @@ def _all_blocks() -> list[Block]:
 
 
 def _run(data: dict[str, np.ndarray], chunk: int) -> float:
-    blocks = _all_blocks()
-    for b in blocks:
-        b.reset(FS)
-    n = len(data["spindle/speed"])
-    t0 = time.perf_counter()
-    for i in range(0, n, chunk):
-        for b in blocks:
-            b.process(Chunk(i, FS, 0.0, {k: data[k][i : i + chunk] for k in b.inputs}))
-    return time.perf_counter() - t0
+    return _time_blocks(_all_blocks(), data, chunk)
 
 
 @benchmark("monitoring.all_speed")

@@ -8,27 +8,16 @@ in 10 ms and in 0.1 s chunks, after compilation; the breakage blocks alone are r
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from _harness import Metric, benchmark
-from _monitoring_stream import _blocks, _stream
-from millsense.streaming.block import Chunk
+from _monitoring_stream import _blocks, _stream, _time_blocks
 
 FS = 10000.0
 
 
 def _run(data: dict[str, np.ndarray], chunk: int, engagement: bool = True) -> float:
-    blocks = _blocks(engagement)
-    for b in blocks:
-        b.reset(FS)
-    n = len(data["spindle/speed"])
-    t0 = time.perf_counter()
-    for i in range(0, n, chunk):
-        for b in blocks:
-            b.process(Chunk(i, FS, 0.0, {k: data[k][i : i + chunk] for k in b.inputs}))
-    return time.perf_counter() - t0
+    return _time_blocks(_blocks(engagement), data, chunk)
 
 
 @benchmark("monitoring.breakage_speed")
