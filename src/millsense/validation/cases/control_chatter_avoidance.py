@@ -34,7 +34,6 @@ FS_HZ = 10_000.0
 TOOL = "T1"
 RPM = 4500.0
 DEPTH_MM = 1.2
-AIR_S = 0.8
 DURATION_S = 3.0
 #: The acceptance: chatter gone within this long after the new speed is reached, s.
 GONE_WITHIN_S = 1.0
@@ -98,40 +97,13 @@ def closed_loop(signal: str = "accel/x") -> dict[str, Any]:
         StabilityModel,
     )
     from millsense.control.closed_loop import run_closed_loop
-    from millsense.core.config import MaterialConfig
-    from millsense.core.presets import load_preset
     from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.engagement import Engagement
-    from millsense.process.geometry import EndMill
-    from millsense.simulator.machine import Job, MachineSimulator, SimulatorOptions
-    from millsense.simulator.machine_file import simulator_machine
-    from millsense.simulator.process_coupling import (
-        EngagementSchedule,
-        ProcessCoupling,
-        ToolModes,
-    )
-    from millsense.simulator.sensors import SensorOptions
     from millsense.streaming.block import EventKind
-    from millsense.validation.cases.monitoring_chatter import TOOLS, _modes
+    from millsense.validation.cases.monitoring_chatter import TOOLS, replica_simulator
 
-    d, n, _, _, _, _, mx, my = TOOLS[TOOL]
-    m = simulator_machine("quaser-ux600")
-    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
-    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    feed = 0.1e-3 * n * RPM / 60.0
-    proc = ProcessCoupling(
-        EndMill(d, n),
-        coeffs,
-        EngagementSchedule.constant(Engagement.slot(), DEPTH_MM * 1e-3, start=feed * AIR_S),
-        n_discs=1,
-        modes=ToolModes(_modes(my), _modes(mx)),
-    )
-    job = Job.straight([0, 0, 0], [1.0, 0, 0], feed, RPM * 2 * math.pi / 60.0)
-    opts = SimulatorOptions(
-        seed=11, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)
-    )
-    sim = MachineSimulator(m, job, proc, opts, duration_s=DURATION_S)
+    n = TOOLS[TOOL][1]
+    sim = replica_simulator(TOOL, DEPTH_MM, DURATION_S, rpm=RPM)
+    m = sim.machine
     blocks: list[Any] = []
     if signal == "spindle/torque_est":
         from millsense.estimation.spindle_observer import SpindleTorqueObserver

@@ -58,9 +58,12 @@ def _modes(rows: list[tuple[float, float, float]]) -> Any:
     return DirectionModes.from_arrays(f, np.asarray(z) / 100.0, k)
 
 
-@cache
-def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
-    """One V5 replica run: the channels the monitors and the judgement need."""
+def replica_simulator(
+    tool: str, depth_mm: float, duration_s: float, rpm: float | None = None
+) -> Any:
+    """The virtual machine (quaser-ux600 X/Y/Z) slotting Al7050 with a V5 replica tool (its
+    modal table, 0.1 mm/tooth, ``rpm`` or the tool's speed) after ``AIR_S`` of air; an
+    accelerometer on the spindle. Shared by the V5 replicas and the chatter-avoidance loop."""
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
@@ -75,7 +78,8 @@ def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
     )
     from millsense.simulator.sensors import SensorOptions
 
-    d, n, rpm, _, _, _, mx, my = TOOLS[tool]
+    d, n, tool_rpm, _, _, _, mx, my = TOOLS[tool]
+    rpm = tool_rpm if rpm is None else rpm
     m = simulator_machine("quaser-ux600")
     m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
@@ -92,7 +96,13 @@ def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
     opts = SimulatorOptions(
         seed=11, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)
     )
-    sim = MachineSimulator(m, job, proc, opts, duration_s=AIR_S + CUT_S + 0.15)
+    return MachineSimulator(m, job, proc, opts, duration_s=duration_s)
+
+
+@cache
+def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
+    """One V5 replica run: the channels the monitors and the judgement need."""
+    sim = replica_simulator(tool, depth_mm, AIR_S + CUT_S + 0.15)
     keep = (
         "spindle/current_cmd",
         "spindle/speed",
