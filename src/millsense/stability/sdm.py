@@ -306,6 +306,37 @@ def discretize(sm: StepMeans) -> DiscreteMap:
 
 
 @numba.njit(cache=True)
+def _product_on_columns(
+    M: FloatArray, X: FloatArray, out: FloatArray, n: int, c0: int, cols: int
+) -> None:  # pragma: no cover - compiled
+    """``out = M X`` on the columns ``[0, n)`` and ``[c0, cols)`` (the others are unused and
+    stay zero), skipping the exact zeros of ``M``."""
+    for r in range(M.shape[0]):
+        for c in range(n):
+            out[r, c] = 0.0
+        for c in range(c0, cols):
+            out[r, c] = 0.0
+        for a in range(M.shape[1]):
+            v = M[r, a]
+            if v != 0.0:
+                for c in range(n):
+                    out[r, c] += v * X[a, c]
+                for c in range(c0, cols):
+                    out[r, c] += v * X[a, c]
+
+
+@numba.njit(cache=True)
+def _axpy_on_columns(
+    out: FloatArray, w: float, x: FloatArray, n: int, c0: int, cols: int
+) -> None:  # pragma: no cover - compiled
+    """``out += w x`` on the columns ``[0, n)`` and ``[c0, cols)``."""
+    for c in range(n):
+        out[c] += w * x[c]
+    for c in range(c0, cols):
+        out[c] += w * x[c]
+
+
+@numba.njit(cache=True)
 def _propagate(
     Phi: FloatArray,
     Wa: FloatArray,
@@ -355,30 +386,8 @@ def _propagate(
             cur[:, :] = np.dot(C, X)
             Xn[:, :] = np.dot(Phi[i], X)
         else:
-            for b in range(p):
-                for c in range(n):
-                    cur[b, c] = 0.0
-                for c in range(c0, cols):
-                    cur[b, c] = 0.0
-                for a in range(n):
-                    cba = C[b, a]
-                    if cba != 0.0:
-                        for c in range(n):
-                            cur[b, c] += cba * X[a, c]
-                        for c in range(c0, cols):
-                            cur[b, c] += cba * X[a, c]
-            for a in range(n):
-                for c in range(n):
-                    Xn[a, c] = 0.0
-                for c in range(c0, cols):
-                    Xn[a, c] = 0.0
-                for q in range(n):
-                    paq = Phi[i, a, q]
-                    if paq != 0.0:
-                        for c in range(n):
-                            Xn[a, c] += paq * X[q, c]
-                        for c in range(c0, cols):
-                            Xn[a, c] += paq * X[q, c]
+            _product_on_columns(C, X, cur, n, c0, cols)
+            _product_on_columns(Phi[i], X, Xn, n, c0, cols)
         for j in range(J):
             active = False
             for a in range(n):
@@ -392,22 +401,9 @@ def _propagate(
             ib = (ptr + r - 2) % R
             for a in range(n):
                 for b in range(p):
-                    wa = Wa[i, j, a, b]
-                    wb = Wb[i, j, a, b]
-                    for c in range(n):
-                        Xn[a, c] += wa * ring[ia, b, c]
-                    for c in range(c0, cols):
-                        Xn[a, c] += wa * ring[ia, b, c]
-                    if r == 1:
-                        for c in range(n):
-                            Xn[a, c] += wb * cur[b, c]
-                        for c in range(c0, cols):
-                            Xn[a, c] += wb * cur[b, c]
-                    else:
-                        for c in range(n):
-                            Xn[a, c] += wb * ring[ib, b, c]
-                        for c in range(c0, cols):
-                            Xn[a, c] += wb * ring[ib, b, c]
+                    _axpy_on_columns(Xn[a], Wa[i, j, a, b], ring[ia, b], n, c0, cols)
+                    later = cur[b] if r == 1 else ring[ib, b]
+                    _axpy_on_columns(Xn[a], Wb[i, j, a, b], later, n, c0, cols)
         for a in range(n):
             Xn[a, cols - 1] += g[i, a]
         ptr = (ptr - 1) % R
