@@ -45,9 +45,6 @@ class Scripted(Block):
     def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
         self.ceilings.append((self._pos, ceiling, commanded))
 
-    def rearm(self) -> None:
-        self.rearmed.append(self._pos)
-
     def process(self, chunk: Chunk) -> BlockOutput:
         ev = []
         for k in range(chunk.start, chunk.start + chunk.n):
@@ -56,6 +53,14 @@ class Scripted(Block):
                 ev.append(Event(k / FS, kind, self.name, name, name=name, value=value, sample=k))
         self._pos = chunk.start + chunk.n
         return BlockOutput({f"{self.name}/echo": np.asarray(chunk.data["sig"]) * 2}, ev)
+
+
+class ScriptedBreakage(Scripted):
+    """A scripted breakage monitor: it can be re-armed (what makes the supervisor count it as
+    a breakage monitor, as BreakageBlock)."""
+
+    def rearm(self) -> None:
+        self.rearmed.append(self._pos)
 
 
 def _run(
@@ -95,7 +100,7 @@ def _children() -> list[Block]:
         2060: (OVR, "spindle_override", 112.0),
         4000: (NOTE, "chatter_end", None),
     })  # fmt: skip
-    breakage = Scripted("breakage", {
+    breakage = ScriptedBreakage("breakage", {
         3000: (ALM, "breakage", None),  # during chatter: set aside
         7500: (ALM, "breakage", None),  # re-armed, still broken: acted on
     })  # fmt: skip
@@ -127,7 +132,7 @@ def test_priorities_chatter_then_breakage_then_adaptive() -> None:
     assert mode[6500] == MODE_CHATTER  # the 0.3 s after the episode: still not stable
     assert [e.sample for e in events if e.name == "breakage_set_aside"] == [3100]
     breakage = kids[1]
-    assert isinstance(breakage, Scripted) and breakage.rearmed == [7000]
+    assert isinstance(breakage, ScriptedBreakage) and breakage.rearmed == [7000]
     assert ch["supervisor/feed_override"][1200] == pytest.approx(1.3)
     assert ch["supervisor/spindle_override"][2200] == pytest.approx(1.12)
     assert math.isnan(ch["supervisor/spindle_override"][100])
@@ -161,7 +166,7 @@ def test_decisions_do_not_depend_on_the_chunking(chunk: int) -> None:
 def test_breakage_when_stable_holds_at_the_next_boundary() -> None:
     """A breakage alarm with no chatter: feed hold within one control period (10 ms), far
     inside issue 16's 3 tooth periods (60 ms at 1000 rev/min, 2 flutes)."""
-    sup = Supervisor([Scripted("breakage", {3042: (ALM, "breakage", None)})])
+    sup = Supervisor([ScriptedBreakage("breakage", {3042: (ALM, "breakage", None)})])
     _, events = _run(sup, 4000, 100)
     holds = [e for e in events if e.name == "feed_hold"]
     assert len(holds) == 1 and holds[0].sample == 3100

@@ -338,24 +338,16 @@ def replay_online(
 
 def _with_progress(what: str, total: int, job: Any, supervisor: Any) -> Any:
     """Run ``job(callback)`` under a progress bar with the live feed and spindle overrides."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+    from millsense.cli.progress import progress_bar
 
-    with Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.fields[live]}"),
-        TimeRemainingColumn(),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(what, total=max(total, 1), live="")
+    def live(done: float) -> str:
+        sp = supervisor.spindle
+        spindle = "" if sp != sp else f" spindle {100 * sp:.0f} %"
+        mode = ("normal", "chatter", "fault", "HOLD")[supervisor.mode]
+        feed = f"feed {100 * supervisor.feed:5.1f} %"
+        return f"t {done / supervisor.fs:6.2f} s  {feed}{spindle}  {mode}"
 
-        def update(done: int) -> None:
-            sp = supervisor.spindle
-            spindle = "" if sp != sp else f" spindle {100 * sp:.0f} %"
-            live = (f"t {done / supervisor.fs:6.2f} s  feed {100 * supervisor.feed:5.1f} %"
-                    f"{spindle}  mode {('normal', 'chatter', 'fault', 'HOLD')[supervisor.mode]}")
-            bar.update(task, completed=min(done, total), live=live)
-
+    with progress_bar(what, max(total, 1), live) as update:
         return job(update)
 
 

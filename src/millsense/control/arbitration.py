@@ -42,9 +42,7 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
-
-#: Codes of the source's fault channel (:mod:`millsense.online.guard`).
-FAULT_NAMES = {1: "non-finite samples", 2: "samples lost", 3: "stream stalled", 4: "source lost"}
+from millsense.streaming.sources import SOURCE_FAULTS
 
 #: Modes of the supervisor (its ``/mode`` channel).
 MODE_NORMAL, MODE_CHATTER, MODE_FAULT, MODE_HOLD = 0, 1, 2, 3
@@ -130,7 +128,8 @@ class Supervisor(Block):
         ins += [i for i in (fault_channel, in_cut_channel) if i is not None]
         self.inputs = tuple(dict.fromkeys(ins))
         self.reads_truth = any(c.reads_truth for c in self.children)
-        self.breakage_possible = any(_is_breakage_monitor(c) for c in self.children)
+        # a breakage monitor is a child that can be re-armed (BreakageBlock.rearm)
+        self.breakage_possible = any(hasattr(c, "rearm") for c in self.children)
         self.reset(10000.0)
 
     # ------------------------------------------------------------------ contract
@@ -155,7 +154,6 @@ class Supervisor(Block):
         self.chatter_open = False
         self.chatter_last_s = -math.inf
         self.breakage_pending: Event | None = None
-        self.set_aside = 0  # breakage alarms not acted on (raised during chatter)
         self.rejudge_at: float | None = None  # time the breakage monitors are re-armed
         self.held = False
         self.fault = False
@@ -238,7 +236,6 @@ class Supervisor(Block):
                 self.chatter_open = False
             elif ev.name == "breakage" and ev.kind is EventKind.ALARM:
                 if self.chatter_open or self.rejudge_at is not None:
-                    self.set_aside += 1  # judged on a torque the chatter corrupted
                     events.append(Event(t, EventKind.NOTE, self.name,
                                         f"breakage alarm of {ev.source} at {ev.time_s:.3f} s set "
                                         "aside: chatter; the monitor is re-armed once stable",
@@ -299,7 +296,7 @@ class Supervisor(Block):
         self, chunk: Chunk, t: float, k: int, code: int, at: int, events: list[Event]
     ) -> None:
         """The safe action for a source fault (decision 1621)."""
-        why = FAULT_NAMES.get(code, f"fault {code}")
+        why = SOURCE_FAULTS.get(code, f"fault {code}")
         t_at = chunk.t0_s + at / chunk.sample_rate_hz
         first = not self.fault
         self.fault = True
@@ -378,12 +375,6 @@ class Supervisor(Block):
             setter = getattr(c, "set_ceiling", None)
             if setter is not None:
                 setter(limit, self.feed)
-
-
-def _is_breakage_monitor(block: Block) -> bool:
-    from millsense.monitoring.breakage import BreakageBlock
-
-    return isinstance(block, BreakageBlock)
 
 
 def _slice(chunk: Chunk, a: int, b: int) -> Chunk:

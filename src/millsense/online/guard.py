@@ -25,7 +25,7 @@ import numpy as np
 
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Chunk, Event, EventKind, Severity
-from millsense.streaming.sources import Source, SourceWrapper
+from millsense.streaming.sources import SOURCE_FAULTS, Source, SourceWrapper
 
 FAULT_CHANNEL = "guard/fault"
 NAN, GAP, STALL, LOST = 1, 2, 3, 4
@@ -159,13 +159,12 @@ class GuardedSource(SourceWrapper):
             cur = int(f[k])
             t = c.t0_s + (c.start + k) / c.sample_rate_hz
             self.events.append(Event(t, EventKind.ALARM, "guard",
-                                     f"{self.name}: {_WHAT[cur]} at {t:.4f} s",
+                                     f"{self.name}: {SOURCE_FAULTS[cur]} at {t:.4f} s",
                                      name="source_fault", value=float(cur), sample=c.start + k,
                                      severity=Severity.WARNING))  # fmt: skip
         self._fault_on = int(f[-1])
 
 
-_WHAT = {NAN: "non-finite samples", GAP: "samples lost", STALL: "stream stalled", LOST: "lost"}
 
 
 def _hold(v: np.ndarray, bad: np.ndarray, last: float) -> np.ndarray:

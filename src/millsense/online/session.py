@@ -103,7 +103,6 @@ class SessionBlocks:
 
     blocks: list[Block]
     supervisor: Supervisor
-    plan_sync: PlanSync
     notes: list[str] = field(default_factory=list)
 
 
@@ -211,7 +210,7 @@ def session_blocks(
         in_cut_channel="plan/in_cut",
     )
     blocks.append(sup)
-    return SessionBlocks(blocks, sup, sync, notes)
+    return SessionBlocks(blocks, sup, notes)
 
 
 def _largest(plan: VirtualPlan, column: str) -> float:
@@ -284,15 +283,10 @@ class SessionResult:
     sample_rate_hz: float
     events: list[Event]
     wall_s: float
-    recording: Path | None = None
-    event_log: Path | None = None
 
     @property
     def seconds(self) -> float:
         return self.samples / self.sample_rate_hz
-
-    def named(self, name: str) -> list[Event]:
-        return [e for e in self.events if e.name == name]
 
 
 def run_session(
@@ -362,6 +356,4 @@ def run_session(
             writer.close()
         if events_out is not None:
             write_event_log(events_out, events)
-    return SessionResult(
-        count[0], src.sample_rate_hz, events, time.perf_counter() - t0, out, events_out
-    )
+    return SessionResult(count[0], src.sample_rate_hz, events, time.perf_counter() - t0)

@@ -113,6 +113,11 @@ class RecordingSource(Source):
         self.commands.append(event)
 
 
+#: Codes of a source's fault channel (``guard/fault`` of :mod:`millsense.online.guard`), read
+#: by the arbiter (:mod:`millsense.control.arbitration`): code → what happened.
+SOURCE_FAULTS = {1: "non-finite samples", 2: "samples lost", 3: "stream stalled", 4: "source lost"}
+
+
 class SourceWrapper(Source):
     """A source in front of another (a guard, an injected fault, a stop condition): by default
     the inner source's rate, start, channels, chunks and commands; what a live source offers
