@@ -42,10 +42,10 @@ def _setup(kind: str) -> tuple[MachineConfig, Job]:
     if kind == "5":
         return m, Job.straight([0, 0, 0, 0, 0], [1.3, 0.1, 0, 0.2, 0.5], feed, om)
     if kind == "3":
-        m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+        m = m.with_axes("xyz", "3-axis")
         return m, Job.straight([0, 0, 0], [1.3, 0.0, 0.0], feed, om)
     # one axis: the UX600's X drive as a stage (its truth plant), with the spindle and cutting
-    m = m.model_copy(update={"kinematics": "1-axis-stage", "axes": {"x": m.axes["x"]}})
+    m = m.with_axes("x", "1-axis-stage")
     return m, Job.straight([0, 0, 0], [1.3, 0.0, 0.0], feed, om)
 
 

@@ -148,3 +148,16 @@ def test_spindle_residual_modes_key_loads() -> None:
     )
     assert sp.residual_modes is not None
     assert sp.residual_modes.natural_frequency_hz == [457.9]
+
+
+def test_with_axes_keeps_only_the_named_axes_and_refuses_a_missing_one() -> None:
+    from millsense.core.config import MachineConfig
+    from millsense.core.errors import ConfigError
+    from millsense.core.presets import load_preset
+
+    m = load_preset(MachineConfig, "quaser-ux600")
+    three = m.with_axes("xyz", "3-axis")
+    assert list(three.axes) == ["x", "y", "z"] and three.kinematics == "3-axis"
+    assert three.axes["y"] == m.axes["y"] and m.kinematics == "5-axis-trunnion-ac"
+    with pytest.raises(ConfigError, match="no axis 'b'"):
+        m.with_axes("xb", "3-axis")

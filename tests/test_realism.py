@@ -28,7 +28,7 @@ NONE = RealismOptions(
 
 def _machine3() -> MachineConfig:
     m = simulator_machine("quaser-ux600")
-    return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    return m.with_axes("xyz", "3-axis")
 
 
 def _air(realism: RealismOptions, seed: int = 1, duration: float | None = 0.6) -> MachineSimulator:

@@ -33,7 +33,7 @@ FEED = 0.1e-3 * 2 * RPM / 60  # 0.1 mm/tooth, 2 flutes: 20 mm/s
 
 def _machine3() -> MachineConfig:
     m = simulator_machine("quaser-ux600")
-    return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    return m.with_axes("xyz", "3-axis")
 
 
 def _process(events: list[ToothBreak] | None = None) -> ProcessCoupling:

@@ -38,7 +38,7 @@ F_CHATTER = 932.0  # SDM chatter frequency at 15 870 rev/min, benchmarks.md §1
 
 def _machine3() -> MachineConfig:
     m = simulator_machine("quaser-ux600")
-    return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    return m.with_axes("xyz", "3-axis")
 
 
 def _run(

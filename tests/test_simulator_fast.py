@@ -54,9 +54,9 @@ def _machine(kind: str) -> tuple[MachineConfig, Job]:
     if kind in ("5", "5-ideal"):
         return m, Job.straight([0, 0, 0, 0, 0], [0.3, 0.02, 0, 0.2, 0.5], FEED, OMEGA)
     if kind == "3":
-        m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+        m = m.with_axes("xyz", "3-axis")
         return m, Job.straight([0, 0, 0], [0.3, 0.02, 0.0], FEED, OMEGA)
-    m = m.model_copy(update={"kinematics": "1-axis-stage", "axes": {"x": m.axes["x"]}})
+    m = m.with_axes("x", "1-axis-stage")
     return m, Job.straight([0, 0, 0], [0.3, 0.0, 0.0], FEED, OMEGA)
 
 

@@ -16,7 +16,7 @@ FEED = 0.02  # m/s
 
 def _run(opts: SimulatorOptions) -> tuple[MachineSimulator, dict[str, np.ndarray]]:
     m = simulator_machine("quaser-ux600")
-    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    m = m.with_axes("xyz", "3-axis")
     job = Job.straight([0, 0, 0], [0.2, 0, 0], FEED, 0.0)
     sim = MachineSimulator(m, job, None, opts, duration_s=0.8)
     parts: dict[str, list[np.ndarray]] = {}

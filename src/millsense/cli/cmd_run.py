@@ -168,8 +168,7 @@ def _belief(machine_file: Path | None, sim_machine: Any) -> tuple[Any, str]:
     missing = [a for a in sim_machine.axes if a not in cfg.axes]
     if missing:
         raise ConfigError(f"{where}: no axes {', '.join(missing)} of {sim_machine.name}")
-    axes = {a: cfg.axes[a] for a in sim_machine.axes}
-    return cfg.model_copy(update={"kinematics": sim_machine.kinematics, "axes": axes}), where
+    return cfg.with_axes(list(sim_machine.axes), sim_machine.kinematics), where
 
 
 def _machine_file(machine_file: Path | None, name: str) -> tuple[Any, str]:
@@ -312,7 +311,7 @@ def replay_online(
         cfg, where = _machine_file(machine_file, str(rec.metadata.get("machine", "")))
         kin = str(rec.metadata.get("kinematics", cfg.kinematics))
         axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
-        cfg = cfg.model_copy(update={"kinematics": kin, "axes": {a: cfg.axes[a] for a in axes}})
+        cfg = cfg.with_axes(axes, kin)
         built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=where,
                                channels=rec.channel_names)  # fmt: skip
         # only what the blocks read (and the truth the plot shows): a recording of an earlier

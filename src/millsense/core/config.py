@@ -593,6 +593,12 @@ class MachineConfig(_Model):
                 f"machine '{self.name}': no axis '{name}' (axes: {', '.join(self.axes)})"
             ) from None
 
+    def with_axes(self, axes: str | list[str], kinematics: str) -> MachineConfig:
+        """The same machine with only ``axes`` under ``kinematics`` (e.g. the X/Y/Z of a 5-axis
+        machine as a 3-axis one); one-line error for an axis it does not have."""
+        kept = {a: self.axis(a) for a in axes}
+        return self.model_copy(update={"kinematics": kinematics, "axes": kept})
+
 
 # --------------------------------------------------------------------------------------------
 # Stock

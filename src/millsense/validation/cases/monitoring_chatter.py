@@ -81,7 +81,7 @@ def replica_simulator(
     d, n, tool_rpm, _, _, _, mx, my = TOOLS[tool]
     rpm = tool_rpm if rpm is None else rpm
     m = simulator_machine("quaser-ux600")
-    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    m = m.with_axes("xyz", "3-axis")
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
     feed = 0.1e-3 * n * rpm / 60.0
     # process frame: x along the feed (thesis Y), y normal to it (thesis X)
@@ -374,7 +374,7 @@ def latency() -> tuple[float, float, float]:
         events=steps,
     )
     m = simulator_machine("quaser-ux600")
-    m = m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    m = m.with_axes("xyz", "3-axis")
     job = Job.straight([0, 0, 0], [1.0, 0, 0], feed, omega)
     opts = SimulatorOptions(
         seed=5, spindle_accel_rad_s2=20000.0, sensors=SensorOptions(accelerometer=True)

@@ -77,9 +77,7 @@ def session_run(fault: str = "", break_s: float | None = None) -> SessionRun:
     job, proc, _, _ = plan_job(plan, m, "v8_slot", events=breaks)
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=0))
     belief = load_preset(MachineConfig, str(MACHINE_FILE))
-    belief = belief.model_copy(
-        update={"kinematics": "3-axis", "axes": {a: belief.axes[a] for a in "xyz"}}
-    )
+    belief = belief.with_axes("xyz", "3-axis")
     built = session_blocks(plan, belief, m.sample_rate_hz, SessionOptions(),
                            channels=sim.channel_names)  # fmt: skip
     source = FaultyLink(sim, [LinkFault.parse(fault)]) if fault else sim
@@ -247,9 +245,7 @@ def chatter_run() -> dict[str, object]:
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=11))
     shipped = commissioned_machine("quaser-ux600")
     assert shipped is not None
-    belief = shipped[0].model_copy(
-        update={"kinematics": "3-axis", "axes": {a: shipped[0].axes[a] for a in "xyz"}}
-    )
+    belief = shipped[0].with_axes("xyz", "3-axis")
     opts = SessionOptions(stability_case=stability_case())
     built = session_blocks(plan, belief, m.sample_rate_hz, opts, channels=sim.channel_names)
     with tempfile.TemporaryDirectory() as tmp:

@@ -28,7 +28,7 @@ FS = 10000.0
 
 def _machine3() -> MachineConfig:
     m = simulator_machine("quaser-ux600")
-    return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    return m.with_axes("xyz", "3-axis")
 
 
 def _run(sim: MachineSimulator) -> dict[str, np.ndarray]:

@@ -56,7 +56,7 @@ SLOT_WINDOW = (0.010, 0.030)
 def machine_3axis() -> MachineConfig:
     """``quaser-ux600`` with its X, Y, Z drives only (3-axis kinematics)."""
     m = simulator_machine("quaser-ux600")
-    return m.model_copy(update={"kinematics": "3-axis", "axes": {k: m.axes[k] for k in "xyz"}})
+    return m.with_axes("xyz", "3-axis")
 
 
 @dataclass
