@@ -81,6 +81,21 @@ def _least_squares(
 
 
 @numba.njit(cache=True)
+def _projected_residual(
+    xn: ComplexArray, a: ComplexArray, b: ComplexArray, alpha: float, beta: float, res: FloatArray
+) -> float:
+    """``xn − α a − β b`` into ``res`` (real parts, then imaginary parts); returns ½‖res‖²."""
+    n = xn.shape[0]
+    cost = 0.0
+    for j in range(n):
+        r = xn[j] - alpha * a[j] - beta * b[j]
+        res[j] = r.real
+        res[n + j] = r.imag
+        cost += r.real**2 + r.imag**2
+    return 0.5 * cost
+
+
+@numba.njit(cache=True)
 def _fit_basis(
     p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool
 ) -> tuple[ComplexArray, ComplexArray, float, float]:
@@ -105,14 +120,7 @@ def residual(
     """Projected residual of the harmonics ``xn`` for p = (d_a, θ_st, θ_ex) (real and
     imaginary parts in ``res``); returns ½‖res‖²."""
     a, b, alpha, beta = _fit_basis(p, xn, k, kb, edge)
-    n = xn.shape[0]
-    cost = 0.0
-    for j in range(n):
-        r = xn[j] - alpha * a[j] - beta * b[j]
-        res[j] = r.real
-        res[n + j] = r.imag
-        cost += r.real**2 + r.imag**2
-    return 0.5 * cost
+    return _projected_residual(xn, a, b, alpha, beta, res)
 
 
 @numba.njit(cache=True)
@@ -186,13 +194,7 @@ def _residual_from(
         a[j] = (g_lo - g_hi) / complex(0.0, 2.0) * lk[j]
         b[j] = _g_of(m[i_k], e1[i_k], e2[i_k], st, ex) * lk[j]
     alpha, beta = _least_squares(a, b, xn, edge)
-    cost = 0.0
-    for j in range(n):
-        r = xn[j] - alpha * a[j] - beta * b[j]
-        res[j] = r.real
-        res[n + j] = r.imag
-        cost += r.real**2 + r.imag**2
-    return 0.5 * cost
+    return _projected_residual(xn, a, b, alpha, beta, res)
 
 
 @numba.njit(cache=True)
