@@ -80,6 +80,12 @@ def simulate(
     accelerometer: bool = typer.Option(False, "--accelerometer", help="Add accel/x, accel/y."),
     microphone: bool = typer.Option(False, "--microphone", help="Add mic/pressure."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk written."),
+    wear_vb_mm: float = typer.Option(
+        0.0,
+        "--wear-vb-mm",
+        help="Flank wear land VB of the tool [mm]: the truth's worn-tool coefficients "
+        "(flank-land force and edge rounding, decision 2001); stored as truth_wear_vb_mm.",
+    ),
 ) -> None:
     """Simulate the virtual machine tool running a program or a virtual plan; write a
     crash-safe recording with CNC and truth/ channels.
@@ -125,6 +131,7 @@ def simulate(
         tool_modes=tool_modes,
         microphone=microphone,
         chunk=chunk,
+        wear_vb_mm=wear_vb_mm,
     )
     with progress_bar("simulating", 1.0) as update:
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
@@ -161,6 +168,7 @@ def run_simulation(
     on_progress: Callable[[float], None] | None = None,
     ideal: bool = False,
     tool_modes: Path | None = None,
+    wear_vb_mm: float = 0.0,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
 
@@ -213,6 +221,8 @@ def run_simulation(
         raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
     if air_mm > 0 and plan is not None:
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
+    if not (np.isfinite(wear_vb_mm) and 0.0 <= wear_vb_mm <= 2.0):
+        raise ConfigError(f"--wear-vb-mm: must be in [0, 2] mm, got {wear_vb_mm:g}")
     if duration_s is not None:
         check_signal(
             duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
@@ -245,7 +255,8 @@ def run_simulation(
         from millsense.simulator.plan_job import plan_job
 
         job, process, meta_extra, plan_notes = plan_job(
-            vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes
+            vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes,
+            wear_vb_m=wear_vb_mm * 1e-3,
         )
         notes += plan_notes
     else:
@@ -286,9 +297,14 @@ def run_simulation(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
         )
         schedule, first_cut = _with_air(schedule, air_mm * 1e-3, float(job.arc_length()[-1]))
+        coeffs = CuttingCoefficients.from_config(mat)
+        if wear_vb_mm > 0:
+            from millsense.simulator.wear import FlankWearModel
+
+            coeffs = FlankWearModel().coefficients(coeffs, wear_vb_mm * 1e-3)
         process = ProcessCoupling(
             end_mill,
-            CuttingCoefficients.from_config(mat),
+            coeffs,
             schedule,
             events=events,
             modes=modes,
@@ -299,6 +315,8 @@ def run_simulation(
             meta_extra["first_engagement_path_m"] = first_cut
         if air_mm > 0:
             meta_extra["air_mm"] = air_mm
+        if wear_vb_mm > 0:
+            meta_extra["truth_wear_vb_mm"] = wear_vb_mm
     channel = OverrideChannel.open_cnc() if cnc == "open" else OverrideChannel.closed_cnc()
     opts = SimulatorOptions(
         feed_channel=channel,
