@@ -22,7 +22,14 @@ from typing import Any
 from millsense.cli.batch_tasks import STEPS, process_recording, read_fragment
 from millsense.core.errors import ConfigError, InputDataError
 
-__all__ = ["BatchResult", "assess_wear", "find_recordings", "run_batch", "write_summary"]
+__all__ = [
+    "BatchResult",
+    "assess_wear",
+    "find_recordings",
+    "parse_steps",
+    "run_batch",
+    "write_summary",
+]
 
 #: A task that raised (not a user error: those are rows) is retried this many times.
 RETRIES = 2
@@ -62,7 +69,8 @@ def find_recordings(spec: str) -> list[Path]:
     return found
 
 
-def _steps(do: str) -> list[str]:
+def parse_steps(do: str) -> list[str]:
+    """The steps of ``--do`` (one-line error naming an unknown one)."""
     steps = [s.strip() for s in do.split(",") if s.strip()]
     bad = [s for s in steps if s not in STEPS]
     if bad or not steps:
@@ -91,7 +99,7 @@ def run_batch(
         raise ConfigError(f"--workers: must be ≥ 1, got {workers}")
     options: dict[str, Any] = {
         "out_dir": str(out_dir.resolve()),
-        "do": _steps(do),
+        "do": parse_steps(do),
         "machine": machine,
         "plan": plan,
         "estimate_method": estimate_method,

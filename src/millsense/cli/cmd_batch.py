@@ -44,10 +44,17 @@ def batch(
     corrupt recording is a row of the table, never the end of the batch) and write
     OUT/summary.parquet: one row per run with its statistics, events and tool wear.
     Recordings finished by an earlier batch into the same OUT are not run again."""
-    from millsense.cli.batch_run import assess_wear, find_recordings, run_batch, write_summary
+    from millsense.cli.batch_run import (
+        assess_wear,
+        find_recordings,
+        parse_steps,
+        run_batch,
+        write_summary,
+    )
     from millsense.cli.progress import progress_bar
     from millsense.core.errors import ConfigError
 
+    parse_steps(do)
     if not (math.isfinite(vb_limit_mm) and vb_limit_mm > 0):
         raise ConfigError(f"--vb-limit-mm: must be > 0, got {vb_limit_mm:g}")
     if out.exists() and not out.is_dir():

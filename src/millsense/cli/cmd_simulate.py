@@ -86,6 +86,14 @@ def simulate(
         help="Flank wear land VB of the tool [mm]: the truth's worn-tool coefficients "
         "(flank-land force and edge rounding, decision 2001); stored as truth_wear_vb_mm.",
     ),
+    tool_id: str | None = typer.Option(
+        None, "--tool-id", help="The CNC's tool identity (tool number or serial) in metadata."
+    ),
+    tool_cutting_time_min: float | None = typer.Option(
+        None,
+        "--tool-cutting-time-min",
+        help="The CNC's tool-life counter before this run [min], in metadata.",
+    ),
 ) -> None:
     """Simulate the virtual machine tool running a program or a virtual plan; write a
     crash-safe recording with CNC and truth/ channels.
@@ -132,6 +140,8 @@ def simulate(
         microphone=microphone,
         chunk=chunk,
         wear_vb_mm=wear_vb_mm,
+        tool_id=tool_id,
+        tool_cutting_time_min=tool_cutting_time_min,
     )
     with progress_bar("simulating", 1.0) as update:
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
@@ -169,6 +179,8 @@ def run_simulation(
     ideal: bool = False,
     tool_modes: Path | None = None,
     wear_vb_mm: float = 0.0,
+    tool_id: str | None = None,
+    tool_cutting_time_min: float | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
 
@@ -223,6 +235,10 @@ def run_simulation(
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
     if not (np.isfinite(wear_vb_mm) and 0.0 <= wear_vb_mm <= 2.0):
         raise ConfigError(f"--wear-vb-mm: must be in [0, 2] mm, got {wear_vb_mm:g}")
+    if tool_cutting_time_min is not None and not (
+        np.isfinite(tool_cutting_time_min) and tool_cutting_time_min >= 0
+    ):
+        raise ConfigError(f"--tool-cutting-time-min: must be ≥ 0, got {tool_cutting_time_min:g}")
     if duration_s is not None:
         check_signal(
             duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
@@ -336,6 +352,10 @@ def run_simulation(
     meta.update(meta_extra)
     if tool_modes is not None:
         meta["tool_modes"] = str(tool_modes)
+    if tool_id is not None:
+        meta["tool_id"] = str(tool_id)
+    if tool_cutting_time_min is not None:
+        meta["tool_cutting_time_s"] = float(tool_cutting_time_min) * 60.0
     writer = RecordingWriter(
         out,
         sim.sample_rate_hz,
