@@ -93,7 +93,12 @@ def run_batch(
     on_progress: Callable[[int, int], None] | None = None,
 ) -> BatchResult:
     """Run every recording's task on Dask and return the rows in the recordings' order."""
-    from dask.distributed import Client, LocalCluster, as_completed
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:
+        raise ConfigError(
+            "batch: needs Dask's distributed scheduler: pip install 'millsense[batch]'"
+        ) from exc
 
     if workers < 1:
         raise ConfigError(f"--workers: must be ≥ 1, got {workers}")

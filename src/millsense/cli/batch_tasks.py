@@ -172,9 +172,11 @@ def _steps(path: Path, out_dir: Path, options: dict[str, Any], row: dict[str, An
             duration_s=float(rec.n_samples / fs),
             created=str(meta.get("created", "")),
         )
-        for key in ("tool_cutting_time_s", "tool_id"):
-            if key in meta:
-                row[key] = meta[key] if key == "tool_id" else float(meta[key])
+        if "tool_id" in meta:
+            row["tool_id"] = str(meta["tool_id"])
+        counter = meta.get("tool_cutting_time_s")
+        if isinstance(counter, int | float):
+            row["tool_cutting_time_s"] = float(counter)
         # ground truth of a simulation, for evaluation only (never read by a step)
         for key, value in meta.items():
             if key.startswith("truth_") and isinstance(value, int | float):

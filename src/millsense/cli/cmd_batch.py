@@ -70,6 +70,10 @@ def batch(
                         on_progress=lambda k, _n: update(float(k)))  # fmt: skip
     rows = assess_wear(res.rows, limit_mm=vb_limit_mm)
     target = write_summary(rows, out)
+    from millsense.report.fleet_plots import plot_fleet, tool_table
+
+    plot_fleet(rows, out / "fleet.png", limit_mm=vb_limit_mm)
+    _print_tools(tool_table(rows))
     failed = [r for r in rows if r.get("status") != "ok"]
     for r in failed:
         typer.echo(f"millsense: warning: {r['path']}: {r.get('error', '')}", err=True)
@@ -77,5 +81,26 @@ def batch(
     where = f"{res.workers} worker(s), {res.scheduler}" if res.ran else "nothing to run"
     typer.echo(
         f"wrote {target}: {len(rows)} runs ({res.ran} run on {where}, {res.reused} from an "
-        f"earlier batch), {len(failed)} failed, {len(worn)} with VB ≥ {vb_limit_mm:g} mm"
+        f"earlier batch), {len(failed)} failed, {len(worn)} with VB ≥ {vb_limit_mm:g} mm; "
+        f"fleet view {out / 'fleet.png'}"
     )
+
+
+def _print_tools(tools: list[dict[str, object]]) -> None:
+    """Per tool: runs, failed, last VB, rate, remaining cutting time, alarms."""
+    from rich.console import Console
+    from rich.table import Table
+
+    def num(v: object, fmt: str) -> str:
+        return "-" if not isinstance(v, int | float) or not math.isfinite(v) else format(v, fmt)
+
+    table = Table("machine", "tool", "runs", "failed", "VB [mm]", "rate [mm/min]",
+                  "remaining [min]", "alarms")  # fmt: skip
+    for t in tools:
+        table.add_row(str(t["machine"]), str(t["tool"]), str(t["runs"]), str(t["failed"]),
+                      num(t["vb_mm"], ".3f"), num(t["rate_mm_min"], ".4f"),
+                      num(t["remaining_min"], ".0f"), str(t["alarms"]))  # fmt: skip
+    con = Console()
+    if not con.is_terminal:
+        con = Console(width=140)
+    con.print(table)

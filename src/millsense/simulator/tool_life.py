@@ -13,7 +13,6 @@ tests) drawn from a seeded generator.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,7 +55,7 @@ def tool_life_runs(
         raise ConfigError(f"tool life: part_cut_s must be > 0, got {part_cut_s!r}")
     m = model if model is not None else FlankWearModel()
     rng = np.random.default_rng(seed)
-    factors: Sequence[float] = rng.uniform(1 - life_spread, 1 + life_spread, n_tools)
+    factors = rng.uniform(1 - life_spread, 1 + life_spread, n_tools)
     out: list[ToolLifeRun] = []
     for k in range(n_tools):
         t = np.arange(runs) * part_cut_s
