@@ -69,3 +69,14 @@ def test_tool_life_schedule_grows_per_tool_and_cycles_programs() -> None:
     # the life factors differ between tools (±30 %): the last VBs are not all equal
     last = {r.tool_id: r.vb_m for r in runs if r.run_index == 4}
     assert max(last.values()) / min(last.values()) > 1.05
+
+
+def test_cli_refuses_an_impossible_wear(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from millsense.cli.main import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "--program", "nothing.nc", "--wear-vb-mm", "5", "-o",
+              str(tmp_path / "r.h5")])  # fmt: skip
+    assert exc.value.code == 2
+    assert "--wear-vb-mm" in capsys.readouterr().err
+    assert not (tmp_path / "r.h5").exists()

@@ -97,7 +97,7 @@ def run_batch(
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as exc:
         raise ConfigError(
-            "batch: needs Dask's distributed scheduler: pip install 'millsense[batch]'"
+            "batch: needs Dask's distributed scheduler: pip install 'dask[distributed]'"
         ) from exc
 
     if workers < 1:

@@ -331,8 +331,7 @@ def run_simulation(
             meta_extra["first_engagement_path_m"] = first_cut
         if air_mm > 0:
             meta_extra["air_mm"] = air_mm
-        if wear_vb_mm > 0:
-            meta_extra["truth_wear_vb_mm"] = wear_vb_mm
+
     channel = OverrideChannel.open_cnc() if cnc == "open" else OverrideChannel.closed_cnc()
     opts = SimulatorOptions(
         feed_channel=channel,
@@ -352,6 +351,8 @@ def run_simulation(
     meta.update(meta_extra)
     if tool_modes is not None:
         meta["tool_modes"] = str(tool_modes)
+    # the tool's true flank wear (ground truth: no step reads it; decision 2001)
+    meta["truth_wear_vb_mm"] = float(wear_vb_mm)
     if tool_id is not None:
         meta["tool_id"] = str(tool_id)
     if tool_cutting_time_min is not None:
