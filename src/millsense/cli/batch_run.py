@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from millsense.cli.batch_tasks import STEPS, process_recording, read_fragment
+from millsense.core.blas import default_to_one_thread
 from millsense.core.errors import ConfigError, InputDataError
 
 __all__ = [
@@ -131,9 +132,8 @@ def run_batch(
             res.scheduler = scheduler
         else:
             # one BLAS/numba thread per worker process: the workers are the parallelism
-            for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                        "NUMBA_NUM_THREADS"):  # fmt: skip
-                os.environ.setdefault(var, "1")
+            default_to_one_thread()
+            os.environ.setdefault("NUMBA_NUM_THREADS", "1")
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                    dashboard_address=None)  # fmt: skip
             client = Client(cluster)
