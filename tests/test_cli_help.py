@@ -23,6 +23,7 @@ from millsense.cli.main import _register_commands, app
 UNIT_SUFFIXES = (
     ("-mm-min", "[mm/min]"),
     ("-mm-s2", "[mm/s²]"),
+    ("-min", "[min]"),
     ("-mm", "[mm]"),
     ("-um", "[µm]"),
     ("-hz", "[Hz]"),

@@ -218,13 +218,13 @@ def test_cli_blas_threads_set_to_one(tmp_path: Path, capsys: pytest.CaptureFixtu
     # decision 0907: the command runs the loaded OpenBLAS on one thread (2 before, here)
     import numpy as np
 
-    from millsense.cli import cmd_lobes
+    from millsense.core.blas import limit_blas_threads
 
     np.linalg.eigvals(np.eye(3))  # OpenBLAS loaded
-    before = cmd_lobes._limit_blas_threads(2)
+    before = limit_blas_threads(2)
     if before is None:
         pytest.skip("no OpenBLAS in this numpy")
     p = _write(tmp_path, GOOD)
     code, _, _ = _run(["lobes", str(p), "--rpm", "21700"], capsys)
     assert code == 0
-    assert cmd_lobes._limit_blas_threads(None) == 1
+    assert limit_blas_threads(None) == 1

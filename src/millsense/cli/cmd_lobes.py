@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import ctypes
 import json
 import math
-import os
-import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,45 +11,12 @@ from typing import Any
 import typer
 
 from millsense.cli.main import app
+from millsense.core.blas import limit_blas_threads
 from millsense.core.errors import ConfigError
 
 #: Spectral radii a chart may need at most (speeds × scan depths); beyond it the command
 #: refuses with a message instead of running for hours (decision 0906).
 MAX_EVALUATIONS = 400_000
-
-# One BLAS thread by default (decision 0907): the eigenvalue problems are small, and a
-# multi-threaded BLAS only adds contention. Effective if numpy is not loaded yet; otherwise
-# _limit_blas_threads sets it on the loaded library.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
-
-
-def _limit_blas_threads(threads: int | None) -> int | None:
-    """Set the thread count of every OpenBLAS already loaded in this process (None: only read).
-
-    Returns the count the library reports afterwards (None if no OpenBLAS is loaded).
-    """
-    try:
-        maps = Path("/proc/self/maps").read_text()
-    except OSError:
-        return None
-    libs = sorted(set(re.findall(r"(/\S*openblas\S*\.so\S*)", maps)))
-    got = None
-    for lib in libs:
-        try:
-            handle = ctypes.CDLL(lib)
-        except OSError:
-            continue
-        for prefix in ("", "scipy_"):
-            for suffix in ("", "64_"):
-                setter = getattr(handle, f"{prefix}openblas_set_num_threads{suffix}", None)
-                getter = getattr(handle, f"{prefix}openblas_get_num_threads{suffix}", None)
-                if setter is not None and threads is not None:
-                    setter(ctypes.c_int(threads))
-                if getter is not None:
-                    got = int(getter())
-    return got
-
 
 def _parse_rpm(text: str) -> tuple[float, float, float] | float:
     parts = text.split(":")
@@ -137,7 +101,7 @@ def lobes(
     check_outputs({"the case file": case_file}, {"--plot": plot, "--json": json_out})
     if not 1 <= threads <= 256:
         raise ConfigError(f"--threads {threads}: allowed 1..256")
-    _limit_blas_threads(threads)
+    limit_blas_threads(threads)
     case = load_case(case_file)
     if method is not None and method not in ("zoa", "sdm"):
         raise ConfigError(f"--method {method!r}: allowed 'sdm' or 'zoa'")

@@ -80,6 +80,20 @@ def simulate(
     accelerometer: bool = typer.Option(False, "--accelerometer", help="Add accel/x, accel/y."),
     microphone: bool = typer.Option(False, "--microphone", help="Add mic/pressure."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk written."),
+    wear_vb_mm: float = typer.Option(
+        0.0,
+        "--wear-vb-mm",
+        help="Flank wear land VB of the tool [mm]: the truth's worn-tool coefficients "
+        "(flank-land force and edge rounding, decision 2001); stored as truth_wear_vb_mm.",
+    ),
+    tool_id: str | None = typer.Option(
+        None, "--tool-id", help="The CNC's tool identity (tool number or serial) in metadata."
+    ),
+    tool_cutting_time_min: float | None = typer.Option(
+        None,
+        "--tool-cutting-time-min",
+        help="The CNC's tool-life counter before this run [min], in metadata.",
+    ),
 ) -> None:
     """Simulate the virtual machine tool running a program or a virtual plan; write a
     crash-safe recording with CNC and truth/ channels.
@@ -125,6 +139,9 @@ def simulate(
         tool_modes=tool_modes,
         microphone=microphone,
         chunk=chunk,
+        wear_vb_mm=wear_vb_mm,
+        tool_id=tool_id,
+        tool_cutting_time_min=tool_cutting_time_min,
     )
     with progress_bar("simulating", 1.0) as update:
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
@@ -161,6 +178,9 @@ def run_simulation(
     on_progress: Callable[[float], None] | None = None,
     ideal: bool = False,
     tool_modes: Path | None = None,
+    wear_vb_mm: float = 0.0,
+    tool_id: str | None = None,
+    tool_cutting_time_min: float | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
 
@@ -213,6 +233,12 @@ def run_simulation(
         raise ConfigError(f"--air-mm: must be ≥ 0, got {air_mm}")
     if air_mm > 0 and plan is not None:
         raise ConfigError("--air-mm: applies to --program only (a plan's rows hold their air)")
+    if not (np.isfinite(wear_vb_mm) and 0.0 <= wear_vb_mm <= 2.0):
+        raise ConfigError(f"--wear-vb-mm: must be in [0, 2] mm, got {wear_vb_mm:g}")
+    if tool_cutting_time_min is not None and not (
+        np.isfinite(tool_cutting_time_min) and tool_cutting_time_min >= 0
+    ):
+        raise ConfigError(f"--tool-cutting-time-min: must be ≥ 0, got {tool_cutting_time_min:g}")
     if duration_s is not None:
         check_signal(
             duration_s, f"--duration-s {duration_s:g}", "give a shorter --duration-s", ConfigError
@@ -245,7 +271,8 @@ def run_simulation(
         from millsense.simulator.plan_job import plan_job
 
         job, process, meta_extra, plan_notes = plan_job(
-            vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes
+            vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes,
+            wear_vb_m=wear_vb_mm * 1e-3,
         )
         notes += plan_notes
     else:
@@ -286,9 +313,14 @@ def run_simulation(
             unit.table[0], depth_mm * 1e-3, job.arc_length(), job.rapid
         )
         schedule, first_cut = _with_air(schedule, air_mm * 1e-3, float(job.arc_length()[-1]))
+        coeffs = CuttingCoefficients.from_config(mat)
+        if wear_vb_mm > 0:
+            from millsense.simulator.wear import FlankWearModel
+
+            coeffs = FlankWearModel().coefficients(coeffs, wear_vb_mm * 1e-3)
         process = ProcessCoupling(
             end_mill,
-            CuttingCoefficients.from_config(mat),
+            coeffs,
             schedule,
             events=events,
             modes=modes,
@@ -299,6 +331,7 @@ def run_simulation(
             meta_extra["first_engagement_path_m"] = first_cut
         if air_mm > 0:
             meta_extra["air_mm"] = air_mm
+
     channel = OverrideChannel.open_cnc() if cnc == "open" else OverrideChannel.closed_cnc()
     opts = SimulatorOptions(
         feed_channel=channel,
@@ -318,6 +351,12 @@ def run_simulation(
     meta.update(meta_extra)
     if tool_modes is not None:
         meta["tool_modes"] = str(tool_modes)
+    # the tool's true flank wear (ground truth: no step reads it; decision 2001)
+    meta["truth_wear_vb_mm"] = float(wear_vb_mm)
+    if tool_id is not None:
+        meta["tool_id"] = str(tool_id)
+    if tool_cutting_time_min is not None:
+        meta["tool_cutting_time_s"] = float(tool_cutting_time_min) * 60.0
     writer = RecordingWriter(
         out,
         sim.sample_rate_hz,

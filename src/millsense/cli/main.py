@@ -9,11 +9,16 @@ from __future__ import annotations
 
 import sys
 
-import typer
-from numpy.linalg import LinAlgError as _LinAlgError
-from rich.console import Console
+from millsense.core.blas import default_to_one_thread
 
-from millsense.core.errors import UserError
+# before numpy loads: small matrices run best on one BLAS thread (decision 2004)
+default_to_one_thread()
+
+import typer  # noqa: E402
+from numpy.linalg import LinAlgError as _LinAlgError  # noqa: E402
+from rich.console import Console  # noqa: E402
+
+from millsense.core.errors import UserError  # noqa: E402
 
 app = typer.Typer(
     name="millsense",

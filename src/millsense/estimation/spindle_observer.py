@@ -144,7 +144,37 @@ def tune_spindle_q(
     -----
     Cost ``RMS_f(20 log₁₀|G_cτ|) + 100·max(0, 20 log₁₀(σ_τ̂ / σ_max))``; the FRF is that of the
     identified model (the observer cannot know the true one).
+
+    The search costs seconds (hundreds of Riccati solutions) and is a pure function of its
+    arguments: its result is kept per process (:data:`_TUNINGS`), so a batch worker that
+    processes many recordings of one machine tunes once (issue 20; the design is read-only).
     """
+    assert model.dt is not None
+    key = (model.a.tobytes(), model.b.tobytes(), model.c.tobytes(), model.d.tobytes(),
+           model.a.shape, model.b.shape, model.c.shape, float(model.dt), float(r),
+           float(torque_level_nm), float(snr_db), float(f_top_fraction), int(n_freq),
+           tuple(starts))  # fmt: skip
+    hit = _TUNINGS.get(key)
+    if hit is None:
+        hit = _tune_spindle_q(model, r, torque_level_nm, snr_db, f_top_fraction, n_freq, starts)
+        _TUNINGS[key] = hit
+    return hit
+
+
+#: :func:`tune_spindle_q`'s results in this process, by their arguments.
+_TUNINGS: dict[tuple[object, ...], SpindleTuning] = {}
+
+
+def _tune_spindle_q(
+    model: StateSpaceModel,
+    r: float,
+    torque_level_nm: float,
+    snr_db: float,
+    f_top_fraction: float,
+    n_freq: int,
+    starts: tuple[tuple[float, float], ...],
+) -> SpindleTuning:
+    """The search of :func:`tune_spindle_q`."""
     assert model.dt is not None
     nyq = 0.5 / model.dt
     f = np.linspace(1.0, f_top_fraction * nyq, n_freq)

@@ -16,12 +16,16 @@ def plan_job(
     material: str | None = None,
     events: Any = (),
     modes: Any = None,
+    wear_vb_m: float = 0.0,
 ) -> tuple[Any, Any, dict[str, Any], list[str]]:
     """The virtual machine's job and process of a virtual plan: its path, feed, spindle
     speed and NC lines, cutting with the engagement of every row; tool and coefficients from
     the plan unless ``tool``/``material`` (presets or TOML) are given. Returns the job, the
     process coupling, the recording metadata and notes (shared by ``simulate --plan`` and
-    ``run``)."""
+    ``run``).
+
+    ``wear_vb_m``: the tool's flank wear land VB [m]; the coefficients are the worn tool's of
+    the truth model (:class:`~millsense.simulator.wear.FlankWearModel`, decision 2001)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.plan.plan_engagement import PlanEngagement, plan_path
@@ -40,6 +44,10 @@ def plan_job(
         coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, material))
     else:
         coeffs = coefficients_from_metadata(vp.metadata, plan_name)
+    if wear_vb_m > 0:
+        from millsense.simulator.wear import FlankWearModel
+
+        coeffs = FlankWearModel().coefficients(coeffs, wear_vb_m)
     pp = plan_path(vp, five_axis=five)
     job = Job(pp.path, pp.feed_m_s, pp.spindle_rad_s, pp.nc_line, pp.rapid)
     source = PlanEngagement(vp)
@@ -53,6 +61,7 @@ def plan_job(
         "material": material or str(vp.metadata.get("material_name", "plan")),
         "engagement": source.summary(),
     }
+    meta_extra["truth_wear_vb_mm"] = wear_vb_m * 1e3
     if first_cut is not None:
         meta_extra["first_engagement_path_m"] = first_cut
     process = ProcessCoupling(

@@ -1,0 +1,176 @@
+"""Batch on Dask and the wear monitor over a simulated tool life (issue 20 acceptance).
+
+``batch.scaling``: 100 simulated recordings (5 tools × 20 runs of 4 programs with growing
+flank wear, ``millsense simulate-fleet``; cached under ``$MILLSENSE_BENCH_CACHE`` or
+``/tmp/millsense-bench/fleet100``) through ``batch`` (estimate, monitor, wear, summary) with 1
+and 2 local workers, and through a ``distributed`` scheduler with two workers started
+separately on 127.0.0.1; the tables must be identical. Cost per recording and per recorded
+second, and the cores needed for 500 machines × 8 h/day.
+
+``batch.wear``: the wear monitor's VB against the truth over that tool life, beside a run
+counter and the raw torque (no engagement normalisation): Spearman rank correlation and the
+balanced accuracy of "VB ≥ 0.3 mm". The monitor's flag uses its own fixed limit (0.3 mm);
+the two baselines are given their best threshold on these very runs (an oracle in their
+favour).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _harness import Metric, benchmark
+
+RUNS_PER_TOOL = 20
+TOOLS = 5
+LIMIT_MM = 0.3
+COLS = ("wear_vb_mm", "wear_ratio", "raw_torque_nm", "est_spindle_spindle_load_mean", "alarms")
+
+
+def _fleet() -> Path:
+    from millsense.cli.cmd_fleet import simulate_fleet
+
+    root = Path(os.environ.get("MILLSENSE_BENCH_CACHE", "/tmp/millsense-bench")) / "fleet100"
+    simulate_fleet(root, tools=TOOLS, runs=RUNS_PER_TOOL, part_cut_min=6.0, seed=11)
+    return root
+
+
+def _batch(fleet: Path, out: Path, args: list[str]) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "millsense", "batch", str(fleet), "-o", str(out), *args],
+                   check=True, capture_output=True)  # fmt: skip
+    return time.perf_counter() - t0
+
+
+def _rows(out: Path) -> list[dict[str, object]]:
+    import pyarrow.parquet as pq
+
+    rows = pq.read_table(out / "summary.parquet").to_pylist()
+    return sorted(rows, key=lambda r: str(r["run"]))
+
+
+def _same(a: list[dict[str, object]], b: list[dict[str, object]]) -> bool:
+    if len(a) != len(b):
+        return False
+    return all({c: x.get(c) for c in COLS} == {c: y.get(c) for c in COLS}
+               for x, y in zip(a, b, strict=True))  # fmt: skip
+
+
+def _distributed(fleet: Path, out: Path) -> float:
+    """Scheduler and two one-thread workers as separate processes on 127.0.0.1."""
+    with tempfile.TemporaryDirectory() as tmp:
+        sched_file = Path(tmp) / "scheduler.json"
+        env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+        procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                                   "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                   "--scheduler-file", str(sched_file)],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)]
+        try:
+            for _ in range(200):
+                if sched_file.exists():
+                    break
+                time.sleep(0.1)
+            import json
+
+            address = json.loads(sched_file.read_text())["address"]
+            for _ in range(2):
+                procs.append(subprocess.Popen(
+                    [sys.executable, "-m", "distributed.cli.dask_worker", address,
+                     "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
+                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env))
+            time.sleep(3.0)
+            return _batch(fleet, out, ["--scheduler", address])
+        finally:
+            for p in procs[::-1]:
+                p.terminate()
+            for p in procs:
+                p.wait(timeout=30)
+
+
+_STATE: dict[str, object] = {}
+
+
+@benchmark("batch.scaling")
+def _scaling() -> list[Metric]:
+    fleet = _fleet()
+    n = len(list(fleet.glob("*.h5")))
+    with tempfile.TemporaryDirectory() as tmp:
+        t1 = _batch(fleet, Path(tmp) / "w1", ["--workers", "1"])
+        t2 = _batch(fleet, Path(tmp) / "w2", ["--workers", "2"])
+        td = _distributed(fleet, Path(tmp) / "dist")
+        r1, r2, rd = _rows(Path(tmp) / "w1"), _rows(Path(tmp) / "w2"), _rows(Path(tmp) / "dist")
+    _STATE["rows"] = r1
+    rec_s = float(sum(float(r["duration_s"]) for r in r1))  # type: ignore[arg-type]
+    task_s = float(sum(float(r["wall_s"]) for r in r1))  # type: ignore[arg-type]
+    per_rec_s = task_s / n
+    # 500 machines × 8 h/day of recordings at this cost per recorded second, one core each
+    cores = 500 * 8 * 3600 * (task_s / rec_s) / (24 * 3600)
+    steps = "estimate, monitor, wear, summary"
+    return [
+        Metric("recordings", n, "1", note=f"{TOOLS} tools × {RUNS_PER_TOOL} runs, 4 programs"),
+        Metric("wall_1_worker_s", t1, "s", note=f"{steps}; local cluster, 1 process"),
+        Metric("wall_2_workers_s", t2, "s", note=f"{steps}; local cluster, 2 processes"),
+        Metric("speedup_2_workers", t1 / t2, "x", target=1.7, baseline="1 worker, same run",
+               note="wall time of `millsense batch` (cluster start and per-worker tuning "
+                    "included)"),
+        Metric("identical_1_vs_2", float(_same(r1, r2)), "1", target=1.0,
+               note=f"columns {', '.join(COLS)} equal, every run"),
+        Metric("wall_distributed_s", td, "s", note="scheduler + 2 workers started separately"),
+        Metric("identical_distributed", float(_same(r1, rd)), "1", target=1.0),
+        Metric("task_s_per_recording", per_rec_s, "s",
+               note=f"mean task wall time of a {rec_s / n:.1f} s recording (1 worker)"),
+        Metric("cpu_s_per_recorded_s", task_s / rec_s, "s/s",
+               note="task time per second of 10 kHz recording"),
+        Metric("cores_500_machines_8h", cores, "cores",
+               note="500 machines × 8 h/day processed within the day, at this cost"),
+    ]  # fmt: skip
+
+
+def _balanced_accuracy(flag: np.ndarray, truth: np.ndarray) -> float:
+    pos, neg = truth, ~truth
+    tpr = float(np.mean(flag[pos])) if pos.any() else float("nan")
+    tnr = float(np.mean(~flag[neg])) if neg.any() else float("nan")
+    return 0.5 * (tpr + tnr)
+
+
+def _best_threshold_ba(score: np.ndarray, truth: np.ndarray) -> float:
+    return max(_balanced_accuracy(score >= t, truth) for t in np.unique(score))
+
+
+@benchmark("batch.wear")
+def _wear() -> list[Metric]:
+    from scipy.stats import spearmanr
+
+    rows = _STATE.get("rows")
+    if rows is None:
+        fleet = _fleet()
+        with tempfile.TemporaryDirectory() as tmp:
+            _batch(fleet, Path(tmp) / "w", ["--do", "wear,summary", "--workers", "2"])
+            rows = _rows(Path(tmp) / "w")
+    ok = [r for r in rows if r.get("status") == "ok" and r.get("wear_vb_mm") is not None]  # type: ignore[union-attr]
+    truth = np.array([float(r.get("truth_wear_vb_mm") or 0.0) for r in ok])
+    est = np.array([float(r["wear_vb_mm"]) for r in ok])
+    counter = np.array([float(r["tool_run_index"]) for r in ok])
+    raw = np.array([float(r["raw_torque_nm"]) for r in ok])
+    worn = truth >= LIMIT_MM
+    return [
+        Metric("runs", len(ok), "1", note=f"{int(worn.sum())} with true VB ≥ {LIMIT_MM} mm"),
+        Metric("spearman_monitor", float(spearmanr(est, truth)[0]), "1", target=0.95),
+        Metric("spearman_run_counter", float(spearmanr(counter, truth)[0]), "1"),
+        Metric("spearman_raw_torque", float(spearmanr(raw, truth)[0]), "1"),
+        Metric("balanced_accuracy_monitor", _balanced_accuracy(est >= LIMIT_MM, worn), "1",
+               target=0.9, note="flag at the monitor's own VB ≥ 0.3 mm"),
+        Metric("balanced_accuracy_run_counter", _best_threshold_ba(counter, worn), "1",
+               note="its best threshold on these runs (oracle)"),
+        Metric("balanced_accuracy_raw_torque", _best_threshold_ba(raw, worn), "1",
+               note="its best threshold on these runs (oracle)"),
+        Metric("vb_error_rms_mm", float(np.sqrt(np.mean((est - truth) ** 2))), "mm"),
+        Metric("vb_error_mean_mm", float(np.mean(est - truth)), "mm",
+               note="bias of the belief's linear land against the truth's model"),
+    ]

@@ -1,0 +1,225 @@
+"""Many recordings through the pipeline on Dask, and the fleet's summary table
+(issue 20, items 1 and 3; decision 2003).
+
+:func:`run_batch` submits one :func:`~millsense.cli.batch_tasks.process_recording` task per
+recording to a Dask ``distributed`` cluster — a local one (``workers`` processes, one thread
+each) or an existing scheduler at ``scheduler`` — with retries, and collects the rows as they
+finish. Recordings whose row a previous batch already wrote (unchanged input) are not run
+again. :func:`assess_wear` then judges every tool's runs in order
+(:func:`~millsense.monitoring.wear.assess_tool`) and :func:`write_summary` writes the table as
+one Parquet file (``OUT/summary.parquet``, queryable with duckdb, polars or pandas).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from millsense.cli.batch_tasks import STEPS, process_recording, read_fragment
+from millsense.core.blas import default_to_one_thread
+from millsense.core.errors import ConfigError, InputDataError
+
+__all__ = [
+    "BatchResult",
+    "assess_wear",
+    "find_recordings",
+    "parse_steps",
+    "run_batch",
+    "write_summary",
+]
+
+#: A task that raised (not a user error: those are rows) is retried this many times.
+RETRIES = 2
+
+
+@dataclass
+class BatchResult:
+    """Rows (one per recording), how many were run, reused from a previous batch, failed."""
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    ran: int = 0
+    reused: int = 0
+    workers: int = 0
+    scheduler: str = ""
+
+
+def find_recordings(spec: str) -> list[Path]:
+    """The ``.h5`` recordings of a folder (recursively) or a glob pattern, sorted.
+
+    Raises
+    ------
+    InputDataError
+        Nothing matches (an empty folder, a pattern matching no recording).
+    """
+    import glob
+
+    p = Path(spec)
+    if p.is_dir():
+        found = sorted(q for q in p.rglob("*.h5") if q.is_file())
+    elif p.is_file():
+        found = [p]
+    else:
+        found = sorted(Path(q) for q in glob.glob(spec, recursive=True) if Path(q).is_file())
+    if not found:
+        what = "folder" if p.is_dir() else "pattern"
+        raise InputDataError(f"batch: {what} {spec} holds no recording (*.h5)")
+    return found
+
+
+def parse_steps(do: str) -> list[str]:
+    """The steps of ``--do`` (one-line error naming an unknown one)."""
+    steps = [s.strip() for s in do.split(",") if s.strip()]
+    bad = [s for s in steps if s not in STEPS]
+    if bad or not steps:
+        raise ConfigError(f"--do: unknown step '{(bad or [do])[0]}' (any of {', '.join(STEPS)})")
+    return steps
+
+
+def run_batch(
+    recordings: Sequence[Path],
+    out_dir: Path,
+    *,
+    do: str = "estimate,monitor,wear,summary",
+    machine: str | None = None,
+    plan: str | None = None,
+    workers: int = 2,
+    scheduler: str | None = None,
+    estimate_method: str = "spindle",
+    monitor_methods: str = "chatter-comb",
+    chunk: int = 2000,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> BatchResult:
+    """Run every recording's task on Dask and return the rows in the recordings' order."""
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:
+        raise ConfigError(
+            "batch: needs Dask's distributed scheduler: pip install 'dask[distributed]'"
+        ) from exc
+
+    if workers < 1:
+        raise ConfigError(f"--workers: must be ≥ 1, got {workers}")
+    options: dict[str, Any] = {
+        "out_dir": str(out_dir.resolve()),
+        "do": parse_steps(do),
+        "machine": machine,
+        "plan": plan,
+        "estimate_method": estimate_method,
+        "monitor_methods": monitor_methods,
+        "chunk": chunk,
+    }
+    res = BatchResult()
+    rows: dict[int, dict[str, Any]] = {}
+    todo: list[int] = []
+    for i, p in enumerate(recordings):
+        old = read_fragment(out_dir, p)
+        if old is not None and old.get("status") == "ok":
+            rows[i] = old
+            res.reused += 1
+        else:
+            todo.append(i)
+    done = len(rows)
+    if on_progress is not None:
+        on_progress(done, len(recordings))
+    if todo:
+        cluster = None
+        if scheduler:
+            client = Client(scheduler, timeout="10s")
+            res.scheduler = scheduler
+        else:
+            # one BLAS/numba thread per worker process: the workers are the parallelism
+            default_to_one_thread()
+            os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)  # fmt: skip
+            client = Client(cluster)
+            res.scheduler = "local"
+        try:
+            res.workers = len(client.scheduler_info().get("workers", {}))
+            futures = {
+                client.submit(process_recording, str(recordings[i].resolve()), options,
+                              retries=RETRIES, pure=False, key=f"millsense-batch-{i}"): i
+                for i in todo
+            }  # fmt: skip
+            for fut in as_completed(list(futures)):
+                i = futures[fut]
+                try:
+                    rows[i] = fut.result()
+                except Exception as exc:  # a task that failed RETRIES + 1 times, a killed worker
+                    why = f"{type(exc).__name__}: {exc}"
+                    rows[i] = {"run": recordings[i].stem, "path": str(recordings[i]),
+                               "status": "error", "error": why}  # fmt: skip
+                res.ran += 1
+                done += 1
+                if on_progress is not None:
+                    on_progress(done, len(recordings))
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    res.rows = [rows[i] for i in range(len(recordings))]
+    return res
+
+
+def assess_wear(rows: list[dict[str, Any]], *, limit_mm: float = 0.3) -> list[dict[str, Any]]:
+    """Add the wear columns to the rows that have wear sums: per tool (``tool_id``, else the
+    tool's name, on each machine), in order of the tool's cutting time (``tool_cutting_time_s``)
+    or, without it, of the rows: ``wear_vb_mm``, ``wear_worn``, ``wear_rate_mm_min``,
+    ``wear_remaining_min``, ``tool_run_index``, ``tool_cutting_time_s``, ``wear_reference``."""
+    from millsense.monitoring.wear import ToolRun, WearSums, assess_tool
+
+    fields = WearSums.__dataclass_fields__
+    groups: dict[tuple[str, str], list[tuple[int, dict[str, Any]]]] = {}
+    for i, r in enumerate(rows):
+        if r.get("status") == "ok" and "wear_n" in r:
+            key = (str(r.get("machine", "")), str(r.get("tool_id") or r.get("tool", "")))
+            groups.setdefault(key, []).append((i, r))
+    for members in groups.values():
+        known = all(r.get("tool_cutting_time_s") is not None for _, r in members)
+        runs = []
+        for i, r in members:
+            sums = WearSums(**{k: type(getattr(WearSums(), k))(r[f"wear_{k}"]) for k in fields})
+            order = float(r["tool_cutting_time_s"]) if known else float(i)
+            runs.append(ToolRun(str(i), order, float(r.get("cut_s", 0.0)), sums,
+                                float(r["plan_kte_n_mm"]) * 1e3))  # fmt: skip
+        try:
+            assessed = assess_tool(runs, limit_m=limit_mm * 1e-3, cutting_time_known=known)
+        except InputDataError as exc:
+            for _, r in members:
+                r["wear_note"] = str(exc)
+            continue
+        for a in assessed:
+            r = rows[int(a.run)]
+            remaining = a.remaining_s / 60 if math.isfinite(a.remaining_s) else None
+            r.update(
+                wear_vb_mm=a.vb_m * 1e3,
+                wear_worn=a.worn,
+                wear_reference=a.reference,
+                wear_rate_mm_min=a.rate_m_s * 1e3 * 60 if math.isfinite(a.rate_m_s) else None,
+                wear_remaining_min=remaining,
+                tool_run_index=a.run_index,
+                tool_cutting_time_s=a.cutting_time_s,
+            )
+    return rows
+
+
+def write_summary(rows: list[dict[str, Any]], out_dir: Path) -> Path:
+    """The table as ``OUT/summary.parquet`` (atomically; columns: the union of the rows')."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from millsense.io.safe_output import atomic_path
+
+    names: list[str] = []
+    for r in rows:
+        names += [k for k in r if k not in names]
+    table = pa.Table.from_pylist([{k: r.get(k) for k in names} for r in rows])
+    target = out_dir / "summary.parquet"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with atomic_path(target) as tmp:
+        pq.write_table(table, tmp)
+    return target

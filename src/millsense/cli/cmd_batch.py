@@ -1,0 +1,106 @@
+"""``millsense batch``: many recordings through the pipeline on Dask, one summary table."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import typer
+
+from millsense.cli.main import app
+
+
+@app.command()
+def batch(
+    recordings: str = typer.Argument(..., help="Folder (searched recursively) or glob of .h5."),
+    out: Path = typer.Option(..., "-o", "--output", help="Results folder."),
+    do: str = typer.Option(
+        "estimate,monitor,wear,summary",
+        "--do",
+        help="Steps per recording: estimate, monitor, wear, summary (comma-separated).",
+    ),
+    machine: str | None = typer.Option(
+        None,
+        "--machine",
+        help="Identified machine file for every recording (default: the commissioned file "
+        "shipped for each recording's machine).",
+    ),
+    plan: str | None = typer.Option(
+        None, "--plan", help="Virtual plan for every recording (default: each one's own)."
+    ),
+    workers: int = typer.Option(2, "--workers", help="Local worker processes."),
+    scheduler: str | None = typer.Option(
+        None,
+        "--scheduler",
+        help="Address of a running Dask scheduler (tcp://HOST:PORT) instead of a local cluster.",
+    ),
+    method: str = typer.Option("spindle", "--method", help="estimate: the estimators' method."),
+    monitors: str = typer.Option("chatter-comb", "--monitors", help="monitor: the methods."),
+    vb_limit_mm: float = typer.Option(
+        0.3, "--vb-limit-mm", help="Flank-wear limit VB [mm] (ISO 8688-2: 0.3)."
+    ),
+) -> None:
+    """Run the pipeline over many recordings (a task per recording on Dask; a failed or
+    corrupt recording is a row of the table, never the end of the batch) and write
+    OUT/summary.parquet: one row per run with its statistics, events and tool wear.
+    Recordings finished by an earlier batch into the same OUT are not run again."""
+    from millsense.cli.batch_run import (
+        assess_wear,
+        find_recordings,
+        parse_steps,
+        run_batch,
+        write_summary,
+    )
+    from millsense.cli.progress import progress_bar
+    from millsense.core.errors import ConfigError
+
+    parse_steps(do)
+    if not (math.isfinite(vb_limit_mm) and vb_limit_mm > 0):
+        raise ConfigError(f"--vb-limit-mm: must be > 0, got {vb_limit_mm:g}")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"-o {out}: exists and is not a folder")
+    out_abs = out.resolve()
+    found = [p for p in find_recordings(recordings) if out_abs not in p.resolve().parents]
+    if not found:
+        raise ConfigError(f"batch: {recordings} holds no recording outside -o {out}")
+    out.mkdir(parents=True, exist_ok=True)
+    with progress_bar("batch", float(len(found))) as update:
+        res = run_batch(found, out, do=do, machine=machine, plan=plan, workers=workers,
+                        scheduler=scheduler, estimate_method=method, monitor_methods=monitors,
+                        on_progress=lambda k, _n: update(float(k)))  # fmt: skip
+    rows = assess_wear(res.rows, limit_mm=vb_limit_mm)
+    target = write_summary(rows, out)
+    from millsense.report.fleet_plots import plot_fleet, tool_table
+
+    plot_fleet(rows, out / "fleet.png", limit_mm=vb_limit_mm)
+    _print_tools(tool_table(rows))
+    failed = [r for r in rows if r.get("status") != "ok"]
+    for r in failed:
+        typer.echo(f"millsense: warning: {r['path']}: {r.get('error', '')}", err=True)
+    worn = [r for r in rows if r.get("wear_worn")]
+    where = f"{res.workers} worker(s), {res.scheduler}" if res.ran else "nothing to run"
+    typer.echo(
+        f"wrote {target}: {len(rows)} runs ({res.ran} run on {where}, {res.reused} from an "
+        f"earlier batch), {len(failed)} failed, {len(worn)} with VB ≥ {vb_limit_mm:g} mm; "
+        f"fleet view {out / 'fleet.png'}"
+    )
+
+
+def _print_tools(tools: list[dict[str, object]]) -> None:
+    """Per tool: runs, failed, last VB, rate, remaining cutting time, alarms."""
+    from rich.console import Console
+    from rich.table import Table
+
+    def num(v: object, fmt: str) -> str:
+        return "-" if not isinstance(v, int | float) or not math.isfinite(v) else format(v, fmt)
+
+    table = Table("machine", "tool", "runs", "failed", "VB [mm]", "rate [mm/min]",
+                  "remaining [min]", "alarms")  # fmt: skip
+    for t in tools:
+        table.add_row(str(t["machine"]), str(t["tool"]), str(t["runs"]), str(t["failed"]),
+                      num(t["vb_mm"], ".3f"), num(t["rate_mm_min"], ".4f"),
+                      num(t["remaining_min"], ".0f"), str(t["alarms"]))  # fmt: skip
+    con = Console()
+    if not con.is_terminal:
+        con = Console(width=140)
+    con.print(table)

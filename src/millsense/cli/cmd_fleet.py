@@ -1,0 +1,135 @@
+"""``millsense simulate-fleet``: the recordings of a simulated tool life (several tools, several
+programs of different depths and widths, growing flank wear) for ``batch`` and the wear monitor.
+
+Four built-in programs cut a 60 × 30 × 20 mm Al7050 block along X with the Ø20 mm two-flute
+tool at 1000 rev/min and 400 mm/min (0.2 mm/tooth): a 2 mm slot, a 3 mm cut at 10 mm width, a
+4 mm cut at 5 mm width and a 1.5 mm slot — depths and widths that change the torque as much as
+the wear does. Each program's virtual plan is written once (``plans/``); each run is the
+virtual machine running a plan with the tool's VB of that run
+(:func:`~millsense.simulator.tool_life.tool_life_runs`) and the CNC's tool identity and
+tool-life counter in its metadata; the true VB is stored as ``truth_wear_vb_mm``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from millsense.cli.main import app
+
+#: (name, axial depth mm, radial width mm; 20 = slot) of the built-in programs.
+FLEET_PROGRAMS = (("slot2", 2.0, 20.0), ("side3w10", 3.0, 10.0), ("side4w5", 4.0, 5.0),
+                  ("slot1p5", 1.5, 20.0))  # fmt: skip
+SPINDLE_RPM = 1000.0
+FEED_MM_MIN = 400.0
+DIAMETER_MM = 20.0
+
+
+def _program(depth_mm: float, width_mm: float) -> str:
+    """A straight cut along X through the block (top edge at Y0): the tool centre at
+    Y = R − width (Y = −15 for a slot, the block spanning Y −30..0), air before X −10."""
+    r = DIAMETER_MM / 2
+    y = -15.0 if width_mm >= DIAMETER_MM else r - width_mm
+    return (
+        "%\nO7001 (MILLSENSE FLEET RUN)\nG21 G90 G17 G94\nT1 M6\n"
+        f"S{SPINDLE_RPM:.0f} M3\nG0 X-16. Y{y:.3f} Z5.\nG1 Z-{depth_mm:.3f} F{FEED_MM_MIN:.0f}.\n"
+        "X30.\nG0 Z5.\nM30\n%\n"
+    )
+
+
+def write_fleet_plans(folder: Path) -> list[Path]:
+    """The built-in programs and their virtual plans in ``folder`` (reused when present)."""
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    tool_cfg = load_preset(ToolConfig, "aslan-d20-2flute")
+    mat = load_preset(MaterialConfig, "al7050")
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for name, depth, width in FLEET_PROGRAMS:
+        nc = folder / f"{name}.nc"
+        pq = folder / f"{name}.parquet"
+        if not pq.is_file():
+            nc.write_text(_program(depth, width))
+            stock = ZMapStock.from_box([0.0, -0.03, -0.02], [0.06, 0.0, 0.0], 0.25e-3)
+            vp = plan_program(interpret_file(nc), stock, EndMill.from_config(tool_cfg),
+                              CuttingCoefficients.from_config(mat),
+                              metadata={"program": str(nc), "tool_name": tool_cfg.name,
+                                        "material_name": mat.name})  # fmt: skip
+            vp.write(pq)
+        out.append(pq)
+    return out
+
+
+def simulate_fleet(
+    out: Path,
+    *,
+    tools: int,
+    runs: int,
+    part_cut_min: float,
+    seed: int,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Write the fleet's recordings ``out/T<k>_r<i>.h5`` (skipping those present); returns
+    one dict per run (tool, run, program, VB, path)."""
+    from millsense.cli.cmd_simulate import run_simulation
+    from millsense.simulator.tool_life import tool_life_runs
+
+    plans = write_fleet_plans(out / "plans")
+    speed = math.pi * DIAMETER_MM * 1e-3 * SPINDLE_RPM / 60.0
+    schedule = tool_life_runs(tools, runs, len(plans), part_cut_s=part_cut_min * 60.0,
+                              cutting_speed_m_s=speed, seed=seed)  # fmt: skip
+    made = []
+    for k, r in enumerate(schedule):
+        path = out / f"{r.tool_id}_r{r.run_index:03d}.h5"
+        if not path.is_file():
+            run_simulation(machine="quaser-ux600", program=None, plan=plans[r.program],
+                           tool=None, material=None, engagement="slot", depth_mm=2.0, out=path,
+                           duration_s=None, seed=seed * 100_003 + k, cnc="open",
+                           break_at_s=None, break_flute=0, realism=None, accelerometer=False,
+                           microphone=False, chunk=2000, wear_vb_mm=r.vb_m * 1e3,
+                           tool_id=r.tool_id,
+                           tool_cutting_time_min=r.cutting_time_s / 60.0)  # fmt: skip
+        made.append({"tool_id": r.tool_id, "run_index": r.run_index,
+                     "program": FLEET_PROGRAMS[r.program][0], "vb_mm": r.vb_m * 1e3,
+                     "path": str(path)})  # fmt: skip
+        if on_progress is not None:
+            on_progress(k + 1, len(schedule))
+    return made
+
+
+@app.command("simulate-fleet")
+def simulate_fleet_command(
+    out: Path = typer.Option(..., "-o", "--output", help="Folder of the recordings."),
+    tools: int = typer.Option(5, "--tools", help="Tools of the fleet."),
+    runs: int = typer.Option(20, "--runs", help="Runs (parts) per tool."),
+    part_cut_min: float = typer.Option(
+        6.0, "--part-cut-min", help="Cutting time of one part [min] (the tool's wear per run)."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of the tools' life factors and noise."),
+) -> None:
+    """Simulate a tool life: TOOLS tools × RUNS runs of four programs with growing flank wear
+    (the truth VB in each recording's metadata), for `millsense batch` and its wear monitor."""
+    from millsense.cli.progress import progress_bar
+    from millsense.core.errors import ConfigError
+
+    if tools < 1 or runs < 1:
+        raise ConfigError("--tools and --runs: must be ≥ 1")
+    if not (math.isfinite(part_cut_min) and part_cut_min > 0):
+        raise ConfigError(f"--part-cut-min: must be > 0, got {part_cut_min:g}")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"-o {out}: exists and is not a folder")
+    with progress_bar("simulating the fleet", float(tools * runs)) as update:
+        made = simulate_fleet(out, tools=tools, runs=runs, part_cut_min=part_cut_min, seed=seed,
+                              on_progress=lambda k, _n: update(float(k)))  # fmt: skip
+    worn = sum(1 for m in made if m["vb_mm"] >= 0.3)
+    typer.echo(f"wrote {len(made)} recordings to {out} ({worn} with VB ≥ 0.3 mm)")

@@ -1,0 +1,136 @@
+"""``millsense batch`` on Dask and ``simulate-fleet`` (issue 20 item 1; decision 2003)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from millsense.cli.batch_run import run_batch
+from millsense.cli.cmd_fleet import simulate_fleet
+from millsense.cli.main import main
+from millsense.core.recording import Recording
+from millsense.io import write_recording
+
+
+def _cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("fleet")
+    made = simulate_fleet(folder, tools=2, runs=3, part_cut_min=25.0, seed=3)
+    assert len(made) == 6
+    return folder
+
+
+def _table(out: Path) -> list[dict[str, object]]:
+    return sorted(pq.read_table(out / "summary.parquet").to_pylist(), key=lambda r: str(r["run"]))
+
+
+def test_batch_wear_is_the_same_on_one_and_two_workers(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tables = []
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}"
+        code, stdout, err = _cli(["batch", str(fleet), "-o", str(out), "--do", "wear,summary",
+                                  "--workers", str(workers)], capsys)  # fmt: skip
+        assert code == 0, err
+        assert "6 runs (6 run on" in stdout and "0 failed" in stdout
+        tables.append(_table(out))
+    cols = ("wear_vb_mm", "wear_ratio", "raw_torque_nm", "tool_run_index", "tool_cutting_time_s")
+    for a, b in zip(*tables, strict=True):
+        assert a["status"] == "ok", a["error"]
+        assert {c: a[c] for c in cols} == {c: b[c] for c in cols}
+    rows = tables[0]
+    for r in rows:
+        truth = float(r.get("truth_wear_vb_mm") or 0.0)
+        if r["wear_reference"]:
+            assert r["tool_run_index"] == 0 and r["wear_vb_mm"] == 0.0
+        else:
+            # the belief reads the truth's wear within 0.03 mm + 30 % (decision 2002)
+            assert abs(float(r["wear_vb_mm"]) - truth) <= 0.03 + 0.3 * truth, r
+    import duckdb
+
+    q = f"SELECT tool_id, max(wear_vb_mm) FROM '{tmp_path / 'w1' / 'summary.parquet'}' " \
+        "GROUP BY tool_id ORDER BY tool_id"
+    got = duckdb.sql(q).fetchall()
+    assert [g[0] for g in got] == ["T1", "T2"] and all(g[1] > 0 for g in got)
+
+
+def test_bad_recordings_are_rows_and_the_batch_finishes(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in ("T1_r000.h5", "T2_r001.h5"):
+        shutil.copy(fleet / name, folder / name)
+    (folder / "corrupt.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + os.urandom(4000))
+    rec = Recording(1e4, metadata={"machine": "quaser-ux600"})
+    rec.add_channel("x/current_cmd", np.zeros(1000), "A")
+    write_recording(folder / "bare.h5", rec)
+    out = tmp_path / "out"
+    code, stdout, err = _cli(["batch", str(folder), "-o", str(out), "--do",
+                              "monitor,wear,summary", "--plan",
+                              str(fleet / "plans" / "slot2.parquet")], capsys)  # fmt: skip
+    assert code == 0, err
+    rows = {r["run"]: r for r in _table(out)}
+    assert rows["T1_r000"]["status"] == "ok" and rows["T2_r001"]["status"] == "ok"
+    assert rows["corrupt"]["status"] == "error" and "corrupt.h5" in str(rows["corrupt"]["error"])
+    assert rows["bare"]["status"] == "error" and "channel" in str(rows["bare"]["error"])
+    assert "2 failed" in stdout
+    assert err.count("millsense: warning:") == 2
+    # a second batch into the same folder reuses the finished runs and retries the failed
+    code, stdout, _ = _cli(["batch", str(folder), "-o", str(out), "--do",
+                            "monitor,wear,summary", "--plan",
+                            str(fleet / "plans" / "slot2.parquet")], capsys)  # fmt: skip
+    assert code == 0 and "(2 run on" in stdout and "2 from an earlier batch" in stdout
+
+
+def test_an_empty_folder_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "empty").mkdir()
+    code, _, err = _cli(["batch", str(tmp_path / "empty"), "-o", str(tmp_path / "o")], capsys)
+    assert code == 2
+    assert err.strip().count("\n") == 0 and "holds no recording" in err
+    code, _, err = _cli(["batch", str(tmp_path), "-o", str(tmp_path / "o"), "--do", "lunch"],
+                        capsys)  # fmt: skip
+    assert code == 2 and "--do" in err
+
+
+def test_a_worker_killed_mid_batch_loses_nothing(fleet: Path, tmp_path: Path) -> None:
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=None)  # fmt: skip
+    try:
+        pids = list(Client(cluster).run(os.getpid).values())
+        killed: list[int] = []
+
+        def progress(done: int, _total: int) -> None:
+            if done >= 1 and not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        recs = sorted(fleet.glob("*.h5"))
+        res = run_batch(recs, tmp_path / "out", do="monitor,summary",
+                        scheduler=cluster.scheduler_address, on_progress=progress)  # fmt: skip
+    finally:
+        cluster.close()
+    assert killed
+    assert [r["status"] for r in res.rows] == ["ok"] * len(recs), [r.get("error") for r in res.rows]
+    assert len(list((tmp_path / "out" / "runs").glob("*.parquet"))) == len(recs)
