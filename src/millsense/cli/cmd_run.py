@@ -13,6 +13,7 @@ from typing import Any
 
 import typer
 
+from millsense.cli.cmd_report import report_line, report_path, write_run_report
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError
 
@@ -75,6 +76,9 @@ def run(
         None, "--plan-out", help="Write the plan made from --program here (.parquet)."
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: feed, force, speed, events."),
+    report: Path | None = typer.Option(
+        None, "--report", help="HTML report of the run (default: beside the recording, .html)."
+    ),
     adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive", help="Adaptive feed."),
     regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
     reference: float | None = typer.Option(
@@ -119,14 +123,16 @@ def run(
     check_outputs(
         {"the program": program, "the stock": stock, "the plan": plan,
          "the machine file": machine_file, "the tool-modes file": tool_modes},
-        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot},
+        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot,
+         "--report": report or report_path(out)},
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
     summary = run_online(
         program=program, stock=stock, tool=tool, material=material, plan=plan,
         machine=machine, machine_file=machine_file, out=out, events_out=events_out,
-        plan_out=plan_out, plot=plot, options=opts, break_at_s=break_at_s,
+        plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
+        break_at_s=break_at_s,
         break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
         duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm,
     )  # fmt: skip
@@ -147,16 +153,27 @@ def replay(
     ),
     force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
     chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
+    report: Path | None = typer.Option(
+        None, "--report", help="HTML report of the replay (default with -o: beside it, .html)."
+    ),
 ) -> None:
     """Run the on-line blocks on a recording (overrides recorded, not applied)."""
     from millsense.io.safe_output import check_outputs
 
+    if report is not None and out is None:
+        raise ConfigError("--report: needs -o (the report shows the replay's block outputs)")
+    if report is None and out is not None:
+        report = report_path(out)
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine_file},
-        {"-o": out, "--events": events_out},
+        {"-o": out, "--events": events_out, "--report": report},
     )
     opts = _options(True, regulate, reference, force_from, True, True, True, True)
     summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    if report is not None and out is not None:
+        rep = write_run_report(report, out, plan=plan, events=summary["result"].events,
+                               machine_file=machine_file)  # fmt: skip
+        summary["lines"].append(report_line(rep, report))
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -201,6 +218,7 @@ def run_online(
     plan_out: Path | None,
     plot: Path | None,
     options: Any,
+    report: Path | None = None,
     break_at_s: float | None = None,
     break_flute: int = 0,
     tool_modes: Path | None = None,
@@ -284,6 +302,9 @@ def run_online(
 
         plot_run(out, res.events, plot)
         lines.append(f"wrote {plot}")
+    if report is not None:
+        rep = write_run_report(report, out, plan=vp, events=res.events, machine_file=machine_file)
+        lines.append(report_line(rep, report))
     return {"lines": lines, "result": res}
 
 
