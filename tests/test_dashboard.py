@@ -100,4 +100,6 @@ def test_live_state_envelopes_spectrum_and_alarms() -> None:
     assert out.events == []  # an empty chunk decides nothing
     out = sup.process(Chunk(n, FS, 0.0, {"x": np.zeros(100)}))
     assert {e.name for e in out.events} == {"alarm_acknowledged", "control_off"}
-    assert st.snapshot()["status"]["control"] is False
+    snap = st.snapshot()
+    assert snap["status"]["control"] is False
+    assert snap["status"]["spindle_rpm"] == pytest.approx(1000.0)

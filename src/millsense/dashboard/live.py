@@ -213,8 +213,9 @@ class LiveState:
                 "alarms": [dict(a) for a in self.alarms],
                 "overrides": list(self.overrides),
                 "status": {
-                    "feed_pct": _num(100 * self.now.get("supervisor/feed_override", math.nan)),
-                    "feed_in_effect_pct": _num(100 * self.now.get("cnc/feed_override", math.nan)),
+                    # the shown signals are kept in their display units (%, rev/min)
+                    "feed_pct": _num(self.now.get("supervisor/feed_override", math.nan)),
+                    "feed_in_effect_pct": _num(self.now.get("cnc/feed_override", math.nan)),
                     "spindle_pct": _num(100 * self.now.get("supervisor/spindle_override",
                                                            math.nan)),
                     "spindle_rpm": _num(speed),

@@ -1,12 +1,13 @@
 """The dashboard's page: HTML and the script that draws the snapshots of the websocket
 (:meth:`~millsense.dashboard.live.LiveState.snapshot`) with plotly.js served by the dashboard
-itself (no network). Signals are drawn as the zig-zag through each chunk's minimum and
+itself (no network). Status and alarms are updated at every snapshot, the plots from the
+latest one when the previous drawing is done (drawing never falls behind the session). Signals are drawn as the zig-zag through each chunk's minimum and
 maximum; the token of the page's address goes with every request."""
 
 from __future__ import annotations
 
 PAGE = """<!DOCTYPE html>
-<html><head><meta charset="utf-8"><title>millsense live</title>
+<html><head><meta charset="utf-8"><title>millsense live</title><link rel="icon" href="data:,">
 <style>
 body{font-family:system-ui,sans-serif;margin:0.8em;color:#222}
 #bar{display:flex;gap:1.2em;align-items:center;flex-wrap:wrap;margin-bottom:0.5em}
@@ -55,7 +56,7 @@ function zigzag(tr) {
 }
 function fmt(v, d) { return (v === null || v === undefined) ? "–" : Number(v).toFixed(d); }
 function post(path) { return fetch(path + (path.includes("?") ? "&" : "?") + q, {method: "POST"}); }
-function draw(s) {
+function drawPlots(s) {
   for (const key of ["torque", "feed", "regulated", "spindle"]) {
     const p = s.plots[key];
     if (p) Plotly.react("plot-" + key, p.traces.map(zigzag), layout(p.title, "time [s]"));
@@ -75,6 +76,10 @@ function draw(s) {
                    mode: "markers", marker: {size: 10, color: "#d62728"}});
   const pl = layout("plan position", "X [mm]"); pl.yaxis = {scaleanchor: "x", title: {text: "Y [mm]"}};
   Plotly.react("plot-position", pos, pl);
+  updates += 1; document.body.dataset.updates = updates;
+  document.body.dataset.time = s.time_s; document.body.dataset.finished = s.finished;
+}
+function drawText(s) {
   const st = s.status;
   document.getElementById("time").textContent = fmt(s.time_s, 2);
   document.getElementById("mode").textContent = st.mode;
@@ -101,8 +106,17 @@ function draw(s) {
     const li = document.createElement("li");
     li.textContent = `${fmt(o.time_s, 3)} s  ${o.message}`; return li;
   }));
-  updates += 1; document.body.dataset.updates = updates;
-  document.body.dataset.time = s.time_s;
+}
+// the status and the alarms at every snapshot; the plots from the latest snapshot once the
+// previous drawing is done (a slow drawing never queues snapshots up: the page stays live)
+let latest = null, drawing = false;
+function onSnapshot(s) {
+  drawText(s);
+  latest = s;
+  if (drawing) return;
+  drawing = true;
+  setTimeout(() => { const d = latest; latest = null; try { drawPlots(d); } finally {
+    drawing = false; if (latest) onSnapshot(latest); } }, 0);
 }
 document.getElementById("control-on").onclick = () => post("api/control?on=true");
 document.getElementById("control-off").onclick = () => post("api/control?on=false");
@@ -110,7 +124,7 @@ function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host
                            + "/ws?" + q);
   ws.onopen = () => { document.getElementById("conn").textContent = "live"; };
-  ws.onmessage = (m) => draw(JSON.parse(m.data));
+  ws.onmessage = (m) => onSnapshot(JSON.parse(m.data));
   ws.onclose = () => { document.getElementById("conn").textContent = "disconnected"; };
 }
 connect();

@@ -195,7 +195,7 @@ class DashboardServer:
             raise ConfigError(f"dashboard: cannot bind {o.host}:{o.port} ({exc})") from None
         self.port = int(sock.getsockname()[1])
         config = uvicorn.Config(
-            self.app, log_level="warning", ws="websockets",
+            self.app, log_level="warning", ws="websockets-sansio",
             ssl_certfile=str(o.tls_cert) if o.tls_cert else None,
             ssl_keyfile=str(o.tls_key) if o.tls_key else None,
         )  # fmt: skip
