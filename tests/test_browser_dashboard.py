@@ -83,7 +83,8 @@ class PacedSource(Source):
         time.sleep(max(0.0, due - time.monotonic()))
         if self.break_wall is None and b / self.sample_rate_hz >= BREAK_S:
             self.break_wall = time.monotonic()
-        c = Chunk(self.pos, self.sample_rate_hz, 0.0, {k: v[self.pos : b] for k, v in self.data.items()})
+        part = {k: v[self.pos : b] for k, v in self.data.items()}
+        c = Chunk(self.pos, self.sample_rate_hz, 0.0, part)
         self.pos = b
         return c
 
@@ -191,7 +192,8 @@ def test_dashboard_page_without_the_token_is_refused(browser: Any) -> None:
         assert page.goto(bare + "?token=wrong-token-wrong-token").status == 401
         assert page.goto(url).status == 200
         opened = page.evaluate(
-            """() => new Promise(r => { const ws = new WebSocket(location.origin.replace('http', 'ws') + '/ws');
+            """() => new Promise(r => {
+                 const ws = new WebSocket(location.origin.replace('http', 'ws') + '/ws');
                  ws.onopen = () => r('open'); ws.onclose = () => r('closed'); })"""
         )
         assert opened == "closed"

@@ -107,7 +107,8 @@ def test_validation_status_rows_from_the_recorded_file(tmp_path: Path) -> None:
         "Generated 2026-11-27 22:00 UTC from commit `e906f45cd848`.\n\n"
         "| case | reference | measured | tolerance | pass | source |\n|---|---|---|---|---|---|\n"
         "| `monitoring.breakage_x` | 3 - | 2.5 - | ±1 - | yes | s |\n"
-        "| `online.fault_nan_safe_action_ms` | 10 ms | 12 ms | ±1 ms | **NO** (known, issue 16) | s |\n"
+        "| `online.fault_nan_safe_action_ms` | 10 ms | 12 ms | ±1 ms | **NO** (known, issue 16) "
+        "| s |\n"
         "| `plan.cwe_slot` | 1 - | 1 - | ±1 - | yes | s |\n"
     )  # fmt: skip
     got = read_status(SESSION_PREFIXES, md)
@@ -134,3 +135,30 @@ def test_report_cli_and_its_errors(
     assert code == 2 and "no.parquet" in err and len(err.strip().splitlines()) == 1
     code, _, err = run_cli(["report", str(rec), "-o", str(rec)], capsys)
     assert code == 2 and "never overwritten" in err
+
+
+def test_report_of_a_run_that_never_cuts(tmp_path: Path) -> None:
+    """A run stopped before the tool reaches the part (``run --duration-s 1``): no tooth
+    harmonics to compare, the other plots still drawn, peak force 0 N."""
+    from millsense.core.recording import ChannelInfo
+    from millsense.io import RecordingWriter
+    from millsense.report.run_report import write_report
+
+    n = 5000
+    chans = {"truth/tool/force_x": np.zeros(n), "truth/tool/force_y": np.zeros(n),
+             "truth/spindle/torque": np.zeros(n), "est/spindle/spindle/load": np.zeros(n),
+             "spindle/speed": np.full(n, 104.7), "truth/process/engagement": np.full(n, -1.0),
+             "cnc/feed_override": np.ones(n)}  # fmt: skip
+    w = RecordingWriter(tmp_path / "air.h5", 10000.0, [ChannelInfo(k, "", k) for k in chans])
+    w.append(chans)
+    w.close()
+    rep = write_report(tmp_path / "air.html", tmp_path / "air.h5")
+    assert rep.harmonics == [] and rep.run.peak_force_n == 0.0
+    assert {"estimates", "control", "spindle"} <= set(rep.figures)
+
+
+def test_run_dashboard_beyond_localhost_needs_tls(capsys: pytest.CaptureFixture[str]) -> None:
+    """``run --dashboard --dashboard-host 0.0.0.0``: refused before anything runs, one line."""
+    code, _, err = run_cli(["run", "--plan", "p.parquet", "-o", "o.h5", "--dashboard",
+                            "--dashboard-host", "0.0.0.0"], capsys)  # fmt: skip
+    assert code == 2 and "--dashboard-allow-remote" in err and len(err.strip().splitlines()) == 1

@@ -198,10 +198,11 @@ def run_online_demo(
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     rows, where = validation if validation is not None else (None, "")
-    write_report(out / "online.html", out / "online.h5", events=runs["controlled"][0].events,
-                 plan=plan, machine=shipped[0], machine_where=shipped[1], validation=rows,
-                 validation_where=where,
-                 title="millsense demo: the on-line system on the demo part (controlled run)")  # fmt: skip
+    write_report(
+        out / "online.html", out / "online.h5", events=runs["controlled"][0].events, plan=plan,
+        machine=shipped[0], machine_where=shipped[1], validation=rows, validation_where=where,
+        title="millsense demo: the on-line system on the demo part (controlled run)",
+    )
     summary = {
         "program": str(out / "online_demo.nc"),
         "break_s": BREAK_S,

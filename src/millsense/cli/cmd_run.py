@@ -115,10 +115,35 @@ def run(
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     step_mm: float = typer.Option(0.4, "--step-mm", help="Plan step [mm]."),
     resolution_mm: float = typer.Option(0.2, "--resolution-mm", help="Z-map cell [mm]."),
+    dashboard: bool = typer.Option(
+        False, "--dashboard", help="Serve the live dashboard of the session (prints its address)."
+    ),
+    dashboard_host: str = typer.Option(
+        "127.0.0.1", "--dashboard-host", help="Address the dashboard binds (default: loopback)."
+    ),
+    dashboard_port: int = typer.Option(0, "--dashboard-port", help="Port (0: a free one)."),
+    dashboard_allow_remote: bool = typer.Option(
+        False, "--dashboard-allow-remote", help="Serve beyond this machine (needs TLS)."
+    ),
+    tls_cert: Path | None = typer.Option(None, "--tls-cert", help="TLS certificate (PEM)."),
+    tls_key: Path | None = typer.Option(None, "--tls-key", help="TLS private key (PEM)."),
+    dashboard_linger_s: float = typer.Option(
+        0.0, "--dashboard-linger-s", help="Keep serving this long after the run [s]."
+    ),
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
     from millsense.io.safe_output import check_outputs
+
+    live = None
+    if dashboard:
+        from millsense.dashboard.server import DashboardOptions
+
+        if not dashboard_linger_s >= 0:
+            raise ConfigError(f"--dashboard-linger-s: must be ≥ 0, got {dashboard_linger_s}")
+        live = DashboardOptions(host=dashboard_host, port=dashboard_port,
+                                allow_remote=dashboard_allow_remote, tls_cert=tls_cert,
+                                tls_key=tls_key)  # fmt: skip
 
     check_outputs(
         {"the program": program, "the stock": stock, "the plan": plan,
@@ -135,6 +160,7 @@ def run(
         break_at_s=break_at_s,
         break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
         duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm,
+        dashboard=live, dashboard_linger_s=dashboard_linger_s,
     )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
@@ -228,8 +254,12 @@ def run_online(
     step_mm: float = 0.4,
     resolution_mm: float = 0.2,
     chunk: int = 100,
+    dashboard: Any = None,
+    dashboard_linger_s: float = 0.0,
 ) -> dict[str, Any]:
-    """Plan, simulate in closed loop, monitor, control and record (the body of ``run``)."""
+    """Plan, simulate in closed loop, monitor, control and record (the body of ``run``);
+    ``dashboard``: :class:`~millsense.dashboard.server.DashboardOptions` to serve the live
+    dashboard of the session (its address printed before the run), or None."""
     from millsense.core.errors import ConfigError
     from millsense.core.plausibility import Findings
     from millsense.online.faults import FaultyLink, LinkFault
@@ -288,12 +318,30 @@ def run_online(
     meta.update({"source": "millsense run", "machine_file": belief_name,
                  "faults": [f.__dict__ for f in link_faults]})  # fmt: skip
     expect = sim.n_total or int((float(vp["t_s"][-1]) + sim.start_s + 0.5) * sim.sample_rate_hz)
-    res = _with_progress(
-        "running", expect,
-        lambda cb: run_session(source, built.blocks, out=out, events_out=ev_path, metadata=meta,
-                               chunk_samples=chunk, on_progress=cb),
-        built.supervisor,
-    )  # fmt: skip
+    server = state = None
+    if dashboard is not None:
+        from millsense.dashboard.live import LiveState
+        from millsense.dashboard.server import DashboardServer
+
+        flutes = int(vp.metadata.get("tool", {}).get("flutes", 2))
+        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes)
+        server = DashboardServer(state, dashboard)
+        typer.echo(f"dashboard: {server.start()}", err=True)
+    try:
+        res = _with_progress(
+            "running", expect,
+            lambda cb: run_session(source, built.blocks, out=out, events_out=ev_path,
+                                   metadata=meta, chunk_samples=chunk, on_progress=cb,
+                                   observer=None if state is None else state.observe),
+            built.supervisor,
+        )  # fmt: skip
+    finally:
+        if server is not None and state is not None:
+            state.finish()
+            import time
+
+            time.sleep(dashboard_linger_s)
+            server.stop()
     lines = [f"millsense: note: {n}" for n in notes_pre + notes + built.notes]
     lines += [f"millsense: warning: {w}" for w in findings.warnings]
     lines += _summary_lines(res, out, ev_path)

@@ -139,7 +139,7 @@ class Supervisor(Block):
         self.reads_truth = any(c.reads_truth for c in self.children)
         # a breakage monitor is a child that can be re-armed (BreakageBlock.rearm)
         self.breakage_possible = any(hasattr(c, "rearm") for c in self.children)
-        self._operator: deque[tuple[str, object]] = deque()
+        self._operator: deque[tuple[str, tuple[str, float] | bool]] = deque()
         self.reset(10000.0)
 
     # ------------------------------------------------------------------ contract
@@ -190,9 +190,9 @@ class Supervisor(Block):
 
     def _operator_requests(self, t: float, k: int, events: list[Event]) -> None:
         while self._operator:
-            what, arg = self._operator.popleft()
-            if what == "ack":
-                name, at = arg  # type: ignore[misc]
+            _, arg = self._operator.popleft()
+            if isinstance(arg, tuple):  # an acknowledgement
+                name, at = arg
                 events.append(Event(t, EventKind.NOTE, self.name,
                                     f"{name} alarm of {at:.3f} s acknowledged by the operator",
                                     name="alarm_acknowledged", sample=k,

@@ -207,7 +207,7 @@ class LiveState:
                 "finished": self.finished,
                 "plots": plots,
                 "spectrum": {"f": f.tolist(), "amp": amp.tolist(),
-                             "tooth_hz": _num(self.flutes * speed / 60.0)},  # fmt: skip
+                             "tooth_hz": _num(self.flutes * speed / 60.0)},
                 "trail": {"x": [p[0] for p in self._trail], "y": [p[1] for p in self._trail]},
                 "plan": self.plan,
                 "alarms": [dict(a) for a in self.alarms],
@@ -223,7 +223,7 @@ class LiveState:
                     "mode": MODES[mode] if 0 <= mode < len(MODES) else str(mode),
                     "control": None if sup is None else sup.control,
                 },
-            }  # fmt: skip
+            }
 
 
 def _num(v: float) -> float | None:

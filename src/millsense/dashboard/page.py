@@ -1,8 +1,9 @@
 """The dashboard's page: HTML and the script that draws the snapshots of the websocket
 (:meth:`~millsense.dashboard.live.LiveState.snapshot`) with plotly.js served by the dashboard
 itself (no network). Status and alarms are updated at every snapshot, the plots from the
-latest one when the previous drawing is done (drawing never falls behind the session). Signals are drawn as the zig-zag through each chunk's minimum and
-maximum; the token of the page's address goes with every request."""
+latest one when the previous drawing is done (drawing never falls behind the session).
+Signals are drawn as the zig-zag through each chunk's minimum and maximum; the token of the
+page's address goes with every request."""
 
 from __future__ import annotations
 
@@ -74,7 +75,8 @@ function drawPlots(s) {
   const n = s.trail.x.length;
   if (n) pos.push({x: [s.trail.x[n - 1]], y: [s.trail.y[n - 1]], name: "now",
                    mode: "markers", marker: {size: 10, color: "#d62728"}});
-  const pl = layout("plan position", "X [mm]"); pl.yaxis = {scaleanchor: "x", title: {text: "Y [mm]"}};
+  const pl = layout("plan position", "X [mm]");
+  pl.yaxis = {scaleanchor: "x", title: {text: "Y [mm]"}};
   Plotly.react("plot-position", pos, pl);
   updates += 1; document.body.dataset.updates = updates;
   document.body.dataset.time = s.time_s; document.body.dataset.finished = s.finished;
@@ -88,7 +90,8 @@ function drawText(s) {
   document.getElementById("spindle").textContent = fmt(st.spindle_pct, 1);
   document.getElementById("rpm").textContent = fmt(st.spindle_rpm, 0);
   document.getElementById("nc").textContent = fmt(st.nc_line, 0);
-  document.getElementById("control").textContent = st.control === null ? "–" : (st.control ? "on" : "off");
+  document.getElementById("control").textContent =
+    st.control === null ? "–" : (st.control ? "on" : "off");
   const ul = document.getElementById("alarms");
   ul.replaceChildren(...s.alarms.map(a => {
     const li = document.createElement("li");

@@ -36,7 +36,7 @@ from millsense.io.recording_reader import channel_window
 from millsense.report.estimate_metrics import compare
 from millsense.report.estimate_stream import ZOOM_PERIODS, scan_cut_window
 from millsense.report.run_scan import FXY_TRUE, RunFigures, RunScan, scan_run
-from millsense.streaming.block import Event, EventKind
+from millsense.streaming.block import Event
 
 RPM = 60.0 / (2.0 * math.pi)
 #: Estimate → truth pairs compared (estimate channel, truth channel, label, unit).
@@ -206,7 +206,10 @@ def _harmonics(
     elif eng is not None:
         def read(a: int, b: int) -> NDArray[np.float64]:
             return np.asarray(channel_window(rec, eng, a, b), dtype=np.float64)
-    i0, i1 = scan_cut_window(read if eng else None, n, trim=0.0)
+    try:
+        i0, i1 = scan_cut_window(read if eng else None, n, trim=0.0)
+    except InputDataError:  # never in cut: nothing to compare at the tooth harmonics
+        return [], None
     half = int(HARMONIC_WINDOW_S * fs / 2)
     mid = (i0 + i1) // 2
     a, b = max(i0, mid - half), min(i1, mid + half)
@@ -302,9 +305,10 @@ def _path_figure(
     force (true |F_xy|, else the regulated quantity), the plan's path beneath, events on it."""
     fig = go.Figure()
     if plan is not None:
-        fig.add_trace(go.Scatter(x=np.asarray(plan["x_mm"], dtype=np.float32),
-                                 y=np.asarray(plan["y_mm"], dtype=np.float32), mode="lines",
-                                 name="programmed path", line={"color": "#bbbbbb", "width": 1}))  # fmt: skip
+        px = np.asarray(plan["x_mm"], dtype=np.float32)
+        py = np.asarray(plan["y_mm"], dtype=np.float32)
+        fig.add_trace(go.Scatter(x=px, y=py, mode="lines", name="programmed path",
+                                 line={"color": "#bbbbbb", "width": 1}))
     if {"tcp/x", "tcp/y"} <= scan.present:
         colour_by = next((c for c in (FXY_TRUE, "adaptive_feed/peak") if c in scan.present), None)
         x = scan.starts["tcp/x"] * 1e3
@@ -318,7 +322,7 @@ def _path_figure(
             marker.update(color=c.astype(np.float32), colorscale="Viridis", cmin=0.0, cmax=top,
                           colorbar={"title": label}, showscale=True)  # fmt: skip
         fig.add_trace(go.Scatter(x=x.astype(np.float32), y=y.astype(np.float32),
-                                 mode="markers", marker=marker, name="tool-centre point"))  # fmt: skip
+                                 mode="markers", marker=marker, name="tool-centre point"))
     elif plan is None:
         return None
     for name, (colour, label) in MARKS.items():
@@ -337,9 +341,8 @@ def _path_figure(
 def _breakage_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
     two = "breakage/residual2" in scan.present
     rows = 2 if two else 1
-    fig = make_subplots(rows=rows, cols=1, shared_xaxes=True,
-                        subplot_titles=["first residual against its threshold",
-                                        "second residual against its threshold"][:rows])  # fmt: skip
+    titles = ["first residual against its threshold", "second residual against its threshold"]
+    fig = make_subplots(rows=rows, cols=1, shared_xaxes=True, subplot_titles=titles[:rows])
     for r in range(1, rows + 1):
         for ch, lab in ((f"breakage/residual{r}", f"residual {r}"),
                         (f"breakage/limit{r}", f"threshold {r}")):  # fmt: skip
@@ -427,9 +430,11 @@ def identification_rows(machine: Any) -> list[list[str]]:
     rows: list[list[str]] = []
 
     def walk(d: Mapping[str, Any], where: str) -> None:
-        scal = [f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}"
-                for k, v in d.items()
-                if k != "source" and isinstance(v, int | float | str) and not isinstance(v, bool)]  # fmt: skip
+        scal = [
+            f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}"
+            for k, v in d.items()
+            if k != "source" and isinstance(v, int | float | str) and not isinstance(v, bool)
+        ]
         arrays = [f"{k}[{len(v)}]" for k, v in d.items() if isinstance(v, list) and v]
         if d.get("source"):
             rows.append([where or "(machine)", str(d["source"]), ", ".join(scal[:8] + arrays)])
@@ -486,8 +491,9 @@ def _html(
         if key not in figs:
             continue
         parts.append(f"<h2>{head}</h2>")
-        parts.append(figs[key].to_html(full_html=False, include_plotlyjs=False,
-                                       div_id=f"plot-{key}", config={"responsive": True}))  # fmt: skip
+        div = figs[key].to_html(full_html=False, include_plotlyjs=False, div_id=f"plot-{key}",
+                                config={"responsive": True})  # fmt: skip
+        parts.append(div)
         if key == "harmonics":
             rows = [[h["label"], k, a, b, 100 * e] for h in harm
                     for k, a, b, e in zip(h["harmonics"], h["estimate"], h["truth"], h["error"],
@@ -499,8 +505,9 @@ def _html(
     parts.append("<h2>Events</h2>")
     if len(events) > MAX_EVENT_ROWS:
         parts.append(f'<p class="note">first {MAX_EVENT_ROWS} of {len(events)} events</p>')
-    parts.append(_table(["time [s]", "kind", "severity", "name", "source", "value", "NC line",
-                         "x [mm]", "y [mm]", "message"], _event_rows(events), "events"))  # fmt: skip
+    cols = ["time [s]", "kind", "severity", "name", "source", "value", "NC line", "x [mm]",
+            "y [mm]", "message"]  # fmt: skip
+    parts.append(_table(cols, _event_rows(events), "events"))
     parts.append("<h2>Machine file and identification</h2>")
     if machine is None:
         parts.append(f"<p>{html.escape(str(meta.get('machine_file', 'not known')))}</p>")
