@@ -348,6 +348,9 @@ def _breakage_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
                         (f"breakage/limit{r}", f"threshold {r}")):  # fmt: skip
             if ch in scan.present:
                 fig.add_trace(_trace(scan, ch, lab), row=r, col=1)
+        if f"breakage/limit{r}" in scan.present:  # the alarm is on |residual|
+            fig.add_trace(_trace(scan, f"breakage/limit{r}", f"− threshold {r}", -1.0), row=r,
+                          col=1)  # fmt: skip
     _mark_events(fig, events, rows)
     fig.update_xaxes(title_text="time [s]", row=rows, col=1)
     return _layout(fig, "Breakage monitor: residual against threshold", 300 * rows)
@@ -435,7 +438,11 @@ def identification_rows(machine: Any) -> list[list[str]]:
             for k, v in d.items()
             if k != "source" and isinstance(v, int | float | str) and not isinstance(v, bool)
         ]
-        arrays = [f"{k}[{len(v)}]" for k, v in d.items() if isinstance(v, list) and v]
+        arrays = [
+            f"{k} = [{', '.join(f'{x:.6g}' for x in v)}]" if len(v) <= 4 else f"{k}[{len(v)}]"
+            for k, v in d.items()
+            if isinstance(v, list | tuple) and v and all(isinstance(x, int | float) for x in v)
+        ]
         if d.get("source"):
             rows.append([where or "(machine)", str(d["source"]), ", ".join(scal[:8] + arrays)])
         for k, v in d.items():
