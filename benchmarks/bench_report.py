@@ -111,7 +111,7 @@ def _report() -> list[Metric]:
                note=note),
         Metric("report_peaks_on_page_60min", float(_peaks_on_page(rep, at, height)), "peaks",
                target=float(N_PEAKS), note=note + " (peaks whose height the page's envelope "
-               "of true |F_xy| reaches, to 0.1 %)"),
+               "of the true resultant force reaches, to 0.1 %)"),
     ]  # fmt: skip
 
 
