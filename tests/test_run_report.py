@@ -79,16 +79,25 @@ def test_report_shows_the_demo_summary_figures(
 
     rec, _, _ = synthetic
     with opened_recording(rec) as r:
-        summary = json.loads(json.dumps(run_figures(r, _events()).__dict__))
-    write_report(tmp_path / "r.html", rec, events=_events())
+        figs = {"controlled": run_figures(r, _events()), "open": run_figures(r, [])}
+    # the summary as run_online_demo writes it
+    summary = json.loads(json.dumps({"runs": {k: f.__dict__ for k, f in figs.items()}}))
+    write_report(tmp_path / "r.html", rec, events=_events(), runs=figs)
     text = (tmp_path / "r.html").read_text()
-    blob = text.split("id='millsense-report-data'>", 1)[1].split("</script>", 1)[0]
-    assert json.loads(blob)["figures"] == summary
+    blob = json.loads(text.split("id='millsense-report-data'>", 1)[1].split("</script>", 1)[0])
+    assert blob["figures"] == summary["runs"]["controlled"]
+    assert blob["runs"] == summary["runs"]
     shown = _figures_table(text)
-    for key, label, _ in figures_rows(run_figures_from_summary(summary)):
-        v = summary[key]
-        assert shown[label] == ("–" if v is None else f"{v:.6g}"), key
-    assert float(shown["peak true |F_xy| [N]"]) == pytest.approx(summary["peak_force_n"], rel=1e-5)
+    ctl = summary["runs"]["controlled"]
+    for key, label, _ in figures_rows(run_figures_from_summary(ctl)):
+        assert shown[label] == ("–" if ctl[key] is None else f"{ctl[key]:.6g}"), key
+    assert float(shown["peak true |F_xy| [N]"]) == pytest.approx(ctl["peak_force_n"], rel=1e-5)
+    # the side-by-side table: one column per run, the open run without a hold ends the program
+    body = text.split('<table class="runs">', 1)[1].split("</table>", 1)[0]
+    rows = {htmllib.unescape(r[0]): r[1:] for r in
+            re.findall(r"<tr><td>(.*?)</td><td>(.*?)</td><td>(.*?)</td></tr>", body)}  # fmt: skip
+    assert rows["feed hold [s]"] == ("40.01", "–")
+    assert rows["program ended [s]"] == ("–", f"{summary['runs']['open']['seconds']:.6g}")
 
 
 def run_figures_from_summary(d: dict[str, object]) -> object:

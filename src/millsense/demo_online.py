@@ -202,6 +202,7 @@ def run_online_demo(
         out / "online.html", out / "online.h5", events=runs["controlled"][0].events, plan=plan,
         machine=shipped[0], machine_where=shipped[1], validation=rows, validation_where=where,
         title="millsense demo: the on-line system on the demo part (controlled run)",
+        runs=figs,
     )
     summary = {
         "program": str(out / "online_demo.nc"),

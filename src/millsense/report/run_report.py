@@ -101,6 +101,7 @@ def build_report(
     validation_where: str = "",
     title: str = "",
     bins: int | None = None,
+    runs: Mapping[str, RunFigures] | None = None,
 ) -> RunReport:
     """Read ``recording`` once and build its report.
 
@@ -115,6 +116,7 @@ def build_report(
         the validation cases of the estimators and monitors used; None: not known;
         ``validation_where``: where that status was recorded (file, date, commit).
     bins : envelope bins per trace (default :data:`~millsense.report.run_scan.DISPLAY_BINS`).
+    runs : figures of several runs shown side by side (the demo: controlled and open), or None.
     """
     from millsense.io.recording_reader import opened_recording
 
@@ -143,6 +145,7 @@ def build_report(
     text = _html(
         title or f"millsense run report: {Path(recording).name}",
         figs, scan, events, meta, harm, machine, machine_where, validation, validation_where,
+        runs,
     )  # fmt: skip
     return RunReport(figs, scan.figures, text, harm)
 
@@ -417,6 +420,17 @@ def figures_rows(f: RunFigures) -> list[tuple[str, str, Any]]:
     ]
 
 
+def _runs_table(runs: Mapping[str, RunFigures] | None) -> list[str]:
+    """The figures of several runs side by side (the demo's summary table)."""
+    if not runs:
+        return []
+    keys = list(runs)
+    rows = [[lab, *(getattr(runs[k], key) for k in keys)]
+            for key, lab, _ in figures_rows(next(iter(runs.values())))]  # fmt: skip
+    return ["<h3>Runs side by side (the summary)</h3>",
+            _table(["figure", *keys], rows, "runs")]  # fmt: skip
+
+
 def _event_rows(events: Sequence[Event]) -> list[list[Any]]:
     return [
         [round(e.time_s, 4), e.kind.value, e.severity.value, e.name, e.source,
@@ -473,6 +487,7 @@ def _html(
     machine_where: str,
     validation: Sequence[Mapping[str, str]] | None,
     validation_where: str,
+    runs: Mapping[str, RunFigures] | None = None,
 ) -> str:
     f = scan.figures
     parts = [f"<h1>{html.escape(title)}</h1>",
@@ -483,6 +498,7 @@ def _html(
              _table(["figure", "value"], [[lab, v] for _, lab, v in figures_rows(f)],
                     "figures"),
              _table(["events", "count"], sorted(f.events.items()), "event-counts"),
+             *_runs_table(runs),
              "<h2>Recording</h2>",
              _table(["key", "value"], [[k, v if isinstance(v, int | float | str) else
                                         json.dumps(v)] for k, v in meta.items()])]  # fmt: skip
@@ -529,7 +545,8 @@ def _html(
         parts.append(_table(["case", "reference", "measured", "tolerance", "status"],
                             [[r["case"], r["reference"], r["measured"], r["tolerance"],
                               r["status"]] for r in validation], "validation"))  # fmt: skip
-    data = {"figures": asdict(f), "harmonics": list(harm)}
+    data = {"figures": asdict(f), "harmonics": list(harm),
+            "runs": {k: asdict(v) for k, v in (runs or {}).items()}}  # fmt: skip
     blob = json.dumps(data, default=float).replace("</", "<\\/")
     return (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
