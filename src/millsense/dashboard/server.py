@@ -28,7 +28,7 @@ from millsense.core.errors import ConfigError
 from millsense.dashboard.live import LiveState
 
 #: Seconds between two snapshots pushed to the page.
-PUSH_S = 0.2
+PUSH_S = 0.1
 LOOPBACK_NAMES = ("localhost",)
 
 
