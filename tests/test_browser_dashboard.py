@@ -23,7 +23,7 @@ from millsense.streaming.sources import Source
 
 RPM = 1000.0
 BREAK_S = 267 * 0.03  # 8.01 s: flute 0 breaks (2 flutes at 1000 rev/min)
-START_S, STOP_S = 6.0, 9.6  # the stretch streamed (air cut, re-entry at 6.5 s, the break, a hold)
+START_S, STOP_S = 6.0, 11.0  # the stretch streamed (air cut, re-entry at 6.5 s, the break, a hold)
 
 
 @functools.lru_cache(maxsize=1)
@@ -43,7 +43,7 @@ def _stream() -> dict[str, np.ndarray]:
     sched = EngagementSchedule((Engagement.slot(),), (
         EngagementSegment(0.2, 0, 2e-3), EngagementSegment(3.0, 0, 3e-3),
         EngagementSegment(6.0, 0, 0.0), EngagementSegment(6.5, 0, 3e-3)), basis="time")  # fmt: skip
-    t = np.arange(int(10.0 * FS)) / FS
+    t = np.arange(int(11.0 * FS)) / FS
     feed = np.full(len(t), 400 / 60e3)
     _, obs, _ = simulate_torque(sched, feed * t, t, RPM, feed, (ToothBreak(BREAK_S, 0),))
     intact, _, _ = simulate_torque(sched, feed * t, t, RPM, feed)

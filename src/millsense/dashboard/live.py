@@ -40,14 +40,14 @@ TITLES = {
     "regulated": "regulated quantity",
     "spindle": "spindle speed [rev/min]",
 }
-#: Chunks kept per signal (10 s of 10 ms chunks).
-WINDOW_POINTS = 1000
+#: Chunks kept per signal (6 s of 10 ms chunks).
+WINDOW_POINTS = 600
 #: Samples of the rolling spectrum (0.41 s at 10 kHz: 2.4 Hz resolution).
 SPECTRUM_SAMPLES = 4096
 #: Highest frequency shown in the spectrum, Hz.
 SPECTRUM_MAX_HZ = 2000.0
 #: Points of the tool-centre trail kept.
-TRAIL_POINTS = 5000
+TRAIL_POINTS = 3000
 #: Override commands listed.
 OVERRIDES_KEPT = 30
 MODES = ("normal", "chatter", "fault", "feed hold")

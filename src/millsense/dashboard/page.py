@@ -57,29 +57,37 @@ function zigzag(tr) {
 }
 function fmt(v, d) { return (v === null || v === undefined) ? "–" : Number(v).toFixed(d); }
 function post(path) { return fetch(path + (path.includes("?") ? "&" : "?") + q, {method: "POST"}); }
-function drawPlots(s) {
+function plotTasks(s) {
+  // one task per plot: a snapshot arriving meanwhile updates the status and alarms between two
+  const tasks = [];
   for (const key of ["torque", "feed", "regulated", "spindle"]) {
     const p = s.plots[key];
-    if (p) Plotly.react("plot-" + key, p.traces.map(zigzag), layout(p.title, "time [s]"));
+    if (p) tasks.push(() => Plotly.react("plot-" + key, p.traces.map(zigzag),
+                                         layout(p.title, "time [s]")));
   }
-  const sp = [{x: s.spectrum.f, y: s.spectrum.amp, name: "spindle torque", mode: "lines"}];
-  const sl = layout("rolling spectrum of the spindle torque", "frequency [Hz]");
-  if (s.spectrum.tooth_hz) sl.shapes = [1, 2, 3, 4].map(k => ({type: "line", xref: "x",
-    yref: "paper", x0: k * s.spectrum.tooth_hz, x1: k * s.spectrum.tooth_hz, y0: 0, y1: 1,
-    line: {color: "#bbb", dash: "dot", width: 1}}));
-  Plotly.react("plot-spectrum", sp, sl);
-  const pos = [];
-  if (s.plan) pos.push({x: s.plan.x, y: s.plan.y, name: "programmed path", mode: "lines",
-                        line: {color: "#bbb", width: 1}});
-  pos.push({x: s.trail.x, y: s.trail.y, name: "tool-centre point", mode: "lines"});
-  const n = s.trail.x.length;
-  if (n) pos.push({x: [s.trail.x[n - 1]], y: [s.trail.y[n - 1]], name: "now",
-                   mode: "markers", marker: {size: 10, color: "#d62728"}});
-  const pl = layout("plan position", "X [mm]");
-  pl.yaxis = {scaleanchor: "x", title: {text: "Y [mm]"}};
-  Plotly.react("plot-position", pos, pl);
-  updates += 1; document.body.dataset.updates = updates;
-  document.body.dataset.time = s.time_s; document.body.dataset.finished = s.finished;
+  tasks.push(() => {
+    const sp = [{x: s.spectrum.f, y: s.spectrum.amp, name: "spindle torque", mode: "lines"}];
+    const sl = layout("rolling spectrum of the spindle torque", "frequency [Hz]");
+    if (s.spectrum.tooth_hz) sl.shapes = [1, 2, 3, 4].map(k => ({type: "line", xref: "x",
+      yref: "paper", x0: k * s.spectrum.tooth_hz, x1: k * s.spectrum.tooth_hz, y0: 0, y1: 1,
+      line: {color: "#bbb", dash: "dot", width: 1}}));
+    Plotly.react("plot-spectrum", sp, sl);
+  });
+  tasks.push(() => {
+    const pos = [];
+    if (s.plan) pos.push({x: s.plan.x, y: s.plan.y, name: "programmed path", mode: "lines",
+                          line: {color: "#bbb", width: 1}});
+    pos.push({x: s.trail.x, y: s.trail.y, name: "tool-centre point", mode: "lines"});
+    const n = s.trail.x.length;
+    if (n) pos.push({x: [s.trail.x[n - 1]], y: [s.trail.y[n - 1]], name: "now",
+                     mode: "markers", marker: {size: 10, color: "#d62728"}});
+    const pl = layout("plan position", "X [mm]");
+    pl.yaxis = {scaleanchor: "x", title: {text: "Y [mm]"}};
+    Plotly.react("plot-position", pos, pl);
+    updates += 1; document.body.dataset.updates = updates;
+    document.body.dataset.time = s.time_s; document.body.dataset.finished = s.finished;
+  });
+  return tasks;
 }
 function drawText(s) {
   const st = s.status;
@@ -92,6 +100,10 @@ function drawText(s) {
   document.getElementById("nc").textContent = fmt(st.nc_line, 0);
   document.getElementById("control").textContent =
     st.control === null ? "–" : (st.control ? "on" : "off");
+  // the alarm list is rebuilt only when it changes (its buttons stay clickable)
+  const key = s.alarms.map(a => a.id + (a.acknowledged ? "a" : "")).join(",");
+  if (key === alarmKey) return drawOverrides(s);
+  alarmKey = key;
   const ul = document.getElementById("alarms");
   ul.replaceChildren(...s.alarms.map(a => {
     const li = document.createElement("li");
@@ -104,22 +116,32 @@ function drawText(s) {
     }
     return li;
   }));
+  drawOverrides(s);
+}
+let alarmKey = null;
+function drawOverrides(s) {
   const ov = document.getElementById("overrides");
   ov.replaceChildren(...s.overrides.slice(-8).reverse().map(o => {
     const li = document.createElement("li");
     li.textContent = `${fmt(o.time_s, 3)} s  ${o.message}`; return li;
   }));
 }
-// the status and the alarms at every snapshot; the plots from the latest snapshot once the
-// previous drawing is done (a slow drawing never queues snapshots up: the page stays live)
-let latest = null, drawing = false;
+// the status and the alarms at every snapshot; the plots of the latest snapshot, one plot per
+// task, once the previous drawing is done (a slow drawing never queues snapshots up)
+let latest = null, tasks = [], drawing = false;
 function onSnapshot(s) {
   drawText(s);
   latest = s;
-  if (drawing) return;
+  if (!drawing) next();
+}
+function next() {
+  if (!tasks.length) {
+    if (!latest) { drawing = false; return; }
+    tasks = plotTasks(latest); latest = null;
+  }
   drawing = true;
-  setTimeout(() => { const d = latest; latest = null; try { drawPlots(d); } finally {
-    drawing = false; if (latest) onSnapshot(latest); } }, 0);
+  const task = tasks.shift();
+  setTimeout(() => { try { task(); } finally { next(); } }, 0);
 }
 document.getElementById("control-on").onclick = () => post("api/control?on=true");
 document.getElementById("control-off").onclick = () => post("api/control?on=false");
