@@ -71,10 +71,6 @@ class RunScan:
     width: int = 1
     present: set[str] = field(default_factory=set)
 
-    def times(self) -> NDArray[np.float64]:
-        """Time of each bin's first sample, s."""
-        return np.arange(len(next(iter(self.starts.values()), []))) * self.width / self.fs
-
 
 def scan_run(
     rec: Any,
