@@ -5,6 +5,7 @@ end on a short slot of the virtual machine, with their one-line errors."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -147,10 +148,12 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
          "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
          str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--plan-out",
          str(tmp_path / "plan.parquet"), "--break-at-s", "5.0", "--plot",
-         str(tmp_path / "run.png")],
+         str(tmp_path / "run.png"), "--dashboard"],
         capsys,
     )  # fmt: skip
     assert code == 0, err
+    # the live dashboard served the run on the loopback with a 32-character token (issue 19)
+    assert re.search(r"dashboard: http://127\.0\.0\.1:\d+/\?token=[\w-]{32}\n", err), err
     ev = read_event_log(tmp_path / "run.events.parquet")
     holds = [e.time_s for e in ev if e.name == "feed_hold"]
     brk = [e.time_s for e in ev if e.name == "breakage"]

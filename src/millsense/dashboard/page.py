@@ -62,6 +62,7 @@ function plotTasks(s) {
   const tasks = [];
   for (const key of ["torque", "feed", "regulated", "spindle"]) {
     const p = s.plots[key];
+    document.getElementById("plot-" + key).style.visibility = p ? "visible" : "hidden";
     if (p) tasks.push(() => Plotly.react("plot-" + key, p.traces.map(zigzag),
                                          layout(p.title, "time [s]")));
   }
