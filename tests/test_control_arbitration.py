@@ -216,3 +216,68 @@ def test_options_are_checked() -> None:
         SupervisorOptions(period_s=0.0)
     with pytest.raises(ConfigError, match="unique"):
         Supervisor([Scripted("a", {}), Scripted("a", {})])
+
+
+def _run_with_requests(
+    sup: Supervisor, n: int, requests: dict[int, tuple[str, object]]
+) -> tuple[dict[str, np.ndarray], list[Event]]:
+    """Like :func:`_run` in 100-sample chunks, the operator's requests made before the chunk
+    starting at the given sample (as the dashboard's thread makes them between chunks)."""
+    sup.reset(FS)
+    data = {"sig": np.arange(n, dtype=float), "guard/fault": np.zeros(n),
+            "plan/in_cut": np.ones(n)}  # fmt: skip
+    outs: dict[str, list[np.ndarray]] = {}
+    events: list[Event] = []
+    for a in range(0, n, 100):
+        if a in requests:
+            what, arg = requests[a]
+            if what == "control":
+                sup.request_control(bool(arg))
+            else:
+                sup.acknowledge(*arg)  # type: ignore[misc]
+        res = sup.process(Chunk(a, FS, 0.0, {k: v[a : a + 100] for k, v in data.items()}))
+        for k, v in res.channels.items():
+            outs.setdefault(k, []).append(v)
+        events += res.events
+    return {k: np.concatenate(v) for k, v in outs.items()}, events
+
+
+def test_operator_control_off_restores_programmed_overrides_and_on_again() -> None:
+    """Decision 1902: control off at 3000 → feed and spindle back to 100 % at the period's end
+    (3100); proposals while off do not pass (4005: 140 %); on again at 5000 → the next proposal
+    passes (6005 → 6100); the adaptive child is capped at the commanded feed while off."""
+    chatter = Scripted("chatter", {1060: (OVR, "spindle_override", 112.0)})
+    adaptive = Scripted("adaptive_feed", {
+        1005: (OVR, "feed_override", 130.0),
+        4005: (OVR, "feed_override", 140.0),
+        6005: (OVR, "feed_override", 120.0),
+    })  # fmt: skip
+    sup = Supervisor([chatter, adaptive])
+    ch, events = _run_with_requests(sup, 7000, {3000: ("control", False), 5000: ("control", True)})
+    assert _overrides(events) == [
+        (1100, "spindle_override", 112.0),  # chatter's first (seed 000 priorities)
+        (1100, "feed_override", 130.0),
+        (3100, "feed_override", 100.0),  # control off
+        (3100, "spindle_override", 100.0),
+        (6100, "feed_override", 120.0),  # on again: proposals pass
+    ]
+    notes = [(e.sample, e.name) for e in events if e.kind is EventKind.NOTE]
+    assert notes == [(3100, "control_off"), (5100, "control_on")]
+    assert ch["supervisor/feed_override"][4500] == 1.0
+    assert ch["supervisor/spindle_override"][4500] == 1.0
+    ceil = {s: c for s, c, _ in adaptive.ceilings}
+    assert ceil[4500] == pytest.approx(1.0) and ceil[6500] is None
+
+
+def test_operator_acknowledges_an_alarm_and_the_hold_stays() -> None:
+    """An acknowledgement is a NOTE naming the alarm and its time; a feed hold latches (the
+    tool is still broken) and control off does not release it."""
+    sup = Supervisor([ScriptedBreakage("breakage", {1042: (ALM, "breakage", None)})])
+    ch, events = _run_with_requests(
+        sup, 3000, {2000: ("ack", ("breakage", 0.1042)), 2500: ("control", False)}
+    )
+    ack = [e for e in events if e.name == "alarm_acknowledged"]
+    assert len(ack) == 1 and ack[0].sample == 2100
+    assert ack[0].values["alarm_s"] == pytest.approx(0.1042)
+    assert [e.name for e in events if e.kind is EventKind.OVERRIDE] == ["feed_hold"]
+    assert ch["supervisor/mode"][-1] == MODE_HOLD

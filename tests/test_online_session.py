@@ -4,6 +4,8 @@ end on a short slot of the virtual machine, with their one-line errors."""
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -146,10 +148,12 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
          "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
          str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--plan-out",
          str(tmp_path / "plan.parquet"), "--break-at-s", "5.0", "--plot",
-         str(tmp_path / "run.png")],
+         str(tmp_path / "run.png"), "--dashboard"],
         capsys,
     )  # fmt: skip
     assert code == 0, err
+    # the live dashboard served the run on the loopback with a 32-character token (issue 19)
+    assert re.search(r"dashboard: http://127\.0\.0\.1:\d+/\?token=[\w-]{32}\n", err), err
     ev = read_event_log(tmp_path / "run.events.parquet")
     holds = [e.time_s for e in ev if e.name == "feed_hold"]
     brk = [e.time_s for e in ev if e.name == "breakage"]
@@ -160,12 +164,19 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
         n = rec.n_samples
         assert abs(n / FS - (holds[0] + 0.5)) < 0.02  # stopped 0.5 s after
     assert (tmp_path / "run.png").stat().st_size > 10000
+    # the run's report beside the recording (issue 19): its figures are the run's events
+    page = (tmp_path / "run.html").read_text()
+    data = json.loads(page.split("id='millsense-report-data'>", 1)[1].split("</script>", 1)[0])
+    assert data["figures"]["breakage_alarm_s"] == brk[0]
+    assert data["figures"]["feed_hold_s"] == holds[0]
     code, _out, err = run_cli(
         ["replay", str(tmp_path / "run.h5"), "--plan", str(tmp_path / "plan.parquet"),
-         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "replay.parquet")],
+         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "replay.parquet"),
+         "-o", str(tmp_path / "replay.h5")],
         capsys,
     )  # fmt: skip
     assert code == 0, err
+    assert "replay.html" in _out and (tmp_path / "replay.html").stat().st_size > 4e6
     rbrk = [e.time_s for e in read_event_log(tmp_path / "replay.parquet") if e.name == "breakage"]
     assert len(rbrk) == 1
     assert abs(rbrk[0] - brk[0]) <= 3 * 0.03

@@ -17,14 +17,15 @@ the spindle power with the virtual look-ahead, the supervisor):
 Outputs in the folder: ``online.h5`` (the controlled run: CNC channels, truth and every block
 output), ``online.events.parquet``, ``online_open.events.parquet``, ``online_demo.nc`` (the
 program), ``online_demo.png`` (feed, spindle power and true force with and without control,
-events marked) and ``online_summary.json``.
+events marked), ``online.html`` (the report of the controlled run,
+:mod:`millsense.report.run_report`: its figures are those of the summary, from the same
+:func:`~millsense.report.run_scan.run_figures`) and ``online_summary.json``.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -77,20 +78,6 @@ KEEP = (
     "truth/tool/force_y",
     "truth/process/broken",
 )
-
-
-@dataclass
-class RunFigures:
-    """What one run did (the summary's per-run figures)."""
-
-    seconds: float
-    program_end_s: float | None
-    peak_force_n: float
-    mean_power_w: float
-    breakage_alarm_s: float | None
-    feed_hold_s: float | None
-    cut_with_broken_tool_s: float
-    events: dict[str, int]
 
 
 def _plan(out: Path) -> Any:
@@ -157,38 +144,22 @@ def _run(
     return res
 
 
-def _figures(res: Any, data: dict[str, np.ndarray]) -> RunFigures:
-    from collections import Counter
-
-    names = Counter(e.name for e in res.events)
-    brk = next((e.time_s for e in res.events if e.name == "breakage"), None)
-    hold = next((e.time_s for e in res.events if e.name == "feed_hold"), None)
-    fs = res.sample_rate_hz
-    broken = data["truth/process/broken"] > 0.5
-    fxy = np.hypot(data["truth/tool/force_x"], data["truth/tool/force_y"])
-    cutting = fxy > 50.0
-    power = data["plan/cutting_torque"] * data["spindle/speed"]
-    end = None if hold is not None else res.seconds
-    return RunFigures(
-        seconds=res.seconds,
-        program_end_s=end,
-        peak_force_n=float(fxy.max(initial=0.0)),
-        mean_power_w=float(np.mean(power[cutting])) if cutting.any() else 0.0,
-        breakage_alarm_s=brk,
-        feed_hold_s=hold,
-        cut_with_broken_tool_s=float(np.count_nonzero(broken & cutting) / fs),
-        events=dict(names),
-    )
-
-
 def run_online_demo(
-    out_dir: str | Path, on_progress: Callable[[float], None] | None = None
+    out_dir: str | Path,
+    on_progress: Callable[[float], None] | None = None,
+    validation: tuple[list[dict[str, str]], str] | None = None,
 ) -> dict[str, Any]:
-    """Plan, run controlled and open, compare; writes the files named in the module notes."""
+    """Plan, run controlled and open, compare; writes the files named in the module notes.
+
+    ``validation``: the recorded status of the cases of what the session runs (rows and where
+    recorded, :mod:`millsense.validation.status`) for the report, or None.
+    """
     import tempfile
 
     from millsense.io.recording_reader import opened_recording
     from millsense.io.safe_output import write_text
+    from millsense.report.run_report import write_report
+    from millsense.report.run_scan import RunFigures, run_figures
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -201,6 +172,7 @@ def run_online_demo(
         return lambda n: on_progress(min(1.0, offset + 0.5 * n / expect))
 
     runs: dict[str, tuple[Any, dict[str, np.ndarray]]] = {}
+    figs: dict[str, RunFigures] = {}
     with tempfile.TemporaryDirectory(dir=out) as tmp:
         for key, controlled, rec_path, ev_path, offset in (
             ("controlled", True, out / "online.h5", out / "online.events.parquet", 0.0),
@@ -211,8 +183,8 @@ def run_online_demo(
                     "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
             with opened_recording(rec_path) as rec:
                 data = {c: np.asarray(rec.channel(c)) for c in cols}
+                figs[key] = run_figures(rec, res.events)
             runs[key] = (res, data)
-    figs = {k: _figures(r, d) for k, (r, d) in runs.items()}
     from millsense.report.online_plots import plot_comparison
 
     plot_comparison(
@@ -221,12 +193,24 @@ def run_online_demo(
         out / "online_demo.png",
         title="On-line system on the demo part: with and without control",
     )
+    from millsense.core.presets import commissioned_machine
+
+    shipped = commissioned_machine(MACHINE)
+    assert shipped is not None
+    rows, where = validation if validation is not None else (None, "")
+    write_report(
+        out / "online.html", out / "online.h5", events=runs["controlled"][0].events, plan=plan,
+        machine=shipped[0], machine_where=shipped[1], validation=rows, validation_where=where,
+        title="millsense demo: the on-line system on the demo part (controlled run)",
+        runs=figs,
+    )
     summary = {
         "program": str(out / "online_demo.nc"),
         "break_s": BREAK_S,
         "runs": {k: f.__dict__ for k, f in figs.items()},
         "recording": str(out / "online.h5"),
         "plot": str(out / "online_demo.png"),
+        "report": str(out / "online.html"),
     }
     write_text(out / "online_summary.json", json.dumps(summary, indent=2) + "\n")
     return summary

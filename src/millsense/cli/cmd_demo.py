@@ -25,7 +25,8 @@ def demo(
     program on the demo stock (a cavity, an entry, a depth step, an exit; a tooth breaks late)
     and runs it in closed loop with the estimators, the plan, the monitors and the controllers,
     and once more without sending their commands: online.h5, online.events.parquet,
-    online_open.events.parquet, online_demo.nc, online_demo.png and online_summary.json.
+    online_open.events.parquet, online_demo.nc, online_demo.png, online.html (the report of
+    the controlled run) and online_summary.json.
     """
     from millsense.core.errors import ConfigError
     from millsense.demo import run_demo
@@ -61,9 +62,11 @@ def demo(
 def _online(out: Path, console: Console) -> None:
     """Part 2: the on-line system with and without control (:mod:`millsense.demo_online`)."""
     from millsense.demo_online import run_online_demo
+    from millsense.validation.status import SESSION_PREFIXES, read_status
 
+    status = read_status(SESSION_PREFIXES)
     with progress_bar("on-line system: controlled, then open", 1) as update:
-        summary = run_online_demo(out, on_progress=update)
+        summary = run_online_demo(out, on_progress=update, validation=status)
     table = Table(title="On-line system on the demo part (a tooth breaks at "
                   f"{summary['break_s']:g} s)")  # fmt: skip
     for col in ("run", "signal [s]", "mean power in cut [W]", "peak |F| [N]",
@@ -75,7 +78,8 @@ def _online(out: Path, console: Console) -> None:
                       f"{r['peak_force_n']:.0f}", _s(r["breakage_alarm_s"]), hold,
                       f"{r['cut_with_broken_tool_s']:.2f}")  # fmt: skip
     console.print(table)
-    console.print(f"wrote {summary['recording']}, {summary['plot']}, {out / 'online_summary.json'}")
+    console.print(f"wrote {summary['recording']}, {summary['plot']}, {summary['report']}, "
+                  f"{out / 'online_summary.json'}")
 
 
 def _s(v: float | None) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 
 import typer
 
+from millsense.cli.cmd_report import report_line, report_path, write_run_report
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError
 
@@ -75,6 +76,9 @@ def run(
         None, "--plan-out", help="Write the plan made from --program here (.parquet)."
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: feed, force, speed, events."),
+    report: Path | None = typer.Option(
+        None, "--report", help="HTML report of the run (default: beside the recording, .html)."
+    ),
     adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive", help="Adaptive feed."),
     regulate: str = typer.Option("power", "--regulate", help="power, torque or force."),
     reference: float | None = typer.Option(
@@ -111,24 +115,52 @@ def run(
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     step_mm: float = typer.Option(0.4, "--step-mm", help="Plan step [mm]."),
     resolution_mm: float = typer.Option(0.2, "--resolution-mm", help="Z-map cell [mm]."),
+    dashboard: bool = typer.Option(
+        False, "--dashboard", help="Serve the live dashboard of the session (prints its address)."
+    ),
+    dashboard_host: str = typer.Option(
+        "127.0.0.1", "--dashboard-host", help="Address the dashboard binds (default: loopback)."
+    ),
+    dashboard_port: int = typer.Option(0, "--dashboard-port", help="Port (0: a free one)."),
+    dashboard_allow_remote: bool = typer.Option(
+        False, "--dashboard-allow-remote", help="Serve beyond this machine (needs TLS)."
+    ),
+    tls_cert: Path | None = typer.Option(None, "--tls-cert", help="TLS certificate (PEM)."),
+    tls_key: Path | None = typer.Option(None, "--tls-key", help="TLS private key (PEM)."),
+    dashboard_linger_s: float = typer.Option(
+        0.0, "--dashboard-linger-s", help="Keep serving this long after the run [s]."
+    ),
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
     from millsense.io.safe_output import check_outputs
 
+    live = None
+    if dashboard:
+        from millsense.dashboard.server import DashboardOptions
+
+        if not dashboard_linger_s >= 0:
+            raise ConfigError(f"--dashboard-linger-s: must be ≥ 0, got {dashboard_linger_s}")
+        live = DashboardOptions(host=dashboard_host, port=dashboard_port,
+                                allow_remote=dashboard_allow_remote, tls_cert=tls_cert,
+                                tls_key=tls_key)  # fmt: skip
+
     check_outputs(
         {"the program": program, "the stock": stock, "the plan": plan,
          "the machine file": machine_file, "the tool-modes file": tool_modes},
-        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot},
+        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot,
+         "--report": report or report_path(out)},
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
     summary = run_online(
         program=program, stock=stock, tool=tool, material=material, plan=plan,
         machine=machine, machine_file=machine_file, out=out, events_out=events_out,
-        plan_out=plan_out, plot=plot, options=opts, break_at_s=break_at_s,
+        plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
+        break_at_s=break_at_s,
         break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
         duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm,
+        dashboard=live, dashboard_linger_s=dashboard_linger_s,
     )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
@@ -147,16 +179,27 @@ def replay(
     ),
     force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
     chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
+    report: Path | None = typer.Option(
+        None, "--report", help="HTML report of the replay (default with -o: beside it, .html)."
+    ),
 ) -> None:
     """Run the on-line blocks on a recording (overrides recorded, not applied)."""
     from millsense.io.safe_output import check_outputs
 
+    if report is not None and out is None:
+        raise ConfigError("--report: needs -o (the report shows the replay's block outputs)")
+    if report is None and out is not None:
+        report = report_path(out)
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine_file},
-        {"-o": out, "--events": events_out},
+        {"-o": out, "--events": events_out, "--report": report},
     )
     opts = _options(True, regulate, reference, force_from, True, True, True, True)
     summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    if report is not None and out is not None:
+        rep = write_run_report(report, out, plan=plan, events=summary["result"].events,
+                               machine_file=machine_file)  # fmt: skip
+        summary["lines"].append(report_line(rep, report))
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -201,6 +244,7 @@ def run_online(
     plan_out: Path | None,
     plot: Path | None,
     options: Any,
+    report: Path | None = None,
     break_at_s: float | None = None,
     break_flute: int = 0,
     tool_modes: Path | None = None,
@@ -210,8 +254,12 @@ def run_online(
     step_mm: float = 0.4,
     resolution_mm: float = 0.2,
     chunk: int = 100,
+    dashboard: Any = None,
+    dashboard_linger_s: float = 0.0,
 ) -> dict[str, Any]:
-    """Plan, simulate in closed loop, monitor, control and record (the body of ``run``)."""
+    """Plan, simulate in closed loop, monitor, control and record (the body of ``run``);
+    ``dashboard``: :class:`~millsense.dashboard.server.DashboardOptions` to serve the live
+    dashboard of the session (its address printed before the run), or None."""
     from millsense.core.errors import ConfigError
     from millsense.core.plausibility import Findings
     from millsense.online.faults import FaultyLink, LinkFault
@@ -270,12 +318,30 @@ def run_online(
     meta.update({"source": "millsense run", "machine_file": belief_name,
                  "faults": [f.__dict__ for f in link_faults]})  # fmt: skip
     expect = sim.n_total or int((float(vp["t_s"][-1]) + sim.start_s + 0.5) * sim.sample_rate_hz)
-    res = _with_progress(
-        "running", expect,
-        lambda cb: run_session(source, built.blocks, out=out, events_out=ev_path, metadata=meta,
-                               chunk_samples=chunk, on_progress=cb),
-        built.supervisor,
-    )  # fmt: skip
+    server = state = None
+    if dashboard is not None:
+        from millsense.dashboard.live import LiveState
+        from millsense.dashboard.server import DashboardServer
+
+        flutes = int(vp.metadata.get("tool", {}).get("flutes", 2))
+        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes)
+        server = DashboardServer(state, dashboard)
+        typer.echo(f"dashboard: {server.start()}", err=True)
+    try:
+        res = _with_progress(
+            "running", expect,
+            lambda cb: run_session(source, built.blocks, out=out, events_out=ev_path,
+                                   metadata=meta, chunk_samples=chunk, on_progress=cb,
+                                   observer=None if state is None else state.observe),
+            built.supervisor,
+        )  # fmt: skip
+    finally:
+        if server is not None and state is not None:
+            state.finish()
+            import time
+
+            time.sleep(dashboard_linger_s)
+            server.stop()
     lines = [f"millsense: note: {n}" for n in notes_pre + notes + built.notes]
     lines += [f"millsense: warning: {w}" for w in findings.warnings]
     lines += _summary_lines(res, out, ev_path)
@@ -284,6 +350,9 @@ def run_online(
 
         plot_run(out, res.events, plot)
         lines.append(f"wrote {plot}")
+    if report is not None:
+        rep = write_run_report(report, out, plan=vp, events=res.events, machine_file=machine_file)
+        lines.append(report_line(rep, report))
     return {"lines": lines, "result": res}
 
 
@@ -325,7 +394,8 @@ def replay_online(
             "replaying", rec.n_samples,
             lambda cb: run_session(src, built.blocks, out=out, events_out=events_out,
                                    metadata={"source": "millsense replay",
-                                             "recording": str(recording)},
+                                             "recording": str(recording), "machine_file": where,
+                                             "machine": str(rec.metadata.get("machine", ""))},
                                    chunk_samples=chunk, on_progress=cb,
                                    stop_after_hold_s=None),
             built.supervisor,

@@ -29,11 +29,20 @@ never raised by a fault (decision 1615), and it is not raised again before the i
 been clean for ``fault_clear_s`` (0.1 s). A controller's own input faults
 (``adaptive_feed_fault``) are its own safe action (decision 1615), which passes as a proposal
 like any other.
+
+The operator (the live dashboard, issue 19; decision 1902) acts through two thread-safe
+requests taken at the next control period: :meth:`Supervisor.request_control` switches the
+control off (the feed and spindle overrides back to 100 %, the programmed values; the
+adaptive feed and the chatter avoidance then only propose) or on again, and
+:meth:`Supervisor.acknowledge` records that an alarm was seen. Safety stays on with the
+control off (a breakage or a fault still holds the feed), and an acknowledgement does not
+release a feed hold: both are NOTE events in the log.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -130,6 +139,7 @@ class Supervisor(Block):
         self.reads_truth = any(c.reads_truth for c in self.children)
         # a breakage monitor is a child that can be re-armed (BreakageBlock.rearm)
         self.breakage_possible = any(hasattr(c, "rearm") for c in self.children)
+        self._operator: deque[tuple[str, tuple[str, float] | bool]] = deque()
         self.reset(10000.0)
 
     # ------------------------------------------------------------------ contract
@@ -163,6 +173,46 @@ class Supervisor(Block):
         self._fault_sample = -1
         self._fault_last = -1
         self._clear = round(self.opts.fault_clear_s * self.fs)
+        self.control = True
+        self._operator.clear()
+
+    # ------------------------------------------------------------------ the operator
+    def request_control(self, enabled: bool) -> None:
+        """Switch the control on or off at the next control period (any thread). Off: the
+        feed and spindle overrides go back to 100 % and no controller's proposal passes
+        until it is on again; the safety actions (breakage, faults) stay."""
+        self._operator.append(("control", bool(enabled)))
+
+    def acknowledge(self, name: str, time_s: float) -> None:
+        """Record at the next control period that the operator saw the alarm ``name`` raised
+        at ``time_s`` (any thread); a feed hold stays."""
+        self._operator.append(("ack", (str(name), float(time_s))))
+
+    def _operator_requests(self, t: float, k: int, events: list[Event]) -> None:
+        while self._operator:
+            _, arg = self._operator.popleft()
+            if isinstance(arg, tuple):  # an acknowledgement
+                name, at = arg
+                events.append(Event(t, EventKind.NOTE, self.name,
+                                    f"{name} alarm of {at:.3f} s acknowledged by the operator",
+                                    name="alarm_acknowledged", sample=k,
+                                    values={"alarm_s": at}))  # fmt: skip
+            elif bool(arg) != self.control:
+                self.control = bool(arg)
+                state = "on" if self.control else "off: overrides back to 100 %"
+                events.append(Event(t, EventKind.NOTE, self.name,
+                                    f"control {state} (operator)",
+                                    name="control_on" if self.control else "control_off",
+                                    sample=k, severity=Severity.WARNING))  # fmt: skip
+                if not self.control and not self.held:
+                    if abs(self.feed - 1.0) > 1e-12:
+                        self._feed(t, k, 1.0, None, events, "operator: control off")
+                    if math.isfinite(self.spindle) and abs(self.spindle - 1.0) > 1e-12:
+                        self.spindle = 1.0
+                        events.append(Event(t, EventKind.OVERRIDE, self.name,
+                                            "spindle override 100.0 % (operator: control off)",
+                                            name="spindle_override", value=100.0, sample=k,
+                                            severity=Severity.WARNING))  # fmt: skip
 
     # ------------------------------------------------------------------ streaming
     def process(self, chunk: Chunk) -> BlockOutput:
@@ -246,6 +296,9 @@ class Supervisor(Block):
                 feed_prop = ev
             elif ev.kind is EventKind.OVERRIDE and ev.name == "spindle_override":
                 spindle_prop = ev
+        self._operator_requests(t, k, events)
+        if not self.control:  # the controllers only propose
+            feed_prop = spindle_prop = None
         if self.chatter_open and t - self.chatter_last_s > self.opts.chatter_timeout_s:
             self.chatter_open = False
             self.rejudge_at = t + self.opts.rejudge_s
@@ -328,9 +381,17 @@ class Supervisor(Block):
                             nc_line=prop.nc_line, x_mm=prop.x_mm, y_mm=prop.y_mm,
                             z_mm=prop.z_mm))  # fmt: skip
 
-    def _feed(self, t: float, k: int, u: float, prop: Event | None, events: list[Event]) -> None:
+    def _feed(
+        self,
+        t: float,
+        k: int,
+        u: float,
+        prop: Event | None,
+        events: list[Event],
+        why: str = "safety",
+    ) -> None:
         self.feed = u
-        src = prop.source if prop is not None else "safety"
+        src = prop.source if prop is not None else why
         events.append(Event(t, EventKind.OVERRIDE, self.name,
                             f"feed override {100 * u:.1f} % ({src})", name="feed_override",
                             value=100.0 * u, sample=k,
@@ -369,7 +430,7 @@ class Supervisor(Block):
         limit: float | None = None
         if self.held:
             limit = 0.0
-        elif self._unsettled() or self.fault:
+        elif self._unsettled() or self.fault or not self.control:
             limit = self.feed
         for c in self.children:
             setter = getattr(c, "set_ceiling", None)

@@ -301,13 +301,16 @@ def run_session(
     on_progress: Callable[[int], None] | None = None,
     guard: bool = True,
     stop_after_hold_s: float | None = 0.5,
+    observer: Callable[[Chunk, dict[str, np.ndarray], list[Event]], None] | None = None,
 ) -> SessionResult:
     """Run ``blocks`` on ``source`` (override events fed back), recording as it goes.
 
     ``out``: the recording (the source's channels named in ``keep``, all when None, and every
     block output), appended chunk by chunk and closed whatever happens; ``events_out``: the
     event log (Parquet) written at the end, also after a failure of the source;
-    ``stop_after_hold_s``: a live run ends this long after a feed hold (None: runs on).
+    ``stop_after_hold_s``: a live run ends this long after a feed hold (None: runs on);
+    ``observer``: called with every chunk, the blocks' outputs and events (the live
+    dashboard, :mod:`millsense.dashboard`).
     """
     from millsense.io import RecordingWriter
     from millsense.streaming.event_log import write_event_log
@@ -337,6 +340,8 @@ def run_session(
             data = {k: chunk.data[k] for k in names}
             data.update(outputs)
             writer.append(data)
+        if observer is not None:
+            observer(chunk, outputs, events)
 
     t0 = time.perf_counter()
     events: list[Event] = []
