@@ -71,8 +71,10 @@ def batch(
     rows = assess_wear(res.rows, limit_mm=vb_limit_mm)
     target = write_summary(rows, out)
     from millsense.report.fleet_plots import plot_fleet, tool_table
+    from millsense.report.fleet_report import write_fleet_report
 
     plot_fleet(rows, out / "fleet.png", limit_mm=vb_limit_mm)
+    write_fleet_report(rows, out / "fleet.html", limit_mm=vb_limit_mm)
     _print_tools(tool_table(rows))
     failed = [r for r in rows if r.get("status") != "ok"]
     for r in failed:
@@ -82,7 +84,7 @@ def batch(
     typer.echo(
         f"wrote {target}: {len(rows)} runs ({res.ran} run on {where}, {res.reused} from an "
         f"earlier batch), {len(failed)} failed, {len(worn)} with VB ≥ {vb_limit_mm:g} mm; "
-        f"fleet view {out / 'fleet.png'}"
+        f"fleet view {out / 'fleet.html'} and {out / 'fleet.png'}"
     )
 
 

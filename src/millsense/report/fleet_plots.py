@@ -21,10 +21,11 @@ import matplotlib.pyplot as plt
 
 from millsense.report.plots import _save
 
-__all__ = ["plot_fleet", "tool_table"]
+__all__ = ["plot_fleet", "tool_key", "tool_table"]
 
 
-def _tool_key(r: dict[str, Any]) -> tuple[str, str]:
+def tool_key(r: dict[str, Any]) -> tuple[str, str]:
+    """(machine, tool id or name) of a summary row."""
     return (str(r.get("machine", "")), str(r.get("tool_id") or r.get("tool", "")))
 
 
@@ -33,7 +34,7 @@ def tool_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     remaining cutting time (min), alarms."""
     out: dict[tuple[str, str], dict[str, Any]] = {}
     for r in rows:
-        key = _tool_key(r)
+        key = tool_key(r)
         fresh = {"machine": key[0], "tool": key[1], "runs": 0, "failed": 0, "vb_mm": math.nan,
                  "rate_mm_min": math.nan, "remaining_min": math.nan, "alarms": 0,
                  "_order": -1.0}  # fmt: skip
@@ -59,7 +60,7 @@ def plot_fleet(rows: Sequence[dict[str, Any]], path: str | Path, *, limit_mm: fl
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for r in rows:
         if r.get("status") == "ok" and r.get("wear_vb_mm") is not None:
-            groups.setdefault(_tool_key(r), []).append(r)
+            groups.setdefault(tool_key(r), []).append(r)
     several = len({k[0] for k in groups}) > 1
     for i, (key, members) in enumerate(sorted(groups.items())):
         members = sorted(members, key=lambda r: float(r.get("tool_cutting_time_s") or 0.0))

@@ -401,7 +401,8 @@ def _fmt(v: Any) -> str:
     return html.escape(str(v))
 
 
-def _table(head: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
+def html_table(head: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
+    """An HTML table of the rows (values formatted, text escaped)."""
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = "".join("<tr>" + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>" for r in rows)
     return f'<table class="{cls}"><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>'
@@ -428,7 +429,7 @@ def _runs_table(runs: Mapping[str, RunFigures] | None) -> list[str]:
     rows = [[lab, *(getattr(runs[k], key) for k in keys)]
             for key, lab, _ in figures_rows(next(iter(runs.values())))]  # fmt: skip
     return ["<h3>Runs side by side (the summary)</h3>",
-            _table(["figure", *keys], rows, "runs")]  # fmt: skip
+            html_table(["figure", *keys], rows, "runs")]  # fmt: skip
 
 
 def _event_rows(events: Sequence[Event]) -> list[list[Any]]:
@@ -495,12 +496,12 @@ def _html(
              f"whole-run traces are min/max envelopes of {scan.width} samples per bin (no peak "
              "dropped); zoom in with the mouse.</p>",
              "<h2>Run figures</h2>",
-             _table(["figure", "value"], [[lab, v] for _, lab, v in figures_rows(f)],
+             html_table(["figure", "value"], [[lab, v] for _, lab, v in figures_rows(f)],
                     "figures"),
-             _table(["events", "count"], sorted(f.events.items()), "event-counts"),
+             html_table(["events", "count"], sorted(f.events.items()), "event-counts"),
              *_runs_table(runs),
              "<h2>Recording</h2>",
-             _table(["key", "value"], [[k, v if isinstance(v, int | float | str) else
+             html_table(["key", "value"], [[k, v if isinstance(v, int | float | str) else
                                         json.dumps(v)] for k, v in meta.items()])]  # fmt: skip
     sections = {
         "estimates": "Estimated against true forces and torque",
@@ -521,7 +522,7 @@ def _html(
             rows = [[h["label"], k, a, b, 100 * e] for h in harm
                     for k, a, b, e in zip(h["harmonics"], h["estimate"], h["truth"], h["error"],
                                           strict=True)]  # fmt: skip
-            parts.append(_table(["signal", "harmonic", "estimated", "true", "error [%]"], rows))
+            parts.append(html_table(["signal", "harmonic", "estimated", "true", "error [%]"], rows))
     if not figs.get("estimates"):
         parts.append('<p class="note">No truth channels in this recording: no comparison of '
                      "estimates with truth.</p>")  # fmt: skip
@@ -530,19 +531,19 @@ def _html(
         parts.append(f'<p class="note">first {MAX_EVENT_ROWS} of {len(events)} events</p>')
     cols = ["time [s]", "kind", "severity", "name", "source", "value", "NC line", "x [mm]",
             "y [mm]", "message"]  # fmt: skip
-    parts.append(_table(cols, _event_rows(events), "events"))
+    parts.append(html_table(cols, _event_rows(events), "events"))
     parts.append("<h2>Machine file and identification</h2>")
     if machine is None:
         parts.append(f"<p>{html.escape(str(meta.get('machine_file', 'not known')))}</p>")
     else:
         parts.append(f"<p>{html.escape(machine_where)}</p>")
-        parts.append(_table(["section", "source", "figures"], identification_rows(machine)))
+        parts.append(html_table(["section", "source", "figures"], identification_rows(machine)))
     parts.append("<h2>Validation status of the estimators and monitors used</h2>")
     if validation is None:
         parts.append('<p class="note">not known (run <code>millsense validate</code>).</p>')
     else:
         parts.append(f'<p class="note">as recorded in {html.escape(validation_where)}</p>')
-        parts.append(_table(["case", "reference", "measured", "tolerance", "status"],
+        parts.append(html_table(["case", "reference", "measured", "tolerance", "status"],
                             [[r["case"], r["reference"], r["measured"], r["tolerance"],
                               r["status"]] for r in validation], "validation"))  # fmt: skip
     data = {"figures": asdict(f), "harmonics": list(harm),
