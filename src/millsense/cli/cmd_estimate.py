@@ -417,11 +417,7 @@ def _run_estimate(
     copies = sorted({c for b in blocks for c in b.inputs if c in have})
     est_axes = list(dict.fromkeys(a for _, a, _, _ in all_estimates))
     refs = {a: r for a in est_axes if (r := reference_channel(a, have, reference)) is not None}
-    extra = list(refs.values()) + [
-        "spindle/speed",
-        "truth/spindle/torque",
-        "truth/process/engagement",
-    ]
+    extra = [*refs.values(), "spindle/speed", "truth/spindle/torque", "truth/process/engagement"]
     copies += [c for c in extra if c in have and c not in copies]
     # only the channels written or read are replayed; the others are never read
     source = RecordingSource(rec, name=str(recording), channels=copies)

@@ -81,7 +81,11 @@ def scan_cut_window(
 
 
 def scan_force_window(
-    read: Reader, n: int, period: int, trim: float = 0.2, fraction: float = 0.2,
+    read: Reader,
+    n: int,
+    period: int,
+    trim: float = 0.2,
+    fraction: float = 0.2,
     block: int = SCAN_BLOCK,
 ) -> tuple[int, int]:
     """The cut window from a measured force (a dynamometer) when no engagement is recorded.

@@ -113,8 +113,13 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
                 start = i
                 break
     if start is None:
+        other = _sniff(lines)
+        hint = (
+            f"; the lines split on {other!r}: is the delimiter right?" if other != delimiter else ""
+        )
         raise InputDataError(
             f"{path}: no table of numbers found (delimiter {delimiter!r}, decimal {decimal!r})"
+            f"{hint}"
         )
     width = len(split[start])
     above = [i for i in range(start) if lines[i].strip()]
