@@ -363,3 +363,56 @@ def test_estimate_on_imported_csv_with_dynamometer_reproduces_native(
     big = ca.true_amp >= 0.01 * ca.true_amp.max()
     assert np.allclose(cb.est_amp[big], ca.est_amp[big], rtol=0.01)
     assert np.allclose(cb.true_amp[big], ca.true_amp[big], rtol=0.01)
+
+
+def test_identify_friction_on_imported_air_moves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Air moves of the Z drive (simulator file's model) exported as a Servo-Trace-like CSV
+    and imported through a map: ``identify friction`` gives the same Coulomb and viscous
+    friction as on the native recording (the CSV is exact: within 1e-9)."""
+    import tomllib
+
+    from millsense.io import write_recording
+    from millsense.simulator import commissioning as cm
+    from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
+
+    cfg = simulator_machine("quaser-ux600")
+    sp = np.geomspace(0.3, 30.0, 5)
+    moves = cm.friction_test(cfg, "z", np.ravel(np.column_stack([sp, -sp])), hold_s=0.4, ideal=True)
+    write_recording(tmp_path / "native.h5", moves)
+    (tmp_path / "air.map.toml").write_text(export_recording(moves, tmp_path / "air.csv", "csv"))
+    code, _, err = run_cli(
+        [
+            "import",
+            str(tmp_path / "air.csv"),
+            "--map",
+            str(tmp_path / "air.map.toml"),
+            "-o",
+            str(tmp_path / "imp.h5"),
+        ],
+        capsys,
+    )
+    assert code == 0, err
+    sim = str(simulator_machine_path("quaser-ux600"))
+    got = []
+    for rec in ("native.h5", "imp.h5"):
+        out = tmp_path / f"fr_{rec}.toml"
+        code, _, err = run_cli(
+            [
+                "identify",
+                "friction",
+                str(tmp_path / rec),
+                "--axis",
+                "z",
+                "--machine",
+                sim,
+                "-o",
+                str(out),
+            ],
+            capsys,
+        )
+        assert code == 0, err
+        got.append(tomllib.loads(out.read_text())["axes"]["z"]["friction"])
+    assert np.allclose(got[1]["coulomb_nm"], got[0]["coulomb_nm"], rtol=1e-9)
+    assert np.allclose(got[1]["viscous_nm_s_rad"], got[0]["viscous_nm_s_rad"], rtol=1e-9)

@@ -201,7 +201,8 @@ def _print_table(
         title=f"estimate vs {against} (steady cut): amplitude error per tooth harmonic",
         caption="– : reference below 1 % of the largest of its unit (no relative error)",
     )
-    for col in ("axis", "unit", "method", "tooth Hz", "mean est", "mean truth", "mean err"):
+    ref_col = "mean ref" if measured else "mean truth"
+    for col in ("axis", "unit", "method", "tooth Hz", "mean est", ref_col, "mean err"):
         table.add_column(col, justify="right")
     for k in range(1, n + 1):
         table.add_column(f"{k}×", justify="right")

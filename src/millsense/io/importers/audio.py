@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,6 +19,19 @@ __all__ = ["AUDIO_SUFFIXES", "read_audio", "write_audio"]
 AUDIO_SUFFIXES = (".wav", ".flac", ".mp3", ".ogg")
 
 
+def _module(path: Path) -> Any:
+    """The optional reader package, or a one-line error saying how to install it."""
+    import importlib
+
+    try:
+        return importlib.import_module("soundfile")
+    except ImportError:
+        raise InputDataError(
+            f"{path}: reading or writing {path.suffix} needs the soundfile package: "
+            "pip install 'millsense[import]'"
+        ) from None
+
+
 def read_audio(path: Path) -> RawTable:
     """Read every channel of a sound file.
 
@@ -26,7 +40,7 @@ def read_audio(path: Path) -> RawTable:
     InputDataError
         libsndfile cannot read the file (not audio, or a format this build lacks).
     """
-    import soundfile as sf
+    sf = _module(path)
 
     try:
         data, rate = sf.read(str(path), dtype="float64", always_2d=True)
@@ -40,7 +54,7 @@ def write_audio(path: Path, columns: Mapping[str, np.ndarray], rate_hz: float) -
     """Write the columns as channels of a sound file, each scaled to its peak (±1 full
     scale, 24-bit FLAC, 64-bit float WAV). Returns column → scale (the value of full scale),
     which the exported map gives back as ``scale``."""
-    import soundfile as sf
+    sf = _module(path)
 
     rate = round(rate_hz)
     if abs(rate - rate_hz) > 1e-9 * rate_hz:

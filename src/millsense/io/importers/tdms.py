@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -12,6 +13,19 @@ from millsense.core.errors import InputDataError
 from millsense.io.importers.table import RawTable
 
 __all__ = ["read_tdms", "write_tdms"]
+
+
+def _module(path: Path) -> Any:
+    """The optional reader package, or a one-line error saying how to install it."""
+    import importlib
+
+    try:
+        return importlib.import_module("nptdms")
+    except ImportError:
+        raise InputDataError(
+            f"{path}: reading or writing {path.suffix} needs the npTDMS package: "
+            "pip install 'millsense[import]'"
+        ) from None
 
 
 def read_tdms(path: Path, group: str | None = None) -> RawTable:
@@ -22,10 +36,9 @@ def read_tdms(path: Path, group: str | None = None) -> RawTable:
     InputDataError
         Not a TDMS file, no numeric channel, or channels of different lengths.
     """
-    from nptdms import TdmsFile
-
+    nptdms = _module(path)
     try:
-        tdms = TdmsFile.read(str(path))
+        tdms = nptdms.TdmsFile.read(str(path))
     except Exception as exc:  # npTDMS raises ValueError/KeyError/struct.error on bad files
         raise InputDataError(f"{path}: not a readable TDMS file: {exc}") from None
     columns: dict[str, np.ndarray] = {}
@@ -63,7 +76,8 @@ def write_tdms(
 ) -> dict[str, str]:
     """Write the columns as channels of one group with ``wf_increment`` and ``unit_string``.
     Returns column → TDMS column name (``group/channel``, the channel's ``/`` as ``.``)."""
-    from nptdms import ChannelObject, TdmsWriter
+    nptdms = _module(path)
+    ChannelObject, TdmsWriter = nptdms.ChannelObject, nptdms.TdmsWriter
 
     names = {c: c.replace("/", ".") for c in columns}
     with TdmsWriter(str(path)) as w:
