@@ -83,9 +83,10 @@ def import_(
         "feed_mm_min": feed_mm_min,
         "flutes": flutes,
     }
-    res = import_files(files, mapping, rate_hz=rate_hz, metadata=meta, map_source=str(map_file))
+    res = import_files(
+        files, mapping, rate_hz=rate_hz, metadata=meta, map_source=str(map_file), source=str(out)
+    )
     rec = res.recording
-    rec.metadata["source"] = str(out)
     write_recording(out, rec)
     _print_report(res.report)
     if plot is not None:

@@ -236,6 +236,7 @@ def import_files(
     rate_hz: float | None = None,
     metadata: Mapping[str, object] | None = None,
     map_source: str = "map",
+    source: str = "millsense import",
 ) -> ImportResult:
     """Read ``paths``, apply ``mapping`` and check the result.
 
@@ -245,6 +246,8 @@ def import_files(
     mapping : the map (:func:`~millsense.io.importers.mapfile.load_map`).
     rate_hz : the stated rate for files with neither a time column nor a map rate (CLI).
     metadata : added over the map's ``[metadata]`` (CLI options).
+    map_source : how messages name the map (its path).
+    source : how messages name the recording (``metadata['source']``, e.g. the output file).
 
     Returns
     -------
@@ -269,7 +272,7 @@ def import_files(
     timed = {t.path: _on_grid(t, opts[t.path], rate_hz, report) for t in used}
     fastest = max(timed.values(), key=lambda tm: tm.fs)
     meta: dict[str, object] = {
-        "source": "millsense import",
+        "source": source,
         "imported_from": [str(p) for p in paths],
         "import_map": map_source,
     }
