@@ -416,3 +416,32 @@ def test_identify_friction_on_imported_air_moves(
         got.append(tomllib.loads(out.read_text())["axes"]["z"]["friction"])
     assert np.allclose(got[1]["coulomb_nm"], got[0]["coulomb_nm"], rtol=1e-9)
     assert np.allclose(got[1]["viscous_nm_s_rad"], got[0]["viscous_nm_s_rad"], rtol=1e-9)
+
+
+def test_tncscope_like_export_units_in_names_and_sample_time(tmp_path: Path) -> None:
+    """Tab-separated, decimal comma, units in the column names, the rate stated as a sample
+    time in ms: 3 ms → 333.33 Hz; position in µm → m, speed in mm/min → m/s."""
+    rows = "\n".join(
+        f"{k * 3};{k * 1.5:.1f};{600 + k}".replace(".", ",").replace(";", "\t") for k in range(6)
+    )
+    text = (
+        "TNCscope export\nAbtastzeit: 3 ms\nDatum: 27.11.2026\n"
+        "t [ms]\tX-Ist [um]\tVorschub [mm/min]\n" + rows + "\n"
+    )
+    (tmp_path / "scope.txt").write_text(text, encoding="cp1252")
+    from millsense.io.importers.delimited import read_delimited
+
+    t = read_delimited(tmp_path / "scope.txt", decimal=",")
+    assert t.stated_rate_hz == pytest.approx(1000 / 3, rel=1e-12)
+    assert t.units == {"t": "ms", "X-Ist": "um", "Vorschub": "mm/min"}
+    assert t.first_line == 5
+    (tmp_path / "m.toml").write_text(
+        '[[files]]\ndecimal = ","\n\n'
+        '[[channels]]\ncolumn = "X-Ist"\nchannel = "x/position"\nunit = "header"\n\n'
+        '[[channels]]\ncolumn = "Vorschub"\nchannel = "cnc/feed"\nunit = "header"\n'
+    )
+    res = import_files([tmp_path / "scope.txt"], load_map(tmp_path / "m.toml"))
+    rec = res.recording
+    assert rec.sample_rate_hz == pytest.approx(1000 / 3, rel=1e-9)  # from the time column
+    assert rec.channel("x/position")[2] == pytest.approx(3.0e-6, rel=1e-12)
+    assert rec.channel("cnc/feed")[0] == pytest.approx(0.01, rel=1e-12)  # 600 mm/min

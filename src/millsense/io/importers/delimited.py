@@ -58,15 +58,31 @@ def _numeric_line(fields: list[str], decimal: str) -> bool:
     return any(f.strip() for f in fields) and all(_is_number(f, decimal) for f in fields)
 
 
-def _sniff(lines: list[str]) -> str:
-    """The delimiter splitting the last lines into the same number (> 1) of fields."""
-    tail = [ln for ln in lines[-50:] if ln.strip()]
-    best, best_n = ",", 1
+_DATA_LIKE = re.compile(r"^[\s\d.,;|\t+\-eEnaNifINF\"]*\d[\s\d.,;|\t+\-eEnaNifINF\"]*$")
+
+
+def _sniff(lines: list[str], decimal: str = ".") -> str:
+    """The delimiter splitting the last lines that look like numbers into the same number
+    (> 1) of fields (``,`` is not a candidate with a decimal comma)."""
+    tail = [ln for ln in lines[-50:] if _DATA_LIKE.match(ln)]
+    best, best_n = ("," if decimal == "." else ";"), 1
     for d in _CANDIDATES:
+        if d == decimal:
+            continue
         counts = {ln.count(d) for ln in tail}
         if len(counts) == 1 and (n := counts.pop()) + 1 > best_n:
             best, best_n = d, n + 1
     return best
+
+
+class _LazySplit:
+    """``lines[i].split(d)`` computed when asked for."""
+
+    def __init__(self, lines: list[str], d: str) -> None:
+        self.lines, self.d = lines, d
+
+    def __getitem__(self, i: int) -> list[str]:
+        return self.lines[i].split(self.d)
 
 
 def _units_row(fields: list[str]) -> bool:
@@ -102,18 +118,20 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
     text = _text(path)
     lines = text.splitlines()
     if delimiter is None:
-        delimiter = "\t" if path.suffix.lower() == ".tsv" else _sniff(lines)
-    split = [ln.split(delimiter) for ln in lines]
+        delimiter = "\t" if path.suffix.lower() == ".tsv" else _sniff(lines, decimal)
+    # only the lines down to the table are split here (the table is parsed by numpy)
+    split = _LazySplit(lines, delimiter)
     # the table: the first line from which three lines (or all remaining) are numbers
     start = None
-    for i, fields in enumerate(split):
+    for i in range(len(lines)):
+        fields = split[i]
         if _numeric_line(fields, decimal):
-            nxt = [j for j in range(i, min(i + 3, len(split))) if lines[j].strip()]
+            nxt = [j for j in range(i, min(i + 3, len(lines))) if lines[j].strip()]
             if all(_numeric_line(split[j], decimal) for j in nxt):
                 start = i
                 break
     if start is None:
-        other = _sniff(lines)
+        other = _sniff(lines, decimal)
         hint = (
             f"; the lines split on {other!r}: is the delimiter right?" if other != delimiter else ""
         )
