@@ -282,7 +282,7 @@ def _bad(
             str(tmp_path / name),
             "--map",
             str(tmp_path / "m.toml"),
-            "--rate",
+            "--rate-hz",
             "1000",
             "-o",
             str(tmp_path / "o.h5"),

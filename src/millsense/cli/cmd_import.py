@@ -42,7 +42,7 @@ def import_(
     out: Path = typer.Option(..., "-o", "--output", help="Recording to write (.h5)."),
     rate_hz: float | None = typer.Option(
         None,
-        "--rate",
+        "--rate-hz",
         help="Stated sample rate [Hz] for files with no time column and no "
         "rate in the map or the file's header.",
     ),
@@ -74,7 +74,7 @@ def import_(
     if out.suffix != ".h5":
         raise ConfigError(f"-o {out}: a recording is written as .h5")
     if rate_hz is not None and not rate_hz > 0:
-        raise ConfigError(f"--rate {rate_hz}: must be > 0")
+        raise ConfigError(f"--rate-hz {rate_hz}: must be > 0")
     mapping = load_map(map_file)
     meta: dict[str, object] = {
         "machine": machine,

@@ -139,7 +139,7 @@ def _on_grid(
         if stated is None:
             raise InputDataError(
                 f"{where}: no time column and no sample rate: give [[files]] sample_rate_hz "
-                "in the map or --rate"
+                "in the map or --rate-hz"
             )
         report.rates[where] = (stated, stated)
         return _Timed(table, float(stated), 0.0, cols, stated, False, np.zeros(n, bool))
