@@ -497,7 +497,7 @@ def _run_estimate(
         from millsense.report.estimate_plots import plot_traces
 
         units = {e.axis: rec.info(e.truth).unit for e in streamed.estimates} if streamed else {}
-        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units)
+        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units, refs)
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
