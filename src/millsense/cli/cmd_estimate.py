@@ -34,7 +34,9 @@ def estimate(
     method: str = typer.Option("feed", "--method", help="feed, raw, medob, spindle or all."),
     axes: str | None = typer.Option(None, "--axes", help="Axes, e.g. x,y,z (default: all)."),
     out: Path = typer.Option(..., "-o", "--output", help="Estimates recording to write (.h5)."),
-    plot: Path | None = typer.Option(None, "--plot", help="PNG of estimate vs truth."),
+    plot: Path | None = typer.Option(
+        None, "--plot", help="PNG of estimate vs truth (or the measured force)."
+    ),
     flutes: int | None = typer.Option(None, "--flutes", help="Teeth (default: metadata or 2)."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
     idle: str = typer.Option(
@@ -58,6 +60,13 @@ def estimate(
         None,
         "--json",
         help="Write the estimates and the comparison with truth as JSON (- = stdout).",
+    ),
+    reference: str = typer.Option(
+        "auto",
+        "--reference",
+        help="Compare with: truth (truth/<axis>/load of a simulation), dynamometer (a measured "
+        "force channel dynamometer/<axis>/force, N, the load on the axis), or auto (truth if "
+        "recorded, else the dynamometer).",
     ),
     band_hz: float | None = typer.Option(
         None,
@@ -96,6 +105,7 @@ def estimate(
             air_s=air_s,
             harmonics=harmonics,
             band_hz=band_hz,
+            reference=reference,
             on_progress=update,
         )
     for note in summary["notes"]:
@@ -111,7 +121,7 @@ def estimate(
         if json_out == "-":
             return
     if summary["comparisons"]:
-        _print_table(summary["comparisons"], summary["units"])
+        _print_table(summary["comparisons"], summary["units"], summary.get("references", {}))
     typer.echo(
         f"wrote {out}: {len(summary['estimates'])} estimates, {summary['samples']} samples "
         f"in {summary['wall_s']:.2f} s "
@@ -133,6 +143,7 @@ def summary_json(summary: dict[str, Any], out: Path) -> dict[str, Any]:
                 "method": c.method,
                 "axis": c.axis,
                 "unit": summary["units"].get(c.axis, ""),
+                "reference": summary.get("references", {}).get(c.axis, ""),
                 "tooth_hz": c.tooth_hz,
                 "window_samples": [int(c.window[0]), int(c.window[1])],
                 "mean_est": c.mean_est,
@@ -166,7 +177,9 @@ def summary_json(summary: dict[str, Any], out: Path) -> dict[str, Any]:
 SIGNIFICANT_FRACTION = 0.01
 
 
-def _print_table(comparisons: list[Any], units: dict[str, str]) -> None:
+def _print_table(
+    comparisons: list[Any], units: dict[str, str], refs: dict[str, str] | None = None
+) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -182,11 +195,14 @@ def _print_table(comparisons: list[Any], units: dict[str, str]) -> None:
             return "–"
         return f"{100 * err:{fmt}} %"
 
+    measured = sorted({r for r in (refs or {}).values() if not r.startswith("truth/")})
+    against = f"measured ({', '.join(measured)})" if measured else "truth"
     table = Table(
-        title="estimate vs truth (steady cut): amplitude error per tooth harmonic",
-        caption="– : truth below 1 % of the largest of its unit (no relative error)",
+        title=f"estimate vs {against} (steady cut): amplitude error per tooth harmonic",
+        caption="– : reference below 1 % of the largest of its unit (no relative error)",
     )
-    for col in ("axis", "unit", "method", "tooth Hz", "mean est", "mean truth", "mean err"):
+    ref_col = "mean ref" if measured else "mean truth"
+    for col in ("axis", "unit", "method", "tooth Hz", "mean est", ref_col, "mean err"):
         table.add_column(col, justify="right")
     for k in range(1, n + 1):
         table.add_column(f"{k}×", justify="right")
@@ -222,6 +238,7 @@ def run_estimate(
     air_s: str | None = None,
     harmonics: bool = False,
     band_hz: float | None = None,
+    reference: str = "auto",
     on_progress: Any = None,
 ) -> dict[str, Any]:
     """Build the estimators, replay ``recording`` and write ``out`` while running.
@@ -236,6 +253,9 @@ def run_estimate(
 
     ``band_hz``: the ``feed`` estimators get the least-noise Q that keeps this band
     (:func:`~millsense.estimation.from_config.with_feed_band`); None keeps the machine file's rule.
+
+    ``reference``: what the estimates are compared with (:func:`reference_channel`, decision
+    1702): ``truth``, ``dynamometer`` or ``auto``.
 
     ``idle``: ``none``; ``auto`` — the air phase of ``recording`` itself
     (:func:`~millsense.estimation.feed.idle_compensation.find_air_window`, or ``air_s``); a path —
@@ -255,6 +275,8 @@ def run_estimate(
 
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
+    if reference not in REFERENCES:
+        raise ConfigError(f"--reference {reference!r}: one of {', '.join(REFERENCES)}")
     methods = _methods(method)
     mcfg = load_preset(MachineConfig, machine)
     with contextlib.ExitStack() as stack:
@@ -278,8 +300,35 @@ def run_estimate(
             air_s=air_s,
             harmonics=harmonics,
             band_hz=band_hz,
+            reference=reference,
             on_progress=on_progress,
         )
+
+
+#: What ``--reference`` accepts.
+REFERENCES = ("auto", "truth", "dynamometer")
+
+
+def dynamometer_channel(axis: str) -> str:
+    """The measured-force channel compared with an estimate of ``axis`` (decision 1702):
+    ``dynamometer/<axis>/force``, or ``dynamometer/tool/force_x`` for ``tool_x``."""
+    if axis.startswith("tool_"):
+        return f"dynamometer/tool/force_{axis.removeprefix('tool_')}"
+    return f"dynamometer/{axis}/force"
+
+
+def reference_channel(axis: str, have: set[str], reference: str = "auto") -> str | None:
+    """The channel an estimate of ``axis`` is compared with, or None: the simulator's truth
+    (``truth``), a measured force (``dynamometer``), or the truth if recorded, else the
+    dynamometer (``auto``)."""
+    from millsense.estimation.from_config import truth_channel
+
+    order = {
+        "truth": [truth_channel(axis)],
+        "dynamometer": [dynamometer_channel(axis)],
+        "auto": [truth_channel(axis), dynamometer_channel(axis)],
+    }[reference]
+    return next((c for c in order if c in have), None)
 
 
 def _run_estimate(
@@ -301,6 +350,7 @@ def _run_estimate(
     harmonics: bool,
     band_hz: float | None,
     on_progress: Any,
+    reference: str = "auto",
 ) -> dict[str, Any]:
     """:func:`run_estimate` on an opened recording (``rec``: a windowed reader or, for an
     interrupted recording, the recovered one in memory); files it opens are closed by
@@ -310,7 +360,7 @@ def _run_estimate(
     import numpy as np
 
     from millsense.core.errors import InputDataError
-    from millsense.estimation.from_config import build_estimators, truth_channel
+    from millsense.estimation.from_config import build_estimators
     from millsense.ident.idle_table import DIRECTIONS
     from millsense.io import RecordingWriter
     from millsense.streaming.engine import Pipeline, run
@@ -366,25 +416,23 @@ def _run_estimate(
     pipeline.check_inputs(rec.channel_names, str(recording))
     have = set(rec.channel_names)
     copies = sorted({c for b in blocks for c in b.inputs if c in have})
-    extra = [truth_channel(a) for a in dict.fromkeys(a for _, a, _, _ in all_estimates)] + [
-        "spindle/speed",
-        "truth/spindle/torque",
-        "truth/process/engagement",
-    ]
+    est_axes = list(dict.fromkeys(a for _, a, _, _ in all_estimates))
+    refs = {a: r for a in est_axes if (r := reference_channel(a, have, reference)) is not None}
+    extra = [*refs.values(), "spindle/speed", "truth/spindle/torque", "truth/process/engagement"]
     copies += [c for c in extra if c in have and c not in copies]
     # only the channels written or read are replayed; the others are never read
     source = RecordingSource(rec, name=str(recording), channels=copies)
     streamed, traces = None, None
     pre_warnings: list[str] = []
-    if plot is not None or any(f"truth/{a}/load" in have for a in axis_list):
+    if plot is not None or refs:
         try:
-            streamed, traces = _compare_setup(rec, all_estimates, axis_list, flutes, plot)
+            streamed, traces = _compare_setup(rec, all_estimates, axis_list, flutes, plot, refs)
         except InputDataError as exc:
             # a recording whose truth cannot be compared (it never cuts, the steady cut is too
             # short) is still estimated, with a warning, unless a plot was asked for
             if plot is not None:
                 raise InputDataError(f"{recording}: --plot: {exc}") from None
-            pre_warnings.append(f"{recording}: no comparison with truth: {exc}")
+            pre_warnings.append(f"{recording}: no comparison with the reference: {exc}")
     infos = [rec.info(c) for c in copies] + pipeline.output_channels()
     meta = {
         "source": "millsense estimate",
@@ -449,18 +497,15 @@ def _run_estimate(
         from millsense.report.estimate_plots import plot_traces
 
         units = {e.axis: rec.info(e.truth).unit for e in streamed.estimates} if streamed else {}
-        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units)
+        plot_traces(plot, rec.sample_rate_hz, traces, comparisons, units, refs)
     return {
         "samples": rec.n_samples,
         "seconds": rec.n_samples / rec.sample_rate_hz,
         "wall_s": wall,
         "setup_s": setup_s,
         "estimates": all_estimates,
-        "units": {
-            a: rec.info(truth_channel(a)).unit
-            for a in dict.fromkeys(a for _, a, _, _ in all_estimates)
-            if truth_channel(a) in have
-        },
+        "units": {a: rec.info(r).unit for a, r in refs.items()},
+        "references": refs,
         "comparisons": comparisons,
         "notes": built.notes + idle_notes,
         "warnings": findings.warnings,
@@ -566,31 +611,38 @@ def _compare_setup(
     axis_list: list[str],
     flutes: int | None,
     plot: Path | None,
+    refs: dict[str, str],
 ) -> tuple[Any, Any]:
-    """The streamed estimate-vs-truth comparison and plot traces, set up before the run
-    (cut window and spindle speed read in blocks), or (None, None) without truth.
+    """The streamed estimate-vs-reference comparison and plot traces, set up before the run
+    (cut window and spindle speed read in blocks), or (None, None) without a reference
+    (``refs``: axis → truth or dynamometer channel). The cut window is that of
+    ``truth/process/engagement`` when recorded, else that of the first measured force
+    (:func:`~millsense.report.estimate_stream.scan_force_window`, decision 1702).
 
     The figures are those of :func:`~millsense.report.estimate_metrics.compare` on the whole
     arrays (decision 0961); errors are raised before anything is written.
     """
+    import math
+
     from millsense.core.errors import InputDataError
-    from millsense.estimation.from_config import truth_channel
     from millsense.io.recording_reader import channel_window
     from millsense.report.estimate_stream import (
         PlotTraces,
         StreamedComparison,
         StreamedEstimate,
         scan_cut_window,
+        scan_force_window,
         window_mean,
     )
 
     have = set(rec.channel_names)
     est_axes = list(dict.fromkeys(a for _, a, _, _ in estimates))
-    truth_axes = [a for a in est_axes if truth_channel(a) in have]
+    truth_axes = [a for a in est_axes if a in refs]
     if not truth_axes:
         if plot is not None:
             raise InputDataError(
-                f"--plot: the recording has no truth channel 'truth/{axis_list[0]}/load'"
+                f"--plot: the recording has no truth channel 'truth/{axis_list[0]}/load' "
+                f"nor a measured force 'dynamometer/{axis_list[0]}/force'"
             )
         return None, None
     if "spindle/speed" not in have:
@@ -602,14 +654,19 @@ def _compare_setup(
     def reader(name: str) -> Any:
         return lambda a, b: channel_window(rec, name, a, b)
 
-    eng = reader("truth/process/engagement") if "truth/process/engagement" in have else None
-    window = scan_cut_window(eng, n)
-    chosen = [
-        StreamedEstimate(m, a, c, d, truth_channel(a))
-        for m, a, c, d in estimates
-        if a in truth_axes
-    ]
     speed = reader("spindle/speed")
+    if "truth/process/engagement" in have:
+        window = scan_cut_window(reader("truth/process/engagement"), n)
+    elif all(r.startswith("truth/") for r in refs.values()):
+        window = scan_cut_window(None, n)
+    else:
+        omega = abs(window_mean(speed, 0, n))
+        if omega <= 0:
+            raise InputDataError("estimate vs reference: the spindle does not turn")
+        period = round(2 * math.pi / omega * fs)
+        force = next(r for r in refs.values() if not r.startswith("truth/"))
+        window = scan_force_window(reader(force), n, period)
+    chosen = [StreamedEstimate(m, a, c, d, refs[a]) for m, a, c, d in estimates if a in refs]
     streamed = StreamedComparison(
         chosen, fs, n, window, lambda i0, i1: window_mean(speed, i0, i1), n_teeth
     )

@@ -86,6 +86,7 @@ def plot_traces(
     traces: PlotTraces,
     comparisons: Sequence[HarmonicComparison],
     units: Mapping[str, str],
+    references: Mapping[str, str] | None = None,
 ) -> None:
     """The estimate-vs-truth PNG from streamed traces (:class:`~millsense.report.
     estimate_stream.PlotTraces`): whole record as min/max envelopes (no peak dropped), zoom
@@ -93,7 +94,8 @@ def plot_traces(
 
     The whole-record y-scale spans :data:`FULL_PERCENTILES` of the envelope points (each
     bin's minimum and maximum; decision 0961), and the legend counts the envelope points off
-    that scale.
+    that scale. ``references`` (axis → reference channel) labels a measured force by its
+    channel name instead of "truth" (decision 1702).
     """
     axes = list(traces.axes)
     fig, grid = plt.subplots(
@@ -107,11 +109,13 @@ def plot_traces(
         tr = traces.axes[ax_name]
         comps = [c for c in comparisons if c.axis == ax_name]
         a_full, a_zoom, a_spec = grid[row]
+        ref = (references or {}).get(ax_name, "truth/")
+        ref_label = "truth" if ref.startswith("truth/") else ref  # a measured force by name
         t, y = tr.truth.xy(fs)
-        a_full.plot(t, y, "k", lw=0.8, label="truth")
+        a_full.plot(t, y, "k", lw=0.8, label=ref_label)
         tz = tr.truth_zoom
         t_zoom = np.arange(tz.start, tz.stop) / fs
-        a_zoom.plot(t_zoom, tz.values, "k", lw=1.2, label="truth")
+        a_zoom.plot(t_zoom, tz.values, "k", lw=1.2, label=ref_label)
         shown = [y]
         inside = [tz.values]
         for (method, _), (env, zoom, delay) in tr.estimates.items():
@@ -142,7 +146,7 @@ def plot_traces(
             a_full.axvspan(c0.window[0] / fs, c0.window[1] / fs, color="0.9", zorder=0)
             h = c0.harmonics
             width = 0.8 / (len(comps) + 1)
-            a_spec.bar(h - 0.4 + width / 2, c0.true_amp, width, color="k", label="truth")
+            a_spec.bar(h - 0.4 + width / 2, c0.true_amp, width, color="k", label=ref_label)
             for j, c in enumerate(comps, start=1):
                 a_spec.bar(h - 0.4 + width * (j + 0.5), c.est_amp, width, label=c.method)
             a_spec.set_xticks(h)

@@ -80,6 +80,67 @@ def scan_cut_window(
     return i0 + d, i1 - d
 
 
+def scan_force_window(
+    read: Reader,
+    n: int,
+    period: int,
+    trim: float = 0.2,
+    fraction: float = 0.2,
+    block: int = SCAN_BLOCK,
+) -> tuple[int, int]:
+    """The cut window from a measured force (a dynamometer) when no engagement is recorded.
+
+    The force is cut into blocks of ``period`` samples (one spindle revolution); a block is
+    in the cut when its standard deviation (the tooth-periodic force, whatever the offset)
+    exceeds ``fraction`` of the largest block's. The longest run of such blocks is refined to
+    the sample where the force leaves (and comes back to) the level of the air block beside
+    it by more than 6 of its standard deviations and ``fraction`` of the largest block's
+    standard deviation; then trimmed by ``trim`` at each end like :func:`scan_cut_window`
+    (decision 1702).
+
+    Raises
+    ------
+    InputDataError
+        When the force never varies (no cut).
+    """
+    period = max(int(period), 2)
+    step = max(period * max(block // period, 1), period)
+    stds: list[NDArray[np.float64]] = []
+    for a in range(0, n - period + 1, step):
+        b = min(n, a + step)
+        m = (b - a) // period
+        if m == 0:
+            break
+        x = np.asarray(read(a, a + m * period), dtype=float).reshape(m, period)
+        stds.append(x.std(axis=1))
+    s = np.concatenate(stds) if stds else np.zeros(0)
+    if not s.size or float(s.max()) <= 0:
+        raise InputDataError("estimate vs reference: the measured force never varies (no cut)")
+    cut = np.concatenate([[False], s > fraction * float(s.max()), [False]])
+    edges = np.flatnonzero(np.diff(cut.astype(np.int8)))
+    starts, stops = edges[0::2], edges[1::2]
+    k = int(np.argmax(stops - starts))
+    b0, b1 = int(starts[k]), int(stops[k])
+    thr = fraction * float(s.max())
+    i0, i1 = b0 * period, (n if b1 == s.size else b1 * period)  # to the end: the last samples
+    if b0 >= 1:  # the first sample leaving the air level of the block before
+        a = (b0 - 1) * period
+        x = np.asarray(read(a, min(n, a + 2 * period)), dtype=float)
+        air = x[:period]
+        dev = np.abs(x - float(np.median(air))) > max(6.0 * float(air.std()), thr)
+        if dev.any():
+            i0 = a + int(np.argmax(dev))
+    if b1 < s.size:  # the last sample off the air level of the block after
+        a = (b1 - 1) * period
+        x = np.asarray(read(a, min(n, a + 2 * period)), dtype=float)
+        air = x[period:]
+        dev = np.abs(x - float(np.median(air))) > max(6.0 * float(air.std()), thr)
+        if dev.any():
+            i1 = a + int(np.flatnonzero(dev)[-1]) + 1
+    d = int(trim * (i1 - i0))
+    return i0 + d, i1 - d
+
+
 def window_mean(read: Reader, i0: int, i1: int, block: int = SCAN_BLOCK) -> float:
     """Mean of samples ``[i0, i1)`` read in blocks."""
     total = 0.0

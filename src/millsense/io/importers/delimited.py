@@ -1,0 +1,259 @@
+"""CSV and TSV: plain tables with or without a time column, and the shapes of CNC trace exports.
+
+Siemens Servo Trace and Heidenhain TNCscope export CSV files with lines of free text before
+the table (``key: value`` or ``key;value``: trace name, sample time...), then a row of column
+names, sometimes a row of units (``[s];[A];[mm]``) or units in the names (``I_x [A]``), then
+the numbers, in German-locale exports with ``;`` as delimiter and a decimal comma. The reader
+finds the table as the first run of lines that are all numbers, takes the row before it as the
+units row when it is not numeric and the row before that holds names, and keeps the ``key:
+value`` lines before as the header (a stated sample rate is read from it).
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from millsense.core.errors import InputDataError
+from millsense.io.importers.table import RawTable, rate_from_header
+
+__all__ = ["read_delimited", "write_delimited"]
+
+_CANDIDATES = (";", "\t", ",", "|")
+_UNIT_IN_NAME = re.compile(r"^(.*?)\s*[\[(]([^\])]*)[\])]\s*$")
+_KEY_VALUE = re.compile(r"^\s*([^:=;\t,]+?)\s*[:=;\t,]\s*(.+?)\s*$")
+
+
+def _text(path: Path) -> str:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputDataError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    for enc in ("utf-8-sig", "cp1252"):
+        try:
+            return raw.decode(enc)
+        except UnicodeDecodeError:
+            continue
+    raise InputDataError(f"{path}: not a text file")  # pragma: no cover - cp1252 decodes all
+
+
+def _is_number(field: str, decimal: str) -> bool:
+    f = field.strip().strip('"')
+    if f == "":
+        return True  # an empty cell is a missing sample (NaN), not text
+    if decimal == ",":
+        f = f.replace(",", ".")
+    try:
+        float(f)
+    except ValueError:
+        return False
+    return True
+
+
+def _numeric_line(fields: list[str], decimal: str) -> bool:
+    return any(f.strip() for f in fields) and all(_is_number(f, decimal) for f in fields)
+
+
+_DATA_LIKE = re.compile(r"^[\s\d.,;|\t+\-eEnaNifINF\"]*\d[\s\d.,;|\t+\-eEnaNifINF\"]*$")
+
+
+def _sniff(lines: list[str], decimal: str = ".") -> str:
+    """The delimiter splitting the last lines that look like numbers into the same number
+    (> 1) of fields (``,`` is not a candidate with a decimal comma)."""
+    tail = [ln for ln in lines[-50:] if _DATA_LIKE.match(ln)]
+    best, best_n = ("," if decimal == "." else ";"), 1
+    for d in _CANDIDATES:
+        if d == decimal:
+            continue
+        counts = {ln.count(d) for ln in tail}
+        if len(counts) == 1 and (n := counts.pop()) + 1 > best_n:
+            best, best_n = d, n + 1
+    return best
+
+
+class _LazySplit:
+    """``lines[i].split(d)`` computed when asked for."""
+
+    def __init__(self, lines: list[str], d: str) -> None:
+        self.lines, self.d = lines, d
+
+    def __getitem__(self, i: int) -> list[str]:
+        return self.lines[i].split(self.d)
+
+
+def _units_row(fields: list[str]) -> bool:
+    """True if every field looks like a unit: empty, bracketed (``[mm]``) or a known unit."""
+    from millsense.io.importers.mapfile import UNITS
+
+    for f in fields:
+        t = _name(f)
+        if t and not (t[0] in "[(" or t in UNITS):
+            return False
+    return True
+
+
+def _name(field: str) -> str:
+    return field.strip().strip('"').strip()
+
+
+def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".") -> RawTable:
+    """Read a CSV/TSV table (see the module notes for the trace-export shapes).
+
+    Parameters
+    ----------
+    path : the file.
+    delimiter : ``,``, ``;``, tab... (None: sniffed from the last lines; ``.tsv`` → tab).
+    decimal : ``.`` or ``,`` (decimal comma).
+
+    Raises
+    ------
+    InputDataError
+        One line naming the file and the line/column: no table found, a row with another
+        number of fields than the header, text in a numeric column.
+    """
+    text = _text(path)
+    lines = text.splitlines()
+    if delimiter is None:
+        delimiter = "\t" if path.suffix.lower() == ".tsv" else _sniff(lines, decimal)
+    # only the lines down to the table are split here (the table is parsed by numpy)
+    split = _LazySplit(lines, delimiter)
+    # the table: the first line from which three lines (or all remaining) are numbers
+    start = None
+    for i in range(len(lines)):
+        fields = split[i]
+        if _numeric_line(fields, decimal):
+            nxt = [j for j in range(i, min(i + 3, len(lines))) if lines[j].strip()]
+            if all(_numeric_line(split[j], decimal) for j in nxt):
+                start = i
+                break
+    if start is None:
+        other = _sniff(lines, decimal)
+        hint = (
+            f"; the lines split on {other!r}: is the delimiter right?" if other != delimiter else ""
+        )
+        raise InputDataError(
+            f"{path}: no table of numbers found (delimiter {delimiter!r}, decimal {decimal!r})"
+            f"{hint}"
+        )
+    width = len(split[start])
+    above = [i for i in range(start) if lines[i].strip()]
+    names_row, units_row = None, None
+    if above and len(split[above[-1]]) == width:
+        names_row = above[-1]
+        if len(above) > 1 and len(split[above[-2]]) == width and _units_row(split[above[-1]]):
+            # two rows of the table's width: names then units (Servo Trace / TNCscope)
+            units_row, names_row = above[-1], above[-2]
+    if names_row is None:
+        names = [f"col{k}" for k in range(width)]
+    else:
+        names = [_name(f) for f in split[names_row]]
+    units = [""] * width
+    if units_row is not None:
+        units = [_name(f).strip("[]()") for f in split[units_row]]
+    for k, nm in enumerate(names):
+        m = _UNIT_IN_NAME.match(nm)
+        if m and m.group(1):
+            names[k] = m.group(1).strip()
+            units[k] = units[k] or m.group(2).strip()
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise InputDataError(f"{path}: line {(names_row or 0) + 1}: column '{dup.pop()}' twice")
+    header: dict[str, str] = {}
+    for i in above:
+        if i in (names_row, units_row):
+            continue
+        m = _KEY_VALUE.match(lines[i])
+        if m:
+            header[m.group(1).strip('"')] = m.group(2).strip('"')
+    body_lines = lines[start:]
+    while body_lines and not body_lines[-1].strip():
+        body_lines.pop()
+    data = _parse(path, body_lines, delimiter, decimal, width, names, start)
+    columns = {nm: np.ascontiguousarray(data[:, k]) for k, nm in enumerate(names)}
+    return RawTable(
+        path=path,
+        columns=columns,
+        units=dict(zip(names, units, strict=True)),
+        stated_rate_hz=rate_from_header(header),
+        header=header,
+        first_line=start + 1,
+    )
+
+
+def _parse(
+    path: Path,
+    body: list[str],
+    d: str,
+    decimal: str,
+    width: int,
+    names: list[str],
+    start: int,
+) -> np.ndarray:
+    """The numbers of the table, shape (rows, width); empty cells are NaN."""
+    text = "\n".join(body)
+    if decimal == ",":
+        text = text.replace(",", ".")
+    text = text.replace('"', "")
+    e = re.escape(d)
+    text = re.sub(rf"(?m)^(?={e})", "nan", text)
+    text = re.sub(rf"(?m)(?<={e})$", "nan", text)
+    for _ in range(2):
+        text = re.sub(rf"{e}(?={e})", f"{d}nan", text)
+    try:
+        arr = np.loadtxt(io.StringIO(text), delimiter=d, dtype=np.float64, ndmin=2)
+    except ValueError:
+        _locate_bad(path, body, d, decimal, width, names, start)
+        raise  # pragma: no cover - _locate_bad always raises
+    if arr.shape[1] != width:  # pragma: no cover - loadtxt checks the widths
+        raise InputDataError(f"{path}: {arr.shape[1]} columns, the header has {width}")
+    return arr
+
+
+def _locate_bad(
+    path: Path, body: list[str], d: str, decimal: str, width: int, names: list[str], start: int
+) -> None:
+    """Raise the one-line error naming the first bad line and column (error path only)."""
+    for i, ln in enumerate(body):
+        fields = ln.split(d)
+        line = start + i + 1
+        if not ln.strip():
+            raise InputDataError(f"{path}: line {line}: empty line inside the table")
+        if len(fields) != width:
+            raise InputDataError(
+                f"{path}: line {line}: {len(fields)} fields, the table has {width} "
+                f"(delimiter {d!r})"
+            )
+        for k, f in enumerate(fields):
+            if not _is_number(f, decimal):
+                raise InputDataError(
+                    f"{path}: line {line}, column {k + 1} ('{names[k]}'): "
+                    f"{f.strip()!r} is not a number"
+                )
+    raise InputDataError(f"{path}: the table cannot be read as numbers")
+
+
+def write_delimited(
+    path: Path,
+    columns: Mapping[str, np.ndarray],
+    units: Mapping[str, str],
+    delimiter: str = ",",
+    header: Mapping[str, str] | None = None,
+) -> None:
+    """Write ``columns`` as a table: optional ``key: value`` header lines, a names row, a units
+    row (``[A]``), then every value with 17 significant digits (exact float64 round trip).
+
+    ``path`` is written as given (callers pass a temporary sibling from
+    :func:`~millsense.io.safe_output.atomic_path`).
+    """
+    names = list(columns)
+    data = np.column_stack([np.asarray(columns[n], dtype=np.float64) for n in names])
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        for k, v in (header or {}).items():
+            fh.write(f"{k}: {v}\n")
+        fh.write(delimiter.join(names) + "\n")
+        fh.write(delimiter.join(f"[{units.get(n, '')}]" for n in names) + "\n")
+        np.savetxt(fh, data, delimiter=delimiter, fmt="%.17g")

@@ -1,0 +1,76 @@
+"""What every format reader returns: the columns of one file, with what its header says."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["TIME_NAMES", "RawTable", "rate_from_header"]
+
+#: Column names taken as the time column when the map names none (case-insensitive).
+TIME_NAMES = ("time", "t", "time_s", "zeit", "timestamp", "time [s]")
+
+_RATE_KEY = re.compile(r"(sampl\w*[ _-]?(rate|freq\w*)|abtastrate|abtastfrequenz|fs)\b", re.I)
+_PERIOD_KEY = re.compile(r"(sampl\w*[ _-]?(time|period|interval)|abtastzeit|cycle|takt)", re.I)
+_NUMBER_UNIT = re.compile(r"([-+]?\d+(?:[.,]\d+)?(?:[eE][-+]?\d+)?)\s*\[?\s*([a-zA-Zµ]*)")
+_PERIOD_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "": 1.0}
+_RATE_UNITS = {"hz": 1.0, "khz": 1e3, "": 1.0}
+
+
+@dataclass
+class RawTable:
+    """The columns of one file as read, before the map is applied.
+
+    Attributes
+    ----------
+    path : the file.
+    columns : column name → float64 samples (all columns of one file have one length).
+    units : column name → unit as written in the file ('' when it says none).
+    stated_rate_hz : the sample rate the file itself states (header line, WAV/TDMS property),
+        or None.
+    header : key → value lines found before the table (free text of the export).
+    first_line : 1-based line of the first data row in a text file (0 for binary formats), so
+        that messages can name a row's line.
+    """
+
+    path: Path
+    columns: dict[str, np.ndarray]
+    units: dict[str, str] = field(default_factory=dict)
+    stated_rate_hz: float | None = None
+    header: dict[str, str] = field(default_factory=dict)
+    first_line: int = 0
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of the table."""
+        for v in self.columns.values():
+            return int(v.shape[0])
+        return 0
+
+    def time_column(self, name: str | None) -> str | None:
+        """The time column: ``name`` if given, else one named like :data:`TIME_NAMES`."""
+        if name is not None:
+            return name
+        for col in self.columns:
+            if col.strip().lower() in TIME_NAMES:
+                return col
+        return None
+
+
+def rate_from_header(header: dict[str, str]) -> float | None:
+    """A sample rate (Hz) stated by a header line: ``Sample rate: 10 kHz``,
+    ``Abtastzeit; 0,1 ms``, ``sampling period = 100 us``... None when no line states one."""
+    for key, value in header.items():
+        m = _NUMBER_UNIT.search(value)
+        if m is None:
+            continue
+        number = float(m.group(1).replace(",", "."))
+        unit = m.group(2).lower()
+        if _RATE_KEY.search(key) and unit in _RATE_UNITS and number > 0:
+            return number * _RATE_UNITS[unit]
+        if _PERIOD_KEY.search(key) and unit in _PERIOD_UNITS and number > 0:
+            return 1.0 / (number * _PERIOD_UNITS[unit])
+    return None
