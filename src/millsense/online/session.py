@@ -349,7 +349,7 @@ def run_session(
             events += guarded.events
         take = getattr(source, "take_events", None)
         if callable(take):
-            events += [e for e in take() if e.kind is EventKind.CRASH]
+            events += list(take())  # the simulator's crashes, a link's losses and gaps
         events.sort(key=lambda e: (e.time_s, e.sample))
         if writer is not None:
             writer.update_metadata({"events": len(events)})
