@@ -33,7 +33,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.link.nodemap import ChannelMap, NodeMap
 from millsense.online.guard import LinkInterrupted
 from millsense.streaming.block import Chunk, Event, EventKind, Severity
-from millsense.streaming.sources import Source
+from millsense.streaming.sources import Source, SourceWrapper
 
 log = logging.getLogger("millsense.link")
 
@@ -101,7 +101,9 @@ class Reassembler:
         if any(f is None for f in firsts):
             return None
         later = max(f for f in firsts if f is not None)
-        return later if later > self.next and all(later in p for p in self.pending.values()) else None
+        return (
+            later if later > self.next and all(later in p for p in self.pending.values()) else None
+        )
 
     def skip_to(self, start: int) -> None:
         """Record ``[next, start)`` as lost and continue at ``start``."""
@@ -208,8 +210,11 @@ class OpcUaSource(Source):
             ident = await ensure_identity(pki, "client")
             server_der = await _trusted_server_certificate(c, pki)
             await c.set_security(
-                SecurityPolicyBasic256Sha256, str(ident.cert), str(ident.key),
-                server_certificate=server_der, mode=ua.MessageSecurityMode.SignAndEncrypt,
+                SecurityPolicyBasic256Sha256,
+                str(ident.cert),
+                str(ident.key),
+                server_certificate=server_der,
+                mode=ua.MessageSecurityMode.SignAndEncrypt,
             )
         else:
             log.warning("connecting WITHOUT encryption (--insecure)")
@@ -233,7 +238,9 @@ class OpcUaSource(Source):
             self.pace = "realtime"
         sub = await c.create_subscription(self.publish_ms, _Handler(self))
         nodes = [c.get_node(self._nid(n)) for n in self.map.nodes]
-        self._node_names = {str(n.nodeid): key for n, key in zip(nodes, self.map.nodes, strict=True)}
+        self._node_names = {
+            str(n.nodeid): key for n, key in zip(nodes, self.map.nodes, strict=True)
+        }
         await sub.subscribe_data_change(nodes, queuesize=self.queue_blocks)
         self.sub = sub
 
@@ -268,7 +275,7 @@ class OpcUaSource(Source):
         if lockstep and self._stepped <= self.asm.next and not self.asm.ready:
             try:
                 self._call(self._step(), self.step_timeout_s)
-            except Exception as exc:  # noqa: BLE001 - any failure of the call is a lost link
+            except Exception as exc:
                 self._on_lost(exc)
         deadline = time.monotonic() + timeout
         resend_asked = False
@@ -355,18 +362,19 @@ class OpcUaSource(Source):
         lost_at = self._lost_at or time.monotonic()
         try:
             self._call(self._drop(), 2.0)
-        except Exception:  # noqa: BLE001 - the old client is gone anyway
+        except Exception:
             pass
         while True:
             try:
                 old = self.run_id
                 self._call(self._connect(), 5.0)
                 break
-            except Exception as exc:  # noqa: BLE001 - retry until the window closes
+            except Exception as exc:
                 if time.monotonic() - lost_at > self.reconnect_s:
                     self.link_log.append(("lost", time.monotonic(), self.asm.next))
                     raise ConnectionError(
-                        f"{self.name}: no link for {self.reconnect_s:g} s ({exc})") from None
+                        f"{self.name}: no link for {self.reconnect_s:g} s ({exc})"
+                    ) from None
                 time.sleep(0.2)
         with self._cond:
             self._lost, self._lost_at, self._interrupted = None, None, False
@@ -380,9 +388,17 @@ class OpcUaSource(Source):
                 self._report_gap_locked(skipped)
             self._stepped = 0
         self.link_log.append(("restored", time.monotonic(), self.asm.next))
-        self.events.append(Event(self.asm.next / self.sample_rate_hz, EventKind.NOTE, "opcua",
-                                 f"{self.name}: link restored after {outage:.2f} s",
-                                 name="link_restored", value=outage, sample=self.asm.next))
+        self.events.append(
+            Event(
+                self.asm.next / self.sample_rate_hz,
+                EventKind.NOTE,
+                "opcua",
+                f"{self.name}: link restored after {outage:.2f} s",
+                name="link_restored",
+                value=outage,
+                sample=self.asm.next,
+            )
+        )
         if self.map.resend is not None and self.asm.offset == 0:
             self._call(self._resend(self.asm.next), 2.0)
         for ev in self._pending_cmds:
@@ -397,7 +413,7 @@ class OpcUaSource(Source):
             c, self.client = self.client, None
             try:
                 await asyncio.wait_for(c.disconnect(), 1.0)
-            except Exception:  # noqa: BLE001
+            except Exception:
                 pass
 
     # ------------------------------------------------------------------ commands
@@ -411,10 +427,12 @@ class OpcUaSource(Source):
             return
         try:
             self._call(self._command(event), 2.0)
-        except Exception as exc:  # noqa: BLE001 - the link is gone: keep it for later
+        except Exception as exc:
             self._pending_cmds.append(event)
             self._on_lost(exc)
-            raise ConnectionError(f"{self.name}: command {event.name} not written ({exc})") from None
+            raise ConnectionError(
+                f"{self.name}: command {event.name} not written ({exc})"
+            ) from None
 
     async def _command(self, event: Event) -> None:
         from asyncua import ua
@@ -431,7 +449,8 @@ class OpcUaSource(Source):
         if node is None or event.value is None:
             return
         await self.client.get_node(self._nid(node)).write_value(
-            ua.DataValue(ua.Variant(float(event.value), ua.VariantType.Double)))
+            ua.DataValue(ua.Variant(float(event.value), ua.VariantType.Double))
+        )
 
     def take_events(self) -> list[Event]:
         out, self.events = self.events, []
@@ -445,7 +464,7 @@ class OpcUaSource(Source):
     def close(self) -> None:
         try:
             self._call(self._drop(), 3.0)
-        except Exception:  # noqa: BLE001
+        except Exception:
             pass
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(2.0)
@@ -476,3 +495,20 @@ def _uint32(n: int) -> Any:
     from asyncua import ua
 
     return ua.Variant(n, ua.VariantType.UInt32)
+
+
+class StopAt(SourceWrapper):
+    """A live source ended after ``duration_s`` of its stream (``record --duration-s``)."""
+
+    def __init__(self, inner: Source, duration_s: float) -> None:
+        super().__init__(inner)
+        self.stop = max(1, round(duration_s * inner.sample_rate_hz))
+
+    def read(self, max_samples: int) -> Chunk | None:
+        c = self.inner.read(max_samples)
+        if c is None or c.start >= self.stop:
+            return None
+        if c.start + c.n > self.stop:
+            m = self.stop - c.start
+            c = Chunk(c.start, c.sample_rate_hz, c.t0_s, {k: v[:m] for k, v in c.data.items()})
+        return c

@@ -93,7 +93,7 @@ def _method(where: str, key: str, v: object) -> MethodRef | None:
         return None
     if not (isinstance(v, dict) and isinstance(v.get("object"), str)
             and isinstance(v.get("method"), str)):  # fmt: skip
-        raise ConfigError(f"{where}: {key} must be {{ object = \"…\", method = \"…\" }}")
+        raise ConfigError(f'{where}: {key} must be {{ object = "…", method = "…" }}')
     return MethodRef(v["object"], v["method"])
 
 

@@ -120,7 +120,9 @@ class MachineServer:
         have = set(source.channel_names)
         missing = [c.name for c in self.map.channels if c.name not in have]
         if missing:
-            raise ConfigError(f"{self.map.source}: the machine has no channels {', '.join(missing)}")
+            raise ConfigError(
+                f"{self.map.source}: the machine has no channels {', '.join(missing)}"
+            )
         if abs(self.map.sample_rate_hz - source.sample_rate_hz) > 1e-9:
             raise ConfigError(f"{self.map.source}: sample_rate_hz {self.map.sample_rate_hz} ≠ "
                               f"the machine's {source.sample_rate_hz}")  # fmt: skip
@@ -159,9 +161,10 @@ class MachineServer:
         await srv.load_private_key(str(ident.key))
         store = TrustStore([pki / "trusted" / "clients"], [])
         await store.load()
-        srv.set_certificate_validator(CertificateValidator(
-            CertificateValidatorOptions.TRUSTED_VALIDATION | CertificateValidatorOptions.PEER_CLIENT,
-            store))  # fmt: skip
+        opts = CertificateValidatorOptions
+        srv.set_certificate_validator(
+            CertificateValidator(opts.TRUSTED_VALIDATION | opts.PEER_CLIENT, store)
+        )
         ns = await srv.register_namespace(self.map.namespace)
         self.ns = ns
         policies = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt]
@@ -191,32 +194,44 @@ class MachineServer:
         machines = await objects.add_folder(nid("Machines"), ua.QualifiedName("Machines", ns))
         vm = "Machines.VirtualMachine"
         mach = await machines.add_object(nid(vm), ua.QualifiedName("VirtualMachine", ns))
-        ident = await mach.add_object(nid(f"{vm}.Identification"), ua.QualifiedName("Identification", ns))
-        for k, v in (("Manufacturer", "millsense"), ("Model", str(self.metadata.get("machine", ""))),
+        ident = await mach.add_object(
+            nid(f"{vm}.Identification"), ua.QualifiedName("Identification", ns)
+        )
+        model = str(self.metadata.get("machine", ""))
+        for k, v in (("Manufacturer", "millsense"), ("Model", model),
                      ("ProductInstanceUri", f"urn:millsense:vm:{self.run_id}")):  # fmt: skip
             await ident.add_variable(nid(f"{vm}.Identification.{k}"), k, v)
         mon = await mach.add_object(nid(f"{vm}.Monitoring"), ua.QualifiedName("Monitoring", ns))
         sp = f"{vm}.Monitoring.Stream"
         stream = await mon.add_object(nid(sp), ua.QualifiedName("Stream", ns))
         self.n_block = await stream.add_variable(
-            nid(_sid(self.map.channels[0].node)), "Block",
-            ua.Variant([], ua.VariantType.Double))  # empty until the first block
+            nid(_sid(self.map.channels[0].node)), "Block", ua.Variant([], ua.VariantType.Double)
+        )  # empty until the first block
         names = [c.name for c in self.map.channels]
-        await stream.add_variable(nid(f"{sp}.Channels"), "Channels", ua.Variant(names, ua.VariantType.String))
-        await stream.add_variable(nid(f"{sp}.Units"), "Units",
-                                  ua.Variant([c.unit for c in self.map.channels], ua.VariantType.String))
+        await stream.add_variable(
+            nid(f"{sp}.Channels"), "Channels", ua.Variant(names, ua.VariantType.String)
+        )
+        await stream.add_variable(
+            nid(f"{sp}.Units"),
+            "Units",
+            ua.Variant([c.unit for c in self.map.channels], ua.VariantType.String),
+        )
         await stream.add_variable(nid(f"{sp}.SampleRate"), "SampleRate", self.source.sample_rate_hz)
         await stream.add_variable(nid(f"{sp}.Pace"), "Pace", self.o.pace)
         await stream.add_variable(nid(f"{sp}.BufferSeconds"), "BufferSeconds", self.o.buffer_s)
         if self.map.run_id:
             await stream.add_variable(nid(_sid(self.map.run_id)), "RunId", self.run_id)
         if self.map.step:
-            m = await stream.add_method(nid(_sid(self.map.step.method)), "Step", self._step,
-                                        [ua.VariantType.UInt32], [ua.VariantType.UInt64])  # fmt: skip
+            m = await stream.add_method(
+                nid(_sid(self.map.step.method)), "Step", self._step,
+                [ua.VariantType.UInt32], [ua.VariantType.UInt64],
+            )  # fmt: skip
             self._data_methods.add(m.nodeid)
         if self.map.resend:
-            m = await stream.add_method(nid(_sid(self.map.resend.method)), "Resend", self._resend,
-                                        [ua.VariantType.UInt64], [ua.VariantType.Double])  # fmt: skip
+            m = await stream.add_method(
+                nid(_sid(self.map.resend.method)), "Resend", self._resend,
+                [ua.VariantType.UInt64], [ua.VariantType.Double],
+            )  # fmt: skip
             self._data_methods.add(m.nodeid)
         # OPC 40502: CncInterface with the axis, spindle and channel lists (HMI scalars)
         cnc = await mach.add_object(nid(f"{vm}.CncInterface"), ua.QualifiedName("CncInterface", ns))
@@ -251,11 +266,16 @@ class MachineServer:
                     for k in "XYZ"]  # fmt: skip
         self.feed_var = await chan.add_variable(nid(f"{chb}.ActFeedrate"), "ActFeedrate", 0.0)
         self.ovr: dict[str, Any] = {}
-        for key, label in (("feed_override", "FeedOverride"), ("spindle_override", "SpindleOverride")):
+        for key, label in (
+            ("feed_override", "FeedOverride"),
+            ("spindle_override", "SpindleOverride"),
+        ):
             node = self.map.commands.get(key)
             if node is None:
                 continue
-            v = await chan.add_variable(nid(_sid(node)), label, ua.Variant(100.0, ua.VariantType.Double))
+            v = await chan.add_variable(
+                nid(_sid(node)), label, ua.Variant(100.0, ua.VariantType.Double)
+            )
             await v.set_writable()
             self.ovr[key] = v
         if self.map.feed_hold:
@@ -295,7 +315,9 @@ class MachineServer:
             v = self.server.read_attribute_value(var.nodeid).Value.Value
             if v != self._applied[key]:
                 if not (isinstance(v, float) and math.isfinite(v) and 0.0 <= v <= 200.0):
-                    log.warning("refused: %s = %r (0–200 %%); kept %.1f %%", key, v, self._applied[key])
+                    log.warning(
+                        "refused: %s = %r (0–200 %%); kept %.1f %%", key, v, self._applied[key]
+                    )
                     continue
                 todo.append((key, float(v)))
                 self._applied[key] = float(v)
@@ -341,8 +363,7 @@ class MachineServer:
             if self.blocks % every == 0:
                 await self._display(chunk)
         self.buffer.append((self.served, pack(self.served, np.zeros((len(names), 0)))))
-        await self.n_block.write_value(
-            ua.Variant([float(self.served), 0.0], ua.VariantType.Double))
+        await self.n_block.write_value(ua.Variant([float(self.served), 0.0], ua.VariantType.Double))
         await self.state.write_value("finished")
         self.finished = True
         log.info("program finished: %d samples in %d blocks", self.served, self.blocks)
@@ -392,7 +413,9 @@ class ServerThread:
 
         self.server = server
         self.loop = asyncio.new_event_loop()
-        self.thread = threading.Thread(target=self.loop.run_forever, name="opcua-server", daemon=True)
+        self.thread = threading.Thread(
+            target=self.loop.run_forever, name="opcua-server", daemon=True
+        )
         self.future: Any = None
 
     def __enter__(self) -> MachineServer:

@@ -39,7 +39,7 @@ from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
 from millsense.online.plan_sync import PlanSync, TcpFromAxes
 from millsense.plan.virtual_plan import VirtualPlan
-from millsense.streaming.block import Block, Chunk, Event, EventKind
+from millsense.streaming.block import Block, Chunk, Event
 from millsense.streaming.engine import Pipeline, run
 from millsense.streaming.sources import Source, SourceWrapper
 
