@@ -29,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from millsense.core.errors import UserError
 from millsense.core.recording import ChannelInfo
 from millsense.link.nodemap import ChannelMap, NodeMap
+from millsense.link.security import status_name
 from millsense.online.guard import LinkInterrupted
 from millsense.streaming.block import Chunk, Event, EventKind, Severity
 from millsense.streaming.sources import Source, SourceWrapper
@@ -53,6 +55,7 @@ class Reassembler:
     next: int = 0
     offset: int = 0  # added to the wire's indices (a restarted server starts again at 0)
     end: int | None = None
+    started: bool = False
     duplicates: int = 0
     gaps: list[tuple[int, int]] = field(default_factory=list)
     pending: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)
@@ -77,6 +80,8 @@ class Reassembler:
         self._collect()
 
     def add(self, node: str, start: int, data: np.ndarray) -> None:
+        if not self.started:  # a session joins the stream at the first block it receives
+            self.next, self.started = start, True
         slot = self.pending[node]
         if start < self.next or start in slot:
             self.duplicates += 1
@@ -118,6 +123,21 @@ class Reassembler:
     @property
     def done(self) -> bool:
         return self.end is not None and self.next >= self.end and not self.ready
+
+
+class LinkRefused(UserError):
+    """The server refused the session or could not be reached."""
+
+
+class CommandRefused(UserError):
+    """The server refused an override or the feed hold (the user's role, a bad value)."""
+
+
+def _why(exc: BaseException) -> str:
+    """One line of an asyncua failure (its status code name where there is one)."""
+    if getattr(exc, "code", None) is not None:
+        return f"refused by the server ({status_name(exc)})"
+    return f"cannot connect ({type(exc).__name__}: {exc or 'no answer'})"
 
 
 class _Handler:
@@ -174,7 +194,6 @@ class OpcUaSource(Source):
         self._interrupted = False
         self._pending_cmds: list[Event] = []
         self._rest: tuple[int, dict[str, np.ndarray]] | None = None
-        self._stepped = 0
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="opcua", daemon=True)
         self._thread.start()
@@ -182,7 +201,14 @@ class OpcUaSource(Source):
         self._ids: dict[str, Any] = {}
         self.run_id: str | None = None
         self.pace = "realtime"
-        self._call(self._connect(), 30.0)
+        try:
+            self._call(self._connect(), 30.0)
+        except UserError:
+            self.close()
+            raise
+        except Exception as exc:
+            self.close()
+            raise LinkRefused(f"{url}: {_why(exc)}") from None
 
     # ------------------------------------------------------------------ plumbing
     def _call(self, coro: Any, timeout: float) -> Any:
@@ -272,7 +298,7 @@ class OpcUaSource(Source):
             self._reconnect()
         lockstep = self.pace == "lockstep" and self.map.step is not None
         timeout = self.step_timeout_s if lockstep else self.link_timeout_s
-        if lockstep and self._stepped <= self.asm.next and not self.asm.ready:
+        if lockstep and not self.asm.ready:
             try:
                 self._call(self._step(), self.step_timeout_s)
             except Exception as exc:
@@ -321,7 +347,6 @@ class OpcUaSource(Source):
         assert self.map.step is not None
         obj = self.client.get_node(self._nid(self.map.step.object))
         await obj.call_method(self._nid(self.map.step.method), _uint32(1))
-        self._stepped = self.asm.next + 1
 
     async def _resend(self, start: int) -> None:
         from asyncua import ua
@@ -386,7 +411,6 @@ class OpcUaSource(Source):
                 self.asm.pending = {n: {} for n in self.asm.nodes}
                 self.asm.end = None
                 self._report_gap_locked(skipped)
-            self._stepped = 0
         self.link_log.append(("restored", time.monotonic(), self.asm.next))
         self.events.append(
             Event(
@@ -428,6 +452,8 @@ class OpcUaSource(Source):
         try:
             self._call(self._command(event), 2.0)
         except Exception as exc:
+            if getattr(exc, "code", None) is not None:  # the server answered: a refusal
+                raise CommandRefused(f"{self.url}: {event.name} {_why(exc)}") from None
             self._pending_cmds.append(event)
             self._on_lost(exc)
             raise ConnectionError(

@@ -51,6 +51,16 @@ def pki_dir(override: str | Path | None = None) -> Path:
     return Path(base) / "millsense" / "opcua"
 
 
+def status_name(exc: BaseException) -> str:
+    """The OPC UA status code name of an asyncua error (its class name if it has none)."""
+    code = getattr(exc, "code", None)
+    if code is None:
+        return type(exc).__name__
+    from asyncua import ua
+
+    return next((k for k, v in vars(ua.StatusCodes).items() if v == code), str(code))
+
+
 class UntrustedServer(ConfigError):
     """The server's certificate is not among the trusted ones."""
 

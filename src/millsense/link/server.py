@@ -39,6 +39,7 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.link.nodemap import NodeMap, load_node_map
+from millsense.link.security import status_name
 from millsense.streaming.block import Event, EventKind
 from millsense.streaming.sources import Source
 
@@ -162,9 +163,17 @@ class MachineServer:
         store = TrustStore([pki / "trusted" / "clients"], [])
         await store.load()
         opts = CertificateValidatorOptions
-        srv.set_certificate_validator(
-            CertificateValidator(opts.TRUSTED_VALIDATION | opts.PEER_CLIENT, store)
-        )
+        validator = CertificateValidator(opts.TRUSTED_VALIDATION | opts.PEER_CLIENT, store)
+
+        async def validate(cert: Any, app: Any) -> None:
+            try:
+                await validator.validate(cert, app)
+            except Exception as exc:
+                log.warning("refused: client certificate of %s (%s)",
+                            getattr(app, "ApplicationUri", "?"), status_name(exc))  # fmt: skip
+                raise
+
+        srv.set_certificate_validator(validate)
         ns = await srv.register_namespace(self.map.namespace)
         self.ns = ns
         policies = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt]
