@@ -7,48 +7,21 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import socket
 from pathlib import Path
 
 import numpy as np
 import pytest
 from tests.cli_run import run_cli
+from tests.opcua_helpers import PASSWORD, ROOT, free_port, make_pki, make_plan
 
 from millsense.link.client import CommandRefused, LinkRefused, OpcUaSource, Reassembler
 from millsense.link.nodemap import ChannelMap, load_node_map
-from millsense.link.security import (
-    UntrustedServer,
-    Users,
-    add_user,
-    ensure_identity,
-    trust,
-)
+from millsense.link.security import UntrustedServer, Users, ensure_identity, trust
 from millsense.link.server import MachineServer, ServeOptions, ServerThread, pack
 from millsense.streaming.block import Event, EventKind
 
-ROOT = Path(__file__).resolve().parents[1]
 MACHINE_FILE = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
-PASSWORD = "correct-horse"
-#: a slot beside the demo stock, entered at depth: the cut starts 0.15 s after the run-up
-PROGRAM = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-11 Y40 Z5\nG0 Z-3\nG1 X40 F400\nG0 Z5\nM30\n"
 DURATION_S = 1.2
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def make_pki(folder: Path) -> Path:
-    """Server and client certificates trusting each other, an operator and a viewer."""
-    asyncio.run(ensure_identity(folder, "server"))
-    asyncio.run(ensure_identity(folder, "client"))
-    trust(folder, folder / "server" / "cert.der", "server")
-    trust(folder, folder / "client" / "cert.der", "client")
-    add_user(folder / "users.toml", "op", PASSWORD, "operator")
-    add_user(folder / "users.toml", "view", PASSWORD, "viewer")
-    return folder
 
 
 @pytest.fixture(scope="module")
@@ -58,14 +31,7 @@ def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def plan_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from millsense.cli.cmd_run import _plan
-
-    d = tmp_path_factory.mktemp("plan")
-    (d / "slot.nc").write_text(PROGRAM)
-    out = d / "plan.parquet"
-    _plan(d / "slot.nc", ROOT / "examples/demo_part/stock.toml", "aslan-d20-2flute", "al7050",
-          None, out, 0.4, 0.2)  # fmt: skip
-    return out
+    return make_plan(tmp_path_factory.mktemp("plan"))
 
 
 def machine_server(plan: Path, pki: Path, port: int, **kw: object) -> MachineServer:
@@ -78,17 +44,37 @@ def machine_server(plan: Path, pki: Path, port: int, **kw: object) -> MachineSer
     return MachineServer(vm.sim, opts, users, None, vm.metadata, vm.sim.take_stream_rows)
 
 
+@pytest.fixture(scope="module")
+def session(plan_file: Path) -> object:
+    """The session's blocks, built once (the spindle observer's Q tuning takes ~20 s) and
+    handed to each run as a fresh deep copy."""
+    from millsense.cli.cmd_run import _belief, _options
+    from millsense.online.session import session_blocks
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.simulator.machine_file import simulator_machine
+
+    belief, where = _belief(MACHINE_FILE, simulator_machine("quaser-ux600"))
+    opts = _options(True, "power", None, "estimate", True, False, True, False)
+    names = [c.name for c in load_node_map().channels]
+    return session_blocks(VirtualPlan.read(plan_file), belief, 10000.0, opts, where=where,
+                          channels=names)  # fmt: skip
+
+
 def test_closed_loop_over_opcua_equals_in_process(
     tmp_path: Path, plan_file: Path, pki: Path, capsys: pytest.CaptureFixture[str],
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, session: object,
 ) -> None:  # fmt: skip
     """Decision 1804: in lock-step the server makes block k after the client's step k, and
     the overrides written before that step act before block k — as the engine feeds them back
     in process. The link carries Doubles, so the transport's quantisation is zero and the
     estimated torque, the adaptive feed's measure and the overrides must be bit-identical."""
+    import copy
+
+    import millsense.online.session as ms
     from millsense.io.recording_reader import open_recording
     from millsense.streaming.event_log import read_event_log
 
+    monkeypatch.setattr(ms, "session_blocks", lambda *a, **k: copy.deepcopy(session))
     common = ["--plan", str(plan_file), "--machine-file", str(MACHINE_FILE), "--no-chatter",
               "--no-breakage"]  # fmt: skip
     code, _out, err = run_cli(
@@ -160,7 +146,7 @@ def test_untrusted_certificates_refused(
     asyncio.run(ensure_identity(other, "client"))
     trust(other, pki / "server" / "cert.der", "server")
     with caplog.at_level(logging.WARNING, logger="millsense.link"):
-        with pytest.raises(LinkRefused, match="refused|cannot connect"):
+        with pytest.raises(LinkRefused, match=r"refused|cannot connect"):
             OpcUaSource(url, load_node_map(), user="op", password=PASSWORD, pki=other)
     assert "refused: client certificate" in caplog.text
     # a client that does not trust the server's certificate refuses it
@@ -187,7 +173,8 @@ def test_writes_need_the_operator_role(
                 for ev in (ovr, hold):
                     with pytest.raises(CommandRefused, match="BadUserAccessDenied"):
                         src.command(ev)
-            assert f"refused: write by {'anonymous' if user is None else 'viewer:view'}" in caplog.text
+            who = "anonymous" if user is None else "viewer:view"
+            assert f"refused: write by {who}" in caplog.text
             c = src.read(100)  # reading is allowed: the step and the block go through
             assert c is not None and c.n == 100
         finally:

@@ -379,8 +379,8 @@ def link_summary(link: Any) -> list[str]:
              f"dropped, {len(link.asm.gaps)} lost intervals"]  # fmt: skip
     for a, b in link.asm.gaps:
         lines.append(f"  lost {a / fs:.4f}–{b / fs:.4f} s ({b - a} samples)")
-    for what, _t, k in link.link_log:
-        lines.append(f"  link {what} at sample {k} ({k / fs:.4f} s)")
+    for what, _t, k, why in link.link_log:
+        lines.append(f"  link {what} at sample {k} ({k / fs:.4f} s): {why}")
     return lines
 
 

@@ -55,7 +55,11 @@ class Reassembler:
     next: int = 0
     offset: int = 0  # added to the wire's indices (a restarted server starts again at 0)
     end: int | None = None
-    started: bool = False
+    started: bool = False  # a block was received
+    #: the index the next block received gets (the first block of a session is sample 0;
+    #: the first of a restarted server's run comes after the outage), then None
+    rebase: int | None = 0
+    first_start: int | None = None  # the wire index of the session's first sample
     duplicates: int = 0
     gaps: list[tuple[int, int]] = field(default_factory=list)
     pending: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)
@@ -71,6 +75,10 @@ class Reassembler:
         pos = 0
         while pos + 2 <= value.size:
             start, n = int(value[pos]), int(value[pos + 1])
+            if self.rebase is not None:
+                self.offset, self.rebase = self.rebase - start, None
+            if not self.started:
+                self.first_start, self.started = start, True
             body = value[pos + 2 : pos + 2 + k * n]
             pos += 2 + k * n
             if n == 0:
@@ -80,8 +88,6 @@ class Reassembler:
         self._collect()
 
     def add(self, node: str, start: int, data: np.ndarray) -> None:
-        if not self.started:  # a session joins the stream at the first block it receives
-            self.next, self.started = start, True
         slot = self.pending[node]
         if start < self.next or start in slot:
             self.duplicates += 1
@@ -161,7 +167,9 @@ class OpcUaSource(Source):
     user, password : the session's user (None: anonymous, if the server allows it).
     pki : the link's configuration folder (None: the default).
     secure : Basic256Sha256 SignAndEncrypt (False: no security; a warning is logged).
-    link_timeout_s : no block for this long (wall time) counts as an interrupted link, s.
+    link_timeout_s : no block for this long (wall time) counts as an interrupted link, s (a
+        closed socket is seen at once; this is for a link gone silent). Before the first
+        block, ``step_timeout_s`` (the machine may still be starting).
     reconnect_s : how long to try reconnecting before the link counts as lost, s.
     publish_ms : the subscription's publishing interval, ms.
     queue_blocks : the server-side queue of the block node, blocks.
@@ -169,7 +177,7 @@ class OpcUaSource(Source):
 
     def __init__(self, url: str, node_map: NodeMap, *, user: str | None = None,
                  password: str | None = None, pki: Path | None = None, secure: bool = True,
-                 link_timeout_s: float = 0.05, step_timeout_s: float = 10.0,
+                 link_timeout_s: float = 0.1, step_timeout_s: float = 10.0,
                  reconnect_s: float = 5.0, publish_ms: float = 5.0,
                  queue_blocks: int = 500, name: str | None = None) -> None:  # fmt: skip
         self.url = url
@@ -185,7 +193,8 @@ class OpcUaSource(Source):
         self.queue_blocks = queue_blocks
         self.asm = Reassembler(node_map.nodes)
         self.events: list[Event] = []
-        self.link_log: list[tuple[str, float, int]] = []  # (what, monotonic time, sample)
+        #: (what, monotonic time, sample, why) of each interruption, restoration, loss
+        self.link_log: list[tuple[str, float, int, str]] = []
         self.received = 0
         self.last_block_wall = 0.0
         self._cond = threading.Condition()
@@ -203,6 +212,7 @@ class OpcUaSource(Source):
         self.pace = "realtime"
         try:
             self._call(self._connect(), 30.0)
+            self._first_block(1.0)
         except UserError:
             self.close()
             raise
@@ -256,7 +266,12 @@ class OpcUaSource(Source):
         self.client = c
         self._ns = await c.get_namespace_index(self.map.namespace)
         if self.map.run_id:
-            self.run_id = str(await c.get_node(self._nid(self.map.run_id)).read_value())
+            old, self.run_id = (
+                self.run_id,
+                str(await c.get_node(self._nid(self.map.run_id)).read_value()),
+            )
+            if old is not None and self.run_id != old:
+                self._new_run()
         try:
             pace_node = self._nid(self.map.channels[0].node.rsplit(".", 1)[0] + ".Pace")
             self.pace = str(await c.get_node(pace_node).read_value())
@@ -288,6 +303,15 @@ class OpcUaSource(Source):
                 self._lost_at = time.monotonic()
             self._cond.notify_all()
 
+    def _first_block(self, wait_s: float) -> None:
+        """Wait briefly for the block the server sends on subscribing (its latest): the
+        session starts there, its sample 0 at the stream time ``t0_s`` (a fresh lock-step
+        server has none yet: 0)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self.asm.started, wait_s)
+            if self.asm.first_start is not None:
+                self.t0_s = self.asm.first_start / self.sample_rate_hz
+
     # ------------------------------------------------------------------ reading
     def read(self, max_samples: int) -> Chunk | None:
         """The next block (split if longer than ``max_samples``), None at the end of the
@@ -297,7 +321,8 @@ class OpcUaSource(Source):
         if self._interrupted:
             self._reconnect()
         lockstep = self.pace == "lockstep" and self.map.step is not None
-        timeout = self.step_timeout_s if lockstep else self.link_timeout_s
+        slow = lockstep or not self.asm.started
+        timeout = self.step_timeout_s if slow else self.link_timeout_s
         if lockstep and not self.asm.ready:
             try:
                 self._call(self._step(), self.step_timeout_s)
@@ -316,12 +341,14 @@ class OpcUaSource(Source):
                     return self._interrupt()
                 g = self.asm.gap()
                 if g is not None:
-                    if not resend_asked and self.map.resend is not None:
+                    nxt = self.asm.next - self.asm.offset
+                    if not resend_asked and self.map.resend is not None and nxt >= 0:
                         resend_asked = True
-                        nxt = self.asm.next - self.asm.offset
                         self._cond.release()
                         try:
                             self._call(self._resend(nxt), 2.0)
+                        except Exception as exc:
+                            self._on_lost(exc)
                         finally:
                             self._cond.acquire()
                         continue
@@ -341,7 +368,7 @@ class OpcUaSource(Source):
         n = len(next(iter(data.values())))
         m = min(n, max_samples)
         self._rest = None if m == n else (start + m, {k: v[m:] for k, v in data.items()})
-        return Chunk(start, self.sample_rate_hz, 0.0, {k: v[:m] for k, v in data.items()})
+        return Chunk(start, self.sample_rate_hz, self.t0_s, {k: v[:m] for k, v in data.items()})
 
     async def _step(self) -> None:
         assert self.map.step is not None
@@ -363,6 +390,15 @@ class OpcUaSource(Source):
             self.received += self.asm.next - before
             self._cond.notify_all()
 
+    def _new_run(self) -> None:
+        """A restarted machine counts again from 0: its stream goes on after the outage,
+        which is reported as lost (decision 1803); set before the new subscription."""
+        with self._cond:
+            outage = time.monotonic() - (self._lost_at or time.monotonic())
+            self._report_gap(self.asm.next + round(outage * self.sample_rate_hz))
+            self.asm.rebase = self.asm.next
+            self.asm.end = None
+
     def _report_gap(self, later: int) -> None:
         lo = self.asm.next
         self.asm.skip_to(later)
@@ -378,7 +414,8 @@ class OpcUaSource(Source):
     def _interrupt(self) -> Chunk | None:
         exc = self._lost
         self._interrupted = True
-        self.link_log.append(("interrupted", self._lost_at or time.monotonic(), self.asm.next))
+        why = f"{type(exc).__name__}: {exc}"
+        self.link_log.append(("interrupted", self._lost_at or time.monotonic(), self.asm.next, why))
         raise LinkInterrupted(f"{self.name}: link interrupted ({type(exc).__name__}: {exc})",
                               sample=self.asm.next)  # fmt: skip
 
@@ -392,11 +429,11 @@ class OpcUaSource(Source):
         while True:
             try:
                 old = self.run_id
-                self._call(self._connect(), 5.0)
+                self._call(asyncio.wait_for(self._connect(), 5.0), 6.0)
                 break
             except Exception as exc:
                 if time.monotonic() - lost_at > self.reconnect_s:
-                    self.link_log.append(("lost", time.monotonic(), self.asm.next))
+                    self.link_log.append(("lost", time.monotonic(), self.asm.next, str(exc)))
                     raise ConnectionError(
                         f"{self.name}: no link for {self.reconnect_s:g} s ({exc})"
                     ) from None
@@ -404,33 +441,23 @@ class OpcUaSource(Source):
         with self._cond:
             self._lost, self._lost_at, self._interrupted = None, None, False
             outage = time.monotonic() - lost_at
-            if old is not None and self.run_id != old:
-                # a restarted machine counts again from 0: it goes on after the outage
-                skipped = self.asm.next + round(outage * self.sample_rate_hz)
-                self.asm.offset = skipped
-                self.asm.pending = {n: {} for n in self.asm.nodes}
-                self.asm.end = None
-                self._report_gap_locked(skipped)
-        self.link_log.append(("restored", time.monotonic(), self.asm.next))
-        self.events.append(
-            Event(
-                self.asm.next / self.sample_rate_hz,
-                EventKind.NOTE,
-                "opcua",
-                f"{self.name}: link restored after {outage:.2f} s",
-                name="link_restored",
-                value=outage,
-                sample=self.asm.next,
-            )
+            same_run = old is None or self.run_id == old
+        self.link_log.append(("restored", time.monotonic(), self.asm.next, f"{outage:.3f} s"))
+        msg = f"{self.name}: link restored after {outage:.2f} s" + (
+            "" if same_run else " (the server restarted: a new run)"
         )
-        if self.map.resend is not None and self.asm.offset == 0:
-            self._call(self._resend(self.asm.next), 2.0)
+        self.events.append(
+            Event(self.asm.next / self.sample_rate_hz, EventKind.NOTE, "opcua", msg,
+                  name="link_restored", value=outage, sample=self.asm.next)
+        )  # fmt: skip
+        if same_run and self.map.resend is not None:
+            try:
+                self._call(self._resend(self.asm.next - self.asm.offset), 2.0)
+            except Exception as exc:
+                self._on_lost(exc)
         for ev in self._pending_cmds:
             self.command(ev)
         self._pending_cmds.clear()
-
-    def _report_gap_locked(self, later: int) -> None:
-        self._report_gap(later)
 
     async def _drop(self) -> None:
         if self.client is not None:

@@ -356,9 +356,8 @@ class MachineServer:
                     await self._credit_changed.wait()
             else:
                 due = t0 + self.served / fs / o.speed
-                delay = due - time.perf_counter()
-                if delay > 0:
-                    await asyncio.sleep(delay)
+                # always yield: a machine behind its schedule must not starve the publishing
+                await asyncio.sleep(max(0.0, due - time.perf_counter()))
             self._apply_commands()
             chunk = self.source.read(o.block_samples)
             if chunk is None or chunk.n == 0:
