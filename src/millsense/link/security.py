@@ -199,13 +199,13 @@ class RoleRuleset:
         from asyncua import ua
         from asyncua.crypto.permission_rules import USER_TYPES
 
+        def nid(i: int) -> Any:
+            return ua.NodeId(ua.Int32(i))
+
         self.data_methods = data_methods
-        self.read_types = {ua.NodeId(t) for t in USER_TYPES} - {
-            ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary),
-            ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary),
-        }
-        self.write = ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary)
-        self.call = ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary)
+        self.write = nid(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary)
+        self.call = nid(ua.ObjectIds.CallRequest_Encoding_DefaultBinary)
+        self.read_types = {nid(t) for t in USER_TYPES} - {self.write, self.call}
         self.refusals = 0
 
     def check_validity(self, user: Any, action_type_id: Any, body: Any) -> bool:

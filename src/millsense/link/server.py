@@ -190,7 +190,8 @@ class MachineServer:
         srv.set_identity_tokens(ids)
         await self._build(srv, ns, ua)
         self.ruleset = RoleRuleset(self._data_methods)
-        srv.set_security_policy(policies, permission_ruleset=self.ruleset)
+        # asyncua types the argument as its SimpleRoleRuleset; it takes any ruleset
+        srv.set_security_policy(policies, permission_ruleset=self.ruleset)  # type: ignore[arg-type]
         await srv.start()
         self.server = srv
         self._credit_changed = asyncio.Event()
