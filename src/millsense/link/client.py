@@ -151,6 +151,9 @@ class _Handler:
         self.owner = owner
 
     def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+        ts = getattr(getattr(data.monitored_item, "Value", None), "SourceTimestamp", None)
+        if ts is not None:  # the link's latency: the server's write to this notification
+            self.owner.latency_s.append(time.time() - ts.timestamp())
         self.owner._on_block(node, val)
 
     def status_change_notification(self, status: Any) -> None:
@@ -196,6 +199,8 @@ class OpcUaSource(Source):
         #: (what, monotonic time, sample, why) of each interruption, restoration, loss
         self.link_log: list[tuple[str, float, int, str]] = []
         self.received = 0
+        #: seconds from the server's write of each block to its arrival (the last 100 000)
+        self.latency_s: deque[float] = deque(maxlen=100_000)
         self.last_block_wall = 0.0
         self._cond = threading.Condition()
         self._lost: BaseException | None = None

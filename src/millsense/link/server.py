@@ -30,6 +30,7 @@ import logging
 import math
 import time
 import uuid
+from datetime import datetime, timezone
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -366,7 +367,11 @@ class MachineServer:
             data = np.stack([np.asarray(chunk.data[n], dtype=np.float64) for n in names])
             packed = pack(chunk.start, data)
             self.buffer.append((chunk.start, packed))
-            await self.n_block.write_value(ua.Variant(packed.tolist(), ua.VariantType.Double))
+            now = datetime.now(timezone.utc)  # the client's latency is measured from here
+            await self.n_block.write_value(
+                ua.DataValue(ua.Variant(packed.tolist(), ua.VariantType.Double),
+                             SourceTimestamp=now, ServerTimestamp=now)
+            )  # fmt: skip
             self.served = chunk.start + chunk.n
             self.blocks += 1
             if self.blocks % every == 0:
