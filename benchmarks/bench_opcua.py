@@ -112,8 +112,8 @@ def measure(duration_s: float) -> dict[str, float]:
             s.bind(("127.0.0.1", 0))
             port = s.getsockname()[1]
         env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-        proc = subprocess.Popen([sys.executable, __file__, "serve", str(port), str(pki),
-                                 str(duration_s)], env=env, stdout=subprocess.PIPE, text=True)  # fmt: skip
+        cmd = [sys.executable, __file__, "serve", str(port), str(pki), str(duration_s)]
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
         assert proc.stdout is not None
         assert proc.stdout.readline().strip() == "ready"
         src = OpcUaSource(f"opc.tcp://127.0.0.1:{port}", node_map(), user="bench",  # type: ignore[arg-type]

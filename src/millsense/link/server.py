@@ -30,9 +30,9 @@ import logging
 import math
 import time
 import uuid
-from datetime import datetime, timezone
 from collections import deque
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -367,7 +367,7 @@ class MachineServer:
             data = np.stack([np.asarray(chunk.data[n], dtype=np.float64) for n in names])
             packed = pack(chunk.start, data)
             self.buffer.append((chunk.start, packed))
-            now = datetime.now(timezone.utc)  # the client's latency is measured from here
+            now = datetime.now(UTC)  # the client's latency is measured from here
             await self.n_block.write_value(
                 ua.DataValue(ua.Variant(packed.tolist(), ua.VariantType.Double),
                              SourceTimestamp=now, ServerTimestamp=now)
