@@ -110,7 +110,8 @@ def record(
     if duration_s is not None and not duration_s > 0:
         raise ConfigError(f"--duration-s: must be > 0, got {duration_s}")
     _logging()
-    link = lo.open_link(url, node_map, user, pki, insecure, reconnect_s)
+    _nmap, connect = lo.link_opener(url, node_map, user, pki, insecure, reconnect_s)
+    link = connect()
     ev = events_out or default_event_log_path(out)
     try:
         src = link if duration_s is None else StopAt(link, duration_s)
@@ -141,6 +142,22 @@ def opcua_user(
     path = pki_dir(pki) / "users.toml"
     add_user(path, name, pw or "", role)
     typer.echo(f"user {name} ({role}) in {path}")
+
+
+@app.command("opcua-cert")
+def opcua_cert(
+    kind: str = typer.Option(..., "--kind", help="server or client."),
+    pki: Path | None = lo.PKI,
+) -> None:
+    """Make the server's or the client's certificate if it is missing; print its path (to
+    give to ``opcua-trust`` on the other side)."""
+    import asyncio
+
+    from millsense.link.security import ensure_identity, pki_dir
+
+    if kind not in ("server", "client"):
+        raise ConfigError(f"opcua-cert: --kind server or client, got {kind!r}")
+    typer.echo(asyncio.run(ensure_identity(pki_dir(pki), kind)).cert)
 
 
 @app.command("opcua-trust")

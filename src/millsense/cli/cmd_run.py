@@ -141,9 +141,9 @@ def run(
                                 ("--tool-modes", tool_modes)) if v]  # fmt: skip
         if given:
             raise ConfigError(f"--source: {', '.join(given)} act on the virtual machine in process")
-        link = lo.open_link(source, node_map, user, pki, insecure, reconnect_s)
+        nmap, connect = lo.link_opener(source, node_map, user, pki, insecure, reconnect_s)
         summary = run_over_link(
-            link, program=program, stock=stock, tool=tool, material=material, plan=plan,
+            nmap, connect, program=program, stock=stock, tool=tool, material=material, plan=plan,
             plan_out=plan_out, machine=machine, machine_file=machine_file, out=out,
             events_out=events_out, plot=plot, options=opts, duration_s=duration_s,
             step_mm=step_mm, resolution_mm=resolution_mm,
@@ -313,7 +313,8 @@ def _plan(program: Path | None, stock: Path | None, tool: str | None, material: 
 
 
 def run_over_link(
-    link: Any,
+    node_map: Any,
+    connect: Any,
     *,
     program: Path | None,
     stock: Path | None,
@@ -333,20 +334,23 @@ def run_over_link(
     chunk: int = 100,
 ) -> dict[str, Any]:
     """The on-line session on a live OPC UA link (``run --source``): the same blocks as in
-    process, on the machine file's axes that the link provides; ``link`` is closed at the end."""
+    process, on the machine file's axes that the node map provides; the link is opened by
+    ``connect()`` once the blocks are built (building them takes a while) and closed at the
+    end."""
     from millsense.link.client import StopAt
     from millsense.online.session import run_session, session_blocks
     from millsense.streaming.event_log import default_event_log_path
 
+    vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out,
+                                    step_mm, resolution_mm)  # fmt: skip
+    cfg, where = _machine_file(machine_file, machine)
+    names = [c.name for c in node_map.channels]
+    axes = [a for a in cfg.axes if f"{a}/position_cmd" in names]
+    cfg = cfg.with_axes(axes, cfg.kinematics)
+    built = session_blocks(vp, cfg, node_map.sample_rate_hz, options, where=where,
+                           channels=names)  # fmt: skip
+    link = connect()
     try:
-        vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out,
-                                        step_mm, resolution_mm)  # fmt: skip
-        cfg, where = _machine_file(machine_file, machine)
-        have = set(link.channel_names)
-        axes = [a for a in cfg.axes if f"{a}/position_cmd" in have]
-        cfg = cfg.with_axes(axes, cfg.kinematics)
-        built = session_blocks(vp, cfg, link.sample_rate_hz, options, where=where,
-                               channels=link.channel_names)  # fmt: skip
         src: Any = link if duration_s is None else StopAt(link, duration_s)
         ev_path = events_out or default_event_log_path(out)
         meta = {**link.metadata, "plan": plan_name, "machine_file": where,

@@ -47,9 +47,11 @@ def password_for(user: str | None) -> str | None:
     return str(typer.prompt(f"password of {user}", hide_input=True))
 
 
-def open_link(url: str, node_map: Path | None, user: str | None, pki: Path | None,
-              insecure: bool, reconnect_s: float) -> Any:  # fmt: skip
-    """The :class:`~millsense.link.client.OpcUaSource` of ``url`` (one-line errors)."""
+def link_opener(url: str, node_map: Path | None, user: str | None, pki: Path | None,
+                insecure: bool, reconnect_s: float) -> tuple[Any, Any]:  # fmt: skip
+    """The node map of ``url`` and a function connecting to it (an
+    :class:`~millsense.link.client.OpcUaSource`); the options are checked and the password
+    asked for at once, the connection is made when the caller is ready for the stream."""
     from millsense.link.client import OpcUaSource
     from millsense.link.nodemap import load_node_map
 
@@ -59,5 +61,11 @@ def open_link(url: str, node_map: Path | None, user: str | None, pki: Path | Non
         raise ConfigError(f"--reconnect-s: must be ≥ 0, got {reconnect_s}")
     if insecure:
         typer.echo("millsense: warning: --insecure: the link is not encrypted", err=True)
-    return OpcUaSource(url, load_node_map(node_map), user=user, password=password_for(user),
-                       pki=pki, secure=not insecure, reconnect_s=reconnect_s)  # fmt: skip
+    nmap = load_node_map(node_map)
+    password = password_for(user)
+
+    def connect() -> Any:
+        return OpcUaSource(url, nmap, user=user, password=password, pki=pki,
+                           secure=not insecure, reconnect_s=reconnect_s)  # fmt: skip
+
+    return nmap, connect

@@ -216,7 +216,7 @@ class OpcUaSource(Source):
         self.run_id: str | None = None
         self.pace = "realtime"
         try:
-            self._call(self._connect(), 30.0)
+            self._connect_retrying()
             self._first_block(1.0)
         except UserError:
             self.close()
@@ -307,6 +307,19 @@ class OpcUaSource(Source):
                 self._lost = exc
                 self._lost_at = time.monotonic()
             self._cond.notify_all()
+
+    def _connect_retrying(self) -> None:
+        """Connect; a server not yet listening is tried again every 0.2 s for
+        ``reconnect_s`` (it may be starting). Refusals are not retried."""
+        t0 = time.monotonic()
+        while True:
+            try:
+                self._call(asyncio.wait_for(self._connect(), 10.0), 11.0)
+                return
+            except OSError:
+                if time.monotonic() - t0 > self.reconnect_s:
+                    raise
+                time.sleep(0.2)
 
     def _first_block(self, wait_s: float) -> None:
         """Wait briefly for the block the server sends on subscribing (its latest): the

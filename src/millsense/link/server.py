@@ -367,7 +367,7 @@ class MachineServer:
             data = np.stack([np.asarray(chunk.data[n], dtype=np.float64) for n in names])
             packed = pack(chunk.start, data)
             self.buffer.append((chunk.start, packed))
-            now = datetime.now(UTC)  # the client's latency is measured from here
+            now: Any = datetime.now(UTC)  # the client's latency is measured from here
             await self.n_block.write_value(
                 ua.DataValue(ua.Variant(packed.tolist(), ua.VariantType.Double),
                              SourceTimestamp=now, ServerTimestamp=now)
