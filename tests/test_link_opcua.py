@@ -228,3 +228,30 @@ def test_reassembly_reports_gaps_and_duplicates() -> None:
     asm.add_packed("b", np.array([60.0, 0.0]))
     asm.ready.clear()
     assert not asm.done  # 50–59 not yet
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--source", "http://x", "--plan", "{plan}", "-o", "{out}"], "opc.tcp://"),
+        (["run", "--source", "opc.tcp://127.0.0.1:9", "--fault", "stall@1", "--plan", "{plan}",
+          "-o", "{out}"], "--fault act on the virtual machine"),
+        (["record", "opc.tcp://127.0.0.1:{port}", "--pki", "{pki}", "--reconnect-s", "0", "-o",
+          "{out}"], "cannot connect"),
+        (["serve-machine", "--plan", "{plan}", "--pki", "{empty}"], "no users"),
+        (["serve-machine", "--plan", "{plan}", "--pace", "fast"], "--pace"),
+        (["opcua-user", "x", "--role", "admin", "--pki", "{empty}"], "--role"),
+    ],
+)  # fmt: skip
+def test_link_commands_bad_input_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    plan_file: Path, pki: Path, args: list[str], message: str,
+) -> None:  # fmt: skip
+    monkeypatch.setenv("MILLSENSE_OPCUA_PASSWORD", PASSWORD)
+    fill = {"plan": plan_file, "out": tmp_path / "o.h5", "pki": pki, "empty": tmp_path / "none",
+            "port": free_port()}  # fmt: skip
+    code, _out, err = run_cli([a.format(**fill) for a in args], capsys)
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("millsense: WARNING")]
+    assert code == 2, err
+    assert message in lines[-1] and len(lines) == 1, err
+    assert not (tmp_path / "o.h5").exists()

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import typer
@@ -11,13 +10,6 @@ import typer
 from millsense.cli import link_options as lo
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError
-
-
-def _logging() -> None:
-    """The link's refusals and warnings on stderr (asyncua's own chatter only if serious)."""
-    logging.basicConfig(level=logging.WARNING, format="millsense: %(levelname)s: %(message)s")
-    logging.getLogger("millsense.link").setLevel(logging.INFO)
-    logging.getLogger("asyncua").setLevel(logging.ERROR)
 
 
 @app.command("serve-machine")
@@ -61,7 +53,7 @@ def serve_machine(
     from millsense.link.security import Users, pki_dir
     from millsense.link.server import MachineServer, ServeOptions, serve
 
-    _logging()
+    lo.link_logging()
     opts = ServeOptions(endpoint=endpoint, pace=pace, speed=speed, buffer_s=buffer_s, pki=pki,
                         allow_insecure=allow_insecure, allow_anonymous=allow_anonymous)  # fmt: skip
     nmap = load_node_map(node_map)
@@ -109,7 +101,7 @@ def record(
     check_outputs({}, {"-o": out, "--events": events_out})
     if duration_s is not None and not duration_s > 0:
         raise ConfigError(f"--duration-s: must be > 0, got {duration_s}")
-    _logging()
+    lo.link_logging()
     _nmap, connect = lo.link_opener(url, node_map, user, pki, insecure, reconnect_s)
     link = connect()
     ev = events_out or default_event_log_path(out)

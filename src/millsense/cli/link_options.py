@@ -35,6 +35,15 @@ RECONNECT = typer.Option(
 )
 
 
+def link_logging() -> None:
+    """The link's refusals and warnings on stderr (asyncua's own chatter only if serious)."""
+    import logging
+
+    logging.basicConfig(level=logging.WARNING, format="millsense: %(levelname)s: %(message)s")
+    logging.getLogger("millsense.link").setLevel(logging.INFO)
+    logging.getLogger("asyncua").setLevel(logging.ERROR)
+
+
 def password_for(user: str | None) -> str | None:
     """The password of ``user``: the environment variable, else a hidden prompt."""
     if user is None:
@@ -59,6 +68,7 @@ def link_opener(url: str, node_map: Path | None, user: str | None, pki: Path | N
         raise ConfigError(f"--source: an opc.tcp:// address, got {url!r}")
     if not reconnect_s >= 0:
         raise ConfigError(f"--reconnect-s: must be ≥ 0, got {reconnect_s}")
+    link_logging()
     if insecure:
         typer.echo("millsense: warning: --insecure: the link is not encrypted", err=True)
     nmap = load_node_map(node_map)
