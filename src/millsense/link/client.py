@@ -201,7 +201,6 @@ class OpcUaSource(Source):
         self.received = 0
         #: seconds from the server's write of each block to its arrival (the last 100 000)
         self.latency_s: deque[float] = deque(maxlen=100_000)
-        self.last_block_wall = 0.0
         self._cond = threading.Condition()
         self._lost: BaseException | None = None
         self._lost_at: float | None = None
@@ -212,7 +211,6 @@ class OpcUaSource(Source):
         self._thread = threading.Thread(target=self._loop.run_forever, name="opcua", daemon=True)
         self._thread.start()
         self.client: Any = None
-        self._ids: dict[str, Any] = {}
         self.run_id: str | None = None
         self.pace = "realtime"
         try:
@@ -298,7 +296,6 @@ class OpcUaSource(Source):
             before = self.asm.next
             self.asm.add_packed(self._node_names[str(node.nodeid)], a)
             self.received += self.asm.next - before
-            self.last_block_wall = time.monotonic()
             self._cond.notify_all()
 
     def _on_lost(self, exc: BaseException) -> None:
