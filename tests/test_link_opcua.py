@@ -200,6 +200,35 @@ def test_insecure_client_refused_by_a_secure_server(
         OpcUaSource(url, load_node_map(), user="op", password=PASSWORD, pki=pki, secure=False)
 
 
+def test_record_a_server_stream(
+    guarded_server: tuple[MachineServer, str], pki: Path, tmp_path: Path,
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """``millsense record`` as a viewer: 0.05 s of the stream (5 blocks), every channel of the
+    node map plus the guard's, no fault, samples as the server sent them (its buffer)."""
+    from millsense.io.recording_reader import open_recording
+
+    server, url = guarded_server
+    monkeypatch.setenv("MILLSENSE_OPCUA_PASSWORD", PASSWORD)
+    argv = ["record", url, "--user", "view", "--pki", str(pki), "--duration-s", "0.05",
+            "-o", str(tmp_path / "raw.h5")]  # fmt: skip
+    code, out, err = run_cli(argv, capsys)
+    assert code == 0, err
+    assert "0 duplicate blocks dropped, 0 lost intervals" in out
+    nmap = load_node_map()
+    with open_recording(tmp_path / "raw.h5") as rec:
+        assert rec.n_samples == 500
+        assert set(rec.channel_names) == {c.name for c in nmap.channels} | {"guard/fault"}
+        assert not rec.channel("guard/fault").any()
+        got = rec.channel(nmap.channels[0].name)
+    # the session joined at the server's latest block; its 5 blocks are the server's own
+    # (channel 0 is the first 100 values after [start, n]), exactly
+    sent = [b for _, b in server.buffer]
+    i = next(j for j, b in enumerate(sent) if np.array_equal(b[2:102], got[:100]))
+    expect = np.concatenate([b[2:102] for b in sent[i : i + 5]])
+    assert np.array_equal(got, expect)
+
+
 # ---------------------------------------------------------------------------- reassembly
 def test_reassembly_reports_gaps_and_duplicates() -> None:
     """Two nodes (a per-signal CNC layout); blocks out of order, one twice, one lost on one
