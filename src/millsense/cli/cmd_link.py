@@ -26,7 +26,9 @@ def serve_machine(
     pace: str = typer.Option(
         "realtime", "--pace", help="realtime, or lockstep (a block per client step; tests)."
     ),
-    speed: float = typer.Option(1.0, "--speed", help="Real-time factor of --pace realtime."),
+    speed: float = typer.Option(
+        1.0, "--speed", help="Real-time factor of --pace realtime (2: twice as fast)."
+    ),
     buffer_s: float = typer.Option(5.0, "--buffer-s", help="Stream kept for re-sending [s]."),
     node_map: Path | None = lo.NODE_MAP,
     pki: Path | None = lo.PKI,
@@ -42,7 +44,7 @@ def serve_machine(
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     linger_s: float | None = typer.Option(
-        None, "--linger-s", help="Serve this long after the program ends (default: until ^C)."
+        None, "--linger-s", help="Serve this long after the program ends [s] (default: until ^C)."
     ),
 ) -> None:
     """Serve the virtual machine running a program over OPC UA, as a CNC would."""
