@@ -40,6 +40,7 @@ UNITLESS_FLOATS = {
     "--ki": "a gain whose unit follows --error-unit (rev/s or rad/s), stated in its help",
     "--tolerance": "a relative error bound (dimensionless fraction), stated in its help",
     "--reference": "a set point whose unit follows --regulate (W, N·m or N), stated in its help",
+    "--speed": "serve-machine's real-time factor (dimensionless), stated in its help",
 }
 
 

@@ -8,11 +8,13 @@ overrides are recorded, not applied).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import typer
 
+from millsense.cli import link_options as lo
 from millsense.cli.cmd_report import report_line, report_path, write_run_report
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError
@@ -130,6 +132,17 @@ def run(
     dashboard_linger_s: float = typer.Option(
         0.0, "--dashboard-linger-s", help="Keep serving this long after the run [s]."
     ),
+    source: str | None = typer.Option(
+        None,
+        "--source",
+        help="opc.tcp://HOST:PORT: run on a live CNC (or `millsense serve-machine`) over OPC UA "
+        "instead of the virtual machine in process; the plan is still needed.",
+    ),
+    node_map: Path | None = lo.NODE_MAP,
+    user: str | None = lo.USER,
+    pki: Path | None = lo.PKI,
+    insecure: bool = lo.INSECURE,
+    reconnect_s: float = lo.RECONNECT,
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
@@ -153,6 +166,21 @@ def run(
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
+    if source is not None:
+        given = [k for k, v in (("--fault", fault), ("--break-at-s", break_at_s),
+                                ("--tool-modes", tool_modes)) if v]  # fmt: skip
+        if given:
+            raise ConfigError(f"--source: {', '.join(given)} act on the virtual machine in process")
+        nmap, connect = lo.link_opener(source, node_map, user, pki, insecure, reconnect_s)
+        summary = run_over_link(
+            nmap, connect, program=program, stock=stock, tool=tool, material=material, plan=plan,
+            plan_out=plan_out, machine=machine, machine_file=machine_file, out=out,
+            events_out=events_out, plot=plot, options=opts, duration_s=duration_s,
+            step_mm=step_mm, resolution_mm=resolution_mm,
+        )  # fmt: skip
+        for line in summary["lines"]:
+            typer.echo(line)
+        return
     summary = run_online(
         program=program, stock=stock, tool=tool, material=material, plan=plan,
         machine=machine, machine_file=machine_file, out=out, events_out=events_out,
@@ -260,43 +288,20 @@ def run_online(
     """Plan, simulate in closed loop, monitor, control and record (the body of ``run``);
     ``dashboard``: :class:`~millsense.dashboard.server.DashboardOptions` to serve the live
     dashboard of the session (its address printed before the run), or None."""
-    from millsense.core.errors import ConfigError
-    from millsense.core.plausibility import Findings
     from millsense.online.faults import FaultyLink, LinkFault
     from millsense.online.session import run_session, session_blocks
-    from millsense.plan.checks import check_plan
-    from millsense.plan.virtual_plan import VirtualPlan
-    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.machine_file import simulator_machine
-    from millsense.simulator.plan_job import plan_job
-    from millsense.simulator.process_coupling import ProcessEvent, ToolModes, ToothBreak
     from millsense.streaming.event_log import default_event_log_path
 
     link_faults = [LinkFault.parse(f) for f in faults or []]
-    if plan is not None and program is not None:
-        raise ConfigError("run: give --program (with --stock, --tool, --material) or --plan")
-    findings = Findings()
-    if plan is None:
-        if program is None or stock is None or tool is None or material is None:
-            raise ConfigError("run: --program needs --stock, --tool and --material")
-        from .cmd_plan import _build
-
-        vp, _, findings = _build(
-            program, stock, Path(tool), Path(material), step_mm, resolution_mm, None
-        )
-        if plan_out is not None:
-            vp.write(plan_out)
-        plan_name = str(plan_out or program)
-    else:
-        vp = VirtualPlan.read(plan)
-        plan_name = str(plan)
-    sim_cfg = simulator_machine(machine)
-    check_plan(vp, findings, machine=sim_cfg)
-    belief, belief_name = _belief(machine_file, sim_cfg)
-    events: list[ProcessEvent] = []
-    if break_at_s is not None:
-        events.append(ToothBreak(break_at_s, break_flute))
-    modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
+    belief, belief_name = _belief(machine_file, simulator_machine(machine))
+    vm = virtual_machine(
+        program=program, stock=stock, tool=tool, material=material, plan=plan,
+        plan_out=plan_out, machine=machine, break_at_s=break_at_s, break_flute=break_flute,
+        tool_modes=tool_modes, seed=seed, duration_s=duration_s, step_mm=step_mm,
+        resolution_mm=resolution_mm,
+    )  # fmt: skip
+    vp, sim, meta, notes, findings = vm.plan, vm.sim, vm.metadata, vm.notes, vm.findings
     notes_pre: list[str] = []
     if tool_modes is not None:
         from dataclasses import replace
@@ -307,14 +312,10 @@ def run_online(
             options = replace(options, stability_case=load_case(tool_modes))
         except ConfigError as exc:
             notes_pre.append(f"chatter avoidance without lobes ({exc}): nearest faster lobe")
-    job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
-    sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
-                           duration_s=duration_s)  # fmt: skip
     built = session_blocks(vp, belief, sim.sample_rate_hz, options, where=belief_name,
                            channels=sim.channel_names)  # fmt: skip
     source: Any = FaultyLink(sim, link_faults) if link_faults else sim
     ev_path = events_out or default_event_log_path(out)
-    meta.update(dict(sim.metadata))
     meta.update({"source": "millsense run", "machine_file": belief_name,
                  "faults": [f.__dict__ for f in link_faults]})  # fmt: skip
     expect = sim.n_total or int((float(vp["t_s"][-1]) + sim.start_s + 0.5) * sim.sample_rate_hz)
@@ -354,6 +355,158 @@ def run_online(
         rep = write_run_report(report, out, plan=vp, events=res.events, machine_file=machine_file)
         lines.append(report_line(rep, report))
     return {"lines": lines, "result": res}
+
+
+def _plan(program: Path | None, stock: Path | None, tool: str | None, material: str | None,
+          plan: Path | None, plan_out: Path | None, step_mm: float,
+          resolution_mm: float) -> tuple[Any, str, Any]:  # fmt: skip
+    """The virtual plan of ``--program`` (with stock, tool, material) or ``--plan``, its name
+    and the planner's findings."""
+    from millsense.core.plausibility import Findings
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    if plan is not None and program is not None:
+        raise ConfigError("run: give --program (with --stock, --tool, --material) or --plan")
+    if plan is None:
+        if program is None or stock is None or tool is None or material is None:
+            raise ConfigError("run: --program needs --stock, --tool and --material")
+        from .cmd_plan import _build
+
+        vp, _, findings = _build(
+            program, stock, Path(tool), Path(material), step_mm, resolution_mm, None
+        )
+        if plan_out is not None:
+            vp.write(plan_out)
+        return vp, str(plan_out or program), findings
+    return VirtualPlan.read(plan), str(plan), Findings()
+
+
+def run_over_link(
+    node_map: Any,
+    connect: Any,
+    *,
+    program: Path | None,
+    stock: Path | None,
+    tool: str | None,
+    material: str | None,
+    plan: Path | None,
+    plan_out: Path | None,
+    machine: str,
+    machine_file: Path | None,
+    out: Path,
+    events_out: Path | None,
+    plot: Path | None,
+    options: Any,
+    duration_s: float | None = None,
+    step_mm: float = 0.4,
+    resolution_mm: float = 0.2,
+    chunk: int = 100,
+) -> dict[str, Any]:
+    """The on-line session on a live OPC UA link (``run --source``): the same blocks as in
+    process, on the machine file's axes that the node map provides; the link is opened by
+    ``connect()`` once the blocks are built (building them takes a while) and closed at the
+    end."""
+    from millsense.link.client import StopAt
+    from millsense.online.session import run_session, session_blocks
+    from millsense.streaming.event_log import default_event_log_path
+
+    vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out,
+                                    step_mm, resolution_mm)  # fmt: skip
+    cfg, where = _machine_file(machine_file, machine)
+    names = [c.name for c in node_map.channels]
+    axes = [a for a in cfg.axes if f"{a}/position_cmd" in names]
+    cfg = cfg.with_axes(axes, cfg.kinematics)
+    built = session_blocks(vp, cfg, node_map.sample_rate_hz, options, where=where,
+                           channels=names)  # fmt: skip
+    link = connect()
+    try:
+        src: Any = link if duration_s is None else StopAt(link, duration_s)
+        ev_path = events_out or default_event_log_path(out)
+        meta = {**link.metadata, "plan": plan_name, "machine_file": where,
+                "source": f"millsense run --source {link.url}"}  # fmt: skip
+        expect = int((float(vp["t_s"][-1]) + 0.5) * link.sample_rate_hz)
+        res = _with_progress(
+            "running", expect,
+            lambda cb: run_session(src, built.blocks, out=out, events_out=ev_path,
+                                   metadata=meta, chunk_samples=chunk, on_progress=cb),
+            built.supervisor,
+        )  # fmt: skip
+    finally:
+        link.close()
+    lines = [f"millsense: note: {n}" for n in built.notes]
+    lines += [f"millsense: warning: {w}" for w in findings.warnings]
+    lines += link_summary(link)
+    lines += _summary_lines(res, out, ev_path)
+    if plot is not None:
+        from millsense.report.online_plots import plot_run
+
+        plot_run(out, res.events, plot)
+        lines.append(f"wrote {plot}")
+    return {"lines": lines, "result": res}
+
+
+def link_summary(link: Any) -> list[str]:
+    """What the link saw: blocks received, duplicates, lost intervals, interruptions."""
+    fs = link.sample_rate_hz
+    lines = [f"link: {link.received} samples received, {link.asm.duplicates} duplicate blocks "
+             f"dropped, {len(link.asm.gaps)} lost intervals"]  # fmt: skip
+    for a, b in link.asm.gaps:
+        lines.append(f"  lost {a / fs:.4f}–{b / fs:.4f} s ({b - a} samples)")
+    for what, _t, k, why in link.link_log:
+        lines.append(f"  link {what} at sample {k} ({k / fs:.4f} s): {why}")
+    return lines
+
+
+@dataclass
+class VirtualMachine:
+    """The virtual machine running a plan (what ``run`` and ``serve-machine`` build)."""
+
+    plan: Any
+    config: Any
+    sim: Any
+    metadata: dict[str, Any]
+    notes: list[str]
+    findings: Any
+
+
+def virtual_machine(
+    *,
+    program: Path | None,
+    stock: Path | None,
+    tool: str | None,
+    material: str | None,
+    plan: Path | None,
+    plan_out: Path | None,
+    machine: str,
+    break_at_s: float | None = None,
+    break_flute: int = 0,
+    tool_modes: Path | None = None,
+    seed: int = 0,
+    duration_s: float | None = None,
+    step_mm: float = 0.4,
+    resolution_mm: float = 0.2,
+) -> VirtualMachine:
+    """The plan of ``--program`` (or ``--plan``) checked against the machine, and the virtual
+    machine ready to run it (``millsense.simulator.plan_job``)."""
+    from millsense.plan.checks import check_plan
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.plan_job import plan_job
+    from millsense.simulator.process_coupling import ProcessEvent, ToolModes, ToothBreak
+
+    vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out, step_mm,
+                                    resolution_mm)  # fmt: skip
+    sim_cfg = simulator_machine(machine)
+    check_plan(vp, findings, machine=sim_cfg)
+    events: list[ProcessEvent] = []
+    if break_at_s is not None:
+        events.append(ToothBreak(break_at_s, break_flute))
+    modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
+    job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
+    sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
+                           duration_s=duration_s)  # fmt: skip
+    meta.update(dict(sim.metadata))
+    return VirtualMachine(vp, sim_cfg, sim, meta, notes, findings)
 
 
 def replay_online(

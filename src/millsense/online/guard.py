@@ -14,6 +14,12 @@ machine, a CNC link, a replay) and adds the per-sample channel ``guard/fault``:
   sends the machine a feed hold through the command path (a CNC's write channel is not its
   data stream) and ends the stream; the session closes what it recorded.
 
+A live link that drops but reconnects by itself (the OPC UA source of :mod:`millsense.link`)
+raises :class:`LinkInterrupted`: the guard raises the alarm (``link_interrupted``) and takes
+the safe action at once — the programmed feed (feed override 100 %), written when the link is
+back — and reads on; the samples missed meanwhile arrive as a gap (code 2) or, re-sent from
+the server's buffer, not at all (decision 1803).
+
 The supervisor (:class:`~millsense.control.arbitration.Supervisor`) turns a fault code into
 the safe action within one control period. Events of the guard itself (a lost source, the
 first sample of each fault run) are collected in :attr:`GuardedSource.events`.
@@ -32,6 +38,15 @@ NAN, GAP, STALL, LOST = 1, 2, 3, 4
 
 #: Errors of a source that mean its link is gone (a simulator's own bugs still propagate).
 LINK_ERRORS: tuple[type[BaseException], ...] = (ConnectionError, TimeoutError, OSError, EOFError)
+
+
+class LinkInterrupted(ConnectionError):
+    """A live source's link dropped; the source reconnects on the next read (``sample``: the
+    next sample expected)."""
+
+    def __init__(self, message: str, sample: int = -1) -> None:
+        super().__init__(message)
+        self.sample = sample
 
 
 class GuardedSource(SourceWrapper):
@@ -77,11 +92,15 @@ class GuardedSource(SourceWrapper):
             return self._guard(c)
         if self._lost:
             return None
-        try:
-            got = self.inner.read(max_samples)
-        except LINK_ERRORS as exc:
-            self._lose(exc)
-            return None
+        while True:
+            try:
+                got = self.inner.read(max_samples)
+                break
+            except LinkInterrupted as exc:
+                self._interrupted(exc)
+            except LINK_ERRORS as exc:
+                self._lose(exc)
+                return None
         if got is None:
             return None
         if got.start > self._next and self._last:
@@ -104,6 +123,21 @@ class GuardedSource(SourceWrapper):
                 self.inner.command(hold)
             except LINK_ERRORS:
                 pass  # the command path is gone too: the CNC's own watchdog must stop it
+
+    def _interrupted(self, exc: BaseException) -> None:
+        """The alarm and the safe action of an interrupted link (decision 1803)."""
+        t = self.t0_s + self._next / self.sample_rate_hz
+        self.events.append(Event(t, EventKind.ALARM, "guard", f"{self.name}: {exc}",
+                                 name="link_interrupted", value=float(LOST), sample=self._next,
+                                 severity=Severity.CRITICAL))  # fmt: skip
+        safe = Event(t, EventKind.OVERRIDE, "guard", "programmed feed: link interrupted",
+                     name="feed_override", value=100.0, sample=self._next,
+                     severity=Severity.CRITICAL)  # fmt: skip
+        self.events.append(safe)
+        try:
+            self.inner.command(safe)
+        except LINK_ERRORS:
+            pass  # queued by the source for the reconnection, or the CNC's watchdog acts
 
     def _filled(self, gap: int) -> Chunk:
         data = {n: np.full(gap, self._last.get(n, 0.0)) for n in self._names}

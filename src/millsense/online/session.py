@@ -39,7 +39,7 @@ from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
 from millsense.online.plan_sync import PlanSync, TcpFromAxes
 from millsense.plan.virtual_plan import VirtualPlan
-from millsense.streaming.block import Block, Chunk, Event, EventKind
+from millsense.streaming.block import Block, Chunk, Event
 from millsense.streaming.engine import Pipeline, run
 from millsense.streaming.sources import Source, SourceWrapper
 
@@ -354,7 +354,7 @@ def run_session(
             events += guarded.events
         take = getattr(source, "take_events", None)
         if callable(take):
-            events += [e for e in take() if e.kind is EventKind.CRASH]
+            events += list(take())  # the simulator's crashes, a link's losses and gaps
         events.sort(key=lambda e: (e.time_s, e.sample))
         if writer is not None:
             writer.update_metadata({"events": len(events)})
