@@ -10,22 +10,12 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from tests.cli_run import run_cli as _cli
 
 from millsense.cli.batch_run import run_batch
 from millsense.cli.cmd_fleet import simulate_fleet
-from millsense.cli.main import main
 from millsense.core.recording import Recording
 from millsense.io import write_recording
-
-
-def _cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        main(args)
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
