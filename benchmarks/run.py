@@ -20,6 +20,11 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+# as every millsense command: one BLAS thread unless the caller set it (decision 2004)
+from millsense.core.blas import default_to_one_thread  # noqa: E402
+
+default_to_one_thread()
+
 from _harness import Metric, machine_info, registered  # noqa: E402
 
 
