@@ -25,7 +25,14 @@ import numpy as np
 
 from millsense.core.errors import UserError
 
-__all__ = ["STEPS", "fragment_path", "process_recording", "read_fragment", "run_name"]
+__all__ = [
+    "STEPS",
+    "fragment_path",
+    "machine_ref",
+    "process_recording",
+    "read_fragment",
+    "run_name",
+]
 
 STEPS = ("estimate", "monitor", "wear", "summary")
 
@@ -130,7 +137,7 @@ def process_recording(path_text: str, options: dict[str, Any]) -> dict[str, Any]
     return row
 
 
-def _machine_ref(options: dict[str, Any], meta: dict[str, Any]) -> str:
+def machine_ref(options: dict[str, Any], meta: dict[str, Any]) -> str:
     """The machine file the steps use: ``--machine``, else the commissioned file shipped for
     the recording's machine (:func:`~millsense.core.presets.commissioned_machine`)."""
     from importlib import resources
@@ -152,7 +159,7 @@ def _machine(options: dict[str, Any], meta: dict[str, Any]) -> Any:
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
 
-    return load_preset(MachineConfig, _machine_ref(options, meta))
+    return load_preset(MachineConfig, machine_ref(options, meta))
 
 
 def _steps(path: Path, out_dir: Path, options: dict[str, Any], row: dict[str, Any]) -> None:
@@ -223,7 +230,7 @@ def _estimate(path: Path, run_dir: Path, options: dict[str, Any], row: dict[str,
     out = run_dir / "estimates.h5"
     out.unlink(missing_ok=True)
     with opened_recording(path) as rec:
-        machine = _machine_ref(options, dict(rec.metadata))
+        machine = machine_ref(options, dict(rec.metadata))
     summary = run_estimate(recording=path, machine=str(machine),
                            method=str(options.get("estimate_method", "spindle")), axes=None,
                            out=out, chunk=int(options.get("chunk", 2000)))  # fmt: skip
