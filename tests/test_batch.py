@@ -125,26 +125,3 @@ def test_a_worker_killed_mid_batch_loses_nothing(fleet: Path, tmp_path: Path) ->
     assert [r["status"] for r in res.rows] == ["ok"] * len(recs), [r.get("error") for r in res.rows]
     assert len(list((tmp_path / "out" / "runs").glob("*.parquet"))) == len(recs)
 
-
-def test_the_observer_design_is_made_once_and_shipped_to_every_worker(
-    fleet: Path, tmp_path: Path
-) -> None:
-    from dask.distributed import Client, LocalCluster
-
-    from millsense.estimation.spindle_observer import known_tunings
-
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address="127.0.0.1:0")  # fmt: skip
-    try:
-        client = Client(cluster)
-        before = client.run(lambda: len(known_tunings()))
-        # one recording: one worker runs it, the other never tunes by itself
-        res = run_batch(sorted(fleet.glob("*.h5"))[:1], tmp_path / "out", do="wear,summary",
-                        scheduler=cluster.scheduler_address)  # fmt: skip
-        after = client.run(lambda: len(known_tunings()))
-    finally:
-        cluster.close()
-    assert res.rows[0]["status"] == "ok", res.rows[0].get("error")
-    assert set(before.values()) == {0}
-    # the quaser-ux600 spindle has two speed ranges: two designs on each worker
-    assert set(after.values()) == {2}

@@ -126,16 +126,6 @@ def run_batch(
     if on_progress is not None:
         on_progress(done, len(recordings))
     if todo:
-        # the estimator designs of the batch's machine files, made once here while the
-        # cluster starts and shipped to every worker (else each worker redoes the same
-        # seconds of Riccati solutions; decision 2003)
-        designs = None
-        if {"estimate", "wear"} & set(options["do"]):
-            import concurrent.futures
-
-            pool = concurrent.futures.ThreadPoolExecutor(1)
-            designs = pool.submit(_designs, [recordings[i] for i in todo], options)
-            pool.shutdown(wait=False)
         cluster = None
         if scheduler:
             client = Client(scheduler, timeout="10s")
@@ -150,12 +140,6 @@ def run_batch(
             res.scheduler = "local"
         try:
             res.workers = len(client.scheduler_info().get("workers", {}))
-            if designs is not None:
-                made = designs.result()
-                if made:
-                    from millsense.estimation.spindle_observer import install_tunings
-
-                    client.run(install_tunings, made)
             futures = {
                 client.submit(process_recording, str(recordings[i].resolve()), options,
                               retries=RETRIES, pure=False, key=f"millsense-batch-{i}"): i
@@ -179,32 +163,6 @@ def run_batch(
                 cluster.close()
     res.rows = [rows[i] for i in range(len(recordings))]
     return res
-
-
-def _designs(recordings: Sequence[Path], options: dict[str, Any]) -> dict[Any, Any]:
-    """The spindle observer designs of every (machine file, sample rate) of ``recordings``
-    (:func:`~millsense.estimation.spindle_observer.known_tunings`); a recording or machine
-    file that cannot be read is left to its task, which reports it."""
-    from millsense.cli.batch_tasks import machine_ref
-    from millsense.core.config import MachineConfig
-    from millsense.core.errors import UserError
-    from millsense.core.presets import load_preset
-    from millsense.estimation.from_config import build_estimators
-    from millsense.estimation.spindle_observer import known_tunings
-    from millsense.io.recording_reader import opened_recording
-
-    seen: set[tuple[str, float]] = set()
-    for p in recordings:
-        try:
-            with opened_recording(p) as rec:
-                key = (machine_ref(options, dict(rec.metadata)), float(rec.sample_rate_hz))
-            if key in seen:
-                continue
-            seen.add(key)
-            build_estimators(load_preset(MachineConfig, key[0]), ["spindle"], [], key[1])
-        except (UserError, OSError, ValueError, KeyError):
-            continue
-    return known_tunings()
 
 
 def assess_wear(rows: list[dict[str, Any]], *, limit_mm: float = 0.3) -> list[dict[str, Any]]:

@@ -165,18 +165,6 @@ def tune_spindle_q(
 _TUNINGS: dict[tuple[object, ...], SpindleTuning] = {}
 
 
-def known_tunings() -> dict[tuple[object, ...], SpindleTuning]:
-    """The tunings made (or installed) in this process, by their arguments (a copy)."""
-    return dict(_TUNINGS)
-
-
-def install_tunings(tunings: dict[tuple[object, ...], SpindleTuning]) -> int:
-    """Make tunings computed elsewhere known here (``batch`` ships the client's to its
-    workers); returns how many are known now. The keys are the arguments of
-    :func:`tune_spindle_q`, so a wrong one is never used for another model."""
-    _TUNINGS.update(tunings)
-    return len(_TUNINGS)
-
 
 def _tune_spindle_q(
     model: StateSpaceModel,
