@@ -17,7 +17,13 @@ from tests.opcua_helpers import PASSWORD, ROOT, free_port, make_pki, make_plan
 from millsense.link.client import CommandRefused, LinkRefused, OpcUaSource, Reassembler
 from millsense.link.nodemap import ChannelMap, load_node_map
 from millsense.link.security import UntrustedServer, Users, ensure_identity, trust
-from millsense.link.server import MachineServer, ServeOptions, ServerThread, pack
+from millsense.link.server import (
+    MachineServer,
+    ServeOptions,
+    ServerThread,
+    SpindleNameplate,
+    pack,
+)
 from millsense.streaming.block import Event, EventKind
 
 MACHINE_FILE = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
@@ -41,7 +47,8 @@ def machine_server(plan: Path, pki: Path, port: int, **kw: object) -> MachineSer
                          plan_out=None, machine="quaser-ux600", duration_s=DURATION_S)  # fmt: skip
     opts = ServeOptions(endpoint=f"opc.tcp://127.0.0.1:{port}", pki=pki, **kw)  # type: ignore[arg-type]
     users = Users(pki / "users.toml", allow_anonymous=opts.allow_anonymous)
-    return MachineServer(vm.sim, opts, users, None, vm.metadata, vm.sim.take_stream_rows)
+    return MachineServer(vm.sim, opts, users, None, vm.metadata, vm.sim.take_stream_rows,
+                         SpindleNameplate.for_machine(vm.config.name))  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -89,6 +96,7 @@ def test_closed_loop_over_opcua_equals_in_process(
             ["run", *common, "--source", f"opc.tcp://127.0.0.1:{port}", "--user", "op",
              "--pki", str(pki), "-o", str(tmp_path / "link.h5")], capsys,
         )  # fmt: skip
+        power, load = _value(server, server.spindle_power), _value(server, server.spindle_load)
     assert code == 0, err
     assert "0 duplicate blocks dropped, 0 lost intervals" in out
     with open_recording(tmp_path / "local.h5") as a, open_recording(tmp_path / "link.h5") as b:
@@ -108,6 +116,24 @@ def test_closed_loop_over_opcua_equals_in_process(
     assert ev_a == ev_b
     # every override the controller sent reached the served machine, in order
     assert [c.value for c in server.commands] == [v for _, v in ev_b]
+    # the spindle's drive power and load on the CNC display: running, and load = P / 20 kW
+    assert power > 0
+    assert load == pytest.approx(100 * power / 20e3, rel=1e-12)
+
+
+def _value(server: MachineServer, var: object) -> float:
+    return float(server.server.read_attribute_value(var.nodeid).Value.Value)  # type: ignore[attr-defined]
+
+
+def test_spindle_nameplate_power_and_load() -> None:
+    """The nameplate's K_t per winding range (1.397 and 1.634 N·m/A, Aslan Table 5.1 +4 %;
+    switch at 3300 rev/min) times current times speed; the load over the 20 kW rating."""
+    plate = SpindleNameplate.for_machine("quaser-ux600")
+    assert plate is not None and plate.rated_power_w == 20e3
+    w_low, w_high = 1000 * np.pi / 30, 6000 * np.pi / 30
+    p = plate.power_w(np.array([2.0, 2.0]), np.array([w_low, w_high]))
+    assert p == pytest.approx(0.5 * (1.397 * 2 * w_low + 1.634 * 2 * w_high), rel=1e-12)
+    assert plate.load_pct(-p) == pytest.approx(100 * p / 20e3, rel=1e-12)
 
 
 # ---------------------------------------------------------------------------- refusals

@@ -53,7 +53,7 @@ def serve_machine(
     from millsense.cli.cmd_run import virtual_machine
     from millsense.link.nodemap import load_node_map
     from millsense.link.security import Users, pki_dir
-    from millsense.link.server import MachineServer, ServeOptions, serve
+    from millsense.link.server import MachineServer, ServeOptions, SpindleNameplate, serve
 
     lo.link_logging()
     opts = ServeOptions(endpoint=endpoint, pace=pace, speed=speed, buffer_s=buffer_s, pki=pki,
@@ -70,7 +70,8 @@ def serve_machine(
     )  # fmt: skip
     for n in vm.notes:
         typer.echo(f"millsense: note: {n}", err=True)
-    server = MachineServer(vm.sim, opts, users, nmap, vm.metadata, vm.sim.take_stream_rows)
+    server = MachineServer(vm.sim, opts, users, nmap, vm.metadata, vm.sim.take_stream_rows,
+                           SpindleNameplate.for_machine(vm.config.name))
     typer.echo(f"serving {vm.config.name} on {endpoint} ({pace}); ^C stops", err=True)
     try:
         asyncio.run(serve(server, linger_s))

@@ -50,6 +50,61 @@ PACES = ("realtime", "lockstep")
 
 
 @dataclass(frozen=True)
+class SpindleNameplate:
+    """What a CNC knows of its spindle to show its power and load: the torque constant per
+    winding range (above ``switch_rad_s`` the second; Aslan Table 5.1) and the rated power.
+
+    ``power_w``: the mean drive power of a block, K_t·I·Ω (the motor torque from the current,
+    times the speed); the load in % is that over the rated power, as a CNC's spindle-load display.
+    """
+
+    torque_constant_nm_a: float
+    torque_constant_range2_nm_a: float | None = None
+    switch_rad_s: float | None = None
+    rated_power_w: float | None = None
+
+    @classmethod
+    def from_config(cls, machine: Any) -> SpindleNameplate | None:
+        """From a machine file (``[spindle]``, ``[limits] spindle_power_kw``); None without
+        a spindle."""
+        sp = getattr(machine, "spindle", None)
+        if sp is None:
+            return None
+        lim = getattr(machine, "limits", None)
+        kw = getattr(lim, "spindle_power_kw", None) if lim is not None else None
+        switch = sp.range_switch_rpm * math.pi / 30 if sp.range_switch_rpm else None
+        return cls(sp.torque_constant_nm_a, sp.torque_constant_range2_nm_a, switch,
+                   None if kw is None else kw * 1e3)  # fmt: skip
+
+    @classmethod
+    def for_machine(cls, name: str) -> SpindleNameplate | None:
+        """The nameplate preset of machine ``name`` (``millsense/data/machines``: the
+        catalogue values a CNC is set up with, not the simulator's truth); None if none ships."""
+        from millsense.core.config import MachineConfig
+        from millsense.core.presets import load_preset
+
+        try:
+            return cls.from_config(load_preset(MachineConfig, name))
+        except ConfigError:
+            return None
+
+    def power_w(self, current_a: np.ndarray, speed_rad_s: np.ndarray) -> float:
+        """Mean K_t(Ω)·I·Ω over the samples, W."""
+        i = np.asarray(current_a, dtype=np.float64)
+        w = np.asarray(speed_rad_s, dtype=np.float64)
+        kt = np.full(w.shape, self.torque_constant_nm_a)
+        if self.switch_rad_s is not None and self.torque_constant_range2_nm_a is not None:
+            kt = np.where(np.abs(w) > self.switch_rad_s, self.torque_constant_range2_nm_a, kt)
+        return float(np.mean(kt * i * w)) if w.size else 0.0
+
+    def load_pct(self, power_w: float) -> float:
+        """|P| over the rated power, % (NaN without a rating)."""
+        if not self.rated_power_w:
+            return math.nan
+        return 100.0 * abs(power_w) / self.rated_power_w
+
+
+@dataclass(frozen=True)
 class ServeOptions:
     """How the machine is served.
 
@@ -108,12 +163,15 @@ class MachineServer:
     ``take_rows``: a callable returning the source's 333 Hz CNC rows (``tcp_x``… as
     :meth:`~millsense.simulator.machine.MachineSimulator.take_stream_rows`), or None.
     ``users``: a :class:`~millsense.link.security.Users`.
+    ``nameplate``: the spindle's :class:`SpindleNameplate` for its power and load, or None.
     """
 
     def __init__(self, source: Source, options: ServeOptions, users: Any,
                  node_map: NodeMap | None = None, metadata: dict[str, Any] | None = None,
-                 take_rows: Any = None) -> None:  # fmt: skip
+                 take_rows: Any = None,
+                 nameplate: SpindleNameplate | None = None) -> None:  # fmt: skip
         self.source = source
+        self.nameplate = nameplate
         self.o = options
         self.users = users
         self.map = node_map or load_node_map()
@@ -268,6 +326,7 @@ class MachineServer:
                 v = await spn.add_variable(nid(f"{base}.{label}"), label, 0.0)
                 self.scalars.append((v, f"spindle/{ch}"))
         self.spindle_power = await spn.add_variable(nid(f"{base}.ActPower"), "ActPower", 0.0)
+        self.spindle_load = await spn.add_variable(nid(f"{base}.ActLoad"), "ActLoad", 0.0)
         cl = await cnc.add_folder(nid(f"{vm}.CncInterface.CncChannelList"), "CncChannelList")
         chb = "Machines.VirtualMachine.CncInterface.CncChannelList.Channel1"
         chan = await cl.add_object(nid(chb), "Channel1")
@@ -385,6 +444,12 @@ class MachineServer:
     async def _display(self, chunk: Any) -> None:
         for var, ch in self.scalars:
             await var.write_value(float(chunk.data[ch][-1]))
+        if self.nameplate is not None and {"spindle/current", "spindle/speed"} <= set(chunk.data):
+            p = self.nameplate.power_w(chunk.data["spindle/current"], chunk.data["spindle/speed"])
+            await self.spindle_power.write_value(p)
+            load = self.nameplate.load_pct(p)
+            if math.isfinite(load):
+                await self.spindle_load.write_value(load)
         if "cnc/nc_line" in chunk.data:
             await self.nc_line.write_value(int(chunk.data["cnc/nc_line"][-1]))
         if "cnc/feed" in chunk.data:
