@@ -418,6 +418,44 @@ def test_identify_friction_on_imported_air_moves(
     assert np.allclose(got[1]["viscous_nm_s_rad"], got[0]["viscous_nm_s_rad"], rtol=1e-9)
 
 
+def test_identify_drive_on_an_imported_sweep(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The drive model (ball screw, inertia, dead time; Yamada Table 3-3) identified from a
+    drive sweep exported as CSV and imported through its map (with the test's description in
+    the map's [metadata]) equals the native recording's (the CSV keeps every digit: 1e-9)."""
+    import tomllib
+
+    from millsense.io import write_recording
+    from millsense.simulator import commissioning as cm
+    from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
+
+    sweep = cm.drive_sweep(simulator_machine("yamada-b"), "x")
+    write_recording(tmp_path / "native.h5", sweep)
+    # what the test was, as the user states it in the map (a trace export does not carry it)
+    stated = "\n[metadata]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in
+                                           sweep.metadata.items() if k != "source")  # fmt: skip
+    (tmp_path / "s.map.toml").write_text(export_recording(sweep, tmp_path / "s.csv", "csv")
+                                         + stated)  # fmt: skip
+    code, _, err = run_cli(["import", str(tmp_path / "s.csv"), "--map",
+                            str(tmp_path / "s.map.toml"), "-o", str(tmp_path / "imp.h5")],
+                           capsys)  # fmt: skip
+    assert code == 0, err
+    sim = str(simulator_machine_path("yamada-b"))
+    frags = []
+    for rec in ("native.h5", "imp.h5"):
+        out = tmp_path / f"d_{rec}.toml"
+        code, _, err = run_cli(["identify", "drive", str(tmp_path / rec), "--machine", sim,
+                                "-o", str(out)], capsys)  # fmt: skip
+        assert code == 0, err
+        frags.append(tomllib.loads(out.read_text())["axes"]["x"])
+    for key in ("inertia_kg_m2", "dead_time_motor_encoder_ms"):
+        assert frags[1][key] == pytest.approx(frags[0][key], rel=1e-9), key
+    for key in ("axial_stiffness_n_um", "table_mass_kg"):
+        assert frags[1]["ball_screw"][key] == pytest.approx(frags[0]["ball_screw"][key],
+                                                           rel=1e-9), key  # fmt: skip
+
+
 def test_tncscope_like_export_units_in_names_and_sample_time(tmp_path: Path) -> None:
     """Tab-separated, decimal comma, units in the column names, the rate stated as a sample
     time in ms: 3 ms → 333.33 Hz; position in µm → m, speed in mm/min → m/s."""
