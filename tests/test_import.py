@@ -363,6 +363,13 @@ def test_estimate_on_imported_csv_with_dynamometer_reproduces_native(
     big = ca.true_amp >= 0.01 * ca.true_amp.max()
     assert np.allclose(cb.est_amp[big], ca.est_amp[big], rtol=0.01)
     assert np.allclose(cb.true_amp[big], ca.true_amp[big], rtol=0.01)
+    # the monitors run on the imported recording (no truth) as on the native one
+    from millsense.cli.cmd_monitor import run_monitor
+
+    ev = [run_monitor(recording=r, out=tmp_path / f"{r.stem}.events.parquet",
+                      methods="chatter-comb,chatter-sdft", machine=COMMISSIONED)["events"]
+          for r in (example / "native.h5", tmp_path / "imp.h5")]  # fmt: skip
+    assert [(e.name, e.sample) for e in ev[1]] == [(e.name, e.sample) for e in ev[0]]
 
 
 def test_identify_friction_on_imported_air_moves(
