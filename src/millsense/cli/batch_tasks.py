@@ -196,7 +196,7 @@ def _steps(path: Path, out_dir: Path, options: dict[str, Any], row: dict[str, An
             _wear(rec, path, meta, options, row)
     run_dir = out_dir / "runs" / row["run"]
     if "estimate" in do:
-        _estimate(path, run_dir, options, row)
+        _estimate(path, meta, run_dir, options, row)
     if "monitor" in do:
         _monitor(path, run_dir, options, row)
 
@@ -222,15 +222,15 @@ def _wear(rec: Any, path: Path, meta: dict[str, Any], options: dict[str, Any],
     row["plan_kte_n_mm"] = coefficients_from_metadata(vp.metadata, str(plan)).kte * 1e-3
 
 
-def _estimate(path: Path, run_dir: Path, options: dict[str, Any], row: dict[str, Any]) -> None:
+def _estimate(path: Path, meta: dict[str, Any], run_dir: Path, options: dict[str, Any],
+              row: dict[str, Any]) -> None:  # fmt: skip
     from millsense.cli.cmd_estimate import run_estimate
     from millsense.io.recording_reader import opened_recording
 
     run_dir.mkdir(parents=True, exist_ok=True)
     out = run_dir / "estimates.h5"
     out.unlink(missing_ok=True)
-    with opened_recording(path) as rec:
-        machine = machine_ref(options, dict(rec.metadata))
+    machine = machine_ref(options, meta)
     summary = run_estimate(recording=path, machine=str(machine),
                            method=str(options.get("estimate_method", "spindle")), axes=None,
                            out=out, chunk=int(options.get("chunk", 2000)))  # fmt: skip

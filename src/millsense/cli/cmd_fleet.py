@@ -20,52 +20,25 @@ from typing import Any
 import typer
 
 from millsense.cli.main import app
-
-#: (name, axial depth mm, radial width mm; 20 = slot) of the built-in programs.
-FLEET_PROGRAMS = (("slot2", 2.0, 20.0), ("side3w10", 3.0, 10.0), ("side4w5", 4.0, 5.0),
-                  ("slot1p5", 1.5, 20.0))  # fmt: skip
-SPINDLE_RPM = 1000.0
-FEED_MM_MIN = 400.0
-DIAMETER_MM = 20.0
-
-
-def _program(depth_mm: float, width_mm: float) -> str:
-    """A straight cut along X through the block (top edge at Y0): the tool centre at
-    Y = R − width (Y = −15 for a slot, the block spanning Y −30..0), air before X −10."""
-    r = DIAMETER_MM / 2
-    y = -15.0 if width_mm >= DIAMETER_MM else r - width_mm
-    return (
-        "%\nO7001 (MILLSENSE FLEET RUN)\nG21 G90 G17 G94\nT1 M6\n"
-        f"S{SPINDLE_RPM:.0f} M3\nG0 X-16. Y{y:.3f} Z5.\nG1 Z-{depth_mm:.3f} F{FEED_MM_MIN:.0f}.\n"
-        "X30.\nG0 Z5.\nM30\n%\n"
-    )
+from millsense.simulator.tool_life import (
+    DIAMETER_MM,
+    FLEET_PROGRAMS,
+    SPINDLE_RPM,
+    fleet_plan,
+    fleet_program,
+)
 
 
 def write_fleet_plans(folder: Path) -> list[Path]:
     """The built-in programs and their virtual plans in ``folder`` (reused when present)."""
-    from millsense.core.config import MaterialConfig, ToolConfig
-    from millsense.core.presets import load_preset
-    from millsense.plan.gcode import interpret_file
-    from millsense.plan.stock import ZMapStock
-    from millsense.plan.virtual_plan import plan_program
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.geometry import EndMill
-
-    tool_cfg = load_preset(ToolConfig, "aslan-d20-2flute")
-    mat = load_preset(MaterialConfig, "al7050")
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     for name, depth, width in FLEET_PROGRAMS:
-        nc = folder / f"{name}.nc"
         pq = folder / f"{name}.parquet"
         if not pq.is_file():
-            nc.write_text(_program(depth, width))
-            stock = ZMapStock.from_box([0.0, -0.03, -0.02], [0.06, 0.0, 0.0], 0.25e-3)
-            vp = plan_program(interpret_file(nc), stock, EndMill.from_config(tool_cfg),
-                              CuttingCoefficients.from_config(mat),
-                              metadata={"program": str(nc), "tool_name": tool_cfg.name,
-                                        "material_name": mat.name})  # fmt: skip
-            vp.write(pq)
+            nc = folder / f"{name}.nc"
+            nc.write_text(fleet_program(depth, width))
+            fleet_plan(nc).write(pq)
         out.append(pq)
     return out
 

@@ -20,9 +20,9 @@ from millsense.online.session import TORQUE_CHANNEL
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block
 from millsense.streaming.engine import Pipeline, run
-from millsense.streaming.sources import RecordingSource
+from millsense.streaming.sources import RecordingSource, Source
 
-__all__ = ["recording_wear_sums", "wear_blocks"]
+__all__ = ["recording_wear_sums", "source_wear_sums", "wear_blocks"]
 
 
 def wear_blocks(
@@ -54,17 +54,28 @@ def recording_wear_sums(
     InputDataError
         A channel the blocks need is not in the recording (named).
     """
-    axes = [a for a in machine.axes if f"{a}/position_cmd" in rec.channel_names]
-    cfg = machine.with_axes(axes, str(rec.metadata.get("kinematics", machine.kinematics)))
-    blocks, wear = wear_blocks(plan, cfg, rec.sample_rate_hz, where=where or "machine file")
-    have = set(rec.channel_names)
+    return source_wear_sums(rec, plan, machine, chunk=chunk, where=where)
+
+
+def source_wear_sums(
+    source: Any, plan: VirtualPlan, machine: MachineConfig, *, chunk: int = 2000, where: str = ""
+) -> WearSums:
+    """The same on a recording or a live :class:`~millsense.streaming.sources.Source` (the
+    virtual machine): anything with ``channel_names``, ``metadata`` and ``sample_rate_hz``; a
+    recording is replayed with only the channels the blocks read."""
+    names = list(source.channel_names)
+    axes = [a for a in machine.axes if f"{a}/position_cmd" in names]
+    cfg = machine.with_axes(axes, str(source.metadata.get("kinematics", machine.kinematics)))
+    blocks, wear = wear_blocks(plan, cfg, source.sample_rate_hz, where=where or "machine file")
     made = {c.name for b in blocks for c in b.output_channels()}
     needed = {c for b in blocks for c in b.inputs if c not in made}
-    missing = sorted(needed - have)
+    missing = sorted(needed - set(names))
     if missing:
         raise InputDataError(
             f"{where or 'recording'}: wear needs channel(s) {', '.join(missing)}"
         )
-    src = RecordingSource(rec, name=where or "recording", channels=sorted(needed))
+    src = source if isinstance(source, Source) else RecordingSource(
+        source, name=where or "recording", channels=sorted(needed)
+    )
     run(src, Pipeline(blocks), chunk, collect=False)
     return wear.sums

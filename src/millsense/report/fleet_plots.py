@@ -21,12 +21,23 @@ import matplotlib.pyplot as plt
 
 from millsense.report.plots import _save
 
-__all__ = ["plot_fleet", "tool_key", "tool_table"]
+__all__ = ["plot_fleet", "tool_key", "tool_runs", "tool_table"]
 
 
 def tool_key(r: dict[str, Any]) -> tuple[str, str]:
     """(machine, tool id or name) of a summary row."""
     return (str(r.get("machine", "")), str(r.get("tool_id") or r.get("tool", "")))
+
+
+def tool_runs(rows: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    """The judged runs (status ok, with a wear estimate) per (machine, tool), sorted by tool,
+    each tool's runs in order of its cutting time."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        if r.get("status") == "ok" and r.get("wear_vb_mm") is not None:
+            groups.setdefault(tool_key(r), []).append(r)
+    return {k: sorted(v, key=lambda r: float(r.get("tool_cutting_time_s") or 0.0))
+            for k, v in sorted(groups.items())}  # fmt: skip
 
 
 def tool_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -57,13 +68,9 @@ def tool_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 def plot_fleet(rows: Sequence[dict[str, Any]], path: str | Path, *, limit_mm: float) -> None:
     """Write the fleet PNG (module docstring)."""
     fig, (ax_vb, ax_tq) = plt.subplots(1, 2, figsize=(12, 4.8))
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for r in rows:
-        if r.get("status") == "ok" and r.get("wear_vb_mm") is not None:
-            groups.setdefault(tool_key(r), []).append(r)
+    groups = tool_runs(rows)
     several = len({k[0] for k in groups}) > 1
-    for i, (key, members) in enumerate(sorted(groups.items())):
-        members = sorted(members, key=lambda r: float(r.get("tool_cutting_time_s") or 0.0))
+    for i, (key, members) in enumerate(groups.items()):
         t_min = [float(r.get("tool_cutting_time_s") or 0.0) / 60 for r in members]
         color = f"C{i % 10}"
         label = f"{key[0]} {key[1]}" if several else key[1]

@@ -18,7 +18,7 @@ import plotly.graph_objects as go
 from plotly.offline import get_plotlyjs
 from plotly.subplots import make_subplots
 
-from millsense.report.fleet_plots import tool_key, tool_table
+from millsense.report.fleet_plots import tool_runs, tool_table
 from millsense.report.run_report import CSS, html_table
 
 __all__ = ["RUN_COLUMNS", "fleet_html", "write_fleet_report"]
@@ -37,12 +37,7 @@ def _figure(rows: Sequence[dict[str, Any]], limit_mm: float) -> go.Figure:
     fig = make_subplots(rows=1, cols=2, subplot_titles=(
         "wear monitor (matched engagement); dashed: true VB",
         "raw torque (no engagement normalisation)"))  # fmt: skip
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for r in rows:
-        if r.get("status") == "ok" and r.get("wear_vb_mm") is not None:
-            groups.setdefault(tool_key(r), []).append(r)
-    for i, (key, members) in enumerate(sorted(groups.items())):
-        members = sorted(members, key=lambda r: float(r.get("tool_cutting_time_s") or 0.0))
+    for i, (key, members) in enumerate(tool_runs(rows).items()):
         t = [float(r.get("tool_cutting_time_s") or 0.0) / 60 for r in members]
         color = f"hsl({(i * 67) % 360},65%,45%)"
         name = " ".join(k for k in key if k)

@@ -14,13 +14,29 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from millsense.core.errors import ConfigError
+from millsense.plan.virtual_plan import VirtualPlan
 from millsense.simulator.wear import FlankWearModel
 
-__all__ = ["ToolLifeRun", "tool_life_runs"]
+__all__ = [
+    "FLEET_PROGRAMS",
+    "ToolLifeRun",
+    "fleet_plan",
+    "fleet_program",
+    "tool_life_runs",
+]
+
+#: (name, axial depth mm, radial width mm; 20 = slot) of the built-in fleet programs:
+#: depths and widths that change the torque as much as the wear does.
+FLEET_PROGRAMS = (("slot2", 2.0, 20.0), ("side3w10", 3.0, 10.0), ("side4w5", 4.0, 5.0),
+                  ("slot1p5", 1.5, 20.0))  # fmt: skip
+SPINDLE_RPM = 1000.0
+FEED_MM_MIN = 400.0
+DIAMETER_MM = 20.0
 
 
 @dataclass(frozen=True)
@@ -65,3 +81,36 @@ def tool_life_runs(
             prog = (i + k) % n_programs
             out.append(ToolLifeRun(f"T{k + 1}", i, prog, float(t[i]), float(vb[i])))
     return out
+
+
+def fleet_program(depth_mm: float, width_mm: float) -> str:
+    """A straight cut along X through a 60 × 30 × 20 mm block (top edge at Y0) with the
+    Ø20 mm tool at 1000 rev/min and 400 mm/min: the tool centre at Y = R − width (Y = −15 for
+    a slot, the block spanning Y −30..0), air before X −10."""
+    r = DIAMETER_MM / 2
+    y = -15.0 if width_mm >= DIAMETER_MM else r - width_mm
+    return (
+        "%\nO7001 (MILLSENSE FLEET RUN)\nG21 G90 G17 G94\nT1 M6\n"
+        f"S{SPINDLE_RPM:.0f} M3\nG0 X-16. Y{y:.3f} Z5.\nG1 Z-{depth_mm:.3f} F{FEED_MM_MIN:.0f}.\n"
+        "X30.\nG0 Z5.\nM30\n%\n"
+    )
+
+
+def fleet_plan(program: Path) -> VirtualPlan:
+    """The virtual plan of a fleet program (:func:`fleet_program`) on the Al7050 block with the
+    Ø20 mm two-flute tool (the presets ``aslan-d20-2flute``, ``al7050``)."""
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    tool_cfg = load_preset(ToolConfig, "aslan-d20-2flute")
+    mat = load_preset(MaterialConfig, "al7050")
+    stock = ZMapStock.from_box([0.0, -0.03, -0.02], [0.06, 0.0, 0.0], 0.25e-3)
+    return plan_program(interpret_file(program), stock, EndMill.from_config(tool_cfg),
+                        CuttingCoefficients.from_config(mat),
+                        metadata={"program": str(program), "tool_name": tool_cfg.name,
+                                  "material_name": mat.name})  # fmt: skip
