@@ -71,3 +71,75 @@ def test_fleet_page_opens_in_chromium(browser: Any, tmp_path: Path) -> None:
     assert traces == 6
     assert page.locator("table.tools tbody tr").count() == 2
     assert page.locator("table.runs tbody tr").count() == 9
+
+
+def test_run_report_shows_the_fleet_with_this_run_marked(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``millsense report RUN.h5 --fleet summary.parquet`` (issue 20 item 3): the run report
+    carries the fleet view; the run's own summary row is shown first and highlighted, its tool's
+    line of the tool table is the one marked, and the tool table's figures are those of
+    :func:`tool_table` (the same rows as the batch's page)."""
+    import sys
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from tests.cli_run import run_cli
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_report
+
+    rec = tmp_path / "T2_r2.h5"
+    bench_report.synthesise(rec, 2.0)
+    summary = tmp_path / "summary.parquet"
+    pq.write_table(pa.Table.from_pylist(_rows()), summary)
+    out = tmp_path / "r.html"
+    code, stdout, err = run_cli(["report", str(rec), "--fleet", str(summary), "-o", str(out)],
+                                capsys)  # fmt: skip
+    assert code == 0, err
+    page = out.read_text(encoding="utf-8")
+    assert "Fleet: tools and wear" in page and "this run is marked" in page
+    marked = re.findall(r'<tr class="this-run">(.*?)</tr>', page, re.S)
+    cells = [re.findall(r"<td>(.*?)</td>", m) for m in marked]
+    # this run's row (twice: shown first, and marked in the runs table) and its tool's line
+    assert [c[0] for c in cells] == ["T2_r2", "m1", "T2_r2"]
+    assert cells[0][9] == f"{0.006 * 12:.6g}"  # VB [mm] of the row (12 min of cutting)
+    t2 = {t["tool"]: t for t in tool_table(_rows())}["T2"]
+    assert cells[1][:4] == ["m1", "T2", str(t2["runs"]), str(t2["failed"])]
+    assert cells[1][4] == f"{t2['vb_mm']:.6g}"
+
+    # a run that is not in the table: the view without a mark, and said so
+    other = tmp_path / "elsewhere.h5"
+    bench_report.synthesise(other, 1.0)
+    code, _, err = run_cli(["report", str(other), "--fleet", str(summary), "-o",
+                            str(tmp_path / "o.html")], capsys)  # fmt: skip
+    o = (tmp_path / "o.html").read_text(encoding="utf-8")
+    assert code == 0 and "is not in it" in o and '<tr class="this-run">' not in o
+
+
+def test_report_fleet_errors_are_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A summary that is not a Parquet file, or a Parquet table that is not a batch's: one line
+    naming the file, exit 2, no report written."""
+    import sys
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from tests.cli_run import run_cli
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_report
+
+    rec = tmp_path / "run.h5"
+    bench_report.synthesise(rec, 1.0)
+    bad = tmp_path / "bad.parquet"
+    bad.write_text("not parquet", encoding="utf-8")
+    other = tmp_path / "other.parquet"
+    pq.write_table(pa.Table.from_pylist([{"x": 1.0}]), other)
+    for path, words in ((bad, "not a readable summary table"), (other, "no column run")):
+        out = tmp_path / "r.html"
+        code, _, err = run_cli(["report", str(rec), "--fleet", str(path), "-o", str(out)],
+                               capsys)  # fmt: skip
+        assert code == 2 and str(path) in err and words in err, err
+        assert len(err.strip().splitlines()) == 1 and not out.exists()

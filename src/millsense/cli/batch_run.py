@@ -28,6 +28,7 @@ __all__ = [
     "assess_wear",
     "find_recordings",
     "parse_steps",
+    "read_summary",
     "run_batch",
     "write_summary",
 ]
@@ -223,3 +224,27 @@ def write_summary(rows: list[dict[str, Any]], out_dir: Path) -> Path:
     with atomic_path(target) as tmp:
         pq.write_table(table, tmp)
     return target
+
+
+def read_summary(path: Path) -> list[dict[str, Any]]:
+    """The rows of a summary table written by :func:`write_summary`.
+
+    Raises
+    ------
+    InputDataError
+        Not a readable Parquet file, or not a batch's table (no ``run``/``status`` column):
+        one line naming the file.
+    """
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path)
+    except (OSError, ValueError) as exc:
+        why = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        raise InputDataError(f"{path}: not a readable summary table ({why})") from None
+    missing = [c for c in ("run", "status") if c not in table.column_names]
+    if missing:
+        raise InputDataError(
+            f"{path}: not the summary table of a batch (no column {', '.join(missing)})"
+        )
+    return [dict(r) for r in table.to_pylist()]

@@ -23,6 +23,15 @@ def report(
         "--machine-file",
         help="Machine file of the estimators (default: the one the recording names).",
     ),
+    fleet: Path | None = typer.Option(
+        None,
+        "--fleet",
+        help="Summary table of a batch (OUT/summary.parquet of `millsense batch`): adds the "
+        "fleet view (tools, wear trend, this run marked).",
+    ),
+    wear_limit_mm: float = typer.Option(
+        0.3, "--wear-limit-mm", help="Flank-wear limit VB of the fleet view [mm]."
+    ),
     out: Path = typer.Option(..., "-o", "--output", help="Report to write (.html)."),
 ) -> None:
     """One self-contained HTML file of a run (plotly, opens offline): estimates against truth,
@@ -32,10 +41,17 @@ def report(
 
     check_outputs(
         {"the recording": recording, "the plan": plan, "the event log": events,
-         "the machine file": machine_file},
+         "the machine file": machine_file, "the summary table": fleet},
         {"-o": out},
     )  # fmt: skip
-    rep = write_run_report(out, recording, plan=plan, events=events, machine_file=machine_file)
+    rows = None
+    if fleet is not None:
+        from millsense.cli.batch_run import read_summary
+
+        rows = read_summary(fleet)
+    rep = write_run_report(out, recording, plan=plan, events=events, machine_file=machine_file,
+                           fleet=rows, fleet_where=str(fleet or ""),
+                           wear_limit_mm=wear_limit_mm)  # fmt: skip
     typer.echo(report_line(rep, out))
 
 
@@ -57,11 +73,15 @@ def write_run_report(
     plan: Any = None,
     events: Any = None,
     machine_file: Path | None = None,
+    fleet: Any = None,
+    fleet_where: str = "",
+    wear_limit_mm: float = 0.3,
 ) -> Any:
     """Write the report of ``recording``: ``plan`` a path or a plan, ``events`` a path, a list
     of events or None (the event log beside the recording if there); the machine file is
     ``machine_file``, else the one the recording names (a file, or the commissioned file
-    shipped for its machine)."""
+    shipped for its machine); ``fleet`` the rows of a batch's summary table (from
+    ``fleet_where``) for the fleet view, or None."""
     from millsense.io.recording_reader import opened_recording
     from millsense.plan.virtual_plan import VirtualPlan
     from millsense.report.run_report import write_report
@@ -83,7 +103,8 @@ def write_run_report(
     rows, status_where = status if status is not None else (None, "")
     return write_report(out, recording, events=events, plan=plan, machine=machine,
                         machine_where=where, validation=rows,
-                        validation_where=status_where)  # fmt: skip
+                        validation_where=status_where, fleet=fleet, fleet_where=fleet_where,
+                        wear_limit_mm=wear_limit_mm)  # fmt: skip
 
 
 def _machine(machine_file: Path | None, meta: dict[str, Any]) -> tuple[Any, str]:

@@ -9,7 +9,9 @@ chatter, breakage and hold events where they happened; the breakage residual aga
 threshold; the adaptive control's feed override and regulated quantity; the spindle speed with
 its changes; the event table; the machine file with its identified sections; the validation
 status of the estimators and monitors used (given by the caller: ``millsense.validation`` sits
-above this layer).
+above this layer); given a batch's summary table, the fleet view with this run's tool and row
+marked (per tool and machine: runs, VB, wear rate, remaining life; the wear trend;
+:mod:`~millsense.report.fleet_report`).
 
 Every whole-run trace is a min/max envelope (:mod:`~millsense.report.run_scan`): a one-hour
 recording at 10 kHz becomes 5000 bins per trace and its largest peaks stay visible.
@@ -35,6 +37,7 @@ from millsense.core.errors import InputDataError
 from millsense.io.recording_reader import channel_window
 from millsense.report.estimate_metrics import compare
 from millsense.report.estimate_stream import ZOOM_PERIODS, scan_cut_window
+from millsense.report.html_parts import CSS, html_table
 from millsense.report.run_scan import FXY_TRUE, RunFigures, RunScan, scan_run
 from millsense.streaming.block import Event
 
@@ -102,6 +105,9 @@ def build_report(
     title: str = "",
     bins: int | None = None,
     runs: Mapping[str, RunFigures] | None = None,
+    fleet: Sequence[dict[str, Any]] | None = None,
+    fleet_where: str = "",
+    wear_limit_mm: float = 0.3,
 ) -> RunReport:
     """Read ``recording`` once and build its report.
 
@@ -117,6 +123,9 @@ def build_report(
         ``validation_where``: where that status was recorded (file, date, commit).
     bins : envelope bins per trace (default :data:`~millsense.report.run_scan.DISPLAY_BINS`).
     runs : figures of several runs shown side by side (the demo: controlled and open), or None.
+    fleet, fleet_where : the rows of a batch's summary table (``millsense batch``) and the file
+        they came from: the report shows the fleet view with this run's tool and row marked
+        (:func:`~millsense.report.fleet_report.fleet_sections`); ``wear_limit_mm`` the VB limit.
     """
     from millsense.io.recording_reader import opened_recording
 
@@ -145,9 +154,25 @@ def build_report(
     text = _html(
         title or f"millsense run report: {Path(recording).name}",
         figs, scan, events, meta, harm, machine, machine_where, validation, validation_where,
-        runs,
+        runs, _fleet_parts(recording, fleet, fleet_where, wear_limit_mm),
     )  # fmt: skip
     return RunReport(figs, scan.figures, text, harm)
+
+
+def _fleet_parts(recording: str | Path, fleet: Sequence[dict[str, Any]] | None, where: str,
+                 limit_mm: float) -> list[str]:  # fmt: skip
+    """The fleet section of the run report (empty without a summary table)."""
+    from millsense.report.fleet_report import find_run, fleet_sections
+
+    if fleet is None:
+        return []
+    name = Path(recording).name
+    run = find_run(fleet, name[:-3] if name.endswith(".h5") else Path(name).stem)
+    parts = ["<h2>Fleet: tools and wear</h2>",
+             f'<p class="note">summary table {html.escape(where)}; '
+             + ("this run is marked." if run is not None else
+                f"this run ({html.escape(name)}) is not in it.") + "</p>"]  # fmt: skip
+    return parts + fleet_sections(fleet, limit_mm=limit_mm, run=run, level=3)
 
 
 def write_report(path: str | Path, recording: str | Path, **kwargs: Any) -> RunReport:
@@ -393,21 +418,6 @@ def _spindle_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
 
 
 # ---------------------------------------------------------------- HTML
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return html.escape(str(v))
-
-
-def html_table(head: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
-    """An HTML table of the rows (values formatted, text escaped)."""
-    h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>" for r in rows)
-    return f'<table class="{cls}"><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>'
-
-
 def figures_rows(f: RunFigures) -> list[tuple[str, str, Any]]:
     """The run's figures as (key, label, value) rows (the keys of the demo's summary)."""
     return [
@@ -468,15 +478,6 @@ def identification_rows(machine: Any) -> list[list[str]]:
     return rows
 
 
-CSS = """
-body{font-family:system-ui,sans-serif;margin:1.5em;color:#222;max-width:1400px}
-table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.85em}
-td,th{border:1px solid #ccc;padding:2px 6px;text-align:left;vertical-align:top}
-th{background:#f2f2f2} h2{border-bottom:1px solid #ddd;margin-top:1.6em}
-.note{color:#666;font-size:0.85em} .fail{color:#b00} .pass{color:#070}
-"""
-
-
 def _html(
     title: str,
     figs: Mapping[str, go.Figure],
@@ -489,6 +490,7 @@ def _html(
     validation: Sequence[Mapping[str, str]] | None,
     validation_where: str,
     runs: Mapping[str, RunFigures] | None = None,
+    fleet_parts: Sequence[str] = (),
 ) -> str:
     f = scan.figures
     parts = [f"<h1>{html.escape(title)}</h1>",
@@ -500,6 +502,7 @@ def _html(
                     "figures"),
              html_table(["events", "count"], sorted(f.events.items()), "event-counts"),
              *_runs_table(runs),
+             *fleet_parts,
              "<h2>Recording</h2>",
              html_table(["key", "value"], [[k, v if isinstance(v, int | float | str) else
                                         json.dumps(v)] for k, v in meta.items()])]  # fmt: skip

@@ -90,11 +90,13 @@ class LinearFilter:
         """
         f = np.atleast_1d(np.asarray(f_hz, dtype=float))
         z = np.exp(2j * np.pi * f * self.dt)
-        eye = np.eye(self.n_states)
-        out = np.empty((len(f), self.n_outputs, self.n_inputs), dtype=complex)
-        for i, zi in enumerate(z):
-            out[i] = self.h @ np.linalg.solve(zi * eye - self.f, self.g) + self.j
-        return out
+        # one batched LU solve over all frequencies (numpy's gufunc loops over the stack in C)
+        a = np.empty((len(f), self.n_states, self.n_states), dtype=np.complex128)
+        a[:] = -self.f
+        diag = np.arange(self.n_states)
+        a[:, diag, diag] += z[:, None]
+        x = np.linalg.solve(a, np.broadcast_to(self.g, (len(f), *self.g.shape)))
+        return np.asarray(self.h @ x + self.j, dtype=np.complex128)
 
     def output_covariance(self, input_cov: ArrayLike) -> NDArray[np.float64]:
         """Steady-state output covariance for white inputs of covariance ``input_cov``.
