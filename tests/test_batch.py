@@ -125,3 +125,54 @@ def test_a_worker_killed_mid_batch_loses_nothing(fleet: Path, tmp_path: Path) ->
     assert [r["status"] for r in res.rows] == ["ok"] * len(recs), [r.get("error") for r in res.rows]
     assert len(list((tmp_path / "out" / "runs").glob("*.parquet"))) == len(recs)
 
+
+
+def test_a_long_recording_runs_as_segments_with_the_whole_runs_figures(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """Decision 2005: a recording split into segments (each from a 2 s warm-up) and a wear part
+    gives the row of the recording run whole — the wear sums exactly (the same task), the
+    channel means and RMS from the segments' sums to round-off, the maxima exactly, the
+    estimated load's mean within 0.2 % (each segment's observer settles in its warm-up: the
+    spindle observer's transient is milliseconds) — and a part lost by a killed batch is the
+    only one run again."""
+    recs = sorted(fleet.glob("T1_r00[01].h5"))
+    whole = run_batch(recs, tmp_path / "whole", do="estimate,monitor,wear,summary", workers=1,
+                      segment_s=None)  # fmt: skip
+    split = run_batch(recs, tmp_path / "split", do="estimate,monitor,wear,summary", workers=2,
+                      segment_s=4.0)  # fmt: skip
+    assert split.ran == 2
+    for a, b in zip(whole.rows, split.rows, strict=True):
+        assert a["status"] == b["status"] == "ok", (a["error"], b["error"])
+        assert b["segments"] == 2 and "segments" not in a
+        for k in [k for k in a if k.startswith("wear_")] + ["raw_torque_nm", "cut_s"]:
+            assert a[k] == b[k], k
+        for pre in ("spindle_current", "spindle_speed"):
+            assert b[f"{pre}_mean"] == pytest.approx(a[f"{pre}_mean"], rel=1e-12, abs=1e-12)
+            assert b[f"{pre}_rms"] == pytest.approx(a[f"{pre}_rms"], rel=1e-12)
+            assert b[f"{pre}_maxabs"] == a[f"{pre}_maxabs"]
+            # the 99th percentile of the run lies within the segments' largest
+            assert a[f"{pre}_p99abs"] <= b[f"{pre}_p99abs"] * (1 + 1e-12)
+        est = "est_spindle_spindle_load"
+        assert b[f"{est}_mean"] == pytest.approx(a[f"{est}_mean"], rel=2e-3)
+        assert b[f"{est}_maxabs"] == pytest.approx(a[f"{est}_maxabs"], rel=2e-2)
+        assert b["alarms"] == a["alarms"] and b["events"] == a["events"]
+        assert not any(k.endswith(("_sum", "_sumsq")) or k.startswith("segment_") for k in b)
+        assert set(a) - set(b) == set() and set(b) - set(a) == {"segments"}
+    # one event log for the run, from the segments' own events
+    from millsense.streaming.event_log import read_event_log
+
+    for a, r in zip(whole.rows, recs, strict=True):
+        log = tmp_path / "split" / "runs" / r.name[:-3] / "events.parquet"
+        assert len(read_event_log(log)) == a["events"]
+    # the parts' rows are kept; losing one part and the run's row reruns that part alone
+    parts = tmp_path / "split" / "runs" / f"{recs[0].name[:-3]}.parts"
+    assert sorted(p.name for p in parts.iterdir()) == [
+        "seg-000.parquet", "seg-001.parquet", "wear.parquet"]  # fmt: skip
+    (parts / "seg-001.parquet").unlink()
+    (tmp_path / "split" / "runs" / f"{recs[0].name[:-3]}.parquet").unlink()
+    again = run_batch(recs, tmp_path / "split", do="estimate,monitor,wear,summary", workers=1,
+                      segment_s=4.0)  # fmt: skip
+    assert (again.ran, again.reused) == (1, 1)
+    assert (parts / "seg-001.parquet").is_file()
+    assert again.rows[0]["spindle_current_mean"] == split.rows[0]["spindle_current_mean"]

@@ -2,10 +2,12 @@
 (issue 20, items 1 and 3; decision 2003).
 
 :func:`run_batch` submits one :func:`~millsense.cli.batch_tasks.process_recording` task per
-recording to a Dask ``distributed`` cluster — a local one (``workers`` processes, one thread
-each) or an existing scheduler at ``scheduler`` — with retries, and collects the rows as they
-finish. Recordings whose row a previous batch already wrote (unchanged input) are not run
-again. :func:`assess_wear` then judges every tool's runs in order
+recording — or, for a recording longer than 1.5 × ``segment_s``, one
+:func:`~millsense.cli.batch_tasks.process_part` task per segment and one for its wear sums
+(decision 2005) — to a Dask ``distributed`` cluster — a local one (``workers`` processes, one
+thread each) or an existing scheduler at ``scheduler`` — with retries, and collects the rows as
+they finish. Recordings (and parts) whose row a previous batch already wrote (unchanged input)
+are not run again. :func:`assess_wear` then judges every tool's runs in order
 (:func:`~millsense.monitoring.wear.assess_tool`) and :func:`write_summary` writes the table as
 one Parquet file (``OUT/summary.parquet``, queryable with duckdb, polars or pandas).
 """
@@ -19,7 +21,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from millsense.cli.batch_tasks import STEPS, process_recording, read_fragment
+from millsense.cli.batch_tasks import (
+    SEGMENT_WARMUP_S,
+    STEPS,
+    Part,
+    merge_parts,
+    parts_of,
+    process_part,
+    process_recording,
+    read_fragment,
+    write_fragment,
+)
 from millsense.core.blas import default_to_one_thread
 from millsense.core.errors import ConfigError, InputDataError
 
@@ -92,9 +104,14 @@ def run_batch(
     estimate_method: str = "spindle",
     monitor_methods: str = "chatter-comb",
     chunk: int = 2000,
-    on_progress: Callable[[int, int], None] | None = None,
+    segment_s: float | None = 600.0,
+    on_progress: Callable[[float, int], None] | None = None,
 ) -> BatchResult:
-    """Run every recording's task on Dask and return the rows in the recordings' order."""
+    """Run every recording's task(s) on Dask and return the rows in the recordings' order.
+
+    ``segment_s``: recordings longer than 1.5 × this many seconds run as segments (None: every
+    recording as one task). ``on_progress(done, total)``: recordings done (a split recording
+    counts by its finished parts) of the total."""
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as exc:
@@ -104,6 +121,10 @@ def run_batch(
 
     if workers < 1:
         raise ConfigError(f"--workers: must be ≥ 1, got {workers}")
+    floor = 2 * SEGMENT_WARMUP_S
+    if segment_s is not None and not (segment_s >= floor and math.isfinite(segment_s)):
+        raise ConfigError(f"--segment-s: must be ≥ {floor:g} s (twice the warm-up), got "
+                          f"{segment_s:g}")  # fmt: skip
     options: dict[str, Any] = {
         "out_dir": str(out_dir.resolve()),
         "do": parse_steps(do),
@@ -123,9 +144,20 @@ def run_batch(
             res.reused += 1
         else:
             todo.append(i)
-    done = len(rows)
-    if on_progress is not None:
-        on_progress(done, len(recordings))
+    # the parts of long recordings, and those a previous batch finished
+    parts: dict[int, list[Part]] = {}
+    finished: dict[int, dict[str, dict[str, Any]]] = {}
+    for i in todo:
+        found = _parts(recordings[i], segment_s, options["do"])
+        if found:
+            parts[i] = found
+            finished[i] = {}
+            for pt in found:
+                old = read_fragment(out_dir, recordings[i], pt)
+                if old is not None and old.get("status") == "ok":
+                    finished[i][pt.name] = old
+    progress = _Progress(len(recordings), len(rows), parts, finished, on_progress)
+    progress.report()
     if todo:
         cluster = None
         if scheduler:
@@ -141,29 +173,101 @@ def run_batch(
             res.scheduler = "local"
         try:
             res.workers = len(client.scheduler_info().get("workers", {}))
-            futures = {
-                client.submit(process_recording, str(recordings[i].resolve()), options,
-                              retries=RETRIES, pure=False, key=f"millsense-batch-{i}"): i
-                for i in todo
-            }  # fmt: skip
+            futures: dict[Any, tuple[int, Part | None]] = {}
+            for i in todo:
+                text = str(recordings[i].resolve())
+                if i not in parts:
+                    fut = client.submit(process_recording, text, options, retries=RETRIES,
+                                        pure=False, key=f"millsense-batch-{i}")  # fmt: skip
+                    futures[fut] = (i, None)
+                    continue
+                for pt in parts[i]:
+                    if pt.name not in finished[i]:
+                        key = f"millsense-batch-{i}-{pt.name}"
+                        fut = client.submit(process_part, text, options, pt, retries=RETRIES,
+                                            pure=False, key=key)  # fmt: skip
+                        futures[fut] = (i, pt)
+            for i in [i for i in parts if len(finished[i]) == len(parts[i])]:
+                rows[i] = _merged(out_dir, recordings[i], finished[i])  # all parts were done
+                res.reused += 1
             for fut in as_completed(list(futures)):
-                i = futures[fut]
+                i, part = futures[fut]
                 try:
-                    rows[i] = fut.result()
+                    row = fut.result()
                 except Exception as exc:  # a task that failed RETRIES + 1 times, a killed worker
                     why = f"{type(exc).__name__}: {exc}"
-                    rows[i] = {"run": recordings[i].stem, "path": str(recordings[i]),
-                               "status": "error", "error": why}  # fmt: skip
-                res.ran += 1
-                done += 1
-                if on_progress is not None:
-                    on_progress(done, len(recordings))
+                    row = {"run": recordings[i].stem, "path": str(recordings[i]),
+                           "status": "error", "error": why}  # fmt: skip
+                if part is None:
+                    rows[i] = row
+                    res.ran += 1
+                    progress.whole()
+                else:
+                    row["part"] = part.name
+                    finished[i][part.name] = row
+                    if len(finished[i]) == len(parts[i]):
+                        rows[i] = _merged(out_dir, recordings[i], finished[i])
+                        res.ran += 1
+                progress.report()
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
     res.rows = [rows[i] for i in range(len(recordings))]
     return res
+
+
+def _parts(path: Path, segment_s: float | None, do: list[str]) -> list[Part]:
+    """The parts of a long recording (none: one task; also for a file the client cannot open:
+    its task reports why)."""
+    from millsense.core.errors import UserError
+    from millsense.io.recording_reader import opened_recording
+
+    if segment_s is None:
+        return []
+    try:
+        with opened_recording(path) as rec:
+            n, fs = int(rec.n_samples), float(rec.sample_rate_hz)
+    except (UserError, OSError, ValueError, KeyError):
+        return []
+    return parts_of(n, fs, segment_s, do)
+
+
+def _merged(out_dir: Path, path: Path, done: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The run's row from its parts, written as the run's fragment when every part is ok."""
+    from millsense.streaming.event_log import read_event_log, write_event_log
+
+    row = merge_parts(list(done.values()))
+    if row.get("status") == "ok":
+        run_dir = out_dir / "runs" / str(row["run"])
+        logs = sorted(run_dir.glob("seg-*/events.parquet"))
+        if logs:  # the segments' own events, one log for the run
+            write_event_log(run_dir / "events.parquet",
+                            [e for log in logs for e in read_event_log(log)])  # fmt: skip
+        write_fragment(out_dir, path, row)
+    return row
+
+
+class _Progress:
+    """Recordings done, a split recording counted by its finished parts."""
+
+    def __init__(self, total: int, whole_done: int, parts: dict[int, list[Part]],
+                 finished: dict[int, dict[str, dict[str, Any]]],
+                 report: Callable[[float, int], None] | None) -> None:  # fmt: skip
+        self.total = total
+        self.parts = parts
+        self.finished = finished
+        self.whole_done = whole_done
+        self._report = report
+
+    def report(self) -> None:
+        if self._report is None:
+            return
+        split = sum(len(self.finished[i]) / len(p) for i, p in self.parts.items())
+        self._report(self.whole_done + split, self.total)
+
+    def whole(self) -> None:
+        self.whole_done += 1
 
 
 def assess_wear(rows: list[dict[str, Any]], *, limit_mm: float = 0.3) -> list[dict[str, Any]]:

@@ -39,6 +39,12 @@ def batch(
     vb_limit_mm: float = typer.Option(
         0.3, "--vb-limit-mm", help="Flank-wear limit VB [mm] (ISO 8688-2: 0.3)."
     ),
+    segment_s: float = typer.Option(
+        600.0,
+        "--segment-s",
+        help="Recordings longer than 1.5 x this [s] run as segments of about this length, in "
+        "parallel (the wear sums over the whole recording as one more task); 0: never split.",
+    ),
 ) -> None:
     """Run the pipeline over many recordings (a task per recording on Dask; a failed or
     corrupt recording is a row of the table, never the end of the batch) and write
@@ -67,6 +73,7 @@ def batch(
     with progress_bar("batch", float(len(found))) as update:
         res = run_batch(found, out, do=do, machine=machine, plan=plan, workers=workers,
                         scheduler=scheduler, estimate_method=method, monitor_methods=monitors,
+                        segment_s=segment_s if segment_s != 0 else None,
                         on_progress=lambda k, _n: update(float(k)))  # fmt: skip
     rows = assess_wear(res.rows, limit_mm=vb_limit_mm)
     target = write_summary(rows, out)

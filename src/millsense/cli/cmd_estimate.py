@@ -240,6 +240,7 @@ def run_estimate(
     band_hz: float | None = None,
     reference: str = "auto",
     on_progress: Any = None,
+    segment: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     """Build the estimators, replay ``recording`` and write ``out`` while running.
 
@@ -263,6 +264,9 @@ def run_estimate(
     run over the air phase first; their mean there per direction of the commanded velocity is
     subtracted from the estimates (decision "Idle compensation in estimate").
 
+    ``segment``: samples ``[start, stop)`` only (a
+    :class:`~millsense.io.recording_reader.RecordingSegment`; ``millsense batch``).
+
     Raises
     ------
     ConfigError, InputDataError, RecordingError
@@ -280,7 +284,7 @@ def run_estimate(
     methods = _methods(method)
     mcfg = load_preset(MachineConfig, machine)
     with contextlib.ExitStack() as stack:
-        rec = open_recording(recording)
+        rec = open_recording(recording, segment)
         if hasattr(rec, "close"):
             stack.callback(rec.close)
         return _run_estimate(

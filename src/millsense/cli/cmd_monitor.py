@@ -153,10 +153,12 @@ def run_monitor(
     air_s: str | None = None,
     cut_s: float | None = None,
     position: str | None = None,
+    segment: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
 
     Returns a summary: ``events`` (list of Event), ``lines`` (printed summary), ``wall_s``.
+    ``segment``: samples ``[start, stop)`` only (``millsense batch``).
 
     Raises
     ------
@@ -178,7 +180,7 @@ def run_monitor(
 
         tool_cfg = load_preset(ToolConfig, tool)
     with contextlib.ExitStack() as stack:
-        rec = open_recording(recording)
+        rec = open_recording(recording, segment)
         if hasattr(rec, "close"):
             stack.callback(rec.close)
         return _run(rec, recording, out, plan, machine, names, channel, flutes, spindle_rpm,

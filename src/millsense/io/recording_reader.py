@@ -13,6 +13,11 @@ deflate filters and its chunk cache), so a replay holds one chunk of each channe
 length is what one run wrote before it died. Both answer the same questions
 (``sample_rate_hz``, ``t0_s``, ``n_samples``, ``metadata``, ``channel_names``, ``info``,
 ``in``, ``stream``); :func:`channel_window` reads a window from either.
+
+:class:`RecordingSegment` (``open_recording(path, segment=(start, stop))``) is samples
+``[start, stop)`` of either, seen as a recording of its own: its ``t0_s`` is the time of its
+first sample, its streams keep the rows of its time span. ``millsense batch`` runs the
+segments of a long recording as separate tasks (issue 20, decision 2005).
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ from millsense.io.recording_file import (
     read_recording,
 )
 
-__all__ = ["RecordingReader", "channel_window", "open_recording"]
+__all__ = ["RecordingReader", "RecordingSegment", "channel_window", "open_recording"]
 
 #: HDF5 chunk cache per dataset, bytes: two of the writer's 512 KiB chunks, so that reading a
 #: chunk's samples in several windows inflates it once.
@@ -208,30 +213,107 @@ class RecordingReader:
         )
 
 
-def open_recording(path: str | Path) -> RecordingReader | Recording:
-    """A lazy :class:`RecordingReader` of a complete file; an interrupted recording (only its
-    ``.partial/`` sidecar exists) recovered in memory as a :class:`Recording`.
+class RecordingSegment:
+    """Samples ``[start, stop)`` of a recording (a :class:`RecordingReader` or a
+    :class:`Recording`) as a recording of its own (module docstring).
 
     Raises
     ------
     RecordingError
-        As :func:`~millsense.io.recording_file.read_recording`.
+        An empty or reversed range, or one beyond the recording's samples.
+    """
+
+    def __init__(self, rec: RecordingReader | Recording, start: int, stop: int) -> None:
+        n = int(rec.n_samples)
+        if not (0 <= int(start) < int(stop) <= n):
+            where = getattr(rec, "path", "recording")
+            raise RecordingError(
+                f"{where}: segment samples {start}-{stop} outside the recording's 0-{n}"
+            )
+        self.base = rec
+        self.start = int(start)
+        self.stop = int(stop)
+        self.path = getattr(rec, "path", None)
+        self.sample_rate_hz = float(rec.sample_rate_hz)
+        self.t0_s = float(rec.t0_s) + self.start / self.sample_rate_hz
+        self.n_samples = self.stop - self.start
+        self.metadata: dict[str, object] = dict(rec.metadata)
+
+    @property
+    def channel_names(self) -> list[str]:
+        return list(self.base.channel_names)
+
+    @property
+    def stream_names(self) -> list[str]:
+        return list(self.base.stream_names)
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_samples / self.sample_rate_hz
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.base
+
+    def info(self, name: str) -> ChannelInfo:
+        return self.base.info(name)
+
+    def window(self, name: str, start: int, stop: int) -> np.ndarray:
+        """Samples ``[start, stop)`` of the segment (clipped to it)."""
+        a = self.start + max(0, min(int(start), self.n_samples))
+        b = self.start + max(0, min(int(stop), self.n_samples))
+        return channel_window(self.base, name, a, max(a, b))
+
+    def channel(self, name: str) -> np.ndarray:
+        return self.window(name, 0, self.n_samples)
+
+    def stream(self, name: str) -> Stream:
+        """The stream's rows whose time lies in the segment's span."""
+        return self.base.stream(name).slice_time(self.t0_s, self.t0_s + self.duration_s)
+
+    def close(self) -> None:
+        close = getattr(self.base, "close", None)
+        if close is not None:
+            close()
+
+    def __repr__(self) -> str:
+        return f"RecordingSegment({self.base!r}, samples {self.start}-{self.stop})"
+
+
+def open_recording(
+    path: str | Path, segment: tuple[int, int] | None = None
+) -> RecordingReader | Recording | RecordingSegment:
+    """A lazy :class:`RecordingReader` of a complete file; an interrupted recording (only its
+    ``.partial/`` sidecar exists) recovered in memory as a :class:`Recording`; with
+    ``segment=(start, stop)`` the :class:`RecordingSegment` of those samples.
+
+    Raises
+    ------
+    RecordingError
+        As :func:`~millsense.io.recording_file.read_recording`; a segment outside the samples.
     """
     p = Path(path)
-    if p.is_file():
-        return RecordingReader(p)
-    return read_recording(p)
+    rec: RecordingReader | Recording = RecordingReader(p) if p.is_file() else read_recording(p)
+    if segment is None:
+        return rec
+    try:
+        return RecordingSegment(rec, *segment)
+    except RecordingError:
+        if isinstance(rec, RecordingReader):
+            rec.close()
+        raise
 
 
 @contextmanager
-def opened_recording(path: str | Path) -> Iterator[RecordingReader | Recording]:
+def opened_recording(
+    path: str | Path, segment: tuple[int, int] | None = None
+) -> Iterator[RecordingReader | Recording | RecordingSegment]:
     """:func:`open_recording` as a context: the file is closed on leaving (a recovered
     in-memory recording has nothing to close)."""
-    rec = open_recording(path)
+    rec = open_recording(path, segment)
     try:
         yield rec
     finally:
-        if isinstance(rec, RecordingReader):
+        if isinstance(rec, RecordingReader | RecordingSegment):
             rec.close()
 
 
