@@ -26,6 +26,7 @@ from millsense.cli.batch_tasks import (
     STEPS,
     Part,
     merge_parts,
+    part_dir,
     parts_of,
     process_part,
     process_recording,
@@ -133,6 +134,7 @@ def run_batch(
         "estimate_method": estimate_method,
         "monitor_methods": monitor_methods,
         "chunk": chunk,
+        "segment_s": segment_s,
     }
     res = BatchResult()
     rows: dict[int, dict[str, Any]] = {}
@@ -144,18 +146,20 @@ def run_batch(
             res.reused += 1
         else:
             todo.append(i)
-    # the parts of long recordings, and those a previous batch finished
+    # a recording is split by its first task (the worker opens it, the client never does);
+    # one that an earlier batch split keeps the parts it finished
     parts: dict[int, list[Part]] = {}
     finished: dict[int, dict[str, dict[str, Any]]] = {}
     for i in todo:
-        found = _parts(recordings[i], segment_s, options["do"])
-        if found:
-            parts[i] = found
-            finished[i] = {}
-            for pt in found:
-                old = read_fragment(out_dir, recordings[i], pt)
-                if old is not None and old.get("status") == "ok":
-                    finished[i][pt.name] = old
+        if part_dir(out_dir, recordings[i]).is_dir():
+            found = _parts(recordings[i], segment_s, options["do"])
+            if found:
+                parts[i] = found
+                finished[i] = {}
+                for pt in found:
+                    old = read_fragment(out_dir, recordings[i], pt)
+                    if old is not None and old.get("status") == "ok":
+                        finished[i][pt.name] = old
     progress = _Progress(len(recordings), len(rows), parts, finished, on_progress)
     progress.report()
     if todo:
@@ -174,23 +178,31 @@ def run_batch(
         try:
             res.workers = len(client.scheduler_info().get("workers", {}))
             futures: dict[Any, tuple[int, Part | None]] = {}
-            for i in todo:
+
+            def submit_parts(i: int) -> None:
                 text = str(recordings[i].resolve())
-                if i not in parts:
-                    fut = client.submit(process_recording, text, options, retries=RETRIES,
-                                        pure=False, key=f"millsense-batch-{i}")  # fmt: skip
-                    futures[fut] = (i, None)
-                    continue
                 for pt in parts[i]:
                     if pt.name not in finished[i]:
                         key = f"millsense-batch-{i}-{pt.name}"
                         fut = client.submit(process_part, text, options, pt, retries=RETRIES,
                                             pure=False, key=key)  # fmt: skip
                         futures[fut] = (i, pt)
+                        pending.add(fut)
+
+            pending = as_completed([])
+            for i in todo:
+                if i in parts:
+                    submit_parts(i)
+                    continue
+                text = str(recordings[i].resolve())
+                fut = client.submit(process_recording, text, options, retries=RETRIES,
+                                    pure=False, key=f"millsense-batch-{i}")  # fmt: skip
+                futures[fut] = (i, None)
+                pending.add(fut)
             for i in [i for i in parts if len(finished[i]) == len(parts[i])]:
                 rows[i] = _merged(out_dir, recordings[i], finished[i])  # all parts were done
                 res.reused += 1
-            for fut in as_completed(list(futures)):
+            for fut in pending:
                 i, part = futures[fut]
                 try:
                     row = fut.result()
@@ -198,7 +210,13 @@ def run_batch(
                     why = f"{type(exc).__name__}: {exc}"
                     row = {"run": recordings[i].stem, "path": str(recordings[i]),
                            "status": "error", "error": why}  # fmt: skip
-                if part is None:
+                if part is None and row.get("status") == "split":
+                    # a long recording: its parts run as tasks of their own
+                    parts[i] = parts_of(int(row["n_samples"]), float(row["sample_rate_hz"]),
+                                        segment_s, options["do"])  # fmt: skip
+                    finished[i] = {}
+                    submit_parts(i)
+                elif part is None:
                     rows[i] = row
                     res.ran += 1
                     progress.whole()

@@ -43,6 +43,7 @@ __all__ = [
     "fragment_path",
     "machine_ref",
     "merge_parts",
+    "part_dir",
     "part_fragment_path",
     "parts_of",
     "process_part",
@@ -115,9 +116,14 @@ def _stamp(path: Path) -> str:
     return f"{st.st_size}:{st.st_mtime_ns}"
 
 
+def part_dir(out_dir: Path, path: Path) -> Path:
+    """The folder of a split recording's part rows."""
+    return out_dir / "runs" / f"{run_name(path)}.parts"
+
+
 def part_fragment_path(out_dir: Path, path: Path, part: Part) -> Path:
     """Where the worker writes a part's row."""
-    return out_dir / "runs" / f"{run_name(path)}.parts" / f"{part.name}.parquet"
+    return part_dir(out_dir, path) / f"{part.name}.parquet"
 
 
 def read_fragment(out_dir: Path, path: Path, part: Part | None = None) -> dict[str, Any] | None:
@@ -197,7 +203,9 @@ def process_recording(path_text: str, options: dict[str, Any]) -> dict[str, Any]
 
     ``options``: ``out_dir`` (str), ``do`` (list of steps), ``machine`` (file or preset, None:
     the recording's commissioned machine), ``plan`` (None: the recording's), ``estimate_method``,
-    ``monitor_methods``, ``chunk``.
+    ``monitor_methods``, ``chunk``, ``segment_s`` (None: never split). A recording that
+    :func:`parts_of` splits is not processed: the row says ``status = "split"`` with its
+    ``n_samples`` and ``sample_rate_hz``, and the client runs its parts.
     """
     path = Path(path_text)
     out_dir = Path(options["out_dir"])
@@ -205,6 +213,9 @@ def process_recording(path_text: str, options: dict[str, Any]) -> dict[str, Any]
     row: dict[str, Any] = {"run": run_name(path), "path": str(path), "status": "ok", "error": ""}
     try:
         row["input_stamp"] = _stamp(path)
+        split = _long(path, options)
+        if split is not None:
+            return split  # the client submits its parts (nothing written)
         _steps(path, out_dir, options, row)
     except UserError as exc:
         row.update(status="error", error=str(exc))
@@ -214,6 +225,21 @@ def process_recording(path_text: str, options: dict[str, Any]) -> dict[str, Any]
     row["worker_pid"] = os.getpid()
     write_fragment(out_dir, path, row)
     return row
+
+
+def _long(path: Path, options: dict[str, Any]) -> dict[str, Any] | None:
+    """The ``split`` row of a recording that runs as parts, or None."""
+    from millsense.io.recording_reader import opened_recording
+
+    segment_s = options.get("segment_s")
+    if segment_s is None:
+        return None
+    with opened_recording(path) as rec:
+        n, fs = int(rec.n_samples), float(rec.sample_rate_hz)
+    if not parts_of(n, fs, float(segment_s), list(options.get("do", STEPS))):
+        return None
+    return {"run": run_name(path), "path": str(path), "status": "split", "error": "",
+            "n_samples": n, "sample_rate_hz": fs}  # fmt: skip
 
 
 def process_part(path_text: str, options: dict[str, Any], part: Part) -> dict[str, Any]:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,11 +44,14 @@ from millsense.estimation.kalman.design import (
     design_kalman,
 )
 from millsense.estimation.kalman.lti_filter import StreamingFilter
-from millsense.estimation.kalman.rational_fit import RationalFit
-from millsense.ident.frf import FrfEstimate
 from millsense.models.friction import CoulombViscous
 from millsense.models.spindle_plant import SpindleDriveParams, plant_matrices
 from millsense.streaming.block import Block, BlockOutput, Chunk
+
+if TYPE_CHECKING:  # annotations only: scipy.signal (≈ 0.8 s to import) stays out of the
+    # processes that only run the observer (every batch worker, estimate, run)
+    from millsense.estimation.kalman.rational_fit import RationalFit
+    from millsense.ident.frf import FrfEstimate
 
 #: Eq. 5.34 with K_rc = 0.5·K_tc and no edge forces: √(1 + 0.5²).
 RESULTANT_FACTOR = math.sqrt(1.25)

@@ -14,6 +14,7 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk
+from millsense.streaming.recursions import exponential_average
 
 
 class SpindleAtSpeed(Block):
@@ -103,8 +104,6 @@ class AirReference(Block):
         self._run = 0
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        from scipy.signal import lfilter
-
         tq = np.asarray(chunk.data[self.inputs[0]], dtype=np.float64)
         air = np.asarray(chunk.data[self.inputs[1]]) < 0.5
         ok = np.asarray(chunk.data[self.inputs[2]]) > 0.5
@@ -123,7 +122,7 @@ class AirReference(Block):
                     self._ref = float(x[0])
                     self._seen = True
                 a = self.alpha
-                y, _ = lfilter([a], [1.0, a - 1.0], x, zi=[(1.0 - a) * self._ref])
+                y = exponential_average(x, a, self._ref)
                 hold = np.full(n, -1)
                 hold[k] = np.arange(k.size)
                 pos = np.maximum.accumulate(hold)
