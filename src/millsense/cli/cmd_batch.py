@@ -70,7 +70,7 @@ def batch(
     if not found:
         raise ConfigError(f"batch: {recordings} holds no recording outside -o {out}")
     out.mkdir(parents=True, exist_ok=True)
-    # the fleet view's plotting libraries load while the workers run (≈ 1 s of the wall time)
+    # the wear assessment and the fleet view's libraries load while the workers run (≈ 1 s)
     import threading
 
     preload = threading.Thread(target=_import_reports, daemon=True)
@@ -102,6 +102,8 @@ def batch(
 
 
 def _import_reports() -> None:
+    """What the client needs once the workers are done (wear assessment, the fleet view)."""
+    import millsense.monitoring.wear
     import millsense.report.fleet_plots
     import millsense.report.fleet_report  # noqa: F401
 
