@@ -20,8 +20,8 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _spectrum_kernels as _sk
-from millsense.monitoring import _tooth_kernels as _k
 from millsense.monitoring.torque_spectrum import (
+    RUNOUT_RCOND,
     EngagementEstimate,
     SpectrumIdentifier,
     ToolGeometry,
@@ -119,51 +119,46 @@ class EngagementBlock(Block):
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
         self.fs = float(sample_rate_hz)
-        self._ident = SpectrumIdentifier(
+        ident = self._ident = SpectrumIdentifier(
             self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
         )
-        self._state = np.array([0.0, -1.0])
-        self._buf: list[tuple[np.ndarray, ...]] = []
+        self._acc = np.zeros(_sk.ACC_SIZE)
+        self._acc[_sk.ACC_REV] = -1.0
+        self._sums = np.zeros(self._k.size, dtype=np.complex128)
+        self._prev = np.zeros(3)
+        g = self.geom
+        self._fpar = np.array(
+            [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb,
+             ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]  # fmt: skip
+        )
+        self._done = np.empty((16, 4))
+        self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
+        self._est = np.empty((16, _sk.EST_SIZE))
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_arrays: np.ndarray | None = None
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
-        self._cur_rev = -1
         self.estimates = []
 
-    def _finish(self, t_end: float) -> None:
-        x = np.concatenate([b[0] for b in self._buf])
-        ang = np.concatenate([b[1] for b in self._buf])
-        sp = np.concatenate([b[2] for b in self._buf])
-        fd = np.concatenate([b[3] for b in self._buf]) if self.feed_channel else None
-        self._buf = []
-        est: EngagementEstimate | None = None
-        omega = float(np.mean(np.abs(sp)))
-        if float(np.mean(x)) >= self.min_torque_nm and omega > 0:
-            coeff = np.empty(self._k.size, dtype=np.complex128)
-            _sk.revolution_harmonics(x, ang, self.geom.n_flutes, coeff)
-            c = self.c_m
-            if c is None:
-                assert fd is not None
-                c = 2 * math.pi * float(np.mean(np.abs(fd))) / (self.geom.n_flutes * omega)
-            if c > 0 and abs(coeff[1]) > 0:
-                est = self._ident.identify(coeff[1:], complex(coeff[0]), c)
-        self.estimates.append((t_end, est))
+    def _finish(self, t_end: float, row: int) -> None:
+        """The estimate of row ``row`` of the revolutions finished (module notes)."""
         self._held_views = None
-        if est is None:
+        status = self._done[row, _sk.DONE_STATUS]
+        if status == _sk.REV_NONE:
+            self.estimates.append((t_end, None))
             self._held = np.full(len(_FIELDS), math.nan)
-        else:
-            self._held = np.array(
-                [
-                    est.axial_depth_m,
-                    est.radial_depth_m,
-                    est.entry_rad,
-                    est.exit_rad,
-                    est.kt_n_m2,
-                    est.runout_m,
-                    est.runout_angle_rad,
-                    est.reliability,
-                ]
+            return
+        out = self._est[row]
+        if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
+            ident = self._ident
+            ident._prev = self._prev.copy() if self._acc[_sk.ACC_HAS_PREV] else None
+            coeff = self._done_sums[row]
+            out[:] = ident.identify_array(
+                coeff[1:], complex(coeff[0]), float(self._done[row, _sk.DONE_FEED])
             )
+            self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
+            self._acc[_sk.ACC_HAS_PREV] = 1.0
+        self._held = out[_HELD_FIELDS]
+        self.estimates.append((t_end, EngagementEstimate(*out[_EST_ORDER].tolist())))
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held values for ``n`` samples as views of arrays never written again (new ones
@@ -178,37 +173,45 @@ class EngagementBlock(Block):
         self._held_views = (n, out)
         return dict(out)
 
+    def _ingest(self, x: np.ndarray, sp: np.ndarray, fd: np.ndarray, i: int) -> tuple[int, int]:
+        ident = self._ident
+        return _sk.ingest_revolutions(  # type: ignore[no-any-return]
+            x, sp, fd, i, self.fs, self.geom.n_flutes, self.edge, self._acc, self._sums,
+            self._prev, self._fpar, ident.k, ident._lo, ident._hi, ident._scl, self._done,
+            self._done_sums, self._est,
+        )  # fmt: skip
+
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
-        n = x.size
-        ang = np.empty(n)
-        rev = np.empty(n, dtype=np.int64)
-        _k.accumulate_revolutions(sp, self.fs, self._state, ang, rev)
-        if n and rev[0] == rev[-1] == self._cur_rev:
-            # no revolution ends in this chunk (the common case for short chunks)
-            self._buf.append((x, ang, sp, fd))
+        n = x.shape[0]
+        nd, i = self._ingest(x, sp, fd, 0)
+        if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             return BlockOutput(channels=self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
-        bounds = (np.nonzero(np.diff(rev))[0] + 1).tolist()
-        if n and self._cur_rev >= 0 and rev[0] != self._cur_rev:
-            bounds.insert(0, 0)
         pos = 0
-        for s in bounds:
-            if s > pos:
-                self._buf.append((x[pos:s], ang[pos:s], sp[pos:s], fd[pos:s]))
+        while True:
+            for row in range(nd):
+                s = int(self._done[row, _sk.DONE_AT])
                 out[:, pos:s] = self._held[:, None]
-            if self._buf:
-                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz)
-            pos = s
-        if pos < n:
-            self._buf.append((x[pos:], ang[pos:], sp[pos:], fd[pos:]))
-            out[:, pos:] = self._held[:, None]
-        if n:
-            self._cur_rev = int(rev[-1])
+                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz, row)
+                pos = s
+            if i >= n:
+                break
+            nd, i = self._ingest(x, sp, fd, i)
+        out[:, pos:] = self._held[:, None]
         return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
+
+
+#: The output channels' fields (:data:`_FIELDS`) in the identifier's output array.
+_HELD_FIELDS = np.array(
+    [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
+     _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY]  # fmt: skip
+)
+#: :class:`EngagementEstimate`'s fields in the identifier's output array.
+_EST_ORDER = np.array([*_HELD_FIELDS, _sk.EST_NOTCH, _sk.EST_COST, _sk.EST_EDGE])
 
 
 def make_engagement_block(**options: Any) -> Block:
