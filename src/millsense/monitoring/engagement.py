@@ -135,7 +135,6 @@ class EngagementBlock(Block):
         self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
         self._est = np.empty((16, _sk.EST_SIZE))
         self._held = np.full(len(_FIELDS), math.nan)
-        self._held_arrays: np.ndarray | None = None
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
         self.estimates = []
 
@@ -161,15 +160,14 @@ class EngagementBlock(Block):
         self.estimates.append((t_end, EngagementEstimate(*out[_EST_ORDER].tolist())))
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The held values for ``n`` samples as views of arrays never written again (new ones
-        when the values change, once per revolution, or a longer chunk comes)."""
+        """The held values for ``n`` samples as views of an array never written again (a new
+        one when the values change, once per revolution, or the chunk length does)."""
         views = self._held_views
-        if views is not None and views[0] == n:  # no revolution ended since: the same views
+        if views is not None and views[0] == n:  # nothing ended since: the same views
             return dict(views[1])
-        a = self._held_arrays
-        if a is None or a.shape[1] < n or not np.array_equal(a[:, 0], self._held, equal_nan=True):
-            a = self._held_arrays = np.repeat(self._held[:, None], max(n, 1024), axis=1)
-        out = {nm: a[j, :n] for j, nm in enumerate(self._names)}
+        a = np.empty((len(self._names), n))
+        a[:] = self._held[:, None]
+        out = dict(zip(self._names, a, strict=True))
         self._held_views = (n, out)
         return dict(out)
 
