@@ -222,9 +222,10 @@ class ChatterMonitor(Block):
         self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
+        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        return _run_chunk([self], chunk)
+        return _run_chunk([self], chunk, self)
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held outputs for ``n`` samples: views of arrays that are never written again
@@ -246,10 +247,10 @@ class ChatterMonitor(Block):
         return dict(out)
 
     # ------------------------------------------------------------------ decision
-    def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
+    def _ingest(self, x: np.ndarray, spd: np.ndarray, factor: float = 1.0) -> None:
         g = self._stage
         ingest(x, spd, self._fs, self._alpha, self._beta, g.ring_x, g.ring_y, g.pos, g.state,
-               self._min_rev_s, self._smooth)  # fmt: skip
+               self._min_rev_s, self._smooth, factor)  # fmt: skip
         g.pos += len(x)
 
     def _spectra(self) -> Spectra | None:
@@ -319,9 +320,6 @@ class ChatterMonitor(Block):
         comb = np.empty(len(f))
         if self.method.taper == "rect":
             _kn.amplitude(sfft.rfft(xc), self._comb_scale, comb)
-            if self.method.name == "chatter-sdft":  # Parseval needs the same taper
-                raw_rect = np.empty(len(f))
-                _kn.amplitude(sfft.rfft(xr), 2.0 / n, raw_rect)
         else:
             _kn.amplitude(sfft.rfft(xc * self._comb_taper), self._comb_scale, comb)
         if self._background is None:
@@ -339,6 +337,13 @@ class ChatterMonitor(Block):
                 self._mask_f_rev = f_rev
         novel = np.empty(len(f))
         _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
+        if self.method.name == "chatter-sdft" and self.method.taper == "rect":
+            # Parseval needs the raw spectrum with the comb's (rectangular) taper: computed only
+            # for a window the criterion judges by its variances (:meth:`ChatterMethod.decide`)
+            k = _kn.band_argmax(novel, b0, b1)
+            if cutting and b0 <= k < b1 and novel[k] > 0.0 and tooth_ref > 0.0:
+                raw_rect = np.empty(len(f))
+                _kn.amplitude(sfft.rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1))  # fmt: skip
 
@@ -457,29 +462,35 @@ class ChatterMonitor(Block):
         )
 
 
-def _run_chunk(monitors: Sequence[ChatterMonitor], chunk: Chunk) -> BlockOutput:
+def _run_chunk(
+    monitors: Sequence[ChatterMonitor], chunk: Chunk, holder: ChatterMonitor | ChatterGroup
+) -> BlockOutput:
     """Feed ``chunk`` to monitors sharing one stage (the first one's inputs and hop): one
-    ingest per run of samples, each monitor's decision at the decision samples."""
+    ingest per run of samples, each monitor's decision at the decision samples. ``holder``
+    (the block) keeps the merged held outputs between decisions."""
     lead = monitors[0]
     s = lead.settings
     x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
     n = len(x)
     if s.speed_channel is not None:
         spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
-        if lead._speed_factor != 1.0:
-            spd = spd * lead._speed_factor
+        factor = lead._speed_factor
     else:
         spd = np.full(n, lead._const_speed)
+        factor = 1.0
     hop = lead._hop
     first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
     if first >= n:  # no decision in this chunk (the common case for short chunks)
-        lead._ingest(x, spd)
-        if len(monitors) == 1:
-            return BlockOutput(lead._held_outputs(n))
+        lead._ingest(x, spd, factor)
+        views = holder._merged
+        if views is not None and views[0] == n:  # nothing decided since: the same views
+            return BlockOutput(dict(views[1]))
         out: dict[str, np.ndarray] = {}
         for m in monitors:
             out.update(m._held_outputs(n))
-        return BlockOutput(out)
+        holder._merged = (n, out)
+        return BlockOutput(dict(out))
+    holder._merged = None
     arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
     events: list[Event] = []
     keep = max(m._keep_hops for m in monitors)
@@ -487,7 +498,7 @@ def _run_chunk(monitors: Sequence[ChatterMonitor], chunk: Chunk) -> BlockOutput:
     for j in [*range(first + 1, n + 1, hop), n]:
         if j <= i:
             continue
-        lead._ingest(x[i:j], spd[i:j])
+        lead._ingest(x[i:j], spd[i:j], factor)
         decided = (chunk.start + j) % hop == 0
         if decided:
             lead._stage.close_hop(keep)
@@ -547,6 +558,7 @@ class ChatterGroup(Block):
         stage = _Stage(max(m._size for m in self.monitors))
         for m in self.monitors:
             m._stage = stage
+        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        return _run_chunk(self.monitors, chunk)
+        return _run_chunk(self.monitors, chunk, self)

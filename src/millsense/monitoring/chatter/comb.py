@@ -89,12 +89,15 @@ def ingest(
     state: FloatArray,
     min_speed_rev_s: float,
     smooth: float,
+    speed_factor: float = 1.0,
 ) -> None:  # pragma: no cover - compiled
     """Write ``x`` and its comb-filtered version into the rings from position ``pos`` on.
 
     ``state[0]`` is the smoothed |speed| (rev/s), ``state[1]`` the sum of the smoothed speed
     since the last reset of ``state[1]``/``state[2]`` (sample count), for the window's mean;
     ``state[3]``, ``state[4]`` the smallest and largest smoothed speed since their reset.
+    ``speed_factor`` converts the speed channel to rev/s (sample by sample, as multiplying
+    the channel first would).
     """
     mask = len(ring_x) - 1
     d_max = len(ring_x) - 2.0 * _NODES
@@ -105,7 +108,7 @@ def ingest(
         p = (pos + i) & mask
         xi = x[i]
         ring_x[p] = xi
-        s = state[0] + smooth * (abs(speed_rev_s[i]) - state[0])
+        s = state[0] + smooth * (abs(speed_rev_s[i] * speed_factor) - state[0])
         state[0] = s
         state[1] += s
         state[2] += 1.0
