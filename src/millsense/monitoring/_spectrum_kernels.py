@@ -551,6 +551,43 @@ def identify_from(
 
 
 @numba.njit(cache=True)
+def _add_harmonics(
+    x: FloatArray, ang: FloatArray, a: int, b: int, n_flutes: int, sums: ComplexArray
+) -> None:
+    """sums[0] += Σ x e^{−iφ}, sums[k] += Σ x e^{−ikNφ} over the samples a … b − 1, sample by
+    sample as :func:`revolution_harmonics` (each sum gets its terms in the same order, so the
+    same result bit for bit); two samples at a time, whose power chains are independent."""
+    nk = sums.shape[0]
+    s = a
+    while s + 1 < b:
+        b0 = complex(math.cos(ang[s]), -math.sin(ang[s]))
+        b1 = complex(math.cos(ang[s + 1]), -math.sin(ang[s + 1]))
+        x0 = x[s]
+        x1 = x[s + 1]
+        sums[0] += x0 * b0
+        sums[0] += x1 * b1
+        bn0 = b0**n_flutes
+        bn1 = b1**n_flutes
+        z0 = bn0
+        z1 = bn1
+        for j in range(1, nk):
+            sums[j] += x0 * z0
+            sums[j] += x1 * z1
+            z0 *= bn0
+            z1 *= bn1
+        s += 2
+    if s < b:
+        b0 = complex(math.cos(ang[s]), -math.sin(ang[s]))
+        x0 = x[s]
+        sums[0] += x0 * b0
+        bn0 = b0**n_flutes
+        z0 = bn0
+        for j in range(1, nk):
+            sums[j] += x0 * z0
+            z0 *= bn0
+
+
+@numba.njit(cache=True)
 def ingest_revolutions(
     x: FloatArray,
     speed: FloatArray,
@@ -586,24 +623,36 @@ def ingest_revolutions(
     a revolution that needs the grid search."""
     nk = sums.shape[0]
     cap = done.shape[0]
-    nd = 0
+    n = x.shape[0]
+    # the angle and revolution of every sample (they do not depend on the estimates)
+    ang = np.empty(n)
+    revs = np.empty(n)
     frac = acc[ACC_FRAC]
     rev = acc[ACC_REV]
     scl = 1.0 / (2.0 * math.pi * fs)
-    n = x.shape[0]
-    i = i0
-    while i < n:
+    for i in range(i0, n):
         if i > 0 or rev >= 0:
             frac += abs(speed[i]) * scl
         if rev < 0:
             rev = 0.0
-        new_rev = rev
         while frac >= 1.0:
             frac -= 1.0
-            new_rev += 1.0
-        if new_rev != rev and acc[ACC_COUNT] > 0:
+            rev += 1.0
+        ang[i] = frac
+        revs[i] = rev
+    nd = 0
+    cur = acc[ACC_REV]
+    run = i0  # first sample not yet summed
+    for i in range(i0, n):
+        if revs[i] != cur and acc[ACC_COUNT] + (i - run) > 0:
+            _sum_run(x, speed, feed, ang, run, i, n_flutes, acc, sums)
+            run = i
             if nd == cap or (nd > 0 and done[nd - 1, DONE_STATUS] == REV_GRID):
-                break  # this sample is scanned again on the next call (acc holds its start)
+                # this sample is scanned again on the next call
+                if i > i0:
+                    acc[ACC_FRAC] = ang[i - 1]
+                    acc[ACC_REV] = revs[i - 1]
+                return nd, i
             cnt = acc[ACC_COUNT]
             mean_x = acc[ACC_SUM_X] / cnt
             omega = acc[ACC_SUM_SPEED] / cnt
@@ -637,21 +686,27 @@ def ingest_revolutions(
             acc[ACC_SUM_SPEED] = 0.0
             acc[ACC_SUM_FEED] = 0.0
             nd += 1
-        rev = new_rev
-        ang = 2.0 * math.pi * frac
-        xs = x[i]
-        b = complex(math.cos(ang), -math.sin(ang))
-        sums[0] += xs * b
-        bn = b**n_flutes
-        z = bn
-        for j in range(1, nk):
-            sums[j] += xs * z
-            z *= bn
-        acc[ACC_COUNT] += 1.0
-        acc[ACC_SUM_X] += xs
-        acc[ACC_SUM_SPEED] += abs(speed[i])
-        acc[ACC_SUM_FEED] += abs(feed[i])
-        acc[ACC_FRAC] = frac
-        acc[ACC_REV] = rev
-        i += 1
-    return nd, i
+        cur = revs[i]
+    _sum_run(x, speed, feed, ang, run, n, n_flutes, acc, sums)
+    if n > i0:
+        acc[ACC_FRAC] = ang[n - 1]
+        acc[ACC_REV] = revs[n - 1]
+    return nd, n
+
+
+@numba.njit(cache=True)
+def _sum_run(
+    x: FloatArray, speed: FloatArray, feed: FloatArray, frac: FloatArray, a: int, b: int,
+    n_flutes: int, acc: FloatArray, sums: ComplexArray,
+) -> None:  # fmt: skip
+    """Add the samples a … b − 1 (``frac``: their fractions of a revolution) to the sums."""
+    if b <= a:
+        return
+    ang = np.empty(b - a)
+    for s in range(a, b):
+        ang[s - a] = 2.0 * math.pi * frac[s]
+        acc[ACC_SUM_X] += x[s]
+        acc[ACC_SUM_SPEED] += abs(speed[s])
+        acc[ACC_SUM_FEED] += abs(feed[s])
+    _add_harmonics(x[a:b], ang, 0, b - a, n_flutes, sums)
+    acc[ACC_COUNT] += b - a
