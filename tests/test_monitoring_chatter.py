@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.fft
 import scipy.signal
 
 from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings, comb_coefficients
@@ -111,6 +112,16 @@ def test_sdft_recursion_equals_the_window_dft() -> None:
         s = np.exp(2j * np.pi * k / n_win) * (s + y[i] - (y[i - n_win] if i >= n_win else 0.0))
     direct = np.fft.fft(y[-n_win:])[k]
     assert np.max(np.abs(s - direct)) < 1e-9 * np.max(np.abs(direct))
+
+
+def test_window_transform_is_scipy_rfft() -> None:
+    """The monitor's direct pocketfft call (no backend dispatch) is scipy.fft.rfft bit for bit."""
+    from millsense.monitoring.chatter.block import rfft
+
+    rng = np.random.default_rng(3)
+    for n in (256, 2048, 4096):
+        x = rng.standard_normal(n)
+        np.testing.assert_array_equal(rfft(x), scipy.fft.rfft(x))
 
 
 @pytest.mark.parametrize("method", ["chatter-comb", "chatter-sdft"])
