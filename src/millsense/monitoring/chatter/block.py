@@ -132,15 +132,17 @@ class _Stage:
         self.ring_y = np.zeros(size)
         self.state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
         self.pos = 0
-        self.ranges: list[tuple[float, float]] = []
+        self.lows: list[float] = []  # smallest and largest smoothed speed of each hop
+        self.highs: list[float] = []
         self.f_rev = 0.0
 
     def close_hop(self, keep: int) -> None:
         """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
         st = self.state
-        self.f_rev = st[1] / st[2] if st[2] > 0 else 0.0
-        self.ranges.append((float(st[3]), float(st[4])))
-        del self.ranges[:-keep]
+        self.f_rev = float(st[1] / st[2]) if st[2] > 0 else 0.0
+        self.lows.append(float(st[3]))
+        self.highs.append(float(st[4]))
+        del self.lows[:-keep], self.highs[:-keep]
         st[1] = st[2] = st[4] = 0.0
         st[3] = np.inf
 
@@ -231,6 +233,8 @@ class ChatterMonitor(Block):
         self._mask_f_rev = -1.0
         self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
+        self._df = float(f[1])
+        self._nf = len(f)
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
         self._merged: tuple[int, dict[str, np.ndarray]] | None = None
 
@@ -269,24 +273,24 @@ class ChatterMonitor(Block):
         n = self.method.window
         if g.pos < n:
             return None
-        ranges = g.ranges[-(n // self._hop + 2) :]
-        lo = min(r[0] for r in ranges)
-        hi = max(r[1] for r in ranges)
+        w = n // self._hop + 2
+        lo = min(g.lows[-w:])
+        hi = max(g.highs[-w:])
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
         xr = np.empty(n)
         xr_tapered = np.empty(n)
         level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, xr_tapered)
         f = self._f
-        df = f[1]
+        df = self._df
         f_t = self.settings.n_flutes * f_rev
         k0 = k1 = 0
         if f_rev * 60.0 >= self.settings.min_speed_rpm:
             half = max(2.0 * df, 0.005 * f_t)
             k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = max(k0, min(len(f), math.floor((f_t + half) / df) + 1))
+            k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        raw = np.empty(len(f))
+        raw = np.empty(self._nf)
         tooth, med = _kn.amplitude_line_median(
             rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw
         )
@@ -327,7 +331,7 @@ class ChatterMonitor(Block):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
-        comb = np.empty(len(f))
+        comb = np.empty(self._nf)
         if self.method.taper == "rect":
             _kn.amplitude(rfft(xc), self._comb_scale, comb)
         else:
@@ -345,14 +349,14 @@ class ChatterMonitor(Block):
                 off = np.abs(f - f_rev * np.rint(f / f_rev))
                 self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
                 self._mask_f_rev = f_rev
-        novel = np.empty(len(f))
+        novel = np.empty(self._nf)
         _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
         if self.method.name == "chatter-sdft" and self.method.taper == "rect":
             # Parseval needs the raw spectrum with the comb's (rectangular) taper: computed only
             # for a window the criterion judges by its variances (:meth:`ChatterMethod.decide`)
             k = _kn.band_argmax(novel, b0, b1)
             if cutting and b0 <= k < b1 and novel[k] > 0.0 and tooth_ref > 0.0:
-                raw_rect = np.empty(len(f))
+                raw_rect = np.empty(self._nf)
                 _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1))  # fmt: skip
