@@ -239,7 +239,7 @@ class BreakageBlock(Block):
         self._pp = np.empty((8, 0))
         self._pi = np.empty((2, 0), dtype=np.int64)
         self._pb = np.empty((2, 0), dtype=np.bool_)
-        self._rows = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
         self._hbuf = np.empty(0, dtype=np.int64)
         self._n_last = -1
         self._ch_a = self.signal_channels[0]
@@ -269,7 +269,7 @@ class BreakageBlock(Block):
         if n != self._n_last:
             self._size(n)
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r0, r1, r2, r3, r4 = self._rows
+        r0, r1, r2, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2
         k = _k.segment_periods(a, b, e, speed, self.fs, self.n_flutes, self._seg, r0, r1, r2,
                                r3, r4, held)  # fmt: skip
@@ -323,7 +323,7 @@ class BreakageBlock(Block):
             self._pp = np.empty((8, 2 * cap))
             self._pi = np.empty((2, 2 * cap), dtype=np.int64)
             self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
-            self._rows = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+            self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
         if self._hbuf.shape[0] < n:
             self._hbuf = np.empty(n, dtype=np.int64)
         self._n_last = n
