@@ -109,7 +109,8 @@ class EngagementBlock(Block):
         self._names = [f"{name}/{f}" for f, _, _ in _FIELDS]
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
-        self.estimates: list[tuple[float, EngagementEstimate | None]] = []
+        self._log: list[tuple[float, np.ndarray | None]] = []
+        self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -134,16 +135,22 @@ class EngagementBlock(Block):
         self._done = np.empty((16, 4))
         self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
         self._est = np.empty((16, _sk.EST_SIZE))
+        # the arguments of every compiled call after (x, speed, feed, first sample)
+        self._args = (
+            self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
+            ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
+        )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
-        self.estimates = []
+        self._log = []
+        self._made = []
 
     def _finish(self, t_end: float, row: int) -> None:
         """The estimate of row ``row`` of the revolutions finished (module notes)."""
         self._held_views = None
         status = self._done[row, _sk.DONE_STATUS]
         if status == _sk.REV_NONE:
-            self.estimates.append((t_end, None))
+            self._log.append((t_end, None))
             self._held = np.full(len(_FIELDS), math.nan)
             return
         out = self._est[row]
@@ -156,8 +163,17 @@ class EngagementBlock(Block):
             )
             self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
             self._acc[_sk.ACC_HAS_PREV] = 1.0
-        self._held = out[_HELD_FIELDS]
-        self.estimates.append((t_end, EngagementEstimate(*out[_EST_ORDER].tolist())))
+        est = out.copy()
+        self._held = est[: len(_FIELDS)]
+        self._log.append((t_end, est))
+
+    @property
+    def estimates(self) -> list[tuple[float, EngagementEstimate | None]]:
+        """(end time of the revolution, its estimate or None) for every revolution so far."""
+        made = self._made
+        for t, est in self._log[len(made) :]:
+            made.append((t, None if est is None else EngagementEstimate(*est.tolist())))
+        return made
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held values for ``n`` samples as views of an array never written again (a new
@@ -171,21 +187,13 @@ class EngagementBlock(Block):
         self._held_views = (n, out)
         return dict(out)
 
-    def _ingest(self, x: np.ndarray, sp: np.ndarray, fd: np.ndarray, i: int) -> tuple[int, int]:
-        ident = self._ident
-        return _sk.ingest_revolutions(  # type: ignore[no-any-return]
-            x, sp, fd, i, self.fs, self.geom.n_flutes, self.edge, self._acc, self._sums,
-            self._prev, self._fpar, ident.k, ident._lo, ident._hi, ident._scl, self._done,
-            self._done_sums, self._est,
-        )  # fmt: skip
-
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
-        nd, i = self._ingest(x, sp, fd, 0)
+        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             return BlockOutput(channels=self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
@@ -198,18 +206,16 @@ class EngagementBlock(Block):
                 pos = s
             if i >= n:
                 break
-            nd, i = self._ingest(x, sp, fd, i)
+            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
         out[:, pos:] = self._held[:, None]
         return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
 
 
-#: The output channels' fields (:data:`_FIELDS`) in the identifier's output array.
-_HELD_FIELDS = np.array(
-    [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
-     _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY]  # fmt: skip
-)
-#: :class:`EngagementEstimate`'s fields in the identifier's output array.
-_EST_ORDER = np.array([*_HELD_FIELDS, _sk.EST_NOTCH, _sk.EST_COST, _sk.EST_EDGE])
+# the identifier's output array holds the output channels' fields (:data:`_FIELDS`) first,
+# then notch index, cost and edge coefficient: :class:`EngagementEstimate`'s order
+assert [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
+        _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY, _sk.EST_NOTCH, _sk.EST_COST,
+        _sk.EST_EDGE] == list(range(_sk.EST_SIZE))  # fmt: skip
 
 
 def make_engagement_block(**options: Any) -> Block:
