@@ -104,18 +104,24 @@ def ingest(
     den = _DEN
     w = np.empty(_NODES)
     last_q = -1
+    # the state in locals (the compiler cannot keep array elements in registers across the
+    # ring writes); written back at the end
+    s = state[0]
+    s_sum = state[1]
+    s_cnt = state[2]
+    s_min = state[3]
+    s_max = state[4]
     for i in range(len(x)):
         p = (pos + i) & mask
         xi = x[i]
         ring_x[p] = xi
-        s = state[0] + smooth * (abs(speed_rev_s[i] * speed_factor) - state[0])
-        state[0] = s
-        state[1] += s
-        state[2] += 1.0
-        if s < state[3]:
-            state[3] = s
-        if s > state[4]:
-            state[4] = s
+        s = s + smooth * (abs(speed_rev_s[i] * speed_factor) - s)
+        s_sum += s
+        s_cnt += 1.0
+        if s < s_min:
+            s_min = s
+        if s > s_max:
+            s_max = s
         y = 0.0
         if s >= min_speed_rev_s:
             d = fs / s
@@ -131,3 +137,8 @@ def ingest(
                 yd = _delayed(ring_y, p, k, w, mask)
                 y = alpha * yd + beta * (xi - xd)
         ring_y[p] = y
+    state[0] = s
+    state[1] = s_sum
+    state[2] = s_cnt
+    state[3] = s_min
+    state[4] = s_max
