@@ -237,6 +237,7 @@ class ChatterMonitor(Block):
         self._nf = len(f)
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
         self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._keep = self._keep_hops
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk([self], chunk, self)
@@ -507,7 +508,7 @@ def _run_chunk(
     holder._merged = None
     arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
     events: list[Event] = []
-    keep = max(m._keep_hops for m in monitors)
+    keep = holder._keep
     i = 0
     for j in [*range(first + 1, n + 1, hop), n]:
         if j <= i:
@@ -573,6 +574,7 @@ class ChatterGroup(Block):
         for m in self.monitors:
             m._stage = stage
         self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._keep = max(m._keep_hops for m in self.monitors)  # hops of speed ranges kept
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk(self.monitors, chunk, self)
