@@ -666,8 +666,11 @@ def ingest_revolutions(
             done[nd, DONE_OMEGA] = omega
             done[nd, DONE_FEED] = c
             status = REV_NONE
-            if mean_x >= fpar[FPAR_MIN_TORQUE] and omega > 0 and c > 0 and (
-                abs(done_sums[nd, 1]) > 0
+            if (
+                mean_x >= fpar[FPAR_MIN_TORQUE]
+                and omega > 0
+                and c > 0
+                and (abs(done_sums[nd, 1]) > 0)
             ):
                 status = REV_GRID
                 if acc[ACC_HAS_PREV] > 0:

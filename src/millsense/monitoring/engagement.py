@@ -8,6 +8,12 @@ k = N…KN, and :class:`~millsense.monitoring.torque_spectrum.SpectrumIdentifier
 d_a, d_r, θ_st, θ_ex, K_t, ε, θ_ec and the reliability index σ (Lee Fig. 2.9). Revolutions
 whose mean torque is below ``min_torque_nm`` (air) give NaN. The values are held on the
 output channels from the sample after the revolution ends until the next one.
+
+Per chunk the work is one compiled call (decision 1535): the angle, the harmonic sums of the
+running revolution (added sample by sample in the order of a whole-revolution sum, so any
+chunking gives the same coefficients bit for bit) and, at a revolution's end, the fit from the
+previous revolution's solution; only a revolution that needs the coarse grid search returns to
+Python for it.
 """
 
 from __future__ import annotations
@@ -128,10 +134,9 @@ class EngagementBlock(Block):
         self._sums = np.zeros(self._k.size, dtype=np.complex128)
         self._prev = np.zeros(3)
         g = self.geom
-        self._fpar = np.array(
-            [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb,
-             ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]  # fmt: skip
-        )
+        fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
+        fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
+        self._fpar = np.array(fpar)  # layout: _spectrum_kernels.FPAR_*
         self._done = np.empty((16, 4))
         self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
         self._est = np.empty((16, _sk.EST_SIZE))

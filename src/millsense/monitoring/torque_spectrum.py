@@ -233,6 +233,9 @@ class SpectrumIdentifier:
     the thesis' ratio Ψ and notch. Each revolution starts from the previous one's solution; if
     that leaves a relative misfit above ``accept``, least squares also starts from the best
     ``n_starts`` points of a coarse grid (48 depths × 1830 angle pairs, 3°, up to 16 ω_n).
+    The Levenberg–Marquardt fit is bounded by an active set (decision 1535): a parameter on
+    its bound whose descent direction leaves the box (θ_ex = π in down milling, θ_st = 0 in up
+    milling) is held, and the fit converges to the bounded least-squares optimum.
     """
 
     def __init__(
@@ -286,9 +289,7 @@ class SpectrumIdentifier:
             edge_n_m=float(out[_sk.EST_EDGE]),
         )
 
-    def identify_array(
-        self, x: ComplexArray, t1: complex, feed_per_tooth_m: float
-    ) -> FloatArray:
+    def identify_array(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> FloatArray:
         """:meth:`identify` as an array of the fields ``_spectrum_kernels.EST_*`` (the
         streaming block's form: one compiled call per revolution on the common path)."""
         geom = self.geom

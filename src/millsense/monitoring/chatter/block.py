@@ -39,7 +39,7 @@ try:  # scipy.fft's pocketfft binding without the backend dispatch (≈ 5 µs of
 
     def rfft(x: np.ndarray) -> np.ndarray:
         """``scipy.fft.rfft`` of a contiguous float64 vector (the same call it makes)."""
-        return _r2c(x, (0,), True, 0, None, 1)  # type: ignore[no-any-return]
+        return _r2c(x, (0,), True, 0, None, 1)
 
 except ImportError:  # pragma: no cover - another scipy layout
     rfft = sfft.rfft
@@ -292,9 +292,7 @@ class ChatterMonitor(Block):
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         raw = np.empty(self._nf)
-        tooth, med = _kn.amplitude_line_median(
-            rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw
-        )
+        tooth, med = _kn.amplitude_line_median(rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw)
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
