@@ -238,6 +238,7 @@ class ChatterMonitor(Block):
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
         self._merged: tuple[int, dict[str, np.ndarray]] | None = None
         self._keep = self._keep_hops
+        self._out_names = (self._ch_flag, self._ch_hz, self._ch_ratio)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk([self], chunk, self)
@@ -504,7 +505,8 @@ def _run_chunk(
         holder._merged = (n, out)
         return BlockOutput(dict(out))
     holder._merged = None
-    arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
+    # rows 3q, 3q + 1, 3q + 2: flag, frequency, ratio of monitor q
+    values = np.empty((3 * len(monitors), n))
     events: list[Event] = []
     keep = holder._keep
     i = 0
@@ -512,25 +514,21 @@ def _run_chunk(
         if j <= i:
             continue
         lead._ingest(x[i:j], spd[i:j], factor)
-        decided = (chunk.start + j) % hop == 0
-        if decided:
+        held = np.array([v for m in monitors for v in (m._flag, m._freq, m._ratio)])
+        if (chunk.start + j) % hop == 0:
             lead._stage.close_hop(keep)
             nc = None
             if s.nc_line_channel is not None:
                 nc = int(chunk.data[s.nc_line_channel][j - 1])
-        for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
-            if decided:
-                # outputs before the decision sample hold the old values
-                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = m._flag, m._freq, m._ratio
+            # outputs before the decision sample hold the old values
+            values[:, i : j - 1] = held[:, None]
+            for m in monitors:
                 events.extend(m._decide(chunk.start + j - 1, chunk, nc))
-                flag[j - 1], freq[j - 1], ratio[j - 1] = m._flag, m._freq, m._ratio
-            else:
-                flag[i:j], freq[i:j], ratio[i:j] = m._flag, m._freq, m._ratio
+            values[:, j - 1] = [v for m in monitors for v in (m._flag, m._freq, m._ratio)]
+        else:
+            values[:, i:j] = held[:, None]
         i = j
-    out = {}
-    for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
-        out.update({m._ch_flag: flag, m._ch_hz: freq, m._ch_ratio: ratio})
-    return BlockOutput(out, events)
+    return BlockOutput(dict(zip(holder._out_names, values, strict=True)), events)
 
 
 class ChatterGroup(Block):
@@ -573,6 +571,7 @@ class ChatterGroup(Block):
             m._stage = stage
         self._merged: tuple[int, dict[str, np.ndarray]] | None = None
         self._keep = max(m._keep_hops for m in self.monitors)  # hops of speed ranges kept
+        self._out_names = tuple(c for m in self.monitors for c in m._out_names)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk(self.monitors, chunk, self)
