@@ -198,6 +198,36 @@ def _residual_from(
 
 
 @numba.njit(cache=True)
+def _g_all(
+    m: FloatArray, e1: ComplexArray, e2: ComplexArray, st: float, ex: float, g: ComplexArray
+) -> None:
+    """g_q = G of every order m_q (:func:`_g_of`) from the phases at (θ_st, θ_ex)."""
+    for q in range(m.shape[0]):
+        g[q] = _g_of(m[q], e1[q], e2[q], st, ex)
+
+
+@numba.njit(cache=True)
+def _residual_g(
+    idx: IntArray,
+    g: ComplexArray,
+    lk: ComplexArray,
+    xn: ComplexArray,
+    edge: bool,
+    a: ComplexArray,
+    b: ComplexArray,
+    res: FloatArray,
+) -> float:
+    """:func:`_residual_from` with the G of every order given (each G once per point instead
+    of once per harmonic that uses it: the same numbers, bit for bit)."""
+    n = xn.shape[0]
+    for j in range(n):
+        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
+        b[j] = g[idx[1, j]] * lk[j]
+    alpha, beta = _least_squares(a, b, xn, edge)
+    return _projected_residual(xn, a, b, alpha, beta, res)
+
+
+@numba.njit(cache=True)
 def _solve3(mm: FloatArray, g: FloatArray, free: NDArray[np.bool_], dp: FloatArray) -> None:
     """dp = −mm⁻¹ g over the free parameters (Gaussian elimination with partial pivoting on the
     3 × 3 damped normal equations); held parameters get dp = 0."""
@@ -270,25 +300,30 @@ def lm_fit(
     f1 = np.empty(nm, dtype=np.complex128)  # at a trial or perturbed point
     f2 = np.empty(nm, dtype=np.complex128)
     fl = np.empty(n, dtype=np.complex128)
+    gc = np.empty(nm, dtype=np.complex128)  # G of every order at p
+    gt = np.empty(nm, dtype=np.complex128)  # ... at a trial or perturbed point
     _phases(m, p[1], e1)
     _phases(m, p[2], e2)
     _lengths(k, p[0], kb, lk)
-    cost = _residual_from(m, idx, e1, e2, lk, p[1], p[2], xn, edge, wa, wb, r)
+    _g_all(m, e1, e2, p[1], p[2], gc)
+    cost = _residual_g(idx, gc, lk, xn, edge, wa, wb, r)
     lam = 1e-3
     for _ in range(max_iter):
         for i in range(3):
             h = 1e-7 * scale[i]
             qi = p[i] + h if p[i] + h <= hi[i] else p[i] - h
             step = qi - p[i]
-            if i == 0:
+            if i == 0:  # d_a enters only the lengths: the G of p serve
                 _lengths(k, qi, kb, fl)
-                _residual_from(m, idx, e1, e2, fl, p[1], p[2], xn, edge, wa, wb, rt)
+                _residual_g(idx, gc, fl, xn, edge, wa, wb, rt)
             elif i == 1:
                 _phases(m, qi, f1)
-                _residual_from(m, idx, f1, e2, lk, qi, p[2], xn, edge, wa, wb, rt)
+                _g_all(m, f1, e2, qi, p[2], gt)
+                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
             else:
                 _phases(m, qi, f2)
-                _residual_from(m, idx, e1, f2, lk, p[1], qi, xn, edge, wa, wb, rt)
+                _g_all(m, e1, f2, p[1], qi, gt)
+                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
             for j in range(2 * n):
                 jac[j, i] = (rt[j] - r[j]) / step
         for i in range(3):
@@ -317,7 +352,8 @@ def lm_fit(
             _phases(m, q[1], f1)
             _phases(m, q[2], f2)
             _lengths(k, q[0], kb, fl)
-            c2 = _residual_from(m, idx, f1, f2, fl, q[1], q[2], xn, edge, wa, wb, rt)
+            _g_all(m, f1, f2, q[1], q[2], gt)
+            c2 = _residual_g(idx, gt, fl, xn, edge, wa, wb, rt)
             if c2 < cost:
                 small = True
                 for i in range(3):
@@ -328,6 +364,7 @@ def lm_fit(
                 e1[:] = f1
                 e2[:] = f2
                 lk[:] = fl
+                gc[:] = gt
                 rel = (cost - c2) / max(cost, 1e-300)
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
