@@ -114,3 +114,34 @@ def test_bad_options():
         make_engagement_block(n_flutes=4, diameter_mm=6.0, helix_deg=35.0)
     with pytest.raises(ConfigError, match="n_flutes"):
         EngagementBlock(0, 6.0, 35.0, feed_per_tooth_mm=0.025)
+
+
+def test_fit_on_the_exit_bound_converges_to_the_bounded_optimum():
+    """Decision 1535: in down milling θ_ex = π sits on its bound; with noise the unbounded
+    optimum lies beyond it. The Levenberg–Marquardt fit holds θ_ex there (active set) and
+    converges in a few iterations to the bounded least-squares optimum (checked against
+    scipy's trust-region reflective solver), instead of creeping along the bound to the
+    iteration cap."""
+    from scipy.optimize import least_squares
+
+    from millsense.monitoring import _spectrum_kernels as sk
+
+    n = 4
+    x = _torque(n, 1.5e-3, 1.5e-3, kte=25e3)[n * np.arange(1, 16)]
+    rng = np.random.default_rng(5)
+    x = x + 0.01 * np.abs(x[0]) * (rng.standard_normal(15) + 1j * rng.standard_normal(15))
+    ident = SpectrumIdentifier(ToolGeometry(n, R, BETA), 15)
+    xn, _ = sk.normalised(np.ascontiguousarray(x))
+    args = (ident._kb, True, ident._lo, ident._hi, ident._scl)
+    p0 = np.array([1.4e-3, 2.2, math.pi])
+    p60, c60 = sk.lm_fit(p0, xn, ident.k, *args, 60)
+    p12, _ = sk.lm_fit(p0, xn, ident.k, *args, 12)
+    assert p60[2] == math.pi  # held on the bound
+    np.testing.assert_array_equal(p12, p60)  # converged well before the cap
+    ref = least_squares(
+        lambda p: ident._residual(p, xn), p0 - [0, 0, 1e-9], bounds=(ident._lo, ident._hi),
+        x_scale=ident._scl, xtol=1e-14, ftol=1e-14, gtol=1e-14,
+    )  # fmt: skip
+    assert p60[0] == pytest.approx(ref.x[0], rel=1e-5)
+    assert p60[1] == pytest.approx(ref.x[1], abs=1e-6)
+    assert c60 <= ref.cost * (1 + 1e-9)

@@ -198,6 +198,66 @@ def _residual_from(
 
 
 @numba.njit(cache=True)
+def _g_all(
+    m: FloatArray, e1: ComplexArray, e2: ComplexArray, st: float, ex: float, g: ComplexArray
+) -> None:
+    """g_q = G of every order m_q (:func:`_g_of`) from the phases at (θ_st, θ_ex)."""
+    for q in range(m.shape[0]):
+        g[q] = _g_of(m[q], e1[q], e2[q], st, ex)
+
+
+@numba.njit(cache=True)
+def _residual_g(
+    idx: IntArray,
+    g: ComplexArray,
+    lk: ComplexArray,
+    xn: ComplexArray,
+    edge: bool,
+    a: ComplexArray,
+    b: ComplexArray,
+    res: FloatArray,
+) -> float:
+    """:func:`_residual_from` with the G of every order given (each G once per point instead
+    of once per harmonic that uses it: the same numbers, bit for bit)."""
+    n = xn.shape[0]
+    for j in range(n):
+        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
+        b[j] = g[idx[1, j]] * lk[j]
+    alpha, beta = _least_squares(a, b, xn, edge)
+    return _projected_residual(xn, a, b, alpha, beta, res)
+
+
+@numba.njit(cache=True)
+def _solve3(mm: FloatArray, g: FloatArray, free: NDArray[np.bool_], dp: FloatArray) -> None:
+    """dp = −mm⁻¹ g over the free parameters (Gaussian elimination with partial pivoting on the
+    3 × 3 damped normal equations); held parameters get dp = 0."""
+    a = np.zeros((3, 4))
+    for i in range(3):
+        for j in range(3):
+            a[i, j] = mm[i, j] if free[i] and free[j] else (1.0 if i == j else 0.0)
+        a[i, 3] = -g[i] if free[i] else 0.0
+    for c in range(3):
+        piv = c
+        for r in range(c + 1, 3):
+            if abs(a[r, c]) > abs(a[piv, c]):
+                piv = r
+        if piv != c:
+            for j in range(4):
+                t = a[c, j]
+                a[c, j] = a[piv, j]
+                a[piv, j] = t
+        for r in range(c + 1, 3):
+            f = a[r, c] / a[c, c]
+            for j in range(c, 4):
+                a[r, j] -= f * a[c, j]
+    for i in range(2, -1, -1):
+        acc = a[i, 3]
+        for j in range(i + 1, 3):
+            acc -= a[i, j] * dp[j]
+        dp[i] = acc / a[i, i]
+
+
+@numba.njit(cache=True)
 def lm_fit(
     p0: FloatArray,
     xn: ComplexArray,
@@ -209,7 +269,9 @@ def lm_fit(
     scale: FloatArray,
     max_iter: int,
 ) -> tuple[FloatArray, float]:
-    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (clipping).
+    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 2005: a
+    parameter on a bound whose descent direction leaves the box is held for that step — the
+    active set — and the others take the step of the reduced system; the rest is clipped).
 
     The residual is :func:`residual`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
     L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
@@ -224,6 +286,12 @@ def lm_fit(
     r = np.empty(2 * n)
     rt = np.empty(2 * n)
     jac = np.empty((2 * n, 3))
+    jtj = np.empty((3, 3))
+    mm = np.empty((3, 3))
+    g = np.empty(3)
+    dp = np.empty(3)
+    q = np.empty(3)
+    free = np.empty(3, dtype=np.bool_)
     wa = np.empty(n, dtype=np.complex128)
     wb = np.empty(n, dtype=np.complex128)
     e1 = np.empty(nm, dtype=np.complex128)  # at p
@@ -232,53 +300,71 @@ def lm_fit(
     f1 = np.empty(nm, dtype=np.complex128)  # at a trial or perturbed point
     f2 = np.empty(nm, dtype=np.complex128)
     fl = np.empty(n, dtype=np.complex128)
+    gc = np.empty(nm, dtype=np.complex128)  # G of every order at p
+    gt = np.empty(nm, dtype=np.complex128)  # ... at a trial or perturbed point
     _phases(m, p[1], e1)
     _phases(m, p[2], e2)
     _lengths(k, p[0], kb, lk)
-    cost = _residual_from(m, idx, e1, e2, lk, p[1], p[2], xn, edge, wa, wb, r)
+    _g_all(m, e1, e2, p[1], p[2], gc)
+    cost = _residual_g(idx, gc, lk, xn, edge, wa, wb, r)
     lam = 1e-3
     for _ in range(max_iter):
         for i in range(3):
             h = 1e-7 * scale[i]
-            q = p.copy()
-            q[i] = q[i] + h if q[i] + h <= hi[i] else q[i] - h
-            step = q[i] - p[i]
-            if i == 0:
-                _lengths(k, q[0], kb, fl)
-                _residual_from(m, idx, e1, e2, fl, q[1], q[2], xn, edge, wa, wb, rt)
+            qi = p[i] + h if p[i] + h <= hi[i] else p[i] - h
+            step = qi - p[i]
+            if i == 0:  # d_a enters only the lengths: the G of p serve
+                _lengths(k, qi, kb, fl)
+                _residual_g(idx, gc, fl, xn, edge, wa, wb, rt)
             elif i == 1:
-                _phases(m, q[1], f1)
-                _residual_from(m, idx, f1, e2, lk, q[1], q[2], xn, edge, wa, wb, rt)
+                _phases(m, qi, f1)
+                _g_all(m, f1, e2, qi, p[2], gt)
+                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
             else:
-                _phases(m, q[2], f2)
-                _residual_from(m, idx, e1, f2, lk, q[1], q[2], xn, edge, wa, wb, rt)
+                _phases(m, qi, f2)
+                _g_all(m, e1, f2, p[1], qi, gt)
+                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
             for j in range(2 * n):
                 jac[j, i] = (rt[j] - r[j]) / step
-        jtj = jac.T @ jac
-        g = jac.T @ r
+        for i in range(3):
+            acc = 0.0
+            for j in range(2 * n):
+                acc += jac[j, i] * r[j]
+            g[i] = acc
+            for c in range(i, 3):
+                acc = 0.0
+                for j in range(2 * n):
+                    acc += jac[j, i] * jac[j, c]
+                jtj[i, c] = acc
+                jtj[c, i] = acc
+        # the active set: on a bound with the descent direction −g pointing out of the box
+        for i in range(3):
+            free[i] = not ((p[i] >= hi[i] and g[i] < 0.0) or (p[i] <= lo[i] and g[i] > 0.0))
         improved = False
         for _t in range(8):
-            mm = jtj.copy()
             for i in range(3):
+                for c in range(3):
+                    mm[i, c] = jtj[i, c]
                 mm[i, i] += lam * (jtj[i, i] + 1e-30)
-            dp = np.linalg.solve(mm, -g)
-            q = p + dp
+            _solve3(mm, g, free, dp)
             for i in range(3):
-                q[i] = min(max(q[i], lo[i]), hi[i])
+                q[i] = min(max(p[i] + dp[i], lo[i]), hi[i])
             _phases(m, q[1], f1)
             _phases(m, q[2], f2)
             _lengths(k, q[0], kb, fl)
-            c2 = _residual_from(m, idx, f1, f2, fl, q[1], q[2], xn, edge, wa, wb, rt)
+            _g_all(m, f1, f2, q[1], q[2], gt)
+            c2 = _residual_g(idx, gt, fl, xn, edge, wa, wb, rt)
             if c2 < cost:
                 small = True
                 for i in range(3):
                     if abs(q[i] - p[i]) > 1e-7 * scale[i]:
                         small = False
-                p = q
+                p[:] = q
                 r[:] = rt
                 e1[:] = f1
                 e2[:] = f2
                 lk[:] = fl
+                gc[:] = gt
                 rel = (cost - c2) / max(cost, 1e-300)
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
@@ -340,3 +426,327 @@ def grid_costs(
                 r -= beta * b[j, i]
             c += r.real**2 + r.imag**2
         out[j] = c if math.isfinite(c) else math.inf
+
+
+#: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):
+#: fraction of a revolution, revolution index (−1 before the first sample), samples summed,
+#: Σ x, Σ |Ω|, Σ |feed|, 1 once a revolution was identified (the next fit starts from it).
+ACC_FRAC, ACC_REV, ACC_COUNT, ACC_SUM_X, ACC_SUM_SPEED, ACC_SUM_FEED, ACC_HAS_PREV = range(7)
+ACC_SIZE = 7
+#: Columns of the finished revolutions of :func:`ingest_revolutions` (``done``, floats):
+#: sample (in the chunk) at which the revolution ended, mean |Ω|, feed per tooth (m) and the
+#: status: :data:`REV_NONE` (not evaluated: air, no speed, no feed), :data:`REV_DONE` (the
+#: estimate is in its row of ``est``), :data:`REV_GRID` (the previous revolution's solution
+#: does not explain it: the caller runs the grid search, then resumes the scan).
+DONE_AT, DONE_OMEGA, DONE_FEED, DONE_STATUS = range(4)
+REV_NONE, REV_DONE, REV_GRID = 0.0, 1.0, 2.0
+#: ``fpar`` of :func:`ingest_revolutions`: minimum mean torque, feed per tooth (m; ≤ 0: from
+#: the feed channel), tanβ/r, the accept misfit, radius, axial pitch, the runout cut-off.
+FPAR_MIN_TORQUE, FPAR_FEED, FPAR_KB, FPAR_ACCEPT, FPAR_RADIUS, FPAR_PITCH, FPAR_RCOND = range(7)
+
+
+#: Fields of :func:`estimate`'s output, in order (SI units).
+EST_AXIAL, EST_RADIAL, EST_ENTRY, EST_EXIT, EST_KT, EST_RUNOUT, EST_RUNOUT_ANGLE = range(7)
+EST_RELIABILITY, EST_NOTCH, EST_COST, EST_EDGE = range(7, 11)
+EST_SIZE = 11
+
+
+@numba.njit(cache=True)
+def _runout(
+    t1: complex, d: float, radius: float, n_flutes: int, kt: float, g1: complex, l2: complex,
+    rcond: float,
+) -> complex:  # fmt: skip
+    """w = ρ e^{−iλ} from T_1 (:func:`..torque_spectrum._runout_from`)."""
+    n = n_flutes
+    if n == 1:
+        return complex(math.nan, math.nan)
+    base = radius * kt * g1 * n
+    ab = abs(base)
+    if ab == 0 or not math.isfinite(ab):
+        return complex(math.nan, math.nan)
+    if n >= 3:
+        rot = 1.0 - complex(math.cos(2.0 * math.pi / n), -math.sin(2.0 * math.pi / n))
+        return t1 / (base * d * rot / 2.0)
+    q = t1 / base
+    p, s = l2.real, l2.imag
+    mat = np.empty((2, 2))
+    mat[0, 0] = d + p
+    mat[0, 1] = s
+    mat[1, 0] = s
+    mat[1, 1] = d - p
+    rhs = np.empty(2)
+    rhs[0] = q.real
+    rhs[1] = q.imag
+    sol = np.linalg.lstsq(mat, rhs, rcond)[0]
+    return complex(sol[0], sol[1])
+
+
+@numba.njit(cache=True)
+def estimate(
+    p: FloatArray,
+    cost: float,
+    x: ComplexArray,
+    t1: complex,
+    feed_per_tooth_m: float,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    radius: float,
+    n_flutes: int,
+    axial_pitch: float,
+    rcond: float,
+    out: FloatArray,
+) -> None:
+    """The estimate at the fitted p = (d_a, θ_st, θ_ex) (:meth:`..torque_spectrum.
+    SpectrumIdentifier.identify`): K_t, K_e from the amplitudes, the runout from T_1, σ
+    (Eq. 2.23) over the harmonics below the notch; fields as :data:`EST_AXIAL`…"""
+    d, st, ex = p[0], p[1], p[2]
+    if ex < st:
+        st, ex = ex, st
+    q = np.empty(3)
+    q[0] = d
+    q[1] = st
+    q[2] = ex
+    ax0 = abs(x[0])
+    norm = 0.0
+    for j in range(x.shape[0]):
+        v = x[j] / ax0
+        norm += v.real * v.real + v.imag * v.imag
+    notch = axial_pitch / d
+    m = min(max(math.floor(notch), 1), x.shape[0])
+    model = np.empty(m)
+    alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
+    rn = radius * n_flutes
+    kt = alpha / (rn * feed_per_tooth_m)
+    w = _runout(t1, d, radius, n_flutes, kt, g1, l2, rcond)
+    dev = 0.0
+    tot = 0.0
+    for j in range(m):
+        a = abs(x[j])
+        dev += abs(a - model[j])
+        tot += a
+    out[EST_AXIAL] = d
+    out[EST_RADIAL] = radius * (math.cos(st) - math.cos(ex))
+    out[EST_ENTRY] = st
+    out[EST_EXIT] = ex
+    out[EST_KT] = kt
+    out[EST_RUNOUT] = abs(w)
+    out[EST_RUNOUT_ANGLE] = (-math.atan2(w.imag, w.real)) % (2.0 * math.pi)
+    out[EST_RELIABILITY] = 1.0 - dev / tot
+    out[EST_NOTCH] = notch
+    out[EST_COST] = 2.0 * cost / norm
+    out[EST_EDGE] = beta / rn
+
+
+@numba.njit(cache=True)
+def normalised(x: ComplexArray) -> tuple[ComplexArray, float]:
+    """x / |x_0| and Σ |x/|x_0||²."""
+    ax0 = abs(x[0])
+    xn = np.empty_like(x)
+    norm = 0.0
+    for j in range(x.shape[0]):
+        v = x[j] / ax0
+        xn[j] = v
+        norm += v.real * v.real + v.imag * v.imag
+    return xn, norm
+
+
+@numba.njit(cache=True)
+def identify_from(
+    p0: FloatArray,
+    x: ComplexArray,
+    t1: complex,
+    feed_per_tooth_m: float,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    accept: float,
+    radius: float,
+    n_flutes: int,
+    axial_pitch: float,
+    rcond: float,
+    out: FloatArray,
+) -> bool:
+    """The common path of the identification: the fit from the previous revolution's solution
+    ``p0``; if its relative misfit is at most ``accept``, the estimate into ``out`` and True.
+    Otherwise False, with ``out[:3]`` the fitted point and ``out[EST_COST]`` its cost (the
+    caller adds the grid starts)."""
+    xn, norm = normalised(x)
+    p, cost = lm_fit(p0, xn, k[: x.shape[0]], kb, edge, lo, hi, scale, 60)
+    if 2.0 * cost / norm > accept:
+        out[0] = p[0]
+        out[1] = p[1]
+        out[2] = p[2]
+        out[EST_COST] = cost
+        return False
+    estimate(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch, rcond,
+             out)  # fmt: skip
+    return True
+
+
+@numba.njit(cache=True)
+def _add_harmonics(
+    x: FloatArray, ang: FloatArray, a: int, b: int, n_flutes: int, sums: ComplexArray
+) -> None:
+    """sums[0] += Σ x e^{−iφ}, sums[k] += Σ x e^{−ikNφ} over the samples a … b − 1, sample by
+    sample as :func:`revolution_harmonics` (each sum gets its terms in the same order, so the
+    same result bit for bit); two samples at a time, whose power chains are independent."""
+    nk = sums.shape[0]
+    s = a
+    while s + 1 < b:
+        b0 = complex(math.cos(ang[s]), -math.sin(ang[s]))
+        b1 = complex(math.cos(ang[s + 1]), -math.sin(ang[s + 1]))
+        x0 = x[s]
+        x1 = x[s + 1]
+        sums[0] += x0 * b0
+        sums[0] += x1 * b1
+        bn0 = b0**n_flutes
+        bn1 = b1**n_flutes
+        z0 = bn0
+        z1 = bn1
+        for j in range(1, nk):
+            sums[j] += x0 * z0
+            sums[j] += x1 * z1
+            z0 *= bn0
+            z1 *= bn1
+        s += 2
+    if s < b:
+        b0 = complex(math.cos(ang[s]), -math.sin(ang[s]))
+        x0 = x[s]
+        sums[0] += x0 * b0
+        bn0 = b0**n_flutes
+        z0 = bn0
+        for j in range(1, nk):
+            sums[j] += x0 * z0
+            z0 *= bn0
+
+
+@numba.njit(cache=True)
+def ingest_revolutions(
+    x: FloatArray,
+    speed: FloatArray,
+    feed: FloatArray,
+    i0: int,
+    fs: float,
+    n_flutes: int,
+    edge: bool,
+    acc: FloatArray,
+    sums: ComplexArray,
+    prev: FloatArray,
+    fpar: FloatArray,
+    k: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    done: FloatArray,
+    done_sums: ComplexArray,
+    est: FloatArray,
+) -> tuple[int, int]:
+    """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
+    sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
+    in one call).
+
+    The angle as :func:`.._tooth_kernels.accumulate_revolutions`; the harmonic sums
+    ``sums[0] = Σ x e^{−iφ}``, ``sums[k] = Σ x e^{−ikNφ}`` as :func:`revolution_harmonics`, in
+    the same order, so a revolution split over any chunks gives its coefficients bit for bit.
+    When a sample starts a new revolution while samples are summed, the revolution is
+    finished: its coefficients (the sums over the count) go to a row of ``done_sums``, its
+    sample, means and status to a row of ``done`` and, if the fit from ``prev`` is accepted
+    (:func:`identify_from`), its estimate to that row of ``est`` (``prev`` ← its solution).
+    Returns (revolutions finished, next sample): the scan stops when ``done`` is full or after
+    a revolution that needs the grid search."""
+    nk = sums.shape[0]
+    cap = done.shape[0]
+    n = x.shape[0]
+    # the angle and revolution of every sample (they do not depend on the estimates)
+    ang = np.empty(n)
+    revs = np.empty(n)
+    frac = acc[ACC_FRAC]
+    rev = acc[ACC_REV]
+    scl = 1.0 / (2.0 * math.pi * fs)
+    for i in range(i0, n):
+        if i > 0 or rev >= 0:
+            frac += abs(speed[i]) * scl
+        if rev < 0:
+            rev = 0.0
+        while frac >= 1.0:
+            frac -= 1.0
+            rev += 1.0
+        ang[i] = frac
+        revs[i] = rev
+    nd = 0
+    cur = acc[ACC_REV]
+    run = i0  # first sample not yet summed
+    for i in range(i0, n):
+        if revs[i] != cur and acc[ACC_COUNT] + (i - run) > 0:
+            _sum_run(x, speed, feed, ang, run, i, n_flutes, acc, sums)
+            run = i
+            if nd == cap or (nd > 0 and done[nd - 1, DONE_STATUS] == REV_GRID):
+                # this sample is scanned again on the next call
+                if i > i0:
+                    acc[ACC_FRAC] = ang[i - 1]
+                    acc[ACC_REV] = revs[i - 1]
+                return nd, i
+            cnt = acc[ACC_COUNT]
+            mean_x = acc[ACC_SUM_X] / cnt
+            omega = acc[ACC_SUM_SPEED] / cnt
+            c = fpar[FPAR_FEED]
+            if c <= 0.0 and omega > 0:
+                c = 2 * math.pi * (acc[ACC_SUM_FEED] / cnt) / (n_flutes * omega)
+            for j in range(nk):
+                done_sums[nd, j] = sums[j] / cnt
+                sums[j] = 0.0
+            done[nd, DONE_AT] = i
+            done[nd, DONE_OMEGA] = omega
+            done[nd, DONE_FEED] = c
+            status = REV_NONE
+            if (
+                mean_x >= fpar[FPAR_MIN_TORQUE]
+                and omega > 0
+                and c > 0
+                and (abs(done_sums[nd, 1]) > 0)
+            ):
+                status = REV_GRID
+                if acc[ACC_HAS_PREV] > 0:
+                    row = est[nd]
+                    if identify_from(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
+                                     fpar[FPAR_KB], edge, lo, hi, scale, fpar[FPAR_ACCEPT],
+                                     fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
+                                     fpar[FPAR_RCOND], row):  # fmt: skip
+                        status = REV_DONE
+                        prev[0] = row[EST_AXIAL]
+                        prev[1] = row[EST_ENTRY]
+                        prev[2] = row[EST_EXIT]
+            done[nd, DONE_STATUS] = status
+            acc[ACC_COUNT] = 0.0
+            acc[ACC_SUM_X] = 0.0
+            acc[ACC_SUM_SPEED] = 0.0
+            acc[ACC_SUM_FEED] = 0.0
+            nd += 1
+        cur = revs[i]
+    _sum_run(x, speed, feed, ang, run, n, n_flutes, acc, sums)
+    if n > i0:
+        acc[ACC_FRAC] = ang[n - 1]
+        acc[ACC_REV] = revs[n - 1]
+    return nd, n
+
+
+@numba.njit(cache=True)
+def _sum_run(
+    x: FloatArray, speed: FloatArray, feed: FloatArray, frac: FloatArray, a: int, b: int,
+    n_flutes: int, acc: FloatArray, sums: ComplexArray,
+) -> None:  # fmt: skip
+    """Add the samples a … b − 1 (``frac``: their fractions of a revolution) to the sums."""
+    if b <= a:
+        return
+    ang = np.empty(b - a)
+    for s in range(a, b):
+        ang[s - a] = 2.0 * math.pi * frac[s]
+        acc[ACC_SUM_X] += x[s]
+        acc[ACC_SUM_SPEED] += abs(speed[s])
+        acc[ACC_SUM_FEED] += abs(feed[s])
+    _add_harmonics(x[a:b], ang, 0, b - a, n_flutes, sums)
+    acc[ACC_COUNT] += b - a

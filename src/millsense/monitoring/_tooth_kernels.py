@@ -306,3 +306,38 @@ def fill_outputs(
     if k > 0:
         for j in range(rows):
             held_prev[j] = per_period[j, k - 1]
+
+
+@numba.njit(cache=True)
+def periods_step(
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    k: int,
+    has_b: bool,
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+    held_prev: FloatArray,
+    held: IntArray,
+    out: FloatArray,
+    first: int,
+    index: IntArray,
+) -> tuple[int, int]:
+    """The per-period step of a chunk in one call: the period values x (the resultant
+    hypot(mean0, mean1) of two channels, else mean0), :func:`detect_periods`,
+    :func:`fill_outputs`; returns the first period of the running violation after the chunk
+    (−1: none; ``first`` before it) and the number of alarms."""
+    for i in range(k):
+        pp[3, i] = math.hypot(pp[0, i], pp[1, i]) if has_b else pp[0, i]
+    detect_periods(pp, pb, k, params, iparams, state)
+    fill_outputs(held_prev, pp[3:], k, held, out)
+    alarms = 0
+    for i in range(k):
+        if pb[0, i]:
+            if first < 0:
+                first = index[i]
+        else:
+            first = -1
+        if pb[1, i]:
+            alarms += 1
+    return first, alarms

@@ -239,63 +239,60 @@ class BreakageBlock(Block):
         self._pp = np.empty((8, 0))
         self._pi = np.empty((2, 0), dtype=np.int64)
         self._pb = np.empty((2, 0), dtype=np.bool_)
+        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+        self._hbuf = np.empty(0, dtype=np.int64)
+        self._n_last = -1
+        self._ch_a = self.signal_channels[0]
+        self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
+        self._ch_e = self.expected_channel
+        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
+
+    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
+        """The held values for ``n`` samples as views of an array never written again (a new
+        one when the values change, at a tooth period's end, or the chunk length does)."""
+        views = self._held_views
+        if views is not None and views[0] == n:  # nothing ended since: the same views
+            return dict(views[1])
+        a = np.empty((len(self._names), n))
+        a[:] = self._held[:, None]
+        out = dict(zip(self._names, a, strict=True))
+        self._held_views = (n, out)
+        return dict(out)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
-        a = np.asarray(d[self.signal_channels[0]], dtype=np.float64)
+        a = np.asarray(d[self._ch_a], dtype=np.float64)
         n = a.shape[0]
-        b = (
-            np.asarray(d[self.signal_channels[1]], dtype=np.float64)
-            if len(self.signal_channels) == 2
-            else self._empty
-        )
+        b = self._empty if self._ch_b is None else np.asarray(d[self._ch_b], dtype=np.float64)
         speed = np.asarray(d[self.speed_channel], dtype=np.float64)
-        e = (
-            np.asarray(d[self.expected_channel], dtype=np.float64)
-            if self.expected_channel is not None
-            else self._empty
-        )
-        cap = min(int(n * self.n_flutes * 5e3 / self.fs) + 2, n + 1)  # ≤ 300 000 rev/min
-        if cap > self._pp.shape[1]:
-            self._pp = np.empty((8, 2 * cap))
-            self._pi = np.empty((2, 2 * cap), dtype=np.int64)
-            self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
-        pp, pi, pb = self._pp, self._pi, self._pb
-        held = np.empty(n, dtype=np.int64)
+        e = self._empty if self._ch_e is None else np.asarray(d[self._ch_e], dtype=np.float64)
+        if n != self._n_last:
+            self._size(n)
+        held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
+        r0, r1, r2, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2
-        k = _k.segment_periods(
-            a,
-            b,
-            e,
-            speed,
-            self.fs,
-            self.n_flutes,
-            self._seg,
-            pp[0],
-            pp[1],
-            pp[2],
-            pi[0],
-            pi[1],
-            held,
-        )
-        out = BlockOutput()
+        k = _k.segment_periods(a, b, e, speed, self.fs, self.n_flutes, self._seg, r0, r1, r2,
+                               r3, r4, held)  # fmt: skip
+        if k == 0:  # no tooth period ends in this chunk: the held values throughout
+            views = self._held_views
+            if views is not None and views[0] == n:
+                return BlockOutput(dict(views[1]))
+            return BlockOutput(self._held_outputs(n))
+        self._held_views = None
+        pp, pi, pb = self._pp, self._pi, self._pb
         values = np.empty((5, n))
-        if k:
-            if b.shape[0]:
-                np.hypot(pp[0, :k], pp[1, :k], out=pp[3, :k])
-            else:
-                pp[3, :k] = pp[0, :k]
-            if self.plan is not None and self.expected_channel is None:
-                pp[2, :k] = self._plan_expected(d, pi[0, :k])
-            _k.detect_periods(pp, pb, k, self._params, self._iparams, self._det)
-        _k.fill_outputs(self._held, pp[3:], k, held, values)
-        for j, nm in enumerate(self._names):
-            out.channels[nm] = values[j]
-        if k == 0:
+        if self.plan is not None and self.expected_channel is None:
+            pp[2, :k] = self._plan_expected(d, pi[0, :k])
+        first = self._first_violation
+        self._first_violation, alarms = _k.periods_step(
+            pp, pb, k, self._ch_b is not None, self._params, self._iparams, self._det,
+            self._held, held, values, first, r4,
+        )  # fmt: skip
+        out = BlockOutput(dict(zip(self._names, values, strict=True)))
+        if not alarms:
             return out
         x, expected, eps1, lim1, eps2, lim2 = pp[3], pp[2], pp[4], pp[5], pp[6], pp[7]
         end, index, viol, alarm = pi[0], pi[1], pb[0], pb[1]
-        first = self._first_violation
         for i in range(k):
             if viol[i]:
                 if first < 0:
@@ -317,8 +314,19 @@ class BreakageBlock(Block):
                         lim2[i],
                     )
                 )
-        self._first_violation = first
         return out
+
+    def _size(self, n: int) -> None:
+        """Work arrays for chunks of ``n`` samples."""
+        cap = min(int(n * self.n_flutes * 5e3 / self.fs) + 2, n + 1)  # ≤ 300 000 rev/min
+        if cap > self._pp.shape[1]:
+            self._pp = np.empty((8, 2 * cap))
+            self._pi = np.empty((2, 2 * cap), dtype=np.int64)
+            self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
+            self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+        if self._hbuf.shape[0] < n:
+            self._hbuf = np.empty(n, dtype=np.int64)
+        self._n_last = n
 
     # ------------------------------------------------------------------ helpers
 

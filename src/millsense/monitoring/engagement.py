@@ -8,6 +8,12 @@ k = N…KN, and :class:`~millsense.monitoring.torque_spectrum.SpectrumIdentifier
 d_a, d_r, θ_st, θ_ex, K_t, ε, θ_ec and the reliability index σ (Lee Fig. 2.9). Revolutions
 whose mean torque is below ``min_torque_nm`` (air) give NaN. The values are held on the
 output channels from the sample after the revolution ends until the next one.
+
+Per chunk the work is one compiled call (decision 1535): the angle, the harmonic sums of the
+running revolution (added sample by sample in the order of a whole-revolution sum, so any
+chunking gives the same coefficients bit for bit) and, at a revolution's end, the fit from the
+previous revolution's solution; only a revolution that needs the coarse grid search returns to
+Python for it.
 """
 
 from __future__ import annotations
@@ -20,8 +26,8 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _spectrum_kernels as _sk
-from millsense.monitoring import _tooth_kernels as _k
 from millsense.monitoring.torque_spectrum import (
+    RUNOUT_RCOND,
     EngagementEstimate,
     SpectrumIdentifier,
     ToolGeometry,
@@ -109,7 +115,8 @@ class EngagementBlock(Block):
         self._names = [f"{name}/{f}" for f, _, _ in _FIELDS]
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
-        self.estimates: list[tuple[float, EngagementEstimate | None]] = []
+        self._log: list[tuple[float, np.ndarray | None]] = []
+        self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -119,62 +126,69 @@ class EngagementBlock(Block):
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
         self.fs = float(sample_rate_hz)
-        self._ident = SpectrumIdentifier(
+        ident = self._ident = SpectrumIdentifier(
             self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
         )
-        self._state = np.array([0.0, -1.0])
-        self._buf: list[tuple[np.ndarray, ...]] = []
+        self._acc = np.zeros(_sk.ACC_SIZE)
+        self._acc[_sk.ACC_REV] = -1.0
+        self._sums = np.zeros(self._k.size, dtype=np.complex128)
+        self._prev = np.zeros(3)
+        g = self.geom
+        fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
+        fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
+        self._fpar = np.array(fpar)  # layout: _spectrum_kernels.FPAR_*
+        self._done = np.empty((16, 4))
+        self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
+        self._est = np.empty((16, _sk.EST_SIZE))
+        # the arguments of every compiled call after (x, speed, feed, first sample)
+        self._args = (
+            self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
+            ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
+        )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
-        self._held_arrays: np.ndarray | None = None
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
-        self._cur_rev = -1
-        self.estimates = []
+        self._log = []
+        self._made = []
 
-    def _finish(self, t_end: float) -> None:
-        x = np.concatenate([b[0] for b in self._buf])
-        ang = np.concatenate([b[1] for b in self._buf])
-        sp = np.concatenate([b[2] for b in self._buf])
-        fd = np.concatenate([b[3] for b in self._buf]) if self.feed_channel else None
-        self._buf = []
-        est: EngagementEstimate | None = None
-        omega = float(np.mean(np.abs(sp)))
-        if float(np.mean(x)) >= self.min_torque_nm and omega > 0:
-            coeff = np.empty(self._k.size, dtype=np.complex128)
-            _sk.revolution_harmonics(x, ang, self.geom.n_flutes, coeff)
-            c = self.c_m
-            if c is None:
-                assert fd is not None
-                c = 2 * math.pi * float(np.mean(np.abs(fd))) / (self.geom.n_flutes * omega)
-            if c > 0 and abs(coeff[1]) > 0:
-                est = self._ident.identify(coeff[1:], complex(coeff[0]), c)
-        self.estimates.append((t_end, est))
+    def _finish(self, t_end: float, row: int) -> None:
+        """The estimate of row ``row`` of the revolutions finished (module notes)."""
         self._held_views = None
-        if est is None:
+        status = self._done[row, _sk.DONE_STATUS]
+        if status == _sk.REV_NONE:
+            self._log.append((t_end, None))
             self._held = np.full(len(_FIELDS), math.nan)
-        else:
-            self._held = np.array(
-                [
-                    est.axial_depth_m,
-                    est.radial_depth_m,
-                    est.entry_rad,
-                    est.exit_rad,
-                    est.kt_n_m2,
-                    est.runout_m,
-                    est.runout_angle_rad,
-                    est.reliability,
-                ]
+            return
+        out = self._est[row]
+        if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
+            ident = self._ident
+            ident._prev = self._prev.copy() if self._acc[_sk.ACC_HAS_PREV] else None
+            coeff = self._done_sums[row]
+            out[:] = ident.identify_array(
+                coeff[1:], complex(coeff[0]), float(self._done[row, _sk.DONE_FEED])
             )
+            self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
+            self._acc[_sk.ACC_HAS_PREV] = 1.0
+        est = out.copy()
+        self._held = est[: len(_FIELDS)]
+        self._log.append((t_end, est))
+
+    @property
+    def estimates(self) -> list[tuple[float, EngagementEstimate | None]]:
+        """(end time of the revolution, its estimate or None) for every revolution so far."""
+        made = self._made
+        for t, est in self._log[len(made) :]:
+            made.append((t, None if est is None else EngagementEstimate(*est.tolist())))
+        return made
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The held values for ``n`` samples as views of arrays never written again (new ones
-        when the values change, once per revolution, or a longer chunk comes)."""
+        """The held values for ``n`` samples as views of an array never written again (a new
+        one when the values change, once per revolution, or the chunk length does)."""
         views = self._held_views
-        if views is not None and views[0] == n:  # no revolution ended since: the same views
+        if views is not None and views[0] == n:  # nothing ended since: the same views
             return dict(views[1])
-        a = self._held_arrays
-        if a is None or a.shape[1] < n or not np.array_equal(a[:, 0], self._held, equal_nan=True):
-            a = self._held_arrays = np.repeat(self._held[:, None], max(n, 1024), axis=1)
-        out = {nm: a[j, :n] for j, nm in enumerate(self._names)}
+        a = np.empty((len(self._names), n))
+        a[:] = self._held[:, None]
+        out = dict(zip(self._names, a, strict=True))
         self._held_views = (n, out)
         return dict(out)
 
@@ -183,32 +197,30 @@ class EngagementBlock(Block):
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
-        n = x.size
-        ang = np.empty(n)
-        rev = np.empty(n, dtype=np.int64)
-        _k.accumulate_revolutions(sp, self.fs, self._state, ang, rev)
-        if n and rev[0] == rev[-1] == self._cur_rev:
-            # no revolution ends in this chunk (the common case for short chunks)
-            self._buf.append((x, ang, sp, fd))
+        n = x.shape[0]
+        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
+        if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             return BlockOutput(channels=self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
-        bounds = (np.nonzero(np.diff(rev))[0] + 1).tolist()
-        if n and self._cur_rev >= 0 and rev[0] != self._cur_rev:
-            bounds.insert(0, 0)
         pos = 0
-        for s in bounds:
-            if s > pos:
-                self._buf.append((x[pos:s], ang[pos:s], sp[pos:s], fd[pos:s]))
+        while True:
+            for row in range(nd):
+                s = int(self._done[row, _sk.DONE_AT])
                 out[:, pos:s] = self._held[:, None]
-            if self._buf:
-                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz)
-            pos = s
-        if pos < n:
-            self._buf.append((x[pos:], ang[pos:], sp[pos:], fd[pos:]))
-            out[:, pos:] = self._held[:, None]
-        if n:
-            self._cur_rev = int(rev[-1])
+                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz, row)
+                pos = s
+            if i >= n:
+                break
+            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
+        out[:, pos:] = self._held[:, None]
         return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
+
+
+# the identifier's output array holds the output channels' fields (:data:`_FIELDS`) first,
+# then notch index, cost and edge coefficient: :class:`EngagementEstimate`'s order
+assert [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
+        _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY, _sk.EST_NOTCH, _sk.EST_COST,
+        _sk.EST_EDGE] == list(range(_sk.EST_SIZE))  # fmt: skip
 
 
 def make_engagement_block(**options: Any) -> Block:

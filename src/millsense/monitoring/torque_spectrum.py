@@ -233,6 +233,9 @@ class SpectrumIdentifier:
     the thesis' ratio Ψ and notch. Each revolution starts from the previous one's solution; if
     that leaves a relative misfit above ``accept``, least squares also starts from the best
     ``n_starts`` points of a coarse grid (48 depths × 1830 angle pairs, 3°, up to 16 ω_n).
+    The Levenberg–Marquardt fit is bounded by an active set (decision 1535): a parameter on
+    its bound whose descent direction leaves the box (θ_ex = π in down milling, θ_st = 0 in up
+    milling) is held, and the fit converges to the bounded least-squares optimum.
     """
 
     def __init__(
@@ -254,6 +257,11 @@ class SpectrumIdentifier:
         self.accept = 1e-3
         #: least-squares starts taken from the best grid points
         self.n_starts = 6
+        dap = geom.axial_pitch_m
+        self._lo = np.array([1e-3 * dap, 0.0, 0.0])
+        self._hi = np.array([self.max_depth_m, math.pi, math.pi])
+        self._scl = np.array([dap, 1.0, 1.0])
+        self._kb = geom.tan_beta / geom.radius_m
 
     def reset(self) -> None:
         """Forget the previous revolution (a new stream)."""
@@ -266,33 +274,38 @@ class SpectrumIdentifier:
 
     def identify(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> EngagementEstimate:
         """Estimate from the measured T_kN (k = 1…K, ``x``) and T_1 (``t1``)."""
+        out = self.identify_array(x, t1, feed_per_tooth_m)
+        return EngagementEstimate(
+            axial_depth_m=float(out[_sk.EST_AXIAL]),
+            radial_depth_m=float(out[_sk.EST_RADIAL]),
+            entry_rad=float(out[_sk.EST_ENTRY]),
+            exit_rad=float(out[_sk.EST_EXIT]),
+            kt_n_m2=float(out[_sk.EST_KT]),
+            runout_m=float(out[_sk.EST_RUNOUT]),
+            runout_angle_rad=float(out[_sk.EST_RUNOUT_ANGLE]),
+            reliability=float(out[_sk.EST_RELIABILITY]),
+            notch_index=float(out[_sk.EST_NOTCH]),
+            cost=float(out[_sk.EST_COST]),
+            edge_n_m=float(out[_sk.EST_EDGE]),
+        )
+
+    def identify_array(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> FloatArray:
+        """:meth:`identify` as an array of the fields ``_spectrum_kernels.EST_*`` (the
+        streaming block's form: one compiled call per revolution on the common path)."""
         geom = self.geom
-        xn = x / abs(x[0])
-        dap = geom.axial_pitch_m
-        lo = np.array([1e-3 * dap, 0.0, 0.0])
-        hi = np.array([self.max_depth_m, math.pi, math.pi])
-        norm = float(np.sum(np.abs(xn) ** 2))
-
-        kb = geom.tan_beta / geom.radius_m
-        scl = np.array([dap, 1.0, 1.0])
-
-        def fit(p0: FloatArray, n: int | None = None) -> tuple[FloatArray, float]:
-            nn = xn.size if n is None else n
-            return _sk.lm_fit(
-                np.asarray(p0, dtype=np.float64),
-                np.ascontiguousarray(xn[:nn]),
-                self.k[:nn],
-                kb,
-                self.edge,
-                lo,
-                hi,
-                scl,
-                60,
-            )
-
-        best = fit(self._prev) if self._prev is not None else None
-        if best is None or 2 * best[1] / norm > self.accept:
+        x = np.ascontiguousarray(x, dtype=np.complex128)
+        t1 = complex(t1)
+        c = float(feed_per_tooth_m)
+        out = np.empty(_sk.EST_SIZE)
+        args = (self._kb, self.edge, self._lo, self._hi, self._scl)
+        tail = (geom.radius_m, geom.n_flutes, geom.axial_pitch_m, RUNOUT_RCOND)
+        prev = self._prev
+        if prev is None or not _sk.identify_from(
+            prev, x, t1, c, self.k, *args, self.accept, *tail, out
+        ):
             # the previous revolution's solution does not explain this one: grid starts too
+            best = None if prev is None else (out[:3].copy(), float(out[_sk.EST_COST]))
+            xn, norm = _sk.normalised(x)
             ng = self.k_grid.size
             cost = np.empty(self._ga.shape[0])
             _sk.grid_costs(np.ascontiguousarray(xn[:ng]), self._ga,
@@ -301,39 +314,14 @@ class SpectrumIdentifier:
             for j in best_rows[np.argsort(cost[best_rows])]:
                 # coarse to fine: the low harmonics pin the angles before the high ones, whose
                 # phases turn k N times faster with θ, are added
-                low = fit(np.array([g[j] for g in self._grid]), ng)
-                sol = fit(low[0])
+                p0 = np.array([g[j] for g in self._grid])
+                low = _sk.lm_fit(p0, np.ascontiguousarray(xn[:ng]), self.k[:ng], *args, 60)
+                sol = _sk.lm_fit(low[0], xn, self.k[: xn.size], *args, 60)
                 if best is None or sol[1] < best[1]:
                     best = sol
                 if 2 * best[1] / norm < 1e-8:
                     break
-        assert best is not None
-        d, st, ex = (float(v) for v in best[0])
-        if ex < st:
-            st, ex = ex, st
-        self._prev = np.array([d, st, ex])
-        notch = dap / d
-        m = min(max(math.floor(notch), 1), x.size)
-        model = np.empty(m)
-        alpha, beta, g1, l2 = _sk.amplitudes(
-            np.array([d, st, ex]), np.ascontiguousarray(x), self.k, kb, self.edge, model
-        )
-        rn = geom.radius_m * geom.n_flutes
-        kt = alpha / (rn * feed_per_tooth_m)
-        ke = beta / rn
-        w = _runout_from(t1, d, geom, kt, g1, l2)
-        meas = np.abs(x[:m])
-        sigma = 1.0 - float(np.sum(np.abs(meas - model)) / np.sum(meas))
-        return EngagementEstimate(
-            axial_depth_m=d,
-            radial_depth_m=geom.radius_m * (math.cos(st) - math.cos(ex)),
-            entry_rad=st,
-            exit_rad=ex,
-            kt_n_m2=kt,
-            runout_m=abs(w),
-            runout_angle_rad=float(-np.angle(w)) % (2 * math.pi),
-            reliability=sigma,
-            notch_index=notch,
-            cost=float(2 * best[1] / norm),
-            edge_n_m=ke,
-        )
+            assert best is not None
+            _sk.estimate(best[0], best[1], x, t1, c, self.k, self._kb, self.edge, *tail, out)
+        self._prev = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
+        return out

@@ -20,12 +20,53 @@ BoolArray = NDArray[np.bool_]
 
 
 @numba.njit(cache=True, nogil=True)
+def _select(w: FloatArray, kth: int) -> float:  # pragma: no cover - compiled
+    """The ``kth`` smallest value of ``w`` (Hoare quickselect, median-of-three pivot; ``w`` is
+    reordered so that ``w[:kth]`` holds values ≤ it). An order statistic is a value of the
+    data, so any selection algorithm returns the same number as ``np.partition``."""
+    lo = 0
+    hi = w.shape[0] - 1
+    while hi > lo:
+        mid = (lo + hi) >> 1
+        a = w[lo]
+        b = w[mid]
+        c = w[hi]
+        if a > b:
+            a, b = b, a
+        if b > c:
+            b = c
+        if a > b:
+            b = a
+        pivot = b
+        i = lo
+        j = hi
+        while i <= j:
+            while w[i] < pivot:
+                i += 1
+            while w[j] > pivot:
+                j -= 1
+            if i <= j:
+                t = w[i]
+                w[i] = w[j]
+                w[j] = t
+                i += 1
+                j -= 1
+        if kth <= j:
+            hi = j
+        elif kth >= i:
+            lo = i
+        else:
+            break
+    return w[kth]
+
+
+@numba.njit(cache=True, nogil=True)
 def amplitude_line_median(
     c: ComplexArray, scale: float, k0: int, k1: int, b0: int, b1: int, out: FloatArray
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """``out = |c|·scale`` (one-sided amplitudes); returns the largest amplitude in bins
     ``k0:k1`` (the tooth-passing line; 0 if empty) and the median of bins ``b0:b1`` (0 if
-    empty)."""
+    empty; as ``np.median``: the middle value, or the mean of the two middle values)."""
     for i in range(c.shape[0]):
         out[i] = np.sqrt(c[i].real * c[i].real + c[i].imag * c[i].imag) * scale
     tooth = 0.0
@@ -37,10 +78,13 @@ def amplitude_line_median(
         w = out[b0:b1].copy()
         m = w.shape[0]
         h = m // 2
-        w = np.partition(w, h)
-        med = w[h]
+        med = _select(w, h)
         if m % 2 == 0:  # the mean of the two middle values, as numpy's median
-            med = 0.5 * (med + np.max(w[:h]))
+            lower = w[0]
+            for i in range(1, h):
+                if w[i] > lower:
+                    lower = w[i]
+            med = 0.5 * (med + lower)
     return tooth, med
 
 

@@ -34,6 +34,28 @@ from millsense.monitoring.chatter.comb import comb_coefficients, ingest
 from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
+
+def _direct_rfft() -> Callable[[np.ndarray], np.ndarray]:
+    """scipy.fft's pocketfft binding called as ``scipy.fft.rfft`` calls it, without the
+    backend dispatch (≈ 5 µs of ≈ 20 per window); ``scipy.fft.rfft`` itself if this scipy
+    lays it out otherwise (checked on a probe vector at import)."""
+    try:
+        from scipy.fft._pocketfft.pypocketfft import r2c
+
+        def direct(x: np.ndarray) -> np.ndarray:
+            return r2c(x, (0,), True, 0, None, 1)
+
+        probe = np.cos(np.arange(16.0))
+        if np.array_equal(direct(probe), sfft.rfft(probe)):
+            return direct
+    except Exception:  # pragma: no cover - another scipy layout
+        pass
+    return sfft.rfft  # pragma: no cover
+
+
+#: ``scipy.fft.rfft`` of a contiguous float64 vector (the same numbers, bit for bit).
+rfft = _direct_rfft()
+
 #: Where an event happened on the tool path: (time s, NC line or None) → (NC line, x, y, z mm).
 Locator = Callable[[float, int | None], tuple[int | None, float | None, float | None, float | None]]
 
@@ -122,15 +144,17 @@ class _Stage:
         self.ring_y = np.zeros(size)
         self.state = np.array([0.0, 0.0, 0.0, np.inf, 0.0])
         self.pos = 0
-        self.ranges: list[tuple[float, float]] = []
+        self.lows: list[float] = []  # smallest and largest smoothed speed of each hop
+        self.highs: list[float] = []
         self.f_rev = 0.0
 
     def close_hop(self, keep: int) -> None:
         """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
         st = self.state
-        self.f_rev = st[1] / st[2] if st[2] > 0 else 0.0
-        self.ranges.append((float(st[3]), float(st[4])))
-        del self.ranges[:-keep]
+        self.f_rev = float(st[1] / st[2]) if st[2] > 0 else 0.0
+        self.lows.append(float(st[3]))
+        self.highs.append(float(st[4]))
+        del self.lows[:-keep], self.highs[:-keep]
         st[1] = st[2] = st[4] = 0.0
         st[3] = np.inf
 
@@ -221,10 +245,15 @@ class ChatterMonitor(Block):
         self._mask_f_rev = -1.0
         self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
+        self._df = float(f[1])
+        self._nf = len(f)
         self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
+        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._keep = self._keep_hops
+        self._out_names = (self._ch_flag, self._ch_hz, self._ch_ratio)
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        return _run_chunk([self], chunk)
+        return _run_chunk([self], chunk, self)
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held outputs for ``n`` samples: views of arrays that are never written again
@@ -246,10 +275,10 @@ class ChatterMonitor(Block):
         return dict(out)
 
     # ------------------------------------------------------------------ decision
-    def _ingest(self, x: np.ndarray, spd: np.ndarray) -> None:
+    def _ingest(self, x: np.ndarray, spd: np.ndarray, factor: float = 1.0) -> None:
         g = self._stage
         ingest(x, spd, self._fs, self._alpha, self._beta, g.ring_x, g.ring_y, g.pos, g.state,
-               self._min_rev_s, self._smooth)  # fmt: skip
+               self._min_rev_s, self._smooth, factor)  # fmt: skip
         g.pos += len(x)
 
     def _spectra(self) -> Spectra | None:
@@ -258,27 +287,25 @@ class ChatterMonitor(Block):
         n = self.method.window
         if g.pos < n:
             return None
-        ranges = g.ranges[-(n // self._hop + 2) :]
-        lo = min(r[0] for r in ranges)
-        hi = max(r[1] for r in ranges)
+        w = n // self._hop + 2
+        lo = min(g.lows[-w:])
+        hi = max(g.highs[-w:])
         if not hi <= (1.0 + STEADY_SPEED) * lo:
             return None  # speed changing within the window: no decision (decision 1504)
         xr = np.empty(n)
         xr_tapered = np.empty(n)
         level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, xr_tapered)
         f = self._f
-        df = f[1]
+        df = self._df
         f_t = self.settings.n_flutes * f_rev
         k0 = k1 = 0
         if f_rev * 60.0 >= self.settings.min_speed_rpm:
             half = max(2.0 * df, 0.005 * f_t)
             k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = max(k0, min(len(f), math.floor((f_t + half) / df) + 1))
+            k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        raw = np.empty(len(f))
-        tooth, med = _kn.amplitude_line_median(
-            sfft.rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw
-        )
+        raw = np.empty(self._nf)
+        tooth, med = _kn.amplitude_line_median(rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw)
         # in the cut when the tooth line stands out of the spectrum's median, or of the median
         # learned out of the cut (heavy chatter raises the median of the spectrum itself)
         floor = med if self._air_floor is None else min(med, self._air_floor)
@@ -316,14 +343,11 @@ class ChatterMonitor(Block):
             return None  # entry, exit or a large step inside the window: no decision
         xc = self._window(self._stage.ring_y, n)
         raw_rect = None
-        comb = np.empty(len(f))
+        comb = np.empty(self._nf)
         if self.method.taper == "rect":
-            _kn.amplitude(sfft.rfft(xc), self._comb_scale, comb)
-            if self.method.name == "chatter-sdft":  # Parseval needs the same taper
-                raw_rect = np.empty(len(f))
-                _kn.amplitude(sfft.rfft(xr), 2.0 / n, raw_rect)
+            _kn.amplitude(rfft(xc), self._comb_scale, comb)
         else:
-            _kn.amplitude(sfft.rfft(xc * self._comb_taper), self._comb_scale, comb)
+            _kn.amplitude(rfft(xc * self._comb_taper), self._comb_scale, comb)
         if self._background is None:
             # learned from air only: a first window already in the cut (chatter may start
             # with the cut) must not become the background
@@ -337,8 +361,15 @@ class ChatterMonitor(Block):
                 off = np.abs(f - f_rev * np.rint(f / f_rev))
                 self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
                 self._mask_f_rev = f_rev
-        novel = np.empty(len(f))
+        novel = np.empty(self._nf)
         _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
+        if self.method.name == "chatter-sdft" and self.method.taper == "rect":
+            # Parseval needs the raw spectrum with the comb's (rectangular) taper: computed only
+            # for a window the criterion judges by its variances (:meth:`ChatterMethod.decide`)
+            k = _kn.band_argmax(novel, b0, b1)
+            if cutting and b0 <= k < b1 and novel[k] > 0.0 and tooth_ref > 0.0:
+                raw_rect = np.empty(self._nf)
+                _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1))  # fmt: skip
 
@@ -457,56 +488,59 @@ class ChatterMonitor(Block):
         )
 
 
-def _run_chunk(monitors: Sequence[ChatterMonitor], chunk: Chunk) -> BlockOutput:
+def _run_chunk(
+    monitors: Sequence[ChatterMonitor], chunk: Chunk, holder: ChatterMonitor | ChatterGroup
+) -> BlockOutput:
     """Feed ``chunk`` to monitors sharing one stage (the first one's inputs and hop): one
-    ingest per run of samples, each monitor's decision at the decision samples."""
+    ingest per run of samples, each monitor's decision at the decision samples. ``holder``
+    (the block) keeps the merged held outputs between decisions."""
     lead = monitors[0]
     s = lead.settings
     x = np.ascontiguousarray(chunk.data[s.signal], dtype=np.float64)
     n = len(x)
     if s.speed_channel is not None:
         spd = np.ascontiguousarray(chunk.data[s.speed_channel], dtype=np.float64)
-        if lead._speed_factor != 1.0:
-            spd = spd * lead._speed_factor
+        factor = lead._speed_factor
     else:
         spd = np.full(n, lead._const_speed)
+        factor = 1.0
     hop = lead._hop
     first = (hop - 1 - chunk.start) % hop  # offset of the first decision sample
     if first >= n:  # no decision in this chunk (the common case for short chunks)
-        lead._ingest(x, spd)
-        if len(monitors) == 1:
-            return BlockOutput(lead._held_outputs(n))
+        lead._ingest(x, spd, factor)
+        views = holder._merged
+        if views is not None and views[0] == n:  # nothing decided since: the same views
+            return BlockOutput(dict(views[1]))
         out: dict[str, np.ndarray] = {}
         for m in monitors:
             out.update(m._held_outputs(n))
-        return BlockOutput(out)
-    arrays = [(np.empty(n), np.empty(n), np.empty(n)) for _ in monitors]
+        holder._merged = (n, out)
+        return BlockOutput(dict(out))
+    holder._merged = None
+    # rows 3q, 3q + 1, 3q + 2: flag, frequency, ratio of monitor q
+    values = np.empty((3 * len(monitors), n))
     events: list[Event] = []
-    keep = max(m._keep_hops for m in monitors)
+    keep = holder._keep
     i = 0
     for j in [*range(first + 1, n + 1, hop), n]:
         if j <= i:
             continue
-        lead._ingest(x[i:j], spd[i:j])
-        decided = (chunk.start + j) % hop == 0
-        if decided:
+        lead._ingest(x[i:j], spd[i:j], factor)
+        held = np.array([v for m in monitors for v in (m._flag, m._freq, m._ratio)])
+        if (chunk.start + j) % hop == 0:
             lead._stage.close_hop(keep)
             nc = None
             if s.nc_line_channel is not None:
                 nc = int(chunk.data[s.nc_line_channel][j - 1])
-        for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
-            if decided:
-                # outputs before the decision sample hold the old values
-                flag[i : j - 1], freq[i : j - 1], ratio[i : j - 1] = m._flag, m._freq, m._ratio
+            # outputs before the decision sample hold the old values
+            values[:, i : j - 1] = held[:, None]
+            for m in monitors:
                 events.extend(m._decide(chunk.start + j - 1, chunk, nc))
-                flag[j - 1], freq[j - 1], ratio[j - 1] = m._flag, m._freq, m._ratio
-            else:
-                flag[i:j], freq[i:j], ratio[i:j] = m._flag, m._freq, m._ratio
+            values[:, j - 1] = [v for m in monitors for v in (m._flag, m._freq, m._ratio)]
+        else:
+            values[:, i:j] = held[:, None]
         i = j
-    out = {}
-    for m, (flag, freq, ratio) in zip(monitors, arrays, strict=True):
-        out.update({m._ch_flag: flag, m._ch_hz: freq, m._ch_ratio: ratio})
-    return BlockOutput(out, events)
+    return BlockOutput(dict(zip(holder._out_names, values, strict=True)), events)
 
 
 class ChatterGroup(Block):
@@ -547,6 +581,9 @@ class ChatterGroup(Block):
         stage = _Stage(max(m._size for m in self.monitors))
         for m in self.monitors:
             m._stage = stage
+        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._keep = max(m._keep_hops for m in self.monitors)  # hops of speed ranges kept
+        self._out_names = tuple(c for m in self.monitors for c in m._out_names)
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        return _run_chunk(self.monitors, chunk)
+        return _run_chunk(self.monitors, chunk, self)

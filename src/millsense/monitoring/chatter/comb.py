@@ -89,30 +89,39 @@ def ingest(
     state: FloatArray,
     min_speed_rev_s: float,
     smooth: float,
+    speed_factor: float = 1.0,
 ) -> None:  # pragma: no cover - compiled
     """Write ``x`` and its comb-filtered version into the rings from position ``pos`` on.
 
     ``state[0]`` is the smoothed |speed| (rev/s), ``state[1]`` the sum of the smoothed speed
     since the last reset of ``state[1]``/``state[2]`` (sample count), for the window's mean;
     ``state[3]``, ``state[4]`` the smallest and largest smoothed speed since their reset.
+    ``speed_factor`` converts the speed channel to rev/s (sample by sample, as multiplying
+    the channel first would).
     """
     mask = len(ring_x) - 1
     d_max = len(ring_x) - 2.0 * _NODES
     den = _DEN
     w = np.empty(_NODES)
     last_q = -1
+    # the state in locals (the compiler cannot keep array elements in registers across the
+    # ring writes); written back at the end
+    s = state[0]
+    s_sum = state[1]
+    s_cnt = state[2]
+    s_min = state[3]
+    s_max = state[4]
     for i in range(len(x)):
         p = (pos + i) & mask
         xi = x[i]
         ring_x[p] = xi
-        s = state[0] + smooth * (abs(speed_rev_s[i]) - state[0])
-        state[0] = s
-        state[1] += s
-        state[2] += 1.0
-        if s < state[3]:
-            state[3] = s
-        if s > state[4]:
-            state[4] = s
+        s = s + smooth * (abs(speed_rev_s[i] * speed_factor) - s)
+        s_sum += s
+        s_cnt += 1.0
+        if s < s_min:
+            s_min = s
+        if s > s_max:
+            s_max = s
         y = 0.0
         if s >= min_speed_rev_s:
             d = fs / s
@@ -128,3 +137,8 @@ def ingest(
                 yd = _delayed(ring_y, p, k, w, mask)
                 y = alpha * yd + beta * (xi - xd)
         ring_y[p] = y
+    state[0] = s
+    state[1] = s_sum
+    state[2] = s_cnt
+    state[3] = s_min
+    state[4] = s_max
