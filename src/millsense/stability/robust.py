@@ -278,7 +278,7 @@ def solve_speed(
                 w2 = b2.limit
                 mu2 = b2.multipliers[0] if b2.multipliers else complex("nan")
             else:
-                w2, mu2, count = near_root(fam2, w1, rtol)
+                w2, mu2, count = near_root(fam2, w1, rtol, mu_guess=mu)
                 evals += count
             if not (0 < w2 < math.inf):
                 break

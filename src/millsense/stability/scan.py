@@ -41,7 +41,8 @@ machine.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -79,6 +80,9 @@ class _Prepared:
     cut: NDArray[np.bool_]  # (m,)
     free_ex: FloatArray  # (k, k) exponential of an out-of-cut step's block matrix
     a0_norm: float  # max |A0 h|
+    #: dominant multiplier at the depths where ρ was computed exactly (seeds the tracking of
+    #: :func:`_branch_root`)
+    known_mu: dict[float, complex] = field(default_factory=dict)
 
 
 def _van_loan_free(family: DepthFamily) -> FloatArray:
@@ -256,7 +260,10 @@ def spectral_radii(
     w = np.atleast_1d(np.asarray(depths, dtype=float))
     if w.size == 0:
         return np.zeros(0), np.zeros(0, dtype=complex)
-    return _dominant(deflate(monodromies(family, w)))
+    r, mu = _dominant(deflate(monodromies(family, w)))
+    if isinstance(family, _Prepared):
+        family.known_mu.update(zip(w.tolist(), mu.tolist(), strict=True))
+    return r, mu
 
 
 def _dominant(M: FloatArray) -> tuple[FloatArray, ComplexArray]:
@@ -382,9 +389,12 @@ def grid_bounds(
     hi = hi * (1.0 + BOUND_MARGIN)
     exact = ~((hi < 1.0) | (lo >= 1.0))  # undecided, or not finite (eigvals then raises)
     if exact.any():
-        r = _dominant(M[exact])[0]
+        r, mu = _dominant(M[exact])
         lo[exact] = r
         hi[exact] = r
+        if isinstance(family, _Prepared):
+            ws = np.atleast_1d(np.asarray(depths, dtype=float))[exact]
+            family.known_mu.update(zip(ws.tolist(), mu.tolist(), strict=True))
     return lo, hi, exact
 
 
@@ -512,11 +522,18 @@ class Bands:
 
 
 class _Scalar:
-    """ρ at single depths with a cache (for Brent and the hump maximisation)."""
+    """ρ at single depths with a cache (for Brent and the hump maximisation).
+
+    ``branch`` holds multipliers found by :func:`_branch_root` at depths where only their
+    modulus >= 1 is proven (they are then the critical multiplier reported there); ``tracked``
+    counts the multipliers computed by :func:`_rayleigh` instead of an eigenvalue problem.
+    """
 
     def __init__(self, family: DepthFamily | _Prepared) -> None:
         self.family = family if isinstance(family, _Prepared) else _prepare(family)
         self.cache: dict[float, tuple[float, complex]] = {}
+        self.branch: dict[float, complex] = {}
+        self.tracked = 0
 
     def __call__(self, w: float) -> float:
         if w not in self.cache:
@@ -525,8 +542,156 @@ class _Scalar:
         return self.cache[w][0]
 
     def mu(self, w: float) -> complex:
+        if w not in self.cache and w in self.branch:
+            return self.branch[w]
         self(w)
-        return self.cache[w][1]
+        mu = self.cache[w][1]
+        if not (math.isfinite(mu.real) and math.isfinite(mu.imag)):
+            mu = self.family.known_mu.get(w, mu)
+        return mu
+
+    def evaluations(self) -> int:
+        """Multipliers computed here: eigenvalue problems and tracked branches."""
+        return sum(1 for v in self.cache.values() if np.isfinite(v[1].real)) + self.tracked
+
+
+#: The root searches follow the critical multiplier by Rayleigh-quotient iteration instead of
+#: solving the eigenvalue problem, from this size of the (deflated) monodromy matrix on
+#: (below it LAPACK's eigenvalues cost no more than the LU factorisations; decision 0912).
+TRACK_MIN_SIZE = 30
+#: A tracked multiplier is accepted once ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``.
+TRACK_RESIDUAL = 1e-11
+
+
+def _rayleigh(
+    M: FloatArray, sigma: complex, v: ComplexArray | None
+) -> tuple[complex, ComplexArray] | None:
+    """Eigenpair of ``M`` near ``sigma`` by shifted inverse / Rayleigh-quotient iteration.
+
+    Solves ``(M − σ I) x = v`` with one complex LU factorisation per shift (Golub & Van
+    Loan, *Matrix Computations*, 4th ed., §7.6.1 and §8.2.3), the estimate the Rayleigh
+    quotient ``μ = vᴴ M v`` of the normalised iterate; the shift moves to ``μ`` when the
+    residual stops falling fast. Accepted when ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``
+    (``μ`` is then an exact multiplier of a matrix within that distance of ``M``, the
+    backward error of an eigenvalue solver); None if that is not reached in 4 shifts.
+    """
+    N = M.shape[0]
+    tol = TRACK_RESIDUAL * float(np.linalg.norm(M))
+    if v is None or v.shape[0] != N:
+        v = np.asarray(np.random.default_rng(0).standard_normal(N), dtype=np.complex128)
+    v = v / np.linalg.norm(v)
+    eye = np.eye(N)
+    for _ in range(4):
+        try:
+            lu = scipy.linalg.lu_factor(M - sigma * eye, check_finite=False)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+        prev = math.inf
+        for _ in range(3):
+            x = scipy.linalg.lu_solve(lu, v, check_finite=False)
+            nx = float(np.linalg.norm(x))
+            if not (nx > 0 and math.isfinite(nx)):
+                return None
+            v = x / nx
+            Mv = M @ v
+            mu = complex(np.vdot(v, Mv))
+            res = float(np.linalg.norm(Mv - mu * v))
+            if res <= tol:
+                return mu, v
+            if res > 0.1 * prev:
+                break
+            prev = res
+        sigma = mu
+    return None
+
+
+class _Lost(Exception):
+    """The tracked multiplier could not be computed (the caller solves exactly instead)."""
+
+
+class _Branch:
+    """``|μ(w)| − 1`` of one multiplier branch, followed from depth to depth (:func:`_rayleigh`).
+
+    Where ``f`` already holds ρ exactly, that value stands in (at the bracket ends of a scan:
+    ρ ≥ |μ|, so the sign is that of the branch on the unstable side and of ρ − 1 on the
+    stable one). ``values`` maps every depth asked to (modulus, multiplier, exact).
+    """
+
+    def __init__(self, f: _Scalar, mu: complex) -> None:
+        self.f = f
+        self.sigma = mu
+        self.v: ComplexArray | None = None
+        self.values: dict[float, tuple[float, complex, bool]] = {}
+
+    def __call__(self, w: float) -> float:
+        if w not in self.values:
+            if w in self.f.cache:
+                r, mu = self.f.cache[w]
+                self.values[w] = (r, mu, True)
+            else:
+                M = deflate(monodromies(self.f.family, np.array([w])))[0]
+                got = _rayleigh(M, self.sigma, self.v)
+                if got is None:
+                    raise _Lost
+                self.f.tracked += 1
+                self.sigma, self.v = got
+                self.values[w] = (abs(got[0]), got[0], False)
+        return self.values[w][0] - 1.0
+
+    def verified(self, x: float, rtol: float, xtol: float) -> bool:
+        """True if ρ − 1 provably changes sign between ``x`` and an evaluated depth within
+        Brent's final bracket (``xtol + rtol |x|``): the depth on the stable side gets ρ
+        exactly (one eigenvalue problem), the one on the unstable side has a multiplier of
+        modulus >= 1 (tracked or exact); the tracked multiplier is recorded there."""
+        side = self.values[x][0] >= 1.0
+        other = [w for w, v in self.values.items() if (v[0] >= 1.0) != side]
+        if not other:
+            return False
+        y = min(other, key=lambda w: abs(w - x))
+        if abs(y - x) > 2.0 * (xtol + rtol * abs(x)):
+            return False
+        stable, unstable = (y, x) if side else (x, y)
+        if not self.values[stable][2] and self.f(stable) >= 1.0:
+            return False
+        if not self.values[unstable][2]:
+            self.f.branch[unstable] = self.values[unstable][1]
+        return True
+
+
+def _branch_root(f: _Scalar, a: float, b: float, rtol: float, unstable_end: float) -> float:
+    """A crossing ρ = 1 in ``[a, b]`` (ρ − 1 of opposite signs at the ends) to ``rtol``.
+
+    Brent's method on the branch of the multiplier that is dominant at ``unstable_end`` (the
+    end where ρ >= 1), each value by :func:`_rayleigh` from the previous one instead of an
+    eigenvalue problem, then verified exactly (:meth:`_Branch.verified`); Brent's method on
+    ρ itself when the branch is lost, the verification fails or the matrix is small
+    (:data:`TRACK_MIN_SIZE`). Either way the result lies within ``rtol`` of a depth where ρ − 1
+    changes sign.
+    """
+    xtol = 1e-13
+
+    def exact() -> float:
+        return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=xtol))
+
+    seed = f.mu(unstable_end) if unstable_end in f.cache else complex("nan")
+    if not (math.isfinite(seed.real) and math.isfinite(seed.imag)) or abs(seed) < 1.0:
+        return exact()
+    if _tracked_size(f) < TRACK_MIN_SIZE:
+        return exact()
+    br = _Branch(f, seed)
+    try:
+        x = float(scipy.optimize.brentq(br, a, b, rtol=rtol, xtol=xtol))
+    except _Lost:
+        return exact()
+    return x if br.verified(x, rtol, xtol) else exact()
+
+
+def _tracked_size(f: _Scalar) -> int:
+    """Size of the deflated monodromy matrix of ``f``'s family (columns never used removed)."""
+    prep = f.family
+    fam = prep.family
+    n, p = fam.A0.shape[0], fam.C.shape[0]
+    return n + p * int(prep.lags.max()) if prep.cut.all() else n + p * int(prep.cut.sum()) + p
 
 
 def _golden_probe(f: _Scalar, a: float, x: float, b: float, sign: float) -> float:
@@ -653,11 +818,12 @@ def unstable_bands(
             f.cache.setdefault(float(w), (float(r), complex("nan")))
     edges: list[tuple[float, int]] = []  # (depth, +1 entering instability / -1 leaving)
 
-    def root(a: float, b: float) -> float:
-        return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
+    def root(a: float, b: float, unstable_end: float) -> float:
+        return _branch_root(f, a, b, rtol, unstable_end)
 
     for c in change.tolist():
-        edges.append((root(W[c], W[c + 1]), 1 if unst[c + 1] else -1))
+        a, b = float(W[c]), float(W[c + 1])
+        edges.append((root(a, b, b if unst[c + 1] else a), 1 if unst[c + 1] else -1))
     # narrow humps (bands) and dips (islands) between grid depths
     for i in range(1, len(W) - 1):
         _, peak, _, dip = _hump_or_dip(L, H, i, hump)
@@ -671,7 +837,7 @@ def unstable_bands(
         x = _golden_probe(f, a, float(W[i]), b, sign)
         fx = f(x)
         if (sign < 0 and fx >= 1.0) or (sign > 0 and fx < 1.0):
-            e1, e2 = root(a, x), root(x, b)
+            e1, e2 = root(a, x, x if sign < 0 else a), root(x, b, x if sign < 0 else b)
             kind = 1 if sign < 0 else -1
             edges.extend([(e1, kind), (e2, -kind)])
     edges.sort()
@@ -688,12 +854,16 @@ def unstable_bands(
     if start is not None:
         unstable.append((start, math.inf))
         mults.append(f.mu(start))
-    evals = count_batch + sum(1 for v in f.cache.values() if np.isfinite(v[1].real))
-    return Bands(unstable, mults, float(W[-1]), evals)
+    return Bands(unstable, mults, float(W[-1]), count_batch + f.evaluations())
 
 
 def near_root(
-    family: DepthFamily, guess: float, rtol: float = 2e-4, lo: float = 0.975, hi: float = 0.999
+    family: DepthFamily,
+    guess: float,
+    rtol: float = 2e-4,
+    lo: float = 0.975,
+    hi: float = 0.999,
+    mu_guess: complex | None = None,
 ) -> tuple[float, complex, int]:
     """Crossing ρ = 1 of ``family`` near ``guess`` [m]: (depth, multiplier, evaluations).
 
@@ -701,26 +871,56 @@ def near_root(
     (first-order SDM converges from above, so the bracket starts at ``[lo, hi]·guess`` and
     widens geometrically on whichever side the crossing lies). It does not look for other
     crossings far below the guess: the scan at the coarser discretisation did.
+
+    ``mu_guess``: the critical multiplier of the coarser discretisation at ``guess``. The
+    bracket and Brent's method then follow that multiplier's branch by Rayleigh-quotient
+    iteration (:func:`_rayleigh`, decision 0912), and the final bracket is verified exactly
+    as in :func:`_branch_root` (ρ < 1 by an eigenvalue problem on the stable side, a
+    multiplier of modulus >= 1 on the unstable one); if the branch is lost or the check
+    fails, the search is repeated on ρ itself.
     """
     f = _Scalar(family)
+    if (
+        mu_guess is not None
+        and math.isfinite(mu_guess.real)
+        and math.isfinite(mu_guess.imag)
+        and _tracked_size(f) >= TRACK_MIN_SIZE
+    ):
+        br = _Branch(f, mu_guess)
+        try:
+            got = _near_root_on(br, guess, rtol, lo, hi)
+        except _Lost:
+            got = None
+        if got is not None and br.verified(got, rtol, 1e-13):
+            return got, f.mu(got), f.evaluations()
+    got = _near_root_on(lambda x: f(x) - 1.0, guess, rtol, lo, hi)
+    if got is None:
+        return math.nan, complex("nan"), f.evaluations()
+    return got, f.mu(got), f.evaluations()
+
+
+def _near_root_on(
+    g: Callable[[float], float], guess: float, rtol: float, lo: float, hi: float
+) -> float | None:
+    """The bracket search and Brent's method of :func:`near_root` on ``g`` (ρ − 1 or a
+    branch's ``|μ| − 1``); None if no bracket is found in 60 widenings."""
     a, b = guess * lo, guess * hi
-    ra = f(a)
-    # ρ(b) only matters when ρ(a) < 1: otherwise the bracket moves below a at once
-    rb = f(b) if ra < 1.0 else math.nan
+    ra = g(a)
+    # g(b) only matters when g(a) < 0: otherwise the bracket moves below a at once
+    rb = g(b) if ra < 0.0 else math.nan
     step = 1.03
     for _ in range(60):
-        if ra < 1.0 <= rb:
+        if ra < 0.0 <= rb:
             break
-        if ra >= 1.0:
+        if ra >= 0.0:
             b, rb = a, ra
             a = a / step
-            ra = f(a)
+            ra = g(a)
         else:
             a, ra = b, rb
             b = b * step
-            rb = f(b)
+            rb = g(b)
         step = min(step * 1.5, 2.0)
     else:
-        return math.nan, complex("nan"), len(f.cache)
-    w = float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
-    return w, f.mu(w), len(f.cache)
+        return None
+    return float(scipy.optimize.brentq(g, a, b, rtol=rtol, xtol=1e-13))
