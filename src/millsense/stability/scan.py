@@ -443,7 +443,8 @@ class StructureGain:
         """
         if len(delays) == 1:
             tau = float(delays[0])
-            return float(np.max(np.abs(1.0 - np.exp(-1j * self.omega * tau)) * self.sigma))
+            # |1 − e^{−iωτ}| = 2 |sin(ωτ/2)| (a real sine instead of a complex exponential)
+            return float(np.max(2.0 * np.abs(np.sin(0.5 * tau * self.omega)) * self.sigma))
         return 2.0 * self.peak
 
 
