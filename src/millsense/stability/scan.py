@@ -301,13 +301,19 @@ def _radius_bounds(
     K, N = M.shape[0], M.shape[1]
     lo = np.zeros(K)
     hi = np.full(K, np.inf)
+    P = np.empty((N, N))
+    Q = np.empty((N, N))  # the buffers of the powers, reused (no allocation per squaring)
     for i in range(K):
         llo, lhi = (left_lo, left_hi) if i == 0 else (lo[i - 1], hi[i - 1])
-        P = M[i].copy()
+        P[:, :] = M[i]
         logs = 0.0
         kpow = 1.0
         for s in range(squarings + 1):
-            nrm = np.sqrt(np.sum(P * P))
+            ss = 0.0
+            for a in range(N):
+                for b in range(N):
+                    ss += P[a, b] * P[a, b]
+            nrm = np.sqrt(ss)
             if nrm == 0.0:
                 hi[i] = 0.0
                 break
@@ -327,8 +333,11 @@ def _radius_bounds(
                     break
             if s == squarings:
                 break
-            P = P / nrm
-            P = np.dot(P, P)
+            for a in range(N):
+                for b in range(N):
+                    P[a, b] = P[a, b] / nrm
+            np.dot(P, P, Q)
+            P, Q = Q, P
             logs = 2.0 * (logs + np.log(nrm))
             kpow *= 2.0
     return lo, hi
@@ -713,7 +722,7 @@ def _rayleigh(
             if info != 0 or not (nx > 0 and math.isfinite(nx)):
                 return None
             v = x / nx
-            Mv = M @ v
+            Mv = Mc @ v
             mu = complex(np.vdot(v, Mv))
             r = Mv - mu * v
             res = math.sqrt(float(np.vdot(r, r).real))
