@@ -244,12 +244,17 @@ def deflate(M: FloatArray) -> FloatArray:
     Repeated until no zero column is left; the non-zero multipliers are unchanged and the
     eigenvalue problem shrinks (about ``n + p m·(cut fraction)`` unknowns).
     """
+    return _deflated(M)[0]
+
+
+def _deflated(M: FloatArray) -> tuple[FloatArray, NDArray[np.int64]]:
+    """:func:`deflate` and the indices of ``M`` it keeps."""
     keep = np.arange(M.shape[1])
     sub = M
     while True:
         nz = np.any(sub != 0.0, axis=(0, 1))
         if nz.all() or not nz.any():
-            return sub if nz.any() else sub[:, :0, :0]
+            return (sub, keep) if nz.any() else (sub[:, :0, :0], keep[:0])
         keep = keep[nz]
         sub = M[:, keep][:, :, keep]
 
@@ -797,6 +802,7 @@ class _Branch:
         self.v: ComplexArray | None = None
         self.values: dict[float, tuple[float, complex, bool]] = {}
         self.pairs: dict[float, tuple[FloatArray, ComplexArray]] = {}
+        self.full: dict[float, tuple[FloatArray, NDArray[np.int64]]] = {}
 
     def __call__(self, w: float) -> float:
         if w not in self.values:
@@ -804,7 +810,9 @@ class _Branch:
                 r, mu = self.f.cache[w]
                 self.values[w] = (r, mu, True)
             else:
-                M = deflate(monodromies(self.f.family, np.array([w])))[0]
+                full = monodromies(self.f.family, np.array([w]))
+                Md, keep = _deflated(full)
+                M = Md[0]
                 got = _rayleigh(M, self.sigma, self.v)
                 if got is None:
                     raise _Lost
@@ -812,6 +820,7 @@ class _Branch:
                 self.sigma, self.v = got
                 self.values[w] = (abs(got[0]), got[0], False)
                 self.pairs[w] = (M, got[1])
+                self.full[w] = (full[0], keep)
         return self.values[w][0] - 1.0
 
     def verified(self, x: float, rtol: float, xtol: float) -> bool:
@@ -837,6 +846,26 @@ class _Branch:
         if not self.values[unstable][2]:
             self.f.branch[unstable] = self.values[unstable][1]
         return True
+
+    def full_vector(self, w: float) -> ComplexArray | None:
+        """Eigenvector of the full (undeflated) monodromy matrix for the tracked multiplier
+        at ``w``: the kept part is the tracked one; the removed indices ``R`` (their columns
+        vanish outside ``R``, :func:`deflate`) follow from ``(μ I − M_RR) v_R = M_RK v_K``."""
+        if w not in self.full:
+            return None
+        Mf, keep = self.full[w]
+        mu, v = self.values[w][1], self.pairs[w][1]
+        out = np.zeros(Mf.shape[0], dtype=np.complex128)
+        out[keep] = v
+        rem = np.setdiff1d(np.arange(Mf.shape[0]), keep)
+        if rem.size:
+            try:
+                out[rem] = np.linalg.solve(
+                    mu * np.eye(rem.size) - Mf[np.ix_(rem, rem)], Mf[np.ix_(rem, keep)] @ v
+                )
+            except np.linalg.LinAlgError:
+                return None
+        return out
 
 
 def _branch_root(f: _Scalar, a: float, b: float, rtol: float, unstable_end: float) -> float:
@@ -1045,6 +1074,7 @@ def near_root(
     lo: float = 0.975,
     hi: float = 0.999,
     mu_guess: complex | None = None,
+    vector_out: list[ComplexArray] | None = None,
 ) -> tuple[float, complex, int]:
     """Crossing ρ = 1 of ``family`` near ``guess`` [m]: (depth, multiplier, evaluations).
 
@@ -1058,7 +1088,8 @@ def near_root(
     iteration (:func:`_rayleigh`, decision 0912), and the final bracket is verified exactly
     as in :func:`_branch_root` (ρ < 1 by an eigenvalue problem on the stable side, a
     multiplier of modulus >= 1 on the unstable one); if the branch is lost or the check
-    fails, the search is repeated on ρ itself.
+    fails, the search is repeated on ρ itself. ``vector_out``: receives the eigenvector of
+    the returned multiplier in the full discrete state when the branch gave it.
     """
     f = _Scalar(family)
     if (
@@ -1073,7 +1104,12 @@ def near_root(
         except _Lost:
             got = None
         if got is not None and br.verified(got, rtol, 1e-13):
-            return got, f.mu(got), f.evaluations()
+            mu = f.mu(got)
+            if vector_out is not None and mu == br.values[got][1]:
+                vec = br.full_vector(got)
+                if vec is not None:
+                    vector_out.append(vec)
+            return got, mu, f.evaluations()
     got = _near_root_on(lambda x: f(x) - 1.0, guess, rtol, lo, hi)
     if got is None:
         return math.nan, complex("nan"), f.evaluations()
