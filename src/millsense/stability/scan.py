@@ -430,6 +430,19 @@ def _hump_or_dip(
     return peak_pos, peak_pro, dip_pos, dip_pro
 
 
+def _humps_and_dips(
+    lo: FloatArray, hi: FloatArray, hump: float
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`_hump_or_dip` at every interior grid index ``1 .. n−2`` at once (element
+    ``i − 1`` is index ``i``)."""
+    c, j, k = slice(1, -1), slice(None, -2), slice(2, None)
+    peak_pos = (hi[c] >= hump) & (lo[c] < 1.0) & (hi[c] >= lo[j]) & (hi[c] >= lo[k])
+    peak_pro = (lo[c] >= hump) & (hi[c] < 1.0) & (lo[c] >= hi[j]) & (lo[c] >= hi[k])
+    dip_pos = (hi[c] >= 1.0) & (lo[c] < 1.0 / hump) & (lo[c] <= hi[j]) & (lo[c] <= hi[k])
+    dip_pro = (lo[c] >= 1.0) & (hi[c] < 1.0 / hump) & (hi[c] <= lo[j]) & (hi[c] <= lo[k])
+    return peak_pos, peak_pro, dip_pos, dip_pro
+
+
 @dataclass(frozen=True)
 class StructureGain:
     """Largest singular value σ(ω) of the structure's receptance on a frequency grid.
@@ -1013,10 +1026,9 @@ def unstable_bands(
     change = np.flatnonzero(unst[:-1] != unst[1:])
     need[change] = True
     need[change + 1] = True
-    for i in range(1, len(W) - 1):
-        pp, pr, dp, dr = _hump_or_dip(L, H, i, hump)
-        if (pp and not pr) or (dp and not dr):
-            need[i - 1 : i + 2] = True
+    pp, pr, dp, dr = _humps_and_dips(L, H, hump)
+    for i in np.flatnonzero((pp & ~pr) | (dp & ~dr)).tolist():
+        need[i : i + 3] = True  # grid index i + 1 and its neighbours
     need &= ~np.asarray(exact)
     if need.any():
         r, _ = spectral_radii(family, W[need])
@@ -1035,14 +1047,10 @@ def unstable_bands(
         a, b = float(W[c]), float(W[c + 1])
         edges.append((root(a, b, b if unst[c + 1] else a), 1 if unst[c + 1] else -1))
     # narrow humps (bands) and dips (islands) between grid depths
-    for i in range(1, len(W) - 1):
-        _, peak, _, dip = _hump_or_dip(L, H, i, hump)
-        if peak:
-            sign = -1.0
-        elif dip:
-            sign = 1.0
-        else:
-            continue
+    _, peaks, _, dips = _humps_and_dips(L, H, hump)
+    for j in np.flatnonzero(peaks | dips).tolist():
+        sign = -1.0 if peaks[j] else 1.0
+        i = j + 1  # grid index
         a, b = float(W[i - 1]), float(W[i + 1])
         x = _golden_probe(f, a, float(W[i]), b, sign)
         fx = f(x)
