@@ -123,6 +123,107 @@ def _prepare(family: DepthFamily) -> _Prepared:
 
 
 @numba.njit(cache=True)
+def _step_maps_into(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    wk: float,
+    h: float,
+    fr: FloatArray,
+    A: FloatArray,
+    Phi: FloatArray,
+    Wa: FloatArray,
+    Wb: FloatArray,
+    big: FloatArray,
+    ex: FloatArray,
+    tmp: FloatArray,
+    escale: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """The step maps ``Phi``, ``Wa``, ``Wb`` at depth ``wk``: the arithmetic of ``discretize``
+    (``big`` holds the constant ``h I`` blocks of the Van Loan matrix on entry)."""
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], BH.shape[3]
+    free = False
+    for i in range(m):
+        if not cut[i]:
+            free = True
+    # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
+    anorm = 0.0
+    for i in range(m):
+        if cut[i]:
+            for a in range(n):
+                for b in range(n):
+                    A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
+                    anorm = max(anorm, abs(A[i, a, b] * h))
+    if free:
+        anorm = max(anorm, a0_norm)
+    anorm = max(anorm, 1e-3)
+    for j in range(J):
+        en = 0.0
+        for i in range(m):
+            if cut[i]:
+                for a in range(n):
+                    for b in range(p):
+                        en = max(en, abs(wk * BH[i, j, a, b] * h))
+        escale[j] = en / anorm if en > anorm else 1.0
+    for i in range(m):
+        if not cut[i]:
+            Phi[i] = free_ex[:n, :n]
+            Wa[i] = 0.0
+            Wb[i] = 0.0
+            continue
+        for a in range(n):
+            for b in range(n):
+                big[a, b] = A[i, a, b] * h
+            for j in range(J):
+                for b in range(p):
+                    big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
+        _expm_one(big, ex, tmp)
+        Phi[i] = ex[:n, :n]
+        for j in range(J):
+            for a in range(n):
+                for b in range(p):
+                    G0 = ex[a, n + j * p + b]
+                    G1 = ex[a, n + p * J + j * p + b]
+                    Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
+                    Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+
+
+@numba.njit(cache=True)
+def _step_maps(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    wk: float,
+    h: float,
+    fr: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """``(Phi, Wa, Wb)`` at one depth (:func:`_step_maps_into`)."""
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], BH.shape[3]
+    k = n + 2 * p * J
+    A = np.empty((m, n, n))
+    Phi = np.empty((m, n, n))
+    Wa = np.zeros((m, J, n, p))
+    Wb = np.zeros((m, J, n, p))
+    big = np.zeros((k, k))
+    for j in range(J):
+        for b in range(p):
+            big[n + j * p + b, n + p * J + j * p + b] = h
+    _step_maps_into(
+        A0, BHC, BH, cut, free_ex, a0_norm, wk, h, fr, A, Phi, Wa, Wb, big,
+        np.empty((k, k)), np.empty((k, k)), np.empty(J),
+    )  # fmt: skip
+    return Phi, Wa, Wb
+
+
+@numba.njit(cache=True)
 def _monodromies_kernel(
     A0: FloatArray,
     BHC: FloatArray,
@@ -146,10 +247,6 @@ def _monodromies_kernel(
     for j in range(J):
         R = max(R, lags[j])
     N = n + R * p
-    free = False
-    for i in range(m):
-        if not cut[i]:
-            free = True
     out = np.empty((K, N, N))
     A = np.empty((m, n, n))
     Phi = np.empty((m, n, n))
@@ -163,47 +260,10 @@ def _monodromies_kernel(
     tmp = np.empty((k, k))
     escale = np.empty(J)
     for kk in range(K):
-        wk = w[kk]
-        # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
-        anorm = 0.0
-        for i in range(m):
-            if cut[i]:
-                for a in range(n):
-                    for b in range(n):
-                        A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
-                        anorm = max(anorm, abs(A[i, a, b] * h))
-        if free:
-            anorm = max(anorm, a0_norm)
-        anorm = max(anorm, 1e-3)
-        for j in range(J):
-            en = 0.0
-            for i in range(m):
-                if cut[i]:
-                    for a in range(n):
-                        for b in range(p):
-                            en = max(en, abs(wk * BH[i, j, a, b] * h))
-            escale[j] = en / anorm if en > anorm else 1.0
-        for i in range(m):
-            if not cut[i]:
-                Phi[i] = free_ex[:n, :n]
-                Wa[i] = 0.0
-                Wb[i] = 0.0
-                continue
-            for a in range(n):
-                for b in range(n):
-                    big[a, b] = A[i, a, b] * h
-                for j in range(J):
-                    for b in range(p):
-                        big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
-            _expm_one(big, ex, tmp)
-            Phi[i] = ex[:n, :n]
-            for j in range(J):
-                for a in range(n):
-                    for b in range(p):
-                        G0 = ex[a, n + j * p + b]
-                        G1 = ex[a, n + p * J + j * p + b]
-                        Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
-                        Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+        _step_maps_into(
+            A0, BHC, BH, cut, free_ex, a0_norm, w[kk], h, fr, A, Phi, Wa, Wb, big, ex, tmp,
+            escale,
+        )  # fmt: skip
         out[kk] = _propagate(Phi, Wa, Wb, lags, C, g)[:, :N]
     return out
 
@@ -592,6 +652,11 @@ TRACK_MIN_SIZE = 1
 #: Up to this size the iteration runs compiled with its own LU (about 6x cheaper than the
 #: eigenvalue problem at 22 unknowns); above it LAPACK's LU is faster than the loops.
 TRACK_COMPILED_SIZE = 56
+#: Up to this size of the structure's state, with one delay of exactly ``m`` steps (uniform
+#: pitch), the branch is followed on the n × n characteristic matrix ``μ I − P(μ)`` of the
+#: Floquet solution (:func:`_floquet_newton`, O(m n³) per value) instead of the monodromy
+#: matrix (O(m² n) to build, O(N³) to factorise).
+FLOQUET_MAX_STATE = 4
 #: A tracked multiplier is accepted once ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``.
 TRACK_RESIDUAL = 1e-11
 
@@ -758,6 +823,149 @@ _ZGETRF, _ZGETRS = scipy.linalg.lapack.get_lapack_funcs(
 )
 
 
+@numba.njit(cache=True)
+def _floquet_map(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> tuple[bool, ComplexArray]:  # pragma: no cover - compiled
+    """``P(μ) = Π_i (I − Wb_i C / μ)⁻¹ (Φ_i + Wa_i C / μ)`` over the period (one delay of
+    exactly ``m`` steps); False if a factor is singular."""
+    m, n = Phi.shape[0], Phi.shape[1]
+    p = C.shape[0]
+    P = np.zeros((n, n), dtype=np.complex128)
+    for a in range(n):
+        P[a, a] = 1.0
+    L = np.empty((n, n), dtype=np.complex128)
+    Q = np.empty((n, n), dtype=np.complex128)
+    piv = np.empty(n, dtype=np.int64)
+    col = np.empty(n, dtype=np.complex128)
+    T = np.empty((n, n), dtype=np.complex128)
+    inv = 1.0 / mu
+    for i in range(m):
+        for a in range(n):
+            for b in range(n):
+                la = 0.0
+                ra = 0.0
+                for c in range(p):
+                    la += Wb[i, 0, a, c] * C[c, b]
+                    ra += Wa[i, 0, a, c] * C[c, b]
+                L[a, b] = -la * inv
+                Q[a, b] = Phi[i, a, b] + ra * inv
+            L[a, a] += 1.0
+        if not _lu_complex(L, piv):
+            return False, P
+        for a in range(n):
+            for b in range(n):
+                acc = 0j
+                for c in range(n):
+                    acc += Q[a, c] * P[c, b]
+                T[a, b] = acc
+        for b in range(n):
+            for a in range(n):
+                col[a] = T[a, b]
+            x = _lu_solve_complex(L, piv, col)
+            for a in range(n):
+                P[a, b] = x[a]
+    return True, P
+
+
+@numba.njit(cache=True)
+def _floquet_det(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> tuple[bool, complex]:  # pragma: no cover - compiled
+    """``det(μ I − P(μ))`` (:func:`_floquet_map`); False if ``P(μ)`` does not exist."""
+    ok, P = _floquet_map(Phi, Wa, Wb, C, mu)
+    if not ok:
+        return False, 0j
+    n = P.shape[0]
+    S = -P
+    for a in range(n):
+        S[a, a] += mu
+    piv = np.empty(n, dtype=np.int64)
+    if not _lu_complex(S, piv):
+        return True, 0j
+    d = 1.0 + 0j
+    for a in range(n):
+        d *= S[a, a]
+        if piv[a] != a:
+            d = -d
+    return True, d
+
+
+@numba.njit(cache=True)
+def _floquet_newton(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, sigma: complex
+) -> tuple[bool, complex]:  # pragma: no cover - compiled
+    """The multiplier near ``sigma`` as a root of ``det(μ I − P(μ))`` by the secant method
+    (from ``σ`` and ``σ (1 + 1e-7)``); converged when the step is below ``1e-14 |μ|``."""
+    x0 = sigma
+    ok, f0 = _floquet_det(Phi, Wa, Wb, C, x0)
+    if not ok:
+        return False, x0
+    if f0 == 0:
+        return True, x0
+    x1 = sigma * (1.0 + 1e-7)
+    for _ in range(40):
+        ok, f1 = _floquet_det(Phi, Wa, Wb, C, x1)
+        if not ok:
+            return False, x1
+        if f1 == 0:
+            return True, x1
+        if f1 == f0:
+            return False, x1
+        step = f1 * (x1 - x0) / (f1 - f0)
+        x0, f0 = x1, f1
+        x1 = x1 - step
+        if not (abs(x1) > 0.0 and abs(x1) < np.inf):
+            return False, x1
+        if abs(step) <= 1e-14 * abs(x1):
+            return True, x1
+    return False, x1
+
+
+@numba.njit(cache=True)
+def _floquet_vector(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> ComplexArray:  # pragma: no cover - compiled
+    """Eigenvector ``[x_0, C x_{-1}, …, C x_{-m}]`` of the monodromy matrix for the multiplier
+    ``μ`` (``C x_{-k} = C x_{m−k} / μ`` along the Floquet solution through the null vector
+    ``x_0`` of ``μ I − P(μ)``)."""
+    m, n = Phi.shape[0], Phi.shape[1]
+    p = C.shape[0]
+    _, P = _floquet_map(Phi, Wa, Wb, C, mu)
+    S = -P
+    for a in range(n):
+        S[a, a] += mu
+    _, _, vh = np.linalg.svd(S)
+    x = np.conj(vh[n - 1])
+    out = np.empty(n + m * p, dtype=np.complex128)
+    out[:n] = x
+    L = np.empty((n, n), dtype=np.complex128)
+    piv = np.empty(n, dtype=np.int64)
+    inv = 1.0 / mu
+    for i in range(m):
+        for c in range(p):  # C x_i / μ is the sample of lag m − i
+            acc = 0j
+            for b in range(n):
+                acc += C[c, b] * x[b]
+            out[n + (m - i - 1) * p + c] = acc * inv
+        rhs = np.zeros(n, dtype=np.complex128)
+        for a in range(n):
+            acc = 0j
+            for b in range(n):
+                la = 0.0
+                ra = 0.0
+                for c in range(p):
+                    la += Wb[i, 0, a, c] * C[c, b]
+                    ra += Wa[i, 0, a, c] * C[c, b]
+                L[a, b] = -la * inv
+                acc += (Phi[i, a, b] + ra * inv) * x[b]
+            L[a, a] += 1.0
+            rhs[a] = acc
+        _lu_complex(L, piv)
+        x = _lu_solve_complex(L, piv, rhs)
+    return out
+
+
 class _Lost(Exception):
     """The tracked multiplier could not be computed (the caller solves exactly instead)."""
 
@@ -801,6 +1009,13 @@ def _stable_beyond(M: FloatArray, mu: complex, v: ComplexArray) -> bool:
 REAL_TOL = 1e-9
 
 
+def _with(
+    pair: tuple[FloatArray, ComplexArray], mu: complex
+) -> tuple[FloatArray, complex, ComplexArray]:
+    """``(M, μ, v)`` for :func:`_stable_beyond` from a ``(M, v)`` pair."""
+    return pair[0], mu, pair[1]
+
+
 class _Branch:
     """``|μ(w)| − 1`` of one multiplier branch, followed from depth to depth (:func:`_rayleigh`).
 
@@ -816,12 +1031,33 @@ class _Branch:
         self.values: dict[float, tuple[float, complex, bool]] = {}
         self.pairs: dict[float, tuple[FloatArray, ComplexArray]] = {}
         self.full: dict[float, tuple[FloatArray, NDArray[np.int64]]] = {}
+        prep = f.family
+        self.floquet = (
+            prep.family.A0.shape[0] <= FLOQUET_MAX_STATE
+            and prep.lags.size == 1
+            and int(prep.lags[0]) == prep.BHC.shape[0]
+        )
+        self.maps: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
     def __call__(self, w: float) -> float:
         if w not in self.values:
             if w in self.f.cache:
                 r, mu = self.f.cache[w]
                 self.values[w] = (r, mu, True)
+            elif self.floquet:
+                prep = self.f.family
+                fam = prep.family
+                maps = _step_maps(
+                    np.ascontiguousarray(fam.A0), prep.BHC, prep.BH, prep.cut, prep.free_ex,
+                    prep.a0_norm, float(w), float(fam.h), prep.fr,
+                )  # fmt: skip
+                ok, mu = _floquet_newton(maps[0], maps[1], maps[2], prep.C, complex(self.sigma))
+                if not ok:
+                    raise _Lost
+                self.f.tracked += 1
+                self.sigma = mu
+                self.values[w] = (abs(mu), mu, False)
+                self.maps[w] = maps
             else:
                 full = monodromies(self.f.family, np.array([w]))
                 Md, keep = _deflated(full)
@@ -851,20 +1087,52 @@ class _Branch:
             return False
         stable, unstable = (y, x) if side else (x, y)
         if not self.values[stable][2]:
-            M, v = self.pairs[stable]
-            if _stable_beyond(M, self.values[stable][1], v):
-                self.f.branch[stable] = self.values[stable][1]  # the dominant multiplier
+            mu_s = self.values[stable][1]
+            if self._pair(stable) and _stable_beyond(*_with(self.pairs[stable], mu_s)):
+                self.f.branch[stable] = mu_s  # the dominant multiplier
             elif self.f(stable) >= 1.0:
                 return False
         if not self.values[unstable][2]:
+            if not self._pair(unstable):
+                return False
             self.f.branch[unstable] = self.values[unstable][1]
+        return True
+
+    def _pair(self, w: float) -> bool:
+        """The deflated monodromy matrix and the tracked eigenvector at ``w`` in ``pairs``.
+
+        Rayleigh-quotient tracking has them already; a multiplier of :func:`_floquet_newton`
+        gets its eigenvector from the Floquet solution (:func:`_floquet_vector`), accepted
+        when ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F`` on the monodromy matrix itself
+        (so it is a multiplier of the discretisation as an eigenvalue solver would give it).
+        """
+        if w in self.pairs:
+            return True
+        if w not in self.maps:
+            return False
+        mu = self.values[w][1]
+        Phi, Wa, Wb = self.maps[w]
+        yv = _floquet_vector(Phi, Wa, Wb, self.f.family.C, mu)
+        full = monodromies(self.f.family, np.array([w]))
+        Md, keep = _deflated(full)
+        M = Md[0]
+        v = yv[keep]
+        nv = float(np.linalg.norm(v))
+        if not (nv > 0 and math.isfinite(nv)):
+            return False
+        v = v / nv
+        res = float(np.linalg.norm(M @ v - mu * v))
+        if not res <= TRACK_RESIDUAL * float(np.sqrt(np.sum(M * M))):
+            return False
+        self.pairs[w] = (M, v)
+        self.full[w] = (full[0], keep)
         return True
 
     def full_vector(self, w: float) -> ComplexArray | None:
         """Eigenvector of the full (undeflated) monodromy matrix for the tracked multiplier
         at ``w``: the kept part is the tracked one; the removed indices ``R`` (their columns
         vanish outside ``R``, :func:`deflate`) follow from ``(μ I − M_RR) v_R = M_RK v_K``."""
-        if w not in self.full:
+        if w not in self.values or not self._pair(w):
             return None
         Mf, keep = self.full[w]
         mu, v = self.values[w][1], self.pairs[w][1]
