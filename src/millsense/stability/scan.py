@@ -16,6 +16,23 @@ and whether it is a sampled local maximum in ``[hump, 1)`` or minimum in ``[1, 1
 :func:`grid_bounds` bounds ρ from powers of the monodromy matrix (:func:`radius_bounds`) and
 computes it exactly only where the bounds leave a decision open (decision 0911).
 
+Root searches (decision 0912)
+-----------------------------
+Brent's method between two grid depths, and :func:`near_root` at the finer discretisations,
+need values at single depths one after the other. They follow the multiplier that is critical
+at the unstable end of the bracket instead of solving the eigenvalue problem each time
+(:class:`_Branch`): by Rayleigh-quotient iteration on the monodromy matrix
+(:func:`_rayleigh`), or, for a structure of up to :data:`FLOQUET_MAX_STATE` states and one
+delay of exactly ``m`` steps, as a root of ``det(μ I − P(μ))`` with ``P(μ)`` the map of the
+Floquet solution ``x(t + T) = μ x(t)`` over one period (:func:`_floquet_newton`: ``m``
+products of ``n × n`` factors, the monodromy matrix is never built). The answer is then
+verified exactly: at the stable end of Brent's final bracket ρ < 1 is proven (the tracked
+multiplier deflated and the rest bounded by :func:`radius_bounds`, :func:`_stable_beyond`,
+or ρ by an eigenvalue problem), at the unstable end the multiplier of modulus >= 1 is checked
+on the monodromy matrix (residual of its eigenvector); if anything fails, Brent's method runs
+on ρ itself. The reported depth is within the root tolerance of a depth where ρ − 1 changes
+sign, as before; it is not bit for bit the depth of Brent's method on ρ.
+
 Unstable bands (the robust search, issue 14)
 ---------------------------------------------
 The set of unstable depths at one speed need not be one interval above the limit: at low
@@ -658,7 +675,7 @@ TRACK_COMPILED_SIZE = 56
 #: matrix (O(m² n) to build, O(N³) to factorise).
 FLOQUET_MAX_STATE = 4
 #: A tracked multiplier is accepted once ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``.
-TRACK_RESIDUAL = 1e-11
+TRACK_RESIDUAL = 1e-13
 
 
 @numba.njit(cache=True)
@@ -828,7 +845,15 @@ def _floquet_map(
     Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
 ) -> tuple[bool, ComplexArray]:  # pragma: no cover - compiled
     """``P(μ) = Π_i (I − Wb_i C / μ)⁻¹ (Φ_i + Wa_i C / μ)`` over the period (one delay of
-    exactly ``m`` steps); False if a factor is singular."""
+    exactly ``m`` steps); False if a factor is singular.
+
+    The step maps are those of the first-order semi-discretisation (Insperger & Stépán 2011,
+    ch. 3; :mod:`millsense.stability.sdm`): ``x_{i+1} = Φ_i x_i + Wa_i C x_{i−m} +
+    Wb_i C x_{i−m+1}``. An eigenvector of the monodromy matrix for ``μ ≠ 0`` is a discrete
+    Floquet solution, ``x_{i+m} = μ x_i`` for every ``i``, so ``C x_{i−m} = C x_i / μ`` and
+    each step becomes ``(I − Wb_i C/μ) x_{i+1} = (Φ_i + Wa_i C/μ) x_i``: ``μ`` is a multiplier
+    exactly when ``μ x_0 = P(μ) x_0`` has a solution ``x_0 ≠ 0``, i.e. ``det(μ I − P(μ)) = 0``.
+    """
     m, n = Phi.shape[0], Phi.shape[1]
     p = C.shape[0]
     P = np.zeros((n, n), dtype=np.complex128)
@@ -1017,7 +1042,8 @@ def _with(
 
 
 class _Branch:
-    """``|μ(w)| − 1`` of one multiplier branch, followed from depth to depth (:func:`_rayleigh`).
+    """``|μ(w)| − 1`` of one multiplier branch, followed from depth to depth
+    (:func:`_floquet_newton` where ``floquet``, else :func:`_rayleigh`; module docstring).
 
     Where ``f`` already holds ρ exactly, that value stands in (at the bracket ends of a scan:
     ρ ≥ |μ|, so the sign is that of the branch on the unstable side and of ρ − 1 on the
@@ -1153,7 +1179,7 @@ def _branch_root(f: _Scalar, a: float, b: float, rtol: float, unstable_end: floa
     """A crossing ρ = 1 in ``[a, b]`` (ρ − 1 of opposite signs at the ends) to ``rtol``.
 
     Brent's method on the branch of the multiplier that is dominant at ``unstable_end`` (the
-    end where ρ >= 1), each value by :func:`_rayleigh` from the previous one instead of an
+    end where ρ >= 1), each value from the previous one (:class:`_Branch`) instead of an
     eigenvalue problem, then verified exactly (:meth:`_Branch.verified`); Brent's method on
     ρ itself when the branch is lost, the verification fails or the matrix is small
     (:data:`TRACK_MIN_SIZE`). Either way the result lies within ``rtol`` of a depth where ρ − 1
@@ -1360,8 +1386,8 @@ def near_root(
     crossings far below the guess: the scan at the coarser discretisation did.
 
     ``mu_guess``: the critical multiplier of the coarser discretisation at ``guess``. The
-    bracket and Brent's method then follow that multiplier's branch by Rayleigh-quotient
-    iteration (:func:`_rayleigh`, decision 0912), and the final bracket is verified exactly
+    bracket and Brent's method then follow that multiplier's branch (:class:`_Branch`,
+    decision 0912), and the final bracket is verified exactly
     as in :func:`_branch_root` (ρ < 1 by an eigenvalue problem on the stable side, a
     multiplier of modulus >= 1 on the unstable one); if the branch is lost or the check
     fails, the search is repeated on ρ itself. ``vector_out``: receives the eigenvector of
