@@ -63,9 +63,16 @@ def test_tracked_multipliers_equal_the_eigenvalue_problem(m: int) -> None:
                 Phi, Wa, Wb = _maps(prep, w)
                 ok, mu_f = scan._floquet_newton(Phi, Wa, Wb, prep.C, mu * (1 + 1e-3))
                 assert ok and abs(mu_f - mu) <= 1e-9 * abs(mu)
-                y = scan._floquet_vector(Phi, Wa, Wb, prep.C, mu_f)
-                res = np.linalg.norm(full[0] @ y - mu_f * y) / np.linalg.norm(y)
-                assert res <= 1e-12 * np.linalg.norm(full[0])
+                y, res_y = scan._floquet_vector(Phi, Wa, Wb, prep.C, mu_f)
+                res = np.linalg.norm(full[0] @ y - mu_f * y)
+                assert res <= 1e-12 * np.linalg.norm(full[0]) * np.linalg.norm(y)
+                assert res_y <= 1e-12 * np.linalg.norm(y)
+                # off the root the residual the Floquet solution reports is M's own
+                mu_p = mu_f * (1 + 1e-6)
+                y_p, res_p = scan._floquet_vector(Phi, Wa, Wb, prep.C, mu_p)
+                exact = np.linalg.norm(full[0] @ y_p - mu_p * y_p)
+                assert exact > 1e-9 * np.linalg.norm(y_p)
+                assert res_p == pytest.approx(exact, rel=1e-6)
 
 
 def test_stable_beyond_proves_only_a_dominant_multiplier() -> None:

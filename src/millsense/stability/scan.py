@@ -950,10 +950,14 @@ def _floquet_newton(
 @numba.njit(cache=True)
 def _floquet_vector(
     Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
-) -> ComplexArray:  # pragma: no cover - compiled
-    """Eigenvector ``[x_0, C x_{-1}, …, C x_{-m}]`` of the monodromy matrix for the multiplier
-    ``μ`` (``C x_{-k} = C x_{m−k} / μ`` along the Floquet solution through the null vector
-    ``x_0`` of ``μ I − P(μ)``)."""
+) -> tuple[ComplexArray, float]:  # pragma: no cover - compiled
+    """Eigenvector ``y = [x_0, C x_{-1}, …, C x_{-m}]`` of the monodromy matrix ``M`` for the
+    multiplier ``μ`` (``C x_{-k} = C x_{m−k} / μ`` along the Floquet solution through the null
+    vector ``x_0`` of ``μ I − P(μ)``), and the residual ``||M y − μ y||``.
+
+    The history rows of ``M y − μ y`` vanish by construction; its state rows are
+    ``(I − Wb_{m−1} C/μ)(x_m − μ x_0)`` (the last step reads ``C x_0`` where the Floquet
+    solution has ``C x_m / μ``), so the residual needs no ``M``."""
     m, n = Phi.shape[0], Phi.shape[1]
     p = C.shape[0]
     _, P = _floquet_map(Phi, Wa, Wb, C, mu)
@@ -988,7 +992,17 @@ def _floquet_vector(
             rhs[a] = acc
         _lu_complex(L, piv)
         x = _lu_solve_complex(L, piv, rhs)
-    return out
+    r = x - mu * out[:n]
+    res = 0.0
+    for a in range(n):
+        acc = r[a]
+        for b in range(n):
+            la = 0.0
+            for c in range(p):
+                la += Wb[m - 1, 0, a, c] * C[c, b]
+            acc -= la * inv * r[b]
+        res += acc.real**2 + acc.imag**2
+    return out, np.sqrt(res)
 
 
 class _Lost(Exception):
@@ -1064,6 +1078,7 @@ class _Branch:
             and int(prep.lags[0]) == prep.BHC.shape[0]
         )
         self.maps: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.fvec: dict[float, ComplexArray] = {}
 
     def __call__(self, w: float) -> float:
         if w not in self.values:
@@ -1119,9 +1134,25 @@ class _Branch:
             elif self.f(stable) >= 1.0:
                 return False
         if not self.values[unstable][2]:
-            if not self._pair(unstable):
+            ok = self._floquet_checked(unstable) if unstable in self.maps else True
+            if not ok:
                 return False
             self.f.branch[unstable] = self.values[unstable][1]
+        return True
+
+    def _floquet_checked(self, w: float) -> bool:
+        """The Floquet eigenvector at ``w`` in ``fvec`` if ``||M y − μ y|| <= TRACK_RESIDUAL
+        |μ| ||y||`` (:func:`_floquet_vector`; ``|μ| <= ||M||_F``, so this is at least as strict
+        as the Rayleigh-quotient criterion)."""
+        if w in self.fvec:
+            return True
+        mu = self.values[w][1]
+        Phi, Wa, Wb = self.maps[w]
+        yv, res = _floquet_vector(Phi, Wa, Wb, self.f.family.C, mu)
+        ny = float(np.linalg.norm(yv))
+        if not (ny > 0 and math.isfinite(ny) and res <= TRACK_RESIDUAL * abs(mu) * ny):
+            return False
+        self.fvec[w] = yv
         return True
 
     def _pair(self, w: float) -> bool:
@@ -1134,11 +1165,10 @@ class _Branch:
         """
         if w in self.pairs:
             return True
-        if w not in self.maps:
+        if w not in self.maps or not self._floquet_checked(w):
             return False
         mu = self.values[w][1]
-        Phi, Wa, Wb = self.maps[w]
-        yv = _floquet_vector(Phi, Wa, Wb, self.f.family.C, mu)
+        yv = self.fvec[w]
         full = monodromies(self.f.family, np.array([w]))
         Md, keep = _deflated(full)
         M = Md[0]
@@ -1158,6 +1188,8 @@ class _Branch:
         """Eigenvector of the full (undeflated) monodromy matrix for the tracked multiplier
         at ``w``: the kept part is the tracked one; the removed indices ``R`` (their columns
         vanish outside ``R``, :func:`deflate`) follow from ``(μ I − M_RR) v_R = M_RK v_K``."""
+        if w in self.maps:
+            return self.fvec[w] if self._floquet_checked(w) else None
         if w not in self.values or not self._pair(w):
             return None
         Mf, keep = self.full[w]
