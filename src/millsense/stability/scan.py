@@ -490,28 +490,16 @@ def grid_bounds(
     return lo, hi, exact
 
 
-def _hump_or_dip(
-    lo: FloatArray, hi: FloatArray, i: int, hump: float
-) -> tuple[bool, bool, bool, bool]:
-    """(peak possible, peak proven, dip possible, dip proven) at grid index ``i``.
+def _humps_and_dips(
+    lo: FloatArray, hi: FloatArray, hump: float
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """(peak possible, peak proven, dip possible, dip proven) at every interior grid index
+    ``1 .. n−2`` at once (element ``i − 1`` is index ``i``).
 
     A peak is ``R[i] >= R[i±1]`` with ``hump <= R[i] < 1``, a dip ``R[i] <= R[i±1]`` with
     ``1 <= R[i] < 1/hump`` (module docstring, step 3), judged on intervals ``[lo, hi]`` that
     hold ρ; with exact values (``lo = hi``) possible and proven are the plain comparisons.
     """
-    j, k = i - 1, i + 1
-    peak_pos = hi[i] >= hump and lo[i] < 1.0 and hi[i] >= lo[j] and hi[i] >= lo[k]
-    peak_pro = lo[i] >= hump and hi[i] < 1.0 and lo[i] >= hi[j] and lo[i] >= hi[k]
-    dip_pos = hi[i] >= 1.0 and lo[i] < 1.0 / hump and lo[i] <= hi[j] and lo[i] <= hi[k]
-    dip_pro = lo[i] >= 1.0 and hi[i] < 1.0 / hump and hi[i] <= lo[j] and hi[i] <= lo[k]
-    return peak_pos, peak_pro, dip_pos, dip_pro
-
-
-def _humps_and_dips(
-    lo: FloatArray, hi: FloatArray, hump: float
-) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
-    """:func:`_hump_or_dip` at every interior grid index ``1 .. n−2`` at once (element
-    ``i − 1`` is index ``i``)."""
     c, j, k = slice(1, -1), slice(None, -2), slice(2, None)
     peak_pos = (hi[c] >= hump) & (lo[c] < 1.0) & (hi[c] >= lo[j]) & (hi[c] >= lo[k])
     peak_pro = (lo[c] >= hump) & (hi[c] < 1.0) & (lo[c] >= hi[j]) & (lo[c] >= hi[k])
