@@ -13,7 +13,6 @@ at 10 of the 200 speeds, from depths extrapolated from 100 and 200 steps (conver
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -30,28 +29,21 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "stability"
 
 @contextmanager
 def _one_blas_thread() -> Iterator[None]:
-    """BLAS on one thread while timing, as ``millsense lobes`` runs it (decision 0907).
+    """BLAS on one thread while timing, as ``millsense lobes`` runs it (decisions 0907, 2004).
 
     On a shared two-core host a two-thread OpenBLAS made the robust 2-DOF chart 4.2x the
-    continuation search instead of 2.8x (decision 0911); the earlier count and the BLAS
-    environment variables are restored afterwards for the other benchmarks.
+    continuation search instead of 2.8x (decision 0911); the earlier count is restored
+    afterwards for the other benchmarks (``run.py`` already sets the thread variables).
     """
-    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-    env = {k: os.environ.get(k) for k in keys}
-    from millsense.cli.cmd_lobes import _limit_blas_threads  # sets these when unset
+    from millsense.core.blas import limit_blas_threads
 
-    for k, v in env.items():  # later benchmarks' subprocesses keep their defaults
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
-    before = _limit_blas_threads(None)
-    _limit_blas_threads(1)
+    before = limit_blas_threads(None)
+    limit_blas_threads(1)
     try:
         yield
     finally:
         if before is not None:
-            _limit_blas_threads(before)
+            limit_blas_threads(before)
 
 
 def _timed(func: Callable[[], Any]) -> tuple[Any, float, float]:

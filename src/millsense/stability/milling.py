@@ -66,7 +66,11 @@ def _trig_integrals(a: FloatArray, b: FloatArray) -> FloatArray:
 
     def prim(p: FloatArray) -> FloatArray:
         s2 = np.sin(2.0 * p)
-        return np.stack([p / 2 - s2 / 4, np.sin(p) ** 2 / 2, p / 2 + s2 / 4], axis=-1)
+        out = np.empty((*np.shape(p), 3))
+        out[..., 0] = p / 2 - s2 / 4
+        out[..., 1] = np.sin(p) ** 2 / 2
+        out[..., 2] = p / 2 + s2 / 4
+        return out
 
     return prim(b) - prim(a)
 
@@ -92,7 +96,8 @@ def windowed_trig_means(
         lo = np.maximum(phi_a, phi_st + TWO_PI * k)
         hi = np.minimum(phi_b, phi_ex + TWO_PI * k)
         hi = np.maximum(hi, lo)
-        total += _trig_integrals(lo, hi)
+        if np.any(hi > lo):  # a window no step reaches adds exact zeros
+            total += _trig_integrals(lo, hi)
     return total / (phi_b - phi_a)[..., None]
 
 

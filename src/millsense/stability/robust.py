@@ -84,7 +84,11 @@ def _eigenvector(M: FloatArray, mu: complex) -> NDArray[np.complex128] | None:
 
 
 def eigen_chatter_frequency(
-    family: DepthFamily, depth: float, f_max: float, mu: complex | None = None
+    family: DepthFamily,
+    depth: float,
+    f_max: float,
+    mu: complex | None = None,
+    vector: NDArray[np.complex128] | None = None,
 ) -> float:
     """Chatter frequency [Hz] from the critical eigenvector of the monodromy matrix.
 
@@ -97,14 +101,22 @@ def eigen_chatter_frequency(
 
     ``mu``: the dominant multiplier at ``depth`` if already known (the root search computed
     it); its eigenvector then comes from inverse iteration (:func:`_eigenvector`).
+    ``vector``: that eigenvector if the root search already has it (the branch it followed,
+    decision 0912); then no monodromy matrix is built here.
     """
     if not (0 < depth < math.inf):
         return math.nan
-    M = monodromies(family, np.array([depth]))[0]
     vv = None
-    if mu is not None and math.isfinite(mu.real) and math.isfinite(mu.imag):
-        vv = _eigenvector(M, complex(mu))
+    usable = mu is not None and math.isfinite(mu.real) and math.isfinite(mu.imag)
+    if usable and vector is not None and np.all(np.isfinite(vector)) and np.any(vector):
+        vv = np.asarray(vector / np.linalg.norm(vector), dtype=np.complex128)
+    else:
+        M = monodromies(family, np.array([depth]))[0]
+        if usable:
+            assert mu is not None
+            vv = _eigenvector(M, complex(mu))
     if vv is None:
+        M = monodromies(family, np.array([depth]))[0]
         ev, vec = np.linalg.eig(M)
         i = int(np.argmax(np.abs(ev)))
         mu, vv = complex(ev[i]), vec[:, i]
@@ -265,11 +277,13 @@ def solve_speed(
         w1 = bands.limit
     mu = bands.multipliers[0]
     depth, tolerance, steps, fam_final, root = w1, math.nan, m, fam, w1
+    vector: NDArray[np.complex128] | None = None
     if extrapolate:
         islands = len(bands.unstable) > 1
         while True:
             m2 = 2 * m
             fam2 = family_at(rpm, m2)
+            got_vector: list[NDArray[np.complex128]] = []
             if islands:
                 b2 = unstable_bands(
                     fam2, 0.9 * w1, depth_max, stop_after_first=bands_up_to, rtol=rtol
@@ -278,19 +292,20 @@ def solve_speed(
                 w2 = b2.limit
                 mu2 = b2.multipliers[0] if b2.multipliers else complex("nan")
             else:
-                w2, mu2, count = near_root(fam2, w1, rtol)
+                w2, mu2, count = near_root(fam2, w1, rtol, mu_guess=mu, vector_out=got_vector)
                 evals += count
             if not (0 < w2 < math.inf):
                 break
             ext = w2 + (w2 - w1) / 3.0
             tolerance = abs(w2 - ext) / ext
             depth, steps, fam_final, root, mu = min(ext, w2), m2, fam2, w2, mu2
+            vector = got_vector[0] if got_vector else None
             if islands:
                 bands = b2
             if tolerance <= tol or 2 * m2 > m_max:
                 break
             m, w1 = m2, w2
-    f_c = eigen_chatter_frequency(fam_final, root, f_max, mu)
+    f_c = eigen_chatter_frequency(fam_final, root, f_max, mu, vector)
     unst = [(depth, bands.unstable[0][1]), *bands.unstable[1:]] if bands.unstable else []
     return SpeedSolution(
         rpm,

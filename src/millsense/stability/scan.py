@@ -16,6 +16,23 @@ and whether it is a sampled local maximum in ``[hump, 1)`` or minimum in ``[1, 1
 :func:`grid_bounds` bounds ρ from powers of the monodromy matrix (:func:`radius_bounds`) and
 computes it exactly only where the bounds leave a decision open (decision 0911).
 
+Root searches (decision 0912)
+-----------------------------
+Brent's method between two grid depths, and :func:`near_root` at the finer discretisations,
+need values at single depths one after the other. They follow the multiplier that is critical
+at the unstable end of the bracket instead of solving the eigenvalue problem each time
+(:class:`_Branch`): by Rayleigh-quotient iteration on the monodromy matrix
+(:func:`_rayleigh`), or, for a structure of up to :data:`FLOQUET_MAX_STATE` states and one
+delay of exactly ``m`` steps, as a root of ``det(μ I − P(μ))`` with ``P(μ)`` the map of the
+Floquet solution ``x(t + T) = μ x(t)`` over one period (:func:`_floquet_newton`: ``m``
+products of ``n × n`` factors, the monodromy matrix is never built). The answer is then
+verified exactly: at the stable end of Brent's final bracket ρ < 1 is proven (the tracked
+multiplier deflated and the rest bounded by :func:`radius_bounds`, :func:`_stable_beyond`,
+or ρ by an eigenvalue problem), at the unstable end the multiplier of modulus >= 1 is checked
+on the monodromy matrix (residual of its eigenvector); if anything fails, Brent's method runs
+on ρ itself. The reported depth is within the root tolerance of a depth where ρ − 1 changes
+sign, as before; it is not bit for bit the depth of Brent's method on ρ.
+
 Unstable bands (the robust search, issue 14)
 ---------------------------------------------
 The set of unstable depths at one speed need not be one interval above the limit: at low
@@ -41,10 +58,12 @@ machine.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+import scipy.linalg
 import scipy.optimize
 from numpy.typing import NDArray
 
@@ -79,6 +98,9 @@ class _Prepared:
     cut: NDArray[np.bool_]  # (m,)
     free_ex: FloatArray  # (k, k) exponential of an out-of-cut step's block matrix
     a0_norm: float  # max |A0 h|
+    #: dominant multiplier at the depths where ρ was computed exactly (seeds the tracking of
+    #: :func:`_branch_root`)
+    known_mu: dict[float, complex] = field(default_factory=dict)
 
 
 def _van_loan_free(family: DepthFamily) -> FloatArray:
@@ -118,6 +140,107 @@ def _prepare(family: DepthFamily) -> _Prepared:
 
 
 @numba.njit(cache=True)
+def _step_maps_into(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    wk: float,
+    h: float,
+    fr: FloatArray,
+    A: FloatArray,
+    Phi: FloatArray,
+    Wa: FloatArray,
+    Wb: FloatArray,
+    big: FloatArray,
+    ex: FloatArray,
+    tmp: FloatArray,
+    escale: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """The step maps ``Phi``, ``Wa``, ``Wb`` at depth ``wk``: the arithmetic of ``discretize``
+    (``big`` holds the constant ``h I`` blocks of the Van Loan matrix on entry)."""
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], BH.shape[3]
+    free = False
+    for i in range(m):
+        if not cut[i]:
+            free = True
+    # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
+    anorm = 0.0
+    for i in range(m):
+        if cut[i]:
+            for a in range(n):
+                for b in range(n):
+                    A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
+                    anorm = max(anorm, abs(A[i, a, b] * h))
+    if free:
+        anorm = max(anorm, a0_norm)
+    anorm = max(anorm, 1e-3)
+    for j in range(J):
+        en = 0.0
+        for i in range(m):
+            if cut[i]:
+                for a in range(n):
+                    for b in range(p):
+                        en = max(en, abs(wk * BH[i, j, a, b] * h))
+        escale[j] = en / anorm if en > anorm else 1.0
+    for i in range(m):
+        if not cut[i]:
+            Phi[i] = free_ex[:n, :n]
+            Wa[i] = 0.0
+            Wb[i] = 0.0
+            continue
+        for a in range(n):
+            for b in range(n):
+                big[a, b] = A[i, a, b] * h
+            for j in range(J):
+                for b in range(p):
+                    big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
+        _expm_one(big, ex, tmp)
+        Phi[i] = ex[:n, :n]
+        for j in range(J):
+            for a in range(n):
+                for b in range(p):
+                    G0 = ex[a, n + j * p + b]
+                    G1 = ex[a, n + p * J + j * p + b]
+                    Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
+                    Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+
+
+@numba.njit(cache=True)
+def _step_maps(
+    A0: FloatArray,
+    BHC: FloatArray,
+    BH: FloatArray,
+    cut: NDArray[np.bool_],
+    free_ex: FloatArray,
+    a0_norm: float,
+    wk: float,
+    h: float,
+    fr: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """``(Phi, Wa, Wb)`` at one depth (:func:`_step_maps_into`)."""
+    m, n = BHC.shape[0], A0.shape[0]
+    J, p = BH.shape[1], BH.shape[3]
+    k = n + 2 * p * J
+    A = np.empty((m, n, n))
+    Phi = np.empty((m, n, n))
+    Wa = np.zeros((m, J, n, p))
+    Wb = np.zeros((m, J, n, p))
+    big = np.zeros((k, k))
+    for j in range(J):
+        for b in range(p):
+            big[n + j * p + b, n + p * J + j * p + b] = h
+    _step_maps_into(
+        A0, BHC, BH, cut, free_ex, a0_norm, wk, h, fr, A, Phi, Wa, Wb, big,
+        np.empty((k, k)), np.empty((k, k)), np.empty(J),
+    )  # fmt: skip
+    return Phi, Wa, Wb
+
+
+@numba.njit(cache=True)
 def _monodromies_kernel(
     A0: FloatArray,
     BHC: FloatArray,
@@ -141,10 +264,6 @@ def _monodromies_kernel(
     for j in range(J):
         R = max(R, lags[j])
     N = n + R * p
-    free = False
-    for i in range(m):
-        if not cut[i]:
-            free = True
     out = np.empty((K, N, N))
     A = np.empty((m, n, n))
     Phi = np.empty((m, n, n))
@@ -158,47 +277,10 @@ def _monodromies_kernel(
     tmp = np.empty((k, k))
     escale = np.empty(J)
     for kk in range(K):
-        wk = w[kk]
-        # block scaling as discretize: the largest |A h| over all steps, |E_j h| per delay
-        anorm = 0.0
-        for i in range(m):
-            if cut[i]:
-                for a in range(n):
-                    for b in range(n):
-                        A[i, a, b] = A0[a, b] - wk * BHC[i, a, b]
-                        anorm = max(anorm, abs(A[i, a, b] * h))
-        if free:
-            anorm = max(anorm, a0_norm)
-        anorm = max(anorm, 1e-3)
-        for j in range(J):
-            en = 0.0
-            for i in range(m):
-                if cut[i]:
-                    for a in range(n):
-                        for b in range(p):
-                            en = max(en, abs(wk * BH[i, j, a, b] * h))
-            escale[j] = en / anorm if en > anorm else 1.0
-        for i in range(m):
-            if not cut[i]:
-                Phi[i] = free_ex[:n, :n]
-                Wa[i] = 0.0
-                Wb[i] = 0.0
-                continue
-            for a in range(n):
-                for b in range(n):
-                    big[a, b] = A[i, a, b] * h
-                for j in range(J):
-                    for b in range(p):
-                        big[a, n + j * p + b] = wk * BH[i, j, a, b] * h / escale[j]
-            _expm_one(big, ex, tmp)
-            Phi[i] = ex[:n, :n]
-            for j in range(J):
-                for a in range(n):
-                    for b in range(p):
-                        G0 = ex[a, n + j * p + b]
-                        G1 = ex[a, n + p * J + j * p + b]
-                        Wa[i, j, a, b] = escale[j] * ((1.0 + fr[j]) * G0 - G1 / h)
-                        Wb[i, j, a, b] = escale[j] * (G1 / h - fr[j] * G0)
+        _step_maps_into(
+            A0, BHC, BH, cut, free_ex, a0_norm, w[kk], h, fr, A, Phi, Wa, Wb, big, ex, tmp,
+            escale,
+        )  # fmt: skip
         out[kk] = _propagate(Phi, Wa, Wb, lags, C, g)[:, :N]
     return out
 
@@ -239,12 +321,17 @@ def deflate(M: FloatArray) -> FloatArray:
     Repeated until no zero column is left; the non-zero multipliers are unchanged and the
     eigenvalue problem shrinks (about ``n + p m·(cut fraction)`` unknowns).
     """
+    return _deflated(M)[0]
+
+
+def _deflated(M: FloatArray) -> tuple[FloatArray, NDArray[np.int64]]:
+    """:func:`deflate` and the indices of ``M`` it keeps."""
     keep = np.arange(M.shape[1])
     sub = M
     while True:
         nz = np.any(sub != 0.0, axis=(0, 1))
         if nz.all() or not nz.any():
-            return sub if nz.any() else sub[:, :0, :0]
+            return (sub, keep) if nz.any() else (sub[:, :0, :0], keep[:0])
         keep = keep[nz]
         sub = M[:, keep][:, :, keep]
 
@@ -256,7 +343,10 @@ def spectral_radii(
     w = np.atleast_1d(np.asarray(depths, dtype=float))
     if w.size == 0:
         return np.zeros(0), np.zeros(0, dtype=complex)
-    return _dominant(deflate(monodromies(family, w)))
+    r, mu = _dominant(deflate(monodromies(family, w)))
+    if isinstance(family, _Prepared):
+        family.known_mu.update(zip(w.tolist(), mu.tolist(), strict=True))
+    return r, mu
 
 
 def _dominant(M: FloatArray) -> tuple[FloatArray, ComplexArray]:
@@ -293,13 +383,19 @@ def _radius_bounds(
     K, N = M.shape[0], M.shape[1]
     lo = np.zeros(K)
     hi = np.full(K, np.inf)
+    P = np.empty((N, N))
+    Q = np.empty((N, N))  # the buffers of the powers, reused (no allocation per squaring)
     for i in range(K):
         llo, lhi = (left_lo, left_hi) if i == 0 else (lo[i - 1], hi[i - 1])
-        P = M[i].copy()
+        P[:, :] = M[i]
         logs = 0.0
         kpow = 1.0
         for s in range(squarings + 1):
-            nrm = np.sqrt(np.sum(P * P))
+            ss = 0.0
+            for a in range(N):
+                for b in range(N):
+                    ss += P[a, b] * P[a, b]
+            nrm = np.sqrt(ss)
             if nrm == 0.0:
                 hi[i] = 0.0
                 break
@@ -319,8 +415,11 @@ def _radius_bounds(
                     break
             if s == squarings:
                 break
-            P = P / nrm
-            P = np.dot(P, P)
+            for a in range(N):
+                for b in range(N):
+                    P[a, b] = P[a, b] / nrm
+            np.dot(P, P, Q)
+            P, Q = Q, P
             logs = 2.0 * (logs + np.log(nrm))
             kpow *= 2.0
     return lo, hi
@@ -382,26 +481,30 @@ def grid_bounds(
     hi = hi * (1.0 + BOUND_MARGIN)
     exact = ~((hi < 1.0) | (lo >= 1.0))  # undecided, or not finite (eigvals then raises)
     if exact.any():
-        r = _dominant(M[exact])[0]
+        r, mu = _dominant(M[exact])
         lo[exact] = r
         hi[exact] = r
+        if isinstance(family, _Prepared):
+            ws = np.atleast_1d(np.asarray(depths, dtype=float))[exact]
+            family.known_mu.update(zip(ws.tolist(), mu.tolist(), strict=True))
     return lo, hi, exact
 
 
-def _hump_or_dip(
-    lo: FloatArray, hi: FloatArray, i: int, hump: float
-) -> tuple[bool, bool, bool, bool]:
-    """(peak possible, peak proven, dip possible, dip proven) at grid index ``i``.
+def _humps_and_dips(
+    lo: FloatArray, hi: FloatArray, hump: float
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """(peak possible, peak proven, dip possible, dip proven) at every interior grid index
+    ``1 .. n−2`` at once (element ``i − 1`` is index ``i``).
 
     A peak is ``R[i] >= R[i±1]`` with ``hump <= R[i] < 1``, a dip ``R[i] <= R[i±1]`` with
     ``1 <= R[i] < 1/hump`` (module docstring, step 3), judged on intervals ``[lo, hi]`` that
     hold ρ; with exact values (``lo = hi``) possible and proven are the plain comparisons.
     """
-    j, k = i - 1, i + 1
-    peak_pos = hi[i] >= hump and lo[i] < 1.0 and hi[i] >= lo[j] and hi[i] >= lo[k]
-    peak_pro = lo[i] >= hump and hi[i] < 1.0 and lo[i] >= hi[j] and lo[i] >= hi[k]
-    dip_pos = hi[i] >= 1.0 and lo[i] < 1.0 / hump and lo[i] <= hi[j] and lo[i] <= hi[k]
-    dip_pro = lo[i] >= 1.0 and hi[i] < 1.0 / hump and hi[i] <= lo[j] and hi[i] <= lo[k]
+    c, j, k = slice(1, -1), slice(None, -2), slice(2, None)
+    peak_pos = (hi[c] >= hump) & (lo[c] < 1.0) & (hi[c] >= lo[j]) & (hi[c] >= lo[k])
+    peak_pro = (lo[c] >= hump) & (hi[c] < 1.0) & (lo[c] >= hi[j]) & (lo[c] >= hi[k])
+    dip_pos = (hi[c] >= 1.0) & (lo[c] < 1.0 / hump) & (lo[c] <= hi[j]) & (lo[c] <= hi[k])
+    dip_pro = (lo[c] >= 1.0) & (hi[c] < 1.0 / hump) & (hi[c] <= lo[j]) & (hi[c] <= lo[k])
     return peak_pos, peak_pro, dip_pos, dip_pro
 
 
@@ -432,7 +535,8 @@ class StructureGain:
         """
         if len(delays) == 1:
             tau = float(delays[0])
-            return float(np.max(np.abs(1.0 - np.exp(-1j * self.omega * tau)) * self.sigma))
+            # |1 − e^{−iωτ}| = 2 |sin(ωτ/2)| (a real sine instead of a complex exponential)
+            return float(np.max(2.0 * np.abs(np.sin(0.5 * tau * self.omega)) * self.sigma))
         return 2.0 * self.peak
 
 
@@ -512,11 +616,19 @@ class Bands:
 
 
 class _Scalar:
-    """ρ at single depths with a cache (for Brent and the hump maximisation)."""
+    """ρ at single depths with a cache (for Brent and the hump maximisation).
+
+    ``branch`` holds multipliers found by :func:`_branch_root` at the ends of its final
+    bracket (on the unstable side one of modulus >= 1, on the stable side the dominant one,
+    proven): the critical multiplier reported there without an eigenvalue problem; ``tracked``
+    counts the multipliers computed by :func:`_rayleigh` instead of an eigenvalue problem.
+    """
 
     def __init__(self, family: DepthFamily | _Prepared) -> None:
         self.family = family if isinstance(family, _Prepared) else _prepare(family)
         self.cache: dict[float, tuple[float, complex]] = {}
+        self.branch: dict[float, complex] = {}
+        self.tracked = 0
 
     def __call__(self, w: float) -> float:
         if w not in self.cache:
@@ -525,8 +637,598 @@ class _Scalar:
         return self.cache[w][0]
 
     def mu(self, w: float) -> complex:
+        if w not in self.cache and w in self.branch:
+            return self.branch[w]
         self(w)
-        return self.cache[w][1]
+        mu = self.cache[w][1]
+        if not (math.isfinite(mu.real) and math.isfinite(mu.imag)):
+            mu = self.family.known_mu.get(w, mu)
+        return mu
+
+    def evaluations(self) -> int:
+        """Multipliers computed here: eigenvalue problems and tracked branches."""
+        return sum(1 for v in self.cache.values() if np.isfinite(v[1].real)) + self.tracked
+
+
+#: The root searches follow the critical multiplier by Rayleigh-quotient iteration instead of
+#: solving the eigenvalue problem (decision 0912) from this size of the (deflated) monodromy
+#: matrix on.
+TRACK_MIN_SIZE = 1
+#: Up to this size the iteration runs compiled with its own LU (about 6x cheaper than the
+#: eigenvalue problem at 22 unknowns); above it LAPACK's LU is faster than the loops.
+TRACK_COMPILED_SIZE = 56
+#: Up to this size of the structure's state, with one delay of exactly ``m`` steps (uniform
+#: pitch), the branch is followed on the n × n characteristic matrix ``μ I − P(μ)`` of the
+#: Floquet solution (:func:`_floquet_newton`, O(m n³) per value) instead of the monodromy
+#: matrix (O(m² n) to build, O(N³) to factorise).
+FLOQUET_MAX_STATE = 4
+#: A tracked multiplier is accepted once ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``.
+TRACK_RESIDUAL = 1e-13
+
+
+@numba.njit(cache=True)
+def _lu_complex(S: ComplexArray, piv: NDArray[np.int64]) -> bool:  # pragma: no cover
+    """In-place LU with partial pivoting of a complex matrix; False if a pivot is zero."""
+    N = S.shape[0]
+    for c in range(N):
+        p = c
+        big = abs(S[c, c])
+        for r in range(c + 1, N):
+            a = abs(S[r, c])
+            if a > big:
+                big = a
+                p = r
+        piv[c] = p
+        if big == 0.0:
+            return False
+        if p != c:
+            for j in range(N):
+                t = S[c, j]
+                S[c, j] = S[p, j]
+                S[p, j] = t
+        inv = 1.0 / S[c, c]
+        for r in range(c + 1, N):
+            f = S[r, c] * inv
+            S[r, c] = f
+            if f != 0.0:
+                for j in range(c + 1, N):
+                    S[r, j] -= f * S[c, j]
+    return True
+
+
+@numba.njit(cache=True)
+def _lu_solve_complex(
+    S: ComplexArray, piv: NDArray[np.int64], b: ComplexArray
+) -> ComplexArray:  # pragma: no cover - compiled
+    """Solve with the factors of :func:`_lu_complex`."""
+    N = S.shape[0]
+    x = b.copy()
+    for c in range(N):
+        p = piv[c]
+        if p != c:
+            t = x[c]
+            x[c] = x[p]
+            x[p] = t
+    for r in range(N):
+        acc = x[r]
+        for j in range(r):
+            acc -= S[r, j] * x[j]
+        x[r] = acc
+    for r in range(N - 1, -1, -1):
+        acc = x[r]
+        for j in range(r + 1, N):
+            acc -= S[r, j] * x[j]
+        x[r] = acc / S[r, r]
+    return x
+
+
+@numba.njit(cache=True)
+def _rayleigh_small(
+    M: FloatArray, sigma: complex, v: ComplexArray, tol: float
+) -> tuple[bool, complex, ComplexArray]:  # pragma: no cover - compiled
+    """:func:`_rayleigh` compiled, with its own LU (no call overhead for small matrices)."""
+    N = M.shape[0]
+    S = np.empty((N, N), dtype=np.complex128)
+    piv = np.empty(N, dtype=np.int64)
+    nv = 0.0
+    for i in range(N):
+        nv += v[i].real ** 2 + v[i].imag ** 2
+    v = v / math.sqrt(nv)
+    Mv = np.empty(N, dtype=np.complex128)
+    mu = sigma
+    for _outer in range(4):
+        for a in range(N):
+            for b in range(N):
+                S[a, b] = M[a, b]
+            S[a, a] -= sigma
+        if not _lu_complex(S, piv):
+            return False, mu, v
+        prev = np.inf
+        for _inner in range(3):
+            x = _lu_solve_complex(S, piv, v)
+            nx = 0.0
+            for i in range(N):
+                nx += x[i].real ** 2 + x[i].imag ** 2
+            nx = math.sqrt(nx)
+            if not (nx > 0.0 and nx < np.inf):
+                return False, mu, v
+            v = x / nx
+            for a in range(N):
+                acc = 0j
+                for b in range(N):
+                    acc += M[a, b] * v[b]
+                Mv[a] = acc
+            mu = 0j
+            for a in range(N):
+                mu += np.conj(v[a]) * Mv[a]
+            res = 0.0
+            for a in range(N):
+                d = Mv[a] - mu * v[a]
+                res += d.real**2 + d.imag**2
+            res = math.sqrt(res)
+            if res <= tol:
+                return True, mu, v
+            if res > 0.1 * prev:
+                break
+            prev = res
+        sigma = mu
+    return False, mu, v
+
+
+def _rayleigh(
+    M: FloatArray, sigma: complex, v: ComplexArray | None
+) -> tuple[complex, ComplexArray] | None:
+    """Eigenpair of ``M`` near ``sigma`` by shifted inverse / Rayleigh-quotient iteration.
+
+    Solves ``(M − σ I) x = v`` with one complex LU factorisation per shift (Golub & Van
+    Loan, *Matrix Computations*, 4th ed., §7.6.1 and §8.2.3), the estimate the Rayleigh
+    quotient ``μ = vᴴ M v`` of the normalised iterate; the shift moves to ``μ`` when the
+    residual stops falling fast. Accepted when ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F``
+    (``μ`` is then an exact multiplier of a matrix within that distance of ``M``, the
+    backward error of an eigenvalue solver); None if that is not reached in 4 shifts.
+    """
+    N = M.shape[0]
+    tol = TRACK_RESIDUAL * float(np.sqrt(np.sum(M * M)))
+    if v is None or v.shape[0] != N:
+        v = np.asarray(np.random.default_rng(0).standard_normal(N), dtype=np.complex128)
+    if N <= TRACK_COMPILED_SIZE:
+        ok, mu_s, v_s = _rayleigh_small(np.ascontiguousarray(M), complex(sigma), v, tol)
+        return (complex(mu_s), v_s) if ok else None
+    v = v / np.linalg.norm(v)
+    Mc = M.astype(np.complex128)
+    diag = np.arange(N)
+    for _ in range(4):
+        S = Mc.copy()
+        S[diag, diag] -= sigma
+        lu, piv, info = _ZGETRF(S, overwrite_a=1)
+        if info != 0:
+            return None
+        prev = math.inf
+        for _ in range(3):
+            x, info = _ZGETRS(lu, piv, v)
+            nx = float(np.linalg.norm(x))
+            if info != 0 or not (nx > 0 and math.isfinite(nx)):
+                return None
+            v = x / nx
+            Mv = Mc @ v
+            mu = complex(np.vdot(v, Mv))
+            r = Mv - mu * v
+            res = math.sqrt(float(np.vdot(r, r).real))
+            if res <= tol:
+                return mu, v
+            if res > 0.1 * prev:
+                break
+            prev = res
+        sigma = mu
+    return None
+
+
+_ZGETRF, _ZGETRS = scipy.linalg.lapack.get_lapack_funcs(
+    ("getrf", "getrs"), (np.zeros(1, dtype=np.complex128),)
+)
+
+
+@numba.njit(cache=True)
+def _floquet_map(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> tuple[bool, ComplexArray]:  # pragma: no cover - compiled
+    """``P(μ) = Π_i (I − Wb_i C / μ)⁻¹ (Φ_i + Wa_i C / μ)`` over the period (one delay of
+    exactly ``m`` steps); False if a factor is singular.
+
+    The step maps are those of the first-order semi-discretisation (Insperger & Stépán 2011,
+    ch. 3; :mod:`millsense.stability.sdm`): ``x_{i+1} = Φ_i x_i + Wa_i C x_{i−m} +
+    Wb_i C x_{i−m+1}``. An eigenvector of the monodromy matrix for ``μ ≠ 0`` is a discrete
+    Floquet solution, ``x_{i+m} = μ x_i`` for every ``i``, so ``C x_{i−m} = C x_i / μ`` and
+    each step becomes ``(I − Wb_i C/μ) x_{i+1} = (Φ_i + Wa_i C/μ) x_i``: ``μ`` is a multiplier
+    exactly when ``μ x_0 = P(μ) x_0`` has a solution ``x_0 ≠ 0``, i.e. ``det(μ I − P(μ)) = 0``.
+    """
+    m, n = Phi.shape[0], Phi.shape[1]
+    p = C.shape[0]
+    P = np.zeros((n, n), dtype=np.complex128)
+    for a in range(n):
+        P[a, a] = 1.0
+    L = np.empty((n, n), dtype=np.complex128)
+    Q = np.empty((n, n), dtype=np.complex128)
+    piv = np.empty(n, dtype=np.int64)
+    col = np.empty(n, dtype=np.complex128)
+    T = np.empty((n, n), dtype=np.complex128)
+    inv = 1.0 / mu
+    for i in range(m):
+        for a in range(n):
+            for b in range(n):
+                la = 0.0
+                ra = 0.0
+                for c in range(p):
+                    la += Wb[i, 0, a, c] * C[c, b]
+                    ra += Wa[i, 0, a, c] * C[c, b]
+                L[a, b] = -la * inv
+                Q[a, b] = Phi[i, a, b] + ra * inv
+            L[a, a] += 1.0
+        if not _lu_complex(L, piv):
+            return False, P
+        for a in range(n):
+            for b in range(n):
+                acc = 0j
+                for c in range(n):
+                    acc += Q[a, c] * P[c, b]
+                T[a, b] = acc
+        for b in range(n):
+            for a in range(n):
+                col[a] = T[a, b]
+            x = _lu_solve_complex(L, piv, col)
+            for a in range(n):
+                P[a, b] = x[a]
+    return True, P
+
+
+@numba.njit(cache=True)
+def _floquet_det(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> tuple[bool, complex]:  # pragma: no cover - compiled
+    """``det(μ I − P(μ))`` (:func:`_floquet_map`); False if ``P(μ)`` does not exist."""
+    ok, P = _floquet_map(Phi, Wa, Wb, C, mu)
+    if not ok:
+        return False, 0j
+    n = P.shape[0]
+    S = -P
+    for a in range(n):
+        S[a, a] += mu
+    piv = np.empty(n, dtype=np.int64)
+    if not _lu_complex(S, piv):
+        return True, 0j
+    d = 1.0 + 0j
+    for a in range(n):
+        d *= S[a, a]
+        if piv[a] != a:
+            d = -d
+    return True, d
+
+
+@numba.njit(cache=True)
+def _floquet_newton(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, sigma: complex
+) -> tuple[bool, complex]:  # pragma: no cover - compiled
+    """The multiplier near ``sigma`` as a root of ``det(μ I − P(μ))`` by the secant method
+    (from ``σ`` and ``σ (1 + 1e-7)``); converged when the step is below ``1e-14 |μ|``."""
+    x0 = sigma
+    ok, f0 = _floquet_det(Phi, Wa, Wb, C, x0)
+    if not ok:
+        return False, x0
+    if f0 == 0:
+        return True, x0
+    x1 = sigma * (1.0 + 1e-7)
+    for _ in range(40):
+        ok, f1 = _floquet_det(Phi, Wa, Wb, C, x1)
+        if not ok:
+            return False, x1
+        if f1 == 0:
+            return True, x1
+        if f1 == f0:
+            return False, x1
+        step = f1 * (x1 - x0) / (f1 - f0)
+        x0, f0 = x1, f1
+        x1 = x1 - step
+        if not (abs(x1) > 0.0 and abs(x1) < np.inf):
+            return False, x1
+        if abs(step) <= 1e-14 * abs(x1):
+            return True, x1
+    return False, x1
+
+
+@numba.njit(cache=True)
+def _floquet_vector(
+    Phi: FloatArray, Wa: FloatArray, Wb: FloatArray, C: FloatArray, mu: complex
+) -> tuple[ComplexArray, float]:  # pragma: no cover - compiled
+    """Eigenvector ``y = [x_0, C x_{-1}, …, C x_{-m}]`` of the monodromy matrix ``M`` for the
+    multiplier ``μ`` (``C x_{-k} = C x_{m−k} / μ`` along the Floquet solution through the null
+    vector ``x_0`` of ``μ I − P(μ)``), and the residual ``||M y − μ y||``.
+
+    The history rows of ``M y − μ y`` vanish by construction; its state rows are
+    ``(I − Wb_{m−1} C/μ)(x_m − μ x_0)`` (the last step reads ``C x_0`` where the Floquet
+    solution has ``C x_m / μ``), so the residual needs no ``M``."""
+    m, n = Phi.shape[0], Phi.shape[1]
+    p = C.shape[0]
+    _, P = _floquet_map(Phi, Wa, Wb, C, mu)
+    S = -P
+    for a in range(n):
+        S[a, a] += mu
+    _, _, vh = np.linalg.svd(S)
+    x = np.conj(vh[n - 1])
+    out = np.empty(n + m * p, dtype=np.complex128)
+    out[:n] = x
+    L = np.empty((n, n), dtype=np.complex128)
+    piv = np.empty(n, dtype=np.int64)
+    inv = 1.0 / mu
+    for i in range(m):
+        for c in range(p):  # C x_i / μ is the sample of lag m − i
+            acc = 0j
+            for b in range(n):
+                acc += C[c, b] * x[b]
+            out[n + (m - i - 1) * p + c] = acc * inv
+        rhs = np.zeros(n, dtype=np.complex128)
+        for a in range(n):
+            acc = 0j
+            for b in range(n):
+                la = 0.0
+                ra = 0.0
+                for c in range(p):
+                    la += Wb[i, 0, a, c] * C[c, b]
+                    ra += Wa[i, 0, a, c] * C[c, b]
+                L[a, b] = -la * inv
+                acc += (Phi[i, a, b] + ra * inv) * x[b]
+            L[a, a] += 1.0
+            rhs[a] = acc
+        _lu_complex(L, piv)
+        x = _lu_solve_complex(L, piv, rhs)
+    r = x - mu * out[:n]
+    res = 0.0
+    for a in range(n):
+        acc = r[a]
+        for b in range(n):
+            la = 0.0
+            for c in range(p):
+                la += Wb[m - 1, 0, a, c] * C[c, b]
+            acc -= la * inv * r[b]
+        res += acc.real**2 + acc.imag**2
+    return out, np.sqrt(res)
+
+
+class _Lost(Exception):
+    """The tracked multiplier could not be computed (the caller solves exactly instead)."""
+
+
+def _stable_beyond(M: FloatArray, mu: complex, v: ComplexArray) -> bool:
+    """True if ``μ`` is proven dominant and so ρ(M) = |μ| < 1, for an eigenpair ``(μ, v)``.
+
+    The real invariant subspace of ``μ`` (``v``, and ``v̄`` for a complex μ) is rotated to the
+    first coordinates by an orthogonal ``Q``: ``Qᵀ M Q = [[T11, T12], [E, T22]]`` with ``E``
+    of the order of the eigenpair's residual. The other multipliers are those of ``T22``
+    (within the backward error ``||E||`` that an eigenvalue solver also allows), bounded
+    above by :func:`radius_bounds` (``||T22^k||^(1/k)``, widened by
+    :data:`BOUND_MARGIN`). False whenever that does not prove every one of them below
+    ``|μ|`` (the caller then solves the eigenvalue problem).
+    """
+    if not abs(mu) < 1.0:
+        return False
+    N = M.shape[0]
+    if abs(mu.imag) > REAL_TOL * abs(mu):
+        basis = np.stack([v.real, v.imag], axis=1)
+    else:
+        k = int(np.argmax(np.abs(v)))
+        vr = (v * (np.conj(v[k]) / abs(v[k]))).real
+        basis = vr[:, None]
+    d = basis.shape[1]
+    if N <= d + 1:
+        return False
+    Q, R = np.linalg.qr(basis, mode="complete")
+    if abs(R[d - 1, d - 1]) <= 1e-8 * abs(R[0, 0]):
+        return False
+    T = Q.T @ M @ Q
+    nm = float(np.sqrt(np.sum(M * M)))
+    if float(np.sqrt(np.sum(T[d:, :d] ** 2))) > 1e3 * TRACK_RESIDUAL * nm:
+        return False
+    below = abs(mu) / (1.0 + BOUND_MARGIN)
+    _, hi = radius_bounds(np.ascontiguousarray(T[None, d:, d:]), below=below, above=math.inf)
+    return bool(hi[0] * (1.0 + BOUND_MARGIN) < abs(mu))
+
+
+#: |Im μ| / |μ| below this makes a tracked multiplier real in :func:`_stable_beyond`.
+REAL_TOL = 1e-9
+
+
+def _with(
+    pair: tuple[FloatArray, ComplexArray], mu: complex
+) -> tuple[FloatArray, complex, ComplexArray]:
+    """``(M, μ, v)`` for :func:`_stable_beyond` from a ``(M, v)`` pair."""
+    return pair[0], mu, pair[1]
+
+
+class _Branch:
+    """``|μ(w)| − 1`` of one multiplier branch, followed from depth to depth
+    (:func:`_floquet_newton` where ``floquet``, else :func:`_rayleigh`; module docstring).
+
+    Where ``f`` already holds ρ exactly, that value stands in (at the bracket ends of a scan:
+    ρ ≥ |μ|, so the sign is that of the branch on the unstable side and of ρ − 1 on the
+    stable one). ``values`` maps every depth asked to (modulus, multiplier, exact).
+    """
+
+    def __init__(self, f: _Scalar, mu: complex) -> None:
+        self.f = f
+        self.sigma = mu
+        self.v: ComplexArray | None = None
+        self.values: dict[float, tuple[float, complex, bool]] = {}
+        self.pairs: dict[float, tuple[FloatArray, ComplexArray]] = {}
+        self.full: dict[float, tuple[FloatArray, NDArray[np.int64]]] = {}
+        prep = f.family
+        self.floquet = (
+            prep.family.A0.shape[0] <= FLOQUET_MAX_STATE
+            and prep.lags.size == 1
+            and int(prep.lags[0]) == prep.BHC.shape[0]
+        )
+        self.maps: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.fvec: dict[float, ComplexArray] = {}
+
+    def __call__(self, w: float) -> float:
+        if w not in self.values:
+            if w in self.f.cache:
+                r, mu = self.f.cache[w]
+                self.values[w] = (r, mu, True)
+            elif self.floquet:
+                prep = self.f.family
+                fam = prep.family
+                maps = _step_maps(
+                    np.ascontiguousarray(fam.A0), prep.BHC, prep.BH, prep.cut, prep.free_ex,
+                    prep.a0_norm, float(w), float(fam.h), prep.fr,
+                )  # fmt: skip
+                ok, mu = _floquet_newton(maps[0], maps[1], maps[2], prep.C, complex(self.sigma))
+                if not ok:
+                    raise _Lost
+                self.f.tracked += 1
+                self.sigma = mu
+                self.values[w] = (abs(mu), mu, False)
+                self.maps[w] = maps
+            else:
+                full = monodromies(self.f.family, np.array([w]))
+                Md, keep = _deflated(full)
+                M = Md[0]
+                got = _rayleigh(M, self.sigma, self.v)
+                if got is None:
+                    raise _Lost
+                self.f.tracked += 1
+                self.sigma, self.v = got
+                self.values[w] = (abs(got[0]), got[0], False)
+                self.pairs[w] = (M, got[1])
+                self.full[w] = (full[0], keep)
+        return self.values[w][0] - 1.0
+
+    def verified(self, x: float, rtol: float, xtol: float) -> bool:
+        """True if ρ − 1 provably changes sign between ``x`` and an evaluated depth within
+        Brent's final bracket (``xtol + rtol |x|``): the depth on the stable side gets ρ
+        exactly (one eigenvalue problem) unless :func:`_stable_beyond` proves the tracked
+        multiplier dominant there first, the one on the unstable side has a multiplier of
+        modulus >= 1 (tracked or exact); the tracked multipliers are recorded (``f.branch``)."""
+        side = self.values[x][0] >= 1.0
+        other = [w for w, v in self.values.items() if (v[0] >= 1.0) != side]
+        if not other:
+            return False
+        y = min(other, key=lambda w: abs(w - x))
+        if abs(y - x) > 2.0 * (xtol + rtol * abs(x)):
+            return False
+        stable, unstable = (y, x) if side else (x, y)
+        if not self.values[stable][2]:
+            mu_s = self.values[stable][1]
+            if self._pair(stable) and _stable_beyond(*_with(self.pairs[stable], mu_s)):
+                self.f.branch[stable] = mu_s  # the dominant multiplier
+            elif self.f(stable) >= 1.0:
+                return False
+        if not self.values[unstable][2]:
+            ok = self._floquet_checked(unstable) if unstable in self.maps else True
+            if not ok:
+                return False
+            self.f.branch[unstable] = self.values[unstable][1]
+        return True
+
+    def _floquet_checked(self, w: float) -> bool:
+        """The Floquet eigenvector at ``w`` in ``fvec`` if ``||M y − μ y|| <= TRACK_RESIDUAL
+        |μ| ||y||`` (:func:`_floquet_vector`; ``|μ| <= ||M||_F``, so this is at least as strict
+        as the Rayleigh-quotient criterion)."""
+        if w in self.fvec:
+            return True
+        mu = self.values[w][1]
+        Phi, Wa, Wb = self.maps[w]
+        yv, res = _floquet_vector(Phi, Wa, Wb, self.f.family.C, mu)
+        ny = float(np.linalg.norm(yv))
+        if not (ny > 0 and math.isfinite(ny) and res <= TRACK_RESIDUAL * abs(mu) * ny):
+            return False
+        self.fvec[w] = yv
+        return True
+
+    def _pair(self, w: float) -> bool:
+        """The deflated monodromy matrix and the tracked eigenvector at ``w`` in ``pairs``.
+
+        Rayleigh-quotient tracking has them already; a multiplier of :func:`_floquet_newton`
+        gets its eigenvector from the Floquet solution (:func:`_floquet_vector`), accepted
+        when ``||M v − μ v|| <= TRACK_RESIDUAL ||M||_F`` on the monodromy matrix itself
+        (so it is a multiplier of the discretisation as an eigenvalue solver would give it).
+        """
+        if w in self.pairs:
+            return True
+        if w not in self.maps or not self._floquet_checked(w):
+            return False
+        mu = self.values[w][1]
+        yv = self.fvec[w]
+        full = monodromies(self.f.family, np.array([w]))
+        Md, keep = _deflated(full)
+        M = Md[0]
+        v = yv[keep]
+        nv = float(np.linalg.norm(v))
+        if not (nv > 0 and math.isfinite(nv)):
+            return False
+        v = v / nv
+        res = float(np.linalg.norm(M @ v - mu * v))
+        if not res <= TRACK_RESIDUAL * float(np.sqrt(np.sum(M * M))):
+            return False
+        self.pairs[w] = (M, v)
+        self.full[w] = (full[0], keep)
+        return True
+
+    def full_vector(self, w: float) -> ComplexArray | None:
+        """Eigenvector of the full (undeflated) monodromy matrix for the tracked multiplier
+        at ``w``: the kept part is the tracked one; the removed indices ``R`` (their columns
+        vanish outside ``R``, :func:`deflate`) follow from ``(μ I − M_RR) v_R = M_RK v_K``."""
+        if w in self.maps:
+            return self.fvec[w] if self._floquet_checked(w) else None
+        if w not in self.values or not self._pair(w):
+            return None
+        Mf, keep = self.full[w]
+        mu, v = self.values[w][1], self.pairs[w][1]
+        out = np.zeros(Mf.shape[0], dtype=np.complex128)
+        out[keep] = v
+        rem = np.setdiff1d(np.arange(Mf.shape[0]), keep)
+        if rem.size:
+            try:
+                out[rem] = np.linalg.solve(
+                    mu * np.eye(rem.size) - Mf[np.ix_(rem, rem)], Mf[np.ix_(rem, keep)] @ v
+                )
+            except np.linalg.LinAlgError:
+                return None
+        return out
+
+
+def _branch_root(f: _Scalar, a: float, b: float, rtol: float, unstable_end: float) -> float:
+    """A crossing ρ = 1 in ``[a, b]`` (ρ − 1 of opposite signs at the ends) to ``rtol``.
+
+    Brent's method on the branch of the multiplier that is dominant at ``unstable_end`` (the
+    end where ρ >= 1), each value from the previous one (:class:`_Branch`) instead of an
+    eigenvalue problem, then verified exactly (:meth:`_Branch.verified`); Brent's method on
+    ρ itself when the branch is lost, the verification fails or the matrix is small
+    (:data:`TRACK_MIN_SIZE`). Either way the result lies within ``rtol`` of a depth where ρ − 1
+    changes sign.
+    """
+    xtol = 1e-13
+
+    def exact() -> float:
+        return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=xtol))
+
+    seed = f.mu(unstable_end) if unstable_end in f.cache else complex("nan")
+    if not (math.isfinite(seed.real) and math.isfinite(seed.imag)) or abs(seed) < 1.0:
+        return exact()
+    if _tracked_size(f) < TRACK_MIN_SIZE:
+        return exact()
+    br = _Branch(f, seed)
+    try:
+        x = float(scipy.optimize.brentq(br, a, b, rtol=rtol, xtol=xtol))
+    except _Lost:
+        return exact()
+    return x if br.verified(x, rtol, xtol) else exact()
+
+
+def _tracked_size(f: _Scalar) -> int:
+    """Size of the deflated monodromy matrix of ``f``'s family (columns never used removed)."""
+    prep = f.family
+    fam = prep.family
+    n, p = fam.A0.shape[0], fam.C.shape[0]
+    return n + p * int(prep.lags.max()) if prep.cut.all() else n + p * int(prep.cut.sum()) + p
 
 
 def _golden_probe(f: _Scalar, a: float, x: float, b: float, sign: float) -> float:
@@ -638,10 +1340,9 @@ def unstable_bands(
     change = np.flatnonzero(unst[:-1] != unst[1:])
     need[change] = True
     need[change + 1] = True
-    for i in range(1, len(W) - 1):
-        pp, pr, dp, dr = _hump_or_dip(L, H, i, hump)
-        if (pp and not pr) or (dp and not dr):
-            need[i - 1 : i + 2] = True
+    pp, pr, dp, dr = _humps_and_dips(L, H, hump)
+    for i in np.flatnonzero((pp & ~pr) | (dp & ~dr)).tolist():
+        need[i : i + 3] = True  # grid index i + 1 and its neighbours
     need &= ~np.asarray(exact)
     if need.any():
         r, _ = spectral_radii(family, W[need])
@@ -653,25 +1354,22 @@ def unstable_bands(
             f.cache.setdefault(float(w), (float(r), complex("nan")))
     edges: list[tuple[float, int]] = []  # (depth, +1 entering instability / -1 leaving)
 
-    def root(a: float, b: float) -> float:
-        return float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
+    def root(a: float, b: float, unstable_end: float) -> float:
+        return _branch_root(f, a, b, rtol, unstable_end)
 
     for c in change.tolist():
-        edges.append((root(W[c], W[c + 1]), 1 if unst[c + 1] else -1))
+        a, b = float(W[c]), float(W[c + 1])
+        edges.append((root(a, b, b if unst[c + 1] else a), 1 if unst[c + 1] else -1))
     # narrow humps (bands) and dips (islands) between grid depths
-    for i in range(1, len(W) - 1):
-        _, peak, _, dip = _hump_or_dip(L, H, i, hump)
-        if peak:
-            sign = -1.0
-        elif dip:
-            sign = 1.0
-        else:
-            continue
+    _, peaks, _, dips = _humps_and_dips(L, H, hump)
+    for j in np.flatnonzero(peaks | dips).tolist():
+        sign = -1.0 if peaks[j] else 1.0
+        i = j + 1  # grid index
         a, b = float(W[i - 1]), float(W[i + 1])
         x = _golden_probe(f, a, float(W[i]), b, sign)
         fx = f(x)
         if (sign < 0 and fx >= 1.0) or (sign > 0 and fx < 1.0):
-            e1, e2 = root(a, x), root(x, b)
+            e1, e2 = root(a, x, x if sign < 0 else a), root(x, b, x if sign < 0 else b)
             kind = 1 if sign < 0 else -1
             edges.extend([(e1, kind), (e2, -kind)])
     edges.sort()
@@ -688,12 +1386,17 @@ def unstable_bands(
     if start is not None:
         unstable.append((start, math.inf))
         mults.append(f.mu(start))
-    evals = count_batch + sum(1 for v in f.cache.values() if np.isfinite(v[1].real))
-    return Bands(unstable, mults, float(W[-1]), evals)
+    return Bands(unstable, mults, float(W[-1]), count_batch + f.evaluations())
 
 
 def near_root(
-    family: DepthFamily, guess: float, rtol: float = 2e-4, lo: float = 0.975, hi: float = 0.999
+    family: DepthFamily,
+    guess: float,
+    rtol: float = 2e-4,
+    lo: float = 0.975,
+    hi: float = 0.999,
+    mu_guess: complex | None = None,
+    vector_out: list[ComplexArray] | None = None,
 ) -> tuple[float, complex, int]:
     """Crossing ρ = 1 of ``family`` near ``guess`` [m]: (depth, multiplier, evaluations).
 
@@ -701,26 +1404,62 @@ def near_root(
     (first-order SDM converges from above, so the bracket starts at ``[lo, hi]·guess`` and
     widens geometrically on whichever side the crossing lies). It does not look for other
     crossings far below the guess: the scan at the coarser discretisation did.
+
+    ``mu_guess``: the critical multiplier of the coarser discretisation at ``guess``. The
+    bracket and Brent's method then follow that multiplier's branch (:class:`_Branch`,
+    decision 0912), and the final bracket is verified exactly
+    as in :func:`_branch_root` (ρ < 1 by an eigenvalue problem on the stable side, a
+    multiplier of modulus >= 1 on the unstable one); if the branch is lost or the check
+    fails, the search is repeated on ρ itself. ``vector_out``: receives the eigenvector of
+    the returned multiplier in the full discrete state when the branch gave it.
     """
     f = _Scalar(family)
+    if (
+        mu_guess is not None
+        and math.isfinite(mu_guess.real)
+        and math.isfinite(mu_guess.imag)
+        and _tracked_size(f) >= TRACK_MIN_SIZE
+    ):
+        br = _Branch(f, mu_guess)
+        try:
+            got = _near_root_on(br, guess, rtol, lo, hi)
+        except _Lost:
+            got = None
+        if got is not None and br.verified(got, rtol, 1e-13):
+            mu = f.mu(got)
+            if vector_out is not None and mu == br.values[got][1]:
+                vec = br.full_vector(got)
+                if vec is not None:
+                    vector_out.append(vec)
+            return got, mu, f.evaluations()
+    got = _near_root_on(lambda x: f(x) - 1.0, guess, rtol, lo, hi)
+    if got is None:
+        return math.nan, complex("nan"), f.evaluations()
+    return got, f.mu(got), f.evaluations()
+
+
+def _near_root_on(
+    g: Callable[[float], float], guess: float, rtol: float, lo: float, hi: float
+) -> float | None:
+    """The bracket search and Brent's method of :func:`near_root` on ``g`` (ρ − 1 or a
+    branch's ``|μ| − 1``); None if no bracket is found in 60 widenings."""
     a, b = guess * lo, guess * hi
-    ra = f(a)
-    # ρ(b) only matters when ρ(a) < 1: otherwise the bracket moves below a at once
-    rb = f(b) if ra < 1.0 else math.nan
+    ra = g(a)
+    # g(b) only matters when g(a) < 0: otherwise the bracket moves below a at once
+    rb = g(b) if ra < 0.0 else math.nan
     step = 1.03
     for _ in range(60):
-        if ra < 1.0 <= rb:
+        if ra < 0.0 <= rb:
             break
-        if ra >= 1.0:
+        if ra >= 0.0:
             b, rb = a, ra
             a = a / step
-            ra = f(a)
+            ra = g(a)
         else:
             a, ra = b, rb
             b = b * step
-            rb = f(b)
+            rb = g(b)
         step = min(step * 1.5, 2.0)
     else:
-        return math.nan, complex("nan"), len(f.cache)
-    w = float(scipy.optimize.brentq(lambda x: f(x) - 1.0, a, b, rtol=rtol, xtol=1e-13))
-    return w, f.mu(w), len(f.cache)
+        return None
+    return float(scipy.optimize.brentq(g, a, b, rtol=rtol, xtol=1e-13))
