@@ -176,3 +176,25 @@ def test_a_long_recording_runs_as_segments_with_the_whole_runs_figures(
     assert (again.ran, again.reused) == (1, 1)
     assert (parts / "seg-001.parquet").is_file()
     assert again.rows[0]["spindle_current_mean"] == split.rows[0]["spindle_current_mean"]
+
+
+def test_the_local_cluster_runs_one_thread_workers_without_the_profiler() -> None:
+    """Decision 2003: the workers of ``batch``'s local cluster run one BLAS thread, listen on
+    127.0.0.1 and have Dask's statistical profiler off (its 10 ms sampling thread took 15 % of
+    the tasks' time with a worker per core)."""
+    from dask.distributed import Client
+
+    from millsense.cli.batch_run import local_cluster
+
+    cluster = local_cluster(1)
+    try:
+        with Client(cluster) as client:
+            got = client.run(lambda: (
+                __import__("dask").config.get("distributed.worker.profile.enabled"),
+                os.environ.get("OPENBLAS_NUM_THREADS"),
+            ))  # fmt: skip
+            assert list(got.values()) == [(False, "1")]
+            assert all(a.startswith("tcp://127.0.0.1:") for a in got)
+            assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+    finally:
+        cluster.close()
