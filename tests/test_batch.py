@@ -179,9 +179,9 @@ def test_a_long_recording_runs_as_segments_with_the_whole_runs_figures(
 
 
 def test_the_local_cluster_runs_one_thread_workers_without_the_profiler() -> None:
-    """Decision 2003: the workers of ``batch``'s local cluster run one BLAS thread, listen on
-    127.0.0.1 and have Dask's statistical profiler off (its 10 ms sampling thread took 15 % of
-    the tasks' time with a worker per core)."""
+    """Decision 2003: the workers of ``batch``'s local cluster run one BLAS and one HDF5-codec
+    thread, listen on 127.0.0.1 and have Dask's statistical profiler off (its 10 ms sampling
+    thread took 15 % of the tasks' time with a worker per core)."""
     from dask.distributed import Client
 
     from millsense.cli.batch_run import local_cluster
@@ -192,8 +192,9 @@ def test_the_local_cluster_runs_one_thread_workers_without_the_profiler() -> Non
             got = client.run(lambda: (
                 __import__("dask").config.get("distributed.worker.profile.enabled"),
                 os.environ.get("OPENBLAS_NUM_THREADS"),
+                __import__("millsense.io.hdf5_chunks", fromlist=["io_threads"]).io_threads(),
             ))  # fmt: skip
-            assert list(got.values()) == [(False, "1")]
+            assert list(got.values()) == [(False, "1", 1)]
             assert all(a.startswith("tcp://127.0.0.1:") for a in got)
             assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
     finally:

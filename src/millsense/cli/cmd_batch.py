@@ -89,6 +89,8 @@ def batch(
     plot_fleet(rows, out / "fleet.png", limit_mm=vb_limit_mm)
     write_fleet_report(rows, out / "fleet.html", limit_mm=vb_limit_mm)
     _print_tools(tool_table(rows))
+    if res.closing is not None:
+        res.closing.join()
     failed = [r for r in rows if r.get("status") != "ok"]
     for r in failed:
         typer.echo(f"millsense: warning: {r['path']}: {r.get('error', '')}", err=True)

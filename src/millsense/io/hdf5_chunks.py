@@ -35,10 +35,12 @@ import numpy as np
 __all__ = [
     "CHUNK_SAMPLES",
     "DEFLATE_LEVEL",
+    "IO_THREADS_ENV",
     "ChunkAppender",
     "create_chunked",
     "decode_chunk",
     "encode_chunk",
+    "io_threads",
     "read_array",
     "write_array",
 ]
@@ -61,11 +63,24 @@ _POOL: ThreadPoolExecutor | None = None
 _POOL_PID = -1
 
 
+#: Environment variable: threads of the chunk codec (default: the CPU count, at most 8).
+#: ``millsense batch`` sets it to 1 in its workers: the workers are the parallelism.
+IO_THREADS_ENV = "MILLSENSE_IO_THREADS"
+
+
+def io_threads() -> int:
+    """Threads of the chunk codec: ``$MILLSENSE_IO_THREADS`` (≥ 1), else the CPU count (≤ 8)."""
+    text = os.environ.get(IO_THREADS_ENV, "")
+    if text.strip().isdigit() and int(text) >= 1:
+        return int(text)
+    return max(1, min(8, os.cpu_count() or 1))
+
+
 def _pool() -> ThreadPoolExecutor:
     """Process-wide worker pool (re-created after fork)."""
     global _POOL, _POOL_PID
     if _POOL is None or _POOL_PID != os.getpid():
-        workers = max(1, min(8, os.cpu_count() or 1))
+        workers = io_threads()
         _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="millsense-h5")
         _POOL_PID = os.getpid()
     return _POOL
