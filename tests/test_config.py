@@ -161,3 +161,22 @@ def test_with_axes_keeps_only_the_named_axes_and_refuses_a_missing_one() -> None
     assert three.axes["y"] == m.axes["y"] and m.kinematics == "5-axis-trunnion-ac"
     with pytest.raises(ConfigError, match="no axis 'b'"):
         m.with_axes("xb", "3-axis")
+
+
+def test_read_toml_parses_a_file_again_only_when_it_changed(tmp_path: Path) -> None:
+    """``read_toml`` keeps the parse of an unchanged file (a batch worker reads its machine
+    file for every step of every recording); a changed file (modification time or size) is
+    parsed again, and a caller that edits its copy changes nothing for the next."""
+    import os
+
+    from millsense.core.config import read_toml
+
+    p = tmp_path / "m.toml"
+    p.write_text("a = 1\n[t]\nb = [1, 2]\n", encoding="utf-8")
+    first = read_toml(p)
+    first["t"]["b"].append(3)
+    assert read_toml(p) == {"a": 1, "t": {"b": [1, 2]}}
+    st = p.stat()
+    p.write_text("a = 2\n[t]\nb = [1, 2]\n", encoding="utf-8")  # same size
+    os.utime(p, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    assert read_toml(p)["a"] == 2

@@ -744,12 +744,32 @@ def parse_config(model: type[M], data: Mapping[str, Any], source: str) -> M:
         raise ConfigError(format_validation_error(source, model, err)) from None
 
 
+#: Parsed TOML files of this process by (path, mtime, size): a batch worker reads the same
+#: machine file for every step of every recording (≈ 9 ms a parse); callers get a copy.
+_TOML_CACHE: dict[tuple[str, int, int], dict[str, Any]] = {}
+_TOML_CACHE_MAX = 32
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; a missing file or a syntax error is a one-line ConfigError."""
+    """Read a TOML file; a missing file or a syntax error is a one-line ConfigError.
+
+    A file read before and unchanged since (same modification time and size) is not parsed
+    again: the caller gets a deep copy of the parse."""
+    import copy
+
     p = Path(path)
     try:
+        st = p.stat()
+        key = (str(p.resolve()), st.st_mtime_ns, st.st_size)
+        hit = _TOML_CACHE.get(key)
+        if hit is not None:
+            return copy.deepcopy(hit)
         with p.open("rb") as fh:
-            return tomllib.load(fh)
+            data = tomllib.load(fh)
+        if len(_TOML_CACHE) >= _TOML_CACHE_MAX:
+            _TOML_CACHE.pop(next(iter(_TOML_CACHE)))
+        _TOML_CACHE[key] = copy.deepcopy(data)
+        return data
     except FileNotFoundError:
         raise ConfigError(f"{p}: no such file") from None
     except IsADirectoryError:

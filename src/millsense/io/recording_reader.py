@@ -112,9 +112,6 @@ class RecordingReader:
                     f"samples, '{first}' has {n})"
                 )
             self._datasets[name] = ds
-            self._info[name] = ChannelInfo(
-                name, _attr_str(ds, "unit"), _attr_str(ds, "description")
-            )
         self.n_samples = int(n or 0)
         self._streams: dict[str, list[str]] = dict(layout["streams"])
 
@@ -135,8 +132,20 @@ class RecordingReader:
         return name in self._datasets
 
     def info(self, name: str) -> ChannelInfo:
+        """Unit and description of a channel (read from the file when first asked: a replay
+        reads a few of the channels, and the attributes of sixty cost ≈ 25 ms per opening)."""
         self._check(name)
-        return self._info[name]
+        got = self._info.get(name)
+        if got is None:
+            ds = self._datasets[name]
+            try:
+                unit, text = _attr_str(ds, "unit"), _attr_str(ds, "description")
+            except (OSError, KeyError, ValueError, RuntimeError) as exc:
+                raise RecordingError(
+                    f"{self.path}: cannot read the attributes of channel '{name}' ({exc})"
+                ) from None
+            got = self._info[name] = ChannelInfo(name, unit, text)
+        return got
 
     def _check(self, name: str) -> None:
         if name not in self._datasets:
