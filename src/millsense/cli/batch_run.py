@@ -26,6 +26,7 @@ from millsense.cli.batch_tasks import (
     SEGMENT_WARMUP_S,
     STEPS,
     Part,
+    fragment_path,
     merge_parts,
     part_dir,
     parts_of,
@@ -118,12 +119,12 @@ def run_batch(
     ``segment_s``: recordings longer than 1.5 × this many seconds run as segments (None: every
     recording as one task). ``on_progress(done, total)``: recordings done (a split recording
     counts by its finished parts) of the total."""
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError as exc:
+    from importlib.util import find_spec
+
+    if find_spec("distributed") is None:  # imported where it is used (the cluster's thread)
         raise ConfigError(
             "batch: needs Dask's distributed scheduler: pip install 'dask[distributed]'"
-        ) from exc
+        )
 
     if workers < 1:
         raise ConfigError(f"--workers: must be ≥ 1, got {workers}")
@@ -142,6 +143,14 @@ def run_batch(
         "segment_s": segment_s,
     }
     res = BatchResult()
+    # the local cluster starts (≈ 0.7 s, then its workers load millsense) while the rows of an
+    # earlier batch are read, unless every recording has one already
+    starting: dict[str, Any] = {}
+    starter = None
+    if scheduler is None and not all(fragment_path(out_dir, p).is_file() for p in recordings):
+        starter = threading.Thread(target=_start_local, args=(workers, starting),
+                                   name="millsense-batch-start")  # fmt: skip
+        starter.start()
     rows: dict[int, dict[str, Any]] = {}
     todo: list[int] = []
     for i, p in enumerate(recordings):
@@ -167,14 +176,25 @@ def run_batch(
                         finished[i][pt.name] = old
     progress = _Progress(len(recordings), len(rows), parts, finished, on_progress)
     progress.report()
+    if starter is not None:
+        starter.join()
+        if "error" in starting:
+            raise starting["error"]
+        if not todo:  # every row was there after all (a fragment of an unchanged input)
+            _close(starting["client"], starting["cluster"])
     if todo:
+        from dask.distributed import Client, as_completed
+
         cluster = None
         if scheduler:
             client = Client(scheduler, timeout="10s")
             res.scheduler = scheduler
         else:
-            cluster = local_cluster(workers)
-            client = Client(cluster)
+            if starter is None:
+                _start_local(workers, starting)
+                if "error" in starting:
+                    raise starting["error"]
+            cluster, client = starting["cluster"], starting["client"]
             res.scheduler = "local"
         try:
             res.workers = len(client.scheduler_info().get("workers", {}))
@@ -235,6 +255,18 @@ def run_batch(
             res.closing.start()
     res.rows = [rows[i] for i in range(len(recordings))]
     return res
+
+
+def _start_local(workers: int, into: dict[str, Any]) -> None:
+    """Start the local cluster and its client into ``into`` (``cluster``, ``client``), or put
+    the exception there (``error``)."""
+    from dask.distributed import Client
+
+    try:
+        into["cluster"] = local_cluster(workers)
+        into["client"] = Client(into["cluster"])
+    except Exception as exc:  # re-raised by the caller's thread
+        into["error"] = exc
 
 
 def _close(client: Any, cluster: Any) -> None:

@@ -70,16 +70,24 @@ def batch(
     if not found:
         raise ConfigError(f"batch: {recordings} holds no recording outside -o {out}")
     out.mkdir(parents=True, exist_ok=True)
-    # the wear assessment and the fleet view's libraries load while the workers run (≈ 1 s)
+    # the wear assessment and the fleet view's libraries load while the workers run, from the
+    # first finished recording on (before, the client's start-up has the CPU)
     import threading
 
     preload = threading.Thread(target=_import_reports, daemon=True)
-    preload.start()
+
+    def progress(done: float, _total: int) -> None:
+        update(float(done))
+        if done >= 1 and not preload.is_alive() and preload.ident is None:
+            preload.start()
+
     with progress_bar("batch", float(len(found))) as update:
         res = run_batch(found, out, do=do, machine=machine, plan=plan, workers=workers,
                         scheduler=scheduler, estimate_method=method, monitor_methods=monitors,
                         segment_s=segment_s if segment_s != 0 else None,
-                        on_progress=lambda k, _n: update(float(k)))  # fmt: skip
+                        on_progress=progress)  # fmt: skip
+    if preload.ident is None:
+        preload.start()
     preload.join()
     rows = assess_wear(res.rows, limit_mm=vb_limit_mm)
     target = write_summary(rows, out)
