@@ -94,8 +94,8 @@ def test_run_report_shows_the_fleet_with_this_run_marked(
     summary = tmp_path / "summary.parquet"
     pq.write_table(pa.Table.from_pylist(_rows()), summary)
     out = tmp_path / "r.html"
-    code, stdout, err = run_cli(["report", str(rec), "--fleet", str(summary), "-o", str(out)],
-                                capsys)  # fmt: skip
+    code, _, err = run_cli(["report", str(rec), "--fleet", str(summary), "-o", str(out)],
+                           capsys)  # fmt: skip
     assert code == 0, err
     page = out.read_text(encoding="utf-8")
     assert "Fleet: tools and wear" in page and "this run is marked" in page

@@ -44,7 +44,16 @@ from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _tooth_kernels as _k
 from millsense.plan.virtual_plan import VirtualPlan
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 Method = Literal["virtual", "constant", "dual"]
 _MODES = {"virtual": _k.MODE_VIRTUAL, "constant": _k.MODE_CONSTANT, "dual": _k.MODE_DUAL}
@@ -245,19 +254,13 @@ class BreakageBlock(Block):
         self._ch_a = self.signal_channels[0]
         self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
         self._ch_e = self.expected_channel
-        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
+        self._held_views: HeldViews | None = None
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The held values for ``n`` samples as views of an array never written again (a new
-        one when the values change, at a tooth period's end, or the chunk length does)."""
-        views = self._held_views
-        if views is not None and views[0] == n:  # nothing ended since: the same views
-            return dict(views[1])
-        a = np.empty((len(self._names), n))
-        a[:] = self._held[:, None]
-        out = dict(zip(self._names, a, strict=True))
-        self._held_views = (n, out)
-        return dict(out)
+        """The held values for ``n`` samples (:func:`~millsense.streaming.block.held_views`;
+        new views when the values change, at a tooth period's end, or the chunk length does)."""
+        self._held_views, out = held_views(self._names, self._held, self._held_views, n)
+        return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data

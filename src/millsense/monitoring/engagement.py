@@ -32,7 +32,7 @@ from millsense.monitoring.torque_spectrum import (
     SpectrumIdentifier,
     ToolGeometry,
 )
-from millsense.streaming.block import Block, BlockOutput, Chunk
+from millsense.streaming.block import Block, BlockOutput, Chunk, HeldViews, held_views
 
 _FIELDS = (
     ("axial_depth", "m", "axial depth of cut d_a (Lee Eq. 2.14 by harmonic fit)"),
@@ -146,7 +146,7 @@ class EngagementBlock(Block):
             ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
         )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
-        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
+        self._held_views: HeldViews | None = None
         self._log = []
         self._made = []
 
@@ -181,16 +181,10 @@ class EngagementBlock(Block):
         return made
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The held values for ``n`` samples as views of an array never written again (a new
-        one when the values change, once per revolution, or the chunk length does)."""
-        views = self._held_views
-        if views is not None and views[0] == n:  # nothing ended since: the same views
-            return dict(views[1])
-        a = np.empty((len(self._names), n))
-        a[:] = self._held[:, None]
-        out = dict(zip(self._names, a, strict=True))
-        self._held_views = (n, out)
-        return dict(out)
+        """The held values for ``n`` samples (:func:`~millsense.streaming.block.held_views`;
+        new views when the values change, once per revolution, or the chunk length does)."""
+        self._held_views, out = held_views(self._names, self._held, self._held_views, n)
+        return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data

@@ -152,3 +152,25 @@ class Block(ABC):
     @abstractmethod
     def process(self, chunk: Chunk) -> BlockOutput:
         """Consume ``chunk`` (only the declared inputs) and return its outputs and events."""
+
+
+#: Held outputs of a block for one chunk length: (samples, channel → view).
+HeldViews = tuple[int, dict[str, np.ndarray]]
+
+
+def held_views(
+    names: tuple[str, ...] | list[str],
+    held: np.ndarray,
+    cached: HeldViews | None,
+    n: int,
+) -> tuple[HeldViews, dict[str, np.ndarray]]:
+    """Outputs that hold the values ``held`` (one per name) over ``n`` samples, as views of one
+    array never written again: the ``cached`` views when they have ``n`` samples (the block
+    resets ``cached`` to None whenever its held values change), else new ones. Returns the
+    views to cache and a new dict of them (the engine may add to a block's dict)."""
+    if cached is not None and cached[0] == n:
+        return cached, dict(cached[1])
+    a = np.empty((len(names), n))
+    a[:] = held[:, None]
+    out = dict(zip(names, a, strict=True))
+    return (n, out), dict(out)
