@@ -16,25 +16,6 @@ IntArray = NDArray[np.int64]
 
 
 @numba.njit(cache=True)
-def revolution_harmonics(x: FloatArray, ang: FloatArray, n_flutes: int, out: ComplexArray) -> None:
-    """out[0] = mean(x e^{−iφ}), out[k] = mean(x e^{−ikNφ}) for k = 1 … len(out) − 1."""
-    nk = out.shape[0]
-    for j in range(nk):
-        out[j] = 0.0
-    n = x.shape[0]
-    for s in range(n):
-        b = complex(math.cos(ang[s]), -math.sin(ang[s]))
-        out[0] += x[s] * b
-        bn = b**n_flutes
-        z = bn
-        for j in range(1, nk):
-            out[j] += x[s] * z
-            z *= bn
-    for j in range(nk):
-        out[j] /= n
-
-
-@numba.njit(cache=True)
 def _g(m: float, st: float, ex: float) -> complex:
     if m == 0.0:
         return complex(ex - st, 0.0) / (2.0 * math.pi)
@@ -114,16 +95,6 @@ def _fit_basis(
 
 
 @numba.njit(cache=True)
-def residual(
-    p: FloatArray, xn: ComplexArray, k: FloatArray, kb: float, edge: bool, res: FloatArray
-) -> float:
-    """Projected residual of the harmonics ``xn`` for p = (d_a, θ_st, θ_ex) (real and
-    imaginary parts in ``res``); returns ½‖res‖²."""
-    a, b, alpha, beta = _fit_basis(p, xn, k, kb, edge)
-    return _projected_residual(xn, a, b, alpha, beta, res)
-
-
-@numba.njit(cache=True)
 def _orders(k: FloatArray) -> tuple[FloatArray, IntArray]:
     """The distinct orders m ∈ {k−1, k, k+1} of the harmonics ``k`` and, per harmonic, the
     index of each of its three orders in that list (rows: k−1, k, k+1)."""
@@ -170,34 +141,6 @@ def _g_of(m: float, e1: complex, e2: complex, st: float, ex: float) -> complex:
 
 
 @numba.njit(cache=True)
-def _residual_from(
-    m: FloatArray,
-    idx: IntArray,
-    e1: ComplexArray,
-    e2: ComplexArray,
-    lk: ComplexArray,
-    st: float,
-    ex: float,
-    xn: ComplexArray,
-    edge: bool,
-    a: ComplexArray,
-    b: ComplexArray,
-    res: FloatArray,
-) -> float:
-    """:func:`residual` from precomputed phases and lengths (same operations in the same
-    order, so the same result bit for bit)."""
-    n = xn.shape[0]
-    for j in range(n):
-        i_lo, i_k, i_hi = idx[0, j], idx[1, j], idx[2, j]
-        g_lo = _g_of(m[i_lo], e1[i_lo], e2[i_lo], st, ex)
-        g_hi = _g_of(m[i_hi], e1[i_hi], e2[i_hi], st, ex)
-        a[j] = (g_lo - g_hi) / complex(0.0, 2.0) * lk[j]
-        b[j] = _g_of(m[i_k], e1[i_k], e2[i_k], st, ex) * lk[j]
-    alpha, beta = _least_squares(a, b, xn, edge)
-    return _projected_residual(xn, a, b, alpha, beta, res)
-
-
-@numba.njit(cache=True)
 def _g_all(
     m: FloatArray, e1: ComplexArray, e2: ComplexArray, st: float, ex: float, g: ComplexArray
 ) -> None:
@@ -217,8 +160,11 @@ def _residual_g(
     b: ComplexArray,
     res: FloatArray,
 ) -> float:
-    """:func:`_residual_from` with the G of every order given (each G once per point instead
-    of once per harmonic that uses it: the same numbers, bit for bit)."""
+    """Projected residual of the harmonics ``xn`` (real and imaginary parts in ``res``;
+    returns ½‖res‖²) at a point whose G of every order is ``g`` (:func:`_g_all`): each
+    harmonic's basis a, b from its three orders (``idx``) and lengths ``lk``, the least-squares
+    α, β, then the projection. Each G is computed once per point, not once per harmonic that
+    uses it."""
     n = xn.shape[0]
     for j in range(n):
         a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
@@ -269,11 +215,11 @@ def lm_fit(
     scale: FloatArray,
     max_iter: int,
 ) -> tuple[FloatArray, float]:
-    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 2005: a
+    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 1535: a
     parameter on a bound whose descent direction leaves the box is held for that step — the
     active set — and the others take the step of the reduced system; the rest is clipped).
 
-    The residual is :func:`residual`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
+    The residual is :func:`_residual_g`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
     L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
     parameter enters (d_a: L; θ_st, θ_ex: their phases) — the same numbers as a full
     evaluation, with a third of the sines and cosines."""
@@ -592,8 +538,8 @@ def _add_harmonics(
     x: FloatArray, ang: FloatArray, a: int, b: int, n_flutes: int, sums: ComplexArray
 ) -> None:
     """sums[0] += Σ x e^{−iφ}, sums[k] += Σ x e^{−ikNφ} over the samples a … b − 1, sample by
-    sample as :func:`revolution_harmonics` (each sum gets its terms in the same order, so the
-    same result bit for bit); two samples at a time, whose power chains are independent."""
+    sample in sample order (a revolution split over any chunks gets the same sums bit for
+    bit); two samples at a time, whose power chains are independent."""
     nk = sums.shape[0]
     s = a
     while s + 1 < b:
@@ -650,8 +596,8 @@ def ingest_revolutions(
     in one call).
 
     The angle as :func:`.._tooth_kernels.accumulate_revolutions`; the harmonic sums
-    ``sums[0] = Σ x e^{−iφ}``, ``sums[k] = Σ x e^{−ikNφ}`` as :func:`revolution_harmonics`, in
-    the same order, so a revolution split over any chunks gives its coefficients bit for bit.
+    ``sums[0] = Σ x e^{−iφ}``, ``sums[k] = Σ x e^{−ikNφ}`` by :func:`_add_harmonics`, in
+    sample order, so a revolution split over any chunks gives its coefficients bit for bit.
     When a sample starts a new revolution while samples are summed, the revolution is
     finished: its coefficients (the sums over the count) go to a row of ``done_sums``, its
     sample, means and status to a row of ``done`` and, if the fit from ``prev`` is accepted
