@@ -78,7 +78,7 @@ def batch(
 
     def progress(done: float, _total: int) -> None:
         update(float(done))
-        if done >= 1 and not preload.is_alive() and preload.ident is None:
+        if done >= 1 and preload.ident is None:
             preload.start()
 
     with progress_bar("batch", float(len(found))) as update:
