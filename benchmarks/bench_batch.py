@@ -41,10 +41,55 @@ def _fleet() -> Path:
     return root
 
 
+#: System CPU seconds and minor page faults of the last `_batch` (its processes together).
+_LAST_RUSAGE: dict[str, float] = {}
+
+
 def _batch(fleet: Path, out: Path, args: list[str]) -> float:
+    import resource
+
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "millsense", "batch", str(fleet), "-o", str(out), *args],
                    check=True, capture_output=True)  # fmt: skip
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    _LAST_RUSAGE.update(sys_s=r1.ru_stime - r0.ru_stime, minflt=r1.ru_minflt - r0.ru_minflt)
+    return wall
+
+
+def _tasks_alone(fleet: Path, n: int) -> float:
+    """Speed-up of the tasks without Dask: ``n`` recordings in one process, against ``n`` in
+    each of two processes side by side (the same function the workers run)."""
+    from multiprocessing import get_context
+
+    recs = sorted(str(p) for p in fleet.glob("*.h5"))
+    with tempfile.TemporaryDirectory() as tmp:
+        ctx = get_context("spawn")
+        with ctx.Pool(1) as pool:
+            one = pool.map(_run_tasks, [(tmp + "/a", recs[: n + 1])])[0]
+        with ctx.Pool(2) as pool:
+            two = pool.map(_run_tasks, [(tmp + "/b", recs[: n + 1]),
+                                        (tmp + "/c", recs[n + 1 : 2 * n + 2])])  # fmt: skip
+    return 2.0 * one / max(two)
+
+
+def _run_tasks(args: tuple[str, list[str]]) -> float:
+    """Wall time of ``process_recording`` over the recordings after the first (the first
+    loads and tunes), in a batch worker's settings."""
+    os.environ["MILLSENSE_IO_THREADS"] = "1"
+    from millsense.cli.batch_tasks import process_recording
+    from millsense.core.blas import default_to_one_thread
+
+    default_to_one_thread()
+    out, recs = args
+    opts = {"out_dir": out, "do": ["estimate", "monitor", "wear", "summary"], "machine": None,
+            "plan": None, "estimate_method": "spindle", "monitor_methods": "chatter-comb",
+            "chunk": 2000, "segment_s": None}  # fmt: skip
+    process_recording(recs[0], opts)
+    t0 = time.perf_counter()
+    for r in recs[1:]:
+        process_recording(r, opts)
     return time.perf_counter() - t0
 
 
@@ -104,10 +149,12 @@ def _scaling() -> list[Metric]:
         # 1 and 2 workers alternately, twice, the faster of each kept: the same treatment for
         # both, so that a burst of load on this shared host does not decide the ratio
         times: dict[int, list[float]] = {1: [], 2: []}
+        usage: dict[int, dict[str, float]] = {}
         for rep in range(2):
             for w in (1, 2):
                 out = Path(tmp) / f"w{w}" if rep == 0 else Path(tmp) / f"w{w}_{rep}"
                 times[w].append(_batch(fleet, out, ["--workers", str(w)]))
+                usage.setdefault(w, dict(_LAST_RUSAGE))
         t1, t2 = min(times[1]), min(times[2])
         td = _distributed(fleet, Path(tmp) / "dist")
         r1, r2, rd = _rows(Path(tmp) / "w1"), _rows(Path(tmp) / "w2"), _rows(Path(tmp) / "dist")
@@ -129,6 +176,13 @@ def _scaling() -> list[Metric]:
                     f"{', '.join(f'{t:.1f}' for t in times[2])} s"),
         Metric("identical_1_vs_2", float(_same(r1, r2)), "1", target=1.0,
                note=f"columns {', '.join(COLS)} equal, every run"),
+        Metric("tasks_speedup_without_dask", _tasks_alone(fleet, 30), "x",
+               note="30 recordings in one process against 30 in each of two processes side "
+                    "by side (process_recording, a worker's settings, no Dask)"),
+        Metric("page_faults_1_worker", usage[1]["minflt"], "1",
+               note="minor page faults of the 1-worker batch, all its processes"),
+        Metric("system_cpu_1_worker_s", usage[1]["sys_s"], "s",
+               note="system CPU time of the 1-worker batch, all its processes"),
         Metric("wall_distributed_s", td, "s", note="scheduler + 2 workers started separately"),
         Metric("identical_distributed", float(_same(r1, rd)), "1", target=1.0),
         Metric("task_s_per_recording", per_rec_s, "s",
