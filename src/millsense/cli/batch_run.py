@@ -33,6 +33,7 @@ from millsense.cli.batch_tasks import (
     process_part,
     process_recording,
     read_fragment,
+    recording_parts,
     write_fragment,
 )
 from millsense.core.blas import default_to_one_thread
@@ -312,16 +313,11 @@ def _parts(path: Path, segment_s: float | None, do: list[str]) -> list[Part]:
     """The parts of a long recording (none: one task; also for a file the client cannot open:
     its task reports why)."""
     from millsense.core.errors import UserError
-    from millsense.io.recording_reader import opened_recording
 
-    if segment_s is None:
-        return []
     try:
-        with opened_recording(path) as rec:
-            n, fs = int(rec.n_samples), float(rec.sample_rate_hz)
+        return recording_parts(path, segment_s, do)[2]
     except (UserError, OSError, ValueError, KeyError):
         return []
-    return parts_of(n, fs, segment_s, do)
 
 
 def _merged(out_dir: Path, path: Path, done: dict[str, dict[str, Any]]) -> dict[str, Any]:

@@ -49,6 +49,7 @@ __all__ = [
     "process_part",
     "process_recording",
     "read_fragment",
+    "recording_parts",
     "run_name",
     "write_fragment",
 ]
@@ -230,16 +231,30 @@ def process_recording(path_text: str, options: dict[str, Any]) -> dict[str, Any]
     return row
 
 
-def _long(path: Path, options: dict[str, Any]) -> dict[str, Any] | None:
-    """The ``split`` row of a recording that runs as parts, or None."""
+def recording_parts(
+    path: Path, segment_s: float | None, do: list[str]
+) -> tuple[int, float, list[Part]]:
+    """(samples, sample rate, parts) of a recording: its parts by :func:`parts_of` (none: one
+    task; ``segment_s`` None: never split, the file is not opened).
+
+    Raises
+    ------
+    RecordingError
+        The file does not open as a recording.
+    """
     from millsense.io.recording_reader import opened_recording
 
-    segment_s = options.get("segment_s")
     if segment_s is None:
-        return None
+        return 0, 0.0, []
     with opened_recording(path) as rec:
         n, fs = int(rec.n_samples), float(rec.sample_rate_hz)
-    if not parts_of(n, fs, float(segment_s), list(options.get("do", STEPS))):
+    return n, fs, parts_of(n, fs, float(segment_s), do)
+
+
+def _long(path: Path, options: dict[str, Any]) -> dict[str, Any] | None:
+    """The ``split`` row of a recording that runs as parts, or None."""
+    n, fs, parts = recording_parts(path, options.get("segment_s"), list(options.get("do", STEPS)))
+    if not parts:
         return None
     return {"run": run_name(path), "path": str(path), "status": "split", "error": "",
             "n_samples": n, "sample_rate_hz": fs}  # fmt: skip
