@@ -32,8 +32,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg, optimize
+from scipy import linalg
 
+from millsense.core import disk_cache
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation.kalman.design import (
@@ -149,9 +150,13 @@ def tune_spindle_q(
     Cost ``RMS_f(20 log₁₀|G_cτ|) + 100·max(0, 20 log₁₀(σ_τ̂ / σ_max))``; the FRF is that of the
     identified model (the observer cannot know the true one).
 
-    The search costs seconds (hundreds of Riccati solutions) and is a pure function of its
-    arguments: its result is kept per process (:data:`_TUNINGS`), so a batch worker that
-    processes many recordings of one machine tunes once (issue 20; the design is read-only).
+    The search costs about a second (hundreds of Riccati solutions) and is a pure function of
+    its arguments: its result is kept per process (:data:`_TUNINGS`), so a batch worker that
+    processes many recordings of one machine tunes once (issue 20; the design is read-only),
+    and its optimum ``(log₁₀ q_states, log₁₀ q_torque)`` on disk
+    (:mod:`millsense.core.disk_cache`, decision 2006), so that the next process — another
+    ``estimate``, another batch worker — designs the same observer from it with one Riccati
+    solution instead of searching again.
     """
     assert model.dt is not None
     key = (model.a.tobytes(), model.b.tobytes(), model.c.tobytes(), model.d.tobytes(),
@@ -169,7 +174,6 @@ def tune_spindle_q(
 _TUNINGS: dict[tuple[object, ...], SpindleTuning] = {}
 
 
-
 def _tune_spindle_q(
     model: StateSpaceModel,
     r: float,
@@ -179,12 +183,54 @@ def _tune_spindle_q(
     n_freq: int,
     starts: tuple[tuple[float, float], ...],
 ) -> SpindleTuning:
-    """The search of :func:`tune_spindle_q`."""
+    """The search of :func:`tune_spindle_q`, its optimum read from the disk cache when an
+    earlier process found it with the same arguments and code."""
     assert model.dt is not None
     nyq = 0.5 / model.dt
     f = np.linspace(1.0, f_top_fraction * nyq, n_freq)
     g = model.frf(f)[:, 0, 0]
     sigma_max = torque_level_nm * 10 ** (-snr_db / 20)
+    key = disk_cache.key_digest(
+        model.a.tobytes(), model.b.tobytes(), model.c.tobytes(), model.d.tobytes(),
+        model.a.shape, model.b.shape, model.c.shape, float(model.dt), float(r),
+        float(torque_level_nm), float(snr_db), float(f_top_fraction), int(n_freq), tuple(starts),
+        disk_cache.code_digest(__name__, design_kalman.__module__),
+    )  # fmt: skip
+    hit = disk_cache.load(_CACHE_NAMESPACE, key)
+    try:
+        x = np.array([float(hit["log_q_states"]), float(hit["log_q_torque"])])  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        x = _search_log_q(model, r, f, g, sigma_max, starts)
+        disk_cache.store(_CACHE_NAMESPACE, key,
+                         {"log_q_states": float(x[0]), "log_q_torque": float(x[1])})  # fmt: skip
+    d = design_observer(model, 10 ** x[0], 10 ** x[1], r)
+    h = compensated(g, d, f)
+    db = 20 * np.log10(np.abs(h))
+    return SpindleTuning(
+        float(10 ** x[0]),
+        float(10 ** x[1]),
+        float(np.sqrt(np.mean(db**2))),
+        bandwidth_3db(np.concatenate([[0.0], f]), np.concatenate([[1.0], h])),
+        observer_noise_std(d),
+        d,
+    )
+
+
+#: The disk cache's folder for :func:`_tune_spindle_q`'s optima.
+_CACHE_NAMESPACE = "spindle-q"
+
+
+def _search_log_q(
+    model: StateSpaceModel,
+    r: float,
+    f: NDArray[np.float64],
+    g: NDArray[np.complex128],
+    sigma_max: float,
+    starts: tuple[tuple[float, float], ...],
+) -> NDArray[np.float64]:
+    """Nelder–Mead from each start on the cost of :func:`tune_spindle_q`; the best optimum,
+    clipped to the search box."""
+    from scipy import optimize  # ≈ 0.2 s to import: only where the search runs
 
     def cost(x: NDArray[np.float64]) -> float:
         x = np.clip(x, -14.0, 10.0)
@@ -201,18 +247,7 @@ def _tune_spindle_q(
         for s0 in starts
     ]
     best = min(results, key=lambda r: float(r.fun))
-    x = np.clip(best.x, -14.0, 10.0)
-    d = design_observer(model, 10 ** x[0], 10 ** x[1], r)
-    h = compensated(g, d, f)
-    db = 20 * np.log10(np.abs(h))
-    return SpindleTuning(
-        float(10 ** x[0]),
-        float(10 ** x[1]),
-        float(np.sqrt(np.mean(db**2))),
-        bandwidth_3db(np.concatenate([[0.0], f]), np.concatenate([[1.0], h])),
-        observer_noise_std(d),
-        d,
-    )
+    return np.asarray(np.clip(best.x, -14.0, 10.0), dtype=np.float64)
 
 
 class SpindleTorqueObserver(Block):
