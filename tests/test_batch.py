@@ -55,8 +55,10 @@ def test_batch_wear_is_the_same_on_one_and_two_workers(
             assert abs(float(r["wear_vb_mm"]) - truth) <= 0.03 + 0.3 * truth, r
     import duckdb
 
-    q = f"SELECT tool_id, max(wear_vb_mm) FROM '{tmp_path / 'w1' / 'summary.parquet'}' " \
+    q = (
+        f"SELECT tool_id, max(wear_vb_mm) FROM '{tmp_path / 'w1' / 'summary.parquet'}' "
         "GROUP BY tool_id ORDER BY tool_id"
+    )
     got = duckdb.sql(q).fetchall()
     assert [g[0] for g in got] == ["T1", "T2"] and all(g[1] > 0 for g in got)
 
@@ -124,7 +126,6 @@ def test_a_worker_killed_mid_batch_loses_nothing(fleet: Path, tmp_path: Path) ->
     assert killed
     assert [r["status"] for r in res.rows] == ["ok"] * len(recs), [r.get("error") for r in res.rows]
     assert len(list((tmp_path / "out" / "runs").glob("*.parquet"))) == len(recs)
-
 
 
 def test_a_long_recording_runs_as_segments_with_the_whole_runs_figures(

@@ -161,9 +161,7 @@ def test_dashboard_follows_a_session_alarm_within_1_s(browser: Any) -> None:
         # here; the hold is a separate command), the spindle at 1000 rev/min
         assert page.inner_text("#feed") == "100.0" and page.inner_text("#feed_eff") == "100.0"
         assert page.inner_text("#rpm") == "1000" and page.inner_text("#mode") == "feed hold"
-        trail_x = page.evaluate(
-            "document.getElementById('plot-position').data[1].x.slice(-1)[0]"
-        )
+        trail_x = page.evaluate("document.getElementById('plot-position').data[1].x.slice(-1)[0]")
         assert trail_x == pytest.approx(STOP_S * 400 / 60, abs=0.1)  # mm, 400 mm/min
         assert errors == []
     finally:

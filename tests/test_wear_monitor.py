@@ -100,7 +100,7 @@ def test_wear_block_is_chunk_invariant(fleet_plans: list[Path]) -> None:
         b = WearBlock(vp)
         b.reset(1e4)
         for k in range(0, n, size):
-            b.process(Chunk(k, 1e4, 0.0, {c: v[k:k + size] for c, v in data.items()}))
+            b.process(Chunk(k, 1e4, 0.0, {c: v[k : k + size] for c, v in data.items()}))
         sums.append(b.sums.as_dict())
     for other in sums[1:]:
         assert other == pytest.approx(sums[0], rel=1e-12)

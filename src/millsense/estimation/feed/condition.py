@@ -6,6 +6,16 @@ presliding, Aslan Eq. 3.2–3.3), so its disturbance path differs from the one m
 move; the model must come from the condition the axis runs in, chosen by the CNC's command.
 :class:`OperatingConditionFeedEstimator` runs the moving and the at-rest estimators of one
 axis side by side and blends their outputs by the commanded motor speed.
+
+The mean of a holding axis's load comes from the moving path (decision 0129): the at-rest
+path is identified from a zero-mean sweep, in which the bristles carry about a fifth of the
+load down to 0.25 Hz (the truth's Y: |Φ| 0.80–0.83 from 0.25 to 5 Hz), but a load that stays
+is carried by the motor — the servo's integral action returns the held motor to its command
+and the friction hunts around zero (a held Y axis under a −367 N step, or under the slot's
+cutting load: motor share of the mean 0.99–1.00 on the truth). Read as linear, the at-rest
+path's static gain (0.77) put the V1 slot's Y mean 38 % high. The at-rest estimate therefore
+contributes only its deviation from its own mean over the last :data:`REST_MEAN_WINDOW_S`:
+``ŷ = ŷ_moving + w·(d − mean_T d)``, ``d = ŷ_at_rest − ŷ_moving``.
 """
 
 from __future__ import annotations
@@ -21,6 +31,14 @@ from millsense.streaming.block import Block, BlockOutput, Chunk
 
 #: Width of the blend between the two models around a change of condition, s.
 CROSSFADE_S = 0.005
+#: Window of the mean a holding axis takes from the moving path (decision 0129), s. A boxcar of
+#: T passes none of a line at a multiple of 1/T (10 Hz: every tooth frequency of a 2-flute
+#: cutter at a multiple of 300 rev/min) and at most 1/(π·f·T) of any line f (8 % at 33 Hz,
+#: 1000 rev/min with 2 flutes, 1.7 % at 183 Hz) of the two paths' difference; a step in
+#: the mean passes over in T. A first-order split with the same leak at 33 Hz (1 Hz corner)
+#: takes 0.5 s to settle: 12 % of the V1 slot's mean still in a window that starts 0.2 s
+#: into the cut.
+REST_MEAN_WINDOW_S = 0.1
 
 
 class OperatingConditionFeedEstimator(Block):
@@ -36,13 +54,16 @@ class OperatingConditionFeedEstimator(Block):
         (:data:`~millsense.estimation.feed.estimator.REST_SPEED_RAD_S`).
     crossfade_s : width of the centred blend around a change of condition, s (at most twice
         the lag: the blend for output sample k uses commands up to k).
+    mean_window_s : the window of the mean taken from the moving estimate whatever the
+        condition (decision 0129); 0 blends the two estimates whole.
 
     Reads both estimators' inputs and ``{axis}/position_cmd`` (the interpolator's commanded
     position, m; rad rotary); writes their outputs, delayed by the common lag L: output sample
-    k is ``w·at_rest + (1 − w)·moving`` with ``w`` the fraction of the commanded speeds
+    k is ``moving + w·HP(at_rest − moving)`` with ``w`` the fraction of the commanded speeds
     within ±rest_speed over the ``crossfade_s`` window centred on sample k − L (the sample the
-    estimate belongs to). Both estimators run on every sample, so a change of condition needs
-    no start-up and streaming equals batch.
+    estimate belongs to) and ``HP(d)[k] = d[k] − mean(d[k−N+1 … k])``, N samples of
+    ``mean_window_s`` (before the stream, d stood at its first value). Both estimators run on
+    every sample, so a change of condition needs no start-up and streaming equals batch.
     """
 
     def __init__(
@@ -53,20 +74,28 @@ class OperatingConditionFeedEstimator(Block):
         *,
         rest_speed_rad_s: float = REST_SPEED_RAD_S,
         crossfade_s: float = CROSSFADE_S,
+        mean_window_s: float = REST_MEAN_WINDOW_S,
     ) -> None:
         ax = moving.model.axis
         self.name = f"feed_force_{ax}_condition"
         if at_rest.model.axis != ax or at_rest.lag != moving.lag:
             raise ConfigError(f"block {self.name}: the two estimators differ in axis or lag")
-        if not (transmission > 0 and rest_speed_rad_s >= 0 and crossfade_s >= 0):
+        if not (
+            transmission > 0 and rest_speed_rad_s >= 0 and crossfade_s >= 0
+            and mean_window_s >= 0
+        ):  # fmt: skip
             raise ConfigError(
-                f"block {self.name}: transmission > 0, rest speed and crossfade >= 0 needed"
+                f"block {self.name}: transmission > 0, rest speed, crossfade and mean "
+                "window >= 0 needed"
             )
         self.moving, self.at_rest = moving, at_rest
         self.lag = moving.lag
         self.transmission = float(transmission)
         self.rest_speed = float(rest_speed_rad_s)
         self.crossfade_s = float(crossfade_s)
+        self.mean_window_s = float(mean_window_s)
+        self._window = 0
+        self._recent: dict[str, NDArray[np.float64]] = {}
         self._cmd = CommandedVelocity(ax)
         self.position_channel = self._cmd.channel
         self.inputs = tuple(dict.fromkeys((*moving.inputs, *at_rest.inputs, self.position_channel)))
@@ -91,6 +120,17 @@ class OperatingConditionFeedEstimator(Block):
         self._half = min(self.lag, round(0.5 * self.crossfade_s * sample_rate_hz))
         self._hist = np.zeros(0)
         self._started = False
+        self._window = round(self.mean_window_s * sample_rate_hz)
+        self._recent = {}
+
+    def _mean(self, channel: str, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Mean of ``d`` over the last N samples at each sample of the chunk (state carried)."""
+        n_win = self._window
+        x = np.concatenate([self._recent.get(channel, np.full(n_win, d[0])), d])
+        c = np.concatenate([[0.0], np.cumsum(x)])
+        self._recent[channel] = x[-n_win:]
+        j = np.arange(len(d))
+        return np.asarray((c[n_win + j + 1] - c[j + 1]) / n_win)
 
     def rest_weight(self, position_cmd: NDArray[np.float64]) -> NDArray[np.float64]:
         """Weight of the at-rest model for the output samples of one chunk (state carried)."""
@@ -120,5 +160,11 @@ class OperatingConditionFeedEstimator(Block):
         w = self.rest_weight(np.asarray(chunk.data[self.position_channel], dtype=np.float64))
         om = self.moving.process(chunk).channels
         orr = self.at_rest.process(chunk).channels
-        out = {k: w * np.asarray(orr[k]) + (1.0 - w) * np.asarray(v) for k, v in om.items()}
+        out = {}
+        for k, v in om.items():
+            mov = np.asarray(v, dtype=np.float64)
+            d = np.asarray(orr[k], dtype=np.float64) - mov
+            if len(d) and self._window > 0:
+                d = d - self._mean(k, d)  # the mean is the moving path's
+            out[k] = mov + w * d
         return BlockOutput(out)
