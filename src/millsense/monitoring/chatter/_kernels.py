@@ -173,3 +173,110 @@ def centred_window(
         else:
             new += v
     return level, new / (n - h) - old / h
+
+
+#: The cutting gate's state, one vector per monitor (decisions 1504, 1531): the median raw
+#: amplitude (air floor) and the mean learned out of the cut, the spindle frequency of that
+#: mean, and whether the floor and the mean are known yet.
+AIR_FLOOR = 0
+AIR_MEAN = 1
+AIR_F_REV = 2
+HAS_FLOOR = 3
+HAS_MEAN = 4
+AIR_SIZE = 5
+#: The gate's settings, one vector: cutting gate, load gate, steady speed, steady mean,
+#: steady noise (block constants of decisions 1504, 1531), air learning weight per window.
+GATE_SIZE = 6
+
+
+@numba.njit(cache=True, nogil=True)
+def cutting_gate(
+    c: ComplexArray,
+    scale: float,
+    k0: int,
+    k1: int,
+    b0: int,
+    b1: int,
+    raw: FloatArray,
+    level: float,
+    half_step: float,
+    f_rev: float,
+    air: FloatArray,
+    gate: FloatArray,
+) -> tuple[bool, bool, float, float]:  # pragma: no cover - compiled
+    """The raw window's amplitudes ``raw`` (:func:`amplitude_line_median`: tooth-passing line,
+    band median) and the cutting gate (decisions 1504, 1531): in the cut when the tooth line
+    stands ``gate[0]``× out of the floor (the band median, or the smaller floor learned out of
+    the cut) or the window's mean ``level`` is ``gate[1]`` floors away from the mean learned
+    out of the cut at this speed (within ``gate[2]``); out of the cut the floor and mean are
+    learned (weight ``gate[5]``; the mean afresh at a new speed). Returns (cutting, steady:
+    the halves' means differ by at most ``gate[3]``× the tooth line or ``gate[4]``× the floor,
+    tooth line, reference of the ratio: the line, in the cut no less than ``gate[0]``×
+    floor)."""
+    tooth, med = amplitude_line_median(c, scale, k0, k1, b0, b1, raw)
+    has_floor = air[HAS_FLOOR] > 0.0
+    has_mean = air[HAS_MEAN] > 0.0
+    air_floor = air[AIR_FLOOR]
+    air_mean = air[AIR_MEAN]
+    air_f = air[AIR_F_REV]
+    floor = air_floor if has_floor and air_floor < med else med
+    same_speed = abs(f_rev - air_f) <= gate[2] * air_f
+    loaded = has_mean and has_floor and same_speed and abs(level - air_mean) > gate[1] * air_floor
+    cutting = tooth > 0.0 and (tooth > gate[0] * floor or loaded)
+    if not cutting and tooth > 0.0:
+        a = gate[5]
+        air[AIR_FLOOR] = air_floor + a * (med - air_floor) if has_floor else med
+        air[HAS_FLOOR] = 1.0
+        if not has_mean or abs(f_rev - air_f) > gate[2] * air_f:
+            air[AIR_MEAN] = level  # the air level at a new speed (friction changes)
+        else:
+            air[AIR_MEAN] = air_mean + a * (level - air_mean)
+        air[HAS_MEAN] = 1.0
+        air[AIR_F_REV] = f_rev
+    tooth_ref = tooth
+    steady = True
+    if cutting:
+        least = gate[0] * floor
+        if least > tooth:
+            tooth_ref = least
+        tol = gate[3] * tooth
+        noise = gate[4] * floor
+        if noise > tol:
+            tol = noise
+        steady = abs(half_step) <= tol
+    return cutting, steady, tooth, tooth_ref
+
+
+@numba.njit(cache=True, nogil=True)
+def last_samples(ring: FloatArray, pos: int, out: FloatArray) -> None:  # pragma: no cover
+    """``out`` ← the last ``len(out)`` samples written to ``ring`` before ``pos`` (a
+    power-of-two ring), oldest first."""
+    mask = ring.shape[0] - 1
+    start = pos - out.shape[0]
+    for i in range(out.shape[0]):
+        out[i] = ring[(start + i) & mask]
+
+
+@numba.njit(cache=True, nogil=True)
+def novel_peak(
+    c: ComplexArray,
+    scale: float,
+    comb: FloatArray,
+    background: FloatArray,
+    first: bool,
+    cutting: bool,
+    factor: float,
+    mask: BoolArray,
+    novel: FloatArray,
+    b0: int,
+    b1: int,
+) -> int:  # pragma: no cover - compiled
+    """The comb-filtered window's amplitudes ``comb = |c|·scale``; on the ``first`` window the
+    background (decision 1504: learned from air only, so 0 in the cut, else ``comb``); the
+    novelty (:func:`novelty`) and the band's largest novel bin (:func:`band_argmax`)."""
+    amplitude(c, scale, comb)
+    if first:
+        for i in range(comb.shape[0]):
+            background[i] = 0.0 if cutting else comb[i]
+    novelty(comb, background, factor, mask, novel)
+    return band_argmax(novel, b0, b1)

@@ -224,10 +224,15 @@ class ChatterMonitor(Block):
         self._band = (f >= lo) & (f <= min(hi, 0.45 * fs))
         nz = np.flatnonzero(self._band)
         self._band_slice = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
-        self._background: np.ndarray | None = None
-        self._air_floor: float | None = None
-        self._air_mean: float | None = None
-        self._air_f_rev = 0.0
+        # work arrays of the decision (nothing keeps them beyond it)
+        self._xr, self._xr_tapered, self._xc = np.empty(n), np.empty(n), np.empty(n)
+        nf = len(f)
+        self._raw, self._comb, self._novel, self._raw_rect = (np.empty(nf) for _ in range(4))
+        self._background = np.zeros(nf)
+        self._has_background = False
+        self._air = np.zeros(_kn.AIR_SIZE)
+        self._gate = np.array([CUTTING_GATE, LOAD_GATE, STEADY_SPEED, STEADY_MEAN, STEADY_NOISE,
+                               min(1.0, s.hop_s / BACKGROUND_TAU_AIR_S)])  # fmt: skip
         self._flag = 0.0
         self._freq = math.nan
         self._ratio = 0.0
@@ -282,20 +287,21 @@ class ChatterMonitor(Block):
         g.pos += len(x)
 
     def _spectra(self) -> Spectra | None:
+        """The spectra of the window ending at the last decision sample, or None when no
+        decision is taken (too few samples, the speed or, for the learning criteria, the mean
+        moving within the window: entry, exit, a large depth step). The cutting gate, the
+        novelty and the largest novel bin are compiled (:func:`._kernels.cutting_gate`,
+        :func:`._kernels.novel_peak`; decisions 1504, 1531, 1536)."""
         g = self._stage
         f_rev = g.f_rev
         n = self.method.window
         if g.pos < n:
             return None
         w = n // self._hop + 2
-        lo = min(g.lows[-w:])
-        hi = max(g.highs[-w:])
-        if not hi <= (1.0 + STEADY_SPEED) * lo:
+        if not max(g.highs[-w:]) <= (1.0 + STEADY_SPEED) * min(g.lows[-w:]):
             return None  # speed changing within the window: no decision (decision 1504)
-        xr = np.empty(n)
-        xr_tapered = np.empty(n)
-        level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, xr_tapered)
-        f = self._f
+        xr, raw = self._xr, self._raw
+        level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, self._xr_tapered)
         df = self._df
         f_t = self.settings.n_flutes * f_rev
         k0 = k1 = 0
@@ -304,99 +310,52 @@ class ChatterMonitor(Block):
             k0 = max(0, math.ceil((f_t - half) / df))
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        raw = np.empty(self._nf)
-        tooth, med = _kn.amplitude_line_median(rfft(xr_tapered), self._scale, k0, k1, b0, b1, raw)
-        # in the cut when the tooth line stands out of the spectrum's median, or of the median
-        # learned out of the cut (heavy chatter raises the median of the spectrum itself)
-        floor = med if self._air_floor is None else min(med, self._air_floor)
-        # ... or when the load moved the window's mean away from the mean learned out of the
-        # cut at this speed (a torque or current carries the load as its mean; a cut whose
-        # teeth sum to a nearly constant torque, as a 5-flute slot, has almost no tooth line)
-        loaded = (
-            self._air_mean is not None
-            and self._air_floor is not None
-            and abs(f_rev - self._air_f_rev) <= STEADY_SPEED * self._air_f_rev
-            and abs(level - self._air_mean) > LOAD_GATE * self._air_floor
-        )
-        cutting = tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)
-        if not cutting and tooth > 0.0:
-            a = min(1.0, self.settings.hop_s / BACKGROUND_TAU_AIR_S)
-            self._air_floor = (
-                med if self._air_floor is None else self._air_floor + a * (med - self._air_floor)
-            )
-            if (
-                self._air_mean is None
-                or abs(f_rev - self._air_f_rev) > STEADY_SPEED * self._air_f_rev
-            ):
-                self._air_mean = level  # the air level at a new speed (friction changes)
-            else:
-                self._air_mean += a * (level - self._air_mean)
-            self._air_f_rev = f_rev
-        # the reference of the ratio: the tooth line, but no less than the smallest line the
-        # cutting gate resolves (a line lost in the noise, in a cut found by its load, must not
-        # turn a noise peak into chatter; decision 1531)
-        tooth_ref = max(tooth, CUTTING_GATE * floor) if cutting else tooth
+        cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
+            rfft(self._xr_tapered), self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev,
+            self._air, self._gate,
+        )  # fmt: skip
+        f = self._f
         if not self.method.learns_background:  # the threshold method reads the raw spectrum
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
                            band_slice=(b0, b1))  # fmt: skip
-        if cutting and not self._steady_mean(half_step, tooth, floor):
+        if cutting and not steady:
             return None  # entry, exit or a large step inside the window: no decision
-        xc = self._window(self._stage.ring_y, n)
-        raw_rect = None
-        comb = np.empty(self._nf)
-        if self.method.taper == "rect":
-            _kn.amplitude(rfft(xc), self._comb_scale, comb)
-        else:
-            _kn.amplitude(rfft(xc * self._comb_taper), self._comb_scale, comb)
-        if self._background is None:
-            # learned from air only: a first window already in the cut (chatter may start
-            # with the cut) must not become the background
-            self._background = np.zeros_like(comb) if cutting else comb.copy()
-        # hysteresis: while chatter is flagged a component stays new above 2 × its background
-        factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        if f_rev > 0:
+        xc = self._xc
+        _kn.last_samples(g.ring_y, g.pos, xc)
+        if self.method.taper != "rect":
+            xc = xc * self._comb_taper
+        if f_rev > 0 and abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
             # chatter is never on a spindle harmonic (that is forced vibration): bins within
             # the comb's notch width or 2 bins of one are not searched
-            if abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
-                off = np.abs(f - f_rev * np.rint(f / f_rev))
-                self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
-                self._mask_f_rev = f_rev
-        novel = np.empty(self._nf)
-        _kn.novelty(comb, self._background, factor, self._harm_mask, novel)
-        if self.method.name == "chatter-sdft" and self.method.taper == "rect":
+            off = np.abs(f - f_rev * np.rint(f / f_rev))
+            self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
+            self._mask_f_rev = f_rev
+        # hysteresis: while chatter is flagged a component stays new above 2 × its background
+        factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+        comb, novel = self._comb, self._novel
+        k = _kn.novel_peak(rfft(xc), self._comb_scale, comb, self._background,
+                           not self._has_background, cutting, factor, self._harm_mask, novel,
+                           b0, b1)  # fmt: skip
+        self._has_background = True
+        raw_rect = None
+        if (
+            self.method.name == "chatter-sdft"
+            and self.method.taper == "rect"
+            and cutting
+            and b0 <= k < b1
+            and novel[k] > 0.0
+            and tooth_ref > 0.0
+        ):
             # Parseval needs the raw spectrum with the comb's (rectangular) taper: computed only
             # for a window the criterion judges by its variances (:meth:`ChatterMethod.decide`)
-            k = _kn.band_argmax(novel, b0, b1)
-            if cutting and b0 <= k < b1 and novel[k] > 0.0 and tooth_ref > 0.0:
-                raw_rect = np.empty(self._nf)
-                _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
+            raw_rect = self._raw_rect
+            _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
-                       band_slice=(b0, b1))  # fmt: skip
-
-    def _window(self, ring: np.ndarray, n: int) -> np.ndarray:
-        """The last ``n`` samples written to ``ring`` (a copy, oldest first)."""
-        size = len(ring)
-        a = (self._stage.pos - n) & (size - 1)
-        if a + n <= size:
-            return ring[a : a + n].copy()
-        return np.concatenate([ring[a:], ring[: a + n - size]])
-
-    def _steady_mean(self, half_step: float, tooth: float, floor: float) -> bool:
-        """The means of the window's older and newer halves differ by less than
-        :data:`STEADY_MEAN` × the tooth-passing line or :data:`STEADY_NOISE` × the noise floor
-        ``floor`` (decisions 1504, 1531). A step of the mean (the entry into or the exit from
-        the cut, a large depth step) drives the comb filter into a transient that is not
-        chatter; such a window is not judged. The noise allowance keeps a noisy signal with a
-        weak tooth line (the halves' means of white noise differ by ≈ 1.4 × the median Hann
-        amplitude) from never being judged. Signals without a mean (accelerometer, microphone)
-        always pass."""
-        tol = max(STEADY_MEAN * tooth, STEADY_NOISE * floor)
-        return abs(half_step) <= tol
+                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
 
     def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
         """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
         bins that are new (possible chatter) in 30 s, the others in 2 s."""
-        assert self._background is not None
         hop = self.settings.hop_s
         if not cutting:
             a = a_new = min(1.0, hop / BACKGROUND_TAU_AIR_S)
