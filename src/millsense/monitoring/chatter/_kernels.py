@@ -20,44 +20,47 @@ BoolArray = NDArray[np.bool_]
 
 
 @numba.njit(cache=True, nogil=True)
-def _select(w: FloatArray, kth: int) -> float:  # pragma: no cover - compiled
-    """The ``kth`` smallest value of ``w`` (Hoare quickselect, median-of-three pivot; ``w`` is
-    reordered so that ``w[:kth]`` holds values ≤ it). An order statistic is a value of the
-    data, so any selection algorithm returns the same number as ``np.partition``."""
-    lo = 0
-    hi = w.shape[0] - 1
-    while hi > lo:
-        mid = (lo + hi) >> 1
-        a = w[lo]
-        b = w[mid]
-        c = w[hi]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b = c
-        if a > b:
-            b = a
-        pivot = b
-        i = lo
-        j = hi
-        while i <= j:
-            while w[i] < pivot:
-                i += 1
-            while w[j] > pivot:
-                j -= 1
-            if i <= j:
-                t = w[i]
-                w[i] = w[j]
-                w[j] = t
-                i += 1
-                j -= 1
-        if kth <= j:
-            hi = j
-        elif kth >= i:
-            lo = i
+def _select(a: FloatArray, kth: int) -> float:  # pragma: no cover - compiled
+    """The ``kth`` smallest value of ``a`` (left unchanged). Quickselect around the median of
+    three, each pass a branch-free three-way partition into a scratch array: every value is
+    written to the next slot of both ends and only the end its comparison with the pivot
+    chooses advances, so the lower part ends at ``lo``, the upper starts after ``hi`` and the
+    values equal to the pivot drop out. A data-dependent branch per value (Hoare's partition,
+    decision 1535) mispredicted half the time on spectra: ≈ 20 µs for 1800 bins against ≈ 7
+    (decision 1536). An order statistic is a value of the data, so any selection algorithm
+    returns the same number as ``np.partition``."""
+    n = a.shape[0]
+    src = a.copy()
+    dst = np.empty(n)
+    while n > 1:
+        x = src[0]
+        y = src[n >> 1]
+        z = src[n - 1]
+        if x > y:
+            x, y = y, x
+        if y > z:
+            y = z
+        if x > y:
+            y = x
+        pivot = y
+        lo = 0
+        hi = n - 1
+        for i in range(n):
+            v = src[i]
+            dst[lo] = v
+            dst[hi] = v
+            lo += v < pivot
+            hi -= v > pivot
+        if kth < lo:  # in the lower part dst[:lo]
+            n = lo
+            src, dst = dst[:n], src
+        elif kth > hi:  # in the upper part dst[hi + 1:]
+            kth -= hi + 1
+            n -= hi + 1
+            src, dst = dst[hi + 1 : hi + 1 + n], src
         else:
-            break
-    return w[kth]
+            return pivot
+    return src[0]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,15 +78,21 @@ def amplitude_line_median(
             tooth = out[i]
     med = 0.0
     if b1 > b0:
-        w = out[b0:b1].copy()
+        w = out[b0:b1]
         m = w.shape[0]
         h = m // 2
         med = _select(w, h)
         if m % 2 == 0:  # the mean of the two middle values, as numpy's median
-            lower = w[0]
-            for i in range(1, h):
-                if w[i] > lower:
-                    lower = w[i]
+            # the lower middle value: the largest value below the upper one if exactly h
+            # values are below it, else a tie with it
+            below = 0
+            lower = -np.inf
+            for i in range(m):
+                v = w[i]
+                below += v < med
+                lower = max(lower, v if v < med else -np.inf)
+            if below < h:
+                lower = med
             med = 0.5 * (med + lower)
     return tooth, med
 
