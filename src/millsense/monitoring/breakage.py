@@ -513,8 +513,10 @@ class BreakageGroup(Block):
         top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
                                self._pp, self._pi, self._hb, counts)  # fmt: skip
         if top == 0:  # no tooth period ends: the held values of every member
-            self._held_views, held = held_views(self._names, self._held.reshape(-1),
-                                                self._held_views, n)  # fmt: skip
+            views = self._held_views
+            if views is not None and views[0] == n:  # none ended since: the same views
+                return BlockOutput(dict(views[1]))
+            self._held_views, held = held_views(self._names, self._held.reshape(-1), views, n)
             return BlockOutput(held)
         self._held_views = None
         for j, m in self._planned:

@@ -279,13 +279,19 @@ def novel_peak(
     novel: FloatArray,
     b0: int,
     b1: int,
+    a_plain: float,
+    a_novel: float,
 ) -> int:  # pragma: no cover - compiled
     """The comb-filtered window's amplitudes ``comb = |c|·scale``; on the ``first`` window the
     background (decision 1504: learned from air only, so 0 in the cut, else ``comb``); the
-    novelty (:func:`novelty`) and the band's largest novel bin (:func:`band_argmax`)."""
+    novelty (:func:`novelty`), the band's largest novel bin (:func:`band_argmax`, returned)
+    and then the background update (:func:`learn`; the verdict does not read the
+    background)."""
     amplitude(c, scale, comb)
     if first:
         for i in range(comb.shape[0]):
             background[i] = 0.0 if cutting else comb[i]
     novelty(comb, background, factor, mask, novel)
-    return band_argmax(novel, b0, b1)
+    k = band_argmax(novel, b0, b1)
+    learn(background, comb, novel, a_plain, a_novel)
+    return k

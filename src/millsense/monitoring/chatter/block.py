@@ -267,6 +267,7 @@ class ChatterMonitor(Block):
         self._raw, self._comb, self._novel, self._raw_rect = (np.empty(nf) for _ in range(4))
         self._background = np.zeros(nf)
         self._has_background = False
+        self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._air = np.zeros(_kn.AIR_SIZE)
         self._gate = np.array([CUTTING_GATE, LOAD_GATE, STEADY_SPEED, STEADY_MEAN, STEADY_NOISE,
                                min(1.0, s.hop_s / BACKGROUND_TAU_AIR_S)])  # fmt: skip
@@ -376,7 +377,7 @@ class ChatterMonitor(Block):
         comb, novel = self._comb, self._novel
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
                            not self._has_background, cutting, factor, self._harm_mask, novel,
-                           b0, b1)  # fmt: skip
+                           b0, b1, *self._rates[cutting])  # fmt: skip
         self._has_background = True
         raw_rect = None
         if (
@@ -394,15 +395,15 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
 
-    def _learn(self, comb: np.ndarray, novel: np.ndarray, cutting: bool) -> None:
-        """Background update (decision 1504): out of the cut every bin in 0.5 s; in the cut,
-        bins that are new (possible chatter) in 30 s, the others in 2 s."""
+    def _learning_rates(self, cutting: bool) -> tuple[float, float]:
+        """Background update weights per window (decision 1504), plain and novel bins: out of
+        the cut every bin in 0.5 s; in the cut, bins that are new (possible chatter) in 30 s,
+        the others in 2 s."""
         hop = self.settings.hop_s
         if not cutting:
-            a = a_new = min(1.0, hop / BACKGROUND_TAU_AIR_S)
-        else:
-            a, a_new = min(1.0, hop / BACKGROUND_TAU_S), min(1.0, hop / BACKGROUND_TAU_NOVEL_S)
-        _kn.learn(self._background, comb, novel, a, a_new)
+            a = min(1.0, hop / BACKGROUND_TAU_AIR_S)
+            return a, a
+        return min(1.0, hop / BACKGROUND_TAU_S), min(1.0, hop / BACKGROUND_TAU_NOVEL_S)
 
     def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
         self._held_views = None  # the held values may change
@@ -417,8 +418,6 @@ class ChatterMonitor(Block):
             elif self._calibrated is None and self._calib:
                 self._calibrated = CALIBRATION_FACTOR * max(self._calib)
         v = self.method.decide(sp, self._calibrated)
-        if self.method.learns_background:
-            self._learn(sp.comb, sp.novel, sp.cutting)
         was = bool(self._flag)
         now = v.chatter
         if v.ratio > 0.5 * v.threshold:
