@@ -32,7 +32,16 @@ from millsense.core.recording import ChannelInfo
 from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
 from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 
 def _direct_rfft() -> Callable[[np.ndarray], np.ndarray]:
@@ -286,36 +295,15 @@ class ChatterMonitor(Block):
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
         self._mask_f_rev = -1.0
-        self._held: tuple[tuple[float, float, float], tuple[np.ndarray, ...]] | None = None
         self._harm_mask = np.zeros(len(f), dtype=bool)
         self._df = float(f[1])
         self._nf = len(f)
-        self._held_views: tuple[int, dict[str, np.ndarray]] | None = None
-        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._merged: HeldViews | None = None
         self._keep = self._keep_hops
         self._out_names = (self._ch_flag, self._ch_hz, self._ch_ratio)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         return _run_chunk([self], chunk, self)
-
-    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The held outputs for ``n`` samples: views of arrays that are never written again
-        (new ones are made when a value changes or a longer chunk comes)."""
-        views = self._held_views
-        if views is not None and views[0] == n:  # nothing decided since: the same views
-            return dict(views[1])
-        # NaN (no chatter frequency) compares unequal to itself: key it as −1
-        key = (self._flag, -1.0 if math.isnan(self._freq) else self._freq, self._ratio)
-        held = self._held
-        if held is None or held[0] != key or len(held[1][0]) < n:
-            size = max(n, 1024)
-            arrays = (np.full(size, self._flag), np.full(size, self._freq),
-                      np.full(size, self._ratio))  # fmt: skip
-            held = self._held = (key, arrays)
-        a = held[1]
-        out = {self._ch_flag: a[0][:n], self._ch_hz: a[1][:n], self._ch_ratio: a[2][:n]}
-        self._held_views = (n, out)
-        return dict(out)
 
     # ------------------------------------------------------------------ decision
     def _ingest(self, x: np.ndarray, spd: np.ndarray, factor: float = 1.0) -> None:
@@ -406,7 +394,6 @@ class ChatterMonitor(Block):
         return min(1.0, hop / BACKGROUND_TAU_S), min(1.0, hop / BACKGROUND_TAU_NOVEL_S)
 
     def _decide(self, k: int, chunk: Chunk, nc: int | None) -> list[Event]:
-        self._held_views = None  # the held values may change
         sp = self._spectra()
         t = chunk.t0_s + k / chunk.sample_rate_hz
         if sp is None:
@@ -510,11 +497,9 @@ def _run_chunk(
         views = holder._merged
         if views is not None and views[0] == n:  # nothing decided since: the same views
             return BlockOutput(dict(views[1]))
-        out: dict[str, np.ndarray] = {}
-        for m in monitors:
-            out.update(m._held_outputs(n))
-        holder._merged = (n, out)
-        return BlockOutput(dict(out))
+        held = np.array([v for m in monitors for v in (m._flag, m._freq, m._ratio)])
+        holder._merged, out = held_views(holder._out_names, held, views, n)
+        return BlockOutput(out)
     holder._merged = None
     # rows 3q, 3q + 1, 3q + 2: flag, frequency, ratio of monitor q
     values = np.empty((3 * len(monitors), n))
@@ -580,7 +565,7 @@ class ChatterGroup(Block):
         stage = _Stage(max(m._size for m in self.monitors))
         for m in self.monitors:
             m._stage = stage
-        self._merged: tuple[int, dict[str, np.ndarray]] | None = None
+        self._merged: HeldViews | None = None
         self._keep = max(m._keep_hops for m in self.monitors)  # hops of speed ranges kept
         self._out_names = tuple(c for m in self.monitors for c in m._out_names)
 
