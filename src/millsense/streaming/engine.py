@@ -89,7 +89,10 @@ class Pipeline:
         events: list[Event] = []
         n = chunk.n
         for b in self.blocks:
-            sub = Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s, data).restricted(b.inputs)
+            # the chunk restricted to the block's inputs (as Chunk.restricted, without an
+            # intermediate chunk)
+            inputs = {k: data[k] for k in b.inputs}
+            sub = Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s, inputs)
             out = b.process(sub)
             for name, values in out.channels.items():
                 if len(values) != n:
