@@ -416,12 +416,15 @@ def _grouped(blocks: list[Any]) -> list[Any]:
     if len({(b.speed_channel, b.n_flutes) for b in breakage}) > 1:
         breakage = []  # detectors on different speeds or tools stay apart
     groups: list[Any] = []
-    inside: set[int] = set()
-    for members, group in ((chatter, ChatterGroup), (breakage, BreakageGroup)):
-        if len(members) >= 2:
-            groups.append(group(members))
-            inside.update(id(b) for b in members)
-    return [*groups, *(b for b in blocks if id(b) not in inside)]
+    inside: list[Any] = []
+    if len(chatter) >= 2:
+        groups.append(ChatterGroup(chatter))
+        inside += chatter
+    if len(breakage) >= 2:
+        groups.append(BreakageGroup(breakage))
+        inside += breakage
+    grouped = {id(b) for b in inside}
+    return [*groups, *(b for b in blocks if id(b) not in grouped)]
 
 
 def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:
