@@ -233,3 +233,21 @@ def test_monitor_contact_names_what_is_missing(
     assert code == 2
     assert needle in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_monitors_grouped_as_the_command_runs_them() -> None:
+    """Chatter criteria on one signal become one ChatterGroup, breakage detectors on one speed
+    one BreakageGroup (decision 1536); detectors on another speed and other monitors stay."""
+    from millsense.cli.cmd_monitor import _grouped
+    from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
+    from millsense.monitoring.chatter import ChatterGroup, ChatterMonitor, ChatterSettings
+    from millsense.monitoring.engagement import EngagementBlock
+
+    chatter = [ChatterMonitor(ChatterSettings(method=m)) for m in ("chatter-comb", "chatter-sdft")]
+    breakage = [BreakageBlock(2, "constant"), BreakageBlock(2, "dual")]
+    engagement = EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2)
+    out = _grouped([chatter[0], breakage[0], engagement, chatter[1], breakage[1]])
+    assert [type(b) for b in out] == [ChatterGroup, BreakageGroup, EngagementBlock]
+    assert out[1].members == breakage
+    apart = [BreakageBlock(2, "constant"), BreakageBlock(3, "dual")]
+    assert _grouped(apart) == apart

@@ -10,7 +10,12 @@ import numpy as np
 import pytest
 
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.monitoring.breakage import BreakageBlock, check_speed, make_breakage_dual_block
+from millsense.monitoring.breakage import (
+    BreakageBlock,
+    BreakageGroup,
+    check_speed,
+    make_breakage_dual_block,
+)
 from millsense.process.engagement import Engagement
 from millsense.simulator.process_coupling import EngagementSchedule, EngagementSegment, ToothBreak
 from millsense.validation.cases._torque_sim import FS, simulate_torque
@@ -180,3 +185,34 @@ def test_rearm_lets_a_persisting_breakage_alarm_again() -> None:
     again = blk.process(Chunk(50 * tooth, fs, 0.0, {k: v[50 * tooth :] for k, v in data.items()}))
     assert len(again.events) == 1
     assert again.events[0].time_s == pytest.approx(53 * tooth / fs, abs=2 * tooth / fs)
+
+
+def _three() -> list[BreakageBlock]:
+    return [
+        _virtual(),
+        BreakageBlock(2, "constant", learn_from=0.5),
+        BreakageBlock(2, "dual", expected_channel=None),
+    ]
+
+
+@pytest.mark.parametrize("chunk", [7, 100, 1000])
+def test_group_equals_the_detectors_alone(chunk: int) -> None:
+    """Decision 1536: the group's outputs and events are its members' bit for bit."""
+    data = {k: v[: int(9.0 * FS)] for k, v in _stream().items()}
+    alone = [run_block(b, data, chunk) for b in _three()]
+    events, ch = run_block(BreakageGroup(_three()), data, chunk)
+    # in stream order; members in their order within a chunk
+    expected = sorted((e for ev, _ in alone for e in ev), key=lambda e: e.sample // chunk)
+    assert [e.as_dict() for e in events] == [e.as_dict() for e in expected]
+    assert any(e.source == "breakage.virtual" for e in events)
+    ref = {k: v for _, c in alone for k, v in c.items()}
+    assert ch.keys() == ref.keys()
+    for k in ref:
+        np.testing.assert_array_equal(ch[k], ref[k])
+
+
+def test_group_refuses_repeated_names_and_other_speeds() -> None:
+    with pytest.raises(ConfigError, match="repeat"):
+        BreakageGroup([_virtual(), _virtual()])
+    with pytest.raises(ConfigError, match="speed channel or flute"):
+        BreakageGroup([_virtual(), BreakageBlock(3, "constant")])

@@ -124,6 +124,19 @@ def test_window_transform_is_scipy_rfft() -> None:
         np.testing.assert_array_equal(rfft(x), scipy.fft.rfft(x))
 
 
+def test_window_pair_transform_is_two_scipy_rffts() -> None:
+    """The raw and comb-filtered windows transformed in one call (decision 1536) are their two
+    scipy.fft.rfft transforms bit for bit."""
+    from millsense.monitoring.chatter.block import rfft_rows
+
+    rng = np.random.default_rng(4)
+    for n in (256, 2048, 4096):
+        a = rng.standard_normal((2, n)) * np.array([[1.0], [1e-3]])
+        got = rfft_rows(a)
+        for i in range(2):
+            np.testing.assert_array_equal(got[i], scipy.fft.rfft(a[i]))
+
+
 def test_band_median_is_numpys_median() -> None:
     """The compiled band median (quickselect) equals np.median exactly: odd and even counts,
     ties, constant spectra, empty and one-bin bands."""

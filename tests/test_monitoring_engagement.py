@@ -145,3 +145,36 @@ def test_fit_on_the_exit_bound_converges_to_the_bounded_optimum():
     assert p60[0] == pytest.approx(ref.x[0], rel=1e-5)
     assert p60[1] == pytest.approx(ref.x[1], abs=1e-6)
     assert c60 <= ref.cost * (1 + 1e-9)
+
+
+def test_harmonic_sums_equal_the_complex_products_sample_by_sample() -> None:
+    """Decision 1536: the four-sample, real-scaled harmonic sums equal ``sums[k] += x·z`` in
+    complex arithmetic, sample by sample, bit for bit (zeros included)."""
+    import numba
+
+    from millsense.monitoring._spectrum_kernels import _add_harmonics
+
+    @numba.njit(cache=False)
+    def reference(x, ang, n_flutes, sums):  # type: ignore[no-untyped-def]
+        for s in range(x.shape[0]):
+            b = complex(math.cos(ang[s]), -math.sin(ang[s]))
+            sums[0] += x[s] * b
+            bn = b**n_flutes
+            z = bn
+            for j in range(1, sums.shape[0]):
+                sums[j] += x[s] * z
+                z *= bn
+
+    rng = np.random.default_rng(5)
+    for n in (1, 3, 4, 37, 1000):
+        x = rng.standard_normal(n)
+        x[::7] = 0.0
+        ang = 2 * math.pi * rng.random(n)
+        ang[::5] = 0.0
+        for n_flutes in (1, 2, 3, 4):
+            got = np.zeros(16, dtype=np.complex128)
+            want = np.zeros(16, dtype=np.complex128)
+            for _ in range(2):
+                _add_harmonics(x, ang, 0, n, n_flutes, got)
+                reference(x, ang, n_flutes, want)
+            np.testing.assert_array_equal(got.view(np.float64), want.view(np.float64))

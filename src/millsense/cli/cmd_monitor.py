@@ -405,14 +405,26 @@ def _engagement_summary(block: Any) -> str:
 
 def _grouped(blocks: list[Any]) -> list[Any]:
     """Chatter monitors on the same signal run as one :class:`ChatterGroup` (one comb filter
-    for all criteria: same outputs and events, less work); other monitors unchanged."""
+    for all criteria) and breakage detectors on one speed channel as one
+    :class:`BreakageGroup` (one compiled call per chunk for all, decision 1536): same outputs
+    and events, less work; other monitors unchanged."""
+    from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
     from millsense.monitoring.chatter import ChatterGroup, ChatterMonitor
 
     chatter = [b for b in blocks if isinstance(b, ChatterMonitor)]
-    if len(chatter) < 2:
-        return blocks
-    others = [b for b in blocks if not isinstance(b, ChatterMonitor)]
-    return [ChatterGroup(chatter), *others]
+    breakage = [b for b in blocks if isinstance(b, BreakageBlock)]
+    if len({(b.speed_channel, b.n_flutes) for b in breakage}) > 1:
+        breakage = []  # detectors on different speeds or tools stay apart
+    groups: list[Any] = []
+    inside: list[Any] = []
+    if len(chatter) >= 2:
+        groups.append(ChatterGroup(chatter))
+        inside += chatter
+    if len(breakage) >= 2:
+        groups.append(BreakageGroup(breakage))
+        inside += breakage
+    grouped = {id(b) for b in inside}
+    return [*groups, *(b for b in blocks if id(b) not in grouped)]
 
 
 def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:

@@ -100,6 +100,37 @@ def segment_periods(
     return m
 
 
+
+@numba.njit(cache=True)
+def segment_group(
+    x: FloatArray,
+    rows: IntArray,
+    speed: FloatArray,
+    fs: float,
+    n_flutes: int,
+    state: FloatArray,
+    means: FloatArray,
+    ends: IntArray,
+    held: IntArray,
+    counts: IntArray,
+) -> int:
+    """:func:`segment_periods` for several detectors on one speed channel in one call:
+    detector ``j`` averages the rows ``rows[j] = (a, b, expected)`` of ``x`` (−1: none) with
+    its state ``state[j]`` into ``means[j, 0:3]``, ``ends[j]``, ``held[j]``; ``counts[j]`` ←
+    its periods completed. Returns the largest count."""
+    empty = x[0, :0]
+    top = 0
+    for j in range(rows.shape[0]):
+        a = x[rows[j, 0]]
+        b = x[rows[j, 1]] if rows[j, 1] >= 0 else empty
+        e = x[rows[j, 2]] if rows[j, 2] >= 0 else empty
+        k = segment_periods(a, b, e, speed, fs, n_flutes, state[j], means[j, 0], means[j, 1],
+                            means[j, 2], ends[j, 0], ends[j, 1], held[j])  # fmt: skip
+        counts[j] = k
+        top = max(top, k)
+    return top
+
+
 # detector state layout
 DET_PHI1 = 0
 DET_P1 = 1
@@ -341,3 +372,40 @@ def periods_step(
         if pb[1, i]:
             alarms += 1
     return first, alarms
+
+
+@numba.njit(cache=True)
+def periods_group(
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    pi: IntArray,
+    counts: IntArray,
+    two: NDArray[np.bool_],
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+    held_prev: FloatArray,
+    held: IntArray,
+    out: FloatArray,
+    firsts: IntArray,
+    alarms: IntArray,
+) -> int:
+    """:func:`periods_step` of several detectors in one call (detector ``j``: ``pp[j]``,
+    ``pb[j]``, period indices ``pi[j, 1]``, ``counts[j]`` periods, two channels if ``two[j]``,
+    ``params[j]``, ``iparams[j]``, ``state[j]``, ``held_prev[j]``, ``held[j]``, outputs
+    ``out[5j:5j + 5]``, running violation ``firsts[j]``; ``alarms[j]`` ← its alarms). A
+    detector without a period in the chunk holds its values. Returns the alarms of all."""
+    total = 0
+    for j in range(counts.shape[0]):
+        rows = out[5 * j : 5 * j + 5]
+        k = counts[j]
+        if k == 0:
+            fill_outputs(held_prev[j], pp[j, 3:], 0, held[j], rows)
+            alarms[j] = 0
+            continue
+        first, a = periods_step(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
+                                held_prev[j], held[j], rows, firsts[j], pi[j, 1])  # fmt: skip
+        firsts[j] = first
+        alarms[j] = a
+        total += a
+    return total

@@ -36,6 +36,7 @@ second one.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -263,7 +264,17 @@ class BreakageBlock(Block):
         return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        d = chunk.data
+        k, n = self._segment(chunk.data)
+        if k == 0:  # no tooth period ends in this chunk: the held values throughout
+            views = self._held_views
+            if views is not None and views[0] == n:
+                return BlockOutput(dict(views[1]))
+            return BlockOutput(self._held_outputs(n))
+        return self._periods(chunk, k, n)
+
+    def _segment(self, d: Any) -> tuple[int, int]:
+        """The chunk's samples (channels ``d``) added to the tooth-period averages (Aslan
+        Eq. 6.1): the tooth periods ending in it and its length."""
         a = np.asarray(d[self._ch_a], dtype=np.float64)
         n = a.shape[0]
         b = self._empty if self._ch_b is None else np.asarray(d[self._ch_b], dtype=np.float64)
@@ -274,13 +285,16 @@ class BreakageBlock(Block):
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
         r0, r1, r2, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2
-        k = _k.segment_periods(a, b, e, speed, self.fs, self.n_flutes, self._seg, r0, r1, r2,
-                               r3, r4, held)  # fmt: skip
-        if k == 0:  # no tooth period ends in this chunk: the held values throughout
-            views = self._held_views
-            if views is not None and views[0] == n:
-                return BlockOutput(dict(views[1]))
-            return BlockOutput(self._held_outputs(n))
+        k: int = _k.segment_periods(a, b, e, speed, self.fs, self.n_flutes, self._seg, r0, r1,
+                                    r2, r3, r4, held)  # fmt: skip
+        return k, n
+
+    def _periods(self, chunk: Chunk, k: int, n: int) -> BlockOutput:
+        """Outputs and events of a chunk of ``n`` samples in which ``k`` ≥ 1 tooth periods end
+        (after :meth:`_segment`): residuals, limits and detection per period (Eqs. 6.2–6.6)."""
+        d = chunk.data
+        held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
+        r4 = self._bufs[4]
         self._held_views = None
         pp, pi, pb = self._pp, self._pi, self._pb
         values = np.empty((5, n))
@@ -292,10 +306,17 @@ class BreakageBlock(Block):
             self._held, held, values, first, r4,
         )  # fmt: skip
         out = BlockOutput(dict(zip(self._names, values, strict=True)))
-        if not alarms:
-            return out
+        if alarms:
+            out.events.extend(self._alarms(chunk, k, first))
+        return out
+
+    def _alarms(self, chunk: Chunk, k: int, first: int) -> list[Event]:
+        """The alarm events of the ``k`` tooth periods of a chunk just judged (``first``: the
+        first period of the running violation before it)."""
+        pp, pi, pb = self._pp, self._pi, self._pb
         x, expected, eps1, lim1, eps2, lim2 = pp[3], pp[2], pp[4], pp[5], pp[6], pp[7]
         end, index, viol, alarm = pi[0], pi[1], pb[0], pb[1]
+        events = []
         for i in range(k):
             if viol[i]:
                 if first < 0:
@@ -303,21 +324,10 @@ class BreakageBlock(Block):
             else:
                 first = -1
             if alarm[i]:
-                out.events.append(
-                    self._event(
-                        chunk,
-                        int(end[i]),
-                        int(index[i]),
-                        first,
-                        x[i],
-                        expected[i],
-                        eps1[i],
-                        lim1[i],
-                        eps2[i],
-                        lim2[i],
-                    )
-                )
-        return out
+                at, period = int(end[i]), int(index[i])
+                values = (x[i], expected[i], eps1[i], lim1[i], eps2[i], lim2[i])
+                events.append(self._event(chunk, at, period, first, *values))
+        return events
 
     def _size(self, n: int) -> None:
         """Work arrays for chunks of ``n`` samples."""
@@ -406,6 +416,134 @@ class BreakageBlock(Block):
             y_mm=y_mm,
             z_mm=z_mm,
         )
+
+
+class BreakageGroup(Block):
+    """Several breakage detectors on one spindle-speed channel as one block: their tooth-period
+    averages (Aslan Eq. 6.1, Munasinghe Eq. 3.43) in one compiled call per chunk
+    (:func:`~millsense.monitoring._tooth_kernels.segment_group`), the per-period step of the
+    detectors in which a period ends, and one dict of held outputs reused while none ends
+    (decision 1536: the per-chunk Python work of three blocks in 10 ms chunks cost more than
+    their compiled loops). Outputs and events are the members', unchanged.
+
+    Parameters
+    ----------
+    members : breakage detectors with distinct names, one speed channel and flute count.
+    name : block name.
+    """
+
+    def __init__(self, members: Sequence[BreakageBlock], name: str = "breakage") -> None:
+        if not members:
+            raise ConfigError("breakage group: no detector")
+        names = [m.name for m in members]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"breakage group: detector names repeat: {names}")
+        ref = members[0]
+        for m in members[1:]:
+            if (m.speed_channel, m.n_flutes) != (ref.speed_channel, ref.n_flutes):
+                raise ConfigError(
+                    f"breakage group: detector '{m.name}' reads another speed channel or flute "
+                    f"count than '{ref.name}'"
+                )
+        self.members = list(members)
+        self.name = name
+        self.inputs = tuple(dict.fromkeys(c for m in members for c in m.inputs))
+        # the channels averaged over tooth periods, and each detector's rows (a, b, expected)
+        averaged = [_averaged(m) for m in members]
+        chans = list(dict.fromkeys(c for row in averaged for c in row if c is not None))
+        self._chans = tuple(chans)
+        self._rows = np.array(
+            [[-1 if c is None else chans.index(c) for c in row] for row in averaged],
+            dtype=np.int64,
+        )
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [c for m in self.members for c in m.output_channels()]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        ms = self.members
+        for m in ms:
+            m.reset(sample_rate_hz)
+        # the members' state lives in rows of the group's arrays (one compiled call for all)
+        self._seg = np.stack([m._seg for m in ms])
+        self._det = np.stack([m._det for m in ms])
+        self._held = np.stack([m._held for m in ms])
+        for j, m in enumerate(ms):
+            m._seg, m._det, m._held = self._seg[j], self._det[j], self._held[j]
+        self._params = np.stack([m._params for m in ms])
+        self._iparams = np.stack([m._iparams for m in ms])
+        self._two = np.array([len(m.signal_channels) == 2 for m in ms])
+        self._planned = [(j, m) for j, m in enumerate(ms) if m.plan is not None
+                         and m.expected_channel is None]  # fmt: skip
+        self._firsts = np.full(len(ms), -1, dtype=np.int64)
+        self._alarms = np.zeros(len(ms), dtype=np.int64)
+        self._names = tuple(c.name for c in self.output_channels())
+        self._n = -1
+        self._held_views: HeldViews | None = None
+
+    def _size(self, n: int) -> None:
+        """Work arrays for chunks of ``n`` samples, shared with the members (rows)."""
+        ms = self.members
+        for m in ms:
+            m._size(n)
+        cap = max(m._pp.shape[1] for m in ms)
+        self._pp = np.empty((len(ms), 8, cap))
+        self._pi = np.empty((len(ms), 2, cap), dtype=np.int64)
+        self._pb = np.empty((len(ms), 2, cap), dtype=np.bool_)
+        self._hb = np.empty((len(ms), n), dtype=np.int64)
+        for j, m in enumerate(ms):
+            pp, pi = self._pp[j], self._pi[j]
+            m._pp, m._pi, m._pb, m._hbuf = pp, pi, self._pb[j], self._hb[j]
+            m._bufs = (pp[0], pp[1], pp[2], pi[0], pi[1])
+        self._x = np.empty((len(self._chans), n))
+        self._counts = np.zeros(len(ms), dtype=np.int64)
+        self._n = n
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        ms = self.members
+        n = len(d[ms[0].speed_channel])
+        if n != self._n:
+            self._size(n)
+        x = self._x
+        for r, c in enumerate(self._chans):
+            x[r] = d[c]
+        speed = np.asarray(d[ms[0].speed_channel], dtype=np.float64)
+        counts = self._counts
+        top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
+                               self._pp, self._pi, self._hb, counts)  # fmt: skip
+        if top == 0:  # no tooth period ends: the held values of every member
+            views = self._held_views
+            if views is not None and views[0] == n:  # none ended since: the same views
+                return BlockOutput(dict(views[1]))
+            self._held_views, held = held_views(self._names, self._held.reshape(-1), views, n)
+            return BlockOutput(held)
+        self._held_views = None
+        for j, m in self._planned:
+            k = int(counts[j])
+            if k:
+                self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
+        firsts = self._firsts
+        for j, m in enumerate(ms):
+            firsts[j] = m._first_violation
+        before = firsts.copy()
+        values = np.empty((len(self._names), n))
+        total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
+                                 self._iparams, self._det, self._held, self._hb, values, firsts,
+                                 self._alarms)  # fmt: skip
+        out = BlockOutput(dict(zip(self._names, values, strict=True)))
+        for j, m in enumerate(ms):
+            m._first_violation = int(firsts[j])
+            if total and self._alarms[j]:
+                out.events.extend(m._alarms(chunk, int(counts[j]), int(before[j])))
+        return out
+
+
+def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None]:
+    """The channels a detector averages per tooth period: (a, b, expected), None where it has
+    none (as :meth:`BreakageBlock._segment` reads them)."""
+    sig = m.signal_channels
+    return sig[0], sig[1] if len(sig) == 2 else None, m.expected_channel
 
 
 def check_speed(speed_rad_s: np.ndarray, channel: str) -> None:

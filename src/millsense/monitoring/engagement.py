@@ -194,7 +194,10 @@ class EngagementBlock(Block):
         n = x.shape[0]
         nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
-            return BlockOutput(channels=self._held_outputs(n))
+            views = self._held_views
+            if views is not None and views[0] == n:  # nothing ended since: the same views
+                return BlockOutput(dict(views[1]))
+            return BlockOutput(self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
         pos = 0
         while True:

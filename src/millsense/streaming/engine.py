@@ -29,6 +29,8 @@ class Pipeline:
 
     def __init__(self, blocks: Sequence[Block]) -> None:
         self.blocks = list(blocks)
+        #: the blocks and the sorted channels they read (checked for NaN/inf per chunk)
+        self._inputs: tuple[tuple[Block, ...], list[str]] = ((), [])
         names = [b.name for b in self.blocks]
         if len(set(names)) != len(names):
             raise ValueError(f"block names must be unique, got {names}")
@@ -63,18 +65,21 @@ class Pipeline:
         self._source_name = name
 
     def _require_finite(self, chunk: Chunk) -> None:
-        """One-line error naming the channel and time of the first NaN/inf a block would read."""
-        needed = {c for b in self.blocks for c in b.inputs if c in chunk.data}
-        for name in sorted(needed):
-            values = chunk.data[name]
-            bad = ~np.isfinite(values)
-            if bad.any():
-                k = int(np.argmax(bad))
-                t = chunk.t0_s + (chunk.start + k) / chunk.sample_rate_hz
-                raise InputDataError(
-                    f"{getattr(self, '_source_name', 'source')}: channel '{name}' has "
-                    f"{values[k]} at sample {chunk.start + k} (t = {t:.6g} s)"
-                )
+        """One-line error naming the channel and time of the first NaN/inf a block would read
+        (the channels the blocks read are listed once, not per chunk)."""
+        blocks = tuple(self.blocks)
+        if self._inputs[0] != blocks:
+            self._inputs = (blocks, sorted({c for b in blocks for c in b.inputs}))
+        for name in self._inputs[1]:
+            values = chunk.data.get(name)
+            if values is None or np.isfinite(values).all():
+                continue
+            k = int(np.argmax(~np.isfinite(values)))
+            t = chunk.t0_s + (chunk.start + k) / chunk.sample_rate_hz
+            raise InputDataError(
+                f"{getattr(self, '_source_name', 'source')}: channel '{name}' has "
+                f"{values[k]} at sample {chunk.start + k} (t = {t:.6g} s)"
+            )
 
     def process(self, chunk: Chunk) -> tuple[dict[str, np.ndarray], list[Event]]:
         """Run every block on ``chunk``; returns all block outputs and events."""
@@ -82,14 +87,18 @@ class Pipeline:
         self._require_finite(chunk)
         outputs: dict[str, np.ndarray] = {}
         events: list[Event] = []
+        n = chunk.n
         for b in self.blocks:
-            sub = Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s, data).restricted(b.inputs)
+            # the chunk restricted to the block's inputs (as Chunk.restricted, without an
+            # intermediate chunk)
+            inputs = {k: data[k] for k in b.inputs}
+            sub = Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s, inputs)
             out = b.process(sub)
             for name, values in out.channels.items():
-                if len(values) != chunk.n:
+                if len(values) != n:
                     raise RuntimeError(
                         f"block '{b.name}' returned {len(values)} samples of '{name}' "
-                        f"for a chunk of {chunk.n}"
+                        f"for a chunk of {n}"
                     )
             data.update(out.channels)
             outputs.update(out.channels)

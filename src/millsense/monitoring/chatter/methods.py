@@ -60,6 +60,7 @@ class Spectra:
     novel : comb amplitude above 5 × its learned background (≤ 0: nothing new).
     raw_rect : the raw window's rectangular spectrum (same taper as ``comb``; for Parseval).
     band_slice : ``band`` as the bins ``b0:b1`` (it is contiguous), or None to derive it.
+    peak_bin : the band's largest bin of ``novel`` if known (−1: found by the criterion).
     """
 
     f_hz: FloatArray
@@ -73,6 +74,7 @@ class Spectra:
     novel: FloatArray
     raw_rect: FloatArray | None = None
     band_slice: tuple[int, int] | None = None
+    peak_bin: int = -1
 
 
 @dataclass(frozen=True)
@@ -135,7 +137,7 @@ class ChatterMethod:
         else:
             nz = np.flatnonzero(s.band)
             b0, b1 = (int(nz[0]), int(nz[-1]) + 1) if len(nz) else (0, 0)
-        k = _kn.band_argmax(s.novel, b0, b1)
+        k = s.peak_bin if s.peak_bin >= 0 else _kn.band_argmax(s.novel, b0, b1)
         if not s.cutting or not b0 <= k < b1 or s.novel[k] <= 0.0 or s.tooth <= 0.0:
             return Verdict(0.0, float("nan"), thr)
         f_c = peak_frequency(s.f_hz, s.comb, k)
