@@ -22,8 +22,9 @@ mechanics and electrics so that the residual arises from the structure (decision
   the voltage applied after ``current_dead_substeps`` current-loop periods (computation and
   PWM dead time);
 - the drive's velocity PI (Eq. 5.3 gains, per rev/s of speed error, decision 0032) sampled
-  every ``velocity_period_s`` on the speed of the motor encoder (``encoder_counts`` per rev,
-  backward difference over one CNC sample), its output I_nom held;
+  every ``velocity_period_s`` on the motor encoder's speed (``encoder_counts`` per rev; the
+  angle difference over the velocity period), its output I_nom held; the CNC's speed channel
+  is the difference over one CNC sample;
 - the cutting torque acts on the last inertia (the tool).
 
 The linear part is discretised exactly (zero-order hold, one matrix exponential per range) on
@@ -229,7 +230,8 @@ def _truth_spindle_kernel(
     """One call steps ``len(speed_ref)`` CNC samples.
 
     ctl = [sample counter, velocity integrator, I_nom held, range, current integrator,
-    encoder angle of the previous sample, measured speed, started]; vbuf the voltages in
+    encoder angle of the previous sample, measured speed (CNC), started, encoder angle at the
+    previous velocity sample]; vbuf the voltages in
     flight (dead time); prm described in :class:`TruthSpindleSim`; rip rows (order, amplitude,
     phase).
     """
@@ -254,6 +256,7 @@ def _truth_spindle_kernel(
             enc = th0
         if ctl[7] == 0.0:
             ctl[5] = enc
+            ctl[8] = enc
             ctl[7] = 1.0
         ctl[6] = (enc - ctl[5]) / h
         ctl[5] = enc
@@ -261,7 +264,9 @@ def _truth_spindle_kernel(
         if int(ctl[0]) % int(nv) == 0:
             r = 1 if abs(speed_ref[k]) >= w_sw else 0
             ctl[3] = r
-            e = speed_ref[k] - ctl[6]
+            # the drive's speed: encoder difference over its own period
+            e = speed_ref[k] - (enc - ctl[8]) / tv
+            ctl[8] = enc
             ctl[1] += kiv * e * tv
             ctl[2] = kpv * e + ctl[1]
         ctl[0] += 1.0
@@ -366,7 +371,7 @@ class TruthSpindleSim:
             dtype=np.float64,
         )
         self._x = np.zeros(1 + 2 * n_j)
-        self._ctl = np.zeros(8)
+        self._ctl = np.zeros(9)
         self._vbuf = np.zeros(max(truth.current_dead_substeps, 1))
 
     def advance(
