@@ -211,7 +211,7 @@ def _relative_error(found_hz: float, simulated_hz: float) -> float:
     return abs(found_hz / simulated_hz - 1.0) if math.isfinite(found_hz) else 1.0
 
 
-def _freq_case(tool: str, gap: str = "") -> None:
+def _freq_case(tool: str, gap: str = "", issue: int = 15) -> None:
     @case(
         f"monitoring.chatter.v5_{tool.lower()}_compensated_hz",
         source=f"seed 000 V5 (Aslan Ch. 5.4, Tables 5.3-5.4) {tool}: chatter detected on the "
@@ -223,7 +223,7 @@ def _freq_case(tool: str, gap: str = "") -> None:
         description=f"relative error of the chatter frequency reported by chatter-comb on the "
         f"compensated spindle torque against the simulated torque's chatter peak, {tool} replica "
         "(module notes; no alarm counts as 1); table of all four tools",
-        issue=15 if gap else None,
+        issue=issue if gap else None,
         gap=gap,
     )
     def _f() -> Measured:
@@ -231,14 +231,26 @@ def _freq_case(tool: str, gap: str = "") -> None:
         return Measured(_relative_error(r["comp_hz"], r["sim_torque_hz"]), _v5_table())
 
 
-for _tool in ("T1", "T2", "T3"):
+_freq_case(
+    "T1",
+    gap="on the truth spindle (decision 1210) the compensated torque follows the cut's (461 Hz "
+    "line 8.0 vs 8.1 N·m) but the observer lifts the noise of the 2^20-count encoder's speed "
+    "into it (1.6 N·m RMS in air): over the cut the band's median spectrum doubles (102 vs 55 "
+    "on the true torque) and the 500 Hz tooth line of the 5-tooth full-immersion face mill "
+    "stands only 2.1× above it, below the detector's cutting gate of 3 (decision 1504), so the "
+    "steady cut is not judged (ratio 0) and the one alarm is at the cut entry (1245 Hz); the "
+    "raw current finds 480 Hz",
+    issue=12,
+)
+for _tool in ("T2", "T3"):
     _freq_case(_tool)
 _freq_case(
     "T4",
     gap="in the replica the chatter line of the cutting torque (a sideband at ω_c + N·Ω, "
     "≈ 0.43 N·m on the truth plant) is no stronger than the observer's noise lines between 1.2 "
     "and 2.4 kHz (0.33-0.40 N·m): it is not new against the learned background and the "
-    "compensated ratio stays below 1.5, so no alarm (decisions 1506, 1531)",
+    "compensated ratio stays below 1.5, so no alarm (decisions 1506, 1531); measured on "
+    "Aslan's Ch. 5 plant, on the truth spindle (decision 1210) the compensated ratio is 0.82",
 )
 
 
@@ -319,6 +331,10 @@ def stable_alarms() -> list[tuple[str, float, int, int, float]]:
     abs_tol=0.0,
     unit="alarms",
     quick=False,
+    gap="on the truth spindle (decision 1210) the compensated T1 1.5 mm cut raises one alarm "
+    "(the raw current none): the observer-amplified encoder noise of the compensated torque "
+    "(see monitoring.chatter.v5_t1_compensated_hz); not investigated further",
+    issue=12,
     description="chatter-comb alarms on the compensated and the raw spindle current over the "
     "five replica cuts that are stable in the simulation on the truth plant (T1 1.5, T2 2 and "
     "3.5, T3 0.5, T4 0.25 mm; 0.8 s air, 1.4 s cut); the thesis's T4 0.5 mm chatters in the "

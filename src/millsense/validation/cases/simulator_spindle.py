@@ -40,6 +40,14 @@ TRUTH_FIT = Calibration(
     "python -m millsense.simulator.truth_spindle_fit (least squares; decision 1210)",
 )
 
+_ATT_GAP = (
+    "a chain of inertias under the drive's loops cannot be below the rigid-body loop at "
+    "457/945 Hz (the table: −3/−4 dB) and above it at 1380-2320 Hz (+6…+14 dB) with J_eS = "
+    "0.0316 kg·m² kept: the least-squares compromise (decision 1210, RMS 3.35 dB, max 4.99 dB) "
+    "stays near the rigid level below 1 kHz (+3.5, +5.0 dB) and undershoots the 1380 Hz point "
+    "(−4.3 dB); the truth is not tuned further to a validation figure"
+)
+
 _VEL_GAP = (
     "the truth keeps Aslan's J_eS = 0.0316 kg·m², K_t within 2 % of Table 5.1 and the Eq. 5.3 "
     "velocity PI per rev/s (decision 0032); with them the rigid loop closes at ≈ 28 Hz, and "
@@ -70,6 +78,8 @@ def _attenuation_case(f_hz: float, stated_db: float) -> None:
         abs_tol=3.0,
         quick=False,
         calibration=TRUTH_FIT,
+        gap=_ATT_GAP,
+        issue=12,
         description=f"|G_dτ| = |I_nom/τ_d| at {f_hz:g} Hz of the truth spindle (range 1, "
         "0 rev/min, sine torque at the tool, linear part), the figure the truth was tuned to "
         "resemble (two-sided ±3 dB); beside it Aslan's printed Ch. 5 model (--ideal)",
