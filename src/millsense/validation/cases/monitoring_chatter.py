@@ -447,7 +447,7 @@ def stable_stream(duration_s: float, seed: int = 0, spindle: bool = True) -> dic
     aslan-d20-2flute) in Al7050 at 0.1 mm/tooth. Channels: ``sensor`` (the feed force through
     a stable 1500 Hz resonance, ζ = 2 %, plus a steady 1234 Hz tone and white noise, in N),
     ``spindle/speed`` (rad/s, measured) and, with ``spindle``, ``spindle/current_cmd`` (A) of
-    the Aslan spindle drive driven by the cutting torque (0.05 A noise).
+    the truth spindle (decision 1210) driven by the cutting torque (0.05 A noise).
     """
     import scipy.signal
 
@@ -495,10 +495,10 @@ def stable_stream(duration_s: float, seed: int = 0, spindle: bool = True) -> dic
     sensor += 2.0 * rng.standard_normal(n)
     out = {"sensor": sensor, "spindle/speed": speed}
     if spindle:
-        from millsense.models.spindle_plant import SpindleDriveParams
-        from millsense.simulator.spindle import SpindleDriveSim
+        from millsense.simulator.truth_spindle import TruthSpindleSim, load_truth_spindle
 
-        res = SpindleDriveSim(SpindleDriveParams.aslan_quaser(), FS_HZ).advance(speed, torque)
+        # the virtual machine's truth spindle (decision 1210), which the observer is identified on
+        res = TruthSpindleSim(load_truth_spindle("quaser-ux600"), FS_HZ).advance(speed, torque)
         out["spindle/current_cmd"] = res["current_cmd"] + 0.05 * rng.standard_normal(n)
         out["spindle/speed"] = res["speed"]
     return out
