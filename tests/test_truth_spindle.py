@@ -181,3 +181,35 @@ def test_commission_identify_observer_round_trip_on_the_truth() -> None:
     d = tun.design
     a_err = d.a - d.k_predictor @ d.c  # observer error dynamics (Eq. 5.18)
     assert np.max(np.abs(np.linalg.eigvals(a_err))) < 1.0
+
+
+def test_commissioned_spindle_friction_resembles_the_truths_drag() -> None:
+    # `commission` → `identify spindle` path: constant-speed runs on the truth, the drive's K_t
+    # (the simulator file's, 2 % below the truth's) times the mean current, a line through
+    # the runs (Eq. 5.2). The truth's drag is Coulomb + viscous + a (|ω|/ω_ref)^(2/3) moment,
+    # so the line is the belief's approximation: its torque within 5 % of the truth's drag at
+    # the runs' speeds (the K_t error 2 %, the curvature of the 2/3 power ≤ 2 %)
+    from millsense.ident.friction import spindle_friction_from_moves
+    from millsense.simulator.commissioning import spindle_friction_test
+
+    truth = load_truth_spindle("quaser-ux600")
+    speeds = np.array([50.0, 100.0, 150.0, 200.0, 250.0])
+    rec = spindle_friction_test(truth, speeds, drive_torque_constants=(1.343, 1.571))
+    w, i, kt = (
+        rec.channel(k) for k in ("spindle/speed", "spindle/current", "spindle/torque_constant")
+    )
+    assert kt[-1] == pytest.approx(1.343)  # the drive's K_t, not the truth's 1.371
+    n_hold, n_ramp = round(1.5 * FS), round(0.5 * FS)
+    ws, ts = [], []
+    for k in range(len(speeds)):
+        sl = slice(k * (n_hold + n_ramp) + n_ramp + n_hold // 2, (k + 1) * (n_hold + n_ramp))
+        ws.append(float(np.mean(w[sl])))
+        ts.append(float(np.mean(kt[sl] * i[sl])))
+    coul, visc = spindle_friction_from_moves(np.array(ws), np.array(ts))
+    for om in speeds:
+        drag = (
+            truth.viscous * om
+            + truth.coulomb * math.tanh(om / truth.coulomb_smoothing_rad_s)
+            + truth.drag * (om / truth.drag_ref_rad_s) ** (2 / 3)
+        )
+        assert coul + visc * om == pytest.approx(drag, rel=0.05), om
