@@ -108,7 +108,7 @@ for _f, _db in _STATED_ATT:
     reference=385.0,
     unit="Hz",
     rel_tol=0.1,
-    quick=True,
+    quick=False,
     calibration=TRUTH_FIT,
     description="−3 dB bandwidth of the truth's current loop (drive PI sampled at 20 kHz, one "
     "period of dead time, R-L electrics, rotor held), range 1; Aslan's printed model gives "
@@ -128,7 +128,7 @@ def _cur_bw1() -> Measured:
     reference=1190.0,
     unit="Hz",
     rel_tol=0.1,
-    quick=True,
+    quick=False,
     calibration=TRUTH_FIT,
     description="−3 dB bandwidth of the truth's current loop, range 2; Aslan's printed model "
     "gives ≈ 1584 Hz",
