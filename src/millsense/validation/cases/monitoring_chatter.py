@@ -534,6 +534,11 @@ def false_alarms() -> dict[str, int]:
     abs_tol=0.0,
     unit="alarms",
     quick=False,
+    gap="on the truth spindle (decision 1210) chatter-comb raises 29 alarms on the compensated "
+    "torque over the 600 s (chatter-sdft and the sensor channel none); not investigated: "
+    "presumably the observer-amplified noise of the 2^20-count encoder seen in "
+    "monitoring.chatter.v5_t1_compensated_hz (0 alarms on Aslan's Ch. 5 plant)",
+    issue=12,
     description="chatter alarms of chatter-comb and chatter-sdft over 600 s of stable slotting "
     "(static forces) with speed changes, 80-120 % overrides, depth steps, air cuts, a steady "
     "1234 Hz tone and a 1500 Hz resonance on a sensor channel, and on the compensated "
