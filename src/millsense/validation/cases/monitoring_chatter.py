@@ -535,9 +535,9 @@ def false_alarms() -> dict[str, int]:
     unit="alarms",
     quick=False,
     gap="on the truth spindle (decision 1210) chatter-comb raises 29 alarms on the compensated "
-    "torque over the 600 s (chatter-sdft and the sensor channel none); not investigated: "
-    "presumably the observer-amplified noise of the 2^20-count encoder seen in "
-    "monitoring.chatter.v5_t1_compensated_hz (0 alarms on Aslan's Ch. 5 plant)",
+    "torque over the 600 s (chatter-sdft and the sensor channel none; 0 on Aslan's Ch. 5 "
+    "plant): the observer amplifies the speed-quantisation noise of the 2^20-count encoder "
+    "(diagnostic, truth unchanged: without quantisation 0 alarms, without the rotor ripple 59)",
     issue=12,
     description="chatter alarms of chatter-comb and chatter-sdft over 600 s of stable slotting "
     "(static forces) with speed changes, 80-120 % overrides, depth steps, air cuts, a steady "
