@@ -10,6 +10,8 @@ below the seed's 1.5.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -34,7 +36,15 @@ def test_t4_replica_torque_peak_is_a_sideband() -> None:
     tq = simulated_chatter_hz(d["truth/spindle/torque"], 10000.0)
     assert np.mean(d["truth/process/chatter"][-8000:]) > 0.9  # the cut chatters
     assert 1900.0 < vib < 2000.0  # near the 1915/1924 Hz modes (thesis: 1979 Hz)
-    assert tq == pytest.approx(vib + 2 * f_rev, rel=0.01)  # the +N·Ω sideband dominates
+    # the +N·Ω sideband dominates the torque: of a vibration chatter line within 3 dB of the
+    # largest (on the truth spindle, decision 1210, the vibration shows two lines 24 Hz apart,
+    # 1919 and 1942 Hz, within 0.6 dB of each other; the torque's peak is the sideband of 1942)
+    x = d["truth/tool/vibration_x"][-4096:]
+    spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(len(x))))
+    f = np.fft.rfftfreq(len(x), 1e-4)
+    band = (f > 1900.0) & (f < 2000.0)
+    lines = f[band][spec[band] >= spec[band].max() / math.sqrt(2.0)]
+    assert np.min(np.abs(tq / (lines + 2 * f_rev) - 1.0)) < 0.01, (tq, lines)
     # the clean simulated torque itself barely passes the seed's 1.5 (the gap's margin)
     _, ratio = detect(d["truth/spindle/torque"], d["spindle/speed"], 2)
     assert 1.2 < np.median(ratio[-8000:]) < 2.0

@@ -6,23 +6,35 @@ import math
 
 import numpy as np
 
+from millsense.core.errors import ConfigError
 from millsense.estimation.kalman.design import KalmanDesign
 from millsense.estimation.kalman.rational_fit import fit_rational
 from millsense.estimation.spindle_observer import (
     SpindleIdentification,
     SpindleTorqueObserver,
-    _decimation,
 )
 from millsense.ident.frf import multisine_frf, multisine_signal
 from millsense.ident.friction import fit_line
 from millsense.models.friction import CoulombViscous
 from millsense.models.spindle_plant import SpindleDriveParams
-from millsense.simulator.spindle import SpindleDriveSim
+from millsense.simulator.commissioning import spindle_sim
+from millsense.simulator.truth_spindle import TruthSpindle
 from millsense.streaming.block import Chunk
 
 
+def _decimation(params: SpindleDriveParams | TruthSpindle, sample_rate_hz: float) -> int:
+    """CNC samples per velocity-loop period (the observer runs at the velocity-loop rate)."""
+    m = round(params.velocity_period_s * sample_rate_hz)
+    if m < 1 or abs(m - params.velocity_period_s * sample_rate_hz) > 1e-6:
+        raise ConfigError(
+            f"spindle: velocity period {params.velocity_period_s} s is not a whole number of "
+            f"samples at {sample_rate_hz:g} Hz"
+        )
+    return m
+
+
 def identify_spindle(
-    params: SpindleDriveParams,
+    params: SpindleDriveParams | TruthSpindle,
     *,
     speed_rpm: float = 0.0,
     sample_rate_hz: float = 10_000.0,
@@ -37,7 +49,8 @@ def identify_spindle(
 
     Parameters
     ----------
-    params : the simulated spindle drive (only I_nom is read from it).
+    params : the simulated spindle drive — the truth (:mod:`millsense.simulator.truth_spindle`)
+        or Aslan's Ch. 5 model; only I_nom is read from it.
     speed_rpm : spindle speed during the test, rev/min (selects the speed range).
     sample_rate_hz : CNC sample rate, Hz (a multiple of the velocity-loop rate).
     torque_rms_nm : RMS of the multisine disturbance torque, N·m (lines 2 Hz … Nyquist).
@@ -54,7 +67,7 @@ def identify_spindle(
     rng = np.random.default_rng(seed)
     lead = round((0.8 if speed_rpm == 0 else 2.0) * fv)
     w = speed_rpm * 2 * math.pi / 60
-    sim = SpindleDriveSim(params, sample_rate_hz)
+    sim = spindle_sim(params, sample_rate_hz)
     n = (lead + len(u)) * m
     ramp = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
     tau = np.repeat(np.concatenate([np.zeros(lead), u]), m)
@@ -70,7 +83,7 @@ def identify_spindle(
 
 
 def identify_spindle_friction(
-    params: SpindleDriveParams,
+    params: SpindleDriveParams | TruthSpindle,
     designs: dict[int, KalmanDesign],
     *,
     speeds_rpm: tuple[float, ...] = (500.0, 1500.0, 2500.0, 3000.0, 4000.0, 5000.0, 6000.0),
@@ -92,7 +105,7 @@ def identify_spindle_friction(
         w = rpm * 2 * math.pi / 60
         n = round(1.2 * sample_rate_hz)
         ref = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
-        out = SpindleDriveSim(params, sample_rate_hz).advance(ref, np.zeros(n))
+        out = spindle_sim(params, sample_rate_hz).advance(ref, np.zeros(n))
         inom = out["current_cmd"] + rng.normal(0.0, current_noise_a, n)
         design = designs[params.range_index(w)]
         obs = SpindleTorqueObserver(design, sample_rate_hz)

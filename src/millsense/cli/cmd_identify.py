@@ -557,9 +557,15 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
             torque_constant_nm_a=sp.torque_constant_nm_a,
             band_hz=band,
         )
-        modes = isp.residual_modes_table(fit)
-        modes["source"] = f"millsense identify spindle {path.name} (residual R, Aslan App. E)"
-        table["residual_modes"] = modes
+        if fit.residual.modes:
+            modes = isp.residual_modes_table(fit)
+            modes["source"] = f"millsense identify spindle {path.name} (residual R, Aslan App. E)"
+            table["residual_modes"] = modes
+        else:
+            notes.append(
+                "residual R: no stable mode in the band, none written (rigid-body G_dτ; "
+                "decision 1210)"
+            )
         g = fit.disturbance_frf(fit.freq_hz)
         notes.append(
             f"residual R: {len(fit.residual.modes)} modes, RMS error "

@@ -67,8 +67,9 @@ def simulate(
         False,
         "--ideal/--truth",
         help="Default --truth: the simulator's own truth plant (coupled lumped-mass drives, "
-        "true K_t, friction, ripple, current loop, dead times; realism on). --ideal, for "
-        "debugging only: the simulator file's one-way model with realism off (decision 1062).",
+        "true K_t, friction, ripple, current loop, dead times; the torsional truth spindle, "
+        "decision 1210; realism on). --ideal, for debugging only: the simulator file's one-way "
+        "model and Aslan's Ch. 5 spindle with realism off (decision 1062).",
     ),
     tool_modes: Path | None = typer.Option(
         None,

@@ -229,7 +229,20 @@ def fit_spindle(
     resid = open_loop - rigid
     coh = np.minimum(h_w.coherence[sel], h_i.coherence[sel])
     est = FrfEstimate(f, resid, resid.copy(), coh, h_w.n_averages, "reference")
-    fit = fit_modes(est, band_hz, max_modes=max_modes, max_damping=max_damping)
+    try:
+        fit = fit_modes(est, band_hz, max_modes=max_modes, max_damping=max_damping)
+    except InputDataError as err:
+        if "no stable mode" not in str(err):
+            raise
+        # no structural resonance in the band (e.g. the truth spindle of decision 1210, whose
+        # torsional modes lie above the velocity loop's band): R = 0, the rigid-body G_dτ
+        fit = ModalFit(
+            (),
+            0.0,
+            band_hz,
+            1.0,
+            notes=("no stable mode in the band: residual R taken as zero (rigid-body G_dτ)",),
+        )
     # an undamped out-of-band pole at the band edge (the velocity loop's Nyquist frequency,
     # where the sweep stops) is a fitting artefact, not structure: drop it
     fit = replace(

@@ -40,11 +40,18 @@ from pathlib import Path
 import numpy as np
 
 from millsense.core.config import MachineConfig
+from millsense.core.errors import InputDataError
 from millsense.core.recording import Recording
 from millsense.models.spindle_plant import SpindleDriveParams
 from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 from millsense.simulator.spindle import SpindleDriveSim
 from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
+from millsense.simulator.truth_spindle import (
+    TruthSpindle,
+    TruthSpindleSim,
+    has_truth_spindle,
+    load_truth_spindle,
+)
 
 _CHANNELS = (
     ("current_cmd", "current_cmd", "A"),
@@ -466,8 +473,32 @@ def idle_runs(
     return out
 
 
+def spindle_sim(
+    params: SpindleDriveParams | TruthSpindle, sample_rate_hz: float = 10000.0
+) -> SpindleDriveSim | TruthSpindleSim:
+    """The simulated spindle drive: the truth (:mod:`.truth_spindle`) or Aslan's Ch. 5 model."""
+    if isinstance(params, TruthSpindle):
+        return TruthSpindleSim(params, sample_rate_hz)
+    return SpindleDriveSim(params, sample_rate_hz)
+
+
+def _drive_gains(params: SpindleDriveParams | TruthSpindle) -> dict[str, object]:
+    """The velocity PI as the drive shows it (per rev/s of speed error, decision 0032)."""
+    if isinstance(params, TruthSpindle):
+        two_pi = 2 * math.pi
+        kp, ki, unit = params.velocity_kp * two_pi, params.velocity_ki * two_pi, "rev/s"
+    else:
+        kp, ki, unit = params.velocity_kp, params.velocity_ki, params.velocity_error_unit
+    return {
+        "velocity_kp": kp,
+        "velocity_ki": ki,
+        "velocity_error_unit": unit,
+        "velocity_period_s": params.velocity_period_s,
+    }
+
+
 def spindle_sweep(
-    params: SpindleDriveParams,
+    params: SpindleDriveParams | TruthSpindle,
     *,
     sample_rate_hz: float = 10000.0,
     speed_rad_s: float = 100.0,
@@ -488,17 +519,14 @@ def spindle_sweep(
     ms = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1e-9, amplitude_rad_s, n_periods)
     n_up = round(1.0 * fs)
     ref = np.concatenate([np.linspace(0.0, speed_rad_s, n_up), speed_rad_s + ms])
-    res = SpindleDriveSim(params, fs).advance(ref, np.zeros(len(ref)))
+    res = spindle_sim(params, fs).advance(ref, np.zeros(len(ref)))
     rec = Recording(
         fs,
         metadata={
             "test": "spindle_sweep",
             "source": "simulated spindle sweep",
             "period_samples": per,
-            "velocity_kp": params.velocity_kp,
-            "velocity_ki": params.velocity_ki,
-            "velocity_error_unit": params.velocity_error_unit,
-            "velocity_period_s": params.velocity_period_s,
+            **_drive_gains(params),
         },
     )
     cut = slice(n_up, None)
@@ -510,13 +538,19 @@ def spindle_sweep(
 
 
 def spindle_friction_test(
-    params: SpindleDriveParams,
+    params: SpindleDriveParams | TruthSpindle,
     speeds_rad_s: np.ndarray,
     *,
     sample_rate_hz: float = 10000.0,
     hold_s: float = 1.5,
+    drive_torque_constants: tuple[float, float] | None = None,
 ) -> Recording:
-    """Constant-speed runs of the spindle (ramps of 0.5 s between them)."""
+    """Constant-speed runs of the spindle (ramps of 0.5 s between them).
+
+    The channel ``spindle/torque_constant`` is the K_t the drive uses per speed range: the
+    given ``drive_torque_constants`` (the drive's parameter, not the truth's K_t), else the
+    model's own (Aslan's Ch. 5 model only; a truth needs them given).
+    """
     fs = sample_rate_hz
     n_hold, n_ramp = round(hold_s * fs), round(0.5 * fs)
     pieces, prev = [], 0.0
@@ -524,8 +558,13 @@ def spindle_friction_test(
         pieces += [np.linspace(prev, v, n_ramp, endpoint=False), np.full(n_hold, v)]
         prev = v
     ref = np.concatenate(pieces)
-    res = SpindleDriveSim(params, fs).advance(ref, np.zeros(len(ref)))
-    kt = np.array([r.torque_constant for r in params.ranges])[res["speed_range"]]
+    res = spindle_sim(params, fs).advance(ref, np.zeros(len(ref)))
+    if drive_torque_constants is None:
+        if isinstance(params, TruthSpindle):
+            raise InputDataError("spindle friction test: give the drive's torque constants")
+        r1, r2 = params.ranges
+        drive_torque_constants = (r1.torque_constant, r2.torque_constant)
+    kt = np.asarray(drive_torque_constants, dtype=float)[res["speed_range"]]
     rec = Recording(
         fs, metadata={"test": "spindle_friction", "source": "simulated spindle friction test"}
     )
@@ -593,10 +632,20 @@ def write_commissioning_set(
         for k, rec in enumerate(idle):
             recs[f"idle_{k + 1}"] = rec
     if spindle and cfg.spindle is not None:
-        sp = SpindleDriveParams.from_config(cfg.spindle)
+        # the truth spindle (decision 1210) unless ideal; the friction test's K_t is the drive's
+        # parameter (the simulator machine file's [spindle]), never the truth's
+        ideal_sp = SpindleDriveParams.from_config(cfg.spindle)
+        sp: SpindleDriveParams | TruthSpindle = ideal_sp
+        if not ideal and has_truth_spindle(cfg.name):
+            sp = load_truth_spindle(cfg.name)
         recs["spindle_sweep"] = spindle_sweep(sp)
         recs["spindle_friction"] = spindle_friction_test(
-            sp, np.array([50.0, 100.0, 150.0, 200.0, 250.0])
+            sp,
+            np.array([50.0, 100.0, 150.0, 200.0, 250.0]),
+            drive_torque_constants=(
+                ideal_sp.ranges[0].torque_constant,
+                ideal_sp.ranges[1].torque_constant,
+            ),
         )
     paths = {}
     for name, rec in recs.items():

@@ -70,6 +70,7 @@ from millsense.simulator.realism import (
 from millsense.simulator.sensors import SensorBank, SensorOptions
 from millsense.simulator.spindle import SpindleDriveSim
 from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
+from millsense.simulator.truth_spindle import TruthSpindleSim, load_truth_spindle
 from millsense.stability.time_domain import DirectionModes
 from millsense.streaming.block import Chunk, Event, EventKind
 from millsense.streaming.sources import Source
@@ -208,7 +209,9 @@ class SimulatorOptions:
         compare the two. Default False.
     ideal : run the one-way model of the machine file (rigid body + printed disturbance
         modes Φ_d, Aslan Eq. 3.1/3.13) instead of the simulator's own truth (coupled lumped-mass
-        drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one); with
+        drives of :mod:`~millsense.simulator.truth_machine`, for presets that have one) and
+        Aslan's Ch. 5 spindle model (:mod:`~millsense.simulator.spindle`) instead of the truth
+        spindle (:mod:`~millsense.simulator.truth_spindle`, decision 1210); with
         ``realism`` left None the realism layer is then off too. Default False: the truth
         with realism on, now that commissioning and identification run on it (decision 1062,
         superseding 1061); ``ideal=True`` is for debugging only.
@@ -633,10 +636,15 @@ class MachineSimulator(Source):
                 self._mode_tables.append(None)
 
         # ---- spindle, sensors
-        self.spindle: SpindleDriveSim | None = None
+        self.spindle: SpindleDriveSim | TruthSpindleSim | None = None
         self._spindle_max = math.inf
+        self.truth_spindle = False
         if machine.spindle is not None:
-            self.spindle = SpindleDriveSim(SpindleDriveParams.from_config(machine.spindle), fs)
+            if truth:  # the preset's truth spindle (decision 1210); --ideal: Aslan's Ch. 5 model
+                self.spindle = TruthSpindleSim(load_truth_spindle(machine.name), fs)
+                self.truth_spindle = True
+            else:
+                self.spindle = SpindleDriveSim(SpindleDriveParams.from_config(machine.spindle), fs)
             self._spindle_max = machine.spindle.max_rpm * 2 * math.pi / 60
         self.sensors = SensorBank(opts.sensors, fs, np.random.default_rng(seeds[-2]))
         self._tool_modes_base = (
@@ -832,6 +840,7 @@ class MachineSimulator(Source):
             "breakage_time_s": brk if brk is not None else "none",
             "realism": self._realism is not None,
             "truth_plant": "coupled" if self.truth_axes else "ideal",
+            "truth_spindle": "torsional" if self.truth_spindle else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
         }

@@ -1,25 +1,30 @@
 """Acceptance of the spindle torque observer on the simulated Quaser spindle (issue 7 item 3).
 
-The observer is identified on the spindle simulator (Aslan Ch. 5 model, machine.spindle) by
+The observer is identified on the virtual machine's truth spindle
+(:mod:`millsense.simulator.truth_spindle`, decision 1210) by
 :func:`millsense.bench.spindle_commissioning.identify_spindle` — range 1 at standstill, range 2
 at 4000 rev/min, as in the thesis' sweeps (digest P7) — and tuned by Nelder–Mead
-(:func:`~millsense.estimation.spindle_observer.tune_spindle_q`); it never sees the simulator's
-matrices.
+(:func:`~millsense.estimation.spindle_observer.tune_spindle_q`); it never sees the truth's
+parameters, only I_nom of simulated tests.
 
-Mismatch between simulator and observer, stated beside every figure: the observer's G_dτ is a
-20-state rational fit of a noisy simulated sweep (white noise of 0.01 A on I_nom, 5 N·m RMS
-multisine, 12 averaged periods); the simulator has 26 states per range (rigid body, current PI
-and motor admittance, 10 residual modes, velocity PI); in the V6 replica the plant runs at
-10 kHz with the cutting torque varying every sample while the model was identified with a held
-torque, the speed differs from the identification speed (1000–5500 vs 0/4000 rev/min), the
-spindle slows under load, and the resultant force of the simulator is the full mechanistic
-model of Al7050 (edge forces, K_rc/K_tc of the material) against the observer's Eq. 5.34
-(K_rc = 0.5·K_tc, no edge forces).
+Mismatch between the truth and the observer, stated beside every figure: the observer's G_dτ
+is a 20-state rational fit of a noisy simulated sweep (white noise of 0.01 A on I_nom, 5 N·m
+RMS multisine at the tool, 12 averaged periods) at the velocity-loop rate; the truth is a
+four-inertia torsional chain (modes from the mechanics) with R-L electrics, a current PI
+sampled at 20 kHz with dead time, an encoder-differenced speed, Coulomb and speed-dependent
+bearing drag and torque ripple of the rotor angle (linear only in part); in the V6 replica the
+plant runs at 10 kHz with the cutting torque varying every sample while the model was
+identified with a held torque, the speed differs from the identification speed (1000–5500 vs
+0/4000 rev/min), the spindle slows under load, and the resultant force of the simulator is the
+full mechanistic model of Al7050 (edge forces, K_rc/K_tc of the material) against the
+observer's Eq. 5.34 (K_rc = 0.5·K_tc, no edge forces). Before decision 1210 the plant was
+Aslan's Ch. 5 model itself (the observer's model class).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import cache
 from typing import TYPE_CHECKING
 
@@ -30,6 +35,7 @@ from millsense.validation import Measured, case
 if TYPE_CHECKING:
     from millsense.estimation.spindle_observer import SpindleIdentification, SpindleTuning
     from millsense.models.friction import CoulombViscous
+    from millsense.simulator.truth_spindle import TruthSpindle
 
 FS_HZ = 10_000.0
 NOISE_A = 0.01
@@ -38,13 +44,20 @@ V6_THESIS = (0.15, 0.18, 0.32, 0.19, 0.27, 0.24)
 
 
 @cache
+def plant() -> TruthSpindle:
+    """The virtual machine's truth spindle (what the observer is identified and judged on)."""
+    from millsense.simulator.truth_spindle import load_truth_spindle
+
+    return load_truth_spindle("quaser-ux600")
+
+
+@cache
 def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
     """Identified and tuned observer design per speed range (0: range 1, 1: range 2)."""
     from millsense.bench.spindle_commissioning import identify_spindle
     from millsense.estimation.spindle_observer import tune_spindle_q
-    from millsense.models.spindle_plant import SpindleDriveParams
 
-    params = SpindleDriveParams.aslan_quaser()
+    params = plant()
     out: dict[int, tuple[SpindleIdentification, SpindleTuning]] = {}
     for rng, rpm in ((0, 0.0), (1, 4000.0)):
         ident = identify_spindle(
@@ -58,11 +71,10 @@ def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
 def friction() -> CoulombViscous:
     """Spindle friction identified through the observers from air runs."""
     from millsense.bench.spindle_commissioning import identify_spindle_friction
-    from millsense.models.spindle_plant import SpindleDriveParams
 
     designs = {k: v[1].design for k, v in observers().items()}
     return identify_spindle_friction(
-        SpindleDriveParams.aslan_quaser(), designs, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A
+        plant(), designs, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A
     )
 
 
@@ -71,15 +83,19 @@ def flatness() -> dict[int, tuple[float, float, float]]:
     """Per range: (worst |dB| of the true compensated FRF 1–2500 Hz, ±3 dB band Hz, states)."""
     from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.estimation.spindle_observer import compensated
-    from millsense.models.spindle_plant import SpindleDriveParams
-    from millsense.simulator.spindle import SpindleDriveSim, discrete_disturbance_frf
+    from millsense.simulator.truth_spindle import sampled_disturbance_frf
 
-    params = SpindleDriveParams.aslan_quaser()
-    sim_v = SpindleDriveSim(params, 1.0 / params.velocity_period_s)
-    f = np.arange(1.0, 2500.0 + 0.5, 1.0)
     out = {}
     for rng, (_, tun) in observers().items():
-        h = compensated(discrete_disturbance_frf(sim_v, f, rng), tun.design, f)
+        # the truth's G_dτ at the velocity-loop rate (range 1 at 0 rev/min; range 2 measured
+        # the same way on the range-2 electrics: the mechanics do not depend on the range)
+        truth = plant()
+        if rng == 1:
+            truth = replace(truth, ranges=(truth.ranges[1], truth.ranges[1]))
+        f, g = sampled_disturbance_frf(truth, sample_rate_hz=FS_HZ)
+        sel = f <= 2500.0
+        f, g = f[sel], g[sel]
+        h = compensated(g, tun.design, f)
         db = 20 * np.log10(np.abs(h))
         band = bandwidth_3db(np.concatenate([[0.0], f]), np.concatenate([[1.0], h]))
         out[rng] = (float(np.max(np.abs(db))), band, float(tun.design.n_states))
@@ -93,10 +109,17 @@ def flatness() -> dict[int, tuple[float, float, float]]:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    gap="on the truth spindle (decision 1210) the identified G_dτ is within 1-2 dB of the "
+    "truth's, but the Nelder-Mead tuning (SNR > 10 dB) trades band for noise: R from the air "
+    "run holds the 2^20-count encoder's quantisation noise and, at standstill (range 1), the "
+    "velocity loop's limit cycle on it (R 1.2e-3 A² vs 1e-4 from the added noise alone), so "
+    "range 1 is flat to ±3 dB only to 645 Hz (−8.6 dB at 1.4 kHz) and range 2 leaves a 10.7 dB "
+    "spot above 2450 Hz",
+    issue=12,
     description="largest |deviation| from 0 dB over 1-2500 Hz of the true sampled G_dτ "
-    "(velocity loop 0.2 ms) times the identified, Nelder-Mead-tuned observer, both speed "
-    "ranges. Mismatch: 20-state rational fit of a noisy simulated sweep (0.01 A noise) vs the "
-    "26-state simulator loop",
+    "of the truth spindle (velocity loop 0.2 ms, held multisine) times the identified, "
+    "Nelder-Mead-tuned observer, both speed ranges. Mismatch: 20-state rational fit of a noisy "
+    "simulated sweep (0.01 A noise) vs the truth's torsional chain (module notes)",
 )
 def _flat() -> Measured:
     res = flatness()
@@ -112,15 +135,14 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.spindle_observer import SpindleTorqueObserver
-    from millsense.models.spindle_plant import SpindleDriveParams
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
-    from millsense.simulator.spindle import SpindleDriveSim
+    from millsense.simulator.truth_spindle import TruthSpindleSim
     from millsense.streaming.block import Chunk
 
-    params = SpindleDriveParams.aslan_quaser()
+    params = plant()
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
     radius = tool.radius_m
@@ -137,7 +159,7 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
             tool, coeffs, Engagement.slot(), 0.2e-3, 4e-3, angle[n_air:], n_discs=20
         )
         torque = np.concatenate([np.zeros(n_air), cut.torque_nm])
-        res = SpindleDriveSim(params, FS_HZ).advance(speed_ref, torque)
+        res = TruthSpindleSim(params, FS_HZ).advance(speed_ref, torque)
         inom = res["current_cmd"] + rng_noise.normal(0.0, NOISE_A, n)
         _, tun = observers()[params.range_index(w)]
         fr = friction()
