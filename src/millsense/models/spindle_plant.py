@@ -13,6 +13,7 @@ import scipy.linalg
 
 from millsense.core import units
 from millsense.core.config import SpindleConfig
+from millsense.core.errors import InputDataError
 from millsense.models import spindle_modes as sm
 
 # plant state layout
@@ -279,7 +280,27 @@ def disturbance_frf_printed(
     return np.asarray(g_v * g_r / (1.0 + g_v * g_m * rng.torque_constant * g_r + res))
 
 
-def _first_crossing(f: np.ndarray, mag: np.ndarray, level: float) -> float:
+def velocity_decimation(period_s: float, sample_rate_hz: float, where: str) -> int:
+    """Samples per velocity-loop period (Aslan P7: 0.2 ms) at the CNC rate.
+
+    Raises
+    ------
+    InputDataError
+        The period is not a whole number (≥ 1) of samples; ``where`` names the drive.
+    """
+    nv = period_s * sample_rate_hz
+    if nv < 0.999 or abs(nv - round(nv)) > 1e-9:
+        raise InputDataError(
+            f"{where}: velocity period {period_s} s is not a whole number of samples at "
+            f"{sample_rate_hz:g} Hz"
+        )
+    return round(nv)
+
+
+def first_crossing(f: np.ndarray, mag: np.ndarray, level: float) -> float:
+    """The first frequency of ``f`` where ``mag`` falls below ``level`` (log-log
+    interpolation between the bracketing points; NaN if it never does): a −3 dB bandwidth
+    with ``level = mag[0]/√2``."""
     idx = np.nonzero(mag < level)[0]
     if len(idx) == 0:
         return math.nan
@@ -304,7 +325,7 @@ def current_loop_bandwidth_hz(
         gi = p.current_kp + p.current_ki / s
         y = 1.0 / (a * s * s + b * s + c)
         mag = np.abs(gi * y / (1.0 + gi * y))
-    return _first_crossing(_F_GRID, mag, mag[0] / math.sqrt(2.0))
+    return first_crossing(_F_GRID, mag, mag[0] / math.sqrt(2.0))
 
 
 def velocity_loop_bandwidth_hz(p: SpindleDriveParams, range_index: int = 0) -> float:
@@ -314,7 +335,7 @@ def velocity_loop_bandwidth_hz(p: SpindleDriveParams, range_index: int = 0) -> f
     s = 2j * math.pi * _F_GRID
     h = state_space_frf(Acl, Bcl[:, 0:1], CD[1:2, :n], CD[1:2, n : n + 1], s)[:, 0, 0]
     mag = np.abs(h)
-    return _first_crossing(_F_GRID, mag, mag[0] / math.sqrt(2.0))
+    return first_crossing(_F_GRID, mag, mag[0] / math.sqrt(2.0))
 
 
 def closed_loop_poles(p: SpindleDriveParams, range_index: int = 0) -> np.ndarray:

@@ -45,8 +45,23 @@ from millsense.models.spindle_plant import (
     SpindleDriveParams,
     plant_matrices,
     state_space_frf,
+    velocity_decimation,
     zoh,
 )
+
+
+def spindle_inputs(
+    speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A spindle simulator's inputs as contiguous float arrays (speed reference, rad/s; torque
+    at the tool, N·m), checked to be equal 1-D (one-line error otherwise)."""
+    ref = np.ascontiguousarray(speed_ref_rad_s, dtype=np.float64)
+    dist = np.ascontiguousarray(torque_dist_nm, dtype=np.float64)
+    if ref.shape != dist.shape or ref.ndim != 1:
+        raise InputDataError(
+            f"spindle: speed reference {ref.shape} and torque {dist.shape} must be equal 1-D"
+        )
+    return ref, dist
 
 
 @numba.njit(cache=True)
@@ -105,12 +120,7 @@ class SpindleDriveSim:
     def __init__(self, params: SpindleDriveParams, sample_rate_hz: float = 10000.0) -> None:
         self.params = params
         self.dt = 1.0 / sample_rate_hz
-        nv = params.velocity_period_s / self.dt
-        if nv < 0.999 or abs(nv - round(nv)) > 1e-9:
-            raise InputDataError(
-                f"spindle: velocity period {params.velocity_period_s} s is not a whole number of "
-                f"samples at {sample_rate_hz} Hz"
-            )
+        nv = velocity_decimation(params.velocity_period_s, sample_rate_hz, "spindle")
         mats = [plant_matrices(params, r) for r in (0, 1)]
         sizes = {m[0].shape[0] for m in mats}
         if len(sizes) != 1:
@@ -125,7 +135,7 @@ class SpindleDriveSim:
                 kp,
                 ki,
                 params.velocity_period_s,
-                float(round(nv)),
+                float(nv),
                 params.switch_rad_s if math.isfinite(params.switch_rad_s) else 1e300,
                 params.coulomb,
                 params.friction_smoothing_rad_s,
@@ -145,12 +155,7 @@ class SpindleDriveSim:
         measured Ω_meas incl. the structural residual), ``true_speed`` (rad/s, rigid body),
         ``angle`` (rad, rigid body), ``speed_range`` (0 or 1).
         """
-        ref = np.ascontiguousarray(speed_ref_rad_s, dtype=np.float64)
-        dist = np.ascontiguousarray(torque_dist_nm, dtype=np.float64)
-        if ref.shape != dist.shape or ref.ndim != 1:
-            raise InputDataError(
-                f"spindle: speed reference {ref.shape} and torque {dist.shape} must be equal 1-D"
-            )
+        ref, dist = spindle_inputs(speed_ref_rad_s, torque_dist_nm)
         out = np.empty((len(ref), 6))
         _spindle_kernel(self._x, self._ctl, ref, dist, self._ad, self._bd, self._cr, self._prm, out)
         return {

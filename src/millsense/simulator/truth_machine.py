@@ -62,7 +62,8 @@ class TruthAxis:
     preload_lift: float = math.inf
 
 
-def _read(name: str) -> dict[str, Any]:
+def read_truth_file(name: str) -> dict[str, Any]:
+    """A TOML file of the simulator's truth data (``millsense/simulator/data/<name>``)."""
     path = resources.files("millsense.simulator") / "data" / name
     try:
         with path.open("rb") as fh:
@@ -117,8 +118,8 @@ def load_truth(machine_name: str) -> dict[str, TruthAxis]:
     """
     if machine_name not in TRUTH_PRESETS:
         raise ConfigError(f"machine truth: no truth for machine '{machine_name}'")
-    mech = _read(f"{machine_name}-truth-mechanics.toml")["axes"]
-    rest = _read(f"{machine_name}-truth.toml")["axes"]
+    mech = read_truth_file(f"{machine_name}-truth-mechanics.toml")["axes"]
+    rest = read_truth_file(f"{machine_name}-truth.toml")["axes"]
     out: dict[str, TruthAxis] = {}
     for ax, tab in rest.items():
         where = f"{machine_name}-truth.toml [axes.{ax}]"

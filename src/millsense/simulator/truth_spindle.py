@@ -38,9 +38,7 @@ tool's angle and speed (``angle``, ``true_speed`` of :meth:`TruthSpindleSim.adva
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, replace
-from importlib import resources
 from typing import Any
 
 import numba
@@ -49,7 +47,9 @@ import scipy.linalg
 
 from millsense.core import units
 from millsense.core.errors import ConfigError, InputDataError
-from millsense.models.spindle_plant import zoh
+from millsense.models.spindle_plant import first_crossing, velocity_decimation, zoh
+from millsense.simulator.spindle import spindle_inputs
+from millsense.simulator.truth_machine import read_truth_file
 
 #: inputs of the continuous plant: applied voltage, rotor torque, bearing torque, tool torque
 _N_IN = 4
@@ -329,12 +329,7 @@ class TruthSpindleSim:
     def __init__(self, truth: TruthSpindle, sample_rate_hz: float = 10000.0) -> None:
         self.truth = truth
         self.dt = 1.0 / sample_rate_hz
-        nv = truth.velocity_period_s / self.dt
-        if nv < 0.999 or abs(nv - round(nv)) > 1e-9:
-            raise InputDataError(
-                f"truth spindle: velocity period {truth.velocity_period_s} s is not a whole "
-                f"number of samples at {sample_rate_hz} Hz"
-            )
+        nv = velocity_decimation(truth.velocity_period_s, sample_rate_hz, "truth spindle")
         ns = int(truth.current_substeps)
         if ns < 1 or truth.current_dead_substeps < 0:
             raise ConfigError("truth spindle: current_substeps ≥ 1, dead substeps ≥ 0")
@@ -347,7 +342,7 @@ class TruthSpindleSim:
                 truth.velocity_kp,
                 truth.velocity_ki,
                 truth.velocity_period_s,
-                float(round(nv)),
+                float(nv),
                 truth.switch_rad_s if math.isfinite(truth.switch_rad_s) else 1e300,
                 truth.current_kp,
                 truth.current_ki,
@@ -378,12 +373,7 @@ class TruthSpindleSim:
         self, speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray
     ) -> dict[str, np.ndarray]:
         """Simulate ``len(speed_ref_rad_s)`` samples (see the class for the outputs)."""
-        ref = np.ascontiguousarray(speed_ref_rad_s, dtype=np.float64)
-        dist = np.ascontiguousarray(torque_dist_nm, dtype=np.float64)
-        if ref.shape != dist.shape or ref.ndim != 1:
-            raise InputDataError(
-                f"spindle: speed reference {ref.shape} and torque {dist.shape} must be equal 1-D"
-            )
+        ref, dist = spindle_inputs(speed_ref_rad_s, torque_dist_nm)
         out = np.empty((len(ref), 6))
         self.advance_into(ref, dist, out)
         return {
@@ -508,23 +498,11 @@ def current_loop_frf(
     return np.asarray(loop / (1.0 + loop))
 
 
-def _first_crossing(f: np.ndarray, mag: np.ndarray, level: float) -> float:
-    idx = np.nonzero(mag < level)[0]
-    if len(idx) == 0:
-        return math.nan
-    k = int(idx[0])
-    if k == 0:
-        return float(f[0])
-    x0, x1 = math.log(f[k - 1]), math.log(f[k])
-    y0, y1 = math.log(mag[k - 1]), math.log(mag[k])
-    return float(math.exp(x0 + (math.log(level) - y0) * (x1 - x0) / (y1 - y0)))
-
-
 def current_loop_bandwidth_hz(truth: TruthSpindle, r: int = 0) -> float:
     """−3 dB bandwidth of the truth's current loop (rotor held), Hz (Aslan Fig. 5.2)."""
     f = np.logspace(0, math.log10(4900.0), 3000)
     mag = np.abs(current_loop_frf(truth, r, f))
-    return _first_crossing(f, mag, mag[0] / math.sqrt(2.0))
+    return first_crossing(f, mag, mag[0] / math.sqrt(2.0))
 
 
 def velocity_loop_bandwidth_hz(truth: TruthSpindle, f_max_hz: float = 400.0) -> float:
@@ -533,19 +511,10 @@ def velocity_loop_bandwidth_hz(truth: TruthSpindle, f_max_hz: float = 400.0) -> 
     lin = truth.linear()
     f = np.geomspace(2.0, f_max_hz, 36)
     mag = np.array([abs(sine_response(lin, fk, output="velocity", settle_s=0.4)) for fk in f])
-    return _first_crossing(f, mag, mag[0] / math.sqrt(2.0))
+    return first_crossing(f, mag, mag[0] / math.sqrt(2.0))
 
 
 # ---------------------------------------------------------------- the truth file
-
-
-def _read(name: str) -> dict[str, Any]:
-    path = resources.files("millsense.simulator") / "data" / name
-    try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ConfigError(f"machine truth: {name} not found in millsense/simulator/data") from exc
 
 
 def truth_spindle_from_tables(motor: dict[str, Any], mech: dict[str, Any]) -> TruthSpindle:
@@ -596,8 +565,10 @@ def truth_spindle_from_tables(motor: dict[str, Any], mech: dict[str, Any]) -> Tr
 
 def load_truth_spindle(machine_name: str) -> TruthSpindle:
     """The truth spindle of a preset (``<name>-truth.toml`` + ``-truth-mechanics.toml``)."""
-    motor = _read(f"{machine_name}-truth.toml").get("spindle")
-    mech = _read(f"{machine_name}-truth-mechanics.toml").get("spindle", {}).get("mechanics")
+    motor = read_truth_file(f"{machine_name}-truth.toml").get("spindle")
+    mech = (
+        read_truth_file(f"{machine_name}-truth-mechanics.toml").get("spindle", {}).get("mechanics")
+    )
     if motor is None or mech is None:
         raise ConfigError(f"machine truth {machine_name}: no [spindle] truth")
     return truth_spindle_from_tables(motor, mech)
