@@ -78,8 +78,10 @@ def tool_life() -> dict[str, np.ndarray]:
     est = {a.run: a.vb_m for tool in runs.values()
            for a in assess_tool(tool, cutting_time_known=True)}  # fmt: skip
     keys = list(truth)
-    return {k: np.array([d[x] for x in keys], dtype=np.float64)
-            for k, d in (("truth", truth), ("estimate", est), ("counter", counter), ("raw", raw))}
+    return {
+        k: np.array([d[x] for x in keys], dtype=np.float64)
+        for k, d in (("truth", truth), ("estimate", est), ("counter", counter), ("raw", raw))
+    }
 
 
 def _balanced_accuracy(flag: np.ndarray, worn: np.ndarray) -> float:

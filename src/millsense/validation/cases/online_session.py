@@ -268,6 +268,19 @@ def _chatter_table(r: dict[str, object]) -> str:
     return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
 
 
+#: Why the T1 session misses its second chatter episode on the truth spindle (2026-11-28).
+_T1_MISSED = (
+    "on the truth spindle (decision 1210) the first episode is found (554.7 Hz at 4500 rev/min, "
+    "ratio 1.86) and the speed goes to 6656 rev/min (lobe 1), where the truth chatters again "
+    "from 3.75 s (its tool modes soften under load, decision 1531; on Aslan's Ch. 5 plant this "
+    "second episode was found and a second change settled it); the monitor judges no window "
+    "from 3.5 s (ratio 0): with the feed at 20 % the 5-tooth full-slot tooth line does not "
+    "stand 3x above the observer's noise floor, which the encoder's quantisation raises (the "
+    "cutting gate of monitoring.chatter.v5_t1_compensated_hz), so the session makes one change "
+    "and the truth chatters to the end of the slot"
+)
+
+
 @case(
     "online.chatter_gone_after_last_speed_change_s",
     source="issue 16: chatter detected on the chatter-prone pass is gone within 1 s after the "
@@ -276,6 +289,8 @@ def _chatter_table(r: dict[str, object]) -> str:
     unit="s",
     abs_tol=0.5,
     quick=False,
+    gap=_T1_MISSED,
+    issue=12,
     description=(
         "T1 replica slot at 4500 rev/min, 1.2 mm, through the session: time from the last "
         "spindle-speed command to the start of the first second free of chatter in the "
@@ -284,23 +299,31 @@ def _chatter_table(r: dict[str, object]) -> str:
 )
 def _chatter_gone() -> Measured:
     r = chatter_run()
+    gone = _quiet_after_last_change_s(r)
+    if gone is None:
+        return Measured(float("nan"), "no speed change\n\n" + _chatter_table(r))
+    return Measured(gone, _chatter_table(r))
+
+
+def _quiet_after_last_change_s(r: dict[str, object]) -> float | None:
+    """Time from the last spindle-speed command to the first sample after which the truth shows
+    no chatter for a whole second, s (None: no command). A later blip at the exit of the slot
+    is another episode, not this one. Never quiet: the time from the command to the end of the
+    record (a lower bound, finite so that the case is judged as a failure, not an error)."""
     ev = r["events"]
     assert isinstance(ev, list)
     cmds = [e for e in ev if e.name == "spindle_override"]
     if not cmds:
-        return Measured(float("nan"), "no speed change\n\n" + _chatter_table(r))
+        return None
     chatter = r["chatter"]
     fs = r["fs"]
     assert isinstance(chatter, np.ndarray) and isinstance(fs, float)
     k0 = round(cmds[-1].time_s * fs)
-    # gone: from the first sample after which the truth shows no chatter for a whole second
-    # (a later blip at the exit of the slot is another episode, not this one)
     win = round(fs)
     tail = chatter[k0:].astype(np.int64)
     runs = np.convolve(tail, np.ones(win, dtype=np.int64), mode="valid")  # chatter per window
     quiet = np.flatnonzero(runs == 0)
-    gone = float(quiet[0]) / fs if quiet.size else float("inf")
-    return Measured(gone, _chatter_table(r))
+    return float(quiet[0]) / fs if quiet.size else float(tail.size) / fs
 
 
 @case(
@@ -310,19 +333,22 @@ def _chatter_gone() -> Measured:
     unit="changes",
     abs_tol=0.0,
     quick=False,
-    gap=(
-        "the first speed (lobe 1, stable on the tool table's lobes) chatters on the virtual "
-        "machine, whose tool modes soften under load (decision 1531); the second change "
-        "settles it"
-    ),
-    issue=16,
-    description="Spindle-speed commands of the chatter avoidance in the session on the T1 slot.",
+    gap=_T1_MISSED,
+    issue=12,
+    description="Spindle-speed commands of the chatter avoidance in the session on the T1 slot "
+    "(one more when the truth still chatters a second after the last one: the change it still "
+    "needed).",
 )
 def _chatter_changes() -> Measured:
+    # the changes count only if they ended the chatter: a session that stops changing while the
+    # truth still chatters (a missed episode) counts the change it still needed
     r = chatter_run()
     ev = r["events"]
     assert isinstance(ev, list)
-    return Measured(float(sum(1 for e in ev if e.name == "spindle_override")), _chatter_table(r))
+    changes = float(sum(1 for e in ev if e.name == "spindle_override"))
+    gone = _quiet_after_last_change_s(r)
+    stable = gone is not None and gone <= 1.0
+    return Measured(changes if stable else changes + 1.0, _chatter_table(r))
 
 
 @case(

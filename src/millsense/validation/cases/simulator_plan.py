@@ -140,7 +140,9 @@ def tooth_period_means(
     """Means over complete tooth periods (integrated true spindle angle) and their centre
     times [s] (the tooth-period average of seed 000 §6, the breakage monitor's quantity)."""
     angle = np.cumsum(spindle_speed_rad_s) / fs_hz
-    period = np.floor(angle / (2 * math.pi / n_flutes)).astype(np.int64)
+    # the truth spindle's rotor ripple turns a standing tool back by ~1e-8 rad (decision
+    # 1210): a negative angle before the start belongs to the first period
+    period = np.maximum(np.floor(angle / (2 * math.pi / n_flutes)).astype(np.int64), 0)
     n_p = int(period.max()) + 1
     cnt = np.bincount(period, minlength=n_p)
     mean = np.bincount(period, weights=signal, minlength=n_p) / np.maximum(cnt, 1)
