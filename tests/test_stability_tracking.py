@@ -30,21 +30,6 @@ def _two_dof(rpm: float, m: int):
     return milling_dde(two, 3, KT, KN, st, ex, rpm, m)
 
 
-def _maps(prep: scan._Prepared, w: float):
-    fam = prep.family
-    return scan._step_maps(
-        np.ascontiguousarray(fam.A0),
-        prep.BHC,
-        prep.BH,
-        prep.cut,
-        prep.free_ex,
-        prep.a0_norm,
-        w,
-        float(fam.h),
-        prep.fr,
-    )
-
-
 @pytest.mark.parametrize("m", [20, 40, 100])
 def test_tracked_multipliers_equal_the_eigenvalue_problem(m: int) -> None:
     # from a shift 0.1 % off, Rayleigh-quotient iteration and (1-DOF, one delay of m steps) the
@@ -60,7 +45,7 @@ def test_tracked_multipliers_equal_the_eigenvalue_problem(m: int) -> None:
             assert got is not None
             assert abs(got[0] - mu) <= 1e-9 * abs(mu)
             if fam.A0.shape[0] <= scan.FLOQUET_MAX_STATE:
-                Phi, Wa, Wb = _maps(prep, w)
+                Phi, Wa, Wb = prep.step_maps(w)
                 ok, mu_f = scan._floquet_newton(Phi, Wa, Wb, prep.C, mu * (1 + 1e-3))
                 assert ok and abs(mu_f - mu) <= 1e-9 * abs(mu)
                 y, res_y = scan._floquet_vector(Phi, Wa, Wb, prep.C, mu_f)

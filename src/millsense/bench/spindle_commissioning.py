@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 
-from millsense.core.errors import ConfigError
 from millsense.estimation.kalman.design import KalmanDesign
 from millsense.estimation.kalman.rational_fit import fit_rational
 from millsense.estimation.spindle_observer import (
@@ -16,21 +15,10 @@ from millsense.estimation.spindle_observer import (
 from millsense.ident.frf import multisine_frf, multisine_signal
 from millsense.ident.friction import fit_line
 from millsense.models.friction import CoulombViscous
-from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.models.spindle_plant import SpindleDriveParams, velocity_decimation
 from millsense.simulator.commissioning import spindle_sim
 from millsense.simulator.truth_spindle import TruthSpindle
 from millsense.streaming.block import Chunk
-
-
-def _decimation(params: SpindleDriveParams | TruthSpindle, sample_rate_hz: float) -> int:
-    """CNC samples per velocity-loop period (the observer runs at the velocity-loop rate)."""
-    m = round(params.velocity_period_s * sample_rate_hz)
-    if m < 1 or abs(m - params.velocity_period_s * sample_rate_hz) > 1e-6:
-        raise ConfigError(
-            f"spindle: velocity period {params.velocity_period_s} s is not a whole number of "
-            f"samples at {sample_rate_hz:g} Hz"
-        )
-    return m
 
 
 def identify_spindle(
@@ -60,7 +48,7 @@ def identify_spindle(
     period_s, n_periods : multisine period, s, and periods (the first is discarded).
     seed : noise seed.
     """
-    m = _decimation(params, sample_rate_hz)
+    m = velocity_decimation(params.velocity_period_s, sample_rate_hz, "spindle")
     fv = sample_rate_hz / m
     per = round(period_s * fv)
     u, _ = multisine_signal(fv, per, 2.0, 0.4996 * fv, n_periods, rms=torque_rms_nm)

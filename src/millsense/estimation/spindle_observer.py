@@ -78,16 +78,6 @@ class SpindleIdentification:
     speed_rpm: float
 
 
-def _decimation(params: SpindleDriveParams, sample_rate_hz: float) -> int:
-    m = round(params.velocity_period_s * sample_rate_hz)
-    if m < 1 or abs(m - params.velocity_period_s * sample_rate_hz) > 1e-6:
-        raise ConfigError(
-            f"spindle observer: velocity period {params.velocity_period_s} s is not a whole "
-            f"number of samples at {sample_rate_hz:g} Hz"
-        )
-    return m
-
-
 def design_observer(
     model: StateSpaceModel, q_states: float, q_torque: float, r: float
 ) -> KalmanDesign:

@@ -36,6 +36,7 @@ The simulation is a ZOH-exact discretisation of the continuous plant at the CNC 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -234,14 +235,31 @@ def measured_frf(
     least 0.05 s).
     """
     sim = SpindleDriveSim(params, sample_rate_hz)
+    return steady_sine_point(
+        lambda s: sim.advance(np.zeros(len(s)), s)["current_cmd"],
+        freq_hz, sample_rate_hz, amplitude_nm, settle_s, fit_periods,
+    )  # fmt: skip
+
+
+def steady_sine_point(
+    respond: Callable[[np.ndarray], np.ndarray],
+    freq_hz: float,
+    sample_rate_hz: float,
+    amplitude: float,
+    settle_s: float,
+    fit_periods: int,
+) -> complex:
+    """One FRF point from a steady sine: ``respond`` maps the input ``A·sin(ωt)`` (a fresh
+    simulator's whole run) to the output; ``settle_s`` is discarded and sin/cos/offset are fitted
+    by least squares over ``fit_periods`` whole periods (at least 0.05 s)."""
     fit_s = max(fit_periods / freq_hz, 0.05)
     n_fit = round(round(fit_s * freq_hz) / freq_hz * sample_rate_hz)
     n = round(settle_s * sample_rate_hz) + n_fit
     t = np.arange(n) / sample_rate_hz
     w = 2.0 * math.pi * freq_hz
-    out = sim.advance(np.zeros(n), amplitude_nm * np.sin(w * t))
-    tt, y = t[-n_fit:], out["current_cmd"][-n_fit:]
+    y = respond(amplitude * np.sin(w * t))[-n_fit:]
+    tt = t[-n_fit:]
     basis = np.column_stack([np.sin(w * tt), np.cos(w * tt), np.ones_like(tt)])
     coef = np.linalg.lstsq(basis, y, rcond=None)[0]
     # y = Re(H·A·e^{jωt})·… : sin coefficient = A·Re H, cos coefficient = A·Im H
-    return complex(coef[0], coef[1]) / amplitude_nm
+    return complex(coef[0], coef[1]) / amplitude

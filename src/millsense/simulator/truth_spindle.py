@@ -48,7 +48,7 @@ import scipy.linalg
 from millsense.core import units
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.models.spindle_plant import first_crossing, velocity_decimation, zoh
-from millsense.simulator.spindle import spindle_inputs
+from millsense.simulator.spindle import spindle_inputs, steady_sine_point
 from millsense.simulator.truth_machine import read_truth_file
 
 #: inputs of the continuous plant: applied voltage, rotor torque, bearing torque, tool torque
@@ -428,24 +428,17 @@ def sine_response(
     ``"velocity"``: measured motor speed / speed reference (the closed velocity loop, Fig. 5.4).
     """
     sim = TruthSpindleSim(truth, sample_rate_hz)
-    fit_s = max(fit_periods / freq_hz, 0.05)
-    n_fit = round(round(fit_s * freq_hz) / freq_hz * sample_rate_hz)
-    n = round(settle_s * sample_rate_hz) + n_fit
-    t = np.arange(n) / sample_rate_hz
-    w = 2.0 * math.pi * freq_hz
-    s = amplitude * np.sin(w * t)
     if output == "disturbance":
-        res = sim.advance(np.zeros(n), s)
-        y = res["current_cmd"][-n_fit:]
+
+        def respond(s: np.ndarray) -> np.ndarray:
+            return sim.advance(np.zeros(len(s)), s)["current_cmd"]
     elif output == "velocity":
-        res = sim.advance(s, np.zeros(n))
-        y = res["speed"][-n_fit:]
+
+        def respond(s: np.ndarray) -> np.ndarray:
+            return sim.advance(s, np.zeros(len(s)))["speed"]
     else:
         raise InputDataError(f"truth spindle: unknown output {output!r}")
-    tt = t[-n_fit:]
-    basis = np.column_stack([np.sin(w * tt), np.cos(w * tt), np.ones_like(tt)])
-    coef = np.linalg.lstsq(basis, y, rcond=None)[0]
-    return complex(coef[0], coef[1]) / amplitude
+    return steady_sine_point(respond, freq_hz, sample_rate_hz, amplitude, settle_s, fit_periods)
 
 
 def sampled_disturbance_frf(

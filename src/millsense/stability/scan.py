@@ -102,6 +102,14 @@ class _Prepared:
     #: :func:`_branch_root`)
     known_mu: dict[float, complex] = field(default_factory=dict)
 
+    def step_maps(self, w: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(Phi, Wa, Wb)`` of the family at depth ``w`` [m] (:func:`_step_maps`)."""
+        fam = self.family
+        return _step_maps(
+            np.ascontiguousarray(fam.A0), self.BHC, self.BH, self.cut, self.free_ex,
+            self.a0_norm, float(w), float(fam.h), self.fr,
+        )  # fmt: skip
+
 
 def _van_loan_free(family: DepthFamily) -> FloatArray:
     """Block matrix of :func:`monodromies` for a step with no delayed input, times ``h``."""
@@ -222,22 +230,32 @@ def _step_maps(
     fr: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
     """``(Phi, Wa, Wb)`` at one depth (:func:`_step_maps_into`)."""
-    m, n = BHC.shape[0], A0.shape[0]
+    A, Phi, Wa, Wb, big, ex, tmp, escale = _step_workspace(BHC.shape[0], A0.shape[0], BH, h)
+    _step_maps_into(
+        A0, BHC, BH, cut, free_ex, a0_norm, wk, h, fr, A, Phi, Wa, Wb, big, ex, tmp, escale,
+    )  # fmt: skip
+    return Phi, Wa, Wb
+
+
+@numba.njit(cache=True)
+def _step_workspace(
+    m: int, n: int, BH: FloatArray, h: float
+) -> tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray
+]:  # pragma: no cover - compiled
+    """Work arrays of :func:`_step_maps_into` for ``m`` steps of ``n`` states: ``A``, ``Phi``,
+    ``Wa``, ``Wb``, the Van Loan block matrix with its constant ``h`` entries set, its
+    exponential, a scratch matrix and the block scales."""
     J, p = BH.shape[1], BH.shape[3]
     k = n + 2 * p * J
-    A = np.empty((m, n, n))
-    Phi = np.empty((m, n, n))
-    Wa = np.zeros((m, J, n, p))
-    Wb = np.zeros((m, J, n, p))
     big = np.zeros((k, k))
     for j in range(J):
         for b in range(p):
             big[n + j * p + b, n + p * J + j * p + b] = h
-    _step_maps_into(
-        A0, BHC, BH, cut, free_ex, a0_norm, wk, h, fr, A, Phi, Wa, Wb, big,
-        np.empty((k, k)), np.empty((k, k)), np.empty(J),
+    return (
+        np.empty((m, n, n)), np.empty((m, n, n)), np.zeros((m, J, n, p)),
+        np.zeros((m, J, n, p)), big, np.empty((k, k)), np.empty((k, k)), np.empty(J),
     )  # fmt: skip
-    return Phi, Wa, Wb
 
 
 @numba.njit(cache=True)
@@ -257,25 +275,14 @@ def _monodromies_kernel(
 ) -> FloatArray:  # pragma: no cover - compiled
     """Monodromy matrices (K, N, N): the arithmetic of ``discretize`` + ``monodromy`` per depth."""
     K = w.shape[0]
-    m, n = BHC.shape[0], A0.shape[0]
+    n = A0.shape[0]
     J, p = BH.shape[1], C.shape[0]
-    k = n + 2 * p * J
     R = 0
     for j in range(J):
         R = max(R, lags[j])
     N = n + R * p
     out = np.empty((K, N, N))
-    A = np.empty((m, n, n))
-    Phi = np.empty((m, n, n))
-    Wa = np.zeros((m, J, n, p))
-    Wb = np.zeros((m, J, n, p))
-    big = np.zeros((k, k))
-    for j in range(J):
-        for b in range(p):
-            big[n + j * p + b, n + p * J + j * p + b] = h
-    ex = np.empty((k, k))
-    tmp = np.empty((k, k))
-    escale = np.empty(J)
+    A, Phi, Wa, Wb, big, ex, tmp, escale = _step_workspace(BHC.shape[0], n, BH, h)
     for kk in range(K):
         _step_maps_into(
             A0, BHC, BH, cut, free_ex, a0_norm, w[kk], h, fr, A, Phi, Wa, Wb, big, ex, tmp,
@@ -1075,11 +1082,7 @@ class _Branch:
                 self.values[w] = (r, mu, True)
             elif self.floquet:
                 prep = self.f.family
-                fam = prep.family
-                maps = _step_maps(
-                    np.ascontiguousarray(fam.A0), prep.BHC, prep.BH, prep.cut, prep.free_ex,
-                    prep.a0_norm, float(w), float(fam.h), prep.fr,
-                )  # fmt: skip
+                maps = prep.step_maps(w)
                 ok, mu = _floquet_newton(maps[0], maps[1], maps[2], prep.C, complex(self.sigma))
                 if not ok:
                     raise _Lost
