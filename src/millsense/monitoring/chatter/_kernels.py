@@ -230,7 +230,10 @@ def cutting_gate(
     air_f = air[AIR_F_REV]
     floor = air_floor if has_floor and air_floor < med else med
     same_speed = abs(f_rev - air_f) <= gate[2] * air_f
-    loaded = has_mean and has_floor and same_speed and abs(level - air_mean) > gate[1] * air_floor
+    # at another speed the air torque may differ from the one learned by up to its own size
+    # (drag and friction grow with speed): beyond that the window is loaded (decision 1537)
+    span = gate[1] * air_floor if same_speed else gate[1] * air_floor + abs(air_mean)
+    loaded = has_mean and has_floor and abs(level - air_mean) > span
     cutting = tooth > 0.0 and (tooth > gate[0] * floor or loaded)
     if not cutting and tooth > 0.0:
         a = gate[5]

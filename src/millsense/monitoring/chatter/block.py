@@ -117,6 +117,13 @@ CUTTING_GATE = 3.0
 LOAD_GATE = 10.0
 #: Noise allowance of the steady-mean gate, in air-floor units (decision 1531).
 STEADY_NOISE = 5.0
+#: After a speed change the background learns every bin at the air rate for this long before
+#: a verdict: lines bound to the speed (a compensated torque's encoder-quantisation tones) move
+#: with it (decision 1537).
+SPEED_SETTLE_S = 0.5
+#: ... once the speed moved by more than this fraction since the last judged window (an
+#: override step of 1 % moves every such line; a cut's speed wanders by about 1e-4).
+SETTLE_SPEED = 0.002
 #: Largest relative spread of the spindle speed over a window for a decision.
 STEADY_SPEED = 0.02
 #: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
@@ -277,6 +284,9 @@ class ChatterMonitor(Block):
         self._background = np.zeros(nf)
         self._has_background = False
         self._rates = (self._learning_rates(False), self._learning_rates(True))
+        self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
+        self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
+        self._settling = 0
         self._air = np.zeros(_kn.AIR_SIZE)
         self._gate = np.array([CUTTING_GATE, LOAD_GATE, STEADY_SPEED, STEADY_MEAN, STEADY_NOISE,
                                min(1.0, s.hop_s / BACKGROUND_TAU_AIR_S)])  # fmt: skip
@@ -363,10 +373,19 @@ class ChatterMonitor(Block):
         # hysteresis: while chatter is flagged a component stays new above 2 × its background
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         comb, novel = self._comb, self._novel
+        last = self._judged_f_rev
+        if self._has_background and abs(f_rev - last) > SETTLE_SPEED * last:
+            self._settling = self._settle_windows  # a new speed: its lines are learned first
+        self._judged_f_rev = f_rev
+        settling = self._settling > 0
+        rates = self._rates[False] if settling else self._rates[cutting]
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
                            not self._has_background, cutting, factor, self._harm_mask, novel,
-                           b0, b1, *self._rates[cutting])  # fmt: skip
+                           b0, b1, *rates)  # fmt: skip
         self._has_background = True
+        if settling:
+            self._settling -= 1
+            cutting = False  # no verdict while the background learns the new speed
         raw_rect = None
         if (
             self.method.name == "chatter-sdft"

@@ -25,8 +25,10 @@ of the comb-filtered spectrum is learned (out of the cut in 0.5 s, in the cut in
 components in 30 s); a component counts as chatter only where the spectrum exceeds 5 × its
 background, so steady tones and stable resonances present before the cut or constant over
 time are not called chatter; decisions are taken only while the tooth-passing line stands 3 ×
-above the spectrum's median (the tool is cutting), the window's mean is steady (no entry or
-exit step) and the speed is steady; bins on the spindle harmonics are not searched.
+above the spectrum's median or the window's mean stands off the air mean (the tool is cutting),
+the window's mean is steady (no entry or exit step) and the speed is steady; bins on the spindle
+harmonics are not searched. After a speed change the background re-learns every bin for 0.5 s
+before a verdict (lines whose frequency the speed sets, decision 1537).
 """
 
 from __future__ import annotations
