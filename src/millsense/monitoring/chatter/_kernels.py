@@ -276,7 +276,6 @@ def novel_peak(
     comb: FloatArray,
     background: FloatArray,
     first: bool,
-    cutting: bool,
     factor: float,
     mask: BoolArray,
     novel: FloatArray,
@@ -286,14 +285,15 @@ def novel_peak(
     a_novel: float,
 ) -> int:  # pragma: no cover - compiled
     """The comb-filtered window's amplitudes ``comb = |c|·scale``; on the ``first`` window the
-    background (decision 1504: learned from air only, so 0 in the cut, else ``comb``); the
+    background is ``comb`` (the monitor then settles: decision 1537; decision 1504 started a
+    first window in the cut from 0); the
     novelty (:func:`novelty`), the band's largest novel bin (:func:`band_argmax`, returned)
     and then the background update (:func:`learn`; the verdict does not read the
     background)."""
     amplitude(c, scale, comb)
     if first:
         for i in range(comb.shape[0]):
-            background[i] = 0.0 if cutting else comb[i]
+            background[i] = comb[i]
     novelty(comb, background, factor, mask, novel)
     k = band_argmax(novel, b0, b1)
     learn(background, comb, novel, a_plain, a_novel)

@@ -374,14 +374,14 @@ class ChatterMonitor(Block):
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         comb, novel = self._comb, self._novel
         last = self._judged_f_rev
-        if self._has_background and abs(f_rev - last) > SETTLE_SPEED * last:
+        if not self._has_background or abs(f_rev - last) > SETTLE_SPEED * last:
             self._settling = self._settle_windows  # a new speed: its lines are learned first
         self._judged_f_rev = f_rev
         settling = self._settling > 0
         rates = self._rates[False] if settling else self._rates[cutting]
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
-                           not self._has_background, cutting, factor, self._harm_mask, novel,
-                           b0, b1, *rates)  # fmt: skip
+                           not self._has_background, factor, self._harm_mask, novel, b0, b1,
+                           *rates)  # fmt: skip
         self._has_background = True
         if settling:
             self._settling -= 1
