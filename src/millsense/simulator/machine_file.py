@@ -53,16 +53,25 @@ def simulator_machine(name_or_path: str | Path) -> MachineConfig:
         return parse_config(MachineConfig, read_toml(path), f"simulator machine {text}")
 
 
-def simulated_feed_drive(machine: str | Path, axis: str) -> FeedDriveParams:
+def simulated_feed_drive(machine: str | Path, axis: str, *, ideal: bool = False) -> FeedDriveParams:
     """The feed drive of ``axis`` the virtual machine runs, as the bench drives it.
 
-    Today the drive of the simulator's machine file (:func:`simulator_machine`); the truth
-    plant of issue 12 replaces it here (one place), so that the acceptance bench and its cases
-    drive whatever the simulator runs.
+    For a preset with a truth of its own (:data:`~.truth_machine.TRUTH_PRESETS`) the truth's
+    coupled drive (:func:`~.truth_machine.truth_feed_params`, as
+    :class:`~.machine.MachineSimulator` runs it, decision 1062); otherwise, or with ``ideal``,
+    the drive of the simulator's machine file (Aslan Eq. 3.1 + Eq. 3.13: the estimators' own
+    model class, for debugging only). The acceptance bench and its cases drive whatever this
+    returns (one place).
     """
     from millsense.simulator.feed_drive import FeedDriveParams
+    from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth, truth_feed_params
 
-    return FeedDriveParams.from_config(simulator_machine(machine).axis(axis))
+    cfg = simulator_machine(machine)
+    if not ideal and cfg.name in TRUTH_PRESETS:
+        truth = load_truth(cfg.name)
+        if axis in truth:
+            return truth_feed_params(cfg.axis(axis), truth[axis])
+    return FeedDriveParams.from_config(cfg.axis(axis))
 
 
 def simulator_machine_path(name: str) -> Path:

@@ -1,24 +1,27 @@
 """Acceptance of the feed-drive force estimator on the simulated Quaser UX600 (issue 7 item 2).
 
-Every figure is end to end: the estimator of each axis is *identified* on the drive simulator
-(:func:`~millsense.bench.feed_commissioning.identify_feed_axis`: friction from
-constant-velocity moves, J_e from an accelerating move, Φ_d from a multisine table-load sweep,
-R from an air cut, Q by bandwidth optimisation), then run as a streaming block on the CNC
-channels of a *different* simulated machine
+Every figure is end to end on the virtual machine's *truth* (decision 1062,
+:func:`~millsense.simulator.machine_file.simulated_feed_drive`: since 2026-11-28 the truth's
+coupled drives, before that the simulator machine file's Aslan Eq. 3.1 + Eq. 3.13 drive, the
+estimators' own model class): the estimator of each axis is built from the nameplate and what
+commissioning on the truth identifies (:func:`~millsense.bench.pipeline.identified_machine`:
+friction from constant-velocity moves, J_e from an accelerating move, Φ_d from a multisine
+table-load sweep, R from an air cut, Q by bandwidth optimisation), then run as a streaming
+block on the CNC channels of the truth with its friction drifted
 (:func:`~millsense.simulator.drive_mismatch.perturbed_drive`).
 
-Mismatch between simulator and estimator (stated beside every figure):
+Mismatch between the truth and the estimator (stated beside every figure):
 
-- identified, not true parameters (friction line fit, J_e, a rational fit of a noisy sweep);
-- the simulator runs LuGre friction (Table 3.2), the estimator Coulomb + viscous, and the
-  simulator's Coulomb and static friction are 15 % higher than at identification (drift);
-- an unmodelled mode at 420 Hz (ζ 3 %, α 2·10⁵) above the 3–260 Hz fit band, in the machine at
-  commissioning and while cutting (:func:`~millsense.simulator.drive_mismatch.commissioning_drive`);
-- torque noise (Eq. 3.30), 2²⁰-count encoder quantisation, the 1 kHz current loop between the
-  current command the estimator reads and the motor torque;
-- position-scheduled case only: every disturbance-mode frequency follows the table position
-  (±2 % over the stroke, :func:`scheduled_params`); the estimator is a bank of models
-  identified at :data:`N_BANK` positions and scheduled on the commanded position
+- the truth is a coupled lumped-mass drive (motor, screw, nut, table, column) whose modes
+  couple back to the motor and follow the table position, with lost motion, torque ripple,
+  LuGre friction with Stribeck, current-loop electrics and dead times
+  (:mod:`millsense.simulator.truth_drive`); the estimator is Aslan's rigid body + identified Φ_d
+  (a rational fit of a noisy sweep), Coulomb + viscous friction and nameplate K_t, η, r_g;
+- the truth's Coulomb and static friction are 15 % higher than at identification (drift);
+- torque noise, 2²⁰-count encoder quantisation;
+- position-scheduled case only: the truth's plant follows the table position by its own
+  mechanics (:func:`~millsense.simulator.truth_machine.plant_schedule`); the estimator is a bank
+  of models identified at :data:`N_BANK` positions and scheduled on the commanded position
   (:mod:`millsense.estimation.feed.schedule`;
   docs/decisions/0115-position-dependent-disturbance-modes-simulator.md,
   docs/decisions/0116-position-scheduled-feed-estimator.md).
@@ -198,11 +201,10 @@ def _table(frequency_scale: float) -> str:
 
 
 _MISMATCH = (
-    "Mismatch: identified parameters (rational fit of a simulated sweep, friction line fit, "
-    "J_e from an accelerating move), LuGre friction +15 % in the simulator vs Coulomb+viscous in "
-    "the estimator, unmodelled 420 Hz mode (present at identification, not in the model), "
-    "torque noise (Eq. 3.30), encoder quantisation, "
-    "1 kHz current loop"
+    "Mismatch: the truth's coupled drive (modes from the mechanics, position-dependent, lost "
+    "motion, ripple, current-loop electrics) against the identified rigid body + rational Φ_d "
+    "fit of a noisy sweep with nameplate K_t, η, r_g; LuGre friction +15 % in the truth vs "
+    "Coulomb+viscous in the estimator; torque noise; encoder quantisation"
 )
 
 
@@ -219,7 +221,11 @@ def _worst_db(kind: str, frequency_scale: float) -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
-    ci=True,
+    gap="on the truth (2026-11-28) X and Y stay within 0.44 dB to 180 Hz, but Z has a "
+    "dip/peak pair between 171 and 180 Hz (+3.1 dB at 174 Hz, -4.9 dB at 176 Hz): a lightly "
+    "damped mode of the truth's Z drive that the identified path misplaces (within 170 Hz Z "
+    "stays within 0.6 dB)",
+    issue=12,
     description="largest |deviation| from 0 dB of the measured compensated X/Y/Z force FRF "
     "over 1-180 Hz (flat within ±3 dB to 180 Hz). " + _MISMATCH,
 )
@@ -234,7 +240,10 @@ def _linear() -> Measured:
     unit="dB",
     abs_tol=3.0,
     quick=False,
-    ci=True,
+    gap="on the truth (2026-11-28) A stays within 1.43 dB to 120 Hz, but C rises by 1.6-3.3 dB "
+    "from 80 to 120 Hz (3.28 dB at 109 Hz): the identified 9-state C path under-represents the "
+    "truth's C dynamics there",
+    issue=12,
     description="largest |deviation| from 0 dB of the measured compensated A/C torque FRF "
     "over 1-120 Hz (flat within ±3 dB to 120 Hz). " + _MISMATCH,
 )
@@ -246,13 +255,22 @@ def _rotary() -> Measured:
 #: compensated estimate (Fig. 3.8, C6: 180 Hz linear, 120 Hz rotary).
 RAW_BAND_HZ = 12.5
 TARGET_HZ = {"x": 180.0, "y": 180.0, "z": 180.0, "a": 120.0, "c": 120.0}
-#: Axes whose raw-current band is a known failure, and why (issue 12 item 1).
-RAW_BAND_GAP = (
-    "the simulated feed drive is Aslan Eq. 3.1 + Eq. 3.13 with the printed Table 3.4 modes as a "
-    "one-way filter, whose static gains (X 0.56, Z 0.49, A -1.02, C 0.72) act as physical and "
-    "put the raw current outside ±3 dB from about 1 Hz; a coupled lumped-mass drive gives "
-    "Φ_d(0) ≈ 1 by physics (issue 12 item 1)"
-)
+#: Axes whose raw-current band is a known failure on the truth, and why (measured 2026-11-28;
+#: on the machine-file drive of before, with Table 3.4's static gains as physical, every axis
+#: but Y left ±3 dB from about 1 Hz).
+RAW_BAND_GAP = {
+    "x": "on the truth the raw X current stays within ±3 dB to 20.8 Hz (-0.8 dB at 1 Hz, "
+    "rising to +3 dB at 21 Hz): wider than the thesis's 10-15 Hz; the truth's X drive is "
+    "fitted to Table 3.4's frequencies (decision 0973), not to the raw current's band",
+    "z": "on the truth the raw Z current stays within ±3 dB to 16.4 Hz, just above the "
+    "thesis's 10-15 Hz (the truth is fitted to Table 3.4's frequencies, decision 0973)",
+    "a": "on the truth the raw A current peaks at +6.0 dB at 2 Hz and falls to -17 dB from "
+    "20 Hz (its ±3 dB band ends at 1.2 Hz); the nameplate η·K_t/r_g is 13 % above the truth's "
+    "(+1.1 dB of the +2.3 dB at 1 Hz); the low resonance of the truth's A drive is not "
+    "investigated",
+    "c": "on the truth the raw C current stays within ±3 dB to 21.2 Hz: wider than the "
+    "thesis's 10-15 Hz (the truth is fitted to Table 3.4's frequencies, decision 0973)",
+}
 
 
 def _raw_case(axis: str) -> None:
@@ -264,8 +282,8 @@ def _raw_case(axis: str) -> None:
         unit="Hz",
         abs_tol=2.5,
         quick=False,
-        gap=RAW_BAND_GAP if axis != "y" else "",
-        issue=12 if axis != "y" else None,
+        gap=RAW_BAND_GAP.get(axis, ""),
+        issue=12 if axis in RAW_BAND_GAP else None,
         description=f"{axis.upper()} axis: ±3 dB band of the raw current force η·K_t·I/r_g "
         "(thesis: 10-15 Hz)",
     )
@@ -273,17 +291,10 @@ def _raw_case(axis: str) -> None:
         return Measured(compensated_bandwidth(axis, 1.0)["raw_hz"], _table(1.0))
 
 
-#: Axes whose compensated band on the truth plant (decision 1062) is outside the thesis's
-#: ±25 % (measured 2026-11-25 through the nameplate → commission → identify pipeline)
-BAND_GAP = {
-    "a": "on the truth plant the identified A-axis estimate is flat to 157 Hz, wider than the "
-    "thesis's 120 Hz by more than 25 %: the truth's A-axis modes (fitted to Table 3.4's "
-    "frequencies, decision 0973) are not the thesis machine's measured rotary dynamics",
-    "c": "on the truth plant the identified C-axis estimate is flat to 159 Hz (2026-11-25), "
-    "wider than the thesis's 120 Hz by more than 25 %, for the reason of the A axis: the "
-    "truth's rotary modes are fitted to Table 3.4's frequencies (decision 0973), not the "
-    "thesis machine's measured rotary dynamics",
-}
+#: Axes whose compensated band on the truth is a known failure, and why (none on 2026-11-28:
+#: C 108.5 and Z 174.0 Hz pass; X and Y reach the 300 Hz end of the measurement and A 272.9 Hz,
+#: "too good": the truth is more benign there than the thesis's machine).
+BAND_GAP: dict[str, str] = {}
 
 
 def _band_case(axis: str) -> None:
@@ -299,7 +310,7 @@ def _band_case(axis: str) -> None:
         too_good_factor=1.5,
         lower_is_better=False,
         quick=False,
-        ci=axis == "y",
+        ci=axis == "z",  # within the thesis band on the truth (X, Y, A: too good; 2026-11-28)
         gap=BAND_GAP.get(axis, ""),
         issue=12 if axis in BAND_GAP else None,
         description=f"{axis.upper()} axis: measured ±3 dB band of the compensated estimate "
@@ -354,13 +365,30 @@ def _least_noise_table() -> tuple[float, str]:
         "widest / least-noise | air-move noise RMS widest / least-noise | noise ratio |",
         "|---|---|---|---|---|---|---|---|",
     ]
+    from millsense.core.errors import InputDataError
+
     worst = 0.0
+    refused = []
     for ax in AXES:
         tgt = 180.0 if ax in "xyz" else 120.0
         band = LEAST_NOISE_BAND_FACTOR * tgt
-        wide, low = compensated_bandwidth(ax), compensated_bandwidth(ax, 1.0, band)
-        n_wide, n_low = air_noise_rms(ax), air_noise_rms(ax, band)
+        wide = compensated_bandwidth(ax)
+        n_wide = air_noise_rms(ax)
         unit = "N" if ax in "xyz" else "N·m"
+        try:
+            low = compensated_bandwidth(ax, 1.0, band)
+        except InputDataError as exc:
+            # the tuning refuses the band (`estimate --band-hz` stops with this message): the
+            # user keeps the widest design, whose figure is counted
+            worst = max(worst, wide["worst_db_in_target"])
+            refused.append(f"{ax.upper()}: {exc}")
+            rows.append(
+                f"| {ax.upper()} | {tgt:.0f} | {band:.0f} | {wide['q']:.0f} / refused | "
+                f"{wide['compensated_hz']:.1f} / - | {wide['worst_db_in_target']:.2f} / - | "
+                f"{n_wide:.1f} / - {unit} | - |"
+            )
+            continue
+        n_low = air_noise_rms(ax, band)
         worst = max(worst, low["worst_db_in_target"])
         rows.append(
             f"| {ax.upper()} | {tgt:.0f} | {band:.0f} | {wide['q']:.0f} / {low['q']:.0f} | "
@@ -368,7 +396,8 @@ def _least_noise_table() -> tuple[float, str]:
             f"{wide['worst_db_in_target']:.2f} / {low['worst_db_in_target']:.2f} | "
             f"{n_wide:.1f} / {n_low:.1f} {unit} | {n_wide / n_low:.2f} |"
         )
-    return worst, "\n".join(rows)
+    notes = "".join(f"\n\nRefused (the widest design counted): {r}" for r in refused)
+    return worst, "\n".join(rows) + notes
 
 
 @case(
@@ -378,6 +407,11 @@ def _least_noise_table() -> tuple[float, str]:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    gap="on the truth (2026-11-28) the tuning refuses ±1 dB to 225 Hz on Z (the lightly damped "
+    "Z mode near 175 Hz of estimation.feed_linear_flat_to_180hz), so Z keeps its widest design "
+    "and its 4.87 dB; the least-noise designs of X, Y, A, C stay within 1.36, 0.50, 1.11 and "
+    "2.97 dB with 2.2-3.2x less noise in an air move",
+    issue=12,
     description="largest |deviation| from 0 dB of the measured compensated force FRF over "
     "1-180 Hz (X/Y/Z) and 1-120 Hz (A/C) when Q is the LEAST-NOISE value keeping the "
     "identified model within ±1 dB up to 1.25 × the target (tuning.least_noise_q, the "
@@ -413,12 +447,15 @@ SCHED_EXCITATION_NM = 2.0
 
 
 def scheduled_params(axis: str) -> FeedDriveParams:
-    """The preset drive with position-dependent modes: ±2 % over the stroke about its centre."""
+    """The preset drive with position-dependent modes: the truth as it is (its plant follows the
+    position by its mechanics), the machine-file drive with its modes ±2 % over the stroke."""
     from dataclasses import replace
 
     from millsense.simulator.machine_file import simulated_feed_drive
 
     params = simulated_feed_drive("quaser-ux600", axis)
+    if params.modes is None:  # the truth: its plant follows the position by its mechanics
+        return params
     return replace(
         params,
         mode_shift_per_m=MODE_CHANGE_OVER_STROKE / STROKE_M[axis],
@@ -590,9 +627,15 @@ def _scheduled_table() -> tuple[float, str]:
     unit="dB",
     abs_tol=3.0,
     quick=False,
+    gap="on the truth (2026-11-28) X and Y stay within 1.13 and 0.55 dB at every place, Z "
+    "within 2.79 dB midway and at the low end but 4.28 dB at the high end of the stroke (one "
+    "model: 4.93 dB): the lightly damped Z mode near 175 Hz moves with the table and the "
+    "bank's three models do not follow it there",
+    issue=12,
     description="largest |deviation| from 0 dB of the measured compensated X/Y/Z force FRF over "
-    "1-180 Hz with every disturbance-mode frequency following the table position (±2 % over "
-    "the stroke, linear), estimated by the position-scheduled bank (Φ_d identified at "
+    "1-180 Hz on the truth, whose plant follows the table position by its own mechanics (its "
+    "'mode scale' is 1: the ±2 % mode shift belongs to the machine-file drive), "
+    "estimated by the position-scheduled bank (Φ_d identified at "
     f"{N_BANK} positions from end to end of the stroke, estimates interpolated linearly by the "
     "commanded position), during moves midway between two identification positions and at both "
     "stroke ends (X 3, Y/Z 2 rad/s; 2 N·m RMS multisine at the motor); details: the same moves "
@@ -685,6 +728,10 @@ def _robust_table() -> str:
     unit="-",
     abs_tol=0.02,
     quick=False,
+    gap="on the path identified on the truth's Y drive (2026-11-28; lightly damped modes, the "
+    "LTI limit over modes ±2 % itself only 99.1 Hz) the robust design's common band is 93.6 "
+    "Hz, 94.4 % of the limit; the other axes reach it (capped at their targets)",
+    issue=12,
     self_check=True,
     description="smallest over the five axes of (common ±3 dB band of the robust design over "
     "modes ±2 %, capped at the axis target) / (the largest any LTI estimator can reach, "
@@ -959,6 +1006,11 @@ def _v1x() -> Measured:
     too_good_factor=2.0,
     unit="-",
     quick=False,
+    gap="on the truth (2026-11-28) the holding Y axis errs by 25/20/13/7/17 % at 1000-5000 "
+    "rev/min and 53.5 % at 5500 rev/min (tooth line 183 Hz), against the thesis's 4-19 %: the "
+    "held drive's response at the tooth lines (friction bristles, lost motion of the truth) is "
+    "not the identified path's; decision 0129 fixed the holding axis's mean, not its lines",
+    issue=12,
     description=_V1_DESC,
 )
 def _v1y() -> Measured:

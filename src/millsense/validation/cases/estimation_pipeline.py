@@ -85,6 +85,7 @@ def _line(x: np.ndarray) -> float:
     unit="%",
     abs_tol=5.0,
     quick=False,
+    ci=True,
     description="relative error of the mean Y load estimated by the feed estimators of the "
     "shipped commissioned file over the steady cut, %; the raw C3 estimate and the tooth "
     "line beside it",
