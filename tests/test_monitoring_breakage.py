@@ -216,3 +216,23 @@ def test_group_refuses_repeated_names_and_other_speeds() -> None:
         BreakageGroup([_virtual(), _virtual()])
     with pytest.raises(ConfigError, match="speed channel or flute"):
         BreakageGroup([_virtual(), BreakageBlock(3, "constant")])
+
+
+def test_alarm_line_states_what_was_confirmed() -> None:
+    # the virtual and constant detectors confirm over 3 tooth periods while the torque stays out
+    # of its ±40 % band: the line gives that torque and its reference (it used to print the
+    # third period's residual against its limit, "0.281 > 2.23", a false inequality)
+    import re
+
+    for blk in (_virtual(), BreakageBlock(2, "constant", learn_from=0.5)):
+        events, _ = run_block(blk, _stream(), 1000)
+        assert events
+        for ev in events:
+            m = re.search(r"tooth average (\S+) N\*m against (\S+) (expected|reference) "
+                          r"\(outside ±40 %\) since period (\d+)", ev.message)  # fmt: skip
+            assert m is not None, ev.message
+            x, ref = float(m.group(1)), float(m.group(2))
+            assert abs(x - ref) > 0.4 * ref  # what the line says holds
+            assert x == pytest.approx(ev.values["tooth_avg_nm"], rel=1e-2)
+            assert int(m.group(4)) == int(ev.values["first_violation_period"])
+            assert int(m.group(4)) <= int(ev.values["tooth_period"])
