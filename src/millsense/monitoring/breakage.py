@@ -343,32 +343,6 @@ class BreakageBlock(Block):
 
     # ------------------------------------------------------------------ helpers
 
-    def _message(
-        self,
-        tooth: int,
-        period: int,
-        first: int,
-        x: float,
-        expected: float,
-        e1: float,
-        l1: float,
-        e2: float,
-        l2: float,
-    ) -> str:
-        """The alarm's one line. The virtual and constant detectors confirm a violation over 3
-        tooth periods while the *torque* stays out of its band; the residual that started the
-        run need not still exceed its limit at the third, so the line states the torque against
-        its reference and the first period of the run. The dual detector alarms in the period
-        where both residuals exceed their limits."""
-        u = self.unit
-        head = f"tool breakage ({self.method}): flute {tooth} at tooth period {period}"
-        if self.method == "dual":
-            return (f"{head}, |residual1| {abs(e1):.3g} > {l1:.3g} and |residual2| "
-                    f"{abs(e2):.3g} > {l2:.3g} {u}")  # fmt: skip
-        ref = "expected" if self.method == "virtual" else "reference"
-        return (f"{head}: tooth average {x:.3g} {u} against {expected:.3g} {ref} (outside "
-                f"±{100 * self.sigma_tb:.0f} %) since period {first}")  # fmt: skip
-
     def _plan_expected(self, d: Any, end: np.ndarray) -> np.ndarray:
         """Expected torque per tooth period from the plan row matched at its end sample."""
         assert self.plan is not None
@@ -410,6 +384,19 @@ class BreakageBlock(Block):
         }
         if self.method == "virtual":
             values[f"expected_{s}"] = float(expected)
+        # the virtual and constant detectors confirm a violation over 3 tooth periods while the
+        # *torque* stays out of its band (the residual that started the run need not still
+        # exceed its limit at the third): the line states that torque against its reference;
+        # the dual detector alarms where both residuals exceed their limits
+        u = self.unit
+        message = f"tool breakage ({self.method}): flute {tooth} at tooth period {period}"
+        if self.method == "dual":
+            message += (f", |residual1| {abs(e1):.3g} > {l1:.3g} and |residual2| "
+                        f"{abs(e2):.3g} > {l2:.3g} {u}")  # fmt: skip
+        else:
+            ref = "expected" if self.method == "virtual" else "reference"
+            message += (f": tooth average {x:.3g} {u} against {expected:.3g} {ref} (outside "
+                        f"±{100 * self.sigma_tb:.0f} %) since period {first}")  # fmt: skip
         nc_line = x_mm = y_mm = z_mm = None
         if self.plan is not None:
             row = int(
@@ -428,7 +415,7 @@ class BreakageBlock(Block):
             time_s=t,
             kind=EventKind.ALARM,
             source=self.name,
-            message=self._message(tooth, period, first, x, expected, e1, l1, e2, l2),
+            message=message,
             name="breakage",
             value=float(tooth),
             sample=sample,
