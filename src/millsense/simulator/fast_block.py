@@ -238,6 +238,11 @@ def drives_block(
     ``[drift on, ripple r, wavelength λ, phase ψ, first, end friction column]``,
     ``temperature`` the axes' temperature rises (K, advanced in place), ``fric_base`` the
     friction arrays before the drift, ``thermal`` ``[R_th (K/W), τ (s), c_T (1/K), block s]``.
+
+    Numba's disk cache of this function holds :func:`feed_drive_kernel` compiled in and is
+    invalidated only by a change of this file, not of ``feed_drive.py``: a change of the
+    kernel must come with a change here (or a cleared ``__pycache__``), else the cached old
+    kernel runs on.
     """
     n = b - a
     for i in range(len(states)):

@@ -327,9 +327,17 @@ def _forces_kernel(
     edge: np.ndarray,
     eng: np.ndarray,
     k6: np.ndarray,
+    sin_a: np.ndarray,
+    cos_a: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """Per-sample loop of :func:`block_forces` (same equations, compiled)."""
+    """Per-sample loop of :func:`block_forces` (same equations, compiled).
+
+    The edge angle ``φ = φ_s − θ_j − ψ_d`` enters the engagement test as is; its sine and
+    cosine come from one sine–cosine pair of ``φ_s`` per sample and the fixed ``α = θ_j + ψ_d``
+    (``sin_a``, ``cos_a`` (flutes, discs)) by the angle-difference formulas, to round-off the
+    same values (no per-edge sine and cosine).
+    """
     n_fl = theta.shape[0]
     n_d = lag.shape[0]
     r = np.empty((n_fl, n_d))
@@ -342,6 +350,8 @@ def _forces_kernel(
         fy = 0.0
         fz = 0.0
         tq = 0.0
+        s_s = math.sin(phi_s[k])
+        c_s = math.cos(phi_s[k])
         for j in range(n_fl):
             for d in range(n_d):
                 phi = phi_s[k] - theta[j] - lag[d]
@@ -354,7 +364,7 @@ def _forces_kernel(
                             inside = True
                 if not inside:
                     continue
-                sp = math.sin(phi)
+                sp = s_s * cos_a[j, d] - c_s * sin_a[j, d]
                 h = 1e300
                 for m in range(n_fl):
                     cand = f_rev * dtheta[j, m] / _TWO_PI * sp + r[j, d] - r[prev[j, m], d]
@@ -367,7 +377,7 @@ def _forces_kernel(
                 dft = k6[0] * h * db + k6[3] * db
                 dfr = k6[1] * h * db + k6[4] * db
                 dfa = k6[2] * h * db + k6[5] * db
-                cp = math.cos(phi)
+                cp = c_s * cos_a[j, d] + s_s * sin_a[j, d]
                 radial_out = dfa * cos_k[d] - dfr * sin_k[d]
                 fx += -dft * cp + radial_out * sp
                 fy += dft * sp + radial_out * cp
@@ -402,6 +412,7 @@ class StaticForceModel:
         g = self._cache.get(key)
         if g is None:
             discs = self.tool.discs(key[1], self.n_discs)
+            alpha = self._theta[:, None] + np.asarray(discs.lag_rad)[None, :]
             g = (
                 np.ascontiguousarray(discs.lag_rad),
                 np.ascontiguousarray(self.tool.flute_radii_m(discs)),
@@ -409,6 +420,8 @@ class StaticForceModel:
                 np.ascontiguousarray(np.cos(discs.kappa_rad)),
                 np.ascontiguousarray(discs.edge_length_m),
                 np.ascontiguousarray(engagement.disc_table(discs.axial_fraction)),
+                np.ascontiguousarray(np.sin(alpha)),
+                np.ascontiguousarray(np.cos(alpha)),
             )
             self._cache[key] = g
         return g
@@ -423,7 +436,7 @@ class StaticForceModel:
         radius_loss_m: FloatArray,
     ) -> FloatArray:
         """(n, 4) [F_x, F_y, F_z (N, feed frame), torque (N·m)] per sample."""
-        lag, radii, sk, ck, edge, eng = self._geometry((key, depth_m), engagement)
+        lag, radii, sk, ck, edge, eng, sin_a, cos_a = self._geometry((key, depth_m), engagement)
         out = np.empty((len(spindle_angle_rad), 4))
         _forces_kernel(
             np.ascontiguousarray(spindle_angle_rad, dtype=np.float64),
@@ -439,6 +452,8 @@ class StaticForceModel:
             edge,
             eng,
             self._k6,
+            sin_a,
+            cos_a,
             out,
         )
         return out
