@@ -430,7 +430,9 @@ def ripple_table(terms: tuple[PeriodicTerm, ...]) -> np.ndarray:
 def _ripple_lookup(tab: np.ndarray, theta: float) -> float:
     """Linear interpolation in the one-revolution table of :func:`ripple_table`."""
     m = tab.shape[0] - 1
-    u = (theta / (2.0 * math.pi)) % 1.0 * m
+    r = theta / (2.0 * math.pi)
+    # r − ⌊r⌋ is r % 1.0 bit for bit (but for the sign of a zero) without libm's slow fmod
+    u = (r - math.floor(r)) * m
     i = int(u)
     if i >= m:
         i = m - 1
@@ -594,10 +596,12 @@ def feed_drive_kernel(
                 lam = 0.05  # beyond any stroke: keep the blocks stable (checked in Python)
             _rescale_modes(lam, ma0, mb0, mc0, h, mad, mbd, mc)
         # ---- sensors at the sample instant, after their dead times
-        th_d = ring[1, (idx - d_m) % length]
+        j_m = idx - d_m  # the dead times are shorter than the ring
+        th_d = ring[1, j_m + length if j_m < 0 else j_m]
         th_m = th_d + _periodic(terms, KIND_MOTOR_ENCODER, th_d)
         theta_enc = math.floor(th_m / qenc) * qenc
-        x_d = ring[2, (idx - d_t) % length]
+        j_t = idx - d_t
+        x_d = ring[2, j_t + length if j_t < 0 else j_t]
         x_m = x_d + _periodic(terms, KIND_SCALE, x_d)
         x_scale = math.floor(x_m / qlin) * qlin if qlin > 0.0 else x_m
         omega_meas = (theta_enc - enc_prev) / dt

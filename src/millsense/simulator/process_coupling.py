@@ -175,9 +175,10 @@ class EngagementSchedule:
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
-        k = np.searchsorted(self._starts, x, side="right") - 1
-        k[k < 0] = len(self.segments)
-        return self._idx[k], self._dep[k]
+        idx = np.empty(x.shape, dtype=np.int64)
+        dep = np.empty(x.shape)
+        _segment_lookup(self._starts, self._idx, self._dep, x.ravel(), idx.ravel(), dep.ravel())
+        return idx, dep
 
 
 # --------------------------------------------------------------------------------------------
@@ -304,6 +305,39 @@ def _feed_per_tooth(feed: np.ndarray, speed: np.ndarray, n_flutes: float, out: n
 
 
 @numba.njit(cache=True)
+def _segment_lookup(
+    starts: np.ndarray,
+    idx_tab: np.ndarray,
+    dep_tab: np.ndarray,
+    x: np.ndarray,
+    idx: np.ndarray,
+    dep: np.ndarray,
+) -> None:
+    """Per sample the last segment with ``start ≤ x`` (``searchsorted(starts, x, 'right') −
+    1``; before the first, the air entry after the segments): its index and depth."""
+    n_seg = starts.shape[0]
+    for k in range(x.shape[0]):
+        lo, hi = 0, n_seg  # first start > x by bisection
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if starts[mid] <= x[k]:
+                lo = mid + 1
+            else:
+                hi = mid
+        j = lo - 1 if lo > 0 else n_seg
+        idx[k] = idx_tab[j]
+        dep[k] = dep_tab[j]
+
+
+@numba.njit(cache=True)
+def _air_index(idx: np.ndarray, depth: np.ndarray) -> None:
+    """Engagement index −1 wherever the depth is ≤ 0 (in air)."""
+    for k in range(idx.shape[0]):
+        if depth[k] <= 0.0:
+            idx[k] = -1
+
+
+@numba.njit(cache=True)
 def _uniform(idx: np.ndarray, depth: np.ndarray) -> bool:
     """True when every sample has the first sample's engagement index and depth."""
     for k in range(1, idx.shape[0]):
@@ -333,8 +367,8 @@ def _forces_kernel(
 ) -> None:
     """Per-sample loop of :func:`block_forces` (same equations, compiled).
 
-    The edge angle ``φ = φ_s − θ_j − ψ_d`` enters the engagement test as is; its sine and
-    cosine come from one sine–cosine pair of ``φ_s`` per sample and the fixed ``α = θ_j + ψ_d``
+    The edge angle ``φ = φ_s − θ_j − ψ_d`` enters the engagement test reduced by floor; its sine
+    and cosine come from one sine–cosine pair of ``φ_s`` per sample and the fixed ``α = θ_j + ψ_d``
     (``sin_a``, ``cos_a`` (flutes, discs)) by the angle-difference formulas, to round-off the
     same values (no per-edge sine and cosine).
     """
@@ -359,7 +393,12 @@ def _forces_kernel(
                 for i in range(eng.shape[1]):
                     w = eng[d, i, 1]
                     if w >= 0.0:
-                        x = (phi - eng[d, i, 0]) % _TWO_PI
+                        # (φ − start) mod 2π by floor (libm's exact fmod costs more than the
+                        # rest of the edge; the two differ by round-off of φ)
+                        x = phi - eng[d, i, 0]
+                        x -= _TWO_PI * math.floor(x / _TWO_PI)
+                        if x < 0.0:
+                            x += _TWO_PI
                         if x <= w:
                             inside = True
                 if not inside:
@@ -612,7 +651,7 @@ class ProcessCoupling:
             depth[sel] = ev.depth_m
         for ev_a in self._air_cuts:
             depth[(t_s >= ev_a.start_s) & (t_s < ev_a.end_s)] = 0.0
-        idx[depth <= 0] = -1
+        _air_index(idx, depth)
         return idx, depth
 
     def radius_loss(self, t_s: FloatArray) -> FloatArray:
