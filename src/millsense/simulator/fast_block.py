@@ -226,12 +226,18 @@ def drives_block(
     col_pos: int,
     col_fric: int,
     col_speed: int,
+    q_end_ref: np.ndarray,
+    v_ref: np.ndarray,
+    col_vel: int,
+    err_q: np.ndarray,
+    err_v: np.ndarray,
 ) -> None:
     """Every feed drive over samples ``a:b`` in one call: the kernel of each drive (the
     arguments of :meth:`~millsense.simulator.feed_drive.FeedDriveSim.advance_block`), then the
     realism friction drift of
     :meth:`~millsense.simulator.realism.AxisRealism.friction_scale`
-    for the next block.
+    for the next block, then the block's tracking errors (:func:`block_errors` into ``err_q``,
+    ``err_v``; ``q_end_ref`` the reference at the block's end, ``v_ref`` (n, n_axes)).
 
     ``loads`` (n_axes, n) and ``noise`` (n_axes, n) per axis, ``out`` (n_axes, n, N_OUT);
     ``n_done`` the samples each drive has done (advanced in place). ``real`` per axis
@@ -299,3 +305,4 @@ def drives_block(
             fric = st[14]
             for c in range(int(real[i, 4]), int(real[i, 5])):
                 fric[c] = fric_base[i, c] * sc
+    block_errors(q_end_ref, v_ref, out, a, b, col_pos, col_vel, err_q, err_v)

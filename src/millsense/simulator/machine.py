@@ -273,7 +273,8 @@ class _BlockArrays:
         self.tool_acc = np.zeros((n, 2))
         self.tool_vib = np.zeros((n, 2))
         self.torque = np.zeros(n)
-        self.spindle = np.empty((n, 4))  # current_cmd, current, speed, true_speed
+        # current_cmd, current, speed, true_speed (and the compiled loop's angle, speed range)
+        self.spindle = np.empty((n, 6))
         self.chatter = np.zeros(n)
         self.broken = np.zeros(n)
         self.engagement = np.full(n, -1, dtype=np.int64)
@@ -700,7 +701,6 @@ class MachineSimulator(Source):
         self._fb_vchip = np.empty((nb, 3))
         self._a2 = self.kin.a2_m if isinstance(self.kin, TrunnionACMachine) else 0.0
         self._d4 = self.kin.d4_m if isinstance(self.kin, TrunnionACMachine) else 0.0
-        self._fb_spindle = np.empty((nb, 6))
         self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
         if any(
             len(c) != sl.stop - sl.start
@@ -1289,6 +1289,11 @@ class MachineSimulator(Source):
                 _D_TRUE_POS,
                 _D_FRICTION,
                 _D_TRUE_SPEED,
+                q_all[b - 1],
+                v_all,
+                _D_TRUE_VEL,
+                self._err_q,
+                self._err_v,
             )
         else:
             for i, drive in enumerate(self.drives):
@@ -1296,16 +1301,22 @@ class MachineSimulator(Source):
                 drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
                 if self._realism is not None:
                     self._realism_axis_fast(i, out)
-        err_q = np.empty(len(self.drives))
-        err_v = np.empty(len(self.drives))
-        block_errors(q_all[b - 1], v_all, w.drive, a, b, _D_TRUE_POS, _D_TRUE_VEL, err_q, err_v)
-        self._err_q = err_q
-        self._err_v = err_v
-        self._q_ref_block = q_all[b - 1].copy()
+            block_errors(
+                q_all[b - 1],
+                v_all,
+                w.drive,
+                a,
+                b,
+                _D_TRUE_POS,
+                _D_TRUE_VEL,
+                self._err_q,
+                self._err_v,
+            )
+        # the tracking errors were written in place (read by the next block's _pre_block)
+        self._q_ref_block[:] = q_all[b - 1]
         if self.spindle is not None:
-            sp_out = self._fb_spindle[:n]
+            sp_out = w.spindle[sl]  # rows of a C array: C-contiguous
             self.spindle.advance_into(spd_all[sl], np.ascontiguousarray(torque), sp_out)
-            w.spindle[sl] = sp_out[:, :4]  # current_cmd, current, speed, true_speed
             self._theta = float(sp_out[n - 1, 4])
             self._omega = float(sp_out[n - 1, 3])
         else:
