@@ -323,17 +323,21 @@ def _few(row: np.ndarray) -> tuple[bool, int, int, int, float, float, float]:
     """A row of at most three nonzeros as ``(True, i0, i1, i2, c0, c1, c2)`` — indices ascending,
     an unused term index 0 with coefficient 0 — for :func:`_few_dot`; ``(False, …)`` for a
     denser row."""
-    ii = [0, 0, 0]
-    cc = [0.0, 0.0, 0.0]
+    i0 = i1 = i2 = 0
+    c0 = c1 = c2 = 0.0
     m = 0
     for i in range(row.shape[0]):
         if row[i] != 0.0:
-            if m == 3:
+            if m == 0:
+                i0, c0 = i, row[i]
+            elif m == 1:
+                i1, c1 = i, row[i]
+            elif m == 2:
+                i2, c2 = i, row[i]
+            else:
                 return False, 0, 0, 0, 0.0, 0.0, 0.0
-            ii[m] = i
-            cc[m] = row[i]
             m += 1
-    return True, ii[0], ii[1], ii[2], cc[0], cc[1], cc[2]
+    return True, i0, i1, i2, c0, c1, c2
 
 
 @numba.njit(cache=True, inline="always")
@@ -400,15 +404,45 @@ _N_FAST = 8
 
 @numba.njit(cache=True, fastmath={"reassoc", "contract"})
 def _zoh_step(
-    ad: np.ndarray, bd: np.ndarray, xm: np.ndarray, u: np.ndarray, xnew: np.ndarray
+    ad: np.ndarray,
+    bd: np.ndarray,
+    xm: np.ndarray,
+    u0: float,
+    u1: float,
+    u2: float,
+    xnew: np.ndarray,
 ) -> None:
-    """``xnew = Ad·x + Bd·u`` with the sums reassociated (vectorised by LLVM)."""
+    """``xnew = Ad·x + Bd·u`` with the sums reassociated (vectorised by LLVM).
+
+    Four rows per pass over ``x`` (one load of ``x[j]`` for four products; the truth plants'
+    16–28 states are too few for LLVM's 32-wide vectorised reduction of a single row, which
+    then runs scalar): ~1.6–1.8× faster, each row's sum the same as row by row (LLVM orders a
+    row's reduction the same way; equal bit for bit in the tests).
+    """
     n = xm.shape[0]
-    for i in range(n):
+    i = 0
+    while i + 3 < n:
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        a3 = 0.0
+        for j in range(n):
+            xj = xm[j]
+            a0 += ad[i, j] * xj
+            a1 += ad[i + 1, j] * xj
+            a2 += ad[i + 2, j] * xj
+            a3 += ad[i + 3, j] * xj
+        xnew[i] = a0 + bd[i, 0] * u0 + bd[i, 1] * u1 + bd[i, 2] * u2
+        xnew[i + 1] = a1 + bd[i + 1, 0] * u0 + bd[i + 1, 1] * u1 + bd[i + 1, 2] * u2
+        xnew[i + 2] = a2 + bd[i + 2, 0] * u0 + bd[i + 2, 1] * u1 + bd[i + 2, 2] * u2
+        xnew[i + 3] = a3 + bd[i + 3, 0] * u0 + bd[i + 3, 1] * u1 + bd[i + 3, 2] * u2
+        i += 4
+    while i < n:
         acc = 0.0
         for j in range(n):
             acc += ad[i, j] * xm[j]
-        xnew[i] = acc + bd[i, 0] * u[0] + bd[i, 1] * u[1] + bd[i, 2] * u[2]
+        xnew[i] = acc + bd[i, 0] * u0 + bd[i, 1] * u1 + bd[i, 2] * u2
+        i += 1
 
 
 #: Points per motor revolution of the tabulated torque ripple.
@@ -566,7 +600,7 @@ def feed_drive_kernel(
     tau_f = sc[_TAU_F]
     tau_c = sc[_TAU_C]
     xnew = np.empty(n)
-    u = np.zeros(3)
+    u0 = u1 = u2 = 0.0  # plant input [τ_m, F, δ]
     c_th = cy[OUT_THETA].copy()
     c_om = cy[OUT_OMEGA].copy()
     c_x = cy[OUT_X].copy()
@@ -575,6 +609,10 @@ def feed_drive_kernel(
     f_th = _few(c_th)
     f_om = _few(c_om)
     f_e = _few(c_e)
+    # the load velocity and motor acceleration outputs (per sample; re-read after a schedule
+    # update, like the rows they come from)
+    f_v = _few(cy[OUT_V])
+    f_al = _few(cy[OUT_ALPHA])
     d_x = dy[OUT_X, 2]
     n_terms = terms.shape[0]
     has_screw = False
@@ -590,6 +628,8 @@ def feed_drive_kernel(
         idx = ring_idx[0]
         if n_grid > 1 and (n_done + k) % sched_block == 0:
             _interpolate_plant(ring[2, idx], pgrid, pad, pbd, pcy, pdy, ad, bd, cy, dy)
+            f_v = _few(cy[OUT_V])
+            f_al = _few(cy[OUT_ALPHA])
         if kappa != 0.0 and nm > 0 and (n_done + k) % sched_block == 0:
             lam = 1.0 + kappa * (ring[2, idx] - sched[1])
             if lam < 0.05:
@@ -647,14 +687,14 @@ def feed_drive_kernel(
                 else:
                     tau_per = _periodic(terms, KIND_TORQUE, theta)
                 if has_screw:
-                    u[2] = _periodic(terms, KIND_SCREW, theta)
+                    u2 = _periodic(terms, KIND_SCREW, theta)
             else:
                 tau_per = 0.0
             if lost:
                 if not has_screw:
-                    u[2] = 0.0
-                e = _few_dot(f_e, c_e, xm) + u[2]
-                u[2] += _lost_motion(e, gap, lift, soft) - e
+                    u2 = 0.0
+                e = _few_dot(f_e, c_e, xm) + u2
+                u2 += _lost_motion(e, gap, lift, soft) - e
             if nm > 0:
                 tau_c = md * tau_a
                 for j in range(nm):
@@ -664,24 +704,24 @@ def feed_drive_kernel(
                     a1 = mad[j, 1, 0] * xd[j, 0] + mad[j, 1, 1] * xd[j, 1] + mbd[j, 1] * tau_a
                     xd[j, 0] = a0
                     xd[j, 1] = a1
-                u[1] = 0.0
-                u[0] = kt * i_act - tau_f - tau_per - dist_k - tau_c
+                u1 = 0.0
+                u0 = kt * i_act - tau_f - tau_per - dist_k - tau_c
             else:
                 tau_c = tau_a
-                u[1] = load[k]
-                u[0] = kt * i_act - tau_f - tau_per - dist_k
+                u1 = load[k]
+                u0 = kt * i_act - tau_f - tau_per - dist_k
             if n >= _N_FAST:
-                _zoh_step(ad, bd, xm, u, xnew)
+                _zoh_step(ad, bd, xm, u0, u1, u2, xnew)
             else:
                 for i in range(n):
-                    acc = bd[i, 0] * u[0] + bd[i, 1] * u[1] + bd[i, 2] * u[2]
+                    acc = bd[i, 0] * u0 + bd[i, 1] * u1 + bd[i, 2] * u2
                     for j2 in range(n):
                         acc += ad[i, j2] * xm[j2]
                     xnew[i] = acc
             for i in range(n):
                 xm[i] = xnew[i]
             ring[1, idx] = _few_dot(f_th, c_th, xm)
-            ring[2, idx] = _dot(c_x, xm) + d_x * u[2]
+            ring[2, idx] = _dot(c_x, xm) + d_x * u2
         ring_idx[0] = idx
         out[k, 0] = i_cmd
         out[k, 1] = i_act
@@ -691,9 +731,10 @@ def feed_drive_kernel(
         out[k, 5] = _few_dot(f_th, c_th, xm)
         out[k, 6] = x_scale
         out[k, 7] = ring[2, idx]
-        out[k, 8] = _dot(cy[OUT_V], xm)
-        out[k, 9] = _dot(cy[OUT_ALPHA], xm) + dy[OUT_ALPHA, 0] * u[0] + dy[OUT_ALPHA, 1] * u[1]
-        out[k, 10] = _dot(cy[OUT_A], xm) + dy[OUT_A, 0] * u[0] + dy[OUT_A, 1] * u[1]
+        out[k, 8] = _few_dot(f_v, cy[OUT_V], xm)
+        alpha = _few_dot(f_al, cy[OUT_ALPHA], xm)
+        out[k, 9] = alpha + dy[OUT_ALPHA, 0] * u0 + dy[OUT_ALPHA, 1] * u1
+        out[k, 10] = _dot(cy[OUT_A], xm) + dy[OUT_A, 0] * u0 + dy[OUT_A, 1] * u1
         out[k, 11] = tau_f
         out[k, 12] = tau_c
     sc[_Z] = z_f
