@@ -217,7 +217,7 @@ def test_commissioned_spindle_friction_resembles_the_truths_drag() -> None:
 
 def test_ripple_mean_against_extended_precision() -> None:
     """The ripple's exact mean over a current-loop step (speed work, issue 12): integer orders
-    by complex powers, other orders (and orders above the recurrence's limit) by sines, both
+    by binary powers of e^{iθ}, other orders (and orders above the powers' limit) by sines, both
     against ``Σ A·sin(n(θ + dθ/2) + φ)·sin(n dθ/2)/(n dθ/2)`` in 80-bit extended precision
     (the equal product form of ``(cos(nθ + φ) − cos(n(θ + dθ) + φ))/(n dθ)``, free of its
     cancellation). Tolerance 1e-9 of ΣA: θ is rounded to double at |θ| ≤ 2·10⁴ rad (3.6e-12 rad)
@@ -227,7 +227,7 @@ def test_ripple_mean_against_extended_precision() -> None:
     truth = load_truth_spindle("quaser-ux600")
     rng = np.random.default_rng(5)
     cases = [(truth.ripple_orders, 12), ((1.0, 2.5, 6.0), 0), ((3.0, 48.0, 64.0), 64)]
-    cases.append(((3.0, 48.0, 96.0), 0))  # beyond the recurrence's limit: sines
+    cases.append(((3.0, 48.0, 96.0), 0))  # beyond the powers' limit: sines
     for orders, n_max in cases:
         amps = tuple(rng.uniform(0.01, 0.05, len(orders)))
         phases = tuple(rng.uniform(-3.0, 3.0, len(orders)))

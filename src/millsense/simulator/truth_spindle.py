@@ -214,22 +214,34 @@ def _discrete(t: TruthSpindle, h: float) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(np.stack(ads)), np.ascontiguousarray(np.stack(bds))
 
 
-#: Harmonic orders up to this, all integers, take the ripple's complex-power recurrence.
-_RIPPLE_RECURRENCE_MAX = 64
+#: Harmonic orders up to this, all integers, take the ripple's binary powers of e^{iθ}.
+_RIPPLE_POWERS_MAX = 64
 
 
 def ripple_rows(
     orders: tuple[float, ...], amps: tuple[float, ...], phases: tuple[float, ...]
 ) -> tuple[np.ndarray, int]:
-    """Ripple rows ``(order n_k, amplitude A_k, phase φ_k, cos φ_k, sin φ_k)`` by ascending
-    order, and the highest order when every order is an integer ≤ ``_RIPPLE_RECURRENCE_MAX``
-    (0 otherwise: :func:`_ripple_mean` then takes two sines per harmonic)."""
+    """Ripple rows ``(order n_k, amplitude A_k, phase φ_k, cos φ_k, sin φ_k)``, and the highest
+    order when every order is an integer ≤ ``_RIPPLE_POWERS_MAX`` (0 otherwise:
+    :func:`_ripple_mean` then takes two sines per harmonic)."""
     rip = np.column_stack([orders, amps, phases]).reshape(-1, 3).astype(np.float64)
-    rip = rip[np.argsort(rip[:, 0], kind="stable")]
     tab = np.ascontiguousarray(np.column_stack([rip, np.cos(rip[:, 2]), np.sin(rip[:, 2])]))
     o = rip[:, 0]
-    integer = bool(np.all((o == np.round(o)) & (o >= 1) & (o <= _RIPPLE_RECURRENCE_MAX)))
+    integer = bool(np.all((o == np.round(o)) & (o >= 1) & (o <= _RIPPLE_POWERS_MAX)))
     return tab, (int(o.max()) if integer and len(o) else 0)
+
+
+@numba.njit(cache=True)
+def _cis_power(c: float, s: float, m: int) -> tuple[float, float]:
+    """``(cos mφ, sin mφ)`` from ``(cos φ, sin φ)`` by binary powers of ``e^{iφ}`` (m ≥ 0)."""
+    rc, rs = 1.0, 0.0
+    while m > 0:
+        if m & 1:
+            rc, rs = rc * c - rs * s, rs * c + rc * s
+        m >>= 1
+        if m:
+            c, s = c * c - s * s, 2.0 * c * s
+    return rc, rs
 
 
 @numba.njit(cache=True)
@@ -238,25 +250,21 @@ def _ripple_mean(rip: np.ndarray, n_max: int, th: float, dth: float) -> float:
 
     The mean ``(cos(n θ + φ) − cos(n(θ + dθ) + φ))/(n dθ)`` is summed as the equal product
     ``sin(n θ_c + φ)·sin(n dθ/2)/(n dθ/2)``, ``θ_c = θ + dθ/2`` (no cancellation of two close
-    cosines); ``sin(n θ + φ)`` when ``|n dθ| ≤ 1e-9``. With ``n_max`` > 0 (integer orders,
-    rows by ascending order) the multiples ``n θ_c`` and ``n dθ/2`` come from powers of
-    ``e^{iθ_c}`` and ``e^{i dθ/2}`` (one sine–cosine pair each per step).
+    cosines); ``sin(n θ + φ)`` when ``|n dθ| ≤ 1e-9``. With ``n_max`` > 0 (integer orders)
+    the multiples ``n θ_c`` and ``n dθ/2`` come from binary powers of ``e^{iθ_c}`` and
+    ``e^{i dθ/2}`` (one sine–cosine pair each per step, short independent products).
     """
     tr = 0.0
     if n_max > 0:
         th_c = th + 0.5 * dth
         c1, s1 = math.cos(th_c), math.sin(th_c)
         ch, sh = math.cos(0.5 * dth), math.sin(0.5 * dth)
-        cm, sm, chm, shm = 1.0, 0.0, 1.0, 0.0  # e^{i m θ_c}, e^{i m dθ/2} at m = 0
-        m = 0
         for j in range(rip.shape[0]):
             o = int(rip[j, 0])
-            while m < o:
-                cm, sm = cm * c1 - sm * s1, sm * c1 + cm * s1
-                chm, shm = chm * ch - shm * sh, shm * ch + chm * sh
-                m += 1
             od = o * dth
             if abs(od) > 1e-9:
+                cm, sm = _cis_power(c1, s1, o)
+                shm = _cis_power(ch, sh, o)[1]
                 # sin(o θ_c + φ) = sin(o θ_c) cos φ + cos(o θ_c) sin φ
                 tr += rip[j, 1] * (sm * rip[j, 3] + cm * rip[j, 4]) * shm / (0.5 * od)
             else:
@@ -303,7 +311,6 @@ def _truth_spindle_kernel(
     it = n_j  # twist of the tool (state index 1 + n_j − 1)
     nx = x.shape[0]
     xn = np.empty(nx)
-    u = np.empty(4)
     n_rip_max = int(prm[18])
     for k in range(speed_ref.shape[0]):
         # motor encoder: quantised rotor angle, speed by backward difference over one sample
@@ -340,27 +347,31 @@ def _truth_spindle_kernel(
             v_new = kpc * ei + ctl[4]
             ctl[4] += kic * ei * hc
             if nd > 0:
-                u[0] = vbuf[0]
+                u0 = vbuf[0]
                 for j in range(nd - 1):
                     vbuf[j] = vbuf[j + 1]
                 vbuf[nd - 1] = v_new
             else:
-                u[0] = v_new
+                u0 = v_new
             # ripple: exact mean over the step at the held rotor speed
-            u[1] = _ripple_mean(rip, n_rip_max, x[1], x[1 + n_j] * hc)
+            u1 = _ripple_mean(rip, n_rip_max, x[1], x[1 + n_j] * hc)
             wb = x[ib]
             tb = coul * math.tanh(wb / w_s)
             if drag != 0.0:
                 c = np.cbrt(abs(wb) / w_ref)  # (|ω|/ω_ref)^{2/3} = cbrt², to round-off
                 tb += drag * math.copysign(1.0, wb) * (c * c)
-            u[2] = -tb
-            u[3] = torque_dist[k]
+            u2 = -tb
+            u3 = torque_dist[k]
+            adr = ad[r]
+            bdr = bd[r]
             for i in range(nx):
                 acc = 0.0
                 for j in range(nx):
-                    acc += ad[r, i, j] * x[j]
-                for j in range(4):
-                    acc += bd[r, i, j] * u[j]
+                    acc += adr[i, j] * x[j]
+                acc += bdr[i, 0] * u0
+                acc += bdr[i, 1] * u1
+                acc += bdr[i, 2] * u2
+                acc += bdr[i, 3] * u3
                 xn[i] = acc
             for i in range(nx):
                 x[i] = xn[i]
@@ -407,7 +418,7 @@ class TruthSpindleSim:
                 truth.drag_ref_rad_s,
                 float(n_j),
                 float(truth.mechanics.bearing_node),
-                0.0,  # the ripple recurrence's highest order (set below)
+                0.0,  # the ripple's highest order for binary powers, 0: sines (below)
             ]
         )
         self._rip, n_rip_max = ripple_rows(
