@@ -1196,14 +1196,16 @@ class MachineSimulator(Source):
         torque: FloatArray
         if self.process is not None:
             t = t_all[sl]
-            theta = self._fb_theta[:n]
-            omega = self._fb_omega[:n]
-            rot = self._fb_rot[:n]
-            axis = self._fb_axis[:n]
-            speed = self._fb_speed[:n]
-            x_p = self._fb_xp[:n]
-            y_p = self._fb_yp[:n]
-            s_est = self._fb_sest[:n]
+            # the (nb, …) scratch arrays whole: every block is nb samples (_generate)
+            assert n == self._fb_theta.shape[0]
+            theta = self._fb_theta
+            omega = self._fb_omega
+            rot = self._fb_rot
+            axis = self._fb_axis
+            speed = self._fb_speed
+            x_p = self._fb_xp
+            y_p = self._fb_yp
+            s_est = self._fb_sest
             self._v_count = _pre_block(
                 2 if five else (1 if self.stage else 0),
                 q_all[sl],
@@ -1224,23 +1226,23 @@ class MachineSimulator(Source):
                 s_tip_all[sl],
                 theta,
                 omega,
-                self._fb_vw[:n],
+                self._fb_vw,
                 axis,
                 rot,
-                self._fb_lm[:n],
-                self._fb_vchip[:n],
+                self._fb_lm,
+                self._fb_vchip,
                 speed,
                 x_p,
                 y_p,
                 s_est,
             )
             po = self.process.evaluate(t, s_est, theta, omega, speed)
-            f_w = self._fb_fw[:n]
+            f_w = self._fb_fw
             _to_frame(po.force, x_p, y_p, axis, f_w)
             regen = self.process.modes is not None
             loads_blk = w.loads[sl]
             if five:
-                trunnion_loads(rot, self._fb_lm[:n], f_w, w.force[sl], loads_blk)
+                trunnion_loads(rot, self._fb_lm, f_w, w.force[sl], loads_blk)
                 if regen:
                     rotate_back(rot, x_p, y_p, po.vibration_acc, w.tool_acc[sl])
                     rotate_back(rot, x_p, y_p, po.vibration_m, w.tool_vib[sl])
