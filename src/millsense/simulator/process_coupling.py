@@ -363,7 +363,8 @@ def _forces_kernel(
     k6: np.ndarray,
     sin_a: np.ndarray,
     cos_a: np.ndarray,
-    out: np.ndarray,
+    force: np.ndarray,
+    torque: np.ndarray,
 ) -> None:
     """Per-sample loop of :func:`block_forces` (same equations, compiled).
 
@@ -422,10 +423,10 @@ def _forces_kernel(
                 fy += dft * sp + radial_out * cp
                 fz += dfr * cos_k[d] + dfa * sin_k[d]
                 tq += dft * r[j, d]
-        out[k, 0] = fx
-        out[k, 1] = fy
-        out[k, 2] = fz
-        out[k, 3] = tq
+        force[k, 0] = fx
+        force[k, 1] = fy
+        force[k, 2] = fz
+        torque[k] = tq
 
 
 class StaticForceModel:
@@ -475,8 +476,26 @@ class StaticForceModel:
         radius_loss_m: FloatArray,
     ) -> FloatArray:
         """(n, 4) [F_x, F_y, F_z (N, feed frame), torque (N·m)] per sample."""
+        n = len(spindle_angle_rad)
+        force, torque = np.empty((n, 3)), np.empty(n)
+        angle, c, loss = spindle_angle_rad, feed_per_tooth_m, radius_loss_m
+        self.forces_into(key, engagement, depth_m, angle, c, loss, force, torque)
+        return np.column_stack([force, torque])
+
+    def forces_into(
+        self,
+        key: int,
+        engagement: Engagement,
+        depth_m: float,
+        spindle_angle_rad: FloatArray,
+        feed_per_tooth_m: FloatArray,
+        radius_loss_m: FloatArray,
+        force: FloatArray,
+        torque: FloatArray,
+    ) -> None:
+        """:meth:`forces` into ``force`` ((n, 3) C-contiguous, N, feed frame) and ``torque``
+        ((n,), N·m)."""
         lag, radii, sk, ck, edge, eng, sin_a, cos_a = self._geometry((key, depth_m), engagement)
-        out = np.empty((len(spindle_angle_rad), 4))
         _forces_kernel(
             np.ascontiguousarray(spindle_angle_rad, dtype=np.float64),
             np.ascontiguousarray(feed_per_tooth_m, dtype=np.float64),
@@ -493,9 +512,9 @@ class StaticForceModel:
             self._k6,
             sin_a,
             cos_a,
-            out,
+            force,
+            torque,
         )
-        return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -697,21 +716,23 @@ class ProcessCoupling:
         chatter = np.zeros(n)
         if self.modes is None:
             if n and _uniform(idx, depth):
-                groups = [(int(idx[0]), float(depth[0]), slice(None))]
+                k, d = int(idx[0]), float(depth[0])
+                if k >= 0 and d > 0:  # one engagement over the block: straight into the arrays
+                    self._static.forces_into(
+                        k, self._table[k], d, spindle_angle_rad, c, loss, force, torque
+                    )
             else:
                 keys = np.stack([idx.astype(np.float64), depth], axis=1)
-                groups = [
-                    (int(kk[0]), float(kk[1]), (idx == int(kk[0])) & (depth == kk[1]))
-                    for kk in np.unique(keys, axis=0)
-                ]
-            for k, d, sel in groups:
-                if k < 0 or d <= 0:
-                    continue
-                res = self._static.forces(
-                    k, self._table[k], d, spindle_angle_rad[sel], c[sel], loss[sel]
-                )
-                force[sel] = res[:, :3]
-                torque[sel] = res[:, 3]
+                for kk in np.unique(keys, axis=0):
+                    k, d = int(kk[0]), float(kk[1])
+                    if k < 0 or d <= 0:
+                        continue
+                    sel = (idx == k) & (depth == kk[1])
+                    res = self._static.forces(
+                        k, self._table[k], d, spindle_angle_rad[sel], c[sel], loss[sel]
+                    )
+                    force[sel] = res[:, :3]
+                    torque[sel] = res[:, 3]
         else:
             self._regenerative(
                 t_s, idx, depth, c, spindle_speed_rad_s, force, torque, vib, acc, chatter
