@@ -1248,9 +1248,9 @@ class MachineSimulator(Source):
                     rotate_back(rot, x_p, y_p, po.vibration_m, w.tool_vib[sl])
             else:
                 if self.stage:
-                    loads_blk[:, 0] = -f_w[:, 0]
+                    np.negative(f_w[:, 0], out=loads_blk[:, 0])
                 else:
-                    loads_blk[:] = -f_w
+                    np.negative(f_w, out=loads_blk)
                 w.force[sl] = f_w
                 if regen:
                     acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
@@ -1264,7 +1264,7 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
-            mean_torque = float(torque.sum()) / n  # = np.mean
+            mean_torque = float(np.add.reduce(torque)) / n  # = np.mean
             self.crashes.check_block(
                 t, po.engagement_index, po.depth_m, self._omega, loads_blk, torque, mean_torque
             )

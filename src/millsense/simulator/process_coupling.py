@@ -171,13 +171,17 @@ class EngagementSchedule:
         return max((s.depth_m for s in self.segments), default=0.0)
 
     def at(self, s_m: FloatArray, t_s: FloatArray | None = None) -> tuple[IntArray, FloatArray]:
-        """Engagement index and axial depth per sample (see :class:`EngagementSource`)."""
+        """Engagement index and axial depth per sample (see :class:`EngagementSource`), new
+        arrays."""
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
         idx = np.empty(x.shape, dtype=np.int64)
         dep = np.empty(x.shape)
-        _segment_lookup(self._starts, self._idx, self._dep, x.ravel(), idx.ravel(), dep.ravel())
+        if x.ndim == 1:
+            _segment_lookup(self._starts, self._idx, self._dep, x, idx, dep)
+        else:
+            _segment_lookup(self._starts, self._idx, self._dep, x.ravel(), idx.ravel(), dep.ravel())
         return idx, dep
 
 
@@ -663,8 +667,9 @@ class ProcessCoupling:
     def engagement_at(self, s_m: FloatArray, t_s: FloatArray) -> tuple[IntArray, FloatArray]:
         """Engagement index (−1 in air) and depth per sample, after the events."""
         idx, depth = self.engagement.at(s_m, t_s)
-        idx = np.array(idx, dtype=np.int64)
-        depth = np.array(depth, dtype=np.float64)
+        if not isinstance(self.engagement, EngagementSchedule):  # its arrays are new: no copy
+            idx = np.array(idx, dtype=np.int64)
+            depth = np.array(depth, dtype=np.float64)
         for ev in self._depth_steps:
             sel = (t_s >= ev.time_s) & (depth > 0)
             depth[sel] = ev.depth_m
