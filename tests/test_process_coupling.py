@@ -16,6 +16,7 @@ from millsense.simulator.process_coupling import (
     AirCut,
     DepthStep,
     EngagementSchedule,
+    EngagementSegment,
     ProcessCoupling,
     StaticForceModel,
     ToothBreak,
@@ -84,3 +85,26 @@ def test_schedule_events_and_errors() -> None:
         EngagementSchedule.from_spec("half", 20e-3, 2e-3)
     with pytest.raises(ConfigError, match="flute 3"):
         ProcessCoupling(TOOL, K, sched, events=[ToothBreak(0.1, 3)])
+
+
+def test_schedule_lookup_equals_searchsorted() -> None:
+    """The compiled segment lookup of :meth:`EngagementSchedule.at` (speed work, issue 12)
+    against its NumPy definition — the last segment with start ≤ s, the air entry before the
+    first — on random arc lengths and on the segment starts themselves (equal starts: the
+    later segment wins)."""
+    sch = EngagementSchedule(
+        (Engagement.slot(), Engagement.radial(5e-3, 20e-3)),
+        (
+            EngagementSegment(0.001, 0, 2e-3),
+            EngagementSegment(0.005, 1, 3e-3),
+            EngagementSegment(0.005, 0, 0.0),
+            EngagementSegment(0.01, 1, 1e-3),
+        ),
+    )
+    rng = np.random.default_rng(2)
+    s = np.concatenate([rng.uniform(-0.002, 0.02, 500), [0.001, 0.005, 0.01, -1.0, 1.0]])
+    k = np.searchsorted(np.array([0.001, 0.005, 0.005, 0.01]), s, side="right") - 1
+    k[k < 0] = 4
+    idx, depth = sch.at(s)
+    assert np.array_equal(idx, np.array([0, 1, 0, 1, 0])[k])
+    assert np.array_equal(depth, np.array([2e-3, 3e-3, 0.0, 1e-3, 0.0])[k])

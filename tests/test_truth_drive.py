@@ -224,6 +224,69 @@ def test_truth_drive_chunking_is_bit_identical() -> None:
     assert one["true_position"][-1] == pytest.approx(0.1, abs=2e-4)
 
 
+def test_few_term_rows_equal_the_dense_dot_product() -> None:
+    """The kernel evaluates the motor angle, motor speed and lost-motion stretch at every
+    substep from their nonzeros (speed work, issue 12): the products the dense sequential dot
+    product sums, in its order, less exact zeros — equal bit for bit, so the drives' results
+    are unchanged. On every truth drive's own rows (single states; the stretch three nonzeros)
+    at random states, and on random rows of 0–3 nonzeros; a denser row takes the dense sum."""
+    from millsense.models.drive_plant import OUT_OMEGA, OUT_THETA
+    from millsense.simulator.feed_drive import _dot, _few, _few_dot
+
+    rng = np.random.default_rng(11)
+
+    def states(n: int) -> np.ndarray:
+        return rng.normal(size=n) * 10.0 ** rng.uniform(-9, 3, size=n)
+
+    rows = []
+    for ax in TRUTH:
+        p = truth_feed_params(MACHINE.axes[ax], TRUTH[ax])
+        assert p.lost_motion is not None
+        sim = FeedDriveSim(p, 10000.0)
+        rows += [sim._cy[OUT_OMEGA], sim._cy[OUT_THETA], p.lost_motion.stretch]
+    for _ in range(200):
+        row = np.zeros(16)
+        k = rng.integers(0, 4)
+        row[rng.choice(16, size=k, replace=False)] = rng.normal(size=k) * 10.0 ** rng.uniform(-3, 3)
+        rows.append(row)
+    for row in rows:
+        t = _few(row)
+        assert t[0]
+        for _ in range(20):
+            x = states(row.shape[0])
+            assert _few_dot(t, row, x) == _dot(row, x)
+    dense = rng.normal(size=16)
+    assert not _few(dense)[0]
+    x = states(16)
+    assert _few_dot(_few(dense), dense, x) == _dot(dense, x)
+
+
+def test_zoh_step_is_the_matrix_product() -> None:
+    """The ZOH product of the coupled plants (four rows per pass, reassociated sums; speed
+    work, issue 12) against NumPy's ``Ad·x + Bd·u`` on every truth drive's own map and on
+    random ones of 8–33 states (the four-row blocks and the remainder rows). Tolerance 1e-14
+    of ``|Ad|·|x| + |Bd|·|u|`` per row: a sum of ≤ 36 products in another order differs by a
+    few units of 2.2e-16 of that bound."""
+    from millsense.simulator.feed_drive import _zoh_step
+
+    rng = np.random.default_rng(12)
+    maps = []
+    for ax in TRUTH:
+        sim = FeedDriveSim(truth_feed_params(MACHINE.axes[ax], TRUTH[ax]), 10000.0, substeps=4)
+        maps.append((sim._ad, sim._bd))
+    for n in range(8, 34):
+        maps.append((rng.normal(size=(n, n)), rng.normal(size=(n, 3))))
+    for ad, bd in maps:
+        n = ad.shape[0]
+        for _ in range(5):
+            x = rng.normal(size=n) * 10.0 ** rng.uniform(-6, 2, size=n)
+            u = rng.normal(size=3) * 100.0
+            out = np.empty(n)
+            _zoh_step(ad, bd, x, u[0], u[1], u[2], out)
+            bound = np.abs(ad) @ np.abs(x) + np.abs(bd) @ np.abs(u)
+            assert np.all(np.abs(out - (ad @ x + bd @ u)) <= 1e-14 * bound)
+
+
 def test_schedule_interpolates_the_discretised_plant() -> None:
     """The kernel's plant at a grid position is that position's exact ZOH map; half-way it is
     the mean of the two neighbours; beyond the grid the end plant (decision 0974)."""

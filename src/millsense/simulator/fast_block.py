@@ -226,18 +226,29 @@ def drives_block(
     col_pos: int,
     col_fric: int,
     col_speed: int,
+    q_end_ref: np.ndarray,
+    v_ref: np.ndarray,
+    col_vel: int,
+    err_q: np.ndarray,
+    err_v: np.ndarray,
 ) -> None:
     """Every feed drive over samples ``a:b`` in one call: the kernel of each drive (the
     arguments of :meth:`~millsense.simulator.feed_drive.FeedDriveSim.advance_block`), then the
     realism friction drift of
     :meth:`~millsense.simulator.realism.AxisRealism.friction_scale`
-    for the next block.
+    for the next block, then the block's tracking errors (:func:`block_errors` into ``err_q``,
+    ``err_v``; ``q_end_ref`` the reference at the block's end, ``v_ref`` (n, n_axes)).
 
     ``loads`` (n_axes, n) and ``noise`` (n_axes, n) per axis, ``out`` (n_axes, n, N_OUT);
     ``n_done`` the samples each drive has done (advanced in place). ``real`` per axis
     ``[drift on, ripple r, wavelength λ, phase ψ, first, end friction column]``,
     ``temperature`` the axes' temperature rises (K, advanced in place), ``fric_base`` the
     friction arrays before the drift, ``thermal`` ``[R_th (K/W), τ (s), c_T (1/K), block s]``.
+
+    Numba's disk cache of this function holds :func:`feed_drive_kernel` compiled in and is
+    invalidated only by a change of this file, not of ``feed_drive.py``: a change of the
+    kernel must come with a change here (or a cleared ``__pycache__``), else the cached old
+    kernel runs on.
     """
     n = b - a
     for i in range(len(states)):
@@ -294,3 +305,4 @@ def drives_block(
             fric = st[14]
             for c in range(int(real[i, 4]), int(real[i, 5])):
                 fric[c] = fric_base[i, c] * sc
+    block_errors(q_end_ref, v_ref, out, a, b, col_pos, col_vel, err_q, err_v)

@@ -273,7 +273,8 @@ class _BlockArrays:
         self.tool_acc = np.zeros((n, 2))
         self.tool_vib = np.zeros((n, 2))
         self.torque = np.zeros(n)
-        self.spindle = np.empty((n, 4))  # current_cmd, current, speed, true_speed
+        # current_cmd, current, speed, true_speed (and the compiled loop's angle, speed range)
+        self.spindle = np.empty((n, 6))
         self.chatter = np.zeros(n)
         self.broken = np.zeros(n)
         self.engagement = np.full(n, -1, dtype=np.int64)
@@ -700,7 +701,6 @@ class MachineSimulator(Source):
         self._fb_vchip = np.empty((nb, 3))
         self._a2 = self.kin.a2_m if isinstance(self.kin, TrunnionACMachine) else 0.0
         self._d4 = self.kin.d4_m if isinstance(self.kin, TrunnionACMachine) else 0.0
-        self._fb_spindle = np.empty((nb, 6))
         self._fric_slices = [slice(min(c), max(c) + 1) for c in self._fric_cols]
         if any(
             len(c) != sl.stop - sl.start
@@ -1196,14 +1196,16 @@ class MachineSimulator(Source):
         torque: FloatArray
         if self.process is not None:
             t = t_all[sl]
-            theta = self._fb_theta[:n]
-            omega = self._fb_omega[:n]
-            rot = self._fb_rot[:n]
-            axis = self._fb_axis[:n]
-            speed = self._fb_speed[:n]
-            x_p = self._fb_xp[:n]
-            y_p = self._fb_yp[:n]
-            s_est = self._fb_sest[:n]
+            # the (nb, …) scratch arrays whole: every block is nb samples (_generate)
+            assert n == self._fb_theta.shape[0]
+            theta = self._fb_theta
+            omega = self._fb_omega
+            rot = self._fb_rot
+            axis = self._fb_axis
+            speed = self._fb_speed
+            x_p = self._fb_xp
+            y_p = self._fb_yp
+            s_est = self._fb_sest
             self._v_count = _pre_block(
                 2 if five else (1 if self.stage else 0),
                 q_all[sl],
@@ -1224,31 +1226,31 @@ class MachineSimulator(Source):
                 s_tip_all[sl],
                 theta,
                 omega,
-                self._fb_vw[:n],
+                self._fb_vw,
                 axis,
                 rot,
-                self._fb_lm[:n],
-                self._fb_vchip[:n],
+                self._fb_lm,
+                self._fb_vchip,
                 speed,
                 x_p,
                 y_p,
                 s_est,
             )
             po = self.process.evaluate(t, s_est, theta, omega, speed)
-            f_w = self._fb_fw[:n]
+            f_w = self._fb_fw
             _to_frame(po.force, x_p, y_p, axis, f_w)
             regen = self.process.modes is not None
             loads_blk = w.loads[sl]
             if five:
-                trunnion_loads(rot, self._fb_lm[:n], f_w, w.force[sl], loads_blk)
+                trunnion_loads(rot, self._fb_lm, f_w, w.force[sl], loads_blk)
                 if regen:
                     rotate_back(rot, x_p, y_p, po.vibration_acc, w.tool_acc[sl])
                     rotate_back(rot, x_p, y_p, po.vibration_m, w.tool_vib[sl])
             else:
                 if self.stage:
-                    loads_blk[:, 0] = -f_w[:, 0]
+                    np.negative(f_w[:, 0], out=loads_blk[:, 0])
                 else:
-                    loads_blk[:] = -f_w
+                    np.negative(f_w, out=loads_blk)
                 w.force[sl] = f_w
                 if regen:
                     acc_w = po.vibration_acc[:, :1] * x_p + po.vibration_acc[:, 1:2] * y_p
@@ -1262,7 +1264,7 @@ class MachineSimulator(Source):
             w.engagement[sl] = po.engagement_index
             w.depth[sl] = po.depth_m
             w.feed_per_tooth[sl] = po.feed_per_tooth_m
-            mean_torque = float(torque.sum()) / n  # = np.mean
+            mean_torque = float(np.add.reduce(torque)) / n  # = np.mean
             self.crashes.check_block(
                 t, po.engagement_index, po.depth_m, self._omega, loads_blk, torque, mean_torque
             )
@@ -1289,6 +1291,11 @@ class MachineSimulator(Source):
                 _D_TRUE_POS,
                 _D_FRICTION,
                 _D_TRUE_SPEED,
+                q_all[b - 1],
+                v_all,
+                _D_TRUE_VEL,
+                self._err_q,
+                self._err_v,
             )
         else:
             for i, drive in enumerate(self.drives):
@@ -1296,16 +1303,22 @@ class MachineSimulator(Source):
                 drive.advance_block(pos_m[i, sl], vel_m[i, sl], loads[i], noise[i, sl], out)
                 if self._realism is not None:
                     self._realism_axis_fast(i, out)
-        err_q = np.empty(len(self.drives))
-        err_v = np.empty(len(self.drives))
-        block_errors(q_all[b - 1], v_all, w.drive, a, b, _D_TRUE_POS, _D_TRUE_VEL, err_q, err_v)
-        self._err_q = err_q
-        self._err_v = err_v
-        self._q_ref_block = q_all[b - 1].copy()
+            block_errors(
+                q_all[b - 1],
+                v_all,
+                w.drive,
+                a,
+                b,
+                _D_TRUE_POS,
+                _D_TRUE_VEL,
+                self._err_q,
+                self._err_v,
+            )
+        # the tracking errors were written in place (read by the next block's _pre_block)
+        self._q_ref_block[:] = q_all[b - 1]
         if self.spindle is not None:
-            sp_out = self._fb_spindle[:n]
+            sp_out = w.spindle[sl]  # rows of a C array: C-contiguous
             self.spindle.advance_into(spd_all[sl], np.ascontiguousarray(torque), sp_out)
-            w.spindle[sl] = sp_out[:, :4]  # current_cmd, current, speed, true_speed
             self._theta = float(sp_out[n - 1, 4])
             self._omega = float(sp_out[n - 1, 3])
         else:

@@ -171,13 +171,18 @@ class EngagementSchedule:
         return max((s.depth_m for s in self.segments), default=0.0)
 
     def at(self, s_m: FloatArray, t_s: FloatArray | None = None) -> tuple[IntArray, FloatArray]:
-        """Engagement index and axial depth per sample (see :class:`EngagementSource`)."""
+        """Engagement index and axial depth per sample (see :class:`EngagementSource`), new
+        arrays."""
         x = np.asarray(s_m if self.basis == "arc_length" else t_s, dtype=np.float64)
         if self.basis == "time" and t_s is None:
             raise ConfigError("engagement schedule: a time-based schedule needs t_s")
-        k = np.searchsorted(self._starts, x, side="right") - 1
-        k[k < 0] = len(self.segments)
-        return self._idx[k], self._dep[k]
+        idx = np.empty(x.shape, dtype=np.int64)
+        dep = np.empty(x.shape)
+        if x.ndim == 1:
+            _segment_lookup(self._starts, self._idx, self._dep, x, idx, dep)
+        else:
+            _segment_lookup(self._starts, self._idx, self._dep, x.ravel(), idx.ravel(), dep.ravel())
+        return idx, dep
 
 
 # --------------------------------------------------------------------------------------------
@@ -304,6 +309,39 @@ def _feed_per_tooth(feed: np.ndarray, speed: np.ndarray, n_flutes: float, out: n
 
 
 @numba.njit(cache=True)
+def _segment_lookup(
+    starts: np.ndarray,
+    idx_tab: np.ndarray,
+    dep_tab: np.ndarray,
+    x: np.ndarray,
+    idx: np.ndarray,
+    dep: np.ndarray,
+) -> None:
+    """Per sample the last segment with ``start ≤ x`` (``searchsorted(starts, x, 'right') −
+    1``; before the first, the air entry after the segments): its index and depth."""
+    n_seg = starts.shape[0]
+    for k in range(x.shape[0]):
+        lo, hi = 0, n_seg  # first start > x by bisection
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if starts[mid] <= x[k]:
+                lo = mid + 1
+            else:
+                hi = mid
+        j = lo - 1 if lo > 0 else n_seg
+        idx[k] = idx_tab[j]
+        dep[k] = dep_tab[j]
+
+
+@numba.njit(cache=True)
+def _air_index(idx: np.ndarray, depth: np.ndarray) -> None:
+    """Engagement index −1 wherever the depth is ≤ 0 (in air)."""
+    for k in range(idx.shape[0]):
+        if depth[k] <= 0.0:
+            idx[k] = -1
+
+
+@numba.njit(cache=True)
 def _uniform(idx: np.ndarray, depth: np.ndarray) -> bool:
     """True when every sample has the first sample's engagement index and depth."""
     for k in range(1, idx.shape[0]):
@@ -327,9 +365,18 @@ def _forces_kernel(
     edge: np.ndarray,
     eng: np.ndarray,
     k6: np.ndarray,
-    out: np.ndarray,
+    sin_a: np.ndarray,
+    cos_a: np.ndarray,
+    force: np.ndarray,
+    torque: np.ndarray,
 ) -> None:
-    """Per-sample loop of :func:`block_forces` (same equations, compiled)."""
+    """Per-sample loop of :func:`block_forces` (same equations, compiled).
+
+    The edge angle ``φ = φ_s − θ_j − ψ_d`` enters the engagement test reduced by floor; its sine
+    and cosine come from one sine–cosine pair of ``φ_s`` per sample and the fixed ``α = θ_j + ψ_d``
+    (``sin_a``, ``cos_a`` (flutes, discs)) by the angle-difference formulas, to round-off the
+    same values (no per-edge sine and cosine).
+    """
     n_fl = theta.shape[0]
     n_d = lag.shape[0]
     r = np.empty((n_fl, n_d))
@@ -342,6 +389,8 @@ def _forces_kernel(
         fy = 0.0
         fz = 0.0
         tq = 0.0
+        s_s = math.sin(phi_s[k])
+        c_s = math.cos(phi_s[k])
         for j in range(n_fl):
             for d in range(n_d):
                 phi = phi_s[k] - theta[j] - lag[d]
@@ -349,12 +398,17 @@ def _forces_kernel(
                 for i in range(eng.shape[1]):
                     w = eng[d, i, 1]
                     if w >= 0.0:
-                        x = (phi - eng[d, i, 0]) % _TWO_PI
+                        # (φ − start) mod 2π by floor (libm's exact fmod costs more than the
+                        # rest of the edge; the two differ by round-off of φ)
+                        x = phi - eng[d, i, 0]
+                        x -= _TWO_PI * math.floor(x / _TWO_PI)
+                        if x < 0.0:
+                            x += _TWO_PI
                         if x <= w:
                             inside = True
                 if not inside:
                     continue
-                sp = math.sin(phi)
+                sp = s_s * cos_a[j, d] - c_s * sin_a[j, d]
                 h = 1e300
                 for m in range(n_fl):
                     cand = f_rev * dtheta[j, m] / _TWO_PI * sp + r[j, d] - r[prev[j, m], d]
@@ -367,16 +421,16 @@ def _forces_kernel(
                 dft = k6[0] * h * db + k6[3] * db
                 dfr = k6[1] * h * db + k6[4] * db
                 dfa = k6[2] * h * db + k6[5] * db
-                cp = math.cos(phi)
+                cp = c_s * cos_a[j, d] + s_s * sin_a[j, d]
                 radial_out = dfa * cos_k[d] - dfr * sin_k[d]
                 fx += -dft * cp + radial_out * sp
                 fy += dft * sp + radial_out * cp
                 fz += dfr * cos_k[d] + dfa * sin_k[d]
                 tq += dft * r[j, d]
-        out[k, 0] = fx
-        out[k, 1] = fy
-        out[k, 2] = fz
-        out[k, 3] = tq
+        force[k, 0] = fx
+        force[k, 1] = fy
+        force[k, 2] = fz
+        torque[k] = tq
 
 
 class StaticForceModel:
@@ -402,6 +456,7 @@ class StaticForceModel:
         g = self._cache.get(key)
         if g is None:
             discs = self.tool.discs(key[1], self.n_discs)
+            alpha = self._theta[:, None] + np.asarray(discs.lag_rad)[None, :]
             g = (
                 np.ascontiguousarray(discs.lag_rad),
                 np.ascontiguousarray(self.tool.flute_radii_m(discs)),
@@ -409,6 +464,8 @@ class StaticForceModel:
                 np.ascontiguousarray(np.cos(discs.kappa_rad)),
                 np.ascontiguousarray(discs.edge_length_m),
                 np.ascontiguousarray(engagement.disc_table(discs.axial_fraction)),
+                np.ascontiguousarray(np.sin(alpha)),
+                np.ascontiguousarray(np.cos(alpha)),
             )
             self._cache[key] = g
         return g
@@ -423,8 +480,26 @@ class StaticForceModel:
         radius_loss_m: FloatArray,
     ) -> FloatArray:
         """(n, 4) [F_x, F_y, F_z (N, feed frame), torque (N·m)] per sample."""
-        lag, radii, sk, ck, edge, eng = self._geometry((key, depth_m), engagement)
-        out = np.empty((len(spindle_angle_rad), 4))
+        n = len(spindle_angle_rad)
+        force, torque = np.empty((n, 3)), np.empty(n)
+        angle, c, loss = spindle_angle_rad, feed_per_tooth_m, radius_loss_m
+        self.forces_into(key, engagement, depth_m, angle, c, loss, force, torque)
+        return np.column_stack([force, torque])
+
+    def forces_into(
+        self,
+        key: int,
+        engagement: Engagement,
+        depth_m: float,
+        spindle_angle_rad: FloatArray,
+        feed_per_tooth_m: FloatArray,
+        radius_loss_m: FloatArray,
+        force: FloatArray,
+        torque: FloatArray,
+    ) -> None:
+        """:meth:`forces` into ``force`` ((n, 3) C-contiguous, N, feed frame) and ``torque``
+        ((n,), N·m)."""
+        lag, radii, sk, ck, edge, eng, sin_a, cos_a = self._geometry((key, depth_m), engagement)
         _forces_kernel(
             np.ascontiguousarray(spindle_angle_rad, dtype=np.float64),
             np.ascontiguousarray(feed_per_tooth_m, dtype=np.float64),
@@ -439,9 +514,11 @@ class StaticForceModel:
             edge,
             eng,
             self._k6,
-            out,
+            sin_a,
+            cos_a,
+            force,
+            torque,
         )
-        return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -590,14 +667,15 @@ class ProcessCoupling:
     def engagement_at(self, s_m: FloatArray, t_s: FloatArray) -> tuple[IntArray, FloatArray]:
         """Engagement index (−1 in air) and depth per sample, after the events."""
         idx, depth = self.engagement.at(s_m, t_s)
-        idx = np.array(idx, dtype=np.int64)
-        depth = np.array(depth, dtype=np.float64)
+        if not isinstance(self.engagement, EngagementSchedule):  # its arrays are new: no copy
+            idx = np.array(idx, dtype=np.int64)
+            depth = np.array(depth, dtype=np.float64)
         for ev in self._depth_steps:
             sel = (t_s >= ev.time_s) & (depth > 0)
             depth[sel] = ev.depth_m
         for ev_a in self._air_cuts:
             depth[(t_s >= ev_a.start_s) & (t_s < ev_a.end_s)] = 0.0
-        idx[depth <= 0] = -1
+        _air_index(idx, depth)
         return idx, depth
 
     def radius_loss(self, t_s: FloatArray) -> FloatArray:
@@ -643,21 +721,23 @@ class ProcessCoupling:
         chatter = np.zeros(n)
         if self.modes is None:
             if n and _uniform(idx, depth):
-                groups = [(int(idx[0]), float(depth[0]), slice(None))]
+                k, d = int(idx[0]), float(depth[0])
+                if k >= 0 and d > 0:  # one engagement over the block: straight into the arrays
+                    self._static.forces_into(
+                        k, self._table[k], d, spindle_angle_rad, c, loss, force, torque
+                    )
             else:
                 keys = np.stack([idx.astype(np.float64), depth], axis=1)
-                groups = [
-                    (int(kk[0]), float(kk[1]), (idx == int(kk[0])) & (depth == kk[1]))
-                    for kk in np.unique(keys, axis=0)
-                ]
-            for k, d, sel in groups:
-                if k < 0 or d <= 0:
-                    continue
-                res = self._static.forces(
-                    k, self._table[k], d, spindle_angle_rad[sel], c[sel], loss[sel]
-                )
-                force[sel] = res[:, :3]
-                torque[sel] = res[:, 3]
+                for kk in np.unique(keys, axis=0):
+                    k, d = int(kk[0]), float(kk[1])
+                    if k < 0 or d <= 0:
+                        continue
+                    sel = (idx == k) & (depth == kk[1])
+                    res = self._static.forces(
+                        k, self._table[k], d, spindle_angle_rad[sel], c[sel], loss[sel]
+                    )
+                    force[sel] = res[:, :3]
+                    torque[sel] = res[:, 3]
         else:
             self._regenerative(
                 t_s, idx, depth, c, spindle_speed_rad_s, force, torque, vib, acc, chatter

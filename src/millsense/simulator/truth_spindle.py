@@ -214,6 +214,72 @@ def _discrete(t: TruthSpindle, h: float) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(np.stack(ads)), np.ascontiguousarray(np.stack(bds))
 
 
+#: Harmonic orders up to this, all integers, take the ripple's binary powers of e^{iθ}.
+_RIPPLE_POWERS_MAX = 64
+
+
+def ripple_rows(
+    orders: tuple[float, ...], amps: tuple[float, ...], phases: tuple[float, ...]
+) -> tuple[np.ndarray, int]:
+    """Ripple rows ``(order n_k, amplitude A_k, phase φ_k, cos φ_k, sin φ_k)``, and the highest
+    order when every order is an integer ≤ ``_RIPPLE_POWERS_MAX`` (0 otherwise:
+    :func:`_ripple_mean` then takes two sines per harmonic)."""
+    rip = np.column_stack([orders, amps, phases]).reshape(-1, 3).astype(np.float64)
+    tab = np.ascontiguousarray(np.column_stack([rip, np.cos(rip[:, 2]), np.sin(rip[:, 2])]))
+    o = rip[:, 0]
+    integer = bool(np.all((o == np.round(o)) & (o >= 1) & (o <= _RIPPLE_POWERS_MAX)))
+    return tab, (int(o.max()) if integer and len(o) else 0)
+
+
+@numba.njit(cache=True)
+def _cis_power(c: float, s: float, m: int) -> tuple[float, float]:
+    """``(cos mφ, sin mφ)`` from ``(cos φ, sin φ)`` by binary powers of ``e^{iφ}`` (m ≥ 0)."""
+    rc, rs = 1.0, 0.0
+    while m > 0:
+        if m & 1:
+            rc, rs = rc * c - rs * s, rs * c + rc * s
+        m >>= 1
+        if m:
+            c, s = c * c - s * s, 2.0 * c * s
+    return rc, rs
+
+
+@numba.njit(cache=True)
+def _ripple_mean(rip: np.ndarray, n_max: int, th: float, dth: float) -> float:
+    """``Σ A_k·mean(sin(n_k θ + φ_k))`` over the step ``θ … θ + dθ`` (speed held), N·m.
+
+    The mean ``(cos(n θ + φ) − cos(n(θ + dθ) + φ))/(n dθ)`` is summed as the equal product
+    ``sin(n θ_c + φ)·sin(n dθ/2)/(n dθ/2)``, ``θ_c = θ + dθ/2`` (no cancellation of two close
+    cosines); ``sin(n θ + φ)`` when ``|n dθ| ≤ 1e-9``. With ``n_max`` > 0 (integer orders)
+    the multiples ``n θ_c`` and ``n dθ/2`` come from binary powers of ``e^{iθ_c}`` and
+    ``e^{i dθ/2}`` (one sine–cosine pair each per step, short independent products).
+    """
+    tr = 0.0
+    if n_max > 0:
+        th_c = th + 0.5 * dth
+        c1, s1 = math.cos(th_c), math.sin(th_c)
+        ch, sh = math.cos(0.5 * dth), math.sin(0.5 * dth)
+        for j in range(rip.shape[0]):
+            o = int(rip[j, 0])
+            od = o * dth
+            if abs(od) > 1e-9:
+                cm, sm = _cis_power(c1, s1, o)
+                shm = _cis_power(ch, sh, o)[1]
+                # sin(o θ_c + φ) = sin(o θ_c) cos φ + cos(o θ_c) sin φ
+                tr += rip[j, 1] * (sm * rip[j, 3] + cm * rip[j, 4]) * shm / (0.5 * od)
+            else:
+                tr += rip[j, 1] * math.sin(o * th + rip[j, 2])
+        return tr
+    for j in range(rip.shape[0]):
+        o, a_r, ph = rip[j, 0], rip[j, 1], rip[j, 2]
+        od = o * dth
+        if abs(od) > 1e-9:
+            tr += a_r * math.sin(o * (th + 0.5 * dth) + ph) * math.sin(0.5 * od) / (0.5 * od)
+        else:
+            tr += a_r * math.sin(o * th + ph)
+    return tr
+
+
 @numba.njit(cache=True)
 def _truth_spindle_kernel(
     x: np.ndarray,
@@ -232,8 +298,8 @@ def _truth_spindle_kernel(
     ctl = [sample counter, velocity integrator, I_nom held, range, current integrator,
     encoder angle of the previous sample, measured speed (CNC), started, encoder angle at the
     previous velocity sample]; vbuf the voltages in
-    flight (dead time); prm described in :class:`TruthSpindleSim`; rip rows (order, amplitude,
-    phase).
+    flight (dead time); prm described in :class:`TruthSpindleSim`; rip the rows of
+    :func:`ripple_rows`.
     """
     kpv, kiv, tv, nv, w_sw = prm[0], prm[1], prm[2], prm[3], prm[4]
     kpc, kic, hc, ns, nd = prm[5], prm[6], prm[7], int(prm[8]), int(prm[9])
@@ -245,8 +311,7 @@ def _truth_spindle_kernel(
     it = n_j  # twist of the tool (state index 1 + n_j − 1)
     nx = x.shape[0]
     xn = np.empty(nx)
-    u = np.empty(4)
-    n_rip = rip.shape[0]
+    n_rip_max = int(prm[18])
     for k in range(speed_ref.shape[0]):
         # motor encoder: quantised rotor angle, speed by backward difference over one sample
         th0 = x[1]
@@ -282,35 +347,31 @@ def _truth_spindle_kernel(
             v_new = kpc * ei + ctl[4]
             ctl[4] += kic * ei * hc
             if nd > 0:
-                u[0] = vbuf[0]
+                u0 = vbuf[0]
                 for j in range(nd - 1):
                     vbuf[j] = vbuf[j + 1]
                 vbuf[nd - 1] = v_new
             else:
-                u[0] = v_new
+                u0 = v_new
             # ripple: exact mean over the step at the held rotor speed
-            th = x[1]
-            dth = x[1 + n_j] * hc
-            tr = 0.0
-            for j in range(n_rip):
-                o, a_r, ph = rip[j, 0], rip[j, 1], rip[j, 2]
-                if abs(o * dth) > 1e-9:
-                    tr += a_r * (math.cos(o * th + ph) - math.cos(o * (th + dth) + ph)) / (o * dth)
-                else:
-                    tr += a_r * math.sin(o * th + ph)
-            u[1] = tr
+            u1 = _ripple_mean(rip, n_rip_max, x[1], x[1 + n_j] * hc)
             wb = x[ib]
             tb = coul * math.tanh(wb / w_s)
             if drag != 0.0:
-                tb += drag * math.copysign(1.0, wb) * (abs(wb) / w_ref) ** (2.0 / 3.0)
-            u[2] = -tb
-            u[3] = torque_dist[k]
+                c = np.cbrt(abs(wb) / w_ref)  # (|ω|/ω_ref)^{2/3} = cbrt², to round-off
+                tb += drag * math.copysign(1.0, wb) * (c * c)
+            u2 = -tb
+            u3 = torque_dist[k]
+            adr = ad[r]
+            bdr = bd[r]
             for i in range(nx):
                 acc = 0.0
                 for j in range(nx):
-                    acc += ad[r, i, j] * x[j]
-                for j in range(4):
-                    acc += bd[r, i, j] * u[j]
+                    acc += adr[i, j] * x[j]
+                acc += bdr[i, 0] * u0
+                acc += bdr[i, 1] * u1
+                acc += bdr[i, 2] * u2
+                acc += bdr[i, 3] * u3
                 xn[i] = acc
             for i in range(nx):
                 x[i] = xn[i]
@@ -357,14 +418,13 @@ class TruthSpindleSim:
                 truth.drag_ref_rad_s,
                 float(n_j),
                 float(truth.mechanics.bearing_node),
+                0.0,  # the ripple's highest order for binary powers, 0: sines (below)
             ]
         )
-        self._rip = np.ascontiguousarray(
-            np.column_stack(
-                [truth.ripple_orders, truth.ripple_amplitudes, truth.ripple_phases]
-            ).reshape(-1, 3),
-            dtype=np.float64,
+        self._rip, n_rip_max = ripple_rows(
+            truth.ripple_orders, truth.ripple_amplitudes, truth.ripple_phases
         )
+        self._prm[18] = n_rip_max
         self._x = np.zeros(1 + 2 * n_j)
         self._ctl = np.zeros(9)
         self._vbuf = np.zeros(max(truth.current_dead_substeps, 1))
