@@ -399,3 +399,15 @@ def test_a_cut_stays_a_cut_at_a_new_speed_by_its_load() -> None:
     assert len(ev) == 1
     assert ev[0].value == pytest.approx(461.0, rel=0.005)
     assert 0.0 < ev[0].time_s - 3.5 <= 0.2
+
+
+def test_a_monitor_started_in_the_cut_learns_its_steady_tone_first() -> None:
+    # decision 1537: the first windows of a run settle (their spectrum is the background, 0.5 s
+    # of learning, no verdict), in air or in the cut; a steady 1234 Hz tone 3 × the tooth line
+    # present from the monitor's start in the cut is not chatter (decision 1504 started such a
+    # first window from a zero background: an alarm on the tone); chatter at 2.5 s is found
+    x, spd = _signal(cut_start=0.0, tone=(1234.0, 3.3))
+    _, ev = _run(x, spd)
+    alarms = [e for e in ev if e.name == "chatter"]
+    assert len(alarms) == 1 and alarms[0].value == pytest.approx(937.0, rel=0.005)
+    assert 0.0 < alarms[0].time_s - 2.5 <= 0.2
