@@ -265,9 +265,11 @@ RAW_BAND_GAP = {
     "z": "on the truth the raw Z current stays within ±3 dB to 16.4 Hz, just above the "
     "thesis's 10-15 Hz (the truth is fitted to Table 3.4's frequencies, decision 0973)",
     "a": "on the truth the raw A current peaks at +6.0 dB at 2 Hz and falls to -17 dB from "
-    "20 Hz (its ±3 dB band ends at 1.2 Hz); the nameplate η·K_t/r_g is 13 % above the truth's "
-    "(+1.1 dB of the +2.3 dB at 1 Hz); the low resonance of the truth's A drive is not "
-    "investigated",
+    "20 Hz (its ±3 dB band ends at 1.2 Hz): the truth's A viscous friction, Aslan Table 3.2's "
+    "σ2 = 4.25 N·m·s/rad at the motor, is 9x the velocity loop's k_p (0.45 N·m·s/rad, the "
+    "preset's 30 Hz design on J = 0.0024 kg·m²), so above a few hertz the friction, not the "
+    "current, carries the load (unchanged without lost motion or ripple); the nameplate "
+    "η·K_t/r_g is 13 % above the truth's (+1.1 dB of the +2.3 dB at 1 Hz)",
     "c": "on the truth the raw C current stays within ±3 dB to 21.2 Hz: wider than the "
     "thesis's 10-15 Hz (the truth is fitted to Table 3.4's frequencies, decision 0973)",
 }
