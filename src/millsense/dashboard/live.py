@@ -170,6 +170,11 @@ class LiveState:
             self.supervisor.request_control(on)
 
     # ------------------------------------------------------------------ the page's data
+    @property
+    def alarm_count(self) -> int:
+        """Alarms so far (the server pushes a snapshot as soon as it grows)."""
+        return len(self.alarms)
+
     def spectrum(self) -> tuple[np.ndarray, np.ndarray]:
         """Frequencies (Hz) and amplitudes of the last :data:`SPECTRUM_SAMPLES` samples of the
         spectrum signal (Hann window, mean removed, amplitude-scaled), up to

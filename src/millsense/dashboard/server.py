@@ -1,6 +1,6 @@
 """The live dashboard's web server (issue 19 item 2; decision 1904): FastAPI on uvicorn in a
 background thread, one page, a websocket pushing :meth:`~millsense.dashboard.live.LiveState.
-snapshot` every :data:`PUSH_S`, two operator actions.
+snapshot` every :data:`PUSH_S` (and at once on a new alarm), two operator actions.
 
 Access: bound to 127.0.0.1 by default with a random token (``secrets.token_urlsafe``); every
 request carries it (``?token=`` or ``Authorization: Bearer``) or is refused with 401 (the
@@ -29,6 +29,8 @@ from millsense.dashboard.live import LiveState
 
 #: Seconds between two snapshots pushed to the page.
 PUSH_S = 0.1
+#: Seconds between two looks for a new alarm, which is pushed at once.
+ALARM_CHECK_S = 0.01
 LOOPBACK_NAMES = ("localhost",)
 
 
@@ -155,7 +157,13 @@ def create_app(state: LiveState, token: str) -> Any:
         try:
             while True:
                 await websocket.send_json(state.snapshot())
-                await asyncio.sleep(PUSH_S)
+                # the next snapshot after PUSH_S, or at once when an alarm arrives (looked at
+                # every ALARM_CHECK_S): an alarm does not wait for the cadence
+                seen = state.alarm_count
+                for _ in range(max(1, round(PUSH_S / ALARM_CHECK_S))):
+                    await asyncio.sleep(ALARM_CHECK_S)
+                    if state.alarm_count != seen:
+                        break
         except (WebSocketDisconnect, RuntimeError):
             return
 
