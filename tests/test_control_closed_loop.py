@@ -53,3 +53,30 @@ def test_plan_events_carry_nc_line_and_position(runs: dict[str, ca.LoopRun]) -> 
     assert first.nc_line == 7 and first.x_mm is not None and first.x_mm < ca.STEP_X_MM
     assert first.severity == "warning" and (first.value or 0.0) < 0.8 * 136.0
     assert any(e.nc_line == 8 for e in step)
+
+
+def _override_at_first_contact(run: ca.LoopRun) -> float:
+    """Effective override when the true force first exceeds seed 002's air threshold (80 N)."""
+    k = int(np.argmax(run.force > 80.0))
+    assert run.force[k] > 80.0
+    return float(run.override[k])
+
+
+def test_lookahead_meets_the_material_at_the_reentry_feed(runs: dict[str, ca.LoopRun]) -> None:
+    # decision 1626: in air with the cut within the horizon, the look-ahead run enters at
+    # V_max/3 = 50 % (seed 002's re-entry feed, applied before the contact), where the
+    # conventional run (no plan) is still at seed 002's air feed V_max = 150 % when it hits
+    # the part (the first loaded revolution is what tells it)
+    assert _override_at_first_contact(runs["with look-ahead"]) == pytest.approx(0.5, abs=1e-9)
+    assert _override_at_first_contact(runs["conventional"]) == pytest.approx(1.5, abs=1e-9)
+
+
+def test_lookahead_entry_verdict_does_not_cycle(runs: dict[str, ca.LoopRun]) -> None:
+    # decision 1626: the "cut ahead" verdict is taken over the horizon at V_max; at the
+    # override in force the horizon shrinks with the feed the verdict sets, and in air the
+    # feed cycled 150 % ↔ 50 % every revolution: here at most the air rule's 150 % and the
+    # re-entry 50 % are commanded before the contact
+    run = runs["with look-ahead"]
+    k = int(np.argmax(run.force > 80.0))
+    changes = int(np.count_nonzero(np.abs(np.diff(run.override[:k])) > 1e-9))
+    assert changes <= 2

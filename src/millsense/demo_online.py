@@ -4,7 +4,11 @@ item 6).
 A short program on the demo stock (Al7050, 100 × 80 × 30 mm; Ø20 mm 2-flute, 1000 rev/min,
 400 mm/min, the conditions of seed 000 V7–V9): a channel along Y (the cavity), then a slot
 along X with an entry, a step-down from 1.5 to 3.5 mm, the crossing of the cavity and the exit
-of the part. Flute 0 of the virtual tool breaks late, while the tool crosses the cavity. The
+of the part. Flute 0 of the virtual tool breaks late in the program, at 20 s of each run
+(:data:`BREAK_S`): the controlled run, slower at its entries (decision 1626), is then in the
+deep slot before the cavity; the open run is at the cavity, so its monitor sees the broken
+tooth only where the tool meets the far wall again. The summary gives the peak force while the
+tool is intact (the controller's effect) apart from the peak with the broken tooth. The
 virtual machine (the simulator's truth of the quaser-ux600) runs the plan twice with the same
 on-line session (:mod:`millsense.online.session`: the spindle observer of the commissioned
 machine file, plan sync and K_tc calibration, chatter and breakage monitors, adaptive feed on

@@ -69,13 +69,15 @@ def _online(out: Path, console: Console) -> None:
         summary = run_online_demo(out, on_progress=update, validation=status)
     table = Table(title="On-line system on the demo part (a tooth breaks at "
                   f"{summary['break_s']:g} s)")  # fmt: skip
-    for col in ("run", "signal [s]", "mean power in cut [W]", "peak |F| [N]",
-                "breakage alarm [s]", "feed hold [s]", "cut with broken tool [s]"):  # fmt: skip
+    for col in ("run", "signal [s]", "mean power in cut [W]", "peak |F| intact tool [N]",
+                "peak |F| [N]", "breakage alarm [s]", "feed hold [s]",
+                "cut with broken tool [s]"):  # fmt: skip
         table.add_column(col, justify="right")
     for key, r in summary["runs"].items():
         hold = "-" if key == "open" else _s(r["feed_hold_s"])
         table.add_row(key, f"{r['seconds']:.1f}", f"{r['mean_power_w']:.0f}",
-                      f"{r['peak_force_n']:.0f}", _s(r["breakage_alarm_s"]), hold,
+                      f"{r['peak_force_intact_n']:.0f}", f"{r['peak_force_n']:.0f}",
+                      _s(r["breakage_alarm_s"]), hold,
                       f"{r['cut_with_broken_tool_s']:.2f}")  # fmt: skip
     console.print(table)
     console.print(f"wrote {summary['recording']}, {summary['plot']}, {summary['report']}, "

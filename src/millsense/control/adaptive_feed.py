@@ -13,7 +13,9 @@ override with :class:`~millsense.control.gpc.GPC`
 - limits 20–150 % (seed 000), dead band ±5 % of the reference (no move while the peak is in
   the band, seed 000 §2.10);
 - seed 002's air-cut rule: peak ≤ the air threshold (80 N) → V_max (150 %); on re-entry V_max/3
-  for 3 revolutions (Munasinghe per-revolution wrapper, steps 4–5);
+  for 3 revolutions (Munasinghe per-revolution wrapper, steps 4–5); with a plan, in air with
+  the cut within the look-ahead horizon (at V_max), V_max/3 already before the contact
+  (decision 1626);
 - the virtual look-ahead of seed 000 (:meth:`~millsense.plan.virtual_plan.VirtualPlan.look_ahead`,
   0.5 s at the current override): flag 1 (engagement or chip load rising ≥ 15 %) → the plan's
   predicted peak force over the next revolutions (edge and shear parts, the shear part scaled
@@ -174,6 +176,7 @@ class _Loop:
     row: int = 0
     flag: int = 0
     ff_until: int = -1  #: the flag-1 ceiling holds until the tool passes this plan row
+    entering: bool = False  #: out of the material with the cut ahead (latched, decision 1626)
 
 
 class AdaptiveFeedBlock(Block):
@@ -234,6 +237,7 @@ class AdaptiveFeedBlock(Block):
                 raise ConfigError("adaptive feed: the plan has fewer than 2 rows")
             ins.extend(tcp_channels)
             self._plan_cols = _plan_force_columns(plan, opts.quantity, opts.per_revolution)
+            self._in_cut = np.asarray(plan["in_cut"], dtype=bool)
         self.inputs = tuple(dict.fromkeys(ins))
         self.reads_truth = any(c.startswith("truth/") for c in self.inputs)
         self.gpc = GPC(n2=opts.n2, nu=1, lam=opts.lam)
@@ -431,13 +435,15 @@ class AdaptiveFeedBlock(Block):
             lp.fault = False  # a clean revolution: resume from the held (safe) override
         y = peak / o.reference
         lp.y_hist = [y, lp.y_hist[0], lp.y_hist[1]]
-        flag, cap = self._look(chunk, e)
+        flag, cap, entering = self._look(chunk, e)
         in_air = peak <= o.air
         if in_air and flag == 2 and lp.engaged:
             u = lp.u  # leaving the cut: the air rule would speed up, hold instead
         elif in_air:
             lp.air, lp.reentry = True, 0
-            u = self.u_max
+            # seed 002's air rule, but where the plan sees the cut resume within the horizon
+            # the tool meets the material at the re-entry feed, not at V_max (decision 1626)
+            u = self.u_max / 3.0 if entering else self.u_max
         elif lp.air and lp.reentry < o.reentry_revs:
             lp.engaged = True
             lp.reentry += 1
@@ -449,6 +455,7 @@ class AdaptiveFeedBlock(Block):
             lp.engaged = True
             u = self._gpc(y)
         if not in_air:
+            lp.entering = False
             self._calibrate(y, flag)
         if flag == 2:
             if lp.hold is None:
@@ -538,25 +545,34 @@ class AdaptiveFeedBlock(Block):
         )
 
     # ------------------------------------------------------------------ look-ahead
-    def _look(self, chunk: Chunk, e: int) -> tuple[int, float | None]:
-        """Look-ahead flag and the flag-1 override ceiling (None: no ceiling)."""
+    def _look(self, chunk: Chunk, e: int) -> tuple[int, float | None, bool]:
+        """Look-ahead flag, the flag-1 override ceiling (None: no ceiling), and whether the
+        plan's tool is out of the material with the cut resuming within the horizon (an
+        entry, or the far wall of a cavity: decision 1626)."""
         if self.plan is None:
-            return 0, None
+            return 0, None, False
         lp = self.loop
         tcp = np.array([[float(np.asarray(chunk.data[c])[e]) for c in self.tcp_channels]])
         if not np.all(np.isfinite(tcp)):
-            return lp.flag, None
+            return lp.flag, None, False
         row = int(self.plan.match(tcp, from_row=lp.row)[0])
         if row >= 0:
             lp.row = row
         if not self.opts.look_ahead:
-            return 0, None
+            return 0, None, False
         la = self.plan.look_ahead(lp.row, self.opts.look_ahead_s, max(lp.u, 1e-3), self.opts.rise)
+        if not self._in_cut[lp.row]:
+            # the cut ahead within the horizon at V_max (at the override now in force the
+            # horizon would shrink with the feed this verdict sets); latched until a revolution
+            # is loaded, as the plan's first rows in cut are lighter than the air threshold
+            ahead = self.plan.look_ahead(lp.row, self.opts.look_ahead_s, self.u_max, 0.0)
+            lp.entering = ahead.rising
+        entering = lp.entering
         if la.flag == 1:
             lp.ff_until = max(lp.ff_until, la.last_row)
         if la.flag == 2 or lp.row > lp.ff_until:
-            return la.flag, None
-        return la.flag, self._ceiling(lp.row)
+            return la.flag, None, entering
+        return la.flag, self._ceiling(lp.row), entering
 
     def _ceiling(self, row: int) -> float | None:
         """Largest override whose predicted peak force over the next ``feedforward_revs``

@@ -423,6 +423,7 @@ def figures_rows(f: RunFigures) -> list[tuple[str, str, Any]]:
     return [
         ("seconds", "signal recorded [s]", f.seconds),
         ("program_end_s", "program ended [s]", f.program_end_s),
+        ("peak_force_intact_n", "peak true |F_xy|, tool intact [N]", f.peak_force_intact_n),
         ("peak_force_n", "peak true |F_xy| [N]", f.peak_force_n),
         ("mean_power_w", "mean spindle power in cut [W]", f.mean_power_w),
         ("breakage_alarm_s", "breakage alarm [s]", f.breakage_alarm_s),

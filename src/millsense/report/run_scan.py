@@ -42,6 +42,9 @@ class RunFigures:
     seconds : signal recorded, s.
     program_end_s : when the program ended (None: stopped by a feed hold).
     peak_force_n : largest true resultant force |F_xy|, N (0 without truth).
+    peak_force_intact_n : the same while the true tool is intact (``truth/process/broken``
+        off; all of the run without that channel), N: what the controller did, apart from
+        what a broken tooth does before the feed hold.
     mean_power_w : mean spindle cutting power (the compensated torque less its air reference
         × speed) while the true |F_xy| exceeds :data:`CUTTING_FORCE_N`, W.
     breakage_alarm_s, feed_hold_s : first breakage alarm and feed hold, s, or None.
@@ -52,6 +55,7 @@ class RunFigures:
     seconds: float
     program_end_s: float | None
     peak_force_n: float
+    peak_force_intact_n: float
     mean_power_w: float
     breakage_alarm_s: float | None
     feed_hold_s: float | None
@@ -102,7 +106,7 @@ def scan_run(
     width = next(iter(envs.values())).width if envs else max(1, -(-n // bins))
     nb = max(1, -(-n // width))
     starts = {c: np.full(nb, np.nan) for c in want}
-    peak, p_sum, p_cnt, broken_cnt = 0.0, 0.0, 0, 0
+    peak, intact, p_sum, p_cnt, broken_cnt = 0.0, 0.0, 0.0, 0, 0
     have_fxy = {fx, fy} <= names
     for a in range(0, n, block):
         b = min(n, a + block)
@@ -120,6 +124,8 @@ def scan_run(
         if have_fxy:
             f = data[FXY_TRUE]
             peak = max(peak, float(f.max(initial=0.0)))
+            ok = f if "truth/process/broken" not in data else f[data["truth/process/broken"] < 0.5]
+            intact = max(intact, float(ok.max(initial=0.0)))
             cutting = f > CUTTING_FORCE_N
             if POWER in data:
                 p_sum += float(np.sum(data[POWER][cutting]))
@@ -127,7 +133,7 @@ def scan_run(
             if "truth/process/broken" in data:
                 broken_cnt += int(np.count_nonzero((data["truth/process/broken"] > 0.5) & cutting))
     figures = run_figures_from(events, n / fs, peak, p_sum / p_cnt if p_cnt else 0.0,
-                               broken_cnt / fs)  # fmt: skip
+                               broken_cnt / fs, intact)  # fmt: skip
     return RunScan(n, fs, envs, starts, figures, width, set(want))
 
 
@@ -137,14 +143,17 @@ def run_figures_from(
     peak_force_n: float,
     mean_power_w: float,
     cut_with_broken_tool_s: float,
+    peak_force_intact_n: float | None = None,
 ) -> RunFigures:
-    """The :class:`RunFigures` of a run from its events and the recorded figures."""
+    """The :class:`RunFigures` of a run from its events and the recorded figures
+    (``peak_force_intact_n`` None: the run's peak)."""
     brk = next((e.time_s for e in events if e.name == "breakage"), None)
     hold = next((e.time_s for e in events if e.name == "feed_hold"), None)
     return RunFigures(
         seconds=seconds,
         program_end_s=None if hold is not None else seconds,
         peak_force_n=peak_force_n,
+        peak_force_intact_n=peak_force_n if peak_force_intact_n is None else peak_force_intact_n,
         mean_power_w=mean_power_w,
         breakage_alarm_s=brk,
         feed_hold_s=hold,
