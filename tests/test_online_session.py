@@ -132,6 +132,23 @@ def test_steady_rows_exclude_the_step_down_and_the_exit(v8_plan: object) -> None
     assert not st[cut & (x > 50.5) & (x < 51)].any()  # the tool's front leaves the block at 50
 
 
+def test_session_judges_breakage_one_revolution_from_a_transient(v8_plan: object) -> None:
+    """Decision 1627: the session's plan sync excludes ±1 revolution of travel at 150 % around
+    the V8 slot's step-down (the servo lag, 0.16 mm, is under the 0.6 mm a revolution travels):
+    judged from X ≈ 23.3 mm on, where ±3 revolutions left 1.2 mm more before the step unjudged,
+    and the step-down itself (24.5–25.5 mm) still not judged."""
+    from millsense.online.plan_sync import steady_rows
+    from millsense.online.session import TRANSIENT_REVS
+
+    x = np.asarray(v8_plan["x_mm"], dtype=float)  # type: ignore[index]
+    cut = np.asarray(v8_plan["in_cut"], dtype=bool)  # type: ignore[index]
+    st = steady_rows(v8_plan, TRANSIENT_REVS)  # type: ignore[arg-type]
+    before = cut & (x > 23.0) & (x < 24.2)
+    assert before.any() and st[before].all()
+    assert not steady_rows(v8_plan, 3.0)[before].all()  # type: ignore[arg-type]
+    assert not st[cut & (x > 24.5) & (x < 25.5)].any()
+
+
 def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``millsense run`` in closed loop (a tooth broken at 5 s) then ``replay`` of its
     recording: the hold stops the run, the recording holds every sample, the event logs read

@@ -362,3 +362,68 @@ def _chatter_no_hold() -> Measured:
     ev = r["events"]
     assert isinstance(ev, list)
     return Measured(float(sum(1 for e in ev if e.name == "feed_hold")), _chatter_table(r))
+
+
+#: The demo part's break (:data:`millsense.demo_online.BREAK_S`): in the open run the tool is
+#: then cutting into the cavity's near wall, a transient of the plan.
+DEMO_BREAK_S = 20.0
+
+
+@functools.lru_cache(maxsize=1)
+def demo_open_run() -> list[Event]:
+    """The events of the demo part's open run (``millsense demo``: the session's monitors and
+    controllers run, nothing reaches the machine, so the CNC runs the program as written and
+    the timing is the program's) with flute 0 broken at :data:`DEMO_BREAK_S`."""
+    from millsense.demo_online import BREAK_S, _plan, _run
+
+    assert BREAK_S == DEMO_BREAK_S
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        res = _run(_plan(out), False, out / "open.h5", out / "open.events.parquet", None)
+    return list(res.events)
+
+
+def _demo_table(events: list[Event]) -> str:
+    rows = [
+        f"| {e.time_s:.3f} | {e.name} | {e.message[:110]} |"
+        for e in events
+        if e.name in ("breakage", "ktc_calibrated")
+    ]
+    return "| t [s] | name | message |\n|---|---|---|\n" + "\n".join(rows)
+
+
+@case(
+    "online.demo_part_breakage_latency",
+    source="issue 15 (breakage effect to event ≤ 3 tooth periods) / seed 000 C17, V7 on the "
+    "demo part: confirmation over 3 tooth periods",
+    reference=3.0,
+    unit="tooth periods",
+    abs_tol=0.5,
+    quick=False,
+    description=(
+        "The demo part's open run (the program as written), flute 0 broken at 20 s while the "
+        "tool cuts into the cavity's near wall (a transient of the plan): first breakage alarm "
+        "after the break, minus the break, in tooth periods (30 ms)."
+    ),
+)
+def _demo_latency() -> Measured:
+    ev = demo_open_run()
+    alarm = _first(ev, "breakage", after=DEMO_BREAK_S)
+    if alarm is None:
+        return Measured(float("nan"), "no breakage alarm after the break\n\n" + _demo_table(ev))
+    return Measured((alarm.time_s - DEMO_BREAK_S) / TOOTH_S, _demo_table(ev))
+
+
+@case(
+    "online.demo_part_breakage_false_alarms",
+    source="issue 15 / seed 000 V7: no alarm at the depth step, in cavities or at exits",
+    reference=0.0,
+    unit="alarms",
+    abs_tol=0.0,
+    quick=False,
+    description="Breakage alarms before the break in the demo part's open run.",
+)
+def _demo_false() -> Measured:
+    ev = demo_open_run()
+    n = sum(1 for e in ev if e.name == "breakage" and e.time_s < DEMO_BREAK_S)
+    return Measured(float(n), _demo_table(ev))
