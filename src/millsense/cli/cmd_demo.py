@@ -69,9 +69,9 @@ def _online(out: Path, console: Console) -> None:
         summary = run_online_demo(out, on_progress=update, validation=status)
     table = Table(title="On-line system on the demo part (a tooth breaks at "
                   f"{summary['break_s']:g} s)")  # fmt: skip
-    for col in ("run", "signal [s]", "mean power in cut [W]", "peak |F| intact tool [N]",
-                "peak |F| [N]", "breakage alarm [s]", "feed hold [s]",
-                "cut with broken tool [s]"):  # fmt: skip
+    table.add_column("run", no_wrap=True)
+    for col in ("signal [s]", "power in cut [W]", "peak |F| intact [N]", "peak |F| [N]",
+                "breakage alarm [s]", "feed hold [s]", "cut broken [s]"):  # fmt: skip
         table.add_column(col, justify="right")
     for key, r in summary["runs"].items():
         hold = "-" if key == "open" else _s(r["feed_hold_s"])
