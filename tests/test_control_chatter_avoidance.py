@@ -93,11 +93,27 @@ def _t1(depth_mm: float) -> StabilityModel:
     return _MODEL[0].at_depth(depth_mm)
 
 
+def _zoa_pocket(model: StabilityModel, rpm: float, lo: float, hi: float) -> tuple[float, float]:
+    """The stable speeds around ``rpm`` at the model's depth on a fine ZOA scan (independent of
+    the block's 0.5 % grid): (lowest, highest) rev/min inside [lo, hi]."""
+    grid = np.geomspace(lo, hi, 4001)
+    ok = compute_lobes(model.case, method="zoa", rpm=grid).critical_depth_m * 1e3 > model.depth_mm
+    i = int(np.argmin(np.abs(grid - rpm)))
+    assert ok[i]
+    below = np.flatnonzero(~ok[:i])
+    above = np.flatnonzero(~ok[i:])
+    first = below[-1] + 1 if below.size else 0
+    last = i + above[0] - 1 if above.size else grid.size - 1
+    return float(grid[first]), float(grid[last])
+
+
 def test_with_model_the_largest_margin_wins_and_is_stable() -> None:
     """Chatter at 511.3 Hz (the closed-loop case's alarm) at 4500 rev/min, 1.2 mm: the
     candidates inside 50-150 % are j = 1 (6135.6 rev/min, 136 %) and j = 2 (3067.8, 68 %).
     Independent computation: the zero-order (Altintas-Budak) limit of the same case, which for
-    this full-immersion 5-flute cut agrees with SDM within 2 % (its approximation error)."""
+    this full-immersion 5-flute cut agrees with SDM within 2 % (its approximation error).
+    Decision 1635: the speed commanded is the geometric centre of lobe 1's stable pocket (cut
+    by the 150 % limit at 6750 rev/min), within the 0.5 % grid of the fine scan's."""
     model = _t1(1.2)
     rec = choose_spindle_speed(511.3, 5, 4500.0, limits=SpeedLimits(50, 150), model=model)
     assert rec is not None and rec.checked
@@ -106,11 +122,40 @@ def test_with_model_the_largest_margin_wins_and_is_stable() -> None:
     zoa = compute_lobes(model.case, method="zoa", rpm=speeds).critical_depth_m * 1e3
     np.testing.assert_allclose([c.lowest_unstable_depth_mm for c in rec.candidates], zoa, rtol=0.02)
     assert rec.lobe_number == int(np.argmax(zoa)) + 1 == 1
-    assert rec.spindle_rpm == pytest.approx(6135.6)
+    lo, hi = _zoa_pocket(model, 6135.6, 2250.0, 6750.0)
+    assert hi == pytest.approx(6750.0)
+    np.testing.assert_allclose(rec.pocket_rpm, (lo, hi), rtol=0.006)
+    assert rec.spindle_rpm == pytest.approx(math.sqrt(lo * hi), rel=0.006)
+    assert rec.speed_margin == pytest.approx(math.sqrt(hi / lo) - 1.0, abs=0.006)
     assert rec.margin_mm == pytest.approx(rec.lowest_unstable_depth_mm - 1.2)
     assert rec.predicted_stable and rec.margin_mm > 1.0
     # lobe 2 is unstable at 1.2 mm: the nearest-lobe rule alone could have picked it
     assert rec.candidates[1].lowest_unstable_depth_mm < 1.2
+
+
+def test_centred_speed_survives_a_softer_tool_where_the_lobe_speed_does_not() -> None:
+    """Decision 1635 on the T1 session's alarm (554.1 Hz at 4500 rev/min, 1.2 mm): the lobe
+    speed 60 f_c/N = 6649 rev/min lies on the steep right flank of lobe 1; with every tool mode
+    8 % softer than the model's (the truth's modes under the slot's load) it is unstable at
+    1.2 mm, while the centred speed keeps a margin. Independent: ZOA of the softened case."""
+    from dataclasses import replace
+
+    from millsense.stability.modal import ModalModel, Mode
+
+    model = _t1(1.2)
+    rec = choose_spindle_speed(554.1, 5, 4500.0, limits=SpeedLimits(50, 150), model=model)
+    assert rec is not None and rec.predicted_stable and rec.lobe_number == 1
+    lobe_rpm = 60.0 * 554.1 / 5
+    assert rec.spindle_rpm < 0.95 * lobe_rpm
+
+    def soft(ms: tuple[Mode, ...]) -> tuple[Mode, ...]:
+        return tuple(Mode(m.omega * 0.92, m.zeta, m.alpha * 0.92**2) for m in ms)
+
+    st = model.case.structure
+    case = replace(model.case, structure=ModalModel(x=soft(st.x), y=soft(st.y)))
+    depth = compute_lobes(case, method="zoa", rpm=np.array([lobe_rpm, rec.spindle_rpm]))
+    lobe_mm, centred_mm = depth.critical_depth_m * 1e3
+    assert lobe_mm < 1.2 < centred_mm
 
 
 def test_with_model_no_stable_candidate_says_reduce_the_depth() -> None:

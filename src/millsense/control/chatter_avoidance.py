@@ -15,10 +15,12 @@ gave the event the data: ``chatter_hz``, ``flutes``, ``spindle_rpm``).
 limits (override range of the CNC, e.g. 50-150 %, and the machine's speed range). With a
 :class:`StabilityModel` (the case's modal tool/machine FRF, cutting coefficients, radial
 immersion and the current axial depth) every candidate is checked on the case's lobes: the
-lowest unstable depth at Ω_j (:mod:`millsense.stability.robust`), and the candidate whose
-lowest unstable depth exceeds the current depth by the largest margin wins. Without a model
-the nearest faster lobe is taken (Smith-Tlusty, j = ⌊f_c / f_t⌋), and the recommendation says
-that it was not checked.
+lowest unstable depth at Ω_j (:mod:`millsense.stability.robust`); the speed commanded is the
+geometric centre of the widest stable pocket holding a stable Ω_j, where the relative error of
+the model's modes it tolerates is largest (:func:`stable_pocket_rpm`, decision 1635), else the
+candidate whose lowest unstable depth exceeds the current depth by the largest margin.
+Without a model the nearest faster lobe is taken (Smith-Tlusty, j = ⌊f_c / f_t⌋), and the
+recommendation says that it was not checked.
 
 :class:`ChatterAvoidanceBlock` wraps a chatter monitor and turns its ``chatter`` alarms into
 ``spindle_override`` commands (decision 1631).
@@ -116,6 +118,50 @@ class StabilityModel:
                 self._cache[n] = float(d) * 1e3
         return np.array([self._cache[n] for n in speeds])
 
+    def scan_depths_mm(self, rpm: np.ndarray) -> np.ndarray:
+        """Critical depth at many speeds for the pocket search, mm: the zero-order
+        (Altintas–Budak) limit for a uniform pitch (analytical, milliseconds for a scan; within
+        a few per cent of SDM at high immersion, no flip lobes), else the SDM of
+        :meth:`lowest_unstable_depth_mm`. Where it matters, the chosen speed is checked on SDM."""
+        if self.case.pitch is not None:
+            return self.lowest_unstable_depth_mm(rpm)
+        from millsense.stability.zoa import zoa_lobes
+
+        c = self.case
+        res = zoa_lobes(c.structure, c.flutes, c.kt, c.kr, c.phi_st, c.phi_ex, rpm)
+        return np.asarray(res.critical_depth_m, dtype=float) * 1e3
+
+
+#: Pocket search around a lobe speed: ±this fraction, in steps of :data:`POCKET_STEP`.
+POCKET_SPAN = 0.3
+POCKET_STEP = 0.005
+
+
+def stable_pocket_rpm(
+    model: StabilityModel, rpm: float, lo_rpm: float, hi_rpm: float
+) -> tuple[float, float] | None:
+    """The speeds around ``rpm`` stable at the model's depth, as (lowest, highest) rev/min on a
+    log grid of :data:`POCKET_STEP` within ±:data:`POCKET_SPAN` and [``lo_rpm``, ``hi_rpm``]
+    (a pocket cut by a limit ends there); None if ``rpm`` itself is not stable
+    (:meth:`StabilityModel.scan_depths_mm`; decision 1635)."""
+    lo = max(lo_rpm, rpm * (1.0 - POCKET_SPAN))
+    hi = min(hi_rpm, rpm * (1.0 + POCKET_SPAN))
+    if not lo <= rpm <= hi:
+        return None
+    k_lo = math.floor(math.log(lo / rpm) / math.log1p(POCKET_STEP))
+    k_hi = math.ceil(math.log(hi / rpm) / math.log1p(POCKET_STEP))
+    grid = rpm * (1.0 + POCKET_STEP) ** np.arange(k_lo, k_hi + 1)
+    grid = np.clip(grid, lo, hi)
+    ok = model.scan_depths_mm(grid) > model.depth_mm
+    i0 = -k_lo  # the index of rpm itself
+    if not ok[i0]:
+        return None
+    bad_below = np.flatnonzero(~ok[:i0])
+    bad_above = np.flatnonzero(~ok[i0:])
+    first = int(bad_below[-1]) + 1 if bad_below.size else 0
+    last = i0 + int(bad_above[0]) - 1 if bad_above.size else len(grid) - 1
+    return float(grid[first]), float(grid[last])
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -156,6 +202,10 @@ class SpeedRecommendation:
     checked: bool
     reason: str
     candidates: tuple[Candidate, ...] = ()
+    #: the stable pocket the speed was centred in, rev/min (NaN: not centred) and the
+    #: relative speed margin to its edges (a lobe shift the speed tolerates; decision 1635)
+    pocket_rpm: tuple[float, float] = (math.nan, math.nan)
+    speed_margin: float = math.nan
 
     @property
     def predicted_stable(self) -> bool:
@@ -235,7 +285,21 @@ def choose_spindle_speed(
         best = max(
             cands, key=lambda c: (c.lowest_unstable_depth_mm, -abs(c.spindle_rpm - spindle_rpm))
         )
+        centred = _centred(model, cands, spindle_rpm, lim, prog)
+        if centred is not None:
+            best, pocket, delta = centred
         margin = best.lowest_unstable_depth_mm - model.depth_mm
+        if centred is not None:
+            reason = (
+                f"centre of lobe {best.lobe}'s stable pocket {pocket[0]:.0f}-{pocket[1]:.0f} "
+                f"rev/min (±{100 * delta:.1f} % of speed to its edges): lowest unstable depth "
+                f"{best.lowest_unstable_depth_mm:.3g} mm > cut {model.depth_mm:.3g} mm "
+                f"(margin {margin:.3g} mm)"
+            )
+            return SpeedRecommendation(
+                best.spindle_rpm, best.override_pct, best.lobe, chatter_hz, spindle_rpm,
+                best.lowest_unstable_depth_mm, margin, True, reason, cands, pocket, delta,
+            )  # fmt: skip
         if margin > 0:
             reason = (
                 f"lobe {best.lobe} of {len(cands)} candidates: lowest unstable depth "
@@ -281,6 +345,44 @@ def choose_spindle_speed(
         reason,
         cands,
     )
+
+
+def _centred(
+    model: StabilityModel,
+    cands: Sequence[Candidate],
+    spindle_rpm: float,
+    lim: SpeedLimits,
+    programmed_rpm: float,
+) -> tuple[Candidate, tuple[float, float], float] | None:
+    """The centre (in log speed) of the widest stable pocket holding a stable lobe speed, as a
+    candidate checked on the model's lobes, its pocket and relative speed margin; None if no
+    lobe speed is stable or no centre is (decision 1635).
+
+    Smith–Tlusty's Ω_j = 60 f_c/(N j) lies right of the lobe's top when f_c is above the mode
+    (the usual case), on the steep flank: a mode a few per cent softer than the model's (under
+    load, with wear or another holder) moves the flank over it. Lobes move in proportion to
+    the mode frequencies, so the speed that tolerates the largest error either way is the
+    geometric centre of the pocket, where the margin sqrt(Ω_hi/Ω_lo) − 1 is the same to both
+    edges."""
+    lo_rpm = max(lim.min_rpm, programmed_rpm * lim.override_min_pct / 100.0)
+    hi_rpm = min(lim.max_rpm, programmed_rpm * lim.override_max_pct / 100.0)
+    found = []
+    for c in cands:
+        if not c.lowest_unstable_depth_mm > model.depth_mm:
+            continue
+        pocket = stable_pocket_rpm(model, c.spindle_rpm, lo_rpm, hi_rpm)
+        if pocket is None:
+            continue
+        centre = math.sqrt(pocket[0] * pocket[1])
+        if abs(centre / spindle_rpm - 1.0) <= SAME_SPEED:
+            continue  # the model holds the chattering speed stable: no centring on it
+        found.append((math.sqrt(pocket[1] / pocket[0]) - 1.0, c, pocket, centre))
+    for delta, c, pocket, centre in sorted(found, key=lambda f: -f[0]):
+        depth = float(model.lowest_unstable_depth_mm([centre])[0])
+        if depth > model.depth_mm:
+            pct = 100.0 * centre / programmed_rpm
+            return Candidate(c.lobe, centre, pct, depth), pocket, delta
+    return None
 
 
 # ------------------------------------------------------------------------------------------
@@ -471,6 +573,9 @@ class ChatterAvoidanceBlock(Block):
             "lobe_number": float(rec.lobe_number),
             "lowest_unstable_depth_mm": rec.lowest_unstable_depth_mm,
             "margin_mm": rec.margin_mm,
+            "speed_margin_pct": (
+                100.0 * rec.speed_margin if math.isfinite(rec.speed_margin) else math.nan
+            ),
         }
         text = (
             f"chatter at {f_c:.1f} Hz: spindle {rpm_now:.0f} → {rec.spindle_rpm:.0f} rev/min "

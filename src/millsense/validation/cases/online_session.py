@@ -250,10 +250,12 @@ def chatter_run() -> dict[str, object]:
     built = session_blocks(plan, belief, m.sample_rate_hz, opts, channels=sim.channel_names)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "t1.h5"
-        res = run_session(sim, built.blocks, out=out, keep=("truth/process/chatter",))
+        res = run_session(sim, built.blocks, out=out,
+                          keep=("truth/process/chatter", "spindle/speed"))
         with opened_recording(out) as rec:
             chatter = np.asarray(rec.channel("truth/process/chatter")) > 0.5
-    return {"events": res.events, "chatter": chatter, "fs": m.sample_rate_hz}
+            speed = np.asarray(rec.channel("spindle/speed"))
+    return {"events": res.events, "chatter": chatter, "fs": m.sample_rate_hz, "speed": speed}
 
 
 def _chatter_table(r: dict[str, object]) -> str:
@@ -268,15 +270,17 @@ def _chatter_table(r: dict[str, object]) -> str:
     return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
 
 
-#: Why the T1 session needs two speed changes on the truth (2026-11-28).
-_T1_TWO_CHANGES = (
-    "the first episode is found (554.7 Hz at 4500 rev/min, ratio 1.86) and the speed goes to "
-    "6656 rev/min, lobe 1 of the nominal tool modes; on the truth (decision 1062) the tool modes "
-    "soften under load and the slot chatters there as well, weakly from 3.75 s (the truth "
-    "torque's ratio 0.4) and violently from 13.8 s; the monitor finds that second episode at "
-    "14.0 s (530.2 Hz, ratio 5.1; decision 1537) and a second change to 6363 rev/min settles it "
-    "in 0.83 s. A speed choice robust to the softening (lobes over a range of mode frequencies) "
-    "is not done"
+#: Why the chatter of the T1 session takes 1.8 s to end after its one speed change (2026-11-28).
+_T1_SLOW_END = (
+    "the first episode is found at 3.5 s (554.1 Hz at 4500 rev/min, ratio 1.88; the truth "
+    "chatters violently from 3.0 s) and the speed goes to 6109 rev/min, the centre of lobe 1's "
+    "stable pocket (decision 1635; the lobe speed 6649 rev/min, which the truth's softened modes "
+    "make unstable, needed a second change before). The spindle is at the new speed within "
+    "0.1 s and the monitor ends the episode at 4.2 s, but the truth's chatter flag (vibration "
+    "not repeating over a revolution) rises for about 20 ms every 133 ms until 5.3 s; at "
+    "6109 rev/min from the start the full slot is chatter-free. Not understood yet: a "
+    "non-linear decay of the violent chatter's vibration, or the truth's load-dependent mode "
+    "frequencies stepping in 1 % increments as the load settles"
 )
 
 
@@ -288,6 +292,8 @@ _T1_TWO_CHANGES = (
     unit="s",
     abs_tol=0.5,
     quick=False,
+    gap=_T1_SLOW_END,
+    issue=16,
     description=(
         "T1 replica slot at 4500 rev/min, 1.2 mm, through the session: time from the last "
         "spindle-speed command to the start of the first second free of chatter in the "
@@ -330,8 +336,6 @@ def _quiet_after_last_change_s(r: dict[str, object]) -> float | None:
     unit="changes",
     abs_tol=0.0,
     quick=False,
-    gap=_T1_TWO_CHANGES,
-    issue=16,
     description="Spindle-speed commands of the chatter avoidance in the session on the T1 slot "
     "(one more when the truth still chatters a second after the last one: the change it still "
     "needed).",
