@@ -171,3 +171,31 @@ def test_run_dashboard_beyond_localhost_needs_tls(capsys: pytest.CaptureFixture[
     code, _, err = run_cli(["run", "--plan", "p.parquet", "-o", "o.h5", "--dashboard",
                             "--dashboard-host", "0.0.0.0"], capsys)  # fmt: skip
     assert code == 2 and "--dashboard-allow-remote" in err and len(err.strip().splitlines()) == 1
+
+
+def test_peak_force_with_the_tool_intact_apart_from_the_broken_tooth(tmp_path: Path) -> None:
+    """The demo's summary separates what the controller did from what a broken tooth does
+    before the hold: |F_xy| = 300 N (3-4-5) while ``truth/process/broken`` is 0, 1500 N once it
+    is 1; a recording without the channel has one peak for both."""
+    from millsense.core.recording import ChannelInfo
+    from millsense.io.recording_file import RecordingWriter
+    from millsense.io.recording_reader import opened_recording
+    from millsense.report.run_scan import run_figures
+
+    n, k = 2000, 1500
+    fx = np.full(n, 180.0)
+    fy = np.full(n, 240.0)
+    fx[k:], fy[k:] = 900.0, 1200.0
+    broken = (np.arange(n) >= k).astype(float)
+    for name, chans in (("with.h5", True), ("without.h5", False)):
+        infos = [ChannelInfo("truth/tool/force_x", "N"), ChannelInfo("truth/tool/force_y", "N")]
+        data = {"truth/tool/force_x": fx, "truth/tool/force_y": fy}
+        if chans:
+            infos.append(ChannelInfo("truth/process/broken", "1"))
+            data["truth/process/broken"] = broken
+        with RecordingWriter(tmp_path / name, 1000.0, infos) as w:
+            w.append(data)
+        with opened_recording(tmp_path / name) as r:
+            f = run_figures(r, [])
+        assert f.peak_force_n == pytest.approx(1500.0)
+        assert f.peak_force_intact_n == pytest.approx(300.0 if chans else 1500.0)
