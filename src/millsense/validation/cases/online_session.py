@@ -337,18 +337,23 @@ def _quiet_after_last_change_s(r: dict[str, object]) -> float | None:
     abs_tol=0.0,
     quick=False,
     description="Spindle-speed commands of the chatter avoidance in the session on the T1 slot "
-    "(one more when the truth still chatters a second after the last one: the change it still "
-    "needed).",
+    "(one more when the truth never stops chattering after the last one: the change it still "
+    "needed; how soon it stops is `online.chatter_gone_after_last_speed_change_s`).",
 )
 def _chatter_changes() -> Measured:
     # the changes count only if they ended the chatter: a session that stops changing while the
-    # truth still chatters (a missed episode) counts the change it still needed
+    # truth chatters to the end of the record (a missed episode) counts the change it still
+    # needed
     r = chatter_run()
     ev = r["events"]
     assert isinstance(ev, list)
     changes = float(sum(1 for e in ev if e.name == "spindle_override"))
     gone = _quiet_after_last_change_s(r)
-    stable = gone is not None and gone <= 1.0
+    cmds = [e for e in ev if e.name == "spindle_override"]
+    chatter, fs = r["chatter"], r["fs"]
+    assert isinstance(chatter, np.ndarray) and isinstance(fs, float)
+    left = (chatter.size - round(cmds[-1].time_s * fs)) / fs if cmds else 0.0
+    stable = gone is not None and gone + 1.0 <= left
     return Measured(changes if stable else changes + 1.0, _chatter_table(r))
 
 
