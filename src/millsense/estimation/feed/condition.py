@@ -127,7 +127,11 @@ class OperatingConditionFeedEstimator(Block):
         self._recent = {}
 
     def _blend(
-        self, channel: str, mov: NDArray[np.float64], rest: NDArray[np.float64], w: NDArray[np.float64]
+        self,
+        channel: str,
+        mov: NDArray[np.float64],
+        rest: NDArray[np.float64],
+        w: NDArray[np.float64],
     ) -> NDArray[np.float64]:
         """``mov + w·(d − mean_N d)``, ``d = rest − mov``, the mean over the last N samples at
         each sample of the chunk (state carried; before the stream, d stood at its first
