@@ -133,24 +133,17 @@ class TrunnionACKinematics:
         )
 
     @staticmethod
-    def _rotation_derivatives(
+    def _rotation_and_derivatives(
         theta_a: np.ndarray, theta_c: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R (as :meth:`rotation`), ∂R/∂θ_A and ∂R/∂θ_C from one evaluation of the sines."""
         ca, sa = np.cos(theta_a), np.sin(theta_a)
         cc, sc = np.cos(theta_c), np.sin(theta_c)
-        d_a = _matrix3(
-            ca,
-            (0.0, sa * sc, ca * sc),
-            (0.0, sa * cc, ca * cc),
-            (0.0, ca, -sa),
-        )
-        d_c = _matrix3(
-            ca,
-            (sc, -ca * cc, sa * cc),
-            (cc, ca * sc, -sa * sc),
-            (0.0, 0.0, 0.0),
-        )
-        return d_a, d_c
+        ca_sc, ca_cc, sa_sc, sa_cc = ca * sc, ca * cc, sa * sc, sa * cc
+        r = _matrix3(ca, (-cc, -ca_sc, sa_sc), (sc, -ca_cc, sa_cc), (0.0, sa, ca))
+        d_a = _matrix3(ca, (0.0, sa_sc, ca_sc), (0.0, sa_cc, ca_cc), (0.0, ca, -sa))
+        d_c = _matrix3(ca, (sc, -ca_cc, sa_cc), (cc, ca_sc, -sa_sc), (0.0, 0.0, 0.0))
+        return r, d_a, d_c
 
     @staticmethod
     def orientation(theta_a: np.ndarray, theta_c: np.ndarray) -> np.ndarray:
@@ -206,8 +199,7 @@ class TrunnionACKinematics:
         in the thesis (torques at the tool tip are neglected).
         """
         arr, single = _as_batch(q, 5, "q")
-        r = self.rotation(arr[:, 3], arr[:, 4])
-        d_a, d_c = self._rotation_derivatives(arr[:, 3], arr[:, 4])
+        r, d_a, d_c = self._rotation_and_derivatives(arr[:, 3], arr[:, 4])
         rel = arr[:, :3].copy()
         rel[:, 2] -= self.a2_m
         j = np.empty((arr.shape[0], 3, 5))
@@ -220,8 +212,8 @@ class TrunnionACKinematics:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (Aslan Eq. 3.49)."""
         arr, single = _as_batch(q, 5, "q")
         j = self.jacobian(arr)
-        r = self.rotation(arr[:, 3], arr[:, 4])
-        m = np.einsum("nji,njk->nik", j, r)
+        # T = R: the Jacobian's first three columns (a copy, laid out as R)
+        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
@@ -377,7 +369,9 @@ class TrunnionACMachine:
     def load_matrix(self, q: np.ndarray) -> np.ndarray:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (drive frame)."""
         arr, single = _as_batch(q, 5, "q")
-        m = np.einsum("nji,njk->nik", self.jacobian(arr), self.rotation(arr[:, 3], arr[:, 4]))
+        j = self.jacobian(arr)
+        # T = R(A − π/2, C)·R0: the Jacobian's first three columns (a copy, laid out as T)
+        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
