@@ -63,7 +63,7 @@ class Prediction:
 
 def _delta_a(a: FloatArray) -> FloatArray:
     """Coefficients of A·Δ (A monic, given without its leading 1)."""
-    full = np.r_[1.0, a]
+    full = np.concatenate(([1.0], a))
     return np.convolve(full, [1.0, -1.0])
 
 
@@ -96,7 +96,7 @@ def diophantine(a: ArrayLike, b: ArrayLike, n2: int) -> Prediction:
             lead = fj[0]  # e_{j+1}: the next coefficient of E
             ej = ej.copy()
             ej[j + 1] = lead
-            fj = np.r_[fj[1:], 0.0] - lead * at[1:]
+            fj = np.append(fj[1:], 0.0) - lead * at[1:]
     g = np.zeros((n2, n2 + bv.size - 1))
     for j in range(n2):
         gj = np.convolve(e[j, : j + 1], bv)
