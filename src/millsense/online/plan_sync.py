@@ -84,8 +84,8 @@ class TcpFromAxes(Block):
         q = np.column_stack([np.asarray(chunk.data[c], dtype=np.float64) for c in self.inputs])
         if chunk.n == 0:
             return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
-        p = np.atleast_2d(self.kin.forward(q))
-        return BlockOutput({f"tcp/{a}": np.ascontiguousarray(p[:, i]) for i, a in enumerate("xyz")})
+        rows = np.ascontiguousarray(np.atleast_2d(self.kin.forward(q)).T)
+        return BlockOutput({f"tcp/{a}": rows[i] for i, a in enumerate("xyz")})
 
 
 class PlanSync(Block):
