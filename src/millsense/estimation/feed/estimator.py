@@ -41,6 +41,7 @@ from scipy import signal
 from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
+from millsense.estimation.feed._tool_force_kernels import apply_held, pseudo_inverses
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.design import (
     KalmanDesign,
@@ -949,12 +950,10 @@ class ToolForceBlock(Block):
     def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
         assert isinstance(self.kin, (TrunnionACKinematics, TrunnionACMachine))
-        if len(q) == 0:
-            return np.zeros((0, 3, 5))
-        m = self.kin.load_matrix(q).reshape(len(q), 5, 3)
-        return np.asarray(
-            np.linalg.solve(np.einsum("nki,nkj->nij", m, m), np.transpose(m, (0, 2, 1)))
-        )
+        out = np.empty((len(q), 3, 5))
+        if len(q):
+            pseudo_inverses(np.ascontiguousarray(self.kin.jacobian(q)), out)
+        return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
@@ -986,9 +985,9 @@ class ToolForceBlock(Block):
             which = np.maximum(which - 1, 0)
         if len(stack) == 0:
             stack = self._pinv(q[:1])
-        f = np.einsum("nij,nj->ni", stack[which], loads)
+        rows = np.empty((3, n))
+        apply_held(stack, which, loads, rows)
         self._held_pinv = stack[-1]
-        rows = np.ascontiguousarray(f.T)
         return BlockOutput({f"tool/force_{c}_est": rows[i] for i, c in enumerate("xyz")})
 
 
