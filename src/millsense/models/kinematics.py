@@ -16,6 +16,7 @@ table side, before the worm-gear ratio; the drive models apply their transmissio
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -282,7 +283,7 @@ class TrunnionACMachine:
     d4_m: float = DEFAULT_D4_M
     n_axes: int = 5
 
-    @property
+    @functools.cached_property
     def aslan(self) -> TrunnionACKinematics:
         """The same table in Aslan's frames."""
         return TrunnionACKinematics(a2_m=self.a2_m, d4_m=self.d4_m)
@@ -362,7 +363,7 @@ class TrunnionACMachine:
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """∂P/∂q in drive coordinates, ``J_Aslan·diag(R0, 1, 1)``, (3, 5) or (N, 3, 5)."""
         arr, single = _as_batch(q, 5, "q")
-        j = np.array(self.aslan.jacobian(self.to_aslan(arr)))
+        j = self.aslan.jacobian(self.to_aslan(arr))  # a new (N, 3, 5) array
         j[:, :, :3] = j[:, :, :3] @ _R0
         return j[0] if single else j
 
