@@ -247,7 +247,9 @@ class Supervisor(Block):
             if (chunk.start + stop) % self.period == 0:
                 self._decide(chunk, stop, events)
             pos = stop
-        channels = {k: np.concatenate(v) for k, v in out.items()}
+        # a chunk within one control period (10 ms chunks on 10 ms periods) has one piece per
+        # channel: the child's array as it is, as the pipeline passes a block's outputs on
+        channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
         channels[f"{self.name}/feed_override"] = feed
         channels[f"{self.name}/spindle_override"] = spindle
         channels[f"{self.name}/mode"] = mode

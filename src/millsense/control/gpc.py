@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -63,7 +64,7 @@ class Prediction:
 
 def _delta_a(a: FloatArray) -> FloatArray:
     """Coefficients of A·Δ (A monic, given without its leading 1)."""
-    full = np.r_[1.0, a]
+    full = np.concatenate(([1.0], a))
     return np.convolve(full, [1.0, -1.0])
 
 
@@ -74,34 +75,60 @@ def diophantine(a: ArrayLike, b: ArrayLike, n2: int) -> Prediction:
     1 + ã₁z⁻¹ + … + ã_{na+1}z^{−na−1}: E₁ = 1, F₁ = z(1 − Ã); then e_j = f_{j,0},
     f_{j+1,i} = f_{j,i+1} − e_j·ã_{i+1} (f_{j,na+1} = 0) — App. G's
     f_{j+1,0} = f_{j,1} − e_j·ã₁, f_{j+1,1} = f_{j,2} − e_j·ã₂, f_{j+1,2} = −e_j·ã₃ = e_j·a₂
-    for the second-order plant.
+    for the second-order plant (compiled: :func:`_diophantine_into`).
     """
+    at, bv = _model(a, b, n2)
+    e, f, g = _prediction_arrays(at, bv, n2)
+    _diophantine_into(at, bv, e, f, g)
+    return Prediction(e, f, g)
+
+
+def _model(a: ArrayLike, b: ArrayLike, n2: int) -> tuple[FloatArray, FloatArray]:
+    """AΔ and B as contiguous float arrays, checked."""
     av = np.asarray(a, dtype=float).ravel()
-    bv = np.asarray(b, dtype=float).ravel()
+    bv = np.ascontiguousarray(b, dtype=float).ravel()
     if n2 < 1:
         raise ConfigError(f"GPC: N2 must be ≥ 1, got {n2}")
     if bv.size == 0:
         raise ConfigError("GPC: B needs at least one coefficient")
-    at = _delta_a(av)  # [1, ã1, ..., ã_{na+1}]
-    na1 = at.size - 1  # deg(AΔ) = na + 1; F_j has na + 1 coefficients
-    e = np.zeros((n2, n2))
-    f = np.zeros((n2, na1))
-    fj = -at[1:].copy()  # F_1 = z(1 − Ã)
+    return _delta_a(av), bv
+
+
+def _prediction_arrays(
+    at: FloatArray, bv: FloatArray, n2: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Zeroed E (N2, N2), F (N2, na+1) and G (N2, N2+nb−1) for :func:`_diophantine_into`."""
+    return np.zeros((n2, n2)), np.zeros((n2, at.size - 1)), np.zeros((n2, n2 + bv.size - 1))
+
+
+@numba.njit(cache=True)
+def _diophantine_into(
+    at: FloatArray, b: FloatArray, e: FloatArray, f: FloatArray, g: FloatArray
+) -> None:  # pragma: no cover - compiled
+    """The recursion of :func:`diophantine` into the zeroed ``e``, ``f``, ``g`` (``at`` = AΔ
+    with its leading 1); G_j = E_j·B is the convolution of E_j's first j coefficients with B.
+    One compiled call: the adaptive feed decides once per revolution, and numpy's per-call
+    overhead on these few coefficients was most of its decision time."""
+    n2 = e.shape[0]
+    na1 = at.shape[0] - 1  # deg(AΔ) = na + 1; F_j has na + 1 coefficients
     ej = np.zeros(n2)
     ej[0] = 1.0  # E_1 = 1
+    fj = -at[1:]  # F_1 = z(1 − Ã)
+    fn = np.empty(na1)
     for j in range(n2):
         e[j] = ej
         f[j] = fj
         if j + 1 < n2:
             lead = fj[0]  # e_{j+1}: the next coefficient of E
-            ej = ej.copy()
             ej[j + 1] = lead
-            fj = np.r_[fj[1:], 0.0] - lead * at[1:]
-    g = np.zeros((n2, n2 + bv.size - 1))
+            for i in range(na1):
+                nxt = fj[i + 1] if i + 1 < na1 else 0.0
+                fn[i] = nxt - lead * at[i + 1]
+            fj, fn = fn, fj
     for j in range(n2):
-        gj = np.convolve(e[j, : j + 1], bv)
-        g[j, : gj.size] = gj
-    return Prediction(e, f, g)
+        for p in range(j + 1):
+            for q in range(b.shape[0]):
+                g[j, p + q] += e[j, p] * b[q]
 
 
 def diophantine_direct(a: ArrayLike, j: int) -> tuple[FloatArray, FloatArray]:
@@ -157,24 +184,53 @@ class GPC:
         reference : F_r over the horizon (a scalar, or N2 values for a known future, e.g.
             the virtual plan's predicted force).
         """
-        pred = diophantine(a, b, self.n2)
-        y = np.asarray(y_past, dtype=float).ravel()
-        du = np.asarray(du_past, dtype=float).ravel()
-        nf = pred.f.shape[1]
-        npast = pred.g.shape[1] - self.n2  # past increments each G_j reaches (nb − 1)
+        at, bv = _model(a, b, self.n2)
+        y = np.ascontiguousarray(y_past, dtype=float).ravel()
+        du = np.ascontiguousarray(du_past, dtype=float).ravel()
+        nf = at.size - 1
+        npast = bv.size - 1  # past increments each G_j reaches (nb − 1)
         if y.size < nf:
             raise ConfigError(f"GPC: needs {nf} past outputs, got {y.size}")
         if du.size < npast:
             raise ConfigError(f"GPC: needs {npast} past feed increments, got {du.size}")
-        free = np.empty(self.n2)
-        for j in range(self.n2):
-            # G_j's coefficients beyond the future moves act on the past increments
-            past = pred.g[j, j + 1 : j + 1 + npast]
-            free[j] = past @ du[:npast] + pred.f[j] @ y[:nf]
-        step = pred.step_response
-        gm = np.zeros((self.n2, self.nu))
-        for c in range(self.nu):
-            gm[c:, c] = step[: self.n2 - c]
-        r = np.broadcast_to(np.asarray(reference, dtype=float), (self.n2,))
-        h = gm.T @ gm + self.lam * np.eye(self.nu)
-        return float(np.linalg.solve(h, gm.T @ (r - free))[0])
+        r = np.ascontiguousarray(np.broadcast_to(np.asarray(reference, dtype=float), (self.n2,)))
+        e, f, g = _prediction_arrays(at, bv, self.n2)
+        return float(_move(at, bv, y, du, r, self.nu, self.lam, e, f, g))
+
+
+@numba.njit(cache=True)
+def _move(
+    at: FloatArray,
+    b: FloatArray,
+    y: FloatArray,
+    du: FloatArray,
+    r: FloatArray,
+    nu: int,
+    lam: float,
+    e: FloatArray,
+    f: FloatArray,
+    g: FloatArray,
+) -> float:  # pragma: no cover - compiled
+    """:meth:`GPC.move` in one compiled call: the predictors (:func:`_diophantine_into`), the
+    free response ``f_j = G_j's past part·Δu_past + F_j·y``, the step-response matrix G
+    (``G[i, c] = g_{i−c}``) and the first entry of ``(GᵀG + λI)⁻¹ Gᵀ (r − f)``."""
+    _diophantine_into(at, b, e, f, g)
+    n2 = e.shape[0]
+    nf = f.shape[1]
+    npast = g.shape[1] - n2
+    free = np.empty(n2)
+    for j in range(n2):
+        # G_j's coefficients beyond the future moves act on the past increments
+        acc = 0.0
+        for i in range(npast):
+            acc += g[j, j + 1 + i] * du[i]
+        acc_f = 0.0
+        for i in range(nf):
+            acc_f += f[j, i] * y[i]
+        free[j] = acc + acc_f
+    gm = np.zeros((n2, nu))
+    for c in range(nu):
+        for i in range(c, n2):
+            gm[i, c] = g[i - c, i - c]  # the step response of z⁻¹B/A
+    h = gm.T @ gm + lam * np.eye(nu)
+    return np.linalg.solve(h, gm.T @ (r - free))[0]

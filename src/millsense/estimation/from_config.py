@@ -80,10 +80,11 @@ class RenamedBlock(Block):
 
     def process(self, chunk: Chunk) -> BlockOutput:
         out = self.inner.process(chunk)
-        ch = {
-            new: factor * np.asarray(out.channels[old], dtype=float)
-            for old, (new, factor, _) in self.mapping.items()
-        }
+        ch = {}
+        for old, (new, factor, _) in self.mapping.items():
+            values = np.asarray(out.channels[old], dtype=float)
+            # x·1 is x: the inner block's array is passed on, as the pipeline passes outputs
+            ch[new] = values if factor == 1.0 else factor * values
         return BlockOutput(ch, out.events)
 
 

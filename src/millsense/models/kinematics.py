@@ -16,6 +16,7 @@ table side, before the worm-gear ratio; the drive models apply their transmissio
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,17 @@ def _as_batch(q: np.ndarray, n: int, what: str) -> tuple[np.ndarray, bool]:
             f"kinematics: {what} must have shape ({n},) or (N, {n}), got {arr.shape}"
         )
     return arr2, single
+
+
+def _matrix3(like: np.ndarray, *rows: tuple[np.ndarray | float, ...]) -> np.ndarray:
+    """3×3 matrices (..., 3, 3) from their entries (arrays of the shape of ``like`` or scalars),
+    filled in place: on the few poses of a 10 ms chunk nested ``np.stack`` calls cost more than
+    the trigonometry."""
+    out = np.empty((*np.shape(like), 3, 3), dtype=np.result_type(like))
+    for i, row in enumerate(rows):
+        for j, v in enumerate(row):
+            out[..., i, j] = v
+    return out
 
 
 @dataclass(frozen=True)
@@ -114,40 +126,25 @@ class TrunnionACKinematics:
         """R(θ_A, θ_C) of Aslan Eq. 3.38, shape (..., 3, 3)."""
         ca, sa = np.cos(theta_a), np.sin(theta_a)
         cc, sc = np.cos(theta_c), np.sin(theta_c)
-        zero = np.zeros_like(ca)
-        return np.stack(
-            [
-                np.stack([-cc, -ca * sc, sa * sc], axis=-1),
-                np.stack([sc, -ca * cc, sa * cc], axis=-1),
-                np.stack([zero, sa, ca], axis=-1),
-            ],
-            axis=-2,
+        return _matrix3(
+            ca,
+            (-cc, -ca * sc, sa * sc),
+            (sc, -ca * cc, sa * cc),
+            (0.0, sa, ca),
         )
 
     @staticmethod
-    def _rotation_derivatives(
+    def _rotation_and_derivatives(
         theta_a: np.ndarray, theta_c: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R (as :meth:`rotation`), ∂R/∂θ_A and ∂R/∂θ_C from one evaluation of the sines."""
         ca, sa = np.cos(theta_a), np.sin(theta_a)
         cc, sc = np.cos(theta_c), np.sin(theta_c)
-        zero = np.zeros_like(ca)
-        d_a = np.stack(
-            [
-                np.stack([zero, sa * sc, ca * sc], axis=-1),
-                np.stack([zero, sa * cc, ca * cc], axis=-1),
-                np.stack([zero, ca, -sa], axis=-1),
-            ],
-            axis=-2,
-        )
-        d_c = np.stack(
-            [
-                np.stack([sc, -ca * cc, sa * cc], axis=-1),
-                np.stack([cc, ca * sc, -sa * sc], axis=-1),
-                np.stack([zero, zero, zero], axis=-1),
-            ],
-            axis=-2,
-        )
-        return d_a, d_c
+        ca_sc, ca_cc, sa_sc, sa_cc = ca * sc, ca * cc, sa * sc, sa * cc
+        r = _matrix3(ca, (-cc, -ca_sc, sa_sc), (sc, -ca_cc, sa_cc), (0.0, sa, ca))
+        d_a = _matrix3(ca, (0.0, sa_sc, ca_sc), (0.0, sa_cc, ca_cc), (0.0, ca, -sa))
+        d_c = _matrix3(ca, (sc, -ca_cc, sa_cc), (cc, ca_sc, -sa_sc), (0.0, 0.0, 0.0))
+        return r, d_a, d_c
 
     @staticmethod
     def orientation(theta_a: np.ndarray, theta_c: np.ndarray) -> np.ndarray:
@@ -203,8 +200,7 @@ class TrunnionACKinematics:
         in the thesis (torques at the tool tip are neglected).
         """
         arr, single = _as_batch(q, 5, "q")
-        r = self.rotation(arr[:, 3], arr[:, 4])
-        d_a, d_c = self._rotation_derivatives(arr[:, 3], arr[:, 4])
+        r, d_a, d_c = self._rotation_and_derivatives(arr[:, 3], arr[:, 4])
         rel = arr[:, :3].copy()
         rel[:, 2] -= self.a2_m
         j = np.empty((arr.shape[0], 3, 5))
@@ -217,8 +213,8 @@ class TrunnionACKinematics:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (Aslan Eq. 3.49)."""
         arr, single = _as_batch(q, 5, "q")
         j = self.jacobian(arr)
-        r = self.rotation(arr[:, 3], arr[:, 4])
-        m = np.einsum("nji,njk->nik", j, r)
+        # T = R: the Jacobian's first three columns (a copy, laid out as R)
+        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
@@ -287,7 +283,7 @@ class TrunnionACMachine:
     d4_m: float = DEFAULT_D4_M
     n_axes: int = 5
 
-    @property
+    @functools.cached_property
     def aslan(self) -> TrunnionACKinematics:
         """The same table in Aslan's frames."""
         return TrunnionACKinematics(a2_m=self.a2_m, d4_m=self.d4_m)
@@ -367,14 +363,16 @@ class TrunnionACMachine:
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """∂P/∂q in drive coordinates, ``J_Aslan·diag(R0, 1, 1)``, (3, 5) or (N, 3, 5)."""
         arr, single = _as_batch(q, 5, "q")
-        j = np.array(self.aslan.jacobian(self.to_aslan(arr)))
+        j = self.aslan.jacobian(self.to_aslan(arr))  # a new (N, 3, 5) array
         j[:, :, :3] = j[:, :, :3] @ _R0
         return j[0] if single else j
 
     def load_matrix(self, q: np.ndarray) -> np.ndarray:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (drive frame)."""
         arr, single = _as_batch(q, 5, "q")
-        m = np.einsum("nji,njk->nik", self.jacobian(arr), self.rotation(arr[:, 3], arr[:, 4]))
+        j = self.jacobian(arr)
+        # T = R(A − π/2, C)·R0: the Jacobian's first three columns (a copy, laid out as T)
+        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:

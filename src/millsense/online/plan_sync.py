@@ -84,8 +84,8 @@ class TcpFromAxes(Block):
         q = np.column_stack([np.asarray(chunk.data[c], dtype=np.float64) for c in self.inputs])
         if chunk.n == 0:
             return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
-        p = np.atleast_2d(self.kin.forward(q))
-        return BlockOutput({f"tcp/{a}": np.ascontiguousarray(p[:, i]) for i, a in enumerate("xyz")})
+        rows = np.ascontiguousarray(np.atleast_2d(self.kin.forward(q)).T)
+        return BlockOutput({f"tcp/{a}": rows[i] for i, a in enumerate("xyz")})
 
 
 class PlanSync(Block):
@@ -150,16 +150,19 @@ class PlanSync(Block):
         self.inputs = tuple(ins)
         tq = np.asarray(plan["torque_avg_nm"], dtype=np.float64)
         sh = np.asarray(plan["torque_avg_shear_nm"], dtype=np.float64)
-        self._shear = np.nan_to_num(sh)
-        self._edge = np.nan_to_num(tq - sh)
-        self._in_cut = np.asarray(plan["in_cut"], dtype=bool)
-        self._steady = steady_rows(plan, transient_revs)
-        self._depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
+        # the per-row tables end with the value of "no row yet", which row −1 indexes
+        self._shear = np.append(np.nan_to_num(sh), 0.0)
+        self._edge = np.append(np.nan_to_num(tq - sh), 0.0)
+        self._in_cut = np.append(np.asarray(plan["in_cut"], dtype=bool), False)
+        self._steady = np.append(steady_rows(plan, transient_revs), False)
+        depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
+        self._depth = np.append(depth, 0.0)
         #: only revolutions whose expected torque is at least this are calibrated on: at a
         #: light load an observer's offset and noise would set the ratio (decision 1622)
         self._min_cal = MIN_CALIBRATION * float(np.nanmax(np.abs(tq), initial=0.0))
         nc = np.asarray(plan["nc_line"], dtype=np.int64)
-        self._nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
+        nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
+        self._nc = np.append(nc, -1)
         self.reset(10000.0)
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -196,12 +199,10 @@ class PlanSync(Block):
         rows = np.empty(n, dtype=np.int64)
         if n:
             ks = np.arange(n)
-            at = ks[(chunk.start + ks) % self.decimate == 0]
+            at = np.arange(-chunk.start % self.decimate, n, self.decimate)
             matched = np.full(at.size, -1, dtype=np.int64)
             if at.size:
-                tcp = np.column_stack(
-                    [np.asarray(d[c], dtype=np.float64)[at] for c in self.tcp_channels]
-                )
+                tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at].T
                 ok = np.all(np.isfinite(tcp), axis=1)
                 if ok.any():
                     sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
@@ -214,15 +215,14 @@ class PlanSync(Block):
             rows[:] = np.where(idx >= 0, hold[np.maximum(idx, 0)], self.row)
             if rows[-1] >= 0:
                 self.row = int(rows[-1])
-        safe = np.maximum(rows, 0)
-        in_cut = np.where(rows >= 0, self._in_cut[safe], False)
+        in_cut = self._in_cut[rows]  # row −1: the tables' last entry, "no row yet"
         u = (
             np.asarray(d[self.override_channel], dtype=np.float64)
             if self.override_channel is not None
             else np.ones(n)
         )
-        edge = np.where(rows >= 0, self._edge[safe], 0.0)
-        shear = np.where(rows >= 0, self._shear[safe], 0.0) * u
+        edge = self._edge[rows]
+        shear = self._shear[rows] * u
         scale = np.full(n, self.scale)
         events: list[Event] = []
         extra: dict[str, np.ndarray] = {}
@@ -240,9 +240,9 @@ class PlanSync(Block):
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
-        nc = np.where(rows >= 0, self._nc[safe], -1)
+        nc = self._nc[rows]
         expected = edge + scale * shear
-        steady = (rows >= 0) & self._steady[safe]
+        steady = self._steady[rows]
         if self.torque_channel is not None:
             # the virtual threshold judges the tool once the plan is calibrated to it (a plan
             # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622)
@@ -258,7 +258,7 @@ class PlanSync(Block):
                 f"{self.name}/expected_torque": expected,
                 f"{self.name}/judged_torque": np.where(steady, expected, 0.0),
                 f"{self.name}/ktc_scale": scale,
-                f"{self.name}/axial_depth": np.where(rows >= 0, self._depth[safe], 0.0),
+                f"{self.name}/axial_depth": self._depth[rows],
                 **extra,
             },
             events,

@@ -231,6 +231,10 @@ class VirtualPlan:
     metadata: dict[str, Any] = field(default_factory=dict)
     basis: ForceBasis | None = None
     layers: LayerIntervals | None = None
+    #: the x, y, z columns :meth:`match` searched last and their contiguous copies in metres
+    _match_xyz: tuple[tuple[Any, ...], tuple[FloatArray, ...]] | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         missing = [c for c in COLUMNS if c not in self.columns]
@@ -382,14 +386,22 @@ class VirtualPlan:
         if not (0 <= from_row < len(self)):
             raise InputDataError(f"plan: from_row {from_row} outside 0..{len(self) - 1}")
         out = np.empty(p.shape[0], dtype=np.int64)
-        xyz = self.xyz_m
+        cols = tuple(self.columns[c] for c in ("x_mm", "y_mm", "z_mm"))
+        if self._match_xyz is None or any(
+            a is not b for a, b in zip(self._match_xyz[0], cols, strict=True)
+        ):
+            # once per plan, not per call (a chunk's matches are a few samples; the plan may
+            # have 10⁵ rows)
+            xyz = self.xyz_m
+            self._match_xyz = (cols, tuple(np.ascontiguousarray(xyz[:, i]) for i in range(3)))
+        px, py, pz = self._match_xyz[1]
         _k.match_rows(
             np.ascontiguousarray(p[:, 0]),
             np.ascontiguousarray(p[:, 1]),
             np.ascontiguousarray(p[:, 2]),
-            np.ascontiguousarray(xyz[:, 0]),
-            np.ascontiguousarray(xyz[:, 1]),
-            np.ascontiguousarray(xyz[:, 2]),
+            px,
+            py,
+            pz,
             int(from_row),
             float(tol_m),
             int(max_ahead),

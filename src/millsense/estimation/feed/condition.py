@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.feed.commanded import CommandedVelocity
+from millsense.estimation.feed._condition_kernels import highpass_blend, rest_weight_kernel
+from millsense.estimation.feed.commanded import velocity_source
 from millsense.estimation.feed.estimator import REST_SPEED_RAD_S, FeedAxisEstimator
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
@@ -96,12 +97,13 @@ class OperatingConditionFeedEstimator(Block):
         self.mean_window_s = float(mean_window_s)
         self._window = 0
         self._recent: dict[str, NDArray[np.float64]] = {}
-        self._cmd = CommandedVelocity(ax)
-        self.position_channel = self._cmd.channel
+        self.position_channel = velocity_source(ax)
         self.inputs = tuple(dict.fromkeys((*moving.inputs, *at_rest.inputs, self.position_channel)))
-        self._half = 0
+        self._width = 1
         self._hist: NDArray[np.float64] = np.zeros(0)
-        self._started = False
+        #: [previous command, started] and [f_s, r_g, rest speed] of the compiled weight
+        self._state = np.zeros(2)
+        self._drive = np.zeros(3)
 
     @property
     def delay_samples(self) -> int:
@@ -116,55 +118,51 @@ class OperatingConditionFeedEstimator(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self.moving.reset(sample_rate_hz)
         self.at_rest.reset(sample_rate_hz)
-        self._cmd.reset(sample_rate_hz)
-        self._half = min(self.lag, round(0.5 * self.crossfade_s * sample_rate_hz))
-        self._hist = np.zeros(0)
-        self._started = False
+        half = min(self.lag, round(0.5 * self.crossfade_s * sample_rate_hz))
+        self._width = 2 * half + 1
+        self._hist = np.zeros(self.lag + half)
+        self._state = np.zeros(2)
+        self._drive = np.array([sample_rate_hz, self.transmission, self.rest_speed])
         self._window = round(self.mean_window_s * sample_rate_hz)
         self._recent = {}
 
-    def _mean(self, channel: str, d: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Mean of ``d`` over the last N samples at each sample of the chunk (state carried)."""
-        n_win = self._window
-        x = np.concatenate([self._recent.get(channel, np.full(n_win, d[0])), d])
-        c = np.concatenate([[0.0], np.cumsum(x)])
-        self._recent[channel] = x[-n_win:]
-        j = np.arange(len(d))
-        return np.asarray((c[n_win + j + 1] - c[j + 1]) / n_win)
+    def _blend(
+        self,
+        channel: str,
+        mov: NDArray[np.float64],
+        rest: NDArray[np.float64],
+        w: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """``mov + w·(d − mean_N d)``, ``d = rest − mov``, the mean over the last N samples at
+        each sample of the chunk (state carried; before the stream, d stood at its first
+        value): the mean is the moving path's (decision 0129)."""
+        if len(mov) == 0 or self._window == 0:
+            return mov + w * (rest - mov)
+        recent = self._recent.get(channel)
+        if recent is None:
+            recent = self._recent[channel] = np.full(self._window, rest[0] - mov[0])
+        out = np.empty(len(mov))
+        highpass_blend(mov, rest, w, recent, out)
+        return out
 
     def rest_weight(self, position_cmd: NDArray[np.float64]) -> NDArray[np.float64]:
         """Weight of the at-rest model for the output samples of one chunk (state carried)."""
-        pos = np.asarray(position_cmd, dtype=np.float64)
-        if not np.all(np.isfinite(pos)):
-            raise InputDataError(f"block {self.name}: non-finite {self.position_channel}")
+        pos = np.ascontiguousarray(position_cmd, dtype=np.float64)
         n = len(pos)
         if n == 0:
             return np.zeros(0)
-        speed = self._cmd(pos) / self.transmission
-        rest = (np.abs(speed) <= self.rest_speed).astype(np.float64)
-        if not self._started:
-            # before the stream the axis stood in the condition of its first command
-            self._hist = np.full(self.lag + self._half, rest[0])
-            self._started = True
-        allr = np.concatenate([self._hist, rest])
-        # output sample j of this chunk belongs to input (global) j − L: its window is
-        # [j − L − h, j − L + h]; allr index of global input i is i − start + len(hist)
-        width = 2 * self._half + 1
-        csum = np.concatenate([[0.0], np.cumsum(allr)])
-        first = np.arange(n)  # window start in allr for output j: j + len(hist) − L − h = j
-        w = (csum[first + width] - csum[first]) / width
-        self._hist = allr[-(self.lag + self._half) :] if self.lag + self._half else np.zeros(0)
-        return np.asarray(w)
+        w = np.empty(n)
+        if not rest_weight_kernel(pos, self._state, self._drive, self._hist, self._width, w):
+            raise InputDataError(f"block {self.name}: non-finite {self.position_channel}")
+        return w
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        w = self.rest_weight(np.asarray(chunk.data[self.position_channel], dtype=np.float64))
+        w = self.rest_weight(chunk.data[self.position_channel])
         om = self.moving.process(chunk).channels
         orr = self.at_rest.process(chunk).channels
         out = {}
         for k, v in om.items():
-            mov = np.asarray(v, dtype=np.float64)
-            d = np.asarray(orr[k], dtype=np.float64) - mov
-            if len(d) and self._window > 0:
-                d = d - self._mean(k, d)  # the mean is the moving path's
-            out[k] = mov + w * d
+            mov = np.ascontiguousarray(v, dtype=np.float64)
+            rest = np.ascontiguousarray(orr[k], dtype=np.float64)
+            out[k] = self._blend(k, mov, rest, w)
         return BlockOutput(out)

@@ -41,6 +41,7 @@ from scipy import signal
 from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
+from millsense.estimation.feed._tool_force_kernels import apply_held, pseudo_inverses
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.design import (
     KalmanDesign,
@@ -932,7 +933,8 @@ class ToolForceBlock(Block):
         self.lag = int(lag)
         self.pose_every = max(1, int(pose_every))
         self._held_pinv: NDArray[np.float64] | None = None
-        self.inputs = self.load_channels + tuple(f"{a}/motor_angle" for a in self.axes)
+        self._angle_channels = tuple(f"{a}/motor_angle" for a in self.axes)
+        self.inputs = self.load_channels + self._angle_channels
         self._hist = np.zeros((0, 5))
 
     def output_channels(self) -> list[ChannelInfo]:
@@ -948,46 +950,45 @@ class ToolForceBlock(Block):
     def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
         assert isinstance(self.kin, (TrunnionACKinematics, TrunnionACMachine))
-        if len(q) == 0:
-            return np.zeros((0, 3, 5))
-        m = self.kin.load_matrix(q).reshape(len(q), 5, 3)
-        return np.asarray(
-            np.linalg.solve(np.einsum("nki,nkj->nij", m, m), np.transpose(m, (0, 2, 1)))
-        )
+        out = np.empty((len(q), 3, 5))
+        if len(q):
+            pseudo_inverses(np.ascontiguousarray(self.kin.jacobian(q)), out)
+        return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        loads = -np.column_stack(
-            [np.asarray(chunk.data[c], dtype=float) for c in self.load_channels]
-        )
-        q_now = np.column_stack(
-            [np.asarray(chunk.data[f"{a}/motor_angle"], dtype=float) for a in self.axes]
-        )
-        q_now = q_now * self.rg + self.offsets
-        n = len(q_now)
+        d = chunk.data
+        n = chunk.n
         if n == 0:
             return BlockOutput({f"tool/force_{c}_est": np.zeros(0) for c in "xyz"})
+        # (n, 5) in C order, as column stacks of the channels (one call each)
+        loads = np.negative(np.array([d[c] for c in self.load_channels], dtype=float).T, order="C")
+        q_now = np.array([d[c] for c in self._angle_channels], dtype=float).T * self.rg
+        q_now += self.offsets
         if len(self._hist) == 0:
             self._hist = np.repeat(q_now[:1], self.lag, axis=0)
-        allq = np.vstack([self._hist, q_now])
+        allq = np.concatenate([self._hist, q_now])
         q = allq[:n]
         self._hist = allq[n:]
         # [Jᵀ·T]⁺·(−τ) by the normal equations (full column rank away from singular poses):
         # batched 3×3 solves instead of one SVD per sample; the pose is evaluated at stream
         # samples that are multiples of `pose_every` and held in between (the machine moves
         # < 0.1 mm in 1 ms at cutting feeds)
-        idx = chunk.start + np.arange(n)
-        new = idx % self.pose_every == 0
-        stack = self._pinv(q[new])
+        every = self.pose_every
+        first = -chunk.start % every  # the chunk's first pose sample
+        stack = self._pinv(q[first::every])
+        # sample k takes the newest pose at or before it: with a held pose (stack entry 0)
+        # the (k − first + every) // every-th entry, else the chunk's first pose up to there
+        which = (np.arange(n) - first + every) // every
         if self._held_pinv is not None:
             stack = np.concatenate([self._held_pinv[None], stack])
-            which = np.cumsum(new)
         else:
-            which = np.maximum(np.cumsum(new) - 1, 0)
+            which = np.maximum(which - 1, 0)
         if len(stack) == 0:
             stack = self._pinv(q[:1])
-        f = np.einsum("nij,nj->ni", stack[which], loads)
+        rows = np.empty((3, n))
+        apply_held(stack, which, loads, rows)
         self._held_pinv = stack[-1]
-        return BlockOutput({f"tool/force_{c}_est": f[:, i].copy() for i, c in enumerate("xyz")})
+        return BlockOutput({f"tool/force_{c}_est": rows[i] for i, c in enumerate("xyz")})
 
 
 def operating_condition(

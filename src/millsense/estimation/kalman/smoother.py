@@ -97,17 +97,22 @@ def _smooth(
         for c in range(p):
             innov[c, lag + k] = y[k, d + c]
     out = np.empty((n, d))
+    acc = np.empty(n)
     for r in range(d):
         for k in range(n):
             out[k, r] = pred[k, r]
         for c in range(p):
             w = taps_t[r, c]
             e = innov[c]
+            # every acc[k] sums its taps in order i = 0 .. L; the loop over k innermost runs
+            # the samples side by side (vectorised) instead of one sequential sum at a time
+            acc[:] = 0.0
+            for i in range(n_taps):
+                wi = w[i]
+                for k in range(n):
+                    acc[k] += wi * e[k + i]
             for k in range(n):
-                acc = 0.0
-                for i in range(n_taps):
-                    acc += w[i] * e[k + i]
-                out[k, r] += acc
+                out[k, r] += acc[k]
     hist_pred[:] = pred[n:]
     hist_innov[:] = innov[:, n:]
     return out
