@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,13 +53,11 @@ def _stream() -> tuple[dict[str, np.ndarray], object]:
     return data, plan
 
 
-def _time(stack: str, chunk: int) -> tuple[float, np.ndarray, np.ndarray]:
-    """Signal seconds, CPU time per chunk of the whole pipeline and of the supervisor."""
+def stack_blocks(stack: str) -> object:
+    """The ``full`` or ``default`` stack's blocks (``SessionBlocks``) for the stream."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
     from millsense.online.session import SessionOptions, session_blocks
-    from millsense.streaming.block import Chunk
-    from millsense.streaming.engine import Pipeline
 
     data, plan = _stream()
     cfg = load_preset(MachineConfig, str(MACHINE_FILE))
@@ -67,7 +66,16 @@ def _time(stack: str, chunk: int) -> tuple[float, np.ndarray, np.ndarray]:
         if stack == "full"
         else SessionOptions()
     )
-    built = session_blocks(plan, cfg, FS, opts, channels=list(data))  # type: ignore[arg-type]
+    return session_blocks(plan, cfg, FS, opts, channels=list(data))  # type: ignore[arg-type]
+
+
+def _time(stack: str, chunk: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """Signal seconds, CPU time per chunk of the whole pipeline and of the supervisor."""
+    from millsense.streaming.block import Chunk
+    from millsense.streaming.engine import Pipeline
+
+    data, _ = _stream()
+    built: Any = stack_blocks(stack)
     pipe = Pipeline(built.blocks)
     sup = built.supervisor
     n = len(data["cnc/feed"])

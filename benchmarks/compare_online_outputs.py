@@ -28,25 +28,16 @@ Run = tuple[dict[str, np.ndarray], list[dict[str, Any]]]
 
 def replay() -> dict[tuple[str, int], Run]:
     """Every output channel (concatenated) and event of each stack and chunk size."""
-    from bench_online import FS, MACHINE_FILE, _stream
-    from millsense.core.config import MachineConfig
-    from millsense.core.presets import load_preset
-    from millsense.online.session import SessionOptions, session_blocks
+    from bench_online import FS, _stream, stack_blocks
     from millsense.streaming.block import Chunk
     from millsense.streaming.engine import Pipeline
 
-    data, plan = _stream()
-    cfg = load_preset(MachineConfig, str(MACHINE_FILE))
+    data, _ = _stream()
     n = len(data["cnc/feed"])
     res: dict[tuple[str, int], Run] = {}
     for stack in ("full", "default"):
         for chunk in (100, 1000, 73):
-            opts = (
-                SessionOptions(quantity="force", force_from="estimate")
-                if stack == "full"
-                else SessionOptions()
-            )
-            built = session_blocks(plan, cfg, FS, opts, channels=list(data))  # type: ignore[arg-type]
+            built: Any = stack_blocks(stack)
             pipe = Pipeline(built.blocks)
             pipe.reset(FS)
             outs: dict[str, list[np.ndarray]] = {}
