@@ -270,19 +270,22 @@ def _chatter_table(r: dict[str, object]) -> str:
     return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
 
 
-#: Why the chatter of the T1 session takes 1.8 s to end after its one speed change (2026-11-28).
+#: Why the truth of the T1 session is chatter-free only 1.8-2.6 s after its one speed change
+#: (2026-11-28).
 _T1_SLOW_END = (
-    "the first episode is found at 3.5 s (554.1 Hz at 4500 rev/min, ratio 1.88; the truth "
-    "chatters violently from 3.0 s) and the speed goes to 6109 rev/min, the centre of lobe 1's "
-    "stable pocket (decision 1635; the lobe speed 6649 rev/min, which the truth's softened modes "
-    "make unstable, needed a second change before). The spindle is at the new speed within "
-    "0.1 s and the monitor ends the episode at 4.2 s. The truth's tool vibration, 28-37 µm RMS "
-    "in the chatter, stays at 20-27 µm for a second at the new speed, mostly periodic with the "
-    "revolution (2-7 µm change from one revolution to the next, so the truth's chatter flag rises "
-    "only in 20 ms bursts), and falls to the stable cut's 2.1 µm between 4.5 and 5.3 s; at "
-    "6109 rev/min from the start the full slot is chatter-free. Likely the truth's "
-    "load-dependent mode softening (realism) holding the large-amplitude state near the "
-    "stability limit until the load falls; not checked further"
+    "one speed change, 4500 -> 6105 rev/min, the centre of lobe 1's stable pocket (decision "
+    "1635; the lobe speed 60 f_c/N, which the truth's softened modes made unstable, needed a "
+    "second change before), found at 2.7 s (1840.5 Hz, ratio 1.71; an earlier run of the same "
+    "case, before the merge of decision 1651's rounding-level changes to the adaptive feed, found "
+    "it at 3.5 s at 554.1 Hz and went to 6109 rev/min: the closed loop is that sensitive). The "
+    "spindle is at the new speed within 0.1 s and the monitor ends the episode 0.7 s after the "
+    "change. At the pocket's centre the tooth-passing frequency (509 Hz) sits on the truth's "
+    "546 Hz tool mode softened by about 7 % under the slot's load: the truth's tool vibration "
+    "grows to 20-25 µm RMS, mostly periodic with the revolution (2-6 µm change from one "
+    "revolution to the next, so the truth's chatter flag rises in short bursts), and falls to "
+    "the stable cut's 2 µm at 5.3 s in both runs; at 6109 rev/min from the start the full slot is "
+    "chatter-free after its entry. A forced resonance on top of the lobe rather than chatter, "
+    "as far as checked"
 )
 
 
