@@ -15,6 +15,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.estimation.feed.commanded import difference_into
+
 
 @numba.njit(cache=True)
 def rest_weight_kernel(
@@ -29,8 +31,8 @@ def rest_weight_kernel(
     nothing changed, if a command is not finite.
 
     ``state`` = [previous command, started]; ``drive`` = [f_s, r_g, rest speed]: the commanded
-    motor speed is ``Δx_cmd·f_s/r_g`` (the first sample of a stream reads 0, as
-    :class:`~millsense.estimation.feed.commanded.CommandedVelocity`) and a sample is at rest
+    motor speed is ``Δx_cmd·f_s/r_g`` (:func:`~millsense.estimation.feed.commanded.
+    difference_into`, the first sample of a stream reading 0) and a sample is at rest
     when it is within ±rest speed. ``hist`` holds the last L + h rest flags (before the stream,
     the first command's condition); output j is the mean of the ``width`` = 2h + 1 flags from
     flag j of ``hist ++ this chunk's flags``: the centred window at the estimated sample j − L.
@@ -43,11 +45,10 @@ def rest_weight_kernel(
     fs, rg, rest_speed = drive[0], drive[1], drive[2]
     m = hist.shape[0]
     flags = np.empty(m + n)
-    prev = pos[0] if state[1] == 0.0 else state[0]
+    speed = np.empty(n)
+    difference_into(pos, pos[0] if state[1] == 0.0 else state[0], fs, speed)
     for k in range(n):
-        speed = (pos[k] - prev) * fs / rg
-        prev = pos[k]
-        flags[m + k] = 1.0 if abs(speed) <= rest_speed else 0.0
+        flags[m + k] = 1.0 if abs(speed[k] / rg) <= rest_speed else 0.0
     if state[1] == 0.0:
         flags[:m] = flags[m]
         state[1] = 1.0

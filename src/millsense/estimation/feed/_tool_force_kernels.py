@@ -2,10 +2,10 @@
 (Aslan Eq. 3.51, ``F = −[Jᵀ·T]⁺·τ``, decision "Forces at the tool in estimate").
 
 At 10 ms chunks the block evaluates ten poses: numpy's per-call overhead on 3×5 matrices
-(einsum, a batched solve, fancy indexing) cost more than the arithmetic. The kinematics stay
-in :mod:`millsense.models.kinematics` (the Jacobian); these kernels do the rest in one call
-each. Sums run in the order of the einsum forms they replace; the 3×3 solves are LAPACK's, as
-numpy's, so the forces agree with the numpy form to rounding.
+(a batched solve, fancy indexing) cost more than the arithmetic. The kinematics stay in
+:mod:`millsense.models.kinematics` (the load matrix ``Jᵀ·T``); these kernels do the rest in
+one call each. The 3×3 solves are LAPACK's, as numpy's; the forces agree with the numpy form
+to rounding (decision 1651).
 """
 
 from __future__ import annotations
@@ -16,27 +16,19 @@ from numpy.typing import NDArray
 
 
 @numba.njit(cache=True)
-def pseudo_inverses(jac: NDArray[np.float64], out: NDArray[np.float64]) -> None:
-    """``[Jᵀ·T]⁺ = (MᵀM)⁻¹Mᵀ`` with ``M = Jᵀ·T`` (5×3) at each pose of ``jac`` (P, 3, 5), into
-    ``out`` (P, 3, 5) — the normal equations, M having full column rank away from singular
-    poses. T is the Jacobian's first three columns: the tool tip moves with the linear axes
-    as ``∂P/∂[x, y, z] = T`` on both trunnion kinematics."""
-    m = np.empty((5, 3))
+def pseudo_inverses(load: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """``M⁺ = (MᵀM)⁻¹Mᵀ`` of each load matrix ``M = Jᵀ·T`` of ``load`` (P, 5, 3), into ``out``
+    (P, 3, 5) — the normal equations, M having full column rank away from singular poses."""
     a = np.empty((3, 3))
     mt = np.empty((3, 5))
-    for p in range(jac.shape[0]):
-        for i in range(5):
-            for k in range(3):
-                acc = 0.0
-                for j in range(3):
-                    acc += jac[p, j, i] * jac[p, j, k]
-                m[i, k] = acc
-                mt[k, i] = acc
+    for p in range(load.shape[0]):
         for r in range(3):
+            for i in range(5):
+                mt[r, i] = load[p, i, r]
             for c in range(3):
                 acc = 0.0
                 for i in range(5):
-                    acc += m[i, r] * m[i, c]
+                    acc += load[p, i, r] * load[p, i, c]
                 a[r, c] = acc
         out[p] = np.linalg.solve(a, mt)
 

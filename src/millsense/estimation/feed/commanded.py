@@ -8,7 +8,9 @@ identified at rest").
 
 from __future__ import annotations
 
+import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from millsense.core.errors import InputDataError
 from millsense.core.recording import Recording
@@ -59,4 +61,17 @@ class CommandedVelocity:
             return np.zeros(0)
         prev = x[0] if self._prev is None else self._prev
         self._prev = float(x[-1])
-        return np.diff(x, prepend=prev) * self._fs
+        out = np.empty(len(x))
+        difference_into(np.ascontiguousarray(x), prev, self._fs, out)
+        return out
+
+
+@numba.njit(cache=True)
+def difference_into(
+    x: NDArray[np.float64], prev: float, fs: float, out: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """``out[k] = (x[k] − x[k−1])·f_s`` with ``x[−1] = prev`` (the sample before the chunk):
+    the commanded velocity of :class:`CommandedVelocity`, callable from compiled code."""
+    for k in range(x.shape[0]):
+        out[k] = (x[k] - prev) * fs
+        prev = x[k]

@@ -952,7 +952,7 @@ class ToolForceBlock(Block):
         assert isinstance(self.kin, (TrunnionACKinematics, TrunnionACMachine))
         out = np.empty((len(q), 3, 5))
         if len(q):
-            pseudo_inverses(np.ascontiguousarray(self.kin.jacobian(q)), out)
+            pseudo_inverses(np.ascontiguousarray(self.kin.load_matrix(q)), out)
         return out
 
     def process(self, chunk: Chunk) -> BlockOutput:
