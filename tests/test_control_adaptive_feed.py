@@ -309,3 +309,16 @@ def test_override_events_round_trip_the_event_log(tmp_path) -> None:
         (e.sample, e.name, e.value, e.severity) for e in res.events
     ]
     assert back[0].values["reference"] == pytest.approx(325.0)
+
+
+def test_force_drop_at_constant_feed_does_not_freeze_the_loop() -> None:
+    # decision 1661: 5000 N per unit for 1 s (chatter-like: the loop sits at its 20 % floor),
+    # then 250 N per unit. The force falls while the feed stands still, which teaches the RLS a
+    # model with Σb ≤ 0; without the restart from the static gain the feed stayed at 54 % for
+    # good (135 N against 325 N). With it the loop settles at 325/250 = 130 % within the ±5 %
+    # dead band, as on the constant plant.
+    _src, blk, res = run_plant(lambda t: np.where(t < 1.0, 5000.0, 250.0), 4.0)
+    peaks = rev_peaks(res)[-10:]
+    assert np.all(np.abs(peaks / 325.0 - 1.0) <= 0.05)
+    assert abs(res.channels["adaptive_feed/override"][-1] - 1.3) <= 0.05 * 1.3
+    assert float(np.sum(blk.rls.theta[2:])) > 0.0

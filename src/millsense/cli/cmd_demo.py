@@ -26,7 +26,10 @@ def demo(
     and runs it in closed loop with the estimators, the plan, the monitors and the controllers,
     and once more without sending their commands: online.h5, online.events.parquet,
     online_open.events.parquet, online_demo.nc, online_demo.png, online.html (the report of
-    the controlled run) and online_summary.json.
+    the controlled run) and online_summary.json. Part 3 runs a chatter-prone pass (seed 000's
+    T1 face mill slotting between two lobes, on a bar of its own) with and without the chatter
+    avoidance: online_chatter.nc, online_chatter.h5, online_chatter.events.parquet,
+    online_chatter_open.events.parquet, online_chatter.png and online_chatter_summary.json.
     """
     from millsense.core.errors import ConfigError
     from millsense.demo import run_demo
@@ -57,6 +60,7 @@ def demo(
     )
     console.print(f"wrote {summary.recording}, {summary.plot}, {out / 'summary.json'}")
     _online(out, console)
+    _chatter(out, console)
 
 
 def _online(out: Path, console: Console) -> None:
@@ -82,6 +86,30 @@ def _online(out: Path, console: Console) -> None:
     console.print(table)
     console.print(f"wrote {summary['recording']}, {summary['plot']}, {summary['report']}, "
                   f"{out / 'online_summary.json'}")
+
+
+def _chatter(out: Path, console: Console) -> None:
+    """Part 3: the chatter-prone pass with and without avoidance (:mod:`millsense.demo_chatter`)."""
+    from millsense.demo_chatter import run_chatter_demo
+
+    with progress_bar("chatter-prone pass: controlled, then open", 1) as update:
+        summary = run_chatter_demo(out, on_progress=update)
+    table = Table(title=f"Chatter-prone pass (Aslan T1, {summary['spindle_rpm']:.0f} rev/min, "
+                  f"{summary['depth_mm']:g} mm slot, programmed feed)")  # fmt: skip
+    table.add_column("run", no_wrap=True)
+    # alarm and its frequency; speed commands; the last speed; share of the cut the truth
+    # chatters; from the last command to the first second without chatter in the truth
+    for col in ("alarm [s]", "[Hz]", "speed cmds", "last [rev/min]", "truth chatter [%]",
+                "quiet after [s]"):  # fmt: skip
+        table.add_column(col, justify="right")
+    for key, r in summary["runs"].items():
+        hz = "-" if r["alarm_hz"] is None else f"{r['alarm_hz']:.0f}"
+        cmds = f"{r['speed_commands']}" if key != "open" else f"{r['speed_commands']} unsent"
+        quiet = "never" if r["stopped"] is False else _s(r["quiet_after_command_s"])
+        table.add_row(key, _s(r["alarm_s"]), hz, cmds, f"{r['last_rpm']:.0f}",
+                      f"{100 * r['truth_chatter_share']:.0f}", quiet)  # fmt: skip
+    console.print(table)
+    console.print(f"wrote {summary['recording']}, {summary['plot']}, {summary['summary']}")
 
 
 def _s(v: float | None) -> str:

@@ -474,6 +474,12 @@ class AdaptiveFeedBlock(Block):
         sev = Severity.WARNING if flag else Severity.INFO
         self._command(chunk, e, u, events, sev)
 
+    def _seed_model(self, y: float, u: float) -> None:
+        """The RLS restarted from the static gain y/u (θ̂₀ = [0, 0, y/u, 0, 0], P₀;
+        decisions 1611, 1661)."""
+        self.rls.theta0 = [0.0, 0.0, y / max(u, 1e-6), 0.0, 0.0]
+        self.rls.reset()
+
     def _gpc(self, y: float) -> float:
         """RLS update and the GPC move (Munasinghe 3.27–3.31, 3.41; Aslan 6.14)."""
         o = self.opts
@@ -482,8 +488,7 @@ class AdaptiveFeedBlock(Block):
         u1, u2, u3 = lp.u_hist
         if not lp.identified:
             # decision 1611: θ̂₀ from the first revolution in cut (static gain y/u)
-            self.rls.theta0 = [0.0, 0.0, y0 / max(u1, 1e-6), 0.0, 0.0]
-            self.rls.reset()
+            self._seed_model(y0, u1)
             lp.identified = True
         else:
             self.rls.update([-y1, -y2, u1, u2, u3], y0)
@@ -492,8 +497,14 @@ class AdaptiveFeedBlock(Block):
         if abs(y0 - 1.0) <= o.dead_band:
             return lp.u
         if float(np.sum(b)) <= 1e-6 * (1.0 + abs(float(np.sum(a)))):
-            # a non-physical model (force falling with feed): no adaptive move this revolution
-            return lp.u
+            # a non-physical model (force falling with feed): learned while the force moved at a
+            # constant feed (chatter, a spindle-speed change), where nothing excites the RLS
+            # again, so waiting for it to recover held the feed for good (decision 1661). The
+            # model restarts from this revolution's static gain, as at the first revolution in
+            # cut (decision 1611), and the move is taken on it.
+            self._seed_model(y0, u1)
+            th = self.rls.theta
+            a, b = th[:2], th[2:]
         du = self.gpc.move(a, b, [y0, y1, y2], lp.du_hist, 1.0)
         if not math.isfinite(du):
             return lp.u

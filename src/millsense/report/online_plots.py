@@ -139,3 +139,50 @@ def plot_comparison(
     ax[0].set_title(title)
     fig.tight_layout()
     _save(fig, path)
+
+
+def plot_chatter_comparison(
+    data: dict[str, dict[str, np.ndarray]],
+    events: dict[str, Sequence[Event]],
+    path: str | Path,
+    title: str,
+    sample_rate_hz: float = 10000.0,
+) -> None:
+    """A chatter-prone pass run side by side (``controlled``, ``open``): the spindle speed
+    (``spindle/speed``, rad/s), the chatter monitor's ratio against its threshold 1.5
+    (``chatter/energy_ratio``, when recorded) and the share of each 0.1 s in which the
+    simulator's truth chatters (``truth/process/chatter``), with each run's chatter alarms and
+    speed commands marked."""
+    fig, ax = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
+    colours = {"controlled": "tab:blue", "open": "tab:grey"}
+    for key, d in data.items():
+        col = colours.get(key, None)
+        n = len(d["spindle/speed"])
+        t = np.arange(n) / sample_rate_hz
+        stride = max(1, n // MAX_POINTS)
+        rpm = d["spindle/speed"] * 60.0 / (2 * np.pi)
+        ax[0].plot(t[::stride], rpm[::stride], color=col, lw=1.0, label=key)
+        if "chatter/energy_ratio" in d:
+            ax[1].plot(t[::stride], d["chatter/energy_ratio"][::stride], color=col, lw=1.0,
+                       label=key)  # fmt: skip
+        step = max(1, round(0.1 * sample_rate_hz))
+        m = (n // step) * step
+        share = (d["truth/process/chatter"][:m] > 0.5).reshape(-1, step).mean(axis=1)
+        ax[2].step(t[:m:step], 100 * share, where="post", color=col, lw=1.0, label=key)
+        for e in events.get(key, ()):
+            if e.name in ("chatter", "spindle_override"):
+                style = "--" if e.name == "chatter" else "-"
+                for a in ax:
+                    a.axvline(e.time_s, color=col, ls=style, lw=0.9, alpha=0.8)
+    ax[1].axhline(1.5, color="tab:red", lw=1.0, label="threshold")
+    ax[0].set_ylabel("spindle speed [rev/min]")
+    ax[1].set_ylabel("chatter ratio [-]")
+    ax[2].set_ylabel("truth chatters [% of 0.1 s]")
+    ax[2].set_xlabel("time [s]  (dashed: chatter alarm; solid: spindle-speed command, in the open "
+                     "run recommended and not sent)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(loc="upper right", fontsize=8)
+    ax[0].set_title(title)
+    fig.tight_layout()
+    _save(fig, path)
