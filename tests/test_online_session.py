@@ -48,6 +48,25 @@ def test_spindle_gate_holds_through_run_up() -> None:
         assert np.array_equal(_feed(SpindleAtSpeed(), data, chunk)["spindle/at_speed"], ref)
 
 
+def test_spindle_gate_holds_while_a_ramp_setpoint_moves() -> None:
+    """Decision 1662: the command channel is the drive's ramp setpoint (0 → 100 rad/s over
+    0.2 s) and the speed follows it within 1 %: the gate stays shut until 0.1 s after the ramp
+    ends (before, it opened 0.1 s after 3 % tracking began, in the middle of the run-up), and a
+    5 % override step at 0.4 s shuts it for another 0.1 s; chunking does not matter."""
+    t = np.arange(6000) / FS
+    cmd = np.minimum(t / 0.2, 1.0) * 100.0
+    cmd[t >= 0.4] = 105.0
+    w = 0.99 * cmd
+    data = {"spindle/speed": w, "spindle/speed_cmd": cmd}
+    ref = _feed(SpindleAtSpeed(), data, 6000)["spindle/at_speed"]
+    ramp_end = 2000  # first sample at 100 rad/s
+    assert not ref[:ramp_end + 1000].any()
+    assert ref[ramp_end + 1001 : 4000].all()
+    assert not ref[4000 : 5001].any() and ref[5001:].all()
+    for chunk in (1, 7, 333):
+        assert np.array_equal(_feed(SpindleAtSpeed(), data, chunk)["spindle/at_speed"], ref)
+
+
 def test_mean_power_of_a_noisy_estimate_is_not_rectified() -> None:
     """Decision 1624: zero-mean noise of 3 N·m at 1000 rev/min gives a per-revolution mean
     power near 0 (rectified it would be E|n|·Ω = 3·√(2/π)·104.7 ≈ 250 W), and 2 N·m of cutting

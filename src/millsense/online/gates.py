@@ -4,7 +4,7 @@
 speed for ``settle_s``: while it runs up or changes speed, a spindle torque observer's
 estimate carries the acceleration torque its model does not match exactly (tens of N·m on the
 virtual machine's run-up against a cutting torque of a few), so the adaptive feed control
-holds its override instead of acting on it (decision 1622).
+holds its override instead of acting on it (decisions 1622, 1662).
 """
 
 from __future__ import annotations
@@ -16,9 +16,23 @@ from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk
 from millsense.streaming.recursions import exponential_average
 
+#: Largest relative change of the speed command from one sample to the next that counts as a
+#: command standing still (decision 1662).
+STILL = 1e-6
+
 
 class SpindleAtSpeed(Block):
-    """``spindle/at_speed``: 1 after ``settle_s`` within ``tolerance`` of the command."""
+    """``spindle/at_speed``: 1 after ``settle_s`` within ``tolerance`` of the command, with the
+    command standing still.
+
+    A CNC's speed-command channel may be the drive's ramp setpoint rather than the programmed
+    speed: the measured speed then follows it within a few per cent all through a run-up or a
+    speed change, while the observer's estimate still carries the acceleration torque (85 N·m
+    through the T1 pass's run-up to 4500 rev/min on the virtual machine, where the gate opened at
+    3834 rev/min). So a sample counts only where the command equals the previous sample's within
+    ``STILL`` of its value (a ramp of 100 rad/s² moves it 2·10⁻⁵ per sample at 4500 rev/min); a
+    step (an override) restarts the settling as well (decision 1662).
+    """
 
     def __init__(
         self,
@@ -42,14 +56,20 @@ class SpindleAtSpeed(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self.n_settle = round(self.settle_s * sample_rate_hz)
         self._run = 0
+        self._last_cmd = np.nan
 
     def process(self, chunk: Chunk) -> BlockOutput:
         w = np.asarray(chunk.data[self.inputs[0]], dtype=np.float64)
         cmd = np.asarray(chunk.data[self.inputs[1]], dtype=np.float64)
-        ok = (np.abs(cmd) > 0) & (np.abs(w - cmd) <= self.tolerance * np.abs(cmd))
-        n = ok.size
+        n = cmd.size
         if n == 0:
             return BlockOutput({"spindle/at_speed": np.zeros(0)})
+        prev = np.empty(n)
+        prev[0] = self._last_cmd
+        prev[1:] = cmd[:-1]
+        self._last_cmd = float(cmd[-1])
+        still = np.abs(cmd - prev) <= STILL * np.abs(cmd)  # NaN at the very first sample: False
+        ok = (np.abs(cmd) > 0) & (np.abs(w - cmd) <= self.tolerance * np.abs(cmd)) & still
         idx = np.arange(1, n + 1)
         last_bad = np.maximum.accumulate(np.where(~ok, idx, 0))
         run = np.where(last_bad == 0, self._run + idx, idx - last_bad)

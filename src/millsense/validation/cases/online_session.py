@@ -270,24 +270,25 @@ def _chatter_table(r: dict[str, object]) -> str:
     return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
 
 
-#: Why the truth of the T1 session is chatter-free only about 2 s after its one speed change
+#: Why the truth of the T1 session is chatter-free only 1.5 s after its one speed change
 #: (2026-11-28).
 _T1_SLOW_END = (
-    "one speed change, 4500 -> 6105 rev/min, the centre of lobe 1's stable pocket (decision "
+    "one speed change, 4500 -> 6117 rev/min, the centre of lobe 1's stable pocket (decision "
     "1635; the lobe speed 60 f_c/N, which the truth's softened modes made unstable, needed a "
-    "second change before), found at 2.7 s (1840.5 Hz, ratio 1.71; the closed loop is "
-    "sensitive: a run before decision 1651's rounding-level changes found 554.1 Hz at 3.5 s and "
-    "went to 6109 rev/min). The spindle is at the new speed within 0.1 s and the monitor ends the "
-    "episode 0.7 s after the change, but the truth has its first quiet second only 1.97 s after "
-    "it (2.6 s before decision 1661 let the adaptive feed rise again after the chatter). At the "
-    "pocket's centre the tooth-passing frequency (509 Hz) sits on the truth's 546 Hz tool mode "
-    "softened by about 7 % under the slot's load: the truth's tool vibration grows to 20-25 µm "
-    "RMS, mostly periodic with the revolution (2-6 µm change from one revolution to the next, so "
-    "the truth's chatter flag rises in short bursts) before it falls to the stable cut's 2 µm; at "
-    "6109 rev/min from the start the full slot is chatter-free after its entry. A forced "
-    "resonance on top of the lobe rather than chatter, as far as checked. At the programmed feed "
-    "(the demo's pass, `online.demo_chatter_pass_gone_s`) the chatter is found at 2.0 s and the "
-    "truth is quiet 0.12 s after the change"
+    "second change before), found at 2.3 s (510.3 Hz, ratio 18.9; the closed loop is sensitive: "
+    "runs before decisions 1661-1662 found 1840.5 Hz at 2.7 s, 554.1 Hz at 3.5 s, and went to "
+    "6105-6109 rev/min). The spindle is at the new speed within 0.1 s and the monitor ends the "
+    "episode 0.7 s after the change, but the truth has its first quiet second only 1.53 s after "
+    "it (2.6 s before decision 1661 let the adaptive feed rise again after the chatter and "
+    "decision 1662 kept it from acting in the run-up). At the pocket's centre the tooth-passing "
+    "frequency (about 510 Hz) sits on the truth's 546 Hz tool mode softened by about 7 % under "
+    "the slot's load: the truth's tool vibration grows to 20-25 µm RMS, mostly periodic with the "
+    "revolution (2-6 µm change from one revolution to the next, so the truth's chatter flag "
+    "rises in short bursts) before it falls to the stable cut's 2 µm; at 6109 rev/min from the "
+    "start the full slot is chatter-free after its entry. A forced resonance on top of the lobe "
+    "rather than chatter, as far as checked. At the programmed feed (the demo's pass, "
+    "`online.demo_chatter_pass_gone_s`) the chatter is found at 2.0 s and the truth is quiet "
+    "0.12 s after the change"
 )
 
 
