@@ -1,31 +1,39 @@
 """Validation of the disturbance observers of seed 001 (Yamada 2017).
 
-1. With exact parameters the MEDOB's F̂/F equals its output low-pass (Yamada §2.3): analytic
-   (continuous plant, ideal differentiation, 4th-order Butterworth) and time-domain (the
-   FeedDriveSim plant swept by a 20 N chirp load, proportional damping, no quantisation or
-   dead time; F̂ against L(z)·F sample by sample and as an FRF).
-2. Table 4-7 on the ``yamada-b`` preset: error standard deviation of the MEDOB (with and
-   without phase-lag compensation, with 0.5/1.5 M_tn, with and without notches) and of the
-   thrust force, beside the thesis's.
+1. With exact parameters the MEDOB's F̂/F equals its output low-pass (Yamada §2.3, Eq.
+   2-20/2-21): analytic (continuous plant, ideal differentiation, 4th-order Butterworth) and
+   time-domain (the machine file's dual-inertia plant, Eq. 2-1/2-2, swept by a 20 N chirp
+   load, proportional damping, no quantisation or dead time; F̂ against L(z)·F sample by
+   sample and as an FRF). These are code checks: observer and plant share the exact
+   parameters of the simulator's yamada-b file *by design* (they test the discrete
+   observer's algebra, not an estimate of an unknown machine).
+2. Table 4-7 on ``yamada-b``: error standard deviation of the MEDOB (with and without
+   phase-lag compensation, with 0.5/1.5 M_tn, with and without notches) and of the thrust
+   force, beside the thesis's.
 3. Table 4-5: predictive notch frequencies.
 
 Scenario for Table 4-7 (docs/decisions/0071-table-4-7-scenario-seed-001.md): Al A5052 with the
 coefficients of Yamada Table 4-2 (K_tc, K_rc, K_ac = 1800, 820, 170 N/mm², no edge terms),
 Ø6 mm 2-flute end mill, zero helix, down milling with radial depth r (slot for condition
 <2>), force from :func:`millsense.process.forces.milling_forces` along the feed on the table.
-The mismatch between simulator and observer: the estimator's J_r, M_t, D_r, C_t, K_r, C_k are
-identified from a simulated current-injection sweep (:func:`identify_drive_parameters`); the
-plant carries an unmodelled screw torsional mode at 778.5 Hz (triple inertia, Yamada §3.4),
-the preset's Coulomb friction (5 % higher in the cut than in the idling runs), its
-position-periodic disturbances (lead, ball circulation, torque ripple, encoder interpolation),
-encoder quantisation and dead times, and a white current noise of 16 mA RMS. The thesis gives
-no noise level: 16 mA is the one amplitude chosen from its results — it makes the
-"compensated disturbance" column of condition <1> come out at 2.1 N against the thesis's
-2.0 N — so that column is a calibration, not a validation; every other figure is predicted with
-it unchanged. The
-estimate is idle-compensated with a table from 3 idling runs at the same feed (different noise
-seeds); errors are against the true load through the same output filter L(z), aligned by the
-motor-encoder dead time, over the steady cut.
+
+Truth apart from belief (issue 12, decision 1705). The plant the observers are judged on is the
+yamada-b truth (:func:`~millsense.simulator.machine_file.simulated_feed_drive`): a coupled
+motor–screw–nut–table–bed drive fitted to Table 3-3 and §3.4 (408 Hz axial, 778.5 Hz screw
+torsion, 1598 Hz bed modes of the servo-off structure; screw stiffness with the nut position),
+Φ_d(0) = 1/η, LuGre friction with a Stribeck hump (5 % higher Coulomb and static levels in
+the cut than in the idling runs), the §3.6 position-periodic disturbances, a PI current loop
+on the motor electrics, dead times, encoder quantisation and a white current noise of 16 mA
+RMS. The observers know only the nameplate (K_t, lead, current-loop bandwidth) and what
+``identify drive`` finds on the truth's commissioning drive sweep (Yamada C11): J_r, M_t,
+D_r, C_t, K_r, C_k and T_s, T_m, T_t (:func:`_belief`), and the frequency of the unmodelled
+mode the fixed notch removes (:func:`torsion_notch_hz`). The thesis gives no noise level: 16 mA
+is the one amplitude chosen from its results — on the old plant it made the "compensated
+disturbance" column of condition <1> 2.1 N against the thesis's 2.0 N; on the truth, unchanged,
+2.11 N — so that column is a calibration, not a validation; every other figure is predicted
+with it unchanged. The estimate is idle-compensated with a table from 3 idling runs at the
+same feed (different noise seeds); errors are against the true load through the same output
+filter L(z), aligned by the identified motor-encoder dead time, over the steady cut.
 """
 
 from __future__ import annotations
@@ -428,7 +436,8 @@ def _sweep_output_filter_frf(f: NDArray[np.float64]) -> NDArray[np.complex128]:
     unit="relative",
     abs_tol=1e-9,
     quick=True,
-    description="MEDOB with exact yamada-b parameters: max |F̂/F ÷ Q − 1| and |F̂/I| (1 Hz-2 kHz)",
+    description="Code check, exact parameters by design: MEDOB with the simulator file's yamada-b "
+    "parameters, max |F̂/F ÷ Q − 1| and |F̂/I| (1 Hz-2 kHz)",
 )
 def _medob_analytic() -> float:
     return medob_frf_analytic_deviation()
@@ -442,8 +451,8 @@ def _medob_analytic() -> float:
     unit="relative",
     abs_tol=1e-9,
     quick=True,
-    description="Simulated 20 N chirp on the exact plant: max of the time-domain and FRF "
-    "deviations of F̂ from L(z)·F",
+    description="Code check, exact parameters by design: simulated 20 N chirp on the simulator "
+    "file's dual-inertia plant, max of the time-domain and FRF deviations of F̂ from L(z)·F",
 )
 def _medob_sweep() -> Measured:
     td, fd = medob_sweep_deviation()
@@ -497,8 +506,10 @@ def _table47_markdown() -> str:
         "Error standard deviations in N, millsense (thesis Table 4-7 in brackets). Identified "
         f"parameters: M_r {p.rotor_mass_kg:.1f} kg, M_t {p.table_mass_kg:.2f} kg, C_r "
         f"{p.rotor_damping_n_s_m:.0f} N·s/m, C_t {p.table_damping_n_s_m:.0f} N·s/m, K_r "
-        f"{p.axial_stiffness_n_m / 1e6:.1f} N/µm (preset: 82.1, 6.6, 10264, 820, 40.5). "
-        "Mismatch: unmodelled 778.5 Hz torsional mode, friction +5 % in the cut, periodic "
+        f"{p.axial_stiffness_n_m / 1e6:.1f} N/µm from identify drive on the truth (Table 3-3: "
+        f"82.1, 6.6, 10264, 820, 40.5); notch on the unmodelled mode found at "
+        f"{torsion_notch_hz():.1f} Hz. "
+        "Mismatch: the coupled truth (torsion, bed, η), friction +5 % in the cut, periodic "
         "disturbances, quantisation, dead times, 16 mA current noise (module docstring)."
     )
     return "\n".join(rows)
@@ -510,13 +521,23 @@ NOISE_CALIBRATION = Calibration(
     "current noise 16 mA RMS per sample (yamada-b Table 4-7 scenario)",
     ("estimation.dob.table47_c1_disturbance",),
     "the one amplitude that makes the compensated-disturbance column of condition <1> come out "
-    "at the thesis's 2.0 N (the thesis gives no noise level)",
+    "at the thesis's 2.0 N (the thesis gives no noise level); fitted on the old plant (2.1 N), "
+    "kept unchanged on the yamada-b truth (2.11 N, decision 1705)",
 )
 #: Two-sided tolerance around each thesis value (Table 4-7 is one measurement per condition,
 #: no spread given: ±50 %), and the realism flag: an error std below half the thesis's says the
 #: simulated mismatch is more benign than the real machine (issue 12).
 TABLE47_REL_TOL = 0.5
 TABLE47_TOO_GOOD = 2.0
+
+
+#: Measured reasons of the Table 4-7 figures the truth does not reproduce (decision 1705).
+TABLE47_GAPS = {
+    5: "on the yamada-b truth the error is the 333 Hz tooth line (11.5 of 12.0 N RMS in "
+    "300-370 Hz): there, at 0.82 of the 408 Hz axial mode, the rigid sum amplifies the "
+    "identified table mass's error (identify drive: 5.5 kg against the truth's 6.6 kg, "
+    "6.9 kg reflected through η = 0.95) and the estimate is 1.76× the force at 38°",
+}
 
 
 def _make_table47_case(key: int) -> None:
@@ -532,7 +553,9 @@ def _make_table47_case(key: int) -> None:
         too_good_factor=TABLE47_TOO_GOOD,
         quick=False,
         calibration=NOISE_CALIBRATION,
-        ci=key in (4, 5),
+        ci=key in (2, 4),
+        gap=TABLE47_GAPS.get(key, ""),
+        issue=12 if key in TABLE47_GAPS else None,
         description=f"MEDOB error std on yamada-b, condition {c.label}, against the thesis's "
         f"{ref} N (two-sided ±50 %; more than 2× better is flagged as too good)",
     )
