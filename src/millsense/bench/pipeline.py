@@ -312,8 +312,8 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
     ``drive_config_table``) with the nameplate's K_t, lead and current-loop bandwidth: the merged
     axis carries the identified dual-inertia parameters (``ball_screw``, J_r) and dead times
     (Yamada C11). A resonance of the motor FRF above the axial mode that the model cannot have
-    (:func:`~millsense.ident.drive.first_unmodelled_mode_hz`) ends the fitted band at 0.9 of
-    its frequency and is reported in the notes.
+    ends the fitted band at 0.9 of its frequency (:func:`~millsense.ident.drive
+    .fit_dual_inertia`) and is reported in the notes.
     """
     base, source = preset_data(MachineConfig, machine)
     nameplate = parse_config(MachineConfig, base, source)
@@ -330,10 +330,6 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
     ht = ident_drive.reference_frf(r, u, _ch(rec, f"{axis}/scale"), fs, per, detrend=True)
     hi = ident_drive.reference_frf(r, u, _ch(rec, f"{axis}/current"), fs, per)
     ts, _ = ident_drive.fit_amplifier_delay(hi, sample_rate_hz=fs, current_loop_hz=bw)
-    f_top = min(1000.0, 0.45 * fs)
-    # a mode above the axial one that the dual-inertia model cannot describe (Yamada §3.4,
-    # the screw torsion) ends the fitted band at 0.9 of its frequency (decision 1705)
-    f_extra = ident_drive.first_unmodelled_mode_hz(hm, ht, lead, f_top)
     fit = ident_drive.fit_dual_inertia(
         hm,
         ht,
@@ -342,11 +338,12 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
         current_loop_hz=bw,
         sample_rate_hz=fs,
         amplifier_delay_s=ts,
-        band_hz=(10.0, f_top if f_extra is None else 0.9 * f_extra),
+        band_hz=(10.0, min(1000.0, 0.45 * fs)),
     )
     frag = {"axes": {axis: ident_drive.drive_config_table(fit, kt)}}
     notes = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
-    if f_extra is not None:
-        notes += (f"unmodelled mode at {f_extra:.1f} Hz: band ends at {0.9 * f_extra:.0f} Hz",)
+    if fit.unmodelled_mode_hz is not None:
+        f_u = fit.unmodelled_mode_hz
+        notes += (f"unmodelled mode at {f_u:.1f} Hz: band ends at {0.9 * f_u:.0f} Hz",)
     merged = parse_config(MachineConfig, merge(base, frag), f"{source} + identified {axis}")
     return PipelineResult(merged, nameplate, {axis: AxisIdentification(frag, {}, notes)})

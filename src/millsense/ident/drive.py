@@ -316,6 +316,7 @@ class DriveFit:
     table_accel: np.ndarray
     model_motor: np.ndarray
     model_table: np.ndarray
+    unmodelled_mode_hz: float | None = None
 
 
 def _model(
@@ -348,7 +349,13 @@ def _first_ratio_peak(f: np.ndarray, ratio: np.ndarray, r: float) -> float:
 
 
 def first_unmodelled_mode_hz(
-    motor: FrfEstimate, table: FrfEstimate, lead_m: float, f_max_hz: float
+    motor: FrfEstimate,
+    table: FrfEstimate,
+    lead_m: float,
+    f_max_hz: float,
+    quantity: str = "displacement",
+    f_min_hz: float = 10.0,
+    min_coherence: float = 0.5,
 ) -> float | None:
     """The lowest resonance of the motor accelerance that the dual-inertia model cannot have,
     Hz, or None.
@@ -359,11 +366,21 @@ def first_unmodelled_mode_hz(
     1.6·ω_t is another mode (Yamada §3.4: the screw torsional mode of machine B, seen as a
     sharp peak above the axial resonance); the dual-inertia fit's band must end below it and
     a notch may remove it. Refined by a parabola through the peak's neighbours in dB.
+    ``quantity`` says what the FRFs' outputs are (``displacement`` or ``acceleration``); only
+    lines from ``f_min_hz`` with both coherences ≥ ``min_coherence`` are used.
     """
-    f = motor.freq_hz
+    ok = (
+        (motor.freq_hz >= f_min_hz)
+        & (motor.coherence >= min_coherence)
+        & (table.coherence >= min_coherence)
+    )
+    f = motor.freq_hz[ok]
+    hm, ht = motor.h1[ok], table.h1[ok]
+    if len(f) < 3:
+        return None
     r = lead_m / (2.0 * math.pi)
-    f_t = _first_ratio_peak(f, np.abs(table.h1 / motor.h1), r)
-    acc = np.abs(motor.h1) * (2.0 * math.pi * f) ** 2
+    f_t = _first_ratio_peak(f, np.abs(ht / hm), r)
+    acc = np.abs(hm) * ((2.0 * math.pi * f) ** 2 if quantity == "displacement" else 1.0)
     idx = np.nonzero((f >= 1.6 * f_t) & (f <= f_max_hz))[0]
     if len(idx) < 3:
         return None
@@ -387,6 +404,7 @@ def fit_dual_inertia(
     band_hz: tuple[float, float] = (10.0, 1000.0),
     min_coherence: float = 0.5,
     quantity: str = "displacement",
+    stop_below_unmodelled: bool = True,
 ) -> DriveFit:
     """Dual-inertia parameters and dead times from the two swept FRFs (Yamada C11, Table 3-3).
 
@@ -403,6 +421,10 @@ def fit_dual_inertia(
     band_hz : frequency band fitted, Hz.
     min_coherence : lines below this coherence are dropped.
     quantity : ``displacement`` or ``acceleration``: what the FRFs' outputs are.
+    stop_below_unmodelled : end the band at 0.9 of the first mode above the axial one that the
+        model cannot have (:func:`first_unmodelled_mode_hz`, e.g. the screw torsion of Yamada
+        §3.4): left in the band it pulls J_r towards the motor's own inertia and K_r towards
+        the coupling's (decision 1705).
 
     Returns
     -------
@@ -421,6 +443,15 @@ def fit_dual_inertia(
     if len(motor.freq_hz) != len(table.freq_hz) or not np.allclose(motor.freq_hz, table.freq_hz):
         raise InputDataError("motor and table FRFs must share their frequency lines")
     f = motor.freq_hz
+    f_extra = (
+        first_unmodelled_mode_hz(
+            motor, table, lead_m, band_hz[1], quantity, band_hz[0], min_coherence
+        )
+        if stop_below_unmodelled
+        else None
+    )
+    if f_extra is not None:
+        band_hz = (band_hz[0], min(band_hz[1], 0.9 * f_extra))
     sel = (
         (f >= band_hz[0])
         & (f <= band_hz[1])
@@ -515,6 +546,7 @@ def fit_dual_inertia(
         table_accel=ht,
         model_motor=mm,
         model_table=mt,
+        unmodelled_mode_hz=f_extra,
     )
 
 
