@@ -341,7 +341,7 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
         band_hz=(10.0, min(1000.0, 0.45 * fs)),
     )
     frag = {"axes": {axis: ident_drive.drive_config_table(fit, kt)}}
-    notes = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
+    notes: tuple[str, ...] = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
     if fit.unmodelled_mode_hz is not None:
         f_u = fit.unmodelled_mode_hz
         notes += (f"unmodelled mode at {f_u:.1f} Hz: band ends at {0.9 * f_u:.0f} Hz",)

@@ -34,6 +34,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import scipy.optimize
@@ -62,7 +63,7 @@ class StageTargets:
     hub_inertia: float
     span_m: float
     offset_m: float
-    support: str
+    support: Literal["fixed-fixed", "fixed-free"]
     bearing_stiffness_n_m: float
     base_mass: float
     mode_hz: tuple[float, ...]
@@ -133,10 +134,14 @@ class _Layout:
         t = self.t
         kc, k0, kb = np.exp(p[:3])
         zeta = tuple(float(z) for z in np.exp(p[3:]))
-        probe = ScrewGeometry(self.ea, t.span_m, t.offset_m, t.support, 1e30, t.bearing_stiffness_n_m)  # type: ignore[arg-type]
+        probe = ScrewGeometry(
+            self.ea, t.span_m, t.offset_m, t.support, 1e30, t.bearing_stiffness_n_m
+        )
         rest = 1.0 / k0 - 1.0 / float(probe.stiffness(0.0))
         k_nut = 1.0 / max(rest, 1e-12)
-        screw = ScrewGeometry(self.ea, t.span_m, t.offset_m, t.support, k_nut, t.bearing_stiffness_n_m)  # type: ignore[arg-type]
+        screw = ScrewGeometry(
+            self.ea, t.span_m, t.offset_m, t.support, k_nut, t.bearing_stiffness_n_m
+        )
         return CoupledDrive(
             kind="linear",
             transmission=self.rg,

@@ -39,7 +39,6 @@ filter L(z), aligned by the identified motor-encoder dead time, over the steady 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from functools import cache
 from typing import TYPE_CHECKING
@@ -52,7 +51,6 @@ from millsense.validation import Calibration, Measured, case
 if TYPE_CHECKING:
     from millsense.core.config import FeedAxisConfig
     from millsense.estimation.dob.observers import DriveParameters
-    from millsense.models.drive_plant import MechanicalPlant
     from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 FS_B = 10000.0
