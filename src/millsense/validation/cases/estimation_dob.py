@@ -167,8 +167,8 @@ def _identified() -> DriveParameters:
 
     The time-domain identification (:func:`~millsense.estimation.dob.observers
     .identify_drive_parameters`) that the cases used on the old plant is not used: on the
-    truth its table equation turns K_r and C_t negative or J_r 50× too small for angle delays
-    T_2 of a fraction of a sample (measured 2026-11-28, decision 1705)."""
+    truth's chirp sweep with the identified delays (T_2 = 0.093 ms, a fraction of a sample)
+    it gave M_r 1.5 kg and C_t < 0 (measured 2026-11-28, decision 1705)."""
     from millsense.estimation.dob.observers import DriveParameters
 
     return DriveParameters.from_axis_config(_belief())
