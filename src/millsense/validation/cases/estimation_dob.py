@@ -21,19 +21,21 @@ Truth apart from belief (issue 12, decision 1705). The plant the observers are j
 yamada-b truth (:func:`~millsense.simulator.machine_file.simulated_feed_drive`): a coupled
 motor–screw–nut–table–bed drive fitted to Table 3-3 and §3.4 (408 Hz axial, 778.5 Hz screw
 torsion, 1598 Hz bed modes of the servo-off structure; screw stiffness with the nut position),
-Φ_d(0) = 1/η, LuGre friction with a Stribeck hump (5 % higher Coulomb and static levels in
-the cut than in the idling runs), the §3.6 position-periodic disturbances, a PI current loop
-on the motor electrics, dead times, encoder quantisation and a white current noise of 16 mA
-RMS. The observers know only the nameplate (K_t, lead, current-loop bandwidth) and what
-``identify drive`` finds on the truth's commissioning drive sweep (Yamada C11): J_r, M_t,
-D_r, C_t, K_r, C_k and T_s, T_m, T_t (:func:`_belief`), and the frequency of the unmodelled
-mode the fixed notch removes (:func:`torsion_notch_hz`). The thesis gives no noise level: 16 mA
-is the one amplitude chosen from its results — on the old plant it made the "compensated
-disturbance" column of condition <1> 2.1 N against the thesis's 2.0 N; on the truth, unchanged,
-2.11 N — so that column is a calibration, not a validation; every other figure is predicted
-with it unchanged. The estimate is idle-compensated with a table from 3 idling runs at the
-same feed (different noise seeds); errors are against the true load through the same output
-filter L(z), aligned by the identified motor-encoder dead time, over the steady cut.
+a static table load reaching the motor as (R/η)·F (decision 0971), LuGre friction with a
+Stribeck hump (5 % higher Coulomb and static levels in the cut than in the idling runs), the
+§3.6 position-periodic disturbances, a PI current loop on the motor electrics, dead times,
+encoder quantisation and a white current noise of 16 mA RMS (``current_noise_a`` of
+``simulator/data/yamada-b-truth.toml``). The observers know only the nameplate (K_t, lead,
+current-loop bandwidth) and what ``identify drive`` finds on the truth's commissioning drive
+sweep (Yamada C11): J_r, M_t, D_r, C_t, K_r, C_k and T_s, T_m, T_t (:func:`_belief`), and the
+frequency of the unmodelled mode the fixed notch removes (:func:`torsion_notch_hz`). The
+thesis gives no noise level: 16 mA is the one amplitude chosen from its results — on the old
+plant it made the "compensated disturbance" column of condition <1> 2.1 N against the thesis's
+2.0 N; on the truth, unchanged, 2.11 N — so that column is a calibration, not a validation;
+every other figure is predicted with it unchanged. The estimate is idle-compensated with a
+table from 3 idling runs at the same feed (different noise seeds); errors are against the true
+load through the same output filter L(z), aligned by the identified motor-encoder dead time,
+over the steady cut.
 """
 
 from __future__ import annotations
@@ -55,7 +57,6 @@ if TYPE_CHECKING:
 
 FS_B = 10000.0
 CUTOFF_B = 500.0  # Table 4-3: 4th-order Butterworth 500 Hz
-NOISE_A = 0.016  # current noise, A RMS per sample (see module docstring)
 DURATION_S = 0.8
 CUT_START_S = 0.3
 SETTLE_S = 0.02
