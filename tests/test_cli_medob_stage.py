@@ -6,6 +6,11 @@ coefficients of Yamada Table 4-2 (K_tc, K_rc, K_ac = 1800, 820, 170 N/mm², no e
 600 mm/min (0.03 mm/tooth, tooth frequency 333.3 Hz), 0.6 s simulated; only the force along
 the feed loads the stage (decision "Simulator on a 1-axis stage").
 
+The simulation runs ``--ideal`` (the simulator file's dual-inertia model, not the yamada-b truth
+of decision 1705): these tests exercise the CLI's plumbing with an estimator given the same
+file, a debugging configuration; the MEDOB's acceptance on the truth is
+``estimation.dob.table47_*`` (:mod:`millsense.validation.cases.estimation_dob`).
+
 Mismatch between the estimators and the simulated machine: the MEDOB is built from the preset's
 nominal parameters (``axes.x.ball_screw``, dead times, current bandwidth) while the simulator
 adds what the observer does not model: the preset's position-periodic disturbances (screw lead
@@ -77,7 +82,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
             "simulate", "--machine", SIM_YAMADA_B, "--program", str(d / "cut.nc"),
             "--tool", str(d / "d6.toml"), "--material", str(d / "a5052.toml"),
             "--engagement", "ae_mm=1.5", "--depth-mm", "2", "--air-mm", "3",
-            "--duration-s", "0.9", "-o", str(run),
+            "--duration-s", "0.9", "--ideal", "-o", str(run),
         ]
     )  # fmt: skip
     out = {"run": run}

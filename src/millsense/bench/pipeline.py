@@ -311,7 +311,9 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
     (:func:`millsense.ident.drive.reference_frf`, ``fit_amplifier_delay``, ``fit_dual_inertia``,
     ``drive_config_table``) with the nameplate's K_t, lead and current-loop bandwidth: the merged
     axis carries the identified dual-inertia parameters (``ball_screw``, J_r) and dead times
-    (Yamada C11).
+    (Yamada C11). A resonance of the motor FRF above the axial mode that the model cannot have
+    ends the fitted band at 0.9 of its frequency (:func:`~millsense.ident.drive
+    .fit_dual_inertia`) and is reported in the notes.
     """
     base, source = preset_data(MachineConfig, machine)
     nameplate = parse_config(MachineConfig, base, source)
@@ -339,6 +341,9 @@ def identified_ball_screw_machine(machine: str, axis: str = "x") -> PipelineResu
         band_hz=(10.0, min(1000.0, 0.45 * fs)),
     )
     frag = {"axes": {axis: ident_drive.drive_config_table(fit, kt)}}
-    notes = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
+    notes: tuple[str, ...] = (f"dual inertia: resonance {fit.params.resonance_hz(lead):.1f} Hz",)
+    if fit.unmodelled_mode_hz is not None:
+        f_u = fit.unmodelled_mode_hz
+        notes += (f"unmodelled mode at {f_u:.1f} Hz: band ends at {0.9 * f_u:.0f} Hz",)
     merged = parse_config(MachineConfig, merge(base, frag), f"{source} + identified {axis}")
     return PipelineResult(merged, nameplate, {axis: AxisIdentification(frag, {}, notes)})

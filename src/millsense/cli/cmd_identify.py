@@ -486,6 +486,11 @@ def _drive(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
             f"dual inertia from {path.name}: resonance {p.resonance_hz(lead):.1f} Hz, "
             f"RMS log error {fit.rms_log_error:.3g}"
         )
+        if fit.unmodelled_mode_hz is not None:
+            notes.append(
+                f"a mode the dual-inertia model cannot have at {fit.unmodelled_mode_hz:.1f} Hz "
+                f"(e.g. screw torsion): fitted band ends at {0.9 * fit.unmodelled_mode_hz:.0f} Hz"
+            )
         notes.append(
             f"phase-lag compensation T1, T2, T3 = {t1 * 1e3:.3f}, {t2 * 1e3:.3f}, "
             f"{t3 * 1e3:.3f} ms (Yamada Fig. 2-5)"

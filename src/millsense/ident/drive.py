@@ -316,6 +316,7 @@ class DriveFit:
     table_accel: np.ndarray
     model_motor: np.ndarray
     model_table: np.ndarray
+    unmodelled_mode_hz: float | None = None
 
 
 def _model(
@@ -337,6 +338,60 @@ def _model(
     return common * hm * np.exp(-s * x[6]), common * ht * np.exp(-s * x[7])
 
 
+def _first_ratio_peak(f: np.ndarray, ratio: np.ndarray, r: float) -> float:
+    """Frequency of the lowest line where |x_t/θ_m| exceeds 2·R and is the largest within
+    ±20 % of its frequency (the global maximum when there is none), Hz."""
+    for k in np.nonzero(ratio > 2.0 * r)[0]:
+        near = (f >= f[k] / 1.2) & (f <= f[k] * 1.2)
+        if ratio[k] >= ratio[near].max():
+            return float(f[k])
+    return float(f[int(np.argmax(ratio))])
+
+
+def first_unmodelled_mode_hz(
+    motor: FrfEstimate,
+    table: FrfEstimate,
+    lead_m: float,
+    f_max_hz: float,
+    quantity: str = "displacement",
+    f_min_hz: float = 10.0,
+    min_coherence: float = 0.5,
+) -> float | None:
+    """The lowest resonance of the motor accelerance that the dual-inertia model cannot have,
+    Hz, or None.
+
+    The dual-inertia accelerance ``s²·θ_m/I`` has one anti-resonance (ω_t, the peak of
+    |x_t/θ_m|) and one resonance just above it, then falls to K_t/J_r. A local maximum of
+    |s²·θ_m/I| between 1.6·ω_t and ``f_max_hz`` that rises 6 dB above the accelerance at
+    1.6·ω_t is another mode (Yamada §3.4: the screw torsional mode of machine B, seen as a
+    sharp peak above the axial resonance); the dual-inertia fit's band must end below it and
+    a notch may remove it. Refined by a parabola through the peak's neighbours in dB.
+    ``quantity`` says what the FRFs' outputs are (``displacement`` or ``acceleration``); only
+    lines from ``f_min_hz`` with both coherences ≥ ``min_coherence`` are used.
+    """
+    ok = (
+        (motor.freq_hz >= f_min_hz)
+        & (motor.coherence >= min_coherence)
+        & (table.coherence >= min_coherence)
+    )
+    f = motor.freq_hz[ok]
+    hm, ht = motor.h1[ok], table.h1[ok]
+    if len(f) < 3:
+        return None
+    r = lead_m / (2.0 * math.pi)
+    f_t = _first_ratio_peak(f, np.abs(ht / hm), r)
+    acc = np.abs(hm) * ((2.0 * math.pi * f) ** 2 if quantity == "displacement" else 1.0)
+    idx = np.nonzero((f >= 1.6 * f_t) & (f <= f_max_hz))[0]
+    if len(idx) < 3:
+        return None
+    k = int(idx[int(np.argmax(acc[idx]))])
+    if k in (idx[0], idx[-1]) or acc[k] < 2.0 * acc[idx[0]]:
+        return None
+    y0, y1, y2 = (20.0 * np.log10(acc[j]) for j in (k - 1, k, k + 1))
+    shift = 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)
+    return float(f[k] + shift * (f[k + 1] - f[k]))
+
+
 def fit_dual_inertia(
     motor: FrfEstimate,
     table: FrfEstimate,
@@ -349,6 +404,7 @@ def fit_dual_inertia(
     band_hz: tuple[float, float] = (10.0, 1000.0),
     min_coherence: float = 0.5,
     quantity: str = "displacement",
+    stop_below_unmodelled: bool = True,
 ) -> DriveFit:
     """Dual-inertia parameters and dead times from the two swept FRFs (Yamada C11, Table 3-3).
 
@@ -365,6 +421,10 @@ def fit_dual_inertia(
     band_hz : frequency band fitted, Hz.
     min_coherence : lines below this coherence are dropped.
     quantity : ``displacement`` or ``acceleration``: what the FRFs' outputs are.
+    stop_below_unmodelled : end the band at 0.9 of the first mode above the axial one that the
+        model cannot have (:func:`first_unmodelled_mode_hz`, e.g. the screw torsion of Yamada
+        §3.4): left in the band it pulls J_r towards the motor's own inertia and K_r towards
+        the coupling's (decision 1705).
 
     Returns
     -------
@@ -383,6 +443,15 @@ def fit_dual_inertia(
     if len(motor.freq_hz) != len(table.freq_hz) or not np.allclose(motor.freq_hz, table.freq_hz):
         raise InputDataError("motor and table FRFs must share their frequency lines")
     f = motor.freq_hz
+    f_extra = (
+        first_unmodelled_mode_hz(
+            motor, table, lead_m, band_hz[1], quantity, band_hz[0], min_coherence
+        )
+        if stop_below_unmodelled
+        else None
+    )
+    if f_extra is not None:
+        band_hz = (band_hz[0], min(band_hz[1], 0.9 * f_extra))
     sel = (
         (f >= band_hz[0])
         & (f <= band_hz[1])
@@ -403,8 +472,11 @@ def fit_dual_inertia(
     kt = torque_constant_nm_a
     # ---- start values from the accelerance's asymptotes and the anti-resonance
     mag = np.abs(hm)
-    # the table/motor ratio R(C_k s + K_r)/(M_t s² + (C_t + C_k)s + K_r) peaks at ω_t
-    f_t = float(f[int(np.argmax(np.abs(ht / hm)))])
+    # the table/motor ratio R(C_k s + K_r)/(M_t s² + (C_t + C_k)s + K_r) peaks at ω_t; a real
+    # drive has more modes (a screw torsional mode puts another anti-resonance into the motor
+    # FRF, another peak of the ratio), so ω_t is the lowest peak above 2·R (6 dB over the
+    # rigid-body value R) that dominates ±20 % around it: the axial mode the model describes
+    f_t = _first_ratio_peak(f, np.abs(ht / hm), lead_m / (2.0 * math.pi))
     lo = (f > 0.1 * f_t) & (f < 0.4 * f_t)
     hi = f > 1.8 * f_t
     if lo.sum() < 2 or hi.sum() < 2:
@@ -474,6 +546,7 @@ def fit_dual_inertia(
         table_accel=ht,
         model_motor=mm,
         model_table=mt,
+        unmodelled_mode_hz=f_extra,
     )
 
 

@@ -9,7 +9,12 @@ the simulator runs the truth kept in its own data, ``millsense/simulator/data/``
   true K_t, its electrics and PI current loop, dead times, LuGre friction with a real Stribeck
   hump (Aslan Eq. 3.2–3.4; the preset's X/Y rows have none), torque ripple (cogging and
   current-ripple harmonics of the motor angle, Yamada §3.6 form), the screw stroke over which
-  the plant is tabulated (decision 0975).
+  the plant is tabulated (decision 0975); optionally ``[[axes.<n>.periodic_disturbances]]``
+  in the machine-file format (screw error, encoder and scale interpolation errors, thrust
+  ripple of a wavelength of travel: Yamada §3.6; decision 1705).
+
+``yamada-b`` has a truth of its own since decision 1705: the mechanics fitted by
+:mod:`.truth_fit_stage` to Yamada Table 3-3 and §3.4.
 
 :func:`truth_feed_params` turns one axis into the feed-drive kernel's parameters: the plant
 tabulated on a uniform grid over the stroke (decision 0974), the CNC's servo gains designed as
@@ -27,8 +32,9 @@ from typing import Any
 import numpy as np
 
 from millsense.core import units
-from millsense.core.config import FeedAxisConfig
+from millsense.core.config import FeedAxisConfig, PeriodicDisturbanceConfig
 from millsense.core.errors import ConfigError
+from millsense.models.ball_screw import periodic_terms
 from millsense.models.drive_plant import KIND_TORQUE, PeriodicTerm
 from millsense.models.lugre import LuGre
 from millsense.simulator.feed_drive import (
@@ -40,7 +46,7 @@ from millsense.simulator.feed_drive import (
 from millsense.simulator.truth_drive import CoupledDrive, ScrewGeometry
 
 #: Presets with a truth of their own.
-TRUTH_PRESETS = ("quaser-ux600",)
+TRUTH_PRESETS = ("quaser-ux600", "yamada-b")
 
 
 @dataclass(frozen=True)
@@ -150,6 +156,8 @@ def load_truth(machine_name: str) -> dict[str, TruthAxis]:
                     strict=True,
                 )
             )
+            extra = [PeriodicDisturbanceConfig(**d) for d in tab.get("periodic_disturbances", [])]
+            ripple += periodic_terms(extra, drive.transmission)
             lo, hi = tab.get("stroke_mm", [0.0, 0.0])
             scale = units.MM if drive.kind == "linear" else math.pi / 180.0
             out[ax] = TruthAxis(

@@ -1,37 +1,46 @@
 """Validation of the disturbance observers of seed 001 (Yamada 2017).
 
-1. With exact parameters the MEDOB's F̂/F equals its output low-pass (Yamada §2.3): analytic
-   (continuous plant, ideal differentiation, 4th-order Butterworth) and time-domain (the
-   FeedDriveSim plant swept by a 20 N chirp load, proportional damping, no quantisation or
-   dead time; F̂ against L(z)·F sample by sample and as an FRF).
-2. Table 4-7 on the ``yamada-b`` preset: error standard deviation of the MEDOB (with and
-   without phase-lag compensation, with 0.5/1.5 M_tn, with and without notches) and of the
-   thrust force, beside the thesis's.
+1. With exact parameters the MEDOB's F̂/F equals its output low-pass (Yamada §2.3, Eq.
+   2-20/2-21): analytic (continuous plant, ideal differentiation, 4th-order Butterworth) and
+   time-domain (the machine file's dual-inertia plant, Eq. 2-1/2-2, swept by a 20 N chirp
+   load, proportional damping, no quantisation or dead time; F̂ against L(z)·F sample by
+   sample and as an FRF). These are code checks: observer and plant share the exact
+   parameters of the simulator's yamada-b file *by design* (they test the discrete
+   observer's algebra, not an estimate of an unknown machine).
+2. Table 4-7 on ``yamada-b``: error standard deviation of the MEDOB (with and without
+   phase-lag compensation, with 0.5/1.5 M_tn, with and without notches) and of the thrust
+   force, beside the thesis's.
 3. Table 4-5: predictive notch frequencies.
 
 Scenario for Table 4-7 (docs/decisions/0071-table-4-7-scenario-seed-001.md): Al A5052 with the
 coefficients of Yamada Table 4-2 (K_tc, K_rc, K_ac = 1800, 820, 170 N/mm², no edge terms),
 Ø6 mm 2-flute end mill, zero helix, down milling with radial depth r (slot for condition
 <2>), force from :func:`millsense.process.forces.milling_forces` along the feed on the table.
-The mismatch between simulator and observer: the estimator's J_r, M_t, D_r, C_t, K_r, C_k are
-identified from a simulated current-injection sweep (:func:`identify_drive_parameters`); the
-plant carries an unmodelled screw torsional mode at 778.5 Hz (triple inertia, Yamada §3.4),
-the preset's Coulomb friction (5 % higher in the cut than in the idling runs), its
-position-periodic disturbances (lead, ball circulation, torque ripple, encoder interpolation),
-encoder quantisation and dead times, and a white current noise of 16 mA RMS. The thesis gives
-no noise level: 16 mA is the one amplitude chosen from its results — it makes the
-"compensated disturbance" column of condition <1> come out at 2.1 N against the thesis's
-2.0 N — so that column is a calibration, not a validation; every other figure is predicted with
-it unchanged. The
-estimate is idle-compensated with a table from 3 idling runs at the same feed (different noise
-seeds); errors are against the true load through the same output filter L(z), aligned by the
-motor-encoder dead time, over the steady cut.
+
+Truth apart from belief (issue 12, decision 1705). The plant the observers are judged on is the
+yamada-b truth (:func:`~millsense.simulator.machine_file.simulated_feed_drive`): a coupled
+motor–screw–nut–table–bed drive fitted to Table 3-3 and §3.4 (408 Hz axial, 778.5 Hz screw
+torsion, 1598 Hz bed modes of the servo-off structure; screw stiffness with the nut position),
+a static table load reaching the motor as (R/η)·F (decision 0971), LuGre friction with a
+Stribeck hump (5 % higher Coulomb and static levels in the cut than in the idling runs), the
+§3.6 position-periodic disturbances, a PI current loop on the motor electrics, dead times,
+encoder quantisation and a white current noise of 16 mA RMS (``current_noise_a`` of
+``simulator/data/yamada-b-truth.toml``). The observers know only the nameplate (K_t, lead,
+current-loop bandwidth) and what ``identify drive`` finds on the truth's commissioning drive
+sweep (Yamada C11): J_r, M_t, D_r, C_t, K_r, C_k and T_s, T_m, T_t (:func:`_belief`), and the
+frequency of the unmodelled mode the fixed notch removes (:func:`torsion_notch_hz`). The
+thesis gives no noise level: 16 mA is the one amplitude chosen from its results — on the old
+plant it made the "compensated disturbance" column of condition <1> 2.1 N against the thesis's
+2.0 N; on the truth, unchanged, 2.11 N — so that column is a calibration, not a validation;
+every other figure is predicted with it unchanged. The estimate is idle-compensated with a
+table from 3 idling runs at the same feed (different noise seeds); errors are against the true
+load through the same output filter L(z), aligned by the identified motor-encoder dead time,
+over the steady cut.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from functools import cache
 from typing import TYPE_CHECKING
@@ -44,19 +53,13 @@ from millsense.validation import Calibration, Measured, case
 if TYPE_CHECKING:
     from millsense.core.config import FeedAxisConfig
     from millsense.estimation.dob.observers import DriveParameters
-    from millsense.models.drive_plant import MechanicalPlant
-    from millsense.simulator.feed_drive import FeedDriveParams
+    from millsense.simulator.feed_drive import FeedDriveParams, FeedDriveSim
 
 FS_B = 10000.0
 CUTOFF_B = 500.0  # Table 4-3: 4th-order Butterworth 500 Hz
-NOISE_A = 0.016  # current noise, A RMS per sample (see module docstring)
-TORSION_HZ = 778.5  # Yamada §3.4
 DURATION_S = 0.8
 CUT_START_S = 0.3
 SETTLE_S = 0.02
-ID_BAND_HZ = 600.0  # identification band: below the unmodelled torsional mode
-ID_FEED_M_S = 20e-3
-ID_STIFFNESS_BAND_HZ = 150.0  # K_r fit: quasi-static band (vibration mode, §5)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,68 +107,35 @@ def _belief() -> FeedAxisConfig:
     return identified_ball_screw_machine("yamada-b").machine.axis("x")
 
 
-def _torsional_plant(f1_hz: float, f2_hz: float, motor_fraction: float = 0.8) -> MechanicalPlant:
-    """Triple-inertia plant of the preset with a second (torsional) mode at ``f2_hz``.
+@cache
+def _truth_substeps() -> int:
+    from millsense.simulator.truth_machine import load_truth
 
-    The preset's rotary inertia is split into the motor (``motor_fraction``) and the screw/nut
-    (rest, Yamada Eq. 2-46 "nut incl. screw inertia"); K_ω and K_r are solved from the two
-    natural frequencies (Eq. 2-56: their sum and product of ω²); damping proportional
-    (α_c of the preset) plus C_k, and C_ω for 2 % on the torsional mode.
-    """
-    from millsense.models.ball_screw import triple_inertia_plant
-
-    ax = _axis()
-    bs = ax.ball_screw
-    assert bs is not None and ax.lead_mm_rev is not None
-    lead = ax.lead_mm_rev * 1e-3
-    r = lead / (2.0 * math.pi)
-    m_all = ax.inertia_kg_m2 / r**2
-    mr, mn, mt = motor_fraction * m_all, (1.0 - motor_fraction) * m_all, bs.table_mass_kg
-    w1, w2 = (2.0 * math.pi * f1_hz) ** 2, (2.0 * math.pi * f2_hz) ** 2
-    s, prod = w1 + w2, w1 * w2
-    cu, cw = 1.0 / mr + 1.0 / mn, 1.0 / mn + 1.0 / mt
-    c3 = 1.0 / (mr * mn) + 1.0 / (mn * mt) + 1.0 / (mt * mr)
-    # u·cu + w·cw = s, u·w·c3 = prod → cw·w² − s·w + prod·cu/c3 = 0; the smaller root is K_r
-    disc = s * s - 4.0 * cw * prod * cu / c3
-    kr = (s - math.sqrt(disc)) / (2.0 * cw)
-    kw = prod / (c3 * kr)
-    ac = bs.table_damping_n_s_m / mt
-    c_w = 2.0 * 0.02 * math.sqrt(kw * mr * mn / (mr + mn))
-    return triple_inertia_plant(
-        mr * r * r,
-        lead,
-        mn,
-        mt,
-        kw,
-        kr,
-        screw_damping_n_s_m=c_w,
-        axial_damping_n_s_m=bs.axial_damping_n_s_m,
-        nut_damping_n_s_m=ac * mn,
-        table_damping_n_s_m=bs.table_damping_n_s_m,
-        rotary_damping_nm_s_rad=ac * mr * r * r,
-    )
+    return load_truth("yamada-b")["x"].substeps
 
 
 @cache
 def _drive(friction_factor: float = 1.0) -> FeedDriveParams:
-    from millsense.models.friction import CoulombViscous
-    from millsense.simulator.feed_drive import FeedDriveParams
+    """The plant the observers are judged on: the yamada-b truth (decision 1705; coupled
+    motor–screw–nut–table–bed drive fitted to Table 3-3 and §3.4, LuGre friction, §3.6
+    periodic disturbances, PI current loop on the motor electrics, dead times, 16 mA current
+    noise), with its Coulomb and static friction scaled by ``friction_factor`` (the cut's
+    +5 %)."""
+    from millsense.models.lugre import LuGre
+    from millsense.simulator.machine_file import simulated_feed_drive
 
-    ax = _axis()
-    fp = FeedDriveParams.from_config(ax)
+    fp = simulated_feed_drive("yamada-b", "x")
     fr = fp.friction
-    assert isinstance(fr, CoulombViscous)
-    fr2 = dataclasses.replace(
-        fr,
-        coulomb_pos=fr.coulomb_pos * friction_factor,
-        coulomb_neg=fr.coulomb_neg * friction_factor,
-    )
-    return dataclasses.replace(
-        fp,
-        plant=_torsional_plant(408.0, TORSION_HZ),
-        friction=fr2,
-        torque_noise_nm=NOISE_A * fp.torque_constant,
-    )
+    assert isinstance(fr, LuGre)
+    scale = lambda v: (v[0] * friction_factor, v[1] * friction_factor)  # noqa: E731
+    fr2 = dataclasses.replace(fr, coulomb=scale(fr.coulomb), static=scale(fr.static))
+    return dataclasses.replace(fp, friction=fr2)
+
+
+def _sim(fp: FeedDriveParams, seed: int) -> FeedDriveSim:
+    from millsense.simulator.feed_drive import FeedDriveSim
+
+    return FeedDriveSim(fp, FS_B, substeps=_truth_substeps(), seed=seed)
 
 
 def _delays(compensate: bool) -> tuple[float, float, float]:
@@ -191,40 +161,42 @@ def _trajectory(feed_m_s: float, n: int) -> tuple[NDArray[np.float64], NDArray[n
 
 @cache
 def _identified() -> DriveParameters:
-    """Drive parameters identified from a simulated sweep (2.2 s, 0.1 A logarithmic chirp
-    10 Hz–1 kHz at 20 mm/s so that the velocity never reverses, closed loop, all the
-    simulator's non-idealities)."""
-    from scipy import signal
+    """The observers' drive parameters: J_r, M_t, D_r, C_t, K_r, C_k of ``identify drive``
+    (Yamada C11, the dual-inertia FRF fit of :func:`millsense.ident.drive.fit_dual_inertia`)
+    on the commissioning drive sweep of the truth, merged onto the nameplate (K_t, lead):
+    :func:`_belief`. Nothing comes from the truth's parameter objects (decision 1705).
 
-    from millsense.estimation.dob.observers import identify_drive_parameters
-    from millsense.simulator.feed_drive import FeedDriveSim
+    The time-domain identification (:func:`~millsense.estimation.dob.observers
+    .identify_drive_parameters`) that the cases used on the old plant is not used: on the
+    truth's chirp sweep with the identified delays (T_2 = 0.093 ms, a fraction of a sample)
+    it gave M_r 1.5 kg and C_t < 0 (measured 2026-11-28, decision 1705)."""
+    from millsense.estimation.dob.observers import DriveParameters
 
-    fp = _drive()
-    n = int(2.5 * FS_B)
-    pos, vel = _trajectory(ID_FEED_M_S, n)
-    t = np.arange(n) / FS_B
-    inj = np.where(
-        t > 0.3, 0.1 * signal.chirp(t - 0.3, 10.0, 2.2, 1000.0, method="logarithmic"), 0.0
-    )
-    sim = FeedDriveSim(fp, FS_B, seed=100)
-    r = fp.transmission
-    out = sim.advance(pos / r, vel / r, np.zeros(n), inj)
-    sel = slice(int(0.3 * FS_B), n)
-    if np.min(out["true_velocity"][sel]) <= 0.0:
-        raise RuntimeError("identification sweep: the table velocity reversed")
-    ax = _belief()
-    return identify_drive_parameters(
-        out["current_cmd"][sel],
-        out["angle"][sel],
-        out["scale"][sel],
-        FS_B,
-        torque_constant_nm_a=ax.torque_constant_nm_a,
-        lead_m=(ax.lead_mm_rev or 0.0) * 1e-3,
-        delays_s=_delays(True),
-        current_loop_hz=ax.current_bandwidth_hz,
-        band_hz=(10.0, ID_BAND_HZ),
-        stiffness_band_hz=(10.0, ID_STIFFNESS_BAND_HZ),
-    )
+    return DriveParameters.from_axis_config(_belief())
+
+
+@cache
+def torsion_notch_hz() -> float:
+    """The mode the fixed notch removes, found as Yamada found the screw torsion (§3.4: a
+    sharp peak above the axial resonance): :func:`~millsense.ident.drive
+    .first_unmodelled_mode_hz` on the FRFs of the commissioning drive sweep that ``identify
+    drive`` uses (:func:`_belief`)."""
+    from millsense.core.errors import InputDataError
+    from millsense.ident import drive as ident_drive
+    from millsense.simulator import commissioning as com
+    from millsense.simulator.machine_file import simulator_machine
+
+    rec = com.drive_sweep(simulator_machine("yamada-b"), "x")
+    fs = rec.sample_rate_hz
+    per = int(rec.metadata["period_samples"])  # type: ignore[call-overload]
+    r, u = rec["x/injection"], rec["x/current_cmd"]
+    hm = ident_drive.reference_frf(r, u, rec["x/angle"], fs, per, detrend=True)
+    ht = ident_drive.reference_frf(r, u, rec["x/scale"], fs, per, detrend=True)
+    lead = (_belief().lead_mm_rev or 0.0) * 1e-3
+    f = ident_drive.first_unmodelled_mode_hz(hm, ht, lead, min(1000.0, 0.45 * fs))
+    if f is None:
+        raise InputDataError("yamada-b drive sweep: no torsional mode above the axial one")
+    return f
 
 
 @cache
@@ -252,14 +224,12 @@ def _cutting_load(c: Condition) -> NDArray[np.float64]:
 
 @cache
 def _run(c: Condition, cut: bool, seed: int) -> dict[str, NDArray[np.float64]]:
-    from millsense.simulator.feed_drive import FeedDriveSim
-
     fp = _drive(1.05 if cut else 1.0)
     n = int(DURATION_S * FS_B)
     pos, vel = _trajectory(c.feed_mm_s * 1e-3, n)
     load = _cutting_load(c) if cut else np.zeros(n)
     r = fp.transmission
-    out = FeedDriveSim(fp, FS_B, seed=seed).advance(pos / r, vel / r, load)
+    out = _sim(fp, seed).advance(pos / r, vel / r, load)
     out["load"] = load
     return out
 
@@ -320,7 +290,7 @@ def _estimate(
         spec = NotchBankSpec(
             wavelength_m=p.lead_m / 512.0,
             harmonics=(1, 2, 3, 4),
-            fixed_hz=(TORSION_HZ,),
+            fixed_hz=(torsion_notch_hz(),),
             bandwidth_hz=20.0,
             max_hz=1300.0,
         )
@@ -465,7 +435,8 @@ def _sweep_output_filter_frf(f: NDArray[np.float64]) -> NDArray[np.complex128]:
     unit="relative",
     abs_tol=1e-9,
     quick=True,
-    description="MEDOB with exact yamada-b parameters: max |F̂/F ÷ Q − 1| and |F̂/I| (1 Hz-2 kHz)",
+    description="Code check, exact parameters by design: MEDOB with the simulator file's yamada-b "
+    "parameters, max |F̂/F ÷ Q − 1| and |F̂/I| (1 Hz-2 kHz)",
 )
 def _medob_analytic() -> float:
     return medob_frf_analytic_deviation()
@@ -479,8 +450,8 @@ def _medob_analytic() -> float:
     unit="relative",
     abs_tol=1e-9,
     quick=True,
-    description="Simulated 20 N chirp on the exact plant: max of the time-domain and FRF "
-    "deviations of F̂ from L(z)·F",
+    description="Code check, exact parameters by design: simulated 20 N chirp on the simulator "
+    "file's dual-inertia plant, max of the time-domain and FRF deviations of F̂ from L(z)·F",
 )
 def _medob_sweep() -> Measured:
     td, fd = medob_sweep_deviation()
@@ -534,8 +505,10 @@ def _table47_markdown() -> str:
         "Error standard deviations in N, millsense (thesis Table 4-7 in brackets). Identified "
         f"parameters: M_r {p.rotor_mass_kg:.1f} kg, M_t {p.table_mass_kg:.2f} kg, C_r "
         f"{p.rotor_damping_n_s_m:.0f} N·s/m, C_t {p.table_damping_n_s_m:.0f} N·s/m, K_r "
-        f"{p.axial_stiffness_n_m / 1e6:.1f} N/µm (preset: 82.1, 6.6, 10264, 820, 40.5). "
-        "Mismatch: unmodelled 778.5 Hz torsional mode, friction +5 % in the cut, periodic "
+        f"{p.axial_stiffness_n_m / 1e6:.1f} N/µm from identify drive on the truth (Table 3-3: "
+        f"82.1, 6.6, 10264, 820, 40.5); notch on the unmodelled mode found at "
+        f"{torsion_notch_hz():.1f} Hz. "
+        "Mismatch: the coupled truth (torsion, bed, η), friction +5 % in the cut, periodic "
         "disturbances, quantisation, dead times, 16 mA current noise (module docstring)."
     )
     return "\n".join(rows)
@@ -547,13 +520,23 @@ NOISE_CALIBRATION = Calibration(
     "current noise 16 mA RMS per sample (yamada-b Table 4-7 scenario)",
     ("estimation.dob.table47_c1_disturbance",),
     "the one amplitude that makes the compensated-disturbance column of condition <1> come out "
-    "at the thesis's 2.0 N (the thesis gives no noise level)",
+    "at the thesis's 2.0 N (the thesis gives no noise level); fitted on the old plant (2.1 N), "
+    "kept unchanged on the yamada-b truth (2.11 N, decision 1705)",
 )
 #: Two-sided tolerance around each thesis value (Table 4-7 is one measurement per condition,
 #: no spread given: ±50 %), and the realism flag: an error std below half the thesis's says the
 #: simulated mismatch is more benign than the real machine (issue 12).
 TABLE47_REL_TOL = 0.5
 TABLE47_TOO_GOOD = 2.0
+
+
+#: Measured reasons of the Table 4-7 figures the truth does not reproduce (decision 1705).
+TABLE47_GAPS = {
+    5: "on the yamada-b truth the error is the 333 Hz tooth line (11.5 of 12.0 N RMS in "
+    "300-370 Hz): there, at 0.82 of the 408 Hz axial mode, the rigid sum amplifies the "
+    "identified table mass's error (identify drive: 5.5 kg against the truth's 6.6 kg, "
+    "6.9 kg reflected through η = 0.95) and the estimate is 1.76× the force at 38°",
+}
 
 
 def _make_table47_case(key: int) -> None:
@@ -569,7 +552,9 @@ def _make_table47_case(key: int) -> None:
         too_good_factor=TABLE47_TOO_GOOD,
         quick=False,
         calibration=NOISE_CALIBRATION,
-        ci=key in (4, 5),
+        ci=key in (2, 4),
+        gap=TABLE47_GAPS.get(key, ""),
+        issue=12 if key in TABLE47_GAPS else None,
         description=f"MEDOB error std on yamada-b, condition {c.label}, against the thesis's "
         f"{ref} N (two-sided ±50 %; more than 2× better is flagged as too good)",
     )
@@ -683,7 +668,6 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
-    from millsense.simulator.feed_drive import FeedDriveSim
 
     p = _identified()
     fp = _drive()
@@ -699,7 +683,7 @@ def stationary_errors(spindle_rpm: float, axial_mm: float, radial_mm: float) -> 
         1,
     )
     load = np.where(t >= CUT_START_S, -f.fy_n, 0.0)
-    out = FeedDriveSim(fp, FS_B, seed=11).advance(np.zeros(n), np.zeros(n), load)
+    out = _sim(fp, 11).advance(np.zeros(n), np.zeros(n), load)
     r = p.transmission_m_rad
     d = _delays(True)
     loop = _belief().current_bandwidth_hz
