@@ -27,3 +27,22 @@ def test_quick_kalman_cases_pass() -> None:
 def test_c_axis_bandwidth_case_registered_against_thesis_figure() -> None:
     (c,) = select_cases("estimation.kalman_c_axis_bandwidth")
     assert c.reference == 120.0 and c.unit == "Hz"
+
+
+def test_kalman_cases_are_labelled_design_checks_with_a_truth_acceptance() -> None:
+    # Decision 1712: the printed estimator on its own printed model shares every parameter
+    # with its plant, so each case says so and names the acceptance measured on the truth
+    # (estimation_feed_drive), which must exist and cover every rotary axis.
+    import re
+
+    cases = select_cases("estimation.kalman_*")
+    assert len(cases) == 3
+    known = {c.id for c in select_cases("estimation.feed_*")}
+    for c in cases:
+        assert c.description.startswith("Design check, plant = estimator model by design"), c.id
+        refs = set(re.findall(r"estimation\.feed_[a-z0-9_]+", c.description))
+        assert refs and refs <= known, (c.id, refs - known)
+    for axis in ("a", "c"):
+        assert f"estimation.feed_compensated_band_{axis}" in known
+        assert f"estimation.feed_raw_current_band_{axis}" in known
+    assert "estimation.feed_rotary_flat_to_120hz" in known
