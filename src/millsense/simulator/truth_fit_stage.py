@@ -1,4 +1,4 @@
-"""Tune a coupled drive (:mod:`.truth_drive`) to resemble Yamada's ball-screw stage B (issue 12).
+"""Tune a coupled drive (:mod:`.truth_drive`) to resemble Yamada's ball-screw stages (issue 12).
 
 Seed 001 prints no disturbance FRF; what it gives of machine B is the identified dual-inertia
 model of Table 3-3 (J_rn = 5.2e-5 kg·m², M_tn = 6.6 kg, resonance 408 Hz, ζ_k ≈ 0.055 by
@@ -24,8 +24,17 @@ damping come from the eigenvalues of the plant at position 0. Targets: (408 Hz, 
 (778.5 Hz, 0.02 — the old hand-built torsional mode's damping), (1598 Hz, 0.03 — chosen).
 The fit error is written into the truth data file with the values.
 
+Machine A (decision 1711) is fitted the same way on what Table 3-3 gives of it: J_rn = 3.8e-5
+kg·m², M_tn = 6.2 kg, resonance 335 Hz with ζ_k ≈ 0.099 (the digest's derivation from C_kn).
+The thesis gives A no torsional or structural mode; chosen: the same screw and disk coupling as
+B (Table 3-2: Ø15 × 5 on both), so its torsion is B's 778.5 Hz moved by A's lighter rotor
+(:func:`torsion_like_b_hz`, 849 Hz, ζ 0.02), and B's bed on its mount (1598 Hz, ζ 0.03). A's
+screw is "single anchor" (Table 3-2): fixed at the motor end, free axially at the other
+(``fixed-free``), nut 150 mm from the fixed bearing at position 0, so its axial stiffness
+falls along the stroke.
+
 Run ``python -m millsense.simulator.truth_fit_stage`` to refit and rewrite
-``millsense/simulator/data/yamada-b-truth-mechanics.toml``.
+``millsense/simulator/data/yamada-{a,b}-truth-mechanics.toml``.
 """
 
 from __future__ import annotations
@@ -71,7 +80,49 @@ class StageTargets:
     source: str
 
 
+#: J_s of the Ø15 mm × 350 mm screw with its disk-coupling hub (both stages, Table 3-2) and the
+#: motor-side inertia J_rn − J_s of stage B: the torsion of A is B's (§3.4, 778.5 Hz) moved by
+#: A's lighter rotor (see :func:`torsion_like_b_hz`)
+_J_SCREW = math.pi * _RHO_STEEL * 0.35 * 0.015**4 / 32.0 + 2.0e-6
+_B_TORSION_HZ = 778.5
+
+
+def torsion_like_b_hz(rotor_inertia: float) -> float:
+    """Motor–screw torsion of a stage with B's screw and disk coupling and rotor+screw
+    inertia ``rotor_inertia`` (J_rn), Hz: the two-inertia frequency ``√(k_c(1/J_m + 1/J_s))``
+    with the k_c that puts B's at 778.5 Hz (Yamada §3.4), i.e.
+    ``778.5·√((1/J_m + 1/J_s)/(1/J_m,B + 1/J_s))``, J_m = J_rn − J_s.
+
+    Yamada gives machine A no torsional mode; A has the same Ø15 × 5 screw (Table 3-2) and a
+    direct disk coupling as B (§3.1), so the coupling and screw torsion are taken as B's and
+    only the motor's inertia differs (a choice, decision 1711).
+    """
+    inv_b = 1.0 / (5.2e-5 - _J_SCREW) + 1.0 / _J_SCREW
+    inv = 1.0 / (rotor_inertia - _J_SCREW) + 1.0 / _J_SCREW
+    return _B_TORSION_HZ * math.sqrt(inv / inv_b)
+
+
 STAGES = {
+    "yamada-a": StageTargets(
+        name="yamada-a",
+        rotor_inertia=3.8e-5,
+        table_mass=6.2,
+        lead_m=5e-3,
+        efficiency=0.95,
+        screw_length_m=0.35,
+        screw_diameter_m=0.015,
+        root_diameter_m=0.0125,
+        hub_inertia=2.0e-6,
+        span_m=0.30,
+        offset_m=0.15,
+        support="fixed-free",
+        bearing_stiffness_n_m=150e6,
+        base_mass=20.0,
+        mode_hz=(335.0, round(torsion_like_b_hz(3.8e-5), 1), 1598.0),
+        mode_zeta=(0.099, 0.02, 0.03),
+        source="Yamada (2017) Table 3-3 (335 Hz, J_rn, M_tn, C_kn); torsion B's coupling with "
+        "A's rotor (§3.4 scaled, chosen); bed as B's (chosen)",
+    ),
     "yamada-b": StageTargets(
         name="yamada-b",
         rotor_inertia=5.2e-5,

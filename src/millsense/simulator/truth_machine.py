@@ -13,8 +13,8 @@ the simulator runs the truth kept in its own data, ``millsense/simulator/data/``
   in the machine-file format (screw error, encoder and scale interpolation errors, thrust
   ripple of a wavelength of travel: Yamada §3.6; decision 1705).
 
-``yamada-b`` has a truth of its own since decision 1705: the mechanics fitted by
-:mod:`.truth_fit_stage` to Yamada Table 3-3 and §3.4.
+``yamada-b`` has a truth of its own since decision 1705, ``yamada-a`` since decision 1711: the
+mechanics fitted by :mod:`.truth_fit_stage` to Yamada Table 3-3 (and §3.4 for B).
 
 :func:`truth_feed_params` turns one axis into the feed-drive kernel's parameters: the plant
 tabulated on a uniform grid over the stroke (decision 0974), the CNC's servo gains designed as
@@ -46,7 +46,7 @@ from millsense.simulator.feed_drive import (
 from millsense.simulator.truth_drive import CoupledDrive, ScrewGeometry
 
 #: Presets with a truth of their own.
-TRUTH_PRESETS = ("quaser-ux600", "yamada-b")
+TRUTH_PRESETS = ("quaser-ux600", "yamada-a", "yamada-b")
 
 
 @dataclass(frozen=True)

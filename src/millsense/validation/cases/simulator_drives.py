@@ -176,7 +176,7 @@ def yamada_table_accel_frf(machine: str) -> tuple[np.ndarray, np.ndarray]:
     """Current-command sweep on a Yamada stage in closed loop (P-P cascade, dead times,
     current loop, encoders; friction and periodic disturbances off as in Yamada §4.1):
     (f, FRF I_cmd → table acceleration). The stage is the one the simulator runs: the truth's
-    coupled drive for yamada-b (decision 1705), the machine file's dual inertia otherwise."""
+    coupled drive for yamada-a and yamada-b (decisions 1711, 1705)."""
     from dataclasses import replace
 
     from millsense.simulator.commissioning import plant_params
@@ -207,7 +207,8 @@ case(
     unit="Hz",
     rel_tol=0.02,
     quick=True,
-    description="Peak of the simulated I_cmd → table-acceleration FRF, dual-inertia stage A",
+    description="Peak of the simulated I_cmd → table-acceleration FRF, stage A (the yamada-a "
+    "truth's coupled drive, decision 1711)",
 )(lambda: _yamada_case("yamada-a"))
 case(
     "simulator.yamada_b_resonance",
