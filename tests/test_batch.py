@@ -200,3 +200,22 @@ def test_the_local_cluster_runs_one_thread_workers_without_the_profiler() -> Non
             assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
     finally:
         cluster.close()
+
+
+def test_batch_process_exits_fast_after_writing_everything(fleet: Path, tmp_path: Path) -> None:
+    # decision 2007: `millsense batch` as a process leaves by os._exit after its last line; what
+    # it wrote must be whole: every run in the table, the fleet page closed, the exit status 0
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "millsense", "batch", str(fleet), "-o", str(out), "--do",
+         "wear,summary", "--workers", "1"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "6 runs (6 run on" in done.stdout
+    assert len(_table(out)) == 6
+    assert (out / "fleet.html").read_text().rstrip().endswith("</html>")
+    assert (out / "fleet.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

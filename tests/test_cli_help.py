@@ -128,3 +128,54 @@ def test_validate_markdown_dash_is_stdout_not_a_file(
     assert code == 0, err
     assert out.startswith("# Validation") and f"`{case}`" in out
     assert list(tmp_path.iterdir()) == []
+
+
+def test_register_only_the_command_run() -> None:
+    # decision 2007: a fresh `millsense batch` imports cmd_batch alone; a command whose module
+    # has another name (simulate-fleet lives in cmd_fleet) imports them all and is found
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from millsense.cli.main import _register_commands, _registered_names\n"
+        "_register_commands(sys.argv[1])\n"
+        "mods = sorted(m for m in sys.modules if m.startswith('millsense.cli.cmd_'))\n"
+        "print(len(mods), sys.argv[1] in _registered_names(), ' '.join(mods))\n"
+    )
+    one = subprocess.run([sys.executable, "-c", code, "batch"], capture_output=True, text=True,
+                         check=True).stdout.split()  # fmt: skip
+    assert one == ["1", "True", "millsense.cli.cmd_batch"]
+    every = subprocess.run([sys.executable, "-c", code, "simulate-fleet"], capture_output=True,
+                           text=True, check=True).stdout.split()  # fmt: skip
+    import millsense.cli
+
+    n_modules = sum(1 for p in Path(millsense.cli.__file__).parent.glob("cmd_*.py"))
+    assert every[:2] == [str(n_modules), "True"]
+
+
+def test_fast_exit_runs_the_exit_handlers_and_nothing_after_main(tmp_path: Path) -> None:
+    # decision 2007: a command that allows the fast exit ends the process inside main() after
+    # the exit handlers; its file is written; a caller passing argv never exits
+    import subprocess
+    import sys
+
+    target = tmp_path / "probe.txt"
+    code = (
+        "import atexit, sys\n"
+        "from millsense.cli import main as m\n"
+        "@m.app.command('probe')\n"
+        "def probe(path: str) -> None:\n"
+        "    open(path, 'w').write('written')\n"
+        "    m.allow_fast_exit()\n"
+        "atexit.register(lambda: print('exit handler ran', flush=True))\n"
+        "sys.argv = ['millsense', 'probe', sys.argv[1]]\n"
+        "m.main()\n"
+        "print('after main', flush=True)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[0] == "exit handler ran"
+    assert "after main" not in done.stdout
+    assert target.read_text() == "written"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from millsense.cli.main import app
+from millsense.cli.main import allow_fast_exit, app
 
 
 @app.command()
@@ -109,6 +109,8 @@ def batch(
         f"earlier batch), {len(failed)} failed, {len(worn)} with VB ≥ {vb_limit_mm:g} mm; "
         f"fleet view {out / 'fleet.html'} and {out / 'fleet.png'}"
     )
+    # everything is written and closed, the cluster's closing thread joined
+    allow_fast_exit()
 
 
 def _import_reports() -> None:
