@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -250,7 +251,12 @@ def run_batch(
                         res.ran += 1
                 progress.report()
         finally:
-            # the cluster shuts down (≈ 0.5 s) while the caller assesses and reports
+            if cluster is not None:  # our own workers only, never a shared scheduler's
+                try:
+                    client.run(_leave_without_teardown, on_error="ignore")
+                except Exception:  # a worker already gone: the close handles it
+                    pass
+            # the cluster shuts down while the caller assesses and reports
             res.closing = threading.Thread(target=_close, args=(client, cluster),
                                            name="millsense-batch-close")  # fmt: skip
             res.closing.start()
@@ -268,6 +274,21 @@ def _start_local(workers: int, into: dict[str, Any]) -> None:
         into["client"] = Client(into["cluster"])
     except Exception as exc:  # re-raised by the caller's thread
         into["error"] = exc
+
+
+def _leave_without_teardown() -> None:
+    """Run on each worker of a local cluster once its batch is done (decision 2007): the worker
+    process then ends at its first exit handler with ``os._exit(0)`` instead of tearing its
+    modules down. That teardown (numba, scipy, pyarrow loaded) made the cluster's close take
+    0.25 s, on the cores the client's fleet view needs; 0.02 s without it."""
+    import atexit
+
+    def leave() -> None:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
+
+    atexit.register(leave)
 
 
 def _close(client: Any, cluster: Any) -> None:
