@@ -219,3 +219,22 @@ def test_batch_process_exits_fast_after_writing_everything(fleet: Path, tmp_path
     assert len(_table(out)) == 6
     assert (out / "fleet.html").read_text().rstrip().endswith("</html>")
     assert (out / "fleet.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_worker_told_to_leave_skips_the_teardown() -> None:
+    # decision 2007: after _leave_without_teardown the process ends at its first exit handler
+    # (status 0); handlers registered before it, and the module teardown, do not run
+    import subprocess
+    import sys
+
+    code = (
+        "import atexit\n"
+        "atexit.register(lambda: print('earlier handler', flush=True))\n"
+        "from millsense.cli.batch_run import _leave_without_teardown\n"
+        "_leave_without_teardown()\n"
+        "print('done', flush=True)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["done"]
