@@ -46,3 +46,11 @@ def test_kalman_cases_are_labelled_design_checks_with_a_truth_acceptance() -> No
         assert f"estimation.feed_compensated_band_{axis}" in known
         assert f"estimation.feed_raw_current_band_{axis}" in known
     assert "estimation.feed_rotary_flat_to_120hz" in known
+
+
+def test_kalman_cases_do_not_call_themselves_an_acceptance() -> None:
+    # decision 1213 (audit of issue 12): a design check on the printed model is never presented
+    # as the acceptance, neither in its source line (the summary table's column) nor its gap
+    for c in select_cases("estimation.kalman_*"):
+        assert "acceptance" not in c.source.split(";")[0].replace("design check", ""), c.id
+        assert "estimation.kalman_" not in (c.gap or ""), c.id

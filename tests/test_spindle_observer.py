@@ -32,7 +32,9 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def ident_r1() -> object:
-    return identify_spindle(SpindleDriveParams.aslan_quaser(), current_noise_a=0.0, n_periods=5)
+    p = SpindleDriveParams.aslan_quaser()
+    return identify_spindle(p, velocity_period_s=p.velocity_period_s, current_noise_a=0.0,
+                            n_periods=5)  # fmt: skip
 
 
 def test_rational_fit_keeps_real_poles() -> None:

@@ -167,7 +167,9 @@ def test_commission_identify_observer_round_trip_on_the_truth() -> None:
     from millsense.estimation.spindle_observer import tune_spindle_q
 
     truth = load_truth_spindle("quaser-ux600")
-    ident = identify_spindle(truth, speed_rpm=0.0, sample_rate_hz=FS, current_noise_a=0.01)
+    # the velocity-loop period from the nameplate file (0.2 ms), never from the truth (issue 12)
+    ident = identify_spindle(truth, velocity_period_s=0.2e-3, speed_rpm=0.0, sample_rate_hz=FS,
+                             current_noise_a=0.01)  # fmt: skip
     f, g_true = sampled_disturbance_frf(truth, sample_rate_hz=FS)
     for fk, _ in ATTENUATION_TARGETS:
         k = int(np.argmin(np.abs(f - fk)))
@@ -246,3 +248,18 @@ def test_ripple_mean_against_extended_precision() -> None:
                 else:
                     ref += ld(a) * np.sin(ld(o) * ld(th) + ld(p))
             assert abs(_ripple_mean(tab, used, th, dth) - float(ref)) < 1e-9 * sum(amps)
+
+
+def test_identification_takes_the_loop_period_and_ranges_from_the_drive_data() -> None:
+    # issue 12 (decision 1213): the commissioning reads the velocity-loop period and the range
+    # switch from the nameplate, not from the simulated drive: told 0.3 ms where the truth
+    # holds I_nom every 0.2 ms, the model is at 0.3 ms (it was the truth's 0.2 ms when the
+    # period was read from the truth object)
+    from millsense.bench.spindle_commissioning import identify_spindle, speed_range
+
+    truth = load_truth_spindle("quaser-ux600")
+    assert truth.velocity_period_s == pytest.approx(0.2e-3)
+    ident = identify_spindle(truth, velocity_period_s=0.3e-3, sample_rate_hz=FS, n_periods=3)
+    assert ident.model.dt == pytest.approx(0.3e-3, rel=1e-12)
+    assert [speed_range(r, 3300.0) for r in (0.0, 3299.0, 3300.0, -4000.0)] == [0, 0, 1, 1]
+    assert speed_range(9000.0, None) == 0

@@ -24,6 +24,7 @@ from millsense.streaming.block import Chunk
 def identify_spindle(
     params: SpindleDriveParams | TruthSpindle,
     *,
+    velocity_period_s: float,
     speed_rpm: float = 0.0,
     sample_rate_hz: float = 10_000.0,
     torque_rms_nm: float = 5.0,
@@ -39,6 +40,9 @@ def identify_spindle(
     ----------
     params : the simulated spindle drive — the truth (:mod:`millsense.simulator.truth_spindle`)
         or Aslan's Ch. 5 model; only I_nom is read from it.
+    velocity_period_s : the CNC's velocity-loop period, s: the rate I_nom is held at, from the
+        drive's data (the nameplate machine file's ``velocity_loop_period_ms``), never from the
+        simulated drive (issue 12).
     speed_rpm : spindle speed during the test, rev/min (selects the speed range).
     sample_rate_hz : CNC sample rate, Hz (a multiple of the velocity-loop rate).
     torque_rms_nm : RMS of the multisine disturbance torque, N·m (lines 2 Hz … Nyquist).
@@ -48,7 +52,7 @@ def identify_spindle(
     period_s, n_periods : multisine period, s, and periods (the first is discarded).
     seed : noise seed.
     """
-    m = velocity_decimation(params.velocity_period_s, sample_rate_hz, "spindle")
+    m = velocity_decimation(velocity_period_s, sample_rate_hz, "spindle")
     fv = sample_rate_hz / m
     per = round(period_s * fv)
     u, _ = multisine_signal(fv, per, 2.0, 0.4996 * fv, n_periods, rms=torque_rms_nm)
@@ -74,6 +78,7 @@ def identify_spindle_friction(
     params: SpindleDriveParams | TruthSpindle,
     designs: dict[int, KalmanDesign],
     *,
+    range_switch_rpm: float | None,
     speeds_rpm: tuple[float, ...] = (500.0, 1500.0, 2500.0, 3000.0, 4000.0, 5000.0, 6000.0),
     sample_rate_hz: float = 10_000.0,
     current_noise_a: float = 0.0,
@@ -95,7 +100,7 @@ def identify_spindle_friction(
         ref = np.minimum(np.arange(n) / (0.3 * sample_rate_hz), 1.0) * w
         out = spindle_sim(params, sample_rate_hz).advance(ref, np.zeros(n))
         inom = out["current_cmd"] + rng.normal(0.0, current_noise_a, n)
-        design = designs[params.range_index(w)]
+        design = designs[speed_range(rpm, range_switch_rpm)]
         obs = SpindleTorqueObserver(design, sample_rate_hz)
         obs.reset(sample_rate_hz)
         data = {"spindle/current_cmd": inom}
@@ -104,3 +109,9 @@ def identify_spindle_friction(
         torques.append(float(np.mean(tau[n // 2 :])))
     line = fit_line(np.asarray(speeds), np.asarray(torques))
     return CoulombViscous(line.intercept, line.intercept, line.slope, line.slope, 1.0)
+
+
+def speed_range(rpm: float, range_switch_rpm: float | None) -> int:
+    """The spindle's speed range at ``rpm`` (0: range 1, 1: range 2 from ``range_switch_rpm``
+    on; None: one range), as the drive's data give it."""
+    return 1 if range_switch_rpm is not None and abs(rpm) >= range_switch_rpm else 0

@@ -33,6 +33,7 @@ import numpy as np
 from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
+    from millsense.core.config import SpindleConfig
     from millsense.estimation.spindle_observer import SpindleIdentification, SpindleTuning
     from millsense.models.friction import CoulombViscous
     from millsense.simulator.truth_spindle import TruthSpindle
@@ -52,6 +53,18 @@ def plant() -> TruthSpindle:
 
 
 @cache
+def nameplate_spindle() -> SpindleConfig:
+    """The spindle section of the quaser-ux600 nameplate machine file: what the commissioning
+    knows of the drive (its velocity-loop period and range switch), not the truth's values."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+
+    spindle = load_preset(MachineConfig, "quaser-ux600").spindle
+    assert spindle is not None and spindle.velocity_loop_period_ms is not None
+    return spindle
+
+
+@cache
 def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
     """Identified and tuned observer design per speed range (0: range 1, 1: range 2)."""
     from millsense.bench.spindle_commissioning import identify_spindle
@@ -60,9 +73,11 @@ def observers() -> dict[int, tuple[SpindleIdentification, SpindleTuning]]:
     params = plant()
     out: dict[int, tuple[SpindleIdentification, SpindleTuning]] = {}
     for rng, rpm in ((0, 0.0), (1, 4000.0)):
+        period = float(nameplate_spindle().velocity_loop_period_ms or 0.0) * 1e-3
         ident = identify_spindle(
-            params, speed_rpm=rpm, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A, seed=rng
-        )
+            params, velocity_period_s=period, speed_rpm=rpm, sample_rate_hz=FS_HZ,
+            current_noise_a=NOISE_A, seed=rng,
+        )  # fmt: skip
         out[rng] = (ident, tune_spindle_q(ident.model, ident.r))
     return out
 
@@ -73,9 +88,9 @@ def friction() -> CoulombViscous:
     from millsense.bench.spindle_commissioning import identify_spindle_friction
 
     designs = {k: v[1].design for k, v in observers().items()}
-    return identify_spindle_friction(
-        plant(), designs, sample_rate_hz=FS_HZ, current_noise_a=NOISE_A
-    )
+    return identify_spindle_friction(plant(), designs,
+                                     range_switch_rpm=nameplate_spindle().range_switch_rpm,
+                                     sample_rate_hz=FS_HZ, current_noise_a=NOISE_A)  # fmt: skip
 
 
 @cache
@@ -132,6 +147,7 @@ def _flat() -> Measured:
 @cache
 def v6_errors() -> list[tuple[float, float, float, float]]:
     """Per V6 speed: (rpm, peak error, mean error, RMS-difference error) of F_res."""
+    from millsense.bench.spindle_commissioning import speed_range
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.estimation.spindle_observer import SpindleTorqueObserver
@@ -161,7 +177,7 @@ def v6_errors() -> list[tuple[float, float, float, float]]:
         torque = np.concatenate([np.zeros(n_air), cut.torque_nm])
         res = TruthSpindleSim(params, FS_HZ).advance(speed_ref, torque)
         inom = res["current_cmd"] + rng_noise.normal(0.0, NOISE_A, n)
-        _, tun = observers()[params.range_index(w)]
+        _, tun = observers()[speed_range(rpm, nameplate_spindle().range_switch_rpm)]
         fr = friction()
         obs = SpindleTorqueObserver(tun.design, FS_HZ, radius, friction=fr)
         obs.reset(FS_HZ)
