@@ -205,6 +205,7 @@ def run_chatter_demo(
     import json
     import tempfile
 
+    from millsense.demo_online import two_run_progress
     from millsense.io.recording_reader import opened_recording
     from millsense.io.safe_output import write_text
     from millsense.report.online_plots import plot_chatter_comparison
@@ -212,13 +213,7 @@ def run_chatter_demo(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plan = _plan(out)
-    expect = int((float(plan["t_s"][-1]) + 1.0) * 10000)
-
-    def progress(offset: float) -> Callable[[int], None] | None:
-        if on_progress is None:
-            return None
-        return lambda n: on_progress(min(1.0, offset + 0.5 * n / expect))
-
+    progress = two_run_progress(plan, on_progress)
     data: dict[str, dict[str, np.ndarray]] = {}
     events: dict[str, Sequence[Event]] = {}
     figs: dict[str, ChatterFigures] = {}

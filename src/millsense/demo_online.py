@@ -107,6 +107,22 @@ def _plan(out: Path) -> Any:
     )
 
 
+def two_run_progress(
+    plan: Any, on_progress: Callable[[float], None] | None
+) -> Callable[[float], Callable[[int], None] | None]:
+    """Progress of two runs of ``plan`` one after the other, as a fraction of both: called with
+    the run's offset (0 or 0.5), gives the run's callback of samples done (None without
+    ``on_progress``)."""
+    expect = int((float(plan["t_s"][-1]) + 1.0) * 10000)
+
+    def progress(offset: float) -> Callable[[int], None] | None:
+        if on_progress is None:
+            return None
+        return lambda n: on_progress(min(1.0, offset + 0.5 * n / expect))
+
+    return progress
+
+
 class _Open(SourceWrapper):
     """The virtual machine with its commands dropped (the CNC as programmed)."""
 
@@ -168,13 +184,7 @@ def run_online_demo(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plan = _plan(out)
-    expect = int((float(plan["t_s"][-1]) + 1.0) * 10000)
-
-    def progress(offset: float) -> Callable[[int], None] | None:
-        if on_progress is None:
-            return None
-        return lambda n: on_progress(min(1.0, offset + 0.5 * n / expect))
-
+    progress = two_run_progress(plan, on_progress)
     runs: dict[str, tuple[Any, dict[str, np.ndarray]]] = {}
     figs: dict[str, RunFigures] = {}
     with tempfile.TemporaryDirectory(dir=out) as tmp:

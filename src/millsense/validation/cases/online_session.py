@@ -24,6 +24,7 @@ import functools
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -459,6 +460,14 @@ def demo_chatter_run() -> dict[str, object]:
     return summary
 
 
+def _demo_controlled() -> tuple[dict[str, object], dict[str, Any]]:
+    """The demo chatter pass's summary and its controlled run's figures."""
+    s = demo_chatter_run()
+    runs = s["runs"]
+    assert isinstance(runs, dict)
+    return s, runs["controlled"]
+
+
 def _demo_chatter_detail(s: dict[str, object]) -> str:
     runs = s["runs"]
     assert isinstance(runs, dict)
@@ -490,10 +499,7 @@ def _demo_chatter_detail(s: dict[str, object]) -> str:
     "when the truth never has a quiet second after the last one).",
 )
 def _demo_chatter_changes() -> Measured:
-    s = demo_chatter_run()
-    runs = s["runs"]
-    assert isinstance(runs, dict)
-    r = runs["controlled"]
+    s, r = _demo_controlled()
     extra = 0.0 if r["stopped"] else 1.0
     return Measured(float(r["speed_commands"]) + extra, _demo_chatter_detail(s))
 
@@ -511,10 +517,7 @@ def _demo_chatter_changes() -> Measured:
     "simulator's truth, s (0–1 s accepted; the run's length when never quiet).",
 )
 def _demo_chatter_gone() -> Measured:
-    s = demo_chatter_run()
-    runs = s["runs"]
-    assert isinstance(runs, dict)
-    r = runs["controlled"]
+    s, r = _demo_controlled()
     if r["speed_commands"] == 0:
         return Measured(float("nan"), "no speed change\n\n" + _demo_chatter_detail(s))
     quiet = r["quiet_after_command_s"]
