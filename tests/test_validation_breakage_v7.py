@@ -4,12 +4,14 @@ is what they say (a real alarm count, a two-sided latency tolerance)."""
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 import numpy as np
 import pytest
 
 from millsense.streaming.block import Event, EventKind
 from millsense.validation.cases import monitoring_breakage as mb
-from millsense.validation.registry import all_cases
+from millsense.validation.registry import Measured, ValidationCase, all_cases
 
 
 def test_v7_program_split_keeps_the_slots_and_the_stock_shaping_operations() -> None:
@@ -25,16 +27,16 @@ def test_v7_plant_engagement_is_not_the_monitor_plan() -> None:
 
     plan = mb.demo_plan()
     _, proc, break_s, _ = mb.v7_plant()
-    eng = proc.engagement  # type: ignore[attr-defined]
+    eng = proc.engagement
     assert isinstance(eng, PlanEngagement)
     assert eng.plan is not plan
     assert eng.plan is mb.truth_plan()
     # the plant's tool has the runout the plan does not know
-    assert proc.tool.runout_offset_m == pytest.approx(mb.RUNOUT_V7_M)  # type: ignore[attr-defined]
-    assert float(plan.metadata["tool"].get("runout_um", 0.0)) == 0.0  # type: ignore[attr-defined]
+    assert proc.tool.runout_offset_m == pytest.approx(mb.RUNOUT_V7_M)
+    assert float(plan.metadata["tool"].get("runout_um", 0.0)) == 0.0
     # same program, a different cut of the stock: the engagements differ somewhere
-    assert len(eng.plan) == len(plan)  # type: ignore[arg-type]
-    assert not np.array_equal(eng.plan["axial_depth_mm"], plan["axial_depth_mm"])  # type: ignore[index]
+    assert len(eng.plan) == len(plan)
+    assert not np.array_equal(eng.plan["axial_depth_mm"], plan["axial_depth_mm"])
     # the break is in SLOT3 at about Y = 50 mm
     t = np.asarray(eng.plan["t_s"])
     k = int(np.searchsorted(t, break_s - 0.1))
@@ -50,13 +52,13 @@ def _fake_run(monkeypatch: pytest.MonkeyPatch, constant_before: int, latency: fl
     def ev(t: float) -> Event:
         return Event(t, EventKind.ALARM, "breakage", "x", name="breakage")
 
-    run = mb.V7Run(data, None, brk, 10000.0)
+    run = mb.V7Run(data, cast(Any, None), brk, 10000.0)
     run.events["virtual"] = [ev(brk + latency * mb.TOOTH_S_V7)]
     run.events["constant"] = [ev(0.01 * (i + 1) / constant_before) for i in range(constant_before)]
     monkeypatch.setattr(mb, "v7_run", lambda: run)
 
 
-def _case(cid: str):  # type: ignore[no-untyped-def]
+def _case(cid: str) -> ValidationCase:
     return next(c for c in all_cases() if c.id == cid)
 
 
@@ -64,13 +66,14 @@ def test_v7_constant_case_counts_every_false_alarm(monkeypatch: pytest.MonkeyPat
     _fake_run(monkeypatch, 3, 3.0)
     c = _case("monitoring.breakage.v7_constant_false_alarm")
     m = c.func()
-    assert m.value == 3.0  # type: ignore[union-attr]
+    assert isinstance(m, Measured) and m.value == 3.0
     assert not c.passes(3.0) and c.passes(1.0) and not c.passes(0.0)
 
 
 def test_v7_latency_tolerance_is_two_sided_and_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
     _fake_run(monkeypatch, 1, 2.7)
     c = _case("monitoring.breakage.v7_virtual_latency")
-    assert c.func().value == pytest.approx(2.7)  # type: ignore[union-attr]
+    m = c.func()
+    assert isinstance(m, Measured) and m.value == pytest.approx(2.7)
     assert c.passes(2.7) and c.passes(3.4)
     assert not c.passes(2.0) and not c.passes(4.0)

@@ -37,6 +37,7 @@ import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import signal
@@ -44,6 +45,13 @@ from scipy import signal
 from millsense.core.units import MM
 from millsense.streaming.block import Block, Chunk, Event
 from millsense.validation import Measured, case
+
+if TYPE_CHECKING:
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import Job
+    from millsense.simulator.process_coupling import ProcessCoupling
 
 DEMO_PART = Path(__file__).resolve().parents[4] / "examples" / "demo_part"
 
@@ -87,7 +95,7 @@ class V7Run:
     detector."""
 
     data: dict[str, np.ndarray]
-    plan: object
+    plan: VirtualPlan
     break_s: float
     fs: float
     events: dict[str, list[Event]] = field(default_factory=dict)
@@ -129,7 +137,9 @@ def _programs() -> tuple[str, str]:
     return "\n".join(before) + "\n", "\n".join(slots) + "\n"
 
 
-def _slots_plan(cell_m: float, tool: object, coeffs: object, metadata: dict) -> object:
+def _slots_plan(
+    cell_m: float, tool: EndMill, coeffs: CuttingCoefficients, metadata: dict[str, Any]
+) -> VirtualPlan:
     """The slots planned on the stock the earlier operations leave (``cell_m`` z-map)."""
     from millsense.plan.gcode import interpret
     from millsense.plan.stock import ZMapStock
@@ -143,7 +153,7 @@ def _slots_plan(cell_m: float, tool: object, coeffs: object, metadata: dict) -> 
 
 
 @functools.cache
-def demo_plan() -> object:
+def demo_plan() -> VirtualPlan:
     """The monitor's virtual plan of the slots: the nameplate tool (``examples/demo_part``,
     no runout) and the preset material, a 0.1 mm z-map."""
     from millsense.core.config import MaterialConfig, ToolConfig
@@ -159,7 +169,7 @@ def demo_plan() -> object:
 
 
 @functools.cache
-def truth_plan() -> object:
+def truth_plan() -> VirtualPlan:
     """The virtual machine's own engagement of the slots: the same program and stock cut on
     a finer z-map by its own tool (with the runout the plan does not know); the simulator
     reads its rows' engagement, never the monitor's plan. Its coefficients are the material's
@@ -179,22 +189,22 @@ def truth_plan() -> object:
     return _slots_plan(TRUTH_CELL_M, tool, coeffs, {"tool_name": "truth", "material_name": "truth"})
 
 
-def _break_time_s(plan: object) -> float:
+def _break_time_s(plan: VirtualPlan) -> float:
     """Machine time of the break: the plan's time where SLOT3 passes Y = 50 mm plus the
     spindle's run-up before the first move (the CNC runs the program as written)."""
     from millsense.simulator.machine import SimulatorOptions
 
-    nc = np.asarray(plan["nc_line"])  # type: ignore[index]
+    nc = np.asarray(plan["nc_line"])
     rows = np.flatnonzero(nc == 350)
-    y = plan.xyz_m[rows, 1]  # type: ignore[attr-defined]
+    y = plan.xyz_m[rows, 1]
     k = rows[int(np.argmin(np.abs(y - BREAK_Y_M)))]
     o = SimulatorOptions()
     run_up = RPM_V7 * 2 * math.pi / 60.0 / o.spindle_accel_rad_s2 + o.spindle_settle_s
-    t = float(plan["t_s"][k]) + run_up  # type: ignore[index]
+    t = float(plan["t_s"][k]) + run_up
     return round(t / TOOTH_S_V7) * TOOTH_S_V7
 
 
-def v7_plant() -> tuple[object, object, float, list[str]]:
+def v7_plant() -> tuple[Job, ProcessCoupling, float, list[str]]:
     """The virtual machine's job and process of the slots (a new process each call): the
     truth's own plan (:func:`truth_plan`) with flute 0 broken in SLOT3; also the break time
     and plan_job's notes."""
