@@ -77,3 +77,21 @@ def test_v7_latency_tolerance_is_two_sided_and_can_fail(monkeypatch: pytest.Monk
     assert isinstance(m, Measured) and m.value == pytest.approx(2.7)
     assert c.passes(2.7) and c.passes(3.4)
     assert not c.passes(2.0) and not c.passes(4.0)
+
+
+@pytest.mark.slow
+def test_v7_figures_on_the_truth_are_pinned() -> None:
+    """The run the cases judge (≈ 15 s): the virtual threshold silent before the break and
+    alarming 2.5-3.5 tooth periods after it; the constant threshold's two false alarms (the
+    known failure's figure, decision 1730) at SLOT1's exit and SLOT3's entry."""
+    run = mb.v7_run()
+    before, after = mb._split(run.events["virtual"], run.break_s)
+    assert before == []
+    assert 2.5 <= (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 <= 3.5
+    before, _ = mb._split(run.events["constant"], run.break_s)
+    assert [e.nc_line for e in before] == [310, 350]
+    # the plant's effective K_tc is its own (calibrated by the session), not the plan's 758
+    (ktc,) = run.events["ktc"]
+    assert "plan 758" in ktc.message and not ktc.message.startswith(
+        "K_tc calibrated over 10 revolutions: 758"
+    )
