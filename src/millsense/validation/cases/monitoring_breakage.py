@@ -1,15 +1,29 @@
 """Acceptance of the tool-breakage monitors (issue 15, item 2; seed 000 V7, seed 002 V1).
 
-Seed 000 V7 replica: the demo part (``examples/demo_part``, Al7050, Ø20 mm 2-flute, 1000
-rev/min, 400 mm/min — the conditions of V7) is planned; the three slots (SLOT1 with its axial
+Seed 000 V7 replica (decision 1730): the three slots of the demo part (``examples/demo_part``,
+Al7050, Ø20 mm 2-flute, 1000 rev/min, 400 mm/min — the conditions of V7: SLOT1 with its axial
 depth step 2 → 3 mm at the face edge, SLOT2 crossing SLOT1 and the cavity and exiting the part,
-SLOT3 4 mm deep crossing SLOT2 and the cavity edge and exiting) are run through the process model
-of the virtual machine along the plan's rows at the programmed feed, with 5 µm of runout the plan
-does not know, and flute 0 breaks at a tooth-period boundary in SLOT3. The monitor sees the
-torque as the spindle observer reports it (:mod:`._torque_sim`), the spindle speed and the TCP,
-and the plan. The virtual threshold must stay silent at the step, the cavity, the crossings and
-the exits and alarm 3 tooth periods after the break; the classic constant threshold (2 × max
-over the first 5 revolutions in cut, Aslan Eq. 6.5) raises false alarms.
+SLOT3 4 mm deep crossing SLOT2 and the cavity edge and exiting), on the stock the part's
+earlier operations leave, are run by the virtual machine (the quaser-ux600 truth, realism on)
+with flute 0 broken in SLOT3, and monitored by the on-line session's blocks.
+
+What plant and monitor share: the program, the raw stock, the material's nominal coefficients
+(the truth's cutting model starts from them as the virtual machine always does; its effective
+K_tc is its own: the session calibrates about 800 N/mm² against the plan's 758) and the tool's
+nameplate geometry. What they do not share: the plant cuts its own plan (:func:`truth_plan`: a
+0.05 mm z-map, 5 µm of runout the monitor does not know) through the truth's process (tool
+dynamics, edge forces) and truth spindle; the monitor's expectation is the virtual plan built
+from the nameplate tool and preset material on a 0.1 mm z-map (:func:`demo_plan`), never the
+simulator's objects; the monitors read the compensated spindle torque of the identified
+observer of the commissioned machine file (``online.session.TORQUE_CHANNEL``, less its air-cut
+reference), synchronised to the plan on the commanded axes, as ``millsense run`` does. The
+session runs open (its commands do not reach the machine): the program runs as written.
+
+The virtual threshold (σ_TB = 40 %, confirmation over 3 tooth periods) must stay silent at the
+step, the cavity, the crossings and the exits and alarm 3 tooth periods after the break; the
+classic constant threshold (the same detector against a reference learned over the first 5
+revolutions in cut, Aslan Eq. 6.5) on the same torque is counted for the false alarm the thesis
+shows.
 
 Seed 002 V1 pattern: Munasinghe's breakage demo conditions (Ø25.4 mm 4-flute 30° helix,
 566 rev/min, 0.1 mm/tooth, 7.62 mm deep, a part with geometry changes, runout) with one chipped
@@ -22,6 +36,8 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import signal
@@ -30,98 +46,222 @@ from millsense.core.units import MM
 from millsense.streaming.block import Block, Chunk, Event
 from millsense.validation import Measured, case
 
+if TYPE_CHECKING:
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import Job
+    from millsense.simulator.process_coupling import ProcessCoupling
+
+DEMO_PART = Path(__file__).resolve().parents[4] / "examples" / "demo_part"
+
 FS = 10000.0
 RPM_V7 = 1000.0
 N_V7 = 2
 TOOTH_S_V7 = 60.0 / RPM_V7 / N_V7
-#: NC lines of the three slots of the demo part (feed moves and the rapids between them).
-SLOT_LINES = (305, 350)
-#: Break of flute 0 in SLOT3 at Y ≈ 50 mm, s after the stream start (rounded to a tooth period).
-BREAK_V7_S = round(47.0 / TOOTH_S_V7) * TOOTH_S_V7
+#: The demo part's program; the V7 part is its three slots (N300-N355), run on the stock the
+#: earlier operations (face, contour, pocket: N25-N295) leave.
+PROGRAM_V7 = DEMO_PART / "program.nc"
+#: z-map cell of the monitor's plan (as the other demo-part cases) and of the truth's plan (a
+#: finer cut of the same stock: its own engagement, not the plan's), m.
+PLAN_CELL_M = 0.1 * MM
+TRUTH_CELL_M = 0.05 * MM
+#: Runout of the virtual machine's tool (the plan does not know it), m and rad.
 RUNOUT_V7_M = 5e-6
+RUNOUT_V7_ANGLE_RAD = 0.4
+#: Where flute 0 breaks: SLOT3 (N350, along -Y at X80, 4 mm deep) at Y = 50 mm.
+BREAK_Y_M = 50.0 * MM
+#: The quaser-ux600 file the README walkthrough commissions (nameplate + identified): the
+#: spindle observer whose compensated torque the monitors read.
+MACHINE_FILE = DEMO_PART.parent / "walkthrough/quaser-ux600-commissioned.toml"
+#: Channels of the session kept for the constant-threshold detector and the details.
+KEEP_V7 = (
+    "est/spindle/spindle/load",
+    "plan/cutting_torque",
+    "plan/judged_torque",
+    "plan/in_cut",
+    "spindle/speed",
+    "tcp/x",
+    "tcp/y",
+    "tcp/z",
+    "truth/process/broken",
+    "truth/spindle/torque",
+)
 
 
 @dataclass
 class V7Run:
-    """Stream, plan, break time and the events of each detector."""
+    """Channels of the session, the monitor's plan, break time and the events of each
+    detector."""
 
     data: dict[str, np.ndarray]
-    plan: object
+    plan: VirtualPlan
     break_s: float
+    fs: float
     events: dict[str, list[Event]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
 
-def run_block(block: Block, data: dict[str, np.ndarray], chunk: int) -> tuple[list[Event], dict]:
+def run_block(block: Block, data: dict[str, np.ndarray], chunk: int, fs: float = FS
+              ) -> tuple[list[Event], dict]:  # fmt: skip
     """Feed ``data`` to ``block`` in chunks of ``chunk`` samples; events and channels."""
-    block.reset(FS)
+    block.reset(fs)
     n = len(next(iter(data.values())))
     events: list[Event] = []
     chans: dict[str, list[np.ndarray]] = {}
     for i in range(0, n, chunk):
-        out = block.process(Chunk(i, FS, 0.0, {k: data[k][i : i + chunk] for k in block.inputs}))
+        out = block.process(Chunk(i, fs, 0.0, {k: data[k][i : i + chunk] for k in block.inputs}))
         events.extend(out.events)
         for k, v in out.channels.items():
             chans.setdefault(k, []).append(v)
     return events, {k: np.concatenate(v) for k, v in chans.items()}
 
 
-@functools.lru_cache(maxsize=1)
-def demo_plan() -> object:
-    """The demo part's virtual plan (0.1 mm z-map)."""
-    from millsense.plan.gcode import interpret_file
+def _programs() -> tuple[str, str]:
+    """The demo part's program split: the operations before the slots (N25-N295, they shape
+    the stock) and the slots alone (the header, then N300-N370)."""
+    text = PROGRAM_V7.read_text()
+    lines = text.splitlines()
+    k_slots = next(i for i, s in enumerate(lines) if s.startswith("(SLOT1"))
+    k_face = next(i for i, s in enumerate(lines) if s.startswith("(FACE1"))
+    header = lines[:k_face]
+    before = [*lines[:k_slots], "N296 M30", "%"]
+    slots = [
+        *header,
+        "N25 T1 M6",
+        "N30 S1000 M3",
+        "N40 G0 X20. Y-15.",
+        "N45 G43 Z25. H1",
+        *lines[k_slots:],
+    ]
+    return "\n".join(before) + "\n", "\n".join(slots) + "\n"
+
+
+def _slots_plan(
+    cell_m: float, tool: EndMill, coeffs: CuttingCoefficients, metadata: dict[str, Any]
+) -> VirtualPlan:
+    """The slots planned on the stock the earlier operations leave (``cell_m`` z-map)."""
+    from millsense.plan.gcode import interpret
     from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
-    from millsense.validation.cases.simulator_plan import DEMO, _tool_coeffs
 
-    tool, coeffs = _tool_coeffs()
-    stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.1, 0.08, 0.0], 0.1 * MM)
-    return plan_program(interpret_file(DEMO / "program.nc"), stock, tool, coeffs)
+    before, slots = _programs()
+    stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.1, 0.08, 0.0], cell_m)
+    plan_program(interpret(before, source="demo_part_before_slots.nc"), stock, tool, coeffs)
+    return plan_program(interpret(slots, source="demo_part_slots.nc"), stock, tool, coeffs,
+                        metadata=metadata)  # fmt: skip
 
 
-@functools.lru_cache(maxsize=1)
-def v7_run() -> V7Run:
-    """Simulate the three slots with a broken flute and run the three detectors."""
+@functools.cache
+def demo_plan() -> VirtualPlan:
+    """The monitor's virtual plan of the slots: the nameplate tool (``examples/demo_part``,
+    no runout) and the preset material, a 0.1 mm z-map."""
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    tool = load_preset(ToolConfig, str(DEMO_PART / "tool.toml"))
+    mat = load_preset(MaterialConfig, str(DEMO_PART / "material.toml"))
+    return _slots_plan(PLAN_CELL_M, EndMill.from_config(tool),
+                       CuttingCoefficients.from_config(mat),
+                       {"tool_name": tool.name, "material_name": mat.name})  # fmt: skip
+
+
+@functools.cache
+def truth_plan() -> VirtualPlan:
+    """The virtual machine's own engagement of the slots: the same program and stock cut on
+    a finer z-map by its own tool (with the runout the plan does not know); the simulator
+    reads its rows' engagement, never the monitor's plan. Its coefficients are the material's
+    nominal ones, which the truth's process (tool deflection and modes, edge forces, runout)
+    and truth spindle turn into an effective K_tc of their own."""
     import dataclasses
 
-    from millsense.monitoring.breakage import BreakageBlock
-    from millsense.plan.plan_engagement import PlanEngagement
-    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.core.config import MaterialConfig, ToolConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
+    tool = dataclasses.replace(tool, runout_offset_m=RUNOUT_V7_M,
+                               runout_angle_rad=RUNOUT_V7_ANGLE_RAD)  # fmt: skip
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    return _slots_plan(TRUTH_CELL_M, tool, coeffs, {"tool_name": "truth", "material_name": "truth"})
+
+
+def _break_time_s(plan: VirtualPlan) -> float:
+    """Machine time of the break: the plan's time where SLOT3 passes Y = 50 mm plus the
+    spindle's run-up before the first move (the CNC runs the program as written)."""
+    from millsense.simulator.machine import SimulatorOptions
+
+    nc = np.asarray(plan["nc_line"])
+    rows = np.flatnonzero(nc == 350)
+    y = plan.xyz_m[rows, 1]
+    k = rows[int(np.argmin(np.abs(y - BREAK_Y_M)))]
+    o = SimulatorOptions()
+    run_up = RPM_V7 * 2 * math.pi / 60.0 / o.spindle_accel_rad_s2 + o.spindle_settle_s
+    t = float(plan["t_s"][k]) + run_up
+    return round(t / TOOTH_S_V7) * TOOTH_S_V7
+
+
+def v7_plant() -> tuple[Job, ProcessCoupling, float, list[str]]:
+    """The virtual machine's job and process of the slots (a new process each call): the
+    truth's own plan (:func:`truth_plan`) with flute 0 broken in SLOT3; also the break time
+    and plan_job's notes."""
+    from millsense.simulator.plan_job import plan_job
     from millsense.simulator.process_coupling import ToothBreak
-    from millsense.validation.cases._torque_sim import simulate_torque
-    from millsense.validation.cases.simulator_plan import _tool_coeffs
+    from millsense.validation.cases.simulator_plan import machine_3axis
+
+    truth = truth_plan()
+    break_s = _break_time_s(truth)
+    job, proc, _, notes = plan_job(truth, machine_3axis(), "demo_part_slots",
+                                   events=[ToothBreak(break_s, 0)])  # fmt: skip
+    return job, proc, break_s, list(notes)
+
+
+@functools.cache
+def v7_run() -> V7Run:
+    """The slots on the virtual machine (its truth, realism on) with flute 0 broken in SLOT3,
+    through the on-line session's blocks (the commissioned spindle observer, plan sync and K_tc
+    calibration, the virtual-threshold breakage monitor; the adaptive feed off) with nothing
+    sent to the machine (the CNC runs the program as written); the constant-threshold detector
+    on the same compensated cutting torque (≈ 11 s for 61 s of machining)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.demo_online import _Open
+    from millsense.monitoring.breakage import BreakageBlock
+    from millsense.online.session import (
+        CUTTING_TORQUE,
+        SessionOptions,
+        run_session,
+        session_blocks,
+    )
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.validation.cases.simulator_plan import machine_3axis
 
     plan = demo_plan()
-    assert isinstance(plan, VirtualPlan)
-    src = PlanEngagement(plan)
-    nc = plan["nc_line"]
-    r0 = int(np.nonzero(nc == SLOT_LINES[0])[0][0])
-    r1 = int(np.nonzero(nc == SLOT_LINES[1])[0][-1])
-    t_rows = np.asarray(plan["t_s"][r0 : r1 + 1], dtype=np.float64)
-    t_rows = t_rows - t_rows[0]
-    s_rows = src.row_s_m[r0 : r1 + 1]
-    t = np.arange(int(t_rows[-1] * FS)) / FS
-    s = np.interp(t, t_rows, s_rows)
-    feed = np.gradient(s, 1.0 / FS)
-    tool, coeffs = _tool_coeffs()
-    tool = dataclasses.replace(tool, runout_offset_m=RUNOUT_V7_M, runout_angle_rad=0.4)
-    _, obs, _ = simulate_torque(
-        src, s, t, RPM_V7, feed, (ToothBreak(BREAK_V7_S, 0),), tool, coeffs, seed=7
-    )
-    xyz = plan.xyz_m[r0 : r1 + 1]
-    data = {
-        "spindle/torque_est": obs,
-        "spindle/speed": np.full(len(t), RPM_V7 * 2 * math.pi / 60.0),
-        "tcp_x": np.interp(t, t_rows, xyz[:, 0]),
-        "tcp_y": np.interp(t, t_rows, xyz[:, 1]),
-        "tcp_z": np.interp(t, t_rows, xyz[:, 2]),
-    }
-    run = V7Run(data, plan, BREAK_V7_S)
-    blocks = {
-        "virtual": BreakageBlock(N_V7, "virtual", plan=plan),
-        "constant": BreakageBlock(N_V7, "constant", learn_from=0.5, plan=plan),
-    }
-    for k, b in blocks.items():
-        run.events[k] = run_block(b, data, 1000)[0]
+    m = machine_3axis()
+    job, proc, break_s, notes = v7_plant()
+    sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=7))
+    belief = load_preset(MachineConfig, str(MACHINE_FILE)).with_axes("xyz", "3-axis")
+    built = session_blocks(plan, belief, m.sample_rate_hz, SessionOptions(adaptive=False),
+                           channels=sim.channel_names)  # fmt: skip
+    parts: dict[str, list[np.ndarray]] = {}
+
+    def keep(chunk: Chunk, outputs: dict[str, np.ndarray], _ev: list[Event]) -> None:
+        for k in KEEP_V7:
+            v = outputs.get(k, chunk.data.get(k))
+            if v is not None:
+                parts.setdefault(k, []).append(np.asarray(v, dtype=np.float64))
+
+    res = run_session(_Open(sim), built.blocks, stop_after_hold_s=None, observer=keep)
+    data = {k: np.concatenate(v) for k, v in parts.items()}
+    run = V7Run(data, plan, break_s, m.sample_rate_hz, notes=list(notes) + list(built.notes))
+    run.events["virtual"] = [e for e in res.events if e.name == "breakage"]
+    run.events["ktc"] = [e for e in res.events if e.name == "ktc_calibrated"]
+    const = BreakageBlock(N_V7, "constant", signal_channels=(CUTTING_TORQUE,), learn_from=0.5,
+                          plan=plan, tcp_channels=("tcp/x", "tcp/y", "tcp/z"))  # fmt: skip
+    run.events["constant"] = run_block(const, data, 100, m.sample_rate_hz)[0]
     return run
 
 
@@ -129,19 +269,31 @@ def _split(events: list[Event], break_s: float) -> tuple[list[Event], list[Event
     return [e for e in events if e.time_s < break_s], [e for e in events if e.time_s >= break_s]
 
 
+def _where(run: V7Run, t_s: float) -> str:
+    k = min(round(t_s * run.fs), len(run.data["tcp/y"]) - 1)
+    x, y, z = (1e3 * run.data[f"tcp/{a}"][k] for a in "xyz")
+    return f"X{x:.1f} Y{y:.1f} Z{z:.1f}"
+
+
 def _describe(run: V7Run) -> str:
     lines = [
-        "| detector | alarms before the break (time s, NC line) | first alarm after |",
+        "| detector | alarms before the break (time s, NC line, TCP mm) | first alarm after |",
         "|---|---|---|",
     ]
-    for k, ev in run.events.items():
-        before, after = _split(ev, run.break_s)
-        b = ", ".join(f"{e.time_s:.2f} s (N{e.nc_line})" for e in before) or "none"
+    for k in ("virtual", "constant"):
+        before, after = _split(run.events[k], run.break_s)
+        b = ", ".join(f"{e.time_s:.2f} s (N{e.nc_line}, {_where(run, e.time_s)})"
+                      for e in before) or "none"  # fmt: skip
         a = f"{after[0].time_s:.4f} s" if after else "none"
         lines.append(f"| {k} | {b} | {a} |")
     lines.append(
-        f"\nBreak of flute 0 at {run.break_s:.4f} s (tooth period {TOOTH_S_V7 * 1e3:.0f} ms)."
+        f"\nBreak of flute 0 at {run.break_s:.4f} s ({_where(run, run.break_s)}; tooth period "
+        f"{TOOTH_S_V7 * 1e3:.0f} ms). Virtual machine: quaser-ux600 truth, realism on, its own "
+        f"z-map ({TRUTH_CELL_M * 1e3:.2f} mm) and {RUNOUT_V7_M * 1e6:.0f} µm runout; monitor: "
+        f"the commissioned spindle observer's compensated torque, plan on a "
+        f"{PLAN_CELL_M * 1e3:.1f} mm z-map with the nameplate tool and preset material."
     )
+    lines += [f"Session: {e.message}" for e in run.events.get("ktc", [])]
     return "\n".join(lines)
 
 
@@ -153,8 +305,8 @@ def _describe(run: V7Run) -> str:
     abs_tol=0.0,
     quick=False,
     description=(
-        "Alarms of the virtual-threshold detector before the break on the demo part's slots "
-        "(depth step, cavity, crossings, exits)."
+        "Alarms of the session's virtual-threshold detector before the break on the demo part's "
+        "slots run by the virtual machine (depth step, cavity, crossings, exits)."
     ),
 )
 def _v7_virtual_false() -> Measured:
@@ -168,9 +320,16 @@ def _v7_virtual_false() -> Measured:
     source="seed 000 C17/V7: alarm after confirmation over 3 tooth periods",
     reference=3.0,
     unit="tooth periods",
-    abs_tol=0.05,
+    abs_tol=0.5,
     quick=False,
-    description="Break (at a tooth-period boundary) to the virtual detector's alarm.",
+    description=(
+        "Break of flute 0 in the truth to the session's virtual-threshold alarm, in tooth "
+        "periods (30 ms). 3 ± 0.5: the detector confirms over 3 tooth periods; the truth's "
+        "spindle angle is not aligned with the stream's tooth periods, so the period that first "
+        "shows the break ends up to one period after it; half a period either side takes that "
+        "phase and the observer's delay, and still fails a confirmation one period early or "
+        "late (2 or 4)."
+    ),
 )
 def _v7_virtual_latency() -> Measured:
     run = v7_run()
@@ -179,22 +338,39 @@ def _v7_virtual_latency() -> Measured:
     return Measured(lat, _describe(run))
 
 
+#: Why the constant threshold's count is not the thesis' (measured 2026-11-28, decision 1730).
+_V7_CONSTANT_GAP = (
+    "the constant threshold learns its reference, 1.18 N·m, over the first 5 revolutions from "
+    "the first tooth period at 0.5 N·m, i.e. on SLOT1's entry before the tool is fully in the "
+    "2 mm slot (2.5 N·m there, 3.7 N·m past the depth step); it raises two false alarms before "
+    "the break, where the torque changes within a few tooth periods: SLOT1's exit (17.39 s, "
+    "Y 68.8 mm) and SLOT3's entry (45.62 s, Y 86.7 mm, 4 mm deep); none at the depth step "
+    "(Y 45 mm), which the tool crosses over its diameter (the torque rises over about 2 s), "
+    "where the thesis has its one (tooth periods 262-270). The thesis' point (the constant "
+    "threshold false-alarms where the cut changes, the virtual one does not) holds; its count "
+    "and place do not"
+)
+
+
 @case(
     "monitoring.breakage.v7_constant_false_alarm",
-    source="seed 000 V7: the constant threshold raises a false alarm (tooth periods 262-270)",
+    source="seed 000 V7: the constant threshold raises a false alarm (tooth periods 262-270, "
+    "a depth step)",
     reference=1.0,
     unit="alarms",
     abs_tol=0.0,
     quick=False,
+    gap=_V7_CONSTANT_GAP,
+    issue=15,
     description=(
-        "Alarms of the constant-threshold detector (2 × max over the first 5 revolutions, "
-        "Eq. 6.5) before the break: ≥ 1 shows the thesis' false alarm; measured = min(count, 1)."
+        "Alarms of the constant-threshold detector (Eq. 6.5) on the session's compensated "
+        "cutting torque before the break, counted (the thesis shows one)."
     ),
 )
 def _v7_constant_false() -> Measured:
     run = v7_run()
     before, _ = _split(run.events["constant"], run.break_s)
-    return Measured(float(min(len(before), 1)), _describe(run))
+    return Measured(float(len(before)), _describe(run))
 
 
 # ------------------------------------------------------------------------------ seed 002 V1
