@@ -125,6 +125,22 @@ def test_calibration_cannot_pass_its_own_figure() -> None:
     )
 
 
+def test_fitted_case_is_labelled_fitted_whatever_its_status() -> None:
+    """Issue 12: a case a calibration was fitted on but whose status is not 'calibrated' (too
+    good, fail) is 'fitted on this figure', never a 'held-out check'; held-out cases stay so."""
+    cal = Calibration("eps 0.2", ("demo.fitted", "demo.fitted2"))
+    too = run_case(_case(4.0, id="demo.fitted", calibration=cal, too_good_factor=2.0))
+    bad = run_case(_case(20.0, id="demo.fitted2", calibration=cal))
+    held = run_case(_case(30.0, id="demo.held", calibration=cal))  # fails, held out
+    assert (too.status, bad.status, held.status) == ("too_good", "fail", "fail")
+    md = render_markdown([too, bad, held], "# V")
+    sections = {s.split("`")[0]: s for s in md.split("### `")[1:]}
+    assert "(fitted on this figure;" in sections["demo.fitted"]
+    assert "(fitted on this figure;" in sections["demo.fitted2"]
+    assert "held-out check" not in sections["demo.fitted"] + sections["demo.fitted2"]
+    assert "(held-out check;" in sections["demo.held"]
+
+
 def test_calibration_must_name_cases_that_declare_it() -> None:
     cal = Calibration("eps 0.2", ("demo.missing",))
     with pytest.raises(ValueError, match=r"demo\.missing"):

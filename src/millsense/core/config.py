@@ -389,6 +389,10 @@ class FeedAxisConfig(_Model):
     current_noise_a: Annotated[float, Field(ge=0, le=100)] = 0.0
     """RMS noise of the current command in an air cut (Aslan Eq. 3.30 R is its square)."""
     encoder_counts_rev: Annotated[int, Field(ge=16, le=2**32)] = 2**20
+    encoder_signal_periods_rev: Annotated[int, Field(ge=1, le=2**24)] | None = None
+    """Sine signal periods per revolution of the motor encoder before interpolation (its line
+    count; catalogue data). Its interpolation error repeats every lead/periods of travel
+    (Yamada §2.8): the wavelength of the DOB's encoder notches. None = not known."""
     position_gain_1_s: Annotated[float, Field(gt=0, le=1e4)] | None = None
     """Position-loop gain K_v (1/s); designed from the velocity bandwidth when absent."""
     position_feedback: Literal["motor", "scale"] = "motor"

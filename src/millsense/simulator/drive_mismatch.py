@@ -4,7 +4,10 @@ An estimator validated on the simulator must not run its own model back to itsel
 :func:`commissioning_drive` is the machine the commissioning tests run on (the preset drive plus
 an unmodelled higher mode, :data:`UNMODELLED_MODE`), :func:`perturbed_drive` the machine as it
 cuts (modes shifted by ``ModalStateSpace.frequency_scaled``, friction drifted, the same higher
-mode). Decisions docs/decisions/0111-unmodelled-higher-mode-present-at-commissioning-issue-7.md and
+mode). On a drive without modal Φ_d (``params.modes is None``: the truth's coupled drives,
+decision 1062) both leave the mechanics alone, so only the friction drift (and the simulation's
+noise realisation) differs between commissioning and test. Decisions
+docs/decisions/0111-unmodelled-higher-mode-present-at-commissioning-issue-7.md and
 docs/decisions/0086-feed-drive-acceptance-measured-end-to-end-with-stated.md.
 """
 
@@ -51,6 +54,9 @@ def perturbed_drive(
     extra_mode: tuple[float, float, float, float] | None = UNMODELLED_MODE,
 ) -> FeedDriveParams:
     """The machine as it cuts, differing from the one identified (acceptance mismatch).
+
+    ``frequency_scale`` and ``extra_mode`` act on ``params.modes`` only: a drive without them
+    (the truth's coupled drive) gets the friction drift alone.
 
     Parameters
     ----------

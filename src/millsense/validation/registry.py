@@ -52,8 +52,9 @@ class Calibration:
 
     ``parameter`` names it with its value (e.g. ``"current noise 16 mA RMS"``); ``fitted_on``
     are the ids of the cases whose figure it was fitted to. On those cases the agreement is by
-    construction (status ``calibrated``); every other case declaring the same calibration is a
-    held-out check of it.
+    construction (status ``calibrated`` within tolerance; ``too_good`` or ``fail`` outside it, and
+    still "fitted on this figure" in docs/validation.md); every other case declaring the same
+    calibration is a held-out check of it.
     """
 
     parameter: str
@@ -482,7 +483,9 @@ def render_markdown(results: list[CaseResult], header: str) -> str:
             lines.append(f"\nKnown failure (issue {r.issue}): {r.gap}")
         if r.calibration is not None:
             cal = r.calibration
-            where = "fitted on this figure" if r.status == "calibrated" else "held-out check"
+            # by the fitted cases, not the status: a fitted case outside tolerance (too_good,
+            # fail) is still fitted on, never a held-out check (issue 12)
+            where = "fitted on this figure" if r.id in cal.fitted_on else "held-out check"
             lines.append(
                 f"\nCalibration: {cal.parameter} ({where}; fitted on "
                 + ", ".join(f"`{i}`" for i in cal.fitted_on)

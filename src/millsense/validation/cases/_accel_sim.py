@@ -247,14 +247,20 @@ def ilme_material() -> tuple[float, float, float, float]:
     return 700e6, 300e6, 25e3, 35e3
 
 
-def simulate_ilme(test: IlmeTest, duration_s: float = 1.0, seed: int = 1) -> IlmeRecord:
+def simulate_ilme(
+    test: IlmeTest, duration_s: float = 1.0, seed: int = 1, *, cutting: bool = True
+) -> IlmeRecord:
     """Simulate one test of the matrix: sliced forces, workpiece structure, DAQ and noise.
+
+    ``cutting=False`` records the free state instead (spindle at the test's speed in air, no
+    cutting force): the same structure, DAQ filter and accelerometer noise, so its variance is
+    what a user measures for İlme's R.
 
     Mismatch against the estimator (stated beside the figure): sliced force model with runout
     2 µm (estimator: Eq. 2.38 without runout); residues drift along the pass by
     ILME_GAIN_DRIFT (estimator: one FRF tapped mid-pass); 5 % cross accelerance X → Y
-    (estimator: none); accelerometer noise 0.5 m/s² rms; estimator FRF from a noisy impact
-    test; free vibration of a 5.6 kHz mode above the harmonic band.
+    (estimator: none); accelerometer noise ILME_NOISE_RMS (0.2 m/s² rms); estimator FRF from
+    a noisy impact test; free vibration of a 5.6 kHz mode above the harmonic band.
     """
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
@@ -278,10 +284,13 @@ def simulate_ilme(test: IlmeTest, duration_s: float = 1.0, seed: int = 1) -> Ilm
     entry, exit_ = test.immersion_rad
     eng = Engagement.from_intervals([(entry, exit_)])
     coeffs = CuttingCoefficients(ktc, krc, 0.0, kte, kre, 0.0)
-    f = milling_forces(tool, coeffs, eng, test.feed_per_tooth_m, test.ap_mm * 1e-3, phi, 200)
-    # entry ramp over 20 ms (tool entering the part) so the structure starts from rest
-    ramp = np.clip(t / 0.02, 0.0, 1.0)
-    fx, fy = f.fx_n * ramp, f.fy_n * ramp
+    if cutting:
+        f = milling_forces(tool, coeffs, eng, test.feed_per_tooth_m, test.ap_mm * 1e-3, phi, 200)
+        # entry ramp over 20 ms (tool entering the part) so the structure starts from rest
+        ramp = np.clip(t / 0.02, 0.0, 1.0)
+        fx, fy = f.fx_n * ramp, f.fy_n * ramp
+    else:
+        fx, fy = np.zeros(n), np.zeros(n)
     # the workpiece is loaded by the reaction −F
     s = t / t[-1]
     rng = np.random.default_rng(seed + test.number)
@@ -304,12 +313,6 @@ def ilme_frf(seed: int = 7, direction: str = "y") -> FrfEstimate:
         record_s=0.5,
         n_hits=20,
     )[0]
-
-
-def ilme_free_state_variance(seed: int = 3) -> float:
-    """İlme's R: variance of the acceleration with the spindle running in air (noise only)."""
-    rng = np.random.default_rng(seed)
-    return float(np.var(ILME_NOISE_RMS * rng.standard_normal(round(ILME_FS_HZ))))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -399,8 +402,12 @@ def simulate_aslan_cut(
     radial_depth_mm: float = 5.0,
     duration_s: float = 0.6,
     seed: int = 5,
+    cutting: bool = True,
 ) -> AslanRecord:
     """Aslan Ch. 4 Case 2: Ø20 mm 2-flute end mill, a = 5 mm, 0.1 mm/tooth, Al7050 preset.
+
+    ``cutting=False`` is the air cut: the spindle at ``speed_rpm`` under ``load_n`` with no
+    cutting force, through the same structure, DAQ filter and accelerometer noise.
 
     The force normal to the feed (our F_y) is F₁ along the spindle X modes. Runout 37 µm
     (Aslan: 35-40 µm), 30° helix, down milling; the modes are those at (speed, load).
@@ -429,8 +436,11 @@ def simulate_aslan_cut(
         runout_angle_rad=0.4,
     )
     eng = Engagement.radial(radial_depth_mm * 1e-3, 0.020, "down")
-    f = milling_forces(tool, coeffs, eng, 0.1e-3, 5e-3, phi, 60).fy_n
-    f = f * np.clip(t / 0.01, 0.0, 1.0)
+    if cutting:
+        f = milling_forces(tool, coeffs, eng, 0.1e-3, 5e-3, phi, 60).fy_n
+        f = f * np.clip(t / 0.01, 0.0, 1.0)
+    else:
+        f = np.zeros(n)
     tip, sensors = aslan_modes(speed_rpm, load_n)
     rng = np.random.default_rng(seed)
     acc = np.empty((ASLAN_N_SENSORS, len(range(0, n, over))))

@@ -3,34 +3,44 @@
 İlme (seed 003): the 12-test matrix of Table 4.5 replicated in simulation, Y force from the
 angular-harmonic Kalman filter against the simulated truth; peak and RMS errors (Table 4.6
 definitions, |est − true|/true) must be ≤ 10 % in every test. The estimator uses an FRF from a
-simulated impact test (interpolated at the tooth harmonics, no modal fit), R from a simulated
-free-state record plus a persistent model error of 20 % of the acceleration counted once per
-record (the FRF varies by up to 25 % along the pass, İlme §4.1), Q = 1e-3 for all tests, and
-q_0 from the machine's material preset (Al7050) with 30 % standard deviation. Mismatch of the
-simulator against the estimator: sliced force model with 2 µm runout (estimator: Eq. 2.38,
-no runout); residues drifting along the pass by 16/30/10/10 % (estimator: one FRF tapped
-mid-pass); 5 % cross accelerance X force → Y acceleration; 0.2 m/s² accelerometer noise; a
-5.6 kHz mode above the harmonic band; cutting coefficients of İlme Table 3.1 (estimator prior:
-Al7050 preset, K_tc +8 %, K_rc +26 %).
+simulated impact test (interpolated at the tooth harmonics, no modal fit), R the variance of a
+simulated free-state record of each test (spindle in air, no cutting force: the harness's structure,
+DAQ filter and accelerometer noise, another realisation than the cut's) plus a persistent model
+error of 20 % of the acceleration counted once per record (the FRF varies by up to 25 % along the
+pass, İlme §4.1), Q = 1e-3 for all tests, and q_0 from the machine's material preset (Al7050) with
+30 % standard deviation. Mismatch of the simulator against the estimator: sliced force model with 2
+µm runout (estimator: Eq. 2.38, no runout); residues drifting along the pass by 16/30/10/10 %
+(estimator: one FRF tapped mid-pass); 5 % cross accelerance X force → Y acceleration; 0.2 m/s²
+accelerometer noise; a 5.6 kHz mode above the harmonic band; cutting coefficients of İlme Table 3.1
+(estimator prior: Al7050 preset, K_tc +8 %, K_rc +26 %). The estimator's helix is the tools'
+catalogue value (İlme Table 4.4: all 45°, :data:`ILME_TOOL_HELIX_RAD`), not the simulator's
+constant.
 
-Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm,
-0.1 mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed ×
-load map of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by
-vector fitting in Aslan's 200–1800 Hz band, nearest node (9000 rev/min, 50 N). Mismatch: the
-true load is 37 N (node 50 N: dominant mode 972 vs 959 Hz); a 2300 Hz mode outside the fitting
-band; 37 µm runout; accelerometer noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F)
-over the steady cut, both limited to the identified band (the accelerometers carry nothing
-below the 150 Hz leak of the double integration; above 1800 Hz the model is not identified,
-as in Aslan's discussion of the 2500 Hz harmonic). The full-band figure is in the details.
+Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm, 0.1
+mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed × load map
+of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by vector fitting
+in Aslan's 200–1800 Hz band, nearest node (9000 rev/min, 50 N); R per sensor is the variance of the
+double-integrated acceleration of a simulated air cut (9000 rev/min, no cutting force, the harness's
+structure, DAQ filter and noise, another realisation). Mismatch: the true load is 37 N (node 50 N:
+dominant mode 972 vs 959 Hz); a 2300 Hz mode outside the fitting band; 37 µm runout; accelerometer
+noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F) over the steady cut, both limited to the
+identified band (the accelerometers carry nothing below the 150 Hz leak of the double integration;
+above 1800 Hz the model is not identified, as in Aslan's discussion of the 2500 Hz harmonic). The
+full-band figure is in the details.
 """
 
 from __future__ import annotations
 
+import math
 from functools import cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from millsense.validation import Calibration, Measured, case
+
+if TYPE_CHECKING:
+    from millsense.validation.cases._accel_sim import IlmeTest
 
 ILME_Q = 1e-3
 ILME_PRIOR_SD = 0.3
@@ -51,6 +61,22 @@ ILME_CALIBRATION = Calibration(
 ILME_THESIS_WORST = {"peak": 19.8, "rms": 28.6}
 ILME_THESIS_MEAN = {"peak": 7.4, "rms": 8.4}
 ILME_SKIP_S = 0.1  # start after the entry transient (İlme cuts the record at a landmark)
+#: The tools' helix as catalogued in İlme's thesis (Table 4.4: all tools 45°; Table 2.2 too):
+#: the estimator's own tool data, not the simulator's constant (issue 12).
+ILME_TOOL_HELIX_RAD = math.radians(45.0)
+#: Free-state (air) records: seed and length; a realisation other than the cut's (seed 1).
+ILME_AIR_SEED = 101
+ILME_AIR_S = 1.0
+
+
+def _ilme_r(test: IlmeTest) -> float:
+    """İlme's R for one test: variance of the Y acceleration of a simulated free-state record
+    (the spindle at the test's speed in air, no cutting force), through the harness's
+    structure, DAQ filter and accelerometer noise, as a user measures it before the cut."""
+    from millsense.validation.cases import _accel_sim as sim
+
+    air = sim.simulate_ilme(test, ILME_AIR_S, seed=ILME_AIR_SEED, cutting=False)
+    return float(np.var(air.accel_y))
 
 
 @cache
@@ -63,16 +89,16 @@ def _ilme_table() -> tuple[tuple[int, float, float, float, float, float, float],
     mat = load_preset(MaterialConfig, "al7050")
     prior = np.array([mat.ktc_n_mm2, mat.krc_n_mm2, mat.kte_n_mm, mat.kre_n_mm])
     frf = sim.ilme_frf()
-    r = sim.ilme_free_state_variance()
     rows = []
     for test in sim.ILME_TESTS:
+        r = _ilme_r(test)
         rec = sim.simulate_ilme(test, 1.0 + ILME_SKIP_S)
         k0 = round(ILME_SKIP_S * rec.sample_rate_hz)
         entry, exit_ = test.immersion_rad
         cut = CutSetup(
             test.n_flutes,
             test.diameter_mm * 1e-3,
-            sim.ILME_HELIX_RAD,
+            ILME_TOOL_HELIX_RAD,
             test.ap_mm * 1e-3,
             entry,
             exit_,
@@ -168,6 +194,27 @@ ASLAN_SPEEDS_RPM = (7500.0, 9000.0, 10500.0)
 ASLAN_LOADS_N = (0.0, 50.0, 100.0, 230.0, 330.0, 430.0)
 ASLAN_HIGHPASS_HZ = 150.0
 ASLAN_BAND_HZ = (200.0, 1800.0)
+#: The air cut for R: speed of the cut, 1 s, a realisation other than the cut's (seed 5).
+ASLAN_AIR_SEED = 21
+ASLAN_AIR_S = 1.0
+ASLAN_SETTLE_SAMPLES = 2000  # double-integrator start-up left out of the variance
+
+
+def _aslan_r(speed_rpm: float = 9000.0) -> list[float]:
+    """Aslan's R per sensor: variance of the double-integrated acceleration (Aslan's
+    displacement channel, 150 Hz leak) of a simulated air cut at ``speed_rpm``: no cutting
+    force, the harness's structure, DAQ filter and accelerometer noise."""
+    from millsense.estimation.accel.fusion import DoubleIntegrator
+    from millsense.validation.cases import _accel_sim as sim
+
+    air = sim.simulate_aslan_cut(
+        speed_rpm, 0.0, duration_s=ASLAN_AIR_S, seed=ASLAN_AIR_SEED, cutting=False
+    )
+    fs = air.sample_rate_hz
+    return [
+        float(np.var(DoubleIntegrator(fs, ASLAN_HIGHPASS_HZ).process(a)[ASLAN_SETTLE_SAMPLES:]))
+        for a in air.accel
+    ]
 
 
 @cache
@@ -175,7 +222,6 @@ def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
     import scipy.signal
 
     from millsense.estimation.accel.fusion import (
-        DoubleIntegrator,
         DynamicsMap,
         MapNode,
         design_fusion,
@@ -197,11 +243,7 @@ def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
     )
     node = DynamicsMap(nodes).select(9000.0, 37.0)
     fs = sim.ASLAN_FS_HZ
-    rng = np.random.default_rng(21)
-    r = []
-    for _ in range(sim.ASLAN_N_SENSORS):  # R: air cut, double-integrated noise
-        air = sim.ASLAN_NOISE_RMS * rng.standard_normal(round(fs))
-        r.append(float(np.var(DoubleIntegrator(fs, ASLAN_HIGHPASS_HZ).process(air)[2000:])))
+    r = _aslan_r(9000.0)  # R: a simulated air cut through the harness
     filters = design_fusion(node, fs, 9000.0, r, highpass_hz=ASLAN_HIGHPASS_HZ)
     rec = sim.simulate_aslan_cut(9000.0, 37.0)
     res = run_fusion(filters, rec.accel)

@@ -175,6 +175,27 @@ def _identified() -> DriveParameters:
     return DriveParameters.from_axis_config(_belief())
 
 
+#: The observer's design choice (Yamada Table 4-5 notches k = 1..4 of the encoder period): which
+#: harmonics of the encoder interpolation error the notch bank removes. Not read from the truth.
+NOTCH_HARMONICS = (1, 2, 3, 4)
+
+
+@cache
+def encoder_wavelength_m() -> float:
+    """Travel per encoder signal period, lead / line count (Yamada §2.8, λ = ℓ/512), from the
+    yamada-b nameplate the estimator starts from (``encoder_signal_periods_rev``, Table 3-2;
+    the same values :func:`_belief` carries), not from the truth's periodic disturbances
+    (issue 12)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.errors import ConfigError
+    from millsense.core.presets import load_preset
+
+    ax = load_preset(MachineConfig, "yamada-b").axis("x")
+    if ax.encoder_signal_periods_rev is None or ax.lead_mm_rev is None:
+        raise ConfigError("yamada-b nameplate: encoder_signal_periods_rev and lead_mm_rev needed")
+    return ax.lead_mm_rev * 1e-3 / ax.encoder_signal_periods_rev
+
+
 @cache
 def torsion_notch_hz() -> float:
     """The mode the fixed notch removes, found as Yamada found the screw torsion (§3.4: a
@@ -288,8 +309,8 @@ def _estimate(
         est = obs.output_filter(p.force_constant_n_a * cur)
     if notch:
         spec = NotchBankSpec(
-            wavelength_m=p.lead_m / 512.0,
-            harmonics=(1, 2, 3, 4),
+            wavelength_m=encoder_wavelength_m(),
+            harmonics=NOTCH_HARMONICS,
             fixed_hz=(torsion_notch_hz(),),
             bandwidth_hz=20.0,
             max_hz=1300.0,
@@ -641,7 +662,7 @@ def _table45() -> Measured:
     lines = []
     for s_rpm, cells in TABLE45.items():
         v = 0.030e-3 * 2 * s_rpm / 60.0
-        f = encoder_notch_frequencies([v], 5e-3 / 512.0, (1, 2, 3, 4))[0]
+        f = encoder_notch_frequencies([v], encoder_wavelength_m(), NOTCH_HARMONICS)[0]
         for k, ref in cells.items():
             dev = abs(f[k - 1] / ref - 1.0)
             worst = max(worst, dev)

@@ -73,9 +73,13 @@ def _nameplate_axis(axis: str) -> FeedAxisConfig:
 
 @cache
 def _pipeline(axis: str, condition: OperatingCondition = "moving") -> PipelineResult:
-    """Nameplate → commission → identify → merge for one axis (decision 0993): the
-    commissioning machine is the simulator's drive with the unmodelled 420 Hz mode
-    (:func:`~millsense.simulator.drive_mismatch.commissioning_drive`)."""
+    """Nameplate → commission → identify → merge for one axis (decision 0993) on the truth's
+    drive through :func:`~millsense.simulator.drive_mismatch.commissioning_drive`. The truth's
+    coupled drive has no modal Φ_d (``params.modes is None``), so ``commissioning_drive`` adds
+    no 420 Hz mode to it: commissioning runs on the truth's mechanics as they are (their own
+    modes, above the fit band included), and the machine tested later
+    (:func:`~millsense.simulator.drive_mismatch.perturbed_drive`) has the same mechanics, its
+    Coulomb/static friction +15 %, another noise realisation and the same quantisation."""
     from millsense.bench.pipeline import identified_machine
     from millsense.simulator.drive_mismatch import commissioning_drive
     from millsense.simulator.machine_file import simulated_feed_drive
@@ -524,8 +528,11 @@ def scheduled_frf(axis: str, centre_m: float, n: int = N_BANK) -> dict[str, floa
 
     The multisine test of :func:`compensated_bandwidth` at :data:`SCHED_SPEED_RAD_S` and
     :data:`SCHED_EXCITATION_NM`, on :func:`~millsense.simulator.drive_mismatch.perturbed_drive` of
-    :func:`scheduled_params` (friction +15 %, the 420 Hz mode, noise, quantisation, current
-    loop); the block reads the commanded position ``{axis}/position_cmd``.
+    :func:`scheduled_params`: on the truth (``modes is None``) that adds no 420 Hz mode and no
+    frequency shift, so the machine tested has the mechanics the bank was identified on (their
+    position dependence included) with Coulomb/static friction +15 %, its own noise realisation,
+    encoder quantisation and current loop; the block reads the commanded position
+    ``{axis}/position_cmd``.
     """
     from millsense.estimation.feed.schedule import ScheduledFeedEstimator
     from millsense.estimation.kalman.design import bandwidth_3db
