@@ -2,18 +2,22 @@
 and seed 001's pitch shift.
 
 Closed loop (seed 000 C13: the spindle override against chatter): the V5 replica of tool T1
-(Ø50 mm, 5 flutes, the modal tables of Aslan Tables 5.3-5.4, Al7050, full immersion,
-0.1 mm/tooth; :mod:`millsense.validation.cases.monitoring_chatter`) at 4500 rev/min and
-1.2 mm, where the case's lobes (SDM of the same modal table, slot, K_tc/K_rc of Al7050) put the
-lowest unstable depth at 0.37 mm. The simulator (``quaser-ux600`` X/Y/Z, its Aslan spindle
-drive, regenerative time-domain process with the tool modes) is the live source; the pipeline
-is a chatter-comb monitor on the accelerometer (``accel/x``, as the latency case; the
-compensated spindle torque does not flag the T1 replica, ``monitoring.chatter.v5_t1_*``) inside
+(Ø50 mm, 5 flutes, the modal tables of Aslan Tables 5.3-5.4, Al7050, full immersion, 0.1
+mm/tooth; :mod:`millsense.validation.cases.monitoring_chatter`) at 4500 rev/min and 1.2 mm,
+where the case's lobes (SDM of the same modal table, slot, K_tc/K_rc of Al7050) put the lowest
+unstable depth at 0.37 mm. Shared by plant and controller (disclosed, issue 12): the
+controller's lobes use the simulated tool's at-rest modal table and the preset coefficients
+exactly (as a perfect tap test); the plant departs from them only by the truth's softening of
+the tool modes under load (realism) and its own process. The simulator (``quaser-ux600`` X/Y/Z,
+its Aslan spindle drive, regenerative time-domain process with the tool modes) is the live
+source; the pipeline is a chatter-comb monitor on the accelerometer (``accel/x``, as the
+latency case; the compensated spindle torque does not flag the T1 replica,
+``monitoring.chatter.v5_t1_*``) inside
 :class:`~millsense.control.chatter_avoidance.ChatterAvoidanceBlock` with the case's stability
 model, override limits 50-150 %; its ``spindle_override`` events go back to the simulator every
 10 ms chunk (:func:`~millsense.control.closed_loop.run_closed_loop`). Judged on the simulator's
-truth: the chatter flag (aperiodic tool vibration, ``truth/process/chatter``) and the
-non-harmonic RMS of the tool vibration; and on the lobes: the lowest unstable depth at the new
+truth: the chatter flag (aperiodic tool vibration, ``truth/process/chatter``) and the non-
+harmonic RMS of the tool vibration; and on the lobes: the lowest unstable depth at the new
 speed against the cut's depth (decision 1632).
 
 Seed 001: Δθ = 2π(m + ½) S / (60 f_c) at S = 1200 min⁻¹, f_c = 652 Hz, m = 0: 5.52°
@@ -103,7 +107,6 @@ def closed_loop(signal: str = "accel/x") -> dict[str, Any]:
 
     n = TOOLS[TOOL][1]
     sim = replica_simulator(TOOL, DEPTH_MM, DURATION_S, rpm=RPM)
-    m = sim.machine
     blocks: list[Any] = []
     if signal == "spindle/torque_est":
         from millsense.estimation.spindle_observer import SpindleTorqueObserver
@@ -112,7 +115,12 @@ def closed_loop(signal: str = "accel/x") -> dict[str, Any]:
         blocks.append(SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction()))
     monitor = ChatterMonitor(ChatterSettings(method="chatter-comb", signal=signal, n_flutes=n))
     model = StabilityModel(stability_case(), DEPTH_MM)
-    limits = SpeedLimits(50.0, 150.0, 0.0, m.spindle.max_rpm if m.spindle else math.inf)
+    # the spindle's speed limit from the nameplate machine file (what the controller knows)
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+
+    spindle = load_preset(MachineConfig, "quaser-ux600").spindle
+    limits = SpeedLimits(50.0, 150.0, 0.0, spindle.max_rpm if spindle else math.inf)
     settings = AvoidanceSettings(limits=limits, override_channel="cnc/spindle_override")
     avoid = ChatterAvoidanceBlock(monitor, settings, model)
     blocks.append(avoid)

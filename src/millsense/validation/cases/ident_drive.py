@@ -30,6 +30,8 @@ from millsense.simulator.machine_file import simulator_machine
 from millsense.simulator.spindle import measured_frf
 from millsense.validation import Measured, case
 
+#: Label of the friction cases: they run the simulator file's model with its own K_t and J_e.
+_ALG_F = "Algorithm check on the simulator file's model (ideal), its K_t and J_e by design: "
 _SRC_F = "seed 000 Table 3.2 (Z axis), Eq. 3.2-3.4; issue 6 item 3"
 _SRC_D = "seed 001 Table 3-3, C11; issue 6 item 4"
 FRICTION_SPEEDS = np.geomspace(0.1, 30.0, 16)
@@ -104,7 +106,7 @@ def _friction_table(kind: str) -> Measured:
     unit="%",
     abs_tol=5.0,
     quick=False,
-    description="worst |error| of the Coulomb torques (+, −), Aslan Z axis",
+    description=_ALG_F + "worst |error| of the Coulomb torques (+, −), Aslan Z axis",
 )
 def _coulomb() -> Measured:
     return _friction_table("coulomb")
@@ -117,7 +119,7 @@ def _coulomb() -> Measured:
     unit="%",
     abs_tol=5.0,
     quick=False,
-    description="worst |error| of the viscous coefficients σ2 (+, −)",
+    description=_ALG_F + "worst |error| of the viscous coefficients σ2 (+, −)",
 )
 def _viscous() -> Measured:
     return _friction_table("viscous")
@@ -130,7 +132,7 @@ def _viscous() -> Measured:
     unit="%",
     abs_tol=15.0,
     quick=False,
-    description="worst |error| of the Stribeck velocities v_s (+, −)",
+    description=_ALG_F + "worst |error| of the Stribeck velocities v_s (+, −)",
 )
 def _stribeck() -> Measured:
     return _friction_table("stribeck")
@@ -143,7 +145,8 @@ def _stribeck() -> Measured:
     unit="%",
     abs_tol=15.0,
     quick=False,
-    description="|error| of the bristle stiffness σ0 from current steps below breakaway",
+    description=_ALG_F
+    + "|error| of the bristle stiffness σ0 from current steps below breakaway",
 )
 def _sigma0() -> Measured:
     return _friction_table("sigma0")
@@ -169,7 +172,8 @@ def spindle_friction_case() -> tuple[float, float]:
     unit="%",
     abs_tol=5.0,
     quick=False,
-    description="worst |error| of spindle Coulomb (0.5 N·m set) and viscous B_eS",
+    description="Algorithm check on Aslan's Ch. 5 spindle model, its own K_t by design: "
+    "worst |error| of spindle Coulomb (0.5 N·m set) and viscous B_eS",
 )
 def _spindle_friction() -> float:
     coul, visc = spindle_friction_case()
@@ -194,7 +198,9 @@ def rigid_case() -> float:
     unit="kg·m²",
     rel_tol=0.05,
     quick=True,
-    description="equivalent inertia from back-and-forth accelerating moves, K_t known",
+    description="equivalent inertia from back-and-forth accelerating moves on the truth, "
+    "with Table 3.1's K_t = 1.964 N·m/A as the thesis used it (the truth's and the "
+    "nameplate's K_t differ)",
 )
 def _rigid() -> float:
     return rigid_case()
@@ -294,7 +300,9 @@ for _m, _lbl in (("yamada-a", "a"), ("yamada-b", "b")):
         unit="%",
         abs_tol=5.0,
         quick=True,
-        description=f"worst |error| of J_r, M_t, K_r, C_k, C_t, D_r, machine {_lbl.upper()}",
+        description="Algorithm check on the simulator file's dual-inertia model (ideal), its lead, "
+        f"K_t and current loop by design: worst |error| of J_r, M_t, K_r, C_k, C_t, D_r, "
+        f"machine {_lbl.upper()}",
     )(_p)
     case(
         f"ident.drive_yamada_{_lbl}_dead_times",
@@ -303,7 +311,8 @@ for _m, _lbl in (("yamada-a", "a"), ("yamada-b", "b")):
         unit="ms",
         abs_tol=0.05,
         quick=True,
-        description=f"worst |error| of T_s, T_m, T_t, machine {_lbl.upper()}",
+        description="Algorithm check on the simulator file's dual-inertia model (ideal): worst "
+        f"|error| of T_s, T_m, T_t, machine {_lbl.upper()}",
     )(_d)
 
 
@@ -314,7 +323,8 @@ for _m, _lbl in (("yamada-a", "a"), ("yamada-b", "b")):
     unit="ms",
     abs_tol=0.05,
     quick=True,
-    description="T1 of the phase-lag compensation from the identified dead times, A",
+    description="Algorithm check on the simulator file's dual-inertia model (ideal): T1 of "
+    "the phase-lag compensation from the identified dead times, A",
 )
 def _t1() -> float:
     p = drive_case("yamada-a")[0].params
@@ -381,7 +391,9 @@ def spindle_case() -> tuple[isp.SpindleFit, np.ndarray, np.ndarray]:
     unit="dB",
     abs_tol=2.0,
     quick=False,
-    description="max |dB| error of the identified G_dτ against the simulated one, 10 Hz-2.5 kHz",
+    description="Algorithm check on Aslan's Ch. 5 spindle model, its own gains, period, "
+    "J, B and K_t by design: max |dB| error of the identified G_dτ against the simulated "
+    "one, 10 Hz-2.5 kHz",
 )
 def _spindle() -> Measured:
     fit, est, sim = spindle_case()
@@ -462,6 +474,7 @@ for _m, _lbl in (("yamada-a", "a"), ("yamada-b", "b")):
         unit="%",
         abs_tol=10.0,
         quick=True,
-        description=f"worst residual of the position-periodic thrust terms after the idling "
+        description="Algorithm check on the simulator file's model (ideal), its r and K_t by "
+        f"design: worst residual of the position-periodic thrust terms after the idling "
         f"table, % of their amplitude, machine {_lbl.upper()}",
     )(_idle)
