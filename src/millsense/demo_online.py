@@ -9,10 +9,16 @@ of the part. Flute 0 of the virtual tool breaks late in the program, at 20 s of 
 deep slot before the cavity; the open run is at the cavity, so its monitor sees the broken
 tooth only where the tool meets the far wall again. The summary gives the peak force while the
 tool is intact (the controller's effect) apart from the peak with the broken tooth. The
-virtual machine (the simulator's truth of the quaser-ux600) runs the plan twice with the same
-on-line session (:mod:`millsense.online.session`: the spindle observer of the commissioned
+virtual machine (the simulator's truth of the quaser-ux600) runs the program twice with the
+same on-line session (:mod:`millsense.online.session`: the spindle observer of the commissioned
 machine file, plan sync and K_tc calibration, chatter and breakage monitors, adaptive feed on
 the spindle power with the virtual look-ahead, the supervisor):
+
+What the virtual machine and the session share (decision 1740): the program, the stock, the
+tool's nameplate geometry and the material's nominal coefficients. What they do not share: the
+virtual machine cuts its own plan (:func:`_plant_plan`: a 0.05 mm z-map, 5 µm of runout at
+0.4 rad) through the truth's process; the session's expectation is its plan (:func:`_plan`,
+0.2 mm z-map, no runout).
 
 - **controlled**: the supervisor's commands reach the machine;
 - **open**: the same monitors and controllers run, but nothing is sent (the CNC as
@@ -84,27 +90,56 @@ KEEP = (
 )
 
 
-def _plan(out: Path) -> Any:
+def _tool_material() -> tuple[Any, Any]:
+    """The demo's tool and material presets (``aslan-d20-2flute``, ``al7050``)."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
+
+    return load_preset(ToolConfig, "aslan-d20-2flute"), load_preset(MaterialConfig, "al7050")
+
+
+def _stock(cell_m: float) -> Any:
+    """The demo stock (100 × 80 × 30 mm) on a z-map of cell ``cell_m``."""
+    from millsense.core.units import MM
+    from millsense.plan.stock import ZMapStock
+
+    return ZMapStock.from_box([0.0, 0.0, -30 * MM], [100 * MM, 80 * MM, 0.0], cell_m)
+
+
+def _plan(out: Path) -> Any:
+    """The session's plan of :data:`PROGRAM` (0.2 mm z-map, the nameplate tool without
+    runout); also writes the program to ``out``."""
     from millsense.core.units import MM
     from millsense.plan.gcode import interpret
-    from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
 
     (out / "online_demo.nc").write_text(PROGRAM)
-    tool = load_preset(ToolConfig, "aslan-d20-2flute")
-    mat = load_preset(MaterialConfig, "al7050")
-    stock = ZMapStock.from_box([0.0, 0.0, -30 * MM], [100 * MM, 80 * MM, 0.0], 0.2 * MM)
+    tool, mat = _tool_material()
     return plan_program(
         interpret(PROGRAM, source="online_demo.nc"),
-        stock,
+        _stock(0.2 * MM),
         EndMill.from_config(tool),
         CuttingCoefficients.from_config(mat),
         metadata={"tool_name": tool.name, "material_name": mat.name},
     )
+
+
+def _plant_plan() -> Any:
+    """The virtual machine's own plan of :data:`PROGRAM`
+    (:func:`~millsense.simulator.plant_plan.plant_plan`, decision 1740): the same program,
+    stock, tool and material on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad the
+    session's plan (:func:`_plan`) does not know."""
+    from millsense.plan.gcode import interpret
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.plant_plan import plant_plan
+
+    tool, mat = _tool_material()
+    return plant_plan([interpret(PROGRAM, source="online_demo.nc")], _stock,
+                      EndMill.from_config(tool), CuttingCoefficients.from_config(mat),
+                      metadata={"tool_name": tool.name, "material_name": mat.name})  # fmt: skip
 
 
 def two_run_progress(
@@ -132,12 +167,14 @@ class _Open(SourceWrapper):
 
 def _run(
     plan: Any,
+    plant: Any,
     controlled: bool,
     out: Path,
     events_out: Path,
     on_progress: Callable[[int], None] | None,
 ) -> Any:
-    """One closed-loop run of the session on the virtual machine; the session's result."""
+    """One closed-loop run of the session (its plan ``plan``) on the virtual machine (cutting
+    its own plan ``plant``, :func:`_plant_plan`); the session's result."""
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
@@ -150,7 +187,8 @@ def _run(
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     belief, where = shipped
-    job, proc, meta, _ = plan_job(plan, sim_cfg, "online_demo.nc", events=[ToothBreak(BREAK_S, 0)])
+    job, proc, meta, _ = plan_job(plant, sim_cfg, "online_demo.nc",
+                                  events=[ToothBreak(BREAK_S, 0)])  # fmt: skip
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
     built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
                            channels=sim.channel_names)  # fmt: skip
@@ -184,6 +222,7 @@ def run_online_demo(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plan = _plan(out)
+    plant = _plant_plan()
     progress = two_run_progress(plan, on_progress)
     runs: dict[str, tuple[Any, dict[str, np.ndarray]]] = {}
     figs: dict[str, RunFigures] = {}
@@ -192,7 +231,7 @@ def run_online_demo(
             ("controlled", True, out / "online.h5", out / "online.events.parquet", 0.0),
             ("open", False, Path(tmp) / "open.h5", out / "online_open.events.parquet", 0.5),
         ):
-            res = _run(plan, controlled, rec_path, ev_path, progress(offset))
+            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset))
             cols = (*KEEP, "plan/cutting_torque", "supervisor/feed_override",
                     "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
             with opened_recording(rec_path) as rec:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -96,21 +97,47 @@ def fleet_program(depth_mm: float, width_mm: float) -> str:
     )
 
 
-def fleet_plan(program: Path) -> VirtualPlan:
-    """The virtual plan of a fleet program (:func:`fleet_program`) on the Al7050 block with the
-    Ø20 mm two-flute tool (the presets ``aslan-d20-2flute``, ``al7050``)."""
+def _fleet_tool_material() -> tuple[Any, Any, dict[str, str]]:
+    """The fleet's tool and coefficients (presets ``aslan-d20-2flute``, ``al7050``) and their
+    names for a plan's metadata."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
-    from millsense.plan.gcode import interpret_file
-    from millsense.plan.stock import ZMapStock
-    from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
 
     tool_cfg = load_preset(ToolConfig, "aslan-d20-2flute")
     mat = load_preset(MaterialConfig, "al7050")
-    stock = ZMapStock.from_box([0.0, -0.03, -0.02], [0.06, 0.0, 0.0], 0.25e-3)
-    return plan_program(interpret_file(program), stock, EndMill.from_config(tool_cfg),
-                        CuttingCoefficients.from_config(mat),
-                        metadata={"program": str(program), "tool_name": tool_cfg.name,
-                                  "material_name": mat.name})  # fmt: skip
+    names = {"tool_name": tool_cfg.name, "material_name": mat.name}
+    return EndMill.from_config(tool_cfg), CuttingCoefficients.from_config(mat), names
+
+
+def _fleet_stock(cell_m: float) -> Any:
+    """The fleet's Al7050 block (60 × 30 × 20 mm) on a z-map of cell ``cell_m``."""
+    from millsense.plan.stock import ZMapStock
+
+    return ZMapStock.from_box([0.0, -0.03, -0.02], [0.06, 0.0, 0.0], cell_m)
+
+
+def fleet_plan(program: Path) -> VirtualPlan:
+    """The virtual plan of a fleet program (:func:`fleet_program`) on the Al7050 block with the
+    Ø20 mm two-flute tool (the presets ``aslan-d20-2flute``, ``al7050``), 0.25 mm z-map: the
+    monitor's plan."""
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.virtual_plan import plan_program
+
+    tool, coeffs, names = _fleet_tool_material()
+    return plan_program(interpret_file(program), _fleet_stock(0.25e-3), tool, coeffs,
+                        metadata={"program": str(program), **names})  # fmt: skip
+
+
+def fleet_plant_plan(program: Path) -> VirtualPlan:
+    """The virtual machine's own plan of a fleet program
+    (:func:`~millsense.simulator.plant_plan.plant_plan`, decision 1740): the block, tool and
+    material of :func:`fleet_plan` on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad
+    the monitor's plan does not know."""
+    from millsense.plan.gcode import interpret_file
+    from millsense.simulator.plant_plan import plant_plan
+
+    tool, coeffs, names = _fleet_tool_material()
+    return plant_plan([interpret_file(program)], _fleet_stock, tool, coeffs,
+                      metadata={"program": str(program), **names})  # fmt: skip

@@ -48,8 +48,6 @@ from millsense.validation import Measured, case
 
 if TYPE_CHECKING:
     from millsense.plan.virtual_plan import VirtualPlan
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.geometry import EndMill
     from millsense.simulator.machine import Job
     from millsense.simulator.process_coupling import ProcessCoupling
 
@@ -66,7 +64,8 @@ PROGRAM_V7 = DEMO_PART / "program.nc"
 #: finer cut of the same stock: its own engagement, not the plan's), m.
 PLAN_CELL_M = 0.1 * MM
 TRUTH_CELL_M = 0.05 * MM
-#: Runout of the virtual machine's tool (the plan does not know it), m and rad.
+#: Runout of the virtual machine's tool (the plan does not know it), m and rad: the plant
+#: plan's defaults (:mod:`millsense.simulator.plant_plan`).
 RUNOUT_V7_M = 5e-6
 RUNOUT_V7_ANGLE_RAD = 0.4
 #: Where flute 0 breaks: SLOT3 (N350, along -Y at X80, 4 mm deep) at Y = 50 mm.
@@ -137,56 +136,62 @@ def _programs() -> tuple[str, str]:
     return "\n".join(before) + "\n", "\n".join(slots) + "\n"
 
 
-def _slots_plan(
-    cell_m: float, tool: EndMill, coeffs: CuttingCoefficients, metadata: dict[str, Any]
-) -> VirtualPlan:
-    """The slots planned on the stock the earlier operations leave (``cell_m`` z-map)."""
+def _programs_parsed() -> list[Any]:
+    """The two parts of :func:`_programs`, interpreted (stock-shaping operations, slots)."""
     from millsense.plan.gcode import interpret
-    from millsense.plan.stock import ZMapStock
-    from millsense.plan.virtual_plan import plan_program
 
     before, slots = _programs()
-    stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.1, 0.08, 0.0], cell_m)
-    plan_program(interpret(before, source="demo_part_before_slots.nc"), stock, tool, coeffs)
-    return plan_program(interpret(slots, source="demo_part_slots.nc"), stock, tool, coeffs,
-                        metadata=metadata)  # fmt: skip
+    return [interpret(before, source="demo_part_before_slots.nc"),
+            interpret(slots, source="demo_part_slots.nc")]  # fmt: skip
+
+
+def _stock(cell_m: float) -> Any:
+    """The demo part's raw stock on a z-map of cell ``cell_m``."""
+    from millsense.plan.stock import ZMapStock
+
+    return ZMapStock.from_box([0.0, 0.0, -0.03], [0.1, 0.08, 0.0], cell_m)
 
 
 @functools.cache
 def demo_plan() -> VirtualPlan:
     """The monitor's virtual plan of the slots: the nameplate tool (``examples/demo_part``,
-    no runout) and the preset material, a 0.1 mm z-map."""
+    no runout) and the preset material, a 0.1 mm z-map, on the stock the earlier operations
+    leave."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
+    from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
 
     tool = load_preset(ToolConfig, str(DEMO_PART / "tool.toml"))
     mat = load_preset(MaterialConfig, str(DEMO_PART / "material.toml"))
-    return _slots_plan(PLAN_CELL_M, EndMill.from_config(tool),
-                       CuttingCoefficients.from_config(mat),
-                       {"tool_name": tool.name, "material_name": mat.name})  # fmt: skip
+    end_mill, coeffs = EndMill.from_config(tool), CuttingCoefficients.from_config(mat)
+    before, slots = _programs_parsed()
+    stock = _stock(PLAN_CELL_M)
+    plan_program(before, stock, end_mill, coeffs)
+    return plan_program(slots, stock, end_mill, coeffs,
+                        metadata={"tool_name": tool.name, "material_name": mat.name})  # fmt: skip
 
 
 @functools.cache
 def truth_plan() -> VirtualPlan:
-    """The virtual machine's own engagement of the slots: the same program and stock cut on
+    """The virtual machine's own engagement of the slots
+    (:func:`~millsense.simulator.plant_plan.plant_plan`): the same program and stock cut on
     a finer z-map by its own tool (with the runout the plan does not know); the simulator
     reads its rows' engagement, never the monitor's plan. Its coefficients are the material's
     nominal ones, which the truth's process (tool deflection and modes, edge forces, runout)
     and truth spindle turn into an effective K_tc of their own."""
-    import dataclasses
-
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
+    from millsense.simulator.plant_plan import plant_plan
 
     tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
-    tool = dataclasses.replace(tool, runout_offset_m=RUNOUT_V7_M,
-                               runout_angle_rad=RUNOUT_V7_ANGLE_RAD)  # fmt: skip
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    return _slots_plan(TRUTH_CELL_M, tool, coeffs, {"tool_name": "truth", "material_name": "truth"})
+    return plant_plan(_programs_parsed(), _stock, tool, coeffs, cell_m=TRUTH_CELL_M,
+                      runout_m=RUNOUT_V7_M, runout_angle_rad=RUNOUT_V7_ANGLE_RAD,
+                      metadata={"tool_name": "truth", "material_name": "truth"})  # fmt: skip
 
 
 def _break_time_s(plan: VirtualPlan) -> float:

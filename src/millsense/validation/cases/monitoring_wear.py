@@ -4,7 +4,11 @@ Five tools of one type (±30 % life factor) make 20 runs each, cycling four prog
 different depths and widths (:data:`~millsense.simulator.tool_life.FLEET_PROGRAMS`); each run
 represents 6 min of cutting, so the true flank wear grows from 0 to about 0.5 mm over a life
 (:class:`~millsense.simulator.wear.FlankWearModel`, the virtual machine's truth). The virtual
-machine runs every run's plan with its tool's VB; the wear monitor
+machine runs every run's program with its tool's VB, cutting its own plan of it
+(:func:`~millsense.simulator.tool_life.fleet_plant_plan`, decision 1740: the same program,
+block, tool and material on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad), while
+the wear monitor's expectation is the nameplate plan
+(:func:`~millsense.simulator.tool_life.fleet_plan`, 0.25 mm z-map, no runout); the wear monitor
 (:mod:`millsense.monitoring.wear`, with the commissioned machine file's spindle observer and its
 own linear land belief) judges each tool's runs in order, its first run the new tool. Judged:
 the rank correlation of its VB with the true VB, and the balanced accuracy of its flag
@@ -44,16 +48,18 @@ def tool_life() -> dict[str, np.ndarray]:
         FLEET_PROGRAMS,
         SPINDLE_RPM,
         fleet_plan,
+        fleet_plant_plan,
         fleet_program,
         tool_life_runs,
     )
 
     with tempfile.TemporaryDirectory() as tmp:
-        plans = []
+        plans, plants = [], []
         for name, depth, width in FLEET_PROGRAMS:
             nc = Path(tmp) / f"{name}.nc"
             nc.write_text(fleet_program(depth, width))
             plans.append(fleet_plan(nc))
+            plants.append(fleet_plant_plan(nc))
     m = simulator_machine("quaser-ux600")
     shipped = commissioned_machine("quaser-ux600")
     assert shipped is not None
@@ -66,7 +72,8 @@ def tool_life() -> dict[str, np.ndarray]:
     counter: dict[str, int] = {}
     for k, r in enumerate(schedule):
         vp = plans[r.program]
-        job, proc, _, _ = plan_job(vp, m, FLEET_PROGRAMS[r.program][0], wear_vb_m=r.vb_m)
+        job, proc, _, _ = plan_job(plants[r.program], m, FLEET_PROGRAMS[r.program][0],
+                                   wear_vb_m=r.vb_m)  # fmt: skip
         sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=1000 + k))
         sums = source_wear_sums(sim, vp, shipped[0], where=f"run {k}")
         key = f"{r.tool_id}/{r.run_index}"

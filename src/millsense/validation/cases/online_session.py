@@ -9,6 +9,13 @@ observer of the commissioned walkthrough machine file, the plan synchronised and
 chatter and breakage monitors, the adaptive feed on the spindle power, the supervisor), behind
 the source guard; the recording is written while running.
 
+What plant and session share (decision 1740): the program, the stock, the tool's nameplate
+geometry and the material's nominal coefficients. What they do not share: the virtual machine
+cuts its own plan (:func:`~millsense.simulator.plant_plan.plant_plan`: a 0.05 mm z-map, 5 µm
+of runout at 0.4 rad the session's plan does not know) through the truth's process; the
+session's expectation is the nameplate plan (0.1 mm z-map for the V8 slot, 0.5 mm for the
+chatter pass, 0.2 mm for the demo part).
+
 - Breakage: flute 0 breaks at 8 s (in the deep part of the slot, X ≈ 38 mm). Issue 16: the feed hold
   within 3 tooth periods of the detection, the machine stopped within 200 ms of the hold, no
   breakage alarm before the break.
@@ -58,7 +65,8 @@ class SessionRun:
 @functools.lru_cache(maxsize=8)
 def session_run(fault: str = "", break_s: float | None = None) -> SessionRun:
     """The V8 slot through ``millsense run``'s session, optionally with a link fault or a
-    tooth break."""
+    tooth break; the session's plan is :func:`.control_adaptive.step_plan`, the virtual
+    machine cuts its own (:func:`.control_adaptive.plant_step_plan`)."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import load_preset
     from millsense.io.recording_reader import opened_recording
@@ -68,14 +76,20 @@ def session_run(fault: str = "", break_s: float | None = None) -> SessionRun:
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.plan_job import plan_job
     from millsense.simulator.process_coupling import ToothBreak
-    from millsense.validation.cases.control_adaptive import DEPTH_HIGH_MM, DEPTH_LOW_MM, step_plan
+    from millsense.validation.cases.control_adaptive import (
+        DEPTH_HIGH_MM,
+        DEPTH_LOW_MM,
+        plant_step_plan,
+        step_plan,
+    )
     from millsense.validation.cases.simulator_plan import machine_3axis
 
     plan = step_plan(DEPTH_LOW_MM, DEPTH_HIGH_MM)
     assert isinstance(plan, VirtualPlan)
     m = machine_3axis()
     breaks = [ToothBreak(break_s, 0)] if break_s is not None else []
-    job, proc, _, _ = plan_job(plan, m, "v8_slot", events=breaks)
+    plant = plant_step_plan(DEPTH_LOW_MM, DEPTH_HIGH_MM)
+    job, proc, _, _ = plan_job(plant, m, "v8_slot", events=breaks)
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=0))
     belief = load_preset(MachineConfig, str(MACHINE_FILE))
     belief = belief.with_axes("xyz", "3-axis")
@@ -213,7 +227,9 @@ CHATTER_DEPTH_MM = 1.2
 
 @functools.lru_cache(maxsize=1)
 def chatter_run() -> dict[str, object]:
-    """The T1 slot through the session; the speed commands, alarms and the truth's chatter."""
+    """The T1 slot through the session; the speed commands, alarms and the truth's chatter.
+    The session's plan has a 0.5 mm z-map; the virtual machine cuts its own (0.05 mm z-map,
+    5 µm of runout at 0.4 rad, decision 1740)."""
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import commissioned_machine, load_preset
     from millsense.core.units import MM
@@ -226,6 +242,7 @@ def chatter_run() -> dict[str, object]:
     from millsense.process.geometry import EndMill
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.plan_job import plan_job
+    from millsense.simulator.plant_plan import plant_plan
     from millsense.simulator.process_coupling import ToolModes
     from millsense.validation.cases.control_chatter_avoidance import stability_case
     from millsense.validation.cases.monitoring_chatter import TOOLS, _modes
@@ -237,12 +254,16 @@ def chatter_run() -> dict[str, object]:
         f"G21 G90 G17\nT1 M6\nS{CHATTER_RPM:.0f} M3\nG0 X-40 Y0 Z5\n"
         f"G1 Z{-CHATTER_DEPTH_MM} F{feed:.0f}\nX200\nG0 Z5\nM30\n"
     )
-    stock = ZMapStock.from_box([0.0, -0.05, -0.03], [0.25, 0.05, 0.0], 0.5 * MM)
+
+    def stock(cell_m: float) -> ZMapStock:
+        return ZMapStock.from_box([0.0, -0.05, -0.03], [0.25, 0.05, 0.0], cell_m)
+
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    plan = plan_program(interpret(prog, source="t1_slot.nc"), stock, EndMill(d, n), coeffs,
-                        step_m=1.0 * MM)  # fmt: skip
+    toolpath = interpret(prog, source="t1_slot.nc")
+    plan = plan_program(toolpath, stock(0.5 * MM), EndMill(d, n), coeffs, step_m=1.0 * MM)
+    plant = plant_plan([toolpath], stock, EndMill(d, n), coeffs, step_m=1.0 * MM)
     m = machine_3axis()
-    job, proc, _, _ = plan_job(plan, m, "t1_slot.nc", modes=ToolModes(_modes(my), _modes(mx)))
+    job, proc, _, _ = plan_job(plant, m, "t1_slot.nc", modes=ToolModes(_modes(my), _modes(mx)))
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=11))
     shipped = commissioned_machine("quaser-ux600")
     assert shipped is not None
@@ -271,17 +292,18 @@ def _chatter_table(r: dict[str, object]) -> str:
     return "| t [s] | event | message |\n|---|---|---|\n" + "\n".join(rows)
 
 
-#: Why the truth of the T1 session is chatter-free only 1.5 s after its one speed change
-#: (2026-11-28).
+#: Why the truth of the T1 session is chatter-free only 1.3 s after its one speed change
+#: (2026-11-28; on the plant's own plan since decision 1740, 1.53 s before on the session's).
 _T1_SLOW_END = (
-    "one speed change, 4500 -> 6117 rev/min, the centre of lobe 1's stable pocket (decision "
+    "one speed change, 4500 -> 6116 rev/min, the centre of lobe 1's stable pocket (decision "
     "1635; the lobe speed 60 f_c/N, which the truth's softened modes made unstable, needed a "
-    "second change before), found at 2.3 s (510.3 Hz, ratio 18.9; the closed loop is sensitive: "
+    "second change before), found at 2.4 s (510.2 Hz, ratio 19.9; the closed loop is sensitive: "
     "runs before decisions 1661-1662 found 1840.5 Hz at 2.7 s, 554.1 Hz at 3.5 s, and went to "
     "6105-6109 rev/min). The spindle is at the new speed within 0.1 s and the monitor ends the "
-    "episode 0.7 s after the change, but the truth has its first quiet second only 1.53 s after "
-    "it (2.6 s before decision 1661 let the adaptive feed rise again after the chatter and "
-    "decision 1662 kept it from acting in the run-up). At the pocket's centre the tooth-passing "
+    "episode 0.7 s after the change, but the truth has its first quiet second only 1.31 s after "
+    "it on its own plan (decision 1740; 1.53 s when it cut the session's plan, 2.6 s before "
+    "decision 1661 let the adaptive feed rise again after the chatter and decision 1662 kept "
+    "it from acting in the run-up). At the pocket's centre the tooth-passing "
     "frequency (about 510 Hz) sits on the truth's 546 Hz tool mode softened by about 7 % under "
     "the slot's load: the truth's tool vibration grows to 20-25 µm RMS, mostly periodic with the "
     "revolution (2-6 µm change from one revolution to the next, so the truth's chatter flag "
@@ -391,12 +413,13 @@ def demo_open_run() -> list[Event]:
     """The events of the demo part's open run (``millsense demo``: the session's monitors and
     controllers run, nothing reaches the machine, so the CNC runs the program as written and
     the timing is the program's) with flute 0 broken at :data:`DEMO_BREAK_S`."""
-    from millsense.demo_online import BREAK_S, _plan, _run
+    from millsense.demo_online import BREAK_S, _plan, _plant_plan, _run
 
     assert BREAK_S == DEMO_BREAK_S
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        res = _run(_plan(out), False, out / "open.h5", out / "open.events.parquet", None)
+        res = _run(_plan(out), _plant_plan(), False, out / "open.h5",
+                   out / "open.events.parquet", None)  # fmt: skip
     return list(res.events)
 
 
