@@ -28,12 +28,13 @@ def test_lookahead_holds_the_reference(runs: dict[str, ca.LoopRun]) -> None:
     assert np.all(np.abs(np.max(la.force[after]) / ca.F_REF_V8 - 1.0) <= 0.05)
 
 
-def test_lookahead_exit_hold_ends_where_its_plan_ends(runs: dict[str, ca.LoopRun]) -> None:
-    # the look-ahead holds the override while its plan's tool cuts towards the exit; on the
-    # plant's own plan (0.05 mm z-map, decision 1740) the cut lasts one plan row longer than
-    # in the controller's plan (0.1 mm z-map), and the override rises there while the true
-    # force is still > 100 N (control.v8_lookahead_exit_no_speedup, a known failure: 92.5
-    # points measured)
+def test_lookahead_exit_hold_stands_until_the_machine_reads_air(
+    runs: dict[str, ca.LoopRun],
+) -> None:
+    # the plant's own plan (0.05 mm z-map, decision 1740) cuts one plan row longer than the
+    # controller's (0.1 mm z-map); the exit hold no longer ends where the controller's plan's
+    # engagement ends but when a revolution reads air (decision 1741): no rise of the override
+    # while the true force is still > 5 N (it rose 92.5 points in the extra row before)
     la = runs["with look-ahead"]
     ctrl = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
     plant = ca.plant_step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
@@ -42,13 +43,11 @@ def test_lookahead_exit_hold_ends_where_its_plan_ends(runs: dict[str, ca.LoopRun
         assert isinstance(plan, VirtualPlan)
         ap = np.asarray(plan["axial_depth_mm"])
         last.append(float(plan.xyz_m[np.flatnonzero(ap > 0)[-1], 0] * 1e3))
-    assert last[0] == pytest.approx(57.9, abs=0.05) and last[1] == pytest.approx(58.7, abs=0.05)
-    held = (la.x_mm > ca.EXIT_X_MM - 15.0) & (la.x_mm < last[0]) & (la.force > 5.0)
+    assert last[1] > last[0] + 0.3  # the plant still cuts where the controller's plan is out
+    held = (la.x_mm > ca.EXIT_X_MM - 15.0) & (la.force > 5.0)
     ov = la.override[held]
-    assert float(100.0 * (np.max(ov) - ov[0])) <= 0.5  # no rise while its plan still cuts
-    rise = (la.x_mm > last[0]) & (la.x_mm < last[1]) & (la.force > 100.0)
-    assert float(np.max(la.override[rise])) > 1.2 * float(ov[0])  # the rise in the extra row
-    assert ca.exit_speedup_pct(la) == pytest.approx(92.5, abs=5.0)
+    assert float(100.0 * (np.max(ov) - ov[0])) <= 0.5
+    assert ca.exit_speedup_pct(la) <= 0.5
 
 
 def test_conventional_overshoots_like_the_thesis(runs: dict[str, ca.LoopRun]) -> None:

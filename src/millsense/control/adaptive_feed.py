@@ -461,6 +461,11 @@ class AdaptiveFeedBlock(Block):
             if lp.hold is None:
                 lp.hold = lp.u
             u = min(u, lp.hold)
+        elif lp.hold is not None and not in_air and not self._in_cut[lp.row]:
+            # the plan's tool has left the material but the machine still cuts (a plan's rows
+            # and z-map are coarser than the machine's edge; runout; servo lag): the exit hold
+            # stands until a revolution reads as air (decision 1741)
+            u = min(u, lp.hold)
         else:
             lp.hold = None
         if flag == 1 and not in_air:

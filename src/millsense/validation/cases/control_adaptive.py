@@ -265,16 +265,6 @@ def _v8_la_peak() -> Measured:
     unit="% points",
     abs_tol=0.5,
     quick=False,
-    issue=16,
-    gap=(
-        "on the virtual machine's own plan (decision 1740) the exit is no longer where the "
-        "controller's plan puts it: the controller's plan (0.1 mm z-map) has no engagement "
-        "from its row at X = 58.7 mm, the plant's (0.05 mm z-map) still cuts 3 mm deep there and "
-        "until X ≈ 59.1 mm (one plan row, 0.4 mm, later); the look-ahead ends its exit hold "
-        "(flag 2) where its plan's engagement ends, so the override rises from 37 % to 130 % "
-        "while the true force is still 135-170 N (0 points while the plant cut the "
-        "controller's own plan); the exit hold does not allow for its plan's row spacing"
-    ),
     description="Rise of the effective override while the tool leaves the part, look-ahead on.",
 )
 def _v8_la_exit() -> Measured:
