@@ -154,6 +154,21 @@ def test_demo_part_plant_is_not_the_session_plan(
     )
 
 
+def test_demo_chatter_plant_is_not_the_session_plan(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Any
+) -> None:
+    import millsense.online.session as session
+    from millsense import demo_chatter
+
+    seen = _capture_plan_job(monkeypatch)
+    plans = _stop_at(monkeypatch, session, "session_blocks")
+    plan, plant = demo_chatter._plan(tmp_path), demo_chatter._plant_plan()
+    with pytest.raises(_Stop):
+        demo_chatter._run(plan, plant, False, tmp_path / "r.h5", tmp_path / "e.parquet", None)
+    assert plans[0] is plan
+    _assert_own_plan(seen[0][1], plant, plan)
+
+
 def test_tool_life_plant_is_not_the_wear_monitor_plan(monkeypatch: pytest.MonkeyPatch) -> None:
     import millsense.online.wear_run as wear_run
     from millsense.validation.cases import monitoring_wear as mw

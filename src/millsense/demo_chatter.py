@@ -12,8 +12,10 @@ slot does not fit beside the demo part's channel and slot on its 80 mm wide bloc
 runs on a bar of its own (200 × 80 × 30 mm, Al7050): decision 1660.
 
 The virtual machine (the simulator's truth of the quaser-ux600, X/Y/Z) runs the tool's modes,
-softened under load as its truth does; the session reads the lobes from the same tool file (a
-tap test of the tool) and the spindle observer of the commissioned machine file. Two runs:
+softened under load as its truth does, and cuts its own plan of the pass (a 0.05 mm z-map, 5 µm
+of runout; decision 1740); the session plans on a 0.5 mm z-map without runout, reads the lobes
+from the same tool file (its at-rest modes exactly: a perfect tap test, disclosed as shared,
+issue 12) and runs the spindle observer of the commissioned machine file. Two runs:
 
 - **controlled**: the chatter monitor's alarm makes the chatter avoidance command a new spindle
   speed (the centre of the widest stable pocket, decision 1635); the machine follows it;
@@ -98,12 +100,20 @@ class ChatterFigures:
     stopped: bool | None
 
 
+def _bar(cell_m: float) -> Any:
+    """The bar of Al7050 the pass cuts (200 × 80 × 30 mm, top at Z0) as a z-map of ``cell_m``."""
+    from millsense.core.units import MM
+    from millsense.plan.stock import ZMapStock
+
+    return ZMapStock.from_box([0.0, 0.0, -30 * MM], [BAR_MM * MM, 80 * MM, 0.0], cell_m)
+
+
 def _plan(out: Path) -> Any:
+    """The session's plan of the pass: 0.5 mm z-map, the nameplate tool (no runout)."""
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
     from millsense.core.units import MM
     from millsense.plan.gcode import interpret
-    from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
@@ -111,15 +121,33 @@ def _plan(out: Path) -> Any:
     text = program()
     (out / "online_chatter.nc").write_text(text)
     mat = load_preset(MaterialConfig, "al7050")
-    stock = ZMapStock.from_box([0.0, 0.0, -30 * MM], [BAR_MM * MM, 80 * MM, 0.0], 0.5 * MM)
-    return plan_program(interpret(text, source="online_chatter.nc"), stock,
+    return plan_program(interpret(text, source="online_chatter.nc"), _bar(0.5 * MM),
                         EndMill(50 * MM, FLUTES), CuttingCoefficients.from_config(mat),
                         step_m=1.0 * MM, metadata={"material_name": mat.name})  # fmt: skip
 
 
-def _run(plan: Any, controlled: bool, out: Path, events_out: Path,
+def _plant_plan() -> Any:
+    """The virtual machine's own plan of the pass (decision 1740): the same program, bar, tool
+    and material on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad that the
+    session's plan does not know."""
+    from millsense.core.config import MaterialConfig
+    from millsense.core.presets import load_preset
+    from millsense.core.units import MM
+    from millsense.plan.gcode import interpret
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.plant_plan import plant_plan
+
+    mat = load_preset(MaterialConfig, "al7050")
+    return plant_plan([interpret(program(), source="online_chatter.nc")], _bar,
+                      EndMill(50 * MM, FLUTES), CuttingCoefficients.from_config(mat),
+                      step_m=1.0 * MM, metadata={"material_name": mat.name})  # fmt: skip
+
+
+def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
          on_progress: Callable[[int], None] | None) -> Any:  # fmt: skip
-    """One closed-loop run of the session with the T1 modes; the session's result."""
+    """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
+    machine cutting its own plan ``plant``; the session's result."""
     from millsense.core.presets import commissioned_machine
     from millsense.demo_online import _Open
     from millsense.online.session import SessionOptions, run_session, session_blocks
@@ -137,7 +165,7 @@ def _run(plan: Any, controlled: bool, out: Path, events_out: Path,
     with resources.as_file(tool_modes_file()) as modes_path:
         modes = ToolModes.from_toml(modes_path)
         case = load_case(modes_path)
-    job, proc, meta, _ = plan_job(plan, sim_cfg, "online_chatter.nc", modes=modes)
+    job, proc, meta, _ = plan_job(plant, sim_cfg, "online_chatter.nc", modes=modes)
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=11))
     opts = SessionOptions(adaptive=False, stability_case=case)
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts,
@@ -213,6 +241,7 @@ def run_chatter_demo(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plan = _plan(out)
+    plant = _plant_plan()
     progress = two_run_progress(plan, on_progress)
     data: dict[str, dict[str, np.ndarray]] = {}
     events: dict[str, Sequence[Event]] = {}
@@ -225,7 +254,7 @@ def run_chatter_demo(
             ("open", False, Path(tmp) / "open.h5",
              out / "online_chatter_open.events.parquet", 0.5),
         ):  # fmt: skip
-            res = _run(plan, controlled, rec_path, ev_path, progress(offset))
+            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset))
             with opened_recording(rec_path) as rec:
                 fs = rec.sample_rate_hz
                 names = set(rec.channel_names)
