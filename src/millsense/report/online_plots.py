@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -96,6 +97,38 @@ def _line(
         ax.plot(t[: len(v)], v[: len(t)] * scale, lw=0.8, alpha=alpha, label=label)
 
 
+#: Colours of the runs side by side.
+_RUN_COLOURS = {"controlled": "tab:blue", "open": "tab:grey"}
+
+
+def _time_axis(n: int, sample_rate_hz: float) -> tuple[np.ndarray, int]:
+    """Times of ``n`` samples, s, and the stride that keeps a line within MAX_POINTS."""
+    return np.arange(n) / sample_rate_hz, max(1, n // MAX_POINTS)
+
+
+def _mark_runs(ax: Sequence[Any], events: Sequence[Event], dashed: str, solid: str,
+               colour: str | None) -> None:  # fmt: skip
+    """A run's ``dashed`` and ``solid`` events as vertical lines on every panel."""
+    for e in events:
+        if e.name in (dashed, solid):
+            for a in ax:
+                a.axvline(e.time_s, color=colour, ls="--" if e.name == dashed else "-", lw=0.9,
+                          alpha=0.8)  # fmt: skip
+
+
+def _finish(fig: Any, ax: Sequence[Any], ylabels: Sequence[str], xlabel: str, title: str,
+            path: str | Path) -> None:  # fmt: skip
+    """Labels, grids, legends and the title of a comparison; saved to ``path``."""
+    for a, label in zip(ax, ylabels, strict=True):
+        a.set_ylabel(label)
+        a.grid(alpha=0.3)
+        a.legend(loc="upper right", fontsize=8)
+    ax[-1].set_xlabel(xlabel)
+    ax[0].set_title(title)
+    fig.tight_layout()
+    _save(fig, path)
+
+
 def plot_comparison(
     data: dict[str, dict[str, np.ndarray]],
     events: dict[str, Sequence[Event]],
@@ -107,12 +140,10 @@ def plot_comparison(
     regulated spindle power per revolution against its reference, and the true resultant force
     (per-revolution maximum), with each run's breakage alarm and feed hold marked."""
     fig, ax = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
-    colours = {"controlled": "tab:blue", "open": "tab:grey"}
     for key, d in data.items():
-        col = colours.get(key, None)
+        col = _RUN_COLOURS.get(key)
         n = len(d["cnc/feed_override"])
-        t = np.arange(n) / sample_rate_hz
-        stride = max(1, n // MAX_POINTS)
+        t, stride = _time_axis(n, sample_rate_hz)
         ax[0].plot(t[::stride], 100 * d["cnc/feed_override"][::stride], color=col, lw=1.0,
                    label=key)  # fmt: skip
         ax[1].plot(t[::stride], d["adaptive_feed/peak"][::stride], color=col, lw=1.0, label=key)
@@ -121,24 +152,13 @@ def plot_comparison(
         m = (n // rev) * rev
         fmax = f[:m].reshape(-1, rev).max(axis=1)
         ax[2].plot(t[:m:rev], fmax, color=col, lw=1.0, label=key)
-        for e in events.get(key, ()):
-            if e.name in ("breakage", "feed_hold"):
-                style = "--" if e.name == "breakage" else "-"
-                for a in ax:
-                    a.axvline(e.time_s, color=col, ls=style, lw=0.9, alpha=0.8)
+        _mark_runs(ax, events.get(key, ()), "breakage", "feed_hold", col)
     ref = next(iter(data.values()))["adaptive_feed/reference"]
     if len(ref):
         ax[1].axhline(float(ref[-1]), color="tab:orange", lw=1.0, label="reference")
-    ax[0].set_ylabel("feed override in effect [%]")
-    ax[1].set_ylabel("spindle power per rev. [W]")
-    ax[2].set_ylabel("true |F_xy| per rev. [N]")
-    ax[2].set_xlabel("time [s]  (dashed: breakage alarm, solid: feed hold)")
-    for a in ax:
-        a.grid(alpha=0.3)
-        a.legend(loc="upper right", fontsize=8)
-    ax[0].set_title(title)
-    fig.tight_layout()
-    _save(fig, path)
+    _finish(fig, ax, ("feed override in effect [%]", "spindle power per rev. [W]",
+                      "true |F_xy| per rev. [N]"),
+            "time [s]  (dashed: breakage alarm, solid: feed hold)", title, path)  # fmt: skip
 
 
 def plot_chatter_comparison(
@@ -149,17 +169,17 @@ def plot_chatter_comparison(
     sample_rate_hz: float = 10000.0,
 ) -> None:
     """A chatter-prone pass run side by side (``controlled``, ``open``): the spindle speed
-    (``spindle/speed``, rad/s), the chatter monitor's ratio against its threshold 1.5
+    (``spindle/speed``, rad/s), the chatter monitor's ratio against the chatter-comb threshold
     (``chatter/energy_ratio``, when recorded) and the share of each 0.1 s in which the
     simulator's truth chatters (``truth/process/chatter``), with each run's chatter alarms and
     speed commands marked."""
+    from millsense.monitoring.chatter import METHODS
+
     fig, ax = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
-    colours = {"controlled": "tab:blue", "open": "tab:grey"}
     for key, d in data.items():
-        col = colours.get(key, None)
+        col = _RUN_COLOURS.get(key)
         n = len(d["spindle/speed"])
-        t = np.arange(n) / sample_rate_hz
-        stride = max(1, n // MAX_POINTS)
+        t, stride = _time_axis(n, sample_rate_hz)
         rpm = d["spindle/speed"] * 60.0 / (2 * np.pi)
         ax[0].plot(t[::stride], rpm[::stride], color=col, lw=1.0, label=key)
         if "chatter/energy_ratio" in d:
@@ -169,20 +189,9 @@ def plot_chatter_comparison(
         m = (n // step) * step
         share = (d["truth/process/chatter"][:m] > 0.5).reshape(-1, step).mean(axis=1)
         ax[2].step(t[:m:step], 100 * share, where="post", color=col, lw=1.0, label=key)
-        for e in events.get(key, ()):
-            if e.name in ("chatter", "spindle_override"):
-                style = "--" if e.name == "chatter" else "-"
-                for a in ax:
-                    a.axvline(e.time_s, color=col, ls=style, lw=0.9, alpha=0.8)
-    ax[1].axhline(1.5, color="tab:red", lw=1.0, label="threshold")
-    ax[0].set_ylabel("spindle speed [rev/min]")
-    ax[1].set_ylabel("chatter ratio [-]")
-    ax[2].set_ylabel("truth chatters [% of 0.1 s]")
-    ax[2].set_xlabel("time [s]  (dashed: chatter alarm; solid: spindle-speed command, in the open "
-                     "run recommended and not sent)")
-    for a in ax:
-        a.grid(alpha=0.3)
-        a.legend(loc="upper right", fontsize=8)
-    ax[0].set_title(title)
-    fig.tight_layout()
-    _save(fig, path)
+        _mark_runs(ax, events.get(key, ()), "chatter", "spindle_override", col)
+    ax[1].axhline(METHODS["chatter-comb"].threshold, color="tab:red", lw=1.0, label="threshold")
+    _finish(fig, ax, ("spindle speed [rev/min]", "chatter ratio [-]",
+                      "truth chatters [% of 0.1 s]"),
+            "time [s]  (dashed: chatter alarm; solid: spindle-speed command, in the open run "
+            "recommended and not sent)", title, path)  # fmt: skip

@@ -28,6 +28,7 @@ chatter pass, 0.2 mm for the demo part).
 from __future__ import annotations
 
 import functools
+import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -353,14 +354,13 @@ def _quiet_after_last_change_s(r: dict[str, object]) -> tuple[float, bool] | Non
     chatter = r["chatter"]
     fs = r["fs"]
     assert isinstance(chatter, np.ndarray) and isinstance(fs, float)
+    from millsense.demo_chatter import quiet_after
+
     k0 = round(cmds[-1].time_s * fs)
-    win = round(fs)
-    tail = chatter[k0:].astype(np.int64)
-    runs = np.convolve(tail, np.ones(win, dtype=np.int64), mode="valid")  # chatter per window
-    quiet = np.flatnonzero(runs == 0)
-    if quiet.size:
-        return float(quiet[0]) / fs, True
-    return float(tail.size) / fs, False
+    quiet = quiet_after(chatter, k0, fs)
+    if math.isfinite(quiet):
+        return quiet, True
+    return float(chatter.size - k0) / fs, False
 
 
 @case(
