@@ -174,7 +174,41 @@ def test_harmonic_sums_equal_the_complex_products_sample_by_sample() -> None:
         for n_flutes in (1, 2, 3, 4):
             got = np.zeros(16, dtype=np.complex128)
             want = np.zeros(16, dtype=np.complex128)
+            zr, zi = np.cos(ang), -np.sin(ang)
             for _ in range(2):
-                _add_harmonics(x, ang, 0, n, n_flutes, got)
+                _add_harmonics(x, zr, zi, 0, n, n_flutes, got)
                 reference(x, ang, n_flutes, want)
             np.testing.assert_array_equal(got.view(np.float64), want.view(np.float64))
+
+
+def test_revolution_phasors_track_the_angle_and_ignore_the_chunking() -> None:
+    """Decision 1770: the phasor advanced by its per-sample rotation stays within 1e-12 of
+    e^{−i2π·fraction} (a cosine and sine per sample) through a speed ramp and a constant
+    speed, and chunks of any size give it bit for bit."""
+    from millsense.monitoring import _spectrum_kernels as sk
+
+    fs = 10000.0
+    n = 50_000  # 5 s: a ramp 600 -> 3000 rev/min, then 3000 rev/min constant
+    rpm = np.concatenate([np.linspace(600.0, 3000.0, n // 2), np.full(n - n // 2, 3000.0)])
+    speed = rpm * 2 * math.pi / 60
+
+    def run(chunk: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        acc = np.zeros(sk.ACC_SIZE)
+        acc[sk.ACC_REV] = -1.0
+        acc[sk.ACC_STEP_SPEED] = math.nan
+        out = []
+        for i in range(0, n, chunk):
+            ang, revs, zr, zi = sk.revolution_phasors(speed[i : i + chunk], 0, fs, acc)
+            acc[sk.ACC_FRAC], acc[sk.ACC_REV] = ang[-1], revs[-1]
+            acc[sk.ACC_ZR], acc[sk.ACC_ZI] = zr[-1], zi[-1]
+            out.append((ang, zr, zi))
+        return tuple(np.concatenate([o[k] for o in out]) for k in range(3))  # type: ignore[return-value]
+
+    ang, zr, zi = run(n)
+    assert np.max(np.abs(zr - np.cos(2 * math.pi * ang))) < 1e-12
+    assert np.max(np.abs(zi + np.sin(2 * math.pi * ang))) < 1e-12
+    for chunk in (1, 7, 1000):
+        ang2, zr2, zi2 = run(chunk)
+        np.testing.assert_array_equal(ang2, ang)
+        np.testing.assert_array_equal(zr2, zr)
+        np.testing.assert_array_equal(zi2, zi)

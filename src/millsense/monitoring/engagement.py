@@ -131,6 +131,7 @@ class EngagementBlock(Block):
         )
         self._acc = np.zeros(_sk.ACC_SIZE)
         self._acc[_sk.ACC_REV] = -1.0
+        self._acc[_sk.ACC_STEP_SPEED] = math.nan  # no rotation cached yet
         self._sums = np.zeros(self._k.size, dtype=np.complex128)
         self._prev = np.zeros(3)
         g = self.geom
