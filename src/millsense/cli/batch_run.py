@@ -447,10 +447,10 @@ def read_summary(path: Path) -> list[dict[str, Any]]:
         Not a readable Parquet file, or not a batch's table (no ``run``/``status`` column):
         one line naming the file.
     """
-    import pyarrow.parquet as pq
+    from millsense.core.parquet_read import read_parquet_table
 
     try:
-        table = pq.read_table(path)
+        table = read_parquet_table(path)
     except (OSError, ValueError) as exc:
         why = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
         raise InputDataError(f"{path}: not a readable summary table ({why})") from None

@@ -130,13 +130,13 @@ def part_fragment_path(out_dir: Path, path: Path, part: Part) -> Path:
 def read_fragment(out_dir: Path, path: Path, part: Part | None = None) -> dict[str, Any] | None:
     """The row a previous batch wrote for ``path`` (or for its ``part``), if the file is
     unchanged since (else None)."""
-    import pyarrow.parquet as pq
+    from millsense.core.parquet_read import read_parquet_table
 
     frag = fragment_path(out_dir, path) if part is None else part_fragment_path(out_dir, path, part)
     if not frag.is_file():
         return None
     try:
-        rows = pq.read_table(frag).to_pylist()
+        rows = read_parquet_table(frag).to_pylist()
     except Exception:  # a fragment cut short by a killed worker: redo the run
         return None
     if len(rows) != 1 or rows[0].get("input_stamp") != _stamp(path):

@@ -303,11 +303,12 @@ class VirtualPlan:
     def read(cls, path: str | os.PathLike[str]) -> VirtualPlan:
         """Read a plan written by :meth:`write` (one-line InputDataError if it is not one)."""
         import pyarrow as pa
-        import pyarrow.parquet as pq
+
+        from millsense.core.parquet_read import read_parquet_table
 
         p = Path(path)
         try:
-            table = pq.read_table(p)
+            table = read_parquet_table(p)
         except FileNotFoundError:
             raise InputDataError(f"{p}: no such file") from None
         except (pa.ArrowInvalid, OSError) as exc:

@@ -107,11 +107,11 @@ def read_event_log(path: str | os.PathLike[str]) -> list[Event]:
     Raises :class:`~millsense.core.errors.ConfigError` naming the file when it is not a
     millsense event log.
     """
-    import pyarrow.parquet as pq
+    from millsense.core.parquet_read import read_parquet_table
 
     p = Path(path)
     try:
-        table = pq.read_table(p)
+        table = read_parquet_table(p)
     except (OSError, ValueError) as exc:
         raise ConfigError(f"{p}: not a readable Parquet event log ({exc})") from None
     missing = [c for c in COLUMNS if c not in table.column_names]
