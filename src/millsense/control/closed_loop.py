@@ -22,6 +22,10 @@ from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKin
 from millsense.streaming.engine import Pipeline, run
 from millsense.streaming.sources import Source
 
+#: White noise of the virtual table dynamometer a controller reads on the virtual machine, N RMS
+#: per axis (the on-line session's and the V6/V8 cases', decision 1800).
+DYNAMOMETER_NOISE_N = 2.0
+
 
 class Dynamometer(Block):
     """Measured XY force from the source's true tool force (a table dynamometer).

@@ -153,11 +153,11 @@ def session_blocks(
     force_ch: tuple[str, str] = ("force_x", "force_y")
     if o.adaptive and o.quantity == "force":
         if o.force_from == "dynamometer":
-            from millsense.control.closed_loop import Dynamometer
+            from millsense.control.closed_loop import DYNAMOMETER_NOISE_N, Dynamometer
 
             if "truth/tool/force_x" not in have:
                 raise ConfigError("--force-from dynamometer: only on the virtual machine")
-            blocks.append(Dynamometer(noise_n=2.0))
+            blocks.append(Dynamometer(noise_n=DYNAMOMETER_NOISE_N))
         else:
             axes = list(machine.axes)
             feed = build_estimators(machine, ["feed"], axes, sample_rate_hz, where=where)

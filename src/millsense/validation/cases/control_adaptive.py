@@ -143,11 +143,12 @@ def closed_loop_run(
     reference_n: float = F_REF_V8,
 ) -> LoopRun:
     """Simulate the slot in closed loop with the adaptive feed controller regulating the peak
-    resultant force of the dynamometer (decision 1616). The controller's plan is
+    resultant force of the dynamometer (decision 1616; 2 N of noise, decision 1800); ``force``
+    is the true force at the tool. The controller's plan is
     :func:`step_plan`; the virtual machine cuts its own (:func:`plant_step_plan`, decision
     1740)."""
     from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
-    from millsense.control.closed_loop import Dynamometer, run_closed_loop
+    from millsense.control.closed_loop import DYNAMOMETER_NOISE_N, Dynamometer, run_closed_loop
     from millsense.plan.virtual_plan import VirtualPlan
     from millsense.simulator.interpolator import OverrideChannel
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
@@ -163,16 +164,18 @@ def closed_loop_run(
     sim = MachineSimulator(m, job, proc, SimulatorOptions(feed_channel=ch, seed=0))
     opts = AdaptiveFeedOptions(reference=reference_n, look_ahead=look_ahead)
     blk = AdaptiveFeedBlock(opts, plan)
+    # the controller reads a dynamometer with 2 N of noise (as the on-line session's,
+    # decision 1800); the cases judge the true force at the tool
     res = run_closed_loop(
         sim,
-        [Dynamometer(), blk],
-        keep=("cnc/feed_override", "x/position_cmd"),
+        [Dynamometer(noise_n=DYNAMOMETER_NOISE_N), blk],
+        keep=("cnc/feed_override", "x/position_cmd", "truth/tool/force_x", "truth/tool/force_y"),
         chunk_samples=100,
     )
     c = res.channels
     return LoopRun(
         res.time_s,
-        np.hypot(c["force_x"], c["force_y"]),
+        np.hypot(c["truth/tool/force_x"], c["truth/tool/force_y"]),
         c[f"{blk.name}/peak"],
         c["cnc/feed_override"],
         c["x/position_cmd"] * 1e3,
