@@ -64,3 +64,24 @@ def test_contact_block_streams_like_the_batch_detector():
         assert len(events) == 1 and events[0].name == "contact"
         # the centred average near A is complete: the same contact as the whole record
         assert events[0].value == pytest.approx(ref.position, abs=1e-9)
+
+
+def test_air_cut_is_a_separate_run_with_its_own_ripple():
+    """Decision 1780: the air cut's ripple is the cut's shifted by its own start error and
+    drifting by a few %, not a bit-identical copy; with no start error and no drift it is."""
+    from millsense.validation.cases import monitoring_contact as mc
+
+    ideal = {"start_jitter_s": 0.0, "c_return_rad": 0.0, "ripple_drift": 0.0}
+    cut0, air0, _ = simulate_contact(6, **ideal)
+    cut1, air1, _ = simulate_contact(6)
+    # the contact torque and the noise are the same in both calls: the differences are the
+    # ripple's alone, and each record's is its own
+    d_cut, d_air = cut1 - cut0, air1 - air0
+    assert np.any(d_cut != 0.0) and np.any(d_air != 0.0)
+    assert not np.array_equal(d_cut, d_air)
+    # what the subtraction leaves of the ripple: a few mN·m, within 3 RMS of each record's
+    # drift and twice the largest start error (at each harmonic's order)
+    resid = (cut1 - air1) - (cut0 - air0)
+    shift = 2 * math.pi * mc.START_JITTER_S / PERIOD_S + 3 * mc.C_RETURN_RAD
+    bound = sum(a * (2 * 3 * mc.RIPPLE_DRIFT + 2 * h * shift) for h, a in mc.RIPPLE_NM)
+    assert 1e-4 < np.max(np.abs(resid)) < bound

@@ -12,13 +12,24 @@ bandwidth would not reach the notch). Runout as measured in the thesis: 1.5 µm 
 averages over the path).
 
 Coefficients: the Al7050 preset's K_tc, K_te (the thesis' brass is not in the presets; only
-ratios matter for the depths, and K_te/K_tc sets the model mismatch).
+ratios matter for the depths, and K_te/K_tc sets the model mismatch: K_te/(K_tc c) = 1.3 at
+c = 25 µm). The monitor runs as a user would run it, with its default ``edge=True`` (it fits an
+edge-force coefficient on the tooth-passing harmonics; its runout solver, Eq. 2.18 re-derived,
+has no edge term).
+
+Judging (issue 12, decision 1780): every acceptance figure is measured on the plant with edge
+forces, which the monitor's model (the thesis' Eqs. 2.1-2.10) does not contain. The axial-depth
+cases are two-sided around the thesis' own worst error of the table (computed from the printed
+rows below) and flagged *too good* beyond 2× better; the runout keeps issue 15's ±0.3 µm bound
+and is also compared with the thesis' worst 4-flute runout error. The edge-free runout figure
+(plant = the monitor's own model class) survives only as a self-check.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,19 +43,41 @@ D_MM = 6.0
 HELIX_DEG = 35.0
 #: harmonics of ω_n the monitor uses: up to ≈ 60 ω_n (1.2 kHz), K = 60/N tooth harmonics
 HARMONICS_OF_OMEGA = 60
-#: (d_r, d_a) mm of each table row, and the thesis' monitored σ
+#: (d_r, d_a) mm of each table row, and the thesis' monitored d_a (mm) and σ (seed-004 digest §4.1)
 TABLE_2_3 = (
-    (1, 0.5, 0.88), (1, 0.5, 0.83), (2, 0.5, 0.91), (5, 0.5, 0.98), (0.5, 2, 0.93),
-    (0.5, 3, 0.98), (0.5, 5, 0.90), (1, 5, 0.89), (1, 2, 0.97), (3, 2, 0.88),
+    (1, 0.5, 0.466, 0.88), (1, 0.5, 0.453, 0.83), (2, 0.5, 0.473, 0.91), (5, 0.5, 0.494, 0.98),
+    (0.5, 2, 1.921, 0.93), (0.5, 3, 2.968, 0.98), (0.5, 5, 5.441, 0.90), (1, 5, 4.632, 0.89),
+    (1, 2, 2.041, 0.97), (3, 2, 2.176, 0.88),
 )  # fmt: skip
 TABLE_2_4 = (
-    (0.5, 5, 0.94), (1, 0.5, 0.92), (3, 0.5, 0.91), (5, 0.5, 0.83), (0.5, 1, 0.84),
-    (0.5, 2, 0.97), (0.5, 3, 0.88), (1, 5, 0.96),
+    (0.5, 5, 5.269, 0.94), (1, 0.5, 0.529, 0.92), (3, 0.5, 0.527, 0.91), (5, 0.5, 0.453, 0.83),
+    (0.5, 1, 0.907, 0.84), (0.5, 2, 2.041, 0.97), (0.5, 3, 3.265, 0.88), (1, 5, 5.164, 0.96),
 )  # fmt: skip
 TABLE_2_5 = (
-    (1, 0.5, 0.85), (3, 0.5, 0.97), (5, 0.5, 0.85), (0.5, 0.5, 0.94), (0.5, 1, 0.87),
-    (0.5, 2, 0.93), (0.5, 3, 0.97),
+    (1, 0.5, 0.453, 0.85), (3, 0.5, 0.51, 0.97), (5, 0.5, 0.453, 0.85), (0.5, 0.5, 0.480, 0.94),
+    (0.5, 1, 1.134, 0.87), (0.5, 2, 2.128, 0.93), (0.5, 3, 3.080, 0.97),
 )  # fmt: skip
+TABLES = {1: TABLE_2_3, 2: TABLE_2_4, 4: TABLE_2_5}
+#: Table 2.5's monitored runout (µm), one per row, against the dial gauge's 1.5 µm
+THESIS_RUNOUT_2_5 = (1.50, 1.71, 1.43, 1.44, 1.28, 1.04, 1.19)
+DIAL_GAUGE_RUNOUT_2_5_UM = 1.5
+
+
+def thesis_max_da_error(n_flutes: int) -> float:
+    """The thesis' largest |relative error| of the monitored d_a in the table of ``n_flutes``
+    (%): 9.4 (Table 2.3), 9.4 (2.4), 13.4 (2.5)."""
+    return max(abs(mon / da - 1.0) for _, da, mon, _ in TABLES[n_flutes]) * 100
+
+
+#: the thesis' largest |monitored − dial-gauge runout| of Table 2.5, µm (0.46, row d_a = 2 mm)
+THESIS_MAX_RUNOUT_ERROR_UM = max(abs(e - DIAL_GAUGE_RUNOUT_2_5_UM) for e in THESIS_RUNOUT_2_5)
+#: Two-sided tolerance of a worst-error replica around the thesis' worst error, and the
+#: factor beyond which a better replica is flagged too good (decision 1780): the worst of 7-10
+#: rows is itself a noisy statistic (the thesis' three tables give 9.4, 9.4 and 13.4 %), and
+#: ±50 % / 2× is what the registry's other worst-error replicas use (seed 000 V1, seed 003
+#: Table 4.6, Aslan ch. 4).
+WORST_REL_TOL = 0.5
+WORST_TOO_GOOD = 2.0
 
 
 @dataclass(frozen=True)
@@ -60,10 +93,16 @@ class RowResult:
     mon_runout_um: float
     sigma: float
     thesis_sigma: float
+    thesis_da: float = math.nan
+    thesis_runout_um: float = math.nan
 
     @property
     def err_da(self) -> float:
         return (self.mon_da - self.da) / self.da
+
+    @property
+    def thesis_err_da(self) -> float:
+        return (self.thesis_da - self.da) / self.da
 
     @property
     def err_dr(self) -> float:
@@ -71,7 +110,15 @@ class RowResult:
 
 
 def _row(
-    n: int, dr: float, da: float, runout_um: float, thesis_sigma: float, seed: int, edge: bool
+    n: int,
+    dr: float,
+    da: float,
+    runout_um: float,
+    thesis_sigma: float,
+    seed: int,
+    edge: bool,
+    thesis_da: float = math.nan,
+    thesis_runout_um: float = math.nan,
 ) -> RowResult:
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
@@ -113,101 +160,180 @@ def _row(
         float(np.mean([e.runout_m for e in ests]) * 1e6),
         float(np.mean([e.reliability for e in ests])),
         thesis_sigma,
+        thesis_da,
+        thesis_runout_um,
     )
 
 
 @functools.lru_cache(maxsize=4)
 def table(n_flutes: int, edge: bool = True) -> tuple[RowResult, ...]:
     """Monitored values of every row of the table of ``n_flutes`` (2.3, 2.4 or 2.5); with the
-    edge forces of the preset, or a shear-only cut (the thesis' model, Eqs. 2.1-2.10)."""
-    rows = {1: TABLE_2_3, 2: TABLE_2_4, 4: TABLE_2_5}[n_flutes]
+    edge forces of the preset (the plant every acceptance figure is judged on), or a shear-only
+    cut (the thesis' model, Eqs. 2.1-2.10: the monitor's own model class, a self-check only)."""
     out = []
-    for i, (dr, da, sig) in enumerate(rows):
+    for i, (dr, da, thesis_da, sig) in enumerate(TABLES[n_flutes]):
         runout = {1: 0.0, 2: 1.0 if i < 4 else 4.4, 4: 1.5}[n_flutes]
-        out.append(_row(n_flutes, dr, da, runout, sig, seed=10 * n_flutes + i, edge=edge))
+        thesis_runout = THESIS_RUNOUT_2_5[i] if n_flutes == 4 else math.nan
+        out.append(
+            _row(n_flutes, dr, da, runout, sig, 10 * n_flutes + i, edge, thesis_da, thesis_runout)
+        )
     return tuple(out)
 
 
 def _details(rows: tuple[RowResult, ...]) -> str:
     lines = [
-        "| d_r | d_a | mon. d_r | mon. d_a | err d_a | ε sim µm | mon. ε µm | σ | thesis σ |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| d_r | d_a | mon. d_r | mon. d_a | err d_a | thesis err d_a | ε sim µm | mon. ε µm "
+        "| thesis ε µm | σ | thesis σ |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r.dr:g} | {r.da:g} | {r.mon_dr:.3f} | {r.mon_da:.3f} | {r.err_da * 100:+.1f} % "
-            f"| {r.runout_um:g} | {r.mon_runout_um:.2f} | {r.sigma:.3f} | {r.thesis_sigma:.2f} |"
+            f"| {r.thesis_err_da * 100:+.1f} % | {r.runout_um:g} | {r.mon_runout_um:.2f} "
+            f"| {r.thesis_runout_um:.2f} | {r.sigma:.3f} | {r.thesis_sigma:.2f} |"
         )
     return "\n".join(lines)
 
 
 def _max_da_error(n: int) -> Measured:
     rows = table(n)
-    return Measured(max(abs(r.err_da) for r in rows) * 100, _details(rows))
+    worst = max(abs(r.err_da) for r in rows) * 100
+    issue = "within" if worst <= 10.0 else "outside"
+    return Measured(
+        worst,
+        f"Thesis' worst error of this table {thesis_max_da_error(n):.1f} %; replica "
+        f"{worst:.2f} % ({thesis_max_da_error(n) / worst:.2g}× better than the thesis; "
+        f"{issue} issue 15's ±10 %).\n\n" + _details(rows),
+    )
 
 
-@case(
-    "monitoring.engagement.table23_axial_depth",
-    source="seed 004 Table 2.3 (1 flute): d_a within about ±10 %",
-    reference=0.0,
-    unit="%",
-    abs_tol=10.0,
-    quick=False,
-    description="Largest |relative error| of the monitored axial depth over the Table 2.3 rows.",
-)
+_CaseFn = Callable[[], float | Measured]
+
+
+def _axial_case(case_id: str, table_no: str, n: int) -> Callable[[_CaseFn], _CaseFn]:
+    ref = thesis_max_da_error(n)
+    flutes = "1 flute" if n == 1 else f"{n} flutes"
+    return case(
+        case_id,
+        source=f"seed 004 Table {table_no} ({flutes}): the thesis' worst d_a error {ref:.1f} % "
+        "(printed rows; issue 15: within about ±10 %)",
+        reference=ref,
+        unit="%",
+        rel_tol=WORST_REL_TOL,
+        too_good_factor=WORST_TOO_GOOD,
+        quick=False,
+        description=(
+            f"Largest |relative error| of the monitored axial depth over the Table {table_no} "
+            "rows, on the plant with edge forces, against the thesis' own worst error of the "
+            f"table (two-sided ±{WORST_REL_TOL * 100:g} %; more than {WORST_TOO_GOOD:g}× "
+            "better is flagged too good: the replica has no setup, flatness or tool-length "
+            "errors, so a far smaller error says the simulation is too benign; decision 1780)."
+        ),
+    )
+
+
+@_axial_case("monitoring.engagement.table23_axial_depth", "2.3", 1)
 def _t23() -> Measured:
     return _max_da_error(1)
 
 
-@case(
-    "monitoring.engagement.table24_axial_depth",
-    source="seed 004 Table 2.4 (2 flutes): d_a within about ±10 %",
-    reference=0.0,
-    unit="%",
-    abs_tol=10.0,
-    quick=False,
-    description="Largest |relative error| of the monitored axial depth over the Table 2.4 rows.",
-)
+@_axial_case("monitoring.engagement.table24_axial_depth", "2.4", 2)
 def _t24() -> Measured:
     return _max_da_error(2)
 
 
-@case(
-    "monitoring.engagement.table25_axial_depth",
-    source="seed 004 Table 2.5 (4 flutes): d_a within about ±10 %",
-    reference=0.0,
-    unit="%",
-    abs_tol=10.0,
-    quick=False,
-    description="Largest |relative error| of the monitored axial depth over the Table 2.5 rows.",
-)
+@_axial_case("monitoring.engagement.table25_axial_depth", "2.5", 4)
 def _t25() -> Measured:
     return _max_da_error(4)
 
 
+def _max_runout_error(rows: tuple[RowResult, ...]) -> float:
+    return max(abs(r.mon_runout_um - r.runout_um) for r in rows)
+
+
+#: why the runout is not reproduced on the plant with edge forces (decision 1780)
+RUNOUT_EDGE_GAP = (
+    "on the plant with edge forces (2026-11-28) the monitored 4-flute runout is 1.44-2.86 µm "
+    "against the simulated 1.5 µm (worst error 1.36 µm): the plant applies the edge force only "
+    "where a flute's chip is > 0, so runout shifts each flute's exit and gives the edge torque "
+    "a first harmonic, which Eq. 2.18 (the monitor's T_1 solver has no edge term; its edge "
+    "option fits K_e on the tooth-passing harmonics only) reads as runout. Without runout the "
+    "same plant gives 0.06 µm (row d_r 0.5, d_a 3 mm); on an edge-free plant 0.08 µm (the "
+    "self-check table25_runout_shear_only)"
+)
+
+
+def _runout_details() -> str:
+    rows = table(4)
+    return (
+        f"Worst |monitored − simulated runout| on the plant with edge forces "
+        f"{_max_runout_error(rows):.2f} µm; the thesis' worst |monitored − dial-gauge runout| "
+        f"{THESIS_MAX_RUNOUT_ERROR_UM:.2f} µm (monitored 1.04-1.71 µm against 1.5 µm).\n\n"
+        + _details(rows)
+    )
+
+
 @case(
     "monitoring.engagement.table25_runout",
-    source="seed 004 Table 2.5: 4-flute runout 1.04-1.71 µm against 1.5 µm; issue 15: ±0.3 µm",
+    source="issue 15: 4-flute runout within ±0.3 µm of the simulated runout (seed 004 Table "
+    "2.5: monitored 1.04-1.71 µm against 1.5 µm)",
     reference=0.0,
     unit="µm",
     abs_tol=0.3,
     quick=False,
+    issue=15,
+    gap=RUNOUT_EDGE_GAP,
     description=(
-        "Largest |monitored − simulated runout| over the Table 2.5 rows (4 flutes), on a "
-        "shear-only cut (the thesis' torque model, Eqs. 2.1-2.10)."
+        "Largest |monitored − simulated runout| over the Table 2.5 rows (4 flutes), on the "
+        "plant with edge forces (the thesis' model, Eqs. 2.1-2.10, has none; a real cut has "
+        "them). Issue 15's bound, kept as the issue states it (it is tighter than the thesis' "
+        "own worst row, 0.46 µm); the thesis comparison is table25_runout_thesis."
     ),
 )
 def _t25_runout() -> Measured:
+    return Measured(_max_runout_error(table(4)), _runout_details())
+
+
+@case(
+    "monitoring.engagement.table25_runout_thesis",
+    source="seed 004 Table 2.5: worst 4-flute runout error "
+    f"{THESIS_MAX_RUNOUT_ERROR_UM:.2f} µm (monitored 1.04-1.71 µm against the dial gauge's 1.5 µm)",
+    reference=THESIS_MAX_RUNOUT_ERROR_UM,
+    unit="µm",
+    rel_tol=WORST_REL_TOL,
+    too_good_factor=WORST_TOO_GOOD,
+    quick=False,
+    issue=15,
+    gap=RUNOUT_EDGE_GAP,
+    description=(
+        "Largest |monitored − simulated runout| over the Table 2.5 rows on the plant with edge "
+        "forces, against the thesis' worst |monitored − dial-gauge runout| (two-sided "
+        f"±{WORST_REL_TOL * 100:g} %; more than {WORST_TOO_GOOD:g}× better flagged too good; "
+        "decision 1780)."
+    ),
+)
+def _t25_runout_thesis() -> Measured:
+    return Measured(_max_runout_error(table(4)), _runout_details())
+
+
+@case(
+    "monitoring.engagement.table25_runout_shear_only",
+    source="self-consistency check, not an acceptance figure: the plant is the monitor's own "
+    "model class (Eqs. 2.1-2.10, no edge forces), issue 12",
+    reference=0.0,
+    unit="µm",
+    abs_tol=0.3,
+    quick=False,
+    self_check=True,
+    description=(
+        "Largest |monitored − simulated runout| over the Table 2.5 rows on a shear-only cut: "
+        "checks the runout solver (Eq. 2.18 re-derived, digest V1/V2) on the model it inverts; "
+        "the acceptance figures are table25_runout and table25_runout_thesis."
+    ),
+)
+def _t25_runout_shear_only() -> Measured:
     rows = table(4, edge=False)
-    with_edge = table(4)
-    worst = max(abs(r.mon_runout_um - r.runout_um) for r in with_edge)
-    return Measured(
-        max(abs(r.mon_runout_um - r.runout_um) for r in rows),
-        _details(rows)
-        + "\n\nWith the preset's edge forces (which the simulator applies only where a flute's "
-        f"chip is > 0, so runout also modulates them; Eqs. 2.17-2.18 ignore that) the worst "
-        f"runout error is {worst:.2f} µm:\n\n" + _details(with_edge),
-    )
+    return Measured(_max_runout_error(rows), _details(rows))
 
 
 @case(
