@@ -3,6 +3,7 @@ feed-scheduled (optimised) program."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -58,6 +59,27 @@ def _positive(name: str, value: float) -> None:
         raise ConfigError(f"{name} {value!r}: must be > 0")
 
 
+def stock_maker(stock_cfg: Any, stock: Path) -> Callable[[float], Any]:
+    """The raw stock of the stock file ``stock`` (its parsed ``StockConfig``) as a function of
+    the z-map cell (m): a box, or the STL it names (relative to the stock file). The STL is
+    checked at once (one-line error naming the file and key)."""
+    from millsense.core.units import MM
+    from millsense.plan.stock import ZMapStock
+
+    if stock_cfg.kind == "box":
+        assert stock_cfg.min_mm is not None and stock_cfg.max_mm is not None
+        lo = [v * MM for v in stock_cfg.min_mm]
+        hi = [v * MM for v in stock_cfg.max_mm]
+        return lambda cell_m: ZMapStock.from_box(lo, hi, cell_m)
+    assert stock_cfg.stl_path is not None
+    stl = Path(stock_cfg.stl_path)
+    if not stl.is_absolute():
+        stl = Path(stock).parent / stl
+    if not stl.is_file():
+        raise ConfigError(f"{stock}: key 'stl_path' = {stock_cfg.stl_path!r}: no such file")
+    return lambda cell_m: ZMapStock.from_stl(stl, cell_m)
+
+
 def _build(
     program: Path,
     stock: Path,
@@ -84,7 +106,6 @@ def _build(
     from millsense.core.units import MM
     from millsense.plan.checks import check_plan, check_program
     from millsense.plan.gcode import interpret_file
-    from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
@@ -98,21 +119,7 @@ def _build(
     toolpath = interpret_file(program, home_mm=_home(home_mm))
     findings = Findings()
     check_program(toolpath, findings, machine=mcfg)
-    if stock_cfg.kind == "box":
-        assert stock_cfg.min_mm is not None and stock_cfg.max_mm is not None
-        zmap = ZMapStock.from_box(
-            [v * MM for v in stock_cfg.min_mm],
-            [v * MM for v in stock_cfg.max_mm],
-            resolution_mm * MM,
-        )
-    else:
-        assert stock_cfg.stl_path is not None
-        stl = Path(stock_cfg.stl_path)
-        if not stl.is_absolute():
-            stl = Path(stock).parent / stl
-        if not stl.is_file():
-            raise ConfigError(f"{stock}: key 'stl_path' = {stock_cfg.stl_path!r}: no such file")
-        zmap = ZMapStock.from_stl(stl, resolution_mm * MM)
+    zmap = stock_maker(stock_cfg, stock)(resolution_mm * MM)
     console = Console(stderr=True, soft_wrap=True)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task(f"plan {program.name}", total=1)

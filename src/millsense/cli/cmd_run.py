@@ -502,11 +502,49 @@ def virtual_machine(
     if break_at_s is not None:
         events.append(ToothBreak(break_at_s, break_flute))
     modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
-    job, process, meta, notes = plan_job(vp, sim_cfg, plan_name, events=events, modes=modes)
+    plant = vp
+    if program is not None and stock is not None and tool is not None and material is not None:
+        plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm)
+    job, process, meta, notes = plan_job(plant, sim_cfg, plan_name, events=events, modes=modes)
+    if plant is vp:
+        notes = [*notes, "the virtual machine cuts the given --plan itself (no program to plan "
+                 "its own cut from: give --program for a machine that differs from its plan)"]
     sim = MachineSimulator(sim_cfg, job, process, SimulatorOptions(seed=seed),
                            duration_s=duration_s)  # fmt: skip
     meta.update(dict(sim.metadata))
     return VirtualMachine(vp, sim_cfg, sim, meta, notes, findings)
+
+
+def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: float,
+                resolution_mm: float) -> Any:  # fmt: skip
+    """The virtual machine's own plan of ``--program`` (decision 1740,
+    :func:`~millsense.simulator.plant_plan.plant_plan`): the same program, stock, tool and
+    material as the session's plan, on a z-map 4 times finer (0.05 mm at least) by the tool
+    with the plant's runout, so the machine does not cut the session's expectation."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
+    from millsense.core.presets import load_preset
+    from millsense.core.units import MM
+    from millsense.plan.gcode import interpret_file
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.plant_plan import PLANT_CELL_M, plant_plan
+
+    from .cmd_plan import stock_maker
+
+    tool_cfg = load_preset(ToolConfig, Path(tool))
+    mat_cfg = load_preset(MaterialConfig, Path(material))
+    make_stock = stock_maker(load_config(StockConfig, stock), stock)
+    cell_m = max(PLANT_CELL_M, resolution_mm * MM / 4.0)
+    with Progress(console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("plan of the virtual machine", total=1)
+        return plant_plan(
+            [interpret_file(program)], make_stock, EndMill.from_config(tool_cfg),
+            CuttingCoefficients.from_config(mat_cfg), cell_m=cell_m, step_m=step_mm * MM,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )  # fmt: skip
 
 
 def replay_online(
