@@ -42,11 +42,11 @@ DIAMETER_MM = 20.0
 #: The fleet's true fresh-tool coefficients against the ``al7050`` preset the monitor's plans
 #: use (decision 1760), chosen once before any comparison and never fitted. The lot of plate
 #: and the tools' grind are not the ones the preset was identified with: K_tc +6 % (a plate of
-#: higher flow stress, within the spread of 7050-T7451 plate strength with thickness and lot),
+#: higher flow stress: the strength of 7050-T7451 plate falls with thickness by about 10 %),
 #: K_rc −8 % (a rake ground about 2° larger than nominal lowers the radial over tangential
 #: ratio), K_te +15 % and K_re +10 % (a larger edge hone radius: the ploughing forces grow
-#: with it, the radial most in absolute terms, the tangential most relatively). Only the
-#: virtual machine's own plan (:func:`fleet_plant_plan`) carries them.
+#: with it, by about the same 3.5–3.8 N/mm in both directions on the preset's 25 and 35 N/mm).
+#: Only the virtual machine's own plan (:func:`fleet_plant_plan`) carries them.
 FLEET_LOT_FACTORS = {"ktc": 1.06, "krc": 0.92, "kte": 1.15, "kre": 1.10}
 
 
