@@ -179,3 +179,61 @@ def test_tool_life_plant_is_not_the_wear_monitor_plan(monkeypatch: pytest.Monkey
         mw.tool_life.__wrapped__()
     _assert_own_plan(seen[0][1], seen[0][0], monitored[0])
     assert seen[0][0].metadata["program"] == monitored[0].metadata["program"]
+
+
+def _assert_lot_coefficients(proc: Any, expectation: Any) -> None:
+    """The plant cuts with the lot's true coefficients (the preset's × FLEET_LOT_FACTORS,
+    decision 1760), the monitor's plan carries the preset's (a new tool: VB = 0)."""
+    from millsense.plan.virtual_plan import coefficients_from_metadata
+    from millsense.simulator.tool_life import FLEET_LOT_FACTORS
+
+    preset = coefficients_from_metadata(expectation.metadata, "monitor plan")
+    for name, factor in FLEET_LOT_FACTORS.items():
+        assert getattr(proc.coeffs, name) == pytest.approx(getattr(preset, name) * factor,
+                                                           rel=1e-12), name  # fmt: skip
+    assert preset.kte == pytest.approx(25e3, rel=1e-12)  # the al7050 preset, 25 N/mm
+
+
+def test_tool_life_plant_cuts_the_lots_coefficients(monkeypatch: pytest.MonkeyPatch) -> None:
+    import millsense.online.wear_run as wear_run
+    import millsense.simulator.tool_life as tl
+    from millsense.validation.cases import monitoring_wear as mw
+
+    seen = _capture_plan_job(monkeypatch)
+    monitored = _stop_at(monkeypatch, wear_run, "source_wear_sums", arg=1)
+    # the first run is a new tool's: VB = 0, the plant's coefficients are the lot's as they are
+    monkeypatch.setattr(mw, "RUNS", 1)
+    with pytest.raises(_Stop):
+        mw.tool_life.__wrapped__()
+    assert tl.tool_life_runs(1, 1, 4, part_cut_s=1.0, cutting_speed_m_s=1.0)[0].vb_m == 0.0
+    _assert_lot_coefficients(seen[0][1], monitored[0])
+
+
+def test_simulate_fleet_cuts_the_plant_plan_and_names_the_monitor_plan(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Any
+) -> None:
+    """``simulate-fleet`` (issue 12): the machine cuts its own plan of the run's program while
+    the recording names the monitor's plan in ``plans/`` (what ``batch`` reads)."""
+    import millsense.simulator.machine as machine
+    from millsense.cli.cmd_fleet import simulate_fleet
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    real = plan_job_module.plan_job
+    names: list[str] = []
+
+    def named(vp: Any, mcfg: Any, plan_name: str, **k: Any) -> Any:
+        names.append(plan_name)
+        return real(vp, mcfg, plan_name, **k)
+
+    monkeypatch.setattr(plan_job_module, "plan_job", named)
+    seen = _capture_plan_job(monkeypatch)
+    _stop_at(monkeypatch, machine, "MachineSimulator")
+    with pytest.raises(_Stop):
+        simulate_fleet(tmp_path, tools=1, runs=1, part_cut_min=6.0, seed=0)
+    monitor_plan = tmp_path / "plans" / "slot2.parquet"
+    expectation = VirtualPlan.read(monitor_plan)
+    plant, proc = seen[0]
+    _assert_own_plan(proc, plant, expectation)
+    _assert_lot_coefficients(proc, expectation)
+    assert names == [str(monitor_plan)]  # the recording's metadata 'plan'
+    assert not list(tmp_path.glob("*.h5"))  # stopped before the machine ran

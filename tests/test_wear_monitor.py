@@ -14,17 +14,20 @@ from millsense.cli.cmd_simulate import run_simulation
 from millsense.core.presets import commissioned_machine
 from millsense.io import read_recording
 from millsense.monitoring.wear import (
+    EDGE_TOLERANCE,
     ToolRun,
     WearBelief,
     WearBlock,
     WearSums,
     assess_tool,
+    fresh_fit,
     fresh_scale,
     vb_from_sums,
     wear_trend,
 )
 from millsense.online.wear_run import recording_wear_sums
 from millsense.plan.virtual_plan import VirtualPlan
+from millsense.simulator.tool_life import fleet_plant_plan
 from millsense.streaming.block import Chunk
 
 
@@ -43,6 +46,38 @@ def test_the_belief_model_is_inverted_exactly() -> None:
     s = fresh_scale(fresh)
     assert s == pytest.approx(1.07, rel=1e-12)
     assert vb_from_sums(worn, s, 25e3, WearBelief()) == pytest.approx(0.23e-3, rel=1e-9)
+
+
+def _belief_torque_edge(xs: np.ndarray, xe: np.ndarray, s: float, e: float) -> np.ndarray:
+    return s * xs + e * xe  # a new tool whose real K_te is e × the plan's
+
+
+def test_edge_scale_is_identified_only_where_the_engagement_varies() -> None:
+    """Decision 1760: with shear and edge torque varying independently (a reference run of
+    varying chip thickness) both scales are identified exactly; in a cut of constant width
+    (edge a fixed fraction of shear, as in every fleet program) the condition number is far
+    beyond what identifies e (EDGE_TOLERANCE) and the plan's K_te is kept (e = 1, s absorbing
+    the edge)."""
+    rng = np.random.default_rng(6)
+    xs, xe = rng.uniform(0.5, 3.0, 500), rng.uniform(0.2, 1.5, 500)
+    varied = WearSums()
+    varied.add(_belief_torque_edge(xs, xe, 1.06, 1.15), xs, xe)
+    fit = fresh_fit(varied)
+    # edge over shear c spreads ±61 % about its mean: a 2 % plan mismatch moves e by ≤ 15 %
+    assert fit.edge_identified and fit.edge_error < EDGE_TOLERANCE
+    assert (fit.scale, fit.edge_scale) == pytest.approx((1.06, 1.15), rel=1e-9)
+    # constant width: x_e = 0.256 x_s (the fleet's slot, its ratio measured in decision
+    # 1760) within ±0.5 % from the plan's rows
+    xe_c = 0.256 * xs * rng.uniform(0.995, 1.005, 500)
+    steady = WearSums()
+    steady.add(_belief_torque_edge(xs, xe_c, 1.06, 1.15), xs, xe_c)
+    fit = fresh_fit(steady)
+    assert not fit.edge_identified and fit.edge_scale == 1.0
+    # c spreads ±0.29 %: a 2 % plan mismatch could move e by 0.02 × 1.256 / 0.00074 ≈ 34
+    assert fit.condition > 1e5 and fit.edge_error > 10.0
+    # s takes the edge's 15 % at this ratio: 1.06 + 0.15 × 0.256 (to the rows' ±0.5 %)
+    assert fit.scale == pytest.approx(1.06 + 0.15 * 0.256, abs=1e-4)
+    assert fit.scale == pytest.approx(fresh_scale(steady), rel=1e-12)
 
 
 def test_trend_extrapolates_a_line_to_the_limit() -> None:
@@ -74,12 +109,14 @@ def fleet_plans(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return write_fleet_plans(tmp_path_factory.mktemp("plans"))
 
 
-def _simulated(plan: Path, vb_mm: float, out: Path) -> Path:
+def _simulated(plan: Path, plant: VirtualPlan, vb_mm: float, out: Path) -> Path:
+    """The virtual machine cutting its own plan ``plant`` of ``plan``'s program (decisions
+    1740, 1760: finer z-map, runout, the lot's true coefficients)."""
     run_simulation(machine="quaser-ux600", program=None, plan=plan, tool=None, material=None,
                    engagement="slot", depth_mm=2.0, out=out, duration_s=None, seed=7,
                    cnc="open", break_at_s=None, break_flute=0, realism=None,
                    accelerometer=False, microphone=False, chunk=2000,
-                   wear_vb_mm=vb_mm)  # fmt: skip
+                   wear_vb_mm=vb_mm, plant=plant)  # fmt: skip
     return out
 
 
@@ -114,9 +151,13 @@ def test_vb_on_the_virtual_machine_does_not_depend_on_depth_or_width(
     est = {}
     for k in (0, 2):  # the 2 mm slot and the 4 mm deep, 5 mm wide side cut
         vp = VirtualPlan.read(fleet_plans[k])
+        plant = fleet_plant_plan(fleet_plans[k].with_suffix(".nc"))
         sums = {}
         for vb in (0.0, 0.3):
-            rec = read_recording(_simulated(fleet_plans[k], vb, tmp_path / f"p{k}_{vb}.h5"))
+            out = _simulated(fleet_plans[k], plant, vb, tmp_path / f"p{k}_{vb}.h5")
+            rec = read_recording(out)
+            # the recording names the monitor's plan, not the machine's own
+            assert rec.metadata["plan"] == str(fleet_plans[k])
             sums[vb] = recording_wear_sums(rec, vp, machine[0])
         s = fresh_scale(sums[0.0])
         est[k] = vb_from_sums(sums[0.3], s, 25e3, WearBelief())

@@ -382,7 +382,9 @@ def assess_wear(rows: list[dict[str, Any]], *, limit_mm: float = 0.3) -> list[di
     """Add the wear columns to the rows that have wear sums: per tool (``tool_id``, else the
     tool's name, on each machine), in order of the tool's cutting time (``tool_cutting_time_s``)
     or, without it, of the rows: ``wear_vb_mm``, ``wear_worn``, ``wear_rate_mm_min``,
-    ``wear_remaining_min``, ``tool_run_index``, ``tool_cutting_time_s``, ``wear_reference``."""
+    ``wear_remaining_min``, ``tool_run_index``, ``tool_cutting_time_s``, ``wear_reference``,
+    and the tool's reference fit (decision 1760): ``wear_shear_scale``, ``wear_edge_scale``
+    (1: the plan's K_te kept), ``wear_reference_condition``, ``wear_edge_error``."""
     from millsense.monitoring.wear import ToolRun, WearSums, assess_tool
 
     fields = WearSums.__dataclass_fields__
@@ -416,6 +418,10 @@ def assess_wear(rows: list[dict[str, Any]], *, limit_mm: float = 0.3) -> list[di
                 wear_remaining_min=remaining,
                 tool_run_index=a.run_index,
                 tool_cutting_time_s=a.cutting_time_s,
+                wear_shear_scale=a.shear_scale,
+                wear_edge_scale=a.edge_scale,
+                wear_reference_condition=a.condition,
+                wear_edge_error=a.edge_error,
             )
     return rows
 

@@ -14,6 +14,7 @@ from millsense.cli.progress import progress_bar
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from millsense.plan.virtual_plan import VirtualPlan
     from millsense.streaming.block import Event
 
 
@@ -182,8 +183,14 @@ def run_simulation(
     wear_vb_mm: float = 0.0,
     tool_id: str | None = None,
     tool_cutting_time_min: float | None = None,
+    plant: VirtualPlan | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
+
+    ``plant``: with ``plan``, the virtual machine's own plan of the same program (its own
+    z-map, runout and true coefficients, decisions 1740, 1760): the machine cuts its rows,
+    tool and coefficients, while the recording's metadata names ``plan`` (the plan the CNC
+    runs and a monitor reads). None: the machine cuts ``plan`` itself.
 
     The recording's metadata ``first_engagement_path_m`` is the path length (m, along the
     programmed path from its start, the integral of ``cnc/feed``) at which the tool first
@@ -224,6 +231,8 @@ def run_simulation(
         raise ConfigError("simulate: give --program or --plan, not both")
     if plan is None and program is None:
         raise ConfigError("simulate: give --program P.nc or --plan PLAN.parquet")
+    if plant is not None and plan is None:
+        raise ConfigError("simulate: the machine's own plan needs the plan it stands for")
     if cnc not in ("open", "closed"):
         raise ConfigError(f"--cnc: '{cnc}' (open or closed)")
     if chunk < 1:
@@ -262,9 +271,10 @@ def run_simulation(
 
         vp = VirtualPlan.read(plan)
         check_plan(vp, findings, machine=mcfg)
+        cut = vp if plant is None else plant
         if duration_s is None:
             check_signal(
-                float(vp["t_s"][-1]) if len(vp) else 0.0,
+                float(cut["t_s"][-1]) if len(cut) else 0.0,
                 f"--plan {plan}",
                 "give --duration-s to simulate its start, or plan part of the program",
                 ProgramError,
@@ -272,7 +282,13 @@ def run_simulation(
         from millsense.simulator.plan_job import plan_job
 
         job, process, meta_extra, plan_notes = plan_job(
-            vp, mcfg, str(plan), tool=tool, material=material, events=events, modes=modes,
+            cut,
+            mcfg,
+            str(plan),
+            tool=tool,
+            material=material,
+            events=events,
+            modes=modes,
             wear_vb_m=wear_vb_mm * 1e-3,
         )
         notes += plan_notes

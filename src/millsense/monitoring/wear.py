@@ -13,8 +13,14 @@ linear in the chip) and edge part T_edge (:mod:`millsense.online.plan_sync`), wi
 terms of a **linear flank-land model** believed by the monitor (:class:`WearBelief`): a land
 of width VB adds μσ·VB to the tangential edge coefficient K_te (Smithey, Kapoor & DeVor 2001)
 and the blunter edge scales the shear coefficients by (1 + g VB). The tool's first run (a new
-tool) gives s, the ratio of the real K_tc to the plan's (:func:`fresh_scale`); every later run
-gives VB by least squares (:func:`vb_from_sums`), independent of the depths and widths cut.
+tool, VB = 0) is the reference (:func:`fresh_fit`): T_meas = s u T_shear + e T_edge gives s,
+the ratio of the real K_tc to the plan's, and e, the ratio of the real K_te to the plan's —
+both by least squares when the run's regressors are independent enough that a plan mismatch
+of :data:`PLAN_MISMATCH` moves e by at most :data:`EDGE_TOLERANCE` (:func:`edge_scale_error`),
+else s alone with the plan's K_te (e = 1): in a cut of constant width the edge torque is a
+fixed fraction of the shear torque and the two scales cannot be told apart (decision 1760).
+Every later run gives VB by least squares (:func:`vb_from_sums`), independent of the depths
+and widths cut.
 
 The belief's σ, μ, g are generic values for aluminium alloys, not the virtual machine's
 (:mod:`millsense.simulator.wear` is a different, piecewise model with other numbers): the
@@ -38,7 +44,10 @@ from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 __all__ = [
+    "EDGE_TOLERANCE",
+    "PLAN_MISMATCH",
     "VB_LIMIT_M",
+    "FreshFit",
     "ToolRun",
     "ToolRunWear",
     "WearBelief",
@@ -46,6 +55,8 @@ __all__ = [
     "WearSums",
     "WearTrend",
     "assess_tool",
+    "edge_scale_error",
+    "fresh_fit",
     "fresh_scale",
     "vb_from_sums",
     "wear_trend",
@@ -56,6 +67,14 @@ VB_LIMIT_M = 0.3e-3
 #: Plan torques below this fraction of the plan's largest are not used (an observer's offset
 #: and noise would weigh more than the wear there; the same rule as the K_tc calibration).
 MIN_USED = 0.3
+#: Relative mismatch of the plan's torque between cuts of different engagement that the
+#: reference fit must survive: ±2 % (the fleet's four programs on the virtual machine read shear
+#: scales 0.98–1.02 with exact coefficients, decision 1760: z-map and runout the plan lacks).
+PLAN_MISMATCH = 0.02
+#: Largest error of the edge scale at which it is identified: 15 %, about what a preset's
+#: K_te may be off for another lot or grind (decision 1760); beyond it the plan's K_te is the
+#: better guess.
+EDGE_TOLERANCE = 0.15
 
 
 @dataclass(frozen=True)
@@ -127,25 +146,86 @@ class WearSums:
         return {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
 
 
-def fresh_scale(sums: WearSums) -> float:
-    """s = K_tc,real / K_tc,plan from a new tool's run (VB = 0): least squares of
-    T_meas − T_edge = s u T_shear (module docstring)."""
+@dataclass(frozen=True)
+class FreshFit:
+    """The new tool's reference (:func:`fresh_fit`): shear scale s = K_tc,real / K_tc,plan,
+    edge scale e = K_te,real / K_te,plan (1: the plan's K_te kept), the condition number of
+    the normalised normal matrix, the edge-scale error a plan mismatch could cause
+    (:func:`edge_scale_error`) and whether e was identified."""
+
+    scale: float
+    edge_scale: float
+    condition: float
+    edge_error: float
+    edge_identified: bool
+
+
+def fresh_fit(sums: WearSums, tolerance: float = EDGE_TOLERANCE) -> FreshFit:
+    """The shear and edge scales from a new tool's run (VB = 0), module docstring: least
+    squares of T_meas = s u T_shear + e T_edge when :func:`edge_scale_error` is at most
+    ``tolerance``, else of T_meas − T_edge = s u T_shear (e = 1)."""
     if sums.n == 0 or sums.ss <= 0:
         raise InputDataError("wear: the new tool's run has no steady cut to calibrate on")
-    return (sums.ms - sums.se) / sums.ss
+    cond = _condition(sums)
+    err = edge_scale_error(sums)
+    if err <= tolerance:
+        det = sums.ss * sums.ee - sums.se * sums.se
+        s = (sums.ms * sums.ee - sums.me * sums.se) / det
+        e = (sums.me * sums.ss - sums.ms * sums.se) / det
+        return FreshFit(s, e, cond, err, True)
+    return FreshFit((sums.ms - sums.se) / sums.ss, 1.0, cond, err, False)
 
 
-def vb_from_sums(sums: WearSums, scale: float, kte_n_m: float, belief: WearBelief) -> float:
+def _condition(sums: WearSums) -> float:
+    """Condition number κ of the normal matrix of (u T_shear, T_edge), columns normalised:
+    (1 + r) / (1 − r), r their uncentred correlation (inf: collinear or no edge torque)."""
+    if sums.ss <= 0 or sums.ee <= 0:
+        return math.inf
+    r = abs(sums.se) / math.sqrt(sums.ss * sums.ee)
+    return (1.0 + r) / (1.0 - r) if r < 1.0 else math.inf
+
+
+def edge_scale_error(sums: WearSums, mismatch: float = PLAN_MISMATCH) -> float:
+    """The error of the edge scale e that a relative torque mismatch ``mismatch`` of the plan,
+    different between the samples, can cause in the reference fit (decision 1760).
+
+    Divided by x_s = u T_shear, the fit is T_meas / x_s = s + e c with c = T_edge / x_s: e is
+    the slope over c, so a mismatch δ of the torque s + e c̄ moves it by δ (1 + c̄) / σ_c, with
+    c̄ = Σ x_s x_e / Σ x_s² and σ_c the spread of c (both weighted by x_s²); σ_c = c̄ √(1/r² − 1)
+    with r the uncentred correlation of x_s and x_e (:func:`_condition`: κ ≈ 4 / (1 − r²))."""
+    if sums.ss <= 0 or sums.ee <= 0 or sums.se <= 0:
+        return math.inf
+    cbar = sums.se / sums.ss
+    r2 = sums.se * sums.se / (sums.ss * sums.ee)
+    spread = cbar * math.sqrt(max(1.0 / r2 - 1.0, 0.0))
+    return mismatch * (1.0 + cbar) / spread if spread > 0 else math.inf
+
+
+def fresh_scale(sums: WearSums) -> float:
+    """s = K_tc,real / K_tc,plan from a new tool's run (VB = 0) with the plan's K_te: least
+    squares of T_meas − T_edge = s u T_shear (module docstring; :func:`fresh_fit` also
+    identifies the edge scale where the run allows it)."""
+    return fresh_fit(sums, tolerance=-math.inf).scale
+
+
+def vb_from_sums(
+    sums: WearSums, scale: float, kte_n_m: float, belief: WearBelief, edge_scale: float = 1.0
+) -> float:
     """VB [m] of one run by least squares on the belief's wear terms (module docstring):
-    y = T_meas − s u T_shear − T_edge, z = s g u T_shear + (μσ/K_te) T_edge, VB = Σyz / Σz²."""
+    y = T_meas − s u T_shear − e T_edge, z = s g u T_shear + (μσ/K_te) T_edge, VB = Σyz / Σz²
+    (K_te the plan's: the land adds μσ VB to the real K_te, so its torque is μσ VB T_edge /
+    K_te,plan whatever e)."""
     if sums.n == 0:
         return math.nan
     if not (kte_n_m > 0):
         raise ConfigError("wear: the plan's K_te must be > 0 to weigh the edge torque")
     a = scale * belief.shear_growth_per_mm * 1e3  # per metre of VB, on u·T_shear
     c = belief.flank_friction * belief.contact_stress_n_m2 / kte_n_m  # on T_edge
-    # Σ y z and Σ z² from the run's sums (y = m − s·x_s − x_e, z = a·x_s + c·x_e)
-    syz = a * (sums.ms - scale * sums.ss - sums.se) + c * (sums.me - scale * sums.se - sums.ee)
+    e = edge_scale
+    # Σ y z and Σ z² from the run's sums (y = m − s·x_s − e·x_e, z = a·x_s + c·x_e)
+    syz = a * (sums.ms - scale * sums.ss - e * sums.se) + c * (
+        sums.me - scale * sums.se - e * sums.ee
+    )
     szz = a * a * sums.ss + 2 * a * c * sums.se + c * c * sums.ee
     return syz / szz if szz > 0 else math.nan
 
@@ -291,8 +371,9 @@ class ToolRun:
 
 @dataclass(frozen=True)
 class ToolRunWear:
-    """The assessment of one run: VB estimate, the flag against the limit, and the tool's
-    trend at that run (rate, remaining cutting time)."""
+    """The assessment of one run: VB estimate, the flag against the limit, the tool's trend at
+    that run (rate, remaining cutting time) and the tool's reference (:class:`FreshFit`: shear
+    and edge scale, condition number, edge-scale error)."""
 
     run: str
     run_index: int
@@ -302,6 +383,10 @@ class ToolRunWear:
     rate_m_s: float
     remaining_s: float
     reference: bool
+    shear_scale: float = 1.0
+    edge_scale: float = 1.0
+    condition: float = math.nan
+    edge_error: float = math.nan
 
 
 def assess_tool(
@@ -313,8 +398,10 @@ def assess_tool(
 ) -> list[ToolRunWear]:
     """VB per run of one tool, its flag and the trend (module docstring).
 
-    The runs are taken in ``order``; the first is the new tool's (VB = 0, the K_tc reference
-    :func:`fresh_scale`, decision 2002). ``cutting_time_known``: ``order`` is the tool's
+    The runs are taken in ``order``; the first is the new tool's (VB = 0, the reference
+    :func:`fresh_fit` of the shear and, where identifiable, the edge scale; decisions 2002,
+    1760; every row carries the reference's scales, condition number and edge-scale error).
+    ``cutting_time_known``: ``order`` is the tool's
     cutting time before each run (a CNC's tool-life counter); else the time is accumulated
     from the runs' own time in cut.
     """
@@ -327,7 +414,7 @@ def assess_tool(
         raise InputDataError(
             f"wear: no run of the tool ({ordered[0].run}, ...) has a steady cut to judge"
         )
-    scale = fresh_scale(ref.sums)
+    fit = fresh_fit(ref.sums)
     out: list[ToolRunWear] = []
     times: list[float] = []
     vbs: list[float] = []
@@ -335,10 +422,12 @@ def assess_tool(
     for i, r in enumerate(ordered):
         t = r.order if cutting_time_known else clock
         clock += max(r.cut_s, 0.0)
-        vb = 0.0 if r is ref else vb_from_sums(r.sums, scale, r.kte_n_m, b)
+        vb = 0.0 if r is ref else vb_from_sums(r.sums, fit.scale, r.kte_n_m, b, fit.edge_scale)
         times.append(t)
         vbs.append(vb)
         tr = wear_trend(times, vbs, limit_m=limit_m)
         worn = bool(vb >= limit_m)
-        out.append(ToolRunWear(r.run, i, t, vb, worn, tr.rate_m_s, tr.remaining_s, r is ref))
+        out.append(ToolRunWear(r.run, i, t, vb, worn, tr.rate_m_s, tr.remaining_s, r is ref,
+                               fit.scale, fit.edge_scale, fit.condition,
+                               fit.edge_error))  # fmt: skip
     return out

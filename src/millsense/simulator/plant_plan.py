@@ -11,8 +11,10 @@ does not know. The simulator reads this plan's engagement rows
 dynamics, edge forces, wear, the truth spindle) is the simulator's as always.
 
 What plant and controller/monitor share: the program, the raw stock, the tool's nameplate
-geometry and the material's nominal coefficients. What they do not share: the z-map cut of the
-stock (so the engagement rows), the runout and everything the truth's process adds.
+geometry and the coefficients the caller gives (the material's nominal ones, except the
+tool-life fleet's plant, which cuts its lot's true coefficients: decision 1760). What they do
+not share: the z-map cut of the stock (so the engagement rows), the runout and everything the
+truth's process adds.
 """
 
 from __future__ import annotations

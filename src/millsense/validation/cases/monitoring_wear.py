@@ -1,16 +1,18 @@
-"""Tool wear over a simulated tool life (issue 20 acceptance; decisions 2001, 2002).
+"""Tool wear over a simulated tool life (issue 20 acceptance; decisions 2001, 2002, 1760).
 
 Five tools of one type (±30 % life factor) make 20 runs each, cycling four programs of
 different depths and widths (:data:`~millsense.simulator.tool_life.FLEET_PROGRAMS`); each run
 represents 6 min of cutting, so the true flank wear grows from 0 to about 0.5 mm over a life
 (:class:`~millsense.simulator.wear.FlankWearModel`, the virtual machine's truth). The virtual
 machine runs every run's program with its tool's VB, cutting its own plan of it
-(:func:`~millsense.simulator.tool_life.fleet_plant_plan`, decision 1740: the same program,
-block, tool and material on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad), while
-the wear monitor's expectation is the nameplate plan
-(:func:`~millsense.simulator.tool_life.fleet_plan`, 0.25 mm z-map, no runout); the wear monitor
-(:mod:`millsense.monitoring.wear`, with the commissioned machine file's spindle observer and its
-own linear land belief) judges each tool's runs in order, its first run the new tool. Judged:
+(:func:`~millsense.simulator.tool_life.fleet_plant_plan`, decisions 1740, 1760: the same
+program, block and tool on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad, and the
+lot's true coefficients, K_tc +6 %, K_te +15 %, ... off the preset), while the wear monitor's
+expectation is the nameplate plan (:func:`~millsense.simulator.tool_life.fleet_plan`, 0.25 mm
+z-map, no runout, the ``al7050`` preset); the wear monitor (:mod:`millsense.monitoring.wear`,
+with the commissioned machine file's spindle observer and its own linear land belief) judges
+each tool's runs in order, its first run the new tool's reference (its shear scale; the edge
+scale only where that run identifies it, which no fleet program's steady cut does). Judged:
 the rank correlation of its VB with the true VB, and the balanced accuracy of its flag
 "VB ≥ 0.3 mm"; a run counter and the raw cutting torque (no engagement normalisation) are shown
 beside it, each with its best threshold on these very runs.
