@@ -14,6 +14,7 @@ from millsense.plan.plan_engagement import PlanEngagement
 from millsense.simulator import plan_job as plan_job_module
 from millsense.simulator.plant_plan import (
     PLANT_CELL_M,
+    PLANT_LOT_FACTORS,
     PLANT_RUNOUT_ANGLE_RAD,
     PLANT_RUNOUT_M,
     plant_plan,
@@ -65,6 +66,7 @@ def _assert_own_plan(proc: Any, plant: Any, expectation: Any) -> None:
     # the same program: the same rows and path
     assert len(plant) == len(expectation)
     np.testing.assert_allclose(plant.xyz_m, expectation.xyz_m, atol=1e-12)
+    _assert_lot_coefficients(proc, expectation)
 
 
 def test_plant_plan_is_a_finer_cut_with_runout() -> None:
@@ -182,13 +184,13 @@ def test_tool_life_plant_is_not_the_wear_monitor_plan(monkeypatch: pytest.Monkey
 
 
 def _assert_lot_coefficients(proc: Any, expectation: Any) -> None:
-    """The plant cuts with the lot's true coefficients (the preset's × FLEET_LOT_FACTORS,
-    decision 1760), the monitor's plan carries the preset's (a new tool: VB = 0)."""
+    """The plant cuts with the lot's true coefficients (the preset's × PLANT_LOT_FACTORS,
+    decisions 1760, 1800), the controller's or monitor's plan carries the preset's (a new
+    tool: VB = 0)."""
     from millsense.plan.virtual_plan import coefficients_from_metadata
-    from millsense.simulator.tool_life import FLEET_LOT_FACTORS
 
     preset = coefficients_from_metadata(expectation.metadata, "monitor plan")
-    for name, factor in FLEET_LOT_FACTORS.items():
+    for name, factor in PLANT_LOT_FACTORS.items():
         assert getattr(proc.coeffs, name) == pytest.approx(getattr(preset, name) * factor,
                                                            rel=1e-12), name  # fmt: skip
     assert preset.kte == pytest.approx(25e3, rel=1e-12)  # the al7050 preset, 25 N/mm

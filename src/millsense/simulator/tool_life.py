@@ -13,7 +13,7 @@ tests) drawn from a seeded generator.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,6 @@ from millsense.plan.virtual_plan import VirtualPlan
 from millsense.simulator.wear import FlankWearModel
 
 __all__ = [
-    "FLEET_LOT_FACTORS",
     "FLEET_PROGRAMS",
     "ToolLifeRun",
     "fleet_plan",
@@ -39,15 +38,6 @@ FLEET_PROGRAMS = (("slot2", 2.0, 20.0), ("side3w10", 3.0, 10.0), ("side4w5", 4.0
 SPINDLE_RPM = 1000.0
 FEED_MM_MIN = 400.0
 DIAMETER_MM = 20.0
-#: The fleet's true fresh-tool coefficients against the ``al7050`` preset the monitor's plans
-#: use (decision 1760), chosen once before any comparison and never fitted. The lot of plate
-#: and the tools' grind are not the ones the preset was identified with: K_tc +6 % (a plate of
-#: higher flow stress: the strength of 7050-T7451 plate falls with thickness by about 10 %),
-#: K_rc −8 % (a rake ground about 2° larger than nominal lowers the radial over tangential
-#: ratio), K_te +15 % and K_re +10 % (a larger edge hone radius: the ploughing forces grow
-#: with it, by about the same 3.5–3.8 N/mm in both directions on the preset's 25 and 35 N/mm).
-#: Only the virtual machine's own plan (:func:`fleet_plant_plan`) carries them.
-FLEET_LOT_FACTORS = {"ktc": 1.06, "krc": 0.92, "kte": 1.15, "kre": 1.10}
 
 
 @dataclass(frozen=True)
@@ -144,12 +134,12 @@ def fleet_plant_plan(program: Path) -> VirtualPlan:
     """The virtual machine's own plan of a fleet program
     (:func:`~millsense.simulator.plant_plan.plant_plan`, decision 1740): the block, tool and
     material of :func:`fleet_plan` on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad
-    and the lot's true coefficients (the preset's × :data:`FLEET_LOT_FACTORS`, decision 1760)
+    and the lot's true coefficients (the preset's ×
+    :data:`~millsense.simulator.plant_plan.PLANT_LOT_FACTORS`, decisions 1760, 1800)
     the monitor's plan does not know."""
     from millsense.plan.gcode import interpret_file
     from millsense.simulator.plant_plan import plant_plan
 
     tool, coeffs, names = _fleet_tool_material()
-    lot = replace(coeffs, **{k: getattr(coeffs, k) * f for k, f in FLEET_LOT_FACTORS.items()})
-    return plant_plan([interpret_file(program)], _fleet_stock, tool, lot,
+    return plant_plan([interpret_file(program)], _fleet_stock, tool, coeffs,
                       metadata={"program": str(program), **names})  # fmt: skip
