@@ -1,0 +1,64 @@
+"""``millsense run`` / ``serve-machine``: the virtual machine cuts its own plan of the program
+(decision 1800), never the session's plan object; with ``--plan`` only it cuts that plan and
+says so."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from millsense.plan.plan_engagement import PlanEngagement
+from millsense.simulator import plan_job as plan_job_module
+from millsense.simulator.plant_plan import PLANT_LOT_FACTORS, PLANT_RUNOUT_M
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "examples/demo_part"
+SLOT = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-2 F400\nX30\nG0 Z5\nM30\n"
+
+
+def _capture(monkeypatch: pytest.MonkeyPatch) -> list[tuple[Any, Any]]:
+    real = plan_job_module.plan_job
+    seen: list[tuple[Any, Any]] = []
+
+    def wrapped(vp: Any, *a: Any, **k: Any) -> Any:
+        out = real(vp, *a, **k)
+        seen.append((vp, out[1]))
+        return out
+
+    monkeypatch.setattr(plan_job_module, "plan_job", wrapped)
+    return seen
+
+
+def test_run_cuts_the_machines_own_plan(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from millsense.cli.cmd_run import virtual_machine
+    from millsense.plan.virtual_plan import coefficients_from_metadata
+
+    prog = tmp_path / "slot.nc"
+    prog.write_text(SLOT)
+    seen = _capture(monkeypatch)
+    vm = virtual_machine(program=prog, stock=DEMO / "stock.toml", tool="aslan-d20-2flute",
+                         material="al7050", plan=None, plan_out=tmp_path / "plan.parquet",
+                         machine="quaser-ux600", duration_s=0.5)  # fmt: skip
+    (plant, proc), = seen
+    assert plant is not vm.plan
+    eng = proc.engagement
+    assert isinstance(eng, PlanEngagement) and eng.plan is plant
+    # its own cut: the plant's runout and the lot's coefficients, the same path
+    assert proc.tool.runout_offset_m == pytest.approx(PLANT_RUNOUT_M, rel=1e-12)
+    nominal = coefficients_from_metadata(vm.plan.metadata, "session plan")
+    for name, factor in PLANT_LOT_FACTORS.items():
+        assert getattr(proc.coeffs, name) == pytest.approx(getattr(nominal, name) * factor,
+                                                           rel=1e-12), name  # fmt: skip
+    assert len(plant) == len(vm.plan)
+    assert not any("cuts the given --plan" in n for n in vm.notes)
+
+    # --plan only: nothing to plan the machine's cut from; it cuts that plan and says so
+    seen.clear()
+    vm2 = virtual_machine(program=None, stock=None, tool=None, material=None,
+                          plan=tmp_path / "plan.parquet", plan_out=None, machine="quaser-ux600",
+                          duration_s=0.5)  # fmt: skip
+    (plant2, _), = seen
+    assert plant2 is vm2.plan
+    assert any("cuts the given --plan" in n for n in vm2.notes)
