@@ -84,8 +84,9 @@ _MODEL: list[StabilityModel] = []
 
 
 def _t1(depth_mm: float) -> StabilityModel:
-    """The T1 V5 replica's stability case (validation.cases.control_chatter_avoidance: the
-    Aslan Table 5.3-5.4 modal table, 5 flutes, slot, Al7050), one cache for all depths."""
+    """The T1 V5 replica's stability case as the controller has it (validation.cases.
+    control_chatter_avoidance: the modes fitted to a simulated tap test of the Aslan Table
+    5.3-5.4 tool, decision 1750; 5 flutes, slot, Al7050), one cache for all depths."""
     from millsense.validation.cases.control_chatter_avoidance import stability_case
 
     if not _MODEL:
