@@ -18,7 +18,8 @@ Ch. 4: tap tests at the tool tip, curve fitting over 200-1800 Hz):
 
 The fitted structure is cached in the process and on disk (:mod:`millsense.core.disk_cache`,
 keyed by the truth's table, the test's options and the code), so ``make demo`` pays the
-test (a few seconds) once.
+test once (2-3 s; more on a loaded machine, where multi-threaded BLAS slows the fit's small
+least-squares problems) and reads it in about 1 ms afterwards.
 """
 
 from __future__ import annotations
