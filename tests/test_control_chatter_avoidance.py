@@ -84,8 +84,9 @@ _MODEL: list[StabilityModel] = []
 
 
 def _t1(depth_mm: float) -> StabilityModel:
-    """The T1 V5 replica's stability case (validation.cases.control_chatter_avoidance: the
-    Aslan Table 5.3-5.4 modal table, 5 flutes, slot, Al7050), one cache for all depths."""
+    """The T1 V5 replica's stability case as the controller has it (validation.cases.
+    control_chatter_avoidance: the modes fitted to a simulated tap test of the Aslan Table
+    5.3-5.4 tool, decision 1750; 5 flutes, slot, Al7050), one cache for all depths."""
     from millsense.validation.cases.control_chatter_avoidance import stability_case
 
     if not _MODEL:
@@ -442,3 +443,26 @@ def test_write_split_program_atomic_and_never_onto_its_input(tmp_path: Path) -> 
         write_split_program(src, src, 2.5)
     with pytest.raises(ProgramError):
         split_deep_passes("G91\nG1 Z-3 F100\n", 1.0)
+
+
+def test_pocket_is_judged_on_the_truth_softened_at_the_slot_load() -> None:
+    """Decision 1750: the stable-pocket case reads the plant's table softened as under the
+    cut's load. Independent: the mean slot torque in closed form, T = R a N (2 K_tc h + π K_te)
+    / 2π (full immersion, sin φ integrates to 2 over the half turn) = 5.49 N·m for T1 at
+    0.1 mm/tooth and 1.2 mm, through the realism's scale 1 − 0.184 T/T_ref (T_ref 10 N·m) and
+    1 − 0.03 (Ω/Ω_max)² (24000 rev/min), rounded to 1 %: 0.90 at 6107 rev/min."""
+    from millsense.simulator.realism import LOAD_SHIFT
+    from millsense.validation.cases.control_chatter_avoidance import (
+        load_scale,
+        truth_case,
+        truth_modes,
+    )
+
+    torque = 0.025 * 1.2e-3 * 5 * (2 * 758e6 * 0.1e-3 + math.pi * 25e3) / (2 * math.pi)
+    scale = (1 - LOAD_SHIFT * torque / 10.0) * (1 - 0.03 * (6107.0 / 24000.0) ** 2)
+    assert load_scale(6107.0) == pytest.approx(round(scale, 2), abs=1e-12) == 0.90
+    soft = truth_case(0.9).structure
+    np.testing.assert_allclose([m.natural_frequency_hz for m in soft.y],
+                               0.9 * truth_modes().y.natural_hz, rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose([m.stiffness for m in soft.y],
+                               truth_modes().y.stiffness_n_per_m, rtol=1e-12)  # fmt: skip

@@ -13,9 +13,11 @@ runs on a bar of its own (200 × 80 × 30 mm, Al7050): decision 1660.
 
 The virtual machine (the simulator's truth of the quaser-ux600, X/Y/Z) runs the tool's modes,
 softened under load as its truth does, and cuts its own plan of the pass (a 0.05 mm z-map, 5 µm
-of runout; decision 1740); the session plans on a 0.5 mm z-map without runout, reads the lobes
-from the same tool file (its at-rest modes exactly: a perfect tap test, disclosed as shared,
-issue 12) and runs the spindle observer of the commissioned machine file. Two runs:
+of runout; decision 1740); the session plans on a 0.5 mm z-map without runout, takes its lobes'
+cutting coefficients and settings from the tool file and their structure from a simulated tap
+test of the plant's tool at rest (hammer and accelerometer with noise, H1, modal fit:
+:mod:`millsense.bench.tap_test`, decision 1750; issue 12: the table itself is the plant's, not
+the controller's) and runs the spindle observer of the commissioned machine file. Two runs:
 
 - **controlled**: the chatter monitor's alarm makes the chatter avoidance command a new spindle
   speed (the centre of the widest stable pocket, decision 1635); the machine follows it;
@@ -148,6 +150,7 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
          on_progress: Callable[[int], None] | None) -> Any:  # fmt: skip
     """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
     machine cutting its own plan ``plant``; the session's result."""
+    from millsense.bench.tap_test import tap_tested_case
     from millsense.core.presets import commissioned_machine
     from millsense.demo_online import _Open
     from millsense.online.session import SessionOptions, run_session, session_blocks
@@ -164,7 +167,9 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
     belief, where = shipped[0].with_axes("xyz", "3-axis"), shipped[1]
     with resources.as_file(tool_modes_file()) as modes_path:
         modes = ToolModes.from_toml(modes_path)
-        case = load_case(modes_path)
+        # the session's lobes: the file's coefficients and lobe settings, the structure fitted
+        # to a simulated tap test of the plant's tool (decision 1750)
+        case = tap_tested_case(load_case(modes_path), modes)
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_chatter.nc", modes=modes)
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=11))
     opts = SessionOptions(adaptive=False, stability_case=case)

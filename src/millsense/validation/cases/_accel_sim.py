@@ -4,7 +4,9 @@ Not an estimator: it plays the machine. Forces come from the sliced mechanistic 
 (:func:`millsense.process.forces.milling_forces`), structures from modal sums realised by
 :class:`millsense.models.modal_ss.ModalStateSpace`, stepped exactly for a force that is
 linear between samples (first-order hold) at an oversampled rate, then low-passed without
-phase (a delay-compensated DAQ anti-alias filter) and decimated. FRFs the estimators use come
+phase (a delay-compensated DAQ anti-alias filter) and decimated (:class:`ModeSet`,
+:func:`simulate_foh` and :func:`daq` live with the tool's tap test in
+:mod:`millsense.simulator.tap_test`). FRFs the estimators use come
 from simulated impact tests through :func:`millsense.ident.frf.impact_frf`, never from the
 modal truth.
 """
@@ -16,81 +18,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-import scipy.signal
 from numpy.typing import NDArray
 
 from millsense.ident.frf import FrfEstimate, impact_frf
 from millsense.models.modal_ss import ModalStateSpace
+from millsense.simulator.tap_test import ModeSet, daq, simulate_foh
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class ModeSet:
-    """Receptance modes Σ α_r/(s² + 2ζ_r ω_r s + ω_r²) of one input–output pair [m/N].
-
-    Attributes
-    ----------
-    frequency_hz, damping, alpha : natural frequency [Hz], ζ [-], residue α [1/kg] per mode.
-    """
-
-    frequency_hz: tuple[float, ...]
-    damping: tuple[float, ...]
-    alpha: tuple[float, ...]
-
-    def receptance(self, f_hz: FloatArray) -> NDArray[np.complex128]:
-        s = 2j * np.pi * np.asarray(f_hz, dtype=float)
-        out = np.zeros(s.shape, dtype=complex)
-        for f, z, a in zip(self.frequency_hz, self.damping, self.alpha, strict=True):
-            w = 2 * np.pi * f
-            out += a / (s * s + 2 * z * w * s + w * w)
-        return out
-
-    def accelerance_ss(self) -> ModalStateSpace:
-        """s²·Σ α/(s² + 2ζωs + ω²) = Σα + Σ (−αω² − 2ζωα s)/(…) as a modal state space."""
-        w = 2 * np.pi * np.asarray(self.frequency_hz)
-        z = np.asarray(self.damping)
-        a = np.asarray(self.alpha)
-        return ModalStateSpace.from_modes(
-            self.frequency_hz, self.damping, -a * w * w, -2 * z * w * a, float(np.sum(a))
-        )
-
-
-def simulate_foh(ss: ModalStateSpace, u: FloatArray, dt: float) -> FloatArray:
-    """Response of ``ss`` to an input linear between samples (exact first-order hold).
-
-    Each 2×2 block is stepped as x⁺ = Φx + Γ_a u_k + Γ_b (u_{k+1} − u_k), diagonalised and run
-    by :func:`scipy.signal.lfilter` (no per-sample Python loop).
-    """
-    y = ss.d * u
-    u_next = np.append(u[1:], u[-1])
-    for k in range(ss.a.shape[0]):
-        m = np.zeros((4, 4))
-        m[:2, :2] = ss.a[k] * dt
-        m[:2, 2] = ss.b[k] * dt
-        m[2, 3] = 1.0
-        e = scipy.linalg.expm(m)
-        phi, ga, gb = e[:2, :2], e[:2, 2], e[:2, 3]
-        v = np.outer(u, ga - gb) + np.outer(u_next, gb)  # x_{k+1} = Φ x_k + v_k
-        lam, vec = np.linalg.eig(phi)
-        w_in = np.linalg.solve(vec, v.T)  # (2, n)
-        x = np.empty((2, u.size), dtype=complex)
-        for i in range(2):
-            # w_{k+1} = λ w_k + in_k, w_0 = 0  →  x_k uses inputs before k
-            wk = scipy.signal.lfilter([0.0, 1.0], [1.0, -lam[i]], w_in[i])
-            x[i] = wk
-        xs = np.real(vec @ x)
-        y = y + ss.c[k] @ xs
-    return np.asarray(y, dtype=float)
-
-
-def daq(x: FloatArray, oversample: int, cutoff_fraction: float = 0.95) -> FloatArray:
-    """Zero-phase anti-alias low-pass at ``cutoff_fraction`` of the output Nyquist, decimate."""
-    if oversample == 1:
-        return x
-    sos = scipy.signal.butter(12, cutoff_fraction / oversample, output="sos")
-    return np.asarray(scipy.signal.sosfiltfilt(sos, x)[::oversample], dtype=float)
 
 
 def impact_test(

@@ -221,7 +221,8 @@ for _kind in FAULTS:
 # ---------------------------------------------------------------- chatter in the session
 #: The chatter-prone pass: the V5 T1 replica (Ø50 mm 5-flute, its modal table) slotting Al7050
 #: at 4500 rev/min, 1.2 mm deep, 0.1 mm/tooth (the case of ``control.chatter_avoidance_*``),
-#: here planned and run through ``millsense run``'s session with the lobes of the tool table.
+#: here planned and run through ``millsense run``'s session; the plant runs the tool's table, the
+#: session's lobes come from a simulated tap test of that tool (decision 1750).
 CHATTER_RPM = 4500.0
 CHATTER_DEPTH_MM = 1.2
 
@@ -244,12 +245,11 @@ def chatter_run() -> dict[str, object]:
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.plan_job import plan_job
     from millsense.simulator.plant_plan import plant_plan
-    from millsense.simulator.process_coupling import ToolModes
-    from millsense.validation.cases.control_chatter_avoidance import stability_case
-    from millsense.validation.cases.monitoring_chatter import TOOLS, _modes
+    from millsense.validation.cases.control_chatter_avoidance import stability_case, truth_modes
+    from millsense.validation.cases.monitoring_chatter import TOOLS
     from millsense.validation.cases.simulator_plan import machine_3axis
 
-    d, n, _, _, _, _, mx, my = TOOLS["T1"]
+    d, n = TOOLS["T1"][0], TOOLS["T1"][1]
     feed = 0.1 * n * CHATTER_RPM
     prog = (
         f"G21 G90 G17\nT1 M6\nS{CHATTER_RPM:.0f} M3\nG0 X-40 Y0 Z5\n"
@@ -264,7 +264,7 @@ def chatter_run() -> dict[str, object]:
     plan = plan_program(toolpath, stock(0.5 * MM), EndMill(d, n), coeffs, step_m=1.0 * MM)
     plant = plant_plan([toolpath], stock, EndMill(d, n), coeffs, step_m=1.0 * MM)
     m = machine_3axis()
-    job, proc, _, _ = plan_job(plant, m, "t1_slot.nc", modes=ToolModes(_modes(my), _modes(mx)))
+    job, proc, _, _ = plan_job(plant, m, "t1_slot.nc", modes=truth_modes())
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=11))
     shipped = commissioned_machine("quaser-ux600")
     assert shipped is not None
@@ -273,8 +273,9 @@ def chatter_run() -> dict[str, object]:
     built = session_blocks(plan, belief, m.sample_rate_hz, opts, channels=sim.channel_names)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "t1.h5"
-        res = run_session(sim, built.blocks, out=out,
-                          keep=("truth/process/chatter", "spindle/speed"))
+        res = run_session(
+            sim, built.blocks, out=out, keep=("truth/process/chatter", "spindle/speed")
+        )
         with opened_recording(out) as rec:
             chatter = np.asarray(rec.channel("truth/process/chatter")) > 0.5
             speed = np.asarray(rec.channel("spindle/speed"))
@@ -294,17 +295,20 @@ def _chatter_table(r: dict[str, object]) -> str:
 
 
 #: Why the truth of the T1 session is chatter-free only 1.3 s after its one speed change
-#: (2026-11-28; on the plant's own plan since decision 1740, 1.53 s before on the session's).
+#: (2026-11-28; on the plant's own plan since decision 1740, 1.53 s before on the session's;
+#: lobes from the simulated tap test since decision 1750: 1.293 s, 1.305 s on the exact table's).
 _T1_SLOW_END = (
-    "one speed change, 4500 -> 6116 rev/min, the centre of lobe 1's stable pocket (decision "
-    "1635; the lobe speed 60 f_c/N, which the truth's softened modes made unstable, needed a "
-    "second change before), found at 2.4 s (510.2 Hz, ratio 19.9; the closed loop is sensitive: "
+    "one speed change, 4500 -> 6101 rev/min (6116 on the lobes of the exact table before "
+    "decision 1750's tap test), the centre of lobe 1's stable pocket (decision 1635; the lobe "
+    "speed 60 f_c/N, which the truth's softened modes made unstable, needed a second change "
+    "before), found at 2.4 s (510.2 Hz, ratio 19.9; the closed loop is sensitive: "
     "runs before decisions 1661-1662 found 1840.5 Hz at 2.7 s, 554.1 Hz at 3.5 s, and went to "
     "6105-6109 rev/min). The spindle is at the new speed within 0.1 s and the monitor ends the "
-    "episode 0.7 s after the change, but the truth has its first quiet second only 1.31 s after "
-    "it on its own plan (decision 1740; 1.53 s when it cut the session's plan, 2.6 s before "
-    "decision 1661 let the adaptive feed rise again after the chatter and decision 1662 kept "
-    "it from acting in the run-up). At the pocket's centre the tooth-passing "
+    "episode 0.7 s after the change, but the truth has its first quiet second only 1.29 s after "
+    "it on its own plan (1.31 s with the exact table's lobes; decision 1740; 1.53 s when it cut "
+    "the session's plan, 2.6 s before decision 1661 let the adaptive feed rise again after the "
+    "chatter and decision 1662 kept it from acting in the run-up). At the pocket's centre the "
+    "tooth-passing "
     "frequency (about 510 Hz) sits on the truth's 546 Hz tool mode softened by about 7 % under "
     "the slot's load: the truth's tool vibration grows to 20-25 µm RMS, mostly periodic with the "
     "revolution (2-6 µm change from one revolution to the next, so the truth's chatter flag "
