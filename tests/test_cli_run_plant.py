@@ -62,3 +62,46 @@ def test_run_cuts_the_machines_own_plan(tmp_path: Path, monkeypatch: pytest.Monk
     (plant2, _), = seen
     assert plant2 is vm2.plan
     assert any("cuts the given --plan" in n for n in vm2.notes)
+
+
+def test_run_tool_modes_lobes_come_from_a_tap_test(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``run --tool-modes CASE``: the virtual tool runs the file's modes, the chatter avoidance
+    checks the lobes of a simulated tap test of that tool (decision 1750), not the file's
+    table itself."""
+    from importlib import resources
+
+    import millsense.online.session as session
+    from millsense.cli.cmd_run import run_online
+    from millsense.online.session import SessionOptions
+    from millsense.stability.cases import load_case
+
+    class _Stop(Exception):
+        pass
+
+    got: list[Any] = []
+
+    def stop(*a: Any, **k: Any) -> Any:
+        got.append(a[3])  # the session options
+        raise _Stop
+
+    monkeypatch.setattr(session, "session_blocks", stop)
+    prog = tmp_path / "slot.nc"
+    prog.write_text(SLOT)
+    entry = resources.files("millsense.data").joinpath("tool_modes", "aslan-v5-t1.toml")
+    with resources.as_file(entry) as modes:
+        with pytest.raises(_Stop):
+            run_online(program=prog, stock=DEMO / "stock.toml", tool="aslan-d20-2flute",
+                       material="al7050", plan=None, machine="quaser-ux600", machine_file=None,
+                       out=tmp_path / "run.h5", events_out=None, plan_out=None, plot=None,
+                       options=SessionOptions(), tool_modes=modes, duration_s=0.5)  # fmt: skip
+        table = load_case(modes).structure
+    case = got[0].stability_case
+    assert case is not None
+    fitted = [m.omega for m in case.structure.x]
+    exact = [m.omega for m in table.x]
+    assert fitted != exact  # identified, not copied
+    # the tap test finds the table's modes within its stated frequency error (decision 1750)
+    for w in exact:
+        assert min(abs(f / w - 1.0) for f in fitted) < 0.005

@@ -104,8 +104,9 @@ def run(
     tool_modes: Path | None = typer.Option(
         None,
         "--tool-modes",
-        help="Tool modes (a stability case TOML): the virtual tool chatters; a full case file "
-        "(tool, coefficients, immersion) is also the lobes the chatter avoidance checks.",
+        help="Tool modes (a stability case TOML): the virtual tool chatters; with a full case "
+        "file (tool, coefficients, immersion) the chatter avoidance checks the lobes of a "
+        "simulated tap test of that tool.",
     ),
     fault: list[str] = typer.Option(
         [],
@@ -306,10 +307,16 @@ def run_online(
     if tool_modes is not None:
         from dataclasses import replace
 
+        from millsense.bench.tap_test import tap_tested_case
+        from millsense.simulator.process_coupling import ToolModes
         from millsense.stability.cases import load_case
 
         try:
-            options = replace(options, stability_case=load_case(tool_modes))
+            # the file's modes are the virtual machine's tool; the session's lobes take its
+            # coefficients and settings with the structure of a simulated tap test of that
+            # tool (decision 1750), as a shop would measure it
+            case = tap_tested_case(load_case(tool_modes), ToolModes.from_toml(tool_modes))
+            options = replace(options, stability_case=case)
         except ConfigError as exc:
             notes_pre.append(f"chatter avoidance without lobes ({exc}): nearest faster lobe")
     built = session_blocks(vp, belief, sim.sample_rate_hz, options, where=belief_name,
