@@ -59,8 +59,16 @@ AXES = ("x", "y", "z", "a", "c")
 #: RMS of the multisine load at the motor, N·m, and periods (first discarded)
 EXCITATION_NM = 5.0
 N_PERIODS = 17
-#: motor speed of the constant-velocity move during the test, rad/s (no reversal under load)
+#: motor speed of the constant-velocity move of the V1 harmonic-FRF test, rad/s (no reversal
+#: under load)
 MOVE_SPEED_RAD_S = 10.0
+#: Motor speed of the band acceptance move, rad/s (issue 12, decision 1790): not the operating
+#: point of the identification (:data:`millsense.bench.pipeline.SWEEP_SPEED_RAD_S`, +10 rad/s
+#: from position 0 toward +): 6 rad/s in the other direction, 688 mm/min on the 12 mm leads (a
+#: finishing feed), 2.9 °/s at the A table and 3.8 °/s at the C table.
+TEST_SPEED_RAD_S = -6.0
+#: Clearance kept between the end of the acceptance move and the stroke end, m.
+STROKE_END_CLEARANCE_M = 0.005
 
 
 def _nameplate_axis(axis: str) -> FeedAxisConfig:
@@ -115,6 +123,41 @@ def _tuned_for(axis: str, band_hz: float | None) -> tuple[FeedDriveParams, FeedA
     return params, model if band_hz is None else model.tuned(0.0, band_hz=band_hz)
 
 
+@cache
+def test_start(axis: str) -> float:
+    """Start of the band acceptance move (load position: m linear, rad rotary).
+
+    Linear axes: the move at :data:`TEST_SPEED_RAD_S` (toward −) ends
+    :data:`STROKE_END_CLEARANCE_M` inside the − stroke end (:data:`STROKE_M`), so it runs over
+    the half of the stroke the identification sweep (from 0 toward +) did not visit, where the
+    truth's position-dependent modes are furthest from the identified ones. Rotary axes: from
+    0 toward − (the truth's worm mesh does not depend on the angle; the direction differs)."""
+    if axis not in "xyz":
+        return 0.0
+    travel = abs(_test_travel_rad()) * _nameplate_axis(axis).transmission_m_rad
+    start = -STROKE_M[axis] / 2 + STROKE_END_CLEARANCE_M + travel
+    if start > 0.0:
+        raise ValueError(
+            f"{axis}: the acceptance move ({travel * 1e3:.0f} mm) does not fit in "
+            "the − half of the stroke"
+        )
+    return start
+
+
+#: Run-in before the multisine and the reserve after it (the estimator's smoother lag) that the
+#: acceptance move's travel is planned with, s.
+TEST_LEAD_S = 0.3
+TEST_TAIL_S = 0.1
+
+
+def _test_travel_rad() -> float:
+    """Planned motor travel of the band acceptance move, rad (signed)."""
+    from millsense.simulator.commissioning import ramp_move
+
+    n = round((TEST_LEAD_S + N_PERIODS + TEST_TAIL_S) * FS_HZ)
+    return float(ramp_move(TEST_SPEED_RAD_S, n, FS_HZ)[0][-1])
+
+
 def stream_estimate(
     est: Block,
     channels: dict[str, np.ndarray],
@@ -150,9 +193,9 @@ def compensated_bandwidth(
     from millsense.estimation.feed.estimator import FeedAxisEstimator
     from millsense.estimation.kalman.design import bandwidth_3db
     from millsense.ident.frf import multisine_frf, multisine_signal
-    from millsense.simulator.commissioning import ramp_move
+    from millsense.simulator.commissioning import run_table_load_sweep
     from millsense.simulator.drive_mismatch import perturbed_drive
-    from millsense.simulator.feed_drive import FeedDriveSim
+    from millsense.simulator.machine_file import simulated_feed_substeps
 
     params, model = _tuned_for(axis, band_hz)
     machine = perturbed_drive(params, frequency_scale=frequency_scale)
@@ -160,11 +203,21 @@ def compensated_bandwidth(
     d = model.drive  # nameplate K_t, r_g, η (the estimator's belief), identified J_e
     lg = d.transmission / d.efficiency
     load, _ = multisine_signal(FS_HZ, per, 1.0, 300.0, N_PERIODS, rms=EXCITATION_NM / lg)
-    lead = round(0.3 * FS_HZ)
     est = FeedAxisEstimator(model)
-    pos, vel = ramp_move(MOVE_SPEED_RAD_S, len(load) + lead + est.lag, FS_HZ)
-    full = np.concatenate([np.zeros(lead), load, np.zeros(est.lag)])
-    res = FeedDriveSim(machine, FS_HZ, seed=11).advance(pos, vel, full)
+    if est.lag > TEST_TAIL_S * FS_HZ:
+        raise ValueError(f"{axis}: estimator lag {est.lag} beyond the planned move")
+    # the truth as it runs everywhere (its substeps), at the acceptance operating point: another
+    # speed, direction and stretch of the stroke than the identification sweep (decision 1790)
+    res, _, lead = run_table_load_sweep(
+        machine,
+        FS_HZ,
+        np.concatenate([load, np.zeros(est.lag)]),
+        speed_rad_s=TEST_SPEED_RAD_S,
+        lead_s=TEST_LEAD_S,
+        seed=11,
+        start_position=test_start(axis),
+        substeps=simulated_feed_substeps("quaser-ux600", axis),
+    )
     est.reset(FS_HZ)
     cur, spd = res["current_cmd"], res["speed"]
     cnc = {f"{axis}/current_cmd": cur, f"{axis}/motor_speed": spd}
@@ -176,7 +229,11 @@ def compensated_bandwidth(
     f = np.concatenate([[0.0], h.freq_hz])
     db = 20 * np.log10(np.abs(h.h1))
     in_180 = h.freq_hz <= (180.0 if model.kind == "linear" else 120.0)
+    # the slowest motor speed in the direction of travel under the load (> 0: no reversal)
+    along = np.sign(TEST_SPEED_RAD_S) * spd[lead : lead + len(load)]
     return {
+        "min_speed_rad_s": float(np.min(along)),
+        "start": test_start(axis),
         "compensated_hz": bandwidth_3db(f, np.concatenate([[1.0], h.h1])),
         "raw_hz": bandwidth_3db(f, np.concatenate([[1.0], hr.h1])),
         "raw_dc_db": float(20 * np.log10(np.abs(hr.h1[0]))),
@@ -190,18 +247,28 @@ def compensated_bandwidth(
 def _table(frequency_scale: float) -> str:
     rows = [
         "| Axis | target [Hz] | compensated ±3 dB [Hz] | worst dB to target | raw current ±3 dB "
-        "[Hz] | raw at 1 Hz [dB] | Kalman states | R [N²m²] | Q [(Nm)²/s] |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "[Hz] | raw at 1 Hz [dB] | Kalman states | R [N²m²] | Q [(Nm)²/s] | move start | "
+        "slowest motor speed along the move [rad/s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for ax in AXES:
         r = compensated_bandwidth(ax, frequency_scale)
         tgt = 180 if ax in "xyz" else 120
+        start = f"{r['start'] * 1e3:.0f} mm" if ax in "xyz" else f"{np.degrees(r['start']):.0f}°"
         rows.append(
             f"| {ax.upper()} | {tgt} | {r['compensated_hz']:.1f} | {r['worst_db_in_target']:.2f} | "
             f"{r['raw_hz']:.1f} | {r['raw_dc_db']:.2f} | {r['states']:.0f} | {r['r']:.4f} | "
-            f"{r['q']:.0f} |"
+            f"{r['q']:.0f} | {start} | {r['min_speed_rad_s']:.2f} |"
         )
-    return "\n".join(rows)
+    return "\n".join(rows) + "\n\n" + _OPERATING_POINT
+
+
+_OPERATING_POINT = (
+    f"Acceptance move (decision 1790): motor speed {TEST_SPEED_RAD_S:g} rad/s (toward −) from "
+    "the start above, the linear moves ending 5 mm inside the − stroke end; the identification "
+    "swept the same multisine at +10 rad/s from position 0 toward + (bench/pipeline.py). The "
+    "truth runs with its own substeps, as everywhere else."
+)
 
 
 _MISMATCH = (
@@ -343,8 +410,9 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     """Measured RMS of the load estimate (N, N·m rotary) in an air move on the mismatched machine.
 
     The identified model (widest-band Q, or re-tuned for ``band_hz`` as in
-    :func:`compensated_bandwidth`) streams 1.5 s of a constant-velocity air move at the V1 X
-    feed's motor speed on :func:`~millsense.simulator.drive_mismatch.perturbed_drive`; the RMS
+    :func:`compensated_bandwidth`) streams 1.5 s of a constant-velocity air move at the band
+    acceptance move's speed and start on
+    :func:`~millsense.simulator.drive_mismatch.perturbed_drive`; the RMS
     about the mean over the last second is the estimate's noise (current noise through the
     filter, quantisation, friction-model error).
     """
@@ -352,11 +420,15 @@ def air_noise_rms(axis: str, band_hz: float | None = None) -> float:
     from millsense.simulator.commissioning import ramp_move
     from millsense.simulator.drive_mismatch import perturbed_drive
     from millsense.simulator.feed_drive import FeedDriveSim
+    from millsense.simulator.machine_file import simulated_feed_substeps
 
     params, model = _tuned_for(axis, band_hz)
     n = round(1.5 * FS_HZ)
-    pos, vel = ramp_move(MOVE_SPEED_RAD_S, n, FS_HZ)
-    res = FeedDriveSim(perturbed_drive(params), FS_HZ, seed=31).advance(pos, vel, np.zeros(n))
+    pos, vel = ramp_move(TEST_SPEED_RAD_S, n, FS_HZ)
+    q0 = test_start(axis) / params.transmission
+    sub = simulated_feed_substeps("quaser-ux600", axis)
+    sim = FeedDriveSim(perturbed_drive(params), FS_HZ, substeps=sub, seed=31, initial_angle_rad=q0)
+    res = sim.advance(pos + q0, vel, np.zeros(n))
     est = FeedAxisEstimator(model)
     est.reset(FS_HZ)
     cnc = {f"{axis}/current_cmd": res["current_cmd"], f"{axis}/motor_speed": res["speed"]}
