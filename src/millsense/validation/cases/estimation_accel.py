@@ -17,18 +17,18 @@ catalogue value (İlme Table 4.4: all 45°, :data:`ILME_TOOL_HELIX_RAD`), not th
 constant.
 
 Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm, 0.1
-mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed × load map
-of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by vector fitting
-in Aslan's 200–1800 Hz band, the node nearest to the speed and the PLANNED Z load (the process
-model's mean axial force with the Al7050 preset, which has no axial coefficient: 0 N, so the
-node 9000 rev/min, 0 N; decision 1790: never the simulated cut's true load); R per sensor is the
-variance of the double-integrated acceleration of a simulated air cut (9000 rev/min, no cutting force, the harness's
-structure, DAQ filter and noise, another realisation). Mismatch: the true load is 37 N (node 0 N:
-dominant mode 964.5 vs 980 Hz); a 2300 Hz mode outside the fitting band; 37 µm runout; accelerometer
-noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F) over the steady cut, both limited to the
-identified band (the accelerometers carry nothing below the 150 Hz leak of the double integration;
-above 1800 Hz the model is not identified, as in Aslan's discussion of the 2500 Hz harmonic). The
-full-band figure is in the details.
+mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed × load
+map of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by vector
+fitting in Aslan's 200–1800 Hz band, the node nearest to the speed and the PLANNED Z load (the
+process model's mean axial force with the Al7050 preset, which has no axial coefficient: 0 N, so
+the node 9000 rev/min, 0 N; decision 1790: never the simulated cut's true load); R per sensor is
+the variance of the double-integrated acceleration of a simulated air cut (9000 rev/min, no cutting
+force, the harness's structure, DAQ filter and noise, another realisation). Mismatch: the true load
+is 37 N (node 0 N: dominant mode 964.5 vs 980 Hz); a 2300 Hz mode outside the fitting band; 37 µm
+runout; accelerometer noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F) over the steady
+cut, both limited to the identified band (the accelerometers carry nothing below the 150 Hz leak of
+the double integration; above 1800 Hz the model is not identified, as in Aslan's discussion of the
+2500 Hz harmonic). The full-band figure is in the details.
 """
 
 from __future__ import annotations
