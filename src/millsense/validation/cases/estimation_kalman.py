@@ -42,13 +42,13 @@ PRINTED_K_LAST = {"x": 0.6076, "y": 0.9306, "z": 0.656, "a": -0.372, "c": 0.911}
 @cache
 def _axis_results() -> dict[str, tuple[int, float, float, float]]:
     """Per axis: (augmented states, bandwidth Hz, K_f of the τ_a state, worst |dB| 0-120 Hz)."""
-    from millsense.bench.thesis_models import aslan_disturbance_model, aslan_r_q
     from millsense.estimation.kalman.design import (
         augment_disturbance,
         bandwidth_3db,
         compensated_frf,
         design_kalman,
     )
+    from millsense.validation.cases._thesis_models import aslan_disturbance_model, aslan_r_q
 
     out = {}
     for axis in ("x", "y", "z", "a", "c"):
