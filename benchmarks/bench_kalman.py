@@ -17,16 +17,16 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from millsense.bench.thesis_models import (
-    aslan_disturbance_model,
-    aslan_r_q,
-    state_space_from_modal,
-)
 from millsense.estimation.kalman.design import KalmanDesign, augment_disturbance, design_kalman
 from millsense.estimation.kalman.lti_filter import StreamingFilter
 from millsense.estimation.kalman.smoother import FixedLagSmoother
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_modes import MODES_RANGE1
+from millsense.validation.cases._thesis_models import (
+    aslan_disturbance_model,
+    aslan_r_q,
+    state_space_from_modal,
+)
 
 FS_HZ = 10_000.0
 DT = 1.0 / FS_HZ

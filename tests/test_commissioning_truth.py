@@ -47,3 +47,40 @@ def test_presliding_steps_stay_below_the_coulomb_level_identify_checks() -> None
     rec = presliding_test(cfg, "a")
     peak = float(np.max(np.abs(np.asarray(rec["a/injection"])))) * 2.106  # Table 3.1 K_t of A
     assert peak == pytest.approx(0.5 * 1.05, rel=1e-9)
+
+
+def test_drive_sweep_is_designed_from_the_nameplate() -> None:
+    """Decision 1790: the drive sweep's current follows the nameplate's J/K_t, not the
+    simulator file's (yamada-b: 5.67e-5 / 0.291 against 5.2e-5 / 0.3)."""
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.simulator.commissioning import drive_sweep, nameplate_axis
+
+    cfg = simulator_machine("yamada-b")
+    name = nameplate_axis(cfg, "x")
+    nameplate = load_preset(MachineConfig, "yamada-b").axis("x")
+    assert name.inertia_kg_m2 == nameplate.inertia_kg_m2
+    assert name.torque_constant_nm_a == nameplate.torque_constant_nm_a
+    assert name.torque_constant_nm_a != cfg.axis("x").torque_constant_nm_a
+    a = drive_sweep(cfg, "x", ideal=True, n_periods=2, amplitude_a=None)
+    b = drive_sweep(cfg, "x", ideal=True, n_periods=2, amplitude_a=1.0)
+    # the injection is the 1 A one scaled by the nameplate's design, 16 000 rad/s² × J/K_t,
+    # then limited to half the feed's rigid-body speed excursion, K_t/J·∫i (both nameplate)
+    kt, j = nameplate.torque_constant_nm_a, nameplate.inertia_kg_m2
+    unit = np.asarray(b["x/injection"])
+    per = int(b.metadata["period_samples"])  # type: ignore[call-overload]
+    amp = 16000.0 * j / kt
+    dev = np.cumsum(amp * unit[:per]) / cfg.sample_rate_hz * kt / j
+    expected = amp * min(1.0, 0.5 * 40.0 / (float(np.ptp(dev)) / 2.0))
+    np.testing.assert_allclose(np.asarray(a["x/injection"]), expected * unit, rtol=1e-9, atol=1e-12)
+
+
+def test_simulated_feed_substeps_are_the_truths() -> None:
+    from millsense.simulator.machine_file import simulated_feed_substeps
+
+    for axis in ("x", "c"):
+        assert (
+            simulated_feed_substeps("quaser-ux600", axis)
+            == load_truth("quaser-ux600")[axis].substeps
+        )
+    assert simulated_feed_substeps("quaser-ux600", "x", ideal=True) == 10

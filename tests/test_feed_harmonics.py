@@ -11,7 +11,6 @@ import math
 import numpy as np
 import pytest
 
-from millsense.bench.thesis_models import aslan_disturbance_model
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.estimation.feed.estimator import (
     HARMONIC_HOLD_S,
@@ -38,6 +37,7 @@ from millsense.models.friction import CoulombViscous
 from millsense.simulator.feed_drive import FeedDriveParams
 from millsense.simulator.machine_file import simulator_machine
 from millsense.streaming.block import Chunk
+from millsense.validation.cases._thesis_models import aslan_disturbance_model
 
 FS = 10_000.0
 LAG = 60

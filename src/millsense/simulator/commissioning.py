@@ -24,10 +24,12 @@ Tests (seed 000 C1/Ch. 3.2.1 and Ch. 5; seed 001 C8, C11):
 Every feed-axis test drives the plant ``millsense simulate`` runs: for a preset with a truth
 (:data:`~millsense.simulator.truth_machine.TRUTH_PRESETS`) the coupled truth axis of
 :func:`~millsense.simulator.truth_machine.truth_feed_params` with its substeps, else (or with
-``ideal=True``, debugging only) the machine file's one-way model. Test design (injection and
-load amplitudes, the presliding level) and the metadata (transmission, K_t) use only the
-machine file, what a user commissioning a real machine knows; the identification then learns
-the truth from the CNC channels (decision 1041). The realism layer's thermal friction drift
+``ideal=True``, debugging only) the machine file's one-way model. The drive sweep's injection
+amplitude is designed from the nameplate's J and K_t (:func:`nameplate_axis`, what a user
+commissioning a real machine knows; decision 1790); the other tests' design (load amplitudes,
+the presliding level) and the metadata (transmission, K_t) still read the simulator's machine
+file (decision 1041; issue 12 open there); the identification then learns the truth from the
+CNC channels. The realism layer's thermal friction drift
 (time constant 600 s) is not applied to these runs of a few seconds each.
 """
 
@@ -39,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from millsense.core.config import MachineConfig
+from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import InputDataError
 from millsense.core.recording import Recording
 from millsense.models.spindle_plant import SpindleDriveParams
@@ -98,6 +100,20 @@ def _recording(
 def _params(cfg: MachineConfig, axis_name: str, **kw: object) -> FeedDriveParams:
     """The simulator's machine-file model of the axis (test design and metadata)."""
     return FeedDriveParams.from_config(cfg.axis(axis_name), **kw)  # type: ignore[arg-type]
+
+
+def nameplate_axis(cfg: MachineConfig, axis_name: str) -> FeedAxisConfig:
+    """The axis as a commissioning engineer knows it before any test: the nameplate machine
+    file of the same name (``millsense/data/machines/<name>.toml``, loaded as the estimators
+    load it: catalogue K_t, J, η, lead, CNC settings), else, for a machine without a separate
+    nameplate (a user's own file), ``cfg`` itself (decision 1790)."""
+    from millsense.core.errors import ConfigError
+    from millsense.core.presets import load_preset
+
+    try:
+        return load_preset(MachineConfig, cfg.name).axis(axis_name)
+    except ConfigError:
+        return cfg.axis(axis_name)
 
 
 def plant_params(
@@ -272,17 +288,21 @@ def drive_sweep(
 
     ``amplitude_a`` defaults to the current that drives the rigid axis at 16 000 rad/s² (less
     below 150 Hz, :func:`shaped_multisine`), reduced until the rigid-body speed excursion is
-    half the feed. The first period is a run-in.
+    half the feed, both with the nameplate's J and K_t (:func:`nameplate_axis`). The first
+    period is a run-in.
     """
     fs = cfg.sample_rate_hz
     axis = cfg.axis(axis_name)
     p = _params(cfg, axis_name)
+    # designed from the nameplate's J and K_t (what the engineer knows), not the simulator's
+    name = nameplate_axis(cfg, axis_name)
+    j_n, kt_n = name.inertia_kg_m2, name.torque_constant_nm_a
     per = round(period_s * fs)
-    amp = amplitude_a if amplitude_a is not None else 16000.0 * p.plant.inertia / p.torque_constant
+    amp = amplitude_a if amplitude_a is not None else 16000.0 * j_n / kt_n
     inj = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 150.0, amp, n_periods, 1.5)
     # keep the rigid-body speed excursion K_t/J·∫i below half the feed: the velocity must not
     # reverse, or Coulomb friction distorts the low-frequency FRF
-    dev = np.cumsum(inj[:per]) / fs * p.torque_constant / p.plant.inertia
+    dev = np.cumsum(inj[:per]) / fs * kt_n / j_n
     inj *= min(1.0, 0.5 * abs(feed_rad_s) / max(float(np.ptp(dev)) / 2.0, 1e-300))
     vel = np.full(len(inj), feed_rad_s)
     pos, vel = _profile(vel, fs)

@@ -74,6 +74,20 @@ def simulated_feed_drive(machine: str | Path, axis: str, *, ideal: bool = False)
     return FeedDriveParams.from_config(cfg.axis(axis))
 
 
+def simulated_feed_substeps(machine: str | Path, axis: str, *, ideal: bool = False) -> int:
+    """Plant integration substeps per sample of the drive :func:`simulated_feed_drive` returns,
+    as :class:`~.machine.MachineSimulator` runs it: the truth's own ``substeps`` (its dead times
+    are rounded to whole substeps), else the simulator's default of 10."""
+    from millsense.simulator.truth_machine import TRUTH_PRESETS, load_truth
+
+    cfg = simulator_machine(machine)
+    if not ideal and cfg.name in TRUTH_PRESETS:
+        truth = load_truth(cfg.name)
+        if axis in truth:
+            return truth[axis].substeps
+    return 10
+
+
 def simulator_machine_path(name: str) -> Path:
     """Path of the simulator's own machine file of ``name`` (for tools and tests that need a
     fully specified machine file, e.g. the CLI's own tests)."""

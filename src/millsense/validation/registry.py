@@ -85,8 +85,9 @@ class ValidationCase:
         than the reference by more than this factor (``lower_is_better`` says which way).
     lower_is_better : direction of "better" for ``too_good_factor`` (errors: True; bands: False).
     calibration : the calibrated parameter the case depends on (see :class:`Calibration`).
-    self_check : the reference is computed by millsense itself (a self-consistency check, not
-        an acceptance figure); reported as such.
+    self_check : the reference is computed by millsense itself, or the plant is the estimator's
+        own model by design (a self-consistency or design check, not an acceptance figure;
+        decision 1790); reported as such.
     ci : run by ``.ci/run`` (``validate --ci``): a slow case that guards an acceptance figure.
     """
 

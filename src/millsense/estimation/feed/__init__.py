@@ -8,6 +8,7 @@
 - :mod:`.schedule`, :mod:`.condition` — position-scheduled and moving/at-rest estimators;
 - :mod:`.commanded`, :mod:`.idle_compensation` — commanded velocity, idle-load subtraction.
 
-The thesis's printed designs (Table 3.4, Eq. 3.30) are the bench's
-(:mod:`millsense.bench.thesis_models`): they are the simulator's data, not the estimators'.
+The thesis's printed designs (Table 3.4, Eq. 3.30) live with the validation cases' design checks
+(:mod:`millsense.validation.cases._thesis_models`, decision 1790): they are the simulator's data,
+not the estimators'.
 """

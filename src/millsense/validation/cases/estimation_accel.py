@@ -17,16 +17,18 @@ catalogue value (İlme Table 4.4: all 45°, :data:`ILME_TOOL_HELIX_RAD`), not th
 constant.
 
 Aslan Ch. 4 (seed 000 V4 Case 2): quarter immersion at 9000 rev/min, Ø20 mm 2-flute, a = 5 mm, 0.1
-mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed × load map
-of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by vector fitting
-in Aslan's 200–1800 Hz band, nearest node (9000 rev/min, 50 N); R per sensor is the variance of the
-double-integrated acceleration of a simulated air cut (9000 rev/min, no cutting force, the harness's
-structure, DAQ filter and noise, another realisation). Mismatch: the true load is 37 N (node 50 N:
-dominant mode 972 vs 959 Hz); a 2300 Hz mode outside the fitting band; 37 µm runout; accelerometer
-noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F) over the steady cut, both limited to the
-identified band (the accelerometers carry nothing below the 150 Hz leak of the double integration;
-above 1800 Hz the model is not identified, as in Aslan's discussion of the 2500 Hz harmonic). The
-full-band figure is in the details.
+mm/tooth, Z load 37 N; fused force error ≤ 8 %. The estimator's filters come from a speed × load
+map of simulated tap tests (7500/9000/10500 rev/min × 0/50/100/230/330/430 N), fitted by vector
+fitting in Aslan's 200–1800 Hz band, the node nearest to the speed and the PLANNED Z load (the
+process model's mean axial force with the Al7050 preset, which has no axial coefficient: 0 N, so
+the node 9000 rev/min, 0 N; decision 1790: never the simulated cut's true load); R per sensor is
+the variance of the double-integrated acceleration of a simulated air cut (9000 rev/min, no cutting
+force, the harness's structure, DAQ filter and noise, another realisation). Mismatch: the true load
+is 37 N (node 0 N: dominant mode 964.5 vs 980 Hz); a 2300 Hz mode outside the fitting band; 37 µm
+runout; accelerometer noise 0.05 m/s²; tap-test noise. Error = RMS(F̂ − F)/RMS(F) over the steady
+cut, both limited to the identified band (the accelerometers carry nothing below the 150 Hz leak of
+the double integration; above 1800 Hz the model is not identified, as in Aslan's discussion of the
+2500 Hz harmonic). The full-band figure is in the details.
 """
 
 from __future__ import annotations
@@ -217,6 +219,39 @@ def _aslan_r(speed_rpm: float = 9000.0) -> list[float]:
     ]
 
 
+#: The true Z load of the simulated cut, N (Aslan Ch. 4 Case 2): the plant's, never the
+#: estimator's (issue 12, decision 1790).
+ASLAN_TRUE_LOAD_N = 37.0
+
+
+def aslan_planned_load_n(speed_rpm: float = 9000.0) -> float:
+    """The Z load a real system plans for the Case 2 cut, N: the mean axial force of millsense's
+    process model (:func:`~millsense.process.forces.milling_forces`) for the planned cut (Ø20 mm
+    2-flute 30° helix catalogue tool, no runout; a = 5 mm, 5 mm radial down, 0.1 mm/tooth) with
+    the machine's material preset (Al7050), over one revolution. The map node is chosen with
+    this, not with the simulated cut's true load (:data:`ASLAN_TRUE_LOAD_N`)."""
+    from millsense.core.config import MaterialConfig
+    from millsense.core.presets import load_preset
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    mat = load_preset(MaterialConfig, "al7050")
+    coeffs = CuttingCoefficients(
+        mat.ktc_n_mm2 * 1e6,
+        mat.krc_n_mm2 * 1e6,
+        mat.kac_n_mm2 * 1e6,
+        mat.kte_n_mm * 1e3,
+        mat.kre_n_mm * 1e3,
+        mat.kae_n_mm * 1e3,
+    )
+    tool = EndMill(diameter_m=0.020, n_flutes=2, helix_rad=math.radians(30))
+    eng = Engagement.radial(5e-3, 0.020, "down")
+    phi = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+    return abs(float(np.mean(milling_forces(tool, coeffs, eng, 0.1e-3, 5e-3, phi, 60).fz_n)))
+
+
 @cache
 def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
     import scipy.signal
@@ -241,11 +276,12 @@ def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
         MapNode(n, load, tuple(fits[k * i + 1 : k * i + k]), fits[k * i])
         for i, (n, load, _) in enumerate(raw)
     )
-    node = DynamicsMap(nodes).select(9000.0, 37.0)
+    planned = aslan_planned_load_n(9000.0)  # what the system knows, not the truth's 37 N
+    node = DynamicsMap(nodes).select(9000.0, planned)
     fs = sim.ASLAN_FS_HZ
     r = _aslan_r(9000.0)  # R: a simulated air cut through the harness
     filters = design_fusion(node, fs, 9000.0, r, highpass_hz=ASLAN_HIGHPASS_HZ)
-    rec = sim.simulate_aslan_cut(9000.0, 37.0)
+    rec = sim.simulate_aslan_cut(9000.0, ASLAN_TRUE_LOAD_N)
     res = run_fusion(filters, rec.accel)
     # reference: the truth without what the accelerometers cannot see (the leak high-pass)
     wc = 2 * np.pi * ASLAN_HIGHPASS_HZ
@@ -268,7 +304,9 @@ def _aslan_quarter() -> tuple[float, float, tuple[float, ...], str]:
     singles = tuple(err(res.force_per_sensor[m], lag, True) for m in range(len(r)))
     singles_full = tuple(err(res.force_per_sensor[m], lag, False) for m in range(len(r)))
     details = (
-        f"Node used: {node.speed_rpm:.0f} rev/min, {node.load_n:.0f} N (true 9000, 37 N). "
+        f"Node used: {node.speed_rpm:.0f} rev/min, {node.load_n:.0f} N, chosen with the planned "
+        f"load {planned:.1f} N (the process model's mean axial force with the Al7050 preset); "
+        f"the cut's true load is {ASLAN_TRUE_LOAD_N:.0f} N. "
         f"Fused error in band {fused_band:.1f} %, full band {fused_full:.1f} %. Single sensors "
         "in band "
         + "/".join(f"{v:.1f}" for v in singles)

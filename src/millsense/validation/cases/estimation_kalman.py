@@ -42,13 +42,13 @@ PRINTED_K_LAST = {"x": 0.6076, "y": 0.9306, "z": 0.656, "a": -0.372, "c": 0.911}
 @cache
 def _axis_results() -> dict[str, tuple[int, float, float, float]]:
     """Per axis: (augmented states, bandwidth Hz, K_f of the τ_a state, worst |dB| 0-120 Hz)."""
-    from millsense.bench.thesis_models import aslan_disturbance_model, aslan_r_q
     from millsense.estimation.kalman.design import (
         augment_disturbance,
         bandwidth_3db,
         compensated_frf,
         design_kalman,
     )
+    from millsense.validation.cases._thesis_models import aslan_disturbance_model, aslan_r_q
 
     out = {}
     for axis in ("x", "y", "z", "a", "c"):
@@ -87,6 +87,7 @@ def _table() -> str:
 
 @case(
     "estimation.kalman_c_axis_bandwidth",
+    self_check=True,  # plant = estimator model by design (decision 1790)
     source="Aslan (seed 000) Fig. 3.8 / V3: 120 Hz on the rotary axes; Table 3.4, Eq. 3.30",
     reference=120.0,
     unit="Hz",
@@ -109,6 +110,7 @@ def _c_axis_bandwidth() -> Measured:
 
 @case(
     "estimation.kalman_c_axis_flat_to_120hz",
+    self_check=True,  # plant = estimator model by design (decision 1790)
     source="design check of issue 7's rule (Aslan V3: flat within ±3 dB up to 120 Hz on rotary "
     "axes) on the printed model; the acceptance is estimation.feed_rotary_flat_to_120hz",
     reference=0.0,
@@ -126,6 +128,7 @@ def _c_axis_flat() -> Measured:
 # Every rotary axis judged (issue 12): the A axis on the same rule as C.
 @case(
     "estimation.kalman_a_axis_flat_to_120hz",
+    self_check=True,  # plant = estimator model by design (decision 1790)
     source="design check of issue 7's rule (Aslan V3: flat within ±3 dB up to 120 Hz on rotary "
     "axes) on the printed model; the acceptance is estimation.feed_rotary_flat_to_120hz",
     reference=0.0,

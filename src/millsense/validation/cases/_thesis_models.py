@@ -1,4 +1,9 @@
-"""Plant models the estimators are designed on, from the project's one modal realisation.
+"""The thesis's printed estimator designs (Aslan Table 3.4, Eq. 3.30), for design checks only.
+
+Moved out of :mod:`millsense.bench` (decision 1790): these designs read the SIMULATOR's machine
+file (its Table 3.4 modes and exact ``current_noise_a``), so they may serve only the disclosed
+design checks (``estimation.kalman_*``, reported as self-checks), tests of the Kalman toolkit and
+benchmarks, never the commissioning path a user's estimator is built on.
 
 :class:`millsense.models.modal_ss.ModalStateSpace` realises Aslan Eq. 3.13 (α/β residue modes)
 as balanced 2×2 blocks; :func:`state_space_from_modal` turns it into the
