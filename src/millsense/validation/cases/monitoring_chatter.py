@@ -876,6 +876,13 @@ def _ramp_table() -> str:
             rows.append(f"| {name}: {r.label} | {o['a_lim_mm']:.3f} | virtual machine failed: "
                         f"{o['sim_error']} | | | | | | | | |")  # fmt: skip
             continue
+        if not math.isfinite(o["onset_s"]):
+            rows.append(
+                f"| {name}: {r.label} | {o['a_lim_mm']:.3f} | {o['first_flag_s']:.3f} | none (no "
+                f"sustained chatter) | - | {o['n_alarms']} | {o['alarm_s']:.3f} | - | - | "
+                f"{o['alarm_hz']:.1f} | - |"
+            )
+            continue
         rows.append(
             f"| {name}: {r.label} | {o['a_lim_mm']:.3f} | {o['first_flag_s']:.3f} | "
             f"{o['onset_s']:.3f} "
@@ -910,8 +917,9 @@ def _heldout_ramp_cases(name: str, latency_gap: str = "", hz_gap: str = "") -> N
     )
     def _lat() -> Measured:
         o = heldout_ramp(name)
-        if "sim_error" in o:
-            return Measured(math.nan, _ramp_table())
+        if "sim_error" in o or not math.isfinite(o["onset_s"]):
+            # no value (a non-finite measurement is a plain failure, decision 1021): the reason
+            return Measured(math.nan, f"No value: {latency_gap}\n\n{_ramp_table()}")
         return Measured(o["alarm_s"] - o["onset_s"], _ramp_table())
 
     @case(
@@ -932,7 +940,7 @@ def _heldout_ramp_cases(name: str, latency_gap: str = "", hz_gap: str = "") -> N
     def _hz() -> Measured:
         o = heldout_ramp(name)
         if "sim_error" in o or not math.isfinite(o["onset_s"]):
-            return Measured(math.nan, _ramp_table())  # no chatter in the plant: no verdict
+            return Measured(math.nan, f"No value: {hz_gap}\n\n{_ramp_table()}")
         return Measured(_relative_error(o["alarm_hz"], o["truth_hz"]), _ramp_table())
 
 
