@@ -1,5 +1,6 @@
 """Acceptance of the chatter monitors (issue 15): seed 000 V5 replicas, stable cuts, false
-alarms over 10 minutes of stable cutting, detection latency.
+alarms over 10 minutes of stable cutting, detection latency; and held-out cases the monitor's
+constants were never set on (streams and chatter runs chosen a priori, decision 1795).
 
 V5 replicas (digest P9, V5): tools T1–T4 with their modal tables (X normal, Y feed, ζ in %),
 Al7050 (preset), full immersion, 0.1 mm/tooth, the thesis's speeds and depths, on the virtual
