@@ -1,0 +1,54 @@
+"""The held-out chatter cases' own machinery (decision 1795): the reference chatter frequency
+is read without the monitors' estimator, the default stream is the one the monitor's constants
+were set on, and the held-out conditions differ from it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from millsense.core.config import ToolConfig
+from millsense.core.presets import load_preset
+from millsense.process.geometry import EndMill
+from millsense.validation.cases import monitoring_chatter as mc
+
+
+def test_truth_chatter_frequency_reads_a_line_between_bins_without_peak_interpolation() -> None:
+    t = np.arange(8192) / mc.FS_HZ
+    rpm = 6000.0  # 100 Hz spindle: its harmonics are masked even when stronger
+    f_c = 1234.567  # between the 2.44 Hz bins of a 4096-point window
+    x = 5.0 * np.cos(2 * math.pi * 1200.0 * t) + np.cos(2 * math.pi * f_c * t + 0.3)
+    assert abs(mc.simulated_chatter_hz(x, rpm) - f_c) < 0.05  # the 0.038 Hz grid
+    y = 2.0 * np.cos(2 * math.pi * 777.7 * t)
+    assert abs(mc.simulated_chatter_hz(x, rpm, y=y) - 777.7) < 0.05  # powers summed
+    assert abs(mc.simulated_chatter_hz(x, rpm, end=4096) - f_c) < 0.05
+
+
+def test_default_stream_profile_is_the_tuned_stream() -> None:
+    pr = mc.StreamProfile()
+    tool = EndMill.from_config(load_preset(ToolConfig, "aslan-d20-2flute"))
+    assert (pr.diameter_m, pr.flutes) == (tool.diameter_m, tool.n_flutes)
+    assert math.isclose(math.radians(pr.helix_deg), tool.helix_rad, rel_tol=1e-15)
+    assert (pr.tone_hz, pr.resonance_hz, pr.radial_fraction) == (1234.0, 1500.0, 1.0)
+
+
+def test_heldout_conditions_differ_from_the_tuned_ones() -> None:
+    tuned = mc.StreamProfile()
+    for seed, pr in mc.HELDOUT_STREAMS.values():
+        assert seed != 3  # false_alarms_10min's seed
+        assert pr.flutes != tuned.flutes and pr.diameter_m != tuned.diameter_m
+        assert pr.tone_hz != tuned.tone_hz and pr.resonance_hz != tuned.resonance_hz
+        assert set(pr.rpm_choices) != set(tuned.rpm_choices)
+    for name, r in mc.HELDOUT_RAMPS.items():
+        assert r.rpm not in (15870.0, *(v[2] for v in mc.TOOLS.values())), name
+
+
+def test_heldout_stream_is_reproducible_and_uses_its_profile() -> None:
+    seed, pr = mc.HELDOUT_STREAMS["b"]
+    a = mc.stable_stream(6.0, seed=seed, spindle=False, profile=pr)
+    b = mc.stable_stream(6.0, seed=seed, spindle=False, profile=pr)
+    assert np.array_equal(a["sensor"], b["sensor"])
+    rpm = a["spindle/speed"] * 60 / (2 * math.pi)
+    assert rpm.min() >= min(pr.rpm_choices) * min(pr.override_choices) - 1e-6
+    assert rpm.max() <= max(pr.rpm_choices) * max(pr.override_choices) + 1e-6
