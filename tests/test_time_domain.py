@@ -208,3 +208,25 @@ def test_flip_chatter_of_two_flute_tool_is_detected() -> None:
     assert sim.poincare_period_steps == sim.steps_per_rev // 2
     sim.run_revolutions(400)
     assert not sim.verdict(last_revolutions=200).stable
+
+
+def test_entry_after_air_never_takes_an_uncut_bin_as_a_chip() -> None:
+    """Decision 1796: a 3-flute Ø12 mm slot entered after air (11000 rev/min, 111 steps per
+    revolution, a 1380/1450 Hz tool) — the rigid pass that lays the disc's surface missed a
+    bin where a flute's angle later rounds onto the slot's edge, the flute took the never-cut
+    surface (−1e30 m) as its chip and the simulation blew up within a third of a revolution
+    (1e28 m of vibration) at most entry steps. A chip is now never larger than a physical one:
+    twice the feed per tooth plus the limit cycle's vibration (80 µm measured, standalone)."""
+    cc = CuttingCoefficients(ktc=758e6, krc=0.4 * 758e6)
+    mx = DirectionModes.from_arrays([1380.0], [0.012], [3.0e6])
+    my = DirectionModes.from_arrays([1450.0], [0.015], [3.5e6])
+    for n_air in (30224, 30231, 30238, 30245):  # entry steps that blew up before the fix
+        air = Engagement(layers=((),))
+        td = TimeDomainMillingSim(EndMill(12e-3, 3), cc, air, 0.05e-3, 0.28e-3, 1151.897,
+                                  mx, my, n_discs=1, steps_per_rev=111)  # fmt: skip
+        td.run(n_air)
+        td.set_engagement(Engagement.slot())
+        td.lay_surface(np.array([True]))
+        ch = td.run(300)
+        assert np.all(np.isfinite(ch.x_m))
+        assert float(np.max(ch.chip_m)) < 2 * 0.05e-3 + 0.2e-3

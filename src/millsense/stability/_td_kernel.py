@@ -11,6 +11,10 @@ import numba
 import numpy as np
 
 _TWO_PI = 2.0 * math.pi
+#: The surface of a bin no pass has cut yet, m (far below any real surface).
+NEVER_CUT_M = -1e30
+#: A surface below this is one no pass has cut.
+NEVER_CUT_BELOW_M = 0.5 * NEVER_CUT_M
 
 
 @numba.njit(cache=True)
@@ -102,6 +106,12 @@ def td_run(
                 cu = math.cos(a)
                 pos = (feed_x + x_mid) * su + y_mid * cu + radii[j, d]
                 b = (n + bin_offset[j, d]) % n_bins
+                if surface[d, b] < NEVER_CUT_BELOW_M:
+                    # a bin no pass has cut (the rigid pass that lays a disc's surface misses
+                    # a bin where a flute's angle rounds onto the edge of the engagement at a
+                    # later step): this flute lays it, with no chip (decision 1796)
+                    surface[d, b] = pos
+                    continue
                 h = pos - surface[d, b]
                 if h <= 0.0:
                     continue

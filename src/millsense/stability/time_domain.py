@@ -21,7 +21,7 @@ from millsense.core.errors import ConfigError
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.geometry import EndMill
-from millsense.stability._td_kernel import td_run
+from millsense.stability._td_kernel import NEVER_CUT_M, td_run
 
 FloatArray = NDArray[np.float64]
 
@@ -225,7 +225,7 @@ class TimeDomainMillingSim:
         self._discretise()
         self._feed_x0 = 0.0
         self._n_base = 0
-        self._surface = np.full((self.n_discs, self.steps_per_rev), -1e30)
+        self._surface = np.full((self.n_discs, self.steps_per_rev), NEVER_CUT_M)
         self._advance(2 * self.steps_per_rev, -2 * self.steps_per_rev, rigid=True)
 
     @property
