@@ -947,22 +947,36 @@ def _heldout_ramp_cases(name: str, latency_gap: str = "", hz_gap: str = "") -> N
 
 for _name in HELDOUT_STREAMS:
     _heldout_stream_case(_name)
-_R1_GAP = (
-    "the virtual machine fails on this run, not the monitor: with the 3-flute tool the "
-    "regenerative simulation diverges within 20 ms of its disc entering the cut at 3.2 s "
-    "(spindle speed 1e31 rad/s, numpy 'Maximum allowed dimension exceeded'); the same run with 2 "
-    "or 4 flutes simulates (probes, not cases). No value, so no verdict on the monitor"
-)
-_R3_GAP = (
-    "the plant does not chatter: entered at 2 × the table's SDM limit (2.03 mm) the truth flag "
-    "is set for 0.03 s at the entry and never again (set for half of 0.2 s nowhere), so there is "
-    "no onset to time and no chatter frequency to compare; the monitor raised no alarm (largest "
-    "chatter-comb ratio 0.35 after the entry), right for a stable cut. The truth plant is more "
-    "stable than the modal table's SDM limit (as T2's 3.5 mm, decision 1531)"
-)
-_heldout_ramp_cases("r1", _R1_GAP, _R1_GAP)
+def _heldout_stable_case(name: str) -> None:
+    """A held-out run whose plant turned out not to chatter (chosen a priori as a chatter run):
+    what it can still judge is the monitor's silence on that stable entry (decision 1795)."""
+    r = HELDOUT_RAMPS[name]
+    where = "the accelerometer" if r.signal == "accel/x" else "the compensated spindle torque"
+
+    @case(
+        f"monitoring.chatter.heldout_{name}_no_alarm_when_stable",
+        source="issue 15 acceptance: no false alarm (held-out run, issue 12 audit, decision 1795)",
+        reference=0.0,
+        abs_tol=0.0,
+        unit="alarms",
+        quick=False,
+        description=f"chatter-comb alarms on {where}, {r.label}: chosen a priori as a chatter "
+        "run (the programmed depth ramped to 2 × the modal table's SDM limit), but the truth "
+        "plant does not chatter there (its flag is set for 0.03 s at the entry, never for half "
+        "of any 0.2 s: the loaded tool is stiffer than the table's limit says, as T2's 3.5 mm, "
+        "decision 1531), so there is no onset to time; judged instead as a stable entry the "
+        "monitor must stay silent on; fails if the truth chatters (then it is a chatter run)",
+    )
+    def _quiet() -> Measured:
+        o = heldout_ramp(name)
+        if "sim_error" in o or math.isfinite(o["onset_s"]):
+            return Measured(math.nan, f"No value: the plant chatters or failed\n\n{_ramp_table()}")
+        return Measured(float(o["n_alarms"]), _ramp_table())
+
+
+_heldout_ramp_cases("r1")
 _heldout_ramp_cases("r2")
-_heldout_ramp_cases("r3", _R3_GAP, _R3_GAP)
+_heldout_stable_case("r3")
 _heldout_ramp_cases(
     "r4",
     latency_gap="chatter starts with the cut (truth flag from the entry at 3.201 s, 2 × the SDM "
