@@ -1,5 +1,5 @@
 """``millsense run`` / ``serve-machine``: the virtual machine cuts its own plan of the program
-(decision 1800), never the session's plan object; with ``--plan`` only it cuts that plan and
+(decision 1798), never the session's plan object; with ``--plan`` only it cuts that plan and
 says so."""
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ def test_first_peak_carries_the_step_through_either_channel(runs) -> None:
     # of the × 1.38 step (+38 % at the same feed) whatever the channel (decision 1617), far
     # from the thesis' 10 % through the open CNC; the closed channel (10 % steps, 120 ms)
     # cannot take the feed back sooner than the open one. Measured on the plant's own plan and
-    # material (decisions 1740, 1800): 37.3 % open, 59.0 % closed (39.6 / 51.5 % on the
+    # material (decisions 1740, 1798): 37.3 % open, 59.0 % closed (39.6 / 51.5 % on the
     # preset's coefficients, 34.0 / 44.3 % when the plant cut the controller's plan)
     open_, closed = (ca.step_rise_pct(runs[k]) for k in ("open CNC", "closed CNC"))
     assert 30.0 <= open_ <= 55.0
@@ -29,7 +29,7 @@ def test_first_peak_carries_the_step_through_either_channel(runs) -> None:
 
 def test_closed_cnc_settles_at_least_twice_as_slowly(runs) -> None:
     # seed 002 V6: transients last longer with the closed CNC (120 ms against 2.5 ms)
-    # (measured 2.07 s and 4.59 s on the plant's own plan and material, decision 1800; 1.17 s
+    # (measured 2.07 s and 4.59 s on the plant's own plan and material, decision 1798; 1.17 s
     # and 2.73 s on the preset's coefficients, decision 1740)
     a, b = ca.settle_s(runs["open CNC"]), ca.settle_s(runs["closed CNC"])
     assert a <= 2.5

@@ -185,7 +185,7 @@ def test_tool_life_plant_is_not_the_wear_monitor_plan(monkeypatch: pytest.Monkey
 
 def _assert_lot_coefficients(proc: Any, expectation: Any) -> None:
     """The plant cuts with the lot's true coefficients (the preset's × PLANT_LOT_FACTORS,
-    decisions 1760, 1800), the controller's or monitor's plan carries the preset's (a new
+    decisions 1760, 1798), the controller's or monitor's plan carries the preset's (a new
     tool: VB = 0)."""
     from millsense.plan.virtual_plan import coefficients_from_metadata
 

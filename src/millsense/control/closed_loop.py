@@ -23,7 +23,7 @@ from millsense.streaming.engine import Pipeline, run
 from millsense.streaming.sources import Source
 
 #: White noise of the virtual table dynamometer a controller reads on the virtual machine, N RMS
-#: per axis (the on-line session's and the V6/V8 cases', decision 1800).
+#: per axis (the on-line session's and the V6/V8 cases', decision 1798).
 DYNAMOMETER_NOISE_N = 2.0
 
 

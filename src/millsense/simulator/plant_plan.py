@@ -13,7 +13,7 @@ dynamics, edge forces, wear, the truth spindle) is the simulator's as always.
 What plant and controller/monitor share: the program, the raw stock and the tool's nameplate
 geometry. What they do not share: the z-map cut of the stock (so the engagement rows), the
 runout, the material's true coefficients (the nominal ones the caller gives × the lot's
-factors :data:`PLANT_LOT_FACTORS`, decisions 1760 and 1800) and everything the truth's process
+factors :data:`PLANT_LOT_FACTORS`, decisions 1760 and 1798) and everything the truth's process
 adds.
 """
 
@@ -37,7 +37,7 @@ PLANT_CELL_M = 0.05e-3
 PLANT_RUNOUT_M = 5e-6
 PLANT_RUNOUT_ANGLE_RAD = 0.4
 #: The virtual machine's true cutting coefficients against the material preset every plan of a
-#: controller or monitor uses (decisions 1760, 1800), chosen once before any comparison and
+#: controller or monitor uses (decisions 1760, 1798), chosen once before any comparison and
 #: never fitted. The plate and the tools' grind are not the ones the preset was identified
 #: with: K_tc +6 % (a plate of higher flow stress: the strength of 7050-T7451 plate falls with
 #: thickness by about 10 %), K_rc −8 % (a rake ground about 2° larger than nominal lowers the

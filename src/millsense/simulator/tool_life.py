@@ -135,7 +135,7 @@ def fleet_plant_plan(program: Path) -> VirtualPlan:
     (:func:`~millsense.simulator.plant_plan.plant_plan`, decision 1740): the block, tool and
     material of :func:`fleet_plan` on a 0.05 mm z-map, the tool with 5 µm of runout at 0.4 rad
     and the lot's true coefficients (the preset's ×
-    :data:`~millsense.simulator.plant_plan.PLANT_LOT_FACTORS`, decisions 1760, 1800)
+    :data:`~millsense.simulator.plant_plan.PLANT_LOT_FACTORS`, decisions 1760, 1798)
     the monitor's plan does not know."""
     from millsense.plan.gcode import interpret_file
     from millsense.simulator.plant_plan import plant_plan

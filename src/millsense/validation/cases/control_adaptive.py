@@ -143,7 +143,7 @@ def closed_loop_run(
     reference_n: float = F_REF_V8,
 ) -> LoopRun:
     """Simulate the slot in closed loop with the adaptive feed controller regulating the peak
-    resultant force of the dynamometer (decision 1616; 2 N of noise, decision 1800); ``force``
+    resultant force of the dynamometer (decision 1616; 2 N of noise, decision 1798); ``force``
     is the true force at the tool. The controller's plan is
     :func:`step_plan`; the virtual machine cuts its own (:func:`plant_step_plan`, decision
     1740)."""
@@ -165,7 +165,7 @@ def closed_loop_run(
     opts = AdaptiveFeedOptions(reference=reference_n, look_ahead=look_ahead)
     blk = AdaptiveFeedBlock(opts, plan)
     # the controller reads a dynamometer with 2 N of noise (as the on-line session's,
-    # decision 1800); the cases judge the true force at the tool
+    # decision 1798); the cases judge the true force at the tool
     res = run_closed_loop(
         sim,
         [Dynamometer(noise_n=DYNAMOMETER_NOISE_N), blk],
@@ -242,7 +242,7 @@ def _v8_runs() -> dict[str, LoopRun]:
     quick=False,
     issue=16,
     gap=(
-        "on the virtual machine's own plan and material (decisions 1740, 1800: a 0.05 mm "
+        "on the virtual machine's own plan and material (decisions 1740, 1798: a 0.05 mm "
         "z-map, 5 µm of runout at 0.4 rad and K_tc +6 %, K_te +15 % that the controller's plan "
         "does not know) the largest peak is 343.3 N at X = 25.6 mm, 5.6 % above F_r (329.7 N "
         "while the plant cut the controller's own plan and coefficients): the look-ahead sets "
@@ -285,7 +285,7 @@ def _v8_la_exit() -> Measured:
     issue=16,
     gap=(
         "937 N, 17 % above the thesis' ≈ 800 N (905 N on the preset's coefficients, 899 N with "
-        "the noisy dynamometer before decision 1800): just before the jump the tool crosses a "
+        "the noisy dynamometer before decision 1798): just before the jump the tool crosses a "
         "lighter row (X ≈ 25 mm, 196-213 N), the conventional controller raises the override "
         "to its 150 % ceiling, and it meets the deeper layer there; its RLS, fitted on the "
         "falling then rising force at a rising feed, keeps the override at 135-150 % for two "
