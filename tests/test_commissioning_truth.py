@@ -39,14 +39,34 @@ def test_friction_test_runs_the_truth_and_ideal_the_machine_file() -> None:
     assert up / up_i - 1.0 > 0.03
 
 
-def test_presliding_steps_stay_below_the_coulomb_level_identify_checks() -> None:
-    # A: Table 3.2-like static 2.7 N·m but Coulomb 1.05 N·m (machine file); identify friction
-    # refuses steps at or above the breakaway it measures in the friction moves (the Coulomb
-    # level past the Stribeck hump), so the steps are half the smaller Coulomb torque
+def test_presliding_steps_are_half_the_breakaway_the_friction_moves_measured() -> None:
+    # identify friction refuses steps at or above the breakaway it measures in the friction
+    # moves (the Coulomb level past the Stribeck hump, decision 1041): the steps are half of
+    # that measurement, designed from the moves and the nameplate's K_t, never from the
+    # simulator's friction table (decision 1799). A: the table's static 2.7 N·m would be
+    # refused; the truth's Coulomb level is about 1.05 N·m
+    from millsense.simulator.commissioning import (
+        breakaway_from_friction_test,
+        friction_test,
+        nameplate_axis,
+    )
+
     cfg = simulator_machine("quaser-ux600")
-    rec = presliding_test(cfg, "a")
-    peak = float(np.max(np.abs(np.asarray(rec["a/injection"])))) * 2.106  # Table 3.1 K_t of A
-    assert peak == pytest.approx(0.5 * 1.05, rel=1e-9)
+    sp = np.geomspace(0.1, 30.0, 4)
+    moves = friction_test(cfg, "a", np.ravel(np.column_stack([sp, -sp])), hold_s=0.6)
+    kt = nameplate_axis(cfg, "a").torque_constant_nm_a
+    brk = breakaway_from_friction_test(moves, "a", kt)
+    # the smaller of the two slowest plateaus' mean current, over their second half
+    vel, cur = np.asarray(moves["a/velocity_ref"]), np.asarray(moves["a/current_cmd"])
+    means = []
+    for v in (0.1, -0.1):
+        idx = np.flatnonzero(vel == v)
+        means.append(abs(float(np.mean(cur[idx[idx.size // 2 :]]))))
+    assert brk == pytest.approx(kt * min(means), rel=1e-12)
+    assert 0.8 < brk < 1.6  # the Coulomb level of the truth's A, not the 2.7 N·m static torque
+    rec = presliding_test(cfg, "a", breakaway_nm=brk)
+    peak = float(np.max(np.abs(np.asarray(rec["a/injection"]))))
+    assert peak * kt == pytest.approx(0.5 * brk, rel=1e-12)
 
 
 def test_drive_sweep_is_designed_from_the_nameplate() -> None:

@@ -84,7 +84,10 @@ def test_friction_fragment_loads_as_friction_config(
     # values the test knows; commissioning on the truth is tests/test_cli_commission.py
     speeds = np.ravel(np.column_stack([sp, -sp]))
     moves = cm.friction_test(cfg, "z", speeds, hold_s=0.6, ideal=True)
-    pre = cm.presliding_test(cfg, "z", ideal=True)
+    kt = cm.nameplate_axis(cfg, "z").torque_constant_nm_a
+    pre = cm.presliding_test(
+        cfg, "z", breakaway_nm=cm.breakaway_from_friction_test(moves, "z", kt), ideal=True
+    )
     out, png = tmp_path / "fr.toml", tmp_path / "fr.png"
     files = [_write(moves, tmp_path / "m.h5"), _write(pre, tmp_path / "p.h5")]
     # the simulator's own file as --machine: the fit is checked against the K_t it ran with

@@ -99,9 +99,15 @@ def commission_axis(
     """
     speeds = np.geomspace(0.1, 30.0, 16)
     order = np.ravel(np.column_stack([speeds, -speeds]))
+    friction = com.friction_test(sim, axis, order, hold_s=2.0, seed=seed, drive=drive)
+    # the presliding steps from the breakaway the friction moves measured (decision 1799)
+    kt = com.nameplate_axis(sim, axis).torque_constant_nm_a
+    brk = com.breakaway_from_friction_test(friction, axis, kt)
     recs = {
-        "friction": com.friction_test(sim, axis, order, hold_s=2.0, seed=seed, drive=drive),
-        "presliding": com.presliding_test(sim, axis, seed=seed + 4, drive=drive),
+        "friction": friction,
+        "presliding": com.presliding_test(
+            sim, axis, breakaway_nm=brk, seed=seed + 4, drive=drive
+        ),
         "acceleration": com.acceleration_test(sim, axis, seed=seed + 1, drive=drive),
     }
     for cond in conditions:

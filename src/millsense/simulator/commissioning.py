@@ -26,9 +26,10 @@ Every feed-axis test drives the plant ``millsense simulate`` runs: for a preset 
 :func:`~millsense.simulator.truth_machine.truth_feed_params` with its substeps, else (or with
 ``ideal=True``, debugging only) the machine file's one-way model. The drive sweep's injection
 amplitude is designed from the nameplate's J and K_t (:func:`nameplate_axis`, what a user
-commissioning a real machine knows; decision 1790); the other tests' design (load amplitudes,
-the presliding level) and the metadata (transmission, K_t) still read the simulator's machine
-file (decision 1041; issue 12 open there); the identification then learns the truth from the
+commissioning a real machine knows; decision 1790), the table-load sweep's level from its
+efficiency and lead, the presliding steps from the breakaway the friction moves measured
+(:func:`breakaway_from_friction_test`; decision 1799); the recordings' metadata carries the
+transmission (the lead, a nameplate value); the identification then learns the truth from the
 CNC channels. The realism layer's thermal friction drift
 (time constant 600 s) is not applied to these runs of a few seconds each.
 """
@@ -179,10 +180,34 @@ def friction_test(
     return _recording(fs, axis_name, res, "friction", p, {"velocity_ref": vel})
 
 
+def breakaway_from_friction_test(
+    rec: Recording, axis_name: str, torque_constant_nm_a: float
+) -> float:
+    """The breakaway torque a commissioning engineer reads off the friction moves
+    (:func:`friction_test`), N·m: the mean motor torque (``torque_constant_nm_a`` × the current
+    command) over the second half of the slowest plateau, the smaller of its two directions
+    (the Coulomb level past the Stribeck hump, what ``identify friction`` checks the presliding
+    steps against; decision 1041)."""
+    vel = np.asarray(rec[f"{axis_name}/velocity_ref"], dtype=np.float64)
+    cur = np.asarray(rec[f"{axis_name}/current_cmd"], dtype=np.float64)
+    moving = np.abs(vel) > 0
+    if not moving.any():
+        raise ValueError(f"friction test of {axis_name}: no plateau")
+    slowest = float(np.min(np.abs(vel[moving])))
+    levels = []
+    for v in (slowest, -slowest):
+        idx = np.flatnonzero(vel == v)
+        if idx.size:
+            tail = idx[idx.size // 2 :]
+            levels.append(abs(float(np.mean(cur[tail]))) * torque_constant_nm_a)
+    return min(levels)
+
+
 def presliding_test(
     cfg: MachineConfig,
     axis_name: str,
     *,
+    breakaway_nm: float,
     fraction: float = 0.5,
     step_s: float = 0.05,
     seed: int = 0,
@@ -192,19 +217,19 @@ def presliding_test(
     """Current steps of ±``fraction``·breakaway and back to zero, position/velocity loops open.
 
     Pattern (in units of the step): +1, 0, −1, 0, +0.6, −0.6, +0.3, 0, each ``step_s`` long.
-    The breakaway torque is the smallest static or Coulomb torque of the axis' friction table:
-    ``identify friction`` checks the steps against the breakaway it measured in the friction
-    moves (≥ 0.1 rad/s, past the Stribeck hump: the Coulomb level), so a level from the static
-    torque alone (A: 2.7 N·m against 1.05 N·m Coulomb) would be refused (decision 1041).
+    ``breakaway_nm`` is the breakaway torque measured in the friction moves
+    (:func:`breakaway_from_friction_test`: ``identify friction`` checks the steps against it,
+    so a level above the Coulomb torque would be refused, decision 1041); it becomes a current
+    with the nameplate's K_t (:func:`nameplate_axis`): the test is designed from what the
+    engineer has measured and knows, never from the simulator's friction table (decision 1799).
     """
     fs = cfg.sample_rate_hz
-    axis = cfg.axis(axis_name)
     p = _params(cfg, axis_name)
     plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
     plant = replace(plant, closed_loop=False)
-    fr = axis.friction_table(cfg.name, axis_name)
-    static = min(min(fr.static_nm or fr.coulomb_nm), min(fr.coulomb_nm))
-    level = fraction * static / axis.torque_constant_nm_a
+    if not (breakaway_nm > 0 and math.isfinite(breakaway_nm)):
+        raise ValueError(f"presliding test of {axis_name}: breakaway {breakaway_nm} N·m")
+    level = fraction * breakaway_nm / nameplate_axis(cfg, axis_name).torque_constant_nm_a
     n = round(step_s * fs)
     inj = np.repeat(np.array([1.0, 0.0, -1.0, 0.0, 0.6, -0.6, 0.3, 0.0]), n) * level
     z = np.zeros(len(inj))
@@ -401,7 +426,9 @@ def table_load_sweep(
     p = _params(cfg, axis_name)
     per = round(period_s * fs)
     load = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1.0, 1.0, n_periods, 0.0)
-    load *= torque_rms_nm * p.efficiency / p.transmission / float(np.std(load[:per]))
+    # the load's level from the nameplate's efficiency and transmission (decision 1799)
+    name = FeedDriveParams.from_config(nameplate_axis(cfg, axis_name))
+    load *= torque_rms_nm * name.efficiency / name.transmission / float(np.std(load[:per]))
     plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
     res, vel, lead = run_table_load_sweep(
         plant, fs, load, speed_rad_s=speed_rad_s, lead_s=lead_s, seed=seed, substeps=sub
@@ -637,7 +664,10 @@ def write_commissioning_set(
         "acceleration": acceleration_test(cfg, axis_name, ideal=ideal),
     }
     if axis.friction is not None and axis.friction.sigma0_nm_rad is not None:
-        recs["presliding"] = presliding_test(cfg, axis_name, ideal=ideal)
+        # the steps' level from the breakaway the friction moves measured (decision 1799)
+        kt = nameplate_axis(cfg, axis_name).torque_constant_nm_a
+        brk = breakaway_from_friction_test(recs["friction"], axis_name, kt)
+        recs["presliding"] = presliding_test(cfg, axis_name, breakaway_nm=brk, ideal=ideal)
     # an air cut at a cutting speed: the estimator's R (`identify noise`, Aslan Eq. 3.28-3.30)
     recs["air_cut"] = air_cut_test(cfg, axis_name, speed_rad_s=10.0, duration_s=1.5, ideal=ideal)
     if axis.ball_screw is not None:

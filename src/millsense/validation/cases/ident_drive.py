@@ -53,7 +53,8 @@ def friction_case(seed: int = 0) -> tuple[fr.LuGreFit, fr.PreslidingFit]:
     kt = axis.torque_constant_nm_a
     w, t, s = fr.move_means(rec["z/speed"], kt * rec["z/current"], segs)
     static = fr.lugre_static_from_moves(w, t, s)
-    pre = cm.presliding_test(cfg, "z", seed=seed, ideal=True)
+    brk = cm.breakaway_from_friction_test(rec, "z", kt)
+    pre = cm.presliding_test(cfg, "z", breakaway_nm=brk, seed=seed, ideal=True)
     pf = fr.fit_presliding(
         pre["z/current"],
         pre["z/angle"],
