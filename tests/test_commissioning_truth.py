@@ -59,9 +59,10 @@ def test_presliding_steps_are_half_the_breakaway_the_friction_moves_measured() -
     # the smaller of the two slowest plateaus' mean current, over their second half
     vel, cur = np.asarray(moves["a/velocity_ref"]), np.asarray(moves["a/current_cmd"])
     means = []
-    for v in (0.1, -0.1):
+    for v in (sp[0], -sp[0]):  # the 0.6 s plateaus at ±0.1 rad/s (the ramps differ per sample)
         idx = np.flatnonzero(vel == v)
-        means.append(abs(float(np.mean(cur[idx[idx.size // 2 :]]))))
+        assert idx.size >= round(0.6 * cfg.sample_rate_hz)  # (and the next ramp's first sample)
+        means.append(abs(float(np.mean(cur[idx[0] + idx.size // 2 : idx[-1] + 1]))))
     assert brk == pytest.approx(kt * min(means), rel=1e-12)
     assert 0.8 < brk < 1.6  # the Coulomb level of the truth's A, not the 2.7 N·m static torque
     rec = presliding_test(cfg, "a", breakaway_nm=brk)

@@ -190,16 +190,19 @@ def breakaway_from_friction_test(
     steps against; decision 1041)."""
     vel = np.asarray(rec[f"{axis_name}/velocity_ref"], dtype=np.float64)
     cur = np.asarray(rec[f"{axis_name}/current_cmd"], dtype=np.float64)
-    moving = np.abs(vel) > 0
-    if not moving.any():
-        raise ValueError(f"friction test of {axis_name}: no plateau")
-    slowest = float(np.min(np.abs(vel[moving])))
+    # plateaus: runs of one non-zero command at least 0.2 s long (the ramps between them change
+    # every sample)
+    edges = np.flatnonzero(np.diff(vel) != 0.0) + 1
+    starts = np.concatenate([[0], edges])
+    stops = np.concatenate([edges, [len(vel)]])
+    long_ = (stops - starts >= 0.2 * rec.sample_rate_hz) & (vel[starts] != 0.0)
+    if not long_.any():
+        raise ValueError(f"friction test of {axis_name}: no plateau of 0.2 s")
+    slowest = float(np.min(np.abs(vel[starts[long_]])))
     levels = []
-    for v in (slowest, -slowest):
-        idx = np.flatnonzero(vel == v)
-        if idx.size:
-            tail = idx[idx.size // 2 :]
-            levels.append(abs(float(np.mean(cur[tail]))) * torque_constant_nm_a)
+    for a, b in zip(starts[long_], stops[long_], strict=True):
+        if abs(vel[a]) == slowest:
+            levels.append(abs(float(np.mean(cur[(a + b) // 2 : b]))) * torque_constant_nm_a)
     return min(levels)
 
 
@@ -427,8 +430,8 @@ def table_load_sweep(
     per = round(period_s * fs)
     load = shaped_multisine(fs, per, f_lo_hz, f_hi_hz, 1.0, 1.0, n_periods, 0.0)
     # the load's level from the nameplate's efficiency and transmission (decision 1799)
-    name = FeedDriveParams.from_config(nameplate_axis(cfg, axis_name))
-    load *= torque_rms_nm * name.efficiency / name.transmission / float(np.std(load[:per]))
+    name = nameplate_axis(cfg, axis_name)
+    load *= torque_rms_nm * name.efficiency / name.transmission_m_rad / float(np.std(load[:per]))
     plant, sub = plant_params(cfg, axis_name, ideal=ideal, drive=drive)
     res, vel, lead = run_table_load_sweep(
         plant, fs, load, speed_rad_s=speed_rad_s, lead_s=lead_s, seed=seed, substeps=sub
