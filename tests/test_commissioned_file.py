@@ -1,8 +1,8 @@
 """The machine file shipped as commissioned (``millsense/data/commissioned/quaser-ux600.toml``,
-read by ``run``, ``demo``, ``batch``) and the walkthrough's copy
+read by ``run``, ``demo``, ``batch``) and the walkthrough's
 (``examples/walkthrough/quaser-ux600-commissioned.toml``, read by the README's commands and
-the benchmarks) are the same commissioning of the virtual machine: they must not drift apart
-(the shipped one had once mixed an older feed commissioning with a newer spindle one)."""
+the benchmarks) are one file: the walkthrough's is a link to the shipped one, so they cannot
+drift apart (a copy written over the link would)."""
 
 from __future__ import annotations
 
@@ -15,13 +15,15 @@ from millsense.core.presets import commissioned_machine
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_shipped_commissioned_file_equals_the_walkthrough_copy() -> None:
+def test_walkthrough_commissioned_file_is_the_shipped_one() -> None:
+    walkthrough = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
+    shipped = ROOT / "src/millsense/data/commissioned/quaser-ux600.toml"
+    assert walkthrough.is_symlink()
+    assert walkthrough.resolve() == shipped.resolve()
     entry = resources.files("millsense.data").joinpath("commissioned", "quaser-ux600.toml")
-    shipped = tomllib.loads(entry.read_text(encoding="utf-8"))
-    walkthrough = tomllib.loads(
-        (ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml").read_text(encoding="utf-8")
+    assert tomllib.loads(entry.read_text(encoding="utf-8")) == tomllib.loads(
+        walkthrough.read_text(encoding="utf-8")
     )
-    assert shipped == walkthrough
 
 
 def test_shipped_commissioned_file_has_every_axis_identified() -> None:
