@@ -448,9 +448,11 @@ def test_write_split_program_atomic_and_never_onto_its_input(tmp_path: Path) -> 
 def test_pocket_is_judged_on_the_truth_softened_at_the_slot_load() -> None:
     """Decision 1750: the stable-pocket case reads the plant's table softened as under the
     cut's load. Independent: the mean slot torque in closed form, T = R a N (2 K_tc h + π K_te)
-    / 2π (full immersion, sin φ integrates to 2 over the half turn) = 5.49 N·m for T1 at
-    0.1 mm/tooth and 1.2 mm, through the realism's scale 1 − 0.184 T/T_ref (T_ref 10 N·m) and
-    1 − 0.03 (Ω/Ω_max)² (24000 rev/min), rounded to 1 %: 0.90 at 6107 rev/min."""
+    / 2π (full immersion, sin φ integrates to 2 over the half turn) for T1 at 0.1 mm/tooth and
+    1.2 mm with the plant's true coefficients (decision 1798: K_tc 758 × 1.06, K_te 25 × 1.15
+    N/mm²), 5.99 N·m, through the realism's scale 1 − 0.184 T/T_ref (T_ref 10 N·m) and
+    1 − 0.03 (Ω/Ω_max)² (24000 rev/min), rounded to 1 %: 0.89 at 6107 rev/min."""
+    from millsense.simulator.plant_plan import PLANT_LOT_FACTORS
     from millsense.simulator.realism import LOAD_SHIFT
     from millsense.validation.cases.control_chatter_avoidance import (
         load_scale,
@@ -458,9 +460,10 @@ def test_pocket_is_judged_on_the_truth_softened_at_the_slot_load() -> None:
         truth_modes,
     )
 
-    torque = 0.025 * 1.2e-3 * 5 * (2 * 758e6 * 0.1e-3 + math.pi * 25e3) / (2 * math.pi)
+    ktc, kte = 758e6 * PLANT_LOT_FACTORS["ktc"], 25e3 * PLANT_LOT_FACTORS["kte"]
+    torque = 0.025 * 1.2e-3 * 5 * (2 * ktc * 0.1e-3 + math.pi * kte) / (2 * math.pi)
     scale = (1 - LOAD_SHIFT * torque / 10.0) * (1 - 0.03 * (6107.0 / 24000.0) ** 2)
-    assert load_scale(6107.0) == pytest.approx(round(scale, 2), abs=1e-12) == 0.90
+    assert load_scale(6107.0) == pytest.approx(round(scale, 2), abs=1e-12) == 0.89
     soft = truth_case(0.9).structure
     np.testing.assert_allclose([m.natural_frequency_hz for m in soft.y],
                                0.9 * truth_modes().y.natural_hz, rtol=1e-12)  # fmt: skip

@@ -11,8 +11,9 @@ controller never sees it. Its lobes come from a simulated tap test of the plant'
 accelerometer noise, the hammer 3° off axis, the accelerometer's mass and transverse
 sensitivity, a holder mode the table lacks), identified as a shop does (H1 over 10 hits, modal
 fit over Aslan's 200-1800 Hz band: :mod:`millsense.bench.tap_test`; fit errors against the
-table: ``ident.tap_test_t1_*``), with the preset coefficients. The plant departs further by
-the truth's softening of the tool modes under load (realism) and its own process. The simulator
+table: ``ident.tap_test_t1_*``), with the preset coefficients; the plant cuts the material's
+true ones (the preset's × the lot's factors, decision 1798). The plant departs further by the
+truth's softening of the tool modes under load (realism) and its own process. The simulator
 (``quaser-ux600`` X/Y/Z, its Aslan spindle drive, regenerative time-domain process with the
 tool modes) is the live source; the pipeline is a chatter-comb monitor on the accelerometer
 (``accel/x``, as the latency case; the compensated spindle torque does not flag the T1 replica,
@@ -59,15 +60,25 @@ def truth_modes() -> Any:
     return ToolModes(_modes(my), _modes(mx))
 
 
-def _case(structure: Any) -> Any:
-    """The T1 slot as a stability case on ``structure``: K_tc/K_rc of Al7050, full immersion."""
+def _coefficients(true: bool) -> Any:
+    """K_tc/K_rc of Al7050: the preset's (what the controller knows) or the plant's true ones
+    (the preset's × the lot's factors, decision 1798)."""
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
+    from millsense.simulator.plant_plan import lot_coefficients
+
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    return lot_coefficients(coeffs) if true else coeffs
+
+
+def _case(structure: Any, true: bool = False) -> Any:
+    """The T1 slot as a stability case on ``structure``, full immersion, with the preset's
+    K_tc/K_rc of Al7050 or (``true``) the plant's."""
     from millsense.stability.cases import MillingStabilityCase
     from millsense.validation.cases.monitoring_chatter import TOOLS
 
-    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    coeffs = _coefficients(true)
     return MillingStabilityCase(
         name=f"v5-{TOOL.lower()}-slot",
         structure=structure,
@@ -98,7 +109,8 @@ def stability_case() -> Any:
 
 @cache
 def truth_case(scale: float = 1.0) -> Any:
-    """The plant's case: the T1 slot on the truth's table with every natural frequency times
+    """The plant's case: the plant's coefficients (decision 1798), the T1 slot on the truth's
+    table with every natural frequency times
     ``scale`` at constant modal stiffness (the simulator's softening under load,
     :func:`millsense.simulator.realism.tool_mode_scale`; 1: at rest)."""
     from millsense.stability.modal import ModalModel, Mode
@@ -109,15 +121,12 @@ def truth_case(scale: float = 1.0) -> Any:
         rows = zip(d.natural_hz, d.damping_ratio, d.stiffness_n_per_m, strict=True)
         return tuple(Mode.from_stiffness(scale * f, z, k) for f, z, k in rows)
 
-    return _case(ModalModel(x=modes(t.x), y=modes(t.y)))
+    return _case(ModalModel(x=modes(t.x), y=modes(t.y)), true=True)
 
 
 def load_scale(rpm: float) -> float:
     """The truth's tool-mode frequency scale in the T1 slot at ``rpm`` (the nominal cut's mean
     cutting torque, sliced model without vibration, and the speed; realism defaults)."""
-    from millsense.core.config import MaterialConfig
-    from millsense.core.presets import load_preset
-    from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.engagement import Engagement
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
@@ -126,7 +135,7 @@ def load_scale(rpm: float) -> float:
     from millsense.validation.cases.monitoring_chatter import TOOLS
 
     d, n = TOOLS[TOOL][0], TOOLS[TOOL][1]
-    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    coeffs = _coefficients(true=True)  # the plant's load
     phi = np.linspace(0.0, 2 * math.pi, 720, endpoint=False)
     f = milling_forces(EndMill(d, n), coeffs, Engagement.slot(), 0.1e-3, DEPTH_MM * 1e-3, phi, 1)
     spindle = simulator_machine("quaser-ux600").spindle
@@ -164,7 +173,7 @@ def closed_loop(signal: str = "accel/x") -> dict[str, Any]:
     from millsense.validation.cases.monitoring_chatter import TOOLS, replica_simulator
 
     n = TOOLS[TOOL][1]
-    sim = replica_simulator(TOOL, DEPTH_MM, DURATION_S, rpm=RPM)
+    sim = replica_simulator(TOOL, DEPTH_MM, DURATION_S, rpm=RPM, lot=True)
     blocks: list[Any] = []
     if signal == "spindle/torque_est":
         from millsense.estimation.spindle_observer import SpindleTorqueObserver

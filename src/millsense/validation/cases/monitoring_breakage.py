@@ -7,11 +7,10 @@ SLOT3 4 mm deep crossing SLOT2 and the cavity edge and exiting), on the stock th
 earlier operations leave, are run by the virtual machine (the quaser-ux600 truth, realism on)
 with flute 0 broken in SLOT3, and monitored by the on-line session's blocks.
 
-What plant and monitor share: the program, the raw stock, the material's nominal coefficients
-(the truth's cutting model starts from them as the virtual machine always does; its effective
-K_tc is its own: the session calibrates about 800 N/mm² against the plan's 758) and the tool's
-nameplate geometry. What they do not share: the plant cuts its own plan (:func:`truth_plan`: a
-0.05 mm z-map, 5 µm of runout the monitor does not know) through the truth's process (tool
+What plant and monitor share: the program, the raw stock and the tool's nameplate geometry.
+What they do not share: the plant cuts its own plan (:func:`truth_plan`: a 0.05 mm z-map, 5 µm
+of runout the monitor does not know, the material's true coefficients: the preset's × the
+lot's factors, decision 1798) through the truth's process (tool
 dynamics, edge forces) and truth spindle; the monitor's expectation is the virtual plan built
 from the nameplate tool and preset material on a 0.1 mm z-map (:func:`demo_plan`), never the
 simulator's objects; the monitors read the compensated spindle torque of the identified
@@ -179,8 +178,9 @@ def truth_plan() -> VirtualPlan:
     (:func:`~millsense.simulator.plant_plan.plant_plan`): the same program and stock cut on
     a finer z-map by its own tool (with the runout the plan does not know); the simulator
     reads its rows' engagement, never the monitor's plan. Its coefficients are the material's
-    nominal ones, which the truth's process (tool deflection and modes, edge forces, runout)
-    and truth spindle turn into an effective K_tc of their own."""
+    true ones (``plant_plan`` applies the lot's factors to the preset's, decision 1798), which
+    the truth's process (tool deflection and modes, edge forces, runout) and truth spindle
+    turn into an effective K_tc of their own."""
     from millsense.core.config import MaterialConfig, ToolConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients

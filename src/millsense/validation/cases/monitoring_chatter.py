@@ -64,11 +64,14 @@ def _modes(rows: list[tuple[float, float, float]]) -> Any:
 
 
 def replica_simulator(
-    tool: str, depth_mm: float, duration_s: float, rpm: float | None = None
+    tool: str, depth_mm: float, duration_s: float, rpm: float | None = None, lot: bool = False
 ) -> Any:
     """The virtual machine (quaser-ux600 X/Y/Z) slotting Al7050 with a V5 replica tool (its
     modal table, 0.1 mm/tooth, ``rpm`` or the tool's speed) after ``AIR_S`` of air; an
-    accelerometer on the spindle. Shared by the V5 replicas and the chatter-avoidance loop."""
+    accelerometer on the spindle. Shared by the V5 replicas and the chatter-avoidance loop.
+    ``lot``: the plant cuts the material's true coefficients (the preset's ×
+    :data:`~millsense.simulator.plant_plan.PLANT_LOT_FACTORS`, decision 1798), for a case whose
+    controller uses the preset's (the chatter avoidance's lobes); the V5 monitors use none."""
     from millsense.core.config import MaterialConfig
     from millsense.core.presets import load_preset
     from millsense.process.coefficients import CuttingCoefficients
@@ -88,6 +91,10 @@ def replica_simulator(
     m = simulator_machine("quaser-ux600")
     m = m.with_axes("xyz", "3-axis")
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
+    if lot:
+        from millsense.simulator.plant_plan import lot_coefficients
+
+        coeffs = lot_coefficients(coeffs)
     feed = 0.1e-3 * n * rpm / 60.0
     # process frame: x along the feed (thesis Y), y normal to it (thesis X)
     proc = ProcessCoupling(

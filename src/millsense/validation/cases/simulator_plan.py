@@ -182,6 +182,7 @@ def _slot_window(run: PlanRun) -> tuple[np.ndarray, np.ndarray]:
     description="Plan-driven simulation of a steady Ø20 mm slot, 2 mm, 0.2 mm/tooth on "
     "quaser-ux600 (X/Y/Z): largest relative difference of the truth mean F_x, F_y, mean XY "
     "resultant and mean torque from the plan's fx_avg, fy_avg, fres_avg, torque_avg",
+    self_check=True,
 )
 def _slot_average() -> Measured:
     run = slot_run()
@@ -214,6 +215,7 @@ def _slot_average() -> Measured:
     quick=True,
     description="Plan-driven steady slot: median over tooth periods of the peak truth XY "
     "resultant against the plan's fres_peak",
+    self_check=True,
 )
 def _slot_peak() -> Measured:
     run = slot_run()
@@ -292,6 +294,7 @@ def torque_comparison(run: PlanRun, max_lag_s: float = 0.3) -> dict[str, float]:
     "truth tooth-period mean torque and the plan's torque_avg_nm along the matched path "
     "(in cut); tolerance 0.05 N·m = 5 % of the mean in-cut torque, about twice the measured "
     "0.027 N·m, which comes from the transients at engagement changes",
+    self_check=True,
 )
 def _demo_torque() -> Measured:
     c = torque_comparison(demo_run())
@@ -315,6 +318,7 @@ def _demo_torque() -> Measured:
     description="Demo part: the time shift of the simulated tooth-period torque that best "
     "fits the plan's torque_avg_nm along the matched path (3 ms grid); tolerance two "
     "interpolation periods",
+    self_check=True,
 )
 def _demo_lag() -> Measured:
     c = torque_comparison(demo_run())
@@ -367,6 +371,7 @@ def match_statistics(run: PlanRun) -> dict[str, float]:
         "(online.plan_sync, decision 1622)"
     ),
     issue=12,
+    self_check=True,
 )
 def _demo_match() -> Measured:
     m = match_statistics(demo_run())
