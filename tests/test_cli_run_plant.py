@@ -10,25 +10,12 @@ from typing import Any
 import pytest
 
 from millsense.plan.plan_engagement import PlanEngagement
-from millsense.simulator import plan_job as plan_job_module
 from millsense.simulator.plant_plan import PLANT_LOT_FACTORS, PLANT_RUNOUT_M
+from test_plant_plan import _capture_plan_job
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "examples/demo_part"
 SLOT = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-2 F400\nX30\nG0 Z5\nM30\n"
-
-
-def _capture(monkeypatch: pytest.MonkeyPatch) -> list[tuple[Any, Any]]:
-    real = plan_job_module.plan_job
-    seen: list[tuple[Any, Any]] = []
-
-    def wrapped(vp: Any, *a: Any, **k: Any) -> Any:
-        out = real(vp, *a, **k)
-        seen.append((vp, out[1]))
-        return out
-
-    monkeypatch.setattr(plan_job_module, "plan_job", wrapped)
-    return seen
 
 
 def test_run_cuts_the_machines_own_plan(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -37,7 +24,7 @@ def test_run_cuts_the_machines_own_plan(tmp_path: Path, monkeypatch: pytest.Monk
 
     prog = tmp_path / "slot.nc"
     prog.write_text(SLOT)
-    seen = _capture(monkeypatch)
+    seen = _capture_plan_job(monkeypatch)
     vm = virtual_machine(program=prog, stock=DEMO / "stock.toml", tool="aslan-d20-2flute",
                          material="al7050", plan=None, plan_out=tmp_path / "plan.parquet",
                          machine="quaser-ux600", duration_s=0.5)  # fmt: skip
