@@ -92,3 +92,20 @@ def test_run_tool_modes_lobes_come_from_a_tap_test(
     # the tap test finds the table's modes within its stated frequency error (decision 1750)
     for w in exact:
         assert min(abs(f / w - 1.0) for f in fitted) < 0.005
+
+
+def test_plant_cell_is_finer_than_the_session_and_bounded_for_large_stock() -> None:
+    """The plant's z-map in ``run``: 4 × finer than the session's 0.2 mm (0.05 mm) on the demo
+    part's 100 × 80 mm block; on a 1 × 1 m block 0.05 mm would be 400 million cells, so it is
+    sqrt(1 m² / 16e6) = 0.25 mm, capped at half the session's cell: 0.1 mm."""
+    from millsense.cli.cmd_run import PLANT_MAX_CELLS, plant_cell_m
+    from millsense.core.config import StockConfig, load_config
+
+    demo = load_config(StockConfig, DEMO / "stock.toml")
+    assert plant_cell_m(demo, None, 0.2e-3) == pytest.approx(0.05e-3, rel=1e-12)
+    big = demo.model_copy(update={"min_mm": [0.0, 0.0, -30.0], "max_mm": [1000.0, 1000.0, 0.0]})
+    assert PLANT_MAX_CELLS == 16_000_000
+    assert plant_cell_m(big, None, 0.2e-3) == pytest.approx(0.1e-3, rel=1e-12)
+    # a 300 x 300 mm block: sqrt(0.09 / 16e6) = 0.075 mm, between the two bounds
+    mid = demo.model_copy(update={"min_mm": [0.0, 0.0, -30.0], "max_mm": [300.0, 300.0, 0.0]})
+    assert plant_cell_m(mid, None, 0.2e-3) == pytest.approx(0.075e-3, rel=1e-9)

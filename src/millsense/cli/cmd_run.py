@@ -8,6 +8,7 @@ overrides are recorded, not applied).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -522,6 +523,27 @@ def virtual_machine(
     return VirtualMachine(vp, sim_cfg, sim, meta, notes, findings)
 
 
+#: The most z-map cells the virtual machine's own plan of a ``run`` may take (64 MB of float32).
+PLANT_MAX_CELLS = 16_000_000
+
+
+def plant_cell_m(stock_cfg: Any, make_stock: Any, resolution_m: float) -> float:
+    """The z-map cell of the virtual machine's own plan in ``run``: four times finer than the
+    session's (``resolution_m``) and at least :data:`~millsense.simulator.plant_plan.PLANT_CELL_M`,
+    coarser where the stock would take more than :data:`PLANT_MAX_CELLS` cells (a large part),
+    but never coarser than half the session's cell (the plant's cut stays its own)."""
+    from millsense.simulator.plant_plan import PLANT_CELL_M
+
+    if stock_cfg.kind == "box":
+        lo, hi = stock_cfg.min_mm, stock_cfg.max_mm
+        area = abs(hi[0] - lo[0]) * abs(hi[1] - lo[1]) * 1e-6
+    else:
+        coarse = make_stock(resolution_m)
+        area = coarse.nx * coarse.ny * resolution_m**2
+    cell = max(PLANT_CELL_M, resolution_m / 4.0, math.sqrt(area / PLANT_MAX_CELLS))
+    return min(cell, max(PLANT_CELL_M, resolution_m / 2.0))
+
+
 def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: float,
                 resolution_mm: float) -> Any:  # fmt: skip
     """The virtual machine's own plan of ``--program`` (decision 1740,
@@ -537,14 +559,15 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
     from millsense.plan.gcode import interpret_file
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
-    from millsense.simulator.plant_plan import PLANT_CELL_M, plant_plan
+    from millsense.simulator.plant_plan import plant_plan
 
     from .cmd_plan import stock_maker
 
     tool_cfg = load_preset(ToolConfig, Path(tool))
     mat_cfg = load_preset(MaterialConfig, Path(material))
-    make_stock = stock_maker(load_config(StockConfig, stock), stock)
-    cell_m = max(PLANT_CELL_M, resolution_mm * MM / 4.0)
+    stock_cfg = load_config(StockConfig, stock)
+    make_stock = stock_maker(stock_cfg, stock)
+    cell_m = plant_cell_m(stock_cfg, make_stock, resolution_mm * MM)
     with Progress(console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("plan of the virtual machine", total=1)
         return plant_plan(
