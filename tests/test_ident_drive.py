@@ -43,10 +43,12 @@ def test_resonance_matches_table_3_3() -> None:
     assert _A.resonance_hz(5e-3) == pytest.approx(340.0, abs=1.0)
 
 
-def _synthetic(noise: float, seed: int = 0) -> tuple[FrfEstimate, FrfEstimate]:
+def _synthetic(
+    noise: float, seed: int = 0, params: dr.DualInertiaParams | None = None
+) -> tuple[FrfEstimate, FrfEstimate]:
     f = np.arange(2.0, 1001.0, 2.0)
     s = 2j * math.pi * f
-    hm, ht = dr.dual_inertia_frf(_A, 5e-3, f)
+    hm, ht = dr.dual_inertia_frf(params or _A, 5e-3, f)
     common = 0.3 * (3000.0 / (s + 3000.0)) * dr.zoh_factor(f, 20000.0)
     rng = np.random.default_rng(seed)
 
@@ -69,6 +71,22 @@ def test_fit_recovers_exact_model_frfs() -> None:
         assert getattr(fit.params, k) == pytest.approx(getattr(_A, k), rel=1e-4), k
     assert fit.motor_delay == pytest.approx(0.8e-3, abs=1e-8)
     assert fit.table_delay == pytest.approx(0.45e-3, abs=1e-8)
+
+
+def test_an_invisible_damping_is_reported_as_zero() -> None:
+    """Decision 1797: a damping the FRFs cannot see (here the table's, 0 in the model) runs off
+    towards exp(−∞) in the log-parameter fit (the walkthrough's yamada-b file read 1e-163 N·s/m);
+    below 1e-6 of its critical value it is written as 0, the others are still recovered."""
+    import dataclasses
+
+    no_table = dataclasses.replace(_A, table_damping=0.0)
+    m, t = _synthetic(0.0, params=no_table)
+    fit = dr.fit_dual_inertia(m, t, lead_m=5e-3, torque_constant_nm_a=0.3,
+                              current_loop_hz=3000.0 / (2 * math.pi),
+                              sample_rate_hz=20000.0)  # fmt: skip
+    assert fit.params.table_damping == 0.0
+    for k in ("table_mass", "axial_stiffness", "axial_damping"):
+        assert getattr(fit.params, k) == pytest.approx(getattr(no_table, k), rel=1e-3), k
 
 
 def test_fit_refuses_a_band_without_the_antiresonance() -> None:

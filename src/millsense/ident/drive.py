@@ -522,6 +522,12 @@ def fit_dual_inertia(
         sol = sol2
     x = sol.x
     mech = np.exp(x[:6])
+    # a damping the FRFs cannot see runs off towards exp(−∞) in the log-parameter fit (1e-163
+    # was written); below 1e-6 of its critical value it is reported as 0 (decision 1797)
+    crit = 2.0 * math.sqrt(mech[2] * mech[1])
+    for k, scale in ((3, crit), (4, crit), (5, crit * r * r)):
+        if mech[k] < 1e-6 * scale:
+            mech[k] = 0.0
     d_m, d_t = float(x[6]), float(x[7])
     ts = amplifier_delay_s
     params = DualInertiaParams(
