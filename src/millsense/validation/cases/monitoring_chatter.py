@@ -133,21 +133,9 @@ def simulate(tool: str, depth_mm: float) -> dict[str, np.ndarray]:
 
 @cache
 def compensated(tool: str, depth_mm: float) -> np.ndarray:
-    """Compensated spindle torque: the identified range-2 observer on I_nom."""
-    from millsense.estimation.spindle_observer import SpindleTorqueObserver
-    from millsense.streaming.block import Chunk
-    from millsense.validation.cases.estimation_spindle import friction, observers
-
+    """Compensated spindle torque: the identified range-2 observer on I_nom (:func:`observe`)."""
     d = simulate(tool, depth_mm)
-    obs = SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction())
-    obs.reset(FS_HZ)
-    out = []
-    n = len(d["spindle/current_cmd"])
-    for s in range(0, n, 1000):
-        data = {"spindle/current_cmd": d["spindle/current_cmd"][s : s + 1000],
-                "spindle/speed": d["spindle/speed"][s : s + 1000]}  # fmt: skip
-        out.append(obs.process(Chunk(s, FS_HZ, 0.0, data)).channels["spindle/torque_est"])
-    return np.concatenate(out)
+    return observe(d["spindle/current_cmd"], d["spindle/speed"], chunk=1000)
 
 
 def detect(
@@ -575,18 +563,8 @@ def observe(current_cmd: np.ndarray, speed_rad_s: np.ndarray, chunk: int = 10000
 @cache
 def false_alarms() -> dict[str, int]:
     """Chatter alarms per (signal, method) over 10 minutes of :func:`stable_stream`."""
-    from millsense.estimation.spindle_observer import SpindleTorqueObserver
-    from millsense.streaming.block import Chunk
-    from millsense.validation.cases.estimation_spindle import friction, observers
-
     d = stable_stream(600.0, seed=3)
-    obs = SpindleTorqueObserver(observers()[1][1].design, FS_HZ, friction=friction())
-    obs.reset(FS_HZ)
-    parts = []
-    for s in range(0, len(d["sensor"]), 10000):
-        data = {k: d[k][s : s + 10000] for k in ("spindle/current_cmd", "spindle/speed")}
-        parts.append(obs.process(Chunk(s, FS_HZ, 0.0, data)).channels["spindle/torque_est"])
-    comp = np.concatenate(parts)
+    comp = observe(d["spindle/current_cmd"], d["spindle/speed"])
     out = {}
     for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
         for method in ("chatter-comb", "chatter-sdft"):
