@@ -78,11 +78,8 @@ def test_dob_case_observer_comes_from_identification_not_the_truth() -> None:
     assert abs(p.table_mass_kg / d.table_mass - 1.0) > 1e-3
     k0 = d.transmission_stiffness(0.0)
     assert abs(p.axial_stiffness_n_m / k0 - 1.0) > 1e-3
-    # but they are identifications of it: J_r within 15 %, M_t and K_r within 35 % (the
-    # dual-inertia FRF fit on a drive with a torsional mode and a bed; measured 2026-11-28
-    # with the drive sweep designed from the nameplate's J and K_t, decision 1790: −6 %, −29 %,
-    # −27 % against the truth's k(0) = 44.3 N/µm; with the simulator file's J and K_t, 4 % less
-    # current, it was −6 %, −16 %, −15 %: M_t and K_r depend on the excitation level, issue 12)
+    # but they are identifications of it: J_r within 15 % (M_t and K_r: the strict test below,
+    # a known failure since decision 1790, and a floor here that they are not off by half)
     assert p.rotor_inertia_kg_m2 == pytest.approx(j_rot, rel=0.15)
     assert p.table_mass_kg == pytest.approx(d.table_mass, rel=0.35)
     assert p.axial_stiffness_n_m == pytest.approx(k0, rel=0.35)
@@ -95,6 +92,24 @@ def test_dob_case_observer_comes_from_identification_not_the_truth() -> None:
     f_notch = dob.torsion_notch_hz()
     assert f_notch == pytest.approx(778.5, rel=0.03)
     assert f_notch != pytest.approx(778.5, abs=1e-6)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: with the drive sweep designed from the nameplate's J and K_t (decision "
+    "1790, 4 % more current) identify drive gives M_t −29 % and K_r −27 % against the truth "
+    "(−16 %, −15 % before): the dual-inertia fit depends on the excitation level",
+)
+def test_dob_case_identified_table_mass_and_stiffness_are_close_to_the_truth() -> None:
+    """The dual-inertia FRF fit on a drive with a torsional mode and a bed: M_t within 25 %,
+    K_r within 20 % of the truth's (k(0) = 44.3 N/µm), the bounds measured before decision
+    1790 (−16 %, −15 %)."""
+    from millsense.validation.cases import estimation_dob as dob
+
+    p = dob._identified()
+    d: CoupledDrive = load_truth("yamada-b")["x"].drive
+    assert p.table_mass_kg == pytest.approx(d.table_mass, rel=0.25)
+    assert p.axial_stiffness_n_m == pytest.approx(d.transmission_stiffness(0.0), rel=0.20)
 
 
 def test_dual_inertia_fit_band_stops_below_the_truths_torsion_only() -> None:
