@@ -137,6 +137,25 @@ def test_window_pair_transform_is_two_scipy_rffts() -> None:
             np.testing.assert_array_equal(got[i], scipy.fft.rfft(a[i]))
 
 
+def test_comb_delay_line_without_masks_is_the_masked_sum() -> None:
+    """The comb filter's fractional delay reads its eight taps without index masks where they
+    do not wrap (decision 1538): the same sum, in the same order, as the masked indices, at
+    every position of the ring including across its end."""
+    from millsense.monitoring.chatter.comb import _delayed
+
+    rng = np.random.default_rng(14)
+    ring = rng.standard_normal(64)
+    w = rng.standard_normal(8)
+    mask = 63
+    for p in range(-70, 200):
+        for k in (4, 9, 40):
+            b = p - k + 3
+            want = 0.0
+            for j in range(8):
+                want += w[j] * ring[(b - j) & mask]
+            assert _delayed(ring, p, k, w, mask) == want
+
+
 def test_centred_window_keeps_the_order_of_every_sum() -> None:
     """The centred window with its half sums as two interleaved chains (decision 1538) gives
     bit for bit what one pass after the other gives: each sum in sample order. Even and odd
