@@ -137,6 +137,96 @@ def test_window_pair_transform_is_two_scipy_rffts() -> None:
             np.testing.assert_array_equal(got[i], scipy.fft.rfft(a[i]))
 
 
+def test_comb_delay_line_without_masks_is_the_masked_sum() -> None:
+    """The comb filter's fractional delay reads its eight taps without index masks where they
+    do not wrap (decision 1538): the same sum, in the same order, as the masked indices, at
+    every position of the ring including across its end."""
+    from millsense.monitoring.chatter.comb import _delayed
+
+    rng = np.random.default_rng(14)
+    ring = rng.standard_normal(64)
+    w = rng.standard_normal(8)
+    mask = 63
+    for p in range(-70, 200):
+        for k in (4, 9, 40):
+            b = p - k + 3
+            want = 0.0
+            for j in range(8):
+                want += w[j] * ring[(b - j) & mask]
+            assert _delayed(ring, p, k, w, mask) == want
+
+
+def test_centred_window_keeps_the_order_of_every_sum() -> None:
+    """The centred window with its half sums as two interleaved chains (decision 1538) gives
+    bit for bit what one pass after the other gives: each sum in sample order. Even and odd
+    lengths, windows across the ring's end."""
+    from millsense.monitoring.chatter import _kernels as kn
+
+    rng = np.random.default_rng(11)
+    ring = rng.standard_normal(1024) * 3.0 + 7.0
+    for n in (2, 3, 255, 256, 512, 1001):
+        taper = np.hanning(n)
+        for pos in (n, 700, 1024 + n // 2, 5000):
+            want = np.array([ring[(pos - n + i) % 1024] for i in range(n)])
+            total = 0.0
+            for v in want:
+                total += v
+            level = total / n
+            old = new = 0.0
+            for i in range(n):
+                want[i] -= level
+                if i < n // 2:
+                    old += want[i]
+                else:
+                    new += want[i]
+            out, tapered = np.empty(n), np.empty(n)
+            got = kn.centred_window(ring, pos, taper, out, tapered)
+            assert got == (level, new / (n - n // 2) - old / (n // 2))
+            np.testing.assert_array_equal(out, want)
+            np.testing.assert_array_equal(tapered, want * taper)
+
+
+def test_masked_argmax_is_numpys_argmax_of_the_masked_copy() -> None:
+    """The threshold criterion's band peak without the masked copy (decision 1538) is
+    np.argmax(np.where(band, x, 0)): ties, bands at either end, negative values, NaN."""
+    from millsense.monitoring.chatter import _kernels as kn
+
+    rng = np.random.default_rng(12)
+    for trial in range(500):
+        n = int(rng.integers(1, 200))
+        x = np.round(rng.standard_normal(n), 1)
+        if trial % 3 == 0:
+            x = np.abs(x)
+        if trial % 5 == 0:
+            x[rng.integers(0, n)] = np.nan
+        if trial % 11 == 0:
+            x[:] = 0.0
+        b0 = int(rng.integers(0, n))
+        b1 = int(rng.integers(b0, n + 1))
+        band = np.zeros(n, dtype=bool)
+        band[b0:b1] = True
+        assert kn.masked_argmax(x, b0, b1) == int(np.argmax(np.where(band, x, 0.0)))
+
+
+def test_peak_frequency_on_python_floats_is_the_numpy_scalar_form() -> None:
+    """``peak_frequency`` computes on Python floats (decision 1538): the same numbers as the
+    former arithmetic on NumPy scalars."""
+    from millsense.monitoring.chatter.methods import peak_frequency
+
+    rng = np.random.default_rng(13)
+    f = np.fft.rfftfreq(4096, 1e-4)
+    for _ in range(300):
+        amp = rng.random(f.size) * 10.0 ** rng.uniform(-3, 3)
+        k = int(rng.integers(0, f.size))
+        want = float(f[k])
+        if 0 < k < amp.size - 1:
+            a, b, c = np.log(amp[k - 1 : k + 2])
+            den = a - 2 * b + c
+            if den < 0:
+                want = float(f[k] + 0.5 * (a - c) / den * (f[1] - f[0]))
+        assert peak_frequency(f, amp, k) == want
+
+
 def test_band_median_is_numpys_median() -> None:
     """The compiled band median (quickselect) equals np.median exactly: odd and even counts,
     ties, constant spectra, empty and one-bin bands."""

@@ -46,6 +46,11 @@ _FIELDS = (
 )
 
 
+#: The outputs of a revolution not evaluated (read only: shared by every such revolution).
+_NOT_EVALUATED = np.full(len(_FIELDS), math.nan)
+_NOT_EVALUATED.flags.writeable = False
+
+
 class EngagementBlock(Block):
     """Per-revolution engagement monitor on the spindle torque (module notes).
 
@@ -151,13 +156,13 @@ class EngagementBlock(Block):
         self._log = []
         self._made = []
 
-    def _finish(self, t_end: float, row: int) -> None:
-        """The estimate of row ``row`` of the revolutions finished (module notes)."""
+    def _finish(self, t_end: float, row: int, status: float) -> None:
+        """The estimate of row ``row`` of the revolutions finished, whose status is
+        ``status`` (module notes)."""
         self._held_views = None
-        status = self._done[row, _sk.DONE_STATUS]
         if status == _sk.REV_NONE:
             self._log.append((t_end, None))
-            self._held = np.full(len(_FIELDS), math.nan)
+            self._held = _NOT_EVALUATED
             return
         out = self._est[row]
         if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
@@ -201,11 +206,12 @@ class EngagementBlock(Block):
             return BlockOutput(self._held_outputs(n))
         out = np.empty((len(_FIELDS), n))
         pos = 0
+        t0, start, fs = chunk.t0_s, chunk.start, chunk.sample_rate_hz
         while True:
-            for row in range(nd):
-                s = int(self._done[row, _sk.DONE_AT])
+            for row, done in enumerate(self._done[:nd].tolist()):
+                s = int(done[_sk.DONE_AT])
                 out[:, pos:s] = self._held[:, None]
-                self._finish(chunk.t0_s + (chunk.start + s) / chunk.sample_rate_hz, row)
+                self._finish(t0 + (start + s) / fs, row, done[_sk.DONE_STATUS])
                 pos = s
             if i >= n:
                 break

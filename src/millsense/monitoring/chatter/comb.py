@@ -70,9 +70,22 @@ def _delayed(
 ) -> float:  # pragma: no cover
     """``ring`` at delay ``k + mu`` behind position ``p`` with the weights ``w`` of ``mu``:
     Σ_j w[j]·ring[p − k − (j − 3)] for the nodes j = 0 … 7, summed in that order (written out:
-    the compiled loop over a run-time length cost a fifth of the comb filter; decision 1536)."""
+    the compiled loop over a run-time length cost a fifth of the comb filter; decision 1536).
+    Where the eight nodes do not wrap around the ring's end their indices need no mask: the
+    same loads and additions with a tenth less work (decision 1538)."""
     b = p - k + _HALF - 1
     acc = 0.0
+    c = b & mask
+    if c >= _NODES - 1:
+        acc += w[0] * ring[c]
+        acc += w[1] * ring[c - 1]
+        acc += w[2] * ring[c - 2]
+        acc += w[3] * ring[c - 3]
+        acc += w[4] * ring[c - 4]
+        acc += w[5] * ring[c - 5]
+        acc += w[6] * ring[c - 6]
+        acc += w[7] * ring[c - 7]
+        return acc
     acc += w[0] * ring[b & mask]
     acc += w[1] * ring[(b - 1) & mask]
     acc += w[2] * ring[(b - 2) & mask]

@@ -93,12 +93,15 @@ class Verdict:
 
 
 def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
-    """Frequency of the peak at bin ``k`` by parabolic interpolation of log amplitudes."""
+    """Frequency of the peak at bin ``k`` by parabolic interpolation of log amplitudes (the
+    logarithms by NumPy, the arithmetic on Python floats: the same IEEE operations as on NumPy
+    scalars, at a fifth of the cost; decision 1538)."""
     if 0 < k < len(amp) - 1 and amp[k - 1] > 0 and amp[k] > 0 and amp[k + 1] > 0:
-        a, b, c = np.log(amp[k - 1 : k + 2])
+        a, b, c = np.log(amp[k - 1 : k + 2]).tolist()
         den = a - 2 * b + c
         if den < 0:
-            return float(f_hz[k] + 0.5 * (a - c) / den * (f_hz[1] - f_hz[0]))
+            fk, f0, f1 = float(f_hz[k]), float(f_hz[0]), float(f_hz[1])
+            return fk + 0.5 * (a - c) / den * (f1 - f0)
     return float(f_hz[k])
 
 
@@ -128,11 +131,17 @@ class ChatterMethod:
         """The verdict on one window (``calibrated``: threshold of the threshold method)."""
         if self.name == "chatter-threshold":
             thr = self.threshold if self.threshold is not None else calibrated
-            amp = np.where(s.band, s.raw, 0.0)
-            k = int(np.argmax(amp))
+            if s.band_slice is not None:  # argmax(where(band, raw, 0)) without the copy
+                b0, b1 = s.band_slice
+                k = _kn.masked_argmax(s.raw, b0, b1)
+                peak = float(s.raw[k]) if b0 <= k < b1 else 0.0
+            else:
+                amp = np.where(s.band, s.raw, 0.0)
+                k = int(np.argmax(amp))
+                peak = float(amp[k])
             if thr is None or not thr > 0:
                 return Verdict(0.0, peak_frequency(s.f_hz, s.raw, k), 1.0)
-            return Verdict(float(amp[k]) / thr, peak_frequency(s.f_hz, s.raw, k), 1.0)
+            return Verdict(peak / thr, peak_frequency(s.f_hz, s.raw, k), 1.0)
         thr = float(self.threshold if self.threshold is not None else SEED000_RATIO)
         if s.band_slice is not None:
             b0, b1 = s.band_slice
