@@ -475,6 +475,46 @@ def design_feed_kalman(
 
 
 @numba.njit(cache=True)
+def c3_step(
+    current: float,
+    w: float,
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    fric_mode: int,
+    fric: NDArray[np.float64],
+    sos: NDArray[np.float64],
+) -> float:  # pragma: no cover - compiled
+    """One sample of the low-passed C3 torque (Aslan Eq. 3.10; ``state`` updated in place).
+
+    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
+    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
+    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
+    """
+    kt, j, fs = drive[0], drive[1], drive[2]
+    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    if state[4] == 0.0:
+        state[0] = w
+    acc = (w - state[0]) * fs
+    state[0] = w
+    if fric_mode == 1:
+        z, tf = lugre_step(state[1], w, 1.0 / fs, fric)
+        state[1] = z
+    else:
+        tf = coulomb_viscous_torque(w, fric)
+    tau = kt * current - tf - j * acc
+    if state[4] == 0.0:
+        # start the low-pass in steady state on the first sample
+        g = (b0 + b1 + b2) / (1.0 + a1 + a2)
+        state[2] = tau * (g - b0)
+        state[3] = tau * (b2 - a2 * g)
+        state[4] = 1.0
+    y = b0 * tau + state[2]
+    state[2] = b1 * tau - a1 * y + state[3]
+    state[3] = b2 * tau - a2 * y
+    return y
+
+
+@numba.njit(cache=True)
 def _c3_kernel(
     current: NDArray[np.float64],
     speed: NDArray[np.float64],
@@ -485,37 +525,10 @@ def _c3_kernel(
     sos: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """Low-passed C3 torque of one chunk (state updated in place).
-
-    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
-    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
-    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
-    """
-    kt, j, fs = drive[0], drive[1], drive[2]
-    h = 1.0 / fs
-    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    """Low-passed C3 torque of one chunk (state updated in place; :func:`c3_step` per
+    sample)."""
     for k in range(current.shape[0]):
-        w = speed[k]
-        if state[4] == 0.0:
-            state[0] = w
-        acc = (w - state[0]) * fs
-        state[0] = w
-        if fric_mode == 1:
-            z, tf = lugre_step(state[1], w, h, fric)
-            state[1] = z
-        else:
-            tf = coulomb_viscous_torque(w, fric)
-        tau = kt * current[k] - tf - j * acc
-        if state[4] == 0.0:
-            # start the low-pass in steady state on the first sample
-            g = (b0 + b1 + b2) / (1.0 + a1 + a2)
-            state[2] = tau * (g - b0)
-            state[3] = tau * (b2 - a2 * g)
-            state[4] = 1.0
-        y = b0 * tau + state[2]
-        state[2] = b1 * tau - a1 * y + state[3]
-        state[3] = b2 * tau - a2 * y
-        out[k] = y
+        out[k] = c3_step(current[k], speed[k], state, drive, fric_mode, fric, sos)
 
 
 @numba.njit(cache=True)
