@@ -78,6 +78,7 @@ def bank_kernel(
     speed: NDArray[np.float64],
     position: NDArray[np.float64],
     axis_of: NDArray[np.int64],
+    c3_of: NDArray[np.int64],
     c3_state: NDArray[np.float64],
     c3_drive: NDArray[np.float64],
     fric_mode: NDArray[np.int64],
@@ -103,8 +104,9 @@ def bank_kernel(
 
     Per axis a (rows of ``current``, ``speed``, ``position``, (A, n)): ``rw_*`` and ``width``
     are the at-rest weight's state (:func:`rest_weight_kernel`), ``moving_of[a]`` and
-    ``at_rest_of[a]`` its two filters. Per filter f (``axis_of[f]``): the C3 stage's state,
-    drive, friction mode and parameters and low-pass (``_c3_kernel``); the modal filter
+    ``at_rest_of[a]`` its two filters. Per C3 stage c (``_c3_kernel``): its axis ``axis_of[c]``,
+    state, drive, friction mode and parameters and low-pass; per filter f: its stage
+    ``c3_of[f]``, the modal filter
     (``lti``, ``n_states``, the state ``z`` (F, N), :func:`modal_bank`); the smoother's taps
     (F, 1, 1, L + 1) and histories. Per output channel c
     (``channel[c]`` = [axis, moving gain, at-rest gain, renaming factor, started], ``recent``
@@ -112,18 +114,22 @@ def bank_kernel(
     """
     n = current.shape[1]
     n_axes = current.shape[0]
-    nf = c3_state.shape[0]
+    nf = c3_of.shape[0]
     w = np.empty((n_axes, n))
     for a in range(n_axes):
         ok = rest_weight_kernel(position[a], rw_state[a], rw_drive[a], rw_hist[a], width[a], w[a])
         if not ok:
             return False
-    # C3 torque of every filter
+    # the C3 torque of every stage (a stage shared by filters whose drive models are equal)
+    n_c3 = c3_state.shape[0]
+    torque = np.empty((n_c3, n))
+    for c in range(n_c3):
+        a = axis_of[c]
+        _c3_kernel(current[a], speed[a], c3_state[c], c3_drive[c], fric_mode[c], fric[c], sos[c],
+                   torque[c])  # fmt: skip
     tau = np.empty((nf, n))
     for f in range(nf):
-        a = axis_of[f]
-        _c3_kernel(current[a], speed[a], c3_state[f], c3_drive[f], fric_mode[f], fric[f], sos[f],
-                   tau[f])  # fmt: skip
+        tau[f] = torque[c3_of[f]]
     # the Kalman filters
     y0 = np.empty((nf, n))
     y1 = np.empty((nf, n))

@@ -22,7 +22,7 @@ from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.estimation.feed._bank_kernel import bank_kernel
 from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
-from millsense.estimation.feed.estimator import FeedAxisEstimator
+from millsense.estimation.feed.estimator import C3Torque, FeedAxisEstimator
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 _GAINS = {"load_est": "_gain", "force_est": "_force_gain"}
@@ -53,6 +53,19 @@ def _condition_block(b: Block) -> OperatingConditionFeedEstimator | None:
     if not (_bankable(inner.moving) and _bankable(inner.at_rest)):
         return None
     return inner
+
+
+def _same_c3(a: C3Torque, b: C3Torque) -> bool:
+    """The two C3 stages compute the same torque from the same inputs (same state, drive,
+    friction and low-pass)."""
+    return (
+        a._mode == b._mode
+        and all(
+            np.array_equal(x, y)
+            for x, y in ((a._state, b._state), (a._drive, b._drive), (a._fric, b._fric),
+                         (a._sos, b._sos))
+        )
+    )  # fmt: skip
 
 
 def bank_or_blocks(blocks: Sequence[Block]) -> list[Block]:
@@ -107,17 +120,29 @@ class FeedEstimatorBank(Block):
         nf = len(ests)
         nz = max(e._smoother._kf.z.shape[0] for e in ests)
         nz += nz % 2
-        self._axis_of = np.repeat(np.arange(len(conds), dtype=np.int64), 2)
         self._moving_of = np.arange(0, nf, 2, dtype=np.int64)
         self._at_rest_of = np.arange(1, nf, 2, dtype=np.int64)
-        self._c3_state = np.array([e._c3._state for e in ests])
-        self._c3_drive = np.array([e._c3._drive for e in ests])
-        self._fric_mode = np.array([e._c3._mode for e in ests], dtype=np.int64)
-        width = max(len(e._c3._fric) for e in ests)
-        self._fric = np.zeros((nf, width))
+        # one C3 stage per axis and drive model: the moving and the at-rest model of an axis
+        # usually share K_t, J_e, the friction and the low-pass, and so the torque
+        stages: list[tuple[int, C3Torque]] = []
+        c3_of = []
         for f, e in enumerate(ests):
-            self._fric[f, : len(e._c3._fric)] = e._c3._fric
-        self._sos = np.array([e._c3._sos for e in ests])
+            a, c3 = f // 2, e._c3
+            same = [i for i, (b, o) in enumerate(stages) if b == a and _same_c3(o, c3)]
+            if not same:
+                stages.append((a, c3))
+            c3_of.append(same[0] if same else len(stages) - 1)
+        c3s = [c3 for _, c3 in stages]
+        self._axis_of = np.array([a for a, _ in stages], dtype=np.int64)
+        self._c3_of = np.array(c3_of, dtype=np.int64)
+        self._c3_state = np.array([c._state for c in c3s])
+        self._c3_drive = np.array([c._drive for c in c3s])
+        self._fric_mode = np.array([c._mode for c in c3s], dtype=np.int64)
+        width = max(len(c._fric) for c in c3s)
+        self._fric = np.zeros((len(c3s), width))
+        for i, c in enumerate(c3s):
+            self._fric[i, : len(c._fric)] = c._fric
+        self._sos = np.array([c._sos for c in c3s])
         lti = np.zeros((9, nf, nz))
         self._z = np.zeros((nf, nz))
         self._n_states = np.array([len(e._smoother._kf.z) for e in ests], dtype=np.int64)
@@ -168,7 +193,7 @@ class FeedEstimatorBank(Block):
             return BlockOutput({k: np.zeros(0) for k in self._names})
         cur, spd, pos = (self._stack(chunk, r) for r in self._rows)
         out = np.empty((len(self._channels), n))
-        ok = bank_kernel(cur, spd, pos, self._axis_of, self._c3_state, self._c3_drive,
+        ok = bank_kernel(cur, spd, pos, self._axis_of, self._c3_of, self._c3_state, self._c3_drive,
                          self._fric_mode, self._fric, self._sos, self._lti, self._n_states,
                          self._z, self._taps, self._hist_pred, self._hist_innov,
                          self._rw_state, self._rw_drive, self._rw_hist, self._width,
