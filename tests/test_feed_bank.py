@@ -27,7 +27,8 @@ def _stream(axes: list[str], n: int) -> dict[str, np.ndarray]:
         v = np.where((t > 0.05 * (i + 1)) & (t < 0.15 + 0.03 * i), 0.0, 0.02 * np.sin(9 * t + i))
         data[f"{ax}/position_cmd"] = np.cumsum(v) / FS
         data[f"{ax}/motor_speed"] = 50 * v + 0.05 * rng.standard_normal(n)
-        data[f"{ax}/current_cmd"] = 2 * np.sin(2 * np.pi * 33 * t + i) + 0.1 * rng.standard_normal(n)
+        noise = 0.1 * rng.standard_normal(n)
+        data[f"{ax}/current_cmd"] = 2 * np.sin(2 * np.pi * 33 * t + i) + noise
     return data
 
 
