@@ -155,12 +155,12 @@ class FeedEstimatorBank(Block):
             lti[2, f, :n] = g[:, 0]
             d = np.zeros(nz)
             d[:n] = diag
-            for b in range(nz // 2):
-                i = 2 * b
-                if b < n_pairs:  # a 2×2 block
-                    lti[3:7, f, b] = diag[i], off[i], off[i + 1], diag[i + 1]
+            for pair in range(nz // 2):
+                i = 2 * pair
+                if pair < n_pairs:  # a 2×2 block
+                    lti[3:7, f, pair] = diag[i], off[i], off[i + 1], diag[i + 1]
                 else:  # two 1×1 blocks (or one and a padding state)
-                    lti[3:7, f, b] = d[i], 0.0, 0.0, d[i + 1]
+                    lti[3:7, f, pair] = d[i], 0.0, 0.0, d[i + 1]
             lti[7, f, 0] = j[0, 0]
             lti[8, f, 0] = j[1, 0]
             self._z[f, :n] = kf.z
