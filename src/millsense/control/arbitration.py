@@ -224,7 +224,8 @@ class Supervisor(Block):
         mode = np.empty(n)
         d = chunk.data
         # the source's fault codes are looked at piece by piece only in a chunk that has a
-        # faulty sample; the plan's in-cut flag is read at each piece's last sample
+        # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
+        # children still run period by period, decision 1654)
         faulty = self.fault_channel is not None and bool(
             np.any(np.asarray(d[self.fault_channel]) != 0)
         )
