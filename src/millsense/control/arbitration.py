@@ -222,6 +222,14 @@ class Supervisor(Block):
         feed = np.empty(n)
         spindle = np.empty(n)
         mode = np.empty(n)
+        d = chunk.data
+        # the source's fault codes are looked at piece by piece only in a chunk that has a
+        # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
+        # children still run period by period, decision 1654)
+        faulty = self.fault_channel is not None and bool(
+            np.any(np.asarray(d[self.fault_channel]) != 0)
+        )
+        in_cut = None if self.in_cut_channel is None else np.asarray(d[self.in_cut_channel])
         pos = 0
         while pos < n:
             a = chunk.start + pos
@@ -240,7 +248,12 @@ class Supervisor(Block):
                     else:
                         events.append(ev)
                         self._pending.append(ev)
-            self._watch_inputs(piece)
+            if faulty:
+                self._watch_faults(piece)
+            if in_cut is not None:
+                last = float(in_cut[stop - 1])
+                if math.isfinite(last):
+                    self.in_cut = last > 0.5
             feed[pos:stop] = self.feed
             spindle[pos:stop] = self.spindle
             mode[pos:stop] = self.mode
@@ -255,20 +268,15 @@ class Supervisor(Block):
         channels[f"{self.name}/mode"] = mode
         return BlockOutput(channels, events)
 
-    def _watch_inputs(self, piece: Chunk) -> None:
-        d = piece.data
-        if self.fault_channel is not None:
-            f = np.asarray(d[self.fault_channel])
-            bad = np.flatnonzero(f != 0)
-            if bad.size:
-                self._fault_last = piece.start + int(bad[-1])
-                if self._fault_seen == 0:
-                    self._fault_seen = int(f[bad[0]])
-                    self._fault_sample = piece.start + int(bad[0])
-        if self.in_cut_channel is not None and piece.n:
-            v = float(np.asarray(d[self.in_cut_channel])[-1])
-            if math.isfinite(v):
-                self.in_cut = v > 0.5
+    def _watch_faults(self, piece: Chunk) -> None:
+        assert self.fault_channel is not None
+        f = np.asarray(piece.data[self.fault_channel])
+        bad = np.flatnonzero(f != 0)
+        if bad.size:
+            self._fault_last = piece.start + int(bad[-1])
+            if self._fault_seen == 0:
+                self._fault_seen = int(f[bad[0]])
+                self._fault_sample = piece.start + int(bad[0])
 
     # ------------------------------------------------------------------ decisions
     def _decide(self, chunk: Chunk, e: int, events: list[Event]) -> None:

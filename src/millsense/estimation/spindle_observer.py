@@ -30,6 +30,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import linalg
@@ -313,25 +314,46 @@ class SpindleTorqueObserver(Block):
         self._filter.reset()
         self._held = 0.0
 
-    def process(self, chunk: Chunk) -> BlockOutput:
+    def observed(self, chunk: Chunk) -> NDArray[np.float64]:
+        """The observer's disturbance torque of one chunk (before the friction is subtracted):
+        each estimate held until the next I_nom update."""
         y = np.asarray(chunk.data[self.inputs[0]], dtype=float)
         n = len(y)
         first = (-chunk.start) % self.m  # first sample of the chunk where I_nom is new
-        sel = np.arange(first, n, self.m)
-        if len(sel):
-            est = self._filter.process(y[sel])[:, 0]
-            # hold each estimate until the next I_nom update
-            counts = np.diff(np.concatenate([[0], sel, [n]]))
-            tau = np.repeat(np.concatenate([[self._held], est]), counts)
+        tau = np.empty(n)
+        if first < n:
+            est = np.ascontiguousarray(self._filter.process(y[first :: self.m])[:, 0])
+            hold_decimated(est, first, self.m, self._held, tau)
             self._held = float(est[-1])
         else:
-            tau = np.full(n, self._held)
-        if self.friction is not None:
-            tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
+            tau[:] = self._held
+        return tau
+
+    def outputs(self, tau: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+        """The output channels of the cutting torque ``tau`` (N·m)."""
         out = {f"{self.prefix}/torque_est": tau}
         if self.radius is not None:
             out[f"{self.prefix}/force_resultant_est"] = RESULTANT_FACTOR * tau / self.radius
-        return BlockOutput(out)
+        return out
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        tau = self.observed(chunk)
+        if self.friction is not None:
+            tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
+        return BlockOutput(self.outputs(tau))
+
+
+@numba.njit(cache=True)
+def hold_decimated(
+    est: NDArray[np.float64], first: int, m: int, held: float, out: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """``out[k]``: the newest of the estimates ``est`` made at samples ``first``, ``first + m``,
+    … at or before k (``held`` before the first)."""
+    j = -1
+    for k in range(out.shape[0]):
+        if k >= first and (k - first) % m == 0:
+            j += 1
+        out[k] = est[j] if j >= 0 else held
 
 
 def disturbance_model(
@@ -419,8 +441,17 @@ class RangeSwitchedSpindleObserver(Block):
             o.reset(sample_rate_hz)
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        lo = self.observers[0].process(chunk).channels
-        hi = self.observers[1].process(chunk).channels
+        obs = self.observers
+        taus = [o.observed(chunk) for o in obs]
+        friction = None
+        for o, tau in zip(obs, taus, strict=True):
+            if o.friction is not None:
+                # both ranges' observers usually subtract the same friction: computed once
+                if friction is None or o.friction != friction[0]:
+                    speed = np.asarray(chunk.data[o.inputs[1]], dtype=float)
+                    friction = (o.friction, o.friction.torque(speed))
+                tau -= friction[1]
+        lo, hi = (o.outputs(tau) for o, tau in zip(obs, taus, strict=True))
         use_hi = np.abs(np.asarray(chunk.data[f"{self.prefix}/speed_cmd"], dtype=float))
         sel = use_hi >= self.switch
         return BlockOutput({k: np.where(sel, hi[k], lo[k]) for k in lo})

@@ -13,8 +13,8 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
+from millsense.online._sync_kernels import air_reference_kernel, at_speed_kernel
 from millsense.streaming.block import Block, BlockOutput, Chunk
-from millsense.streaming.recursions import exponential_average
 
 #: Largest relative change of the speed command from one sample to the next that counts as a
 #: command standing still (decision 1662).
@@ -55,26 +55,15 @@ class SpindleAtSpeed(Block):
 
     def reset(self, sample_rate_hz: float) -> None:
         self.n_settle = round(self.settle_s * sample_rate_hz)
-        self._run = 0
-        self._last_cmd = np.nan
+        self._state = np.array([np.nan, 0.0])  # previous command, run of ok samples
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        w = np.asarray(chunk.data[self.inputs[0]], dtype=np.float64)
-        cmd = np.asarray(chunk.data[self.inputs[1]], dtype=np.float64)
-        n = cmd.size
-        if n == 0:
-            return BlockOutput({"spindle/at_speed": np.zeros(0)})
-        prev = np.empty(n)
-        prev[0] = self._last_cmd
-        prev[1:] = cmd[:-1]
-        self._last_cmd = float(cmd[-1])
-        still = np.abs(cmd - prev) <= STILL * np.abs(cmd)  # NaN at the very first sample: False
-        ok = (np.abs(cmd) > 0) & (np.abs(w - cmd) <= self.tolerance * np.abs(cmd)) & still
-        idx = np.arange(1, n + 1)
-        last_bad = np.maximum.accumulate(np.where(~ok, idx, 0))
-        run = np.where(last_bad == 0, self._run + idx, idx - last_bad)
-        self._run = int(run[-1])
-        return BlockOutput({"spindle/at_speed": (run > self.n_settle).astype(np.float64)})
+        w = np.ascontiguousarray(chunk.data[self.inputs[0]], dtype=np.float64)
+        cmd = np.ascontiguousarray(chunk.data[self.inputs[1]], dtype=np.float64)
+        out = np.empty(cmd.size)
+        # [previous command, run of ok samples], one compiled loop (decision 1653)
+        at_speed_kernel(w, cmd, self._state, self.tolerance, STILL, self.n_settle, out)
+        return BlockOutput({"spindle/at_speed": out})
 
 
 class AirReference(Block):
@@ -119,33 +108,15 @@ class AirReference(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self.alpha = 1.0 - float(np.exp(-1.0 / (self.tau_s * sample_rate_hz)))
         self.n_settle = round(self.settle_s * sample_rate_hz)
-        self._ref = 0.0
-        self._seen = False
-        self._run = 0
+        self._state = np.zeros(3)  # reference, seen, run of samples in air
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        tq = np.asarray(chunk.data[self.inputs[0]], dtype=np.float64)
-        air = np.asarray(chunk.data[self.inputs[1]]) < 0.5
-        ok = np.asarray(chunk.data[self.inputs[2]]) > 0.5
+        tq = np.ascontiguousarray(chunk.data[self.inputs[0]], dtype=np.float64)
+        in_cut = np.ascontiguousarray(chunk.data[self.inputs[1]], dtype=np.float64)
+        ok = np.ascontiguousarray(chunk.data[self.inputs[2]], dtype=np.float64)
         n = tq.size
-        ref = np.full(n, self._ref)
-        if n:
-            idx = np.arange(1, n + 1)
-            last_cut = np.maximum.accumulate(np.where(~air, idx, 0))
-            run = np.where(last_cut == 0, self._run + idx, idx - last_cut)
-            self._run = int(run[-1])
-            use = (run > self.n_settle) & ok & np.isfinite(tq)
-            k = np.flatnonzero(use)
-            if k.size:
-                x = tq[k]
-                if not self._seen:  # the first air sample starts the average at its value
-                    self._ref = float(x[0])
-                    self._seen = True
-                a = self.alpha
-                y = exponential_average(x, a, self._ref)
-                hold = np.full(n, -1)
-                hold[k] = np.arange(k.size)
-                pos = np.maximum.accumulate(hold)
-                ref = np.where(pos >= 0, y[np.maximum(pos, 0)], self._ref)
-                self._ref = float(y[-1])
-        return BlockOutput({self.out: tq - ref, f"{self.name}/torque": ref})
+        out = np.empty((2, n))
+        # [reference, seen, run in air], one compiled loop (decision 1653)
+        air_reference_kernel(tq, in_cut, ok, self._state, self.alpha, self.n_settle, out[0],
+                             out[1])  # fmt: skip
+        return BlockOutput({self.out: out[0], f"{self.name}/torque": out[1]})

@@ -33,6 +33,7 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics
+from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
@@ -196,33 +197,32 @@ class PlanSync(Block):
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         n = chunk.n
-        rows = np.empty(n, dtype=np.int64)
-        if n:
-            ks = np.arange(n)
-            at = np.arange(-chunk.start % self.decimate, n, self.decimate)
-            matched = np.full(at.size, -1, dtype=np.int64)
-            if at.size:
-                tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at].T
-                ok = np.all(np.isfinite(tcp), axis=1)
-                if ok.any():
-                    sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
-                    matched[ok] = sub
-            # hold the last match between match samples (and through unmatched ones)
-            hold = np.full(n, -1, dtype=np.int64)
-            hold[at] = matched
-            idx = np.where(hold >= 0, ks, -1)
-            idx = np.maximum.accumulate(idx)
-            rows[:] = np.where(idx >= 0, hold[np.maximum(idx, 0)], self.row)
-            if rows[-1] >= 0:
-                self.row = int(rows[-1])
-        in_cut = self._in_cut[rows]  # row −1: the tables' last entry, "no row yet"
+        at = np.arange(-chunk.start % self.decimate, n, self.decimate)
+        matched = np.full(at.size, -1, dtype=np.int64)
+        if at.size:
+            tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at].T
+            ok = np.all(np.isfinite(tcp), axis=1)
+            if ok.any():
+                sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
+                matched[ok] = sub
         u = (
-            np.asarray(d[self.override_channel], dtype=np.float64)
+            np.ascontiguousarray(d[self.override_channel], dtype=np.float64)
             if self.override_channel is not None
             else np.ones(n)
         )
-        edge = self._edge[rows]
-        shear = self._shear[rows] * u
+        # each sample holds the last match at or before it (through unmatched ones), and
+        # reads the per-row tables there (row −1: their last entry, "no row yet"); one
+        # compiled loop (decision 1653)
+        rows = np.empty(n, dtype=np.int64)
+        values = np.empty((8, n))
+        in_cut = np.empty(n, dtype=bool)
+        steady = np.empty(n, dtype=bool)
+        plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
+                         self._nc, self._steady, self._depth, rows, values, in_cut,
+                         steady)  # fmt: skip
+        if n and rows[-1] >= 0:
+            self.row = int(rows[-1])
+        in_cut_f, edge, shear = values[2], values[3], values[4]
         scale = np.full(n, self.scale)
         events: list[Event] = []
         extra: dict[str, np.ndarray] = {}
@@ -230,7 +230,7 @@ class PlanSync(Block):
         if self.air is not None:
             assert self.torque_channel is not None
             air_in = {c: d[c] for c in self.air.inputs if c in d}
-            air_in[f"{self.name}/in_cut"] = in_cut.astype(np.float64)
+            air_in[f"{self.name}/in_cut"] = in_cut_f
             extra = self.air.process(Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s,
                                            air_in)).channels  # fmt: skip
             torque = extra[f"{self.name}/cutting_torque"]
@@ -240,25 +240,22 @@ class PlanSync(Block):
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
-        nc = self._nc[rows]
-        expected = edge + scale * shear
-        steady = self._steady[rows]
+        # the virtual threshold judges the tool once the plan is calibrated to it (a plan
+        # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622)
+        ready_from = 0
         if self.torque_channel is not None:
-            # the virtual threshold judges the tool once the plan is calibrated to it (a plan
-            # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622)
-            ready = np.zeros(n, dtype=bool)
-            if self.calibrated:
-                ready[max(k_cal, 0):] = True
-            steady &= ready
+            ready_from = max(k_cal, 0) if self.calibrated else n
+        expected, judged = values[6], values[7]
+        expected_kernel(edge, shear, scale, steady, ready_from, expected, judged)
         return BlockOutput(
             {
-                f"{self.name}/row": rows.astype(np.float64),
-                f"{self.name}/nc_line": nc.astype(np.float64),
-                f"{self.name}/in_cut": in_cut.astype(np.float64),
+                f"{self.name}/row": values[0],
+                f"{self.name}/nc_line": values[1],
+                f"{self.name}/in_cut": in_cut_f,
                 f"{self.name}/expected_torque": expected,
-                f"{self.name}/judged_torque": np.where(steady, expected, 0.0),
+                f"{self.name}/judged_torque": judged,
                 f"{self.name}/ktc_scale": scale,
-                f"{self.name}/axial_depth": self._depth[rows],
+                f"{self.name}/axial_depth": values[5],
                 **extra,
             },
             events,

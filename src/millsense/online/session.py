@@ -141,6 +141,7 @@ def session_blocks(
     ``channels``: what the source provides (to choose the spindle torque signal and check
     that the dynamometer is there).
     """
+    from millsense.estimation.feed.bank import bank_or_blocks
     from millsense.estimation.from_config import build_estimators
     from millsense.models.kinematics import kinematics_for
 
@@ -161,7 +162,8 @@ def session_blocks(
         else:
             axes = list(machine.axes)
             feed = build_estimators(machine, ["feed"], axes, sample_rate_hz, where=where)
-            blocks += feed.blocks
+            # the five axes' estimators in one compiled call per chunk (decision 1652)
+            blocks += bank_or_blocks(feed.blocks)
             blocks += feed.derived
             names = [c for _, a, c, _ in feed.derived_estimates]
             if machine.kinematics == "5-axis-trunnion-ac" and len(names) == 3:

@@ -41,7 +41,11 @@ from scipy import signal
 from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.feed._tool_force_kernels import apply_held, pseudo_inverses
+from millsense.estimation.feed._tool_force_kernels import (
+    apply_held_poses,
+    delayed_poses,
+    pseudo_inverses,
+)
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.design import (
     KalmanDesign,
@@ -475,6 +479,46 @@ def design_feed_kalman(
 
 
 @numba.njit(cache=True)
+def c3_step(
+    current: float,
+    w: float,
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    fric_mode: int,
+    fric: NDArray[np.float64],
+    sos: NDArray[np.float64],
+) -> float:  # pragma: no cover - compiled
+    """One sample of the low-passed C3 torque (Aslan Eq. 3.10; ``state`` updated in place).
+
+    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
+    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
+    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
+    """
+    kt, j, fs = drive[0], drive[1], drive[2]
+    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    if state[4] == 0.0:
+        state[0] = w
+    acc = (w - state[0]) * fs
+    state[0] = w
+    if fric_mode == 1:
+        z, tf = lugre_step(state[1], w, 1.0 / fs, fric)
+        state[1] = z
+    else:
+        tf = coulomb_viscous_torque(w, fric)
+    tau = kt * current - tf - j * acc
+    if state[4] == 0.0:
+        # start the low-pass in steady state on the first sample
+        g = (b0 + b1 + b2) / (1.0 + a1 + a2)
+        state[2] = tau * (g - b0)
+        state[3] = tau * (b2 - a2 * g)
+        state[4] = 1.0
+    y = b0 * tau + state[2]
+    state[2] = b1 * tau - a1 * y + state[3]
+    state[3] = b2 * tau - a2 * y
+    return y
+
+
+@numba.njit(cache=True)
 def _c3_kernel(
     current: NDArray[np.float64],
     speed: NDArray[np.float64],
@@ -485,37 +529,10 @@ def _c3_kernel(
     sos: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """Low-passed C3 torque of one chunk (state updated in place).
-
-    ``state`` = [previous speed, bristle z, biquad w1, w2, started]; ``drive`` = [K_t, J_e, fs];
-    ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
-    [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
-    """
-    kt, j, fs = drive[0], drive[1], drive[2]
-    h = 1.0 / fs
-    b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
+    """Low-passed C3 torque of one chunk (state updated in place; :func:`c3_step` per
+    sample)."""
     for k in range(current.shape[0]):
-        w = speed[k]
-        if state[4] == 0.0:
-            state[0] = w
-        acc = (w - state[0]) * fs
-        state[0] = w
-        if fric_mode == 1:
-            z, tf = lugre_step(state[1], w, h, fric)
-            state[1] = z
-        else:
-            tf = coulomb_viscous_torque(w, fric)
-        tau = kt * current[k] - tf - j * acc
-        if state[4] == 0.0:
-            # start the low-pass in steady state on the first sample
-            g = (b0 + b1 + b2) / (1.0 + a1 + a2)
-            state[2] = tau * (g - b0)
-            state[3] = tau * (b2 - a2 * g)
-            state[4] = 1.0
-        y = b0 * tau + state[2]
-        state[2] = b1 * tau - a1 * y + state[3]
-        state[3] = b2 * tau - a2 * y
-        out[k] = y
+        out[k] = c3_step(current[k], speed[k], state, drive, fric_mode, fric, sos)
 
 
 @numba.njit(cache=True)
@@ -935,7 +952,7 @@ class ToolForceBlock(Block):
         self._held_pinv: NDArray[np.float64] | None = None
         self._angle_channels = tuple(f"{a}/motor_angle" for a in self.axes)
         self.inputs = self.load_channels + self._angle_channels
-        self._hist = np.zeros((0, 5))
+        self.reset(0.0)
 
     def output_channels(self) -> list[ChannelInfo]:
         return [
@@ -944,7 +961,8 @@ class ToolForceBlock(Block):
         ]
 
     def reset(self, sample_rate_hz: float) -> None:
-        self._hist = np.zeros((0, 5))
+        self._hist = np.zeros((self.lag, 5))  # the last `lag` poses
+        self._started = np.zeros(1)  # 0 until the first chunk fills _hist with its first pose
         self._held_pinv = None
 
     def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -960,33 +978,27 @@ class ToolForceBlock(Block):
         n = chunk.n
         if n == 0:
             return BlockOutput({f"tool/force_{c}_est": np.zeros(0) for c in "xyz"})
-        # (n, 5) in C order, as column stacks of the channels (one call each)
-        loads = np.negative(np.array([d[c] for c in self.load_channels], dtype=float).T, order="C")
-        q_now = np.array([d[c] for c in self._angle_channels], dtype=float).T * self.rg
-        q_now += self.offsets
-        if len(self._hist) == 0:
-            self._hist = np.repeat(q_now[:1], self.lag, axis=0)
-        allq = np.concatenate([self._hist, q_now])
-        q = allq[:n]
-        self._hist = allq[n:]
+        loads = np.array([d[c] for c in self.load_channels], dtype=float)  # (5, n)
+        angles = np.array([d[c] for c in self._angle_channels], dtype=float)
         # [Jᵀ·T]⁺·(−τ) by the normal equations (full column rank away from singular poses):
-        # batched 3×3 solves instead of one SVD per sample; the pose is evaluated at stream
-        # samples that are multiples of `pose_every` and held in between (the machine moves
-        # < 0.1 mm in 1 ms at cutting feeds)
+        # batched 3×3 solves instead of one SVD per sample; the (delayed) pose is evaluated at
+        # stream samples that are multiples of `pose_every` and held in between (the machine
+        # moves < 0.1 mm in 1 ms at cutting feeds); the delay line and the hold compiled
+        # (decision 1655)
         every = self.pose_every
         first = -chunk.start % every  # the chunk's first pose sample
-        stack = self._pinv(q[first::every])
-        # sample k takes the newest pose at or before it: with a held pose (stack entry 0)
-        # the (k − first + every) // every-th entry, else the chunk's first pose up to there
-        which = (np.arange(n) - first + every) // every
+        poses = np.empty((len(range(first, n, every)), 5))
+        q0 = np.empty(5)
+        delayed_poses(angles, self.rg, self.offsets, self._hist, self._started, first, every,
+                      poses, q0)  # fmt: skip
+        stack = self._pinv(poses)
+        held = self._held_pinv is not None
         if self._held_pinv is not None:
             stack = np.concatenate([self._held_pinv[None], stack])
-        else:
-            which = np.maximum(which - 1, 0)
         if len(stack) == 0:
-            stack = self._pinv(q[:1])
+            stack = self._pinv(q0[None])
         rows = np.empty((3, n))
-        apply_held(stack, which, loads, rows)
+        apply_held_poses(stack, first, every, held, loads, rows)
         self._held_pinv = stack[-1]
         return BlockOutput({f"tool/force_{c}_est": rows[i] for i, c in enumerate("xyz")})
 

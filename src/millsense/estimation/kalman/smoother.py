@@ -83,9 +83,23 @@ def _smooth(
     # Kalman filter with outputs [S x̂(k|k−1); e(k)], then out[k] = pred[k] + Σ_c Σ_j
     # taps_t[:, c, j]·e_c[k + j] over the history of L samples followed by the chunk: the
     # estimate of the sample L before the chunk's k-th. hist_* are updated in place.
+    y = run_lti(modal, diag, off, n_pairs, f, g, h, j, u, z)
+    return fixed_lag_output(y, taps_t, hist_pred, hist_innov)
+
+
+@numba.njit(cache=True)
+def fixed_lag_output(
+    y: NDArray[np.float64],
+    taps_t: NDArray[np.float64],
+    hist_pred: NDArray[np.float64],
+    hist_innov: NDArray[np.float64],
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The smoother's output from the Kalman filter's ``y`` = [S x̂(k|k−1); e(k)] of a chunk:
+    ``out[k] = pred[k] + Σ_c Σ_j taps_t[:, c, j]·e_c[k + j]`` over the history of L samples
+    followed by the chunk (the estimate of the sample L before the chunk's k-th); ``hist_*``
+    updated in place."""
     d, p, n_taps = taps_t.shape
     lag = n_taps - 1
-    y = run_lti(modal, diag, off, n_pairs, f, g, h, j, u, z)
     n = y.shape[0]
     pred = np.empty((lag + n, d))
     innov = np.empty((p, lag + n))

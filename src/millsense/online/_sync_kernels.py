@@ -1,0 +1,154 @@
+"""Compiled per-chunk steps of the on-line session's gates and plan sync (decision 1653).
+
+At 10 ms chunks :class:`~millsense.online.gates.SpindleAtSpeed`,
+:class:`~millsense.online.gates.AirReference` and :class:`~millsense.online.plan_sync.PlanSync`
+spent their time in the call overhead of chains of numpy operations on 100 samples
+(comparisons, ``maximum.accumulate`` of run lengths, ``where``, gathers from the per-row
+tables). Each chain here is one loop that performs the same floating-point operations on the
+same values (comparisons, gathers, integer counts, and the same products and sums in the
+same order), so the outputs are unchanged bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+
+@numba.njit(cache=True)
+def at_speed_kernel(
+    speed: NDArray[np.float64],
+    command: NDArray[np.float64],
+    state: NDArray[np.float64],
+    tolerance: float,
+    still: float,
+    n_settle: int,
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """``spindle/at_speed`` of one chunk (:class:`~millsense.online.gates.SpindleAtSpeed`).
+
+    ``state`` = [previous command (NaN before the stream), samples in a row that were ok]:
+    a sample is ok where the command is not 0, the speed within ``tolerance`` of it and the
+    command within ``still`` of the previous one (relative); the output is 1 where the run of
+    ok samples is longer than ``n_settle``.
+    """
+    prev = state[0]
+    run = int(state[1])
+    for k in range(command.shape[0]):
+        c = command[k]
+        ac = abs(c)
+        ok = ac > 0 and abs(speed[k] - c) <= tolerance * ac and abs(c - prev) <= still * ac
+        run = run + 1 if ok else 0
+        out[k] = 1.0 if run > n_settle else 0.0
+        prev = c
+    state[0] = prev
+    state[1] = run
+
+
+@numba.njit(cache=True)
+def air_reference_kernel(
+    torque: NDArray[np.float64],
+    in_cut: NDArray[np.float64],
+    at_speed: NDArray[np.float64],
+    state: NDArray[np.float64],
+    alpha: float,
+    n_settle: int,
+    cutting: NDArray[np.float64],
+    reference: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """The air-cut reference and the torque less it, one chunk (:class:`~millsense.online.
+    gates.AirReference`).
+
+    ``state`` = [reference, seen, samples in air in a row]. A sample is used where the plan
+    has said air for more than ``n_settle`` samples, the spindle is at speed and the torque is
+    finite; the reference follows the used samples with ``α·x + (1 − α)·y`` (the first used
+    sample of the stream starts it, from the start of its chunk) and is held in between.
+    """
+    n = torque.shape[0]
+    run = int(state[2])
+    first = -1
+    use = np.empty(n, dtype=np.bool_)
+    for k in range(n):
+        run = run + 1 if in_cut[k] < 0.5 else 0
+        use[k] = run > n_settle and at_speed[k] > 0.5 and math.isfinite(torque[k])
+        if use[k] and first < 0:
+            first = k
+    state[2] = run
+    if first >= 0 and state[1] == 0.0:
+        state[0] = torque[first]
+        state[1] = 1.0
+    prev = state[0]
+    keep = 1.0 - alpha
+    for k in range(n):
+        if use[k]:
+            prev = alpha * torque[k] + keep * prev
+        reference[k] = prev
+        cutting[k] = torque[k] - prev
+    state[0] = prev
+
+
+@numba.njit(cache=True)
+def plan_rows_kernel(
+    at: NDArray[np.int64],
+    matched: NDArray[np.int64],
+    row: int,
+    u: NDArray[np.float64],
+    in_cut_table: NDArray[np.bool_],
+    edge_table: NDArray[np.float64],
+    shear_table: NDArray[np.float64],
+    nc_table: NDArray[np.int64],
+    steady_table: NDArray[np.bool_],
+    depth_table: NDArray[np.float64],
+    rows: NDArray[np.int64],
+    values: NDArray[np.float64],
+    in_cut: NDArray[np.bool_],
+    steady: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
+    """The plan row of every sample and what the per-row tables say there
+    (:class:`~millsense.online.plan_sync.PlanSync`).
+
+    ``matched[i]`` is the row matched at sample ``at[i]`` (−1: none); a sample takes the last
+    match at or before it, else ``row`` (the previous chunk's). Row −1 reads the tables' last
+    entry ("no row yet"). ``values`` (≥ 6, n): rows 0–5 = [row, NC line, in cut, edge torque,
+    shear torque × ``u``, axial depth].
+    """
+    n = rows.shape[0]
+    hold = np.full(n, -1, dtype=np.int64)
+    for i in range(at.shape[0]):
+        hold[at[i]] = matched[i]
+    last = edge_table.shape[0] - 1
+    cur = row
+    for k in range(n):
+        if hold[k] >= 0:
+            cur = hold[k]
+        rows[k] = cur
+        r = cur if cur >= 0 else last
+        in_cut[k] = in_cut_table[r]
+        steady[k] = steady_table[r]
+        values[0, k] = cur
+        values[1, k] = nc_table[r]
+        values[2, k] = 1.0 if in_cut_table[r] else 0.0
+        values[3, k] = edge_table[r]
+        values[4, k] = shear_table[r] * u[k]
+        values[5, k] = depth_table[r]
+
+
+@numba.njit(cache=True)
+def expected_kernel(
+    edge: NDArray[np.float64],
+    shear: NDArray[np.float64],
+    scale: NDArray[np.float64],
+    steady: NDArray[np.bool_],
+    ready_from: int,
+    expected: NDArray[np.float64],
+    judged: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """``expected = edge + scale·shear``; ``judged`` the same where the plan is steady from
+    sample ``ready_from`` on, else 0."""
+    for k in range(edge.shape[0]):
+        e = edge[k] + scale[k] * shear[k]
+        expected[k] = e
+        judged[k] = e if steady[k] and k >= ready_from else 0.0
