@@ -37,7 +37,7 @@ from millsense.cli.batch_tasks import (
     recording_parts,
     write_fragment,
 )
-from millsense.core.blas import default_to_one_thread
+from millsense.cli.batch_workers import start_worker_server
 from millsense.core.errors import ConfigError, InputDataError
 
 __all__ = [
@@ -145,11 +145,14 @@ def run_batch(
         "segment_s": segment_s,
     }
     res = BatchResult()
-    # the local cluster starts (≈ 0.7 s, then its workers load millsense) while the rows of an
-    # earlier batch are read, unless every recording has one already
+    # the local cluster starts (≈ 0.5 s, its workers forked from a server that imports the
+    # tasks' modules meanwhile) while the rows of an earlier batch are read, unless every
+    # recording has one already
     starting: dict[str, Any] = {}
     starter = None
     if scheduler is None and not all(fragment_path(out_dir, p).is_file() for p in recordings):
+        # the workers' imports start first, on another core (decision 2008)
+        start_worker_server()
         starter = threading.Thread(target=_start_local, args=(workers, starting),
                                    name="millsense-batch-start")  # fmt: skip
         starter.start()
@@ -301,7 +304,10 @@ def local_cluster(workers: int) -> Any:
     """The local Dask cluster of a batch: ``workers`` processes of one thread each, on
     127.0.0.1 only (decision 2003).
 
-    Each worker process runs one BLAS, one numba and one HDF5-codec thread (the workers are
+    The worker processes are forked from a server that imported the tasks' modules while the
+    cluster started (:func:`~millsense.cli.batch_workers.start_worker_server`, decision 2008;
+    spawned where there is no fork server). Each runs one BLAS, one numba and one HDF5-codec
+    thread (the workers are
     the parallelism: with the codec's default of a thread per core, two workers on two cores
     ran their tasks 13 % slower than one, and one worker was no faster for it) and no
     statistical profiler: Dask's samples the task's stack every 10 ms in a thread of its own,
@@ -313,11 +319,7 @@ def local_cluster(workers: int) -> Any:
     import dask
     from dask.distributed import LocalCluster
 
-    from millsense.io.hdf5_chunks import IO_THREADS_ENV
-
-    default_to_one_thread()
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    os.environ.setdefault(IO_THREADS_ENV, "1")
+    forked = start_worker_server()  # sets the workers' environment in any case
     quiet = {
         "distributed.worker.profile.enabled": False,
         # the cluster's own watchdogs poll less often: on two cores their CPU is the tasks'
@@ -325,6 +327,8 @@ def local_cluster(workers: int) -> Any:
         "distributed.admin.system-monitor.interval": "5s",
         "distributed.worker.memory.monitor-interval": "1s",
     }
+    if forked:  # decision 2008 (a worker restarted after the start is spawned, as before)
+        quiet["distributed.worker.multiprocessing-method"] = "forkserver"
     with dask.config.set(quiet):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             host="127.0.0.1", dashboard_address="127.0.0.1:0")  # fmt: skip
