@@ -115,12 +115,16 @@ def run_batch(
     chunk: int = 2000,
     segment_s: float | None = 600.0,
     on_progress: Callable[[float, int], None] | None = None,
+    on_waiting: Callable[[], None] | None = None,
 ) -> BatchResult:
     """Run every recording's task(s) on Dask and return the rows in the recordings' order.
 
     ``segment_s``: recordings longer than 1.5 × this many seconds run as segments (None: every
     recording as one task). ``on_progress(done, total)``: recordings done (a split recording
-    counts by its finished parts) of the total."""
+    counts by its finished parts) of the total. ``on_waiting()``: called once, when this process
+    starts waiting for workers (its local cluster's start: the workers' fork server is still
+    importing; or the tasks submitted to ``scheduler``): the caller can load what it needs after
+    the batch then, on a core the workers do not use yet (decision 2008)."""
     from importlib.util import find_spec
 
     if find_spec("distributed") is None:  # imported where it is used (the cluster's thread)
@@ -153,7 +157,7 @@ def run_batch(
     if scheduler is None and not all(fragment_path(out_dir, p).is_file() for p in recordings):
         # the workers' imports start first, on another core (decision 2008)
         start_worker_server()
-        starter = threading.Thread(target=_start_local, args=(workers, starting),
+        starter = threading.Thread(target=_start_local, args=(workers, starting, on_waiting),
                                    name="millsense-batch-start")  # fmt: skip
         starter.start()
     rows: dict[int, dict[str, Any]] = {}
@@ -196,7 +200,7 @@ def run_batch(
             res.scheduler = scheduler
         else:
             if starter is None:
-                _start_local(workers, starting)
+                _start_local(workers, starting, on_waiting)
                 if "error" in starting:
                     raise starting["error"]
             cluster, client = starting["cluster"], starting["client"]
@@ -225,6 +229,8 @@ def run_batch(
                                     pure=False, key=f"millsense-batch-{i}")  # fmt: skip
                 futures[fut] = (i, None)
                 pending.add(fut)
+            if scheduler and on_waiting is not None:
+                on_waiting()
             for i in [i for i in parts if len(finished[i]) == len(parts[i])]:
                 rows[i] = _merged(out_dir, recordings[i], finished[i])  # all parts were done
                 res.reused += 1
@@ -267,11 +273,16 @@ def run_batch(
     return res
 
 
-def _start_local(workers: int, into: dict[str, Any]) -> None:
+def _start_local(
+    workers: int, into: dict[str, Any], on_waiting: Callable[[], None] | None = None
+) -> None:
     """Start the local cluster and its client into ``into`` (``cluster``, ``client``), or put
-    the exception there (``error``)."""
+    the exception there (``error``); ``on_waiting()`` once Dask is imported (the cluster's own
+    start is then about 0.1 s of this process's CPU, the rest is waiting for the workers)."""
     from dask.distributed import Client
 
+    if on_waiting is not None:
+        on_waiting()
     try:
         into["cluster"] = local_cluster(workers)
         into["client"] = Client(into["cluster"])
