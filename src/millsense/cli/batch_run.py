@@ -330,6 +330,8 @@ def local_cluster(workers: int) -> Any:
     import dask
     from dask.distributed import LocalCluster
 
+    from millsense.io.hdf5_chunks import IO_THREADS_ENV
+
     forked = start_worker_server()  # sets the workers' environment in any case
     quiet = {
         "distributed.worker.profile.enabled": False,
@@ -342,7 +344,8 @@ def local_cluster(workers: int) -> Any:
         quiet["distributed.worker.multiprocessing-method"] = "forkserver"
     with dask.config.set(quiet):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            host="127.0.0.1", dashboard_address="127.0.0.1:0")  # fmt: skip
+                            host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                            env={IO_THREADS_ENV: os.environ.get(IO_THREADS_ENV, "1")})  # fmt: skip
 
 
 def _parts(path: Path, segment_s: float | None, do: list[str]) -> list[Part]:

@@ -39,15 +39,14 @@ _SERVER_ENV: dict[str, str] = {}
 
 
 def worker_environment() -> None:
-    """Set, in this process, the environment a worker process starts with: one BLAS, numba
-    and HDF5-codec thread (decision 2003) and Dask's pre-spawn variables
-    (:data:`DASK_PRE_SPAWN`, ``PYTHONHASHSEED``; the nanny sets them in this process too,
-    before each worker it starts)."""
-    from millsense.io.hdf5_chunks import IO_THREADS_ENV
-
+    """Set, in this process, the environment a worker process starts with: one BLAS and one
+    numba thread (decision 2003) and Dask's pre-spawn variables (:data:`DASK_PRE_SPAWN`,
+    ``PYTHONHASHSEED``; the nanny sets them in this process too, before each worker it
+    starts). The HDF5 codec's thread count is read when a task runs: the local cluster gives
+    it to its workers itself (``local_cluster``; importing ``millsense.io`` here would delay
+    the fork server by 65 ms)."""
     default_to_one_thread()
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    os.environ.setdefault(IO_THREADS_ENV, "1")
     os.environ.update(DASK_PRE_SPAWN)
     if os.environ.get("PYTHONHASHSEED") in (None, "0"):
         os.environ["PYTHONHASHSEED"] = DASK_HASH_SEED
@@ -67,7 +66,7 @@ def start_worker_server() -> bool:
         return False
     if _SERVER_ENV:
         return _SERVER_ENV == _environment()
-    preload = ["distributed.nanny", *TASK_MODULES, "millsense.cli.batch_server_exit"]
+    preload = ["distributed.nanny", *TASK_MODULES]
     multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
     forkserver.ensure_running()  # returns at once: the server imports on its own
     _SERVER_ENV.update(_environment())
@@ -82,16 +81,21 @@ def _environment() -> dict[str, str]:
 
 
 def _stop_worker_server() -> None:
-    """At exit: end the fork server and wait for it (it leaves at once, without its module
-    teardown: ``batch_server_exit``), so that its CPU time and its workers' are this
-    process's children's, as spawned workers' were."""
+    """At exit (a batch has closed its cluster by then): end the fork server and wait for it,
+    so that its CPU time and its workers' are counted as this process's children's, as
+    spawned workers' were. It is terminated (SIGTERM): it holds nothing to write, leaves at
+    once instead of tearing its modules down (about 0.3 s), and may still be importing when a
+    batch ends early."""
+    import signal
     from multiprocessing import forkserver
 
     server = forkserver._forkserver
+    pid = getattr(server, "_forkserver_pid", None)
     stop = getattr(server, "_stop", None)
-    if stop is None:  # another Python: the server ends by itself when this process does
+    if pid is None or stop is None:  # not running, or another Python: it ends with us
         return
     try:
-        stop()
+        os.kill(pid, signal.SIGTERM)
+        stop()  # closes its pipe, waits for it, removes its socket
     except OSError:  # already gone
         pass
