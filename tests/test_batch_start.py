@@ -105,3 +105,40 @@ print(json.dumps({"server": server, "workers": got, "changed": changed, "same": 
         assert h == int(seeded.stdout)
     assert got["changed"] is False and got["same"] is True
     assert got["server_alive"] is False
+
+
+def test_a_forked_worker_killed_mid_batch_loses_nothing(tmp_path: Path) -> None:
+    """The local cluster's own workers, forked from the server: one killed after the first row;
+    its nanny starts another, and the batch ends with every row and every fragment (decision
+    2003). A fresh interpreter, so that the server is this batch's."""
+    folder = tmp_path / "fleet"
+    simulate_fleet(folder, tools=1, runs=4, part_cut_min=25.0, seed=5)
+    code = f"""
+import json, os, signal
+from pathlib import Path
+from multiprocessing import forkserver
+import pyarrow.parquet as pq
+from millsense.cli.batch_run import run_batch
+out = Path({str(tmp_path / "out")!r})
+recs = sorted(Path({str(folder)!r}).glob("*.h5"))
+killed = []
+def progress(done, _total):
+    if done >= 1 and not killed:
+        row = pq.read_table(next((out / "runs").glob("*.parquet"))).to_pylist()[0]
+        pid = int(row["worker_pid"])
+        ppid = int(Path(f"/proc/{{pid}}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        os.kill(pid, signal.SIGKILL)
+        killed.append((pid, ppid, forkserver._forkserver._forkserver_pid))
+res = run_batch(recs, out, do="monitor,summary", workers=2, on_progress=progress)
+res.closing.join()
+print(json.dumps({{"killed": killed, "status": [r["status"] for r in res.rows],
+                  "errors": [r.get("error") for r in res.rows],
+                  "fragments": [(out / "runs" / (r.stem + ".parquet")).is_file() for r in recs]}}))
+"""
+    got = _python(code)
+    killed = got["killed"]
+    assert isinstance(killed, list) and len(killed) == 1
+    _pid, ppid, server = killed[0]
+    assert ppid == server  # a forked worker was killed
+    assert got["status"] == ["ok"] * 4, got["errors"]
+    assert got["fragments"] == [True] * 4  # (a killed writer may leave its hidden temporary)
