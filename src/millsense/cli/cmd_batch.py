@@ -114,7 +114,10 @@ def batch(
 
 
 def _import_reports() -> None:
-    """What the client needs once the workers are done (wear assessment, the fleet view)."""
+    """What the client needs once the workers are done (wear assessment, summary table, the
+    fleet view)."""
+    import pyarrow.parquet  # noqa: F401
+
     import millsense.monitoring.wear
     import millsense.report.fleet_plots
     import millsense.report.fleet_report  # noqa: F401
