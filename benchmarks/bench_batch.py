@@ -43,18 +43,26 @@ def _fleet() -> Path:
 
 #: System CPU seconds and minor page faults of the last `_batch` (its processes together).
 _LAST_RUSAGE: dict[str, float] = {}
+#: The last `_batch`'s timeline: seconds from the command's start to the first and the last
+#: run's row on disk, and from the last row to the command's end (the fixed parts of a batch).
+_LAST_TIMELINE: dict[str, float] = {}
 
 
 def _batch(fleet: Path, out: Path, args: list[str]) -> float:
     import resource
 
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.time()
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "millsense", "batch", str(fleet), "-o", str(out), *args],
                    check=True, capture_output=True)  # fmt: skip
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     _LAST_RUSAGE.update(sys_s=r1.ru_stime - r0.ru_stime, minflt=r1.ru_minflt - r0.ru_minflt)
+    rows = [f.stat().st_mtime - start for f in (out / "runs").glob("[!.]*.parquet")]
+    if rows:
+        _LAST_TIMELINE.update(first_row_s=min(rows), last_row_s=max(rows),
+                              tail_s=wall - max(rows))  # fmt: skip
     return wall
 
 
@@ -193,11 +201,14 @@ def _scaling() -> list[Metric]:
         # both, so that a burst of load on this shared host does not decide the ratio
         times: dict[int, list[float]] = {1: [], 2: []}
         usage: dict[int, dict[str, float]] = {}
+        timeline: dict[int, dict[str, float]] = {}  # of each one's faster run
         for rep in range(2):
             for w in (1, 2):
                 out = Path(tmp) / f"w{w}" if rep == 0 else Path(tmp) / f"w{w}_{rep}"
                 times[w].append(_batch(fleet, out, ["--workers", str(w)]))
                 usage.setdefault(w, dict(_LAST_RUSAGE))
+                if times[w][-1] == min(times[w]):
+                    timeline[w] = dict(_LAST_TIMELINE)
         t1, t2 = min(times[1]), min(times[2])
         td = _distributed(fleet, Path(tmp) / "dist")
         r1, r2, rd = _rows(Path(tmp) / "w1"), _rows(Path(tmp) / "w2"), _rows(Path(tmp) / "dist")
@@ -218,6 +229,15 @@ def _scaling() -> list[Metric]:
                     "included), best of 2 alternating runs each; all runs: 1 worker "
                     f"{', '.join(f'{t:.1f}' for t in times[1])} s, 2 workers "
                     f"{', '.join(f'{t:.1f}' for t in times[2])} s"),
+        Metric("first_row_1_worker_s", timeline[1]["first_row_s"], "s",
+               note="from the command's start to the first run's row on disk (CLI start, "
+                    "cluster start, the worker's start and first task), faster 1-worker run"),
+        Metric("first_row_2_workers_s", timeline[2]["first_row_s"], "s",
+               note="the same, faster 2-worker run"),
+        Metric("tail_1_worker_s", timeline[1]["tail_s"], "s",
+               note="from the last run's row to the command's end (wear assessment, summary, "
+                    "fleet view, exit), faster 1-worker run; 2 workers "
+                    f"{timeline[2]['tail_s']:.2f} s"),
         Metric("identical_1_vs_2", float(_same(r1, r2)), "1", target=1.0,
                note=f"columns {', '.join(COLS)} equal, every run"),
         Metric("tasks_speedup_without_dask", _tasks_alone(fleet, 30), "x",
