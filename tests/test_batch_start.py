@@ -142,3 +142,16 @@ print(json.dumps({{"killed": killed, "status": [r["status"] for r in res.rows],
     assert ppid == server  # a forked worker was killed
     assert got["status"] == ["ok"] * 4, got["errors"]
     assert got["fragments"] == [True] * 4  # (a killed writer may leave its hidden temporary)
+
+
+def test_a_fork_server_started_elsewhere_is_not_used() -> None:
+    """A fork server the program started itself (its environment and modules unknown) does
+    not serve the batch's workers: they are spawned."""
+    code = """
+import json
+from multiprocessing import forkserver
+from millsense.cli.batch_workers import start_worker_server
+forkserver.ensure_running()
+print(json.dumps({"used": start_worker_server()}))
+"""
+    assert _python(code) == {"used": False}

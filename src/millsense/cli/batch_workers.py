@@ -55,9 +55,10 @@ def worker_environment() -> None:
 def start_worker_server() -> bool:
     """Start multiprocessing's fork server with Dask's worker and the tasks' modules imported
     (module docstring), if it is not running; True when the local cluster's workers can be
-    forked from it. False where the platform has no fork server, or where this process's
-    environment changed since the server started (its workers would not see the change):
-    the workers are spawned then, as Dask does by default."""
+    forked from it. False where the platform has no fork server, where this process's
+    environment changed since the server started (its workers would not see the change), or
+    where another part of the program started multiprocessing's fork server: the workers are
+    spawned then, as Dask does by default."""
     import multiprocessing
     from multiprocessing import forkserver
 
@@ -66,6 +67,8 @@ def start_worker_server() -> bool:
         return False
     if _SERVER_ENV:
         return _SERVER_ENV == _environment()
+    if getattr(forkserver._forkserver, "_forkserver_pid", None) is not None:
+        return False  # started by someone else, with what environment and modules?
     preload = ["distributed.nanny", *TASK_MODULES]
     multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
     forkserver.ensure_running()  # returns at once: the server imports on its own
