@@ -318,14 +318,14 @@ def local_cluster(workers: int) -> Any:
     The worker processes are forked from a server that imported the tasks' modules while the
     cluster started (:func:`~millsense.cli.batch_workers.start_worker_server`, decision 2008;
     spawned where there is no fork server). Each runs one BLAS, one numba and one HDF5-codec
-    thread (the workers are
-    the parallelism: with the codec's default of a thread per core, two workers on two cores
-    ran their tasks 13 % slower than one, and one worker was no faster for it) and no
-    statistical profiler: Dask's samples the task's stack every 10 ms in a thread of its own,
-    and with a worker per core that CPU comes out of the tasks (measured: tasks 15 % slower
-    with two workers on two cores, 2.5 % with one). The event-loop tick, system and memory
-    monitors poll every 1–5 s instead of 20–500 ms (the client process, which hosts the
-    scheduler and the nannies, used about 0.1 core for them during a batch; half that now).
+    thread (the workers are the parallelism: with the codec's default of a thread per core,
+    two workers on two cores ran their tasks 13 % slower than one, and one worker was no
+    faster for it) and no statistical profiler: Dask's samples the task's stack every 10 ms
+    in a thread of its own, and with a worker per core that CPU comes out of the tasks
+    (measured: tasks 15 % slower with two workers on two cores, 2.5 % with one). The
+    event-loop tick, system and memory monitors poll every 1–5 s instead of 20–500 ms (the
+    client process, which hosts the scheduler and the nannies, used about 0.1 core for them
+    during a batch; half that now).
     """
     import dask
     from dask.distributed import LocalCluster
