@@ -43,18 +43,26 @@ def _fleet() -> Path:
 
 #: System CPU seconds and minor page faults of the last `_batch` (its processes together).
 _LAST_RUSAGE: dict[str, float] = {}
+#: The last `_batch`'s timeline: seconds from the command's start to the first and the last
+#: run's row on disk, and from the last row to the command's end (the fixed parts of a batch).
+_LAST_TIMELINE: dict[str, float] = {}
 
 
 def _batch(fleet: Path, out: Path, args: list[str]) -> float:
     import resource
 
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.time()
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "millsense", "batch", str(fleet), "-o", str(out), *args],
                    check=True, capture_output=True)  # fmt: skip
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     _LAST_RUSAGE.update(sys_s=r1.ru_stime - r0.ru_stime, minflt=r1.ru_minflt - r0.ru_minflt)
+    rows = [f.stat().st_mtime - start for f in (out / "runs").glob("[!.]*.parquet")]
+    if rows:
+        _LAST_TIMELINE.update(first_row_s=min(rows), last_row_s=max(rows),
+                              tail_s=wall - max(rows))  # fmt: skip
     return wall
 
 
@@ -92,10 +100,15 @@ def _first_task(args: tuple[str, str, str]) -> float:
     return time.perf_counter() - t0
 
 
-def _first_tasks(fleet: Path) -> tuple[float, float]:
+def _first_tasks(fleet: Path) -> tuple[float, float, float]:
     """A worker's first task with an empty disk cache and with the entry an earlier process
-    stored, one fresh process each, side by side in this run (decision 2006)."""
+    stored, one fresh process each (decision 2006), and with the entry in a process forked
+    from a server that imported the tasks' modules, as the local cluster's workers are
+    (decision 2008); side by side in this run."""
     from multiprocessing import get_context
+
+    from millsense.cli.batch_tasks import TASK_MODULES
+    from millsense.cli.batch_workers import worker_environment
 
     rec = str(sorted(fleet.glob("*.h5"))[0])
     with tempfile.TemporaryDirectory() as tmp:
@@ -103,7 +116,13 @@ def _first_tasks(fleet: Path) -> tuple[float, float]:
         with ctx.Pool(1, maxtasksperchild=1) as pool:
             cold = pool.map(_first_task, [(tmp + "/a", rec, tmp + "/cache")])[0]
             warm = pool.map(_first_task, [(tmp + "/b", rec, tmp + "/cache")])[0]
-    return cold, warm
+        worker_environment()
+        fork = get_context("forkserver")
+        fork.set_forkserver_preload(["distributed.nanny", *TASK_MODULES])
+        with fork.Pool(1, maxtasksperchild=1) as pool:
+            pool.map(abs, [0])  # the server's imports done, as when a batch's cluster is up
+            forked = pool.map(_first_task, [(tmp + "/c", rec, tmp + "/cache")])[0]
+    return cold, warm, forked
 
 
 def _run_tasks(args: tuple[str, list[str]]) -> float:
@@ -182,11 +201,14 @@ def _scaling() -> list[Metric]:
         # both, so that a burst of load on this shared host does not decide the ratio
         times: dict[int, list[float]] = {1: [], 2: []}
         usage: dict[int, dict[str, float]] = {}
+        timeline: dict[int, dict[str, float]] = {}  # of each one's faster run
         for rep in range(2):
             for w in (1, 2):
                 out = Path(tmp) / f"w{w}" if rep == 0 else Path(tmp) / f"w{w}_{rep}"
                 times[w].append(_batch(fleet, out, ["--workers", str(w)]))
                 usage.setdefault(w, dict(_LAST_RUSAGE))
+                if times[w][-1] == min(times[w]):
+                    timeline[w] = dict(_LAST_TIMELINE)
         t1, t2 = min(times[1]), min(times[2])
         td = _distributed(fleet, Path(tmp) / "dist")
         r1, r2, rd = _rows(Path(tmp) / "w1"), _rows(Path(tmp) / "w2"), _rows(Path(tmp) / "dist")
@@ -207,15 +229,27 @@ def _scaling() -> list[Metric]:
                     "included), best of 2 alternating runs each; all runs: 1 worker "
                     f"{', '.join(f'{t:.1f}' for t in times[1])} s, 2 workers "
                     f"{', '.join(f'{t:.1f}' for t in times[2])} s"),
+        Metric("first_row_1_worker_s", timeline[1]["first_row_s"], "s",
+               note="from the command's start to the first run's row on disk (CLI start, "
+                    "cluster start, the worker's start and first task), faster 1-worker run"),
+        Metric("first_row_2_workers_s", timeline[2]["first_row_s"], "s",
+               note="the same, faster 2-worker run"),
+        Metric("tail_1_worker_s", timeline[1]["tail_s"], "s",
+               note="from the last run's row to the command's end (wear assessment, summary, "
+                    "fleet view, exit), faster 1-worker run; 2 workers "
+                    f"{timeline[2]['tail_s']:.2f} s"),
         Metric("identical_1_vs_2", float(_same(r1, r2)), "1", target=1.0,
                note=f"columns {', '.join(COLS)} equal, every run"),
         Metric("tasks_speedup_without_dask", _tasks_alone(fleet, 30), "x",
                note="30 recordings in one process against 30 in each of two processes side "
                     "by side (process_recording, a worker's settings, no Dask)"),
         Metric("first_task_cached_s", first[1], "s", baseline=f"empty cache {first[0]:.2f} s",
-               note="a fresh worker process's first task (imports, observer design, one "
-                    "recording) with the observer's Q_s on disk (decision 2006); "
+               note="a fresh (spawned) worker process's first task (imports, observer design, "
+                    "one recording) with the observer's Q_s on disk (decision 2006); "
                     f"{first[0] / first[1]:.2f}x faster than with an empty cache, same run"),
+        Metric("first_task_forked_s", first[2], "s", baseline=f"spawned {first[1]:.2f} s",
+               note="the same in a worker forked from a server that imported the tasks' "
+                    "modules, as the local cluster's workers are (decision 2008), same run"),
         Metric("page_faults_1_worker", usage[1]["minflt"], "1",
                note="minor page faults of the 1-worker batch, all its processes"),
         Metric("system_cpu_1_worker_s", usage[1]["sys_s"], "s",

@@ -37,7 +37,7 @@ from millsense.cli.batch_tasks import (
     recording_parts,
     write_fragment,
 )
-from millsense.core.blas import default_to_one_thread
+from millsense.cli.batch_workers import start_worker_server
 from millsense.core.errors import ConfigError, InputDataError
 
 __all__ = [
@@ -115,12 +115,16 @@ def run_batch(
     chunk: int = 2000,
     segment_s: float | None = 600.0,
     on_progress: Callable[[float, int], None] | None = None,
+    on_waiting: Callable[[], None] | None = None,
 ) -> BatchResult:
     """Run every recording's task(s) on Dask and return the rows in the recordings' order.
 
     ``segment_s``: recordings longer than 1.5 × this many seconds run as segments (None: every
     recording as one task). ``on_progress(done, total)``: recordings done (a split recording
-    counts by its finished parts) of the total."""
+    counts by its finished parts) of the total. ``on_waiting()``: called once, when this process
+    starts waiting for workers (its local cluster's start: the workers' fork server is still
+    importing; or the tasks submitted to ``scheduler``): the caller can load what it needs after
+    the batch then, on a core the workers do not use yet (decision 2008)."""
     from importlib.util import find_spec
 
     if find_spec("distributed") is None:  # imported where it is used (the cluster's thread)
@@ -145,12 +149,15 @@ def run_batch(
         "segment_s": segment_s,
     }
     res = BatchResult()
-    # the local cluster starts (≈ 0.7 s, then its workers load millsense) while the rows of an
-    # earlier batch are read, unless every recording has one already
+    # the local cluster starts (≈ 0.5 s, its workers forked from a server that imports the
+    # tasks' modules meanwhile) while the rows of an earlier batch are read, unless every
+    # recording has one already
     starting: dict[str, Any] = {}
     starter = None
     if scheduler is None and not all(fragment_path(out_dir, p).is_file() for p in recordings):
-        starter = threading.Thread(target=_start_local, args=(workers, starting),
+        # the workers' imports start first, on another core (decision 2008)
+        start_worker_server()
+        starter = threading.Thread(target=_start_local, args=(workers, starting, on_waiting),
                                    name="millsense-batch-start")  # fmt: skip
         starter.start()
     rows: dict[int, dict[str, Any]] = {}
@@ -193,7 +200,7 @@ def run_batch(
             res.scheduler = scheduler
         else:
             if starter is None:
-                _start_local(workers, starting)
+                _start_local(workers, starting, on_waiting)
                 if "error" in starting:
                     raise starting["error"]
             cluster, client = starting["cluster"], starting["client"]
@@ -222,6 +229,8 @@ def run_batch(
                                     pure=False, key=f"millsense-batch-{i}")  # fmt: skip
                 futures[fut] = (i, None)
                 pending.add(fut)
+            if scheduler and on_waiting is not None:
+                on_waiting()
             for i in [i for i in parts if len(finished[i]) == len(parts[i])]:
                 rows[i] = _merged(out_dir, recordings[i], finished[i])  # all parts were done
                 res.reused += 1
@@ -264,11 +273,16 @@ def run_batch(
     return res
 
 
-def _start_local(workers: int, into: dict[str, Any]) -> None:
+def _start_local(
+    workers: int, into: dict[str, Any], on_waiting: Callable[[], None] | None = None
+) -> None:
     """Start the local cluster and its client into ``into`` (``cluster``, ``client``), or put
-    the exception there (``error``)."""
+    the exception there (``error``); ``on_waiting()`` once Dask is imported (the cluster's own
+    start is then about 0.1 s of this process's CPU, the rest is waiting for the workers)."""
     from dask.distributed import Client
 
+    if on_waiting is not None:
+        on_waiting()
     try:
         into["cluster"] = local_cluster(workers)
         into["client"] = Client(into["cluster"])
@@ -301,23 +315,24 @@ def local_cluster(workers: int) -> Any:
     """The local Dask cluster of a batch: ``workers`` processes of one thread each, on
     127.0.0.1 only (decision 2003).
 
-    Each worker process runs one BLAS, one numba and one HDF5-codec thread (the workers are
-    the parallelism: with the codec's default of a thread per core, two workers on two cores
-    ran their tasks 13 % slower than one, and one worker was no faster for it) and no
-    statistical profiler: Dask's samples the task's stack every 10 ms in a thread of its own,
-    and with a worker per core that CPU comes out of the tasks (measured: tasks 15 % slower
-    with two workers on two cores, 2.5 % with one). The event-loop tick, system and memory
-    monitors poll every 1–5 s instead of 20–500 ms (the client process, which hosts the
-    scheduler and the nannies, used about 0.1 core for them during a batch; half that now).
+    The worker processes are forked from a server that imported the tasks' modules while the
+    cluster started (:func:`~millsense.cli.batch_workers.start_worker_server`, decision 2008;
+    spawned where there is no fork server). Each runs one BLAS, one numba and one HDF5-codec
+    thread (the workers are the parallelism: with the codec's default of a thread per core,
+    two workers on two cores ran their tasks 13 % slower than one, and one worker was no
+    faster for it) and no statistical profiler: Dask's samples the task's stack every 10 ms
+    in a thread of its own, and with a worker per core that CPU comes out of the tasks
+    (measured: tasks 15 % slower with two workers on two cores, 2.5 % with one). The
+    event-loop tick, system and memory monitors poll every 1–5 s instead of 20–500 ms (the
+    client process, which hosts the scheduler and the nannies, used about 0.1 core for them
+    during a batch; half that now).
     """
     import dask
     from dask.distributed import LocalCluster
 
     from millsense.io.hdf5_chunks import IO_THREADS_ENV
 
-    default_to_one_thread()
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    os.environ.setdefault(IO_THREADS_ENV, "1")
+    forked = start_worker_server()  # sets the workers' environment in any case
     quiet = {
         "distributed.worker.profile.enabled": False,
         # the cluster's own watchdogs poll less often: on two cores their CPU is the tasks'
@@ -325,9 +340,12 @@ def local_cluster(workers: int) -> Any:
         "distributed.admin.system-monitor.interval": "5s",
         "distributed.worker.memory.monitor-interval": "1s",
     }
+    if forked:  # decision 2008 (a worker restarted after the start is spawned, as before)
+        quiet["distributed.worker.multiprocessing-method"] = "forkserver"
     with dask.config.set(quiet):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            host="127.0.0.1", dashboard_address="127.0.0.1:0")  # fmt: skip
+                            host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                            env={IO_THREADS_ENV: os.environ.get(IO_THREADS_ENV, "1")})  # fmt: skip
 
 
 def _parts(path: Path, segment_s: float | None, do: list[str]) -> list[Part]:

@@ -39,6 +39,7 @@ from millsense.core.errors import UserError
 __all__ = [
     "SEGMENT_WARMUP_S",
     "STEPS",
+    "TASK_MODULES",
     "Part",
     "fragment_path",
     "machine_ref",
@@ -59,6 +60,34 @@ STEPS = ("estimate", "monitor", "wear", "summary")
 #: transients (ms), the chatter monitor's 4096-sample spectrum (0.41 s at 10 kHz) and the
 #: breakage monitor's first five revolutions (0.3 s at 1000 rev/min) fit in it.
 SEGMENT_WARMUP_S = 2.0
+#: The modules a task imports where its steps use them (and the libraries those import): the
+#: worker processes of ``batch``'s local cluster are forked from a server that imported them
+#: once, while the cluster starts (decision 2008). A step that imports another module lazily
+#: adds it here (``tests/test_batch_start.py`` fails otherwise).
+TASK_MODULES = (
+    "millsense.cli.cmd_estimate",
+    "millsense.cli.cmd_monitor",
+    "millsense.core.config",
+    "millsense.core.memory",
+    "millsense.core.parquet_read",
+    "millsense.core.plausibility",
+    "millsense.core.presets",
+    "millsense.data",
+    "millsense.estimation.feed.commanded",
+    "millsense.estimation.feed.idle_compensation",
+    "millsense.estimation.from_config",
+    "millsense.estimation.spindle_observer",
+    "millsense.ident.idle_table",
+    "millsense.io.recording_reader",
+    "millsense.io.safe_output",
+    "millsense.monitoring.chatter",
+    "millsense.monitoring.registry",
+    "millsense.monitoring.wear",
+    "millsense.online.wear_run",
+    "millsense.plan.virtual_plan",
+    "millsense.streaming.event_log",
+    "pyarrow.parquet",
+)
 #: Statistics kept per channel (:func:`_stats`); a segment returns the sums they come from.
 _STAT_SUFFIXES = ("_mean", "_rms", "_p99abs", "_maxabs")
 

@@ -70,22 +70,22 @@ def batch(
     if not found:
         raise ConfigError(f"batch: {recordings} holds no recording outside -o {out}")
     out.mkdir(parents=True, exist_ok=True)
-    # the wear assessment and the fleet view's libraries load while the workers run, from the
-    # first finished recording on (before, the client's start-up has the CPU)
+    # the wear assessment and the fleet view's libraries load while the local cluster starts:
+    # its workers wait for their fork server's imports then and this process's core is idle
+    # (during the tasks, with a worker per core, they would take the workers' CPU; decision
+    # 2008)
     import threading
 
     preload = threading.Thread(target=_import_reports, daemon=True)
 
     def progress(done: float, _total: int) -> None:
         update(float(done))
-        if done >= 1 and preload.ident is None:
-            preload.start()
 
     with progress_bar("batch", float(len(found))) as update:
         res = run_batch(found, out, do=do, machine=machine, plan=plan, workers=workers,
                         scheduler=scheduler, estimate_method=method, monitor_methods=monitors,
                         segment_s=segment_s if segment_s != 0 else None,
-                        on_progress=progress)  # fmt: skip
+                        on_progress=progress, on_waiting=preload.start)  # fmt: skip
     if preload.ident is None:
         preload.start()
     preload.join()
@@ -114,7 +114,10 @@ def batch(
 
 
 def _import_reports() -> None:
-    """What the client needs once the workers are done (wear assessment, the fleet view)."""
+    """What the client needs once the workers are done (wear assessment, summary table, the
+    fleet view)."""
+    import pyarrow.parquet  # noqa: F401
+
     import millsense.monitoring.wear
     import millsense.report.fleet_plots
     import millsense.report.fleet_report  # noqa: F401
