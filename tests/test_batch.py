@@ -125,7 +125,9 @@ def test_a_worker_killed_mid_batch_loses_nothing(fleet: Path, tmp_path: Path) ->
         cluster.close()
     assert killed
     assert [r["status"] for r in res.rows] == ["ok"] * len(recs), [r.get("error") for r in res.rows]
-    assert len(list((tmp_path / "out" / "runs").glob("*.parquet"))) == len(recs)
+    runs = tmp_path / "out" / "runs"
+    assert len(list(runs.glob("*.parquet"))) == len(recs)  # the rows, and no temporary left
+    assert not [p for p in runs.rglob(".*") if p.is_file()]
 
 
 def test_a_long_recording_runs_as_segments_with_the_whole_runs_figures(

@@ -214,3 +214,21 @@ def test_recording_writer_killed_mid_write_leaves_the_old_recording(tmp_path: Pa
     assert _sha(path) == before  # the previous recording, whole
     back = read_recording(path)
     assert back.channel_names == ["b"] and back.n_samples == 7
+
+
+def test_stale_temporaries_are_removed_and_nothing_else(tmp_path: Path) -> None:
+    """A writer killed between writing and renaming leaves ``temporary_sibling``'s hidden file;
+    ``remove_stale_temporaries`` removes exactly those, in sub-folders too (a batch's runs/)."""
+    from millsense.io.safe_output import remove_stale_temporaries, temporary_sibling
+
+    (tmp_path / "seg-000").mkdir()
+    left = [temporary_sibling(tmp_path / "T1_r003.parquet"),
+            temporary_sibling(tmp_path / "seg-000" / "events.parquet"),
+            temporary_sibling(tmp_path / "a.b.h5")]  # fmt: skip
+    kept = [tmp_path / "T1_r003.parquet", tmp_path / ".hidden", tmp_path / ".x.tmp.parquet",
+            tmp_path / "seg-000" / "events.parquet"]  # fmt: skip
+    for p in left + kept:
+        p.write_bytes(b"x")
+    removed = remove_stale_temporaries(tmp_path)
+    assert sorted(removed) == sorted(left)
+    assert all(p.is_file() for p in kept) and not any(p.exists() for p in left)

@@ -259,6 +259,11 @@ def run_batch(
                         rows[i] = _merged(out_dir, recordings[i], finished[i])
                         res.ran += 1
                 progress.report()
+            # every task has ended: what a worker killed between writing and renaming left
+            # (a hidden temporary) goes, so that runs/ holds the rows and nothing else
+            from millsense.io.safe_output import remove_stale_temporaries
+
+            remove_stale_temporaries(out_dir / "runs")
         finally:
             if cluster is not None:  # our own workers only, never a shared scheduler's
                 try:

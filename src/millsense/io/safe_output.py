@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import TypeAlias
@@ -91,6 +92,24 @@ def temporary_sibling(path: str | os.PathLike[str]) -> Path:
     """A hidden temporary name beside ``path`` with the same extension (same file system)."""
     p = Path(path)
     return p.with_name(f".{p.stem}.{os.getpid()}.tmp{p.suffix}")
+
+
+def remove_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the hidden temporaries of :func:`temporary_sibling` left below ``folder`` by a
+    writer killed between writing and renaming (a batch worker killed mid-task: decision
+    2003), and return them. Call it only when no writer can still be busy there: a live
+    writer's temporary would be removed under it."""
+    removed = []
+    for p in sorted(Path(folder).rglob(".*.tmp*")):
+        if p.is_file() and _TEMPORARY.fullmatch(p.name):
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed.append(p)
+    return removed
+
+
+#: The names :func:`temporary_sibling` makes: ``.STEM.PID.tmpSUFFIX``.
+_TEMPORARY = re.compile(r"\..+\.\d+\.tmp(\.[^.]*)?")
 
 
 @contextlib.contextmanager
