@@ -17,6 +17,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.streaming.recursions import exponential_average_kernel
+
 
 @numba.njit(cache=True)
 def at_speed_kernel(
@@ -80,11 +82,24 @@ def air_reference_kernel(
     if first >= 0 and state[1] == 0.0:
         state[0] = torque[first]
         state[1] = 1.0
-    prev = state[0]
-    keep = 1.0 - alpha
+    m = 0
     for k in range(n):
         if use[k]:
-            prev = alpha * torque[k] + keep * prev
+            m += 1
+    x = np.empty(m)
+    j = 0
+    for k in range(n):
+        if use[k]:
+            x[j] = torque[k]
+            j += 1
+    # the project's one first-order average over the used samples, held in between
+    y = exponential_average_kernel(x, alpha, state[0])
+    prev = state[0]
+    j = 0
+    for k in range(n):
+        if use[k]:
+            prev = y[j]
+            j += 1
         reference[k] = prev
         cutting[k] = torque[k] - prev
     state[0] = prev
