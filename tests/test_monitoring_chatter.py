@@ -205,7 +205,7 @@ def test_masked_argmax_is_numpys_argmax_of_the_masked_copy() -> None:
         b1 = int(rng.integers(b0, n + 1))
         band = np.zeros(n, dtype=bool)
         band[b0:b1] = True
-        assert kn.masked_argmax(x, b0, b1) == int(np.argmax(np.where(band, x, 0.0)))
+        assert kn.band_argmax(x, b0, b1, True) == int(np.argmax(np.where(band, x, 0.0)))
 
 
 def test_peak_frequency_on_python_floats_is_the_numpy_scalar_form() -> None:

@@ -114,29 +114,19 @@ def novelty(
 
 
 @numba.njit(cache=True, nogil=True)
-def band_argmax(novel: FloatArray, b0: int, b1: int) -> int:  # pragma: no cover - compiled
-    """``argmax(where(band, novel, 0))`` for the band ``b0:b1`` (the first of equal maxima)."""
+def band_argmax(
+    novel: FloatArray, b0: int, b1: int, nan_first: bool = False
+) -> int:  # pragma: no cover - compiled
+    """``argmax(where(band, novel, 0))`` for the band ``b0:b1`` without the masked copy (the
+    first of equal maxima); ``nan_first``: the first NaN in the band wins, as in NumPy's
+    argmax (the threshold criterion's verdict, decision 1538), else NaNs are passed over."""
     k = 0
     best = novel[0] if b0 <= 0 < b1 else 0.0
+    if nan_first and best != best:
+        return 0
     for i in range(1, novel.shape[0]):
         v = novel[i] if b0 <= i < b1 else 0.0
-        if v > best:
-            best = v
-            k = i
-    return k
-
-
-@numba.njit(cache=True, nogil=True)
-def masked_argmax(x: FloatArray, b0: int, b1: int) -> int:  # pragma: no cover - compiled
-    """``np.argmax(np.where(band, x, 0.0))`` for the band ``b0:b1``, without the masked copy:
-    the first of equal maxima, and the first NaN if there is one (NumPy's rules)."""
-    k = 0
-    best = x[0] if b0 <= 0 < b1 else 0.0
-    if best != best:
-        return 0
-    for i in range(1, x.shape[0]):
-        v = x[i] if b0 <= i < b1 else 0.0
-        if v != v:
+        if nan_first and v != v:
             return i
         if v > best:
             best = v

@@ -133,7 +133,7 @@ class ChatterMethod:
             thr = self.threshold if self.threshold is not None else calibrated
             if s.band_slice is not None:  # argmax(where(band, raw, 0)) without the copy
                 b0, b1 = s.band_slice
-                k = _kn.masked_argmax(s.raw, b0, b1)
+                k = _kn.band_argmax(s.raw, b0, b1, True)
                 peak = float(s.raw[k]) if b0 <= k < b1 else 0.0
             else:
                 amp = np.where(s.band, s.raw, 0.0)
