@@ -126,7 +126,8 @@ RUNOUT_RCOND = 0.05
 def solve_runout(
     t1: complex, depth_m: float, th_st: float, th_ex: float, geom: ToolGeometry, kt_n_m2: float
 ) -> complex:
-    """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`)."""
+    """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`: the
+    shear part only; the monitor adds the edge part for N ≥ 3, decision 1540)."""
     g1 = complex(g_coeff(np.array(1.0), th_st, th_ex))
     l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
     return _runout_from(t1, depth_m, geom, kt_n_m2, g1, l2)

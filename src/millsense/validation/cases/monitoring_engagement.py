@@ -256,7 +256,7 @@ RUNOUT_EDGE_GAP = (
     "on the plant with edge forces (2026-11-28, decision 1540: the runout solver now includes "
     "the edge force's first harmonic, exits moved by runout where the chip vanishes; before, "
     "1.36 µm) the monitored 4-flute runout is 1.38-1.89 µm against the simulated 1.5 µm; six "
-    "rows are within 0.12 µm, the worst is row d_r 3 mm (0.39 µm): there θ_st = π/2, θ_ex = π, "
+    "rows are within 0.13 µm, the worst is row d_r 3 mm (0.39 µm): there θ_st = π/2, θ_ex = π, "
     "the engaged arc is one tooth pitch, the 4-flute tool's edge torque is constant and K_e is "
     "not observable from the tooth-passing harmonics (fitted 7-11 kN/m against 25 kN/m), so "
     "the runout's edge part is too small by that factor. On an edge-free plant 0.15 µm (the "
