@@ -78,6 +78,65 @@ def test_runout_four_flutes_and_two_flutes():
     assert solve_runout(t1, 5e-3, 2.0, math.pi, g, 758e6) == pytest.approx(w, abs=1e-9)
 
 
+def _edge_only_torque(dr, da, rho, lam, m=2048):
+    """Edge torque alone (K_tc = 0) of the simulator: K_e per unit length where the chip > 0."""
+    tool = EndMill(2 * R, 4, helix_rad=BETA, runout_offset_m=rho, runout_angle_rad=lam)
+    co = CuttingCoefficients(ktc=0.0, krc=0.0, kte=25e3)
+    phi = 2 * np.pi * np.arange(m) / m
+    f = milling_forces(tool, co, Engagement.radial(dr, 2 * R, "down"), C, da, phi, 200)
+    return np.fft.fft(f.torque_nm) / m
+
+
+@pytest.mark.parametrize(("dr", "da", "lam"), [(0.5e-3, 1e-3, 0.7), (3e-3, 0.5e-3, 2.5)])
+def test_runout_edge_harmonic_matches_the_process_model(dr, da, lam):
+    """Decision 1540: with runout the edge force (acting only where a flute's chip, set by the
+    deepest earlier flute, is > 0) has a first harmonic as large as the shear one's; the
+    monitor's model of it agrees with the simulator's sliced model to 3 % (16 slices against
+    200 discs and the plant's exact arcsin limits)."""
+    from millsense.monitoring import _spectrum_kernels as sk
+
+    w = 1.5e-6 * np.exp(-1j * lam)
+    x1 = _edge_only_torque(dr, da, 1.5e-6, lam)[1]
+    st = math.acos(dr / R - 1)
+    kb = math.tan(BETA) / R
+    mod = sk.runout_edge_harmonic(w, da, st, math.pi, C, kb, 4, R, 25e3)
+    assert abs(mod - x1) / abs(x1) < 0.03
+    shear = runout_harmonic(w, da, st, math.pi, ToolGeometry(4, R, BETA), 25e3 / C)
+    assert abs(x1) > 0.3 * abs(shear)  # K_te = K_tc c here: not a small correction
+
+
+@pytest.mark.parametrize(
+    ("entry", "exit_", "da", "lam", "shear_only_off"),
+    [
+        (2.556, math.pi, 1e-3, 0.7, 1.0e-6),
+        (2.556, 3.06, 1e-3, 2.0, 0.0),  # exits hardly moved: nothing to correct
+        (1.2, math.pi, 2e-3, 2.0, 0.2e-6),
+        (0.0, 1.0, 1e-3, 1.0, 1.0e-6),  # up milling: the entry at 0 is the moved boundary
+    ],
+)
+def test_runout_with_edge_forces_four_flutes(entry, exit_, da, lam, shear_only_off):
+    """Decision 1540: on a noiseless cut with edge forces (K_te/(K_tc c) = 1.3) the 4-flute
+    runout is recovered within 0.1 µm of 1.5 µm (what is left, up to 0.06 µm: the static fit's
+    K_t and K_e, biased by the runout-moved exits, and the shear part's unclipped chip of
+    Eq. 2.18), in down and up milling, and also with a geometric exit 0.08 rad before π (the
+    exit chip c sin θ_ex = 2.04 µm against |r_j − r_{j−1}| ≤ 2.12 µm: runout hardly moves an
+    exit there, and the correction must not invent one). The shear-only inversion (Eq. 2.18
+    as in the thesis) of the same T_1 is off by at least ``shear_only_off`` (it gives 2.74,
+    1.51, 1.76 and 2.60 µm)."""
+    tool = EndMill(2 * R, 4, helix_rad=BETA, runout_offset_m=1.5e-6, runout_angle_rad=lam)
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3)
+    m = 2048
+    phi = 2 * np.pi * np.arange(m) / m
+    eng = Engagement.from_intervals([(entry, exit_)])
+    x = np.fft.fft(milling_forces(tool, co, eng, C, da, phi, 200).torque_nm) / m
+    g = ToolGeometry(4, R, BETA)
+    e = SpectrumIdentifier(g, 15).identify(x[4 * np.arange(1, 16)], complex(x[1]), C)
+    assert e.runout_m == pytest.approx(1.5e-6, abs=0.1e-6)
+    assert e.runout_angle_rad == pytest.approx(lam, abs=0.05)
+    w0 = solve_runout(complex(x[1]), e.axial_depth_m, e.entry_rad, e.exit_rad, g, e.kt_n_m2)
+    assert abs(abs(w0) - 1.5e-6) >= shear_only_off
+
+
 def test_block_per_revolution_and_chunk_invariance():
     fs, rpm = 10000.0, 1200.0
     omega = rpm * 2 * math.pi / 60

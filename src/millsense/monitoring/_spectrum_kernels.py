@@ -430,6 +430,173 @@ def _runout(
     return complex(sol[0], sol[1])
 
 
+#: Axial slices of the runout edge model (midpoint rule over 0 … d_a; the integrand turns by
+#: at most π/N over the depth searched, so 16 slices resolve it, decision 1540).
+RUNOUT_EDGE_SLICES = 16
+
+
+@numba.njit(cache=True)
+def _slice_phases(d: float, kb: float, n: int) -> ComplexArray:
+    """e^{i(θ_j + ψ(z_i))} of flute j at the axial slice midpoints z_i (raveled j·nz + i)."""
+    nz = RUNOUT_EDGE_SLICES
+    out = np.empty(n * nz, dtype=np.complex128)
+    for j in range(n):
+        for i in range(nz):
+            ang = 2.0 * math.pi * j / n + kb * (i + 0.5) * d / nz
+            out[j * nz + i] = complex(math.cos(ang), math.sin(ang))
+    return out
+
+
+@numba.njit(cache=True)
+def _chip_zero_sines(w: complex, c: float, n: int, ez: ComplexArray, out: FloatArray) -> None:
+    """s_j(z) = min(1, max(0, max_m (r_{j−m} − r_j)/(m c))) into ``out`` (raveled as ``ez``):
+    flute j's chip h_j = min_m (m c sin φ + r_j − r_{j−m}) (the surface left by the deepest
+    earlier flute) is ≤ 0 where sin φ ≤ s_j, with r_j(z) − r = Re(w e^{i(θ_j + ψ(z))}) and
+    equal pitch (decision 1540)."""
+    nz = RUNOUT_EDGE_SLICES
+    rad = np.empty(n)
+    for i in range(nz):
+        for j in range(n):
+            rad[j] = (w * ez[j * nz + i]).real
+        for j in range(n):
+            v = 0.0
+            for m in range(1, n + 1):
+                v = max(v, (rad[(j - m) % n] - rad[j]) / (m * c))
+            out[j * nz + i] = min(v, 1.0)
+
+
+@numba.njit(cache=True)
+def _boundary_for_mean(v: FloatArray, target: float, upper: float) -> float:
+    """g ∈ [0, upper] with mean(min(g, v)) = target (the bound ``upper`` if even it gives a
+    mean ≤ target): the piecewise-linear mean solved exactly on the sorted v."""
+    m = v.shape[0]
+    if np.mean(np.minimum(v, upper)) <= target:
+        return upper
+    u = np.sort(v)
+    below = 0.0
+    for k in range(m):
+        g = (m * target - below) / (m - k)
+        if g <= u[k]:
+            return g
+        below += u[k]
+    return upper
+
+
+@numba.njit(cache=True)
+def _geometric_boundaries(a0: FloatArray, st: float, ex: float) -> tuple[float, float]:
+    """The entry θ_st,g ∈ [0, θ_st] and exit θ_ex,g ∈ [θ_ex, π] whose flute means of the
+    effective entry max(θ_st,g, a_j) and exit min(θ_ex,g, π − a_j) are the fitted θ_st, θ_ex
+    (the tooth-passing harmonics see the mean; decision 1540)."""
+    amax = np.max(a0)
+    stg = st
+    if st < amax:  # the fitted entry is within the band runout can move: mirror of the exit
+        stg = math.pi - _boundary_for_mean(math.pi - a0, math.pi - st, math.pi)
+    exg = ex
+    if ex > math.pi - amax:
+        exg = _boundary_for_mean(math.pi - a0, ex, math.pi)
+    return stg, exg
+
+
+@numba.njit(cache=True)
+def _edge_t1(
+    w: complex, st: float, ex: float, c: float, n: int, ez: ComplexArray, scale: float
+) -> complex:
+    """:func:`runout_edge_harmonic` with the slice phases ``ez`` and r K_e dz/2π (``scale``)
+    given: the limits' phases from sin a_j = s_j, cos a_j = √(1 − s_j²), no other trigonometry."""
+    m = ez.shape[0]
+    sj = np.empty(m)
+    _chip_zero_sines(w, c, n, ez, sj)
+    a0 = np.empty(m)
+    for q in range(m):
+        a0[q] = math.asin(sj[q])
+    stg, exg = _geometric_boundaries(a0, st, ex)
+    e_st = complex(math.cos(stg), -math.sin(stg))
+    e_ex = complex(math.cos(exg), -math.sin(exg))
+    tot = 0j
+    for q in range(m):
+        lo = max(stg, a0[q])
+        hi = min(exg, math.pi - a0[q])
+        if hi <= lo:
+            continue
+        ca = math.sqrt(1.0 - sj[q] * sj[q])
+        e_lo = e_st if lo == stg else complex(ca, -sj[q])  # e^{−i lo}
+        e_hi = e_ex if hi == exg else complex(-ca, -sj[q])  # e^{−i(π − a)} = −e^{ia}
+        # ∫_lo^hi e^{−i(φ + θ_j + ψ)} dφ
+        tot += (e_lo - e_hi) * complex(0.0, -1.0) * ez[q].conjugate()
+    return scale * tot
+
+
+@numba.njit(cache=True)
+def runout_edge_harmonic(
+    w: complex, d: float, st: float, ex: float, c: float, kb: float, n: int, radius: float,
+    ke: float,
+) -> complex:  # fmt: skip
+    """T_1 of the edge torque under runout w (decision 1540): the edge force K_e per unit
+    length acts only where a flute's chip is > 0, so flute j at height z cuts over
+    [max(θ_st,g, a_j), min(θ_ex,g, π − a_j)], sin a_j = s_j (:func:`_chip_zero_sines`), and
+    T_1 = (r K_e/2π) Σ_j ∫_0^{d_a} ∫ e^{−i(φ + θ_j + ψ(z))} dφ dz (midpoint rule over
+    :data:`RUNOUT_EDGE_SLICES` slices). θ_st,g, θ_ex,g are the boundaries whose flute means
+    are the fitted θ_st, θ_ex (:func:`_geometric_boundaries`)."""
+    ez = _slice_phases(d, kb, n)
+    return _edge_t1(w, st, ex, c, n, ez, radius * ke * (d / RUNOUT_EDGE_SLICES) / (2.0 * math.pi))
+
+
+@numba.njit(cache=True)
+def _runout_with_edge(
+    t1: complex, d: float, st: float, ex: float, c: float, kb: float, radius: float,
+    n_flutes: int, kt: float, ke: float, g1: complex, l2: complex, rcond: float,
+) -> complex:  # fmt: skip
+    """w from T_1 = T_1,shear(w) (Eq. 2.18 re-derived, linear) + T_1,edge(w)
+    (:func:`runout_edge_harmonic`) for N ≥ 3 and K_e > 0 (decision 1540); otherwise the
+    shear-only solution. Broyden's method on (Re w, Im w) from the shear-only solution, with
+    a finite-difference Jacobian at the start and step halving while |residual| grows; stops
+    at a step below 10⁻⁶ |w| (T_1,edge is nearly homogeneous of degree 1 in w, so a few
+    steps suffice)."""
+    w = _runout(t1, d, radius, n_flutes, kt, g1, l2, rcond)
+    if n_flutes < 3 or not ke > 0.0 or not c > 0.0 or not math.isfinite(abs(w)) or w == 0:
+        return w
+    rot = 1.0 - complex(math.cos(2.0 * math.pi / n_flutes), -math.sin(2.0 * math.pi / n_flutes))
+    lin = radius * kt * g1 * n_flutes * d * rot / 2.0
+    tol = 1e-6 * abs(w)
+    ez = _slice_phases(d, kb, n_flutes)
+    scale = radius * ke * (d / RUNOUT_EDGE_SLICES) / (2.0 * math.pi)
+
+    def resid(v: complex) -> complex:
+        return lin * v + _edge_t1(v, st, ex, c, n_flutes, ez, scale) - t1
+
+    f = resid(w)
+    h = 1e-4 * abs(w)
+    d1 = (resid(w + h) - f) / h  # Jacobian columns: ∂F/∂Re w, ∂F/∂Im w (as complex)
+    d2 = (resid(w + 1j * h) - f) / h
+    for _ in range(30):
+        det = d1.real * d2.imag - d2.real * d1.imag
+        if det == 0.0 or not math.isfinite(det):
+            break
+        step = complex((d2.real * f.imag - d2.imag * f.real) / det,
+                       (d1.imag * f.real - d1.real * f.imag) / det)  # fmt: skip
+        lam = 1.0
+        fn = resid(w + step)
+        for _ in range(10):
+            if abs(fn) < abs(f):
+                break
+            lam *= 0.5
+            fn = resid(w + lam * step)
+        if not abs(fn) < abs(f):
+            break
+        s = lam * step
+        w = w + s
+        # Broyden's rank-one update of the 2 × 2 real Jacobian [d1 d2] along s
+        y = fn - f
+        ss = s.real * s.real + s.imag * s.imag
+        corr = (y - (d1 * s.real + d2 * s.imag)) / ss
+        d1 = d1 + corr * s.real
+        d2 = d2 + corr * s.imag
+        f = fn
+        if abs(s) <= tol:
+            break
+    return w
+
+
 @numba.njit(cache=True)
 def estimate(
     p: FloatArray,
@@ -467,7 +634,9 @@ def estimate(
     alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
     rn = radius * n_flutes
     kt = alpha / (rn * feed_per_tooth_m)
-    w = _runout(t1, d, radius, n_flutes, kt, g1, l2, rcond)
+    ke = max(beta / rn, 0.0) if edge else 0.0
+    w = _runout_with_edge(t1, d, st, ex, feed_per_tooth_m, kb, radius, n_flutes, kt, ke, g1, l2,
+                          rcond)  # fmt: skip
     dev = 0.0
     tot = 0.0
     for j in range(m):

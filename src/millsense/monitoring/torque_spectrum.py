@@ -13,6 +13,14 @@ coefficients of numpy's sign, T_k = (1/2π)∫τ(φ) e^{−ikφ} dφ (decision 1
 * runout torque (T_ec, Eqs. 2.17, 2.20–2.22 re-derived as V2/V3): with w = ρ e^{−iλ},
   T_1 = r K_t G_1 N d_a (1 − e^{−i2π/N}) w / 2 for N ≥ 3, and
   T_1 = r K_t G_1 N (w d_a + w̄ L_2) for N = 2 (the 2 × 2 real system of V3); N = 1: none.
+* runout edge torque (decision 1540; the thesis' model is single-mechanism): the edge force
+  acts only where a flute's chip is > 0, and near a boundary where the feed term c sin φ
+  vanishes (down-milling exit π, up-milling entry 0) runout decides where that is: flute j
+  at height z cuts only where sin φ_j > s_j = max_m (r_{j−m} − r_j)/(m c) (the chip left by
+  the deepest earlier flute). This gives T_1 an edge part of the size of the shear part at
+  0.025 mm/tooth; for N ≥ 3 with a fitted K_e > 0 the runout solves shear + edge T_1 = the
+  measured T_1, with the engagement boundaries whose flute means are the fitted θ_st, θ_ex
+  (the tooth-passing harmonics see the mean). N = 2 keeps the shear-only system.
 
 Identification per revolution (Fig. 2.9 order ADOC → RDOC → K_t and runout → σ): the thesis
 locates the notch of |L| between tooth-passing harmonics (not said how) and inverts
@@ -20,8 +28,9 @@ locates the notch of |L| between tooth-passing harmonics (not said how) and inve
 decision 1524) (d_a, θ_st, θ_ex) are fitted jointly to the complex ratios T_kN/T_N, k = 2…K,
 by least squares from the best point of a coarse grid — the same information (K_t and c cancel
 as in Ψ), with sub-harmonic resolution of the notch. Then K_t from |T_N| (Eq. 2.19 physically
-normalised, V1), the runout from T_1, and the reliability index (Eq. 2.23) with
-m = ⌊ω_notch/ω_N⌋ (the prose; the printed ⌊ω_notch/ω_n⌋ agrees only for N = 1; decision 1525).
+normalised, V1), the runout from T_1 (with the edge part, decision 1540), and the reliability
+index (Eq. 2.23) with m = ⌊ω_notch/ω_N⌋ (the prose; the printed ⌊ω_notch/ω_n⌋ agrees only
+for N = 1; decision 1525).
 d_r = r (cos θ_st − cos θ_ex) (digest §2.4 [S]; = r(1 + cos θ_st) in down milling).
 """
 
@@ -117,7 +126,8 @@ RUNOUT_RCOND = 0.05
 def solve_runout(
     t1: complex, depth_m: float, th_st: float, th_ex: float, geom: ToolGeometry, kt_n_m2: float
 ) -> complex:
-    """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`)."""
+    """w = ρ e^{−iλ} from the first harmonic T_1 (inverse of :func:`runout_harmonic`: the
+    shear part only; the monitor adds the edge part for N ≥ 3, decision 1540)."""
     g1 = complex(g_coeff(np.array(1.0), th_st, th_ex))
     l2 = complex(l_coeff(np.array(2.0), depth_m, geom))
     return _runout_from(t1, depth_m, geom, kt_n_m2, g1, l2)
