@@ -145,3 +145,61 @@ def test_ceiling_solves_the_two_part_prediction(block: AdaptiveFeedBlock) -> Non
         ca.F_REF_V8, rel=1e-9
     )
     assert u_two < u_one  # the larger edge factor leaves less room for the shear force
+
+
+def plan_stream(blk: AdaptiveFeedBlock, x0_mm: float = -9.0, x1_mm: float = 30.0) -> dict:
+    """An open-loop stream along the V8 plan from X = ``x0_mm`` to ``x1_mm`` at the programmed
+    feed whatever the block commands: the TCP on the plan's path, a 2-flute force whose
+    per-tooth peak is a plant's |1.3·E + 1.05·S| of the row under the tool (plus 2 N of noise),
+    the spindle at 1000 rev/min. (The force does not follow the block's override, so the
+    window's fit finds the force independent of it: α_S ≈ 0.05; only the invariance is tested.)"""
+    plan = blk.plan
+    assert plan is not None
+    fs = 10000.0
+    xyz = plan.xyz_m
+    t_plan = np.asarray(plan["t_s"], dtype=np.float64)
+    rows = np.flatnonzero((xyz[:, 0] * 1e3 >= x0_mm) & (xyz[:, 0] * 1e3 <= x1_mm))
+    t = np.arange(t_plan[rows[0]], t_plan[rows[-1]], 1.0 / fs)
+    tcp = [np.interp(t, t_plan, xyz[:, k]) for k in range(3)]
+    r = np.clip(np.searchsorted(t_plan, t, "right") - 1, 0, len(t_plan) - 1)
+    c = blk._plan_cols
+    peak = np.hypot(1.3 * c["edge_x"][r] + 1.05 * c["shear_x"][r],
+                    1.3 * c["edge_y"][r] + 1.05 * c["shear_y"][r])  # fmt: skip
+    omega = 1000.0 * 2 * math.pi / 60.0
+    f = peak * np.abs(np.sin(2 * omega * (t - t[0])))
+    f = f + np.random.default_rng(5).normal(0.0, 2.0, t.size)
+    return {
+        "force_x": 0.6 * f,
+        "force_y": 0.8 * f,
+        "spindle/speed": np.full(t.size, omega),
+        "x/position_cmd": tcp[0],
+        "y/position_cmd": tcp[1],
+        "z/position_cmd": tcp[2],
+    }
+
+
+def test_plan_calibration_is_chunk_invariant(block: AdaptiveFeedBlock) -> None:
+    # the calibration is per-revolution state (decision 1656): the same revolutions count and
+    # the same fit is made however the stream is cut (outputs and events bit-identical)
+    from millsense.streaming.block import Chunk
+
+    data = plan_stream(block)
+    n = data["force_x"].size
+
+    def run(chunk: int) -> tuple[list, np.ndarray, tuple | None, int]:
+        block.reset(10000.0)
+        ev, ov = [], []
+        for a in range(0, n, chunk):
+            c = Chunk(a, 10000.0, 0.0, {k: data[k][a : a + chunk] for k in block.inputs})
+            out = block.process(c)
+            ev.extend((e.sample, e.value) for e in out.events)
+            ov.append(out.channels["adaptive_feed/override"])
+        return ev, np.concatenate(ov), block.loop.parts, block.loop.kappa_n
+
+    ref = run(n)
+    assert ref[3] == 10  # the window was completed
+    for chunk in (7, 100, 1001):
+        ev, ov, parts, kn = run(chunk)
+        assert ev == ref[0]
+        np.testing.assert_array_equal(ov, ref[1])
+        assert parts == ref[2] and kn == ref[3]
