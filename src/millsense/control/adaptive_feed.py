@@ -89,8 +89,9 @@ class AdaptiveFeedOptions:
     look_ahead : use the plan's look-ahead (flags 1/2) when a plan is given.
     look_ahead_s, rise : look-ahead horizon and rise threshold (seed 000: 0.5 s, 15 %).
     feedforward_revs : revolutions of travel whose predicted force the flag-1 ceiling covers.
-    calibration_revs : revolutions in steady cut over which the plan's force is calibrated to
-        the measurement (seed 000 C16: the first 10).
+    calibration_revs : revolutions in steady cut (flag 0, the override unchanged since the
+        revolution before) over which the plan's force is calibrated to the measurement (seed
+        000 C16: the first 10; one factor, or the edge and shear parts apart, decision 1656).
     stall_s : frozen-signal and missing-revolution timeout, s.
     min_change_pct : smallest override change that is sent as an event.
     """
