@@ -17,13 +17,16 @@ def runs() -> dict[str, ca.LoopRun]:
 
 
 def test_lookahead_holds_the_reference(runs: dict[str, ca.LoopRun]) -> None:
-    # seed 000 V8: ACwithVF stays within ±5 % of F_r = 325 N. On the plant's own plan
-    # (decision 1740) the jump's peak is 341.3 N, +5.02 %: the look-ahead's feed is set from
-    # its plan's forces and the plant's leading flute carries 5 µm of runout the plan does not
-    # know (a known failure of control.v8_lookahead_peak_force); no overshoot beyond +6 %,
-    # and steady within ±5 % once the RLS has settled
+    # seed 000 V8: ACwithVF stays within ±5 % of F_r = 325 N. On the plant's own plan and
+    # material (decisions 1740, 1798) the look-ahead's one common factor κ, fitted in the
+    # shallow cut at 50-124 % override, under-predicted the jump's peak at 29-36 % (the edge
+    # force and the runout's chip do not scale with the feed): 343.3 N, +5.6 %. With the
+    # two-part calibration (decision 1656) the ceiling sets 30.6 % and the largest peak is
+    # 318 N, in the steady deep cut; no overshoot beyond +5 %
     la = runs["with look-ahead"]
-    assert np.max(la.force) <= 1.06 * ca.F_REF_V8
+    assert np.max(la.force) <= 1.05 * ca.F_REF_V8
+    jump = (la.x_mm > ca.STEP_X_MM) & (la.x_mm < ca.STEP_X_MM + 3.0)
+    assert np.max(la.force[jump]) <= 1.05 * ca.F_REF_V8  # 318 N measured at X 25-28 mm
     after = (la.x_mm > 30.0) & (la.x_mm < 45.0)  # steady at the full depth
     assert np.all(np.abs(np.max(la.force[after]) / ca.F_REF_V8 - 1.0) <= 0.05)
 

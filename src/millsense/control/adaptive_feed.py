@@ -19,8 +19,9 @@ override with :class:`~millsense.control.gpc.GPC`
 - the virtual look-ahead of seed 000 (:meth:`~millsense.plan.virtual_plan.VirtualPlan.look_ahead`,
   0.5 s at the current override): flag 1 (engagement or chip load rising ≥ 15 %) → the plan's
   predicted peak force over the next revolutions (edge and shear parts, the shear part scaled
-  by the override, calibrated to the measurement over the first 10 revolutions in cut) sets
-  a ceiling on the override so the predicted force does not exceed the reference
+  by the override, calibrated to the measurement over the first 10 revolutions in steady cut:
+  one common factor, or each part its own factor when the window's overrides separate them,
+  decision 1656) sets a ceiling on the override so the predicted force does not exceed the reference
   (feed-forward, decision 1613); flag 2 (cavity or exit) → the override is held at its value
   when the flag rose or lower, never raised, and the air rule is suspended (decision 1614);
 - safety: a revolution with a non-finite sample, a signal frozen at a non-zero value for
@@ -88,8 +89,9 @@ class AdaptiveFeedOptions:
     look_ahead : use the plan's look-ahead (flags 1/2) when a plan is given.
     look_ahead_s, rise : look-ahead horizon and rise threshold (seed 000: 0.5 s, 15 %).
     feedforward_revs : revolutions of travel whose predicted force the flag-1 ceiling covers.
-    calibration_revs : revolutions in steady cut over which the plan's force is calibrated to
-        the measurement (seed 000 C16: the first 10).
+    calibration_revs : revolutions in steady cut (flag 0, the override unchanged since the
+        revolution before) over which the plan's force is calibrated to the measurement (seed
+        000 C16: the first 10; one factor, or the edge and shear parts apart, decision 1656).
     stall_s : frozen-signal and missing-revolution timeout, s.
     min_change_pct : smallest override change that is sent as an event.
     """
@@ -173,6 +175,10 @@ class _Loop:
     fault: bool = False
     kappa_sum: float = 0.0
     kappa_n: int = 0
+    #: calibration revolutions: (edge part, shear part, measured) of each (decision 1656)
+    cal: list[tuple[float, float, float]] = field(default_factory=list)
+    #: (α_E, α_S) of the two-part calibration once fitted; None: the common factor κ
+    parts: tuple[float, float] | None = None
     row: int = 0
     flag: int = 0
     ff_until: int = -1  #: the flag-1 ceiling holds until the tool passes this plan row
@@ -592,7 +598,9 @@ class AdaptiveFeedBlock(Block):
 
     def _ceiling(self, row: int) -> float | None:
         """Largest override whose predicted peak force over the next ``feedforward_revs``
-        revolutions of travel stays at the reference (decision 1613)."""
+        revolutions of travel stays at the reference (decision 1613): κ·|E + u·S| = F_r with
+        the common factor κ, or |α_E·E + u·α_S·S| = F_r once the two-part calibration has been
+        fitted (decision 1656)."""
         lp = self.loop
         t = self._plan_cols["t_s"]
         rev_s = self._last_rev_len / self.fs if self._last_rev_len else 0.06
@@ -600,8 +608,14 @@ class AdaptiveFeedBlock(Block):
         sl = slice(row, max(end, row + 2))
         ex, ey = self._plan_cols["edge_x"][sl], self._plan_cols["edge_y"][sl]
         sx, sy = self._plan_cols["shear_x"][sl], self._plan_cols["shear_y"][sl]
-        kappa = lp.kappa_sum / lp.kappa_n if lp.kappa_n else 1.0
-        c = self.opts.reference / max(kappa, 1e-6)
+        if lp.parts is not None:
+            # two-part calibration: |α_E·E + u·α_S·S| = F_r (decision 1656)
+            a_e, a_s = lp.parts
+            ex, ey, sx, sy = a_e * ex, a_e * ey, a_s * sx, a_s * sy
+            c = self.opts.reference
+        else:
+            kappa = lp.kappa_sum / lp.kappa_n if lp.kappa_n else 1.0
+            c = self.opts.reference / max(kappa, 1e-6)
         # |E + u S| = c  →  (S·S) u² + 2 (E·S) u + (E·E − c²) = 0, largest root
         aa = sx * sx + sy * sy
         bb = ex * sx + ey * sy
@@ -614,18 +628,85 @@ class AdaptiveFeedBlock(Block):
         return float(max(np.min(u), 0.0))
 
     def _calibrate(self, y: float, flag: int) -> None:
-        """κ = measured / predicted peak force over the first revolutions in steady cut."""
+        """Calibration of the plan's force to the measurement over the first
+        ``calibration_revs`` revolutions in steady cut (seed 000 C16; decisions 1613, 1656).
+
+        A revolution counts when the look-ahead flag is 0, the plan predicts a cut, and the
+        override in force was already in force during the previous revolution: a revolution
+        that starts with an override change cuts its first chips at a feed between the two
+        (the tooth period before it and the axes' following lag), so it is not a steady cut.
+        Each counted revolution adds measured/predicted to the common factor κ (used until
+        the window is complete, and after it when the two-part fit is not adopted) and its
+        edge part, shear part and measured peak to the two-part fit
+        (:func:`_two_part_fit`), made once when the window is complete."""
         lp = self.loop
         if self.plan is None or flag != 0 or lp.kappa_n >= self.opts.calibration_revs:
             return
+        u = lp.u_hist[0]
+        if abs(u - lp.u_hist[1]) > 1e-12:
+            return  # the override changed at this revolution's start (decision 1656)
         r = lp.row
         ex, ey = self._plan_cols["edge_x"][r], self._plan_cols["edge_y"][r]
         sx, sy = self._plan_cols["shear_x"][r], self._plan_cols["shear_y"][r]
-        u = lp.u_hist[0]
-        pred = math.hypot(ex + u * sx, ey + u * sy)
+        p_e, p_s = _split_prediction(ex, ey, sx, sy, u)
+        pred = p_e + p_s
         if pred > self.opts.air:
-            lp.kappa_sum += y * self.opts.reference / pred
+            measured = y * self.opts.reference
+            lp.kappa_sum += measured / pred
             lp.kappa_n += 1
+            lp.cal.append((p_e, p_s, measured))
+            if lp.kappa_n == self.opts.calibration_revs:
+                lp.parts = _two_part_fit(lp.cal)
+
+
+#: Significance level of the F-test that adopts the two-part calibration (decision 1656).
+TWO_PART_SIGNIFICANCE = 0.05
+
+
+def _split_prediction(ex: float, ey: float, sx: float, sy: float, u: float) -> tuple[float, float]:
+    """The predicted peak |E + u·S| at override ``u`` split into its edge and shear parts
+    along the predicted resultant: p_E = E·R/|R|, p_S = u·S·R/|R| with R = E + u·S, so that
+    p_E + p_S = |R| (decision 1656). (0, 0) where nothing is predicted."""
+    rx, ry = ex + u * sx, ey + u * sy
+    n = math.hypot(rx, ry)
+    if n <= 0.0:
+        return 0.0, 0.0
+    return (ex * rx + ey * ry) / n, u * (sx * rx + sy * ry) / n
+
+
+def _two_part_fit(
+    cal: list[tuple[float, float, float]], level: float = TWO_PART_SIGNIFICANCE
+) -> tuple[float, float] | None:
+    """Two-part calibration (decision 1656): measured ≈ α_E·p_E + α_S·p_S by least squares
+    over the calibration revolutions (``cal`` rows: p_E, p_S, measured), so that the force
+    that does not scale with the feed (the edge force, and the chip a runout adds to the
+    leading flute) and the shear force (∝ the feed per tooth) are each scaled by their own
+    factor and the prediction carries to another feed.
+
+    Adopted only when the overrides of the window let the data separate the two parts: the
+    fit has full rank, both factors are positive, and it explains the peaks better than one
+    common factor (the nested least-squares κ) by an F-test at ``level`` (F(1, n − 2)).
+    None otherwise: the caller keeps the common factor κ."""
+    from scipy.special import fdtrc
+
+    a = np.asarray(cal, dtype=np.float64)
+    n = a.shape[0]
+    if n < 3:
+        return None
+    design, m = a[:, :2], a[:, 2]
+    coef, _, rank, _ = np.linalg.lstsq(design, m, rcond=None)
+    if rank < 2 or not bool(np.all(coef > 0.0)):
+        return None
+    p = design.sum(axis=1)
+    k1 = float(p @ m) / float(p @ p)
+    rss1 = float(np.sum((m - k1 * p) ** 2))
+    rss2 = float(np.sum((m - design @ coef) ** 2))
+    if not rss1 > rss2:
+        return None
+    f = (rss1 - rss2) / (rss2 / (n - 2)) if rss2 > 0.0 else math.inf
+    if not float(fdtrc(1, n - 2, f)) < level:
+        return None
+    return float(coef[0]), float(coef[1])
 
 
 def _plan_force_columns(

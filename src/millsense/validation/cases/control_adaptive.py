@@ -240,17 +240,6 @@ def _v8_runs() -> dict[str, LoopRun]:
     unit="N",
     rel_tol=0.05,
     quick=False,
-    issue=16,
-    gap=(
-        "on the virtual machine's own plan and material (decisions 1740, 1798: a 0.05 mm "
-        "z-map, 5 µm of runout at 0.4 rad and K_tc +6 %, K_te +15 % that the controller's plan "
-        "does not know) the largest peak is 343.3 N at X = 25.6 mm, 5.6 % above F_r (329.7 N "
-        "while the plant cut the controller's own plan and coefficients): the look-ahead sets "
-        "the feed for the jump from its plan's forces, and the plant's first revolutions in "
-        "the deeper layer carry its runout on the leading flute and its larger edge force "
-        "until the RLS has learned them; the steady peak after the jump is 318 N and 92 % of "
-        "the revolutions in full cut are within ±5 %"
-    ),
     description=(
         "Largest resultant force over the slot (entry, step-down, exit) in closed loop with "
         "the virtual look-ahead."
