@@ -10,7 +10,9 @@ Outputs, one value per sample, held between decisions: ``{name}/chatter`` (0/1),
 ``{name}/chatter_hz`` (Hz, NaN without chatter) and ``{name}/energy_ratio`` (the method's
 ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARNING, value
 the chatter frequency) is raised when a run of chatter windows starts, a NOTE
-``chatter_end`` when it ends.
+``chatter_end`` when it ends. A window in the cut whose mean steps (an entry, an exit, a depth
+step) is judged by ``chatter-comb`` on its part after the step when that part resolves the
+lines beside the spindle harmonics (decision 1539).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -284,7 +286,8 @@ class ChatterMonitor(Block):
         # rows: the tapered raw window and (criteria that learn) the comb-filtered window,
         # transformed together (:data:`rfft_rows`)
         self._windows = np.empty((2 if self.method.learns_background else 1, n))
-        self._seg_windows = np.empty((2, n))  # a window's part after its mean step (1539)
+        # a window's part after its mean step, raw and comb-filtered (decision 1539)
+        self._seg_windows = np.empty((2, n if self.method.judges_segments else 0))
         nf = len(f)
         self._raw, self._comb, self._novel, self._raw_rect = (np.empty(nf) for _ in range(4))
         self._background = np.zeros(nf)
@@ -435,11 +438,15 @@ class ChatterMonitor(Block):
         window's, so the learned floor, the load span and the background are taken ``g`` times
         higher (a segment cannot turn the floor into a new line; a real line must stand
         ``5 g`` times above its background). Nothing is learned from a segment: the background,
-        the air floor and mean and the speed state stay those of the full windows."""
-        g = self._stage
-        n = self.method.window
+        the air floor and mean and the speed state stay those of the full windows.
+
+        Work per such window: one pass for the step, one for the tapers, the pair of
+        transforms, the amplitudes and median, the novelty and its largest bin (the full
+        window's steps again, compiled); windows passing the mean gate do none of it."""
         if not self.method.judges_segments:
             return None
+        g = self._stage
+        n = self.method.window
         if self._settling > 0 or not self._has_background or not f_rev > 0:
             return None
         last = self._judged_f_rev
@@ -447,7 +454,7 @@ class ChatterMonitor(Block):
             return None  # a new speed: its lines are learned on full windows first
         start = _kn.step_start(self._xr)
         m = n - start
-        if m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs or m < 2:
+        if m < 2 or m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs:
             return None  # too short to resolve the lines beside the harmonics
         seg = self._seg_windows
         mean, half_step, w_sum, c_sum = _kn.segment_windows(
@@ -560,7 +567,12 @@ class ChatterMonitor(Block):
 
 
 def _segment_gate(
-    tooth: float, med: float, level: float, half_step: float, f_rev: float, air: np.ndarray,
+    tooth: float,
+    med: float,
+    level: float,
+    half_step: float,
+    f_rev: float,
+    air: np.ndarray,
     grow: float,
 ) -> float | None:
     """The cutting and steady-mean gates of :func:`._kernels.cutting_gate` on a window's part
