@@ -511,7 +511,7 @@ def test_a_monitor_started_in_the_cut_learns_its_steady_tone_first() -> None:
     assert 0.0 < alarms[0].time_s - 2.5 <= 0.2
 
 
-def test_a_segment_after_a_step_keeps_line_amplitudes_and_raises_the_noise_by_root_n_over_l() -> None:
+def test_a_segment_after_a_step_keeps_lines_and_raises_the_noise_by_root_n_over_l() -> None:
     # decision 1539: the part of a window after its mean step, zero-padded to the window and
     # scaled by its own taper sums, gives a line the amplitude a full window gives it (the
     # ratio to the tooth line is the seed's), while white noise per bin rises by √(n/L)
@@ -527,7 +527,7 @@ def test_a_segment_after_a_step_keeps_line_amplitudes_and_raises_the_noise_by_ro
     ring = np.zeros(8192)
     ring[:n] = line  # the comb-filtered ring (here: the line alone)
     out = np.empty((2, n))
-    mean, half_step, w_sum, c_sum = kn.segment_windows(x, ring, n, n - m, False, out)
+    _, half_step, w_sum, c_sum = kn.segment_windows(x, ring, n, n - m, False, out)
     assert abs(half_step) < 1e-3  # the segment itself is steady (the line averages out)
     raw = np.abs(np.fft.rfft(out[0])) * 2.0 / w_sum
     comb = np.abs(np.fft.rfft(out[1])) * 2.0 / c_sum
