@@ -567,6 +567,19 @@ def test_chatter_from_an_entry_with_a_load_step_is_judged_after_the_step(
     )
 
 
+def test_chunk_size_invariance_through_a_load_step() -> None:
+    # decision 1539's parts are read from the rings at the decision samples only: outputs and
+    # events identical whatever the chunking (entry with chatter, judged after the step)
+    x, spd = _signal(dur=2.6, onset=2.05, cut_start=2.05, load_step=5.0, drift=0.0)
+    ref, ev_ref = _run(x, spd, chunk=len(x))
+    assert [e.time_s for e in ev_ref if e.name == "chatter"] == pytest.approx([2.2999])  # a part
+    for chunk in (7, 100, 999):
+        out, ev = _run(x, spd, chunk=chunk)
+        for k in ref:
+            np.testing.assert_array_equal(out[k], ref[k])
+        assert [e.as_dict() for e in ev] == [e.as_dict() for e in ev_ref]
+
+
 def test_entry_and_exit_with_a_load_step_give_no_alarm(monkeypatch: pytest.MonkeyPatch) -> None:
     # decision 1539: a stable cut entered and left with a load step (5 × the tooth line), a
     # steady tone learned in air and a resonance excited by the cut: the parts after the steps

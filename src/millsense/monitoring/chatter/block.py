@@ -334,7 +334,8 @@ class ChatterMonitor(Block):
     def _spectra(self) -> Spectra | None:
         """The spectra of the window ending at the last decision sample, or None when no
         decision is taken (too few samples, the speed or, for the learning criteria, the mean
-        moving within the window: entry, exit, a large depth step). The cutting gate, the
+        moving within the window: entry, exit, a large depth step — unless the criterion
+        judges the part after the step, :meth:`_segment_spectra`). The cutting gate, the
         novelty and the largest novel bin are compiled (:func:`._kernels.cutting_gate`,
         :func:`._kernels.novel_peak`; decisions 1504, 1531, 1536)."""
         g = self._stage
