@@ -8,7 +8,9 @@ chatter frequency is therefore known exactly; thresholds are the seeds' (1.5, se
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -32,6 +34,9 @@ def _signal(
     rpm_after: tuple[float, float] | None = None,
     seed: int = 0,
     cut_start: float = 1.0,
+    load_step: float = 0.0,
+    cut_end: float | None = None,
+    drift: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     n = int(dur * FS)
@@ -43,8 +48,9 @@ def _signal(
     x = np.zeros(n)
     for ell in range(1, 40):
         x += (1.0 if ell % 4 == 0 else 0.1) / (1 + 0.05 * ell) * np.cos(ell * ang + 0.3 * ell)
-    x *= t >= cut_start
-    x += 5.0 + 0.5 * t + 0.05 * rng.standard_normal(n)
+    in_cut = (t >= cut_start) & (t < (cut_end if cut_end is not None else math.inf))
+    x = (x + load_step) * in_cut
+    x += 5.0 + drift * t + 0.05 * rng.standard_normal(n)
     if onset is not None:
         amp = np.clip((t - onset) / 0.02, 0, 1) * chatter_amp
         x += amp * np.cos(2 * np.pi * fc * t) * (1 + 0.3 * np.cos(ang))
@@ -444,8 +450,10 @@ def test_cut_found_by_its_load_when_the_tooth_line_is_buried() -> None:
         assert run(*_buried_tooth_line(False, seed))[0] == []
 
 
-def _run_comb(x: np.ndarray, spd: np.ndarray, flutes: int) -> list[Event]:
+def _run_comb(x: np.ndarray, spd: np.ndarray, flutes: int, segments: bool = True) -> list[Event]:
     b = ChatterMonitor(ChatterSettings(signal="s", n_flutes=flutes))
+    if not segments:  # no verdict on a window whose mean steps (before decision 1539)
+        b.method = dataclasses.replace(b.method, judges_segments=False)
     b.reset(FS)
     ev: list[Event] = []
     for s in range(0, len(x), 1000):
@@ -501,3 +509,99 @@ def test_a_monitor_started_in_the_cut_learns_its_steady_tone_first() -> None:
     alarms = [e for e in ev if e.name == "chatter"]
     assert len(alarms) == 1 and alarms[0].value == pytest.approx(937.0, rel=0.005)
     assert 0.0 < alarms[0].time_s - 2.5 <= 0.2
+
+
+def test_a_segment_after_a_step_keeps_lines_and_raises_the_noise_by_root_n_over_l() -> None:
+    # decision 1539: the part of a window after its mean step, zero-padded to the window and
+    # scaled by its own taper sums, gives a line the amplitude a full window gives it (the
+    # ratio to the tooth line is the seed's), while white noise per bin rises by √(n/L)
+    from millsense.monitoring.chatter import _kernels as kn
+
+    n, m = 4096, 2048
+    rng = np.random.default_rng(11)
+    t = np.arange(n) / FS
+    line = 0.7 * np.cos(2 * np.pi * FS * 820 / n * t + 0.4)  # on a bin of the padded grid
+    x = line + 3.0 * (np.arange(n) >= n - m)  # a mean step 4 × the line at sample n − m
+    x -= x.mean()
+    assert kn.step_start(x) == n - m  # the cumulative sum's peak: the first sample after it
+    ring = np.zeros(8192)
+    ring[:n] = line  # the comb-filtered ring (here: the line alone)
+    out = np.empty((2, n))
+    _, half_step, w_sum, c_sum = kn.segment_windows(x, ring, n, n - m, False, out)
+    assert abs(half_step) < 1e-3  # the segment itself is steady (the line averages out)
+    raw = np.abs(np.fft.rfft(out[0])) * 2.0 / w_sum
+    comb = np.abs(np.fft.rfft(out[1])) * 2.0 / c_sum
+    # Hann over the segment: the line at its bin within 0.1 % (the negative-frequency image's
+    # leakage); rectangular: within 2 % (its image at the segment's sidelobe level)
+    assert raw[820] == pytest.approx(0.7, rel=1e-3)
+    assert comb[820] == pytest.approx(0.7, rel=0.02)
+    noise = rng.standard_normal((400, n))
+    seg = np.zeros((400, n))
+    seg[:, :m] = noise[:, n - m :]
+    full = np.median(np.abs(np.fft.rfft(noise, axis=1)) * 2.0 / n)
+    part = np.median(np.abs(np.fft.rfft(seg, axis=1)) * 2.0 / m)
+    assert part / full == pytest.approx(math.sqrt(n / m), rel=0.02)  # 400 × 2049 bins
+
+
+@pytest.mark.parametrize(("entry", "first_verdict"), [(2.05, 2.2999), (2.13, 2.3999)])
+def test_chatter_from_an_entry_with_a_load_step_is_judged_after_the_step(
+    entry: float, first_verdict: float
+) -> None:
+    # decision 1539: a torque's entry is a step of its mean (here 5 × the tooth line) and
+    # chatter (937 Hz) starts with it. Windows holding the step fail the steady-mean gate; the
+    # part after the step is judged once it resolves a line at the edge of the band excluded
+    # around the harmonics (6000 rev/min: f_rev/20 = 5 Hz → L ≥ 2000 samples): the first
+    # decision (every 0.1 s, samples ending in 999) at least 2000 samples after the entry.
+    # Without it the first verdict came on the first window wholly after the entry (2.5 s).
+    # (no drift of the offset: in air a drift of 0.5/s is itself taken for a load, 1531)
+    x, spd = _signal(dur=3.2, onset=entry, cut_start=entry, load_step=5.0, chatter_amp=2.0,
+                     drift=0.0)  # fmt: skip
+    alarms = _run_comb(x, spd, 4)
+    assert len(alarms) == 1
+    assert alarms[0].time_s == pytest.approx(first_verdict, abs=1e-9)  # the decision grid
+    assert alarms[0].value == pytest.approx(937.0, rel=0.005)
+    # the same monitor without the segments (as the SDFT criterion): the first verdict on the
+    # first window whose halves' means agree, 0.2 s later (the step within its first 0.03 s)
+    assert _run_comb(x, spd, 4, segments=False)[0].time_s == pytest.approx(
+        first_verdict + 0.2, abs=1e-9
+    )
+
+
+def test_chunk_size_invariance_through_a_load_step() -> None:
+    # decision 1539's parts are read from the rings at the decision samples only: outputs and
+    # events identical whatever the chunking (entry with chatter, judged after the step)
+    x, spd = _signal(dur=2.6, onset=2.05, cut_start=2.05, load_step=5.0, drift=0.0)
+    ref, ev_ref = _run(x, spd, chunk=len(x))
+    assert [e.time_s for e in ev_ref if e.name == "chatter"] == pytest.approx([2.2999])  # a part
+    for chunk in (7, 100, 999):
+        out, ev = _run(x, spd, chunk=chunk)
+        for k in ref:
+            np.testing.assert_array_equal(out[k], ref[k])
+        assert [e.as_dict() for e in ev] == [e.as_dict() for e in ev_ref]
+
+
+def test_entry_and_exit_with_a_load_step_give_no_alarm(monkeypatch: pytest.MonkeyPatch) -> None:
+    # decision 1539: a stable cut entered and left with a load step (5 × the tooth line), a
+    # steady tone learned in air and a resonance excited by the cut: the parts after the steps
+    # are judged (the entry) or out of the cut (the exit), and nothing in them is new
+    x, spd = _signal(dur=6.0, onset=None, tone=(1234.0, 3.3), cut_start=2.05, load_step=5.0,
+                     cut_end=4.53, drift=0.0)  # fmt: skip
+    rng = np.random.default_rng(5)
+    b, a = scipy.signal.iirpeak(1800.0, 30.0, fs=FS)
+    t = np.arange(len(x)) / FS
+    x = x + scipy.signal.lfilter(b, a, rng.standard_normal(len(x))) * 0.5 * (t >= 2.05)
+    judged: list[float] = []
+    segment = ChatterMonitor._segment_spectra
+
+    def spy(self: ChatterMonitor, *args: Any) -> Any:
+        sp = segment(self, *args)
+        if sp is not None:
+            judged.append(self._stage.pos / FS)
+        return sp
+
+    monkeypatch.setattr(ChatterMonitor, "_segment_spectra", spy)
+    out, ev = _run(x, spd)
+    assert judged == pytest.approx([2.3, 2.4])  # the entry's parts (≥ 2000 samples), no exit's
+    assert [e for e in ev if e.name == "chatter"] == []
+    ratio = out["chatter-comb/energy_ratio"]
+    assert np.max(ratio) < 0.7 * 1.5  # a margin under the seed's 1.5, not a near miss

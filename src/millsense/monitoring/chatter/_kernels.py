@@ -318,3 +318,64 @@ def novel_peak(
     k = band_argmax(novel, b0, b1)
     learn(background, comb, novel, a_plain, a_novel)
     return k
+
+
+@numba.njit(cache=True, nogil=True)
+def step_start(x: FloatArray) -> int:  # pragma: no cover - compiled
+    """The first sample after the largest step of the mean in ``x`` (mean removed): the
+    argmax over k of |Σ_{i<k} x_i| (the cumulative sum of a zero-mean window is a triangle
+    peaking at a single mean step, wherever it is; the least-squares single change point of
+    the mean up to the triangle's weighting; decision 1539). Sums in sample order."""
+    c = 0.0
+    best = -1.0
+    k = 1
+    for i in range(x.shape[0] - 1):
+        c += x[i]
+        a = abs(c)
+        if a > best:
+            best = a
+            k = i + 1
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def segment_windows(
+    x: FloatArray, ring_y: FloatArray, pos: int, start: int, hann_comb: bool, out: FloatArray
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """The part of a window after its mean step (decision 1539), zero-padded to the window's
+    length: ``out[0]`` the raw samples ``x[start:]`` (mean removed, ``x`` itself already less
+    the window's mean) less their own mean times a Hann taper of the segment's length
+    (``np.hanning``), ``out[1]`` the comb-filtered samples of the same span from ``ring_y``
+    (last ``len(x)`` written before ``pos``), rectangular or (``hann_comb``) Hann-tapered;
+    zeros after. Returns the segment's mean (relative to the window's), the difference of the
+    means of its newer and older half, the sum of the Hann taper and of the comb row's taper
+    (the amplitude scales are 2 / these sums)."""
+    n = x.shape[0]
+    m = n - start
+    mask = ring_y.shape[0] - 1
+    first = pos - n + start
+    total = 0.0
+    for i in range(m):
+        total += x[start + i]
+    mean = total / m
+    h = m // 2
+    old = 0.0
+    new = 0.0
+    for i in range(h):
+        old += x[start + i] - mean
+    for i in range(h, m):
+        new += x[start + i] - mean
+    w_sum = 0.0
+    c_sum = 0.0
+    den = m - 1.0 if m > 1 else 1.0
+    for i in range(m):
+        w = 0.5 - 0.5 * np.cos(2.0 * np.pi * i / den)
+        w_sum += w
+        out[0, i] = (x[start + i] - mean) * w
+        c = w if hann_comb else 1.0
+        c_sum += c
+        out[1, i] = ring_y[(first + i) & mask] * c
+    for i in range(m, n):
+        out[0, i] = 0.0
+        out[1, i] = 0.0
+    return mean, new / (m - h) - old / h, w_sum, c_sum

@@ -10,7 +10,9 @@ Outputs, one value per sample, held between decisions: ``{name}/chatter`` (0/1),
 ``{name}/chatter_hz`` (Hz, NaN without chatter) and ``{name}/energy_ratio`` (the method's
 ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARNING, value
 the chatter frequency) is raised when a run of chatter windows starts, a NOTE
-``chatter_end`` when it ends.
+``chatter_end`` when it ends. A window in the cut whose mean steps (an entry, an exit, a depth
+step) is judged by ``chatter-comb`` on its part after the step when that part resolves the
+lines beside the spindle harmonics (decision 1539).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -128,6 +130,11 @@ SETTLE_SPEED = 0.002
 STEADY_SPEED = 0.02
 #: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
 STEADY_MEAN = 0.5
+#: A window's part after its mean step is judged when ``f_s / L`` (its rectangular
+#: resolution) is at most this many times the half-width of the band not searched around each
+#: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
+#: harmonic; decision 1539).
+SEGMENT_RESOLUTION = 1.0
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -279,6 +286,8 @@ class ChatterMonitor(Block):
         # rows: the tapered raw window and (criteria that learn) the comb-filtered window,
         # transformed together (:data:`rfft_rows`)
         self._windows = np.empty((2 if self.method.learns_background else 1, n))
+        # a window's part after its mean step, raw and comb-filtered (decision 1539)
+        self._seg_windows = np.empty((2, n if self.method.judges_segments else 0))
         nf = len(f)
         self._raw, self._comb, self._novel, self._raw_rect = (np.empty(nf) for _ in range(4))
         self._background = np.zeros(nf)
@@ -325,7 +334,8 @@ class ChatterMonitor(Block):
     def _spectra(self) -> Spectra | None:
         """The spectra of the window ending at the last decision sample, or None when no
         decision is taken (too few samples, the speed or, for the learning criteria, the mean
-        moving within the window: entry, exit, a large depth step). The cutting gate, the
+        moving within the window: entry, exit, a large depth step — unless the criterion
+        judges the part after the step, :meth:`_segment_spectra`). The cutting gate, the
         novelty and the largest novel bin are compiled (:func:`._kernels.cutting_gate`,
         :func:`._kernels.novel_peak`; decisions 1504, 1531, 1536)."""
         g = self._stage
@@ -363,13 +373,10 @@ class ChatterMonitor(Block):
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
                            band_slice=(b0, b1))  # fmt: skip
         if cutting and not steady:
-            return None  # entry, exit or a large step inside the window: no decision
-        if f_rev > 0 and abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
-            # chatter is never on a spindle harmonic (that is forced vibration): bins within
-            # the comb's notch width or 2 bins of one are not searched
-            off = np.abs(f - f_rev * np.rint(f / f_rev))
-            self._harm_mask = off <= max(2.0 * df, 0.5 * f_rev / 10.0)
-            self._mask_f_rev = f_rev
+            # entry, exit or a large step inside the window: the part after the step, if it
+            # resolves the lines (decision 1539), else no decision
+            return self._segment_spectra(f_rev, f_t, k0, k1, b0, b1, level)
+        self._update_harm_mask(f_rev)
         # hysteresis: while chatter is flagged a component stays new above 2 × its background
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         comb, novel = self._comb, self._novel
@@ -400,6 +407,73 @@ class ChatterMonitor(Block):
             raw_rect = self._raw_rect
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
+                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+
+    def _update_harm_mask(self, f_rev: float) -> None:
+        """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
+        comb's notch half-width ``f_rev / 20`` or 2 bins of one are not searched."""
+        if f_rev > 0 and abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
+            f = self._f
+            off = np.abs(f - f_rev * np.rint(f / f_rev))
+            self._harm_mask = off <= self._mask_half_width(f_rev)
+            self._mask_f_rev = f_rev
+
+    def _mask_half_width(self, f_rev: float) -> float:
+        """Half-width of the band around each spindle harmonic that is not searched, Hz."""
+        return max(2.0 * self._df, 0.5 * f_rev / 10.0)
+
+    def _segment_spectra(
+        self, f_rev: float, f_t: float, k0: int, k1: int, b0: int, b1: int, level: float
+    ) -> Spectra | None:
+        """The spectra of the part of the window after its mean step (entry, exit, a depth
+        step), for a window in the cut that fails the steady-mean gate (decision 1539).
+
+        The step is the window's single change point of the mean (:func:`._kernels.step_start`).
+        The segment from it to the window's end is judged when it resolves a line at the edge
+        of the harmonic exclusion band from the harmonic (Rayleigh: ``f_s / L`` no wider than
+        the band's half-width ``max(2 Δf, f_rev / 20)``, :data:`SEGMENT_RESOLUTION`), is itself
+        in the cut and steady. Its raw (Hann) and comb-filtered (rectangular) spectra are
+        zero-padded to the window's bins and scaled by the segment's own taper sums, so a line
+        has the amplitude a full window gives it (the tooth line, the chatter line and their
+        ratio are the seed's, Eq. 5.30); the noise per bin is ``g = √(n / L)`` times a full
+        window's, so the learned floor, the load span and the background are taken ``g`` times
+        higher (a segment cannot turn the floor into a new line; a real line must stand
+        ``5 g`` times above its background). Nothing is learned from a segment: the background,
+        the air floor and mean and the speed state stay those of the full windows.
+
+        Work per such window: one pass for the step, one for the tapers, the pair of
+        transforms, the amplitudes and median, the novelty and its largest bin (the full
+        window's steps again, compiled); windows passing the mean gate do none of it."""
+        if not self.method.judges_segments:
+            return None
+        g = self._stage
+        n = self.method.window
+        if self._settling > 0 or not self._has_background or not f_rev > 0:
+            return None
+        last = self._judged_f_rev
+        if abs(f_rev - last) > SETTLE_SPEED * last:
+            return None  # a new speed: its lines are learned on full windows first
+        start = _kn.step_start(self._xr)
+        m = n - start
+        if m < 2 or m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs:
+            return None  # too short to resolve the lines beside the harmonics
+        seg = self._seg_windows
+        mean, half_step, w_sum, c_sum = _kn.segment_windows(
+            self._xr, g.ring_y, g.pos, start, self.method.taper != "rect", seg
+        )
+        spectra = rfft_rows(seg)
+        raw, comb, novel = self._raw, self._comb, self._novel
+        grow = math.sqrt(n / m)
+        tooth, med = _kn.amplitude_line_median(spectra[0], 2.0 / w_sum, k0, k1, b0, b1, raw)
+        gate = _segment_gate(tooth, med, level + mean, half_step, f_rev, self._air, grow)
+        if gate is None:
+            return None  # the segment is out of the cut (an exit) or not steady either
+        self._update_harm_mask(f_rev)
+        _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
+        factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+        _kn.novelty(comb, self._background, factor * grow, self._harm_mask, novel)
+        k = _kn.band_argmax(novel, b0, b1)
+        return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
 
     def _learning_rates(self, cutting: bool) -> tuple[float, float]:
@@ -491,6 +565,36 @@ class ChatterMonitor(Block):
             y_mm=loc[2],
             z_mm=loc[3],
         )
+
+
+def _segment_gate(
+    tooth: float,
+    med: float,
+    level: float,
+    half_step: float,
+    f_rev: float,
+    air: np.ndarray,
+    grow: float,
+) -> float | None:
+    """The cutting and steady-mean gates of :func:`._kernels.cutting_gate` on a window's part
+    after its mean step (decision 1539), learning nothing: the floor learned out of the cut and
+    the load span are taken ``grow`` (√(n / L)) times higher, as the segment's noise. Returns
+    the reference of the ratio (the tooth line, no less than 3 × the floor), or None when the
+    segment is out of the cut or its own halves' means differ."""
+    has_floor = air[_kn.HAS_FLOOR] > 0.0
+    has_mean = air[_kn.HAS_MEAN] > 0.0
+    air_floor = air[_kn.AIR_FLOOR] * grow
+    air_mean = air[_kn.AIR_MEAN]
+    air_f = air[_kn.AIR_F_REV]
+    floor = air_floor if has_floor and air_floor < med else med
+    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
+    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
+    loaded = has_mean and has_floor and abs(level - air_mean) > span
+    if not (tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)):
+        return None
+    if abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * floor):
+        return None
+    return max(tooth, CUTTING_GATE * floor)
 
 
 def _run_chunk(

@@ -28,7 +28,10 @@ time are not called chatter; decisions are taken only while the tooth-passing li
 above the spectrum's median or the window's mean stands off the air mean (the tool is cutting),
 the window's mean is steady (no entry or exit step) and the speed is steady; bins on the spindle
 harmonics are not searched. After a speed change the background re-learns every bin for 0.5 s
-before a verdict (lines whose frequency the speed sets, decision 1537).
+before a verdict (lines whose frequency the speed sets, decision 1537). A window in the cut
+whose mean steps is judged by ``chatter-comb`` on its part after the step (zero-padded, the
+lines at a full window's amplitude, the background taken √(n/L) higher as the noise) when that
+part resolves a line at the edge of the harmonics' excluded band (decision 1539).
 """
 
 from __future__ import annotations
@@ -118,6 +121,13 @@ class ChatterMethod:
         calibrated on the run).
     learns_background : use the learned background and the cutting gate.
     seed : the seed the criterion comes from (for messages).
+    judges_segments : a window in the cut whose mean steps (entry, exit, depth step) is
+        judged on its part after the step when that resolves the lines (decision 1539):
+        ``chatter-comb`` only, whose ratio is a line over the tooth line of the same samples;
+        the SDFT's ratio sums the variance of every new bin over its fixed N-sample window
+        (Yamada Eq. 6-12), into which an entry's transients (the comb's ring-down of the
+        harmonics, the structure's free vibration) enter at double weight on a half-window
+        segment (a 0.64 > 0.5 false alarm on a stable stream).
     """
 
     name: str
@@ -126,6 +136,7 @@ class ChatterMethod:
     threshold: float | None
     learns_background: bool
     seed: str
+    judges_segments: bool = False
 
     def decide(self, s: Spectra, calibrated: float | None) -> Verdict:
         """The verdict on one window (``calibrated``: threshold of the threshold method)."""
@@ -165,7 +176,9 @@ class ChatterMethod:
 
 #: The chatter criteria by name (window lengths in samples, chosen for a 10 kHz stream).
 METHODS: dict[str, ChatterMethod] = {
-    "chatter-comb": ChatterMethod("chatter-comb", 4096, "rect", SEED000_RATIO, True, "seed 000"),
+    "chatter-comb": ChatterMethod(
+        "chatter-comb", 4096, "rect", SEED000_RATIO, True, "seed 000", judges_segments=True
+    ),
     "chatter-sdft": ChatterMethod("chatter-sdft", 2048, "rect", 0.5, True, "seed 001"),
     "chatter-threshold": ChatterMethod("chatter-threshold", 256, "hann", None, False, "seed 002"),
 }
