@@ -52,3 +52,30 @@ def test_heldout_stream_is_reproducible_and_uses_its_profile() -> None:
     rpm = a["spindle/speed"] * 60 / (2 * math.pi)
     assert rpm.min() >= min(pr.rpm_choices) * min(pr.override_choices) - 1e-6
     assert rpm.max() <= max(pr.rpm_choices) * max(pr.override_choices) + 1e-6
+
+
+def test_phase_latencies_move_with_the_start_of_the_recording() -> None:
+    """Decision 1541: the latency is judged at ten start phases; each alarm lands on a decision
+    instant of its own grid (a multiple of 0.1 s from the recording's start), so the ten
+    latencies differ and the worst is up to one decision interval above the best."""
+    rng = np.random.default_rng(5)
+    fs = mc.FS_HZ
+    n = int(5.0 * fs)
+    t = np.arange(n) / fs
+    # 100 Hz spindle (2 flutes: a 200 Hz tooth line), run up from rest over 0.3 s, a steady
+    # cut throughout (no entry: an entry's own transient is not what this judges), chatter
+    # from 3.503 s
+    speed = np.minimum(t / 0.3, 1.0) * 6000.0 * 2 * np.pi / 60
+    cut = 1.0
+    onset = 3.503
+    x = 0.02 * rng.standard_normal(n)
+    x += cut * (np.sin(2 * np.pi * 200 * t) + 0.5 * np.sin(2 * np.pi * 400 * t))
+    x += (t >= onset) * 3.0 * np.sin(2 * np.pi * 1234.5 * t)  # chatter at full size
+    lat = mc.phase_latencies(x, speed, 2, onset)
+    assert len(lat) == mc.LATENCY_PHASES
+    assert all(math.isfinite(v) and 0.0 < v < 0.5 for v in lat), lat
+    for k, v in enumerate(lat):
+        alarm = onset + k * mc.LATENCY_PHASE_STEP_S + v  # in the shifted recording's time
+        assert abs(alarm * 10 - round(alarm * 10)) * 0.1 <= 2.0 / fs, (k, alarm)
+    # one decision interval separates the phases' latencies (the alarm window the same)
+    assert 0.08 <= max(lat) - min(lat) <= 0.1 + 1e-9, lat
