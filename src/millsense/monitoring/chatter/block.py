@@ -135,6 +135,11 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
+#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
+#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
+#: straddles an entry or an exit is read against the tooth line of its part in the cut
+#: (decision 1542).
+RUN_LEVEL = 0.5
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -393,6 +398,19 @@ class ChatterMonitor(Block):
         if settling:
             self._settling -= 1
             cutting = False  # no verdict while the background learns the new speed
+        if (
+            self.method.judges_segments
+            and cutting
+            and b0 <= k < b1
+            and novel[k] > 0.0
+            and comb[k] > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
+        ):
+            # a ratio that counts (a rising run, a verdict): against the tooth line of the part
+            # in the cut when the window straddles an entry or an exit (decision 1542)
+            ref = self._tooth_of_the_cut(f_t, f_rev, tooth_ref, level)
+            if ref is None:
+                return None
+            tooth_ref = ref
         raw_rect = None
         if (
             self.method.name == "chatter-sdft"
@@ -408,6 +426,54 @@ class ChatterMonitor(Block):
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+
+    def _tooth_of_the_cut(
+        self, f_t: float, f_rev: float, tooth_ref: float, level: float
+    ) -> float | None:
+        """The reference of a chatter verdict on a full window (decision 1542): the tooth line
+        of its part in the cut when the window straddles an entry or an exit, else
+        ``tooth_ref``; None (no verdict) when that part is too short to resolve the tooth line.
+
+        At an entry or exit without a mean step (an accelerometer, a microphone) the window
+        passes the steady-mean gate. Its comb-filtered spectrum (rectangular, Eq. 5.30) holds
+        the comb's ring-down of the harmonics switched on or off (Eq. 5.27: β·α^j in
+        revolution j, a Lorentzian of half-width f_rev/20, the band not searched) at full
+        weight, while the Hann-tapered tooth line sees the part in the cut at the taper's low
+        end: its reference shrinks (a window with 700 of 4096 samples in the cut: 3 % of the
+        line), and the ring-down reads as chatter. The window is split at the change point
+        of its harmonic part's power (:func:`._kernels.power_step_start`); each part's tooth
+        line is taken under a Hann taper of its own length at the tooth-passing frequency
+        (:func:`._kernels.line_amplitude`) and is in the cut when above the cutting gate
+        (3 × the floor learned out of the cut, × √(n/L) for the part's noise, as decision
+        1539). A window loaded by its mean (the cutting gate's other test) is in the cut in
+        both parts, its mean being steady. When one part is in the cut and the other not, the
+        ratio is read against the larger of the window's tooth line and the in-cut part's: the
+        line while the tool cuts (never a smaller reference than the window's own).
+        The part must hold two revolutions (its Hann main lobe, ±2 f_s/L, within the
+        spindle frequency of the tooth line: resolved from the neighbouring harmonics).
+
+        Work: only for a window whose ratio passes :data:`RUN_LEVEL` × the threshold (a rising
+        run or a verdict), compiled: the change point (two passes over the window), the two
+        parts' lines (one pass); none for the others."""
+        g = self._stage
+        air = self._air
+        if not air[_kn.HAS_FLOOR] > 0.0 or not f_rev > 0.0 or _loaded(level, f_rev, air, 1.0):
+            return tooth_ref
+        xr = self._xr
+        n = len(xr)
+        start = _kn.power_step_start(xr, g.ring_y, g.pos)
+        cycles = f_t / self._fs
+        before = _kn.line_amplitude(xr, 0, start, cycles)
+        after = _kn.line_amplitude(xr, start, n, cycles)
+        floor = CUTTING_GATE * air[_kn.AIR_FLOOR]
+        cut_before = before > floor * math.sqrt(n / start)
+        cut_after = after > floor * math.sqrt(n / (n - start))
+        if cut_before == cut_after:
+            return tooth_ref  # both parts in the cut (a depth step, chatter) or neither
+        m, line = (start, before) if cut_before else (n - start, after)
+        if m * f_rev < 2.0 * self._fs:
+            return None  # the part in the cut does not resolve its tooth line
+        return max(tooth_ref, line)
 
     def _update_harm_mask(self, f_rev: float) -> None:
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
@@ -500,7 +566,7 @@ class ChatterMonitor(Block):
         v = self.method.decide(sp, self._calibrated)
         was = bool(self._flag)
         now = v.chatter
-        if v.ratio > 0.5 * v.threshold:
+        if v.ratio > RUN_LEVEL * v.threshold:
             if self._run_start is None:
                 self._run_start = t
         else:
@@ -582,19 +648,28 @@ def _segment_gate(
     the reference of the ratio (the tooth line, no less than 3 × the floor), or None when the
     segment is out of the cut or its own halves' means differ."""
     has_floor = air[_kn.HAS_FLOOR] > 0.0
-    has_mean = air[_kn.HAS_MEAN] > 0.0
     air_floor = air[_kn.AIR_FLOOR] * grow
-    air_mean = air[_kn.AIR_MEAN]
-    air_f = air[_kn.AIR_F_REV]
     floor = air_floor if has_floor and air_floor < med else med
-    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
-    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
-    loaded = has_mean and has_floor and abs(level - air_mean) > span
+    loaded = _loaded(level, f_rev, air, grow)
     if not (tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)):
         return None
     if abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * floor):
         return None
     return max(tooth, CUTTING_GATE * floor)
+
+
+def _loaded(level: float, f_rev: float, air: np.ndarray, grow: float) -> bool:
+    """The load test of :func:`._kernels.cutting_gate` (decision 1531): the mean ``level`` is
+    :data:`LOAD_GATE` floors learned out of the cut (× ``grow``, a part's noise) away from the
+    mean learned there (at another speed the air mean's own size more)."""
+    if not (air[_kn.HAS_MEAN] > 0.0 and air[_kn.HAS_FLOOR] > 0.0):
+        return False
+    air_floor = air[_kn.AIR_FLOOR] * grow
+    air_mean = air[_kn.AIR_MEAN]
+    air_f = air[_kn.AIR_F_REV]
+    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
+    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
+    return bool(abs(level - air_mean) > span)
 
 
 def _run_chunk(
