@@ -654,15 +654,17 @@ def _abrupt_entry(
     return np.concatenate([np.full(lead, x[0]), x]), np.concatenate([np.zeros(lead), speed])
 
 
-def _comb_2_flutes(x: np.ndarray, spd: np.ndarray) -> tuple[list[Event], np.ndarray]:
-    b = ChatterMonitor(ChatterSettings(method="chatter-comb", signal="s", n_flutes=2))
+def _comb_2_flutes(
+    x: np.ndarray, spd: np.ndarray, method: str = "chatter-comb"
+) -> tuple[list[Event], np.ndarray]:
+    b = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=2))
     b.reset(FS)
     events: list[Event] = []
     ratio = []
     for s in range(0, len(x), 1000):
         o = b.process(Chunk(s, FS, 0.0, {"s": x[s : s + 1000], "spindle/speed": spd[s : s + 1000]}))
         events += [e for e in o.events if e.name == "chatter"]
-        ratio.append(o.channels["chatter-comb/energy_ratio"])
+        ratio.append(o.channels[f"{method}/energy_ratio"])
     return events, np.concatenate(ratio)
 
 
@@ -704,3 +706,49 @@ def test_abrupt_entry_and_exit_without_a_mean_step_give_no_alarm(phase: int) -> 
     events, ratio = _comb_2_flutes(*_abrupt_entry(100 * phase, chatter=False, exit_s=4.0))
     assert events == []
     assert np.max(ratio) < 0.7 * 1.5
+
+
+def test_chunk_size_invariance_through_an_abrupt_entry() -> None:
+    # decision 1542's parts are read from the window and the comb ring at the decision samples
+    # only: outputs identical whatever the chunking (phase 5: the entry's window at 2.55 s
+    # reads its ratio against the part in the cut, and the chatter is found)
+    x, spd = _abrupt_entry(500)
+    x, spd = x[: int(4.2 * FS)], spd[: int(4.2 * FS)]
+    b = ChatterMonitor(ChatterSettings(method="chatter-comb", signal="s", n_flutes=2))
+    outs = []
+    for chunk in (len(x), 7, 999):
+        b.reset(FS)
+        parts: list[np.ndarray] = []
+        events: list[dict[str, Any]] = []
+        for s in range(0, len(x), chunk):
+            data = {"s": x[s : s + chunk], "spindle/speed": spd[s : s + chunk]}
+            o = b.process(Chunk(s, FS, 0.0, data))
+            parts.append(np.vstack([o.channels[k] for k in sorted(o.channels)]))
+            events += [e.as_dict() for e in o.events]
+        outs.append((np.hstack(parts), events))
+    assert [e["name"] for e in outs[0][1]] == ["chatter"]
+    for out, events in outs[1:]:
+        np.testing.assert_array_equal(out, outs[0][0])
+        assert events == outs[0][1]
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_abrupt_entry_and_exit_give_the_sdft_no_verdict(phase: int) -> None:
+    # decision 1542: the SDFT's sums over a window straddling the entry or the exit count the
+    # comb's ring-down as chatter variance and take it off the harmonic variance (raw² −
+    # comb²): before, an alarm at 192.7 Hz (0.64 > 0.5) at the entry at one phase and at
+    # 210 Hz (harmonic variance ≈ 0) after the exit at another. Such a window gets no SDFT
+    # verdict, as a window whose mean steps (decision 1539); the chatter (from 3.503 s) is
+    # still found, on windows wholly in the cut
+    lead = 100 * phase
+    events, _ = _comb_2_flutes(*_abrupt_entry(lead), method="chatter-sdft")
+    onset = 3.503 + lead / FS
+    assert events and events[0].time_s > onset
+    assert events[0].value == pytest.approx(1234.5, abs=1.0)
+    # the chatter line is 3 × the tooth line: the first decision holding about 200 of its
+    # samples passes 0.5 (0.027-0.117 s over the phases): at most a hop (0.1 s) and 0.02 s
+    assert events[0].time_s - onset <= 0.12
+    exit_events, _ = _comb_2_flutes(
+        *_abrupt_entry(lead, chatter=False, exit_s=4.0), method="chatter-sdft"
+    )
+    assert exit_events == []

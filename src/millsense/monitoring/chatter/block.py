@@ -12,7 +12,10 @@ ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARN
 the chatter frequency) is raised when a run of chatter windows starts, a NOTE
 ``chatter_end`` when it ends. A window in the cut whose mean steps (an entry, an exit, a depth
 step) is judged by ``chatter-comb`` on its part after the step when that part resolves the
-lines beside the spindle harmonics (decision 1539).
+lines beside the spindle harmonics (decision 1539). A window of ``chatter-comb`` whose ratio
+counts and that straddles an entry or an exit without a mean step (one part of it, split at
+the change of its harmonic power, out of the cut) reads its ratio against the tooth line of
+the part in the cut (decision 1542).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -299,6 +302,7 @@ class ChatterMonitor(Block):
         self._has_background = False
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
+        self._level = 0.0  # mean of the last window decided
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
         self._air = np.zeros(_kn.AIR_SIZE)
@@ -353,6 +357,7 @@ class ChatterMonitor(Block):
             return None  # speed changing within the window: no decision (decision 1504)
         xr, raw, windows = self._xr, self._raw, self._windows
         level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, windows[0])
+        self._level = level
         learns = self.method.learns_background
         if learns:  # the comb-filtered window, transformed with the raw one
             _kn.last_samples(g.ring_y, g.pos, windows[1])
@@ -430,9 +435,10 @@ class ChatterMonitor(Block):
     def _tooth_of_the_cut(
         self, f_t: float, f_rev: float, tooth_ref: float, level: float
     ) -> float | None:
-        """The reference of a chatter verdict on a full window (decision 1542): the tooth line
-        of its part in the cut when the window straddles an entry or an exit, else
-        ``tooth_ref``; None (no verdict) when that part is too short to resolve the tooth line.
+        """The reference of a ratio that counts on a full window of ``chatter-comb`` (decision
+        1542): the tooth line of its part in the cut when the window straddles an entry or an
+        exit (:meth:`_straddle`), never less than the window's own ``tooth_ref``; else
+        ``tooth_ref``; None (no verdict) when that part is too short to resolve its tooth line.
 
         At an entry or exit without a mean step (an accelerometer, a microphone) the window
         passes the steady-mean gate. Its comb-filtered spectrum (rectangular, Eq. 5.30) holds
@@ -440,25 +446,39 @@ class ChatterMonitor(Block):
         revolution j, a Lorentzian of half-width f_rev/20, the band not searched) at full
         weight, while the Hann-tapered tooth line sees the part in the cut at the taper's low
         end: its reference shrinks (a window with 700 of 4096 samples in the cut: 3 % of the
-        line), and the ring-down reads as chatter. The window is split at the change point
-        of its harmonic part's power (:func:`._kernels.power_step_start`); each part's tooth
-        line is taken under a Hann taper of its own length at the tooth-passing frequency
-        (:func:`._kernels.line_amplitude`) and is in the cut when above the cutting gate
-        (3 × the floor learned out of the cut, × √(n/L) for the part's noise, as decision
-        1539). A window loaded by its mean (the cutting gate's other test) is in the cut in
-        both parts, its mean being steady. When one part is in the cut and the other not, the
-        ratio is read against the larger of the window's tooth line and the in-cut part's: the
-        line while the tool cuts (never a smaller reference than the window's own).
-        The part must hold two revolutions (its Hann main lobe, ±2 f_s/L, within the
-        spindle frequency of the tooth line: resolved from the neighbouring harmonics).
+        line), and the ring-down reads as chatter. Against the line while the tool cuts the
+        ring-down is 5 % of it. The part must hold two revolutions (its Hann main lobe,
+        ±2 f_s/L, within the spindle frequency of the tooth line: resolved from the
+        neighbouring harmonics)."""
+        part = self._straddle(f_t, f_rev, level)
+        if part is None:
+            return tooth_ref
+        m, line = part
+        if m * f_rev < 2.0 * self._fs:
+            return None  # the part in the cut does not resolve its tooth line
+        return max(tooth_ref, line)
+
+    def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, float] | None:
+        """Whether the full window just decided straddles an entry or an exit (decision
+        1542): its length and tooth line of the part in the cut if so, else None.
+
+        The window is split at the change point of its harmonic part's power
+        (:func:`._kernels.power_step_start`); each part's tooth line is taken under a Hann
+        taper of its own length at the tooth-passing frequency
+        (:func:`._kernels.line_amplitude`) and is in the cut when above the cutting gate (3 ×
+        the floor learned out of the cut, × √(n/L) for the part's noise, as decision 1539). A
+        window loaded by its mean (the cutting gate's other test) is in the cut in both parts,
+        its mean being steady. The window straddles when one part is in the cut and the other
+        not. (A part whose line lies near its gate, a weak tooth line, may be classed either
+        way; the comb's reference then is the larger of two measurements of the same line.)
 
         Work: only for a window whose ratio passes :data:`RUN_LEVEL` × the threshold (a rising
         run or a verdict), compiled: the change point (two passes over the window), the two
         parts' lines (one pass); none for the others."""
-        g = self._stage
         air = self._air
         if not air[_kn.HAS_FLOOR] > 0.0 or not f_rev > 0.0 or _loaded(level, f_rev, air, 1.0):
-            return tooth_ref
+            return None
+        g = self._stage
         xr = self._xr
         n = len(xr)
         start = _kn.power_step_start(xr, g.ring_y, g.pos)
@@ -469,11 +489,8 @@ class ChatterMonitor(Block):
         cut_before = before > floor * math.sqrt(n / start)
         cut_after = after > floor * math.sqrt(n / (n - start))
         if cut_before == cut_after:
-            return tooth_ref  # both parts in the cut (a depth step, chatter) or neither
-        m, line = (start, before) if cut_before else (n - start, after)
-        if m * f_rev < 2.0 * self._fs:
-            return None  # the part in the cut does not resolve its tooth line
-        return max(tooth_ref, line)
+            return None  # both parts in the cut (a depth step, chatter) or neither
+        return (start, before) if cut_before else (n - start, after)
 
     def _update_harm_mask(self, f_rev: float) -> None:
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
@@ -564,6 +581,15 @@ class ChatterMonitor(Block):
             elif self._calibrated is None and self._calib:
                 self._calibrated = CALIBRATION_FACTOR * max(self._calib)
         v = self.method.decide(sp, self._calibrated)
+        if (
+            self.method.name == "chatter-sdft"
+            and v.ratio > RUN_LEVEL * v.threshold
+            and self._straddle(sp.f_tooth_hz, sp.f_rev_hz, self._level) is not None
+        ):
+            # the SDFT's sums over a window straddling an entry or an exit hold the comb's
+            # ring-down as chatter variance and less harmonic variance (raw² − comb²): no
+            # verdict, as on a window whose mean steps (decisions 1539, 1542)
+            return []
         was = bool(self._flag)
         now = v.chatter
         if v.ratio > RUN_LEVEL * v.threshold:
