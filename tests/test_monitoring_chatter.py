@@ -676,8 +676,10 @@ def test_abrupt_entry_without_a_mean_step_is_no_chatter(phase: int) -> None:
     # the window's Hann-tapered tooth line sees only its last samples: with 300-700 samples in
     # the cut the ratio was 1.8-15.7 (false alarms at 195-200 Hz). The window straddles the
     # entry (its part before the change of the harmonic power out of the cut, the part after
-    # in it), so its ratio is read against the part's tooth line (1.0). At every phase of the
-    # 0.1 s decision grid (10 ms steps): no alarm before the chatter, the chatter found.
+    # in it), so it is judged on the part after the change (decision 1539's rule, the band
+    # left out widened to f_s/L): the ring-down is not resolved from the harmonic there and
+    # is not searched. At every phase of the 0.1 s decision grid (10 ms steps): no alarm
+    # before the chatter, the chatter found.
     lead = 100 * phase
     events, ratio = _comb_2_flutes(*_abrupt_entry(lead))
     onset = 3.503 + lead / FS
@@ -690,10 +692,36 @@ def test_abrupt_entry_without_a_mean_step_is_no_chatter(phase: int) -> None:
     # the decision: the chatter starts 1 s after the entry)
     assert events[0].time_s - onset <= 0.33
     # the entry's windows: a margin under the seed's 1.5, not a near miss (a ratio above half
-    # the threshold is read against the part in the cut; 0.12-0.65 over the phases, 0.9-15.6
+    # the threshold is read on the part in the cut; 0.12-0.65 over the phases, 0.9-15.6
     # before)
     entry = slice(int(2.5 * FS) + lead, int(onset * FS))
     assert np.max(ratio[entry]) < 0.7 * 1.5
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_chatter_from_an_abrupt_entry_is_found_on_the_part_in_the_cut(phase: int) -> None:
+    # decision 1542: chatter (1234.5 Hz, 2 × the tooth line) that starts with an entry without
+    # a mean step is judged on the part after the change as soon as that part holds two
+    # revolutions (its tooth line resolved; 200 samples at 6000 rev/min): the first decision
+    # at least 0.02 s into the cut, so within 0.02 s + one hop (0.1 s) at every phase. The
+    # chatter line lies 34.5 Hz from a harmonic, outside the band widened to f_s/L. Read on
+    # the whole window against the part's tooth line, it took up to 0.24 s (the line
+    # averaged over a window mostly in air).
+    lead = 100 * phase
+    rng = np.random.default_rng(5)
+    n = int(4.0 * FS)
+    t = np.arange(n) / FS
+    speed = np.minimum(t / 0.3, 1.0) * 6000.0 * 2 * np.pi / 60
+    x = 0.02 * rng.standard_normal(n) + (t >= 2.5) * (
+        np.sin(2 * np.pi * 200 * t) + 0.5 * np.sin(2 * np.pi * 400 * t)
+        + 2.0 * np.sin(2 * np.pi * 1234.5 * t)
+    )  # fmt: skip
+    x = np.concatenate([np.full(lead, x[0]), x])
+    spd = np.concatenate([np.zeros(lead), speed])
+    events, _ = _comb_2_flutes(x, spd)
+    entry = 2.5 + lead / FS
+    assert events and events[0].value == pytest.approx(1234.5, abs=1.0)
+    assert 0.0 < events[0].time_s - entry <= 0.12 + 1.0 / FS
 
 
 @pytest.mark.parametrize("phase", range(10))
@@ -701,8 +729,8 @@ def test_abrupt_entry_and_exit_without_a_mean_step_give_no_alarm(phase: int) -> 
     # decision 1542: the exit (at 4.0 s) mirrors the entry: the comb rings down the harmonics
     # switched off at full (rectangular) weight while the Hann-tapered tooth line sees the
     # first samples, still in the cut, at the taper's low end (ratios 1.7-20 before); the
-    # part before the change is the one in the cut and gives the reference (largest ratio
-    # 0.21-0.65 over the phases)
+    # part before the change is the one in the cut and its tooth line is the reference of
+    # the window's comb line (largest ratio 0.21-0.65 over the phases)
     events, ratio = _comb_2_flutes(*_abrupt_entry(100 * phase, chatter=False, exit_s=4.0))
     assert events == []
     assert np.max(ratio) < 0.7 * 1.5

@@ -14,8 +14,8 @@ the chatter frequency) is raised when a run of chatter windows starts, a NOTE
 step) is judged by ``chatter-comb`` on its part after the step when that part resolves the
 lines beside the spindle harmonics (decision 1539). A window of ``chatter-comb`` whose ratio
 counts and that straddles an entry or an exit without a mean step (one part of it, split at
-the change of its harmonic power, out of the cut) reads its ratio against the tooth line of
-the part in the cut (decision 1542).
+the change of its harmonic power, out of the cut) is judged on its part in the cut: after an
+entry as such a part, after an exit against that part's tooth line (decision 1542).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -410,12 +410,17 @@ class ChatterMonitor(Block):
             and novel[k] > 0.0
             and comb[k] > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
         ):
-            # a ratio that counts (a rising run, a verdict): against the tooth line of the part
-            # in the cut when the window straddles an entry or an exit (decision 1542)
-            ref = self._tooth_of_the_cut(f_t, f_rev, tooth_ref, level)
-            if ref is None:
-                return None
-            tooth_ref = ref
+            # a ratio that counts (a rising run, a verdict) on a window straddling an entry or
+            # an exit: read on the part in the cut (decision 1542)
+            part = self._straddle(f_t, f_rev, level)
+            if part is not None:
+                start, entry, line = part
+                m = len(xr) - start if entry else start
+                if m * f_rev < 2.0 * self._fs:
+                    return None  # the part in the cut does not resolve its tooth line
+                if entry:
+                    return self._segment_spectra(f_rev, f_t, k0, k1, b0, b1, level, start)
+                tooth_ref = max(tooth_ref, line)
         raw_rect = None
         if (
             self.method.name == "chatter-sdft"
@@ -432,13 +437,10 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
 
-    def _tooth_of_the_cut(
-        self, f_t: float, f_rev: float, tooth_ref: float, level: float
-    ) -> float | None:
-        """The reference of a ratio that counts on a full window of ``chatter-comb`` (decision
-        1542): the tooth line of its part in the cut when the window straddles an entry or an
-        exit (:meth:`_straddle`), never less than the window's own ``tooth_ref``; else
-        ``tooth_ref``; None (no verdict) when that part is too short to resolve its tooth line.
+    def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
+        """Whether the full window just decided straddles an entry or an exit (decision
+        1542): if so (the first sample of the part after the change, whether that part is the
+        one in the cut: an entry, the tooth line of the part in the cut), else None.
 
         At an entry or exit without a mean step (an accelerometer, a microphone) the window
         passes the steady-mean gate. Its comb-filtered spectrum (rectangular, Eq. 5.30) holds
@@ -446,21 +448,12 @@ class ChatterMonitor(Block):
         revolution j, a Lorentzian of half-width f_rev/20, the band not searched) at full
         weight, while the Hann-tapered tooth line sees the part in the cut at the taper's low
         end: its reference shrinks (a window with 700 of 4096 samples in the cut: 3 % of the
-        line), and the ring-down reads as chatter. Against the line while the tool cuts the
-        ring-down is 5 % of it. The part must hold two revolutions (its Hann main lobe,
-        ±2 f_s/L, within the spindle frequency of the tooth line: resolved from the
-        neighbouring harmonics)."""
-        part = self._straddle(f_t, f_rev, level)
-        if part is None:
-            return tooth_ref
-        m, line = part
-        if m * f_rev < 2.0 * self._fs:
-            return None  # the part in the cut does not resolve its tooth line
-        return max(tooth_ref, line)
-
-    def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, float] | None:
-        """Whether the full window just decided straddles an entry or an exit (decision
-        1542): its length and tooth line of the part in the cut if so, else None.
+        line), and the ring-down reads as chatter. The window's ratio is therefore read on
+        its part in the cut: at an entry that part is judged as decision 1539's part after a
+        step (:meth:`_segment_spectra`); after an exit the comb spectrum is the window's and
+        the reference the part's tooth line (never less than the window's own). The part must
+        hold two revolutions (its Hann main lobe, ±2 f_s/L, within the spindle frequency of
+        the tooth line: resolved from the neighbouring harmonics), else no verdict.
 
         The window is split at the change point of its harmonic part's power
         (:func:`._kernels.power_step_start`); each part's tooth line is taken under a Hann
@@ -490,7 +483,7 @@ class ChatterMonitor(Block):
         cut_after = after > floor * math.sqrt(n / (n - start))
         if cut_before == cut_after:
             return None  # both parts in the cut (a depth step, chatter) or neither
-        return (start, before) if cut_before else (n - start, after)
+        return start, cut_after, after if cut_after else before
 
     def _update_harm_mask(self, f_rev: float) -> None:
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
@@ -506,7 +499,15 @@ class ChatterMonitor(Block):
         return max(2.0 * self._df, 0.5 * f_rev / 10.0)
 
     def _segment_spectra(
-        self, f_rev: float, f_t: float, k0: int, k1: int, b0: int, b1: int, level: float
+        self,
+        f_rev: float,
+        f_t: float,
+        k0: int,
+        k1: int,
+        b0: int,
+        b1: int,
+        level: float,
+        start: int | None = None,
     ) -> Spectra | None:
         """The spectra of the part of the window after its mean step (entry, exit, a depth
         step), for a window in the cut that fails the steady-mean gate (decision 1539).
@@ -524,6 +525,13 @@ class ChatterMonitor(Block):
         ``5 g`` times above its background). Nothing is learned from a segment: the background,
         the air floor and mean and the speed state stay those of the full windows.
 
+        With ``start`` (decision 1542) the part from ``start`` is the in-cut part of a window
+        straddling an entry without a mean step (:meth:`_straddle`, two revolutions at least).
+        A part shorter than the length above is judged with the band not searched around each
+        harmonic widened to ``f_s / L`` (Rayleigh at the part's own resolution: a line that
+        far from a harmonic is resolved from it, and the comb's ring-down of the harmonic,
+        a Lorentzian of half-width f_rev/20, reads there at most β/(2π) ≈ 0.14 of it).
+
         Work per such window: one pass for the step, one for the tapers, the pair of
         transforms, the amplitudes and median, the novelty and its largest bin (the full
         window's steps again, compiled); windows passing the mean gate do none of it."""
@@ -536,9 +544,12 @@ class ChatterMonitor(Block):
         last = self._judged_f_rev
         if abs(f_rev - last) > SETTLE_SPEED * last:
             return None  # a new speed: its lines are learned on full windows first
-        start = _kn.step_start(self._xr)
+        straddle = start is not None
+        if start is None:
+            start = _kn.step_start(self._xr)
         m = n - start
-        if m < 2 or m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs:
+        short = m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs
+        if m < 2 or (short and not straddle):
             return None  # too short to resolve the lines beside the harmonics
         seg = self._seg_windows
         mean, half_step, w_sum, c_sum = _kn.segment_windows(
@@ -552,9 +563,13 @@ class ChatterMonitor(Block):
         if gate is None:
             return None  # the segment is out of the cut (an exit) or not steady either
         self._update_harm_mask(f_rev)
+        mask = self._harm_mask
+        if short:  # a straddling entry's short part: the band left out widened to f_s / L
+            f = self._f
+            mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        _kn.novelty(comb, self._background, factor * grow, self._harm_mask, novel)
+        _kn.novelty(comb, self._background, factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
