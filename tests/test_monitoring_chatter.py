@@ -605,3 +605,178 @@ def test_entry_and_exit_with_a_load_step_give_no_alarm(monkeypatch: pytest.Monke
     assert [e for e in ev if e.name == "chatter"] == []
     ratio = out["chatter-comb/energy_ratio"]
     assert np.max(ratio) < 0.7 * 1.5  # a margin under the seed's 1.5, not a near miss
+
+
+def test_power_change_point_and_the_tooth_line_of_each_part() -> None:
+    # decision 1542: a harmonic switched on at sample s0 without a mean step: the change point
+    # of the harmonic part's power h² (h = x − y; here the comb output y is 0, as in its first
+    # revolution after an entry) is s0, within one period of sin²'s 400 Hz ripple (25
+    # samples: the cumulative sum's peak may land on the ripple's first crest); each part's
+    # line under a Hann taper of its own length is np.hanning's DFT at the line's frequency
+    from millsense.monitoring.chatter import _kernels as kn
+
+    n = 4096
+    t = np.arange(n) / FS
+    ring = np.zeros(8192)
+    noise = 0.02 * np.random.default_rng(3).standard_normal(n)
+    for s0 in (500, 1234, 2000, 3333, 3900):
+        x = 0.8 * np.sin(2 * np.pi * 200 * t + 1.0) * (np.arange(n) >= s0) + noise
+        x -= x.mean()
+        k = kn.power_step_start(x, ring, n)
+        assert abs(k - s0) <= 25
+        for lo, hi in ((0, k), (k, n)):
+            part = x[lo:hi] - x[lo:hi].mean()
+            w = np.hanning(hi - lo)
+            ref = 2 * abs(np.sum(part * w * np.exp(-2j * np.pi * 200 / FS * np.arange(hi - lo))))
+            assert kn.line_amplitude(x, lo, hi, 200 / FS) == pytest.approx(ref / w.sum(), 1e-9)
+        # the part after the change holds the line (0.8, Hann: no scalloping at its frequency;
+        # the noise's share ±0.02·√(3/L)), the part before only noise
+        assert kn.line_amplitude(x, k, n, 200 / FS) == pytest.approx(0.8, abs=0.02)
+        assert kn.line_amplitude(x, 0, k, 200 / FS) < 0.02
+
+
+def _abrupt_entry(
+    lead: int, chatter: bool = True, exit_s: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """An accelerometer-like signal without a mean: 0.02 white noise, a 2-flute spindle run up
+    to 6000 rev/min over 0.3 s, air until 2.5 s, then ``sin(2π·200 t) + 0.5 sin(2π·400 t)``
+    switched on (until ``exit_s``) and a chatter line ``3 sin(2π·1234.5 t)`` from 3.503 s;
+    the recording starts ``lead`` samples earlier (a stopped spindle)."""
+    rng = np.random.default_rng(5)
+    n = int(5.0 * FS)
+    t = np.arange(n) / FS
+    speed = np.minimum(t / 0.3, 1.0) * 6000.0 * 2 * np.pi / 60
+    cut = (t >= 2.5) & (t < (exit_s if exit_s is not None else math.inf))
+    x = 0.02 * rng.standard_normal(n)
+    x += cut * (np.sin(2 * np.pi * 200 * t) + 0.5 * np.sin(2 * np.pi * 400 * t))
+    if chatter:
+        x += (t >= 3.503) * 3.0 * np.sin(2 * np.pi * 1234.5 * t)
+    return np.concatenate([np.full(lead, x[0]), x]), np.concatenate([np.zeros(lead), speed])
+
+
+def _comb_2_flutes(
+    x: np.ndarray, spd: np.ndarray, method: str = "chatter-comb"
+) -> tuple[list[Event], np.ndarray]:
+    b = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=2))
+    b.reset(FS)
+    events: list[Event] = []
+    ratio = []
+    for s in range(0, len(x), 1000):
+        o = b.process(Chunk(s, FS, 0.0, {"s": x[s : s + 1000], "spindle/speed": spd[s : s + 1000]}))
+        events += [e for e in o.events if e.name == "chatter"]
+        ratio.append(o.channels[f"{method}/energy_ratio"])
+    return events, np.concatenate(ratio)
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_abrupt_entry_without_a_mean_step_is_no_chatter(phase: int) -> None:
+    # decision 1542: at an entry without a mean step the comb filter rings down the harmonics
+    # switched on (Eq. 5.27: β·α^j in revolution j, a Lorentzian of half-width f_rev/20 = the
+    # band not searched: 0.05 of the line at 205 Hz in every window holding the entry) while
+    # the window's Hann-tapered tooth line sees only its last samples: with 300-700 samples in
+    # the cut the ratio was 1.8-15.7 (false alarms at 195-200 Hz). The window straddles the
+    # entry (its part before the change of the harmonic power out of the cut, the part after
+    # in it), so it is judged on the part after the change (decision 1539's rule, the band
+    # left out widened to f_s/L): the ring-down is not resolved from the harmonic there and
+    # is not searched. At every phase of the 0.1 s decision grid (10 ms steps): no alarm
+    # before the chatter, the chatter found.
+    lead = 100 * phase
+    events, ratio = _comb_2_flutes(*_abrupt_entry(lead))
+    onset = 3.503 + lead / FS
+    assert events, "the chatter is not found"
+    assert events[0].time_s > onset  # no alarm at the entry
+    assert events[0].value == pytest.approx(1234.5, abs=1.0)
+    # the chatter's comb line in a rectangular window holding m of its samples is 3·m/n (less
+    # the scalloping: 1234.5 Hz lies 0.35 bin off a bin): the ratio passes 1.5 once m ≈ 2200
+    # samples (0.22 s), at the first decision after that (hop 0.1 s): 0.22-0.32 s (as before
+    # the decision: the chatter starts 1 s after the entry)
+    assert events[0].time_s - onset <= 0.33
+    # the entry's windows: a margin under the seed's 1.5, not a near miss (a ratio above half
+    # the threshold is read on the part in the cut; 0.12-0.65 over the phases, 0.9-15.6
+    # before)
+    entry = slice(int(2.5 * FS) + lead, int(onset * FS))
+    assert np.max(ratio[entry]) < 0.7 * 1.5
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_chatter_from_an_abrupt_entry_is_found_on_the_part_in_the_cut(phase: int) -> None:
+    # decision 1542: chatter (1234.5 Hz, 2 × the tooth line) that starts with an entry without
+    # a mean step is judged on the part after the change as soon as that part holds two
+    # revolutions (its tooth line resolved; 200 samples at 6000 rev/min): the first decision
+    # at least 0.02 s into the cut, so within 0.02 s + one hop (0.1 s) at every phase. The
+    # chatter line lies 34.5 Hz from a harmonic, outside the band widened to f_s/L. Read on
+    # the whole window against the part's tooth line, it took up to 0.24 s (the line
+    # averaged over a window mostly in air).
+    lead = 100 * phase
+    rng = np.random.default_rng(5)
+    n = int(4.0 * FS)
+    t = np.arange(n) / FS
+    speed = np.minimum(t / 0.3, 1.0) * 6000.0 * 2 * np.pi / 60
+    x = 0.02 * rng.standard_normal(n) + (t >= 2.5) * (
+        np.sin(2 * np.pi * 200 * t) + 0.5 * np.sin(2 * np.pi * 400 * t)
+        + 2.0 * np.sin(2 * np.pi * 1234.5 * t)
+    )  # fmt: skip
+    x = np.concatenate([np.full(lead, x[0]), x])
+    spd = np.concatenate([np.zeros(lead), speed])
+    events, _ = _comb_2_flutes(x, spd)
+    entry = 2.5 + lead / FS
+    assert events and events[0].value == pytest.approx(1234.5, abs=1.0)
+    assert 0.0 < events[0].time_s - entry <= 0.12 + 1.0 / FS
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_abrupt_entry_and_exit_without_a_mean_step_give_no_alarm(phase: int) -> None:
+    # decision 1542: the exit (at 4.0 s) mirrors the entry: the comb rings down the harmonics
+    # switched off at full (rectangular) weight while the Hann-tapered tooth line sees the
+    # first samples, still in the cut, at the taper's low end (ratios 1.7-20 before); the
+    # part before the change is the one in the cut and its tooth line is the reference of
+    # the window's comb line (largest ratio 0.21-0.65 over the phases)
+    events, ratio = _comb_2_flutes(*_abrupt_entry(100 * phase, chatter=False, exit_s=4.0))
+    assert events == []
+    assert np.max(ratio) < 0.7 * 1.5
+
+
+def test_chunk_size_invariance_through_an_abrupt_entry() -> None:
+    # decision 1542's parts are read from the window and the comb ring at the decision samples
+    # only: outputs identical whatever the chunking (phase 5: the entry's window at 2.55 s
+    # reads its ratio against the part in the cut, and the chatter is found)
+    x, spd = _abrupt_entry(500)
+    x, spd = x[: int(4.2 * FS)], spd[: int(4.2 * FS)]
+    b = ChatterMonitor(ChatterSettings(method="chatter-comb", signal="s", n_flutes=2))
+    outs = []
+    for chunk in (len(x), 7, 999):
+        b.reset(FS)
+        parts: list[np.ndarray] = []
+        events: list[dict[str, Any]] = []
+        for s in range(0, len(x), chunk):
+            data = {"s": x[s : s + chunk], "spindle/speed": spd[s : s + chunk]}
+            o = b.process(Chunk(s, FS, 0.0, data))
+            parts.append(np.vstack([o.channels[k] for k in sorted(o.channels)]))
+            events += [e.as_dict() for e in o.events]
+        outs.append((np.hstack(parts), events))
+    assert [e["name"] for e in outs[0][1]] == ["chatter"]
+    for out, events in outs[1:]:
+        np.testing.assert_array_equal(out, outs[0][0])
+        assert events == outs[0][1]
+
+
+@pytest.mark.parametrize("phase", range(10))
+def test_abrupt_entry_and_exit_give_the_sdft_no_verdict(phase: int) -> None:
+    # decision 1542: the SDFT's sums over a window straddling the entry or the exit count the
+    # comb's ring-down as chatter variance and take it off the harmonic variance (raw² −
+    # comb²): before, an alarm at 192.7 Hz (0.64 > 0.5) at the entry at one phase and at
+    # 210 Hz (harmonic variance ≈ 0) after the exit at another. Such a window gets no SDFT
+    # verdict, as a window whose mean steps (decision 1539); the chatter (from 3.503 s) is
+    # still found, on windows wholly in the cut
+    lead = 100 * phase
+    events, _ = _comb_2_flutes(*_abrupt_entry(lead), method="chatter-sdft")
+    onset = 3.503 + lead / FS
+    assert events and events[0].time_s > onset
+    assert events[0].value == pytest.approx(1234.5, abs=1.0)
+    # the chatter line is 3 × the tooth line: the first decision holding about 200 of its
+    # samples passes 0.5 (0.027-0.117 s over the phases): at most a hop (0.1 s) and 0.02 s
+    assert events[0].time_s - onset <= 0.12
+    exit_events, _ = _comb_2_flutes(
+        *_abrupt_entry(lead, chatter=False, exit_s=4.0), method="chatter-sdft"
+    )
+    assert exit_events == []

@@ -379,3 +379,64 @@ def segment_windows(
         out[0, i] = 0.0
         out[1, i] = 0.0
     return mean, new / (m - h) - old / h, w_sum, c_sum
+
+
+@numba.njit(cache=True, nogil=True)
+def power_step_start(x: FloatArray, ring_y: FloatArray, pos: int) -> int:  # pragma: no cover
+    """The first sample after the largest step of the power of the window's harmonic part
+    (decision 1542): with ``p = (x − y)²`` (``x`` the raw window less its mean, ``y`` the
+    comb-filtered samples, the last ``len(x)`` written to ``ring_y`` before ``pos``; ``1 −
+    G_cb`` passes the spindle harmonics, Aslan Eq. 5.26), the argmax over k of
+    |Σ_{i<k} (p_i − mean p)| (:func:`step_start` on the power: the single change point of its
+    mean, an entry or an exit without a mean step). Sums in sample order."""
+    n = x.shape[0]
+    mask = ring_y.shape[0] - 1
+    start = pos - n
+    total = 0.0
+    for i in range(n):
+        d = x[i] - ring_y[(start + i) & mask]
+        total += d * d
+    mean = total / n
+    c = 0.0
+    best = -1.0
+    k = 1
+    for i in range(n - 1):
+        d = x[i] - ring_y[(start + i) & mask]
+        c += d * d - mean
+        a = abs(c)
+        if a > best:
+            best = a
+            k = i + 1
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def line_amplitude(x: FloatArray, lo: int, hi: int, cycles: float) -> float:  # pragma: no cover
+    """The amplitude of the line at ``cycles`` per sample in ``x[lo:hi]`` (less its own mean)
+    under a Hann taper of the part's length (``np.hanning``): ``2·|Σ w_i x_i e^{−j2π·cycles·i}|
+    / Σ w_i`` (decision 1542). The phasors are advanced by rotation (one complex product per
+    sample; the rounding drifts by ~1e-13 over 4096 samples)."""
+    m = hi - lo
+    if m < 2:
+        return 0.0
+    total = 0.0
+    for i in range(lo, hi):
+        total += x[i]
+    mean = total / m
+    # the taper's cosine and the line's phasor, rotated sample by sample
+    ct, st = np.cos(2.0 * np.pi / (m - 1)), np.sin(2.0 * np.pi / (m - 1))
+    cl, sl = np.cos(2.0 * np.pi * cycles), np.sin(2.0 * np.pi * cycles)
+    wc, ws = 1.0, 0.0
+    pc, ps = 1.0, 0.0
+    re = 0.0
+    im = 0.0
+    w_sum = 0.0
+    for i in range(m):
+        w = 0.5 - 0.5 * wc
+        v = (x[lo + i] - mean) * w
+        re += v * pc
+        im -= v * ps
+        w_sum += w
+        wc, ws = wc * ct - ws * st, ws * ct + wc * st
+        pc, ps = pc * cl - ps * sl, ps * cl + pc * sl
+    return 2.0 * np.sqrt(re * re + im * im) / w_sum

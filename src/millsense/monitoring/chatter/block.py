@@ -12,7 +12,10 @@ ratio; its threshold is in the event). An ALARM event ``chatter`` (severity WARN
 the chatter frequency) is raised when a run of chatter windows starts, a NOTE
 ``chatter_end`` when it ends. A window in the cut whose mean steps (an entry, an exit, a depth
 step) is judged by ``chatter-comb`` on its part after the step when that part resolves the
-lines beside the spindle harmonics (decision 1539).
+lines beside the spindle harmonics (decision 1539). A window of ``chatter-comb`` whose ratio
+counts and that straddles an entry or an exit without a mean step (one part of it, split at
+the change of its harmonic power, out of the cut) is judged on its part in the cut: after an
+entry as such a part, after an exit against that part's tooth line (decision 1542).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -135,6 +138,11 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
+#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
+#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
+#: straddles an entry or an exit is read against the tooth line of its part in the cut
+#: (decision 1542).
+RUN_LEVEL = 0.5
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -294,6 +302,7 @@ class ChatterMonitor(Block):
         self._has_background = False
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
+        self._level = 0.0  # mean of the last window decided
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
         self._air = np.zeros(_kn.AIR_SIZE)
@@ -348,6 +357,7 @@ class ChatterMonitor(Block):
             return None  # speed changing within the window: no decision (decision 1504)
         xr, raw, windows = self._xr, self._raw, self._windows
         level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, windows[0])
+        self._level = level
         learns = self.method.learns_background
         if learns:  # the comb-filtered window, transformed with the raw one
             _kn.last_samples(g.ring_y, g.pos, windows[1])
@@ -393,6 +403,24 @@ class ChatterMonitor(Block):
         if settling:
             self._settling -= 1
             cutting = False  # no verdict while the background learns the new speed
+        if (
+            self.method.judges_segments
+            and cutting
+            and b0 <= k < b1
+            and novel[k] > 0.0
+            and comb[k] > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
+        ):
+            # a ratio that counts (a rising run, a verdict) on a window straddling an entry or
+            # an exit: read on the part in the cut (decision 1542)
+            part = self._straddle(f_t, f_rev, level)
+            if part is not None:
+                start, entry, line = part
+                m = len(xr) - start if entry else start
+                if m * f_rev < 2.0 * self._fs:
+                    return None  # the part in the cut does not resolve its tooth line
+                if entry:
+                    return self._segment_spectra(f_rev, f_t, k0, k1, b0, b1, level, start)
+                tooth_ref = max(tooth_ref, line)
         raw_rect = None
         if (
             self.method.name == "chatter-sdft"
@@ -409,6 +437,54 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
 
+    def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
+        """Whether the full window just decided straddles an entry or an exit (decision
+        1542): if so (the first sample of the part after the change, whether that part is the
+        one in the cut: an entry, the tooth line of the part in the cut), else None.
+
+        At an entry or exit without a mean step (an accelerometer, a microphone) the window
+        passes the steady-mean gate. Its comb-filtered spectrum (rectangular, Eq. 5.30) holds
+        the comb's ring-down of the harmonics switched on or off (Eq. 5.27: β·α^j in
+        revolution j, a Lorentzian of half-width f_rev/20, the band not searched) at full
+        weight, while the Hann-tapered tooth line sees the part in the cut at the taper's low
+        end: its reference shrinks (a window with 700 of 4096 samples in the cut: 3 % of the
+        line), and the ring-down reads as chatter. The window's ratio is therefore read on
+        its part in the cut: at an entry that part is judged as decision 1539's part after a
+        step (:meth:`_segment_spectra`); after an exit the comb spectrum is the window's and
+        the reference the part's tooth line (never less than the window's own). The part must
+        hold two revolutions (its Hann main lobe, ±2 f_s/L, within the spindle frequency of
+        the tooth line: resolved from the neighbouring harmonics), else no verdict.
+
+        The window is split at the change point of its harmonic part's power
+        (:func:`._kernels.power_step_start`); each part's tooth line is taken under a Hann
+        taper of its own length at the tooth-passing frequency
+        (:func:`._kernels.line_amplitude`) and is in the cut when above the cutting gate (3 ×
+        the floor learned out of the cut, × √(n/L) for the part's noise, as decision 1539). A
+        window loaded by its mean (the cutting gate's other test) is in the cut in both parts,
+        its mean being steady. The window straddles when one part is in the cut and the other
+        not. (A part whose line lies near its gate, a weak tooth line, may be classed either
+        way; the comb's reference then is the larger of two measurements of the same line.)
+
+        Work: only for a window whose ratio passes :data:`RUN_LEVEL` × the threshold (a rising
+        run or a verdict), compiled: the change point (two passes over the window), the two
+        parts' lines (one pass); none for the others."""
+        air = self._air
+        if not air[_kn.HAS_FLOOR] > 0.0 or not f_rev > 0.0 or _loaded(level, f_rev, air, 1.0):
+            return None
+        g = self._stage
+        xr = self._xr
+        n = len(xr)
+        start = _kn.power_step_start(xr, g.ring_y, g.pos)
+        cycles = f_t / self._fs
+        before = _kn.line_amplitude(xr, 0, start, cycles)
+        after = _kn.line_amplitude(xr, start, n, cycles)
+        floor = CUTTING_GATE * air[_kn.AIR_FLOOR]
+        cut_before = before > floor * math.sqrt(n / start)
+        cut_after = after > floor * math.sqrt(n / (n - start))
+        if cut_before == cut_after:
+            return None  # both parts in the cut (a depth step, chatter) or neither
+        return start, cut_after, after if cut_after else before
+
     def _update_harm_mask(self, f_rev: float) -> None:
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
         comb's notch half-width ``f_rev / 20`` or 2 bins of one are not searched."""
@@ -423,7 +499,15 @@ class ChatterMonitor(Block):
         return max(2.0 * self._df, 0.5 * f_rev / 10.0)
 
     def _segment_spectra(
-        self, f_rev: float, f_t: float, k0: int, k1: int, b0: int, b1: int, level: float
+        self,
+        f_rev: float,
+        f_t: float,
+        k0: int,
+        k1: int,
+        b0: int,
+        b1: int,
+        level: float,
+        start: int | None = None,
     ) -> Spectra | None:
         """The spectra of the part of the window after its mean step (entry, exit, a depth
         step), for a window in the cut that fails the steady-mean gate (decision 1539).
@@ -441,6 +525,13 @@ class ChatterMonitor(Block):
         ``5 g`` times above its background). Nothing is learned from a segment: the background,
         the air floor and mean and the speed state stay those of the full windows.
 
+        With ``start`` (decision 1542) the part from ``start`` is the in-cut part of a window
+        straddling an entry without a mean step (:meth:`_straddle`, two revolutions at least).
+        A part shorter than the length above is judged with the band not searched around each
+        harmonic widened to ``f_s / L`` (Rayleigh at the part's own resolution: a line that
+        far from a harmonic is resolved from it, and the comb's ring-down of the harmonic,
+        a Lorentzian of half-width f_rev/20, reads there at most β/(2π) ≈ 0.14 of it).
+
         Work per such window: one pass for the step, one for the tapers, the pair of
         transforms, the amplitudes and median, the novelty and its largest bin (the full
         window's steps again, compiled); windows passing the mean gate do none of it."""
@@ -453,9 +544,12 @@ class ChatterMonitor(Block):
         last = self._judged_f_rev
         if abs(f_rev - last) > SETTLE_SPEED * last:
             return None  # a new speed: its lines are learned on full windows first
-        start = _kn.step_start(self._xr)
+        straddle = start is not None
+        if start is None:
+            start = _kn.step_start(self._xr)
         m = n - start
-        if m < 2 or m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs:
+        short = m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs
+        if m < 2 or (short and not straddle):
             return None  # too short to resolve the lines beside the harmonics
         seg = self._seg_windows
         mean, half_step, w_sum, c_sum = _kn.segment_windows(
@@ -469,9 +563,13 @@ class ChatterMonitor(Block):
         if gate is None:
             return None  # the segment is out of the cut (an exit) or not steady either
         self._update_harm_mask(f_rev)
+        mask = self._harm_mask
+        if short:  # a straddling entry's short part: the band left out widened to f_s / L
+            f = self._f
+            mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        _kn.novelty(comb, self._background, factor * grow, self._harm_mask, novel)
+        _kn.novelty(comb, self._background, factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
@@ -498,9 +596,18 @@ class ChatterMonitor(Block):
             elif self._calibrated is None and self._calib:
                 self._calibrated = CALIBRATION_FACTOR * max(self._calib)
         v = self.method.decide(sp, self._calibrated)
+        if (
+            self.method.name == "chatter-sdft"
+            and v.ratio > RUN_LEVEL * v.threshold
+            and self._straddle(sp.f_tooth_hz, sp.f_rev_hz, self._level) is not None
+        ):
+            # the SDFT's sums over a window straddling an entry or an exit hold the comb's
+            # ring-down as chatter variance and less harmonic variance (raw² − comb²): no
+            # verdict, as on a window whose mean steps (decisions 1539, 1542)
+            return []
         was = bool(self._flag)
         now = v.chatter
-        if v.ratio > 0.5 * v.threshold:
+        if v.ratio > RUN_LEVEL * v.threshold:
             if self._run_start is None:
                 self._run_start = t
         else:
@@ -582,19 +689,28 @@ def _segment_gate(
     the reference of the ratio (the tooth line, no less than 3 × the floor), or None when the
     segment is out of the cut or its own halves' means differ."""
     has_floor = air[_kn.HAS_FLOOR] > 0.0
-    has_mean = air[_kn.HAS_MEAN] > 0.0
     air_floor = air[_kn.AIR_FLOOR] * grow
-    air_mean = air[_kn.AIR_MEAN]
-    air_f = air[_kn.AIR_F_REV]
     floor = air_floor if has_floor and air_floor < med else med
-    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
-    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
-    loaded = has_mean and has_floor and abs(level - air_mean) > span
+    loaded = _loaded(level, f_rev, air, grow)
     if not (tooth > 0.0 and (tooth > CUTTING_GATE * floor or loaded)):
         return None
     if abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * floor):
         return None
     return max(tooth, CUTTING_GATE * floor)
+
+
+def _loaded(level: float, f_rev: float, air: np.ndarray, grow: float) -> bool:
+    """The load test of :func:`._kernels.cutting_gate` (decision 1531): the mean ``level`` is
+    :data:`LOAD_GATE` floors learned out of the cut (× ``grow``, a part's noise) away from the
+    mean learned there (at another speed the air mean's own size more)."""
+    if not (air[_kn.HAS_MEAN] > 0.0 and air[_kn.HAS_FLOOR] > 0.0):
+        return False
+    air_floor = air[_kn.AIR_FLOOR] * grow
+    air_mean = air[_kn.AIR_MEAN]
+    air_f = air[_kn.AIR_F_REV]
+    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
+    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
+    return bool(abs(level - air_mean) > span)
 
 
 def _run_chunk(

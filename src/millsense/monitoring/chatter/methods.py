@@ -31,7 +31,11 @@ harmonics are not searched. After a speed change the background re-learns every 
 before a verdict (lines whose frequency the speed sets, decision 1537). A window in the cut
 whose mean steps is judged by ``chatter-comb`` on its part after the step (zero-padded, the
 lines at a full window's amplitude, the background taken √(n/L) higher as the noise) when that
-part resolves a line at the edge of the harmonics' excluded band (decision 1539).
+part resolves a line at the edge of the harmonics' excluded band (decision 1539). A window of
+``chatter-comb`` that straddles an entry or an exit without a mean step is judged on its part
+in the cut, not against the Hann-weighted tooth line of a window mostly in air, beside which
+the comb's ring-down of the harmonics switched on or off read as chatter; ``chatter-sdft``
+gives such a window no verdict (decision 1542).
 """
 
 from __future__ import annotations
