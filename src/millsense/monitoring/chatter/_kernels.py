@@ -392,22 +392,16 @@ def power_step_start(x: FloatArray, ring_y: FloatArray, pos: int) -> int:  # pra
     n = x.shape[0]
     mask = ring_y.shape[0] - 1
     start = pos - n
+    p = np.empty(n)
     total = 0.0
     for i in range(n):
         d = x[i] - ring_y[(start + i) & mask]
-        total += d * d
+        p[i] = d * d
+        total += p[i]
     mean = total / n
-    c = 0.0
-    best = -1.0
-    k = 1
-    for i in range(n - 1):
-        d = x[i] - ring_y[(start + i) & mask]
-        c += d * d - mean
-        a = abs(c)
-        if a > best:
-            best = a
-            k = i + 1
-    return k
+    for i in range(n):
+        p[i] -= mean
+    return step_start(p)
 
 
 @numba.njit(cache=True, nogil=True)
