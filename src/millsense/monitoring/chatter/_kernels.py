@@ -219,6 +219,27 @@ GATE_SIZE = 6
 
 
 @numba.njit(cache=True, nogil=True)
+def air_loaded(
+    level: float, f_rev: float, air: FloatArray, load_gate: float, same_speed_tol: float,
+    grow: float,
+) -> bool:  # pragma: no cover - compiled  # fmt: skip
+    """The load test of the cutting gate (decisions 1531, 1537): the mean ``level`` is
+    ``load_gate`` floors learned out of the cut (× ``grow``: a part's higher noise, decision
+    1539) away from the mean learned there; at another speed (beyond ``same_speed_tol``) the
+    air torque may differ from the one learned by up to its own size (drag and friction grow
+    with speed), so the air mean's size is added. False before a floor and a mean are
+    learned."""
+    if not (air[HAS_MEAN] > 0.0 and air[HAS_FLOOR] > 0.0):
+        return False
+    air_floor = air[AIR_FLOOR] * grow
+    air_mean = air[AIR_MEAN]
+    air_f = air[AIR_F_REV]
+    same_speed = abs(f_rev - air_f) <= same_speed_tol * air_f
+    span = load_gate * air_floor if same_speed else load_gate * air_floor + abs(air_mean)
+    return abs(level - air_mean) > span
+
+
+@numba.njit(cache=True, nogil=True)
 def cutting_gate(
     c: ComplexArray,
     scale: float,
@@ -249,11 +270,7 @@ def cutting_gate(
     air_mean = air[AIR_MEAN]
     air_f = air[AIR_F_REV]
     floor = air_floor if has_floor and air_floor < med else med
-    same_speed = abs(f_rev - air_f) <= gate[2] * air_f
-    # at another speed the air torque may differ from the one learned by up to its own size
-    # (drag and friction grow with speed): beyond that the window is loaded (decision 1537)
-    span = gate[1] * air_floor if same_speed else gate[1] * air_floor + abs(air_mean)
-    loaded = has_mean and has_floor and abs(level - air_mean) > span
+    loaded = air_loaded(level, f_rev, air, gate[1], gate[2], 1.0)
     cutting = tooth > 0.0 and (tooth > gate[0] * floor or loaded)
     if not cutting and tooth > 0.0:
         a = gate[5]

@@ -700,17 +700,9 @@ def _segment_gate(
 
 
 def _loaded(level: float, f_rev: float, air: np.ndarray, grow: float) -> bool:
-    """The load test of :func:`._kernels.cutting_gate` (decision 1531): the mean ``level`` is
-    :data:`LOAD_GATE` floors learned out of the cut (× ``grow``, a part's noise) away from the
-    mean learned there (at another speed the air mean's own size more)."""
-    if not (air[_kn.HAS_MEAN] > 0.0 and air[_kn.HAS_FLOOR] > 0.0):
-        return False
-    air_floor = air[_kn.AIR_FLOOR] * grow
-    air_mean = air[_kn.AIR_MEAN]
-    air_f = air[_kn.AIR_F_REV]
-    same_speed = abs(f_rev - air_f) <= STEADY_SPEED * air_f
-    span = LOAD_GATE * air_floor if same_speed else LOAD_GATE * air_floor + abs(air_mean)
-    return bool(abs(level - air_mean) > span)
+    """The cutting gate's load test (:func:`._kernels.air_loaded`) with this module's
+    :data:`LOAD_GATE` and :data:`STEADY_SPEED`."""
+    return bool(_kn.air_loaded(level, f_rev, air, LOAD_GATE, STEADY_SPEED, grow))
 
 
 def _run_chunk(
