@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from tests.opcua_helpers import PASSWORD, ROOT, free_port, make_pki, make_plan
 
 from millsense.link.client import OpcUaSource
@@ -99,3 +100,47 @@ def test_kill_and_restart_the_server(tmp_path: Path) -> None:
     # the restarted machine ran its 1.5 s to the end marker: the session resumed and ended
     assert n - hi > 0.5 * FS
     assert src.asm.end == n
+
+
+def _start_serving(plan: Path, pki: Path, port: int) -> subprocess.Popen[bytes]:
+    """``serve-machine`` launched without waiting for it to listen (as ``&`` in a shell)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "MILLSENSE_OPCUA_DIR": str(pki)}
+    cmd = [sys.executable, "-m", "millsense", "serve-machine", "--plan", str(plan),
+           "--endpoint", f"opc.tcp://127.0.0.1:{port}", "--pace", "lockstep",
+           "--duration-s", "0.5", "--linger-s", "30"]  # fmt: skip
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def test_the_first_connection_waits_for_a_starting_server(tmp_path: Path) -> None:
+    """Decision 1805: a client started beside the server waits ``connect_wait_s`` for it to
+    listen (the server needs about 6 s on this machine to load its plan and simulator, more
+    than the 5 s reconnection window that used to bound the first connection); without a
+    server the wait ends with a refusal after ``connect_wait_s``, not before."""
+    from millsense.link.client import LinkRefused
+
+    pki = make_pki(tmp_path / "pki")
+    plan = make_plan(tmp_path)
+    port = free_port()
+    t0 = time.monotonic()
+    with pytest.raises(LinkRefused, match="cannot connect"):
+        OpcUaSource(f"opc.tcp://127.0.0.1:{port}", load_node_map(), user="op",
+                    password=PASSWORD, pki=pki, reconnect_s=0.0, connect_wait_s=1.0)  # fmt: skip
+    waited = time.monotonic() - t0
+    assert 1.0 <= waited < 5.0, waited  # the wait, then the refusal (a retry: ≤ 0.2 s + connect)
+    proc = _start_serving(plan, pki, port)
+    try:
+        t0 = time.monotonic()
+        src = OpcUaSource(f"opc.tcp://127.0.0.1:{port}", load_node_map(), user="op",
+                          password=PASSWORD, pki=pki, reconnect_s=0.0,
+                          connect_wait_s=120.0)  # fmt: skip
+        took = time.monotonic() - t0
+        try:
+            chunk = src.read(1000)
+        finally:
+            src.close()
+        print(f"connected {took:.1f} s after launching serve-machine")
+        assert took > 1.0  # the server was not listening yet: the client waited for it
+        assert chunk is not None and chunk.n > 0
+    finally:
+        proc.kill()
+        proc.wait()

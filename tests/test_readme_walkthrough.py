@@ -19,6 +19,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -31,6 +32,8 @@ README = REPO / "README.md"
 VENV = Path(sys.prefix) if (Path(sys.prefix) / "pyvenv.cfg").is_file() else None
 
 _OUT_OPTS = ("-o", "--output", "--plot", "--json")
+#: wall-clock bound of one section's run (the Walkthrough needs about 1.5 min of CPU)
+WALKTHROUGH_TIMEOUT_S = 1500
 
 
 def section(text: str, title: str) -> str:
@@ -87,19 +90,45 @@ def _run_section(title: str, tmp_path: Path) -> None:
     # the linked environment must look installed to make: never let a step install into it
     dry = subprocess.run(["make", "-n", "demo"], cwd=work, capture_output=True, text=True)
     assert "pip install" not in dry.stdout, f"make would install into {VENV}: {dry.stdout}"
-    script = "set -e\n" + "".join(
-        f"echo '### README {title} block {i + 1}' >&2\n{b}" for i, b in enumerate(blocks)
-    )
+    steps = [f'echo "### README {title} block {i + 1} at $SECONDS s" >&2\n{b}'
+             for i, b in enumerate(blocks)]  # fmt: skip
+    script = "set -e\n" + "".join(steps) + 'echo "### README done at $SECONDS s" >&2\n'
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
     assert VENV is not None
     env["PATH"] = f"{VENV / 'bin'}{os.pathsep}{env.get('PATH', '')}"
     env["COLUMNS"] = "120"
-    proc = subprocess.run(
-        ["bash", "-c", script], cwd=work, env=env, capture_output=True, text=True, timeout=1500
-    )
-    tail = "\n".join(proc.stderr.splitlines()[-15:])
+    # output to files, not pipes, and the shell in its own process group: a step left running
+    # in the background (the walkthrough's `serve-machine ... &`) can neither hold the test
+    # until the timeout after the script ended nor outlive it
+    out_f, err_f = tmp_path / "walkthrough.out", tmp_path / "walkthrough.err"
+    with out_f.open("w") as out, err_f.open("w") as err:
+        proc = subprocess.Popen(["bash", "-c", script], cwd=work, env=env, stdout=out,
+                                stderr=err, text=True, start_new_session=True)  # fmt: skip
+        timed_out = False
+        try:
+            proc.wait(timeout=WALKTHROUGH_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait()
+    stderr = err_f.read_text(errors="replace")
+    marks = re.findall(r"### README .*", stderr)
+    print("\n".join(marks))  # the blocks' start times, with -s
+    if timed_out:
+        stdout = out_f.read_text(errors="replace")
+        pytest.fail(
+            f"README {title} timed out after {WALKTHROUGH_TIMEOUT_S} s; blocks begun: {marks}\n"
+            f"last stderr:\n{chr(10).join(stderr.splitlines()[-15:])}\n"
+            f"last stdout:\n{chr(10).join(stdout.splitlines()[-15:])}",
+            pytrace=False,
+        )
+    tail = "\n".join(stderr.splitlines()[-15:])
     assert proc.returncode == 0, f"exit {proc.returncode}:\n{tail}"
-    assert "Traceback" not in proc.stderr, tail
+    assert "Traceback" not in stderr, tail
     missing = [f for f in named_outputs(blocks) if not (work / f).exists()]
     assert not missing, f"files the README says are written do not exist: {missing}"
 

@@ -93,6 +93,7 @@ def record(
     pki: Path | None = lo.PKI,
     insecure: bool = lo.INSECURE,
     reconnect_s: float = lo.RECONNECT,
+    connect_wait_s: float = lo.CONNECT_WAIT,
 ) -> None:
     """Record a CNC's OPC UA stream (gaps and duplicates reported, nothing interpolated)."""
     from millsense.cli.cmd_run import link_summary
@@ -105,7 +106,8 @@ def record(
     if duration_s is not None and not duration_s > 0:
         raise ConfigError(f"--duration-s: must be > 0, got {duration_s}")
     lo.link_logging()
-    _nmap, connect = lo.link_opener(url, node_map, user, pki, insecure, reconnect_s)
+    _nmap, connect = lo.link_opener(url, node_map, user, pki, insecure, reconnect_s,
+                                    connect_wait_s)  # fmt: skip
     link = connect()
     ev = events_out or default_event_log_path(out)
     try:

@@ -145,6 +145,7 @@ def run(
     pki: Path | None = lo.PKI,
     insecure: bool = lo.INSECURE,
     reconnect_s: float = lo.RECONNECT,
+    connect_wait_s: float = lo.CONNECT_WAIT,
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
@@ -173,7 +174,8 @@ def run(
                                 ("--tool-modes", tool_modes)) if v]  # fmt: skip
         if given:
             raise ConfigError(f"--source: {', '.join(given)} act on the virtual machine in process")
-        nmap, connect = lo.link_opener(source, node_map, user, pki, insecure, reconnect_s)
+        nmap, connect = lo.link_opener(source, node_map, user, pki, insecure, reconnect_s,
+                                       connect_wait_s)  # fmt: skip
         summary = run_over_link(
             nmap, connect, program=program, stock=stock, tool=tool, material=material, plan=plan,
             plan_out=plan_out, machine=machine, machine_file=machine_file, out=out,

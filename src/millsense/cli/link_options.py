@@ -33,6 +33,11 @@ INSECURE = typer.Option(
 RECONNECT = typer.Option(
     5.0, "--reconnect-s", help="Keep reconnecting this long before the link counts as lost [s]."
 )
+CONNECT_WAIT = typer.Option(
+    30.0,
+    "--connect-wait-s",
+    help="Wait this long for a server that is not listening yet (still starting) [s].",
+)
 
 
 def link_logging() -> None:
@@ -57,7 +62,8 @@ def password_for(user: str | None) -> str | None:
 
 
 def link_opener(url: str, node_map: Path | None, user: str | None, pki: Path | None,
-                insecure: bool, reconnect_s: float) -> tuple[Any, Any]:  # fmt: skip
+                insecure: bool, reconnect_s: float,
+                connect_wait_s: float = 30.0) -> tuple[Any, Any]:  # fmt: skip
     """The node map of ``url`` and a function connecting to it (an
     :class:`~millsense.link.client.OpcUaSource`); the options are checked and the password
     asked for at once, the connection is made when the caller is ready for the stream."""
@@ -68,6 +74,8 @@ def link_opener(url: str, node_map: Path | None, user: str | None, pki: Path | N
         raise ConfigError(f"--source: an opc.tcp:// address, got {url!r}")
     if not reconnect_s >= 0:
         raise ConfigError(f"--reconnect-s: must be ≥ 0, got {reconnect_s}")
+    if not connect_wait_s >= 0:
+        raise ConfigError(f"--connect-wait-s: must be ≥ 0, got {connect_wait_s}")
     link_logging()
     if insecure:
         typer.echo("millsense: warning: --insecure: the link is not encrypted", err=True)
@@ -76,6 +84,7 @@ def link_opener(url: str, node_map: Path | None, user: str | None, pki: Path | N
 
     def connect() -> Any:
         return OpcUaSource(url, nmap, user=user, password=password, pki=pki,
-                           secure=not insecure, reconnect_s=reconnect_s)  # fmt: skip
+                           secure=not insecure, reconnect_s=reconnect_s,
+                           connect_wait_s=connect_wait_s)  # fmt: skip
 
     return nmap, connect

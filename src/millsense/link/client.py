@@ -174,6 +174,9 @@ class OpcUaSource(Source):
         closed socket is seen at once; this is for a link gone silent). Before the first
         block, ``step_timeout_s`` (the machine may still be starting).
     reconnect_s : how long to try reconnecting before the link counts as lost, s.
+    connect_wait_s : how long the first connection waits for a server that is not listening
+        yet, s (a machine started beside the client needs several seconds to load its plan
+        and simulator; decision 1805).
     publish_ms : the subscription's publishing interval, ms.
     queue_blocks : the server-side queue of the block node, blocks.
     """
@@ -181,7 +184,8 @@ class OpcUaSource(Source):
     def __init__(self, url: str, node_map: NodeMap, *, user: str | None = None,
                  password: str | None = None, pki: Path | None = None, secure: bool = True,
                  link_timeout_s: float = 0.1, step_timeout_s: float = 10.0,
-                 reconnect_s: float = 5.0, publish_ms: float = 5.0,
+                 reconnect_s: float = 5.0, connect_wait_s: float = 30.0,
+                 publish_ms: float = 5.0,
                  queue_blocks: int = 500, name: str | None = None) -> None:  # fmt: skip
         self.url = url
         self.map = node_map
@@ -192,6 +196,7 @@ class OpcUaSource(Source):
         self.link_timeout_s = link_timeout_s
         self.step_timeout_s = step_timeout_s
         self.reconnect_s = reconnect_s
+        self.connect_wait_s = connect_wait_s
         self.publish_ms = publish_ms
         self.queue_blocks = queue_blocks
         self.asm = Reassembler(node_map.nodes)
@@ -307,14 +312,14 @@ class OpcUaSource(Source):
 
     def _connect_retrying(self) -> None:
         """Connect; a server not yet listening is tried again every 0.2 s for
-        ``reconnect_s`` (it may be starting). Refusals are not retried."""
+        ``connect_wait_s`` (it may be starting). Refusals are not retried."""
         t0 = time.monotonic()
         while True:
             try:
                 self._call(asyncio.wait_for(self._connect(), 10.0), 11.0)
                 return
             except OSError:
-                if time.monotonic() - t0 > self.reconnect_s:
+                if time.monotonic() - t0 > self.connect_wait_s:
                     raise
                 time.sleep(0.2)
 
