@@ -580,17 +580,11 @@ def false_alarms() -> dict[str, int]:
     abs_tol=0.0,
     unit="alarms",
     quick=False,
-    gap="on the truth spindle (decision 1210) chatter-comb raises 1 alarm on the compensated "
-    "torque over the 600 s (chatter-sdft and the sensor channel none): the observer lifts the "
-    "speed-quantisation tones of the 2^20-count encoder into it. After a speed change the "
-    "background re-learns them (decision 1537: 29 alarms before), but after the depth step at "
-    "255 s (7200 rev/min, 1 -> 0.5 mm) a 1360 Hz tone grows from 0.1 to 0.77 N·m (less tooth "
-    "ripple, less dither of the quantisation) and stands 1.5x above the halved tooth line",
-    issue=12,
     description="chatter alarms of chatter-comb and chatter-sdft over 600 s of stable slotting "
     "(static forces) with speed changes, 80-120 % overrides, depth steps, air cuts, a steady "
     "1234 Hz tone and a 1500 Hz resonance on a sensor channel, and on the compensated "
-    "spindle torque (stable_stream)",
+    "spindle torque (stable_stream); the stream decisions 1504, 1531, 1537 and 1545 were "
+    "designed on",
 )
 def _false() -> Measured:
     res = false_alarms()
@@ -603,8 +597,9 @@ def _false() -> Measured:
 # ------------------------------------------------------------------------------------------
 # held-out cases (issue 12 audit, decision 1795): conditions chosen before they were first
 # run, never used to set the monitor's constants (block.py: BACKGROUND_TAU_*, NOVELTY_*,
-# CUTTING_GATE, LOAD_GATE, STEADY_*, SPEED_SETTLE_S, SETTLE_SPEED; decisions 1504, 1531,
-# 1537), which stay frozen: a failure here is a known failure, not a reason to retune.
+# CUTTING_GATE, LOAD_GATE, STEADY_*, SPEED_SETTLE_S, SETTLE_SPEED, KNOWN_LINE*; decisions
+# 1504, 1531, 1537, 1545), which stay frozen: a failure here is a known failure, not a
+# reason to retune.
 # ------------------------------------------------------------------------------------------
 
 #: Held-out stable streams (chosen a priori, decision 1795): other seeds, tools, flute counts,
