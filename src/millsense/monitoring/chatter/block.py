@@ -15,7 +15,9 @@ step) is judged by ``chatter-comb`` on its part after the step when that part re
 lines beside the spindle harmonics (decision 1539). A window of ``chatter-comb`` whose ratio
 counts and that straddles an entry or an exit without a mean step (one part of it, split at
 the change of its harmonic power, out of the cut) is judged on its part in the cut: after an
-entry as such a part, after an exit against that part's tooth line (decision 1542).
+entry as such a part, after an exit against that part's tooth line (decision 1542). After a
+speed change the background re-learns for 0.5 s (decision 1537); after a fall of the cut's
+load, only the lines it already knew do (decision 1545).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -129,6 +131,12 @@ SPEED_SETTLE_S = 0.5
 #: ... once the speed moved by more than this fraction since the last judged window (an
 #: override step of 1 % moves every such line; a cut's speed wanders by about 1e-4).
 SETTLE_SPEED = 0.002
+#: After the cut's load falls (a depth step down, a narrower cut), for the next
+#: :data:`SPEED_SETTLE_S` the lines that already stood :data:`KNOWN_LINE` times above the
+#: background's median (and their Hann main lobe, ±:data:`KNOWN_LINE_BINS` bins) re-learn at
+#: the air rate and are not new; lines that were not there stay new (decision 1545).
+KNOWN_LINE = 3.0
+KNOWN_LINE_BINS = 2
 #: Largest relative spread of the spindle speed over a window for a decision.
 STEADY_SPEED = 0.02
 #: Largest change of the mean between the halves of a window, in tooth-line amplitudes.
@@ -305,6 +313,11 @@ class ChatterMonitor(Block):
         self._level = 0.0  # mean of the last window decided
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
+        # the cut's load (the mean away from the air mean) that a fall is measured from, and
+        # the windows left re-learning the lines known before a fall (decision 1545)
+        self._load_ref: float | None = None
+        self._drop_settling = 0
+        self._known = np.zeros(len(f), dtype=bool)
         self._air = np.zeros(_kn.AIR_SIZE)
         self._gate = np.array([CUTTING_GATE, LOAD_GATE, STEADY_SPEED, STEADY_MEAN, STEADY_NOISE,
                                min(1.0, s.hop_s / BACKGROUND_TAU_AIR_S)])  # fmt: skip
@@ -396,8 +409,16 @@ class ChatterMonitor(Block):
         self._judged_f_rev = f_rev
         settling = self._settling > 0
         rates = self._rates[False] if settling else self._rates[cutting]
+        mask = self._harm_mask
+        if settling or not cutting:
+            self._load_ref, self._drop_settling = None, 0
+        elif self._load_fell(level, tooth, b0, b1) or self._drop_settling > 0:
+            # the lines known before the load fell re-learn at the air rate (decision 1545)
+            self._drop_settling -= 1
+            mask = mask | self._known
+            rates = (self._rates[False][0], rates[1])
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
-                           not self._has_background, factor, self._harm_mask, novel, b0, b1,
+                           not self._has_background, factor, mask, novel, b0, b1,
                            *rates)  # fmt: skip
         self._has_background = True
         if settling:
@@ -485,6 +506,40 @@ class ChatterMonitor(Block):
             return None  # both parts in the cut (a depth step, chatter) or neither
         return start, cut_after, after if cut_after else before
 
+    def _cut_load(self, level: float) -> float:
+        """The window's load: its mean away from the mean learned out of the cut (or from 0
+        before there is one)."""
+        air = self._air
+        return abs(level - air[_kn.AIR_MEAN]) if air[_kn.HAS_MEAN] > 0.0 else abs(level)
+
+    def _load_fell(self, level: float, tooth: float, b0: int, b1: int) -> bool:
+        """Whether the load of this steady window in the cut fell below the reference by more
+        than the steady-mean gate allows within a window (``STEADY_MEAN`` tooth lines or
+        ``STEADY_NOISE`` air floors); if so the lines the background knows (:data:`KNOWN_LINE`
+        × its median in the band, widened by :data:`KNOWN_LINE_BINS`) are kept in
+        ``self._known`` and re-learned for :data:`SPEED_SETTLE_S` (decision 1545). Not while a
+        chatter is flagged or a rising run is open: a line that is new already stays watched.
+        The reference follows the load up at once and down only at a detected fall, so that a
+        slow decrease counts once it adds up."""
+        load = self._cut_load(level)
+        ref = self._load_ref
+        if ref is None or load >= ref:
+            self._load_ref = load
+            return False
+        tol = max(STEADY_MEAN * tooth, STEADY_NOISE * self._air[_kn.AIR_FLOOR])
+        if ref - load <= tol or self._flag or self._run_start is not None:
+            return False
+        self._load_ref = load
+        bg = self._background
+        line = bg >= KNOWN_LINE * float(np.median(bg[b0:b1]))
+        known = self._known
+        known[:] = line
+        for d in range(1, KNOWN_LINE_BINS + 1):
+            known[d:] |= line[:-d]
+            known[:-d] |= line[d:]
+        self._drop_settling = self._settle_windows
+        return True
+
     def _update_harm_mask(self, f_rev: float) -> None:
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
         comb's notch half-width ``f_rev / 20`` or 2 bins of one are not searched."""
@@ -564,6 +619,8 @@ class ChatterMonitor(Block):
             return None  # the segment is out of the cut (an exit) or not steady either
         self._update_harm_mask(f_rev)
         mask = self._harm_mask
+        if self._load_fell(level + mean, tooth, b0, b1) or self._drop_settling > 0:
+            mask = mask | self._known  # the part after a fall of the load (decision 1545)
         if short:  # a straddling entry's short part: the band left out widened to f_s / L
             f = self._f
             mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
