@@ -626,7 +626,7 @@ class ChatterMonitor(Block):
             mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        _kn.novelty(comb, self._background, factor * grow, mask, novel)
+        _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
@@ -754,6 +754,24 @@ def _segment_gate(
     if abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * floor):
         return None
     return max(tooth, CUTTING_GATE * floor)
+
+
+def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
+    """The background as a part of ``frac`` of the window (rectangular, zero-padded to the
+    window) shows it (decision 1546): a line of the background (learned on full windows, one
+    bin wide) spreads in the part over the main lobe of the part's own window, ``1/frac`` bins
+    to each side, with the amplitude |sinc(d·frac)| at ``d`` bins; each bin's reference is the
+    largest such contribution of its neighbours within the main lobe. ``frac`` = 1: the
+    background itself."""
+    widen = math.ceil(1.0 / frac) - 1
+    if widen <= 0:
+        return background
+    ref = background.copy()
+    for d in range(1, widen + 1):
+        g = abs(math.sin(math.pi * d * frac) / (math.pi * d * frac))
+        np.maximum(ref[d:], g * background[:-d], out=ref[d:])
+        np.maximum(ref[:-d], g * background[d:], out=ref[:-d])
+    return ref
 
 
 def _loaded(level: float, f_rev: float, air: np.ndarray, grow: float) -> bool:
