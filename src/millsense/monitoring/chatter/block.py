@@ -15,9 +15,12 @@ step) is judged by ``chatter-comb`` on its part after the step when that part re
 lines beside the spindle harmonics (decision 1539). A window of ``chatter-comb`` whose ratio
 counts and that straddles an entry or an exit without a mean step (one part of it, split at
 the change of its harmonic power, out of the cut) is judged on its part in the cut: after an
-entry as such a part, after an exit against that part's tooth line (decision 1542). After a
-speed change the background re-learns for 0.5 s (decision 1537); after a fall of the cut's
-load, only the lines it already knew do (decision 1545).
+entry as such a part, after an exit against that part's tooth line (decision 1542). At an entry
+(the last window judged whole was out of the cut) a part is judged from two revolutions on,
+also in a window the cutting gate takes for air, which still learns as an air window; such a
+part needs the speed steady to 0.2 % over the settling time (decision 1543). After a speed
+change the background re-learns for 0.5 s (decision 1537); after a fall of the cut's load,
+only the lines it already knew do (decision 1545).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -306,6 +309,9 @@ class ChatterMonitor(Block):
         self._seg_windows = np.empty((2, n if self.method.judges_segments else 0))
         nf = len(f)
         self._raw, self._comb, self._novel, self._raw_rect = (np.empty(nf) for _ in range(4))
+        # a part's amplitudes: apart from the full window's, which an air window with an entry
+        # still learns from after its part is judged (decision 1543)
+        self._part = tuple(np.empty(nf if self.method.judges_segments else 0) for _ in range(3))
         self._background = np.zeros(nf)
         self._has_background = False
         self._rates = (self._learning_rates(False), self._learning_rates(True))
@@ -319,6 +325,10 @@ class ChatterMonitor(Block):
         self._drop_settling = 0
         self._known = np.zeros(len(f), dtype=bool)
         self._air = np.zeros(_kn.AIR_SIZE)
+        self._air_before = np.zeros(_kn.AIR_SIZE)  # the gate's state before this window's
+        # the last window judged whole was out of the cut (or straddled an entry): a step now is
+        # an entry (decision 1543)
+        self._out_of_cut = True
         self._gate = np.array([CUTTING_GATE, LOAD_GATE, STEADY_SPEED, STEADY_MEAN, STEADY_NOISE,
                                min(1.0, s.hop_s / BACKGROUND_TAU_AIR_S)])  # fmt: skip
         self._flag = 0.0
@@ -331,7 +341,8 @@ class ChatterMonitor(Block):
             self._const_speed = abs(float(s.speed_rpm or 0.0)) / 60.0
         self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
         self._min_rev_s = s.min_speed_rpm / 60.0
-        self._keep_hops = n // self._hop + 2
+        # hops of speed ranges kept: a window's, and the settling time (decision 1543)
+        self._keep_hops = max(n // self._hop + 2, self._settle_windows)
         self._ch_flag = f"{self.name}/chatter"
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
@@ -388,6 +399,8 @@ class ChatterMonitor(Block):
             k0 = max(0, math.ceil((f_t - half) / df))
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
+        air_before = self._air_before
+        air_before[:] = self._air
         cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
             c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
         )  # fmt: skip
@@ -397,8 +410,23 @@ class ChatterMonitor(Block):
                            band_slice=(b0, b1))  # fmt: skip
         if cutting and not steady:
             # entry, exit or a large step inside the window: the part after the step, if it
-            # resolves the lines (decision 1539), else no decision
+            # resolves the lines (decision 1539; at an entry down to two revolutions, decision
+            # 1543), else no decision
             return self._segment_spectra(f_rev, f_t, k0, k1, b0, b1, level)
+        air_part: Spectra | None = None
+        if (
+            not cutting
+            and self._out_of_cut
+            and self.method.judges_segments
+            and air_before[_kn.HAS_FLOOR] > 0.0
+            and abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * air_before[_kn.AIR_FLOOR])
+        ):
+            # a window taken for air whose mean steps: an entry whose part in the cut is too
+            # short to lift the whole window's tooth line or mean over the gate; its part after
+            # the step is judged, the window learns as the air window it was taken for
+            # (decision 1543)
+            air_part = self._segment_spectra(f_rev, f_t, k0, k1, b0, b1, level, None, air_before)
+        self._out_of_cut = not cutting
         self._update_harm_mask(f_rev)
         # hysteresis: while chatter is flagged a component stays new above 2 × its background
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
@@ -424,6 +452,8 @@ class ChatterMonitor(Block):
         if settling:
             self._settling -= 1
             cutting = False  # no verdict while the background learns the new speed
+        if air_part is not None:
+            return air_part
         if (
             self.method.judges_segments
             and cutting
@@ -436,6 +466,8 @@ class ChatterMonitor(Block):
             part = self._straddle(f_t, f_rev, level)
             if part is not None:
                 start, entry, line = part
+                if entry:
+                    self._out_of_cut = True  # the tool entered within this window (1543)
                 m = len(xr) - start if entry else start
                 if m * f_rev < 2.0 * self._fs:
                     return None  # the part in the cut does not resolve its tooth line
@@ -563,6 +595,7 @@ class ChatterMonitor(Block):
         b1: int,
         level: float,
         start: int | None = None,
+        air: np.ndarray | None = None,
     ) -> Spectra | None:
         """The spectra of the part of the window after its mean step (entry, exit, a depth
         step), for a window in the cut that fails the steady-mean gate (decision 1539).
@@ -587,6 +620,18 @@ class ChatterMonitor(Block):
         far from a harmonic is resolved from it, and the comb's ring-down of the harmonic,
         a Lorentzian of half-width f_rev/20, reads there at most β/(2π) ≈ 0.14 of it).
 
+        Decision 1543: such a short part (two revolutions at least) is judged after a mean step
+        too when the step is an entry, i.e. the last window judged whole was out of the cut (a
+        step inside the cut, a depth step, keeps the length above). With ``air`` (the cutting
+        gate's state before the window) the window was taken for air although its mean steps:
+        an entry whose part in the cut is too short to lift the whole window's tooth line or
+        mean over the gate; the part's gate reads that state. A short part and a part of an air
+        window are judged only while the smoothed speed has stayed within
+        :data:`SETTLE_SPEED` over the settling time (:data:`SPEED_SETTLE_S`, decision 1537): a
+        ramp that starts in the window moves the speed-bound lines and the acceleration torque
+        steps the mean, and the 2 % window speed gate lets its first 0.03 s through. The part's
+        amplitudes go to arrays of their own, so an air window still learns as one.
+
         Work per such window: one pass for the step, one for the tapers, the pair of
         transforms, the amplitudes and median, the novelty and its largest bin (the full
         window's steps again, compiled); windows passing the mean gate do none of it."""
@@ -604,24 +649,30 @@ class ChatterMonitor(Block):
             start = _kn.step_start(self._xr)
         m = n - start
         short = m * SEGMENT_RESOLUTION * self._mask_half_width(f_rev) < self._fs
-        if m < 2 or (short and not straddle):
-            return None  # too short to resolve the lines beside the harmonics
+        if m * f_rev < 2.0 * self._fs or (short and not (straddle or self._out_of_cut)):
+            return None  # too short to resolve its tooth line, or (a step in the cut) the lines
+            # beside the harmonics
+        if (short or air is not None) and not straddle:
+            w = self._settle_windows
+            if not max(g.highs[-w:]) <= (1.0 + SETTLE_SPEED) * min(g.lows[-w:]):
+                return None  # the speed moved within the settling time: its lines move too
         seg = self._seg_windows
         mean, half_step, w_sum, c_sum = _kn.segment_windows(
             self._xr, g.ring_y, g.pos, start, self.method.taper != "rect", seg
         )
         spectra = rfft_rows(seg)
-        raw, comb, novel = self._raw, self._comb, self._novel
+        raw, comb, novel = self._part
         grow = math.sqrt(n / m)
         tooth, med = _kn.amplitude_line_median(spectra[0], 2.0 / w_sum, k0, k1, b0, b1, raw)
-        gate = _segment_gate(tooth, med, level + mean, half_step, f_rev, self._air, grow)
+        air = self._air if air is None else air
+        gate = _segment_gate(tooth, med, level + mean, half_step, f_rev, air, grow)
         if gate is None:
             return None  # the segment is out of the cut (an exit) or not steady either
         self._update_harm_mask(f_rev)
         mask = self._harm_mask
         if self._load_fell(level + mean, tooth, b0, b1) or self._drop_settling > 0:
             mask = mask | self._known  # the part after a fall of the load (decision 1545)
-        if short:  # a straddling entry's short part: the band left out widened to f_s / L
+        if short:  # an entry's short part: the band left out widened to f_s / L
             f = self._f
             mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)

@@ -297,10 +297,10 @@ def _chatter_table(r: dict[str, object]) -> str:
 #: Why the truth of the T1 session is chatter-free only 1.2-1.3 s after its one speed change
 #: (2026-11-28; decisions 1656 and 1539, the same evening, each moved it).
 _T1_SLOW_END = (
-    "one speed change, 4500 -> 6109 rev/min, the centre of lobe 1's stable pocket (decision "
-    "1635), found at 2.2 s (511.6 Hz, ratio 13.6); the spindle is at the new speed within "
+    "one speed change, 4500 -> 6101 rev/min, the centre of lobe 1's stable pocket (decision "
+    "1635), found at 2.1 s (512.8 Hz, ratio 8.95); the spindle is at the new speed within "
     "0.1 s and the monitor ends the episode 0.7 s after the change, but the truth has its "
-    "first quiet second only 1.17 s after it. At the pocket's centre the tooth-passing "
+    "first quiet second only 1.18 s after it. At the pocket's centre the tooth-passing "
     "frequency (about 510 Hz) sits on the truth's 546 Hz tool mode softened by about 7 % under "
     "the slot's load: the truth's tool vibration grows to 20-25 µm RMS, mostly periodic with "
     "the revolution (2-6 µm change from one revolution to the next, so the truth's chatter "
@@ -309,8 +309,10 @@ _T1_SLOW_END = (
     "to when and at what frequency the chatter is found: 1.267 s before decision 1656 (found "
     "at 2.3 s, 510.4 Hz, 6102 rev/min); 0.222 s with decision 1656 alone (2.4 s, 509.7 Hz, "
     "6098 rev/min: a pass by that shift); 1.172 s since decision 1539 found it 0.1-0.2 s "
-    "sooner (2.2 s, 511.6 Hz, 6109 rev/min). At the programmed feed (the demo's pass, "
-    "`online.demo_chatter_pass_gone_s`) the truth is quiet 0.12 s after the change"
+    "sooner (2.2 s, 511.6 Hz, 6109 rev/min); 1.179 s since decision 1543 judged the entry's "
+    "part from two revolutions on (2.1 s, 512.8 Hz, 6101 rev/min). At the programmed feed "
+    "(the demo's pass, `online.demo_chatter_pass_gone_s`) the truth is quiet 0.12 s after the "
+    "change"
 )
 
 
