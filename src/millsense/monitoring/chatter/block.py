@@ -18,9 +18,10 @@ the change of its harmonic power, out of the cut) is judged on its part in the c
 entry as such a part, after an exit against that part's tooth line (decision 1542). At an entry
 (the last window judged whole was out of the cut) a part is judged from two revolutions on,
 also in a window the cutting gate takes for air, which still learns as an air window; such a
-part needs the speed steady to 0.2 % over the settling time (decision 1543). After a speed
-change the background re-learns for 0.5 s (decision 1537); after a fall of the cut's load,
-only the lines it already knew do (decision 1545).
+part needs the speed steady to 0.2 % over the settling time (decision 1543); a part is judged
+on its detrended comb row against the background as its own window shows it (decision 1546).
+After a speed change the background re-learns for 0.5 s (decision 1537); after a fall of the
+cut's load, only the lines it already knew do (decision 1545).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -660,6 +661,8 @@ class ChatterMonitor(Block):
         mean, half_step, w_sum, c_sum = _kn.segment_windows(
             self._xr, g.ring_y, g.pos, start, self.method.taper != "rect", seg
         )
+        if self.method.taper == "rect":
+            _detrend(seg[1, :m])  # the comb's ring-down of the step (decision 1546)
         spectra = rfft_rows(seg)
         raw, comb, novel = self._part
         grow = math.sqrt(n / m)
@@ -677,7 +680,7 @@ class ChatterMonitor(Block):
             mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
-        _kn.novelty(comb, self._background, factor * grow, mask, novel)
+        _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k)  # fmt: skip
@@ -805,6 +808,37 @@ def _segment_gate(
     if abs(half_step) > max(STEADY_MEAN * tooth, STEADY_NOISE * floor):
         return None
     return max(tooth, CUTTING_GATE * floor)
+
+
+def _detrend(y: np.ndarray) -> None:
+    """``y`` less its least-squares line, in place (decision 1546). The comb filter answers a
+    step of the mean with a ring-down of its DC notch that decays over ten revolutions (Eq.
+    5.27, α per revolution); over a part of a few revolutions after the step that is a slow
+    baseline whose rectangular spectrum's sidelobes (the first at 1.5 f_s/L, −13 dB) fall
+    beside the band left out around the harmonics."""
+    m = y.shape[0]
+    if m < 2:
+        return
+    t = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)
+    y -= y.mean() + t * (float(t @ y) / float(t @ t))
+
+
+def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
+    """The background as a part of ``frac`` of the window (rectangular, zero-padded to the
+    window) shows it (decision 1546): a line of the background (learned on full windows, one
+    bin wide) spreads in the part over the main lobe of the part's own window, ``1/frac`` bins
+    to each side, with the amplitude |sinc(d·frac)| at ``d`` bins; each bin's reference is the
+    largest such contribution of its neighbours within the main lobe. ``frac`` = 1: the
+    background itself."""
+    widen = math.ceil(1.0 / frac) - 1
+    if widen <= 0:
+        return background
+    ref = background.copy()
+    for d in range(1, widen + 1):
+        g = abs(math.sin(math.pi * d * frac) / (math.pi * d * frac))
+        np.maximum(ref[d:], g * background[:-d], out=ref[d:])
+        np.maximum(ref[:-d], g * background[d:], out=ref[:-d])
+    return ref
 
 
 def _loaded(level: float, f_rev: float, air: np.ndarray, grow: float) -> bool:
