@@ -137,7 +137,8 @@ SPEED_SETTLE_S = 0.5
 SETTLE_SPEED = 0.002
 #: After the cut's load falls (a depth step down, a narrower cut), for the next
 #: :data:`SPEED_SETTLE_S` the lines that already stood :data:`KNOWN_LINE` times above the
-#: background's median (and their Hann main lobe, ±:data:`KNOWN_LINE_BINS` bins) re-learn at
+#: background's median (widened by ±:data:`KNOWN_LINE_BINS` bins: a line between two bins of the
+#: rectangular comb spectrum, and the speed's wander) re-learn at
 #: the air rate and are not new; lines that were not there stay new (decision 1545).
 KNOWN_LINE = 3.0
 KNOWN_LINE_BINS = 2

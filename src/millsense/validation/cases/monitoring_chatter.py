@@ -560,17 +560,25 @@ def observe(current_cmd: np.ndarray, speed_rad_s: np.ndarray, chunk: int = 10000
     return np.concatenate(parts)
 
 
-@cache
-def false_alarms() -> dict[str, int]:
-    """Chatter alarms per (signal, method) over 10 minutes of :func:`stable_stream`."""
-    d = stable_stream(600.0, seed=3)
+def stream_alarms(
+    d: dict[str, np.ndarray], flutes: int
+) -> dict[str, tuple[list[Any], np.ndarray]]:
+    """The chatter events and energy ratio of chatter-comb and chatter-sdft on the sensor
+    channel and on the compensated spindle torque (:func:`observe`) of a :func:`stable_stream`
+    ``d``, keyed ``"signal / method"``."""
     comp = observe(d["spindle/current_cmd"], d["spindle/speed"])
     out = {}
     for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
         for method in ("chatter-comb", "chatter-sdft"):
-            ev, _ = detect(x, d["spindle/speed"], 2, method)
-            out[f"{sig} / {method}"] = len(ev)
+            out[f"{sig} / {method}"] = detect(x, d["spindle/speed"], flutes, method)
     return out
+
+
+@cache
+def false_alarms() -> dict[str, int]:
+    """Chatter alarms per (signal, method) over 10 minutes of :func:`stable_stream`."""
+    res = stream_alarms(stable_stream(600.0, seed=3), 2)
+    return {k: len(ev) for k, (ev, _) in res.items()}
 
 
 @case(
@@ -634,14 +642,11 @@ def heldout_false_alarms(name: str) -> dict[str, float]:
     """Chatter alarms per (signal, method) over :data:`HELDOUT_STREAM_S` of a held-out stream."""
     seed, profile = HELDOUT_STREAMS[name]
     d = stable_stream(HELDOUT_STREAM_S, seed=seed, profile=profile)
-    comp = observe(d["spindle/current_cmd"], d["spindle/speed"])
     out: dict[str, float] = {}
-    for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
-        for method in ("chatter-comb", "chatter-sdft"):
-            ev, ratio = detect(x, d["spindle/speed"], profile.flutes, method)
-            out[f"{sig} / {method}"] = len(ev)
-            out[f"{sig} / {method} first at s"] = ev[0].time_s if ev else math.nan
-            out[f"{sig} / {method} max ratio"] = float(np.max(ratio))
+    for key, (ev, ratio) in stream_alarms(d, profile.flutes).items():
+        out[key] = len(ev)
+        out[f"{key} first at s"] = ev[0].time_s if ev else math.nan
+        out[f"{key} max ratio"] = float(np.max(ratio))
     return out
 
 
@@ -1028,13 +1033,9 @@ def heldout_seed_false_alarms() -> dict[str, tuple[int, str]]:
     their number and where (time, frequency)."""
     out: dict[str, tuple[int, str]] = {}
     for seed in HELDOUT_SEEDS:
-        d = stable_stream(600.0, seed=seed)
-        comp = observe(d["spindle/current_cmd"], d["spindle/speed"])
-        for sig, x in (("sensor", d["sensor"]), ("compensated torque", comp)):
-            for method in ("chatter-comb", "chatter-sdft"):
-                ev, _ = detect(x, d["spindle/speed"], 2, method)
-                at = ", ".join(f"{e.time_s:.1f} s {e.value:.0f} Hz" for e in ev) or "-"
-                out[f"seed {seed} / {sig} / {method}"] = (len(ev), at)
+        for key, (ev, _) in stream_alarms(stable_stream(600.0, seed=seed), 2).items():
+            at = ", ".join(f"{e.time_s:.1f} s {e.value:.0f} Hz" for e in ev) or "-"
+            out[f"seed {seed} / {key}"] = (len(ev), at)
     return out
 
 
