@@ -222,9 +222,67 @@ def lm_fit(
     The residual is :func:`_residual_g`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
     L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
     parameter enters (d_a: L; θ_st, θ_ex: their phases) — the same numbers as a full
-    evaluation, with a third of the sines and cosines."""
-    n = xn.shape[0]
+    evaluation, with a third of the sines and cosines. (:func:`lm_fit_memo` with an empty
+    memo.)"""
     m, idx = _orders(k)
+    return lm_fit_memo(p0, xn, k, kb, edge, lo, hi, scale, max_iter, m, idx, new_memo(k.shape[0]))
+
+
+#: Rows of a fit's memo (:func:`lm_fit_memo`; complex, :func:`new_memo`): the phases
+#: e^{−i m θ_st}, e^{−i m θ_ex} and G of every order m, the lengths L(k) of every harmonic, and
+#: the point (d_a, θ_st, θ_ex) they belong to (real parts of entries 1–3; entry 0 is 1 once
+#: the rows hold a point's values).
+MEMO_E1, MEMO_E2, MEMO_G, MEMO_L, MEMO_POINT = range(5)
+
+
+@numba.njit(cache=True)
+def new_memo(n_harmonics: int) -> ComplexArray:
+    """An empty memo of :func:`lm_fit_memo` for up to ``n_harmonics`` harmonics (≤ 3 orders
+    each; :func:`memo_for` outside compiled code)."""
+    return np.zeros((5, max(3 * n_harmonics, 4)), dtype=np.complex128)
+
+
+def memo_for(n_harmonics: int) -> ComplexArray:
+    """:func:`new_memo` from Python (no compilation)."""
+    return np.zeros((5, max(3 * n_harmonics, 4)), dtype=np.complex128)
+
+
+@numba.njit(cache=True)
+def _same(a: float, b: float) -> bool:
+    """``a`` and ``b`` are the same number, the sign of a zero included (NaN never is)."""
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
+
+
+@numba.njit(cache=True)
+def _memo_at(memo: ComplexArray, d: float, st: float, ex: float) -> bool:
+    """The memo holds the phases, lengths and G of the point (d, st, ex)."""
+    pt = memo[MEMO_POINT]
+    return (pt[0].real == 1.0 and _same(pt[1].real, d) and _same(pt[2].real, st)
+            and _same(pt[3].real, ex))  # fmt: skip
+
+
+@numba.njit(cache=True)
+def lm_fit_memo(
+    p0: FloatArray,
+    xn: ComplexArray,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    max_iter: int,
+    m: FloatArray,
+    idx: IntArray,
+    memo: ComplexArray,
+) -> tuple[FloatArray, float]:
+    """:func:`lm_fit` (``m``, ``idx``: :func:`_orders` of ``k``) keeping the phases, lengths
+    and G of its current point in the rows of ``memo`` (:data:`MEMO_E1`…); they are those of
+    the returned point on return. A start point equal to the memo's point (the previous
+    revolution's solution, from which the streaming fit starts) takes them from it instead of
+    two thirds of a Jacobian's sines and cosines: they are functions of the point alone (and
+    of ``k``, ``kb``, which a memo keeps), so the fit gives the same numbers bit for bit."""
+    n = xn.shape[0]
     nm = m.shape[0]
     p = p0.copy()
     for i in range(3):
@@ -240,18 +298,21 @@ def lm_fit(
     free = np.empty(3, dtype=np.bool_)
     wa = np.empty(n, dtype=np.complex128)
     wb = np.empty(n, dtype=np.complex128)
-    e1 = np.empty(nm, dtype=np.complex128)  # at p
-    e2 = np.empty(nm, dtype=np.complex128)
-    lk = np.empty(n, dtype=np.complex128)
+    e1 = memo[MEMO_E1, :nm]  # at p
+    e2 = memo[MEMO_E2, :nm]
+    lk = memo[MEMO_L, :n]
     f1 = np.empty(nm, dtype=np.complex128)  # at a trial or perturbed point
     f2 = np.empty(nm, dtype=np.complex128)
     fl = np.empty(n, dtype=np.complex128)
-    gc = np.empty(nm, dtype=np.complex128)  # G of every order at p
+    gc = memo[MEMO_G, :nm]  # G of every order at p
     gt = np.empty(nm, dtype=np.complex128)  # ... at a trial or perturbed point
-    _phases(m, p[1], e1)
-    _phases(m, p[2], e2)
-    _lengths(k, p[0], kb, lk)
-    _g_all(m, e1, e2, p[1], p[2], gc)
+    pt = memo[MEMO_POINT]
+    if not _memo_at(memo, p[0], p[1], p[2]):
+        pt[0] = 0.0  # the rows are being replaced
+        _phases(m, p[1], e1)
+        _phases(m, p[2], e2)
+        _lengths(k, p[0], kb, lk)
+        _g_all(m, e1, e2, p[1], p[2], gc)
     cost = _residual_g(idx, gc, lk, xn, edge, wa, wb, r)
     lam = 1e-3
     for _ in range(max_iter):
@@ -287,6 +348,7 @@ def lm_fit(
         for i in range(3):
             free[i] = not ((p[i] >= hi[i] and g[i] < 0.0) or (p[i] <= lo[i] and g[i] > 0.0))
         improved = False
+        done = False
         for _t in range(8):
             for i in range(3):
                 for c in range(3):
@@ -315,12 +377,15 @@ def lm_fit(
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
                 improved = True
-                if small or rel < 1e-8:
-                    return p, cost
+                done = small or rel < 1e-8
                 break
             lam *= 10.0
-        if not improved:
+        if not improved or done:
             break
+    pt[0] = 1.0
+    pt[1] = p[0]
+    pt[2] = p[1]
+    pt[3] = p[2]
     return p, cost
 
 
@@ -623,6 +688,76 @@ def estimate(
     q[0] = d
     q[1] = st
     q[2] = ex
+    a, b, alpha, beta = _fit_basis(q, x, k, kb, edge)
+    _estimate_from(d, st, ex, cost, x, t1, feed_per_tooth_m, kb, edge, radius, n_flutes,
+                   axial_pitch, rcond, a, b, alpha, beta, out)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def estimate_memo(
+    p: FloatArray,
+    cost: float,
+    x: ComplexArray,
+    t1: complex,
+    feed_per_tooth_m: float,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    radius: float,
+    n_flutes: int,
+    axial_pitch: float,
+    rcond: float,
+    out: FloatArray,
+    idx: IntArray,
+    memo: ComplexArray,
+) -> None:
+    """:func:`estimate` at the point of :func:`lm_fit_memo`'s ``memo`` (``idx``: the orders of
+    ``k`` as :func:`_orders` gives them): the bases A_k, B_k from the memo's G and L — the
+    values :func:`_fit_basis` computes, by the same operations (G of order k ± 1 and k from
+    the same phases, :func:`_g_of` being :func:`_g`) — instead of three G's sines and cosines
+    per harmonic. Any other point (or an exit before the entry, which the estimate swaps):
+    :func:`estimate`."""
+    d, st, ex = p[0], p[1], p[2]
+    if ex < st or not _memo_at(memo, d, st, ex):
+        estimate(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch,
+                 rcond, out)  # fmt: skip
+        return
+    n = x.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    g = memo[MEMO_G]
+    lk = memo[MEMO_L]
+    for j in range(n):
+        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
+        b[j] = g[idx[1, j]] * lk[j]
+    alpha, beta = _least_squares(a, b, x, edge)
+    _estimate_from(d, st, ex, cost, x, t1, feed_per_tooth_m, kb, edge, radius, n_flutes,
+                   axial_pitch, rcond, a, b, alpha, beta, out)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _estimate_from(
+    d: float,
+    st: float,
+    ex: float,
+    cost: float,
+    x: ComplexArray,
+    t1: complex,
+    feed_per_tooth_m: float,
+    kb: float,
+    edge: bool,
+    radius: float,
+    n_flutes: int,
+    axial_pitch: float,
+    rcond: float,
+    a: ComplexArray,
+    b: ComplexArray,
+    alpha: float,
+    beta: float,
+    out: FloatArray,
+) -> None:
+    """:func:`estimate` from the bases ``a``, ``b`` at (d, st ≤ ex) and their amplitudes α, β
+    (:func:`amplitudes`' model over the harmonics below the notch, G_1, L_2)."""
     ax0 = abs(x[0])
     norm = 0.0
     for j in range(x.shape[0]):
@@ -631,7 +766,10 @@ def estimate(
     notch = axial_pitch / d
     m = min(max(math.floor(notch), 1), x.shape[0])
     model = np.empty(m)
-    alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
+    for j in range(m):
+        model[j] = abs(alpha * a[j] + beta * b[j])
+    g1 = _g(1.0, st, ex)
+    l2 = _l(2.0, d, kb)
     rn = radius * n_flutes
     kt = alpha / (rn * feed_per_tooth_m)
     ke = max(beta / rn, 0.0) if edge else 0.0
@@ -640,9 +778,9 @@ def estimate(
     dev = 0.0
     tot = 0.0
     for j in range(m):
-        a = abs(x[j])
-        dev += abs(a - model[j])
-        tot += a
+        a_j = abs(x[j])
+        dev += abs(a_j - model[j])
+        tot += a_j
     out[EST_AXIAL] = d
     out[EST_RADIAL] = radius * (math.cos(st) - math.cos(ex))
     out[EST_ENTRY] = st
@@ -702,6 +840,45 @@ def identify_from(
         return False
     estimate(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch, rcond,
              out)  # fmt: skip
+    return True
+
+
+@numba.njit(cache=True)
+def identify_from_memo(
+    p0: FloatArray,
+    x: ComplexArray,
+    t1: complex,
+    feed_per_tooth_m: float,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    accept: float,
+    radius: float,
+    n_flutes: int,
+    axial_pitch: float,
+    rcond: float,
+    out: FloatArray,
+    memo: ComplexArray,
+) -> bool:
+    """:func:`identify_from` with the fit's memo (:func:`lm_fit_memo`, :func:`estimate_memo`;
+    one memo per harmonic set ``k[:len(x)]``): the streaming fit starts from the previous
+    revolution's solution, whose phases, lengths and G the memo holds, and the estimate is
+    taken at the fitted point whose values it holds — the same numbers bit for bit."""
+    xn, norm = normalised(x)
+    kx = k[: x.shape[0]]
+    m, idx = _orders(kx)
+    p, cost = lm_fit_memo(p0, xn, kx, kb, edge, lo, hi, scale, 60, m, idx, memo)
+    if 2.0 * cost / norm > accept:
+        out[0] = p[0]
+        out[1] = p[1]
+        out[2] = p[2]
+        out[EST_COST] = cost
+        return False
+    estimate_memo(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch,
+                  rcond, out, idx, memo)  # fmt: skip
     return True
 
 
@@ -827,6 +1004,7 @@ def ingest_revolutions(
     done: FloatArray,
     done_sums: ComplexArray,
     est: FloatArray,
+    memo: ComplexArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -838,7 +1016,8 @@ def ingest_revolutions(
     When a sample starts a new revolution while samples are summed, the revolution is
     finished: its coefficients (the sums over the count) go to a row of ``done_sums``, its
     sample, means and status to a row of ``done`` and, if the fit from ``prev`` is accepted
-    (:func:`identify_from`), its estimate to that row of ``est`` (``prev`` ← its solution).
+    (:func:`identify_from_memo` with the fit's ``memo``, :func:`new_memo`), its estimate to
+    that row of ``est`` (``prev`` ← its solution).
     Returns (revolutions finished, next sample): the scan stops when ``done`` is full or after
     a revolution that needs the grid search."""
     nk = sums.shape[0]
@@ -883,10 +1062,11 @@ def ingest_revolutions(
                 status = REV_GRID
                 if acc[ACC_HAS_PREV] > 0:
                     row = est[nd]
-                    if identify_from(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
-                                     fpar[FPAR_KB], edge, lo, hi, scale, fpar[FPAR_ACCEPT],
-                                     fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
-                                     fpar[FPAR_RCOND], row):  # fmt: skip
+                    if identify_from_memo(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
+                                          fpar[FPAR_KB], edge, lo, hi, scale,
+                                          fpar[FPAR_ACCEPT], fpar[FPAR_RADIUS], n_flutes,
+                                          fpar[FPAR_PITCH], fpar[FPAR_RCOND], row,
+                                          memo):  # fmt: skip
                         status = REV_DONE
                         prev[0] = row[EST_AXIAL]
                         prev[1] = row[EST_ENTRY]

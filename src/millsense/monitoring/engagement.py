@@ -120,6 +120,9 @@ class EngagementBlock(Block):
         self._names = [f"{name}/{f}" for f, _, _ in _FIELDS]
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
+        # the fit's memo (:func:`~millsense.monitoring._spectrum_kernels.lm_fit_memo`): values
+        # of the last fitted point, a function of the point alone, so no state to reset
+        self._memo = _sk.memo_for(self.n_harmonics)
         self._log: list[tuple[float, np.ndarray | None]] = []
         self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
@@ -198,7 +201,7 @@ class EngagementBlock(Block):
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
-        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
+        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args, self._memo)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             views = self._held_views
             if views is not None and views[0] == n:  # nothing ended since: the same views
@@ -215,7 +218,7 @@ class EngagementBlock(Block):
                 pos = s
             if i >= n:
                 break
-            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
+            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args, self._memo)
         out[:, pos:] = self._held[:, None]
         return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
 
