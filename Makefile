@@ -12,12 +12,16 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+# after installing, the on-line system's numba kernels are compiled into the cache once, so that
+# the first live session does not fall behind the machine while compiling (decision 1549)
 $(STAMP_RUN): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/millsense warm-up
 	touch $@
 
 $(STAMP_DEV): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/millsense warm-up
 	touch $@ $(STAMP_RUN)
 
 demo: $(STAMP_RUN)

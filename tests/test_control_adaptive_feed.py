@@ -322,3 +322,30 @@ def test_force_drop_at_constant_feed_does_not_freeze_the_loop() -> None:
     assert np.all(np.abs(peaks / 325.0 - 1.0) <= 0.05)
     assert abs(res.channels["adaptive_feed/override"][-1] - 1.3) <= 0.05 * 1.3
     assert float(np.sum(blk.rls.theta[2:])) > 0.0
+
+
+def test_force_jump_at_high_override_cuts_at_the_next_revolution() -> None:
+    # decision 1657 (V8's engagement jump on a static plant): 257 N per unit (the loop settles
+    # near 126 %), two lighter revolutions (× 0.6, the loop raises the override to its 150 %
+    # ceiling), then the deeper layer (× 2.5: 964 N at 150 %, three times the reference). The
+    # first revolution of the jump must cut the override; the unconstrained RLS had fitted an
+    # oscillating, unstable model on the falling then rising force at a rising feed, and its
+    # GPC held 150 % for one more revolution (964 N twice).
+    t_jump = 2.0 + 2 * REV
+
+    def gain(t: np.ndarray) -> np.ndarray:
+        g = np.full(t.size, 257.0)
+        g[(t >= 2.0) & (t < t_jump)] = 0.6 * 257.0
+        g[t >= t_jump] = 2.5 * 257.0
+        return g
+
+    _src, blk, res = run_plant(gain, 3.0)
+    ov = res.channels["adaptive_feed/override"]
+    pk = res.channels["adaptive_feed/peak"]
+    n = int(REV * FS)
+    k = int(np.argmax(pk > 3.0 * 325.0 * 0.95))  # the end of the first revolution of the jump
+    assert ov[k - 1] == pytest.approx(1.5)
+    assert ov[k + n // 2] <= 0.5  # cut at that revolution's end, not one revolution later
+    assert np.max(pk[k + n :]) < 2.0 * 325.0  # never the full jump again
+    g, h = blk.rls._g, blk.rls._h
+    assert g is not None and h is not None and np.all(g @ blk.rls.theta <= h + 1e-9)

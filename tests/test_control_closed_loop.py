@@ -64,8 +64,9 @@ def test_conventional_overshoots_at_the_step(runs: dict[str, ca.LoopRun]) -> Non
 
 @pytest.mark.xfail(
     strict=True,
-    reason="known failure control.v8_conventional_overshoot (issue 16): 937 N on the plant's "
-    "own material (decision 1798), the override at its 150 % ceiling when the jump arrives",
+    reason="known failure control.v8_conventional_overshoot (issue 16): 943 N on the plant's "
+    "own material (decision 1798), the override at its 150 % ceiling when the jump arrives "
+    "(cut to 20 % at the end of the jump's first revolution since decision 1657)",
 )
 def test_conventional_overshoots_like_the_thesis(runs: dict[str, ca.LoopRun]) -> None:
     # seed 000 V8: ≈ 800 N at A (read off a figure), ±15 %

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from millsense.control.gpc import GPC, diophantine, diophantine_direct
-from millsense.control.rls import ConstantTraceRLS
+from millsense.control.rls import ConstantTraceRLS, force_model_constraints, project
 from millsense.core.errors import ConfigError
 
 A2 = [-1.2, 0.36]  # two poles at 0.6: an overdamped drive + cut, as Aslan's plant
@@ -138,3 +138,53 @@ def test_rls_dead_zone_freezes_the_estimate() -> None:
     assert rls.theta[0] > 0.5 and rls.updates == 1
     # a NaN never enters
     assert np.isnan(rls.update([np.nan, 0.0], 1.0)) and rls.updates == 1
+
+
+def test_projection_is_the_nearest_point_in_the_p_inverse_metric() -> None:
+    # decision 1657: an estimate outside {Gθ ≤ h} goes to the nearest point of the set in
+    # ‖·‖_{P⁻¹}; checked against a dense search of the feasible set (box b ≥ 0, a₁ ∈ [−1, 0],
+    # a₂ = 0) on a P with strong correlations
+    g, h = force_model_constraints(2, 3)
+    rng = np.random.default_rng(1)
+    m = rng.standard_normal((5, 5))
+    p = m @ m.T + 0.1 * np.eye(5)
+    hinv = np.linalg.inv(p)
+    for _ in range(20):
+        theta = rng.normal(0.0, 1.0, 5)
+        x = project(theta, p, g, h)
+        assert np.all(g @ x <= h + 1e-9)
+        d = x - theta
+        best = float(d @ hinv @ d)
+        # no feasible point nearer: random feasible points and small feasible moves from x
+        near = x + 0.01 * rng.standard_normal((4000, 5))
+        far = np.column_stack([-rng.uniform(0, 1, 4000), np.zeros(4000),
+                               rng.exponential(1.0, (4000, 3))])  # fmt: skip
+        cand = np.vstack([near, far])
+        cand[:, 0] = np.clip(cand[:, 0], -1.0, 0.0)
+        cand[:, 1] = 0.0
+        cand[:, 2:] = np.maximum(cand[:, 2:], 0.0)
+        dc = cand - theta
+        assert np.min(np.einsum("ij,jk,ik->i", dc, hinv, dc)) >= best - 1e-9
+    # an estimate inside is left alone
+    inside = np.array([-0.3, 0.0, 0.5, 0.2, 0.0])
+    np.testing.assert_array_equal(project(inside, p, g, h), inside)
+
+
+def test_constrained_rls_stays_physical_on_a_disturbance() -> None:
+    # a force step at a constant feed (an engagement jump) is explained by the unconstrained
+    # RLS with a's and b's of either sign; the constrained one keeps a₂ = 0, a₁ ∈ [−1, 0], b ≥ 0
+    g, h = force_model_constraints(2, 3)
+    free = ConstantTraceRLS([0.0, 0.0, 0.8, 0.0, 0.0], delta=0.005)
+    held = ConstantTraceRLS([0.0, 0.0, 0.8, 0.0, 0.0], delta=0.005, constraints=(g, h))
+    y = [1.0, 1.0, 1.0, 0.6, 0.7, 1.3, 2.6, 2.8]
+    u = [1.25, 1.25, 1.25, 1.25, 1.5, 1.5, 1.35, 1.5]
+    bad = False
+    for t in range(3, len(y)):
+        phi = [-y[t - 1], -y[t - 2], u[t - 1], u[t - 2], u[t - 3]]
+        free.update(phi, y[t])
+        held.update(phi, y[t])
+        assert np.all(g @ held.theta <= h + 1e-9)
+        bad |= not bool(np.all(g @ free.theta <= h + 1e-9))
+    assert bad  # the unconstrained estimate did leave the set
+    with pytest.raises(ConfigError, match="constraints"):
+        ConstantTraceRLS([0.0, 0.0], constraints=(g, h))

@@ -271,3 +271,110 @@ def test_revolution_phasors_track_the_angle_and_ignore_the_chunking() -> None:
         np.testing.assert_array_equal(ang2, ang)
         np.testing.assert_array_equal(zr2, zr)
         np.testing.assert_array_equal(zi2, zi)
+
+
+def test_edge_coefficient_from_the_mean_torque_where_the_harmonics_do_not_observe_it():
+    """Decision 1806: a 4-flute tool engaged over one tooth pitch (θ_st = π/2, θ_ex = π) has a
+    constant edge torque, so its tooth-passing harmonics carry no K_e (the regression's Schur
+    complement is zero); the mean cutting torque (air torque subtracted) gives it: K_e
+    within 3 % of 25 kN/m (the harmonics alone: anything), and flagged where no air torque is
+    known."""
+    from millsense.monitoring import _spectrum_kernels as sk
+
+    n = 4
+    x = _torque(n, 3e-3, 0.5e-3, kte=25e3)
+    g = ToolGeometry(n, R, BETA)
+    k = n * np.arange(1, 16)
+    assert sk.mean_informs_edge(np.array([0.5e-3, math.pi / 2, math.pi]), k.astype(float), 15,
+                                g.tan_beta / R, 1.0)  # fmt: skip
+    ident = SpectrumIdentifier(g, 15)
+    e = ident.identify(x[k], complex(x[1]), C, mean_cut_torque_nm=float(x[0].real))
+    assert e.edge_source == sk.EDGE_FROM_MEAN
+    assert e.edge_n_m == pytest.approx(25e3, rel=0.03)
+    assert e.kt_n_m2 == pytest.approx(758e6, rel=0.01)
+    assert e.radial_depth_m == pytest.approx(3e-3, abs=5e-6)
+    ident.reset()
+    blind = ident.identify(x[k], complex(x[1]), C)  # no air torque known: today's fit, flagged
+    assert blind.edge_source == sk.EDGE_UNOBSERVED
+    # where the harmonics observe K_e (1 flute, d_r = 1 mm) they keep it, mean or not
+    x1 = _torque(1, 1e-3, 0.5e-3, kte=25e3)
+    e1 = SpectrumIdentifier(ToolGeometry(1, R, BETA), 60).identify(
+        x1[1:61], complex(x1[1]), C, mean_cut_torque_nm=float(x1[0].real)
+    )
+    assert e1.edge_source == sk.EDGE_FROM_HARMONICS
+    assert e1.edge_n_m == pytest.approx(25e3, rel=0.01)
+
+
+@pytest.mark.parametrize("lam", [0.7, 2.0, 4.0])
+def test_runout_with_the_edge_coefficient_from_the_mean_torque(lam):
+    """Decision 1806 on decision 1540's worst row: 4 flutes over one pitch with 1.5 µm of
+    runout and edge forces (K_te/(K_tc c) = 1.3), noiseless. With K_e from the harmonics
+    (9-11 kN/m) the runout's edge part is too small: 1.83-1.88 µm, direction 0.26-0.40 rad
+    off. With the mean torque (K_e 23.5-24 kN/m): 1.58-1.63 µm, 0.10-0.21 rad off."""
+    tool = EndMill(2 * R, 4, helix_rad=BETA, runout_offset_m=1.5e-6, runout_angle_rad=lam)
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3)
+    m = 2048
+    phi = 2 * np.pi * np.arange(m) / m
+    f = milling_forces(tool, co, Engagement.radial(3e-3, 2 * R, "down"), C, 0.5e-3, phi, 200)
+    x = np.fft.fft(f.torque_nm) / m
+    k = 4 * np.arange(1, 16)
+    ident = SpectrumIdentifier(ToolGeometry(4, R, BETA), 15)
+    e = ident.identify(x[k], complex(x[1]), C, mean_cut_torque_nm=float(x[0].real))
+    assert e.runout_m == pytest.approx(1.5e-6, abs=0.15e-6)
+    assert e.edge_n_m == pytest.approx(25e3, rel=0.08)
+    ident.reset()
+    harm = ident.identify(x[k], complex(x[1]), C)
+    assert harm.runout_m > 1.8e-6
+    assert abs(e.runout_angle_rad - lam) < 0.22
+    assert abs(e.runout_angle_rad - lam) < abs(harm.runout_angle_rad - lam) - 0.1
+
+
+def _stream_with_air(air_nm, n_air, n_cut, omega_cut=None):
+    """Spindle torque with a constant air torque ``air_nm`` (friction): ``n_air`` revolutions
+    out of the cut, then ``n_cut`` in it (4 flutes over one pitch, K_te = 25 kN/m), at 10 kHz
+    and 1200 min⁻¹ (the cut at ``omega_cut`` if given)."""
+    fs = 10000.0
+    omega = 1200 * 2 * math.pi / 60
+    per = round(2 * math.pi / omega * fs)
+    tool = EndMill(2 * R, 4, helix_rad=BETA)
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3)
+    phi = 2 * np.pi * np.arange(per) / per
+    cut = milling_forces(tool, co, Engagement.radial(3e-3, 2 * R, "down"), C, 0.5e-3, phi, 60)
+    rng = np.random.default_rng(3)
+    tq = np.concatenate([np.zeros(n_air * per), np.tile(cut.torque_nm, n_cut)]) + air_nm
+    tq = tq + 1e-4 * rng.standard_normal(tq.size)
+    speed = np.full(tq.size, omega)
+    if omega_cut is not None:
+        speed[n_air * per :] = omega_cut
+    return {"spindle/torque_est": tq, "spindle/speed": speed}
+
+
+def test_block_learns_the_air_torque_out_of_the_cut():
+    """Decision 1806: the block learns the air torque (0.3 N·m of spindle friction, below
+    ``min_torque_nm``) from the revolutions out of the cut at the running speed, subtracts it
+    from the mean torque and gets K_e where the harmonics do not observe it; a setting does
+    the same; with no air revolution, or one at another speed, K_e stays the harmonics' and
+    the estimates are flagged."""
+    from millsense.monitoring import _spectrum_kernels as sk
+
+    def run(data, chunk=700, **kw):
+        b = EngagementBlock(4, 6.0, 35.0, feed_per_tooth_mm=0.025, n_harmonics=15,
+                            min_torque_nm=0.32, **kw)  # fmt: skip
+        run_block(b, data, chunk)
+        return [e for _, e in b.estimates if e is not None]
+
+    learnt = run(_stream_with_air(0.3, 3, 4))
+    assert len(learnt) == 3  # the last revolution is not complete
+    assert run(_stream_with_air(0.3, 3, 4), chunk=13) == learnt  # any chunking, the same
+    for e in learnt:
+        assert e.edge_source == sk.EDGE_FROM_MEAN
+        assert e.edge_n_m == pytest.approx(25e3, rel=0.05)
+    given = run(_stream_with_air(0.3, 0, 4), air_torque_nm=0.3)
+    assert [e.edge_source for e in given] == [sk.EDGE_FROM_MEAN] * 3
+    assert given[-1].edge_n_m == pytest.approx(25e3, rel=0.05)
+    unknown = run(_stream_with_air(0.3, 0, 4))
+    assert [e.edge_source for e in unknown] == [sk.EDGE_UNOBSERVED] * 3
+    other_speed = run(_stream_with_air(0.3, 3, 4, omega_cut=1.05 * 1200 * 2 * math.pi / 60))
+    assert {e.edge_source for e in other_speed} == {sk.EDGE_UNOBSERVED}
+    with pytest.raises(ConfigError, match="air_torque_nm"):
+        EngagementBlock(4, 6.0, 35.0, feed_per_tooth_mm=0.025, air_torque_nm=math.nan)

@@ -1,6 +1,6 @@
 """The monitors' faster paths give the numbers of the paths they replace, bit for bit: the
-engagement fit's memo (the start point's and the fitted point's phases, lengths and G), the
-chatter gate's band median by bit patterns, and the streaming Chunk's constructor."""
+chatter gate's band median by bit patterns; and the streaming Chunk's constructor keeps a
+frozen dataclass."""
 
 from __future__ import annotations
 
@@ -11,14 +11,7 @@ import pickle
 import numpy as np
 import pytest
 
-from millsense.monitoring import _spectrum_kernels as sk
 from millsense.monitoring.chatter import _kernels as kn
-from millsense.monitoring.engagement import EngagementBlock
-from millsense.monitoring.torque_spectrum import SpectrumIdentifier
-from millsense.process.coefficients import CuttingCoefficients
-from millsense.process.engagement import Engagement
-from millsense.process.forces import milling_forces
-from millsense.process.geometry import EndMill
 from millsense.streaming.block import Chunk
 
 
@@ -56,55 +49,6 @@ def test_radix_median_is_the_quickselect_value() -> None:
         before = a.copy()
         assert _same(kn._select_radix(a, k), kn._select(a, k))
         np.testing.assert_array_equal(a, before)  # left unchanged
-
-
-def _revolutions(n: int) -> tuple[SpectrumIdentifier, list[tuple[np.ndarray, float]]]:
-    """The identifier of an engagement block and the harmonics and feeds of ``n`` revolutions
-    of a noisy 2-flute Ø20 mm down-milling cut at 1000 rev/min (the monitoring benchmark's)."""
-    fs = 10000.0
-    omega = 1000 * 2 * math.pi / 60
-    tool = EndMill(20e-3, 2, helix_rad=math.radians(30))
-    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
-    phi = 2 * math.pi * np.arange(600) / 600
-    rev = milling_forces(tool, co, Engagement.radial(5e-3, 20e-3, "down"), 0.2e-3, 2e-3, phi)
-    m = 600 * (n + 1)
-    t = np.arange(m) / fs
-    tq = np.interp(np.mod(omega * t, 2 * math.pi), phi, rev.torque_nm, period=2 * math.pi)
-    tq = tq + 0.05 * np.random.default_rng(0).standard_normal(m)
-    block = EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=15)
-    block.reset(fs)
-    out = []
-    for i in range(0, m, 600):
-        block.process(Chunk(i, fs, 0.0, {"spindle/torque_est": tq[i : i + 600],
-                                         "spindle/speed": np.full(600, omega)}))  # fmt: skip
-        out.append((block._done_sums[0].copy(), float(block._done[0, sk.DONE_FEED])))
-    return block._ident, out[1:]
-
-
-def test_fit_with_memo_gives_the_fit_without() -> None:
-    """Revolution after revolution from the previous solution (the streaming path), the fit
-    and estimate with one memo equal the memo-less ones in every field, bit for bit."""
-    ident, revs = _revolutions(40)
-    g = ident.geom
-    memo = sk.memo_for(15)
-    est = ident.identify_array(revs[0][0][1:], complex(revs[0][0][0]), revs[0][1])
-    prev = est[[sk.EST_AXIAL, sk.EST_ENTRY, sk.EST_EXIT]].copy()
-    hits = accepted = 0
-    for coeff, c in revs[1:]:
-        x = np.ascontiguousarray(coeff[1:])
-        a = np.zeros(sk.EST_SIZE)
-        b = np.zeros(sk.EST_SIZE)
-        tail = (g.radius_m, g.n_flutes, g.axial_pitch_m, 1e-6)
-        args = (ident.k, ident._kb, True, ident._lo, ident._hi, ident._scl, ident.accept)
-        hits += sk._memo_at(memo, prev[0], prev[1], prev[2])
-        ok_a = sk.identify_from(prev, x, coeff[0], c, *args, *tail, a)
-        ok_b = sk.identify_from_memo(prev, x, coeff[0], c, *args, *tail, b, memo)
-        assert ok_a == ok_b
-        assert all(_same(u, v) for u, v in zip(a.tolist(), b.tolist(), strict=True))
-        if ok_a:
-            accepted += 1
-            prev = a[[sk.EST_AXIAL, sk.EST_ENTRY, sk.EST_EXIT]].copy()
-    assert accepted >= 35 and hits >= 35  # the streaming path, the memo serving its starts
 
 
 def test_chunk_is_frozen_and_keeps_its_fields() -> None:

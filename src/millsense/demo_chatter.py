@@ -147,9 +147,11 @@ def _plant_plan() -> Any:
 
 
 def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
-         on_progress: Callable[[int], None] | None) -> Any:  # fmt: skip
+         on_progress: Callable[[int], None] | None,
+         wrap: Callable[[Any], Any] | None = None) -> Any:  # fmt: skip
     """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
-    machine cutting its own plan ``plant``; the session's result."""
+    machine cutting its own plan ``plant``; the session's result. ``wrap``: put in front of
+    the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`)."""
     from millsense.bench.tap_test import tap_tested_case
     from millsense.core.presets import commissioned_machine
     from millsense.demo_online import _Open
@@ -176,6 +178,8 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts,
                            where=where, channels=sim.channel_names)  # fmt: skip
     source: Source = sim if controlled else _Open(sim)
+    if wrap is not None:
+        source = wrap(source)
     meta.update(dict(sim.metadata))
     meta.update({"source": "millsense demo (chatter-prone pass)", "machine_file": where,
                  "controlled": controlled})  # fmt: skip

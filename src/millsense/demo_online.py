@@ -172,9 +172,14 @@ def _run(
     out: Path,
     events_out: Path,
     on_progress: Callable[[int], None] | None,
+    wrap: Callable[[Any], Any] | None = None,
+    options: Any = None,
 ) -> Any:
     """One closed-loop run of the session (its plan ``plan``) on the virtual machine (cutting
-    its own plan ``plant``, :func:`_plant_plan`); the session's result."""
+    its own plan ``plant``, :func:`_plant_plan`); the session's result. ``wrap``: put in front
+    of the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`);
+    ``options``: the session's (:class:`~millsense.online.session.SessionOptions`; None: the
+    defaults)."""
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
@@ -190,9 +195,12 @@ def _run(
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_demo.nc",
                                   events=[ToothBreak(BREAK_S, 0)])  # fmt: skip
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
-    built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
+    opts = options if options is not None else SessionOptions()
+    built = session_blocks(plan, belief, sim.sample_rate_hz, opts, where=where,
                            channels=sim.channel_names)  # fmt: skip
     source: Source = sim if controlled else _Open(sim)
+    if wrap is not None:
+        source = wrap(source)
     meta.update(dict(sim.metadata))
     meta.update({"source": "millsense demo (on-line system)", "machine_file": where,
                  "controlled": controlled})  # fmt: skip

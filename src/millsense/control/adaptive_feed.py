@@ -6,9 +6,10 @@ decision 1619) of the regulated quantity over that revolution — the resultant 
 000 and 002), the spindle torque, or the spindle power (what Heidenhain AFC regulates) —
 identifies the plant z⁻¹B/A (Aslan Eq. 6.7, Munasinghe Eq. 3.23) with
 :class:`~millsense.control.rls.ConstantTraceRLS` on normalised signals (y = peak / reference,
-u = feed override as a fraction of the programmed feed, decision 1601) and computes the new
-override with :class:`~millsense.control.gpc.GPC`
-(N1/N2/Nu = 1/4/1, λ = 0.25, Eq. 6.14). Around it (decisions 1611–1616, 1619):
+u = feed override as a fraction of the programmed feed, decision 1601), its estimate projected
+onto the physical models (one real pole in [0, 1], every b ≥ 0: decision 1657), and computes
+the new override with :class:`~millsense.control.gpc.GPC` (N1/N2/Nu = 1/4/1, λ = 0.25,
+Eq. 6.14). Around it (decisions 1611–1616, 1619):
 
 - limits 20–150 % (seed 000), dead band ±5 % of the reference (no move while the peak is in
   the band, seed 000 §2.10);
@@ -48,7 +49,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from millsense.control.gpc import GPC
-from millsense.control.rls import ConstantTraceRLS
+from millsense.control.rls import ConstantTraceRLS, force_model_constraints
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
@@ -267,7 +268,12 @@ class AdaptiveFeedBlock(Block):
         o = self.opts
         self.u_min = o.min_override_pct / 100.0
         self.u_max = o.max_override_pct / 100.0
-        self.rls = ConstantTraceRLS(theta0=[0.0, 0.0, 1.0, 0.0, 0.0], delta=o.rls_delta)
+        # the estimate kept among the physical models: one real pole in [0, 1], b ≥ 0
+        # (decision 1657)
+        self.rls = ConstantTraceRLS(
+            theta0=[0.0, 0.0, 1.0, 0.0, 0.0], delta=o.rls_delta,
+            constraints=force_model_constraints(2, 3),
+        )  # fmt: skip
         self.loop = _Loop()
         # scan state: [integer spindle angle (2⁻³² rev), frozen run length],
         # [running peak, last sample, running revolution holds a bad sample]

@@ -126,10 +126,11 @@ def _phases(m: FloatArray, ang: float, out: ComplexArray) -> None:
 
 
 @numba.njit(cache=True)
-def _lengths(k: FloatArray, d: float, kb: float, out: ComplexArray) -> None:
-    """out_j = L(k_j) at depth d (:func:`_l`)."""
+def _lengths(k: FloatArray, d: float, kb: float, wt: FloatArray, out: ComplexArray) -> None:
+    """out_j = wt_j L(k_j) at depth d (:func:`_l`; ``wt``: the row weights of the fit, 1 for
+    every harmonic, decision 1806)."""
     for j in range(k.shape[0]):
-        out[j] = _l(k[j], d, kb)
+        out[j] = wt[j] * _l(k[j], d, kb)
 
 
 @numba.njit(cache=True)
@@ -215,54 +216,12 @@ def lm_fit(
     scale: FloatArray,
     max_iter: int,
 ) -> tuple[FloatArray, float]:
-    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 1535: a
-    parameter on a bound whose descent direction leaves the box is held for that step — the
-    active set — and the others take the step of the reduced system; the rest is clipped).
-
-    The residual is :func:`_residual_g`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
-    L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
-    parameter enters (d_a: L; θ_st, θ_ex: their phases) — the same numbers as a full
-    evaluation, with a third of the sines and cosines. (:func:`lm_fit_memo` with an empty
-    memo.)"""
-    m, idx = _orders(k)
-    return lm_fit_memo(p0, xn, k, kb, edge, lo, hi, scale, max_iter, m, idx, new_memo(k.shape[0]))
-
-
-#: Rows of a fit's memo (:func:`lm_fit_memo`; complex, :func:`new_memo`): the phases
-#: e^{−i m θ_st}, e^{−i m θ_ex} and G of every order m, the lengths L(k) of every harmonic, and
-#: the point (d_a, θ_st, θ_ex) they belong to (real parts of entries 1–3; entry 0 is 1 once
-#: the rows hold a point's values).
-MEMO_E1, MEMO_E2, MEMO_G, MEMO_L, MEMO_POINT = range(5)
+    """:func:`lm_fit_weighted` with every row of weight 1 (the tooth-passing harmonics)."""
+    return lm_fit_weighted(p0, xn, k, kb, edge, lo, hi, scale, max_iter, np.ones(xn.shape[0]))
 
 
 @numba.njit(cache=True)
-def new_memo(n_harmonics: int) -> ComplexArray:
-    """An empty memo of :func:`lm_fit_memo` for up to ``n_harmonics`` harmonics (≤ 3 orders
-    each; :func:`memo_for` outside compiled code)."""
-    return np.zeros((5, max(3 * n_harmonics, 4)), dtype=np.complex128)
-
-
-def memo_for(n_harmonics: int) -> ComplexArray:
-    """:func:`new_memo` from Python (no compilation)."""
-    return np.zeros((5, max(3 * n_harmonics, 4)), dtype=np.complex128)
-
-
-@numba.njit(cache=True)
-def _same(a: float, b: float) -> bool:
-    """``a`` and ``b`` are the same number, the sign of a zero included (NaN never is)."""
-    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
-
-
-@numba.njit(cache=True)
-def _memo_at(memo: ComplexArray, d: float, st: float, ex: float) -> bool:
-    """The memo holds the phases, lengths and G of the point (d, st, ex)."""
-    pt = memo[MEMO_POINT]
-    return (pt[0].real == 1.0 and _same(pt[1].real, d) and _same(pt[2].real, st)
-            and _same(pt[3].real, ex))  # fmt: skip
-
-
-@numba.njit(cache=True)
-def lm_fit_memo(
+def lm_fit_weighted(
     p0: FloatArray,
     xn: ComplexArray,
     k: FloatArray,
@@ -272,17 +231,19 @@ def lm_fit_memo(
     hi: FloatArray,
     scale: FloatArray,
     max_iter: int,
-    m: FloatArray,
-    idx: IntArray,
-    memo: ComplexArray,
+    wt: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """:func:`lm_fit` (``m``, ``idx``: :func:`_orders` of ``k``) keeping the phases, lengths
-    and G of its current point in the rows of ``memo`` (:data:`MEMO_E1`…); they are those of
-    the returned point on return. A start point equal to the memo's point (the previous
-    revolution's solution, from which the streaming fit starts) takes them from it instead of
-    two thirds of a Jacobian's sines and cosines: they are functions of the point alone (and
-    of ``k``, ``kb``, which a memo keeps), so the fit gives the same numbers bit for bit."""
+    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 1535: a
+    parameter on a bound whose descent direction leaves the box is held for that step — the
+    active set — and the others take the step of the reduced system; the rest is clipped).
+
+    The residual is :func:`_residual_g`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
+    L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
+    parameter enters (d_a: L; θ_st, θ_ex: their phases) — the same numbers as a full
+    evaluation, with a third of the sines and cosines. Row j of the model is weighted by
+    ``wt[j]`` (``xn`` must be weighted alike; the mean-torque row of decision 1806)."""
     n = xn.shape[0]
+    m, idx = _orders(k)
     nm = m.shape[0]
     p = p0.copy()
     for i in range(3):
@@ -298,21 +259,18 @@ def lm_fit_memo(
     free = np.empty(3, dtype=np.bool_)
     wa = np.empty(n, dtype=np.complex128)
     wb = np.empty(n, dtype=np.complex128)
-    e1 = memo[MEMO_E1, :nm]  # at p
-    e2 = memo[MEMO_E2, :nm]
-    lk = memo[MEMO_L, :n]
+    e1 = np.empty(nm, dtype=np.complex128)  # at p
+    e2 = np.empty(nm, dtype=np.complex128)
+    lk = np.empty(n, dtype=np.complex128)
     f1 = np.empty(nm, dtype=np.complex128)  # at a trial or perturbed point
     f2 = np.empty(nm, dtype=np.complex128)
     fl = np.empty(n, dtype=np.complex128)
-    gc = memo[MEMO_G, :nm]  # G of every order at p
+    gc = np.empty(nm, dtype=np.complex128)  # G of every order at p
     gt = np.empty(nm, dtype=np.complex128)  # ... at a trial or perturbed point
-    pt = memo[MEMO_POINT]
-    if not _memo_at(memo, p[0], p[1], p[2]):
-        pt[0] = 0.0  # the rows are being replaced
-        _phases(m, p[1], e1)
-        _phases(m, p[2], e2)
-        _lengths(k, p[0], kb, lk)
-        _g_all(m, e1, e2, p[1], p[2], gc)
+    _phases(m, p[1], e1)
+    _phases(m, p[2], e2)
+    _lengths(k, p[0], kb, wt, lk)
+    _g_all(m, e1, e2, p[1], p[2], gc)
     cost = _residual_g(idx, gc, lk, xn, edge, wa, wb, r)
     lam = 1e-3
     for _ in range(max_iter):
@@ -321,7 +279,7 @@ def lm_fit_memo(
             qi = p[i] + h if p[i] + h <= hi[i] else p[i] - h
             step = qi - p[i]
             if i == 0:  # d_a enters only the lengths: the G of p serve
-                _lengths(k, qi, kb, fl)
+                _lengths(k, qi, kb, wt, fl)
                 _residual_g(idx, gc, fl, xn, edge, wa, wb, rt)
             elif i == 1:
                 _phases(m, qi, f1)
@@ -348,7 +306,6 @@ def lm_fit_memo(
         for i in range(3):
             free[i] = not ((p[i] >= hi[i] and g[i] < 0.0) or (p[i] <= lo[i] and g[i] > 0.0))
         improved = False
-        done = False
         for _t in range(8):
             for i in range(3):
                 for c in range(3):
@@ -359,7 +316,7 @@ def lm_fit_memo(
                 q[i] = min(max(p[i] + dp[i], lo[i]), hi[i])
             _phases(m, q[1], f1)
             _phases(m, q[2], f2)
-            _lengths(k, q[0], kb, fl)
+            _lengths(k, q[0], kb, wt, fl)
             _g_all(m, f1, f2, q[1], q[2], gt)
             c2 = _residual_g(idx, gt, fl, xn, edge, wa, wb, rt)
             if c2 < cost:
@@ -377,15 +334,12 @@ def lm_fit_memo(
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
                 improved = True
-                done = small or rel < 1e-8
+                if small or rel < 1e-8:
+                    return p, cost
                 break
             lam *= 10.0
-        if not improved or done:
+        if not improved:
             break
-    pt[0] = 1.0
-    pt[1] = p[0]
-    pt[2] = p[1]
-    pt[3] = p[2]
     return p, cost
 
 
@@ -446,23 +400,66 @@ def grid_costs(
 #: is cached with that rotation (real, imaginary; NaN: none yet).
 ACC_FRAC, ACC_REV, ACC_COUNT, ACC_SUM_X, ACC_SUM_SPEED, ACC_SUM_FEED, ACC_HAS_PREV = range(7)
 ACC_ZR, ACC_ZI, ACC_STEP_SPEED, ACC_STEP_R, ACC_STEP_I = range(7, 12)
-ACC_SIZE = 12
+#: ... then the air-cut reference learnt (decision 1806): Σ of the air revolutions' torque
+#: samples, their count and the mean speed they were taken at (:func:`mean_cut_torque`).
+ACC_AIR_SUM, ACC_AIR_COUNT, ACC_AIR_SPEED = range(12, 15)
+ACC_SIZE = 15
 #: Columns of the finished revolutions of :func:`ingest_revolutions` (``done``, floats):
-#: sample (in the chunk) at which the revolution ended, mean |Ω|, feed per tooth (m) and the
+#: sample (in the chunk) at which the revolution ended, mean |Ω|, feed per tooth (m), the mean
+#: cutting torque T_0 − T_air and its variance factor (:func:`mean_cut_torque`) and the
 #: status: :data:`REV_NONE` (not evaluated: air, no speed, no feed), :data:`REV_DONE` (the
 #: estimate is in its row of ``est``), :data:`REV_GRID` (the previous revolution's solution
 #: does not explain it: the caller runs the grid search, then resumes the scan).
-DONE_AT, DONE_OMEGA, DONE_FEED, DONE_STATUS = range(4)
+DONE_AT, DONE_OMEGA, DONE_FEED, DONE_STATUS, DONE_T0_NET, DONE_MEAN_VAR = range(6)
+DONE_SIZE = 6
 REV_NONE, REV_DONE, REV_GRID = 0.0, 1.0, 2.0
 #: ``fpar`` of :func:`ingest_revolutions`: minimum mean torque, feed per tooth (m; ≤ 0: from
-#: the feed channel), tanβ/r, the accept misfit, radius, axial pitch, the runout cut-off.
+#: the feed channel), tanβ/r, the accept misfit, radius, axial pitch, the runout cut-off and
+#: the air torque given as a setting (N·m; NaN: learnt from the air revolutions, decision 1806).
 FPAR_MIN_TORQUE, FPAR_FEED, FPAR_KB, FPAR_ACCEPT, FPAR_RADIUS, FPAR_PITCH, FPAR_RCOND = range(7)
+FPAR_AIR_TORQUE = 7
+FPAR_SIZE = 8
+#: Relative speed difference within which a learnt air-cut torque is used (decision 1806: the
+#: air torque depends on the speed, viscous friction; a reference serves the speed it was
+#: taken at, and a new speed needs a new air revolution).
+AIR_SPEED_TOL = 0.01
+
+
+@numba.njit(cache=True)
+def mean_cut_torque(
+    mean_x: float, omega: float, cnt: float, air: bool, acc: FloatArray, fpar: FloatArray
+) -> tuple[float, float]:
+    """The mean cutting torque T_0 − T_air of a revolution (mean torque ``mean_x``, mean speed
+    ``omega``, ``cnt`` samples) and its error variance in units of the revolution's white-noise
+    variance σ²/M (decision 1806; Lee Fig. 3.6 step 3 subtracts the air-cut torque): the air
+    torque given as a setting (variance factor 1), else the mean of the air revolutions learnt
+    at this speed (within :data:`AIR_SPEED_TOL`; factor 1 + M/M_air), else (NaN, 1). An air
+    revolution (``air``: the monitor's own air criterion, mean torque below
+    ``min_torque_nm``) is added to the reference, which restarts when the speed changed."""
+    given = fpar[FPAR_AIR_TORQUE]
+    if math.isfinite(given):
+        return mean_x - given, 1.0
+    if air and omega > 0.0:
+        n_air = acc[ACC_AIR_COUNT]
+        if n_air > 0 and abs(omega - acc[ACC_AIR_SPEED]) <= AIR_SPEED_TOL * omega:
+            acc[ACC_AIR_SPEED] = (acc[ACC_AIR_SPEED] * n_air + omega * cnt) / (n_air + cnt)
+            acc[ACC_AIR_SUM] += mean_x * cnt
+            acc[ACC_AIR_COUNT] = n_air + cnt
+        else:
+            acc[ACC_AIR_SPEED] = omega
+            acc[ACC_AIR_SUM] = mean_x * cnt
+            acc[ACC_AIR_COUNT] = cnt
+        return math.nan, 1.0
+    n_air = acc[ACC_AIR_COUNT]
+    if n_air > 0 and abs(omega - acc[ACC_AIR_SPEED]) <= AIR_SPEED_TOL * omega:
+        return mean_x - acc[ACC_AIR_SUM] / n_air, 1.0 + cnt / n_air
+    return math.nan, 1.0
 
 
 #: Fields of :func:`estimate`'s output, in order (SI units).
 EST_AXIAL, EST_RADIAL, EST_ENTRY, EST_EXIT, EST_KT, EST_RUNOUT, EST_RUNOUT_ANGLE = range(7)
-EST_RELIABILITY, EST_NOTCH, EST_COST, EST_EDGE = range(7, 11)
-EST_SIZE = 11
+EST_RELIABILITY, EST_NOTCH, EST_COST, EST_EDGE, EST_EDGE_SOURCE = range(7, 12)
+EST_SIZE = 12
 
 
 @numba.njit(cache=True)
@@ -662,6 +659,97 @@ def _runout_with_edge(
     return w
 
 
+#: :data:`EST_EDGE_SOURCE` values (decision 1806): no edge term fitted (``edge=False``); K_e
+#: from the tooth-passing harmonics; K_e from the mean torque (the harmonics and the mean,
+#: air torque subtracted, fitted jointly); K_e from the harmonics although they observe it
+#: less well than the mean torque would, and no air torque is known (lower reliability: the
+#: runout's edge part and K_e may be off).
+EDGE_NOT_FITTED, EDGE_FROM_HARMONICS, EDGE_FROM_MEAN, EDGE_UNOBSERVED = 0.0, 1.0, 2.0, 3.0
+
+
+@numba.njit(cache=True)
+def mean_informs_edge(
+    p: FloatArray, k: FloatArray, n_harm: int, kb: float, mean_var: float
+) -> bool:
+    """True where the mean torque T_0 carries more information on the edge amplitude β than
+    the tooth-passing harmonics do (decision 1806), from the conditioning of the harmonic
+    regression x ≈ α A + β B alone (no data): the harmonics' information on β beyond what α
+    explains is the Schur complement b_⊥ = Σ|B|² − (Σ Re Ā B)²/Σ|A|² of the 2 × 2 normal
+    equations; each harmonic's real and imaginary parts carry the white-noise variance σ²/2M,
+    so the harmonics give 2 b_⊥ per σ²/M. T_0 gives |B_0|²/``mean_var`` (B_0 = G_0 d_a, the
+    engaged edge length over 2π r N; ``mean_var`` = T_0's error variance in σ²/M: 1 with a
+    given air torque, 1 + M/M_air with one learnt from M_air air-cut samples)."""
+    d, st, ex = p[0], p[1], p[2]
+    aa = 0.0
+    ab = 0.0
+    bb = 0.0
+    for j in range(n_harm):
+        lk = _l(k[j], d, kb)
+        a = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b = _g(k[j], st, ex) * lk
+        aa += a.real**2 + a.imag**2
+        bb += b.real**2 + b.imag**2
+        ab += (a.conjugate() * b).real
+    b_perp = bb - ab * ab / aa if aa > 0.0 else bb
+    b0 = (ex - st) / (2.0 * math.pi) * d
+    return b0 * b0 / mean_var > 2.0 * b_perp
+
+
+@numba.njit(cache=True)
+def _weighted_amplitudes(
+    p: FloatArray, x: ComplexArray, k: FloatArray, kb: float, wt: FloatArray
+) -> tuple[float, float]:
+    """Real amplitudes α, β of the weighted least squares wt·x ≈ wt·(α A + β B) at p."""
+    n = x.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    xw = np.empty(n, dtype=np.complex128)
+    d, st, ex = p[0], p[1], p[2]
+    for j in range(n):
+        lk = wt[j] * _l(k[j], d, kb)
+        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b[j] = _g(k[j], st, ex) * lk
+        xw[j] = wt[j] * x[j]
+    return _least_squares(a, b, xw, True)
+
+
+@numba.njit(cache=True)
+def fit_with_mean(
+    p0: FloatArray,
+    x: ComplexArray,
+    t0_net: float,
+    mean_var: float,
+    k: FloatArray,
+    kb: float,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+) -> tuple[FloatArray, float, float]:
+    """(d_a, θ_st, θ_ex), α and β fitted to the harmonics ``x`` (orders ``k``) and the mean
+    torque T_0 − T_air = ``t0_net`` as one more row, k = 0 of the same model (decision 1806:
+    seed 004 Eqs. 2.11-2.13 hold at ω = 0, where Λ(0) = d_a and G(0) = θ_ex − θ_st, and the
+    edge part is K_e times the engaged edge length; Lee Fig. 3.6 subtracts the air-cut torque).
+    The row is weighted 1/√(2 mean_var) against the harmonics' real and imaginary parts (their
+    white-noise variances, :func:`mean_informs_edge`), and the fit starts from ``p0``."""
+    n = x.shape[0]
+    kj = np.empty(n + 1)
+    xj = np.empty(n + 1, dtype=np.complex128)
+    wt = np.ones(n + 1)
+    kj[0] = 0.0
+    wt[0] = 1.0 / math.sqrt(2.0 * mean_var)
+    xj[0] = t0_net
+    for j in range(n):
+        kj[j + 1] = k[j]
+        xj[j + 1] = x[j]
+    ax = abs(x[0])
+    xn = np.empty(n + 1, dtype=np.complex128)
+    for j in range(n + 1):
+        xn[j] = wt[j] * xj[j] / ax
+    p, _ = lm_fit_weighted(p0, xn, kj, kb, True, lo, hi, scale, 60, wt)
+    alpha, beta = _weighted_amplitudes(p, xj, kj, kb, wt)
+    return p, alpha, beta
+
+
 @numba.njit(cache=True)
 def estimate(
     p: FloatArray,
@@ -676,11 +764,22 @@ def estimate(
     n_flutes: int,
     axial_pitch: float,
     rcond: float,
+    t0_net: float,
+    mean_var: float,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
     out: FloatArray,
 ) -> None:
     """The estimate at the fitted p = (d_a, θ_st, θ_ex) (:meth:`..torque_spectrum.
     SpectrumIdentifier.identify`): K_t, K_e from the amplitudes, the runout from T_1, σ
-    (Eq. 2.23) over the harmonics below the notch; fields as :data:`EST_AXIAL`…"""
+    (Eq. 2.23) over the harmonics below the notch; fields as :data:`EST_AXIAL`…
+
+    With the edge term, where the mean torque observes K_e better than the harmonics do
+    (:func:`mean_informs_edge`) and the mean cutting torque ``t0_net`` (T_0 less the air
+    torque; NaN: unknown) is given, p, K_t and K_e are refitted with it (:func:`fit_with_mean`,
+    decision 1806); without it the harmonics' values are kept and flagged
+    (:data:`EST_EDGE_SOURCE`)."""
     d, st, ex = p[0], p[1], p[2]
     if ex < st:
         st, ex = ex, st
@@ -688,88 +787,39 @@ def estimate(
     q[0] = d
     q[1] = st
     q[2] = ex
-    a, b, alpha, beta = _fit_basis(q, x, k, kb, edge)
-    _estimate_from(d, st, ex, cost, x, t1, feed_per_tooth_m, kb, edge, radius, n_flutes,
-                   axial_pitch, rcond, a, b, alpha, beta, out)  # fmt: skip
-
-
-@numba.njit(cache=True)
-def estimate_memo(
-    p: FloatArray,
-    cost: float,
-    x: ComplexArray,
-    t1: complex,
-    feed_per_tooth_m: float,
-    k: FloatArray,
-    kb: float,
-    edge: bool,
-    radius: float,
-    n_flutes: int,
-    axial_pitch: float,
-    rcond: float,
-    out: FloatArray,
-    idx: IntArray,
-    memo: ComplexArray,
-) -> None:
-    """:func:`estimate` at the point of :func:`lm_fit_memo`'s ``memo`` (``idx``: the orders of
-    ``k`` as :func:`_orders` gives them): the bases A_k, B_k from the memo's G and L — the
-    values :func:`_fit_basis` computes, by the same operations (G of order k ± 1 and k from
-    the same phases, :func:`_g_of` being :func:`_g`) — instead of three G's sines and cosines
-    per harmonic. Any other point (or an exit before the entry, which the estimate swaps):
-    :func:`estimate`."""
-    d, st, ex = p[0], p[1], p[2]
-    if ex < st or not _memo_at(memo, d, st, ex):
-        estimate(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch,
-                 rcond, out)  # fmt: skip
-        return
-    n = x.shape[0]
-    a = np.empty(n, dtype=np.complex128)
-    b = np.empty(n, dtype=np.complex128)
-    g = memo[MEMO_G]
-    lk = memo[MEMO_L]
-    for j in range(n):
-        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
-        b[j] = g[idx[1, j]] * lk[j]
-    alpha, beta = _least_squares(a, b, x, edge)
-    _estimate_from(d, st, ex, cost, x, t1, feed_per_tooth_m, kb, edge, radius, n_flutes,
-                   axial_pitch, rcond, a, b, alpha, beta, out)  # fmt: skip
-
-
-@numba.njit(cache=True)
-def _estimate_from(
-    d: float,
-    st: float,
-    ex: float,
-    cost: float,
-    x: ComplexArray,
-    t1: complex,
-    feed_per_tooth_m: float,
-    kb: float,
-    edge: bool,
-    radius: float,
-    n_flutes: int,
-    axial_pitch: float,
-    rcond: float,
-    a: ComplexArray,
-    b: ComplexArray,
-    alpha: float,
-    beta: float,
-    out: FloatArray,
-) -> None:
-    """:func:`estimate` from the bases ``a``, ``b`` at (d, st ≤ ex) and their amplitudes α, β
-    (:func:`amplitudes`' model over the harmonics below the notch, G_1, L_2)."""
     ax0 = abs(x[0])
     norm = 0.0
     for j in range(x.shape[0]):
         v = x[j] / ax0
         norm += v.real * v.real + v.imag * v.imag
+    source = EDGE_NOT_FITTED
+    if edge:
+        source = EDGE_FROM_HARMONICS
+        if mean_informs_edge(q, k, x.shape[0], kb, mean_var):
+            source = EDGE_UNOBSERVED
+            if math.isfinite(t0_net):
+                q = fit_with_mean(q, x, t0_net, mean_var, k, kb, lo, hi, scale)[0]
+                if q[2] < q[1]:
+                    q[1], q[2] = q[2], q[1]
+                d, st, ex = q[0], q[1], q[2]
+                source = EDGE_FROM_MEAN
     notch = axial_pitch / d
     m = min(max(math.floor(notch), 1), x.shape[0])
     model = np.empty(m)
-    for j in range(m):
-        model[j] = abs(alpha * a[j] + beta * b[j])
-    g1 = _g(1.0, st, ex)
-    l2 = _l(2.0, d, kb)
+    alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
+    if source == EDGE_FROM_MEAN:  # the amplitudes of the joint fit, and σ's model with them
+        wt = np.ones(x.shape[0] + 1)
+        wt[0] = 1.0 / math.sqrt(2.0 * mean_var)
+        kj = np.empty(x.shape[0] + 1)
+        xj = np.empty(x.shape[0] + 1, dtype=np.complex128)
+        kj[0] = 0.0
+        xj[0] = t0_net
+        kj[1:] = k[: x.shape[0]]
+        xj[1:] = x
+        alpha, beta = _weighted_amplitudes(q, xj, kj, kb, wt)
+        basis = _fit_basis(q, x, k, kb, edge)
+        for j in range(m):
+            model[j] = abs(alpha * basis[0][j] + beta * basis[1][j])
     rn = radius * n_flutes
     kt = alpha / (rn * feed_per_tooth_m)
     ke = max(beta / rn, 0.0) if edge else 0.0
@@ -792,6 +842,7 @@ def _estimate_from(
     out[EST_NOTCH] = notch
     out[EST_COST] = 2.0 * cost / norm
     out[EST_EDGE] = beta / rn
+    out[EST_EDGE_SOURCE] = source
 
 
 @numba.njit(cache=True)
@@ -824,12 +875,15 @@ def identify_from(
     n_flutes: int,
     axial_pitch: float,
     rcond: float,
+    t0_net: float,
+    mean_var: float,
     out: FloatArray,
 ) -> bool:
     """The common path of the identification: the fit from the previous revolution's solution
     ``p0``; if its relative misfit is at most ``accept``, the estimate into ``out`` and True.
     Otherwise False, with ``out[:3]`` the fitted point and ``out[EST_COST]`` its cost (the
-    caller adds the grid starts)."""
+    caller adds the grid starts). ``t0_net``, ``mean_var``: the mean cutting torque and its
+    variance factor (:func:`estimate`; NaN: no air torque known)."""
     xn, norm = normalised(x)
     p, cost = lm_fit(p0, xn, k[: x.shape[0]], kb, edge, lo, hi, scale, 60)
     if 2.0 * cost / norm > accept:
@@ -839,46 +893,7 @@ def identify_from(
         out[EST_COST] = cost
         return False
     estimate(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch, rcond,
-             out)  # fmt: skip
-    return True
-
-
-@numba.njit(cache=True)
-def identify_from_memo(
-    p0: FloatArray,
-    x: ComplexArray,
-    t1: complex,
-    feed_per_tooth_m: float,
-    k: FloatArray,
-    kb: float,
-    edge: bool,
-    lo: FloatArray,
-    hi: FloatArray,
-    scale: FloatArray,
-    accept: float,
-    radius: float,
-    n_flutes: int,
-    axial_pitch: float,
-    rcond: float,
-    out: FloatArray,
-    memo: ComplexArray,
-) -> bool:
-    """:func:`identify_from` with the fit's memo (:func:`lm_fit_memo`, :func:`estimate_memo`;
-    one memo per harmonic set ``k[:len(x)]``): the streaming fit starts from the previous
-    revolution's solution, whose phases, lengths and G the memo holds, and the estimate is
-    taken at the fitted point whose values it holds — the same numbers bit for bit."""
-    xn, norm = normalised(x)
-    kx = k[: x.shape[0]]
-    m, idx = _orders(kx)
-    p, cost = lm_fit_memo(p0, xn, kx, kb, edge, lo, hi, scale, 60, m, idx, memo)
-    if 2.0 * cost / norm > accept:
-        out[0] = p[0]
-        out[1] = p[1]
-        out[2] = p[2]
-        out[EST_COST] = cost
-        return False
-    estimate_memo(p, cost, x, t1, feed_per_tooth_m, k, kb, edge, radius, n_flutes, axial_pitch,
-                  rcond, out, idx, memo)  # fmt: skip
+             t0_net, mean_var, lo, hi, scale, out)  # fmt: skip
     return True
 
 
@@ -1004,7 +1019,6 @@ def ingest_revolutions(
     done: FloatArray,
     done_sums: ComplexArray,
     est: FloatArray,
-    memo: ComplexArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -1015,9 +1029,10 @@ def ingest_revolutions(
     sample order, so a revolution split over any chunks gives its coefficients bit for bit.
     When a sample starts a new revolution while samples are summed, the revolution is
     finished: its coefficients (the sums over the count) go to a row of ``done_sums``, its
-    sample, means and status to a row of ``done`` and, if the fit from ``prev`` is accepted
-    (:func:`identify_from_memo` with the fit's ``memo``, :func:`new_memo`), its estimate to
-    that row of ``est`` (``prev`` ← its solution).
+    sample, means, mean cutting torque (:func:`mean_cut_torque`, which also learns the air
+    reference from an air revolution; decision 1806) and status to a row of ``done`` and, if
+    the fit from ``prev`` is accepted (:func:`identify_from`), its estimate to that row of
+    ``est`` (``prev`` ← its solution).
     Returns (revolutions finished, next sample): the scan stops when ``done`` is full or after
     a revolution that needs the grid search."""
     nk = sums.shape[0]
@@ -1052,6 +1067,10 @@ def ingest_revolutions(
             done[nd, DONE_AT] = i
             done[nd, DONE_OMEGA] = omega
             done[nd, DONE_FEED] = c
+            air = mean_x < fpar[FPAR_MIN_TORQUE]
+            t0_net, mean_var = mean_cut_torque(mean_x, omega, cnt, air, acc, fpar)
+            done[nd, DONE_T0_NET] = t0_net
+            done[nd, DONE_MEAN_VAR] = mean_var
             status = REV_NONE
             if (
                 mean_x >= fpar[FPAR_MIN_TORQUE]
@@ -1062,11 +1081,10 @@ def ingest_revolutions(
                 status = REV_GRID
                 if acc[ACC_HAS_PREV] > 0:
                     row = est[nd]
-                    if identify_from_memo(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
-                                          fpar[FPAR_KB], edge, lo, hi, scale,
-                                          fpar[FPAR_ACCEPT], fpar[FPAR_RADIUS], n_flutes,
-                                          fpar[FPAR_PITCH], fpar[FPAR_RCOND], row,
-                                          memo):  # fmt: skip
+                    if identify_from(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
+                                     fpar[FPAR_KB], edge, lo, hi, scale, fpar[FPAR_ACCEPT],
+                                     fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
+                                     fpar[FPAR_RCOND], t0_net, mean_var, row):  # fmt: skip
                         status = REV_DONE
                         prev[0] = row[EST_AXIAL]
                         prev[1] = row[EST_ENTRY]

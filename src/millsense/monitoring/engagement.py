@@ -6,7 +6,10 @@ it on a real machine). At the end of every revolution the samples of that revolu
 Fourier-series coefficients T_k = mean(τ e^{−ikφ}) at k = 1 and at the tooth-passing harmonics
 k = N…KN, and :class:`~millsense.monitoring.torque_spectrum.SpectrumIdentifier` returns
 d_a, d_r, θ_st, θ_ex, K_t, ε, θ_ec and the reliability index σ (Lee Fig. 2.9). Revolutions
-whose mean torque is below ``min_torque_nm`` (air) give NaN. The values are held on the
+whose mean torque is below ``min_torque_nm`` (air) give NaN; their mean torque at the running
+speed is the air-cut reference (unless ``air_torque_nm`` is given) that the mean torque of a
+cut revolution is taken against where the harmonics do not observe the edge coefficient
+(decision 1806). The values are held on the
 output channels from the sample after the revolution ends until the next one.
 
 Per chunk the work is one compiled call (decision 1535): the angle, the harmonic sums of the
@@ -61,7 +64,14 @@ class EngagementBlock(Block):
     feed_channel : path feed, m/s (feed per tooth c = 2π v/(N Ω)); or give
         ``feed_per_tooth_mm``.
     n_harmonics : tooth-passing harmonics used.
-    min_torque_nm : revolutions with a lower mean torque are not evaluated.
+    min_torque_nm : revolutions with a lower mean torque are not evaluated (air).
+    air_torque_nm : the torque channel's mean torque with the tool out of the cut at the
+        running speed (spindle friction the channel includes; 0 for a tared dynamometer or a
+        friction-compensated observer). None: learnt from the air revolutions (mean torque
+        below ``min_torque_nm``) at the running speed. Where the tooth-passing harmonics do
+        not observe the edge coefficient K_e, the mean torque less this air torque gives it
+        (decision 1806); with none known, K_e stays the harmonics' and the estimate is
+        flagged (``EngagementEstimate.edge_source`` = 3).
     edge, max_depth_fraction : see :class:`~millsense.monitoring.torque_spectrum.
         SpectrumIdentifier`.
     name : block name (channel prefix).
@@ -78,6 +88,7 @@ class EngagementBlock(Block):
         feed_per_tooth_mm: float | None = None,
         n_harmonics: int = 12,
         min_torque_nm: float = 1e-4,
+        air_torque_nm: float | None = None,
         edge: bool = True,
         max_depth_fraction: float = 0.5,
         name: str = "engagement",
@@ -112,6 +123,9 @@ class EngagementBlock(Block):
         self.feed_channel = feed_channel
         self.c_m = None if feed_per_tooth_mm is None else 1e-3 * feed_per_tooth_mm
         self.min_torque_nm = float(min_torque_nm)
+        if air_torque_nm is not None and not math.isfinite(air_torque_nm):
+            raise ConfigError(f"engagement: air_torque_nm must be finite, got {air_torque_nm!r}")
+        self.air_torque_nm = air_torque_nm
         self.name = name
         ins = [torque_channel, speed_channel]
         if feed_channel is not None:
@@ -120,9 +134,6 @@ class EngagementBlock(Block):
         self._names = [f"{name}/{f}" for f, _, _ in _FIELDS]
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
-        # the fit's memo (:func:`~millsense.monitoring._spectrum_kernels.lm_fit_memo`): values
-        # of the last fitted point, a function of the point alone, so no state to reset
-        self._memo = _sk.memo_for(self.n_harmonics)
         self._log: list[tuple[float, np.ndarray | None]] = []
         self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
@@ -145,8 +156,9 @@ class EngagementBlock(Block):
         g = self.geom
         fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
         fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
+        fpar += [math.nan if self.air_torque_nm is None else float(self.air_torque_nm)]
         self._fpar = np.array(fpar)  # layout: _spectrum_kernels.FPAR_*
-        self._done = np.empty((16, 4))
+        self._done = np.empty((16, _sk.DONE_SIZE))
         self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
         self._est = np.empty((16, _sk.EST_SIZE))
         # the arguments of every compiled call after (x, speed, feed, first sample)
@@ -172,8 +184,13 @@ class EngagementBlock(Block):
             ident = self._ident
             ident._prev = self._prev.copy() if self._acc[_sk.ACC_HAS_PREV] else None
             coeff = self._done_sums[row]
+            done = self._done[row]
             out[:] = ident.identify_array(
-                coeff[1:], complex(coeff[0]), float(self._done[row, _sk.DONE_FEED])
+                coeff[1:],
+                complex(coeff[0]),
+                float(done[_sk.DONE_FEED]),
+                float(done[_sk.DONE_T0_NET]),
+                float(done[_sk.DONE_MEAN_VAR]),
             )
             self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
             self._acc[_sk.ACC_HAS_PREV] = 1.0
@@ -201,7 +218,7 @@ class EngagementBlock(Block):
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
-        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args, self._memo)
+        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             views = self._held_views
             if views is not None and views[0] == n:  # nothing ended since: the same views
@@ -218,16 +235,16 @@ class EngagementBlock(Block):
                 pos = s
             if i >= n:
                 break
-            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args, self._memo)
+            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
         out[:, pos:] = self._held[:, None]
         return BlockOutput(dict(zip(self._names, out, strict=True)))
 
 
 # the identifier's output array holds the output channels' fields (:data:`_FIELDS`) first,
-# then notch index, cost and edge coefficient: :class:`EngagementEstimate`'s order
+# then notch index, cost, edge coefficient and its source: :class:`EngagementEstimate`'s order
 assert [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
         _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY, _sk.EST_NOTCH, _sk.EST_COST,
-        _sk.EST_EDGE] == list(range(_sk.EST_SIZE))  # fmt: skip
+        _sk.EST_EDGE, _sk.EST_EDGE_SOURCE] == list(range(_sk.EST_SIZE))  # fmt: skip
 
 
 def make_engagement_block(**options: Any) -> Block:

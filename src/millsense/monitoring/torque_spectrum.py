@@ -21,6 +21,12 @@ coefficients of numpy's sign, T_k = (1/2π)∫τ(φ) e^{−ikφ} dφ (decision 1
   0.025 mm/tooth; for N ≥ 3 with a fitted K_e > 0 the runout solves shear + edge T_1 = the
   measured T_1, with the engagement boundaries whose flute means are the fitted θ_st, θ_ex
   (the tooth-passing harmonics see the mean). N = 2 keeps the shear-only system.
+* mean torque (decision 1806): the same model at k = 0 (Eq. 2.13 includes k = 0, Λ(0) = d_a,
+  G(0) = θ_ex − θ_st; no runout term), T_0 = α A_0 + β B_0 with B_0 = d_a (θ_ex − θ_st)/2π,
+  K_e times the engaged edge length, plus the air torque (Lee Fig. 3.6 subtracts it). Where
+  the harmonics observe K_e less well than T_0 − T_air would (the regression's Schur
+  complement against |B_0|², white noise), the fit adds T_0 − T_air as one more row; with no
+  air torque known the harmonics' K_e is kept and flagged (``edge_source`` = 3).
 
 Identification per revolution (Fig. 2.9 order ADOC → RDOC → K_t and runout → σ): the thesis
 locates the notch of |L| between tooth-passing harmonics (not said how) and inverts
@@ -168,6 +174,10 @@ class EngagementEstimate:
     notch_index: float  #: ω_notch/ω_N = d_a,p/d_a
     cost: float
     edge_n_m: float = 0.0  #: edge-force coefficient K_e = e K_t c, N/m
+    #: where K_e came from (decision 1806): 0 not fitted, 1 the tooth-passing harmonics, 2 the
+    #: mean torque (air torque subtracted), 3 the harmonics although they do not observe it
+    #: (no air torque known: K_e and the runout's edge part are less reliable)
+    edge_source: float = 0.0
 
 
 def _basis(
@@ -282,9 +292,19 @@ class SpectrumIdentifier:
         _, _, r = _project(x, a, b if self.edge else None)
         return np.concatenate([r.real, r.imag])
 
-    def identify(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> EngagementEstimate:
-        """Estimate from the measured T_kN (k = 1…K, ``x``) and T_1 (``t1``)."""
-        out = self.identify_array(x, t1, feed_per_tooth_m)
+    def identify(
+        self,
+        x: ComplexArray,
+        t1: complex,
+        feed_per_tooth_m: float,
+        mean_cut_torque_nm: float = math.nan,
+        mean_var: float = 1.0,
+    ) -> EngagementEstimate:
+        """Estimate from the measured T_kN (k = 1…K, ``x``) and T_1 (``t1``); with the mean
+        cutting torque T_0 − T_air (``mean_cut_torque_nm``, NaN: no air torque known) where the
+        harmonics do not observe K_e (decision 1806; ``mean_var``: its error variance in units
+        of the white-noise variance of T_0, 1 for an exactly known air torque)."""
+        out = self.identify_array(x, t1, feed_per_tooth_m, mean_cut_torque_nm, mean_var)
         return EngagementEstimate(
             axial_depth_m=float(out[_sk.EST_AXIAL]),
             radial_depth_m=float(out[_sk.EST_RADIAL]),
@@ -297,9 +317,17 @@ class SpectrumIdentifier:
             notch_index=float(out[_sk.EST_NOTCH]),
             cost=float(out[_sk.EST_COST]),
             edge_n_m=float(out[_sk.EST_EDGE]),
+            edge_source=float(out[_sk.EST_EDGE_SOURCE]),
         )
 
-    def identify_array(self, x: ComplexArray, t1: complex, feed_per_tooth_m: float) -> FloatArray:
+    def identify_array(
+        self,
+        x: ComplexArray,
+        t1: complex,
+        feed_per_tooth_m: float,
+        mean_cut_torque_nm: float = math.nan,
+        mean_var: float = 1.0,
+    ) -> FloatArray:
         """:meth:`identify` as an array of the fields ``_spectrum_kernels.EST_*`` (the
         streaming block's form: one compiled call per revolution on the common path)."""
         geom = self.geom
@@ -309,9 +337,10 @@ class SpectrumIdentifier:
         out = np.empty(_sk.EST_SIZE)
         args = (self._kb, self.edge, self._lo, self._hi, self._scl)
         tail = (geom.radius_m, geom.n_flutes, geom.axial_pitch_m, RUNOUT_RCOND)
+        mean = (float(mean_cut_torque_nm), float(mean_var))
         prev = self._prev
         if prev is None or not _sk.identify_from(
-            prev, x, t1, c, self.k, *args, self.accept, *tail, out
+            prev, x, t1, c, self.k, *args, self.accept, *tail, *mean, out
         ):
             # the previous revolution's solution does not explain this one: grid starts too
             best = None if prev is None else (out[:3].copy(), float(out[_sk.EST_COST]))
@@ -332,6 +361,7 @@ class SpectrumIdentifier:
                 if 2 * best[1] / norm < 1e-8:
                     break
             assert best is not None
-            _sk.estimate(best[0], best[1], x, t1, c, self.k, self._kb, self.edge, *tail, out)
+            _sk.estimate(best[0], best[1], x, t1, c, self.k, self._kb, self.edge, *tail, *mean,
+                         self._lo, self._hi, self._scl, out)  # fmt: skip
         self._prev = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
         return out

@@ -273,13 +273,16 @@ def _v8_la_exit() -> Measured:
     quick=False,
     issue=16,
     gap=(
-        "937 N, 17 % above the thesis' ≈ 800 N (905 N on the preset's coefficients, 899 N with "
-        "the noisy dynamometer before decision 1798): just before the jump the tool crosses a "
-        "lighter row (X ≈ 25 mm, 196-213 N), the conventional controller raises the override "
-        "to its 150 % ceiling, and it meets the deeper layer there; its RLS, fitted on the "
-        "falling then rising force at a rising feed, keeps the override at 135-150 % for two "
-        "more revolutions (853-937 N) before it pulls back to 34 %. The thesis shows the "
-        "overshoot but not the override it met the jump with"
+        "943 N, 18 % above the thesis' ≈ 800 N (937 N before decision 1657, 905 N on the "
+        "preset's coefficients): the controller meets the deeper layer at its 150 % ceiling. "
+        "On the step-down's ramp rows (X 25.0-25.4 mm) the X feed falls to a fifth and the peak "
+        "to 182-199 N, so it raises the override to 150 %; the jump itself is not visible "
+        "before its first revolution, which peaks at 945 N at 150 %. Since decision 1657 (the "
+        "RLS estimate kept among the physical models) the override is cut to 20 % at the end "
+        "of that revolution; before it, an unstable model fitted on the ramp's falling then "
+        "rising force held 135-150 % for two more revolutions (853-937 N). The revolution after "
+        "the cut still peaks at 904 N (its first tooth cuts the chip left at the old feed). "
+        "The thesis shows the overshoot but not the override it met the jump with"
     ),
     description=(
         "Largest resultant force without the look-ahead (RLS + GPC alone); the thesis' figure "
@@ -369,9 +372,12 @@ def _v6_open() -> Measured:
     issue=16,
     gap=(
         "the closed-CNC figure is from a lathe (2.5 → 4 mm, × 1.6, on a Fanuc switch); on the "
-        "milled × 1.38 step the first revolution carries the step through either channel, and "
-        "the closed channel's 120 ms and 10 % steps show in the settling, not in the first peak "
-        "(control.v6_closed_cnc_settles_longer; decision 1617)"
+        "milled × 1.38 step the first revolution carries the step through either channel "
+        "(≈ +34 %, 437 N per revolution), and the closed channel's 120 ms and 10 % steps show "
+        "in the settling: the largest force, 51 %, is the loop's own swing (a rebound raise to "
+        "139 % at X ≈ 22 mm, met two revolutions later by the step's still growing engagement, "
+        "494 N); 59 % (a pass) before decision 1657, when a model with a negative b₁ raised "
+        "the override to its 150 % ceiling there (decision 1617)"
     ),
     description=(
         "Force rise above F_r at the same depth step through the closed-CNC override switch "
