@@ -680,16 +680,30 @@ def mean_informs_edge(
     engaged edge length over 2π r N; ``mean_var`` = T_0's error variance in σ²/M: 1 with a
     given air torque, 1 + M/M_air with one learnt from M_air air-cut samples)."""
     d, st, ex = p[0], p[1], p[2]
+    a = np.empty(n_harm, dtype=np.complex128)
+    b = np.empty(n_harm, dtype=np.complex128)
+    for j in range(n_harm):
+        lk = _l(k[j], d, kb)
+        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        b[j] = _g(k[j], st, ex) * lk
+    return _mean_informs(a, b, n_harm, d, st, ex, mean_var)
+
+
+@numba.njit(cache=True)
+def _mean_informs(
+    a: ComplexArray, b: ComplexArray, n_harm: int, d: float, st: float, ex: float,
+    mean_var: float,
+) -> bool:  # fmt: skip
+    """:func:`mean_informs_edge` from the bases A_k, B_k of the first ``n_harm`` harmonics at
+    (d, st, ex) — those :func:`_fit_basis` gives, so that :func:`estimate` computes them once
+    for the test and the amplitudes."""
     aa = 0.0
     ab = 0.0
     bb = 0.0
     for j in range(n_harm):
-        lk = _l(k[j], d, kb)
-        a = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
-        b = _g(k[j], st, ex) * lk
-        aa += a.real**2 + a.imag**2
-        bb += b.real**2 + b.imag**2
-        ab += (a.conjugate() * b).real
+        aa += a[j].real ** 2 + a[j].imag ** 2
+        bb += b[j].real ** 2 + b[j].imag ** 2
+        ab += (a[j].conjugate() * b[j]).real
     b_perp = bb - ab * ab / aa if aa > 0.0 else bb
     b0 = (ex - st) / (2.0 * math.pi) * d
     return b0 * b0 / mean_var > 2.0 * b_perp
@@ -793,9 +807,12 @@ def estimate(
         v = x[j] / ax0
         norm += v.real * v.real + v.imag * v.imag
     source = EDGE_NOT_FITTED
+    # the bases at q and their amplitudes, computed once for the edge test and the estimate
+    # (:func:`amplitudes`' numbers; the sines and cosines of a revolution's estimate)
+    a, b, alpha, beta = _fit_basis(q, x, k, kb, edge)
     if edge:
         source = EDGE_FROM_HARMONICS
-        if mean_informs_edge(q, k, x.shape[0], kb, mean_var):
+        if _mean_informs(a, b, x.shape[0], d, st, ex, mean_var):
             source = EDGE_UNOBSERVED
             if math.isfinite(t0_net):
                 q = fit_with_mean(q, x, t0_net, mean_var, k, kb, lo, hi, scale)[0]
@@ -806,7 +823,13 @@ def estimate(
     notch = axial_pitch / d
     m = min(max(math.floor(notch), 1), x.shape[0])
     model = np.empty(m)
-    alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
+    if source == EDGE_FROM_MEAN:  # refitted: the bases at the new point
+        alpha, beta, g1, l2 = amplitudes(q, x, k, kb, edge, model)
+    else:
+        for j in range(m):
+            model[j] = abs(alpha * a[j] + beta * b[j])
+        g1 = _g(1.0, st, ex)
+        l2 = _l(2.0, d, kb)
     if source == EDGE_FROM_MEAN:  # the amplitudes of the joint fit, and σ's model with them
         wt = np.ones(x.shape[0] + 1)
         wt[0] = 1.0 / math.sqrt(2.0 * mean_var)

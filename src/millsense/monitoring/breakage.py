@@ -535,18 +535,19 @@ class BreakageGroup(Block):
             if k:
                 self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
         firsts = self._firsts
-        for j, m in enumerate(ms):
-            firsts[j] = m._first_violation
-        before = firsts.copy()
+        before = [m._first_violation for m in ms]
+        firsts[:] = before
         values = np.empty((len(self._names), n))
         total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
                                  self._iparams, self._det, self._held, self._hb, values, firsts,
                                  self._alarms)  # fmt: skip
         out = BlockOutput(dict(zip(self._names, values, strict=True)))
-        for j, m in enumerate(ms):
-            m._first_violation = int(firsts[j])
-            if total and self._alarms[j]:
-                out.events.extend(m._alarms(chunk, int(counts[j]), int(before[j])))
+        for m, first in zip(ms, firsts.tolist(), strict=True):
+            m._first_violation = first
+        if total:
+            for j, m in enumerate(ms):
+                if self._alarms[j]:
+                    out.events.extend(m._alarms(chunk, int(counts[j]), before[j]))
         return out
 
 

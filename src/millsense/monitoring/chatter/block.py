@@ -402,7 +402,8 @@ class ChatterMonitor(Block):
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         air_before = self._air_before
-        air_before[:] = self._air
+        if self.method.judges_segments:  # the gate's state before this window, which only a
+            air_before[:] = self._air  # criterion judging parts reads (decision 1543)
         cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
             c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
         )  # fmt: skip

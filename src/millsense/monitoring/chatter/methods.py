@@ -53,9 +53,11 @@ FloatArray = NDArray[np.float64]
 SEED000_RATIO = 1.5
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Spectra:
-    """Spectra of one analysis window (one-sided amplitude, channel units).
+    """Spectra of one analysis window (one-sided amplitude, channel units). Made once per
+    window and criterion and only read (a plain slotted dataclass: a frozen one's construction,
+    a ``object.__setattr__`` per field, cost ≈ 3 µs of each window's decision).
 
     Attributes
     ----------
@@ -86,9 +88,10 @@ class Spectra:
     peak_bin: int = -1
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Verdict:
-    """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz."""
+    """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz (made
+    once per window and only read: slotted, not frozen, as :class:`Spectra`)."""
 
     ratio: float
     frequency_hz: float
