@@ -150,6 +150,42 @@ def test_monitor_engagement_from_the_tool_preset(
     assert float(words[words.index("K_t") + 1]) == pytest.approx(758.0, rel=0.03)
 
 
+def test_monitor_engagement_with_the_air_torque_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the recording's torque is the cutting torque alone (a tared dynamometer): with
+    # --air-torque-nm 0 the mean torque is used where the harmonics do not observe K_e
+    # (decision 1806); the line says where K_e came from. Without it there is no air
+    # revolution to learn from (the tool cuts throughout): K_e is flagged less reliable.
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    base = ["monitor", str(rec), "--methods", "engagement", "--tool", "aslan-d20-2flute",
+            "--feed-per-tooth-mm", "0.2"]  # fmt: skip
+    lines = {}
+    for key, extra in (("given", ["--air-torque-nm", "0"]), ("none", [])):
+        code, stdout, err = run_cli([*base, *extra, "-o", str(tmp_path / f"{key}.parquet")],
+                                    capsys)  # fmt: skip
+        assert code == 0, err
+        lines[key] = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    words = lines["given"].replace(",", "").split()
+    assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, abs=0.05)
+    # the recording's K_e: K_te = 25 N/mm (the coefficients of _engagement_recording)
+    assert float(words[words.index("K_e") + 1]) == pytest.approx(25.0, rel=0.15)
+    assert lines["given"].endswith("(from the mean torque)")
+    assert lines["none"].endswith("(harmonics only, no air torque known: less reliable)")
+
+
+def test_monitor_refuses_a_non_finite_air_torque(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    out = tmp_path / "ev.parquet"
+    code, _, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
+                            "aslan-d20-2flute", "--feed-per-tooth-mm", "0.2", "--air-torque-nm",
+                            "nan", "-o", str(out)], capsys)  # fmt: skip
+    assert code == 2 and "--air-torque-nm" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [

@@ -61,6 +61,12 @@ def monitor(
     air_s: str | None = typer.Option(
         None, "--air-s", help="Air-cut motion's time window A:B [s] (contact reference)."
     ),
+    air_torque: float | None = typer.Option(
+        None,
+        "--air-torque-nm",
+        help="The torque channel's mean with the tool out of the cut [N·m] (engagement: 0 for "
+        "a tared dynamometer; default: learnt from the recording's air revolutions).",
+    ),
     cut_s: float | None = typer.Option(
         None, "--cut-s", help="Start of the cut motion [s] (contact; default: end of --air-s)."
     ),
@@ -80,6 +86,7 @@ def monitor(
         recording=recording, out=out, plan=plan, machine=machine, methods=methods,
         channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
         tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s, position=position,
+        air_torque=air_torque,
     )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
@@ -154,6 +161,7 @@ def run_monitor(
     cut_s: float | None = None,
     position: str | None = None,
     segment: tuple[int, int] | None = None,
+    air_torque: float | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
 
@@ -172,7 +180,7 @@ def run_monitor(
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     names = _methods(methods)
-    options = _monitor_options(feed_per_tooth, air_s, cut_s, position)
+    options = _monitor_options(feed_per_tooth, air_s, cut_s, position, air_torque)
     tool_cfg = None
     if tool is not None:
         from millsense.core.config import ToolConfig
@@ -188,12 +196,20 @@ def run_monitor(
 
 
 def _monitor_options(
-    feed_per_tooth: float | None, air_s: str | None, cut_s: float | None, position: str | None
+    feed_per_tooth: float | None,
+    air_s: str | None,
+    cut_s: float | None,
+    position: str | None,
+    air_torque: float | None = None,
 ) -> dict[str, Any]:
     """The options of the engagement and contact monitors, checked (one-line errors)."""
     from millsense.core.errors import ConfigError
 
     opts: dict[str, Any] = {}
+    if air_torque is not None:
+        if not np.isfinite(air_torque):
+            raise ConfigError(f"--air-torque-nm: must be a finite torque in N·m, got {air_torque}")
+        opts["engagement.air_torque_nm"] = float(air_torque)
     if feed_per_tooth is not None:
         if not (feed_per_tooth > 0 and np.isfinite(feed_per_tooth)):
             raise ConfigError(f"--feed-per-tooth-mm: must be > 0, got {feed_per_tooth}")
@@ -399,8 +415,25 @@ def _engagement_summary(block: Any) -> str:
         f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
         f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
         f"{1e6 * med([e.runout_m for e in est]):.1f} µm, reliability "
-        f"{med([e.reliability for e in est]):.3f}"
+        f"{med([e.reliability for e in est]):.3f}, K_e {1e-3 * med([e.edge_n_m for e in est]):.1f} "
+        f"N/mm ({_edge_source([e.edge_source for e in est])})"
     )
+
+
+#: Where the engagement monitor's K_e came from (``EngagementEstimate.edge_source``, decision
+#: 1806), as the summary line says it.
+_EDGE_SOURCES = {
+    0: "not fitted",
+    1: "from the tooth harmonics",
+    2: "from the mean torque",
+    3: "harmonics only, no air torque known: less reliable",
+}
+
+
+def _edge_source(sources: list[float]) -> str:
+    """The most frequent source of K_e over the revolutions, in words."""
+    vals, counts = np.unique(np.asarray(sources, dtype=int), return_counts=True)
+    return _EDGE_SOURCES.get(int(vals[np.argmax(counts)]), "unknown")
 
 
 def _grouped(blocks: list[Any]) -> list[Any]:

@@ -41,6 +41,7 @@ class MonitorContext:
     plan : the virtual plan (:class:`~millsense.plan.virtual_plan.VirtualPlan`), or None.
     source : name of the recording (for messages).
     options : further named settings for specific monitors (``engagement.feed_per_tooth_mm``,
+        ``engagement.air_torque_nm``,
         ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
         ``breakage.expected_channel``, ``<chatter method>.threshold``).
     tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
@@ -250,6 +251,7 @@ def _engagement(ctx: MonitorContext) -> Block:
         torque_channel=signal,
         speed_channel=ctx.speed_channel,
         feed_per_tooth_mm=float(fz),
+        air_torque_nm=ctx.options.get("engagement.air_torque_nm"),
         name=name,
     )
 
