@@ -70,3 +70,36 @@ def test_after_the_warm_up_a_longer_session_compiles_nothing() -> None:
         demo_online._run(plan, plant, True, out / "r.h5", out / "e.parquet", None,
                          wrap=lambda s: FirstSeconds(s, 2 * ONLINE_S))  # fmt: skip
     assert names == []
+
+
+def test_after_the_warm_up_the_engagement_monitor_compiles_nothing() -> None:
+    # another tool and engagement than the warm-up's (3 flutes, 8 mm radial, up milling, no
+    # air revolution: the harmonics-only path), through the registry as `millsense monitor`
+    # builds it: every kernel it reaches is cached
+    import math
+
+    from millsense.monitoring.engagement import EngagementBlock
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+    from millsense.warm_up import _engagement_cuts
+
+    _engagement_cuts()
+    fs, n = 10000.0, 12000
+    t = np.arange(n) / fs
+    omega = 2 * math.pi * 1500.0 / 60.0
+    phi = 2 * math.pi * np.arange(600) / 600
+    co = CuttingCoefficients(ktc=700e6, krc=300e6, kte=20e3, kre=30e3)
+    tool = EndMill(16e-3, 3, helix_rad=math.radians(35))
+    eng = Engagement.radial(8e-3, 16e-3, "up")
+    rev = milling_forces(tool, co, eng, 0.08e-3, 3e-3, phi).torque_nm
+    tq = np.interp(np.mod(omega * t, 2 * math.pi), phi, rev, period=2 * math.pi)
+    data = {"spindle/torque_est": tq, "spindle/speed": np.full(n, omega)}
+    block = EngagementBlock(3, 16.0, 35.0, feed_per_tooth_mm=0.08)
+    with compiled_kernels() as names:
+        block.reset(fs)
+        for k in range(0, n, 1000):
+            block.process(Chunk(k, fs, 0.0, {c: v[k : k + 1000] for c, v in data.items()}))
+    assert [e for _, e in block.estimates if e is not None]  # it evaluated revolutions
+    assert names == []

@@ -15,7 +15,8 @@ virtual machine (:data:`ONLINE_S` of the demo part with the adaptive feed, the m
 the supervisor, and :data:`FORCE_S` of it with the feed-drive estimators regulating the peak
 force; :data:`CHATTER_S` of the chatter-prone pass, through its detection and speed change),
 and each chatter method on a synthetic cut entry (the parts of windows judged at an
-entry, which the sessions reach only later). After it, the two whole demo sessions compile
+entry, which the sessions reach only later), and the engagement monitor of ``millsense
+monitor`` on two synthetic cuts. After it, the two whole demo sessions compile
 nothing (measured from an empty cache). ``make`` runs it after installing
 (``millsense warm-up``); a pip installation runs the command once. A warm cache makes it a
 few seconds of planning and simulation that compile nothing.
@@ -81,6 +82,41 @@ def _chatter_entries(fs: float = 10000.0) -> None:
     data = {"s": 1.0 + cut + noise, "spindle/speed": np.full(n, 2 * math.pi * 100.0)}
     for method in METHODS:
         block = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=4))
+        block.reset(fs)
+        for k in range(0, n, 100):
+            block.process(Chunk(k, fs, 0.0, {c: v[k : k + 100] for c, v in data.items()}))
+
+
+def _engagement_cuts(fs: float = 10000.0) -> None:
+    """The engagement monitor (seed 004 ch. 2; ``millsense monitor --methods engagement``) on
+    a 2-flute cut with its air torque given and on a 4-flute cut after air revolutions it learns
+    the air torque from (decision 1806): the paths of its per-revolution fit, whose compile
+    took about 50 s of a first ``monitor`` run (Ø20 mm, 30° helix, 1000 rev/min, down milling
+    5 mm radial, 2 mm axial, 0.1 mm/tooth; 0.15 s of air, then 1.35 s of cut)."""
+    import math
+
+    import numpy as np
+
+    from millsense.monitoring.engagement import EngagementBlock
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    n = round(1.5 * fs)
+    t = np.arange(n) / fs
+    omega = 2 * math.pi * 1000.0 / 60.0
+    phi = 2 * math.pi * np.arange(600) / 600
+    coefficients = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
+    noise = 0.01 * np.random.default_rng(0).standard_normal(n)
+    for flutes, air in ((2, 0.0), (4, None)):
+        tool = EndMill(20e-3, flutes, helix_rad=math.radians(30))
+        rev = milling_forces(tool, coefficients, Engagement.radial(5e-3, 20e-3, "down"), 0.1e-3,
+                             2e-3, phi).torque_nm  # fmt: skip
+        cut = np.interp(np.mod(omega * t, 2 * math.pi), phi, rev, period=2 * math.pi)
+        data = {"spindle/torque_est": (cut + noise) * (t >= 0.15),
+                "spindle/speed": np.full(n, omega)}  # fmt: skip
+        block = EngagementBlock(flutes, 20.0, 30.0, feed_per_tooth_mm=0.1, air_torque_nm=air)
         block.reset(fs)
         for k in range(0, n, 100):
             block.process(Chunk(k, fs, 0.0, {c: v[k : k + 100] for c, v in data.items()}))
@@ -157,5 +193,6 @@ def warm_up(
                           None, wrap=partial(FirstSeconds, seconds=chatter_s))  # fmt: skip
         step()
         _chatter_entries()
+        _engagement_cuts()
         step()
     return WarmUp(time.perf_counter() - t0, tuple(dict.fromkeys(names)))
