@@ -63,6 +63,14 @@ class FirstSeconds(SourceWrapper):
         return chunk
 
 
+def _feed(block: Any, data: dict[str, Any], fs: float, chunk: int = 100) -> None:
+    """Reset ``block`` and feed it ``data`` (channel -> samples) in chunks of ``chunk``."""
+    block.reset(fs)
+    n = len(next(iter(data.values())))
+    for k in range(0, n, chunk):
+        block.process(Chunk(k, fs, 0.0, {c: v[k : k + chunk] for c, v in data.items()}))
+
+
 def _chatter_entries(fs: float = 10000.0) -> None:
     """Each chatter method on a cut entry at a steady speed after a learned air cut: the parts
     of windows the monitor judges at an entry (decision 1539), which the demo sessions reach
@@ -81,10 +89,7 @@ def _chatter_entries(fs: float = 10000.0) -> None:
     noise = 0.01 * np.random.default_rng(0).standard_normal(n)
     data = {"s": 1.0 + cut + noise, "spindle/speed": np.full(n, 2 * math.pi * 100.0)}
     for method in METHODS:
-        block = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=4))
-        block.reset(fs)
-        for k in range(0, n, 100):
-            block.process(Chunk(k, fs, 0.0, {c: v[k : k + 100] for c, v in data.items()}))
+        _feed(ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=4)), data, fs)
 
 
 def _engagement_cuts(fs: float = 10000.0) -> None:
@@ -116,10 +121,8 @@ def _engagement_cuts(fs: float = 10000.0) -> None:
         cut = np.interp(np.mod(omega * t, 2 * math.pi), phi, rev, period=2 * math.pi)
         data = {"spindle/torque_est": (cut + noise) * (t >= 0.15),
                 "spindle/speed": np.full(n, omega)}  # fmt: skip
-        block = EngagementBlock(flutes, 20.0, 30.0, feed_per_tooth_mm=0.1, air_torque_nm=air)
-        block.reset(fs)
-        for k in range(0, n, 100):
-            block.process(Chunk(k, fs, 0.0, {c: v[k : k + 100] for c, v in data.items()}))
+        _feed(EngagementBlock(flutes, 20.0, 30.0, feed_per_tooth_mm=0.1, air_torque_nm=air),
+              data, fs)  # fmt: skip
 
 
 @dataclass(frozen=True)
