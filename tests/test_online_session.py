@@ -137,6 +137,31 @@ def test_plan_sync_follows_the_path_and_calibrates_ktc(v8_plan: object) -> None:
     )  # type: ignore[index]
 
 
+def test_ktc_calibration_is_made_on_the_torque_less_its_air_reference(v8_plan: object) -> None:
+    """Decision 1622: the air-cut reference is subtracted before the torque is calibrated on.
+    The synthetic measurement of the test above plus a friction torque of 0.7 N·m everywhere
+    (air and cut; an observer at 8000 rev/min reads about that in air), behind 3 s of air at the
+    plan's first point: the reference is learned there (0.2 s settling, then a 0.3 s average:
+    e^(−2.8/0.3) ≈ 1e-4 of the offset is left) and the ratio is still 1.25. Calibrated on the
+    raw torque instead, the offset alone would add 0.7 N·m / T̄_shear to it."""
+    data = _along_plan(v8_plan, u=0.8)
+    pad = int(3 * FS)
+    data = {k: np.concatenate([np.full(pad, v[0]), v]) for k, v in data.items()}
+    n = len(data["tcp/x"])
+    data["spindle/at_speed"] = np.ones(n)
+    probe = _feed(PlanSync(v8_plan), {**data, "est/spindle/spindle/load": np.zeros(n)}, 1000)  # type: ignore[arg-type]
+    r = np.asarray(probe["plan/row"]).astype(int)
+    tq = np.asarray(v8_plan["torque_avg_nm"], float)  # type: ignore[index]
+    sh = np.asarray(v8_plan["torque_avg_shear_nm"], float)  # type: ignore[index]
+    rr = np.maximum(r, 0)
+    cut = np.asarray(v8_plan["in_cut"], dtype=bool)[rr] & (r >= 0)  # type: ignore[index]
+    meas = np.where(cut, (tq - sh)[rr] + 1.25 * 0.8 * sh[rr], 0.0) + 0.7
+    ps = PlanSync(v8_plan, at_speed_channel="spindle/at_speed")  # type: ignore[arg-type]
+    out = _feed(ps, {**data, "est/spindle/spindle/load": meas}, 1000)
+    assert out["plan/air/torque"][pad - 1] == pytest.approx(0.7, rel=1e-3)
+    assert out["plan/ktc_scale"][-1] == pytest.approx(1.25, rel=1e-3)
+
+
 def test_steady_rows_exclude_the_step_down_and_the_exit(v8_plan: object) -> None:
     """The V8 slot: steady in the shallow and the deep part, a transient around the step-down
     at X = 25 mm and the exit at X = 60 mm (3 revolutions at 150 % of 0.4 mm/rev: ±5 rows)."""

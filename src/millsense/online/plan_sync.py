@@ -270,11 +270,15 @@ class PlanSync(Block):
         events: list[Event],
         torque: np.ndarray | None = None,
     ) -> int:
-        """Accumulate the window; the sample where the calibration completes (−1: not yet)."""
+        """Accumulate the window; the sample where the calibration completes (−1: not yet).
+
+        ``torque``: the cutting torque with the air-cut reference subtracted (decision 1622:
+        the reference is subtracted before the torque is calibrated on); None without an air
+        reference (the torque channel as it is)."""
         assert self.torque_channel is not None
         d = chunk.data
         speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
-        tq = np.asarray(d[self.torque_channel], dtype=np.float64)
+        tq = np.asarray(d[self.torque_channel] if torque is None else torque, dtype=np.float64)
         heavy = (edge + shear) >= self._min_cal
         drev = np.where(in_cut & heavy, speed / (2 * math.pi * self.fs), 0.0)
         revs = self._revs_in_cut + np.cumsum(drev)
