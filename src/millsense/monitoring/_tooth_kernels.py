@@ -9,7 +9,8 @@ cut into chunks of any size gives the same result as the whole stream:
   crosses the next integer; it is reported at that sample (one sample after its last one).
 * :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
   residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
-  thresholds of the three detectors and the confirmation count.
+  thresholds of the three detectors, the noise floor of the torque's band (decision 1550) and
+  the confirmation count.
 """
 
 from __future__ import annotations
@@ -148,7 +149,23 @@ DET_THR2 = 12
 DET_MEAN = 13  # sum of x over the learning periods
 DET_REF = 14  # learnt constant reference torque (mean over the learning periods)
 DET_GAP = 15  # 1: the previous period was not judged (start, or a transient of the plan)
-DET_BASE = 16  # ring buffer of the last N period values follows
+DET_NOISE_N = 16  # |lag-N differences| held in the noise window (≤ NOISE_WINDOW)
+DET_NOISE_POS = 17  # next slot of the noise window
+DET_BASE = 18  # ring buffer of the last N period values, then the noise window
+
+#: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
+#: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
+#: steady engagement cancel), once NOISE_MIN of them are held.
+NOISE_WINDOW = 128
+NOISE_MIN = 16
+#: median |d| of a zero-mean normal d is 0.6745 σ_d, and σ_d = √2 σ for the difference of two
+#: independent periods: σ = median|d| / (0.6745 √2).
+NOISE_SCALE = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
+
+#: Rows of ``pp`` (per-period values) and of a detector's outputs (rows 3 … 8 of ``pp``: x, ε1,
+#: limit1, ε2, limit2, band).
+PP_ROWS = 9
+OUT_ROWS = PP_ROWS - 3
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
 MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the first revolutions)
@@ -157,7 +174,7 @@ MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
 
 def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
-    st = np.zeros(DET_BASE + n_flutes)
+    st = np.zeros(DET_BASE + n_flutes + NOISE_WINDOW)
     st[DET_PHI1] = phi0
     st[DET_PHI2] = phi0
     st[DET_P1] = p0
@@ -201,13 +218,19 @@ def detect_periods(
     (``check_deviation``), else while the residual does. ``expected`` is overwritten with the
     reference used (τ_sim, or the constant τ_ref).
 
+    The torque's band (decision 1550) is max(σ_TB·τ_ref, k_noise·σ̂) (row 8): σ̂, the standard
+    deviation of a tooth-period average, is estimated from the median |Δ_N x| of the last
+    NOISE_WINDOW periods (air, cut and transients alike; the median ignores the revolution a
+    breakage or a step makes); k_noise = 0 gives the seed's band alone. The residual's limit
+    stays σ_TB·τ_ref (the seed's trigger).
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
-    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2 (columns :k); ``pb`` rows
-    0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
+    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band (columns :k); ``pb``
+    rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
+    learn_from, k_noise); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
-    reference, alpha, learn_from = params[4], params[5], params[6]
+    reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
     nf, mode, check_deviation = iparams[0], iparams[1], iparams[2] != 0
     learn_periods, confirm = iparams[3], iparams[4]
     x = pp[3]
@@ -216,6 +239,8 @@ def detect_periods(
     lim1 = pp[5]
     eps2 = pp[6]
     lim2 = pp[7]
+    band_out = pp[8]
+    noise0 = DET_BASE + nf
     viol = pb[0]
     alarm = pb[1]
     for m in range(k):
@@ -241,6 +266,11 @@ def detect_periods(
         state[DET_DN_PREV] = dn
         state[DET_BASE + seen % nf] = xm
         state[DET_SEEN] = seen + 1
+        if seen >= nf:  # the noise window of |Δ_N x| (decision 1550)
+            pos = int(state[DET_NOISE_POS])
+            state[noise0 + pos] = abs(dn)
+            state[DET_NOISE_POS] = (pos + 1) % NOISE_WINDOW
+            state[DET_NOISE_N] = min(state[DET_NOISE_N] + 1.0, NOISE_WINDOW)
         eps1[m] = e1
         eps2[m] = e2
         v = False
@@ -260,6 +290,7 @@ def detect_periods(
                 state[DET_THR2] = alpha * state[DET_MAX2]
         state[DET_LEARN] = learn
         ready = learn >= learn_periods
+        band_out[m] = math.nan
         if mode == MODE_DUAL:
             lim1[m] = state[DET_THR1] if ready else math.nan
             lim2[m] = state[DET_THR2] if ready else math.nan
@@ -275,8 +306,14 @@ def detect_periods(
             lim1[m] = limit if judge else math.nan
             lim2[m] = limit if judge else math.nan
             if judge:
+                band = limit
+                n_noise = int(state[DET_NOISE_N])
+                if k_noise > 0.0 and n_noise >= NOISE_MIN:
+                    sigma = NOISE_SCALE * np.median(state[noise0 : noise0 + n_noise])
+                    band = max(limit, k_noise * sigma)
+                band_out[m] = band
                 v_res = abs(e1) > limit
-                v_tq = abs(xm - ex) > limit
+                v_tq = abs(xm - ex) > band
                 if check_deviation:
                     # trigger on the residual, confirm on the torque itself (Aslan §6.3); after
                     # periods not judged the change may lie in the gap, where the residual saw
@@ -393,11 +430,12 @@ def periods_group(
     """:func:`periods_step` of several detectors in one call (detector ``j``: ``pp[j]``,
     ``pb[j]``, period indices ``pi[j, 1]``, ``counts[j]`` periods, two channels if ``two[j]``,
     ``params[j]``, ``iparams[j]``, ``state[j]``, ``held_prev[j]``, ``held[j]``, outputs
-    ``out[5j:5j + 5]``, running violation ``firsts[j]``; ``alarms[j]`` ← its alarms). A
-    detector without a period in the chunk holds its values. Returns the alarms of all."""
+    ``out[R j:R j + R]`` (R = OUT_ROWS), running violation ``firsts[j]``; ``alarms[j]`` ← its
+    alarms). A detector without a period in the chunk holds its values. Returns the alarms of
+    all."""
     total = 0
     for j in range(counts.shape[0]):
-        rows = out[5 * j : 5 * j + 5]
+        rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
         k = counts[j]
         if k == 0:
             fill_outputs(held_prev[j], pp[j, 3:], 0, held[j], rows)
