@@ -349,3 +349,56 @@ def test_force_jump_at_high_override_cuts_at_the_next_revolution() -> None:
     assert np.max(pk[k + n :]) < 2.0 * 325.0  # never the full jump again
     g, h = blk.rls._g, blk.rls._h
     assert g is not None and h is not None and np.all(g @ blk.rls.theta <= h + 1e-9)
+
+
+def test_control_interval_is_whole_revolutions_of_at_least_40_ms() -> None:
+    """Decision 1548: at 8000 rev/min (7.5 ms a revolution) the control interval is the 6
+    revolutions that first last ≥ 40 ms (45 ms); the regulated value is the mean torque over
+    exactly those samples (an independent sum), so it changes 6 times less often than per
+    revolution, and at 1000 rev/min (60 ms) the interval is one revolution, as in the seeds:
+    the outputs equal those of ``min_interval_s = 0`` bit for bit."""
+    rng = np.random.default_rng(5)
+    n = 20000
+    w = 8000 * 2 * math.pi / 60
+    data = {"spindle/torque_est": 1.0 + rng.standard_normal(n), "spindle/speed": np.full(n, w),
+            "force_x": np.zeros(n), "force_y": np.zeros(n)}  # fmt: skip
+    opts = AdaptiveFeedOptions(reference=1.0, quantity="torque")
+    _, ch = feed(AdaptiveFeedBlock(opts), data, 100)
+    _, ch0 = feed(AdaptiveFeedBlock(AdaptiveFeedOptions(reference=1.0, quantity="torque",
+                                                        min_interval_s=0.0)), data, 100)  # fmt: skip
+    changes = np.flatnonzero(np.diff(ch["adaptive_feed/peak"]) != 0) + 1
+    changes0 = np.flatnonzero(np.diff(ch0["adaptive_feed/peak"]) != 0) + 1
+    # revolution ends every 75 samples (the integer angle counter), an interval every 450
+    assert np.all(np.abs(np.diff(changes) - 450) <= 1)
+    assert np.all(np.abs(np.diff(changes0) - 75) <= 1)
+    for a, b in zip(changes[:-1], changes[1:], strict=True):
+        mean = data["spindle/torque_est"][a:b].mean()
+        assert ch["adaptive_feed/peak"][b] == pytest.approx(abs(mean), rel=1e-12)
+    # the mean of 450 samples of unit noise scatters √6 less than that of 75
+    s6 = np.std(ch["adaptive_feed/peak"][changes])
+    s1 = np.std(ch0["adaptive_feed/peak"][changes0])
+    assert s1 / s6 == pytest.approx(math.sqrt(6), rel=0.25)
+    slow = synthetic_stream()
+    ev, out = feed(AdaptiveFeedBlock(), slow, 100)
+    ev0, out0 = feed(AdaptiveFeedBlock(AdaptiveFeedOptions(min_interval_s=0.0)), slow, 100)
+    assert all(np.array_equal(out[k], out0[k], equal_nan=True) for k in out)
+    assert [e.message for e in ev] == [e.message for e in ev0]
+
+
+def test_no_value_is_shown_while_not_enabled() -> None:
+    """A revolution ending while the enable channel is 0 (a spindle run-up, whose observer
+    torque is the acceleration torque) makes no decision and shows no regulated value (NaN),
+    not the run-up's torque."""
+    n = 12000
+    noise = np.random.default_rng(2).normal(0.0, 0.5, n)  # a live estimate (not frozen)
+    data = {"spindle/torque_est": 50.0 + noise, "spindle/speed": np.full(n, OMEGA),
+            "en": (np.arange(n) >= 6000).astype(float)}  # fmt: skip
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=1.0, quantity="torque"),
+                            enable_channel="en")  # fmt: skip
+    blk.reset(FS)
+    out = blk.process(Chunk(0, FS, 0.0, data))
+    pk = out.channels["adaptive_feed/peak"]
+    assert np.isnan(pk[700:6000]).all()  # revolutions ended at 600, 1200, … while disabled
+    # the last revolution's mean: 50 N·m within 4 standard errors of 600 samples of the noise
+    assert pk[-1] == pytest.approx(50.0, abs=4 * 0.5 / math.sqrt(600))
+    assert out.channels["adaptive_feed/override"][:6000].max() == 1.0

@@ -160,6 +160,17 @@ def test_ktc_calibration_is_made_on_the_torque_less_its_air_reference(v8_plan: o
     out = _feed(ps, {**data, "est/spindle/spindle/load": meas}, 1000)
     assert out["plan/air/torque"][pad - 1] == pytest.approx(0.7, rel=1e-3)
     assert out["plan/ktc_scale"][-1] == pytest.approx(1.25, rel=1e-3)
+    # decision 1550: while the spindle is off speed (a speed change in the cut, here 0.3 s
+    # after the calibration) nothing is judged, and the judging resumes with the gate
+    judged = out["plan/judged_torque"]
+    done = int(np.argmax(out["plan/ktc_scale"] != 1.0))
+    gate = np.ones(n)
+    gate[done + 3000 : done + 6000] = 0.0
+    out2 = _feed(PlanSync(v8_plan, at_speed_channel="spindle/at_speed"),  # type: ignore[arg-type]
+                 {**data, "spindle/at_speed": gate, "est/spindle/spindle/load": meas}, 1000)
+    assert judged[done + 3000 : done + 6000].min() > 0  # judged with the spindle at speed
+    assert not out2["plan/judged_torque"][done + 3000 : done + 6000].any()
+    assert np.array_equal(out2["plan/judged_torque"][done + 6000 :], judged[done + 6000 :])
 
 
 def test_steady_rows_exclude_the_step_down_and_the_exit(v8_plan: object) -> None:

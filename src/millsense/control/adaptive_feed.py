@@ -1,9 +1,11 @@
 """Adaptive feed control per spindle revolution with the virtual look-ahead (seed 000 §2.10,
 Ch. 6.4; seed 002 §2.2–2.4, M4).
 
-Once per spindle revolution the block takes the peak (or, for torque and power, the mean:
-decision 1619) of the regulated quantity over that revolution — the resultant XY force (seed
-000 and 002), the spindle torque, or the spindle power (what Heidenhain AFC regulates) —
+Once per control interval — one spindle revolution (seeds 000 and 002), or at high speed the
+fewest whole revolutions that last ``min_interval_s`` = 40 ms (decision 1548) — the block
+takes the peak (or, for torque and power, the mean: decision 1619) of the regulated quantity
+over the interval — the resultant XY force (seed 000 and 002), the spindle torque, or the
+spindle power (what Heidenhain AFC regulates) —
 identifies the plant z⁻¹B/A (Aslan Eq. 6.7, Munasinghe Eq. 3.23) with
 :class:`~millsense.control.rls.ConstantTraceRLS` on normalised signals (y = peak / reference,
 u = feed override as a fraction of the programmed feed, decision 1601), its estimate projected
@@ -95,6 +97,10 @@ class AdaptiveFeedOptions:
         000 C16: the first 10; one factor, or the edge and shear parts apart, decision 1656).
     stall_s : frozen-signal and missing-revolution timeout, s.
     min_change_pct : smallest override change that is sent as an event.
+    min_interval_s : the control interval is the fewest whole revolutions that last at least
+        this long (decision 1548; seed 002's 40 ms, the spindle period at 1500 rev/min: one
+        revolution up to 1500 rev/min, five at 7500); the regulated value is the peak (or the
+        mean) over the interval. 0: every revolution.
     """
 
     reference: float = 325.0
@@ -115,6 +121,7 @@ class AdaptiveFeedOptions:
     calibration_revs: int = 10
     stall_s: float = 0.1
     min_change_pct: float = 0.5
+    min_interval_s: float = 0.04
 
     def __post_init__(self) -> None:
         if self.quantity not in QUANTITIES:
@@ -137,6 +144,10 @@ class AdaptiveFeedOptions:
             raise ConfigError(f"adaptive feed: dead_band must be in [0, 1), got {self.dead_band}")
         if self.reentry_revs < 0 or self.calibration_revs < 1:
             raise ConfigError("adaptive feed: reentry_revs ≥ 0 and calibration_revs ≥ 1 needed")
+        if not (self.min_interval_s >= 0 and math.isfinite(self.min_interval_s)):
+            raise ConfigError(
+                f"adaptive feed: min_interval_s must be ≥ 0, got {self.min_interval_s!r}"
+            )
         if not (self.stall_s > 0 and self.look_ahead_s >= 0 and self.feedforward_revs > 0):
             raise ConfigError(
                 "adaptive feed: stall_s > 0, look_ahead_s ≥ 0, feedforward_revs > 0 needed"
@@ -204,7 +215,7 @@ class AdaptiveFeedBlock(Block):
     name : block name (channel prefix).
 
     Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
-    revolution's peak, quantity's unit), ``{name}/reference``, ``{name}/flag`` (look-ahead
+    control interval's peak or mean, quantity's unit; NaN while not enabled), ``{name}/reference``, ``{name}/flag`` (look-ahead
     flag 0/1/2, 3 while a fault holds the safe action). Events: OVERRIDE ``feed_override``
     (value in percent) when the commanded override changes by ≥ ``min_change_pct``; ALARM
     ``adaptive_feed_fault`` when an input fault forces the safe action.
@@ -258,7 +269,8 @@ class AdaptiveFeedBlock(Block):
         n = self.name
         return [
             ChannelInfo(f"{n}/override", "1", "commanded feed override (fraction)"),
-            ChannelInfo(f"{n}/peak", unit, f"{st} {self.opts.quantity} of the last revolution"),
+            ChannelInfo(f"{n}/peak", unit, f"{st} {self.opts.quantity} of the last control "
+                        "interval (NaN while not enabled)"),
             ChannelInfo(f"{n}/reference", unit, f"reference {st} {self.opts.quantity}"),
             ChannelInfo(f"{n}/flag", "1", "look-ahead flag 0/1/2 (3: fault, safe action)"),
         ]
@@ -282,6 +294,10 @@ class AdaptiveFeedBlock(Block):
         self._scale = _ANGLE_ONE / (2 * math.pi * self.fs)
         self._rev_start = 0  # sample index where the running revolution began
         self._last_rev_len = 0
+        # the control interval being gathered: [revolutions, samples, Σ value·samples or max]
+        self._acc = [0, 0, 0.0]
+        self._min_interval = round(o.min_interval_s * self.fs)
+        self._last_interval_len = 0
         self._watch_fired = False
         self._why = ""
         self._peak = 0.0
@@ -432,17 +448,36 @@ class AdaptiveFeedBlock(Block):
         self._rev_start = chunk.start + e
         self._watch_fired = False
         if was_bad or not math.isfinite(peak):
+            self._acc = [0, 0, 0.0]
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "non-finite samples", events)
             return
-        self._peak = peak
         if self.enable_channel is not None:
             if float(np.asarray(chunk.data[self.enable_channel])[e]) < 0.5:
-                return  # not enabled at this revolution's end: no decision, override held
+                # not enabled at this revolution's end: no decision, override held, and no
+                # value shown (a run-up's acceleration torque is not the process)
+                self._peak = math.nan
+                self._acc = [0, 0, 0.0]
+                return
         if frozen >= self._n_stall:
+            self._acc = [0, 0, 0.0]
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "signal frozen", events)
             return
+        # the control interval: whole revolutions lasting at least min_interval_s (decision
+        # 1548); the decision comes at the end of its last revolution
+        acc = self._acc
+        length = self._last_rev_len
+        acc[0] += 1
+        acc[1] += length
+        acc[2] = acc[2] + peak * length if self._use_mean else max(acc[2], peak)
+        if acc[1] < self._min_interval:
+            return
+        if acc[0] > 1:  # one revolution: its own value, as it is
+            peak = acc[2] / acc[1] if self._use_mean else acc[2]
+        self._last_interval_len = acc[1]
+        self._acc = [0, 0, 0.0]
+        self._peak = peak
         if lp.fault:
             lp.fault = False  # a clean revolution: resume from the held (safe) override
         y = peak / o.reference
@@ -609,7 +644,7 @@ class AdaptiveFeedBlock(Block):
         fitted (decision 1656)."""
         lp = self.loop
         t = self._plan_cols["t_s"]
-        rev_s = self._last_rev_len / self.fs if self._last_rev_len else 0.06
+        rev_s = self._last_interval_len / self.fs if self._last_interval_len else 0.06
         end = int(np.searchsorted(t, t[row] + lp.u * self.opts.feedforward_revs * rev_s, "right"))
         sl = slice(row, max(end, row + 2))
         ex, ey = self._plan_cols["edge_x"][sl], self._plan_cols["edge_y"][sl]

@@ -103,7 +103,9 @@ class PlanSync(Block):
     at_speed_channel : 1/0 "spindle settled at speed" (:class:`~millsense.online.gates.
         SpindleAtSpeed`); given with ``torque_channel``, the air-cut reference of the torque is
         learned where the plan says air (:class:`~millsense.online.gates.AirReference`) and
-        ``{name}/cutting_torque`` = torque − reference is what the calibration uses.
+        ``{name}/cutting_torque`` = torque − reference is what the calibration uses; samples
+        where the spindle is not at speed are neither calibrated on nor judged
+        (``judged_torque`` 0; decision 1550).
     decimate : samples between matches (30: the CNC's 333 Hz at 10 kHz).
     calibration_revs, settle_revs : revolutions averaged, and skipped after the entry.
     transient_revs : revolutions of travel either side of a row over which the plan's torque
@@ -144,8 +146,10 @@ class PlanSync(Block):
         if override_channel is not None:
             ins.append(override_channel)
         self.air: AirReference | None = None
+        self.at_speed_channel: str | None = None
         if at_speed_channel is not None and torque_channel is not None:
             ins.append(at_speed_channel)
+            self.at_speed_channel = at_speed_channel
             self.air = AirReference(torque_channel, f"{name}/in_cut", at_speed_channel,
                                     out=f"{name}/cutting_torque", name=f"{name}/air")  # fmt: skip
         self.inputs = tuple(ins)
@@ -247,6 +251,10 @@ class PlanSync(Block):
             ready_from = max(k_cal, 0) if self.calibrated else n
         expected, judged = values[6], values[7]
         expected_kernel(edge, shear, scale, steady, ready_from, expected, judged)
+        if self.at_speed_channel is not None:
+            # while the spindle changes speed the observer's torque holds the acceleration
+            # torque (tens of N·m on a 1000 rev/min step): nothing is judged on it (decision 1550)
+            judged[np.asarray(d[self.at_speed_channel]) < 0.5] = 0.0
         return BlockOutput(
             {
                 f"{self.name}/row": values[0],
@@ -283,6 +291,8 @@ class PlanSync(Block):
         drev = np.where(in_cut & heavy, speed / (2 * math.pi * self.fs), 0.0)
         revs = self._revs_in_cut + np.cumsum(drev)
         use = in_cut & heavy & (revs > self.settle_revs) & np.isfinite(tq)
+        if self.at_speed_channel is not None:
+            use &= np.asarray(d[self.at_speed_channel]) >= 0.5  # no acceleration torque
         end = self.settle_revs + self.cal_revs
         done = np.flatnonzero(revs >= end)
         k_done = int(done[0]) if done.size else -1

@@ -52,7 +52,7 @@ def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -
         _line(ax[0], t, get("supervisor/feed_override"), "commanded", 100.0)
         _line(ax[0], t, get("cnc/feed_override"), "in effect", 100.0)
         ax[0].set_ylabel("feed override [%]")
-        _line(ax[1], t, get("adaptive_feed/peak"), "regulated (per revolution)")
+        _line(ax[1], t, get("adaptive_feed/peak"), "regulated (per control interval)")
         _line(ax[1], t, get("adaptive_feed/reference"), "reference")
         fx, fy = get("truth/tool/force_x"), get("truth/tool/force_y")
         if fx is not None and fy is not None:

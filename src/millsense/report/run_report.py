@@ -387,7 +387,7 @@ def _breakage_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
 def _control_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
     fig = make_subplots(rows=3, cols=1, shared_xaxes=True,
                         subplot_titles=["feed override [%]",
-                                        "regulated quantity per revolution and reference",
+                                        "regulated quantity per control interval and reference",
                                         "true resultant force |F_xy| [N]"])  # fmt: skip
     for ch, lab in (("supervisor/feed_override", "commanded"), ("cnc/feed_override", "in effect")):
         if ch in scan.present:
