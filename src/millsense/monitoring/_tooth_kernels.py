@@ -151,7 +151,8 @@ DET_REF = 14  # learnt constant reference torque (mean over the learning periods
 DET_GAP = 15  # 1: the previous period was not judged (start, or a transient of the plan)
 DET_NOISE_N = 16  # |lag-N differences| held in the noise window (≤ NOISE_WINDOW)
 DET_NOISE_POS = 17  # next slot of the noise window
-DET_BASE = 18  # ring buffer of the last N period values, then the noise window
+DET_MISS = 18  # periods in a row without a violation inside the running violation
+DET_BASE = 19  # ring buffer of the last N period values, then the noise window
 
 #: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
 #: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
@@ -213,7 +214,8 @@ def detect_periods(
     ε1(m) = Δx(m) − φ̂1 Δx(m−1), Δx(m) = x(m) − x(m−1) (Aslan 6.2–6.3, Munasinghe 3.46–3.47);
     ε2(m) = Δ_N x(m) − φ̂2 Δ_N x(m−1), Δ_N x(m) = x(m) − x(m−N) (Aslan 6.4, Munasinghe
     3.48–3.49). ``alarm[m]`` is True at the period where a run of violations reaches
-    ``confirm`` (one alarm per run). For the virtual and constant modes a run starts when the
+    ``confirm`` violating periods (one alarm per run); a run bridges up to N − 2 periods in a
+    row without a violation (virtual and constant modes; decision 1550). For the virtual and constant modes a run starts when the
     residual and the torque both violate σ_TB·τ_ref and continues while the torque does
     (``check_deviation``), else while the residual does. ``expected`` is overwritten with the
     reference used (τ_sim, or the constant τ_ref).
@@ -326,8 +328,18 @@ def detect_periods(
             elif seen >= 2:
                 state[DET_GAP] = 1.0
         expected[m] = ex if mode != MODE_DUAL else 0.0
-        viol[m] = v
-        run = run + 1.0 if v else 0.0
+        # one broken flute of N shows in two periods a revolution (its own, and the next flute's
+        # double chip): the run bridges up to N − 2 periods without a violation (decision 1550;
+        # none for N ≤ 2, the seeds' confirmation as it is) and counts the violating ones
+        if v:
+            run += 1.0
+            state[DET_MISS] = 0.0
+        elif run > 0 and mode != MODE_DUAL and state[DET_MISS] < nf - 2:
+            state[DET_MISS] += 1.0
+        else:
+            run = 0.0
+            state[DET_MISS] = 0.0
+        viol[m] = run > 0  # inside the running violation
         state[DET_RUN] = run
         alarm[m] = v and int(run) == confirm
 

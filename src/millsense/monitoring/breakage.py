@@ -10,7 +10,10 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     measured torque itself (|τ_sa − τ_sa,sim| > σ_TB τ_sa,sim; digest: "an alert needs both the
     measured torque and the residual to violate their limits") and is confirmed over 3 tooth
     periods (C17 step 5): a run starts where both violate and continues while the torque does,
-    the alarm comes with its third tooth period. Tooth periods whose expected torque is below
+    the alarm comes with its third tooth period. With N ≥ 3 flutes a broken flute shows in two
+    periods a revolution (its own and the next flute's double chip), so the run bridges up to
+    N − 2 periods in a row within the band and the alarm comes with its third violating period
+    (decision 1550; the seeds' 2-flute confirmation is unchanged). Tooth periods whose expected torque is below
     ``min_expected_nm`` (default 10 % of the plan's largest; air, the first touch of an entry)
     are not judged:
     there the virtual limit goes to zero (decision 1522). The torque's band is never narrower
@@ -110,7 +113,8 @@ class BreakageBlock(Block):
         default: 10 % of the plan's largest expected torque when a plan is given, else 0.5 N·m
         (set it for small tools).
     check_deviation : also require |τ_sa − τ_sim| > σ_TB τ_sim (``virtual``).
-    confirm_periods : violations in a row before the alarm (3; 1 for ``dual``).
+    confirm_periods : violating periods before the alarm (3; 1 for ``dual``), in a run that
+        bridges up to N − 2 periods in a row without one (decision 1550).
     reference : constant reference τ_ref in the signal's unit (``constant``; 0 = the mean of the
         tooth-period averages over the learning revolutions).
     alpha, learn_revolutions, learn_from : learning over that many revolutions, starting at the
@@ -232,6 +236,7 @@ class BreakageBlock(Block):
         that invalidated the tooth-period torque, e.g. chatter): a tool that is still broken
         alarms again after ``confirm`` periods, on the torque deviation alone (decision 1625)."""
         self._det[_k.DET_RUN] = 0.0
+        self._det[_k.DET_MISS] = 0.0
         self._det[_k.DET_GAP] = 1.0
         self._first_violation = -1
 
