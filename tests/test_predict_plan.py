@@ -213,3 +213,27 @@ M30
     assert plan["fres_peak_n"][vertex] == 0.0
     # the steps just before the vertex are still in a full slot
     assert plan["in_cut"][vertex - 3] and plan["fres_peak_n"][vertex - 3] > 100.0
+
+
+def test_a_retract_along_the_axis_cuts_nothing_a_plunge_still_does() -> None:
+    """Decision 1544: the module's program retracts with G0 Z5. at X25, inside the block, after
+    its 2 mm slot. Moving up the tool leaves the slot's end wall: none of the retract's steps
+    is in cut and none carries a force (the z-map's edge cells of that wall read as a half-slot
+    all the way up before). A plunge into the block at X30 keeps its engagement."""
+    plan = _plan()
+    x, z = plan["x_mm"], plan["z_mm"]
+    retract = (np.abs(x - 25.0) < 1e-9) & (z > -2.0 + 1e-9) & (z < 0.0)
+    assert retract.sum() >= 4  # 0.4 mm steps from Z-2 to the top face
+    assert not plan["in_cut"][retract].any()
+    assert not np.any(plan["fres_peak_n"][retract])
+    plunge = _plan("""G21 G90 G17
+S1000 M3
+G0 X30. Y20. Z5.
+G1 Z-2. F100.
+X45. F400.
+G0 Z5.
+M30
+""")
+    x, z = plunge["x_mm"], plunge["z_mm"]
+    down = (np.abs(x - 30.0) < 1e-9) & (z < -0.5) & (z > -2.0)
+    assert down.any() and plunge["in_cut"][down].all()

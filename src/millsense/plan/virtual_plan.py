@@ -614,6 +614,28 @@ def _next_motion_directions(sp: SampledPath) -> NDArray[np.float64]:
     return d
 
 
+def _clear_axial_retracts(sp: SampledPath, eng: EngagementResult) -> None:
+    """No engagement at a step whose next motion is along the tool axis, upwards (a retract
+    out of a pocket or slot; decision 1544).
+
+    The engagement of a step faces the next motion (decision 0066); a motion without an XY part
+    keeps the last XY heading, which at the end of a cut faces the wall the tool stopped at.
+    Moving up along its axis a flat or ball end mill leaves that wall and cuts nothing, while
+    the wall's edge cells, within the tool's circle to the z-map's resolution, read as a
+    half-slot all the way up (a straight G0 retract from a 3 mm slot: seven steps "in
+    material"). Plunges (downwards) keep their engagement."""
+    xyz = np.column_stack([sp.x, sp.y, sp.z])
+    d = np.diff(xyz, axis=0)
+    up = np.zeros(len(sp), dtype=bool)
+    up[:-1] = (np.hypot(d[:, 0], d[:, 1]) < 1e-12) & (d[:, 2] > 0)
+    if up.any():
+        eng.axial_depth_m[up] = 0.0
+        eng.n_intervals[up] = 0
+        eng.gain_cwe_m[up] = 0.0
+        eng.engaged_area_m2[up] = 0.0
+        eng.contact_area_m2[up] = 0.0
+
+
 def plan_program(
     program: Toolpath,
     stock: ZMapStock,
@@ -691,6 +713,7 @@ def plan_program(
         if progress is not None:
             progress(hi, total)
     eng = EngagementResult.concatenate(parts)
+    _clear_axial_retracts(sp, eng)
     _check_cutting_states(sp, eng, program.source)
     omega = np.where(sp.spindle_dir != 0, sp.spindle_speed, 0.0)
     pred = predict_states(
