@@ -402,3 +402,21 @@ def test_no_value_is_shown_while_not_enabled() -> None:
     # the last revolution's mean: 50 N·m within 4 standard errors of 600 samples of the noise
     assert pk[-1] == pytest.approx(50.0, abs=4 * 0.5 / math.sqrt(600))
     assert out.channels["adaptive_feed/override"][:6000].max() == 1.0
+
+
+def test_dead_zone_widens_to_the_noise_of_the_regulated_value() -> None:
+    """Decision 1548: a steady cut at one override whose per-revolution mean torque scatters by
+    σ = 1.5 % of the reference (an observer's, white per sample): the RLS dead zone δ becomes
+    2σ̂ with σ̂ within 25 % of 1.5 % (median of 32 differences), so the noise alone almost never
+    updates the model (|e| > 2δ ≈ 4σ), where seed 002's fixed 0.5 % (|e| > 1 % ≈ 0.7σ) would
+    update it on about half the revolutions and let it drift."""
+    rng = np.random.default_rng(9)
+    n = int(40 * FS)
+    per_sample = 0.015 * math.sqrt(REV * FS)  # the mean of a revolution's 600 samples: 1.5 %
+    data = {"spindle/torque_est": 1.0 + per_sample * rng.standard_normal(n),
+            "spindle/speed": np.full(n, OMEGA), "force_x": np.zeros(n), "force_y": np.zeros(n)}
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=1.0, quantity="torque"))
+    feed(blk, data, 100)
+    assert blk.rls.delta / 2 == pytest.approx(0.015, rel=0.25)
+    revolutions = n / (REV * FS)
+    assert blk.rls.updates <= 0.05 * revolutions

@@ -43,6 +43,7 @@ second at 1000 rev/min).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -61,6 +62,10 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 QUANTITIES = ("force", "torque", "power")
+#: Intervals over which the noise of the regulated value is judged, and the fewest needed
+#: (decision 1548).
+NOISE_INTERVALS = 32
+NOISE_MIN_INTERVALS = 8
 _UNITS = {"force": "N", "torque": "N*m", "power": "W"}
 #: Spindle angle resolution of the integer revolution counter (2⁻³² rev).
 _ANGLE_BITS = 32
@@ -88,7 +93,8 @@ class AdaptiveFeedOptions:
         1612), a tenth of it for their per-revolution mean (decision 1624).
     reentry_revs : revolutions at V_max/3 after an air cut (seed 002: 3).
     lam, n2 : GPC move weight and output horizon (seed 000: 0.25, 4).
-    rls_delta : RLS dead zone on the normalised peak (0.005 = 0.5 % of the reference).
+    rls_delta : RLS dead zone on the normalised peak (0.005 = 0.5 % of the reference); it
+        widens to twice the measured noise of the peak when that is larger (decision 1548).
     look_ahead : use the plan's look-ahead (flags 1/2) when a plan is given.
     look_ahead_s, rise : look-ahead horizon and rise threshold (seed 000: 0.5 s, 15 %).
     feedforward_revs : revolutions of travel whose predicted force the flag-1 ceiling covers.
@@ -287,6 +293,8 @@ class AdaptiveFeedBlock(Block):
             constraints=force_model_constraints(2, 3),
         )  # fmt: skip
         self.loop = _Loop()
+        # |y(k) − y(k−1)| of intervals at one override: the noise of the regulated value
+        self._dy: deque[float] = deque(maxlen=NOISE_INTERVALS)
         # scan state: [integer spindle angle (2⁻³² rev), frozen run length],
         # [running peak, last sample, running revolution holds a bad sample]
         self._st_i = np.zeros(3, dtype=np.int64)
@@ -543,6 +551,7 @@ class AdaptiveFeedBlock(Block):
             self._seed_model(y0, u1)
             lp.identified = True
         else:
+            self.rls.delta = self._dead_zone(y0, y1, u1, u2)
             self.rls.update([-y1, -y2, u1, u2, u3], y0)
         th = self.rls.theta
         a, b = th[:2], th[2:]
@@ -561,6 +570,25 @@ class AdaptiveFeedBlock(Block):
         if not math.isfinite(du):
             return lp.u
         return lp.u + du
+
+    def _dead_zone(self, y0: float, y1: float, u1: float, u2: float) -> float:
+        """The RLS dead zone δ (Munasinghe Eq. 3.31: no update while |error| ≤ 2δ): the
+        option's, or twice the regulated value's noise where that is larger (decision 1548).
+
+        The dead zone is the bound of what the model cannot explain; seed 002's dynamometer peak
+        stayed within 0.5 %, an observer's spindle power at high speed scatters by 1–2 % from one
+        interval to the next. Inside that noise at a constant override nothing excites the
+        model, and updating on the noise alone let it drift along the direction the data do not
+        fix (a pole → 1 and b → 0 at the same static gain), on which the GPC's next move was
+        five times too large. σ̂ is the median |y(k) − y(k−1)| of the last NOISE_INTERVALS
+        intervals cut at one override, / (0.6745·√2), once NOISE_MIN_INTERVALS are held."""
+        if u1 == u2 and math.isfinite(y1) and y1 > 0:
+            self._dy.append(abs(y0 - y1))
+        delta = self.opts.rls_delta
+        if len(self._dy) >= NOISE_MIN_INTERVALS:
+            sigma = float(np.median(np.asarray(self._dy))) / (0.6744897501960817 * math.sqrt(2))
+            delta = max(delta, 2.0 * sigma)
+        return delta
 
     def _command(
         self,

@@ -2,8 +2,9 @@
 
 Four panels over time: the feed override (commanded by the supervisor and in effect on the
 machine), the regulated quantity against its reference (and the true resultant force on the
-virtual machine), the spindle speed, and the spindle torque (estimated, expected from the
-calibrated plan, true); the events are marked (chatter, breakage, feed hold, faults).
+virtual machine), the spindle speed, and the spindle cutting torque (estimated, less the
+air-cut reference, while the spindle is at speed; expected from the calibrated plan; true); the
+events are marked (chatter, breakage, feed hold, faults).
 """
 
 from __future__ import annotations
@@ -62,7 +63,20 @@ def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -
         if sp is not None:
             ax[2].plot(t, sp * 60 / (2 * np.pi), lw=0.8, label="spindle speed")
         ax[2].set_ylabel("spindle [rev/min]")
-        _line(ax[3], t, get("est/spindle/spindle/load"), "estimated", alpha=0.5)
+        est = get("plan/cutting_torque")  # less the air-cut reference
+        if est is None:
+            est = get("est/spindle/spindle/load")
+        gate = get("spindle/at_speed")
+        if est is not None and gate is not None:
+            # off speed the observer's torque is the acceleration torque (tens of N·m on a
+            # run-up), which would set the panel's scale: not drawn
+            est = np.where(gate > 0.5, est, np.nan)
+        _line(ax[3], t, est, "estimated (spindle at speed)", alpha=0.3)
+        tooth = get("breakage/tooth_avg")
+        if tooth is not None:
+            if gate is not None:
+                tooth = np.where(gate > 0.5, tooth, np.nan)
+            _line(ax[3], t, tooth, "estimated, tooth-period average")
         _line(ax[3], t, get("plan/expected_torque"), "expected (plan, calibrated)")
         _line(ax[3], t, get("truth/spindle/torque"), "true", alpha=0.5)
         ax[3].set_ylabel("cutting torque [N·m]")
