@@ -252,6 +252,20 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     rbrk = [e.time_s for e in read_event_log(tmp_path / "replay.parquet") if e.name == "breakage"]
     assert len(rbrk) == 1
     assert abs(rbrk[0] - brk[0]) <= 3 * 0.03
+    # `millsense monitor` on the run's recording: the virtual threshold reads the session's
+    # air-subtracted torque against its calibrated, judged expectation (plan/judged_torque) and
+    # finds the break where the run did, to the sample; the dual residuals (seed 002) also alarm
+    code, _out, err = run_cli(
+        ["monitor", str(tmp_path / "run.h5"), "--methods", "breakage-virtual,breakage-dual",
+         "-o", str(tmp_path / "monitor.parquet")],
+        capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    mev = read_event_log(tmp_path / "monitor.parquet")
+    virtual = [e.time_s for e in mev if e.source == "breakage-virtual"]
+    dual = [e.time_s for e in mev if e.source == "breakage-dual"]
+    assert virtual[:1] == brk
+    assert dual and 5.0 < dual[0] < 5.0 + 10 * 0.03
 
 
 @pytest.mark.parametrize(

@@ -145,6 +145,12 @@ for _m in ("chatter-comb", "chatter-sdft", "chatter-threshold"):
 #: Torque channels a breakage monitor uses when none is chosen, best first: the spindle
 #: observer's compensated load (``monitor --machine``), an estimated spindle torque.
 BREAKAGE_SIGNALS = ("est/spindle/spindle/load", "spindle/torque_est")
+#: What the breakage monitors read when nothing is chosen: a session's (``millsense run``)
+#: cutting torque, less its air-cut reference, first.
+BREAKAGE_SIGNALS_SESSION = ("plan/cutting_torque", *BREAKAGE_SIGNALS)
+#: A session recording's expected torque where the calibrated plan judges the tool (steady
+#: rows, spindle at speed; decisions 1622, 1550): the virtual threshold's reference.
+SESSION_EXPECTED = "plan/judged_torque"
 
 
 def _breakage_factory(method: str) -> Factory:
@@ -153,12 +159,14 @@ def _breakage_factory(method: str) -> Factory:
     def make(ctx: MonitorContext) -> Block:
         from millsense.monitoring.breakage import BreakageBlock
 
-        signal = ctx.signal or next((c for c in BREAKAGE_SIGNALS if c in ctx.channels), None)
+        signal = ctx.signal or next(
+            (c for c in BREAKAGE_SIGNALS_SESSION if c in ctx.channels), None
+        )
         if signal is None:
             raise InputDataError(
                 f"{ctx.source}: monitor '{name}' needs a spindle torque channel (one of "
-                f"{', '.join(BREAKAGE_SIGNALS)}: give --machine for the spindle observer, or "
-                "--channel)"
+                f"{', '.join(BREAKAGE_SIGNALS_SESSION)}: give --machine for the spindle "
+                "observer, or --channel)"
             )
         ctx.require([signal], name)
         if ctx.speed_channel is None or ctx.speed_unit != "rad/s":
@@ -168,11 +176,14 @@ def _breakage_factory(method: str) -> Factory:
             )
         ctx.require([ctx.speed_channel], name)
         expected = ctx.options.get("breakage.expected_channel")
+        if expected is None and SESSION_EXPECTED in ctx.channels:
+            expected = SESSION_EXPECTED  # a recording of `millsense run`
         if method == "virtual":
             if expected is None:
                 raise InputDataError(
-                    f"{ctx.source}: monitor '{name}' needs the plan's expected torque per "
-                    "sample (option breakage.expected_channel); use breakage-constant or "
+                    f"{ctx.source}: monitor '{name}' needs the calibrated plan's expected "
+                    f"torque per sample ('{SESSION_EXPECTED}' of a `millsense run` recording, "
+                    "or option breakage.expected_channel); use breakage-constant or "
                     "breakage-dual without it"
                 )
             ctx.require([expected], name)
