@@ -311,8 +311,10 @@ _T1_SLOW_END = (
     "6098 rev/min: a pass by that shift); 1.172 s since decision 1539 found it 0.1-0.2 s "
     "sooner (2.2 s, 511.6 Hz, 6109 rev/min); 1.179 s since decision 1543 judged the entry's "
     "part from two revolutions on (2.1 s, 512.8 Hz, 6101 rev/min); 1.197 s with decision 1546 "
-    "(the same detection and command to within a fraction of a rev/min; the ratio 8.94). "
-    "At the programmed feed "
+    "(the same detection and command to within a fraction of a rev/min; the ratio 8.94); "
+    "0.263 s, a pass, since decision 1548 (the adaptive feed's interval of 3 revolutions and "
+    "its dead zone: found at 2.1 s, 512.6 Hz, ratio 12.95, 6099 rev/min), 2 rev/min from the "
+    "failing command. At the programmed feed "
     "(the demo's pass, `online.demo_chatter_pass_gone_s`) the truth is quiet 0.12 s after the "
     "change"
 )
