@@ -109,3 +109,28 @@ def test_plant_cell_is_finer_than_the_session_and_bounded_for_large_stock() -> N
     # a 300 x 300 mm block: sqrt(0.09 / 16e6) = 0.075 mm, between the two bounds
     mid = demo.model_copy(update={"min_mm": [0.0, 0.0, -30.0], "max_mm": [300.0, 300.0, 0.0]})
     assert plant_cell_m(mid, None, 0.2e-3) == pytest.approx(0.075e-3, rel=1e-9)
+
+
+def test_run_takes_the_g28_reference_for_both_plans(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """A program that starts with Fanuc's ``G28 G91 Z0.`` (CAM posts write it): without a
+    reference the one-line error names ``--home-mm``; with ``home_mm`` the session's plan and
+    the machine's own plan both start at the reference (Z 50 mm) and then follow the program."""
+    from millsense.cli.cmd_run import virtual_machine
+    from millsense.core.errors import ProgramError
+
+    prog = tmp_path / "g28.nc"
+    prog.write_text("G21 G90 G17\nT1 M6\nG28 G91 Z0.\nG90\nS1000 M3\n"
+                    "G0 X-12 Y40 Z5\nG1 Z-2 F400\nX30\nG0 Z5\nM30\n")  # fmt: skip
+    args = dict(program=prog, stock=DEMO / "stock.toml", tool="aslan-d20-2flute",
+                material="al7050", plan=None, plan_out=None, machine="quaser-ux600",
+                duration_s=0.5)  # fmt: skip
+    with pytest.raises(ProgramError, match=r"g28\.nc:3: G28 .*--home-mm"):
+        virtual_machine(**args)  # type: ignore[arg-type]
+    seen = _capture_plan_job(monkeypatch)
+    vm = virtual_machine(**args, home_mm="0,0,50")  # type: ignore[arg-type]
+    (plant, _), = seen
+    for p in (vm.plan, plant):
+        z = p["z_mm"]
+        assert max(z) == pytest.approx(50.0, abs=1e-9)
+        assert min(z) == pytest.approx(-2.0, abs=1e-9)

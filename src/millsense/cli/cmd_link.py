@@ -43,6 +43,9 @@ def serve_machine(
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
+    home_mm: str | None = typer.Option(
+        None, "--home-mm", help="G28 reference X,Y,Z [mm] (machine frame), for programs with G28."
+    ),
     linger_s: float | None = typer.Option(
         None, "--linger-s", help="Serve this long after the program ends [s] (default: until ^C)."
     ),
@@ -67,6 +70,7 @@ def serve_machine(
     vm = virtual_machine(
         program=program, stock=stock, tool=tool, material=material, plan=plan, plan_out=None,
         machine=machine, break_at_s=break_at_s, seed=seed, duration_s=duration_s,
+        home_mm=home_mm,
     )  # fmt: skip
     for n in vm.notes:
         typer.echo(f"millsense: note: {n}", err=True)

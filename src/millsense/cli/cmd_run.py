@@ -119,6 +119,9 @@ def run(
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     step_mm: float = typer.Option(0.4, "--step-mm", help="Plan step [mm]."),
     resolution_mm: float = typer.Option(0.2, "--resolution-mm", help="Z-map cell [mm]."),
+    home_mm: str | None = typer.Option(
+        None, "--home-mm", help="G28 reference X,Y,Z [mm] (machine frame), for programs with G28."
+    ),
     dashboard: bool = typer.Option(
         False, "--dashboard", help="Serve the live dashboard of the session (prints its address)."
     ),
@@ -180,7 +183,7 @@ def run(
             nmap, connect, program=program, stock=stock, tool=tool, material=material, plan=plan,
             plan_out=plan_out, machine=machine, machine_file=machine_file, out=out,
             events_out=events_out, plot=plot, options=opts, duration_s=duration_s,
-            step_mm=step_mm, resolution_mm=resolution_mm,
+            step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
         )  # fmt: skip
         for line in summary["lines"]:
             typer.echo(line)
@@ -191,7 +194,7 @@ def run(
         plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
         break_at_s=break_at_s,
         break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
-        duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm,
+        duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
         dashboard=live, dashboard_linger_s=dashboard_linger_s,
     )  # fmt: skip
     for line in summary["lines"]:
@@ -285,6 +288,7 @@ def run_online(
     duration_s: float | None = None,
     step_mm: float = 0.4,
     resolution_mm: float = 0.2,
+    home_mm: str | None = None,
     chunk: int = 100,
     dashboard: Any = None,
     dashboard_linger_s: float = 0.0,
@@ -303,7 +307,7 @@ def run_online(
         program=program, stock=stock, tool=tool, material=material, plan=plan,
         plan_out=plan_out, machine=machine, break_at_s=break_at_s, break_flute=break_flute,
         tool_modes=tool_modes, seed=seed, duration_s=duration_s, step_mm=step_mm,
-        resolution_mm=resolution_mm,
+        resolution_mm=resolution_mm, home_mm=home_mm,
     )  # fmt: skip
     vp, sim, meta, notes, findings = vm.plan, vm.sim, vm.metadata, vm.notes, vm.findings
     notes_pre: list[str] = []
@@ -369,7 +373,7 @@ def run_online(
 
 def _plan(program: Path | None, stock: Path | None, tool: str | None, material: str | None,
           plan: Path | None, plan_out: Path | None, step_mm: float,
-          resolution_mm: float) -> tuple[Any, str, Any]:  # fmt: skip
+          resolution_mm: float, home_mm: str | None = None) -> tuple[Any, str, Any]:  # fmt: skip
     """The virtual plan of ``--program`` (with stock, tool, material) or ``--plan``, its name
     and the planner's findings."""
     from millsense.core.plausibility import Findings
@@ -383,7 +387,7 @@ def _plan(program: Path | None, stock: Path | None, tool: str | None, material: 
         from .cmd_plan import _build
 
         vp, _, findings = _build(
-            program, stock, Path(tool), Path(material), step_mm, resolution_mm, None
+            program, stock, Path(tool), Path(material), step_mm, resolution_mm, home_mm
         )
         if plan_out is not None:
             vp.write(plan_out)
@@ -410,6 +414,7 @@ def run_over_link(
     duration_s: float | None = None,
     step_mm: float = 0.4,
     resolution_mm: float = 0.2,
+    home_mm: str | None = None,
     chunk: int = 100,
 ) -> dict[str, Any]:
     """The on-line session on a live OPC UA link (``run --source``): the same blocks as in
@@ -421,7 +426,7 @@ def run_over_link(
     from millsense.streaming.event_log import default_event_log_path
 
     vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out,
-                                    step_mm, resolution_mm)  # fmt: skip
+                                    step_mm, resolution_mm, home_mm)  # fmt: skip
     cfg, where = _machine_file(machine_file, machine)
     names = [c.name for c in node_map.channels]
     axes = [a for a in cfg.axes if f"{a}/position_cmd" in names]
@@ -495,6 +500,7 @@ def virtual_machine(
     duration_s: float | None = None,
     step_mm: float = 0.4,
     resolution_mm: float = 0.2,
+    home_mm: str | None = None,
 ) -> VirtualMachine:
     """The plan of ``--program`` (or ``--plan``) checked against the machine, and the virtual
     machine ready to run it (``millsense.simulator.plan_job``)."""
@@ -505,7 +511,7 @@ def virtual_machine(
     from millsense.simulator.process_coupling import ProcessEvent, ToolModes, ToothBreak
 
     vp, plan_name, findings = _plan(program, stock, tool, material, plan, plan_out, step_mm,
-                                    resolution_mm)  # fmt: skip
+                                    resolution_mm, home_mm)  # fmt: skip
     sim_cfg = simulator_machine(machine)
     check_plan(vp, findings, machine=sim_cfg)
     events: list[ProcessEvent] = []
@@ -514,7 +520,7 @@ def virtual_machine(
     modes = ToolModes.from_toml(tool_modes, findings) if tool_modes is not None else None
     plant = vp
     if program is not None and stock is not None and tool is not None and material is not None:
-        plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm)
+        plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm, home_mm)
     job, process, meta, notes = plan_job(plant, sim_cfg, plan_name, events=events, modes=modes)
     if plant is vp:
         notes = [*notes, "the virtual machine cuts the given --plan itself (no program to plan "
@@ -547,7 +553,7 @@ def plant_cell_m(stock_cfg: Any, make_stock: Any, resolution_m: float) -> float:
 
 
 def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: float,
-                resolution_mm: float) -> Any:  # fmt: skip
+                resolution_mm: float, home_mm: str | None = None) -> Any:  # fmt: skip
     """The virtual machine's own plan of ``--program`` (decision 1740,
     :func:`~millsense.simulator.plant_plan.plant_plan`): the same program, stock, tool and
     material as the session's plan, on a z-map 4 times finer (0.05 mm at least) by the tool
@@ -563,7 +569,7 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
     from millsense.process.geometry import EndMill
     from millsense.simulator.plant_plan import plant_plan
 
-    from .cmd_plan import stock_maker
+    from .cmd_plan import _home, stock_maker
 
     tool_cfg = load_preset(ToolConfig, Path(tool))
     mat_cfg = load_preset(MaterialConfig, Path(material))
@@ -573,7 +579,7 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
     with Progress(console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("plan of the virtual machine", total=1)
         return plant_plan(
-            [interpret_file(program)], make_stock, EndMill.from_config(tool_cfg),
+            [interpret_file(program, home_mm=_home(home_mm))], make_stock, EndMill.from_config(tool_cfg),
             CuttingCoefficients.from_config(mat_cfg), cell_m=cell_m, step_m=step_mm * MM,
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip

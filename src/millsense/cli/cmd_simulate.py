@@ -96,6 +96,9 @@ def simulate(
         "--tool-cutting-time-min",
         help="The CNC's tool-life counter before this run [min], in metadata.",
     ),
+    home_mm: str | None = typer.Option(
+        None, "--home-mm", help="G28 reference X,Y,Z [mm] (machine frame), for programs with G28."
+    ),
 ) -> None:
     """Simulate the virtual machine tool running a program or a virtual plan; write a
     crash-safe recording with CNC and truth/ channels.
@@ -144,6 +147,7 @@ def simulate(
         wear_vb_mm=wear_vb_mm,
         tool_id=tool_id,
         tool_cutting_time_min=tool_cutting_time_min,
+        home_mm=home_mm,
     )
     with progress_bar("simulating", 1.0) as update:
         summary = run_simulation(on_progress=update, **req)  # type: ignore[arg-type]
@@ -184,6 +188,7 @@ def run_simulation(
     tool_id: str | None = None,
     tool_cutting_time_min: float | None = None,
     plant: VirtualPlan | None = None,
+    home_mm: str | None = None,
 ) -> dict[str, Any]:
     """Build the virtual machine from the options, run it and write ``out`` while running.
 
@@ -308,7 +313,9 @@ def run_simulation(
             if ae_mm is not None:
                 check_width(ae_mm, tcfg.diameter_mm, f"--engagement {engagement}")
         unit = EngagementSchedule.from_spec(engagement, end_mill.diameter_m, depth_mm * 1e-3)
-        toolpath = interpret_file(program)
+        from .cmd_plan import _home
+
+        toolpath = interpret_file(program, home_mm=_home(home_mm))
         check_program(
             toolpath,
             findings,

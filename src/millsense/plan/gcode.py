@@ -503,7 +503,8 @@ class _Machine:
         if self.home is None:
             raise program_error(
                 self.source, lineno, raw,
-                "G28 needs the machine reference position (pass home_mm to the interpreter)",
+                "G28 needs the machine reference position (--home-mm X,Y,Z on the command line, "
+                "home_mm in the interpreter)",
             )  # fmt: skip
         named = [i for i, ax in enumerate(("X", "Y", "Z", "A", "C")) if ax in vals]
         mid = self.target(vals)
