@@ -287,3 +287,35 @@ def test_monitors_grouped_as_the_command_runs_them() -> None:
     assert out[1].members == breakage
     apart = [BreakageBlock(2, "constant"), BreakageBlock(3, "dual")]
     assert _grouped(apart) == apart
+
+
+def test_monitor_breakage_skips_the_spindle_run_up(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1550: a CNC recording (speed and its command, the observer's torque) that starts
+    with a 0.3 s run-up to 1000 rev/min carrying 80 N·m of acceleration torque, then a steady
+    2-flute cut of 3 N·m whose flute 0 breaks at 4.2 s. `monitor` gates the breakage monitors
+    on the spindle reaching its commanded speed (made from the two speed channels): the constant
+    detector then learns its reference in the cut and alarms within 3 tooth periods of the
+    break; learnt on the run-up (the block without the gate) it would be blind to it."""
+    rng = np.random.default_rng(4)
+    n = int(6.0 * FS)
+    t = np.arange(n) / FS
+    w = 1000 * 2 * np.pi / 60
+    speed = np.minimum(t / 0.3, 1.0) * w
+    tooth = 300  # samples a tooth period
+    period = np.arange(n) // tooth
+    tq = np.where(period >= 140, np.where(period % 2 == 0, 0.0, 6.0), 3.0)
+    tq = np.where(t < 0.3, 80.0, tq) + 0.05 * np.sqrt(tooth) * rng.standard_normal(n)
+    rec = Recording(FS, 0.0, {"flutes": 2})
+    rec.add_channel("spindle/speed", speed, "rad/s")
+    rec.add_channel("spindle/speed_cmd", np.full(n, w), "rad/s")
+    rec.add_channel("est/spindle/spindle/load", tq, "N*m")
+    write_recording(tmp_path / "run.h5", rec)
+    out = tmp_path / "ev.parquet"
+    code, _stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
+                                  "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    ev = read_event_log(out)
+    assert len(ev) == 1
+    assert 4.2 < ev[0].time_s <= 4.2 + 3 * 0.03 + 1e-9

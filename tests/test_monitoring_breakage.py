@@ -294,3 +294,33 @@ def test_noise_floor_leaves_a_clear_breakage_detected() -> None:
     tooth = 200  # samples a tooth period (1000 rev/min, 3 flutes)
     # period 303 is reported where it ends (the first sample of period 304)
     assert events[0].sample == pytest.approx(304 * tooth, abs=1)
+
+
+@pytest.mark.parametrize("method", ["constant", "dual"])
+def test_periods_off_the_enable_gate_are_not_judged(method: str) -> None:
+    """Decision 1550: a spindle run-up (0.3 s at 80 N·m of acceleration torque, the gate 0)
+    then a steady 3 N·m cut with a little noise, and a flute broken at period 140. Without the
+    gate the constant and dual detectors learn their reference and thresholds on the run-up
+    (a reference of ≈ 57 N·m, residual thresholds of ≈ 150 N·m) and are blind to the break;
+    with it those periods are not judged (limits NaN), the learning starts in the cut, and the
+    alarms are those of the same stream without the run-up, to the sample: the break's first."""
+    data = _tooth_stream(1000.0, 2, 3.0, 0.05, 6.0, seed=13, broken_from=140)
+    n = len(data["tq"])
+    runup = np.arange(n) < int(0.3 * FS)
+    data["tq"] = np.where(runup, 80.0, data["tq"])
+    data["gate"] = (~runup).astype(float)
+
+    def block(gate: str | None) -> BreakageBlock:
+        return BreakageBlock(2, method, signal_channels=("tq",), speed_channel="w",  # type: ignore[arg-type]
+                             learn_from=0.5, enable_channel=gate)  # fmt: skip
+
+    plain, _ = run_block(block(None), data, 1000)
+    gated, ch = run_block(block("gate"), data, 1000)
+    tooth = 300  # samples a tooth period (1000 rev/min, 2 flutes)
+    assert plain == []  # blinded by the run-up
+    skip = int(0.3 * FS)
+    clean, _ = run_block(block(None), {k: v[skip:] for k, v in data.items()}, 1000)
+    assert [e.sample for e in gated] == [e.sample + skip for e in clean]
+    assert 140 * tooth < gated[0].sample <= 143 * tooth + 1
+    assert np.isnan(ch[f"breakage.{method}/limit1"][: int(0.3 * FS)]).all()
+    assert np.nanmax(ch[f"breakage.{method}/limit1"]) < 10.0  # learnt in the cut

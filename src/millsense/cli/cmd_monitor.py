@@ -23,6 +23,8 @@ from millsense.cli.main import app
 SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
 #: Compensated spindle torque produced by the machine file's observer.
 OBSERVER_CHANNEL = "est/spindle/spindle/load"
+#: The spindle gate's channel (:data:`millsense.monitoring.registry.AT_SPEED`).
+AT_SPEED = "spindle/at_speed"
 
 
 @app.command()
@@ -308,6 +310,18 @@ def _run(
         pre.append(spindle_observer_from_config(mcfg, machine, fs))
         channels[OBSERVER_CHANNEL] = "N*m"
         signal = OBSERVER_CHANNEL
+    if (
+        AT_SPEED not in channels
+        and "spindle/speed" in channels
+        and "spindle/speed_cmd" in channels
+        and _speed_unit(channels["spindle/speed"], "spindle/speed", where) == "rad/s"
+    ):
+        # the breakage monitors judge no tooth period the spindle spends off its commanded
+        # speed (a run-up's or a speed change's acceleration torque, decision 1550)
+        from millsense.online.gates import SpindleAtSpeed
+
+        pre.append(SpindleAtSpeed())
+        channels[AT_SPEED] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config

@@ -31,7 +31,8 @@ SEG_COUNT = 2  # samples accumulated in the current period
 SEG_SUM0 = 3  # sums of channel 0, channel 1, expected torque in the current period
 SEG_SUM1 = 4
 SEG_SUME = 5
-SEG_SIZE = 6
+SEG_SUMG = 6  # sum of the enable (gate) channel in the current period
+SEG_SIZE = 7
 
 
 @numba.njit(cache=True)
@@ -39,6 +40,7 @@ def segment_periods(
     a: FloatArray,
     b: FloatArray,
     expected: FloatArray,
+    gate: FloatArray,
     speed: FloatArray,
     fs: float,
     n_flutes: int,
@@ -46,11 +48,13 @@ def segment_periods(
     out_mean0: FloatArray,
     out_mean1: FloatArray,
     out_mean_e: FloatArray,
+    out_mean_g: FloatArray,
     out_end: IntArray,
     out_index: IntArray,
     held: IntArray,
 ) -> int:
-    """Average ``a`` (and ``b``, ``expected`` when non-empty) over complete tooth periods.
+    """Average ``a`` (and ``b``, ``expected``, the 1/0 ``gate`` when non-empty; the gate's
+    mean is 1 without one) over complete tooth periods.
 
     ``out_*`` are sized ≥ the number of periods that can end in the chunk; ``out_end`` is the
     chunk sample at which each period is reported, ``out_index`` its index since the stream
@@ -60,6 +64,7 @@ def segment_periods(
     n = a.shape[0]
     has_b = b.shape[0] == n
     has_e = expected.shape[0] == n
+    has_g = gate.shape[0] == n
     scale = n_flutes / (2.0 * math.pi * fs)
     phase = state[SEG_PHASE]
     idx = state[SEG_INDEX]
@@ -67,6 +72,7 @@ def segment_periods(
     s0 = state[SEG_SUM0]
     s1 = state[SEG_SUM1]
     se = state[SEG_SUME]
+    sg = state[SEG_SUMG]
     m = 0
     for k in range(n):
         phase += abs(speed[k]) * scale
@@ -75,6 +81,7 @@ def segment_periods(
             out_mean0[m] = s0 / cnt
             out_mean1[m] = s1 / cnt if has_b else 0.0
             out_mean_e[m] = se / cnt if has_e else 0.0
+            out_mean_g[m] = sg / cnt if has_g else 1.0
             out_end[m] = k
             out_index[m] = int(idx)
             m += 1
@@ -83,6 +90,7 @@ def segment_periods(
             s0 = 0.0
             s1 = 0.0
             se = 0.0
+            sg = 0.0
         if phase >= 1.0:
             phase -= math.floor(phase)
         cnt += 1.0
@@ -91,6 +99,8 @@ def segment_periods(
             s1 += b[k]
         if has_e:
             se += expected[k]
+        if has_g:
+            sg += 1.0 if gate[k] > 0.5 else 0.0
         held[k] = m
     state[SEG_PHASE] = phase
     state[SEG_INDEX] = idx
@@ -98,6 +108,7 @@ def segment_periods(
     state[SEG_SUM0] = s0
     state[SEG_SUM1] = s1
     state[SEG_SUME] = se
+    state[SEG_SUMG] = sg
     return m
 
 
@@ -116,17 +127,19 @@ def segment_group(
     counts: IntArray,
 ) -> int:
     """:func:`segment_periods` for several detectors on one speed channel in one call:
-    detector ``j`` averages the rows ``rows[j] = (a, b, expected)`` of ``x`` (−1: none) with
-    its state ``state[j]`` into ``means[j, 0:3]``, ``ends[j]``, ``held[j]``; ``counts[j]`` ←
-    its periods completed. Returns the largest count."""
+    detector ``j`` averages the rows ``rows[j] = (a, b, expected, gate)`` of ``x`` (−1: none)
+    with its state ``state[j]`` into ``means[j, 0:3]`` and ``means[j, PP_GATE]``, ``ends[j]``,
+    ``held[j]``; ``counts[j]`` ← its periods completed. Returns the largest count."""
     empty = x[0, :0]
     top = 0
     for j in range(rows.shape[0]):
         a = x[rows[j, 0]]
         b = x[rows[j, 1]] if rows[j, 1] >= 0 else empty
         e = x[rows[j, 2]] if rows[j, 2] >= 0 else empty
-        k = segment_periods(a, b, e, speed, fs, n_flutes, state[j], means[j, 0], means[j, 1],
-                            means[j, 2], ends[j, 0], ends[j, 1], held[j])  # fmt: skip
+        g = x[rows[j, 3]] if rows[j, 3] >= 0 else empty
+        k = segment_periods(a, b, e, g, speed, fs, n_flutes, state[j], means[j, 0],
+                            means[j, 1], means[j, 2], means[j, PP_GATE], ends[j, 0], ends[j, 1],
+                            held[j])  # fmt: skip
         counts[j] = k
         top = max(top, k)
     return top
@@ -163,10 +176,11 @@ NOISE_MIN = 16
 #: independent periods: σ = median|d| / (0.6745 √2).
 NOISE_SCALE = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
 
-#: Rows of ``pp`` (per-period values) and of a detector's outputs (rows 3 … 8 of ``pp``: x, ε1,
-#: limit1, ε2, limit2, band).
-PP_ROWS = 9
-OUT_ROWS = PP_ROWS - 3
+#: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
+#: 7 limit2, 8 band, 9 the gate's mean) and of a detector's outputs (rows 3 … 8).
+PP_ROWS = 10
+PP_GATE = 9
+OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
 MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the first revolutions)
@@ -245,7 +259,25 @@ def detect_periods(
     noise0 = DET_BASE + nf
     viol = pb[0]
     alarm = pb[1]
+    gate = pp[PP_GATE]
     for m in range(k):
+        if gate[m] < 1.0:
+            # a period with a sample where the gate is off (the spindle not at speed: the
+            # torque holds the acceleration torque) is not judged and restarts the differences
+            # (decision 1550); learnt thresholds and the noise window are kept
+            eps1[m] = 0.0
+            eps2[m] = 0.0
+            lim1[m] = math.nan
+            lim2[m] = math.nan
+            band_out[m] = math.nan
+            expected[m] = 0.0
+            viol[m] = False
+            alarm[m] = False
+            state[DET_SEEN] = 0.0
+            state[DET_RUN] = 0.0
+            state[DET_MISS] = 0.0
+            state[DET_GAP] = 1.0
+            continue
         seen = int(state[DET_SEEN])
         xm = x[m]
         x1 = state[DET_BASE + (seen - 1) % nf] if seen >= 1 else 0.0

@@ -125,6 +125,9 @@ class BreakageBlock(Block):
     noise_k : the signal's band around its reference (``virtual``, ``constant``) is never
         narrower than ``noise_k`` standard deviations of the tooth-period average's noise,
         estimated on line (decision 1550; 0: the seed's σ_TB band alone).
+    enable_channel : optional 1/0 channel (e.g. ``spindle/at_speed``): a tooth period with a
+        sample where it is 0 is not judged and restarts the differences (a spindle run-up or
+        speed change, whose observer torque holds the acceleration torque; decision 1550).
     name : block name (channel prefix and event source).
     """
 
@@ -148,6 +151,7 @@ class BreakageBlock(Block):
         forgetting: float = 0.98,
         rls_p_max: float | None = None,
         noise_k: float = NOISE_K,
+        enable_channel: str | None = None,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -170,6 +174,7 @@ class BreakageBlock(Block):
         if not (noise_k >= 0 and math.isfinite(noise_k)):
             raise ConfigError(f"breakage: noise_k must be ≥ 0 (0: no noise floor), got {noise_k!r}")
         self.noise_k = float(noise_k)
+        self.enable_channel = enable_channel
         self.n_flutes = int(n_flutes)
         self.method: Method = method
         self.signal_channels = tuple(signal_channels)
@@ -211,6 +216,8 @@ class BreakageBlock(Block):
         ins = [*self.signal_channels, speed_channel]
         if self.expected_channel is not None:
             ins.append(self.expected_channel)
+        if enable_channel is not None:
+            ins.append(enable_channel)
         if self.plan is not None:
             ins.extend(tcp_channels)
         self.inputs = tuple(ins)
@@ -275,12 +282,14 @@ class BreakageBlock(Block):
         self._pp = np.empty((_k.PP_ROWS, 0))
         self._pi = np.empty((2, 0), dtype=np.int64)
         self._pb = np.empty((2, 0), dtype=np.bool_)
-        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE], self._pi[0],
+                      self._pi[1])  # fmt: skip
         self._hbuf = np.empty(0, dtype=np.int64)
         self._n_last = -1
         self._ch_a = self.signal_channels[0]
         self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
         self._ch_e = self.expected_channel
+        self._ch_g = self.enable_channel
         self._held_views: HeldViews | None = None
         compile_kernels()
 
@@ -307,13 +316,15 @@ class BreakageBlock(Block):
         b = self._empty if self._ch_b is None else np.asarray(d[self._ch_b], dtype=np.float64)
         speed = np.asarray(d[self.speed_channel], dtype=np.float64)
         e = self._empty if self._ch_e is None else np.asarray(d[self._ch_e], dtype=np.float64)
+        g = self._empty if self._ch_g is None else np.asarray(d[self._ch_g], dtype=np.float64)
         if n != self._n_last:
             self._size(n)
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r0, r1, r2, r3, r4 = self._bufs
-        # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band
-        k: int = _k.segment_periods(a, b, e, speed, self.fs, self.n_flutes, self._seg, r0, r1,
-                                    r2, r3, r4, held)  # fmt: skip
+        r0, r1, r2, rg, r3, r4 = self._bufs
+        # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band,
+        # 9 the gate's mean
+        k: int = _k.segment_periods(a, b, e, g, speed, self.fs, self.n_flutes, self._seg, r0,
+                                    r1, r2, rg, r3, r4, held)  # fmt: skip
         return k, n
 
     def _periods(self, chunk: Chunk, k: int, n: int) -> BlockOutput:
@@ -321,7 +332,7 @@ class BreakageBlock(Block):
         (after :meth:`_segment`): residuals, limits and detection per period (Eqs. 6.2–6.6)."""
         d = chunk.data
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r4 = self._bufs[4]
+        r4 = self._bufs[5]
         self._held_views = None
         pp, pi, pb = self._pp, self._pi, self._pb
         values = np.empty((_k.OUT_ROWS, n))
@@ -364,7 +375,8 @@ class BreakageBlock(Block):
             self._pp = np.empty((_k.PP_ROWS, 2 * cap))
             self._pi = np.empty((2, 2 * cap), dtype=np.int64)
             self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
-            self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pi[0], self._pi[1])
+            self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
+                          self._pi[0], self._pi[1])  # fmt: skip
         if self._hbuf.shape[0] < n:
             self._hbuf = np.empty(n, dtype=np.int64)
         self._n_last = n
@@ -540,7 +552,7 @@ class BreakageGroup(Block):
         for j, m in enumerate(ms):
             pp, pi = self._pp[j], self._pi[j]
             m._pp, m._pi, m._pb, m._hbuf = pp, pi, self._pb[j], self._hb[j]
-            m._bufs = (pp[0], pp[1], pp[2], pi[0], pi[1])
+            m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
         self._counts = np.zeros(len(ms), dtype=np.int64)
         self._n = n
@@ -612,11 +624,11 @@ def compile_kernels() -> None:
         block.process(Chunk(0, fs, 0.0, data))
 
 
-def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None]:
-    """The channels a detector averages per tooth period: (a, b, expected), None where it has
-    none (as :meth:`BreakageBlock._segment` reads them)."""
+def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None, str | None]:
+    """The channels a detector averages per tooth period: (a, b, expected, gate), None where
+    it has none (as :meth:`BreakageBlock._segment` reads them)."""
     sig = m.signal_channels
-    return sig[0], sig[1] if len(sig) == 2 else None, m.expected_channel
+    return sig[0], sig[1] if len(sig) == 2 else None, m.expected_channel, m.enable_channel
 
 
 def check_speed(speed_rad_s: np.ndarray, channel: str) -> None:

@@ -148,6 +148,10 @@ BREAKAGE_SIGNALS = ("est/spindle/spindle/load", "spindle/torque_est")
 #: What the breakage monitors read when nothing is chosen: a session's (``millsense run``)
 #: cutting torque, less its air-cut reference, first.
 BREAKAGE_SIGNALS_SESSION = ("plan/cutting_torque", *BREAKAGE_SIGNALS)
+#: 1 where the spindle is settled at its commanded speed (a session's output, or made by
+#: ``millsense monitor`` from spindle/speed and spindle/speed_cmd): breakage is judged only there
+#: (decision 1550).
+AT_SPEED = "spindle/at_speed"
 #: A session recording's expected torque where the calibrated plan judges the tool (steady
 #: rows, spindle at speed; decisions 1622, 1550): the virtual threshold's reference.
 SESSION_EXPECTED = "plan/judged_torque"
@@ -193,6 +197,7 @@ def _breakage_factory(method: str) -> Factory:
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
             expected_channel=expected if method == "virtual" else None,
+            enable_channel=AT_SPEED if AT_SPEED in ctx.channels else None,
             name=name,
         )
 
