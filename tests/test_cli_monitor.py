@@ -319,3 +319,27 @@ def test_monitor_breakage_skips_the_spindle_run_up(
     ev = read_event_log(out)
     assert len(ev) == 1
     assert 4.2 < ev[0].time_s <= 4.2 + 3 * 0.03 + 1e-9
+
+
+def test_monitor_engagement_not_determined_on_noise(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1807: a torque whose tooth harmonics are noise (a mean of 1 N·m and the
+    spindle observer's 1.6 N·m of white noise at 8000 rev/min, as on a light 3-flute full slot)
+    gives per-revolution fits that match the noise: the summary says the engagement is not
+    determined instead of medians of them (a few revolutions pass σ ≥ 0.8 by chance)."""
+    import math
+
+    n = int(2.0 * FS)
+    rec = Recording(FS, 0.0, {"program": "part.nc"})
+    noise = 1.6 * np.random.default_rng(3).standard_normal(n)
+    rec.add_channel("spindle/torque_est", 1.0 + noise, "N*m")
+    rec.add_channel("spindle/speed", np.full(n, 8000 * 2 * math.pi / 60), "rad/s")
+    write_recording(tmp_path / "noise.h5", rec)
+    code, stdout, err = run_cli(["monitor", str(tmp_path / "noise.h5"), "--methods",
+                                 "engagement", "--tool", "aslan-d20-2flute",
+                                 "--feed-per-tooth-mm", "0.05", "-o",
+                                 str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    assert "engagement not determined" in line and "median axial depth" not in line

@@ -414,17 +414,42 @@ def _run(
     return {"events": res.events, "lines": lines, "wall_s": wall}
 
 
+#: Reliability index σ (Lee Eq. 2.23) from which a revolution's estimate enters the summary:
+#: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
+#: 1807).
+RELIABLE_SIGMA = 0.8
+
+
+def _reliable(e: Any) -> bool:
+    """A revolution's estimate is reported: σ ≥ RELIABLE_SIGMA and physical coefficients
+    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807)."""
+    return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0)
+
+
 def _engagement_summary(block: Any) -> str:
-    """One line: revolutions evaluated and the medians of the seed 004 estimates."""
-    est = [e for _, e in getattr(block, "estimates", []) if e is not None]
-    if not est:
+    """One line: revolutions evaluated and the medians of the seed 004 estimates over the
+    reliable ones (:func:`_reliable`), or, where fewer than half are reliable, that the
+    engagement is not determined (a few revolutions of noise can pass the test by chance;
+    decision 1807)."""
+    every = [e for _, e in getattr(block, "estimates", []) if e is not None]
+    if not every:
         return f"  {block.name}: no revolution evaluated (no cut, or the torque is too low)"
 
     def med(v: list[float]) -> float:
         return float(np.median(v))
 
+    est = [e for e in every if _reliable(e)]
+    if 2 * len(est) < len(every):
+        return (
+            f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
+            f"revolutions reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; median σ "
+            f"{med([e.reliability for e in every]):.2f}); the torque's tooth harmonics do not "
+            "fix the engagement here (e.g. a full slot with 3 or more flutes, or a light cut "
+            "in the signal's noise)"
+        )
     return (
-        f"  {block.name}: {len(est)} revolutions: median axial depth "
+        f"  {block.name}: {len(est)} of {len(every)} revolutions reliable (σ ≥ "
+        f"{RELIABLE_SIGMA}): median axial depth "
         f"{1e3 * med([e.axial_depth_m for e in est]):.3f} mm, radial depth "
         f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
         f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
