@@ -420,3 +420,45 @@ def test_dead_zone_widens_to_the_noise_of_the_regulated_value() -> None:
     assert blk.rls.delta / 2 == pytest.approx(0.015, rel=0.25)
     revolutions = n / (REV * FS)
     assert blk.rls.updates <= 0.05 * revolutions
+
+
+def _v8_stream(noise_n: float, seconds: float = 3.0) -> tuple[AdaptiveFeedBlock, dict]:
+    """The V8 slot's plan (seed 000: 1000 rev/min, 325 N): the TCP along it at the programmed
+    feed from its start (≈ 1.4 s of air before the cut), a 2-flute force of 250 N per tooth
+    where the plan cuts, plus white noise of ``noise_n`` on each axis."""
+    from millsense.validation.cases import control_adaptive as ca
+
+    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=ca.F_REF_V8), plan)
+    xyz = plan.xyz_m
+    t_plan = np.asarray(plan["t_s"], dtype=np.float64)
+    t = np.arange(0.0, seconds, 1 / FS)
+    r = np.clip(np.searchsorted(t_plan, t, "right") - 1, 0, len(t_plan) - 1)
+    cut = np.asarray(plan["in_cut"], dtype=bool)[r]
+    rng = np.random.default_rng(8)
+    f = np.where(cut, 250.0 * tooth_shape(t), 0.0)
+    data = {"force_x": 0.6 * f + noise_n * rng.standard_normal(t.size),
+            "force_y": 0.8 * f + noise_n * rng.standard_normal(t.size),
+            "spindle/speed": np.full(t.size, OMEGA)}  # fmt: skip
+    for k, c in enumerate(("x", "y", "z")):
+        data[f"{c}/position_cmd"] = np.interp(t, t_plan, xyz[:, k])
+    return blk, data
+
+
+def test_a_signal_drowned_in_air_holds_the_programmed_feed() -> None:
+    """Decision 1548: force estimates whose noise (300 N per axis: a peak of ≈ 1 kN in every
+    revolution) reads in air as 3 × the 325 N reference cannot show the cut: one WARNING alarm
+    after 8 air revolutions and the override held at the programmed 100 % from then on (the
+    controller regulated the noise down to its 20 % floor before). With 2 N of noise the air
+    reads ≈ 6 N: no alarm, and the seed's air rule raises the feed to 150 % in air."""
+    blk, data = _v8_stream(300.0)
+    ev, ch = feed(blk, data, 100)
+    alarms = [e for e in ev if e.name == "adaptive_feed_noise"]
+    assert len(alarms) == 1 and alarms[0].value > 0.5 * 325.0
+    at = alarms[0].sample
+    assert at <= 9 * int(REV * FS) + 1  # the 8th air revolution (the first ends at 600)
+    assert np.all(ch["adaptive_feed/override"][at:] == 1.0)
+    blk, data = _v8_stream(2.0)
+    ev, ch = feed(blk, data, 100)
+    assert not [e for e in ev if e.name == "adaptive_feed_noise"]
+    assert ch["adaptive_feed/override"][int(0.5 * FS)] == pytest.approx(1.5)

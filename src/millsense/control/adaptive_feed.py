@@ -66,6 +66,14 @@ QUANTITIES = ("force", "torque", "power")
 #: (decision 1548).
 NOISE_INTERVALS = 32
 NOISE_MIN_INTERVALS = 8
+#: Decision 1548: with a plan, the regulated value in air (the plan's tool out of the material,
+#: no cut ahead, spindle at speed) over the last AIR_INTERVALS intervals; from AIR_MIN of them
+#: on, a median at or above AIR_LIMIT × the reference means the signal cannot show the cut
+#: (the feed is then held at the programmed 100 %), and below AIR_CLEAR × it that it can again.
+AIR_INTERVALS = 16
+AIR_MIN = 8
+AIR_LIMIT = 0.5
+AIR_CLEAR = 0.25
 _UNITS = {"force": "N", "torque": "N*m", "power": "W"}
 #: Spindle angle resolution of the integer revolution counter (2⁻³² rev).
 _ANGLE_BITS = 32
@@ -295,6 +303,9 @@ class AdaptiveFeedBlock(Block):
         self.loop = _Loop()
         # |y(k) − y(k−1)| of intervals at one override: the noise of the regulated value
         self._dy: deque[float] = deque(maxlen=NOISE_INTERVALS)
+        # the regulated value in air (with a plan), and whether it drowns the set point
+        self._air_vals: deque[float] = deque(maxlen=AIR_INTERVALS)
+        self._drowned = False
         # scan state: [integer spindle angle (2⁻³² rev), frozen run length],
         # [running peak, last sample, running revolution holds a bad sample]
         self._st_i = np.zeros(3, dtype=np.int64)
@@ -439,7 +450,7 @@ class AdaptiveFeedBlock(Block):
 
     def _signal_name(self) -> str:
         if self.opts.quantity == "force":
-            return "/".join(self.force_channels)
+            return ", ".join(self.force_channels)
         return self.torque_channel
 
     # ------------------------------------------------------------------ control
@@ -491,6 +502,12 @@ class AdaptiveFeedBlock(Block):
         y = peak / o.reference
         lp.y_hist = [y, lp.y_hist[0], lp.y_hist[1]]
         flag, cap, entering = self._look(chunk, e)
+        if self._watch_air(chunk, e, peak, entering, events):
+            # the signal cannot show the cut: the programmed feed, no regulation (decision 1548)
+            lp.flag = flag
+            u = 1.0 if self._ceiling_ext is None else min(1.0, self._ceiling_ext)
+            self._command(chunk, e, min(max(u, self.u_min), self.u_max), events, Severity.WARNING)
+            return
         in_air = peak <= o.air
         if in_air and flag == 2 and lp.engaged:
             u = lp.u  # leaving the cut: the air rule would speed up, hold instead
@@ -570,6 +587,49 @@ class AdaptiveFeedBlock(Block):
         if not math.isfinite(du):
             return lp.u
         return lp.u + du
+
+    def _watch_air(
+        self, chunk: Chunk, e: int, value: float, entering: bool, events: list[Event]
+    ) -> bool:
+        """Whether the regulated signal is drowned in its own air reading (decision 1548).
+
+        With a plan, an interval ending where the plan's tool is out of the material with no
+        cut ahead is air whatever the signal says; the median of the last AIR_INTERVALS such
+        values is the signal's floor. At AIR_LIMIT × the reference or above, a cut at the set
+        point reads within 2× of air and the controller would regulate the floor (the feed
+        drives' force estimates of a commissioned quaser-ux600 read 1–2 kN in air at 8000
+        rev/min against a 222 N reference, and held the override at its 20 % floor through
+        the whole approach): one WARNING alarm, and the feed is held at the programmed 100 %
+        until the floor falls below AIR_CLEAR × the reference (a NOTE)."""
+        if self.plan is None or entering or self._in_cut[self.loop.row]:
+            return self._drowned
+        self._air_vals.append(value)
+        if len(self._air_vals) < AIR_MIN:
+            return self._drowned
+        floor = float(np.median(np.asarray(self._air_vals)))
+        ref = self.opts.reference
+        unit = _UNITS[self.opts.quantity]
+        t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
+        if not self._drowned and floor >= AIR_LIMIT * ref:
+            self._drowned = True
+            events.append(Event(
+                t, EventKind.ALARM, self.name,
+                f"adaptive feed: in air '{self._signal_name()}' reads {floor:.4g} {unit} "
+                f"(median of {len(self._air_vals)} intervals), {floor / ref:.2g} × the "
+                f"{ref:.4g} {unit} reference: it cannot show the cut; the programmed feed is "
+                "held (regulate the spindle power, or use a dynamometer)",
+                name="adaptive_feed_noise", value=floor, sample=chunk.start + e,
+                severity=Severity.WARNING,
+            ))  # fmt: skip
+        elif self._drowned and floor < AIR_CLEAR * ref:
+            self._drowned = False
+            events.append(Event(
+                t, EventKind.NOTE, self.name,
+                f"adaptive feed: in air '{self._signal_name()}' reads {floor:.4g} {unit}; "
+                "regulating again", name="adaptive_feed_noise_clear", value=floor,
+                sample=chunk.start + e, severity=Severity.INFO,
+            ))  # fmt: skip
+        return self._drowned
 
     def _dead_zone(self, y0: float, y1: float, u1: float, u2: float) -> float:
         """The RLS dead zone δ (Munasinghe Eq. 3.31: no update while |error| ≤ 2δ): the
