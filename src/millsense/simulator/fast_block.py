@@ -210,7 +210,7 @@ def peak_abs(loads: np.ndarray, linear: np.ndarray) -> tuple[float, int, int]:
 
 @numba.njit(cache=True)
 def drives_block(
-    states,  # numba typed List of FeedDriveSim.kernel_state() tuples
+    states,  # a tuple of FeedDriveSim.kernel_state() tuples of one numba type
     n_done: np.ndarray,
     pos_m: np.ndarray,
     vel_m: np.ndarray,

@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from numba.typed import List as NumbaList
 from numpy.typing import NDArray
 
 from millsense.core.config import FeedAxisConfig, MachineConfig
@@ -716,11 +715,11 @@ class MachineSimulator(Source):
         type — and the loop over :meth:`FeedDriveSim.advance_block` runs instead."""
         if any(t is not None for t in self._mode_tables):
             return None
-        states = NumbaList()
-        try:
-            for d in self.drives:
-                states.append(d.kernel_state(self.ratio))
-        except Exception:  # numba reports a type mismatch in several ways
+        # a tuple of the drives' states (numba: a UniTuple indexed in the kernel's loop) rather
+        # than a numba typed List, whose methods numba compiles afresh in every process (4 s of
+        # each `millsense run`'s start on this host); the states must share one numba type
+        states = tuple(d.kernel_state(self.ratio) for d in self.drives)
+        if len({numba.typeof(st) for st in states}) != 1:
             return None
         n_ax = len(self.drives)
         opts = self._realism
