@@ -491,7 +491,8 @@ class ChatterMonitor(Block):
             raw_rect = self._raw_rect
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
-                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+                       band_slice=(b0, b1), peak_bin=k, masked=mask,
+                       held=bool(self._flag))  # fmt: skip
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
         """Whether the full window just decided straddles an entry or an exit (decision
@@ -685,7 +686,8 @@ class ChatterMonitor(Block):
         _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
-                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+                       band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
+                       held=bool(self._flag))  # fmt: skip
 
     def _learning_rates(self, cutting: bool) -> tuple[float, float]:
         """Background update weights per window (decision 1504), plain and novel bins: out of
