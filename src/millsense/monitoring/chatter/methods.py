@@ -36,6 +36,15 @@ part resolves a line at the edge of the harmonics' excluded band (decision 1539)
 in the cut, not against the Hann-weighted tooth line of a window mostly in air, beside which
 the comb's ring-down of the harmonics switched on or off read as chatter; ``chatter-sdft``
 gives such a window no verdict (decision 1542).
+
+A ``chatter-comb`` ratio above its threshold starts chatter only when the line also stands out
+of its own window (decision 1658, :func:`line_level`): above the top 1 % of the searched bins
+by the factor that Rayleigh noise with that tail reaches over the window's independent bins
+with a chance of 1e-3. The seed's ratio compares the line with the tooth-passing line only, so
+a compensated torque whose observer noise holds a dozen lines as strong as the tooth line (a
+light full slot of a 3-flute tool) alarms on whichever of them is new to its background. While
+chatter is flagged the test is not made (the 2 × novelty hold ends it, decision 1504). The
+``energy_ratio`` output is the seed's ratio either way.
 """
 
 from __future__ import annotations
