@@ -135,11 +135,13 @@ def line_level(
     b0: int,
     b1: int,
     part: float = 1.0,
+    peak: int = -1,
     quantile: float = LINE_QUANTILE,
     false_alarm: float = LINE_FALSE_ALARM,
 ) -> float:
     """The level a chatter line must exceed to stand out of its window's own spectrum
-    (decision 1658): the ``quantile`` of the searched bins (``b0:b1`` less ``masked``) times
+    (decision 1658): the ``quantile`` of the searched bins (``b0:b1`` less ``masked`` and less
+    the main lobe of the line at bin ``peak``, if given) times
     ``√(ln(N_eff / p) / ln(1 / (1 − q)))``.
 
     For Gaussian noise the amplitude of a bin is Rayleigh distributed, ``P(A > a) =
@@ -148,10 +150,16 @@ def line_level(
     = p``, the union bound). The quantile is taken high (the top 1 %): an observer's noise is
     rich in lines (encoder quantisation tones whose frequencies the speed sets to 1e-5), which
     the median, the floor between them, does not measure. A part of ``part`` of the window,
-    zero-padded, has ``N · part`` independent bins (each line spreads over ``1 / part`` of
-    them, so the top 1 % of the bins is the top 1 % of its lines). Returns +inf when no bin is
-    searched."""
-    sel = amp[b0:b1][~masked[b0:b1]]
+    zero-padded, has ``N · part`` independent bins: each line spreads over ``1 / part`` of
+    them, so the top 1 % of the bins is the top 1 % of its lines. The line judged is not part
+    of the noise: its main lobe, ``⌈1 / part⌉`` bins to each side (the first zero of a
+    rectangular part's transform), is left out, else in a part of a few revolutions the
+    line's own spread fills the top 1 %. Returns +inf when no bin is left."""
+    keep = ~masked[b0:b1]
+    if peak >= 0:
+        lobe = math.ceil(1.0 / part)
+        keep[max(0, peak - lobe - b0) : max(0, peak + lobe + 1 - b0)] = False
+    sel = amp[b0:b1][keep]
     n = sel.shape[0]
     if n == 0:
         return math.inf
@@ -235,7 +243,7 @@ class ChatterMethod:
             stands_out = True
             if ratio > thr and not s.held and s.masked is not None:
                 # an onset: the line must stand out of its own window (decision 1658)
-                stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part)
+                stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
             return Verdict(ratio, f_c, thr, stands_out)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
