@@ -131,3 +131,24 @@ def test_chatter_above_the_noise_lines_is_still_found() -> None:
     k = round(3.2 * FS) - 1  # the decision at 3.2 s: the seed's ratio passes, no verdict
     assert out["chatter-comb/energy_ratio"][k] > 1.5
     assert out["chatter-comb/chatter"][k] == 0.0
+
+
+def test_a_short_parts_line_is_judged_without_its_own_main_lobe() -> None:
+    # one line in a part of 300 samples (2.4 revolutions at 8000 rev/min) zero-padded to 4096:
+    # its main lobe spans ±14 bins, more than the top 1 % of the band (16 bins), so with the
+    # lobe counted as noise the level is set by the line's own spread (0.62 of the line here;
+    # with a comb's ring-down and the harmonics' remains beside it, the abrupt entry of
+    # tests/test_monitoring_chatter.py missed its chatter at 3 of 10 phases); without it the
+    # tail is the sidelobes (the first of a rectangular window 0.22 of the line) and noise
+    n, m, fc = 4096, 300, 1234.5
+    rng = np.random.default_rng(3)
+    t = np.arange(m) / FS
+    x = np.zeros(n)
+    x[:m] = np.sin(2 * np.pi * fc * t) + 0.02 * rng.standard_normal(m)
+    amp = np.abs(np.fft.rfft(x)) * 2.0 / m
+    masked = np.zeros(n // 2 + 1, dtype=bool)
+    b0, b1 = 20, 1843
+    k = int(np.argmax(amp[b0:b1])) + b0
+    assert amp[k] == pytest.approx(1.0, abs=0.05)  # the line at its amplitude (zero-padded)
+    assert methods.line_level(amp, masked, b0, b1, m / n) > 0.5 * amp[k]  # its lobe as tail
+    assert methods.line_level(amp, masked, b0, b1, m / n, k) < 0.25 * amp[k]
