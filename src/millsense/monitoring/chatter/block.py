@@ -21,7 +21,12 @@ also in a window the cutting gate takes for air, which still learns as an air wi
 part needs the speed steady to 0.2 % over the settling time (decision 1543); a part is judged
 on its detrended comb row against the background as its own window shows it (decision 1546).
 After a speed change the background re-learns for 0.5 s (decision 1537); after a fall of the
-cut's load, only the lines it already knew do (decision 1545).
+cut's load, only the lines it already knew do (decision 1545). At the onset of a run of
+chatter windows (not while chatter is flagged) the ``chatter-comb`` line must also stand out of
+its own window's searched spectrum (:func:`.methods.line_level`, decision 1658): an observer's
+encoder-quantisation lines sit on the spindle harmonics at one speed and spread between them
+when the cut sags the speed by 1e-5, so a per-bin background cannot know them; the window's
+own upper tail can.
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -491,7 +496,8 @@ class ChatterMonitor(Block):
             raw_rect = self._raw_rect
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
-                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+                       band_slice=(b0, b1), peak_bin=k, masked=mask,
+                       held=bool(self._flag))  # fmt: skip
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
         """Whether the full window just decided straddles an entry or an exit (decision
@@ -685,7 +691,8 @@ class ChatterMonitor(Block):
         _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
-                       band_slice=(b0, b1), peak_bin=k)  # fmt: skip
+                       band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
+                       held=bool(self._flag))  # fmt: skip
 
     def _learning_rates(self, cutting: bool) -> tuple[float, float]:
         """Background update weights per window (decision 1504), plain and novel bins: out of

@@ -36,10 +36,20 @@ part resolves a line at the edge of the harmonics' excluded band (decision 1539)
 in the cut, not against the Hann-weighted tooth line of a window mostly in air, beside which
 the comb's ring-down of the harmonics switched on or off read as chatter; ``chatter-sdft``
 gives such a window no verdict (decision 1542).
+
+A ``chatter-comb`` ratio above its threshold starts chatter only when the line also stands out
+of its own window (decision 1658, :func:`line_level`): above the top 1 % of the searched bins
+by the factor that Rayleigh noise with that tail reaches over the window's independent bins
+with a chance of 1e-3. The seed's ratio compares the line with the tooth-passing line only, so
+a compensated torque whose observer noise holds a dozen lines as strong as the tooth line (a
+light full slot of a 3-flute tool) alarms on whichever of them is new to its background. While
+chatter is flagged the test is not made (the 2 × novelty hold ends it, decision 1504). The
+``energy_ratio`` output is the seed's ratio either way.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +61,12 @@ FloatArray = NDArray[np.float64]
 
 #: Seed 000 decision threshold (Aslan §5.4, digest P10).
 SEED000_RATIO = 1.5
+#: A chatter line must stand out of its own window's spectrum (decision 1658): the searched
+#: bins' quantile that stands for the noise's own lines ...
+LINE_QUANTILE = 0.99
+#: ... and the chance per window that Rayleigh noise with that upper tail puts its largest bin
+#: above the level asked of a chatter line.
+LINE_FALSE_ALARM = 1e-3
 
 
 @dataclass(slots=True)
@@ -72,6 +88,11 @@ class Spectra:
     raw_rect : the raw window's rectangular spectrum (same taper as ``comb``; for Parseval).
     band_slice : ``band`` as the bins ``b0:b1`` (it is contiguous), or None to derive it.
     peak_bin : the band's largest bin of ``novel`` if known (−1: found by the criterion).
+    masked : the bins not searched (spindle harmonics, known lines), or None (not known: the
+        onset's line test of decision 1658 is not made).
+    part : the fraction of the window the transformed samples fill (a part after a step,
+        zero-padded: m / n; decision 1539).
+    held : chatter is flagged (the onset's line test of decision 1658 is not made).
     """
 
     f_hz: FloatArray
@@ -86,20 +107,66 @@ class Spectra:
     raw_rect: FloatArray | None = None
     band_slice: tuple[int, int] | None = None
     peak_bin: int = -1
+    masked: NDArray[np.bool_] | None = None
+    part: float = 1.0
+    held: bool = False
 
 
 @dataclass(slots=True)
 class Verdict:
     """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz (made
-    once per window and only read: slotted, not frozen, as :class:`Spectra`)."""
+    once per window and only read: slotted, not frozen, as :class:`Spectra`). ``stands_out``:
+    the line stands out of its window's own spectrum (decision 1658; a ratio above the
+    threshold without it is no chatter)."""
 
     ratio: float
     frequency_hz: float
     threshold: float
+    stands_out: bool = True
 
     @property
     def chatter(self) -> bool:
-        return bool(self.ratio > self.threshold)
+        return bool(self.stands_out and self.ratio > self.threshold)
+
+
+def line_level(
+    amp: FloatArray,
+    masked: NDArray[np.bool_],
+    b0: int,
+    b1: int,
+    part: float = 1.0,
+    peak: int = -1,
+    quantile: float = LINE_QUANTILE,
+    false_alarm: float = LINE_FALSE_ALARM,
+) -> float:
+    """The level a chatter line must exceed to stand out of its window's own spectrum
+    (decision 1658): the ``quantile`` of the searched bins (``b0:b1`` less ``masked`` and less
+    the main lobe of the line at bin ``peak``, if given) times
+    ``√(ln(N_eff / p) / ln(1 / (1 − q)))``.
+
+    For Gaussian noise the amplitude of a bin is Rayleigh distributed, ``P(A > a) =
+    exp(−a² / 2σ²)``: its ``q`` quantile is ``σ√(−2 ln(1 − q))`` and the largest of ``N_eff``
+    independent bins exceeds ``σ√(2 ln(N_eff / p))`` with probability ``p`` (``N_eff P(A > a)
+    = p``, the union bound). The quantile is taken high (the top 1 %): an observer's noise is
+    rich in lines (encoder quantisation tones whose frequencies the speed sets to 1e-5), which
+    the median, the floor between them, does not measure. A part of ``part`` of the window,
+    zero-padded, has ``N · part`` independent bins: each line spreads over ``1 / part`` of
+    them, so the top 1 % of the bins is the top 1 % of its lines. The line judged is not part
+    of the noise: its main lobe, ``⌈1 / part⌉`` bins to each side (the first zero of a
+    rectangular part's transform), is left out, else in a part of a few revolutions the
+    line's own spread fills the top 1 %. Returns +inf when no bin is left."""
+    keep = ~masked[b0:b1]
+    if peak >= 0:
+        lobe = math.ceil(1.0 / part)
+        keep[max(0, peak - lobe - b0) : max(0, peak + lobe + 1 - b0)] = False
+    sel = amp[b0:b1][keep]
+    n = sel.shape[0]
+    if n == 0:
+        return math.inf
+    top = int((1.0 - quantile) * n)  # bins above the quantile
+    q_amp = float(np.partition(sel, n - 1 - top)[n - 1 - top])
+    n_eff = max(n * part, 1.0)
+    return q_amp * math.sqrt(math.log(n_eff / false_alarm) / math.log(1.0 / (1.0 - quantile)))
 
 
 def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
@@ -171,7 +238,13 @@ class ChatterMethod:
             return Verdict(0.0, float("nan"), thr)
         f_c = peak_frequency(s.f_hz, s.comb, k)
         if self.name == "chatter-comb":
-            return Verdict(float(s.comb[k]) / s.tooth, f_c, thr)
+            line = float(s.comb[k])
+            ratio = line / s.tooth
+            stands_out = True
+            if ratio > thr and not s.held and s.masked is not None:
+                # an onset: the line must stand out of its own window (decision 1658)
+                stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
+            return Verdict(ratio, f_c, thr, stands_out)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
         raw = s.raw_rect if s.raw_rect is not None else s.raw
