@@ -158,12 +158,13 @@ def tune_q(
     if not r > 0:
         raise InputDataError(f"tuning: R must be > 0, got {r}")
     f = np.linspace(0.0, f_max_hz, n_freq)
+    plant = model.frf(f)  # Φ_d on the grid: the same for every Q tried
 
     def score(logq: float) -> float:
         d = _design(model, 10.0**logq, r)
         if noise_gain(d) > max_noise_gain:
             return 0.0
-        return bandwidth_3db(f, compensated_frf(model, d, f))
+        return bandwidth_3db(f, compensated_frf(model, d, f, plant_frf=plant))
 
     grid = np.linspace(math.log10(bounds[0]), math.log10(bounds[1]), n_grid)
     bw = np.array([score(g) for g in grid])
@@ -228,10 +229,11 @@ def least_noise_q(
         )
     f = np.linspace(0.0, f_max_hz, n_freq)
     in_band = (f > 0) & (f <= band_hz)
+    plant = model.frf(f)  # Φ_d on the grid: the same for every Q tried
 
     def evaluate(logq: float) -> tuple[bool, float]:
         d = _design(model, 10.0**logq, r)
-        h = compensated_frf(model, d, f)
+        h = compensated_frf(model, d, f, plant_frf=plant)
         worst = float(np.max(deviation_db(h[in_band])))
         ok = worst <= flatness_db and noise_gain(d) <= max_noise_gain
         return ok, bandwidth_3db(f, h)
@@ -260,7 +262,7 @@ def least_noise_q(
         else:
             lo = mid
     d = _design(model, 10.0**hi, r)
-    bw = bandwidth_3db(f, compensated_frf(model, d, f))
+    bw = bandwidth_3db(f, compensated_frf(model, d, f, plant_frf=plant))
     n = len(bws)
     return QTuning(10.0**hi, bw, noise_gain(d), 10.0 ** grid[:n], np.asarray(bws))
 
