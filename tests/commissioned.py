@@ -5,7 +5,8 @@ tests, then the printed ``millsense identify`` friction, drive (inertia), the st
 the path moving and at rest, and ``millsense merge`` of every fragment into the nameplate
 preset. Only CNC channels and the machine file reach the identification, so the estimators
 built from the result know the truth only through identification (issue 12). Built once per
-test session (import :func:`commissioned_fixture`, the fixture `commissioned`, to use it).
+test session: tests/conftest.py registers :func:`commissioned_fixture`, the fixture
+`commissioned` (imported into a test module instead, it would be built again for that module).
 """
 
 from __future__ import annotations

@@ -20,57 +20,20 @@ import pytest
 from scipy import signal
 
 from cli_run import run_cli
-from commissioned import commissioned_fixture  # noqa: F401  (fixture)
-from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.presets import load_preset
 from millsense.estimation.feed.estimator import FeedAxisModel
 from millsense.estimation.from_config import build_estimators
 from millsense.io import read_recording
-from millsense.simulator.machine_file import simulator_machine, simulator_machine_path
-
-#: The simulator's own quaser-ux600 file: these tests exercise the CLI on a fully specified machine
-#: (the nameplate preset has no identified values; decision 0991).
-SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
-
-SLOT = """G21 G90 G94
-G0 X-15 Y0 Z0
-S3000 M3
-G1 X60 F1200
-M5
-M30
-"""
+from millsense.simulator.machine_file import simulator_machine
+from slot_run import SIM_QUASER, SLOT, XyFeed
 
 
 @pytest.fixture(scope="module")
-def run_h5(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("estimate")
-    prog = d / "slot.nc"
-    prog.write_text(SLOT)
-    out = d / "run.h5"
-    try:
-        main(
-            [
-                "simulate",
-                "--machine",
-                SIM_QUASER,
-                "--program",
-                str(prog),
-                "--depth-mm",
-                "4",
-                "--air-mm",
-                "6",
-                "--duration-s",
-                "1.3",
-                "--realism",
-                "-o",
-                str(out),
-            ]
-        )
-    except SystemExit as exc:
-        assert not exc.code
-    return out
+def run_h5(slot_run: Path) -> Path:
+    """The slot of the module docstring, simulated once per session (tests/slot_run.py)."""
+    return slot_run
 
 
 def _steady(rec_path: Path) -> tuple[int, int]:
@@ -90,17 +53,18 @@ def _tooth_amp(x: np.ndarray) -> float:
 
 
 def test_feed_mean_within_5pct_and_better_than_raw_at_tooth_frequency(
-    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path,
+    slot_xy_feed: XyFeed,
+    commissioned: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    feed, raw, png = tmp_path / "feed.h5", tmp_path / "raw.h5", tmp_path / "est.png"
-    # the machine file a user makes: commission → identify → merge (tests/commissioned.py)
+    # the feed estimate (exit 0 asserted) with the machine file a user makes: commission →
+    # identify → merge (tests/commissioned.py); computed once per session (tests/slot_run.py)
+    feed, png, raw = slot_xy_feed.estimates, slot_xy_feed.plot, tmp_path / "raw.h5"
+    assert "tooth" in slot_xy_feed.stdout and png.stat().st_size > 10_000
     machine = str(commissioned / "machine.toml")
     base = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y"]
-    code, out, err = run_cli(
-        [*base, "--method", "feed", "-o", str(feed), "--plot", str(png)], capsys
-    )
-    assert code == 0, err
-    assert "tooth" in out and png.stat().st_size > 10_000
     code, _, err = run_cli([*base, "--method", "raw", "-o", str(raw)], capsys)
     assert code == 0, err
     rf, rr, rt = read_recording(feed), read_recording(raw), read_recording(run_h5)
@@ -405,7 +369,11 @@ def test_band_hz_quieter_estimate_and_unreachable_band_exit_2(
 
 
 def test_forces_at_the_tool_from_the_five_feed_estimates(
-    run_h5: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    run_h5: Path,
+    slot_xy_feed: XyFeed,
+    commissioned: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     out = tmp_path / "all.h5"
     machine = str(commissioned / "machine.toml")
@@ -425,12 +393,9 @@ def test_forces_at_the_tool_from_the_five_feed_estimates(
     # and the independent truth/tool/force_y of the simulator has the opposite sign of the load
     assert abs(est.mean() / truth.mean() - 1) < 0.05
     assert np.sign(truth.mean()) == -np.sign(rt.channel("truth/y/load")[i0:i1].mean())
-    # fewer than five axes: no forces at the tool, no error
-    part = tmp_path / "xy.h5"
-    args = ["estimate", str(run_h5), "--machine", machine, "--axes", "x,y", "-o"]
-    code, _, err = run_cli([*args, str(part)], capsys)
-    assert code == 0, err
-    assert "est/feed/tool/force_y" not in read_recording(part).channel_names
+    # fewer than five axes: no forces at the tool, no error (the session's x,y feed estimate,
+    # exit 0 asserted there: the same command, feed being the default method, with a plot)
+    assert "est/feed/tool/force_y" not in read_recording(slot_xy_feed.estimates).channel_names
 
 
 @pytest.mark.xfail(

@@ -15,39 +15,30 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from commissioned import commissioned_fixture  # noqa: F401  (fixture)
 from millsense.cli.main import main
 from millsense.core.recording import Recording
 from millsense.io import read_recording, write_recording
-from millsense.simulator.machine_file import simulator_machine_path
-from test_cli_estimate import SLOT, _steady, run_cli
-
-#: The simulator's own quaser-ux600 file: these tests exercise the CLI on a fully specified machine
-#: (the nameplate preset has no identified values; decision 0991).
-SIM_QUASER = str(simulator_machine_path("quaser-ux600"))
+from slot_run import SIM_QUASER, XyFeed
+from test_cli_estimate import _steady, run_cli
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory, commissioned: Path) -> tuple[Path, Path, Path]:
-    d = tmp_path_factory.mktemp("estimate_harmonics")
-    prog = d / "slot.nc"
-    prog.write_text(SLOT)
-    run = d / "run.h5"
-    args = ["--machine", SIM_QUASER, "--program", str(prog), "--depth-mm", "4"]
-    args += ["--air-mm", "6", "--duration-s", "1.3", "--realism", "-o", str(run)]
-    out = {name: d / f"{name}.h5" for name in ("rw", "h")}
+def runs(
+    tmp_path_factory: pytest.TempPathFactory,
+    slot_run: Path,
+    slot_xy_feed: XyFeed,
+    commissioned: Path,
+) -> tuple[Path, Path, Path]:
+    # the slot and its random-walk (no --harmonics) x,y feed estimate are test_cli_estimate's,
+    # computed once per session (tests/slot_run.py); here the harmonic design of the same
+    h = tmp_path_factory.mktemp("estimate_harmonics") / "h.h5"
+    machine = str(commissioned / "machine.toml")
+    est = ["estimate", str(slot_run), "--machine", machine, "--axes", "x,y"]
     try:
-        main(["simulate", *args])
+        main([*est, "--method", "feed", "--harmonics", "-o", str(h)])
     except SystemExit as exc:
         assert not exc.code
-    for name, extra in (("rw", []), ("h", ["--harmonics"])):
-        machine = str(commissioned / "machine.toml")
-        est = ["estimate", str(run), "--machine", machine, "--axes", "x,y"]
-        try:
-            main([*est, "--method", "feed", *extra, "-o", str(out[name])])
-        except SystemExit as exc:
-            assert not exc.code
-    return run, out["rw"], out["h"]
+    return slot_run, slot_xy_feed.estimates, h
 
 
 def _line_error(est: np.ndarray, truth: np.ndarray) -> float:

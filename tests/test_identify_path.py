@@ -17,7 +17,6 @@ import pytest
 from scipy import signal
 
 from cli_run import run_cli
-from commissioned import commissioned_fixture  # noqa: F401  (fixture)
 from millsense.cli.main import main
 from millsense.core.config import FeedAxisConfig, MachineConfig
 from millsense.core.errors import ConfigError
@@ -57,6 +56,22 @@ def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str
     return d, merged
 
 
+@pytest.fixture(scope="module")
+def slot_1_5_s(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The V1-like slot of the module docstring, 1.5 s on the quaser-ux600 preset (no realism
+    layer), simulated once for the two tests that estimate it (they only read it)."""
+    d = tmp_path_factory.mktemp("slot")
+    (d / "slot.nc").write_text(SLOT)
+    run = d / "slot.h5"
+    try:
+        main(["simulate", "--machine", "quaser-ux600", "--program", str(d / "slot.nc"),
+              "--depth-mm", "4", "--air-mm", "6", "--duration-s", "1.5",
+              "-o", str(run)])  # fmt: skip
+    except SystemExit as exc:
+        assert not exc.code
+    return run
+
+
 def test_fragment_round_trip_and_tustin_model(identified: tuple[Path, dict[str, object]]) -> None:
     _, merged = identified
     machine = MachineConfig.model_validate(merged)
@@ -94,6 +109,7 @@ def _harmonic_errors(est: np.ndarray, truth: np.ndarray, i0: int, i1: int) -> np
 )
 def test_identified_path_estimates_the_tooth_harmonics_better_than_table_3_4(
     identified: tuple[Path, dict[str, object]],
+    slot_1_5_s: Path,
     commissioned: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
@@ -101,12 +117,7 @@ def test_identified_path_estimates_the_tooth_harmonics_better_than_table_3_4(
     # (b) the machine file a user makes: commission → identify friction, inertia, path moving
     # and at rest → merge (tests/commissioned.py), all learnt from the simulator's truth
     machine_toml = commissioned / "machine.toml"
-    (d / "slot.nc").write_text(SLOT)
-    run = d / "slot.h5"
-    code, _, err = run_cli(["simulate", "--machine", "quaser-ux600", "--program",
-                            str(d / "slot.nc"), "--depth-mm", "4", "--air-mm", "6",
-                            "--duration-s", "1.5", "-o", str(run)], capsys)  # fmt: skip
-    assert code == 0, err
+    run = slot_1_5_s
     errs = {}
     for name, mach in (("modes", "quaser-ux600"), ("path", str(machine_toml))):
         out = d / f"{name}.h5"
@@ -185,7 +196,7 @@ def test_path_user_errors(
     "2026-11-28)",
 )
 def test_holding_axis_uses_the_path_identified_at_rest(
-    commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    slot_1_5_s: Path, commissioned: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # Y holds position while the slot feeds along X (Aslan V1): its load goes partly through
     # the friction bristles, so the path measured at rest fits it better than the one measured
@@ -202,12 +213,7 @@ def test_holding_axis_uses_the_path_identified_at_rest(
         code, _, err = run_cli(["merge", "quaser-ux600", *map(str, parts), "-o",
                                 str(machines[name])], capsys)  # fmt: skip
         assert code == 0, err
-    (tmp_path / "slot.nc").write_text(SLOT)
-    run = tmp_path / "slot.h5"
-    code, _, err = run_cli(["simulate", "--machine", "quaser-ux600", "--program",
-                            str(tmp_path / "slot.nc"), "--depth-mm", "4", "--air-mm", "6",
-                            "--duration-s", "1.5", "-o", str(run)], capsys)  # fmt: skip
-    assert code == 0, err
+    run = slot_1_5_s
     tr = read_recording(run)
     truth = tr.channel("truth/y/load")
     cut = np.flatnonzero(tr.channel("truth/process/engagement") >= 0)

@@ -158,7 +158,7 @@ def tune_q(
     if not r > 0:
         raise InputDataError(f"tuning: R must be > 0, got {r}")
     f = np.linspace(0.0, f_max_hz, n_freq)
-    plant = model.frf(f)[:, 0, 0]  # the same for every Q
+    plant = model.frf(f)  # Φ_d on the grid: the same for every Q tried
 
     def score(logq: float) -> float:
         d = _design(model, 10.0**logq, r)
@@ -229,7 +229,7 @@ def least_noise_q(
         )
     f = np.linspace(0.0, f_max_hz, n_freq)
     in_band = (f > 0) & (f <= band_hz)
-    plant = model.frf(f)[:, 0, 0]  # the same for every Q
+    plant = model.frf(f)  # Φ_d on the grid: the same for every Q tried
 
     def evaluate(logq: float) -> tuple[bool, float]:
         d = _design(model, 10.0**logq, r)
