@@ -111,8 +111,9 @@ def test_plant_cell_is_finer_than_the_session_and_bounded_for_large_stock() -> N
     assert plant_cell_m(mid, None, 0.2e-3) == pytest.approx(0.075e-3, rel=1e-9)
 
 
-def test_run_takes_the_g28_reference_for_both_plans(tmp_path: Path,
-                                                     monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_run_takes_the_g28_reference_for_both_plans(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A program that starts with Fanuc's ``G28 G91 Z0.`` (CAM posts write it): without a
     reference the one-line error names ``--home-mm``; with ``home_mm`` the session's plan and
     the machine's own plan both start at the reference (Z 50 mm) and then follow the program."""

@@ -4,6 +4,7 @@ and the look-ahead ceiling against a plan's closed-form force."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -364,14 +365,14 @@ def test_control_interval_is_whole_revolutions_of_at_least_40_ms() -> None:
             "force_x": np.zeros(n), "force_y": np.zeros(n)}  # fmt: skip
     opts = AdaptiveFeedOptions(reference=1.0, quantity="torque")
     _, ch = feed(AdaptiveFeedBlock(opts), data, 100)
-    _, ch0 = feed(AdaptiveFeedBlock(AdaptiveFeedOptions(reference=1.0, quantity="torque",
-                                                        min_interval_s=0.0)), data, 100)  # fmt: skip
+    opts0 = AdaptiveFeedOptions(reference=1.0, quantity="torque", min_interval_s=0.0)
+    _, ch0 = feed(AdaptiveFeedBlock(opts0), data, 100)
     changes = np.flatnonzero(np.diff(ch["adaptive_feed/peak"]) != 0) + 1
     changes0 = np.flatnonzero(np.diff(ch0["adaptive_feed/peak"]) != 0) + 1
     # revolution ends every 75 samples (the integer angle counter), an interval every 450
     assert np.all(np.abs(np.diff(changes) - 450) <= 1)
     assert np.all(np.abs(np.diff(changes0) - 75) <= 1)
-    for a, b in zip(changes[:-1], changes[1:], strict=True):
+    for a, b in itertools.pairwise(changes):
         mean = data["spindle/torque_est"][a:b].mean()
         assert ch["adaptive_feed/peak"][b] == pytest.approx(abs(mean), rel=1e-12)
     # the mean of 450 samples of unit noise scatters √6 less than that of 75

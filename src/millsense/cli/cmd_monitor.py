@@ -25,6 +25,10 @@ SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
 OBSERVER_CHANNEL = "est/spindle/spindle/load"
 #: The spindle gate's channel (:data:`millsense.monitoring.registry.AT_SPEED`).
 AT_SPEED = "spindle/at_speed"
+#: A session recording's "the plan's tool is in the cut", and the gate of the breakage
+#: monitors made from both (:data:`millsense.monitoring.registry.BREAKAGE_GATE`).
+IN_CUT = "plan/in_cut"
+BREAKAGE_GATE = "monitor/breakage_gate"
 
 
 @app.command()
@@ -322,6 +326,14 @@ def _run(
 
         pre.append(SpindleAtSpeed())
         channels[AT_SPEED] = "1"
+    if AT_SPEED in channels and IN_CUT in channels:
+        # a session's recording: breakage is judged where the plan has the tool in the cut too
+        # (the dual and constant detectors learn their thresholds and reference on the cut,
+        # not on the air before it; decision 1550)
+        from millsense.online.gates import AllOf
+
+        pre.append(AllOf((AT_SPEED, IN_CUT), BREAKAGE_GATE))
+        channels[BREAKAGE_GATE] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config

@@ -579,8 +579,9 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
     with Progress(console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("plan of the virtual machine", total=1)
         return plant_plan(
-            [interpret_file(program, home_mm=_home(home_mm))], make_stock, EndMill.from_config(tool_cfg),
-            CuttingCoefficients.from_config(mat_cfg), cell_m=cell_m, step_m=step_mm * MM,
+            [interpret_file(program, home_mm=_home(home_mm))], make_stock,
+            EndMill.from_config(tool_cfg), CuttingCoefficients.from_config(mat_cfg),
+            cell_m=cell_m, step_m=step_mm * MM,
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
 

@@ -229,8 +229,9 @@ class AdaptiveFeedBlock(Block):
     name : block name (channel prefix).
 
     Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
-    control interval's peak or mean, quantity's unit; NaN while not enabled), ``{name}/reference``, ``{name}/flag`` (look-ahead
-    flag 0/1/2, 3 while a fault holds the safe action). Events: OVERRIDE ``feed_override``
+    control interval's peak or mean, quantity's unit; NaN while not enabled),
+    ``{name}/reference``, ``{name}/flag`` (look-ahead flag 0/1/2, 3 while a fault holds the safe
+    action). Events: OVERRIDE ``feed_override``
     (value in percent) when the commanded override changes by ≥ ``min_change_pct``; ALARM
     ``adaptive_feed_fault`` when an input fault forces the safe action.
     """
@@ -494,7 +495,7 @@ class AdaptiveFeedBlock(Block):
             return
         if acc[0] > 1:  # one revolution: its own value, as it is
             peak = acc[2] / acc[1] if self._use_mean else acc[2]
-        self._last_interval_len = acc[1]
+        self._last_interval_len = int(acc[1])
         self._acc = [0, 0, 0.0]
         self._peak = peak
         if lp.fault:

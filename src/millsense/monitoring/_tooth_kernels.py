@@ -229,10 +229,10 @@ def detect_periods(
     ε2(m) = Δ_N x(m) − φ̂2 Δ_N x(m−1), Δ_N x(m) = x(m) − x(m−N) (Aslan 6.4, Munasinghe
     3.48–3.49). ``alarm[m]`` is True at the period where a run of violations reaches
     ``confirm`` violating periods (one alarm per run); a run bridges up to N − 2 periods in a
-    row without a violation (virtual and constant modes; decision 1550). For the virtual and constant modes a run starts when the
-    residual and the torque both violate σ_TB·τ_ref and continues while the torque does
-    (``check_deviation``), else while the residual does. ``expected`` is overwritten with the
-    reference used (τ_sim, or the constant τ_ref).
+    row without a violation (virtual and constant modes; decision 1550). For the virtual and
+    constant modes a run starts when the residual and the torque both violate σ_TB·τ_ref and
+    continues while the torque does (``check_deviation``), else while the residual does.
+    ``expected`` is overwritten with the reference used (τ_sim, or the constant τ_ref).
 
     The torque's band (decision 1550) is max(σ_TB·τ_ref, k_noise·σ̂) (row 8): σ̂, the standard
     deviation of a tooth-period average, is estimated from the median |Δ_N x| of the last

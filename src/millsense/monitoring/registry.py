@@ -152,6 +152,9 @@ BREAKAGE_SIGNALS_SESSION = ("plan/cutting_torque", *BREAKAGE_SIGNALS)
 #: ``millsense monitor`` from spindle/speed and spindle/speed_cmd): breakage is judged only there
 #: (decision 1550).
 AT_SPEED = "spindle/at_speed"
+#: ``millsense monitor``'s gate on a session recording: the spindle at speed and the plan's tool
+#: in the cut; breakage is judged there when it is present.
+BREAKAGE_GATE = "monitor/breakage_gate"
 #: A session recording's expected torque where the calibrated plan judges the tool (steady
 #: rows, spindle at speed; decisions 1622, 1550): the virtual threshold's reference.
 SESSION_EXPECTED = "plan/judged_torque"
@@ -197,7 +200,9 @@ def _breakage_factory(method: str) -> Factory:
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
             expected_channel=expected if method == "virtual" else None,
-            enable_channel=AT_SPEED if AT_SPEED in ctx.channels else None,
+            enable_channel=next(
+                (c for c in (BREAKAGE_GATE, AT_SPEED) if c in ctx.channels), None
+            ),
             name=name,
         )
 

@@ -120,3 +120,28 @@ class AirReference(Block):
         air_reference_kernel(tq, in_cut, ok, self._state, self.alpha, self.n_settle, out[0],
                              out[1])  # fmt: skip
         return BlockOutput({self.out: out[0], f"{self.name}/torque": out[1]})
+
+
+class AllOf(Block):
+    """``out`` = 1 where every one of ``channels`` is above 0.5, else 0 (e.g. the spindle at
+    speed *and* the plan's tool in the cut: where `millsense monitor` judges breakage on a
+    session's recording, decision 1550)."""
+
+    def __init__(self, channels: tuple[str, ...], out: str, name: str = "all_of") -> None:
+        if not channels:
+            raise ConfigError("all-of gate: no channel")
+        self.inputs = tuple(channels)
+        self.out = out
+        self.name = name
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [ChannelInfo(self.out, "1", "1 where " + " and ".join(self.inputs))]
+
+    def reset(self, sample_rate_hz: float) -> None:
+        pass
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        ok = np.ones(chunk.n, dtype=bool)
+        for c in self.inputs:
+            ok &= np.asarray(chunk.data[c]) > 0.5
+        return BlockOutput({self.out: ok.astype(np.float64)})
