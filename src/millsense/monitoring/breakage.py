@@ -16,12 +16,12 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     (decision 1550; the seeds' 2-flute confirmation is unchanged). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
     touch of an entry) are not judged: there the virtual limit goes to zero (decision 1522).
-    The torque's band is never narrower than ``noise_k`` (4) standard deviations of the
-    tooth-period average's noise, estimated on line from the median |x(m) − x(m−N)| of the last
-    128 periods (decision 1550): the seed's 40 % is a band for a cut whose torque stands well
-    above the noise (Aslan's 1000 rev/min, several N·m); on a light cut at high speed (0.5 N·m at 8000 rev/min, the observer's tooth
-    average scattering by 0.15 N·m) 40 % is 1.5σ, and the noise alone would confirm three
-    periods in a row about once a second.
+    The torque's band is never narrower than ``noise_k`` (4) standard deviations of the tooth-period
+    average's noise, estimated on line from the median |x(m) − x(m−N)| of the last 128 periods
+    (decision 1550): the seed's 40 % is a band for a cut whose torque stands well above the noise
+    (Aslan's 1000 rev/min, several N·m); on a light cut at high speed (0.5 N·m at 8000 rev/min, the
+    observer's tooth average scattering by 0.15 N·m) 40 % is 1.5σ, and the noise alone would confirm
+    three periods in a row about once a second.
 ``constant`` — the constant threshold the thesis compares against in V7: the same detector with
     τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
     revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523).
