@@ -23,12 +23,8 @@ from millsense.cli.main import app
 SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
 #: Compensated spindle torque produced by the machine file's observer.
 OBSERVER_CHANNEL = "est/spindle/spindle/load"
-#: The spindle gate's channel (:data:`millsense.monitoring.registry.AT_SPEED`).
-AT_SPEED = "spindle/at_speed"
-#: A session recording's "the plan's tool is in the cut", and the gate of the breakage
-#: monitors made from both (:data:`millsense.monitoring.registry.BREAKAGE_GATE`).
+#: A session recording's "the plan's tool is in the cut".
 IN_CUT = "plan/in_cut"
-BREAKAGE_GATE = "monitor/breakage_gate"
 
 
 @app.command()
@@ -314,6 +310,8 @@ def _run(
         pre.append(spindle_observer_from_config(mcfg, machine, fs))
         channels[OBSERVER_CHANNEL] = "N*m"
         signal = OBSERVER_CHANNEL
+    from millsense.monitoring.registry import AT_SPEED, BREAKAGE_GATE
+
     if (
         AT_SPEED not in channels
         and "spindle/speed" in channels
@@ -332,7 +330,7 @@ def _run(
         # not on the air before it; decision 1550)
         from millsense.online.gates import AllOf
 
-        pre.append(AllOf((AT_SPEED, IN_CUT), BREAKAGE_GATE))
+        pre.append(AllOf((AT_SPEED, IN_CUT), BREAKAGE_GATE))  # the registry's gate
         channels[BREAKAGE_GATE] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):

@@ -54,6 +54,7 @@ from numpy.typing import NDArray
 from millsense.control.gpc import GPC
 from millsense.control.rls import ConstantTraceRLS, force_model_constraints
 from millsense.core.errors import ConfigError
+from millsense.core.noise import sigma_from_abs_differences
 from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
@@ -647,8 +648,7 @@ class AdaptiveFeedBlock(Block):
             self._dy.append(abs(y0 - y1))
         delta = self.opts.rls_delta
         if len(self._dy) >= NOISE_MIN_INTERVALS:
-            sigma = float(np.median(np.asarray(self._dy))) / (0.6744897501960817 * math.sqrt(2))
-            delta = max(delta, 2.0 * sigma)
+            delta = max(delta, 2.0 * sigma_from_abs_differences(self._dy))
         return delta
 
     def _command(

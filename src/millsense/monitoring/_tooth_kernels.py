@@ -21,6 +21,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from millsense.core.noise import SIGMA_PER_MEDIAN_ABS_DIFF
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -172,9 +174,8 @@ DET_BASE = 19  # ring buffer of the last N period values, then the noise window
 #: steady engagement cancel), once NOISE_MIN of them are held.
 NOISE_WINDOW = 128
 NOISE_MIN = 16
-#: median |d| of a zero-mean normal d is 0.6745 σ_d, and σ_d = √2 σ for the difference of two
-#: independent periods: σ = median|d| / (0.6745 √2).
-NOISE_SCALE = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
+#: σ = median|d| / (0.6745 √2) (:mod:`millsense.core.noise`).
+NOISE_SCALE = SIGMA_PER_MEDIAN_ABS_DIFF
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean) and of a detector's outputs (rows 3 … 8).
