@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,8 +13,8 @@ from millsense.core.recording import Recording
 from millsense.io.recording_file import write_recording
 
 
-def small_recording(path: Path) -> Path:
-    rec = Recording(10000.0, metadata={"machine": "test", "source": str(path)})
+def small_recording(path: Path, **metadata: object) -> Path:
+    rec = Recording(10000.0, metadata={"machine": "test", "source": str(path), **metadata})
     t = np.arange(2000) / 10000.0
     rec.add_channel("x/current_cmd", np.sin(2 * np.pi * 50 * t), "A", "current command")
     rec.add_channel("truth/x/force", -100 + 10 * np.sin(2 * np.pi * 100 * t), "N", "truth")
@@ -30,6 +31,30 @@ def test_info_lists_channels_and_metadata(
     assert code == 0
     assert "2000 samples at 10000 Hz" in out
     assert "x/current_cmd" in out and "truth/x/force" in out and "tcp" in out
+
+
+def test_info_summarises_the_import_report_and_long_metadata(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An import's quality report (300 findings) is shown as its count per kind, another long
+    value cut to 200 characters; the file keeps both whole."""
+    import json
+
+    from millsense.cli.cmd_recording import MAX_METADATA_CHARS, _metadata_text
+    from millsense.io.recording_file import read_recording
+
+    findings = [{"kind": "repeated", "message": f"run {i}"} for i in range(298)]
+    findings += [{"kind": "hum", "message": "hum"}, {"kind": "gap", "message": "gap"}]
+    quality = json.dumps({"findings": findings, "rates": {}})
+    p = small_recording(tmp_path / "r.h5", quality_json=quality, notes="n" * 1000)
+    code, out, _ = run_cli(["info", str(p)], capsys)
+    assert code == 0
+    flat = re.sub(r"[│\s]+", " ", out)  # the table wraps long cells over several lines
+    assert "300 findings (gap 1, hum 1, repeated 298)" in flat
+    assert "run 17" not in flat and "(1000 characters)" in flat
+    cut = _metadata_text("notes", "n" * 1000, p)
+    assert cut == "n" * (MAX_METADATA_CHARS - 40) + " … (1000 characters)"
+    assert read_recording(p).metadata["quality_json"] == quality
 
 
 def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

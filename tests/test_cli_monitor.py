@@ -20,9 +20,9 @@ from test_monitoring_chatter import FS, _signal
 
 
 def _recording(path: Path, *, speed: bool = True, zero_speed: bool = False,
-               program: str = "part.nc") -> Path:  # fmt: skip
+               program: str = "part.nc", **metadata: object) -> Path:  # fmt: skip
     x, spd = _signal()
-    rec = Recording(FS, 0.0, {"program": program, "flutes": 4})
+    rec = Recording(FS, 0.0, {"program": program, "flutes": 4, **metadata})
     rec.add_channel("mic/pressure", x, "Pa", "microphone")
     if speed:
         rec.add_channel("spindle/speed", 0.0 * spd if zero_speed else spd, "rad/s")
@@ -62,6 +62,29 @@ def test_monitor_microphone_only_with_plot(
         assert 2.5 < e.time_s <= 2.7
     assert png.stat().st_size > 10_000
     assert "chatter-comb: 1 chatter alarm" in stdout
+
+
+def test_monitor_takes_the_speed_from_the_recordings_metadata(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A microphone-only recording whose import map stated ``spindle_rpm``: the monitor runs on
+    that speed without ``--spindle-rpm`` (the same event as with the option), and a stated 0
+    is refused naming the metadata."""
+    rec = _recording(tmp_path / "run.h5", speed=False, spindle_rpm=6000)
+    events = {}
+    for name, extra in (("meta", []), ("option", ["--spindle-rpm", "6000"])):
+        out = tmp_path / f"{name}.parquet"
+        code, _, err = run_cli(["monitor", str(rec), "-o", str(out), *extra], capsys)
+        assert code == 0, err
+        events[name] = [(e.time_s, e.value) for e in read_event_log(out) if e.name == "chatter"]
+    assert events["meta"] == events["option"]
+    ((t, hz),) = events["meta"]
+    assert 2.5 < t <= 2.7  # chatter from 2.5 s, within one 0.1 s decision
+    assert hz == pytest.approx(937.0, rel=0.005)  # the synthetic chatter frequency
+    rec = _recording(tmp_path / "zero.h5", speed=False, spindle_rpm=0)
+    code, _, err = run_cli(["monitor", str(rec), "-o", str(tmp_path / "z.parquet")], capsys)
+    assert code == 2
+    assert "metadata spindle_rpm is 0" in err
 
 
 def test_monitor_with_plan_locates_the_event(

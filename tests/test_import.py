@@ -160,6 +160,54 @@ def test_clean_simulation_has_no_false_findings(example: Path) -> None:
     assert rates and all(abs(m / 1e4 - 1) < 1e-9 for m in rates)
 
 
+def test_chance_repeats_of_a_16_bit_microphone_are_not_reported() -> None:
+    """A 16-bit microphone at 44.1 kHz repeats a sample by chance (≈ 2e-3 of its steps here):
+    the quantisation's chance of a zero step is estimated within 20 % of the count in a clean
+    signal (an independent count; ≈ 400 zero and 800 one-quantum steps, so 20 % is about 3σ of
+    their Poisson scatter), no chance repeat is reported, and three runs of 4 held rows
+    (up-sampling by hold) injected into it are found exactly (decision 1703)."""
+    from millsense.io.quality import chance_repeat_probability, repeated_rows
+
+    fs, n = 44100, 5 * 44100
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(3)
+    x = 0.05 * np.sin(2 * np.pi * 400 * t) + 0.02 * np.sin(2 * np.pi * 1000 * t)
+    x = np.round((x + 0.005 * rng.standard_normal(n)) * 32767) / 32767  # 16-bit PCM
+    zero_steps = np.count_nonzero(np.diff(x) == 0) / (n - 1)
+    assert 1e-3 < zero_steps < 3e-3  # the chance repeats this test is about exist
+    assert chance_repeat_probability(x) == pytest.approx(zero_steps, rel=0.2)
+    starts, lengths, used = repeated_rows({"mic/pressure": x})
+    assert used == ["mic/pressure"] and starts.size == 0
+    held = x.copy()
+    for s in (20000, 90000, 170000):
+        held[s + 1 : s + 4] = held[s]
+    starts, lengths, _ = repeated_rows({"mic/pressure": held})
+    assert starts.tolist() == [20000, 90000, 170000] and lengths.tolist() == [4, 4, 4]
+
+
+def test_many_findings_of_one_kind_are_counted_not_listed(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Eight repeated runs and one hum: five repeats printed, the other three counted in one
+    line, the hum printed; the report keeps all nine."""
+    from millsense.cli.cmd_import import MAX_PRINTED_PER_KIND, _print_report
+    from millsense.io.quality import Finding, QualityReport
+
+    rep = QualityReport()
+    for i in range(8):
+        rep.add(Finding("repeated", "f.csv", f"f.csv: run {i}", data={"start": i}))
+    rep.add(Finding("hum", "x/current", "f.csv: hum"))
+    _print_report(rep)
+    lines = capsys.readouterr().err.splitlines()
+    assert MAX_PRINTED_PER_KIND == 5
+    assert [ln for ln in lines if "run " in ln] == [
+        f"millsense: warning: f.csv: run {i}" for i in range(5)
+    ]
+    assert "... and 3 more 'repeated' findings" in lines[-1]
+    assert "millsense: warning: f.csv: hum" in lines
+    assert len(rep.findings) == 9
+
+
 def test_rate_measured_without_time_column(example: Path, tmp_path: Path) -> None:
     """No time column, a stated rate 1 % high: the encoder angle/speed pairs give 10 kHz
     within 0.1 %, and the recording uses it."""

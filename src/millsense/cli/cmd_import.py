@@ -11,11 +11,29 @@ import typer
 from millsense.cli.main import app
 from millsense.core.errors import ConfigError, InputDataError
 
+#: Warnings of one kind printed before the rest of that kind is summarised in one line (all
+#: of them stay in the report: --json, the recording's quality_json, --plot).
+MAX_PRINTED_PER_KIND = 5
+
 
 def _print_report(report: Any, err: bool = True) -> None:
+    """Every refusal, and up to :data:`MAX_PRINTED_PER_KIND` warnings of each kind, then one
+    line counting the rest of that kind."""
+    shown: dict[str, int] = {}
     for f in report.findings:
-        level = "refused" if f.refuse else "warning"
-        typer.echo(f"millsense: {level}: {f.message}", err=err)
+        if f.refuse:
+            typer.echo(f"millsense: refused: {f.message}", err=err)
+            continue
+        shown[f.kind] = shown.get(f.kind, 0) + 1
+        if shown[f.kind] <= MAX_PRINTED_PER_KIND:
+            typer.echo(f"millsense: warning: {f.message}", err=err)
+    for kind, n in shown.items():
+        if n > MAX_PRINTED_PER_KIND:
+            typer.echo(
+                f"millsense: warning: ... and {n - MAX_PRINTED_PER_KIND} more '{kind}' findings "
+                "(all of them in --json and --plot)",
+                err=err,
+            )
 
 
 def _json(report: Any, target: str | None) -> None:

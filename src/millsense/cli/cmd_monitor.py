@@ -10,6 +10,7 @@ read the compensated spindle torque (seed 000 §2.7); ``--channel`` chooses any 
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -50,7 +51,8 @@ def monitor(
     spindle_rpm: float | None = typer.Option(
         None,
         "--spindle-rpm",
-        help="Spindle speed [rev/min] when the recording has no speed channel.",
+        help="Spindle speed [rev/min] when the recording has no speed channel (default: the "
+        "recording's metadata spindle_rpm, else the plan's programmed speed).",
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: spectrogram with chatter marked."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
@@ -284,6 +286,12 @@ def _run(
                 f"{where}: spindle speed is zero throughout (channel '{speed_channel}'): "
                 "nothing to monitor"
             )
+    elif spindle_rpm is None and (md_rpm := _metadata_rpm(rec)) is not None:
+        if not md_rpm > 0:
+            raise InputDataError(
+                f"{where}: metadata spindle_rpm is {md_rpm:g}: give --spindle-rpm (> 0)"
+            )
+        spindle_rpm = md_rpm
     elif spindle_rpm is None and vp is not None:
         rpm = np.abs(np.asarray(vp["spindle_rpm"], dtype=float))
         spindle_rpm = float(np.median(rpm[rpm > 0])) if (rpm > 0).any() else None
@@ -507,6 +515,15 @@ def _grouped(blocks: list[Any]) -> list[Any]:
         inside += breakage
     grouped = {id(b) for b in inside}
     return [*groups, *(b for b in blocks if id(b) not in grouped)]
+
+
+def _metadata_rpm(rec: Any) -> float | None:
+    """The recording's stated spindle speed (metadata ``spindle_rpm``, e.g. from an import map's
+    ``[metadata]`` or ``--spindle-rpm`` of ``millsense import``), if it is a number."""
+    md = rec.metadata.get("spindle_rpm")
+    if isinstance(md, (int, float)) and not isinstance(md, bool) and math.isfinite(md):
+        return float(md)
+    return None
 
 
 def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:

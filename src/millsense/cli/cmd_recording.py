@@ -41,7 +41,7 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
         console.print(f"[yellow]{status.message}[/]")
     meta = Table(title="metadata", show_header=False)
     for k, v in rec.metadata.items():
-        meta.add_row(str(k), str(v))
+        meta.add_row(str(k), _metadata_text(str(k), v, recording))
     console.print(meta)
     table = Table(title="channels")
     for col in ("channel", "unit", "min", "max", "description"):
@@ -57,6 +57,31 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
         rate = (len(st) - 1) / (st.time_s[-1] - st.time_s[0]) if len(st) > 1 else 0.0
         fields = ", ".join(f"{f} [{st.info[f].unit}]" for f in st.fields)
         console.print(f"stream [bold]{sname}[/]: {len(st)} rows, ~{rate:.4g} Hz: {fields}")
+
+
+#: Metadata values longer than this are shortened in ``info`` (the file keeps them whole).
+MAX_METADATA_CHARS = 200
+
+
+def _metadata_text(key: str, value: object, recording: Path) -> str:
+    """A metadata value as ``info`` shows it: the import's quality report as its count of
+    findings per kind, any other value cut to :data:`MAX_METADATA_CHARS` characters."""
+    text = str(value)
+    if key == "quality_json" and isinstance(value, str):
+        import json
+        from collections import Counter
+
+        try:
+            findings = json.loads(value).get("findings", [])
+            kinds = Counter(str(f.get("kind")) for f in findings)
+        except (ValueError, AttributeError):
+            kinds = None
+        if kinds is not None:
+            per_kind = ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) or "none"
+            return f"{sum(kinds.values())} findings ({per_kind}): millsense check {recording}"
+    if len(text) > MAX_METADATA_CHARS:
+        return f"{text[: MAX_METADATA_CHARS - 40]} … ({len(text)} characters)"
+    return text
 
 
 @app.command()

@@ -12,7 +12,8 @@ Every check is vectorised numpy over whole channels:
   over the window) is independent of the stated rate;
 * :func:`repeated_rows` — runs of rows where every continuously varying channel of one file
   repeats its previous sample exactly (up-sampling by hold, duplicated buffers), with start
-  and length;
+  and length; runs no longer than the channels' quantisation repeats by chance are not
+  reported (decision 1703);
 * :func:`clipped_runs` — flat tops at a channel's own maximum or minimum longer than any hold
   the channel shows elsewhere (a converter or amplifier at its rail);
 * :func:`nan_runs`, :func:`is_constant`;
@@ -39,9 +40,11 @@ from numpy.typing import NDArray
 from millsense.core.recording import TRUTH_PREFIX, Recording
 
 __all__ = [
+    "CHANCE_RUN_PROBABILITY",
     "RATE_TOLERANCE",
     "Finding",
     "QualityReport",
+    "chance_repeat_probability",
     "check_recording",
     "clipped_runs",
     "is_constant",
@@ -61,6 +64,10 @@ GAP_FACTOR = 1.5
 #: A channel is "continuous" (checked for repeats and clipping) when at least this fraction
 #: of its steps change the value.
 CONTINUOUS_FRACTION = 0.95
+#: A run of repeated rows is reported only when chance (the columns' quantisation repeating
+#: a value) would give a run as long anywhere in the file with less than this probability
+#: (decision 1703).
+CHANCE_RUN_PROBABILITY = 0.01
 #: Mains lines: a line this many times the median spectrum around it (20 dB).
 HUM_RATIO = 10.0
 #: Units of external sensors whose offset may drift (charge amplifiers, IEPE, microphones).
@@ -264,6 +271,26 @@ def _continuous(x: NDArray[np.float64]) -> bool:
     return bool(d.size > 0 and np.count_nonzero(d) >= CONTINUOUS_FRACTION * d.size)
 
 
+def chance_repeat_probability(x: NDArray[np.float64]) -> float:
+    """Probability that a step of a quantised signal is exactly zero by chance.
+
+    Where the steps' distribution is smooth on the scale of the quantum ``q`` (the smallest
+    non-zero |step|), a step rounds to 0 about as often as to +q or to −q, so the chance of a
+    zero step is half the fraction of steps of one quantum (|Δ| in (q/2, 3q/2]). Repeats made
+    by holding or duplicating rows add zero steps, not steps of one quantum, so they do not
+    raise the estimate. A column at full floating-point precision has almost no steps of its
+    smallest size: its estimate is ≈ 1/(2n), and every repeat counts.
+    """
+    d = np.abs(np.diff(np.asarray(x, dtype=np.float64)))
+    d = d[np.isfinite(d)]
+    nz = d[d > 0]
+    if nz.size == 0:
+        return 1.0
+    q = float(nz.min())
+    one = np.count_nonzero((d > 0.5 * q) & (d <= 1.5 * q))
+    return min(1.0, one / (2.0 * d.size))
+
+
 def repeated_rows(
     columns: Mapping[str, NDArray[np.float64]], min_length: int = 2
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], list[str]]:
@@ -272,15 +299,27 @@ def repeated_rows(
     Returns starts (first row of the run, i.e. the sample that is repeated), lengths (rows
     holding the same values, the original included) and the columns that were used.
     Nothing is found when no column is continuous.
+
+    Quantised columns repeat a value by chance (a 16-bit microphone at 44.1 kHz: a few hundred
+    pairs of equal samples in 20 s). With ``p`` the product over the columns of
+    :func:`chance_repeat_probability` and ``n`` the steps, chance gives about ``n·p^(L−1)``
+    runs of ``L`` rows or more; a run is reported only when that is below
+    :data:`CHANCE_RUN_PROBABILITY` (decision 1703).
     """
     cont = [c for c, x in columns.items() if x.size > 2 and _continuous(np.asarray(x))]
     if not cont:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), []
     same = np.ones(next(iter(columns.values())).size - 1, dtype=bool)
+    p = 1.0
     for c in cont:
-        same &= np.diff(np.asarray(columns[c])) == 0
+        x = np.asarray(columns[c])
+        same &= np.diff(x) == 0
+        p *= chance_repeat_probability(x)
     starts, lengths = runs_of(same)
     keep = lengths + 1 >= min_length
+    if p > 0.0:
+        with np.errstate(under="ignore"):
+            keep &= same.size * p ** lengths.astype(np.float64) < CHANCE_RUN_PROBABILITY
     return starts[keep], lengths[keep] + 1, cont
 
 

@@ -119,7 +119,8 @@ def _chatter_factory(method: str) -> Factory:
         elif not (ctx.speed_rpm and ctx.speed_rpm > 0):
             raise InputDataError(
                 f"{ctx.source}: monitor '{method}' needs the spindle speed: no spindle-speed "
-                "channel (spindle/speed, spindle/speed_cmd) in the recording; give --spindle-rpm"
+                "channel (spindle/speed, spindle/speed_cmd) and no spindle_rpm in its metadata; "
+                "give --spindle-rpm"
             )
         return ChatterMonitor(
             ChatterSettings(
@@ -200,9 +201,7 @@ def _breakage_factory(method: str) -> Factory:
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
             expected_channel=expected if method == "virtual" else None,
-            enable_channel=next(
-                (c for c in (BREAKAGE_GATE, AT_SPEED) if c in ctx.channels), None
-            ),
+            enable_channel=next((c for c in (BREAKAGE_GATE, AT_SPEED) if c in ctx.channels), None),
             name=name,
         )
 
