@@ -229,8 +229,9 @@ def detect_periods(
     ε1(m) = Δx(m) − φ̂1 Δx(m−1), Δx(m) = x(m) − x(m−1) (Aslan 6.2–6.3, Munasinghe 3.46–3.47);
     ε2(m) = Δ_N x(m) − φ̂2 Δ_N x(m−1), Δ_N x(m) = x(m) − x(m−N) (Aslan 6.4, Munasinghe
     3.48–3.49). ``alarm[m]`` is True at the period where a run of violations reaches
-    ``confirm`` violating periods (one alarm per run); a run bridges up to N − 2 periods in a
-    row without a violation (virtual and constant modes; decision 1550). For the virtual and
+    ``confirm`` violating periods (one alarm per run); a run bridges up to N − 1 periods in a
+    row without a violation in the virtual mode (decision 1552), N − 2 in the constant mode
+    (decision 1550). For the virtual and
     constant modes a run starts when the residual and the torque both violate σ_TB·τ_ref and
     continues while the torque does (``check_deviation``), else while the residual does.
     ``expected`` is overwritten with the reference used (τ_sim, or the constant τ_ref).
@@ -361,13 +362,16 @@ def detect_periods(
             elif seen >= 2:
                 state[DET_GAP] = 1.0
         expected[m] = ex if mode != MODE_DUAL else 0.0
-        # one broken flute of N shows in two periods a revolution (its own, and the next flute's
-        # double chip): the run bridges up to N − 2 periods without a violation (decision 1550;
-        # none for N ≤ 2, the seeds' confirmation as it is) and counts the violating ones
+        # a broken flute of N shows once a revolution at least (its own period; the next
+        # flute's double chip need not leave the band where the flute's pulse is shorter than
+        # its period): the virtual detector's run bridges up to N − 1 periods without a
+        # violation (decision 1552), the constant one, the thesis' comparison, N − 2 (decision
+        # 1550; none for N ≤ 2); the run counts the violating periods
+        bridge = nf - 1 if mode == MODE_VIRTUAL else nf - 2
         if v:
             run += 1.0
             state[DET_MISS] = 0.0
-        elif run > 0 and mode != MODE_DUAL and state[DET_MISS] < nf - 2:
+        elif run > 0 and mode != MODE_DUAL and state[DET_MISS] < bridge:
             state[DET_MISS] += 1.0
         else:
             run = 0.0

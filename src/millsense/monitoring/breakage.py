@@ -10,10 +10,13 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     measured torque itself (|τ_sa − τ_sa,sim| > σ_TB τ_sa,sim; digest: "an alert needs both the
     measured torque and the residual to violate their limits") and is confirmed over 3 tooth
     periods (C17 step 5): a run starts where both violate and continues while the torque does,
-    the alarm comes with its third tooth period. With N ≥ 3 flutes a broken flute shows in two
-    periods a revolution (its own and the next flute's double chip), so the run bridges up to
-    N − 2 periods in a row within the band and the alarm comes with its third violating period
-    (decision 1550; the seeds' 2-flute confirmation is unchanged). Tooth periods whose expected
+    the alarm comes with its third violating tooth period. A broken flute shows once a
+    revolution at least (its own period; the next flute's double chip leaves the band only
+    where the flute's pulse fills its period, a slot with 2 flutes), so the run bridges up to
+    N − 1 periods in a row within the band (decision 1552; 2 flutes in a slot, both periods
+    violating, alarm as before at the third period). The tooth periods' phase is that of the
+    stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage` judges several
+    phases (``phase_offset``, decision 1552). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
     touch of an entry) are not judged: there the virtual limit goes to zero (decision 1522).
     The torque's band is never narrower than ``noise_k`` (4) standard deviations of the tooth-period
@@ -24,7 +27,8 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     three periods in a row about once a second.
 ``constant`` — the constant threshold the thesis compares against in V7: the same detector with
     τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
-    revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523).
+    revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523). Its
+    run bridges up to N − 2 periods (decision 1550), the comparison the thesis draws.
 ``dual`` — seed 002 (Munasinghe Eqs. 3.43–3.49, digest §2.5): the same first-difference
     residual ε1 and a second AR(1) residual ε2 on the lag-N difference x(m) − x(m−N) (N
     flutes, which removes runout); thresholds 2 × max|ε_k| over the first 5 revolutions;
@@ -113,7 +117,8 @@ class BreakageBlock(Block):
         (set it for small tools).
     check_deviation : also require |τ_sa − τ_sim| > σ_TB τ_sim (``virtual``).
     confirm_periods : violating periods before the alarm (3; 1 for ``dual``), in a run that
-        bridges up to N − 2 periods in a row without one (decision 1550).
+        bridges up to N − 1 (virtual; decision 1552) or N − 2 (constant; decision 1550)
+        periods in a row without one.
     reference : constant reference τ_ref in the signal's unit (``constant``; 0 = the mean of the
         tooth-period averages over the learning revolutions).
     alpha, learn_revolutions, learn_from : learning over that many revolutions, starting at the
@@ -124,6 +129,8 @@ class BreakageBlock(Block):
     noise_k : the signal's band around its reference (``virtual``, ``constant``) is never
         narrower than ``noise_k`` standard deviations of the tooth-period average's noise,
         estimated on line (decision 1550; 0: the seed's σ_TB band alone).
+    phase_offset : the tooth periods end this fraction of a period earlier than at the
+        multiples of 2π/N of the integrated angle (decision 1552), in [0, 1).
     enable_channel : optional 1/0 channel (e.g. ``spindle/at_speed``): a tooth period with a
         sample where it is 0 is not judged and restarts the differences (a spindle run-up or
         speed change, whose observer torque holds the acceleration torque; decision 1550).
@@ -151,6 +158,7 @@ class BreakageBlock(Block):
         rls_p_max: float | None = None,
         noise_k: float = NOISE_K,
         enable_channel: str | None = None,
+        phase_offset: float = 0.0,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -172,6 +180,11 @@ class BreakageBlock(Block):
             raise ConfigError(f"breakage: learn_revolutions must be ≥ 1, got {learn_revolutions}")
         if not (noise_k >= 0 and math.isfinite(noise_k)):
             raise ConfigError(f"breakage: noise_k must be ≥ 0 (0: no noise floor), got {noise_k!r}")
+        if not (0.0 <= phase_offset < 1.0):
+            raise ConfigError(
+                f"breakage: phase_offset must be in [0, 1) of a tooth period, got {phase_offset!r}"
+            )
+        self.phase_offset = float(phase_offset)
         self.noise_k = float(noise_k)
         self.enable_channel = enable_channel
         self.n_flutes = int(n_flutes)
@@ -251,6 +264,7 @@ class BreakageBlock(Block):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
         self.fs = float(sample_rate_hz)
         self._seg = np.zeros(_k.SEG_SIZE)
+        self._seg[_k.SEG_PHASE] = self.phase_offset  # the periods end a fraction earlier
         self._det = _k.detector_state(self.n_flutes, PHI0, self.p_max)
         self._held = np.array([math.nan, 0.0, math.nan, 0.0, math.nan, math.nan])
         self._first_violation = -1

@@ -166,6 +166,7 @@ def _breakage_factory(method: str) -> Factory:
 
     def make(ctx: MonitorContext) -> Block:
         from millsense.monitoring.breakage import BreakageBlock
+        from millsense.monitoring.breakage_phased import PhasedBreakage
 
         signal = ctx.signal or next(
             (c for c in BREAKAGE_SIGNALS_SESSION if c in ctx.channels), None
@@ -195,15 +196,16 @@ def _breakage_factory(method: str) -> Factory:
                     "breakage-dual without it"
                 )
             ctx.require([expected], name)
-        return BreakageBlock(
-            ctx.n_flutes,
-            method=method,  # type: ignore[arg-type]
+        options: dict[str, Any] = dict(
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
-            expected_channel=expected if method == "virtual" else None,
             enable_channel=next((c for c in (BREAKAGE_GATE, AT_SPEED) if c in ctx.channels), None),
             name=name,
         )
+        if method == "virtual":  # at several phases of the tooth period (decision 1552)
+            return PhasedBreakage(ctx.n_flutes, method="virtual", expected_channel=expected,
+                                  **options)  # fmt: skip
+        return BreakageBlock(ctx.n_flutes, method=method, **options)  # type: ignore[arg-type]
 
     return make
 

@@ -34,7 +34,7 @@ from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptio
 from millsense.control.arbitration import Supervisor, SupervisorOptions
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
-from millsense.monitoring.breakage import BreakageBlock
+from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
 from millsense.online.plan_sync import PlanSync, TcpFromAxes
@@ -187,9 +187,9 @@ def session_blocks(
         children.append(_chatter_child(o, flutes, have))
     if o.breakage:
         children.append(
-            BreakageBlock(
+            PhasedBreakage(
                 flutes,
-                "virtual",
+                method="virtual",
                 signal_channels=(CUTTING_TORQUE,),
                 expected_channel="plan/judged_torque",
                 min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),

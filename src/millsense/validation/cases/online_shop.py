@@ -28,9 +28,8 @@ import numpy as np
 
 from millsense.streaming.block import Event, EventKind
 from millsense.validation import Measured, case
+from millsense.validation.cases._program_session import EXAMPLE
 
-EXAMPLE = Path(__file__).resolve().parents[4] / "examples"
-MACHINE = "quaser-ux600"
 #: Alarms that would be false on this run (the tool is intact and rigid, the link clean).
 FALSE_ALARMS = ("breakage", "chatter", "feed_hold", "input_fault", "adaptive_feed_noise",
                 "adaptive_feed_fault")  # fmt: skip
@@ -48,44 +47,13 @@ def shop_run() -> ShopRun:
     """The shop pocket through the session ``millsense run`` builds (its library calls: the
     session's plan on a 0.2 mm z-map, the virtual machine cutting its own plan, the shipped
     commissioned machine file, the default session options)."""
-    from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
-    from millsense.core.presets import commissioned_machine, load_preset
-    from millsense.core.units import MM
     from millsense.io.recording_reader import opened_recording
-    from millsense.online.session import SessionOptions, run_session, session_blocks
-    from millsense.plan.gcode import interpret_file
-    from millsense.plan.stock import ZMapStock
-    from millsense.plan.virtual_plan import plan_program
-    from millsense.process.coefficients import CuttingCoefficients
-    from millsense.process.geometry import EndMill
-    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
-    from millsense.simulator.machine_file import simulator_machine
-    from millsense.simulator.plan_job import plan_job
-    from millsense.simulator.plant_plan import plant_plan
+    from millsense.validation.cases._program_session import program_session
 
-    program = EXAMPLE / "shop_pocket/program.nc"
-    box = load_config(StockConfig, EXAMPLE / "demo_part/stock.toml")
-    lo, hi = box.min_mm, box.max_mm
-    assert lo is not None and hi is not None
-
-    def stock(cell_m: float) -> ZMapStock:
-        return ZMapStock.from_box([v * MM for v in lo], [v * MM for v in hi], cell_m)
-
-    tool = EndMill.from_config(load_preset(ToolConfig, EXAMPLE / "shop_pocket/tool.toml"))
-    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, "al7050"))
-    plan = plan_program(interpret_file(program), stock(0.2 * MM), tool, coeffs)
-    plant = plant_plan([interpret_file(program)], stock, tool, coeffs)
-    sim_cfg = simulator_machine(MACHINE)
-    job, proc, _, _ = plan_job(plant, sim_cfg, program.name)
-    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
-    shipped = commissioned_machine(MACHINE)
-    assert shipped is not None
-    belief, where = shipped
-    built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
-                           channels=sim.channel_names)  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "pocket.h5"
-        res = run_session(sim, built.blocks, out=out, keep=())
+        res = program_session(EXAMPLE / "shop_pocket/program.nc",
+                              EXAMPLE / "shop_pocket/tool.toml", out=out).result  # fmt: skip
         with opened_recording(out) as rec:
             peak = np.asarray(rec.channel("adaptive_feed/peak"), dtype=np.float64)
             judged = np.asarray(rec.channel("plan/judged_torque"), dtype=np.float64)

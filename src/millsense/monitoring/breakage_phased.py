@@ -1,0 +1,121 @@
+"""A breakage detector judged at several phases of the tooth period (decision 1552).
+
+Seed 000's virtual threshold (:class:`~millsense.monitoring.breakage.BreakageBlock`, Aslan
+Eq. 6.1) averages the torque over tooth periods whose boundaries fall where the integrated
+spindle angle crosses multiples of 2π/N from the stream start: a phase that has nothing to do
+with where the flutes cut. A broken flute removes a torque pulse that lasts its engagement
+(plus the helix lag) and, delayed by the estimator, lies anywhere in those windows; split
+between two of them, its drop is diluted. Measured on the virtual machine (Ø12 mm, 2–4 flutes,
+slots and half immersion, 3000–10 000 rev/min; the observer's estimate), the relative drop of
+the broken flute's period ranged over the window phase from −0.12 to −0.77 (2 flutes, half
+immersion, 8000 rev/min), −0.27 to −0.58 (3-flute slot) and −0.26 to −0.39 (4-flute slot):
+at the unlucky phase, below the seed's 40 % band, a break the monitor could never see.
+
+Which phase is best depends on the engagement, the helix and the observer's delay, and it
+cannot be known before the break (for a slot the best window starts at the flute's entry,
+for a short pulse any window holding it). So the same detector runs at ``phases`` offsets,
+j/P of a tooth period (j = 0 … P−1): the worst phase is then at most 1/(2P) of a period from
+the best. The members run as one :class:`~millsense.monitoring.breakage.BreakageGroup` (one
+compiled call per chunk). The block's output channels are those of phase 0 (the seed's
+windows, unchanged); an alarm of any phase is the block's alarm, and an alarm
+``dedupe_revolutions`` revolutions or fewer after the last one, reported or not (one breakage
+seen by several phases, or again by one as its runs end and restart) is not repeated; the
+arbiter's :meth:`PhasedBreakage.rearm` lets the next one through.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+from millsense.core.errors import ConfigError
+from millsense.core.recording import ChannelInfo
+from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
+from millsense.streaming.block import Block, BlockOutput, Chunk
+
+#: Decision 1552: phases of the tooth period judged (worst phase ≤ 1/6 of a period from the
+#: best one).
+PHASES = 3
+#: Decision 1552: an alarm this many revolutions or fewer after the last one (reported or
+#: not) is the same breakage: a broken tool alarms again and again as its runs end and restart.
+DEDUPE_REVOLUTIONS = 100
+
+
+class PhasedBreakage(Block):
+    """:class:`BreakageBlock` at ``phases`` phase offsets of the tooth period, one alarm per
+    breakage (module notes; decision 1552).
+
+    Parameters
+    ----------
+    n_flutes : number of flutes N.
+    phases : phase offsets judged (1: the seed's detector alone).
+    dedupe_revolutions : alarms this many revolutions or fewer after the last one (reported or
+        not) are not reported.
+    name : block name (the channels of phase 0 and the events carry it).
+    options : the detector's other parameters (:class:`BreakageBlock`; not ``phase_offset``).
+    """
+
+    def __init__(
+        self,
+        n_flutes: int,
+        *,
+        phases: int = PHASES,
+        dedupe_revolutions: int = DEDUPE_REVOLUTIONS,
+        name: str = "breakage",
+        **options: Any,
+    ) -> None:
+        if int(phases) != phases or phases < 1:
+            raise ConfigError(f"breakage: phases must be an integer ≥ 1, got {phases!r}")
+        if dedupe_revolutions < 0:
+            raise ConfigError(
+                f"breakage: dedupe_revolutions must be ≥ 0, got {dedupe_revolutions!r}"
+            )
+        if "phase_offset" in options:
+            raise ConfigError("breakage: the phases set the phase offsets; give no phase_offset")
+        self.members = [
+            BreakageBlock(n_flutes, phase_offset=j / phases,
+                          name=name if j == 0 else f"{name}.phase{j}", **options)
+            for j in range(int(phases))
+        ]  # fmt: skip
+        first = self.members[0]
+        self.name = name
+        self.n_flutes = first.n_flutes
+        self.method = first.method
+        self.speed_channel = first.speed_channel
+        self.phases = int(phases)
+        self.dedupe_periods = int(dedupe_revolutions) * self.n_flutes
+        self._group = BreakageGroup(self.members, name=name)
+        self.inputs = self._group.inputs
+        self._own = tuple(c.name for c in first.output_channels())
+        self._last_period = -(10**18)
+        self._phase_of = {m.name: j for j, m in enumerate(self.members)}
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return self.members[0].output_channels()
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self._group.reset(sample_rate_hz)
+        self._last_period = -(10**18)
+
+    def rearm(self) -> None:
+        """Every phase forgets its running violation (:meth:`BreakageBlock.rearm`)."""
+        for m in self.members:
+            m.rearm()
+        self._last_period = -(10**18)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        out = self._group.process(chunk)
+        channels = out.channels
+        own = {k: channels[k] for k in self._own}
+        kept = BlockOutput(own)
+        if out.events:
+            for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
+                period = int(e.values["tooth_period"])
+                seen = period - self._last_period <= self.dedupe_periods
+                self._last_period = period  # a breakage still alarming extends the window
+                if seen:
+                    continue
+                phase = self._phase_of[e.source]
+                values = {**e.values, "phase": float(phase) / self.phases}
+                kept.events.append(replace(e, source=self.name, values=values))
+        return kept

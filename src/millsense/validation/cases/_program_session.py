@@ -1,0 +1,73 @@
+"""A part program through the on-line session as ``millsense run`` builds it (its library
+calls, without the command line, which validation may not import): the session's plan on a
+0.2 mm z-map, the virtual machine cutting its own plan of the same program (decision 1740),
+the shipped commissioned machine file and the default session options."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+EXAMPLE = Path(__file__).resolve().parents[4] / "examples"
+MACHINE = "quaser-ux600"
+STOCK = EXAMPLE / "demo_part/stock.toml"
+
+
+@dataclass
+class ProgramSession:
+    result: Any  # online.session.SessionResult
+    plan: Any  # plan.virtual_plan.VirtualPlan
+
+
+def program_session(
+    program: Path,
+    tool: Any,
+    *,
+    material: str = "al7050",
+    stock: Path = STOCK,
+    events: Sequence[Any] = (),
+    seed: int = 0,
+    duration_s: float | None = None,
+    out: Path | None = None,
+    keep: Sequence[str] | None = (),
+) -> ProgramSession:
+    """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
+    through the default session on the virtual quaser-ux600; ``events``: process events of the
+    virtual machine (a :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
+    from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
+    from millsense.core.presets import commissioned_machine, load_preset
+    from millsense.core.units import MM
+    from millsense.online.session import SessionOptions, run_session, session_blocks
+    from millsense.plan.gcode import interpret_file
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+    from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.simulator.machine_file import simulator_machine
+    from millsense.simulator.plan_job import plan_job
+    from millsense.simulator.plant_plan import plant_plan
+
+    box = load_config(StockConfig, stock)
+    lo, hi = box.min_mm, box.max_mm
+    assert lo is not None and hi is not None
+
+    def make_stock(cell_m: float) -> ZMapStock:
+        return ZMapStock.from_box([v * MM for v in lo], [v * MM for v in hi], cell_m)
+
+    tool_cfg = tool if isinstance(tool, ToolConfig) else load_preset(ToolConfig, tool)
+    end_mill = EndMill.from_config(tool_cfg)
+    coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, material))
+    plan = plan_program(interpret_file(program), make_stock(0.2 * MM), end_mill, coeffs)
+    plant = plant_plan([interpret_file(program)], make_stock, end_mill, coeffs)
+    sim_cfg = simulator_machine(MACHINE)
+    job, proc, _, _ = plan_job(plant, sim_cfg, program.name, events=list(events))
+    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=seed), duration_s=duration_s)
+    shipped = commissioned_machine(MACHINE)
+    assert shipped is not None
+    belief, where = shipped
+    built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
+                           channels=sim.channel_names)  # fmt: skip
+    return ProgramSession(run_session(sim, built.blocks, out=out, keep=keep), plan)

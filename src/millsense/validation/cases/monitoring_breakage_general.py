@@ -1,0 +1,157 @@
+"""Tool breakage on a shop's cuts, beyond the seeds' one set-up (decision 1552).
+
+Seed 000's V7 breaks a Ø20 mm 2-flute end mill in a slot at 1000 rev/min, where every tooth
+period around the broken flute leaves the 40 % band. Issue 15 asks for breakage detection in
+general, so six straight cuts with a Ø12 mm, 35° helix end mill in the demo part's Al7050
+block are run as ``millsense run`` runs them (default session: the shipped commissioned spindle
+observer, plan sync with the K_tc calibration, the virtual threshold at three phases, the
+adaptive feed on the spindle power; the virtual machine cutting its own plan): 2, 3 and 4
+flutes, full slots and half immersion (the tool centre on the block's edge), 3000 to
+10 000 rev/min. Each cut runs twice: with flute 0 broken at 3.0 s (well inside the cut) and
+intact, the whole program.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from millsense.streaming.block import Event
+from millsense.validation import Measured, case
+
+#: (flutes, rev/min, "slot" or "half", feed mm/min, depth mm); chosen before the first run of
+#: these cases (the cuts `millsense run --break-at-s 3` was first tried on, 2026-11-29).
+CUTS = (
+    (2, 3000, "slot", 900, 4.0),
+    (3, 6000, "slot", 1500, 3.0),
+    (4, 6000, "slot", 1500, 4.0),
+    (2, 8000, "half", 2000, 4.0),
+    (3, 8000, "half", 2000, 4.0),
+    (4, 10000, "half", 3000, 4.0),
+)
+BREAK_S = 3.0
+DIAMETER_MM = 12.0
+HELIX_DEG = 35.0
+#: Events that are false on an intact tool.
+FALSE = ("breakage", "feed_hold")
+
+
+def _program(rpm: int, kind: str, feed: int, depth: float) -> str:
+    y = 30 if kind == "slot" else 80  # the demo block is 0..80 mm in Y: centre on its edge
+    return (f"%\nO1 (BREAKAGE {kind.upper()})\nG21 G90 G17\nS{rpm} M3\nG0 X-12 Y{y} Z5\n"
+            f"G1 Z-{depth:g} F600\nG1 X90 F{feed}\nG0 Z10\nM30\n%\n")  # fmt: skip
+
+
+@dataclass
+class CutRun:
+    label: str
+    flutes: int
+    rpm: int
+    broken: list[Event]  # breakage alarms of the run with the break
+    intact: list[Event]  # false alarms of the intact run
+
+    @property
+    def tooth_s(self) -> float:
+        return 60.0 / (self.rpm * self.flutes)
+
+    def latency_periods(self) -> float:
+        """First alarm at or after the break, in tooth periods after it (inf: none)."""
+        after = [e.time_s for e in self.broken if e.time_s >= BREAK_S]
+        return (min(after) - BREAK_S) / self.tooth_s if after else math.inf
+
+
+@functools.lru_cache(maxsize=1)
+def general_runs() -> tuple[CutRun, ...]:
+    from millsense.core.config import ToolConfig
+    from millsense.simulator.process_coupling import ToothBreak
+    from millsense.validation.cases._program_session import program_session
+
+    runs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for flutes, rpm, kind, feed, depth in CUTS:
+            label = f"{flutes} flutes, {kind}, {rpm} rev/min, {depth:g} mm, F{feed}"
+            prog = Path(tmp) / f"cut_{flutes}_{rpm}_{kind}.nc"
+            prog.write_text(_program(rpm, kind, feed, depth))
+            tool = ToolConfig(diameter_mm=DIAMETER_MM, flutes=flutes, helix_deg=HELIX_DEG)
+            broken = program_session(prog, tool, events=(ToothBreak(BREAK_S, 0),),
+                                     duration_s=BREAK_S + 1.0).result.events  # fmt: skip
+            intact = program_session(prog, tool).result.events
+            runs.append(CutRun(label, flutes, rpm,
+                               [e for e in broken if e.name == "breakage"],
+                               [e for e in intact if e.name in FALSE]))  # fmt: skip
+    return tuple(runs)
+
+
+def _table(runs: tuple[CutRun, ...]) -> str:
+    rows = ["| cut | alarms before the break | first alarm after (tooth periods, revolutions) "
+            "| false alarms, intact run |", "|---|---|---|---|"]  # fmt: skip
+    for r in runs:
+        before = [f"{e.time_s:.3f} s" for e in r.broken if e.time_s < BREAK_S] or ["none"]
+        lat = r.latency_periods()
+        after = "none" if math.isinf(lat) else f"{lat:.1f}, {lat / r.flutes:.2f}"
+        false = ", ".join(f"{e.time_s:.2f} s {e.name}" for e in r.intact) or "none"
+        rows.append(f"| {r.label} | {', '.join(before)} | {after} | {false} |")
+    return "\n".join(rows) + f"\n\nFlute 0 breaks at {BREAK_S} s; Ø{DIAMETER_MM:g} mm end mill."
+
+
+@case(
+    "monitoring.breakage.general_cuts_detected",
+    source="issue 15 item 2: a breakage event with the tooth, time and NC line (six shop cuts: "
+    "2-4 flutes, slots and half immersion, 3000-10 000 rev/min)",
+    reference=float(len(CUTS)),
+    abs_tol=0.0,
+    unit="cuts",
+    quick=False,
+    description="cuts of the six whose break (flute 0 at 3.0 s) raised a breakage alarm after "
+    "it and none before it",
+    issue=15,
+)
+def _detected() -> Measured:
+    runs = general_runs()
+    n = sum(
+        math.isfinite(r.latency_periods()) and not any(e.time_s < BREAK_S for e in r.broken)
+        for r in runs
+    )
+    return Measured(float(n), _table(runs))
+
+
+@case(
+    "monitoring.breakage.general_cuts_false_alarms",
+    source="issue 15: no false alarm (the six cuts with the tool intact, entry, cut, exit and "
+    "retract)",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="alarms",
+    quick=False,
+    description="breakage alarms and feed holds over the six cuts run with the tool intact",
+    issue=15,
+)
+def _false() -> Measured:
+    runs = general_runs()
+    return Measured(float(sum(len(r.intact) for r in runs)), _table(runs))
+
+
+@case(
+    "monitoring.breakage.general_cuts_latency_periods",
+    source="issue 15 acceptance: breakage effect to event ≤ 3 tooth periods (seed 000 C17)",
+    reference=1.5,
+    abs_tol=1.5,
+    unit="tooth periods",
+    quick=False,
+    description="the largest delay from the break to its first alarm over the six cuts, in "
+    "tooth periods (inf where a break is missed)",
+    gap="the third violating tooth period comes within 3 periods only where the broken flute's "
+    "period and the next flute's double chip both leave the band (a 2-flute slot: V7, the demo "
+    "part); where a flute's pulse is shorter than its period, or shared by several flutes "
+    "engaged at once (3-4 flutes, half immersion, slots), only the broken flute's own period "
+    "leaves it, once a revolution, and the confirmation over three violations takes about two "
+    "revolutions (decision 1552). A single period's drop is not told from the noise and the "
+    "plan's error at the seed's 40 % and 4σ band",
+    issue=15,
+)
+def _latency() -> Measured:
+    runs = general_runs()
+    return Measured(max(r.latency_periods() for r in runs), _table(runs))
