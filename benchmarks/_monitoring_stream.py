@@ -9,7 +9,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
+from millsense.monitoring.breakage import BreakageBlock
+from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.monitoring.engagement import EngagementBlock
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
@@ -42,15 +43,15 @@ def _stream(seconds: float) -> dict[str, np.ndarray]:
 
 
 def _blocks(engagement: bool, grouped: bool = False) -> list[Block]:
-    """The three breakage detectors (one :class:`BreakageGroup` if ``grouped``, as
-    ``millsense monitor`` runs them), and the engagement monitor if ``engagement``."""
-    out: list[Block] = [
-        BreakageBlock(2, "virtual", expected_channel="plan/torque"),
+    """The three breakage detectors, the virtual one at three phases of the tooth period
+    (decision 1552; the other two in its compiled call if ``grouped``, as ``millsense monitor``
+    runs them), and the engagement monitor if ``engagement``."""
+    virtual = PhasedBreakage(2, method="virtual", expected_channel="plan/torque")
+    others = [
         BreakageBlock(2, "constant"),
         BreakageBlock(2, "dual", signal_channels=("force_x", "force_y")),
     ]
-    if grouped:
-        out = [BreakageGroup([b for b in out if isinstance(b, BreakageBlock)])]
+    out: list[Block] = [virtual.with_companions(others)] if grouped else [virtual, *others]
     if engagement:
         out.append(EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=15))
     return out

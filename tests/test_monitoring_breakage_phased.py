@@ -117,3 +117,26 @@ def test_bad_phase_options() -> None:
         PhasedBreakage(N, phases=0, method="virtual", expected_channel="e")
     with pytest.raises(ConfigError, match="phase_offset"):
         PhasedBreakage(N, method="virtual", expected_channel="e", phase_offset=0.2)
+
+
+def test_companions_run_in_the_same_call_unchanged() -> None:
+    """``millsense monitor``'s dual-residual detector in the phased detector's compiled call:
+    its channels and events are those it gives alone, the phased detector's are its own."""
+    d = _stream()
+
+    def dual() -> BreakageBlock:
+        return BreakageBlock(N, "dual", name="c")
+
+    alone_ev, alone = run_block(dual(), d, 100)
+    ph_ev, ph = run_block(PhasedBreakage(N, method="virtual", expected_channel="plan/torque",
+                                         name="b"), d, 100)  # fmt: skip
+    both = PhasedBreakage(N, method="virtual", expected_channel="plan/torque", name="b")
+    ev, ch = run_block(both.with_companions([dual()]), d, 100)
+    assert set(ch) == set(alone) | set(ph)
+    for k in alone:
+        np.testing.assert_array_equal(ch[k], alone[k])
+    for k in ph:
+        np.testing.assert_array_equal(ch[k], ph[k])
+    key = [(e.source, e.sample, e.message) for e in (*alone_ev, *ph_ev)]
+    assert sorted((e.source, e.sample, e.message) for e in ev) == sorted(key)
+    assert any(e.source == "c" for e in ev) and any(e.source == "b" for e in ev)

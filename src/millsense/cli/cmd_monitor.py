@@ -499,18 +499,24 @@ def _grouped(blocks: list[Any]) -> list[Any]:
     :class:`BreakageGroup` (one compiled call per chunk for all, decision 1536): same outputs
     and events, less work; other monitors unchanged."""
     from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
+    from millsense.monitoring.breakage_phased import PhasedBreakage
     from millsense.monitoring.chatter import ChatterGroup, ChatterMonitor
 
     chatter = [b for b in blocks if isinstance(b, ChatterMonitor)]
     breakage = [b for b in blocks if isinstance(b, BreakageBlock)]
-    if len({(b.speed_channel, b.n_flutes) for b in breakage}) > 1:
-        breakage = []  # detectors on different speeds or tools stay apart
+    phased = [b for b in blocks if isinstance(b, PhasedBreakage)]
+    tooth: list[BreakageBlock | PhasedBreakage] = [*breakage, *phased]
+    if len({(b.speed_channel, b.n_flutes) for b in tooth}) > 1:
+        breakage, phased = [], []  # detectors on different speeds or tools stay apart
     groups: list[Any] = []
     inside: list[Any] = []
     if len(chatter) >= 2:
         groups.append(ChatterGroup(chatter))
         inside += chatter
-    if len(breakage) >= 2:
+    if len(phased) == 1 and breakage:  # the others in the phased detector's compiled call
+        groups.append(phased[0].with_companions(breakage))
+        inside += [phased[0], *breakage]
+    elif len(breakage) >= 2:
         groups.append(BreakageGroup(breakage))
         inside += breakage
     grouped = {id(b) for b in inside}

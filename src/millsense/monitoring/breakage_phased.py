@@ -25,6 +25,7 @@ arbiter's :meth:`PhasedBreakage.rearm` lets the next one through.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -52,6 +53,9 @@ class PhasedBreakage(Block):
     dedupe_revolutions : alarms this many revolutions or fewer after the last one (reported or
         not) are not reported.
     name : block name (the channels of phase 0 and the events carry it).
+    companions : other detectors on the same speed channel and flute count run in the same
+        compiled call (``millsense monitor``'s constant and dual detectors); their channels and
+        events pass through unchanged.
     options : the detector's other parameters (:class:`BreakageBlock`; not ``phase_offset``).
     """
 
@@ -62,6 +66,7 @@ class PhasedBreakage(Block):
         phases: int = PHASES,
         dedupe_revolutions: int = DEDUPE_REVOLUTIONS,
         name: str = "breakage",
+        companions: Sequence[BreakageBlock] = (),
         **options: Any,
     ) -> None:
         if int(phases) != phases or phases < 1:
@@ -84,14 +89,29 @@ class PhasedBreakage(Block):
         self.speed_channel = first.speed_channel
         self.phases = int(phases)
         self.dedupe_periods = int(dedupe_revolutions) * self.n_flutes
-        self._group = BreakageGroup(self.members, name=name)
+        self.options = dict(options)
+        self.dedupe_revolutions = int(dedupe_revolutions)
+        self.companions = list(companions)
+        self._group = BreakageGroup([*self.members, *self.companions], name=name)
         self.inputs = self._group.inputs
-        self._own = tuple(c.name for c in first.output_channels())
+        self._own = tuple(c.name for c in self.output_channels())
+        self._phase_sources = {m.name for m in self.members}
         self._last_period = -(10**18)
         self._phase_of = {m.name: j for j, m in enumerate(self.members)}
 
+    def with_companions(self, companions: Sequence[BreakageBlock]) -> PhasedBreakage:
+        """The same detector with ``companions`` run in its compiled call."""
+        return PhasedBreakage(
+            self.n_flutes,
+            phases=self.phases,
+            name=self.name,
+            dedupe_revolutions=self.dedupe_revolutions,
+            companions=[*self.companions, *companions],
+            **self.options,
+        )
+
     def output_channels(self) -> list[ChannelInfo]:
-        return self.members[0].output_channels()
+        return [c for m in (self.members[0], *self.companions) for c in m.output_channels()]
 
     def reset(self, sample_rate_hz: float) -> None:
         self._group.reset(sample_rate_hz)
@@ -110,6 +130,9 @@ class PhasedBreakage(Block):
         kept = BlockOutput(own)
         if out.events:
             for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
+                if e.source not in self._phase_sources:  # a companion's
+                    kept.events.append(e)
+                    continue
                 period = int(e.values["tooth_period"])
                 seen = period - self._last_period <= self.dedupe_periods
                 self._last_period = period  # a breakage still alarming extends the window
