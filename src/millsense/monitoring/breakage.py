@@ -501,9 +501,14 @@ class BreakageGroup(Block):
     ----------
     members : breakage detectors with distinct names, one speed channel and flute count.
     name : block name.
+    shown : the group's output channels are those of its first ``shown`` members (default:
+        all); the others only judge and raise events (the extra phases of
+        :class:`~millsense.monitoring.breakage_phased.PhasedBreakage`, decision 1552).
     """
 
-    def __init__(self, members: Sequence[BreakageBlock], name: str = "breakage") -> None:
+    def __init__(
+        self, members: Sequence[BreakageBlock], name: str = "breakage", shown: int | None = None
+    ) -> None:
         if not members:
             raise ConfigError("breakage group: no detector")
         names = [m.name for m in members]
@@ -517,6 +522,9 @@ class BreakageGroup(Block):
                     f"count than '{ref.name}'"
                 )
         self.members = list(members)
+        self.shown = len(self.members) if shown is None else int(shown)
+        if not (1 <= self.shown <= len(self.members)):
+            raise ConfigError(f"breakage group: shown must be in 1..{len(self.members)}")
         self.name = name
         self.inputs = tuple(dict.fromkeys(c for m in members for c in m.inputs))
         # the channels averaged over tooth periods, and each detector's rows (a, b, expected)
@@ -529,7 +537,7 @@ class BreakageGroup(Block):
         )
 
     def output_channels(self) -> list[ChannelInfo]:
-        return [c for m in self.members for c in m.output_channels()]
+        return [c for m in self.members[: self.shown] for c in m.output_channels()]
 
     def reset(self, sample_rate_hz: float) -> None:
         ms = self.members
@@ -549,6 +557,7 @@ class BreakageGroup(Block):
         self._firsts = np.full(len(ms), -1, dtype=np.int64)
         self._alarms = np.zeros(len(ms), dtype=np.int64)
         self._names = tuple(c.name for c in self.output_channels())
+        self._rows_out = _k.OUT_ROWS * len(ms)  # every member's rows are computed
         self._n = -1
         self._held_views: HeldViews | None = None
 
@@ -587,7 +596,8 @@ class BreakageGroup(Block):
             views = self._held_views
             if views is not None and views[0] == n:  # none ended since: the same views
                 return BlockOutput(dict(views[1]))
-            self._held_views, held = held_views(self._names, self._held.reshape(-1), views, n)
+            shown = self._held.reshape(-1)[: len(self._names)]
+            self._held_views, held = held_views(self._names, shown, views, n)
             return BlockOutput(held)
         self._held_views = None
         for j, m in self._planned:
@@ -597,11 +607,12 @@ class BreakageGroup(Block):
         firsts = self._firsts
         before = [m._first_violation for m in ms]
         firsts[:] = before
-        values = np.empty((len(self._names), n))
+        values = np.empty((self._rows_out, n))
         total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
                                  self._iparams, self._det, self._held, self._hb, values, firsts,
                                  self._alarms)  # fmt: skip
-        out = BlockOutput(dict(zip(self._names, values, strict=True)))
+        # the shown members' rows come first; the rest are not outputs
+        out = BlockOutput(dict(zip(self._names, values, strict=False)))
         for m, first in zip(ms, firsts.tolist(), strict=True):
             m._first_violation = first
         if total:

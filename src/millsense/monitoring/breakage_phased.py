@@ -92,9 +92,10 @@ class PhasedBreakage(Block):
         self.options = dict(options)
         self.dedupe_revolutions = int(dedupe_revolutions)
         self.companions = list(companions)
-        self._group = BreakageGroup([*self.members, *self.companions], name=name)
+        # phase 0 and the companions first: the group's outputs are theirs alone
+        shown = [self.members[0], *self.companions]
+        self._group = BreakageGroup([*shown, *self.members[1:]], name=name, shown=len(shown))
         self.inputs = self._group.inputs
-        self._own = tuple(c.name for c in self.output_channels())
         self._phase_sources = {m.name for m in self.members}
         self._last_period = -(10**18)
         self._phase_of = {m.name: j for j, m in enumerate(self.members)}
@@ -125,9 +126,9 @@ class PhasedBreakage(Block):
 
     def process(self, chunk: Chunk) -> BlockOutput:
         out = self._group.process(chunk)
-        channels = out.channels
-        own = {k: channels[k] for k in self._own}
-        kept = BlockOutput(own)
+        if not out.events:
+            return out
+        kept = BlockOutput(out.channels)
         if out.events:
             for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
                 if e.source not in self._phase_sources:  # a companion's
