@@ -140,3 +140,30 @@ def test_companions_run_in_the_same_call_unchanged() -> None:
     key = [(e.source, e.sample, e.message) for e in (*alone_ev, *ph_ev)]
     assert sorted((e.source, e.sample, e.message) for e in ev) == sorted(key)
     assert any(e.source == "c" for e in ev) and any(e.source == "b" for e in ev)
+
+
+def test_a_cut_lighter_than_the_noise_band_is_reported_blind() -> None:
+    """Decision 1553: after 0.3 s in air, 1.7 s of a cut whose expected tooth-period torque
+    (0.3 N·m) lies inside the noise band (σ 1 N·m per sample, 50 samples a period: σ 0.14 N·m
+    of the tooth average, band 4σ ≈ 0.57 N·m), then 3 N·m: one ``breakage_blind`` note after
+    10 revolutions of the light cut, one ``breakage_seen`` 10 revolutions (0.1 s) after the
+    step, no alarm."""
+    n = int(3.0 * FS)
+    rng = np.random.default_rng(5)
+    i = np.arange(n)
+    level = np.where(i < 0.3 * FS, 0.0, np.where(i < 2.0 * FS, 0.3, 3.0))
+    d = {
+        "spindle/torque_est": level + rng.standard_normal(n),
+        "spindle/speed": np.full(n, RPM * 2 * math.pi / 60),
+        "plan/torque": level,
+    }
+    block = PhasedBreakage(N, method="virtual", expected_channel="plan/torque", name="b",
+                           min_expected_nm=0.1)  # judged from 10 % of the largest, as a session
+    events, ch = run_block(block, d, 100)
+    band = ch["b/band"]
+    assert np.nanmedian(band[: int(2.0 * FS)]) == pytest.approx(4 / math.sqrt(50), rel=0.15)
+    names = [(e.name, e.time_s) for e in events]
+    assert [k for k, _ in names] == ["breakage_blind", "breakage_seen"]
+    assert 0.3 + 9.5 * REV_S <= names[0][1] <= 0.3 + 11 * REV_S  # 20 judged periods
+    assert 2.0 + 9.5 * REV_S <= names[1][1] <= 2.0 + 11 * REV_S
+    assert all(e.severity == "warning" for e in events if e.name == "breakage_blind")

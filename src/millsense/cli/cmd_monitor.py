@@ -424,6 +424,11 @@ def _run(
             lines.append(f"  {b.name}: {len(alarms)} {kinds} alarm(s): {f}{more}")
         else:
             lines.append(f"  {b.name}: no alarm")
+        blind = [e for e in res.events if e.source == b.name and e.name == "breakage_blind"]
+        if blind:
+            at = ", ".join(f"{e.time_s:.2f} s" for e in blind[:5])
+            lines.append(f"  {b.name}: blind (noise band ≥ the expected torque) from {at}"
+                         f"{f' (+{len(blind) - 5} more)' if len(blind) > 5 else ''}")  # fmt: skip
     lines += skipped
     if plot is not None:
         data = {k: np.concatenate(v) for k, v in keep.items()}

@@ -662,7 +662,8 @@ def _summary_lines(res: Any, out: Path | None, events_path: Path) -> list[str]:
     ]
     for e in res.events:
         if e.kind in (EventKind.ALARM, EventKind.CRASH) or e.name in (
-            "feed_hold", "spindle_override", "ktc_calibrated", "chatter_end"
+            "feed_hold", "spindle_override", "ktc_calibrated", "chatter_end", "breakage_blind",
+            "breakage_seen",
         ):  # fmt: skip
             where = f" line {e.nc_line}" if e.nc_line is not None else ""
             lines.append(f"  {e.time_s:8.3f} s {e.severity:8s} {e.name}{where}: {e.message}")

@@ -32,8 +32,13 @@ from typing import Any
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
-from millsense.streaming.block import Block, BlockOutput, Chunk
+from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
+#: Decision 1553: a stretch of judged tooth periods this many revolutions long in which the
+#: noise band is at least the expected torque (a broken flute could not leave it) is reported
+#: as blind; it ends after as many revolutions with the band below CLEAR_FRACTION of it.
+BLIND_REVOLUTIONS = 10
+CLEAR_FRACTION = 0.8
 #: Decision 1552: phases of the tooth period judged (worst phase ≤ 1/6 of a period from the
 #: best one).
 PHASES = 3
@@ -117,6 +122,11 @@ class PhasedBreakage(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self._group.reset(sample_rate_hz)
         self._last_period = -(10**18)
+        self._blind = False
+        self._blind_run = 0
+        self._seen_run = 0
+        self._need = BLIND_REVOLUTIONS * self.n_flutes
+        self._unit = self.members[0].unit
 
     def rearm(self) -> None:
         """Every phase forgets its running violation (:meth:`BreakageBlock.rearm`)."""
@@ -126,12 +136,16 @@ class PhasedBreakage(Block):
 
     def process(self, chunk: Chunk) -> BlockOutput:
         out = self._group.process(chunk)
+        k = int(self._group._counts[0])  # phase 0's tooth periods ending in the chunk
+        if k:
+            self._watch_blind(chunk, k, out)
         if not out.events:
             return out
         kept = BlockOutput(out.channels)
         if out.events:
             for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
-                if e.source not in self._phase_sources:  # a companion's
+                if e.source not in self._phase_sources or e.name != "breakage":
+                    # a companion's, or this block's blind/seen note
                     kept.events.append(e)
                     continue
                 period = int(e.values["tooth_period"])
@@ -143,3 +157,56 @@ class PhasedBreakage(Block):
                 values = {**e.values, "phase": float(phase) / self.phases}
                 kept.events.append(replace(e, source=self.name, values=values))
         return kept
+
+    def _watch_blind(self, chunk: Chunk, k: int, out: BlockOutput) -> None:
+        """Where the noise band of phase 0's judged tooth periods reaches their expected torque
+        (even the loss of a whole period's torque stays in the band), a WARNING
+        ``breakage_blind`` after :data:`BLIND_REVOLUTIONS` revolutions of it, and a NOTE
+        ``breakage_seen`` once the band has stayed below :data:`CLEAR_FRACTION` of the expected
+        torque as long (decision 1553). Periods not judged (air, off speed) count for neither."""
+        m0 = self.members[0]
+        band = m0._pp[8, :k].tolist()
+        expected = m0._pp[2, :k].tolist()
+        for i in range(k):
+            b, ex = band[i], expected[i]
+            if not (b == b) or not ex > 0.0:  # not judged
+                continue
+            if b >= ex:
+                self._blind_run += 1
+                self._seen_run = 0
+            elif b < CLEAR_FRACTION * ex:
+                self._seen_run += 1
+                self._blind_run = 0
+            else:
+                self._blind_run = self._seen_run = 0
+            if not self._blind and self._blind_run >= self._need:
+                self._blind = True
+                out.events.append(self._blind_event(chunk, int(m0._pi[0, i]), b, ex, True))
+            elif self._blind and self._seen_run >= self._need:
+                self._blind = False
+                out.events.append(self._blind_event(chunk, int(m0._pi[0, i]), b, ex, False))
+
+    def _blind_event(self, chunk: Chunk, at: int, band: float, expected: float,
+                     blind: bool) -> Event:  # fmt: skip
+        sample = chunk.start + at
+        u = self._unit
+        if blind:
+            message = (f"breakage cannot be seen here: the expected tooth-period average "
+                       f"{expected:.3g} {u} lies inside the noise band ±{band:.3g} {u} "
+                       f"({self.members[0].noise_k:g}σ of the tooth average); a broken flute "
+                       "would not leave it")  # fmt: skip
+        else:
+            message = (f"breakage can be seen again: the noise band ±{band:.3g} {u} is below "
+                       f"the expected tooth-period average {expected:.3g} {u}")  # fmt: skip
+        return Event(
+            time_s=chunk.t0_s + sample / chunk.sample_rate_hz,
+            kind=EventKind.NOTE,
+            source=self.name,
+            message=message,
+            name="breakage_blind" if blind else "breakage_seen",
+            value=float(band / expected),
+            sample=sample,
+            severity=Severity.WARNING if blind else Severity.INFO,
+            values={f"band_{self.members[0]._suffix}": float(band),
+                    f"expected_{self.members[0]._suffix}": float(expected)},
+        )  # fmt: skip
