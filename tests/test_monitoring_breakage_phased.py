@@ -22,6 +22,7 @@ from millsense.monitoring.breakage import BreakageBlock
 from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.process.engagement import Engagement
 from millsense.simulator.process_coupling import EngagementSchedule, EngagementSegment, ToothBreak
+from millsense.streaming.block import Chunk
 from millsense.validation.cases._torque_sim import FS, simulate_torque
 from millsense.validation.cases.monitoring_breakage import run_block
 
@@ -167,3 +168,27 @@ def test_a_cut_lighter_than_the_noise_band_is_reported_blind() -> None:
     assert 0.3 + 9.5 * REV_S <= names[0][1] <= 0.3 + 11 * REV_S  # 20 judged periods
     assert 2.0 + 9.5 * REV_S <= names[1][1] <= 2.0 + 11 * REV_S
     assert all(e.severity == "warning" for e in events if e.name == "breakage_blind")
+
+
+def test_no_blind_note_after_a_breakage_alarm() -> None:
+    """Decision 1553: a heavy cut, the torque lost for 5 revolutions (an alarm), then a light
+    one inside the band: the tool is broken, the cut no longer the plan's, nothing is said
+    about blindness; re-armed, the same light cut is reported blind again."""
+    n = int(2.0 * FS)
+    rng = np.random.default_rng(6)
+    i = np.arange(n)
+    level = np.where(i < 0.3 * FS, 0.0, np.where(i < 1.05 * FS, 3.0, 0.3))
+    torque = np.where((i >= 1.0 * FS) & (i < 1.05 * FS), 0.0, level) + rng.standard_normal(n)
+    d = {
+        "spindle/torque_est": torque,
+        "spindle/speed": np.full(n, RPM * 2 * math.pi / 60),
+        "plan/torque": level,
+    }
+    block = PhasedBreakage(N, method="virtual", expected_channel="plan/torque", name="b",
+                           min_expected_nm=0.1)  # fmt: skip
+    events, _ = run_block(block, d, 100)
+    names = [e.name for e in events]
+    assert names == ["breakage"] and 1.0 < events[0].time_s < 1.05
+    block.rearm()  # the arbiter's call: judge afresh
+    more = block.process(Chunk(n, FS, 0.0, {k: v[int(1.2 * FS) :] for k, v in d.items()}))
+    assert [e.name for e in more.events] == ["breakage_blind"]

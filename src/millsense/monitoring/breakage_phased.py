@@ -122,6 +122,7 @@ class PhasedBreakage(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self._group.reset(sample_rate_hz)
         self._last_period = -(10**18)
+        self._alarmed = False
         self._blind = False
         self._blind_run = 0
         self._seen_run = 0
@@ -133,11 +134,12 @@ class PhasedBreakage(Block):
         for m in self.members:
             m.rearm()
         self._last_period = -(10**18)
+        self._alarmed = False
 
     def process(self, chunk: Chunk) -> BlockOutput:
         out = self._group.process(chunk)
         k = int(self._group._counts[0])  # phase 0's tooth periods ending in the chunk
-        if k:
+        if k and not self._alarmed:  # after a breakage alarm the cut is not the plan's
             self._watch_blind(chunk, k, out)
         if not out.events:
             return out
@@ -156,6 +158,7 @@ class PhasedBreakage(Block):
                 phase = self._phase_of[e.source]
                 values = {**e.values, "phase": float(phase) / self.phases}
                 kept.events.append(replace(e, source=self.name, values=values))
+                self._alarmed = True
         return kept
 
     def _watch_blind(self, chunk: Chunk, k: int, out: BlockOutput) -> None:
@@ -163,7 +166,9 @@ class PhasedBreakage(Block):
         (even the loss of a whole period's torque stays in the band), a WARNING
         ``breakage_blind`` after :data:`BLIND_REVOLUTIONS` revolutions of it, and a NOTE
         ``breakage_seen`` once the band has stayed below :data:`CLEAR_FRACTION` of the expected
-        torque as long (decision 1553). Periods not judged (air, off speed) count for neither."""
+        torque as long (decision 1553). Periods not judged (air, off speed) count for neither;
+        after a breakage alarm (until :meth:`rearm`) the cut is not the plan's and nothing is
+        said."""
         m0 = self.members[0]
         band = m0._pp[8, :k].tolist()
         expected = m0._pp[2, :k].tolist()
