@@ -296,3 +296,37 @@ def test_run_bad_input_one_line_exit_2(
     assert re.search(message, err), err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o.h5").exists()
+
+
+def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An imported trace with only the X and Y positions (a CNC trace of the moving axes):
+    ``replay`` names the missing position channels the plan sync's tool-centre point needs and
+    writes nothing (it had failed inside the kinematics with an array shape)."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
+
+    n = 2000
+    rec = Recording(FS, 0.0, {"machine": "quaser-ux600"})
+    for c in ("x/position_cmd", "y/position_cmd", "spindle/current_cmd"):
+        rec.add_channel(c, np.linspace(0.0, 0.01, n), "m" if "position" in c else "A")
+    rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
+    write_recording(tmp_path / "trace.h5", rec)
+    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
+    for c in ("tool", "source_line", "n_intervals", "nc_line"):
+        cols[c] = np.zeros(10, dtype=np.int64)
+    cols["rapid"] = np.zeros(10, dtype=bool)
+    cols["in_cut"] = np.zeros(10, dtype=bool)
+    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
+    code, _, err = run_cli(
+        ["replay", str(tmp_path / "trace.h5"), "--plan", str(tmp_path / "plan.parquet"),
+         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
+         "-o", str(tmp_path / "out.h5")],
+        capsys,
+    )  # fmt: skip
+    assert code == 2
+    assert "no z/position_cmd, a/position_cmd, c/position_cmd" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()

@@ -328,6 +328,8 @@ def run_session(
         src = StopAfterHold(src, stop_after_hold_s)
     pipe = Pipeline(blocks)
     infos = src.channel_info
+    # a channel no block and no source provides: one line naming it, before anything is written
+    pipe.check_inputs([c.name for c in infos], str(getattr(source, "name", "the source")))
     kept = [c for c in infos if keep is None or c.name in keep or c.name == FAULT_CHANNEL]
     writer = None
     if out is not None:
