@@ -192,7 +192,9 @@ def _breakage_factory(method: str) -> Factory:
                 raise InputDataError(
                     f"{ctx.source}: monitor '{name}' needs the calibrated plan's expected "
                     f"torque per sample ('{SESSION_EXPECTED}' of a `millsense run` recording, "
-                    "or option breakage.expected_channel); use breakage-constant or "
+                    "or option breakage.expected_channel; `millsense replay RUN.h5 --plan "
+                    "PLAN.parquet` calibrates the plan on a recording and runs it); use "
+                    "breakage-constant or "
                     "breakage-dual without it"
                 )
             ctx.require([expected], name)
