@@ -128,9 +128,10 @@ def test_monitor_bad_input_one_line_exit_2(
     assert not (tmp_path / "ev.parquet").exists()
 
 
-def _engagement_recording(path: Path) -> Path:
+def _engagement_recording(path: Path, fz_mm: float = 0.2, path_feed: bool = False) -> Path:
     """2 s of the spindle torque of a Ø20 mm 2-flute 30° cut (the preset aslan-d20-2flute):
-    down milling, 5 mm radial, 2 mm axial, 0.2 mm/tooth, 1000 rev/min, σ 0.05 N·m noise."""
+    down milling, 5 mm radial, 2 mm axial, ``fz_mm`` per tooth, 1000 rev/min, σ 0.05 N·m noise;
+    with ``path_feed`` the CNC's path feed ``cnc/feed`` (m/s) too."""
     import math
 
     from millsense.process.coefficients import CuttingCoefficients
@@ -144,14 +145,38 @@ def _engagement_recording(path: Path) -> Path:
     co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
     phi = 2 * math.pi * np.arange(600) / 600
     eng = Engagement.radial(5e-3, 20e-3, "down")
-    rev = milling_forces(tool, co, eng, 0.2e-3, 2e-3, phi).torque_nm
+    rev = milling_forces(tool, co, eng, fz_mm * 1e-3, 2e-3, phi).torque_nm
     tq = np.interp(np.mod(omega * np.arange(n) / FS, 2 * math.pi), phi, rev, period=2 * math.pi)
     rec = Recording(FS, 0.0, {"program": "part.nc"})
     rec.add_channel("spindle/torque_est", tq + 0.05 * np.random.default_rng(1).standard_normal(n),
                     "N*m")  # fmt: skip
     rec.add_channel("spindle/speed", np.full(n, omega), "rad/s")
+    if path_feed:
+        rec.add_channel("cnc/feed", np.full(n, fz_mm * 1e-3 * 2 * omega / (2 * math.pi)), "m/s")
     write_recording(path, rec)
     return path
+
+
+def test_monitor_engagement_takes_the_feed_the_machine_ran(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The cut ran at 80 % override (0.16 mm/tooth) and the recording holds the CNC's path feed:
+    without --feed-per-tooth-mm the monitor takes it, and K_t is the material's 758 N/mm²
+    (within 3 %, as at the programmed feed above); the programmed 0.2 mm/tooth given instead
+    reads the chip 25 % too thick and K_t 20 % low."""
+    rec = _engagement_recording(tmp_path / "eng.h5", fz_mm=0.16, path_feed=True)
+    kt = {}
+    for key, extra in (("path", []), ("programmed", ["--feed-per-tooth-mm", "0.2"])):
+        code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
+                                     "aslan-d20-2flute", *extra, "-o",
+                                     str(tmp_path / f"{key}.parquet")], capsys)  # fmt: skip
+        assert code == 0, err
+        line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+        words = line.replace(",", "").split()
+        assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, abs=0.05)
+        kt[key] = float(words[words.index("K_t") + 1])
+    assert kt["path"] == pytest.approx(758.0, rel=0.03)
+    assert kt["programmed"] == pytest.approx(0.8 * 758.0, rel=0.03)
 
 
 def test_monitor_engagement_from_the_tool_preset(
@@ -366,3 +391,30 @@ def test_monitor_engagement_not_determined_on_noise(
     assert code == 0, err
     line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
     assert "engagement not determined" in line and "median axial depth" not in line
+
+
+def test_monitor_plot_draws_each_monitor_that_ran(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 15 item 6: the figure carries the spectrogram and the chatter ratios, each breakage
+    detector's residuals against its thresholds and the engagement's depth tracks: one panel
+    per monitor that ran (the engagement recording: a torque, a speed, no chatter)."""
+    from millsense.report.monitor_plots import monitor_panels
+
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    png = tmp_path / "m.png"
+    code, _, err = run_cli(["monitor", str(rec), "--methods",
+                            "chatter-comb,breakage-dual,breakage-constant,engagement", "--tool",
+                            "aslan-d20-2flute", "--feed-per-tooth-mm", "0.2", "-o",
+                            str(tmp_path / "ev.parquet"), "--plot", str(png)], capsys)  # fmt: skip
+    assert code == 0, err
+    assert png.stat().st_size > 30_000
+    data = {"signal": np.zeros(10)}
+    for m, keys in (("chatter-comb", ("energy_ratio",)), ("breakage-dual", ("residual1",)),
+                    ("breakage-constant", ("residual1",)), ("engagement", ("axial_depth",))):
+        data.update({f"{m}/{k}": np.zeros(10) for k in keys})  # fmt: skip
+    names = ["chatter-comb", "breakage-dual", "breakage-constant", "engagement", "contact"]
+    assert monitor_panels(data, names) == [
+        ("spectrogram", None), ("ratio", ["chatter-comb"]), ("breakage", "breakage-dual"),
+        ("breakage", "breakage-constant"), ("engagement", "engagement"),
+    ]  # fmt: skip

@@ -381,7 +381,11 @@ def _run(
     source = RecordingSource(rec, name=where, channels=needed)
     sig_name = getattr(blocks[0], "settings", None)
     sig_name = getattr(sig_name, "signal", None)
+    from millsense.report.monitor_plots import plotted
+
     keep: dict[str, list[np.ndarray]] = {}
+    # the monitors' held outputs are kept every `step` samples (≈ 2 kHz) for the figure
+    step = max(1, int(fs // 2000))
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
         if plot is None:
@@ -390,9 +394,10 @@ def _run(
             src = outputs.get(sig_name, ch.data.get(sig_name))
             if src is not None:
                 keep.setdefault("signal", []).append(np.asarray(src))
+        first = (-ch.start) % step
         for k, v in outputs.items():
-            if k.endswith("/chatter") or k.endswith("/chatter_hz") or k.endswith("/energy_ratio"):
-                keep.setdefault(k, []).append(np.asarray(v))
+            if plotted(k):
+                keep.setdefault(k, []).append(np.asarray(v)[first::step])
 
     t0 = time.perf_counter()
     res = run(source, pipeline, chunk, sink=sink, collect=False)
@@ -431,21 +436,20 @@ def _run(
                          f"{f' (+{len(blind) - 5} more)' if len(blind) > 5 else ''}")  # fmt: skip
     lines += skipped
     if plot is not None:
+        from millsense.report.monitor_plots import plot_monitor
+
         data = {k: np.concatenate(v) for k, v in keep.items()}
-        _plot(plot, data, fs, res.t0_s, str(sig_name), [b.name for b in blocks], res.events)
+        plot_monitor(plot, data, fs, step, res.t0_s, str(sig_name), [b.name for b in blocks],
+                     res.events)  # fmt: skip
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
-
-
-#: Reliability index σ (Lee Eq. 2.23) from which a revolution's estimate enters the summary:
-#: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
-#: 1807).
-RELIABLE_SIGMA = 0.8
 
 
 def _reliable(e: Any) -> bool:
     """A revolution's estimate is reported: σ ≥ RELIABLE_SIGMA and physical coefficients
     (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807)."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA
+
     return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0)
 
 
@@ -454,6 +458,8 @@ def _engagement_summary(block: Any) -> str:
     reliable ones (:func:`_reliable`), or, where fewer than half are reliable, that the
     engagement is not determined (a few revolutions of noise can pass the test by chance;
     decision 1807)."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA
+
     every = [e for _, e in getattr(block, "estimates", []) if e is not None]
     if not every:
         return f"  {block.name}: no revolution evaluated (no cut, or the torque is too low)"
@@ -554,56 +560,3 @@ def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:
     return n
 
 
-def _plot(
-    path: Path,
-    data: dict[str, np.ndarray],
-    fs: float,
-    t0: float,
-    signal: str,
-    monitors: list[str],
-    events: list[Any],
-) -> None:
-    """Spectrogram of the monitored signal with the chatter marked; ratios below."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from scipy.signal import spectrogram
-
-    from millsense.io.safe_output import atomic_path
-
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True,
-                                   gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
-    x = data.get("signal")
-    if x is not None and len(x) >= 512:
-        f, t, s = spectrogram(x - np.mean(x), fs=fs, nperseg=1024, noverlap=768)
-        ax1.pcolormesh(t + t0, f, 10 * np.log10(s + 1e-30), shading="auto", cmap="viridis")
-    ax1.set_ylabel("frequency [Hz]")
-    ax1.set_title(f"{signal}: spectrogram, chatter detections marked")
-    for name in monitors:
-        hz = data.get(f"{name}/chatter_hz")
-        if hz is not None:
-            tt = t0 + np.arange(len(hz)) / fs
-            sel = np.isfinite(hz)
-            step = max(1, int(fs * 0.05))
-            ax1.plot(tt[sel][::step], hz[sel][::step], ".", ms=4, label=f"{name} chatter")
-        r = data.get(f"{name}/energy_ratio")
-        if r is not None:
-            tt = t0 + np.arange(len(r)) / fs
-            ax2.plot(tt, r, label=name)
-    for e in events:
-        if e.name == "chatter":
-            ax1.axvline(e.time_s, color="r", lw=0.8)
-            th = e.values.get("threshold")
-            if th is not None:
-                ax2.axhline(th, color="r", lw=0.5, ls="--")
-    if any(data.get(f"{n}/chatter_hz") is not None for n in monitors):
-        ax1.legend(loc="upper right", fontsize=8)
-    ax2.set_ylabel("ratio")
-    ax2.set_xlabel("time [s]")
-    ax2.set_yscale("symlog", linthresh=0.1)
-    ax2.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)

@@ -49,6 +49,11 @@ _FIELDS = (
 )
 
 
+#: Reliability index σ (Lee Eq. 2.23) from which a revolution's estimate enters the summary:
+#: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
+#: 1807).
+RELIABLE_SIGMA = 0.8
+
 #: The outputs of a revolution not evaluated (read only: shared by every such revolution).
 _NOT_EVALUATED = np.full(len(_FIELDS), math.nan)
 _NOT_EVALUATED.flags.writeable = False

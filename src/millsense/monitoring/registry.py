@@ -220,6 +220,11 @@ for _b in ("virtual", "constant", "dual"):
 ENGAGEMENT_SIGNALS = BREAKAGE_SIGNALS
 
 
+#: The CNC's interpolated path feed (m/s): the engagement monitor's feed per tooth where it is
+#: recorded and no --feed-per-tooth-mm is given (overrides included).
+PATH_FEED = "cnc/feed"
+
+
 def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
     """Median programmed feed per tooth of the plan's cutting steps, mm (None: none)."""
     try:
@@ -236,7 +241,8 @@ def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
 
 def _engagement(ctx: MonitorContext) -> Block:
     """Seed 004 ch. 2 (Lee Fig. 2.9) from the registry: tool from ``--tool`` or the plan, feed
-    per tooth from ``--feed-per-tooth-mm`` or the plan."""
+    per tooth from ``--feed-per-tooth-mm``, else the recorded path feed (``cnc/feed``: the feed
+    the machine ran, overrides included), else the plan's programmed feed."""
     from millsense.monitoring.engagement import EngagementBlock
 
     name = "engagement"
@@ -261,12 +267,15 @@ def _engagement(ctx: MonitorContext) -> Block:
             "--tool (preset or .toml) or a --plan built with the tool"
         )
     fz = ctx.options.get("engagement.feed_per_tooth_mm")
-    if fz is None and ctx.plan is not None:
+    # the feed the CNC ran (overrides and the adaptive feed included) before the programmed one
+    feed = PATH_FEED if fz is None and PATH_FEED in ctx.channels else None
+    if fz is None and feed is None and ctx.plan is not None:
         fz = _plan_feed_per_tooth_mm(ctx.plan, int(tool.flutes))
-    if fz is None:
+    if fz is None and feed is None:
         raise InputDataError(
             f"{ctx.source}: monitor '{name}' needs the feed per tooth: give --feed-per-tooth-mm "
-            "(mm) or a --plan with the programmed feed"
+            f"(mm), a --plan with the programmed feed, or record the path feed ({PATH_FEED}, "
+            "m/s)"
         )
     return EngagementBlock(
         int(tool.flutes),
@@ -274,7 +283,8 @@ def _engagement(ctx: MonitorContext) -> Block:
         float(tool.helix_deg),
         torque_channel=signal,
         speed_channel=ctx.speed_channel,
-        feed_per_tooth_mm=float(fz),
+        feed_channel=feed,
+        feed_per_tooth_mm=None if fz is None else float(fz),
         air_torque_nm=ctx.options.get("engagement.air_torque_nm"),
         name=name,
     )

@@ -1,0 +1,178 @@
+"""The figure of ``millsense monitor --plot`` (issue 15 item 6): the monitored signal's
+spectrogram with the detected chatter, the chatter criteria's ratios, each breakage detector's
+residuals against their thresholds, and the engagement monitor's depth-of-cut tracks; the
+panels of the monitors that ran."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from millsense.monitoring.breakage import SIGMA_TB  # limits are σ_TB × the reference torque
+from millsense.monitoring.engagement import RELIABLE_SIGMA  # faded below (decision 1807)
+
+#: Outputs of the monitors the figure draws (suffixes of ``{monitor}/...``).
+CHATTER_KEYS = ("chatter_hz", "energy_ratio")
+BREAKAGE_KEYS = ("tooth_avg", "residual1", "limit1", "residual2", "limit2", "band")
+ENGAGEMENT_KEYS = ("axial_depth", "radial_depth", "reliability", "kt")
+
+
+def plotted(key: str) -> bool:
+    """Whether a monitor output channel is drawn (kept by the command's sink)."""
+    tail = key.rsplit("/", 1)[-1]
+    return tail in CHATTER_KEYS or tail in BREAKAGE_KEYS or tail in ENGAGEMENT_KEYS
+
+
+def monitor_panels(data: dict[str, np.ndarray], monitors: Sequence[str]) -> list[tuple[str, Any]]:
+    """The figure's panels, top down: ``("spectrogram", None)`` where chatter monitors ran (or
+    nothing else did), ``("ratio", [chatter monitors])``, ``("breakage", name)`` per breakage
+    detector, ``("engagement", name)``."""
+    chatter = [m for m in monitors if f"{m}/energy_ratio" in data]
+    breakage = [m for m in monitors if f"{m}/residual1" in data]
+    engagement = [m for m in monitors if f"{m}/axial_depth" in data]
+    panels: list[tuple[str, Any]] = []
+    if data.get("signal") is not None and (chatter or not (breakage or engagement)):
+        panels.append(("spectrogram", None))
+    if chatter:
+        panels.append(("ratio", chatter))
+    panels += [("breakage", m) for m in breakage]
+    panels += [("engagement", m) for m in engagement]
+    return panels or [("spectrogram", None)]
+
+
+def plot_monitor(
+    path: Path,
+    data: dict[str, np.ndarray],
+    fs: float,
+    step: int,
+    t0: float,
+    signal: str,
+    monitors: Sequence[str],
+    events: Sequence[Any],
+) -> None:
+    """Write the PNG. ``data['signal']`` at ``fs``; the monitors' outputs ``data[name/key]``
+    every ``step`` samples (from the stream's first sample)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from millsense.io.safe_output import atomic_path
+
+    panels = monitor_panels(data, monitors)
+    heights = [3 if kind == "spectrogram" else 1.3 for kind, _ in panels]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.2 + 1.6 * sum(heights) / 1.3),
+                             sharex=True, squeeze=False,
+                             gridspec_kw={"height_ratios": heights})  # fmt: skip
+    for ax, (kind, what) in zip(axes[:, 0], panels, strict=True):
+        if kind == "spectrogram":
+            _spectrogram(ax, data, fs, t0, signal, monitors, step, events)
+        elif kind == "ratio":
+            _ratios(ax, data, step, fs, t0, what, events)
+        elif kind == "breakage":
+            _breakage(ax, data, step, fs, t0, what, events)
+        else:
+            _engagement(ax, data, step, fs, t0, what)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+
+
+def _time(x: np.ndarray, step: int, fs: float, t0: float) -> np.ndarray:
+    return t0 + step * np.arange(len(x)) / fs
+
+
+def _spectrogram(ax: Any, data: dict[str, np.ndarray], fs: float, t0: float, signal: str,
+                 monitors: Sequence[str], step: int, events: Sequence[Any]) -> None:  # fmt: skip
+    from scipy.signal import spectrogram
+
+    x = data.get("signal")
+    if x is not None and len(x) >= 512:
+        f, t, s = spectrogram(x - np.mean(x), fs=fs, nperseg=1024, noverlap=768)
+        ax.pcolormesh(t + t0, f, 10 * np.log10(s + 1e-30), shading="auto", cmap="viridis")
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title(f"{signal}: spectrogram, chatter detections marked")
+    drawn = False
+    for name in monitors:
+        hz = data.get(f"{name}/chatter_hz")
+        if hz is None:
+            continue
+        sel = np.isfinite(hz)
+        every = max(1, int(fs * 0.05 / step))
+        ax.plot(_time(hz, step, fs, t0)[sel][::every], hz[sel][::every], ".", ms=4,
+                label=f"{name} chatter")  # fmt: skip
+        drawn = True
+    for e in events:
+        if e.name == "chatter":
+            ax.axvline(e.time_s, color="r", lw=0.8)
+    if drawn:
+        ax.legend(loc="upper right", fontsize=8)
+
+
+def _ratios(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: float,
+            names: Sequence[str], events: Sequence[Any]) -> None:  # fmt: skip
+    for name in names:
+        r = data[f"{name}/energy_ratio"]
+        ax.plot(_time(r, step, fs, t0), r, label=name)
+    for e in events:
+        if e.name == "chatter":
+            th = e.values.get("threshold")
+            if th is not None:
+                ax.axhline(th, color="r", lw=0.5, ls="--")
+    ax.set_ylabel("chatter ratio")
+    ax.set_yscale("symlog", linthresh=0.1)
+    ax.legend(loc="upper left", fontsize=8)
+
+
+def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: float,
+              name: str, events: Sequence[Any]) -> None:  # fmt: skip
+    """Residual 1 against ±limit 1; for the virtual and constant thresholds the tooth average's
+    deviation from its reference against ±band (what confirms), else residual 2 against
+    ±limit 2 (seed 002's dual residual)."""
+    g = {k: data[f"{name}/{k}"] for k in BREAKAGE_KEYS if f"{name}/{k}" in data}
+    t = _time(g["residual1"], step, fs, t0)
+    ax.plot(t, g["residual1"], lw=0.7, color="tab:blue", label="residual 1")
+    ax.plot(t, g["limit1"], lw=0.7, ls="--", color="tab:blue", label="±limit 1")
+    ax.plot(t, -g["limit1"], lw=0.7, ls="--", color="tab:blue")
+    band = g.get("band")
+    if band is not None and np.isfinite(band).any():
+        dev = g["tooth_avg"] - g["limit1"] / SIGMA_TB
+        ax.plot(t, dev, lw=0.7, color="tab:orange", label="tooth average − reference")
+        ax.plot(t, band, lw=0.7, ls=":", color="tab:orange", label="±band")
+        ax.plot(t, -band, lw=0.7, ls=":", color="tab:orange")
+    else:
+        ax.plot(t, g["residual2"], lw=0.7, color="tab:orange", label="residual 2")
+        ax.plot(t, g["limit2"], lw=0.7, ls="--", color="tab:orange", label="±limit 2")
+        ax.plot(t, -g["limit2"], lw=0.7, ls="--", color="tab:orange")
+    for e in events:
+        if e.source == name and e.name == "breakage":
+            ax.axvline(e.time_s, color="r", lw=0.9)
+        elif e.source == name and e.name == "breakage_blind":
+            ax.axvline(e.time_s, color="0.5", lw=0.7, ls="-.")
+    ax.set_ylabel(f"{name}\n[N·m or N]", fontsize=8)
+    ax.legend(loc="upper left", fontsize=7, ncol=3)
+
+
+def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: float,
+                name: str) -> None:  # fmt: skip
+    axial = 1e3 * data[f"{name}/axial_depth"]
+    radial = 1e3 * data.get(f"{name}/radial_depth", np.full(len(axial), np.nan))
+    rel = data.get(f"{name}/reliability", np.ones(len(axial)))
+    kt = data.get(f"{name}/kt", np.ones(len(axial)))
+    t = _time(axial, step, fs, t0)
+    good = (rel >= RELIABLE_SIGMA) & (kt > 0)  # as the command's summary (decision 1807)
+    for y, label, color in ((axial, "axial depth", "tab:green"),
+                            (radial, "radial depth", "tab:purple")):  # fmt: skip
+        ax.plot(t, np.where(good, y, np.nan), lw=1.0, color=color, label=label)
+        ax.plot(t[~good], y[~good], ".", ms=1, color=color, alpha=0.25)
+    top = np.nanmax(np.concatenate([axial[good], radial[good], [1.0]]))
+    ax.set_ylim(0.0, 1.3 * top)
+    ax.set_ylabel("depth of cut [mm]", fontsize=8)
+    ax.legend(loc="upper left", fontsize=7,
+              title=f"dots: reliability < {RELIABLE_SIGMA:g} or K_t ≤ 0",
+              title_fontsize=7)  # fmt: skip
