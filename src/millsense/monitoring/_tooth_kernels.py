@@ -240,7 +240,8 @@ def detect_periods(
     deviation of a tooth-period average, is estimated from the median |Δ_N x| of the last
     NOISE_WINDOW periods (air, cut and transients alike; the median ignores the revolution a
     breakage or a step makes); k_noise = 0 gives the seed's band alone. The residual's limit
-    stays σ_TB·τ_ref (the seed's trigger).
+    stays σ_TB·τ_ref (the seed's trigger). With k_noise > 0 no period is judged before the
+    window holds NOISE_MIN periods (decision 1553).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band (columns :k); ``pb``
@@ -338,6 +339,10 @@ def detect_periods(
             else:
                 ex = reference if reference > 0 else state[DET_REF]
                 judge = (reference > 0 or ready) and ex >= min_expected and seen >= 2
+            if k_noise > 0.0 and state[DET_NOISE_N] < NOISE_MIN:
+                # no band before the noise is known (decision 1553): a trace that starts in
+                # the cut would be judged on the seed's 40 % alone, which noise can confirm
+                judge = False
             limit = sigma_tb * ex
             lim1[m] = limit if judge else math.nan
             lim2[m] = limit if judge else math.nan
