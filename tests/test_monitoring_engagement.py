@@ -378,3 +378,43 @@ def test_block_learns_the_air_torque_out_of_the_cut():
     assert {e.edge_source for e in other_speed} == {sk.EDGE_UNOBSERVED}
     with pytest.raises(ConfigError, match="air_torque_nm"):
         EngagementBlock(4, 6.0, 35.0, feed_per_tooth_mm=0.025, air_torque_nm=math.nan)
+
+
+def test_equaliser_removes_a_known_channel_response() -> None:
+    """Decision 1554: the torque seen through a channel that delays it by 0.4 ms (the spindle
+    observer's delay at the tooth harmonics) biases d_a by +19 % and K_t by −19 % at 2 mm; with
+    that channel's response given, the estimates are those of the undelayed torque to 1e-5 (the
+    response table is interpolated linearly on a 2 Hz grid)."""
+    import math
+
+    from millsense.monitoring.engagement import EngagementBlock, TorqueResponse
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+    from millsense.validation.cases.monitoring_breakage import run_block
+
+    fs, n, delay = 1e4, 30000, 4
+    omega = 1000 * 2 * math.pi / 60
+    tool = EndMill(20e-3, 2, helix_rad=math.radians(30))
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
+    phi = 2 * math.pi * np.arange(600) / 600
+    eng = Engagement.radial(5e-3, 20e-3, "down")
+    rev = milling_forces(tool, co, eng, 0.2e-3, 2e-3, phi).torque_nm
+    tq = np.interp(np.mod(omega * np.arange(n) / fs, 2 * math.pi), phi, rev, period=2 * math.pi)
+    d = {"u": tq, "t": np.concatenate([np.full(delay, tq[0]), tq[:-delay]]),
+         "s": np.full(n, omega)}  # fmt: skip
+    resp = TorqueResponse.from_function(lambda f, r: np.exp(-2j * np.pi * f * delay / fs), 2000.0)
+
+    def medians(signal: str, response: TorqueResponse | None) -> np.ndarray:
+        b = EngagementBlock(2, 20.0, 30.0, torque_channel=signal, speed_channel="s",
+                            feed_per_tooth_mm=0.2, response=response)  # fmt: skip
+        run_block(b, d, 1000)
+        est = [e for t, e in b.estimates if e is not None and t > 0.5]
+        return np.median([[e.axial_depth_m, e.radial_depth_m, e.kt_n_m2] for e in est], axis=0)
+
+    flat, seen, equalised = medians("u", None), medians("t", None), medians("t", resp)
+    assert flat[0] == pytest.approx(2e-3, rel=0.01)  # the method on the torque itself
+    assert seen[0] / flat[0] == pytest.approx(1.19, abs=0.03)
+    assert seen[2] / flat[2] == pytest.approx(0.81, abs=0.03)
+    np.testing.assert_allclose(equalised, flat, rtol=1e-5)

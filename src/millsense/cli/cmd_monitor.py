@@ -22,8 +22,6 @@ from millsense.cli.main import app
 
 #: Spindle-speed channels, preferred first.
 SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
-#: Compensated spindle torque produced by the machine file's observer.
-OBSERVER_CHANNEL = "est/spindle/spindle/load"
 #: A session recording's "the plan's tool is in the cut".
 IN_CUT = "plan/in_cut"
 
@@ -298,6 +296,8 @@ def _run(
     if speed_channel is None and spindle_rpm is not None and not spindle_rpm > 0:
         raise InputDataError(f"--spindle-rpm: must be > 0, got {spindle_rpm}")
     n_flutes = _flutes(flutes, rec, vp)
+    from millsense.monitoring.registry import OBSERVER_ESTIMATE as OBSERVER_CHANNEL
+
     pre: list[Any] = []
     signal = channel
     if (
@@ -318,6 +318,13 @@ def _run(
         pre.append(spindle_observer_from_config(mcfg, machine, fs))
         channels[OBSERVER_CHANNEL] = "N*m"
         signal = OBSERVER_CHANNEL
+        observer_machine: tuple[Any, str] | None = (mcfg, machine)
+    else:
+        observer_machine = _session_machine(rec) if OBSERVER_CHANNEL in channels else None
+    if "engagement" in names and observer_machine is not None:
+        # the observer's estimate seen through its machine file's response (decision 1554)
+        options = {**(options or {}),
+                   "engagement.response": _observer_response(*observer_machine, fs)}  # fmt: skip
     from millsense.monitoring.registry import AT_SPEED, BREAKAGE_GATE
 
     if (
@@ -532,6 +539,33 @@ def _grouped(blocks: list[Any]) -> list[Any]:
         inside += breakage
     grouped = {id(b) for b in inside}
     return [*groups, *(b for b in blocks if id(b) not in grouped)]
+
+
+def _session_machine(rec: Any) -> tuple[Any, str] | None:
+    """The machine file a session recording's observer ran on (metadata ``machine_file``: a
+    path, or "commissioned NAME (...)" for the shipped one), or None."""
+    import re
+
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import commissioned_machine, load_preset
+
+    name = rec.metadata.get("machine_file")
+    if not isinstance(name, str) or not name:
+        return None
+    if Path(name).is_file():
+        return load_preset(MachineConfig, name), name
+    m = re.match(r"commissioned (\S+)", name)
+    return commissioned_machine(m.group(1)) if m else None
+
+
+def _observer_response(machine: Any, where: str, fs: float) -> Any:
+    """The spindle observer's response of ``machine`` tabulated to the Nyquist frequency
+    (:func:`~millsense.estimation.from_config.spindle_estimate_response`, decision 1554)."""
+    from millsense.estimation.from_config import spindle_estimate_response
+    from millsense.monitoring.engagement import TorqueResponse
+
+    response, switch = spindle_estimate_response(machine, where)
+    return TorqueResponse.from_function(response, fs / 2.0, switch)
 
 
 def _metadata_rpm(rec: Any) -> float | None:

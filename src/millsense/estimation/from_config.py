@@ -25,8 +25,9 @@ Methods
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -159,10 +160,35 @@ def spindle_observer_from_config(
     from millsense.estimation.spindle_observer import (
         RangeSwitchedSpindleObserver,
         SpindleTorqueObserver,
-        disturbance_model,
-        tune_spindle_q,
     )
     from millsense.models.friction import CoulombViscous
+
+    params, ranges = _spindle_designs(machine, where)
+    cfg = machine.spindle
+    assert cfg is not None
+    friction = CoulombViscous(
+        cfg.coulomb_nm,
+        cfg.coulomb_nm,
+        cfg.viscous_nm_s_rad,
+        cfg.viscous_nm_s_rad,
+        params.friction_smoothing_rad_s,
+    )
+    obs = [SpindleTorqueObserver(design, sample_rate_hz, friction=friction)
+           for _, design in ranges]  # fmt: skip
+    block: Block = obs[0]
+    if len(obs) == 2:
+        block = RangeSwitchedSpindleObserver((obs[0], obs[1]), params.switch_rad_s)
+    return RenamedBlock(
+        block,
+        {"spindle/torque_est": (load_channel("spindle", "spindle"), 1.0, "N*m")},
+        "spindle",
+    )
+
+
+def _spindle_designs(machine: MachineConfig, where: str) -> tuple[Any, list[tuple[Any, Any]]]:
+    """The drive parameters and, per speed range, G_dτ (Eq. 5.12) and the tuned observer
+    design of :func:`spindle_observer_from_config`."""
+    from millsense.estimation.spindle_observer import disturbance_model, tune_spindle_q
     from millsense.models.spindle_plant import SpindleDriveParams
 
     reason = spindle_unavailable_reason(machine, where)
@@ -179,26 +205,34 @@ def spindle_observer_from_config(
         feedthrough = rm.feedthrough
     params = replace(base, ranges=tuple(replace(r, modes=modes) for r in base.ranges))  # type: ignore[arg-type]
     noise = cfg.current_noise_a or DEFAULT_SPINDLE_CURRENT_NOISE_A
-    friction = CoulombViscous(
-        cfg.coulomb_nm,
-        cfg.coulomb_nm,
-        cfg.viscous_nm_s_rad,
-        cfg.viscous_nm_s_rad,
-        params.friction_smoothing_rad_s,
-    )
-    n_ranges = 2 if math.isfinite(params.switch_rad_s) else 1
-    obs = []
-    for r in range(n_ranges):
-        tuning = tune_spindle_q(disturbance_model(params, r, feedthrough), noise**2)
-        obs.append(SpindleTorqueObserver(tuning.design, sample_rate_hz, friction=friction))
-    block: Block = obs[0]
-    if n_ranges == 2:
-        block = RangeSwitchedSpindleObserver((obs[0], obs[1]), params.switch_rad_s)
-    return RenamedBlock(
-        block,
-        {"spindle/torque_est": (load_channel("spindle", "spindle"), 1.0, "N*m")},
-        "spindle",
-    )
+    out = []
+    for r in range(2 if math.isfinite(params.switch_rad_s) else 1):
+        model = disturbance_model(params, r, feedthrough)
+        out.append((model, tune_spindle_q(model, noise**2).design))
+    return params, out
+
+
+def spindle_estimate_response(
+    machine: MachineConfig, where: str
+) -> tuple[Callable[[np.ndarray, int], np.ndarray], float]:
+    """The spindle observer's estimate against the cutting torque, as the machine file models
+    it: ``H(f, range) = G_cτ(f)`` (Aslan Eq. 5.23: the identified G_dτ times the observer's
+    filter) times the hold of the observer's output over its period (a zero-order hold), and
+    the range-switch speed (rad/s; inf for one range). Decision 1554: the engagement monitor
+    divides the torque's harmonics by it."""
+    from millsense.estimation.spindle_observer import compensated
+
+    params, ranges = _spindle_designs(machine, where)
+
+    def response(f_hz: np.ndarray, r: int) -> np.ndarray:
+        model, design = ranges[min(r, len(ranges) - 1)]
+        f = np.asarray(f_hz, dtype=np.float64)
+        g = np.asarray(model.frf(f))
+        g = g.reshape(len(f), -1)[:, 0] if g.ndim > 1 else g
+        hold = np.exp(-1j * np.pi * f * design.dt) * np.sinc(f * design.dt)
+        return np.asarray(compensated(g, design, f) * hold, dtype=np.complex128)
+
+    return response, float(params.switch_rad_s)
 
 
 def _feed(

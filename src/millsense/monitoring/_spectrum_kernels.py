@@ -1042,6 +1042,9 @@ def ingest_revolutions(
     done: FloatArray,
     done_sums: ComplexArray,
     est: FloatArray,
+    orders: FloatArray,
+    eq: ComplexArray,
+    eqp: FloatArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -1056,6 +1059,10 @@ def ingest_revolutions(
     reference from an air revolution; decision 1806) and status to a row of ``done`` and, if
     the fit from ``prev`` is accepted (:func:`identify_from`), its estimate to that row of
     ``est`` (``prev`` ← its solution).
+    With an equaliser (``eqp`` = (grid step Hz, range-switch speed rad/s), ``eq`` the torque
+    channel's response on that grid per speed range, rows 0 and 1; decision 1554) each
+    coefficient is divided by the response at its frequency ``orders[j]·Ω/2π`` (linear
+    interpolation; 1 beyond the grid), so the fit sees the torque, not the estimator's view of it.
     Returns (revolutions finished, next sample): the scan stops when ``done`` is full or after
     a revolution that needs the grid search."""
     nk = sums.shape[0]
@@ -1087,6 +1094,8 @@ def ingest_revolutions(
             for j in range(nk):
                 done_sums[nd, j] = sums[j] / cnt
                 sums[j] = 0.0
+            if eq.shape[1] > 1:
+                _equalise(done_sums[nd], orders, omega, eq, eqp)
             done[nd, DONE_AT] = i
             done[nd, DONE_OMEGA] = omega
             done[nd, DONE_FEED] = c
@@ -1126,6 +1135,25 @@ def ingest_revolutions(
         acc[ACC_ZR] = zr[n - 1]
         acc[ACC_ZI] = zi[n - 1]
     return nd, n
+
+
+@numba.njit(cache=True)
+def _equalise(
+    coeff: ComplexArray, orders: FloatArray, omega: float, eq: ComplexArray, eqp: FloatArray
+) -> None:
+    """Divide each coefficient by the response ``eq`` at its frequency (see
+    :func:`ingest_revolutions`)."""
+    row = 0 if omega < eqp[1] else 1
+    g = eq.shape[1]
+    for j in range(coeff.shape[0]):
+        pos = orders[j] * omega / (2.0 * math.pi) / eqp[0]
+        i = int(pos)
+        if i + 1 >= g or pos < 0.0:
+            continue
+        w = pos - i
+        h = eq[row, i] * (1.0 - w) + eq[row, i + 1] * w
+        if abs(h) > 0.0:
+            coeff[j] = coeff[j] / h
 
 
 @numba.njit(cache=True)

@@ -22,6 +22,8 @@ Python for it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -59,6 +61,30 @@ _NOT_EVALUATED = np.full(len(_FIELDS), math.nan)
 _NOT_EVALUATED.flags.writeable = False
 
 
+@dataclass(frozen=True)
+class TorqueResponse:
+    """A torque channel's frequency response to the cutting torque, tabulated for the
+    engagement monitor's equaliser (decision 1554): ``table[r, j]`` at ``j·step_hz`` for speed
+    range ``r`` (0 below ``switch_rad_s``, 1 from it; one range: the same row twice)."""
+
+    step_hz: float
+    switch_rad_s: float
+    table: np.ndarray
+
+    @classmethod
+    def from_function(
+        cls,
+        response: Callable[[np.ndarray, int], np.ndarray],
+        top_hz: float,
+        switch_rad_s: float = math.inf,
+        step_hz: float = 2.0,
+    ) -> TorqueResponse:
+        """Tabulate ``response(f_hz, range)`` from 0 to ``top_hz``."""
+        f = np.arange(0.0, top_hz + step_hz, step_hz)
+        rows = [np.asarray(response(f, r), dtype=np.complex128) for r in (0, 1)]
+        return cls(float(step_hz), float(switch_rad_s), np.ascontiguousarray(np.stack(rows)))
+
+
 class EngagementBlock(Block):
     """Per-revolution engagement monitor on the spindle torque (module notes).
 
@@ -79,6 +105,11 @@ class EngagementBlock(Block):
         flagged (``EngagementEstimate.edge_source`` = 3).
     edge, max_depth_fraction : see :class:`~millsense.monitoring.torque_spectrum.
         SpectrumIdentifier`.
+    response : the torque channel's response to the cutting torque, as
+        :class:`TorqueResponse` (an estimator's known frequency response, e.g. the spindle
+        observer's from its machine file): each revolution's coefficients are divided by it
+        at their frequencies before the fit (decision 1554). None: a flat channel (a
+        dynamometer, Lee's case).
     name : block name (channel prefix).
     """
 
@@ -96,6 +127,7 @@ class EngagementBlock(Block):
         air_torque_nm: float | None = None,
         edge: bool = True,
         max_depth_fraction: float = 0.5,
+        response: TorqueResponse | None = None,
         name: str = "engagement",
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -131,6 +163,7 @@ class EngagementBlock(Block):
         if air_torque_nm is not None and not math.isfinite(air_torque_nm):
             raise ConfigError(f"engagement: air_torque_nm must be finite, got {air_torque_nm!r}")
         self.air_torque_nm = air_torque_nm
+        self.response = response
         self.name = name
         ins = [torque_channel, speed_channel]
         if feed_channel is not None:
@@ -170,11 +203,20 @@ class EngagementBlock(Block):
         self._args = (
             self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
             ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
+            self._k, *self._equaliser(),
         )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
         self._log = []
         self._made = []
+
+    def _equaliser(self) -> tuple[np.ndarray, np.ndarray]:
+        """The kernel's response table (rows: speed ranges) and (grid step Hz, switch speed
+        rad/s); a 1-column table without a response (not applied)."""
+        r = self.response
+        if r is None:
+            return np.ones((2, 1), dtype=np.complex128), np.array([1.0, math.inf])
+        return r.table, np.array([r.step_hz, r.switch_rad_s])
 
     def _finish(self, t_end: float, row: int, status: float) -> None:
         """The estimate of row ``row`` of the revolutions finished, whose status is

@@ -41,7 +41,8 @@ class MonitorContext:
     plan : the virtual plan (:class:`~millsense.plan.virtual_plan.VirtualPlan`), or None.
     source : name of the recording (for messages).
     options : further named settings for specific monitors (``engagement.feed_per_tooth_mm``,
-        ``engagement.air_torque_nm``,
+        ``engagement.air_torque_nm``, ``engagement.response`` (the observer's
+        :class:`~millsense.monitoring.engagement.TorqueResponse`),
         ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
         ``breakage.expected_channel``, ``<chatter method>.threshold``).
     tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
@@ -220,6 +221,8 @@ for _b in ("virtual", "constant", "dual"):
 ENGAGEMENT_SIGNALS = BREAKAGE_SIGNALS
 
 
+#: The spindle observer's compensated torque (a session's, or the monitor's own observer).
+OBSERVER_ESTIMATE = "est/spindle/spindle/load"
 #: The CNC's interpolated path feed (m/s): the engagement monitor's feed per tooth where it is
 #: recorded and no --feed-per-tooth-mm is given (overrides included).
 PATH_FEED = "cnc/feed"
@@ -285,6 +288,8 @@ def _engagement(ctx: MonitorContext) -> Block:
         speed_channel=ctx.speed_channel,
         feed_channel=feed,
         feed_per_tooth_mm=None if fz is None else float(fz),
+        # the spindle observer's response, where the signal is its estimate (decision 1554)
+        response=ctx.options.get("engagement.response") if signal == OBSERVER_ESTIMATE else None,
         air_torque_nm=ctx.options.get("engagement.air_torque_nm"),
         name=name,
     )
