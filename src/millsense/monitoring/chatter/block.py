@@ -47,7 +47,13 @@ from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
-from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
+from millsense.monitoring.chatter.methods import (
+    METHODS,
+    ChatterMethod,
+    Spectra,
+    Verdict,
+    line_amplitude,
+)
 from millsense.streaming.block import (
     Block,
     BlockOutput,
@@ -467,7 +473,8 @@ class ChatterMonitor(Block):
             and cutting
             and b0 <= k < b1
             and novel[k] > 0.0
-            and comb[k] > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
+            and line_amplitude(comb, k, 1.0, mask)
+            > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
         ):
             # a ratio that counts (a rising run, a verdict) on a window straddling an entry or
             # an exit: read on the part in the cut (decision 1542)
