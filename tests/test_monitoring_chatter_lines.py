@@ -106,7 +106,9 @@ def test_noise_lines_spreading_in_the_cut_are_not_chatter(
     # against a background that never saw it, 1.5-2.2 × the tooth line. With it a line that
     # is one of many is not chatter; one that, with the noise, stands 1.76 × above the top 1 %
     # of its window still is (2 alarms in the 5 streams: the test is statistical, a noise line
-    # that stands out is read as chatter; measured 17 → 2)
+    # that stands out is read as chatter; measured 17 → 2). Since decision 1551 the ratio reads
+    # the lines' amplitudes, not their bins': without the line test the runs last longer and
+    # merge (69 flagged decisions against 60, 12 alarms against 17); with it the same 2 alarms
     if not test_lines:
         monkeypatch.setattr(methods, "line_level", lambda *a, **k: 0.0)
     alarms = [e for seed in range(5) for e in _alarms(*_stream(seed=seed))]
@@ -114,7 +116,7 @@ def test_noise_lines_spreading_in_the_cut_are_not_chatter(
     if test_lines:
         assert len(alarms) <= 2
     else:
-        assert len(alarms) >= 15
+        assert len(alarms) >= 10
         assert all(e.values["energy_ratio"] > 1.5 for e in alarms)
 
 

@@ -5,7 +5,9 @@ Each method turns the window's spectra (the raw signal's and the comb-filtered o
 
 - ``chatter-comb`` (seed 000, Aslan §5.4, Eq. 5.26–5.30): 4096-point spectrum (Eq. 5.30); the
   ratio is the largest comb-filtered (non-harmonic) peak over the raw signal's tooth-passing
-  line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c.
+  line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c. The
+  peak is read as the line's amplitude, its bin corrected for where the line falls between
+  the bins of the rectangular spectrum (:func:`line_amplitude`, decision 1551).
 - ``chatter-sdft`` (seed 001, Yamada §2.10, Eq. 6-12): sliding DFT over a rectangular
   window and the moving variance. The variance of a window is its total PSD without DC
   (Parseval, Koike's moving variance); the ratio is the variance of the comb residual in the
@@ -44,7 +46,8 @@ with a chance of 1e-3. The seed's ratio compares the line with the tooth-passing
 a compensated torque whose observer noise holds a dozen lines as strong as the tooth line (a
 light full slot of a 3-flute tool) alarms on whichever of them is new to its background. While
 chatter is flagged the test is not made (the 2 × novelty hold ends it, decision 1504). The
-``energy_ratio`` output is the seed's ratio either way.
+``energy_ratio`` output is the seed's ratio either way. The test compares the line's bin with
+the window's bins, each read on the grid; the ratio takes the line's amplitude (decision 1551).
 """
 
 from __future__ import annotations
