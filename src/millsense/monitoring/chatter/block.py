@@ -49,6 +49,7 @@ from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
 from millsense.monitoring.chatter.methods import (
     METHODS,
+    RUN_LEVEL,
     ChatterMethod,
     Spectra,
     Verdict,
@@ -162,11 +163,6 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
-#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
-#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
-#: straddles an entry or an exit is read against the tooth line of its part in the cut
-#: (decision 1542).
-RUN_LEVEL = 0.5
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0

@@ -70,6 +70,12 @@ LINE_QUANTILE = 0.99
 #: ... and the chance per window that Rayleigh noise with that upper tail puts its largest bin
 #: above the level asked of a chatter line.
 LINE_FALSE_ALARM = 1e-3
+#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
+#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
+#: straddles an entry or an exit is read against the tooth line of its part in the cut
+#: (decision 1542). While chatter is flagged a chatter-comb line stays chatter above it
+#: (decision 1551).
+RUN_LEVEL = 0.5
 
 
 @dataclass(slots=True)
@@ -120,16 +126,19 @@ class Verdict:
     """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz (made
     once per window and only read: slotted, not frozen, as :class:`Spectra`). ``stands_out``:
     the line stands out of its window's own spectrum (decision 1658; a ratio above the
-    threshold without it is no chatter)."""
+    threshold without it is no chatter). ``hold``: while chatter is flagged, the level the
+    ratio must stay above instead of the threshold (None: the threshold; decision 1551)."""
 
     ratio: float
     frequency_hz: float
     threshold: float
     stands_out: bool = True
+    hold: float | None = None
 
     @property
     def chatter(self) -> bool:
-        return bool(self.stands_out and self.ratio > self.threshold)
+        level = self.threshold if self.hold is None else self.hold
+        return bool(self.stands_out and self.ratio > level)
 
 
 def line_level(
@@ -297,7 +306,11 @@ class ChatterMethod:
                 # 1658; bin against bins, each read on the grid)
                 line = float(s.comb[k])
                 stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
-            return Verdict(ratio, f_c, thr, stands_out)
+            # while flagged, a run ends when the ratio falls below the rising run's level, not
+            # the threshold: a line read at its amplitude that hovers at 1.5 is one run
+            # (decision 1551)
+            hold = RUN_LEVEL * thr if s.held else None
+            return Verdict(ratio, f_c, thr, stands_out, hold)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
         raw = s.raw_rect if s.raw_rect is not None else s.raw
