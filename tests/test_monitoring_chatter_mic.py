@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
-from millsense.monitoring.chatter.methods import SEED000_RATIO, line_amplitude
+from millsense.monitoring.chatter.methods import METHODS, SEED000_RATIO, Spectra, line_amplitude
 from millsense.streaming.block import Chunk, Event
 
 FS = 44100.0
@@ -113,3 +113,26 @@ def test_microphone_chatter_off_the_grid_alarms_within_0_2_s_of_crossing_the_thr
     # alarm at all.
     steady = ratio[int((ONSET_S + RAMP_S + 0.2) * FS) :]
     assert np.median(steady) == pytest.approx(1.62, rel=0.03)
+
+
+@pytest.mark.parametrize(
+    ("held", "ratio", "chatter"),
+    [(False, 1.2, False), (True, 1.2, True), (True, 0.7, False), (False, 1.6, True)],
+)
+def test_a_flagged_run_lasts_down_to_half_the_threshold(
+    held: bool, ratio: float, chatter: bool
+) -> None:
+    # a line on its bin (no correction: neighbours 0) of ``ratio`` × the tooth line: an onset
+    # needs 1.5, a flagged run ends below 0.75 (RUN_LEVEL × 1.5; decision 1551: a line read at
+    # its amplitude that hovers at 1.5, seed 5's known quantisation line, is one alarm, not 4)
+    nf = 64
+    f = np.arange(nf) * 10.0
+    comb = np.zeros(nf)
+    comb[20] = ratio
+    novel = np.full(nf, -1.0)
+    novel[20] = 1.0
+    s = Spectra(f, np.zeros(nf), comb, np.ones(nf, dtype=bool), 1.0, 400.0, 133.3, True,
+                novel, band_slice=(1, nf - 1), peak_bin=20, held=held)  # fmt: skip
+    v = METHODS["chatter-comb"].decide(s, None)
+    assert v.ratio == pytest.approx(ratio, rel=1e-12)  # the bin itself: exact
+    assert v.chatter is chatter
