@@ -47,7 +47,9 @@ a compensated torque whose observer noise holds a dozen lines as strong as the t
 light full slot of a 3-flute tool) alarms on whichever of them is new to its background. While
 chatter is flagged the test is not made (the 2 × novelty hold ends it, decision 1504). The
 ``energy_ratio`` output is the seed's ratio either way. The test compares the line's bin with
-the window's bins, each read on the grid; the ratio takes the line's amplitude (decision 1551).
+the window's bins, each read on the grid; the ratio takes the line's amplitude, and while
+chatter is flagged the run lasts while the ratio stays above :data:`RUN_LEVEL` × the threshold
+(decision 1551).
 """
 
 from __future__ import annotations
