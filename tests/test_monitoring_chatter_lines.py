@@ -106,15 +106,19 @@ def test_noise_lines_spreading_in_the_cut_are_not_chatter(
     # against a background that never saw it, 1.5-2.2 × the tooth line. With it a line that
     # is one of many is not chatter; one that, with the noise, stands 1.76 × above the top 1 %
     # of its window still is (2 alarms in the 5 streams: the test is statistical, a noise line
-    # that stands out is read as chatter; measured 17 → 2)
+    # that stands out is read as chatter; measured 17 → 2). Since decision 1551 (the ratio read
+    # at the lines' amplitudes, a run held down to half the threshold) the runs without the
+    # line test merge: one alarm per stream, in every stream (89 flagged decisions against 60),
+    # so the streams that alarm are counted; with the test the same 2 alarms
     if not test_lines:
         monkeypatch.setattr(methods, "line_level", lambda *a, **k: 0.0)
-    alarms = [e for seed in range(5) for e in _alarms(*_stream(seed=seed))]
+    per_stream = [_alarms(*_stream(seed=seed)) for seed in range(5)]
+    alarms = [e for ev in per_stream for e in ev]
     assert all(1200.0 <= e.value <= 2600.0 for e in alarms)  # all of them noise lines
     if test_lines:
         assert len(alarms) <= 2
     else:
-        assert len(alarms) >= 15
+        assert sum(1 for ev in per_stream if ev) == 5
         assert all(e.values["energy_ratio"] > 1.5 for e in alarms)
 
 

@@ -47,7 +47,14 @@ from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring.chatter import _kernels as _kn
 from millsense.monitoring.chatter.comb import comb_coefficients, ingest
-from millsense.monitoring.chatter.methods import METHODS, ChatterMethod, Spectra, Verdict
+from millsense.monitoring.chatter.methods import (
+    METHODS,
+    RUN_LEVEL,
+    ChatterMethod,
+    Spectra,
+    Verdict,
+    line_amplitude,
+)
 from millsense.streaming.block import (
     Block,
     BlockOutput,
@@ -156,11 +163,6 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
-#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
-#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
-#: straddles an entry or an exit is read against the tooth line of its part in the cut
-#: (decision 1542).
-RUN_LEVEL = 0.5
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -467,7 +469,8 @@ class ChatterMonitor(Block):
             and cutting
             and b0 <= k < b1
             and novel[k] > 0.0
-            and comb[k] > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
+            and line_amplitude(comb, k, 1.0, mask)
+            > RUN_LEVEL * (self.method.threshold or 0.0) * tooth_ref
         ):
             # a ratio that counts (a rising run, a verdict) on a window straddling an entry or
             # an exit: read on the part in the cut (decision 1542)

@@ -5,7 +5,9 @@ Each method turns the window's spectra (the raw signal's and the comb-filtered o
 
 - ``chatter-comb`` (seed 000, Aslan §5.4, Eq. 5.26–5.30): 4096-point spectrum (Eq. 5.30); the
   ratio is the largest comb-filtered (non-harmonic) peak over the raw signal's tooth-passing
-  line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c.
+  line, chatter above **1.5**; the peak's frequency (parabolic interpolation) is ω_c. The
+  peak is read as the line's amplitude, its bin corrected for where the line falls between
+  the bins of the rectangular spectrum (:func:`line_amplitude`, decision 1551).
 - ``chatter-sdft`` (seed 001, Yamada §2.10, Eq. 6-12): sliding DFT over a rectangular
   window and the moving variance. The variance of a window is its total PSD without DC
   (Parseval, Koike's moving variance); the ratio is the variance of the comb residual in the
@@ -44,7 +46,10 @@ with a chance of 1e-3. The seed's ratio compares the line with the tooth-passing
 a compensated torque whose observer noise holds a dozen lines as strong as the tooth line (a
 light full slot of a 3-flute tool) alarms on whichever of them is new to its background. While
 chatter is flagged the test is not made (the 2 × novelty hold ends it, decision 1504). The
-``energy_ratio`` output is the seed's ratio either way.
+``energy_ratio`` output is the seed's ratio either way. The test compares the line's bin with
+the window's bins, each read on the grid; the ratio takes the line's amplitude, and while
+chatter is flagged the run lasts while the ratio stays above :data:`RUN_LEVEL` × the threshold
+(decision 1551).
 """
 
 from __future__ import annotations
@@ -67,6 +72,12 @@ LINE_QUANTILE = 0.99
 #: ... and the chance per window that Rayleigh noise with that upper tail puts its largest bin
 #: above the level asked of a chatter line.
 LINE_FALSE_ALARM = 1e-3
+#: A window whose ratio passes this fraction of the threshold starts (or continues) a rising
+#: run (its first window is the alarm's ``onset_s``); such a window of chatter-comb that
+#: straddles an entry or an exit is read against the tooth line of its part in the cut
+#: (decision 1542). While chatter is flagged a chatter-comb line stays chatter above it
+#: (decision 1551).
+RUN_LEVEL = 0.5
 
 
 @dataclass(slots=True)
@@ -117,16 +128,19 @@ class Verdict:
     """Outcome of one window: energy ratio (vs ``threshold``) and chatter frequency, Hz (made
     once per window and only read: slotted, not frozen, as :class:`Spectra`). ``stands_out``:
     the line stands out of its window's own spectrum (decision 1658; a ratio above the
-    threshold without it is no chatter)."""
+    threshold without it is no chatter). ``hold``: while chatter is flagged, the level the
+    ratio must stay above instead of the threshold (None: the threshold; decision 1551)."""
 
     ratio: float
     frequency_hz: float
     threshold: float
     stands_out: bool = True
+    hold: float | None = None
 
     @property
     def chatter(self) -> bool:
-        return bool(self.stands_out and self.ratio > self.threshold)
+        level = self.threshold if self.hold is None else self.hold
+        return bool(self.stands_out and self.ratio > level)
 
 
 def line_level(
@@ -167,6 +181,54 @@ def line_level(
     q_amp = float(np.partition(sel, n - 1 - top)[n - 1 - top])
     n_eff = max(n * part, 1.0)
     return q_amp * math.sqrt(math.log(n_eff / false_alarm) / math.log(1.0 / (1.0 - quantile)))
+
+
+def line_amplitude(
+    amp: FloatArray, k: int, part: float = 1.0, masked: NDArray[np.bool_] | None = None
+) -> float:
+    """Amplitude of the line whose largest bin in the rectangular (comb) spectrum ``amp`` is
+    ``k``, corrected for the bin grid (decision 1551).
+
+    A line ``δ`` bins off bin ``k`` reads ``A·|sinc(part·δ)|`` there and ``A·|sinc(part·(1 −
+    δ))|`` in the neighbour on its side (the transform of a rectangular window of ``part`` of
+    the ``N`` samples, zero-padded to ``N``): up to 36 % low (−3.9 dB) half a bin off on a full
+    window, wherever the line falls on the grid, which the rate and the window length set (2.44
+    Hz bins at 10 kHz, 10.8 Hz at 44.1 kHz). The offset follows from the ratio ``r`` of the
+    larger neighbour to the peak: ``δ = r / (1 + r)`` on a full window (Jain's interpolation of
+    the rectangular DFT), by bisection of ``sinc(part·(1 − δ)) = r·sinc(part·δ)`` on
+    ``[0, ½]`` on a part; the amplitude is ``amp[k] / sinc(part·δ)`` (at most π/2 ×
+    ``amp[k]``). The bin is returned as read when it is no local maximum (no resolved line of
+    its own), at the spectrum's ends, or when the larger neighbour is ``masked`` (a spindle
+    harmonic's bin: its reading is not the line's)."""
+    a = float(amp[k])
+    if not (0 < k < amp.shape[0] - 1 and a > 0.0):
+        return a
+    lo, hi = float(amp[k - 1]), float(amp[k + 1])
+    j, nb = (k + 1, hi) if hi >= lo else (k - 1, lo)
+    if nb > a or (masked is not None and masked[j]):
+        return a
+    r = nb / a
+    if part >= 1.0:
+        delta = r / (1.0 + r)
+    else:
+        lo_d, hi_d = 0.0, 0.5
+        if _sinc(part) >= r:
+            hi_d = 0.0  # no farther off than the part's own resolution shows
+        for _ in range(40):  # |sinc(part·(1 − δ))| − r·|sinc(part·δ)| rises on [0, ½]
+            mid = 0.5 * (lo_d + hi_d)
+            if _sinc(part * (1.0 - mid)) < r * _sinc(part * mid):
+                lo_d = mid
+            else:
+                hi_d = mid
+        delta = 0.5 * (lo_d + hi_d)
+    return a / _sinc(part * delta)
+
+
+def _sinc(x: float) -> float:
+    """|sin(πx)/(πx)| (1 at 0)."""
+    if x == 0.0:
+        return 1.0
+    return abs(math.sin(math.pi * x) / (math.pi * x))
 
 
 def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
@@ -238,13 +300,19 @@ class ChatterMethod:
             return Verdict(0.0, float("nan"), thr)
         f_c = peak_frequency(s.f_hz, s.comb, k)
         if self.name == "chatter-comb":
-            line = float(s.comb[k])
-            ratio = line / s.tooth
+            # the line's amplitude, not its bin's reading (decision 1551)
+            ratio = line_amplitude(s.comb, k, s.part, s.masked) / s.tooth
             stands_out = True
             if ratio > thr and not s.held and s.masked is not None:
-                # an onset: the line must stand out of its own window (decision 1658)
+                # an onset: the line's bin must stand out of its own window's bins (decision
+                # 1658; bin against bins, each read on the grid)
+                line = float(s.comb[k])
                 stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
-            return Verdict(ratio, f_c, thr, stands_out)
+            # while flagged, a run ends when the ratio falls below the rising run's level, not
+            # the threshold: a line read at its amplitude that hovers at 1.5 is one run
+            # (decision 1551)
+            hold = RUN_LEVEL * thr if s.held else None
+            return Verdict(ratio, f_c, thr, stands_out, hold)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
         raw = s.raw_rect if s.raw_rect is not None else s.raw
