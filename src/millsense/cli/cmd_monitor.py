@@ -388,9 +388,14 @@ def _run(
     source = RecordingSource(rec, name=where, channels=needed)
     sig_name = getattr(blocks[0], "settings", None)
     sig_name = getattr(sig_name, "signal", None)
-    from millsense.report.monitor_plots import plotted
-
     keep: dict[str, list[np.ndarray]] = {}
+    if plot is not None:  # (the figure's module only where there is a figure: batch tasks)
+        from millsense.report.monitor_plots import plotted
+    else:
+
+        def plotted(key: str) -> bool:
+            return False
+
     # the monitors' held outputs are kept every `step` samples (≈ 2 kHz) for the figure
     step = max(1, int(fs // 2000))
 

@@ -11,9 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from millsense.monitoring.breakage import SIGMA_TB  # limits are σ_TB × the reference torque
-from millsense.monitoring.engagement import RELIABLE_SIGMA  # faded below (decision 1807)
-
 #: Outputs of the monitors the figure draws (suffixes of ``{monitor}/...``).
 CHATTER_KEYS = ("chatter_hz", "energy_ratio")
 BREAKAGE_KEYS = ("tooth_avg", "residual1", "limit1", "residual2", "limit2", "band")
@@ -134,6 +131,7 @@ def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: fl
     """Residual 1 against ±limit 1; for the virtual and constant thresholds the tooth average's
     deviation from its reference against ±band (what confirms), else residual 2 against
     ±limit 2 (seed 002's dual residual)."""
+    from millsense.monitoring.breakage import SIGMA_TB  # limits are σ_TB × the reference
     g = {k: data[f"{name}/{k}"] for k in BREAKAGE_KEYS if f"{name}/{k}" in data}
     t = _time(g["residual1"], step, fs, t0)
     ax.plot(t, g["residual1"], lw=0.7, color="tab:blue", label="residual 1")
@@ -160,6 +158,8 @@ def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: fl
 
 def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: float,
                 name: str) -> None:  # fmt: skip
+    from millsense.monitoring.engagement import RELIABLE_SIGMA  # dots below (decision 1807)
+
     axial = 1e3 * data[f"{name}/axial_depth"]
     radial = 1e3 * data.get(f"{name}/radial_depth", np.full(len(axial), np.nan))
     rel = data.get(f"{name}/reliability", np.ones(len(axial)))

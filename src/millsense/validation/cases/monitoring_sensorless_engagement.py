@@ -82,7 +82,7 @@ def _table(res: dict[str, tuple[float, float, float, int]]) -> str:
 
 
 @case(
-    "monitoring.engagement.sensorless_slot_axial_depth",
+    "monitoring.sensorless_engagement.slot_axial_depth",
     source="issue 15 item 3 (seed 004 ch. 2) on the sensorless torque: axial depth within "
     "about ±10 % (the thesis' rows with a dynamometer)",
     reference=DEPTH_MM,
@@ -113,8 +113,8 @@ def _estimate() -> Measured:
 
 
 @case(
-    "monitoring.engagement.sensorless_slot_truth_axial_depth",
-    source="self-check of monitoring.engagement.sensorless_slot_axial_depth: the method on the "
+    "monitoring.sensorless_engagement.slot_truth_axial_depth",
+    source="self-check of monitoring.sensorless_engagement.slot_axial_depth: the method on the "
     "same cut's true cutting torque (a dynamometer's view)",
     reference=DEPTH_MM,
     rel_tol=0.10,
