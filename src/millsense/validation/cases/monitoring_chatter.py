@@ -1013,8 +1013,9 @@ HELDOUT_SEEDS = (4, 5, 6, 7)
 
 #: Why the held-out seeds raise alarms (2026-11-28, after decisions 1543, 1545 and 1546).
 _SEEDS_GAP = (
-    "2 chatter-comb alarms on the compensated torque of seed 5, none on seeds 4, 6, 7, none on "
-    "the sensor channel or from chatter-sdft: at 310.6 and 311.4 s a 1709 Hz line of the "
+    "1 chatter-comb alarm on the compensated torque of seed 5, none on seeds 4, 6, 7, none on "
+    "the sensor channel or from chatter-sdft: from 310.5 s (held to 315.9 s, decision 1551; "
+    "two alarms at 310.6 and 311.4 s before the flagged run's hold) a 1709 Hz line of the "
     "truth spindle's encoder quantisation rises from 0.05 N·m in air to 0.44 N·m at a cut "
     "entry at 6500 rev/min (the cut's tooth ripple changes the quantisation's dither, and the "
     "speed loop answers the load step); an entry is where chatter starts, so the background "
