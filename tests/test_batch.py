@@ -85,6 +85,10 @@ def test_bad_recordings_are_rows_and_the_batch_finishes(
     assert rows["bare"]["status"] == "error" and "channel" in str(rows["bare"]["error"])
     assert "2 failed" in stdout
     assert err.count("millsense: warning:") == 2
+    # each line names the recording once (its reason may start with it already)
+    for name in ("corrupt.h5", "bare.h5"):
+        line = next(ln for ln in err.splitlines() if name in ln)
+        assert line.count(str(folder / name)) == 1, line
     # a second batch into the same folder reuses the finished runs and retries the failed
     code, stdout, _ = _cli(["batch", str(folder), "-o", str(out), "--do",
                             "monitor,wear,summary", "--plan",

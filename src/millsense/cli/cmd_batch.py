@@ -101,7 +101,10 @@ def batch(
         res.closing.join()
     failed = [r for r in rows if r.get("status") != "ok"]
     for r in failed:
-        typer.echo(f"millsense: warning: {r['path']}: {r.get('error', '')}", err=True)
+        error = str(r.get("error", ""))
+        # the reason names the recording already where it comes from a check of its data
+        where = "" if error.startswith(str(r["path"])) else f"{r['path']}: "
+        typer.echo(f"millsense: warning: {where}{error}", err=True)
     worn = [r for r in rows if r.get("wear_worn")]
     where = f"{res.workers} worker(s), {res.scheduler}" if res.ran else "nothing to run"
     typer.echo(
