@@ -52,6 +52,18 @@ def benchmark(case: str) -> Callable[[Callable[[], list[Metric]]], Callable[[], 
     return register
 
 
+def alternated(
+    new: Callable[[], float], old: Callable[[], float], repeats: int
+) -> tuple[float, float]:
+    """The best of ``repeats`` timings of ``new`` and of ``old``, run alternately (the shared
+    host's load drifts; a ratio of two measurements taken side by side survives it)."""
+    a, b = [], []
+    for _ in range(repeats):
+        a.append(new())
+        b.append(old())
+    return min(a), min(b)
+
+
 def registered() -> dict[str, Callable[[], list[Metric]]]:
     return dict(_BENCHMARKS)
 

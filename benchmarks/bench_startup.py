@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _harness import Metric, benchmark
+from _harness import Metric, alternated, benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINE_FILE = ROOT / "examples/walkthrough/quaser-ux600-commissioned.toml"
@@ -92,30 +92,23 @@ def _construct_simulator(old: bool) -> float:
 @benchmark("startup.feed_estimators")
 def _feed_estimators() -> list[Metric]:
     _build_estimators(False)  # imports, numba cache
-    new, old = [], []
-    for _ in range(2):  # interleaved: the host's load drifts
-        new.append(_build_estimators(False))
-        old.append(_build_estimators(True))
+    new, old = alternated(lambda: _build_estimators(False), lambda: _build_estimators(True), 2)
     note = "the commissioned quaser-ux600's five feed axes (ten filters), best of 2, one core"
     return [
-        Metric("build_s", min(new), "s", higher_is_better=False, note=note),
-        Metric("build_s_before", min(old), "s", higher_is_better=False, note=note),
-        Metric("speedup", min(old) / min(new), "x", baseline="per-frequency loop, FRF per Q",
-               note=note),
-    ]  # fmt: skip
+        Metric("build_s", new, "s", higher_is_better=False, note=note),
+        Metric("build_s_before", old, "s", higher_is_better=False, note=note),
+        Metric("speedup", old / new, "x", baseline="per-frequency loop, FRF per Q", note=note),
+    ]
 
 
 @benchmark("startup.simulator")
 def _simulator() -> list[Metric]:
     _construct_simulator(False)  # numba's disk cache filled
-    new, old = [], []
-    for _ in range(3):
-        new.append(_construct_simulator(False))
-        old.append(_construct_simulator(True))
+    new, old = alternated(lambda: _construct_simulator(False),
+                          lambda: _construct_simulator(True), 3)  # fmt: skip
     note = "MachineSimulator of the V8 slot on the 5-axis truth, a fresh process, best of 3"
     return [
-        Metric("construct_s", min(new), "s", higher_is_better=False, note=note),
-        Metric("construct_s_before", min(old), "s", higher_is_better=False, note=note),
-        Metric("speedup", min(old) / min(new), "x", baseline="states in a numba typed List",
-               note=note),
-    ]  # fmt: skip
+        Metric("construct_s", new, "s", higher_is_better=False, note=note),
+        Metric("construct_s_before", old, "s", higher_is_better=False, note=note),
+        Metric("speedup", old / new, "x", baseline="states in a numba typed List", note=note),
+    ]

@@ -586,10 +586,6 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
         )  # fmt: skip
 
 
-#: The axes whose positions the tool-centre point of each kinematics needs.
-KINEMATICS_AXES = {"3-axis": "xyz", "5-axis-trunnion-ac": "xyzac"}
-
-
 def replay_online(
     recording: Path,
     plan: Path,
@@ -602,6 +598,7 @@ def replay_online(
     """The on-line blocks on a recording (the body of ``replay``)."""
     from millsense.core.errors import ConfigError, InputDataError
     from millsense.io.recording_reader import opened_recording
+    from millsense.models.kinematics import kinematics_for
     from millsense.online.guard import FAULT_CHANNEL
     from millsense.online.session import run_session, session_blocks
     from millsense.plan.virtual_plan import VirtualPlan
@@ -614,13 +611,15 @@ def replay_online(
         cfg, where = _machine_file(machine_file, str(rec.metadata.get("machine", "")))
         kin = str(rec.metadata.get("kinematics", cfg.kinematics))
         axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
-        missing = [a for a in KINEMATICS_AXES.get(kin, "") if a not in axes]
+        # the tool-centre point takes the machine's first n axes, as the kinematics needs them
+        need = list(cfg.axes)[: kinematics_for(kin).n_axes]
+        missing = [a for a in need if a not in axes]
         if missing:
             raise InputDataError(
                 f"{recording}: no {', '.join(f'{a}/position_cmd' for a in missing)}: the "
                 f"tool-centre point of the plan sync ({kin} kinematics) needs the positions of "
-                f"{', '.join(KINEMATICS_AXES[kin])}; record them (a recording whose rotary axes "
-                'stood at 0: metadata kinematics = "3-axis")'
+                f"{', '.join(need)}; record them (a recording whose rotary axes stood at 0: "
+                'metadata kinematics = "3-axis")'
             )
         cfg = cfg.with_axes(axes, kin)
         built = session_blocks(vp, cfg, rec.sample_rate_hz, options, where=where,

@@ -93,9 +93,8 @@ class PhasedBreakage(Block):
         self.method = first.method
         self.speed_channel = first.speed_channel
         self.phases = int(phases)
-        self.dedupe_periods = int(dedupe_revolutions) * self.n_flutes
-        self.options = dict(options)
         self.dedupe_revolutions = int(dedupe_revolutions)
+        self.options = dict(options)
         self.companions = list(companions)
         # phase 0 and the companions first: the group's outputs are theirs alone
         shown = [self.members[0], *self.companions]
@@ -144,21 +143,21 @@ class PhasedBreakage(Block):
         if not out.events:
             return out
         kept = BlockOutput(out.channels)
-        if out.events:
-            for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
-                if e.source not in self._phase_sources or e.name != "breakage":
-                    # a companion's, or this block's blind/seen note
-                    kept.events.append(e)
-                    continue
-                period = int(e.values["tooth_period"])
-                seen = period - self._last_period <= self.dedupe_periods
-                self._last_period = period  # a breakage still alarming extends the window
-                if seen:
-                    continue
-                phase = self._phase_of[e.source]
-                values = {**e.values, "phase": float(phase) / self.phases}
-                kept.events.append(replace(e, source=self.name, values=values))
-                self._alarmed = True
+        window = self.dedupe_revolutions * self.n_flutes  # in tooth periods
+        for e in sorted(out.events, key=lambda e: (e.sample, e.source)):
+            if e.source not in self._phase_sources or e.name != "breakage":
+                # a companion's, or this block's blind/seen note
+                kept.events.append(e)
+                continue
+            period = int(e.values["tooth_period"])
+            seen = period - self._last_period <= window
+            self._last_period = period  # a breakage still alarming extends the window
+            if seen:
+                continue
+            phase = self._phase_of[e.source]
+            values = {**e.values, "phase": float(phase) / self.phases}
+            kept.events.append(replace(e, source=self.name, values=values))
+            self._alarmed = True
         return kept
 
     def _watch_blind(self, chunk: Chunk, k: int, out: BlockOutput) -> None:
