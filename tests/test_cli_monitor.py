@@ -418,3 +418,32 @@ def test_monitor_plot_draws_each_monitor_that_ran(
         ("spectrogram", None), ("ratio", ["chatter-comb"]), ("breakage", "breakage-dual"),
         ("breakage", "breakage-constant"), ("engagement", "engagement"),
     ]  # fmt: skip
+
+
+def test_a_session_recordings_observer_machine_is_found(tmp_path: Path) -> None:
+    """Decision 1554: the engagement's equaliser needs the machine file the session's observer
+    ran on: the file named in the metadata, else the commissioned file shipped for the machine
+    (what `run` takes without --machine-file), else none."""
+    from millsense.cli.cmd_monitor import _session_machine
+    from millsense.io.recording_reader import opened_recording
+
+    machine_file = Path(__file__).resolve().parents[1] / (
+        "examples/walkthrough/quaser-ux600-commissioned.toml"
+    )
+    cases = {
+        "file": ({"machine_file": str(machine_file)}, str(machine_file)),
+        "shipped": (
+            {"machine_file": "commissioned quaser-ux600 (...)", "machine": "quaser-ux600"},
+            "quaser-ux600",
+        ),
+        "none": ({}, None),
+    }
+    for key, (meta, where) in cases.items():
+        path = _recording(tmp_path / f"{key}.h5", speed=False, **meta)
+        with opened_recording(path) as rec:
+            found = _session_machine(rec)
+        if where is None:
+            assert found is None
+        else:
+            assert found is not None and where in found[1]
+            assert found[0].spindle is not None  # the observer's section is there

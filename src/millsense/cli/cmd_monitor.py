@@ -547,10 +547,9 @@ def _grouped(blocks: list[Any]) -> list[Any]:
 
 
 def _session_machine(rec: Any) -> tuple[Any, str] | None:
-    """The machine file a session recording's observer ran on (metadata ``machine_file``: a
-    path, or "commissioned NAME (...)" for the shipped one), or None."""
-    import re
-
+    """The machine file a session recording's observer ran on: metadata ``machine_file`` where
+    it is a file, else the commissioned file shipped for its ``machine`` (what ``run`` and
+    ``replay`` take without ``--machine-file``), or None."""
     from millsense.core.config import MachineConfig
     from millsense.core.presets import commissioned_machine, load_preset
 
@@ -559,8 +558,8 @@ def _session_machine(rec: Any) -> tuple[Any, str] | None:
         return None
     if Path(name).is_file():
         return load_preset(MachineConfig, name), name
-    m = re.match(r"commissioned (\S+)", name)
-    return commissioned_machine(m.group(1)) if m else None
+    machine = rec.metadata.get("machine")
+    return commissioned_machine(machine) if isinstance(machine, str) and machine else None
 
 
 def _observer_response(machine: Any, where: str, fs: float) -> Any:

@@ -227,8 +227,7 @@ def spindle_estimate_response(
     def response(f_hz: np.ndarray, r: int) -> np.ndarray:
         model, design = ranges[min(r, len(ranges) - 1)]
         f = np.asarray(f_hz, dtype=np.float64)
-        g = np.asarray(model.frf(f))
-        g = g.reshape(len(f), -1)[:, 0] if g.ndim > 1 else g
+        g = model.frf(f)[:, 0, 0]  # G_dτ: one input (τ_d), one output (I_nom)
         hold = np.exp(-1j * np.pi * f * design.dt) * np.sinc(f * design.dt)
         return np.asarray(compensated(g, design, f) * hold, dtype=np.complex128)
 
