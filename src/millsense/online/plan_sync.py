@@ -11,9 +11,10 @@ sample the plan's row, NC line, in-cut flag and the **expected cutting torque**
 with T_edge and T_shear the plan's predicted mean torque split into its edge and shear parts
 (columns ``torque_avg_nm`` and ``torque_avg_shear_nm``), u the effective feed override (the
 shear part is linear in the chip thickness) and s = K_tc,new / K_tc,plan the calibration:
-over the first ``calibration_revs`` revolutions in cut with an expected torque of at least
-:data:`MIN_CALIBRATION` of the plan's largest (seed 000 C16: 10; the first ``settle_revs``
-skipped) the mean measured torque T̄ gives
+over the first ``calibration_revs`` revolutions in cut where the plan is steady
+(:func:`steady_rows`; decision 1556: not in a plunge, an entry or a step) with an expected
+torque of at least :data:`MIN_CALIBRATION` of the largest of the plan's steady rows (seed 000
+C16: 10; the first ``settle_revs`` skipped) the mean measured torque T̄ gives
 s = (T̄ − T̄_edge)/T̄_shear (:mod:`millsense.plan.calibration`, decision 0064). The breakage
 monitor's virtual threshold (seed 000 §2.9: 40 % of the expected torque) reads T_exp where the
 plan is steady and 0 (not judged) in its transients — entries, steps, ramps, exits
@@ -163,8 +164,13 @@ class PlanSync(Block):
         depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
         self._depth = np.append(depth, 0.0)
         #: only revolutions whose expected torque is at least this are calibrated on: at a
-        #: light load an observer's offset and noise would set the ratio (decision 1622)
-        self._min_cal = MIN_CALIBRATION * float(np.nanmax(np.abs(tq), initial=0.0))
+        #: light load an observer's offset and noise would set the ratio (decision 1622); of
+        #: the largest where the plan is steady, the rows calibrated on (decision 1556: a
+        #: plunge's or an entry's peak would otherwise leave no steady row heavy enough)
+        steady_cut = self._steady[:-1] & self._in_cut[:-1]
+        self._min_cal = MIN_CALIBRATION * float(
+            np.nanmax(np.abs(tq[steady_cut] if steady_cut.any() else tq), initial=0.0)
+        )
         nc = np.asarray(plan["nc_line"], dtype=np.int64)
         nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
         self._nc = np.append(nc, -1)
@@ -240,7 +246,7 @@ class PlanSync(Block):
             torque = extra[f"{self.name}/cutting_torque"]
         k_cal = 0
         if not self.calibrated and self.torque_channel is not None and n:
-            k_done = self._calibrate(chunk, in_cut, edge, shear, events, torque)
+            k_done = self._calibrate(chunk, in_cut & steady, edge, shear, events, torque)
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
@@ -280,6 +286,9 @@ class PlanSync(Block):
     ) -> int:
         """Accumulate the window; the sample where the calibration completes (−1: not yet).
 
+        ``in_cut``: the samples that may be calibrated on, in cut where the plan is steady
+        (decision 1556: a plunge, an entry or a step is a transient where measurement and plan
+        differ by their timing and by what the side-milling model leaves out).
         ``torque``: the cutting torque with the air-cut reference subtracted (decision 1622:
         the reference is subtracted before the torque is calibrated on); None without an air
         reference (the torque channel as it is)."""
