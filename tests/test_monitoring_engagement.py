@@ -418,3 +418,60 @@ def test_equaliser_removes_a_known_channel_response() -> None:
     assert seen[0] / flat[0] == pytest.approx(1.19, abs=0.03)
     assert seen[2] / flat[2] == pytest.approx(0.81, abs=0.03)
     np.testing.assert_allclose(equalised, flat, rtol=1e-5)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4])
+def test_grid_costs_are_the_projected_misfits(n):
+    """Decision 1557: the coarse grid's misfits from its orthonormalised bases equal the
+    variable-projection residual Σ|x − αA − βB|² computed directly (:func:`_project`), with
+    and without the edge term, to round-off of |x|²; the 6 best rows are the same."""
+    from millsense.monitoring.torque_spectrum import _basis, _project
+
+    ident = SpectrumIdentifier(ToolGeometry(n, R, BETA), 12)
+    grid = ident._grid
+    ng = ident.k_grid.size
+    k = n * np.arange(1, ng + 1, dtype=float)
+    p = [v[:, None] for v in grid.params]
+    a, b = _basis(k[None, :], p[0], p[1], p[2], ident.geom)
+    rng = np.random.default_rng(n)
+    for j in rng.integers(0, a.shape[0], 4):
+        noise = rng.standard_normal(ng) + 1j * rng.standard_normal(ng)
+        x = 1.3 * a[j] + 0.2 * b[j] + 0.05 * noise
+        x = x / abs(x[0])
+        for edge in (True, False):
+            with np.errstate(all="ignore"):
+                ref = np.sum(np.abs(_project(x, a, b if edge else None)[2]) ** 2, axis=-1)
+            got = grid.costs(x, edge)
+            ok = np.isfinite(ref)
+            assert np.isinf(got).sum() == (~ok).sum()
+            np.testing.assert_allclose(got[ok], ref[ok], rtol=0, atol=1e-8 * np.sum(np.abs(x) ** 2))
+            assert set(np.argsort(got)[:6]) == set(np.argsort(ref)[:6])
+
+
+def test_noisy_revolutions_keep_the_local_fit_and_follow_a_step():
+    """Decision 1557: 80 revolutions of a 2-flute cut (d_a 1.5 mm, then 3 mm) whose harmonics
+    carry complex noise of 3 % of the tooth-passing line (relative misfit ≈ 9e-3, above the
+    accept misfit 1e-3: every revolution used to search the grid). The grid is searched in the
+    first MISFIT_REVS revolutions and then once per REGRID_REVS (≤ 8 + 5, plus 3 for misfit
+    jumps the noise may make), and the medians of the last 20 revolutions of each part are
+    within 5 % of the depth (1.52 and 3.07 mm measured; 3.11 mm with the grid searched every
+    revolution): the fit from the previous revolution follows the step by itself."""
+    from millsense.monitoring.torque_spectrum import MISFIT_REVS, REGRID_REVS
+
+    n, k = 2, 15
+    ident = SpectrumIdentifier(ToolGeometry(n, R, BETA), k)
+    searched = []
+    search = ident._grid_search
+    ident._grid_search = lambda *a: (searched.append(1), search(*a))[1]  # type: ignore[method-assign]
+    rng = np.random.default_rng(3)
+    spectra = {da: _torque(n, 1.5e-3, da, kte=25e3) for da in (1.5e-3, 3e-3)}
+    depth = []
+    for r in range(80):
+        x = spectra[1.5e-3 if r < 40 else 3e-3]
+        h = x[n * np.arange(1, k + 1)].copy()
+        noise = (rng.standard_normal(k) + 1j * rng.standard_normal(k)) / math.sqrt(2)
+        h += 0.03 * abs(h[0]) * noise
+        depth.append(ident.identify(h, complex(x[1]), C).axial_depth_m)
+    assert len(searched) <= MISFIT_REVS + math.ceil((80 - MISFIT_REVS) / REGRID_REVS) + 3
+    assert np.median(depth[20:40]) == pytest.approx(1.5e-3, rel=0.05)
+    assert np.median(depth[60:80]) == pytest.approx(3e-3, rel=0.05)

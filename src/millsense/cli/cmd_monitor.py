@@ -416,10 +416,11 @@ def _run(
     wall = time.perf_counter() - t0
     write_event_log(out, res.events)
     seconds = rec.n_samples / fs
+    speed = seconds / max(wall, 1e-9)
     lines = [
         f"wrote {out}: {len(res.events)} events from {', '.join(names)} on "
-        f"{seconds:.1f} s of {recording.name} in {wall:.2f} s ({seconds / max(wall, 1e-9):.0f}x "
-        "real time)"
+        f"{seconds:.1f} s of {recording.name} in {wall:.2f} s "
+        f"({speed:.{0 if speed >= 10 else 1}f}x real time)"
     ]
     for b in blocks:
         alarms = [e for e in res.events if e.source == b.name and e.kind == EventKind.ALARM]

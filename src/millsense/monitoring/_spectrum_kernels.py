@@ -356,40 +356,32 @@ def amplitudes(
     return alpha, beta, _g(1.0, st, ex), _l(2.0, d, kb)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True)
 def grid_costs(
-    x: ComplexArray, a: ComplexArray, b: ComplexArray, edge: bool, out: FloatArray
-) -> None:  # pragma: no cover - compiled
-    """Projected misfit Σ|x − αA − βB|² of every grid row of the bases ``a``, ``b`` (rows ×
-    harmonics; ``b`` unused without the edge term), as :func:`..torque_spectrum._project`
-    does along the last axis; a singular row gives +inf."""
-    rows, m = a.shape
+    q1: FloatArray, q2: FloatArray, xv: FloatArray, edge: bool, singular: NDArray[np.bool_],
+    out: FloatArray,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
+    """Projected misfit |x|² − (q₁·x)² − (q₂·x)² of every grid row (rows of ``q1``, ``q2``:
+    the orthonormal bases of :class:`..torque_spectrum._GridBases` as [Re q | Im q]; ``xv`` =
+    [Re x | Im x]; without the edge term only q₁); a ``singular`` row gives +inf (with the edge
+    term). One thread: a multi-threaded BLAS product waits on a loaded host's other work."""
+    rows, m = q1.shape
+    xx = 0.0
+    for i in range(m):
+        xx += xv[i] * xv[i]
     for j in range(rows):
-        aa = 0.0
-        ax = 0.0
-        bb = 0.0
-        ab = 0.0
-        bx = 0.0
+        c1 = 0.0
         for i in range(m):
-            aa += a[j, i].real ** 2 + a[j, i].imag ** 2
-            ax += (a[j, i].conjugate() * x[i]).real
-            if edge:
-                bb += b[j, i].real ** 2 + b[j, i].imag ** 2
-                ab += (a[j, i].conjugate() * b[j, i]).real
-                bx += (b[j, i].conjugate() * x[i]).real
+            c1 += q1[j, i] * xv[i]
+        c = xx - c1 * c1
         if edge:
-            det = aa * bb - ab * ab
-            alpha = (bb * ax - ab * bx) / det
-            beta = (aa * bx - ab * ax) / det
-        else:
-            alpha = ax / aa
-            beta = 0.0
-        c = 0.0
-        for i in range(m):
-            r = x[i] - alpha * a[j, i]
-            if edge:
-                r -= beta * b[j, i]
-            c += r.real**2 + r.imag**2
+            if singular[j]:
+                out[j] = math.inf
+                continue
+            c2 = 0.0
+            for i in range(m):
+                c2 += q2[j, i] * xv[i]
+            c -= c2 * c2
         out[j] = c if math.isfinite(c) else math.inf
 
 

@@ -227,9 +227,10 @@ class EngagementBlock(Block):
             self._held = _NOT_EVALUATED
             return
         out = self._est[row]
+        ident = self._ident
         if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
-            ident = self._ident
-            ident._prev = self._prev.copy() if self._acc[_sk.ACC_HAS_PREV] else None
+            has_prev = bool(self._acc[_sk.ACC_HAS_PREV])
+            ident._prev = self._prev.copy() if has_prev else None
             coeff = self._done_sums[row]
             done = self._done[row]
             out[:] = ident.identify_array(
@@ -238,9 +239,13 @@ class EngagementBlock(Block):
                 float(done[_sk.DONE_FEED]),
                 float(done[_sk.DONE_T0_NET]),
                 float(done[_sk.DONE_MEAN_VAR]),
+                # the scan's fit from the previous solution, which missed the accept misfit
+                warm=(out[:3].copy(), float(out[_sk.EST_COST])) if has_prev else None,
             )
             self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
             self._acc[_sk.ACC_HAS_PREV] = 1.0
+        else:
+            ident.note_misfit(float(out[_sk.EST_COST]))
         est = out.copy()
         self._held = est[: len(_FIELDS)]
         self._log.append((t_end, est))

@@ -42,6 +42,7 @@ d_r = r (cos θ_st − cos θ_ex) (digest §2.4 [S]; = r(1 + cos θ_st) in down 
 
 from __future__ import annotations
 
+import collections
 import functools
 import math
 from dataclasses import dataclass
@@ -212,11 +213,40 @@ def _project(
     return alpha, beta, x - alpha[..., None] * a - beta[..., None] * b
 
 
+@dataclass(frozen=True)
+class _GridBases:
+    """The coarse grid of (d_a, θ_st, θ_ex) with what its projected misfits need that does not
+    depend on the measurement: per row an orthonormal basis (q₁, q₂) of the real span of the
+    shear and edge bases A, B (real inner product Re(u^H v); q₁ = A/|A|, q₂ the unit part of B
+    orthogonal to it, Gram–Schmidt applied twice), each as a real matrix [Re q | Im q]
+    (rows × 2K), so that a measurement's projections are two matrix-vector products."""
+
+    params: tuple[FloatArray, FloatArray, FloatArray]
+    q1: FloatArray
+    q2: FloatArray
+    #: rows whose A is zero, or whose B is zero or parallel to A (no unique α, β)
+    singular: NDArray[np.bool_]
+
+    def costs(self, x: ComplexArray, edge: bool) -> FloatArray:
+        """Projected misfit min over α, β of Σ|x − αA − βB|² of every row (β = 0 without the
+        edge term; what :func:`_project` leaves): |x|² − (q₁·x)² − (q₂·x)², one compiled loop.
+        A singular row gives +inf."""
+        out = np.empty(self.q1.shape[0])
+        xv = np.concatenate([x.real, x.imag])
+        _sk.grid_costs(self.q1, self.q2, xv, edge, self.singular, out)
+        return out
+
+
+def _unit_rows(v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Rows of ``v`` scaled to unit length (zero rows stay zero) and their lengths."""
+    n = np.sqrt(np.sum(v * v, axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(n[:, None] > 0, v / n[:, None], 0.0), n
+
+
 @functools.lru_cache(maxsize=16)
-def _grid(
-    geom: ToolGeometry, n_harmonics: int, max_depth_m: float
-) -> tuple[tuple[FloatArray, FloatArray, FloatArray], ComplexArray, ComplexArray]:
-    """Coarse grid of (d_a, θ_st, θ_ex) and its shear and edge bases (cached per tool)."""
+def _grid(geom: ToolGeometry, n_harmonics: int, max_depth_m: float) -> _GridBases:
+    """Coarse grid of (d_a, θ_st, θ_ex) and its orthonormalised bases (cached per tool)."""
     d = np.linspace(0.03, 0.97, 48) * max_depth_m
     ang = np.linspace(0.0, math.pi, 61)
     st, ex = np.meshgrid(ang, ang, indexing="ij")
@@ -225,8 +255,22 @@ def _grid(
     grid = (np.repeat(d, st.size), np.tile(st, d.size), np.tile(ex, d.size))
     k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
     a, b = _basis(k[None, :], grid[0][:, None], grid[1][:, None], grid[2][:, None], geom)
-    return grid, a, b
+    q1, na = _unit_rows(np.hstack([a.real, a.imag]))
+    wb = np.hstack([b.real, b.imag])
+    perp = wb.copy()
+    for _ in range(2):  # twice is enough: orthogonal to round-off however close B is to A
+        perp -= np.sum(q1 * perp, axis=1)[:, None] * q1
+    q2, nperp = _unit_rows(perp)
+    nb = np.sqrt(np.sum(wb * wb, axis=1))
+    singular = ~(na > 0) | ~(nperp > 1e-12 * nb)
+    return _GridBases(grid, np.ascontiguousarray(q1), np.ascontiguousarray(q2), singular)
 
+
+#: Decision 1557: revolutions whose relative misfits set the noise level of the local fit, the
+#: factor above it that calls a global search, and the revolutions after which one runs anyway.
+MISFIT_REVS = 8
+MISFIT_JUMP = 2.0
+REGRID_REVS = 16
 
 #: Harmonics of the spindle frequency covered by the coarse grid and the first least-squares
 #: stage (16 ω_n: 4 tooth harmonics of a 4-flute tool, 16 of a 1-flute one).
@@ -252,7 +296,10 @@ class SpectrumIdentifier:
     nonlinear search is over (d_a, θ_st, θ_ex) only; with β = 0 this is the information of
     the thesis' ratio Ψ and notch. Each revolution starts from the previous one's solution; if
     that leaves a relative misfit above ``accept``, least squares also starts from the best
-    ``n_starts`` points of a coarse grid (48 depths × 1830 angle pairs, 3°, up to 16 ω_n).
+    ``n_starts`` points of a coarse grid (48 depths × 1830 angle pairs, 3°, up to 16 ω_n),
+    unless that misfit is within :data:`MISFIT_JUMP` of the last revolutions' (the noise of a
+    sensorless torque, not a new engagement) and a grid search ran within
+    :data:`REGRID_REVS` revolutions (decision 1557).
     The Levenberg–Marquardt fit is bounded by an active set (decision 1535): a parameter on
     its bound whose descent direction leaves the box (θ_ex = π in down milling, θ_st = 0 in up
     milling) is held, and the fit converges to the bounded least-squares optimum.
@@ -270,9 +317,8 @@ class SpectrumIdentifier:
         self.max_depth_m = max_depth_fraction * geom.axial_pitch_m
         self.k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
         self.k_grid = self.k[: max(min(GRID_ORDER // geom.n_flutes, self.k.size), 2)]
-        self._grid, self._ga, gb = _grid(geom, self.k_grid.size, self.max_depth_m)
-        self._gb = gb if edge else None
-        self._prev: FloatArray | None = None
+        self._grid = _grid(geom, self.k_grid.size, self.max_depth_m)
+        self.reset()
         #: relative misfit below which the previous revolution's start is kept (no grid)
         self.accept = 1e-3
         #: least-squares starts taken from the best grid points
@@ -285,7 +331,9 @@ class SpectrumIdentifier:
 
     def reset(self) -> None:
         """Forget the previous revolution (a new stream)."""
-        self._prev = None
+        self._prev: FloatArray | None = None
+        self._misfits: collections.deque[float] = collections.deque(maxlen=MISFIT_REVS)
+        self._since_grid = 0
 
     def _residual(self, p: FloatArray, x: ComplexArray) -> FloatArray:
         a, b = _basis(self.k[: x.size], p[0], p[1], p[2], self.geom)
@@ -327,9 +375,12 @@ class SpectrumIdentifier:
         feed_per_tooth_m: float,
         mean_cut_torque_nm: float = math.nan,
         mean_var: float = 1.0,
+        warm: tuple[FloatArray, float] | None = None,
     ) -> FloatArray:
         """:meth:`identify` as an array of the fields ``_spectrum_kernels.EST_*`` (the
-        streaming block's form: one compiled call per revolution on the common path)."""
+        streaming block's form: one compiled call per revolution on the common path).
+        ``warm``: the fit from the previous revolution's solution (point, cost) where the
+        caller already made it and it missed the accept misfit (the block's compiled scan)."""
         geom = self.geom
         x = np.ascontiguousarray(x, dtype=np.complex128)
         t1 = complex(t1)
@@ -339,29 +390,66 @@ class SpectrumIdentifier:
         tail = (geom.radius_m, geom.n_flutes, geom.axial_pitch_m, RUNOUT_RCOND)
         mean = (float(mean_cut_torque_nm), float(mean_var))
         prev = self._prev
-        if prev is None or not _sk.identify_from(
-            prev, x, t1, c, self.k, *args, self.accept, *tail, *mean, out
-        ):
-            # the previous revolution's solution does not explain this one: grid starts too
-            best = None if prev is None else (out[:3].copy(), float(out[_sk.EST_COST]))
+        accepted = (
+            warm is None
+            and prev is not None
+            and _sk.identify_from(prev, x, t1, c, self.k, *args, self.accept, *tail, *mean, out)
+        )
+        if not accepted:
             xn, norm = _sk.normalised(x)
-            ng = self.k_grid.size
-            cost = np.empty(self._ga.shape[0])
-            _sk.grid_costs(np.ascontiguousarray(xn[:ng]), self._ga,
-                           self._ga if self._gb is None else self._gb, self.edge, cost)  # fmt: skip
-            best_rows = np.argpartition(cost, self.n_starts)[: self.n_starts]
-            for j in best_rows[np.argsort(cost[best_rows])]:
-                # coarse to fine: the low harmonics pin the angles before the high ones, whose
-                # phases turn k N times faster with θ, are added
-                p0 = np.array([g[j] for g in self._grid])
-                low = _sk.lm_fit(p0, np.ascontiguousarray(xn[:ng]), self.k[:ng], *args, 60)
-                sol = _sk.lm_fit(low[0], xn, self.k[: xn.size], *args, 60)
-                if best is None or sol[1] < best[1]:
-                    best = sol
-                if 2 * best[1] / norm < 1e-8:
-                    break
-            assert best is not None
+            if warm is not None:
+                best: tuple[FloatArray, float] | None = (np.array(warm[0]), float(warm[1]))
+            else:
+                best = None if prev is None else (out[:3].copy(), float(out[_sk.EST_COST]))
+            if best is not None and self._local_fit_holds(2.0 * best[1] / norm):
+                # the misfit is the noise's of the last revolutions: no new global search
+                # (decision 1557)
+                self._since_grid += 1
+            else:
+                # the previous revolution's solution does not explain this one: grid starts too
+                best = self._grid_search(xn, norm, args, best)
+                self._since_grid = 0
             _sk.estimate(best[0], best[1], x, t1, c, self.k, self._kb, self.edge, *tail, *mean,
                          self._lo, self._hi, self._scl, out)  # fmt: skip
+        self.note_misfit(float(out[_sk.EST_COST]))
         self._prev = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
         return out
+
+    def note_misfit(self, misfit: float) -> None:
+        """Record a revolution's relative misfit (:meth:`identify_array` does; the streaming
+        block also for the revolutions its compiled scan identified)."""
+        self._misfits.append(misfit)
+
+    def _local_fit_holds(self, misfit: float) -> bool:
+        """Decision 1557: keep the fit from the previous revolution's solution (no global
+        search) when its relative misfit is at most :data:`MISFIT_JUMP` × the median of the
+        last :data:`MISFIT_REVS` revolutions' (noise the local fit already lived with, not an
+        engagement that changed), and a global search ran within :data:`REGRID_REVS`."""
+        if len(self._misfits) < MISFIT_REVS or self._since_grid >= REGRID_REVS - 1:
+            return False
+        return misfit <= MISFIT_JUMP * float(np.median(np.asarray(self._misfits)))
+
+    def _grid_search(
+        self,
+        xn: ComplexArray,
+        norm: float,
+        args: tuple[float, bool, FloatArray, FloatArray, FloatArray],
+        best: tuple[FloatArray, float] | None,
+    ) -> tuple[FloatArray, float]:
+        """The best of ``best`` and Levenberg–Marquardt fits from the :attr:`n_starts` best
+        points of the coarse grid (normalised harmonics ``xn``, Σ|xn|² = ``norm``)."""
+        ng = self.k_grid.size
+        cost = self._grid.costs(xn[:ng], self.edge)
+        best_rows = np.argpartition(cost, self.n_starts)[: self.n_starts]
+        for j in best_rows[np.argsort(cost[best_rows])]:
+            # coarse to fine: the low harmonics pin the angles before the high ones, whose
+            # phases turn k N times faster with θ, are added
+            p0 = np.array([g[j] for g in self._grid.params])
+            low = _sk.lm_fit(p0, np.ascontiguousarray(xn[:ng]), self.k[:ng], *args, 60)
+            sol = _sk.lm_fit(low[0], xn, self.k[: xn.size], *args, 60)
+            if best is None or sol[1] < best[1]:
+                best = sol
+            if 2 * best[1] / norm < 1e-8:
+                break
+        assert best is not None
+        return best
