@@ -471,7 +471,7 @@ def _engagement_summary(block: Any) -> str:
     reliable ones (:func:`_reliable`), or, where fewer than half are reliable, that the
     engagement is not determined (a few revolutions of noise can pass the test by chance;
     decision 1807)."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA
+    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
 
     every = [e for _, e in getattr(block, "estimates", []) if e is not None]
     if not every:
@@ -489,10 +489,12 @@ def _engagement_summary(block: Any) -> str:
             "fix the engagement here (e.g. a full slot with 3 or more flutes, or a light cut "
             "in the signal's noise)"
         )
+    depth = depth_summary(est)
     return (
         f"  {block.name}: {len(est)} of {len(every)} revolutions reliable (σ ≥ "
-        f"{RELIABLE_SIGMA}): median axial depth "
-        f"{1e3 * med([e.axial_depth_m for e in est]):.3f} mm, radial depth "
+        f"{RELIABLE_SIGMA}): median axial depth {1e3 * depth.median_m:.3f} ± "
+        f"{1e3 * depth.standard_error_m:.3f} mm (a revolution ± "
+        f"{1e3 * depth.scatter_m:.3f} mm), radial depth "
         f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
         f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
         f"{1e6 * med([e.runout_m for e in est]):.1f} µm, reliability "

@@ -450,8 +450,8 @@ def mean_cut_torque(
 
 #: Fields of :func:`estimate`'s output, in order (SI units).
 EST_AXIAL, EST_RADIAL, EST_ENTRY, EST_EXIT, EST_KT, EST_RUNOUT, EST_RUNOUT_ANGLE = range(7)
-EST_RELIABILITY, EST_NOTCH, EST_COST, EST_EDGE, EST_EDGE_SOURCE = range(7, 12)
-EST_SIZE = 12
+EST_RELIABILITY, EST_AXIAL_SD, EST_NOTCH, EST_COST, EST_EDGE, EST_EDGE_SOURCE = range(7, 13)
+EST_SIZE = 13
 
 
 @numba.njit(cache=True)
@@ -757,6 +757,47 @@ def fit_with_mean(
 
 
 @numba.njit(cache=True)
+def depth_sd(
+    q: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool, scale: FloatArray
+) -> float:
+    """Standard deviation of the fitted d_a (m) from the harmonics' own scatter (decision
+    1558): the projected residual r(p) of the harmonics at p = (d_a, θ_st, θ_ex) (α, β solved
+    at every p: variable projection, whose Jacobian gives the nonlinear parameters' covariance,
+    Golub & Pereyra 1973), s² = ‖r‖²/(2K − 3 − n_amplitudes) and Cov = s² (JᵀJ)⁻¹, J by
+    forward differences as :func:`lm_fit_weighted` takes them. +inf where JᵀJ is singular or
+    nothing is left to estimate s² from."""
+    n = x.shape[0]
+    n_amp = 2 if edge else 1
+    dof = 2 * n - 3 - n_amp
+    ax0 = abs(x[0])
+    if dof < 1 or not ax0 > 0:
+        return math.inf
+    xn = x / ax0
+    r = np.empty(2 * n)
+    rt = np.empty(2 * n)
+    jac = np.empty((2 * n, 3))
+    a, b, alpha, beta = _fit_basis(q, xn, k, kb, edge)
+    cost = _projected_residual(xn, a, b, alpha, beta, r)
+    qt = q.copy()
+    for i in range(3):
+        h = 1e-7 * scale[i]
+        qt[:] = q
+        qt[i] = q[i] + h
+        a, b, alpha, beta = _fit_basis(qt, xn, k, kb, edge)
+        _projected_residual(xn, a, b, alpha, beta, rt)
+        for j in range(2 * n):
+            jac[j, i] = (rt[j] - r[j]) / h
+    jtj = jac.T @ jac
+    s2 = 2.0 * cost / dof
+    # (JᵀJ)⁻¹[0, 0] by the cofactor of the 3 × 3 matrix
+    det = np.linalg.det(jtj)
+    if not (det > 0 and math.isfinite(det)):
+        return math.inf
+    c00 = (jtj[1, 1] * jtj[2, 2] - jtj[1, 2] * jtj[2, 1]) / det
+    return math.sqrt(max(s2 * c00, 0.0))
+
+
+@numba.njit(cache=True)
 def estimate(
     p: FloatArray,
     cost: float,
@@ -854,6 +895,7 @@ def estimate(
     out[EST_RUNOUT] = abs(w)
     out[EST_RUNOUT_ANGLE] = (-math.atan2(w.imag, w.real)) % (2.0 * math.pi)
     out[EST_RELIABILITY] = 1.0 - dev / tot
+    out[EST_AXIAL_SD] = depth_sd(q, x, k, kb, edge, scale)
     out[EST_NOTCH] = notch
     out[EST_COST] = 2.0 * cost / norm
     out[EST_EDGE] = beta / rn

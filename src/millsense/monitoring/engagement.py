@@ -22,7 +22,7 @@ Python for it.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,6 +48,7 @@ _FIELDS = (
     ("runout", "m", "runout ε (Lee Eq. 2.18 / 2.20-2.22 re-derived)"),
     ("runout_angle", "rad", "runout direction λ (geometry convention)"),
     ("reliability", "1", "reliability index σ (Lee Eq. 2.23)"),
+    ("axial_depth_sd", "m", "standard deviation of d_a from its harmonics (decision 1558)"),
 )
 
 
@@ -55,6 +56,30 @@ _FIELDS = (
 #: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
 #: 1807).
 RELIABLE_SIGMA = 0.8
+
+@dataclass(frozen=True)
+class DepthSummary:
+    """The axial depth over many revolutions (decision 1558), in m: the median of the reliable
+    revolutions' d_a, its standard error (1.2533 × the scatter / √n), the scatter (1.4826 ×
+    the median absolute deviation) and the median of the revolutions' own standard
+    deviations (:attr:`EngagementEstimate.axial_depth_sd_m`)."""
+
+    n: int
+    median_m: float
+    standard_error_m: float
+    scatter_m: float
+    predicted_sd_m: float
+
+
+def depth_summary(estimates: Sequence[EngagementEstimate]) -> DepthSummary:
+    """:class:`DepthSummary` of ``estimates`` (the reliable revolutions; at least one)."""
+    da = np.array([e.axial_depth_m for e in estimates], dtype=np.float64)
+    med = float(np.median(da))
+    scatter = 1.4826 * float(np.median(np.abs(da - med)))
+    predicted = float(np.median([e.axial_depth_sd_m for e in estimates]))
+    return DepthSummary(int(da.size), med, 1.2533 * scatter / math.sqrt(da.size), scatter,
+                        predicted)  # fmt: skip
+
 
 #: The outputs of a revolution not evaluated (read only: shared by every such revolution).
 _NOT_EVALUATED = np.full(len(_FIELDS), math.nan)
@@ -295,7 +320,7 @@ class EngagementBlock(Block):
 # the identifier's output array holds the output channels' fields (:data:`_FIELDS`) first,
 # then notch index, cost, edge coefficient and its source: :class:`EngagementEstimate`'s order
 assert [_sk.EST_AXIAL, _sk.EST_RADIAL, _sk.EST_ENTRY, _sk.EST_EXIT, _sk.EST_KT, _sk.EST_RUNOUT,
-        _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY, _sk.EST_NOTCH, _sk.EST_COST,
+        _sk.EST_RUNOUT_ANGLE, _sk.EST_RELIABILITY, _sk.EST_AXIAL_SD, _sk.EST_NOTCH, _sk.EST_COST,
         _sk.EST_EDGE, _sk.EST_EDGE_SOURCE] == list(range(_sk.EST_SIZE))  # fmt: skip
 
 

@@ -172,6 +172,8 @@ class EngagementEstimate:
     runout_m: float
     runout_angle_rad: float
     reliability: float
+    #: standard deviation of d_a from the harmonics' scatter about the fit, m (decision 1558)
+    axial_depth_sd_m: float
     notch_index: float  #: ω_notch/ω_N = d_a,p/d_a
     cost: float
     edge_n_m: float = 0.0  #: edge-force coefficient K_e = e K_t c, N/m
@@ -362,6 +364,7 @@ class SpectrumIdentifier:
             runout_m=float(out[_sk.EST_RUNOUT]),
             runout_angle_rad=float(out[_sk.EST_RUNOUT_ANGLE]),
             reliability=float(out[_sk.EST_RELIABILITY]),
+            axial_depth_sd_m=float(out[_sk.EST_AXIAL_SD]),
             notch_index=float(out[_sk.EST_NOTCH]),
             cost=float(out[_sk.EST_COST]),
             edge_n_m=float(out[_sk.EST_EDGE]),

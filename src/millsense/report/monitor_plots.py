@@ -14,7 +14,7 @@ import numpy as np
 #: Outputs of the monitors the figure draws (suffixes of ``{monitor}/...``).
 CHATTER_KEYS = ("chatter_hz", "energy_ratio")
 BREAKAGE_KEYS = ("tooth_avg", "residual1", "limit1", "residual2", "limit2", "band")
-ENGAGEMENT_KEYS = ("axial_depth", "radial_depth", "reliability", "kt")
+ENGAGEMENT_KEYS = ("axial_depth", "radial_depth", "reliability", "kt", "axial_depth_sd")
 
 
 def plotted(key: str) -> bool:
@@ -166,6 +166,11 @@ def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: 
     kt = data.get(f"{name}/kt", np.ones(len(axial)))
     t = _time(axial, step, fs, t0)
     good = (rel >= RELIABLE_SIGMA) & (kt > 0)  # as the command's summary (decision 1807)
+    sd = data.get(f"{name}/axial_depth_sd")
+    if sd is not None:  # ± one standard deviation of a revolution's d_a (decision 1558)
+        band = np.where(good, 1e3 * sd, np.nan)
+        ax.fill_between(t, axial - band, axial + band, color="tab:green", alpha=0.2, lw=0,
+                        label="axial depth ± 1 s.d.")  # fmt: skip
     for y, label, color in ((axial, "axial depth", "tab:green"),
                             (radial, "radial depth", "tab:purple")):  # fmt: skip
         ax.plot(t, np.where(good, y, np.nan), lw=1.0, color=color, label=label)
