@@ -235,6 +235,18 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     with open_recording(tmp_path / "run.h5") as rec:
         n = rec.n_samples
         assert abs(n / FS - (holds[0] + 0.5)) < 0.02  # stopped 0.5 s after
+        first_cut_s = int(np.argmax(rec.channel("plan/in_cut") > 0.5)) / FS  # 2.30 s
+    # decision 1555: in air before the plan's first row in cut the override moves twice, by
+    # the seeds' rules, each event naming its rule: 150 % (seed 002's air rule, at the first
+    # revolution wholly behind the at-speed gate, 0.27 s) and 50 % (the cut within the
+    # look-ahead's horizon, decision 1626), on spindle powers that read air (4.4 and 1.4 W
+    # against the 34 W threshold). Before, the air reference's start read 151 W in air and
+    # the override went 150, 50, 150, 50 % (0.21-0.99 s), regulating in air
+    air = [e for e in ev if e.name == "feed_override" and e.time_s < first_cut_s]
+    assert [e.value for e in air] == [150.0, 50.0]
+    assert "(air by the plan, peak" in air[0].message
+    assert "(air by the plan, cut ahead, peak" in air[1].message
+    assert all(e.values["peak"] < 0.1 * e.values["reference"] for e in air)
     assert (tmp_path / "run.png").stat().st_size > 10000
     # the run's report beside the recording (issue 19): its figures are the run's events
     page = (tmp_path / "run.html").read_text()
