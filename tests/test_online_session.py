@@ -15,7 +15,7 @@ from tests.cli_run import run_cli
 from millsense.core.units import MM
 from millsense.online.gates import SpindleAtSpeed
 from millsense.online.plan_sync import PlanSync
-from millsense.streaming.block import Chunk
+from millsense.streaming.block import Chunk, Event
 
 FS = 10000.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -375,31 +375,8 @@ def test_air_reference_after_a_run_up_and_a_speed_change_is_not_a_cut() -> None:
     sample (its noise: the reference was 1.26 N·m off) and followed the speed change with a
     0.3 s average (0.51 N·m off); the revolutions the gate opened in held the torque before
     it: 165 W, then 106 W of "cut" in air, and the override went 150, 50, 111.5, 150 %."""
-    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
-    from millsense.online.gates import AirReference
-
     data, friction = _run_up_in_air()
-    gate = SpindleAtSpeed()
-    air = AirReference("tq", out="cutting")
-    afc = AdaptiveFeedBlock(
-        AdaptiveFeedOptions(reference=343.6, quantity="power"),
-        torque_channel="cutting",
-        enable_channel="spindle/at_speed",
-    )
-    for b in (gate, air, afc):
-        b.reset(FS)
-    out: dict[str, list[np.ndarray]] = {}
-    events = []
-    n = data["tq"].size
-    for a in range(0, n, 100):
-        d = {k: v[a : a + 100] for k, v in data.items()}
-        for b in (gate, air, afc):
-            res = b.process(Chunk(a, FS, 0.0, {k: d[k] for k in b.inputs}))
-            d.update(res.channels)
-            events += res.events
-            for k, v in res.channels.items():
-                out.setdefault(k, []).append(v)
-    ch = {k: np.concatenate(v) for k, v in out.items()}
+    ch, events = _gate_air_feed(data, 100)
     opened = np.flatnonzero(np.diff(ch["spindle/at_speed"]) > 0.5) + 1
     assert opened.tolist() == [1702, 11482]  # 0.1 s after 3 % of the command, twice
     rev = int(FS * 60 / 1000)
@@ -414,4 +391,40 @@ def test_air_reference_after_a_run_up_and_a_speed_change_is_not_a_cut() -> None:
     # the gate opened in (0.20 s), whose first 0.03 s held the friction unsubtracted: 165 W
     assert opened[0] + rev <= moves[0].sample <= opened[0] + 2 * rev
     peaks = ch["adaptive_feed/peak"][np.isfinite(ch["adaptive_feed/peak"])]
-    assert np.max(peaks) < afc.opts.air  # 34.4 W: every interval read as air
+    assert np.max(peaks) < 0.1 * 343.6  # 34.4 W, the air threshold: every interval read air
+    # whatever the chunking (the gate's state and the last sample off it carried over)
+    ch7, events7 = _gate_air_feed(data, 7)
+    assert [(e.sample, e.value) for e in events7] == [(e.sample, e.value) for e in events]
+    for k in ("air_reference/torque", "adaptive_feed/override"):
+        assert np.array_equal(ch7[k], ch[k])
+
+
+def _gate_air_feed(
+    data: dict[str, np.ndarray], chunk: int
+) -> tuple[dict[str, np.ndarray], list[Event]]:
+    """The session's at-speed gate, air reference and adaptive feed (spindle power, the
+    slot's 343.6 W reference) in a chain, chunk by chunk: their channels and events."""
+    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+    from millsense.online.gates import AirReference
+
+    gate = SpindleAtSpeed()
+    air = AirReference("tq", out="cutting")
+    afc = AdaptiveFeedBlock(
+        AdaptiveFeedOptions(reference=343.6, quantity="power"),
+        torque_channel="cutting",
+        enable_channel="spindle/at_speed",
+    )
+    for b in (gate, air, afc):
+        b.reset(FS)
+    out: dict[str, list[np.ndarray]] = {}
+    events: list[Event] = []
+    n = data["tq"].size
+    for a in range(0, n, chunk):
+        d = {k: v[a : a + chunk] for k, v in data.items()}
+        for b in (gate, air, afc):
+            res = b.process(Chunk(a, FS, 0.0, {k: d[k] for k in b.inputs}))
+            d.update(res.channels)
+            events += res.events
+            for k, v in res.channels.items():
+                out.setdefault(k, []).append(v)
+    return {k: np.concatenate(v) for k, v in out.items()}, events
