@@ -423,10 +423,13 @@ def test_dead_zone_widens_to_the_noise_of_the_regulated_value() -> None:
     assert blk.rls.updates <= 0.05 * revolutions
 
 
-def _v8_stream(noise_n: float, seconds: float = 3.0) -> tuple[AdaptiveFeedBlock, dict]:
+def _v8_stream(
+    noise_n: float, seconds: float = 3.0, air_transient_n: float = 0.0
+) -> tuple[AdaptiveFeedBlock, dict]:
     """The V8 slot's plan (seed 000: 1000 rev/min, 325 N): the TCP along it at the programmed
     feed from its start (≈ 1.4 s of air before the cut), a 2-flute force of 250 N per tooth
-    where the plan cuts, plus white noise of ``noise_n`` on each axis."""
+    where the plan cuts, plus white noise of ``noise_n`` on each axis and a transient that
+    decays from ``air_transient_n`` with a time constant of 0.3 s (an estimate settling)."""
     from millsense.validation.cases import control_adaptive as ca
 
     plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
@@ -437,7 +440,7 @@ def _v8_stream(noise_n: float, seconds: float = 3.0) -> tuple[AdaptiveFeedBlock,
     r = np.clip(np.searchsorted(t_plan, t, "right") - 1, 0, len(t_plan) - 1)
     cut = np.asarray(plan["in_cut"], dtype=bool)[r]
     rng = np.random.default_rng(8)
-    f = np.where(cut, 250.0 * tooth_shape(t), 0.0)
+    f = np.where(cut, 250.0 * tooth_shape(t), 0.0) + air_transient_n * np.exp(-t / 0.3)
     data = {"force_x": 0.6 * f + noise_n * rng.standard_normal(t.size),
             "force_y": 0.8 * f + noise_n * rng.standard_normal(t.size),
             "spindle/speed": np.full(t.size, OMEGA)}  # fmt: skip
@@ -463,3 +466,31 @@ def test_a_signal_drowned_in_air_holds_the_programmed_feed() -> None:
     ev, ch = feed(blk, data, 100)
     assert not [e for e in ev if e.name == "adaptive_feed_noise"]
     assert ch["adaptive_feed/override"][int(0.5 * FS)] == pytest.approx(1.5)
+
+
+def test_plan_air_before_the_first_engagement_is_air_whatever_the_signal_reads() -> None:
+    """Decision 1555: in the V8 slot's 1.4 s of air a force that decays from 300 N (τ 0.3 s:
+    above the 80 N air threshold for the first 0.39 s, as the air reference's start read 150 W
+    against a 34 W threshold in `millsense run`) is not a cut where the plan puts the tool out
+    of the material before its first engagement. The override events in air are the seeds'
+    rules, each naming its reason: 150 % (seed 002's air rule) at the first revolution, then
+    50 % with the cut within the look-ahead's horizon (decision 1626), and nothing else
+    before the plan's first row in cut. Before, the stream's start (as if cutting) regulated
+    the transient: 106.9, 136.1 and 150 % in the first three revolutions, the model seeded on
+    it and the watchdog armed in air."""
+    blk, data = _v8_stream(2.0, air_transient_n=300.0)
+    ev, ch = feed(blk, data, 100)
+    plan = blk.plan
+    assert plan is not None
+    t_plan = np.asarray(plan["t_s"], dtype=np.float64)
+    first_cut_s = float(t_plan[np.argmax(np.asarray(plan["in_cut"], dtype=bool))])
+    moves = [e for e in ev if e.name == "feed_override" and e.time_s < first_cut_s]
+    assert [round(float(e.value or 0.0), 6) for e in moves] == [150.0, 50.0]
+    assert moves[0].time_s == pytest.approx(REV, abs=1.5 / FS)  # the first revolution
+    assert moves[0].values["peak"] > 80.0  # the transient read above the air threshold
+    assert "(air by the plan, peak" in moves[0].message
+    assert "(air by the plan, cut ahead, peak" in moves[1].message
+    # the cut is met at the re-entry feed and regulated after it (the model seeded in cut)
+    at_cut = int(first_cut_s * FS)
+    assert ch["adaptive_feed/override"][at_cut] == pytest.approx(0.5)
+    assert blk.loop.engaged and blk.loop.identified

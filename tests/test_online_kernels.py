@@ -3,6 +3,8 @@ for bit what their former numpy forms gave, kept here as the oracles, in any chu
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from millsense.estimation.spindle_observer import hold_decimated
@@ -37,11 +39,13 @@ class _NumpyAtSpeed:
 
 
 class _NumpyAir:
-    """The numpy form of :class:`AirReference` before decision 1653."""
+    """The numpy form of :class:`AirReference` before decision 1653, with the start of
+    decision 1555 (the running mean of the first ``n_start`` used samples after the stream's
+    start or a sample off speed, then the first-order average)."""
 
     def __init__(self, air: AirReference) -> None:
         self.a = air
-        self._ref, self._seen, self._run = 0.0, False, 0
+        self._ref, self._seen, self._run, self._off = 0.0, 0, 0, True
 
     def process(self, tq: np.ndarray, in_cut: np.ndarray, at_speed: np.ndarray) -> np.ndarray:
         air, ok = in_cut < 0.5, at_speed > 0.5
@@ -52,16 +56,38 @@ class _NumpyAir:
         run = np.where(last_cut == 0, self._run + idx, idx - last_cut)
         self._run = int(run[-1])
         k = np.flatnonzero((run > self.a.n_settle) & ok & np.isfinite(tq))
+        # a used sample is fresh where the spindle was off speed since the previous used one
+        last_off = np.maximum.accumulate(np.where(~ok, idx, 0))
+        prev_used = np.concatenate([[0], k[:-1] + 1])
+        fresh = last_off[k] > prev_used
+        if k.size:
+            fresh[0] |= self._off
+        self._off = bool(last_off[-1] > (k[-1] + 1 if k.size else 0)) or (self._off and not k.size)
         if k.size:
             x = tq[k]
-            if not self._seen:
-                self._ref, self._seen = float(x[0]), True
-            y = exponential_average(x, self.a.alpha, self._ref)
+            y = np.empty(k.size)
+            starts = np.concatenate([np.flatnonzero(fresh), [k.size]])
+            if starts[0] != 0:
+                starts = np.concatenate([[0], starts])
+            for a, b in itertools.pairwise(starts):
+                seen = 0 if fresh[a] else self._seen
+                prev = self._ref if a == 0 else float(y[a - 1])
+                j = a
+                while j < b and seen < self.a.n_start:
+                    seen += 1
+                    prev = float(x[j]) if seen == 1 else prev + (float(x[j]) - prev) / seen
+                    y[j] = prev
+                    j += 1
+                if j < b:
+                    y[j:b] = exponential_average(x[j:b], self.a.alpha, prev)
+                self._seen = seen
             hold = np.full(n, -1)
             hold[k] = np.arange(k.size)
             pos = np.maximum.accumulate(hold)
             ref = np.where(pos >= 0, y[np.maximum(pos, 0)], self._ref)
             self._ref = float(y[-1])
+        if self._off:
+            self._seen = 0
         return ref
 
 
@@ -100,15 +126,18 @@ def test_air_reference_equals_its_numpy_form() -> None:
     in_cut = np.repeat(rng.integers(0, 2, 25).astype(float), n // 25)
     at_speed = np.repeat(rng.integers(0, 2, 16).astype(float), n // 16)
     data = {"tq": tq, "plan/in_cut": in_cut, "spindle/at_speed": at_speed}
-    air = AirReference("tq", settle_s=0.01)
+    air = AirReference("tq", settle_s=0.01, tau_s=0.02)  # 200 samples of running mean
     air.reset(FS)
     ref = _NumpyAir(air)
+    counts = []
     for a, e in _chunks(n, rng):
         got = _block(air, data, a, e)
         want = ref.process(tq[a:e], in_cut[a:e], at_speed[a:e])
         assert np.array_equal(got["air_reference/torque"], want)
         assert np.array_equal(got["spindle/cutting_torque"], tq[a:e] - want, equal_nan=True)
-    assert air._state[1] == 1.0  # it learned
+        counts.append(air._state[1])
+    # it went past the running mean into the first-order average, and restarted off speed
+    assert max(counts) == air.n_start and 0.0 in counts[1:]
 
 
 def test_held_observer_estimates_equal_the_repeat_form() -> None:

@@ -15,7 +15,7 @@ from tests.cli_run import run_cli
 from millsense.core.units import MM
 from millsense.online.gates import SpindleAtSpeed
 from millsense.online.plan_sync import PlanSync
-from millsense.streaming.block import Chunk
+from millsense.streaming.block import Chunk, Event
 
 FS = 10000.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -310,6 +310,18 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     with open_recording(tmp_path / "run.h5") as rec:
         n = rec.n_samples
         assert abs(n / FS - (holds[0] + 0.5)) < 0.02  # stopped 0.5 s after
+        first_cut_s = int(np.argmax(rec.channel("plan/in_cut") > 0.5)) / FS  # 2.30 s
+    # decision 1555: in air before the plan's first row in cut the override moves twice, by
+    # the seeds' rules, each event naming its rule: 150 % (seed 002's air rule, at the first
+    # revolution wholly behind the at-speed gate, 0.27 s) and 50 % (the cut within the
+    # look-ahead's horizon, decision 1626), on spindle powers that read air (4.4 and 1.4 W
+    # against the 34 W threshold). Before, the air reference's start read 151 W in air and
+    # the override went 150, 50, 150, 50 % (0.21-0.99 s), regulating in air
+    air = [e for e in ev if e.name == "feed_override" and e.time_s < first_cut_s]
+    assert [e.value for e in air] == [150.0, 50.0]
+    assert "(air by the plan, peak" in air[0].message
+    assert "(air by the plan, cut ahead, peak" in air[1].message
+    assert all(e.values["peak"] < 0.1 * e.values["reference"] for e in air)
     assert (tmp_path / "run.png").stat().st_size > 10000
     # the run's report beside the recording (issue 19): its figures are the run's events
     page = (tmp_path / "run.html").read_text()
@@ -405,3 +417,89 @@ def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
     assert "no z/position_cmd, a/position_cmd, c/position_cmd" in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
+
+
+def _run_up_in_air() -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """2 s in air: a run-up to 1000 rev/min from rest, then a step of the command to
+    1500 rev/min at 1.0 s (first-order, 20 ms). The observer's estimate holds the acceleration
+    torque (J = 0.015 kg·m²: 78 N·m at the start), a friction the machine file does not match
+    (0.5 + 0.01·ω N·m: 1.55 N·m at 1000 rev/min, 2.07 at 1500) and broadband noise of 2 N·m
+    per sample, high-pass as the commissioned observer's (a first difference of white noise:
+    its 30 ms means scatter by 0.02 N·m in `millsense run`). Returns the data and the friction."""
+    n = int(2.0 * FS)
+    t = np.arange(n) / FS
+    w1, w2 = 1000 * 2 * np.pi / 60, 1500 * 2 * np.pi / 60
+    cmd = np.where(t < 1.0, w1, w2)
+    w = np.where(t < 1.0, w1 * (1 - np.exp(-t / 0.02)),
+                 w1 + (w2 - w1) * (1 - np.exp(-(t - 1.0) / 0.02)))  # fmt: skip
+    friction = 0.5 + 0.01 * w
+    e = np.random.default_rng(3).standard_normal(n + 1)
+    tq = 0.015 * np.gradient(w, 1 / FS) + friction + 2.0 * np.diff(e) / np.sqrt(2.0)
+    data = {"spindle/speed": w, "spindle/speed_cmd": cmd, "tq": tq, "plan/in_cut": np.zeros(n)}
+    return data, friction
+
+
+def test_air_reference_after_a_run_up_and_a_speed_change_is_not_a_cut() -> None:
+    """Decision 1555: behind the at-speed gate, the air reference starts as the running mean
+    of its first samples, at the stream's start and again after the spindle was off speed, so
+    a revolution after the gate opens reads air: the reference is within 0.05 N·m of the
+    friction one revolution after each opening, and the adaptive feed (spindle power, the
+    session's 343.6 W reference of the slot, its air threshold a tenth of it), which decides
+    only on revolutions wholly behind the open gate, sends one override in these 2 s of air,
+    seed 002's 150 %, naming the air rule. Before, the reference started from the first
+    sample (its noise: the reference was 1.26 N·m off) and followed the speed change with a
+    0.3 s average (0.51 N·m off); the revolutions the gate opened in held the torque before
+    it: 165 W, then 106 W of "cut" in air, and the override went 150, 50, 111.5, 150 %."""
+    data, friction = _run_up_in_air()
+    ch, events = _gate_air_feed(data, 100)
+    opened = np.flatnonzero(np.diff(ch["spindle/at_speed"]) > 0.5) + 1
+    assert opened.tolist() == [1702, 11482]  # 0.1 s after 3 % of the command, twice
+    rev = int(FS * 60 / 1000)
+    for k in opened:
+        after = slice(k + rev, k + 3000)
+        err = ch["air_reference/torque"][after] - friction[after]
+        assert np.max(np.abs(err)) < 0.05  # N·m: the running mean of ≥ 600 samples
+    moves = [e for e in events if e.name == "feed_override"]
+    assert [e.value for e in moves] == [150.0]
+    assert "(air, peak" in moves[0].message
+    # decided on the first revolution wholly behind the open gate (0.26 s), not on the one
+    # the gate opened in (0.20 s), whose first 0.03 s held the friction unsubtracted: 165 W
+    assert opened[0] + rev <= moves[0].sample <= opened[0] + 2 * rev
+    peaks = ch["adaptive_feed/peak"][np.isfinite(ch["adaptive_feed/peak"])]
+    assert np.max(peaks) < 0.1 * 343.6  # 34.4 W, the air threshold: every interval read air
+    # whatever the chunking (the gate's state and the last sample off it carried over)
+    ch7, events7 = _gate_air_feed(data, 7)
+    assert [(e.sample, e.value) for e in events7] == [(e.sample, e.value) for e in events]
+    for k in ("air_reference/torque", "adaptive_feed/override"):
+        assert np.array_equal(ch7[k], ch[k])
+
+
+def _gate_air_feed(
+    data: dict[str, np.ndarray], chunk: int
+) -> tuple[dict[str, np.ndarray], list[Event]]:
+    """The session's at-speed gate, air reference and adaptive feed (spindle power, the
+    slot's 343.6 W reference) in a chain, chunk by chunk: their channels and events."""
+    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+    from millsense.online.gates import AirReference
+
+    gate = SpindleAtSpeed()
+    air = AirReference("tq", out="cutting")
+    afc = AdaptiveFeedBlock(
+        AdaptiveFeedOptions(reference=343.6, quantity="power"),
+        torque_channel="cutting",
+        enable_channel="spindle/at_speed",
+    )
+    for b in (gate, air, afc):
+        b.reset(FS)
+    out: dict[str, list[np.ndarray]] = {}
+    events: list[Event] = []
+    n = data["tq"].size
+    for a in range(0, n, chunk):
+        d = {k: v[a : a + chunk] for k, v in data.items()}
+        for b in (gate, air, afc):
+            res = b.process(Chunk(a, FS, 0.0, {k: d[k] for k in b.inputs}))
+            d.update(res.channels)
+            events += res.events
+            for k, v in res.channels.items():
+                out.setdefault(k, []).append(v)
+    return {k: np.concatenate(v) for k, v in out.items()}, events

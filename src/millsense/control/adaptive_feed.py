@@ -210,6 +210,7 @@ class _Loop:
     flag: int = 0
     ff_until: int = -1  #: the flag-1 ceiling holds until the tool passes this plan row
     entering: bool = False  #: out of the material with the cut ahead (latched, decision 1626)
+    matched: bool = False  #: the plan matched the tool at the last decision
 
 
 class AdaptiveFeedBlock(Block):
@@ -224,9 +225,10 @@ class AdaptiveFeedBlock(Block):
     torque_channel : spindle torque channel (N·m) for ``torque`` and ``power``.
     speed_channel : spindle speed (rad/s): revolutions are counted on it.
     tcp_channels : tool-centre position channels (m) matched to the plan.
-    enable_channel : optional 1/0 channel; a revolution ending where it is 0 makes no decision
-        (the override is held: e.g. while the spindle runs up, when a torque observer's
-        estimate holds the acceleration torque), or None.
+    enable_channel : optional 1/0 channel; a revolution during which or at whose end it is 0
+        makes no decision (the override is held: e.g. while the spindle runs up, when a torque
+        observer's estimate holds the acceleration torque, and in the revolution the gate opens
+        in, decision 1555), or None.
     name : block name (channel prefix).
 
     Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
@@ -314,6 +316,8 @@ class AdaptiveFeedBlock(Block):
         self._st_f = np.array([-np.inf, np.nan, 0.0, 0.0])
         self._scale = _ANGLE_ONE / (2 * math.pi * self.fs)
         self._rev_start = 0  # sample index where the running revolution began
+        self._off_at = -1  # last sample before this chunk where the enable channel was 0
+        self._off = np.empty(0, dtype=np.int64)  # this chunk's samples where it is 0
         self._last_rev_len = 0
         # the control interval being gathered: [revolutions, samples, Σ value·samples or max]
         self._acc = [0, 0, 0.0]
@@ -350,6 +354,8 @@ class AdaptiveFeedBlock(Block):
             q, speed, self._scale, self._n_stall, self._st_i, self._st_f, self._use_mean,
             ends, peaks, bads, frozen_end, hits,
         )  # fmt: skip
+        if self.enable_channel is not None:
+            self._off = np.flatnonzero(np.asarray(d[self.enable_channel]) < 0.5)
         events: list[Event] = []
         ov = np.empty(n)
         pk = np.empty(n)
@@ -374,6 +380,8 @@ class AdaptiveFeedBlock(Block):
                 chunk, e, float(peaks[j]), bool(bads[j]), int(frozen_end[j]), events
             )
             pos = e
+        if self._off.size:
+            self._off_at = chunk.start + int(self._off[-1])
         return BlockOutput(
             {
                 f"{self.name}/override": ov,
@@ -448,7 +456,8 @@ class AdaptiveFeedBlock(Block):
                 severity=Severity.WARNING,
             )
         )
-        self._command(chunk, at, min(lp.u, 1.0), events, Severity.WARNING, force=True)
+        self._command(chunk, at, min(lp.u, 1.0), events, Severity.WARNING, force=True,
+                      why=f"safe action: {why}")  # fmt: skip
 
     def _signal_name(self) -> str:
         if self.opts.quantity == "force":
@@ -465,7 +474,8 @@ class AdaptiveFeedBlock(Block):
         how long the signal had been frozen at its last sample."""
         o = self.opts
         lp = self.loop
-        self._last_rev_len = chunk.start + e - self._rev_start
+        start = self._rev_start
+        self._last_rev_len = chunk.start + e - start
         self._rev_start = chunk.start + e
         self._watch_fired = False
         if was_bad or not math.isfinite(peak):
@@ -474,9 +484,12 @@ class AdaptiveFeedBlock(Block):
                 self._safe(chunk, e, "non-finite samples", events)
             return
         if self.enable_channel is not None:
-            if float(np.asarray(chunk.data[self.enable_channel])[e]) < 0.5:
-                # not enabled at this revolution's end: no decision, override held, and no
-                # value shown (a run-up's acceleration torque is not the process)
+            i = int(np.searchsorted(self._off, e, "right"))
+            last_off = chunk.start + int(self._off[i - 1]) if i else self._off_at
+            if last_off >= start:
+                # not enabled during this revolution or at its end: no decision, override
+                # held, and no value shown (a run-up's acceleration torque is not the process,
+                # nor is the torque of the samples before the gate opened: decision 1555)
                 self._peak = math.nan
                 self._acc = [0, 0, 0.0]
                 return
@@ -508,50 +521,72 @@ class AdaptiveFeedBlock(Block):
             # the signal cannot show the cut: the programmed feed, no regulation (decision 1548)
             lp.flag = flag
             u = 1.0 if self._ceiling_ext is None else min(1.0, self._ceiling_ext)
-            self._command(chunk, e, min(max(u, self.u_min), self.u_max), events, Severity.WARNING)
+            u = min(max(u, self.u_min), self.u_max)
+            self._command(chunk, e, u, events, Severity.WARNING, why="signal drowned in air")
             return
-        in_air = peak <= o.air
+        plan_air = self._plan_air()
+        in_air = peak <= o.air or plan_air
         if in_air and flag == 2 and lp.engaged:
-            u = lp.u  # leaving the cut: the air rule would speed up, hold instead
+            u, why = lp.u, "exit hold"  # leaving the cut: the air rule would speed up
         elif in_air:
             lp.air, lp.reentry = True, 0
             # seed 002's air rule, but where the plan sees the cut resume within the horizon
             # the tool meets the material at the re-entry feed, not at V_max (decision 1626)
             u = self.u_max / 3.0 if entering else self.u_max
+            why = ("air by the plan" if plan_air else "air") + (", cut ahead" if entering else "")
         elif lp.air and lp.reentry < o.reentry_revs:
             lp.engaged = True
             lp.reentry += 1
-            u = self.u_max / 3.0
+            u, why = self.u_max / 3.0, f"re-entry {lp.reentry}/{o.reentry_revs}"
             if lp.reentry >= o.reentry_revs:
                 lp.air = False
         else:
             lp.air = False
             lp.engaged = True
-            u = self._gpc(y)
+            u, why = self._gpc(y), "regulation"
         if not in_air:
             lp.entering = False
             self._calibrate(y, flag)
+        limits: list[tuple[float, str]] = []  # what may lower u, with its name for the event
         if flag == 2:
             if lp.hold is None:
                 lp.hold = lp.u
-            u = min(u, lp.hold)
+            limits.append((lp.hold, "flag-2 hold"))
         elif lp.hold is not None and not in_air and not self._in_cut[lp.row]:
             # the plan's tool has left the material but the machine still cuts (a plan's rows
             # and z-map are coarser than the machine's edge; runout; servo lag): the exit hold
             # stands until a revolution reads as air (decision 1741)
-            u = min(u, lp.hold)
+            limits.append((lp.hold, "exit hold"))
         else:
             lp.hold = None
         if flag == 1 and not in_air:
-            u = min(u, lp.u)  # never faster into a rising engagement
+            limits.append((lp.u, "flag 1: no rise"))  # never faster into a rising engagement
         if cap is not None:
-            u = min(u, cap)
+            limits.append((cap, "look-ahead ceiling"))
         if self._ceiling_ext is not None:
-            u = min(u, self._ceiling_ext)
+            limits.append((self._ceiling_ext, "supervisor ceiling"))
+        for limit, name in limits:
+            if limit < u:
+                u, why = limit, f"{why}; {name}"
         u = min(max(u, self.u_min), self.u_max)
         lp.flag = flag
         sev = Severity.WARNING if flag else Severity.INFO
-        self._command(chunk, e, u, events, sev)
+        self._command(chunk, e, u, events, sev, why=why)
+
+    def _plan_air(self) -> bool:
+        """The plan puts the tool in air before its first engagement: the look-ahead matched
+        the tool at this decision to a row out of the material, and no revolution has been
+        in cut yet. The regulated value is then not a cut whatever it reads (a spindle run-up,
+        an air reference still settling, an estimate's air error: decision 1555); after the
+        first engagement the machine, not the plan, confirms an exit (decision 1741)."""
+        lp = self.loop
+        return (
+            self.plan is not None
+            and self.opts.look_ahead
+            and lp.matched
+            and not lp.engaged
+            and not bool(self._in_cut[lp.row])
+        )
 
     def _seed_model(self, y: float, u: float) -> None:
         """The RLS restarted from the static gain y/u (θ̂₀ = [0, 0, y/u, 0, 0], P₀;
@@ -659,7 +694,10 @@ class AdaptiveFeedBlock(Block):
         events: list[Event],
         severity: Severity,
         force: bool = False,
+        why: str = "",
     ) -> None:
+        """Send override ``u`` (fraction) as an event where it moves by ``min_change_pct`` or
+        more (always with ``force``); ``why``: the rule that set it, for the event's message."""
         lp = self.loop
         du = u - lp.u
         lp.du_hist = [du, lp.du_hist[0]]
@@ -682,8 +720,8 @@ class AdaptiveFeedBlock(Block):
                 t,
                 EventKind.OVERRIDE,
                 self.name,
-                f"adaptive feed: override {100 * u:.1f} % (peak {self._peak:.4g} "
-                f"{_UNITS[self.opts.quantity]}, flag {lp.flag})",
+                f"adaptive feed: override {100 * u:.1f} % ({why + ', ' if why else ''}peak "
+                f"{self._peak:.4g} {_UNITS[self.opts.quantity]}, flag {lp.flag})",
                 name="feed_override",
                 value=100.0 * u,
                 sample=chunk.start + e,
@@ -705,11 +743,13 @@ class AdaptiveFeedBlock(Block):
             return 0, None, False
         lp = self.loop
         tcp = np.array([[float(np.asarray(chunk.data[c])[e]) for c in self.tcp_channels]])
+        lp.matched = False
         if not np.all(np.isfinite(tcp)):
             return lp.flag, None, False
         row = int(self.plan.match(tcp, from_row=lp.row)[0])
         if row >= 0:
             lp.row = row
+            lp.matched = True
         if not self.opts.look_ahead:
             return 0, None, False
         la = self.plan.look_ahead(lp.row, self.opts.look_ahead_s, max(lp.u, 1e-3), self.opts.rise)

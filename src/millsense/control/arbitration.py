@@ -401,7 +401,8 @@ class Supervisor(Block):
         why: str = "safety",
     ) -> None:
         self.feed = u
-        src = prop.source if prop is not None else why
+        # the proposal's own line says which of its rules set the override (decision 1555)
+        src = f"{prop.source}: {prop.message}" if prop is not None else why
         events.append(Event(t, EventKind.OVERRIDE, self.name,
                             f"feed override {100 * u:.1f} % ({src})", name="feed_override",
                             value=100.0 * u, sample=k,

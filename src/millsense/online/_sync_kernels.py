@@ -58,42 +58,60 @@ def air_reference_kernel(
     state: NDArray[np.float64],
     alpha: float,
     n_settle: int,
+    n_start: int,
     cutting: NDArray[np.float64],
     reference: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """The air-cut reference and the torque less it, one chunk (:class:`~millsense.online.
     gates.AirReference`).
 
-    ``state`` = [reference, seen, samples in air in a row]. A sample is used where the plan
-    has said air for more than ``n_settle`` samples, the spindle is at speed and the torque is
-    finite; the reference follows the used samples with ``α·x + (1 − α)·y`` (the first used
-    sample of the stream starts it, from the start of its chunk) and is held in between.
+    ``state`` = [reference, samples used since the spindle was last off speed (counted up to
+    ``n_start``), samples in air in a row]. A sample is used where the plan has said air for
+    more than ``n_settle`` samples, the spindle is at speed and the torque is finite. The
+    first ``n_start`` used samples after the stream's start or a sample off speed set the
+    reference to their running mean (the k-th with weight 1/k, decision 1555); after them it
+    follows the used samples with ``α·x + (1 − α)·y``; it is held in between.
     """
     n = torque.shape[0]
     run = int(state[2])
-    first = -1
+    seen = int(state[1])
+    x = np.empty(n)
+    fresh = np.empty(n, dtype=np.bool_)  # a used sample with the spindle off speed before it
     use = np.empty(n, dtype=np.bool_)
+    m = 0
+    off = False
     for k in range(n):
         run = run + 1 if in_cut[k] < 0.5 else 0
+        if not at_speed[k] > 0.5:
+            off = True
         use[k] = run > n_settle and at_speed[k] > 0.5 and math.isfinite(torque[k])
-        if use[k] and first < 0:
-            first = k
-    state[2] = run
-    if first >= 0 and state[1] == 0.0:
-        state[0] = torque[first]
-        state[1] = 1.0
-    m = 0
-    for k in range(n):
         if use[k]:
+            x[m] = torque[k]
+            fresh[m] = off
+            off = False
             m += 1
-    x = np.empty(m)
+    state[2] = run
+    y = np.empty(m)
+    prev = state[0]
     j = 0
-    for k in range(n):
-        if use[k]:
-            x[j] = torque[k]
+    while j < m:
+        if fresh[j]:
+            seen = 0
+        if seen < n_start:
+            # the running mean of the first n_start used samples (decision 1555)
+            seen += 1
+            prev = x[j] if seen == 1 else prev + (x[j] - prev) / seen
+            y[j] = prev
             j += 1
-    # the project's one first-order average over the used samples, held in between
-    y = exponential_average_kernel(x, alpha, state[0])
+            continue
+        # then the project's one first-order average, up to the next restart
+        e = j + 1
+        while e < m and not fresh[e]:
+            e += 1
+        y[j:e] = exponential_average_kernel(x[j:e], alpha, prev)
+        prev = y[e - 1]
+        j = e
+    state[1] = 0 if off else seen
     prev = state[0]
     j = 0
     for k in range(n):

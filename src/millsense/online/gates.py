@@ -78,6 +78,13 @@ class AirReference(Block):
     estimate with a first-order average of time constant ``tau_s``; in cut it is held.
     ``{out}`` = torque − reference. A speed change re-learns it at the new speed (the gate
     closes while the spindle changes speed, and the average then follows the new level).
+
+    The average starts, at the stream's start and again after the spindle was off speed (its
+    air torque then belongs to another speed), as the running mean of the first ``tau_s`` of
+    used samples (the k-th with weight 1/k, then α). Started from one sample, it carried that
+    sample's noise (σ ≈ 2 N·m for the commissioned quaser-ux600 observer at 1000 rev/min) for
+    a second after the gate opened: the adaptive feed read it as a 150 W cut in air and
+    toggled its override between its limits (decision 1555).
     """
 
     def __init__(
@@ -108,7 +115,8 @@ class AirReference(Block):
     def reset(self, sample_rate_hz: float) -> None:
         self.alpha = 1.0 - float(np.exp(-1.0 / (self.tau_s * sample_rate_hz)))
         self.n_settle = round(self.settle_s * sample_rate_hz)
-        self._state = np.zeros(3)  # reference, seen, run of samples in air
+        self.n_start = max(1, round(self.tau_s * sample_rate_hz))  # running mean's length
+        self._state = np.zeros(3)  # reference, samples used (up to n_start), run in air
 
     def process(self, chunk: Chunk) -> BlockOutput:
         tq = np.ascontiguousarray(chunk.data[self.inputs[0]], dtype=np.float64)
@@ -116,9 +124,9 @@ class AirReference(Block):
         ok = np.ascontiguousarray(chunk.data[self.inputs[2]], dtype=np.float64)
         n = tq.size
         out = np.empty((2, n))
-        # [reference, seen, run in air], one compiled loop (decision 1653)
-        air_reference_kernel(tq, in_cut, ok, self._state, self.alpha, self.n_settle, out[0],
-                             out[1])  # fmt: skip
+        # [reference, samples used, run in air], one compiled loop (decisions 1653, 1555)
+        air_reference_kernel(tq, in_cut, ok, self._state, self.alpha, self.n_settle,
+                             self.n_start, out[0], out[1])  # fmt: skip
         return BlockOutput({self.out: out[0], f"{self.name}/torque": out[1]})
 
 

@@ -314,7 +314,11 @@ _T1_SLOW_END = (
     "(the same detection and command to within a fraction of a rev/min; the ratio 8.94); "
     "0.263 s, a pass, since decision 1548 (the adaptive feed's interval of 3 revolutions and "
     "its dead zone: found at 2.1 s, 512.6 Hz, ratio 12.95, 6099 rev/min), 2 rev/min from the "
-    "failing command. At the programmed feed "
+    "failing command; 0.366 s since decision 1555 (the air reference's start no longer reads "
+    "900 W in air, which the adaptive feed answered with 150 % until 0.82 s: the tool now "
+    "approaches at the entry feed from the first decision and meets the material 0.6 s later, "
+    "and the chatter is found at 2.4 s, 534.8 Hz, ratio 1.56, 6107 rev/min). At the "
+    "programmed feed "
     "(the demo's pass, `online.demo_chatter_pass_gone_s`) the truth is quiet 0.12 s after the "
     "change"
 )
