@@ -48,6 +48,23 @@ def test_spindle_gate_holds_through_run_up() -> None:
         assert np.array_equal(_feed(SpindleAtSpeed(), data, chunk)["spindle/at_speed"], ref)
 
 
+def test_spindle_gate_closes_on_a_guard_fault() -> None:
+    """Decision 1559: at speed throughout, the guard marks 0.05 s of fault from 0.3 s: the gate
+    is closed over it and for the 0.1 s settling after it (0.3-0.45 s), open elsewhere after
+    the first 0.1 s, whatever the chunking; without the fault channel it ignores the guard."""
+    n = 6000
+    data = {"spindle/speed": np.full(n, 100.0), "spindle/speed_cmd": np.full(n, 100.0),
+            "guard/fault": np.zeros(n)}  # fmt: skip
+    data["guard/fault"][3000:3500] = 3.0
+    gate = _feed(SpindleAtSpeed(fault_channel="guard/fault"), data, 1000)["spindle/at_speed"]
+    closed = np.flatnonzero(gate[1001:] < 0.5) + 1001
+    assert closed[0] == 3000 and closed[-1] == 3500 + 1000 - 1 and closed.size == 1500
+    for chunk in (1, 7, 333):
+        g = _feed(SpindleAtSpeed(fault_channel="guard/fault"), data, chunk)["spindle/at_speed"]
+        assert np.array_equal(g, gate)
+    assert _feed(SpindleAtSpeed(), data, 1000)["spindle/at_speed"][1001:].all()
+
+
 def test_spindle_gate_holds_while_a_ramp_setpoint_moves() -> None:
     """Decision 1662: the command channel is the drive's ramp setpoint (0 → 100 rad/s over
     0.2 s) and the speed follows it within 1 %: the gate stays shut until 0.1 s after the ramp
@@ -353,6 +370,34 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     dual = [e.time_s for e in mev if e.source == "breakage-dual"]
     assert virtual[:1] == brk
     assert dual and 5.0 < dual[0] < 5.0 + 10 * 0.03
+
+
+def test_a_stall_in_the_cut_is_not_a_breakage(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1559: a stream that stalls 0.3 s in the cut (``run --fault stall@4.0:0.3``;
+    the observer's estimate froze at 4.8 N·m against the 3.3 N·m expected) gives the feed hold
+    of the safety layer and no breakage alarm. Before, the breakage monitor judged the frozen
+    samples as the process and alarmed 31 ms after the stall was reported (4.081 s)."""
+    from millsense.streaming.event_log import read_event_log
+
+    prog = tmp_path / "slot.nc"
+    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
+    demo = ROOT / "examples/demo_part"
+    code, _out, err = run_cli(
+        ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
+         "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
+         str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--regulate", "torque",
+         "--duration-s", "4.6", "--fault", "stall@4.0:0.3"],
+        capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    assert [e.name for e in ev if e.name in ("input_fault", "feed_hold")] == [
+        "input_fault",
+        "feed_hold",
+    ]
+    assert not [e for e in ev if e.name == "breakage"]
 
 
 @pytest.mark.parametrize(

@@ -24,6 +24,7 @@ from millsense.streaming.recursions import exponential_average_kernel
 def at_speed_kernel(
     speed: NDArray[np.float64],
     command: NDArray[np.float64],
+    fault: NDArray[np.float64],
     state: NDArray[np.float64],
     tolerance: float,
     still: float,
@@ -33,16 +34,22 @@ def at_speed_kernel(
     """``spindle/at_speed`` of one chunk (:class:`~millsense.online.gates.SpindleAtSpeed`).
 
     ``state`` = [previous command (NaN before the stream), samples in a row that were ok]:
-    a sample is ok where the command is not 0, the speed within ``tolerance`` of it and the
-    command within ``still`` of the previous one (relative); the output is 1 where the run of
-    ok samples is longer than ``n_settle``.
+    a sample is ok where the command is not 0, the speed within ``tolerance`` of it, the
+    command within ``still`` of the previous one (relative) and ``fault`` 0 (the source's
+    guard: a held or filled sample is not the machine's, decision 1559); the output is 1 where
+    the run of ok samples is longer than ``n_settle``.
     """
     prev = state[0]
     run = int(state[1])
     for k in range(command.shape[0]):
         c = command[k]
         ac = abs(c)
-        ok = ac > 0 and abs(speed[k] - c) <= tolerance * ac and abs(c - prev) <= still * ac
+        ok = (
+            ac > 0
+            and abs(speed[k] - c) <= tolerance * ac
+            and abs(c - prev) <= still * ac
+            and fault[k] == 0.0
+        )
         run = run + 1 if ok else 0
         out[k] = 1.0 if run > n_settle else 0.0
         prev = c

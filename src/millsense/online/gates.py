@@ -32,6 +32,12 @@ class SpindleAtSpeed(Block):
     3834 rev/min). So a sample counts only where the command equals the previous sample's within
     ``STILL`` of its value (a ramp of 100 rad/s² moves it 2·10⁻⁵ per sample at 4500 rev/min); a
     step (an override) restarts the settling as well (decision 1662).
+
+    With ``fault_channel`` (the source guard's ``guard/fault``) the gate is also closed where
+    the guard marks a fault and for ``settle_s`` after it: held, filled or frozen samples are
+    not the process, and the blocks the gate enables (the air reference, the plan's judged
+    torque and calibration, the adaptive feed, the breakage monitor) must not take them for it
+    (decision 1559).
     """
 
     def __init__(
@@ -41,10 +47,14 @@ class SpindleAtSpeed(Block):
         tolerance: float = 0.03,
         settle_s: float = 0.1,
         name: str = "spindle_gate",
+        fault_channel: str | None = None,
     ) -> None:
         if not (0 < tolerance < 1 and settle_s >= 0):
             raise ConfigError("spindle gate: 0 < tolerance < 1 and settle_s ≥ 0 needed")
-        self.inputs = (speed_channel, command_channel)
+        self.fault_channel = fault_channel
+        self.inputs = (speed_channel, command_channel) + (
+            (fault_channel,) if fault_channel is not None else ()
+        )
         self.tolerance = float(tolerance)
         self.settle_s = float(settle_s)
         self.name = name
@@ -61,8 +71,13 @@ class SpindleAtSpeed(Block):
         w = np.ascontiguousarray(chunk.data[self.inputs[0]], dtype=np.float64)
         cmd = np.ascontiguousarray(chunk.data[self.inputs[1]], dtype=np.float64)
         out = np.empty(cmd.size)
+        fault = (
+            np.ascontiguousarray(chunk.data[self.fault_channel], dtype=np.float64)
+            if self.fault_channel is not None
+            else np.zeros(cmd.size)
+        )
         # [previous command, run of ok samples], one compiled loop (decision 1653)
-        at_speed_kernel(w, cmd, self._state, self.tolerance, STILL, self.n_settle, out)
+        at_speed_kernel(w, cmd, fault, self._state, self.tolerance, STILL, self.n_settle, out)
         return BlockOutput({"spindle/at_speed": out})
 
 

@@ -175,7 +175,8 @@ def session_blocks(
                     f"{where}: forces at the tool from the feed estimators need a 3-axis or a "
                     f"5-axis trunnion machine ({'; '.join(feed.notes) or machine.kinematics})"
                 )
-    blocks.append(SpindleAtSpeed())
+    # the gate also closes on the guard's faults (decision 1559; run_session guards every source)
+    blocks.append(SpindleAtSpeed(fault_channel=FAULT_CHANNEL))
     axes_pos = [f"{a}/position_cmd" for a in machine.axes]
     blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
     sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL, at_speed_channel="spindle/at_speed",
@@ -193,6 +194,8 @@ def session_blocks(
                 signal_channels=(CUTTING_TORQUE,),
                 expected_channel="plan/judged_torque",
                 min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),
+                # a tooth period with a sample off the gate is not judged (decision 1559)
+                enable_channel="spindle/at_speed",
                 name="breakage",
             )
         )
