@@ -343,17 +343,20 @@ def _v7_virtual_latency() -> Measured:
     return Measured(lat, _describe(run))
 
 
-#: Why the constant threshold's count is not the thesis' (measured 2026-11-28, decision 1730).
+#: Why the constant threshold's count is not the thesis' (measured 2026-11-29 after decision
+#: 1555; decision 1730).
 _V7_CONSTANT_GAP = (
-    "the constant threshold learns its reference, 1.18 N·m, over the first 5 revolutions from "
+    "the constant threshold learns its reference, 1.05 N·m, over the first 5 revolutions from "
     "the first tooth period at 0.5 N·m, i.e. on SLOT1's entry before the tool is fully in the "
-    "2 mm slot (2.5 N·m there, 3.7 N·m past the depth step); it raises two false alarms before "
-    "the break, where the torque changes within a few tooth periods: SLOT1's exit (17.39 s, "
-    "Y 68.8 mm) and SLOT3's entry (45.62 s, Y 86.7 mm, 4 mm deep); none at the depth step "
-    "(Y 45 mm), which the tool crosses over its diameter (the torque rises over about 2 s), "
-    "where the thesis has its one (tooth periods 262-270). The thesis' point (the constant "
-    "threshold false-alarms where the cut changes, the virtual one does not) holds; its count "
-    "and place do not"
+    "2 mm slot (2.4-3.1 N·m there); it raises four false alarms before the break, each where "
+    "the torque changes within a few tooth periods: at the depth step, where the thesis has "
+    "its one (12.41 s, Y 35.6 mm: the tool's front meets the deeper layer at Y 45 mm, 2.8 to "
+    "3.4 N·m), where SLOT2's torque falls (25.40 s at X 0.9 mm and 38.60 s at X 88.9 mm, 2.6 "
+    "to 1.5 N·m) and at SLOT3's entry (45.62 s, 1.2 to 2.8 N·m). Before decision 1555 changed "
+    "the start of the air reference the same entry gave 1.18 N·m and two alarms (SLOT1's exit, "
+    "SLOT3's entry): which changes it flags depends on the reference its entry leaves. The "
+    "thesis' point (the constant threshold false-alarms where the cut changes, the virtual one "
+    "does not) holds; its count does not"
 )
 
 

@@ -149,7 +149,10 @@ def _false() -> Measured:
     "engaged at once (3-4 flutes, half immersion, slots), only the broken flute's own period "
     "leaves it, once a revolution, and the confirmation over three violations takes about two "
     "revolutions (decision 1552). A single period's drop is not told from the noise and the "
-    "plan's error at the seed's 40 % and 4σ band",
+    "plan's error at the seed's 40 % and 4σ band. In the 4-flute slot the broken flute's "
+    "periods lose 36-39 % of their torque in the truth, at the band's edge, so its third "
+    "violation comes as the noise allows: 13 revolutions (8 before decision 1555 changed the "
+    "feed's history up to the break)",
     issue=15,
 )
 def _latency() -> Measured:
