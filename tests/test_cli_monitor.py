@@ -447,3 +447,50 @@ def test_a_session_recordings_observer_machine_is_found(tmp_path: Path) -> None:
         else:
             assert found is not None and where in found[1]
             assert found[0].spindle is not None  # the observer's section is there
+
+
+def test_monitor_engagement_summary_over_the_plans_steady_cut(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1558: on a session's recording (``plan/judged_torque``) the engagement summary
+    counts only the revolutions that end where the plan is steady. 6 s of a Ø20 mm 2-flute
+    cut at 1000 rev/min, 5 mm deep where the plan is not steady (judged 0, the first 3.6 s)
+    and 2 mm where it is: the median is the steady cut's 2 mm (within its standard error × 3
+    and 5 %), of the 40 revolutions there, not the 5 mm of the majority."""
+    import math
+    import re
+
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.engagement import Engagement
+    from millsense.process.forces import milling_forces
+    from millsense.process.geometry import EndMill
+
+    n = int(6.0 * FS)
+    om = 1000 * 2 * math.pi / 60
+    tool = EndMill(20e-3, 2, helix_rad=math.radians(30))
+    co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
+    phi = 2 * math.pi * np.arange(600) / 600
+    ang = np.mod(om * np.arange(n) / FS, 2 * math.pi)
+    eng = Engagement.radial(5e-3, 20e-3, "down")
+    deep, shallow = (milling_forces(tool, co, eng, 0.2e-3, d, phi).torque_nm for d in (5e-3, 2e-3))
+    steady = np.arange(n) >= int(3.6 * FS)
+    tq = np.where(steady, np.interp(ang, phi, shallow, period=2 * math.pi),
+                  np.interp(ang, phi, deep, period=2 * math.pi))  # fmt: skip
+    tq = tq + 0.2 * np.random.default_rng(5).standard_normal(n)
+    rec = Recording(FS, 0.0, {"program": "part.nc"})
+    rec.add_channel("spindle/torque_est", tq, "N*m")
+    rec.add_channel("spindle/speed", np.full(n, om), "rad/s")
+    rec.add_channel("plan/judged_torque", np.where(steady, 3.0, 0.0), "N*m")
+    write_recording(tmp_path / "run.h5", rec)
+    code, stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
+                                 "engagement", "--tool", "aslan-d20-2flute",
+                                 "--feed-per-tooth-mm", "0.2", "-o",
+                                 str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    m = re.search(r"of (\d+) revolutions in the plan's steady cut reliable .* median axial depth "
+                  r"([\d.]+) mm \(standard error ([\d.]+) mm", line)  # fmt: skip
+    assert m, line
+    assert int(m.group(1)) == 40
+    median, se = float(m.group(2)), float(m.group(3))
+    assert abs(median - 2.0) < 3 * se and median == pytest.approx(2.0, rel=0.05)

@@ -429,7 +429,7 @@ def _run(
             e = contacts[0]
             lines.append(f"  {b.name}: contact at {e.time_s:.5f} s, position {e.value:.6g}")
         elif b.name == "engagement":
-            lines.append(_engagement_summary(b))
+            lines.append(_engagement_summary(b, _steady_cut(rec), fs))
         elif alarms:
             unit = {"chatter": " Hz"}
             f = ", ".join(
@@ -466,16 +466,32 @@ def _reliable(e: Any) -> bool:
     return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0)
 
 
-def _engagement_summary(block: Any) -> str:
+def _steady_cut(rec: Any) -> np.ndarray | None:
+    """Where a session's recording says the plan is steady in the cut (``plan/judged_torque``
+    > 0: in cut, at speed, away from entries, steps and exits; decision 1622), or None."""
+    if "plan/judged_torque" not in rec.channel_names:
+        return None
+    return np.asarray(rec.channel("plan/judged_torque"), dtype=np.float64) > 0
+
+
+def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float = 1.0) -> str:
     """One line: revolutions evaluated and the medians of the seed 004 estimates over the
     reliable ones (:func:`_reliable`), or, where fewer than half are reliable, that the
     engagement is not determined (a few revolutions of noise can pass the test by chance;
-    decision 1807)."""
+    decision 1807). With ``steady`` (per sample, :func:`_steady_cut`) only the revolutions that
+    end where the plan is steady count: an entry's or an exit's revolutions are a changing
+    engagement, not the cut's (decision 1558)."""
     from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
 
-    every = [e for _, e in getattr(block, "estimates", []) if e is not None]
+    timed = [(t, e) for t, e in getattr(block, "estimates", []) if e is not None]
+    where = ""
+    if steady is not None and steady.any():
+        n = steady.size
+        timed = [(t, e) for t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
+        where = " in the plan's steady cut"
+    every = [e for _, e in timed]
     if not every:
-        return f"  {block.name}: no revolution evaluated (no cut, or the torque is too low)"
+        return f"  {block.name}: no revolution evaluated{where} (no cut, or the torque is too low)"
 
     def med(v: list[float]) -> float:
         return float(np.median(v))
@@ -484,16 +500,16 @@ def _engagement_summary(block: Any) -> str:
     if 2 * len(est) < len(every):
         return (
             f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
-            f"revolutions reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; median σ "
+            f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; median σ "
             f"{med([e.reliability for e in every]):.2f}); the torque's tooth harmonics do not "
             "fix the engagement here (e.g. a full slot with 3 or more flutes, or a light cut "
             "in the signal's noise)"
         )
     depth = depth_summary(est)
     return (
-        f"  {block.name}: {len(est)} of {len(every)} revolutions reliable (σ ≥ "
-        f"{RELIABLE_SIGMA}): median axial depth {1e3 * depth.median_m:.3f} ± "
-        f"{1e3 * depth.standard_error_m:.3f} mm (a revolution ± "
+        f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable (σ ≥ "
+        f"{RELIABLE_SIGMA}): median axial depth {1e3 * depth.median_m:.3f} mm (standard error "
+        f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
         f"{1e3 * depth.scatter_m:.3f} mm), radial depth "
         f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
         f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
