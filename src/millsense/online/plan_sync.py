@@ -32,7 +32,8 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.models.kinematics import Kinematics
+from millsense.models._kinematics_kernels import trunnion_forward
+from millsense.models.kinematics import Kinematics, TrunnionACKinematics, TrunnionACMachine
 from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
@@ -82,10 +83,17 @@ class TcpFromAxes(Block):
         pass
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        q = np.column_stack([np.asarray(chunk.data[c], dtype=np.float64) for c in self.inputs])
         if chunk.n == 0:
             return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
-        rows = np.ascontiguousarray(np.atleast_2d(self.kin.forward(q)).T)
+        q = np.array([chunk.data[c] for c in self.inputs], dtype=np.float64)  # (axes, n)
+        kin = self.kin
+        if isinstance(kin, (TrunnionACKinematics, TrunnionACMachine)):
+            # the compiled forward kinematics straight into the output rows (one call per
+            # chunk: the method's batch checks and copies cost more than 100 poses' arithmetic)
+            rows = np.empty((3, chunk.n))
+            trunnion_forward(q.T, isinstance(kin, TrunnionACMachine), kin.a2_m, kin.d4_m, rows.T)
+        else:
+            rows = np.ascontiguousarray(np.atleast_2d(kin.forward(q.T)).T)
         return BlockOutput({f"tcp/{a}": rows[i] for i, a in enumerate("xyz")})
 
 
