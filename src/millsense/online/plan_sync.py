@@ -210,13 +210,15 @@ class PlanSync(Block):
         d = chunk.data
         n = chunk.n
         at = np.arange(-chunk.start % self.decimate, n, self.decimate)
-        matched = np.full(at.size, -1, dtype=np.int64)
-        if at.size:
-            tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at].T
-            ok = np.all(np.isfinite(tcp), axis=1)
+        # (3, m): the rows of the transpose handed to match are contiguous (no copies there)
+        tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at]
+        if at.size and np.isfinite(tcp).all():
+            matched = self.plan.match(tcp.T, from_row=max(self.row, 0))
+        else:  # a pose not finite: matched where it is, −1 (no match) where not
+            matched = np.full(at.size, -1, dtype=np.int64)
+            ok = np.all(np.isfinite(tcp), axis=0)
             if ok.any():
-                sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
-                matched[ok] = sub
+                matched[ok] = self.plan.match(tcp[:, ok].T, from_row=max(self.row, 0))
         u = (
             np.ascontiguousarray(d[self.override_channel], dtype=np.float64)
             if self.override_channel is not None
