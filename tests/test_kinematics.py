@@ -106,3 +106,30 @@ def test_three_axis_identity_and_dispatch() -> None:
     assert isinstance(kinematics_for("5-axis-trunnion-ac"), TrunnionACMachine)
     with pytest.raises(InputDataError, match="shape"):
         TrunnionACKinematics().forward(np.zeros(3))
+
+
+def test_compiled_kinematics_equal_the_numpy_form() -> None:
+    # the compiled kernels (models/_kinematics_kernels.py) perform the numpy form's operations
+    # P = R·(p − a2·e_z) − d4·e_z and J = [R·R0, ∂R/∂θ_A·rel, ∂R/∂θ_C·rel] (drive frames via
+    # to_aslan); summed in another order they could differ by rounding only: 1e-15 m and 1e-15
+    # on entries of order 1 bound one ulp of lever arms < 1 m
+    machine = TrunnionACMachine(a2_m=0.151, d4_m=0.079)
+    q = _random_q(500)
+    qa = machine.to_aslan(q)
+    r = TrunnionACKinematics.rotation(qa[:, 3], qa[:, 4])
+    rel = qa[:, :3] - [0.0, 0.0, machine.a2_m]
+    p = np.einsum("nij,nj->ni", r, rel) - [0.0, 0.0, machine.d4_m]
+    np.testing.assert_allclose(machine.forward(q), p, rtol=0, atol=1e-15)
+    h = 1e-7
+    for k, d in ((3, np.array([0, 0, 0, h, 0])), (4, np.array([0, 0, 0, 0, h]))):
+        # angular columns against central differences of the numpy rotation: truncation h² ≈
+        # 1e-14, round-off eps/h ≈ 2e-9, bounded by 1e-8
+        rp = TrunnionACKinematics.rotation(qa[:, 3] + d[3], qa[:, 4] + d[4])
+        rm = TrunnionACKinematics.rotation(qa[:, 3] - d[3], qa[:, 4] - d[4])
+        col = np.einsum("nij,nj->ni", (rp - rm) / (2 * h), rel)
+        np.testing.assert_allclose(machine.jacobian(q)[:, :, k], col, rtol=0, atol=1e-8)
+    r0 = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0]])
+    np.testing.assert_allclose(machine.jacobian(q)[:, :, :3], r @ r0, rtol=0, atol=1e-15)
+    j = machine.jacobian(q)
+    lm = np.einsum("nji,njk->nik", j, j[:, :, :3])
+    np.testing.assert_allclose(machine.load_matrix(q), lm, rtol=0, atol=1e-15)

@@ -45,7 +45,7 @@ from millsense.estimation.kalman.design import (
     bandwidth_3db,
     design_kalman,
 )
-from millsense.estimation.kalman.lti_filter import StreamingFilter
+from millsense.estimation.kalman.lti_filter import StreamingFilter, run_lti
 from millsense.models.friction import CoulombViscous
 from millsense.models.spindle_plant import SpindleDriveParams, plant_matrices
 from millsense.streaming.block import Block, BlockOutput, Chunk
@@ -284,7 +284,9 @@ class SpindleTorqueObserver(Block):
         if friction is not None:
             self.inputs = (f"{prefix}/current_cmd", f"{prefix}/speed")
         self._filter = StreamingFilter(design.filter("filtered"))
-        self._held = 0.0
+        if self._filter.filter.n_inputs != 1:
+            raise ConfigError("spindle observer: the design must have one input (I_nom)")
+        self._held = np.zeros(1)
 
     def output_channels(self) -> list[ChannelInfo]:
         out = [
@@ -312,21 +314,17 @@ class SpindleTorqueObserver(Block):
                 f"block {self.name}: built for {self.fs:g} Hz, stream is {sample_rate_hz:g} Hz"
             )
         self._filter.reset()
-        self._held = 0.0
+        self._held = np.zeros(1)
 
     def observed(self, chunk: Chunk) -> NDArray[np.float64]:
         """The observer's disturbance torque of one chunk (before the friction is subtracted):
         each estimate held until the next I_nom update."""
         y = np.asarray(chunk.data[self.inputs[0]], dtype=float)
-        n = len(y)
         first = (-chunk.start) % self.m  # first sample of the chunk where I_nom is new
-        tau = np.empty(n)
-        if first < n:
-            est = np.ascontiguousarray(self._filter.process(y[first :: self.m])[:, 0])
-            hold_decimated(est, first, self.m, self._held, tau)
-            self._held = float(est[-1])
-        else:
-            tau[:] = self._held
+        tau = np.empty(len(y))
+        # the decimation, the filter (run_lti) and the hold in one compiled call
+        observe_held(*self._filter.kernel_args, self._filter.z, y, first, self.m, self._held,
+                     tau)  # fmt: skip
         return tau
 
     def outputs(self, tau: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
@@ -341,6 +339,39 @@ class SpindleTorqueObserver(Block):
         if self.friction is not None:
             tau -= self.friction.torque(np.asarray(chunk.data[self.inputs[1]], dtype=float))
         return BlockOutput(self.outputs(tau))
+
+
+@numba.njit(cache=True)
+def observe_held(
+    modal: bool,
+    diag: NDArray[np.float64],
+    off: NDArray[np.float64],
+    n_pairs: int,
+    f: NDArray[np.float64],
+    g: NDArray[np.float64],
+    h: NDArray[np.float64],
+    j: NDArray[np.float64],
+    z: NDArray[np.float64],
+    y: NDArray[np.float64],
+    first: int,
+    m: int,
+    held: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """The observer's estimate of one chunk: the one-input filter (:func:`~millsense.
+    estimation.kalman.lti_filter.run_lti`, state ``z``) run on the I_nom updates ``y[first::m]``
+    and each estimate held until the next (:func:`hold_decimated`; ``held[0]``, the last
+    estimate of the previous chunk, before the first, updated in place)."""
+    n_dec = len(range(first, y.shape[0], m))
+    if n_dec == 0:
+        out[:] = held[0]
+        return
+    u = np.empty((n_dec, 1))
+    for i in range(n_dec):
+        u[i, 0] = y[first + i * m]
+    est = np.ascontiguousarray(run_lti(modal, diag, off, n_pairs, f, g, h, j, u, z)[:, 0])
+    hold_decimated(est, first, m, held[0], out)
+    held[0] = est[n_dec - 1]
 
 
 @numba.njit(cache=True)
@@ -451,7 +482,12 @@ class RangeSwitchedSpindleObserver(Block):
                     speed = np.asarray(chunk.data[o.inputs[1]], dtype=float)
                     friction = (o.friction, o.friction.torque(speed))
                 tau -= friction[1]
-        lo, hi = (o.outputs(tau) for o, tau in zip(obs, taus, strict=True))
         use_hi = np.abs(np.asarray(chunk.data[f"{self.prefix}/speed_cmd"], dtype=float))
         sel = use_hi >= self.switch
+        # one range over the whole chunk (the usual case): its outputs as they are
+        if not sel.any():
+            return BlockOutput(obs[0].outputs(taus[0]))
+        if sel.all():
+            return BlockOutput(obs[1].outputs(taus[1]))
+        lo, hi = (o.outputs(tau) for o, tau in zip(obs, taus, strict=True))
         return BlockOutput({k: np.where(sel, hi[k], lo[k]) for k in lo})

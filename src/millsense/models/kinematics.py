@@ -22,6 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from millsense.core.errors import InputDataError
+from millsense.models._kinematics_kernels import (
+    trunnion_forward,
+    trunnion_jacobian,
+    trunnion_load_matrix,
+)
 
 #: Trunnion offsets chosen for a UX600-sized table (docs/decisions/0031-trunnion-offsets-a2-d4.md).
 DEFAULT_A2_M = 0.150
@@ -134,19 +139,6 @@ class TrunnionACKinematics:
         )
 
     @staticmethod
-    def _rotation_and_derivatives(
-        theta_a: np.ndarray, theta_c: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """R (as :meth:`rotation`), ∂R/∂θ_A and ∂R/∂θ_C from one evaluation of the sines."""
-        ca, sa = np.cos(theta_a), np.sin(theta_a)
-        cc, sc = np.cos(theta_c), np.sin(theta_c)
-        ca_sc, ca_cc, sa_sc, sa_cc = ca * sc, ca * cc, sa * sc, sa * cc
-        r = _matrix3(ca, (-cc, -ca_sc, sa_sc), (sc, -ca_cc, sa_cc), (0.0, sa, ca))
-        d_a = _matrix3(ca, (0.0, sa_sc, ca_sc), (0.0, sa_cc, ca_cc), (0.0, ca, -sa))
-        d_c = _matrix3(ca, (sc, -ca_cc, sa_cc), (cc, ca_sc, -sa_sc), (0.0, 0.0, 0.0))
-        return r, d_a, d_c
-
-    @staticmethod
     def orientation(theta_a: np.ndarray, theta_c: np.ndarray) -> np.ndarray:
         """Tool axis O in the workpiece frame (Aslan Eq. 3.36), shape (..., 3)."""
         ca, sa = np.cos(theta_a), np.sin(theta_a)
@@ -155,11 +147,8 @@ class TrunnionACKinematics:
     def forward(self, q: np.ndarray) -> np.ndarray:
         """Tool tip P (m, workpiece frame) from axes q = [x, y, z, θ_A, θ_C] (Eq. 3.38)."""
         arr, single = _as_batch(q, 5, "q")
-        r = self.rotation(arr[:, 3], arr[:, 4])
-        rel = arr[:, :3].copy()
-        rel[:, 2] -= self.a2_m
-        p = np.einsum("nij,nj->ni", r, rel)
-        p[:, 2] -= self.d4_m
+        p = np.empty((arr.shape[0], 3))
+        trunnion_forward(arr, False, self.a2_m, self.d4_m, p)  # compiled (module notes)
         return p[0] if single else p
 
     def forward_pose(self, q: np.ndarray) -> np.ndarray:
@@ -200,21 +189,16 @@ class TrunnionACKinematics:
         in the thesis (torques at the tool tip are neglected).
         """
         arr, single = _as_batch(q, 5, "q")
-        r, d_a, d_c = self._rotation_and_derivatives(arr[:, 3], arr[:, 4])
-        rel = arr[:, :3].copy()
-        rel[:, 2] -= self.a2_m
         j = np.empty((arr.shape[0], 3, 5))
-        j[:, :, :3] = r
-        j[:, :, 3] = np.einsum("nij,nj->ni", d_a, rel)
-        j[:, :, 4] = np.einsum("nij,nj->ni", d_c, rel)
+        trunnion_jacobian(arr, False, self.a2_m, self.d4_m, j)  # compiled (module notes)
         return j[0] if single else j
 
     def load_matrix(self, q: np.ndarray) -> np.ndarray:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (Aslan Eq. 3.49)."""
         arr, single = _as_batch(q, 5, "q")
-        j = self.jacobian(arr)
-        # T = R: the Jacobian's first three columns (a copy, laid out as R)
-        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
+        m = np.empty((arr.shape[0], 5, 3))
+        # T = R: the Jacobian's first three columns; compiled (module notes)
+        trunnion_load_matrix(arr, False, self.a2_m, self.d4_m, m)
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:
@@ -325,7 +309,10 @@ class TrunnionACMachine:
 
     def forward(self, q: np.ndarray) -> np.ndarray:
         """Tool tip (m, workpiece/G-code frame) from drive positions q."""
-        return np.asarray(self.aslan.forward(self.to_aslan(q)))
+        arr, single = _as_batch(q, 5, "q")
+        p = np.empty((arr.shape[0], 3))
+        trunnion_forward(arr, True, self.a2_m, self.d4_m, p)  # Aslan's, after to_aslan
+        return p[0] if single else p
 
     def forward_pose(self, q: np.ndarray) -> np.ndarray:
         """``[P (m), O (unit)]`` in the workpiece frame from drive positions q."""
@@ -363,16 +350,16 @@ class TrunnionACMachine:
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """∂P/∂q in drive coordinates, ``J_Aslan·diag(R0, 1, 1)``, (3, 5) or (N, 3, 5)."""
         arr, single = _as_batch(q, 5, "q")
-        j = self.aslan.jacobian(self.to_aslan(arr))  # a new (N, 3, 5) array
-        j[:, :, :3] = j[:, :, :3] @ _R0
+        j = np.empty((arr.shape[0], 3, 5))
+        trunnion_jacobian(arr, True, self.a2_m, self.d4_m, j)  # Aslan's, after to_aslan
         return j[0] if single else j
 
     def load_matrix(self, q: np.ndarray) -> np.ndarray:
         """``Jᵀ·T`` (5×3 or N×5×3): drive loads per unit tool force (drive frame)."""
         arr, single = _as_batch(q, 5, "q")
-        j = self.jacobian(arr)
-        # T = R(A − π/2, C)·R0: the Jacobian's first three columns (a copy, laid out as T)
-        m = np.einsum("nji,njk->nik", j, np.ascontiguousarray(j[:, :, :3]))
+        m = np.empty((arr.shape[0], 5, 3))
+        # T = R(A − π/2, C)·R0: the Jacobian's first three columns; compiled (module notes)
+        trunnion_load_matrix(arr, True, self.a2_m, self.d4_m, m)
         return m[0] if single else m
 
     def drive_loads(self, q: np.ndarray, force_tool_n: np.ndarray) -> np.ndarray:

@@ -33,7 +33,8 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.models.kinematics import Kinematics
+from millsense.models._kinematics_kernels import trunnion_forward
+from millsense.models.kinematics import Kinematics, TrunnionACKinematics, TrunnionACMachine
 from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
@@ -83,10 +84,17 @@ class TcpFromAxes(Block):
         pass
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        q = np.column_stack([np.asarray(chunk.data[c], dtype=np.float64) for c in self.inputs])
         if chunk.n == 0:
             return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
-        rows = np.ascontiguousarray(np.atleast_2d(self.kin.forward(q)).T)
+        q = np.array([chunk.data[c] for c in self.inputs], dtype=np.float64)  # (axes, n)
+        kin = self.kin
+        if isinstance(kin, (TrunnionACKinematics, TrunnionACMachine)):
+            # the compiled forward kinematics straight into the output rows (one call per
+            # chunk: the method's batch checks and copies cost more than 100 poses' arithmetic)
+            rows = np.empty((3, chunk.n))
+            trunnion_forward(q.T, isinstance(kin, TrunnionACMachine), kin.a2_m, kin.d4_m, rows.T)
+        else:
+            rows = np.ascontiguousarray(np.atleast_2d(kin.forward(q.T)).T)
         return BlockOutput({f"tcp/{a}": rows[i] for i, a in enumerate("xyz")})
 
 
@@ -208,13 +216,15 @@ class PlanSync(Block):
         d = chunk.data
         n = chunk.n
         at = np.arange(-chunk.start % self.decimate, n, self.decimate)
-        matched = np.full(at.size, -1, dtype=np.int64)
-        if at.size:
-            tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at].T
-            ok = np.all(np.isfinite(tcp), axis=1)
+        # (3, m): the rows of the transpose handed to match are contiguous (no copies there)
+        tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at]
+        if at.size and np.isfinite(tcp).all():
+            matched = self.plan.match(tcp.T, from_row=max(self.row, 0))
+        else:  # a pose not finite: matched where it is, −1 (no match) where not
+            matched = np.full(at.size, -1, dtype=np.int64)
+            ok = np.all(np.isfinite(tcp), axis=0)
             if ok.any():
-                sub = self.plan.match(tcp[ok], from_row=max(self.row, 0))
-                matched[ok] = sub
+                matched[ok] = self.plan.match(tcp[:, ok].T, from_row=max(self.row, 0))
         u = (
             np.ascontiguousarray(d[self.override_channel], dtype=np.float64)
             if self.override_channel is not None

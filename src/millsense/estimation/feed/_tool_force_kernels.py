@@ -6,7 +6,8 @@ At 10 ms chunks the block evaluates ten poses: numpy's per-call overhead on 3×5
 :mod:`millsense.models.kinematics` (the load matrix ``Jᵀ·T``); these kernels do the rest in
 one call each. The 3×3 solves are LAPACK's, as numpy's; the forces agree with the numpy form
 to rounding (decision 1651). The delay line of the poses and the hold of the pseudo-inverses
-are loops performing the numpy form's operations, bit for bit (decision 1655).
+are loops performing the numpy form's operations, bit for bit (decision 1655);
+:func:`tool_force_kernel` runs the whole chunk, kinematics included, in one call.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from millsense.models._kinematics_kernels import trunnion_load_matrix
 
 
 @numba.njit(cache=True)
@@ -89,3 +92,46 @@ def apply_held_poses(
             for j in range(5):
                 acc += stack[s, i, j] * -loads[j, k]
             out[i, k] = acc
+
+
+@numba.njit(cache=True)
+def tool_force_kernel(
+    angles: NDArray[np.float64],
+    loads: NDArray[np.float64],
+    rg: NDArray[np.float64],
+    offsets: NDArray[np.float64],
+    hist: NDArray[np.float64],
+    state: NDArray[np.float64],
+    first: int,
+    every: int,
+    machine: bool,
+    a2: float,
+    d4: float,
+    held_pinv: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """One chunk of :class:`~millsense.estimation.feed.estimator.ToolForceBlock` in one call:
+    the delayed poses (:func:`delayed_poses`), their load matrices ``Jᵀ·T`` (the compiled
+    trunnion kinematics, :func:`~millsense.models._kinematics_kernels.trunnion_load_matrix`),
+    the pseudo-inverses (:func:`pseudo_inverses`) and the forces (:func:`apply_held_poses`)
+    — the block's former sequence of calls, operation for operation. ``state`` = [started,
+    held]: with held = 1, ``held_pinv`` (3, 5) is the pseudo-inverse held from the previous
+    chunk; both updated in place."""
+    n = angles.shape[1]
+    n_poses = len(range(first, n, every))
+    poses = np.empty((n_poses, 5))
+    q0 = np.empty(5)
+    delayed_poses(angles, rg, offsets, hist, state[0:1], first, every, poses, q0)
+    held = state[1] != 0.0
+    if n_poses == 0 and not held:
+        poses = q0.reshape((1, 5))
+    load = np.empty((poses.shape[0], 5, 3))
+    trunnion_load_matrix(poses, machine, a2, d4, load)
+    off = 1 if held else 0
+    stack = np.empty((off + poses.shape[0], 3, 5))
+    if held:
+        stack[0] = held_pinv
+    pseudo_inverses(load, stack[off:])
+    apply_held_poses(stack, first, every, held, loads, out)
+    held_pinv[:] = stack[-1]
+    state[1] = 1.0

@@ -178,20 +178,20 @@ class FeedEstimatorBank(Block):
             for a, old, _, factor in self._channels
         ], dtype=np.float64)  # fmt: skip
         self._recent = np.zeros((len(self._channels), conds[0]._window))
-        self._rows = (
-            [c.moving.inputs[0] for c in conds],
-            [c.moving.inputs[1] for c in conds],
-            [c.position_channel for c in conds],
-        )
-
-    def _stack(self, chunk: Chunk, names: list[str]) -> NDArray[np.float64]:
-        return np.array([chunk.data[k] for k in names], dtype=np.float64)
+        # the currents, speeds and position commands of the axes, read as one (3A, n) array
+        self._rows = [
+            *(c.moving.inputs[0] for c in conds),
+            *(c.moving.inputs[1] for c in conds),
+            *(c.position_channel for c in conds),
+        ]
 
     def process(self, chunk: Chunk) -> BlockOutput:
         n = chunk.n
         if n == 0:
             return BlockOutput({k: np.zeros(0) for k in self._names})
-        cur, spd, pos = (self._stack(chunk, r) for r in self._rows)
+        a = len(self._conds)
+        rows: NDArray[np.float64] = np.array([chunk.data[k] for k in self._rows], dtype=np.float64)
+        cur, spd, pos = rows[:a], rows[a : 2 * a], rows[2 * a :]
         out = np.empty((len(self._channels), n))
         ok = bank_kernel(cur, spd, pos, self._axis_of, self._c3_of, self._c3_state, self._c3_drive,
                          self._fric_mode, self._fric, self._sos, self._lti, self._n_states,

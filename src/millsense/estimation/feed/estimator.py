@@ -41,11 +41,7 @@ from scipy import signal
 from millsense.core.config import FeedAxisConfig
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.feed._tool_force_kernels import (
-    apply_held_poses,
-    delayed_poses,
-    pseudo_inverses,
-)
+from millsense.estimation.feed._tool_force_kernels import tool_force_kernel
 from millsense.estimation.feed.rigid_body import DriveModel
 from millsense.estimation.kalman.design import (
     KalmanDesign,
@@ -949,7 +945,6 @@ class ToolForceBlock(Block):
         self.offsets = np.zeros(5) if offsets is None else np.asarray(offsets, dtype=float)
         self.lag = int(lag)
         self.pose_every = max(1, int(pose_every))
-        self._held_pinv: NDArray[np.float64] | None = None
         self._angle_channels = tuple(f"{a}/motor_angle" for a in self.axes)
         self.inputs = self.load_channels + self._angle_channels
         self.reset(0.0)
@@ -962,16 +957,10 @@ class ToolForceBlock(Block):
 
     def reset(self, sample_rate_hz: float) -> None:
         self._hist = np.zeros((self.lag, 5))  # the last `lag` poses
-        self._started = np.zeros(1)  # 0 until the first chunk fills _hist with its first pose
-        self._held_pinv = None
-
-    def _pinv(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``[Jᵀ·T]⁺`` (P, 3, 5) at poses q (P, 5) by the normal equations (full column rank)."""
-        assert isinstance(self.kin, (TrunnionACKinematics, TrunnionACMachine))
-        out = np.empty((len(q), 3, 5))
-        if len(q):
-            pseudo_inverses(np.ascontiguousarray(self.kin.load_matrix(q)), out)
-        return out
+        # [started, held]: started 0 until the first chunk fills _hist with its first pose;
+        # held 1 once _held_pinv holds the pseudo-inverse of the chunk's last pose
+        self._state = np.zeros(2)
+        self._held_pinv = np.zeros((3, 5))
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
@@ -984,22 +973,14 @@ class ToolForceBlock(Block):
         # batched 3×3 solves instead of one SVD per sample; the (delayed) pose is evaluated at
         # stream samples that are multiples of `pose_every` and held in between (the machine
         # moves < 0.1 mm in 1 ms at cutting feeds); the delay line and the hold compiled
-        # (decision 1655)
+        # (decision 1655); delay line, kinematics, solves and hold in one compiled call
         every = self.pose_every
         first = -chunk.start % every  # the chunk's first pose sample
-        poses = np.empty((len(range(first, n, every)), 5))
-        q0 = np.empty(5)
-        delayed_poses(angles, self.rg, self.offsets, self._hist, self._started, first, every,
-                      poses, q0)  # fmt: skip
-        stack = self._pinv(poses)
-        held = self._held_pinv is not None
-        if self._held_pinv is not None:
-            stack = np.concatenate([self._held_pinv[None], stack])
-        if len(stack) == 0:
-            stack = self._pinv(q0[None])
         rows = np.empty((3, n))
-        apply_held_poses(stack, first, every, held, loads, rows)
-        self._held_pinv = stack[-1]
+        kin = self.kin
+        tool_force_kernel(angles, loads, self.rg, self.offsets, self._hist, self._state, first,
+                          every, isinstance(kin, TrunnionACMachine), kin.a2_m, kin.d4_m,
+                          self._held_pinv, rows)  # fmt: skip
         return BlockOutput({f"tool/force_{c}_est": rows[i] for i, c in enumerate("xyz")})
 
 
