@@ -296,6 +296,22 @@ def test_session_judges_breakage_one_revolution_from_a_transient(v8_plan: object
     assert not st[cut & (x > 24.5) & (x < 25.5)].any()
 
 
+def _run_slot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], *extra: str
+) -> tuple[int, str, str]:
+    """``millsense run`` of a 3 mm slot (Aslan's Ø20 mm 2-flute end mill, 1000 rev/min, the
+    demo block) with the walkthrough's commissioned machine file, into ``run.h5``."""
+    prog = tmp_path / "slot.nc"
+    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
+    demo = ROOT / "examples/demo_part"
+    return run_cli(
+        ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
+         "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
+         str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), *extra],
+        capsys,
+    )  # fmt: skip
+
+
 def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``millsense run`` in closed loop (a tooth broken at 5 s) then ``replay`` of its
     recording: the hold stops the run, the recording holds every sample, the event logs read
@@ -304,16 +320,9 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     from millsense.io.recording_reader import open_recording
     from millsense.streaming.event_log import read_event_log
 
-    prog = tmp_path / "slot.nc"
-    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
-    demo = ROOT / "examples/demo_part"
-    code, _out, err = run_cli(
-        ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
-         "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
-         str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--plan-out",
-         str(tmp_path / "plan.parquet"), "--break-at-s", "5.0", "--plot",
-         str(tmp_path / "run.png"), "--dashboard"],
-        capsys,
+    code, _out, err = _run_slot(
+        tmp_path, capsys, "--plan-out", str(tmp_path / "plan.parquet"), "--break-at-s", "5.0",
+        "--plot", str(tmp_path / "run.png"), "--dashboard",
     )  # fmt: skip
     assert code == 0, err
     # the live dashboard served the run on the loopback with a 32-character token (issue 19)
@@ -381,16 +390,8 @@ def test_a_stall_in_the_cut_is_not_a_breakage(
     samples as the process and alarmed 31 ms after the stall was reported (4.081 s)."""
     from millsense.streaming.event_log import read_event_log
 
-    prog = tmp_path / "slot.nc"
-    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
-    demo = ROOT / "examples/demo_part"
-    code, _out, err = run_cli(
-        ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
-         "--tool", "aslan-d20-2flute", "--material", "al7050", "--machine-file",
-         str(MACHINE_FILE), "-o", str(tmp_path / "run.h5"), "--regulate", "torque",
-         "--duration-s", "4.6", "--fault", "stall@4.0:0.3"],
-        capsys,
-    )  # fmt: skip
+    code, _out, err = _run_slot(tmp_path, capsys, "--regulate", "torque", "--duration-s", "4.6",
+                                "--fault", "stall@4.0:0.3")  # fmt: skip
     assert code == 0, err
     ev = read_event_log(tmp_path / "run.events.parquet")
     assert [e.name for e in ev if e.name in ("input_fault", "feed_hold")] == [
