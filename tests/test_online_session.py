@@ -296,13 +296,17 @@ def test_session_judges_breakage_one_revolution_from_a_transient(v8_plan: object
     assert not st[cut & (x > 24.5) & (x < 25.5)].any()
 
 
+#: A 3 mm slot from the side of the demo block at 1000 rev/min.
+SLOT_PROGRAM = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n"
+
+
 def _run_slot(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], *extra: str
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], *extra: str, program: str = SLOT_PROGRAM
 ) -> tuple[int, str, str]:
-    """``millsense run`` of a 3 mm slot (Aslan's Ø20 mm 2-flute end mill, 1000 rev/min, the
-    demo block) with the walkthrough's commissioned machine file, into ``run.h5``."""
+    """``millsense run`` of ``program`` (Aslan's Ø20 mm 2-flute end mill, the demo block) with
+    the walkthrough's commissioned machine file, into ``run.h5``."""
     prog = tmp_path / "slot.nc"
-    prog.write_text("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n")
+    prog.write_text(program)
     demo = ROOT / "examples/demo_part"
     return run_cli(
         ["run", "--program", str(prog), "--stock", str(demo / "stock.toml"),
@@ -379,6 +383,26 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     dual = [e.time_s for e in mev if e.source == "breakage-dual"]
     assert virtual[:1] == brk
     assert dual and 5.0 < dual[0] < 5.0 + 10 * 0.03
+
+
+def test_no_speed_up_into_a_plunge_the_signal_reads_as_air(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1663: a 2 mm plunge at F300 and 6000 rev/min into the top of the block, then a
+    slot. The plunge's first millimetre reads below the air threshold (73 W against 83 W) while
+    the plan has the tool in the material and its look-ahead flags a rising engagement: the
+    override stays at the 50 % the tool approached with. Before, the air rule raised it to
+    150 % at Z −0.8 mm (2.32 s), into the plunge."""
+    from millsense.streaming.event_log import read_event_log
+
+    plunge = "G21 G90 G17\nT1 M6\nS6000 M3\nG0 X10 Y10 Z5\nG1 Z-2 F300\nG1 X40 F1200\nG0 Z10\nM30\n"
+    code, _out, err = _run_slot(tmp_path, capsys, "--duration-s", "3.2", program=plunge)
+    assert code == 0, err
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    moves = [e for e in ev if e.name == "feed_override"]
+    approach = [e.value for e in moves if e.nc_line == 5 and (e.z_mm or 0.0) > 0]
+    assert approach[-1] == 50.0
+    assert all(e.value <= 50.0 for e in moves if e.nc_line == 5 and (e.z_mm or 0.0) < 0)
 
 
 def test_a_stall_in_the_cut_is_not_a_breakage(

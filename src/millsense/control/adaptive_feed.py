@@ -534,6 +534,11 @@ class AdaptiveFeedBlock(Block):
             # the tool meets the material at the re-entry feed, not at V_max (decision 1626)
             u = self.u_max / 3.0 if entering else self.u_max
             why = ("air by the plan" if plan_air else "air") + (", cut ahead" if entering else "")
+            if u > 1.0 and self._plan_in_cut():
+                # the plan has the tool in the material (a plunge, the light start of an
+                # entry): the signal's air is the cut's light start, and the air rule does not
+                # go faster than programmed there (decision 1663)
+                u, why = 1.0, f"{why}, the plan in cut"
         elif lp.air and lp.reentry < o.reentry_revs:
             lp.engaged = True
             lp.reentry += 1
@@ -559,8 +564,10 @@ class AdaptiveFeedBlock(Block):
             limits.append((lp.hold, "exit hold"))
         else:
             lp.hold = None
-        if flag == 1 and not in_air:
-            limits.append((lp.u, "flag 1: no rise"))  # never faster into a rising engagement
+        if flag == 1 and (not in_air or self._plan_in_cut()):
+            # never faster into a rising engagement, nor where the signal reads air but the
+            # plan has the tool in the material (decision 1663)
+            limits.append((lp.u, "flag 1: no rise"))
         if cap is not None:
             limits.append((cap, "look-ahead ceiling"))
         if self._ceiling_ext is not None:
@@ -572,6 +579,17 @@ class AdaptiveFeedBlock(Block):
         lp.flag = flag
         sev = Severity.WARNING if flag else Severity.INFO
         self._command(chunk, e, u, events, sev, why=why)
+
+    def _plan_in_cut(self) -> bool:
+        """The look-ahead matched the tool at this decision to a plan row in the material (the
+        virtual plan's information: none for the conventional controller, without look-ahead)."""
+        lp = self.loop
+        return (
+            self.plan is not None
+            and self.opts.look_ahead
+            and lp.matched
+            and bool(self._in_cut[lp.row])
+        )
 
     def _plan_air(self) -> bool:
         """The plan puts the tool in air before its first engagement: the look-ahead matched
