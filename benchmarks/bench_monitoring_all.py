@@ -64,30 +64,24 @@ def _speed() -> list[Metric]:
         f"rev/min), {seconds:.0f} s at 10 kHz"
     )
     out = []
-    for chunk, label in ((100, "10ms"), (1000, "100ms")):
-        wall = _run(data, chunk)
-        out.append(
-            Metric(
-                f"x_realtime_{label}",
-                seconds / wall,
-                "x",
-                target=500.0,
-                note=f"{what}, {label} chunks, one core, best of 3 runs",
+    streams = (
+        ("", data, ""),
+        ("sensorless_", _stream(seconds, noise_nm=OBSERVER_NOISE_NM),
+         f" with the sensorless estimate's noise ({OBSERVER_NOISE_NM} N·m per sample, decision "
+         "1557)"),
+    )  # fmt: skip
+    for prefix, stream, noise in streams:
+        for chunk, label in ((100, "10ms"), (1000, "100ms")):
+            wall = _run(stream, chunk)
+            out.append(
+                Metric(
+                    f"x_realtime_{prefix}{label}",
+                    seconds / wall,
+                    "x",
+                    target=500.0,
+                    note=f"{what}{noise}, {label} chunks, one core, best of 3 runs",
+                )
             )
-        )
-    noisy = _stream(seconds, noise_nm=OBSERVER_NOISE_NM)
-    for chunk, label in ((100, "10ms"), (1000, "100ms")):
-        wall = _run(noisy, chunk)
-        out.append(
-            Metric(
-                f"x_realtime_sensorless_{label}",
-                seconds / wall,
-                "x",
-                target=500.0,
-                note=f"{what} with the sensorless estimate's noise ({OBSERVER_NOISE_NM} N·m per "
-                f"sample, decision 1557), {label} chunks, one core, best of 3 runs",
-            )
-        )
     for chunk, label in ((100, "10ms"), (1000, "100ms")):
         wall = _run_pipeline(data, chunk)
         out.append(

@@ -580,16 +580,18 @@ class AdaptiveFeedBlock(Block):
         sev = Severity.WARNING if flag else Severity.INFO
         self._command(chunk, e, u, events, sev, why=why)
 
-    def _plan_in_cut(self) -> bool:
-        """The look-ahead matched the tool at this decision to a plan row in the material (the
-        virtual plan's information: none for the conventional controller, without look-ahead)."""
+    def _plan_row_in_cut(self) -> bool | None:
+        """Whether the plan row the look-ahead matched the tool to at this decision is in the
+        material; None without that information (no plan, no look-ahead: the conventional
+        controller; no match)."""
         lp = self.loop
-        return (
-            self.plan is not None
-            and self.opts.look_ahead
-            and lp.matched
-            and bool(self._in_cut[lp.row])
-        )
+        if self.plan is None or not self.opts.look_ahead or not lp.matched:
+            return None
+        return bool(self._in_cut[lp.row])
+
+    def _plan_in_cut(self) -> bool:
+        """The plan has the tool in the material at this decision (decision 1663)."""
+        return self._plan_row_in_cut() is True
 
     def _plan_air(self) -> bool:
         """The plan puts the tool in air before its first engagement: the look-ahead matched
@@ -597,14 +599,7 @@ class AdaptiveFeedBlock(Block):
         in cut yet. The regulated value is then not a cut whatever it reads (a spindle run-up,
         an air reference still settling, an estimate's air error: decision 1555); after the
         first engagement the machine, not the plan, confirms an exit (decision 1741)."""
-        lp = self.loop
-        return (
-            self.plan is not None
-            and self.opts.look_ahead
-            and lp.matched
-            and not lp.engaged
-            and not bool(self._in_cut[lp.row])
-        )
+        return self._plan_row_in_cut() is False and not self.loop.engaged
 
     def _seed_model(self, y: float, u: float) -> None:
         """The RLS restarted from the static gain y/u (θ̂₀ = [0, 0, y/u, 0, 0], P₀;

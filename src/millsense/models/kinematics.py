@@ -66,6 +66,10 @@ class ThreeAxisKinematics:
         _as_batch(q, 3, "q")
         return np.array(q, dtype=np.float64, copy=True)
 
+    def forward_rows(self, q_rows: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`forward` of a chunk laid out by rows: ``q_rows`` (3, n) → ``out`` (3, n)."""
+        out[:] = q_rows
+
     def inverse(self, p: np.ndarray) -> np.ndarray:
         """Axis positions (m) from the tool tip (m); identity."""
         _as_batch(p, 3, "p")
@@ -150,6 +154,11 @@ class TrunnionACKinematics:
         p = np.empty((arr.shape[0], 3))
         trunnion_forward(arr, False, self.a2_m, self.d4_m, p)  # compiled (module notes)
         return p[0] if single else p
+
+    def forward_rows(self, q_rows: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`forward` of a chunk laid out by rows, ``q_rows`` (5, n) → ``out`` (3, n): one
+        compiled call, without the batch checks and copies (an on-line block's 100 poses)."""
+        trunnion_forward(q_rows.T, False, self.a2_m, self.d4_m, out.T)
 
     def forward_pose(self, q: np.ndarray) -> np.ndarray:
         """Tool tip and axis [P_x, P_y, P_z, O_i, O_j, O_k] (m, unit vector) from q."""
@@ -313,6 +322,11 @@ class TrunnionACMachine:
         p = np.empty((arr.shape[0], 3))
         trunnion_forward(arr, True, self.a2_m, self.d4_m, p)  # Aslan's, after to_aslan
         return p[0] if single else p
+
+    def forward_rows(self, q_rows: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`forward` of a chunk laid out by rows, ``q_rows`` (5, n) → ``out`` (3, n): one
+        compiled call, without the batch checks and copies (an on-line block's 100 poses)."""
+        trunnion_forward(q_rows.T, True, self.a2_m, self.d4_m, out.T)
 
     def forward_pose(self, q: np.ndarray) -> np.ndarray:
         """``[P (m), O (unit)]`` in the workpiece frame from drive positions q."""

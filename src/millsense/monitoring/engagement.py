@@ -57,6 +57,7 @@ _FIELDS = (
 #: 1807).
 RELIABLE_SIGMA = 0.8
 
+
 @dataclass(frozen=True)
 class DepthSummary:
     """The axial depth over many revolutions (decision 1558), in m: the median of the reliable

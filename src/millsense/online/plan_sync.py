@@ -33,8 +33,7 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.models._kinematics_kernels import trunnion_forward
-from millsense.models.kinematics import Kinematics, TrunnionACKinematics, TrunnionACMachine
+from millsense.models.kinematics import Kinematics
 from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
@@ -87,14 +86,8 @@ class TcpFromAxes(Block):
         if chunk.n == 0:
             return BlockOutput({f"tcp/{a}": np.zeros(0) for a in "xyz"})
         q = np.array([chunk.data[c] for c in self.inputs], dtype=np.float64)  # (axes, n)
-        kin = self.kin
-        if isinstance(kin, (TrunnionACKinematics, TrunnionACMachine)):
-            # the compiled forward kinematics straight into the output rows (one call per
-            # chunk: the method's batch checks and copies cost more than 100 poses' arithmetic)
-            rows = np.empty((3, chunk.n))
-            trunnion_forward(q.T, isinstance(kin, TrunnionACMachine), kin.a2_m, kin.d4_m, rows.T)
-        else:
-            rows = np.ascontiguousarray(np.atleast_2d(kin.forward(q.T)).T)
+        rows = np.empty((3, chunk.n))
+        self.kin.forward_rows(q, rows)  # straight into the output rows
         return BlockOutput({f"tcp/{a}": rows[i] for i, a in enumerate("xyz")})
 
 
