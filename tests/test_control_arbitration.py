@@ -139,6 +139,11 @@ def test_priorities_chatter_then_breakage_then_adaptive() -> None:
     assert np.array_equal(ch["adaptive_feed/echo"], 2 * np.arange(8000.0))  # children's outputs
     alarms = [e.name for e in events if e.kind is EventKind.ALARM]
     assert alarms == ["chatter", "breakage", "breakage"]  # passed on unchanged
+    # an override applied as proposed carries the proposal's own line once (it names its
+    # source and value); one applied otherwise says what it was and where it came from
+    lines = {e.sample: e.message for e in events if e.kind is EventKind.OVERRIDE}
+    assert lines[1100] == "feed_override"  # the scripted proposal's line, not repeated
+    assert lines[7600].startswith("feed hold")
 
 
 def test_adaptive_child_gets_the_ceiling_during_chatter_and_hold() -> None:

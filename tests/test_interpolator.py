@@ -173,3 +173,35 @@ def test_collinear_vertices_keep_the_feed_and_corners_slow_down() -> None:
     k = int(np.searchsorted(out["s"], 0.02))
     assert out["v"][k - 1] <= v_corner + a * T + 1e-12
     assert np.min(out["v"][k - 2 : k + 2]) == pytest.approx(v_corner, rel=1e-9)
+
+
+def test_rapids_ignore_the_feed_override_but_stop_on_hold() -> None:
+    """Decision 1665: a G0 segment runs at its rapid rate whatever the feed override (a CNC's
+    G0 answers the rapid override), a feed move at feed × override, and a feed hold stops
+    both. Path: 200 mm rapid at 0.5 m/s, then 30 mm feed at 0.02 m/s, a = 5 m/s²."""
+    path = np.array([[0, 0, 0], [0.2, 0, 0], [0.23, 0, 0.0]])
+    feed = np.array([0.5, 0.02])
+    rapid = np.array([True, False])
+    for ovr in (0.5, 1.5):
+        ip = Interpolator(path, feed, 5.0, initial_override=ovr, rapid=rapid)
+        out = ip.advance(1500)
+        on_rapid = out["s"] < 0.2
+        # the rapid reaches its own rate, neither 50 % nor 150 % of it (exact: the cap)
+        assert out["v"][on_rapid].max() == pytest.approx(0.5, rel=1e-12)
+        # the feed move runs at feed × override, exactly, once it settles
+        assert out["v"][out["s"] > 0.21].max() == pytest.approx(0.02 * ovr, rel=1e-12)
+    # without the mask the override scales the rapid too (the former behaviour)
+    out = Interpolator(path, feed, 5.0, initial_override=0.5).advance(200)
+    assert out["v"].max() == pytest.approx(0.25, rel=1e-12)
+    # a hold in the middle of the rapid stops it within v²/(2a) + v·T (25 mm + one period)
+    ip = Interpolator(path, feed, 5.0, rapid=rapid)
+    first = ip.advance(60)  # 0.18 s: at 0.5 m/s
+    ip.set_override(0.0)
+    rest = ip.advance(300)
+    assert first["v"][-1] == pytest.approx(0.5, rel=1e-12)
+    assert rest["v"][-1] == 0.0
+    stop = rest["s"][-1] - first["s"][-1]
+    assert stop <= 0.5**2 / (2 * 5.0) + 2 * 0.5 * T + 1e-12
+    assert stop >= 0.5**2 / (2 * 5.0) - 0.5 * T
+    with pytest.raises(InputDataError, match="rapid mask"):
+        Interpolator(path, feed, 5.0, rapid=np.array([True]))

@@ -401,10 +401,14 @@ class Supervisor(Block):
         why: str = "safety",
     ) -> None:
         self.feed = u
-        # the proposal's own line says which of its rules set the override (decision 1555)
-        src = f"{prop.source}: {prop.message}" if prop is not None else why
-        events.append(Event(t, EventKind.OVERRIDE, self.name,
-                            f"feed override {100 * u:.1f} % ({src})", name="feed_override",
+        # the proposal's own line says which of its rules set the override (decision 1555);
+        # applied as proposed, it is the line (it names its source and value already)
+        if prop is not None and prop.value is not None and abs(prop.value - 100.0 * u) < 0.05:
+            line = prop.message
+        else:
+            src = f"{prop.source}: {prop.message}" if prop is not None else why
+            line = f"feed override {100 * u:.1f} % ({src})"
+        events.append(Event(t, EventKind.OVERRIDE, self.name, line, name="feed_override",
                             value=100.0 * u, sample=k,
                             severity=prop.severity if prop is not None else Severity.WARNING,
                             values=dict(prop.values) if prop is not None else {},

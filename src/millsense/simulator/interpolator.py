@@ -76,6 +76,7 @@ def _profile_kernel(
     cum: np.ndarray,
     feed: np.ndarray,
     corner: np.ndarray,
+    rapid: np.ndarray,
     acc: float,
     period: float,
     horizon: float,
@@ -84,14 +85,17 @@ def _profile_kernel(
 ) -> None:
     """state = [s, v, segment]; advances len(override) periods writing s and v after each.
 
-    ``corner[j]`` is the junction speed limit at the end of segment j (m/s, inf: none).
+    ``corner[j]`` is the junction speed limit at the end of segment j (m/s, inf: none);
+    ``rapid[j]`` is 1 on a rapid (G0) segment, whose speed the feed override does not scale
+    (only a feed hold, o = 0, stops it).
     """
     n_seg = feed.shape[0]
     s_end = cum[n_seg]
     for k in range(override.shape[0]):
         s, v, seg = state[0], state[1], int(state[2])
         o = override[k]
-        cap = feed[seg] * o
+        o_rapid = 1.0 if o > 0.0 else 0.0
+        cap = feed[seg] * (o_rapid if rapid[seg] else o)
         # look-ahead over boundaries within the braking horizon
         j = seg
         while j < n_seg:
@@ -101,7 +105,9 @@ def _profile_kernel(
             if j == n_seg - 1:
                 vj = 0.0
             else:
-                vj = min(min(feed[j], feed[j + 1]) * o, corner[j])
+                fj = feed[j] * (o_rapid if rapid[j] else o)
+                fj1 = feed[j + 1] * (o_rapid if rapid[j + 1] else o)
+                vj = min(min(fj, fj1), corner[j])
             # v²/(2a) + v·T + v_prev·T/2 ≤ d + vj²/(2a)
             rhs = d - v * period / 2.0 + vj * vj / (2.0 * acc)
             if rhs <= 0.0:
@@ -200,6 +206,9 @@ class Interpolator:
     corner_tolerance_m : corner (junction) deviation δ, m: the speed through a vertex is
         limited to ``√(a·δ·sin(θ/2)/(1 − sin(θ/2)))`` (θ/2 from the direction change),
         unlimited for collinear segments (decision "Interpolator junction speed").
+    rapid : (N−1,) True on rapid (G0) segments, or None (none). A rapid runs at its programmed
+        (rapid) rate whatever the feed override; a feed hold (override 0) stops it too, as on a
+        CNC, where G0 answers the rapid override, not the feed override (decision 1665).
     """
 
     def __init__(
@@ -212,6 +221,7 @@ class Interpolator:
         channel: OverrideChannel | None = None,
         initial_override: float = 1.0,
         corner_tolerance_m: float = 1e-5,
+        rapid: np.ndarray | None = None,
     ) -> None:
         pts = np.asarray(path, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] not in (3, 5) or pts.shape[0] < 2:
@@ -230,6 +240,16 @@ class Interpolator:
             raise InputDataError("interpolator: feed must be finite and > 0 on every segment")
         if not accel > 0:
             raise InputDataError(f"interpolator: acceleration limit must be > 0, got {accel}")
+        if rapid is None:
+            rap = np.zeros(len(seg), dtype=np.bool_)
+        else:
+            rap = np.asarray(rapid, dtype=np.bool_)
+            if rap.shape != (len(seg),):
+                raise InputDataError(
+                    f"interpolator: rapid mask must have {len(seg)} entries (one per segment), "
+                    f"got {rap.shape}"
+                )
+        self.rapid = np.ascontiguousarray(rap[keep].astype(np.uint8))
         self._start = pts[:-1][keep]
         self._delta = seg[keep]
         self._len = length[keep]
@@ -245,10 +265,8 @@ class Interpolator:
         self.accel = float(accel)
         self.period = float(period_s)
         self.channel = channel or OverrideChannel.open_cnc()
-        self._horizon = (
-            float(self.feed.max() * self.channel.max_override) ** 2 / (2 * self.accel)
-            + 4 * float(self.feed.max() * self.channel.max_override) * self.period
-        )
+        v_top = float(self.feed.max() * max(self.channel.max_override, 1.0))
+        self._horizon = v_top**2 / (2 * self.accel) + 4 * v_top * self.period
         self._state = np.zeros(3)
         self._k = 0
         # effective override schedule: (time it takes effect, realised value)
@@ -324,6 +342,7 @@ class Interpolator:
             self.cum,
             self.feed,
             self.corner,
+            self.rapid,
             self.accel,
             self.period,
             self._horizon,

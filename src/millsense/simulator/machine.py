@@ -569,6 +569,7 @@ class MachineSimulator(Source):
             period_s=period,
             channel=OverrideChannel(0.0, opts.feed_channel.step, opts.feed_channel.max_override),
             initial_override=0.0,
+            rapid=job.rapid,
         )
         # the spindle runs from the start at the first programmed speed (M3 before motion)
         spin = np.asarray(job.spindle_rad_s, dtype=np.float64).copy()
