@@ -112,3 +112,26 @@ def test_fault_specs_parse_and_refuse_nonsense() -> None:
         LinkFault.parse("melt@1")
     with pytest.raises(ConfigError, match="no channel 'z/current_cmd'"):
         FaultyLink(_source(), [LinkFault.parse("nan@1:0.1:z/current_cmd")])
+
+
+def test_a_constant_channel_is_no_stall_and_huge_finite_values_pass() -> None:
+    """A stall needs every measured channel frozen: a constant one (an NC line, a held
+    override) beside a live one is none, and beside a frozen one it does not hide the stall.
+    Finite values whose chunk sum overflows (±1e308) pass unchanged and unmarked; an inf is
+    held and marked like a NaN."""
+    rng = np.random.default_rng(5)
+    live = rng.standard_normal(N)
+    huge = np.where(np.arange(N) % 2 == 0, 1e308, 1e308 * 0.9)  # finite; sums overflow
+    huge[4000] = np.inf
+    rec = Recording(FS, metadata={"source": "link.h5"})
+    rec.add_channel("cnc/nc_line", np.full(N, 10.0), "1")
+    rec.add_channel("x/current_cmd", live, "A")
+    rec.add_channel("y/current_cmd", huge, "A")
+    d = _read_all(GuardedSource(Commanded(rec), stall_s=0.01))
+    assert np.count_nonzero(d[FAULT_CHANNEL]) == 1 and d[FAULT_CHANNEL][4000] == NAN
+    assert np.array_equal(d["y/current_cmd"][:4000], huge[:4000])
+    assert d["y/current_cmd"][4000] == huge[3999]
+    g = GuardedSource(FaultyLink(Commanded(rec), [LinkFault("stall", 0.2, 0.05)]), stall_s=0.01)
+    st = np.flatnonzero(_read_all(g)[FAULT_CHANNEL] == STALL)
+    # frozen 2000..2499: the 100th repetition (sample 2100) starts the mark
+    assert st[0] == 2100 and st[-1] == 2499 and st.size == 400
