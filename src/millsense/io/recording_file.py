@@ -445,8 +445,10 @@ class RecordingWriter:
         self, key: str, values: ArrayLike, dtypes: Mapping[str, np.dtype], what: str
     ) -> np.ndarray:
         """Copy ``values`` as a 1-D array of the dtype fixed for ``key`` (first chunk's)."""
-        arr = as_channel_array(values, key, what)
         dtype = dtypes.get(key)
+        if type(values) is np.ndarray and values.ndim == 1 and values.dtype == dtype:
+            return values.copy()  # the usual chunk: nothing to check or convert
+        arr = as_channel_array(values, key, what)
         if dtype is None:
             return np.array(arr, copy=True)
         if not np.can_cast(arr.dtype, dtype, "same_kind"):
