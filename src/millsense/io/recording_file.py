@@ -446,7 +446,12 @@ class RecordingWriter:
     ) -> np.ndarray:
         """Copy ``values`` as a 1-D array of the dtype fixed for ``key`` (first chunk's)."""
         dtype = dtypes.get(key)
-        if type(values) is np.ndarray and values.ndim == 1 and values.dtype == dtype:
+        if (
+            dtype is not None
+            and type(values) is np.ndarray
+            and values.ndim == 1
+            and values.dtype == dtype
+        ):
             return values.copy()  # the usual chunk: nothing to check or convert
         arr = as_channel_array(values, key, what)
         if dtype is None:
