@@ -109,6 +109,7 @@ def test_monitor_with_plan_locates_the_event(
         ("bad-channel", "--channel 'accel/x'"),
         ("other-plan", "other.nc"),
         ("bad-method", "unknown monitor 'chatter-fft'"),
+        ("zero-rpm-option", "--spindle-rpm: must be > 0, got 0"),
     ],
 )
 def test_monitor_bad_input_one_line_exit_2(
@@ -122,6 +123,8 @@ def test_monitor_bad_input_one_line_exit_2(
         args += ["--plan", str(_plan(tmp_path / "p.parquet", program="other.nc"))]
     if kind == "bad-method":
         args += ["--methods", "chatter-fft"]
+    if kind == "zero-rpm-option":  # refused although the speed channel would make it unused
+        args += ["--spindle-rpm", "0"]
     code, _, err = run_cli(args, capsys)
     assert code == 2
     assert needle in err and len(err.strip().splitlines()) == 1

@@ -489,6 +489,41 @@ def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
 
 
+def test_replay_refuses_a_plan_of_another_program(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``replay`` checks the plan against the recording as ``monitor`` does: a recording of
+    'pocket.nc' replayed against the plan of 'p.nc' is refused in one line naming both, exit 2,
+    nothing written (it had replayed to the end: a breakage alarm and a feed hold on a tool
+    the plan put in material the recording never cut)."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
+
+    n = 2000
+    rec = Recording(FS, 0.0, {"machine": "quaser-ux600", "program": "/shop/pocket.nc"})
+    for c in ("x", "y", "z", "a", "c"):
+        rec.add_channel(f"{c}/position_cmd", np.zeros(n), "m")
+    rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
+    write_recording(tmp_path / "run.h5", rec)
+    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
+    for c in ("tool", "source_line", "n_intervals", "nc_line"):
+        cols[c] = np.zeros(10, dtype=np.int64)
+    cols["rapid"] = np.zeros(10, dtype=bool)
+    cols["in_cut"] = np.zeros(10, dtype=bool)
+    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
+    code, _, err = run_cli(
+        ["replay", str(tmp_path / "run.h5"), "--plan", str(tmp_path / "plan.parquet"),
+         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
+         "-o", str(tmp_path / "out.h5")],
+        capsys,
+    )  # fmt: skip
+    assert code == 2
+    assert "plan of program 'p.nc', but" in err and "recorded running 'pocket.nc'" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
+
+
 def _run_up_in_air() -> tuple[dict[str, np.ndarray], np.ndarray]:
     """2 s in air: a run-up to 1000 rev/min from rest, then a step of the command to
     1500 rev/min at 1.0 s (first-order, 20 ms). The observer's estimate holds the acceleration

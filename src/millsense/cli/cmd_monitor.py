@@ -122,29 +122,6 @@ def _speed_unit(unit: str, name: str, where: str) -> str:
     raise InputDataError(f"{where}: channel '{name}' has unit '{unit}' (need rad/s or rev/min)")
 
 
-def _check_plan(vp: Any, plan: Path, rec: Any, recording: Path) -> None:
-    """A plan of another program, or one much longer than the recording, is refused."""
-    from millsense.core.errors import InputDataError
-
-    p_prog = str(vp.metadata.get("program", "") or "")
-    r_prog = str(rec.metadata.get("program", "") or "")
-    if p_prog and r_prog and Path(p_prog).name != Path(r_prog).name:
-        raise InputDataError(
-            f"{plan}: plan of program '{Path(p_prog).name}', but {recording} was recorded "
-            f"running '{Path(r_prog).name}'"
-        )
-    t = np.asarray(vp["t_s"], dtype=float)
-    plan_s = float(t[-1] - t[0]) if len(t) else 0.0
-    rec_s = rec.n_samples / rec.sample_rate_hz
-    # overrides up to 150 % shorten the run by a third at most; 2× leaves room for a run
-    # recorded at the highest override
-    if plan_s > 2.0 * rec_s + 1.0:
-        raise InputDataError(
-            f"{plan}: the plan lasts {plan_s:.1f} s but {recording} only {rec_s:.1f} s "
-            "(a plan of another program?)"
-        )
-
-
 def run_monitor(
     *,
     recording: Path,
@@ -265,15 +242,19 @@ def _run(
     vp = None
     locate = None
     if plan is not None:
+        from millsense.cli.plan_match import check_plan_matches
         from millsense.monitoring.locate import PlanLocator
         from millsense.plan.virtual_plan import VirtualPlan
 
         vp = VirtualPlan.read(plan)
-        _check_plan(vp, plan, rec, recording)
+        check_plan_matches(vp, plan, rec, recording)
         locate = PlanLocator(vp)
     # spindle speed: a channel, else --spindle-rpm, else the plan's programmed speed
     speed_channel = next((c for c in SPEED_CHANNELS if c in channels), None)
     speed_unit = "rad/s"
+    if spindle_rpm is not None and not spindle_rpm > 0:
+        # refused even where a speed channel makes it unused: a bad value is never passed over
+        raise InputDataError(f"--spindle-rpm: must be > 0, got {spindle_rpm:g}")
     if speed_channel is not None:
         speed_unit = _speed_unit(channels[speed_channel], speed_channel, where)
         spd = np.asarray(channel_window(rec, speed_channel, 0, rec.n_samples), dtype=float)
@@ -293,8 +274,6 @@ def _run(
     elif spindle_rpm is None and vp is not None:
         rpm = np.abs(np.asarray(vp["spindle_rpm"], dtype=float))
         spindle_rpm = float(np.median(rpm[rpm > 0])) if (rpm > 0).any() else None
-    if speed_channel is None and spindle_rpm is not None and not spindle_rpm > 0:
-        raise InputDataError(f"--spindle-rpm: must be > 0, got {spindle_rpm}")
     n_flutes = _flutes(flutes, rec, vp)
     from millsense.monitoring.registry import OBSERVER_ESTIMATE as OBSERVER_CHANNEL
 
@@ -615,5 +594,3 @@ def _flutes(flutes: int | None, rec: Any, vp: Any) -> int:
     if n < 1:
         raise InputDataError(f"--flutes: must be ≥ 1, got {n}")
     return n
-
-

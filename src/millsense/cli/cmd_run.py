@@ -596,6 +596,7 @@ def replay_online(
     chunk: int,
 ) -> dict[str, Any]:
     """The on-line blocks on a recording (the body of ``replay``)."""
+    from millsense.cli.plan_match import check_plan_matches
     from millsense.core.errors import ConfigError, InputDataError
     from millsense.io.recording_reader import opened_recording
     from millsense.models.kinematics import kinematics_for
@@ -608,6 +609,7 @@ def replay_online(
         raise ConfigError(f"--chunk: must be ≥ 1, got {chunk}")
     vp = VirtualPlan.read(plan)
     with opened_recording(recording) as rec:
+        check_plan_matches(vp, plan, rec, recording)
         cfg, where = _machine_file(machine_file, str(rec.metadata.get("machine", "")))
         kin = str(rec.metadata.get("kinematics", cfg.kinematics))
         axes = [a for a in cfg.axes if f"{a}/position_cmd" in rec.channel_names]
