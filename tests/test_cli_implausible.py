@@ -235,6 +235,13 @@ def test_estimate_beyond_axis_force_limit_warns_in_output_and_json(
     force = [w for w in warn if "axis_force_n" in w]
     assert len(force) == 1 and "raw estimate of axis x" in force[0]
     assert "exceeds the machine's axis_force_n 1 N" in force[0]
+    # the warning says when the largest value came (a rapid's transient or the cut): the time
+    # of the largest |estimate| in the written file
+    from millsense.io.recording_file import read_recording
+
+    est = read_recording(tmp_path / "e.h5")
+    t_peak = int(np.argmax(np.abs(est.channel("est/raw/x/load")))) / est.sample_rate_hz
+    assert f"(largest at {t_peak:.3f} s)" in force[0]
     assert json.loads(js.read_text())["warnings"] == warn
     assert _sums(run, machine) == before
     # the preset's 9.6 kN: a 1 mm slot at 0.1 mm/tooth is far below, no force warning

@@ -459,8 +459,9 @@ def _run_estimate(
         )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
-    # running peak |estimate| and non-finite count per estimate, for the plausibility checks
-    peaks: dict[str, float] = {}
+    # running peak |estimate| (and its time, s) and non-finite count per estimate, for the
+    # plausibility checks
+    peaks: dict[str, tuple[float, float]] = {}
     bad: dict[str, int] = {}
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
@@ -474,7 +475,10 @@ def _run_estimate(
             fin = np.isfinite(v)
             bad[c] = bad.get(c, 0) + int(v.size - fin.sum())
             if fin.any():
-                peaks[c] = max(peaks.get(c, 0.0), float(np.abs(v[fin]).max()))
+                mag = np.where(fin, np.abs(v), 0.0)
+                k = int(np.argmax(mag))
+                if mag[k] > peaks.get(c, (0.0, 0.0))[0]:
+                    peaks[c] = (float(mag[k]), ch.t0_s + (ch.start + k) / ch.sample_rate_hz)
         if streamed is not None:
             streamed.add(ch.start, data)
         if traces is not None:
@@ -519,7 +523,11 @@ def _run_estimate(
 
 
 def _estimate_findings(
-    mcfg: Any, estimates: list[Any], peaks: dict[str, float], bad: dict[str, int], where: str
+    mcfg: Any,
+    estimates: list[Any],
+    peaks: dict[str, tuple[float, float]],
+    bad: dict[str, int],
+    where: str,
 ) -> Any:
     """Plausibility of the estimates (decision 0941): non-finite samples, and the peak load
     of a linear axis against the machine's ``limits.axis_force_n`` (an estimate beyond what the
@@ -534,7 +542,10 @@ def _estimate_findings(
         cfg = mcfg.axes.get(a)
         if cfg is not None and cfg.kind == "linear" and c in peaks:
             check_against_limits(
-                mcfg.limits, f"{where}: {m} estimate of axis {a}", findings, peak_force_n=peaks[c]
+                mcfg.limits,
+                f"{where}: {m} estimate of axis {a} (largest at {peaks[c][1]:.3f} s)",
+                findings,
+                peak_force_n=peaks[c][0],
             )
     return findings
 
