@@ -494,3 +494,93 @@ def test_plan_air_before_the_first_engagement_is_air_whatever_the_signal_reads()
     at_cut = int(first_cut_s * FS)
     assert ch["adaptive_feed/override"][at_cut] == pytest.approx(0.5)
     assert blk.loop.engaged and blk.loop.identified
+
+
+class ReplayedPlant(PlantSource):
+    """A recording replayed: the override the machine ran with is fixed (``override``), the
+    block's commands are noted but never reach the plant."""
+
+    def __init__(self, gain, duration_s: float, override: float) -> None:
+        super().__init__(gain, duration_s)
+        self.values = [override]
+
+    def command(self, event: Event) -> None:
+        if event.kind is EventKind.OVERRIDE and event.name == "feed_override":
+            self.commands.append(event)
+
+
+@pytest.mark.parametrize("reported", [True, False])
+def test_a_replay_proposes_from_the_recorded_override(reported: bool) -> None:
+    """Decision 1666. Recorded at 120 % on a plant of 250 N per unit override (300 N, 7.7 %
+    under the 325 N reference): reading the reported override, every proposal starts from
+    120 % with the input the plant saw, so it asks for what the plant needs, 325/250 = 130 %
+    (± the 5 % dead band), every time. Without it the block believes its own commands were
+    applied, sees the force not answer, and winds up to the 150 % ceiling."""
+    src = ReplayedPlant(lambda t: np.full(t.size, 250.0), 2.0, override=1.2)
+    blk = AdaptiveFeedBlock(
+        AdaptiveFeedOptions(), override_channel="cnc/feed_override" if reported else None
+    )
+    res = run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    assert np.all(res.channels["cnc/feed_override"] == 1.2)  # the replay never moved
+    proposed = np.array([e.value for e in src.commands]) / 100.0
+    assert len(proposed) >= 5
+    if reported:
+        assert np.all(np.abs(proposed / 1.3 - 1.0) <= 0.05)
+    else:
+        assert proposed[-1] == pytest.approx(1.5, abs=1e-9)
+
+
+def test_the_rls_input_is_the_reported_override_of_the_interval() -> None:
+    """Decision 1666 on a CNC that quantises to 10 % steps and applies them 100 ms late (a
+    closed CNC's 120 ms would fall on this 60 ms revolution's boundaries): after each
+    decision the loop's input u(k−1) is the mean of the reported override over the interval
+    just completed, and its override in force the last reported value, whatever it
+    commanded."""
+    src = PlantSource(lambda t: np.full(t.size, 250.0), 1.5, latency_s=0.1)
+    src_cmd = src.command
+
+    def quantised(event: Event) -> None:
+        if event.value is not None:
+            event = Event(event.time_s, event.kind, event.source, event.message,
+                          name=event.name, value=10.0 * round(event.value / 10.0))  # fmt: skip
+        src_cmd(event)
+
+    src.command = quantised  # type: ignore[method-assign]
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(), override_channel="cnc/feed_override")
+    seen: list[tuple[int, int, float, float]] = []
+    orig = blk._use_reported_override
+
+    def spy(mean: float) -> None:
+        orig(mean)
+        seen.append((blk._rev_start, blk._last_interval_len, blk.loop.u_hist[0], blk.loop.u))
+
+    blk._use_reported_override = spy  # type: ignore[method-assign]
+    res = run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    ovr = res.channels["cnc/feed_override"]
+    assert len(seen) >= 10
+    assert {length for _, length, _, _ in seen[1:]} == {round(REV * FS)}  # one revolution each
+    for end, length, u_in, u_now in seen:
+        assert u_in == pytest.approx(float(np.mean(ovr[end - length : end])), rel=1e-12)
+        assert u_now == ovr[end - 1]
+    # the CNC's 10 % steps: what the loop took as in force is always on the grid, and the
+    # interval means differ from it where a step came within the interval
+    assert all(abs(10 * u - round(10 * u)) < 1e-9 for *_, u in seen)
+    assert any(abs(u_in - u_now) > 1e-3 for _, _, u_in, u_now in seen)
+
+
+def test_the_gpc_move_is_bounded_by_twice_the_proportional_cut() -> None:
+    """Decision 1667, closed form: at 20 % with the force 17.7 % short (y = 0.823), a cut
+    whose force is proportional to the feed needs 0.2/0.823 − 0.2 = +4.30 points; the
+    drifted model's +133.9 points (V8, seed 1) is bounded at twice that, +8.60; a move in the
+    wrong direction is none; a move within the bound is taken as it is."""
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions())
+    blk.reset(FS)
+    blk.loop.u = 0.2
+    need = 0.2 / 0.823 - 0.2
+    assert blk._bounded_move(1.339, 0.823, 0.2) == pytest.approx(2.0 * need, rel=1e-12)
+    assert blk._bounded_move(-0.05, 0.823, 0.2) == 0.0
+    assert blk._bounded_move(0.03, 0.823, 0.2) == 0.03
+    # force 7.4 % over at 36.9 %: the cut to 20 % (−16.9 points) is bounded at −5.1 points
+    blk.loop.u = 0.369
+    need = 0.369 / 1.074 - 0.369
+    assert blk._bounded_move(-0.169, 1.074, 0.369) == pytest.approx(2.0 * need, rel=1e-12)

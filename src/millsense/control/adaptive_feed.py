@@ -59,6 +59,10 @@ from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
 
+#: The channel of the feed override in effect as a CNC reports it (fraction; the virtual
+#: machine's and an OPC UA recording's), read where present (decision 1666).
+REPORTED_OVERRIDE = "cnc/feed_override"
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -71,6 +75,8 @@ NOISE_MIN_INTERVALS = 8
 #: no cut ahead, spindle at speed) over the last AIR_INTERVALS intervals; from AIR_MIN of them
 #: on, a median at or above AIR_LIMIT × the reference means the signal cannot show the cut
 #: (the feed is then held at the programmed 100 %), and below AIR_CLEAR × it that it can again.
+#: Decision 1667: the GPC's move is at most this multiple of the proportional-cut move.
+MOVE_LIMIT = 2.0
 AIR_INTERVALS = 16
 AIR_MIN = 8
 AIR_LIMIT = 0.5
@@ -229,6 +235,11 @@ class AdaptiveFeedBlock(Block):
         makes no decision (the override is held: e.g. while the spindle runs up, when a torque
         observer's estimate holds the acceleration torque, and in the revolution the gate opens
         in, decision 1555), or None.
+    override_channel : optional channel of the feed override in effect as the CNC reports it
+        (fraction, ``cnc/feed_override``), or None. With it the RLS learns from the override
+        the machine ran each control interval with (its mean over the interval), and the GPC
+        moves from the override in effect: a closed CNC's 10 % steps and 120 ms, and a replay
+        whose recorded overrides are not this block's, are modelled as they are (decision 1666).
     name : block name (channel prefix).
 
     Outputs: ``{name}/override`` (commanded override, fraction), ``{name}/peak`` (last
@@ -251,6 +262,7 @@ class AdaptiveFeedBlock(Block):
         speed_channel: str = "spindle/speed",
         tcp_channels: tuple[str, str, str] = ("x/position_cmd", "y/position_cmd", "z/position_cmd"),
         enable_channel: str | None = None,
+        override_channel: str | None = None,
         name: str = "adaptive_feed",
     ) -> None:
         self.opts = opts = options or AdaptiveFeedOptions()
@@ -268,6 +280,9 @@ class AdaptiveFeedBlock(Block):
         self.enable_channel = enable_channel
         if enable_channel is not None:
             ins.append(enable_channel)
+        self.override_channel = override_channel
+        if override_channel is not None:
+            ins.append(override_channel)
         if plan is not None:
             if len(plan) < 2:
                 raise ConfigError("adaptive feed: the plan has fewer than 2 rows")
@@ -316,11 +331,16 @@ class AdaptiveFeedBlock(Block):
         self._st_f = np.array([-np.inf, np.nan, 0.0, 0.0])
         self._scale = _ANGLE_ONE / (2 * math.pi * self.fs)
         self._rev_start = 0  # sample index where the running revolution began
+        # Σ of the reported override over the running revolution's samples, and over the
+        # control interval's revolutions; the last reported value (decision 1666)
+        self._rev_ovr = 0.0
+        self._ovr_now = math.nan
         self._off_at = -1  # last sample before this chunk where the enable channel was 0
         self._off = np.empty(0, dtype=np.int64)  # this chunk's samples where it is 0
         self._last_rev_len = 0
-        # the control interval being gathered: [revolutions, samples, Σ value·samples or max]
-        self._acc = [0, 0, 0.0]
+        # the control interval being gathered: [revolutions, samples, Σ value·samples or max,
+        # Σ reported override over its samples]
+        self._acc = [0, 0, 0.0, 0.0]
         self._min_interval = round(o.min_interval_s * self.fs)
         self._last_interval_len = 0
         self._watch_fired = False
@@ -356,6 +376,11 @@ class AdaptiveFeedBlock(Block):
         )  # fmt: skip
         if self.enable_channel is not None:
             self._off = np.flatnonzero(np.asarray(d[self.enable_channel]) < 0.5)
+        # the reported override's running sum (decision 1666)
+        ovr = ovr_cs = None
+        if self.override_channel is not None and n:
+            ovr = np.asarray(d[self.override_channel], dtype=np.float64)
+            ovr_cs = np.concatenate(([0.0], np.cumsum(ovr)))
         events: list[Event] = []
         ov = np.empty(n)
         pk = np.empty(n)
@@ -374,6 +399,10 @@ class AdaptiveFeedBlock(Block):
                 if at == pos:
                     self._apply_fault(chunk, at, events)
                 self._fill(ov, pk, fl, slice(pos, e))
+            if ovr is not None and ovr_cs is not None:
+                self._rev_ovr += float(ovr_cs[e] - ovr_cs[pos])
+                if e > 0:
+                    self._ovr_now = float(ovr[e - 1])
             if j == n_end:
                 break
             self._revolution_end(
@@ -478,8 +507,9 @@ class AdaptiveFeedBlock(Block):
         self._last_rev_len = chunk.start + e - start
         self._rev_start = chunk.start + e
         self._watch_fired = False
+        rev_ovr, self._rev_ovr = self._rev_ovr, 0.0
         if was_bad or not math.isfinite(peak):
-            self._acc = [0, 0, 0.0]
+            self._acc = [0, 0, 0.0, 0.0]
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "non-finite samples", events)
             return
@@ -491,10 +521,10 @@ class AdaptiveFeedBlock(Block):
                 # held, and no value shown (a run-up's acceleration torque is not the process,
                 # nor is the torque of the samples before the gate opened: decision 1555)
                 self._peak = math.nan
-                self._acc = [0, 0, 0.0]
+                self._acc = [0, 0, 0.0, 0.0]
                 return
         if frozen >= self._n_stall:
-            self._acc = [0, 0, 0.0]
+            self._acc = [0, 0, 0.0, 0.0]
             if lp.engaged and not lp.fault:
                 self._safe(chunk, e, "signal frozen", events)
             return
@@ -505,17 +535,21 @@ class AdaptiveFeedBlock(Block):
         acc[0] += 1
         acc[1] += length
         acc[2] = acc[2] + peak * length if self._use_mean else max(acc[2], peak)
+        acc[3] += rev_ovr
         if acc[1] < self._min_interval:
             return
+        ovr_mean = acc[3] / acc[1]
         if acc[0] > 1:  # one revolution: its own value, as it is
             peak = acc[2] / acc[1] if self._use_mean else acc[2]
         self._last_interval_len = int(acc[1])
-        self._acc = [0, 0, 0.0]
+        self._acc = [0, 0, 0.0, 0.0]
         self._peak = peak
         if lp.fault:
             lp.fault = False  # a clean revolution: resume from the held (safe) override
         y = peak / o.reference
         lp.y_hist = [y, lp.y_hist[0], lp.y_hist[1]]
+        if self.override_channel is not None:
+            self._use_reported_override(ovr_mean)
         flag, cap, entering = self._look(chunk, e)
         if self._watch_air(chunk, e, peak, entering, events):
             # the signal cannot show the cut: the programmed feed, no regulation (decision 1548)
@@ -580,6 +614,22 @@ class AdaptiveFeedBlock(Block):
         sev = Severity.WARNING if flag else Severity.INFO
         self._command(chunk, e, u, events, sev, why=why)
 
+    def _use_reported_override(self, interval_mean: float) -> None:
+        """Decision 1666: the control interval's input is the override the CNC reported over
+        it (its mean), and the next move starts from the override it reports now, instead of
+        what this block commanded. They differ where the CNC quantises and delays the command
+        (a closed CNC's 10 % steps and 120 ms), where an operator or an arbiter set another
+        value, and in a replay, whose recorded overrides were another controller's. A reported
+        0 (a feed hold) or a non-finite value is not a feed the cut answered: the commanded
+        values stay."""
+        lp = self.loop
+        if math.isfinite(interval_mean) and interval_mean > 0.0:
+            lp.u_hist[0] = interval_mean
+            lp.du_hist[0] = lp.u_hist[0] - lp.u_hist[1]
+        now = self._ovr_now
+        if math.isfinite(now) and now > 0.0:
+            lp.u = now
+
     def _plan_row_in_cut(self) -> bool | None:
         """Whether the plan row the look-ahead matched the tool to at this decision is in the
         material; None without that information (no plan, no look-ahead: the conventional
@@ -636,7 +686,24 @@ class AdaptiveFeedBlock(Block):
         du = self.gpc.move(a, b, [y0, y1, y2], lp.du_hist, 1.0)
         if not math.isfinite(du):
             return lp.u
-        return lp.u + du
+        return lp.u + self._bounded_move(du, y0, u1)
+
+    def _bounded_move(self, du: float, y0: float, u1: float) -> float:
+        """Decision 1667: the GPC's move, kept between 0 and MOVE_LIMIT × the move a cut whose
+        force is proportional to the feed needs (to u₁/y₀, the interval's override over its
+        normalised value). The RLS of a steady cut at one override is not excited; it drifts to
+        a near-integrator with a small gain (a pole at 0.97, b₀ 0.05 against a static gain of
+        3.4 on V8's slot with the machine's seed 1), on which a 18 % shortfall asked for +134 %
+        (20 → 150 %) and the next revolution's force reached 2.8 × the reference; a force above
+        the reference was met with a cut to 20 % where 32 % was needed. A move in the wrong
+        direction is never taken (0), one larger than MOVE_LIMIT × the proportional move is
+        that limit: the edge force makes the cut less sensitive than proportional, which
+        MOVE_LIMIT = 2 leaves room for (an edge part up to the shear part)."""
+        if not y0 > 0.0:
+            return du
+        need = u1 / y0 - self.loop.u
+        lo, hi = (MOVE_LIMIT * need, 0.0) if need < 0.0 else (0.0, MOVE_LIMIT * need)
+        return min(max(du, lo), hi)
 
     def _watch_air(
         self, chunk: Chunk, e: int, value: float, entering: bool, events: list[Event]

@@ -30,7 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+from millsense.control.adaptive_feed import (
+    REPORTED_OVERRIDE,
+    AdaptiveFeedBlock,
+    AdaptiveFeedOptions,
+)
 from millsense.control.arbitration import Supervisor, SupervisorOptions
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
@@ -212,6 +216,8 @@ def session_blocks(
                 torque_channel=CUTTING_TORQUE,
                 tcp_channels=("tcp/x", "tcp/y", "tcp/z"),
                 enable_channel="spindle/at_speed",
+                # the override the CNC reports in effect, where it does (decision 1666)
+                override_channel=REPORTED_OVERRIDE if REPORTED_OVERRIDE in have else None,
             )
         )
     sup = Supervisor(

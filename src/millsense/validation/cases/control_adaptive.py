@@ -51,6 +51,10 @@ DEPTH_HIGH_MM = 3.0
 #: seed 002 test IIM: 7.62 → 10.5 mm
 V6_RATIO = 10.5 / 7.62
 STEP_X_MM = 25.0
+#: V8 is judged on the virtual machine with each of these seeds (its realism and the
+#: dynamometer's noise): the look-ahead's peak and exit on the worst, the conventional
+#: overshoot on the median, the conventional exit on every one (decision 1667).
+V8_SEEDS = (0, 1, 2, 3, 4, 5)
 #: V6: the stock's step (wall) at X = 30 mm; the tool's front meets it at X = 20 mm.
 WALL_X_MM = 30.0
 EXIT_X_MM = 60.0
@@ -133,7 +137,7 @@ class LoopRun:
     events: tuple[Event, ...] = ()
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=32)
 def closed_loop_run(
     look_ahead: bool,
     channel: str = "open",
@@ -141,13 +145,19 @@ def closed_loop_run(
     depth_high_mm: float = DEPTH_HIGH_MM,
     wall: bool = False,
     reference_n: float = F_REF_V8,
+    reported_override: bool = True,
+    seed: int = 0,
 ) -> LoopRun:
     """Simulate the slot in closed loop with the adaptive feed controller regulating the peak
     resultant force of the dynamometer (decision 1616; 2 N of noise, decision 1798); ``force``
     is the true force at the tool. The controller's plan is
     :func:`step_plan`; the virtual machine cuts its own (:func:`plant_step_plan`, decision
     1740)."""
-    from millsense.control.adaptive_feed import AdaptiveFeedBlock, AdaptiveFeedOptions
+    from millsense.control.adaptive_feed import (
+        REPORTED_OVERRIDE,
+        AdaptiveFeedBlock,
+        AdaptiveFeedOptions,
+    )
     from millsense.control.closed_loop import DYNAMOMETER_NOISE_N, Dynamometer, run_closed_loop
     from millsense.plan.virtual_plan import VirtualPlan
     from millsense.simulator.interpolator import OverrideChannel
@@ -161,14 +171,17 @@ def closed_loop_run(
     job, proc, _, _ = plan_job(plant_step_plan(depth_low_mm, depth_high_mm, wall), m,
                                "adaptive_step.nc")  # fmt: skip
     ch = OverrideChannel.open_cnc() if channel == "open" else OverrideChannel.closed_cnc()
-    sim = MachineSimulator(m, job, proc, SimulatorOptions(feed_channel=ch, seed=0))
+    sim = MachineSimulator(m, job, proc, SimulatorOptions(feed_channel=ch, seed=seed))
     opts = AdaptiveFeedOptions(reference=reference_n, look_ahead=look_ahead)
-    blk = AdaptiveFeedBlock(opts, plan)
+    # the override in effect as the CNC reports it (decision 1666)
+    blk = AdaptiveFeedBlock(
+        opts, plan, override_channel=REPORTED_OVERRIDE if reported_override else None
+    )
     # the controller reads a dynamometer with 2 N of noise (as the on-line session's,
     # decision 1798); the cases judge the true force at the tool
     res = run_closed_loop(
         sim,
-        [Dynamometer(noise_n=DYNAMOMETER_NOISE_N), blk],
+        [Dynamometer(noise_n=DYNAMOMETER_NOISE_N, seed=seed), blk],
         keep=("cnc/feed_override", "x/position_cmd", "truth/tool/force_x", "truth/tool/force_y"),
         chunk_samples=100,
     )
@@ -226,11 +239,28 @@ def _describe(runs: dict[str, LoopRun]) -> str:
     return "\n".join(lines)
 
 
-def _v8_runs() -> dict[str, LoopRun]:
+def _v8_runs(seed: int = 0) -> dict[str, LoopRun]:
     return {
-        "with look-ahead": closed_loop_run(True),
-        "conventional": closed_loop_run(False),
+        "with look-ahead": closed_loop_run(True, seed=seed),
+        "conventional": closed_loop_run(False, seed=seed),
     }
+
+
+def v8_seed_runs() -> dict[int, dict[str, LoopRun]]:
+    """The V8 pair on the virtual machine with each of :data:`V8_SEEDS` (its realism and the
+    dynamometer's noise): where the jump meets the revolution and what the RLS learned before
+    it vary, and with them the conventional overshoot (743-941 N over these six) and, before
+    decision 1667, whether the look-ahead held (two of six seeds peaked at 754 and 831 N)."""
+    return {s: _v8_runs(s) for s in V8_SEEDS}
+
+
+def _describe_seeds(by_seed: dict[int, dict[str, LoopRun]]) -> str:
+    """One table of every seed's pair (seed 0 first, the run the tests examine)."""
+    parts: list[str] = []
+    for seed, runs in by_seed.items():
+        rows = _describe({f"{k}, seed {seed}": r for k, r in runs.items()}).splitlines()
+        parts += rows if not parts else rows[2:]
+    return "\n".join(parts)
 
 
 @case(
@@ -242,12 +272,13 @@ def _v8_runs() -> dict[str, LoopRun]:
     quick=False,
     description=(
         "Largest resultant force over the slot (entry, step-down, exit) in closed loop with "
-        "the virtual look-ahead."
+        "the virtual look-ahead, the largest of the machine's six seeds (V8_SEEDS)."
     ),
 )
 def _v8_la_peak() -> Measured:
-    runs = _v8_runs()
-    return Measured(float(np.max(runs["with look-ahead"].force)), _describe(runs))
+    by_seed = v8_seed_runs()
+    worst = max(float(np.max(r["with look-ahead"].force)) for r in by_seed.values())
+    return Measured(worst, _describe_seeds(by_seed))
 
 
 @case(
@@ -257,11 +288,15 @@ def _v8_la_peak() -> Measured:
     unit="% points",
     abs_tol=0.5,
     quick=False,
-    description="Rise of the effective override while the tool leaves the part, look-ahead on.",
+    description=(
+        "Rise of the effective override while the tool leaves the part, look-ahead on, the "
+        "largest of the six seeds."
+    ),
 )
 def _v8_la_exit() -> Measured:
-    runs = _v8_runs()
-    return Measured(exit_speedup_pct(runs["with look-ahead"]), _describe(runs))
+    by_seed = v8_seed_runs()
+    worst = max(exit_speedup_pct(r["with look-ahead"]) for r in by_seed.values())
+    return Measured(worst, _describe_seeds(by_seed))
 
 
 @case(
@@ -271,27 +306,17 @@ def _v8_la_exit() -> Measured:
     unit="N",
     rel_tol=0.15,
     quick=False,
-    issue=16,
-    gap=(
-        "943 N, 18 % above the thesis' ≈ 800 N (937 N before decision 1657, 905 N on the "
-        "preset's coefficients): the controller meets the deeper layer at its 150 % ceiling. "
-        "On the step-down's ramp rows (X 25.0-25.4 mm) the X feed falls to a fifth and the peak "
-        "to 182-199 N, so it raises the override to 150 %; the jump itself is not visible "
-        "before its first revolution, which peaks at 945 N at 150 %. Since decision 1657 (the "
-        "RLS estimate kept among the physical models) the override is cut to 20 % at the end "
-        "of that revolution; before it, an unstable model fitted on the ramp's falling then "
-        "rising force held 135-150 % for two more revolutions (853-937 N). The revolution after "
-        "the cut still peaks at 904 N (its first tooth cuts the chip left at the old feed). "
-        "The thesis shows the overshoot but not the override it met the jump with"
-    ),
     description=(
-        "Largest resultant force without the look-ahead (RLS + GPC alone); the thesis' figure "
-        "is read off a plot (≈ 800 N), hence ±15 %."
+        "Largest resultant force without the look-ahead (RLS + GPC alone), the median over "
+        "the machine's six seeds (V8_SEEDS: where the jump meets the revolution, and the "
+        "override the controller meets it with, vary from run to run; 743-941 N); the "
+        "thesis' figure is read off a plot (≈ 800 N), hence ±15 %."
     ),
 )
 def _v8_conv_peak() -> Measured:
-    runs = _v8_runs()
-    return Measured(float(np.max(runs["conventional"].force)), _describe(runs))
+    by_seed = v8_seed_runs()
+    peaks = [float(np.max(r["conventional"].force)) for r in by_seed.values()]
+    return Measured(float(np.median(peaks)), _describe_seeds(by_seed))
 
 
 @case(
@@ -301,11 +326,15 @@ def _v8_conv_peak() -> Measured:
     unit="1 = speeds up",
     abs_tol=0.0,
     quick=False,
-    description="1 if the override rises by more than 10 % points while leaving the part.",
+    description=(
+        "1 if the override rises by more than 10 % points while leaving the part, on every "
+        "one of the six seeds."
+    ),
 )
 def _v8_conv_exit() -> Measured:
-    runs = _v8_runs()
-    return Measured(float(exit_speedup_pct(runs["conventional"]) > 10.0), _describe(runs))
+    by_seed = v8_seed_runs()
+    every = all(exit_speedup_pct(r["conventional"]) > 10.0 for r in by_seed.values())
+    return Measured(float(every), _describe_seeds(by_seed))
 
 
 # ------------------------------------------------------------------------------ seed 002 V6
@@ -314,9 +343,11 @@ def _v8_conv_exit() -> Measured:
 def _v6_runs() -> dict[str, LoopRun]:
     low = DEPTH_LOW_MM
     high = round(DEPTH_LOW_MM * V6_RATIO, 3)
+    # the thesis' CNCs did not report the override in effect back: the controller knows only
+    # what it commanded (decision 1666)
     return {
-        "open CNC": closed_loop_run(False, "open", low, high, True),
-        "closed CNC": closed_loop_run(False, "closed", low, high, True),
+        "open CNC": closed_loop_run(False, "open", low, high, True, reported_override=False),
+        "closed CNC": closed_loop_run(False, "closed", low, high, True, reported_override=False),
     }
 
 
@@ -374,10 +405,13 @@ def _v6_open() -> Measured:
         "the closed-CNC figure is from a lathe (2.5 → 4 mm, × 1.6, on a Fanuc switch); on the "
         "milled × 1.38 step the first revolution carries the step through either channel "
         "(≈ +34 %, 437 N per revolution), and the closed channel's 120 ms and 10 % steps show "
-        "in the settling: the largest force, 51 %, is the loop's own swing (a rebound raise to "
-        "139 % at X ≈ 22 mm, met two revolutions later by the step's still growing engagement, "
-        "494 N); 59 % (a pass) before decision 1657, when a model with a negative b₁ raised "
-        "the override to its 150 % ceiling there (decision 1617)"
+        "in the settling: the largest force, 50.6 %, is the loop's own swing (after the cut to "
+        "30 % the override is raised in 10 % and 20 % steps to 140 % at X ≈ 23 mm and meets "
+        "the step's still growing engagement, 490 N; 51 % before decision 1667 bounded the "
+        "GPC's moves); 59 % (a pass) before decision 1657, when a model with a negative b₁ "
+        "raised the override to its 150 % ceiling there (decision 1617). The controller is "
+        "run as the thesis' was: it knows what it commanded, not the override the CNC applied "
+        "(decision 1666)"
     ),
     description=(
         "Force rise above F_r at the same depth step through the closed-CNC override switch "
