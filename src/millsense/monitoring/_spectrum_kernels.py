@@ -358,31 +358,78 @@ def amplitudes(
 
 @numba.njit(cache=True)
 def grid_costs(
-    q1: FloatArray, q2: FloatArray, xv: FloatArray, edge: bool, singular: NDArray[np.bool_],
+    a_pairs: FloatArray, g_pairs: FloatArray, l_re: FloatArray, l_im: FloatArray, x_re: FloatArray,
+    x_im: FloatArray, inv_r11: FloatArray, r12: FloatArray, inv_r22: FloatArray, edge: bool,
     out: FloatArray,
 ) -> None:  # fmt: skip  # pragma: no cover - compiled
-    """Projected misfit |x|² − (q₁·x)² − (q₂·x)² of every grid row (rows of ``q1``, ``q2``:
-    the orthonormal bases of :class:`..torque_spectrum._GridBases` as [Re q | Im q]; ``xv`` =
-    [Re x | Im x]; without the edge term only q₁); a ``singular`` row gives +inf (with the edge
-    term). One thread: a multi-threaded BLAS product waits on a loaded host's other work."""
-    rows, m = q1.shape
+    """Projected misfit |x|² − (q₁·x)² − (q₂·x)² of every grid row from the factors of
+    :class:`..torque_spectrum._GridBases`: per depth y = conj(L) x, then per angle pair
+    Re(a^H y), Re(g^H y) (columns of ``a_pairs``, ``g_pairs``, whose rows are [Re | Im]) and
+    the row's QR factors (``inv_r11`` = 1/r₁₁, 0 where A = 0; ``inv_r22`` = 1/r₂₂, NaN on a
+    singular row); without the edge term only q₁. A singular row gives +inf (with the edge
+    term). One thread: a multi-threaded BLAS product waits on a loaded host's other
+    work. Each pair's sums run over its columns in order, all pairs together (independent
+    sums the compiler vectorises; the pairs' matrices stay in cache)."""
+    m, n_pairs = a_pairs.shape
+    nk = x_re.shape[0]
     xx = 0.0
-    for i in range(m):
-        xx += xv[i] * xv[i]
-    for j in range(rows):
-        c1 = 0.0
+    for i in range(nk):
+        xx += x_re[i] * x_re[i]
+    for i in range(nk):
+        xx += x_im[i] * x_im[i]
+    y = np.empty(m)
+    sa = np.empty(n_pairs)
+    sb = np.empty(n_pairs)
+    for di in range(l_re.shape[0]):
+        for i in range(nk):
+            lr, li = l_re[di, i], l_im[di, i]
+            y[i] = lr * x_re[i] + li * x_im[i]
+            y[nk + i] = lr * x_im[i] - li * x_re[i]
+        sa[:] = 0.0
+        sb[:] = 0.0
         for i in range(m):
-            c1 += q1[j, i] * xv[i]
-        c = xx - c1 * c1
-        if edge:
-            if singular[j]:
-                out[j] = math.inf
-                continue
-            c2 = 0.0
-            for i in range(m):
-                c2 += q2[j, i] * xv[i]
-            c -= c2 * c2
-        out[j] = c if math.isfinite(c) else math.inf
+            v = y[i]
+            row_a = a_pairs[i]
+            for p in range(n_pairs):
+                sa[p] += row_a[p] * v
+            if edge:
+                row_g = g_pairs[i]
+                for p in range(n_pairs):
+                    sb[p] += row_g[p] * v
+        base = di * n_pairs
+        for p in range(n_pairs):
+            r = base + p
+            c1 = sa[p] * inv_r11[r]
+            c = xx - c1 * c1
+            if edge:
+                c2 = (sb[p] - r12[r] * c1) * inv_r22[r]
+                c -= c2 * c2
+            out[r] = c if math.isfinite(c) else math.inf
+
+
+@numba.njit(cache=True)
+def smallest(cost: FloatArray, n: int) -> IntArray:
+    """Indices of the ``n`` smallest of ``cost`` in increasing order (ties: the lower index
+    first), in one pass: the grid search's starts (:func:`grid_costs`)."""
+    n = min(n, cost.shape[0])
+    idx = np.empty(n, dtype=np.int64)
+    val = np.empty(n)
+    count = 0
+    for j in range(cost.shape[0]):
+        c = cost[j]
+        if count == n and not c < val[n - 1]:
+            continue
+        # insert after every kept value ≤ c (an equal cost keeps the lower index first)
+        pos = count if count < n else n - 1
+        while pos > 0 and val[pos - 1] > c:
+            val[pos] = val[pos - 1]
+            idx[pos] = idx[pos - 1]
+            pos -= 1
+        val[pos] = c
+        idx[pos] = j
+        if count < n:
+            count += 1
+    return idx[:count]
 
 
 #: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):

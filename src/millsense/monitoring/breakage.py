@@ -577,7 +577,18 @@ class BreakageGroup(Block):
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
         self._counts = np.zeros(len(ms), dtype=np.int64)
+        self._scratch = np.empty((self._rows_out, n))  # rows of a chunk that are not outputs
         self._n = n
+
+    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
+        """The shown members' held values over ``n`` samples (:func:`~millsense.streaming.
+        block.held_views`: the cached views while none of their periods ended)."""
+        views = self._held_views
+        if views is not None and views[0] == n:  # none ended since: the same views
+            return dict(views[1])
+        shown = self._held.reshape(-1)[: len(self._names)]
+        self._held_views, held = held_views(self._names, shown, views, n)
+        return held
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
@@ -593,13 +604,7 @@ class BreakageGroup(Block):
         top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
                                self._pp, self._pi, self._hb, counts)  # fmt: skip
         if top == 0:  # no tooth period ends: the held values of every member
-            views = self._held_views
-            if views is not None and views[0] == n:  # none ended since: the same views
-                return BlockOutput(dict(views[1]))
-            shown = self._held.reshape(-1)[: len(self._names)]
-            self._held_views, held = held_views(self._names, shown, views, n)
-            return BlockOutput(held)
-        self._held_views = None
+            return BlockOutput(self._held_outputs(n))
         for j, m in self._planned:
             k = int(counts[j])
             if k:
@@ -607,12 +612,19 @@ class BreakageGroup(Block):
         firsts = self._firsts
         before = [m._first_violation for m in ms]
         firsts[:] = before
-        values = np.empty((self._rows_out, n))
+        # only periods of members that are not shown (other phases) end: the outputs hold
+        # (the rows computed go to a work array; the held views stay valid)
+        shown_ended = bool(counts[: self.shown].any())
+        values = np.empty((self._rows_out, n)) if shown_ended else self._scratch
         total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
                                  self._iparams, self._det, self._held, self._hb, values, firsts,
                                  self._alarms)  # fmt: skip
-        # the shown members' rows come first; the rest are not outputs
-        out = BlockOutput(dict(zip(self._names, values, strict=False)))
+        if shown_ended:
+            self._held_views = None
+            # the shown members' rows come first; the rest are not outputs
+            out = BlockOutput(dict(zip(self._names, values, strict=False)))
+        else:
+            out = BlockOutput(self._held_outputs(n))
         for m, first in zip(ms, firsts.tolist(), strict=True):
             m._first_violation = first
         if total:
