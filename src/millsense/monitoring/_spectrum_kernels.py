@@ -15,13 +15,30 @@ ComplexArray = NDArray[np.complex128]
 IntArray = NDArray[np.int64]
 
 
+@numba.njit(cache=True, inline="always")
+def _over_i(z: complex, m: float) -> complex:
+    """z / complex(0, m), the numbers of numba's complex division (CPython's ``_Py_c_quot``:
+    ratio 0·sign(m), denominator m, bit for bit with signed zeros, infinities and NaNs) with
+    two real divisions instead of three and no branch: the fit's innermost division."""
+    r = math.copysign(0.0, m)
+    return complex((z.real * r + z.imag) / m, (z.imag * r - z.real) / m)
+
+
+@numba.njit(cache=True, inline="always")
+def _over_real(z: complex, c: float) -> complex:
+    """z / c for a real c ≠ 0 as numba divides a complex by it (promoted to complex(c, 0):
+    ratio 0/c, denominator c; bit for bit), two real divisions instead of three."""
+    r = 0.0 / c
+    return complex((z.real + z.imag * r) / c, (z.imag - z.real * r) / c)
+
+
 @numba.njit(cache=True)
 def _g(m: float, st: float, ex: float) -> complex:
     if m == 0.0:
-        return complex(ex - st, 0.0) / (2.0 * math.pi)
+        return _over_real(complex(ex - st, 0.0), 2.0 * math.pi)
     e1 = complex(math.cos(m * st), -math.sin(m * st))
     e2 = complex(math.cos(m * ex), -math.sin(m * ex))
-    return (e1 - e2) / complex(0.0, m) / (2.0 * math.pi)
+    return _over_real(_over_i(e1 - e2, m), 2.0 * math.pi)
 
 
 @numba.njit(cache=True)
@@ -29,7 +46,7 @@ def _l(m: float, d: float, kb: float) -> complex:
     if m == 0.0:
         return complex(d, 0.0)
     a = m * kb * d
-    return (1.0 - complex(math.cos(a), -math.sin(a))) / complex(0.0, m * kb)
+    return _over_i(1.0 - complex(math.cos(a), -math.sin(a)), m * kb)
 
 
 @numba.njit(cache=True)
@@ -88,7 +105,7 @@ def _fit_basis(
     d, st, ex = p[0], p[1], p[2]
     for j in range(n):
         lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
     alpha, beta = _least_squares(a, b, x, edge)
     return a, b, alpha, beta
@@ -137,8 +154,8 @@ def _lengths(k: FloatArray, d: float, kb: float, wt: FloatArray, out: ComplexArr
 def _g_of(m: float, e1: complex, e2: complex, st: float, ex: float) -> complex:
     """:func:`_g` from its two phases e1 = e^{−i m θ_st}, e2 = e^{−i m θ_ex}."""
     if m == 0.0:
-        return complex(ex - st, 0.0) / (2.0 * math.pi)
-    return (e1 - e2) / complex(0.0, m) / (2.0 * math.pi)
+        return _over_real(complex(ex - st, 0.0), 2.0 * math.pi)
+    return _over_real(_over_i(e1 - e2, m), 2.0 * math.pi)
 
 
 @numba.njit(cache=True)
@@ -168,7 +185,7 @@ def _residual_g(
     uses it."""
     n = xn.shape[0]
     for j in range(n):
-        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
+        a[j] = _over_i(g[idx[0, j]] - g[idx[2, j]], 2.0) * lk[j]
         b[j] = g[idx[1, j]] * lk[j]
     alpha, beta = _least_squares(a, b, xn, edge)
     return _projected_residual(xn, a, b, alpha, beta, res)
@@ -314,10 +331,26 @@ def lm_fit_weighted(
             _solve3(mm, g, free, dp)
             for i in range(3):
                 q[i] = min(max(p[i] + dp[i], lo[i]), hi[i])
-            _phases(m, q[1], f1)
-            _phases(m, q[2], f2)
-            _lengths(k, q[0], kb, wt, fl)
-            _g_all(m, f1, f2, q[1], q[2], gt)
+            # a parameter the step leaves where it was (held on its bound: θ_ex = π in down
+            # milling) keeps its factors: the same numbers without their sines and cosines
+            same_st = q[1] == p[1]
+            same_ex = q[2] == p[2]
+            if same_st:
+                f1[:] = e1
+            else:
+                _phases(m, q[1], f1)
+            if same_ex:
+                f2[:] = e2
+            else:
+                _phases(m, q[2], f2)
+            if q[0] == p[0]:
+                fl[:] = lk
+            else:
+                _lengths(k, q[0], kb, wt, fl)
+            if same_st and same_ex:
+                gt[:] = gc
+            else:
+                _g_all(m, f1, f2, q[1], q[2], gt)
             c2 = _residual_g(idx, gt, fl, xn, edge, wa, wb, rt)
             if c2 < cost:
                 small = True
@@ -723,7 +756,7 @@ def mean_informs_edge(
     b = np.empty(n_harm, dtype=np.complex128)
     for j in range(n_harm):
         lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
     return _mean_informs(a, b, n_harm, d, st, ex, mean_var)
 
@@ -760,7 +793,7 @@ def _weighted_amplitudes(
     d, st, ex = p[0], p[1], p[2]
     for j in range(n):
         lk = wt[j] * _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
         xw[j] = wt[j] * x[j]
     return _least_squares(a, b, xw, True)
