@@ -501,3 +501,36 @@ def periods_group(
         alarms[j] = a
         total += a
     return total
+
+
+@numba.njit(cache=True)
+def group_step(
+    x: FloatArray,
+    rows: IntArray,
+    speed: FloatArray,
+    fs: float,
+    n_flutes: int,
+    seg: FloatArray,
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    pi: IntArray,
+    hb: IntArray,
+    counts: IntArray,
+    two: NDArray[np.bool_],
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+    held_prev: FloatArray,
+    out: FloatArray,
+    firsts: IntArray,
+    alarms: IntArray,
+) -> tuple[int, int]:
+    """:func:`segment_group`, then, if a period ended, :func:`periods_group`: a breakage
+    group's chunk in one call (its detectors' expected torque from channels, not a plan).
+    Returns (the largest count of periods ended, the alarms of all)."""
+    top = segment_group(x, rows, speed, fs, n_flutes, seg, pp, pi, hb, counts)
+    if top == 0:
+        return 0, 0
+    total = periods_group(pp, pb, pi, counts, two, params, iparams, state, held_prev, hb, out,
+                          firsts, alarms)  # fmt: skip
+    return top, total

@@ -577,7 +577,8 @@ class BreakageGroup(Block):
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
         self._counts = np.zeros(len(ms), dtype=np.int64)
-        self._scratch = np.empty((self._rows_out, n))  # rows of a chunk that are not outputs
+        # every member's output rows of a chunk (the shown ones are copied out)
+        self._work = np.empty((self._rows_out, n))
         self._n = n
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
@@ -601,29 +602,36 @@ class BreakageGroup(Block):
             x[r] = d[c]
         speed = np.asarray(d[ms[0].speed_channel], dtype=np.float64)
         counts = self._counts
-        top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
-                               self._pp, self._pi, self._hb, counts)  # fmt: skip
-        if top == 0:  # no tooth period ends: the held values of every member
-            return BlockOutput(self._held_outputs(n))
-        for j, m in self._planned:
-            k = int(counts[j])
-            if k:
-                self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
         firsts = self._firsts
         before = [m._first_violation for m in ms]
-        firsts[:] = before
-        # only periods of members that are not shown (other phases) end: the outputs hold
-        # (the rows computed go to a work array; the held views stay valid)
-        shown_ended = bool(counts[: self.shown].any())
-        values = np.empty((self._rows_out, n)) if shown_ended else self._scratch
-        total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
-                                 self._iparams, self._det, self._held, self._hb, values, firsts,
-                                 self._alarms)  # fmt: skip
-        if shown_ended:
+        if self._planned:  # the plan's expected torque between the averages and the step
+            top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
+                                   self._pp, self._pi, self._hb, counts)  # fmt: skip
+            if top == 0:  # no tooth period ends: the held values of every member
+                return BlockOutput(self._held_outputs(n))
+            for j, m in self._planned:
+                k = int(counts[j])
+                if k:
+                    self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
+            firsts[:] = before
+            total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two,
+                                     self._params, self._iparams, self._det, self._held,
+                                     self._hb, self._work, firsts, self._alarms)  # fmt: skip
+        else:  # one compiled call
+            firsts[:] = before
+            top, total = _k.group_step(x, self._rows, speed, ms[0].fs, ms[0].n_flutes,
+                                       self._seg, self._pp, self._pb, self._pi, self._hb, counts,
+                                       self._two, self._params, self._iparams, self._det,
+                                       self._held, self._work, firsts, self._alarms)  # fmt: skip
+            if top == 0:  # no tooth period ends: the held values of every member
+                return BlockOutput(self._held_outputs(n))
+        if counts[: self.shown].any():
             self._held_views = None
-            # the shown members' rows come first; the rest are not outputs
-            out = BlockOutput(dict(zip(self._names, values, strict=False)))
-        else:
+            # the shown members' rows come first (copied out of the work array); the rest are
+            # not outputs
+            values = self._work[: len(self._names)].copy()
+            out = BlockOutput(dict(zip(self._names, values, strict=True)))
+        else:  # only members not shown (other phases) ended a period: the outputs hold
             out = BlockOutput(self._held_outputs(n))
         for m, first in zip(ms, firsts.tolist(), strict=True):
             m._first_violation = first
@@ -658,6 +666,11 @@ def compile_kernels() -> None:
     for block in (two, group):
         block.reset(fs)
         block.process(Chunk(0, fs, 0.0, data))
+    # a group with a plan calls the two steps of :func:`_k.group_step` from Python
+    g = group
+    _k.segment_group(g._x, g._rows, data["s"], fs, 2, g._seg, g._pp, g._pi, g._hb, g._counts)
+    _k.periods_group(g._pp, g._pb, g._pi, g._counts, g._two, g._params, g._iparams, g._det,
+                     g._held, g._hb, g._work, g._firsts, g._alarms)  # fmt: skip
 
 
 def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None, str | None]:
