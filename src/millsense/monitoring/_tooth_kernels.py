@@ -524,13 +524,19 @@ def group_step(
     out: FloatArray,
     firsts: IntArray,
     alarms: IntArray,
-) -> tuple[int, int]:
+    shown: int,
+) -> tuple[int, int, bool]:
     """:func:`segment_group`, then, if a period ended, :func:`periods_group`: a breakage
     group's chunk in one call (its detectors' expected torque from channels, not a plan).
-    Returns (the largest count of periods ended, the alarms of all)."""
+    Returns the largest count of periods ended, the alarms of all and whether a period of
+    one of the first ``shown`` detectors ended."""
     top = segment_group(x, rows, speed, fs, n_flutes, seg, pp, pi, hb, counts)
     if top == 0:
-        return 0, 0
+        return 0, 0, False
     total = periods_group(pp, pb, pi, counts, two, params, iparams, state, held_prev, hb, out,
                           firsts, alarms)  # fmt: skip
-    return top, total
+    ended = False
+    for j in range(shown):
+        if counts[j] > 0:
+            ended = True
+    return top, total, ended

@@ -617,15 +617,17 @@ class BreakageGroup(Block):
             total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two,
                                      self._params, self._iparams, self._det, self._held,
                                      self._hb, self._work, firsts, self._alarms)  # fmt: skip
+            shown_ended = bool(counts[: self.shown].any())
         else:  # one compiled call
             firsts[:] = before
-            top, total = _k.group_step(x, self._rows, speed, ms[0].fs, ms[0].n_flutes,
-                                       self._seg, self._pp, self._pb, self._pi, self._hb, counts,
-                                       self._two, self._params, self._iparams, self._det,
-                                       self._held, self._work, firsts, self._alarms)  # fmt: skip
+            top, total, shown_ended = _k.group_step(
+                x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg, self._pp, self._pb,
+                self._pi, self._hb, counts, self._two, self._params, self._iparams, self._det,
+                self._held, self._work, firsts, self._alarms, self.shown,
+            )  # fmt: skip
             if top == 0:  # no tooth period ends: the held values of every member
                 return BlockOutput(self._held_outputs(n))
-        if counts[: self.shown].any():
+        if shown_ended:
             self._held_views = None
             # the shown members' rows come first (copied out of the work array); the rest are
             # not outputs

@@ -225,8 +225,9 @@ class _GridBases:
     inner product Re(u^H v) (Gram–Schmidt applied twice: q₁ = A/r₁₁, B = r₁₂ q₁ + r₂₂ q₂), so
     that a measurement x's projections are q₁·x = Re(A^H x)/r₁₁ and q₂·x = (Re(B^H x) −
     r₁₂ q₁·x)/r₂₂, with Re(A^H x) = Re(a^H y), y = conj(L) x per depth: two products with the
-    pairs' small matrices (cached) per depth instead of with every row's bases (22 MB read per
-    revolution searched, 4 MB here)."""
+    pairs' small matrices (in cache) per depth instead of with every row's bases (22 MB read
+    per revolution searched, about 3 MB here; the misfits differ from the rows' own
+    orthonormal bases' by round-off)."""
 
     params: tuple[FloatArray, FloatArray, FloatArray]
     #: the same points as rows (d_a, θ_st, θ_ex)
@@ -297,8 +298,9 @@ def _grid(geom: ToolGeometry, n_harmonics: int, max_depth_m: float) -> _GridBase
 
 
 def _median(values: Iterable[float]) -> float:
-    """``np.median`` of a few floats (the same number: the middle one, or the two middle ones'
-    sum halved; NaN if any is NaN) without its array machinery, ≈ 90 µs a call."""
+    """``np.median`` of a few floats, the same number (the middle one, or the two middle ones'
+    sum halved; NaN if any is NaN) without its array machinery (tens of µs a call, once a
+    revolution on a noisy torque)."""
     v = sorted(values)
     if not v or any(x != x for x in v):
         return math.nan
