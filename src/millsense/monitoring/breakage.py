@@ -577,19 +577,7 @@ class BreakageGroup(Block):
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
         self._counts = np.zeros(len(ms), dtype=np.int64)
-        # every member's output rows of a chunk (the shown ones are copied out)
-        self._work = np.empty((self._rows_out, n))
         self._n = n
-
-    def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
-        """The shown members' held values over ``n`` samples (:func:`~millsense.streaming.
-        block.held_views`: the cached views while none of their periods ended)."""
-        views = self._held_views
-        if views is not None and views[0] == n:  # none ended since: the same views
-            return dict(views[1])
-        shown = self._held.reshape(-1)[: len(self._names)]
-        self._held_views, held = held_views(self._names, shown, views, n)
-        return held
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
@@ -602,39 +590,29 @@ class BreakageGroup(Block):
             x[r] = d[c]
         speed = np.asarray(d[ms[0].speed_channel], dtype=np.float64)
         counts = self._counts
+        top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
+                               self._pp, self._pi, self._hb, counts)  # fmt: skip
+        if top == 0:  # no tooth period ends: the held values of every member
+            views = self._held_views
+            if views is not None and views[0] == n:  # none ended since: the same views
+                return BlockOutput(dict(views[1]))
+            shown = self._held.reshape(-1)[: len(self._names)]
+            self._held_views, held = held_views(self._names, shown, views, n)
+            return BlockOutput(held)
+        self._held_views = None
+        for j, m in self._planned:
+            k = int(counts[j])
+            if k:
+                self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
         firsts = self._firsts
         before = [m._first_violation for m in ms]
-        if self._planned:  # the plan's expected torque between the averages and the step
-            top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
-                                   self._pp, self._pi, self._hb, counts)  # fmt: skip
-            if top == 0:  # no tooth period ends: the held values of every member
-                return BlockOutput(self._held_outputs(n))
-            for j, m in self._planned:
-                k = int(counts[j])
-                if k:
-                    self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
-            firsts[:] = before
-            total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two,
-                                     self._params, self._iparams, self._det, self._held,
-                                     self._hb, self._work, firsts, self._alarms)  # fmt: skip
-            shown_ended = bool(counts[: self.shown].any())
-        else:  # one compiled call
-            firsts[:] = before
-            top, total, shown_ended = _k.group_step(
-                x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg, self._pp, self._pb,
-                self._pi, self._hb, counts, self._two, self._params, self._iparams, self._det,
-                self._held, self._work, firsts, self._alarms, self.shown,
-            )  # fmt: skip
-            if top == 0:  # no tooth period ends: the held values of every member
-                return BlockOutput(self._held_outputs(n))
-        if shown_ended:
-            self._held_views = None
-            # the shown members' rows come first (copied out of the work array); the rest are
-            # not outputs
-            values = self._work[: len(self._names)].copy()
-            out = BlockOutput(dict(zip(self._names, values, strict=True)))
-        else:  # only members not shown (other phases) ended a period: the outputs hold
-            out = BlockOutput(self._held_outputs(n))
+        firsts[:] = before
+        values = np.empty((self._rows_out, n))
+        total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
+                                 self._iparams, self._det, self._held, self._hb, values, firsts,
+                                 self._alarms)  # fmt: skip
+        # the shown members' rows come first; the rest are not outputs
+        out = BlockOutput(dict(zip(self._names, values, strict=False)))
         for m, first in zip(ms, firsts.tolist(), strict=True):
             m._first_violation = first
         if total:
@@ -668,11 +646,6 @@ def compile_kernels() -> None:
     for block in (two, group):
         block.reset(fs)
         block.process(Chunk(0, fs, 0.0, data))
-    # a group with a plan calls the two steps of :func:`_k.group_step` from Python
-    g = group
-    _k.segment_group(g._x, g._rows, data["s"], fs, 2, g._seg, g._pp, g._pi, g._hb, g._counts)
-    _k.periods_group(g._pp, g._pb, g._pi, g._counts, g._two, g._params, g._iparams, g._det,
-                     g._held, g._hb, g._work, g._firsts, g._alarms)  # fmt: skip
 
 
 def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None, str | None]:
