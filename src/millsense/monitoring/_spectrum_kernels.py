@@ -856,15 +856,42 @@ def depth_sd(
     r = np.empty(2 * n)
     rt = np.empty(2 * n)
     jac = np.empty((2 * n, 3))
-    a, b, alpha, beta = _fit_basis(q, xn, k, kb, edge)
-    cost = _projected_residual(xn, a, b, alpha, beta, r)
-    qt = q.copy()
+    # the bases of :func:`_fit_basis` at q and at each perturbed point, their numbers bit for
+    # bit, with each G computed once per distinct order (:func:`_residual_g`) and only the
+    # factor a parameter enters recomputed: d_a the lengths, θ_st and θ_ex the G
+    kk = k[:n]
+    m, idx = _orders(kk)
+    nm = m.shape[0]
+    e1 = np.empty(nm, dtype=np.complex128)
+    e2 = np.empty(nm, dtype=np.complex128)
+    ft = np.empty(nm, dtype=np.complex128)
+    g = np.empty(nm, dtype=np.complex128)
+    gt = np.empty(nm, dtype=np.complex128)
+    lk = np.empty(n, dtype=np.complex128)
+    lt = np.empty(n, dtype=np.complex128)
+    wa = np.empty(n, dtype=np.complex128)
+    wb = np.empty(n, dtype=np.complex128)
+    d, st, ex = q[0], q[1], q[2]
+    _phases(m, st, e1)
+    _phases(m, ex, e2)
+    _g_all(m, e1, e2, st, ex, g)
+    for j in range(n):
+        lk[j] = _l(kk[j], d, kb)
+    cost = _residual_g(idx, g, lk, xn, edge, wa, wb, r)
     for i in range(3):
         h = 1e-7 * scale[i]
-        qt[:] = q
-        qt[i] = q[i] + h
-        a, b, alpha, beta = _fit_basis(qt, xn, k, kb, edge)
-        _projected_residual(xn, a, b, alpha, beta, rt)
+        qi = q[i] + h
+        if i == 0:
+            for j in range(n):
+                lt[j] = _l(kk[j], qi, kb)
+            _residual_g(idx, g, lt, xn, edge, wa, wb, rt)
+        else:
+            _phases(m, qi, ft)
+            if i == 1:
+                _g_all(m, ft, e2, qi, ex, gt)
+            else:
+                _g_all(m, e1, ft, st, qi, gt)
+            _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
         for j in range(2 * n):
             jac[j, i] = (rt[j] - r[j]) / h
     jtj = jac.T @ jac
