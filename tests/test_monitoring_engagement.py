@@ -522,3 +522,54 @@ def test_depth_summary_median_within_its_standard_error(rpm):
     depth = depth_summary([e for e in _noisy_cut_estimates(rpm, 0.5) if _reliable(e)])
     assert abs(depth.median_m - 2e-3) < 3 * depth.standard_error_m
     assert 0.8 < depth.predicted_sd_m / depth.scatter_m < 1.4
+
+
+def test_grid_starts_and_misfit_median_are_numpys():
+    """The grid search's starts (:func:`_spectrum_kernels.smallest`, one pass) are numpy's
+    stable order's first six, ties to the lower row and +inf (singular rows) last, exactly:
+    they replaced ``argpartition`` + ``argsort``; the misfit median (decision 1557) is
+    ``np.median``'s number exactly, NaN included."""
+    from millsense.monitoring import _spectrum_kernels as _sk
+    from millsense.monitoring.torque_spectrum import _median
+
+    rng = np.random.default_rng(7)
+    for size in (6, 7, 50, 5000):
+        cost = np.round(rng.random(size), 2)  # many exact ties
+        cost[rng.integers(0, size, size // 5)] = np.inf
+        expected = np.argsort(cost, kind="stable")[:6]
+        np.testing.assert_array_equal(_sk.smallest(cost, 6), expected)
+    for n in range(1, 10):
+        for _ in range(50):
+            v = list(rng.random(n) * 10.0 ** rng.uniform(-12, 3))
+            assert _median(v) == float(np.median(v))
+    assert math.isnan(_median([1.0, math.nan, 2.0]))
+
+
+def test_fit_divisions_are_numbas_complex_division():
+    """The fit's divisions by i·m and by a real (``_over_i``, ``_over_real``: two real
+    divisions, no branch) give numba's own complex division bit for bit, signed zeros,
+    infinities and NaNs included (the engagement monitor's outputs must not move)."""
+    import numba
+
+    from millsense.monitoring import _spectrum_kernels as _sk
+
+    @numba.njit
+    def both(zr, zi, m, out):  # pragma: no cover - compiled
+        for j in range(zr.shape[0]):
+            z = complex(zr[j], zi[j])
+            a, b = z / complex(0.0, m[j]), _sk._over_i(z, m[j])
+            c, d = z / m[j], _sk._over_real(z, m[j])
+            out[j] = (a.real, a.imag, b.real, b.imag, c.real, c.imag, d.real, d.imag)
+
+    rng = np.random.default_rng(3)
+    n = 20000
+    zr = rng.standard_normal(n) * 10.0 ** rng.uniform(-300, 300, n)
+    zi = rng.standard_normal(n) * 10.0 ** rng.uniform(-300, 300, n)
+    zr[:100], zi[100:200], zr[200:300], zi[300:400] = 0.0, -0.0, np.inf, np.nan
+    m = rng.uniform(-40.0, 40.0, n)
+    out = np.empty((n, 8))
+    both(zr, zi, m, out)
+    bits = out.view(np.int64)
+    for ref, got in ((0, 2), (1, 3), (4, 6), (5, 7)):
+        nan = np.isnan(out[:, ref]) & np.isnan(out[:, got])
+        assert np.all((bits[:, ref] == bits[:, got]) | nan), (ref, got)

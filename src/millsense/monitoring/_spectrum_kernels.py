@@ -15,13 +15,30 @@ ComplexArray = NDArray[np.complex128]
 IntArray = NDArray[np.int64]
 
 
+@numba.njit(cache=True, inline="always")
+def _over_i(z: complex, m: float) -> complex:
+    """z / complex(0, m), the numbers of numba's complex division (CPython's ``_Py_c_quot``:
+    ratio 0·sign(m), denominator m, bit for bit with signed zeros, infinities and NaNs) with
+    two real divisions instead of three and no branch: the fit's innermost division."""
+    r = math.copysign(0.0, m)
+    return complex((z.real * r + z.imag) / m, (z.imag * r - z.real) / m)
+
+
+@numba.njit(cache=True, inline="always")
+def _over_real(z: complex, c: float) -> complex:
+    """z / c for a real c ≠ 0 as numba divides a complex by it (promoted to complex(c, 0):
+    ratio 0/c, denominator c; bit for bit), two real divisions instead of three."""
+    r = 0.0 / c
+    return complex((z.real + z.imag * r) / c, (z.imag - z.real * r) / c)
+
+
 @numba.njit(cache=True)
 def _g(m: float, st: float, ex: float) -> complex:
     if m == 0.0:
-        return complex(ex - st, 0.0) / (2.0 * math.pi)
+        return _over_real(complex(ex - st, 0.0), 2.0 * math.pi)
     e1 = complex(math.cos(m * st), -math.sin(m * st))
     e2 = complex(math.cos(m * ex), -math.sin(m * ex))
-    return (e1 - e2) / complex(0.0, m) / (2.0 * math.pi)
+    return _over_real(_over_i(e1 - e2, m), 2.0 * math.pi)
 
 
 @numba.njit(cache=True)
@@ -29,7 +46,7 @@ def _l(m: float, d: float, kb: float) -> complex:
     if m == 0.0:
         return complex(d, 0.0)
     a = m * kb * d
-    return (1.0 - complex(math.cos(a), -math.sin(a))) / complex(0.0, m * kb)
+    return _over_i(1.0 - complex(math.cos(a), -math.sin(a)), m * kb)
 
 
 @numba.njit(cache=True)
@@ -88,7 +105,7 @@ def _fit_basis(
     d, st, ex = p[0], p[1], p[2]
     for j in range(n):
         lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
     alpha, beta = _least_squares(a, b, x, edge)
     return a, b, alpha, beta
@@ -137,8 +154,8 @@ def _lengths(k: FloatArray, d: float, kb: float, wt: FloatArray, out: ComplexArr
 def _g_of(m: float, e1: complex, e2: complex, st: float, ex: float) -> complex:
     """:func:`_g` from its two phases e1 = e^{−i m θ_st}, e2 = e^{−i m θ_ex}."""
     if m == 0.0:
-        return complex(ex - st, 0.0) / (2.0 * math.pi)
-    return (e1 - e2) / complex(0.0, m) / (2.0 * math.pi)
+        return _over_real(complex(ex - st, 0.0), 2.0 * math.pi)
+    return _over_real(_over_i(e1 - e2, m), 2.0 * math.pi)
 
 
 @numba.njit(cache=True)
@@ -168,7 +185,7 @@ def _residual_g(
     uses it."""
     n = xn.shape[0]
     for j in range(n):
-        a[j] = (g[idx[0, j]] - g[idx[2, j]]) / complex(0.0, 2.0) * lk[j]
+        a[j] = _over_i(g[idx[0, j]] - g[idx[2, j]], 2.0) * lk[j]
         b[j] = g[idx[1, j]] * lk[j]
     alpha, beta = _least_squares(a, b, xn, edge)
     return _projected_residual(xn, a, b, alpha, beta, res)
@@ -314,10 +331,26 @@ def lm_fit_weighted(
             _solve3(mm, g, free, dp)
             for i in range(3):
                 q[i] = min(max(p[i] + dp[i], lo[i]), hi[i])
-            _phases(m, q[1], f1)
-            _phases(m, q[2], f2)
-            _lengths(k, q[0], kb, wt, fl)
-            _g_all(m, f1, f2, q[1], q[2], gt)
+            # a parameter the step leaves where it was (held on its bound: θ_ex = π in down
+            # milling) keeps its factors: the same numbers without their sines and cosines
+            same_st = q[1] == p[1]
+            same_ex = q[2] == p[2]
+            if same_st:
+                f1[:] = e1
+            else:
+                _phases(m, q[1], f1)
+            if same_ex:
+                f2[:] = e2
+            else:
+                _phases(m, q[2], f2)
+            if q[0] == p[0]:
+                fl[:] = lk
+            else:
+                _lengths(k, q[0], kb, wt, fl)
+            if same_st and same_ex:
+                gt[:] = gc
+            else:
+                _g_all(m, f1, f2, q[1], q[2], gt)
             c2 = _residual_g(idx, gt, fl, xn, edge, wa, wb, rt)
             if c2 < cost:
                 small = True
@@ -358,31 +391,78 @@ def amplitudes(
 
 @numba.njit(cache=True)
 def grid_costs(
-    q1: FloatArray, q2: FloatArray, xv: FloatArray, edge: bool, singular: NDArray[np.bool_],
+    a_pairs: FloatArray, g_pairs: FloatArray, l_re: FloatArray, l_im: FloatArray, x_re: FloatArray,
+    x_im: FloatArray, inv_r11: FloatArray, r12: FloatArray, inv_r22: FloatArray, edge: bool,
     out: FloatArray,
 ) -> None:  # fmt: skip  # pragma: no cover - compiled
-    """Projected misfit |x|² − (q₁·x)² − (q₂·x)² of every grid row (rows of ``q1``, ``q2``:
-    the orthonormal bases of :class:`..torque_spectrum._GridBases` as [Re q | Im q]; ``xv`` =
-    [Re x | Im x]; without the edge term only q₁); a ``singular`` row gives +inf (with the edge
-    term). One thread: a multi-threaded BLAS product waits on a loaded host's other work."""
-    rows, m = q1.shape
+    """Projected misfit |x|² − (q₁·x)² − (q₂·x)² of every grid row from the factors of
+    :class:`..torque_spectrum._GridBases`: per depth y = conj(L) x, then per angle pair
+    Re(a^H y), Re(g^H y) (columns of ``a_pairs``, ``g_pairs``, whose rows are [Re | Im]) and
+    the row's QR factors (``inv_r11`` = 1/r₁₁, 0 where A = 0; ``inv_r22`` = 1/r₂₂, NaN on a
+    singular row); without the edge term only q₁. A singular row gives +inf (with the edge
+    term). One thread: a multi-threaded BLAS product waits on a loaded host's other
+    work. Each pair's sums run over its columns in order, all pairs together (independent
+    sums the compiler vectorises; the pairs' matrices stay in cache)."""
+    m, n_pairs = a_pairs.shape
+    nk = x_re.shape[0]
     xx = 0.0
-    for i in range(m):
-        xx += xv[i] * xv[i]
-    for j in range(rows):
-        c1 = 0.0
+    for i in range(nk):
+        xx += x_re[i] * x_re[i]
+    for i in range(nk):
+        xx += x_im[i] * x_im[i]
+    y = np.empty(m)
+    sa = np.empty(n_pairs)
+    sb = np.empty(n_pairs)
+    for di in range(l_re.shape[0]):
+        for i in range(nk):
+            lr, li = l_re[di, i], l_im[di, i]
+            y[i] = lr * x_re[i] + li * x_im[i]
+            y[nk + i] = lr * x_im[i] - li * x_re[i]
+        sa[:] = 0.0
+        sb[:] = 0.0
         for i in range(m):
-            c1 += q1[j, i] * xv[i]
-        c = xx - c1 * c1
-        if edge:
-            if singular[j]:
-                out[j] = math.inf
-                continue
-            c2 = 0.0
-            for i in range(m):
-                c2 += q2[j, i] * xv[i]
-            c -= c2 * c2
-        out[j] = c if math.isfinite(c) else math.inf
+            v = y[i]
+            row_a = a_pairs[i]
+            for p in range(n_pairs):
+                sa[p] += row_a[p] * v
+            if edge:
+                row_g = g_pairs[i]
+                for p in range(n_pairs):
+                    sb[p] += row_g[p] * v
+        base = di * n_pairs
+        for p in range(n_pairs):
+            r = base + p
+            c1 = sa[p] * inv_r11[r]
+            c = xx - c1 * c1
+            if edge:
+                c2 = (sb[p] - r12[r] * c1) * inv_r22[r]
+                c -= c2 * c2
+            out[r] = c if math.isfinite(c) else math.inf
+
+
+@numba.njit(cache=True)
+def smallest(cost: FloatArray, n: int) -> IntArray:
+    """Indices of the ``n`` smallest of ``cost`` in increasing order (ties: the lower index
+    first), in one pass: the grid search's starts (:func:`grid_costs`)."""
+    n = min(n, cost.shape[0])
+    idx = np.empty(n, dtype=np.int64)
+    val = np.empty(n)
+    count = 0
+    for j in range(cost.shape[0]):
+        c = cost[j]
+        if count == n and not c < val[n - 1]:
+            continue
+        # insert after every kept value ≤ c (an equal cost keeps the lower index first)
+        pos = count if count < n else n - 1
+        while pos > 0 and val[pos - 1] > c:
+            val[pos] = val[pos - 1]
+            idx[pos] = idx[pos - 1]
+            pos -= 1
+        val[pos] = c
+        idx[pos] = j
+        if count < n:
+            count += 1
+    return idx[:count]
 
 
 #: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):
@@ -676,7 +756,7 @@ def mean_informs_edge(
     b = np.empty(n_harm, dtype=np.complex128)
     for j in range(n_harm):
         lk = _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
     return _mean_informs(a, b, n_harm, d, st, ex, mean_var)
 
@@ -713,7 +793,7 @@ def _weighted_amplitudes(
     d, st, ex = p[0], p[1], p[2]
     for j in range(n):
         lk = wt[j] * _l(k[j], d, kb)
-        a[j] = (_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex)) / complex(0.0, 2.0) * lk
+        a[j] = _over_i(_g(k[j] - 1.0, st, ex) - _g(k[j] + 1.0, st, ex), 2.0) * lk
         b[j] = _g(k[j], st, ex) * lk
         xw[j] = wt[j] * x[j]
     return _least_squares(a, b, xw, True)
@@ -776,15 +856,42 @@ def depth_sd(
     r = np.empty(2 * n)
     rt = np.empty(2 * n)
     jac = np.empty((2 * n, 3))
-    a, b, alpha, beta = _fit_basis(q, xn, k, kb, edge)
-    cost = _projected_residual(xn, a, b, alpha, beta, r)
-    qt = q.copy()
+    # the bases of :func:`_fit_basis` at q and at each perturbed point, their numbers bit for
+    # bit, with each G computed once per distinct order (:func:`_residual_g`) and only the
+    # factor a parameter enters recomputed: d_a the lengths, θ_st and θ_ex the G
+    kk = k[:n]
+    m, idx = _orders(kk)
+    nm = m.shape[0]
+    e1 = np.empty(nm, dtype=np.complex128)
+    e2 = np.empty(nm, dtype=np.complex128)
+    ft = np.empty(nm, dtype=np.complex128)
+    g = np.empty(nm, dtype=np.complex128)
+    gt = np.empty(nm, dtype=np.complex128)
+    lk = np.empty(n, dtype=np.complex128)
+    lt = np.empty(n, dtype=np.complex128)
+    wa = np.empty(n, dtype=np.complex128)
+    wb = np.empty(n, dtype=np.complex128)
+    d, st, ex = q[0], q[1], q[2]
+    _phases(m, st, e1)
+    _phases(m, ex, e2)
+    _g_all(m, e1, e2, st, ex, g)
+    for j in range(n):
+        lk[j] = _l(kk[j], d, kb)
+    cost = _residual_g(idx, g, lk, xn, edge, wa, wb, r)
     for i in range(3):
         h = 1e-7 * scale[i]
-        qt[:] = q
-        qt[i] = q[i] + h
-        a, b, alpha, beta = _fit_basis(qt, xn, k, kb, edge)
-        _projected_residual(xn, a, b, alpha, beta, rt)
+        qi = q[i] + h
+        if i == 0:
+            for j in range(n):
+                lt[j] = _l(kk[j], qi, kb)
+            _residual_g(idx, g, lt, xn, edge, wa, wb, rt)
+        else:
+            _phases(m, qi, ft)
+            if i == 1:
+                _g_all(m, ft, e2, qi, ex, gt)
+            else:
+                _g_all(m, e1, ft, st, qi, gt)
+            _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
         for j in range(2 * n):
             jac[j, i] = (rt[j] - r[j]) / h
     jtj = jac.T @ jac

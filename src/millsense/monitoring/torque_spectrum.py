@@ -45,6 +45,7 @@ from __future__ import annotations
 import collections
 import functools
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,14 +219,30 @@ def _project(
 @dataclass(frozen=True)
 class _GridBases:
     """The coarse grid of (d_a, θ_st, θ_ex) with what its projected misfits need that does not
-    depend on the measurement: per row an orthonormal basis (q₁, q₂) of the real span of the
-    shear and edge bases A, B (real inner product Re(u^H v); q₁ = A/|A|, q₂ the unit part of B
-    orthogonal to it, Gram–Schmidt applied twice), each as a real matrix [Re q | Im q]
-    (rows × 2K), so that a measurement's projections are two matrix-vector products."""
+    depend on the measurement. The grid is every angle pair at every depth (row = depth index
+    × pairs + pair index), and its bases factor as A_k = a_k(θ_st, θ_ex) L_k(d_a), B_k =
+    g_k(θ_st, θ_ex) L_k(d_a) (:func:`_basis`). Per row the QR factors of [A B] in the real
+    inner product Re(u^H v) (Gram–Schmidt applied twice: q₁ = A/r₁₁, B = r₁₂ q₁ + r₂₂ q₂), so
+    that a measurement x's projections are q₁·x = Re(A^H x)/r₁₁ and q₂·x = (Re(B^H x) −
+    r₁₂ q₁·x)/r₂₂, with Re(A^H x) = Re(a^H y), y = conj(L) x per depth: two products with the
+    pairs' small matrices (in cache) per depth instead of with every row's bases (22 MB read
+    per revolution searched, about 3 MB here; the misfits differ from the rows' own
+    orthonormal bases' by round-off)."""
 
     params: tuple[FloatArray, FloatArray, FloatArray]
-    q1: FloatArray
-    q2: FloatArray
+    #: the same points as rows (d_a, θ_st, θ_ex)
+    points: FloatArray
+    #: a and g of every angle pair, rows [Re | Im] (2K × pairs); L of every depth, real and
+    #: imaginary parts (depths × K)
+    a_pairs: FloatArray
+    g_pairs: FloatArray
+    l_re: FloatArray
+    l_im: FloatArray
+    #: per row 1/r₁₁ = 1/|A| (0 where A = 0), r₁₂ = q₁·B, 1/r₂₂ = 1/|B − r₁₂ q₁| (NaN where
+    #: singular)
+    inv_r11: FloatArray
+    r12: FloatArray
+    inv_r22: FloatArray
     #: rows whose A is zero, or whose B is zero or parallel to A (no unique α, β)
     singular: NDArray[np.bool_]
 
@@ -233,22 +250,16 @@ class _GridBases:
         """Projected misfit min over α, β of Σ|x − αA − βB|² of every row (β = 0 without the
         edge term; what :func:`_project` leaves): |x|² − (q₁·x)² − (q₂·x)², one compiled loop.
         A singular row gives +inf."""
-        out = np.empty(self.q1.shape[0])
-        xv = np.concatenate([x.real, x.imag])
-        _sk.grid_costs(self.q1, self.q2, xv, edge, self.singular, out)
+        out = np.empty(self.r12.shape[0])
+        x = np.ascontiguousarray(x, dtype=np.complex128)
+        _sk.grid_costs(self.a_pairs, self.g_pairs, self.l_re, self.l_im, x.real.copy(),
+                       x.imag.copy(), self.inv_r11, self.r12, self.inv_r22, edge, out)  # fmt: skip
         return out
-
-
-def _unit_rows(v: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Rows of ``v`` scaled to unit length (zero rows stay zero) and their lengths."""
-    n = np.sqrt(np.sum(v * v, axis=1))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(n[:, None] > 0, v / n[:, None], 0.0), n
 
 
 @functools.lru_cache(maxsize=16)
 def _grid(geom: ToolGeometry, n_harmonics: int, max_depth_m: float) -> _GridBases:
-    """Coarse grid of (d_a, θ_st, θ_ex) and its orthonormalised bases (cached per tool)."""
+    """Coarse grid of (d_a, θ_st, θ_ex) and the factors of its bases (cached per tool)."""
     d = np.linspace(0.03, 0.97, 48) * max_depth_m
     ang = np.linspace(0.0, math.pi, 61)
     st, ex = np.meshgrid(ang, ang, indexing="ij")
@@ -257,15 +268,44 @@ def _grid(geom: ToolGeometry, n_harmonics: int, max_depth_m: float) -> _GridBase
     grid = (np.repeat(d, st.size), np.tile(st, d.size), np.tile(ex, d.size))
     k = geom.n_flutes * np.arange(1, n_harmonics + 1, dtype=np.float64)
     a, b = _basis(k[None, :], grid[0][:, None], grid[1][:, None], grid[2][:, None], geom)
-    q1, na = _unit_rows(np.hstack([a.real, a.imag]))
+    wa = np.hstack([a.real, a.imag])
     wb = np.hstack([b.real, b.imag])
+    r11 = np.sqrt(np.sum(wa * wa, axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q1 = np.where(r11[:, None] > 0, wa / r11[:, None], 0.0)
     perp = wb.copy()
+    r12 = np.zeros(r11.size)
     for _ in range(2):  # twice is enough: orthogonal to round-off however close B is to A
-        perp -= np.sum(q1 * perp, axis=1)[:, None] * q1
-    q2, nperp = _unit_rows(perp)
+        s = np.sum(q1 * perp, axis=1)
+        perp -= s[:, None] * q1
+        r12 += s
+    r22 = np.sqrt(np.sum(perp * perp, axis=1))
     nb = np.sqrt(np.sum(wb * wb, axis=1))
-    singular = ~(na > 0) | ~(nperp > 1e-12 * nb)
-    return _GridBases(grid, np.ascontiguousarray(q1), np.ascontiguousarray(q2), singular)
+    singular = ~(r11 > 0) | ~(r22 > 1e-12 * nb)
+    # the factors: a_k, g_k per angle pair (the first depth's rows), L_k per depth
+    pa = (g_coeff(k[None, :] - 1, st[:, None], ex[:, None])
+          - g_coeff(k[None, :] + 1, st[:, None], ex[:, None])) / 2j  # fmt: skip
+    pg = g_coeff(k[None, :], st[:, None], ex[:, None])
+    lk = l_coeff(k[None, :], d[:, None], geom)
+    points = np.ascontiguousarray(np.stack(grid, axis=1))
+    c = np.ascontiguousarray
+    with np.errstate(divide="ignore"):
+        inv_r11 = np.where(r11 > 0, 1.0 / r11, 0.0)
+        inv_r22 = np.where(singular, math.nan, 1.0 / r22)
+    return _GridBases(grid, points, c(np.hstack([pa.real, pa.imag]).T),
+                      c(np.hstack([pg.real, pg.imag]).T), c(lk.real), c(lk.imag), inv_r11, r12,
+                      inv_r22, singular)  # fmt: skip
+
+
+def _median(values: Iterable[float]) -> float:
+    """``np.median`` of a few floats, the same number (the middle one, or the two middle ones'
+    sum halved; NaN if any is NaN) without its array machinery (tens of µs a call, once a
+    revolution on a noisy torque)."""
+    v = sorted(values)
+    if not v or any(x != x for x in v):
+        return math.nan
+    h = len(v) // 2
+    return v[h] if len(v) % 2 else (v[h - 1] + v[h]) / 2
 
 
 #: Decision 1557: revolutions whose relative misfits set the noise level of the local fit, the
@@ -430,7 +470,7 @@ class SpectrumIdentifier:
         engagement that changed), and a global search ran within :data:`REGRID_REVS`."""
         if len(self._misfits) < MISFIT_REVS or self._since_grid >= REGRID_REVS - 1:
             return False
-        return misfit <= MISFIT_JUMP * float(np.median(np.asarray(self._misfits)))
+        return misfit <= MISFIT_JUMP * _median(self._misfits)
 
     def _grid_search(
         self,
@@ -442,13 +482,13 @@ class SpectrumIdentifier:
         """The best of ``best`` and Levenberg–Marquardt fits from the :attr:`n_starts` best
         points of the coarse grid (normalised harmonics ``xn``, Σ|xn|² = ``norm``)."""
         ng = self.k_grid.size
-        cost = self._grid.costs(xn[:ng], self.edge)
-        best_rows = np.argpartition(cost, self.n_starts)[: self.n_starts]
-        for j in best_rows[np.argsort(cost[best_rows])]:
+        grid = self._grid
+        x_low = np.ascontiguousarray(xn[:ng])
+        for j in _sk.smallest(grid.costs(x_low, self.edge), self.n_starts):
             # coarse to fine: the low harmonics pin the angles before the high ones, whose
             # phases turn k N times faster with θ, are added
-            p0 = np.array([g[j] for g in self._grid.params])
-            low = _sk.lm_fit(p0, np.ascontiguousarray(xn[:ng]), self.k[:ng], *args, 60)
+            p0 = grid.points[j].copy()
+            low = _sk.lm_fit(p0, x_low, self.k[:ng], *args, 60)
             sol = _sk.lm_fit(low[0], xn, self.k[: xn.size], *args, 60)
             if best is None or sol[1] < best[1]:
                 best = sol
