@@ -158,6 +158,10 @@ class Supervisor(Block):
         self.period = max(1, round(self.opts.period_s * self.fs))
         for c in self.children:
             c.reset(sample_rate_hz)
+        # the adaptive children's ceilings (looked up once a stream, not at every decision)
+        self._setters = [
+            s for s in (getattr(c, "set_ceiling", None) for c in self.children) if s is not None
+        ]
         self.feed = 1.0
         self.spindle = math.nan
         self.mode = MODE_NORMAL
@@ -217,56 +221,81 @@ class Supervisor(Block):
     # ------------------------------------------------------------------ streaming
     def process(self, chunk: Chunk) -> BlockOutput:
         n = chunk.n
-        out: dict[str, list[np.ndarray]] = {}
         events: list[Event] = []
-        feed = np.empty(n)
-        spindle = np.empty(n)
-        mode = np.empty(n)
         d = chunk.data
         # the source's fault codes are looked at piece by piece only in a chunk that has a
         # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
         # children still run period by period, decision 1654)
-        faulty = self.fault_channel is not None and bool(
-            np.any(np.asarray(d[self.fault_channel]) != 0)
-        )
-        in_cut = None if self.in_cut_channel is None else np.asarray(d[self.in_cut_channel])
-        pos = 0
-        while pos < n:
-            a = chunk.start + pos
-            stop = min(n, pos + self.period - a % self.period)
-            piece = _slice(chunk, pos, stop)
-            data = dict(piece.data)
-            for c in self.children:
-                res = c.process(Chunk(piece.start, piece.sample_rate_hz, piece.t0_s,
-                                      {k: data[k] for k in c.inputs}))  # fmt: skip
-                data.update(res.channels)
-                for k, v in res.channels.items():
+        faulty = self.fault_channel is not None and bool(np.asarray(d[self.fault_channel]).any())
+        in_cut = None if self.in_cut_channel is None else d[self.in_cut_channel]
+        a = chunk.start
+        if 0 < n <= self.period - a % self.period:
+            # a chunk within one control period (10 ms chunks on 10 ms periods): one piece,
+            # the children's arrays passed on as they are, as the pipeline passes a block's
+            # outputs; the overrides and the mode held over it are those before its decision
+            channels = self._children(chunk, events)
+            held = (self.feed, self.spindle, float(self.mode))
+            self._after_piece(chunk, chunk, n, faulty, in_cut, events)
+            feed, spindle, mode = (np.full(n, v) for v in held)
+        else:
+            feed = np.empty(n)
+            spindle = np.empty(n)
+            mode = np.empty(n)
+            out: dict[str, list[np.ndarray]] = {}
+            pos = 0
+            while pos < n:
+                stop = min(n, pos + self.period - (a + pos) % self.period)
+                piece = _slice(chunk, pos, stop)
+                for k, v in self._children(piece, events).items():
                     out.setdefault(k, []).append(np.asarray(v))
-                for ev in res.events:
-                    if ev.kind is EventKind.OVERRIDE:
-                        self._pending.append(ev)
-                    else:
-                        events.append(ev)
-                        self._pending.append(ev)
-            if faulty:
-                self._watch_faults(piece)
-            if in_cut is not None:
-                last = float(in_cut[stop - 1])
-                if math.isfinite(last):
-                    self.in_cut = last > 0.5
-            feed[pos:stop] = self.feed
-            spindle[pos:stop] = self.spindle
-            mode[pos:stop] = self.mode
-            if (chunk.start + stop) % self.period == 0:
-                self._decide(chunk, stop, events)
-            pos = stop
-        # a chunk within one control period (10 ms chunks on 10 ms periods) has one piece per
-        # channel: the child's array as it is, as the pipeline passes a block's outputs on
-        channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
+                feed[pos:stop] = self.feed
+                spindle[pos:stop] = self.spindle
+                mode[pos:stop] = self.mode
+                self._after_piece(chunk, piece, stop, faulty, in_cut, events)
+                pos = stop
+            channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
         channels[f"{self.name}/feed_override"] = feed
         channels[f"{self.name}/spindle_override"] = spindle
         channels[f"{self.name}/mode"] = mode
         return BlockOutput(channels, events)
+
+    def _children(self, piece: Chunk, events: list[Event]) -> dict[str, np.ndarray]:
+        """Run the children on one piece (each sees the piece and the earlier children's
+        outputs); their channels, their events gathered for the next decision."""
+        data = dict(piece.data)
+        channels: dict[str, np.ndarray] = {}
+        start, rate, t0 = piece.start, piece.sample_rate_hz, piece.t0_s
+        for c in self.children:
+            res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
+            data.update(res.channels)
+            channels.update(res.channels)
+            for ev in res.events:
+                if ev.kind is EventKind.OVERRIDE:
+                    self._pending.append(ev)
+                else:
+                    events.append(ev)
+                    self._pending.append(ev)
+        return channels
+
+    def _after_piece(
+        self,
+        chunk: Chunk,
+        piece: Chunk,
+        stop: int,
+        faulty: bool,
+        in_cut: np.ndarray | None,
+        events: list[Event],
+    ) -> None:
+        """The faults and the in-cut flag of a piece ending at sample ``stop`` of ``chunk``,
+        and the decision when the piece ends a control period."""
+        if faulty:
+            self._watch_faults(piece)
+        if in_cut is not None:
+            last = float(in_cut[stop - 1])
+            if math.isfinite(last):
+                self.in_cut = last > 0.5
+        if (chunk.start + stop) % self.period == 0:
+            self._decide(chunk, stop, events)
 
     def _watch_faults(self, piece: Chunk) -> None:
         assert self.fault_channel is not None
@@ -443,10 +472,8 @@ class Supervisor(Block):
             limit = 0.0
         elif self._unsettled() or self.fault or not self.control:
             limit = self.feed
-        for c in self.children:
-            setter = getattr(c, "set_ceiling", None)
-            if setter is not None:
-                setter(limit, self.feed)
+        for setter in self._setters:
+            setter(limit, self.feed)
 
 
 def _slice(chunk: Chunk, a: int, b: int) -> Chunk:

@@ -483,6 +483,7 @@ class ChatterAvoidanceBlock(Block):
         self._flutes = 0
         self._programmed = math.nan
         self._changed = False  # the last action changed the speed
+        self._changed_at = np.empty(0, dtype=np.int64)
         self.recommendations: list[SpeedRecommendation] = []
 
     # ------------------------------------------------------------------ per chunk
@@ -505,7 +506,9 @@ class ChatterAvoidanceBlock(Block):
         hz = out.channels.get(self._hz_channel)
         if hz is not None and n:
             hz = np.ascontiguousarray(hz, dtype=np.float64)
-            changed = np.empty(n, dtype=np.int64)
+            if self._changed_at.shape[0] < n:  # scratch kept from chunk to chunk
+                self._changed_at = np.empty(2 * n, dtype=np.int64)
+            changed = self._changed_at
             for i in changed[: _changes(hz, self._last_hz, changed)].tolist():
                 if i not in alarm_at:
                     triggers.append((i, None, float(hz[i])))
