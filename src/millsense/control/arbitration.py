@@ -233,7 +233,9 @@ class Supervisor(Block):
             # a chunk within one control period (10 ms chunks on 10 ms periods): one piece,
             # the children's arrays passed on as they are, as the pipeline passes a block's
             # outputs; the overrides and the mode held over it are those before its decision
-            channels = self._children(chunk, events)
+            channels = {}
+            for res in self._children(chunk, events):
+                channels.update(res)
             held = (self.feed, self.spindle, float(self.mode))
             self._after_piece(chunk, chunk, n, faulty, in_cut, events)
             feed, spindle, mode = (np.full(n, v) for v in held)
@@ -246,8 +248,9 @@ class Supervisor(Block):
             while pos < n:
                 stop = min(n, pos + self.period - (a + pos) % self.period)
                 piece = _slice(chunk, pos, stop)
-                for k, v in self._children(piece, events).items():
-                    out.setdefault(k, []).append(np.asarray(v))
+                for res in self._children(piece, events):
+                    for k, v in res.items():
+                        out.setdefault(k, []).append(np.asarray(v))
                 feed[pos:stop] = self.feed
                 spindle[pos:stop] = self.spindle
                 mode[pos:stop] = self.mode
@@ -259,16 +262,17 @@ class Supervisor(Block):
         channels[f"{self.name}/mode"] = mode
         return BlockOutput(channels, events)
 
-    def _children(self, piece: Chunk, events: list[Event]) -> dict[str, np.ndarray]:
+    def _children(self, piece: Chunk, events: list[Event]) -> list[dict[str, np.ndarray]]:
         """Run the children on one piece (each sees the piece and the earlier children's
-        outputs); their channels, their events gathered for the next decision."""
+        outputs); their channels, child by child; their events gathered for the next
+        decision."""
         data = dict(piece.data)
-        channels: dict[str, np.ndarray] = {}
+        channels: list[dict[str, np.ndarray]] = []
         start, rate, t0 = piece.start, piece.sample_rate_hz, piece.t0_s
         for c in self.children:
             res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
             data.update(res.channels)
-            channels.update(res.channels)
+            channels.append(res.channels)
             for ev in res.events:
                 if ev.kind is EventKind.OVERRIDE:
                     self._pending.append(ev)
