@@ -50,7 +50,16 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 from millsense.streaming.sources import SOURCE_FAULTS
 
 #: Modes of the supervisor (its ``/mode`` channel).
@@ -165,6 +174,9 @@ class Supervisor(Block):
         self.feed = 1.0
         self.spindle = math.nan
         self.mode = MODE_NORMAL
+        self._own = tuple(f"{self.name}/{c}" for c in ("feed_override", "spindle_override", "mode"))
+        self._held_key: tuple[float, float, float] | None = None
+        self._held_views: HeldViews | None = None
         self.chatter_open = False
         self.chatter_last_s = -math.inf
         self.breakage_pending: Event | None = None
@@ -238,7 +250,7 @@ class Supervisor(Block):
                 channels.update(res)
             held = (self.feed, self.spindle, float(self.mode))
             self._after_piece(chunk, chunk, n, faulty, in_cut, events)
-            feed, spindle, mode = (np.full(n, v) for v in held)
+            feed, spindle, mode = self._held_outputs(held, n)
         else:
             feed = np.empty(n)
             spindle = np.empty(n)
@@ -261,6 +273,19 @@ class Supervisor(Block):
         channels[f"{self.name}/spindle_override"] = spindle
         channels[f"{self.name}/mode"] = mode
         return BlockOutput(channels, events)
+
+    def _held_outputs(
+        self, held: tuple[float, float, float], n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The feed and spindle overrides and the mode held over a chunk of ``n`` samples, as
+        views of one array never written again (new ones only when a value or ``n``
+        changes)."""
+        cached = self._held_views
+        if cached is None or cached[0] != n or self._held_key != held:
+            self._held_key = held
+            cached = self._held_views = held_views(self._own, np.array(held), None, n)[0]
+        v = cached[1]
+        return v[self._own[0]], v[self._own[1]], v[self._own[2]]
 
     def _children(self, piece: Chunk, events: list[Event]) -> list[dict[str, np.ndarray]]:
         """Run the children on one piece (each sees the piece and the earlier children's

@@ -37,7 +37,16 @@ from millsense.models.kinematics import Kinematics
 from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 #: Range of the calibration ratio K_tc,new/K_tc,plan accepted; outside it the plan is kept and a
 #: warning says the measurement does not describe the plan (a wrong tool, material or signal).
@@ -201,6 +210,8 @@ class PlanSync(Block):
         self.calibrated = False
         self._revs_in_cut = 0.0
         self._acc = np.zeros(4)  # Σ measured, Σ edge, Σ u·shear, samples
+        self._scale_name = (f"{self.name}/ktc_scale",)
+        self._scale_views: HeldViews | None = None  # once the ratio no longer changes
         if self.air is not None:
             self.air.reset(sample_rate_hz)
 
@@ -243,7 +254,13 @@ class PlanSync(Block):
         if n and rows[-1] >= 0:
             self.row = int(rows[-1])
         in_cut_f, edge, shear = values[2], values[3], values[4]
-        scale = np.full(n, self.scale)
+        calibrating = not self.calibrated and self.torque_channel is not None and n > 0
+        if calibrating:
+            scale = np.full(n, self.scale)
+        else:  # the ratio held: views of one array never written again
+            if self._scale_views is None or self._scale_views[0] != n:
+                self._scale_views = held_views(self._scale_name, np.array([self.scale]), None, n)[0]
+            scale = self._scale_views[1][self._scale_name[0]]
         events: list[Event] = []
         extra: dict[str, np.ndarray] = {}
         torque = None
@@ -252,7 +269,7 @@ class PlanSync(Block):
             extra = self.air.run(d[self.torque_channel], in_cut_f, d[self.at_speed_channel])
             torque = extra[f"{self.name}/cutting_torque"]
         k_cal = 0
-        if not self.calibrated and self.torque_channel is not None and n:
+        if calibrating:
             k_done = self._calibrate(chunk, in_cut & steady, edge, shear, events, torque)
             if k_done >= 0:
                 scale[k_done:] = self.scale
