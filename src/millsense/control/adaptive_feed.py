@@ -296,8 +296,11 @@ class AdaptiveFeedBlock(Block):
         n = self.name
         return [
             ChannelInfo(f"{n}/override", "1", "commanded feed override (fraction)"),
-            ChannelInfo(f"{n}/peak", unit, f"{st} {self.opts.quantity} of the last control "
-                        "interval (NaN while not enabled)"),
+            ChannelInfo(
+                f"{n}/peak",
+                unit,
+                f"{st} {self.opts.quantity} of the last control interval (NaN while not enabled)",
+            ),
             ChannelInfo(f"{n}/reference", unit, f"reference {st} {self.opts.quantity}"),
             ChannelInfo(f"{n}/flag", "1", "look-ahead flag 0/1/2 (3: fault, safe action)"),
         ]
