@@ -106,6 +106,34 @@ def test_c3_torque_matches_direct_formula_and_is_chunk_invariant() -> None:
     np.testing.assert_allclose(np.concatenate(parts), whole, rtol=0, atol=1e-12)
 
 
+def test_c3_friction_once_per_run_of_equal_speeds_is_c3_step_bit_for_bit() -> None:
+    # the chunk kernel evaluates the Coulomb + viscous friction once per run of equal speeds
+    # (an encoder's quantised speed repeats; an axis at rest reads 0): the same function of the
+    # same speed, so the torque must equal c3_step sample by sample exactly (tolerance 0), the
+    # sign of a zero speed included (−0.0 and +0.0 give friction torques of opposite zero sign)
+    from millsense.estimation.feed.estimator import _c3_kernel, c3_step
+
+    fr = CoulombViscous(1.7, 1.8, 0.2, 0.15, 0.3)
+    rng = np.random.default_rng(3)
+    n = 2000
+    spd = np.round(3.0 * np.sin(np.arange(n) / 300.0) / 0.05) * 0.05  # runs of equal values
+    spd[200:400] = 0.0
+    spd[300:350] = -0.0
+    cur = rng.normal(1.0, 0.5, n)
+    drive = np.array([1.964, 0.0137, FS])
+    sos = np.ascontiguousarray(signal.butter(2, 600.0, fs=FS, output="sos")[0])
+    p = fr.as_array()
+    st = np.zeros(5)
+    expect = np.array([c3_step(cur[k], spd[k], st, drive, 0, p, sos) for k in range(n)])
+    st = np.zeros(5)
+    got = np.empty(n)
+    for a in range(0, n, 73):  # chunks across the runs' ends
+        _c3_kernel(cur[a : a + 73], spd[a : a + 73], st, drive, 0, p, sos, got[a : a + 73])
+    assert np.mean(spd[1:] == spd[:-1]) > 0.5  # the runs the kernel skips friction on
+    assert np.array_equal(got, expect)
+    assert np.array_equal(np.signbit(got), np.signbit(expect))
+
+
 def test_c3_lugre_equals_lugre_simulate() -> None:
     # with LuGre the friction term is machine.lugre's own simulation of the same speed history
     lg = LuGre((500.0, 500.0), (10.0, 10.0), (0.2, 0.2), (1.8, 1.8), (1.7, 1.7), (0.06, 0.06))

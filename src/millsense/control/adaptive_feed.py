@@ -57,7 +57,16 @@ from millsense.core.errors import ConfigError
 from millsense.core.noise import sigma_from_abs_differences
 from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 #: The channel of the feed override in effect as a CNC reports it (fraction; the virtual
 #: machine's and an OPC UA recording's), read where present (decision 1666).
@@ -302,8 +311,11 @@ class AdaptiveFeedBlock(Block):
         n = self.name
         return [
             ChannelInfo(f"{n}/override", "1", "commanded feed override (fraction)"),
-            ChannelInfo(f"{n}/peak", unit, f"{st} {self.opts.quantity} of the last control "
-                        "interval (NaN while not enabled)"),
+            ChannelInfo(
+                f"{n}/peak",
+                unit,
+                f"{st} {self.opts.quantity} of the last control interval (NaN while not enabled)",
+            ),
             ChannelInfo(f"{n}/reference", unit, f"reference {st} {self.opts.quantity}"),
             ChannelInfo(f"{n}/flag", "1", "look-ahead flag 0/1/2 (3: fault, safe action)"),
         ]
@@ -348,6 +360,10 @@ class AdaptiveFeedBlock(Block):
         self._peak = 0.0
         self._n_stall = max(round(o.stall_s * self.fs), 1)
         self._ceiling_ext: float | None = None
+        self._scratch: tuple[np.ndarray, ...] = (np.empty(0, dtype=np.int64),)
+        self._ref_name = (f"{self.name}/reference",)
+        self._ref_value = np.array([o.reference], dtype=np.float64)
+        self._ref_views: HeldViews | None = None
 
     def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
         """From an arbiter (:class:`~millsense.control.arbitration.Supervisor`): the largest
@@ -365,11 +381,13 @@ class AdaptiveFeedBlock(Block):
         n = chunk.n
         q = np.ascontiguousarray(self._quantity(d), dtype=np.float64)
         speed = np.ascontiguousarray(d[self.speed_channel], dtype=np.float64)
-        ends = np.empty(n + 1, dtype=np.int64)
-        peaks = np.empty(n + 1)
-        bads = np.empty(n + 1, dtype=np.bool_)
-        frozen_end = np.empty(n + 1, dtype=np.int64)
-        hits = np.empty(n + 1, dtype=np.int64)
+        # the scan's scratch arrays, kept from chunk to chunk (read only up to its counts)
+        if self._scratch[0].shape[0] < n + 1:
+            m = 2 * n + 1
+            self._scratch = (np.empty(m, dtype=np.int64), np.empty(m),
+                             np.empty(m, dtype=np.bool_), np.empty(m, dtype=np.int64),
+                             np.empty(m, dtype=np.int64))  # fmt: skip
+        ends, peaks, bads, frozen_end, hits = self._scratch
         n_end, n_hit = _scan(
             q, speed, self._scale, self._n_stall, self._st_i, self._st_f, self._use_mean,
             ends, peaks, bads, frozen_end, hits,
@@ -411,11 +429,13 @@ class AdaptiveFeedBlock(Block):
             pos = e
         if self._off.size:
             self._off_at = chunk.start + int(self._off[-1])
+        # the reference, constant: views of one array never written again
+        self._ref_views, ref = held_views(self._ref_name, self._ref_value, self._ref_views, n)
         return BlockOutput(
             {
                 f"{self.name}/override": ov,
                 f"{self.name}/peak": pk,
-                f"{self.name}/reference": np.full(n, self.opts.reference),
+                f"{self.name}/reference": ref[self._ref_name[0]],
                 f"{self.name}/flag": fl,
             },
             events,

@@ -50,7 +50,16 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 from millsense.streaming.sources import SOURCE_FAULTS
 
 #: Modes of the supervisor (its ``/mode`` channel).
@@ -158,9 +167,16 @@ class Supervisor(Block):
         self.period = max(1, round(self.opts.period_s * self.fs))
         for c in self.children:
             c.reset(sample_rate_hz)
+        # the adaptive children's ceilings (looked up once a stream, not at every decision)
+        self._setters = [
+            s for s in (getattr(c, "set_ceiling", None) for c in self.children) if s is not None
+        ]
         self.feed = 1.0
         self.spindle = math.nan
         self.mode = MODE_NORMAL
+        self._own = tuple(f"{self.name}/{c}" for c in ("feed_override", "spindle_override", "mode"))
+        self._held_key: tuple[float, float, float] | None = None
+        self._held_views: HeldViews | None = None
         self.chatter_open = False
         self.chatter_last_s = -math.inf
         self.breakage_pending: Event | None = None
@@ -217,56 +233,98 @@ class Supervisor(Block):
     # ------------------------------------------------------------------ streaming
     def process(self, chunk: Chunk) -> BlockOutput:
         n = chunk.n
-        out: dict[str, list[np.ndarray]] = {}
         events: list[Event] = []
-        feed = np.empty(n)
-        spindle = np.empty(n)
-        mode = np.empty(n)
         d = chunk.data
         # the source's fault codes are looked at piece by piece only in a chunk that has a
         # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
         # children still run period by period, decision 1654)
-        faulty = self.fault_channel is not None and bool(
-            np.any(np.asarray(d[self.fault_channel]) != 0)
-        )
-        in_cut = None if self.in_cut_channel is None else np.asarray(d[self.in_cut_channel])
-        pos = 0
-        while pos < n:
-            a = chunk.start + pos
-            stop = min(n, pos + self.period - a % self.period)
-            piece = _slice(chunk, pos, stop)
-            data = dict(piece.data)
-            for c in self.children:
-                res = c.process(Chunk(piece.start, piece.sample_rate_hz, piece.t0_s,
-                                      {k: data[k] for k in c.inputs}))  # fmt: skip
-                data.update(res.channels)
-                for k, v in res.channels.items():
-                    out.setdefault(k, []).append(np.asarray(v))
-                for ev in res.events:
-                    if ev.kind is EventKind.OVERRIDE:
-                        self._pending.append(ev)
-                    else:
-                        events.append(ev)
-                        self._pending.append(ev)
-            if faulty:
-                self._watch_faults(piece)
-            if in_cut is not None:
-                last = float(in_cut[stop - 1])
-                if math.isfinite(last):
-                    self.in_cut = last > 0.5
-            feed[pos:stop] = self.feed
-            spindle[pos:stop] = self.spindle
-            mode[pos:stop] = self.mode
-            if (chunk.start + stop) % self.period == 0:
-                self._decide(chunk, stop, events)
-            pos = stop
-        # a chunk within one control period (10 ms chunks on 10 ms periods) has one piece per
-        # channel: the child's array as it is, as the pipeline passes a block's outputs on
-        channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
+        faulty = self.fault_channel is not None and bool(np.asarray(d[self.fault_channel]).any())
+        in_cut = None if self.in_cut_channel is None else d[self.in_cut_channel]
+        a = chunk.start
+        if 0 < n <= self.period - a % self.period:
+            # a chunk within one control period (10 ms chunks on 10 ms periods): one piece,
+            # the children's arrays passed on as they are, as the pipeline passes a block's
+            # outputs; the overrides and the mode held over it are those before its decision
+            channels = {}
+            for res in self._children(chunk, events):
+                channels.update(res)
+            held = (self.feed, self.spindle, float(self.mode))
+            self._after_piece(chunk, chunk, n, faulty, in_cut, events)
+            feed, spindle, mode = self._held_outputs(held, n)
+        else:
+            feed = np.empty(n)
+            spindle = np.empty(n)
+            mode = np.empty(n)
+            out: dict[str, list[np.ndarray]] = {}
+            pos = 0
+            while pos < n:
+                stop = min(n, pos + self.period - (a + pos) % self.period)
+                piece = _slice(chunk, pos, stop)
+                for res in self._children(piece, events):
+                    for k, v in res.items():
+                        out.setdefault(k, []).append(np.asarray(v))
+                feed[pos:stop] = self.feed
+                spindle[pos:stop] = self.spindle
+                mode[pos:stop] = self.mode
+                self._after_piece(chunk, piece, stop, faulty, in_cut, events)
+                pos = stop
+            channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
         channels[f"{self.name}/feed_override"] = feed
         channels[f"{self.name}/spindle_override"] = spindle
         channels[f"{self.name}/mode"] = mode
         return BlockOutput(channels, events)
+
+    def _held_outputs(
+        self, held: tuple[float, float, float], n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The feed and spindle overrides and the mode held over a chunk of ``n`` samples, as
+        views of one array never written again (new ones only when a value or ``n``
+        changes)."""
+        cached = self._held_views
+        if cached is None or cached[0] != n or self._held_key != held:
+            self._held_key = held
+            cached = self._held_views = held_views(self._own, np.array(held), None, n)[0]
+        v = cached[1]
+        return v[self._own[0]], v[self._own[1]], v[self._own[2]]
+
+    def _children(self, piece: Chunk, events: list[Event]) -> list[dict[str, np.ndarray]]:
+        """Run the children on one piece (each sees the piece and the earlier children's
+        outputs); their channels, child by child; their events gathered for the next
+        decision."""
+        data = dict(piece.data)
+        channels: list[dict[str, np.ndarray]] = []
+        start, rate, t0 = piece.start, piece.sample_rate_hz, piece.t0_s
+        for c in self.children:
+            res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
+            data.update(res.channels)
+            channels.append(res.channels)
+            for ev in res.events:
+                if ev.kind is EventKind.OVERRIDE:
+                    self._pending.append(ev)
+                else:
+                    events.append(ev)
+                    self._pending.append(ev)
+        return channels
+
+    def _after_piece(
+        self,
+        chunk: Chunk,
+        piece: Chunk,
+        stop: int,
+        faulty: bool,
+        in_cut: np.ndarray | None,
+        events: list[Event],
+    ) -> None:
+        """The faults and the in-cut flag of a piece ending at sample ``stop`` of ``chunk``,
+        and the decision when the piece ends a control period."""
+        if faulty:
+            self._watch_faults(piece)
+        if in_cut is not None:
+            last = float(in_cut[stop - 1])
+            if math.isfinite(last):
+                self.in_cut = last > 0.5
+        if (chunk.start + stop) % self.period == 0:
+            self._decide(chunk, stop, events)
 
     def _watch_faults(self, piece: Chunk) -> None:
         assert self.fault_channel is not None
@@ -447,10 +505,8 @@ class Supervisor(Block):
             limit = 0.0
         elif self._unsettled() or self.fault or not self.control:
             limit = self.feed
-        for c in self.children:
-            setter = getattr(c, "set_ceiling", None)
-            if setter is not None:
-                setter(limit, self.feed)
+        for setter in self._setters:
+            setter(limit, self.feed)
 
 
 def _slice(chunk: Chunk, a: int, b: int) -> Chunk:

@@ -39,7 +39,16 @@ from numpy.typing import NDArray
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.stability.cases import MillingStabilityCase
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 #: Candidates closer than this fraction to the current speed are no change.
 SAME_SPEED = 0.01
@@ -483,6 +492,9 @@ class ChatterAvoidanceBlock(Block):
         self._flutes = 0
         self._programmed = math.nan
         self._changed = False  # the last action changed the speed
+        self._changed_at = np.empty(0, dtype=np.int64)
+        self._pct_key = math.nan
+        self._pct_views: HeldViews | None = None
         self.recommendations: list[SpeedRecommendation] = []
 
     # ------------------------------------------------------------------ per chunk
@@ -490,7 +502,8 @@ class ChatterAvoidanceBlock(Block):
         out = self.monitor.process(chunk.restricted(self.monitor.inputs))
         events = list(out.events)
         n = chunk.n
-        pct = np.full(n, self._pct)
+        pct_before = self._pct
+        changes: list[tuple[int, float]] = []  # (sample, override asked for from there)
         triggers: list[tuple[int, Event | None, float]] = []
         alarm_at = set()
         for e in out.events:
@@ -505,7 +518,9 @@ class ChatterAvoidanceBlock(Block):
         hz = out.channels.get(self._hz_channel)
         if hz is not None and n:
             hz = np.ascontiguousarray(hz, dtype=np.float64)
-            changed = np.empty(n, dtype=np.int64)
+            if self._changed_at.shape[0] < n:  # scratch kept from chunk to chunk
+                self._changed_at = np.empty(2 * n, dtype=np.int64)
+            changed = self._changed_at
             for i in changed[: _changes(hz, self._last_hz, changed)].tolist():
                 if i not in alarm_at:
                     triggers.append((i, None, float(hz[i])))
@@ -521,7 +536,18 @@ class ChatterAvoidanceBlock(Block):
             if new is not None:
                 events.append(new)
                 if new.kind is EventKind.OVERRIDE:
-                    pct[k:] = self._pct
+                    changes.append((k, self._pct))
+        if changes:
+            pct = np.full(n, pct_before)
+            for k, v in changes:
+                pct[k:] = v
+        else:  # held: views of one array never written again
+            views = self._pct_views
+            if views is None or views[0] != n or self._pct_key != pct_before:
+                self._pct_key = pct_before
+                views, _ = held_views((self._out,), np.array([pct_before]), None, n)
+                self._pct_views = views
+            pct = views[1][self._out]
         channels = dict(out.channels)
         channels[self._out] = pct
         return BlockOutput(channels, events)

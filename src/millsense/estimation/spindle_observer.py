@@ -478,7 +478,9 @@ class RangeSwitchedSpindleObserver(Block):
         for o, tau in zip(obs, taus, strict=True):
             if o.friction is not None:
                 # both ranges' observers usually subtract the same friction: computed once
-                if friction is None or o.friction != friction[0]:
+                if friction is None or (
+                    o.friction is not friction[0] and o.friction != friction[0]
+                ):
                     speed = np.asarray(chunk.data[o.inputs[1]], dtype=float)
                     friction = (o.friction, o.friction.torque(speed))
                 tau -= friction[1]

@@ -183,12 +183,17 @@ def expected_kernel(
     scale: NDArray[np.float64],
     steady: NDArray[np.bool_],
     ready_from: int,
+    gate: NDArray[np.float64],
     expected: NDArray[np.float64],
     judged: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """``expected = edge + scale·shear``; ``judged`` the same where the plan is steady from
-    sample ``ready_from`` on, else 0."""
+    sample ``ready_from`` on and the spindle ``gate`` (1/0 per sample; empty: none) is not
+    below 0.5, else 0."""
+    gated = gate.shape[0] > 0
     for k in range(edge.shape[0]):
         e = edge[k] + scale[k] * shear[k]
         expected[k] = e
         judged[k] = e if steady[k] and k >= ready_from else 0.0
+        if gated and gate[k] < 0.5:
+            judged[k] = 0.0

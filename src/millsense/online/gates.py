@@ -134,15 +134,23 @@ class AirReference(Block):
         self._state = np.zeros(3)  # reference, samples used (up to n_start), run in air
 
     def process(self, chunk: Chunk) -> BlockOutput:
-        tq = np.ascontiguousarray(chunk.data[self.inputs[0]], dtype=np.float64)
-        in_cut = np.ascontiguousarray(chunk.data[self.inputs[1]], dtype=np.float64)
-        ok = np.ascontiguousarray(chunk.data[self.inputs[2]], dtype=np.float64)
+        d = chunk.data
+        return BlockOutput(self.run(d[self.inputs[0]], d[self.inputs[1]], d[self.inputs[2]]))
+
+    def run(
+        self, torque: np.ndarray, in_cut: np.ndarray, at_speed: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """The outputs of one chunk of the three input channels (what :meth:`process` gives;
+        :class:`~millsense.online.plan_sync.PlanSync` calls it with its own in-cut flag)."""
+        tq = np.ascontiguousarray(torque, dtype=np.float64)
         n = tq.size
         out = np.empty((2, n))
         # [reference, samples used, run in air], one compiled loop (decisions 1653, 1555)
-        air_reference_kernel(tq, in_cut, ok, self._state, self.alpha, self.n_settle,
-                             self.n_start, out[0], out[1])  # fmt: skip
-        return BlockOutput({self.out: out[0], f"{self.name}/torque": out[1]})
+        air_reference_kernel(tq, np.ascontiguousarray(in_cut, dtype=np.float64),
+                             np.ascontiguousarray(at_speed, dtype=np.float64), self._state,
+                             self.alpha, self.n_settle, self.n_start, out[0],
+                             out[1])  # fmt: skip
+        return {self.out: out[0], f"{self.name}/torque": out[1]}
 
 
 class AllOf(Block):

@@ -37,13 +37,25 @@ from millsense.models.kinematics import Kinematics
 from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
-from millsense.streaming.block import Block, BlockOutput, Chunk, Event, EventKind, Severity
+from millsense.streaming.block import (
+    Block,
+    BlockOutput,
+    Chunk,
+    Event,
+    EventKind,
+    HeldViews,
+    Severity,
+    held_views,
+)
 
 #: Range of the calibration ratio K_tc,new/K_tc,plan accepted; outside it the plan is kept and a
 #: warning says the measurement does not describe the plan (a wrong tool, material or signal).
 SCALE_RANGE = (0.33, 3.0)
 #: Fraction of the plan's largest mean torque below which a revolution is not calibrated on.
 MIN_CALIBRATION = 0.3
+#: The spindle gate of a plan sync without one (:func:`~millsense.online._sync_kernels.
+#: expected_kernel`: no sample closed).
+_NO_GATE = np.empty(0)
 
 
 def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np.ndarray:
@@ -198,6 +210,8 @@ class PlanSync(Block):
         self.calibrated = False
         self._revs_in_cut = 0.0
         self._acc = np.zeros(4)  # Σ measured, Σ edge, Σ u·shear, samples
+        self._scale_name = (f"{self.name}/ktc_scale",)
+        self._scale_views: HeldViews | None = None  # once the ratio no longer changes
         if self.air is not None:
             self.air.reset(sample_rate_hz)
 
@@ -208,9 +222,13 @@ class PlanSync(Block):
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         n = chunk.n
-        at = np.arange(-chunk.start % self.decimate, n, self.decimate)
+        first = -chunk.start % self.decimate
+        at = np.arange(first, n, self.decimate)
         # (3, m): the rows of the transpose handed to match are contiguous (no copies there)
-        tcp = np.array([d[c] for c in self.tcp_channels], dtype=np.float64)[:, at]
+        tcp = np.array(
+            [np.asarray(d[c])[first :: self.decimate] for c in self.tcp_channels],
+            dtype=np.float64,
+        )
         if at.size and np.isfinite(tcp).all():
             matched = self.plan.match(tcp.T, from_row=max(self.row, 0))
         else:  # a pose not finite: matched where it is, −1 (no match) where not
@@ -228,51 +246,58 @@ class PlanSync(Block):
         # compiled loop (decision 1653)
         rows = np.empty(n, dtype=np.int64)
         values = np.empty((8, n))
-        in_cut = np.empty(n, dtype=bool)
-        steady = np.empty(n, dtype=bool)
+        flags = np.empty((2, n), dtype=bool)
+        in_cut, steady = flags[0], flags[1]
         plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
                          self._nc, self._steady, self._depth, rows, values, in_cut,
                          steady)  # fmt: skip
         if n and rows[-1] >= 0:
             self.row = int(rows[-1])
         in_cut_f, edge, shear = values[2], values[3], values[4]
-        scale = np.full(n, self.scale)
+        calibrating = not self.calibrated and self.torque_channel is not None and n > 0
+        if calibrating:
+            scale = np.full(n, self.scale)
+        else:  # the ratio held: views of one array never written again
+            if self._scale_views is None or self._scale_views[0] != n:
+                self._scale_views = held_views(self._scale_name, np.array([self.scale]), None, n)[0]
+            scale = self._scale_views[1][self._scale_name[0]]
         events: list[Event] = []
         extra: dict[str, np.ndarray] = {}
         torque = None
         if self.air is not None:
-            assert self.torque_channel is not None
-            air_in = {c: d[c] for c in self.air.inputs if c in d}
-            air_in[f"{self.name}/in_cut"] = in_cut_f
-            extra = self.air.process(Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s,
-                                           air_in)).channels  # fmt: skip
+            assert self.torque_channel is not None and self.at_speed_channel is not None
+            extra = self.air.run(d[self.torque_channel], in_cut_f, d[self.at_speed_channel])
             torque = extra[f"{self.name}/cutting_torque"]
         k_cal = 0
-        if not self.calibrated and self.torque_channel is not None and n:
+        if calibrating:
             k_done = self._calibrate(chunk, in_cut & steady, edge, shear, events, torque)
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
         # the virtual threshold judges the tool once the plan is calibrated to it (a plan
-        # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622)
+        # whose K_tc is 40 % off would otherwise read as a broken tool, decision 1622); while
+        # the spindle changes speed the observer's torque holds the acceleration torque (tens
+        # of N·m on a 1000 rev/min step): nothing is judged on it (decision 1550)
         ready_from = 0
         if self.torque_channel is not None:
             ready_from = max(k_cal, 0) if self.calibrated else n
         expected, judged = values[6], values[7]
-        expected_kernel(edge, shear, scale, steady, ready_from, expected, judged)
-        if self.at_speed_channel is not None:
-            # while the spindle changes speed the observer's torque holds the acceleration
-            # torque (tens of N·m on a 1000 rev/min step): nothing is judged on it (decision 1550)
-            judged[np.asarray(d[self.at_speed_channel]) < 0.5] = 0.0
+        gate = (
+            np.ascontiguousarray(d[self.at_speed_channel], dtype=np.float64)
+            if self.at_speed_channel is not None
+            else _NO_GATE
+        )
+        expected_kernel(edge, shear, scale, steady, ready_from, gate, expected, judged)
+        name = self.name
         return BlockOutput(
             {
-                f"{self.name}/row": values[0],
-                f"{self.name}/nc_line": values[1],
-                f"{self.name}/in_cut": in_cut_f,
-                f"{self.name}/expected_torque": expected,
-                f"{self.name}/judged_torque": judged,
-                f"{self.name}/ktc_scale": scale,
-                f"{self.name}/axial_depth": values[5],
+                f"{name}/row": values[0],
+                f"{name}/nc_line": values[1],
+                f"{name}/in_cut": in_cut_f,
+                f"{name}/expected_torque": expected,
+                f"{name}/judged_torque": judged,
+                f"{name}/ktc_scale": scale,
+                f"{name}/axial_depth": values[5],
                 **extra,
             },
             events,

@@ -8,6 +8,7 @@ written to a recording while running, so a crash loses at most the last unflushe
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -70,11 +71,14 @@ class Pipeline:
         blocks = tuple(self.blocks)
         if self._inputs[0] != blocks:
             self._inputs = (blocks, sorted({c for b in blocks for c in b.inputs}))
-        read = [v for v in map(chunk.data.get, self._inputs[1]) if v is not None]
-        if not read or np.isfinite(np.concatenate(read, axis=None)).all():
-            return  # one check of all the channels; the channel is looked for only on a fault
+        data = chunk.data
+        read = [data[c] for c in self._inputs[1] if c in data]
+        # one sum of all the channels: finite unless a value is NaN or inf (or the sum
+        # overflows, which the channel-by-channel search below then clears)
+        if not read or math.isfinite(np.concatenate(read, axis=None).sum()):
+            return
         for name in self._inputs[1]:
-            values = chunk.data.get(name)
+            values = data.get(name)
             if values is None or np.isfinite(values).all():
                 continue
             k = int(np.argmax(~np.isfinite(values)))
@@ -91,21 +95,22 @@ class Pipeline:
         outputs: dict[str, np.ndarray] = {}
         events: list[Event] = []
         n = chunk.n
+        start, rate, t0 = chunk.start, chunk.sample_rate_hz, chunk.t0_s
         for b in self.blocks:
             # the chunk restricted to the block's inputs (as Chunk.restricted, without an
             # intermediate chunk)
-            inputs = {k: data[k] for k in b.inputs}
-            sub = Chunk(chunk.start, chunk.sample_rate_hz, chunk.t0_s, inputs)
-            out = b.process(sub)
-            for name, values in out.channels.items():
+            out = b.process(Chunk(start, rate, t0, {k: data[k] for k in b.inputs}))
+            channels = out.channels
+            for name, values in channels.items():
                 if len(values) != n:
                     raise RuntimeError(
                         f"block '{b.name}' returned {len(values)} samples of '{name}' "
                         f"for a chunk of {n}"
                     )
-            data.update(out.channels)
-            outputs.update(out.channels)
-            events.extend(out.events)
+            data.update(channels)
+            outputs.update(channels)
+            if out.events:
+                events.extend(out.events)
         return outputs, events
 
 

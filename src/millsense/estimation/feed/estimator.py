@@ -490,17 +490,31 @@ def c3_step(
     ``fric_mode`` 1 LuGre (``lugre_step``), 0 Coulomb + viscous; ``sos`` one section
     [b0, b1, b2, 1, a1, a2] run in direct form II transposed.
     """
+    if fric_mode == 1:
+        z, tf = lugre_step(state[1], w, 1.0 / drive[2], fric)
+        state[1] = z
+    else:
+        tf = coulomb_viscous_torque(w, fric)
+    return c3_with_friction(current, w, tf, state, drive, sos)
+
+
+@numba.njit(cache=True)
+def c3_with_friction(
+    current: float,
+    w: float,
+    tf: float,
+    state: NDArray[np.float64],
+    drive: NDArray[np.float64],
+    sos: NDArray[np.float64],
+) -> float:  # pragma: no cover - compiled
+    """:func:`c3_step` given the sample's friction torque ``tf``: ``τ_c = K_t·I_nom − τ_f −
+    J_e·Δω/Δt`` and the low-pass (``state`` as there; its bristle z is not touched)."""
     kt, j, fs = drive[0], drive[1], drive[2]
     b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
     if state[4] == 0.0:
         state[0] = w
     acc = (w - state[0]) * fs
     state[0] = w
-    if fric_mode == 1:
-        z, tf = lugre_step(state[1], w, 1.0 / fs, fric)
-        state[1] = z
-    else:
-        tf = coulomb_viscous_torque(w, fric)
     tau = kt * current - tf - j * acc
     if state[4] == 0.0:
         # start the low-pass in steady state on the first sample
@@ -526,9 +540,25 @@ def _c3_kernel(
     out: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """Low-passed C3 torque of one chunk (state updated in place; :func:`c3_step` per
-    sample)."""
-    for k in range(current.shape[0]):
-        out[k] = c3_step(current[k], speed[k], state, drive, fric_mode, fric, sos)
+    sample).
+
+    The Coulomb + viscous friction is a function of the sample's speed alone: it is evaluated
+    once per run of equal speeds (an encoder's speed repeats its quantised values, and an axis
+    at rest reads 0 for long stretches; 30–60 % of the samples of the V8 slot's five axes), the
+    same value bit for bit, sign of zero included."""
+    n = current.shape[0]
+    if fric_mode == 1 or n == 0:
+        for k in range(n):
+            out[k] = c3_step(current[k], speed[k], state, drive, fric_mode, fric, sos)
+        return
+    last = speed[0]
+    tf = coulomb_viscous_torque(last, fric)
+    for k in range(n):
+        w = speed[k]
+        if w != last or math.copysign(1.0, w) != math.copysign(1.0, last):
+            last = w
+            tf = coulomb_viscous_torque(w, fric)
+        out[k] = c3_with_friction(current[k], w, tf, state, drive, sos)
 
 
 @numba.njit(cache=True)
