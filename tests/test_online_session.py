@@ -455,6 +455,28 @@ def test_run_bad_input_one_line_exit_2(
     assert not (tmp_path / "o.h5").exists()
 
 
+def _replay_refused(
+    tmp_path: Path, recording: str, capsys: pytest.CaptureFixture[str]
+) -> tuple[int, str]:
+    """``replay`` of ``tmp_path/recording`` against a 10-row plan of 'p.nc' (all in air):
+    the exit code and stderr."""
+    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
+
+    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
+    for c in ("tool", "source_line", "n_intervals", "nc_line"):
+        cols[c] = np.zeros(10, dtype=np.int64)
+    cols["rapid"] = np.zeros(10, dtype=bool)
+    cols["in_cut"] = np.zeros(10, dtype=bool)
+    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
+    code, _, err = run_cli(
+        ["replay", str(tmp_path / recording), "--plan", str(tmp_path / "plan.parquet"),
+         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
+         "-o", str(tmp_path / "out.h5")],
+        capsys,
+    )  # fmt: skip
+    return code, err
+
+
 def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -463,7 +485,6 @@ def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
     writes nothing (it had failed inside the kinematics with an array shape)."""
     from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
-    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
 
     n = 2000
     rec = Recording(FS, 0.0, {"machine": "quaser-ux600"})
@@ -471,18 +492,7 @@ def test_replay_of_a_recording_without_the_axes_the_tcp_needs(
         rec.add_channel(c, np.linspace(0.0, 0.01, n), "m" if "position" in c else "A")
     rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
     write_recording(tmp_path / "trace.h5", rec)
-    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
-    for c in ("tool", "source_line", "n_intervals", "nc_line"):
-        cols[c] = np.zeros(10, dtype=np.int64)
-    cols["rapid"] = np.zeros(10, dtype=bool)
-    cols["in_cut"] = np.zeros(10, dtype=bool)
-    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
-    code, _, err = run_cli(
-        ["replay", str(tmp_path / "trace.h5"), "--plan", str(tmp_path / "plan.parquet"),
-         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
-         "-o", str(tmp_path / "out.h5")],
-        capsys,
-    )  # fmt: skip
+    code, err = _replay_refused(tmp_path, "trace.h5", capsys)
     assert code == 2
     assert "no z/position_cmd, a/position_cmd, c/position_cmd" in err
     assert len(err.strip().splitlines()) == 1
@@ -498,7 +508,6 @@ def test_replay_refuses_a_plan_of_another_program(
     the plan put in material the recording never cut)."""
     from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
-    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
 
     n = 2000
     rec = Recording(FS, 0.0, {"machine": "quaser-ux600", "program": "/shop/pocket.nc"})
@@ -506,18 +515,7 @@ def test_replay_refuses_a_plan_of_another_program(
         rec.add_channel(f"{c}/position_cmd", np.zeros(n), "m")
     rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
     write_recording(tmp_path / "run.h5", rec)
-    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
-    for c in ("tool", "source_line", "n_intervals", "nc_line"):
-        cols[c] = np.zeros(10, dtype=np.int64)
-    cols["rapid"] = np.zeros(10, dtype=bool)
-    cols["in_cut"] = np.zeros(10, dtype=bool)
-    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
-    code, _, err = run_cli(
-        ["replay", str(tmp_path / "run.h5"), "--plan", str(tmp_path / "plan.parquet"),
-         "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
-         "-o", str(tmp_path / "out.h5")],
-        capsys,
-    )  # fmt: skip
+    code, err = _replay_refused(tmp_path, "run.h5", capsys)
     assert code == 2
     assert "plan of program 'p.nc', but" in err and "recorded running 'pocket.nc'" in err
     assert len(err.strip().splitlines()) == 1
