@@ -151,8 +151,8 @@ def _false() -> Measured:
     "revolutions (decision 1552). A single period's drop is not told from the noise and the "
     "plan's error at the seed's 40 % and 4σ band. In the 4-flute slot the broken flute's "
     "periods lose 36-39 % of their torque in the truth, at the band's edge, so its third "
-    "violation comes as the noise allows: 13 revolutions (8 before decision 1555 changed the "
-    "feed's history up to the break)",
+    "violation comes as the noise allows: 15 revolutions (13 before decisions 1666-1667 "
+    "changed the adaptive feed's history up to the break, 8 before decision 1555)",
     issue=15,
 )
 def _latency() -> Measured:
