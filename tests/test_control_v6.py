@@ -40,3 +40,18 @@ def test_closed_cnc_settles_at_least_twice_as_slowly(runs) -> None:
 def test_closed_cnc_needs_more_moves(runs) -> None:
     # the 10 % quantisation makes the closed-CNC loop hunt: more override commands
     assert runs["closed CNC"].n_events >= 2 * runs["open CNC"].n_events
+
+
+def test_over_the_six_seeds() -> None:
+    # decision 1667: V6 judged as V8, on the machine's six seeds. Open: median 37.7 %
+    # (37.2-39.8 %), the documented gap of decision 1617 on every seed. Closed: median 59.5 %
+    # (50.6-59.6 %), inside the thesis' 75 % ± 20 % (from a lathe), and above the open
+    # channel's on every seed; the closed CNC settles at least twice as slowly on every seed
+    by_seed = ca.v6_seed_runs()
+    rises = {k: [ca.step_rise_pct(r[k]) for r in by_seed.values()] for k in ca._v6_runs()}
+    assert all(30.0 <= v <= 55.0 for v in rises["open CNC"])
+    assert all(c > o for c, o in zip(rises["closed CNC"], rises["open CNC"], strict=True))
+    med = sorted(rises["closed CNC"])
+    assert 55.0 <= 0.5 * (med[2] + med[3]) <= 95.0
+    for r in by_seed.values():
+        assert ca.settle_s(r["closed CNC"]) >= 2.0 * ca.settle_s(r["open CNC"])
