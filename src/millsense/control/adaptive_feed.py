@@ -713,7 +713,7 @@ class AdaptiveFeedBlock(Block):
         force is proportional to the feed needs (to u₁/y₀, the interval's override over its
         normalised value). The RLS of a steady cut at one override is not excited; it drifts to
         a near-integrator with a small gain (a pole at 0.97, b₀ 0.05 against a static gain of
-        3.4 on V8's slot with the machine's seed 1), on which a 18 % shortfall asked for +134 %
+        3.4 on V8's slot with the machine's seed 1), on which an 18 % shortfall asked for +134 %
         (20 → 150 %) and the next revolution's force reached 2.8 × the reference; a force above
         the reference was met with a cut to 20 % where 32 % was needed. A move in the wrong
         direction is never taken (0), one larger than MOVE_LIMIT × the proportional move is
