@@ -324,3 +324,50 @@ def test_periods_off_the_enable_gate_are_not_judged(method: str) -> None:
     assert 140 * tooth < gated[0].sample <= 143 * tooth + 1
     assert np.isnan(ch[f"breakage.{method}/limit1"][: int(0.3 * FS)]).all()
     assert np.nanmax(ch[f"breakage.{method}/limit1"]) < 10.0  # learnt in the cut
+
+
+def _transient_run(tq_of_period: np.ndarray, floor: float = 2.0) -> list:
+    """A 2-flute tool at 1000 rev/min whose tooth-period torques are ``tq_of_period``; the plan
+    is steady at 3 N·m for periods 0–29 and in a transient from period 30 on (expected 0) with
+    the lowest torque ``floor`` over its window (decision 1674)."""
+    from millsense.streaming.block import Chunk
+
+    fs, rpm = 10000.0, 1000.0
+    tooth = 300
+    period = np.arange(tq_of_period.size * tooth) // tooth
+    transient = period >= 30
+    data = {
+        "tq": tq_of_period[period],
+        "w": np.full(period.size, rpm * 2 * math.pi / 60),
+        "ex": np.where(transient, 0.0, 3.0),
+        "fl": np.where(transient, floor, 0.0),
+    }
+    blk = BreakageBlock(2, "virtual", signal_channels=("tq",), speed_channel="w",
+                        expected_channel="ex", floor_channel="fl", min_expected_nm=0.5)  # fmt: skip
+    blk.reset(fs)
+    return blk.process(Chunk(0, fs, 0.0, data)).events
+
+
+def test_transient_floor_judges_a_drop_and_nothing_above_it() -> None:
+    """Decision 1674: in the plan's transient the torque ramps from 3 to 9 N·m (a step the plan
+    times loosely) above its floor of 2 N·m: no alarm, a rise is not judged there. Flute 0
+    breaks at period 40: its periods read 0.1 N·m, far below the floor less 40 % (1.2 N·m);
+    the run bridges one period (2 flutes), so the third violating period is period 44 (the
+    alarm at its end, period 45's start)."""
+    p = np.arange(80)
+    ramp = np.clip(3.0 + 0.6 * (p - 30), 3.0, 9.0)
+    assert _transient_run(ramp) == []
+    broken = np.where((p >= 40) & (p % 2 == 0), 0.1, np.where(p >= 40, 2 * ramp, ramp))
+    events = _transient_run(broken)
+    assert len(events) == 1
+    assert events[0].time_s == pytest.approx(45 * 0.03, abs=0.5 * 0.03)
+    assert "below" in events[0].message and "the plan's transient" in events[0].message
+    assert events[0].values["expected_nm"] == pytest.approx(2.0, rel=1e-9)
+
+
+def test_without_a_floor_the_transient_is_not_judged() -> None:
+    """The same broken tool with a floor of 0 (the window reaches air: an entry or an exit):
+    nothing is judged after period 30, no alarm (decision 1674 leaves entries and exits alone)."""
+    p = np.arange(80)
+    broken = np.where((p >= 40) & (p % 2 == 0), 0.1, 3.0)
+    assert _transient_run(broken, floor=0.0) == []

@@ -296,6 +296,47 @@ def test_session_judges_breakage_one_revolution_from_a_transient(v8_plan: object
     assert not st[cut & (x > 24.5) & (x < 25.5)].any()
 
 
+def test_transient_floor_is_the_lowest_torque_of_the_window(v8_plan: object) -> None:
+    """Decision 1674: around the V8 slot's step-down the floor is the lowest edge part plus the
+    lowest shear part of the plan's torque over ±1 revolution of travel at 150 % (±2 rows of
+    0.4 mm), at most the window's lowest torque; 0 in the steady rows; along the entry's rise
+    and the exit's decay the torque a window behind or ahead, 0 where the window reaches air."""
+    from millsense.online.plan_sync import _window_rows, steady_rows, transient_floor
+    from millsense.online.session import TRANSIENT_REVS
+
+    plan = v8_plan
+    tq = np.nan_to_num(np.asarray(plan["torque_avg_nm"], dtype=float))  # type: ignore[index]
+    sh = np.nan_to_num(np.asarray(plan["torque_avg_shear_nm"], dtype=float))  # type: ignore[index]
+    x = np.asarray(plan["x_mm"], dtype=float)  # type: ignore[index]
+    cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)  # type: ignore[index]
+    fe, fs = transient_floor(plan, TRANSIENT_REVS)  # type: ignore[arg-type]
+    floor = fe + fs
+    steady = steady_rows(plan, TRANSIENT_REVS)  # type: ignore[arg-type]
+    w = _window_rows(plan, TRANSIENT_REVS, 1.5)  # type: ignore[arg-type]
+    assert w == 2  # 0.4 mm a revolution × 1.5, 0.4 mm rows
+    assert not floor[steady].any()
+    step = ~steady & cut & (x > 24.0) & (x < 26.5)
+    assert step.sum() >= 6
+    for i in np.flatnonzero(step):
+        win = slice(i - w, i + w + 1)
+        low = np.min(np.where(cut[win], tq[win] - sh[win], 0.0)) + np.min(
+            np.where(cut[win], sh[win], 0.0)
+        )
+        assert floor[i] == pytest.approx(low, rel=1e-12)
+        assert floor[i] <= np.min(np.where(cut[win], tq[win], 0.0)) + 1e-12  # a lower bound
+    # the ramp's lightest row (X 25.07 mm, 0.70 N·m) bounds the floors around it
+    assert 0.8 * tq[step].min() < floor[step].min() <= tq[step].min()
+    # the entry (the tool's front meets the block at X −10 mm) rises and the exit (from X
+    # 50 mm) decays over a tool diameter: the floor is the torque a window behind, resp. ahead;
+    # where the window reaches air, 0
+    rise = np.flatnonzero(cut & (x < -8.0))
+    decay = np.flatnonzero(cut & (x > 50.0) & (x < 57.0))
+    assert rise.size >= 4 and decay.size >= 10
+    assert floor[rise[:2]] == pytest.approx([0.0, 0.0], abs=1e-12)
+    assert floor[rise[2:]] == pytest.approx(tq[rise[2:] - w], rel=1e-9)
+    assert floor[decay] == pytest.approx(tq[decay + w], rel=1e-9)
+
+
 #: A 3 mm slot from the side of the demo block at 1000 rev/min.
 SLOT_PROGRAM = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG1 Z-3 F400\nX40\nG0 Z5\nM30\n"
 

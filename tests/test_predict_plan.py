@@ -237,3 +237,32 @@ M30
     x, z = plunge["x_mm"], plunge["z_mm"]
     down = (np.abs(x - 30.0) < 1e-9) & (z < -0.5) & (z > -2.0)
     assert down.any() and plunge["in_cut"][down].all()
+
+
+def test_ramps_and_plunges_cut_the_feed_across_the_tool_axis() -> None:
+    """Decision 1673: the flutes' chip is the feed per tooth across the tool axis. A 45° ramp
+    (X30 → X31.5, Z−1.5 → Z−3) has the chip of cos 45° of the feed per tooth (0.2 mm at F400,
+    1000 rev/min, 2 flutes: 0.1414 mm), a plunge none (its torque is the edge part alone), the
+    horizontal cut after them the whole 0.2 mm (each step the tangent of its move)."""
+    plan = _plan("""G21 G90 G17
+S1000 M3
+G0 X30. Y20. Z5.
+G1 Z-1.5 F400.
+X31.5 Z-3.
+X45.
+G0 Z5.
+M30
+""")
+    x, z = plan["x_mm"], plan["z_mm"]
+    cut = plan["in_cut"]
+    chip = plan["chip_load_mm"]
+    ramp = cut & (x > 30.05) & (x < 31.45)
+    plunge = cut & (np.abs(x - 30.0) < 1e-9) & (z < -0.05) & (z > -1.05)
+    flat = cut & (x > 35.0) & (x < 44.0)
+    assert ramp.sum() >= 3 and plunge.any() and flat.sum() >= 10
+    assert chip[flat] == pytest.approx(0.2, rel=1e-9)
+    assert chip[ramp] == pytest.approx(0.2 * math.cos(math.pi / 4), rel=1e-6)
+    assert chip[plunge] == pytest.approx(0.0, abs=1e-12)
+    tq, shear = plan["torque_avg_nm"], plan["torque_avg_shear_nm"]
+    assert shear[plunge] == pytest.approx(0.0, abs=1e-12)
+    assert tq[plunge] == pytest.approx(tq[plunge] - shear[plunge], abs=1e-12)

@@ -5,10 +5,13 @@ A short program on the demo stock (Al7050, 100 × 80 × 30 mm; Ø20 mm 2-flute, 
 400 mm/min, the conditions of seed 000 V7–V9): a channel along Y (the cavity), then a slot
 along X with an entry, a step-down from 1.5 to 3.5 mm, the crossing of the cavity and the exit
 of the part. Flute 0 of the virtual tool breaks late in the program, at 20 s of each run
-(:data:`BREAK_S`): the controlled run, slower at its entries (decision 1626), is then in the
-deep slot before the cavity; the open run is at the cavity, so its monitor sees the broken
-tooth only where the tool meets the far wall again. The summary gives the peak force while the
-tool is intact (the controller's effect) apart from the peak with the broken tooth. The
+(:data:`BREAK_S`): the open run is then in the deep slot (X ≈ 38 mm), alarmed within about 3
+tooth periods; the controlled run, slower at its entries (decision 1626), is at the end of the
+shallow slot, 0.04 s before the steep step-down ramp (N65), a light cut the breakage monitor
+does not judge (decision 1622), and the alarm comes in the deep slot after it (decision 1674
+judges drops in the plan's transients where the load is heavy enough). The summary gives the
+peak force while the tool is intact (the controller's effect) apart from the peak with the
+broken tooth. The
 virtual machine (the simulator's truth of the quaser-ux600) runs the program twice with the
 same on-line session (:mod:`millsense.online.session`: the spindle observer of the commissioned
 machine file, plan sync and K_tc calibration, chatter and breakage monitors, adaptive feed on
@@ -69,7 +72,7 @@ N85 M30
 %
 """
 MACHINE = "quaser-ux600"
-#: Flute 0 breaks at this time of the controlled run, s (the tool in the cavity).
+#: Flute 0 breaks at this time of each run, s (module notes: where each run is then).
 BREAK_S = 20.0
 #: Source channels kept in the recording (the rest of the CNC's and the truth are not needed).
 KEEP = (

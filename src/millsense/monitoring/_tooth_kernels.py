@@ -34,7 +34,8 @@ SEG_SUM0 = 3  # sums of channel 0, channel 1, expected torque in the current per
 SEG_SUM1 = 4
 SEG_SUME = 5
 SEG_SUMG = 6  # sum of the enable (gate) channel in the current period
-SEG_SIZE = 7
+SEG_SUMF = 7  # sum of the plan's transient floor in the current period (decision 1674)
+SEG_SIZE = 8
 
 
 @numba.njit(cache=True)
@@ -43,6 +44,7 @@ def segment_periods(
     b: FloatArray,
     expected: FloatArray,
     gate: FloatArray,
+    floor: FloatArray,
     speed: FloatArray,
     fs: float,
     n_flutes: int,
@@ -51,12 +53,14 @@ def segment_periods(
     out_mean1: FloatArray,
     out_mean_e: FloatArray,
     out_mean_g: FloatArray,
+    out_mean_f: FloatArray,
     out_end: IntArray,
     out_index: IntArray,
     held: IntArray,
 ) -> int:
-    """Average ``a`` (and ``b``, ``expected``, the 1/0 ``gate`` when non-empty; the gate's
-    mean is 1 without one) over complete tooth periods.
+    """Average ``a`` (and ``b``, ``expected``, the 1/0 ``gate``, the plan's transient
+    ``floor`` when non-empty; the gate's mean is 1 without one, the floor's 0) over complete
+    tooth periods.
 
     ``out_*`` are sized ≥ the number of periods that can end in the chunk; ``out_end`` is the
     chunk sample at which each period is reported, ``out_index`` its index since the stream
@@ -67,6 +71,7 @@ def segment_periods(
     has_b = b.shape[0] == n
     has_e = expected.shape[0] == n
     has_g = gate.shape[0] == n
+    has_f = floor.shape[0] == n
     scale = n_flutes / (2.0 * math.pi * fs)
     phase = state[SEG_PHASE]
     idx = state[SEG_INDEX]
@@ -75,6 +80,7 @@ def segment_periods(
     s1 = state[SEG_SUM1]
     se = state[SEG_SUME]
     sg = state[SEG_SUMG]
+    sf = state[SEG_SUMF]
     m = 0
     for k in range(n):
         phase += abs(speed[k]) * scale
@@ -84,6 +90,7 @@ def segment_periods(
             out_mean1[m] = s1 / cnt if has_b else 0.0
             out_mean_e[m] = se / cnt if has_e else 0.0
             out_mean_g[m] = sg / cnt if has_g else 1.0
+            out_mean_f[m] = sf / cnt if has_f else 0.0
             out_end[m] = k
             out_index[m] = int(idx)
             m += 1
@@ -93,6 +100,7 @@ def segment_periods(
             s1 = 0.0
             se = 0.0
             sg = 0.0
+            sf = 0.0
         if phase >= 1.0:
             phase -= math.floor(phase)
         cnt += 1.0
@@ -103,6 +111,8 @@ def segment_periods(
             se += expected[k]
         if has_g:
             sg += 1.0 if gate[k] > 0.5 else 0.0
+        if has_f:
+            sf += floor[k]
         held[k] = m
     state[SEG_PHASE] = phase
     state[SEG_INDEX] = idx
@@ -111,6 +121,7 @@ def segment_periods(
     state[SEG_SUM1] = s1
     state[SEG_SUME] = se
     state[SEG_SUMG] = sg
+    state[SEG_SUMF] = sf
     return m
 
 
@@ -129,8 +140,9 @@ def segment_group(
     counts: IntArray,
 ) -> int:
     """:func:`segment_periods` for several detectors on one speed channel in one call:
-    detector ``j`` averages the rows ``rows[j] = (a, b, expected, gate)`` of ``x`` (−1: none)
-    with its state ``state[j]`` into ``means[j, 0:3]`` and ``means[j, PP_GATE]``, ``ends[j]``,
+    detector ``j`` averages the rows ``rows[j] = (a, b, expected, gate, floor)`` of ``x`` (−1:
+    none) with its state ``state[j]`` into ``means[j, 0:3]``, ``means[j, PP_GATE]`` and
+    ``means[j, PP_FLOOR]``, ``ends[j]``,
     ``held[j]``; ``counts[j]`` ← its periods completed. Returns the largest count."""
     empty = x[0, :0]
     top = 0
@@ -139,9 +151,10 @@ def segment_group(
         b = x[rows[j, 1]] if rows[j, 1] >= 0 else empty
         e = x[rows[j, 2]] if rows[j, 2] >= 0 else empty
         g = x[rows[j, 3]] if rows[j, 3] >= 0 else empty
-        k = segment_periods(a, b, e, g, speed, fs, n_flutes, state[j], means[j, 0],
-                            means[j, 1], means[j, 2], means[j, PP_GATE], ends[j, 0], ends[j, 1],
-                            held[j])  # fmt: skip
+        f = x[rows[j, 4]] if rows[j, 4] >= 0 else empty
+        k = segment_periods(a, b, e, g, f, speed, fs, n_flutes, state[j], means[j, 0],
+                            means[j, 1], means[j, 2], means[j, PP_GATE], means[j, PP_FLOOR],
+                            ends[j, 0], ends[j, 1], held[j])  # fmt: skip
         counts[j] = k
         top = max(top, k)
     return top
@@ -178,9 +191,11 @@ NOISE_MIN = 16
 NOISE_SCALE = SIGMA_PER_MEDIAN_ABS_DIFF
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
-#: 7 limit2, 8 band, 9 the gate's mean) and of a detector's outputs (rows 3 … 8).
-PP_ROWS = 10
+#: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean) and of a
+#: detector's outputs (rows 3 … 8).
+PP_ROWS = 11
 PP_GATE = 9
+PP_FLOOR = 10
 OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
@@ -235,6 +250,10 @@ def detect_periods(
     constant modes a run starts when the residual and the torque both violate σ_TB·τ_ref and
     continues while the torque does (``check_deviation``), else while the residual does.
     ``expected`` is overwritten with the reference used (τ_sim, or the constant τ_ref).
+    In the virtual mode a period with a positive mean ``floor`` (row 10; samples in the plan's
+    transients, where the plan gives the lowest torque over its timing window) is judged
+    one-sided against expected + floor, the lower bound of its samples: only a drop below it
+    by the band violates (decision 1674).
 
     The torque's band (decision 1550) is max(σ_TB·τ_ref, k_noise·σ̂) (row 8): σ̂, the standard
     deviation of a tooth-period average, is estimated from the median |Δ_N x| of the last
@@ -244,7 +263,8 @@ def detect_periods(
     window holds NOISE_MIN periods (decision 1553).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
-    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band (columns :k); ``pb``
+    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
+    (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
     learn_from, k_noise); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
     """
@@ -263,6 +283,7 @@ def detect_periods(
     viol = pb[0]
     alarm = pb[1]
     gate = pp[PP_GATE]
+    floor = pp[PP_FLOOR]
     for m in range(k):
         if gate[m] < 1.0:
             # a period with a sample where the gate is off (the spindle not at speed: the
@@ -328,6 +349,7 @@ def detect_periods(
         state[DET_LEARN] = learn
         ready = learn >= learn_periods
         band_out[m] = math.nan
+        below = False  # judged one-sided, against the plan's transient floor (decision 1674)
         if mode == MODE_DUAL:
             lim1[m] = state[DET_THR1] if ready else math.nan
             lim2[m] = state[DET_THR2] if ready else math.nan
@@ -335,6 +357,11 @@ def detect_periods(
         else:
             if mode == MODE_VIRTUAL:
                 ex = expected[m]
+                if floor[m] > 0.0:
+                    # a period in the plan's transient: its samples' lower bound (the floor
+                    # there, the expected torque where steady) judges a drop only
+                    ex += floor[m]
+                    below = True
                 judge = ex >= min_expected and seen >= 2
             else:
                 ex = reference if reference > 0 else state[DET_REF]
@@ -354,7 +381,7 @@ def detect_periods(
                     band = max(limit, k_noise * sigma)
                 band_out[m] = band
                 v_res = abs(e1) > limit
-                v_tq = abs(xm - ex) > band
+                v_tq = (ex - xm if below else abs(xm - ex)) > band
                 if check_deviation:
                     # trigger on the residual, confirm on the torque itself (Aslan §6.3); after
                     # periods not judged the change may lie in the gap, where the residual saw
@@ -363,7 +390,9 @@ def detect_periods(
                     v = (v_res and v_tq) if run == 0 and not gap else v_tq
                 else:
                     v = v_res
-                state[DET_GAP] = 0.0
+                # a one-sided period leaves a rise unjudged, which the residual's AR(1) may
+                # learn (a broken flute's alternation): it counts as a gap (decision 1674)
+                state[DET_GAP] = 1.0 if below else 0.0
             elif seen >= 2:
                 state[DET_GAP] = 1.0
         expected[m] = ex if mode != MODE_DUAL else 0.0

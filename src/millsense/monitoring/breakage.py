@@ -134,6 +134,10 @@ class BreakageBlock(Block):
     enable_channel : optional 1/0 channel (e.g. ``spindle/at_speed``): a tooth period with a
         sample where it is 0 is not judged and restarts the differences (a spindle run-up or
         speed change, whose observer torque holds the acceleration torque; decision 1550).
+    floor_channel : optional per-sample lower bound of the expected torque where the plan is in
+        a transient and ``expected_channel`` reads 0 (``virtual``; the session's
+        ``plan/torque_floor``): a tooth period with samples there is judged one-sided, a drop
+        below the floor by the band (decision 1674).
     name : block name (channel prefix and event source).
     """
 
@@ -159,6 +163,7 @@ class BreakageBlock(Block):
         noise_k: float = NOISE_K,
         enable_channel: str | None = None,
         phase_offset: float = 0.0,
+        floor_channel: str | None = None,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -192,6 +197,7 @@ class BreakageBlock(Block):
         self.signal_channels = tuple(signal_channels)
         self.speed_channel = speed_channel
         self.expected_channel = expected_channel if method == "virtual" else None
+        self.floor_channel = floor_channel if method == "virtual" else None
         self.plan = plan
         self.tcp_channels = tcp_channels
         self.sigma_tb = float(sigma_tb)
@@ -230,6 +236,8 @@ class BreakageBlock(Block):
             ins.append(self.expected_channel)
         if enable_channel is not None:
             ins.append(enable_channel)
+        if self.floor_channel is not None:
+            ins.append(self.floor_channel)
         if self.plan is not None:
             ins.extend(tcp_channels)
         self.inputs = tuple(ins)
@@ -295,14 +303,15 @@ class BreakageBlock(Block):
         self._pp = np.empty((_k.PP_ROWS, 0))
         self._pi = np.empty((2, 0), dtype=np.int64)
         self._pb = np.empty((2, 0), dtype=np.bool_)
-        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE], self._pi[0],
-                      self._pi[1])  # fmt: skip
+        self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
+                      self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
         self._hbuf = np.empty(0, dtype=np.int64)
         self._n_last = -1
         self._ch_a = self.signal_channels[0]
         self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
         self._ch_e = self.expected_channel
         self._ch_g = self.enable_channel
+        self._ch_f = self.floor_channel
         self._held_views: HeldViews | None = None
         compile_kernels()
 
@@ -330,14 +339,15 @@ class BreakageBlock(Block):
         speed = np.asarray(d[self.speed_channel], dtype=np.float64)
         e = self._empty if self._ch_e is None else np.asarray(d[self._ch_e], dtype=np.float64)
         g = self._empty if self._ch_g is None else np.asarray(d[self._ch_g], dtype=np.float64)
+        f = self._empty if self._ch_f is None else np.asarray(d[self._ch_f], dtype=np.float64)
         if n != self._n_last:
             self._size(n)
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r0, r1, r2, rg, r3, r4 = self._bufs
+        r0, r1, r2, rg, rf, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band,
-        # 9 the gate's mean
-        k: int = _k.segment_periods(a, b, e, g, speed, self.fs, self.n_flutes, self._seg, r0,
-                                    r1, r2, rg, r3, r4, held)  # fmt: skip
+        # 9 the gate's mean, 10 the floor's mean
+        k: int = _k.segment_periods(a, b, e, g, f, speed, self.fs, self.n_flutes, self._seg, r0,
+                                    r1, r2, rg, rf, r3, r4, held)  # fmt: skip
         return k, n
 
     def _periods(self, chunk: Chunk, k: int, n: int) -> BlockOutput:
@@ -345,7 +355,7 @@ class BreakageBlock(Block):
         (after :meth:`_segment`): residuals, limits and detection per period (Eqs. 6.2–6.6)."""
         d = chunk.data
         held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r4 = self._bufs[5]
+        r4 = self._bufs[6]
         self._held_views = None
         pp, pi, pb = self._pp, self._pi, self._pb
         values = np.empty((_k.OUT_ROWS, n))
@@ -378,7 +388,8 @@ class BreakageBlock(Block):
             if alarm[i]:
                 at, period = int(end[i]), int(index[i])
                 values = (x[i], expected[i], eps1[i], lim1[i], eps2[i], lim2[i], band[i])
-                events.append(self._event(chunk, at, period, first, *values))
+                below = bool(pp[_k.PP_FLOOR, i] > 0.0)
+                events.append(self._event(chunk, at, period, first, *values, below=below))
         return events
 
     def _size(self, n: int) -> None:
@@ -389,7 +400,7 @@ class BreakageBlock(Block):
             self._pi = np.empty((2, 2 * cap), dtype=np.int64)
             self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
             self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
-                          self._pi[0], self._pi[1])  # fmt: skip
+                          self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
         if self._hbuf.shape[0] < n:
             self._hbuf = np.empty(n, dtype=np.int64)
         self._n_last = n
@@ -421,6 +432,7 @@ class BreakageBlock(Block):
         e2: float,
         l2: float,
         band: float,
+        below: bool = False,
     ) -> Event:
         sample = chunk.start + at
         t = chunk.t0_s + sample / chunk.sample_rate_hz
@@ -451,12 +463,15 @@ class BreakageBlock(Block):
                         f"{abs(e2):.3g} > {l2:.3g} {u}")  # fmt: skip
         else:
             ref = "expected" if self.method == "virtual" else "reference"
+            sign, side = ("-", "below") if below else ("±", "outside")
+            if below:  # the plan's transient: its lowest torque over the timing window
+                ref = "expected at least (the plan's transient)"
             if band > self.sigma_tb * expected * (1 + 1e-9):  # the noise floor (decision 1550)
-                width = (f"±{band:.3g} {u}, {self.noise_k:g}σ of the tooth average's noise, "
-                         f"wider than ±{100 * self.sigma_tb:.0f} %")  # fmt: skip
+                width = (f"{sign}{band:.3g} {u}, {self.noise_k:g}σ of the tooth average's noise, "
+                         f"wider than {sign}{100 * self.sigma_tb:.0f} %")  # fmt: skip
             else:
-                width = f"±{100 * self.sigma_tb:.0f} %"
-            message += (f": tooth average {x:.3g} {u} against {expected:.3g} {ref} (outside "
+                width = f"{sign}{100 * self.sigma_tb:.0f} %"
+            message += (f": tooth average {x:.3g} {u} against {expected:.3g} {ref} ({side} "
                         f"{width}) since period {first}")  # fmt: skip
         nc_line = x_mm = y_mm = z_mm = None
         if self.plan is not None:
@@ -574,7 +589,7 @@ class BreakageGroup(Block):
         for j, m in enumerate(ms):
             pp, pi = self._pp[j], self._pi[j]
             m._pp, m._pi, m._pb, m._hbuf = pp, pi, self._pb[j], self._hb[j]
-            m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pi[0], pi[1])
+            m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
         self._counts = np.zeros(len(ms), dtype=np.int64)
         self._n = n
@@ -641,18 +656,22 @@ def compile_kernels() -> None:
     two = BreakageBlock(2, "dual", signal_channels=("a", "b"), speed_channel="s",
                         expected_channel="e", name="warm-up")  # fmt: skip
     group = BreakageGroup([BreakageBlock(2, "virtual", signal_channels=("a",), speed_channel="s",
-                                         expected_channel="e", name=f"warm-up-{j}")
+                                         expected_channel="e", floor_channel="e",
+                                         name=f"warm-up-{j}")
                            for j in range(2)])  # fmt: skip
     for block in (two, group):
         block.reset(fs)
         block.process(Chunk(0, fs, 0.0, data))
 
 
-def _averaged(m: BreakageBlock) -> tuple[str, str | None, str | None, str | None]:
-    """The channels a detector averages per tooth period: (a, b, expected, gate), None where
-    it has none (as :meth:`BreakageBlock._segment` reads them)."""
+def _averaged(
+    m: BreakageBlock,
+) -> tuple[str, str | None, str | None, str | None, str | None]:
+    """The channels a detector averages per tooth period: (a, b, expected, gate, floor),
+    None where it has none (as :meth:`BreakageBlock._segment` reads them)."""
     sig = m.signal_channels
-    return sig[0], sig[1] if len(sig) == 2 else None, m.expected_channel, m.enable_channel
+    b = sig[1] if len(sig) == 2 else None
+    return sig[0], b, m.expected_channel, m.enable_channel, m.floor_channel
 
 
 def check_speed(speed_rad_s: np.ndarray, channel: str) -> None:

@@ -160,6 +160,9 @@ BREAKAGE_GATE = "monitor/breakage_gate"
 #: A session recording's expected torque where the calibrated plan judges the tool (steady
 #: rows, spindle at speed; decisions 1622, 1550): the virtual threshold's reference.
 SESSION_EXPECTED = "plan/judged_torque"
+#: A session recording's lowest expected torque across the plan's transients in the material:
+#: the virtual threshold judges a drop below it there (decision 1674).
+SESSION_FLOOR = "plan/torque_floor"
 
 
 def _breakage_factory(method: str) -> Factory:
@@ -206,8 +209,11 @@ def _breakage_factory(method: str) -> Factory:
             name=name,
         )
         if method == "virtual":  # at several phases of the tooth period (decision 1552)
+            floor = SESSION_FLOOR if expected == SESSION_EXPECTED else None
+            if floor not in ctx.channels:  # a recording of a session before decision 1674
+                floor = None
             return PhasedBreakage(ctx.n_flutes, method="virtual", expected_channel=expected,
-                                  **options)  # fmt: skip
+                                  floor_channel=floor, **options)  # fmt: skip
         return BreakageBlock(ctx.n_flutes, method=method, **options)  # type: ignore[arg-type]
 
     return make

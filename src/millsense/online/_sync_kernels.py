@@ -142,6 +142,8 @@ def plan_rows_kernel(
     nc_table: NDArray[np.int64],
     steady_table: NDArray[np.bool_],
     depth_table: NDArray[np.float64],
+    floor_edge_table: NDArray[np.float64],
+    floor_shear_table: NDArray[np.float64],
     rows: NDArray[np.int64],
     values: NDArray[np.float64],
     in_cut: NDArray[np.bool_],
@@ -152,8 +154,9 @@ def plan_rows_kernel(
 
     ``matched[i]`` is the row matched at sample ``at[i]`` (−1: none); a sample takes the last
     match at or before it, else ``row`` (the previous chunk's). Row −1 reads the tables' last
-    entry ("no row yet"). ``values`` (≥ 6, n): rows 0–5 = [row, NC line, in cut, edge torque,
-    shear torque × ``u``, axial depth].
+    entry ("no row yet"). ``values`` (≥ 10, n): rows 0–5 = [row, NC line, in cut, edge torque,
+    shear torque × ``u``, axial depth], rows 8–9 = the transient floor's edge and shear × ``u``
+    parts (decision 1674).
     """
     n = rows.shape[0]
     hold = np.full(n, -1, dtype=np.int64)
@@ -174,26 +177,32 @@ def plan_rows_kernel(
         values[3, k] = edge_table[r]
         values[4, k] = shear_table[r] * u[k]
         values[5, k] = depth_table[r]
+        values[8, k] = floor_edge_table[r]
+        values[9, k] = floor_shear_table[r] * u[k]
 
 
 @numba.njit(cache=True)
 def expected_kernel(
     edge: NDArray[np.float64],
     shear: NDArray[np.float64],
+    floor_edge: NDArray[np.float64],
+    floor_shear: NDArray[np.float64],
     scale: NDArray[np.float64],
     steady: NDArray[np.bool_],
     ready_from: int,
     gate: NDArray[np.float64],
     expected: NDArray[np.float64],
     judged: NDArray[np.float64],
+    floor: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """``expected = edge + scale·shear``; ``judged`` the same where the plan is steady from
     sample ``ready_from`` on and the spindle ``gate`` (1/0 per sample; empty: none) is not
-    below 0.5, else 0."""
+    below 0.5, else 0; ``floor = floor_edge + scale·floor_shear`` where the plan is not steady
+    under the same conditions, else 0 (decision 1674)."""
     gated = gate.shape[0] > 0
     for k in range(edge.shape[0]):
         e = edge[k] + scale[k] * shear[k]
         expected[k] = e
-        judged[k] = e if steady[k] and k >= ready_from else 0.0
-        if gated and gate[k] < 0.5:
-            judged[k] = 0.0
+        ok = k >= ready_from and not (gated and gate[k] < 0.5)
+        judged[k] = e if steady[k] and ok else 0.0
+        floor[k] = floor_edge[k] + scale[k] * floor_shear[k] if ok and not steady[k] else 0.0

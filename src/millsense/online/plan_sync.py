@@ -18,7 +18,9 @@ C16: 10; the first ``settle_revs`` skipped) the mean measured torque T̄ gives
 s = (T̄ − T̄_edge)/T̄_shear (:mod:`millsense.plan.calibration`, decision 0064). The breakage
 monitor's virtual threshold (seed 000 §2.9: 40 % of the expected torque) reads T_exp where the
 plan is steady and 0 (not judged) in its transients — entries, steps, ramps, exits
-(:func:`steady_rows`, decision 1622) — as ``judged_torque``.
+(:func:`steady_rows`, decision 1622) — as ``judged_torque``; in the transients
+``torque_floor`` gives the lowest torque the plan expects over the same window (0 where that
+window reaches air), against which the monitor judges a drop (decision 1674).
 
 :class:`TcpFromAxes` gives the tool-centre point from the axis position commands by the
 machine's forward kinematics (a CNC's TCP), for machines whose axes are not the part frame.
@@ -58,6 +60,28 @@ MIN_CALIBRATION = 0.3
 _NO_GATE = np.empty(0)
 
 
+def _window_rows(plan: VirtualPlan, revs: float, max_override: float) -> int:
+    """Rows travelled in ``revs`` revolutions (≥ 1) at up to ``max_override`` of the programmed
+    feed, the largest over the plan's cutting rows."""
+    step = float(plan.metadata.get("step_mm", 0.4))
+    feed = np.asarray(plan["feed_mm_min"], dtype=np.float64)
+    rpm = np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64))
+    cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
+    travel = np.where(cut & (rpm > 0), feed / np.maximum(rpm, 1e-9), 0.0) * revs * max_override
+    w = int(np.ceil(np.nanmax(travel, initial=0.0) / step)) if feed.size else 0
+    return max(w, 1)
+
+
+def _window_extremes(values: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest of ``values`` over rows ±``w`` (the ends repeated beyond the plan)."""
+    n = values.size
+    pad = np.concatenate(
+        [np.full(w, values[0] if n else 0.0), values, np.full(w, values[-1] if n else 0.0)]
+    )
+    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * w + 1)
+    return win.min(axis=1), win.max(axis=1)
+
+
 def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np.ndarray:
     """Rows whose predicted mean torque varies by at most 20 % of its largest value over the
     rows travelled in ``revs`` revolutions either side (at up to ``max_override`` of the
@@ -65,19 +89,29 @@ def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np
     and the plan's may disagree by their timing alone, so a breakage threshold would judge the
     plan's timing, not the tool (decision 1622)."""
     tq = np.nan_to_num(np.asarray(plan["torque_avg_nm"], dtype=np.float64))
-    step = float(plan.metadata.get("step_mm", 0.4))
-    feed = np.asarray(plan["feed_mm_min"], dtype=np.float64)
-    rpm = np.abs(np.asarray(plan["spindle_rpm"], dtype=np.float64))
-    cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
-    travel = np.where(cut & (rpm > 0), feed / np.maximum(rpm, 1e-9), 0.0) * revs * max_override
-    w = int(np.ceil(np.nanmax(travel, initial=0.0) / step)) if tq.size else 0
-    w = max(w, 1)
-    n = tq.size
-    pad_hi = np.concatenate([np.full(w, tq[0] if n else 0.0), tq, np.full(w, tq[-1] if n else 0.0)])
-    win = np.lib.stride_tricks.sliding_window_view(pad_hi, 2 * w + 1)
-    hi = win.max(axis=1)
-    lo = win.min(axis=1)
+    lo, hi = _window_extremes(tq, _window_rows(plan, revs, max_override))
     return np.asarray(hi - lo <= 0.2 * np.maximum(hi, 1e-12), dtype=bool)
+
+
+def transient_floor(
+    plan: VirtualPlan, revs: float, max_override: float = 1.5
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per row, the lowest edge and shear parts of the plan's mean torque over the window of
+    :func:`steady_rows` (each part's own lowest: their sum is at most the lowest torque there),
+    0 where the row is steady (decision 1674). Where the window reaches air the floor is 0: an
+    entry or an exit is judged by nothing; across a step, a ramp or a cavity wall with the
+    tool in the material throughout, a tooth period far below the lower level is a lost flute
+    whatever the plan's timing."""
+    tq = np.nan_to_num(np.asarray(plan["torque_avg_nm"], dtype=np.float64))
+    sh = np.nan_to_num(np.asarray(plan["torque_avg_shear_nm"], dtype=np.float64))
+    cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
+    w = _window_rows(plan, revs, max_override)
+    steady = steady_rows(plan, revs, max_override)
+    floors = []
+    for part in (np.where(cut, tq - sh, 0.0), np.where(cut, sh, 0.0)):
+        lo, _ = _window_extremes(part, w)
+        floors.append(np.where(steady, 0.0, np.maximum(lo, 0.0)))
+    return floors[0], floors[1]
 
 
 class TcpFromAxes(Block):
@@ -174,6 +208,9 @@ class PlanSync(Block):
         self._edge = np.append(np.nan_to_num(tq - sh), 0.0)
         self._in_cut = np.append(np.asarray(plan["in_cut"], dtype=bool), False)
         self._steady = np.append(steady_rows(plan, transient_revs), False)
+        floor_edge, floor_shear = transient_floor(plan, transient_revs)
+        self._floor_edge = np.append(floor_edge, 0.0)
+        self._floor_shear = np.append(floor_shear, 0.0)
         depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
         self._depth = np.append(depth, 0.0)
         #: only revolutions whose expected torque is at least this are calibrated on: at a
@@ -198,6 +235,10 @@ class PlanSync(Block):
             ChannelInfo(f"{n}/expected_torque", "N*m", "expected mean cutting torque (calibrated)"),
             ChannelInfo(
                 f"{n}/judged_torque", "N*m", "expected torque where the plan is steady, else 0"
+            ),
+            ChannelInfo(
+                f"{n}/torque_floor", "N*m", "lowest expected torque over a transient of the "
+                "plan in the material (a drop below it is judged), else 0"
             ),
             ChannelInfo(f"{n}/ktc_scale", "1", "K_tc calibration ratio (1 until calibrated)"),
             ChannelInfo(f"{n}/axial_depth", "m", "axial depth of cut of the matched row"),
@@ -245,12 +286,12 @@ class PlanSync(Block):
         # reads the per-row tables there (row −1: their last entry, "no row yet"); one
         # compiled loop (decision 1653)
         rows = np.empty(n, dtype=np.int64)
-        values = np.empty((8, n))
+        values = np.empty((11, n))
         flags = np.empty((2, n), dtype=bool)
         in_cut, steady = flags[0], flags[1]
         plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
-                         self._nc, self._steady, self._depth, rows, values, in_cut,
-                         steady)  # fmt: skip
+                         self._nc, self._steady, self._depth, self._floor_edge,
+                         self._floor_shear, rows, values, in_cut, steady)  # fmt: skip
         if n and rows[-1] >= 0:
             self.row = int(rows[-1])
         in_cut_f, edge, shear = values[2], values[3], values[4]
@@ -281,13 +322,14 @@ class PlanSync(Block):
         ready_from = 0
         if self.torque_channel is not None:
             ready_from = max(k_cal, 0) if self.calibrated else n
-        expected, judged = values[6], values[7]
+        expected, judged, floor = values[6], values[7], values[10]
         gate = (
             np.ascontiguousarray(d[self.at_speed_channel], dtype=np.float64)
             if self.at_speed_channel is not None
             else _NO_GATE
         )
-        expected_kernel(edge, shear, scale, steady, ready_from, gate, expected, judged)
+        expected_kernel(edge, shear, values[8], values[9], scale, steady, ready_from, gate,
+                        expected, judged, floor)  # fmt: skip
         name = self.name
         return BlockOutput(
             {
@@ -296,6 +338,7 @@ class PlanSync(Block):
                 f"{name}/in_cut": in_cut_f,
                 f"{name}/expected_torque": expected,
                 f"{name}/judged_torque": judged,
+                f"{name}/torque_floor": floor,
                 f"{name}/ktc_scale": scale,
                 f"{name}/axial_depth": values[5],
                 **extra,

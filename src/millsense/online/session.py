@@ -197,6 +197,8 @@ def session_blocks(
                 method="virtual",
                 signal_channels=(CUTTING_TORQUE,),
                 expected_channel="plan/judged_torque",
+                # a drop below the plan's lowest torque across its transients (decision 1674)
+                floor_channel="plan/torque_floor",
                 min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),
                 # a tooth period with a sample off the gate is not judged (decision 1559)
                 enable_channel="spindle/at_speed",

@@ -614,6 +614,23 @@ def _next_motion_directions(sp: SampledPath) -> NDArray[np.float64]:
     return d
 
 
+def _across_axis(tangent: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Fraction of the feed across the tool axis at each step, |t_xy|/|t| of the tangent of the
+    move the step lies on (decision 1673; not the chord to the next step, which at a corner
+    mixes two moves: the last step of a slot before a retract would lose its chip).
+
+    The peripheral flutes cut a chip of the feed per tooth across the tool axis (the force
+    model, :mod:`millsense.process.forces`, and the virtual machine's process, which takes the
+    tool-centre speed across the axis): on a ramp the feed along the axis is cut by the end
+    face, which neither model represents (:mod:`millsense.plan.cwe`: material below the tool
+    tip is not represented). A plunge (no XY part) cuts no peripheral chip; a ramp of angle α
+    a chip of cos α of the feed per tooth. The tool axis is the part's z, as in the engagement
+    (:mod:`millsense.plan.cwe`)."""
+    norm = np.linalg.norm(tangent, axis=1)
+    xy = np.hypot(tangent[:, 0], tangent[:, 1])
+    return np.where(norm > 0, xy / np.where(norm > 0, norm, 1.0), 1.0)
+
+
 def _clear_axial_retracts(sp: SampledPath, eng: EngagementResult) -> None:
     """No engagement at a step whose next motion is along the tool axis, upwards (a retract
     out of a pocket or slot; decision 1544).
@@ -716,9 +733,11 @@ def plan_program(
     _clear_axial_retracts(sp, eng)
     _check_cutting_states(sp, eng, program.source)
     omega = np.where(sp.spindle_dir != 0, sp.spindle_speed, 0.0)
+    # the flutes' chip comes from the feed across the tool axis (decision 1673)
     pred = predict_states(
-        eng, coeffs, sp.feed, omega, active=~sp.rapid, angles_per_rev=angles_per_rev
-    )
+        eng, coeffs, sp.feed * _across_axis(sp.tangent), omega, active=~sp.rapid,
+        angles_per_rev=angles_per_rev,
+    )  # fmt: skip
     if progress is not None:
         progress(total, total)
     entry, exit_, niv = _widest(eng)
