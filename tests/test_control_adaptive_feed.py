@@ -584,3 +584,69 @@ def test_the_gpc_move_is_bounded_by_twice_the_proportional_cut() -> None:
     blk.loop.u = 0.369
     need = 0.369 / 1.074 - 0.369
     assert blk._bounded_move(-0.169, 1.074, 0.369) == pytest.approx(2.0 * need, rel=1e-12)
+
+
+class PlanPathPlant(PlantSource):
+    """The V8 slot's plan driven in closed loop from the slot's start (X −12 mm, 2 mm of air
+    before the tool meets the block): the TCP moves along the plan's path at its programmed
+    feed × the override in force (after the latency), and where the plan has the tool in the
+    material the peak force per tooth is ``gain(t)``·u + ``edge_n`` (a light cut)."""
+
+    def __init__(self, plan, gain, edge_n: float, duration_s: float) -> None:
+        super().__init__(gain, duration_s, edge_n=edge_n)
+        self.plan = plan
+        self.s_plan = np.asarray(plan["s_mm"], dtype=np.float64) * 1e-3
+        self.v_plan = np.asarray(plan["feed_mm_min"], dtype=np.float64) / 60e3
+        self.cut_plan = np.asarray(plan["in_cut"], dtype=bool)
+        self.xyz = plan.xyz_m
+        start = self.xyz[:, 2] < -1.1e-3  # the plunge done
+        self.s = float(self.s_plan[np.argmax(start)])
+
+    @property
+    def channel_info(self) -> list[ChannelInfo]:
+        names = ["force_x", "force_y", "spindle/speed", "cnc/feed_override",
+                 "x/position_cmd", "y/position_cmd", "z/position_cmd"]  # fmt: skip
+        return [ChannelInfo(n, "", "") for n in names]
+
+    def read(self, max_samples: int) -> Chunk | None:
+        c = super().read(max_samples)
+        if c is None:
+            return None
+        u = c.data["cnc/feed_override"]
+        row = np.clip(np.searchsorted(self.s_plan, self.s, "right") - 1, 0, len(self.s_plan) - 1)
+        s = self.s + np.cumsum(u * max(self.v_plan[row], 1e-3) / FS)
+        self.s = float(s[-1])
+        rows = np.clip(np.searchsorted(self.s_plan, s, "right") - 1, 0, len(self.s_plan) - 1)
+        cut = self.cut_plan[rows]
+        data = dict(c.data)
+        for k, a in enumerate("xyz"):
+            data[f"{a}/position_cmd"] = np.interp(s, self.s_plan, self.xyz[:, k])
+        for k in ("force_x", "force_y"):
+            data[k] = np.where(cut, data[k], 0.0)
+        del data["spindle/torque_est"]
+        return Chunk(c.start, FS, 0.0, data)
+
+
+def test_a_light_cut_reading_air_at_the_reentry_feed_does_not_alternate() -> None:
+    """Decision 1675: with the plan in the material, a light cut whose peak force reads 60 N at
+    the re-entry feed (V_max/3 = 50 %: at or below seed 002's 80 N air threshold) and 90 N at
+    100 % is not an air cut. The tool meets the V8 block at 50 % (air, a cut ahead) and the
+    cut reads air until a heavier spot (2.0-2.06 s, 85 N at 50 %) shows it. Before, each air
+    reading after it restarted the re-entry: 100 % (air, the plan in cut), 50 % (re-entry 1/3),
+    100 %, 50 %, … every revolution to the end of the run (a helical entry into a pocket,
+    `millsense run`, 6.6-12.3 s). Now the re-entry completes (3 revolutions at 50 %) and the
+    regulation raises the feed of the light cut (90 N ≪ 325 N) to 150 %."""
+    from millsense.validation.cases import control_adaptive as ca
+
+    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
+    src = PlanPathPlant(plan, lambda t: 60.0 + 50.0 * ((t > 2.0) & (t < 2.06)), edge_n=30.0,
+                        duration_s=4.0)  # fmt: skip
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=ca.F_REF_V8), plan)
+    run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    after = [e for e in src.commands if e.time_s > 2.0]
+    # the spot's two revolutions were re-entries 1 and 2 at 50 % (no move); then one air
+    # reading at 50 % (100 %), the third re-entry (50 %), one more (100 %) and the regulation
+    assert [e.value for e in after] == pytest.approx([100.0, 50.0, 100.0, 150.0])
+    assert "re-entry 3/3" in after[1].message and "regulation" in after[3].message
+    assert all("the plan in cut" in e.message for e in (after[0], after[2]))
+    assert after[3].time_s < 2.5  # and no move after it: 150 % to the end (4 s)

@@ -18,7 +18,8 @@ Eq. 6.14). Around it (decisions 1611–1616, 1619):
 - seed 002's air-cut rule: peak ≤ the air threshold (80 N) → V_max (150 %); on re-entry V_max/3
   for 3 revolutions (Munasinghe per-revolution wrapper, steps 4–5); with a plan, in air with
   the cut within the look-ahead horizon (at V_max), V_max/3 already before the contact
-  (decision 1626);
+  (decision 1626); where the plan has the tool in the material an air reading is a light cut:
+  not above 100 % (decision 1663), and it does not restart the re-entry (decision 1675);
 - the virtual look-ahead of seed 000 (:meth:`~millsense.plan.virtual_plan.VirtualPlan.look_ahead`,
   0.5 s at the current override): flag 1 (engagement or chip load rising ≥ 15 %) → the plan's
   predicted peak force over the next revolutions (edge and shear parts, the shear part scaled
@@ -583,16 +584,20 @@ class AdaptiveFeedBlock(Block):
         if in_air and flag == 2 and lp.engaged:
             u, why = lp.u, "exit hold"  # leaving the cut: the air rule would speed up
         elif in_air:
-            lp.air, lp.reentry = True, 0
             # seed 002's air rule, but where the plan sees the cut resume within the horizon
             # the tool meets the material at the re-entry feed, not at V_max (decision 1626)
             u = self.u_max / 3.0 if entering else self.u_max
             why = ("air by the plan" if plan_air else "air") + (", cut ahead" if entering else "")
-            if u > 1.0 and self._plan_in_cut():
+            if not plan_air and self._plan_in_cut():
                 # the plan has the tool in the material (a plunge, the light start of an
-                # entry): the signal's air is the cut's light start, and the air rule does not
-                # go faster than programmed there (decision 1663)
-                u, why = 1.0, f"{why}, the plan in cut"
+                # entry, a light cut): the signal's air is a light cut, and the air rule does
+                # not go faster than programmed there (decision 1663); nor is it an air cut
+                # whose re-entry restarts: on a cut reading air at V_max/3 and not at the
+                # programmed feed the two alternated every revolution (decision 1675)
+                if u > 1.0:
+                    u, why = 1.0, f"{why}, the plan in cut"
+            else:
+                lp.air, lp.reentry = True, 0
         elif lp.air and lp.reentry < o.reentry_revs:
             lp.engaged = True
             lp.reentry += 1
