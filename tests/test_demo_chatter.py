@@ -74,3 +74,27 @@ def test_quiet_after() -> None:
     flag[:13] = True
     assert quiet_after(flag, 5, 10.0) == pytest.approx(0.8)
     assert quiet_after(np.ones(40, dtype=bool), 0, 10.0) == float("inf")
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_demo_seed_reaches_every_part(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`millsense demo --seed S`: the on-line part's virtual machine runs seed S and the
+    chatter pass's CHATTER_SEED + S (before, both ignored the option and always ran 0 and 11).
+    The simulator is stopped at its construction, its options recorded."""
+    from millsense import demo_chatter, demo_online
+    from millsense.simulator import machine
+
+    seen: list[int] = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_init(self: object, cfg: object, job: object, proc: object, opts: object) -> None:
+        seen.append(int(opts.seed))  # type: ignore[attr-defined]
+        raise Stop
+
+    monkeypatch.setattr(machine.MachineSimulator, "__init__", fake_init)
+    for part in (demo_online, demo_chatter):  # stopped before the plan is read
+        with pytest.raises(Stop):
+            part._run(None, part._plant_plan(), True, None, None, None, seed=seed)  # type: ignore[arg-type]
+    assert seen == [seed, demo_chatter.CHATTER_SEED + seed]

@@ -47,6 +47,8 @@ SPINDLE_RPM = 4500.0
 DEPTH_MM = 1.2
 FEED_PER_TOOTH_MM = 0.1
 FLUTES = 5
+#: The virtual machine's seed of the pass (``millsense demo --seed S`` runs CHATTER_SEED + S).
+CHATTER_SEED = 11
 #: The bar's length along X, mm (the slot runs from X-30 to 30 mm past its end).
 BAR_MM = 200.0
 #: The truth's chatter flag, the measured speed and the chatter monitor's ratio, recorded.
@@ -148,10 +150,11 @@ def _plant_plan() -> Any:
 
 def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
          on_progress: Callable[[int], None] | None,
-         wrap: Callable[[Any], Any] | None = None) -> Any:  # fmt: skip
+         wrap: Callable[[Any], Any] | None = None, seed: int = 0) -> Any:  # fmt: skip
     """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
     machine cutting its own plan ``plant``; the session's result. ``wrap``: put in front of
-    the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`)."""
+    the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`); ``seed``:
+    added to the virtual machine's seed of the pass (:data:`CHATTER_SEED`)."""
     from millsense.bench.tap_test import tap_tested_case
     from millsense.core.presets import commissioned_machine
     from millsense.demo_online import _Open
@@ -173,7 +176,7 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
         # to a simulated tap test of the plant's tool (decision 1750)
         case = tap_tested_case(load_case(modes_path), modes)
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_chatter.nc", modes=modes)
-    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=11))
+    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=CHATTER_SEED + seed))
     opts = SessionOptions(adaptive=False, stability_case=case)
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts,
                            where=where, channels=sim.channel_names)  # fmt: skip
@@ -233,12 +236,13 @@ def chatter_figures(
 
 
 def run_chatter_demo(
-    out_dir: str | Path, on_progress: Callable[[float], None] | None = None
+    out_dir: str | Path, on_progress: Callable[[float], None] | None = None, seed: int = 0
 ) -> dict[str, Any]:
     """Plan the pass, run it controlled and open, compare; writes ``online_chatter.nc``,
     ``online_chatter.h5`` (the controlled run), ``online_chatter.events.parquet``,
     ``online_chatter_open.events.parquet``, ``online_chatter.png`` and
-    ``online_chatter_summary.json``, and returns that summary (the figures of both runs)."""
+    ``online_chatter_summary.json``, and returns that summary (the figures of both runs).
+    ``seed``: added to the virtual machine's seed of the pass (:data:`CHATTER_SEED`)."""
     import json
     import tempfile
 
@@ -263,7 +267,7 @@ def run_chatter_demo(
             ("open", False, Path(tmp) / "open.h5",
              out / "online_chatter_open.events.parquet", 0.5),
         ):  # fmt: skip
-            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset))
+            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset), seed=seed)
             with opened_recording(rec_path) as rec:
                 fs = rec.sample_rate_hz
                 names = set(rec.channel_names)

@@ -177,6 +177,7 @@ def _run(
     on_progress: Callable[[int], None] | None,
     wrap: Callable[[Any], Any] | None = None,
     options: Any = None,
+    seed: int = 0,
 ) -> Any:
     """One closed-loop run of the session (its plan ``plan``) on the virtual machine (cutting
     its own plan ``plant``, :func:`_plant_plan`); the session's result. ``wrap``: put in front
@@ -197,7 +198,7 @@ def _run(
     belief, where = shipped
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_demo.nc",
                                   events=[ToothBreak(BREAK_S, 0)])  # fmt: skip
-    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=0))
+    sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=seed))
     opts = options if options is not None else SessionOptions()
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts, where=where,
                            channels=sim.channel_names)  # fmt: skip
@@ -217,8 +218,10 @@ def run_online_demo(
     out_dir: str | Path,
     on_progress: Callable[[float], None] | None = None,
     validation: tuple[list[dict[str, str]], str] | None = None,
+    seed: int = 0,
 ) -> dict[str, Any]:
     """Plan, run controlled and open, compare; writes the files named in the module notes.
+    ``seed``: the virtual machine's (its noise and realism), the same for both runs.
 
     ``validation``: the recorded status of the cases of what the session runs (rows and where
     recorded, :mod:`millsense.validation.status`) for the report, or None.
@@ -242,7 +245,7 @@ def run_online_demo(
             ("controlled", True, out / "online.h5", out / "online.events.parquet", 0.0),
             ("open", False, Path(tmp) / "open.h5", out / "online_open.events.parquet", 0.5),
         ):
-            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset))
+            res = _run(plan, plant, controlled, rec_path, ev_path, progress(offset), seed=seed)
             cols = (*KEEP, "plan/cutting_torque", "supervisor/feed_override",
                     "adaptive_feed/peak", "adaptive_feed/reference")  # fmt: skip
             with opened_recording(rec_path) as rec:

@@ -15,7 +15,9 @@ from millsense.cli.progress import progress_bar
 @app.command()
 def demo(
     out: Path = typer.Option(Path("demo-output"), "-o", "--output", help="Output folder."),
-    seed: int = typer.Option(0, help="Seed of the simulated noise."),
+    seed: int = typer.Option(
+        0, help="Seed of the virtual machine (noise, realism) in every part of the demo."
+    ),
 ) -> None:
     """The two halves of millsense on the virtual machine: force from a drive's current, then
     the integrated on-line system on the demo part, with and without control.
@@ -59,18 +61,18 @@ def demo(
         f"(peak {summary.peak_truth_n:.0f} N)."
     )
     console.print(f"wrote {summary.recording}, {summary.plot}, {out / 'summary.json'}")
-    _online(out, console)
-    _chatter(out, console)
+    _online(out, console, seed)
+    _chatter(out, console, seed)
 
 
-def _online(out: Path, console: Console) -> None:
+def _online(out: Path, console: Console, seed: int) -> None:
     """Part 2: the on-line system with and without control (:mod:`millsense.demo_online`)."""
     from millsense.demo_online import run_online_demo
     from millsense.validation.status import SESSION_PREFIXES, read_status
 
     status = read_status(SESSION_PREFIXES)
     with progress_bar("on-line system: controlled, then open", 1) as update:
-        summary = run_online_demo(out, on_progress=update, validation=status)
+        summary = run_online_demo(out, on_progress=update, validation=status, seed=seed)
     table = Table(title="On-line system on the demo part (a tooth breaks at "
                   f"{summary['break_s']:g} s)")  # fmt: skip
     table.add_column("run", no_wrap=True)
@@ -88,12 +90,12 @@ def _online(out: Path, console: Console) -> None:
                   f"{out / 'online_summary.json'}")
 
 
-def _chatter(out: Path, console: Console) -> None:
+def _chatter(out: Path, console: Console, seed: int) -> None:
     """Part 3: the chatter-prone pass with and without avoidance (:mod:`millsense.demo_chatter`)."""
     from millsense.demo_chatter import run_chatter_demo
 
     with progress_bar("chatter-prone pass: controlled, then open", 1) as update:
-        summary = run_chatter_demo(out, on_progress=update)
+        summary = run_chatter_demo(out, on_progress=update, seed=seed)
     table = Table(title=f"Chatter-prone pass (Aslan T1, {summary['spindle_rpm']:.0f} rev/min, "
                   f"{summary['depth_mm']:g} mm slot, programmed feed)")  # fmt: skip
     table.add_column("run", no_wrap=True)
