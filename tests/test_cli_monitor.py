@@ -502,3 +502,55 @@ def test_monitor_engagement_summary_over_the_plans_steady_cut(
     assert int(m.group(1)) == 40
     median, se = float(m.group(2)), float(m.group(3))
     assert abs(median - 2.0) < 3 * se and median == pytest.approx(2.0, rel=0.05)
+
+
+def _session_recording(path: Path, judged: bool = True) -> Path:
+    """A session's recording (`millsense run`'s channels) of a 2-flute cut at 1000 rev/min: air
+    to 1 s, a light entry whose tooth-period torque rises from 0.05 to 0.6 N·m to 3 s (the plan
+    in cut, not steady), a steady 3 N·m cut (the plan steady from 3.2 s), flute 0 broken at
+    6.0 s (its periods 0.2 N·m, the next flute's 5.8 N·m); 0.05 N·m of noise on the tooth-period
+    average. ``judged``: with ``plan/judged_torque`` (else a recording without it)."""
+    rng = np.random.default_rng(11)
+    n = int(7.0 * FS)
+    t = np.arange(n) / FS
+    tooth = 300
+    period = np.arange(n) // tooth
+    light = np.interp(t, [1.0, 3.0], [0.05, 0.6])
+    tq = np.where(t < 1.0, 0.0, np.where(t < 3.0, light, 3.0))
+    tq = np.where(period >= 200, np.where(period % 2 == 0, 0.2, 5.8), tq)
+    tq = tq + 0.05 * np.sqrt(tooth) * rng.standard_normal(n)
+    rec = Recording(FS, 0.0, {"flutes": 2, "program": "part.nc"})
+    rec.add_channel("spindle/speed", np.full(n, 1000 * 2 * np.pi / 60), "rad/s")
+    rec.add_channel("spindle/at_speed", np.ones(n), "1")
+    rec.add_channel("plan/in_cut", (t >= 1.0).astype(np.float64), "1")
+    rec.add_channel("plan/cutting_torque", tq, "N*m")
+    if judged:
+        rec.add_channel("plan/judged_torque", np.where(t >= 3.2, 3.0, 0.0), "N*m")
+    write_recording(path, rec)
+    return path
+
+
+def test_plan_free_breakage_detectors_judge_the_plans_steady_cut(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1676: on a session's recording the dual (seed 002) and constant detectors learn
+    and judge where the plan is steady in the cut. Gated on the plan's cut alone they learnt
+    their thresholds and reference on the light entry (0.05-0.2 N·m) and alarmed where the
+    cut reached its 3 N·m (before the break at 6.0 s); gated on the steady cut each alarms once,
+    within 3 tooth periods of the break."""
+    out = tmp_path / "ev.parquet"
+    for judged in (False, True):
+        rec = _session_recording(tmp_path / f"run{judged}.h5", judged)
+        code, _stdout, err = run_cli(["monitor", str(rec), "--methods",
+                                      "breakage-dual,breakage-constant", "-o", str(out)],
+                                     capsys)  # fmt: skip
+        assert code == 0, err
+        ev = read_event_log(out)
+        early = [e for e in ev if e.time_s < 6.0]
+        if not judged:  # the recording of a session before 1622: the entry is learnt on
+            assert early
+            continue
+        assert not early
+        for src in ("breakage-dual", "breakage-constant"):
+            times = [e.time_s for e in ev if e.source == src]
+            assert len(times) == 1 and 6.0 < times[0] <= 6.0 + 3 * 0.03 + 1e-9, (src, times)

@@ -304,7 +304,12 @@ def _run(
         # the observer's estimate seen through its machine file's response (decision 1554)
         options = {**(options or {}),
                    "engagement.response": _observer_response(*observer_machine, fs)}  # fmt: skip
-    from millsense.monitoring.registry import AT_SPEED, BREAKAGE_GATE
+    from millsense.monitoring.registry import (
+        AT_SPEED,
+        BREAKAGE_GATE,
+        BREAKAGE_STEADY_GATE,
+        SESSION_EXPECTED,
+    )
 
     if (
         AT_SPEED not in channels
@@ -326,6 +331,14 @@ def _run(
 
         pre.append(AllOf((AT_SPEED, IN_CUT), BREAKAGE_GATE))  # the registry's gate
         channels[BREAKAGE_GATE] = "1"
+        if SESSION_EXPECTED in channels:
+            # the dual and constant detectors, which know no plan, learn and judge where the
+            # plan is steady in the cut: its entries, steps and ramps gave them their false
+            # alarms (decision 1676)
+            steady = AllOf((AT_SPEED, SESSION_EXPECTED), BREAKAGE_STEADY_GATE, name="steady",
+                           above=(0.5, 0.0))  # fmt: skip
+            pre.append(steady)
+            channels[BREAKAGE_STEADY_GATE] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config

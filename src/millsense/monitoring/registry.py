@@ -160,6 +160,10 @@ BREAKAGE_GATE = "monitor/breakage_gate"
 #: A session recording's expected torque where the calibrated plan judges the tool (steady
 #: rows, spindle at speed; decisions 1622, 1550): the virtual threshold's reference.
 SESSION_EXPECTED = "plan/judged_torque"
+#: ``millsense monitor``'s gate of the plan-free breakage detectors (dual, constant) on a
+#: session recording: the spindle at speed and the plan steady in the cut (``plan/judged_torque``
+#: > 0), where their thresholds and reference are learnt and the cut judged (decision 1676).
+BREAKAGE_STEADY_GATE = "monitor/breakage_steady_gate"
 #: A session recording's lowest expected torque across the plan's transients in the material:
 #: the virtual threshold judges a drop below it there (decision 1674).
 SESSION_FLOOR = "plan/torque_floor"
@@ -202,10 +206,14 @@ def _breakage_factory(method: str) -> Factory:
                     "breakage-dual without it"
                 )
             ctx.require([expected], name)
+        # the plan-free detectors judge a session's plan-steady cut only (decision 1676)
+        gates: tuple[str, ...] = (BREAKAGE_GATE, AT_SPEED)
+        if method != "virtual":
+            gates = (BREAKAGE_STEADY_GATE, *gates)
         options: dict[str, Any] = dict(
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
-            enable_channel=next((c for c in (BREAKAGE_GATE, AT_SPEED) if c in ctx.channels), None),
+            enable_channel=next((c for c in gates if c in ctx.channels), None),
             name=name,
         )
         if method == "virtual":  # at several phases of the tooth period (decision 1552)

@@ -154,25 +154,35 @@ class AirReference(Block):
 
 
 class AllOf(Block):
-    """``out`` = 1 where every one of ``channels`` is above 0.5, else 0 (e.g. the spindle at
-    speed *and* the plan's tool in the cut: where `millsense monitor` judges breakage on a
-    session's recording, decision 1550)."""
+    """``out`` = 1 where every one of ``channels`` is above its level in ``above`` (default 0.5:
+    1/0 flags), else 0 (e.g. the spindle at speed *and* the plan's tool in the cut: where
+    `millsense monitor` judges breakage on a session's recording, decision 1550)."""
 
-    def __init__(self, channels: tuple[str, ...], out: str, name: str = "all_of") -> None:
+    def __init__(
+        self,
+        channels: tuple[str, ...],
+        out: str,
+        name: str = "all_of",
+        above: tuple[float, ...] | None = None,
+    ) -> None:
         if not channels:
             raise ConfigError("all-of gate: no channel")
+        if above is not None and len(above) != len(channels):
+            raise ConfigError("all-of gate: one level per channel")
         self.inputs = tuple(channels)
+        self.above = tuple(above) if above is not None else (0.5,) * len(channels)
         self.out = out
         self.name = name
 
     def output_channels(self) -> list[ChannelInfo]:
-        return [ChannelInfo(self.out, "1", "1 where " + " and ".join(self.inputs))]
+        where = [f"{c} > {a:g}" for c, a in zip(self.inputs, self.above, strict=True)]
+        return [ChannelInfo(self.out, "1", "1 where " + " and ".join(where))]
 
     def reset(self, sample_rate_hz: float) -> None:
         pass
 
     def process(self, chunk: Chunk) -> BlockOutput:
         ok = np.ones(chunk.n, dtype=bool)
-        for c in self.inputs:
-            ok &= np.asarray(chunk.data[c]) > 0.5
+        for c, level in zip(self.inputs, self.above, strict=True):
+            ok &= np.asarray(chunk.data[c]) > level
         return BlockOutput({self.out: ok.astype(np.float64)})
