@@ -102,17 +102,20 @@ def test_conventional_speeds_up_at_the_exit(runs: dict[str, ca.LoopRun]) -> None
 
 def test_plan_events_carry_nc_line_and_position(runs: dict[str, ca.LoopRun]) -> None:
     # every override event of the look-ahead run names the NC line and the plan position; the
-    # first move near the step-down is the feed-forward: a cut of the override, a warning, on
-    # source line 7 (X25) before the tool reaches the step-down at X = 25 mm; the step-down
-    # block itself (line 8, X25.4 Z-3) is named by the moves during it
+    # first move near the step-down is the feed-forward: a cut of the override, a warning,
+    # before the tool reaches the deep slot at the end of the step-down ramp (line 8, X25.4
+    # Z-3). The ramp's rows predict a light cut (its chip is cos 79° of the feed per tooth,
+    # decision 1673), so the cut comes in the ramp, once the deep rows are within the
+    # feed-forward's revolutions of travel (before decision 1673, on line 7 before X = 25 mm)
     ev = [e for e in runs["with look-ahead"].events if e.name == "feed_override"]
     assert ev and all(e.nc_line is not None and e.x_mm is not None for e in ev)
     assert all(e.nc_line >= 1 for e in ev if e.nc_line is not None)
     step = [e for e in ev if e.x_mm is not None and 20.0 <= e.x_mm <= 26.0]
     first = step[0]
-    assert first.nc_line == 7 and first.x_mm is not None and first.x_mm < ca.STEP_X_MM
+    assert first.nc_line in (7, 8) and first.x_mm is not None
+    assert first.x_mm < ca.STEP_X_MM + 0.4
     assert first.severity == "warning" and (first.value or 0.0) < 0.8 * 136.0
-    assert any(e.nc_line == 8 for e in step)
+    assert "look-ahead ceiling" in first.message
 
 
 def _override_at_first_contact(run: ca.LoopRun) -> float:
