@@ -18,7 +18,9 @@ ramp the clamped copy reaches the level later than the true clamped ramp would, 
 intermediate pass of a ramp is at most as deep as the step (constant-Z passes are exact).
 
 Supported: absolute (G90) metric (G21) programs in the subset of
-:mod:`millsense.plan.gcode`; G91 and G20 are refused with a one-line error.
+:mod:`millsense.plan.gcode`, with its ``%`` demarcation lines (lines after the closing one
+are copied untouched); G91 and G20 are refused with a one-line error. The program is read as
+the interpreter reads it (UTF-8, else latin-1) and written back in the same encoding.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from millsense.core.errors import ConfigError, ProgramError
+from millsense.core.errors import ConfigError
 from millsense.plan.gcode_lexer import program_error, strip_block, words
 
 #: Tolerance on heights, mm.
@@ -88,8 +90,14 @@ def _parse(text: str, source: str) -> list[_Line]:
     pos = [0.0, 0.0, 0.0]
     mode = 0
     out: list[_Line] = []
+    opened = closed = False  # '%' demarcation, as the interpreter reads it
     for lineno, raw in enumerate(text.splitlines(), start=1):
-        block = strip_block(raw, source, lineno)
+        if closed:
+            block = ""  # after the closing '%': not part of the program, copied as it is
+        elif raw.strip() == "%" and (opened or not any(ln.raw.strip() for ln in out)):
+            closed, opened, block = opened, True, ""
+        else:
+            block = strip_block(raw, source, lineno)
         ws = words(block.lstrip("/"), raw, source, lineno) if block else []
         explicit = False
         for letter, num in ws:
@@ -262,13 +270,10 @@ def write_split_program(
     """Read ``program``, split its deep passes (:func:`split_deep_passes`) and write the new
     program to ``output`` atomically (never onto the input; :mod:`millsense.io.safe_output`)."""
     from millsense.io.safe_output import check_outputs, write_text
+    from millsense.plan.gcode import read_program
 
     check_outputs({"program": program}, {"output": output})
-    p = Path(program)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProgramError(f"{p}: cannot read the program ({exc.strerror})") from exc
-    res = split_deep_passes(text, max_depth_mm, top_z_mm, source=str(p))
-    write_text(output, res.text)
+    text, encoding = read_program(program)
+    res = split_deep_passes(text, max_depth_mm, top_z_mm, source=str(program))
+    write_text(output, res.text, encoding)
     return res
