@@ -673,8 +673,9 @@ def interpret(
 
 def read_program(path: str | Path) -> tuple[str, str]:
     """The text of a program file and the encoding it was read with, to write a rewritten
-    program back in it: UTF-8, else latin-1 (every byte a character, so a Windows editor's
-    cp1252 comments are kept byte for byte).
+    program back in it: UTF-8 (a byte-order mark, which Windows editors write, is not text:
+    ``utf-8-sig`` writes it back), else latin-1 (every byte a character, so a Windows
+    editor's cp1252 comments are kept byte for byte).
 
     Raises
     ------
@@ -686,8 +687,9 @@ def read_program(path: str | Path) -> tuple[str, str]:
         raw = p.read_bytes()
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read program: {exc.strerror or exc}") from exc
+    encoding = "utf-8-sig" if raw.startswith(b"\xef\xbb\xbf") else "utf-8"
     try:
-        return raw.decode("utf-8"), "utf-8"
+        return raw.decode(encoding), encoding
     except UnicodeDecodeError:
         return raw.decode("latin-1"), "latin-1"
 
