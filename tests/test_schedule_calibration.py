@@ -104,3 +104,26 @@ def test_calibration_round_trip(tmp_path: Path) -> None:
         np.testing.assert_allclose(mem[col][cut], truth[col][cut], rtol=1e-3, atol=1e-6)
     np.testing.assert_allclose(disk["torque_avg_nm"][cut], truth["torque_avg_nm"][cut], rtol=1e-3)
     np.testing.assert_allclose(disk["fres_peak_n"][cut], truth["fres_peak_n"][cut], rtol=5e-3)
+
+
+def test_scheduled_words_stay_outside_semicolon_comments(tmp_path: Path) -> None:
+    """A ';' comment runs to the end of the line: the scheduled F (and a split arc's end point
+    and centre) were appended after it, inside the comment, so the CNC ran the block at the
+    previous modal feed (above the limit) and the arc lost its end. With ';' comments on every
+    feed block the rewritten program has exactly the feeds and path of the program without
+    them (the same toolpath, move for move)."""
+    commented = "\n".join(
+        ln + " ; cut" if ln.startswith(("G1", "X", "G2", "G1 Y")) else ln
+        for ln in PROGRAM.splitlines()
+    )
+    plan = _plan(PROGRAM)
+    sched = schedule_feed(plan, 325.0, max_feed_m_s=800 / 60e3, accel_m_s2=1.0)
+    plain_out, comm_out = tmp_path / "plain.nc", tmp_path / "comm.nc"
+    write_scheduled_program(PROGRAM, interpret(PROGRAM), plan, sched, plain_out)
+    added = write_scheduled_program(commented, interpret(commented), plan, sched, comm_out)
+    assert added > 0 and comm_out.read_text().count("; cut") == commented.count("; cut")
+    a, b = interpret_file(plain_out), interpret_file(comm_out)
+    assert b.kind.size == a.kind.size
+    np.testing.assert_allclose(b.end, a.end, atol=1e-12)
+    np.testing.assert_allclose(b.feed, a.feed, rtol=1e-12)
+    assert float(np.nanmin(b.feed)) * 60e3 < 800.0  # some block slowed below the maximum

@@ -250,6 +250,16 @@ def _strip_words(line: str, letters: str) -> str:
     return re.sub(r"[ \t]+", " ", "".join(out)).rstrip()
 
 
+def _with_words(line: str, words: str) -> str:
+    """``line`` with ``words`` added to its block: before a ``;`` comment, which runs to the
+    end of the line (after it they would be comment text)."""
+    for m in _COMMENTS.finditer(line):
+        if m.group(0).startswith(";"):
+            head = line[: m.start()].rstrip()
+            return f"{head} {words} {m.group(0)}" if head else f"{words} {m.group(0)}"
+    return f"{line} {words}"
+
+
 def _splittable(text: str) -> str | None:
     """Reason a program cannot be split in place (None if it can).
 
@@ -339,7 +349,7 @@ def write_scheduled_program(
         arc_ok = single and (int(toolpath.kind[mv]) == LINE or int(toolpath.plane[mv]) == PLANE_XY)
         change = np.flatnonzero(np.diff(f) != 0) + 1
         if change.size == 0 or why is not None or not arc_ok:
-            out.append(_strip_words(raw, "F") + f" F{_fmt(float(f.min()))}")
+            out.append(_with_words(_strip_words(raw, "F"), f"F{_fmt(float(f.min()))}"))
             continue
         start = toolpath.start[mv, :3] / MM
         centre = toolpath.centre[mv] / MM
@@ -369,14 +379,14 @@ def write_scheduled_program(
             cur_feed = float(f[k])
         end = toolpath.end[mv, :3] / MM
         if is_arc:
-            tail = _MOTION.sub("", _strip_words(raw, "XYZIJKRF")).rstrip()
-            tail += f" {gcode} X{_fmt(float(end[0]))} Y{_fmt(float(end[1]))}"
+            tail = f"{gcode} X{_fmt(float(end[0]))} Y{_fmt(float(end[1]))}"
             if abs(end[2] - start[2]) > 1e-9:
                 tail += f" Z{_fmt(float(end[2]))}"
             tail += f" I{_fmt(float(centre[0] - cur[0]))} J{_fmt(float(centre[1] - cur[1]))}"
-            out.append(tail + f" F{_fmt(cur_feed)}")
+            rest = _MOTION.sub("", _strip_words(raw, "XYZIJKRF")).rstrip()
+            out.append(_with_words(rest, f"{tail} F{_fmt(cur_feed)}"))
         else:
-            out.append(_strip_words(raw, "F") + f" F{_fmt(cur_feed)}")
+            out.append(_with_words(_strip_words(raw, "F"), f"F{_fmt(cur_feed)}"))
     text = "\n".join(out) + "\n"
     p = Path(path)
     tmp = p.with_name(f".{p.name}.tmp")
