@@ -87,3 +87,25 @@ def test_schedule_writes_program(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert out.read_text().count("\n") > 80
     code, _, err = _run(["schedule", str(DEMO / "program.nc"), *_common(), "-o", str(out)], capsys)
     assert code == 2 and "exactly one" in err
+
+
+def test_schedule_keeps_a_cp1252_comment(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A program with a cp1252 comment (read as latin-1, as the interpreter reads it) came out
+    with U+FFFD in place of 'Ä' and 'Ø' (read as UTF-8 with errors replaced): the scheduled
+    program keeps the input's bytes outside the rewritten F words, and the walkthrough slot's
+    2 mm cut at 1200 mm/min above a 200 N limit is slowed (block N50 ends below F1200)."""
+    src = Path(__file__).resolve().parents[1] / "examples" / "walkthrough" / "slot.nc"
+    prog = tmp_path / "slot.nc"
+    prog.write_bytes(src.read_bytes().replace(b"(T1 D=20.", "(FRÄSER Ø20.".encode("cp1252")))
+    out = tmp_path / "opt.nc"
+    code, _, err = _run(
+        ["schedule", str(prog), *_common(), "--resolution-mm", "0.5", "--limit-force-n", "200",
+         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    lines = out.read_bytes().split(b"\n")
+    assert lines[3].startswith("(FRÄSER Ø20.".encode("cp1252"))
+    n50 = next(ln for ln in lines if ln.startswith(b"N50"))
+    feeds = [float(w[1:]) for w in n50.decode().split() if w.startswith("F")]
+    assert len(feeds) == 1 and feeds[0] < 1200.0

@@ -233,6 +233,7 @@ def schedule(
 
     from millsense.core.errors import InputDataError
     from millsense.core.units import MM, MM_PER_MIN
+    from millsense.plan.gcode import read_program
     from millsense.plan.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
 
     limits = [
@@ -282,8 +283,8 @@ def schedule(
         ) from None
     _unreachable(vp, sched, kind, float(value), findings)
     _print_warnings(findings)
-    text = Path(program).read_text(encoding="utf-8", errors="replace")
-    added = write_scheduled_program(text, toolpath, vp, sched, output)
+    text, encoding = read_program(program)
+    added = write_scheduled_program(text, toolpath, vp, sched, output, encoding=encoding)
     if plot is not None:
         from millsense.report.plan_plots import plot_plan
 

@@ -285,6 +285,7 @@ def write_scheduled_program(
     path: str | Path,
     *,
     feed_quantum_mm_min: float = 0.1,
+    encoding: str = "utf-8",
 ) -> int:
     """Write the program with scheduled F words; split long blocks where the feed changes.
 
@@ -303,6 +304,8 @@ def write_scheduled_program(
         Output file (written atomically).
     feed_quantum_mm_min : float
         F words are rounded down to this [mm/min].
+    encoding : str
+        The program's (:func:`millsense.plan.gcode.read_program`), to write it back in.
 
     Returns
     -------
@@ -391,7 +394,7 @@ def write_scheduled_program(
     p = Path(path)
     tmp = p.with_name(f".{p.name}.tmp")
     try:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_text(text, encoding=encoding)
         tmp.replace(p)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
