@@ -538,3 +538,36 @@ def test_tncscope_like_export_units_in_names_and_sample_time(tmp_path: Path) -> 
     assert rec.sample_rate_hz == pytest.approx(1000 / 3, rel=1e-9)  # from the time column
     assert rec.channel("x/position")[2] == pytest.approx(3.0e-6, rel=1e-12)
     assert rec.channel("cnc/feed")[0] == pytest.approx(0.01, rel=1e-12)  # 600 mm/min
+
+
+@pytest.mark.parametrize(
+    ("fmt", "rate_hz", "message"),
+    [
+        ("mp3", 10_000.0, "MP3 holds only the MPEG rates"),
+        ("flac", 1_000_000.0, "libsndfile cannot write"),
+    ],
+)
+def test_export_audio_at_a_rate_the_format_lacks_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, rate_hz: float, message: str
+) -> None:
+    """MP3 has the nine MPEG rates (8-48 kHz) and FLAC at most 655 350 Hz: a 10 kHz drive
+    recording to MP3 (and a 1 MHz one to FLAC) was libsndfile's traceback (exit 1), and the
+    channel-count error named the temporary file. Now exit 2, one line naming the output,
+    nothing left behind (no output, no map, no temporary file)."""
+    from millsense.core.recording import Recording
+    from millsense.io import write_recording
+
+    sf = pytest.importorskip("soundfile")
+    if fmt.upper() not in sf.available_formats():
+        pytest.skip(f"this libsndfile has no {fmt}")
+    rec = Recording(rate_hz, 0.0, {})
+    rec.add_channel("x/current", np.sin(np.arange(2000) * 0.1), "A")
+    write_recording(tmp_path / "r.h5", rec)
+    out = tmp_path / f"r.{fmt}"
+    code, _, err = run_cli(
+        ["export", str(tmp_path / "r.h5"), "--format", fmt, "-o", str(out)], capsys
+    )
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and message in err
+    assert f"{out}:" in err and ".tmp" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]
