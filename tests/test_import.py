@@ -381,6 +381,27 @@ def test_bad_time_going_backwards_refused(
     assert "bad.csv" in msg and "time does not increase at row 3" in msg
 
 
+def test_time_standing_still_refused_without_a_numpy_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A time column stuck at 0 s (a trace export whose clock did not run) was refused, but
+    numpy's "invalid value encountered in scalar divide" (0 steps / 0 s) reached the user
+    first: the refusal now returns before any rate is measured (the message names the row)."""
+    import warnings
+
+    from millsense.io.quality import QualityReport, rate_from_time
+
+    report = QualityReport()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rate_from_time(np.zeros(5), None, "stuck.csv", report)
+    assert [f.message for f in report.refusals] == [
+        "stuck.csv: time does not increase at row 2 of the table (0 s then 0 s; 4 such steps)"
+    ]
+    msg = _bad(tmp_path, capsys, "time,I\n0,1\n0,2\n0,3\n0,4\n", MAP_I)
+    assert "bad.csv: time does not increase at row 2" in msg
+
+
 # ------------------------------------------------------------------------------ workflow
 def test_estimate_on_imported_csv_with_dynamometer_reproduces_native(
     example: Path, tmp_path: Path
