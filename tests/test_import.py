@@ -368,6 +368,35 @@ def test_bad_channel_named_twice(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "channels[0]" in msg and "channels[1]" in msg
 
 
+def test_time_unit_from_the_file_when_the_map_names_the_time_column(tmp_path: Path) -> None:
+    """A map naming the time column without time_unit read a Servo Trace's ms as seconds (the
+    default "s" won over the file's units row): 1 ms steps gave 1 Hz and a 1000 times longer
+    record. The file's unit is used when the map gives none; 1 ms steps are 1000 Hz."""
+    csv = "Zeit;I\n[ms];[A]\n" + "".join(f"{k};{k % 3}\n" for k in range(50))
+    (tmp_path / "t.csv").write_text(csv)
+    (tmp_path / "m.toml").write_text('[[files]]\ntime_column = "Zeit"\n' + MAP_I)
+    rec = import_files([tmp_path / "t.csv"], load_map(tmp_path / "m.toml")).recording
+    assert rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
+    assert rec.duration_s == pytest.approx(0.05, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("header", "files", "message"),
+    [
+        ("t;I\n[s];[A]\n", 'time_column = "t"\ntime_unit = "A"\n', "time_unit: unit 'A' is not a"),
+        ("t;I\n[mm];[A]\n", 'time_column = "t"\n', "time column 't': unit 'mm' is not a"),
+    ],
+)
+def test_bad_time_unit_not_a_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, files: str, message: str
+) -> None:
+    """A time column in amperes (the map) or in mm (the file's units row) was read as
+    seconds times the unit's factor: refused in one line naming the map key or the column."""
+    csv = header + "".join(f"{k};{k % 3}\n" for k in range(50))
+    msg = _bad(tmp_path, capsys, csv, "[[files]]\n" + files + MAP_I)
+    assert message in msg and "time unit (s, ms, us)" in msg
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)

@@ -21,7 +21,14 @@ import numpy as np
 
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import Recording
-from millsense.io.importers.mapfile import ChannelMap, FileOptions, ImportMap, load_map, si_factor
+from millsense.io.importers.mapfile import (
+    ChannelMap,
+    FileOptions,
+    ImportMap,
+    load_map,
+    si_factor,
+    time_factor,
+)
 from millsense.io.importers.table import RawTable
 from millsense.io.quality import Finding, QualityReport, check_recording, nan_runs, rate_from_time
 
@@ -143,8 +150,9 @@ def _on_grid(
             )
         report.rates[where] = (stated, stated)
         return _Timed(table, float(stated), 0.0, cols, stated, False, np.zeros(n, bool))
-    unit = table.units.get(tcol, "") if opt.time_column is None else opt.time_unit
-    _, factor = si_factor(unit or opt.time_unit, f"{where}: time column {tcol!r}")
+    # the map's time_unit, else the file's (units row, "Time [ms]"), else seconds
+    unit = opt.time_unit or table.units.get(tcol, "") or "s"
+    factor = time_factor(unit, f"{where}: time column {tcol!r}")
     t = np.asarray(table.columns[tcol], dtype=np.float64) * factor
     if not np.all(np.isfinite(t)):
         k = int(np.flatnonzero(~np.isfinite(t))[0])

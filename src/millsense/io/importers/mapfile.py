@@ -13,7 +13,7 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     match = "trace*.csv"       # glob on the file name (default "*": every file)
     sample_rate_hz = 10000     # stated rate when the file has no time column (or a header)
     time_column = "Time"       # a time column (its unit: time_unit) instead of a stated rate
-    time_unit = "ms"
+    time_unit = "ms"           # default: the file's (units row, "Time [ms]"), else s
     delimiter = ";"            # csv/tsv: default sniffed among , ; tab
     decimal = ","              # csv/tsv: decimal comma (Siemens exports in German locale)
 
@@ -45,7 +45,15 @@ from millsense.core.config import parse_config, read_toml
 from millsense.core.errors import ConfigError
 from millsense.core.recording import check_name
 
-__all__ = ["UNITS", "ChannelMap", "FileOptions", "ImportMap", "load_map", "si_factor"]
+__all__ = [
+    "UNITS",
+    "ChannelMap",
+    "FileOptions",
+    "ImportMap",
+    "load_map",
+    "si_factor",
+    "time_factor",
+]
 
 #: Field unit → (SI unit, factor to SI). Spellings of one unit are listed separately; a unit
 #: string is matched after removing spaces and brackets (``[mm]`` → ``mm``).
@@ -112,6 +120,15 @@ def si_factor(unit: str, where: str) -> tuple[str, float]:
     raise ConfigError(f"{where}: unknown unit '{unit}' (known: {', '.join(UNITS)})")
 
 
+def time_factor(unit: str, where: str) -> float:
+    """Seconds per ``unit`` of a time column; a unit of another quantity (a column of mm or
+    amperes is no clock) is a one-line ConfigError."""
+    si, factor = si_factor(unit, where)
+    if si != "s":
+        raise ConfigError(f"{where}: unit {unit!r} is not a time unit (s, ms, us)")
+    return factor
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -122,7 +139,8 @@ class FileOptions(_Model):
     match: str = "*"
     sample_rate_hz: Annotated[float, Field(gt=0, le=10e6)] | None = None
     time_column: str | None = None
-    time_unit: str = "s"
+    time_unit: str | None = None
+    """Unit of the time column; None: the file's (units row or name), else seconds."""
     delimiter: str | None = None
     decimal: str = "."
     sheet: str | None = None
@@ -199,5 +217,6 @@ def load_map(path: str | Path) -> ImportMap:
         if ch.unit != "header":
             si_factor(ch.unit, where)
     for i, f in enumerate(m.files):
-        si_factor(f.time_unit, f"{source}: files[{i}].time_unit")
+        if f.time_unit is not None:
+            time_factor(f.time_unit, f"{source}: files[{i}].time_unit")
     return m
