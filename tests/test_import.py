@@ -397,6 +397,26 @@ def test_bad_time_unit_not_a_time(
     assert message in msg and "time unit (s, ms, us)" in msg
 
 
+@pytest.mark.parametrize(
+    ("header", "mapping", "message"),
+    [
+        ("t;I\n", MAP_I.replace('"A"', '"mm"'), "channels[0] ('I'): unit 'mm' is m"),
+        ("t;I\n[s];[mm]\n", MAP_I.replace('"A"', '"header"'), "channel 'x/current_cmd': unit"),
+        ("t;I\n", MAP_I.replace("x/current_cmd", "spindle/speed"), "unit 'A' is A"),
+    ],
+)
+def test_bad_unit_of_another_quantity_than_the_channel(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, mapping: str, message: str
+) -> None:
+    """Decision 1668: a current column mapped in mm (in the map or the file's units row)
+    became x/current_cmd in metres, which every estimator reads as amperes (a 1000 A command
+    per mm), and a current as spindle/speed in "A": refused in one line naming the map entry
+    or the channel, the unit's SI quantity and the one the channel holds."""
+    csv = header + "".join(f"{k * 0.001};{k % 3}\n" for k in range(50))
+    msg = _bad(tmp_path, capsys, csv, mapping)
+    assert message in msg and "holds" in msg
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)

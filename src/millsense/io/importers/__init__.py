@@ -25,6 +25,7 @@ from millsense.io.importers.mapfile import (
     ChannelMap,
     FileOptions,
     ImportMap,
+    check_channel_unit,
     load_map,
     si_factor,
     time_factor,
@@ -201,6 +202,7 @@ def _convert(ch: ChannelMap, timed: _Timed, where: str) -> tuple[np.ndarray, str
                 f"unit in {where}"
             )
     si, factor = si_factor(unit, where)
+    check_channel_unit(ch.channel, unit, si, where)
     x = (timed.columns[ch.column] * ch.scale + ch.offset) * factor
     return x, si
 

@@ -46,10 +46,12 @@ from millsense.core.errors import ConfigError
 from millsense.core.recording import check_name
 
 __all__ = [
+    "CHANNEL_SI",
     "UNITS",
     "ChannelMap",
     "FileOptions",
     "ImportMap",
+    "check_channel_unit",
     "load_map",
     "si_factor",
     "time_factor",
@@ -101,6 +103,37 @@ UNITS: dict[str, tuple[str, float]] = {
     "1": ("1", 1.0),
     "%": ("1", u.PERCENT),
 }
+
+
+#: SI unit(s) of the channels every command reads by name, by the last part of the name (the
+#: simulator's names: ``x/current_cmd``, ``spindle/speed``, ``dynamometer/y/force``...);
+#: other names (``mic/pressure``, ``acc/x``...) take any unit (decision 1668).
+CHANNEL_SI: dict[str, tuple[str, ...]] = {
+    "current": ("A",),
+    "current_cmd": ("A",),
+    "motor_angle": ("rad",),
+    "motor_speed": ("rad/s",),
+    "position_cmd": ("m", "rad"),
+    "speed": ("rad/s",),
+    "speed_cmd": ("rad/s",),
+    "force": ("N",),
+    "torque": ("N*m",),
+    "feed": ("m/s",),
+    "feed_override": ("1",),
+    "spindle_override": ("1",),
+    "nc_line": ("1",),
+}
+
+
+def check_channel_unit(channel: str, unit: str, si: str, where: str) -> None:
+    """A ConfigError (one line) when ``unit`` (SI ``si``) is not a unit of the quantity
+    ``channel`` holds (:data:`CHANNEL_SI`): a current mapped in mm would be read as amperes."""
+    want = CHANNEL_SI.get(channel.rpartition("/")[2])
+    if want is not None and si not in want:
+        raise ConfigError(
+            f"{where}: unit {unit!r} is {si}, but channel '{channel}' holds "
+            f"{' or '.join(want)}: give the column's unit (scale/offset to convert)"
+        )
 
 
 def _clean_unit(text: str) -> str:
@@ -215,7 +248,8 @@ def load_map(path: str | Path) -> ImportMap:
             )
         seen[ch.channel] = i
         if ch.unit != "header":
-            si_factor(ch.unit, where)
+            si, _ = si_factor(ch.unit, where)
+            check_channel_unit(ch.channel, ch.unit, si, where)
     for i, f in enumerate(m.files):
         if f.time_unit is not None:
             time_factor(f.time_unit, f"{source}: files[{i}].time_unit")
