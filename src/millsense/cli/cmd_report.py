@@ -93,11 +93,16 @@ def write_run_report(
         events = read_event_log(beside) if beside.is_file() else []
     elif isinstance(events, str | Path):
         events = read_event_log(events)
-    if isinstance(plan, str | Path):
-        plan = VirtualPlan.read(plan)
+    plan_file = plan if isinstance(plan, str | Path) else None
+    if plan_file is not None:
+        plan = VirtualPlan.read(plan_file)
     with opened_recording(recording) as rec:
         meta = dict(rec.metadata)
         channels = list(rec.channel_names)
+        if plan_file is not None:  # a plan given by the user: of this run's program?
+            from millsense.cli.plan_match import check_plan_matches
+
+            check_plan_matches(plan, Path(plan_file), rec, recording)
     machine, where = _machine(machine_file, meta)
     status = read_status(prefixes_for(channels))
     rows, status_where = status if status is not None else (None, "")

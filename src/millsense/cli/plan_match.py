@@ -1,4 +1,5 @@
-"""The check that a virtual plan belongs to a recording (``monitor``, ``replay``)."""
+"""The check that a virtual plan belongs to a recording (``monitor``, ``replay``,
+``report``)."""
 
 from __future__ import annotations
 
