@@ -75,6 +75,15 @@ def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
         (["plot", "{rec}", "-c", "x/current_cmd", "-o", "{tmp}/p.pdf"], "give a .png"),
         (["validate", "--case", "no.such.case"], "no validation case matches"),
         (["info"], "Missing argument"),
+        # numpy's seeds are ≥ 0: -1 was its "expected non-negative integer" traceback (exit 1)
+        (
+            ["simulate", "--seed", "-1", "-o", "{tmp}/s.h5"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
+        (
+            ["simulate-fleet", "--seed", "-1", "-o", "{tmp}/f"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
         (["frobnicate"], "No such command"),
     ],
 )
