@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import InputDataError, ProgramError
 from millsense.core.units import MM, MM_PER_MIN
+from millsense.plan.gcode import INCH_MM
 from millsense.plan.path import ARC, LINE, PLANE_XY, Toolpath
 from millsense.plan.virtual_plan import VirtualPlan
 
@@ -48,6 +49,10 @@ _KINDS = ("force", "torque", "power")
 SPLIT_BEFORE_MM = 1e-3
 _COMMENTS = re.compile(r"\([^()]*\)|;.*")
 _MOTION = re.compile(r"G0*[0123](?![\d.])", re.IGNORECASE)
+_G20 = r"G0*20(?![\d.])"
+_G21 = r"G0*21(?![\d.])"
+#: F words of a block in inches (G20) are inch/min, rounded down to this [inch/min].
+FEED_QUANTUM_INCH_MIN = 0.01
 _GEOM = re.compile(r"([XYZIJKRF])\s*[-+]?(?:\d+\.?\d*|\.\d+)", re.IGNORECASE)
 
 
@@ -260,6 +265,21 @@ def _with_words(line: str, words: str) -> str:
     return f"{line} {words}"
 
 
+def _inch_blocks(lines: list[str]) -> list[bool]:
+    """For every line, whether its words are in inches: G20 in effect, its own G20/G21
+    included (units come first in a block, RS274/NGC v3 Table 8)."""
+    inch = False
+    out = []
+    for raw in lines:
+        body = _COMMENTS.sub("", raw).upper().replace(" ", "")
+        if re.search(_G20, body):
+            inch = True
+        elif re.search(_G21, body):
+            inch = False
+        out.append(inch)
+    return out
+
+
 def _splittable(text: str) -> str | None:
     """Reason a program cannot be split in place (None if it can).
 
@@ -268,7 +288,7 @@ def _splittable(text: str) -> str | None:
     """
     body = _COMMENTS.sub("", text).upper().replace(" ", "")
     for code, why in (
-        (r"G0*20(?![\d.])", "inch units (G20)"),
+        (_G20, "inch units (G20)"),
         (r"G91(?![.\d])", "incremental distances (G91)"),
         (r"G90\.1", "absolute arc centres (G90.1)"),
     ):
@@ -303,7 +323,8 @@ def write_scheduled_program(
     path : path
         Output file (written atomically).
     feed_quantum_mm_min : float
-        F words are rounded down to this [mm/min].
+        F words are rounded down to this [mm/min]; in a G20 block they are inch/min, rounded
+        down to :data:`FEED_QUANTUM_INCH_MIN`.
     encoding : str
         The program's (:func:`millsense.plan.gcode.read_program`), to write it back in.
 
@@ -325,6 +346,10 @@ def write_scheduled_program(
     q = feed_quantum_mm_min
     feed_mm = np.floor(schedule.feed_m_s / MM_PER_MIN / q + 1e-9) * q
     feed_mm = np.maximum(feed_mm, q)
+    qi = FEED_QUANTUM_INCH_MIN
+    feed_inch = np.floor(schedule.feed_m_s / MM_PER_MIN / INCH_MM / qi + 1e-9) * qi
+    feed_inch = np.maximum(feed_inch, qi)
+    inch = _inch_blocks(lines)
     src = plan["source_line"]
     rapid = plan["rapid"].astype(bool)
     moves_of: dict[int, list[int]] = {}
@@ -344,7 +369,7 @@ def write_scheduled_program(
         if rows is None:
             out.append(raw)
             continue
-        f = feed_mm[rows]
+        f = feed_inch[rows] if inch[lineno - 1] else feed_mm[rows]
         moves = moves_of.get(lineno, [])
         kinds = {int(toolpath.kind[m]) for m in moves}
         single = len(moves) == 1 and kinds <= {LINE, ARC}
