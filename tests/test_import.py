@@ -417,6 +417,40 @@ def test_bad_unit_of_another_quantity_than_the_channel(
     assert message in msg and "holds" in msg
 
 
+@pytest.mark.parametrize(
+    ("variables", "column", "message"),
+    [
+        ({"v": np.arange(100.0)}, "v", "a.mat: variable 'v' (100 samples) is not a column"),
+        ({"M": np.ones((10, 10))}, "M", "a.mat: variable 'M' (10×10) is not a column"),
+        ({"fs": 0.0}, "I", "a.mat: the file states a sample rate of 0 Hz"),
+        ({"fs": -5.0}, "I", "a.mat: the file states a sample rate of -5 Hz"),
+    ],
+)
+def test_bad_mat_variables_named_for_what_they_are(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    variables: dict[str, object],
+    column: str,
+    message: str,
+) -> None:
+    """A .mat file beside a 1000-sample column 'I': a 100-sample vector or a 10×10 matrix
+    mapped as a channel was reported as "no column 'v' ... (one column only: is the delimiter
+    right?)" although the variable is there (and a .mat has no delimiter); fs = 0 or -5 was
+    "sample_rate_hz must be finite and > 0, got 0.0" naming no file. Each is now one line
+    naming the file and what is wrong, exit 2, nothing written."""
+    from scipy.io import savemat
+
+    savemat(str(tmp_path / "a.mat"), {"I": np.sin(np.arange(1000) * 0.01), **variables})
+    (tmp_path / "m.toml").write_text(MAP_I.replace('"I"', f'"{column}"'))
+    rate = [] if "fs" in variables else ["--rate-hz", "1000"]  # --rate-hz wins over fs
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "a.mat"), "--map", str(tmp_path / "m.toml"), *rate,
+         "-o", str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert message in err and "delimiter" not in err
+    assert not (tmp_path / "r.h5").exists()
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)

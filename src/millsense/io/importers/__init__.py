@@ -13,6 +13,7 @@ it back.
 from __future__ import annotations
 
 import fnmatch
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,9 +118,16 @@ def _file_of(ch: ChannelMap, tables: Sequence[RawTable], where: str) -> RawTable
     having = [t for t in cands if ch.column in t.columns]
     if not having:
         t = cands[0]
+        skip = next((c for c in cands if ch.column in c.skipped), None)
+        if skip is not None:
+            size, why = skip.skipped[ch.column]
+            raise InputDataError(
+                f"{skip.path}: variable {ch.column!r} ({size}) is not a column for channel "
+                f"'{ch.channel}': {why}"
+            )
         shown = ", ".join(repr(c) for c in list(t.columns)[:12])
         hint = ""
-        if len(t.columns) == 1:
+        if len(t.columns) == 1 and FORMATS.get(t.path.suffix.lower()) in ("csv", "tsv"):
             hint = " (one column only: is the delimiter right?)"
         raise InputDataError(
             f"{t.path}: no column {ch.column!r} for channel '{ch.channel}'; columns: {shown}{hint}"
@@ -138,6 +146,11 @@ def _on_grid(
     """The file's columns on a uniform time grid (gaps filled), its rate and first time."""
     where = str(table.path)
     stated = opt.sample_rate_hz or rate_hz or table.stated_rate_hz
+    if stated is not None and not (math.isfinite(stated) and stated > 0):
+        raise InputDataError(  # the map's and --rate-hz are checked: the file's own (.mat fs)
+            f"{where}: the file states a sample rate of {stated:g} Hz (must be finite and > 0): "
+            "give [[files]] sample_rate_hz in the map or --rate-hz"
+        )
     tcol = table.time_column(opt.time_column)
     if opt.time_column is not None and tcol not in table.columns:
         raise InputDataError(f"{where}: no time column {opt.time_column!r}")
