@@ -9,6 +9,9 @@ every cutting pass deeper than the limit below the stock top is replaced by k = 
 passes: k − 1 copies whose Z is clamped at ``top − i·D/k`` (i = 1 … k − 1), each followed by a
 retract to the pass's start height and a rapid back to its start, then the original pass. The
 last pass is the programmed one, so the geometry finally reached is the programmed geometry.
+A pass entered below the top (a rapid down beside the part, in air) has each copy start at
+its level and the last at the programmed height (rapids on the vertical the program came
+down).
 
 A *pass* is a run of blocks in which the tool stays below the stock top: it starts with the
 feed move that takes the tool below ``top_z_mm`` and ends before the move that brings it back
@@ -223,9 +226,13 @@ def split_deep_passes(
         x0, y0, z0 = lines[i].start
         safe = z0 if z0 >= top_z_mm - EPS_MM else top_z_mm + 2.0
         split.append((CuttingPass(i + 1, b, depth, (x0, y0, z0)), k))
+        z = z0  # the tool's height at (x0, y0) before each copy
         for p in range(1, k):
             level = top_z_mm - depth * p / k
             out.append(f"(chatter: depth pass {p}/{k} at Z{_fmt(level)}, seed 002)")
+            # a pass entered below the top (a rapid beside the part, in air) starts at its level
+            if max(z0, level) != z:
+                out.append(f"G0 Z{_fmt(max(z0, level))}")
             mode = mode_before
             first = True
             for ln in body:
@@ -239,7 +246,10 @@ def split_deep_passes(
                 first = False
             out.append(f"G0 Z{_fmt(safe)}")
             out.append(f"G0 X{_fmt(x0)} Y{_fmt(y0)}")
+            z = safe
         out.append(f"(chatter: depth pass {k}/{k}, as programmed)")
+        if z != z0:
+            out.append(f"G0 Z{_fmt(z0)}")  # back down where the program entered the pass
         first_move = next(j for j, ln in enumerate(body) if ln.motion is not None)
         for j, ln in enumerate(body):
             if j == first_move and not ln.explicit_motion:
