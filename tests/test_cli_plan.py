@@ -109,3 +109,19 @@ def test_schedule_keeps_a_cp1252_comment(
     n50 = next(ln for ln in lines if ln.startswith(b"N50"))
     feeds = [float(w[1:]) for w in n50.decode().split() if w.startswith("F")]
     assert len(feeds) == 1 and feeds[0] < 1200.0
+
+
+@pytest.mark.parametrize("home", ["0,0,nan", "inf,0,100"])
+def test_plan_home_must_be_finite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], home: str
+) -> None:
+    """``--home-mm 0,0,nan`` was taken and surfaced as "the path length is not finite
+    (line 7, nan m)", blaming the program's G28 line: the option is named, exit 2."""
+    prog = tmp_path / "g28.nc"
+    prog.write_text(
+        "G21 G90\nS6000 M3\nG0 X-15 Y40 Z5\nG1 Z-2 F600\nG1 X40 F1200\nG28 G91 Z0\nM30\n"
+    )
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(["plan", str(prog), *_common(), "--home-mm", home, "-o", str(out)], capsys)
+    assert code == 2 and f"--home-mm '{home}': X,Y,Z must be finite" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

@@ -3,6 +3,7 @@ feed-scheduled (optimised) program."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,6 +27,8 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
         raise ConfigError(f"--home-mm {text!r}: expected X,Y,Z in mm") from None
     if len(vals) != 3:
         raise ConfigError(f"--home-mm {text!r}: expected three values X,Y,Z in mm")
+    if not all(math.isfinite(v) for v in vals):
+        raise ConfigError(f"--home-mm {text!r}: X,Y,Z must be finite (mm)")
     return (vals[0], vals[1], vals[2])
 
 
