@@ -1,5 +1,5 @@
 """The check that a virtual plan belongs to a recording (``monitor``, ``replay``,
-``report``)."""
+``report``, ``batch --plan``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 
-def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path) -> None:
+def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path | str) -> None:
     """A plan of another program is refused: the plan's and the recording's ``program``
     metadata name different files.
 
