@@ -451,6 +451,40 @@ def test_bad_mat_variables_named_for_what_they_are(
     assert not (tmp_path / "r.h5").exists()
 
 
+@pytest.mark.parametrize(
+    ("extra", "meta", "message"),
+    [
+        (["--flutes", "0"], "", "--flutes 0: must be a whole number ≥ 1"),
+        (["--flutes", "-2"], "", "--flutes -2: must be a whole number ≥ 1"),
+        (["--spindle-rpm", "-100"], "", "--spindle-rpm -100: must be finite and > 0"),
+        (["--spindle-rpm", "nan"], "", "--spindle-rpm nan: must be finite and > 0"),
+        (["--feed-mm-min", "-5"], "", "--feed-mm-min -5: must be finite and > 0"),
+        (["--rate-hz", "inf"], "", "--rate-hz inf: must be finite and > 0"),
+        ([], "[metadata]\nflutes = 2.5\n", "m.toml: [metadata] flutes = 2.5: must be a whole"),
+        ([], "[metadata]\nspindle_rpm = 0\n", "m.toml: [metadata] spindle_rpm = 0: must be"),
+    ],
+)
+def test_bad_process_metadata_refused(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: list[str],
+    meta: str,
+    message: str,
+) -> None:
+    """The tool's teeth, spindle speed and feed an import stores are what the monitors divide
+    by (tooth frequency = flutes × rev/min / 60): --flutes 0 or -2, --spindle-rpm -100 and
+    --feed-mm-min -5 were written as metadata (exit 0), nan was "metadata key 'spindle_rpm':
+    nan is not representable in JSON" naming no option, --rate-hz inf named no option. Each
+    is one line naming the option or the map key, exit 2, nothing written."""
+    (tmp_path / "t.csv").write_text("t,I\n" + "".join(f"{k * 0.001},{k % 3}\n" for k in range(50)))
+    (tmp_path / "m.toml").write_text(meta + MAP_I)
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "t.csv"), "--map", str(tmp_path / "m.toml"), *extra,
+         "-o", str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert message in err and not (tmp_path / "r.h5").exists()
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)

@@ -252,6 +252,28 @@ def _fill_nan(
     return y
 
 
+#: Metadata of the cut that the monitors compute with (tooth frequency = flutes · rpm / 60).
+_WHOLE_METADATA = ("flutes",)
+_POSITIVE_METADATA = ("spindle_rpm", "feed_mm_min")
+
+
+def _check_process_metadata(values: Mapping[str, object], where: str) -> None:
+    """A one-line ConfigError for a number of teeth that is no whole number ≥ 1, or a spindle
+    speed or feed that is not finite and > 0. ``where``: "--" (an option, named ``--key``) or
+    the map's ``[metadata]``."""
+    for key, value in values.items():
+        if value is None or key not in _WHOLE_METADATA + _POSITIVE_METADATA:
+            continue
+        name = f"--{key.replace('_', '-')}" if where == "--" else f"{where} {key} ="
+        shown = f"{value:g}" if isinstance(value, float) else repr(value)
+        if key in _WHOLE_METADATA:
+            ok = isinstance(value, int | float) and float(value).is_integer() and value >= 1
+            if not ok:
+                raise ConfigError(f"{name} {shown}: must be a whole number ≥ 1")
+        elif not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ConfigError(f"{name} {shown}: must be finite and > 0")
+
+
 def import_files(
     paths: Sequence[Path],
     mapping: ImportMap,
@@ -285,6 +307,8 @@ def import_files(
         (time going backwards, NaN runs, more than 10 % missing).
     """
     report = QualityReport()
+    _check_process_metadata(mapping.metadata, f"{map_source}: [metadata]")
+    _check_process_metadata(metadata or {}, "--")
     opts = {p: mapping.options_for(p) for p in paths}
     tables = [read_table(p, opts[p]) for p in paths]
     users: dict[Path, list[ChannelMap]] = {t.path: [] for t in tables}
