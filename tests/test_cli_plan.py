@@ -125,3 +125,20 @@ def test_plan_home_must_be_finite(
     code, _, err = _run(["plan", str(prog), *_common(), "--home-mm", home, "-o", str(out)], capsys)
     assert code == 2 and f"--home-mm '{home}': X,Y,Z must be finite" in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("resolution", ["100", "14"])
+def test_plan_zmap_cell_must_resolve_a_slot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], resolution: str
+) -> None:
+    """``--resolution-mm 100`` (100 µm meant) made the demo part's z-map cells larger than the
+    Ø20 mm tool: the plan said "0 in cut, peak resultant 0.0 N" with exit 0. The CWE resolves
+    no radial depth below about 1.5 cells (plan.cwe's notes), so a cell of D/1.5 = 13.3 mm or
+    more resolves not even a slot: one line naming the limit, exit 2, nothing written."""
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(
+        ["plan", str(DEMO / "program.nc"), *_common(), "--resolution-mm", resolution,
+         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"--resolution-mm {resolution}: a cell of D/1.5 = 13.33 mm or more" in err
+    assert not out.exists()

@@ -116,6 +116,13 @@ def _build(
     _positive("--step-mm", step_mm)
     _positive("--resolution-mm", resolution_mm)
     tool_cfg = load_preset(ToolConfig, tool)
+    if 1.5 * resolution_mm >= tool_cfg.diameter_mm:
+        # the CWE resolves no radial depth below about 1.5 cells (millsense.plan.cwe)
+        raise ConfigError(
+            f"--resolution-mm {resolution_mm:g}: a cell of D/1.5 = "
+            f"{tool_cfg.diameter_mm / 1.5:.4g} mm or more resolves no engagement of the "
+            f"Ø{tool_cfg.diameter_mm:g} mm tool, not even a slot (default 0.1 mm)"
+        )
     mat_cfg = load_preset(MaterialConfig, material)
     stock_cfg = load_config(StockConfig, stock)
     mcfg = None if machine is None else load_preset(MachineConfig, machine)
