@@ -485,6 +485,23 @@ def test_bad_process_metadata_refused(
     assert message in err and not (tmp_path / "r.h5").exists()
 
 
+@pytest.mark.parametrize("files", ['[[files]]\ndelimiter = " "\n', ""])
+def test_whitespace_aligned_columns(tmp_path: Path, files: str) -> None:
+    """Instrument and MATLAB fprintf exports align columns with runs of spaces: with the
+    map's own delimiter = " " every extra space was an empty (NaN) cell, so a row with a
+    negative number had a field less ("line 13: 9 fields, the table has 10"), and without a
+    delimiter no table was found. Runs of blanks are one separator: 200 rows at 1 kHz, the
+    50 Hz sine exact to the 5 printed digits."""
+    t = np.arange(200) / 1000.0
+    x = np.sin(2 * np.pi * 50 * t)
+    text = "time        I\n" + "".join(f"{a:10.4f}  {b:10.5f}\n" for a, b in zip(t, x, strict=True))
+    (tmp_path / "aligned.txt").write_text(text)
+    (tmp_path / "m.toml").write_text(files + MAP_I)
+    rec = import_files([tmp_path / "aligned.txt"], load_map(tmp_path / "m.toml")).recording
+    assert rec.n_samples == 200 and rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
+    np.testing.assert_allclose(rec.channel("x/current_cmd"), x, atol=0.5e-5)
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)
