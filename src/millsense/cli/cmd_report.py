@@ -37,8 +37,13 @@ def report(
     """One self-contained HTML file of a run (plotly, opens offline): estimates against truth,
     tool path coloured by force with the events, breakage residual, adaptive control, spindle
     speed, the event table, the machine file and the validation status."""
+    import math
+
+    from millsense.core.errors import ConfigError
     from millsense.io.safe_output import check_outputs
 
+    if not (math.isfinite(wear_limit_mm) and wear_limit_mm > 0):  # as batch --vb-limit-mm
+        raise ConfigError(f"--wear-limit-mm: must be > 0, got {wear_limit_mm:g}")
     check_outputs(
         {"the recording": recording, "the plan": plan, "the event log": events,
          "the machine file": machine_file, "the summary table": fleet},
