@@ -101,6 +101,27 @@ def test_bad_recordings_are_rows_and_the_batch_finishes(
     assert code == 0 and "(3 run on" in stdout and "1 from an earlier batch" in stdout
 
 
+@pytest.mark.parametrize(
+    ("address", "why"),
+    [("notaurl", "missing port number"), ("http://127.0.0.1:8786", "unknown address scheme")],
+)
+def test_a_malformed_scheduler_address_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], address: str, why: str
+) -> None:
+    """``--scheduler notaurl`` (or an http:// address) was Dask's ValueError traceback, exit
+    1: one line naming the option and Dask's reason, exit 2, nothing written."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    rec = Recording(1e4, metadata={"machine": "quaser-ux600"})
+    rec.add_channel("x/current_cmd", np.zeros(1000), "A")
+    write_recording(folder / "r.h5", rec)
+    out = tmp_path / "o"
+    code, _, err = _cli(["batch", str(folder), "-o", str(out), "--scheduler", address], capsys)
+    assert code == 2 and err.strip().count("\n") == 0
+    assert f"--scheduler '{address}'" in err and why in err
+    assert not (out / "summary.parquet").exists()
+
+
 def test_an_empty_folder_is_one_line_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
