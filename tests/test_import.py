@@ -502,6 +502,22 @@ def test_whitespace_aligned_columns(tmp_path: Path, files: str) -> None:
     np.testing.assert_allclose(rec.channel("x/current_cmd"), x, atol=0.5e-5)
 
 
+def test_export_of_a_channel_named_twice_imports_back(tmp_path: Path) -> None:
+    """``export -c x/current_cmd -c x/current_cmd`` wrote the column once but listed it twice in
+    the map, which import then refused ("channel 'x/current_cmd' is named twice"): the map
+    that comes with an export must import it back. Once each: the 2000 samples exactly."""
+    from millsense.core.recording import Recording
+
+    rec = Recording(1e4, metadata={})
+    x = np.sin(np.arange(2000) * 0.01)
+    rec.add_channel("x/current_cmd", x, "A")
+    text = export_recording(rec, tmp_path / "d.csv", "csv", ["x/current_cmd", "x/current_cmd"])
+    (tmp_path / "d.map.toml").write_text(text)
+    back = import_files([tmp_path / "d.csv"], load_map(tmp_path / "d.map.toml")).recording
+    assert back.channel_names == ["x/current_cmd"]
+    np.testing.assert_array_equal(back.channel("x/current_cmd"), x)
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)
