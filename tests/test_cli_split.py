@@ -33,7 +33,10 @@ def test_split_passes_writes_passes_at_or_below_the_limit(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--max-depth-mm", "0"], "--max-depth-mm: must be > 0"),
+        (["--max-depth-mm", "0"], "--max-depth-mm: must be finite and > 0"),
+        (["--max-depth-mm", "inf"], "--max-depth-mm: must be finite and > 0, got inf"),
+        # nan: every comparison with the top false, "0 passes", the program written unchanged
+        (["--max-depth-mm", "2", "--top-z-mm", "nan"], "--top-z-mm: must be finite, got nan"),
         (["--max-depth-mm", "2", "-o", "{src}"], "never overwritten"),
     ],
 )
