@@ -142,3 +142,27 @@ def test_plan_zmap_cell_must_resolve_a_slot(
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert f"--resolution-mm {resolution}: a cell of D/1.5 = 13.33 mm or more" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("opts", "message"),
+    [
+        (["--limit-force-n", "inf"], "--limit-force-n inf: must be finite"),
+        (["--limit-force-n", "nan"], "--limit-force-n nan: must be finite"),
+        (["--limit-torque-nm", "0"], "--limit-torque-nm 0.0: must be > 0"),
+        (["--limit-force-n", "200", "--max-feed-mm-min", "inf"], "--max-feed-mm-min inf: must"),
+        (["--limit-force-n", "200", "--accel-mm-s2", "inf"], "--accel-mm-s2 inf: must be finite"),
+    ],
+)
+def test_schedule_limits_named_as_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opts: list[str], message: str
+) -> None:
+    """``--limit-force-n inf`` was blamed on "--min-feed-mm-min None" (the scheduler's own
+    error passed through as the minimum feed's), ``--limit-torque-nm 0`` was reported as
+    "--limit-torque", and an infinite acceleration was taken: one line naming the option as
+    it is spelt, exit 2, nothing written."""
+    out = tmp_path / "opt.nc"
+    code, _, err = _run(["schedule", str(DEMO / "program.nc"), *_common(), *opts, "-o",
+                         str(out)], capsys)  # fmt: skip
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -58,8 +58,18 @@ def _guard(
 
 
 def _positive(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ConfigError(f"{name} {value!r}: must be finite")
     if not value > 0:
         raise ConfigError(f"{name} {value!r}: must be > 0")
+
+
+#: The option of each limit kind of ``schedule``.
+_LIMIT_OPTION = {
+    "force": "--limit-force-n",
+    "torque": "--limit-torque-nm",
+    "power": "--limit-power-w",
+}
 
 
 def stock_maker(stock_cfg: Any, stock: Path) -> Callable[[float], Any]:
@@ -239,8 +249,6 @@ def schedule(
     machine: str | None = _MACHINE,
 ) -> None:
     """Feed per step holding a force, torque or power limit; write an optimised program."""
-    import math
-
     from millsense.core.errors import InputDataError
     from millsense.core.units import MM, MM_PER_MIN
     from millsense.plan.gcode import read_program
@@ -259,14 +267,14 @@ def schedule(
         raise ConfigError("give exactly one of --limit-force-n, --limit-torque-nm, --limit-power-w")
     _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     kind, value = limits[0]
-    _positive(f"--limit-{kind}", float(value))
+    _positive(_LIMIT_OPTION[kind], float(value))
     _positive("--accel-mm-s2", accel_mm_s2)
     for name, feed in (
         ("--min-feed-mm-min", min_feed_mm_min),
         ("--max-feed-mm-min", max_feed_mm_min),
     ):
-        if feed is not None and not (math.isfinite(feed) and feed > 0):
-            raise ConfigError(f"{name} {feed!r}: must be > 0")
+        if feed is not None:
+            _positive(name, feed)
     if min_feed_mm_min is not None and max_feed_mm_min is not None:
         if min_feed_mm_min > max_feed_mm_min:
             raise ConfigError(
@@ -337,8 +345,8 @@ def _unreachable(vp: VirtualPlan, sched: Any, kind: str, limit: float, findings:
         else f"it needs {hold:.4g} mm/min, below --min-feed-mm-min"
     )
     findings.warn(
-        f"--limit-{kind}-{'n' if kind == 'force' else 'nm' if kind == 'torque' else 'w'} "
-        f"{limit:g} {unit}: no feed reaches it on {int(cut.sum())} steps (lines {where}): "
+        f"{_LIMIT_OPTION[kind]} {limit:g} {unit}: no feed reaches it on {int(cut.sum())} "
+        f"steps (lines {where}): "
         f"{why}; those steps run at the minimum feed "
         f"{float(sched.feed_m_s[k]) / MM_PER_MIN:.4g} mm/min and exceed the limit"
     )
