@@ -420,8 +420,8 @@ def test_bad_unit_of_another_quantity_than_the_channel(
 @pytest.mark.parametrize(
     ("variables", "column", "message"),
     [
-        ({"v": np.arange(100.0)}, "v", "a.mat: variable 'v' (100 samples) is not a column"),
-        ({"M": np.ones((10, 10))}, "M", "a.mat: variable 'M' (10×10) is not a column"),
+        ({"v": np.arange(100.0)}, "v", "a.mat: 'v' (100 samples) is not a column"),
+        ({"M": np.ones((10, 10))}, "M", "a.mat: 'M' (10×10) is not a column"),
         ({"fs": 0.0}, "I", "a.mat: the file states a sample rate of 0 Hz"),
         ({"fs": -5.0}, "I", "a.mat: the file states a sample rate of -5 Hz"),
     ],
@@ -516,6 +516,27 @@ def test_export_of_a_channel_named_twice_imports_back(tmp_path: Path) -> None:
     back = import_files([tmp_path / "d.csv"], load_map(tmp_path / "d.map.toml")).recording
     assert back.channel_names == ["x/current_cmd"]
     np.testing.assert_array_equal(back.channel("x/current_cmd"), x)
+
+
+def test_bad_parquet_text_column_named_for_what_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A Parquet column of text mapped as a channel was "no column 'label' ... columns: 'time',
+    'I'" although it is in the file: it is named with its type, one line, exit 2."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = np.arange(100) / 1000.0
+    pq.write_table(
+        pa.table({"time": t, "I": np.sin(t), "label": ["a"] * 100}), tmp_path / "p.parquet"
+    )
+    (tmp_path / "m.toml").write_text(MAP_I.replace('"I"', '"label"'))
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "p.parquet"), "--map", str(tmp_path / "m.toml"), "-o",
+         str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "p.parquet: 'label' (string) is not a column for channel 'x/current_cmd'" in err
+    assert not (tmp_path / "r.h5").exists()
 
 
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

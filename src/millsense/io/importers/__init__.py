@@ -122,7 +122,7 @@ def _file_of(ch: ChannelMap, tables: Sequence[RawTable], where: str) -> RawTable
         if skip is not None:
             size, why = skip.skipped[ch.column]
             raise InputDataError(
-                f"{skip.path}: variable {ch.column!r} ({size}) is not a column for channel "
+                f"{skip.path}: {ch.column!r} ({size}) is not a column for channel "
                 f"'{ch.channel}': {why}"
             )
         shown = ", ".join(repr(c) for c in list(t.columns)[:12])
