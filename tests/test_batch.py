@@ -80,20 +80,46 @@ def test_bad_recordings_are_rows_and_the_batch_finishes(
                               str(fleet / "plans" / "slot2.parquet")], capsys)  # fmt: skip
     assert code == 0, err
     rows = {r["run"]: r for r in _table(out)}
-    assert rows["T1_r000"]["status"] == "ok" and rows["T2_r001"]["status"] == "ok"
+    assert rows["T1_r000"]["status"] == "ok"
     assert rows["corrupt"]["status"] == "error" and "corrupt.h5" in str(rows["corrupt"]["error"])
     assert rows["bare"]["status"] == "error" and "channel" in str(rows["bare"]["error"])
-    assert "2 failed" in stdout
-    assert err.count("millsense: warning:") == 2
+    # T2_r001 cut side4w5.nc (tool 2, run 1 of the cycled programs): the plan of slot2.nc is
+    # not its plan: its wear was judged on that plan, status ok, before the check
+    assert rows["T2_r001"]["status"] == "error"
+    assert "plan of program 'slot2.nc', but" in str(rows["T2_r001"]["error"])
+    assert "recorded running 'side4w5.nc'" in str(rows["T2_r001"]["error"])
+    assert "3 failed" in stdout
+    assert err.count("millsense: warning:") == 3
     # each line names the recording once (its reason may start with it already)
-    for name in ("corrupt.h5", "bare.h5"):
+    for name in ("corrupt.h5", "bare.h5", "T2_r001.h5"):
         line = next(ln for ln in err.splitlines() if name in ln)
         assert line.count(str(folder / name)) == 1, line
     # a second batch into the same folder reuses the finished runs and retries the failed
     code, stdout, _ = _cli(["batch", str(folder), "-o", str(out), "--do",
                             "monitor,wear,summary", "--plan",
                             str(fleet / "plans" / "slot2.parquet")], capsys)  # fmt: skip
-    assert code == 0 and "(2 run on" in stdout and "2 from an earlier batch" in stdout
+    assert code == 0 and "(3 run on" in stdout and "1 from an earlier batch" in stdout
+
+
+@pytest.mark.parametrize(
+    ("address", "why"),
+    [("notaurl", "missing port number"), ("http://127.0.0.1:8786", "unknown address scheme")],
+)
+def test_a_malformed_scheduler_address_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], address: str, why: str
+) -> None:
+    """``--scheduler notaurl`` (or an http:// address) was Dask's ValueError traceback, exit
+    1: one line naming the option and Dask's reason, exit 2, nothing written."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    rec = Recording(1e4, metadata={"machine": "quaser-ux600"})
+    rec.add_channel("x/current_cmd", np.zeros(1000), "A")
+    write_recording(folder / "r.h5", rec)
+    out = tmp_path / "o"
+    code, _, err = _cli(["batch", str(folder), "-o", str(out), "--scheduler", address], capsys)
+    assert code == 2 and err.strip().count("\n") == 0
+    assert f"--scheduler '{address}'" in err and why in err
+    assert not (out / "summary.parquet").exists()
 
 
 def test_an_empty_folder_is_one_line_exit_2(

@@ -75,6 +75,15 @@ def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
         (["plot", "{rec}", "-c", "x/current_cmd", "-o", "{tmp}/p.pdf"], "give a .png"),
         (["validate", "--case", "no.such.case"], "no validation case matches"),
         (["info"], "Missing argument"),
+        # numpy's seeds are ≥ 0: -1 was its "expected non-negative integer" traceback (exit 1)
+        (
+            ["simulate", "--seed", "-1", "-o", "{tmp}/s.h5"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
+        (
+            ["simulate-fleet", "--seed", "-1", "-o", "{tmp}/f"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
         (["frobnicate"], "No such command"),
     ],
 )
@@ -101,3 +110,22 @@ def test_truncated_file_is_one_line_error(
     code, _, err = run_cli(["info", str(p)], capsys)
     assert code == 2
     assert len(err.strip().splitlines()) == 1 and "r.h5" in err
+
+
+@pytest.mark.parametrize(
+    ("window", "held"),
+    [(("5", "6"), "0 samples"), (("-3", "-1"), "0 samples"), (("0.01", "0.01005"), "1 sample")],
+)
+def test_plot_window_without_two_samples_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], window: tuple[str, str], held: str
+) -> None:
+    """A window outside the 0.2 s recording (5-6 s, before its start) or holding one sample
+    at 10 kHz (50 µs) drew empty axes and said "wrote p.png" (exit 0): now one line giving
+    the samples held and the recording's span, exit 2, no file."""
+    rec = small_recording(tmp_path / "r.h5")
+    png = tmp_path / "p.png"
+    args = ["plot", str(rec), "-c", "x/current_cmd", "-o", str(png)]
+    code, _, err = run_cli([*args, "--from-s", window[0], "--to-s", window[1]], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert held in err and "t = 0 to 0.2 s" in err
+    assert not png.exists()

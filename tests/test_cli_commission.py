@@ -91,3 +91,16 @@ def test_commission_user_errors_write_nothing(
     f.write_text("keep")
     code, _, err = run_cli(["commission", "--machine", "quaser-ux600", "-o", str(f)], capsys)
     assert code == 2 and "not a directory" in err and f.read_text() == "keep"
+
+
+def test_commission_refuses_an_axis_named_twice(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--axis x,x`` ran every X test twice (the second set over the first) and printed
+    every identify command twice, the merge listing each fragment twice: one line naming the
+    axis, exit 2, nothing written."""
+    out = tmp_path / "c"
+    code, _, err = run_cli(["commission", "--machine", "quaser-ux600", "--axis", "x,y,x", "-o",
+                            str(out)], capsys)  # fmt: skip
+    assert code == 2 and "--axis 'x,y,x': axis 'x' named twice" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

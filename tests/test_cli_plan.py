@@ -87,3 +87,82 @@ def test_schedule_writes_program(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert out.read_text().count("\n") > 80
     code, _, err = _run(["schedule", str(DEMO / "program.nc"), *_common(), "-o", str(out)], capsys)
     assert code == 2 and "exactly one" in err
+
+
+def test_schedule_keeps_a_cp1252_comment(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A program with a cp1252 comment (read as latin-1, as the interpreter reads it) came out
+    with U+FFFD in place of 'Ä' and 'Ø' (read as UTF-8 with errors replaced): the scheduled
+    program keeps the input's bytes outside the rewritten F words, and the walkthrough slot's
+    2 mm cut at 1200 mm/min above a 200 N limit is slowed (block N50 ends below F1200)."""
+    src = Path(__file__).resolve().parents[1] / "examples" / "walkthrough" / "slot.nc"
+    prog = tmp_path / "slot.nc"
+    prog.write_bytes(src.read_bytes().replace(b"(T1 D=20.", "(FRÄSER Ø20.".encode("cp1252")))
+    out = tmp_path / "opt.nc"
+    code, _, err = _run(
+        ["schedule", str(prog), *_common(), "--resolution-mm", "0.5", "--limit-force-n", "200",
+         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    lines = out.read_bytes().split(b"\n")
+    assert lines[3].startswith("(FRÄSER Ø20.".encode("cp1252"))
+    n50 = next(ln for ln in lines if ln.startswith(b"N50"))
+    feeds = [float(w[1:]) for w in n50.decode().split() if w.startswith("F")]
+    assert len(feeds) == 1 and feeds[0] < 1200.0
+
+
+@pytest.mark.parametrize("home", ["0,0,nan", "inf,0,100"])
+def test_plan_home_must_be_finite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], home: str
+) -> None:
+    """``--home-mm 0,0,nan`` was taken and surfaced as "the path length is not finite
+    (line 7, nan m)", blaming the program's G28 line: the option is named, exit 2."""
+    prog = tmp_path / "g28.nc"
+    prog.write_text(
+        "G21 G90\nS6000 M3\nG0 X-15 Y40 Z5\nG1 Z-2 F600\nG1 X40 F1200\nG28 G91 Z0\nM30\n"
+    )
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(["plan", str(prog), *_common(), "--home-mm", home, "-o", str(out)], capsys)
+    assert code == 2 and f"--home-mm '{home}': X,Y,Z must be finite" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("resolution", ["100", "14"])
+def test_plan_zmap_cell_must_resolve_a_slot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], resolution: str
+) -> None:
+    """``--resolution-mm 100`` (100 µm meant) made the demo part's z-map cells larger than the
+    Ø20 mm tool: the plan said "0 in cut, peak resultant 0.0 N" with exit 0. The CWE resolves
+    no radial depth below about 1.5 cells (plan.cwe's notes), so a cell of D/1.5 = 13.3 mm or
+    more resolves not even a slot: one line naming the limit, exit 2, nothing written."""
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(
+        ["plan", str(DEMO / "program.nc"), *_common(), "--resolution-mm", resolution,
+         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"--resolution-mm {resolution}: a cell of D/1.5 = 13.33 mm or more" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("opts", "message"),
+    [
+        (["--limit-force-n", "inf"], "--limit-force-n inf: must be finite"),
+        (["--limit-force-n", "nan"], "--limit-force-n nan: must be finite"),
+        (["--limit-torque-nm", "0"], "--limit-torque-nm 0.0: must be > 0"),
+        (["--limit-force-n", "200", "--max-feed-mm-min", "inf"], "--max-feed-mm-min inf: must"),
+        (["--limit-force-n", "200", "--accel-mm-s2", "inf"], "--accel-mm-s2 inf: must be finite"),
+    ],
+)
+def test_schedule_limits_named_as_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opts: list[str], message: str
+) -> None:
+    """``--limit-force-n inf`` was blamed on "--min-feed-mm-min None" (the scheduler's own
+    error passed through as the minimum feed's), ``--limit-torque-nm 0`` was reported as
+    "--limit-torque", and an infinite acceleration was taken: one line naming the option as
+    it is spelt, exit 2, nothing written."""
+    out = tmp_path / "opt.nc"
+    code, _, err = _run(["schedule", str(DEMO / "program.nc"), *_common(), *opts, "-o",
+                         str(out)], capsys)  # fmt: skip
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -33,7 +33,10 @@ def test_split_passes_writes_passes_at_or_below_the_limit(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--max-depth-mm", "0"], "--max-depth-mm: must be > 0"),
+        (["--max-depth-mm", "0"], "--max-depth-mm: must be finite and > 0"),
+        (["--max-depth-mm", "inf"], "--max-depth-mm: must be finite and > 0, got inf"),
+        # nan: every comparison with the top false, "0 passes", the program written unchanged
+        (["--max-depth-mm", "2", "--top-z-mm", "nan"], "--top-z-mm: must be finite, got nan"),
         (["--max-depth-mm", "2", "-o", "{src}"], "never overwritten"),
     ],
 )
@@ -49,3 +52,50 @@ def test_split_passes_bad_input_one_line_exit_2(
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1
     assert src.read_text() == PROGRAM
+
+
+def test_split_passes_reads_the_walkthrough_slot_with_percent_lines(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every shipped program opens and closes with '%' (RS274/NGC demarcation, read by the
+    interpreter): split-passes refused them ("unexpected character '%'"). The walkthrough's
+    2 mm slot with a 1 mm limit: ⌈2/1⌉ = 2 passes at 1 and 2 mm, and the rewritten program is
+    still one the interpreter reads, ending where the programmed one ends."""
+    import numpy as np
+
+    from millsense.plan.gcode import interpret
+
+    src = Path(__file__).parents[1] / "examples" / "walkthrough" / "slot.nc"
+    out = tmp_path / "slot_split.nc"
+    code, text, err = run_cli(
+        ["split-passes", str(src), "--max-depth-mm", "1", "-o", str(out)], capsys
+    )
+    assert code == 0, err
+    assert "1 passes -> 2" in text
+    new = out.read_text()
+    assert [p.depth_mm for p in cutting_passes(new)] == pytest.approx([1.0, 2.0], abs=1e-9)
+    assert new.splitlines()[0] == "%" and new.splitlines()[-1] == "%"
+    a, b = interpret(src.read_text()), interpret(new)
+    np.testing.assert_allclose(b.end[-1], a.end[-1], atol=1e-12)
+    assert float(b.end[:, 2].min()) == pytest.approx(-2e-3, abs=1e-12)
+
+
+def test_split_passes_reads_a_cp1252_program_and_keeps_its_comment(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A program saved by a Windows editor (cp1252 'Ä', 'Ø' in a comment) is read as the
+    interpreter reads it (latin-1 when not UTF-8); it was a UnicodeDecodeError traceback. The
+    comment comes out in the input's encoding, byte for byte; the 6 mm pass at a 2.5 mm
+    limit is 3 passes (2, 4, 6 mm)."""
+    src = tmp_path / "fräser.nc"
+    raw = ("(FRÄSER Ø20)\n" + PROGRAM).encode("cp1252")
+    src.write_bytes(raw)
+    out = tmp_path / "split.nc"
+    code, _text, err = run_cli(
+        ["split-passes", str(src), "--max-depth-mm", "2.5", "-o", str(out)], capsys
+    )
+    assert code == 0, err
+    assert out.read_bytes().startswith("(FRÄSER Ø20)\n".encode("cp1252"))
+    depths = [p.depth_mm for p in cutting_passes(out.read_bytes().decode("latin-1"))]
+    assert depths == pytest.approx([2.0, 4.0, 6.0], abs=1e-9)
+    assert src.read_bytes() == raw

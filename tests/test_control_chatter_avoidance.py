@@ -431,6 +431,18 @@ def test_ramp_pass_and_a_limit_above_every_pass() -> None:
     assert same.text == PROGRAM and not same.split
 
 
+def test_pass_entered_by_a_rapid_beside_the_part_keeps_each_pass_at_its_level() -> None:
+    """CAM posts rapid down beside the part (in air) and feed in: 'G0 Z-6' at X-12, then
+    'G1 X60'. The copies started at Z-6 and ramped up to their level, and after the retract
+    to Z2 the programmed pass ran at Z2, in air: a 4 mm slot where 6 mm was programmed
+    (2 passes reported for 3). Each copy now starts at its level, the last at Z-6: passes
+    at 2, 4 and 6 mm and the stock of the programmed slot."""
+    text = "G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-12 Y40 Z5\nG0 Z-6\nG1 X60 F400\nG0 Z5\nM30\n"
+    res = split_deep_passes(text, 2.5)
+    assert [p.depth_mm for p in res.passes_after] == pytest.approx([2.0, 4.0, 6.0], abs=1e-9)
+    np.testing.assert_array_equal(_stock_after(res.text), _stock_after(text))
+
+
 def test_write_split_program_atomic_and_never_onto_its_input(tmp_path: Path) -> None:
     src = tmp_path / "slot.nc"
     src.write_text(PROGRAM)

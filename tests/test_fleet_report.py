@@ -143,3 +143,19 @@ def test_report_fleet_errors_are_one_line(
                                capsys)  # fmt: skip
         assert code == 2 and str(path) in err and words in err, err
         assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("limit", ["-1", "0", "nan"])
+def test_report_wear_limit_must_be_positive(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], limit: str
+) -> None:
+    """``report --wear-limit-mm -1`` (or 0, nan) drew the fleet view against that limit with
+    exit 0, where ``batch --vb-limit-mm`` refuses it: the same one line, exit 2, checked
+    before anything is read."""
+    from tests.cli_run import run_cli
+
+    out = tmp_path / "r.html"
+    code, _, err = run_cli(["report", str(tmp_path / "run.h5"), "--wear-limit-mm", limit,
+                            "-o", str(out)], capsys)  # fmt: skip
+    assert code == 2 and f"--wear-limit-mm: must be > 0, got {limit}" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

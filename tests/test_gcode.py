@@ -326,3 +326,16 @@ def test_fast_path_matches_explicit_blocks() -> None:
     b = _run("G1 X1 Y1 F100\nG1 X2 Y1\nG1 X2 Y3 Z-1\nG0 X0 Y3 Z-1\nG0 X0 Y0 Z-1")
     assert np.array_equal(a.end, b.end) and np.array_equal(a.kind, b.kind)
     assert np.array_equal(a.feed, b.feed, equal_nan=True)
+
+
+def test_utf8_bom_is_not_part_of_the_first_block(tmp_path: Path) -> None:
+    """Windows editors (Notepad) save UTF-8 with a byte-order mark: the first block was
+    refused ("unexpected character '\\ufeff'"). The same program with and without it gives the
+    same path: the walkthrough slot's lowest point Z -2 mm and its 40 mm cut to X 40 mm."""
+    text = (CORPUS.parent / "walkthrough" / "slot.nc").read_text()
+    (tmp_path / "bom.nc").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    (tmp_path / "plain.nc").write_text(text)
+    a, b = interpret_file(tmp_path / "plain.nc"), interpret_file(tmp_path / "bom.nc")
+    np.testing.assert_array_equal(b.end, a.end)
+    assert float(b.end[:, 2].min()) == pytest.approx(-2e-3, abs=1e-12)
+    assert float(b.end[:, 0].max()) == pytest.approx(40e-3, abs=1e-12)

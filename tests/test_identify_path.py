@@ -230,3 +230,24 @@ def test_holding_axis_uses_the_path_identified_at_rest(
     # at the tooth frequency (100 Hz, complex error): the at-rest path well below the moving
     # one (measured 1.2 % against 6.8 %)
     assert errs["both"] < 0.03 and errs["both"] < 0.5 * errs["moving"], errs
+
+
+@pytest.mark.parametrize("band", ["6000:7000", "1000:2000"])
+def test_path_band_without_lines_names_the_option(
+    identified: tuple[Path, dict[str, object]],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    band: str,
+) -> None:
+    """A --band-hz above the 5 kHz Nyquist frequency, or where the multisine excites no line
+    (it runs 3-260 Hz), was "rational fit: need at least 8 finite FRF lines at f > 0",
+    naming neither the option nor the recording: now both, one line, exit 2, no fragment."""
+    d, _ = identified
+    sim = str(simulator_machine_path("quaser-ux600"))
+    o = tmp_path / "f.toml"
+    code, _, err = run_cli(["identify", "path", str(d / "sweep.h5"), "--machine", sim, "--axis",
+                            "x", "--input-channel", "x/load", "--band-hz", band, "-o", str(o)],
+                           capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"sweep.h5: --band-hz {band}: rational fit: need at least 8" in err
+    assert not o.exists()

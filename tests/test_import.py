@@ -368,6 +368,177 @@ def test_bad_channel_named_twice(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "channels[0]" in msg and "channels[1]" in msg
 
 
+def test_time_unit_from_the_file_when_the_map_names_the_time_column(tmp_path: Path) -> None:
+    """A map naming the time column without time_unit read a Servo Trace's ms as seconds (the
+    default "s" won over the file's units row): 1 ms steps gave 1 Hz and a 1000 times longer
+    record. The file's unit is used when the map gives none; 1 ms steps are 1000 Hz."""
+    csv = "Zeit;I\n[ms];[A]\n" + "".join(f"{k};{k % 3}\n" for k in range(50))
+    (tmp_path / "t.csv").write_text(csv)
+    (tmp_path / "m.toml").write_text('[[files]]\ntime_column = "Zeit"\n' + MAP_I)
+    rec = import_files([tmp_path / "t.csv"], load_map(tmp_path / "m.toml")).recording
+    assert rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
+    assert rec.duration_s == pytest.approx(0.05, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("header", "files", "message"),
+    [
+        ("t;I\n[s];[A]\n", 'time_column = "t"\ntime_unit = "A"\n', "time_unit: unit 'A' is not a"),
+        ("t;I\n[mm];[A]\n", 'time_column = "t"\n', "time column 't': unit 'mm' is not a"),
+    ],
+)
+def test_bad_time_unit_not_a_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, files: str, message: str
+) -> None:
+    """A time column in amperes (the map) or in mm (the file's units row) was read as
+    seconds times the unit's factor: refused in one line naming the map key or the column."""
+    csv = header + "".join(f"{k};{k % 3}\n" for k in range(50))
+    msg = _bad(tmp_path, capsys, csv, "[[files]]\n" + files + MAP_I)
+    assert message in msg and "time unit (s, ms, us)" in msg
+
+
+@pytest.mark.parametrize(
+    ("header", "mapping", "message"),
+    [
+        ("t;I\n", MAP_I.replace('"A"', '"mm"'), "channels[0] ('I'): unit 'mm' is m"),
+        ("t;I\n[s];[mm]\n", MAP_I.replace('"A"', '"header"'), "channel 'x/current_cmd': unit"),
+        ("t;I\n", MAP_I.replace("x/current_cmd", "spindle/speed"), "unit 'A' is A"),
+    ],
+)
+def test_bad_unit_of_another_quantity_than_the_channel(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], header: str, mapping: str, message: str
+) -> None:
+    """Decision 1668: a current column mapped in mm (in the map or the file's units row)
+    became x/current_cmd in metres, which every estimator reads as amperes (a 1000 A command
+    per mm), and a current as spindle/speed in "A": refused in one line naming the map entry
+    or the channel, the unit's SI quantity and the one the channel holds."""
+    csv = header + "".join(f"{k * 0.001};{k % 3}\n" for k in range(50))
+    msg = _bad(tmp_path, capsys, csv, mapping)
+    assert message in msg and "holds" in msg
+
+
+@pytest.mark.parametrize(
+    ("variables", "column", "message"),
+    [
+        ({"v": np.arange(100.0)}, "v", "a.mat: 'v' (100 samples) is not a column"),
+        ({"M": np.ones((10, 10))}, "M", "a.mat: 'M' (10×10) is not a column"),
+        ({"fs": 0.0}, "I", "a.mat: the file states a sample rate of 0 Hz"),
+        ({"fs": -5.0}, "I", "a.mat: the file states a sample rate of -5 Hz"),
+    ],
+)
+def test_bad_mat_variables_named_for_what_they_are(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    variables: dict[str, object],
+    column: str,
+    message: str,
+) -> None:
+    """A .mat file beside a 1000-sample column 'I': a 100-sample vector or a 10×10 matrix
+    mapped as a channel was reported as "no column 'v' ... (one column only: is the delimiter
+    right?)" although the variable is there (and a .mat has no delimiter); fs = 0 or -5 was
+    "sample_rate_hz must be finite and > 0, got 0.0" naming no file. Each is now one line
+    naming the file and what is wrong, exit 2, nothing written."""
+    from scipy.io import savemat
+
+    savemat(str(tmp_path / "a.mat"), {"I": np.sin(np.arange(1000) * 0.01), **variables})
+    (tmp_path / "m.toml").write_text(MAP_I.replace('"I"', f'"{column}"'))
+    rate = [] if "fs" in variables else ["--rate-hz", "1000"]  # --rate-hz wins over fs
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "a.mat"), "--map", str(tmp_path / "m.toml"), *rate,
+         "-o", str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert message in err and "delimiter" not in err
+    assert not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "meta", "message"),
+    [
+        (["--flutes", "0"], "", "--flutes 0: must be a whole number ≥ 1"),
+        (["--flutes", "-2"], "", "--flutes -2: must be a whole number ≥ 1"),
+        (["--spindle-rpm", "-100"], "", "--spindle-rpm -100: must be finite and > 0"),
+        (["--spindle-rpm", "nan"], "", "--spindle-rpm nan: must be finite and > 0"),
+        (["--feed-mm-min", "-5"], "", "--feed-mm-min -5: must be finite and > 0"),
+        (["--rate-hz", "inf"], "", "--rate-hz inf: must be finite and > 0"),
+        ([], "[metadata]\nflutes = 2.5\n", "m.toml: [metadata] flutes = 2.5: must be a whole"),
+        ([], "[metadata]\nspindle_rpm = 0\n", "m.toml: [metadata] spindle_rpm = 0: must be"),
+    ],
+)
+def test_bad_process_metadata_refused(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: list[str],
+    meta: str,
+    message: str,
+) -> None:
+    """The tool's teeth, spindle speed and feed an import stores are what the monitors divide
+    by (tooth frequency = flutes × rev/min / 60): --flutes 0 or -2, --spindle-rpm -100 and
+    --feed-mm-min -5 were written as metadata (exit 0), nan was "metadata key 'spindle_rpm':
+    nan is not representable in JSON" naming no option, --rate-hz inf named no option. Each
+    is one line naming the option or the map key, exit 2, nothing written."""
+    (tmp_path / "t.csv").write_text("t,I\n" + "".join(f"{k * 0.001},{k % 3}\n" for k in range(50)))
+    (tmp_path / "m.toml").write_text(meta + MAP_I)
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "t.csv"), "--map", str(tmp_path / "m.toml"), *extra,
+         "-o", str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert message in err and not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize("files", ['[[files]]\ndelimiter = " "\n', ""])
+def test_whitespace_aligned_columns(tmp_path: Path, files: str) -> None:
+    """Instrument and MATLAB fprintf exports align columns with runs of spaces: with the
+    map's own delimiter = " " every extra space was an empty (NaN) cell, so a row with a
+    negative number had a field less ("line 13: 9 fields, the table has 10"), and without a
+    delimiter no table was found. Runs of blanks are one separator: 200 rows at 1 kHz, the
+    50 Hz sine exact to the 5 printed digits."""
+    t = np.arange(200) / 1000.0
+    x = np.sin(2 * np.pi * 50 * t)
+    text = "time        I\n" + "".join(f"{a:10.4f}  {b:10.5f}\n" for a, b in zip(t, x, strict=True))
+    (tmp_path / "aligned.txt").write_text(text)
+    (tmp_path / "m.toml").write_text(files + MAP_I)
+    rec = import_files([tmp_path / "aligned.txt"], load_map(tmp_path / "m.toml")).recording
+    assert rec.n_samples == 200 and rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
+    np.testing.assert_allclose(rec.channel("x/current_cmd"), x, atol=0.5e-5)
+
+
+def test_export_of_a_channel_named_twice_imports_back(tmp_path: Path) -> None:
+    """``export -c x/current_cmd -c x/current_cmd`` wrote the column once but listed it twice in
+    the map, which import then refused ("channel 'x/current_cmd' is named twice"): the map
+    that comes with an export must import it back. Once each: the 2000 samples exactly."""
+    from millsense.core.recording import Recording
+
+    rec = Recording(1e4, metadata={})
+    x = np.sin(np.arange(2000) * 0.01)
+    rec.add_channel("x/current_cmd", x, "A")
+    text = export_recording(rec, tmp_path / "d.csv", "csv", ["x/current_cmd", "x/current_cmd"])
+    (tmp_path / "d.map.toml").write_text(text)
+    back = import_files([tmp_path / "d.csv"], load_map(tmp_path / "d.map.toml")).recording
+    assert back.channel_names == ["x/current_cmd"]
+    np.testing.assert_array_equal(back.channel("x/current_cmd"), x)
+
+
+def test_bad_parquet_text_column_named_for_what_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A Parquet column of text mapped as a channel was "no column 'label' ... columns: 'time',
+    'I'" although it is in the file: it is named with its type, one line, exit 2."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = np.arange(100) / 1000.0
+    pq.write_table(
+        pa.table({"time": t, "I": np.sin(t), "label": ["a"] * 100}), tmp_path / "p.parquet"
+    )
+    (tmp_path / "m.toml").write_text(MAP_I.replace('"I"', '"label"'))
+    code, _, err = run_cli(
+        ["import", str(tmp_path / "p.parquet"), "--map", str(tmp_path / "m.toml"), "-o",
+         str(tmp_path / "r.h5")], capsys)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "p.parquet: 'label' (string) is not a column for channel 'x/current_cmd'" in err
+    assert not (tmp_path / "r.h5").exists()
+
+
 def test_bad_unknown_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     m = MAP_I.replace('unit = "A"', 'unit = "furlong"')
     msg = _bad(tmp_path, capsys, "t,I\n0,1\n0.001,2\n0.002,3\n", m)
@@ -379,6 +550,27 @@ def test_bad_time_going_backwards_refused(
 ) -> None:
     msg = _bad(tmp_path, capsys, "time,I\n0,1\n0.001,2\n0.0005,3\n0.002,4\n", MAP_I)
     assert "bad.csv" in msg and "time does not increase at row 3" in msg
+
+
+def test_time_standing_still_refused_without_a_numpy_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A time column stuck at 0 s (a trace export whose clock did not run) was refused, but
+    numpy's "invalid value encountered in scalar divide" (0 steps / 0 s) reached the user
+    first: the refusal now returns before any rate is measured (the message names the row)."""
+    import warnings
+
+    from millsense.io.quality import QualityReport, rate_from_time
+
+    report = QualityReport()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rate_from_time(np.zeros(5), None, "stuck.csv", report)
+    assert [f.message for f in report.refusals] == [
+        "stuck.csv: time does not increase at row 2 of the table (0 s then 0 s; 4 such steps)"
+    ]
+    msg = _bad(tmp_path, capsys, "time,I\n0,1\n0,2\n0,3\n0,4\n", MAP_I)
+    assert "bad.csv: time does not increase at row 2" in msg
 
 
 # ------------------------------------------------------------------------------ workflow
@@ -538,3 +730,36 @@ def test_tncscope_like_export_units_in_names_and_sample_time(tmp_path: Path) -> 
     assert rec.sample_rate_hz == pytest.approx(1000 / 3, rel=1e-9)  # from the time column
     assert rec.channel("x/position")[2] == pytest.approx(3.0e-6, rel=1e-12)
     assert rec.channel("cnc/feed")[0] == pytest.approx(0.01, rel=1e-12)  # 600 mm/min
+
+
+@pytest.mark.parametrize(
+    ("fmt", "rate_hz", "message"),
+    [
+        ("mp3", 10_000.0, "MP3 holds only the MPEG rates"),
+        ("flac", 1_000_000.0, "libsndfile cannot write"),
+    ],
+)
+def test_export_audio_at_a_rate_the_format_lacks_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, rate_hz: float, message: str
+) -> None:
+    """MP3 has the nine MPEG rates (8-48 kHz) and FLAC at most 655 350 Hz: a 10 kHz drive
+    recording to MP3 (and a 1 MHz one to FLAC) was libsndfile's traceback (exit 1), and the
+    channel-count error named the temporary file. Now exit 2, one line naming the output,
+    nothing left behind (no output, no map, no temporary file)."""
+    from millsense.core.recording import Recording
+    from millsense.io import write_recording
+
+    sf = pytest.importorskip("soundfile")
+    if fmt.upper() not in sf.available_formats():
+        pytest.skip(f"this libsndfile has no {fmt}")
+    rec = Recording(rate_hz, 0.0, {})
+    rec.add_channel("x/current", np.sin(np.arange(2000) * 0.1), "A")
+    write_recording(tmp_path / "r.h5", rec)
+    out = tmp_path / f"r.{fmt}"
+    code, _, err = run_cli(
+        ["export", str(tmp_path / "r.h5"), "--format", fmt, "-o", str(out)], capsys
+    )
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and message in err
+    assert f"{out}:" in err and ".tmp" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]

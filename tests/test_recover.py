@@ -143,3 +143,30 @@ def test_a_running_writer_is_not_recovered(
     assert code == 2 and "still being written" in err
     w.close()
     assert path.is_file()
+
+
+@pytest.mark.parametrize(
+    ("content", "why"),
+    [
+        (b"", "not a readable HDF5 file"),
+        (b"time,x\n0,1\n", "not a readable HDF5 file"),
+        (None, "HDF5 file but not a millsense recording"),
+    ],
+)
+def test_recover_of_a_file_that_is_no_recording_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes | None, why: str
+) -> None:
+    """An empty file, a CSV named .h5 and a foreign HDF5 file were each called "a complete
+    recording; nothing to recover": the message says what the file is (as info's does) and
+    that there is no .partial folder to recover from; exit 2, one line, the file untouched."""
+    path = tmp_path / "run.h5"
+    if content is None:
+        with h5py.File(path, "w") as f:
+            f["x"] = np.arange(3.0)
+    else:
+        path.write_bytes(content)
+    before = path.read_bytes()
+    code, _, err = run_cli(["recover", str(path)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert why in err and "no run.h5.partial folder" in err and "complete recording" not in err
+    assert path.read_bytes() == before

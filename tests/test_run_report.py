@@ -199,3 +199,35 @@ def test_peak_force_with_the_tool_intact_apart_from_the_broken_tooth(tmp_path: P
             f = run_figures(r, [])
         assert f.peak_force_n == pytest.approx(1500.0)
         assert f.peak_force_intact_n == pytest.approx(300.0 if chans else 1500.0)
+
+
+def test_report_refuses_a_plan_of_another_program(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``report --plan`` checks the plan against the recording as ``monitor`` and ``replay``
+    do: a run of 'pocket.nc' reported with the plan of 'p.nc' drew the other program's tool
+    path coloured by its forces as the run's (exit 0). Now one line naming both programs,
+    exit 2, no page; the plan of the run's own program is still drawn."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
+
+    rec = Recording(10000.0, 0.0, {"machine": "quaser-ux600", "program": "/shop/pocket.nc"})
+    rec.add_channel("spindle/speed", np.full(2000, 104.7), "rad/s")
+    write_recording(tmp_path / "run.h5", rec)
+    cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
+    for c in ("tool", "source_line", "n_intervals", "nc_line"):
+        cols[c] = np.zeros(10, dtype=np.int64)
+    cols["rapid"] = np.zeros(10, dtype=bool)
+    cols["in_cut"] = np.zeros(10, dtype=bool)
+    cols["x_mm"] = np.linspace(0.0, 9.0, 10)
+    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "other.parquet")
+    VirtualPlan(cols, {"program": "pocket.nc"}).write(tmp_path / "own.parquet")
+    args = ["report", str(tmp_path / "run.h5"), "-o", str(tmp_path / "r.html"), "--plan"]
+    code, _, err = run_cli([*args, str(tmp_path / "other.parquet")], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "plan of program 'p.nc', but" in err and "recorded running 'pocket.nc'" in err
+    assert not (tmp_path / "r.html").exists()
+    code, _, err = run_cli([*args, str(tmp_path / "own.parquet")], capsys)
+    assert code == 0, err
+    assert (tmp_path / "r.html").stat().st_size > 1e6  # plotly inlined: opens offline

@@ -104,3 +104,55 @@ def test_calibration_round_trip(tmp_path: Path) -> None:
         np.testing.assert_allclose(mem[col][cut], truth[col][cut], rtol=1e-3, atol=1e-6)
     np.testing.assert_allclose(disk["torque_avg_nm"][cut], truth["torque_avg_nm"][cut], rtol=1e-3)
     np.testing.assert_allclose(disk["fres_peak_n"][cut], truth["fres_peak_n"][cut], rtol=5e-3)
+
+
+def test_scheduled_words_stay_outside_semicolon_comments(tmp_path: Path) -> None:
+    """A ';' comment runs to the end of the line: the scheduled F (and a split arc's end point
+    and centre) were appended after it, inside the comment, so the CNC ran the block at the
+    previous modal feed (above the limit) and the arc lost its end. With ';' comments on every
+    feed block the rewritten program has exactly the feeds and path of the program without
+    them (the same toolpath, move for move)."""
+    commented = "\n".join(
+        ln + " ; cut" if ln.startswith(("G1", "X", "G2", "G1 Y")) else ln
+        for ln in PROGRAM.splitlines()
+    )
+    plan = _plan(PROGRAM)
+    sched = schedule_feed(plan, 325.0, max_feed_m_s=800 / 60e3, accel_m_s2=1.0)
+    plain_out, comm_out = tmp_path / "plain.nc", tmp_path / "comm.nc"
+    write_scheduled_program(PROGRAM, interpret(PROGRAM), plan, sched, plain_out)
+    added = write_scheduled_program(commented, interpret(commented), plan, sched, comm_out)
+    assert added > 0 and comm_out.read_text().count("; cut") == commented.count("; cut")
+    a, b = interpret_file(plain_out), interpret_file(comm_out)
+    assert b.kind.size == a.kind.size
+    np.testing.assert_allclose(b.end, a.end, atol=1e-12)
+    np.testing.assert_allclose(b.feed, a.feed, rtol=1e-12)
+    assert float(np.nanmin(b.feed)) * 60e3 < 800.0  # some block slowed below the maximum
+
+
+def test_scheduled_feed_of_an_inch_program_is_in_inch_per_minute(tmp_path: Path) -> None:
+    """A G20 program's F words are inch/min: the scheduler wrote its mm/min numbers into
+    them, 25.4 times the feed that holds the limit (F 850 in/min = 21.6 m/min where
+    33.5 in/min was meant). The inch program (PROGRAM with every length and feed / 25.4, not
+    split: each block takes the lowest feed of its rows) now runs each block at that feed,
+    within the 0.01 in/min the F words are rounded down to."""
+    import re
+
+    from millsense.core.units import MM_PER_MIN
+
+    def inch(m: re.Match[str]) -> str:
+        return f"{m.group(1)}{float(m.group(2)) / 25.4:.6f}"
+
+    text = re.sub(r"([XYZIJF])(-?\d+\.?\d*)", inch, PROGRAM).replace("G21", "G20")
+    plan = _plan(text)
+    sched = schedule_feed(plan, 325.0, max_feed_m_s=800 / 60e3, accel_m_s2=1.0)
+    out = tmp_path / "inch.nc"
+    write_scheduled_program(text, interpret(text), plan, sched, out)
+    again = interpret_file(out)
+    rows = ~plan["rapid"].astype(bool) & (plan["source_line"] > 0)
+    checked = 0
+    for line in sorted({int(v) for v in plan["source_line"][rows]}):
+        want = float(sched.feed_m_s[rows & (plan["source_line"] == line)].min()) / MM_PER_MIN
+        got = again.feed[again.source_line == line] / MM_PER_MIN
+        assert np.all(got <= want + 1e-6) and np.all(got >= want - 0.254), (line, got, want)
+        checked += 1
+    assert checked >= 5 and float(np.nanmax(again.feed)) / MM_PER_MIN <= 800.0 + 1e-6

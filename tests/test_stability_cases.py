@@ -181,6 +181,9 @@ def test_cli_zoa_warns_at_low_immersion(tmp_path: Path, capsys: pytest.CaptureFi
             "modal_mass_kg",
         ),
         ((), ["--rpm", "0"], "--rpm"),
+        # an infinite maximum was "lobes: numerical failure (OverflowError ...)", no option
+        ((), ["--rpm", "5000:inf:100"], "--rpm '5000:inf:100'"),
+        ((), ["--rpm", "5000:6000:inf"], "--rpm '5000:6000:inf'"),
     ],
 )
 def test_cli_bad_numbers_one_line_exit_2(

@@ -180,3 +180,30 @@ def test_validate_exit_status_is_one_on_a_failing_case(capsys: pytest.CaptureFix
     assert code == 0 and "1 cases: 1 pass, 0 fail" in out
     code, out, _ = run_cli(["validate", "--case", "estimation.kalman_a_axis_flat_to_120hz"], capsys)
     assert code == 1 and "1 fail (1 known" in out
+
+
+def test_validate_list_names_the_cases_without_running_them(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``validate --list``: the ids a --case glob matches, with reference, tolerance and tags,
+    one case a line and nothing run (there was no way to learn the ids but to run them: the
+    full set takes over an hour). The stability cases are listed whole; with --quick only
+    the quick ones; with --json it is refused (nothing to write), one line, exit 2."""
+    import time
+
+    from millsense.validation.registry import select_cases
+
+    t0 = time.perf_counter()
+    code, out, err = run_cli(["validate", "--list", "--case", "stability.*"], capsys)
+    assert code == 0, err
+    assert time.perf_counter() - t0 < 20.0  # listing, not running (a case takes seconds)
+    ids = [c.id for c in select_cases("stability.*")]
+    assert len(ids) >= 3
+    lines = out.strip().splitlines()
+    assert [ln.split()[0] for ln in lines[:-1]] == ids
+    assert lines[-1] == f"{len(ids)} cases"
+    quick = [c.id for c in select_cases("stability.*", quick_only=True)]
+    code, out, _ = run_cli(["validate", "--list", "--quick", "--case", "stability.*"], capsys)
+    assert code == 0 and [ln.split()[0] for ln in out.strip().splitlines()[:-1]] == quick
+    code, _, err = run_cli(["validate", "--list", "--json", "-"], capsys)
+    assert code == 2 and "--list" in err and len(err.strip().splitlines()) == 1

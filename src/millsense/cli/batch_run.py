@@ -196,7 +196,10 @@ def run_batch(
 
         cluster = None
         if scheduler:
-            client = Client(scheduler, timeout="10s")
+            try:
+                client = Client(scheduler, timeout="10s")
+            except ValueError as exc:  # Dask's parse of the address: no port, unknown scheme
+                raise ConfigError(f"--scheduler {scheduler!r}: {exc}") from None
             res.scheduler = scheduler
         else:
             if starter is None:

@@ -442,6 +442,10 @@ def _wear(rec: Any, path: Path, meta: dict[str, Any], options: dict[str, Any],
             f"{path}: wear needs the run's virtual plan (metadata 'plan' or --plan)"
         )
     vp = VirtualPlan.read(plan)
+    if options.get("plan"):  # --plan for every run: of this run's program? (as monitor)
+        from millsense.cli.plan_match import check_plan_matches
+
+        check_plan_matches(vp, plan, rec, "the run")  # the row's message names the file
     chunk = int(options.get("chunk", 2000))
     sums = recording_wear_sums(rec, vp, _machine(options, meta), chunk=chunk, where=str(path))
     row.update({f"wear_{k}": v for k, v in sums.as_dict().items()})

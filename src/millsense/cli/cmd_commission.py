@@ -134,6 +134,9 @@ def commission(
     axes = [a.strip() for a in axis.split(",") if a.strip()]
     if not axes:
         raise ConfigError("--axis: give at least one axis")
+    twice = next((a for i, a in enumerate(axes) if a in axes[:i]), None)
+    if twice is not None:
+        raise ConfigError(f"--axis {axis!r}: axis '{twice}' named twice")
     sim = simulator_machine(machine)
     for a in axes:
         sim.axis(a)  # one-line errors before anything is written

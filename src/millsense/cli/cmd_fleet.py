@@ -102,7 +102,7 @@ def simulate_fleet_command(
     part_cut_min: float = typer.Option(
         6.0, "--part-cut-min", help="Cutting time of one part [min] (the tool's wear per run)."
     ),
-    seed: int = typer.Option(0, "--seed", help="Seed of the tools' life factors and noise."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the tools' life factors and noise."),
 ) -> None:
     """Simulate a tool life: TOOLS tools × RUNS runs of four programs with growing flank wear
     (the truth VB in each recording's metadata), for `millsense batch` and its wear monitor."""

@@ -226,18 +226,24 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
     drive, lugre, lowpass = c3_front_end(a, cfg, rec.sample_rate_hz, ctx.machine.name)
     per = rec.metadata.get("period_samples")
     band = o["band"] or (3.0, 260.0)
-    sweep = fit_disturbance_path(
-        load,
-        current,
-        speed,
-        drive,
-        lowpass,
-        rec.sample_rate_hz,
-        period_samples=per if isinstance(per, int) and per > 0 else None,
-        lugre=lugre,
-        fit_band_hz=band,
-        welch_resolution_hz=o["resolution"],
-    )
+    try:
+        sweep = fit_disturbance_path(
+            load,
+            current,
+            speed,
+            drive,
+            lowpass,
+            rec.sample_rate_hz,
+            period_samples=per if isinstance(per, int) and per > 0 else None,
+            lugre=lugre,
+            fit_band_hz=band,
+            welch_resolution_hz=o["resolution"],
+        )
+    except InputDataError as exc:
+        if o["band"] is None:
+            raise
+        # a band above Nyquist or beside the excited lines: say which option and recording
+        raise InputDataError(f"{path}: --band-hz {band[0]:g}:{band[1]:g}: {exc}") from None
     fit = sweep.fit
     if o["plot"] is not None:
         fb = np.linspace(band[0], band[1], 3000)

@@ -3,6 +3,7 @@ millsense in and out (issue 17, decision 1701)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -91,8 +92,8 @@ def import_(
     check_outputs(inputs, {"-o": out, "--plot": plot, "--json": json_out})
     if out.suffix != ".h5":
         raise ConfigError(f"-o {out}: a recording is written as .h5")
-    if rate_hz is not None and not rate_hz > 0:
-        raise ConfigError(f"--rate-hz {rate_hz}: must be > 0")
+    if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ConfigError(f"--rate-hz {rate_hz:g}: must be finite and > 0")
     mapping = load_map(map_file)
     meta: dict[str, object] = {
         "machine": machine,

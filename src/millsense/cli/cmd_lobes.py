@@ -18,6 +18,7 @@ from millsense.core.errors import ConfigError
 #: refuses with a message instead of running for hours (decision 0906).
 MAX_EVALUATIONS = 400_000
 
+
 def _parse_rpm(text: str) -> tuple[float, float, float] | float:
     parts = text.split(":")
     if len(parts) == 1:
@@ -32,8 +33,8 @@ def _parse_rpm(text: str) -> tuple[float, float, float] | float:
         lo, hi, step = (float(p) for p in parts)
     except ValueError:
         raise ConfigError(f"--rpm {text!r}: expected N or MIN:MAX:STEP in rev/min") from None
-    if not (0 < lo < hi and step > 0):
-        raise ConfigError(f"--rpm {text!r}: allowed 0 < MIN < MAX and STEP > 0")
+    if not (0 < lo < hi and step > 0 and math.isfinite(hi) and math.isfinite(step)):
+        raise ConfigError(f"--rpm {text!r}: allowed 0 < MIN < MAX and STEP > 0, finite")
     return lo, hi, step
 
 

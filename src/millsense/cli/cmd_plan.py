@@ -3,6 +3,7 @@ feed-scheduled (optimised) program."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,6 +27,8 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
         raise ConfigError(f"--home-mm {text!r}: expected X,Y,Z in mm") from None
     if len(vals) != 3:
         raise ConfigError(f"--home-mm {text!r}: expected three values X,Y,Z in mm")
+    if not all(math.isfinite(v) for v in vals):
+        raise ConfigError(f"--home-mm {text!r}: X,Y,Z must be finite (mm)")
     return (vals[0], vals[1], vals[2])
 
 
@@ -55,8 +58,18 @@ def _guard(
 
 
 def _positive(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ConfigError(f"{name} {value!r}: must be finite")
     if not value > 0:
         raise ConfigError(f"{name} {value!r}: must be > 0")
+
+
+#: The option of each limit kind of ``schedule``.
+_LIMIT_OPTION = {
+    "force": "--limit-force-n",
+    "torque": "--limit-torque-nm",
+    "power": "--limit-power-w",
+}
 
 
 def stock_maker(stock_cfg: Any, stock: Path) -> Callable[[float], Any]:
@@ -113,6 +126,13 @@ def _build(
     _positive("--step-mm", step_mm)
     _positive("--resolution-mm", resolution_mm)
     tool_cfg = load_preset(ToolConfig, tool)
+    if 1.5 * resolution_mm >= tool_cfg.diameter_mm:
+        # the CWE resolves no radial depth below about 1.5 cells (millsense.plan.cwe)
+        raise ConfigError(
+            f"--resolution-mm {resolution_mm:g}: a cell of D/1.5 = "
+            f"{tool_cfg.diameter_mm / 1.5:.4g} mm or more resolves no engagement of the "
+            f"Ø{tool_cfg.diameter_mm:g} mm tool, not even a slot (default 0.1 mm)"
+        )
     mat_cfg = load_preset(MaterialConfig, material)
     stock_cfg = load_config(StockConfig, stock)
     mcfg = None if machine is None else load_preset(MachineConfig, machine)
@@ -229,10 +249,9 @@ def schedule(
     machine: str | None = _MACHINE,
 ) -> None:
     """Feed per step holding a force, torque or power limit; write an optimised program."""
-    import math
-
     from millsense.core.errors import InputDataError
     from millsense.core.units import MM, MM_PER_MIN
+    from millsense.plan.gcode import read_program
     from millsense.plan.schedule import AT_LIMIT, schedule_feed, write_scheduled_program
 
     limits = [
@@ -248,14 +267,14 @@ def schedule(
         raise ConfigError("give exactly one of --limit-force-n, --limit-torque-nm, --limit-power-w")
     _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     kind, value = limits[0]
-    _positive(f"--limit-{kind}", float(value))
+    _positive(_LIMIT_OPTION[kind], float(value))
     _positive("--accel-mm-s2", accel_mm_s2)
     for name, feed in (
         ("--min-feed-mm-min", min_feed_mm_min),
         ("--max-feed-mm-min", max_feed_mm_min),
     ):
-        if feed is not None and not (math.isfinite(feed) and feed > 0):
-            raise ConfigError(f"{name} {feed!r}: must be > 0")
+        if feed is not None:
+            _positive(name, feed)
     if min_feed_mm_min is not None and max_feed_mm_min is not None:
         if min_feed_mm_min > max_feed_mm_min:
             raise ConfigError(
@@ -282,8 +301,8 @@ def schedule(
         ) from None
     _unreachable(vp, sched, kind, float(value), findings)
     _print_warnings(findings)
-    text = Path(program).read_text(encoding="utf-8", errors="replace")
-    added = write_scheduled_program(text, toolpath, vp, sched, output)
+    text, encoding = read_program(program)
+    added = write_scheduled_program(text, toolpath, vp, sched, output, encoding=encoding)
     if plot is not None:
         from millsense.report.plan_plots import plot_plan
 
@@ -326,8 +345,8 @@ def _unreachable(vp: VirtualPlan, sched: Any, kind: str, limit: float, findings:
         else f"it needs {hold:.4g} mm/min, below --min-feed-mm-min"
     )
     findings.warn(
-        f"--limit-{kind}-{'n' if kind == 'force' else 'nm' if kind == 'torque' else 'w'} "
-        f"{limit:g} {unit}: no feed reaches it on {int(cut.sum())} steps (lines {where}): "
+        f"{_LIMIT_OPTION[kind]} {limit:g} {unit}: no feed reaches it on {int(cut.sum())} "
+        f"steps (lines {where}): "
         f"{why}; those steps run at the minimum feed "
         f"{float(sched.feed_m_s[k]) / MM_PER_MIN:.4g} mm/min and exceed the limit"
     )

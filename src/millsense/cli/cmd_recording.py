@@ -103,14 +103,21 @@ def plot(
     rec = read_recording(recording)
     for c in channel:
         rec.channel(c)  # unknown channel -> one-line error naming it
-    t_range = None
     if t_start is not None or t_end is not None:
         t0 = rec.t0_s if t_start is None else t_start
         t1 = rec.t0_s + rec.duration_s if t_end is None else t_end
         if t1 <= t0:
             raise UserError(f"--from-s {t0:g} must be before --to-s {t1:g}")
-        t_range = (t0, t1)
-    plot_channels(rec, channel, out, t_range)
+        n = rec.slice_time(t0, t1).n_samples
+        if n < 2:  # nothing to draw a line through
+            raise UserError(
+                f"{recording}: --from-s {t0:g} --to-s {t1:g} holds {n} sample"
+                f"{'' if n == 1 else 's'}; the recording spans t = {rec.t0_s:g} to "
+                f"{rec.t0_s + rec.duration_s:g} s"
+            )
+        plot_channels(rec, channel, out, (t0, t1))
+    else:
+        plot_channels(rec, channel, out)
     Console().print(f"wrote {out}")
 
 

@@ -37,8 +37,13 @@ def report(
     """One self-contained HTML file of a run (plotly, opens offline): estimates against truth,
     tool path coloured by force with the events, breakage residual, adaptive control, spindle
     speed, the event table, the machine file and the validation status."""
+    import math
+
+    from millsense.core.errors import ConfigError
     from millsense.io.safe_output import check_outputs
 
+    if not (math.isfinite(wear_limit_mm) and wear_limit_mm > 0):  # as batch --vb-limit-mm
+        raise ConfigError(f"--wear-limit-mm: must be > 0, got {wear_limit_mm:g}")
     check_outputs(
         {"the recording": recording, "the plan": plan, "the event log": events,
          "the machine file": machine_file, "the summary table": fleet},
@@ -93,11 +98,16 @@ def write_run_report(
         events = read_event_log(beside) if beside.is_file() else []
     elif isinstance(events, str | Path):
         events = read_event_log(events)
-    if isinstance(plan, str | Path):
-        plan = VirtualPlan.read(plan)
+    plan_file = plan if isinstance(plan, str | Path) else None
+    if plan_file is not None:
+        plan = VirtualPlan.read(plan_file)
     with opened_recording(recording) as rec:
         meta = dict(rec.metadata)
         channels = list(rec.channel_names)
+        if plan_file is not None:  # a plan given by the user: of this run's program?
+            from millsense.cli.plan_match import check_plan_matches
+
+            check_plan_matches(plan, Path(plan_file), rec, recording)
     machine, where = _machine(machine_file, meta)
     status = read_status(prefixes_for(channels))
     rows, status_where = status if status is not None else (None, "")

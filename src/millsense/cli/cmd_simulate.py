@@ -52,7 +52,7 @@ def simulate(
     ),
     out: Path = typer.Option(..., "-o", "--output", help="Recording to write (.h5)."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
-    seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every noise generator."),
     cnc: str = typer.Option("open", "--cnc", help="Override channel: open or closed."),
     break_at_s: float | None = typer.Option(
         None, "--break-at-s", help="Break a tooth at this time [s]."

@@ -27,7 +27,9 @@ def split_passes(
     from millsense.core.errors import ConfigError
 
     if not (max_depth_mm > 0 and math.isfinite(max_depth_mm)):
-        raise ConfigError(f"--max-depth-mm: must be > 0, got {max_depth_mm}")
+        raise ConfigError(f"--max-depth-mm: must be finite and > 0, got {max_depth_mm:g}")
+    if not math.isfinite(top_z_mm):
+        raise ConfigError(f"--top-z-mm: must be finite, got {top_z_mm:g}")
     res = write_split_program(program, output, max_depth_mm, top_z_mm)
     for p, k in res.split:
         typer.echo(

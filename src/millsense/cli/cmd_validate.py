@@ -37,6 +37,9 @@ def validate(
     markdown: str | None = typer.Option(
         None, "--markdown", help="(Re)write this Markdown file (- = stdout)."
     ),
+    list_only: bool = typer.Option(
+        False, "--list", help="List the selected cases (reference, tolerance, tags); run none."
+    ),
 ) -> None:
     """Run validation cases and report reference, measured value, tolerance and status.
 
@@ -52,11 +55,22 @@ def validate(
     )
 
     check_outputs({}, {"--json": json_out, "--markdown": markdown})
+    if list_only and (json_out is not None or markdown is not None):
+        raise UserError("--list runs no case: --json and --markdown need a run")
 
     cases = select_cases(case, quick_only=quick, ci_only=ci)
     if not cases:
         what = " tagged for CI" if ci else (" quick" if quick else "")
         raise UserError(f"no{what} validation case matches '{case}'")
+    if list_only:
+        for c in cases:
+            tags = [t for t, on in (("quick", c.quick), ("ci", c.ci), ("known", c.gap)) if on]
+            typer.echo(
+                f"{c.id}  {c.reference:.6g} {c.unit} {c.tolerance_text()}"
+                f"{'  [' + ', '.join(tags) + ']' if tags else ''}"
+            )
+        typer.echo(f"{len(cases)} cases")
+        return
     provenance = provenance_line()
     # a table on stdout would corrupt JSON or Markdown written there
     console = Console(stderr="-" in (json_out, markdown))

@@ -1,4 +1,5 @@
-"""The check that a virtual plan belongs to a recording (``monitor``, ``replay``)."""
+"""The check that a virtual plan belongs to a recording (``monitor``, ``replay``,
+``report``, ``batch --plan``)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 
-def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path) -> None:
+def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path | str) -> None:
     """A plan of another program is refused: the plan's and the recording's ``program``
     metadata name different files.
 

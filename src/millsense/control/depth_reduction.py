@@ -9,6 +9,9 @@ every cutting pass deeper than the limit below the stock top is replaced by k = 
 passes: k − 1 copies whose Z is clamped at ``top − i·D/k`` (i = 1 … k − 1), each followed by a
 retract to the pass's start height and a rapid back to its start, then the original pass. The
 last pass is the programmed one, so the geometry finally reached is the programmed geometry.
+A pass entered below the top (a rapid down beside the part, in air) has each copy start at
+its level and the last at the programmed height (rapids on the vertical the program came
+down).
 
 A *pass* is a run of blocks in which the tool stays below the stock top: it starts with the
 feed move that takes the tool below ``top_z_mm`` and ends before the move that brings it back
@@ -18,7 +21,9 @@ ramp the clamped copy reaches the level later than the true clamped ramp would, 
 intermediate pass of a ramp is at most as deep as the step (constant-Z passes are exact).
 
 Supported: absolute (G90) metric (G21) programs in the subset of
-:mod:`millsense.plan.gcode`; G91 and G20 are refused with a one-line error.
+:mod:`millsense.plan.gcode`, with its ``%`` demarcation lines (lines after the closing one
+are copied untouched); G91 and G20 are refused with a one-line error. The program is read as
+the interpreter reads it (UTF-8, else latin-1) and written back in the same encoding.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from millsense.core.errors import ConfigError, ProgramError
+from millsense.core.errors import ConfigError
 from millsense.plan.gcode_lexer import program_error, strip_block, words
 
 #: Tolerance on heights, mm.
@@ -88,8 +93,14 @@ def _parse(text: str, source: str) -> list[_Line]:
     pos = [0.0, 0.0, 0.0]
     mode = 0
     out: list[_Line] = []
+    opened = closed = False  # '%' demarcation, as the interpreter reads it
     for lineno, raw in enumerate(text.splitlines(), start=1):
-        block = strip_block(raw, source, lineno)
+        if closed:
+            block = ""  # after the closing '%': not part of the program, copied as it is
+        elif raw.strip() == "%" and (opened or not any(ln.raw.strip() for ln in out)):
+            closed, opened, block = opened, True, ""
+        else:
+            block = strip_block(raw, source, lineno)
         ws = words(block.lstrip("/"), raw, source, lineno) if block else []
         explicit = False
         for letter, num in ws:
@@ -215,9 +226,13 @@ def split_deep_passes(
         x0, y0, z0 = lines[i].start
         safe = z0 if z0 >= top_z_mm - EPS_MM else top_z_mm + 2.0
         split.append((CuttingPass(i + 1, b, depth, (x0, y0, z0)), k))
+        z = z0  # the tool's height at (x0, y0) before each copy
         for p in range(1, k):
             level = top_z_mm - depth * p / k
             out.append(f"(chatter: depth pass {p}/{k} at Z{_fmt(level)}, seed 002)")
+            # a pass entered below the top (a rapid beside the part, in air) starts at its level
+            if max(z0, level) != z:
+                out.append(f"G0 Z{_fmt(max(z0, level))}")
             mode = mode_before
             first = True
             for ln in body:
@@ -231,7 +246,10 @@ def split_deep_passes(
                 first = False
             out.append(f"G0 Z{_fmt(safe)}")
             out.append(f"G0 X{_fmt(x0)} Y{_fmt(y0)}")
+            z = safe
         out.append(f"(chatter: depth pass {k}/{k}, as programmed)")
+        if z != z0:
+            out.append(f"G0 Z{_fmt(z0)}")  # back down where the program entered the pass
         first_move = next(j for j, ln in enumerate(body) if ln.motion is not None)
         for j, ln in enumerate(body):
             if j == first_move and not ln.explicit_motion:
@@ -262,13 +280,10 @@ def write_split_program(
     """Read ``program``, split its deep passes (:func:`split_deep_passes`) and write the new
     program to ``output`` atomically (never onto the input; :mod:`millsense.io.safe_output`)."""
     from millsense.io.safe_output import check_outputs, write_text
+    from millsense.plan.gcode import read_program
 
     check_outputs({"program": program}, {"output": output})
-    p = Path(program)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProgramError(f"{p}: cannot read the program ({exc.strerror})") from exc
-    res = split_deep_passes(text, max_depth_mm, top_z_mm, source=str(p))
-    write_text(output, res.text)
+    text, encoding = read_program(program)
+    res = split_deep_passes(text, max_depth_mm, top_z_mm, source=str(program))
+    write_text(output, res.text, encoding)
     return res

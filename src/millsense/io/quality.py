@@ -174,6 +174,8 @@ def rate_from_time(
                 data={"row": k + 1, "count": int(bad.size)},
             )
         )
+        # refused: no rate to measure (a column standing still has no regular step at all)
+        return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     nominal = float(np.median(dt))
     regular = (dt > 0) & (dt <= GAP_FACTOR * nominal)
     fs = float(np.count_nonzero(regular) / np.sum(dt[regular]))

@@ -32,6 +32,7 @@ from millsense.io.recording_file import (
     partial_dir,
     read_interrupted,
     read_recording,
+    recording_status,
     write_recording,
     writer_alive,
 )
@@ -103,6 +104,10 @@ def recover(path: str | Path, output: str | Path | None = None) -> Recovered:
     partial = partial_dir(path)
     if not partial.is_dir():
         if path.is_file():
+            try:
+                recording_status(path)  # what the file is: corrupt and foreign files say so
+            except RecordingError as exc:
+                raise RecordingError(f"{exc}; no {partial.name} folder to recover from") from None
             raise RecordingError(f"{path}: a complete recording; nothing to recover")
         raise RecordingError(f"{path}: no such recording and no {partial.name} folder to recover")
     if writer_alive(path):

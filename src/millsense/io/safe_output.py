@@ -24,7 +24,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import TypeAlias
 
-from millsense.core.errors import ConfigError
+from millsense.core.errors import ConfigError, UserError
 
 __all__ = ["atomic_path", "check_outputs", "temporary_sibling", "write_bytes", "write_text"]
 
@@ -130,6 +130,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         if exc.filename is not None and Path(exc.filename) == tmp:
             # name the file the user asked for, not the temporary one
             raise OSError(exc.errno, exc.strerror, str(p)) from None
+        raise
+    except UserError as exc:
+        if str(tmp) in str(exc):  # a writer's one-line error, naming the file it was given
+            raise type(exc)(str(exc).replace(str(tmp), str(p))) from None
         raise
     finally:
         with contextlib.suppress(OSError):

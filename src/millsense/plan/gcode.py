@@ -671,19 +671,37 @@ def interpret(
     return m.toolpath()
 
 
-def interpret_file(path: str | Path, **kwargs: object) -> Toolpath:
-    """Read and interpret a G-code file; see :func:`interpret` for the keyword arguments.
+def read_program(path: str | Path) -> tuple[str, str]:
+    """The text of a program file and the encoding it was read with, to write a rewritten
+    program back in it: UTF-8 (a byte-order mark, which Windows editors write, is not text:
+    ``utf-8-sig`` writes it back), else latin-1 (every byte a character, so a Windows
+    editor's cp1252 comments are kept byte for byte).
 
     Raises
     ------
     ProgramError
-        If the file cannot be read or decoded, or for any bad block (message names the file).
+        If the file cannot be read (message names the file).
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8", errors="strict")
-    except UnicodeDecodeError:
-        text = p.read_text(encoding="latin-1")
+        raw = p.read_bytes()
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read program: {exc.strerror or exc}") from exc
-    return interpret(text, source=str(p), **kwargs)  # type: ignore[arg-type]
+    encoding = "utf-8-sig" if raw.startswith(b"\xef\xbb\xbf") else "utf-8"
+    try:
+        return raw.decode(encoding), encoding
+    except UnicodeDecodeError:
+        return raw.decode("latin-1"), "latin-1"
+
+
+def interpret_file(path: str | Path, **kwargs: object) -> Toolpath:
+    """Read (:func:`read_program`) and interpret a G-code file; see :func:`interpret` for the
+    keyword arguments.
+
+    Raises
+    ------
+    ProgramError
+        If the file cannot be read, or for any bad block (message names the file).
+    """
+    text, _ = read_program(path)
+    return interpret(text, source=str(path), **kwargs)  # type: ignore[arg-type]

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import InputDataError, ProgramError
 from millsense.core.units import MM, MM_PER_MIN
+from millsense.plan.gcode import INCH_MM
 from millsense.plan.path import ARC, LINE, PLANE_XY, Toolpath
 from millsense.plan.virtual_plan import VirtualPlan
 
@@ -48,6 +49,10 @@ _KINDS = ("force", "torque", "power")
 SPLIT_BEFORE_MM = 1e-3
 _COMMENTS = re.compile(r"\([^()]*\)|;.*")
 _MOTION = re.compile(r"G0*[0123](?![\d.])", re.IGNORECASE)
+_G20 = r"G0*20(?![\d.])"
+_G21 = r"G0*21(?![\d.])"
+#: F words of a block in inches (G20) are inch/min, rounded down to this [inch/min].
+FEED_QUANTUM_INCH_MIN = 0.01
 _GEOM = re.compile(r"([XYZIJKRF])\s*[-+]?(?:\d+\.?\d*|\.\d+)", re.IGNORECASE)
 
 
@@ -250,6 +255,31 @@ def _strip_words(line: str, letters: str) -> str:
     return re.sub(r"[ \t]+", " ", "".join(out)).rstrip()
 
 
+def _with_words(line: str, words: str) -> str:
+    """``line`` with ``words`` added to its block: before a ``;`` comment, which runs to the
+    end of the line (after it they would be comment text)."""
+    for m in _COMMENTS.finditer(line):
+        if m.group(0).startswith(";"):
+            head = line[: m.start()].rstrip()
+            return f"{head} {words} {m.group(0)}" if head else f"{words} {m.group(0)}"
+    return f"{line} {words}"
+
+
+def _inch_blocks(lines: list[str]) -> list[bool]:
+    """For every line, whether its words are in inches: G20 in effect, its own G20/G21
+    included (units come first in a block, RS274/NGC v3 Table 8)."""
+    inch = False
+    out = []
+    for raw in lines:
+        body = _COMMENTS.sub("", raw).upper().replace(" ", "")
+        if re.search(_G20, body):
+            inch = True
+        elif re.search(_G21, body):
+            inch = False
+        out.append(inch)
+    return out
+
+
 def _splittable(text: str) -> str | None:
     """Reason a program cannot be split in place (None if it can).
 
@@ -258,7 +288,7 @@ def _splittable(text: str) -> str | None:
     """
     body = _COMMENTS.sub("", text).upper().replace(" ", "")
     for code, why in (
-        (r"G0*20(?![\d.])", "inch units (G20)"),
+        (_G20, "inch units (G20)"),
         (r"G91(?![.\d])", "incremental distances (G91)"),
         (r"G90\.1", "absolute arc centres (G90.1)"),
     ):
@@ -275,6 +305,7 @@ def write_scheduled_program(
     path: str | Path,
     *,
     feed_quantum_mm_min: float = 0.1,
+    encoding: str = "utf-8",
 ) -> int:
     """Write the program with scheduled F words; split long blocks where the feed changes.
 
@@ -292,7 +323,10 @@ def write_scheduled_program(
     path : path
         Output file (written atomically).
     feed_quantum_mm_min : float
-        F words are rounded down to this [mm/min].
+        F words are rounded down to this [mm/min]; in a G20 block they are inch/min, rounded
+        down to :data:`FEED_QUANTUM_INCH_MIN`.
+    encoding : str
+        The program's (:func:`millsense.plan.gcode.read_program`), to write it back in.
 
     Returns
     -------
@@ -312,6 +346,10 @@ def write_scheduled_program(
     q = feed_quantum_mm_min
     feed_mm = np.floor(schedule.feed_m_s / MM_PER_MIN / q + 1e-9) * q
     feed_mm = np.maximum(feed_mm, q)
+    qi = FEED_QUANTUM_INCH_MIN
+    feed_inch = np.floor(schedule.feed_m_s / MM_PER_MIN / INCH_MM / qi + 1e-9) * qi
+    feed_inch = np.maximum(feed_inch, qi)
+    inch = _inch_blocks(lines)
     src = plan["source_line"]
     rapid = plan["rapid"].astype(bool)
     moves_of: dict[int, list[int]] = {}
@@ -331,7 +369,7 @@ def write_scheduled_program(
         if rows is None:
             out.append(raw)
             continue
-        f = feed_mm[rows]
+        f = feed_inch[rows] if inch[lineno - 1] else feed_mm[rows]
         moves = moves_of.get(lineno, [])
         kinds = {int(toolpath.kind[m]) for m in moves}
         single = len(moves) == 1 and kinds <= {LINE, ARC}
@@ -339,7 +377,7 @@ def write_scheduled_program(
         arc_ok = single and (int(toolpath.kind[mv]) == LINE or int(toolpath.plane[mv]) == PLANE_XY)
         change = np.flatnonzero(np.diff(f) != 0) + 1
         if change.size == 0 or why is not None or not arc_ok:
-            out.append(_strip_words(raw, "F") + f" F{_fmt(float(f.min()))}")
+            out.append(_with_words(_strip_words(raw, "F"), f"F{_fmt(float(f.min()))}"))
             continue
         start = toolpath.start[mv, :3] / MM
         centre = toolpath.centre[mv] / MM
@@ -369,19 +407,19 @@ def write_scheduled_program(
             cur_feed = float(f[k])
         end = toolpath.end[mv, :3] / MM
         if is_arc:
-            tail = _MOTION.sub("", _strip_words(raw, "XYZIJKRF")).rstrip()
-            tail += f" {gcode} X{_fmt(float(end[0]))} Y{_fmt(float(end[1]))}"
+            tail = f"{gcode} X{_fmt(float(end[0]))} Y{_fmt(float(end[1]))}"
             if abs(end[2] - start[2]) > 1e-9:
                 tail += f" Z{_fmt(float(end[2]))}"
             tail += f" I{_fmt(float(centre[0] - cur[0]))} J{_fmt(float(centre[1] - cur[1]))}"
-            out.append(tail + f" F{_fmt(cur_feed)}")
+            rest = _MOTION.sub("", _strip_words(raw, "XYZIJKRF")).rstrip()
+            out.append(_with_words(rest, f"{tail} F{_fmt(cur_feed)}"))
         else:
-            out.append(_strip_words(raw, "F") + f" F{_fmt(cur_feed)}")
+            out.append(_with_words(_strip_words(raw, "F"), f"F{_fmt(cur_feed)}"))
     text = "\n".join(out) + "\n"
     p = Path(path)
     tmp = p.with_name(f".{p.name}.tmp")
     try:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_text(text, encoding=encoding)
         tmp.replace(p)
     except OSError as exc:
         tmp.unlink(missing_ok=True)

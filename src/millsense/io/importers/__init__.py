@@ -13,6 +13,7 @@ it back.
 from __future__ import annotations
 
 import fnmatch
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +22,15 @@ import numpy as np
 
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import Recording
-from millsense.io.importers.mapfile import ChannelMap, FileOptions, ImportMap, load_map, si_factor
+from millsense.io.importers.mapfile import (
+    ChannelMap,
+    FileOptions,
+    ImportMap,
+    check_channel_unit,
+    load_map,
+    si_factor,
+    time_factor,
+)
 from millsense.io.importers.table import RawTable
 from millsense.io.quality import Finding, QualityReport, check_recording, nan_runs, rate_from_time
 
@@ -109,9 +118,16 @@ def _file_of(ch: ChannelMap, tables: Sequence[RawTable], where: str) -> RawTable
     having = [t for t in cands if ch.column in t.columns]
     if not having:
         t = cands[0]
+        skip = next((c for c in cands if ch.column in c.skipped), None)
+        if skip is not None:
+            size, why = skip.skipped[ch.column]
+            raise InputDataError(
+                f"{skip.path}: {ch.column!r} ({size}) is not a column for channel "
+                f"'{ch.channel}': {why}"
+            )
         shown = ", ".join(repr(c) for c in list(t.columns)[:12])
         hint = ""
-        if len(t.columns) == 1:
+        if len(t.columns) == 1 and FORMATS.get(t.path.suffix.lower()) in ("csv", "tsv"):
             hint = " (one column only: is the delimiter right?)"
         raise InputDataError(
             f"{t.path}: no column {ch.column!r} for channel '{ch.channel}'; columns: {shown}{hint}"
@@ -130,6 +146,11 @@ def _on_grid(
     """The file's columns on a uniform time grid (gaps filled), its rate and first time."""
     where = str(table.path)
     stated = opt.sample_rate_hz or rate_hz or table.stated_rate_hz
+    if stated is not None and not (math.isfinite(stated) and stated > 0):
+        raise InputDataError(  # the map's and --rate-hz are checked: the file's own (.mat fs)
+            f"{where}: the file states a sample rate of {stated:g} Hz (must be finite and > 0): "
+            "give [[files]] sample_rate_hz in the map or --rate-hz"
+        )
     tcol = table.time_column(opt.time_column)
     if opt.time_column is not None and tcol not in table.columns:
         raise InputDataError(f"{where}: no time column {opt.time_column!r}")
@@ -143,8 +164,9 @@ def _on_grid(
             )
         report.rates[where] = (stated, stated)
         return _Timed(table, float(stated), 0.0, cols, stated, False, np.zeros(n, bool))
-    unit = table.units.get(tcol, "") if opt.time_column is None else opt.time_unit
-    _, factor = si_factor(unit or opt.time_unit, f"{where}: time column {tcol!r}")
+    # the map's time_unit, else the file's (units row, "Time [ms]"), else seconds
+    unit = opt.time_unit or table.units.get(tcol, "") or "s"
+    factor = time_factor(unit, f"{where}: time column {tcol!r}")
     t = np.asarray(table.columns[tcol], dtype=np.float64) * factor
     if not np.all(np.isfinite(t)):
         k = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -193,6 +215,7 @@ def _convert(ch: ChannelMap, timed: _Timed, where: str) -> tuple[np.ndarray, str
                 f"unit in {where}"
             )
     si, factor = si_factor(unit, where)
+    check_channel_unit(ch.channel, unit, si, where)
     x = (timed.columns[ch.column] * ch.scale + ch.offset) * factor
     return x, si
 
@@ -229,6 +252,28 @@ def _fill_nan(
     return y
 
 
+#: Metadata of the cut that the monitors compute with (tooth frequency = flutes · rpm / 60).
+_WHOLE_METADATA = ("flutes",)
+_POSITIVE_METADATA = ("spindle_rpm", "feed_mm_min")
+
+
+def _check_process_metadata(values: Mapping[str, object], where: str) -> None:
+    """A one-line ConfigError for a number of teeth that is no whole number ≥ 1, or a spindle
+    speed or feed that is not finite and > 0. ``where``: "--" (an option, named ``--key``) or
+    the map's ``[metadata]``."""
+    for key, value in values.items():
+        if value is None or key not in _WHOLE_METADATA + _POSITIVE_METADATA:
+            continue
+        name = f"--{key.replace('_', '-')}" if where == "--" else f"{where} {key} ="
+        shown = f"{value:g}" if isinstance(value, float) else repr(value)
+        if key in _WHOLE_METADATA:
+            ok = isinstance(value, int | float) and float(value).is_integer() and value >= 1
+            if not ok:
+                raise ConfigError(f"{name} {shown}: must be a whole number ≥ 1")
+        elif not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ConfigError(f"{name} {shown}: must be finite and > 0")
+
+
 def import_files(
     paths: Sequence[Path],
     mapping: ImportMap,
@@ -262,6 +307,8 @@ def import_files(
         (time going backwards, NaN runs, more than 10 % missing).
     """
     report = QualityReport()
+    _check_process_metadata(mapping.metadata, f"{map_source}: [metadata]")
+    _check_process_metadata(metadata or {}, "--")
     opts = {p: mapping.options_for(p) for p in paths}
     tables = [read_table(p, opts[p]) for p in paths]
     users: dict[Path, list[ChannelMap]] = {t.path: [] for t in tables}

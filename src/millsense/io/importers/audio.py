@@ -17,6 +17,9 @@ from millsense.io.importers.table import RawTable
 __all__ = ["AUDIO_SUFFIXES", "read_audio", "write_audio"]
 
 AUDIO_SUFFIXES = (".wav", ".flac", ".mp3", ".ogg")
+#: The sampling rates of MPEG-1, -2 and -2.5 audio (ISO/IEC 11172-3, 13818-3), the only ones
+#: an MP3 file can hold [Hz].
+MP3_RATES_HZ = (8000, 11025, 12000, 16000, 22050, 24000, 32000, 44100, 48000)
 
 
 def _module(path: Path) -> Any:
@@ -59,6 +62,11 @@ def write_audio(path: Path, columns: Mapping[str, np.ndarray], rate_hz: float) -
     rate = round(rate_hz)
     if abs(rate - rate_hz) > 1e-9 * rate_hz:
         raise InputDataError(f"{path}: sound files need an integer rate, got {rate_hz} Hz")
+    if path.suffix.lower() == ".mp3" and rate not in MP3_RATES_HZ:
+        raise InputDataError(
+            f"{path}: MP3 holds only the MPEG rates {', '.join(map(str, MP3_RATES_HZ))} Hz, "
+            f"the recording is at {rate_hz:g} Hz: export wav or flac (any integer rate)"
+        )
     limit = {".flac": 8, ".mp3": 2}.get(path.suffix.lower())
     if limit is not None and len(columns) > limit:
         raise InputDataError(
@@ -73,10 +81,16 @@ def write_audio(path: Path, columns: Mapping[str, np.ndarray], rate_hz: float) -
         scales[c] = peak if peak > 0 else 1.0
         cols.append(x / scales[c])
     data = np.column_stack(cols)
-    if path.suffix.lower() == ".flac":
-        sf.write(str(path), np.clip(data, -1.0, 1.0 - 2.0**-23), rate, subtype="PCM_24")
-    elif path.suffix.lower() == ".mp3":
-        sf.write(str(path), data, rate, format="MP3", subtype="MPEG_LAYER_III")
-    else:
-        sf.write(str(path), data, rate, subtype="DOUBLE")
+    try:
+        if path.suffix.lower() == ".flac":
+            sf.write(str(path), np.clip(data, -1.0, 1.0 - 2.0**-23), rate, subtype="PCM_24")
+        elif path.suffix.lower() == ".mp3":
+            sf.write(str(path), data, rate, format="MP3", subtype="MPEG_LAYER_III")
+        else:
+            sf.write(str(path), data, rate, subtype="DOUBLE")
+    except (sf.LibsndfileError, RuntimeError, TypeError, ValueError) as exc:
+        # libsndfile's own limits (FLAC at most 655 350 Hz...): its message, without the
+        # "Error opening '<path>':" prefix that repeats the file
+        why = str(exc).split("Error : ", 1)[-1]
+        raise InputDataError(f"{path}: libsndfile cannot write it: {why}") from None
     return scales

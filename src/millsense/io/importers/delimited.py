@@ -63,7 +63,8 @@ _DATA_LIKE = re.compile(r"^[\s\d.,;|\t+\-eEnaNifINF\"]*\d[\s\d.,;|\t+\-eEnaNifIN
 
 def _sniff(lines: list[str], decimal: str = ".") -> str:
     """The delimiter splitting the last lines that look like numbers into the same number
-    (> 1) of fields (``,`` is not a candidate with a decimal comma)."""
+    (> 1) of fields (``,`` is not a candidate with a decimal comma); else ``" "`` (runs of
+    blanks) if those split them so (columns aligned with spaces)."""
     tail = [ln for ln in lines[-50:] if _DATA_LIKE.match(ln)]
     best, best_n = ("," if decimal == "." else ";"), 1
     for d in _CANDIDATES:
@@ -72,6 +73,9 @@ def _sniff(lines: list[str], decimal: str = ".") -> str:
         counts = {ln.count(d) for ln in tail}
         if len(counts) == 1 and (n := counts.pop()) + 1 > best_n:
             best, best_n = d, n + 1
+    if best_n == 1 and tail and len(widths := {len(ln.split()) for ln in tail}) == 1:
+        if widths.pop() > 1:
+            return " "
     return best
 
 
@@ -106,7 +110,8 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
     Parameters
     ----------
     path : the file.
-    delimiter : ``,``, ``;``, tab... (None: sniffed from the last lines; ``.tsv`` → tab).
+    delimiter : ``,``, ``;``, tab... (None: sniffed from the last lines; ``.tsv`` → tab);
+        ``" "``: any run of blanks (columns aligned with spaces).
     decimal : ``.`` or ``,`` (decimal comma).
 
     Raises
@@ -119,6 +124,9 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
     lines = text.splitlines()
     if delimiter is None:
         delimiter = "\t" if path.suffix.lower() == ".tsv" else _sniff(lines, decimal)
+    if delimiter == " ":
+        # columns aligned with blanks: a run of them is one separator (no empty cells)
+        lines = [" ".join(ln.split()) for ln in lines]
     # only the lines down to the table are split here (the table is parsed by numpy)
     split = _LazySplit(lines, delimiter)
     # the table: the first line from which three lines (or all remaining) are numbers

@@ -105,7 +105,8 @@ def export_recording(
     """
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"--format {fmt!r}: one of {', '.join(EXPORT_FORMATS)}")
-    names = list(channels) if channels else rec.channel_names
+    # a channel asked for twice is written (and mapped) once: the map must import it back
+    names = list(dict.fromkeys(channels)) if channels else rec.channel_names
     for c in names:
         if c not in rec:
             raise ConfigError(f"--channel {c!r}: not in {rec.source}")

@@ -13,7 +13,7 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     match = "trace*.csv"       # glob on the file name (default "*": every file)
     sample_rate_hz = 10000     # stated rate when the file has no time column (or a header)
     time_column = "Time"       # a time column (its unit: time_unit) instead of a stated rate
-    time_unit = "ms"
+    time_unit = "ms"           # default: the file's (units row, "Time [ms]"), else s
     delimiter = ";"            # csv/tsv: default sniffed among , ; tab
     decimal = ","              # csv/tsv: decimal comma (Siemens exports in German locale)
 
@@ -45,7 +45,17 @@ from millsense.core.config import parse_config, read_toml
 from millsense.core.errors import ConfigError
 from millsense.core.recording import check_name
 
-__all__ = ["UNITS", "ChannelMap", "FileOptions", "ImportMap", "load_map", "si_factor"]
+__all__ = [
+    "CHANNEL_SI",
+    "UNITS",
+    "ChannelMap",
+    "FileOptions",
+    "ImportMap",
+    "check_channel_unit",
+    "load_map",
+    "si_factor",
+    "time_factor",
+]
 
 #: Field unit → (SI unit, factor to SI). Spellings of one unit are listed separately; a unit
 #: string is matched after removing spaces and brackets (``[mm]`` → ``mm``).
@@ -95,6 +105,37 @@ UNITS: dict[str, tuple[str, float]] = {
 }
 
 
+#: SI unit(s) of the channels every command reads by name, by the last part of the name (the
+#: simulator's names: ``x/current_cmd``, ``spindle/speed``, ``dynamometer/y/force``...);
+#: other names (``mic/pressure``, ``acc/x``...) take any unit (decision 1668).
+CHANNEL_SI: dict[str, tuple[str, ...]] = {
+    "current": ("A",),
+    "current_cmd": ("A",),
+    "motor_angle": ("rad",),
+    "motor_speed": ("rad/s",),
+    "position_cmd": ("m", "rad"),
+    "speed": ("rad/s",),
+    "speed_cmd": ("rad/s",),
+    "force": ("N",),
+    "torque": ("N*m",),
+    "feed": ("m/s",),
+    "feed_override": ("1",),
+    "spindle_override": ("1",),
+    "nc_line": ("1",),
+}
+
+
+def check_channel_unit(channel: str, unit: str, si: str, where: str) -> None:
+    """A ConfigError (one line) when ``unit`` (SI ``si``) is not a unit of the quantity
+    ``channel`` holds (:data:`CHANNEL_SI`): a current mapped in mm would be read as amperes."""
+    want = CHANNEL_SI.get(channel.rpartition("/")[2])
+    if want is not None and si not in want:
+        raise ConfigError(
+            f"{where}: unit {unit!r} is {si}, but channel '{channel}' holds "
+            f"{' or '.join(want)}: give the column's unit (scale/offset to convert)"
+        )
+
+
 def _clean_unit(text: str) -> str:
     return re.sub(r"[\s\[\]()]", "", text)
 
@@ -112,6 +153,15 @@ def si_factor(unit: str, where: str) -> tuple[str, float]:
     raise ConfigError(f"{where}: unknown unit '{unit}' (known: {', '.join(UNITS)})")
 
 
+def time_factor(unit: str, where: str) -> float:
+    """Seconds per ``unit`` of a time column; a unit of another quantity (a column of mm or
+    amperes is no clock) is a one-line ConfigError."""
+    si, factor = si_factor(unit, where)
+    if si != "s":
+        raise ConfigError(f"{where}: unit {unit!r} is not a time unit (s, ms, us)")
+    return factor
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -122,7 +172,8 @@ class FileOptions(_Model):
     match: str = "*"
     sample_rate_hz: Annotated[float, Field(gt=0, le=10e6)] | None = None
     time_column: str | None = None
-    time_unit: str = "s"
+    time_unit: str | None = None
+    """Unit of the time column; None: the file's (units row or name), else seconds."""
     delimiter: str | None = None
     decimal: str = "."
     sheet: str | None = None
@@ -197,7 +248,9 @@ def load_map(path: str | Path) -> ImportMap:
             )
         seen[ch.channel] = i
         if ch.unit != "header":
-            si_factor(ch.unit, where)
+            si, _ = si_factor(ch.unit, where)
+            check_channel_unit(ch.channel, ch.unit, si, where)
     for i, f in enumerate(m.files):
-        si_factor(f.time_unit, f"{source}: files[{i}].time_unit")
+        if f.time_unit is not None:
+            time_factor(f.time_unit, f"{source}: files[{i}].time_unit")
     return m

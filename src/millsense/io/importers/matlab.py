@@ -56,6 +56,7 @@ def read_mat(path: Path) -> RawTable:
     rate = None
     units: dict[str, str] = {}
     columns: dict[str, np.ndarray] = {}
+    skipped: dict[str, tuple[str, str]] = {}
     for name, value in flat.items():
         if isinstance(value, str):
             continue
@@ -66,6 +67,8 @@ def read_mat(path: Path) -> RawTable:
         vec = _vector(value)
         if vec is not None and vec.size > 1:
             columns[name] = vec
+        elif arr.dtype.kind in "iufb" and arr.ndim > 1:
+            skipped[name] = ("×".join(map(str, arr.shape)), "a matrix, not a vector")
     for name, value in flat.items():
         if isinstance(value, str) and name.startswith(_UNITS_VAR + "."):
             units[name.removeprefix(_UNITS_VAR + ".")] = value
@@ -74,8 +77,15 @@ def read_mat(path: Path) -> RawTable:
     lengths = {v.size for v in columns.values()}
     if len(lengths) > 1:
         longest = max(lengths)
+        for k, v in columns.items():
+            if v.size != longest:
+                skipped[k] = (
+                    f"{v.size} samples",
+                    f"the columns of one file have one length ({longest}); save it in a file "
+                    "of its own",
+                )
         columns = {k: v for k, v in columns.items() if v.size == longest}
-    return RawTable(path=path, columns=columns, units=units, stated_rate_hz=rate)
+    return RawTable(path=path, columns=columns, units=units, stated_rate_hz=rate, skipped=skipped)
 
 
 def _read_v5(path: Path) -> dict[str, object]:

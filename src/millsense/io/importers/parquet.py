@@ -30,12 +30,14 @@ def read_parquet(path: Path) -> RawTable:
         raise InputDataError(f"{path}: not a readable Parquet file: {exc}") from None
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
+    skipped: dict[str, tuple[str, str]] = {}
     for fld in table.schema:
         if not (
             pa.types.is_integer(fld.type)
             or pa.types.is_floating(fld.type)
             or pa.types.is_boolean(fld.type)
         ):
+            skipped[fld.name] = (str(fld.type), "not numbers")
             continue
         col = table.column(fld.name)
         columns[fld.name] = col.to_numpy(zero_copy_only=False).astype(np.float64)
@@ -45,7 +47,7 @@ def read_parquet(path: Path) -> RawTable:
         raise InputDataError(f"{path}: no numeric column")
     meta = table.schema.metadata or {}
     rate = float(meta[b"sample_rate_hz"]) if b"sample_rate_hz" in meta else None
-    return RawTable(path=path, columns=columns, units=units, stated_rate_hz=rate)
+    return RawTable(path=path, columns=columns, units=units, stated_rate_hz=rate, skipped=skipped)
 
 
 def write_parquet(

@@ -34,6 +34,8 @@ class RawTable:
     header : key → value lines found before the table (free text of the export).
     first_line : 1-based line of the first data row in a text file (0 for binary formats), so
         that messages can name a row's line.
+    skipped : variable name → (its size, why it is not a column): a .mat matrix, a vector of
+        another length, so that a map naming it is told why.
     """
 
     path: Path
@@ -42,6 +44,7 @@ class RawTable:
     stated_rate_hz: float | None = None
     header: dict[str, str] = field(default_factory=dict)
     first_line: int = 0
+    skipped: dict[str, tuple[str, str]] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
