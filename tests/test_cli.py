@@ -84,6 +84,15 @@ def test_plot_writes_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
             ["simulate-fleet", "--seed", "-1", "-o", "{tmp}/f"],
             "'--seed': Input should be greater than or equal to 0",
         ),
+        (
+            ["run", "--program", "{tmp}/x.nc", "--seed", "-1", "-o", "{tmp}/o.h5"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
+        (
+            ["serve-machine", "--seed", "-1"],
+            "'--seed': Input should be greater than or equal to 0",
+        ),
+        (["demo", "--seed", "-1"], "'--seed': Input should be greater than or equal to 0"),
         (["frobnicate"], "No such command"),
     ],
 )

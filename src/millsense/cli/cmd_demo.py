@@ -16,7 +16,7 @@ from millsense.cli.progress import progress_bar
 def demo(
     out: Path = typer.Option(Path("demo-output"), "-o", "--output", help="Output folder."),
     seed: int = typer.Option(
-        0, help="Seed of the virtual machine (noise, realism) in every part of the demo."
+        0, min=0, help="Seed of the virtual machine (noise, realism) in every part of the demo."
     ),
 ) -> None:
     """The two halves of millsense on the virtual machine: force from a drive's current, then

@@ -41,7 +41,7 @@ def serve_machine(
     break_at_s: float | None = typer.Option(
         None, "--break-at-s", help="Break a tooth of the virtual tool at this time [s]."
     ),
-    seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every noise generator."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     home_mm: str | None = typer.Option(
         None, "--home-mm", help="G28 reference X,Y,Z [mm] (machine frame), for programs with G28."

@@ -115,7 +115,7 @@ def run(
         metavar="KIND@START_S[:DURATION_S][:CHANNEL]",
         help="Inject a link fault (nan, drop, stall, lost), e.g. stall@2.0:0.3; repeatable.",
     ),
-    seed: int = typer.Option(0, "--seed", help="Seed of every noise generator."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every noise generator."),
     duration_s: float | None = typer.Option(None, "--duration-s", help="Stop after this [s]."),
     step_mm: float = typer.Option(0.4, "--step-mm", help="Plan step [mm]."),
     resolution_mm: float = typer.Option(0.2, "--resolution-mm", help="Z-map cell [mm]."),
