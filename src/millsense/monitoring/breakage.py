@@ -19,6 +19,9 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     phases (``phase_offset``, decision 1552). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
     touch of an entry) are not judged: there the virtual limit goes to zero (decision 1522).
+    In the plan's transients, where the expected torque is not given (decisions 1622, 1627),
+    the lowest torque the plan expects over its timing window (``floor_channel``) judges a
+    drop only (decision 1674).
     The torque's band is never narrower than ``noise_k`` (4) standard deviations of the tooth-period
     average's noise, estimated on line from the median |x(m) − x(m−N)| of the last 128 periods
     (decision 1550): the seed's 40 % is a band for a cut whose torque stands well above the noise
