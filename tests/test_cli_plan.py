@@ -166,3 +166,23 @@ def test_schedule_limits_named_as_given(
                          str(out)], capsys)  # fmt: skip
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_plan_warns_of_a_rapid_through_material(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A G0 across the demo block at Z-2 (line 5; a slot's depth where a G1 was meant) is a
+    collision on a machine: `plan` warns once, naming the program's line, and writes the plan
+    with the warning in its metadata (it was a note among the plan's notes before)."""
+    prog = tmp_path / "rapid.nc"
+    prog.write_text("G21 G90 G17\nS1000 M3\nG0 X-15 Y40 Z5\nG0 Z-2\nG0 X30\nG1 X60 F400\nG0 Z5\n"
+                    "M30\n")
+    out = tmp_path / "p.parquet"
+    code, stdout, err = _run(["plan", str(prog), *_common(), "-o", str(out)], capsys)
+    assert code == 0, err
+    warnings = [w for w in err.splitlines() if "rapid (G0) moves through material" in w]
+    assert len(warnings) == 1 and "rapid.nc:5" in warnings[0] and "collision" in warnings[0]
+    assert "rapid (G0)" not in stdout
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    assert any("rapid (G0)" in w for w in VirtualPlan.read(out).metadata["warnings"])

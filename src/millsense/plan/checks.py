@@ -96,6 +96,7 @@ def check_plan(
     tool = meta.get("tool", {})
     diameter = float(tool.get("diameter_mm", 0.0))
     flutes = int(tool.get("flutes", 1))
+    _check_rapids_in_material(plan, where, findings)
     cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
     idx = np.flatnonzero(cut)
     if idx.size == 0:
@@ -135,3 +136,19 @@ def check_plan(
     kp = int(np.argmax(power))
     check_against_limits(_limits(machine), label(kf), findings, peak_force_n=float(force[kf]))
     check_against_limits(_limits(machine), label(kp), findings, power_w=float(power[kp]))
+
+
+def _check_rapids_in_material(plan: VirtualPlan, where: str, findings: Findings) -> None:
+    """A rapid (G0) whose steps the plan finds in material: on a machine a collision (the tool
+    meets the stock at the rapid rate), in the plan steps without predicted forces. A warning
+    naming the program's lines (it was a note of the plan before; found by exploratory QA)."""
+    rapid_in_cut = np.asarray(plan["in_cut"], dtype=bool) & np.asarray(plan["rapid"], dtype=bool)
+    if not rapid_in_cut.any():
+        return
+    src = np.asarray(plan["source_line"])[rapid_in_cut]
+    lines = sorted({int(v) for v in src})
+    shown = ", ".join(str(v) for v in lines[:10]) + (" ..." if len(lines) > 10 else "")
+    findings.warn(
+        f"{where}:{lines[0]}: a rapid (G0) moves through material ({int(rapid_in_cut.sum())} "
+        f"steps, line(s) {shown}): a collision on a machine; no forces are predicted there"
+    )

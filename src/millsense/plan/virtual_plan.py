@@ -772,16 +772,8 @@ def plan_program(
     }
     for name, col in zip(STAT_NAMES, STAT_COLUMNS, strict=True):
         cols[col] = pred.stats[name]
-    rapid_in_cut = eng.in_cut & sp.rapid
+    # a rapid through material is a warning of the plan's checks (plan.checks.check_plan)
     notes = list(program.notes)
-    if rapid_in_cut.any():
-        lines = sorted({int(v) for v in sp.source_line[rapid_in_cut]})
-        notes.append(
-            f"{program.source}: {int(rapid_in_cut.sum())} rapid (G0) steps in material, lines "
-            + ", ".join(str(v) for v in lines[:10])
-            + (" ..." if len(lines) > 10 else "")
-            + " (no forces predicted there)"
-        )
     meta: dict[str, Any] = {
         "program": program.source,
         "tool": {
