@@ -266,3 +266,34 @@ def test_noise_fragment_is_the_air_cut_torque_variance(
     # without a machine file there is no C3 stage: one line naming what to give
     code, _, err = run_cli(["identify", "noise", rec, "-o", str(tmp_path / "n2.toml")], capsys)
     assert code == 2 and "give --machine" in err
+
+
+def test_modal_fit_of_an_unrelated_output_warns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An output channel that does not answer the input (noise, e.g. the wrong channel): the
+    modal fit leaves most of the FRF unexplained (relative RMS error > POOR_FIT = 0.3, found at
+    0.92 by exploratory QA) and `identify modal` says so on stderr and in the fragment's
+    header, naming the recording; the fragment is still written (exit 0). The two-mode record
+    of the test above fits without a warning."""
+    from millsense.cli.cmd_identify import POOR_FIT
+
+    rng = np.random.default_rng(5)
+    n = 60000
+    rec = Recording(1000.0, metadata={"source": "noise"})
+    rec.add_channel("x/load", rng.standard_normal(n), "N")
+    rec.add_channel("x/torque", rng.standard_normal(n), "N*m")
+    path = _write(rec, tmp_path / "noise.h5")
+    out = tmp_path / "n.toml"
+    args = ["--input-channel", "x/load", "--output-channel", "x/torque", "--band-hz", "10:200"]
+    code, _, err = run_cli(["identify", "modal", path, *args, "-o", str(out)], capsys)
+    assert code == 0, err
+    warnings = [w for w in err.splitlines() if w.startswith("millsense: warning:")]
+    assert len(warnings) == 1 and "noise.h5" in warnings[0] and "unexplained" in warnings[0]
+    share = float(warnings[0].split("leaves ")[1].split("%")[0]) / 100
+    assert share > POOR_FIT
+    assert "unexplained" in out.read_text()  # the header records it
+    good = _modal_recording(tmp_path / "m.h5")
+    code, _, err = run_cli(["identify", "modal", good, *args, "-o", str(tmp_path / "g.toml")],
+                           capsys)  # fmt: skip
+    assert code == 0 and "warning" not in err

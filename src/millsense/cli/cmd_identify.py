@@ -194,7 +194,24 @@ def _modal_table(
         "feedthrough": float(fit.residual),
         "source": f"millsense identify modal {path.name} {band[0]:g}-{band[1]:g} Hz",
     }
-    return table, [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
+    notes = [f"{len(modes)} modes, relative RMS error {fit.rms_error:.3g}"]
+    return table, notes + _poor_fit(fit.rms_error, f"the modal fit of {path.name}", band)
+
+
+#: Relative RMS error of an FRF fit above which `identify` warns: the fitted modes leave a
+#: third of the measured response unexplained (good sweeps fit to a few per cent).
+POOR_FIT = 0.3
+
+
+def _poor_fit(rms_error: float, what: str, band: tuple[float, float]) -> list[str]:
+    """A ``warning:`` note where a fit's relative RMS error exceeds :data:`POOR_FIT`."""
+    if rms_error <= POOR_FIT:
+        return []
+    return [
+        f"warning: {what} leaves {rms_error:.0%} (relative RMS) of the measured FRF unexplained "
+        f"over {band[0]:g}-{band[1]:g} Hz: check the band, the input and output channels and "
+        "the excitation before using the fragment"
+    ]
 
 
 def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
@@ -267,6 +284,7 @@ def _path(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]]:
         f"RMS error {fit.rms_error:.3g} over {band[0]:g}-{band[1]:g} Hz ({sweep.frf.method}, "
         f"{sweep.frf.n_averages} averages); axis {condition.replace('_', ' ')} → {key}"
     ]
+    notes += _poor_fit(fit.rms_error, f"the path fit of {path.name}", band)
     return {"axes": {a: {"estimator": {key: table}}}}, notes
 
 
@@ -744,5 +762,8 @@ def identify(
     head = [f"millsense identify {kind} " + " ".join(p.name for p in recordings), *notes]
     write_fragment(out, frag, head)
     for line in notes:
-        typer.echo(line)
+        if line.startswith("warning: "):  # also in the fragment's header
+            typer.echo(f"millsense: {line}", err=True)
+        else:
+            typer.echo(line)
     typer.echo(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
