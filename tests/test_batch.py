@@ -270,3 +270,24 @@ def test_a_worker_told_to_leave_skips_the_teardown() -> None:
                           timeout=120)  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["done"]
+
+
+def test_batch_inputs_leave_out_earlier_batch_outputs(tmp_path: Path) -> None:
+    """An earlier batch's output folder inside the input (its summary.parquet beside runs/)
+    holds runs/*/estimates.h5: they are the batch's results, not recordings of the machine,
+    and are left out with the current -o's (found by exploratory QA: they were run as
+    recordings). A folder named runs without a summary beside it is input like any other."""
+    from millsense.cli.batch_run import batch_inputs
+
+    def touch(p: Path) -> Path:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(b"")
+        return p
+
+    rec = touch(tmp_path / "in" / "r001.h5")
+    touch(tmp_path / "in" / "old_out" / "summary.parquet")
+    touch(tmp_path / "in" / "old_out" / "runs" / "r001" / "estimates.h5")
+    plain = touch(tmp_path / "in" / "cell2" / "runs" / "r002.h5")  # no summary beside it
+    touch(tmp_path / "in" / "new_out" / "runs" / "r001" / "estimates.h5")
+    found, skipped = batch_inputs(str(tmp_path / "in"), tmp_path / "in" / "new_out")
+    assert found == sorted([rec, plain]) and skipped == 2

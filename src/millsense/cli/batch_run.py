@@ -92,6 +92,25 @@ def find_recordings(spec: str) -> list[Path]:
     return found
 
 
+def batch_inputs(spec: str, out_dir: Path) -> tuple[list[Path], int]:
+    """The recordings of ``spec`` (:func:`find_recordings`) a batch into ``out_dir`` runs on,
+    and how many found ones are outputs of a batch: the ``runs/`` files of ``out_dir`` and of
+    any earlier batch output folder inside the input (a folder holding ``summary.parquet``;
+    its ``runs/*/estimates.h5`` would be taken for recordings of the machine)."""
+    out_abs = out_dir.resolve()
+    found = find_recordings(spec)
+    keep = [p for p in found if out_abs not in p.resolve().parents and not _batch_output(p)]
+    return keep, len(found) - len(keep)
+
+
+def _batch_output(path: Path) -> bool:
+    """``path`` lies in the ``runs/`` folder of a batch's output (beside its summary)."""
+    return any(
+        d.name == "runs" and (d.parent / "summary.parquet").is_file()
+        for d in path.resolve().parents
+    )
+
+
 def parse_steps(do: str) -> list[str]:
     """The steps of ``--do`` (one-line error naming an unknown one)."""
     steps = [s.strip() for s in do.split(",") if s.strip()]

@@ -52,7 +52,7 @@ def batch(
     Recordings finished by an earlier batch into the same OUT are not run again."""
     from millsense.cli.batch_run import (
         assess_wear,
-        find_recordings,
+        batch_inputs,
         parse_steps,
         run_batch,
         write_summary,
@@ -65,10 +65,14 @@ def batch(
         raise ConfigError(f"--vb-limit-mm: must be > 0, got {vb_limit_mm:g}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"-o {out}: exists and is not a folder")
-    out_abs = out.resolve()
-    found = [p for p in find_recordings(recordings) if out_abs not in p.resolve().parents]
+    found, skipped = batch_inputs(recordings, out)
     if not found:
-        raise ConfigError(f"batch: {recordings} holds no recording outside -o {out}")
+        raise ConfigError(
+            f"batch: {recordings} holds no recording outside -o {out} and earlier batch outputs"
+        )
+    if skipped:
+        typer.echo(f"batch: {skipped} file(s) of batch outputs (runs/ beside a summary.parquet) "
+                   "inside the input are not taken as recordings")  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
     # the wear assessment and the fleet view's libraries load while the local cluster starts:
     # its workers wait for their fork server's imports then and this process's core is idle
