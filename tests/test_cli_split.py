@@ -99,3 +99,20 @@ def test_split_passes_reads_a_cp1252_program_and_keeps_its_comment(
     depths = [p.depth_mm for p in cutting_passes(out.read_bytes().decode("latin-1"))]
     assert depths == pytest.approx([2.0, 4.0, 6.0], abs=1e-9)
     assert src.read_bytes() == raw
+
+
+@pytest.mark.parametrize("text", ["", "%\n(ONLY A COMMENT)\nG21 G90\nM30\n%\n"])
+def test_split_passes_refuses_a_program_without_motion(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
+) -> None:
+    """An empty program, or one without a move, is refused as `plan` refuses it (one line,
+    exit 2, no output): an empty output would pass for a rewritten program (found by the qa3
+    helper: "wrote out.nc: 0 passes -> 0")."""
+    src = tmp_path / "empty.nc"
+    src.write_text(text)
+    out = tmp_path / "out.nc"
+    code, _out, err = run_cli(["split-passes", str(src), "--max-depth-mm", "2", "-o", str(out)],
+                              capsys)  # fmt: skip
+    assert code == 2
+    assert "empty.nc: program has no motion to split" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

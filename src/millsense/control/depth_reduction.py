@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from millsense.core.errors import ConfigError
+from millsense.core.errors import ConfigError, ProgramError
 from millsense.plan.gcode_lexer import program_error, strip_block, words
 
 #: Tolerance on heights, mm.
@@ -199,6 +199,9 @@ def split_deep_passes(
     if not (max_depth_mm > 0 and math.isfinite(max_depth_mm)):
         raise ConfigError(f"depth rewriting: depth limit {max_depth_mm!r} mm must be > 0")
     lines = _parse(text, source)
+    if not any(ln.motion is not None for ln in lines):
+        # as `plan` refuses it: an empty output would pass for a rewritten program
+        raise ProgramError(f"{source}: program has no motion to split")
     before = cutting_passes(text, top_z_mm, source)
     spans = {a: _trim(lines, a, b) for a, b in _passes(lines, top_z_mm)}
     out: list[str] = []
