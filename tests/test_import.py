@@ -763,3 +763,22 @@ def test_export_audio_at_a_rate_the_format_lacks_is_one_line(
     assert len(err.strip().splitlines()) == 1 and message in err
     assert f"{out}:" in err and ".tmp" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]
+
+
+@pytest.mark.parametrize("fmt", ["mat", "mat73"])
+def test_mat_export_of_channels_named_like_the_rate_and_units(tmp_path: Path, fmt: str) -> None:
+    """Channels named ``fs`` and ``units`` (a spectrum rig's names) were written as the file's
+    rate and units variables, which they then overwrote (found by exploratory QA): they take
+    ``_channel``, and the file imports back with its rate and both channels exact."""
+    from millsense.core.recording import Recording
+
+    rec = Recording(2500.0)
+    rec.add_channel("fs", np.linspace(0.0, 1.0, 500), "V")
+    rec.add_channel("units", np.cos(np.arange(500) * 0.1), "Pa")
+    out = tmp_path / "r.mat"
+    (tmp_path / "map.toml").write_text(export_recording(rec, out, fmt, ["fs", "units"]))
+    back = import_files([out], load_map(tmp_path / "map.toml")).recording
+    assert back.sample_rate_hz == pytest.approx(2500.0, rel=1e-12)
+    for c in ("fs", "units"):
+        assert np.array_equal(back.channel(c), rec.channel(c)), c
+        assert back.info(c).unit == rec.info(c).unit

@@ -128,9 +128,13 @@ def _read_v73(path: Path) -> dict[str, object]:
 
 
 def _matlab_names(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
-    """column → MATLAB variable name (``/`` → ``_``); a clash is an error."""
+    """column → MATLAB variable name (``/`` → ``_``); a name the file's rate or units variable
+    holds (``fs``, ``units``, …; the importer reads any of ``_RATE_NAMES`` as the rate) takes
+    ``_channel`` (a channel named ``fs`` overwrote the rate); a clash is an error."""
     names = {c: "".join(ch if ch.isalnum() else "_" for ch in c) for c in columns}
     names = {c: (n if n[0].isalpha() else "v" + n) for c, n in names.items()}
+    reserved = {*_RATE_NAMES, _UNITS_VAR}
+    names = {c: (n + "_channel" if n.lower() in reserved else n) for c, n in names.items()}
     if len(set(names.values())) != len(names):
         raise InputDataError("MAT export: two channels map to one variable name")
     return names
