@@ -32,7 +32,7 @@ def plot_channels(
     path: str | Path,
     t_range_s: tuple[float, float] | None = None,
 ) -> None:
-    """One panel per unit, the named channels against time (and streams if named)."""
+    """One panel per unit, the named (sample-rate) channels against time."""
     if t_range_s is not None:
         rec = rec.slice_time(*t_range_s)
     by_unit: dict[str, list[str]] = {}
