@@ -232,3 +232,32 @@ def test_stale_temporaries_are_removed_and_nothing_else(tmp_path: Path) -> None:
     removed = remove_stale_temporaries(tmp_path)
     assert sorted(removed) == sorted(left)
     assert all(p.is_file() for p in kept) and not any(p.exists() for p in left)
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["lobes", "{tmp}/case.toml", "--plot", "{tmp}/x.txt"],
+         "--plot {tmp}/x.txt: the file is written as PNG"),
+        (["monitor", "{tmp}/r.h5", "-o", "{tmp}/e.parquet", "--plot", "{tmp}/x.jpg"],
+         "give a .png file name"),
+        (["simulate", "--program", "{tmp}/p.nc", "-o", "{tmp}/x.txt"],
+         "written as a recording (HDF5); give a .h5"),
+        (["report", "{tmp}/r.h5", "-o", "{tmp}/r.png"], "written as an HTML page; give a .html"),
+        (["identify", "modal", "{tmp}/r.h5", "--input-channel", "a", "--output-channel", "b",
+          "-o", "{tmp}/f.h5"], "written as TOML; give a .toml"),
+    ],
+)  # fmt: skip
+def test_outputs_named_as_what_they_hold(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], needle: str
+) -> None:
+    """Every --plot writes a PNG, simulate's -o a recording, report's an HTML page, identify's
+    a TOML fragment: a file name saying otherwise (found by exploratory QA: PNG bytes in x.txt,
+    a recording in x.txt) is refused in one line before anything is read or written."""
+    from cli_run import run_cli
+
+    argv = [a.format(tmp=tmp_path) for a in args]
+    code, _out, err = run_cli(argv, capsys)
+    assert code == 2
+    assert needle.format(tmp=tmp_path) in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []

@@ -726,7 +726,7 @@ def identify(
     outputs: dict[str, Path | None] = {"-o": out, "--plot": plot}
     if kind == "idle":
         outputs["the idle table"] = _idle_csv(out, axis)
-    check_outputs(inputs, outputs)
+    check_outputs(inputs, outputs, suffixes={"-o": ".toml"})
     recs = [read_recording(p) for p in recordings]
     mach = load_preset(MachineConfig, machine) if machine is not None else None
     ctx = _Ctx(recs, list(recordings), axis, mach)

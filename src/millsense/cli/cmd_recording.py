@@ -97,9 +97,7 @@ def plot(
     from millsense.io.safe_output import check_outputs
     from millsense.report.plots import plot_channels
 
-    check_outputs({"the recording": recording}, {"-o": out})
-    if out.suffix.lower() != ".png":
-        raise UserError(f"{out}: the plot is written as PNG; give a .png file name")
+    check_outputs({"the recording": recording}, {"-o": out}, suffixes={"-o": ".png"})
     rec = read_recording(recording)
     for c in channel:
         rec.channel(c)  # unknown channel -> one-line error naming it

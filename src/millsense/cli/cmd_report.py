@@ -47,7 +47,7 @@ def report(
     check_outputs(
         {"the recording": recording, "the plan": plan, "the event log": events,
          "the machine file": machine_file, "the summary table": fleet},
-        {"-o": out},
+        {"-o": out}, suffixes={"-o": ".html"},
     )  # fmt: skip
     rows = None
     if fleet is not None:

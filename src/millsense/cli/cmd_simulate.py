@@ -122,6 +122,7 @@ def simulate(
             "the --tool-modes file": tool_modes,
         },
         {"-o": out},
+        suffixes={"-o": ".h5"},
     )
     req = dict(
         machine=machine,

@@ -47,8 +47,18 @@ def _same(a: Path, b: Path) -> bool:
         return False
 
 
-def check_outputs(inputs: Named, outputs: Named) -> None:
-    """Refuse an output that is one of the inputs, or two outputs that are the same file.
+#: What an output option's file holds, by the option's name, where every command writes one
+#: kind (every ``--plot`` writes a PNG): its file name must say so.
+OUTPUT_SUFFIXES = {"--plot": ".png"}
+_KINDS = {".png": "PNG", ".html": "an HTML page", ".h5": "a recording (HDF5)", ".toml": "TOML"}
+
+
+def check_outputs(
+    inputs: Named, outputs: Named, suffixes: Mapping[str, str] | None = None
+) -> None:
+    """Refuse an output that is one of the inputs, or two outputs that are the same file, or
+    an output whose name does not end as what it holds (:data:`OUTPUT_SUFFIXES`, and the
+    command's own ``suffixes``: option name → suffix, e.g. ``{"-o": ".html"}``).
 
     Parameters
     ----------
@@ -61,6 +71,7 @@ def check_outputs(inputs: Named, outputs: Named) -> None:
     outputs : mapping of name to path
         The files the command writes (``-o``, ``--plot``, ``--json``); None and ``-``
         (standard output) are ignored.
+    suffixes : mapping of output name to the suffix its file must have (lower case), or None.
 
     Raises
     ------
@@ -86,6 +97,14 @@ def check_outputs(inputs: Named, outputs: Named) -> None:
         for b_name, b in outs[i + 1 :]:
             if _same(a, b):
                 raise ConfigError(f"{a_name} and {b_name} name the same file {a}: give two files")
+    need = {**OUTPUT_SUFFIXES, **(suffixes or {})}
+    for oname, out in outs:
+        want = need.get(oname)
+        if want is not None and out.suffix.lower() != want:
+            raise ConfigError(
+                f"{oname} {out}: the file is written as {_KINDS.get(want, want)}; give a "
+                f"{want} file name"
+            )
 
 
 def temporary_sibling(path: str | os.PathLike[str]) -> Path:
