@@ -94,19 +94,21 @@ def steady_rows(plan: VirtualPlan, revs: float, max_override: float = 1.5) -> np
 
 
 def transient_floor(
-    plan: VirtualPlan, revs: float, max_override: float = 1.5
+    plan: VirtualPlan, revs: float, max_override: float = 1.5, steady: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per row, the lowest edge and shear parts of the plan's mean torque over the window of
     :func:`steady_rows` (each part's own lowest: their sum is at most the lowest torque there),
     0 where the row is steady (decision 1674). Where the window reaches air the floor is 0: an
     entry or an exit is judged by nothing; across a step, a ramp or a cavity wall with the
     tool in the material throughout, a tooth period far below the lower level is a lost flute
-    whatever the plan's timing."""
+    whatever the plan's timing. ``steady``: :func:`steady_rows` of the same window where the
+    caller has it."""
     tq = np.nan_to_num(np.asarray(plan["torque_avg_nm"], dtype=np.float64))
     sh = np.nan_to_num(np.asarray(plan["torque_avg_shear_nm"], dtype=np.float64))
     cut = np.asarray(plan["in_cut"], dtype=bool) & ~np.asarray(plan["rapid"], dtype=bool)
     w = _window_rows(plan, revs, max_override)
-    steady = steady_rows(plan, revs, max_override)
+    if steady is None:
+        steady = steady_rows(plan, revs, max_override)
     floors = []
     for part in (np.where(cut, tq - sh, 0.0), np.where(cut, sh, 0.0)):
         lo, _ = _window_extremes(part, w)
@@ -207,8 +209,9 @@ class PlanSync(Block):
         self._shear = np.append(np.nan_to_num(sh), 0.0)
         self._edge = np.append(np.nan_to_num(tq - sh), 0.0)
         self._in_cut = np.append(np.asarray(plan["in_cut"], dtype=bool), False)
-        self._steady = np.append(steady_rows(plan, transient_revs), False)
-        floor_edge, floor_shear = transient_floor(plan, transient_revs)
+        steady = steady_rows(plan, transient_revs)
+        self._steady = np.append(steady, False)
+        floor_edge, floor_shear = transient_floor(plan, transient_revs, steady=steady)
         self._floor_edge = np.append(floor_edge, 0.0)
         self._floor_shear = np.append(floor_shear, 0.0)
         depth = np.nan_to_num(np.asarray(plan["axial_depth_mm"], dtype=np.float64)) * 1e-3
