@@ -628,14 +628,16 @@ class PlanPathPlant(PlantSource):
 
 
 def test_a_light_cut_reading_air_at_the_reentry_feed_does_not_alternate() -> None:
-    """Decision 1675: with the plan in the material, a light cut whose peak force reads 60 N at
-    the re-entry feed (V_max/3 = 50 %: at or below seed 002's 80 N air threshold) and 90 N at
-    100 % is not an air cut. The tool meets the V8 block at 50 % (air, a cut ahead) and the
-    cut reads air until a heavier spot (2.0-2.06 s, 85 N at 50 %) shows it. Before, each air
-    reading after it restarted the re-entry: 100 % (air, the plan in cut), 50 % (re-entry 1/3),
-    100 %, 50 %, … every revolution to the end of the run (a helical entry into a pocket,
-    `millsense run`, 6.6-12.3 s). Now the re-entry completes (3 revolutions at 50 %) and the
-    regulation raises the feed of the light cut (90 N ≪ 325 N) to 150 %."""
+    """Decisions 1675 and 1669: with the plan in the material, a light cut whose peak force
+    reads 60 N at the re-entry feed (V_max/3 = 50 %: at or below seed 002's 80 N air
+    threshold) and 90 N at 100 % is not an air cut. The tool meets the V8 block at 50 % (air, a
+    cut ahead). Before decision 1675 each air reading restarted the re-entry: 100 % (air, the
+    plan in cut), 50 % (re-entry 1/3), 100 %, 50 %, … every revolution (a helical entry into a
+    pocket, `millsense run`, 6.6-12.3 s). Before decision 1669 the entry's latch held 50 % until
+    a heavier spot (2.0-2.06 s, 85 N at 50 %) showed the cut, then 3 re-entry revolutions came.
+    Now the plan's re-entry revolutions in the material release the latch at the entry's first
+    flag-0 decision (100 %, the plan in cut), the cut then reads 90 N, and the regulation takes
+    the light cut (90 N ≪ 325 N) to 150 % with no re-entry and no 50 % again."""
     from millsense.validation.cases import control_adaptive as ca
 
     plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
@@ -643,10 +645,29 @@ def test_a_light_cut_reading_air_at_the_reentry_feed_does_not_alternate() -> Non
                         duration_s=4.0)  # fmt: skip
     blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=ca.F_REF_V8), plan)
     run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
-    after = [e for e in src.commands if e.time_s > 2.0]
-    # the spot's two revolutions were re-entries 1 and 2 at 50 % (no move); then one air
-    # reading at 50 % (100 %), the third re-entry (50 %), one more (100 %) and the regulation
-    assert [e.value for e in after] == pytest.approx([100.0, 50.0, 100.0, 150.0])
-    assert "re-entry 3/3" in after[1].message and "regulation" in after[3].message
-    assert all("the plan in cut" in e.message for e in (after[0], after[2]))
-    assert after[3].time_s < 2.5  # and no move after it: 150 % to the end (4 s)
+    values = [e.value for e in src.commands]
+    assert values[:2] == pytest.approx([50.0, 100.0])
+    assert "the plan in cut" in src.commands[1].message
+    assert "regulation" in src.commands[2].message and values[-1] == pytest.approx(150.0)
+    assert min(values[1:]) >= 100.0  # never back to the re-entry feed
+    assert not any("re-entry" in e.message for e in src.commands)
+    assert src.commands[-1].time_s < 2.0  # the light cut at 150 % before the spot
+
+
+def test_a_light_entry_reading_air_is_released_to_the_programmed_feed() -> None:
+    """Decision 1669: a cut too light to show (peak 50 N at 50 %, 70 N at 100 %, both at or
+    below seed 002's 80 N air threshold, as a helix or a light ramp) held the entry's 50 %
+    latch for the whole cut (4 s), since no revolution was ever loaded. The plan counts the
+    re-entry revolutions in the material (seed 002: 3) and releases it: the programmed feed
+    (100 %, the air rule capped by decision 1663 where the plan is in cut), and no more."""
+    from millsense.validation.cases import control_adaptive as ca
+
+    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
+    src = PlanPathPlant(plan, lambda t: 40.0 + 0.0 * t, edge_n=30.0, duration_s=4.0)
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=ca.F_REF_V8), plan)
+    run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    assert [e.value for e in src.commands] == pytest.approx([50.0, 100.0])
+    assert "air, the plan in cut" in src.commands[1].message
+    # released after the plan's 3 re-entry revolutions in the material (at 50 % from X −12 mm,
+    # the tool's edge meets the block at X −10 mm: 2 mm at 200 mm/min = 0.6 s, + 3 × 60 ms)
+    assert src.commands[1].time_s > 0.06 + 0.6 + 3 * 0.06

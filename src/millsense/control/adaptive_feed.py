@@ -226,6 +226,9 @@ class _Loop:
     flag: int = 0
     ff_until: int = -1  #: the flag-1 ceiling holds until the tool passes this plan row
     entering: bool = False  #: out of the material with the cut ahead (latched, decision 1626)
+    #: revolutions the latched entry has read air with the plan's tool in the material
+    #: (decision 1669)
+    plan_entry: int = 0
     matched: bool = False  #: the plan matched the tool at the last decision
 
 
@@ -584,6 +587,16 @@ class AdaptiveFeedBlock(Block):
         if in_air and flag == 2 and lp.engaged:
             u, why = lp.u, "exit hold"  # leaving the cut: the air rule would speed up
         elif in_air:
+            if entering and not plan_air and self._plan_in_cut():
+                # the plan has counted the re-entry revolutions in the material and the signal
+                # still reads air: a cut too light to show (a helix, a ramp); the latch's
+                # purpose is served, and it no longer holds the whole light cut at V_max/3;
+                # seed 002's re-entry is done too, so the first revolution loaded enough to
+                # show does not start it again (decision 1669)
+                lp.plan_entry += 1
+                if lp.plan_entry > o.reentry_revs:
+                    lp.entering = entering = False
+                    lp.air = False
             # seed 002's air rule, but where the plan sees the cut resume within the horizon
             # the tool meets the material at the re-entry feed, not at V_max (decision 1626)
             u = self.u_max / 3.0 if entering else self.u_max
@@ -864,6 +877,7 @@ class AdaptiveFeedBlock(Block):
             # is loaded, as the plan's first rows in cut are lighter than the air threshold
             ahead = self.plan.look_ahead(lp.row, self.opts.look_ahead_s, self.u_max, 0.0)
             lp.entering = ahead.rising
+            lp.plan_entry = 0
         entering = lp.entering
         if la.flag == 1:
             lp.ff_until = max(lp.ff_until, la.last_row)
