@@ -82,6 +82,22 @@ def test_constant_threshold_false_alarm_at_the_depth_step():
     assert not any(BREAK_S <= t < BREAK_S + 5 * TOOTH_S for t in times)
 
 
+def test_classic_eq65_threshold_false_alarms_at_the_depth_step():
+    """Aslan Eq. 6.5 (decision 1670): the classic thresholds α·max|ε_i| (α = 2, seed 002)
+    learnt over the first 5 revolutions of the 2 mm cut (the stream from 0.5 s) are exceeded
+    by both residuals at the step to 3 mm (3.0 s), where the thesis' constant threshold
+    false-alarms, as at the air cut's exit and re-entry (6.0, 6.5 s), and at the break; the
+    virtual threshold on the same torque alarms at the break only (test above)."""
+    start = 0.5
+    data = {k: v[int(start * FS) :] for k, v in _stream().items()}
+    events, _ = run_block(BreakageBlock(2, "dual", learn_from=0.5), data, 1000)
+    times = [e.time_s + start for e in events]
+    assert any(3.0 <= t < 3.0 + 2 * TOOTH_S for t in times)  # the step's residues
+    assert any(6.0 <= t < 6.0 + 2 * TOOTH_S for t in times)  # into the air cut
+    assert any(BREAK_S <= t < BREAK_S + 2 * TOOTH_S for t in times)  # the break
+    assert not any(3.0 + 2 * TOOTH_S <= t < 6.0 for t in times)  # the steady 3 mm cut
+
+
 def test_chunk_size_invariance():
     data = {k: v[: int(8.5 * FS)] for k, v in _stream().items()}
     ref_ev, ref_ch = run_block(_virtual(), data, len(data["spindle/speed"]))

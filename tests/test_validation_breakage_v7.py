@@ -54,7 +54,7 @@ def _fake_run(monkeypatch: pytest.MonkeyPatch, constant_before: int, latency: fl
 
     run = mb.V7Run(data, cast(Any, None), brk, 10000.0)
     run.events["virtual"] = [ev(brk + latency * mb.TOOTH_S_V7)]
-    run.events["constant"] = [ev(0.01 * (i + 1) / constant_before) for i in range(constant_before)]
+    run.events["classic"] = [ev(0.01 * (i + 1) / constant_before) for i in range(constant_before)]
     monkeypatch.setattr(mb, "v7_run", lambda: run)
 
 
@@ -82,14 +82,21 @@ def test_v7_latency_tolerance_is_two_sided_and_can_fail(monkeypatch: pytest.Monk
 @pytest.mark.slow
 def test_v7_figures_on_the_truth_are_pinned() -> None:
     """The run the cases judge (≈ 15 s): the virtual threshold silent before the break and
-    alarming 2.5-3.5 tooth periods after it; the constant threshold's four false alarms (the
-    known failure's figure, decision 1730; two, at SLOT1's exit and SLOT3's entry, before
-    decision 1555 moved the reference it learns on the entry from 1.18 to 1.05 N·m): at the
-    depth step (N310), where SLOT2's torque falls (N330, twice) and at SLOT3's entry (N350)."""
+    alarming 2.5-3.5 tooth periods after it. The classic constant threshold (Aslan Eq. 6.5 at
+    seed 002's α = 2, decision 1670): one false alarm, where the engagement steps at SLOT3's
+    entry (N350), and the break within a tooth period; at α = 3 none before the break. Decision
+    1523's constant reference: four false alarms (decision 1730; two, at SLOT1's exit and
+    SLOT3's entry, before decision 1555 moved the reference it learns on the entry from 1.18 to
+    1.05 N·m): at the depth step (N310), where SLOT2's torque falls (N330, twice) and at SLOT3's
+    entry (N350)."""
     run = mb.v7_run()
     before, after = mb._split(run.events["virtual"], run.break_s)
     assert before == []
     assert 2.5 <= (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 <= 3.5
+    before, after = mb._split(run.events["classic"], run.break_s)
+    assert [e.nc_line for e in before] == [350]
+    assert 0 <= (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 <= 1.0
+    assert mb._split(run.events["classic_a3"], run.break_s)[0] == []
     before, _ = mb._split(run.events["constant"], run.break_s)
     assert [e.nc_line for e in before] == [310, 330, 330, 350]
     # the plant's effective K_tc is its own (calibrated by the session), not the plan's 758

@@ -28,13 +28,15 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     (Aslan's 1000 rev/min, several N·m); on a light cut at high speed (0.5 N·m at 8000 rev/min, the
     observer's tooth average scattering by 0.15 N·m) 40 % is 1.5σ, and the noise alone would confirm
     three periods in a row about once a second.
-``constant`` — the constant threshold the thesis compares against in V7: the same detector with
-    τ_sa,sim replaced by a constant reference torque (given, or the mean over the first 5
-    revolutions in cut). It raises the false alarm at the depth step of V7 (decision 1523). Its
-    run bridges up to N − 2 periods (decision 1550), the comparison the thesis draws.
-``dual`` — seed 002 (Munasinghe Eqs. 3.43–3.49, digest §2.5): the same first-difference
-    residual ε1 and a second AR(1) residual ε2 on the lag-N difference x(m) − x(m−N) (N
-    flutes, which removes runout); thresholds 2 × max|ε_k| over the first 5 revolutions;
+``constant`` — a constant reference: the same detector with τ_sa,sim replaced by a constant
+    reference torque (given, or the mean over the first 5 revolutions in cut; decision 1523). It
+    alarms wherever the torque leaves the band around the reference (a depth step). Its run
+    bridges up to N − 2 periods (decision 1550). The thesis' own constant threshold in V7 is
+    Eq. 6.5 on the residuals, i.e. ``dual`` (decision 1670).
+``dual`` — seed 002 (Munasinghe Eqs. 3.43–3.49, digest §2.5), Aslan's classic Eq. 6.5: the
+    same first-difference residual ε1 and a second AR(1) residual ε2 on the lag-N difference
+    x(m) − x(m−N) (N flutes, which removes runout); thresholds 2 × max|ε_k| over the first 5
+    revolutions;
     breakage when |ε1| > thr1 AND |ε2| > thr2 in the same tooth period (|ε|, as the thesis'
     figures show ±thresholds).
 
