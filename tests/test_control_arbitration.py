@@ -168,6 +168,60 @@ def test_decisions_do_not_depend_on_the_chunking(chunk: int) -> None:
         assert np.array_equal(ch[k], ref_ch[k], equal_nan=True), k
 
 
+class CeilingFollower(Scripted):
+    """An adaptive child whose output depends on the ceiling it was last told (its echo is the
+    input × the ceiling, 1 without one), with AdaptiveFeedBlock's rule: a call without a
+    ceiling that confirms its own last proposal changes nothing (decision 1671)."""
+
+    def reset(self, sample_rate_hz: float) -> None:
+        super().reset(sample_rate_hz)
+        self.ceiling: float | None = None
+        self.sent = 1.0
+
+    def set_ceiling(self, ceiling: float | None, commanded: float) -> None:
+        if ceiling is None and abs(commanded - self.sent) <= 1e-12 and self.ceiling is None:
+            return
+        self.ceilings.append((self._pos, ceiling, commanded))
+        self.ceiling = ceiling
+        self.sent = commanded
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        out = super().process(chunk)
+        for e in out.events:
+            if e.name == "feed_override" and e.value is not None:
+                self.sent = e.value / 100.0
+        scale = 1.0 if self.ceiling is None else self.ceiling
+        return BlockOutput({f"{self.name}/echo": np.asarray(chunk.data["sig"]) * scale},
+                           out.events)  # fmt: skip
+
+
+@pytest.mark.parametrize("chunk", [7, 333, 1000, 2345, 8000])
+def test_children_run_ahead_over_several_periods_as_period_by_period(chunk: int) -> None:
+    """Decision 1671: a chunk of several control periods runs each child once, as far as the
+    decisions allow (a chatter alarm, its end or a breakage alarm stops the later children at
+    the end of its period); the adaptive child is told its ceiling at the same samples, its
+    outputs (which follow the ceiling) and every event and override are those of 10 ms
+    chunks, and the calls that change something are the same calls."""
+
+    def kids() -> list[Block]:
+        chatter, breakage, adaptive = _children()
+        assert isinstance(adaptive, Scripted)
+        return [chatter, breakage, CeilingFollower("adaptive_feed", adaptive.script)]
+
+    ref_kids, kids_now = kids(), kids()
+    ref_ch, ref_ev = _run(Supervisor(ref_kids), 8000, 100)
+    ch, ev = _run(Supervisor(kids_now), 8000, chunk)
+    assert [(e.sample, e.name, e.value, e.kind) for e in ev] == [
+        (e.sample, e.name, e.value, e.kind) for e in ref_ev
+    ]
+    for k in ref_ch:
+        assert np.array_equal(ch[k], ref_ch[k], equal_nan=True), k
+    ref_ad, ad = ref_kids[2], kids_now[2]
+    assert isinstance(ref_ad, CeilingFollower) and isinstance(ad, CeilingFollower)
+    assert ad.ceilings == ref_ad.ceilings and len(ref_ad.ceilings) > 10
+    assert ref_kids[1].rearmed == kids_now[1].rearmed == [7000]  # type: ignore[attr-defined]
+
+
 def test_breakage_when_stable_holds_at_the_next_boundary() -> None:
     """A breakage alarm with no chatter: feed hold within one control period (10 ms), far
     inside issue 16's 3 tooth periods (60 ms at 1000 rev/min, 2 flutes)."""

@@ -364,6 +364,9 @@ class AdaptiveFeedBlock(Block):
         self._peak = 0.0
         self._n_stall = max(round(o.stall_s * self.fs), 1)
         self._ceiling_ext: float | None = None
+        # the override the machine was last sent as far as this block knows: its own last
+        # OVERRIDE event, or the arbiter's command when it told it another (decision 1671)
+        self._sent = 1.0
         self._scratch: tuple[np.ndarray, ...] = (np.empty(0, dtype=np.int64),)
         self._ref_name = (f"{self.name}/reference",)
         self._ref_value = np.array([o.reference], dtype=np.float64)
@@ -373,8 +376,17 @@ class AdaptiveFeedBlock(Block):
         """From an arbiter (:class:`~millsense.control.arbitration.Supervisor`): the largest
         override this block may propose from now on (None: its own limits only), and the
         override the machine was actually sent (the block's state follows it when the arbiter
-        did not pass a proposal, so the next GPC move starts from what the plant saw)."""
+        did not pass a proposal, so the next GPC move starts from what the plant saw).
+
+        With no ceiling and the machine sent this block's own last proposal, nothing changes:
+        the state is the block's own, including the override the CNC reports (decision 1666),
+        which it does not overwrite with the command between two decisions (decision 1671: so
+        an arbiter that passes every proposal does not act on the block, and may run it over
+        several of its control periods at once)."""
         self._ceiling_ext = ceiling
+        if ceiling is None and abs(commanded - self._sent) <= 1e-12:
+            return
+        self._sent = commanded  # what the machine was sent, now known to this block
         if abs(commanded - self.loop.u) > 1e-12:
             self.loop.u = commanded
             self.loop.u_hist[0] = commanded
@@ -825,6 +837,7 @@ class AdaptiveFeedBlock(Block):
             lp.du_hist[0] = 0.0
             return
         lp.u = u
+        self._sent = u
         t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
         nc = x = y = z = None
         if self.plan is not None:

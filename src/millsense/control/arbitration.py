@@ -3,7 +3,9 @@ Fig. 6.16; issue 16 item 4).
 
 :class:`Supervisor` is a composite :class:`~millsense.streaming.block.Block`: it runs its
 children (chatter monitor or chatter avoidance, breakage monitor, adaptive feed control, in
-any order; each sees the chunk plus the earlier children's outputs, as in a pipeline), passes
+any order; each sees the chunk plus the earlier children's outputs, as in a pipeline; on a
+chunk of several control periods they run ahead of the decisions where nothing pending acts on
+them, decision 1671), passes
 their channels and ALARM/NOTE events on, and is the only block that sends OVERRIDE events to
 the machine. Once per control period (10 ms by default, aligned on absolute sample indices so
 that the decisions do not depend on how the stream is cut into chunks) it decides, with seed
@@ -171,12 +173,21 @@ class Supervisor(Block):
         self._setters = [
             s for s in (getattr(c, "set_ceiling", None) for c in self.children) if s is not None
         ]
+        # children the decisions act on: 2 an adaptive controller (set_ceiling), 1 a breakage
+        # monitor (rearm), 0 none; ahead of the decisions only in that order (decision 1671)
+        kinds = [
+            2 if hasattr(c, "set_ceiling") else 1 if hasattr(c, "rearm") else 0
+            for c in self.children
+        ]
+        self._ahead_ok = kinds == sorted(kinds)
         self.feed = 1.0
         self.spindle = math.nan
         self.mode = MODE_NORMAL
         self._own = tuple(f"{self.name}/{c}" for c in ("feed_override", "spindle_override", "mode"))
         self._held_key: tuple[float, float, float] | None = None
         self._held_views: HeldViews | None = None
+        self._defer_to = 0  # decisions before this sample of the chunk defer the ceilings
+        self._stop = 0
         self.chatter_open = False
         self.chatter_last_s = -math.inf
         self.breakage_pending: Event | None = None
@@ -237,7 +248,8 @@ class Supervisor(Block):
         d = chunk.data
         # the source's fault codes are looked at piece by piece only in a chunk that has a
         # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
-        # children still run period by period, decision 1654)
+        # decisions fall period by period, decision 1654; the children run ahead of them over
+        # the chunk where nothing pending acts on them, decision 1671)
         faulty = self.fault_channel is not None and bool(np.asarray(d[self.fault_channel]).any())
         in_cut = None if self.in_cut_channel is None else d[self.in_cut_channel]
         a = chunk.start
@@ -255,20 +267,35 @@ class Supervisor(Block):
             feed = np.empty(n)
             spindle = np.empty(n)
             mode = np.empty(n)
-            out: dict[str, list[np.ndarray]] = {}
+            ahead = self._run_ahead(chunk) if self._ahead_ok and not faulty and self._calm() else []
+            # the adaptive children have run ahead to here: the decisions before it do not
+            # tell them their ceilings (in calm periods a call that would change nothing), the
+            # decision at its end does (decision 1671)
+            self._defer_to = min(
+                (r.end for r, c in zip(ahead, self.children, strict=False)
+                 if hasattr(c, "set_ceiling")), default=0,
+            )  # fmt: skip
+            parts: list[dict[str, list[np.ndarray]]] = [{} for _ in self.children]
             pos = 0
             while pos < n:
                 stop = min(n, pos + self.period - (a + pos) % self.period)
-                piece = _slice(chunk, pos, stop)
-                for res in self._children(piece, events):
-                    for k, v in res.items():
-                        out.setdefault(k, []).append(np.asarray(v))
+                self._stop = stop
+                self._pieces(chunk, pos, stop, events, ahead, parts)
                 feed[pos:stop] = self.feed
                 spindle[pos:stop] = self.spindle
                 mode[pos:stop] = self.mode
+                piece = _slice(chunk, pos, stop) if faulty else chunk
                 self._after_piece(chunk, piece, stop, faulty, in_cut, events)
                 pos = stop
-            channels = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
+            self._defer_to = 0
+            channels = {}
+            for i, got in enumerate(parts):
+                early = ahead[i].channels if i < len(ahead) else {}
+                for k, v in early.items():
+                    channels[k] = np.concatenate([v, *got[k]]) if k in got else v
+                for k, vs in got.items():
+                    if k not in early:
+                        channels[k] = vs[0] if len(vs) == 1 else np.concatenate(vs)
         channels[f"{self.name}/feed_override"] = feed
         channels[f"{self.name}/spindle_override"] = spindle
         channels[f"{self.name}/mode"] = mode
@@ -305,6 +332,90 @@ class Supervisor(Block):
                     events.append(ev)
                     self._pending.append(ev)
         return channels
+
+    def _calm(self) -> bool:
+        """Nothing the decisions of the coming periods do to the children is pending: no
+        chatter episode or its settling, no fault, no breakage alarm waiting (decided or still
+        to be, from the end of the last chunk), the control on and no operator request queued
+        (decision 1671)."""
+        return not (
+            any(_acts_on_children(e) for e in self._pending)
+            or self.chatter_open
+            or self.rejudge_at is not None
+            or self.fault
+            or self._fault_seen
+            or self.breakage_pending is not None
+            or not self.control
+            or self._operator
+        )
+
+    def _run_ahead(self, chunk: Chunk) -> list[_Ahead]:
+        """The children run on a chunk of several control periods before its decisions
+        (decision 1671): while no decision acts on them, their outputs over the chunk are
+        those of period-by-period runs (chunk-size invariance), so each child runs once, as far
+        as the decisions allow: an event that changes what the decisions do to the children
+        (a chatter alarm or its end, a breakage alarm) stops every later child at the end of
+        its control period; the periods after it run one by one (:meth:`_pieces`). Exact given
+        the children's order (monitors, then breakage monitors, then adaptive controllers) and
+        events whose ``sample`` lies in the chunk they came from."""
+        n, a = chunk.n, chunk.start
+        limit = n
+        data = dict(chunk.data)
+        out: list[_Ahead] = []
+        for c in self.children:
+            sub = {k: data[k] if limit == n else data[k][:limit] for k in c.inputs}
+            res = c.process(Chunk(a, chunk.sample_rate_hz, chunk.t0_s, sub))
+            data.update(res.channels)
+            out.append(_Ahead(dict(res.channels), list(res.events), limit))
+            for ev in res.events:
+                if _acts_on_children(ev):
+                    s = min(max((ev.sample if ev.sample is not None else a) - a, 0), limit - 1)
+                    limit = min(limit, s + self.period - (a + s) % self.period)
+        return out
+
+    def _pieces(
+        self,
+        chunk: Chunk,
+        pos: int,
+        stop: int,
+        events: list[Event],
+        ahead: list[_Ahead],
+        parts: list[dict[str, list[np.ndarray]]],
+    ) -> None:
+        """One control period of a chunk: each child's events in it (from its run ahead, or
+        from running it on the piece where its run ahead stopped earlier), gathered for the
+        decision as :meth:`_children` does."""
+        data: dict[str, np.ndarray] | None = None
+        piece = chunk
+        end = chunk.start + stop if stop < chunk.n else None  # the last piece takes them all
+        for i, c in enumerate(self.children):
+            early = ahead[i] if i < len(ahead) else None
+            if early is not None and stop <= early.end:
+                evs = early.take(end)
+                if data is not None:
+                    data.update({k: v[pos:stop] for k, v in early.channels.items()})
+            else:
+                if data is None:
+                    piece = _slice(chunk, pos, stop)
+                    data = dict(piece.data)
+                    for j in range(i):
+                        prior = ahead[j] if j < len(ahead) else None
+                        if prior is not None and stop <= prior.end:
+                            data.update({k: v[pos:stop] for k, v in prior.channels.items()})
+                        else:
+                            data.update({k: v[-1] for k, v in parts[j].items()})
+                res = c.process(Chunk(piece.start, piece.sample_rate_hz, piece.t0_s,
+                                      {k: data[k] for k in c.inputs}))  # fmt: skip
+                data.update(res.channels)
+                for k, v in res.channels.items():
+                    parts[i].setdefault(k, []).append(np.asarray(v))
+                evs = res.events
+            for ev in evs:
+                if ev.kind is EventKind.OVERRIDE:
+                    self._pending.append(ev)
+                else:
+                    events.append(ev)
+                    self._pending.append(ev)
 
     def _after_piece(
         self,
@@ -500,6 +611,8 @@ class Supervisor(Block):
     def _set_ceilings(self) -> None:
         """Tell adaptive children how far they may go: nothing above the commanded feed while
         chatter, a fault or a hold stands (their own state then follows what was sent)."""
+        if self._stop < self._defer_to:
+            return
         limit: float | None = None
         if self.held:
             limit = 0.0
@@ -507,6 +620,40 @@ class Supervisor(Block):
             limit = self.feed
         for setter in self._setters:
             setter(limit, self.feed)
+
+
+class _Ahead:
+    """A child's run ahead over a chunk's first ``end`` samples: its channels and the events
+    not yet given to a decision."""
+
+    __slots__ = ("channels", "end", "events")
+
+    def __init__(self, channels: dict[str, np.ndarray], events: list[Event], end: int) -> None:
+        self.channels = channels
+        self.events = events
+        self.end = end
+
+    def take(self, before: int | None) -> list[Event]:
+        """The events whose sample is before ``before`` (absolute; None: all), in their order;
+        an event without a sample goes with the first period."""
+        if not self.events:
+            return []
+        if before is None:
+            now, self.events = self.events, []
+            return now
+        now = [e for e in self.events if e.sample is None or e.sample < before]
+        if now:
+            self.events = [e for e in self.events if not (e.sample is None or e.sample < before)]
+        return now
+
+
+def _acts_on_children(ev: Event) -> bool:
+    """An event whose decision acts on the children: a chatter alarm (the adaptive ceiling),
+    a chatter episode's end (the breakage monitors re-armed after it settles), a breakage alarm
+    (the feed hold)."""
+    if ev.name == "chatter_end":
+        return True
+    return ev.kind is EventKind.ALARM and ev.name in ("chatter", "breakage")
 
 
 def _slice(chunk: Chunk, a: int, b: int) -> Chunk:
