@@ -636,6 +636,44 @@ def smallest(cost: FloatArray, n: int) -> IntArray:
     return idx[:count]
 
 
+#: Decision 1557: revolutions whose relative misfits set the noise level of the local fit, the
+#: factor above it that calls a global search, and the revolutions after which one runs anyway.
+MISFIT_REVS = 8
+MISFIT_JUMP = 2.0
+REGRID_REVS = 16
+#: Layout of the state of that test (floats): the last :data:`MISFIT_REVS` relative misfits (a
+#: ring), how many are known, the ring's next slot and the revolutions whose local fit was kept
+#: since the last grid search.
+MST_COUNT, MST_NEXT, MST_SINCE = MISFIT_REVS, MISFIT_REVS + 1, MISFIT_REVS + 2
+MST_SIZE = MISFIT_REVS + 3
+
+
+@numba.njit(cache=True)
+def note_misfit(state: FloatArray, misfit: float) -> None:
+    """Record a revolution's relative misfit in the ring of ``state`` (:data:`MST_COUNT`)."""
+    slot = int(state[MST_NEXT])
+    state[slot] = misfit
+    state[MST_NEXT] = (slot + 1) % MISFIT_REVS
+    state[MST_COUNT] = min(state[MST_COUNT] + 1.0, float(MISFIT_REVS))
+
+
+@numba.njit(cache=True)
+def local_fit_holds(state: FloatArray, misfit: float) -> bool:
+    """Decision 1557: keep the fit from the previous revolution's solution (no global search)
+    when its relative misfit is at most :data:`MISFIT_JUMP` × the median of the last
+    :data:`MISFIT_REVS` revolutions' (noise the local fit already lived with, not an engagement
+    that changed; NaN among them: no), and a global search ran within :data:`REGRID_REVS`."""
+    if state[MST_COUNT] < MISFIT_REVS or state[MST_SINCE] >= REGRID_REVS - 1:
+        return False
+    v = np.sort(state[:MISFIT_REVS])
+    for i in range(MISFIT_REVS):
+        if v[i] != v[i]:
+            return False
+    h = MISFIT_REVS // 2
+    med = v[h] if MISFIT_REVS % 2 else (v[h - 1] + v[h]) / 2
+    return misfit <= MISFIT_JUMP * med
+
+
 #: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):
 #: fraction of a revolution, revolution index (−1 before the first sample), samples summed,
 #: Σ x, Σ |Ω|, Σ |feed|, 1 once a revolution was identified (the next fit starts from it), the
@@ -1357,6 +1395,7 @@ def ingest_revolutions(
     orders: FloatArray,
     eq: ComplexArray,
     eqp: FloatArray,
+    mstate: FloatArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -1430,6 +1469,19 @@ def ingest_revolutions(
                                      fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
                                      fpar[FPAR_RCOND], t0_net, mean_var, row):  # fmt: skip
                         status = REV_DONE
+                    elif local_fit_holds(
+                        mstate, 2.0 * row[EST_COST] / normalised(done_sums[nd, 1:])[1]
+                    ):
+                        # the misfit is the noise's of the last revolutions: the fit from the
+                        # previous solution is the estimate, no grid search (decision 1557)
+                        mstate[MST_SINCE] += 1.0
+                        estimate(row[:3].copy(), row[EST_COST], done_sums[nd, 1:],
+                                 done_sums[nd, 0], c, k, fpar[FPAR_KB], edge, fpar[FPAR_RADIUS],
+                                 n_flutes, fpar[FPAR_PITCH], fpar[FPAR_RCOND], t0_net, mean_var,
+                                 lo, hi, scale, row)  # fmt: skip
+                        status = REV_DONE
+                    if status == REV_DONE:
+                        note_misfit(mstate, row[EST_COST])
                         prev[0] = row[EST_AXIAL]
                         prev[1] = row[EST_ENTRY]
                         prev[2] = row[EST_EXIT]
