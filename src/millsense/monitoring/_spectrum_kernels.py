@@ -1053,7 +1053,7 @@ def depth_sd(
     1558): the projected residual r(p) of the harmonics at p = (d_a, θ_st, θ_ex) (α, β solved
     at every p: variable projection, whose Jacobian gives the nonlinear parameters' covariance,
     Golub & Pereyra 1973), s² = ‖r‖²/(2K − 3 − n_amplitudes) and Cov = s² (JᵀJ)⁻¹, J by
-    forward differences as :func:`lm_fit_weighted` takes them. +inf where JᵀJ is singular or
+    forward differences (step 10⁻⁷ of the parameter's scale). +inf where JᵀJ is singular or
     nothing is left to estimate s² from."""
     n = x.shape[0]
     n_amp = 2 if edge else 1
