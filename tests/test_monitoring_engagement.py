@@ -527,10 +527,12 @@ def test_depth_summary_median_within_its_standard_error(rpm):
 def test_grid_starts_and_misfit_median_are_numpys():
     """The grid search's starts (:func:`_spectrum_kernels.smallest`, one pass) are numpy's
     stable order's first six, ties to the lower row and +inf (singular rows) last, exactly:
-    they replaced ``argpartition`` + ``argsort``; the misfit median (decision 1557) is
-    ``np.median``'s number exactly, NaN included."""
+    they replaced ``argpartition`` + ``argsort``; the compiled misfit test (decision 1557,
+    :func:`_spectrum_kernels.local_fit_holds`) compares with ``np.median``'s number of the last
+    MISFIT_REVS misfits exactly (a misfit of MISFIT_JUMP × that median holds, the next float
+    does not), and holds with none of them NaN, MISFIT_REVS of them known and a grid search
+    within REGRID_REVS only."""
     from millsense.monitoring import _spectrum_kernels as _sk
-    from millsense.monitoring.torque_spectrum import _median
 
     rng = np.random.default_rng(7)
     for size in (6, 7, 50, 5000):
@@ -538,11 +540,22 @@ def test_grid_starts_and_misfit_median_are_numpys():
         cost[rng.integers(0, size, size // 5)] = np.inf
         expected = np.argsort(cost, kind="stable")[:6]
         np.testing.assert_array_equal(_sk.smallest(cost, 6), expected)
-    for n in range(1, 10):
-        for _ in range(50):
-            v = list(rng.random(n) * 10.0 ** rng.uniform(-12, 3))
-            assert _median(v) == float(np.median(v))
-    assert math.isnan(_median([1.0, math.nan, 2.0]))
+    for extra in range(12):
+        v = rng.random(_sk.MISFIT_REVS + extra) * 10.0 ** rng.uniform(-12, 3)
+        state = np.zeros(_sk.MST_SIZE)
+        for misfit in v:
+            _sk.note_misfit(state, misfit)
+        limit = _sk.MISFIT_JUMP * float(np.median(v[-_sk.MISFIT_REVS :]))
+        assert _sk.local_fit_holds(state, limit)
+        assert not _sk.local_fit_holds(state, float(np.nextafter(limit, math.inf)))
+        state[_sk.MST_SINCE] = _sk.REGRID_REVS - 1
+        assert not _sk.local_fit_holds(state, 0.0)
+    state = np.zeros(_sk.MST_SIZE)
+    for misfit in [1.0] * (_sk.MISFIT_REVS - 1):
+        _sk.note_misfit(state, misfit)
+    assert not _sk.local_fit_holds(state, 0.0)  # fewer than MISFIT_REVS known
+    _sk.note_misfit(state, math.nan)
+    assert not _sk.local_fit_holds(state, 0.0)  # a NaN among them
 
 
 def test_fit_divisions_are_numbas_complex_division():
@@ -573,3 +586,57 @@ def test_fit_divisions_are_numbas_complex_division():
     for ref, got in ((0, 2), (1, 3), (4, 6), (5, 7)):
         nan = np.isnan(out[:, ref]) & np.isnan(out[:, got])
         assert np.all((bits[:, ref] == bits[:, got]) | nan), (ref, got)
+
+
+@pytest.mark.parametrize(("edge", "mean_row"), [(True, False), (True, True), (False, False)])
+def test_fit_jacobian_is_the_projected_residuals_derivative(edge, mean_row):
+    """Decision 1677: the fit's analytic variable-projection Jacobian (Golub & Pereyra's full
+    form, :func:`_spectrum_kernels._vp_jacobian`) equals central differences of the projected
+    residual (step 1e-6 of each parameter's scale: their error ≈ 1e-9 of the largest entry;
+    within 1e-7 of it), with and without the edge basis and with the weighted mean-torque row
+    of decision 1806 (k = 0); the fit's recurrence phases and lengths are the direct ones to
+    1e-14 (≈ 30 products of unit phasors)."""
+    from millsense.monitoring import _spectrum_kernels as _sk
+
+    rng = np.random.default_rng(5)
+    kb = math.tan(BETA) / R
+    k = 2.0 * np.arange(1, 16)
+    wt = np.ones(k.size)
+    if mean_row:
+        k = np.concatenate([[0.0], k])
+        wt = np.concatenate([[0.3], wt])
+    n = k.size
+    x = rng.standard_normal(n) + 1j * rng.standard_normal(n)
+    m, idx = _sk._orders(k)
+
+    def parts(p):
+        e1 = np.empty(m.size, complex)
+        e2 = np.empty(m.size, complex)
+        lk = np.empty(n, complex)
+        g = np.empty(m.size, complex)
+        _sk._phases(m, p[1], e1)
+        _sk._phases(m, p[2], e2)
+        _sk._lengths(k, p[0], kb, wt, lk)
+        _sk._g_all(m, e1, e2, p[1], p[2], g)
+        r = np.empty(2 * n)
+        _sk._residual_g(idx, g, lk, x, edge, np.empty(n, complex), np.empty(n, complex), r)
+        return r, e1, e2, lk, g
+
+    for p in (np.array([2.3e-3, 1.2, 2.9]), np.array([0.4e-3, 0.1, math.pi])):
+        r, e1, e2, lk, g = parts(p)
+        jac = np.empty((2 * n, 3))
+        _sk._vp_jacobian(idx, k, kb, wt, g, e1, e2, lk, x, edge, r, jac)
+        fd = np.empty_like(jac)
+        for i, h in enumerate((1e-8, 1e-6, 1e-6)):
+            up, down = p.copy(), p.copy()
+            up[i] += h
+            down[i] -= h
+            fd[:, i] = (parts(up)[0] - parts(down)[0]) / (2 * h)
+        # (a column may vanish: without the edge basis at θ_ex = π, ∂a_k/∂θ_ex = 0)
+        np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-7 * np.max(np.abs(fd)))
+        run = np.empty(m.size, complex)
+        _sk._phase_run(m, p[2], run)
+        np.testing.assert_allclose(run, e2, rtol=0, atol=1e-14)
+        runl = np.empty(n, complex)
+        _sk._length_run(k, p[0], kb, wt, runl)
+        np.testing.assert_allclose(runl, lk, rtol=0, atol=1e-14 * np.max(np.abs(lk)))

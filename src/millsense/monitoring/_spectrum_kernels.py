@@ -238,6 +238,168 @@ def lm_fit(
 
 
 @numba.njit(cache=True)
+def _phase_run(m: FloatArray, ang: float, out: ComplexArray) -> None:
+    """out = e^{−i m·ang} as :func:`_phases`, each order one above the previous one by a
+    product with e^{−i·ang} instead of its own cosine and sine (the orders k−1, k, k+1 of the
+    tooth harmonics run in steps of 1: one cosine and sine per angle; the recurrence's error
+    grows by ≈ 1e-16 a step, 3e-15 at the 31st order)."""
+    z = complex(math.cos(ang), -math.sin(ang))
+    for q in range(m.shape[0]):
+        if q > 0 and m[q] == m[q - 1] + 1.0:
+            out[q] = out[q - 1] * z
+        else:
+            out[q] = complex(math.cos(m[q] * ang), -math.sin(m[q] * ang))
+
+
+@numba.njit(cache=True)
+def _length_run(k: FloatArray, d: float, kb: float, wt: FloatArray, out: ComplexArray) -> None:
+    """out_j = wt_j L(k_j) at depth d as :func:`_lengths`, the phases e^{−i k_j kb d} of
+    harmonics in equal steps (k = N, 2N, …) by a product with the step's phase instead of their
+    own cosine and sine (error as :func:`_phase_run`)."""
+    e = 0j
+    step = 0j
+    delta = math.nan
+    for j in range(k.shape[0]):
+        if j > 0 and k[j] - k[j - 1] == delta:
+            e = e * step
+        else:
+            e = complex(math.cos(k[j] * kb * d), -math.sin(k[j] * kb * d))
+            if j + 1 < k.shape[0]:
+                delta = k[j + 1] - k[j]
+                step = complex(math.cos(delta * kb * d), -math.sin(delta * kb * d))
+        if k[j] == 0.0:
+            out[j] = wt[j] * complex(d, 0.0)
+        else:
+            out[j] = wt[j] * _over_i(1.0 - e, k[j] * kb)
+
+
+@numba.njit(cache=True)
+def _vp_jacobian(
+    idx: IntArray, k: FloatArray, kb: float, wt: FloatArray, gc: ComplexArray,
+    e1: ComplexArray, e2: ComplexArray, lk: ComplexArray, xn: ComplexArray, edge: bool,
+    r: FloatArray, jac: FloatArray,
+) -> None:  # fmt: skip
+    """The exact Jacobian of the projected residual r(p) = x − Φ Φ⁺ x (real view, Φ = [A B],
+    rows ``r`` as :func:`_projected_residual`) at p = (d_a, θ_st, θ_ex) whose G, phases and
+    lengths are ``gc``, ``e1``, ``e2``, ``lk`` (variable projection, Golub & Pereyra 1973):
+    ∂r/∂p_i = −(I − P) ∂Φ/∂p_i c − Φ (ΦᵀΦ)⁻¹ (∂Φ/∂p_i)ᵀ r, with c = (α, β). The bases'
+    derivatives are analytic and need no cosine or sine: ∂L_k/∂d_a = e^{−ik kb d_a} =
+    1 − i k kb L_k, ∂G_m/∂θ_st = −e^{−imθ_st}/2π, ∂G_m/∂θ_ex = e^{−imθ_ex}/2π."""
+    n = xn.shape[0]
+    a = np.empty(n, dtype=np.complex128)
+    b = np.empty(n, dtype=np.complex128)
+    for j in range(n):
+        a[j] = _over_i(gc[idx[0, j]] - gc[idx[2, j]], 2.0) * lk[j]
+        b[j] = gc[idx[1, j]] * lk[j]
+    aa = 0.0
+    ab = 0.0
+    bb = 0.0
+    ax = 0.0
+    bx = 0.0
+    for j in range(n):
+        aa += a[j].real ** 2 + a[j].imag ** 2
+        bb += b[j].real ** 2 + b[j].imag ** 2
+        ab += (a[j].conjugate() * b[j]).real
+        ax += (a[j].conjugate() * xn[j]).real
+        bx += (b[j].conjugate() * xn[j]).real
+    # (ΦᵀΦ)⁻¹ = [[i11, i12], [i12, i22]] (0 where singular: α = β = 0, as the fit sets them)
+    i11 = 0.0
+    i12 = 0.0
+    i22 = 0.0
+    if edge:
+        det = aa * bb - ab * ab
+        if det > 0:
+            i11 = bb / det
+            i12 = -ab / det
+            i22 = aa / det
+    elif aa > 0:
+        i11 = 1.0 / aa
+    alpha = i11 * ax + i12 * bx
+    beta = i12 * ax + i22 * bx
+    two_pi = 2.0 * math.pi
+    da = np.empty(n, dtype=np.complex128)
+    db = np.empty(n, dtype=np.complex128)
+    for i in range(3):
+        for j in range(n):
+            if i == 0:
+                dl = wt[j] - complex(0.0, k[j] * kb) * lk[j]
+                da[j] = _over_i(gc[idx[0, j]] - gc[idx[2, j]], 2.0) * dl
+                db[j] = gc[idx[1, j]] * dl
+            elif i == 1:
+                da[j] = _over_i(e1[idx[2, j]] - e1[idx[0, j]], 2.0) * lk[j] / two_pi
+                db[j] = -e1[idx[1, j]] * lk[j] / two_pi
+            else:
+                da[j] = _over_i(e2[idx[0, j]] - e2[idx[2, j]], 2.0) * lk[j] / two_pi
+                db[j] = e2[idx[1, j]] * lk[j] / two_pi
+        # u = ∂Φ c; its projection coefficients M⁻¹Φᵀu and M⁻¹(∂Φ)ᵀr
+        au = 0.0
+        bu = 0.0
+        dar = 0.0
+        dbr = 0.0
+        for j in range(n):
+            u = alpha * da[j] + beta * db[j]
+            au += (a[j].conjugate() * u).real
+            bu += (b[j].conjugate() * u).real
+            dar += da[j].real * r[j] + da[j].imag * r[n + j]
+            dbr += db[j].real * r[j] + db[j].imag * r[n + j]
+        c1 = i11 * (au - dar) + i12 * (bu - dbr)
+        c2 = i12 * (au - dar) + i22 * (bu - dbr)
+        # −∂r = u − Φ M⁻¹Φᵀu + Φ M⁻¹(∂Φ)ᵀr
+        for j in range(n):
+            v = alpha * da[j] + beta * db[j] - c1 * a[j] - c2 * b[j]
+            jac[j, i] = -v.real
+            jac[n + j, i] = -v.imag
+
+
+@numba.njit(cache=True)
+def _secant_update(
+    s_mat: FloatArray, s: FloatArray, g: FloatArray, g_old: FloatArray, jr_new: FloatArray
+) -> None:
+    """The structured secant update of S ≈ Σ r_j ∇²r_j, the part of the least-squares Hessian
+    JᵀJ + S that Gauss–Newton drops (Dennis, Gay & Welsch 1981, NL2SOL): after the step s with
+    gradients Jᵀr ``g_old`` → ``g`` and ``jr_new`` = J_oldᵀ r_new, S is sized down by
+    τ = min(1, |sᵀy#|/|sᵀSs|) and updated so that (S + ΔS) s = y# = g − ``jr_new`` (symmetric
+    rank two, weighted by y = g − ``g_old``); skipped where yᵀs ≤ 0."""
+    y = g - g_old
+    ys = 0.0
+    for i in range(3):
+        ys += y[i] * s[i]
+    if not ys > 0.0:
+        return
+    ss_ = s_mat @ s
+    sss = 0.0
+    syd = 0.0
+    for i in range(3):
+        sss += s[i] * ss_[i]
+        syd += s[i] * (g[i] - jr_new[i])
+    if sss != 0.0:
+        tau = min(1.0, abs(syd) / abs(sss))
+        for i in range(3):
+            ss_[i] *= tau
+            for c in range(3):
+                s_mat[i, c] *= tau
+    z = np.empty(3)
+    zs = 0.0
+    for i in range(3):
+        z[i] = g[i] - jr_new[i] - ss_[i]
+        zs += z[i] * s[i]
+    for i in range(3):
+        for c in range(3):
+            s_mat[i, c] += (z[i] * y[c] + y[i] * z[c]) / ys - zs * y[i] * y[c] / (ys * ys)
+
+
+@numba.njit(cache=True)
+def _positive_definite(h: FloatArray) -> bool:
+    """True if the symmetric 3 × 3 ``h`` is positive definite (its leading minors > 0)."""
+    m1 = h[0, 0]
+    m2 = h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
+    m3 = (h[0, 0] * (h[1, 1] * h[2, 2] - h[1, 2] * h[2, 1])
+          - h[0, 1] * (h[1, 0] * h[2, 2] - h[1, 2] * h[2, 0])
+          + h[0, 2] * (h[1, 0] * h[2, 1] - h[1, 1] * h[2, 0]))  # fmt: skip
+    return m1 > 0.0 and m2 > 0.0 and m3 > 0.0
+
+
+@numba.njit(cache=True)
 def lm_fit_weighted(
     p0: FloatArray,
     xn: ComplexArray,
@@ -250,15 +412,16 @@ def lm_fit_weighted(
     max_iter: int,
     wt: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """Levenberg–Marquardt with forward-difference Jacobian and box bounds (decision 1535: a
-    parameter on a bound whose descent direction leaves the box is held for that step — the
-    active set — and the others take the step of the reduced system; the rest is clipped).
+    """Levenberg–Marquardt with the exact variable-projection Jacobian (:func:`_vp_jacobian`,
+    decision 1677) and box bounds (decision 1535: a parameter on a bound whose descent
+    direction leaves the box is held for that step — the active set — and the others take the
+    step of the reduced system; the rest is clipped).
 
     The residual is :func:`_residual_g`; its phases e^{−i m θ_st}, e^{−i m θ_ex} and lengths
-    L(k) are kept for the current point, so a Jacobian column recomputes only the factor its
-    parameter enters (d_a: L; θ_st, θ_ex: their phases) — the same numbers as a full
-    evaluation, with a third of the sines and cosines. Row j of the model is weighted by
-    ``wt[j]`` (``xn`` must be weighted alike; the mean-torque row of decision 1806)."""
+    L(k) are kept for the current point, and a trial point recomputes only the factors whose
+    parameter moved, each by a recurrence (:func:`_phase_run`, :func:`_length_run`). Row j of
+    the model is weighted by ``wt[j]`` (``xn`` must be weighted alike; the mean-torque row of
+    decision 1806)."""
     n = xn.shape[0]
     m, idx = _orders(k)
     nm = m.shape[0]
@@ -279,35 +442,26 @@ def lm_fit_weighted(
     e1 = np.empty(nm, dtype=np.complex128)  # at p
     e2 = np.empty(nm, dtype=np.complex128)
     lk = np.empty(n, dtype=np.complex128)
-    f1 = np.empty(nm, dtype=np.complex128)  # at a trial or perturbed point
+    f1 = np.empty(nm, dtype=np.complex128)  # at a trial point
     f2 = np.empty(nm, dtype=np.complex128)
     fl = np.empty(n, dtype=np.complex128)
     gc = np.empty(nm, dtype=np.complex128)  # G of every order at p
-    gt = np.empty(nm, dtype=np.complex128)  # ... at a trial or perturbed point
-    _phases(m, p[1], e1)
-    _phases(m, p[2], e2)
-    _lengths(k, p[0], kb, wt, lk)
+    gt = np.empty(nm, dtype=np.complex128)  # ... at a trial point
+    _phase_run(m, p[1], e1)
+    _phase_run(m, p[2], e2)
+    _length_run(k, p[0], kb, wt, lk)
     _g_all(m, e1, e2, p[1], p[2], gc)
     cost = _residual_g(idx, gc, lk, xn, edge, wa, wb, r)
     lam = 1e-3
+    # the second-order term S ≈ Σ r_j ∇²r_j by the structured secant update (NL2SOL)
+    s_mat = np.zeros((3, 3))
+    h = np.empty((3, 3))
+    g_old = np.empty(3)
+    jr_new = np.empty(3)  # old Jacobianᵀ × new residual
+    s_step = np.zeros(3)
+    have_step = False
     for _ in range(max_iter):
-        for i in range(3):
-            h = 1e-7 * scale[i]
-            qi = p[i] + h if p[i] + h <= hi[i] else p[i] - h
-            step = qi - p[i]
-            if i == 0:  # d_a enters only the lengths: the G of p serve
-                _lengths(k, qi, kb, wt, fl)
-                _residual_g(idx, gc, fl, xn, edge, wa, wb, rt)
-            elif i == 1:
-                _phases(m, qi, f1)
-                _g_all(m, f1, e2, qi, p[2], gt)
-                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
-            else:
-                _phases(m, qi, f2)
-                _g_all(m, e1, f2, p[1], qi, gt)
-                _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
-            for j in range(2 * n):
-                jac[j, i] = (rt[j] - r[j]) / step
+        _vp_jacobian(idx, k, kb, wt, gc, e1, e2, lk, xn, edge, r, jac)
         for i in range(3):
             acc = 0.0
             for j in range(2 * n):
@@ -319,6 +473,15 @@ def lm_fit_weighted(
                     acc += jac[j, i] * jac[j, c]
                 jtj[i, c] = acc
                 jtj[c, i] = acc
+        if have_step:
+            _secant_update(s_mat, s_step, g, g_old, jr_new)
+        for i in range(3):
+            for c in range(3):
+                h[i, c] = jtj[i, c] + s_mat[i, c]
+        if not _positive_definite(h):
+            for i in range(3):
+                for c in range(3):
+                    h[i, c] = jtj[i, c]
         # the active set: on a bound with the descent direction −g pointing out of the box
         for i in range(3):
             free[i] = not ((p[i] >= hi[i] and g[i] < 0.0) or (p[i] <= lo[i] and g[i] > 0.0))
@@ -326,7 +489,7 @@ def lm_fit_weighted(
         for _t in range(8):
             for i in range(3):
                 for c in range(3):
-                    mm[i, c] = jtj[i, c]
+                    mm[i, c] = h[i, c]
                 mm[i, i] += lam * (jtj[i, i] + 1e-30)
             _solve3(mm, g, free, dp)
             for i in range(3):
@@ -338,15 +501,15 @@ def lm_fit_weighted(
             if same_st:
                 f1[:] = e1
             else:
-                _phases(m, q[1], f1)
+                _phase_run(m, q[1], f1)
             if same_ex:
                 f2[:] = e2
             else:
-                _phases(m, q[2], f2)
+                _phase_run(m, q[2], f2)
             if q[0] == p[0]:
                 fl[:] = lk
             else:
-                _lengths(k, q[0], kb, wt, fl)
+                _length_run(k, q[0], kb, wt, fl)
             if same_st and same_ex:
                 gt[:] = gc
             else:
@@ -357,6 +520,14 @@ def lm_fit_weighted(
                 for i in range(3):
                     if abs(q[i] - p[i]) > 1e-7 * scale[i]:
                         small = False
+                for i in range(3):
+                    s_step[i] = q[i] - p[i]
+                    g_old[i] = g[i]
+                    acc = 0.0
+                    for j in range(2 * n):
+                        acc += jac[j, i] * rt[j]
+                    jr_new[i] = acc
+                have_step = True
                 p[:] = q
                 r[:] = rt
                 e1[:] = f1
@@ -463,6 +634,44 @@ def smallest(cost: FloatArray, n: int) -> IntArray:
         if count < n:
             count += 1
     return idx[:count]
+
+
+#: Decision 1557: revolutions whose relative misfits set the noise level of the local fit, the
+#: factor above it that calls a global search, and the revolutions after which one runs anyway.
+MISFIT_REVS = 8
+MISFIT_JUMP = 2.0
+REGRID_REVS = 16
+#: Layout of the state of that test (floats): the last :data:`MISFIT_REVS` relative misfits (a
+#: ring), how many are known, the ring's next slot and the revolutions whose local fit was kept
+#: since the last grid search.
+MST_COUNT, MST_NEXT, MST_SINCE = MISFIT_REVS, MISFIT_REVS + 1, MISFIT_REVS + 2
+MST_SIZE = MISFIT_REVS + 3
+
+
+@numba.njit(cache=True)
+def note_misfit(state: FloatArray, misfit: float) -> None:
+    """Record a revolution's relative misfit in the ring of ``state`` (:data:`MST_COUNT`)."""
+    slot = int(state[MST_NEXT])
+    state[slot] = misfit
+    state[MST_NEXT] = (slot + 1) % MISFIT_REVS
+    state[MST_COUNT] = min(state[MST_COUNT] + 1.0, float(MISFIT_REVS))
+
+
+@numba.njit(cache=True)
+def local_fit_holds(state: FloatArray, misfit: float) -> bool:
+    """Decision 1557: keep the fit from the previous revolution's solution (no global search)
+    when its relative misfit is at most :data:`MISFIT_JUMP` × the median of the last
+    :data:`MISFIT_REVS` revolutions' (noise the local fit already lived with, not an engagement
+    that changed; NaN among them: no), and a global search ran within :data:`REGRID_REVS`."""
+    if state[MST_COUNT] < MISFIT_REVS or state[MST_SINCE] >= REGRID_REVS - 1:
+        return False
+    v = np.sort(state[:MISFIT_REVS])
+    for i in range(MISFIT_REVS):
+        if v[i] != v[i]:
+            return False
+    h = MISFIT_REVS // 2
+    med = v[h] if MISFIT_REVS % 2 else (v[h - 1] + v[h]) / 2
+    return misfit <= MISFIT_JUMP * med
 
 
 #: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):
@@ -844,7 +1053,7 @@ def depth_sd(
     1558): the projected residual r(p) of the harmonics at p = (d_a, θ_st, θ_ex) (α, β solved
     at every p: variable projection, whose Jacobian gives the nonlinear parameters' covariance,
     Golub & Pereyra 1973), s² = ‖r‖²/(2K − 3 − n_amplitudes) and Cov = s² (JᵀJ)⁻¹, J by
-    forward differences as :func:`lm_fit_weighted` takes them. +inf where JᵀJ is singular or
+    forward differences (step 10⁻⁷ of the parameter's scale). +inf where JᵀJ is singular or
     nothing is left to estimate s² from."""
     n = x.shape[0]
     n_amp = 2 if edge else 1
@@ -1186,6 +1395,7 @@ def ingest_revolutions(
     orders: FloatArray,
     eq: ComplexArray,
     eqp: FloatArray,
+    mstate: FloatArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -1259,6 +1469,19 @@ def ingest_revolutions(
                                      fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
                                      fpar[FPAR_RCOND], t0_net, mean_var, row):  # fmt: skip
                         status = REV_DONE
+                    elif local_fit_holds(
+                        mstate, 2.0 * row[EST_COST] / normalised(done_sums[nd, 1:])[1]
+                    ):
+                        # the misfit is the noise's of the last revolutions: the fit from the
+                        # previous solution is the estimate, no grid search (decision 1557)
+                        mstate[MST_SINCE] += 1.0
+                        estimate(row[:3].copy(), row[EST_COST], done_sums[nd, 1:],
+                                 done_sums[nd, 0], c, k, fpar[FPAR_KB], edge, fpar[FPAR_RADIUS],
+                                 n_flutes, fpar[FPAR_PITCH], fpar[FPAR_RCOND], t0_net, mean_var,
+                                 lo, hi, scale, row)  # fmt: skip
+                        status = REV_DONE
+                    if status == REV_DONE:
+                        note_misfit(mstate, row[EST_COST])
                         prev[0] = row[EST_AXIAL]
                         prev[1] = row[EST_ENTRY]
                         prev[2] = row[EST_EXIT]

@@ -229,7 +229,7 @@ class EngagementBlock(Block):
         self._args = (
             self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
             ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
-            self._k, *self._equaliser(),
+            self._k, *self._equaliser(), ident._mstate,
         )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
@@ -270,8 +270,6 @@ class EngagementBlock(Block):
             )
             self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
             self._acc[_sk.ACC_HAS_PREV] = 1.0
-        else:
-            ident.note_misfit(float(out[_sk.EST_COST]))
         est = out.copy()
         self._held = est[: len(_FIELDS)]
         self._log.append((t_end, est))

@@ -42,10 +42,8 @@ d_r = r (cos θ_st − cos θ_ex) (digest §2.4 [S]; = r(1 + cos θ_st) in down 
 
 from __future__ import annotations
 
-import collections
 import functools
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -297,22 +295,11 @@ def _grid(geom: ToolGeometry, n_harmonics: int, max_depth_m: float) -> _GridBase
                       inv_r22, singular)  # fmt: skip
 
 
-def _median(values: Iterable[float]) -> float:
-    """``np.median`` of a few floats, the same number (the middle one, or the two middle ones'
-    sum halved; NaN if any is NaN) without its array machinery (tens of µs a call, once a
-    revolution on a noisy torque)."""
-    v = sorted(values)
-    if not v or any(x != x for x in v):
-        return math.nan
-    h = len(v) // 2
-    return v[h] if len(v) % 2 else (v[h - 1] + v[h]) / 2
-
-
-#: Decision 1557: revolutions whose relative misfits set the noise level of the local fit, the
-#: factor above it that calls a global search, and the revolutions after which one runs anyway.
-MISFIT_REVS = 8
-MISFIT_JUMP = 2.0
-REGRID_REVS = 16
+#: Decision 1557 (the test is compiled: :func:`._spectrum_kernels.local_fit_holds`, which
+#: the streaming block's scan applies too).
+MISFIT_REVS = _sk.MISFIT_REVS
+MISFIT_JUMP = _sk.MISFIT_JUMP
+REGRID_REVS = _sk.REGRID_REVS
 
 #: Harmonics of the spindle frequency covered by the coarse grid and the first least-squares
 #: stage (16 ω_n: 4 tooth harmonics of a 4-flute tool, 16 of a 1-flute one).
@@ -374,8 +361,9 @@ class SpectrumIdentifier:
     def reset(self) -> None:
         """Forget the previous revolution (a new stream)."""
         self._prev: FloatArray | None = None
-        self._misfits: collections.deque[float] = collections.deque(maxlen=MISFIT_REVS)
-        self._since_grid = 0
+        #: the misfits of the last revolutions and the revolutions since the last grid search
+        #: (layout ``_spectrum_kernels.MST_*``; the streaming block's scan shares it)
+        self._mstate = np.zeros(_sk.MST_SIZE)
 
     def _residual(self, p: FloatArray, x: ComplexArray) -> FloatArray:
         a, b = _basis(self.k[: x.size], p[0], p[1], p[2], self.geom)
@@ -444,14 +432,14 @@ class SpectrumIdentifier:
                 best: tuple[FloatArray, float] | None = (np.array(warm[0]), float(warm[1]))
             else:
                 best = None if prev is None else (out[:3].copy(), float(out[_sk.EST_COST]))
-            if best is not None and self._local_fit_holds(2.0 * best[1] / norm):
+            if best is not None and _sk.local_fit_holds(self._mstate, 2.0 * best[1] / norm):
                 # the misfit is the noise's of the last revolutions: no new global search
                 # (decision 1557)
-                self._since_grid += 1
+                self._mstate[_sk.MST_SINCE] += 1.0
             else:
                 # the previous revolution's solution does not explain this one: grid starts too
                 best = self._grid_search(xn, norm, args, best)
-                self._since_grid = 0
+                self._mstate[_sk.MST_SINCE] = 0.0
             _sk.estimate(best[0], best[1], x, t1, c, self.k, self._kb, self.edge, *tail, *mean,
                          self._lo, self._hi, self._scl, out)  # fmt: skip
         self.note_misfit(float(out[_sk.EST_COST]))
@@ -460,17 +448,8 @@ class SpectrumIdentifier:
 
     def note_misfit(self, misfit: float) -> None:
         """Record a revolution's relative misfit (:meth:`identify_array` does; the streaming
-        block also for the revolutions its compiled scan identified)."""
-        self._misfits.append(misfit)
-
-    def _local_fit_holds(self, misfit: float) -> bool:
-        """Decision 1557: keep the fit from the previous revolution's solution (no global
-        search) when its relative misfit is at most :data:`MISFIT_JUMP` × the median of the
-        last :data:`MISFIT_REVS` revolutions' (noise the local fit already lived with, not an
-        engagement that changed), and a global search ran within :data:`REGRID_REVS`."""
-        if len(self._misfits) < MISFIT_REVS or self._since_grid >= REGRID_REVS - 1:
-            return False
-        return misfit <= MISFIT_JUMP * _median(self._misfits)
+        block's compiled scan for the revolutions it identified)."""
+        _sk.note_misfit(self._mstate, misfit)
 
     def _grid_search(
         self,
