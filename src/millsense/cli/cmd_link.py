@@ -101,12 +101,13 @@ def record(
 ) -> None:
     """Record a CNC's OPC UA stream (gaps and duplicates reported, nothing interpolated)."""
     from millsense.cli.cmd_run import link_summary
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
     from millsense.link.client import StopAt
     from millsense.online.session import run_session
     from millsense.streaming.event_log import default_event_log_path
 
-    check_outputs({}, {"-o": out, "--events": events_out})
+    check_outputs({}, {"-o": out, "--events": events_out or default_event_log_path(out)},
+                  SESSION_SUFFIXES)  # fmt: skip
     if duration_s is not None and not duration_s > 0:
         raise ConfigError(f"--duration-s: must be > 0, got {duration_s}")
     lo.link_logging()

@@ -82,7 +82,7 @@ def monitor(
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine,
          "the tool file": tool},
-        {"-o": out, "--plot": plot},
+        {"-o": out, "--plot": plot}, {"-o": ".parquet"},
     )  # fmt: skip
     summary = run_monitor(
         recording=recording, out=out, plan=plan, machine=machine, methods=methods,

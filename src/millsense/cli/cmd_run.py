@@ -152,7 +152,8 @@ def run(
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
+    from millsense.streaming.event_log import default_event_log_path
 
     live = None
     if dashboard:
@@ -167,8 +168,9 @@ def run(
     check_outputs(
         {"the program": program, "the stock": stock, "the plan": plan,
          "the machine file": machine_file, "the tool-modes file": tool_modes},
-        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot,
-         "--report": report or report_path(out)},
+        {"-o": out, "--events": events_out or default_event_log_path(out),
+         "--plan-out": plan_out, "--plot": plot, "--report": report or report_path(out)},
+        SESSION_SUFFIXES,
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
@@ -219,7 +221,7 @@ def replay(
     ),
 ) -> None:
     """Run the on-line blocks on a recording (overrides recorded, not applied)."""
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
 
     if report is not None and out is None:
         raise ConfigError("--report: needs -o (the report shows the replay's block outputs)")
@@ -228,6 +230,7 @@ def replay(
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine_file},
         {"-o": out, "--events": events_out, "--report": report},
+        SESSION_SUFFIXES,
     )
     opts = _options(True, regulate, reference, force_from, True, True, True, True)
     summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
