@@ -647,3 +647,24 @@ def _gate_air_feed(
             for k, v in res.channels.items():
                 out.setdefault(k, []).append(v)
     return {k: np.concatenate(v) for k, v in out.items()}, events
+
+
+def test_a_plan_that_never_cuts_runs_without_breakage_and_adaptive_feed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1678: a program whose tool passes 2 mm above the demo block (an air run) is run
+    with the estimators, the plan sync and the chatter monitor, and a note each for the
+    breakage monitor and the adaptive feed, which have nothing to judge or regulate. It had
+    stopped before the machine moved with 'breakage: min_expected_nm must be positive'. The
+    run is cut at 1 s (the spindle at speed: 0.3 s); no alarm and no feed override in it."""
+    from millsense.streaming.block import EventKind
+    from millsense.streaming.event_log import read_event_log
+
+    air = "G21 G90 G17\nT1 M6\nS6000 M3\nG0 X-15 Y25 Z5\nG1 Z2 F800\nG1 X60\nG0 Z5\nM30\n"
+    code, out, err = _run_slot(tmp_path, capsys, "--duration-s", "1.0", program=air)
+    assert code == 0, err
+    assert "note: breakage monitor off: the plan never has the tool in the material" in out
+    assert "note: adaptive feed off: the plan never has the tool in the material" in out
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    assert not [e for e in ev if e.kind in (EventKind.ALARM, EventKind.CRASH)]
+    assert not [e for e in ev if e.name == "feed_override"]

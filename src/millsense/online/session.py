@@ -190,7 +190,16 @@ def session_blocks(
     children: list[Block] = []
     if o.chatter:
         children.append(_chatter_child(o, flutes, have))
-    if o.breakage:
+    # a plan that never has the tool in the material (a program run in air, a tool above the
+    # stock): nothing to judge for breakage and no reference to regulate to (decision 1678)
+    in_cut = bool(np.asarray(plan["in_cut"], dtype=bool).any())
+    cuts = in_cut and _largest(plan, "torque_avg_nm") > 0
+    if not cuts and o.breakage:
+        notes.append("breakage monitor off: the plan never has the tool in the material")
+    if not cuts and o.adaptive and o.reference is None:
+        notes.append("adaptive feed off: the plan never has the tool in the material (nothing "
+                     "to regulate; give --reference for a set point)")  # fmt: skip
+    if o.breakage and cuts:
         children.append(
             PhasedBreakage(
                 flutes,
@@ -205,7 +214,7 @@ def session_blocks(
                 name="breakage",
             )
         )
-    if o.adaptive:
+    if o.adaptive and (cuts or o.reference is not None):
         stat = "peak" if o.quantity == "force" else "mean"
         ref = o.reference if o.reference is not None else default_reference(plan, o.quantity, stat)
         if o.reference is None:
