@@ -497,10 +497,10 @@ def test_run_bad_input_one_line_exit_2(
 
 
 def _replay_refused(
-    tmp_path: Path, recording: str, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, recording: str, capsys: pytest.CaptureFixture[str], **plan_meta: str
 ) -> tuple[int, str]:
-    """``replay`` of ``tmp_path/recording`` against a 10-row plan of 'p.nc' (all in air):
-    the exit code and stderr."""
+    """``replay`` of ``tmp_path/recording`` against a 10-row plan of 'p.nc' (all in air; more
+    metadata in ``plan_meta``): the exit code and stderr."""
     from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
 
     cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
@@ -508,7 +508,7 @@ def _replay_refused(
         cols[c] = np.zeros(10, dtype=np.int64)
     cols["rapid"] = np.zeros(10, dtype=bool)
     cols["in_cut"] = np.zeros(10, dtype=bool)
-    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
+    VirtualPlan(cols, {"program": "p.nc", **plan_meta}).write(tmp_path / "plan.parquet")
     code, _, err = run_cli(
         ["replay", str(tmp_path / recording), "--plan", str(tmp_path / "plan.parquet"),
          "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
@@ -559,6 +559,31 @@ def test_replay_refuses_a_plan_of_another_program(
     code, err = _replay_refused(tmp_path, "run.h5", capsys)
     assert code == 2
     assert "plan of program 'p.nc', but" in err and "recorded running 'pocket.nc'" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
+
+
+def test_replay_refuses_a_plan_of_another_program_of_the_same_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two programs named 'p.nc' in two folders (the demo part's and the shop pocket's are
+    both 'program.nc'): the plan's and the recording's program digests differ, and ``replay``
+    refuses in one line naming both, exit 2, nothing written (found by the qa4 helper: the
+    plan of another slot.nc was replayed to the end, 2 overrides of 10)."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+
+    n = 2000
+    rec = Recording(FS, 0.0, {"machine": "quaser-ux600", "program": "/shop/b/p.nc",
+                              "program_sha256": "b" * 64})  # fmt: skip
+    for c in ("x", "y", "z", "a", "c"):
+        rec.add_channel(f"{c}/position_cmd", np.zeros(n), "m")
+    rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
+    write_recording(tmp_path / "run.h5", rec)
+    code, err = _replay_refused(tmp_path, "run.h5", capsys, program_sha256="a" * 64)
+    assert code == 2
+    assert "plan of program 'p.nc' (SHA-256 aaaaaaaaaaaa…)" in err
+    assert "another program of that name, '/shop/b/p.nc' (SHA-256 bbbbbbbbbbbb…)" in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
 

@@ -525,6 +525,10 @@ def virtual_machine(
     if program is not None and stock is not None and tool is not None and material is not None:
         plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm, home_mm)
     job, process, meta, notes = plan_job(plant, sim_cfg, plan_name, events=events, modes=modes)
+    # the session plan's names and program digest (the plant's own plan carries neither)
+    for key, name in (("program_sha256", "program_sha256"),):
+        if vp.metadata.get(name):
+            meta[key] = str(vp.metadata[name])
     if plant is vp:
         notes = [*notes, "the virtual machine cuts the given --plan itself (no program to plan "
                  "its own cut from: give --program for a machine that differs from its plan)"]
