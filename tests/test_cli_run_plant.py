@@ -154,4 +154,6 @@ def test_run_recording_names_the_tool_material_and_program_digest(tmp_path: Path
                          machine="quaser-ux600", duration_s=0.5)  # fmt: skip
     digest = hashlib.sha256(SLOT.encode()).hexdigest()
     assert vm.metadata["program_sha256"] == digest
+    assert vm.metadata["tool"] == "D20 2-flute 30 deg helix (Aslan V1)"
+    assert vm.metadata["material"] == "Al7050"
     assert VirtualPlan.read(tmp_path / "plan.parquet").metadata["program_sha256"] == digest

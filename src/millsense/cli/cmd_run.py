@@ -526,7 +526,8 @@ def virtual_machine(
         plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm, home_mm)
     job, process, meta, notes = plan_job(plant, sim_cfg, plan_name, events=events, modes=modes)
     # the session plan's names and program digest (the plant's own plan carries neither)
-    for key, name in (("program_sha256", "program_sha256"),):
+    for key, name in (("tool", "tool_name"), ("material", "material_name"),
+                      ("program_sha256", "program_sha256")):  # fmt: skip
         if vp.metadata.get(name):
             meta[key] = str(vp.metadata[name])
     if plant is vp:
