@@ -476,6 +476,19 @@ def test_a_stall_in_the_cut_is_not_a_breakage(
          "give --machine-file: no commissioned file ships for 'yamada-a'"),
         (["run", "--program", "{prog}", "-o", "o.h5", "--fault", "melt@1"], "kind must be"),
         (["run", "--program", "{prog}", "-o", "o.h5", "--regulate", "speed"], "--regulate"),
+        # found by the qa4 helper: a break before the start was taken silently (the tool
+        # broken from 0 s), a flute of -1 and a duration of -1 s were refused only after the
+        # planning and in the simulator's words
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-at-s", "-3"],
+         r"^millsense: error: --break-at-s: must be finite and ≥ 0 \(the run starts at 0 s\), "
+         "got -3.0$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-at-s", "nan"], "--break-at-s"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-flute", "-1"],
+         r"--break-flute: must be ≥ 0 \(flutes count from 0\), got -1$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--duration-s", "-1"],
+         r"^millsense: error: --duration-s: must be finite and > 0, got -1.0$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--reference", "inf"],
+         "--reference: must be finite and > 0, got inf"),
     ],
 )  # fmt: skip
 def test_run_bad_input_one_line_exit_2(
@@ -693,3 +706,19 @@ def test_a_plan_that_never_cuts_runs_without_breakage_and_adaptive_feed(
     ev = read_event_log(tmp_path / "run.events.parquet")
     assert not [e for e in ev if e.kind in (EventKind.ALARM, EventKind.CRASH)]
     assert not [e for e in ev if e.name == "feed_override"]
+
+
+def test_a_break_after_the_end_of_the_run_is_noted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--break-at-s 5`` on a run cut at 0.5 s: the summary says the tooth never broke (found
+    by the qa4 helper: nothing said so, and a run without an alarm read as a missed
+    breakage); the recording's truth agrees (``truth/process/broken`` 0 throughout)."""
+    from millsense.io.recording_reader import open_recording
+
+    code, out, err = _run_slot(tmp_path, capsys, "--duration-s", "0.5", "--break-at-s", "5")
+    assert code == 0, err
+    assert ("note: --break-at-s 5: the run ended at 0.50 s, before the tooth broke: the tool "
+            "stayed intact") in out  # fmt: skip
+    with open_recording(tmp_path / "run.h5") as rec:
+        assert float(np.max(rec.channel("truth/process/broken"))) == 0.0

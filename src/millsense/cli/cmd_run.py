@@ -48,8 +48,8 @@ def _options(
 
     if regulate not in QUANTITIES:
         raise ConfigError(f"--regulate: one of {', '.join(QUANTITIES)}, got {regulate!r}")
-    if reference is not None and not (reference > 0):
-        raise ConfigError(f"--reference: must be > 0, got {reference}")
+    if reference is not None and not (math.isfinite(reference) and reference > 0):
+        raise ConfigError(f"--reference: must be finite and > 0, got {reference}")
     return SessionOptions(
         adaptive=adaptive, quantity=regulate, reference=reference, force_from=force_from,
         look_ahead=look_ahead, chatter=chatter, avoid_chatter=act_on_chatter, breakage=breakage,
@@ -174,6 +174,7 @@ def run(
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
+    _check_times(duration_s, break_at_s, break_flute)
     if source is not None:
         given = [k for k, v in (("--fault", fault), ("--break-at-s", break_at_s),
                                 ("--tool-modes", tool_modes)) if v]  # fmt: skip
@@ -240,6 +241,18 @@ def replay(
         summary["lines"].append(report_line(rep, report))
     for line in summary["lines"]:
         typer.echo(line)
+
+
+def _check_times(duration_s: float | None, break_at_s: float | None, break_flute: int) -> None:
+    """One line for a run's impossible times, before anything is planned: a duration that is
+    not finite and > 0, a tooth break before the start (or not finite), a negative flute."""
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"--duration-s: must be finite and > 0, got {duration_s}")
+    if break_at_s is not None and not (math.isfinite(break_at_s) and break_at_s >= 0):
+        raise ConfigError(f"--break-at-s: must be finite and ≥ 0 (the run starts at 0 s), "
+                          f"got {break_at_s}")  # fmt: skip
+    if break_flute < 0:
+        raise ConfigError(f"--break-flute: must be ≥ 0 (flutes count from 0), got {break_flute}")
 
 
 def _belief(machine_file: Path | None, sim_machine: Any) -> tuple[Any, str]:
@@ -362,6 +375,11 @@ def run_online(
             server.stop()
     lines = [f"millsense: note: {n}" for n in notes_pre + notes + built.notes]
     lines += [f"millsense: warning: {w}" for w in findings.warnings]
+    if break_at_s is not None and break_at_s >= res.seconds:
+        lines.append(
+            f"millsense: note: --break-at-s {break_at_s:g}: the run ended at "
+            f"{res.seconds:.2f} s, before the tooth broke: the tool stayed intact"
+        )
     lines += _summary_lines(res, out, ev_path)
     if plot is not None:
         from millsense.report.online_plots import plot_run
