@@ -722,3 +722,52 @@ def test_a_break_after_the_end_of_the_run_is_noted(
             "stayed intact") in out  # fmt: skip
     with open_recording(tmp_path / "run.h5") as rec:
         assert float(np.max(rec.channel("truth/process/broken"))) == 0.0
+
+
+def test_an_interrupted_session_keeps_the_events_it_had_emitted(tmp_path: Path) -> None:
+    """Ctrl-C in ``millsense run`` (a KeyboardInterrupt out of the source at its 5th chunk,
+    0.5 s): the recording holds the 4 chunks processed and the event log the event emitted
+    in the first one (found by the qa4 helper: a run interrupted at 2.61 s wrote an empty
+    event log, its overrides and K_tc calibration lost, the recording kept)."""
+    from millsense.core.recording import ChannelInfo, Recording
+    from millsense.io.recording_reader import open_recording
+    from millsense.online.session import run_session
+    from millsense.streaming.block import Block, BlockOutput, EventKind
+    from millsense.streaming.event_log import read_event_log
+    from millsense.streaming.sources import RecordingSource, SourceWrapper
+
+    class Once(Block):
+        name = "once"
+        inputs = ("x/position_cmd",)
+
+        def output_channels(self) -> list[ChannelInfo]:
+            return []
+
+        def reset(self, sample_rate_hz: float) -> None:
+            self.sent = False
+
+        def process(self, chunk: Chunk) -> BlockOutput:
+            out = BlockOutput()
+            if not self.sent:
+                self.sent = True
+                out.events.append(Event(chunk.t0_s + chunk.start / chunk.sample_rate_hz,
+                                        EventKind.NOTE, self.name, "first chunk", name="first",
+                                        sample=chunk.start))  # fmt: skip
+            return out
+
+    class CtrlC(SourceWrapper):
+        def read(self, max_samples: int) -> Chunk | None:
+            self.reads = getattr(self, "reads", 0) + 1
+            if self.reads == 5:
+                raise KeyboardInterrupt
+            return self.inner.read(max_samples)
+
+    rec = Recording(1000.0, 0.0, {})
+    rec.add_channel("x/position_cmd", np.linspace(0.0, 0.01, 1000), "m")  # moving: no stall
+    with pytest.raises(KeyboardInterrupt):
+        run_session(CtrlC(RecordingSource(rec)), [Once()], out=tmp_path / "run.h5",
+                    events_out=tmp_path / "run.events.parquet", chunk_samples=100)  # fmt: skip
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    assert [(e.name, e.sample) for e in ev] == [("first", 0)]
+    with open_recording(tmp_path / "run.h5") as r:
+        assert r.n_samples == 400

@@ -363,9 +363,13 @@ def run_session(
     names = [c.name for c in kept]
 
     count = [0]
+    # the blocks' events as they come: what the event log keeps of a run that ends early (an
+    # operator's Ctrl-C, a failing source), with the recording up to the same sample
+    emitted: list[Event] = []
 
     def sink(chunk: Chunk, outputs: dict[str, np.ndarray], events: list[Event]) -> None:
         count[0] += chunk.n
+        emitted.extend(events)
         if writer is not None:
             data = {k: chunk.data[k] for k in names}
             data.update(outputs)
@@ -374,7 +378,7 @@ def run_session(
             observer(chunk, outputs, events)
 
     t0 = time.perf_counter()
-    events: list[Event] = []
+    events: list[Event] = emitted
     try:
         res = run(src, pipe, chunk_samples, sink=sink, on_progress=on_progress, collect=False)
         events = list(res.events)
