@@ -489,6 +489,10 @@ def test_a_stall_in_the_cut_is_not_a_breakage(
          r"^millsense: error: --duration-s: must be finite and > 0, got -1.0$"),
         (["run", "--program", "{prog}", "-o", "o.h5", "--reference", "inf"],
          "--reference: must be finite and > 0, got inf"),
+        # found by the qa4 helper: ignored, the run made with the plan's own tool and material
+        (["run", "--plan", "p.parquet", "--tool", "aslan-d20-2flute", "--material", "al7050",
+          "--plan-out", "q.parquet", "-o", "o.h5"],
+         r"--plan \S+p\.parquet: --tool, --material, --plan-out act only with --program"),
     ],
 )  # fmt: skip
 def test_run_bad_input_one_line_exit_2(

@@ -402,6 +402,17 @@ def _plan(program: Path | None, stock: Path | None, tool: str | None, material: 
 
     if plan is not None and program is not None:
         raise ConfigError("run: give --program (with --stock, --tool, --material) or --plan")
+    if plan is not None:
+        # what plans a program: with --plan it would be ignored, the run made with the plan's
+        # own tool and material whatever these say
+        named = (("--stock", stock), ("--tool", tool), ("--material", material),
+                 ("--plan-out", plan_out), ("--home-mm", home_mm))  # fmt: skip
+        given = [o for o, v in named if v is not None]
+        if given:
+            raise ConfigError(
+                f"--plan {plan}: {', '.join(given)} act only with --program (the plan holds its "
+                "tool, material and stock; plan the program again to change them)"
+            )
     if plan is None:
         if program is None or stock is None or tool is None or material is None:
             raise ConfigError("run: --program needs --stock, --tool and --material")
