@@ -262,6 +262,8 @@ def test_stale_temporaries_are_removed_and_nothing_else(tmp_path: Path) -> None:
          "as Parquet; give a .parquet"),
         (["record", "opc.tcp://127.0.0.1:1", "-o", "{tmp}/raw.txt"],
          "-o {tmp}/raw.txt: the file is written as a recording"),
+        (["estimate", "{tmp}/r.h5", "--machine", "quaser-ux600", "-o", "{tmp}/est.txt"],
+         "-o {tmp}/est.txt: the file is written as a recording (HDF5); give a .h5"),
     ],
 )  # fmt: skip
 def test_outputs_named_as_what_they_hold(
@@ -270,8 +272,9 @@ def test_outputs_named_as_what_they_hold(
     """Every --plot writes a PNG, simulate's -o a recording, report's an HTML page, identify's
     a TOML fragment: a file name saying otherwise (found by exploratory QA: PNG bytes in x.txt,
     a recording in x.txt) is refused in one line before anything is read or written; so are
-    the on-line commands' recording, event log, plan and report (found by the qa4 helper: run
-    and replay wrote a recording into x.txt, monitor an event log into e.txt)."""
+    the on-line commands' recording, event log, plan and report, and estimate's recording
+    (found by the qa4 helper: run, replay and estimate wrote a recording into x.txt, monitor an
+    event log into e.txt)."""
     from cli_run import run_cli
 
     argv = [a.format(tmp=tmp_path) for a in args]
