@@ -775,3 +775,36 @@ def test_an_interrupted_session_keeps_the_events_it_had_emitted(tmp_path: Path) 
     assert [(e.name, e.sample) for e in ev] == [("first", 0)]
     with open_recording(tmp_path / "run.h5") as r:
         assert r.n_samples == 400
+
+
+def test_ctrl_c_says_what_the_recording_and_the_event_log_hold(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C in ``millsense run``: the session closes the recording and the event log at the
+    last chunk (here 0.25 s and one event, written by the stand-in for the session) and the
+    command says so in one line, exit status 130 (found by the qa4 helper: it left silently
+    with 130, nothing saying that RUN.h5 now held 2.69 s of a run)."""
+    import millsense.cli.cmd_run as cmd_run
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.streaming.block import EventKind
+    from millsense.streaming.event_log import write_event_log
+
+    def interrupted(**kw: object) -> None:
+        rec = Recording(1000.0, 0.0, {})
+        rec.add_channel("x/position_cmd", np.zeros(250), "m")
+        write_recording(kw["out"], rec)  # type: ignore[arg-type]
+        write_event_log(tmp_path / "run.events.parquet",
+                        [Event(0.1, EventKind.NOTE, "t", "m", name="n", sample=100)])  # fmt: skip
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cmd_run, "run_online", interrupted)
+    (tmp_path / "p.parquet").write_bytes(b"")
+    code, _out, err = run_cli(
+        ["run", "--plan", str(tmp_path / "p.parquet"), "-o", str(tmp_path / "run.h5")], capsys
+    )
+    assert code == 130
+    assert err.strip() == (
+        f"millsense: interrupted: {tmp_path / 'run.h5'} holds its first 0.25 s; "
+        f"{tmp_path / 'run.events.parquet'} its events up to there"
+    )

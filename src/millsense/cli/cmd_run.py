@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 
@@ -191,15 +191,18 @@ def run(
         for line in summary["lines"]:
             typer.echo(line)
         return
-    summary = run_online(
-        program=program, stock=stock, tool=tool, material=material, plan=plan,
-        machine=machine, machine_file=machine_file, out=out, events_out=events_out,
-        plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
-        break_at_s=break_at_s,
-        break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
-        duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
-        dashboard=live, dashboard_linger_s=dashboard_linger_s,
-    )  # fmt: skip
+    try:
+        summary = run_online(
+            program=program, stock=stock, tool=tool, material=material, plan=plan,
+            machine=machine, machine_file=machine_file, out=out, events_out=events_out,
+            plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
+            break_at_s=break_at_s,
+            break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
+            duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
+            dashboard=live, dashboard_linger_s=dashboard_linger_s,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        _interrupted(out, events_out or default_event_log_path(out))
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -234,13 +237,33 @@ def replay(
         SESSION_SUFFIXES,
     )
     opts = _options(True, regulate, reference, force_from, True, True, True, True)
-    summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    try:
+        summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    except KeyboardInterrupt:
+        _interrupted(out, events_out)
     if report is not None and out is not None:
         rep = write_run_report(report, out, plan=plan, events=summary["result"].events,
                                machine_file=machine_file)  # fmt: skip
         summary["lines"].append(report_line(rep, report))
     for line in summary["lines"]:
         typer.echo(line)
+
+
+def _interrupted(out: Path | None, events: Path) -> NoReturn:
+    """Ctrl-C during a session: one line saying what the recording and the event log hold (the
+    session closed both at the last chunk processed), exit status 130."""
+    from millsense.cli.main import err_console
+    from millsense.io.recording_reader import opened_recording
+
+    held = []
+    if out is not None and out.exists():
+        with opened_recording(out) as rec:
+            held.append(f"{out} holds its first {rec.duration_s:.2f} s")
+    if events.exists():
+        held.append(f"{events} its events up to there")
+    what = "; ".join(held) if held else "nothing was written"
+    err_console.print(f"millsense: interrupted: {what}", markup=False)
+    raise typer.Exit(130)
 
 
 def _check_times(duration_s: float | None, break_at_s: float | None, break_flute: int) -> None:
