@@ -265,3 +265,31 @@ def test_run_plot_names_the_regulated_quantity_and_its_unit(
     force_ax = fig.axes[4] if force_axis else fig.axes[1]
     (line,) = [ln for ln in force_ax.get_lines() if ln.get_label() == "true |F_xy|"]
     assert float(np.nanmax(line.get_ydata())) == pytest.approx(250.0, rel=1e-12)
+
+
+def test_report_titles_name_the_regulated_quantity_and_the_residuals_unit(
+    tmp_path: Path,
+) -> None:
+    """The report's control figure names the regulated quantity and its unit (spindle power
+    [W]) and the breakage figure the residuals' unit (N·m), from the channels' units (found by
+    the qa4 helper: 'regulated quantity per control interval and reference' and 'first
+    residual against its threshold', no unit)."""
+    from millsense.core.recording import ChannelInfo
+    from millsense.io import RecordingWriter
+    from millsense.report.run_report import write_report
+
+    n = 5000
+    chans = {"adaptive_feed/peak": (np.full(n, 900.0), "W"),
+             "adaptive_feed/reference": (np.full(n, 970.0), "W"),
+             "cnc/feed_override": (np.ones(n), "1"),
+             "breakage/residual1": (np.zeros(n), "N*m"), "breakage/limit1": (np.ones(n), "N*m"),
+             "spindle/speed": (np.full(n, 628.3), "rad/s")}  # fmt: skip
+    w = RecordingWriter(tmp_path / "run.h5", 10000.0,
+                        [ChannelInfo(k, u, k) for k, (_, u) in chans.items()])  # fmt: skip
+    w.append({k: v for k, (v, _) in chans.items()})
+    w.close()
+    rep = write_report(tmp_path / "run.html", tmp_path / "run.h5")
+    control = [a.text for a in rep.figures["control"].layout.annotations]
+    breakage = [a.text for a in rep.figures["breakage"].layout.annotations]
+    assert "spindle power [W] per control interval and reference" in control
+    assert "first residual against its threshold [N·m]" in breakage

@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from millsense.report.labels import regulated_label
 from millsense.report.plots import _save
 from millsense.streaming.block import Event
 
@@ -34,8 +35,6 @@ _MARKS = {
 }
 
 
-#: The regulated quantity of the adaptive feed by the unit of its channel.
-_REGULATED = {"W": "spindle power", "N*m": "cutting torque", "N": "resultant force"}
 
 
 def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -> None:
@@ -66,8 +65,7 @@ def run_figure(recording: str | Path, events: Sequence[Event]) -> Any:
         _line(ax[1], t, get("adaptive_feed/peak"), "regulated (per control interval)")
         _line(ax[1], t, get("adaptive_feed/reference"), "reference")
         unit = rec.info("adaptive_feed/peak").unit if "adaptive_feed/peak" in names else ""
-        what = _REGULATED.get(unit, "regulated")
-        ax[1].set_ylabel(f"{what} [{unit.replace('*', '·')}]" if unit else what)
+        ax[1].set_ylabel(regulated_label(unit))
         fx, fy = get("truth/tool/force_x"), get("truth/tool/force_y")
         if fx is not None and fy is not None:
             # the force in N on the panel's own axis only where the regulated quantity is one
