@@ -378,7 +378,10 @@ def run_online(
         from millsense.dashboard.server import DashboardServer
 
         flutes = int(vp.metadata.get("tool", {}).get("flutes", 2))
-        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes)
+        unit = next((c.unit for b in built.blocks for c in b.output_channels()
+                     if c.name == "adaptive_feed/peak"), "")  # fmt: skip
+        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes,
+                          regulated_unit=unit)  # fmt: skip
         server = DashboardServer(state, dashboard)
         typer.echo(f"dashboard: {server.start()}", err=True)
     try:
