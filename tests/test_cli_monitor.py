@@ -554,3 +554,39 @@ def test_plan_free_breakage_detectors_judge_the_plans_steady_cut(
         for src in ("breakage-dual", "breakage-constant"):
             times = [e.time_s for e in ev if e.source == src]
             assert len(times) == 1 and 6.0 < times[0] <= 6.0 + 3 * 0.03 + 1e-9, (src, times)
+
+
+def test_monitor_plot_breakage_axes_in_the_judged_torques_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each breakage panel of ``monitor --plot`` is labelled with the unit of the torque its
+    detector judges ('N·m' for spindle/torque_est), not 'N·m or N' (found by the qa4 helper);
+    a detector whose unit is not known keeps 'N·m or N'. The residuals drawn are the
+    detector's own: 0.25 N·m in the figure's data is 0.25 on the axis."""
+    import millsense.report.monitor_plots as mp
+
+    seen: dict[str, object] = {}
+    real = mp.plot_monitor
+
+    def capture(*args: object) -> None:
+        seen["units"] = args[-1]
+        real(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(mp, "plot_monitor", capture)
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    code, _, err = run_cli(["monitor", str(rec), "--methods", "breakage-dual,breakage-constant",
+                            "-o", str(tmp_path / "ev.parquet"), "--plot",
+                            str(tmp_path / "m.png")], capsys)  # fmt: skip
+    assert code == 0, err
+    assert seen["units"] == {"breakage-dual": "N*m", "breakage-constant": "N*m"}
+    data = {"signal": np.zeros(100), "breakage-dual/residual1": np.full(10, 0.25)}
+    for k in ("limit1", "residual2", "limit2"):
+        data[f"breakage-dual/{k}"] = np.ones(10)
+    fig = mp.monitor_figure(data, 1000.0, 10, 0.0, "spindle/torque_est", ["breakage-dual"], [],
+                            {"breakage-dual": "N*m"})  # fmt: skip
+    ax = fig.axes[-1]
+    assert ax.get_ylabel() == "breakage-dual\n[N·m]"
+    (line,) = [ln for ln in ax.get_lines() if ln.get_label() == "residual 1"]
+    assert float(np.max(line.get_ydata())) == 0.25
+    fig = mp.monitor_figure(data, 1000.0, 10, 0.0, "x", ["breakage-dual"], [])
+    assert fig.axes[-1].get_ylabel() == "breakage-dual\n[N·m or N]"

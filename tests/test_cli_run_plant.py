@@ -135,3 +135,25 @@ def test_run_takes_the_g28_reference_for_both_plans(
         z = p["z_mm"]
         assert max(z) == pytest.approx(50.0, abs=1e-9)
         assert min(z) == pytest.approx(-2.0, abs=1e-9)
+
+
+def test_run_recording_names_the_tool_material_and_program_digest(tmp_path: Path) -> None:
+    """The metadata of a ``run --program`` recording name the tool and material the session
+    planned with and carry the program's SHA-256, as its plan does (found by the qa4 helper:
+    they said tool 'plan', material 'plan', the plant's own plan carrying no names, and two
+    programs of one file name could not be told apart by ``replay``/``monitor``)."""
+    import hashlib
+
+    from millsense.cli.cmd_run import virtual_machine
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    prog = tmp_path / "program.nc"
+    prog.write_text(SLOT)
+    vm = virtual_machine(program=prog, stock=DEMO / "stock.toml", tool="aslan-d20-2flute",
+                         material="al7050", plan=None, plan_out=tmp_path / "plan.parquet",
+                         machine="quaser-ux600", duration_s=0.5)  # fmt: skip
+    digest = hashlib.sha256(SLOT.encode()).hexdigest()
+    assert vm.metadata["program_sha256"] == digest
+    assert vm.metadata["tool"] == "D20 2-flute 30 deg helix (Aslan V1)"
+    assert vm.metadata["material"] == "Al7050"
+    assert VirtualPlan.read(tmp_path / "plan.parquet").metadata["program_sha256"] == digest

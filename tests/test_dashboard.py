@@ -104,3 +104,22 @@ def test_live_state_envelopes_spectrum_and_alarms() -> None:
     snap = st.snapshot()
     assert snap["status"]["control"] is False
     assert snap["status"]["spindle_rpm"] == pytest.approx(1000.0)
+
+
+@pytest.mark.parametrize(
+    ("unit", "title"),
+    [("W", "spindle power [W]"), ("N*m", "cutting torque [N·m]"), ("", "regulated")],
+)
+def test_live_regulated_plot_is_titled_with_its_quantity_and_unit(unit: str, title: str) -> None:
+    """The dashboard's regulated plot names the quantity and its unit, as ``run --plot`` and
+    the report do (found by the qa4 helper: 'regulated quantity', no unit, beside 'spindle
+    torque [N·m]'); its trace says per control interval (it said per rev., which it is only
+    where a revolution lasts the 10 ms interval: 6000 rev/min). One 100-sample chunk of a
+    900 W regulated power: the trace holds 900."""
+    st = LiveState(regulated_unit=unit)
+    ch = Chunk(0, FS, 0.0, {"spindle/speed": np.full(100, 628.3)})
+    st.observe(ch, {"adaptive_feed/peak": np.full(100, 900.0)}, [])
+    plot = st.snapshot()["plots"]["regulated"]
+    assert plot["title"] == title
+    (trace,) = plot["traces"]
+    assert trace["name"] == "regulated (per control interval)" and trace["hi"] == [900.0]

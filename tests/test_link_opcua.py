@@ -299,6 +299,16 @@ def test_reassembly_reports_gaps_and_duplicates() -> None:
          "--connect-wait-s: must be ≥ 0"),
         (["serve-machine", "--plan", "{plan}", "--pki", "{empty}"], "no users"),
         (["serve-machine", "--plan", "{plan}", "--pace", "fast"], "--pace"),
+        # found by the qa4 helper: a break before 0 s was taken, a negative buffer refused
+        # without naming the option, a negative duration only after the users were read
+        (["serve-machine", "--plan", "{plan}", "--break-at-s", "-1"],
+         "--break-at-s: must be finite and ≥ 0"),
+        (["serve-machine", "--plan", "{plan}", "--buffer-s", "-1"],
+         "--buffer-s: must be finite and ≥ 0, got -1.0"),
+        (["serve-machine", "--plan", "{plan}", "--pki", "{empty}", "--duration-s", "0"],
+         "--duration-s: must be finite and > 0, got 0.0"),
+        (["serve-machine", "--plan", "{plan}", "--linger-s", "-2"],
+         "--linger-s: must be finite and ≥ 0, got -2.0"),
         (["opcua-user", "x", "--role", "admin", "--pki", "{empty}"], "--role"),
     ],
 )  # fmt: skip

@@ -476,6 +476,23 @@ def test_a_stall_in_the_cut_is_not_a_breakage(
          "give --machine-file: no commissioned file ships for 'yamada-a'"),
         (["run", "--program", "{prog}", "-o", "o.h5", "--fault", "melt@1"], "kind must be"),
         (["run", "--program", "{prog}", "-o", "o.h5", "--regulate", "speed"], "--regulate"),
+        # found by the qa4 helper: a break before the start was taken silently (the tool
+        # broken from 0 s), a flute of -1 and a duration of -1 s were refused only after the
+        # planning and in the simulator's words
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-at-s", "-3"],
+         r"^millsense: error: --break-at-s: must be finite and ≥ 0 \(the run starts at 0 s\), "
+         "got -3.0$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-at-s", "nan"], "--break-at-s"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--break-flute", "-1"],
+         r"--break-flute: must be ≥ 0 \(flutes count from 0\), got -1$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--duration-s", "-1"],
+         r"^millsense: error: --duration-s: must be finite and > 0, got -1.0$"),
+        (["run", "--program", "{prog}", "-o", "o.h5", "--reference", "inf"],
+         "--reference: must be finite and > 0, got inf"),
+        # found by the qa4 helper: ignored, the run made with the plan's own tool and material
+        (["run", "--plan", "p.parquet", "--tool", "aslan-d20-2flute", "--material", "al7050",
+          "--plan-out", "q.parquet", "-o", "o.h5"],
+         r"--plan \S+p\.parquet: --tool, --material, --plan-out act only with --program"),
     ],
 )  # fmt: skip
 def test_run_bad_input_one_line_exit_2(
@@ -497,10 +514,10 @@ def test_run_bad_input_one_line_exit_2(
 
 
 def _replay_refused(
-    tmp_path: Path, recording: str, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, recording: str, capsys: pytest.CaptureFixture[str], **plan_meta: str
 ) -> tuple[int, str]:
-    """``replay`` of ``tmp_path/recording`` against a 10-row plan of 'p.nc' (all in air):
-    the exit code and stderr."""
+    """``replay`` of ``tmp_path/recording`` against a 10-row plan of 'p.nc' (all in air; more
+    metadata in ``plan_meta``): the exit code and stderr."""
     from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
 
     cols: dict[str, np.ndarray] = {c: np.zeros(10) for c in COLUMNS}
@@ -508,7 +525,7 @@ def _replay_refused(
         cols[c] = np.zeros(10, dtype=np.int64)
     cols["rapid"] = np.zeros(10, dtype=bool)
     cols["in_cut"] = np.zeros(10, dtype=bool)
-    VirtualPlan(cols, {"program": "p.nc"}).write(tmp_path / "plan.parquet")
+    VirtualPlan(cols, {"program": "p.nc", **plan_meta}).write(tmp_path / "plan.parquet")
     code, _, err = run_cli(
         ["replay", str(tmp_path / recording), "--plan", str(tmp_path / "plan.parquet"),
          "--machine-file", str(MACHINE_FILE), "--events", str(tmp_path / "ev.parquet"),
@@ -559,6 +576,31 @@ def test_replay_refuses_a_plan_of_another_program(
     code, err = _replay_refused(tmp_path, "run.h5", capsys)
     assert code == 2
     assert "plan of program 'p.nc', but" in err and "recorded running 'pocket.nc'" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
+
+
+def test_replay_refuses_a_plan_of_another_program_of_the_same_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two programs named 'p.nc' in two folders (the demo part's and the shop pocket's are
+    both 'program.nc'): the plan's and the recording's program digests differ, and ``replay``
+    refuses in one line naming both, exit 2, nothing written (found by the qa4 helper: the
+    plan of another slot.nc was replayed to the end, 2 overrides of 10)."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+
+    n = 2000
+    rec = Recording(FS, 0.0, {"machine": "quaser-ux600", "program": "/shop/b/p.nc",
+                              "program_sha256": "b" * 64})  # fmt: skip
+    for c in ("x", "y", "z", "a", "c"):
+        rec.add_channel(f"{c}/position_cmd", np.zeros(n), "m")
+    rec.add_channel("spindle/speed", np.full(n, 100.0), "rad/s")
+    write_recording(tmp_path / "run.h5", rec)
+    code, err = _replay_refused(tmp_path, "run.h5", capsys, program_sha256="a" * 64)
+    assert code == 2
+    assert "plan of program 'p.nc' (SHA-256 aaaaaaaaaaaa…)" in err
+    assert "another program of that name, '/shop/b/p.nc' (SHA-256 bbbbbbbbbbbb…)" in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "ev.parquet").exists()
 
@@ -647,3 +689,122 @@ def _gate_air_feed(
             for k, v in res.channels.items():
                 out.setdefault(k, []).append(v)
     return {k: np.concatenate(v) for k, v in out.items()}, events
+
+
+def test_a_plan_that_never_cuts_runs_without_breakage_and_adaptive_feed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1678: a program whose tool passes 2 mm above the demo block (an air run) is run
+    with the estimators, the plan sync and the chatter monitor, and a note each for the
+    breakage monitor and the adaptive feed, which have nothing to judge or regulate. It had
+    stopped before the machine moved with 'breakage: min_expected_nm must be positive'. The
+    run is cut at 1 s (the spindle at speed: 0.3 s); no alarm and no feed override in it."""
+    from millsense.streaming.block import EventKind
+    from millsense.streaming.event_log import read_event_log
+
+    air = "G21 G90 G17\nT1 M6\nS6000 M3\nG0 X-15 Y25 Z5\nG1 Z2 F800\nG1 X60\nG0 Z5\nM30\n"
+    code, out, err = _run_slot(tmp_path, capsys, "--duration-s", "1.0", program=air)
+    assert code == 0, err
+    assert "note: breakage monitor off: the plan never has the tool in the material" in out
+    assert "note: adaptive feed off: the plan never has the tool in the material" in out
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    assert not [e for e in ev if e.kind in (EventKind.ALARM, EventKind.CRASH)]
+    assert not [e for e in ev if e.name == "feed_override"]
+
+
+def test_a_break_after_the_end_of_the_run_is_noted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--break-at-s 5`` on a run cut at 0.5 s: the summary says the tooth never broke (found
+    by the qa4 helper: nothing said so, and a run without an alarm read as a missed
+    breakage); the recording's truth agrees (``truth/process/broken`` 0 throughout)."""
+    from millsense.io.recording_reader import open_recording
+
+    code, out, err = _run_slot(tmp_path, capsys, "--duration-s", "0.5", "--break-at-s", "5")
+    assert code == 0, err
+    assert ("note: --break-at-s 5: the run ended at 0.50 s, before the tooth broke: the tool "
+            "stayed intact") in out  # fmt: skip
+    with open_recording(tmp_path / "run.h5") as rec:
+        assert float(np.max(rec.channel("truth/process/broken"))) == 0.0
+
+
+def test_an_interrupted_session_keeps_the_events_it_had_emitted(tmp_path: Path) -> None:
+    """Ctrl-C in ``millsense run`` (a KeyboardInterrupt out of the source at its 5th chunk,
+    0.5 s): the recording holds the 4 chunks processed and the event log the event emitted
+    in the first one (found by the qa4 helper: a run interrupted at 2.61 s wrote an empty
+    event log, its overrides and K_tc calibration lost, the recording kept)."""
+    from millsense.core.recording import ChannelInfo, Recording
+    from millsense.io.recording_reader import open_recording
+    from millsense.online.session import run_session
+    from millsense.streaming.block import Block, BlockOutput, EventKind
+    from millsense.streaming.event_log import read_event_log
+    from millsense.streaming.sources import RecordingSource, SourceWrapper
+
+    class Once(Block):
+        name = "once"
+        inputs = ("x/position_cmd",)
+
+        def output_channels(self) -> list[ChannelInfo]:
+            return []
+
+        def reset(self, sample_rate_hz: float) -> None:
+            self.sent = False
+
+        def process(self, chunk: Chunk) -> BlockOutput:
+            out = BlockOutput()
+            if not self.sent:
+                self.sent = True
+                out.events.append(Event(chunk.t0_s + chunk.start / chunk.sample_rate_hz,
+                                        EventKind.NOTE, self.name, "first chunk", name="first",
+                                        sample=chunk.start))  # fmt: skip
+            return out
+
+    class CtrlC(SourceWrapper):
+        def read(self, max_samples: int) -> Chunk | None:
+            self.reads = getattr(self, "reads", 0) + 1
+            if self.reads == 5:
+                raise KeyboardInterrupt
+            return self.inner.read(max_samples)
+
+    rec = Recording(1000.0, 0.0, {})
+    rec.add_channel("x/position_cmd", np.linspace(0.0, 0.01, 1000), "m")  # moving: no stall
+    with pytest.raises(KeyboardInterrupt):
+        run_session(CtrlC(RecordingSource(rec)), [Once()], out=tmp_path / "run.h5",
+                    events_out=tmp_path / "run.events.parquet", chunk_samples=100)  # fmt: skip
+    ev = read_event_log(tmp_path / "run.events.parquet")
+    assert [(e.name, e.sample) for e in ev] == [("first", 0)]
+    with open_recording(tmp_path / "run.h5") as r:
+        assert r.n_samples == 400
+
+
+def test_ctrl_c_says_what_the_recording_and_the_event_log_hold(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C in ``millsense run``: the session closes the recording and the event log at the
+    last chunk (here 0.25 s and one event, written by the stand-in for the session) and the
+    command says so in one line, exit status 130 (found by the qa4 helper: it left silently
+    with 130, nothing saying that RUN.h5 now held 2.69 s of a run)."""
+    import millsense.cli.cmd_run as cmd_run
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.streaming.block import EventKind
+    from millsense.streaming.event_log import write_event_log
+
+    def interrupted(**kw: object) -> None:
+        rec = Recording(1000.0, 0.0, {})
+        rec.add_channel("x/position_cmd", np.zeros(250), "m")
+        write_recording(kw["out"], rec)  # type: ignore[arg-type]
+        write_event_log(tmp_path / "run.events.parquet",
+                        [Event(0.1, EventKind.NOTE, "t", "m", name="n", sample=100)])  # fmt: skip
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cmd_run, "run_online", interrupted)
+    (tmp_path / "p.parquet").write_bytes(b"")
+    code, _out, err = run_cli(
+        ["run", "--plan", str(tmp_path / "p.parquet"), "-o", str(tmp_path / "run.h5")], capsys
+    )
+    assert code == 130
+    assert err.strip() == (
+        f"millsense: interrupted: {tmp_path / 'run.h5'} holds its first 0.25 s; "
+        f"{tmp_path / 'run.events.parquet'} its events up to there"
+    )

@@ -231,3 +231,65 @@ def test_report_refuses_a_plan_of_another_program(
     code, _, err = run_cli([*args, str(tmp_path / "own.parquet")], capsys)
     assert code == 0, err
     assert (tmp_path / "r.html").stat().st_size > 1e6  # plotly inlined: opens offline
+
+
+@pytest.mark.parametrize(
+    ("unit", "label", "force_axis"),
+    [("W", "spindle power [W]", "true |F_xy| [N]"),
+     ("N*m", "cutting torque [N·m]", "true |F_xy| [N]"),
+     ("N", "resultant force [N]", None)],
+)  # fmt: skip
+def test_run_plot_names_the_regulated_quantity_and_its_unit(
+    tmp_path: Path, unit: str, label: str, force_axis: str | None
+) -> None:
+    """``run --plot``'s second panel is labelled with the regulated quantity and its unit (the
+    unit of ``adaptive_feed/peak``), and the true resultant force in N goes on an axis of its
+    own unless the regulated quantity is a force (found by the qa4 helper: the panel said
+    'regulated' with no unit and drew a 1000 W power and a 280 N force on one scale)."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.report.online_plots import run_figure
+
+    n = 1000
+    rec = Recording(1000.0, 0.0, {})
+    rec.add_channel("adaptive_feed/peak", np.full(n, 900.0), unit)
+    rec.add_channel("adaptive_feed/reference", np.full(n, 970.0), unit)
+    rec.add_channel("truth/tool/force_x", np.full(n, 200.0), "N")
+    rec.add_channel("truth/tool/force_y", np.full(n, 150.0), "N")
+    write_recording(tmp_path / "run.h5", rec)
+    fig = run_figure(tmp_path / "run.h5", [])
+    assert fig.axes[1].get_ylabel() == label
+    twins = [a.get_ylabel() for a in fig.axes[4:]]
+    assert twins == ([force_axis] if force_axis else [])
+    # the force is drawn as the hypotenuse of 200 and 150 N: 250 N, on whichever axis
+    force_ax = fig.axes[4] if force_axis else fig.axes[1]
+    (line,) = [ln for ln in force_ax.get_lines() if ln.get_label() == "true |F_xy|"]
+    assert float(np.nanmax(line.get_ydata())) == pytest.approx(250.0, rel=1e-12)
+
+
+def test_report_titles_name_the_regulated_quantity_and_the_residuals_unit(
+    tmp_path: Path,
+) -> None:
+    """The report's control figure names the regulated quantity and its unit (spindle power
+    [W]) and the breakage figure the residuals' unit (N·m), from the channels' units (found by
+    the qa4 helper: 'regulated quantity per control interval and reference' and 'first
+    residual against its threshold', no unit)."""
+    from millsense.core.recording import ChannelInfo
+    from millsense.io import RecordingWriter
+    from millsense.report.run_report import write_report
+
+    n = 5000
+    chans = {"adaptive_feed/peak": (np.full(n, 900.0), "W"),
+             "adaptive_feed/reference": (np.full(n, 970.0), "W"),
+             "cnc/feed_override": (np.ones(n), "1"),
+             "breakage/residual1": (np.zeros(n), "N*m"), "breakage/limit1": (np.ones(n), "N*m"),
+             "spindle/speed": (np.full(n, 628.3), "rad/s")}  # fmt: skip
+    w = RecordingWriter(tmp_path / "run.h5", 10000.0,
+                        [ChannelInfo(k, u, k) for k, (_, u) in chans.items()])  # fmt: skip
+    w.append({k: v for k, (v, _) in chans.items()})
+    w.close()
+    rep = write_report(tmp_path / "run.html", tmp_path / "run.h5")
+    control = [a.text for a in rep.figures["control"].layout.annotations]
+    breakage = [a.text for a in rep.figures["breakage"].layout.annotations]
+    assert "spindle power [W] per control interval and reference" in control
+    assert "first residual against its threshold [N·m]" in breakage

@@ -246,6 +246,24 @@ def test_stale_temporaries_are_removed_and_nothing_else(tmp_path: Path) -> None:
         (["report", "{tmp}/r.h5", "-o", "{tmp}/r.png"], "written as an HTML page; give a .html"),
         (["identify", "modal", "{tmp}/r.h5", "--input-channel", "a", "--output-channel", "b",
           "-o", "{tmp}/f.h5"], "written as TOML; give a .toml"),
+        (["run", "--plan", "{tmp}/p.parquet", "-o", "{tmp}/x.txt"],
+         "-o {tmp}/x.txt: the file is written as a recording (HDF5); give a .h5"),
+        (["run", "--plan", "{tmp}/p.parquet", "-o", "{tmp}/r.h5", "--events", "{tmp}/e.csv"],
+         "--events {tmp}/e.csv: the file is written as Parquet; give a .parquet"),
+        (["run", "--plan", "{tmp}/p.parquet", "-o", "{tmp}/r.h5", "--plan-out", "{tmp}/p.nc"],
+         "--plan-out {tmp}/p.nc: the file is written as Parquet"),
+        (["run", "--plan", "{tmp}/p.parquet", "-o", "{tmp}/r.h5", "--report", "{tmp}/r.htm"],
+         "--report {tmp}/r.htm: the file is written as an HTML page"),
+        (["replay", "{tmp}/r.h5", "--plan", "{tmp}/p.parquet", "--events", "{tmp}/e.txt"],
+         "--events {tmp}/e.txt: the file is written as Parquet"),
+        (["replay", "{tmp}/r.h5", "--plan", "{tmp}/p.parquet", "--events", "{tmp}/e.parquet",
+          "-o", "{tmp}/o.txt"], "-o {tmp}/o.txt: the file is written as a recording"),
+        (["monitor", "{tmp}/r.h5", "-o", "{tmp}/e.txt"], "-o {tmp}/e.txt: the file is written "
+         "as Parquet; give a .parquet"),
+        (["record", "opc.tcp://127.0.0.1:1", "-o", "{tmp}/raw.txt"],
+         "-o {tmp}/raw.txt: the file is written as a recording"),
+        (["estimate", "{tmp}/r.h5", "--machine", "quaser-ux600", "-o", "{tmp}/est.txt"],
+         "-o {tmp}/est.txt: the file is written as a recording (HDF5); give a .h5"),
     ],
 )  # fmt: skip
 def test_outputs_named_as_what_they_hold(
@@ -253,7 +271,10 @@ def test_outputs_named_as_what_they_hold(
 ) -> None:
     """Every --plot writes a PNG, simulate's -o a recording, report's an HTML page, identify's
     a TOML fragment: a file name saying otherwise (found by exploratory QA: PNG bytes in x.txt,
-    a recording in x.txt) is refused in one line before anything is read or written."""
+    a recording in x.txt) is refused in one line before anything is read or written; so are
+    the on-line commands' recording, event log, plan and report, and estimate's recording
+    (found by the qa4 helper: run, replay and estimate wrote a recording into x.txt, monitor an
+    event log into e.txt)."""
     from cli_run import run_cli
 
     argv = [a.format(tmp=tmp_path) for a in args]
@@ -261,3 +282,21 @@ def test_outputs_named_as_what_they_hold(
     assert code == 2
     assert needle.format(tmp=tmp_path) in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_run_default_event_log_never_replaces_an_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``run -o r.h5`` writes its event log to ``r.events.parquet`` when --events is not given:
+    a plan of that name (an input) was overwritten by the event log (found by the qa4 helper);
+    it is refused in one line, and the plan's bytes are unchanged (compared exactly)."""
+    from cli_run import run_cli
+
+    plan = tmp_path / "r.events.parquet"
+    plan.write_bytes(b"PAR1 plan bytes")
+    code, _out, err = run_cli(["run", "--plan", str(plan), "-o", str(tmp_path / "r.h5")], capsys)
+    assert code == 2
+    assert f"--events {plan}: is the plan ({plan}), an input" in err
+    assert len(err.strip().splitlines()) == 1
+    assert plan.read_bytes() == b"PAR1 plan bytes"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.events.parquet"]

@@ -85,7 +85,7 @@ def estimate(
         "the machine file": machine,
         "the --idle recording": idle,
     }
-    check_outputs(inputs, {"-o": out, "--plot": plot, "--json": json_out})
+    check_outputs(inputs, {"-o": out, "--plot": plot, "--json": json_out}, {"-o": ".h5"})
     if json_out not in (None, "-"):
         target = Path(str(json_out))
         if target.is_dir() or not target.parent.is_dir():

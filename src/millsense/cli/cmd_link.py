@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import typer
@@ -53,11 +54,16 @@ def serve_machine(
     """Serve the virtual machine running a program over OPC UA, as a CNC would."""
     import asyncio
 
-    from millsense.cli.cmd_run import virtual_machine
+    from millsense.cli.cmd_run import _check_times, virtual_machine
     from millsense.link.nodemap import load_node_map
     from millsense.link.security import Users, pki_dir
     from millsense.link.server import MachineServer, ServeOptions, SpindleNameplate, serve
 
+    _check_times(duration_s, break_at_s, 0)
+    if not (math.isfinite(buffer_s) and buffer_s >= 0):
+        raise ConfigError(f"--buffer-s: must be finite and ≥ 0, got {buffer_s}")
+    if linger_s is not None and not (math.isfinite(linger_s) and linger_s >= 0):
+        raise ConfigError(f"--linger-s: must be finite and ≥ 0, got {linger_s}")
     lo.link_logging()
     opts = ServeOptions(endpoint=endpoint, pace=pace, speed=speed, buffer_s=buffer_s, pki=pki,
                         allow_insecure=allow_insecure, allow_anonymous=allow_anonymous)  # fmt: skip
@@ -101,12 +107,13 @@ def record(
 ) -> None:
     """Record a CNC's OPC UA stream (gaps and duplicates reported, nothing interpolated)."""
     from millsense.cli.cmd_run import link_summary
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
     from millsense.link.client import StopAt
     from millsense.online.session import run_session
     from millsense.streaming.event_log import default_event_log_path
 
-    check_outputs({}, {"-o": out, "--events": events_out})
+    check_outputs({}, {"-o": out, "--events": events_out or default_event_log_path(out)},
+                  SESSION_SUFFIXES)  # fmt: skip
     if duration_s is not None and not duration_s > 0:
         raise ConfigError(f"--duration-s: must be > 0, got {duration_s}")
     lo.link_logging()

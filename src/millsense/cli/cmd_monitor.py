@@ -82,7 +82,7 @@ def monitor(
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine,
          "the tool file": tool},
-        {"-o": out, "--plot": plot},
+        {"-o": out, "--plot": plot}, {"-o": ".parquet"},
     )  # fmt: skip
     summary = run_monitor(
         recording=recording, out=out, plan=plan, machine=machine, methods=methods,
@@ -444,8 +444,12 @@ def _run(
         from millsense.report.monitor_plots import plot_monitor
 
         data = {k: np.concatenate(v) for k, v in keep.items()}
+        # a breakage detector's axis in the unit of the torque it judges (phased: its members')
+        judged = {b.name: getattr(getattr(b, "members", [b])[0], "signal_channels", ())
+                  for b in blocks}  # fmt: skip
+        units = {name: channels.get(sig[0], "") for name, sig in judged.items() if sig}
         plot_monitor(plot, data, fs, step, res.t0_s, str(sig_name), [b.name for b in blocks],
-                     res.events)  # fmt: skip
+                     res.events, units)  # fmt: skip
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
 

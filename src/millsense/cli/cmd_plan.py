@@ -105,6 +105,8 @@ def _build(
 ) -> tuple[VirtualPlan, Any, Findings]:
     """Plan the program; impossible input raises one line, implausible input is a warning
     (printed, and kept in the plan's metadata ``warnings``)."""
+    import hashlib
+
     from rich.console import Console
     from rich.progress import Progress
 
@@ -162,6 +164,9 @@ def _build(
         )
     check_plan(plan, findings, machine=mcfg, stickout_mm=tool_cfg.stickout_mm)
     plan.metadata["warnings"] = list(findings.warnings)
+    # the program's bytes, so that a plan and a recording of two programs of one file name
+    # are told apart (cli.plan_match)
+    plan.metadata["program_sha256"] = hashlib.sha256(program.read_bytes()).hexdigest()
     if machine is not None:
         plan.metadata["machine"] = machine
     for note in plan.metadata.get("notes", []):

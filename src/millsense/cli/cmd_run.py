@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 
@@ -48,8 +48,8 @@ def _options(
 
     if regulate not in QUANTITIES:
         raise ConfigError(f"--regulate: one of {', '.join(QUANTITIES)}, got {regulate!r}")
-    if reference is not None and not (reference > 0):
-        raise ConfigError(f"--reference: must be > 0, got {reference}")
+    if reference is not None and not (math.isfinite(reference) and reference > 0):
+        raise ConfigError(f"--reference: must be finite and > 0, got {reference}")
     return SessionOptions(
         adaptive=adaptive, quantity=regulate, reference=reference, force_from=force_from,
         look_ahead=look_ahead, chatter=chatter, avoid_chatter=act_on_chatter, breakage=breakage,
@@ -152,7 +152,8 @@ def run(
 ) -> None:
     """Run the integrated system on the virtual machine: plan, closed-loop simulation with
     estimators, monitors and controllers, recording with its event log, and a summary."""
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
+    from millsense.streaming.event_log import default_event_log_path
 
     live = None
     if dashboard:
@@ -167,11 +168,13 @@ def run(
     check_outputs(
         {"the program": program, "the stock": stock, "the plan": plan,
          "the machine file": machine_file, "the tool-modes file": tool_modes},
-        {"-o": out, "--events": events_out, "--plan-out": plan_out, "--plot": plot,
-         "--report": report or report_path(out)},
+        {"-o": out, "--events": events_out or default_event_log_path(out),
+         "--plan-out": plan_out, "--plot": plot, "--report": report or report_path(out)},
+        SESSION_SUFFIXES,
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
                     act_on_chatter, breakage)  # fmt: skip
+    _check_times(duration_s, break_at_s, break_flute)
     if source is not None:
         given = [k for k, v in (("--fault", fault), ("--break-at-s", break_at_s),
                                 ("--tool-modes", tool_modes)) if v]  # fmt: skip
@@ -188,15 +191,18 @@ def run(
         for line in summary["lines"]:
             typer.echo(line)
         return
-    summary = run_online(
-        program=program, stock=stock, tool=tool, material=material, plan=plan,
-        machine=machine, machine_file=machine_file, out=out, events_out=events_out,
-        plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
-        break_at_s=break_at_s,
-        break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
-        duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
-        dashboard=live, dashboard_linger_s=dashboard_linger_s,
-    )  # fmt: skip
+    try:
+        summary = run_online(
+            program=program, stock=stock, tool=tool, material=material, plan=plan,
+            machine=machine, machine_file=machine_file, out=out, events_out=events_out,
+            plan_out=plan_out, plot=plot, report=report or report_path(out), options=opts,
+            break_at_s=break_at_s,
+            break_flute=break_flute, tool_modes=tool_modes, faults=fault, seed=seed,
+            duration_s=duration_s, step_mm=step_mm, resolution_mm=resolution_mm, home_mm=home_mm,
+            dashboard=live, dashboard_linger_s=dashboard_linger_s,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        _interrupted(out, events_out or default_event_log_path(out))
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -219,7 +225,7 @@ def replay(
     ),
 ) -> None:
     """Run the on-line blocks on a recording (overrides recorded, not applied)."""
-    from millsense.io.safe_output import check_outputs
+    from millsense.io.safe_output import SESSION_SUFFIXES, check_outputs
 
     if report is not None and out is None:
         raise ConfigError("--report: needs -o (the report shows the replay's block outputs)")
@@ -228,15 +234,48 @@ def replay(
     check_outputs(
         {"the recording": recording, "the plan": plan, "the machine file": machine_file},
         {"-o": out, "--events": events_out, "--report": report},
+        SESSION_SUFFIXES,
     )
     opts = _options(True, regulate, reference, force_from, True, True, True, True)
-    summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    try:
+        summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
+    except KeyboardInterrupt:
+        _interrupted(out, events_out)
     if report is not None and out is not None:
         rep = write_run_report(report, out, plan=plan, events=summary["result"].events,
                                machine_file=machine_file)  # fmt: skip
         summary["lines"].append(report_line(rep, report))
     for line in summary["lines"]:
         typer.echo(line)
+
+
+def _interrupted(out: Path | None, events: Path) -> NoReturn:
+    """Ctrl-C during a session: one line saying what the recording and the event log hold (the
+    session closed both at the last chunk processed), exit status 130."""
+    from millsense.cli.main import err_console
+    from millsense.io.recording_reader import opened_recording
+
+    held = []
+    if out is not None and out.exists():
+        with opened_recording(out) as rec:
+            held.append(f"{out} holds its first {rec.duration_s:.2f} s")
+    if events.exists():
+        held.append(f"{events} its events up to there")
+    what = "; ".join(held) if held else "nothing was written"
+    err_console.print(f"millsense: interrupted: {what}", markup=False)
+    raise typer.Exit(130)
+
+
+def _check_times(duration_s: float | None, break_at_s: float | None, break_flute: int) -> None:
+    """One line for a run's impossible times, before anything is planned: a duration that is
+    not finite and > 0, a tooth break before the start (or not finite), a negative flute."""
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"--duration-s: must be finite and > 0, got {duration_s}")
+    if break_at_s is not None and not (math.isfinite(break_at_s) and break_at_s >= 0):
+        raise ConfigError(f"--break-at-s: must be finite and ≥ 0 (the run starts at 0 s), "
+                          f"got {break_at_s}")  # fmt: skip
+    if break_flute < 0:
+        raise ConfigError(f"--break-flute: must be ≥ 0 (flutes count from 0), got {break_flute}")
 
 
 def _belief(machine_file: Path | None, sim_machine: Any) -> tuple[Any, str]:
@@ -339,7 +378,10 @@ def run_online(
         from millsense.dashboard.server import DashboardServer
 
         flutes = int(vp.metadata.get("tool", {}).get("flutes", 2))
-        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes)
+        unit = next((c.unit for b in built.blocks for c in b.output_channels()
+                     if c.name == "adaptive_feed/peak"), "")  # fmt: skip
+        state = LiveState(built.supervisor, (vp["x_mm"], vp["y_mm"]), flutes,
+                          regulated_unit=unit)  # fmt: skip
         server = DashboardServer(state, dashboard)
         typer.echo(f"dashboard: {server.start()}", err=True)
     try:
@@ -359,6 +401,11 @@ def run_online(
             server.stop()
     lines = [f"millsense: note: {n}" for n in notes_pre + notes + built.notes]
     lines += [f"millsense: warning: {w}" for w in findings.warnings]
+    if break_at_s is not None and break_at_s >= res.seconds:
+        lines.append(
+            f"millsense: note: --break-at-s {break_at_s:g}: the run ended at "
+            f"{res.seconds:.2f} s, before the tooth broke: the tool stayed intact"
+        )
     lines += _summary_lines(res, out, ev_path)
     if plot is not None:
         from millsense.report.online_plots import plot_run
@@ -381,6 +428,17 @@ def _plan(program: Path | None, stock: Path | None, tool: str | None, material: 
 
     if plan is not None and program is not None:
         raise ConfigError("run: give --program (with --stock, --tool, --material) or --plan")
+    if plan is not None:
+        # what plans a program: with --plan it would be ignored, the run made with the plan's
+        # own tool and material whatever these say
+        named = (("--stock", stock), ("--tool", tool), ("--material", material),
+                 ("--plan-out", plan_out), ("--home-mm", home_mm))  # fmt: skip
+        given = [o for o, v in named if v is not None]
+        if given:
+            raise ConfigError(
+                f"--plan {plan}: {', '.join(given)} act only with --program (the plan holds its "
+                "tool, material and stock; plan the program again to change them)"
+            )
     if plan is None:
         if program is None or stock is None or tool is None or material is None:
             raise ConfigError("run: --program needs --stock, --tool and --material")
@@ -522,6 +580,11 @@ def virtual_machine(
     if program is not None and stock is not None and tool is not None and material is not None:
         plant = _plant_plan(program, stock, tool, material, step_mm, resolution_mm, home_mm)
     job, process, meta, notes = plan_job(plant, sim_cfg, plan_name, events=events, modes=modes)
+    # the session plan's names and program digest (the plant's own plan carries neither)
+    for key, name in (("tool", "tool_name"), ("material", "material_name"),
+                      ("program_sha256", "program_sha256")):  # fmt: skip
+        if vp.metadata.get(name):
+            meta[key] = str(vp.metadata[name])
     if plant is vp:
         notes = [*notes, "the virtual machine cuts the given --plan itself (no program to plan "
                  "its own cut from: give --program for a machine that differs from its plan)"]

@@ -9,7 +9,9 @@ from typing import Any
 
 def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path | str) -> None:
     """A plan of another program is refused: the plan's and the recording's ``program``
-    metadata name different files.
+    metadata name different files, or files of one name whose contents differ (both sides'
+    ``program_sha256``, written by ``plan`` and ``run`` since the qa4 helper found two
+    ``program.nc`` of different folders accepted).
 
     A plan longer than the recording is accepted: a run stopped by a feed hold, an operator or
     the end of a recording covers only the start of its program (the README's run with a
@@ -29,4 +31,12 @@ def check_plan_matches(vp: Any, plan: Path, rec: Any, recording: Path | str) -> 
         raise InputDataError(
             f"{plan}: plan of program '{Path(p_prog).name}', but {recording} was recorded "
             f"running '{Path(r_prog).name}'"
+        )
+    p_sha = str(vp.metadata.get("program_sha256", "") or "")
+    r_sha = str(rec.metadata.get("program_sha256", "") or "")
+    if p_sha and r_sha and p_sha != r_sha:
+        raise InputDataError(
+            f"{plan}: plan of program '{p_prog}' (SHA-256 {p_sha[:12]}…), but {recording} was "
+            f"recorded running another program of that name, '{r_prog}' (SHA-256 "
+            f"{r_sha[:12]}…)"
         )

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from millsense.control.arbitration import Supervisor
+from millsense.report.labels import regulated_label
 from millsense.streaming.block import Chunk, Event, EventKind
 
 RPM = 60.0 / (2.0 * math.pi)
@@ -30,7 +31,7 @@ SIGNALS: dict[str, list[tuple[str, str, float]]] = {
                ("plan/expected_torque", "expected (plan)", 1.0)],
     "feed": [("supervisor/feed_override", "commanded", 100.0),
              ("cnc/feed_override", "in effect", 100.0)],
-    "regulated": [("adaptive_feed/peak", "regulated (per rev.)", 1.0),
+    "regulated": [("adaptive_feed/peak", "regulated (per control interval)", 1.0),
                   ("adaptive_feed/reference", "reference", 1.0)],
     "spindle": [("spindle/speed", "spindle speed", RPM)],
 }  # fmt: skip
@@ -62,6 +63,8 @@ class LiveState:
     plan_xy_mm : the programmed path (x, y in mm) drawn under the trail, or None.
     flutes : teeth of the tool (the tooth frequency marked on the spectrum).
     spectrum_channel : the signal of the rolling spectrum.
+    regulated_unit : unit of ``adaptive_feed/peak`` (``W``, ``N*m``, ``N``): the regulated plot
+        is titled with the quantity and its unit (``spindle power [W]``); "" for unknown.
     """
 
     def __init__(
@@ -70,8 +73,10 @@ class LiveState:
         plan_xy_mm: tuple[np.ndarray, np.ndarray] | None = None,
         flutes: int = 2,
         spectrum_channel: str = "est/spindle/spindle/load",
+        regulated_unit: str = "",
     ) -> None:
         self.supervisor = supervisor
+        self.titles = {**TITLES, "regulated": regulated_label(regulated_unit)}
         self.flutes = flutes
         self.spectrum_channel = spectrum_channel
         self._lock = threading.Lock()
@@ -201,7 +206,7 @@ class LiveState:
                         traces.append({"name": label, "t": t[-n:], "lo": _clean(self._lo[ch]),
                                        "hi": _clean(self._hi[ch])})  # fmt: skip
                 if traces:
-                    plots[key] = {"title": TITLES[key], "traces": traces}
+                    plots[key] = {"title": self.titles[key], "traces": traces}
             f, amp = self.spectrum()
             speed = self.now.get("spindle/speed", math.nan)
             sup = self.supervisor

@@ -50,7 +50,12 @@ def _same(a: Path, b: Path) -> bool:
 #: What an output option's file holds, by the option's name, where every command writes one
 #: kind (every ``--plot`` writes a PNG): its file name must say so.
 OUTPUT_SUFFIXES = {"--plot": ".png"}
-_KINDS = {".png": "PNG", ".html": "an HTML page", ".h5": "a recording (HDF5)", ".toml": "TOML"}
+_KINDS = {".png": "PNG", ".html": "an HTML page", ".h5": "a recording (HDF5)", ".toml": "TOML",
+          ".parquet": "Parquet"}  # fmt: skip
+#: The suffixes of the on-line commands' outputs (``run``, ``replay``, ``record``): a recording,
+#: its event log, the plan made from the program and the HTML report.
+SESSION_SUFFIXES = {"-o": ".h5", "--events": ".parquet", "--plan-out": ".parquet",
+                    "--report": ".html"}  # fmt: skip
 
 
 def check_outputs(

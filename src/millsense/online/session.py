@@ -190,7 +190,16 @@ def session_blocks(
     children: list[Block] = []
     if o.chatter:
         children.append(_chatter_child(o, flutes, have))
-    if o.breakage:
+    # a plan that never has the tool in the material (a program run in air, a tool above the
+    # stock): nothing to judge for breakage and no reference to regulate to (decision 1678)
+    in_cut = bool(np.asarray(plan["in_cut"], dtype=bool).any())
+    cuts = in_cut and _largest(plan, "torque_avg_nm") > 0
+    if not cuts and o.breakage:
+        notes.append("breakage monitor off: the plan never has the tool in the material")
+    if not cuts and o.adaptive and o.reference is None:
+        notes.append("adaptive feed off: the plan never has the tool in the material (nothing "
+                     "to regulate; give --reference for a set point)")  # fmt: skip
+    if o.breakage and cuts:
         children.append(
             PhasedBreakage(
                 flutes,
@@ -205,7 +214,7 @@ def session_blocks(
                 name="breakage",
             )
         )
-    if o.adaptive:
+    if o.adaptive and (cuts or o.reference is not None):
         stat = "peak" if o.quantity == "force" else "mean"
         ref = o.reference if o.reference is not None else default_reference(plan, o.quantity, stat)
         if o.reference is None:
@@ -354,9 +363,13 @@ def run_session(
     names = [c.name for c in kept]
 
     count = [0]
+    # the blocks' events as they come: what the event log keeps of a run that ends early (an
+    # operator's Ctrl-C, a failing source), with the recording up to the same sample
+    emitted: list[Event] = []
 
     def sink(chunk: Chunk, outputs: dict[str, np.ndarray], events: list[Event]) -> None:
         count[0] += chunk.n
+        emitted.extend(events)
         if writer is not None:
             data = {k: chunk.data[k] for k in names}
             data.update(outputs)
@@ -365,7 +378,7 @@ def run_session(
             observer(chunk, outputs, events)
 
     t0 = time.perf_counter()
-    events: list[Event] = []
+    events: list[Event] = emitted
     try:
         res = run(src, pipe, chunk_samples, sink=sink, on_progress=on_progress, collect=False)
         events = list(res.events)

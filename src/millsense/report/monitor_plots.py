@@ -5,11 +5,13 @@ panels of the monitors that ran."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from millsense.report.labels import unit_label
 
 #: Outputs of the monitors the figure draws (suffixes of ``{monitor}/...``).
 CHATTER_KEYS = ("chatter_hz", "energy_ratio")
@@ -49,15 +51,36 @@ def plot_monitor(
     signal: str,
     monitors: Sequence[str],
     events: Sequence[Any],
+    units: Mapping[str, str] | None = None,
 ) -> None:
-    """Write the PNG. ``data['signal']`` at ``fs``; the monitors' outputs ``data[name/key]``
-    every ``step`` samples (from the stream's first sample)."""
+    """Write the PNG of :func:`monitor_figure`."""
+    import matplotlib.pyplot as plt
+
+    from millsense.io.safe_output import atomic_path
+
+    fig = monitor_figure(data, fs, step, t0, signal, monitors, events, units)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+
+
+def monitor_figure(
+    data: dict[str, np.ndarray],
+    fs: float,
+    step: int,
+    t0: float,
+    signal: str,
+    monitors: Sequence[str],
+    events: Sequence[Any],
+    units: Mapping[str, str] | None = None,
+) -> Any:
+    """The figure: ``data['signal']`` at ``fs``; the monitors' outputs ``data[name/key]``
+    every ``step`` samples (from the stream's first sample); ``units``: monitor name → the
+    unit of the signal it judges (a breakage detector's torque, ``N*m``), shown on its axis."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from millsense.io.safe_output import atomic_path
 
     panels = monitor_panels(data, monitors)
     heights = [3 if kind == "spectrogram" else 1.3 for kind, _ in panels]
@@ -70,14 +93,12 @@ def plot_monitor(
         elif kind == "ratio":
             _ratios(ax, data, step, fs, t0, what, events)
         elif kind == "breakage":
-            _breakage(ax, data, step, fs, t0, what, events)
+            _breakage(ax, data, step, fs, t0, what, events, (units or {}).get(what, ""))
         else:
             _engagement(ax, data, step, fs, t0, what)
     axes[-1, 0].set_xlabel("time [s]")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
+    return fig
 
 
 def _time(x: np.ndarray, step: int, fs: float, t0: float) -> np.ndarray:
@@ -127,10 +148,10 @@ def _ratios(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: floa
 
 
 def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: float,
-              name: str, events: Sequence[Any]) -> None:  # fmt: skip
+              name: str, events: Sequence[Any], unit: str = "") -> None:  # fmt: skip
     """Residual 1 against ±limit 1; for the virtual and constant thresholds the tooth average's
     deviation from its reference against ±band (what confirms), else residual 2 against
-    ±limit 2 (seed 002's dual residual)."""
+    ±limit 2 (seed 002's dual residual); ``unit``: the judged signal's ("": not known)."""
     from millsense.monitoring.breakage import SIGMA_TB  # limits are σ_TB × the reference
     g = {k: data[f"{name}/{k}"] for k in BREAKAGE_KEYS if f"{name}/{k}" in data}
     t = _time(g["residual1"], step, fs, t0)
@@ -152,7 +173,7 @@ def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: fl
             ax.axvline(e.time_s, color="r", lw=0.9)
         elif e.source == name and e.name == "breakage_blind":
             ax.axvline(e.time_s, color="0.5", lw=0.7, ls="-.")
-    ax.set_ylabel(f"{name}\n[N·m or N]", fontsize=8)
+    ax.set_ylabel(f"{name}\n[{unit_label(unit) if unit else 'N·m or N'}]", fontsize=8)
     ax.legend(loc="upper left", fontsize=7, ncol=3)
 
 

@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from millsense.report.labels import regulated_label
 from millsense.report.plots import _save
 from millsense.streaming.block import Event
 
@@ -34,8 +35,16 @@ _MARKS = {
 }
 
 
+
+
 def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -> None:
     """Write the PNG of a run's recording and events."""
+    _save(run_figure(recording, events), path)
+
+
+def run_figure(recording: str | Path, events: Sequence[Event]) -> Any:
+    """The figure of :func:`plot_run` (four panels, every axis labelled with its unit; the
+    true resultant force on its own axis where the regulated quantity is not a force)."""
     from millsense.io.recording_reader import opened_recording
 
     with opened_recording(recording) as rec:
@@ -55,10 +64,16 @@ def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -
         ax[0].set_ylabel("feed override [%]")
         _line(ax[1], t, get("adaptive_feed/peak"), "regulated (per control interval)")
         _line(ax[1], t, get("adaptive_feed/reference"), "reference")
+        unit = rec.info("adaptive_feed/peak").unit if "adaptive_feed/peak" in names else ""
+        ax[1].set_ylabel(regulated_label(unit))
         fx, fy = get("truth/tool/force_x"), get("truth/tool/force_y")
         if fx is not None and fy is not None:
-            ax[1].plot(t, np.hypot(fx, fy), lw=0.3, alpha=0.4, color="grey", label="true |F_xy|")
-        ax[1].set_ylabel("regulated")
+            # the force in N on the panel's own axis only where the regulated quantity is one
+            fax = ax[1] if unit == "N" else ax[1].twinx()
+            fax.plot(t, np.hypot(fx, fy), lw=0.3, alpha=0.4, color="grey", label="true |F_xy|")
+            if fax is not ax[1]:
+                fax.set_ylabel("true |F_xy| [N]", color="grey")
+                fax.legend(loc="upper left", fontsize=7)
         sp = get("spindle/speed")
         if sp is not None:
             ax[2].plot(t, sp * 60 / (2 * np.pi), lw=0.8, label="spindle speed")
@@ -96,7 +111,7 @@ def plot_run(recording: str | Path, events: Sequence[Event], path: str | Path) -
             a.grid(alpha=0.3)
         ax[0].set_title(f"{Path(recording).name}: on-line run")
         fig.tight_layout()
-        _save(fig, path)
+        return fig
 
 
 def _line(

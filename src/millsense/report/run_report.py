@@ -38,6 +38,7 @@ from millsense.io.recording_reader import channel_window
 from millsense.report.estimate_metrics import compare
 from millsense.report.estimate_stream import ZOOM_PERIODS, scan_cut_window
 from millsense.report.html_parts import CSS, html_table
+from millsense.report.labels import regulated_label, unit_label
 from millsense.report.run_scan import FXY_TRUE, RunFigures, RunScan, scan_run
 from millsense.streaming.block import Event
 
@@ -136,6 +137,8 @@ def build_report(
         harm, zoom = _harmonics(rec, scan, flutes)
         meta = dict(rec.metadata)
         where = _event_positions(rec, events)
+        units = {c: rec.info(c).unit for c in ("adaptive_feed/peak", "breakage/residual1")
+                 if c in rec.channel_names}  # fmt: skip
     figs: dict[str, go.Figure] = {}
     pairs = [p for p in PAIRS if p[0] in scan.present and p[1] in scan.present]
     if pairs:
@@ -146,9 +149,9 @@ def build_report(
     if path is not None:
         figs["path"] = path
     if "breakage/residual1" in scan.present:
-        figs["breakage"] = _breakage_figure(scan, events)
+        figs["breakage"] = _breakage_figure(scan, events, units.get("breakage/residual1", ""))
     if "cnc/feed_override" in scan.present or "supervisor/feed_override" in scan.present:
-        figs["control"] = _control_figure(scan, events)
+        figs["control"] = _control_figure(scan, events, units.get("adaptive_feed/peak", ""))
     if "spindle/speed" in scan.present:
         figs["spindle"] = _spindle_figure(scan, events)
     text = _html(
@@ -366,10 +369,13 @@ def _path_figure(
     return _layout(fig, "Tool path coloured by force, events where they happened", 560)
 
 
-def _breakage_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
+def _breakage_figure(scan: RunScan, events: Sequence[Event], unit: str = "") -> go.Figure:
+    """The residuals against their thresholds, titled with their unit (the torque's, N·m)."""
     two = "breakage/residual2" in scan.present
     rows = 2 if two else 1
-    titles = ["first residual against its threshold", "second residual against its threshold"]
+    u = f" [{unit_label(unit)}]" if unit else ""
+    titles = [f"first residual against its threshold{u}",
+              f"second residual against its threshold{u}"]  # fmt: skip
     fig = make_subplots(rows=rows, cols=1, shared_xaxes=True, subplot_titles=titles[:rows])
     for r in range(1, rows + 1):
         for ch, lab in ((f"breakage/residual{r}", f"residual {r}"),
@@ -384,10 +390,13 @@ def _breakage_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
     return _layout(fig, "Breakage monitor: residual against threshold", 300 * rows)
 
 
-def _control_figure(scan: RunScan, events: Sequence[Event]) -> go.Figure:
+def _control_figure(scan: RunScan, events: Sequence[Event], unit: str = "") -> go.Figure:
+    """Feed override, the regulated quantity (named with its unit, from ``adaptive_feed/peak``)
+    against its reference, and the true resultant force."""
     fig = make_subplots(rows=3, cols=1, shared_xaxes=True,
                         subplot_titles=["feed override [%]",
-                                        "regulated quantity per control interval and reference",
+                                        f"{regulated_label(unit)} per control interval and "
+                                        "reference",
                                         "true resultant force |F_xy| [N]"])  # fmt: skip
     for ch, lab in (("supervisor/feed_override", "commanded"), ("cnc/feed_override", "in effect")):
         if ch in scan.present:

@@ -61,6 +61,8 @@ def plan_job(
         "material": material or str(vp.metadata.get("material_name", "plan")),
         "engagement": source.summary(),
     }
+    if vp.metadata.get("program_sha256"):
+        meta_extra["program_sha256"] = str(vp.metadata["program_sha256"])
     meta_extra["truth_wear_vb_mm"] = wear_vb_m * 1e3
     if first_cut is not None:
         meta_extra["first_engagement_path_m"] = first_cut
