@@ -671,3 +671,48 @@ def test_a_light_entry_reading_air_is_released_to_the_programmed_feed() -> None:
     # released after the plan's 3 re-entry revolutions in the material (at 50 % from X −12 mm,
     # the tool's edge meets the block at X −10 mm: 2 mm at 200 mm/min = 0.6 s, + 3 × 60 ms)
     assert src.commands[1].time_s > 0.06 + 0.6 + 3 * 0.06
+
+
+class NoisyAirPlant(PlanPathPlant):
+    """:class:`PlanPathPlant` whose force reads ``air_n(t)`` where the plan's tool is in air
+    (the noise of a signal's air reading, not a cut)."""
+
+    def __init__(self, plan, gain, edge_n: float, duration_s: float, air_n) -> None:
+        super().__init__(plan, gain, edge_n=edge_n, duration_s=duration_s)
+        self.air_n = air_n
+
+    def read(self, max_samples: int) -> Chunk | None:
+        c = super().read(max_samples)
+        if c is None:
+            return None
+        t = (c.start + np.arange(c.n)) / FS
+        air = np.asarray(c.data["force_x"]) == 0.0
+        f = self.air_n(t) * tooth_shape(t)
+        data = dict(c.data)
+        data["force_x"] = np.where(air, 0.6 * f, data["force_x"])
+        data["force_y"] = np.where(air, 0.8 * f, data["force_y"])
+        return Chunk(c.start, FS, 0.0, data)
+
+
+def test_air_noise_around_the_threshold_does_not_alternate_the_feed() -> None:
+    """Decision 1679: out of the plan's material after the V8 slot's exit (9.6 s), the signal's
+    air reads 70 N and 90 N on alternate revolutions, around seed 002's 80 N air threshold (a
+    noisy power reading: `millsense run` of a LinuxCNC inch program, 150 %/50 % twelve times in
+    0.85 s). Before, every 90 N reading started a re-entry at 50 % and every 70 N one went back
+    to 150 %, to the end (341 moves). A reading within the loudest of the last air readings
+    (once AIR_MIN of them are known) is air: the alternation stops within AIR_MIN intervals and
+    the feed stays at V_max (150 %)."""
+    from millsense.control.adaptive_feed import AIR_MIN
+    from millsense.validation.cases import control_adaptive as ca
+
+    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
+    exit_s = 9.6
+    src = NoisyAirPlant(plan, lambda t: 200.0 + 0.0 * t, 30.0, 14.0,
+                        lambda t: np.where((t // REV) % 2 == 0, 70.0, 90.0))  # fmt: skip
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=ca.F_REF_V8), plan)
+    run_closed_loop(src, [blk], keep=("cnc/feed_override",), chunk_samples=100)
+    after = [e for e in src.commands if e.time_s > exit_s]
+    assert after and "air" in after[0].message and after[0].value == pytest.approx(150.0)
+    assert len(after) <= AIR_MIN  # the alternation of the first air readings, then none
+    assert after[-1].value == pytest.approx(150.0)
+    assert after[-1].time_s < exit_s + (AIR_MIN + 2) * REV

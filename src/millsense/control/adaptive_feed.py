@@ -587,6 +587,8 @@ class AdaptiveFeedBlock(Block):
         if self.override_channel is not None:
             self._use_reported_override(ovr_mean)
         flag, cap, entering = self._look(chunk, e)
+        # the loudest of the signal's recent air readings (decision 1679), before this one joins
+        air_loud = max(self._air_vals) if len(self._air_vals) >= AIR_MIN else 0.0
         if self._watch_air(chunk, e, peak, entering, events):
             # the signal cannot show the cut: the programmed feed, no regulation (decision 1548)
             lp.flag = flag
@@ -596,6 +598,11 @@ class AdaptiveFeedBlock(Block):
             return
         plan_air = self._plan_air()
         in_air = peak <= o.air or plan_air
+        if not in_air and lp.air and peak <= air_loud and not self._plan_in_cut():
+            # out of the plan's material, a reading over the air threshold but within what the
+            # air itself has read is the noise, not a re-entry: around the threshold seed 002's
+            # rules alternated 150 % / 50 % every revolution (decision 1679)
+            in_air = True
         if in_air and flag == 2 and lp.engaged:
             u, why = lp.u, "exit hold"  # leaving the cut: the air rule would speed up
         elif in_air:
