@@ -88,6 +88,34 @@ def _smooth(
 
 
 @numba.njit(cache=True)
+def fir_accumulate(
+    w: NDArray[np.float64], e: NDArray[np.float64], acc: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """``acc[k] = Σ_i w[i]·e[k + i]`` for k < len(acc), each sum started at 0 and taken in the
+    order i = 0 … len(w) − 1.
+
+    The loop over k is innermost, so the samples run side by side (vectorised) instead of one
+    sequential sum at a time; each pass adds four taps, ``acc[k] = acc[k] + w[i]·e[k+i] + … +
+    w[i+3]·e[k+i+3]`` (evaluated left to right: the same additions in the same order as one
+    tap a pass), so ``acc`` is loaded and stored a quarter as often."""
+    n = acc.shape[0]
+    n_taps = w.shape[0]
+    acc[:] = 0.0
+    i = 0
+    while i + 4 <= n_taps:
+        w0, w1, w2, w3 = w[i], w[i + 1], w[i + 2], w[i + 3]
+        for k in range(n):
+            j = k + i
+            acc[k] = acc[k] + w0 * e[j] + w1 * e[j + 1] + w2 * e[j + 2] + w3 * e[j + 3]
+        i += 4
+    while i < n_taps:
+        wi = w[i]
+        for k in range(n):
+            acc[k] += wi * e[k + i]
+        i += 1
+
+
+@numba.njit(cache=True)
 def fixed_lag_output(
     y: NDArray[np.float64],
     taps_t: NDArray[np.float64],
@@ -118,13 +146,7 @@ def fixed_lag_output(
         for c in range(p):
             w = taps_t[r, c]
             e = innov[c]
-            # every acc[k] sums its taps in order i = 0 .. L; the loop over k innermost runs
-            # the samples side by side (vectorised) instead of one sequential sum at a time
-            acc[:] = 0.0
-            for i in range(n_taps):
-                wi = w[i]
-                for k in range(n):
-                    acc[k] += wi * e[k + i]
+            fir_accumulate(w, e, acc)
             for k in range(n):
                 out[k, r] += acc[k]
     hist_pred[:] = pred[n:]
