@@ -11,8 +11,8 @@ arithmetic is unchanged, operation for operation and in the same order (a 1×1 m
 2×2 block with zero coupling, whose product adds 0): the outputs are bit-identical to the
 estimators run one by one, up to the sign of an exact zero.
 
-The C3 torque (``_c3_kernel``), the fixed-lag smoother's
-FIR (:func:`~millsense.estimation.kalman.smoother.fixed_lag_output`), the at-rest weight
+The C3 torque (``_c3_kernel``), the fixed-lag smoother
+(:func:`~millsense.estimation.kalman.smoother.fixed_lag_series`), the at-rest weight
 (:func:`~millsense.estimation.feed._condition_kernels.rest_weight_kernel`) and the blend of the
 two models (:func:`~millsense.estimation.feed._condition_kernels.highpass_blend`) are the same
 compiled functions the single-axis blocks call.
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from millsense.estimation.feed._condition_kernels import highpass_blend, rest_weight_kernel
 from millsense.estimation.feed.estimator import _c3_kernel
-from millsense.estimation.kalman.smoother import fixed_lag_output
+from millsense.estimation.kalman.smoother import fixed_lag_series
 
 #: samples of a filter's state trajectory held at once by :func:`modal_bank` (its
 #: (N, block) buffer stays in the first-level cache)
@@ -188,14 +188,11 @@ def bank_kernel(
     modal_bank(lti, pairs, n_states, z, tau, y0, y1)
     # the smoothers
     smoothed = np.empty((nf, n))
-    y = np.empty((n, 2))
+    e = np.empty(taps_t.shape[3] - 1 + n)
+    acc = np.empty(n)
     for f in range(nf):
-        for k in range(n):
-            y[k, 0] = y0[f, k]
-            y[k, 1] = y1[f, k]
-        s = fixed_lag_output(y, taps_t[f], hist_pred[f], hist_innov[f])
-        for k in range(n):
-            smoothed[f, k] = s[k, 0]
+        fixed_lag_series(y0[f], y1[f], taps_t[f, 0, 0], hist_pred[f, :, 0], hist_innov[f, 0], e,
+                         acc, smoothed[f])  # fmt: skip
     # the two models of each axis blended (decision 0129), renamed
     n_win = recent.shape[1]
     mov = np.empty(n)
