@@ -191,7 +191,8 @@ class FeedEstimatorBank(Block):
         if n == 0:
             return BlockOutput({k: np.zeros(0) for k in self._names})
         a = len(self._conds)
-        rows: NDArray[np.float64] = np.array([chunk.data[k] for k in self._rows], dtype=np.float64)
+        flat = np.concatenate([chunk.data[k] for k in self._rows], dtype=np.float64)
+        rows: NDArray[np.float64] = flat.reshape(len(self._rows), n)
         cur, spd, pos = rows[:a], rows[a : 2 * a], rows[2 * a :]
         out = np.empty((len(self._channels), n))
         ok = bank_kernel(cur, spd, pos, self._axis_of, self._c3_of, self._c3_state, self._c3_drive,
