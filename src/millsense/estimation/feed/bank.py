@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo
-from millsense.estimation.feed._bank_kernel import bank_kernel
+from millsense.estimation.feed._bank_kernel import bank_kernel, pairs_of
 from millsense.estimation.feed.condition import OperatingConditionFeedEstimator
 from millsense.estimation.feed.estimator import C3Torque, FeedAxisEstimator
 from millsense.streaming.block import Block, BlockOutput, Chunk
@@ -165,6 +165,7 @@ class FeedEstimatorBank(Block):
             lti[8, f, 0] = j[1, 0]
             self._z[f, :n] = kf.z
         self._lti = lti
+        self._pairs = pairs_of(lti)
         self._taps = np.array([e._smoother._taps_t for e in ests])
         self._hist_pred = np.array([e._smoother._hist_pred for e in ests])
         self._hist_innov = np.array([e._smoother._hist_innov for e in ests])
@@ -190,12 +191,13 @@ class FeedEstimatorBank(Block):
         if n == 0:
             return BlockOutput({k: np.zeros(0) for k in self._names})
         a = len(self._conds)
-        rows: NDArray[np.float64] = np.array([chunk.data[k] for k in self._rows], dtype=np.float64)
+        flat = np.concatenate([chunk.data[k] for k in self._rows], dtype=np.float64)
+        rows: NDArray[np.float64] = flat.reshape(len(self._rows), n)
         cur, spd, pos = rows[:a], rows[a : 2 * a], rows[2 * a :]
         out = np.empty((len(self._channels), n))
         ok = bank_kernel(cur, spd, pos, self._axis_of, self._c3_of, self._c3_state, self._c3_drive,
-                         self._fric_mode, self._fric, self._sos, self._lti, self._n_states,
-                         self._z, self._taps, self._hist_pred, self._hist_innov,
+                         self._fric_mode, self._fric, self._sos, self._lti, self._pairs,
+                         self._n_states, self._z, self._taps, self._hist_pred, self._hist_innov,
                          self._rw_state, self._rw_drive, self._rw_hist, self._width,
                          self._moving_of, self._at_rest_of, self._channel, self._recent,
                          out)  # fmt: skip

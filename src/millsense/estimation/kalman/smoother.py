@@ -88,6 +88,34 @@ def _smooth(
 
 
 @numba.njit(cache=True)
+def fir_accumulate(
+    w: NDArray[np.float64], e: NDArray[np.float64], acc: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """``acc[k] = Σ_i w[i]·e[k + i]`` for k < len(acc), each sum started at 0 and taken in the
+    order i = 0 … len(w) − 1.
+
+    The loop over k is innermost, so the samples run side by side (vectorised) instead of one
+    sequential sum at a time; each pass adds four taps, ``acc[k] = acc[k] + w[i]·e[k+i] + … +
+    w[i+3]·e[k+i+3]`` (evaluated left to right: the same additions in the same order as one
+    tap a pass), so ``acc`` is loaded and stored a quarter as often."""
+    n = acc.shape[0]
+    n_taps = w.shape[0]
+    acc[:] = 0.0
+    i = 0
+    while i + 4 <= n_taps:
+        w0, w1, w2, w3 = w[i], w[i + 1], w[i + 2], w[i + 3]
+        for k in range(n):
+            j = k + i
+            acc[k] = acc[k] + w0 * e[j] + w1 * e[j + 1] + w2 * e[j + 2] + w3 * e[j + 3]
+        i += 4
+    while i < n_taps:
+        wi = w[i]
+        for k in range(n):
+            acc[k] += wi * e[k + i]
+        i += 1
+
+
+@numba.njit(cache=True)
 def fixed_lag_output(
     y: NDArray[np.float64],
     taps_t: NDArray[np.float64],
@@ -97,10 +125,16 @@ def fixed_lag_output(
     """The smoother's output from the Kalman filter's ``y`` = [S x̂(k|k−1); e(k)] of a chunk:
     ``out[k] = pred[k] + Σ_c Σ_j taps_t[:, c, j]·e_c[k + j]`` over the history of L samples
     followed by the chunk (the estimate of the sample L before the chunk's k-th); ``hist_*``
-    updated in place."""
+    updated in place. One smoothed quantity from one innovation (d = p = 1, the feed
+    estimators) is :func:`fixed_lag_series`."""
     d, p, n_taps = taps_t.shape
     lag = n_taps - 1
     n = y.shape[0]
+    out = np.empty((n, d))
+    if d == 1 and p == 1:
+        fixed_lag_series(y[:, 0], y[:, 1], taps_t[0, 0], hist_pred[:, 0], hist_innov[0],
+                         np.empty(lag + n), np.empty(n), out[:, 0])  # fmt: skip
+        return out
     pred = np.empty((lag + n, d))
     innov = np.empty((p, lag + n))
     pred[:lag] = hist_pred
@@ -110,26 +144,55 @@ def fixed_lag_output(
             pred[lag + k, r] = y[k, r]
         for c in range(p):
             innov[c, lag + k] = y[k, d + c]
-    out = np.empty((n, d))
     acc = np.empty(n)
     for r in range(d):
         for k in range(n):
             out[k, r] = pred[k, r]
         for c in range(p):
-            w = taps_t[r, c]
-            e = innov[c]
-            # every acc[k] sums its taps in order i = 0 .. L; the loop over k innermost runs
-            # the samples side by side (vectorised) instead of one sequential sum at a time
-            acc[:] = 0.0
-            for i in range(n_taps):
-                wi = w[i]
-                for k in range(n):
-                    acc[k] += wi * e[k + i]
+            fir_accumulate(taps_t[r, c], innov[c], acc)
             for k in range(n):
                 out[k, r] += acc[k]
     hist_pred[:] = pred[n:]
     hist_innov[:] = innov[:, n:]
     return out
+
+
+@numba.njit(cache=True)
+def fixed_lag_series(
+    pred: NDArray[np.float64],
+    innov: NDArray[np.float64],
+    w: NDArray[np.float64],
+    hist_pred: NDArray[np.float64],
+    hist_innov: NDArray[np.float64],
+    e: NDArray[np.float64],
+    acc: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """:func:`fixed_lag_output` for one smoothed quantity and one innovation, into ``out``
+    (n,): ``out[k] = p[k] + Σ_j w[j]·e[k + j]`` with ``p`` = ``hist_pred ++ pred`` and ``e`` =
+    ``hist_innov ++ innov`` (the L samples before the chunk, then the chunk's n), the sum by
+    :func:`fir_accumulate`; the histories (L,) are updated in place. ``e`` (L + n) and ``acc``
+    (n) are the caller's work buffers (none allocated here: at 10 ms chunks the allocations
+    and copies cost more than the FIR)."""
+    lag = hist_pred.shape[0]
+    n = pred.shape[0]
+    for k in range(lag):
+        e[k] = hist_innov[k]
+    for k in range(n):
+        e[lag + k] = innov[k]
+    fir_accumulate(w, e, acc)
+    for k in range(n):
+        out[k] = (hist_pred[k] if k < lag else pred[k - lag]) + acc[k]
+    if n >= lag:
+        for k in range(lag):
+            hist_pred[k] = pred[n - lag + k]
+    else:
+        for k in range(lag - n):
+            hist_pred[k] = hist_pred[k + n]
+        for k in range(n):
+            hist_pred[lag - n + k] = pred[k]
+    for k in range(lag):
+        hist_innov[k] = e[n + k]
 
 
 class FixedLagSmoother:
