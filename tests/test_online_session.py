@@ -190,6 +190,25 @@ def test_ktc_calibration_is_made_on_the_torque_less_its_air_reference(v8_plan: o
     assert np.array_equal(out2["plan/judged_torque"][done + 6000 :], judged[done + 6000 :])
 
 
+def test_ktc_calibration_without_a_usable_sample_says_why(v8_plan: object) -> None:
+    """A calibration window with no sample to calibrate on (here the spindle never at speed)
+    is refused with the reason, not "measured/plan shear torque nan outside 0.5–2" (found by
+    the qa4 helper on a plunge into the top of the block)."""
+    data = _along_plan(v8_plan)
+    n = len(data["tcp/x"])
+    data["spindle/at_speed"] = np.zeros(n)
+    ps = PlanSync(v8_plan, at_speed_channel="spindle/at_speed")  # type: ignore[arg-type]
+    ps.reset(FS)
+    data["est/spindle/spindle/load"] = np.ones(n)
+    events = []
+    for a in range(0, n, 1000):
+        part = {k: v[a : a + 1000] for k, v in data.items()}
+        events += ps.process(Chunk(a, FS, 0.0, part)).events
+    (ev,) = [e for e in events if e.name == "ktc_calibration_refused"]
+    assert "not at speed" in ev.message and "nan" not in ev.message
+    assert ps.scale == 1.0  # the plan is kept
+
+
 @pytest.fixture(scope="module")
 def plunge_plan() -> object:
     """A Ø20 mm 2-flute end mill plunging 2 mm into the top of the demo block (0.25 mm/s at

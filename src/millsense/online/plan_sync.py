@@ -390,6 +390,18 @@ class PlanSync(Block):
         t = chunk.t0_s + (chunk.start + k_done) / chunk.sample_rate_hz
         ktc_plan = float(np.nanmax(np.asarray(self.plan["ktc_n_mm2"], dtype=np.float64)))
         ratio = (m - e) / s if s > 0 and cnt > 0 else math.nan
+        if not math.isfinite(ratio):
+            # no sample to calibrate on: the spindle off speed through the window, or the plan's
+            # rows there without a shear part (a plunge's)
+            why = ("the spindle was not at speed" if cnt == 0
+                   else "the plan has no shear torque there (a plunge)")  # fmt: skip
+            events.append(Event(t, EventKind.ALARM, self.name,
+                                f"K_tc calibration refused: no sample of its "
+                                f"{self.cal_revs:g} revolutions to calibrate on ({why}): the "
+                                "plan is kept", name="ktc_calibration_refused", value=ratio,
+                                sample=chunk.start + k_done,
+                                severity=Severity.WARNING))  # fmt: skip
+            return -1
         if not (SCALE_RANGE[0] <= ratio <= SCALE_RANGE[1]):
             events.append(Event(t, EventKind.ALARM, self.name,
                                 f"K_tc calibration refused: measured/plan shear torque {ratio:.3g} "
