@@ -54,6 +54,7 @@ from millsense.monitoring.chatter.methods import (
     Spectra,
     Verdict,
     line_amplitude,
+    line_level,
 )
 from millsense.streaming.block import (
     Block,
@@ -328,6 +329,7 @@ class ChatterMonitor(Block):
         self._level = 0.0  # mean of the last window decided
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
+        self._start_settling = False  # the settling is the run's start's (decision 1680)
         # the cut's load (the mean away from the air mean) that a fall is measured from, and
         # the windows left re-learning the lines known before a fall (decision 1545)
         self._load_ref: float | None = None
@@ -409,8 +411,7 @@ class ChatterMonitor(Block):
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         air_before = self._air_before
-        if self.method.judges_segments:  # the gate's state before this window, which only a
-            air_before[:] = self._air  # criterion judging parts reads (decision 1543)
+        air_before[:] = self._air  # the gate's state before this window (decisions 1543, 1680)
         cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
             c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
         )  # fmt: skip
@@ -444,7 +445,26 @@ class ChatterMonitor(Block):
         last = self._judged_f_rev
         if not self._has_background or abs(f_rev - last) > SETTLE_SPEED * last:
             self._settling = self._settle_windows  # a new speed: its lines are learned first
+            # the run's start (no background yet), not a speed change (decision 1680)
+            self._start_settling = not self._has_background
         self._judged_f_rev = f_rev
+        if (
+            self._start_settling
+            and self._settling > 0
+            and air_part is None
+            and tooth > 0.0
+            and (cutting or not air_before[_kn.HAS_FLOOR] > 0.0)
+        ):
+            # the run's first windows, in the cut or taken for air before any air was seen:
+            # chatter the background and the air reference have not seen is judged by its own
+            # signature and kept out of both (decision 1680)
+            unlearned = self._unlearned_spectra(
+                spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+            )
+            if unlearned is not None:
+                self._air[:] = air_before
+                self._out_of_cut = False
+                return unlearned
         settling = self._settling > 0
         rates = self._rates[False] if settling else self._rates[cutting]
         mask = self._harm_mask
@@ -501,6 +521,78 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
                        held=bool(self._flag))  # fmt: skip
+
+    def _unlearned_spectra(
+        self,
+        spectra: np.ndarray,
+        f_t: float,
+        f_rev: float,
+        b0: int,
+        b1: int,
+        tooth: float,
+        air: np.ndarray,
+        level: float,
+    ) -> Spectra | None:
+        """The spectra of a window in the cut during the run's first settling (decision 1680),
+        judged without the background when its comb-filtered spectrum carries chatter's
+        signature; None otherwise (the window then learns and settles as any other).
+
+        With no window out of the cut before it, the background the run starts from is the
+        cut's own spectrum, chatter included: chatter present from the run's start (a record
+        that starts in the cut, a cut entered before the speed has been steady over a window)
+        was learned in the 0.5 s of settling and never judged. A steady tone there is not
+        chatter (decision 1537) and a per-bin background cannot tell the two apart; the
+        physics can: the cutting force is the vibration modulated by the tooth angles, so a
+        chatter line at ω_c comes with lines at ω_c ± l·N·Ω (Aslan Eq. 5.25; the process's
+        regenerative family, decision 1501). The window's largest non-harmonic comb line is
+        judged as chatter (the seed's ratio over the tooth line, Eq. 5.30, and decision 1658's
+        stand-out test) when a companion at ±f_tooth or ±2 f_tooth (the nearest bin and its
+        neighbours, not on a spindle harmonic) stands above the level Rayleigh noise reaches
+        over the band with a chance of 1e-3 from the band's median (:func:`.methods.line_level`
+        at the median): the novelty is then the line and its companions over a zero
+        background. A window the method finds chatter is not learned (the background keeps no
+        chatter), and the settling waits for the first window without it."""
+        comb, novel, raw = self._comb, self._novel, self._raw
+        _kn.amplitude(spectra[1], self._comb_scale, comb)
+        mask = self._harm_mask
+        _kn.novelty(comb, np.zeros_like(comb), 1.0, mask, novel)
+        k = _kn.band_argmax(novel, b0, b1)
+        if not (b0 <= k < b1 and novel[k] > 0.0):
+            return None
+        # the ratio's reference as in the cut (decision 1531): the tooth line, no less than
+        # 3 × the floor (the band median, or the smaller floor learned out of the cut)
+        floor = float(np.median(raw[b0:b1]))
+        if air[_kn.HAS_FLOOR] > 0.0:
+            floor = min(floor, float(air[_kn.AIR_FLOOR]))
+        tooth_ref = max(tooth, CUTTING_GATE * floor)
+        df = self._df
+        f_c = float(self._f[k])
+        level = line_level(comb, mask, b0, b1, 1.0, k, quantile=0.5)
+        family = [k]
+        for ell in (1, 2):
+            for f in (f_c - ell * f_t, f_c + ell * f_t):
+                j = round(f / df)
+                lo, hi = max(j - 1, b0), min(j + 2, b1)
+                if hi <= lo:
+                    continue
+                j = lo + int(np.argmax(np.where(mask[lo:hi], -1.0, comb[lo:hi])))
+                if not mask[j] and comb[j] > level:
+                    family.append(j)
+        if len(family) == 1 or self._straddle(f_t, f_rev, level) is not None:
+            return None  # no companion, or the comb's ring-down at an entry or exit (1542)
+        novel.fill(-1.0)
+        for j in family:
+            novel[j] = comb[j]
+        raw_rect = None
+        if self.method.name == "chatter-sdft" and self.method.taper == "rect":
+            raw_rect = self._raw_rect
+            _kn.amplitude(rfft(self._xr), 2.0 / len(self._xr), raw_rect)
+        sp = Spectra(self._f, self._raw, comb, self._band, tooth_ref, f_t, f_rev, True, novel,
+                     raw_rect, band_slice=(b0, b1), peak_bin=k, masked=mask,
+                     held=bool(self._flag))  # fmt: skip
+        if not self.method.decide(sp, None).chatter:
+            return None
+        return sp
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
         """Whether the full window just decided straddles an entry or an exit (decision
