@@ -555,7 +555,11 @@ class ChatterMonitor(Block):
         comb, novel, raw = self._comb, self._novel, self._raw
         _kn.amplitude(spectra[1], self._comb_scale, comb)
         mask = self._harm_mask
-        _kn.novelty(comb, np.zeros_like(comb), 1.0, mask, novel)
+        if self._has_background:  # what the windows before it learned is not new
+            factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+            _kn.novelty(comb, self._background, factor, mask, novel)
+        else:
+            _kn.novelty(comb, np.zeros_like(comb), 1.0, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
         if not (b0 <= k < b1 and novel[k] > 0.0):
             return None
@@ -580,9 +584,9 @@ class ChatterMonitor(Block):
                     family.append(j)
         if len(family) == 1 or self._straddle(f_t, f_rev, level) is not None:
             return None  # no companion, or the comb's ring-down at an entry or exit (1542)
+        keep = novel[family].copy()
         novel.fill(-1.0)
-        for j in family:
-            novel[j] = comb[j]
+        novel[family] = keep
         raw_rect = None
         if self.method.name == "chatter-sdft" and self.method.taper == "rect":
             raw_rect = self._raw_rect
