@@ -164,6 +164,15 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
+#: A companion of a chatter line at ω_c ± l·N·Ω (decision 1680) carries at least this share of
+#: the line's amplitude (the tooth angles modulate the line itself: 8-37 % in the simulated
+#: slot's accelerometer; the comb's ring-down of a harmonic beside a tone, a few 0.1 %).
+COMPANION_SHARE = 0.05
+#: A chatter line found by its signature at the run's start must not be decaying (decision
+#: 1680): at its onset its amplitude is at least this share of the same line (±2 bins) in the
+#: previous window. Chatter grows or holds its limit cycle (±30 % from window to window in the
+#: simulated slot); the free vibration after a stable cut's entry decays (÷2-3 per 0.1 s).
+NOT_DECAYING = 0.7
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -330,6 +339,8 @@ class ChatterMonitor(Block):
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
         self._start_settling = False  # the settling is the run's start's (decision 1680)
+        self._comb_at = -1  # the stage position of the window whose comb amplitudes
+        # ``self._comb`` holds (decision 1680)
         # the cut's load (the mean away from the air mean) that a fall is measured from, and
         # the windows left re-learning the lines known before a fall (decision 1545)
         self._load_ref: float | None = None
@@ -464,7 +475,11 @@ class ChatterMonitor(Block):
             if unlearned is not None:
                 self._air[:] = air_before
                 self._out_of_cut = False
-                return unlearned
+                return unlearned if isinstance(unlearned, Spectra) else None
+        if self._flag and self._settling > 0:
+            # the run's first chatter ended (or a settling after a speed change began): the
+            # start is over, the rest of the settling learns as any (an exit's ring-down)
+            self._start_settling = False
         settling = self._settling > 0
         rates = self._rates[False] if settling else self._rates[cutting]
         mask = self._harm_mask
@@ -478,6 +493,7 @@ class ChatterMonitor(Block):
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
                            not self._has_background, factor, mask, novel, b0, b1,
                            *rates)  # fmt: skip
+        self._comb_at = g.pos  # the window whose comb amplitudes ``comb`` holds (1680)
         self._has_background = True
         if settling:
             self._settling -= 1
@@ -532,7 +548,7 @@ class ChatterMonitor(Block):
         tooth: float,
         air: np.ndarray,
         level: float,
-    ) -> Spectra | None:
+    ) -> Spectra | bool | None:
         """The spectra of a window in the cut during the run's first settling (decision 1680),
         judged without the background when its comb-filtered spectrum carries chatter's
         signature; None otherwise (the window then learns and settles as any other).
@@ -553,7 +569,11 @@ class ChatterMonitor(Block):
         background. A window the method finds chatter is not learned (the background keeps no
         chatter), and the settling waits for the first window without it."""
         comb, novel, raw = self._comb, self._novel, self._raw
+        pos = self._stage.pos
+        had_prev = self._comb_at == pos - self._hop  # the previous window's amplitudes
+        prev = comb.copy()
         _kn.amplitude(spectra[1], self._comb_scale, comb)
+        self._comb_at = pos
         mask = self._harm_mask
         if self._has_background:  # what the windows before it learned is not new
             factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
@@ -563,6 +583,9 @@ class ChatterMonitor(Block):
         k = _kn.band_argmax(novel, b0, b1)
         if not (b0 <= k < b1 and novel[k] > 0.0):
             return None
+        decaying = had_prev and comb[k] < NOT_DECAYING * float(np.max(prev[max(k - 2, 0) : k + 3]))
+        if decaying and not self._flag:
+            return None  # a stable cut's transient (decision 1680)
         # the ratio's reference as in the cut (decision 1531): the tooth line, no less than
         # 3 × the floor (the band median, or the smaller floor learned out of the cut)
         floor = float(np.median(raw[b0:b1]))
@@ -580,10 +603,12 @@ class ChatterMonitor(Block):
                 if hi <= lo:
                     continue
                 j = lo + int(np.argmax(np.where(mask[lo:hi], -1.0, comb[lo:hi])))
-                if not mask[j] and comb[j] > level:
+                if not mask[j] and comb[j] > max(level, COMPANION_SHARE * comb[k]):
                     family.append(j)
-        if len(family) == 1 or self._straddle(f_t, f_rev, level) is not None:
-            return None  # no companion, or the comb's ring-down at an entry or exit (1542)
+        if (len(family) == 1 and not self._flag) or self._straddle(f_t, f_rev, level) is not None:
+            # no companion (while chatter is flagged the line's hold suffices, as in the cut
+            # after the settling), or the comb's ring-down at an entry or an exit (1542)
+            return None
         keep = novel[family].copy()
         novel.fill(-1.0)
         novel[family] = keep
@@ -596,6 +621,8 @@ class ChatterMonitor(Block):
                      held=bool(self._flag))  # fmt: skip
         if not self.method.decide(sp, None).chatter:
             return None
+        if not (had_prev or self._flag):
+            return True  # chatter's signature seen once: neither judged nor learned yet
         return sp
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
