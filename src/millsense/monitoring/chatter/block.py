@@ -549,25 +549,39 @@ class ChatterMonitor(Block):
         air: np.ndarray,
         level: float,
     ) -> Spectra | bool | None:
-        """The spectra of a window in the cut during the run's first settling (decision 1680),
-        judged without the background when its comb-filtered spectrum carries chatter's
-        signature; None otherwise (the window then learns and settles as any other).
+        """The spectra of a window during the run's first settling (decision 1680), judged
+        without the learned background when its comb-filtered spectrum carries chatter's
+        signature: those spectra (a verdict, the window not learned), True (the signature seen
+        on this window only: no verdict, not learned), or None (the window learns and settles
+        as any other). Called for a window in the cut, or taken for air while no air has been
+        seen (the gate's floor is then the window's own median, which chatter raises).
 
-        With no window out of the cut before it, the background the run starts from is the
-        cut's own spectrum, chatter included: chatter present from the run's start (a record
-        that starts in the cut, a cut entered before the speed has been steady over a window)
-        was learned in the 0.5 s of settling and never judged. A steady tone there is not
-        chatter (decision 1537) and a per-bin background cannot tell the two apart; the
-        physics can: the cutting force is the vibration modulated by the tooth angles, so a
-        chatter line at ω_c comes with lines at ω_c ± l·N·Ω (Aslan Eq. 5.25; the process's
-        regenerative family, decision 1501). The window's largest non-harmonic comb line is
-        judged as chatter (the seed's ratio over the tooth line, Eq. 5.30, and decision 1658's
-        stand-out test) when a companion at ±f_tooth or ±2 f_tooth (the nearest bin and its
+        The background a run starts from is its first window's spectrum, learned for 0.5 s
+        without a verdict (decision 1537). When the cut starts before the speed has been
+        steady over a window (no air at speed, a record that starts in the cut), chatter
+        present then or starting within the settling was learned into it and never judged:
+        the ratio stayed 0. A steady tone there is not chatter (decision 1537) and a per-bin
+        background cannot tell the two apart; the physics can. The cutting force is the
+        vibration modulated by the tooth angles, so a chatter line at ω_c comes with lines at
+        ω_c ± l·N·Ω (Aslan Eq. 5.25; decision 1501), and a regenerative vibration grows or
+        holds its limit cycle where a stable cut's free vibration after its entry decays.
+
+        The line judged is the window's largest comb line new to what the run learned so far
+        (above 5 × the background if there is one, 2 × while chatter is flagged). It is chatter
+        when the method's verdict on it is (the seed's ratio over the tooth line, the
+        reference no less than 3 × the floor, Eq. 5.30; decision 1658's stand-out test) and:
+        a companion at ±f_tooth or ±2 f_tooth (the largest of the nearest bin and its
         neighbours, not on a spindle harmonic) stands above the level Rayleigh noise reaches
         over the band with a chance of 1e-3 from the band's median (:func:`.methods.line_level`
-        at the median): the novelty is then the line and its companions over a zero
-        background. A window the method finds chatter is not learned (the background keeps no
-        chatter), and the settling waits for the first window without it."""
+        at the median) and carries :data:`COMPANION_SHARE` of the line (the comb's ring-down
+        of a harmonic beside a steady tone does not); the window does not straddle an entry or
+        an exit (decision 1542); the line is not below :data:`NOT_DECAYING` × its amplitude
+        (±2 bins) in the previous window, and was seen there (two windows: 0.1 s). While
+        chatter is flagged the line's hold suffices (as after the settling). The novelty the
+        method reads is then the line and its companions. A window with chatter is not learned
+        (neither the background nor the air floor and mean), so the settling resumes with the
+        first window without it; once that first chatter has ended the start is over and the
+        rest of the settling learns as any settling does."""
         comb, novel, raw = self._comb, self._novel, self._raw
         pos = self._stage.pos
         had_prev = self._comb_at == pos - self._hop  # the previous window's amplitudes
@@ -594,7 +608,7 @@ class ChatterMonitor(Block):
         tooth_ref = max(tooth, CUTTING_GATE * floor)
         df = self._df
         f_c = float(self._f[k])
-        level = line_level(comb, mask, b0, b1, 1.0, k, quantile=0.5)
+        noise = line_level(comb, mask, b0, b1, 1.0, k, quantile=0.5)
         family = [k]
         for ell in (1, 2):
             for f in (f_c - ell * f_t, f_c + ell * f_t):
@@ -603,7 +617,7 @@ class ChatterMonitor(Block):
                 if hi <= lo:
                     continue
                 j = lo + int(np.argmax(np.where(mask[lo:hi], -1.0, comb[lo:hi])))
-                if not mask[j] and comb[j] > max(level, COMPANION_SHARE * comb[k]):
+                if not mask[j] and comb[j] > max(noise, COMPANION_SHARE * comb[k]):
                     family.append(j)
         if (len(family) == 1 and not self._flag) or self._straddle(f_t, f_rev, level) is not None:
             # no companion (while chatter is flagged the line's hold suffices, as in the cut
