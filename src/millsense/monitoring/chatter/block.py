@@ -26,7 +26,11 @@ chatter windows (not while chatter is flagged) the ``chatter-comb`` line must al
 its own window's searched spectrum (:func:`.methods.line_level`, decision 1658): an observer's
 encoder-quantisation lines sit on the spindle harmonics at one speed and spread between them
 when the cut sags the speed by 1e-5, so a per-bin background cannot know them; the window's
-own upper tail can.
+own upper tail can. During the run's first settling a window in the cut (or taken for air
+before any air was seen) is judged without the background when its line carries chatter's
+signature (companions at ω_c ± l·N·Ω, Aslan Eq. 5.25, not decaying over two windows), and such
+a window is not learned: chatter present from the run's start is no longer learned away
+(decision 1680).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
