@@ -623,10 +623,14 @@ class ChatterMonitor(Block):
                 j = lo + int(np.argmax(np.where(mask[lo:hi], -1.0, comb[lo:hi])))
                 if not mask[j] and comb[j] > max(noise, COMPANION_SHARE * comb[k]):
                     family.append(j)
-        if (len(family) == 1 and not self._flag) or self._straddle(f_t, f_rev, level) is not None:
-            # no companion (while chatter is flagged the line's hold suffices, as in the cut
-            # after the settling), or the comb's ring-down at an entry or an exit (1542)
-            return None
+        if len(family) == 1 and not self._flag:
+            return None  # no companion (while flagged the line's hold suffices)
+        part = self._straddle(f_t, f_rev, level)
+        if part is not None:
+            # an entry or an exit within the window (decision 1542): the reference is the tooth
+            # line of its part in the cut, as after an exit, not the Hann-weighted line of a
+            # window partly in air beside which the comb's ring-down reads as chatter
+            tooth_ref = max(tooth_ref, part[2])
         keep = novel[family].copy()
         novel.fill(-1.0)
         novel[family] = keep
