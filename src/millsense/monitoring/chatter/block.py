@@ -435,6 +435,17 @@ class ChatterMonitor(Block):
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
                            band_slice=(b0, b1))  # fmt: skip
         if cutting and not steady:
+            if not self._has_background or (self._start_settling and self._settling > 0):
+                # the run's start: a window whose mean the chatter itself moves (an
+                # accelerometer's limit cycle) is judged by chatter's signature (decision 1680)
+                self._update_harm_mask(f_rev)
+                unlearned = self._unlearned_spectra(
+                    spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+                )
+                if unlearned is not None:
+                    self._air[:] = air_before
+                    self._out_of_cut = False
+                    return unlearned if isinstance(unlearned, Spectra) else None
             # entry, exit or a large step inside the window: the part after the step, if it
             # resolves the lines (decision 1539; at an entry down to two revolutions, decision
             # 1543), else no decision
