@@ -568,7 +568,8 @@ class ChatterMonitor(Block):
         without the learned background when its comb-filtered spectrum carries chatter's
         signature: those spectra (a verdict, the window not learned), True (the signature seen
         on this window only: no verdict, not learned), or None (the window learns and settles
-        as any other). Called for a window in the cut, or taken for air while no air has been
+        as any other). Called for a window in the cut (also one whose mean steps: chatter's
+        limit cycle moves an accelerometer's mean), or taken for air while no air has been
         seen (the gate's floor is then the window's own median, which chatter raises).
 
         The background a run starts from is its first window's spectrum, learned for 0.5 s
@@ -589,9 +590,10 @@ class ChatterMonitor(Block):
         neighbours, not on a spindle harmonic) stands above the level Rayleigh noise reaches
         over the band with a chance of 1e-3 from the band's median (:func:`.methods.line_level`
         at the median) and carries :data:`COMPANION_SHARE` of the line (the comb's ring-down
-        of a harmonic beside a steady tone does not); the window does not straddle an entry or
-        an exit (decision 1542); the line is not below :data:`NOT_DECAYING` × its amplitude
-        (±2 bins) in the previous window, and was seen there (two windows: 0.1 s). While
+        of a harmonic beside a steady tone does not); a window straddling an entry or an exit
+        is read against its part's tooth line (decision 1542, as after an exit); the line is
+        not below :data:`NOT_DECAYING` × its amplitude (±2 bins) in the previous window, and
+        was seen there (two windows: 0.1 s). While
         chatter is flagged the line's hold suffices (as after the settling). The novelty the
         method reads is then the line and its companions. A window with chatter is not learned
         (neither the background nor the air floor and mean), so the settling resumes with the
