@@ -479,11 +479,12 @@ class ChatterMonitor(Block):
             and self._settling > 0
             and air_part is None
             and tooth > 0.0
-            and (cutting or not air_before[_kn.HAS_FLOOR] > 0.0)
+            and cutting
         ):
-            # the run's first windows, in the cut or taken for air before any air was seen:
-            # chatter the background and the air reference have not seen is judged by its own
-            # signature and kept out of both (decision 1680)
+            # the run's first windows in the cut: chatter the background and the air reference
+            # have not seen is judged by its own signature and kept out of both (decision 1680;
+            # a window taken for air is not: on a compensated torque in air, lines with
+            # companions at ±f_tooth alarmed)
             unlearned = self._unlearned_spectra(
                 spectra, f_t, f_rev, b0, b1, tooth, air_before, level
             )
