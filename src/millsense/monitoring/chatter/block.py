@@ -26,11 +26,10 @@ chatter windows (not while chatter is flagged) the ``chatter-comb`` line must al
 its own window's searched spectrum (:func:`.methods.line_level`, decision 1658): an observer's
 encoder-quantisation lines sit on the spindle harmonics at one speed and spread between them
 when the cut sags the speed by 1e-5, so a per-bin background cannot know them; the window's
-own upper tail can. During the run's first settling a window in the cut (or taken for air
-before any air was seen) is judged without the background when its line carries chatter's
-signature (companions at ω_c ± l·N·Ω, Aslan Eq. 5.25, not decaying over two windows), and such
-a window is not learned: chatter present from the run's start is no longer learned away
-(decision 1680).
+own upper tail can. During the run's first settling a window in the cut is judged without
+the background when its line carries chatter's signature (companions at ω_c ± l·N·Ω, Aslan
+Eq. 5.25, not decaying over two windows), and such a window is not learned: chatter present
+from the run's start is no longer learned away (decision 1680).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -570,8 +569,7 @@ class ChatterMonitor(Block):
         signature: those spectra (a verdict, the window not learned), True (the signature seen
         on this window only: no verdict, not learned), or None (the window learns and settles
         as any other). Called for a window in the cut (also one whose mean steps: chatter's
-        limit cycle moves an accelerometer's mean), or taken for air while no air has been
-        seen (the gate's floor is then the window's own median, which chatter raises).
+        limit cycle moves an accelerometer's mean).
 
         The background a run starts from is its first window's spectrum, learned for 0.5 s
         without a verdict (decision 1537). When the cut starts before the speed has been
