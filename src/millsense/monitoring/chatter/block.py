@@ -26,7 +26,10 @@ chatter windows (not while chatter is flagged) the ``chatter-comb`` line must al
 its own window's searched spectrum (:func:`.methods.line_level`, decision 1658): an observer's
 encoder-quantisation lines sit on the spindle harmonics at one speed and spread between them
 when the cut sags the speed by 1e-5, so a per-bin background cannot know them; the window's
-own upper tail can.
+own upper tail can. During the run's first settling a window in the cut is judged without
+the background when its line carries chatter's signature (companions at ω_c ± l·N·Ω, Aslan
+Eq. 5.25, not decaying over two windows), and such a window is not learned: chatter present
+from the run's start is no longer learned away (decision 1680).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -54,6 +57,7 @@ from millsense.monitoring.chatter.methods import (
     Spectra,
     Verdict,
     line_amplitude,
+    line_level,
 )
 from millsense.streaming.block import (
     Block,
@@ -163,6 +167,15 @@ STEADY_MEAN = 0.5
 #: spindle harmonic (Rayleigh's criterion: a line at the band's edge is resolved from the
 #: harmonic; decision 1539).
 SEGMENT_RESOLUTION = 1.0
+#: A companion of a chatter line at ω_c ± l·N·Ω (decision 1680) carries at least this share of
+#: the line's amplitude (the tooth angles modulate the line itself: 8-37 % in the simulated
+#: slot's accelerometer; the comb's ring-down of a harmonic beside a tone, a few 0.1 %).
+COMPANION_SHARE = 0.05
+#: A chatter line found by its signature at the run's start must not be decaying (decision
+#: 1680): at its onset its amplitude is at least this share of the same line (±2 bins) in the
+#: previous window. Chatter grows or holds its limit cycle (±30 % from window to window in the
+#: simulated slot); the free vibration after a stable cut's entry decays (÷2-3 per 0.1 s).
+NOT_DECAYING = 0.7
 #: Calibration of the threshold method: first seconds of the run, factor on their maximum.
 CALIBRATION_S = 1.0
 CALIBRATION_FACTOR = 2.0
@@ -328,6 +341,9 @@ class ChatterMonitor(Block):
         self._level = 0.0  # mean of the last window decided
         self._settle_windows = max(1, round(SPEED_SETTLE_S / s.hop_s))
         self._settling = 0
+        self._start_settling = False  # the settling is the run's start's (decision 1680)
+        self._comb_at = -1  # the stage position of the window whose comb amplitudes
+        # ``self._comb`` holds (decision 1680)
         # the cut's load (the mean away from the air mean) that a fall is measured from, and
         # the windows left re-learning the lines known before a fall (decision 1545)
         self._load_ref: float | None = None
@@ -409,8 +425,7 @@ class ChatterMonitor(Block):
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         air_before = self._air_before
-        if self.method.judges_segments:  # the gate's state before this window, which only a
-            air_before[:] = self._air  # criterion judging parts reads (decision 1543)
+        air_before[:] = self._air  # the gate's state before this window (decisions 1543, 1680)
         cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
             c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
         )  # fmt: skip
@@ -419,6 +434,17 @@ class ChatterMonitor(Block):
             return Spectra(f, raw, raw, self._band, tooth, f_t, f_rev, cutting, raw,
                            band_slice=(b0, b1))  # fmt: skip
         if cutting and not steady:
+            if not self._has_background or (self._start_settling and self._settling > 0):
+                # the run's start: a window whose mean the chatter itself moves (an
+                # accelerometer's limit cycle) is judged by chatter's signature (decision 1680)
+                self._update_harm_mask(f_rev)
+                unlearned = self._unlearned_spectra(
+                    spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+                )
+                if unlearned is not None:
+                    self._air[:] = air_before
+                    self._out_of_cut = False
+                    return unlearned if isinstance(unlearned, Spectra) else None
             # entry, exit or a large step inside the window: the part after the step, if it
             # resolves the lines (decision 1539; at an entry down to two revolutions, decision
             # 1543), else no decision
@@ -444,7 +470,31 @@ class ChatterMonitor(Block):
         last = self._judged_f_rev
         if not self._has_background or abs(f_rev - last) > SETTLE_SPEED * last:
             self._settling = self._settle_windows  # a new speed: its lines are learned first
+            # the run's start (no background yet), not a speed change (decision 1680)
+            self._start_settling = not self._has_background
         self._judged_f_rev = f_rev
+        if (
+            self._start_settling
+            and self._settling > 0
+            and air_part is None
+            and tooth > 0.0
+            and cutting
+        ):
+            # the run's first windows in the cut: chatter the background and the air reference
+            # have not seen is judged by its own signature and kept out of both (decision 1680;
+            # a window taken for air is not: on a compensated torque in air, lines with
+            # companions at ±f_tooth alarmed)
+            unlearned = self._unlearned_spectra(
+                spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+            )
+            if unlearned is not None:
+                self._air[:] = air_before
+                self._out_of_cut = False
+                return unlearned if isinstance(unlearned, Spectra) else None
+        if self._flag and self._settling > 0:
+            # the run's first chatter ended (or a settling after a speed change began): the
+            # start is over, the rest of the settling learns as any (an exit's ring-down)
+            self._start_settling = False
         settling = self._settling > 0
         rates = self._rates[False] if settling else self._rates[cutting]
         mask = self._harm_mask
@@ -458,6 +508,7 @@ class ChatterMonitor(Block):
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
                            not self._has_background, factor, mask, novel, b0, b1,
                            *rates)  # fmt: skip
+        self._comb_at = g.pos  # the window whose comb amplitudes ``comb`` holds (1680)
         self._has_background = True
         if settling:
             self._settling -= 1
@@ -501,6 +552,112 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
                        held=bool(self._flag))  # fmt: skip
+
+    def _unlearned_spectra(
+        self,
+        spectra: np.ndarray,
+        f_t: float,
+        f_rev: float,
+        b0: int,
+        b1: int,
+        tooth: float,
+        air: np.ndarray,
+        level: float,
+    ) -> Spectra | bool | None:
+        """The spectra of a window during the run's first settling (decision 1680), judged
+        without the learned background when its comb-filtered spectrum carries chatter's
+        signature: those spectra (a verdict, the window not learned), True (the signature seen
+        on this window only: no verdict, not learned), or None (the window learns and settles
+        as any other). Called for a window in the cut (also one whose mean steps: chatter's
+        limit cycle moves an accelerometer's mean).
+
+        The background a run starts from is its first window's spectrum, learned for 0.5 s
+        without a verdict (decision 1537). When the cut starts before the speed has been
+        steady over a window (no air at speed, a record that starts in the cut), chatter
+        present then or starting within the settling was learned into it and never judged:
+        the ratio stayed 0. A steady tone there is not chatter (decision 1537) and a per-bin
+        background cannot tell the two apart; the physics can. The cutting force is the
+        vibration modulated by the tooth angles, so a chatter line at ω_c comes with lines at
+        ω_c ± l·N·Ω (Aslan Eq. 5.25; decision 1501), and a regenerative vibration grows or
+        holds its limit cycle where a stable cut's free vibration after its entry decays.
+
+        The line judged is the window's largest comb line new to what the run learned so far
+        (above 5 × the background if there is one, 2 × while chatter is flagged). It is chatter
+        when the method's verdict on it is (the seed's ratio over the tooth line, the
+        reference no less than 3 × the floor, Eq. 5.30; decision 1658's stand-out test) and:
+        a companion at ±f_tooth or ±2 f_tooth (the largest of the nearest bin and its
+        neighbours, not on a spindle harmonic) stands above the level Rayleigh noise reaches
+        over the band with a chance of 1e-3 from the band's median (:func:`.methods.line_level`
+        at the median) and carries :data:`COMPANION_SHARE` of the line (the comb's ring-down
+        of a harmonic beside a steady tone does not); a window straddling an entry or an exit
+        is read against its part's tooth line (decision 1542, as after an exit); the line is
+        not below :data:`NOT_DECAYING` × its amplitude (±2 bins) in the previous window, and
+        was seen there (two windows: 0.1 s). While
+        chatter is flagged the line's hold suffices (as after the settling). The novelty the
+        method reads is then the line and its companions. A window with chatter is not learned
+        (neither the background nor the air floor and mean), so the settling resumes with the
+        first window without it; once that first chatter has ended the start is over and the
+        rest of the settling learns as any settling does."""
+        comb, novel, raw = self._comb, self._novel, self._raw
+        pos = self._stage.pos
+        had_prev = self._comb_at == pos - self._hop  # the previous window's amplitudes
+        prev = comb.copy()
+        _kn.amplitude(spectra[1], self._comb_scale, comb)
+        self._comb_at = pos
+        mask = self._harm_mask
+        if self._has_background:  # what the windows before it learned is not new
+            factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
+            _kn.novelty(comb, self._background, factor, mask, novel)
+        else:
+            _kn.novelty(comb, np.zeros_like(comb), 1.0, mask, novel)
+        k = _kn.band_argmax(novel, b0, b1)
+        if not (b0 <= k < b1 and novel[k] > 0.0):
+            return None
+        decaying = had_prev and comb[k] < NOT_DECAYING * float(np.max(prev[max(k - 2, 0) : k + 3]))
+        if decaying and not self._flag:
+            return None  # a stable cut's transient (decision 1680)
+        # the ratio's reference as in the cut (decision 1531): the tooth line, no less than
+        # 3 × the floor (the band median, or the smaller floor learned out of the cut)
+        floor = float(np.median(raw[b0:b1]))
+        if air[_kn.HAS_FLOOR] > 0.0:
+            floor = min(floor, float(air[_kn.AIR_FLOOR]))
+        tooth_ref = max(tooth, CUTTING_GATE * floor)
+        df = self._df
+        f_c = float(self._f[k])
+        noise = line_level(comb, mask, b0, b1, 1.0, k, quantile=0.5)
+        family = [k]
+        for ell in (1, 2):
+            for f in (f_c - ell * f_t, f_c + ell * f_t):
+                j = round(f / df)
+                lo, hi = max(j - 1, b0), min(j + 2, b1)
+                if hi <= lo:
+                    continue
+                j = lo + int(np.argmax(np.where(mask[lo:hi], -1.0, comb[lo:hi])))
+                if not mask[j] and comb[j] > max(noise, COMPANION_SHARE * comb[k]):
+                    family.append(j)
+        if len(family) == 1 and not self._flag:
+            return None  # no companion (while flagged the line's hold suffices)
+        part = self._straddle(f_t, f_rev, level)
+        if part is not None:
+            # an entry or an exit within the window (decision 1542): the reference is the tooth
+            # line of its part in the cut, as after an exit, not the Hann-weighted line of a
+            # window partly in air beside which the comb's ring-down reads as chatter
+            tooth_ref = max(tooth_ref, part[2])
+        keep = novel[family].copy()
+        novel.fill(-1.0)
+        novel[family] = keep
+        raw_rect = None
+        if self.method.name == "chatter-sdft" and self.method.taper == "rect":
+            raw_rect = self._raw_rect
+            _kn.amplitude(rfft(self._xr), 2.0 / len(self._xr), raw_rect)
+        sp = Spectra(self._f, self._raw, comb, self._band, tooth_ref, f_t, f_rev, True, novel,
+                     raw_rect, band_slice=(b0, b1), peak_bin=k, masked=mask,
+                     held=bool(self._flag))  # fmt: skip
+        if not self.method.decide(sp, None).chatter:
+            return None
+        if not (had_prev or self._flag):
+            return True  # chatter's signature seen once: neither judged nor learned yet
+        return sp
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
         """Whether the full window just decided straddles an entry or an exit (decision
