@@ -438,13 +438,9 @@ class ChatterMonitor(Block):
                 # the run's start: a window whose mean the chatter itself moves (an
                 # accelerometer's limit cycle) is judged by chatter's signature (decision 1680)
                 self._update_harm_mask(f_rev)
-                unlearned = self._unlearned_spectra(
-                    spectra, f_t, f_rev, b0, b1, tooth, air_before, level
-                )
-                if unlearned is not None:
-                    self._air[:] = air_before
-                    self._out_of_cut = False
-                    return unlearned if isinstance(unlearned, Spectra) else None
+                at_start = self._start_window(spectra, f_t, f_rev, b0, b1, tooth, air_before, level)
+                if at_start is not None:
+                    return at_start[0]
             # entry, exit or a large step inside the window: the part after the step, if it
             # resolves the lines (decision 1539; at an entry down to two revolutions, decision
             # 1543), else no decision
@@ -484,13 +480,9 @@ class ChatterMonitor(Block):
             # have not seen is judged by its own signature and kept out of both (decision 1680;
             # a window taken for air is not: on a compensated torque in air, lines with
             # companions at ±f_tooth alarmed)
-            unlearned = self._unlearned_spectra(
-                spectra, f_t, f_rev, b0, b1, tooth, air_before, level
-            )
-            if unlearned is not None:
-                self._air[:] = air_before
-                self._out_of_cut = False
-                return unlearned if isinstance(unlearned, Spectra) else None
+            at_start = self._start_window(spectra, f_t, f_rev, b0, b1, tooth, air_before, level)
+            if at_start is not None:
+                return at_start[0]
         if self._flag and self._settling > 0:
             # the run's first chatter ended (or a settling after a speed change began): the
             # start is over, the rest of the settling learns as any (an exit's ring-down)
@@ -552,6 +544,28 @@ class ChatterMonitor(Block):
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
                        held=bool(self._flag))  # fmt: skip
+
+    def _start_window(
+        self,
+        spectra: np.ndarray,
+        f_t: float,
+        f_rev: float,
+        b0: int,
+        b1: int,
+        tooth: float,
+        air: np.ndarray,
+        level: float,
+    ) -> tuple[Spectra | None] | None:
+        """:meth:`_unlearned_spectra` applied: None where the window learns as any other, else
+        the window's outcome in a 1-tuple (its spectra to judge, or None: no verdict), the air
+        reference left as it was before the window and the window counted in the cut
+        (decision 1680)."""
+        unlearned = self._unlearned_spectra(spectra, f_t, f_rev, b0, b1, tooth, air, level)
+        if unlearned is None:
+            return None
+        self._air[:] = air
+        self._out_of_cut = False
+        return (unlearned if isinstance(unlearned, Spectra) else None,)
 
     def _unlearned_spectra(
         self,
