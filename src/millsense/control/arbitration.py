@@ -325,13 +325,14 @@ class Supervisor(Block):
             res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
             data.update(res.channels)
             channels.append(res.channels)
-            for ev in res.events:
-                if ev.kind is EventKind.OVERRIDE:
-                    self._pending.append(ev)
-                else:
-                    events.append(ev)
-                    self._pending.append(ev)
+            self._gather(res.events, events)
         return channels
+
+    def _gather(self, child_events: Sequence[Event], events: list[Event]) -> None:
+        """A child's events for the next decision; its ALARM and NOTE events passed on (its
+        OVERRIDE proposals only through the decision)."""
+        self._pending.extend(child_events)
+        events.extend(ev for ev in child_events if ev.kind is not EventKind.OVERRIDE)
 
     def _calm(self) -> bool:
         """Nothing the decisions of the coming periods do to the children is pending: no
@@ -410,12 +411,7 @@ class Supervisor(Block):
                 for k, v in res.channels.items():
                     parts[i].setdefault(k, []).append(np.asarray(v))
                 evs = res.events
-            for ev in evs:
-                if ev.kind is EventKind.OVERRIDE:
-                    self._pending.append(ev)
-                else:
-                    events.append(ev)
-                    self._pending.append(ev)
+            self._gather(evs, events)
 
     def _after_piece(
         self,

@@ -438,7 +438,9 @@ class ChatterMonitor(Block):
                 # the run's start: a window whose mean the chatter itself moves (an
                 # accelerometer's limit cycle) is judged by chatter's signature (decision 1680)
                 self._update_harm_mask(f_rev)
-                at_start = self._start_window(spectra, f_t, f_rev, b0, b1, tooth, air_before, level)
+                at_start = self._unlearned_spectra(
+                    spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+                )
                 if at_start is not None:
                     return at_start[0]
             # entry, exit or a large step inside the window: the part after the step, if it
@@ -480,7 +482,9 @@ class ChatterMonitor(Block):
             # have not seen is judged by its own signature and kept out of both (decision 1680;
             # a window taken for air is not: on a compensated torque in air, lines with
             # companions at ±f_tooth alarmed)
-            at_start = self._start_window(spectra, f_t, f_rev, b0, b1, tooth, air_before, level)
+            at_start = self._unlearned_spectra(
+                spectra, f_t, f_rev, b0, b1, tooth, air_before, level
+            )
             if at_start is not None:
                 return at_start[0]
         if self._flag and self._settling > 0:
@@ -545,27 +549,13 @@ class ChatterMonitor(Block):
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
                        held=bool(self._flag))  # fmt: skip
 
-    def _start_window(
-        self,
-        spectra: np.ndarray,
-        f_t: float,
-        f_rev: float,
-        b0: int,
-        b1: int,
-        tooth: float,
-        air: np.ndarray,
-        level: float,
-    ) -> tuple[Spectra | None] | None:
-        """:meth:`_unlearned_spectra` applied: None where the window learns as any other, else
-        the window's outcome in a 1-tuple (its spectra to judge, or None: no verdict), the air
-        reference left as it was before the window and the window counted in the cut
-        (decision 1680)."""
-        unlearned = self._unlearned_spectra(spectra, f_t, f_rev, b0, b1, tooth, air, level)
-        if unlearned is None:
-            return None
+    def _not_learned(self, air: np.ndarray, sp: Spectra | None) -> tuple[Spectra | None]:
+        """A run-start window kept out of what the run learns (decision 1680): the air
+        reference as it was before it, the window counted in the cut; its spectra to judge
+        (None: no verdict) in a 1-tuple."""
         self._air[:] = air
         self._out_of_cut = False
-        return (unlearned if isinstance(unlearned, Spectra) else None,)
+        return (sp,)
 
     def _unlearned_spectra(
         self,
@@ -577,13 +567,13 @@ class ChatterMonitor(Block):
         tooth: float,
         air: np.ndarray,
         level: float,
-    ) -> Spectra | bool | None:
+    ) -> tuple[Spectra | None] | None:
         """The spectra of a window during the run's first settling (decision 1680), judged
         without the learned background when its comb-filtered spectrum carries chatter's
-        signature: those spectra (a verdict, the window not learned), True (the signature seen
-        on this window only: no verdict, not learned), or None (the window learns and settles
-        as any other). Called for a window in the cut (also one whose mean steps: chatter's
-        limit cycle moves an accelerometer's mean).
+        signature: in a 1-tuple, those spectra (a verdict, the window not learned) or None
+        (the signature seen on this window only: no verdict, not learned); or None (the window
+        learns and settles as any other). Called for a window in the cut (also one whose mean
+        steps: chatter's limit cycle moves an accelerometer's mean).
 
         The background a run starts from is its first window's spectrum, learned for 0.5 s
         without a verdict (decision 1537). When the cut starts before the speed has been
@@ -670,8 +660,9 @@ class ChatterMonitor(Block):
         if not self.method.decide(sp, None).chatter:
             return None
         if not (had_prev or self._flag):
-            return True  # chatter's signature seen once: neither judged nor learned yet
-        return sp
+            # chatter's signature seen once: neither judged nor learned yet
+            return self._not_learned(air, None)
+        return self._not_learned(air, sp)
 
     def _straddle(self, f_t: float, f_rev: float, level: float) -> tuple[int, bool, float] | None:
         """Whether the full window just decided straddles an entry or an exit (decision
