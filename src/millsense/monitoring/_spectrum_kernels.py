@@ -50,22 +50,34 @@ def _l(m: float, d: float, kb: float) -> complex:
 
 
 @numba.njit(cache=True)
-def _least_squares(
-    a: ComplexArray, b: ComplexArray, x: ComplexArray, edge: bool
-) -> tuple[float, float]:
-    """Real amplitudes (α, β) minimising |x − α a − β b|² (β = 0 without the edge term): the
-    2×2 normal equations of the seed 004 harmonic fit, shared by the fit and its residual."""
+def _gram(
+    a: ComplexArray, b: ComplexArray, x: ComplexArray, n: int
+) -> tuple[float, float, float, float, float]:
+    """The real Gram sums of the bases a, b and the data x over their first ``n`` rows: (a·a,
+    a·b, b·b, a·x, b·x) with u·v = Σ Re(conj(u_j) v_j) — the normal equations of the harmonic
+    fit (:func:`_least_squares`), its Jacobian (:func:`_vp_jacobian`) and the edge test
+    (:func:`_mean_informs`)."""
     aa = 0.0
     ab = 0.0
     bb = 0.0
     ax = 0.0
     bx = 0.0
-    for j in range(x.shape[0]):
+    for j in range(n):
         aa += a[j].real ** 2 + a[j].imag ** 2
         bb += b[j].real ** 2 + b[j].imag ** 2
         ab += (a[j].conjugate() * b[j]).real
         ax += (a[j].conjugate() * x[j]).real
         bx += (b[j].conjugate() * x[j]).real
+    return aa, ab, bb, ax, bx
+
+
+@numba.njit(cache=True)
+def _least_squares(
+    a: ComplexArray, b: ComplexArray, x: ComplexArray, edge: bool
+) -> tuple[float, float]:
+    """Real amplitudes (α, β) minimising |x − α a − β b|² (β = 0 without the edge term): the
+    2×2 normal equations of the seed 004 harmonic fit, shared by the fit and its residual."""
+    aa, ab, bb, ax, bx = _gram(a, b, x, x.shape[0])
     alpha = 0.0
     beta = 0.0
     if edge:
@@ -291,17 +303,7 @@ def _vp_jacobian(
     for j in range(n):
         a[j] = _over_i(gc[idx[0, j]] - gc[idx[2, j]], 2.0) * lk[j]
         b[j] = gc[idx[1, j]] * lk[j]
-    aa = 0.0
-    ab = 0.0
-    bb = 0.0
-    ax = 0.0
-    bx = 0.0
-    for j in range(n):
-        aa += a[j].real ** 2 + a[j].imag ** 2
-        bb += b[j].real ** 2 + b[j].imag ** 2
-        ab += (a[j].conjugate() * b[j]).real
-        ax += (a[j].conjugate() * xn[j]).real
-        bx += (b[j].conjugate() * xn[j]).real
+    aa, ab, bb, ax, bx = _gram(a, b, xn, n)
     # (ΦᵀΦ)⁻¹ = [[i11, i12], [i12, i22]] (0 where singular: α = β = 0, as the fit sets them)
     i11 = 0.0
     i12 = 0.0
@@ -978,13 +980,7 @@ def _mean_informs(
     """:func:`mean_informs_edge` from the bases A_k, B_k of the first ``n_harm`` harmonics at
     (d, st, ex) — those :func:`_fit_basis` gives, so that :func:`estimate` computes them once
     for the test and the amplitudes."""
-    aa = 0.0
-    ab = 0.0
-    bb = 0.0
-    for j in range(n_harm):
-        aa += a[j].real ** 2 + a[j].imag ** 2
-        bb += b[j].real ** 2 + b[j].imag ** 2
-        ab += (a[j].conjugate() * b[j]).real
+    aa, ab, bb, _, _ = _gram(a, b, a, n_harm)
     b_perp = bb - ab * ab / aa if aa > 0.0 else bb
     b0 = (ex - st) / (2.0 * math.pi) * d
     return b0 * b0 / mean_var > 2.0 * b_perp
