@@ -51,6 +51,10 @@ FORMATS = {
 }
 #: NaN runs up to this many samples are filled by linear interpolation; longer ones refused.
 MAX_NAN_FILL = 10
+#: A time step shorter than this share of the median step is refused: two rows within less
+#: than half a sample period are no regular sampling (a logger's write times, a merged file),
+#: and no uniform grid holds both. Jitter within it is resampled linearly (reported).
+MIN_STEP_SHARE = 0.5
 
 
 def read_table(path: Path, options: FileOptions | None = None) -> RawTable:
@@ -152,7 +156,7 @@ def _on_grid(
             "give [[files]] sample_rate_hz in the map or --rate-hz"
         )
     tcol = table.time_column(opt.time_column)
-    if opt.time_column is not None and tcol not in table.columns:
+    if tcol is not None and tcol not in table.columns:
         raise InputDataError(f"{where}: no time column {opt.time_column!r}")
     cols = {k: v for k, v in table.columns.items() if k != tcol}
     n = table.n_rows
@@ -167,6 +171,11 @@ def _on_grid(
     # the map's time_unit, else the file's (units row, "Time [ms]"), else seconds
     unit = opt.time_unit or table.units.get(tcol, "") or "s"
     factor = time_factor(unit, f"{where}: time column {tcol!r}")
+    if tcol in table.clock_origin and factor != 1.0:
+        raise ConfigError(
+            f"{where}: time column {tcol!r} holds dates and times (read in s): time_unit = "
+            f"{opt.time_unit!r} does not apply"
+        )
     t = np.asarray(table.columns[tcol], dtype=np.float64) * factor
     if not np.all(np.isfinite(t)):
         k = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -176,7 +185,12 @@ def _on_grid(
     fs, _, _ = rate_from_time(t, stated, where, report)
     bad = [f for f in report.refusals if f.where == where]
     if bad:
-        raise InputDataError(bad[0].message)
+        row = bad[0].data.get("row")
+        line = (
+            f" (line {table.first_line + int(row)} of the file)" if row and table.first_line else ""
+        )
+        raise InputDataError(bad[0].message + line)
+    _refuse_irregular(t, table, tcol, where)
     pos = (t - t[0]) * fs
     k = np.rint(pos).astype(np.int64)
     m = int(k[-1]) + 1
@@ -197,6 +211,24 @@ def _on_grid(
         filled[:] = False
         grid = {c: np.interp(np.arange(m), pos, v) for c, v in cols.items()}
     return _Timed(table, fs, float(t[0]), grid, stated, True, filled)
+
+
+def _refuse_irregular(t: np.ndarray, table: RawTable, tcol: str, where: str) -> None:
+    """One line naming the first row that comes less than :data:`MIN_STEP_SHARE` of the median
+    step after the one before it (time increasing, checked before)."""
+    dt = np.diff(t)
+    nominal = float(np.median(dt))
+    short = np.flatnonzero(dt < MIN_STEP_SHARE * nominal)
+    if not short.size:
+        return
+    k = int(short[0]) + 1
+    at = f"line {table.first_line + k}" if table.first_line else f"row {k + 1}"
+    raise InputDataError(
+        f"{where}: {at}: irregular time column {tcol!r}: a step of {dt[k - 1] * 1e3:.6g} ms "
+        f"after {t[k - 1]:.9g} s, less than {MIN_STEP_SHARE:g} x the median step "
+        f'{nominal * 1e3:.6g} ms ({short.size} such steps): give [[files]] time_column = "" '
+        "and sample_rate_hz if the rows are evenly sampled"
+    )
 
 
 def _fill_index(k: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
@@ -357,6 +389,10 @@ def import_files(
         if rate_fs:
             rec = _with_rate(rec, float(np.median(rate_fs)))
     rec.metadata["stated_sample_rate_hz"] = fastest.stated
+    tcol = fastest.table.time_column(opts[fastest.table.path].time_column)
+    if fastest.has_time and tcol in fastest.table.clock_origin:
+        # the wall-clock time of t = 0 s, as the file wrote it
+        rec.metadata["time_origin"] = fastest.table.clock_origin[tcol]
     rec.metadata["quality_json"] = report.to_json()
     if report.refusals:
         raise InputDataError(report.refusals[0].message)

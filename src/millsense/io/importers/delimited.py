@@ -7,6 +7,12 @@ the numbers, in German-locale exports with ``;`` as delimiter and a decimal comm
 finds the table as the first run of lines that are all numbers, takes the row before it as the
 units row when it is not numeric and the row before that holds names, and keeps the ``key:
 value`` lines before as the header (a stated sample rate is read from it).
+
+Data loggers and PC acquisition software stamp each row with the wall clock instead:
+ISO-8601 dates and times (``2026-11-29T10:15:02.123456``, a space for the ``T``, with or
+without a zone offset or ``Z``). Such a column is read as seconds from its first row (on UTC
+when the stamps carry offsets, so a change of summer time is no jump), and the first stamp as
+written is kept (:attr:`RawTable.clock_origin`).
 """
 
 from __future__ import annotations
@@ -26,6 +32,11 @@ __all__ = ["read_delimited", "write_delimited"]
 _CANDIDATES = (";", "\t", ",", "|")
 _UNIT_IN_NAME = re.compile(r"^(.*?)\s*[\[(]([^\])]*)[\])]\s*$")
 _KEY_VALUE = re.compile(r"^\s*([^:=;\t,]+?)\s*[:=;\t,]\s*(.+?)\s*$")
+#: An ISO-8601 date and time: ``T`` or a space, seconds and fraction optional, ``Z``/offset.
+_DATETIME = re.compile(
+    r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?(?:Z|[+-]\d{2}:?\d{2})?$"
+)
+_ZONE = re.compile(r"(?:Z|[+-]\d{2}:?\d{2})$")
 
 
 def _text(path: Path) -> str:
@@ -39,6 +50,15 @@ def _text(path: Path) -> str:
         except UnicodeDecodeError:
             continue
     raise InputDataError(f"{path}: not a text file")  # pragma: no cover - cp1252 decodes all
+
+
+def _is_datetime(field: str) -> bool:
+    return _DATETIME.match(field.strip().strip('"')) is not None
+
+
+def _is_cell(field: str, decimal: str) -> bool:
+    """A number, an empty cell or an ISO-8601 date and time (a table's cell, not text)."""
+    return _is_number(field, decimal) or _is_datetime(field)
 
 
 def _is_number(field: str, decimal: str) -> bool:
@@ -55,10 +75,10 @@ def _is_number(field: str, decimal: str) -> bool:
 
 
 def _numeric_line(fields: list[str], decimal: str) -> bool:
-    return any(f.strip() for f in fields) and all(_is_number(f, decimal) for f in fields)
+    return any(f.strip() for f in fields) and all(_is_cell(f, decimal) for f in fields)
 
 
-_DATA_LIKE = re.compile(r"^[\s\d.,;|\t+\-eEnaNifINF\"]*\d[\s\d.,;|\t+\-eEnaNifINF\"]*$")
+_DATA_LIKE = re.compile(r"^[\s\d.,;:|\t+\-eEnaNifINFTZ\"]*\d[\s\d.,;:|\t+\-eEnaNifINFTZ\"]*$")
 
 
 def _sniff(lines: list[str], decimal: str = ".") -> str:
@@ -180,8 +200,11 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
     body_lines = lines[start:]
     while body_lines and not body_lines[-1].strip():
         body_lines.pop()
-    data = _parse(path, body_lines, delimiter, decimal, width, names, start)
+    clock = [k for k, f in enumerate(split[start]) if _is_datetime(f)]
+    data = _parse(path, body_lines, delimiter, decimal, width, names, start, clock)
     columns = {nm: np.ascontiguousarray(data[:, k]) for k, nm in enumerate(names)}
+    for k in clock:
+        units[k] = "s"
     return RawTable(
         path=path,
         columns=columns,
@@ -189,6 +212,7 @@ def read_delimited(path: Path, delimiter: str | None = None, decimal: str = ".")
         stated_rate_hz=rate_from_header(header),
         header=header,
         first_line=start + 1,
+        clock_origin={names[k]: _name(split[start][k]) for k in clock},
     )
 
 
@@ -200,8 +224,10 @@ def _parse(
     width: int,
     names: list[str],
     start: int,
+    clock: list[int],
 ) -> np.ndarray:
-    """The numbers of the table, shape (rows, width); empty cells are NaN."""
+    """The numbers of the table, shape (rows, width); empty cells are NaN; the columns
+    ``clock`` (ISO-8601 stamps) in seconds from their first row."""
     text = "\n".join(body)
     if decimal == ",":
         text = text.replace(",", ".")
@@ -211,18 +237,87 @@ def _parse(
     text = re.sub(rf"(?m)(?<={e})$", "nan", text)
     for _ in range(2):
         text = re.sub(rf"{e}(?={e})", f"{d}nan", text)
+    numeric = [k for k in range(width) if k not in clock]
     try:
-        arr = np.loadtxt(io.StringIO(text), delimiter=d, dtype=np.float64, ndmin=2)
+        if clock:
+            arr = np.full((len(body), width), np.nan)
+            if numeric:
+                arr[:, numeric] = np.loadtxt(
+                    io.StringIO(text), delimiter=d, dtype=np.float64, ndmin=2, usecols=numeric
+                )
+            for k in clock:
+                arr[:, k] = _clock_seconds(path, text, d, k, names[k], start)
+        else:
+            arr = np.loadtxt(io.StringIO(text), delimiter=d, dtype=np.float64, ndmin=2)
     except ValueError:
-        _locate_bad(path, body, d, decimal, width, names, start)
+        _locate_bad(path, body, d, decimal, width, names, start, clock)
         raise  # pragma: no cover - _locate_bad always raises
     if arr.shape[1] != width:  # pragma: no cover - loadtxt checks the widths
         raise InputDataError(f"{path}: {arr.shape[1]} columns, the header has {width}")
     return arr
 
 
+def _clock_seconds(path: Path, text: str, d: str, k: int, name: str, start: int) -> np.ndarray:
+    """Column ``k`` of ``text`` (ISO-8601 stamps) as seconds after its first row: parsed by
+    Arrow (C, no per-row Python), on UTC when the first stamp has a zone offset.
+
+    Raises
+    ------
+    InputDataError
+        One line naming the line and column: a stamp that is no date and time, or one with a
+        zone offset among stamps without (or the reverse).
+    ValueError
+        Another number of fields on a line (located by the caller).
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    from pyarrow import csv as pcsv
+
+    try:
+        col = pcsv.read_csv(
+            io.BytesIO(text.encode()),
+            read_options=pcsv.ReadOptions(autogenerate_column_names=True),
+            parse_options=pcsv.ParseOptions(delimiter=d),
+            convert_options=pcsv.ConvertOptions(
+                include_columns=[f"f{k}"], column_types={f"f{k}": pa.string()}
+            ),
+        ).column(0)
+    except pa.ArrowInvalid as exc:
+        raise ValueError(str(exc)) from None
+    col = pc.utf8_trim_whitespace(col.combine_chunks())
+    col = pc.replace_substring_regex(col, pattern="^(.{10}) ", replacement="\\1T")
+    col = pc.replace_substring_regex(col, pattern=",", replacement=".")
+    first = str(col[0])
+    zoned = _ZONE.search(first) is not None
+    try:
+        stamps = pc.cast(col, pa.timestamp("ns", tz="UTC" if zoned else None))
+    except pa.ArrowInvalid:
+        for i, v in enumerate(col.to_pylist()):  # error path only: find the line
+            if not _is_datetime(v):
+                raise InputDataError(
+                    f"{path}: line {start + i + 1}, column {k + 1} ('{name}'): {v!r} is not "
+                    "an ISO-8601 date and time"
+                ) from None
+            if (_ZONE.search(v) is not None) != zoned:
+                has = "without" if zoned else "with"
+                raise InputDataError(
+                    f"{path}: line {start + i + 1}, column {k + 1} ('{name}'): {v!r} {has} a "
+                    f"zone offset, the first stamp ({first!r}) {'with' if zoned else 'without'}"
+                ) from None
+        raise InputDataError(f"{path}: column {k + 1} ('{name}'): stamps not read") from None
+    ns = stamps.cast(pa.int64()).to_numpy(zero_copy_only=False)
+    return (ns - ns[0]).astype(np.float64) * 1e-9
+
+
 def _locate_bad(
-    path: Path, body: list[str], d: str, decimal: str, width: int, names: list[str], start: int
+    path: Path,
+    body: list[str],
+    d: str,
+    decimal: str,
+    width: int,
+    names: list[str],
+    start: int,
+    clock: list[int],
 ) -> None:
     """Raise the one-line error naming the first bad line and column (error path only)."""
     for i, ln in enumerate(body):
@@ -236,7 +331,12 @@ def _locate_bad(
                 f"(delimiter {d!r})"
             )
         for k, f in enumerate(fields):
-            if not _is_number(f, decimal):
+            if k in clock and not _is_datetime(f):
+                raise InputDataError(
+                    f"{path}: line {line}, column {k + 1} ('{names[k]}'): "
+                    f"{f.strip()!r} is not an ISO-8601 date and time"
+                )
+            if k not in clock and not _is_number(f, decimal):
                 raise InputDataError(
                     f"{path}: line {line}, column {k + 1} ('{names[k]}'): "
                     f"{f.strip()!r} is not a number"

@@ -13,6 +13,7 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     match = "trace*.csv"       # glob on the file name (default "*": every file)
     sample_rate_hz = 10000     # stated rate when the file has no time column (or a header)
     time_column = "Time"       # a time column (its unit: time_unit) instead of a stated rate
+                               # ("": none, although one is named like one: the rate is stated)
     time_unit = "ms"           # default: the file's (units row, "Time [ms]"), else s
     delimiter = ";"            # csv/tsv: default sniffed among , ; tab
     decimal = ","              # csv/tsv: decimal comma (Siemens exports in German locale)

@@ -36,6 +36,8 @@ class RawTable:
         that messages can name a row's line.
     skipped : variable name → (its size, why it is not a column): a .mat matrix, a vector of
         another length, so that a map naming it is told why.
+    clock_origin : column of wall-clock stamps (ISO-8601 in a text file, read as seconds from
+        its first row) → its first stamp as written.
     """
 
     path: Path
@@ -45,6 +47,7 @@ class RawTable:
     header: dict[str, str] = field(default_factory=dict)
     first_line: int = 0
     skipped: dict[str, tuple[str, str]] = field(default_factory=dict)
+    clock_origin: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -54,12 +57,15 @@ class RawTable:
         return 0
 
     def time_column(self, name: str | None) -> str | None:
-        """The time column: ``name`` if given, else one named like :data:`TIME_NAMES`."""
+        """The time column: ``name`` if given (``""``: none, the rate is stated), else one
+        named like :data:`TIME_NAMES`, else the only column of wall-clock stamps."""
         if name is not None:
-            return name
+            return name or None
         for col in self.columns:
             if col.strip().lower() in TIME_NAMES:
                 return col
+        if len(self.clock_origin) == 1:
+            return next(iter(self.clock_origin))
         return None
 
 
