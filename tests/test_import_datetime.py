@@ -183,3 +183,15 @@ def test_written_recording_keeps_the_time_origin(
     rec = read_recording(out)
     assert rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
     assert rec.metadata["time_origin"] == "2026-11-29 10:15:02.123456"
+
+
+def test_time_column_ignored_when_the_map_says_so(tmp_path: Path) -> None:
+    """The refusal's remedy: ``time_column = ""`` with a stated rate reads the same irregular
+    file as evenly sampled at 1000 Hz (exactly the stated rate: no time column measures it)."""
+    t = np.arange(60) * 1e-3
+    t[29] = 28.2e-3
+    text = "time,I\n" + "".join(f"{v:.7f},{k % 3}\n" for k, v in enumerate(t))
+    mapping = '[[files]]\ntime_column = ""\nsample_rate_hz = 1000\n\n' + MAP_I
+    rec = _import(tmp_path, text, mapping).recording
+    assert rec.sample_rate_hz == 1000.0
+    assert rec.n_samples == 60
