@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from millsense.cli.main import main
@@ -175,8 +176,9 @@ def test_plan_warns_of_a_rapid_through_material(
     collision on a machine: `plan` warns once, naming the program's line, and writes the plan
     with the warning in its metadata (it was a note among the plan's notes before)."""
     prog = tmp_path / "rapid.nc"
-    prog.write_text("G21 G90 G17\nS1000 M3\nG0 X-15 Y40 Z5\nG0 Z-2\nG0 X30\nG1 X60 F400\nG0 Z5\n"
-                    "M30\n")
+    prog.write_text(
+        "G21 G90 G17\nS1000 M3\nG0 X-15 Y40 Z5\nG0 Z-2\nG0 X30\nG1 X60 F400\nG0 Z5\nM30\n"
+    )
     out = tmp_path / "p.parquet"
     code, stdout, err = _run(["plan", str(prog), *_common(), "-o", str(out)], capsys)
     assert code == 0, err
@@ -186,3 +188,38 @@ def test_plan_warns_of_a_rapid_through_material(
     from millsense.plan.virtual_plan import VirtualPlan
 
     assert any("rapid (G0)" in w for w in VirtualPlan.read(out).metadata["warnings"])
+
+
+@pytest.mark.parametrize("below_mm", [0.0, 0.3, 2.0])
+def test_plan_through_the_stock_bottom_cuts_with_the_flutes_inside_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], below_mm: float
+) -> None:
+    """A slot through a 10 mm plate with the tip 0, 0.3 and 2 mm below its bottom: the
+    flutes below the bottom cut nothing, so the axial depth is the plate (10 mm; it was the
+    tip's 10.3 and 12 mm, and the layers under the bottom were dropped whole, leaving 10.3
+    and 9.6 mm of cutting edge) and the mean torque the hand computation of a slot:
+    T = N R a / (2π) · 2 K_tc c (shear part; Ø20 2-flute, a = 10 mm, c = 0.1 mm/tooth,
+    K_tc = 758 N/mm²) = 4.8256 N·m. Tolerance 1e-6: the z-map's float32 heights and exact
+    slot intervals [0, π]."""
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    stock = tmp_path / "plate.toml"
+    stock.write_text('kind = "box"\nmin_mm = [0, 0, -10]\nmax_mm = [60, 40, 0]\n')
+    prog = tmp_path / "through.nc"
+    z = -10.0 - below_mm
+    prog.write_text(
+        f"G21 G90 G17\nS6000 M3\nG0 X-15 Y20 Z5\nG1 Z{z:.1f} F600\nG1 X75 F1200\nG0 Z5\nM30\n"
+    )
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "aslan-d20-2flute"]
+    args += ["--material", "al7050", "--resolution-mm", "0.5", "-o", str(out)]
+    code, _, err = _run(args, capsys)
+    assert code == 0, err
+    plan = VirtualPlan.read(out)
+    mid = (plan["x_mm"] > 20) & (plan["x_mm"] < 40) & plan["in_cut"]
+    assert mid.sum() >= 40
+    assert plan["axial_depth_mm"][mid] == pytest.approx(10.0, rel=1e-6)
+    assert plan["engaged_area_mm2"][mid] == pytest.approx(200.0, rel=1e-6)  # a D
+    hand = 2 * 10.0 * 10.0 / (2 * np.pi) * 2 * 758.0 * 0.1 * 1e-3  # N·mm → N·m
+    assert plan["ktc_n_mm2"][mid] == pytest.approx(758.0)
+    assert plan["torque_avg_shear_nm"][mid] == pytest.approx(hand, rel=1e-6)
