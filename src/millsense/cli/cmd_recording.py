@@ -87,35 +87,47 @@ def _metadata_text(key: str, value: object, recording: Path) -> str:
 @app.command()
 def plot(
     recording: Path = typer.Argument(..., help="Recording file (.h5)."),
-    channel: list[str] = typer.Option(..., "--channel", "-c", help="Channel to plot (repeat)."),
+    channel: list[str] = typer.Option(
+        ...,
+        "--channel",
+        "-c",
+        help="Channel, or a stream's field as STREAM/FIELD, or a whole STREAM (repeat; "
+        "`millsense info` lists them).",
+    ),
     out: Path = typer.Option(..., "-o", "--output", help="PNG file to write."),
     t_start: float | None = typer.Option(None, "--from-s", help="Start time [s]."),
     t_end: float | None = typer.Option(None, "--to-s", help="End time [s]."),
 ) -> None:
-    """Plot channels of a recording against time into a PNG (one panel per unit)."""
+    """Plot channels and stream fields of a recording against time into a PNG (one panel per
+    unit; a slower stream's rows marked)."""
     from millsense.io.recording_file import read_recording
     from millsense.io.safe_output import check_outputs
-    from millsense.report.plots import plot_channels
+    from millsense.report.plots import plot_channels, recording_series
 
     check_outputs({"the recording": recording}, {"-o": out}, suffixes={"-o": ".png"})
     rec = read_recording(recording)
-    for c in channel:
-        rec.channel(c)  # unknown channel -> one-line error naming it
+    window = None
     if t_start is not None or t_end is not None:
         t0 = rec.t0_s if t_start is None else t_start
         t1 = rec.t0_s + rec.duration_s if t_end is None else t_end
         if t1 <= t0:
             raise UserError(f"--from-s {t0:g} must be before --to-s {t1:g}")
-        n = rec.slice_time(t0, t1).n_samples
-        if n < 2:  # nothing to draw a line through
-            raise UserError(
-                f"{recording}: --from-s {t0:g} --to-s {t1:g} holds {n} sample"
-                f"{'' if n == 1 else 's'}; the recording spans t = {rec.t0_s:g} to "
-                f"{rec.t0_s + rec.duration_s:g} s"
-            )
-        plot_channels(rec, channel, out, (t0, t1))
-    else:
-        plot_channels(rec, channel, out)
+        window = (t0, t1)
+    for sr in recording_series(rec, channel, window):  # unknown name -> one line naming it
+        n = sr.time_s.size
+        if n >= 2:
+            continue
+        # nothing to draw a line through
+        where = "" if window is None else f"--from-s {window[0]:g} --to-s {window[1]:g} "
+        if sr.stream is None:
+            held = f"{n} sample{'' if n == 1 else 's'}"
+            span = f"the recording spans t = {rec.t0_s:g} to {rec.t0_s + rec.duration_s:g} s"
+        else:
+            t = rec.stream(sr.stream).time_s
+            held = f"{n} row{'' if n == 1 else 's'} of stream '{sr.stream}'"
+            span = f"the stream spans t = {t[0]:g} to {t[-1]:g} s" if t.size else "it has no rows"
+        raise UserError(f"{recording}: {where}holds {held} for '{sr.label}'; {span}")
+    plot_channels(rec, channel, out, window)
     Console().print(f"wrote {out}")
 
 
