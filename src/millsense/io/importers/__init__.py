@@ -169,7 +169,7 @@ def _on_grid(
         report.rates[where] = (stated, stated)
         return _Timed(table, float(stated), 0.0, cols, stated, False, np.zeros(n, bool))
     # the map's time_unit, else the file's (units row, "Time [ms]"), else seconds
-    unit = opt.time_unit or table.units.get(tcol, "") or "s"
+    unit = opt.time_unit or table.unit_of(tcol) or "s"
     factor = time_factor(unit, f"{where}: time column {tcol!r}")
     if tcol in table.clock_origin and factor != 1.0:
         raise ConfigError(
@@ -240,7 +240,7 @@ def _fill_index(k: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
 def _convert(ch: ChannelMap, timed: _Timed, where: str) -> tuple[np.ndarray, str]:
     unit = ch.unit
     if unit == "header":
-        unit = timed.table.units.get(ch.column, "")
+        unit = timed.table.unit_of(ch.column)
         if not unit:
             raise InputDataError(
                 f"{timed.table.path}: column {ch.column!r} has no unit in the file: give "

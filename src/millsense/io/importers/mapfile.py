@@ -26,7 +26,9 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     offset = 0.0
     file = "trace*.csv"        # optional glob: which file holds the column
 
-``unit = "header"`` takes the unit from the file's unit row (Servo Trace / TNCscope exports).
+``unit = "header"`` takes the unit from the file's unit row (Servo Trace / TNCscope exports), a
+bracket in the name (``I_x [A]``) or a known unit after the name's last underscore (``x_current_A``,
+``time_ms``: also a time column).
 Counts (encoder positions): give the unit one count is expressed in and the count size as
 ``scale`` (``unit = "um"``, ``scale = 0.5`` for 0.5 µm per count).
 """
