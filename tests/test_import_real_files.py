@@ -58,3 +58,25 @@ def test_a_name_ending_in_no_unit_still_asks_for_one(tmp_path: Path) -> None:
     csv, m = _write(tmp_path, "a.csv", "time_ms,coolant_on\n" + rows, mapping)
     with pytest.raises(InputDataError, match="column 'coolant_on' has no unit in the file"):
         import_files([csv], load_map(m))
+
+
+def test_no_mains_hum_on_a_constant_or_a_finely_quantised_channel() -> None:
+    """A 10-minute import reported "60 Hz mains hum" on a constant 0.3 A channel (lines of
+    5.7e-21 A standing 39 dB over a floor of rounding residue) and on a spindle speed written
+    to 0.01 rev/min (2e-5 rad/s lines, 1/50 of one step of the file's resolution). A line
+    below half the channel's quantisation step is the rounding pattern, not the mains; a
+    constant channel has no spectrum. 60 s at 10 kHz of each; a real 0.05 A hum on a current
+    written to 1e-5 A is still found with its amplitude (Hann window: 10 %)."""
+    from millsense.io.quality import mains_hum
+
+    fs = 10_000.0
+    t = np.arange(int(60 * fs)) / fs
+    assert mains_hum(np.full(t.size, 0.3), fs) is None
+    speed = np.round(3000 + 2 * np.sin(t), 2) * 2 * np.pi / 60  # %.2f rev/min
+    assert mains_hum(speed, fs) is None
+    rng = np.random.default_rng(1)
+    current = 2 * np.sin(2 * np.pi * 100 * t) + 0.05 * np.sin(2 * np.pi * 60 * t)
+    current = np.round(current + 0.01 * rng.standard_normal(t.size), 5)
+    hum = mains_hum(current, fs, rotation_hz=50.0)
+    assert hum is not None and hum[0] == 60.0
+    assert hum[1][0][1] == pytest.approx(0.05, rel=0.1)

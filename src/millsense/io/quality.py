@@ -396,12 +396,20 @@ def mains_hum(
     Hann-windowed amplitude spectrum of the whole channel (linear trend removed); a line is
     the peak within ±0.5 Hz of k·50 or k·60 Hz, compared with the median of the spectrum
     from −10 to +10 Hz around it (±1.5 Hz excluded). The fundamental must stand
-    :data:`HUM_RATIO` above; harmonics are listed when they do too.
+    :data:`HUM_RATIO` above; harmonics are listed when they do too. A line must also reach
+    half the channel's quantisation step (its smallest non-zero change between samples): below
+    it the line is the rounding pattern of the file's resolution (a speed written to
+    0.01 rev/min), and a constant channel has no hum.
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     if n < fs or not np.all(np.isfinite(x)) or fs < 2 * 65:
         return None
+    change = np.abs(np.diff(x))
+    change = change[change > 0]
+    if not change.size:
+        return None  # constant
+    least = 0.5 * float(change.min())
     k = np.arange(n)
     y = x - np.polyval(np.polyfit(k, x, 1), k)
     win = np.hanning(n)
@@ -417,6 +425,8 @@ def mains_hum(
             return None
         floor = float(np.median(spec[around]))
         peak = float(spec[near].max())
+        if peak < least:
+            return None
         return peak, peak / max(floor, 1e-300)
 
     def process_line(f: float) -> bool:
