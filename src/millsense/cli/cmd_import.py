@@ -102,9 +102,26 @@ def import_(
         "feed_mm_min": feed_mm_min,
         "flutes": flutes,
     }
-    res = import_files(
-        files, mapping, rate_hz=rate_hz, metadata=meta, map_source=str(map_file), source=str(out)
-    )
+    from rich.console import Console
+    from rich.progress import Progress
+
+    with Progress(console=Console(stderr=True), transient=True) as bar:
+        tasks: dict[Path, Any] = {}
+
+        def update(path: Path, done: int, total: int) -> None:
+            if path not in tasks:
+                tasks[path] = bar.add_task(f"read {path.name}", total=total)
+            bar.update(tasks[path], completed=done, total=total)
+
+        res = import_files(
+            files,
+            mapping,
+            rate_hz=rate_hz,
+            metadata=meta,
+            map_source=str(map_file),
+            source=str(out),
+            progress=update,
+        )
     rec = res.recording
     write_recording(out, rec)
     _print_report(res.report)

@@ -13,8 +13,9 @@ it back.
 from __future__ import annotations
 
 import fnmatch
+import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,8 +58,13 @@ MAX_NAN_FILL = 10
 MIN_STEP_SHARE = 0.5
 
 
-def read_table(path: Path, options: FileOptions | None = None) -> RawTable:
-    """Read one file with the reader of its suffix.
+def read_table(
+    path: Path,
+    options: FileOptions | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RawTable:
+    """Read one file with the reader of its suffix (``progress(done, total)``: a text file's
+    characters read, after each chunk of its table).
 
     Raises
     ------
@@ -72,7 +78,7 @@ def read_table(path: Path, options: FileOptions | None = None) -> RawTable:
     if kind in ("csv", "tsv"):
         from millsense.io.importers.delimited import read_delimited
 
-        return read_delimited(path, opt.delimiter, opt.decimal)
+        return read_delimited(path, opt.delimiter, opt.decimal, progress)
     if kind == "mat":
         from millsense.io.importers.matlab import read_mat
 
@@ -314,6 +320,7 @@ def import_files(
     metadata: Mapping[str, object] | None = None,
     map_source: str = "map",
     source: str = "millsense import",
+    progress: Callable[[Path, int, int], None] | None = None,
 ) -> ImportResult:
     """Read ``paths``, apply ``mapping`` and check the result.
 
@@ -325,6 +332,7 @@ def import_files(
     metadata : added over the map's ``[metadata]`` (CLI options).
     map_source : how messages name the map (its path).
     source : how messages name the recording (``metadata['source']``, e.g. the output file).
+    progress : ``progress(file, done, total)`` while a text file is read (characters).
 
     Returns
     -------
@@ -342,7 +350,10 @@ def import_files(
     _check_process_metadata(mapping.metadata, f"{map_source}: [metadata]")
     _check_process_metadata(metadata or {}, "--")
     opts = {p: mapping.options_for(p) for p in paths}
-    tables = [read_table(p, opts[p]) for p in paths]
+    tables = [
+        read_table(p, opts[p], None if progress is None else functools.partial(progress, p))
+        for p in paths
+    ]
     users: dict[Path, list[ChannelMap]] = {t.path: [] for t in tables}
     for i, ch in enumerate(mapping.channels):
         where = f"{map_source}: channels[{i}] ({ch.channel})"
