@@ -181,3 +181,20 @@ def test_plot_unknown_name_lists_channels_and_stream_fields(
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "holds 1 row of stream 'tcp'" in err and "t = 0 to 0.198 s" in err
     assert not png.exists()
+
+
+def test_info_shows_units_in_brackets_that_look_like_styles(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`info` printed an imported stream's fields as "a_position , c_position": rich took
+    "[rad]" for a style and dropped it (also "[m]", "[bold]" in a description or a file
+    name). The recording's text is escaped: the unit and the 100-row count are shown."""
+    rec = Recording(1000.0, metadata={"source": "[bold] run"})
+    t = np.arange(200) / 1000.0
+    rec.add_channel("x/position_cmd", t, "m", "X [mm] of trace.csv")
+    rec.add_stream("axes", t[::2], {"a_position": t[::2]}, {"a_position": "rad"})
+    write_recording(tmp_path / "r.h5", rec)
+    code, out, _ = run_cli(["info", str(tmp_path / "r.h5")], capsys)
+    assert code == 0
+    assert "stream axes: 100 rows, ~500 Hz: a_position [rad]" in out
+    assert "X [mm] of trace.csv" in out and "[bold] run" in out

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from millsense.cli.main import app
@@ -32,16 +33,17 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
         _print_recovered(recording, None)
     status = recording_status(recording)
     rec = read_recording(recording)
-    console.print(f"[bold]{recording}[/]", markup=True)
+    # the file's own text is escaped: rich took "[rad]" of a stream field's unit for a style
+    console.print(f"[bold]{escape(str(recording))}[/]", markup=True)
     console.print(
         f"{rec.n_samples} samples at {rec.sample_rate_hz:g} Hz = {rec.duration_s:.4g} s "
         f"from t0 = {rec.t0_s:g} s"
     )
     if not status.complete:
-        console.print(f"[yellow]{status.message}[/]")
+        console.print(f"[yellow]{escape(status.message)}[/]")
     meta = Table(title="metadata", show_header=False)
     for k, v in rec.metadata.items():
-        meta.add_row(str(k), _metadata_text(str(k), v, recording))
+        meta.add_row(escape(str(k)), escape(_metadata_text(str(k), v, recording)))
     console.print(meta)
     table = Table(title="channels")
     for col in ("channel", "unit", "min", "max", "description"):
@@ -50,13 +52,15 @@ def info(recording: Path = typer.Argument(..., help="Recording file (.h5).")) ->
         ci = rec.info(name)
         x = rec.channel(name)
         lo, hi = (f"{x.min():.4g}", f"{x.max():.4g}") if len(x) else ("", "")
-        table.add_row(name, ci.unit, lo, hi, ci.description)
+        table.add_row(escape(name), escape(ci.unit), lo, hi, escape(ci.description))
     console.print(table)
     for sname in rec.stream_names:
         st = rec.stream(sname)
         rate = (len(st) - 1) / (st.time_s[-1] - st.time_s[0]) if len(st) > 1 else 0.0
         fields = ", ".join(f"{f} [{st.info[f].unit}]" for f in st.fields)
-        console.print(f"stream [bold]{sname}[/]: {len(st)} rows, ~{rate:.4g} Hz: {fields}")
+        console.print(
+            f"stream [bold]{escape(sname)}[/]: {len(st)} rows, ~{rate:.4g} Hz: {escape(fields)}"
+        )
 
 
 #: Metadata values longer than this are shortened in ``info`` (the file keeps them whole).
