@@ -418,12 +418,8 @@ def test_monitor_plot_draws_each_monitor_that_ran(
     assert code == 0, err
     assert png.stat().st_size > 30_000
     data = {"signal": np.zeros(10)}
-    for m, keys in (
-        ("chatter-comb", ("energy_ratio",)),
-        ("breakage-dual", ("residual1",)),
-        ("breakage-constant", ("residual1",)),
-        ("engagement", ("axial_depth",)),
-    ):
+    for m, keys in (("chatter-comb", ("energy_ratio",)), ("breakage-dual", ("residual1",)),
+                    ("breakage-constant", ("residual1",)), ("engagement", ("axial_depth",))):
         data.update({f"{m}/{k}": np.zeros(10) for k in keys})  # fmt: skip
     names = ["chatter-comb", "breakage-dual", "breakage-constant", "engagement", "contact"]
     assert monitor_panels(data, names) == [

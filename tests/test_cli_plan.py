@@ -176,9 +176,8 @@ def test_plan_warns_of_a_rapid_through_material(
     collision on a machine: `plan` warns once, naming the program's line, and writes the plan
     with the warning in its metadata (it was a note among the plan's notes before)."""
     prog = tmp_path / "rapid.nc"
-    prog.write_text(
-        "G21 G90 G17\nS1000 M3\nG0 X-15 Y40 Z5\nG0 Z-2\nG0 X30\nG1 X60 F400\nG0 Z5\nM30\n"
-    )
+    prog.write_text("G21 G90 G17\nS1000 M3\nG0 X-15 Y40 Z5\nG0 Z-2\nG0 X30\nG1 X60 F400\nG0 Z5\n"
+                    "M30\n")
     out = tmp_path / "p.parquet"
     code, stdout, err = _run(["plan", str(prog), *_common(), "-o", str(out)], capsys)
     assert code == 0, err

@@ -72,17 +72,11 @@ def _metadata_text(key: str, value: object, recording: Path) -> str:
     findings per kind, any other value cut to :data:`MAX_METADATA_CHARS` characters."""
     text = str(value)
     if key == "quality_json" and isinstance(value, str):
-        import json
-        from collections import Counter
+        from millsense.io.quality import finding_counts
 
-        try:
-            findings = json.loads(value).get("findings", [])
-            kinds = Counter(str(f.get("kind")) for f in findings)
-        except (ValueError, AttributeError):
-            kinds = None
-        if kinds is not None:
-            per_kind = ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) or "none"
-            return f"{sum(kinds.values())} findings ({per_kind}): millsense check {recording}"
+        counts = finding_counts(value)
+        if counts is not None:
+            return f"{counts}: millsense check {recording}"
     if len(text) > MAX_METADATA_CHARS:
         return f"{text[: MAX_METADATA_CHARS - 40]} … ({len(text)} characters)"
     return text

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -124,6 +125,18 @@ class QualityReport:
         rep = cls([Finding(**f) for f in d.get("findings", [])])
         rep.rates = {k: (v[0], v[1]) for k, v in d.get("rates", {}).items()}
         return rep
+
+
+def finding_counts(text: str) -> str | None:
+    """``"10 findings (gap 1, hum 1, ...)"``: the findings of a stored report
+    (:meth:`QualityReport.to_json`) per kind, in one line; None if it is no such JSON."""
+    try:
+        findings = json.loads(text).get("findings", [])
+        kinds = Counter(str(f.get("kind")) for f in findings)
+    except (ValueError, AttributeError, TypeError):
+        return None
+    per_kind = ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) or "none"
+    return f"{sum(kinds.values())} findings ({per_kind})"
 
 
 def runs_of(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:

@@ -153,7 +153,6 @@ def _breakage(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: fl
     deviation from its reference against ±band (what confirms), else residual 2 against
     ±limit 2 (seed 002's dual residual); ``unit``: the judged signal's ("": not known)."""
     from millsense.monitoring.breakage import SIGMA_TB  # limits are σ_TB × the reference
-
     g = {k: data[f"{name}/{k}"] for k in BREAKAGE_KEYS if f"{name}/{k}" in data}
     t = _time(g["residual1"], step, fs, t0)
     ax.plot(t, g["residual1"], lw=0.7, color="tab:blue", label="residual 1")
