@@ -116,3 +116,33 @@ def test_a_table_read_in_chunks_is_the_table_read_whole(
     (tmp_path / "a.csv").write_text(head + "\n".join(rows) + "\n")
     with pytest.raises(InputDataError, match=r"a.csv: line 2510, column 3 \('U'\)"):
         delimited.read_delimited(tmp_path / "a.csv", decimal=",")
+
+
+def test_excel_unicode_text_export_is_read(tmp_path: Path) -> None:
+    """Excel's "Unicode Text" (UTF-16 with a byte-order mark, tab-separated, CRLF) was read
+    as cp1252 and refused ("no table of numbers found"); its 300 rows at 1 kHz read as the
+    same table written in UTF-8."""
+    text = "time\tI\r\n" + "".join(f"{k * 1e-3:.3f}\t{k % 7}\r\n" for k in range(300))
+    (tmp_path / "u16.txt").write_bytes(text.encode("utf-16"))
+    mapping = '[[channels]]\ncolumn = "I"\nchannel = "x/current_cmd"\nunit = "A"\n'
+    (tmp_path / "m.toml").write_text(mapping)
+    rec = import_files([tmp_path / "u16.txt"], load_map(tmp_path / "m.toml")).recording
+    assert rec.sample_rate_hz == pytest.approx(1000.0, rel=1e-9)
+    np.testing.assert_array_equal(rec.channel("x/current_cmd"), np.arange(300) % 7)
+
+
+@pytest.mark.parametrize("bad_row", [0, 1, 2])
+def test_text_in_one_of_the_first_rows_is_named_at_its_line(tmp_path: Path, bad_row: int) -> None:
+    """A cell of text in one of the first three data rows moved the table's start below it and
+    took the bad row for the names: "no column 'I' ...; columns: '0.001', 'x'". It is named at
+    its line and column like one further down."""
+    from millsense.core.errors import InputDataError
+
+    rows = [f"{k * 1e-3:.3f},{k}" for k in range(10)]
+    rows[bad_row] = rows[bad_row].split(",")[0] + ",x"
+    (tmp_path / "bad.csv").write_text("time,I\n" + "\n".join(rows) + "\n")
+    mapping = '[[channels]]\ncolumn = "I"\nchannel = "x/current_cmd"\nunit = "A"\n'
+    (tmp_path / "m.toml").write_text(mapping)
+    with pytest.raises(InputDataError) as err:
+        import_files([tmp_path / "bad.csv"], load_map(tmp_path / "m.toml"))
+    assert f"bad.csv: line {bad_row + 2}, column 2 ('I'): 'x' is not a number" in str(err.value)

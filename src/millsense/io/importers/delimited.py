@@ -44,7 +44,11 @@ def _text(path: Path) -> str:
         raw = path.read_bytes()
     except OSError as exc:
         raise InputDataError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    for enc in ("utf-8-sig", "cp1252"):
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        encs: tuple[str, ...] = ("utf-16",)  # Excel's "Unicode Text" export
+    else:
+        encs = ("utf-8-sig", "cp1252")
+    for enc in encs:
         try:
             return raw.decode(enc)
         except UnicodeDecodeError:
@@ -208,6 +212,7 @@ def read_delimited(
             f"{hint}"
         )
     width = len(split[start])
+    _text_in_first_rows(path, lines, split, start, (delimiter, decimal))
     above = [i for i in range(start) if lines[i].strip()]
     names_row, units_row = None, None
     if above and len(split[above[-1]]) == width:
@@ -254,6 +259,36 @@ def read_delimited(
         first_line=start + 1,
         clock_origin={names[k]: _name(first_row[k]) for k in clock},
     )
+
+
+def _text_in_first_rows(
+    path: Path, lines: list[str], split: _LazySplit, start: int, dialect: tuple[str, str]
+) -> None:
+    """The table's start is the first of three rows of numbers: a cell of text in one of the
+    first data rows moved it below that row, taken for the names. Rows of the table's width
+    holding numbers right above the start, under a row of text of that width (the names),
+    are data rows: the first bad cell among them is named at its line (one line, raised)."""
+    d, decimal = dialect
+    width = len(split[start])
+    walked: list[int] = []
+    i = start - 1
+    while i >= 0:
+        f = split[i]
+        if not lines[i].strip():
+            i -= 1
+            continue
+        if len(f) != width:
+            return
+        if not any(f_.strip() and _is_cell(f_, decimal) for f_ in f):
+            break  # a row of text: the names (or the units)
+        walked.append(i)
+        i -= 1
+    if i < 0 or not walked:
+        return
+    names = [_name(f_) for f_ in split[i]]
+    clock = [k for k, f_ in enumerate(split[start]) if _is_datetime(f_)]
+    rows = sorted(walked)
+    _locate_bad(path, [lines[r] for r in rows], d, decimal, width, names, rows[0], clock)
 
 
 def _parse_chunks(
