@@ -146,3 +146,28 @@ def test_text_in_one_of_the_first_rows_is_named_at_its_line(tmp_path: Path, bad_
     with pytest.raises(InputDataError) as err:
         import_files([tmp_path / "bad.csv"], load_map(tmp_path / "m.toml"))
     assert f"bad.csv: line {bad_row + 2}, column 2 ('I'): 'x' is not a number" in str(err.value)
+
+
+def test_a_slower_channel_merged_into_the_table_becomes_a_stream(tmp_path: Path) -> None:
+    """A DAQ export with a 100 Hz temperature among 10 kHz currents (a value every 100th row,
+    blank between) was refused: "channel 'thermal/temp' has 99 missing (NaN) samples in a
+    row". It is the field 'temp' of the stream 'thermal' at 100 Hz: 50 rows at t = 0, 0.01
+    ... s with their values (exact), the current untouched."""
+    rows = []
+    for k in range(5000):
+        temp = f"{25 + k * 1e-4:.4f}" if k % 100 == 0 else ""
+        rows.append(f"{k * 1e-4:.4f},{np.sin(k / 7):.5f},{temp}\n")
+    mapping = (
+        '[[channels]]\ncolumn = "x_current_A"\nchannel = "x/current_cmd"\nunit = "header"\n'
+        '[[channels]]\ncolumn = "temp"\nchannel = "thermal/temp"\nunit = "1"\n'
+    )
+    csv, m = _write(tmp_path, "daq.csv", "time_s,x_current_A,temp\n" + "".join(rows), mapping)
+    res = import_files([csv], load_map(m))
+    rec = res.recording
+    st = rec.stream("thermal")
+    assert len(st) == 50
+    np.testing.assert_allclose(st.time_s, np.arange(50) * 0.01, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(st["temp"], np.round(25 + np.arange(50) * 0.01, 4))
+    assert rec.channel("x/current_cmd").size == 5000
+    (f,) = res.report.of_kind("nan")
+    assert "every 100 rows" in f.message and "100 Hz" in f.message

@@ -237,6 +237,48 @@ def _refuse_irregular(t: np.ndarray, table: RawTable, tcol: str, where: str) -> 
     )
 
 
+def _sparse_to_stream(
+    ch: ChannelMap,
+    x: np.ndarray,
+    si: str,
+    timed: _Timed,
+    streams: dict[str, tuple[np.ndarray, dict[str, np.ndarray], dict[str, str]]],
+    report: QualityReport,
+) -> bool:
+    """A column holding a value every k-th row (k > :data:`MAX_NAN_FILL`), blank between: a
+    slower channel merged into a DAQ's table (a temperature at 100 Hz among 10 kHz currents).
+    It becomes a stream at rate / k (STREAM/FIELD from its channel name) instead of a long
+    NaN run refused; True when so."""
+    idx = np.flatnonzero(np.isfinite(x))
+    if idx.size < 2:
+        return False
+    steps = np.diff(idx)
+    k = int(steps[0])
+    if k <= MAX_NAN_FILL or np.any(steps != k) or idx[0] >= k or x.size - idx[-1] > k:
+        return False
+    sname, _, fname = ch.channel.rpartition("/")
+    sname = sname or timed.table.path.stem
+    t = timed.t0 + idx / timed.fs
+    old = streams.setdefault(sname, (t, {}, {}))
+    if old[0].shape != t.shape or np.any(old[0] != t):
+        raise InputDataError(
+            f"{timed.table.path}: channel '{ch.channel}' holds a value every {k} rows, another "
+            f"field of stream '{sname}' not on the same rows: name them in different streams"
+        )
+    old[1][fname], old[2][fname] = x[idx], si
+    report.add(
+        Finding(
+            "nan",
+            ch.channel,
+            f"{timed.table.path}: channel '{ch.channel}' holds a value every {k} rows, blank "
+            f"between: stored as field '{fname}' of stream '{sname}' at "
+            f"{timed.fs / k:.6g} Hz ({idx.size} rows)",
+            data={"every": k, "rows": int(idx.size)},
+        )
+    )
+    return True
+
+
 def _fill_index(k: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
     if k.size == m:
         return np.asarray(v, dtype=np.float64)
@@ -369,15 +411,20 @@ def import_files(
     meta.update(mapping.metadata)
     meta.update({k: v for k, v in (metadata or {}).items() if v is not None})
     rec = Recording(fastest.fs, fastest.t0, meta)
+    sparse: dict[str, tuple[np.ndarray, dict[str, np.ndarray], dict[str, str]]] = {}
     for ch in users[fastest.table.path]:
         where = f"{map_source}: channel '{ch.channel}'"
         x, si = _convert(ch, fastest, where)
+        if _sparse_to_stream(ch, x, si, fastest, sparse, report):
+            continue
         x = _fill_nan(
             x, ch.channel, str(fastest.table.path), fastest.table.first_line, report, fastest.fs
         )
         rec.add_channel(
             ch.channel, x, si, ch.description or f"{ch.column} of {fastest.table.path.name}"
         )
+    for sname, (t_s, fields, units) in sparse.items():
+        rec.add_stream(sname, t_s, fields, units)
     for tm in timed.values():
         if tm is fastest:
             continue
