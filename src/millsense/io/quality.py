@@ -71,6 +71,10 @@ CONTINUOUS_FRACTION = 0.95
 CHANCE_RUN_PROBABILITY = 0.01
 #: Mains lines: a line this many times the median spectrum around it (20 dB).
 HUM_RATIO = 10.0
+#: ... and this many times the 99th percentile of that spectrum, away from the spindle's
+#: lines: a line of a comb (a periodic motion's harmonics, every 1/15 Hz of a position
+#: reversing every 15 s) has its like all around it and is no mains hum.
+HUM_COMB_RATIO = 3.0
 #: Units of external sensors whose offset may drift (charge amplifiers, IEPE, microphones).
 DRIFT_UNITS = ("N", "N*m", "m/s^2", "Pa", "V")
 
@@ -412,7 +416,9 @@ def mains_hum(
     :data:`HUM_RATIO` above; harmonics are listed when they do too. A line must also reach
     half the channel's quantisation step (its smallest non-zero change between samples): below
     it the line is the rounding pattern of the file's resolution (a speed written to
-    0.01 rev/min), and a constant channel has no hum.
+    0.01 rev/min), and a constant channel has no hum; and it must stand :data:`HUM_COMB_RATIO`
+    above the 99th percentile around it, away from the spindle's lines (a comb's line is no
+    hum).
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
@@ -439,6 +445,11 @@ def mains_hum(
         floor = float(np.median(spec[around]))
         peak = float(spec[near].max())
         if peak < least:
+            return None
+        if rotation_hz and rotation_hz > 0:  # the spindle's own lines are no comb
+            r = freqs / rotation_hz
+            around &= (np.abs(r - np.rint(r)) * rotation_hz > 1.0) | (np.rint(r) < 1)
+        if around.any() and peak < HUM_COMB_RATIO * float(np.percentile(spec[around], 99)):
             return None
         return peak, peak / max(floor, 1e-300)
 
