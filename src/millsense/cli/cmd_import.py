@@ -215,6 +215,9 @@ def export(
         text = export_recording(rec, tmp, fmt, channel or None, name=out.name)
     write_text(map_path, text)
     typer.echo(f"wrote {out} and {map_path}")
+    if rec.stream_names:  # said, not silently dropped
+        streams = ", ".join(f"{s} ({', '.join(rec.stream(s).fields)})" for s in rec.stream_names)
+        typer.echo(f"millsense: note: streams are not exported: {streams}", err=True)
 
 
 @app.command("example-data")
