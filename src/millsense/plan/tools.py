@@ -99,9 +99,9 @@ def assign_tools(segments: list[ToolSegment], specs: list[str], source: str) -> 
             t = segments[1].tool
             raise ProgramError(
                 f"{source}:{first[t]}: tool change to T{t} (the program uses {shown}); "
-                f"--tool {specs[0]} is one tool: give each its own, "
+                f"--tool {specs[0]} is one tool: `millsense plan` plans each with its own ("
                 + " ".join(f"--tool T{u}=TOOL" for u in used)
-                + " (one plan per tool, on one stock)"
+                + ": one plan per tool, on one stock; simulate and run take each with --plan)"
             )
         return [specs[0]] * len(segments)
     if len(pairs) != len(specs):
