@@ -195,3 +195,25 @@ def test_time_column_ignored_when_the_map_says_so(tmp_path: Path) -> None:
     rec = _import(tmp_path, text, mapping).recording
     assert rec.sample_rate_hz == 1000.0
     assert rec.n_samples == 60
+
+
+def test_files_stamped_with_the_wall_clock_are_laid_on_one_clock(tmp_path: Path) -> None:
+    """A 1 kHz drive trace from 10:15:02.123456 and a 10 Hz temperature log from 0.5 s
+    earlier (with a space for the T): each was read from its own first row, the log laid
+    0.5 s late. The log's rows start at -0.5 s on the trace's clock (1e-9 s: µs stamps)."""
+    (tmp_path / "log.csv").write_text(_csv(_stamps(1000, 1e-3)))
+    t_log = [
+        (T0 + timedelta(seconds=-0.5 + 0.1 * k)).isoformat(sep=" ", timespec="microseconds")
+        for k in range(20)
+    ]
+    (tmp_path / "temp.csv").write_text(
+        "stamp,temp\n" + "".join(f"{s},{20 + k}\n" for k, s in enumerate(t_log))
+    )
+    mapping = MAP_I + '\n[[channels]]\ncolumn = "temp"\nchannel = "thermal/temp"\nunit = "1"\n'
+    (tmp_path / "m.toml").write_text(mapping)
+    rec = import_files(
+        [tmp_path / "log.csv", tmp_path / "temp.csv"], load_map(tmp_path / "m.toml")
+    ).recording
+    st = rec.stream("thermal")
+    np.testing.assert_allclose(st.time_s, -0.5 + 0.1 * np.arange(20), rtol=0, atol=1e-9)
+    assert rec.t0_s == 0.0 and rec.metadata["time_origin"] == "2026-11-29T10:15:02.123456"

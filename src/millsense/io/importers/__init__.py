@@ -237,6 +237,43 @@ def _refuse_irregular(t: np.ndarray, table: RawTable, tcol: str, where: str) -> 
     )
 
 
+def _clock_start(tm: _Timed, opt: FileOptions) -> str | None:
+    """The first wall-clock stamp of a file read on its clock column, else None."""
+    tcol = tm.table.time_column(opt.time_column)
+    return tm.table.clock_origin.get(tcol) if tm.has_time and tcol is not None else None
+
+
+def _on_one_clock(
+    timed: Mapping[Path, _Timed], fastest: _Timed, opts: Mapping[Path, FileOptions]
+) -> None:
+    """Files stamped with the wall clock start where their first stamps say, relative to the
+    fastest file's first stamp (t = 0): each was read as seconds from its own first row, so a
+    temperature log started 0.5 s before the drives' trace was laid 0.5 s late.
+
+    Raises
+    ------
+    InputDataError
+        Stamps with a zone offset in one file and without in another: no common clock.
+    """
+    from millsense.io.importers.delimited import stamp_ns
+
+    ref = _clock_start(fastest, opts[fastest.table.path])
+    if ref is None:
+        return
+    ref_ns, zoned = stamp_ns(ref)
+    for path, tm in timed.items():
+        start = _clock_start(tm, opts[path])
+        if tm is fastest or start is None:
+            continue
+        start_ns, other = stamp_ns(start)
+        if other != zoned:
+            raise InputDataError(
+                f"{path}: its first stamp {start!r} and {fastest.table.path}'s {ref!r}: one has "
+                "a zone offset and the other not: no common clock"
+            )
+        tm.t0 = (start_ns - ref_ns) * 1e-9
+
+
 def _sparse_to_stream(
     ch: ChannelMap,
     x: np.ndarray,
@@ -403,6 +440,7 @@ def import_files(
     used = [t for t in tables if users[t.path]]
     timed = {t.path: _on_grid(t, opts[t.path], rate_hz, report) for t in used}
     fastest = max(timed.values(), key=lambda tm: tm.fs)
+    _on_one_clock(timed, fastest, opts)
     meta: dict[str, object] = {
         "source": source,
         "imported_from": [str(p) for p in paths],

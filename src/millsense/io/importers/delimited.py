@@ -60,6 +60,19 @@ def _is_datetime(field: str) -> bool:
     return _DATETIME.match(field.strip().strip('"')) is not None
 
 
+def stamp_ns(stamp: str) -> tuple[int, bool]:
+    """An ISO-8601 date and time as written (``T`` or a space, ``,`` or ``.`` before the
+    fraction) → (ns since 1970, on UTC when it has a zone offset; whether it has one)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    text = stamp.strip()
+    text = (text[:10] + "T" + text[11:]).replace(",", ".")
+    zoned = _ZONE.search(text) is not None
+    value = pc.cast(pa.array([text]), pa.timestamp("ns", tz="UTC" if zoned else None))
+    return int(value.cast(pa.int64())[0].as_py()), zoned
+
+
 def _is_cell(field: str, decimal: str) -> bool:
     """A number, an empty cell or an ISO-8601 date and time (a table's cell, not text)."""
     return _is_number(field, decimal) or _is_datetime(field)
