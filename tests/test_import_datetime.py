@@ -217,3 +217,17 @@ def test_files_stamped_with_the_wall_clock_are_laid_on_one_clock(tmp_path: Path)
     st = rec.stream("thermal")
     np.testing.assert_allclose(st.time_s, -0.5 + 0.1 * np.arange(20), rtol=0, atol=1e-9)
     assert rec.t0_s == 0.0 and rec.metadata["time_origin"] == "2026-11-29T10:15:02.123456"
+
+
+def test_files_on_a_zoned_and_an_unzoned_clock_refused(tmp_path: Path) -> None:
+    """One file's stamps carry +01:00, the other's none: no common clock, one line naming
+    both first stamps."""
+    from millsense.core.errors import InputDataError
+
+    (tmp_path / "log.csv").write_text(_csv(_stamps(100, 1e-3)))
+    zoned = [s + "+01:00" for s in _stamps(10, 0.1)]
+    (tmp_path / "temp.csv").write_text("stamp,temp\n" + "".join(f"{s},20\n" for s in zoned))
+    mapping = MAP_I + '\n[[channels]]\ncolumn = "temp"\nchannel = "thermal/temp"\nunit = "1"\n'
+    (tmp_path / "m.toml").write_text(mapping)
+    with pytest.raises(InputDataError, match=r"temp\.csv: its first stamp .* no common clock"):
+        import_files([tmp_path / "log.csv", tmp_path / "temp.csv"], load_map(tmp_path / "m.toml"))
