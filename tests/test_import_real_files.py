@@ -219,3 +219,22 @@ def test_export_says_the_streams_it_does_not_write(
     code, _, err = run_cli([*args, "-o", str(tmp_path / "t.csv")], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "'thermal/temp': a stream of" in err and "streams are not exported" in err
+
+
+def test_a_refusal_is_one_line_on_stderr_also_outside_a_terminal(tmp_path: Path) -> None:
+    """With the progress bar of `import` (and `plan`'s) the refusal of an empty file came
+    after an empty line when stderr was a log or a pipe (rich's bar stopping): exactly one
+    line now, exit status 2, as a script sees it (a subprocess, stderr a pipe)."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "empty.csv").write_text("")
+    (tmp_path / "m.toml").write_text(MAP)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
+    args = [sys.executable, "-m", "millsense", "import", str(tmp_path / "empty.csv")]
+    args += ["--map", str(tmp_path / "m.toml"), "-o", str(tmp_path / "o.h5")]
+    r = subprocess.run(args, capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("millsense: error: ")
+    assert "empty.csv: no table of numbers found" in r.stderr

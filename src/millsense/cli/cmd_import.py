@@ -105,7 +105,9 @@ def import_(
     from rich.console import Console
     from rich.progress import Progress
 
-    with Progress(console=Console(stderr=True), transient=True) as bar:
+    console = Console(stderr=True)
+    # not on a terminal (a log, a pipe) no bar: rich left an empty line there
+    with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
         tasks: dict[Path, Any] = {}
 
         def update(path: Path, done: int, total: int) -> None:

@@ -181,7 +181,7 @@ def _build_plans(
     for seg, name in zip(segments, names, strict=True):
         tool_cfg = tool_cfgs[name]
         label = program.name if len(segments) == 1 else f"{program.name} T{seg.tool}"
-        with Progress(console=console, transient=True) as bar:
+        with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
             task = bar.add_task(f"plan {label}", total=1)
             # one stock for all tools: each segment cuts what the ones before it left
             plan = plan_program(
