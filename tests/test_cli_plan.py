@@ -292,6 +292,31 @@ def test_plan_each_tool_of_a_program_with_its_tool_on_one_stock(
     assert "p_T1.parquet" in std and "p_T2.parquet" in std
 
 
+def test_plot_of_one_tools_plan_names_the_tool(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each tool's plot was titled with the program alone ("two.nc" on both): the tool's
+    number and name follow it."""
+    from matplotlib.figure import Figure
+
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.report.plan_plots import plot_plan
+
+    stock, prog, t2 = _two_tools(tmp_path)
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "T1=aslan-d20-2flute"]
+    args += ["--tool", f"T2={t2}", "--material", "al7050", "--resolution-mm", "0.5"]
+    try:
+        main([*args, "-o", str(out)])
+    except SystemExit as exc:
+        assert not exc.code
+    titles: list[str] = []
+    real = Figure.suptitle
+    monkeypatch.setattr(Figure, "suptitle", lambda f, t, **kw: titles.append(t) or real(f, t, **kw))
+    plot_plan(VirtualPlan.read(tmp_path / "p_T2.parquet"), tmp_path / "t2.png")
+    assert titles == [f"{prog}: T2 (D10)"]
+
+
 @pytest.mark.parametrize(
     ("tools", "expect"),
     [
