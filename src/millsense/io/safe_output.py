@@ -58,7 +58,9 @@ SESSION_SUFFIXES = {"-o": ".h5", "--events": ".parquet", "--plan-out": ".parquet
                     "--report": ".html"}  # fmt: skip
 
 
-def check_outputs(inputs: Named, outputs: Named, suffixes: Mapping[str, str] | None = None) -> None:
+def check_outputs(
+    inputs: Named, outputs: Named, suffixes: Mapping[str, str] | None = None
+) -> None:
     """Refuse an output that is one of the inputs, or two outputs that are the same file, or
     an output whose name does not end as what it holds (:data:`OUTPUT_SUFFIXES`, and the
     command's own ``suffixes``: option name → suffix, e.g. ``{"-o": ".html"}``).
