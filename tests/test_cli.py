@@ -138,3 +138,63 @@ def test_plot_window_without_two_samples_is_refused(
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert held in err and "t = 0 to 0.2 s" in err
     assert not png.exists()
+
+
+def test_plot_draws_stream_fields_beside_channels(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording's slower streams (an imported 333 Hz file, the tcp stream here) were not
+    drawable: `-c tcp/x` was "unknown channel". STREAM/FIELD and a whole STREAM are drawn; in
+    the window 0.05-0.1 s the tcp rows are those of t ≥ 0.05 s and < 0.1 s (every 30th sample
+    of 10 kHz: 17 rows), with their values (x = 0.02 t m, exact)."""
+    from millsense.io.recording_file import read_recording
+    from millsense.report.plots import recording_series
+
+    p = small_recording(tmp_path / "r.h5")
+    png = tmp_path / "p.png"
+    args = ["plot", str(p), "-c", "x/current_cmd", "-c", "tcp/x", "-o", str(png)]
+    code, _, err = run_cli([*args, "--from-s", "0.05", "--to-s", "0.1"], capsys)
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rec = read_recording(p)
+    cur, tcp = recording_series(rec, ["x/current_cmd", "tcp/x"], (0.05, 0.1))
+    assert cur.time_s.size == 500 and cur.unit == "A"
+    assert tcp.unit == "m" and tcp.stream == "tcp" and tcp.time_s.size == 17
+    assert tcp.time_s[0] == pytest.approx(0.051, abs=1e-12)  # first multiple of 3 ms ≥ 50 ms
+    np.testing.assert_allclose(tcp.values, 0.02 * tcp.time_s, rtol=0, atol=1e-15)
+    (whole,) = recording_series(rec, ["tcp"])
+    assert whole.label == "tcp/x" and whole.time_s.size == 67  # ceil(2000 / 30)
+
+
+def test_plot_unknown_name_lists_channels_and_stream_fields(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An unknown name (or field of a stream) is one line listing both kinds of names; a
+    window holding one row of a stream is refused as for the channels, naming the stream."""
+    p = small_recording(tmp_path / "r.h5")
+    png = tmp_path / "p.png"
+    code, _, err = run_cli(["plot", str(p), "-c", "tcp/y", "-o", str(png)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "unknown channel 'tcp/y'" in err and "stream fields: tcp/x" in err
+    args = ["plot", str(p), "-c", "tcp/x", "-o", str(png), "--from-s", "0.05", "--to-s", "0.053"]
+    code, _, err = run_cli(args, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "holds 1 row of stream 'tcp'" in err and "t = 0 to 0.198 s" in err
+    assert not png.exists()
+
+
+def test_info_shows_units_in_brackets_that_look_like_styles(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`info` printed an imported stream's fields as "a_position , c_position": rich took
+    "[rad]" for a style and dropped it (also "[m]", "[bold]" in a description or a file
+    name). The recording's text is escaped: the unit and the 100-row count are shown."""
+    rec = Recording(1000.0, metadata={"source": "[bold] run"})
+    t = np.arange(200) / 1000.0
+    rec.add_channel("x/position_cmd", t, "m", "X [mm] of trace.csv")
+    rec.add_stream("axes", t[::2], {"a_position": t[::2]}, {"a_position": "rad"})
+    write_recording(tmp_path / "r.h5", rec)
+    code, out, _ = run_cli(["info", str(tmp_path / "r.h5")], capsys)
+    assert code == 0
+    assert "stream axes: 100 rows, ~500 Hz: a_position [rad]" in out
+    assert "X [mm] of trace.csv" in out and "[bold] run" in out

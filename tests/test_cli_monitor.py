@@ -590,3 +590,41 @@ def test_monitor_plot_breakage_axes_in_the_judged_torques_unit(
     assert float(np.max(line.get_ydata())) == 0.25
     fig = mp.monitor_figure(data, 1000.0, 10, 0.0, "x", ["breakage-dual"], [])
     assert fig.axes[-1].get_ylabel() == "breakage-dual\n[N·m or N]"
+
+
+def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports() -> None:
+    """On an imported slot the depth panel drew every revolution's held value as dots, one per
+    plotted step, which read as lines: 27 mm "depths" of a 4 mm slot and K_t of 1e18 N/m²
+    in air looked like results while the summary said "1 of 57 revolutions reliable" (K_e ≥ 0
+    is not in the plotted data). The command passes the revolutions it reports; the others are
+    one hollow circle each. Here 4 revolutions of 10 steps: σ passes on 3, the summary keeps
+    2 (one has K_e < 0): the depth line holds 20 steps, 2 circles mark the rest."""
+    from types import SimpleNamespace
+
+    from millsense.cli.cmd_monitor import _reported
+    from millsense.report.monitor_plots import monitor_figure
+
+    def est(sigma: float, kt: float, ke: float) -> SimpleNamespace:
+        return SimpleNamespace(reliability=sigma, kt_n_m2=kt, edge_n_m=ke)
+
+    fs, step = 1000.0, 10
+    revs = [est(0.9, 8e8, 1e4), est(0.9, 8e8, -5e3), est(0.5, 8e8, 1e4), est(0.95, 8e8, 1e4)]
+    block = SimpleNamespace(estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)])
+    n = 50  # steps of 10 samples: 0.5 s; revolution k is held from 0.1 (k + 1) s on
+    reported = _reported(block, n, step, fs, None)
+    held = np.searchsorted([0.1, 0.2, 0.3, 0.4], np.arange(n) * step / fs, side="right") - 1
+    np.testing.assert_array_equal(reported, np.isin(held, [0, 3]))
+    depth = np.where(held >= 0, 1e-3 * (4.0 + held), np.nan)  # 4, 5, 6, 7 mm
+    data = {
+        "engagement/axial_depth": depth,
+        "engagement/reliability": np.array([np.nan, 0.9, 0.9, 0.5, 0.95])[held + 1],
+        "engagement/kt": np.full(n, 8e8),
+        "engagement/reported": reported,
+    }
+    fig = monitor_figure(data, fs, step, 0.0, "spindle/torque", ["engagement"], [])
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    y = np.asarray(lines["axial depth"].get_ydata(), dtype=float)
+    assert np.count_nonzero(np.isfinite(y)) == 20
+    assert set(np.round(y[np.isfinite(y)] * 1.0, 6)) == {4.0, 7.0}
+    circles = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
+    assert len(circles[0].get_xdata()) == 2  # revolutions 1 and 2 (5 and 6 mm)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from millsense.cli.main import main
@@ -186,3 +187,170 @@ def test_plan_warns_of_a_rapid_through_material(
     from millsense.plan.virtual_plan import VirtualPlan
 
     assert any("rapid (G0)" in w for w in VirtualPlan.read(out).metadata["warnings"])
+
+
+@pytest.mark.parametrize("below_mm", [0.0, 0.3, 2.0])
+def test_plan_through_the_stock_bottom_cuts_with_the_flutes_inside_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], below_mm: float
+) -> None:
+    """A slot through a 10 mm plate with the tip 0, 0.3 and 2 mm below its bottom: the
+    flutes below the bottom cut nothing, so the axial depth is the plate (10 mm; it was the
+    tip's 10.3 and 12 mm, and the layers under the bottom were dropped whole, leaving 10.3
+    and 9.6 mm of cutting edge) and the mean torque the hand computation of a slot:
+    T = N R a / (2π) · 2 K_tc c (shear part; Ø20 2-flute, a = 10 mm, c = 0.1 mm/tooth,
+    K_tc = 758 N/mm²) = 4.8256 N·m. Tolerance 1e-6: the z-map's float32 heights and exact
+    slot intervals [0, π]."""
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    stock = tmp_path / "plate.toml"
+    stock.write_text('kind = "box"\nmin_mm = [0, 0, -10]\nmax_mm = [60, 40, 0]\n')
+    prog = tmp_path / "through.nc"
+    z = -10.0 - below_mm
+    prog.write_text(
+        f"G21 G90 G17\nS6000 M3\nG0 X-15 Y20 Z5\nG1 Z{z:.1f} F600\nG1 X75 F1200\nG0 Z5\nM30\n"
+    )
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "aslan-d20-2flute"]
+    args += ["--material", "al7050", "--resolution-mm", "0.5", "-o", str(out)]
+    code, _, err = _run(args, capsys)
+    assert code == 0, err
+    plan = VirtualPlan.read(out)
+    mid = (plan["x_mm"] > 20) & (plan["x_mm"] < 40) & plan["in_cut"]
+    assert mid.sum() >= 40
+    assert plan["axial_depth_mm"][mid] == pytest.approx(10.0, rel=1e-6)
+    assert plan["engaged_area_mm2"][mid] == pytest.approx(200.0, rel=1e-6)  # a D
+    hand = 2 * 10.0 * 10.0 / (2 * np.pi) * 2 * 758.0 * 0.1 * 1e-3  # N·mm → N·m
+    assert plan["ktc_n_mm2"][mid] == pytest.approx(758.0)
+    assert plan["torque_avg_shear_nm"][mid] == pytest.approx(hand, rel=1e-6)
+
+
+_TWO_TOOLS = """G21 G90 G17
+T1 M6
+S6000 M3
+G0 X-15 Y20 Z5
+G1 Z-2 F600
+G1 X75 F1200
+G0 Z5
+T2 M6
+S8000 M3
+G0 X-15 Y20
+G1 Z-2 F600
+G1 X75 F800
+G1 Z-4 F300
+G1 X-15 F800
+G0 Z5
+M30
+"""
+
+
+def _two_tools(tmp_path: Path) -> tuple[Path, Path, Path]:
+    stock = tmp_path / "plate.toml"
+    stock.write_text('kind = "box"\nmin_mm = [0, 0, -10]\nmax_mm = [60, 40, 0]\n')
+    prog = tmp_path / "two.nc"
+    prog.write_text(_TWO_TOOLS)
+    t2 = tmp_path / "d10.toml"
+    t2.write_text(
+        'name = "D10"\nshape = "flat"\ndiameter_mm = 10.0\nflutes = 3\nhelix_deg = 30.0\n'
+    )
+    return stock, prog, t2
+
+
+def test_plan_each_tool_of_a_program_with_its_tool_on_one_stock(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1683: T1 (Ø20) slots 2 mm deep, T2 (Ø10, 3 flutes) runs the same line at the
+    same depth, then 2 mm deeper. One plan per tool; T2's plan starts from the stock T1 left,
+    so its first pass cuts nothing (was: refused), its second one is a Ø10 slot 2 mm deep:
+    engaged area a D = 2 x 10 = 20 mm² (T1's: 2 x 20 = 40 mm²), exact slot intervals (1e-6)."""
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    stock, prog, t2 = _two_tools(tmp_path)
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "T1=aslan-d20-2flute"]
+    args += ["--tool", f"T2={t2}", "--material", "al7050", "--resolution-mm", "0.25"]
+    code, std, err = _run([*args, "-o", str(out), "--plot", str(tmp_path / "p.png")], capsys)
+    assert code == 0, err
+    assert not out.exists()
+    p1, p2 = (
+        VirtualPlan.read(tmp_path / "p_T1.parquet"),
+        VirtualPlan.read(tmp_path / "p_T2.parquet"),
+    )
+    assert (tmp_path / "p_T1.png").stat().st_size > 10_000
+    assert (tmp_path / "p_T2.png").stat().st_size > 10_000
+    assert p1.metadata["tool"]["diameter_mm"] == 20.0 and p2.metadata["tool"]["diameter_mm"] == 10.0
+    assert p1.metadata["tool_number"] == 1 and p2.metadata["tool_number"] == 2
+    assert p2.metadata["segment_first_line"] == 8  # the line of T2 M6
+    mid1 = (p1["x_mm"] > 20) & (p1["x_mm"] < 40) & p1["in_cut"]
+    assert mid1.sum() >= 40
+    assert p1["engaged_area_mm2"][mid1] == pytest.approx(40.0, rel=1e-6)
+    first = p2["source_line"] == 12  # G1 X75 at Z-2: inside T1's slot
+    assert first.sum() > 100 and not p2["in_cut"][first].any()
+    second = (p2["source_line"] == 14) & (p2["x_mm"] > 20) & (p2["x_mm"] < 40) & p2["in_cut"]
+    assert second.sum() >= 40
+    assert p2["axial_depth_mm"][second] == pytest.approx(2.0, rel=1e-6)
+    assert p2["engaged_area_mm2"][second] == pytest.approx(20.0, rel=1e-6)
+    assert "p_T1.parquet" in std and "p_T2.parquet" in std
+
+
+def test_plot_of_one_tools_plan_names_the_tool(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each tool's plot was titled with the program alone ("two.nc" on both): the tool's
+    number and name follow it."""
+    from matplotlib.figure import Figure
+
+    from millsense.plan.virtual_plan import VirtualPlan
+    from millsense.report.plan_plots import plot_plan
+
+    stock, prog, t2 = _two_tools(tmp_path)
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "T1=aslan-d20-2flute"]
+    args += ["--tool", f"T2={t2}", "--material", "al7050", "--resolution-mm", "0.5"]
+    try:
+        main([*args, "-o", str(out)])
+    except SystemExit as exc:
+        assert not exc.code
+    titles: list[str] = []
+    real = Figure.suptitle
+    monkeypatch.setattr(Figure, "suptitle", lambda f, t, **kw: titles.append(t) or real(f, t, **kw))
+    plot_plan(VirtualPlan.read(tmp_path / "p_T2.parquet"), tmp_path / "t2.png")
+    assert titles == [f"{prog}: T2 (D10)"]
+
+
+@pytest.mark.parametrize(
+    ("tools", "expect"),
+    [
+        (["aslan-d20-2flute"], "two.nc:8: tool change to T2 (the program uses T1, T2)"),
+        (["T1=aslan-d20-2flute"], "two.nc:8: tool change to T2: no --tool T2=TOOL given"),
+        (["T1=aslan-d20-2flute", "T2=x", "T3=y"], "the program uses T1, T2, not T3"),
+        (["T1=aslan-d20-2flute", "aslan-d20-2flute"], "not both"),
+    ],
+)
+def test_plan_tools_of_a_program_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], tools: list[str], expect: str
+) -> None:
+    """One tool for two, a tool missing, one the program does not use, the forms mixed: one
+    line (exit 2) naming the program's line where it applies, nothing written."""
+    stock, prog, _ = _two_tools(tmp_path)
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--material", "al7050"]
+    for t in tools:
+        args += ["--tool", t]
+    code, _, err = _run([*args, "-o", str(out)], capsys)
+    assert code == 2 and err.strip().count("\n") == 0, err
+    assert expect in err
+    assert not list(tmp_path.glob("p*.parquet"))
+
+
+def test_run_of_a_program_with_two_tools_names_the_line_and_the_remedy(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``run --program`` closes the loop on one tool: refused at the second tool's line with
+    the per-tool plan as remedy, before anything is simulated or written."""
+    stock, prog, _ = _two_tools(tmp_path)
+    out = tmp_path / "r.h5"
+    args = ["run", "--program", str(prog), "--stock", str(stock), "--tool", "aslan-d20-2flute"]
+    code, _, err = _run([*args, "--material", "al7050", "-o", str(out)], capsys)
+    assert code == 2 and err.strip().count("\n") == 0, err
+    assert "two.nc:8: tool change to T2" in err and "--tool T1=TOOL --tool T2=TOOL" in err
+    assert not out.exists()

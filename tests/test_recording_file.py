@@ -437,3 +437,21 @@ def test_metadata_edited_after_construction_is_checked_on_write(tmp_path: Path) 
         write_recording(path, rec)
     _one_line(err, str(path), "metadata key 'bad'")
     assert not path.exists()
+
+
+def test_strided_views_are_written(tmp_path: Path) -> None:
+    """A channel or stream given as a strided view (``t[::2]``: every other sample of a
+    faster clock) failed to write with numpy's "the last axis must be contiguous" traceback
+    when it filled one chunk; it is written and read back exactly."""
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import read_recording, write_recording
+
+    t = np.arange(400) / 1000.0
+    rec = Recording(500.0)
+    rec.add_channel("x/position_cmd", t[::2], "m")
+    rec.add_stream("axes", t[::4], {"a_position": t[1::4]}, {"a_position": "rad"})
+    write_recording(tmp_path / "r.h5", rec)
+    back = read_recording(tmp_path / "r.h5")
+    np.testing.assert_array_equal(back.channel("x/position_cmd"), t[::2])
+    np.testing.assert_array_equal(back.stream("axes")["a_position"], t[1::4])
+    np.testing.assert_array_equal(back.stream("axes").time_s, t[::4])

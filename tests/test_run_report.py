@@ -293,3 +293,34 @@ def test_report_titles_name_the_regulated_quantity_and_the_residuals_unit(
     breakage = [a.text for a in rep.figures["breakage"].layout.annotations]
     assert "spindle power [W] per control interval and reference" in control
     assert "first residual against its threshold [N·m]" in breakage
+
+
+def test_report_of_a_measured_recording_shows_no_true_figures_and_its_import_findings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`report` on an imported measurement (no ``truth/`` channels) showed "peak true |F_xy|
+    [N] 0" and "mean spindle power in cut [W] 0", figures it has nothing to compute from, and
+    dumped the import's quality report as one JSON cell of 10 kB. Those figures read "–" with
+    the reason; the quality report is its count per kind in the metadata and one row per
+    finding below (2 here)."""
+    from millsense.core.recording import Recording
+    from millsense.io.quality import Finding, QualityReport
+    from millsense.io.recording_file import write_recording
+
+    q = QualityReport()
+    q.add(Finding("gap", "t.csv", "t.csv: gap of 3.1 ms after t = 0.39 s"))
+    q.add(Finding("hum", "x/current", "m.h5: channel 'x/current': 60 Hz mains hum"))
+    rec = Recording(10_000.0, metadata={"quality_json": q.to_json(), "source": "m.h5"})
+    rec.add_channel("spindle/speed", np.full(5000, 314.159), "rad/s")
+    rec.add_channel("x/current", np.sin(np.arange(5000) / 10), "A")
+    write_recording(tmp_path / "m.h5", rec)
+    code, _, err = run_cli(["report", str(tmp_path / "m.h5"), "-o", str(tmp_path / "m.html")],
+                           capsys)  # fmt: skip
+    assert code == 0, err
+    text = htmllib.unescape(re.sub(r"<[^>]+>", " ", (tmp_path / "m.html").read_text()))
+    text = " ".join(text.split())
+    assert "peak true |F_xy| [N] – (no true tool forces: a measured recording)" in text
+    assert "mean spindle power in cut [W] – (needs the true forces" in text
+    assert "quality_json 2 findings (gap 1, hum 1) (below)" in text
+    assert "gap warning t.csv: gap of 3.1 ms after t = 0.39 s" in text
+    assert "hum warning m.h5: channel 'x/current': 60 Hz mains hum" in text

@@ -102,9 +102,28 @@ def import_(
         "feed_mm_min": feed_mm_min,
         "flutes": flutes,
     }
-    res = import_files(
-        files, mapping, rate_hz=rate_hz, metadata=meta, map_source=str(map_file), source=str(out)
-    )
+    from rich.console import Console
+    from rich.progress import Progress
+
+    console = Console(stderr=True)
+    # not on a terminal (a log, a pipe) no bar: rich left an empty line there
+    with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
+        tasks: dict[Path, Any] = {}
+
+        def update(path: Path, done: int, total: int) -> None:
+            if path not in tasks:
+                tasks[path] = bar.add_task(f"read {path.name}", total=total)
+            bar.update(tasks[path], completed=done, total=total)
+
+        res = import_files(
+            files,
+            mapping,
+            rate_hz=rate_hz,
+            metadata=meta,
+            map_source=str(map_file),
+            source=str(out),
+            progress=update,
+        )
     rec = res.recording
     write_recording(out, rec)
     _print_report(res.report)
@@ -198,6 +217,9 @@ def export(
         text = export_recording(rec, tmp, fmt, channel or None, name=out.name)
     write_text(map_path, text)
     typer.echo(f"wrote {out} and {map_path}")
+    if rec.stream_names:  # said, not silently dropped
+        streams = ", ".join(f"{s} ({', '.join(rec.stream(s).fields)})" for s in rec.stream_names)
+        typer.echo(f"millsense: note: streams are not exported: {streams}", err=True)
 
 
 @app.command("example-data")

@@ -135,7 +135,7 @@ def lobes(
             )
     low_immersion = flip_lobes_expected(case.flutes, case.phi_st, case.phi_ex)
     console = Console(stderr=True, soft_wrap=True)
-    with Progress(console=console, transient=True) as bar:
+    with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
         task = bar.add_task(f"lobes {case.name}", total=len(speeds))
         res = compute_lobes(
             case,

@@ -444,6 +444,10 @@ def _run(
         from millsense.report.monitor_plots import plot_monitor
 
         data = {k: np.concatenate(v) for k, v in keep.items()}
+        for b in blocks:  # the revolutions the summary reports, for the depth panel
+            if f"{b.name}/axial_depth" in data and hasattr(b, "estimates"):
+                n_steps = len(data[f"{b.name}/axial_depth"])
+                data[f"{b.name}/reported"] = _reported(b, n_steps, step, fs, _steady_cut(rec))
         # a breakage detector's axis in the unit of the torque it judges (phased: its members')
         judged = {b.name: getattr(getattr(b, "members", [b])[0], "signal_channels", ())
                   for b in blocks}  # fmt: skip
@@ -468,6 +472,24 @@ def _steady_cut(rec: Any) -> np.ndarray | None:
     if "plan/judged_torque" not in rec.channel_names:
         return None
     return np.asarray(rec.channel("plan/judged_torque"), dtype=np.float64) > 0
+
+
+def _reported(
+    block: Any, n_steps: int, step: int, fs: float, steady: np.ndarray | None
+) -> np.ndarray:
+    """Per plotted step (every ``step`` samples): whether the revolution it holds is one
+    :func:`_engagement_summary` reports (:func:`_reliable`, and where the plan is steady when
+    ``steady`` is given)."""
+    timed = [(t, e) for t, e in getattr(block, "estimates", []) if e is not None]
+    if not timed:
+        return np.zeros(n_steps, dtype=bool)
+    t_end = np.array([t for t, _ in timed], dtype=np.float64)
+    ok = np.array([_reliable(e) for _, e in timed], dtype=bool)
+    if steady is not None and steady.any():
+        k = np.clip(np.rint(t_end * fs).astype(np.int64), 0, steady.size - 1)
+        ok &= steady[k]
+    held = np.searchsorted(t_end, np.arange(n_steps) * step / fs, side="right") - 1
+    return np.where(held >= 0, ok[np.maximum(held, 0)], False)
 
 
 def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float = 1.0) -> str:

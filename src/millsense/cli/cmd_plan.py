@@ -33,17 +33,24 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
 
 
 def _guard(
-    program: Path, stock: Path, tool: Path, material: Path, outputs: dict[str, Path | None]
+    program: Path,
+    stock: Path,
+    tool: Path | list[str],
+    material: Path,
+    outputs: dict[str, Path | None],
 ) -> None:
-    """Refuse an output that is an input: the program, stock (and its STL), tool, material."""
+    """Refuse an output that is an input: the program, stock (and its STL), tool(s) (``--tool
+    TOOL`` or ``--tool Tn=TOOL``), material."""
     from millsense.io.safe_output import check_outputs
 
     inputs: dict[str, Path | None] = {
         "the program": program,
         "the stock file": stock,
-        "the tool file": tool,
         "the material file": material,
     }
+    for spec in [tool] if isinstance(tool, Path) else tool:
+        name = str(spec).partition("=")[2] or str(spec)
+        inputs[f"the tool file {name}"] = Path(name)
     try:
         from millsense.core.config import StockConfig, load_config
 
@@ -103,8 +110,29 @@ def _build(
     home_mm: str | None,
     machine: str | None = None,
 ) -> tuple[VirtualPlan, Any, Findings]:
-    """Plan the program; impossible input raises one line, implausible input is a warning
-    (printed, and kept in the plan's metadata ``warnings``)."""
+    """Plan a program of one tool (:func:`_build_plans`; a program with tool changes to
+    several tools is refused naming the line of the second one)."""
+    plans, toolpath, findings = _build_plans(
+        program, stock, [str(tool)], material, step_mm, resolution_mm, home_mm, machine
+    )
+    return plans[0][1], toolpath, findings
+
+
+def _build_plans(
+    program: Path,
+    stock: Path,
+    tools: list[str],
+    material: Path,
+    step_mm: float,
+    resolution_mm: float,
+    home_mm: str | None,
+    machine: str | None = None,
+) -> tuple[list[tuple[int, VirtualPlan]], Any, Findings]:
+    """Plan the program, each tool's moves with its tool on one stock (``tools``: the
+    ``--tool`` options, :func:`millsense.plan.tools.assign_tools`; decision 1683): the tool
+    number and plan of every segment in program order. Impossible input raises one line,
+    implausible input is a warning (printed, and kept in the plans' metadata ``warnings``)."""
+    import functools
     import hashlib
 
     from rich.console import Console
@@ -121,57 +149,91 @@ def _build(
     from millsense.core.units import MM
     from millsense.plan.checks import check_plan, check_program
     from millsense.plan.gcode import interpret_file
+    from millsense.plan.tools import assign_tools, tool_segments
     from millsense.plan.virtual_plan import plan_program
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill
 
     _positive("--step-mm", step_mm)
     _positive("--resolution-mm", resolution_mm)
-    tool_cfg = load_preset(ToolConfig, tool)
-    if 1.5 * resolution_mm >= tool_cfg.diameter_mm:
-        # the CWE resolves no radial depth below about 1.5 cells (millsense.plan.cwe)
-        raise ConfigError(
-            f"--resolution-mm {resolution_mm:g}: a cell of D/1.5 = "
-            f"{tool_cfg.diameter_mm / 1.5:.4g} mm or more resolves no engagement of the "
-            f"Ø{tool_cfg.diameter_mm:g} mm tool, not even a slot (default 0.1 mm)"
-        )
+    toolpath = interpret_file(program, home_mm=_home(home_mm))
+    segments = tool_segments(toolpath)
+    names = assign_tools(segments, tools, toolpath.source)
+    tool_cfgs = {name: load_preset(ToolConfig, Path(name)) for name in dict.fromkeys(names)}
+    for name, tool_cfg in tool_cfgs.items():
+        if 1.5 * resolution_mm >= tool_cfg.diameter_mm:
+            # the CWE resolves no radial depth below about 1.5 cells (millsense.plan.cwe)
+            raise ConfigError(
+                f"--resolution-mm {resolution_mm:g}: a cell of D/1.5 = "
+                f"{tool_cfg.diameter_mm / 1.5:.4g} mm or more resolves no engagement of the "
+                f"Ø{tool_cfg.diameter_mm:g} mm tool {name}, not even a slot (default 0.1 mm)"
+            )
     mat_cfg = load_preset(MaterialConfig, material)
     stock_cfg = load_config(StockConfig, stock)
     mcfg = None if machine is None else load_preset(MachineConfig, machine)
-    toolpath = interpret_file(program, home_mm=_home(home_mm))
     findings = Findings()
     check_program(toolpath, findings, machine=mcfg)
+    program_warnings = list(findings.warnings)
     zmap = stock_maker(stock_cfg, stock)(resolution_mm * MM)
     console = Console(stderr=True, soft_wrap=True)
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task(f"plan {program.name}", total=1)
+    sha = hashlib.sha256(program.read_bytes()).hexdigest()
+    plans: list[tuple[int, VirtualPlan]] = []
+    for seg, name in zip(segments, names, strict=True):
+        tool_cfg = tool_cfgs[name]
+        label = program.name if len(segments) == 1 else f"{program.name} T{seg.tool}"
+        with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
+            task = bar.add_task(f"plan {label}", total=1)
+            # one stock for all tools: each segment cuts what the ones before it left
+            plan = plan_program(
+                seg.path,
+                zmap,
+                EndMill.from_config(tool_cfg),
+                CuttingCoefficients.from_config(mat_cfg),
+                step_m=step_mm * MM,
+                progress=functools.partial(_progress, bar, task),
+                metadata={
+                    "tool_name": tool_cfg.name,
+                    "material_name": mat_cfg.name,
+                    "stock_file": str(stock),
+                },
+            )
+        seg_findings = Findings()
+        check_plan(plan, seg_findings, machine=mcfg, stickout_mm=tool_cfg.stickout_mm)
+        findings.extend(seg_findings.warnings)
+        plan.metadata["warnings"] = program_warnings + [
+            w for w in seg_findings.warnings if w not in program_warnings
+        ]
+        # the program's bytes, so that a plan and a recording of two programs of one file
+        # name are told apart (cli.plan_match)
+        plan.metadata["program_sha256"] = sha
+        if len(segments) > 1:
+            plan.metadata["tool_number"] = seg.tool
+            plan.metadata["program_tools"] = [s.tool for s in segments]
+            plan.metadata["segment_first_line"] = seg.first_line
+        if machine is not None:
+            plan.metadata["machine"] = machine
+        for note in plan.metadata.get("notes", []):
+            console.print(f"millsense: note: {note}", markup=False)
+        plans.append((seg.tool, plan))
+    return plans, toolpath, findings
 
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
 
-        plan = plan_program(
-            toolpath,
-            zmap,
-            EndMill.from_config(tool_cfg),
-            CuttingCoefficients.from_config(mat_cfg),
-            step_m=step_mm * MM,
-            progress=update,
-            metadata={
-                "tool_name": tool_cfg.name,
-                "material_name": mat_cfg.name,
-                "stock_file": str(stock),
-            },
-        )
-    check_plan(plan, findings, machine=mcfg, stickout_mm=tool_cfg.stickout_mm)
-    plan.metadata["warnings"] = list(findings.warnings)
-    # the program's bytes, so that a plan and a recording of two programs of one file name
-    # are told apart (cli.plan_match)
-    plan.metadata["program_sha256"] = hashlib.sha256(program.read_bytes()).hexdigest()
-    if machine is not None:
-        plan.metadata["machine"] = machine
-    for note in plan.metadata.get("notes", []):
-        console.print(f"millsense: note: {note}", markup=False)
-    return plan, toolpath, findings
+def _progress(bar: Any, task: Any, done: int, total: int) -> None:
+    bar.update(task, completed=done, total=total)
+
+
+def plan_outputs(output: Path, tools: list[int]) -> list[Path]:
+    """The file of each segment's plan: ``output`` for one, else ``STEM_Tn.SUFFIX`` (a tool
+    that comes back later: ``STEM_Tn-2.SUFFIX``)."""
+    if len(tools) == 1:
+        return [output]
+    seen: dict[int, int] = {}
+    out = []
+    for t in tools:
+        seen[t] = seen.get(t, 0) + 1
+        tag = f"T{t}" if seen[t] == 1 else f"T{t}-{seen[t]}"
+        out.append(output.with_name(f"{output.stem}_{tag}{output.suffix}"))
+    return out
 
 
 def _print_warnings(findings: Findings) -> None:
@@ -197,7 +259,12 @@ _MACHINE = typer.Option(
 def plan(
     program: Path = typer.Argument(..., help="Part program (G-code)."),
     stock: Path = _STOCK,
-    tool: Path = _TOOL,
+    tool: list[str] = typer.Option(
+        ...,
+        "--tool",
+        help="Tool TOML or preset name; a program with tool changes: Tn=TOOL for each tool "
+        "(repeat; one plan per tool, OUTPUT_Tn.parquet, on one stock).",
+    ),
     material: Path = _MATERIAL,
     output: Path = typer.Option(..., "-o", "--output", help="Plan file (Parquet)."),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG of the plan."),
@@ -206,26 +273,41 @@ def plan(
     home_mm: str | None = _HOME,
     machine: str | None = _MACHINE,
 ) -> None:
-    """Virtual plan: engagement and predicted forces, torque, power per path step."""
+    """Virtual plan: engagement and predicted forces, torque, power per path step.
+
+    A program with tool changes (T2 M6): each tool's moves are planned with its tool, given as
+    --tool T1=TOOL --tool T2=TOOL, in program order on one stock, one plan per tool
+    (OUTPUT_T1.parquet, ...; decision 1683); simulate and run take each with --plan."""
     import time
 
     _guard(program, stock, tool, material, {"-o": output, "--plot": plot})
     t0 = time.perf_counter()
-    vp, _, findings = _build(
+    plans, _, findings = _build_plans(
         program, stock, tool, material, step_mm, resolution_mm, home_mm, machine
     )
-    _print_warnings(findings)
-    vp.write(output)
+    numbers = [t for t, _ in plans]
+    outs = plan_outputs(output, numbers)
+    plots: list[Path | None] = [None] * len(outs)
     if plot is not None:
-        from millsense.report.plan_plots import plot_plan
+        plots = list(plan_outputs(plot, numbers))
+    if len(outs) > 1:  # the per-tool files must not be inputs either
+        _guard(program, stock, tool, material, {
+            **{f"-o ({o.name})": o for o in outs},
+            **{f"--plot ({q.name})": q for q in plots if q is not None},
+        })  # fmt: skip
+    _print_warnings(findings)
+    for (_, vp), out, png in zip(plans, outs, plots, strict=True):
+        vp.write(out)
+        if png is not None:
+            from millsense.report.plan_plots import plot_plan
 
-        plot_plan(vp, plot)
-    cut = vp["in_cut"]
-    typer.echo(
-        f"{output}: {len(vp)} steps, {int(cut.sum())} in cut, peak resultant "
-        f"{float(vp['fres_peak_n'].max()):.1f} N, peak mean torque "
-        f"{float(vp['torque_avg_nm'].max()):.3f} N·m ({time.perf_counter() - t0:.2f} s)"
-    )
+            plot_plan(vp, png)
+        cut = vp["in_cut"]
+        typer.echo(
+            f"{out}: {len(vp)} steps, {int(cut.sum())} in cut, peak resultant "
+            f"{float(vp['fres_peak_n'].max()):.1f} N, peak mean torque "
+            f"{float(vp['torque_avg_nm'].max()):.3f} N·m ({time.perf_counter() - t0:.2f} s)"
+        )
 
 
 @app.command()

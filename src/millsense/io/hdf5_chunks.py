@@ -103,6 +103,8 @@ def encode_chunk(values: np.ndarray, chunk_len: int, level: int = DEFLATE_LEVEL)
     bytes
         The stored chunk, decodable by HDF5's shuffle + deflate filters.
     """
+    # a strided view (a stream field given as t[::2]) has no byte planes to view
+    values = np.ascontiguousarray(values)
     m = values.shape[0]
     if m < chunk_len:
         full = np.zeros(chunk_len, dtype=values.dtype)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -70,6 +71,10 @@ CONTINUOUS_FRACTION = 0.95
 CHANCE_RUN_PROBABILITY = 0.01
 #: Mains lines: a line this many times the median spectrum around it (20 dB).
 HUM_RATIO = 10.0
+#: ... and this many times the 99th percentile of that spectrum, away from the spindle's
+#: lines: a line of a comb (a periodic motion's harmonics, every 1/15 Hz of a position
+#: reversing every 15 s) has its like all around it and is no mains hum.
+HUM_COMB_RATIO = 3.0
 #: Units of external sensors whose offset may drift (charge amplifiers, IEPE, microphones).
 DRIFT_UNITS = ("N", "N*m", "m/s^2", "Pa", "V")
 
@@ -124,6 +129,18 @@ class QualityReport:
         rep = cls([Finding(**f) for f in d.get("findings", [])])
         rep.rates = {k: (v[0], v[1]) for k, v in d.get("rates", {}).items()}
         return rep
+
+
+def finding_counts(text: str) -> str | None:
+    """``"10 findings (gap 1, hum 1, ...)"``: the findings of a stored report
+    (:meth:`QualityReport.to_json`) per kind, in one line; None if it is no such JSON."""
+    try:
+        findings = json.loads(text).get("findings", [])
+        kinds = Counter(str(f.get("kind")) for f in findings)
+    except (ValueError, AttributeError, TypeError):
+        return None
+    per_kind = ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) or "none"
+    return f"{sum(kinds.values())} findings ({per_kind})"
 
 
 def runs_of(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -396,12 +413,22 @@ def mains_hum(
     Hann-windowed amplitude spectrum of the whole channel (linear trend removed); a line is
     the peak within ±0.5 Hz of k·50 or k·60 Hz, compared with the median of the spectrum
     from −10 to +10 Hz around it (±1.5 Hz excluded). The fundamental must stand
-    :data:`HUM_RATIO` above; harmonics are listed when they do too.
+    :data:`HUM_RATIO` above; harmonics are listed when they do too. A line must also reach
+    half the channel's quantisation step (its smallest non-zero change between samples): below
+    it the line is the rounding pattern of the file's resolution (a speed written to
+    0.01 rev/min), and a constant channel has no hum; and it must stand :data:`HUM_COMB_RATIO`
+    above the 99th percentile around it, away from the spindle's lines (a comb's line is no
+    hum).
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     if n < fs or not np.all(np.isfinite(x)) or fs < 2 * 65:
         return None
+    change = np.abs(np.diff(x))
+    change = change[change > 0]
+    if not change.size:
+        return None  # constant
+    least = 0.5 * float(change.min())
     k = np.arange(n)
     y = x - np.polyval(np.polyfit(k, x, 1), k)
     win = np.hanning(n)
@@ -417,6 +444,13 @@ def mains_hum(
             return None
         floor = float(np.median(spec[around]))
         peak = float(spec[near].max())
+        if peak < least:
+            return None
+        if rotation_hz and rotation_hz > 0:  # the spindle's own lines are no comb
+            r = freqs / rotation_hz
+            around &= (np.abs(r - np.rint(r)) * rotation_hz > 1.0) | (np.rint(r) < 1)
+        if around.any() and peak < HUM_COMB_RATIO * float(np.percentile(spec[around], 99)):
+            return None
         return peak, peak / max(floor, 1e-300)
 
     def process_line(f: float) -> bool:

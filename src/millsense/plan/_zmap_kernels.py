@@ -308,6 +308,7 @@ def _engage_layers(
     uy: float,
     radius: float,
     ball: bool,
+    base: float,
     depth: float,
     n_layers: int,
     n_bins: int,
@@ -323,7 +324,8 @@ def _engage_layers(
     cosb: np.ndarray,
     colh: np.ndarray,
 ) -> tuple[float, bool]:
-    """Engaged intervals of every layer for one tool position and axial depth ``depth``.
+    """Engaged intervals of every layer for one tool position and axial depth ``depth``, the
+    layers from ``base`` above the tip (the stock bottom when the tip is below it, else 0).
 
     ``colh`` holds the material tops sampled at radius R + δ per bin (used for every layer
     of a flat tool; a ball samples each layer at its own radius). Returns the top (above the
@@ -336,7 +338,7 @@ def _engage_layers(
     vx = -uy  # tool-frame y axis (z × feed)
     vy = ux
     for layer in range(n_layers):
-        zc = (layer + 0.5) * dz
+        zc = base + (layer + 0.5) * dz
         if ball and zc < radius:
             r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
         else:
@@ -382,6 +384,7 @@ def _engage_layers(
 def _peak_resultant(
     iv: np.ndarray,
     nv: np.ndarray,
+    base: float,
     depth: float,
     radius: float,
     ball: bool,
@@ -414,7 +417,7 @@ def _peak_resultant(
         m = nv[layer]
         if m == 0:
             continue
-        zc = (layer + 0.5) * dz
+        zc = base + (layer + 0.5) * dz
         if ball and zc < radius:
             r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
             sk = min(r / radius, 1.0)
@@ -459,7 +462,7 @@ def _peak_resultant(
 
 @numba.njit(cache=True)
 def _areas(
-    iv: np.ndarray, nv: np.ndarray, depth: float, radius: float, ball: bool
+    iv: np.ndarray, nv: np.ndarray, base: float, depth: float, radius: float, ball: bool
 ) -> tuple[float, float]:
     """Projected engaged area Σ Δz r (cos entry − cos exit) and contact area
     Σ (Δz / sin κ) r (exit − entry) over layers and intervals [m²]."""
@@ -468,7 +471,7 @@ def _areas(
     proj = 0.0
     contact = 0.0
     for layer in range(n_layers):
-        zc = (layer + 0.5) * dz
+        zc = base + (layer + 0.5) * dz
         if ball and zc < radius:
             r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
         else:
@@ -514,11 +517,15 @@ def cut_and_engage(
     iv_out: np.ndarray,
     nv_out: np.ndarray,
     depth_out: np.ndarray,
+    base_out: np.ndarray,
     gain_out: np.ndarray,
     area_out: np.ndarray,
     contact_out: np.ndarray,
 ) -> int:
     """Per step: sweep the tool from the previous step to this one, then sample engagement.
+
+    The axial depth is the part of the flutes inside the stock: from the tip, or from the
+    stock bottom where the tip is below it (``base_out``: that bottom's height above the tip).
 
     Returns the number of steps whose interval count overflowed ``iv_out``'s capacity.
     """
@@ -565,6 +572,7 @@ def cut_and_engage(
                 heights, x0g, y0g, h, xs[k], ys[k], zs[k], xs[k], ys[k], zs[k], radius, ball
             )
         depth_out[k] = 0.0
+        base_out[k] = 0.0
         gain_out[k] = 0.0
         for layer in range(n_layers):
             nv_out[k, layer] = 0
@@ -582,25 +590,27 @@ def cut_and_engage(
             hz = colh[b] - zs[k]
             if hz > a0:
                 a0 = hz
-        if a0 <= eps_z:
+        # the flutes below the stock bottom cut nothing: the layers start at the bottom
+        base = max(bottom - zs[k], 0.0)
+        if a0 <= base + eps_z:
             continue
         # 3. layers over a0, then once over the top of the engaged material if lower
         top, ovf = _engage_layers(
-            heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball, a0,
-            n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags, run_s, run_e,
-            sinb, cosb, colh,
+            heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball, base,
+            a0 - base, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags,
+            run_s, run_e, sinb, cosb, colh,
         )  # fmt: skip
-        depth = a0
-        if top <= eps_z:
+        depth = a0 - base
+        if top <= base + eps_z:
             for layer in range(n_layers):
                 nv_out[k, layer] = 0
             continue
-        if nv_out[k, n_layers - 1] == 0 and top < a0 * (1.0 - 0.5 / n_layers):
-            depth = top
+        if nv_out[k, n_layers - 1] == 0 and top - base < depth * (1.0 - 0.5 / n_layers):
+            depth = top - base
             _top2, ovf = _engage_layers(
                 heights, x0g, y0g, h, bottom, xs[k], ys[k], zs[k], ux, uy, radius, ball,
-                depth, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k], flags,
-                run_s, run_e, sinb, cosb, colh,
+                base, depth, n_layers, n_bins, delta, eps_z, max_iv, iv_out[k], nv_out[k],
+                flags, run_s, run_e, sinb, cosb, colh,
             )  # fmt: skip
         any_iv = False
         for layer in range(n_layers):
@@ -611,9 +621,10 @@ def cut_and_engage(
         if ovf:
             n_overflow += 1
         depth_out[k] = depth
+        base_out[k] = base
         gain_out[k] = _peak_resultant(
-            iv_out[k], nv_out[k], depth, radius, ball, theta, kbeta, krc_ratio,
+            iv_out[k], nv_out[k], base, depth, radius, ball, theta, kbeta, krc_ratio,
             sin0, cos0, gain_period, fxw, fyw,
         )  # fmt: skip
-        area_out[k], contact_out[k] = _areas(iv_out[k], nv_out[k], depth, radius, ball)
+        area_out[k], contact_out[k] = _areas(iv_out[k], nv_out[k], base, depth, radius, ball)
     return n_overflow

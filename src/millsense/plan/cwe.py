@@ -27,10 +27,13 @@ reach it. Intervals lying entirely within [0, φ_g] or [π − φ_g, π] are the
 Consequence: a radial depth of cut below about 1.5 cells (R (1 − cos φ_g)) is not resolved
 and reads as no engagement; intervals reaching beyond φ_g are kept whole.
 
-Axial depth a: the highest material top (above the tip) just outside the tool (radius
-R + δ) over the front half; if no bin of the top layer is engaged, a is lowered once to the
-highest material seen by engaged bins and the layers are recomputed (a tall wall beside the
-tool does not make the cut deeper). Material below the tool tip (plunging, ramping) is not
+Axial depth a: the highest material top just outside the tool (radius R + δ) over the front
+half, measured from the tool tip, or from the stock bottom where the tip is below it (a cut
+through a plate: the flutes below the bottom cut nothing, and the layers split only the part of
+the flutes inside the stock; ``layer_base_m`` is that bottom's height above the tip); if no
+bin of the top layer is engaged, a is lowered once to the highest material seen by engaged
+bins and the layers are recomputed (a tall wall beside the tool does not make the cut
+deeper). Material below the tool tip (plunging, ramping) is not
 represented: the criterion is the XY feed over the periphery, which is where the force model
 (:mod:`millsense.process.forces`) cuts.
 
@@ -77,7 +80,8 @@ class EngagementResult:
     Attributes
     ----------
     axial_depth_m : (n,) float
-        Axial depth of cut a [m] from the tool tip (0 out of cut); the layers split it.
+        Axial depth of cut a [m]: the part of the flutes inside the stock, from the tool tip
+        or from the stock bottom when the tip is below it (0 out of cut); the layers split it.
     intervals_rad : (n, L, M, 2) float32
         (entry, exit) immersion angles [rad] in the tool feed frame, per layer (tip upwards);
         only the first ``n_intervals[k, ℓ]`` rows of each layer are valid.
@@ -96,6 +100,13 @@ class EngagementResult:
         Direction of the XY feed used for the tool frame [rad], atan2(f_y, f_x).
     tool : EndMill
         Tool used.
+    layer_base_m : (n,) float
+        Height of the first layer's bottom above the tool tip [m]: 0, or the stock bottom's
+        height above a tip below it. The force models (:func:`millsense.process.forces.
+        milling_forces`, the plan's prediction, the virtual machine) put the layers from the tip
+        up: for a flat end mill that is the same cut with the helix phase shifted by
+        k_β · layer_base (an offset of the spindle angle); a ball's layers keep the radii of
+        their heights above the tip only here (Gain_CWE, areas).
     n_overflow : int
         Steps where a layer had more intervals than M (closest ones merged).
     """
@@ -108,6 +119,7 @@ class EngagementResult:
     contact_area_m2: FloatArray
     feed_angle_rad: FloatArray
     tool: EndMill
+    layer_base_m: FloatArray
     n_overflow: int = 0
 
     def __len__(self) -> int:
@@ -130,6 +142,7 @@ class EngagementResult:
             contact_area_m2=np.concatenate([p.contact_area_m2 for p in parts]),
             feed_angle_rad=np.concatenate([p.feed_angle_rad for p in parts]),
             tool=parts[0].tool,
+            layer_base_m=np.concatenate([p.layer_base_m for p in parts]),
             n_overflow=sum(p.n_overflow for p in parts),
         )
 
@@ -151,7 +164,7 @@ class EngagementResult:
     def layer_radii_m(self, k: int) -> FloatArray:
         """Edge radius r_ℓ [m] at the centre of every layer of step k."""
         a = float(self.axial_depth_m[k])
-        zc = (np.arange(self.n_layers) + 0.5) * a / self.n_layers
+        zc = self.layer_base_m[k] + (np.arange(self.n_layers) + 0.5) * a / self.n_layers
         return _layer_radius(self.tool, zc)
 
     def intervals(self, k: int) -> list[list[tuple[float, float]]]:
@@ -292,6 +305,7 @@ def compute_engagement(
     iv = np.zeros((n, n_layers, max_intervals, 2), dtype=np.float32)
     nv = np.zeros((n, n_layers), dtype=np.int16)
     depth = np.zeros(n)
+    base = np.zeros(n)
     gain = np.zeros(n)
     eng_area = np.zeros(n)
     contact = np.zeros(n)
@@ -331,6 +345,7 @@ def compute_engagement(
         iv,
         nv,
         depth,
+        base,
         gain,
         eng_area,
         contact,
@@ -344,5 +359,6 @@ def compute_engagement(
         contact_area_m2=contact,
         feed_angle_rad=np.arctan2(uy, ux),
         tool=tool,
+        layer_base_m=base,
         n_overflow=int(n_ovf),
     )

@@ -163,6 +163,7 @@ class _Machine:
         self.arcs = array("d")
         self.n_moves = 0
         self.notes: list[str] = []
+        self.tool_changes: list[tuple[int, int]] = []
         self.ended = False
 
     # ------------------------------------------------------------------ output
@@ -308,6 +309,7 @@ class _Machine:
             self.selected_tool = int(t)
         if 6 in mcodes:
             self.tool = self.selected_tool
+            self.tool_changes.append((lineno, self.tool))
         for m in mcodes:
             if m == 3:
                 self.spindle_dir = 1
@@ -569,6 +571,7 @@ class _Machine:
             dwell=rec[:, 12].copy(),
             source=self.source,
             notes=tuple(self.notes),
+            tool_changes=tuple(self.tool_changes),
         )
 
 

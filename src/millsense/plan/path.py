@@ -85,6 +85,8 @@ class Toolpath:
         File name (or label) the program was read from.
     notes : tuple of str
         Things the interpreter accepted but ignored (M0/M1, M2 missing...), one line each.
+    tool_changes : tuple of (line, tool)
+        1-based source line and tool number of every M6, in program order.
     """
 
     kind: NDArray[np.int8]
@@ -106,6 +108,7 @@ class Toolpath:
     dwell: FloatArray
     source: str = "<string>"
     notes: tuple[str, ...] = field(default_factory=tuple)
+    tool_changes: tuple[tuple[int, int], ...] = field(default_factory=tuple)
 
     def __len__(self) -> int:
         return int(self.kind.shape[0])

@@ -186,7 +186,12 @@ def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: 
     rel = data.get(f"{name}/reliability", np.ones(len(axial)))
     kt = data.get(f"{name}/kt", np.ones(len(axial)))
     t = _time(axial, step, fs, t0)
-    good = (rel >= RELIABLE_SIGMA) & (kt > 0)  # as the command's summary (decision 1807)
+    # the revolutions the command's summary reports (decision 1807: σ, K_t > 0, K_e ≥ 0 and
+    # the plan's steady cut), else σ and K_t alone
+    good = data.get(f"{name}/reported")
+    if good is None:
+        good = (rel >= RELIABLE_SIGMA) & (kt > 0)
+    good = np.asarray(good, dtype=bool)
     sd = data.get(f"{name}/axial_depth_sd")
     if sd is not None:  # ± one standard deviation of a revolution's d_a (decision 1558)
         band = np.where(good, 1e3 * sd, np.nan)
@@ -195,10 +200,14 @@ def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: 
     for y, label, color in ((axial, "axial depth", "tab:green"),
                             (radial, "radial depth", "tab:purple")):  # fmt: skip
         ax.plot(t, np.where(good, y, np.nan), lw=1.0, color=color, label=label)
-        ax.plot(t[~good], y[~good], ".", ms=1, color=color, alpha=0.25)
+        # one hollow marker per unreported revolution (where its held value starts): a
+        # marker per sample drew them as lines, like results
+        first = np.concatenate([[True], y[1:] != y[:-1]]) & np.isfinite(y) & ~good
+        ax.plot(t[first], y[first], "o", ms=3, mfc="none", mew=0.6, color=color, alpha=0.5)
     top = np.nanmax(np.concatenate([axial[good], radial[good], [1.0]]))
     ax.set_ylim(0.0, 1.3 * top)
     ax.set_ylabel("depth of cut [mm]", fontsize=8)
     ax.legend(loc="upper left", fontsize=7,
-              title=f"dots: reliability < {RELIABLE_SIGMA:g} or K_t ≤ 0",
+              title=f"circles: revolutions not reported (σ < {RELIABLE_SIGMA:g}, K_t ≤ 0 "
+              "or K_e < 0)",
               title_fontsize=7)  # fmt: skip

@@ -72,7 +72,10 @@ def plot_plan(plan: VirtualPlan, path: str | Path, feed_mm_min: np.ndarray | Non
         ax3.legend(loc="upper right", fontsize=8)
         last = ax3
     last.set_xlabel("path length s [mm]")
-    fig.suptitle(str(plan.metadata.get("program", "")), fontsize=10)
+    title = str(plan.metadata.get("program", ""))
+    if "tool_number" in plan.metadata:  # one tool's plan of a program with several (1683)
+        title += f": T{plan.metadata['tool_number']} ({plan.metadata.get('tool_name', '')})"
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     from millsense.io.safe_output import atomic_path
 

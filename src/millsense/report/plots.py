@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -12,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from millsense.core.errors import RecordingError
 from millsense.core.recording import Recording
 
 
@@ -26,25 +28,85 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
         plt.close(fig)
 
 
+@dataclass(frozen=True)
+class Series:
+    """One line of :func:`plot_channels`: a channel, or a field of a slower stream."""
+
+    label: str
+    time_s: np.ndarray
+    values: np.ndarray
+    unit: str
+    stream: str | None = None
+
+
+def _listed(names: Sequence[str], most: int = 12) -> str:
+    shown = ", ".join(names[:most]) or "(none)"
+    return shown + (f" … ({len(names)} in all)" if len(names) > most else "")
+
+
+def recording_series(
+    rec: Recording, names: Sequence[str], t_range_s: tuple[float, float] | None = None
+) -> list[Series]:
+    """The named lines of a recording within ``[t0, t1)`` (s): a channel (``x/current_cmd``),
+    a stream's field as ``STREAM/FIELD`` (``dynamometer/x/force`` of a slower file imported as
+    the stream ``dynamometer/x``: the name its map gave it), or a stream (all its fields).
+
+    Raises
+    ------
+    RecordingError
+        One line naming what is unknown, with the channels and stream fields there are.
+    """
+    out: list[Series] = []
+    if t_range_s is None:
+        lo, hi = 0, rec.n_samples
+    else:
+        lo = int(np.searchsorted(rec.time_s, t_range_s[0], side="left"))
+        hi = max(int(np.searchsorted(rec.time_s, t_range_s[1], side="left")), lo)
+    for name in names:
+        if name in rec.channel_names:
+            out.append(
+                Series(name, rec.time_s[lo:hi], rec.channel(name)[lo:hi], rec.info(name).unit)
+            )
+            continue
+        sname, _, field = name.rpartition("/")
+        if name in rec.stream_names:
+            sname, fields = name, None
+        elif sname in rec.stream_names and field in rec.stream(sname).fields:
+            fields = [field]
+        else:
+            streams = [f"{s}/{f}" for s in rec.stream_names for f in rec.stream(s).fields]
+            raise RecordingError(
+                f"{rec.source}: unknown channel '{name}' (nor a stream or STREAM/FIELD); "
+                f"channels: {_listed(rec.channel_names)}; stream fields: {_listed(streams)}"
+            )
+        st = rec.stream(sname)
+        if t_range_s is not None:
+            st = st.slice_time(*t_range_s)
+        for f in fields or list(st.fields):
+            label = f"{sname}/{f}"
+            out.append(Series(label, st.time_s, st[f], st.info[f].unit, sname))
+    return out
+
+
 def plot_channels(
     rec: Recording,
     names: Sequence[str],
     path: str | Path,
     t_range_s: tuple[float, float] | None = None,
 ) -> None:
-    """One panel per unit, the named (sample-rate) channels against time."""
-    if t_range_s is not None:
-        rec = rec.slice_time(*t_range_s)
-    by_unit: dict[str, list[str]] = {}
-    for n in names:
-        by_unit.setdefault(rec.info(n).unit, []).append(n)
+    """One panel per unit: the named channels and stream fields (:func:`recording_series`)
+    against time; a stream's rows are marked (they are slower than the channels)."""
+    series = recording_series(rec, names, t_range_s)
+    by_unit: dict[str, list[Series]] = {}
+    for sr in series:
+        by_unit.setdefault(sr.unit, []).append(sr)
     fig, axes = plt.subplots(
         len(by_unit), 1, sharex=True, figsize=(10, 2.6 * len(by_unit) + 0.6), squeeze=False
     )
-    t = rec.time_s
-    for ax, (unit, chans) in zip(axes[:, 0], by_unit.items(), strict=True):
-        for n in chans:
-            ax.plot(t, rec.channel(n), lw=0.8, label=n)
+    for ax, (unit, lines) in zip(axes[:, 0], by_unit.items(), strict=True):
+        for sr in lines:
+            style = {"marker": ".", "ms": 3} if sr.stream is not None else {}
+            ax.plot(sr.time_s, sr.values, lw=0.8, label=sr.label, **style)
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)

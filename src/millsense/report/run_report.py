@@ -441,6 +441,48 @@ def figures_rows(f: RunFigures) -> list[tuple[str, str, Any]]:
     ]
 
 
+#: Figures of the true tool forces (a simulation's ``truth/tool/force_x``, ``_y``), and of
+#: the power from the plan's cutting torque as well: on a measured recording they are none.
+_TRUTH_FIGURES = {"peak_force_intact_n", "peak_force_n", "cut_with_broken_tool_s"}
+_POWER_FIGURES = {"mean_power_w"}
+
+
+def _shown(key: str, value: Any, scan: RunScan) -> Any:
+    """A figure as the report shows it: "–" with the reason where the recording lacks what
+    it is computed from (an imported measurement showed "peak true |F_xy| [N] 0")."""
+    if key in _TRUTH_FIGURES and not scan.truth:
+        return "– (no true tool forces: a measured recording)"
+    if key in _POWER_FIGURES and not (scan.truth and scan.power):
+        return "– (needs the true forces and the plan's cutting torque)"
+    return value
+
+
+def _meta_value(key: str, value: Any) -> Any:
+    """A metadata value in the recording table; an import's quality report as its counts
+    (the findings follow in their own table)."""
+    if key == "quality_json" and isinstance(value, str):
+        from millsense.io.quality import finding_counts
+
+        counts = finding_counts(value)
+        return value if counts is None else f"{counts} (below)"
+    return value if isinstance(value, int | float | str) else json.dumps(value)
+
+
+def _quality_parts(meta: Mapping[str, Any]) -> list[str]:
+    """The import's data-quality findings (``quality_json``), one row each."""
+    text = meta.get("quality_json")
+    try:
+        findings = json.loads(text)["findings"] if isinstance(text, str) else []
+        rows = [[f.get("kind"), "refused" if f.get("refuse") else "warning", f.get("message")]
+                for f in findings[:MAX_EVENT_ROWS]]  # fmt: skip
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return []
+    if not rows:
+        return []
+    return ["<h3>Data quality of the import</h3>",
+            html_table(["kind", "status", "finding"], rows, "quality")]  # fmt: skip
+
+
 def _runs_table(runs: Mapping[str, RunFigures] | None) -> list[str]:
     """The figures of several runs side by side (the demo's summary table)."""
     if not runs:
@@ -508,14 +550,15 @@ def _html(
              f"whole-run traces are min/max envelopes of {scan.width} samples per bin (no peak "
              "dropped); zoom in with the mouse.</p>",
              "<h2>Run figures</h2>",
-             html_table(["figure", "value"], [[lab, v] for _, lab, v in figures_rows(f)],
+             html_table(["figure", "value"], [[lab, _shown(key, v, scan)]
+                                              for key, lab, v in figures_rows(f)],
                     "figures"),
              html_table(["events", "count"], sorted(f.events.items()), "event-counts"),
              *_runs_table(runs),
              *fleet_parts,
              "<h2>Recording</h2>",
-             html_table(["key", "value"], [[k, v if isinstance(v, int | float | str) else
-                                        json.dumps(v)] for k, v in meta.items()])]  # fmt: skip
+             html_table(["key", "value"], [[k, _meta_value(k, v)] for k, v in meta.items()]),
+             *_quality_parts(meta)]  # fmt: skip
     sections = {
         "estimates": "Estimated against true forces and torque",
         "harmonics": "Tooth harmonics",

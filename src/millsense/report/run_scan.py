@@ -74,6 +74,10 @@ class RunScan:
     figures: RunFigures
     width: int = 1
     present: set[str] = field(default_factory=set)
+    truth: bool = True
+    """The recording has the true tool forces (a simulation): the figures of them hold."""
+    power: bool = True
+    """The recording has the plan's cutting torque and the spindle speed (a session)."""
 
 
 def scan_run(
@@ -134,7 +138,8 @@ def scan_run(
                 broken_cnt += int(np.count_nonzero((data["truth/process/broken"] > 0.5) & cutting))
     figures = run_figures_from(events, n / fs, peak, p_sum / p_cnt if p_cnt else 0.0,
                                broken_cnt / fs, intact)  # fmt: skip
-    return RunScan(n, fs, envs, starts, figures, width, set(want))
+    power = {"plan/cutting_torque", "spindle/speed"} <= names
+    return RunScan(n, fs, envs, starts, figures, width, set(want), have_fxy, power)
 
 
 def run_figures_from(

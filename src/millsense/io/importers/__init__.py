@@ -13,8 +13,9 @@ it back.
 from __future__ import annotations
 
 import fnmatch
+import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,10 +52,19 @@ FORMATS = {
 }
 #: NaN runs up to this many samples are filled by linear interpolation; longer ones refused.
 MAX_NAN_FILL = 10
+#: A time step shorter than this share of the median step is refused: two rows within less
+#: than half a sample period are no regular sampling (a logger's write times, a merged file),
+#: and no uniform grid holds both. Jitter within it is resampled linearly (reported).
+MIN_STEP_SHARE = 0.5
 
 
-def read_table(path: Path, options: FileOptions | None = None) -> RawTable:
-    """Read one file with the reader of its suffix.
+def read_table(
+    path: Path,
+    options: FileOptions | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RawTable:
+    """Read one file with the reader of its suffix (``progress(done, total)``: a text file's
+    characters read, after each chunk of its table).
 
     Raises
     ------
@@ -68,7 +78,7 @@ def read_table(path: Path, options: FileOptions | None = None) -> RawTable:
     if kind in ("csv", "tsv"):
         from millsense.io.importers.delimited import read_delimited
 
-        return read_delimited(path, opt.delimiter, opt.decimal)
+        return read_delimited(path, opt.delimiter, opt.decimal, progress)
     if kind == "mat":
         from millsense.io.importers.matlab import read_mat
 
@@ -152,7 +162,7 @@ def _on_grid(
             "give [[files]] sample_rate_hz in the map or --rate-hz"
         )
     tcol = table.time_column(opt.time_column)
-    if opt.time_column is not None and tcol not in table.columns:
+    if tcol is not None and tcol not in table.columns:
         raise InputDataError(f"{where}: no time column {opt.time_column!r}")
     cols = {k: v for k, v in table.columns.items() if k != tcol}
     n = table.n_rows
@@ -165,8 +175,13 @@ def _on_grid(
         report.rates[where] = (stated, stated)
         return _Timed(table, float(stated), 0.0, cols, stated, False, np.zeros(n, bool))
     # the map's time_unit, else the file's (units row, "Time [ms]"), else seconds
-    unit = opt.time_unit or table.units.get(tcol, "") or "s"
+    unit = opt.time_unit or table.unit_of(tcol) or "s"
     factor = time_factor(unit, f"{where}: time column {tcol!r}")
+    if tcol in table.clock_origin and factor != 1.0:
+        raise ConfigError(
+            f"{where}: time column {tcol!r} holds dates and times (read in s): time_unit = "
+            f"{opt.time_unit!r} does not apply"
+        )
     t = np.asarray(table.columns[tcol], dtype=np.float64) * factor
     if not np.all(np.isfinite(t)):
         k = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -176,7 +191,12 @@ def _on_grid(
     fs, _, _ = rate_from_time(t, stated, where, report)
     bad = [f for f in report.refusals if f.where == where]
     if bad:
-        raise InputDataError(bad[0].message)
+        row = bad[0].data.get("row")
+        line = (
+            f" (line {table.first_line + int(row)} of the file)" if row and table.first_line else ""
+        )
+        raise InputDataError(bad[0].message + line)
+    _refuse_irregular(t, table, tcol, where)
     pos = (t - t[0]) * fs
     k = np.rint(pos).astype(np.int64)
     m = int(k[-1]) + 1
@@ -199,6 +219,103 @@ def _on_grid(
     return _Timed(table, fs, float(t[0]), grid, stated, True, filled)
 
 
+def _refuse_irregular(t: np.ndarray, table: RawTable, tcol: str, where: str) -> None:
+    """One line naming the first row that comes less than :data:`MIN_STEP_SHARE` of the median
+    step after the one before it (time increasing, checked before)."""
+    dt = np.diff(t)
+    nominal = float(np.median(dt))
+    short = np.flatnonzero(dt < MIN_STEP_SHARE * nominal)
+    if not short.size:
+        return
+    k = int(short[0]) + 1
+    at = f"line {table.first_line + k}" if table.first_line else f"row {k + 1}"
+    raise InputDataError(
+        f"{where}: {at}: irregular time column {tcol!r}: a step of {dt[k - 1] * 1e3:.6g} ms "
+        f"after {t[k - 1]:.9g} s, less than {MIN_STEP_SHARE:g} x the median step "
+        f'{nominal * 1e3:.6g} ms ({short.size} such steps): give [[files]] time_column = "" '
+        "and sample_rate_hz if the rows are evenly sampled"
+    )
+
+
+def _clock_start(tm: _Timed, opt: FileOptions) -> str | None:
+    """The first wall-clock stamp of a file read on its clock column, else None."""
+    tcol = tm.table.time_column(opt.time_column)
+    return tm.table.clock_origin.get(tcol) if tm.has_time and tcol is not None else None
+
+
+def _on_one_clock(
+    timed: Mapping[Path, _Timed], fastest: _Timed, opts: Mapping[Path, FileOptions]
+) -> None:
+    """Files stamped with the wall clock start where their first stamps say, relative to the
+    fastest file's first stamp (t = 0): each was read as seconds from its own first row, so a
+    temperature log started 0.5 s before the drives' trace was laid 0.5 s late.
+
+    Raises
+    ------
+    InputDataError
+        Stamps with a zone offset in one file and without in another: no common clock.
+    """
+    from millsense.io.importers.delimited import stamp_ns
+
+    ref = _clock_start(fastest, opts[fastest.table.path])
+    if ref is None:
+        return
+    ref_ns, zoned = stamp_ns(ref)
+    for path, tm in timed.items():
+        start = _clock_start(tm, opts[path])
+        if tm is fastest or start is None:
+            continue
+        start_ns, other = stamp_ns(start)
+        if other != zoned:
+            raise InputDataError(
+                f"{path}: its first stamp {start!r} and {fastest.table.path}'s {ref!r}: one has "
+                "a zone offset and the other not: no common clock"
+            )
+        tm.t0 = (start_ns - ref_ns) * 1e-9
+
+
+def _sparse_to_stream(
+    ch: ChannelMap,
+    x: np.ndarray,
+    si: str,
+    timed: _Timed,
+    streams: dict[str, tuple[np.ndarray, dict[str, np.ndarray], dict[str, str]]],
+    report: QualityReport,
+) -> bool:
+    """A column holding a value every k-th row (k > :data:`MAX_NAN_FILL`), blank between: a
+    slower channel merged into a DAQ's table (a temperature at 100 Hz among 10 kHz currents).
+    It becomes a stream at rate / k (STREAM/FIELD from its channel name) instead of a long
+    NaN run refused; True when so."""
+    idx = np.flatnonzero(np.isfinite(x))
+    if idx.size < 2:
+        return False
+    steps = np.diff(idx)
+    k = int(steps[0])
+    if k <= MAX_NAN_FILL or np.any(steps != k) or idx[0] >= k or x.size - idx[-1] > k:
+        return False
+    sname, _, fname = ch.channel.rpartition("/")
+    sname = sname or timed.table.path.stem
+    t = timed.t0 + idx / timed.fs
+    old = streams.setdefault(sname, (t, {}, {}))
+    if old[0].shape != t.shape or np.any(old[0] != t):
+        raise InputDataError(
+            f"{timed.table.path}: channel '{ch.channel}' holds a value every {k} rows, another "
+            f"field of stream '{sname}' not on the same rows: name them in different streams"
+        )
+    old[1][fname], old[2][fname] = x[idx], si
+    report.add(
+        Finding(
+            "nan",
+            ch.channel,
+            f"{timed.table.path}: channel '{ch.channel}' holds a value every {k} rows, blank "
+            f"between: stored as field '{fname}' of stream '{sname}' at "
+            f"{timed.fs / k:.6g} Hz ({idx.size} rows)",
+            data={"every": k, "rows": int(idx.size)},
+        )
+    )
+    return True
+
+
 def _fill_index(k: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
     if k.size == m:
         return np.asarray(v, dtype=np.float64)
@@ -208,7 +325,7 @@ def _fill_index(k: np.ndarray, v: np.ndarray, m: int) -> np.ndarray:
 def _convert(ch: ChannelMap, timed: _Timed, where: str) -> tuple[np.ndarray, str]:
     unit = ch.unit
     if unit == "header":
-        unit = timed.table.units.get(ch.column, "")
+        unit = timed.table.unit_of(ch.column)
         if not unit:
             raise InputDataError(
                 f"{timed.table.path}: column {ch.column!r} has no unit in the file: give "
@@ -282,6 +399,7 @@ def import_files(
     metadata: Mapping[str, object] | None = None,
     map_source: str = "map",
     source: str = "millsense import",
+    progress: Callable[[Path, int, int], None] | None = None,
 ) -> ImportResult:
     """Read ``paths``, apply ``mapping`` and check the result.
 
@@ -293,6 +411,7 @@ def import_files(
     metadata : added over the map's ``[metadata]`` (CLI options).
     map_source : how messages name the map (its path).
     source : how messages name the recording (``metadata['source']``, e.g. the output file).
+    progress : ``progress(file, done, total)`` while a text file is read (characters).
 
     Returns
     -------
@@ -310,7 +429,10 @@ def import_files(
     _check_process_metadata(mapping.metadata, f"{map_source}: [metadata]")
     _check_process_metadata(metadata or {}, "--")
     opts = {p: mapping.options_for(p) for p in paths}
-    tables = [read_table(p, opts[p]) for p in paths]
+    tables = [
+        read_table(p, opts[p], None if progress is None else functools.partial(progress, p))
+        for p in paths
+    ]
     users: dict[Path, list[ChannelMap]] = {t.path: [] for t in tables}
     for i, ch in enumerate(mapping.channels):
         where = f"{map_source}: channels[{i}] ({ch.channel})"
@@ -318,6 +440,7 @@ def import_files(
     used = [t for t in tables if users[t.path]]
     timed = {t.path: _on_grid(t, opts[t.path], rate_hz, report) for t in used}
     fastest = max(timed.values(), key=lambda tm: tm.fs)
+    _on_one_clock(timed, fastest, opts)
     meta: dict[str, object] = {
         "source": source,
         "imported_from": [str(p) for p in paths],
@@ -326,15 +449,20 @@ def import_files(
     meta.update(mapping.metadata)
     meta.update({k: v for k, v in (metadata or {}).items() if v is not None})
     rec = Recording(fastest.fs, fastest.t0, meta)
+    sparse: dict[str, tuple[np.ndarray, dict[str, np.ndarray], dict[str, str]]] = {}
     for ch in users[fastest.table.path]:
         where = f"{map_source}: channel '{ch.channel}'"
         x, si = _convert(ch, fastest, where)
+        if _sparse_to_stream(ch, x, si, fastest, sparse, report):
+            continue
         x = _fill_nan(
             x, ch.channel, str(fastest.table.path), fastest.table.first_line, report, fastest.fs
         )
         rec.add_channel(
             ch.channel, x, si, ch.description or f"{ch.column} of {fastest.table.path.name}"
         )
+    for sname, (t_s, fields, units) in sparse.items():
+        rec.add_stream(sname, t_s, fields, units)
     for tm in timed.values():
         if tm is fastest:
             continue
@@ -357,6 +485,10 @@ def import_files(
         if rate_fs:
             rec = _with_rate(rec, float(np.median(rate_fs)))
     rec.metadata["stated_sample_rate_hz"] = fastest.stated
+    tcol = fastest.table.time_column(opts[fastest.table.path].time_column)
+    if fastest.has_time and tcol in fastest.table.clock_origin:
+        # the wall-clock time of t = 0 s, as the file wrote it
+        rec.metadata["time_origin"] = fastest.table.clock_origin[tcol]
     rec.metadata["quality_json"] = report.to_json()
     if report.refusals:
         raise InputDataError(report.refusals[0].message)

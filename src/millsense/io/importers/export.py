@@ -109,6 +109,12 @@ def export_recording(
     names = list(dict.fromkeys(channels)) if channels else rec.channel_names
     for c in names:
         if c not in rec:
+            sname = c.rpartition("/")[0]
+            if c in rec.stream_names or sname in rec.stream_names:
+                raise ConfigError(
+                    f"--channel {c!r}: a stream of {rec.source}; streams are not exported "
+                    f"(only channels: {', '.join(rec.channel_names[:8])}...)"
+                )
             raise ConfigError(f"--channel {c!r}: not in {rec.source}")
     cols = {c: np.asarray(rec.channel(c), dtype=np.float64) for c in names}
     units = {c: rec.info(c).unit for c in names}

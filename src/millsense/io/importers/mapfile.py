@@ -13,6 +13,7 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     match = "trace*.csv"       # glob on the file name (default "*": every file)
     sample_rate_hz = 10000     # stated rate when the file has no time column (or a header)
     time_column = "Time"       # a time column (its unit: time_unit) instead of a stated rate
+                               # ("": none, although one is named like one: the rate is stated)
     time_unit = "ms"           # default: the file's (units row, "Time [ms]"), else s
     delimiter = ";"            # csv/tsv: default sniffed among , ; tab
     decimal = ","              # csv/tsv: decimal comma (Siemens exports in German locale)
@@ -25,7 +26,9 @@ A TOML file (pydantic model, one-line errors naming the file and key, like
     offset = 0.0
     file = "trace*.csv"        # optional glob: which file holds the column
 
-``unit = "header"`` takes the unit from the file's unit row (Servo Trace / TNCscope exports).
+``unit = "header"`` takes the unit from the file's unit row (Servo Trace / TNCscope exports), a
+bracket in the name (``I_x [A]``) or a known unit after the name's last underscore (``x_current_A``,
+``time_ms``: also a time column).
 Counts (encoder positions): give the unit one count is expressed in and the count size as
 ``scale`` (``unit = "um"``, ``scale = 0.5`` for 0.5 µm per count).
 """

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["TIME_NAMES", "RawTable", "rate_from_header"]
+__all__ = ["TIME_NAMES", "RawTable", "name_unit", "rate_from_header"]
 
 #: Column names taken as the time column when the map names none (case-insensitive).
 TIME_NAMES = ("time", "t", "time_s", "zeit", "timestamp", "time [s]")
@@ -36,6 +36,8 @@ class RawTable:
         that messages can name a row's line.
     skipped : variable name → (its size, why it is not a column): a .mat matrix, a vector of
         another length, so that a map naming it is told why.
+    clock_origin : column of wall-clock stamps (ISO-8601 in a text file, read as seconds from
+        its first row) → its first stamp as written.
     """
 
     path: Path
@@ -45,6 +47,7 @@ class RawTable:
     header: dict[str, str] = field(default_factory=dict)
     first_line: int = 0
     skipped: dict[str, tuple[str, str]] = field(default_factory=dict)
+    clock_origin: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -53,14 +56,43 @@ class RawTable:
             return int(v.shape[0])
         return 0
 
+    def unit_of(self, column: str) -> str:
+        """The unit the file gives ``column``: its units row or bracket (:attr:`units`), else
+        a known unit after the name's last underscore (``x_current_A``, ``time_ms``), else
+        ''."""
+        return self.units.get(column, "") or (name_unit(column) or ("", ""))[1]
+
     def time_column(self, name: str | None) -> str | None:
-        """The time column: ``name`` if given, else one named like :data:`TIME_NAMES`."""
+        """The time column: ``name`` if given (``""``: none, the rate is stated), else one
+        named like :data:`TIME_NAMES` (also with a time unit after an underscore:
+        ``time_ms``), else the only column of wall-clock stamps."""
         if name is not None:
-            return name
+            return name or None
         for col in self.columns:
             if col.strip().lower() in TIME_NAMES:
                 return col
+        for col in self.columns:
+            stem_unit = name_unit(col)
+            if stem_unit and stem_unit[0].strip().lower() in TIME_NAMES:
+                from millsense.io.importers.mapfile import UNITS
+
+                if UNITS[stem_unit[1]][0] == "s":
+                    return col
+        if len(self.clock_origin) == 1:
+            return next(iter(self.clock_origin))
         return None
+
+
+def name_unit(column: str) -> tuple[str, str] | None:
+    """(stem, unit) of a column name ending in ``_UNIT`` with a known unit (the map's
+    :data:`~millsense.io.importers.mapfile.UNITS`: ``x_current_A`` → ("x_current", "A"),
+    ``spindle_speed_rpm``, ``time_ms``), else None (``coolant_on``, ``x_current_cmd``)."""
+    from millsense.io.importers.mapfile import UNITS
+
+    stem, sep, unit = column.strip().rpartition("_")
+    if sep and stem and unit in UNITS:
+        return stem, unit
+    return None
 
 
 def rate_from_header(header: dict[str, str]) -> float | None:
