@@ -16,6 +16,7 @@ from millsense.core.recording import Recording
 from millsense.io.recording_file import write_recording
 from millsense.plan.virtual_plan import COLUMNS, VirtualPlan
 from millsense.streaming import read_event_log
+from millsense.streaming.event_log import event_log_recording
 from test_monitoring_chatter import FS, _signal
 
 
@@ -58,6 +59,7 @@ def test_monitor_microphone_only_with_plot(
     assert code == 0, err
     ev = [e for e in read_event_log(out) if e.name == "chatter"]
     assert sorted(e.source for e in ev) == ["chatter-comb", "chatter-sdft"]
+    assert event_log_recording(out) == "run.h5"  # the log names what it monitored
     for e in ev:
         assert e.value == pytest.approx(937.0, rel=0.005)  # the synthetic chatter frequency
         assert 2.5 < e.time_s <= 2.7

@@ -9,7 +9,7 @@ import pytest
 
 from millsense.core.errors import ConfigError
 from millsense.streaming import Event, EventKind, Severity, read_event_log, write_event_log
-from millsense.streaming.event_log import default_event_log_path
+from millsense.streaming.event_log import default_event_log_path, event_log_recording
 
 
 def _events() -> list[Event]:
@@ -75,3 +75,12 @@ def test_not_an_event_log_is_named(tmp_path):
     bad.write_text("not parquet")
     with pytest.raises(ConfigError, match=r"bad\.parquet"):
         read_event_log(bad)
+
+
+def test_the_log_names_its_recording(tmp_path):
+    """A log says which recording it describes (its file name), also once moved away from it;
+    a log written without one says nothing (None)."""
+    p = write_event_log(tmp_path / "x.parquet", _events(), recording=tmp_path / "sub" / "run7.h5")
+    assert event_log_recording(p) == "run7.h5"
+    assert event_log_recording(write_event_log(tmp_path / "y.parquet", _events())) is None
+    assert len(read_event_log(p)) == 3

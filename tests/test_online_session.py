@@ -382,7 +382,7 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     back, and the replay's breakage alarm falls within 3 tooth periods of the
     run's (same blocks, same signals)."""
     from millsense.io.recording_reader import open_recording
-    from millsense.streaming.event_log import read_event_log
+    from millsense.streaming.event_log import event_log_recording, read_event_log
 
     code, _out, err = _run_slot(
         tmp_path, capsys, "--plan-out", str(tmp_path / "plan.parquet"), "--break-at-s", "5.0",
@@ -392,6 +392,7 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     # the live dashboard served the run on the loopback with a 32-character token (issue 19)
     assert re.search(r"dashboard: http://127\.0\.0\.1:\d+/\?token=[\w-]{32}\n", err), err
     ev = read_event_log(tmp_path / "run.events.parquet")
+    assert event_log_recording(tmp_path / "run.events.parquet") == "run.h5"
     holds = [e.time_s for e in ev if e.name == "feed_hold"]
     brk = [e.time_s for e in ev if e.name == "breakage"]
     assert len(brk) == 1 and len(holds) == 1

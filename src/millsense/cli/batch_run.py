@@ -396,7 +396,8 @@ def _merged(out_dir: Path, path: Path, done: dict[str, dict[str, Any]]) -> dict[
         logs = sorted(run_dir.glob("seg-*/events.parquet"))
         if logs:  # the segments' own events, one log for the run
             write_event_log(run_dir / "events.parquet",
-                            [e for log in logs for e in read_event_log(log)])  # fmt: skip
+                            [e for log in logs for e in read_event_log(log)],
+                            recording=path)  # fmt: skip
         write_fragment(out_dir, path, row)
     return row
 

@@ -495,7 +495,7 @@ def _monitor(path: Path, run_dir: Path, options: dict[str, Any], row: dict[str, 
 
         t_start = float(row["segment_start_s"])
         events = [e for e in events if e.time_s >= t_start - 1e-9]
-        write_event_log(out, events)
+        write_event_log(out, events, recording=path)
     alarms = [e for e in events if str(e.kind) == "alarm"]
     row["events"] = len(events)
     row["alarms"] = len(alarms)

@@ -406,7 +406,7 @@ def _run(
     t0 = time.perf_counter()
     res = run(source, pipeline, chunk, sink=sink, collect=False)
     wall = time.perf_counter() - t0
-    write_event_log(out, res.events)
+    write_event_log(out, res.events, recording=recording)
     seconds = rec.n_samples / fs
     speed = seconds / max(wall, 1e-9)
     lines = [

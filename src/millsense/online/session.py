@@ -394,5 +394,5 @@ def run_session(
             writer.update_metadata({"events": len(events)})
             writer.close()
         if events_out is not None:
-            write_event_log(events_out, events)
+            write_event_log(events_out, events, recording=out)
     return SessionResult(count[0], src.sample_rate_hz, events, time.perf_counter() - t0)

@@ -5,7 +5,8 @@ One row per :class:`~millsense.streaming.block.Event`, written beside a recordin
 (``pd.read_parquet``) or duckdb (``SELECT * FROM 'run.events.parquet'``). The columns are the
 event's fields; the free-form ``values`` mapping is stored as a JSON text column so that any
 monitor may add named numbers without changing the schema, and the log's ``schema_version``
-is kept in the file's metadata (issue 15, item 5).
+is kept in the file's metadata (issue 15, item 5), with the recording the events are of (its
+file name, :func:`event_log_recording`) where the writer knows it.
 """
 
 from __future__ import annotations
@@ -53,8 +54,19 @@ def _finite_or_none(v: float | None) -> float | None:
     return f if math.isfinite(f) else None
 
 
-def write_event_log(path: str | os.PathLike[str], events: Iterable[Event]) -> Path:
-    """Write ``events`` (sorted by time, then sample) to ``path`` as Parquet, atomically."""
+#: The file-metadata key of the recording the events are of.
+RECORDING_KEY = "millsense_recording"
+
+
+def write_event_log(
+    path: str | os.PathLike[str],
+    events: Iterable[Event],
+    recording: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Write ``events`` (sorted by time, then sample) to ``path`` as Parquet, atomically;
+    ``recording``: the recording they are of, whose file name the log's metadata keeps
+    (:func:`event_log_recording`), so that a log moved away from it still says what it
+    describes."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -92,13 +104,26 @@ def write_event_log(path: str | os.PathLike[str], events: Iterable[Event]) -> Pa
             ("message", pa.string()),
             ("values_json", pa.string()),
         ],
-        metadata={"millsense_event_log_schema_version": str(SCHEMA_VERSION)},
+        metadata={
+            "millsense_event_log_schema_version": str(SCHEMA_VERSION),
+            **({} if recording is None else {RECORDING_KEY: Path(recording).name}),
+        },
     )
     table = pa.table(cols, schema=schema)
     out = Path(path)
     with atomic_path(out) as tmp:
         pq.write_table(table, tmp)
     return out
+
+
+def event_log_recording(path: str | os.PathLike[str]) -> str | None:
+    """The file name of the recording an event log is of (None: not recorded in the log,
+    e.g. a log written before it was kept)."""
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(Path(path)).metadata or {}
+    value = meta.get(RECORDING_KEY.encode())
+    return None if value is None else value.decode()
 
 
 def read_event_log(path: str | os.PathLike[str]) -> list[Event]:
