@@ -477,10 +477,10 @@ class BreakageBlock(Block):
         """What the flute signature (decision 1681) found at the alarm."""
         low = 1.0 - self.edge_share / self.n_flutes - self.revolution_tol
         if ratio < low:
-            return (f"; the revolution's torque {100 * ratio:.0f} % of the plan's for "
+            return (f"; the revolution's torque {round(100 * ratio):d} % of the plan's for "
                     f"{self.lost_revolutions} revolutions (the whole cut lost, under a broken "
                     f"flute's {100 * low:.0f} %)")  # fmt: skip
-        return (f"; one flute: the revolution's torque {100 * ratio:.0f} % of the plan's, the "
+        return (f"; one flute: the revolution's torque {round(100 * ratio):d} % of the plan's, the "
                 f"same flute {lag:+.3g} {self.unit} one revolution earlier")  # fmt: skip
 
     def _event(
