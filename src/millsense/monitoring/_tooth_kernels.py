@@ -9,8 +9,8 @@ cut into chunks of any size gives the same result as the whole stream:
   crosses the next integer; it is reported at that sample (one sample after its last one).
 * :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
   residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
-  thresholds of the three detectors, the noise floor of the torque's band (decision 1550) and
-  the confirmation count.
+  thresholds of the three detectors, the noise floor of the torque's band (decision 1550), the
+  confirmation count and a broken flute's signature over the last revolution (decision 1681).
 """
 
 from __future__ import annotations
@@ -239,13 +239,12 @@ def _rls_ar1(
 @numba.njit(cache=True)
 def _flute_signature(
     state: FloatArray, nf: int, seen: int, x_lag: float, ref: float, one_sided: bool
-) -> tuple[float, float, float, bool]:
+) -> tuple[float, float, bool]:
     """The revolution and the flute of a period (decision 1681): store its reference ``ref``
     (NaN: not judged) and one-sided flag in the signature's rings, and return the ratio of the
     last N periods' torque to their references (one revolution: NaN unless all N judged), the
     deviation x − ref of the same flute one revolution earlier (``x_lag`` its torque; NaN
-    unless judged), the deviation of the revolution's other N − 1 periods together (NaN
-    unless all judged) and whether a period of the revolution is one-sided (decision 1674)."""
+    unless judged) and whether a period of the revolution is one-sided (decision 1674)."""
     r_ex = DET_BASE + nf + NOISE_WINDOW
     r_one = r_ex + nf
     slot = seen % nf
@@ -255,19 +254,18 @@ def _flute_signature(
     state[r_ex + slot] = ref
     state[r_one + slot] = 1.0 if one_sided else 0.0
     if seen + 1 < nf:
-        return math.nan, lag, math.nan, False
+        return math.nan, lag, False
     sx = 0.0
     se = 0.0
     one = False
     for i in range(nf):
         e = state[r_ex + i]
         if e != e:
-            return math.nan, lag, math.nan, False
+            return math.nan, lag, False
         sx += state[DET_BASE + i]
         se += e
         one = one or state[r_one + i] > 0.0
-    rest = (sx - se) - (state[DET_BASE + slot] - ref)
-    return sx / se, lag, rest, one
+    return sx / se, lag, one
 
 
 @numba.njit(cache=True)
@@ -303,11 +301,21 @@ def detect_periods(
     stays σ_TB·τ_ref (the seed's trigger). With k_noise > 0 no period is judged before the
     window holds NOISE_MIN periods (decision 1553).
 
+    With the flute signature (virtual mode, decision 1681) a run's alarm comes at its first
+    violating period from the ``confirm``-th on where the last revolution looks like a broken
+    flute (:func:`_flute_signature`): its torque within [1 − edge_share/N − tol, 1 + tol] of
+    the references (no upper bound where a period of it is one-sided) and the same flute one
+    revolution earlier deviating the same way; or once the revolution's torque has stayed under
+    that band for ``lost_periods`` judged periods in a row (the whole cut lost). Rows 11 and 12
+    of ``pp`` get the revolution's ratio and the same flute's earlier deviation (virtual
+    mode).
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
     (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from, k_noise); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
+    learn_from, k_noise, edge_share, tol); ``iparams`` = (N, mode, check_deviation,
+    learn_periods, confirm, flute signature, lost_periods).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
     reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
@@ -449,28 +457,23 @@ def detect_periods(
             elif seen >= 2:
                 state[DET_GAP] = 1.0
             if mode == MODE_VIRTUAL:
-                ratio, lag, rest, one = _flute_signature(state, nf, seen, xn,
-                                                         ex if judge else math.nan,
-                                                         below)  # fmt: skip
+                ratio, lag, one = _flute_signature(state, nf, seen, xn, ex if judge else math.nan,
+                                                   below)  # fmt: skip
                 rev_out[m] = ratio
                 lag_out[m] = lag
                 if signature:
                     # a broken flute (decision 1681): the next flute cuts its chip, so the
-                    # revolution keeps its torque but for the broken flute's edge share and
-                    # the rest of the revolution deviates the other way, and the deviation
-                    # comes back at the same flute one revolution on; chatter's drops and
-                    # surges take every flute together (the revolution mean moves, the rest
-                    # deviates the same way) and are not locked to a flute. The whole cut lost
-                    # (all flutes) is a revolution mean below a broken flute's for
-                    # lost_periods periods in a row.
+                    # revolution keeps its torque but for the broken flute's edge share, and
+                    # the deviation comes back at the same flute one revolution on; chatter's
+                    # drops and surges take every flute together (the revolution mean moves)
+                    # and are not locked to a flute. The whole cut lost (all flutes) is a
+                    # revolution mean below a broken flute's for lost_periods periods in a row.
                     low = judge and ratio == ratio and ratio < rev_low
                     state[DET_LOW] = state[DET_LOW] + 1.0 if low else 0.0
-                    dev = xm - ex
                     keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
-                    moved = rest * dev < 0.0  # False where NaN
-                    locked = lag * dev > 0.0
+                    locked = lag * (xm - ex) > 0.0  # False where NaN
                     lost = lost_periods > 0 and state[DET_LOW] >= lost_periods
-                    flute = (keeps and moved and locked) or lost
+                    flute = (keeps and locked) or lost
         expected[m] = ex if mode != MODE_DUAL else 0.0
         # a broken flute of N shows once a revolution at least (its own period; the next
         # flute's double chip need not leave the band where the flute's pulse is shorter than

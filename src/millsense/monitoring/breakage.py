@@ -105,7 +105,7 @@ NOISE_K = 4.0
 #: the plan's, and the revolutions in a row of a revolution mean below a broken flute's that
 #: are the whole cut lost (alarmed without the flute signature).
 EDGE_SHARE = 0.5
-REVOLUTION_TOL = 0.2
+REVOLUTION_TOL = 0.1
 LOST_REVOLUTIONS = 6
 #: Seed 002 §2.5: threshold factor and learning length.
 ALPHA = 2.0
