@@ -180,9 +180,10 @@ def test_every_flute_up_is_no_breakage_and_the_whole_cut_lost_is() -> None:
     """Decision 1681's two other cases, on tooth-period levels: every flute 60 % over the plan
     from period 60 (a revolution mean of 160 %: no flute broke, no alarm; the seed's detector
     alarmed at period 62, the third out of the band), and every flute's torque lost from period
-    60 (the tool off at its shank): the revolution mean is under a broken flute's 65 % from
-    period 60 (50 %), and the alarm comes with its 12th such period, 71 (reported at its end,
-    the first sample of period 72)."""
+    60 (the tool off at its shank): the revolution mean is under the other flute's share
+    (1 − 1/2 − 10 % = 40 %) from period 61 (0 %; period 60's revolution holds 50 %), and the
+    alarm comes with its 20th such period, 80: 10 revolutions (reported at its end, the first
+    sample of period 81)."""
     p = np.arange(120)
     up = np.where(p >= 60, 4.8, 3.0)
     assert _levels(up) == []
@@ -190,5 +191,5 @@ def test_every_flute_up_is_no_breakage_and_the_whole_cut_lost_is() -> None:
     assert len(seed) == 1 and seed[0].sample == pytest.approx(63 * TOOTH, abs=1)
     lost = _levels(np.where(p >= 60, 0.0, 3.0))
     assert len(lost) == 1
-    assert lost[0].sample == pytest.approx(72 * TOOTH, abs=1)
+    assert lost[0].sample == pytest.approx(81 * TOOTH, abs=1)
     assert "the whole cut lost" in lost[0].message

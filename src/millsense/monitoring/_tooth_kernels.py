@@ -306,9 +306,9 @@ def detect_periods(
     flute (:func:`_flute_signature`): its torque within [1 − edge_share/N − tol, 1 + tol] of
     the references (no upper bound where a period of it is one-sided) and the same flute one
     revolution earlier deviating the same way; or once the revolution's torque has stayed under
-    that band for ``lost_periods`` judged periods in a row (the whole cut lost). Rows 11 and 12
-    of ``pp`` get the revolution's ratio and the same flute's earlier deviation (virtual
-    mode).
+    1 − 1/N − tol (more than one flute's share missing) for ``lost_periods`` judged periods in a
+    row (the whole cut lost). Rows 11 and 12 of ``pp`` get the revolution's ratio and the same
+    flute's earlier deviation (virtual mode).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
@@ -324,8 +324,10 @@ def detect_periods(
     learn_periods, confirm = iparams[3], iparams[4]
     signature = iparams[5] != 0 and mode == MODE_VIRTUAL
     lost_periods = iparams[6]
-    # a broken flute's revolution keeps at least this share of the plan's (decision 1681)
+    # a broken flute's revolution keeps at least this share of the plan's; under the other
+    # flutes' shares more than one flute's torque is missing (decision 1681)
     rev_low = 1.0 - edge_share / nf - rev_tol
+    rev_lost = 1.0 - 1.0 / nf - rev_tol
     x = pp[3]
     expected = pp[2]
     eps1 = pp[4]
@@ -466,9 +468,11 @@ def detect_periods(
                     # revolution keeps its torque but for the broken flute's edge share, and
                     # the deviation comes back at the same flute one revolution on; chatter's
                     # drops and surges take every flute together (the revolution mean moves)
-                    # and are not locked to a flute. The whole cut lost (all flutes) is a
-                    # revolution mean below a broken flute's for lost_periods periods in a row.
-                    low = judge and ratio == ratio and ratio < rev_low
+                    # and are not locked to a flute. The whole cut lost is a revolution mean
+                    # under the other flutes' shares (more than one flute's torque missing)
+                    # for lost_periods judged periods in a row: chatter's lows are followed by
+                    # the surges that cut what they left.
+                    low = judge and ratio == ratio and ratio < rev_lost
                     state[DET_LOW] = state[DET_LOW] + 1.0 if low else 0.0
                     keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
                     locked = lag * (xm - ex) > 0.0  # False where NaN

@@ -24,7 +24,8 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     the chip of every flute: its tooth periods drop and surge together, moving the revolution
     mean, and not at one flute's position (measured: 86 % drops where the chatter monitor's
     ratio was 0.66). Where the signature is missing at the third violation the run goes on and
-    alarms at a later violation that shows it; a revolution mean below a broken flute's for
+    alarms at a later violation that shows it; a revolution mean under the other flutes'
+    shares (1 − 1/N − ``revolution_tol``: more than one flute's torque missing) for
     ``lost_revolutions`` revolutions in a row (the whole cut lost: every flute, the tool off at
     its shank) alarms without it. The tooth periods' phase is that of the
     stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage` judges several
@@ -102,11 +103,12 @@ CONFIRM_PERIODS = 3
 NOISE_K = 4.0
 #: Decision 1681: the share of its own torque a broken flute takes from the revolution (its
 #: edge force; the next flute cuts its chip), the tolerance of the revolution mean's ratio to
-#: the plan's, and the revolutions in a row of a revolution mean below a broken flute's that
-#: are the whole cut lost (alarmed without the flute signature).
+#: the plan's, and the revolutions in a row of a revolution mean under the other flutes'
+#: shares (1 − 1/N − tol) that are the whole cut lost (alarmed without the flute signature;
+#: weak chatter's lows measured 8 revolutions at most).
 EDGE_SHARE = 0.5
 REVOLUTION_TOL = 0.1
-LOST_REVOLUTIONS = 6
+LOST_REVOLUTIONS = 10
 #: Seed 002 §2.5: threshold factor and learning length.
 ALPHA = 2.0
 LEARN_REVOLUTIONS = 5
@@ -166,8 +168,8 @@ class BreakageBlock(Block):
         the revolution mean within [1 − ``edge_share``/N − ``revolution_tol``,
         1 + ``revolution_tol``] of the plan's (no upper bound where a period of the revolution
         is one-sided) and the deviation's sign repeated by the same flute one revolution
-        earlier; or the revolution mean under that band for ``lost_revolutions`` revolutions
-        in a row (0: never without the signature).
+        earlier; or the revolution mean under 1 − 1/N − ``revolution_tol`` for
+        ``lost_revolutions`` revolutions in a row (0: never without the signature).
     name : block name (channel prefix and event source).
     """
 
@@ -475,11 +477,11 @@ class BreakageBlock(Block):
 
     def _signature_text(self, ratio: float, lag: float) -> str:
         """What the flute signature (decision 1681) found at the alarm."""
-        low = 1.0 - self.edge_share / self.n_flutes - self.revolution_tol
-        if ratio < low:
+        lost = 1.0 - 1.0 / self.n_flutes - self.revolution_tol
+        if ratio < lost:
             return (f"; the revolution's torque {round(100 * ratio):d} % of the plan's for "
-                    f"{self.lost_revolutions} revolutions (the whole cut lost, under a broken "
-                    f"flute's {100 * low:.0f} %)")  # fmt: skip
+                    f"{self.lost_revolutions} revolutions (the whole cut lost: under the other "
+                    f"flutes' {100 * lost:.0f} %)")  # fmt: skip
         return (f"; one flute: the revolution's torque {round(100 * ratio):d} % of the plan's, the "
                 f"same flute {lag:+.3g} {self.unit} one revolution earlier")  # fmt: skip
 
