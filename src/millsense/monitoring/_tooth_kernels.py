@@ -181,7 +181,7 @@ DET_NOISE_N = 16  # |lag-N differences| held in the noise window (≤ NOISE_WIND
 DET_NOISE_POS = 17  # next slot of the noise window
 DET_MISS = 18  # periods in a row without a violation inside the running violation
 DET_ALARMED = 19  # 1: the running violation has raised its alarm
-DET_LOW = 20  # judged periods in a row whose revolution mean is below a broken flute's
+DET_LOW = 20  # judged periods in a row whose revolution mean is under 1 − 1/N − tol
 DET_BASE = 21  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681)
 

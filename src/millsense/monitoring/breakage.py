@@ -517,6 +517,7 @@ class BreakageBlock(Block):
         }
         if self.method == "virtual":
             values[f"expected_{s}"] = float(expected)
+        if self.flute_signature:  # both known where the signature confirmed the alarm
             values["revolution_ratio"] = signature[0]
             values[f"same_flute_deviation_{s}"] = signature[1]
         if self.method != "dual":
