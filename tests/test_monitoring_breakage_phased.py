@@ -171,14 +171,15 @@ def test_a_cut_lighter_than_the_noise_band_is_reported_blind() -> None:
 
 
 def test_no_blind_note_after_a_breakage_alarm() -> None:
-    """Decision 1553: a heavy cut, the torque lost for 5 revolutions (an alarm), then a light
-    one inside the band: the tool is broken, the cut no longer the plan's, nothing is said
-    about blindness; re-armed, the same light cut is reported blind again."""
+    """Decision 1553: a heavy cut, the torque lost for 15 revolutions (an alarm: the whole cut
+    lost, a revolution mean under one flute's share for 10 revolutions, decision 1681), then a
+    light one inside the band: the tool is broken, the cut no longer the plan's, nothing is
+    said about blindness; re-armed, the same light cut is reported blind again."""
     n = int(2.0 * FS)
     rng = np.random.default_rng(6)
     i = np.arange(n)
-    level = np.where(i < 0.3 * FS, 0.0, np.where(i < 1.05 * FS, 3.0, 0.3))
-    torque = np.where((i >= 1.0 * FS) & (i < 1.05 * FS), 0.0, level) + rng.standard_normal(n)
+    level = np.where(i < 0.3 * FS, 0.0, np.where(i < 1.15 * FS, 3.0, 0.3))
+    torque = np.where((i >= 1.0 * FS) & (i < 1.15 * FS), 0.0, level) + rng.standard_normal(n)
     d = {
         "spindle/torque_est": torque,
         "spindle/speed": np.full(n, RPM * 2 * math.pi / 60),
@@ -188,7 +189,10 @@ def test_no_blind_note_after_a_breakage_alarm() -> None:
                            min_expected_nm=0.1)  # fmt: skip
     events, _ = run_block(block, d, 100)
     names = [e.name for e in events]
-    assert names == ["breakage"] and 1.0 < events[0].time_s < 1.05
+    # the 10th revolution of the loss, to within a tooth period (the revolution mean is that
+    # of the last 2 periods)
+    assert names == ["breakage"]
+    assert events[0].time_s == pytest.approx(1.0 + 10 * REV_S, abs=REV_S / N + 1 / FS)
     block.rearm()  # the arbiter's call: judge afresh
     more = block.process(Chunk(n, FS, 0.0, {k: v[int(1.2 * FS) :] for k, v in d.items()}))
     assert [e.name for e in more.events] == ["breakage_blind"]

@@ -9,8 +9,8 @@ cut into chunks of any size gives the same result as the whole stream:
   crosses the next integer; it is reported at that sample (one sample after its last one).
 * :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
   residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
-  thresholds of the three detectors, the noise floor of the torque's band (decision 1550) and
-  the confirmation count.
+  thresholds of the three detectors, the noise floor of the torque's band (decision 1550), the
+  confirmation count and a broken flute's signature over the last revolution (decision 1681).
 """
 
 from __future__ import annotations
@@ -180,7 +180,10 @@ DET_GAP = 15  # 1: the previous period was not judged (start, or a transient of 
 DET_NOISE_N = 16  # |lag-N differences| held in the noise window (≤ NOISE_WINDOW)
 DET_NOISE_POS = 17  # next slot of the noise window
 DET_MISS = 18  # periods in a row without a violation inside the running violation
-DET_BASE = 19  # ring buffer of the last N period values, then the noise window
+DET_ALARMED = 19  # 1: the running violation has raised its alarm
+DET_LOW = 20  # judged periods in a row whose revolution mean is under 1 − 1/N − tol
+DET_BASE = 21  # ring buffers: the last N period values, the noise window, then the last N
+# references (NaN: not judged) and one-sided flags of the flute signature (decision 1681)
 
 #: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
 #: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
@@ -191,11 +194,14 @@ NOISE_MIN = 16
 NOISE_SCALE = SIGMA_PER_MEDIAN_ABS_DIFF
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
-#: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean) and of a
-#: detector's outputs (rows 3 … 8).
-PP_ROWS = 11
+#: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
+#: mean's ratio to the plan's, 12 the same flute's deviation one revolution earlier; NaN where
+#: not known) and of a detector's outputs (rows 3 … 8).
+PP_ROWS = 13
 PP_GATE = 9
 PP_FLOOR = 10
+PP_REV = 11
+PP_LAG = 12
 OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
@@ -205,7 +211,8 @@ MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
 
 def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
-    st = np.zeros(DET_BASE + n_flutes + NOISE_WINDOW)
+    st = np.zeros(DET_BASE + 3 * n_flutes + NOISE_WINDOW)
+    st[DET_BASE + n_flutes + NOISE_WINDOW : DET_BASE + 2 * n_flutes + NOISE_WINDOW] = math.nan
     st[DET_PHI1] = phi0
     st[DET_PHI2] = phi0
     st[DET_P1] = p0
@@ -227,6 +234,38 @@ def _rls_ar1(
     if p_new > p_max:
         p_new = p_max
     return eps, phi_new, p_new
+
+
+@numba.njit(cache=True)
+def _flute_signature(
+    state: FloatArray, nf: int, seen: int, x_lag: float, ref: float, one_sided: bool
+) -> tuple[float, float, bool]:
+    """The revolution and the flute of a period (decision 1681): store its reference ``ref``
+    (NaN: not judged) and one-sided flag in the signature's rings, and return the ratio of the
+    last N periods' torque to their references (one revolution: NaN unless all N judged), the
+    deviation x − ref of the same flute one revolution earlier (``x_lag`` its torque; NaN
+    unless judged) and whether a period of the revolution is one-sided (decision 1674)."""
+    r_ex = DET_BASE + nf + NOISE_WINDOW
+    r_one = r_ex + nf
+    slot = seen % nf
+    lag = math.nan
+    if seen >= nf and state[r_ex + slot] == state[r_ex + slot]:
+        lag = x_lag - state[r_ex + slot]
+    state[r_ex + slot] = ref
+    state[r_one + slot] = 1.0 if one_sided else 0.0
+    if seen + 1 < nf:
+        return math.nan, lag, False
+    sx = 0.0
+    se = 0.0
+    one = False
+    for i in range(nf):
+        e = state[r_ex + i]
+        if e != e:
+            return math.nan, lag, False
+        sx += state[DET_BASE + i]
+        se += e
+        one = one or state[r_one + i] > 0.0
+    return sx / se, lag, one
 
 
 @numba.njit(cache=True)
@@ -262,16 +301,33 @@ def detect_periods(
     stays σ_TB·τ_ref (the seed's trigger). With k_noise > 0 no period is judged before the
     window holds NOISE_MIN periods (decision 1553).
 
+    With the flute signature (virtual mode, decision 1681) a run's alarm comes at its first
+    violating period from the ``confirm``-th on where the last revolution looks like a broken
+    flute (:func:`_flute_signature`): its torque within [1 − edge_share/N − tol, 1 + tol] of
+    the references (no upper bound where a period of it is one-sided) and the same flute one
+    revolution earlier deviating the same way; or once the revolution's torque has stayed under
+    1 − 1/N − tol (more than one flute's share missing) for ``lost_periods`` judged periods in a
+    row (the whole cut lost). Rows 11 and 12 of ``pp`` get the revolution's ratio and the same
+    flute's earlier deviation (virtual mode).
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
     (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from, k_noise); ``iparams`` = (N, mode, check_deviation, learn_periods, confirm).
+    learn_from, k_noise, edge_share, tol); ``iparams`` = (N, mode, check_deviation,
+    learn_periods, confirm, flute signature, lost_periods).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
     reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
+    edge_share, rev_tol = params[8], params[9]
     nf, mode, check_deviation = iparams[0], iparams[1], iparams[2] != 0
     learn_periods, confirm = iparams[3], iparams[4]
+    signature = iparams[5] != 0 and mode == MODE_VIRTUAL
+    lost_periods = iparams[6]
+    # a broken flute's revolution keeps at least this share of the plan's; under the other
+    # flutes' shares more than one flute's torque is missing (decision 1681)
+    rev_low = 1.0 - edge_share / nf - rev_tol
+    rev_lost = 1.0 - 1.0 / nf - rev_tol
     x = pp[3]
     expected = pp[2]
     eps1 = pp[4]
@@ -284,7 +340,11 @@ def detect_periods(
     alarm = pb[1]
     gate = pp[PP_GATE]
     floor = pp[PP_FLOOR]
+    rev_out = pp[PP_REV]
+    lag_out = pp[PP_LAG]
     for m in range(k):
+        rev_out[m] = math.nan
+        lag_out[m] = math.nan
         if gate[m] < 1.0:
             # a period with a sample where the gate is off (the spindle not at speed: the
             # torque holds the acceleration torque) is not judged and restarts the differences
@@ -301,6 +361,8 @@ def detect_periods(
             state[DET_RUN] = 0.0
             state[DET_MISS] = 0.0
             state[DET_GAP] = 1.0
+            state[DET_ALARMED] = 0.0
+            state[DET_LOW] = 0.0
             continue
         seen = int(state[DET_SEEN])
         xm = x[m]
@@ -332,6 +394,7 @@ def detect_periods(
         eps1[m] = e1
         eps2[m] = e2
         v = False
+        flute = True  # the flute signature holds (or is not asked for)
         run = state[DET_RUN]
         learn = state[DET_LEARN]
         if learn < 0 and seen >= nf + 1 and abs(xm) >= learn_from:
@@ -395,6 +458,26 @@ def detect_periods(
                 state[DET_GAP] = 1.0 if below else 0.0
             elif seen >= 2:
                 state[DET_GAP] = 1.0
+            if mode == MODE_VIRTUAL:
+                ratio, lag, one = _flute_signature(state, nf, seen, xn, ex if judge else math.nan,
+                                                   below)  # fmt: skip
+                rev_out[m] = ratio
+                lag_out[m] = lag
+                if signature:
+                    # a broken flute (decision 1681): the next flute cuts its chip, so the
+                    # revolution keeps its torque but for the broken flute's edge share, and
+                    # the deviation comes back at the same flute one revolution on; chatter's
+                    # drops and surges take every flute together (the revolution mean moves)
+                    # and are not locked to a flute. The whole cut lost is a revolution mean
+                    # under the other flutes' shares (more than one flute's torque missing)
+                    # for lost_periods judged periods in a row: chatter's lows are followed by
+                    # the surges that cut what they left.
+                    low = judge and ratio == ratio and ratio < rev_lost
+                    state[DET_LOW] = state[DET_LOW] + 1.0 if low else 0.0
+                    keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
+                    locked = lag * (xm - ex) > 0.0  # False where NaN
+                    lost = lost_periods > 0 and state[DET_LOW] >= lost_periods
+                    flute = (keeps and locked) or lost
         expected[m] = ex if mode != MODE_DUAL else 0.0
         # a broken flute of N shows once a revolution at least (its own period; the next
         # flute's double chip need not leave the band where the flute's pulse is shorter than
@@ -412,7 +495,14 @@ def detect_periods(
             state[DET_MISS] = 0.0
         viol[m] = run > 0  # inside the running violation
         state[DET_RUN] = run
-        alarm[m] = v and int(run) == confirm
+        if run == 0:
+            state[DET_ALARMED] = 0.0
+        # one alarm per run, at its confirm-th violation or, with the flute signature, at
+        # the first violation from there on where the signature holds (decision 1681)
+        fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
+        if fire:
+            state[DET_ALARMED] = 1.0
+        alarm[m] = fire
 
 
 @numba.njit(cache=True)

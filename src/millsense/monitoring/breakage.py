@@ -14,7 +14,20 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     revolution at least (its own period; the next flute's double chip leaves the band only
     where the flute's pulse fills its period, a slot with 2 flutes), so the run bridges up to
     N − 1 periods in a row within the band (decision 1552; 2 flutes in a slot, both periods
-    violating, alarm as before at the third period). The tooth periods' phase is that of the
+    violating, alarm as before at the third period). The alarm also needs a broken flute's
+    signature (decision 1681; seed 002 §2.5: a chipped tooth leaves its material to the next
+    tooth): the next flute cuts the broken flute's chip, so the revolution's mean torque (the
+    last N tooth periods, one revolution whatever their phase) stays within
+    [1 − ``edge_share``/N − ``revolution_tol``, 1 + ``revolution_tol``] of the plan's (the
+    broken flute takes away no more than its edge force), and its deviation is locked to the
+    flute, the same sign at the same flute one revolution earlier. A weak chatter modulates
+    the chip of every flute: its tooth periods drop and surge together, moving the revolution
+    mean, and not at one flute's position (measured: 86 % drops where the chatter monitor's
+    ratio was 0.66). Where the signature is missing at the third violation the run goes on and
+    alarms at a later violation that shows it; a revolution mean under the other flutes'
+    shares (1 − 1/N − ``revolution_tol``: more than one flute's torque missing) for
+    ``lost_revolutions`` revolutions in a row (the whole cut lost: every flute, the tool off at
+    its shank) alarms without it. The tooth periods' phase is that of the
     stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage` judges several
     phases (``phase_offset``, decision 1552). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
@@ -88,6 +101,14 @@ CONFIRM_PERIODS = 3
 #: at mean + 4σ; with 3 periods confirmed, a normal noise alone alarms with ≈ (6·10⁻⁵)³ per
 #: period).
 NOISE_K = 4.0
+#: Decision 1681: the share of its own torque a broken flute takes from the revolution (its
+#: edge force; the next flute cuts its chip), the tolerance of the revolution mean's ratio to
+#: the plan's, and the revolutions in a row of a revolution mean under the other flutes'
+#: shares (1 − 1/N − tol) that are the whole cut lost (alarmed without the flute signature;
+#: weak chatter's lows measured 8 revolutions at most).
+EDGE_SHARE = 0.5
+REVOLUTION_TOL = 0.1
+LOST_REVOLUTIONS = 10
 #: Seed 002 §2.5: threshold factor and learning length.
 ALPHA = 2.0
 LEARN_REVOLUTIONS = 5
@@ -143,6 +164,12 @@ class BreakageBlock(Block):
         a transient and ``expected_channel`` reads 0 (``virtual``; the session's
         ``plan/torque_floor``): a tooth period with samples there is judged one-sided, a drop
         below the floor by the band (decision 1674).
+    flute_signature : the virtual alarm needs a broken flute's signature (decision 1681):
+        the revolution mean within [1 − ``edge_share``/N − ``revolution_tol``,
+        1 + ``revolution_tol``] of the plan's (no upper bound where a period of the revolution
+        is one-sided) and the deviation's sign repeated by the same flute one revolution
+        earlier; or the revolution mean under 1 − 1/N − ``revolution_tol`` for
+        ``lost_revolutions`` revolutions in a row (0: never without the signature).
     name : block name (channel prefix and event source).
     """
 
@@ -169,6 +196,10 @@ class BreakageBlock(Block):
         enable_channel: str | None = None,
         phase_offset: float = 0.0,
         floor_channel: str | None = None,
+        flute_signature: bool = True,
+        edge_share: float = EDGE_SHARE,
+        revolution_tol: float = REVOLUTION_TOL,
+        lost_revolutions: int = LOST_REVOLUTIONS,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -194,6 +225,19 @@ class BreakageBlock(Block):
             raise ConfigError(
                 f"breakage: phase_offset must be in [0, 1) of a tooth period, got {phase_offset!r}"
             )
+        if not (0.0 <= edge_share <= 1.0 and 0.0 <= revolution_tol < 1.0):
+            raise ConfigError(
+                f"breakage: edge_share must be in [0, 1] and revolution_tol in [0, 1), got "
+                f"{edge_share!r} and {revolution_tol!r}"
+            )
+        if int(lost_revolutions) != lost_revolutions or lost_revolutions < 0:
+            raise ConfigError(
+                f"breakage: lost_revolutions must be an integer ≥ 0, got {lost_revolutions!r}"
+            )
+        self.flute_signature = bool(flute_signature) and method == "virtual"
+        self.edge_share = float(edge_share)
+        self.revolution_tol = float(revolution_tol)
+        self.lost_revolutions = int(lost_revolutions)
         self.phase_offset = float(phase_offset)
         self.noise_k = float(noise_k)
         self.enable_channel = enable_channel
@@ -270,6 +314,7 @@ class BreakageBlock(Block):
         self._det[_k.DET_RUN] = 0.0
         self._det[_k.DET_MISS] = 0.0
         self._det[_k.DET_GAP] = 1.0
+        self._det[_k.DET_ALARMED] = 0.0
         self._first_violation = -1
 
     def reset(self, sample_rate_hz: float) -> None:
@@ -293,6 +338,8 @@ class BreakageBlock(Block):
                 self.alpha,
                 self.learn_from,
                 self.noise_k,
+                self.edge_share,
+                self.revolution_tol,
             ]
         )
         self._iparams = np.array(
@@ -302,6 +349,8 @@ class BreakageBlock(Block):
                 int(self.check_deviation),
                 self.learn_periods,
                 self.confirm,
+                int(self.flute_signature),
+                self.lost_revolutions * self.n_flutes,
             ],
             dtype=np.int64,
         )
@@ -394,7 +443,9 @@ class BreakageBlock(Block):
                 at, period = int(end[i]), int(index[i])
                 values = (x[i], expected[i], eps1[i], lim1[i], eps2[i], lim2[i], band[i])
                 below = bool(pp[_k.PP_FLOOR, i] > 0.0)
-                events.append(self._event(chunk, at, period, first, *values, below=below))
+                signature = (float(pp[_k.PP_REV, i]), float(pp[_k.PP_LAG, i]))
+                events.append(self._event(chunk, at, period, first, *values, below=below,
+                                          signature=signature))  # fmt: skip
         return events
 
     def _size(self, n: int) -> None:
@@ -424,6 +475,16 @@ class BreakageBlock(Block):
         tq = np.asarray(self.plan["torque_avg_nm"], dtype=np.float64)
         return np.where(good, tq[np.maximum(rows, 0)], math.nan)
 
+    def _signature_text(self, ratio: float, lag: float) -> str:
+        """What the flute signature (decision 1681) found at the alarm."""
+        lost = 1.0 - 1.0 / self.n_flutes - self.revolution_tol
+        if ratio < lost:
+            return (f"; the revolution's torque {round(100 * ratio):d} % of the plan's for "
+                    f"{self.lost_revolutions} revolutions (the whole cut lost: under the other "
+                    f"flutes' {100 * lost:.0f} %)")  # fmt: skip
+        return (f"; one flute: the revolution's torque {round(100 * ratio):d} % of the plan's, the "
+                f"same flute {lag:+.3g} {self.unit} one revolution earlier")  # fmt: skip
+
     def _event(
         self,
         chunk: Chunk,
@@ -438,6 +499,7 @@ class BreakageBlock(Block):
         l2: float,
         band: float,
         below: bool = False,
+        signature: tuple[float, float] = (math.nan, math.nan),
     ) -> Event:
         sample = chunk.start + at
         t = chunk.t0_s + sample / chunk.sample_rate_hz
@@ -455,6 +517,9 @@ class BreakageBlock(Block):
         }
         if self.method == "virtual":
             values[f"expected_{s}"] = float(expected)
+        if self.flute_signature:  # both known where the signature confirmed the alarm
+            values["revolution_ratio"] = signature[0]
+            values[f"same_flute_deviation_{s}"] = signature[1]
         if self.method != "dual":
             values[f"band_{s}"] = float(band)
         # the virtual and constant detectors confirm a violation over 3 tooth periods while the
@@ -478,6 +543,8 @@ class BreakageBlock(Block):
                 width = f"{sign}{100 * self.sigma_tb:.0f} %"
             message += (f": tooth average {x:.3g} {u} against {expected:.3g} {ref} ({side} "
                         f"{width}) since period {first}")  # fmt: skip
+            if self.flute_signature:
+                message += self._signature_text(*signature)
         nc_line = x_mm = y_mm = z_mm = None
         if self.plan is not None:
             row = int(
