@@ -860,6 +860,7 @@ class MachineSimulator(Source):
             "truth_spindle": "torsional" if self.truth_spindle else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
+            "fine_interpolation": self.options.fine_interpolation,
         }
 
     # ------------------------------------------------------------------ commands
