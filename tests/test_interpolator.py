@@ -130,6 +130,27 @@ def test_upsampler_linear_and_hermite() -> None:
     assert np.abs(fine_h - fine_l).max() < 0.5 * T**2 / 8 * 1.01
 
 
+def test_hermite_fine_interpolation_is_the_trapezoid() -> None:
+    """On the interpolator's samples (``s⁺ − s = (v + v⁺)·T/2``) the Hermite cubic has no cubic
+    term, so within every period the fine acceleration is the period's own (v⁺ − v)/T: constant,
+    no step of the velocity at the samples and no 333 Hz line (decision 1682). Checked on the
+    second differences inside each period through the ramp-up, the cruise and the look-ahead
+    braking (the path end, where s is clamped, excluded), to 1e-6 of a (float round-off of
+    positions ~0.05 m over dt² = 1e-8 s² is ~1e-8 m/s²)."""
+    a, n = 2.0, 100
+    ip = Interpolator(np.array([[0, 0, 0], [0.05, 0.0, 0]]), 0.3, a)
+    out = ip.advance(n)
+    assert not ip.done and out["v"].max() == pytest.approx(0.3)  # cruise reached, end not
+    fine = Upsampler(30, np.zeros(3), method="hermite")(out["position"], out["velocity"], T)
+    x = np.concatenate([[0.0], fine[:, 0]])
+    per = np.column_stack([x[0:-1:30], x[1:].reshape(n, 30)])  # each period with its start
+    dt = T / 30
+    acc = np.diff(per, 2, axis=1) / dt**2  # (n, 29) second differences inside each period
+    expected = np.diff(np.concatenate([[0.0], out["v"]])) / T
+    np.testing.assert_allclose(acc, np.repeat(expected[:, None], 29, axis=1), atol=1e-6 * a)
+    assert np.abs(expected).max() == pytest.approx(a)  # the ramps run at the limit
+
+
 def test_bad_input_errors() -> None:
     with pytest.raises(InputDataError, match="path"):
         Interpolator(np.zeros((1, 3)), 0.01, 1.0)

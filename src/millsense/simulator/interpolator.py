@@ -368,6 +368,14 @@ class Upsampler:
     ``linear``: straight lines between consecutive coarse samples (one coarse period of
     delay, as a CNC's fine interpolator). ``hermite``: cubic Hermite with the coarse
     velocities, same delay, continuous velocity.
+
+    On the :class:`Interpolator`'s samples, whose path advances by the trapezoid
+    ``s⁺ − s = (v + v⁺)·T/2``, the Hermite cubic's cubic term ``2(p₀ − p₁) + T(v₀ + v₁)``
+    vanishes: between two samples the position is the integral of the velocity ramped
+    linearly from v to v⁺, its acceleration the interpolator's own (v⁺ − v)/T, constant over
+    the period. ``linear`` instead holds the velocity over each period and steps it by a·T at
+    every sample while accelerating: a line at 1/T (333 Hz) and its harmonics in the drives'
+    velocity reference (decision 1682).
     """
 
     def __init__(

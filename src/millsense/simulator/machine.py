@@ -5,7 +5,8 @@ Composition, per block of one interpolation period (3 ms = 30 samples at 10 kHz)
 1. :class:`~.interpolator.Interpolator` advances one period along the job's path at the
    programmed feed × the effective override (latency and quantisation of the configured
    :class:`~.interpolator.OverrideChannel`), :class:`~.interpolator.Upsampler` refines it to
-   the drive rate;
+   the drive rate (cubic Hermite by default: continuous velocity, no line at the 333 Hz
+   interpolation rate in accelerations, decision 1682);
 2. inverse kinematics (:mod:`.kinematics`; the trunnion table for 5-axis) gives the axis
    position references, their differences the velocity feed-forward;
 3. the process (:mod:`.process_coupling`) evaluates the cutting forces at the *actual* tool
@@ -195,6 +196,15 @@ class SimulatorOptions:
     spindle_settle_s : feed hold after the start while the spindle runs up, s (added to the
         ramp time).
     drive_substeps : plant integration substeps per sample of the feed drives.
+    fine_interpolation : how the 3 ms interpolator samples are refined to the drive rate
+        (:class:`~.interpolator.Upsampler`): ``hermite`` (default) — the position between two
+        samples is the integral of the velocity ramped linearly from one sample's path speed
+        to the next (the interpolator's own trapezoid), so the velocity reference is
+        continuous and its acceleration is the interpolator's, as the fine interpolation of a
+        CNC's position controller; ``linear`` — straight lines between the samples, a
+        velocity reference held over each period whose steps of a·T put a line at the
+        interpolation rate (333 Hz) and its harmonics into the current in every
+        acceleration; kept to produce such records (decision 1682).
     block_periods : interpolation periods per simulation block (the coupling lag and the
         largest extra command delay when reads are not aligned with blocks); 1 is the most
         faithful and the default, 4 saves some Python overhead at 9 ms more lag (decision
@@ -225,6 +235,7 @@ class SimulatorOptions:
     spindle_accel_rad_s2: float = 2500.0
     spindle_settle_s: float = 0.05
     drive_substeps: int = 10
+    fine_interpolation: str = "hermite"
     block_periods: int = 1
     seed: int = 0
     sensors: SensorOptions = field(default_factory=SensorOptions)
@@ -248,6 +259,10 @@ class SimulatorOptions:
             raise ConfigError(f"simulator: drive_substeps must be ≥ 1, got {self.drive_substeps}")
         if not self.spindle_settle_s >= 0:
             raise ConfigError("simulator: spindle_settle_s must be ≥ 0")
+        if self.fine_interpolation not in ("hermite", "linear"):
+            raise ConfigError(
+                f"simulator: fine_interpolation '{self.fine_interpolation}' (hermite, linear)"
+            )
 
 
 #: Largest number of blocks generated at once (bounds the memory of one read), 1 s at 3 ms.
@@ -585,7 +600,10 @@ class MachineSimulator(Source):
         self.start_s = ramp_s + opts.spindle_settle_s
         # the feed starts once the spindle is up to speed (applied without latency)
         self.interp.set_override(1.0, at_time_s=self.start_s)
-        self.upsampler = Upsampler(self.per_period, job.path[0])
+        # the path columns and the path parameter s refined together (decision 1682)
+        self.upsampler = Upsampler(
+            self.per_period, np.append(job.path[0], 0.0), method=opts.fine_interpolation
+        )
         q0 = self._axes_from_path(job.path[:1])[0]
 
         # ---- drives
@@ -662,7 +680,6 @@ class MachineSimulator(Source):
         self._theta = 0.0
         self._omega = 0.0
         self._omega_ref_last = 0.0
-        self._s_prev = 0.0
         self._feed_dir = np.array([1.0, 0.0, 0.0])
         # tool-centre velocity history for the tooth-period feed (decision "Simulator chip
         # from the tooth-period feed"), at most 0.1 s
@@ -843,6 +860,7 @@ class MachineSimulator(Source):
             "truth_spindle": "torsional" if self.truth_spindle else "ideal",
             "feed_latency_s": self.options.feed_channel.latency_s,
             "feed_override_step": self.options.feed_channel.step,
+            "fine_interpolation": self.options.fine_interpolation,
         }
 
     # ------------------------------------------------------------------ commands
@@ -920,12 +938,12 @@ class MachineSimulator(Source):
         t = (k0 * nb + np.arange(n)) / fs
         # 1. interpolator: the periods at the effective override, refined to the drive rate
         ipo = self.interp.advance(n_per)
-        fine = self.upsampler(ipo["position"], ipo["velocity"], self.period_s)
-        u = np.tile(np.arange(1, pp + 1) / pp, n_per)
-        s_end = ipo["s"]
-        s_start = np.concatenate([[self._s_prev], s_end[:-1]])
-        s_ref = np.repeat(s_start, pp) + u * np.repeat(s_end - s_start, pp)
-        self._s_prev = float(s_end[-1])
+        fine_s = self.upsampler(
+            np.column_stack([ipo["position"], ipo["s"]]),
+            np.column_stack([ipo["velocity"], ipo["v"]]),
+            self.period_s,
+        )
+        fine, s_ref = fine_s[:, :-1], np.ascontiguousarray(fine_s[:, -1])
         feed_fine = np.repeat(ipo["v"], pp)
         ovr_fine = np.repeat(ipo["override"], pp)
         # 2. axis references
