@@ -45,6 +45,8 @@ def test_t4_replica_torque_peak_is_a_sideband() -> None:
     band = (f > 1900.0) & (f < 2000.0)
     lines = f[band][spec[band] >= spec[band].max() / math.sqrt(2.0)]
     assert np.min(np.abs(tq / (lines + 2 * f_rev) - 1.0)) < 0.01, (tq, lines)
-    # the clean simulated torque itself barely passes the seed's 1.5 (the gap's margin)
+    # the clean simulated torque itself barely passes the seed's 1.5 (the gap's margin):
+    # median 1.94 with straight-line fine interpolation, 2.03 with decision 1682's Hermite (the
+    # limit cycle's amplitude moves with the references at the sample level)
     _, ratio = detect(d["truth/spindle/torque"], d["spindle/speed"], 2)
-    assert 1.2 < np.median(ratio[-8000:]) < 2.0
+    assert 1.2 < np.median(ratio[-8000:]) < 2.5
