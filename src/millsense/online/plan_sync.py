@@ -395,20 +395,18 @@ class PlanSync(Block):
             # rows there without a shear part (a plunge's)
             why = ("the spindle was not at speed" if cnt == 0
                    else "the plan has no shear torque there (a plunge)")  # fmt: skip
+            reason = f"no sample of its {self.cal_revs:g} revolutions to calibrate on ({why})"
+        elif not (SCALE_RANGE[0] <= ratio <= SCALE_RANGE[1]):
+            reason = (f"measured/plan shear torque {ratio:.3g} outside {SCALE_RANGE[0]}–"
+                      f"{SCALE_RANGE[1]} (mean measured {m / max(cnt, 1):.3g} N·m against "
+                      f"{(e + s) / max(cnt, 1):.3g} N·m planned)")  # fmt: skip
+        else:
+            reason = ""
+        if reason:
             events.append(Event(t, EventKind.ALARM, self.name,
-                                f"K_tc calibration refused: no sample of its "
-                                f"{self.cal_revs:g} revolutions to calibrate on ({why}): the "
-                                "plan is kept", name="ktc_calibration_refused", value=ratio,
+                                f"K_tc calibration refused: {reason}: the plan is kept",
+                                name="ktc_calibration_refused", value=ratio,
                                 sample=chunk.start + k_done,
-                                severity=Severity.WARNING))  # fmt: skip
-            return -1
-        if not (SCALE_RANGE[0] <= ratio <= SCALE_RANGE[1]):
-            events.append(Event(t, EventKind.ALARM, self.name,
-                                f"K_tc calibration refused: measured/plan shear torque {ratio:.3g} "
-                                f"outside {SCALE_RANGE[0]}–{SCALE_RANGE[1]} (mean measured "
-                                f"{m / max(cnt, 1):.3g} N·m against {(e + s) / max(cnt, 1):.3g} "
-                                "N·m planned): the plan is kept", name="ktc_calibration_refused",
-                                value=ratio, sample=chunk.start + k_done,
                                 severity=Severity.WARNING))  # fmt: skip
             return -1
         self.scale = float(ratio)
