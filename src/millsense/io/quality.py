@@ -62,6 +62,10 @@ __all__ = [
 RATE_TOLERANCE = 1e-3
 #: A time step longer than this many nominal periods is a gap.
 GAP_FACTOR = 1.5
+#: A step shorter than this share of the median step is refused: two rows within less than half
+#: a sample period are no regular sampling (a logger's write times, a merged file), and no
+#: uniform grid holds both. Jitter within it is resampled linearly (reported).
+MIN_STEP_SHARE = 0.5
 #: A channel is "continuous" (checked for repeats and clipping) when at least this fraction
 #: of its steps change the value.
 CONTINUOUS_FRACTION = 0.95
@@ -172,7 +176,8 @@ def rate_from_time(
     Notes
     -----
     The nominal step is the median step; a step > 1.5 nominal is a gap, ≤ 0 is time going
-    backwards or standing (a refusal naming the row).
+    backwards or standing, < :data:`MIN_STEP_SHARE` nominal irregular time (refusals naming the
+    row).
     """
     dt = np.diff(np.asarray(t, dtype=np.float64))
     if dt.size < 2:
@@ -194,6 +199,22 @@ def rate_from_time(
         # refused: no rate to measure (a column standing still has no regular step at all)
         return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     nominal = float(np.median(dt))
+    short = np.flatnonzero(dt < MIN_STEP_SHARE * nominal)
+    if short.size:
+        k = int(short[0])
+        report.add(
+            Finding(
+                "time",
+                where,
+                f"{where}: irregular time column: a step of {dt[k] * 1e3:.6g} ms after "
+                f"{t[k]:.9g} s at row {k + 2} of the table, less than {MIN_STEP_SHARE:g} x the "
+                f"median step {nominal * 1e3:.6g} ms ({short.size} such steps): give [[files]] "
+                'time_column = "" and sample_rate_hz if the rows are evenly sampled',
+                refuse=True,
+                data={"row": k + 1, "count": int(short.size)},
+            )
+        )
+        return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
     regular = (dt > 0) & (dt <= GAP_FACTOR * nominal)
     fs = float(np.count_nonzero(regular) / np.sum(dt[regular]))
     gap_rows = np.flatnonzero(dt > GAP_FACTOR * nominal).astype(np.int64)

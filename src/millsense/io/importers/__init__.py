@@ -52,10 +52,6 @@ FORMATS = {
 }
 #: NaN runs up to this many samples are filled by linear interpolation; longer ones refused.
 MAX_NAN_FILL = 10
-#: A time step shorter than this share of the median step is refused: two rows within less
-#: than half a sample period are no regular sampling (a logger's write times, a merged file),
-#: and no uniform grid holds both. Jitter within it is resampled linearly (reported).
-MIN_STEP_SHARE = 0.5
 
 
 def read_table(
@@ -196,7 +192,6 @@ def _on_grid(
             f" (line {table.first_line + int(row)} of the file)" if row and table.first_line else ""
         )
         raise InputDataError(bad[0].message + line)
-    _refuse_irregular(t, table, tcol, where)
     pos = (t - t[0]) * fs
     k = np.rint(pos).astype(np.int64)
     m = int(k[-1]) + 1
@@ -217,24 +212,6 @@ def _on_grid(
         filled[:] = False
         grid = {c: np.interp(np.arange(m), pos, v) for c, v in cols.items()}
     return _Timed(table, fs, float(t[0]), grid, stated, True, filled)
-
-
-def _refuse_irregular(t: np.ndarray, table: RawTable, tcol: str, where: str) -> None:
-    """One line naming the first row that comes less than :data:`MIN_STEP_SHARE` of the median
-    step after the one before it (time increasing, checked before)."""
-    dt = np.diff(t)
-    nominal = float(np.median(dt))
-    short = np.flatnonzero(dt < MIN_STEP_SHARE * nominal)
-    if not short.size:
-        return
-    k = int(short[0]) + 1
-    at = f"line {table.first_line + k}" if table.first_line else f"row {k + 1}"
-    raise InputDataError(
-        f"{where}: {at}: irregular time column {tcol!r}: a step of {dt[k - 1] * 1e3:.6g} ms "
-        f"after {t[k - 1]:.9g} s, less than {MIN_STEP_SHARE:g} x the median step "
-        f'{nominal * 1e3:.6g} ms ({short.size} such steps): give [[files]] time_column = "" '
-        "and sample_rate_hz if the rows are evenly sampled"
-    )
 
 
 def _clock_start(tm: _Timed, opt: FileOptions) -> str | None:
