@@ -294,6 +294,18 @@ def _runs_to_intervals(
     return n, overflow
 
 
+@numba.njit(cache=True, inline="always")
+def _layer_radius(
+    layer: int, base: float, dz: float, radius: float, ball: bool
+) -> tuple[float, float]:
+    """Height above the tip of a layer's middle (the layers from ``base``, ``dz`` thick) and
+    the tool's radius there (a ball's below its centre, else ``radius``)."""
+    zc = base + (layer + 0.5) * dz
+    if ball and zc < radius:
+        return zc, math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
+    return zc, radius
+
+
 @numba.njit(cache=True)
 def _engage_layers(
     heights: np.ndarray,
@@ -338,11 +350,7 @@ def _engage_layers(
     vx = -uy  # tool-frame y axis (z × feed)
     vy = ux
     for layer in range(n_layers):
-        zc = base + (layer + 0.5) * dz
-        if ball and zc < radius:
-            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
-        else:
-            r = radius
+        zc, r = _layer_radius(layer, base, dz, radius, ball)
         zabs = pz + zc
         rs = r + delta
         cosg = (r - 0.5 * h) / rs
@@ -417,12 +425,8 @@ def _peak_resultant(
         m = nv[layer]
         if m == 0:
             continue
-        zc = base + (layer + 0.5) * dz
-        if ball and zc < radius:
-            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
-            sk = min(r / radius, 1.0)
-        else:
-            sk = 1.0
+        zc, r = _layer_radius(layer, base, dz, radius, ball)
+        sk = min(r / radius, 1.0)
         for j in range(theta.size):
             c = theta[j] + kbeta * zc  # φ = φ0 − c
             sc = math.sin(c)
@@ -471,11 +475,7 @@ def _areas(
     proj = 0.0
     contact = 0.0
     for layer in range(n_layers):
-        zc = base + (layer + 0.5) * dz
-        if ball and zc < radius:
-            r = math.sqrt(max(radius * radius - (radius - zc) ** 2, 0.0))
-        else:
-            r = radius
+        _, r = _layer_radius(layer, base, dz, radius, ball)
         sk = max(min(r / radius, 1.0), 1e-12)
         for i in range(nv[layer]):
             a = float(iv[layer, i, 0])
