@@ -52,8 +52,8 @@ def _line_error(est: np.ndarray, truth: np.ndarray) -> float:
 @pytest.mark.xfail(
     strict=True,
     reason="issue 12: on the truth with the commissioned file the harmonic design's Y error at "
-    "100/200 Hz is 16.3 % (100 Hz 9.4 %, 200 Hz 126 %; bound 6 %; measured 2026-11-28): the "
-    "at-rest path (10 % RMS fit error) misses the holding axis's 200 Hz line",
+    "100/200 Hz is 9.2 % (bound 6 %; measured 2026-11-30; 16.3 % with the Coulomb C3 stage "
+    "before decision 1695): the at-rest path misses the holding axis's 200 Hz line",
 )
 def test_harmonics_lower_the_y_error_at_the_tooth_lines(runs: tuple[Path, Path, Path]) -> None:
     run, rw, h = runs

@@ -96,3 +96,28 @@ def test_missing_lugre_key_is_a_config_error() -> None:
     cfg = FrictionConfig(coulomb_nm=(1.0, 1.0), viscous_nm_s_rad=(0.1, 0.1))
     with pytest.raises(ConfigError, match="sigma0_nm_rad"):
         LuGre.from_config(cfg, "m.toml axes.x.friction")
+
+
+def test_bristles_without_a_stribeck_curve_are_a_flat_lugre() -> None:
+    # decision 1695: σ0, σ1 from a presliding test and no resolved Stribeck rise → LuGre with
+    # τ_stat = τ_coul, g(v) = τ_coul at every speed (Eq. 3.4), the steady torque Coulomb +
+    # viscous (Eq. 3.2 with dz/dt = 0), the bristles' stiffness σ0 at a reversal
+    cfg = FrictionConfig(coulomb_nm=(1.7, 1.8), viscous_nm_s_rad=(0.17, 0.15),
+                         sigma0_nm_rad=(600.0, 600.0), sigma1_nm_s_rad=(14.0, 14.0))  # fmt: skip
+    assert LuGre.configured(cfg)
+    lg = LuGre.from_config(cfg)
+    v = np.array([-5.0, -0.01, 0.0, 1e-3, 0.3, 5.0])
+    np.testing.assert_allclose(lg.stribeck(v), [1.8, 1.8, 1.7, 1.7, 1.7, 1.7], rtol=1e-15)
+    np.testing.assert_allclose(
+        lg.steady_torque(v[v != 0]), np.sign(v[v != 0]) * lg.stribeck(v[v != 0])
+        + np.where(v[v != 0] > 0, 0.17, 0.15) * v[v != 0], rtol=1e-12,
+    )  # fmt: skip
+    assert not LuGre.configured(FrictionConfig(coulomb_nm=(1.0, 1.0), viscous_nm_s_rad=(0, 0)))
+
+
+def test_half_a_stribeck_curve_is_a_config_error() -> None:
+    cfg = FrictionConfig(coulomb_nm=(1.0, 1.0), viscous_nm_s_rad=(0.1, 0.1),
+                         sigma0_nm_rad=(600.0, 600.0), sigma1_nm_s_rad=(14.0, 14.0),
+                         static_nm=(1.2, 1.2))  # fmt: skip
+    with pytest.raises(ConfigError, match="'static_nm' needs key 'stribeck_velocity_rad_s'"):
+        LuGre.from_config(cfg, "m.toml axes.x.friction")

@@ -53,25 +53,51 @@ class LuGre:
 
     @classmethod
     def from_config(cls, cfg: FrictionConfig, where: str = "friction") -> LuGre:
-        """From a machine file's friction table; the LuGre keys must all be present.
+        """From a machine file's friction table; the bristle keys ``sigma0_nm_rad`` and
+        ``sigma1_nm_s_rad`` must be present.
+
+        Without ``static_nm`` and ``stribeck_velocity_rad_s`` (the constant-velocity moves did
+        not resolve a Stribeck rise, :class:`~millsense.ident.friction.LuGreFit`) the Stribeck
+        curve is flat: τ_stat = τ_coul, so g(v) = τ_coul for every v (Aslan Eq. 3.4) and v_s
+        (set to 1 rad/s) multiplies nothing (decision 1695). The two keys come together or not
+        at all.
 
         Raises
         ------
         ConfigError naming ``where`` and the first missing key.
         """
-        for key in ("sigma0_nm_rad", "sigma1_nm_s_rad", "static_nm", "stribeck_velocity_rad_s"):
+        for key in ("sigma0_nm_rad", "sigma1_nm_s_rad"):
             if getattr(cfg, key) is None:
                 raise ConfigError(f"{where}: LuGre friction needs key '{key}'")
+        if (cfg.static_nm is None) != (cfg.stribeck_velocity_rad_s is None):
+            given, missing = (
+                ("static_nm", "stribeck_velocity_rad_s")
+                if cfg.stribeck_velocity_rad_s is None
+                else ("stribeck_velocity_rad_s", "static_nm")
+            )
+            raise ConfigError(
+                f"{where}: key '{given}' needs key '{missing}' (the Stribeck curve, Aslan Eq. "
+                "3.4; give both or neither)"
+            )
         assert cfg.sigma0_nm_rad is not None and cfg.sigma1_nm_s_rad is not None
-        assert cfg.static_nm is not None and cfg.stribeck_velocity_rad_s is not None
         return cls(
             sigma0=cfg.sigma0_nm_rad,
             sigma1=cfg.sigma1_nm_s_rad,
             sigma2=cfg.viscous_nm_s_rad,
-            static=cfg.static_nm,
+            static=cfg.static_nm if cfg.static_nm is not None else cfg.coulomb_nm,
             coulomb=cfg.coulomb_nm,
-            stribeck_velocity=cfg.stribeck_velocity_rad_s,
+            stribeck_velocity=(
+                cfg.stribeck_velocity_rad_s
+                if cfg.stribeck_velocity_rad_s is not None
+                else (1.0, 1.0)
+            ),
         )
+
+    @staticmethod
+    def configured(cfg: FrictionConfig) -> bool:
+        """True if ``cfg`` holds a LuGre friction: its bristle keys (a presliding fit), with or
+        without a Stribeck curve (decision 1695)."""
+        return cfg.sigma0_nm_rad is not None and cfg.sigma1_nm_s_rad is not None
 
     def as_array(self) -> np.ndarray:
         """Parameters packed for :func:`lugre_step`: (+, −) pairs of σ0, σ1, σ2, τ_s, τ_c, v_s."""

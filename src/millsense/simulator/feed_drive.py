@@ -248,15 +248,7 @@ class FeedDriveParams:
             fric = None
         else:
             ft = axis.friction_table("simulated machine")
-            lugre_keys = (
-                ft.sigma0_nm_rad,
-                ft.sigma1_nm_s_rad,
-                ft.static_nm,
-                ft.stribeck_velocity_rad_s,
-            )
-            if friction == "lugre" or (
-                friction == "auto" and all(k is not None for k in lugre_keys)
-            ):
+            if friction == "lugre" or (friction == "auto" and LuGre.configured(ft)):
                 fric = LuGre.from_config(ft, "axis friction")
             else:
                 fric = CoulombViscous.from_config(ft)

@@ -336,8 +336,9 @@ def c3_front_end(
     Returns
     -------
     (drive, lugre, lowpass_hz): :meth:`DriveModel.from_config` (rigid-body limit, friction sign
-    smoothed), the LuGre friction when the table has all its keys and ``use_lugre`` (else None:
-    Coulomb + viscous), and the low-pass corner (``estimator.lowpass_hz``, default
+    smoothed), the LuGre friction when the table has its bristle keys (a presliding fit; the
+    Stribeck curve flat where the moves did not resolve one, decision 1695) and ``use_lugre``
+    (else None: Coulomb + viscous), and the low-pass corner (``estimator.lowpass_hz``, default
     :data:`DEFAULT_LOWPASS_HZ`).
 
     Raises
@@ -355,12 +356,7 @@ def c3_front_end(
     drive = DriveModel.from_config(cfg, DEFAULT_FRICTION_SMOOTHING_RAD_S, where=where, axis=axis)
     f = cfg.friction_table(where, axis)
     lugre = None
-    if use_lugre and None not in (
-        f.sigma0_nm_rad,
-        f.sigma1_nm_s_rad,
-        f.static_nm,
-        f.stribeck_velocity_rad_s,
-    ):
+    if use_lugre and LuGre.configured(f):
         lugre = LuGre.from_config(f, f"{where} axes.{axis}.friction")
     return drive, lugre, lowpass
 

@@ -280,7 +280,9 @@ _MISMATCH = (
     "Mismatch: the truth's coupled drive (modes from the mechanics, position-dependent, lost "
     "motion, ripple, current-loop electrics) against the identified rigid body + rational Φ_d "
     "fit of a noisy sweep with nameplate K_t, η, r_g; LuGre friction +15 % in the truth vs "
-    "Coulomb+viscous in the estimator; torque noise; encoder quantisation"
+    "the estimator's identified friction (LuGre where a presliding test was fitted, its "
+    "Stribeck curve flat where the moves did not resolve one, decision 1695; Coulomb+viscous "
+    "where the fit was refused, decision 1603); torque noise; encoder quantisation"
 )
 
 
@@ -1101,13 +1103,6 @@ def _v1x() -> Measured:
     too_good_factor=2.0,
     unit="-",
     quick=False,
-    gap="on the truth with the real cut's load (2026-11-28, decision 1710) the holding Y axis "
-    "errs by 25/18/13/7/18 % at 1000-5000 rev/min and 51.4 % at 5500 rev/min (tooth line "
-    "183 Hz), against the thesis's 6/6/4/7/11/19 % (53.5 % at 5500 before runout, speed "
-    "variation and entry): the held drive's response at the tooth lines (friction bristles, "
-    "lost motion of the truth) is not the identified path's; decision 0129 fixed the holding "
-    "axis's mean, not its lines",
-    issue=12,
     description=_V1_DESC,
 )
 def _v1y() -> Measured:
