@@ -1532,21 +1532,12 @@ def _sum_run(
     x: FloatArray, speed: FloatArray, feed: FloatArray, zr: FloatArray, zi: FloatArray, a: int,
     b: int, n_flutes: int, acc: FloatArray, sums: ComplexArray,
 ) -> None:  # fmt: skip
-    """Add the samples a … b − 1 (``zr``, ``zi``: their phasors e^{−iφ}) to the sums (the
-    three running sums in locals: stored through ``acc`` each sample, which may alias the
-    inputs for the compiler, they cost as much as the harmonics; the same order, the same
-    numbers)."""
+    """Add the samples a … b − 1 (``zr``, ``zi``: their phasors e^{−iφ}) to the sums."""
     if b <= a:
         return
-    sx = acc[ACC_SUM_X]
-    ssp = acc[ACC_SUM_SPEED]
-    sfd = acc[ACC_SUM_FEED]
     for s in range(a, b):
-        sx += x[s]
-        ssp += abs(speed[s])
-        sfd += abs(feed[s])
-    acc[ACC_SUM_X] = sx
-    acc[ACC_SUM_SPEED] = ssp
-    acc[ACC_SUM_FEED] = sfd
+        acc[ACC_SUM_X] += x[s]
+        acc[ACC_SUM_SPEED] += abs(speed[s])
+        acc[ACC_SUM_FEED] += abs(feed[s])
     _add_harmonics(x, zr, zi, a, b, n_flutes, sums)
     acc[ACC_COUNT] += b - a
