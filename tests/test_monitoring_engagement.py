@@ -640,3 +640,66 @@ def test_fit_jacobian_is_the_projected_residuals_derivative(edge, mean_row):
         runl = np.empty(n, complex)
         _sk._length_run(k, p[0], kb, wt, runl)
         np.testing.assert_allclose(runl, lk, rtol=0, atol=1e-14 * np.max(np.abs(lk)))
+
+
+def test_depth_sd_is_the_covariance_of_the_numpy_residual():
+    """Decision 1692: d_a's standard deviation from the exact Jacobian
+    (:func:`_spectrum_kernels.depth_sd`) equals s²(JᵀJ)⁻¹₀₀ with J by central differences of
+    the numpy projected residual (``SpectrumIdentifier._residual``, steps 1e-6 of the
+    parameters' scale: their error ≈ 1e-9 of J) to 1e-5 (the forward differences it replaced
+    differed from it by ≈ 1e-7), at noisy revolutions' fits of a 2-flute cut."""
+    from millsense.monitoring import _spectrum_kernels as _sk
+
+    g = ToolGeometry(2, R, BETA)
+    ident = SpectrumIdentifier(g, 15)
+    k = 2 * np.arange(1, 16)
+    rng = np.random.default_rng(3)
+    clean = _torque(2, 4e-3, 2e-3, kte=25e3)[k]
+    for _ in range(3):
+        x = clean + 0.03 * np.abs(clean[0]) * (
+            rng.standard_normal(15) + 1j * rng.standard_normal(15)
+        )
+        e = ident.identify(x, 0j, C)
+        p = np.array([e.axial_depth_m, e.entry_rad, e.exit_rad])
+        xn = x / abs(x[0])
+        r = ident._residual(p, xn)
+        jac = np.empty((r.size, 3))
+        for i, h in enumerate(1e-6 * ident._scl):
+            up, down = p.copy(), p.copy()
+            up[i] += h
+            down[i] -= h
+            jac[:, i] = (ident._residual(up, xn) - ident._residual(down, xn)) / (2 * h)
+        s2 = np.sum(r**2) / (2 * 15 - 3 - 2)
+        expected = math.sqrt(s2 * np.linalg.inv(jac.T @ jac)[0, 0])
+        got = _sk.depth_sd(p, x, ident.k, ident._kb, True)
+        assert got == pytest.approx(expected, rel=1e-5)
+        assert e.axial_depth_sd_m == pytest.approx(expected, rel=1e-5)
+
+
+def test_fit_stops_at_the_optimum_its_model_predicts():
+    """Decision 1692: the fit stops where its model predicts less than 1e-8 of the cost for
+    the next step instead of failing eight trials there. A second fit started from its result
+    moves d_a by less than 1e-3 of its standard deviation and the angles by less than 1e-5
+    rad (the model's remaining decrease bounds the step to ≈ 1e-4 √dof standard deviations),
+    and lowers the cost by less than 1e-8 of it, on noisy revolutions whose fits need several
+    steps."""
+    from millsense.monitoring import _spectrum_kernels as _sk
+
+    g = ToolGeometry(2, R, BETA)
+    ident = SpectrumIdentifier(g, 15)
+    k = 2 * np.arange(1, 16)
+    rng = np.random.default_rng(4)
+    clean = _torque(2, 4e-3, 2e-3, kte=25e3)[k]
+    args = (ident._kb, True, ident._lo, ident._hi, ident._scl)
+    p0 = np.array([1.6e-3, math.acos(4e-3 / R - 1) - 0.2, math.pi])
+    for _ in range(5):
+        x = clean + 0.03 * np.abs(clean[0]) * (
+            rng.standard_normal(15) + 1j * rng.standard_normal(15)
+        )
+        xn = x / abs(x[0])
+        p, cost = _sk.lm_fit(p0, xn, ident.k, *args, 60)
+        again, cost2 = _sk.lm_fit(p, xn, ident.k, *args, 60)
+        sd = _sk.depth_sd(p, x, ident.k, ident._kb, True)
+        assert abs(again[0] - p[0]) < 1e-3 * sd
+        assert np.all(np.abs(again[1:] - p[1:]) < 1e-5)
+        assert cost2 <= cost and cost - cost2 <= 1e-8 * cost

@@ -401,6 +401,35 @@ def _positive_definite(h: FloatArray) -> bool:
     return m1 > 0.0 and m2 > 0.0 and m3 > 0.0
 
 
+#: Relative cost decrease below which :func:`lm_fit_weighted` stops (an accepted step's, or the
+#: one its model predicts for the next step; decision 1692).
+LM_REL_DECREASE = 1e-8
+#: Step, as a fraction of each parameter's scale, below which it stops.
+LM_SMALL_STEP = 1e-7
+
+
+@numba.njit(cache=True)
+def _converged(
+    g: FloatArray, h: FloatArray, dp: FloatArray, cost: float, scale: FloatArray
+) -> bool:
+    """Decision 1692: the fit has converged before it tries the step ``dp`` (the damped solution
+    of the model ½‖r‖² + gᵀdp + ½dpᵀh dp) when every component is below
+    :data:`LM_SMALL_STEP` of its scale or the decrease the model predicts for it,
+    −gᵀdp − ½dpᵀh dp, is below :data:`LM_REL_DECREASE` of the cost: the tests an accepted step
+    ends the fit with, applied to the prediction instead of the trial (which at the optimum
+    fails eight times with a growing damping before the fit gave up)."""
+    small = True
+    pred = 0.0
+    for i in range(3):
+        if abs(dp[i]) > LM_SMALL_STEP * scale[i]:
+            small = False
+        hd = 0.0
+        for c in range(3):
+            hd += h[i, c] * dp[c]
+        pred -= g[i] * dp[i] + 0.5 * dp[i] * hd
+    return small or pred <= LM_REL_DECREASE * cost
+
+
 @numba.njit(cache=True)
 def lm_fit_weighted(
     p0: FloatArray,
@@ -494,6 +523,8 @@ def lm_fit_weighted(
                     mm[i, c] = h[i, c]
                 mm[i, i] += lam * (jtj[i, i] + 1e-30)
             _solve3(mm, g, free, dp)
+            if _t == 0 and _converged(g, h, dp, cost, scale):
+                return p, cost
             for i in range(3):
                 q[i] = min(max(p[i] + dp[i], lo[i]), hi[i])
             # a parameter the step leaves where it was (held on its bound: θ_ex = π in down
@@ -520,7 +551,7 @@ def lm_fit_weighted(
             if c2 < cost:
                 small = True
                 for i in range(3):
-                    if abs(q[i] - p[i]) > 1e-7 * scale[i]:
+                    if abs(q[i] - p[i]) > LM_SMALL_STEP * scale[i]:
                         small = False
                 for i in range(3):
                     s_step[i] = q[i] - p[i]
@@ -540,7 +571,7 @@ def lm_fit_weighted(
                 cost = c2
                 lam = max(lam * 0.3, 1e-12)
                 improved = True
-                if small or rel < 1e-8:
+                if small or rel < LM_REL_DECREASE:
                     return p, cost
                 break
             lam *= 10.0
@@ -1042,15 +1073,14 @@ def fit_with_mean(
 
 
 @numba.njit(cache=True)
-def depth_sd(
-    q: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool, scale: FloatArray
-) -> float:
+def depth_sd(q: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: bool) -> float:
     """Standard deviation of the fitted d_a (m) from the harmonics' own scatter (decision
     1558): the projected residual r(p) of the harmonics at p = (d_a, θ_st, θ_ex) (α, β solved
     at every p: variable projection, whose Jacobian gives the nonlinear parameters' covariance,
-    Golub & Pereyra 1973), s² = ‖r‖²/(2K − 3 − n_amplitudes) and Cov = s² (JᵀJ)⁻¹, J by
-    forward differences (step 10⁻⁷ of the parameter's scale). +inf where JᵀJ is singular or
-    nothing is left to estimate s² from."""
+    Golub & Pereyra 1973), s² = ‖r‖²/(2K − 3 − n_amplitudes) and Cov = s² (JᵀJ)⁻¹, J the
+    exact Jacobian the fit takes (:func:`_vp_jacobian`; decision 1692: forward differences
+    before, which differ from it by their truncation, ≈ 10⁻⁷ of the result). +inf where JᵀJ is
+    singular or nothing is left to estimate s² from."""
     n = x.shape[0]
     n_amp = 2 if edge else 1
     dof = 2 * n - 3 - n_amp
@@ -1059,23 +1089,19 @@ def depth_sd(
         return math.inf
     xn = x / ax0
     r = np.empty(2 * n)
-    rt = np.empty(2 * n)
     jac = np.empty((2 * n, 3))
-    # the bases of :func:`_fit_basis` at q and at each perturbed point, their numbers bit for
-    # bit, with each G computed once per distinct order (:func:`_residual_g`) and only the
-    # factor a parameter enters recomputed: d_a the lengths, θ_st and θ_ex the G
+    # the bases of :func:`_fit_basis` at q, each G computed once per distinct order
+    # (:func:`_residual_g`)
     kk = k[:n]
     m, idx = _orders(kk)
     nm = m.shape[0]
     e1 = np.empty(nm, dtype=np.complex128)
     e2 = np.empty(nm, dtype=np.complex128)
-    ft = np.empty(nm, dtype=np.complex128)
     g = np.empty(nm, dtype=np.complex128)
-    gt = np.empty(nm, dtype=np.complex128)
     lk = np.empty(n, dtype=np.complex128)
-    lt = np.empty(n, dtype=np.complex128)
     wa = np.empty(n, dtype=np.complex128)
     wb = np.empty(n, dtype=np.complex128)
+    wt = np.ones(n)
     d, st, ex = q[0], q[1], q[2]
     _phases(m, st, e1)
     _phases(m, ex, e2)
@@ -1083,22 +1109,7 @@ def depth_sd(
     for j in range(n):
         lk[j] = _l(kk[j], d, kb)
     cost = _residual_g(idx, g, lk, xn, edge, wa, wb, r)
-    for i in range(3):
-        h = 1e-7 * scale[i]
-        qi = q[i] + h
-        if i == 0:
-            for j in range(n):
-                lt[j] = _l(kk[j], qi, kb)
-            _residual_g(idx, g, lt, xn, edge, wa, wb, rt)
-        else:
-            _phases(m, qi, ft)
-            if i == 1:
-                _g_all(m, ft, e2, qi, ex, gt)
-            else:
-                _g_all(m, e1, ft, st, qi, gt)
-            _residual_g(idx, gt, lk, xn, edge, wa, wb, rt)
-        for j in range(2 * n):
-            jac[j, i] = (rt[j] - r[j]) / h
+    _vp_jacobian(idx, kk, kb, wt, g, e1, e2, lk, xn, edge, r, jac)
     jtj = jac.T @ jac
     s2 = 2.0 * cost / dof
     # (JᵀJ)⁻¹[0, 0] by the cofactor of the 3 × 3 matrix
@@ -1207,7 +1218,7 @@ def estimate(
     out[EST_RUNOUT] = abs(w)
     out[EST_RUNOUT_ANGLE] = (-math.atan2(w.imag, w.real)) % (2.0 * math.pi)
     out[EST_RELIABILITY] = 1.0 - dev / tot
-    out[EST_AXIAL_SD] = depth_sd(q, x, k, kb, edge, scale)
+    out[EST_AXIAL_SD] = depth_sd(q, x, k, kb, edge)
     out[EST_NOTCH] = notch
     out[EST_COST] = 2.0 * cost / norm
     out[EST_EDGE] = beta / rn
