@@ -339,6 +339,7 @@ class ChatterMonitor(Block):
         # the band's power learned as the background (Σ comb² off the harmonics; decision 1687)
         self._band_power = 0.0
         self._window_power = 0.0  # the last full window's (decision 1687)
+        self._tests_power = self.method.name == "chatter-comb"  # the criterion that reads it
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
         self._level = 0.0  # mean of the last window decided
@@ -507,12 +508,14 @@ class ChatterMonitor(Block):
         first = not self._has_background
         k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background, first,
                            factor, mask, novel, b0, b1, *rates)  # fmt: skip
-        # the band's power against the power learned at the background's plain rate (decision
-        # 1687: a line that grows faster than e-fold in 2 τ is power added at its onset)
-        power = _kn.band_power(comb, self._harm_mask, b0, b1)
-        excess = power - self._band_power
-        self._window_power = power
-        self._band_power = power if first else self._band_power + rates[0] * excess
+        excess: float | None = None
+        if self._tests_power:
+            # the band's power against the power learned at the background's plain rate
+            # (decision 1687: a line that grows faster than e-fold in 2 τ is power added)
+            power = _kn.band_power(comb, self._harm_mask, b0, b1)
+            excess = power - self._band_power
+            self._window_power = power
+            self._band_power = power if first else self._band_power + rates[0] * excess
         self._comb_at = g.pos  # the window whose comb amplitudes ``comb`` holds (1680)
         self._has_background = True
         if settling:
@@ -866,7 +869,11 @@ class ChatterMonitor(Block):
         k = _kn.band_argmax(novel, b0, b1)
         # the part's band power on a full window's scale (its transform holds n/m times a
         # full window's per line and per noise bin), off the harmonics as the learned sum
-        excess = _kn.band_power(comb, self._harm_mask, b0, b1) * (m / n) - self._band_power
+        excess = (
+            _kn.band_power(comb, self._harm_mask, b0, b1) * (m / n) - self._band_power
+            if self._tests_power
+            else None
+        )
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
                        band_excess=excess,
