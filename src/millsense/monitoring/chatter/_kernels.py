@@ -157,6 +157,17 @@ def amplitude(c: ComplexArray, scale: float, out: FloatArray) -> None:  # pragma
 
 
 @numba.njit(cache=True, nogil=True)
+def band_power(amp: FloatArray, mask: BoolArray, b0: int, b1: int) -> float:  # pragma: no cover
+    """``Σ amp²`` over the bins ``b0:b1`` not ``masked`` (one-sided amplitudes: twice the
+    band's variance, Parseval; decision 1687)."""
+    p = 0.0
+    for i in range(b0, b1):
+        if not mask[i]:
+            p += amp[i] * amp[i]
+    return p
+
+
+@numba.njit(cache=True, nogil=True)
 def novelty(
     comb: FloatArray, background: FloatArray, factor: float, mask: BoolArray, out: FloatArray
 ) -> None:  # pragma: no cover - compiled

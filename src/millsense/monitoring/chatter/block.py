@@ -336,6 +336,10 @@ class ChatterMonitor(Block):
         self._part = tuple(np.empty(nf if self.method.judges_segments else 0) for _ in range(3))
         self._background = np.zeros(nf)
         self._has_background = False
+        # the band's power learned as the background (Σ comb² off the harmonics; decision 1687)
+        self._band_power = 0.0
+        self._window_power = 0.0  # the last full window's (decision 1687)
+        self._tests_power = self.method.name == "chatter-comb"  # the criterion that reads it
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
         self._level = 0.0  # mean of the last window decided
@@ -501,9 +505,17 @@ class ChatterMonitor(Block):
             self._drop_settling -= 1
             mask = mask | self._known
             rates = (self._rates[False][0], rates[1])
-        k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background,
-                           not self._has_background, factor, mask, novel, b0, b1,
-                           *rates)  # fmt: skip
+        first = not self._has_background
+        k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background, first,
+                           factor, mask, novel, b0, b1, *rates)  # fmt: skip
+        excess: float | None = None
+        if self._tests_power:
+            # the band's power against the power learned at the background's plain rate
+            # (decision 1687: a line that grows faster than e-fold in 2 τ is power added)
+            power = _kn.band_power(comb, self._harm_mask, b0, b1)
+            excess = power - self._band_power
+            self._window_power = power
+            self._band_power = power if first else self._band_power + rates[0] * excess
         self._comb_at = g.pos  # the window whose comb amplitudes ``comb`` holds (1680)
         self._has_background = True
         if settling:
@@ -547,7 +559,7 @@ class ChatterMonitor(Block):
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
-                       held=bool(self._flag))  # fmt: skip
+                       held=bool(self._flag), band_excess=excess)  # fmt: skip
 
     def _not_learned(self, air: np.ndarray, sp: Spectra | None) -> tuple[Spectra | None]:
         """A run-start window kept out of what the run learns (decision 1680): the air
@@ -855,8 +867,16 @@ class ChatterMonitor(Block):
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
         k = _kn.band_argmax(novel, b0, b1)
+        # the part's band power on a full window's scale (its transform holds n/m times a
+        # full window's per line and per noise bin), off the harmonics as the learned sum
+        excess = (
+            _kn.band_power(comb, self._harm_mask, b0, b1) * (m / n) - self._band_power
+            if self._tests_power
+            else None
+        )
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
+                       band_excess=excess,
                        held=bool(self._flag))  # fmt: skip
 
     def _learning_rates(self, cutting: bool) -> tuple[float, float]:
@@ -890,6 +910,12 @@ class ChatterMonitor(Block):
             # ring-down as chatter variance and less harmonic variance (raw² − comb²): no
             # verdict, as on a window whose mean steps (decisions 1539, 1542)
             return []
+        if v.moved and sp.part == 1.0:
+            # a line of power moved within the band (decision 1687): the window's band is the
+            # background now, the line's lobe and the band's power
+            lobe = slice(max(sp.peak_bin - 1, 0), sp.peak_bin + 2)
+            np.maximum(self._background[lobe], sp.comb[lobe], out=self._background[lobe])
+            self._band_power = self._window_power
         was = bool(self._flag)
         now = v.chatter
         if v.ratio > RUN_LEVEL * v.threshold:

@@ -50,6 +50,13 @@ chatter is flagged the test is not made (the 2 × novelty hold ends it, decision
 the window's bins, each read on the grid; the ratio takes the line's amplitude, and while
 chatter is flagged the run lasts while the ratio stays above :data:`RUN_LEVEL` × the threshold
 (decision 1551).
+
+At an onset the ``chatter-comb`` line must also be power added to the window's band, not power
+moved within it (decision 1687, :func:`adds_power`): the band's ``Σ comb²`` off the harmonics
+must exceed the sum learned at the background's plain rate by half the line's ``A²``. A
+compensated torque's encoder-quantisation lines (the drive's velocity PI on a quantised speed)
+appear at a cut entry by the cut's dither moving their power from one line to another; a line
+found to be moved power is learned at once (its lobe and the band's sum).
 """
 
 from __future__ import annotations
@@ -104,6 +111,9 @@ class Spectra:
     part : the fraction of the window the transformed samples fill (a part after a step,
         zero-padded: m / n; decision 1539).
     held : chatter is flagged (the onset's line test of decision 1658 is not made).
+    band_excess : the band's ``Σ comb²`` off the spindle harmonics (a part's on a full
+        window's scale) less the sum learned at the background's plain rate, or None (no
+        learned sum: the power test of decision 1687 is not made).
     """
 
     f_hz: FloatArray
@@ -121,6 +131,7 @@ class Spectra:
     masked: NDArray[np.bool_] | None = None
     part: float = 1.0
     held: bool = False
+    band_excess: float | None = None
 
 
 @dataclass(slots=True)
@@ -129,13 +140,16 @@ class Verdict:
     once per window and only read: slotted, not frozen, as :class:`Spectra`). ``stands_out``:
     the line stands out of its window's own spectrum (decision 1658; a ratio above the
     threshold without it is no chatter). ``hold``: while chatter is flagged, the level the
-    ratio must stay above instead of the threshold (None: the threshold; decision 1551)."""
+    ratio must stay above instead of the threshold (None: the threshold; decision 1551).
+    ``moved``: the line stood out but is power moved within the band, not added to it (no
+    chatter; the monitor learns the window's band as its background, decision 1687)."""
 
     ratio: float
     frequency_hz: float
     threshold: float
     stands_out: bool = True
     hold: float | None = None
+    moved: bool = False
 
     @property
     def chatter(self) -> bool:
@@ -181,6 +195,26 @@ def line_level(
     q_amp = float(np.partition(sel, n - 1 - top)[n - 1 - top])
     n_eff = max(n * part, 1.0)
     return q_amp * math.sqrt(math.log(n_eff / false_alarm) / math.log(1.0 / (1.0 - quantile)))
+
+
+def adds_power(excess: float | None, amplitude: float) -> bool:
+    """Whether a new chatter-comb line of ``amplitude`` is power added to its window's band
+    (decision 1687): ``excess ≥ ½·amplitude²``, ``excess`` the band's ``Σ comb²`` off the
+    spindle harmonics less the same sum learned with the background (one-sided amplitudes:
+    a line of amplitude ``A`` holds ``A²`` of the sum over its lobe on the rectangular
+    window, Parseval); None (a part after a step, the run's start: no learned sum to compare
+    with) passes.
+
+    Chatter is a vibration the regeneration adds to the cut (Aslan Eq. 5.25: energy at
+    ω_c ± lΩ on top of the stable cut's lΩ): the band gains at least the line's power, ``A²``,
+    whatever else holds still. A line that appears by moving power already in the band gains
+    the band nothing (``≈ 0``): the compensated torque's encoder-quantisation tones, the
+    limit cycle of the drive's velocity PI on a quantised speed (frequencies
+    ``|frac(f_rev·N_enc·T_v)/T_v + m·f_rev|`` folded at the loop's rate, bounded in power by
+    the quantisation step), which the cut's speed ripple dithers from one family of lines to
+    another at an entry. The level is the midpoint of the two hypotheses (``0`` and ``A²``):
+    neither the record nor a rate was fitted to it."""
+    return excess is None or excess >= 0.5 * amplitude * amplitude
 
 
 def line_amplitude(
@@ -302,17 +336,21 @@ class ChatterMethod:
         if self.name == "chatter-comb":
             # the line's amplitude, not its bin's reading (decision 1551)
             ratio = line_amplitude(s.comb, k, s.part, s.masked) / s.tooth
-            stands_out = True
+            stands_out, moved = True, False
             if ratio > thr and not s.held and s.masked is not None:
                 # an onset: the line's bin must stand out of its own window's bins (decision
                 # 1658; bin against bins, each read on the grid)
                 line = float(s.comb[k])
                 stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
+                # ... and the line must be power added to the band, not moved within it
+                # (decision 1687)
+                moved = stands_out and not adds_power(s.band_excess, ratio * s.tooth)
+                stands_out = stands_out and not moved
             # while flagged, a run ends when the ratio falls below the rising run's level, not
             # the threshold: a line read at its amplitude that hovers at 1.5 is one run
             # (decision 1551)
             hold = RUN_LEVEL * thr if s.held else None
-            return Verdict(ratio, f_c, thr, stands_out, hold)
+            return Verdict(ratio, f_c, thr, stands_out, hold, moved)
         # SDFT + moving variance: chatter variance over harmonic variance (Parseval, one-sided
         # amplitudes a → variance a²/2)
         raw = s.raw_rect if s.raw_rect is not None else s.raw
