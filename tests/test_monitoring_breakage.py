@@ -271,10 +271,11 @@ def _tooth_stream(rpm: float, flutes: int, level: float, sigma_tooth: float, sec
     return {"tq": tq + noise, "w": np.full(n, rpm * 2 * math.pi / 60), "ex": np.full(n, level)}
 
 
-def _noisy_block(noise_k: float | None = None) -> BreakageBlock:
+def _noisy_block(noise_k: float | None = None, flute_pattern: bool = True) -> BreakageBlock:
     kw = {} if noise_k is None else {"noise_k": noise_k}
     return BreakageBlock(3, "virtual", signal_channels=("tq",), speed_channel="w",
-                         expected_channel="ex", min_expected_nm=0.1, **kw)  # fmt: skip
+                         expected_channel="ex", min_expected_nm=0.1, flute_pattern=flute_pattern,
+                         **kw)  # fmt: skip
 
 
 def test_noise_floor_of_the_band_keeps_a_light_noisy_cut_quiet() -> None:
@@ -297,19 +298,23 @@ def test_noise_floor_of_the_band_keeps_a_light_noisy_cut_quiet() -> None:
 def test_noise_floor_leaves_a_clear_breakage_detected() -> None:
     """Decision 1550: at 1000 rev/min and 3 N·m per tooth period with σ = 0.05 N·m of noise
     (4σ = 0.2 N·m, under the seed's 1.2 N·m) the band is the seed's 40 % and a flute broken at
-    period 300 alarms as without the floor: on the third violating period, 303 (its own, the
-    next flute's double chip, then its own again one revolution on: with 3 flutes the run
-    bridges the third flute's normal period, decision 1550; without the bridge the runs of two
-    would never confirm)."""
+    period 300 alarms as without the floor: the seed's rule on the third violating period, 303
+    (its own, the next flute's double chip, then its own again one revolution on: with 3 flutes
+    the run bridges the third flute's normal period, decision 1550; without the bridge the runs
+    of two would never confirm). With the flute pattern (decision 1684) the alarm comes at the
+    next flute's double chip, period 301: flute 0's drop (−3 N·m) against its own past and
+    the next flute's rise (+3 N·m), 60σ of the noise."""
     data = _tooth_stream(1000.0, 3, 3.0, 0.05, 8.0, seed=12, broken_from=300)
-    events, ch = run_block(_noisy_block(), data, 1000)
-    events0, _ = run_block(_noisy_block(0.0), data, 1000)
-    band = ch["breakage.virtual/band"]
-    assert np.nanmax(band[: 290 * 200]) == pytest.approx(0.4 * 3.0, rel=1e-12)
-    assert len(events) == 1 and [e.sample for e in events] == [e.sample for e in events0]
     tooth = 200  # samples a tooth period (1000 rev/min, 3 flutes)
-    # period 303 is reported where it ends (the first sample of period 304)
-    assert events[0].sample == pytest.approx(304 * tooth, abs=1)
+    for pattern, end in ((False, 304), (True, 302)):
+        events, ch = run_block(_noisy_block(flute_pattern=pattern), data, 1000)
+        events0, _ = run_block(_noisy_block(0.0, flute_pattern=pattern), data, 1000)
+        band = ch["breakage.virtual/band"]
+        assert np.nanmax(band[: 290 * 200]) == pytest.approx(0.4 * 3.0, rel=1e-12)
+        assert len(events) == 1 and [e.sample for e in events] == [e.sample for e in events0]
+        # a period is reported where it ends (the first sample of the next one)
+        assert events[0].sample == pytest.approx(end * tooth, abs=1)
+        assert ("pattern_evidence" in events[0].values) == pattern
 
 
 @pytest.mark.parametrize("method", ["constant", "dual"])
