@@ -10,7 +10,8 @@ cut into chunks of any size gives the same result as the whole stream:
 * :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
   residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
   thresholds of the three detectors, the noise floor of the torque's band (decision 1550), the
-  confirmation count and a broken flute's signature over the last revolution (decision 1681).
+  confirmation count, a broken flute's signature over the last revolution (decision 1681) and
+  its pattern against the flute's own past revolutions (decision 1684).
 """
 
 from __future__ import annotations
@@ -426,12 +427,18 @@ def detect_periods(
     row (the whole cut lost). Rows 11 and 12 of ``pp`` get the revolution's ratio and the same
     flute's earlier deviation (virtual mode).
 
+    With the flute pattern (virtual mode, ``iparams[7]``, decision 1684) a two-sided judged
+    period also gets the pattern's evidence (:func:`_flute_pattern`, row 13); at
+    ``params[10]`` (σ) or more, with the revolution keeping a broken flute's share (the
+    signature's bound above), it alarms where the seed's rule does not (row 14: 1.0), once
+    until a period not judged two-sided or a re-arm.
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
     (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from, k_noise, edge_share, tol); ``iparams`` = (N, mode, check_deviation,
-    learn_periods, confirm, flute signature, lost_periods).
+    learn_from, k_noise, edge_share, tol, pattern threshold); ``iparams`` = (N, mode,
+    check_deviation, learn_periods, confirm, flute signature, lost_periods, flute pattern).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
     reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
@@ -641,8 +648,11 @@ def detect_periods(
                 fire = False
             elif fire:
                 state[DET_PALARMED] = 1.0
-            elif state[DET_PALARMED] == 0.0 and state[DET_ALARMED] == 0.0 and keeps and (
-                evidence >= pattern_z
+            elif (
+                state[DET_PALARMED] == 0.0
+                and state[DET_ALARMED] == 0.0
+                and keeps
+                and evidence >= pattern_z
             ):
                 fire = True
                 by_out[m] = 1.0

@@ -27,9 +27,16 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     alarms at a later violation that shows it; a revolution mean under the other flutes'
     shares (1 − 1/N − ``revolution_tol``: more than one flute's torque missing) for
     ``lost_revolutions`` revolutions in a row (the whole cut lost: every flute, the tool off at
-    its shank) alarms without it. The tooth periods' phase is that of the
-    stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage` judges several
-    phases (``phase_offset``, decision 1552). Tooth periods whose expected
+    its shank) alarms without it. A second way to confirm (decision 1684; seed 002 §2.5, the
+    physics of a broken flute rather than one band's violations): the flute's drop against the
+    other flutes and against its own previous revolutions (the plan's error and the flute's
+    runout cancel), or the drop of one flute and the rise of the next, in standard deviations
+    of its own scale, accumulated over up to 4 revolutions of the flute, alarms at
+    ``pattern_z`` = 7 (a threshold set from the false-alarm rate of intact cuts) where the
+    revolution keeps a broken flute's share; it confirms a drop at the band's edge in one or
+    two revolutions where the seed's rule waits for the noise. The tooth periods' phase is
+    that of the stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage`
+    judges several phases (``phase_offset``, decision 1552). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
     touch of an entry) are not judged: there the virtual limit goes to zero (decision 1522).
     In the plan's transients, where the expected torque is not given (decisions 1622, 1627),
@@ -113,9 +120,9 @@ LOST_REVOLUTIONS = 10
 #: from the false-alarm rate measured on the six general cuts run intact (and before their
 #: breaks; not from the breaks): of 29 829 tooth periods judged at three phases, 1750 (5.9 %)
 #: gave a drop of a breakage's size, and their evidence's 0.99 and 0.999 quantiles (3.27, 4.04;
-#: largest 4.33) follow a normal tail of scale 1.41 at most. At 7.0 (5.0 of that scale, 2.9e-7)
-#: that is 1.7e-8 per judged period: one false alarm per 8 h of cutting at 10 000 rev/min with
-#: 4 flutes (three phases: 2000 judged periods a second), per 55 h at 3000 rev/min with 2.
+#: largest 4.33) follow a normal tail of scale 1.41 at most. At 7.0 (4.96 of that scale) that
+#: is 2.0e-8 per judged period: one false alarm per 7 h of cutting at 10 000 rev/min with 4
+#: flutes (three phases: 2000 judged periods a second), per 46 h at 3000 rev/min with 2.
 PATTERN_Z = 7.0
 #: Seed 002 §2.5: threshold factor and learning length.
 ALPHA = 2.0
