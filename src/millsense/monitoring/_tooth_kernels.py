@@ -352,15 +352,20 @@ def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float)
         d = u - up
         n = int(state[DET_PN])
         if run >= PATTERN_WARM * nf and n >= NOISE_MIN:
-            sc = MAD_SCALE * np.median(state[cw : cw + n])
-            sd = MAD_SCALE * np.median(state[dw : dw + n])
+            # the scales only where a term can count (a drop of a breakage's size; about one
+            # judged period in 17 of the intact cuts): a median of 128 values costs as much as
+            # the rest of the period's work
+            big = -u >= size
+            big_prev = -up >= size
+            sc = MAD_SCALE * np.median(state[cw : cw + n]) if big else 0.0
+            sd = MAD_SCALE * np.median(state[dw : dw + n]) if big_prev else 0.0
             for i in range(PATTERN_REVS - 1, 0, -1):  # this flute's last revolutions
                 state[zr + i * nf + slot] = state[zr + (i - 1) * nf + slot]
                 state[qr + i * nf + slot] = state[qr + (i - 1) * nf + slot]
             # the dropped flute must have dropped against its own past too, by a breakage's
             # size: a rise of the other flutes is no drop of this one
-            z = min(-c, -u) / sc if sc > 0.0 and -u >= size else math.nan
-            q = min(d, -2.0 * up) / sd if sd > 0.0 and -up >= size else math.nan
+            z = min(-c, -u) / sc if big and sc > 0.0 else math.nan
+            q = min(d, -2.0 * up) / sd if big_prev and sd > 0.0 else math.nan
             state[zr + slot] = z
             state[qr + slot] = q
             evidence = -math.inf
