@@ -142,8 +142,9 @@ def test_weak_chatter_drops_tooth_periods_but_raise_no_breakage_alarm() -> None:
                              data, 100)  # fmt: skip
     assert [e.name for e in seed_only] == ["breakage"]  # the false alarm of the QA finding
     assert seed_only[0].time_s == pytest.approx(1.30, abs=0.03)
-    events, _ = run_block(_session_detector(data), data, 100)
-    assert [e for e in events if e.name == "breakage"] == []
+    for pattern in (False, True):  # the session's default (off, decision 1684) and on
+        events, _ = run_block(_session_detector(data, flute_pattern=pattern), data, 100)
+        assert [e for e in events if e.name == "breakage"] == []
 
 
 def test_a_broken_flute_in_the_same_cut_is_still_found_in_three_tooth_periods() -> None:
@@ -168,7 +169,7 @@ def test_a_broken_flute_in_the_same_cut_is_still_found_in_three_tooth_periods() 
     assert v["revolution_ratio"] == pytest.approx(0.87, abs=0.03)
     assert v["same_flute_deviation_nm"] < -SIGMA_TB * v["expected_nm"]
     assert "one flute: the revolution's torque 87 % of the plan's" in seed[0].message
-    events, _ = run_block(_session_detector(data), data, 100)
+    events, _ = run_block(_session_detector(data, flute_pattern=True), data, 100)
     assert [e.name for e in events] == ["breakage"]
     assert (events[0].time_s - brk) * FS / TOOTH == pytest.approx(5 / 3, abs=0.01)
     assert events[0].values["phase"] == pytest.approx(1 / 3)
