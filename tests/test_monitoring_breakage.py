@@ -271,10 +271,11 @@ def _tooth_stream(rpm: float, flutes: int, level: float, sigma_tooth: float, sec
     return {"tq": tq + noise, "w": np.full(n, rpm * 2 * math.pi / 60), "ex": np.full(n, level)}
 
 
-def _noisy_block(noise_k: float | None = None) -> BreakageBlock:
+def _noisy_block(noise_k: float | None = None, flute_pattern: bool = True) -> BreakageBlock:
     kw = {} if noise_k is None else {"noise_k": noise_k}
     return BreakageBlock(3, "virtual", signal_channels=("tq",), speed_channel="w",
-                         expected_channel="ex", min_expected_nm=0.1, **kw)  # fmt: skip
+                         expected_channel="ex", min_expected_nm=0.1, flute_pattern=flute_pattern,
+                         **kw)  # fmt: skip
 
 
 def test_noise_floor_of_the_band_keeps_a_light_noisy_cut_quiet() -> None:
@@ -297,19 +298,23 @@ def test_noise_floor_of_the_band_keeps_a_light_noisy_cut_quiet() -> None:
 def test_noise_floor_leaves_a_clear_breakage_detected() -> None:
     """Decision 1550: at 1000 rev/min and 3 N·m per tooth period with σ = 0.05 N·m of noise
     (4σ = 0.2 N·m, under the seed's 1.2 N·m) the band is the seed's 40 % and a flute broken at
-    period 300 alarms as without the floor: on the third violating period, 303 (its own, the
-    next flute's double chip, then its own again one revolution on: with 3 flutes the run
-    bridges the third flute's normal period, decision 1550; without the bridge the runs of two
-    would never confirm)."""
+    period 300 alarms as without the floor: the seed's rule on the third violating period, 303
+    (its own, the next flute's double chip, then its own again one revolution on: with 3 flutes
+    the run bridges the third flute's normal period, decision 1550; without the bridge the runs
+    of two would never confirm). With the flute pattern (decision 1684) the alarm comes at the
+    next flute's double chip, period 301: flute 0's drop (−3 N·m) against its own past and
+    the next flute's rise (+3 N·m), 60σ of the noise."""
     data = _tooth_stream(1000.0, 3, 3.0, 0.05, 8.0, seed=12, broken_from=300)
-    events, ch = run_block(_noisy_block(), data, 1000)
-    events0, _ = run_block(_noisy_block(0.0), data, 1000)
-    band = ch["breakage.virtual/band"]
-    assert np.nanmax(band[: 290 * 200]) == pytest.approx(0.4 * 3.0, rel=1e-12)
-    assert len(events) == 1 and [e.sample for e in events] == [e.sample for e in events0]
     tooth = 200  # samples a tooth period (1000 rev/min, 3 flutes)
-    # period 303 is reported where it ends (the first sample of period 304)
-    assert events[0].sample == pytest.approx(304 * tooth, abs=1)
+    for pattern, end in ((False, 304), (True, 302)):
+        events, ch = run_block(_noisy_block(flute_pattern=pattern), data, 1000)
+        events0, _ = run_block(_noisy_block(0.0, flute_pattern=pattern), data, 1000)
+        band = ch["breakage.virtual/band"]
+        assert np.nanmax(band[: 290 * 200]) == pytest.approx(0.4 * 3.0, rel=1e-12)
+        assert len(events) == 1 and [e.sample for e in events] == [e.sample for e in events0]
+        # a period is reported where it ends (the first sample of the next one)
+        assert events[0].sample == pytest.approx(end * tooth, abs=1)
+        assert ("pattern_evidence" in events[0].values) == pattern
 
 
 @pytest.mark.parametrize("method", ["constant", "dual"])
@@ -387,3 +392,41 @@ def test_without_a_floor_the_transient_is_not_judged() -> None:
     p = np.arange(80)
     broken = np.where((p >= 40) & (p % 2 == 0), 0.1, 3.0)
     assert _transient_run(broken, floor=0.0) == []
+
+
+def test_flute_pattern_confirms_a_drop_at_the_band_edge_in_two_revolutions() -> None:
+    """Decision 1684: 4 flutes at 6000 rev/min (25 samples a period), 2.4 N·m a tooth period
+    with σ = 0.12 N·m of noise (the 4-flute slot of the general cuts). From period 1200 flute 0
+    loses 38 % of its torque and flute 1 gains 20 % (its chip cut by the next flute, the edge
+    force lost): the drop lies at the seed's 40 % band, so seed 000's rule confirms it only as
+    the noise lets three periods out: at period 1308, 27 revolutions on. The flute pattern
+    alarms at period 1204, the broken flute's drop repeated one revolution on (7.6σ over the
+    two; the first revolution's drop and rise alone stayed under 7σ with this noise), with the
+    revolution at 93 % of the plan's. The same stream intact gives no alarm."""
+    rpm, flutes, level, sigma, tooth = 6000.0, 4, 2.4, 0.12, 25
+    n = 2000 * tooth
+    period = np.arange(n) // tooth
+    noise = np.random.default_rng(5).standard_normal(n) * sigma * math.sqrt(tooth)
+    intact = np.full(n, level)
+    broken = intact.copy()
+    after = period >= 1200
+    broken[after & (period % flutes == 0)] *= 0.62
+    broken[after & (period % flutes == 1)] *= 1.20
+    speed = np.full(n, rpm * 2 * math.pi / 60)
+
+    def alarms(tq: np.ndarray, pattern: bool) -> list:
+        blk = BreakageBlock(flutes, "virtual", signal_channels=("tq",), speed_channel="w",
+                            expected_channel="ex", min_expected_nm=0.1,
+                            flute_pattern=pattern)  # fmt: skip
+        data = {"tq": tq + noise, "w": speed, "ex": np.full(n, level)}
+        return run_block(blk, data, 100)[0]
+
+    assert alarms(intact, True) == []
+    seed = alarms(broken, False)
+    assert seed[0].values["tooth_period"] == 1308  # the seed's rule, as the noise allows
+    events = alarms(broken, True)
+    assert len(events) == 1  # one alarm of either path
+    v = events[0].values
+    assert v["tooth_period"] == 1204 and v["tooth"] == 0
+    assert v["pattern_evidence"] == pytest.approx(7.65, abs=0.01)
+    assert v["revolution_ratio"] == pytest.approx(0.93, abs=0.01)

@@ -25,7 +25,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from millsense.monitoring.breakage import EDGE_SHARE, REVOLUTION_TOL, SIGMA_TB, BreakageBlock
+from millsense.monitoring.breakage import (
+    EDGE_SHARE,
+    PATTERN_Z,
+    REVOLUTION_TOL,
+    SIGMA_TB,
+    BreakageBlock,
+)
 from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.process.engagement import Engagement
 from millsense.simulator.process_coupling import (
@@ -132,31 +138,43 @@ def test_weak_chatter_drops_tooth_periods_but_raise_no_breakage_alarm() -> None:
     out = int(sig["out"].sum())
     assert out >= 20  # periods out of the seed's band: measured 39 of 62
     assert int((sig["out"] & sig["flute"]).sum()) == 0  # none with the signature
-    seed_only, _ = run_block(_session_detector(data, flute_signature=False), data, 100)
+    seed_only, _ = run_block(_session_detector(data, flute_signature=False, flute_pattern=False),
+                             data, 100)  # fmt: skip
     assert [e.name for e in seed_only] == ["breakage"]  # the false alarm of the QA finding
     assert seed_only[0].time_s == pytest.approx(1.30, abs=0.03)
-    events, _ = run_block(_session_detector(data), data, 100)
-    assert [e for e in events if e.name == "breakage"] == []
+    for pattern in (False, True):  # the session's default (off, decision 1684) and on
+        events, _ = run_block(_session_detector(data, flute_pattern=pattern), data, 100)
+        assert [e for e in events if e.name == "breakage"] == []
 
 
 def test_a_broken_flute_in_the_same_cut_is_still_found_in_three_tooth_periods() -> None:
     """The same slot with a rigid tool (a stable cut: seed 000 judges breakage where the cut is
-    stable, Fig. 6.16), flute 0 broken at 2.7 s (tooth period 90's start): the alarm comes 3
-    tooth periods after the break (issue 15; seed 000 C17), at the same sample as the seed's
-    detector's, with the signature: the revolution keeps 87 % of the plan's torque (the broken
-    flute's edge force lost, its chip cut by the next flute) and the broken flute was as low
-    one revolution earlier."""
+    stable, Fig. 6.16), flute 0 broken at 2.7 s (tooth period 90's start). Seed 000's rule (the
+    flute pattern off) alarms 3 tooth periods after the break (issue 15; seed 000 C17), at the
+    same sample as without the signature, with the signature: the revolution keeps 87 % of the
+    plan's torque (the broken flute's edge force lost, its chip cut by the next flute) and the
+    broken flute was as low one revolution earlier. The session's detector confirms the flute
+    pattern first (decision 1684): 5/3 tooth periods after the break, at the phase ⅓ windows,
+    whose period holding the broken flute's drop ends ⅔ of a period after the break and the
+    next flute's rise one period later; its evidence far above the 7σ threshold."""
     brk = 90 * TOOTH / FS
     data = _cut(brk + 0.5, flexible=False, break_s=brk)
-    events, _ = run_block(_session_detector(data), data, 100)
-    seed_only, _ = run_block(_session_detector(data, flute_signature=False), data, 100)
-    assert [e.name for e in events] == ["breakage"]
-    assert (events[0].time_s - brk) * FS / TOOTH == pytest.approx(3.0, abs=0.01)
-    assert events[0].sample == seed_only[0].sample
-    v = events[0].values
+    seed, _ = run_block(_session_detector(data, flute_pattern=False), data, 100)
+    seed_only, _ = run_block(_session_detector(data, flute_signature=False, flute_pattern=False),
+                             data, 100)  # fmt: skip
+    assert [e.name for e in seed] == ["breakage"]
+    assert (seed[0].time_s - brk) * FS / TOOTH == pytest.approx(3.0, abs=0.01)
+    assert seed[0].sample == seed_only[0].sample
+    v = seed[0].values
     assert v["revolution_ratio"] == pytest.approx(0.87, abs=0.03)
     assert v["same_flute_deviation_nm"] < -SIGMA_TB * v["expected_nm"]
-    assert "one flute: the revolution's torque 87 % of the plan's" in events[0].message
+    assert "one flute: the revolution's torque 87 % of the plan's" in seed[0].message
+    events, _ = run_block(_session_detector(data, flute_pattern=True), data, 100)
+    assert [e.name for e in events] == ["breakage"]
+    assert (events[0].time_s - brk) * FS / TOOTH == pytest.approx(5 / 3, abs=0.01)
+    assert events[0].values["phase"] == pytest.approx(1 / 3)
+    assert events[0].values["pattern_evidence"] > 2 * PATTERN_Z
+    assert "a broken flute's pattern" in events[0].message
 
 
 def _levels(tooth_torque: np.ndarray, level: float = 3.0, signature: bool = True) -> list:

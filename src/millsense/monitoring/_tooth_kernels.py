@@ -10,7 +10,8 @@ cut into chunks of any size gives the same result as the whole stream:
 * :func:`detect_periods` — first and lag-N differences of the period averages, adaptive AR(1)
   residuals with recursive least squares (Aslan Eqs. 6.2–6.4; Munasinghe Eqs. 3.46–3.49),
   thresholds of the three detectors, the noise floor of the torque's band (decision 1550), the
-  confirmation count and a broken flute's signature over the last revolution (decision 1681).
+  confirmation count, a broken flute's signature over the last revolution (decision 1681) and
+  its pattern against the flute's own past revolutions (decision 1684).
 """
 
 from __future__ import annotations
@@ -182,8 +183,14 @@ DET_NOISE_POS = 17  # next slot of the noise window
 DET_MISS = 18  # periods in a row without a violation inside the running violation
 DET_ALARMED = 19  # 1: the running violation has raised its alarm
 DET_LOW = 20  # judged periods in a row whose revolution mean is under 1 − 1/N − tol
-DET_BASE = 21  # ring buffers: the last N period values, the noise window, then the last N
-# references (NaN: not judged) and one-sided flags of the flute signature (decision 1681)
+DET_PRUN = 21  # flute pattern (decision 1684): two-sided judged periods in a row
+DET_PN = 22  # |contrast| values held in the pattern's scale windows (≤ NOISE_WINDOW)
+DET_PPOS = 23  # next slot of the pattern's scale windows
+DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (pattern on)
+DET_BASE = 25  # ring buffers: the last N period values, the noise window, then the last N
+# references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
+# the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
+# PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW
 
 #: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
 #: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
@@ -192,16 +199,29 @@ NOISE_WINDOW = 128
 NOISE_MIN = 16
 #: σ = median|d| / (0.6745 √2) (:mod:`millsense.core.noise`).
 NOISE_SCALE = SIGMA_PER_MEDIAN_ABS_DIFF
+#: σ = median|z| / 0.6745 of a zero-mean normal variable.
+MAD_SCALE = 1.0 / 0.6745
+#: Decision 1684, the flute pattern: each flute's residual to the plan is referenced to its own
+#: mean over the previous revolutions (running mean over the first 1/PATTERN_BETA, then an
+#: exponential one with weight PATTERN_BETA: 8 revolutions), judged once PATTERN_WARM
+#: revolutions of two-sided judged periods are held, and its evidence accumulated over up to
+#: PATTERN_REVS revolutions of the same flute.
+PATTERN_BETA = 0.125
+PATTERN_WARM = 8
+PATTERN_REVS = 4
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
-#: mean's ratio to the plan's, 12 the same flute's deviation one revolution earlier; NaN where
-#: not known) and of a detector's outputs (rows 3 … 8).
-PP_ROWS = 13
+#: mean's ratio to the plan's, 12 the same flute's deviation one revolution earlier, 13 the
+#: flute pattern's evidence (decision 1684), 14 1.0 where the pattern confirmed the alarm; NaN
+#: where not known) and of a detector's outputs (rows 3 … 8).
+PP_ROWS = 15
 PP_GATE = 9
 PP_FLOOR = 10
 PP_REV = 11
 PP_LAG = 12
+PP_PAT = 13
+PP_BY = 14
 OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
@@ -209,9 +229,14 @@ MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the 
 MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
 
 
+def pattern_base(n_flutes: int) -> int:
+    """Index of the flute pattern's rings in the detector state (decision 1684)."""
+    return DET_BASE + 3 * n_flutes + NOISE_WINDOW
+
+
 def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
-    st = np.zeros(DET_BASE + 3 * n_flutes + NOISE_WINDOW)
+    st = np.zeros(pattern_base(n_flutes) + (2 + 2 * PATTERN_REVS) * n_flutes + 2 * NOISE_WINDOW)
     st[DET_BASE + n_flutes + NOISE_WINDOW : DET_BASE + 2 * n_flutes + NOISE_WINDOW] = math.nan
     st[DET_PHI1] = phi0
     st[DET_PHI2] = phi0
@@ -269,6 +294,103 @@ def _flute_signature(
 
 
 @numba.njit(cache=True)
+def _pattern_reset(state: FloatArray, nf: int) -> None:
+    """Forget the flute pattern's references and evidence (a period not judged two-sided)."""
+    base = DET_BASE + 3 * nf + NOISE_WINDOW
+    state[DET_PRUN] = 0.0
+    state[DET_PN] = 0.0
+    state[DET_PPOS] = 0.0
+    state[DET_PALARMED] = 0.0
+    for i in range(base + 2 * nf, base + (2 + 2 * PATTERN_REVS) * nf):
+        state[i] = math.nan
+
+
+@numba.njit(cache=True)
+def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float) -> float:
+    """A broken flute's pattern on a two-sided judged period (decision 1684; seed 002 §2.5:
+    the broken flute k loses its chip, the next flute k + 1 cuts it as well): the evidence, in
+    standard deviations, that this period's flute dropped (or the previous one dropped and this
+    one rose), accumulated over up to PATTERN_REVS revolutions of the same flute; NaN until the
+    references and scales are learnt.
+
+    ``r`` = x − τ_sim, the period's residual to the plan. Its innovation u = r − r̄_k against
+    the same flute's mean residual over the previous revolutions (the plan's error and the
+    runout of flute k cancel) gives two contrasts in which whatever moves every flute together
+    (a feed override, the plan's error along the path, a depth step) cancels:
+    c = u − mean(u of the other N − 1 flutes' last periods) (a drop of this flute alone) and
+    d = u − u(previous period) (the previous flute dropped, this one rose). Each is scaled by
+    its own robust standard deviation (median |·| / 0.6745 over the last NOISE_WINDOW periods),
+    z = min(−c, −u)/σ_c and q = min(d, −2 u_prev)/σ_d (the dropped flute must have dropped
+    against its own past as well: a rise of the others, or a transient of the plan every
+    flute passes, is no drop of this one), and the evidence is the largest of (Σ_{l<L} z_l)/√L and
+    (Σ_{l<L} q_l)/√L over the last L = 1 … PATTERN_REVS revolutions of this flute with every
+    term positive (the same flute each revolution: a broken flute stays broken), the drop alone
+    (z) from its second revolution on: the next flute must have kept its torque (q) before a
+    single revolution confirms, or a loss of every flute (an unplanned air gap, the tool lost)
+    would start as one flute's drop. Every term needs the dropped flute's innovation at least
+    ``size`` below its past (half the seed's σ_TB band, decision 1684): a change of every flute
+    a fraction of a revolution off the plan's (a depth step the plan places early) leaves a
+    drop and a rise of a few per cent that a quiet cut's small σ would otherwise confirm."""
+    base = DET_BASE + 3 * nf + NOISE_WINDOW
+    ref = base
+    uu = base + nf
+    zr = base + 2 * nf
+    qr = zr + PATTERN_REVS * nf
+    cw = qr + PATTERN_REVS * nf
+    dw = cw + NOISE_WINDOW
+    run = int(state[DET_PRUN])
+    if run < nf:
+        state[ref + slot] = r
+    u = r - state[ref + slot]
+    evidence = math.nan
+    if run >= nf:
+        others = 0.0
+        for i in range(1, nf):
+            others += state[uu + (slot - i) % nf]
+        c = u - others / (nf - 1) if nf > 1 else u
+        up = state[uu + (slot - 1) % nf]
+        d = u - up
+        n = int(state[DET_PN])
+        if run >= PATTERN_WARM * nf and n >= NOISE_MIN:
+            # the scales only where a term can count (a drop of a breakage's size; about one
+            # judged period in 17 of the intact cuts): a median of 128 values costs as much as
+            # the rest of the period's work
+            big = -u >= size
+            big_prev = -up >= size
+            sc = MAD_SCALE * np.median(state[cw : cw + n]) if big else 0.0
+            sd = MAD_SCALE * np.median(state[dw : dw + n]) if big_prev else 0.0
+            for i in range(PATTERN_REVS - 1, 0, -1):  # this flute's last revolutions
+                state[zr + i * nf + slot] = state[zr + (i - 1) * nf + slot]
+                state[qr + i * nf + slot] = state[qr + (i - 1) * nf + slot]
+            # the dropped flute must have dropped against its own past too, by a breakage's
+            # size: a rise of the other flutes is no drop of this one
+            z = min(-c, -u) / sc if big and sc > 0.0 else math.nan
+            q = min(d, -2.0 * up) / sd if big_prev and sd > 0.0 else math.nan
+            state[zr + slot] = z
+            state[qr + slot] = q
+            evidence = -math.inf
+            for ring in (qr, zr):
+                acc = 0.0
+                for i in range(PATTERN_REVS):
+                    term = state[ring + i * nf + slot]
+                    if not term > 0.0:  # NaN (no drop of a breakage's size) or not this way
+                        break
+                    acc += term
+                    if ring == qr or i > 0:  # a drop alone is judged once it repeats
+                        evidence = max(evidence, acc / math.sqrt(i + 1.0))
+        pos = int(state[DET_PPOS])
+        state[cw + pos] = abs(c)
+        state[dw + pos] = abs(d)
+        state[DET_PPOS] = (pos + 1) % NOISE_WINDOW
+        state[DET_PN] = min(n + 1.0, NOISE_WINDOW)
+    k = run // nf + 1.0  # revolutions of this flute's reference, this one included
+    state[ref + slot] += max(PATTERN_BETA, 1.0 / k) * (r - state[ref + slot])
+    state[uu + slot] = u
+    state[DET_PRUN] = run + 1.0
+    return evidence
+
+
+@numba.njit(cache=True)
 def detect_periods(
     pp: FloatArray,
     pb: NDArray[np.bool_],
@@ -310,12 +432,18 @@ def detect_periods(
     row (the whole cut lost). Rows 11 and 12 of ``pp`` get the revolution's ratio and the same
     flute's earlier deviation (virtual mode).
 
+    With the flute pattern (virtual mode, ``iparams[7]``, decision 1684) a two-sided judged
+    period also gets the pattern's evidence (:func:`_flute_pattern`, row 13); at
+    ``params[10]`` (σ) or more, with the revolution keeping a broken flute's share (the
+    signature's bound above), it alarms where the seed's rule does not (row 14: 1.0), once
+    until a period not judged two-sided or a re-arm.
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
     (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from, k_noise, edge_share, tol); ``iparams`` = (N, mode, check_deviation,
-    learn_periods, confirm, flute signature, lost_periods).
+    learn_from, k_noise, edge_share, tol, pattern threshold); ``iparams`` = (N, mode,
+    check_deviation, learn_periods, confirm, flute signature, lost_periods, flute pattern).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
     reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
@@ -324,6 +452,8 @@ def detect_periods(
     learn_periods, confirm = iparams[3], iparams[4]
     signature = iparams[5] != 0 and mode == MODE_VIRTUAL
     lost_periods = iparams[6]
+    pattern = iparams[7] != 0 and mode == MODE_VIRTUAL
+    pattern_z = params[10]
     # a broken flute's revolution keeps at least this share of the plan's; under the other
     # flutes' shares more than one flute's torque is missing (decision 1681)
     rev_low = 1.0 - edge_share / nf - rev_tol
@@ -342,9 +472,13 @@ def detect_periods(
     floor = pp[PP_FLOOR]
     rev_out = pp[PP_REV]
     lag_out = pp[PP_LAG]
+    pat_out = pp[PP_PAT]
+    by_out = pp[PP_BY]
     for m in range(k):
         rev_out[m] = math.nan
         lag_out[m] = math.nan
+        pat_out[m] = math.nan
+        by_out[m] = 0.0
         if gate[m] < 1.0:
             # a period with a sample where the gate is off (the spindle not at speed: the
             # torque holds the acceleration torque) is not judged and restarts the differences
@@ -363,6 +497,7 @@ def detect_periods(
             state[DET_GAP] = 1.0
             state[DET_ALARMED] = 0.0
             state[DET_LOW] = 0.0
+            _pattern_reset(state, nf)
             continue
         seen = int(state[DET_SEEN])
         xm = x[m]
@@ -395,6 +530,8 @@ def detect_periods(
         eps2[m] = e2
         v = False
         flute = True  # the flute signature holds (or is not asked for)
+        keeps = False  # the revolution keeps a broken flute's share of the plan's torque
+        evidence = math.nan  # the flute pattern's (decision 1684)
         run = state[DET_RUN]
         learn = state[DET_LEARN]
         if learn < 0 and seen >= nf + 1 and abs(xm) >= learn_from:
@@ -463,6 +600,12 @@ def detect_periods(
                                                    below)  # fmt: skip
                 rev_out[m] = ratio
                 lag_out[m] = lag
+                keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
+                if pattern:
+                    if judge and not below:
+                        evidence = _flute_pattern(state, nf, seen % nf, xm - ex, 0.5 * limit)
+                    else:  # a transient or a period not judged: the pattern starts afresh
+                        _pattern_reset(state, nf)
                 if signature:
                     # a broken flute (decision 1681): the next flute cuts its chip, so the
                     # revolution keeps its torque but for the broken flute's edge share, and
@@ -474,10 +617,10 @@ def detect_periods(
                     # the surges that cut what they left.
                     low = judge and ratio == ratio and ratio < rev_lost
                     state[DET_LOW] = state[DET_LOW] + 1.0 if low else 0.0
-                    keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
                     locked = lag * (xm - ex) > 0.0  # False where NaN
                     lost = lost_periods > 0 and state[DET_LOW] >= lost_periods
                     flute = (keeps and locked) or lost
+        pat_out[m] = evidence
         expected[m] = ex if mode != MODE_DUAL else 0.0
         # a broken flute of N shows once a revolution at least (its own period; the next
         # flute's double chip need not leave the band where the flute's pulse is shorter than
@@ -500,6 +643,25 @@ def detect_periods(
         # one alarm per run, at its confirm-th violation or, with the flute signature, at
         # the first violation from there on where the signature holds (decision 1681)
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
+        if pattern:
+            # the flute pattern's path (decision 1684): its evidence at the threshold set from
+            # the false-alarm rate, the revolution keeping a broken flute's share; one alarm
+            # of either path until a period not judged two-sided or a re-arm
+            # (1: the seed's path alarmed, which keeps its own rule; 2: the pattern did, after
+            # which neither alarms again)
+            if state[DET_PALARMED] == 2.0:
+                fire = False
+            elif fire:
+                state[DET_PALARMED] = 1.0
+            elif (
+                state[DET_PALARMED] == 0.0
+                and state[DET_ALARMED] == 0.0
+                and keeps
+                and evidence >= pattern_z
+            ):
+                fire = True
+                by_out[m] = 1.0
+                state[DET_PALARMED] = 2.0
         if fire:
             state[DET_ALARMED] = 1.0
         alarm[m] = fire

@@ -27,9 +27,16 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     alarms at a later violation that shows it; a revolution mean under the other flutes'
     shares (1 − 1/N − ``revolution_tol``: more than one flute's torque missing) for
     ``lost_revolutions`` revolutions in a row (the whole cut lost: every flute, the tool off at
-    its shank) alarms without it. The tooth periods' phase is that of the
-    stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage` judges several
-    phases (``phase_offset``, decision 1552). Tooth periods whose expected
+    its shank) alarms without it. A second way to confirm (decision 1684; seed 002 §2.5, the
+    physics of a broken flute rather than one band's violations): the flute's drop against the
+    other flutes and against its own previous revolutions (the plan's error and the flute's
+    runout cancel), or the drop of one flute and the rise of the next, in standard deviations
+    of its own scale, accumulated over up to 4 revolutions of the flute, alarms at
+    ``pattern_z`` = 7 (a threshold set from the false-alarm rate of intact cuts) where the
+    revolution keeps a broken flute's share; it confirms a drop at the band's edge in one or
+    two revolutions where the seed's rule waits for the noise. The tooth periods' phase is
+    that of the stream start; :class:`~millsense.monitoring.breakage_phased.PhasedBreakage`
+    judges several phases (``phase_offset``, decision 1552). Tooth periods whose expected
     torque is below ``min_expected_nm`` (default 10 % of the plan's largest; air, the first
     touch of an entry) are not judged: there the virtual limit goes to zero (decision 1522).
     In the plan's transients, where the expected torque is not given (decisions 1622, 1627),
@@ -109,6 +116,14 @@ NOISE_K = 4.0
 EDGE_SHARE = 0.5
 REVOLUTION_TOL = 0.1
 LOST_REVOLUTIONS = 10
+#: Decision 1684: the flute pattern's threshold, in standard deviations of its evidence, set
+#: from the false-alarm rate measured on the six general cuts run intact (and before their
+#: breaks; not from the breaks): of 29 829 tooth periods judged at three phases, 1750 (5.9 %)
+#: gave a drop of a breakage's size, and their evidence's 0.99 and 0.999 quantiles (3.27, 4.04;
+#: largest 4.33) follow a normal tail of scale 1.41 at most. At 7.0 (4.96 of that scale) that
+#: is 2.0e-8 per judged period: one false alarm per 7 h of cutting at 10 000 rev/min with 4
+#: flutes (three phases: 2000 judged periods a second), per 46 h at 3000 rev/min with 2.
+PATTERN_Z = 7.0
 #: Seed 002 §2.5: threshold factor and learning length.
 ALPHA = 2.0
 LEARN_REVOLUTIONS = 5
@@ -170,6 +185,15 @@ class BreakageBlock(Block):
         is one-sided) and the deviation's sign repeated by the same flute one revolution
         earlier; or the revolution mean under 1 − 1/N − ``revolution_tol`` for
         ``lost_revolutions`` revolutions in a row (0: never without the signature).
+    flute_pattern : a second way to confirm (``virtual``; decision 1684): a broken flute's
+        pattern, the flute's drop against the other flutes (or the drop of one and the rise
+        of the next) in its residual to the plan referenced to the same flute's previous
+        revolutions, accumulated over up to 4 revolutions, at ``pattern_z`` standard
+        deviations, with the revolution keeping a broken flute's share as above; at most one
+        alarm of either way until a period not judged two-sided or a re-arm. Off by default
+        until the on-line session's chatter-prone demo pass runs with it at its usual speed
+        (decision 1684, 'Landed off' in its Consequence).
+    pattern_z : the pattern's threshold in standard deviations (:data:`PATTERN_Z`).
     name : block name (channel prefix and event source).
     """
 
@@ -200,6 +224,8 @@ class BreakageBlock(Block):
         edge_share: float = EDGE_SHARE,
         revolution_tol: float = REVOLUTION_TOL,
         lost_revolutions: int = LOST_REVOLUTIONS,
+        flute_pattern: bool = False,
+        pattern_z: float = PATTERN_Z,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -234,7 +260,11 @@ class BreakageBlock(Block):
             raise ConfigError(
                 f"breakage: lost_revolutions must be an integer ≥ 0, got {lost_revolutions!r}"
             )
+        if not (pattern_z > 0 and math.isfinite(pattern_z)):
+            raise ConfigError(f"breakage: pattern_z must be positive, got {pattern_z!r}")
         self.flute_signature = bool(flute_signature) and method == "virtual"
+        self.flute_pattern = bool(flute_pattern) and method == "virtual"
+        self.pattern_z = float(pattern_z)
         self.edge_share = float(edge_share)
         self.revolution_tol = float(revolution_tol)
         self.lost_revolutions = int(lost_revolutions)
@@ -315,6 +345,7 @@ class BreakageBlock(Block):
         self._det[_k.DET_MISS] = 0.0
         self._det[_k.DET_GAP] = 1.0
         self._det[_k.DET_ALARMED] = 0.0
+        self._det[_k.DET_PALARMED] = 0.0
         self._first_violation = -1
 
     def reset(self, sample_rate_hz: float) -> None:
@@ -340,6 +371,7 @@ class BreakageBlock(Block):
                 self.noise_k,
                 self.edge_share,
                 self.revolution_tol,
+                self.pattern_z,
             ]
         )
         self._iparams = np.array(
@@ -351,6 +383,7 @@ class BreakageBlock(Block):
                 self.confirm,
                 int(self.flute_signature),
                 self.lost_revolutions * self.n_flutes,
+                int(self.flute_pattern),
             ],
             dtype=np.int64,
         )
@@ -445,7 +478,9 @@ class BreakageBlock(Block):
                 below = bool(pp[_k.PP_FLOOR, i] > 0.0)
                 signature = (float(pp[_k.PP_REV, i]), float(pp[_k.PP_LAG, i]))
                 events.append(self._event(chunk, at, period, first, *values, below=below,
-                                          signature=signature))  # fmt: skip
+                                          signature=signature,
+                                          pattern=float(pp[_k.PP_PAT, i])
+                                          if pp[_k.PP_BY, i] > 0.0 else math.nan))  # fmt: skip
         return events
 
     def _size(self, n: int) -> None:
@@ -500,6 +535,7 @@ class BreakageBlock(Block):
         band: float,
         below: bool = False,
         signature: tuple[float, float] = (math.nan, math.nan),
+        pattern: float = math.nan,
     ) -> Event:
         sample = chunk.start + at
         t = chunk.t0_s + sample / chunk.sample_rate_hz
@@ -520,6 +556,8 @@ class BreakageBlock(Block):
         if self.flute_signature:  # both known where the signature confirmed the alarm
             values["revolution_ratio"] = signature[0]
             values[f"same_flute_deviation_{s}"] = signature[1]
+        if pattern == pattern:  # the flute pattern confirmed the alarm (decision 1684)
+            values["pattern_evidence"] = pattern
         if self.method != "dual":
             values[f"band_{s}"] = float(band)
         # the virtual and constant detectors confirm a violation over 3 tooth periods while the
@@ -531,6 +569,12 @@ class BreakageBlock(Block):
         if self.method == "dual":
             message += (f", |residual1| {abs(e1):.3g} > {l1:.3g} and |residual2| "
                         f"{abs(e2):.3g} > {l2:.3g} {u}")  # fmt: skip
+        elif pattern == pattern:  # the flute pattern (decision 1684)
+            message += (f": a broken flute's pattern, {pattern:.3g}σ ≥ {self.pattern_z:g}σ (the "
+                        f"flute's drop against the other flutes and its own earlier "
+                        f"revolutions); tooth average {x:.3g} {u} against {expected:.3g} "
+                        f"expected, the revolution's torque {round(100 * signature[0]):d} % of "
+                        f"the plan's")  # fmt: skip
         else:
             ref = "expected" if self.method == "virtual" else "reference"
             sign, side = ("-", "below") if below else ("±", "outside")

@@ -86,12 +86,17 @@ def general_runs() -> tuple[CutRun, ...]:
 
 
 def _table(runs: tuple[CutRun, ...]) -> str:
-    rows = ["| cut | alarms before the break | first alarm after (tooth periods, revolutions) "
+    rows = ["| cut | alarms before the break | first alarm after (tooth periods, revolutions; "
+            "path) "
             "| false alarms, intact run |", "|---|---|---|---|"]  # fmt: skip
     for r in runs:
         before = [f"{e.time_s:.3f} s" for e in r.broken if e.time_s < BREAK_S] or ["none"]
         lat = r.latency_periods()
         after = "none" if math.isinf(lat) else f"{lat:.1f}, {lat / r.flutes:.2f}"
+        first = next((e for e in r.broken if e.time_s >= BREAK_S), None)
+        if first is not None:  # which path confirmed it (decision 1684)
+            ev = first.values.get("pattern_evidence")
+            after += f" (flute pattern, {ev:.1f}σ)" if ev is not None else " (seed 000's rule)"
         false = ", ".join(f"{e.time_s:.2f} s {e.name}" for e in r.intact) or "none"
         rows.append(f"| {r.label} | {', '.join(before)} | {after} | {false} |")
     return "\n".join(rows) + f"\n\nFlute 0 breaks at {BREAK_S} s; Ø{DIAMETER_MM:g} mm end mill."
@@ -151,8 +156,12 @@ def _false() -> Measured:
     "revolutions (decision 1552). A single period's drop is not told from the noise and the "
     "plan's error at the seed's 40 % and 4σ band. In the 4-flute slot the broken flute's "
     "periods lose 36-39 % of their torque in the truth, at the band's edge, so its third "
-    "violation comes as the noise allows: 15 revolutions (13 before decisions 1666-1667 "
-    "changed the adaptive feed's history up to the break, 8 before decision 1555)",
+    "violation comes as the noise allows: 11 revolutions (15 before decision 1695, 8 before "
+    "decision 1555). The flute pattern of decision 1684 (a second confirmation from the broken "
+    "flute's drop against the other flutes and its own past and the next flute's rise, at 7σ "
+    "from the intact cuts' false-alarm rate) brings the six cuts to 2.3, 4.0, 7.9, 3.0, 12.0 "
+    "and 9.9 tooth periods (the 4-flute slot's drop stands 5.7σ in the first revolution, 8.0σ "
+    "with the second); it is off by default (decision 1684, 'Landed off' in its Consequence)",
     issue=15,
 )
 def _latency() -> Measured:
