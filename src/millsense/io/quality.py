@@ -156,6 +156,13 @@ def runs_of(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int6
 
 
 # ------------------------------------------------------------------------------ time and rate
+def _refuse_steps(report: QualityReport, where: str, steps: np.ndarray, what: str) -> None:
+    """The refusal of a time column at its first offending step (``steps``, indices into the
+    steps): one line naming ``where`` and the table row, the row and count in its data."""
+    report.add(Finding("time", where, f"{where}: {what}", refuse=True,
+                       data={"row": int(steps[0]) + 1, "count": int(steps.size)}))  # fmt: skip
+
+
 def rate_from_time(
     t: NDArray[np.float64], stated_hz: float | None, where: str, report: QualityReport
 ) -> tuple[float, NDArray[np.int64], NDArray[np.int64]]:
@@ -183,38 +190,26 @@ def rate_from_time(
     if dt.size < 2:
         report.add(Finding("time", where, f"{where}: fewer than 3 samples", refuse=True))
         return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    refused = (float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64))
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         k = int(bad[0])
-        report.add(
-            Finding(
-                "time",
-                where,
-                f"{where}: time does not increase at row {k + 2} of the table "
-                f"({t[k]:.9g} s then {t[k + 1]:.9g} s; {bad.size} such steps)",
-                refuse=True,
-                data={"row": k + 1, "count": int(bad.size)},
-            )
-        )
+        _refuse_steps(report, where, bad,
+                      f"time does not increase at row {k + 2} of the table ({t[k]:.9g} s then "
+                      f"{t[k + 1]:.9g} s; {bad.size} such steps)")  # fmt: skip
         # refused: no rate to measure (a column standing still has no regular step at all)
-        return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return refused
     nominal = float(np.median(dt))
     short = np.flatnonzero(dt < MIN_STEP_SHARE * nominal)
     if short.size:
         k = int(short[0])
-        report.add(
-            Finding(
-                "time",
-                where,
-                f"{where}: irregular time column: a step of {dt[k] * 1e3:.6g} ms after "
-                f"{t[k]:.9g} s at row {k + 2} of the table, less than {MIN_STEP_SHARE:g} x the "
-                f"median step {nominal * 1e3:.6g} ms ({short.size} such steps): give [[files]] "
-                'time_column = "" and sample_rate_hz if the rows are evenly sampled',
-                refuse=True,
-                data={"row": k + 1, "count": int(short.size)},
-            )
-        )
-        return float(stated_hz or 1.0), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        _refuse_steps(report, where, short,
+                      f"irregular time column: a step of {dt[k] * 1e3:.6g} ms after "
+                      f"{t[k]:.9g} s at row {k + 2} of the table, less than "
+                      f"{MIN_STEP_SHARE:g} x the median step {nominal * 1e3:.6g} ms "
+                      f"({short.size} such steps): give [[files]] time_column = \"\" and "
+                      "sample_rate_hz if the rows are evenly sampled")  # fmt: skip
+        return refused
     regular = (dt > 0) & (dt <= GAP_FACTOR * nominal)
     fs = float(np.count_nonzero(regular) / np.sum(dt[regular]))
     gap_rows = np.flatnonzero(dt > GAP_FACTOR * nominal).astype(np.int64)
