@@ -33,9 +33,11 @@ from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _spectrum_kernels as _sk
 from millsense.monitoring.torque_spectrum import (
     RUNOUT_RCOND,
+    AveragedEstimate,
     EngagementEstimate,
     SpectrumIdentifier,
     ToolGeometry,
+    identify_averaged,
 )
 from millsense.streaming.block import Block, BlockOutput, Chunk, HeldViews, held_views
 
@@ -56,6 +58,42 @@ _FIELDS = (
 #: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
 #: 1807).
 RELIABLE_SIGMA = 0.8
+
+#: Largest standard deviation of d_a (decision 1558), as a fraction of d_a, with which a
+#: revolution's or a cut's depth counts as determined: Lee's accuracy (Tables 2.3–2.5, d_a
+#: mostly within ±10 %) at one standard deviation (decision 1698).
+DEPTH_REL_SD = 0.1
+
+
+def reliable(e: EngagementEstimate) -> bool:
+    """A revolution's estimate is reported: σ ≥ :data:`RELIABLE_SIGMA`, physical coefficients
+    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807) and a depth
+    its harmonics determine, s.d.(d_a) ≤ :data:`DEPTH_REL_SD` × d_a (decision 1698: on a
+    sensorless torque a revolution's σ passes 0.8 by chance at any depth)."""
+    return bool(
+        e.reliability >= RELIABLE_SIGMA
+        and e.kt_n_m2 > 0
+        and e.edge_n_m >= 0
+        and e.axial_depth_sd_m <= DEPTH_REL_SD * e.axial_depth_m
+    )
+
+
+def determined(avg: AveragedEstimate) -> bool:
+    """The averaged harmonics determine the cut's engagement (decision 1698): their estimate is
+    :func:`reliable` but for the depth's own s.d., the profile set of d_a is one interval
+    (no second basin within the noise), inside the search range, and its half-width (two
+    standard deviations) at most 2 × :data:`DEPTH_REL_SD` of d_a."""
+    e = avg.estimate
+    lo, hi = avg.depth_low_m, avg.depth_high_m
+    return bool(
+        e.reliability >= RELIABLE_SIGMA
+        and e.kt_n_m2 > 0
+        and e.edge_n_m >= 0
+        and avg.connected
+        and math.isfinite(lo)
+        and math.isfinite(hi)
+        and hi - lo <= 4 * DEPTH_REL_SD * e.axial_depth_m
+    )
 
 
 @dataclass(frozen=True)
@@ -199,6 +237,9 @@ class EngagementBlock(Block):
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
         self._log: list[tuple[float, np.ndarray | None]] = []
+        #: per revolution of :attr:`_log`: its coefficients, feed per tooth, mean cutting torque
+        #: and its variance factor (None: not evaluated)
+        self._harm: list[tuple[np.ndarray, float, float, float] | None] = []
         self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
 
@@ -234,6 +275,7 @@ class EngagementBlock(Block):
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
         self._log = []
+        self._harm = []
         self._made = []
 
     def _equaliser(self) -> tuple[np.ndarray, np.ndarray]:
@@ -250,15 +292,21 @@ class EngagementBlock(Block):
         self._held_views = None
         if status == _sk.REV_NONE:
             self._log.append((t_end, None))
+            self._harm.append(None)
             self._held = _NOT_EVALUATED
             return
+        done = self._done[row]
+        # the coefficients and what the fit took with them, for a cut's average (decision 1698)
+        self._harm.append(
+            (self._done_sums[row].copy(), float(done[_sk.DONE_FEED]),
+             float(done[_sk.DONE_T0_NET]), float(done[_sk.DONE_MEAN_VAR]))
+        )  # fmt: skip
         out = self._est[row]
         ident = self._ident
         if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
             has_prev = bool(self._acc[_sk.ACC_HAS_PREV])
             ident._prev = self._prev.copy() if has_prev else None
             coeff = self._done_sums[row]
-            done = self._done[row]
             out[:] = ident.identify_array(
                 coeff[1:],
                 complex(coeff[0]),
@@ -281,6 +329,25 @@ class EngagementBlock(Block):
         for t, est in self._log[len(made) :]:
             made.append((t, None if est is None else EngagementEstimate(*est.tolist())))
         return made
+
+    def averaged(self, which: Sequence[int]) -> AveragedEstimate:
+        """The engagement of the revolutions ``which`` (indices into :attr:`estimates`, each
+        evaluated; at least 2) from their averaged harmonics (decision 1698,
+        :func:`~millsense.monitoring.torque_spectrum.identify_averaged`): for revolutions of
+        one steady cut."""
+        rows = [self._harm[i] for i in which]
+        if any(r is None for r in rows):
+            raise ValueError(f"{self.name}: a revolution averaged was not evaluated")
+        kept = [r for r in rows if r is not None]
+        ident = SpectrumIdentifier(self.geom, self.n_harmonics, self.edge,
+                                   self.max_depth_fraction)  # fmt: skip
+        return identify_averaged(
+            ident,
+            np.stack([r[0] for r in kept]),
+            np.array([r[1] for r in kept]),
+            np.array([r[2] for r in kept]),
+            np.array([r[3] for r in kept]),
+        )
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held values for ``n`` samples (:func:`~millsense.streaming.block.held_views`;

@@ -475,3 +475,139 @@ class SpectrumIdentifier:
                 break
         assert best is not None
         return best
+
+
+#: Profile-likelihood level of the depth interval: Δχ² = 4, two standard deviations of one
+#: parameter (decision 1698).
+PROFILE_CHI2 = 4.0
+
+
+@dataclass(frozen=True)
+class AveragedEstimate:
+    """The engagement of several revolutions of one cut from their averaged harmonics
+    (decision 1698): the estimate at the global least-squares optimum, the n revolutions
+    averaged, and the profile-likelihood set of d_a (Δχ² ≤ :data:`PROFILE_CHI2`): its lowest
+    and highest depth (m; NaN/inf where it reaches the search range's ends) and whether it is
+    one interval (``connected``: no second basin of the fit within the noise)."""
+
+    n: int
+    estimate: EngagementEstimate
+    depth_low_m: float
+    depth_high_m: float
+    connected: bool
+
+
+def _estimate_of(out: FloatArray) -> EngagementEstimate:
+    """:class:`EngagementEstimate` of an array of the fields ``_spectrum_kernels.EST_*``."""
+    return EngagementEstimate(*(float(v) for v in out[: _sk.EST_SIZE]))
+
+
+def identify_averaged(
+    ident: SpectrumIdentifier,
+    coeffs: ComplexArray,
+    feed_per_tooth_m: FloatArray,
+    mean_cut_torque_nm: FloatArray,
+    mean_var: FloatArray,
+) -> AveragedEstimate:
+    """The engagement of n ≥ 2 revolutions of one steady cut (decision 1698).
+
+    ``coeffs`` (n × (K+1)): each revolution's T_1 and T_kN (k = 1…K, the spindle angle's phase
+    reference, so a steady cut's revolutions add coherently). Their mean has the noise of one
+    revolution / √n, which is what separates the fit's basins on a sensorless torque (a single
+    revolution's profile of d_a is flat within its noise over most of the depths). The mean is
+    fitted from the coarse grid of all K harmonics (no previous revolution), every depth of the
+    grid is refitted over the angles (the profile of the cost over d_a), the best of all is the
+    estimate (:func:`._spectrum_kernels.estimate`: K_t, runout, σ as one revolution's), and
+    the depths whose profile cost is within Δχ² ≤ :data:`PROFILE_CHI2` of it form the
+    interval, its ends by bisection. The noise variance of a harmonic's real or imaginary part
+    is the larger of the revolutions' scatter about their mean / n and the fit's residual
+    ‖r‖²/(2K − 3 − amplitudes) (which also holds a model error or a changing engagement)."""
+    x_all = np.asarray(coeffs, dtype=np.complex128)
+    n = x_all.shape[0]
+    if n < 2:
+        raise ValueError("identify_averaged: needs at least 2 revolutions")
+    mean = x_all.mean(axis=0)
+    t1, x = complex(mean[0]), np.ascontiguousarray(mean[1 : ident.k.size + 1])
+    nk = x.size
+    c = float(np.mean(feed_per_tooth_m))
+    t0 = np.asarray(mean_cut_torque_nm, dtype=np.float64)
+    t0_mean = float(np.mean(t0)) if np.all(np.isfinite(t0)) else math.nan
+    var_factor = float(np.mean(mean_var))
+    scatter = 0.5 * float(np.mean(x_all[:, 1 : nk + 1].real.var(axis=0, ddof=1)
+                                  + x_all[:, 1 : nk + 1].imag.var(axis=0, ddof=1))) / n  # fmt: skip
+    xn, norm = _sk.normalised(x)
+    scale2 = abs(x[0]) ** 2  # normalised costs × this = N²m²
+    geom = ident.geom
+    kk = ident.k[:nk]
+    kb, edge = ident._kb, ident.edge
+    # the profile over the grid's depths: each depth's best angle pairs refitted at that depth
+    grid = _grid(geom, nk, ident.max_depth_m)
+    depths = np.unique(grid.params[0])
+    pairs = grid.r12.size // depths.size
+    rows = grid.costs(xn, edge).reshape(depths.size, pairs)
+
+    def at_depth(d: float, starts: list[FloatArray]) -> tuple[FloatArray, float]:
+        lo, hi = ident._lo.copy(), ident._hi.copy()
+        lo[0] = hi[0] = d
+        best: tuple[FloatArray, float] | None = None
+        for p0 in starts:
+            q = p0.copy()
+            q[0] = d
+            sol = _sk.lm_fit(q, xn, kk, kb, edge, lo, hi, ident._scl, 60)
+            if best is None or sol[1] < best[1]:
+                best = sol
+        assert best is not None
+        return best
+
+    prof = np.empty(depths.size)
+    pts = []
+    for i, d in enumerate(depths):
+        starts = [grid.points[i * pairs + j] for j in _sk.smallest(rows[i], 2)]
+        p, cost = at_depth(float(d), starts)
+        prof[i] = cost
+        pts.append(p)
+    # the global optimum: free fits from the profile's best depths (and the usual grid starts)
+    best = ident._grid_search(xn, norm, (kb, edge, ident._lo, ident._hi, ident._scl), None)
+    for i in np.argsort(prof)[:3]:
+        sol = _sk.lm_fit(pts[i], xn, kk, kb, edge, ident._lo, ident._hi, ident._scl, 60)
+        if sol[1] < best[1]:
+            best = sol
+    p_hat, c_hat = best
+    n_amp = 2 if edge else 1
+    dof = 2 * nk - 3 - n_amp
+    s2 = max(scatter, 2.0 * c_hat * scale2 / max(dof, 1)) / scale2  # normalised units
+
+    def chi2(d: float, start: FloatArray) -> tuple[float, FloatArray]:
+        p, cost = at_depth(d, [start, p_hat])
+        return 2.0 * (cost - c_hat) / s2, p
+
+    d_hat = float(p_hat[0])
+    inside = 2.0 * (prof - c_hat) / s2 <= PROFILE_CHI2
+    ends = []
+    for side in (-1, 1):
+        outside = [i for i in range(depths.size) if side * (depths[i] - d_hat) > 0
+                   and not inside[i]]  # fmt: skip
+        if not outside:  # the set reaches the search range's end on this side
+            ends.append(math.nan if side < 0 else math.inf)
+            continue
+        j = min(outside, key=lambda i: abs(depths[i] - d_hat))
+        a, b, start = d_hat, float(depths[j]), p_hat
+        for _ in range(30):  # bisection of Δχ²(d) = PROFILE_CHI2 between the fit and depth j
+            mid = 0.5 * (a + b)
+            val, p = chi2(mid, start)
+            if val <= PROFILE_CHI2:
+                a, start = mid, p
+            else:
+                b = mid
+            if abs(b - a) < 1e-4 * d_hat:
+                break
+        ends.append(0.5 * (a + b))
+    lo_d, hi_d = ends
+    lo_c = lo_d if math.isfinite(lo_d) else 0.0
+    hi_c = hi_d if math.isfinite(hi_d) else math.inf
+    connected = not bool(np.any(inside & ((depths < lo_c) | (depths > hi_c))))
+    out = np.empty(_sk.EST_SIZE)
+    tail = (geom.radius_m, geom.n_flutes, geom.axial_pitch_m, RUNOUT_RCOND)
+    _sk.estimate(p_hat, c_hat, x, t1, c, ident.k, kb, edge, *tail, t0_mean, var_factor,
+                 ident._lo, ident._hi, ident._scl, out)  # fmt: skip
+    return AveragedEstimate(n, _estimate_of(out), lo_d, hi_d, connected)
