@@ -459,11 +459,11 @@ def _run(
 
 
 def _reliable(e: Any) -> bool:
-    """A revolution's estimate is reported (:func:`millsense.monitoring.engagement.reliable`:
-    σ, physical coefficients, a determined depth; decisions 1807, 1698)."""
-    from millsense.monitoring.engagement import reliable
+    """A revolution's estimate is reported: σ ≥ RELIABLE_SIGMA and physical coefficients
+    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807)."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA
 
-    return reliable(e)
+    return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0)
 
 
 def _steady_cut(rec: Any) -> np.ndarray | None:
@@ -558,7 +558,7 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
                    f"{lo_s} to {hi_s} mm" + ("" if avg.connected else " or in another basin"))  # fmt: skip
     return (
         f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
-        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0, d_a to 10 %; "
+        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; "
         f"median σ {med([e.reliability for e in every]):.2f}){allowed}; the torque's tooth "
         "harmonics do not fix the engagement here (e.g. a full slot with 3 or more flutes, or a "
         "light cut in the signal's noise)"

@@ -59,30 +59,17 @@ _FIELDS = (
 #: 1807).
 RELIABLE_SIGMA = 0.8
 
-#: Largest standard deviation of d_a (decision 1558), as a fraction of d_a, with which a
-#: revolution's or a cut's depth counts as determined: Lee's accuracy (Tables 2.3–2.5, d_a
-#: mostly within ±10 %) at one standard deviation (decision 1698).
+#: Largest standard deviation of d_a, as a fraction of d_a, with which a cut's depth from its
+#: averaged harmonics counts as determined: Lee's accuracy (Tables 2.3–2.5, d_a mostly within
+#: ±10 %) at one standard deviation (decision 1698).
 DEPTH_REL_SD = 0.1
 
 
-def reliable(e: EngagementEstimate) -> bool:
-    """A revolution's estimate is reported: σ ≥ :data:`RELIABLE_SIGMA`, physical coefficients
-    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807) and a depth
-    its harmonics determine, s.d.(d_a) ≤ :data:`DEPTH_REL_SD` × d_a (decision 1698: on a
-    sensorless torque a revolution's σ passes 0.8 by chance at any depth)."""
-    return bool(
-        e.reliability >= RELIABLE_SIGMA
-        and e.kt_n_m2 > 0
-        and e.edge_n_m >= 0
-        and e.axial_depth_sd_m <= DEPTH_REL_SD * e.axial_depth_m
-    )
-
-
 def determined(avg: AveragedEstimate) -> bool:
-    """The averaged harmonics determine the cut's engagement (decision 1698): their estimate is
-    :func:`reliable` but for the depth's own s.d., the profile set of d_a is one interval
-    (no second basin within the noise), inside the search range, and its half-width (two
-    standard deviations) at most 2 × :data:`DEPTH_REL_SD` of d_a."""
+    """The averaged harmonics determine the cut's engagement (decision 1698): their estimate
+    passes decision 1807's test (σ ≥ :data:`RELIABLE_SIGMA`, K_t > 0, K_e ≥ 0), the profile
+    set of d_a is one interval (no second basin within the noise) inside the search range,
+    and its half-width (two standard deviations) is at most 2 × :data:`DEPTH_REL_SD` of d_a."""
     e = avg.estimate
     lo, hi = avg.depth_low_m, avg.depth_high_m
     return bool(
