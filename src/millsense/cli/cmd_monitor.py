@@ -504,6 +504,7 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
     engagement is not determined (a few revolutions of noise can pass the test by chance;
     decision 1807), with the depths the averaged harmonics allow."""
     from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, determined
+    from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
     timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
              if e is not None]  # fmt: skip
@@ -520,7 +521,7 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
         return float(np.median(v))
 
     est = [e for e in every if _reliable(e)]
-    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= 2 else None
+    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
     avg_ok = avg is not None and determined(avg)
     head = f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable"
     if 2 * len(est) >= len(every):
@@ -647,10 +648,11 @@ def _observer_response(machine: Any, where: str, fs: float) -> Any:
     """The spindle observer's response of ``machine`` tabulated to the Nyquist frequency
     (:func:`~millsense.estimation.from_config.spindle_estimate_response`, decision 1554)."""
     from millsense.estimation.from_config import spindle_estimate_response
-    from millsense.monitoring.engagement import TorqueResponse
+    from millsense.monitoring.engagement import OBSERVER_RESPONSE_REL_ERROR, TorqueResponse
 
     response, switch = spindle_estimate_response(machine, where)
-    return TorqueResponse.from_function(response, fs / 2.0, switch)
+    return TorqueResponse.from_function(response, fs / 2.0, switch,
+                                        rel_error=OBSERVER_RESPONSE_REL_ERROR)  # fmt: skip
 
 
 def _metadata_rpm(rec: Any) -> float | None:

@@ -54,6 +54,12 @@ _FIELDS = (
 )
 
 
+#: Relative error (complex, one s.d.) of the spindle observer's response model from the
+#: machine file at the tooth harmonics: ≈ 10 % in gain and a few degrees in phase against the
+#: response measured on the virtual machine (decision 1554); `millsense monitor` gives it to
+#: the equaliser it builds from a machine file (decision 1698).
+OBSERVER_RESPONSE_REL_ERROR = 0.1
+
 #: Reliability index σ (Lee Eq. 2.23) from which a revolution's estimate enters the summary:
 #: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
 #: 1807).
@@ -121,6 +127,9 @@ class TorqueResponse:
     step_hz: float
     switch_rad_s: float
     table: np.ndarray
+    #: the response model's relative error at the tooth harmonics (complex, one s.d.): what a
+    #: cut's averaged harmonics keep after the equaliser (decision 1698)
+    rel_error: float = 0.0
 
     @classmethod
     def from_function(
@@ -129,11 +138,13 @@ class TorqueResponse:
         top_hz: float,
         switch_rad_s: float = math.inf,
         step_hz: float = 2.0,
+        rel_error: float = 0.0,
     ) -> TorqueResponse:
         """Tabulate ``response(f_hz, range)`` from 0 to ``top_hz``."""
         f = np.arange(0.0, top_hz + step_hz, step_hz)
         rows = [np.asarray(response(f, r), dtype=np.complex128) for r in (0, 1)]
-        return cls(float(step_hz), float(switch_rad_s), np.ascontiguousarray(np.stack(rows)))
+        return cls(float(step_hz), float(switch_rad_s), np.ascontiguousarray(np.stack(rows)),
+                   float(rel_error))  # fmt: skip
 
 
 class EngagementBlock(Block):
@@ -319,7 +330,8 @@ class EngagementBlock(Block):
 
     def averaged(self, which: Sequence[int]) -> AveragedEstimate:
         """The engagement of the revolutions ``which`` (indices into :attr:`estimates`, each
-        evaluated; at least 2) from their averaged harmonics (decision 1698,
+        evaluated; at least :data:`~millsense.monitoring.torque_spectrum.AVERAGED_MIN_REVS`)
+        from their averaged harmonics (decision 1698,
         :func:`~millsense.monitoring.torque_spectrum.identify_averaged`): for revolutions of
         one steady cut."""
         rows = [self._harm[i] for i in which]
@@ -334,6 +346,7 @@ class EngagementBlock(Block):
             np.array([r[1] for r in kept]),
             np.array([r[2] for r in kept]),
             np.array([r[3] for r in kept]),
+            0.0 if self.response is None else self.response.rel_error,
         )
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
