@@ -545,7 +545,8 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
     if avg is not None and avg_ok:
         a = avg.estimate
         return (
-            f"{head} alone; their harmonics averaged: axial depth {1e3 * a.axial_depth_m:.3f} mm "
+            f"{head} alone; the {avg.n} revolutions' harmonics averaged: axial depth "
+            f"{1e3 * a.axial_depth_m:.3f} mm "
             f"(profile interval {1e3 * avg.depth_low_m:.3f}–{1e3 * avg.depth_high_m:.3f} mm), "
             + _engagement_values([a.radial_depth_m], [a.kt_n_m2], [a.runout_m],
                                  [a.reliability], [a.edge_n_m], [a.edge_source])
@@ -555,8 +556,9 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
         lo, hi = avg.depth_low_m, avg.depth_high_m
         lo_s = f"{1e3 * lo:.2f}" if math.isfinite(lo) else "the smallest depth searched"
         hi_s = f"{1e3 * hi:.2f}" if math.isfinite(hi) else "the largest depth searched"
+        basin = "" if avg.connected else " or in another basin"
         allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere from "
-                   f"{lo_s} to {hi_s} mm" + ("" if avg.connected else " or in another basin"))  # fmt: skip
+                   f"{lo_s} to {hi_s} mm{basin}")  # fmt: skip
     return (
         f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
         f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; "

@@ -559,7 +559,9 @@ def identify_averaged(
     kb, edge = ident._kb, ident.edge
     lo_b, hi_b, scl = ident._lo, ident._hi, ident._scl
 
-    def fit(p0: FloatArray, lo: FloatArray, hi: FloatArray, iters: int = 60) -> tuple[FloatArray, float]:
+    def fit(
+        p0: FloatArray, lo: FloatArray, hi: FloatArray, iters: int = 60
+    ) -> tuple[FloatArray, float]:
         return _sk.lm_fit_weighted(p0, xw, kk, kb, edge, lo, hi, scl, iters, wt)
 
     def at_depth(d: float, starts: list[FloatArray]) -> tuple[FloatArray, float]:
