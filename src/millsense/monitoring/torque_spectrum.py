@@ -528,7 +528,7 @@ def identify_averaged(
     up by that ratio.
 
     The mean is fitted from the coarse grid (no previous revolution) and every depth of the
-    grid is refitted over the angles at that depth: the profile of χ² over d_a, whose best
+    grid is refitted over the angles at that depth from its best two angle pairs: the profile of χ² over d_a, whose best
     point starts the final fit. The estimate there is one revolution's
     (:func:`._spectrum_kernels.estimate`: K_t, runout, σ), and the depths whose profile is
     within Δχ² ≤ :data:`PROFILE_CHI2` of it form the depth's set: its ends by bisection, and
@@ -575,12 +575,13 @@ def identify_averaged(
         assert best is not None
         return best
 
-    # the profile over the grid's depths: each depth's best angle pairs (unweighted misfits,
-    # the starts) refitted at that depth
-    grid = _grid(geom, nk, ident.max_depth_m)
+    # the profile over the grid's depths: each depth's best angle pairs (the identifier's
+    # coarse grid, its low harmonics' unweighted misfits: the starts) refitted at that depth
+    grid = ident._grid
     depths = np.unique(grid.params[0])
     pairs = grid.r12.size // depths.size
-    rows = grid.costs(xn, edge).reshape(depths.size, pairs)
+    low = np.ascontiguousarray(xn[: ident.k_grid.size])
+    rows = grid.costs(low, edge).reshape(depths.size, pairs)
     prof = np.empty(depths.size)
     pts = []
     for i, d in enumerate(depths):
