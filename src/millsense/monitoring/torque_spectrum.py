@@ -528,11 +528,12 @@ def identify_averaged(
     up by that ratio.
 
     The mean is fitted from the coarse grid (no previous revolution) and every depth of the
-    grid is refitted over the angles at that depth from its best two angle pairs: the profile of χ² over d_a, whose best
-    point starts the final fit. The estimate there is one revolution's
-    (:func:`._spectrum_kernels.estimate`: K_t, runout, σ), and the depths whose profile is
-    within Δχ² ≤ :data:`PROFILE_CHI2` of it form the depth's set: its ends by bisection, and
-    whether any grid depth outside them is in it too (a second basin)."""
+    grid is refitted over the angles at that depth from its best two angle pairs: the profile
+    of χ² over d_a, whose best points start the final fit. The estimate there is one
+    revolution's (:func:`._spectrum_kernels.estimate`: K_t, runout, σ), and the depths whose
+    profile is within Δχ² ≤ :data:`PROFILE_CHI2` of it form the depth's set: its ends by
+    bisection, and whether any grid depth outside them is in it too (a second basin). Seed 004
+    Eqs. 2.11-2.13 (the model, :func:`static_harmonics`), 2.19 (K_t), 2.23 (σ)."""
     x_all = np.asarray(coeffs, dtype=np.complex128)
     n = x_all.shape[0]
     if n < AVERAGED_MIN_REVS:
