@@ -498,11 +498,11 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
     the plan is steady count: an entry's or an exit's revolutions are a changing engagement,
     not the cut's (decision 1558).
 
-    The medians of the reliable revolutions (:func:`_reliable`) where at least half are, unless
-    the revolutions' averaged harmonics (√n less noise than one revolution's) determine another
-    depth; else the averaged harmonics' estimate where they determine it; else that the
-    engagement is not determined (a few revolutions of noise can pass the test by chance;
-    decision 1807), with the depths the averaged harmonics allow."""
+    The medians of the reliable revolutions (:func:`_reliable`) where at least half are and
+    the revolutions' averaged harmonics (√n less noise than one revolution's) allow their
+    median depth; else the averaged harmonics' estimate where they determine the depth; else
+    that the engagement is not determined (a few revolutions of noise can pass the test by
+    chance; decision 1807), with the depths the averaged harmonics allow."""
     from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, determined
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
@@ -526,11 +526,14 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
     head = f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable"
     if 2 * len(est) >= len(every):
         depth = depth_summary(est)
-        # the medians stand unless the averaged harmonics put the depth elsewhere: outside
-        # their interval widened by three standard errors of the median
-        agrees = avg is None or not avg_ok or (
-            avg.depth_low_m - 3 * depth.standard_error_m <= depth.median_m
-            <= avg.depth_high_m + 3 * depth.standard_error_m
+        # the medians stand where the averaged harmonics allow them: within their depth
+        # interval (one interval: no second basin) widened by three standard errors of the
+        # median
+        se3 = 3 * depth.standard_error_m
+        agrees = avg is None or (
+            avg.connected
+            and (not math.isfinite(avg.depth_low_m) or avg.depth_low_m - se3 <= depth.median_m)
+            and depth.median_m <= avg.depth_high_m + se3
         )  # fmt: skip
         if agrees:
             return (

@@ -65,17 +65,17 @@ OBSERVER_RESPONSE_REL_ERROR = 0.1
 #: 1807).
 RELIABLE_SIGMA = 0.8
 
-#: Largest standard deviation of d_a, as a fraction of d_a, with which a cut's depth from its
-#: averaged harmonics counts as determined: Lee's accuracy (Tables 2.3–2.5, d_a mostly within
-#: ±10 %) at one standard deviation (decision 1698).
-DEPTH_REL_SD = 0.1
+#: Largest half-width of a cut's depth interval (two standard deviations, Δχ² ≤ 4), as a
+#: fraction of d_a, with which its averaged harmonics determine the depth: Lee's accuracy
+#: (Tables 2.3–2.5, d_a mostly within ±10 %) with 95 % confidence (decision 1698).
+DEPTH_REL_TOL = 0.1
 
 
 def determined(avg: AveragedEstimate) -> bool:
     """The averaged harmonics determine the cut's engagement (decision 1698): their estimate
     passes decision 1807's test (σ ≥ :data:`RELIABLE_SIGMA`, K_t > 0, K_e ≥ 0), the profile
     set of d_a is one interval (no second basin within the noise) inside the search range,
-    and its half-width (two standard deviations) is at most 2 × :data:`DEPTH_REL_SD` of d_a."""
+    and its half-width (two standard deviations) is at most :data:`DEPTH_REL_TOL` of d_a."""
     e = avg.estimate
     lo, hi = avg.depth_low_m, avg.depth_high_m
     return bool(
@@ -85,7 +85,7 @@ def determined(avg: AveragedEstimate) -> bool:
         and avg.connected
         and math.isfinite(lo)
         and math.isfinite(hi)
-        and hi - lo <= 4 * DEPTH_REL_SD * e.axial_depth_m
+        and hi - lo <= 2 * DEPTH_REL_TOL * e.axial_depth_m
     )
 
 
