@@ -138,10 +138,14 @@ def test_monitor_bad_input_one_line_exit_2(
     assert not (tmp_path / "ev.parquet").exists()
 
 
-def _engagement_recording(path: Path, fz_mm: float = 0.2, path_feed: bool = False) -> Path:
-    """2 s of the spindle torque of a Ø20 mm 2-flute 30° cut (the preset aslan-d20-2flute):
-    down milling, 5 mm radial, 2 mm axial, ``fz_mm`` per tooth, 1000 rev/min, σ 0.05 N·m noise;
-    with ``path_feed`` the CNC's path feed ``cnc/feed`` (m/s) too."""
+def _engagement_recording(
+    path: Path, fz_mm: float = 0.2, path_feed: bool = False, seconds: float = 2.0,
+    noise_nm: float = 0.05,
+) -> Path:  # fmt: skip
+    """``seconds`` of the spindle torque of a Ø20 mm 2-flute 30° cut (the preset
+    aslan-d20-2flute): down milling, 5 mm radial, 2 mm axial, ``fz_mm`` per tooth, 1000 rev/min,
+    ``noise_nm`` of white noise per sample; with ``path_feed`` the CNC's path feed ``cnc/feed``
+    (m/s) too."""
     import math
 
     from millsense.process.coefficients import CuttingCoefficients
@@ -149,7 +153,7 @@ def _engagement_recording(path: Path, fz_mm: float = 0.2, path_feed: bool = Fals
     from millsense.process.forces import milling_forces
     from millsense.process.geometry import EndMill
 
-    n = int(2.0 * FS)
+    n = int(seconds * FS)
     omega = 1000 * 2 * math.pi / 60
     tool = EndMill(20e-3, 2, helix_rad=math.radians(30))
     co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
@@ -158,8 +162,8 @@ def _engagement_recording(path: Path, fz_mm: float = 0.2, path_feed: bool = Fals
     rev = milling_forces(tool, co, eng, fz_mm * 1e-3, 2e-3, phi).torque_nm
     tq = np.interp(np.mod(omega * np.arange(n) / FS, 2 * math.pi), phi, rev, period=2 * math.pi)
     rec = Recording(FS, 0.0, {"program": "part.nc"})
-    rec.add_channel("spindle/torque_est", tq + 0.05 * np.random.default_rng(1).standard_normal(n),
-                    "N*m")  # fmt: skip
+    noise = noise_nm * np.random.default_rng(1).standard_normal(n)
+    rec.add_channel("spindle/torque_est", tq + noise, "N*m")
     rec.add_channel("spindle/speed", np.full(n, omega), "rad/s")
     if path_feed:
         rec.add_channel("cnc/feed", np.full(n, fz_mm * 1e-3 * 2 * omega / (2 * math.pi)), "m/s")
@@ -206,6 +210,29 @@ def test_monitor_engagement_from_the_tool_preset(
     assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, abs=0.05)
     assert float(words[words.index("radial") + 2]) == pytest.approx(5.0, abs=0.1)
     assert float(words[words.index("K_t") + 1]) == pytest.approx(758.0, rel=0.03)
+
+
+def test_monitor_engagement_of_a_sensorless_cut_from_its_averaged_harmonics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1698: 30 s of the 2 mm cut with the sensorless estimate's noise (2.1 N·m per
+    sample): few revolutions pass decision 1807's test alone, and the line reports the 499
+    revolutions' averaged harmonics: d_a within 10 % of 2 mm, with its profile interval around
+    it (neither "not determined" nor a revolution's other basin)."""
+    import re
+
+    rec = _engagement_recording(tmp_path / "eng.h5", seconds=30.0, noise_nm=2.1)
+    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
+                                 "aslan-d20-2flute", "--feed-per-tooth-mm", "0.2", "-o",
+                                 str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
+    assert code == 0, err
+    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    m = re.search(r"harmonics averaged: axial depth ([\d.]+) mm \(profile interval ([\d.]+)–"
+                  r"([\d.]+) mm\)", line)  # fmt: skip
+    assert m, line
+    depth, lo, hi = (float(g) for g in m.groups())
+    assert depth == pytest.approx(2.0, rel=0.10)
+    assert lo < 2.0 < hi
 
 
 def test_monitor_engagement_with_the_air_torque_given(

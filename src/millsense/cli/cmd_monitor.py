@@ -493,21 +493,27 @@ def _reported(
 
 
 def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float = 1.0) -> str:
-    """One line: revolutions evaluated and the medians of the seed 004 estimates over the
-    reliable ones (:func:`_reliable`), or, where fewer than half are reliable, that the
-    engagement is not determined (a few revolutions of noise can pass the test by chance;
-    decision 1807). With ``steady`` (per sample, :func:`_steady_cut`) only the revolutions that
-    end where the plan is steady count: an entry's or an exit's revolutions are a changing
-    engagement, not the cut's (decision 1558)."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
+    """One line: revolutions evaluated and the engagement over them (decisions 1807, 1558,
+    1698). With ``steady`` (per sample, :func:`_steady_cut`) only the revolutions that end where
+    the plan is steady count: an entry's or an exit's revolutions are a changing engagement,
+    not the cut's (decision 1558).
 
-    timed = [(t, e) for t, e in getattr(block, "estimates", []) if e is not None]
+    The medians of the reliable revolutions (:func:`_reliable`) where at least half are and
+    the revolutions' averaged harmonics (√n less noise than one revolution's) allow their
+    median depth; else the averaged harmonics' estimate where they determine the depth; else
+    that the engagement is not determined (a few revolutions of noise can pass the test by
+    chance; decision 1807), with the depths the averaged harmonics allow."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, determined
+    from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
+
+    timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
+             if e is not None]  # fmt: skip
     where = ""
     if steady is not None and steady.any():
         n = steady.size
-        timed = [(t, e) for t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
+        timed = [(i, t, e) for i, t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
         where = " in the plan's steady cut"
-    every = [e for _, e in timed]
+    every = [e for _, _, e in timed]
     if not every:
         return f"  {block.name}: no revolution evaluated{where} (no cut, or the torque is too low)"
 
@@ -515,25 +521,69 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
         return float(np.median(v))
 
     est = [e for e in every if _reliable(e)]
-    if 2 * len(est) < len(every):
+    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
+    avg_ok = avg is not None and determined(avg)
+    head = f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable"
+    if 2 * len(est) >= len(every):
+        depth = depth_summary(est)
+        # the medians stand where the averaged harmonics allow them: within their depth
+        # interval (one interval: no second basin) widened by three standard errors of the
+        # median
+        se3 = 3 * depth.standard_error_m
+        agrees = avg is None or (
+            avg.connected
+            and (not math.isfinite(avg.depth_low_m) or avg.depth_low_m - se3 <= depth.median_m)
+            and depth.median_m <= avg.depth_high_m + se3
+        )  # fmt: skip
+        if agrees:
+            return (
+                f"{head} (σ ≥ {RELIABLE_SIGMA}): median axial depth "
+                f"{1e3 * depth.median_m:.3f} mm (standard error "
+                f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
+                f"{1e3 * depth.scatter_m:.3f} mm), "
+                + _engagement_values([e.radial_depth_m for e in est], [e.kt_n_m2 for e in est],
+                                     [e.runout_m for e in est], [e.reliability for e in est],
+                                     [e.edge_n_m for e in est], [e.edge_source for e in est])
+            )  # fmt: skip
+    if avg is not None and avg_ok:
+        a = avg.estimate
         return (
-            f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
-            f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; median σ "
-            f"{med([e.reliability for e in every]):.2f}); the torque's tooth harmonics do not "
-            "fix the engagement here (e.g. a full slot with 3 or more flutes, or a light cut "
-            "in the signal's noise)"
-        )
-    depth = depth_summary(est)
+            f"{head} alone; the {avg.n} revolutions' harmonics averaged: axial depth "
+            f"{1e3 * a.axial_depth_m:.3f} mm "
+            f"(profile interval {1e3 * avg.depth_low_m:.3f}–{1e3 * avg.depth_high_m:.3f} mm), "
+            + _engagement_values([a.radial_depth_m], [a.kt_n_m2], [a.runout_m],
+                                 [a.reliability], [a.edge_n_m], [a.edge_source])
+        )  # fmt: skip
+    allowed = ""
+    if avg is not None:
+        lo, hi = avg.depth_low_m, avg.depth_high_m
+        lo_s = f"{1e3 * lo:.2f}" if math.isfinite(lo) else "the smallest depth searched"
+        hi_s = f"{1e3 * hi:.2f}" if math.isfinite(hi) else "the largest depth searched"
+        basin = "" if avg.connected else " or in another basin"
+        allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere from "
+                   f"{lo_s} to {hi_s} mm{basin}")  # fmt: skip
     return (
-        f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable (σ ≥ "
-        f"{RELIABLE_SIGMA}): median axial depth {1e3 * depth.median_m:.3f} mm (standard error "
-        f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
-        f"{1e3 * depth.scatter_m:.3f} mm), radial depth "
-        f"{1e3 * med([e.radial_depth_m for e in est]):.3f} mm, K_t "
-        f"{1e-6 * med([e.kt_n_m2 for e in est]):.0f} N/mm², runout "
-        f"{1e6 * med([e.runout_m for e in est]):.1f} µm, reliability "
-        f"{med([e.reliability for e in est]):.3f}, K_e {1e-3 * med([e.edge_n_m for e in est]):.1f} "
-        f"N/mm ({_edge_source([e.edge_source for e in est])})"
+        f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
+        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; "
+        f"median σ {med([e.reliability for e in every]):.2f}){allowed}; the torque's tooth "
+        "harmonics do not fix the engagement here (e.g. a full slot with 3 or more flutes, or a "
+        "light cut in the signal's noise)"
+    )
+
+
+def _engagement_values(
+    dr: list[float], kt: list[float], runout: list[float], sigma: list[float],
+    ke: list[float], source: list[float],
+) -> str:  # fmt: skip
+    """The summary's radial depth, K_t, runout, reliability and K_e (medians), in words."""
+
+    def med(v: list[float]) -> float:
+        return float(np.median(v))
+
+    return (
+        f"radial depth {1e3 * med(dr):.3f} mm, K_t {1e-6 * med(kt):.0f} N/mm², runout "
+        f"{1e6 * med(runout):.1f} µm, reliability {med(sigma):.3f}, K_e "
+        f"{1e-3 * med(ke):.1f} N/mm ({_edge_source(source)})"
     )
 
 
@@ -603,10 +653,11 @@ def _observer_response(machine: Any, where: str, fs: float) -> Any:
     """The spindle observer's response of ``machine`` tabulated to the Nyquist frequency
     (:func:`~millsense.estimation.from_config.spindle_estimate_response`, decision 1554)."""
     from millsense.estimation.from_config import spindle_estimate_response
-    from millsense.monitoring.engagement import TorqueResponse
+    from millsense.monitoring.engagement import OBSERVER_RESPONSE_REL_ERROR, TorqueResponse
 
     response, switch = spindle_estimate_response(machine, where)
-    return TorqueResponse.from_function(response, fs / 2.0, switch)
+    return TorqueResponse.from_function(response, fs / 2.0, switch,
+                                        rel_error=OBSERVER_RESPONSE_REL_ERROR)  # fmt: skip
 
 
 def _metadata_rpm(rec: Any) -> float | None:

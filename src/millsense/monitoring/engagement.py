@@ -33,9 +33,11 @@ from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _spectrum_kernels as _sk
 from millsense.monitoring.torque_spectrum import (
     RUNOUT_RCOND,
+    AveragedEstimate,
     EngagementEstimate,
     SpectrumIdentifier,
     ToolGeometry,
+    identify_averaged,
 )
 from millsense.streaming.block import Block, BlockOutput, Chunk, HeldViews, held_views
 
@@ -52,10 +54,39 @@ _FIELDS = (
 )
 
 
+#: Relative error (complex, one s.d.) of the spindle observer's response model from the
+#: machine file at the tooth harmonics: ≈ 10 % in gain and a few degrees in phase against the
+#: response measured on the virtual machine (decision 1554); `millsense monitor` gives it to
+#: the equaliser it builds from a machine file (decision 1698).
+OBSERVER_RESPONSE_REL_ERROR = 0.1
+
 #: Reliability index σ (Lee Eq. 2.23) from which a revolution's estimate enters the summary:
 #: the lowest σ among the results Lee's Tables 2.3–2.5 report (0.83), rounded down (decision
 #: 1807).
 RELIABLE_SIGMA = 0.8
+
+#: Largest half-width of a cut's depth interval (two standard deviations, Δχ² ≤ 4), as a
+#: fraction of d_a, with which its averaged harmonics determine the depth: Lee's accuracy
+#: (Tables 2.3–2.5, d_a mostly within ±10 %) with 95 % confidence (decision 1698).
+DEPTH_REL_TOL = 0.1
+
+
+def determined(avg: AveragedEstimate) -> bool:
+    """The averaged harmonics determine the cut's engagement (decision 1698): their estimate
+    passes decision 1807's test (σ ≥ :data:`RELIABLE_SIGMA`, K_t > 0, K_e ≥ 0), the profile
+    set of d_a is one interval (no second basin within the noise) inside the search range,
+    and its half-width (two standard deviations) is at most :data:`DEPTH_REL_TOL` of d_a."""
+    e = avg.estimate
+    lo, hi = avg.depth_low_m, avg.depth_high_m
+    return bool(
+        e.reliability >= RELIABLE_SIGMA
+        and e.kt_n_m2 > 0
+        and e.edge_n_m >= 0
+        and avg.connected
+        and math.isfinite(lo)
+        and math.isfinite(hi)
+        and hi - lo <= 2 * DEPTH_REL_TOL * e.axial_depth_m
+    )
 
 
 @dataclass(frozen=True)
@@ -96,6 +127,9 @@ class TorqueResponse:
     step_hz: float
     switch_rad_s: float
     table: np.ndarray
+    #: the response model's relative error at the tooth harmonics (complex, one s.d.): what a
+    #: cut's averaged harmonics keep after the equaliser (decision 1698)
+    rel_error: float = 0.0
 
     @classmethod
     def from_function(
@@ -104,11 +138,13 @@ class TorqueResponse:
         top_hz: float,
         switch_rad_s: float = math.inf,
         step_hz: float = 2.0,
+        rel_error: float = 0.0,
     ) -> TorqueResponse:
         """Tabulate ``response(f_hz, range)`` from 0 to ``top_hz``."""
         f = np.arange(0.0, top_hz + step_hz, step_hz)
         rows = [np.asarray(response(f, r), dtype=np.complex128) for r in (0, 1)]
-        return cls(float(step_hz), float(switch_rad_s), np.ascontiguousarray(np.stack(rows)))
+        return cls(float(step_hz), float(switch_rad_s), np.ascontiguousarray(np.stack(rows)),
+                   float(rel_error))  # fmt: skip
 
 
 class EngagementBlock(Block):
@@ -199,6 +235,9 @@ class EngagementBlock(Block):
         n = self.geom.n_flutes
         self._k = np.concatenate([[1.0], n * np.arange(1, self.n_harmonics + 1, dtype=float)])
         self._log: list[tuple[float, np.ndarray | None]] = []
+        #: per revolution of :attr:`_log`: its coefficients, feed per tooth, mean cutting torque
+        #: and its variance factor (None: not evaluated)
+        self._harm: list[tuple[np.ndarray, float, float, float] | None] = []
         self._made: list[tuple[float, EngagementEstimate | None]] = []
         self.fs = 0.0
 
@@ -234,6 +273,7 @@ class EngagementBlock(Block):
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
         self._log = []
+        self._harm = []
         self._made = []
 
     def _equaliser(self) -> tuple[np.ndarray, np.ndarray]:
@@ -250,15 +290,21 @@ class EngagementBlock(Block):
         self._held_views = None
         if status == _sk.REV_NONE:
             self._log.append((t_end, None))
+            self._harm.append(None)
             self._held = _NOT_EVALUATED
             return
+        done = self._done[row]
+        # the coefficients and what the fit took with them, for a cut's average (decision 1698)
+        self._harm.append(
+            (self._done_sums[row].copy(), float(done[_sk.DONE_FEED]),
+             float(done[_sk.DONE_T0_NET]), float(done[_sk.DONE_MEAN_VAR]))
+        )  # fmt: skip
         out = self._est[row]
         ident = self._ident
         if status == _sk.REV_GRID:  # the grid search, then the next fits start from it
             has_prev = bool(self._acc[_sk.ACC_HAS_PREV])
             ident._prev = self._prev.copy() if has_prev else None
             coeff = self._done_sums[row]
-            done = self._done[row]
             out[:] = ident.identify_array(
                 coeff[1:],
                 complex(coeff[0]),
@@ -281,6 +327,27 @@ class EngagementBlock(Block):
         for t, est in self._log[len(made) :]:
             made.append((t, None if est is None else EngagementEstimate(*est.tolist())))
         return made
+
+    def averaged(self, which: Sequence[int]) -> AveragedEstimate:
+        """The engagement of the revolutions ``which`` (indices into :attr:`estimates`, each
+        evaluated; at least :data:`~millsense.monitoring.torque_spectrum.AVERAGED_MIN_REVS`)
+        from their averaged harmonics (decision 1698,
+        :func:`~millsense.monitoring.torque_spectrum.identify_averaged`): for revolutions of
+        one steady cut."""
+        rows = [self._harm[i] for i in which]
+        if any(r is None for r in rows):
+            raise ValueError(f"{self.name}: a revolution averaged was not evaluated")
+        kept = [r for r in rows if r is not None]
+        ident = SpectrumIdentifier(self.geom, self.n_harmonics, self.edge,
+                                   self.max_depth_fraction)  # fmt: skip
+        return identify_averaged(
+            ident,
+            np.stack([r[0] for r in kept]),
+            np.array([r[1] for r in kept]),
+            np.array([r[2] for r in kept]),
+            np.array([r[3] for r in kept]),
+            0.0 if self.response is None else self.response.rel_error,
+        )
 
     def _held_outputs(self, n: int) -> dict[str, np.ndarray]:
         """The held values for ``n`` samples (:func:`~millsense.streaming.block.held_views`;

@@ -475,3 +475,163 @@ class SpectrumIdentifier:
                 break
         assert best is not None
         return best
+
+
+#: Profile-likelihood level of the depth interval: Δχ² = 4, two standard deviations of one
+#: parameter (decision 1698).
+PROFILE_CHI2 = 4.0
+
+#: Fewest revolutions averaged (decision 1698): their scatter gives the harmonics' variances.
+AVERAGED_MIN_REVS = 8
+
+
+@dataclass(frozen=True)
+class AveragedEstimate:
+    """The engagement of several revolutions of one cut from their averaged harmonics
+    (decision 1698): the estimate at the global least-squares optimum, the n revolutions
+    averaged, and the profile-likelihood set of d_a (Δχ² ≤ :data:`PROFILE_CHI2`): its lowest
+    and highest depth (m; NaN/inf where it reaches the search range's ends) and whether it is
+    one interval (``connected``: no second basin of the fit within the noise)."""
+
+    n: int
+    estimate: EngagementEstimate
+    depth_low_m: float
+    depth_high_m: float
+    connected: bool
+
+
+def _estimate_of(out: FloatArray) -> EngagementEstimate:
+    """:class:`EngagementEstimate` of an array of the fields ``_spectrum_kernels.EST_*``."""
+    return EngagementEstimate(*(float(v) for v in out[: _sk.EST_SIZE]))
+
+
+def identify_averaged(
+    ident: SpectrumIdentifier,
+    coeffs: ComplexArray,
+    feed_per_tooth_m: FloatArray,
+    mean_cut_torque_nm: FloatArray,
+    mean_var: FloatArray,
+    rel_error: float = 0.0,
+) -> AveragedEstimate:
+    """The engagement of n ≥ :data:`AVERAGED_MIN_REVS` revolutions of one steady cut (decision
+    1698).
+
+    ``coeffs`` (n × (K+1)): each revolution's T_1 and T_kN (k = 1…K), in the spindle angle's
+    phase reference, so a steady cut's revolutions add coherently. Their mean has the noise of
+    one revolution / √n, which is what separates the fit's basins on a sensorless torque (a
+    single revolution's cost is within its noise over most depths). Each harmonic's variance
+    (real or imaginary part) is the revolutions' scatter about their mean / n plus
+    (``rel_error`` |T̄_kN|)²/2, the relative error of the channel's response model the
+    harmonics were equalised by (decision 1554; 0: a dynamometer); the fit is weighted by it
+    (χ²), and where χ² at the optimum exceeds its degrees of freedom 2K − 3 − amplitudes (a
+    model error or a changing engagement the variances do not hold) the variances are scaled
+    up by that ratio.
+
+    The mean is fitted from the coarse grid (no previous revolution) and every depth of the
+    grid is refitted over the angles at that depth from its best two angle pairs: the profile
+    of χ² over d_a, whose best points start the final fit. The estimate there is one
+    revolution's (:func:`._spectrum_kernels.estimate`: K_t, runout, σ), and the depths whose
+    profile is within Δχ² ≤ :data:`PROFILE_CHI2` of it form the depth's set: its ends by
+    bisection, and whether any grid depth outside them is in it too (a second basin). Seed 004
+    Eqs. 2.11-2.13 (the model, :func:`static_harmonics`), 2.19 (K_t), 2.23 (σ)."""
+    x_all = np.asarray(coeffs, dtype=np.complex128)
+    n = x_all.shape[0]
+    if n < AVERAGED_MIN_REVS:
+        raise ValueError(f"identify_averaged: needs at least {AVERAGED_MIN_REVS} revolutions")
+    mean = x_all.mean(axis=0)
+    t1, x = complex(mean[0]), np.ascontiguousarray(mean[1 : ident.k.size + 1])
+    nk = x.size
+    c = float(np.mean(feed_per_tooth_m))
+    t0 = np.asarray(mean_cut_torque_nm, dtype=np.float64)
+    t0_mean = float(np.mean(t0)) if np.all(np.isfinite(t0)) else math.nan
+    var_factor = float(np.mean(mean_var))
+    h = x_all[:, 1 : nk + 1]
+    var = 0.5 * (h.real.var(axis=0, ddof=1) + h.imag.var(axis=0, ddof=1)) / n
+    var = var + 0.5 * (rel_error * np.abs(x)) ** 2
+    xn, norm = _sk.normalised(x)
+    ax0 = abs(x[0])
+    with np.errstate(divide="ignore"):
+        wt = np.where(var > 0, ax0 / np.sqrt(var), 0.0)  # 1/s.d. in the normalised units
+    if not np.all(wt > 0):  # a noiseless average: equal weights, χ² from the residual
+        wt = np.ones(nk)
+    xw = xn * wt
+    geom = ident.geom
+    kk = ident.k[:nk]
+    kb, edge = ident._kb, ident.edge
+    lo_b, hi_b, scl = ident._lo, ident._hi, ident._scl
+
+    def fit(
+        p0: FloatArray, lo: FloatArray, hi: FloatArray, iters: int = 60
+    ) -> tuple[FloatArray, float]:
+        return _sk.lm_fit_weighted(p0, xw, kk, kb, edge, lo, hi, scl, iters, wt)
+
+    def at_depth(d: float, starts: list[FloatArray]) -> tuple[FloatArray, float]:
+        lo, hi = lo_b.copy(), hi_b.copy()
+        lo[0] = hi[0] = d
+        best: tuple[FloatArray, float] | None = None
+        for p0 in starts:
+            sol = fit(p0, lo, hi)
+            if best is None or sol[1] < best[1]:
+                best = sol
+        assert best is not None
+        return best
+
+    # the profile over the grid's depths: each depth's best angle pairs (the identifier's
+    # coarse grid, its low harmonics' unweighted misfits: the starts) refitted at that depth
+    grid = ident._grid
+    depths = np.unique(grid.params[0])
+    pairs = grid.r12.size // depths.size
+    low = np.ascontiguousarray(xn[: ident.k_grid.size])
+    rows = grid.costs(low, edge).reshape(depths.size, pairs)
+    prof = np.empty(depths.size)
+    pts = []
+    for i, d in enumerate(depths):
+        starts = [grid.points[i * pairs + j] for j in _sk.smallest(rows[i], 2)]
+        p, cost = at_depth(float(d), starts)
+        prof[i] = cost
+        pts.append(p)
+    # the global optimum: free fits from the profile's best depths and from the usual search
+    first = ident._grid_search(xn, norm, (kb, edge, lo_b, hi_b, scl), None)[0]
+    best = fit(first, lo_b, hi_b)
+    for i in np.argsort(prof)[:3]:
+        sol = fit(pts[i], lo_b, hi_b)
+        if sol[1] < best[1]:
+            best = sol
+    p_hat, c_hat = best
+    dof = 2 * nk - 3 - (2 if edge else 1)
+    scale = max(1.0, 2.0 * c_hat / max(dof, 1))  # χ²/dof beyond 1: variances scaled up
+
+    def chi2(d: float, start: FloatArray) -> tuple[float, FloatArray]:
+        p, cost = at_depth(d, [start, p_hat])
+        return 2.0 * (cost - c_hat) / scale, p
+
+    d_hat = float(p_hat[0])
+    inside = 2.0 * (prof - c_hat) / scale <= PROFILE_CHI2
+    ends = []
+    for side in (-1, 1):
+        outside = [i for i in range(depths.size) if side * (depths[i] - d_hat) > 0
+                   and not inside[i]]  # fmt: skip
+        if not outside:  # the set reaches the search range's end on this side
+            ends.append(math.nan if side < 0 else math.inf)
+            continue
+        j = min(outside, key=lambda i: abs(depths[i] - d_hat))
+        a, b, start = d_hat, float(depths[j]), p_hat
+        for _ in range(40):  # bisection of Δχ²(d) = PROFILE_CHI2 between the fit and depth j
+            mid = 0.5 * (a + b)
+            val, p = chi2(mid, start)
+            if val <= PROFILE_CHI2:
+                a, start = mid, p
+            else:
+                b = mid
+            if abs(b - a) < 1e-4 * d_hat:
+                break
+        ends.append(0.5 * (a + b))
+    lo_d, hi_d = ends
+    lo_c = lo_d if math.isfinite(lo_d) else 0.0
+    connected = not bool(np.any(inside & ((depths < lo_c) | (depths > hi_d))))
+    out = np.empty(_sk.EST_SIZE)
+    tail = (geom.radius_m, geom.n_flutes, geom.axial_pitch_m, RUNOUT_RCOND)
+    cost = _sk.lm_fit(p_hat, xn, kk, kb, edge, lo_b, hi_b, scl, 0)[1]  # unweighted, at p_hat
+    _sk.estimate(p_hat, cost, x, t1, c, ident.k, kb, edge, *tail, t0_mean, var_factor, lo_b,
+                 hi_b, scl, out)  # fmt: skip
+    return AveragedEstimate(n, _estimate_of(out), lo_d, hi_d, connected)
