@@ -65,9 +65,9 @@ def test_every_start_phase_detects_within_three_revolutions() -> None:
     """Seed 000's rule at three phases (the flute pattern off): no alarm before the break and
     one within 3 revolutions (the third violating period of a once-a-revolution signature)
     wherever the stream starts; the seed's single phase misses it or is later at some start
-    (why the phases are there). With the flute pattern (decision 1684, off by default) the
-    alarm comes with the next flute's double chip after the broken flute's drop: within
-    1.2 revolutions at every start (measured 0.98-1.13), 2.4 tooth periods."""
+    (why the phases are there). With the flute pattern (decision 1684, on by default since
+    decision 1685) the alarm comes with the next flute's double chip after the broken flute's
+    drop: within 1.2 revolutions at every start (measured 0.98-1.13), 2.4 tooth periods."""
     single_late = 0
     for shift in range(0, int(PERIOD_SAMPLES), 5):
         before, first = _alarms(PhasedBreakage(N, method="virtual", expected_channel="plan/torque",

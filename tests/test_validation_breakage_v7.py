@@ -82,24 +82,24 @@ def test_v7_latency_tolerance_is_two_sided_and_can_fail(monkeypatch: pytest.Monk
 @pytest.mark.slow
 def test_v7_figures_on_the_truth_are_pinned() -> None:
     """The run the cases judge (≈ 15 s): the virtual threshold silent before the break and
-    alarming 2.5-3.5 tooth periods after it (seed 000's rule, the session's detector while the
-    flute pattern of decision 1684 is off; with it on, 1.4 after it). The classic constant
-    threshold (Aslan Eq. 6.5 at seed 002's α = 2, decision 1670): one false alarm, where the
-    engagement steps at SLOT3's entry (N350), and the break within a tooth period; at α = 3
-    none before the break. Decision 1523's constant reference: four false alarms (decision
-    1730; two, at SLOT1's exit and SLOT3's entry, before decision 1555 moved the reference it
-    learns on the entry from 1.18 to 1.05 N·m): at the depth step (N310), where SLOT2's torque
-    falls (N330, twice) and at SLOT3's entry (N350)."""
+    alarming 2.5-3.5 tooth periods after it (seed 000's rule; the session's detector with the
+    flute pattern 1.4 after it). The classic constant threshold (Aslan Eq. 6.5 at
+    seed 002's α = 2, decision 1670): one false alarm, where the engagement steps at SLOT3's
+    entry (N350), and the break within a tooth period; at α = 3 none before the break. Decision
+    1523's constant reference: four false alarms (decision 1730; two, at SLOT1's exit and
+    SLOT3's entry, before decision 1555 moved the reference it learns on the entry from 1.18 to
+    1.05 N·m): at the depth step (N310), where SLOT2's torque falls (N330, twice) and at SLOT3's
+    entry (N350)."""
     run = mb.v7_run()
     before, after = mb._split(run.events["virtual"], run.break_s)
     assert before == []
     assert 2.5 <= (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 <= 3.5
-    # the session's detector: seed 000's rule too while decision 1684's flute pattern is off
-    # by default (with it on: 1.37 tooth periods, by the pattern, decision 1684)
+    # the session's detector (decision 1684): silent before the break too, and the flute
+    # pattern confirms the broken flute's drop and the next flute's rise, 1.4 tooth periods on
     before, after = mb._split(run.events["session"], run.break_s)
     assert before == []
-    assert (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 == pytest.approx(2.70, abs=0.05)
-    assert "pattern_evidence" not in after[0].values
+    assert (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 == pytest.approx(1.37, abs=0.05)
+    assert "pattern_evidence" in after[0].values
     before, after = mb._split(run.events["classic"], run.break_s)
     assert [e.nc_line for e in before] == [350]
     assert 0 <= (after[0].time_s - run.break_s) / mb.TOOTH_S_V7 <= 1.0

@@ -209,6 +209,8 @@ MAD_SCALE = 1.0 / 0.6745
 PATTERN_BETA = 0.125
 PATTERN_WARM = 8
 PATTERN_REVS = 4
+#: Decision 1685: revolutions before a pattern's first drop whose spread it is judged against.
+PATTERN_BEFORE = 2
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
@@ -306,6 +308,20 @@ def _pattern_reset(state: FloatArray, nf: int) -> None:
 
 
 @numba.njit(cache=True)
+def _scale_before(state: FloatArray, window: int, n: int, first: int, count: int) -> float:
+    """The RMS of a contrast over ``count`` periods from ``first`` periods before the current
+    one back (its scale window's ring at ``window``, decision 1685); NaN where not all held."""
+    if first + count - 1 > n:
+        return math.nan
+    pos = int(state[DET_PPOS])
+    ss = 0.0
+    for j in range(first, first + count):
+        v = state[window + (pos - j) % NOISE_WINDOW]
+        ss += v * v
+    return math.sqrt(ss / count)
+
+
+@numba.njit(cache=True)
 def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float) -> float:
     """A broken flute's pattern on a two-sided judged period (decision 1684; seed 002 §2.5:
     the broken flute k loses its chip, the next flute k + 1 cuts it as well): the evidence, in
@@ -330,7 +346,11 @@ def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float)
     would start as one flute's drop. Every term needs the dropped flute's innovation at least
     ``size`` below its past (half the seed's σ_TB band, decision 1684): a change of every flute
     a fraction of a revolution off the plan's (a depth step the plan places early) leaves a
-    drop and a rise of a few per cent that a quiet cut's small σ would otherwise confirm."""
+    drop and a rise of a few per cent that a quiet cut's small σ would otherwise confirm.
+    A break comes into a steady cut: where the same contrast's RMS over the PATTERN_BEFORE
+    revolutions ending one revolution before the first counted drop exceeds its scale (chatter
+    growing faster than the scale's window follows), the evidence is judged at that RMS
+    instead (:func:`_scale_before`, decision 1685)."""
     base = DET_BASE + 3 * nf + NOISE_WINDOW
     ref = base
     uu = base + nf
@@ -371,13 +391,23 @@ def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float)
             evidence = -math.inf
             for ring in (qr, zr):
                 acc = 0.0
+                scale = sd if ring == qr else sc
                 for i in range(PATTERN_REVS):
                     term = state[ring + i * nf + slot]
                     if not term > 0.0:  # NaN (no drop of a breakage's size) or not this way
                         break
                     acc += term
                     if ring == qr or i > 0:  # a drop alone is judged once it repeats
-                        evidence = max(evidence, acc / math.sqrt(i + 1.0))
+                        # a break comes into a steady cut: where the cut varied more in the
+                        # PATTERN_BEFORE revolutions before the drop began than the scale
+                        # holds (chatter growing, decision 1685), judged at that spread
+                        e = acc / math.sqrt(i + 1.0)
+                        first = (i + 1) * nf + (1 if ring == qr else 0)
+                        window = dw if ring == qr else cw
+                        before = _scale_before(state, window, n, first, PATTERN_BEFORE * nf)
+                        if before > scale > 0.0:
+                            e *= scale / before
+                        evidence = max(evidence, e)
         pos = int(state[DET_PPOS])
         state[cw + pos] = abs(c)
         state[dw + pos] = abs(d)

@@ -190,9 +190,7 @@ class BreakageBlock(Block):
         of the next) in its residual to the plan referenced to the same flute's previous
         revolutions, accumulated over up to 4 revolutions, at ``pattern_z`` standard
         deviations, with the revolution keeping a broken flute's share as above; at most one
-        alarm of either way until a period not judged two-sided or a re-arm. Off by default
-        until the on-line session's chatter-prone demo pass runs with it at its usual speed
-        (decision 1684, 'Landed off' in its Consequence).
+        alarm of either way until a period not judged two-sided or a re-arm.
     pattern_z : the pattern's threshold in standard deviations (:data:`PATTERN_Z`).
     name : block name (channel prefix and event source).
     """
@@ -224,7 +222,7 @@ class BreakageBlock(Block):
         edge_share: float = EDGE_SHARE,
         revolution_tol: float = REVOLUTION_TOL,
         lost_revolutions: int = LOST_REVOLUTIONS,
-        flute_pattern: bool = False,
+        flute_pattern: bool = True,
         pattern_z: float = PATTERN_Z,
         name: str | None = None,
     ) -> None:

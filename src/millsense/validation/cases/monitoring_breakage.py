@@ -270,8 +270,8 @@ def v7_run() -> V7Run:
     res = run_session(_Open(sim), built.blocks, stop_after_hold_s=None, observer=keep)
     data = {k: np.concatenate(v) for k, v in parts.items()}
     run = V7Run(data, plan, break_s, m.sample_rate_hz, notes=list(notes) + list(built.notes))
-    # the session's detector (seed 000's rule, and the flute pattern where it is on, decision
-    # 1684), and seed 000's rule alone replayed on the same channels: V7's figures are the seed's
+    # the session's detector (seed 000's rule and the flute pattern, decision 1684), and seed
+    # 000's rule alone replayed on the same channels: V7's figures are the seed's
     run.events["session"] = [e for e in res.events if e.name == "breakage"]
     session_det = next(c for b in built.blocks for c in getattr(b, "children", ())
                        if isinstance(c, PhasedBreakage))  # fmt: skip
@@ -309,8 +309,8 @@ def _describe(run: V7Run) -> str:
     ]
     names = {
         "virtual": "virtual (Eq. 6.6, σ_TB = 40 %), seed 000's rule",
-        "session": "the session's virtual detector: seed 000's rule, or the flute pattern "
-        "where it is on (decision 1684, off by default)",
+        "session": "the session's virtual detector: seed 000's rule or the flute pattern "
+        "(decision 1684)",
         "classic": f"classic constant, Eq. 6.5, α = {CLASSIC_ALPHA:g} (counted)",
         "classic_a3": "classic constant, Eq. 6.5, α = 3",
         "constant": "constant reference, 40 % band (decision 1523)",
@@ -344,8 +344,7 @@ def _describe(run: V7Run) -> str:
     description=(
         "Alarms before the break on the demo part's slots run by the virtual machine (depth "
         "step, cavity, crossings, exits): of the session's virtual-threshold detector (seed "
-        "000's rule, and the flute pattern where it is on, decision 1684) and of seed 000's "
-        "rule alone."
+        "000's rule and the flute pattern, decision 1684) and of seed 000's rule alone."
     ),
 )
 def _v7_virtual_false() -> Measured:

@@ -442,16 +442,21 @@ def _demo_table(events: list[Event]) -> str:
 
 @case(
     "online.demo_part_breakage_latency",
-    source="issue 15 (breakage effect to event ≤ 3 tooth periods) / seed 000 C17, V7 on the "
-    "demo part: confirmation over 3 tooth periods",
-    reference=3.0,
+    source="issue 15 acceptance: breakage effect to event ≤ 3 tooth periods (seed 000 C17) on "
+    "the demo part",
+    reference=1.5,
     unit="tooth periods",
-    abs_tol=0.5,
+    abs_tol=1.5,
     quick=False,
     description=(
         "The demo part's open run (the program as written), flute 0 broken at 20 s while the "
         "tool cuts into the cavity's near wall (a transient of the plan): first breakage alarm "
-        "after the break, minus the break, in tooth periods (30 ms)."
+        "after the break, minus the break, in tooth periods (30 ms), judged against the issue's "
+        "≤ 3 tooth periods as monitoring.breakage.general_cuts_latency_periods is. Until "
+        "decision 1684 the session's detector was seed 000's rule alone (confirmation over 3 "
+        "tooth periods: 3.04 here, judged 3 ± 0.5); with the flute pattern it confirms from the "
+        "broken flute's pattern. Seed 000's rule itself is judged by "
+        "monitoring.breakage.v7_virtual_latency."
     ),
 )
 def _demo_latency() -> Measured:
