@@ -12,7 +12,7 @@ from millsense.monitoring.breakage import BreakageBlock, BreakageGroup
 from millsense.streaming.block import Chunk
 
 #: the kernels the blocks call from Python (the others are compiled into these)
-KERNELS = ("segment_periods", "periods_step", "segment_group", "periods_group")
+KERNELS = ("segment_periods", "periods_step", "segment_group", "periods_group", "group_step")
 
 
 def _signatures() -> dict[str, int]:

@@ -18,6 +18,7 @@ from millsense.monitoring.breakage import (
 )
 from millsense.process.engagement import Engagement
 from millsense.simulator.process_coupling import EngagementSchedule, EngagementSegment, ToothBreak
+from millsense.streaming.block import Chunk
 from millsense.validation.cases._torque_sim import FS, simulate_torque
 from millsense.validation.cases.monitoring_breakage import run_block
 
@@ -225,6 +226,62 @@ def test_group_equals_the_detectors_alone(chunk: int) -> None:
     assert ch.keys() == ref.keys()
     for k in ref:
         np.testing.assert_array_equal(ch[k], ref[k])
+
+
+@pytest.mark.parametrize("chunk", [7, 100, 1000])
+def test_group_shows_its_first_members_and_judges_the_others(chunk: int) -> None:
+    """Decision 1700: a group whose last member is not shown (another phase of the tooth
+    period, as :class:`PhasedBreakage` runs it) writes outputs only when a shown member's
+    period ends and only judges the hidden one; its channels are the shown members' alone and
+    its events all members', bit for bit (the same arithmetic, in the same order)."""
+    data = {k: v[: int(9.0 * FS)] for k, v in _stream().items()}
+
+    def members() -> list[BreakageBlock]:
+        late = BreakageBlock(2, "virtual", expected_channel="plan/torque", phase_offset=2 / 3,
+                             name="late")  # fmt: skip
+        return [*_three(), late]
+
+    alone = [run_block(b, data, chunk) for b in members()]
+    events, ch = run_block(BreakageGroup(members(), shown=3), data, chunk)
+    expected = sorted((e for ev, _ in alone for e in ev), key=lambda e: e.sample // chunk)
+    assert [e.as_dict() for e in events] == [e.as_dict() for e in expected]
+    assert any(e.source == "late" for e in events)  # the hidden member's own alarm
+    ref = {k: v for _, c in alone[:3] for k, v in c.items()}
+    assert ch.keys() == ref.keys()
+    for k in ref:
+        np.testing.assert_array_equal(ch[k], ref[k])
+
+
+def test_a_grouped_detector_re_armed_alarms_again_as_alone() -> None:
+    """Decision 1700: in a group the running violation lives in the group's array; a member's
+    :meth:`BreakageBlock.rearm` clears it there, so a re-armed grouped detector alarms again at
+    the same sample, with the same first period of the violation, as the detector alone (3
+    judged periods after the re-arm, decision 1621)."""
+    fs, rpm, n_fl = 10000.0, 1000.0, 2
+    tooth = round(fs * 60 / rpm / n_fl)
+    n = 80 * tooth
+    period = np.arange(n) // tooth
+    tq = np.where(period >= 20, np.where(period % 2 == 0, 0.2, 6.0), 3.0)
+    data = {"tq": tq, "w": np.full(n, rpm * 2 * math.pi / 60), "ex": np.full(n, 3.0)}
+
+    def det(name: str) -> BreakageBlock:
+        return BreakageBlock(n_fl, "virtual", signal_channels=("tq",), speed_channel="w",
+                             expected_channel="ex", min_expected_nm=0.5, name=name)  # fmt: skip
+
+    one, grouped = det("a"), det("a")
+    group = BreakageGroup([grouped, det("b")])
+    samples = []
+    for block, member in ((one, one), (group, grouped)):
+        block.reset(fs)
+        head = {k: v[: 50 * tooth] for k, v in data.items()}
+        first = [e for e in block.process(Chunk(0, fs, 0.0, head)).events if e.source == "a"]
+        assert len(first) == 1  # the break at period 20, confirmed 3 periods on
+        member.rearm()
+        tail = {k: v[50 * tooth :] for k, v in data.items()}
+        again = block.process(Chunk(50 * tooth, fs, 0.0, tail)).events
+        samples.append([e.as_dict() for e in again if e.source == "a"])
+    assert samples[0] == samples[1]  # the same alarm: sample, values (its first period), text
+    assert len(samples[0]) == 1
 
 
 def test_group_refuses_repeated_names_and_other_speeds() -> None:

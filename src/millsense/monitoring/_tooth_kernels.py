@@ -126,7 +126,6 @@ def segment_periods(
     return m
 
 
-
 @numba.njit(cache=True)
 def segment_group(
     x: FloatArray,
@@ -742,6 +741,36 @@ def fill_outputs(
 
 
 @numba.njit(cache=True)
+def _judge(
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    k: int,
+    has_b: bool,
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+    first: int,
+    index: IntArray,
+) -> tuple[int, int]:
+    """The period values x (the resultant hypot(mean0, mean1) of two channels, else mean0)
+    and :func:`detect_periods` of ``k`` periods; returns the first period of the running
+    violation after them (−1: none; ``first`` before them) and the number of alarms."""
+    for i in range(k):
+        pp[3, i] = math.hypot(pp[0, i], pp[1, i]) if has_b else pp[0, i]
+    detect_periods(pp, pb, k, params, iparams, state)
+    alarms = 0
+    for i in range(k):
+        if pb[0, i]:
+            if first < 0:
+                first = index[i]
+        else:
+            first = -1
+        if pb[1, i]:
+            alarms += 1
+    return first, alarms
+
+
+@numba.njit(cache=True)
 def periods_step(
     pp: FloatArray,
     pb: NDArray[np.bool_],
@@ -756,23 +785,11 @@ def periods_step(
     first: int,
     index: IntArray,
 ) -> tuple[int, int]:
-    """The per-period step of a chunk in one call: the period values x (the resultant
-    hypot(mean0, mean1) of two channels, else mean0), :func:`detect_periods`,
-    :func:`fill_outputs`; returns the first period of the running violation after the chunk
-    (−1: none; ``first`` before it) and the number of alarms."""
-    for i in range(k):
-        pp[3, i] = math.hypot(pp[0, i], pp[1, i]) if has_b else pp[0, i]
-    detect_periods(pp, pb, k, params, iparams, state)
+    """The per-period step of a chunk in one call: :func:`_judge` (the period values,
+    :func:`detect_periods`), :func:`fill_outputs`; returns the first period of the running
+    violation after the chunk (−1: none; ``first`` before it) and the number of alarms."""
+    first, alarms = _judge(pp, pb, k, has_b, params, iparams, state, first, index)
     fill_outputs(held_prev, pp[3:], k, held, out)
-    alarms = 0
-    for i in range(k):
-        if pb[0, i]:
-            if first < 0:
-                first = index[i]
-        else:
-            first = -1
-        if pb[1, i]:
-            alarms += 1
     return first, alarms
 
 
@@ -791,24 +808,74 @@ def periods_group(
     out: FloatArray,
     firsts: IntArray,
     alarms: IntArray,
-) -> int:
+    shown: int,
+) -> tuple[int, bool]:
     """:func:`periods_step` of several detectors in one call (detector ``j``: ``pp[j]``,
     ``pb[j]``, period indices ``pi[j, 1]``, ``counts[j]`` periods, two channels if ``two[j]``,
-    ``params[j]``, ``iparams[j]``, ``state[j]``, ``held_prev[j]``, ``held[j]``, outputs
-    ``out[R j:R j + R]`` (R = OUT_ROWS), running violation ``firsts[j]``; ``alarms[j]`` ← its
-    alarms). A detector without a period in the chunk holds its values. Returns the alarms of
-    all."""
+    ``params[j]``, ``iparams[j]``, ``state[j]``, ``held_prev[j]``, ``held[j]``, running
+    violation ``firsts[j]``; ``alarms[j]`` ← its alarms). Only the first ``shown`` detectors
+    have outputs, ``out[R j:R j + R]`` (R = OUT_ROWS), and only when a period of one of them
+    ends in the chunk (a detector without one holds its values); else ``out`` is not written
+    and their held values stand. Returns the alarms of all and whether ``out`` was written."""
+    changed = False
+    for j in range(shown):
+        if counts[j] > 0:
+            changed = True
     total = 0
     for j in range(counts.shape[0]):
-        rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
         k = counts[j]
+        fill = changed and j < shown
         if k == 0:
-            fill_outputs(held_prev[j], pp[j, 3:], 0, held[j], rows)
+            if fill:
+                rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
+                fill_outputs(held_prev[j], pp[j, 3:], 0, held[j], rows)
             alarms[j] = 0
             continue
-        first, a = periods_step(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
-                                held_prev[j], held[j], rows, firsts[j], pi[j, 1])  # fmt: skip
+        if fill:
+            rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
+            first, a = periods_step(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
+                                    held_prev[j], held[j], rows, firsts[j], pi[j, 1])  # fmt: skip
+        else:  # no outputs: the values of its last period held
+            first, a = _judge(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
+                              firsts[j], pi[j, 1])  # fmt: skip
+            for r in range(held_prev.shape[1]):
+                held_prev[j, r] = pp[j, 3 + r, k - 1]
         firsts[j] = first
         alarms[j] = a
         total += a
-    return total
+    return total, changed
+
+
+@numba.njit(cache=True)
+def group_step(
+    x: FloatArray,
+    rows: IntArray,
+    speed: FloatArray,
+    fs: float,
+    n_flutes: int,
+    seg: FloatArray,
+    pp: FloatArray,
+    pb: NDArray[np.bool_],
+    pi: IntArray,
+    hb: IntArray,
+    counts: IntArray,
+    two: NDArray[np.bool_],
+    params: FloatArray,
+    iparams: IntArray,
+    state: FloatArray,
+    held_prev: FloatArray,
+    out: FloatArray,
+    firsts: IntArray,
+    alarms: IntArray,
+    shown: int,
+) -> tuple[int, int, bool]:
+    """A group's chunk in one call: :func:`segment_group`, then, when a period ends,
+    :func:`periods_group` (for detectors whose expected torque is a channel, not a plan matched
+    between the two). Returns the largest count of periods, the alarms and whether ``out`` was
+    written."""
+    top: int = segment_group(x, rows, speed, fs, n_flutes, seg, pp, pi, hb, counts)
+    if top == 0:
+        return 0, 0, False
+    total, changed = periods_group(pp, pb, pi, counts, two, params, iparams, state, held_prev,
+                                   hb, out, firsts, alarms, shown)  # fmt: skip
+    return top, total, changed

@@ -345,6 +345,8 @@ class BreakageBlock(Block):
         self._det[_k.DET_ALARMED] = 0.0
         self._det[_k.DET_PALARMED] = 0.0
         self._first_violation = -1
+        if self._group_first is not None:  # a group's member: the group keeps it
+            self._group_first[0][self._group_first[1]] = -1
 
     def reset(self, sample_rate_hz: float) -> None:
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
@@ -355,6 +357,9 @@ class BreakageBlock(Block):
         self._det = _k.detector_state(self.n_flutes, PHI0, self.p_max)
         self._held = np.array([math.nan, 0.0, math.nan, 0.0, math.nan, math.nan])
         self._first_violation = -1
+        #: in a :class:`BreakageGroup`: the group's array of first violations and this
+        #: member's slot in it, which then holds the running violation (decision 1700)
+        self._group_first: tuple[np.ndarray, int] | None = None
         self._row = 0
         self._empty = np.zeros(0)
         self._params = np.array(
@@ -684,9 +689,13 @@ class BreakageGroup(Block):
         self._planned = [(j, m) for j, m in enumerate(ms) if m.plan is not None
                          and m.expected_channel is None]  # fmt: skip
         self._firsts = np.full(len(ms), -1, dtype=np.int64)
+        for j, m in enumerate(ms):
+            m._group_first = (self._firsts, j)
         self._alarms = np.zeros(len(ms), dtype=np.int64)
         self._names = tuple(c.name for c in self.output_channels())
-        self._rows_out = _k.OUT_ROWS * len(ms)  # every member's rows are computed
+        self._speed = ms[0].speed_channel
+        self._fs = ms[0].fs
+        self._flutes = ms[0].n_flutes
         self._n = -1
         self._held_views: HeldViews | None = None
 
@@ -705,45 +714,56 @@ class BreakageGroup(Block):
             m._pp, m._pi, m._pb, m._hbuf = pp, pi, self._pb[j], self._hb[j]
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
+        self._values = np.empty((_k.OUT_ROWS * self.shown, n))  # the shown members' rows
         self._counts = np.zeros(len(ms), dtype=np.int64)
         self._n = n
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         ms = self.members
-        n = len(d[ms[0].speed_channel])
+        n = len(d[self._speed])
         if n != self._n:
             self._size(n)
         x = self._x
         for r, c in enumerate(self._chans):
             x[r] = d[c]
-        speed = np.asarray(d[ms[0].speed_channel], dtype=np.float64)
+        speed = np.asarray(d[self._speed], dtype=np.float64)
         counts = self._counts
-        top = _k.segment_group(x, self._rows, speed, ms[0].fs, ms[0].n_flutes, self._seg,
-                               self._pp, self._pi, self._hb, counts)  # fmt: skip
-        if top == 0:  # no tooth period ends: the held values of every member
+        firsts = self._firsts  # the members' running violations (their ``_group_first``)
+        before = firsts.tolist()
+        values = self._values  # the shown members' outputs if a period of theirs ends
+        if self._planned:  # the plan is matched between the averages and the detection
+            top = _k.segment_group(x, self._rows, speed, self._fs, self._flutes, self._seg,
+                                   self._pp, self._pi, self._hb, counts)  # fmt: skip
+            total, changed = 0, False
+            if top:
+                for j, m in self._planned:
+                    k = int(counts[j])
+                    if k:
+                        self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
+                total, changed = _k.periods_group(
+                    self._pp, self._pb, self._pi, counts, self._two, self._params,
+                    self._iparams, self._det, self._held, self._hb, values, firsts,
+                    self._alarms, self.shown,
+                )  # fmt: skip
+        else:  # one compiled call
+            top, total, changed = _k.group_step(
+                x, self._rows, speed, self._fs, self._flutes, self._seg, self._pp, self._pb,
+                self._pi, self._hb, counts, self._two, self._params, self._iparams, self._det,
+                self._held, values, firsts, self._alarms, self.shown,
+            )  # fmt: skip
+        if changed:  # a shown member's period ended: its values from there on
+            self._held_views = None
+            self._values = np.empty_like(values)  # the outputs are the caller's now
+            out = BlockOutput(dict(zip(self._names, values, strict=True)))
+        else:  # the held values of every shown member (decision 1700)
             views = self._held_views
-            if views is not None and views[0] == n:  # none ended since: the same views
-                return BlockOutput(dict(views[1]))
-            shown = self._held.reshape(-1)[: len(self._names)]
-            self._held_views, held = held_views(self._names, shown, views, n)
-            return BlockOutput(held)
-        self._held_views = None
-        for j, m in self._planned:
-            k = int(counts[j])
-            if k:
-                self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
-        firsts = self._firsts
-        before = [m._first_violation for m in ms]
-        firsts[:] = before
-        values = np.empty((self._rows_out, n))
-        total = _k.periods_group(self._pp, self._pb, self._pi, counts, self._two, self._params,
-                                 self._iparams, self._det, self._held, self._hb, values, firsts,
-                                 self._alarms)  # fmt: skip
-        # the shown members' rows come first; the rest are not outputs
-        out = BlockOutput(dict(zip(self._names, values, strict=False)))
-        for m, first in zip(ms, firsts.tolist(), strict=True):
-            m._first_violation = first
+            if views is not None and views[0] == n:  # none changed since: the same views
+                out = BlockOutput(dict(views[1]))
+            else:
+                shown = self._held.reshape(-1)[: len(self._names)]
+                self._held_views, held = held_views(self._names, shown, views, n)
+                out = BlockOutput(held)
         if total:
             for j, m in enumerate(ms):
                 if self._alarms[j]:
@@ -776,6 +796,11 @@ def compile_kernels() -> None:
     for block in (two, group):
         block.reset(fs)
         block.process(Chunk(0, fs, 0.0, data))
+    # a group with a plan matches it between its two calls (:meth:`BreakageGroup.process`)
+    g = group
+    _k.segment_group(g._x, g._rows, data["s"], fs, 2, g._seg, g._pp, g._pi, g._hb, g._counts)
+    _k.periods_group(g._pp, g._pb, g._pi, g._counts, g._two, g._params, g._iparams, g._det,
+                     g._held, g._hb, g._values, g._firsts, g._alarms, g.shown)  # fmt: skip
 
 
 def _averaged(

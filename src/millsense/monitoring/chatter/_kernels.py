@@ -316,6 +316,7 @@ def cutting_gate(
     f_rev: float,
     air: FloatArray,
     gate: FloatArray,
+    air_before: FloatArray,
 ) -> tuple[bool, bool, float, float]:  # pragma: no cover - compiled
     """The raw window's amplitudes ``raw`` (:func:`amplitude_line_median`: tooth-passing line,
     band median) and the cutting gate (decisions 1504, 1531): in the cut when the tooth line
@@ -325,7 +326,9 @@ def cutting_gate(
     learned (weight ``gate[5]``; the mean afresh at a new speed). Returns (cutting, steady:
     the halves' means differ by at most ``gate[3]``× the tooth line or ``gate[4]``× the floor,
     tooth line, reference of the ratio: the line, in the cut no less than ``gate[0]``×
-    floor)."""
+    floor). ``air_before`` ← ``air`` as it was before the window (decisions 1543, 1680)."""
+    for i in range(air.shape[0]):
+        air_before[i] = air[i]
     tooth, med = amplitude_line_median(c, scale, k0, k1, b0, b1, raw)
     has_floor = air[HAS_FLOOR] > 0.0
     has_mean = air[HAS_MEAN] > 0.0
@@ -370,6 +373,30 @@ def last_samples(ring: FloatArray, pos: int, out: FloatArray) -> None:  # pragma
 
 
 @numba.njit(cache=True, nogil=True)
+def decision_windows(
+    ring_x: FloatArray,
+    ring_y: FloatArray,
+    pos: int,
+    taper: FloatArray,
+    comb_taper: FloatArray,
+    out: FloatArray,
+    windows: FloatArray,
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """A decision's windows in one call (decision 1700): :func:`centred_window` of ``ring_x``
+    into ``out`` and (times ``taper``) ``windows[0]``, returning its mean and half-step; with a
+    second row, the comb-filtered window (:func:`last_samples` of ``ring_y``) into
+    ``windows[1]``, times ``comb_taper`` unless that is empty (a rectangular window)."""
+    level, half_step = centred_window(ring_x, pos, taper, out, windows[0])
+    if windows.shape[0] > 1:
+        row = windows[1]
+        last_samples(ring_y, pos, row)
+        if comb_taper.shape[0] > 0:
+            for i in range(row.shape[0]):
+                row[i] *= comb_taper[i]
+    return level, half_step
+
+
+@numba.njit(cache=True, nogil=True)
 def novel_peak(
     c: ComplexArray,
     scale: float,
@@ -383,13 +410,15 @@ def novel_peak(
     b1: int,
     a_plain: float,
     a_novel: float,
-) -> int:  # pragma: no cover - compiled
+    power_mask: BoolArray,
+) -> tuple[int, float]:  # pragma: no cover - compiled
     """The comb-filtered window's amplitudes ``comb = |c|·scale``; on the ``first`` window the
     background is ``comb`` (the monitor then settles: decision 1537; decision 1504 started a
     first window in the cut from 0); the
     novelty (:func:`novelty`), the band's largest novel bin (:func:`band_argmax`, returned)
     and then the background update (:func:`learn`; the verdict does not read the
-    background)."""
+    background). Returns that bin and, unless ``power_mask`` is empty, the band's power off
+    its masked bins (:func:`band_power`, decision 1687; else 0)."""
     amplitude(c, scale, comb)
     if first:
         for i in range(comb.shape[0]):
@@ -397,7 +426,8 @@ def novel_peak(
     novelty(comb, background, factor, mask, novel)
     k = band_argmax(novel, b0, b1)
     learn(background, comb, novel, a_plain, a_novel)
-    return k
+    power = band_power(comb, power_mask, b0, b1) if power_mask.shape[0] > 0 else 0.0
+    return k, power
 
 
 @numba.njit(cache=True, nogil=True)

@@ -316,6 +316,9 @@ class ChatterMonitor(Block):
         self._scale = 2.0 / float(np.sum(self._taper))
         self._comb_taper = np.hanning(n) if self.method.taper == "hann" else np.ones(n)
         self._comb_scale = 2.0 / float(np.sum(self._comb_taper))
+        # the comb row's taper as :func:`._kernels.decision_windows` applies it (empty: none)
+        self._comb_row_taper = self._comb_taper if self.method.taper != "rect" else np.empty(0)
+        self._no_mask = np.zeros(0, dtype=bool)
         f = np.asarray(np.fft.rfftfreq(n, 1.0 / fs), dtype=np.float64)
         self._f: np.ndarray = f
         lo, hi = s.band_hz
@@ -409,13 +412,12 @@ class ChatterMonitor(Block):
         if not max(g.highs[-w:]) <= (1.0 + STEADY_SPEED) * min(g.lows[-w:]):
             return None  # speed changing within the window: no decision (decision 1504)
         xr, raw, windows = self._xr, self._raw, self._windows
-        level, half_step = _kn.centred_window(g.ring_x, g.pos, self._taper, xr, windows[0])
+        # the raw window and (criteria that learn) the comb-filtered one, in one call
+        level, half_step = _kn.decision_windows(g.ring_x, g.ring_y, g.pos, self._taper,
+                                                self._comb_row_taper, xr, windows)  # fmt: skip
         self._level = level
         learns = self.method.learns_background
         if learns:  # the comb-filtered window, transformed with the raw one
-            _kn.last_samples(g.ring_y, g.pos, windows[1])
-            if self.method.taper != "rect":
-                windows[1] *= self._comb_taper
             spectra = rfft_rows(windows)
             c_raw = spectra[0]
         else:
@@ -428,10 +430,10 @@ class ChatterMonitor(Block):
             k0 = max(0, math.ceil((f_t - half) / df))
             k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
-        air_before = self._air_before
-        air_before[:] = self._air  # the gate's state before this window (decisions 1543, 1680)
+        air_before = self._air_before  # the gate's state before this window (1543, 1680)
         cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
             c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
+            air_before,
         )  # fmt: skip
         f = self._f
         if not learns:  # the threshold method reads the raw spectrum
@@ -506,13 +508,14 @@ class ChatterMonitor(Block):
             mask = mask | self._known
             rates = (self._rates[False][0], rates[1])
         first = not self._has_background
-        k = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background, first,
-                           factor, mask, novel, b0, b1, *rates)  # fmt: skip
+        # with the band's power off the harmonics for the criterion that reads it
+        power_mask = self._harm_mask if self._tests_power else self._no_mask
+        k, power = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background, first,
+                                  factor, mask, novel, b0, b1, *rates, power_mask)  # fmt: skip
         excess: float | None = None
         if self._tests_power:
             # the band's power against the power learned at the background's plain rate
             # (decision 1687: a line that grows faster than e-fold in 2 τ is power added)
-            power = _kn.band_power(comb, self._harm_mask, b0, b1)
             excess = power - self._band_power
             self._window_power = power
             self._band_power = power if first else self._band_power + rates[0] * excess
