@@ -487,3 +487,6 @@ def test_flute_pattern_confirms_a_drop_at_the_band_edge_in_two_revolutions() -> 
     assert v["tooth_period"] == 1204 and v["tooth"] == 0
     assert v["pattern_evidence"] == pytest.approx(7.65, abs=0.01)
     assert v["revolution_ratio"] == pytest.approx(0.93, abs=0.01)
+    # no period of seed 000's run had left the band: no first violating period (decision 1684;
+    # it read -1, an index that does not exist)
+    assert math.isnan(v["first_violation_period"])

@@ -547,7 +547,8 @@ class BreakageBlock(Block):
         values = {
             "tooth": float(tooth),
             "tooth_period": float(period),
-            "first_violation_period": float(first),
+            # NaN: confirmed by the flute pattern outside a run of violations (decision 1684)
+            "first_violation_period": float(first) if first >= 0 else math.nan,
             f"tooth_avg_{s}": float(x),
             f"residual1_{s}": float(e1),
             f"limit1_{s}": float(l1),
