@@ -722,9 +722,10 @@ ANCHOR_SAME_ANGLE = 0.1
 ANCHOR_SEARCH_REVS = 64
 #: Layout of that state (floats): revolutions in the mean, 1 once the mean's fit (the anchor)
 #: is known, its (d_a, θ_st, θ_ex), the revolutions since the mean was last searched and the
-#: relative misfit of that search.
-AST_COUNT, AST_VALID, AST_POINT, AST_SINCE, AST_MISFIT = 0, 1, 2, 5, 6
-AST_SIZE = 7
+#: relative misfit of that search; then how many revolutions were also fitted from the anchor
+#: (a diagnostic).
+AST_COUNT, AST_VALID, AST_POINT, AST_SINCE, AST_MISFIT, AST_SECOND = 0, 1, 2, 5, 6, 7
+AST_SIZE = 8
 
 
 @numba.njit(cache=True)
@@ -777,6 +778,7 @@ def anchored_fit(
         and abs(p[2] - a[2]) <= ANCHOR_SAME_ANGLE
     ):
         return p, cost
+    anchor[AST_SECOND] += 1.0
     pa, ca = lm_fit(a.copy(), xn, k, kb, edge, lo, hi, scale, 60)
     if ca < cost:
         return pa, ca
