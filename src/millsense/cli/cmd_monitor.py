@@ -545,7 +545,8 @@ def _depth_panel(
     value the summary's medians take (``verdict.kind`` "medians": counted and
     :func:`_reliable`); where the summary reports the averaged harmonics (``"averaged"``) or
     the depths they allow (``"undetermined"``), no revolution is reported alone and
-    ``{name}/averaged_depth`` (NaN where not determined), ``{name}/averaged_low`` and
+    ``{name}/averaged_depth`` and ``{name}/averaged_radial`` (the averaged fit's axial and
+    radial depth; NaN where not determined), ``{name}/averaged_low`` and
     ``{name}/averaged_high`` (m; NaN/inf at the search range's ends) are given over the steps
     the averaged revolutions hold."""
     name = block.name
@@ -566,9 +567,11 @@ def _depth_panel(
     if avg is None:
         return out
     span = (held >= 0) & counted[at]
-    depth = avg.estimate.axial_depth_m if verdict.kind == "averaged" else math.nan
+    ok = verdict.kind == "averaged"
+    depth = avg.estimate.axial_depth_m if ok else math.nan
+    radial = avg.estimate.radial_depth_m if ok else math.nan
     for key, val in (("averaged_depth", depth), ("averaged_low", avg.depth_low_m),
-                     ("averaged_high", avg.depth_high_m)):  # fmt: skip
+                     ("averaged_high", avg.depth_high_m), ("averaged_radial", radial)):  # fmt: skip
         out[f"{name}/{key}"] = np.where(span, val, np.nan)
     return out
 

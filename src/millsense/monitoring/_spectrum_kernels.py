@@ -715,11 +715,11 @@ def local_fit_holds(state: FloatArray, misfit: float) -> bool:
 #: revolution's fit and the mean's are taken to be in one basin (no second fit).
 ANCHOR_REVS = 16
 ANCHOR_MIN_REVS = 8
-ANCHOR_SAME_DEPTH = 0.02
-ANCHOR_SAME_ANGLE = 0.1
+ANCHOR_SAME_DEPTH = 0.1
+ANCHOR_SAME_ANGLE = 0.3
 #: Revolutions after which the mean is searched globally again even though its fit from the
 #: last search still holds (:data:`MISFIT_JUMP` × the relative misfit of that search).
-ANCHOR_SEARCH_REVS = 64
+ANCHOR_SEARCH_REVS = 256
 #: Layout of that state (floats): revolutions in the mean, 1 once the mean's fit (the anchor)
 #: is known, its (d_a, θ_st, θ_ex), the revolutions since the mean was last searched and the
 #: relative misfit of that search; then how many revolutions were also fitted from the anchor

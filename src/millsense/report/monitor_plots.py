@@ -219,7 +219,8 @@ def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: 
 def _averaged_band(ax: Any, data: dict[str, np.ndarray], t: np.ndarray, name: str) -> np.ndarray:
     """Where the command's summary reports the cut's averaged harmonics (decisions 1698,
     1704: ``{name}/averaged_depth``, ``_low``, ``_high`` over the averaged revolutions' steps),
-    their axial depth as a line and its profile interval as a band; where they do not determine
+    their axial depth as a line and its profile interval as a band (their radial depth as a
+    line, ``_radial``); where they do not determine
     the depth (depth NaN), the depths they allow as a hatched band. Returns the depths drawn
     (mm) for the axis' range (empty: nothing drawn)."""
     lo = data.get(f"{name}/averaged_low")
@@ -242,6 +243,12 @@ def _averaged_band(ax: Any, data: dict[str, np.ndarray], t: np.ndarray, name: st
         ax.fill_between(t, lo_mm, hi_mm, color="tab:green", alpha=0.3, lw=0, label=band)
         ax.plot(t, np.where(span, depth, np.nan), lw=1.6, color="tab:green",
                 label=f"axial depth of the averaged harmonics {d:.3f} mm")  # fmt: skip
+        radial = 1e3 * np.asarray(data.get(f"{name}/averaged_radial", np.full(len(lo), np.nan)))
+        if np.isfinite(radial).any():
+            r = float(radial[np.isfinite(radial)][0])
+            ax.plot(t, radial, lw=1.6, color="tab:purple",
+                    label=f"radial depth of the averaged harmonics {r:.3f} mm")  # fmt: skip
+            h_s = max(h_s, r)
     else:
         ax.fill_between(t, lo_mm, hi_mm, facecolor="none", edgecolor="tab:green", hatch="//",
                         lw=0, label=f"not determined: averaged harmonics allow "
