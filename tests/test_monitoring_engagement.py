@@ -744,7 +744,7 @@ def test_sensorless_cut_summary_gives_the_averaged_depths_not_a_wrong_basin():
     block = _noisy_cut_block(1000.0, 2.1, 10.0, seed=0)
     depths = np.array([e.axial_depth_m for _, e in block.estimates if e is not None])
     # decision 1704: the fits also start from the running mean's fit, so the warm start no
-    # longer holds a dozen revolutions in the 11-18 mm basin (14 revolutions above 10 mm
+    # longer holds a dozen revolutions in the 11-18 mm basin (16 revolutions above 10 mm
     # before, 1 now: a revolution whose own global minimum may lie there)
     assert np.sum(depths > 10e-3) <= 2
     line = _line(block)
