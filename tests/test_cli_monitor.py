@@ -378,11 +378,14 @@ def test_monitor_breakage_skips_the_spindle_run_up(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Decision 1550: a CNC recording (speed and its command, the observer's torque) that starts
-    with a 0.3 s run-up to 1000 rev/min carrying 80 N·m of acceleration torque, then a steady
-    2-flute cut of 3 N·m whose flute 0 breaks at 4.2 s. `monitor` gates the breakage monitors
-    on the spindle reaching its commanded speed (made from the two speed channels): the constant
-    detector then learns its reference in the cut and alarms within 3 tooth periods of the
-    break; learnt on the run-up (the block without the gate) it would be blind to it."""
+    with a 0.3 s run-up to 1000 rev/min carrying 80 N·m of acceleration torque, 0.5 s of air
+    (0.2 N·m of drag), then a steady 2-flute cut of 3 N·m whose flute 0 breaks at 4.2 s.
+    `monitor` gates the breakage monitors on the spindle reaching its commanded speed (made
+    from the two speed channels): the constant detector then learns its reference in the cut
+    and alarms within 3 tooth periods of the break; learnt on the run-up (the block without the
+    gate) it would be blind to it. Decision 1706: after a spindle start the level at speed is
+    the air's; a cut there from the first revolution at speed (no air) is taken for the air and
+    not judged."""
     rng = np.random.default_rng(4)
     n = int(6.0 * FS)
     t = np.arange(n) / FS
@@ -391,19 +394,24 @@ def test_monitor_breakage_skips_the_spindle_run_up(
     tooth = 300  # samples a tooth period
     period = np.arange(n) // tooth
     tq = np.where(period >= 140, np.where(period % 2 == 0, 0.0, 6.0), 3.0)
-    tq = np.where(t < 0.3, 80.0, tq) + 0.05 * np.sqrt(tooth) * rng.standard_normal(n)
-    rec = Recording(FS, 0.0, {"flutes": 2})
-    rec.add_channel("spindle/speed", speed, "rad/s")
-    rec.add_channel("spindle/speed_cmd", np.full(n, w), "rad/s")
-    rec.add_channel("est/spindle/spindle/load", tq, "N*m")
-    write_recording(tmp_path / "run.h5", rec)
+    noise = 0.05 * np.sqrt(tooth) * rng.standard_normal(n)
     out = tmp_path / "ev.parquet"
-    code, _stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
-                                  "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
-    assert code == 0, err
-    ev = read_event_log(out)
-    assert len(ev) == 1
-    assert 4.2 < ev[0].time_s <= 4.2 + 3 * 0.03 + 1e-9
+    for air in (True, False):
+        cut = np.where(t < 0.8, 0.2, tq) if air else tq
+        rec = Recording(FS, 0.0, {"flutes": 2})
+        rec.add_channel("spindle/speed", speed, "rad/s")
+        rec.add_channel("spindle/speed_cmd", np.full(n, w), "rad/s")
+        rec.add_channel("est/spindle/spindle/load", np.where(t < 0.3, 80.0, cut) + noise, "N*m")
+        write_recording(tmp_path / "run.h5", rec)
+        code, _stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
+                                      "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
+        assert code == 0, err
+        ev = read_event_log(out)
+        if not air:
+            assert ev == []
+            continue
+        assert len(ev) == 1
+        assert 4.2 < ev[0].time_s <= 4.2 + 3 * 0.03 + 1e-9
 
 
 def test_monitor_engagement_not_determined_on_noise(
@@ -657,3 +665,97 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     assert set(np.round(y[np.isfinite(y)] * 1.0, 6)) == {4.0, 7.0}
     circles = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
     assert len(circles[0].get_xdata()) == 2  # revolutions 1 and 2 (5 and 6 mm)
+
+
+def _slot_from_spindle_start(path: Path, break_at_s: float | None) -> Path:
+    """The example data's slot on the virtual quaser-ux600 (Ø20 mm 2-flute, 4 mm deep, 3000
+    rev/min, 1200 mm/min, 6 mm of air after the spindle's start; `millsense example-data`'s
+    program), 2.0 s, flute 0 broken at ``break_at_s`` (None: intact)."""
+    from millsense.cli.cmd_simulate import run_simulation
+    from millsense.cli.example_data import SLOT
+
+    prog = path.with_suffix(".nc")
+    prog.write_text(SLOT)
+    run_simulation(machine="quaser-ux600", program=prog, plan=None, tool=None, material=None,
+                   engagement="slot", depth_mm=4.0, out=path, air_mm=6.0, duration_s=2.0,
+                   seed=0, cnc="open", break_at_s=break_at_s, break_flute=0, realism=None,
+                   accelerometer=False, microphone=False, chunk=1000)  # fmt: skip
+    return path
+
+
+def test_plan_free_detectors_wait_for_the_cut_after_the_spindle_start(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1706: without a plan, a recording that starts with the spindle's run-up starts
+    in the air. Seed 002's dual detector learnt its thresholds there (0.23 N·m of the
+    observer's noise) and alarmed at the cut's entry (0.68 s, residual 4.4 N·m) of the intact
+    slot, and the constant detector, its reference learnt in the air, missed the break. Gated
+    on the torque's rise from the air and its steadiness (`TorqueCutGate`) they learn on the
+    cut (dual thresholds 0.32 N·m): no alarm on the intact slot; on the broken one each alarms
+    once after the break at 1.5 s (tooth periods of 10 ms at 3000 rev/min, 2 flutes): the dual
+    at 0.3, the constant at 3.3 periods (before: the dual at 0.68, 1.50 and 1.54 s, the
+    constant never)."""
+    machine = str(Path(__file__).resolve().parents[1]
+                  / "examples/walkthrough/quaser-ux600-commissioned.toml")  # fmt: skip
+    for brk in (None, 1.5):
+        rec = _slot_from_spindle_start(tmp_path / f"slot_{brk}.h5", brk)
+        out = tmp_path / f"ev_{brk}.parquet"
+        code, _stdout, err = run_cli(["monitor", str(rec), "--machine", machine, "--methods",
+                                      "breakage-dual,breakage-constant", "-o", str(out)],
+                                     capsys)  # fmt: skip
+        assert code == 0, err
+        ev = read_event_log(out)
+        if brk is None:
+            assert ev == []
+            continue
+        # the dual alarms at its first violating period, the constant one at its third (seed
+        # 000's confirmation): within 1 and 3 periods of the broken flute's first short period,
+        # which comes up to one period after the break
+        for src, periods in (("breakage-dual", 2), ("breakage-constant", 4)):
+            times = [e.time_s for e in ev if e.source == src]
+            assert len(times) == 1 and brk < times[0] <= brk + periods * 0.01, (src, times)
+        dual = next(e for e in ev if e.source == "breakage-dual")
+        assert dual.values["limit1_nm"] > 0.3  # learnt on the cut, not on the air (0.23)
+
+
+def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
+    """`TorqueCutGate` on synthetic revolution torques at 1000 rev/min (600 samples a
+    revolution, 0.02 N·m of noise): after a spindle start it opens on the second steady
+    revolution of a rise from 0.5 to 3 N·m (revolution 8 of the cut at 0.5 s; the first two
+    cut revolutions ramp up) and closes one revolution after the torque is back at the air's
+    level; a stream that starts at speed is the at-speed gate from its first sample (seed 002's
+    premise); the same in 10-sample and 7000-sample chunks."""
+    from millsense.online.gates import TorqueCutGate
+    from millsense.streaming.block import Chunk
+
+    fs, rev = 10000.0, 600
+    w = 2 * np.pi * fs / rev
+    n = 40 * rev
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(3)
+    cut = np.clip((t - 0.5) / (2 * rev / fs), 0.0, 1.0) * (t < 1.8)  # in the cut 0.5-1.8 s
+    tq = 0.5 + 2.5 * cut + 0.02 * rng.standard_normal(n)
+    speed = np.where(t < 0.1, w * t / 0.1, w)  # a run-up from rest
+    at_speed = (t >= 0.2).astype(float)
+
+    def gate(speed: np.ndarray, at_speed: np.ndarray, chunk: int) -> np.ndarray:
+        g = TorqueCutGate("tq", "w", "ok", out="g")
+        g.reset(fs)
+        data = {"tq": tq, "w": speed, "ok": at_speed}
+        return np.concatenate([g.process(Chunk(a, fs, 0.0, {k: v[a : a + chunk]
+                                                          for k, v in data.items()})).channels["g"]
+                               for a in range(0, n, chunk)])  # fmt: skip
+
+    for chunk in (10, 7000):
+        g = gate(speed, at_speed, chunk)
+        # revolutions of the integrated angle from the gate's opening at 0.2 s (rev 12 + 2/6
+        # samples in): the cut's ramp ends at 0.62 s; the first revolution at 3 N·m ending
+        # after it closes the onset, the next confirms it
+        opened = np.flatnonzero(np.diff(g) > 0)
+        closed = np.flatnonzero(np.diff(g) < 0)
+        assert opened.size == 1 and closed.size == 1
+        assert 0.62 < t[opened[0] + 1] < 0.62 + 3 * rev / fs
+        assert 1.8 < t[closed[0] + 1] <= 1.8 + 2 * rev / fs
+        assert not g[t < 0.5].any() and not g[t > 1.8 + 2 * rev / fs].any()
+        premise = gate(np.full(n, w), at_speed, chunk)  # the spindle at speed from the start
+        np.testing.assert_array_equal(premise, at_speed)

@@ -339,6 +339,17 @@ def _run(
                            above=(0.5, 0.0))  # fmt: skip
             pre.append(steady)
             channels[BREAKAGE_STEADY_GATE] = "1"
+    elif AT_SPEED in channels and {"breakage-dual", "breakage-constant"} & set(names):
+        # no plan: the dual and constant detectors learn and judge where the torque has risen
+        # from the air after the spindle's start and is steady (decision 1706); learnt on the
+        # air before the cut, seed 002's thresholds made the entry an alarm
+        from millsense.monitoring.registry import BREAKAGE_SIGNALS_SESSION
+        from millsense.online.gates import TorqueCutGate
+
+        torque = signal or next((c for c in BREAKAGE_SIGNALS_SESSION if c in channels), None)
+        if torque is not None and speed_channel is not None and speed_unit == "rad/s":
+            pre.append(TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE))
+            channels[BREAKAGE_STEADY_GATE] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config
