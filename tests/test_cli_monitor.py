@@ -759,3 +759,16 @@ def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
         assert not g[t < 0.5].any() and not g[t > 1.8 + 2 * rev / fs].any()
         premise = gate(np.full(n, w), at_speed, chunk)  # the spindle at speed from the start
         np.testing.assert_array_equal(premise, at_speed)
+
+
+def test_monitor_reports_its_progress(tmp_path: Path) -> None:
+    """`monitor` draws a progress bar from ``run_monitor``'s ``on_progress``: the fraction of
+    the recording monitored after each chunk, rising to 1 (2 s at 10 kHz in 1000-sample
+    chunks: 20 reports, 0.05 apart)."""
+    from millsense.cli.cmd_monitor import run_monitor
+
+    rec = _engagement_recording(tmp_path / "eng.h5")
+    seen: list[float] = []
+    run_monitor(recording=rec, out=tmp_path / "ev.parquet", methods="chatter-comb",
+                on_progress=seen.append)  # fmt: skip
+    np.testing.assert_allclose(seen, np.arange(1, 21) / 20, rtol=1e-12)

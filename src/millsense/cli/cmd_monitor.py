@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -84,12 +85,15 @@ def monitor(
          "the tool file": tool},
         {"-o": out, "--plot": plot}, {"-o": ".parquet"},
     )  # fmt: skip
-    summary = run_monitor(
-        recording=recording, out=out, plan=plan, machine=machine, methods=methods,
-        channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
-        tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s, position=position,
-        air_torque=air_torque,
-    )  # fmt: skip
+    from millsense.cli.progress import progress_bar
+
+    with progress_bar("monitoring", 1.0) as update:
+        summary = run_monitor(
+            recording=recording, out=out, plan=plan, machine=machine, methods=methods,
+            channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
+            tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s,
+            position=position, air_torque=air_torque, on_progress=update,
+        )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -141,11 +145,13 @@ def run_monitor(
     position: str | None = None,
     segment: tuple[int, int] | None = None,
     air_torque: float | None = None,
+    on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
 
     Returns a summary: ``events`` (list of Event), ``lines`` (printed summary), ``wall_s``.
-    ``segment``: samples ``[start, stop)`` only (``millsense batch``).
+    ``segment``: samples ``[start, stop)`` only (``millsense batch``). ``on_progress``: the
+    fraction of the recording monitored so far, after every chunk.
 
     Raises
     ------
@@ -171,7 +177,7 @@ def run_monitor(
         if hasattr(rec, "close"):
             stack.callback(rec.close)
         return _run(rec, recording, out, plan, machine, names, channel, flutes, spindle_rpm,
-                    plot, chunk, tool_cfg, options)  # fmt: skip
+                    plot, chunk, tool_cfg, options, on_progress)  # fmt: skip
 
 
 def _monitor_options(
@@ -225,6 +231,7 @@ def _run(
     chunk: int,
     tool_cfg: Any = None,
     options: dict[str, Any] | None = None,
+    on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     from millsense.core.errors import InputDataError
     from millsense.io.recording_reader import channel_window
@@ -415,7 +422,9 @@ def _run(
                 keep.setdefault(k, []).append(np.asarray(v)[first::step])
 
     t0 = time.perf_counter()
-    res = run(source, pipeline, chunk, sink=sink, collect=False)
+    total = max(rec.n_samples, 1)
+    res = run(source, pipeline, chunk, sink=sink, collect=False,
+              on_progress=(lambda k: on_progress(k / total)) if on_progress else None)  # fmt: skip
     wall = time.perf_counter() - t0
     write_event_log(out, res.events, recording=recording)
     seconds = rec.n_samples / fs
