@@ -721,22 +721,29 @@ def test_plan_free_detectors_wait_for_the_cut_after_the_spindle_start(
 def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
     """`TorqueCutGate` on synthetic revolution torques at 1000 rev/min (600 samples a
     revolution, 0.02 N·m of noise): after a spindle start it opens on the second steady
-    revolution of a rise from 0.5 to 3 N·m (revolution 8 of the cut at 0.5 s; the first two
-    cut revolutions ramp up) and closes one revolution after the torque is back at the air's
-    level; a stream that starts at speed is the at-speed gate from its first sample (seed 002's
-    premise); the same in 10-sample and 7000-sample chunks."""
+    revolution of a rise from 0.5 to 3 N·m (the first two cut revolutions ramp up) and closes
+    one revolution after the torque is back at the air's level; a stream that starts at speed
+    is the at-speed gate from its first sample (seed 002's premise) until the spindle stops
+    and starts again (a tool change at 2.2 s): then it waits for the cut again (at 2.8 s); a
+    speed change in the cut keeps it open. The same in 10-sample and 7000-sample chunks."""
     from millsense.online.gates import TorqueCutGate
     from millsense.streaming.block import Chunk
 
     fs, rev = 10000.0, 600
     w = 2 * np.pi * fs / rev
-    n = 40 * rev
+    n = 60 * rev
     t = np.arange(n) / fs
     rng = np.random.default_rng(3)
-    cut = np.clip((t - 0.5) / (2 * rev / fs), 0.0, 1.0) * (t < 1.8)  # in the cut 0.5-1.8 s
+
+    def ramp(t_on: float, t_off: float) -> np.ndarray:
+        return np.clip((t - t_on) / (2 * rev / fs), 0.0, 1.0) * (t < t_off)
+
+    cut = ramp(0.5, 1.8) + ramp(2.8, np.inf)  # in the cut 0.5-1.8 s and from 2.8 s on
     tq = 0.5 + 2.5 * cut + 0.02 * rng.standard_normal(n)
-    speed = np.where(t < 0.1, w * t / 0.1, w)  # a run-up from rest
-    at_speed = (t >= 0.2).astype(float)
+    stop = (t >= 2.2) & (t < 2.4)  # a tool change: the spindle stops and starts again
+    speed = np.where(t < 0.1, w * t / 0.1, w) * np.where(stop, 0.0, 1.0)
+    speed = np.where((t >= 3.1) & (t < 3.15), 0.8 * w, speed)  # a speed change in the cut
+    at_speed = ((t >= 0.2) & ~((t >= 2.2) & (t < 2.5)) & ~((t >= 3.1) & (t < 3.2))).astype(float)
 
     def gate(speed: np.ndarray, at_speed: np.ndarray, chunk: int) -> np.ndarray:
         g = TorqueCutGate("tq", "w", "ok", out="g")
@@ -746,19 +753,24 @@ def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
                                                           for k, v in data.items()})).channels["g"]
                                for a in range(0, n, chunk)])  # fmt: skip
 
+    r = rev / fs
     for chunk in (10, 7000):
         g = gate(speed, at_speed, chunk)
-        # revolutions of the integrated angle from the gate's opening at 0.2 s (rev 12 + 2/6
-        # samples in): the cut's ramp ends at 0.62 s; the first revolution at 3 N·m ending
-        # after it closes the onset, the next confirms it
-        opened = np.flatnonzero(np.diff(g) > 0)
-        closed = np.flatnonzero(np.diff(g) < 0)
-        assert opened.size == 1 and closed.size == 1
-        assert 0.62 < t[opened[0] + 1] < 0.62 + 3 * rev / fs
-        assert 1.8 < t[closed[0] + 1] <= 1.8 + 2 * rev / fs
-        assert not g[t < 0.5].any() and not g[t > 1.8 + 2 * rev / fs].any()
-        premise = gate(np.full(n, w), at_speed, chunk)  # the spindle at speed from the start
-        np.testing.assert_array_equal(premise, at_speed)
+        opened = t[np.flatnonzero(np.diff(g) > 0) + 1]
+        closed = t[np.flatnonzero(np.diff(g) < 0) + 1]
+        # the ramps end 0.12 s after the cut's start: the first revolution at 3 N·m after it
+        # is the onset's, the next confirms it (within 3 revolutions of the ramp's end); the
+        # speed change at 3.1-3.2 s closes the at-speed gate only
+        assert len(opened) == 3 and len(closed) == 2, (opened, closed)
+        assert 0.62 < opened[0] < 0.62 + 3 * r
+        assert 1.8 < closed[0] <= 1.8 + 2 * r
+        assert 2.92 < opened[1] < 2.92 + 3 * r
+        assert closed[1] == pytest.approx(3.1) and opened[2] == pytest.approx(3.2)
+        assert not g[(t < 0.6) | ((t > 1.8 + 2 * r) & (t < 2.9))].any()
+        # the spindle at speed from the stream's start: the at-speed gate until the stop
+        premise = gate(np.where(stop, 0.0, w), at_speed, chunk)
+        np.testing.assert_array_equal(premise[t < 2.2], at_speed[t < 2.2])
+        assert not premise[(t >= 2.2) & (t < 2.9)].any() and premise[t > 3.5].all()
 
 
 def test_monitor_reports_its_progress(tmp_path: Path) -> None:

@@ -240,26 +240,18 @@ def torque_cut_gate_kernel(
       gate (the cut is steady), one back at the air level returns to air;
     - open: a revolution back at the air level closes it (an exit, a retract).
     A sample off speed restarts the revolution, and in air the air's statistics (another speed
-    has another drag torque). The output is the at-speed flag where the gate is open or where
-    the stream started with the spindle at speed (no air seen: the first revolutions are the
-    cut's, seed 002's premise), else 0.
+    has another drag torque). A spindle that ran below half its new speed while off speed (a
+    stop, a tool change) has started again: in the air, whatever the gate was. The output is
+    the at-speed flag where the gate is open or where the stream started with the spindle at
+    speed (no air seen: the first revolutions are the cut's, seed 002's premise), else 0.
     """
     mode = int(state[0])
     for k in range(torque.shape[0]):
         w = abs(speed[k])
         on = at_speed[k] > 0.5
-        if mode == CUT_UNDECIDED:
-            if not on:
-                state[8] = min(state[8], w)
-                out[k] = 0.0
-                continue
-            # the first sample at speed: a spindle that was below half this speed before it
-            # started in the stream, in the air; otherwise the stream began in the cut's speed
-            mode = CUT_AIR if state[8] < 0.5 * w else CUT_PREMISE
-        if mode == CUT_PREMISE:
-            out[k] = 1.0 if on else 0.0
-            continue
         if not on:
+            # the lowest speed since the spindle was last at speed
+            state[8] = min(state[8], w)
             state[1] = 0.0
             state[2] = 0.0
             state[3] = 0.0
@@ -268,6 +260,21 @@ def torque_cut_gate_kernel(
                 state[5] = 0.0
                 state[6] = 0.0
             out[k] = 0.0
+            continue
+        if state[8] < math.inf:
+            # back at speed: after a start (below half this speed before) the tool is in the
+            # air; a speed change keeps the gate's state; the stream's first samples at speed
+            # without a start before them keep seed 002's premise
+            if state[8] < 0.5 * w:
+                mode = CUT_AIR
+                state[4] = 0.0
+                state[5] = 0.0
+                state[6] = 0.0
+            elif mode == CUT_UNDECIDED:
+                mode = CUT_PREMISE
+            state[8] = math.inf
+        if mode == CUT_PREMISE or mode == CUT_UNDECIDED:
+            out[k] = 1.0
             continue
         out[k] = 1.0 if mode == CUT_OPEN else 0.0
         state[1] += w
