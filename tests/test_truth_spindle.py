@@ -148,15 +148,22 @@ def test_current_loop_closed_form_matches_the_kernel() -> None:
 
 
 def test_sine_and_multisine_frfs_agree() -> None:
-    # two measurements of the truth's G_dτ: a steady sine at 10 kHz and the held multisine at
-    # the velocity-loop rate (what the observer sees) agree below 1 kHz, where the hold matters
-    # little (sinc(f/fv) within 0.2 dB... and its phase is not compared)
+    # two measurements of the truth's G_dτ with a torque that changes every 10 kHz sample, as
+    # a cut's does: a steady sine read on the 10 kHz I_nom channel, and the multisine read at
+    # the velocity-loop instants (what the observer sees). The channel holds each I_nom over two
+    # samples, which multiplies a line by (1 + e^{−iωT})/2 and nothing else, so the two agree in
+    # gain and phase up to the velocity loop's Nyquist frequency (0.1 dB, 1°: the sine fit's
+    # finite settling). A torque held over the velocity period (decision 1696: the observer's
+    # old identification and this FRF's old hold) is 5.3 dB higher at 1.94 kHz, 2.4 dB at
+    # 2.32 kHz: the response that passed a cut's chatter at 0.43 of its size.
     truth = load_truth_spindle("quaser-ux600")
     f, g = sampled_disturbance_frf(truth, period_s=0.2, n_periods=2)
-    for fk in (105.0, 455.0, 945.0):
+    for fk in (105.0, 455.0, 945.0, 1945.0, 2320.0):
         k = int(np.argmin(np.abs(f - fk)))
         s = sine_response(truth.linear(), float(f[k]), settle_s=0.3)
-        assert 20 * math.log10(abs(g[k])) == pytest.approx(20 * math.log10(abs(s)), abs=0.6)
+        hold = (1 + np.exp(-2j * math.pi * f[k] / FS)) / 2
+        assert 20 * math.log10(abs(g[k] * hold / s)) == pytest.approx(0.0, abs=0.1), fk
+        assert math.degrees(np.angle(g[k] * hold / s)) == pytest.approx(0.0, abs=1.0), fk
 
 
 def test_commission_identify_observer_round_trip_on_the_truth() -> None:
