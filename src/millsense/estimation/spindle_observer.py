@@ -70,6 +70,9 @@ class SpindleIdentification:
     model : discrete model at the velocity-loop period.
     r : per-sample variance of I_nom in air, A².
     speed_rpm : spindle speed of the test, rev/min.
+    torque_lag_s : δ, s: ``fit`` and ``model`` give I_nom at t from the torque at t − δ
+        (``frf`` is referred to the torque at t), so the observer's estimate at t is the torque
+        at t − δ (:func:`~millsense.bench.spindle_commissioning.torque_lag_s`).
     """
 
     frf: FrfEstimate
@@ -77,6 +80,7 @@ class SpindleIdentification:
     model: StateSpaceModel
     r: float
     speed_rpm: float
+    torque_lag_s: float = 0.0
 
 
 def design_observer(
