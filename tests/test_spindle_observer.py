@@ -32,9 +32,12 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def ident_r1() -> object:
+    # simulated at the velocity-loop rate, where the torque is necessarily held over the
+    # velocity period: the loop is then exactly LTI, and discrete_disturbance_frf (the ZOH
+    # algebra) is its exact FRF to compare the identified model with
     p = SpindleDriveParams.aslan_quaser()
     return identify_spindle(p, velocity_period_s=p.velocity_period_s, current_noise_a=0.0,
-                            n_periods=5)  # fmt: skip
+                            n_periods=5, sample_rate_hz=1.0 / p.velocity_period_s)  # fmt: skip
 
 
 def test_rational_fit_keeps_real_poles() -> None:

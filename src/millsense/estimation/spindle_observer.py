@@ -2,10 +2,13 @@
 
 Identification (C10, :func:`identify_spindle`): a multisine disturbance torque at the tool (the
 thesis' tangential tap test at standstill; range 2 at 4000 rev/min) is applied to the spindle
-simulator and the CNC's velocity-loop output I_nom is recorded at the velocity-loop rate
-(0.2 ms, Aslan P7: I_nom is produced there, so 2500 Hz is its Nyquist frequency). The FRF
-``G_dτ = I_nom/τ_d`` (Eq. 5.12) is estimated by :func:`millsense.ident.frf.multisine_frf` and
-fitted on the bilinear-warped axis with real and complex poles
+simulator, changing every CNC sample as a tap's or a cut's torque does (not held over the
+velocity period: decision 1696), and the CNC's velocity-loop output I_nom is recorded at the
+velocity-loop rate (0.2 ms, Aslan P7: I_nom is produced there, so 2500 Hz is its Nyquist
+frequency). The FRF ``G_dτ = I_nom/τ_d`` (Eq. 5.12) is estimated by
+:func:`millsense.ident.frf.multisine_frf`, referred to the torque δ from the instant so that it
+is real at the top line (as a real discrete model is at Nyquist), and fitted on the
+bilinear-warped axis with real and complex poles
 (:func:`millsense.estimation.kalman.rational_fit.fit_rational`; Tustin back to the discrete loop is
 exact). Ten starting pairs give a 20-state model, 21 states with the torque: the size of the
 thesis' observer (Table 5.2).
@@ -70,6 +73,9 @@ class SpindleIdentification:
     model : discrete model at the velocity-loop period.
     r : per-sample variance of I_nom in air, A².
     speed_rpm : spindle speed of the test, rev/min.
+    torque_lag_s : δ, s: ``fit`` and ``model`` give I_nom at t from the torque at t − δ
+        (``frf`` is referred to the torque at t), so the observer's estimate at t is the torque
+        at t − δ (:func:`~millsense.bench.spindle_commissioning.torque_lag_s`).
     """
 
     frf: FrfEstimate
@@ -77,6 +83,7 @@ class SpindleIdentification:
     model: StateSpaceModel
     r: float
     speed_rpm: float
+    torque_lag_s: float = 0.0
 
 
 def design_observer(
