@@ -71,7 +71,7 @@ def test_a_quantisation_line_dithered_in_at_an_entry_is_no_chatter(
     x, spd = _torque()
     assert _alarms(x, spd) == []
     # the test can fail: without the power test the dithered line is chatter (ratio ≈ 1.8)
-    monkeypatch.setattr(methods, "adds_power", lambda excess, amplitude: True)
+    monkeypatch.setattr(methods, "adds_power", lambda excess, amplitude, noise=0.0: True)
     ev = _alarms(x, spd)
     assert len(ev) == 1
     assert ev[0].value == pytest.approx(DITHERED[0], abs=2.0)

@@ -141,11 +141,15 @@ def compensated(tool: str, depth_mm: float) -> np.ndarray:
 def detect(
     x: np.ndarray, speed_rad_s: np.ndarray, flutes: int, method: str = "chatter-comb"
 ) -> tuple[list[Any], np.ndarray]:
-    """Chatter events and the per-sample energy ratio of ``method`` on ``x``."""
+    """Chatter events and the per-sample energy ratio of ``method`` on ``x`` (the spindle
+    encoder's counts per revolution from the nameplate machine file, decision 1697)."""
     from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
     from millsense.streaming.block import Chunk
+    from millsense.validation.cases.estimation_spindle import nameplate_spindle
 
-    b = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=flutes))
+    counts = nameplate_spindle().encoder_counts_rev
+    b = ChatterMonitor(ChatterSettings(method=method, signal="s", n_flutes=flutes,
+                                       encoder_counts_rev=counts))  # fmt: skip
     b.reset(FS_HZ)
     events: list[Any] = []
     ratio = []
