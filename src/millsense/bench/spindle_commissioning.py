@@ -11,6 +11,7 @@ from millsense.estimation.kalman.rational_fit import fit_rational
 from millsense.estimation.spindle_observer import (
     SpindleIdentification,
     SpindleTorqueObserver,
+    torque_lag_s,
 )
 from millsense.ident.frf import multisine_frf, multisine_signal
 from millsense.ident.friction import fit_line
@@ -85,23 +86,6 @@ def identify_spindle(
     )
     return SpindleIdentification(est, fit, fit.discrete_model(1.0 / fv), max(r, 1e-12), speed_rpm,
                                  lag)  # fmt: skip
-
-
-def torque_lag_s(freq_hz: np.ndarray, h: np.ndarray, n_top: int = 5) -> float:
-    """The lag δ, |δ| ≤ 1/(4 f_top), of the torque the model refers I_nom to, s: the FRF
-    ``h·e^{iωδ}`` (I_nom at t over the torque at t − δ) is real at the top line ``f_top``.
-
-    A real model at the velocity-loop rate is real at its Nyquist frequency. The loop's
-    response to a torque that changes every CNC sample, referred to the torque at the
-    velocity-loop instants, is not (on the truth spindle: 75° at 2.5 kHz), and a 20-state
-    rational fit misses it by up to 8.5 dB above 1.5 kHz; referred to the torque 83 µs after
-    the instant (δ < 0) it fits within 0.8 dB (decision 1696). Only the phase of the model
-    changes, not the gain the observer inverts. The phase at ``f_top`` is that of the sum of
-    the top ``n_top`` lines (noise); a torque held over the velocity period gives δ ≈ 0.
-    """
-    top = h[-n_top:].sum()
-    w_top = 2 * math.pi * float(freq_hz[-1])
-    return float((np.mod(-np.angle(top) + math.pi / 2, math.pi) - math.pi / 2) / w_top)
 
 
 def identify_spindle_friction(
