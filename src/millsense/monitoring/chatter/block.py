@@ -203,7 +203,9 @@ class ChatterSettings:
         file's ``[spindle] encoder_counts_rev``), or None (not known). With it, a window whose
         count rate changed between its last two hops by more than the spindle frequency is no
         window a line of the drive's encoder quantisation can stand in, and a new
-        ``chatter-comb`` line there skips decision 1687's power test (decision 1697).
+        ``chatter-comb`` line there skips decision 1687's power test, and elsewhere it must
+        pass the test's midpoint by the band's learned spread (decision 1697). None keeps
+        decision 1687's test at its midpoint in every window.
     """
 
     method: str = "chatter-comb"
@@ -354,8 +356,11 @@ class ChatterMonitor(Block):
         # the band's power learned as the background (Σ comb² off the harmonics; decision 1687)
         self._band_power = 0.0
         self._window_power = 0.0  # the last full window's (decision 1687)
-        # the mean square of the band's power less the learned power (decision 1697)
+        # the mean square of the band's power less the learned power (decision 1697) and
+        # whether the test reads it: only where the encoder's resolution tells the windows a
+        # quantisation line can stand in from those it cannot
         self._band_var = 0.0
+        self._knows_counts = s.encoder_counts_rev is not None
         self._tests_power = self.method.name == "chatter-comb"  # the criterion that reads it
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
@@ -536,7 +541,7 @@ class ChatterMonitor(Block):
             # nothing is new and the count rate held (the null hypothesis's spread, decision
             # 1697)
             excess = power - self._band_power
-            noise = math.sqrt(self._band_var)
+            noise = math.sqrt(self._band_var) if self._knows_counts else 0.0
             self._window_power = power
             self._band_power = power if first else self._band_power + rates[0] * excess
             if not (first or sweeps or (b0 <= k < b1 and novel[k] > 0.0)):
@@ -902,7 +907,8 @@ class ChatterMonitor(Block):
         )
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
-                       band_excess=excess, band_noise=math.sqrt(self._band_var * n / m),
+                       band_excess=excess,
+                       band_noise=math.sqrt(self._band_var * n / m) if self._knows_counts else 0.0,
                        sweeps=self._count_rate_sweeps(),
                        held=bool(self._flag))  # fmt: skip
 
