@@ -29,7 +29,11 @@ when the cut sags the speed by 1e-5, so a per-bin background cannot know them; t
 own upper tail can. During the run's first settling a window in the cut is judged without
 the background when its line carries chatter's signature (companions at ω_c ± l·N·Ω, Aslan
 Eq. 5.25, not decaying over two windows), and such a window is not learned: chatter present
-from the run's start is no longer learned away (decision 1680).
+from the run's start is no longer learned away (decision 1680). At an onset the line must also
+be power added to its band (decision 1687); with the spindle encoder's counts per revolution
+(``ChatterSettings.encoder_counts_rev``) that test is skipped where the count rate swept
+between the window's last two hops and made beyond the band's learned spread elsewhere
+(decision 1697).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state

@@ -56,7 +56,12 @@ moved within it (decision 1687, :func:`adds_power`): the band's ``Σ comb²`` of
 must exceed the sum learned at the background's plain rate by half the line's ``A²``. A
 compensated torque's encoder-quantisation lines (the drive's velocity PI on a quantised speed)
 appear at a cut entry by the cut's dither moving their power from one line to another; a line
-found to be moved power is learned at once (its lobe and the band's sum).
+found to be moved power is learned at once (its lobe and the band's sum). With the drive
+encoder's resolution known (decision 1697) the test is not made where the count rate moved by
+more than the spindle frequency between the window's last two hops (no quantisation line
+stands there, and the swept quantisation's power leaves the band), and elsewhere the midpoint
+must be passed, either way, by the band's learned spread times the normal quantile of
+:data:`LINE_FALSE_ALARM`; a line between is neither chatter nor learned.
 """
 
 from __future__ import annotations
