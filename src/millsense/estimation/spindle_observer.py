@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numba
@@ -517,24 +518,67 @@ def disturbance_model_per_sample(
 
     On the nameplate quaser-ux600 drive δ = −T_s/2 = −50 µs, and the fit is within 0.6 dB
     and 3.5° of the exact FRF over the lines (range 2: 0.58 dB); the held-torque model is
-    1.7 dB above it at 1.94 kHz and 2.4 dB at 2.28 kHz (decision 1699)."""
-    from millsense.estimation.kalman.rational_fit import fit_rational
-
+    1.7 dB above it at 1.94 kHz and 2.4 dB at 2.28 kHz (decision 1699). The model is also
+    kept on disk (:mod:`millsense.core.disk_cache`, decision 2006): the next process, a batch
+    worker, reads it without the fit or its imports."""
     a_c, b_c, a, c, _, tv = _velocity_loop(params, range_index, residual_feedthrough)
     key = (a_c.tobytes(), b_c.tobytes(), a.tobytes(), c.tobytes(), a_c.shape, float(tv),
            float(sample_rate_hz))  # fmt: skip
     hit = _PER_SAMPLE.get(key)
     if hit is not None:
         return hit
-    fv = 1.0 / tv
-    f = np.arange(2.0, 0.4996 * fv, 2.0)
-    h = per_sample_disturbance_frf(params, range_index, f, sample_rate_hz, residual_feedthrough)
-    lag = torque_lag_s(f, h)
-    fit = fit_rational(f, h * np.exp(2j * np.pi * f * lag), n_pairs=math.ceil(a.shape[0] / 2),
-                       warped_fs_hz=fv)  # fmt: skip
-    out = (fit.discrete_model(tv), lag)
+    disk_key = disk_cache.key_digest(
+        *key, disk_cache.code_digest(__name__), _source_digest(_RATIONAL_FIT)
+    )
+    out = _stored_model(disk_cache.load(_PER_SAMPLE_NAMESPACE, disk_key))
+    if out is None:
+        from importlib import import_module
+
+        fit_rational = import_module(_RATIONAL_FIT).fit_rational
+        fv = 1.0 / tv
+        f = np.arange(2.0, 0.4996 * fv, 2.0)
+        h = per_sample_disturbance_frf(params, range_index, f, sample_rate_hz,
+                                       residual_feedthrough)  # fmt: skip
+        lag = torque_lag_s(f, h)
+        fit = fit_rational(f, h * np.exp(2j * np.pi * f * lag),
+                           n_pairs=math.ceil(a.shape[0] / 2), warped_fs_hz=fv)  # fmt: skip
+        model = fit.discrete_model(tv)
+        out = (model, lag)
+        disk_cache.store(_PER_SAMPLE_NAMESPACE, disk_key,
+                         {"a": model.a.tolist(), "b": model.b.tolist(), "c": model.c.tolist(),
+                          "d": model.d.tolist(), "dt": float(tv), "lag": lag})  # fmt: skip
     _PER_SAMPLE[key] = out
     return out
+
+
+def _stored_model(stored: dict[str, object] | None) -> tuple[StateSpaceModel, float] | None:
+    """A model and lag as :func:`disturbance_model_per_sample` stores them, or None (missing
+    or unreadable: the fit then runs)."""
+    if stored is None:
+        return None
+    try:
+        a, b, c, d = (np.asarray(stored[k], dtype=np.float64) for k in ("a", "b", "c", "d"))
+        dt, lag = (float(stored[k]) for k in ("dt", "lag"))  # type: ignore[arg-type]
+        return StateSpaceModel(a, b, c, d, dt), lag
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _source_digest(module: str) -> str:
+    """Digest of a module's source file found without importing it (its package's import
+    only): a cached result of its code is keyed on it without paying its imports."""
+    from importlib.util import find_spec
+
+    spec = find_spec(module)
+    origin = spec.origin if spec is not None else None
+    return disk_cache.key_digest(Path(origin).read_bytes() if origin else b"?")
+
+
+#: The rational fit's module: imported only when :func:`disturbance_model_per_sample` fits
+#: (scipy.signal, ≈ 0.8 s), not when its result is on disk (decision 2006).
+_RATIONAL_FIT = "millsense.estimation.kalman.rational_fit"
+#: The disk cache's folder for :func:`disturbance_model_per_sample`'s models.
+_PER_SAMPLE_NAMESPACE = "spindle-per-sample"
 
 
 #: :func:`disturbance_model_per_sample`'s results in this process, by their arguments.
