@@ -178,3 +178,54 @@ def test_power_test_margin_on_the_seed_5_line() -> None:
     assert methods.moves_power(-0.254, 0.512, 0.101)
     assert methods.adds_power(None, a, 0.101)  # the run's start: no learned sum
     assert not methods.moves_power(None, a, 0.101)
+
+
+def test_the_session_and_monitor_give_the_chatter_monitor_the_spindle_encoder(
+    tmp_path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Decision 1697's rule needs the spindle encoder's counts per revolution: the on-line
+    session's chatter monitor gets them from the machine file (the commissioned quaser-ux600:
+    2^20), and so does `millsense monitor --machine` for a signal that carries the drive's
+    quantisation lines (the observer's torque, the drive's current), not for a microphone."""
+    from pathlib import Path
+
+    from millsense.cli.cmd_monitor import run_monitor
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.monitoring.registry import MONITORS, MonitorContext
+    from millsense.online.session import SessionOptions, session_blocks
+    from millsense.validation.cases.control_adaptive import step_plan
+
+    machine = Path(__file__).resolve().parents[1] / (
+        "examples/walkthrough/quaser-ux600-commissioned.toml"
+    )
+    cfg = load_preset(MachineConfig, str(machine))
+    assert cfg.spindle is not None and cfg.spindle.encoder_counts_rev == 2**20
+    built = session_blocks(step_plan(2.0, 3.0), cfg, 10000.0, SessionOptions())
+    monitors = [c.monitor for b in built.blocks for c in getattr(b, "children", ())
+                if hasattr(c, "monitor")]  # fmt: skip
+    assert [m.settings.encoder_counts_rev for m in monitors] == [2**20]
+    for signal, counts in (("est/spindle/spindle/load", 2**20), ("mic/pressure", None)):
+        ctx = MonitorContext(channels={signal: "1", "spindle/speed": "rad/s"},
+                             sample_rate_hz=10000.0, signal=signal, speed_channel="spindle/speed",
+                             options={"chatter.encoder_counts_rev": 2**20})  # fmt: skip
+        assert MONITORS["chatter-comb"](ctx).settings.encoder_counts_rev == counts
+    seen: list[object] = []
+    real = ChatterMonitor.__init__
+
+    def spy(self: ChatterMonitor, settings: ChatterSettings, *a: object, **k: object) -> None:
+        seen.append(settings.encoder_counts_rev)
+        real(self, settings, *a, **k)
+
+    monkeypatch.setattr(ChatterMonitor, "__init__", spy)
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+
+    n = 20000
+    rec = Recording(10000.0, 0.0, {"flutes": 2})
+    rec.add_channel("spindle/speed", np.full(n, 600.0), "rad/s")
+    rec.add_channel("spindle/current_cmd", np.zeros(n), "A")
+    write_recording(tmp_path / "r.h5", rec)
+    run_monitor(recording=tmp_path / "r.h5", out=tmp_path / "e.parquet", machine=str(machine),
+                methods="chatter-comb", channel="spindle/current_cmd")  # fmt: skip
+    assert seen == [2**20]

@@ -307,6 +307,16 @@ def _run(
         observer_machine: tuple[Any, str] | None = (mcfg, machine)
     else:
         observer_machine = _session_machine(rec) if OBSERVER_CHANNEL in channels else None
+    spindle_file = observer_machine[0] if observer_machine is not None else None
+    if spindle_file is None and machine is not None:
+        from millsense.core.config import MachineConfig
+        from millsense.core.presets import load_preset
+
+        spindle_file = load_preset(MachineConfig, machine)
+    counts = getattr(getattr(spindle_file, "spindle", None), "encoder_counts_rev", None)
+    if counts is not None:
+        # where the spindle drive's quantisation lines can stand (decision 1697)
+        options = {**(options or {}), "chatter.encoder_counts_rev": int(counts)}
     if "engagement" in names and observer_machine is not None:
         # the observer's estimate seen through its machine file's response (decision 1554)
         options = {**(options or {}),
