@@ -114,6 +114,17 @@ def test_presets_listed_and_unknown_named() -> None:
         load_preset(MachineConfig, "nosuch")
 
 
+def test_tool_and_material_presets_found_whatever_their_case() -> None:
+    """A material named as the demo part's stock file spells it (Al7050) is the preset
+    al7050, and a tool preset likewise; a machine's name stays exact (it also names the
+    commissioned file)."""
+    assert load_preset(MaterialConfig, "Al7050") == load_preset(MaterialConfig, "al7050")
+    tool = load_preset(ToolConfig, "aslan-d20-2flute")
+    assert load_preset(ToolConfig, "ASLAN-D20-2FLUTE") == tool
+    with pytest.raises(ConfigError, match=r"no machine preset 'Quaser-UX600'"):
+        load_preset(MachineConfig, "Quaser-UX600")
+
+
 def test_process_objects_from_config() -> None:
     from millsense.process.coefficients import CuttingCoefficients
     from millsense.process.geometry import EndMill

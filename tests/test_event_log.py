@@ -84,3 +84,21 @@ def test_the_log_names_its_recording(tmp_path):
     assert event_log_recording(p) == "run7.h5"
     assert event_log_recording(write_event_log(tmp_path / "y.parquet", _events())) is None
     assert len(read_event_log(p)) == 3
+
+
+def test_pandas_reads_nc_line_as_a_nullable_integer(tmp_path):
+    """pandas' metadata in the file names ``nc_line`` a nullable ``Int64`` column, so that
+    ``pd.read_parquet`` gives line 17 and <NA>, not 17.0 and NaN (its default for an integer
+    column with nulls). pandas is not a dependency: the key is checked here as pyarrow's
+    ``to_pandas`` reads it (its ``columns[].numpy_type``, an extension dtype name), and was
+    checked with pandas 3.1.1 / pyarrow 26 by hand (dtypes Int64, the index a RangeIndex)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    p = write_event_log(tmp_path / "e.parquet", _events())
+    meta = json.loads(pq.read_schema(p).metadata[b"pandas"])
+    assert meta["index_columns"] == []
+    (col,) = meta["columns"]
+    assert (col["name"], col["field_name"], col["numpy_type"]) == ("nc_line", "nc_line", "Int64")
+    assert str(pq.read_schema(p).field("nc_line").type) == "int64"

@@ -732,6 +732,35 @@ def test_tncscope_like_export_units_in_names_and_sample_time(tmp_path: Path) -> 
     assert rec.channel("cnc/feed")[0] == pytest.approx(0.01, rel=1e-12)  # 600 mm/min
 
 
+def test_temperatures_in_celsius_and_fahrenheit_become_kelvin(tmp_path: Path) -> None:
+    """A trace's motor temperatures in °C (unit row) and °F (map): kelvin inside, by the
+    affine conversions (0 °C = 273.15 K; 212 °F = 373.15 K, the boiling point both ways), and
+    exported as K they import back unchanged; a temperature channel given in amperes is
+    refused, naming the channel."""
+    rows = "\n".join(f"{k * 0.001:.3f};{20.0 + k};{32.0 + 180.0 * k}" for k in range(3))
+    (tmp_path / "t.csv").write_text("t;T_x [°C];T_s\n" + rows + "\n", encoding="utf-8")
+    (tmp_path / "m.toml").write_text(
+        '[[channels]]\ncolumn = "T_x"\nchannel = "x/temperature"\nunit = "header"\n\n'
+        '[[channels]]\ncolumn = "T_s"\nchannel = "spindle/temperature"\nunit = "°F"\n',
+        encoding="utf-8",
+    )
+    rec = import_files([tmp_path / "t.csv"], load_map(tmp_path / "m.toml")).recording
+    assert rec.info("x/temperature").unit == "K"
+    np.testing.assert_allclose(rec.channel("x/temperature"), [293.15, 294.15, 295.15], rtol=1e-15)
+    np.testing.assert_allclose(rec.channel("spindle/temperature"), [273.15, 373.15, 473.15],
+                               rtol=1e-14)  # fmt: skip
+    chans = ["x/temperature", "spindle/temperature"]
+    (tmp_path / "back.toml").write_text(export_recording(rec, tmp_path / "back.csv", "csv", chans))
+    back = import_files([tmp_path / "back.csv"], load_map(tmp_path / "back.toml")).recording
+    np.testing.assert_array_equal(back.channel("spindle/temperature"),
+                                  rec.channel("spindle/temperature"))  # fmt: skip
+    (tmp_path / "bad.toml").write_text(
+        '[[channels]]\ncolumn = "T_s"\nchannel = "spindle/temperature"\nunit = "A"\n'
+    )
+    with pytest.raises(Exception, match=r"spindle/temperature.*K"):
+        load_map(tmp_path / "bad.toml")
+
+
 @pytest.mark.parametrize(
     ("fmt", "rate_hz", "message"),
     [

@@ -1,11 +1,14 @@
-"""The T4 replica of seed 000 V5 (validation ``monitoring.chatter.v5_t4_compensated_hz`` is a
-documented gap, decision 1506): pin why the compensated detector misses it.
+"""The T4 replica of seed 000 V5 (validation ``monitoring.chatter.v5_t4_compensated_hz``):
+pin what the compensated detector sees.
 
 T4: Ø10 mm 2-flute, 10 000 rev/min, 2 mm slot, Al7050, modal tables of Aslan Tables 5.3-5.4.
-The tool vibrates at the simulated chatter frequency ω_c (≈ 1955 Hz), but the cutting torque's
+The tool vibrates at the simulated chatter frequency ω_c (≈ 1943 Hz), but the cutting torque's
 strongest chatter line is the sideband ω_c + N·Ω (N·Ω = 333.3 Hz, Aslan Eq. 5.25) and it is
-only about 1.6 × the tooth-passing line: with the observer's noise the compensated ratio stays
-below the seed's 1.5.
+only about 1.8-2 × the tooth-passing line. Until decision 1696 the observer, identified on a
+torque held over the velocity period, passed that band at 0.43-0.45 of its amplitude and the
+compensated ratio stayed below the seed's 1.5 (a known gap, decision 1688); identified on a
+torque that changes every CNC sample it passes 0.51-0.66, and the case passes (decisions 1696,
+1697).
 """
 
 from __future__ import annotations

@@ -432,7 +432,13 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     assert abs(rbrk[0] - brk[0]) <= 3 * 0.03
     # `millsense monitor` on the run's recording: the virtual threshold reads the session's
     # air-subtracted torque against its calibrated, judged expectation (plan/judged_torque) and
-    # finds the break where the run did, to the sample; the dual residuals (seed 002) also alarm
+    # finds the break where the run did, within one of its phases (a third of the 0.03 s tooth
+    # period): its gate is monitor/breakage_gate (at speed and in the cut), the session's
+    # spindle/at_speed, so its tooth averages and expectation differ a little (3.180 against
+    # 3.196 N·m at the break) and with the machine-file observer of decision 1699 its phase 0
+    # confirms first (5.0612 s) where the session's phase 1/3 did (5.0511 s); with the
+    # held-torque observer before, the same phase, to the sample. The dual residuals (seed
+    # 002) also alarm
     code, _out, err = run_cli(
         ["monitor", str(tmp_path / "run.h5"), "--methods", "breakage-virtual,breakage-dual",
          "-o", str(tmp_path / "monitor.parquet")],
@@ -442,7 +448,7 @@ def test_run_and_replay_on_a_short_slot(tmp_path: Path, capsys: pytest.CaptureFi
     mev = read_event_log(tmp_path / "monitor.parquet")
     virtual = [e.time_s for e in mev if e.source == "breakage-virtual"]
     dual = [e.time_s for e in mev if e.source == "breakage-dual"]
-    assert virtual[:1] == brk
+    assert len(virtual) >= 1 and abs(virtual[0] - brk[0]) <= 0.03 / 3 + 1e-3
     assert dual and 5.0 < dual[0] < 5.0 + 10 * 0.03
 
 

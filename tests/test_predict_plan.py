@@ -191,6 +191,55 @@ def test_look_ahead_flags() -> None:
     assert plan.look_ahead(int(earlier), 0.5, 2.0).flag == 1
 
 
+def _look_ahead_by_masks(
+    t: np.ndarray,
+    cut_col: np.ndarray,
+    area_col: np.ndarray,
+    chip_col: np.ndarray,
+    row: int,
+    span_s: float,
+    rise: float,
+) -> tuple[int, bool, bool, bool, int, int]:
+    """Decision 0063's verdict written with whole-window masks (the form the compiled
+    one-pass kernel replaced), as an independent computation."""
+    n = t.size
+    end = max(min(int(np.searchsorted(t, t[row] + span_s, side="right")), n), row + 1)
+    sl = slice(row + 1, end)
+    cut, area, cl = cut_col[sl].astype(bool), area_col[sl], chip_col[sl]
+    now = bool(cut_col[row])
+    a0, c0 = float(area_col[row]), float(chip_col[row])
+    rising_m = cut & ((area >= (1 + rise) * a0) | (cl >= (1 + rise) * c0)) if now else cut
+    leaving_m = np.zeros(cut.size, bool)
+    cavity_m = np.zeros(cut.size, bool)
+    if now and cut.size:
+        later = np.flip(np.maximum.accumulate(np.flip(cut)))
+        leaving_m = ~later
+        cavity_m = ((~cut) | (area <= (1 - rise) * a0)) & later
+    rising, leaving, cavity = bool(rising_m.any()), bool(leaving_m.any()), bool(cavity_m.any())
+    flag = 2 if (leaving or cavity) else (1 if rising else 0)
+    mask = (leaving_m | cavity_m) if flag == 2 else rising_m
+    return flag, rising, leaving, cavity, int(row + 1 + np.argmax(mask)) if flag else -1, end
+
+
+def test_look_ahead_kernel_equals_the_mask_form_on_random_paths() -> None:
+    """The one-pass kernel (``_plan_kernels.look_ahead_flags``) gives the mask form's verdict,
+    event row and horizon on 3000 random windows: cuts with gaps, area and chip-load jumps
+    around the ±15 % bounds, rows at the path's end, overrides."""
+    from millsense.plan import _plan_kernels as k
+
+    rng = np.random.default_rng(7)
+    for trial in range(3000):
+        n = int(rng.integers(1, 60))
+        t = np.cumsum(rng.uniform(0.0, 0.05, n))
+        cut = (rng.random(n) < rng.uniform(0.2, 1.0)).astype(float)
+        area = np.round(rng.uniform(0.5, 1.5, n) * 20.0, 1) * cut
+        chip = np.round(rng.uniform(0.7, 1.3, n) * 0.1, 3) * cut
+        row = int(rng.integers(0, n))
+        span, rise = float(rng.uniform(0.0, 1.0)), float(rng.choice([0.0, 0.15]))
+        got = k.look_ahead_flags(t, cut, area, chip, row, span, rise)
+        assert tuple(got) == _look_ahead_by_masks(t, cut, area, chip, row, span, rise), trial
+
+
 def test_engagement_faces_the_next_motion_at_a_reversal() -> None:
     # A slot runs into the block to X30 and comes back along itself. Leaving X30 the tool
     # moves back through cut material: the step at the vertex meets nothing

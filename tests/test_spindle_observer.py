@@ -32,9 +32,12 @@ FS = 10_000.0
 
 @pytest.fixture(scope="module")
 def ident_r1() -> object:
+    # simulated at the velocity-loop rate, where the torque is necessarily held over the
+    # velocity period: the loop is then exactly LTI, and discrete_disturbance_frf (the ZOH
+    # algebra) is its exact FRF to compare the identified model with
     p = SpindleDriveParams.aslan_quaser()
     return identify_spindle(p, velocity_period_s=p.velocity_period_s, current_noise_a=0.0,
-                            n_periods=5)  # fmt: skip
+                            n_periods=5, sample_rate_hz=1.0 / p.velocity_period_s)  # fmt: skip
 
 
 def test_rational_fit_keeps_real_poles() -> None:
@@ -143,3 +146,58 @@ def test_quick_estimation_cases_pass() -> None:
     for c in cases:
         r = run_case(c)
         assert r.passed, (c.id, r.measured, r.reference, r.error)
+
+
+def test_per_sample_frf_is_the_held_models_at_the_velocity_loop_rate() -> None:
+    # decision 1699: with one CNC sample per velocity period the torque is held over it, and
+    # the per-sample FRF is the ZOH model's (the same matrices, 1e-9)
+    from millsense.estimation.spindle_observer import disturbance_model, per_sample_disturbance_frf
+
+    p = SpindleDriveParams.aslan_quaser()
+    f = np.arange(3.0, 2499.0, 11.0)
+    for r in (0, 1):
+        held = disturbance_model(p, r).frf(f)[:, 0, 0]
+        per = per_sample_disturbance_frf(p, r, f, 1.0 / p.velocity_period_s)
+        assert np.max(np.abs(per / held - 1.0)) < 1e-9
+
+
+def test_machine_file_observer_model_is_the_identifications() -> None:
+    # decision 1699: the commissioned machine file's observer model (G_dτ for a torque that
+    # changes every CNC sample, fitted as the identification fits it) equals what the
+    # simulated identification (decision 1696: a multisine changing every 10 kHz sample, read at
+    # the 0.2 ms instants, noise-free) finds on the machine file's own drive model: within
+    # 0.2 dB and 1° from 5 Hz to 2450 Hz (measured 0.05 dB, 0.3°: the identification's 20-state
+    # fit against the file's 6-state one; the measured FRF equals per_sample_disturbance_frf
+    # to 1e-3 dB), and both refer I_nom to the torque δ = −T_s/2 = −50 µs from the instant
+    # (within 1 µs: δ is read from the top five lines). The held-torque model that the file's
+    # path used before is 1.8 dB above at 1945 Hz.
+    from millsense.core.config import MachineConfig, load_config
+    from millsense.estimation.from_config import _spindle_designs
+    from millsense.estimation.spindle_observer import (
+        disturbance_model,
+        disturbance_model_per_sample,
+        per_sample_disturbance_frf,
+    )
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    machine = load_config(MachineConfig, root / "src/millsense/data/commissioned/quaser-ux600.toml")
+    params, ranges, _ = _spindle_designs(machine, "test")
+    f = np.arange(5.0, 2450.0, 5.0)
+    for r, rpm in ((0, 1500.0), (1, 4000.0)):
+        ident = identify_spindle(params, velocity_period_s=params.velocity_period_s,
+                                 speed_rpm=rpm, sample_rate_hz=FS, n_periods=5)  # fmt: skip
+        exact = per_sample_disturbance_frf(params, r, ident.frf.freq_hz, FS)
+        assert np.max(np.abs(20 * np.log10(np.abs(ident.frf.h1 / exact)))) < 1e-3
+        lag = ident.torque_lag_s
+        assert lag == pytest.approx(-0.5 / FS, abs=1e-6)
+        g_id = ident.model.frf(f)[:, 0, 0] * np.exp(-2j * np.pi * f * lag)
+        model, file_lag = disturbance_model_per_sample(params, r, FS)
+        assert model is ranges[r][0]  # the model the file's observer is designed on
+        assert file_lag == pytest.approx(lag, abs=1e-6)
+        g_file = model.frf(f)[:, 0, 0] * np.exp(-2j * np.pi * f * file_lag)
+        ratio = g_file / g_id
+        assert np.max(np.abs(20 * np.log10(np.abs(ratio)))) < 0.2
+        assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 1.0
+        k = int(np.argmin(np.abs(f - 1945.0)))
+        held = disturbance_model(params, r).frf(f[k : k + 1])[0, 0, 0]
+        assert 20 * math.log10(abs(held / g_id[k])) == pytest.approx(1.8, abs=0.1)

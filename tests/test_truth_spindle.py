@@ -148,15 +148,22 @@ def test_current_loop_closed_form_matches_the_kernel() -> None:
 
 
 def test_sine_and_multisine_frfs_agree() -> None:
-    # two measurements of the truth's G_dτ: a steady sine at 10 kHz and the held multisine at
-    # the velocity-loop rate (what the observer sees) agree below 1 kHz, where the hold matters
-    # little (sinc(f/fv) within 0.2 dB... and its phase is not compared)
+    # two measurements of the truth's G_dτ with a torque that changes every 10 kHz sample, as
+    # a cut's does: a steady sine read on the 10 kHz I_nom channel, and the multisine read at
+    # the velocity-loop instants (what the observer sees). The channel holds each I_nom over two
+    # samples, which multiplies a line by (1 + e^{−iωT})/2 and nothing else, so the two agree in
+    # gain and phase up to the velocity loop's Nyquist frequency (0.1 dB, 1°: the sine fit's
+    # finite settling). A torque held over the velocity period (decision 1696: the observer's
+    # old identification and this FRF's old hold) is 3.3 dB higher at 1.94 kHz, 4.0 dB at
+    # 2.32 kHz: the response that passed a cut's chatter at 0.43 of its size.
     truth = load_truth_spindle("quaser-ux600")
     f, g = sampled_disturbance_frf(truth, period_s=0.2, n_periods=2)
-    for fk in (105.0, 455.0, 945.0):
+    for fk in (105.0, 455.0, 945.0, 1945.0, 2320.0):
         k = int(np.argmin(np.abs(f - fk)))
         s = sine_response(truth.linear(), float(f[k]), settle_s=0.3)
-        assert 20 * math.log10(abs(g[k])) == pytest.approx(20 * math.log10(abs(s)), abs=0.6)
+        hold = (1 + np.exp(-2j * math.pi * f[k] / FS)) / 2
+        assert 20 * math.log10(abs(g[k] * hold / s)) == pytest.approx(0.0, abs=0.1), fk
+        assert math.degrees(np.angle(g[k] * hold / s)) == pytest.approx(0.0, abs=1.0), fk
 
 
 def test_commission_identify_observer_round_trip_on_the_truth() -> None:
@@ -183,6 +190,46 @@ def test_commission_identify_observer_round_trip_on_the_truth() -> None:
     d = tun.design
     a_err = d.a - d.k_predictor @ d.c  # observer error dynamics (Eq. 5.18)
     assert np.max(np.abs(np.linalg.eigvals(a_err))) < 1.0
+
+
+def test_observer_passes_a_cut_torque_at_2khz_at_any_speed() -> None:
+    # decision 1696 (V5 T4): the range-2 observer identified as the validation does (4000
+    # rev/min, 0.01 A noise) on a torque that changes every CNC sample, as a cut's does, run on
+    # the linear truth at 10 000 and 4000 rev/min under a 333 Hz tooth line and a 1945 Hz
+    # chatter line. Read at the velocity-loop instants (the observer's own samples, before the
+    # 10 kHz channel's hold), it passes the tooth line at 1.00 ± 0.02 and the chatter line at
+    # 0.75 ± 0.05 at both speeds (the design's noise-limited band: Q_s at the tuned optimum's
+    # order, q_τ = 3, q_x at its bound). Identified on a torque held over the velocity period,
+    # the same Q_s passed 0.60 at 1945 Hz (V5 T4: 0.43 after the hold). The loop is linear in
+    # the torque and its linear part does not depend on the speed: equal gains at both speeds.
+    from millsense.bench.spindle_commissioning import identify_spindle
+    from millsense.estimation.spindle_observer import SpindleTorqueObserver, design_observer
+    from millsense.streaming.block import Chunk
+
+    truth = load_truth_spindle("quaser-ux600")
+    ident = identify_spindle(truth, velocity_period_s=0.2e-3, speed_rpm=4000.0, sample_rate_hz=FS,
+                             current_noise_a=0.01, seed=1)  # fmt: skip
+    design = design_observer(ident.model, 1e-14, 3.0, ident.r)
+    n = round(2.0 * FS)
+    t = np.arange(n) / FS
+    lines = (333.3, 1945.0)
+    torque = np.where(t >= 1.0, 3.0 * np.sin(2 * math.pi * lines[0] * t)
+                      + np.sin(2 * math.pi * lines[1] * t), 0.0)  # fmt: skip
+    steady = slice(round(1.4 * FS), n, 2)  # the velocity-loop instants after the entry
+    basis = np.column_stack([np.ones(len(t[steady]))] + [
+        fn(2 * math.pi * f * t[steady]) for f in lines for fn in (np.cos, np.sin)])  # fmt: skip
+    for rpm in (10_000.0, 4000.0):
+        speed_ref = np.minimum(t / 0.3, 1.0) * rpm * 2 * math.pi / 60
+        res = TruthSpindleSim(truth.linear(), FS).advance(speed_ref, torque)
+        obs = SpindleTorqueObserver(design, FS)
+        obs.reset(FS)
+        est = obs.observed(Chunk(0, FS, 0.0, {"spindle/current_cmd": res["current_cmd"]}))
+        ce = np.linalg.lstsq(basis, est[steady], rcond=None)[0]
+        ct = np.linalg.lstsq(basis, torque[steady], rcond=None)[0]
+        gain = [math.hypot(*ce[1 + 2 * i : 3 + 2 * i]) / math.hypot(*ct[1 + 2 * i : 3 + 2 * i])
+                for i in range(2)]  # fmt: skip
+        assert gain[0] == pytest.approx(1.0, abs=0.02), rpm
+        assert gain[1] == pytest.approx(0.75, abs=0.05), rpm
 
 
 def test_commissioned_spindle_friction_resembles_the_truths_drag() -> None:

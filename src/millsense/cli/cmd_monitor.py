@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -85,12 +86,15 @@ def monitor(
          "the tool file": tool},
         {"-o": out, "--plot": plot}, {"-o": ".parquet"},
     )  # fmt: skip
-    summary = run_monitor(
-        recording=recording, out=out, plan=plan, machine=machine, methods=methods,
-        channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
-        tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s, position=position,
-        air_torque=air_torque,
-    )  # fmt: skip
+    from millsense.cli.progress import progress_bar
+
+    with progress_bar("monitoring", 1.0) as update:
+        summary = run_monitor(
+            recording=recording, out=out, plan=plan, machine=machine, methods=methods,
+            channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
+            tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s,
+            position=position, air_torque=air_torque, on_progress=update,
+        )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
 
@@ -142,11 +146,13 @@ def run_monitor(
     position: str | None = None,
     segment: tuple[int, int] | None = None,
     air_torque: float | None = None,
+    on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
 
     Returns a summary: ``events`` (list of Event), ``lines`` (printed summary), ``wall_s``.
-    ``segment``: samples ``[start, stop)`` only (``millsense batch``).
+    ``segment``: samples ``[start, stop)`` only (``millsense batch``). ``on_progress``: the
+    fraction of the recording monitored so far, after every chunk.
 
     Raises
     ------
@@ -172,7 +178,7 @@ def run_monitor(
         if hasattr(rec, "close"):
             stack.callback(rec.close)
         return _run(rec, recording, out, plan, machine, names, channel, flutes, spindle_rpm,
-                    plot, chunk, tool_cfg, options)  # fmt: skip
+                    plot, chunk, tool_cfg, options, on_progress)  # fmt: skip
 
 
 def _monitor_options(
@@ -226,6 +232,7 @@ def _run(
     chunk: int,
     tool_cfg: Any = None,
     options: dict[str, Any] | None = None,
+    on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     from millsense.core.errors import InputDataError
     from millsense.io.recording_reader import channel_window
@@ -301,6 +308,16 @@ def _run(
         observer_machine: tuple[Any, str] | None = (mcfg, machine)
     else:
         observer_machine = _session_machine(rec) if OBSERVER_CHANNEL in channels else None
+    spindle_file = observer_machine[0] if observer_machine is not None else None
+    if spindle_file is None and machine is not None:
+        from millsense.core.config import MachineConfig
+        from millsense.core.presets import load_preset
+
+        spindle_file = load_preset(MachineConfig, machine)
+    counts = getattr(getattr(spindle_file, "spindle", None), "encoder_counts_rev", None)
+    if counts is not None:
+        # where the spindle drive's quantisation lines can stand (decision 1697)
+        options = {**(options or {}), "chatter.encoder_counts_rev": int(counts)}
     if "engagement" in names and observer_machine is not None:
         # the observer's estimate seen through its machine file's response (decision 1554)
         options = {**(options or {}),
@@ -339,6 +356,17 @@ def _run(
             steady = AllOf((AT_SPEED, SESSION_EXPECTED), BREAKAGE_STEADY_GATE, name="steady",
                            above=(0.5, 0.0))  # fmt: skip
             pre.append(steady)
+            channels[BREAKAGE_STEADY_GATE] = "1"
+    elif AT_SPEED in channels and {"breakage-dual", "breakage-constant"} & set(names):
+        # no plan: the dual and constant detectors learn and judge where the torque has risen
+        # from the air after the spindle's start and is steady (decision 1706); learnt on the
+        # air before the cut, seed 002's thresholds made the entry an alarm
+        from millsense.monitoring.registry import BREAKAGE_SIGNALS_SESSION
+        from millsense.online.gates import TorqueCutGate
+
+        torque = signal or next((c for c in BREAKAGE_SIGNALS_SESSION if c in channels), None)
+        if torque is not None and speed_channel is not None and speed_unit == "rad/s":
+            pre.append(TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE))
             channels[BREAKAGE_STEADY_GATE] = "1"
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
@@ -405,7 +433,9 @@ def _run(
                 keep.setdefault(k, []).append(np.asarray(v)[first::step])
 
     t0 = time.perf_counter()
-    res = run(source, pipeline, chunk, sink=sink, collect=False)
+    total = max(rec.n_samples, 1)
+    res = run(source, pipeline, chunk, sink=sink, collect=False,
+              on_progress=(lambda k: on_progress(k / total)) if on_progress else None)  # fmt: skip
     wall = time.perf_counter() - t0
     write_event_log(out, res.events, recording=recording)
     seconds = rec.n_samples / fs

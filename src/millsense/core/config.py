@@ -521,6 +521,10 @@ class SpindleConfig(_Model):
     """Velocity PI integral gain K_i, A/s per rev/s of speed error = A/rev (Eq. 5.3: 600)."""
     velocity_loop_period_ms: Annotated[float, Field(gt=0, le=100)] | None = None
     """Velocity-loop sample period T_v, ms (Aslan P7: 0.2 ms)."""
+    encoder_counts_rev: Annotated[int, Field(ge=16, le=2**32)] | None = None
+    """Counts per revolution of the spindle motor's encoder (the velocity loop's speed); the
+    chatter monitor reads it to tell where the drive's quantisation lines can stand (decision
+    1697). None = not known."""
     current_kp_v_a: Annotated[float, Field(gt=0, le=1e4)] | None = None
     """Current PI proportional gain, V/A (Aslan Eq. 5.3 G_I: 3.1)."""
     current_ki_v_a_s: Annotated[float, Field(gt=0, le=1e8)] | None = None

@@ -44,6 +44,14 @@ def preset_data(model: type[BaseModel], name_or_path: str | Path) -> tuple[dict[
         return read_toml(text), text
     folder = resources.files("millsense.data").joinpath(_KINDS[model])
     entry = folder.joinpath(f"{text}.toml")
+    if not entry.is_file() and model is not MachineConfig:
+        # a tool or material named as a stock file or a data sheet spells it (Al7050 for the
+        # preset al7050): one preset equal but for case is that one. Not machines: their name
+        # also finds the commissioned file and the cached tunings, which spell it exactly.
+        same = [n for n in preset_names(model) if n.lower() == text.lower()]
+        if len(same) == 1:
+            text = same[0]
+            entry = folder.joinpath(f"{text}.toml")
     if not entry.is_file():
         raise ConfigError(
             f"no {_KINDS[model][:-1]} preset '{text}' "

@@ -163,7 +163,7 @@ def spindle_observer_from_config(
     )
     from millsense.models.friction import CoulombViscous
 
-    params, ranges = _spindle_designs(machine, where)
+    params, ranges, _ = _spindle_designs(machine, where)
     cfg = machine.spindle
     assert cfg is not None
     friction = CoulombViscous(
@@ -185,10 +185,15 @@ def spindle_observer_from_config(
     )
 
 
-def _spindle_designs(machine: MachineConfig, where: str) -> tuple[Any, list[tuple[Any, Any]]]:
-    """The drive parameters and, per speed range, G_dτ (Eq. 5.12) and the tuned observer
-    design of :func:`spindle_observer_from_config`."""
-    from millsense.estimation.spindle_observer import disturbance_model, tune_spindle_q
+def _spindle_designs(
+    machine: MachineConfig, where: str
+) -> tuple[Any, list[tuple[Any, Any]], float]:
+    """The drive parameters, per speed range G_dτ (Eq. 5.12) for a torque that changes every
+    CNC sample as a cut's does, fitted as the identification fits it (decisions 1696, 1699:
+    :func:`~millsense.estimation.spindle_observer.disturbance_model_per_sample`), and the
+    tuned observer design of :func:`spindle_observer_from_config`, and the residual R's
+    feedthrough."""
+    from millsense.estimation.spindle_observer import disturbance_model_per_sample, tune_spindle_q
     from millsense.models.spindle_plant import SpindleDriveParams
 
     reason = spindle_unavailable_reason(machine, where)
@@ -207,27 +212,30 @@ def _spindle_designs(machine: MachineConfig, where: str) -> tuple[Any, list[tupl
     noise = cfg.current_noise_a or DEFAULT_SPINDLE_CURRENT_NOISE_A
     out = []
     for r in range(2 if math.isfinite(params.switch_rad_s) else 1):
-        model = disturbance_model(params, r, feedthrough)
+        model, _ = disturbance_model_per_sample(params, r, machine.sample_rate_hz, feedthrough)
         out.append((model, tune_spindle_q(model, noise**2).design))
-    return params, out
+    return params, out, feedthrough
 
 
 def spindle_estimate_response(
     machine: MachineConfig, where: str
 ) -> tuple[Callable[[np.ndarray, int], np.ndarray], float]:
     """The spindle observer's estimate against the cutting torque, as the machine file models
-    it: ``H(f, range) = G_cτ(f)`` (Aslan Eq. 5.23: the identified G_dτ times the observer's
-    filter) times the hold of the observer's output over its period (a zero-order hold), and
-    the range-switch speed (rad/s; inf for one range). Decision 1554: the engagement monitor
-    divides the torque's harmonics by it."""
-    from millsense.estimation.spindle_observer import compensated
+    it: ``H(f, range) = G_cτ(f)`` (Aslan Eq. 5.23: the loop's G_dτ for a torque that changes
+    every CNC sample, :func:`~millsense.estimation.spindle_observer.per_sample_disturbance_frf`,
+    times the observer's filter; decision 1699) times the hold of the observer's output over
+    its period (a zero-order hold), and the range-switch speed (rad/s; inf for one range).
+    Decision 1554: the engagement monitor divides the torque's harmonics by it."""
+    from millsense.estimation.spindle_observer import compensated, per_sample_disturbance_frf
 
-    params, ranges = _spindle_designs(machine, where)
+    params, ranges, feedthrough = _spindle_designs(machine, where)
+    fs = machine.sample_rate_hz
 
     def response(f_hz: np.ndarray, r: int) -> np.ndarray:
-        model, design = ranges[min(r, len(ranges) - 1)]
+        r = min(r, len(ranges) - 1)
+        _, design = ranges[r]
         f = np.asarray(f_hz, dtype=np.float64)
-        g = model.frf(f)[:, 0, 0]  # G_dτ: one input (τ_d), one output (I_nom)
+        g = per_sample_disturbance_frf(params, r, f, fs, feedthrough)
         hold = np.exp(-1j * np.pi * f * design.dt) * np.sinc(f * design.dt)
         return np.asarray(compensated(g, design, f) * hold, dtype=np.complex128)
 

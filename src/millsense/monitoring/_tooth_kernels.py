@@ -186,7 +186,10 @@ DET_PRUN = 21  # flute pattern (decision 1684): two-sided judged periods in a ro
 DET_PN = 22  # |contrast| values held in the pattern's scale windows (≤ NOISE_WINDOW)
 DET_PPOS = 23  # next slot of the pattern's scale windows
 DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (pattern on)
-DET_BASE = 25  # ring buffers: the last N period values, the noise window, then the last N
+DET_DROP = 25  # plan-free flute check (decision 1707): a held violation's Δ_N x (0: none)
+DET_PE1 = 26  # that violation's residuals
+DET_PE2 = 27
+DET_BASE = 28  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
 # PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW
@@ -214,15 +217,18 @@ PATTERN_BEFORE = 2
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
 #: mean's ratio to the plan's, 12 the same flute's deviation one revolution earlier, 13 the
-#: flute pattern's evidence (decision 1684), 14 1.0 where the pattern confirmed the alarm; NaN
-#: where not known) and of a detector's outputs (rows 3 … 8).
-PP_ROWS = 15
+#: flute pattern's evidence (decision 1684), 14 1.0 where the pattern confirmed the alarm, 15-16
+#: the residuals of the violation before a plan-free flute check's alarm (decision 1707);
+#: NaN where not known) and of a detector's outputs (rows 3 … 8).
+PP_ROWS = 17
 PP_GATE = 9
 PP_FLOOR = 10
 PP_REV = 11
 PP_LAG = 12
 PP_PAT = 13
 PP_BY = 14
+PP_CE1 = 15  # the residuals of the violation before an alarm of the plan-free flute check at
+PP_CE2 = 16  # the next period, which completed the pair (decision 1707); NaN elsewhere
 OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
@@ -420,6 +426,18 @@ def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float)
 
 
 @numba.njit(cache=True)
+def _flute_pair(a: float, b: float, share: float, size: float) -> bool:
+    """Two consecutive tooth periods' changes over one revolution ago, Δ_N x ``a`` then ``b``:
+    a broken flute's drop and the next flute's rise, in either order (the break may fall before
+    or after the periods' boundary), of a breakage's size (the larger at least ``size``) and
+    alike, the smaller at least ``share`` of the larger (the next flute cuts the broken flute's
+    chip: its rise is the drop less the broken flute's edge force; decision 1707). An entry, a
+    step, an exit or a cavity moves neighbouring flutes the same way."""
+    big = max(abs(a), abs(b))
+    return a * b < 0.0 and big >= size and min(abs(a), abs(b)) >= share * big
+
+
+@numba.njit(cache=True)
 def detect_periods(
     pp: FloatArray,
     pb: NDArray[np.bool_],
@@ -467,12 +485,19 @@ def detect_periods(
     signature's bound above), it alarms where the seed's rule does not (row 14: 1.0), once
     until a period not judged two-sided or a re-arm.
 
+    With the plan-free flute check (dual mode, ``iparams[8]``, decision 1707) an alarm needs a
+    broken flute's drop and the next flute's rise in two consecutive periods
+    (:func:`_flute_pair`, share 1 − edge_share − tol, the larger at least the learnt lag-N
+    threshold): a violating period that completes such a pair with the previous one, or the
+    period after a violation that completes it (rows 15-16: the violation's residuals).
+
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
     (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
     learn_from, k_noise, edge_share, tol, pattern threshold); ``iparams`` = (N, mode,
-    check_deviation, learn_periods, confirm, flute signature, lost_periods, flute pattern).
+    check_deviation, learn_periods, confirm, flute signature, lost_periods, flute pattern,
+    plan-free flute check).
     """
     lam, p_max, sigma_tb, min_expected = params[0], params[1], params[2], params[3]
     reference, alpha, learn_from, k_noise = params[4], params[5], params[6], params[7]
@@ -482,6 +507,10 @@ def detect_periods(
     signature = iparams[5] != 0 and mode == MODE_VIRTUAL
     lost_periods = iparams[6]
     pattern = iparams[7] != 0 and mode == MODE_VIRTUAL
+    pair_check = iparams[8] != 0 and mode == MODE_DUAL
+    # a broken flute's chip is cut by the next flute: it rises by at least the share of the
+    # drop that is not the broken flute's edge force, less the tolerance (decision 1707)
+    rise_share = 1.0 - edge_share - rev_tol
     pattern_z = params[10]
     # a broken flute's revolution keeps at least this share of the plan's; under the other
     # flutes' shares more than one flute's torque is missing (decision 1681)
@@ -503,11 +532,15 @@ def detect_periods(
     lag_out = pp[PP_LAG]
     pat_out = pp[PP_PAT]
     by_out = pp[PP_BY]
+    ce1_out = pp[PP_CE1]
+    ce2_out = pp[PP_CE2]
     for m in range(k):
         rev_out[m] = math.nan
         lag_out[m] = math.nan
         pat_out[m] = math.nan
         by_out[m] = 0.0
+        ce1_out[m] = math.nan
+        ce2_out[m] = math.nan
         if gate[m] < 1.0:
             # a period with a sample where the gate is off (the spindle not at speed: the
             # torque holds the acceleration torque) is not judged and restarts the differences
@@ -526,6 +559,7 @@ def detect_periods(
             state[DET_GAP] = 1.0
             state[DET_ALARMED] = 0.0
             state[DET_LOW] = 0.0
+            state[DET_DROP] = 0.0
             _pattern_reset(state, nf)
             continue
         seen = int(state[DET_SEEN])
@@ -546,6 +580,7 @@ def detect_periods(
             state[DET_P2] = p2
         else:
             e2 = 0.0
+        dn_prev = state[DET_DN_PREV] if seen >= nf + 1 else 0.0  # Δ_N x(m − 1)
         state[DET_D1_PREV] = d1
         state[DET_DN_PREV] = dn
         state[DET_BASE + seen % nf] = xm
@@ -672,6 +707,26 @@ def detect_periods(
         # one alarm per run, at its confirm-th violation or, with the flute signature, at
         # the first violation from there on where the signature holds (decision 1681)
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
+        if pair_check:
+            # without a plan (decision 1707): a broken flute drops and the next flute, cutting
+            # its chip too, rises (:func:`_flute_pair`). A violation alarms where it and the
+            # previous period are such a pair; otherwise it is held for the next period, which
+            # alarms where it completes the pair, violating or not (after a flute's change the
+            # next residual ε2 = Δ_N x − φ̂2·Δ_N x(m−1) can be small: the AR(1) of the lag-N
+            # differences has φ̂2 < 0)
+            size = state[DET_THR2]  # the lag-N residual's threshold, 2·max|ε2| of the cut
+            held = state[DET_DROP]
+            state[DET_DROP] = 0.0
+            if fire and not _flute_pair(dn_prev, dn, rise_share, size):
+                fire = False
+                state[DET_DROP] = dn
+                state[DET_PE1] = e1
+                state[DET_PE2] = e2
+            elif not fire and held != 0.0 and state[DET_ALARMED] == 0.0:
+                if _flute_pair(held, dn, rise_share, size):
+                    fire = True
+                    ce1_out[m] = state[DET_PE1]
+                    ce2_out[m] = state[DET_PE2]
         if pattern:
             # the flute pattern's path (decision 1684): its evidence at the threshold set from
             # the false-alarm rate, the revolution keeping a broken flute's share; one alarm

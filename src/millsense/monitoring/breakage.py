@@ -192,6 +192,12 @@ class BreakageBlock(Block):
         deviations, with the revolution keeping a broken flute's share as above; at most one
         alarm of either way until a period not judged two-sided or a re-arm.
     pattern_z : the pattern's threshold in standard deviations (:data:`PATTERN_Z`).
+    flute_check : the plan-free ``dual`` detector alarms only where two consecutive tooth
+        periods show a broken flute's drop and the next flute's rise over one revolution ago,
+        in either order, the smaller at least 1 − ``edge_share`` − ``revolution_tol`` of the
+        larger (the next flute cuts the broken flute's chip); an entry, a step, an exit or a
+        cavity moves neighbouring flutes the same way (decision 1707; off: seed 002's
+        detector as it is).
     name : block name (channel prefix and event source).
     """
 
@@ -224,6 +230,7 @@ class BreakageBlock(Block):
         lost_revolutions: int = LOST_REVOLUTIONS,
         flute_pattern: bool = True,
         pattern_z: float = PATTERN_Z,
+        flute_check: bool = False,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -262,6 +269,7 @@ class BreakageBlock(Block):
             raise ConfigError(f"breakage: pattern_z must be positive, got {pattern_z!r}")
         self.flute_signature = bool(flute_signature) and method == "virtual"
         self.flute_pattern = bool(flute_pattern) and method == "virtual"
+        self.flute_check = bool(flute_check) and method == "dual"
         self.pattern_z = float(pattern_z)
         self.edge_share = float(edge_share)
         self.revolution_tol = float(revolution_tol)
@@ -387,6 +395,7 @@ class BreakageBlock(Block):
                 int(self.flute_signature),
                 self.lost_revolutions * self.n_flutes,
                 int(self.flute_pattern),
+                int(self.flute_check),
             ],
             dtype=np.int64,
         )
@@ -480,10 +489,12 @@ class BreakageBlock(Block):
                 values = (x[i], expected[i], eps1[i], lim1[i], eps2[i], lim2[i], band[i])
                 below = bool(pp[_k.PP_FLOOR, i] > 0.0)
                 signature = (float(pp[_k.PP_REV, i]), float(pp[_k.PP_LAG, i]))
+                drop = (float(pp[_k.PP_CE1, i]), float(pp[_k.PP_CE2, i]))
                 events.append(self._event(chunk, at, period, first, *values, below=below,
                                           signature=signature,
                                           pattern=float(pp[_k.PP_PAT, i])
-                                          if pp[_k.PP_BY, i] > 0.0 else math.nan))  # fmt: skip
+                                          if pp[_k.PP_BY, i] > 0.0 else math.nan,
+                                          drop=drop))  # fmt: skip
         return events
 
     def _size(self, n: int) -> None:
@@ -539,6 +550,7 @@ class BreakageBlock(Block):
         below: bool = False,
         signature: tuple[float, float] = (math.nan, math.nan),
         pattern: float = math.nan,
+        drop: tuple[float, float] = (math.nan, math.nan),
     ) -> Event:
         sample = chunk.start + at
         t = chunk.t0_s + sample / chunk.sample_rate_hz
@@ -562,6 +574,10 @@ class BreakageBlock(Block):
             values[f"same_flute_deviation_{s}"] = signature[1]
         if pattern == pattern:  # the flute pattern confirmed the alarm (decision 1684)
             values["pattern_evidence"] = pattern
+        after = drop[0] == drop[0]  # the period after the violation completed the pair (1707)
+        if after:
+            values[f"violation_residual1_{s}"] = drop[0]
+            values[f"violation_residual2_{s}"] = drop[1]
         if self.method != "dual":
             values[f"band_{s}"] = float(band)
         # the virtual and constant detectors confirm a violation over 3 tooth periods while the
@@ -571,8 +587,10 @@ class BreakageBlock(Block):
         u = self.unit
         message = f"tool breakage ({self.method}): flute {tooth} at tooth period {period}"
         if self.method == "dual":
-            message += (f", |residual1| {abs(e1):.3g} > {l1:.3g} and |residual2| "
-                        f"{abs(e2):.3g} > {l2:.3g} {u}")  # fmt: skip
+            at_prev = " at the period before" if after else ""
+            r1, r2 = drop if after else (e1, e2)
+            message += (f", |residual1| {abs(r1):.3g} > {l1:.3g} and |residual2| "
+                        f"{abs(r2):.3g} > {l2:.3g} {u}{at_prev}")  # fmt: skip
         elif pattern == pattern:  # the flute pattern (decision 1684)
             message += (f": a broken flute's pattern, {pattern:.3g}σ ≥ {self.pattern_z:g}σ (the "
                         f"flute's drop against the other flutes and its own earlier "
@@ -593,6 +611,9 @@ class BreakageBlock(Block):
                         f"{width}) since period {first}")  # fmt: skip
             if self.flute_signature:
                 message += self._signature_text(*signature)
+        if self.flute_check:
+            message += ("; one flute's drop and the next flute's rise (it cut the broken "
+                        "flute's chip)")  # fmt: skip
         nc_line = x_mm = y_mm = z_mm = None
         if self.plan is not None:
             row = int(

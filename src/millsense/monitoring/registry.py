@@ -44,7 +44,8 @@ class MonitorContext:
         ``engagement.air_torque_nm``, ``engagement.response`` (the observer's
         :class:`~millsense.monitoring.engagement.TorqueResponse`),
         ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
-        ``breakage.expected_channel``, ``<chatter method>.threshold``).
+        ``breakage.expected_channel``, ``<chatter method>.threshold``,
+        ``chatter.encoder_counts_rev`` (the machine file's spindle encoder, decision 1697)).
     tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
         None.
     read : reads samples ``[i0, i1)`` of a channel of the recording, or None (live).
@@ -101,6 +102,17 @@ CHATTER_SIGNALS = (
 )
 
 
+#: Signals that carry the spindle drive's encoder quantisation lines (decision 1697): the
+#: observer's compensated torque and the drive's current (command).
+SPINDLE_DRIVE_SIGNALS = (
+    "est/spindle/spindle/load",
+    "plan/cutting_torque",
+    "spindle/torque_est",
+    "spindle/current_cmd",
+    "spindle/current",
+)
+
+
 def _chatter_factory(method: str) -> Factory:
     def make(ctx: MonitorContext) -> Block:
         from millsense.monitoring.chatter import ChatterMonitor, ChatterSettings
@@ -133,6 +145,11 @@ def _chatter_factory(method: str) -> Factory:
                 speed_rpm=ctx.speed_rpm,
                 nc_line_channel=ctx.nc_line_channel,
                 threshold=ctx.options.get(f"{method}.threshold"),
+                # the spindle encoder where the signal carries its quantisation lines (the
+                # observer's torque or the drive's current, decision 1697)
+                encoder_counts_rev=ctx.options.get("chatter.encoder_counts_rev")
+                if signal in SPINDLE_DRIVE_SIGNALS
+                else None,
             ),
             locate=ctx.locate,
         )
@@ -222,7 +239,10 @@ def _breakage_factory(method: str) -> Factory:
                 floor = None
             return PhasedBreakage(ctx.n_flutes, method="virtual", expected_channel=expected,
                                   floor_channel=floor, **options)  # fmt: skip
-        return BreakageBlock(ctx.n_flutes, method=method, **options)  # type: ignore[arg-type]
+        # seed 002's detector on a shop's part: an alarm needs a broken flute's drop and the
+        # next flute's rise (decision 1707; the seed's case runs it bare)
+        return BreakageBlock(ctx.n_flutes, method=method,  # type: ignore[arg-type]
+                             flute_check=method == "dual", **options)
 
     return make
 

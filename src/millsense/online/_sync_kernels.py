@@ -206,3 +206,107 @@ def expected_kernel(
         ok = k >= ready_from and not (gated and gate[k] < 0.5)
         judged[k] = e if steady[k] and ok else 0.0
         floor[k] = floor_edge[k] + scale[k] * floor_shear[k] if ok and not steady[k] else 0.0
+
+
+#: :func:`torque_cut_gate_kernel`'s state: [mode, angle in the revolution, Σ torque, samples,
+#: air revolutions, air mean, air M2 (Welford), previous revolution's mean, lowest |speed| before
+#: the spindle was first at speed].
+CUT_GATE_STATE = 9
+#: Its modes: start undecided; the stream started at speed (seed 002's premise: the gate is the
+#: spindle's); air after the spindle's start; a rise above the air seen; in the steady cut.
+CUT_UNDECIDED, CUT_PREMISE, CUT_AIR, CUT_ONSET, CUT_OPEN = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True)
+def torque_cut_gate_kernel(
+    torque: NDArray[np.float64],
+    speed: NDArray[np.float64],
+    at_speed: NDArray[np.float64],
+    state: NDArray[np.float64],
+    min_air: int,
+    k_sigma: float,
+    rel_tol: float,
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """One chunk of :class:`~millsense.online.gates.TorqueCutGate` (decision 1706).
+
+    The spindle's revolutions are counted by integrating |speed|; a revolution every sample of
+    which is at speed gives its mean torque m, judged at its end (the verdict holds for the
+    samples after it):
+    - in air (after the spindle's start): with at least ``min_air`` air revolutions (mean
+      a, standard deviation s of their means), m > a + max(``k_sigma``·s, ``rel_tol``·|a|) is
+      a rise (a cut's onset); otherwise m joins the air's statistics;
+    - after a rise: the next revolution within ``rel_tol``·(m − a) of the previous one opens the
+      gate (the cut is steady), one back at the air level returns to air;
+    - open: a revolution back at the air level closes it (an exit, a retract).
+    A sample off speed restarts the revolution, and in air the air's statistics (another speed
+    has another drag torque). A spindle that ran below half its new speed while off speed (a
+    stop, a tool change) has started again: in the air, whatever the gate was. The output is
+    the at-speed flag where the gate is open or where the stream started with the spindle at
+    speed (no air seen: the first revolutions are the cut's, seed 002's premise), else 0.
+    """
+    mode = int(state[0])
+    for k in range(torque.shape[0]):
+        w = abs(speed[k])
+        on = at_speed[k] > 0.5
+        if not on:
+            # the lowest speed since the spindle was last at speed
+            state[8] = min(state[8], w)
+            state[1] = 0.0
+            state[2] = 0.0
+            state[3] = 0.0
+            if mode == CUT_AIR:
+                state[4] = 0.0
+                state[5] = 0.0
+                state[6] = 0.0
+            out[k] = 0.0
+            continue
+        if state[8] < math.inf:
+            # back at speed: after a start (below half this speed before) the tool is in the
+            # air; a speed change keeps the gate's state; the stream's first samples at speed
+            # without a start before them keep seed 002's premise
+            if state[8] < 0.5 * w:
+                mode = CUT_AIR
+                state[4] = 0.0
+                state[5] = 0.0
+                state[6] = 0.0
+            elif mode == CUT_UNDECIDED:
+                mode = CUT_PREMISE
+            state[8] = math.inf
+        if mode == CUT_PREMISE or mode == CUT_UNDECIDED:
+            out[k] = 1.0
+            continue
+        out[k] = 1.0 if mode == CUT_OPEN else 0.0
+        state[1] += w
+        state[2] += torque[k]
+        state[3] += 1.0
+        if state[1] < 2.0 * math.pi:
+            continue
+        m = state[2] / state[3]
+        state[1] -= 2.0 * math.pi
+        state[2] = 0.0
+        state[3] = 0.0
+        n_air = state[4]
+        a = state[5]
+        s = math.sqrt(state[6] / (n_air - 1.0)) if n_air > 1.0 else 0.0
+        margin = max(k_sigma * s, rel_tol * abs(a))
+        at_air = n_air >= min_air and m <= a + margin
+        if mode == CUT_AIR:
+            if n_air >= min_air and m > a + margin:
+                mode = CUT_ONSET
+            else:
+                n_air += 1.0
+                d = m - a
+                a += d / n_air
+                state[6] += d * (m - a)
+                state[4] = n_air
+                state[5] = a
+        elif mode == CUT_ONSET:
+            if at_air:
+                mode = CUT_AIR
+            elif abs(m - state[7]) <= rel_tol * (m - a):
+                mode = CUT_OPEN
+        elif mode == CUT_OPEN and at_air:
+            mode = CUT_AIR
+        state[7] = m
+    state[0] = mode

@@ -13,7 +13,12 @@ import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.online._sync_kernels import air_reference_kernel, at_speed_kernel
+from millsense.online._sync_kernels import (
+    CUT_GATE_STATE,
+    air_reference_kernel,
+    at_speed_kernel,
+    torque_cut_gate_kernel,
+)
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 #: Largest relative change of the speed command from one sample to the next that counts as a
@@ -151,6 +156,66 @@ class AirReference(Block):
                              self.alpha, self.n_settle, self.n_start, out[0],
                              out[1])  # fmt: skip
         return {self.out: out[0], f"{self.name}/torque": out[1]}
+
+
+class TorqueCutGate(Block):
+    """``out`` = 1 where the torque itself says the tool is in a steady cut (decision 1706):
+    what the plan-free breakage detectors (seed 002's dual residuals, the constant reference)
+    learn and judge on in a recording without a plan.
+
+    Seed 002 learns its thresholds, 2·max|ε| over the first 5 revolutions, on the premise that
+    these are cut. A recording that starts with the spindle's run-up starts in the air: learnt
+    there (0.22 N·m on the example data's observer torque) the thresholds are the air's noise,
+    and the cut's entry (4.4 N·m) is an alarm. After the spindle's start the gate therefore
+    waits for the cut: the revolutions' mean torque rising above the air's (``k_sigma``
+    standard deviations of the air revolutions' means, and ``rel_tol`` of their level) and then
+    steady (two revolutions within ``rel_tol`` of the cut's torque above the air); a revolution
+    back at the air's level closes it. A stream that starts with the spindle already at speed
+    keeps the seed's premise (the gate is ``at_speed_channel``). ``rel_tol`` = 0.1 is decision
+    1681's steady-revolution tolerance; ``k_sigma`` = 5 keeps a rise of the air's noise out
+    (one revolution in 3.5 million of Gaussian noise); ``min_air`` = 3 revolutions give the air's
+    first spread.
+    """
+
+    def __init__(
+        self,
+        torque_channel: str,
+        speed_channel: str = "spindle/speed",
+        at_speed_channel: str = "spindle/at_speed",
+        out: str = "monitor/breakage_steady_gate",
+        min_air: int = 3,
+        k_sigma: float = 5.0,
+        rel_tol: float = 0.1,
+        name: str = "torque_cut_gate",
+    ) -> None:
+        if not (min_air >= 2 and k_sigma > 0 and 0 < rel_tol < 1):
+            raise ConfigError("torque cut gate: min_air ≥ 2, k_sigma > 0, 0 < rel_tol < 1 needed")
+        self.inputs = (torque_channel, speed_channel, at_speed_channel)
+        self.out = out
+        self.min_air = int(min_air)
+        self.k_sigma = float(k_sigma)
+        self.rel_tol = float(rel_tol)
+        self.name = name
+        self.reset(10000.0)
+
+    def output_channels(self) -> list[ChannelInfo]:
+        return [ChannelInfo(self.out, "1", "1 where the torque has risen from the air and is "
+                            "steady in the cut (or the stream started at speed)")]  # fmt: skip
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self._state = np.zeros(CUT_GATE_STATE)
+        self._state[8] = np.inf
+        self.fs = float(sample_rate_hz)
+
+    def process(self, chunk: Chunk) -> BlockOutput:
+        d = chunk.data
+        tq = np.ascontiguousarray(d[self.inputs[0]], dtype=np.float64)
+        w = np.ascontiguousarray(d[self.inputs[1]], dtype=np.float64) / self.fs
+        out = np.empty(tq.size)
+        torque_cut_gate_kernel(tq, w, np.ascontiguousarray(d[self.inputs[2]], dtype=np.float64),
+                               self._state, self.min_air, self.k_sigma, self.rel_tol,
+                               out)  # fmt: skip
+        return BlockOutput({self.out: out})
 
 
 class AllOf(Block):

@@ -189,7 +189,8 @@ def session_blocks(
     flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
     children: list[Block] = []
     if o.chatter:
-        children.append(_chatter_child(o, flutes, have))
+        counts = machine.spindle.encoder_counts_rev if machine.spindle is not None else None
+        children.append(_chatter_child(o, flutes, have, counts))
     # a plan that never has the tool in the material (a program run in air, a tool above the
     # stock): nothing to judge for breakage and no reference to regulate to (decision 1678)
     in_cut = bool(np.asarray(plan["in_cut"], dtype=bool).any())
@@ -245,10 +246,14 @@ def _largest(plan: VirtualPlan, column: str) -> float:
     return float(np.nanmax(np.abs(np.asarray(plan[column], dtype=np.float64)), initial=0.0))
 
 
-def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
+def _chatter_child(
+    o: SessionOptions, flutes: int, have: set[str], encoder_counts_rev: int | None = None
+) -> Block:
     """The chatter monitor on the compensated spindle torque inside the chatter avoidance
     (seed 000 §2.7; the new speed by :func:`~millsense.control.chatter_avoidance.
-    choose_spindle_speed`, commanded or only recommended)."""
+    choose_spindle_speed`, commanded or only recommended); ``encoder_counts_rev``: the
+    machine file's spindle encoder, which tells where its quantisation lines can stand in
+    that torque (decision 1697)."""
     from millsense.control.chatter_avoidance import (
         AvoidanceSettings,
         ChatterAvoidanceBlock,
@@ -263,6 +268,7 @@ def _chatter_child(o: SessionOptions, flutes: int, have: set[str]) -> Block:
             n_flutes=flutes,
             speed_channel="spindle/speed",
             speed_unit="rad/s",
+            encoder_counts_rev=encoder_counts_rev,
         )
     )
     ovr = "cnc/spindle_override" if "cnc/spindle_override" in have else None

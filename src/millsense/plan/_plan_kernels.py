@@ -198,3 +198,54 @@ def match_rows(
                 out[i] = hit
                 last = hit
                 break
+
+
+@numba.njit(cache=True)
+def look_ahead_flags(
+    t: np.ndarray,
+    in_cut: np.ndarray,
+    area: np.ndarray,
+    chip: np.ndarray,
+    row: int,
+    span_s: float,
+    rise: float,
+) -> tuple[int, bool, bool, bool, int, int]:
+    """The look-ahead verdict over the rows after ``row`` up to ``t[row] + span_s`` (see
+    VirtualPlan.look_ahead: rising, leaving the cut, entering a cavity; decision 0063), in one
+    pass over the rows: (flag, rising, leaving, cavity, event row or −1, end row exclusive).
+    A row is in cut where ``in_cut`` is non-zero (NaN included, as numpy's cast to bool)."""
+    n = t.shape[0]
+    end = np.searchsorted(t, t[row] + span_s, side="right")
+    end = max(min(end, n), row + 1)
+    now_cut = in_cut[row] != 0
+    a_hi = (1 + rise) * area[row]
+    c_hi = (1 + rise) * chip[row]
+    a_lo = (1 - rise) * area[row]
+    first_rise = -1
+    last_cut = -1
+    for i in range(row + 1, end):
+        cut = in_cut[i] != 0
+        if cut:
+            last_cut = i
+            if first_rise < 0 and (not now_cut or area[i] >= a_hi or chip[i] >= c_hi):
+                first_rise = i
+    leaving = False
+    cavity = False
+    first_hold = -1
+    if now_cut and end > row + 1:
+        # leaving: rows after the last row in cut (the cut never resumes within the horizon);
+        # cavity: a row out of cut or with the area dropped, before the cut resumes
+        leaving = last_cut < end - 1
+        for i in range(row + 1, last_cut + 1):
+            if in_cut[i] == 0 or area[i] <= a_lo:
+                cavity = True
+                first_hold = i
+                break
+        if first_hold < 0 and leaving:
+            first_hold = max(last_cut + 1, row + 1)
+    rising = first_rise >= 0
+    if leaving or cavity:
+        return 2, rising, leaving, cavity, first_hold, end
+    if rising:
+        return 1, rising, leaving, cavity, first_rise, end
+    return 0, rising, leaving, cavity, -1, end

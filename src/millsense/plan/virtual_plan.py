@@ -100,6 +100,8 @@ COLUMNS: tuple[str, ...] = (
 )
 _INT_COLUMNS = frozenset({"tool", "nc_line", "source_line", "n_intervals"})
 _BOOL_COLUMNS = frozenset({"rapid", "in_cut"})
+#: The columns the look-ahead reads (:meth:`VirtualPlan.look_ahead`).
+_LOOK_COLUMNS = ("t_s", "in_cut", "engaged_area_mm2", "chip_load_mm")
 
 
 @dataclass(frozen=True)
@@ -233,6 +235,10 @@ class VirtualPlan:
     layers: LayerIntervals | None = None
     #: the x, y, z columns :meth:`match` searched last and their contiguous copies in metres
     _match_xyz: tuple[tuple[Any, ...], tuple[FloatArray, ...]] | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
+    #: the columns :meth:`look_ahead` read last and their float64 copies
+    _look_cols: tuple[tuple[Any, ...], tuple[FloatArray, ...]] | None = field(
         default=None, init=False, repr=False, compare=False
     )
 
@@ -449,35 +455,25 @@ class VirtualPlan:
             raise InputDataError(f"plan: row {row} outside 0..{n - 1}")
         if not (horizon_s >= 0 and feed_override > 0):
             raise InputDataError("plan: horizon_s must be ≥ 0 and feed_override > 0")
-        t = self.columns["t_s"]
-        end = int(np.searchsorted(t, t[row] + horizon_s * feed_override, side="right"))
-        end = max(min(end, n), row + 1)
-        sl = slice(row + 1, end)
-        cut = self.columns["in_cut"][sl].astype(bool)
-        area = self.columns["engaged_area_mm2"][sl]
-        cl = self.columns["chip_load_mm"][sl]
-        now_cut = bool(self.columns["in_cut"][row])
-        a0 = float(self.columns["engaged_area_mm2"][row])
-        c0 = float(self.columns["chip_load_mm"][row])
-        rising_mask = (
-            cut & ((area >= (1 + rise) * a0) | (cl >= (1 + rise) * c0)) if now_cut else cut
+        t, cut, area, chip = self._look_columns()
+        flag, rising, leaving, cavity, event, end = _k.look_ahead_flags(
+            t, cut, area, chip, int(row), float(horizon_s * feed_override), float(rise)
         )
-        leaving_mask = np.zeros(cut.size, dtype=bool)
-        cavity_mask = np.zeros(cut.size, dtype=bool)
-        if now_cut and cut.size:
-            # rows from which the cut never resumes within the horizon
-            later_cut = np.flip(np.maximum.accumulate(np.flip(cut)))
-            leaving_mask = ~later_cut
-            drop = (~cut) | (area <= (1 - rise) * a0)
-            cavity_mask = drop & later_cut
-        rising = bool(rising_mask.any())
-        leaving = bool(leaving_mask.any())
-        cavity = bool(cavity_mask.any())
-        flag = 2 if (leaving or cavity) else (1 if rising else 0)
-        mask = (leaving_mask | cavity_mask) if flag == 2 else rising_mask
-        event = int(row + 1 + np.argmax(mask)) if flag else -1
         dt = (t[event] - t[row]) / feed_override if event >= 0 else math.inf
-        return LookAhead(flag, rising, leaving, cavity, event, float(dt), end - 1)
+        return LookAhead(int(flag), bool(rising), bool(leaving), bool(cavity), int(event),
+                         float(dt), int(end) - 1)  # fmt: skip
+
+    def _look_columns(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The columns :meth:`look_ahead` reads, as contiguous float64 arrays, converted once
+        per plan (the verdict runs every revolution; the plan may have 10⁵ rows)."""
+        cols = tuple(self.columns[c] for c in _LOOK_COLUMNS)
+        if self._look_cols is None or any(
+            a is not b for a, b in zip(self._look_cols[0], cols, strict=True)
+        ):
+            conv = tuple(np.ascontiguousarray(c, dtype=np.float64) for c in cols)
+            self._look_cols = (cols, conv)
+        t, cut, area, chip = self._look_cols[1]
+        return t, cut, area, chip
 
 
 def _read_layers(table: Any, p: Path) -> LayerIntervals:

@@ -57,6 +57,29 @@ def _finite_or_none(v: float | None) -> float | None:
 #: The file-metadata key of the recording the events are of.
 RECORDING_KEY = "millsense_recording"
 
+#: pandas' own metadata key: ``pd.read_parquet`` reads the ``nc_line`` column (an integer
+#: with gaps where an event has no NC line) as pandas' nullable ``Int64``, as it would have
+#: written it, instead of its default for an integer column with nulls, float64 (line 12.0).
+#: Only that column is described; the others convert as they do without the key.
+PANDAS_KEY = "pandas"
+PANDAS_METADATA = json.dumps(
+    {
+        "index_columns": [],
+        "column_indexes": [],
+        "columns": [
+            {
+                "name": "nc_line",
+                "field_name": "nc_line",
+                "pandas_type": "int64",
+                "numpy_type": "Int64",
+                "metadata": None,
+            }
+        ],
+        "creator": {"library": "millsense"},
+        "pandas_version": "1.0.0",
+    }
+)
+
 
 def write_event_log(
     path: str | os.PathLike[str],
@@ -106,6 +129,7 @@ def write_event_log(
         ],
         metadata={
             "millsense_event_log_schema_version": str(SCHEMA_VERSION),
+            PANDAS_KEY: PANDAS_METADATA,
             **({} if recording is None else {RECORDING_KEY: Path(recording).name}),
         },
     )

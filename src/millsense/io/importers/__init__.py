@@ -30,6 +30,7 @@ from millsense.io.importers.mapfile import (
     check_channel_unit,
     load_map,
     si_factor,
+    si_zero,
     time_factor,
 )
 from millsense.io.importers.table import RawTable
@@ -310,7 +311,7 @@ def _convert(ch: ChannelMap, timed: _Timed, where: str) -> tuple[np.ndarray, str
             )
     si, factor = si_factor(unit, where)
     check_channel_unit(ch.channel, unit, si, where)
-    x = (timed.columns[ch.column] * ch.scale + ch.offset) * factor
+    x = (timed.columns[ch.column] * ch.scale + ch.offset) * factor + si_zero(unit)
     return x, si
 
 

@@ -57,6 +57,7 @@ __all__ = [
     "check_channel_unit",
     "load_map",
     "si_factor",
+    "si_zero",
     "time_factor",
 ]
 
@@ -105,6 +106,26 @@ UNITS: dict[str, tuple[str, float]] = {
     "µs": ("s", 1e-6),
     "1": ("1", 1.0),
     "%": ("1", u.PERCENT),
+    # temperatures (a drive's motor or a spindle's bearing, as CNC traces hold them): kelvin
+    # inside; Celsius and Fahrenheit are affine, their zero in UNIT_ZERO_K
+    "K": ("K", 1.0),
+    "degC": ("K", 1.0),
+    "°C": ("K", 1.0),
+    "℃": ("K", 1.0),
+    "degF": ("K", 5.0 / 9.0),
+    "°F": ("K", 5.0 / 9.0),
+    "℉": ("K", 5.0 / 9.0),
+}
+
+#: Field units whose zero is not SI's: value_SI = value · factor + UNIT_ZERO_K[unit] (Celsius:
+#: 0 °C = 273.15 K; Fahrenheit: 0 °F = 459.67 · 5/9 K = 255.372 K). Every other unit: 0.
+UNIT_ZERO_K: dict[str, float] = {
+    "degC": 273.15,
+    "°C": 273.15,
+    "℃": 273.15,
+    "degF": 459.67 * 5.0 / 9.0,
+    "°F": 459.67 * 5.0 / 9.0,
+    "℉": 459.67 * 5.0 / 9.0,
 }
 
 
@@ -125,6 +146,7 @@ CHANNEL_SI: dict[str, tuple[str, ...]] = {
     "feed_override": ("1",),
     "spindle_override": ("1",),
     "nc_line": ("1",),
+    "temperature": ("K",),
 }
 
 
@@ -154,6 +176,12 @@ def si_factor(unit: str, where: str) -> tuple[str, float]:
             "'scale' (e.g. unit = \"um\", scale = 0.5)"
         )
     raise ConfigError(f"{where}: unknown unit '{unit}' (known: {', '.join(UNITS)})")
+
+
+def si_zero(unit: str) -> float:
+    """The SI value of ``unit``'s zero (:data:`UNIT_ZERO_K`; 0 for a unit that is a pure
+    factor of SI's). Call after :func:`si_factor` has accepted the unit."""
+    return UNIT_ZERO_K.get(_clean_unit(unit), 0.0)
 
 
 def time_factor(unit: str, where: str) -> float:

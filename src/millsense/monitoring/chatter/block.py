@@ -29,7 +29,11 @@ when the cut sags the speed by 1e-5, so a per-bin background cannot know them; t
 own upper tail can. During the run's first settling a window in the cut is judged without
 the background when its line carries chatter's signature (companions at ω_c ± l·N·Ω, Aslan
 Eq. 5.25, not decaying over two windows), and such a window is not learned: chatter present
-from the run's start is no longer learned away (decision 1680).
+from the run's start is no longer learned away (decision 1680). At an onset the line must also
+be power added to its band (decision 1687); with the spindle encoder's counts per revolution
+(``ChatterSettings.encoder_counts_rev``) that test is skipped where the count rate swept
+between the window's last two hops and made beyond the band's learned spread elsewhere
+(decision 1697).
 
 Chunk-size invariance: decisions fall on fixed absolute samples (``(k + 1) % hop == 0``)
 and the per-sample part (rings, comb filter, speed smoothing) is a compiled loop whose state
@@ -199,6 +203,13 @@ class ChatterSettings:
     threshold : the method's threshold (None: the seed's; calibrated for the threshold
         method).
     min_speed_rpm : below this the spindle counts as stopped (no decision), rev/min.
+    encoder_counts_rev : counts per revolution of the spindle drive's encoder (the machine
+        file's ``[spindle] encoder_counts_rev``), or None (not known). With it, a window whose
+        count rate changed between its last two hops by more than the spindle frequency is no
+        window a line of the drive's encoder quantisation can stand in, and a new
+        ``chatter-comb`` line there skips decision 1687's power test, and elsewhere it must
+        pass the test's midpoint by the band's learned spread (decision 1697). None keeps
+        decision 1687's test at its midpoint in every window.
     """
 
     method: str = "chatter-comb"
@@ -212,6 +223,7 @@ class ChatterSettings:
     hop_s: float = 0.1
     threshold: float | None = None
     min_speed_rpm: float = 300.0
+    encoder_counts_rev: float | None = None
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -231,6 +243,10 @@ class ChatterSettings:
             raise ConfigError(f"chatter monitor: band {self.band_hz} Hz must be 0 ≤ low < high")
         if not self.hop_s > 0:
             raise ConfigError(f"chatter monitor: hop {self.hop_s} s must be > 0")
+        if self.encoder_counts_rev is not None and not self.encoder_counts_rev >= 1:
+            raise ConfigError(
+                f"chatter monitor: encoder counts {self.encoder_counts_rev} per rev must be ≥ 1"
+            )
 
 
 class _Stage:
@@ -244,6 +260,7 @@ class _Stage:
         self.pos = 0
         self.lows: list[float] = []  # smallest and largest smoothed speed of each hop
         self.highs: list[float] = []
+        self.means: list[float] = []  # mean speed of each hop, rev/s (decision 1697)
         self.f_rev = 0.0
 
     def close_hop(self, keep: int) -> None:
@@ -252,7 +269,8 @@ class _Stage:
         self.f_rev = float(st[1] / st[2]) if st[2] > 0 else 0.0
         self.lows.append(float(st[3]))
         self.highs.append(float(st[4]))
-        del self.lows[:-keep], self.highs[:-keep]
+        self.means.append(self.f_rev)
+        del self.lows[:-keep], self.highs[:-keep], self.means[:-keep]
         st[1] = st[2] = st[4] = 0.0
         st[3] = np.inf
 
@@ -342,6 +360,11 @@ class ChatterMonitor(Block):
         # the band's power learned as the background (Σ comb² off the harmonics; decision 1687)
         self._band_power = 0.0
         self._window_power = 0.0  # the last full window's (decision 1687)
+        # the mean square of the band's power less the learned power (decision 1697) and
+        # whether the test reads it: only where the encoder's resolution tells the windows a
+        # quantisation line can stand in from those it cannot
+        self._band_var = 0.0
+        self._knows_counts = s.encoder_counts_rev is not None
         self._tests_power = self.method.name == "chatter-comb"  # the criterion that reads it
         self._rates = (self._learning_rates(False), self._learning_rates(True))
         self._judged_f_rev = 0.0  # spindle frequency of the last window that reached novelty
@@ -513,12 +536,20 @@ class ChatterMonitor(Block):
         k, power = _kn.novel_peak(spectra[1], self._comb_scale, comb, self._background, first,
                                   factor, mask, novel, b0, b1, *rates, power_mask)  # fmt: skip
         excess: float | None = None
+        noise = 0.0
+        sweeps = self._count_rate_sweeps()
         if self._tests_power:
             # the band's power against the power learned at the background's plain rate
-            # (decision 1687: a line that grows faster than e-fold in 2 τ is power added)
+            # (decision 1687: a line that grows faster than e-fold in 2 τ is power added), and
+            # the spread of that difference learned at the same rate from the windows in which
+            # nothing is new and the count rate held (the null hypothesis's spread, decision
+            # 1697)
             excess = power - self._band_power
+            noise = math.sqrt(self._band_var) if self._knows_counts else 0.0
             self._window_power = power
             self._band_power = power if first else self._band_power + rates[0] * excess
+            if not (first or sweeps or (b0 <= k < b1 and novel[k] > 0.0)):
+                self._band_var += rates[0] * (excess * excess - self._band_var)
         self._comb_at = g.pos  # the window whose comb amplitudes ``comb`` holds (1680)
         self._has_background = True
         if settling:
@@ -562,7 +593,8 @@ class ChatterMonitor(Block):
             _kn.amplitude(rfft(xr), 2.0 / n, raw_rect)
         return Spectra(f, raw, comb, self._band, tooth_ref, f_t, f_rev, cutting, novel, raw_rect,
                        band_slice=(b0, b1), peak_bin=k, masked=mask,
-                       held=bool(self._flag), band_excess=excess)  # fmt: skip
+                       held=bool(self._flag), band_excess=excess, band_noise=noise,
+                       sweeps=sweeps)  # fmt: skip
 
     def _not_learned(self, air: np.ndarray, sp: Spectra | None) -> tuple[Spectra | None]:
         """A run-start window kept out of what the run learns (decision 1680): the air
@@ -880,7 +912,30 @@ class ChatterMonitor(Block):
         return Spectra(self._f, raw, comb, self._band, gate, f_t, f_rev, True, novel,
                        band_slice=(b0, b1), peak_bin=k, masked=mask, part=m / n,
                        band_excess=excess,
+                       band_noise=math.sqrt(self._band_var * n / m) if self._knows_counts else 0.0,
+                       sweeps=self._count_rate_sweeps(),
                        held=bool(self._flag))  # fmt: skip
+
+    def _count_rate_sweeps(self) -> bool:
+        """Whether the encoder's count rate changed between the window's last two hops by more
+        than the spindle frequency (decision 1697): ``N·|f̄_rev,last − f̄_rev,before| > f_rev``
+        with ``N`` the encoder's counts per revolution (False when not known).
+
+        The drive's quantisation lines sit at ``frac(f_rev·N·T_v)/T_v + k·f_rev`` (decision
+        1687): a line moves by the change of the count rate ``N·f_rev`` (counts/s = Hz), and
+        the family's lines are ``f_rev`` apart. Once the count rate moved by more than that
+        spacing the family the newest samples carry lies elsewhere than the one before, at no
+        place the window has held as a line, and while it moves (a cut's entry sags the speed by
+        1e-5-1e-4, thousands of Hz of ``f_q``) the quantisation spreads over the band as a
+        sweep, whose power also leaves the band's bins (the harmonics' masked bins, the band's
+        ends) so that the band's sum falls by more than it moved. A hop mean of an encoder's
+        speed is exact to one count per hop (``1/hop`` Hz of the count rate, 10 Hz at 0.1 s),
+        far below ``f_rev`` (50-400 Hz)."""
+        n_enc = self.settings.encoder_counts_rev
+        means = self._stage.means
+        if n_enc is None or len(means) < 2:
+            return False
+        return n_enc * abs(means[-1] - means[-2]) > means[-1]
 
     def _learning_rates(self, cutting: bool) -> tuple[float, float]:
         """Background update weights per window (decision 1504), plain and novel bins: out of

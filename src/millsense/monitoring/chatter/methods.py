@@ -56,13 +56,19 @@ moved within it (decision 1687, :func:`adds_power`): the band's ``Σ comb²`` of
 must exceed the sum learned at the background's plain rate by half the line's ``A²``. A
 compensated torque's encoder-quantisation lines (the drive's velocity PI on a quantised speed)
 appear at a cut entry by the cut's dither moving their power from one line to another; a line
-found to be moved power is learned at once (its lobe and the band's sum).
+found to be moved power is learned at once (its lobe and the band's sum). With the drive
+encoder's resolution known (decision 1697) the test is not made where the count rate moved by
+more than the spindle frequency between the window's last two hops (no quantisation line
+stands there, and the swept quantisation's power leaves the band), and elsewhere the midpoint
+must be passed, either way, by the band's learned spread times the normal quantile of
+:data:`LINE_FALSE_ALARM`; a line between is neither chatter nor learned.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import NDArray
@@ -114,6 +120,11 @@ class Spectra:
     band_excess : the band's ``Σ comb²`` off the spindle harmonics (a part's on a full
         window's scale) less the sum learned at the background's plain rate, or None (no
         learned sum: the power test of decision 1687 is not made).
+    band_noise : the spread of ``band_excess`` learned at the same rate (its root mean square;
+        a part's √(n/m) higher), N²·m² (decision 1697).
+    sweeps : the encoder's count rate moved by more than the spindle frequency between the
+        window's last two hops: no encoder-quantisation line stands in the window and the power
+        test is not made (decision 1697).
     """
 
     f_hz: FloatArray
@@ -132,6 +143,8 @@ class Spectra:
     part: float = 1.0
     held: bool = False
     band_excess: float | None = None
+    band_noise: float = 0.0
+    sweeps: bool = False
 
 
 @dataclass(slots=True)
@@ -197,13 +210,27 @@ def line_level(
     return q_amp * math.sqrt(math.log(n_eff / false_alarm) / math.log(1.0 / (1.0 - quantile)))
 
 
-def adds_power(excess: float | None, amplitude: float) -> bool:
+#: One-sided standard normal quantile of :data:`LINE_FALSE_ALARM`: the band's power must pass
+#: the midpoint of decision 1687 by this many of its learned spreads (decision 1697).
+POWER_MARGIN = NormalDist().inv_cdf(1.0 - LINE_FALSE_ALARM)
+
+
+def adds_power(excess: float | None, amplitude: float, noise: float = 0.0) -> bool:
     """Whether a new chatter-comb line of ``amplitude`` is power added to its window's band
-    (decision 1687): ``excess ≥ ½·amplitude²``, ``excess`` the band's ``Σ comb²`` off the
-    spindle harmonics less the same sum learned with the background (one-sided amplitudes:
-    a line of amplitude ``A`` holds ``A²`` of the sum over its lobe on the rectangular
-    window, Parseval); None (a part after a step, the run's start: no learned sum to compare
-    with) passes.
+    (decisions 1687, 1697): ``excess ≥ ½·amplitude² + z·noise``, ``excess`` the band's
+    ``Σ comb²`` off the spindle harmonics less the same sum learned with the background
+    (one-sided amplitudes: a line of amplitude ``A`` holds ``A²`` of the sum over its lobe on
+    the rectangular window, Parseval), ``noise`` the spread of that difference learned at the
+    same rate and ``z`` = :data:`POWER_MARGIN`; None (the run's start: no learned sum to
+    compare with) passes.
+
+    The margin (decision 1697): the band's sum is a sum over some 1800 bins of a noise whose
+    lines (an observer's) move between windows, and its difference from the learned sum
+    spreads by 0.1-0.3 N²·m² window to window in a compensated torque's cut; a line of
+    0.5 N·m holds 0.25 of it. At the midpoint alone the two hypotheses are told apart at the
+    chance of that spread, once a window; the line must pass it at the chance the line's own
+    level test takes (:data:`LINE_FALSE_ALARM`). A line between the two levels is neither
+    chatter nor learned (:func:`moves_power`): the next window tests it again.
 
     Chatter is a vibration the regeneration adds to the cut (Aslan Eq. 5.25: energy at
     ω_c ± lΩ on top of the stable cut's lΩ): the band gains at least the line's power, ``A²``,
@@ -214,7 +241,14 @@ def adds_power(excess: float | None, amplitude: float) -> bool:
     the quantisation step), which the cut's speed ripple dithers from one family of lines to
     another at an entry. The level is the midpoint of the two hypotheses (``0`` and ``A²``):
     neither the record nor a rate was fitted to it."""
-    return excess is None or excess >= 0.5 * amplitude * amplitude
+    return excess is None or excess >= 0.5 * amplitude * amplitude + POWER_MARGIN * noise
+
+
+def moves_power(excess: float | None, amplitude: float, noise: float = 0.0) -> bool:
+    """Whether a new chatter-comb line of ``amplitude`` is power moved within its band, found
+    so beyond the band's spread (decision 1697): ``excess < ½·amplitude² − z·noise`` (see
+    :func:`adds_power`); such a line is learned (decision 1687)."""
+    return excess is not None and excess < 0.5 * amplitude * amplitude - POWER_MARGIN * noise
 
 
 def line_amplitude(
@@ -343,9 +377,13 @@ class ChatterMethod:
                 line = float(s.comb[k])
                 stands_out = line > line_level(s.comb, s.masked, b0, b1, s.part, k)
                 # ... and the line must be power added to the band, not moved within it
-                # (decision 1687)
-                moved = stands_out and not adds_power(s.band_excess, ratio * s.tooth)
-                stands_out = stands_out and not moved
+                # (decision 1687), beyond the band's own spread, unless the count rate swept
+                # the encoder's quantisation lines away (decision 1697)
+                if stands_out and not s.sweeps:
+                    a = ratio * s.tooth
+                    added = adds_power(s.band_excess, a, s.band_noise)
+                    moved = not added and moves_power(s.band_excess, a, s.band_noise)
+                    stands_out = added
             # while flagged, a run ends when the ratio falls below the rising run's level, not
             # the threshold: a line read at its amplitude that hovers at 1.5 is one run
             # (decision 1551)
