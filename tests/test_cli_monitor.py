@@ -6,6 +6,7 @@ The recordings are synthetic (tests/test_monitoring_chatter.py's signal: a 4-flu
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -638,7 +639,7 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     2 (one has K_e < 0): the depth line holds 20 steps, 2 circles mark the rest."""
     from types import SimpleNamespace
 
-    from millsense.cli.cmd_monitor import _reported
+    from millsense.cli.cmd_monitor import _depth_panel, _engagement_verdict
     from millsense.report.monitor_plots import monitor_figure
 
     def est(sigma: float, kt: float, ke: float) -> SimpleNamespace:
@@ -646,9 +647,12 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
 
     fs, step = 1000.0, 10
     revs = [est(0.9, 8e8, 1e4), est(0.9, 8e8, -5e3), est(0.5, 8e8, 1e4), est(0.95, 8e8, 1e4)]
-    block = SimpleNamespace(estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)])
+    block = SimpleNamespace(name="engagement",
+                            estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)])
     n = 50  # steps of 10 samples: 0.5 s; revolution k is held from 0.1 (k + 1) s on
-    reported = _reported(block, n, step, fs, None)
+    panel = _depth_panel(block, _engagement_verdict(block), n, step, fs)
+    assert set(panel) == {"engagement/reported"}  # the medians: no averaged band
+    reported = panel["engagement/reported"]
     held = np.searchsorted([0.1, 0.2, 0.3, 0.4], np.arange(n) * step / fs, side="right") - 1
     np.testing.assert_array_equal(reported, np.isin(held, [0, 3]))
     depth = np.where(held >= 0, 1e-3 * (4.0 + held), np.nan)  # 4, 5, 6, 7 mm
@@ -665,6 +669,64 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     assert set(np.round(y[np.isfinite(y)] * 1.0, 6)) == {4.0, 7.0}
     circles = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
     assert len(circles[0].get_xdata()) == 2  # revolutions 1 and 2 (5 and 6 mm)
+
+
+@pytest.mark.parametrize("determined", [True, False])
+def test_depth_panel_shades_the_averaged_depth_where_the_summary_reports_it(
+    determined: bool,
+) -> None:
+    """Decision 1704: where fewer than half of the revolutions pass decision 1807's test, the
+    summary reports the revolutions' averaged harmonics (decision 1698), but the depth panel
+    drew the few revolutions that pass alone as the result. Here 2 of 10 pass. Where the
+    average determines the depth (2.065 mm, profile interval 1.905–2.232 mm, the 30 s
+    sensorless cut's figures) the panel draws no revolution as reported, the averaged depth as
+    a line over the averaged revolutions and its interval as a band; where it does not
+    (1.50–2.80 mm: ±32 %), a hatched band of the depths allowed and no depth line."""
+    from types import SimpleNamespace
+
+    from millsense.cli.cmd_monitor import _depth_panel, _engagement_summary, _engagement_verdict
+    from millsense.monitoring.torque_spectrum import AveragedEstimate, EngagementEstimate
+    from millsense.report.monitor_plots import monitor_figure
+
+    def est(depth: float, sigma: float) -> EngagementEstimate:
+        return EngagementEstimate(depth, 5e-3, 2.0, math.pi, 7.4e8, 1e-6, 0.0, sigma, 1e-3,
+                                  20.0, 0.1, 2e4, 1.0)  # fmt: skip
+
+    lo, hi = (1.905e-3, 2.232e-3) if determined else (1.5e-3, 2.8e-3)
+    avg = AveragedEstimate(10, est(2.065e-3, 0.95), lo, hi, True)
+    revs = [est(1e-3 * (2 + k), 0.9 if k in (3, 7) else 0.5) for k in range(10)]
+    block = SimpleNamespace(
+        name="engagement",
+        averaged=lambda which: avg,
+        estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)],
+    )
+    verdict = _engagement_verdict(block)
+    assert verdict.kind == ("averaged" if determined else "undetermined")
+    line = _engagement_summary(block, verdict=verdict)
+    assert ("harmonics averaged: axial depth 2.065 mm" in line) == determined, line
+    fs, step, n = 1000.0, 10, 120  # 1.2 s; revolution k is held from 0.1 (k + 1) s on
+    panel = _depth_panel(block, verdict, n, step, fs)
+    assert not panel["engagement/reported"].any()
+    held = np.arange(n) * step / fs >= 0.1 - 1e-12
+    np.testing.assert_array_equal(np.isfinite(panel["engagement/averaged_low"]), held)
+    assert np.isfinite(panel["engagement/averaged_depth"]).sum() == (110 if determined else 0)
+    axial = np.repeat([np.nan, *[e.axial_depth_m for e in revs]], [10] + [10] * 9 + [20])
+    data = {
+        "engagement/axial_depth": axial,
+        "engagement/reliability": np.full(n, 0.5),
+        "engagement/kt": np.full(n, 7.4e8),
+        **panel,
+    }
+    ax = monitor_figure(data, fs, step, 0.0, "spindle/torque", ["engagement"], []).axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    y = np.asarray({ln.get_label(): ln for ln in ax.get_lines()}["axial depth"].get_ydata())
+    assert not np.isfinite(y).any()  # no revolution drawn as a result
+    if determined:
+        assert "axial depth of the averaged harmonics 2.065 mm" in labels
+        assert "averaged harmonics' profile interval 1.905–2.232 mm" in labels
+    else:
+        assert "not determined: averaged harmonics allow 1.50–2.80 mm" in labels
+        assert not any("axial depth of the averaged" in label for label in labels)
 
 
 def _slot_from_spindle_start(path: Path, break_at_s: float | None) -> Path:

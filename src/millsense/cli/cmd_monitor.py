@@ -13,6 +13,7 @@ import contextlib
 import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -444,6 +445,7 @@ def _run(
         f"{seconds:.1f} s of {recording.name} in {wall:.2f} s "
         f"({speed:.{0 if speed >= 10 else 1}f}x real time)"
     ]
+    verdicts: dict[str, _EngagementVerdict] = {}  # what the summary reports, for the plot
     for b in blocks:
         alarms = [e for e in res.events if e.source == b.name and e.kind == EventKind.ALARM]
         contacts = [e for e in res.events if e.source == b.name and e.name == "contact"]
@@ -451,7 +453,8 @@ def _run(
             e = contacts[0]
             lines.append(f"  {b.name}: contact at {e.time_s:.5f} s, position {e.value:.6g}")
         elif b.name == "engagement":
-            lines.append(_engagement_summary(b, _steady_cut(rec), fs))
+            verdicts[b.name] = _engagement_verdict(b, _steady_cut(rec), fs)
+            lines.append(_engagement_summary(b, verdict=verdicts[b.name]))
         elif alarms:
             unit = {"chatter": " Hz"}
             f = ", ".join(
@@ -474,10 +477,11 @@ def _run(
         from millsense.report.monitor_plots import plot_monitor
 
         data = {k: np.concatenate(v) for k, v in keep.items()}
-        for b in blocks:  # the revolutions the summary reports, for the depth panel
+        for b in blocks:  # what the summary reports, for the depth panel (decision 1704)
             if f"{b.name}/axial_depth" in data and hasattr(b, "estimates"):
                 n_steps = len(data[f"{b.name}/axial_depth"])
-                data[f"{b.name}/reported"] = _reported(b, n_steps, step, fs, _steady_cut(rec))
+                verdict = verdicts.get(b.name) or _engagement_verdict(b, _steady_cut(rec), fs)
+                data.update(_depth_panel(b, verdict, n_steps, step, fs))
         # a breakage detector's axis in the unit of the torque it judges (phased: its members')
         judged = {b.name: getattr(getattr(b, "members", [b])[0], "signal_channels", ())
                   for b in blocks}  # fmt: skip
@@ -504,36 +508,37 @@ def _steady_cut(rec: Any) -> np.ndarray | None:
     return np.asarray(rec.channel("plan/judged_torque"), dtype=np.float64) > 0
 
 
-def _reported(
-    block: Any, n_steps: int, step: int, fs: float, steady: np.ndarray | None
-) -> np.ndarray:
-    """Per plotted step (every ``step`` samples): whether the revolution it holds is one
-    :func:`_engagement_summary` reports (:func:`_reliable`, and where the plan is steady when
-    ``steady`` is given)."""
-    timed = [(t, e) for t, e in getattr(block, "estimates", []) if e is not None]
-    if not timed:
-        return np.zeros(n_steps, dtype=bool)
-    t_end = np.array([t for t, _ in timed], dtype=np.float64)
-    ok = np.array([_reliable(e) for _, e in timed], dtype=bool)
-    if steady is not None and steady.any():
-        k = np.clip(np.rint(t_end * fs).astype(np.int64), 0, steady.size - 1)
-        ok &= steady[k]
-    held = np.searchsorted(t_end, np.arange(n_steps) * step / fs, side="right") - 1
-    return np.where(held >= 0, ok[np.maximum(held, 0)], False)
+@dataclass(frozen=True)
+class _EngagementVerdict:
+    """What :func:`_engagement_summary` reports of an engagement block's revolutions
+    (decisions 1807, 1558, 1698): the evaluated revolutions it counts (index into the block's
+    estimates, end time s, estimate), the reliable ones among them, the averaged harmonics'
+    estimate (None: fewer than AVERAGED_MIN_REVS revolutions), and ``kind``: ``"medians"``
+    (the reliable revolutions' medians), ``"averaged"`` (the averaged fit, determined),
+    ``"undetermined"`` or ``"none"`` (no revolution evaluated); ``where`` qualifies the
+    counts (the plan's steady cut)."""
+
+    timed: list[tuple[int, float, Any]]
+    reliable: list[Any]
+    avg: Any
+    kind: str
+    where: str
 
 
-def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float = 1.0) -> str:
-    """One line: revolutions evaluated and the engagement over them (decisions 1807, 1558,
-    1698). With ``steady`` (per sample, :func:`_steady_cut`) only the revolutions that end where
-    the plan is steady count: an entry's or an exit's revolutions are a changing engagement,
-    not the cut's (decision 1558).
+def _engagement_verdict(
+    block: Any, steady: np.ndarray | None = None, fs: float = 1.0
+) -> _EngagementVerdict:
+    """:class:`_EngagementVerdict` of ``block``. With ``steady`` (per sample,
+    :func:`_steady_cut`) only the revolutions that end where the plan is steady count: an
+    entry's or an exit's revolutions are a changing engagement, not the cut's (decision 1558).
 
     The medians of the reliable revolutions (:func:`_reliable`) where at least half are and
     the revolutions' averaged harmonics (√n less noise than one revolution's) allow their
-    median depth; else the averaged harmonics' estimate where they determine the depth; else
-    that the engagement is not determined (a few revolutions of noise can pass the test by
-    chance; decision 1807), with the depths the averaged harmonics allow."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, determined
+    median depth: within their depth interval (one interval: no second basin) widened by three
+    standard errors of the median; else the averaged harmonics' estimate where they determine
+    the depth; else not determined (a few revolutions of noise can pass the test by chance;
+    decision 1807)."""
+    from millsense.monitoring.engagement import depth_summary, determined
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
     timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
@@ -545,37 +550,94 @@ def _engagement_summary(block: Any, steady: np.ndarray | None = None, fs: float 
         where = " in the plan's steady cut"
     every = [e for _, _, e in timed]
     if not every:
+        return _EngagementVerdict(timed, [], None, "none", where)
+    est = [e for e in every if _reliable(e)]
+    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
+    if 2 * len(est) >= len(every):
+        if avg is None:
+            return _EngagementVerdict(timed, est, avg, "medians", where)
+        depth = depth_summary(est)
+        se3 = 3 * depth.standard_error_m
+        if avg.connected and (
+            (not math.isfinite(avg.depth_low_m) or avg.depth_low_m - se3 <= depth.median_m)
+            and depth.median_m <= avg.depth_high_m + se3
+        ):  # fmt: skip
+            return _EngagementVerdict(timed, est, avg, "medians", where)
+    kind = "averaged" if avg is not None and determined(avg) else "undetermined"
+    return _EngagementVerdict(timed, est, avg, kind, where)
+
+
+def _depth_panel(
+    block: Any, verdict: _EngagementVerdict, n_steps: int, step: int, fs: float
+) -> dict[str, np.ndarray]:
+    """Per plotted step (every ``step`` samples), what the depth panel marks as the summary's
+    result (decision 1704): ``{name}/reported``, whether the revolution held there is one whose
+    value the summary's medians take (``verdict.kind`` "medians": counted and
+    :func:`_reliable`); where the summary reports the averaged harmonics (``"averaged"``) or
+    the depths they allow (``"undetermined"``), no revolution is reported alone and
+    ``{name}/averaged_depth`` and ``{name}/averaged_radial`` (the averaged fit's axial and
+    radial depth; NaN where not determined), ``{name}/averaged_low`` and
+    ``{name}/averaged_high`` (m; NaN/inf at the search range's ends) are given over the steps
+    the averaged revolutions hold."""
+    name = block.name
+    out = {f"{name}/reported": np.zeros(n_steps, dtype=bool)}
+    revs = list(getattr(block, "estimates", []))
+    if not verdict.timed or not revs:
+        return out
+    t_end = np.array([t for t, _ in revs], dtype=np.float64)
+    counted = np.zeros(t_end.size, dtype=bool)
+    counted[[i for i, _, _ in verdict.timed]] = True
+    held = np.searchsorted(t_end, np.arange(n_steps) * step / fs, side="right") - 1
+    at = np.maximum(held, 0)
+    if verdict.kind == "medians":
+        ok = counted & np.array([e is not None and _reliable(e) for _, e in revs], dtype=bool)
+        out[f"{name}/reported"] = (held >= 0) & ok[at]
+        return out
+    avg = verdict.avg
+    if avg is None:
+        return out
+    span = (held >= 0) & counted[at]
+    ok = verdict.kind == "averaged"
+    depth = avg.estimate.axial_depth_m if ok else math.nan
+    radial = avg.estimate.radial_depth_m if ok else math.nan
+    for key, val in (("averaged_depth", depth), ("averaged_low", avg.depth_low_m),
+                     ("averaged_high", avg.depth_high_m), ("averaged_radial", radial)):  # fmt: skip
+        out[f"{name}/{key}"] = np.where(span, val, np.nan)
+    return out
+
+
+def _engagement_summary(
+    block: Any,
+    steady: np.ndarray | None = None,
+    fs: float = 1.0,
+    verdict: _EngagementVerdict | None = None,
+) -> str:
+    """One line: revolutions evaluated and the engagement over them (decisions 1807, 1558,
+    1698), as :func:`_engagement_verdict` decides (``verdict``: already decided)."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
+
+    v = verdict if verdict is not None else _engagement_verdict(block, steady, fs)
+    where, est, avg = v.where, v.reliable, v.avg
+    every = [e for _, _, e in v.timed]
+    if v.kind == "none":
         return f"  {block.name}: no revolution evaluated{where} (no cut, or the torque is too low)"
 
     def med(v: list[float]) -> float:
         return float(np.median(v))
 
-    est = [e for e in every if _reliable(e)]
-    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
-    avg_ok = avg is not None and determined(avg)
     head = f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable"
-    if 2 * len(est) >= len(every):
+    if v.kind == "medians":
         depth = depth_summary(est)
-        # the medians stand where the averaged harmonics allow them: within their depth
-        # interval (one interval: no second basin) widened by three standard errors of the
-        # median
-        se3 = 3 * depth.standard_error_m
-        agrees = avg is None or (
-            avg.connected
-            and (not math.isfinite(avg.depth_low_m) or avg.depth_low_m - se3 <= depth.median_m)
-            and depth.median_m <= avg.depth_high_m + se3
+        return (
+            f"{head} (σ ≥ {RELIABLE_SIGMA}): median axial depth "
+            f"{1e3 * depth.median_m:.3f} mm (standard error "
+            f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
+            f"{1e3 * depth.scatter_m:.3f} mm), "
+            + _engagement_values([e.radial_depth_m for e in est], [e.kt_n_m2 for e in est],
+                                 [e.runout_m for e in est], [e.reliability for e in est],
+                                 [e.edge_n_m for e in est], [e.edge_source for e in est])
         )  # fmt: skip
-        if agrees:
-            return (
-                f"{head} (σ ≥ {RELIABLE_SIGMA}): median axial depth "
-                f"{1e3 * depth.median_m:.3f} mm (standard error "
-                f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
-                f"{1e3 * depth.scatter_m:.3f} mm), "
-                + _engagement_values([e.radial_depth_m for e in est], [e.kt_n_m2 for e in est],
-                                     [e.runout_m for e in est], [e.reliability for e in est],
-                                     [e.edge_n_m for e in est], [e.edge_source for e in est])
-            )  # fmt: skip
-    if avg is not None and avg_ok:
+    if v.kind == "averaged":
         a = avg.estimate
         return (
             f"{head} alone; the {avg.n} revolutions' harmonics averaged: axial depth "

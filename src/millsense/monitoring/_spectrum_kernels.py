@@ -707,6 +707,84 @@ def local_fit_holds(state: FloatArray, misfit: float) -> bool:
     return misfit <= MISFIT_JUMP * med
 
 
+#: Decision 1704: the running mean of a cut's revolutions' harmonics (a cumulative mean over
+#: the first :data:`ANCHOR_REVS` revolutions, then exponential with weight 1/ANCHOR_REVS; √n
+#: less noise than one revolution's, in the spindle angle's phase reference, so a steady cut's
+#: revolutions add coherently), the fewest revolutions whose mean is searched globally, and
+#: the largest distance (d_a in units of the axial pitch, the angles in rad) at which a
+#: revolution's fit and the mean's are taken to be in one basin (no second fit).
+ANCHOR_REVS = 16
+ANCHOR_MIN_REVS = 8
+ANCHOR_SAME_DEPTH = 0.1
+ANCHOR_SAME_ANGLE = 0.3
+#: Revolutions after which the mean is searched globally again even though its fit from the
+#: last search still holds (:data:`MISFIT_JUMP` × the relative misfit of that search).
+ANCHOR_SEARCH_REVS = 256
+#: Layout of that state (floats): revolutions in the mean, 1 once the mean's fit (the anchor)
+#: is known, its (d_a, θ_st, θ_ex), the revolutions since the mean was last searched and the
+#: relative misfit of that search; then how many revolutions were also fitted from the anchor
+#: (a diagnostic).
+AST_COUNT, AST_VALID, AST_POINT, AST_SINCE, AST_MISFIT, AST_SECOND = 0, 1, 2, 5, 6, 7
+AST_SIZE = 8
+
+
+@numba.njit(cache=True)
+def note_mean(state: FloatArray, mean: ComplexArray, x: ComplexArray) -> None:
+    """Add a revolution's harmonics ``x`` to the running mean ``mean`` (:data:`ANCHOR_REVS`)."""
+    n = state[AST_COUNT] + 1.0
+    state[AST_COUNT] = n
+    state[AST_SINCE] += 1.0
+    a = 1.0 / min(n, float(ANCHOR_REVS))
+    for j in range(mean.shape[0]):
+        mean[j] += a * (x[j] - mean[j])
+
+
+@numba.njit(cache=True)
+def forget_mean(state: FloatArray, mean: ComplexArray) -> None:
+    """A revolution not evaluated (air, no speed, no feed): the next cut starts a new mean."""
+    state[AST_COUNT] = 0.0
+    state[AST_VALID] = 0.0
+    state[AST_SINCE] = 0.0
+    mean[:] = 0.0
+
+
+@numba.njit(cache=True)
+def anchored_fit(
+    p0: FloatArray,
+    anchor: FloatArray,
+    xn: ComplexArray,
+    norm: float,
+    k: FloatArray,
+    kb: float,
+    edge: bool,
+    lo: FloatArray,
+    hi: FloatArray,
+    scale: FloatArray,
+    accept: float,
+) -> tuple[FloatArray, float]:
+    """The fit of a revolution's normalised harmonics ``xn`` from the previous revolution's
+    solution ``p0`` and, where that misses the ``accept`` misfit and the running mean's fit
+    (``anchor``, :data:`AST_POINT`) is known and in another basin, also from the mean's fit:
+    the better of the two (decision 1704). The warm start alone holds a noisy revolution in
+    the basin the last global search found, even where the revolution's own cost is lower in
+    the basin of the cut's averaged harmonics (decision 1698)."""
+    p, cost = lm_fit(p0, xn, k, kb, edge, lo, hi, scale, 60)
+    if anchor[AST_VALID] == 0.0 or 2.0 * cost / norm <= accept:
+        return p, cost
+    a = anchor[AST_POINT : AST_POINT + 3]
+    if (
+        abs(p[0] - a[0]) <= ANCHOR_SAME_DEPTH * scale[0]
+        and abs(p[1] - a[1]) <= ANCHOR_SAME_ANGLE
+        and abs(p[2] - a[2]) <= ANCHOR_SAME_ANGLE
+    ):
+        return p, cost
+    anchor[AST_SECOND] += 1.0
+    pa, ca = lm_fit(a.copy(), xn, k, kb, edge, lo, hi, scale, 60)
+    if ca < cost:
+        return pa, ca
+    return p, cost
+
+
 #: Layout of the per-revolution accumulator of :func:`ingest_revolutions` (``acc``, floats):
 #: fraction of a revolution, revolution index (−1 before the first sample), samples summed,
 #: Σ x, Σ |Ω|, Σ |feed|, 1 once a revolution was identified (the next fit starts from it), the
@@ -1258,14 +1336,17 @@ def identify_from(
     t0_net: float,
     mean_var: float,
     out: FloatArray,
+    anchor: FloatArray,
 ) -> bool:
     """The common path of the identification: the fit from the previous revolution's solution
-    ``p0``; if its relative misfit is at most ``accept``, the estimate into ``out`` and True.
-    Otherwise False, with ``out[:3]`` the fitted point and ``out[EST_COST]`` its cost (the
+    ``p0`` (and from the running mean's fit ``anchor`` where that is known: :func:`anchored_fit`,
+    decision 1704); if its relative misfit is at most ``accept``, the estimate into ``out`` and
+    True. Otherwise False, with ``out[:3]`` the fitted point and ``out[EST_COST]`` its cost (the
     caller adds the grid starts). ``t0_net``, ``mean_var``: the mean cutting torque and its
     variance factor (:func:`estimate`; NaN: no air torque known)."""
     xn, norm = normalised(x)
-    p, cost = lm_fit(p0, xn, k[: x.shape[0]], kb, edge, lo, hi, scale, 60)
+    p, cost = anchored_fit(p0, anchor, xn, norm, k[: x.shape[0]], kb, edge, lo, hi, scale,
+                           accept)  # fmt: skip
     if 2.0 * cost / norm > accept:
         out[0] = p[0]
         out[1] = p[1]
@@ -1403,6 +1484,8 @@ def ingest_revolutions(
     eq: ComplexArray,
     eqp: FloatArray,
     mstate: FloatArray,
+    anchor: FloatArray,
+    hmean: ComplexArray,
 ) -> tuple[int, int]:
     """Spindle angle, revolution boundaries, the revolution's harmonics and its estimate,
     sample by sample from ``i0`` on (the engagement block's per-sample and per-revolution work
@@ -1421,6 +1504,10 @@ def ingest_revolutions(
     channel's response on that grid per speed range, rows 0 and 1; decision 1554) each
     coefficient is divided by the response at its frequency ``orders[j]·Ω/2π`` (linear
     interpolation; 1 beyond the grid), so the fit sees the torque, not the estimator's view of it.
+    Every evaluated revolution's harmonics enter the running mean ``hmean`` (state ``anchor``,
+    :func:`note_mean`; a revolution not evaluated starts a new one), whose fit, once the caller
+    has searched it, is the second start of the revolutions' fits (:func:`anchored_fit`,
+    decision 1704).
     Returns (revolutions finished, next sample): the scan stops when ``done`` is full or after
     a revolution that needs the grid search."""
     nk = sums.shape[0]
@@ -1469,12 +1556,14 @@ def ingest_revolutions(
                 and (abs(done_sums[nd, 1]) > 0)
             ):
                 status = REV_GRID
+                note_mean(anchor, hmean, done_sums[nd, 1:])
                 if acc[ACC_HAS_PREV] > 0:
                     row = est[nd]
                     if identify_from(prev, done_sums[nd, 1:], done_sums[nd, 0], c, k,
                                      fpar[FPAR_KB], edge, lo, hi, scale, fpar[FPAR_ACCEPT],
                                      fpar[FPAR_RADIUS], n_flutes, fpar[FPAR_PITCH],
-                                     fpar[FPAR_RCOND], t0_net, mean_var, row):  # fmt: skip
+                                     fpar[FPAR_RCOND], t0_net, mean_var, row,
+                                     anchor):  # fmt: skip
                         status = REV_DONE
                     elif local_fit_holds(
                         mstate, 2.0 * row[EST_COST] / normalised(done_sums[nd, 1:])[1]
@@ -1492,6 +1581,8 @@ def ingest_revolutions(
                         prev[0] = row[EST_AXIAL]
                         prev[1] = row[EST_ENTRY]
                         prev[2] = row[EST_EXIT]
+            else:
+                forget_mean(anchor, hmean)
             done[nd, DONE_STATUS] = status
             acc[ACC_COUNT] = 0.0
             acc[ACC_SUM_X] = 0.0

@@ -256,6 +256,9 @@ class EngagementBlock(Block):
         self._acc[_sk.ACC_STEP_SPEED] = math.nan  # no rotation cached yet
         self._sums = np.zeros(self._k.size, dtype=np.complex128)
         self._prev = np.zeros(3)
+        # the running mean of the cut's harmonics and its fit (decision 1704)
+        self._anchor = np.zeros(_sk.AST_SIZE)
+        self._hmean = np.zeros(self.n_harmonics, dtype=np.complex128)
         g = self.geom
         fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
         fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
@@ -268,7 +271,7 @@ class EngagementBlock(Block):
         self._args = (
             self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
             ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
-            self._k, *self._equaliser(), ident._mstate,
+            self._k, *self._equaliser(), ident._mstate, self._anchor, self._hmean,
         )  # fmt: skip
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
@@ -316,9 +319,39 @@ class EngagementBlock(Block):
             )
             self._prev[:] = out[[_sk.EST_AXIAL, _sk.EST_ENTRY, _sk.EST_EXIT]]
             self._acc[_sk.ACC_HAS_PREV] = 1.0
+            self._search_mean()
         est = out.copy()
         self._held = est[: len(_FIELDS)]
         self._log.append((t_end, est))
+
+    def _search_mean(self) -> None:
+        """The fit of the running mean of the cut's harmonics, the second start of the next
+        revolutions' fits (decision 1704), once the mean holds :data:`~._spectrum_kernels.
+        ANCHOR_MIN_REVS` revolutions: refitted from its last point, and searched globally (the
+        coarse grid's starts and that refit) where it has not been yet, where the refit's
+        relative misfit is above :data:`~._spectrum_kernels.MISFIT_JUMP` × the last search's
+        (a changed engagement) or after :data:`~._spectrum_kernels.ANCHOR_SEARCH_REVS`
+        revolutions. Called with a revolution's grid search, i.e. only where the revolutions'
+        fits miss the accept misfit (never on a clean stream after its first revolution)."""
+        st = self._anchor
+        if st[_sk.AST_COUNT] < _sk.ANCHOR_MIN_REVS:
+            return
+        ident = self._ident
+        xn, norm = _sk.normalised(self._hmean)
+        args = (ident._kb, ident.edge, ident._lo, ident._hi, ident._scl)
+        best = None
+        if st[_sk.AST_VALID]:
+            last = st[_sk.AST_POINT : _sk.AST_POINT + 3].copy()
+            best = _sk.lm_fit(last, xn, ident.k[: xn.size], *args, 60)
+            if (st[_sk.AST_SINCE] < _sk.ANCHOR_SEARCH_REVS
+                    and 2.0 * best[1] / norm <= _sk.MISFIT_JUMP * st[_sk.AST_MISFIT]):  # fmt: skip
+                st[_sk.AST_POINT : _sk.AST_POINT + 3] = best[0]
+                return
+        p, cost = ident._grid_search(xn, norm, args, best)
+        st[_sk.AST_POINT : _sk.AST_POINT + 3] = p
+        st[_sk.AST_VALID] = 1.0
+        st[_sk.AST_SINCE] = 0.0
+        st[_sk.AST_MISFIT] = 2.0 * cost / norm
 
     @property
     def estimates(self) -> list[tuple[float, EngagementEstimate | None]]:

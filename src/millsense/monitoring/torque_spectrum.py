@@ -364,6 +364,8 @@ class SpectrumIdentifier:
         #: the misfits of the last revolutions and the revolutions since the last grid search
         #: (layout ``_spectrum_kernels.MST_*``; the streaming block's scan shares it)
         self._mstate = np.zeros(_sk.MST_SIZE)
+        #: no running mean's fit here (the streaming block keeps one, decision 1704)
+        self._no_anchor = np.zeros(_sk.AST_SIZE)
 
     def _residual(self, p: FloatArray, x: ComplexArray) -> FloatArray:
         a, b = _basis(self.k[: x.size], p[0], p[1], p[2], self.geom)
@@ -424,7 +426,9 @@ class SpectrumIdentifier:
         accepted = (
             warm is None
             and prev is not None
-            and _sk.identify_from(prev, x, t1, c, self.k, *args, self.accept, *tail, *mean, out)
+            and _sk.identify_from(
+                prev, x, t1, c, self.k, *args, self.accept, *tail, *mean, out, self._no_anchor
+            )
         )
         if not accepted:
             xn, norm = _sk.normalised(x)

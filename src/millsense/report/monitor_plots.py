@@ -204,10 +204,53 @@ def _engagement(ax: Any, data: dict[str, np.ndarray], step: int, fs: float, t0: 
         # marker per sample drew them as lines, like results
         first = np.concatenate([[True], y[1:] != y[:-1]]) & np.isfinite(y) & ~good
         ax.plot(t[first], y[first], "o", ms=3, mfc="none", mew=0.6, color=color, alpha=0.5)
-    top = np.nanmax(np.concatenate([axial[good], radial[good], [1.0]]))
+    extra = _averaged_band(ax, data, t, name)
+    top = np.nanmax(np.concatenate([axial[good], radial[good], extra, [1.0]]))
     ax.set_ylim(0.0, 1.3 * top)
     ax.set_ylabel("depth of cut [mm]", fontsize=8)
-    ax.legend(loc="upper left", fontsize=7,
-              title=f"circles: revolutions not reported (σ < {RELIABLE_SIGMA:g}, K_t ≤ 0 "
-              "or K_e < 0)",
-              title_fontsize=7)  # fmt: skip
+    title = (
+        "circles: revolutions (none reported alone)"
+        if extra.size
+        else f"circles: revolutions not reported (σ < {RELIABLE_SIGMA:g}, K_t ≤ 0 or K_e < 0)"
+    )
+    ax.legend(loc="upper left", fontsize=7, title=title, title_fontsize=7)  # fmt: skip
+
+
+def _averaged_band(ax: Any, data: dict[str, np.ndarray], t: np.ndarray, name: str) -> np.ndarray:
+    """Where the command's summary reports the cut's averaged harmonics (decisions 1698,
+    1704: ``{name}/averaged_depth``, ``_low``, ``_high`` over the averaged revolutions' steps),
+    their axial depth as a line and its profile interval as a band (their radial depth as a
+    line, ``_radial``); where they do not determine
+    the depth (depth NaN), the depths they allow as a hatched band. Returns the depths drawn
+    (mm) for the axis' range (empty: nothing drawn)."""
+    lo = data.get(f"{name}/averaged_low")
+    hi = data.get(f"{name}/averaged_high")
+    if lo is None or hi is None:
+        return np.zeros(0)
+    depth = 1e3 * np.asarray(data.get(f"{name}/averaged_depth", np.full(len(lo), np.nan)))
+    span = np.isfinite(lo) | np.isfinite(hi) | np.isfinite(depth)
+    if not span.any():
+        return np.zeros(0)
+    lo_mm = np.where(span, 1e3 * np.nan_to_num(lo, nan=0.0), np.nan)
+    finite_hi = np.isfinite(hi)
+    hi_mm = np.where(span & finite_hi, 1e3 * np.where(finite_hi, hi, 0.0), np.nan)
+    if not np.isfinite(hi_mm).any():
+        return np.zeros(0)
+    d = float(depth[span][0])
+    l_s, h_s = float(np.nanmin(lo_mm)), float(np.nanmax(hi_mm))
+    if np.isfinite(d):
+        band = f"averaged harmonics' profile interval {l_s:.3f}–{h_s:.3f} mm"
+        ax.fill_between(t, lo_mm, hi_mm, color="tab:green", alpha=0.3, lw=0, label=band)
+        ax.plot(t, np.where(span, depth, np.nan), lw=1.6, color="tab:green",
+                label=f"axial depth of the averaged harmonics {d:.3f} mm")  # fmt: skip
+        radial = 1e3 * np.asarray(data.get(f"{name}/averaged_radial", np.full(len(lo), np.nan)))
+        if np.isfinite(radial).any():
+            r = float(radial[np.isfinite(radial)][0])
+            ax.plot(t, radial, lw=1.6, color="tab:purple",
+                    label=f"radial depth of the averaged harmonics {r:.3f} mm")  # fmt: skip
+            h_s = max(h_s, r)
+    else:
+        ax.fill_between(t, lo_mm, hi_mm, facecolor="none", edgecolor="tab:green", hatch="//",
+                        lw=0, label=f"not determined: averaged harmonics allow "
+                        f"{l_s:.2f}–{h_s:.2f} mm")  # fmt: skip
+    return np.array([h_s, d if np.isfinite(d) else h_s])
