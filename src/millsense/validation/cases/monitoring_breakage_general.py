@@ -150,21 +150,20 @@ def _false() -> Measured:
     "tooth periods (inf where a break is missed)",
     gap="seed 000's rule confirms its third violating tooth period within 3 periods only where "
     "the broken flute's period and the next flute's double chip both leave the band (a "
-    "2-flute slot); the flute pattern of decision 1684 confirms from the physics instead (the"
-    " broken flute's drop against the other flutes and its own past, the next flute's rise), "
-    "at 7σ of its evidence, a threshold set from the intact cuts' false-alarm rate (one per 7"
-    " h at 10 000 rev/min, 4 flutes). The tooth period holding most of the broken flute's "
-    "drop ends up to 4 periods after the break (the 4-flute slot: 3.2-3.9, by the phase; the "
-    "effect in the truth's torque starts 0-0.6 periods after the break), and the drop and the"
-    " rise must stand 7σ above the noise of the tooth average (its own scatter and that of "
-    "the flute's reference): that holds in one revolution where the flute's share of the "
-    "torque is large (2 flutes: 2.3, 3.0 periods; the 3-flute slot: 4.0), and needs the drop "
-    "repeated one to three revolutions on where it is small against the noise: the 4-flute "
-    "slot (the best phase's drop and rise 5.7σ in the first revolution, 8.0σ with the second:"
-    " 7.9), the 3-flute half immersion (5.0σ, 5.9σ, 6.4σ, 7.3σ over four revolutions: 12.0; "
-    "14.6 by seed 000's rule) and the 4-flute half immersion at 10 000 rev/min (9.9, seed "
-    "000's rule first). The pattern is on by default since decision 1685 (without it the "
-    "4-flute slot takes 43.9, seed 000's rule)",
+    "2-flute slot); the flute pattern of decision 1684 confirms from the physics instead "
+    "(the broken flute's drop against the other flutes and its own past, the next flute's "
+    "rise), at 7σ of its evidence, a threshold set from the intact cuts' false-alarm rate "
+    "(one per 7 h at 10 000 rev/min, 4 flutes). The tooth period holding most of the broken "
+    "flute's drop ends up to 4 periods after the break (the 4-flute slot: 3.2-3.9, by the "
+    "phase; the effect in the truth's torque starts 0-0.6 periods after the break), and the "
+    "drop and the rise must stand 7σ above the noise of the tooth average (its own scatter "
+    "and that of the flute's reference): that holds in one revolution where the flute's "
+    "share of the torque is large (2 flutes: 2.3, 3.0 periods; the 3-flute slot: 4.0), and "
+    "needs the drop repeated one or two revolutions on where it is small against the noise: "
+    "the 4-flute slot (7.6), the 3-flute half immersion (7.0; 12.0 with the held-torque "
+    "observer before decision 1699) and the 4-flute half immersion at 10 000 rev/min (9.9, "
+    "seed 000's rule first). The pattern is on by default since decision 1685 (without it "
+    "the 4-flute slot takes 43.9, seed 000's rule)",
     issue=15,
 )
 def _latency() -> Measured:
