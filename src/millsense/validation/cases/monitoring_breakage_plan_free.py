@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from millsense.streaming.block import Event
+from millsense.streaming.event_log import read_event_log
 from millsense.validation import Measured, case
 from millsense.validation.cases.monitoring_breakage import MACHINE_FILE, TOOTH_S_V7
 
@@ -57,8 +58,10 @@ class PlanFreeRun:
 @functools.lru_cache(maxsize=1)
 def plan_free_run() -> PlanFreeRun:
     """V7's plant run to its end (seed 7, as the V7 case), recorded as a CNC records it, then
-    `monitor` without a plan (≈ 25 s)."""
-    from millsense.cli.cmd_monitor import run_monitor
+    `millsense monitor` without a plan, in its own process (≈ 30 s)."""
+    import subprocess
+    import sys
+
     from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
@@ -79,9 +82,15 @@ def plan_free_run() -> PlanFreeRun:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "v7.h5"
         write_recording(path, rec)
-        res = run_monitor(recording=path, out=Path(tmp) / "events.parquet",
-                          machine=str(MACHINE_FILE), methods=",".join(METHODS))  # fmt: skip
-    events = {mth: [e for e in res["events"] if e.source == mth and e.name == "breakage"]
+        # the command as a shop runs it (validation sits below the CLI: run, not imported)
+        log = Path(tmp) / "events.parquet"
+        cmd = [sys.executable, "-m", "millsense", "monitor", str(path), "--machine",
+               str(MACHINE_FILE), "--methods", ",".join(METHODS), "-o", str(log)]  # fmt: skip
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
+        logged = read_event_log(log)
+    events = {mth: [e for e in logged if e.source == mth and e.name == "breakage"]
               for mth in METHODS}  # fmt: skip
     return PlanFreeRun(break_s, events)
 
