@@ -252,13 +252,9 @@ def torque_cut_gate_kernel(
         if not on:
             # the lowest speed since the spindle was last at speed
             state[8] = min(state[8], w)
-            state[1] = 0.0
-            state[2] = 0.0
-            state[3] = 0.0
+            state[1:4] = 0.0  # the revolution restarts
             if mode == CUT_AIR:
-                state[4] = 0.0
-                state[5] = 0.0
-                state[6] = 0.0
+                state[4:7] = 0.0  # another speed, another drag torque
             out[k] = 0.0
             continue
         if state[8] < math.inf:
@@ -267,9 +263,7 @@ def torque_cut_gate_kernel(
             # without a start before them keep seed 002's premise
             if state[8] < 0.5 * w:
                 mode = CUT_AIR
-                state[4] = 0.0
-                state[5] = 0.0
-                state[6] = 0.0
+                state[4:7] = 0.0
             elif mode == CUT_UNDECIDED:
                 mode = CUT_PREMISE
             state[8] = math.inf
@@ -284,8 +278,7 @@ def torque_cut_gate_kernel(
             continue
         m = state[2] / state[3]
         state[1] -= 2.0 * math.pi
-        state[2] = 0.0
-        state[3] = 0.0
+        state[2:4] = 0.0
         n_air = state[4]
         a = state[5]
         s = math.sqrt(state[6] / (n_air - 1.0)) if n_air > 1.0 else 0.0
