@@ -10,8 +10,8 @@ argument, and every file named in a ``# writes ...`` comment.
 The walkthrough runs for about 4 minutes of wall time: ``make test-readme`` runs it (with
 ``MILLSENSE_README=1``; CI runs it after ``make test``, decision 1713), and ``make test`` skips
 it with that reason. The "Identification workflow" section runs for several minutes more; it is
-run the same way only with ``MILLSENSE_README_LONG=1`` (which runs the walkthrough too). The "Command reference"
-section uses placeholders (``RUN.h5``, ``P.nc``) and is not meant to run.
+run the same way only with ``MILLSENSE_README_LONG=1`` (which runs the walkthrough too). The
+"Command reference" section uses placeholders (``RUN.h5``, ``P.nc``) and is not meant to run.
 """
 
 from __future__ import annotations

@@ -238,6 +238,7 @@ def session_blocks(
         SupervisorOptions(period_s=o.period_s, hold_on_breakage=o.hold_on_breakage),
         fault_channel=FAULT_CHANNEL,
         in_cut_channel="plan/in_cut",
+        location_channels=("plan/nc_line", "tcp/x", "tcp/y", "tcp/z"),
     )
     blocks.append(sup)
     return SessionBlocks(blocks, sup, notes)
