@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP_RUN := $(VENV)/.installed-run
 STAMP_DEV := $(VENV)/.installed-dev
 
-.PHONY: demo test lint typecheck validate validate-full validate-ci bench clean
+.PHONY: demo test test-readme lint typecheck validate validate-full validate-ci bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,11 @@ test: $(STAMP_DEV)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src/millsense
 	$(BIN)/lint-imports
+
+# The README's walkthrough run verbatim in a copy of the repository (about 4 min; decision 1713):
+# CI runs it after `make test`, which skips it.
+test-readme: $(STAMP_DEV)
+	MILLSENSE_README=1 $(BIN)/python -m pytest tests/test_readme_walkthrough.py
 
 validate: $(STAMP_RUN)
 	$(BIN)/millsense validate --quick

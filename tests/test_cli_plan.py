@@ -189,6 +189,49 @@ def test_plan_warns_of_a_rapid_through_material(
     assert any("rapid (G0)" in w for w in VirtualPlan.read(out).metadata["warnings"])
 
 
+def test_the_tool_starts_above_a_stock_that_stands_above_z0(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1709: a block whose top is at Z+10 mm (the work origin inside it) and a program
+    whose first move rapids to a safe Z above it. Started at X0 Y0 Z0 the plan would begin
+    inside the block and warn of a collision on line 3 that the program never makes; it starts
+    at X0 Y0 Z10, on the top, out of the material, and the slot on line 5 is 2 mm deep."""
+    stock = tmp_path / "stock.toml"
+    stock.write_text('kind = "box"\nmin_mm = [-50, -50, -20]\nmax_mm = [50, 50, 10]\n')
+    prog = tmp_path / "above.nc"
+    prog.write_text("G21 G90 G17\nS3000 M3\nG0 X-70 Y0 Z15\nG0 Z8\nG1 X70 F600\nG0 Z20\nM30\n")
+    out = tmp_path / "p.parquet"
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "aslan-d20-2flute",
+            "--material", "al7050", "--resolution-mm", "0.5", "-o", str(out)]  # fmt: skip
+    code, _, err = _run(args, capsys)
+    assert code == 0, err
+    assert "moves through material" not in err
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    plan = VirtualPlan.read(out)
+    assert (plan["x_mm"][0], plan["y_mm"][0], plan["z_mm"][0]) == (0.0, 0.0, 10.0)
+    rapid_cut = np.asarray(plan["in_cut"], bool) & np.asarray(plan["rapid"], bool)
+    assert not rapid_cut.any()
+    line5 = np.asarray(plan["source_line"]) == 5
+    depth = np.asarray(plan["axial_depth_mm"])[line5 & np.asarray(plan["in_cut"], bool)]
+    assert np.median(depth) == pytest.approx(2.0, abs=0.5)  # one 0.5 mm cell
+
+
+def test_the_demo_part_still_starts_at_the_work_origin(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1709 moves the start only for a stock above Z0: the demo block's top is Z0, so
+    its plan starts at X0 Y0 Z0 as before."""
+    out = tmp_path / "p.parquet"
+    code, _, err = _run(["plan", str(DEMO / "program.nc"), *_common(), "--resolution-mm", "1",
+                         "-o", str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    from millsense.plan.virtual_plan import VirtualPlan
+
+    plan = VirtualPlan.read(out)
+    assert (plan["x_mm"][0], plan["y_mm"][0], plan["z_mm"][0]) == (0.0, 0.0, 0.0)
+
+
 @pytest.mark.parametrize("below_mm", [0.0, 0.3, 2.0])
 def test_plan_through_the_stock_bottom_cuts_with_the_flutes_inside_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], below_mm: float

@@ -137,6 +137,27 @@ def test_run_takes_the_g28_reference_for_both_plans(
         assert min(z) == pytest.approx(-2.0, abs=1e-9)
 
 
+def test_run_starts_both_plans_above_a_stock_standing_above_z0(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Decision 1709: with the block's top at Z+10 mm the session's plan and the machine's own
+    plan both begin at X0 Y0 Z10, so neither runs the first rapid through the material."""
+    from millsense.cli.cmd_run import virtual_machine
+
+    stock = tmp_path / "stock.toml"
+    stock.write_text('kind = "box"\nmin_mm = [0, 0, -20]\nmax_mm = [100, 80, 10]\n')
+    prog = tmp_path / "slot.nc"
+    prog.write_text(SLOT.replace("Z5", "Z15").replace("Z-2", "Z8"))
+    seen = _capture_plan_job(monkeypatch)
+    vm = virtual_machine(program=prog, stock=stock, tool="aslan-d20-2flute",  # type: ignore[arg-type]
+                         material="al7050", plan=None, plan_out=None, machine="quaser-ux600",
+                         duration_s=0.5)  # fmt: skip
+    (plant, _), = seen
+    for p in (vm.plan, plant):
+        assert (p["x_mm"][0], p["y_mm"][0], p["z_mm"][0]) == (0.0, 0.0, 10.0)
+        assert not (p["in_cut"] & p["rapid"]).any()
+
+
 def test_run_recording_names_the_tool_material_and_program_digest(tmp_path: Path) -> None:
     """The metadata of a ``run --program`` recording name the tool and material the session
     planned with and carry the program's SHA-256, as its plan does (found by the qa4 helper:

@@ -340,3 +340,34 @@ def test_operator_acknowledges_an_alarm_and_the_hold_stays() -> None:
     assert ack[0].values["alarm_s"] == pytest.approx(0.1042)
     assert [e.name for e in events if e.kind is EventKind.OVERRIDE] == ["feed_hold"]
     assert ch["supervisor/mode"][-1] == MODE_HOLD
+
+
+@pytest.mark.parametrize("chunk", [1, 100, 1000])
+def test_children_events_are_located_on_the_tool_path_at_their_sample(chunk: int) -> None:
+    """Decision 1715: with location channels (the session's ``plan/nc_line`` and ``tcp/x|y|z``)
+    a child's alarm or note that does not say where it happened, and the feed hold an alarm
+    causes, carry
+    the NC line and position (mm) at the alarm's sample, whatever the chunking; an NC line of
+    −1 (no plan row yet) is no line."""
+    n = 4000
+    k = np.arange(n, dtype=float)
+    loc = {"plan/nc_line": np.where(k < 3000, -1.0, 7.0 + (k >= 3500)),
+           "tcp/x": 1e-6 * k, "tcp/y": np.full(n, 0.04), "tcp/z": np.full(n, -0.003)}  # fmt: skip
+    monitor = Scripted("monitor", {1200: (NOTE, "blind", None)})
+    breakage = ScriptedBreakage("breakage", {3042: (ALM, "breakage", None)})
+    sup = Supervisor([monitor, breakage],
+                     location_channels=("plan/nc_line", "tcp/x", "tcp/y", "tcp/z"))  # fmt: skip
+    assert set(loc) <= set(sup.inputs)
+    sup.reset(FS)
+    data = {"sig": k, "guard/fault": np.zeros(n), "plan/in_cut": np.ones(n), **loc}
+    events: list[Event] = []
+    for a in range(0, n, chunk):
+        part = {c: v[a : a + chunk] for c, v in data.items()}
+        events += sup.process(Chunk(a, FS, 0.0, part)).events
+    (c,) = [e for e in events if e.name == "blind"]
+    assert c.nc_line is None and c.x_mm == pytest.approx(1.2, abs=1e-9)  # before any row
+    (b,) = [e for e in events if e.name == "breakage"]
+    assert b.nc_line == 7
+    assert (b.x_mm, b.y_mm, b.z_mm) == pytest.approx((3.042, 40.0, -3.0), abs=1e-9)
+    (h,) = [e for e in events if e.name == "feed_hold"]
+    assert (h.nc_line, h.x_mm) == (b.nc_line, b.x_mm)  # the hold names its cause's place

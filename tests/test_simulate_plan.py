@@ -245,3 +245,26 @@ def test_cli_simulate_plan_uses_the_plan(
     # in the full slot (x ≥ 0, by 4 s the tool is at x ≈ +2 mm) the torque averages about
     # the plan's 2.43 N·m; partial engagement before → mean below it but positive
     assert 0.3 < float(torque.mean()) < 2.6
+
+
+@pytest.mark.parametrize("flutes", [3, 4])
+def test_the_recordings_metadata_names_the_tools_flutes(tmp_path: Path, flutes: int) -> None:
+    """Decision 1716: the virtual machine's recording says how many flutes its tool has, as
+    `millsense example-data`'s does, so `monitor` and `estimate` without a plan judge it at
+    the tool's tooth frequency, not the default 2 flutes' (found on a 3-flute run, where
+    `monitor` placed the tooth line at 200 Hz instead of 300 Hz at 6000 rev/min)."""
+    from millsense.cli.cmd_monitor import _flutes
+    from millsense.core.config import MachineConfig
+    from millsense.core.presets import load_preset
+    from millsense.simulator.plan_job import plan_job
+
+    stock = ZMapStock.from_box([0.0, 0.0, -0.03], [0.06, 0.08, 0.0], 0.5e-3)
+    tool = EndMill(10e-3, flutes, helix_rad=math.radians(30))
+    plan = plan_program(interpret(SLOT_PROGRAM, source="slot.nc"), stock, tool, COEFFS)
+    _, _, meta, _ = plan_job(plan, load_preset(MachineConfig, "quaser-ux600"), "slot.parquet")
+    assert meta["flutes"] == flutes
+
+    class Rec:  # what `monitor` reads of a recording
+        metadata = meta
+
+    assert _flutes(None, Rec(), None) == flutes

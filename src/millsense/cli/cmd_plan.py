@@ -32,6 +32,15 @@ def _home(text: str | None) -> tuple[float, float, float] | None:
     return (vals[0], vals[1], vals[2])
 
 
+def program_start_mm(stock_top_m: float) -> tuple[float, float, float]:
+    """Where the tool tip is before the program's first block (machine frame, mm): X0 Y0 and
+    Z0, or the stock's highest top where that lies above Z0 (decision 1709). A G-code program
+    does not say where the machine is when it starts; a machine never starts one with its
+    tool in the material, so neither does the plan (a rapid from inside the stock would be a
+    collision the user did not program)."""
+    return (0.0, 0.0, max(0.0, round(stock_top_m * 1e3, 6)))
+
+
 def _guard(
     program: Path,
     stock: Path,
@@ -156,7 +165,8 @@ def _build_plans(
 
     _positive("--step-mm", step_mm)
     _positive("--resolution-mm", resolution_mm)
-    toolpath = interpret_file(program, home_mm=_home(home_mm))
+    home = _home(home_mm)
+    toolpath = interpret_file(program, home_mm=home)
     segments = tool_segments(toolpath)
     names = assign_tools(segments, tools, toolpath.source)
     tool_cfgs = {name: load_preset(ToolConfig, Path(name)) for name in dict.fromkeys(names)}
@@ -175,6 +185,10 @@ def _build_plans(
     check_program(toolpath, findings, machine=mcfg)
     program_warnings = list(findings.warnings)
     zmap = stock_maker(stock_cfg, stock)(resolution_mm * MM)
+    start = program_start_mm(zmap.max_height_m)
+    if start[2] > 0.0:  # a stock standing above Z0: the tool starts above it (decision 1709)
+        toolpath = interpret_file(program, home_mm=home, initial_position_mm=start)
+        segments = tool_segments(toolpath)
     console = Console(stderr=True, soft_wrap=True)
     sha = hashlib.sha256(program.read_bytes()).hexdigest()
     plans: list[tuple[int, VirtualPlan]] = []

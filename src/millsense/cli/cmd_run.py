@@ -632,17 +632,20 @@ def _plant_plan(program: Path, stock: Path, tool: str, material: str, step_mm: f
     from millsense.process.geometry import EndMill
     from millsense.simulator.plant_plan import plant_plan
 
-    from .cmd_plan import _home, stock_maker
+    from .cmd_plan import _home, program_start_mm, stock_maker
 
     tool_cfg = load_preset(ToolConfig, Path(tool))
     mat_cfg = load_preset(MaterialConfig, Path(material))
     stock_cfg = load_config(StockConfig, stock)
     make_stock = stock_maker(stock_cfg, stock)
     cell_m = plant_cell_m(stock_cfg, make_stock, resolution_mm * MM)
+    # the session plan's start (decision 1709), from a coarse z-map of the same stock
+    start = program_start_mm(make_stock(max(resolution_mm * MM, 1e-3)).max_height_m)
     with Progress(console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("plan of the virtual machine", total=1)
         return plant_plan(
-            [interpret_file(program, home_mm=_home(home_mm))], make_stock,
+            [interpret_file(program, home_mm=_home(home_mm), initial_position_mm=start)],
+            make_stock,
             EndMill.from_config(tool_cfg), CuttingCoefficients.from_config(mat_cfg),
             cell_m=cell_m, step_m=step_mm * MM,
             progress=lambda done, total: bar.update(task, completed=done, total=total),

@@ -351,7 +351,8 @@ def run_simulation(
             modes=modes,
             sample_rate_hz=mcfg.sample_rate_hz,
         )
-        meta_extra = {"program": str(program), "tool": tcfg.name, "material": mat.name}
+        meta_extra = {"program": str(program), "tool": tcfg.name, "flutes": int(tcfg.flutes),
+                      "material": mat.name}  # fmt: skip
         if first_cut is not None:
             meta_extra["first_engagement_path_m"] = first_cut
         if air_mm > 0:

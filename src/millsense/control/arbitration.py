@@ -45,13 +45,14 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
+from millsense.core.units import MM
 from millsense.streaming.block import (
     Block,
     BlockOutput,
@@ -112,6 +113,9 @@ class Supervisor(Block):
     fault_channel : per-sample fault code of the source (0 = good), or None.
     in_cut_channel : per-sample 1/0 "the plan says the tool is in cut", or None (unknown:
         breakage is taken as possible).
+    location_channels : per-sample NC line and tool-centre x, y, z (m), e.g. the plan sync's
+        ``plan/nc_line`` and ``tcp/x|y|z``, or None: a child's event that does not say where on
+        the tool path it happened is given the values at its sample (decision 1715).
     name : block name (channel prefix, event source).
 
     Outputs: ``{name}/feed_override`` and ``{name}/spindle_override`` (commanded, fraction;
@@ -130,6 +134,7 @@ class Supervisor(Block):
         *,
         fault_channel: str | None = "guard/fault",
         in_cut_channel: str | None = "plan/in_cut",
+        location_channels: tuple[str, str, str, str] | None = None,
         name: str = "supervisor",
     ) -> None:
         self.children = list(children)
@@ -146,6 +151,8 @@ class Supervisor(Block):
             ins += [i for i in c.inputs if i not in produced]
             produced.update(info.name for info in c.output_channels())
         ins += [i for i in (fault_channel, in_cut_channel) if i is not None]
+        self.location_channels = location_channels
+        ins += [i for i in location_channels or () if i not in produced]
         self.inputs = tuple(dict.fromkeys(ins))
         self.reads_truth = any(c.reads_truth for c in self.children)
         # a breakage monitor is a child that can be re-armed (BreakageBlock.rearm)
@@ -325,8 +332,38 @@ class Supervisor(Block):
             res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
             data.update(res.channels)
             channels.append(res.channels)
-            self._gather(res.events, events)
+            self._gather(self._located(res.events, start, data), events)
         return channels
+
+    def _located(
+        self, child_events: Sequence[Event], start: int, data: Mapping[str, np.ndarray]
+    ) -> list[Event]:
+        """The events, those without an NC line or a position given the location channels'
+        values at their sample (clipped into the chunk that starts at ``start``; decision
+        1715): seed 000's monitors report where on the tool path an alarm happened, and the
+        session's blocks judge the plan's channels, not the plan."""
+        if self.location_channels is None or not child_events:
+            return list(child_events)
+        cols = [data.get(c) for c in self.location_channels]
+        if any(c is None or len(c) == 0 for c in cols):
+            return list(child_events)
+        n = len(cols[0])  # type: ignore[arg-type]
+        out = []
+        for ev in child_events:
+            if ev.nc_line is not None and ev.x_mm is not None:
+                out.append(ev)
+                continue
+            i = min(max((ev.sample if ev.sample is not None else start) - start, 0), n - 1)
+            nc, x, y, z = (float(c[i]) for c in cols)  # type: ignore[index]
+            line = ev.nc_line if ev.nc_line is not None else (int(nc) if nc >= 0 else None)
+            pos = (x, y, z) if all(math.isfinite(v) for v in (x, y, z)) else None
+            out.append(replace(
+                ev, nc_line=line,
+                x_mm=ev.x_mm if ev.x_mm is not None or pos is None else pos[0] / MM,
+                y_mm=ev.y_mm if ev.y_mm is not None or pos is None else pos[1] / MM,
+                z_mm=ev.z_mm if ev.z_mm is not None or pos is None else pos[2] / MM,
+            ))  # fmt: skip
+        return out
 
     def _gather(self, child_events: Sequence[Event], events: list[Event]) -> None:
         """A child's events for the next decision; its ALARM and NOTE events passed on (its
@@ -367,7 +404,7 @@ class Supervisor(Block):
             sub = {k: data[k] if limit == n else data[k][:limit] for k in c.inputs}
             res = c.process(Chunk(a, chunk.sample_rate_hz, chunk.t0_s, sub))
             data.update(res.channels)
-            out.append(_Ahead(dict(res.channels), list(res.events), limit))
+            out.append(_Ahead(dict(res.channels), self._located(res.events, a, data), limit))
             for ev in res.events:
                 if _acts_on_children(ev):
                     s = min(max((ev.sample if ev.sample is not None else a) - a, 0), limit - 1)

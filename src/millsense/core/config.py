@@ -494,6 +494,14 @@ class FeedAxisConfig(_Model):
         assert self.lead_rad_rev is not None
         return self.lead_rad_rev / (2.0 * math.pi)
 
+    def position_gain(self) -> float:
+        """K_v (1/s): ``position_gain_1_s``, or the design from the velocity bandwidth where
+        absent, a quarter of its angular frequency (the simulator's drives and their truth
+        design it so)."""
+        if self.position_gain_1_s is not None:
+            return float(self.position_gain_1_s)
+        return 2.0 * math.pi * self.velocity_bandwidth_hz / 4.0
+
 
 class SpindleConfig(_Model):
     """Spindle drive (Aslan Table 5.1/5.2); the drive model itself lives in ``machine``."""

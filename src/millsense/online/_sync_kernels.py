@@ -181,6 +181,47 @@ def plan_rows_kernel(
         values[9, k] = floor_shear_table[r] * u[k]
 
 
+#: :func:`override_transient_kernel`'s state: [the override the axes follow, 1.0 once set].
+OVERRIDE_STATE = 2
+
+
+@numba.njit(cache=True)
+def override_transient_kernel(
+    u: NDArray[np.float64],
+    alpha: float,
+    tol: float,
+    state: NDArray[np.float64],
+    steady: NDArray[np.bool_],
+    values: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """A feed-override change as a plan transient (decision 1714). ``u_f`` follows the override
+    ``u`` through a first-order lag (``u_f += alpha·(u − u_f)`` per sample, the feed drives'
+    response); where they differ by more than ``tol`` of the larger, the sample is not
+    ``steady`` and its transient floor (``values`` rows 8–9, :func:`plan_rows_kernel`'s) is the
+    row's torque at the lower of the two: the edge part, and the shear part (``values`` row 4,
+    ∝ ``u``) at ``min(u, u_f)``; a row already in the plan's transient keeps its own floor's
+    parts, its shear part scaled the same way."""
+    uf = state[0]
+    init = state[1] != 0.0
+    for k in range(u.shape[0]):
+        uk = u[k]
+        if not init:
+            uf = uk
+            init = True
+        else:
+            uf += alpha * (uk - uf)
+        if abs(uk - uf) > tol * max(abs(uk), abs(uf)):
+            low = min(uk, uf) / uk if uk > 0.0 else 0.0
+            if steady[k]:
+                values[8, k] = values[3, k]
+                values[9, k] = values[4, k] * low
+                steady[k] = False
+            else:
+                values[9, k] *= low
+    state[0] = uf
+    state[1] = 1.0 if init else 0.0
+
+
 @numba.njit(cache=True)
 def expected_kernel(
     edge: NDArray[np.float64],

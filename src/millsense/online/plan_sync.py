@@ -30,13 +30,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics
-from millsense.online._sync_kernels import expected_kernel, plan_rows_kernel
+from millsense.online._sync_kernels import (
+    OVERRIDE_STATE,
+    expected_kernel,
+    override_transient_kernel,
+    plan_rows_kernel,
+)
 from millsense.online.gates import AirReference
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import (
@@ -50,11 +56,35 @@ from millsense.streaming.block import (
     held_views,
 )
 
+if TYPE_CHECKING:
+    from millsense.core.config import MachineConfig
+
 #: Range of the calibration ratio K_tc,new/K_tc,plan accepted; outside it the plan is kept and a
 #: warning says the measurement does not describe the plan (a wrong tool, material or signal).
 SCALE_RANGE = (0.33, 3.0)
 #: Fraction of the plan's largest mean torque below which a revolution is not calibrated on.
 MIN_CALIBRATION = 0.3
+#: Decision 1714: a feed-override change is a transient of the expected torque while the
+#: override and the feed the axes follow (its first-order lag) differ by more than this share:
+#: half the flute pattern's size bound (0.2 of the expected torque, decision 1684), so a
+#: change the plant has not followed yet cannot read as a flute's drop and rise.
+OVERRIDE_TRANSIENT_TOL = 0.1
+#: The lag's time constant where the machine's is not given (s): twice 1/K_v at K_v = 50/s.
+DEFAULT_FEED_TIME_CONSTANT_S = 0.04
+
+
+def feed_time_constant_s(machine: MachineConfig | None) -> float:
+    """How long the feed takes to follow an override change (decision 1714): 2/K_v of the
+    linear axes' slowest position loop (1/K_v is the loop's time constant; the factor 2 covers
+    the velocity loop, the interpolator's ramp and the CNC's latency, which a position loop
+    alone leaves out), or :data:`DEFAULT_FEED_TIME_CONSTANT_S` without a machine or linear
+    axes."""
+    if machine is None:
+        return DEFAULT_FEED_TIME_CONSTANT_S
+    gains = [a.position_gain() for a in machine.axes.values() if a.kind == "linear"]
+    return 2.0 / min(gains) if gains else DEFAULT_FEED_TIME_CONSTANT_S
+
+
 #: The spindle gate of a plan sync without one (:func:`~millsense.online._sync_kernels.
 #: expected_kernel`: no sample closed).
 _NO_GATE = np.empty(0)
@@ -160,6 +190,10 @@ class PlanSync(Block):
     calibration_revs, settle_revs : revolutions averaged, and skipped after the entry.
     transient_revs : revolutions of travel either side of a row over which the plan's torque
         must be steady for the row to be judged (``judged_torque``).
+    feed_time_constant_s : the feed's lag behind an override change (s,
+        :func:`feed_time_constant_s`): while the override and that lag differ by more than
+        :data:`OVERRIDE_TRANSIENT_TOL`, the samples are in a transient like the plan's
+        (decision 1714).
     name : channel prefix ``plan``.
     """
 
@@ -175,12 +209,18 @@ class PlanSync(Block):
         calibration_revs: float = 10.0,
         settle_revs: float = 1.0,
         transient_revs: float = 3.0,
+        feed_time_constant_s: float = DEFAULT_FEED_TIME_CONSTANT_S,
         name: str = "plan",
     ) -> None:
         if len(plan) < 2:
             raise ConfigError("plan sync: the plan has fewer than 2 rows")
         if decimate < 1 or not (calibration_revs > 0 and settle_revs >= 0):
             raise ConfigError("plan sync: decimate ≥ 1, calibration_revs > 0, settle_revs ≥ 0")
+        if not (math.isfinite(feed_time_constant_s) and feed_time_constant_s > 0):
+            raise ConfigError(
+                f"plan sync: feed_time_constant_s {feed_time_constant_s!r}: must be > 0 (s)"
+            )
+        self.feed_tau_s = float(feed_time_constant_s)
         self.plan = plan
         self.tcp_channels = tcp_channels
         self.torque_channel = torque_channel
@@ -256,6 +296,8 @@ class PlanSync(Block):
         self._acc = np.zeros(4)  # Σ measured, Σ edge, Σ u·shear, samples
         self._scale_name = (f"{self.name}/ktc_scale",)
         self._scale_views: HeldViews | None = None  # once the ratio no longer changes
+        self._ovr_state = np.zeros(OVERRIDE_STATE)
+        self._ovr_alpha = -math.expm1(-1.0 / (self.fs * self.feed_tau_s))
         if self.air is not None:
             self.air.reset(sample_rate_hz)
 
@@ -295,6 +337,9 @@ class PlanSync(Block):
         plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
                          self._nc, self._steady, self._depth, self._floor_edge,
                          self._floor_shear, rows, values, in_cut, steady)  # fmt: skip
+        if self.override_channel is not None:  # an override change is a transient too
+            override_transient_kernel(u, self._ovr_alpha, OVERRIDE_TRANSIENT_TOL,
+                                      self._ovr_state, steady, values)  # fmt: skip
         if n and rows[-1] >= 0:
             self.row = int(rows[-1])
         in_cut_f, edge, shear = values[2], values[3], values[4]

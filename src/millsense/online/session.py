@@ -41,7 +41,7 @@ from millsense.core.errors import ConfigError
 from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.online.gates import SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
-from millsense.online.plan_sync import PlanSync, TcpFromAxes
+from millsense.online.plan_sync import PlanSync, TcpFromAxes, feed_time_constant_s
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import Block, Chunk, Event
 from millsense.streaming.engine import Pipeline, run
@@ -184,7 +184,8 @@ def session_blocks(
     axes_pos = [f"{a}/position_cmd" for a in machine.axes]
     blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
     sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL, at_speed_channel="spindle/at_speed",
-                    transient_revs=TRANSIENT_REVS)  # fmt: skip
+                    transient_revs=TRANSIENT_REVS,
+                    feed_time_constant_s=feed_time_constant_s(machine))  # fmt: skip
     blocks.append(sync)
     flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
     children: list[Block] = []
@@ -237,6 +238,7 @@ def session_blocks(
         SupervisorOptions(period_s=o.period_s, hold_on_breakage=o.hold_on_breakage),
         fault_channel=FAULT_CHANNEL,
         in_cut_channel="plan/in_cut",
+        location_channels=("plan/nc_line", "tcp/x", "tcp/y", "tcp/z"),
     )
     blocks.append(sup)
     return SessionBlocks(blocks, sup, notes)

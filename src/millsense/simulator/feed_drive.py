@@ -271,7 +271,7 @@ class FeedDriveParams:
             friction=fric,
             kp=kp,
             ki=ki,
-            kv=axis.position_gain_1_s or wc / 4.0,
+            kv=axis.position_gain(),
             current_bandwidth_hz=axis.current_bandwidth_hz,
             encoder_counts_rev=axis.encoder_counts_rev,
             torque_noise_nm=axis.current_noise_a * axis.torque_constant_nm_a,

@@ -58,6 +58,9 @@ def plan_job(
         "plan": plan_name,
         "program": str(vp.metadata.get("program", "")),
         "tool": tool or str(vp.metadata.get("tool_name", "plan")),
+        # the teeth `monitor` and `estimate` read when no plan or option gives them (decision
+        # 1716): without them a 3- or 4-flute run was judged at a 2-flute tooth frequency
+        "flutes": int(end_mill.n_flutes),
         "material": material or str(vp.metadata.get("material_name", "plan")),
         "engagement": source.summary(),
     }

@@ -79,7 +79,7 @@ def servo_for(axis: FeedAxisConfig, inertia: float, dead_time_s: float = 0.0) ->
     kp = axis.velocity_kp_nm_s_rad or inertia * wc
     ki = axis.velocity_ki_nm_rad if axis.velocity_ki_nm_rad is not None else kp * wc / 4.0
     return ServoLoop(
-        kp, ki, axis.position_gain_1_s or wc / 4.0, axis.current_bandwidth_hz, dead_time_s
+        kp, ki, axis.position_gain(), axis.current_bandwidth_hz, dead_time_s
     )
 
 

@@ -238,7 +238,7 @@ def truth_feed_params(axis: FeedAxisConfig, truth: TruthAxis) -> FeedDriveParams
         friction=truth.friction,
         kp=kp,
         ki=ki,
-        kv=axis.position_gain_1_s or wc / 4.0,
+        kv=axis.position_gain(),
         current_bandwidth_hz=truth.current_loop.kp / truth.current_loop.inductance / (2 * math.pi),
         encoder_counts_rev=axis.encoder_counts_rev,
         torque_noise_nm=truth.current_noise_a * truth.torque_constant,
