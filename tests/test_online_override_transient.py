@@ -82,6 +82,18 @@ def test_an_override_cut_is_judged_against_the_lower_override_and_small_moves_ar
     assert steady2.all()
 
 
+def test_a_feed_hold_is_no_transient() -> None:
+    """An override falling to 0 (a feed hold) starts no transient: the plan then expects the
+    edge torque alone, and the tooth period that straddles the hold is judged as before (a
+    broken flute's pair completes there: `tests/test_online_session.py::
+    test_run_and_replay_on_a_short_slot`); a resumption from 0 is a transient."""
+    u = np.full(3000, 0.9)
+    u[1000:2000] = 0.0
+    steady, _ = _run_kernel(u, DEFAULT_FEED_TIME_CONSTANT_S, 100)
+    assert steady[:2000].all()
+    assert not steady[2000] and steady[2900:].all()
+
+
 def test_the_feed_time_constant_is_twice_the_slowest_linear_position_loop() -> None:
     """The shipped commissioned quaser-ux600: K_v 62.8/s on X, Y and Z (the rotary A and C,
     47.1/s, are not the path's feed): 2/62.832 = 31.8 ms. Without a gain the drive's design

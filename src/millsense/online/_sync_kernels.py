@@ -200,7 +200,9 @@ def override_transient_kernel(
     ``steady`` and its transient floor (``values`` rows 8–9, :func:`plan_rows_kernel`'s) is the
     row's torque at the lower of the two: the edge part, and the shear part (``values`` row 4,
     ∝ ``u``) at ``min(u, u_f)``; a row already in the plan's transient keeps its own floor's
-    parts, its shear part scaled the same way."""
+    parts, its shear part scaled the same way. An override of 0 (a feed hold, the feed stopping)
+    is no transient: the plan then expects the edge torque alone, which the torque falls to, so
+    a drop cannot be read there, and the periods that end in it are judged as before."""
     uf = state[0]
     init = state[1] != 0.0
     for k in range(u.shape[0]):
@@ -210,8 +212,8 @@ def override_transient_kernel(
             init = True
         else:
             uf += alpha * (uk - uf)
-        if abs(uk - uf) > tol * max(abs(uk), abs(uf)):
-            low = min(uk, uf) / uk if uk > 0.0 else 0.0
+        if uk > 0.0 and abs(uk - uf) > tol * max(abs(uk), abs(uf)):
+            low = min(uk, uf) / uk
             if steady[k]:
                 values[8, k] = values[3, k]
                 values[9, k] = values[4, k] * low

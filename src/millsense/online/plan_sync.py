@@ -337,7 +337,11 @@ class PlanSync(Block):
         plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
                          self._nc, self._steady, self._depth, self._floor_edge,
                          self._floor_shear, rows, values, in_cut, steady)  # fmt: skip
+        # the plan's own steadiness, where the K_tc calibration averages (decision 1714: an
+        # override change is a transient of the judging only)
+        plan_steady = steady
         if self.override_channel is not None:  # an override change is a transient too
+            plan_steady = steady.copy()
             override_transient_kernel(u, self._ovr_alpha, OVERRIDE_TRANSIENT_TOL,
                                       self._ovr_state, steady, values)  # fmt: skip
         if n and rows[-1] >= 0:
@@ -359,7 +363,7 @@ class PlanSync(Block):
             torque = extra[f"{self.name}/cutting_torque"]
         k_cal = 0
         if calibrating:
-            k_done = self._calibrate(chunk, in_cut & steady, edge, shear, events, torque)
+            k_done = self._calibrate(chunk, in_cut & plan_steady, edge, shear, events, torque)
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
