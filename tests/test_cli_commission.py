@@ -104,3 +104,23 @@ def test_commission_refuses_an_axis_named_twice(
                             str(out)], capsys)  # fmt: skip
     assert code == 2 and "--axis 'x,y,x': axis 'x' named twice" in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_commission_identify_writes_the_shipped_spindle_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # decision 1708: `commission --identify` on the virtual quaser-ux600 reproduces the shipped
+    # commissioned file's [spindle] key for key: the inertia from the sweep's rigid body, the
+    # range-1 motor admittance from its current loop, the friction from the constant-speed
+    # runs and the nameplate's keys (speed_from_encoder_difference among them) as merged
+    from importlib import resources
+
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(
+        ["commission", "--machine", "quaser-ux600", "--axis", "x", "-o", "c", "--identify"],
+        capsys,
+    )
+    assert code == 0, err
+    got = tomllib.loads((Path("c") / "machine.toml").read_text())["spindle"]
+    entry = resources.files("millsense.data").joinpath("commissioned", "quaser-ux600.toml")
+    assert got == tomllib.loads(entry.read_text(encoding="utf-8"))["spindle"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -170,7 +171,11 @@ def test_machine_file_observer_model_is_the_identifications() -> None:
     # fit against the file's 6-state one; the measured FRF equals per_sample_disturbance_frf
     # to 1e-3 dB), and both refer I_nom to the torque δ = −T_s/2 = −50 µs from the instant
     # (within 1 µs: δ is read from the top five lines). The held-torque model that the file's
-    # path used before is 1.8 dB above at 1945 Hz.
+    # path used before is 1.8 dB above at 1945 Hz. Decision 1708: the file's drive takes its
+    # speed from the encoder's difference over the velocity period; the observer is designed
+    # on its loop with the speed at the instant (checked here as above), and the drive with
+    # the difference, as the simulated identification measures it, is the exact FRF that the
+    # response model takes (1e-3 dB; δ = +T_s/2 there).
     from millsense.core.config import MachineConfig, load_config
     from millsense.estimation.from_config import _spindle_designs
     from millsense.estimation.spindle_observer import (
@@ -181,9 +186,16 @@ def test_machine_file_observer_model_is_the_identifications() -> None:
 
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     machine = load_config(MachineConfig, root / "src/millsense/data/commissioned/quaser-ux600.toml")
-    params, ranges, _ = _spindle_designs(machine, "test")
+    drive, ranges, _ = _spindle_designs(machine, "test")
+    assert drive.speed_from_encoder_difference
+    params = replace(drive, speed_from_encoder_difference=False)  # the observer's design loop
     f = np.arange(5.0, 2450.0, 5.0)
     for r, rpm in ((0, 1500.0), (1, 4000.0)):
+        measured = identify_spindle(drive, velocity_period_s=drive.velocity_period_s,
+                                    speed_rpm=rpm, sample_rate_hz=FS, n_periods=5)  # fmt: skip
+        exact = per_sample_disturbance_frf(drive, r, measured.frf.freq_hz, FS)
+        assert np.max(np.abs(20 * np.log10(np.abs(measured.frf.h1 / exact)))) < 1e-3
+        assert measured.torque_lag_s == pytest.approx(0.5 / FS, abs=1e-6)
         ident = identify_spindle(params, velocity_period_s=params.velocity_period_s,
                                  speed_rpm=rpm, sample_rate_hz=FS, n_periods=5)  # fmt: skip
         exact = per_sample_disturbance_frf(params, r, ident.frf.freq_hz, FS)

@@ -13,8 +13,9 @@
 - ``friction`` constant-velocity moves (+ a presliding test) → ``[axes.<axis>.friction]``;
 - ``drive``    current-injection sweep (+ an acceleration test) → ``[axes.<axis>]`` and
   ``[axes.<axis>.ball_screw]``;
-- ``spindle``  velocity-loop sweep (+ constant-speed runs) → ``[spindle]`` and its residual
-  modes;
+- ``spindle``  velocity-loop sweep (+ constant-speed runs) → ``[spindle]`` (the inertia from
+  the sweep's rigid body with the file's K_t and the motor admittance of the sweep's speed
+  range, decision 1708; the friction) and its residual modes;
 - ``idle``     repeated air cuts → a CSV table and ``[axes.<axis>.idle_table]`` referencing it.
 
 Known quantities (torque constant, lead, inertia, current-loop bandwidth, spindle gains) come
@@ -529,6 +530,7 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
 
     from millsense.ident import friction as fr
     from millsense.ident import spindle as isp
+    from millsense.models.spindle_plant import SpindleDriveParams
     from millsense.report.ident_plots import plot_spindle_fit
 
     sweeps = _by_test(ctx, "spindle_sweep")
@@ -573,8 +575,12 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
         if not isinstance(per, int):
             raise InputDataError(f"{path}: metadata 'period_samples' (sweep period) missing")
         band = o["band"] or (5.0, min(2500.0, 0.25 * rec.sample_rate_hz))
+        ref = ctx.channel(rec, path, "spindle/speed_ref")
+        # the sweep's speed range (its K_t, its admittance keys), as the drive switches
+        drive = SpindleDriveParams.from_config(sp)
+        r = drive.range_index(float(np.mean(np.abs(ref))))
         fit = isp.fit_spindle(
-            ctx.channel(rec, path, "spindle/speed_ref"),
+            ref,
             ctx.channel(rec, path, "spindle/speed"),
             ctx.channel(rec, path, "spindle/current_cmd"),
             ctx.channel(rec, path, "spindle/current"),
@@ -583,8 +589,26 @@ def _spindle(ctx: _Ctx, o: dict[str, Any]) -> tuple[dict[str, object], list[str]
             controller=ctl,
             inertia_kg_m2=sp.inertia_kg_m2,
             viscous_nm_s_rad=viscous,
-            torque_constant_nm_a=sp.torque_constant_nm_a,
+            torque_constant_nm_a=drive.ranges[r].torque_constant,
             band_hz=band,
+            identify_inertia=True,
+            current_pi=(drive.current_kp, drive.current_ki, drive.back_emf),
+        )
+        # J/K_t and the current loop from the sweep, J with the file's K_t (decision 1708):
+        # what the observer's G_dτ needs at a cut's tooth harmonics
+        table["inertia_kg_m2"] = float(f"{fit.inertia:.6g}")
+        assert fit.admittance is not None
+        keys = ("motor_a_v_s2_a", "motor_b_v_s_a", "motor_c_ohm")
+        if r == 1:
+            keys = ("motor_a_range2_v_s2_a", "motor_b_range2_v_s_a", "motor_c_range2_ohm")
+        for key, v in zip(keys, fit.admittance, strict=True):
+            table[key] = float(f"{v:.6g}")
+        a, b, c = fit.admittance
+        notes.append(
+            f"spindle (range {r + 1}) from the sweep: inertia {fit.inertia:.5g} kg·m² by the rigid "
+            f"body at 5-50 Hz with K_t {drive.ranges[r].torque_constant:g} N·m/A (machine file "
+            f"{sp.inertia_kg_m2:.5g}); motor admittance a {a:.4g}, b {b:.4g}, c {c:.4g} at 5-500 "
+            f"Hz (machine file {', '.join(f'{v:.4g}' for v in drive.ranges[r].admittance)})"
         )
         if fit.residual.modes:
             modes = isp.residual_modes_table(fit)

@@ -533,6 +533,13 @@ class SpindleConfig(_Model):
     """Counts per revolution of the spindle motor's encoder (the velocity loop's speed); the
     chatter monitor reads it to tell where the drive's quantisation lines can stand (decision
     1697). None = not known."""
+    speed_from_encoder_difference: bool = False
+    """The velocity loop's speed is the motor encoder's angle difference over the loop's
+    period, ``(θ_k − θ_{k−1})/T_v`` (the drive's data; a lag of T_v/2 against the speed at the
+    instant), not the speed at the instant (Aslan's continuous Ω, Eq. 5.3). The spindle
+    observer's response to the cutting torque (the engagement monitor's equaliser) models it;
+    the observer itself is designed on the loop with the speed at the instant (decision
+    1708)."""
     current_kp_v_a: Annotated[float, Field(gt=0, le=1e4)] | None = None
     """Current PI proportional gain, V/A (Aslan Eq. 5.3 G_I: 3.1)."""
     current_ki_v_a_s: Annotated[float, Field(gt=0, le=1e8)] | None = None

@@ -404,9 +404,19 @@ def _velocity_loop(
 ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray, float]:
     """The continuous plant without the angle (A_c, B_c: inputs I_nom, e, τ_d) and the
     discrete velocity loop without its torque input (A, C at T_v) of :func:`disturbance_model`;
-    returns ``(a_c, b_c, a, c, bd_torque, t_v)`` (``bd_torque``: τ_d held over T_v, ZOH)."""
+    returns ``(a_c, b_c, a, c, bd_torque, t_v)`` (``bd_torque``: τ_d held over T_v, ZOH).
+
+    With ``params.speed_from_encoder_difference`` the loop acts on ``(θ_k − θ_{k−1})/T_v``
+    (the drive's speed from its encoder, decision 1708): the angle is kept as the plant's last
+    state, and the discrete loop carries its increment over the period in its place (the
+    angle's own term dropped), so the speed is that state over T_v."""
     a_c, b_c, cr = plant_matrices(params, range_index)
-    keep = np.arange(1, a_c.shape[0])  # drop the spindle angle: it feeds nothing
+    diff = params.speed_from_encoder_difference
+    # the spindle angle feeds nothing: dropped, or (speed from the encoder's difference) moved
+    # last, where the discrete loop keeps its increment over the period instead of itself
+    keep = np.arange(1, a_c.shape[0])
+    if diff:
+        keep = np.append(keep, 0)
     a_c, b_c, cr = a_c[np.ix_(keep, keep)], b_c[keep], cr[keep]
     tv = params.velocity_period_s
     n, m_in = b_c.shape
@@ -416,7 +426,12 @@ def _velocity_loop(
     e = linalg.expm(big)
     ad, bd = e[:n, :n], e[:n, n:]
     meas = cr.copy()
-    meas[0] += 1.0  # Ω is the first state after dropping θ
+    if diff:
+        # the last state is θ_k − θ_{k−1}: θ_k's own term goes, the speed is it over T_v
+        ad[-1, -1] = 0.0
+        meas[-1] += 1.0 / tv
+    else:
+        meas[0] += 1.0  # Ω is the first state after dropping θ
     meas /= 1.0 + residual_feedthrough
     kp, ki = params.velocity_gains
     g = kp + ki * tv
@@ -455,7 +470,9 @@ def disturbance_model(
     in the drive: ``z⁺ = z + K_i·T_v·e``, ``I_nom = K_p·e + z⁺`` with
     ``e = −(Ω + c_r·x)/(1 + R_∞)`` (speed reference constant: it does not enter the deviation).
     A cut's torque is not held over T_v: the observer of a machine file is designed on
-    :func:`disturbance_model_per_sample` (decision 1699).
+    :func:`disturbance_model_per_sample` (decision 1699). With
+    ``params.speed_from_encoder_difference`` the measured speed is the angle's difference over
+    T_v instead of Ω at the instant (:func:`_velocity_loop`; decision 1708).
     """
     _, _, a, c, b, tv = _velocity_loop(params, range_index, residual_feedthrough)
     return StateSpaceModel.from_arrays(a, b, c, 0.0, dt=tv)
@@ -516,9 +533,14 @@ def disturbance_model_per_sample(
     Returns the model and δ, s. Kept per process and parameters (:data:`_PER_SAMPLE`): an
     online session builds its observer once per machine.
 
-    On the nameplate quaser-ux600 drive δ = −T_s/2 = −50 µs, and the fit is within 0.6 dB
-    and 3.5° of the exact FRF over the lines (range 2: 0.58 dB); the held-torque model is
-    1.7 dB above it at 1.94 kHz and 2.4 dB at 2.28 kHz (decision 1699). The model is also
+    On the nameplate quaser-ux600 drive with the speed at the instant δ = −T_s/2 = −50 µs,
+    and the fit is within 0.6 dB and 3.5° of the exact FRF over the lines (range 2: 0.58 dB);
+    the held-torque model is 1.7 dB above it at 1.94 kHz and 2.4 dB at 2.28 kHz (decision
+    1699). With the speed from the encoder's difference over T_v (decision 1708) δ = +T_s/2
+    and the fit misses the exact FRF by up to 6 % at low frequency and 0.97 dB near 2.5 kHz:
+    a machine file's observer is designed on the loop with the speed at the instant, and only
+    its response (:func:`~millsense.estimation.from_config.spindle_estimate_response`) takes
+    the exact FRF with the difference. The model is also
     kept on disk (:mod:`millsense.core.disk_cache`, decision 2006): the next process, a batch
     worker, reads it without the fit or its imports."""
     a_c, b_c, a, c, _, tv = _velocity_loop(params, range_index, residual_feedthrough)

@@ -81,7 +81,10 @@ class SpindleFit:
     current_loop_measured : measured G_m = I_act/I_nom at ``freq_hz``.
     controller_measured : measured G_Ω = I_nom/e at ``freq_hz`` (the CNC's PI as it acts on
         the recorded signals, sample-and-hold included).
-    controller, inertia, viscous, torque_constant : the known quantities used.
+    controller, inertia, viscous, torque_constant : the known quantities used (the inertia
+        the sweep's own where ``fit_spindle(identify_inertia=True)``).
+    admittance : the motor admittance's (a, b, c) fitted from the sweep (Eq. 5.7,
+        :func:`motor_admittance`), or None (not asked for).
     """
 
     residual: ModalFit
@@ -96,6 +99,7 @@ class SpindleFit:
     inertia: float
     viscous: float
     torque_constant: float
+    admittance: tuple[float, float, float] | None = None
 
     def _inside(self, f: np.ndarray, measured: np.ndarray, model: np.ndarray) -> np.ndarray:
         fm = self.freq_hz
@@ -159,6 +163,94 @@ def _fit_current_loop(f: np.ndarray, gm: np.ndarray) -> tuple[float, float]:
     return math.exp(float(sol.x[0])), float(sol.x[1])
 
 
+#: Band of :func:`rigid_body_inertia`, Hz: J_eS·ω is ≥ 100× the viscous B_eS from 5 Hz on, and
+#: to 50 Hz the spindle turns as one body (the truth's first torsional mode is at 2.6 kHz) and
+#: the CNC's sampling of Ω and I_act shifts their phases by < 1°.
+INERTIA_BAND_HZ = (5.0, 50.0)
+
+
+def rigid_body_inertia(
+    freq_hz: np.ndarray,
+    speed_per_current: np.ndarray,
+    torque_constant_nm_a: float,
+    band_hz: tuple[float, float] = INERTIA_BAND_HZ,
+) -> float:
+    """J_eS, kg·m², from a velocity-loop sweep's ``Ω_meas/I_act`` (rad/s per A) by the rigid
+    body (Aslan Eq. 5.1: ``J s Ω = K_t I_act − B Ω``): ``K_t·I_act/Ω_meas = J s + B``, whose
+    imaginary part is fitted by least squares over ``band_hz`` (B is the friction test's).
+
+    The measured current removes the current loop from the fit, so the sweep gives
+    ``J/K_t``; with the machine file's K_t (the drive's parameter) this is the inertia the
+    file's model needs for the spindle's acceleration per ampere: a K_t off by x % gives a
+    J off by the same x %, and the observer's G_dτ keeps its shape (decision 1708)."""
+    f = np.asarray(freq_hz, dtype=float)
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    if sel.sum() < 3:
+        raise InputDataError(
+            f"spindle sweep: {int(sel.sum())} lines in {band_hz[0]:g}-{band_hz[1]:g} Hz for the "
+            "inertia; needs 3 or more"
+        )
+    w = 2.0 * math.pi * f[sel]
+    y = torque_constant_nm_a / np.asarray(speed_per_current, dtype=complex)[sel]
+    j = float(np.sum(y.imag * w) / np.sum(w * w))
+    if not j > 0:
+        raise InputDataError(f"spindle sweep: the rigid-body inertia came out {j:.4g} kg·m²")
+    return j
+
+
+#: Band of :func:`motor_admittance`, Hz: around the current loop's bandwidth (a few hundred
+#: Hz), where Eq. 5.7's second order holds for a drive whose current PI is sampled with a dead
+#: time (the truth's: 20 kHz, one period; within 2.2 % there, 9.5 % at 1 kHz).
+ADMITTANCE_BAND_HZ = (5.0, 500.0)
+
+
+def motor_admittance(
+    freq_hz: np.ndarray,
+    current_cmd: np.ndarray,
+    current: np.ndarray,
+    speed: np.ndarray,
+    current_pi: tuple[float, float],
+    back_emf_v_s_rad: float,
+    sample_rate_hz: float,
+    band_hz: tuple[float, float] = ADMITTANCE_BAND_HZ,
+) -> tuple[float, float, float]:
+    """``(a, b, c)`` of the motor admittance ``I/V = 1/(a s² + b s + c)`` (Aslan Eq. 5.7) from a
+    velocity-loop sweep: the FRFs of I_nom, I_act and Ω_meas (each against the same
+    reference) and the drive's current PI ``G_I = k_p + k_i/s`` (Eq. 5.3) give
+    ``1/Y = (G_I·(I_nom − I_act) − K_b·Ω)/I_act``, whose real part ``c − a ω²`` and imaginary
+    part ``b ω`` are fitted by least squares relative to ``|1/Y|`` over ``band_hz``.
+    What the fitted second order holds besides the winding (the sampled PI, its dead time) is
+    what the observer's model of the current loop needs (decision 1708)."""
+    f = np.asarray(freq_hz, dtype=float)
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    if sel.sum() < 4:
+        raise InputDataError(
+            f"spindle sweep: {int(sel.sum())} lines in {band_hz[0]:g}-{band_hz[1]:g} Hz for the "
+            "motor admittance; needs 4 or more"
+        )
+    w = 2.0 * math.pi * f[sel]
+    i_nom, i_act, om = (np.asarray(h, dtype=complex)[sel] for h in (current_cmd, current, speed))
+    g_i = current_pi[0] + current_pi[1] / (1j * w)
+    # the drive's current PI acts on I_nom held between the CNC samples it is recorded at
+    ts = 1.0 / sample_rate_hz
+    held = np.exp(-0.5j * w * ts) * np.sinc(w * ts / (2.0 * math.pi))
+    z = (g_i * (held * i_nom - i_act) - back_emf_v_s_rad * om) / i_act
+    wt = 1.0 / np.abs(z)
+    n = w.size
+    lhs = np.zeros((2 * n, 3))
+    lhs[:n, 0] = -(w**2) * wt
+    lhs[:n, 2] = wt
+    lhs[n:, 1] = w * wt
+    rhs = np.concatenate([z.real * wt, z.imag * wt])
+    a, b, c = (float(v) for v in np.linalg.lstsq(lhs, rhs, rcond=None)[0])
+    if not (a > 0 and b > 0 and c >= 0):
+        raise InputDataError(
+            f"spindle sweep: the motor admittance came out a {a:.4g}, b {b:.4g}, c {c:.4g} "
+            "(Eq. 5.7 needs a, b > 0, c ≥ 0)"
+        )
+    return a, b, c
+
+
 def fit_spindle(
     reference: np.ndarray,
     speed: np.ndarray,
@@ -174,6 +266,8 @@ def fit_spindle(
     band_hz: tuple[float, float] = (5.0, 2500.0),
     max_modes: int = 14,
     max_damping: float = 0.99,
+    identify_inertia: bool = False,
+    current_pi: tuple[float, float, float] | None = None,
 ) -> SpindleFit:
     """Fit the spindle's residual modes and current loop from a velocity-loop sweep.
 
@@ -187,12 +281,17 @@ def fit_spindle(
     sample_rate_hz : Hz.
     period_samples : samples per period of the multisine.
     controller : the CNC's velocity PI.
-    inertia_kg_m2 : J_eS, kg·m² (machine file or an acceleration test).
+    inertia_kg_m2 : J_eS, kg·m² (machine file or an acceleration test); replaced by the
+        sweep's own (:func:`rigid_body_inertia`) with ``identify_inertia``.
     viscous_nm_s_rad : B_eS, N·m·s/rad (friction test).
     torque_constant_nm_a : K_tS of the speed range of the sweep, N·m/A.
     band_hz : band of the residual fit, Hz.
     max_modes : largest order of the stabilisation diagram.
     max_damping : largest damping ratio of a physical mode (Appendix E lists ζ up to 0.94).
+    identify_inertia : identify J_eS from the sweep (:func:`rigid_body_inertia` with
+        ``torque_constant_nm_a``) and take the rigid body and the residual with it.
+    current_pi : the drive's current PI gains and back EMF ``(k_p V/A, k_i V/(A·s), K_b
+        V·s/rad)``: also fit the motor admittance (:func:`motor_admittance`).
 
     Returns
     -------
@@ -222,6 +321,12 @@ def fit_spindle(
     open_loop = hw / (1.0 - hw)  # Ω_meas/e with e = r − Ω_meas
     gm = ha / hi
     bw, delay = _fit_current_loop(f, gm)
+    if identify_inertia:
+        inertia_kg_m2 = rigid_body_inertia(f, hw / ha, torque_constant_nm_a)
+    admittance = None
+    if current_pi is not None:
+        admittance = motor_admittance(f, hi, ha, hw, current_pi[:2], current_pi[2],
+                                      sample_rate_hz)  # fmt: skip
     s = 2j * math.pi * f
     g_r = 1.0 / (inertia_kg_m2 * s + viscous_nm_s_rad)
     g_ctl = hi / (1.0 - hw)  # I_nom/e
@@ -261,6 +366,7 @@ def fit_spindle(
         inertia=inertia_kg_m2,
         viscous=viscous_nm_s_rad,
         torque_constant=torque_constant_nm_a,
+        admittance=admittance,
     )
 
 

@@ -57,6 +57,12 @@ class SpindleDriveParams:
     velocity_period_s : velocity-loop sampling, s (0.2 ms, Aslan P7).
     velocity_error_unit : "rev/s" (default, decision 2) or "rad/s" (as printed).
     friction_smoothing_rad_s : sgn(Ω) is tanh(Ω/this), rad/s.
+    speed_from_encoder_difference : the velocity loop acts on the motor encoder's angle
+        difference over its period, ``(θ_k − θ_{k−1})/T_v`` (the mean speed over the last
+        period: a lag of T_v/2), not on the speed at its instant (decision 1708); read by the
+        sampled loop of :mod:`millsense.estimation.spindle_observer` and by
+        :class:`~millsense.simulator.spindle.SpindleDriveSim`, not by the continuous closed
+        loop's bandwidths here.
     """
 
     inertia: float
@@ -72,6 +78,7 @@ class SpindleDriveParams:
     velocity_period_s: float = 2e-4
     velocity_error_unit: Literal["rev/s", "rad/s"] = "rev/s"
     friction_smoothing_rad_s: float = 0.5
+    speed_from_encoder_difference: bool = False
 
     @classmethod
     def aslan_quaser(cls) -> SpindleDriveParams:
@@ -96,10 +103,11 @@ class SpindleDriveParams:
     def from_config(cls, cfg: SpindleConfig) -> SpindleDriveParams:
         """Quaser defaults overridden by the configured values.
 
-        Inertia, K_tS, friction and switch always; back EMF, the velocity PI (per rev/s of
-        speed error, decision 2), its period, the current PI and the Eq. 5.7 admittance per
-        range when their keys are present (absent keys keep Aslan's Quaser values). The
-        residual modes stay App. E's (``residual_modes`` is read by the estimator only).
+        Inertia, K_tS, friction, switch and the speed's measurement always; back EMF, the
+        velocity PI (per rev/s of speed error, decision 2), its period, the current PI and the
+        Eq. 5.7 admittance per range when their keys are present (absent keys keep Aslan's
+        Quaser values). The residual modes stay App. E's (``residual_modes`` is read by the
+        estimator only).
         """
         base = cls.aslan_quaser()
         kt2 = cfg.torque_constant_range2_nm_a or cfg.torque_constant_nm_a
@@ -144,6 +152,7 @@ class SpindleDriveParams:
                 replace(r2, torque_constant=kt2, admittance=adm2),
             ),
             switch_rad_s=(cfg.range_switch_rpm * units.RPM if cfg.range_switch_rpm else math.inf),
+            speed_from_encoder_difference=cfg.speed_from_encoder_difference,
         )
 
     @property

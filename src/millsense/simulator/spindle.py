@@ -77,19 +77,28 @@ def _spindle_kernel(
     prm: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """ctl = [sample counter, integrator, I_nom held, e held, range]; prm described in caller."""
+    """ctl = [sample counter, integrator, I_nom held, e held, range, angle at the previous
+    velocity sample]; prm described in caller (prm[7] = 1: the loop's speed is the angle's
+    difference over its period)."""
     kp, ki, tv, nv, w_sw, coul, w_s = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6]
+    diff = prm[7] != 0.0
     n = x.shape[0]
     xn = np.empty(n)
     for k in range(speed_ref.shape[0]):
         r = int(ctl[4])
-        om_meas = x[1]
+        res = 0.0
         for j in range(n):
-            om_meas += cr[r, j] * x[j]
+            res += cr[r, j] * x[j]
+        om_meas = x[1] + res
         if int(ctl[0]) % int(nv) == 0:
             r = 1 if abs(speed_ref[k]) >= w_sw else 0
             ctl[4] = r
-            e = speed_ref[k] - om_meas
+            om_loop = om_meas
+            if diff:
+                # the angle's difference over the period (none before the first period)
+                om_loop = (x[0] - ctl[5]) / tv + res if ctl[0] > 0.0 else res
+                ctl[5] = x[0]
+            e = speed_ref[k] - om_loop
             ctl[1] += ki * e * tv
             ctl[2] = kp * e + ctl[1]
             ctl[3] = e
@@ -140,10 +149,11 @@ class SpindleDriveSim:
                 params.switch_rad_s if math.isfinite(params.switch_rad_s) else 1e300,
                 params.coulomb,
                 params.friction_smoothing_rad_s,
+                1.0 if params.speed_from_encoder_difference else 0.0,
             ]
         )
         self._x = np.zeros(sizes.pop())
-        self._ctl = np.zeros(5)
+        self._ctl = np.zeros(6)
 
     def advance(
         self, speed_ref_rad_s: np.ndarray, torque_dist_nm: np.ndarray
@@ -195,9 +205,10 @@ def discrete_disturbance_frf(
     Independent of the kernel: built from the ZOH matrices and the controller algebra,
     ``H(z) = C (zI − A_cl)⁻¹ B_cl + D`` at ``z = e^{jωh}``.
     """
-    if round(sim._prm[3]) != 1:
+    if round(sim._prm[3]) != 1 or sim._prm[7] != 0.0:
         raise InputDataError(
-            "spindle: discrete FRF needs velocity_period_s equal to the sample time"
+            "spindle: discrete FRF needs velocity_period_s equal to the sample time and the "
+            "speed at the instant"
         )
     ad, bd, cr = sim._ad[range_index], sim._bd[range_index], sim._cr[range_index]
     n = ad.shape[0]

@@ -128,26 +128,7 @@ def _table(res: dict[str, SlotResult]) -> str:
     description="median axial depth of the engagement monitor over the steady revolutions of "
     "a 3 mm full slot run through millsense run's default session, on the spindle observer's "
     "estimate (est/spindle/spindle/load) with the recorded path feed, equalised by the "
-    "shipped commissioned machine file's observer response (decision 1554)",
-    gap="the spindle observer's response distorts the tooth harmonics' ratios T_kN/T_N the "
-    "depth is fitted to (|G_ctau| 0.97-0.98 and -5 to -56 degrees at 33-400 Hz in the low "
-    "speed range): without the equaliser of decision 1554 the fit lands on 5.86 mm with σ "
-    "0.87; with the machine file's model of it, 4.20-4.25 mm. Not a wrong basin of the fit "
-    "(decision 1704; the session before decisions 1696-1699): all 137 steady revolutions lie "
-    "at 3.3-4.9 mm (quartiles 4.02 and "
-    "4.42 mm), and fitting the 137 revolutions' averaged harmonics unweighted gives the same "
-    "4.3-4.7 mm (the 12 or the 3 lowest tooth harmonics; the truth's 3.11-3.14 mm). What "
-    "remains is the model's own error in the lowest tooth harmonics' ratios: the equalised "
-    "estimate's averaged T_4/T_2, T_6/T_2, T_8/T_2 against the truth's are 0.94 +1 degree, "
-    "1.01 +10 degrees, 0.93 +6 degrees (their noise 1-3 %), which a cut this shallow "
-    "against the helix's axial pitch (3 of 54 mm) magnifies: the ratios change little with "
-    "d_a. The reliability index (Lee Eq. 2.23, a fit residual) stays 0.8-0.98 and the "
-    "revolutions' scatter is their noise's (decision 1558): neither sees this bias. What "
-    "`millsense monitor` reports here (59 of 137 revolutions reliable alone, so the averaged "
-    "harmonics, weighted with the model's 10 % error, decision 1698) is 'not determined, "
-    "2.47-4.00 mm' (averaged fit 3.21 mm, ±24 %): it does not report the wrong depth, but "
-    "not the depth to ±10 % either. A better response model (estimation) is what is missing. "
-    "Not solved",
+    "shipped commissioned machine file's observer response (decisions 1554, 1708)",
     issue=15,
 )
 def _estimate() -> Measured:
