@@ -280,8 +280,13 @@ def v7_run() -> V7Run:
     run.events["virtual"] = run_block(seed, data, 100, m.sample_rate_hz)[0]
     run.events["ktc"] = [e for e in res.events if e.name == "ktc_calibrated"]
     tcp = ("tcp/x", "tcp/y", "tcp/z")
+    # decision 1523's reference is learnt from the first tooth period of 0.5 N·m or more, with
+    # the spindle at speed: its run-up's acceleration residual in the air-subtracted torque
+    # reaches that too (-0.57 N·m at 0.14 s with decision 1708's observer), and a reference
+    # learnt there is the air's
     const = BreakageBlock(N_V7, "constant", signal_channels=(CUTTING_TORQUE,), learn_from=0.5,
-                          plan=plan, tcp_channels=tcp)  # fmt: skip
+                          plan=plan, tcp_channels=tcp,
+                          enable_channel="spindle/at_speed")  # fmt: skip
     run.events["constant"] = run_block(const, data, 100, m.sample_rate_hz)[0]
     # Aslan Eq. 6.5 (decision 1670): seed 002's residual thresholds learnt from the same first
     # tooth period, at seed 002's α = 2 (counted) and at the range's upper end α = 3 (shown)
