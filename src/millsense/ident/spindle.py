@@ -163,6 +163,20 @@ def _fit_current_loop(f: np.ndarray, gm: np.ndarray) -> tuple[float, float]:
     return math.exp(float(sol.x[0])), float(sol.x[1])
 
 
+def _band_lines(
+    freq_hz: np.ndarray, band_hz: tuple[float, float], need: int, what: str
+) -> np.ndarray:
+    """The sweep's lines in ``band_hz`` (a mask), at least ``need`` of them for ``what``."""
+    f = np.asarray(freq_hz, dtype=float)
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    if sel.sum() < need:
+        raise InputDataError(
+            f"spindle sweep: {int(sel.sum())} lines in {band_hz[0]:g}-{band_hz[1]:g} Hz for "
+            f"{what}; needs {need} or more"
+        )
+    return sel
+
+
 #: Band of :func:`rigid_body_inertia`, Hz: J_eS·ω is ≥ 100× the viscous B_eS from 5 Hz on, and
 #: to 50 Hz the spindle turns as one body (the truth's first torsional mode is at 2.6 kHz) and
 #: the CNC's sampling of Ω and I_act shifts their phases by < 1°.
@@ -183,14 +197,8 @@ def rigid_body_inertia(
     ``J/K_t``; with the machine file's K_t (the drive's parameter) this is the inertia the
     file's model needs for the spindle's acceleration per ampere: a K_t off by x % gives a
     J off by the same x %, and the observer's G_dτ keeps its shape (decision 1708)."""
-    f = np.asarray(freq_hz, dtype=float)
-    sel = (f >= band_hz[0]) & (f <= band_hz[1])
-    if sel.sum() < 3:
-        raise InputDataError(
-            f"spindle sweep: {int(sel.sum())} lines in {band_hz[0]:g}-{band_hz[1]:g} Hz for the "
-            "inertia; needs 3 or more"
-        )
-    w = 2.0 * math.pi * f[sel]
+    sel = _band_lines(freq_hz, band_hz, 3, "the inertia")
+    w = 2.0 * math.pi * np.asarray(freq_hz, dtype=float)[sel]
     y = torque_constant_nm_a / np.asarray(speed_per_current, dtype=complex)[sel]
     j = float(np.sum(y.imag * w) / np.sum(w * w))
     if not j > 0:
@@ -221,14 +229,8 @@ def motor_admittance(
     part ``b ω`` are fitted by least squares relative to ``|1/Y|`` over ``band_hz``.
     What the fitted second order holds besides the winding (the sampled PI, its dead time) is
     what the observer's model of the current loop needs (decision 1708)."""
-    f = np.asarray(freq_hz, dtype=float)
-    sel = (f >= band_hz[0]) & (f <= band_hz[1])
-    if sel.sum() < 4:
-        raise InputDataError(
-            f"spindle sweep: {int(sel.sum())} lines in {band_hz[0]:g}-{band_hz[1]:g} Hz for the "
-            "motor admittance; needs 4 or more"
-        )
-    w = 2.0 * math.pi * f[sel]
+    sel = _band_lines(freq_hz, band_hz, 4, "the motor admittance")
+    w = 2.0 * math.pi * np.asarray(freq_hz, dtype=float)[sel]
     i_nom, i_act, om = (np.asarray(h, dtype=complex)[sel] for h in (current_cmd, current, speed))
     g_i = current_pi[0] + current_pi[1] / (1j * w)
     # the drive's current PI acts on I_nom held between the CNC samples it is recorded at
