@@ -189,7 +189,8 @@ DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (patter
 DET_DROP = 25  # plan-free flute check (decision 1707): a held violation's Δ_N x (0: none)
 DET_PE1 = 26  # that violation's residuals
 DET_PE2 = 27
-DET_BASE = 28  # ring buffers: the last N period values, the noise window, then the last N
+DET_NOISE_SLOW = 28  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
+DET_BASE = 29  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
 # PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW
@@ -201,6 +202,9 @@ NOISE_WINDOW = 128
 NOISE_MIN = 16
 #: σ = median|d| / (0.6745 √2) (:mod:`millsense.core.noise`).
 NOISE_SCALE = SIGMA_PER_MEDIAN_ABS_DIFF
+#: Decision 1718: the band's σ is the larger of the window's σ̂ and its exponential mean over
+#: NOISE_SLOW periods, which a statistical low of the window's median cannot pull down.
+NOISE_SLOW = 256
 #: σ = median|z| / 0.6745 of a zero-mean normal variable.
 MAD_SCALE = 1.0 / 0.6745
 #: Decision 1684, the flute pattern: each flute's residual to the plan is referenced to its own
@@ -642,6 +646,10 @@ def detect_periods(
                 n_noise = int(state[DET_NOISE_N])
                 if k_noise > 0.0 and n_noise >= NOISE_MIN:
                     sigma = NOISE_SCALE * np.median(state[noise0 : noise0 + n_noise])
+                    slow = state[DET_NOISE_SLOW]
+                    slow = sigma if slow == 0.0 else slow + (sigma - slow) / NOISE_SLOW
+                    state[DET_NOISE_SLOW] = slow
+                    sigma = max(sigma, slow)
                     band = max(limit, k_noise * sigma)
                 band_out[m] = band
                 v_res = abs(e1) > limit

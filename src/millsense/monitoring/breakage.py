@@ -47,7 +47,9 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     (decision 1550): the seed's 40 % is a band for a cut whose torque stands well above the noise
     (Aslan's 1000 rev/min, several N·m); on a light cut at high speed (0.5 N·m at 8000 rev/min, the
     observer's tooth average scattering by 0.15 N·m) 40 % is 1.5σ, and the noise alone would confirm
-    three periods in a row about once a second.
+    three periods in a row about once a second. The σ in use is the larger of that window's and
+    its exponential mean over 256 periods (decision 1718): on the observer's coloured noise the
+    window's median dips to half the true σ now and then, and a dip let noise confirm a break.
 ``constant`` — a constant reference: the same detector with τ_sa,sim replaced by a constant
     reference torque (given, or the mean over the first 5 revolutions in cut; decision 1523). It
     alarms wherever the torque leaves the band around the reference (a depth step). Its run
@@ -169,7 +171,8 @@ class BreakageBlock(Block):
     rls_p_max : cap (and initial value) of the RLS covariance, 1/unit² (decision 1521).
     noise_k : the signal's band around its reference (``virtual``, ``constant``) is never
         narrower than ``noise_k`` standard deviations of the tooth-period average's noise,
-        estimated on line (decision 1550; 0: the seed's σ_TB band alone).
+        estimated on line (decision 1550, held by its slow mean, decision 1718; 0: the seed's
+        σ_TB band alone).
     phase_offset : the tooth periods end this fraction of a period earlier than at the
         multiples of 2π/N of the integrated angle (decision 1552), in [0, 1).
     enable_channel : optional 1/0 channel (e.g. ``spindle/at_speed``): a tooth period with a
