@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from millsense.monitoring._tooth_kernels import NOISE_SLOW
+from millsense.monitoring._tooth_kernels import NOISE_MIN, NOISE_SLOW
 from millsense.monitoring.breakage import NOISE_K, BreakageBlock
 from millsense.validation.cases.monitoring_breakage import run_block
 
@@ -97,3 +97,79 @@ def test_band_follows_a_noise_fall_over_the_slow_mean() -> None:
     assert 9 * NOISE_SLOW * 100 / 3 <= 8.0 * FS
     late = np.median(band[fall + 80_000 :])
     assert late == pytest.approx(0.5 * before, rel=0.10)
+
+
+# ------------------------------------------------------------------------------------------
+# decision 1719: seed 002's dual-residual detector on a shop's stream without a plan
+# ------------------------------------------------------------------------------------------
+
+
+def _dual(noise_k: float = NOISE_K) -> BreakageBlock:
+    return BreakageBlock(2, "dual", signal_channels=("tq",), speed_channel="w",
+                         enable_channel="gate", flute_check=True, noise_k=noise_k)  # fmt: skip
+
+
+def _dual_stream(
+    levels_nm: list[float], seconds: float, rpm: float, seed: int, rms_nm: float = 2.3
+) -> dict:
+    """Cuts of ``seconds`` each at the torque ``levels_nm`` (2 flutes, tooth-period-flat) with
+    the observer's noise (``rms_nm``), each after 0.5 s of air where the gate is closed."""
+    parts, gates = [], []
+    for level in levels_nm:
+        air = int(0.5 * FS)
+        cut = int(seconds * FS)
+        parts += [np.zeros(air), np.full(cut, level)]
+        gates += [np.zeros(air), np.ones(cut)]
+    tq = np.concatenate(parts)
+    n = len(tq)
+    return {"tq": tq + _observer_noise(n / FS, rms_nm, seed), "gate": np.concatenate(gates),
+            "w": np.full(n, rpm * 2 * math.pi / 60)}  # fmt: skip
+
+
+def test_dual_thresholds_are_learnt_afresh_for_each_cut() -> None:
+    """Seed 002 learns 2 × the largest residuals of the cut's first 5 revolutions. A stream's
+    second cut (after air: the gate reopens) is another cut: its thresholds are learnt on it
+    (the seed's rule alone, noise floor off), not kept from the first. The cuts at 3600
+    rev/min: 60 s at 1.0 N·m with the noise at a tenth, then 60 s at 1.5 N·m with the
+    observer's noise; the first cut's thresholds, kept, were the alarm storm of the stable
+    stream (decision 1719)."""
+    quiet = _dual_stream([1.0], 60.0, 3600.0, seed=3, rms_nm=0.23)
+    loud = _dual_stream([1.5], 60.0, 3600.0, seed=4)
+    data = {k: np.concatenate([quiet[k], loud[k]]) for k in quiet}
+    _, ch = run_block(_dual(noise_k=0.0), data, 1000)
+    lim = ch["breakage.dual/limit1"]
+    first = np.nanmedian(lim[: len(quiet["tq"])])
+    second = np.nanmedian(lim[len(quiet["tq"]) :])
+    assert second > 5 * first  # learnt on the second cut's noise (10× the first's)
+    assert lim[len(quiet["tq"]) + int(0.5 * FS) + 100] != lim[len(quiet["tq"]) - 1]
+
+
+def test_dual_thresholds_have_the_noise_floor() -> None:
+    """10 min of a steady 2-flute cut at 3600 rev/min with the observer's noise: 2 × the
+    largest residuals of 10 tooth periods is about 3σ, and a low draw of that maximum sets it
+    lower (the seed's rule alone alarms); never inside 4σ of a two-period difference's noise
+    (√2 σ̂ of the tooth average, σ̂ held by its slow mean, decision 1718) nothing alarms."""
+    data = _dual_stream([1.5] * 10, 60.0, 3600.0, seed=5)
+    seed_rule, _ = run_block(_dual(noise_k=0.0), data, 1000)
+    assert len([e for e in seed_rule if e.name == "breakage"]) >= 3
+    events, ch = run_block(_dual(), data, 1000)
+    assert [e for e in events if e.name == "breakage"] == []
+    lim1 = ch["breakage.dual/limit1"]
+    avg = ch["breakage.dual/tooth_avg"]
+    ends = np.flatnonzero(np.diff(avg) != 0) + 1
+    cut = ends[data["gate"][ends] > 0]
+    x = avg[cut]
+    sigma = np.std(x[2:] - x[:-2]) / math.sqrt(2)  # one tooth average's, from lag-N differences
+    assert np.nanmin(lim1) >= 0.8 * NOISE_K * math.sqrt(2) * sigma
+
+
+def test_dual_is_not_judged_before_the_noise_is_known() -> None:
+    """The thresholds are ready after 5 revolutions (10 periods of 2 flutes); the noise needs
+    16 lag-N differences (decision 1550's NOISE_MIN): nothing is judged before both."""
+    data = _dual_stream([1.5], 2.0, 3600.0, seed=6)
+    _, ch = run_block(_dual(), data, 1000)
+    lim = ch["breakage.dual/limit1"]
+    first = int(np.flatnonzero(np.isfinite(lim))[0])
+    opened = int(np.flatnonzero(data["gate"] > 0)[0])
+    periods = (first - opened) / (FS * 60 / 3600 / 2)
+    assert periods >= NOISE_MIN + 2 - 1

@@ -305,6 +305,19 @@ def _flute_signature(
 
 
 @numba.njit(cache=True)
+def _noise_sigma(state: FloatArray, noise0: int) -> float:
+    """The standard deviation of one tooth-period average (decision 1550: the median |x(m) −
+    x(m−N)| of the noise window) held up by its exponential mean over NOISE_SLOW calls
+    (decision 1718); call once per judged period."""
+    n_noise = int(state[DET_NOISE_N])
+    sigma = NOISE_SCALE * np.median(state[noise0 : noise0 + n_noise])
+    slow = state[DET_NOISE_SLOW]
+    slow = sigma if slow == 0.0 else slow + (sigma - slow) / NOISE_SLOW
+    state[DET_NOISE_SLOW] = slow
+    return max(sigma, slow)
+
+
+@numba.njit(cache=True)
 def _pattern_reset(state: FloatArray, nf: int) -> None:
     """Forget the flute pattern's references and evidence (a period not judged two-sided)."""
     base = DET_BASE + 3 * nf + NOISE_WINDOW
@@ -548,7 +561,8 @@ def detect_periods(
         if gate[m] < 1.0:
             # a period with a sample where the gate is off (the spindle not at speed: the
             # torque holds the acceleration torque) is not judged and restarts the differences
-            # (decision 1550); learnt thresholds and the noise window are kept
+            # (decision 1550); the noise window is kept, and so are the constant reference and
+            # the dual thresholds once learnt, but for a new cut of the dual (decision 1719)
             eps1[m] = 0.0
             eps2[m] = 0.0
             lim1[m] = math.nan
@@ -565,6 +579,15 @@ def detect_periods(
             state[DET_LOW] = 0.0
             state[DET_DROP] = 0.0
             _pattern_reset(state, nf)
+            if mode == MODE_DUAL:
+                # seed 002 learns its thresholds on the first revolutions of the cut: the gate
+                # reopening is another cut (an entry after air, a new speed), learnt afresh
+                # (decision 1719)
+                state[DET_LEARN] = -1.0
+                state[DET_MAX1] = 0.0
+                state[DET_MAX2] = 0.0
+                state[DET_THR1] = 0.0
+                state[DET_THR2] = 0.0
             continue
         seen = int(state[DET_SEEN])
         xm = x[m]
@@ -619,9 +642,20 @@ def detect_periods(
         band_out[m] = math.nan
         below = False  # judged one-sided, against the plan's transient floor (decision 1674)
         if mode == MODE_DUAL:
-            lim1[m] = state[DET_THR1] if ready else math.nan
-            lim2[m] = state[DET_THR2] if ready else math.nan
-            v = ready and abs(e1) > state[DET_THR1] and abs(e2) > state[DET_THR2]
+            thr1 = state[DET_THR1]
+            thr2 = state[DET_THR2]
+            if k_noise > 0.0:
+                # the residuals of a difference of two tooth-period averages are not judged
+                # inside k σ of that difference's noise, nor before it is known (decision 1719)
+                if state[DET_NOISE_N] < NOISE_MIN:
+                    ready = False
+                elif ready:
+                    floor_d = k_noise * math.sqrt(2.0) * _noise_sigma(state, noise0)
+                    thr1 = max(thr1, floor_d)
+                    thr2 = max(thr2, floor_d)
+            lim1[m] = thr1 if ready else math.nan
+            lim2[m] = thr2 if ready else math.nan
+            v = ready and abs(e1) > thr1 and abs(e2) > thr2
         else:
             if mode == MODE_VIRTUAL:
                 ex = expected[m]
@@ -643,14 +677,8 @@ def detect_periods(
             lim2[m] = limit if judge else math.nan
             if judge:
                 band = limit
-                n_noise = int(state[DET_NOISE_N])
-                if k_noise > 0.0 and n_noise >= NOISE_MIN:
-                    sigma = NOISE_SCALE * np.median(state[noise0 : noise0 + n_noise])
-                    slow = state[DET_NOISE_SLOW]
-                    slow = sigma if slow == 0.0 else slow + (sigma - slow) / NOISE_SLOW
-                    state[DET_NOISE_SLOW] = slow
-                    sigma = max(sigma, slow)
-                    band = max(limit, k_noise * sigma)
+                if k_noise > 0.0 and state[DET_NOISE_N] >= NOISE_MIN:
+                    band = max(limit, k_noise * _noise_sigma(state, noise0))
                 band_out[m] = band
                 v_res = abs(e1) > limit
                 v_tq = (ex - xm if below else abs(xm - ex)) > band

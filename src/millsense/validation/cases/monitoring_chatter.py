@@ -479,7 +479,9 @@ def stable_stream(
     profile's tool (default Ø20 mm 2-flute, preset aslan-d20-2flute) in Al7050 at its feed per
     tooth (default 0.1 mm), slotting by default. Channels: ``sensor`` (the feed force through a
     stable resonance, default 1500 Hz, ζ = 2 %, plus a steady tone, default 1234 Hz, and white
-    noise, in N), ``spindle/speed`` (rad/s, measured) and, with ``spindle``,
+    noise, in N), ``spindle/speed`` (rad/s, measured; without ``spindle`` the command),
+    ``spindle/speed_cmd`` (rad/s, the ramped command), ``truth/spindle/torque`` (N·m, the
+    cutting torque) and, with ``spindle``,
     ``spindle/current_cmd`` (A) of the truth spindle (decision 1210) driven by the cutting
     torque (0.05 A noise).
     """
@@ -533,7 +535,8 @@ def stable_stream(
     t = np.arange(n) / FS_HZ
     sensor = scipy.signal.lfilter(b, a, force) + 20.0 * np.cos(2 * math.pi * pr.tone_hz * t)
     sensor += 2.0 * rng.standard_normal(n)
-    out = {"sensor": sensor, "spindle/speed": speed}
+    out = {"sensor": sensor, "spindle/speed": speed, "spindle/speed_cmd": speed.copy(),
+           "truth/spindle/torque": torque}  # fmt: skip
     if spindle:
         from millsense.simulator.truth_spindle import TruthSpindleSim, load_truth_spindle
 
