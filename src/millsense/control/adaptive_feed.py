@@ -409,12 +409,14 @@ class AdaptiveFeedBlock(Block):
             ends, peaks, bads, frozen_end, hits,
         )  # fmt: skip
         if self.enable_channel is not None:
-            self._off = np.flatnonzero(np.asarray(d[self.enable_channel]) < 0.5)
+            self._off = (np.asarray(d[self.enable_channel]) < 0.5).nonzero()[0]
         # the reported override's running sum (decision 1666)
         ovr = ovr_cs = None
         if self.override_channel is not None and n:
             ovr = np.asarray(d[self.override_channel], dtype=np.float64)
-            ovr_cs = np.concatenate(([0.0], np.cumsum(ovr)))
+            ovr_cs = np.empty(n + 1)
+            ovr_cs[0] = 0.0
+            ovr.cumsum(out=ovr_cs[1:])
         events: list[Event] = []
         ov = np.empty(n)
         pk = np.empty(n)

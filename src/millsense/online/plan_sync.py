@@ -315,7 +315,7 @@ class PlanSync(Block):
             [np.asarray(d[c])[first :: self.decimate] for c in self.tcp_channels],
             dtype=np.float64,
         )
-        if at.size and np.isfinite(tcp).all():
+        if at.size and np.count_nonzero(np.isfinite(tcp)) == tcp.size:
             matched = self.plan.match(tcp.T, from_row=max(self.row, 0))
         else:  # a pose not finite: matched where it is, −1 (no match) where not
             matched = np.full(at.size, -1, dtype=np.int64)
