@@ -101,14 +101,12 @@ class Pipeline:
             # intermediate chunk)
             out = b.process(Chunk(start, rate, t0, {k: data[k] for k in b.inputs}))
             channels = out.channels
-            # every output n samples long (the lengths collected in C; named if one is not)
-            if channels and set(map(len, channels.values())) != {n}:
-                for name, values in channels.items():
-                    if len(values) != n:
-                        raise RuntimeError(
-                            f"block '{b.name}' returned {len(values)} samples of '{name}' "
-                            f"for a chunk of {n}"
-                        )
+            for name, values in channels.items():
+                if len(values) != n:
+                    raise RuntimeError(
+                        f"block '{b.name}' returned {len(values)} samples of '{name}' "
+                        f"for a chunk of {n}"
+                    )
             data.update(channels)
             outputs.update(channels)
             if out.events:
