@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 from millsense.control.gpc import GPC
 from millsense.control.rls import ConstantTraceRLS, force_model_constraints
 from millsense.core.errors import ConfigError
-from millsense.core.noise import sigma_from_abs_differences
+from millsense.core.noise import sigma_from_abs_differences, window_median
 from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import (
@@ -782,7 +782,7 @@ class AdaptiveFeedBlock(Block):
         self._air_vals.append(value)
         if len(self._air_vals) < AIR_MIN:
             return self._drowned
-        floor = float(np.median(np.asarray(self._air_vals)))
+        floor = window_median(self._air_vals)
         ref = self.opts.reference
         unit = _UNITS[self.opts.quantity]
         t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
