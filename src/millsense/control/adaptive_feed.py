@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 from millsense.control.gpc import GPC
 from millsense.control.rls import ConstantTraceRLS, force_model_constraints
 from millsense.core.errors import ConfigError
-from millsense.core.noise import sigma_from_abs_differences
+from millsense.core.noise import sigma_from_abs_differences, window_median
 from millsense.core.recording import ChannelInfo
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import (
@@ -409,12 +409,14 @@ class AdaptiveFeedBlock(Block):
             ends, peaks, bads, frozen_end, hits,
         )  # fmt: skip
         if self.enable_channel is not None:
-            self._off = np.flatnonzero(np.asarray(d[self.enable_channel]) < 0.5)
+            self._off = (np.asarray(d[self.enable_channel]) < 0.5).nonzero()[0]
         # the reported override's running sum (decision 1666)
         ovr = ovr_cs = None
         if self.override_channel is not None and n:
             ovr = np.asarray(d[self.override_channel], dtype=np.float64)
-            ovr_cs = np.concatenate(([0.0], np.cumsum(ovr)))
+            ovr_cs = np.empty(n + 1)
+            ovr_cs[0] = 0.0
+            ovr.cumsum(out=ovr_cs[1:])
         events: list[Event] = []
         ov = np.empty(n)
         pk = np.empty(n)
@@ -780,7 +782,7 @@ class AdaptiveFeedBlock(Block):
         self._air_vals.append(value)
         if len(self._air_vals) < AIR_MIN:
             return self._drowned
-        floor = float(np.median(np.asarray(self._air_vals)))
+        floor = window_median(self._air_vals)
         ref = self.opts.reference
         unit = _UNITS[self.opts.quantity]
         t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz

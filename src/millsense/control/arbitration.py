@@ -257,7 +257,8 @@ class Supervisor(Block):
         # faulty sample; the plan's in-cut flag is read at each piece's last sample (the
         # decisions fall period by period, decision 1654; the children run ahead of them over
         # the chunk where nothing pending acts on them, decision 1671)
-        faulty = self.fault_channel is not None and bool(np.asarray(d[self.fault_channel]).any())
+        # (any sample non-zero, NaN included: counted, without a reduction set up)
+        faulty = self.fault_channel is not None and bool(np.count_nonzero(d[self.fault_channel]))
         in_cut = None if self.in_cut_channel is None else d[self.in_cut_channel]
         a = chunk.start
         if 0 < n <= self.period - a % self.period:

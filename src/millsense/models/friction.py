@@ -12,6 +12,7 @@ drive simulator (issue 5).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -63,14 +64,23 @@ class CoulombViscous:
     def torque(self, speed_rad_s: np.ndarray) -> np.ndarray:
         """Friction torque opposing motion, N·m, for motor speeds in rad/s (vectorised)."""
         w = np.asarray(speed_rad_s, dtype=float)
-        pos = w >= 0.0
-        coul = np.where(pos, self.coulomb_pos, self.coulomb_neg)
-        visc = np.where(pos, self.viscous_pos, self.viscous_neg)
         if self.smoothing_rad_s > 0:
             sgn = np.tanh(w / self.smoothing_rad_s)
         else:
             sgn = np.sign(w)
+        cp, cn, vp, vn = self.coulomb_pos, self.coulomb_neg, self.viscous_pos, self.viscous_neg
+        if _same(cp, cn) and _same(vp, vn):  # one direction's coefficients for every sample
+            return cp * sgn + vp * w
+        pos = w >= 0.0
+        coul = np.where(pos, cp, cn)
+        visc = np.where(pos, vp, vn)
         return coul * sgn + visc * w
+
+
+def _same(a: float, b: float) -> bool:
+    """``a`` and ``b`` the same number, sign of zero included (then the scalar gives the same
+    products as the per-sample selection between them)."""
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
 
 
 @numba.njit(cache=True)

@@ -315,7 +315,7 @@ class PlanSync(Block):
             [np.asarray(d[c])[first :: self.decimate] for c in self.tcp_channels],
             dtype=np.float64,
         )
-        if at.size and np.isfinite(tcp).all():
+        if at.size and np.count_nonzero(np.isfinite(tcp)) == tcp.size:
             matched = self.plan.match(tcp.T, from_row=max(self.row, 0))
         else:  # a pose not finite: matched where it is, −1 (no match) where not
             matched = np.full(at.size, -1, dtype=np.int64)
@@ -426,11 +426,13 @@ class PlanSync(Block):
         if self.at_speed_channel is not None:
             use &= np.asarray(d[self.at_speed_channel]) >= 0.5  # no acceleration torque
         end = self.settle_revs + self.cal_revs
-        done = np.flatnonzero(revs >= end)
+        done = (revs >= end).nonzero()[0]
         k_done = int(done[0]) if done.size else -1
         if k_done >= 0:
             use[k_done:] = False
-        self._acc += [tq[use].sum(), edge[use].sum(), shear[use].sum(), use.sum()]
+        # (the sums as ndarray.sum takes them, without its Python layer)
+        add = np.add.reduce
+        self._acc += [add(tq[use]), add(edge[use]), add(shear[use]), np.count_nonzero(use)]
         self._revs_in_cut = float(revs[-1])
         if k_done < 0:
             return -1

@@ -393,15 +393,21 @@ class VirtualPlan:
         if not (0 <= from_row < len(self)):
             raise InputDataError(f"plan: from_row {from_row} outside 0..{len(self) - 1}")
         out = np.empty(p.shape[0], dtype=np.int64)
-        cols = tuple(self.columns[c] for c in ("x_mm", "y_mm", "z_mm"))
-        if self._match_xyz is None or any(
-            a is not b for a, b in zip(self._match_xyz[0], cols, strict=True)
+        columns = self.columns
+        cols = (columns["x_mm"], columns["y_mm"], columns["z_mm"])
+        known = self._match_xyz
+        if (
+            known is None
+            or known[0][0] is not cols[0]
+            or known[0][1] is not cols[1]
+            or known[0][2] is not cols[2]
         ):
             # once per plan, not per call (a chunk's matches are a few samples; the plan may
             # have 10⁵ rows)
             xyz = self.xyz_m
-            self._match_xyz = (cols, tuple(np.ascontiguousarray(xyz[:, i]) for i in range(3)))
-        px, py, pz = self._match_xyz[1]
+            known = (cols, tuple(np.ascontiguousarray(xyz[:, i]) for i in range(3)))
+            self._match_xyz = known
+        px, py, pz = known[1]
         _k.match_rows(
             np.ascontiguousarray(p[:, 0]),
             np.ascontiguousarray(p[:, 1]),

@@ -75,7 +75,7 @@ class Pipeline:
         read = [data[c] for c in self._inputs[1] if c in data]
         # one sum of all the channels: finite unless a value is NaN or inf (or the sum
         # overflows, which the channel-by-channel search below then clears)
-        if not read or math.isfinite(np.concatenate(read, axis=None).sum()):
+        if not read or math.isfinite(np.add.reduce(np.concatenate(read, axis=None))):
             return
         for name in self._inputs[1]:
             values = data.get(name)
