@@ -861,3 +861,15 @@ def test_summary_does_not_report_reliable_revolutions_in_a_basin_the_average_exc
         else:
             assert "harmonics averaged" in line, line
             assert _summary_depth_mm(line) == pytest.approx(2.0, rel=0.10)
+
+
+def test_undetermined_depth_span_reads_in_words_and_millimetres():
+    """The "not determined" line's depth interval: numbers in mm where the averaged profile
+    bounds it, the search's own ends in words where it does not (it printed "from the smallest
+    depth searched to the largest depth searched mm")."""
+    from millsense.cli.cmd_monitor import depth_span
+
+    assert depth_span(0.5e-3, 1.25e-3) == "from 0.50 to 1.25 mm"
+    assert depth_span(0.5e-3, math.inf) == "from 0.50 mm to the largest depth searched"
+    assert depth_span(-math.inf, 2e-3) == "from the smallest depth searched to 2.00 mm"
+    assert depth_span(math.nan, math.inf) == "in the whole range searched"

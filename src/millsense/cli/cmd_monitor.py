@@ -649,11 +649,9 @@ def _engagement_summary(
     allowed = ""
     if avg is not None:
         lo, hi = avg.depth_low_m, avg.depth_high_m
-        lo_s = f"{1e3 * lo:.2f}" if math.isfinite(lo) else "the smallest depth searched"
-        hi_s = f"{1e3 * hi:.2f}" if math.isfinite(hi) else "the largest depth searched"
         basin = "" if avg.connected else " or in another basin"
-        allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere from "
-                   f"{lo_s} to {hi_s} mm{basin}")  # fmt: skip
+        allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere "
+                   f"{depth_span(lo, hi)}{basin}")  # fmt: skip
     return (
         f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
         f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; "
@@ -661,6 +659,18 @@ def _engagement_summary(
         "harmonics do not fix the engagement here (e.g. a full slot with 3 or more flutes, or a "
         "light cut in the signal's noise)"
     )
+
+
+def depth_span(low_m: float, high_m: float) -> str:
+    """The depths an undetermined engagement allows, in words (an infinite bound: the search's
+    own end)."""
+    if math.isfinite(low_m) and math.isfinite(high_m):
+        return f"from {1e3 * low_m:.2f} to {1e3 * high_m:.2f} mm"
+    if math.isfinite(low_m):
+        return f"from {1e3 * low_m:.2f} mm to the largest depth searched"
+    if math.isfinite(high_m):
+        return f"from the smallest depth searched to {1e3 * high_m:.2f} mm"
+    return "in the whole range searched"
 
 
 def _engagement_values(
