@@ -19,6 +19,7 @@ import argparse
 import math
 import pickle
 import sys
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -26,29 +27,36 @@ import numpy as np
 Run = tuple[dict[str, np.ndarray], list[dict[str, Any]]]
 
 
-def replay() -> dict[tuple[str, int], Run]:
-    """Every output channel (concatenated) and event of each stack and chunk size."""
-    from bench_online import FS, _stream, stack_blocks
+def replay_pipeline(blocks: list[Any], data: dict[str, np.ndarray], chunk: int) -> Run:
+    """Every output channel (concatenated) and event of ``blocks`` in a Pipeline fed ``data``
+    in chunks of ``chunk`` samples."""
+    from bench_online import FS
     from millsense.streaming.block import Chunk
     from millsense.streaming.engine import Pipeline
 
+    pipe = Pipeline(blocks)
+    pipe.reset(FS)
+    n = len(next(iter(data.values())))
+    outs: dict[str, list[np.ndarray]] = {}
+    events: list[dict[str, Any]] = []
+    for a in range(0, n, chunk):
+        o, e = pipe.process(Chunk(a, FS, 0.0, {k: v[a : a + chunk] for k, v in data.items()}))
+        for k, v in o.items():
+            outs.setdefault(k, []).append(np.array(v, copy=True))
+        events += [ev.as_dict() for ev in e]
+    return {k: np.concatenate(v) for k, v in outs.items()}, events
+
+
+def replay() -> dict[tuple[str, int], Run]:
+    """Every output channel (concatenated) and event of each stack and chunk size."""
+    from bench_online import _stream, stack_blocks
+
     data, _ = _stream()
-    n = len(data["cnc/feed"])
     res: dict[tuple[str, int], Run] = {}
     for stack in ("full", "default"):
         for chunk in (100, 1000, 73):
             built: Any = stack_blocks(stack)
-            pipe = Pipeline(built.blocks)
-            pipe.reset(FS)
-            outs: dict[str, list[np.ndarray]] = {}
-            events: list[dict[str, Any]] = []
-            for a in range(0, n, chunk):
-                c = Chunk(a, FS, 0.0, {k: v[a : a + chunk] for k, v in data.items()})
-                o, e = pipe.process(c)
-                for k, v in o.items():
-                    outs.setdefault(k, []).append(np.array(v, copy=True))
-                events += [ev.as_dict() for ev in e]
-            res[(stack, chunk)] = ({k: np.concatenate(v) for k, v in outs.items()}, events)
+            res[(stack, chunk)] = replay_pipeline(built.blocks, data, chunk)
     return res
 
 
@@ -104,7 +112,8 @@ def diff(a: dict[tuple[str, int], Run], b: dict[tuple[str, int], Run], tol: floa
     return bad
 
 
-def main() -> int:
+def cli(replay_fn: Callable[[], dict[tuple[str, int], Run]]) -> int:
+    """``save FILE`` (pickle ``replay_fn()``) or ``diff BEFORE AFTER [--tol]``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     s = sub.add_parser("save")
@@ -116,11 +125,11 @@ def main() -> int:
     args = p.parse_args()
     if args.cmd == "save":
         with open(args.file, "wb") as f:
-            pickle.dump(replay(), f)
+            pickle.dump(replay_fn(), f)
         return 0
     with open(args.before, "rb") as fa, open(args.after, "rb") as fb:
         return 1 if diff(pickle.load(fa), pickle.load(fb), args.tol) else 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(cli(replay))
