@@ -485,7 +485,10 @@ def detect_periods(
     NOISE_WINDOW periods (air, cut and transients alike; the median ignores the revolution a
     breakage or a step makes); k_noise = 0 gives the seed's band alone. The residual's limit
     stays σ_TB·τ_ref (the seed's trigger). With k_noise > 0 no period is judged before the
-    window holds NOISE_MIN periods (decision 1553).
+    window holds NOISE_MIN periods (decision 1553). σ̂ is held up by its exponential mean over
+    NOISE_SLOW judged periods (decision 1718). The dual mode's thresholds are at least
+    k_noise·√2·σ̂, with the same wait for the window, and are learnt afresh after the gate
+    closes (decision 1719).
 
     With the flute signature (virtual mode, decision 1681) a run's alarm comes at its first
     violating period from the ``confirm``-th on where the last revolution looks like a broken

@@ -60,7 +60,10 @@ Three detectors behind one streaming :class:`BreakageBlock` (issue 15, item 2):
     x(m) − x(m−N) (N flutes, which removes runout); thresholds 2 × max|ε_k| over the first 5
     revolutions;
     breakage when |ε1| > thr1 AND |ε2| > thr2 in the same tooth period (|ε|, as the thesis'
-    figures show ±thresholds).
+    figures show ±thresholds). The thresholds are learnt afresh on each cut (the gate's closing
+    forgets them), are never inside ``noise_k`` · √2 σ̂ of a two-period difference's noise, and
+    nothing is judged before σ̂ is known (decision 1719: learnt once and without a floor, they
+    gave hundreds of false alarms on a stream of stable cuts at several speeds).
 
 Residuals are a-priori (φ̂ of the previous tooth period; decision 1521). The RLS covariance is
 capped (``rls_p_max``) so that a long steady cut (regressor ≈ 0) cannot wind it up and the AR(1)
@@ -170,7 +173,8 @@ class BreakageBlock(Block):
     forgetting : RLS forgetting factor λ (Munasinghe does not state it; 0.98).
     rls_p_max : cap (and initial value) of the RLS covariance, 1/unit² (decision 1521).
     noise_k : the signal's band around its reference (``virtual``, ``constant``) is never
-        narrower than ``noise_k`` standard deviations of the tooth-period average's noise,
+        narrower than ``noise_k`` standard deviations of the tooth-period average's noise (the
+        ``dual`` thresholds than ``noise_k`` · √2 of them, decision 1719),
         estimated on line (decision 1550, held by its slow mean, decision 1718; 0: the seed's
         σ_TB band alone).
     phase_offset : the tooth periods end this fraction of a period earlier than at the
