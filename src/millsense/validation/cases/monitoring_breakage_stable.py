@@ -38,9 +38,6 @@ from millsense.validation import Measured, case
 #: held-out streams at ``HELDOUT_STREAM_S``.
 STREAMS = (("seed 3 (false_alarms_10min)", None, 600.0), ("held-out a", "a", 300.0),
            ("held-out b", "b", 300.0))  # fmt: skip
-#: Judged where the expected tooth-period torque is at least this fraction of the largest
-#: (the session's ``MIN_JUDGED``).
-MIN_JUDGED = 0.3
 CHUNK = 1000
 
 
@@ -60,6 +57,7 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
     from millsense.monitoring.breakage import BreakageBlock
     from millsense.monitoring.breakage_phased import PhasedBreakage
     from millsense.online.gates import SpindleAtSpeed, TorqueCutGate
+    from millsense.online.session import MIN_JUDGED
     from millsense.streaming.block import Chunk, EventKind
     from millsense.streaming.engine import Pipeline
     from millsense.validation.cases import monitoring_chatter as mc
@@ -73,8 +71,10 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
         "spindle/speed": d["spindle/speed"],
         "spindle/speed_cmd": d["spindle/speed_cmd"],
     }
+    # the largest 0.1 s mean of the expected torque (the plan's largest row average)
     window = int(0.1 * fs)
-    largest = float(np.convolve(data["expected"], np.ones(window) / window, "valid").max())
+    sums = np.cumsum(data["expected"])
+    largest = float((sums[window:] - sums[:-window]).max()) / window
     flutes = profile.flutes
     pipe = Pipeline([
         SpindleAtSpeed(),

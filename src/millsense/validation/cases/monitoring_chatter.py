@@ -535,7 +535,7 @@ def stable_stream(
     t = np.arange(n) / FS_HZ
     sensor = scipy.signal.lfilter(b, a, force) + 20.0 * np.cos(2 * math.pi * pr.tone_hz * t)
     sensor += 2.0 * rng.standard_normal(n)
-    out = {"sensor": sensor, "spindle/speed": speed, "spindle/speed_cmd": speed.copy(),
+    out = {"sensor": sensor, "spindle/speed": speed, "spindle/speed_cmd": speed,
            "truth/spindle/torque": torque}  # fmt: skip
     if spindle:
         from millsense.simulator.truth_spindle import TruthSpindleSim, load_truth_spindle
