@@ -404,7 +404,6 @@ class ChatterMonitor(Block):
         self._mask_f_rev = -1.0
         self._harm_mask = np.zeros(len(f), dtype=bool)
         self._df = float(f[1])
-        self._nf = len(f)
         self._merged: HeldViews | None = None
         self._keep = self._keep_hops
         self._out_names = (self._ch_flag, self._ch_hz, self._ch_ratio)
@@ -445,18 +444,13 @@ class ChatterMonitor(Block):
             c_raw = spectra[0]
         else:
             c_raw = rfft(windows[0])
-        df = self._df
         f_t = self.settings.n_flutes * f_rev
-        k0 = k1 = 0
-        if f_rev * 60.0 >= self.settings.min_speed_rpm:
-            half = max(2.0 * df, 0.005 * f_t)
-            k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         air_before = self._air_before  # the gate's state before this window (1543, 1680)
-        cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
-            c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
-            air_before,
+        # with the tooth line's bins k0:k1 (:func:`._kernels.tooth_bins`)
+        cutting, steady, tooth, tooth_ref, k0, k1 = _kn.cutting_gate(
+            c_raw, self._scale, f_t, self._df, self.settings.min_speed_rpm, b0, b1, raw, level,
+            half_step, f_rev, self._air, self._gate, air_before,
         )  # fmt: skip
         f = self._f
         if not learns:  # the threshold method reads the raw spectrum
