@@ -266,9 +266,10 @@ class _Stage:
     def close_hop(self, keep: int) -> None:
         """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
         st = self.state
-        self.f_rev = float(st[1] / st[2]) if st[2] > 0 else 0.0
-        self.lows.append(float(st[3]))
-        self.highs.append(float(st[4]))
+        _, total, count, low, high = st.tolist()  # Python floats: the same IEEE division
+        self.f_rev = total / count if count > 0 else 0.0
+        self.lows.append(low)
+        self.highs.append(high)
         self.means.append(self.f_rev)
         del self.lows[:-keep], self.highs[:-keep], self.means[:-keep]
         st[1] = st[2] = st[4] = 0.0
@@ -397,7 +398,8 @@ class ChatterMonitor(Block):
         self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
         self._min_rev_s = s.min_speed_rpm / 60.0
         # hops of speed ranges kept: a window's, and the settling time (decision 1543)
-        self._keep_hops = max(n // self._hop + 2, self._settle_windows)
+        self._window_hops = n // self._hop + 2  # the hops whose speed ranges a window spans
+        self._keep_hops = max(self._window_hops, self._settle_windows)
         self._ch_flag = f"{self.name}/chatter"
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
@@ -430,7 +432,7 @@ class ChatterMonitor(Block):
         n = self.method.window
         if g.pos < n:
             return None
-        w = n // self._hop + 2
+        w = self._window_hops
         if not max(g.highs[-w:]) <= (1.0 + STEADY_SPEED) * min(g.lows[-w:]):
             return None  # speed changing within the window: no decision (decision 1504)
         xr, raw, windows = self._xr, self._raw, self._windows
