@@ -10,6 +10,8 @@ forms they replaced; only the order of floating-point sums differs (≤ 1e-15 re
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
@@ -227,25 +229,42 @@ def variance_sums(
 
 @numba.njit(cache=True, nogil=True)
 def centred_window(
-    ring: FloatArray, pos: int, taper: FloatArray, out: FloatArray, out_tapered: FloatArray
+    ring: FloatArray,
+    pos: int,
+    taper: FloatArray,
+    out: FloatArray,
+    out_tapered: FloatArray,
+    ring_y: FloatArray | None = None,
+    out_y: FloatArray | None = None,
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """The last ``len(out)`` samples written to ``ring`` before ``pos`` (a power-of-two ring),
     oldest first, less their mean, in ``out`` and times ``taper`` in ``out_tapered``; returns
-    the mean and the difference of the means of the newer and the older half.
+    the mean and the difference of the means of the newer and the older half. With ``ring_y``
+    and ``out_y``, the same samples of ``ring_y`` (as written) in ``out_y``.
 
     Every sum runs in sample order. The older half's and the newer half's sums are two
     independent chains, advanced in the same pass (sample i and sample h + i), so the
     processor overlaps their additions: the same numbers in two thirds of the time of one
     chain after the other (the loop is bound by the latency of the additions; decision 1538).
+    The copy of ``ring_y`` rides in the mean's pass, whose chain of additions leaves the
+    processor idle between them (a fifth of the windows' time against a pass of its own).
     """
     n = out.shape[0]
     mask = ring.shape[0] - 1
     start = pos - n
     total = 0.0
-    for i in range(n):
-        v = ring[(start + i) & mask]
-        out[i] = v
-        total += v
+    if ring_y is None or out_y is None:
+        for i in range(n):
+            v = ring[(start + i) & mask]
+            out[i] = v
+            total += v
+    else:
+        for i in range(n):
+            j = (start + i) & mask
+            v = ring[j]
+            out[i] = v
+            out_y[i] = ring_y[j]
+            total += v
     level = total / n
     h = n // 2
     old = 0.0
@@ -303,11 +322,28 @@ def air_loaded(
 
 
 @numba.njit(cache=True, nogil=True)
+def tooth_bins(
+    f_t: float, f_rev: float, df: float, nf: int, min_speed_rpm: float
+) -> tuple[int, int]:  # pragma: no cover - compiled
+    """The bins ``k0:k1`` searched for the tooth-passing line at ``f_t`` (bins ``df`` apart,
+    ``nf`` of them): within ±max(2 bins, 0.5 % of ``f_t``); none (0, 0) while the spindle
+    frequency ``f_rev`` is below ``min_speed_rpm``."""
+    k0 = 0
+    k1 = 0
+    if f_rev * 60.0 >= min_speed_rpm:
+        half = max(2.0 * df, 0.005 * f_t)
+        k0 = max(0, math.ceil((f_t - half) / df))
+        k1 = max(k0, min(nf, math.floor((f_t + half) / df) + 1))
+    return k0, k1
+
+
+@numba.njit(cache=True, nogil=True)
 def cutting_gate(
     c: ComplexArray,
     scale: float,
-    k0: int,
-    k1: int,
+    f_t: float,
+    df: float,
+    min_speed_rpm: float,
     b0: int,
     b1: int,
     raw: FloatArray,
@@ -317,18 +353,21 @@ def cutting_gate(
     air: FloatArray,
     gate: FloatArray,
     air_before: FloatArray,
-) -> tuple[bool, bool, float, float]:  # pragma: no cover - compiled
-    """The raw window's amplitudes ``raw`` (:func:`amplitude_line_median`: tooth-passing line,
-    band median) and the cutting gate (decisions 1504, 1531): in the cut when the tooth line
-    stands ``gate[0]``× out of the floor (the band median, or the smaller floor learned out of
-    the cut) or the window's mean ``level`` is ``gate[1]`` floors away from the mean learned
-    out of the cut at this speed (within ``gate[2]``); out of the cut the floor and mean are
-    learned (weight ``gate[5]``; the mean afresh at a new speed). Returns (cutting, steady:
-    the halves' means differ by at most ``gate[3]``× the tooth line or ``gate[4]``× the floor,
-    tooth line, reference of the ratio: the line, in the cut no less than ``gate[0]``×
-    floor). ``air_before`` ← ``air`` as it was before the window (decisions 1543, 1680)."""
+) -> tuple[bool, bool, float, float, int, int]:  # pragma: no cover - compiled
+    """The raw window's amplitudes ``raw`` (:func:`amplitude_line_median`: tooth-passing line
+    at ``f_t`` in the bins :func:`tooth_bins` gives, band median) and the cutting gate
+    (decisions 1504, 1531): in the cut when the tooth line stands ``gate[0]``× out of the floor
+    (the band median, or the smaller floor learned out of the cut) or the window's mean
+    ``level`` is ``gate[1]`` floors away from the mean learned out of the cut at this speed
+    (within ``gate[2]``); out of the cut the floor and mean are learned (weight ``gate[5]``;
+    the mean afresh at a new speed). Returns (cutting, steady: the halves' means differ by at
+    most ``gate[3]``× the tooth line or ``gate[4]``× the floor, tooth line, reference of the
+    ratio: the line, in the cut no less than ``gate[0]``× floor, and the tooth line's bins
+    ``k0``, ``k1``). ``air_before`` ← ``air`` as it was before the window (decisions 1543,
+    1680)."""
     for i in range(air.shape[0]):
         air_before[i] = air[i]
+    k0, k1 = tooth_bins(f_t, f_rev, df, c.shape[0], min_speed_rpm)
     tooth, med = amplitude_line_median(c, scale, k0, k1, b0, b1, raw)
     has_floor = air[HAS_FLOOR] > 0.0
     has_mean = air[HAS_MEAN] > 0.0
@@ -359,17 +398,7 @@ def cutting_gate(
         if noise > tol:
             tol = noise
         steady = abs(half_step) <= tol
-    return cutting, steady, tooth, tooth_ref
-
-
-@numba.njit(cache=True, nogil=True)
-def last_samples(ring: FloatArray, pos: int, out: FloatArray) -> None:  # pragma: no cover
-    """``out`` ← the last ``len(out)`` samples written to ``ring`` before ``pos`` (a
-    power-of-two ring), oldest first."""
-    mask = ring.shape[0] - 1
-    start = pos - out.shape[0]
-    for i in range(out.shape[0]):
-        out[i] = ring[(start + i) & mask]
+    return cutting, steady, tooth, tooth_ref, k0, k1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -384,15 +413,16 @@ def decision_windows(
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """A decision's windows in one call (decision 1700): :func:`centred_window` of ``ring_x``
     into ``out`` and (times ``taper``) ``windows[0]``, returning its mean and half-step; with a
-    second row, the comb-filtered window (:func:`last_samples` of ``ring_y``) into
-    ``windows[1]``, times ``comb_taper`` unless that is empty (a rectangular window)."""
-    level, half_step = centred_window(ring_x, pos, taper, out, windows[0])
-    if windows.shape[0] > 1:
-        row = windows[1]
-        last_samples(ring_y, pos, row)
-        if comb_taper.shape[0] > 0:
-            for i in range(row.shape[0]):
-                row[i] *= comb_taper[i]
+    second row, the comb-filtered window (the same samples of ``ring_y``, copied in the same
+    pass) into ``windows[1]``, times ``comb_taper`` unless that is empty (a rectangular
+    window)."""
+    if windows.shape[0] == 1:
+        return centred_window(ring_x, pos, taper, out, windows[0])
+    row = windows[1]
+    level, half_step = centred_window(ring_x, pos, taper, out, windows[0], ring_y, row)
+    if comb_taper.shape[0] > 0:
+        for i in range(row.shape[0]):
+            row[i] *= comb_taper[i]
     return level, half_step
 
 

@@ -266,9 +266,10 @@ class _Stage:
     def close_hop(self, keep: int) -> None:
         """At a decision sample: mean speed of the hop, its range kept (``keep`` hops)."""
         st = self.state
-        self.f_rev = float(st[1] / st[2]) if st[2] > 0 else 0.0
-        self.lows.append(float(st[3]))
-        self.highs.append(float(st[4]))
+        _, total, count, low, high = st.tolist()  # Python floats: the same IEEE division
+        self.f_rev = total / count if count > 0 else 0.0
+        self.lows.append(low)
+        self.highs.append(high)
         self.means.append(self.f_rev)
         del self.lows[:-keep], self.highs[:-keep], self.means[:-keep]
         st[1] = st[2] = st[4] = 0.0
@@ -397,14 +398,14 @@ class ChatterMonitor(Block):
         self._speed_factor = 1.0 / (2 * math.pi) if s.speed_unit == "rad/s" else 1.0 / 60.0
         self._min_rev_s = s.min_speed_rpm / 60.0
         # hops of speed ranges kept: a window's, and the settling time (decision 1543)
-        self._keep_hops = max(n // self._hop + 2, self._settle_windows)
+        self._window_hops = n // self._hop + 2  # the hops whose speed ranges a window spans
+        self._keep_hops = max(self._window_hops, self._settle_windows)
         self._ch_flag = f"{self.name}/chatter"
         self._ch_hz = f"{self.name}/chatter_hz"
         self._ch_ratio = f"{self.name}/energy_ratio"
         self._mask_f_rev = -1.0
         self._harm_mask = np.zeros(len(f), dtype=bool)
         self._df = float(f[1])
-        self._nf = len(f)
         self._merged: HeldViews | None = None
         self._keep = self._keep_hops
         self._out_names = (self._ch_flag, self._ch_hz, self._ch_ratio)
@@ -431,7 +432,7 @@ class ChatterMonitor(Block):
         n = self.method.window
         if g.pos < n:
             return None
-        w = n // self._hop + 2
+        w = self._window_hops
         if not max(g.highs[-w:]) <= (1.0 + STEADY_SPEED) * min(g.lows[-w:]):
             return None  # speed changing within the window: no decision (decision 1504)
         xr, raw, windows = self._xr, self._raw, self._windows
@@ -445,18 +446,13 @@ class ChatterMonitor(Block):
             c_raw = spectra[0]
         else:
             c_raw = rfft(windows[0])
-        df = self._df
         f_t = self.settings.n_flutes * f_rev
-        k0 = k1 = 0
-        if f_rev * 60.0 >= self.settings.min_speed_rpm:
-            half = max(2.0 * df, 0.005 * f_t)
-            k0 = max(0, math.ceil((f_t - half) / df))
-            k1 = max(k0, min(self._nf, math.floor((f_t + half) / df) + 1))
         b0, b1 = self._band_slice
         air_before = self._air_before  # the gate's state before this window (1543, 1680)
-        cutting, steady, tooth, tooth_ref = _kn.cutting_gate(
-            c_raw, self._scale, k0, k1, b0, b1, raw, level, half_step, f_rev, self._air, self._gate,
-            air_before,
+        # with the tooth line's bins k0:k1 (:func:`._kernels.tooth_bins`)
+        cutting, steady, tooth, tooth_ref, k0, k1 = _kn.cutting_gate(
+            c_raw, self._scale, f_t, self._df, self.settings.min_speed_rpm, b0, b1, raw, level,
+            half_step, f_rev, self._air, self._gate, air_before,
         )  # fmt: skip
         f = self._f
         if not learns:  # the threshold method reads the raw spectrum
