@@ -195,12 +195,20 @@ def _residual_g(
     harmonic's basis a, b from its three orders (``idx``) and lengths ``lk``, the least-squares
     α, β, then the projection. Each G is computed once per point, not once per harmonic that
     uses it."""
-    n = xn.shape[0]
-    for j in range(n):
-        a[j] = _over_i(g[idx[0, j]] - g[idx[2, j]], 2.0) * lk[j]
-        b[j] = g[idx[1, j]] * lk[j]
+    _bases_from(idx, g, lk, a, b)
     alpha, beta = _least_squares(a, b, xn, edge)
     return _projected_residual(xn, a, b, alpha, beta, res)
+
+
+@numba.njit(cache=True, inline="always")
+def _bases_from(
+    idx: IntArray, g: ComplexArray, lk: ComplexArray, a: ComplexArray, b: ComplexArray
+) -> None:
+    """The bases A_k = (G_{k−1} − G_{k+1})/2i · L_k and B_k = G_k L_k of :func:`_fit_basis`
+    from G of every order ``g`` (indices ``idx``, :func:`_orders`) and the lengths ``lk``."""
+    for j in range(lk.shape[0]):
+        a[j] = _over_i(g[idx[0, j]] - g[idx[2, j]], 2.0) * lk[j]
+        b[j] = g[idx[1, j]] * lk[j]
 
 
 @numba.njit(cache=True)
@@ -300,9 +308,7 @@ def _vp_jacobian(
     n = xn.shape[0]
     a = np.empty(n, dtype=np.complex128)
     b = np.empty(n, dtype=np.complex128)
-    for j in range(n):
-        a[j] = _over_i(gc[idx[0, j]] - gc[idx[2, j]], 2.0) * lk[j]
-        b[j] = gc[idx[1, j]] * lk[j]
+    _bases_from(idx, gc, lk, a, b)
     aa, ab, bb, ax, bx = _gram(a, b, xn, n)
     # (ΦᵀΦ)⁻¹ = [[i11, i12], [i12, i22]] (0 where singular: α = β = 0, as the fit sets them)
     i11 = 0.0
@@ -1160,32 +1166,60 @@ def depth_sd(q: FloatArray, x: ComplexArray, k: FloatArray, kb: float, edge: boo
     before, which differ from it by their truncation, ≈ 10⁻⁷ of the result). +inf where JᵀJ is
     singular or nothing is left to estimate s² from."""
     n = x.shape[0]
-    n_amp = 2 if edge else 1
-    dof = 2 * n - 3 - n_amp
-    ax0 = abs(x[0])
-    if dof < 1 or not ax0 > 0:
+    if _depth_sd_undefined(x, edge):
         return math.inf
-    xn = x / ax0
-    r = np.empty(2 * n)
-    jac = np.empty((2 * n, 3))
-    # the bases of :func:`_fit_basis` at q, each G computed once per distinct order
-    # (:func:`_residual_g`)
     kk = k[:n]
+    _, idx, e1, e2, g, lk = _point_factors(q, kk, kb)
+    return _depth_sd_at(x, kk, kb, edge, idx, e1, e2, g, lk)
+
+
+@numba.njit(cache=True)
+def _depth_sd_undefined(x: ComplexArray, edge: bool) -> bool:
+    """:func:`depth_sd` has nothing to estimate s² from (2K − 3 − n_amplitudes < 1) or no
+    reference harmonic (|x_0| = 0)."""
+    dof = 2 * x.shape[0] - 3 - (2 if edge else 1)
+    return dof < 1 or not abs(x[0]) > 0
+
+
+@numba.njit(cache=True)
+def _point_factors(
+    q: FloatArray, kk: FloatArray, kb: float
+) -> tuple[FloatArray, IntArray, ComplexArray, ComplexArray, ComplexArray, ComplexArray]:
+    """At q = (d_a, θ_st, θ_ex), for the harmonics ``kk``: their distinct orders and indices
+    (:func:`_orders`), the phases e^{−i m θ_st}, e^{−i m θ_ex} (:func:`_phases`), G of every
+    order (:func:`_g_all`) and the lengths L(k) (:func:`_l`): the numbers of
+    :func:`_fit_basis`, each G computed once per distinct order."""
     m, idx = _orders(kk)
     nm = m.shape[0]
     e1 = np.empty(nm, dtype=np.complex128)
     e2 = np.empty(nm, dtype=np.complex128)
     g = np.empty(nm, dtype=np.complex128)
-    lk = np.empty(n, dtype=np.complex128)
+    lk = np.empty(kk.shape[0], dtype=np.complex128)
+    _phases(m, q[1], e1)
+    _phases(m, q[2], e2)
+    _g_all(m, e1, e2, q[1], q[2], g)
+    for j in range(kk.shape[0]):
+        lk[j] = _l(kk[j], q[0], kb)
+    return m, idx, e1, e2, g, lk
+
+
+@numba.njit(cache=True)
+def _depth_sd_at(
+    x: ComplexArray, kk: FloatArray, kb: float, edge: bool, idx: IntArray, e1: ComplexArray,
+    e2: ComplexArray, g: ComplexArray, lk: ComplexArray,
+) -> float:  # fmt: skip
+    """:func:`depth_sd` from the factors of :func:`_point_factors` at the point (``x`` not
+    :func:`_depth_sd_undefined`)."""
+    n = x.shape[0]
+    n_amp = 2 if edge else 1
+    dof = 2 * n - 3 - n_amp
+    ax0 = abs(x[0])
+    xn = x / ax0
+    r = np.empty(2 * n)
+    jac = np.empty((2 * n, 3))
     wa = np.empty(n, dtype=np.complex128)
     wb = np.empty(n, dtype=np.complex128)
     wt = np.ones(n)
-    d, st, ex = q[0], q[1], q[2]
-    _phases(m, st, e1)
-    _phases(m, ex, e2)
-    _g_all(m, e1, e2, st, ex, g)
-    for j in range(n):
-        lk[j] = _l(kk[j], d, kb)
     cost = _residual_g(idx, g, lk, xn, edge, wa, wb, r)
     _vp_jacobian(idx, kk, kb, wt, g, e1, e2, lk, xn, edge, r, jac)
     jtj = jac.T @ jac
@@ -1241,9 +1275,14 @@ def estimate(
         v = x[j] / ax0
         norm += v.real * v.real + v.imag * v.imag
     source = EDGE_NOT_FITTED
-    # the bases at q and their amplitudes, computed once for the edge test and the estimate
-    # (:func:`amplitudes`' numbers; the sines and cosines of a revolution's estimate)
-    a, b, alpha, beta = _fit_basis(q, x, k, kb, edge)
+    # the bases at q and their amplitudes, computed once for the edge test, the estimate and
+    # the depth's s.d. (:func:`_fit_basis`' numbers from each order's G, :func:`_point_factors`)
+    kk = k[: x.shape[0]]
+    _, idx, e1, e2, gq, lk = _point_factors(q, kk, kb)
+    a = np.empty(x.shape[0], dtype=np.complex128)
+    b = np.empty(x.shape[0], dtype=np.complex128)
+    _bases_from(idx, gq, lk, a, b)
+    alpha, beta = _least_squares(a, b, x, edge)
     if edge:
         source = EDGE_FROM_HARMONICS
         if _mean_informs(a, b, x.shape[0], d, st, ex, mean_var):
@@ -1296,7 +1335,12 @@ def estimate(
     out[EST_RUNOUT] = abs(w)
     out[EST_RUNOUT_ANGLE] = (-math.atan2(w.imag, w.real)) % (2.0 * math.pi)
     out[EST_RELIABILITY] = 1.0 - dev / tot
-    out[EST_AXIAL_SD] = depth_sd(q, x, k, kb, edge)
+    if source == EDGE_FROM_MEAN:  # refitted: the factors at the new point
+        out[EST_AXIAL_SD] = depth_sd(q, x, k, kb, edge)
+    elif _depth_sd_undefined(x, edge):
+        out[EST_AXIAL_SD] = math.inf
+    else:
+        out[EST_AXIAL_SD] = _depth_sd_at(x, kk, kb, edge, idx, e1, e2, gq, lk)
     out[EST_NOTCH] = notch
     out[EST_COST] = 2.0 * cost / norm
     out[EST_EDGE] = beta / rn
@@ -1358,6 +1402,10 @@ def identify_from(
     return True
 
 
+#: Samples per block of :func:`_add_harmonics` (its product tables: 2 × 64 × harmonics floats).
+HARMONIC_BLOCK = 64
+
+
 @numba.njit(cache=True)
 def _add_harmonics(
     x: FloatArray, zr: FloatArray, zi: FloatArray, a: int, b: int, n_flutes: int,
@@ -1365,46 +1413,99 @@ def _add_harmonics(
 ) -> None:  # fmt: skip
     """sums[0] += Σ x e^{−iφ}, sums[k] += Σ x e^{−ikNφ} over the samples a … b − 1 (``zr``,
     ``zi``: the samples' phasors e^{−iφ}), sample by sample in sample order (a revolution split
-    over any chunks gets the same sums bit for bit); four samples at a time, whose power chains
-    are independent. A real sample scales the real and imaginary parts (the products of the
-    complex form ``x·z`` less its zero terms ``0·Im z``, ``0·Re z``, which cannot change a sum
-    that starts at +0; decision 1536)."""
+    over any chunks gets the same sums bit for bit). A real sample scales the real and imaginary
+    parts (the products of the complex form ``x·z`` less its zero terms ``0·Im z``, ``0·Re z``,
+    which cannot change a sum that starts at +0; decision 1536).
+
+    Per block of :data:`HARMONIC_BLOCK` samples: the products x·e^{−ikNφ} of every harmonic
+    (:func:`_harmonic_products`), then each harmonic's sum over the block in sample order
+    (:func:`_add_products`): per sum the operations of one sample at a time, in its order."""
     nk = sums.shape[0]
-    s = a
-    while s + 3 < b:
-        b0 = complex(zr[s], zi[s])
-        b1 = complex(zr[s + 1], zi[s + 1])
-        b2 = complex(zr[s + 2], zi[s + 2])
-        b3 = complex(zr[s + 3], zi[s + 3])
-        x0, x1, x2, x3 = x[s], x[s + 1], x[s + 2], x[s + 3]
-        z0, z1, z2, z3 = b0, b1, b2, b3
-        bn0, bn1, bn2, bn3 = b0**n_flutes, b1**n_flutes, b2**n_flutes, b3**n_flutes
-        for j in range(nk):
-            re = sums[j].real + x0 * z0.real
-            im = sums[j].imag + x0 * z0.imag
-            re += x1 * z1.real
-            im += x1 * z1.imag
-            re += x2 * z2.real
-            im += x2 * z2.imag
-            re += x3 * z3.real
-            im += x3 * z3.imag
-            sums[j] = complex(re, im)
-            if j == 0:
-                z0, z1, z2, z3 = bn0, bn1, bn2, bn3
-            else:
-                z0 *= bn0
-                z1 *= bn1
-                z2 *= bn2
-                z3 *= bn3
-        s += 4
-    while s < b:
-        z0 = complex(zr[s], zi[s])
-        x0 = x[s]
-        bn0 = z0**n_flutes
-        for j in range(nk):
-            sums[j] = complex(sums[j].real + x0 * z0.real, sums[j].imag + x0 * z0.imag)
-            z0 = bn0 if j == 0 else z0 * bn0
-        s += 1
+    sr = np.empty(nk)
+    si = np.empty(nk)
+    for j in range(nk):
+        sr[j] = sums[j].real
+        si[j] = sums[j].imag
+    blk = max(min(HARMONIC_BLOCK, b - a), 0)  # a short run needs short tables
+    qr = np.empty((nk, blk))
+    qi = np.empty((nk, blk))
+    work = np.empty((5, blk))
+    s0 = a
+    while s0 < b:
+        m = min(blk, b - s0)
+        _harmonic_products(x, zr, zi, s0, m, n_flutes, qr, qi, work)
+        _add_products(qr, qi, m, sr, si)
+        s0 += m
+    for j in range(nk):
+        sums[j] = complex(sr[j], si[j])
+
+
+@numba.njit(cache=True, inline="always")
+def _harmonic_products(
+    x: FloatArray, zr: FloatArray, zi: FloatArray, s0: int, m: int, n_flutes: int,
+    qr: FloatArray, qi: FloatArray, work: FloatArray,
+) -> None:  # fmt: skip
+    """qr[j, t] + i qi[j, t] = x_s e^{−ik_jNφ_s} (k_0 N = 1) for the samples s = s0 + t,
+    t < m: the power chain z ← z·e^{−iNφ} in real arithmetic (the products and sums of numba's
+    complex product, in its order), harmonic by harmonic across the block's samples: lanes
+    the compiler vectorises (the chain of one sample is sequential)."""
+    nk = qr.shape[0]
+    xs, br, bi, cr, ci = work[0], work[1], work[2], work[3], work[4]
+    for t in range(m):
+        s = s0 + t
+        xs[t] = x[s]
+        bn = complex(zr[s], zi[s]) ** n_flutes
+        br[t] = bn.real
+        bi[t] = bn.imag
+        cr[t] = bn.real
+        ci[t] = bn.imag
+        qr[0, t] = x[s] * zr[s]
+        qi[0, t] = x[s] * zi[s]
+    if nk > 1:
+        for t in range(m):
+            qr[1, t] = xs[t] * br[t]
+            qi[1, t] = xs[t] * bi[t]
+    for j in range(2, nk):
+        for t in range(m):
+            re = cr[t] * br[t] - ci[t] * bi[t]
+            im = cr[t] * bi[t] + ci[t] * br[t]
+            cr[t] = re
+            ci[t] = im
+            qr[j, t] = xs[t] * re
+            qi[j, t] = xs[t] * im
+
+
+@numba.njit(cache=True, inline="always")
+def _add_products(qr: FloatArray, qi: FloatArray, m: int, sr: FloatArray, si: FloatArray) -> None:
+    """sr[j] += Σ_t qr[j, t], si[j] += Σ_t qi[j, t] over t < m, each sum in order of t; four
+    harmonics at a time (eight independent sums: their additions overlap instead of waiting
+    on one another)."""
+    nk = qr.shape[0]
+    j = 0
+    while j + 3 < nk:
+        r0, r1, r2, r3 = sr[j], sr[j + 1], sr[j + 2], sr[j + 3]
+        i0, i1, i2, i3 = si[j], si[j + 1], si[j + 2], si[j + 3]
+        for t in range(m):
+            r0 += qr[j, t]
+            r1 += qr[j + 1, t]
+            r2 += qr[j + 2, t]
+            r3 += qr[j + 3, t]
+            i0 += qi[j, t]
+            i1 += qi[j + 1, t]
+            i2 += qi[j + 2, t]
+            i3 += qi[j + 3, t]
+        sr[j], sr[j + 1], sr[j + 2], sr[j + 3] = r0, r1, r2, r3
+        si[j], si[j + 1], si[j + 2], si[j + 3] = i0, i1, i2, i3
+        j += 4
+    while j < nk:
+        r0 = sr[j]
+        i0 = si[j]
+        for t in range(m):
+            r0 += qr[j, t]
+            i0 += qi[j, t]
+        sr[j] = r0
+        si[j] = i0
+        j += 1
 
 
 @numba.njit(cache=True)
