@@ -57,16 +57,14 @@ def segment_periods(
     out_mean_f: FloatArray,
     out_end: IntArray,
     out_index: IntArray,
-    held: IntArray,
 ) -> int:
     """Average ``a`` (and ``b``, ``expected``, the 1/0 ``gate``, the plan's transient
     ``floor`` when non-empty; the gate's mean is 1 without one, the floor's 0) over complete
     tooth periods.
 
     ``out_*`` are sized ≥ the number of periods that can end in the chunk; ``out_end`` is the
-    chunk sample at which each period is reported, ``out_index`` its index since the stream
-    start; ``held[k]`` is the number of periods reported up to and including sample k.
-    Returns the number of periods completed in this chunk.
+    chunk sample at which each period is reported (strictly increasing), ``out_index`` its
+    index since the stream start. Returns the number of periods completed in this chunk.
     """
     n = a.shape[0]
     has_b = b.shape[0] == n
@@ -114,7 +112,6 @@ def segment_periods(
             sg += 1.0 if gate[k] > 0.5 else 0.0
         if has_f:
             sf += floor[k]
-        held[k] = m
     state[SEG_PHASE] = phase
     state[SEG_INDEX] = idx
     state[SEG_COUNT] = cnt
@@ -129,33 +126,33 @@ def segment_periods(
 @numba.njit(cache=True)
 def segment_group(
     x: FloatArray,
-    rows: IntArray,
     speed: FloatArray,
     fs: float,
     n_flutes: int,
-    state: FloatArray,
+    fstate: FloatArray,
+    istate: IntArray,
     means: FloatArray,
     ends: IntArray,
-    held: IntArray,
-    counts: IntArray,
 ) -> int:
     """:func:`segment_periods` for several detectors on one speed channel in one call:
-    detector ``j`` averages the rows ``rows[j] = (a, b, expected, gate, floor)`` of ``x`` (−1:
-    none) with its state ``state[j]`` into ``means[j, 0:3]``, ``means[j, PP_GATE]`` and
-    ``means[j, PP_FLOOR]``, ``ends[j]``,
-    ``held[j]``; ``counts[j]`` ← its periods completed. Returns the largest count."""
+    detector ``j`` averages the rows ``istate[j, I_ROWS:I_ROWS + 5]`` = (a, b, expected, gate,
+    floor) of ``x`` (−1: none) with its segment state ``fstate[j, F_SEG:F_HELD]`` into
+    ``means[j, 0:3]``, ``means[j, PP_GATE]`` and ``means[j, PP_FLOOR]``, ``ends[j, 0:2]``;
+    ``istate[j, I_COUNT]`` ← its periods completed. Returns the largest count (the group's
+    packed layout: :data:`F_SEG`, :data:`I_ROWS`)."""
     empty = x[0, :0]
     top = 0
-    for j in range(rows.shape[0]):
-        a = x[rows[j, 0]]
-        b = x[rows[j, 1]] if rows[j, 1] >= 0 else empty
-        e = x[rows[j, 2]] if rows[j, 2] >= 0 else empty
-        g = x[rows[j, 3]] if rows[j, 3] >= 0 else empty
-        f = x[rows[j, 4]] if rows[j, 4] >= 0 else empty
-        k = segment_periods(a, b, e, g, f, speed, fs, n_flutes, state[j], means[j, 0],
-                            means[j, 1], means[j, 2], means[j, PP_GATE], means[j, PP_FLOOR],
-                            ends[j, 0], ends[j, 1], held[j])  # fmt: skip
-        counts[j] = k
+    for j in range(istate.shape[0]):
+        rows = istate[j, I_ROWS : I_ROWS + 5]
+        a = x[rows[0]]
+        b = x[rows[1]] if rows[1] >= 0 else empty
+        e = x[rows[2]] if rows[2] >= 0 else empty
+        g = x[rows[3]] if rows[3] >= 0 else empty
+        f = x[rows[4]] if rows[4] >= 0 else empty
+        k = segment_periods(a, b, e, g, f, speed, fs, n_flutes, fstate[j, F_SEG:F_HELD],
+                            means[j, 0], means[j, 1], means[j, 2], means[j, PP_GATE],
+                            means[j, PP_FLOOR], ends[j, 0], ends[j, 1])  # fmt: skip
+        istate[j, I_COUNT] = k
         top = max(top, k)
     return top
 
@@ -190,10 +187,12 @@ DET_DROP = 25  # plan-free flute check (decision 1707): a held violation's Δ_N 
 DET_PE1 = 26  # that violation's residuals
 DET_PE2 = 27
 DET_NOISE_SLOW = 28  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
-DET_BASE = 29  # ring buffers: the last N period values, the noise window, then the last N
+DET_NOISE_NAN = 29  # NaN values held in the noise window (not in its sorted copy)
+DET_BASE = 30  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
-# PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW
+# PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW; last, the
+# noise window's values but NaN in ascending order (its median without a selection per period)
 
 #: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
 #: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
@@ -239,15 +238,46 @@ MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB �
 MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the first revolutions)
 MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
 
+#: Lengths of a detector's ``params`` and ``iparams`` (:func:`detect_periods`).
+N_PARAMS = 11
+N_IPARAMS = 9
+#: A group's packed state (one compiled call per chunk with few arguments: each array argument
+#: costs its unboxing at every call). Row j of ``fstate`` (float) holds detector j's segment
+#: state, held outputs, params and detector state from these offsets on; row j of ``istate``
+#: (int) its rows of ``x`` (a, b, expected, gate, floor; −1: none), iparams, 1 if its signal
+#: is two channels, its periods ending in the chunk, the first period of its running violation
+#: (−1: none) and its alarms in the chunk.
+F_SEG = 0
+F_HELD = F_SEG + SEG_SIZE
+F_PARAMS = F_HELD + OUT_ROWS
+F_DET = F_PARAMS + N_PARAMS
+I_ROWS = 0
+I_IPARAMS = I_ROWS + 5
+I_TWO = I_IPARAMS + N_IPARAMS
+I_COUNT = I_TWO + 1
+I_FIRST = I_COUNT + 1
+I_ALARMS = I_FIRST + 1
+I_SIZE = I_ALARMS + 1
+#: Rows of a group's ``pi`` (int, per period): 0 the sample it ends at, 1 its index, 2 its
+#: violation flag, 3 its alarm flag (the last two a detector's ``pb``).
+PI_ROWS = 4
 
+
+@numba.njit(cache=True)
 def pattern_base(n_flutes: int) -> int:
     """Index of the flute pattern's rings in the detector state (decision 1684)."""
     return DET_BASE + 3 * n_flutes + NOISE_WINDOW
 
 
+@numba.njit(cache=True)
+def sorted_noise_base(n_flutes: int) -> int:
+    """Index of the noise window's sorted copy in the detector state."""
+    return pattern_base(n_flutes) + (2 + 2 * PATTERN_REVS) * n_flutes + 2 * NOISE_WINDOW
+
+
 def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
-    st = np.zeros(pattern_base(n_flutes) + (2 + 2 * PATTERN_REVS) * n_flutes + 2 * NOISE_WINDOW)
+    st = np.zeros(sorted_noise_base(n_flutes) + NOISE_WINDOW)
     st[DET_BASE + n_flutes + NOISE_WINDOW : DET_BASE + 2 * n_flutes + NOISE_WINDOW] = math.nan
     st[DET_PHI1] = phi0
     st[DET_PHI2] = phi0
@@ -305,12 +335,69 @@ def _flute_signature(
 
 
 @numba.njit(cache=True)
-def _noise_sigma(state: FloatArray, noise0: int) -> float:
+def _noise_push(state: FloatArray, nf: int, value: float) -> None:
+    """Add ``value`` (|Δ_N x|) to the noise window (decision 1550), the oldest one out once it
+    holds NOISE_WINDOW, and keep the sorted copy of its values but NaN (:func:`_noise_median`)."""
+    noise0 = DET_BASE + nf
+    srt = sorted_noise_base(nf)
+    n_noise = int(state[DET_NOISE_N])
+    pos = int(state[DET_NOISE_POS])
+    n_sorted = n_noise - int(state[DET_NOISE_NAN])
+    if n_noise == NOISE_WINDOW:  # the oldest value leaves
+        old = state[noise0 + pos]
+        if old != old:
+            state[DET_NOISE_NAN] -= 1.0
+        else:
+            i = _sorted_find(state, srt, n_sorted, old)
+            for r in range(srt + i, srt + n_sorted - 1):
+                state[r] = state[r + 1]
+            n_sorted -= 1
+    state[noise0 + pos] = value
+    if value != value:
+        state[DET_NOISE_NAN] += 1.0
+    else:
+        i = _sorted_find(state, srt, n_sorted, value)
+        for r in range(srt + n_sorted, srt + i, -1):
+            state[r] = state[r - 1]
+        state[srt + i] = value
+    state[DET_NOISE_POS] = (pos + 1) % NOISE_WINDOW
+    state[DET_NOISE_N] = min(n_noise + 1.0, NOISE_WINDOW)
+
+
+@numba.njit(cache=True)
+def _sorted_find(state: FloatArray, start: int, n: int, value: float) -> int:
+    """The first i in [0, n] with state[start + i] ≥ ``value`` (ascending values)."""
+    lo, hi = 0, n
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if state[start + mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True)
+def _noise_median(state: FloatArray, nf: int) -> float:
+    """The median of the noise window, np.median's value: the middle of its sorted copy (the
+    mean of the middle two for an even count); np.median itself where it holds a NaN."""
+    n_noise = int(state[DET_NOISE_N])
+    if state[DET_NOISE_NAN] > 0.0:
+        noise0 = DET_BASE + nf
+        return np.median(state[noise0 : noise0 + n_noise])
+    srt = sorted_noise_base(nf)
+    half = n_noise >> 1
+    if n_noise & 1:
+        return state[srt + half]
+    return (state[srt + half - 1] + state[srt + half]) / 2
+
+
+@numba.njit(cache=True)
+def _noise_sigma(state: FloatArray, nf: int) -> float:
     """The standard deviation of one tooth-period average (decision 1550: the median |x(m) −
     x(m−N)| of the noise window) held up by its exponential mean over NOISE_SLOW calls
     (decision 1718); call once per judged period."""
-    n_noise = int(state[DET_NOISE_N])
-    sigma = NOISE_SCALE * np.median(state[noise0 : noise0 + n_noise])
+    sigma = NOISE_SCALE * _noise_median(state, nf)
     slow = state[DET_NOISE_SLOW]
     slow = sigma if slow == 0.0 else slow + (sigma - slow) / NOISE_SLOW
     state[DET_NOISE_SLOW] = slow
@@ -543,7 +630,6 @@ def detect_periods(
     eps2 = pp[6]
     lim2 = pp[7]
     band_out = pp[8]
-    noise0 = DET_BASE + nf
     viol = pb[0]
     alarm = pb[1]
     gate = pp[PP_GATE]
@@ -616,10 +702,7 @@ def detect_periods(
         state[DET_BASE + seen % nf] = xm
         state[DET_SEEN] = seen + 1
         if seen >= nf:  # the noise window of |Δ_N x| (decision 1550)
-            pos = int(state[DET_NOISE_POS])
-            state[noise0 + pos] = abs(dn)
-            state[DET_NOISE_POS] = (pos + 1) % NOISE_WINDOW
-            state[DET_NOISE_N] = min(state[DET_NOISE_N] + 1.0, NOISE_WINDOW)
+            _noise_push(state, nf, abs(dn))
         eps1[m] = e1
         eps2[m] = e2
         v = False
@@ -653,7 +736,7 @@ def detect_periods(
                 if state[DET_NOISE_N] < NOISE_MIN:
                     ready = False
                 elif ready:
-                    floor_d = k_noise * math.sqrt(2.0) * _noise_sigma(state, noise0)
+                    floor_d = k_noise * math.sqrt(2.0) * _noise_sigma(state, nf)
                     thr1 = max(thr1, floor_d)
                     thr2 = max(thr2, floor_d)
             lim1[m] = thr1 if ready else math.nan
@@ -681,7 +764,7 @@ def detect_periods(
             if judge:
                 band = limit
                 if k_noise > 0.0 and state[DET_NOISE_N] >= NOISE_MIN:
-                    band = max(limit, k_noise * _noise_sigma(state, noise0))
+                    band = max(limit, k_noise * _noise_sigma(state, nf))
                 band_out[m] = band
                 v_res = abs(e1) > limit
                 v_tq = (ex - xm if below else abs(xm - ex)) > band
@@ -819,19 +902,24 @@ def accumulate_revolutions(
 
 @numba.njit(cache=True)
 def fill_outputs(
-    held_prev: FloatArray, per_period: FloatArray, k: int, held: IntArray, out: FloatArray
+    held_prev: FloatArray, per_period: FloatArray, k: int, end: IntArray, out: FloatArray
 ) -> None:
     """out[:, s] = the values of the last period reported at or before sample s (columns of
-    ``per_period[:, :k]``), or ``held_prev`` before the first one; then ``held_prev`` ← the
-    last column."""
-    rows = out.shape[0]
-    for s in range(held.shape[0]):
-        h = held[s]
-        for j in range(rows):
-            out[j, s] = held_prev[j] if h == 0 else per_period[j, h - 1]
-    if k > 0:
-        for j in range(rows):
-            held_prev[j] = per_period[j, k - 1]
+    ``per_period[:, :k]``, period i reported at sample ``end[i]``), or ``held_prev`` before the
+    first one; then ``held_prev`` ← the last column. Row by row, one constant run per period
+    (contiguous stores, where a column at a time strides across the rows)."""
+    n = out.shape[1]
+    for j in range(out.shape[0]):
+        row = out[j]
+        v = held_prev[j]
+        s = 0
+        for i in range(k):
+            e = end[i]
+            row[s:e] = v
+            v = per_period[j, i]
+            s = e
+        row[s:n] = v
+        held_prev[j] = v
 
 
 @numba.njit(cache=True)
@@ -874,68 +962,66 @@ def periods_step(
     iparams: IntArray,
     state: FloatArray,
     held_prev: FloatArray,
-    held: IntArray,
     out: FloatArray,
     first: int,
+    end: IntArray,
     index: IntArray,
 ) -> tuple[int, int]:
     """The per-period step of a chunk in one call: :func:`_judge` (the period values,
     :func:`detect_periods`), :func:`fill_outputs`; returns the first period of the running
     violation after the chunk (−1: none; ``first`` before it) and the number of alarms."""
     first, alarms = _judge(pp, pb, k, has_b, params, iparams, state, first, index)
-    fill_outputs(held_prev, pp[3:], k, held, out)
+    fill_outputs(held_prev, pp[3:], k, end, out)
     return first, alarms
 
 
 @numba.njit(cache=True)
 def periods_group(
     pp: FloatArray,
-    pb: NDArray[np.bool_],
     pi: IntArray,
-    counts: IntArray,
-    two: NDArray[np.bool_],
-    params: FloatArray,
-    iparams: IntArray,
-    state: FloatArray,
-    held_prev: FloatArray,
-    held: IntArray,
+    fstate: FloatArray,
+    istate: IntArray,
     out: FloatArray,
-    firsts: IntArray,
-    alarms: IntArray,
     shown: int,
 ) -> tuple[int, bool]:
-    """:func:`periods_step` of several detectors in one call (detector ``j``: ``pp[j]``,
-    ``pb[j]``, period indices ``pi[j, 1]``, ``counts[j]`` periods, two channels if ``two[j]``,
-    ``params[j]``, ``iparams[j]``, ``state[j]``, ``held_prev[j]``, ``held[j]``, running
-    violation ``firsts[j]``; ``alarms[j]`` ← its alarms). Only the first ``shown`` detectors
-    have outputs, ``out[R j:R j + R]`` (R = OUT_ROWS), and only when a period of one of them
-    ends in the chunk (a detector without one holds its values); else ``out`` is not written
-    and their held values stand. Returns the alarms of all and whether ``out`` was written."""
+    """:func:`periods_step` of several detectors in one call (detector ``j``: ``pp[j]``, period
+    ends, indices and flags ``pi[j]`` (:data:`PI_ROWS`), its packed state ``fstate[j]``,
+    ``istate[j]`` with ``istate[j, I_COUNT]`` periods; ``istate[j, I_ALARMS]`` ← its alarms).
+    Only the first ``shown`` detectors have outputs, ``out[R j:R j + R]`` (R = OUT_ROWS), and
+    only when a period of one of them ends in the chunk (a detector without one holds its
+    values); else ``out`` is not written and their held values stand. Returns the alarms of
+    all and whether ``out`` was written."""
     changed = False
     for j in range(shown):
-        if counts[j] > 0:
+        if istate[j, I_COUNT] > 0:
             changed = True
     total = 0
-    for j in range(counts.shape[0]):
-        k = counts[j]
+    for j in range(istate.shape[0]):
+        k = istate[j, I_COUNT]
+        held_prev = fstate[j, F_HELD:F_PARAMS]
         fill = changed and j < shown
         if k == 0:
             if fill:
-                rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
-                fill_outputs(held_prev[j], pp[j, 3:], 0, held[j], rows)
-            alarms[j] = 0
+                fill_outputs(held_prev, pp[j, 3:], 0, pi[j, 0],
+                             out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS])  # fmt: skip
+            istate[j, I_ALARMS] = 0
             continue
+        params = fstate[j, F_PARAMS:F_DET]
+        state = fstate[j, F_DET:]
+        iparams = istate[j, I_IPARAMS:I_TWO]
+        two = istate[j, I_TWO] != 0
+        first = istate[j, I_FIRST]
+        pb = pi[j, 2:PI_ROWS]
         if fill:
             rows = out[OUT_ROWS * j : OUT_ROWS * j + OUT_ROWS]
-            first, a = periods_step(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
-                                    held_prev[j], held[j], rows, firsts[j], pi[j, 1])  # fmt: skip
+            first, a = periods_step(pp[j], pb, k, two, params, iparams, state, held_prev, rows,
+                                    first, pi[j, 0], pi[j, 1])  # fmt: skip
         else:  # no outputs: the values of its last period held
-            first, a = _judge(pp[j], pb[j], k, two[j], params[j], iparams[j], state[j],
-                              firsts[j], pi[j, 1])  # fmt: skip
-            for r in range(held_prev.shape[1]):
-                held_prev[j, r] = pp[j, 3 + r, k - 1]
-        firsts[j] = first
-        alarms[j] = a
+            first, a = _judge(pp[j], pb, k, two, params, iparams, state, first, pi[j, 1])
+            for r in range(OUT_ROWS):
+                held_prev[r] = pp[j, 3 + r, k - 1]
+        istate[j, I_FIRST] = first
+        istate[j, I_ALARMS] = a
         total += a
     return total, changed
 
@@ -943,33 +1029,22 @@ def periods_group(
 @numba.njit(cache=True)
 def group_step(
     x: FloatArray,
-    rows: IntArray,
     speed: FloatArray,
     fs: float,
     n_flutes: int,
-    seg: FloatArray,
+    fstate: FloatArray,
+    istate: IntArray,
     pp: FloatArray,
-    pb: NDArray[np.bool_],
     pi: IntArray,
-    hb: IntArray,
-    counts: IntArray,
-    two: NDArray[np.bool_],
-    params: FloatArray,
-    iparams: IntArray,
-    state: FloatArray,
-    held_prev: FloatArray,
     out: FloatArray,
-    firsts: IntArray,
-    alarms: IntArray,
     shown: int,
 ) -> tuple[int, int, bool]:
     """A group's chunk in one call: :func:`segment_group`, then, when a period ends,
     :func:`periods_group` (for detectors whose expected torque is a channel, not a plan matched
     between the two). Returns the largest count of periods, the alarms and whether ``out`` was
     written."""
-    top: int = segment_group(x, rows, speed, fs, n_flutes, seg, pp, pi, hb, counts)
+    top: int = segment_group(x, speed, fs, n_flutes, fstate, istate, pp, pi)
     if top == 0:
         return 0, 0, False
-    total, changed = periods_group(pp, pb, pi, counts, two, params, iparams, state, held_prev,
-                                   hb, out, firsts, alarms, shown)  # fmt: skip
+    total, changed = periods_group(pp, pi, fstate, istate, out, shown)
     return top, total, changed

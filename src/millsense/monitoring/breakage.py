@@ -411,7 +411,6 @@ class BreakageBlock(Block):
         self._pb = np.empty((2, 0), dtype=np.bool_)
         self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
                       self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
-        self._hbuf = np.empty(0, dtype=np.int64)
         self._n_last = -1
         self._ch_a = self.signal_channels[0]
         self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
@@ -448,20 +447,17 @@ class BreakageBlock(Block):
         f = self._empty if self._ch_f is None else np.asarray(d[self._ch_f], dtype=np.float64)
         if n != self._n_last:
             self._size(n)
-        held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
         r0, r1, r2, rg, rf, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band,
         # 9 the gate's mean, 10 the floor's mean
         k: int = _k.segment_periods(a, b, e, g, f, speed, self.fs, self.n_flutes, self._seg, r0,
-                                    r1, r2, rg, rf, r3, r4, held)  # fmt: skip
+                                    r1, r2, rg, rf, r3, r4)  # fmt: skip
         return k, n
 
     def _periods(self, chunk: Chunk, k: int, n: int) -> BlockOutput:
         """Outputs and events of a chunk of ``n`` samples in which ``k`` ≥ 1 tooth periods end
         (after :meth:`_segment`): residuals, limits and detection per period (Eqs. 6.2–6.6)."""
         d = chunk.data
-        held = self._hbuf[:n] if n != self._hbuf.shape[0] else self._hbuf
-        r4 = self._bufs[6]
         self._held_views = None
         pp, pi, pb = self._pp, self._pi, self._pb
         values = np.empty((_k.OUT_ROWS, n))
@@ -470,7 +466,7 @@ class BreakageBlock(Block):
         first = self._first_violation
         self._first_violation, alarms = _k.periods_step(
             pp, pb, k, self._ch_b is not None, self._params, self._iparams, self._det,
-            self._held, held, values, first, r4,
+            self._held, values, first, pi[0], pi[1],
         )  # fmt: skip
         out = BlockOutput(dict(zip(self._names, values, strict=True)))
         if alarms:
@@ -513,8 +509,6 @@ class BreakageBlock(Block):
             self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
             self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
                           self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
-        if self._hbuf.shape[0] < n:
-            self._hbuf = np.empty(n, dtype=np.int64)
         self._n_last = n
 
     # ------------------------------------------------------------------ helpers
@@ -706,21 +700,29 @@ class BreakageGroup(Block):
         ms = self.members
         for m in ms:
             m.reset(sample_rate_hz)
-        # the members' state lives in rows of the group's arrays (one compiled call for all)
-        self._seg = np.stack([m._seg for m in ms])
-        self._det = np.stack([m._det for m in ms])
-        self._held = np.stack([m._held for m in ms])
+        # the members' state lives in rows of the group's packed arrays (one compiled call for
+        # all, few arguments): fstate[j] = segment state, held outputs, params, detector state
+        f = np.concatenate
+        self._fstate = np.stack([f([m._seg, m._held, m._params, m._det]) for m in ms])
+        self._istate = np.zeros((len(ms), _k.I_SIZE), dtype=np.int64)
+        self._istate[:, _k.I_ROWS : _k.I_IPARAMS] = self._rows
+        self._istate[:, _k.I_IPARAMS : _k.I_TWO] = np.stack([m._iparams for m in ms])
+        self._istate[:, _k.I_TWO] = [len(m.signal_channels) == 2 for m in ms]
+        self._istate[:, _k.I_FIRST] = -1
         for j, m in enumerate(ms):
-            m._seg, m._det, m._held = self._seg[j], self._det[j], self._held[j]
-        self._params = np.stack([m._params for m in ms])
-        self._iparams = np.stack([m._iparams for m in ms])
-        self._two = np.array([len(m.signal_channels) == 2 for m in ms])
+            row = self._fstate[j]
+            m._seg = row[_k.F_SEG : _k.F_HELD]
+            m._held = row[_k.F_HELD : _k.F_PARAMS]
+            m._params = row[_k.F_PARAMS : _k.F_DET]
+            m._det = row[_k.F_DET :]
+            m._iparams = self._istate[j, _k.I_IPARAMS : _k.I_TWO]
         self._planned = [(j, m) for j, m in enumerate(ms) if m.plan is not None
                          and m.expected_channel is None]  # fmt: skip
-        self._firsts = np.full(len(ms), -1, dtype=np.int64)
+        self._counts = self._istate[:, _k.I_COUNT]  # views: periods ending in the chunk,
+        self._firsts = self._istate[:, _k.I_FIRST]  # running violations, alarms
+        self._alarms = self._istate[:, _k.I_ALARMS]
         for j, m in enumerate(ms):
             m._group_first = (self._firsts, j)
-        self._alarms = np.zeros(len(ms), dtype=np.int64)
         self._names = tuple(c.name for c in self.output_channels())
         self._speed = ms[0].speed_channel
         self._fs = ms[0].fs
@@ -735,52 +737,42 @@ class BreakageGroup(Block):
             m._size(n)
         cap = max(m._pp.shape[1] for m in ms)
         self._pp = np.empty((len(ms), _k.PP_ROWS, cap))
-        self._pi = np.empty((len(ms), 2, cap), dtype=np.int64)
-        self._pb = np.empty((len(ms), 2, cap), dtype=np.bool_)
-        self._hb = np.empty((len(ms), n), dtype=np.int64)
+        self._pi = np.empty((len(ms), _k.PI_ROWS, cap), dtype=np.int64)
         for j, m in enumerate(ms):
             pp, pi = self._pp[j], self._pi[j]
-            m._pp, m._pi, m._pb, m._hbuf = pp, pi, self._pb[j], self._hb[j]
+            m._pp, m._pi, m._pb = pp, pi[:2], pi[2:]
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
+        self._x_rows = tuple(zip(self._x, self._chans))  # (row, channel) copied per chunk
         self._values = np.empty((_k.OUT_ROWS * self.shown, n))  # the shown members' rows
-        self._counts = np.zeros(len(ms), dtype=np.int64)
         self._n = n
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
-        ms = self.members
         n = len(d[self._speed])
         if n != self._n:
             self._size(n)
         x = self._x
-        for r, c in enumerate(self._chans):
-            x[r] = d[c]
+        for row, c in self._x_rows:
+            row[...] = d[c]
         speed = np.asarray(d[self._speed], dtype=np.float64)
-        counts = self._counts
-        firsts = self._firsts  # the members' running violations (their ``_group_first``)
-        before = firsts.tolist()
+        before = self._firsts.tolist()  # the members' running violations (``_group_first``)
         values = self._values  # the shown members' outputs if a period of theirs ends
         if self._planned:  # the plan is matched between the averages and the detection
-            top = _k.segment_group(x, self._rows, speed, self._fs, self._flutes, self._seg,
-                                   self._pp, self._pi, self._hb, counts)  # fmt: skip
+            top = _k.segment_group(x, speed, self._fs, self._flutes, self._fstate,
+                                   self._istate, self._pp, self._pi)  # fmt: skip
             total, changed = 0, False
             if top:
                 for j, m in self._planned:
-                    k = int(counts[j])
+                    k = int(self._counts[j])
                     if k:
                         self._pp[j, 2, :k] = m._plan_expected(d, self._pi[j, 0, :k])
-                total, changed = _k.periods_group(
-                    self._pp, self._pb, self._pi, counts, self._two, self._params,
-                    self._iparams, self._det, self._held, self._hb, values, firsts,
-                    self._alarms, self.shown,
-                )  # fmt: skip
+                total, changed = _k.periods_group(self._pp, self._pi, self._fstate,
+                                                  self._istate, values, self.shown)  # fmt: skip
         else:  # one compiled call
-            top, total, changed = _k.group_step(
-                x, self._rows, speed, self._fs, self._flutes, self._seg, self._pp, self._pb,
-                self._pi, self._hb, counts, self._two, self._params, self._iparams, self._det,
-                self._held, values, firsts, self._alarms, self.shown,
-            )  # fmt: skip
+            top, total, changed = _k.group_step(x, speed, self._fs, self._flutes, self._fstate,
+                                                self._istate, self._pp, self._pi, values,
+                                                self.shown)  # fmt: skip
         if changed:  # a shown member's period ended: its values from there on
             self._held_views = None
             self._values = np.empty_like(values)  # the outputs are the caller's now
@@ -790,13 +782,13 @@ class BreakageGroup(Block):
             if views is not None and views[0] == n:  # none changed since: the same views
                 out = BlockOutput(dict(views[1]))
             else:
-                shown = self._held.reshape(-1)[: len(self._names)]
+                shown = self._fstate[: self.shown, _k.F_HELD : _k.F_PARAMS].reshape(-1)
                 self._held_views, held = held_views(self._names, shown, views, n)
                 out = BlockOutput(held)
         if total:
-            for j, m in enumerate(ms):
+            for j, m in enumerate(self.members):
                 if self._alarms[j]:
-                    out.events.extend(m._alarms(chunk, int(counts[j]), before[j]))
+                    out.events.extend(m._alarms(chunk, int(self._counts[j]), before[j]))
         return out
 
 
@@ -827,9 +819,8 @@ def compile_kernels() -> None:
         block.process(Chunk(0, fs, 0.0, data))
     # a group with a plan matches it between its two calls (:meth:`BreakageGroup.process`)
     g = group
-    _k.segment_group(g._x, g._rows, data["s"], fs, 2, g._seg, g._pp, g._pi, g._hb, g._counts)
-    _k.periods_group(g._pp, g._pb, g._pi, g._counts, g._two, g._params, g._iparams, g._det,
-                     g._held, g._hb, g._values, g._firsts, g._alarms, g.shown)  # fmt: skip
+    _k.segment_group(g._x, data["s"], fs, 2, g._fstate, g._istate, g._pp, g._pi)
+    _k.periods_group(g._pp, g._pi, g._fstate, g._istate, g._values, g.shown)
 
 
 def _averaged(
