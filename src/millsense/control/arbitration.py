@@ -272,9 +272,7 @@ class Supervisor(Block):
             self._after_piece(chunk, chunk, n, faulty, in_cut, events)
             feed, spindle, mode = self._held_outputs(held, n)
         else:
-            feed = np.empty(n)
-            spindle = np.empty(n)
-            mode = np.empty(n)
+            held_out = _HeldRuns(n)
             ahead = self._run_ahead(chunk) if self._ahead_ok and not faulty and self._calm() else []
             # the adaptive children have run ahead to here: the decisions before it do not
             # tell them their ceilings (in calm periods a call that would change nothing), the
@@ -284,18 +282,23 @@ class Supervisor(Block):
                  if hasattr(c, "set_ceiling")), default=0,
             )  # fmt: skip
             parts: list[dict[str, list[np.ndarray]]] = [{} for _ in self.children]
+            # every child ran ahead over the whole chunk without an event: its periods have
+            # nothing to hand the decisions
+            quiet = len(ahead) == len(self.children) and all(
+                r.end == n and not r.events for r in ahead
+            )
             pos = 0
             while pos < n:
                 stop = min(n, pos + self.period - (a + pos) % self.period)
                 self._stop = stop
-                self._pieces(chunk, pos, stop, events, ahead, parts)
-                feed[pos:stop] = self.feed
-                spindle[pos:stop] = self.spindle
-                mode[pos:stop] = self.mode
+                if not quiet:
+                    self._pieces(chunk, pos, stop, events, ahead, parts)
+                held_out.hold(pos, self.feed, self.spindle, self.mode)
                 piece = _slice(chunk, pos, stop) if faulty else chunk
                 self._after_piece(chunk, piece, stop, faulty, in_cut, events)
                 pos = stop
             self._defer_to = 0
+            feed, spindle, mode = held_out.rows()
             channels = {}
             for i, got in enumerate(parts):
                 early = ahead[i].channels if i < len(ahead) else {}
@@ -333,7 +336,8 @@ class Supervisor(Block):
             res = c.process(Chunk(start, rate, t0, {k: data[k] for k in c.inputs}))
             data.update(res.channels)
             channels.append(res.channels)
-            self._gather(self._located(res.events, start, data), events)
+            if res.events:
+                self._gather(self._located(res.events, start, data), events)
         return channels
 
     def _located(
@@ -654,6 +658,37 @@ class Supervisor(Block):
             limit = self.feed
         for setter in self._setters:
             setter(limit, self.feed)
+
+
+class _HeldRuns:
+    """The feed and spindle overrides and the mode over a chunk of several control periods,
+    each value held from the period it was set in (written once per run of equal values, not
+    once per period)."""
+
+    __slots__ = ("out", "since", "values")
+
+    def __init__(self, n: int) -> None:
+        self.out = np.empty((3, n))
+        self.since = 0
+        self.values: tuple[float, float, float] | None = None
+
+    def hold(self, pos: int, feed: float, spindle: float, mode: float) -> None:
+        """``feed``, ``spindle`` and ``mode`` from sample ``pos`` on."""
+        values = (feed, spindle, mode)
+        if values != self.values:  # (a NaN spindle may compare unequal: one more write)
+            self._write(pos)
+            self.since = pos
+            self.values = values
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The three outputs, the last values held to the end of the chunk."""
+        self._write(self.out.shape[1])
+        return self.out[0], self.out[1], self.out[2]
+
+    def _write(self, stop: int) -> None:
+        if self.values is not None and stop > self.since:
+            a, out = self.since, self.out
+            out[0, a:stop], out[1, a:stop], out[2, a:stop] = self.values
 
 
 class _Ahead:

@@ -9,8 +9,9 @@ written to a recording while running, so a crash loses at most the last unflushe
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from operator import itemgetter
 
 import numpy as np
 
@@ -32,6 +33,12 @@ class Pipeline:
         self.blocks = list(blocks)
         #: the blocks and the sorted channels they read (checked for NaN/inf per chunk)
         self._inputs: tuple[tuple[Block, ...], list[str]] = ((), [])
+        #: of those, a getter of the ones the last chunk carried, and the others
+        self._carried: tuple[_Getter, tuple[str, ...]] = (_channels_getter(()), ())
+        from millsense.streaming._engine_kernels import all_finite
+
+        #: the compiled check, None once a chunk's channels were of a kind it does not take
+        self._all_finite: Callable[[tuple[np.ndarray, ...]], bool | None] | None = all_finite
         names = [b.name for b in self.blocks]
         if len(set(names)) != len(names):
             raise ValueError(f"block names must be unique, got {names}")
@@ -71,11 +78,10 @@ class Pipeline:
         blocks = tuple(self.blocks)
         if self._inputs[0] != blocks:
             self._inputs = (blocks, sorted({c for b in blocks for c in b.inputs}))
+            self._carried = (_channels_getter(()), tuple(self._inputs[1]))
         data = chunk.data
-        read = [data[c] for c in self._inputs[1] if c in data]
-        # one sum of all the channels: finite unless a value is NaN or inf (or the sum
-        # overflows, which the channel-by-channel search below then clears)
-        if not read or math.isfinite(np.add.reduce(np.concatenate(read, axis=None))):
+        read = self._read(data)
+        if not read or self._finite(read):
             return
         for name in self._inputs[1]:
             values = data.get(name)
@@ -87,6 +93,32 @@ class Pipeline:
                 f"{getattr(self, '_source_name', 'source')}: channel '{name}' has "
                 f"{values[k]} at sample {chunk.start + k} (t = {t:.6g} s)"
             )
+
+    def _read(self, data: Mapping[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+        """The channels the blocks read that ``data`` carries, in name order: taken by the
+        names the last chunk carried (one call), unless ``data`` lacks one of them or carries
+        one of the others."""
+        get, others = self._carried
+        try:
+            if not any(map(data.__contains__, others)):
+                return get(data)
+        except KeyError:
+            pass
+        names = self._inputs[1]
+        get = _channels_getter(tuple(c for c in names if c in data))
+        self._carried = (get, tuple(c for c in names if c not in data))
+        return get(data)
+
+    def _finite(self, read: tuple[np.ndarray, ...]) -> bool:
+        """No value of ``read`` is NaN or inf: one compiled pass (float64 channels, the usual
+        case), else one sum of all the channels: finite unless a value is NaN or inf (or the
+        sum overflows, which the channel-by-channel search of the caller then clears)."""
+        if self._all_finite is not None:
+            ok = self._all_finite(read)
+            if ok is not None:
+                return ok
+            self._all_finite = None  # channels it does not take: the sum from now on
+        return math.isfinite(np.add.reduce(np.concatenate(read, axis=None)))
 
     def process(self, chunk: Chunk) -> tuple[dict[str, np.ndarray], list[Event]]:
         """Run every block on ``chunk``; returns all block outputs and events."""
@@ -112,6 +144,16 @@ class Pipeline:
             if out.events:
                 events.extend(out.events)
         return outputs, events
+
+
+_Getter = Callable[[Mapping[str, np.ndarray]], tuple[np.ndarray, ...]]
+
+
+def _channels_getter(names: tuple[str, ...]) -> _Getter:
+    """A function giving the values of ``names`` in a mapping, as a tuple (one C call)."""
+    if len(names) >= 2:
+        return itemgetter(*names)
+    return lambda data: tuple(data[c] for c in names)
 
 
 @dataclass
