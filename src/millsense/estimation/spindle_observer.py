@@ -393,9 +393,11 @@ def hold_decimated(
     """``out[k]``: the newest of the estimates ``est`` made at samples ``first``, ``first + m``,
     … at or before k (``held`` before the first)."""
     j = -1
+    due = first  # the next estimate's sample (a counter: no integer division per sample)
     for k in range(out.shape[0]):
-        if k >= first and (k - first) % m == 0:
+        if k == due:
             j += 1
+            due += m
         out[k] = est[j] if j >= 0 else held
 
 

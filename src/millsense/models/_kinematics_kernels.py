@@ -49,6 +49,18 @@ def _aslan_axes(
     return x, y, z - a2, ta, q[k, 4]
 
 
+@numba.njit(cache=True, inline="always")
+def _cos_sin(
+    angle: float, last: float, last_cos_sin: tuple[float, float]
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """(cos, sin) of ``angle``: ``last_cos_sin`` (those of ``last``) when ``angle`` is the same
+    number (sign of zero included; a NaN is never), else evaluated. A rotary axis holds its
+    angle over most samples, so the loops evaluate the trigonometry once per change."""
+    if angle == last and math.copysign(1.0, angle) == math.copysign(1.0, last):
+        return last_cos_sin
+    return math.cos(angle), math.sin(angle)
+
+
 @numba.njit(cache=True)
 def trunnion_forward(
     q: NDArray[np.float64], machine: bool, a2: float, d4: float, out: NDArray[np.float64]
@@ -56,10 +68,13 @@ def trunnion_forward(
     """Tool tips ``P = R·(p − a2·e_z) − d4·e_z`` (Aslan Eq. 3.38) of the poses ``q`` (N, 5)
     into ``out`` (N, 3) (any layout: the transpose of a (3, N) array gives rows of
     coordinates)."""
+    last_a = last_c = math.nan
+    ca = sa = cc = sc = math.nan
     for k in range(q.shape[0]):
         x, y, z, ta, tc = _aslan_axes(q, k, machine, a2, d4)
-        ca, sa = math.cos(ta), math.sin(ta)
-        cc, sc = math.cos(tc), math.sin(tc)
+        ca, sa = _cos_sin(ta, last_a, (ca, sa))
+        cc, sc = _cos_sin(tc, last_c, (cc, sc))
+        last_a, last_c = ta, tc
         out[k, 0] = (-cc * x + sa * sc * z) + -ca * sc * y
         out[k, 1] = (sc * x + sa * cc * z) + -ca * cc * y
         out[k, 2] = ((0.0 * x + ca * z) + sa * y) - d4
@@ -72,10 +87,13 @@ def trunnion_jacobian(
     """Position Jacobians ``∂P/∂q`` (Aslan Eq. 3.39/3.47) of the poses ``q`` (N, 5) into
     ``out`` (N, 3, 5): columns 1–3 ``R`` (for the machine ``R·R0``: −R's first, third and
     second column), column 4 ``(∂R/∂θ_A)·rel``, column 5 ``(∂R/∂θ_C)·rel``."""
+    last_a = last_c = math.nan
+    ca = sa = cc = sc = math.nan
     for k in range(q.shape[0]):
         x, y, z, ta, tc = _aslan_axes(q, k, machine, a2, d4)
-        ca, sa = math.cos(ta), math.sin(ta)
-        cc, sc = math.cos(tc), math.sin(tc)
+        ca, sa = _cos_sin(ta, last_a, (ca, sa))
+        cc, sc = _cos_sin(tc, last_c, (cc, sc))
+        last_a, last_c = ta, tc
         ca_sc, ca_cc, sa_sc, sa_cc = ca * sc, ca * cc, sa * sc, sa * cc
         j = out[k]
         if machine:

@@ -161,13 +161,19 @@ class LuGre:
         )
 
 
-@numba.njit(cache=True)
-def lugre_step(z: float, speed: float, h: float, p: np.ndarray) -> tuple[float, float]:
-    """One step of Eq. 3.2–3.3 with the speed held: returns (z⁺ rad, friction torque N·m).
+#: width of :func:`lugre_speed_terms`' tuple
+N_SPEED_TERMS = 6
 
-    ``p`` from :meth:`LuGre.as_array`. The bristle ODE is integrated exactly for the held speed
-    (module docstring), which is Aslan's Eq. 3.9 in the limit of small steps.
-    """
+
+@numba.njit(cache=True)
+def lugre_speed_terms(
+    speed: float, h: float, p: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    """The part of :func:`lugre_step` that depends on the held speed alone (not on z):
+    ``(kind, z_c, e, σ0, σ1, σ2·v)``, kind 0 ``z⁺ = z_c`` (``a·h > 40``), 1 ``z⁺ = z_c + (z −
+    z_c)·e`` (``z_c = z_ss``, ``e = exp(−a·h)``), 2 ``z⁺ = z + z_c`` (``z_c = v·h``, ``a·h ≤
+    1e-12``). An encoder's speed takes few distinct values, so a caller may keep these per
+    speed (:func:`lugre_advance` gives the same numbers bit for bit)."""
     d = 0 if speed >= 0.0 else 1
     s0 = p[_S0 + d]
     ts = p[_TS + d]
@@ -179,16 +185,39 @@ def lugre_step(z: float, speed: float, h: float, p: np.ndarray) -> tuple[float, 
     g = tc + (ts - tc) * math.exp(-r2) if r2 < 40.0 else tc
     a = abs(speed) * s0 / g
     ah = a * h
+    s2v = p[_S2 + d] * speed
     if ah > 40.0:
-        z_new = speed / a
-    elif ah > 1e-12:
-        zss = speed / a
-        z_new = zss + (z - zss) * math.exp(-ah)
+        return 0.0, speed / a, 0.0, s0, p[_S1 + d], s2v
+    if ah > 1e-12:
+        return 1.0, speed / a, math.exp(-ah), s0, p[_S1 + d], s2v
+    return 2.0, speed * h, 0.0, s0, p[_S1 + d], s2v
+
+
+@numba.njit(cache=True)
+def lugre_advance(
+    z: float, terms: tuple[float, float, float, float, float, float], h: float
+) -> tuple[float, float]:
+    """:func:`lugre_step` from its speed's :func:`lugre_speed_terms`: (z⁺ rad, torque N·m)."""
+    kind, zc, e, s0, s1, s2v = terms
+    if kind == 0.0:
+        z_new = zc
+    elif kind == 1.0:
+        z_new = zc + (z - zc) * e
     else:
-        z_new = z + speed * h
+        z_new = z + zc
     zdot = (z_new - z) / h
-    tau = s0 * z_new + p[_S1 + d] * zdot + p[_S2 + d] * speed
+    tau = s0 * z_new + s1 * zdot + s2v
     return z_new, tau
+
+
+@numba.njit(cache=True)
+def lugre_step(z: float, speed: float, h: float, p: np.ndarray) -> tuple[float, float]:
+    """One step of Eq. 3.2–3.3 with the speed held: returns (z⁺ rad, friction torque N·m).
+
+    ``p`` from :meth:`LuGre.as_array`. The bristle ODE is integrated exactly for the held speed
+    (module docstring), which is Aslan's Eq. 3.9 in the limit of small steps.
+    """
+    return lugre_advance(z, lugre_speed_terms(speed, h, p), h)
 
 
 @numba.njit(cache=True)

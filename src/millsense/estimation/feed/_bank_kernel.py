@@ -15,7 +15,8 @@ The C3 torque (``_c3_kernel``), the fixed-lag smoother
 (:func:`~millsense.estimation.kalman.smoother.fixed_lag_series`), the at-rest weight
 (:func:`~millsense.estimation.feed._condition_kernels.rest_weight_kernel`) and the blend of the
 two models (:func:`~millsense.estimation.feed._condition_kernels.highpass_blend`) are the same
-compiled functions the single-axis blocks call.
+compiled functions the single-axis blocks call (the C3 torque evaluates its friction's
+speed-only terms once per distinct speed of the chunk, see ``_c3_kernel``).
 """
 
 from __future__ import annotations

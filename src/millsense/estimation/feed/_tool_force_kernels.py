@@ -7,7 +7,8 @@ At 10 ms chunks the block evaluates ten poses: numpy's per-call overhead on 3×5
 one call each. The 3×3 solves are LAPACK's, as numpy's; the forces agree with the numpy form
 to rounding (decision 1651). The delay line of the poses and the hold of the pseudo-inverses
 are loops performing the numpy form's operations, bit for bit (decision 1655);
-:func:`tool_force_kernel` runs the whole chunk, kinematics included, in one call.
+:func:`tool_force_kernel` runs the whole chunk, kinematics included, in one call (the
+trigonometry of the rotary angles once per change of an angle).
 """
 
 from __future__ import annotations

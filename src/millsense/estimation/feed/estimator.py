@@ -54,7 +54,13 @@ from millsense.estimation.kalman.rational_fit import RationalFit
 from millsense.estimation.kalman.smoother import ASLAN_LAG_SAMPLES, FixedLagSmoother, _smooth
 from millsense.models.friction import coulomb_viscous_torque
 from millsense.models.kinematics import Kinematics, TrunnionACKinematics, TrunnionACMachine
-from millsense.models.lugre import LuGre, lugre_step
+from millsense.models.lugre import (
+    N_SPEED_TERMS,
+    LuGre,
+    lugre_advance,
+    lugre_speed_terms,
+    lugre_step,
+)
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
@@ -495,6 +501,27 @@ def c3_step(
 
 
 @numba.njit(cache=True)
+def c3_unfiltered(
+    current: float, w: float, w_prev: float, tf: float, drive: tuple[float, float, float]
+) -> float:
+    """``τ_c = K_t·I_nom − τ_f − J_e·Δω/Δt`` (Aslan Eq. 3.10), ``drive`` = (K_t, J_e, fs)."""
+    kt, j, fs = drive
+    acc = (w - w_prev) * fs
+    return kt * current - tf - j * acc
+
+
+@numba.njit(cache=True)
+def biquad_step(
+    x: float, w1: float, w2: float, sos: tuple[float, float, float, float, float]
+) -> tuple[float, float, float]:
+    """One sample of a biquad in direct form II transposed, ``sos`` = (b0, b1, b2, a1, a2):
+    (y, w1⁺, w2⁺)."""
+    b0, b1, b2, a1, a2 = sos
+    y = b0 * x + w1
+    return y, b1 * x - a1 * y + w2, b2 * x - a2 * y
+
+
+@numba.njit(cache=True)
 def c3_with_friction(
     current: float,
     w: float,
@@ -505,23 +532,45 @@ def c3_with_friction(
 ) -> float:  # pragma: no cover - compiled
     """:func:`c3_step` given the sample's friction torque ``tf``: ``τ_c = K_t·I_nom − τ_f −
     J_e·Δω/Δt`` and the low-pass (``state`` as there; its bristle z is not touched)."""
-    kt, j, fs = drive[0], drive[1], drive[2]
     b0, b1, b2, a1, a2 = sos[0], sos[1], sos[2], sos[4], sos[5]
     if state[4] == 0.0:
         state[0] = w
-    acc = (w - state[0]) * fs
+    tau = c3_unfiltered(current, w, state[0], tf, (drive[0], drive[1], drive[2]))
     state[0] = w
-    tau = kt * current - tf - j * acc
     if state[4] == 0.0:
         # start the low-pass in steady state on the first sample
         g = (b0 + b1 + b2) / (1.0 + a1 + a2)
         state[2] = tau * (g - b0)
         state[3] = tau * (b2 - a2 * g)
         state[4] = 1.0
-    y = b0 * tau + state[2]
-    state[2] = b1 * tau - a1 * y + state[3]
-    state[3] = b2 * tau - a2 * y
+    y, state[2], state[3] = biquad_step(tau, state[2], state[3], (b0, b1, b2, a1, a2))
     return y
+
+
+#: distinct speeds whose friction terms :func:`_c3_kernel` keeps at once (an encoder's speed
+#: takes 5–15 distinct values in a 0.1 s chunk of the V8 slot's axes)
+FRICTION_MEMO_ROWS = 16
+
+
+@numba.njit(cache=True)
+def _friction_terms(
+    w: float, fric_mode: int, fric: NDArray[np.float64], h: float
+) -> tuple[float, float, float, float, float, float]:
+    """What the friction of :func:`c3_step` computes from the speed alone: LuGre's
+    :func:`~millsense.models.lugre.lugre_speed_terms`, or the Coulomb + viscous torque first."""
+    if fric_mode == 1:
+        return lugre_speed_terms(w, h, fric)
+    return coulomb_viscous_torque(w, fric), 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True)
+def _memo_row(keys: NDArray[np.float64], count: int, w: float) -> int:
+    """Row of ``keys[:count]`` holding ``w`` (sign of zero included; a NaN matches none), −1
+    if none."""
+    for i in range(count):
+        if keys[i] == w and math.copysign(1.0, keys[i]) == math.copysign(1.0, w):
+            return i
+    return -1
 
 
 @numba.njit(cache=True)
@@ -538,23 +587,52 @@ def _c3_kernel(
     """Low-passed C3 torque of one chunk (state updated in place; :func:`c3_step` per
     sample).
 
-    The Coulomb + viscous friction is a function of the sample's speed alone: it is evaluated
-    once per run of equal speeds (an encoder's speed repeats its quantised values, and an axis
-    at rest reads 0 for long stretches; 30–60 % of the samples of the V8 slot's five axes), the
-    same value bit for bit, sign of zero included."""
+    The friction's speed-dependent part (the Coulomb + viscous torque; LuGre's Stribeck curve,
+    rate and steady deflection, two exponentials) is a function of the sample's speed alone: it
+    is evaluated once per distinct speed of the chunk and kept in a small table (an encoder's
+    speed repeats a few quantised values, and an axis at rest reads 0 for long stretches), the
+    same values bit for bit, sign of zero included."""
     n = current.shape[0]
-    if fric_mode == 1 or n == 0:
-        for k in range(n):
-            out[k] = c3_step(current[k], speed[k], state, drive, fric_mode, fric, sos)
+    if n == 0:
         return
-    last = speed[0]
-    tf = coulomb_viscous_torque(last, fric)
+    h = 1.0 / drive[2]
+    keys = np.empty(FRICTION_MEMO_ROWS)
+    memo = np.empty((FRICTION_MEMO_ROWS, N_SPEED_TERMS))
+    count = 0
+    row = -1
+    terms = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    # the state in locals for the loop (c3_with_friction's arithmetic, state[] written back
+    # after it): kept in registers instead of stored and reloaded every sample
+    coef = (sos[0], sos[1], sos[2], sos[4], sos[5])
+    dr = (drive[0], drive[1], drive[2])
+    z = state[1]
+    w_prev, w1, w2 = state[0], state[2], state[3]
     for k in range(n):
         w = speed[k]
-        if w != last or math.copysign(1.0, w) != math.copysign(1.0, last):
-            last = w
-            tf = coulomb_viscous_torque(w, fric)
-        out[k] = c3_with_friction(current[k], w, tf, state, drive, sos)
+        if row < 0 or not (w == keys[row] and math.copysign(1.0, w) == math.copysign(1.0, keys[row])):
+            row = _memo_row(keys, count, w)
+            if row >= 0:
+                terms = (memo[row, 0], memo[row, 1], memo[row, 2], memo[row, 3], memo[row, 4],
+                         memo[row, 5])  # fmt: skip
+            else:
+                terms = _friction_terms(w, fric_mode, fric, h)
+                row = k % FRICTION_MEMO_ROWS if count == FRICTION_MEMO_ROWS else count
+                count = min(count + 1, FRICTION_MEMO_ROWS)
+                keys[row] = w
+                for i in range(N_SPEED_TERMS):
+                    memo[row, i] = terms[i]
+        if fric_mode == 1:
+            z, tf = lugre_advance(z, terms, h)
+        else:
+            tf = terms[0]
+        if state[4] == 0.0:  # the first sample of the stream starts the low-pass
+            out[k] = c3_with_friction(current[k], w, tf, state, drive, sos)
+            w_prev, w1, w2 = state[0], state[2], state[3]
+            continue
+        tau = c3_unfiltered(current[k], w, w_prev, tf, dr)
+        w_prev = w
+        out[k], w1, w2 = biquad_step(tau, w1, w2, coef)
+    state[0], state[1], state[2], state[3] = w_prev, z, w1, w2
 
 
 @numba.njit(cache=True)
