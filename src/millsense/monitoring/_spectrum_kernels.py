@@ -1454,7 +1454,12 @@ def _harmonic_products(
     for t in range(m):
         s = s0 + t
         xs[t] = x[s]
-        bn = complex(zr[s], zi[s]) ** n_flutes
+        # e^{−iNφ} by repeated products: numba's complex power beyond a square is the general
+        # polar one (hypot, pow, atan2, cos, sin per sample), four times the 2-flute cost
+        z = complex(zr[s], zi[s])
+        bn = z
+        for _ in range(n_flutes - 1):
+            bn = bn * z
         br[t] = bn.real
         bi[t] = bn.imag
         cr[t] = bn.real
