@@ -18,3 +18,9 @@ Packages (lower layers never import higher ones)::
 """
 
 __version__ = "0.1.0"
+
+# numba's compiled kernels in a folder per state of these sources, before any kernel module is
+# imported: numba's own cache follows a kernel's file only, not the kernels it calls (1722)
+from millsense.core.numba_cache import configure as _configure_numba_cache
+
+_configure_numba_cache()
