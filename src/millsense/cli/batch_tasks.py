@@ -85,7 +85,6 @@ TASK_MODULES = (
     "millsense.monitoring.wear",
     "millsense.online.wear_run",
     "millsense.plan.virtual_plan",
-    "millsense.streaming._engine_kernels",
     "millsense.streaming.event_log",
     "pyarrow.parquet",
 )

@@ -35,10 +35,6 @@ class Pipeline:
         self._inputs: tuple[tuple[Block, ...], list[str]] = ((), [])
         #: of those, a getter of the ones the last chunk carried, and the others
         self._carried: tuple[_Getter, tuple[str, ...]] = (_channels_getter(()), ())
-        from millsense.streaming._engine_kernels import all_finite
-
-        #: the compiled check, None once a chunk's channels were of a kind it does not take
-        self._all_finite: Callable[[tuple[np.ndarray, ...]], bool | None] | None = all_finite
         names = [b.name for b in self.blocks]
         if len(set(names)) != len(names):
             raise ValueError(f"block names must be unique, got {names}")
@@ -109,15 +105,12 @@ class Pipeline:
         self._carried = (get, tuple(c for c in names if c not in data))
         return get(data)
 
-    def _finite(self, read: tuple[np.ndarray, ...]) -> bool:
-        """No value of ``read`` is NaN or inf: one compiled pass (float64 channels, the usual
-        case), else one sum of all the channels: finite unless a value is NaN or inf (or the
-        sum overflows, which the channel-by-channel search of the caller then clears)."""
-        if self._all_finite is not None:
-            ok = self._all_finite(read)
-            if ok is not None:
-                return ok
-            self._all_finite = None  # channels it does not take: the sum from now on
+    @staticmethod
+    def _finite(read: tuple[np.ndarray, ...]) -> bool:
+        """No value of ``read`` is NaN or inf: one sum of all the channels, finite unless a value
+        is NaN or inf (or the sum overflows, which the channel-by-channel search of the caller
+        then clears). Not a compiled pass over the tuple: numba compiles one per number of
+        channels, which a live session's first chunk would wait for (decision 1549)."""
         return math.isfinite(np.add.reduce(np.concatenate(read, axis=None)))
 
     def process(self, chunk: Chunk) -> tuple[dict[str, np.ndarray], list[Event]]:
