@@ -26,6 +26,9 @@ from millsense.core.noise import SIGMA_PER_MEDIAN_ABS_DIFF
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+#: Violation and alarm flags: bool rows of a lone detector, int64 rows (2-3) of a group's packed
+#: integer array; the kernels compile for both.
+FlagArray = NDArray[np.bool_] | IntArray
 
 # segment state layout
 SEG_PHASE = 0  # fractional phase in tooth periods, [0, 1)
@@ -544,7 +547,7 @@ def _flute_pair(a: float, b: float, share: float, size: float) -> bool:
 @numba.njit(cache=True)
 def detect_periods(
     pp: FloatArray,
-    pb: NDArray[np.bool_],
+    pb: FlagArray,
     k: int,
     params: FloatArray,
     iparams: IntArray,
@@ -925,7 +928,7 @@ def fill_outputs(
 @numba.njit(cache=True)
 def _judge(
     pp: FloatArray,
-    pb: NDArray[np.bool_],
+    pb: FlagArray,
     k: int,
     has_b: bool,
     params: FloatArray,
@@ -955,7 +958,7 @@ def _judge(
 @numba.njit(cache=True)
 def periods_step(
     pp: FloatArray,
-    pb: NDArray[np.bool_],
+    pb: FlagArray,
     k: int,
     has_b: bool,
     params: FloatArray,

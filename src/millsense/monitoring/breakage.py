@@ -743,7 +743,8 @@ class BreakageGroup(Block):
             m._pp, m._pi, m._pb = pp, pi[:2], pi[2:]
             m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pi[0], pi[1])
         self._x = np.empty((len(self._chans), n))
-        self._x_rows = tuple(zip(self._x, self._chans))  # (row, channel) copied per chunk
+        # (row, channel) pairs, copied per chunk
+        self._x_rows = tuple(zip(self._x, self._chans, strict=True))
         self._values = np.empty((_k.OUT_ROWS * self.shown, n))  # the shown members' rows
         self._n = n
 

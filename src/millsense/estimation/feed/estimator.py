@@ -609,7 +609,8 @@ def _c3_kernel(
     w_prev, w1, w2 = state[0], state[2], state[3]
     for k in range(n):
         w = speed[k]
-        if row < 0 or not (w == keys[row] and math.copysign(1.0, w) == math.copysign(1.0, keys[row])):
+        same = row >= 0 and w == keys[row]
+        if not (same and math.copysign(1.0, w) == math.copysign(1.0, keys[row])):
             row = _memo_row(keys, count, w)
             if row >= 0:
                 terms = (memo[row, 0], memo[row, 1], memo[row, 2], memo[row, 3], memo[row, 4],
