@@ -887,6 +887,9 @@ def test_torque_cut_gate_keeps_the_air_of_each_speed() -> None:
       gate judged it against the line through the two air levels and opens within 3
       revolutions of the speed (decision 1706's restart of the air statistics at every speed
       change learnt the cut as the air and never opened); it closes after the exit.
+    - Air at w₁ only, then a cut (+1 N·m) that begins in the ramp to 2.5 w₁: judged against
+      the band from all Coulomb to all viscous drag (0.7-1.75 N·m), it opens; a ramp from below
+      half the new speed is no spindle start (decision 1706 took it for one).
     - Air at w₁ only, then 2 w₁ in the air (drag 0.7 → 1.1 N·m, inside the band from all
       Coulomb to all viscous, 0.7-1.4): no opening; a cut at 2 w₁ after 0.5 s of its air opens.
     - A cut that begins before the spindle is at speed (learnt as the air, decision 1706) ends
@@ -914,6 +917,13 @@ def test_torque_cut_gate_keeps_the_air_of_each_speed() -> None:
         r3 = rev / fs / 1.25
         assert len(opened) == 1 and 2.1 < opened[0] <= 2.1 + 3 * r3, opened
         assert len(closed) == 1 and 3.0 < closed[0] <= 3.0 + 2 * r3, closed
+        # one air speed known, a cut (+1 N·m) beginning in the ramp to 2.5 w1: not a start
+        # (decision 1706 took a ramp from below half the new speed for one and forgot the air)
+        speed, ok = _speed_steps(t, [(0.0, 1.0), (1.0, 2.5)], w1)
+        cut = t >= 1.02
+        g = _gate_run(t, drag(speed) + 1.0 * cut + noise, speed, ok, chunk)
+        opened, _ = edges(g)
+        assert len(opened) == 1 and 1.1 < opened[0] <= 1.1 + 3 * rev / fs / 2.5, opened
         # one air speed known, the speed doubled in the air, then a cut at 2 w1 from 2.0 s
         speed, ok = _speed_steps(t, [(0.0, 1.0), (1.0, 2.0)], w1)
         cut = t >= 2.0

@@ -265,6 +265,10 @@ CUT_GATE_STATE = CUT_AIR_TABLE + AIR_SLOTS * AIR_SLOT
 CUT_UNDECIDED, CUT_PREMISE, CUT_AIR, CUT_ONSET, CUT_OPEN = 0, 1, 2, 3, 4
 #: Revolutions whose speeds differ by at most this fraction share an air level (decision 1723).
 AIR_SPEED_TOL = 0.02
+#: A spindle that ran below this fraction of its new speed while off speed has started again (a
+#: stop, a tool change); a speed change (an S word, an override: 3000 -> 8000 rev/min runs down
+#: to 0.375 of the new speed) is not a start (decision 1723; decision 1706 took half).
+START_BELOW = 0.1
 
 
 @numba.njit(cache=True, inline="always")
@@ -377,10 +381,10 @@ def torque_cut_gate_kernel(
     - after a rise: the next revolution within ``rel_tol``·(m − a) of the previous one opens the
       gate (the cut is steady), one back at the air level returns to air;
     - open: a revolution back at the air level closes it (an exit, a retract).
-    A sample off speed restarts the revolution. A spindle that ran below half its new speed
-    while off speed (a stop, a tool change) has started again: in the air, whatever the gate
-    was, and the air levels are forgotten. The output is the at-speed flag where the gate is
-    open or where the stream started with the spindle at speed (no air seen: the first
+    A sample off speed restarts the revolution. A spindle that ran below ``START_BELOW`` of its
+    new speed while off speed (a stop, a tool change) has started again: in the air, whatever
+    the gate was, and the air levels are forgotten. The output is the at-speed flag where the
+    gate is open or where the stream started with the spindle at speed (no air seen: the first
     revolutions are the cut's, seed 002's premise), else 0.
     """
     mode = int(state[CUT_MODE])
@@ -394,10 +398,10 @@ def torque_cut_gate_kernel(
             out[k] = 0.0
             continue
         if state[CUT_LOWEST] < math.inf:
-            # back at speed: after a start (below half this speed before) the tool is in the
+            # back at speed: after a start (below START_BELOW of it before) the tool is in the
             # air; a speed change keeps the gate's state; the stream's first samples at speed
             # without a start before them keep seed 002's premise
-            if state[CUT_LOWEST] < 0.5 * w:
+            if state[CUT_LOWEST] < START_BELOW * w:
                 mode = CUT_AIR
                 state[CUT_AIR_TABLE:] = 0.0
             elif mode == CUT_UNDECIDED:

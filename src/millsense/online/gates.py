@@ -182,7 +182,8 @@ class TorqueCutGate(Block):
     learnt at the speeds around it, or beyond them against the nearest level with the band a
     drag between all Coulomb and all viscous allows, so a cut that begins during the ramp to a
     new speed is seen as a rise; and a revolution below the level learnt at its speed says that
-    level was a cut's, which is learnt again.
+    level was a cut's, which is learnt again. A start (in the air, the levels forgotten) is a
+    spindle that ran below a tenth of its new speed, a stop; an S word's ramp is not one.
     """
 
     def __init__(

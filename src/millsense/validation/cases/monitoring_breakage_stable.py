@@ -23,7 +23,7 @@ the dual detector judge. The streams change the spindle speed at the start of ea
 cut or air. Decision 1706's gate restarted its air statistics after a speed change in the air,
 so a cut that began during the ramp to a new speed was taken for the air: the seed-3 stream was
 judged in 22 of its 500 s in the cut. With the air kept per speed (decision 1723) it is judged
-in 335 s.
+in 399 s.
 """
 
 from __future__ import annotations
