@@ -848,3 +848,92 @@ def test_monitor_reports_its_progress(tmp_path: Path) -> None:
     run_monitor(recording=rec, out=tmp_path / "ev.parquet", methods="chatter-comb",
                 on_progress=seen.append)  # fmt: skip
     np.testing.assert_allclose(seen, np.arange(1, 21) / 20, rtol=1e-12)
+
+
+def _gate_run(t: np.ndarray, tq: np.ndarray, speed: np.ndarray, at_speed: np.ndarray,
+              chunk: int, fs: float = 10000.0) -> np.ndarray:  # fmt: skip
+    """`TorqueCutGate`'s output on a synthetic stream, fed in chunks of ``chunk`` samples."""
+    from millsense.online.gates import TorqueCutGate
+    from millsense.streaming.block import Chunk
+
+    g = TorqueCutGate("tq", "w", "ok", out="g")
+    g.reset(fs)
+    data = {"tq": tq, "w": speed, "ok": at_speed}
+    return np.concatenate([g.process(Chunk(a, fs, 0.0, {k: v[a : a + chunk]
+                                                      for k, v in data.items()})).channels["g"]
+                           for a in range(0, len(t), chunk)])  # fmt: skip
+
+
+def _speed_steps(t: np.ndarray, steps: list[tuple[float, float]], w1: float,
+                 ramp_s: float = 0.05) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """A spindle started at t = 0 and stepped to ``steps`` (time s, speed / w1): linear ramps of
+    ``ramp_s``; at speed where no ramp runs and 0.05 s after each."""
+    speed = np.zeros_like(t)
+    ok = np.ones_like(t)
+    prev = 0.0
+    for t0, r in steps:
+        speed = np.where(t >= t0, prev + (r - prev) * np.clip((t - t0) / ramp_s, 0, 1), speed)
+        ok[(t >= t0) & (t < t0 + ramp_s + 0.05)] = 0.0
+        prev = r
+    return w1 * speed, ok
+
+
+def test_torque_cut_gate_keeps_the_air_of_each_speed() -> None:
+    """Decision 1723: the gate learns the air's drag per spindle speed (synthetic drag 0.3 +
+    0.4·w/w₁ N·m, Coulomb + viscous; 600-sample revolutions at w₁ = 1000 rev/min, 0.02 N·m of
+    noise).
+
+    - Air at w₁ and 1.5 w₁, then a cut (+0.6 N·m) that begins during the ramp to 1.25 w₁: the
+      gate judged it against the line through the two air levels and opens within 3
+      revolutions of the speed (decision 1706's restart of the air statistics at every speed
+      change learnt the cut as the air and never opened); it closes after the exit.
+    - Air at w₁ only, then a cut (+1 N·m) that begins in the ramp to 2.5 w₁: judged against
+      the band from all Coulomb to all viscous drag (0.7-1.75 N·m), it opens; a ramp from below
+      half the new speed is no spindle start (decision 1706 took it for one).
+    - Air at w₁ only, then 2 w₁ in the air (drag 0.7 → 1.1 N·m, inside the band from all
+      Coulomb to all viscous, 0.7-1.4): no opening; a cut at 2 w₁ after 0.5 s of its air opens.
+    - A cut that begins before the spindle is at speed (learnt as the air, decision 1706) ends
+      at 1.0 s: the revolution below that level restarts the air, and the next cut (1.5 s)
+      opens (before: no opening).
+    The same in 10-sample and 7000-sample chunks."""
+    fs, rev = 10000.0, 600
+    w1 = 2 * np.pi * fs / rev
+    t = np.arange(int(3.5 * fs)) / fs
+    rng = np.random.default_rng(5)
+    noise = 0.02 * rng.standard_normal(t.size)
+
+    def drag(speed: np.ndarray) -> np.ndarray:
+        return 0.3 + 0.4 * speed / w1
+
+    def edges(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return t[np.flatnonzero(np.diff(g) > 0) + 1], t[np.flatnonzero(np.diff(g) < 0) + 1]
+
+    for chunk in (10, 7000):
+        # three speeds, the cut beginning in the ramp to the third (at speed from 2.1 s)
+        speed, ok = _speed_steps(t, [(0.0, 1.0), (1.0, 1.5), (2.0, 1.25)], w1)
+        cut = (t >= 2.02) & (t < 3.0)
+        g = _gate_run(t, drag(speed) + 0.6 * cut + noise, speed, ok, chunk)
+        opened, closed = edges(g)
+        r3 = rev / fs / 1.25
+        assert len(opened) == 1 and 2.1 < opened[0] <= 2.1 + 3 * r3, opened
+        assert len(closed) == 1 and 3.0 < closed[0] <= 3.0 + 2 * r3, closed
+        # one air speed known, a cut (+1 N·m) beginning in the ramp to 2.5 w1: not a start
+        # (decision 1706 took a ramp from below half the new speed for one and forgot the air)
+        speed, ok = _speed_steps(t, [(0.0, 1.0), (1.0, 2.5)], w1)
+        cut = t >= 1.02
+        g = _gate_run(t, drag(speed) + 1.0 * cut + noise, speed, ok, chunk)
+        opened, _ = edges(g)
+        assert len(opened) == 1 and 1.1 < opened[0] <= 1.1 + 3 * rev / fs / 2.5, opened
+        # one air speed known, the speed doubled in the air, then a cut at 2 w1 from 2.0 s
+        speed, ok = _speed_steps(t, [(0.0, 1.0), (1.0, 2.0)], w1)
+        cut = t >= 2.0
+        g = _gate_run(t, drag(speed) + 0.6 * cut + noise, speed, ok, chunk)
+        opened, _ = edges(g)
+        assert len(opened) == 1 and 2.0 < opened[0] <= 2.0 + 3 * rev / fs / 2, opened
+        # a cut from before the spindle is at speed (0.08-1.0 s), then air, then a cut from 1.5 s
+        speed, ok = _speed_steps(t, [(0.0, 1.0)], w1)
+        cut = ((t >= 0.08) & (t < 1.0)) | (t >= 1.5)
+        g = _gate_run(t, drag(speed) + 0.6 * cut + noise, speed, ok, chunk)
+        opened, _ = edges(g)
+        assert not g[t < 1.5].any()
+        assert len(opened) == 1 and 1.5 < opened[0] <= 1.5 + 3 * rev / fs, opened

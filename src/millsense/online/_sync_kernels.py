@@ -252,12 +252,107 @@ def expected_kernel(
 
 
 #: :func:`torque_cut_gate_kernel`'s state: [mode, angle in the revolution, Σ torque, samples,
-#: air revolutions, air mean, air M2 (Welford), previous revolution's mean, lowest |speed| before
-#: the spindle was first at speed].
-CUT_GATE_STATE = 9
+#: previous revolution's mean, lowest |speed| before the spindle was first at speed, revolutions
+#: counted], then ``AIR_SLOTS`` air levels of ``AIR_SLOT`` values each: [speed (rad a sample),
+#: revolutions, mean, M2 (Welford), revolution count when last used] (decision 1723).
+CUT_MODE, CUT_ANGLE, CUT_SUM, CUT_SAMPLES, CUT_PREVIOUS, CUT_LOWEST, CUT_COUNT = range(7)
+AIR_SLOTS, AIR_SLOT = 6, 5
+AIR_W, AIR_N, AIR_MEAN, AIR_M2, AIR_USED = range(AIR_SLOT)
+CUT_AIR_TABLE = 7
+CUT_GATE_STATE = CUT_AIR_TABLE + AIR_SLOTS * AIR_SLOT
 #: Its modes: start undecided; the stream started at speed (seed 002's premise: the gate is the
 #: spindle's); air after the spindle's start; a rise above the air seen; in the steady cut.
 CUT_UNDECIDED, CUT_PREMISE, CUT_AIR, CUT_ONSET, CUT_OPEN = 0, 1, 2, 3, 4
+#: Revolutions whose speeds differ by at most this fraction share an air level (decision 1723).
+AIR_SPEED_TOL = 0.02
+#: A spindle that ran below this fraction of its new speed while off speed has started again (a
+#: stop, a tool change); a speed change (an S word, an override: 3000 -> 8000 rev/min runs down
+#: to 0.375 of the new speed) is not a start (decision 1723; decision 1706 took half).
+START_BELOW = 0.1
+
+
+@numba.njit(cache=True, inline="always")
+def _air_slot(state: NDArray[np.float64], w: float) -> int:
+    """The air table's slot of speed ``w`` (within ``AIR_SPEED_TOL``), or -1."""
+    for i in range(AIR_SLOTS):
+        o = CUT_AIR_TABLE + i * AIR_SLOT
+        if state[o + AIR_N] > 0.0 and abs(state[o + AIR_W] - w) <= AIR_SPEED_TOL * w:
+            return i
+    return -1
+
+
+@numba.njit(cache=True, inline="always")
+def _air_join(state: NDArray[np.float64], w: float, m: float) -> None:
+    """Revolution mean ``m`` at speed ``w`` joins the air level of its speed (Welford); a new
+    speed takes an empty slot, or the one used least recently."""
+    i = _air_slot(state, w)
+    if i < 0:
+        i, oldest = 0, math.inf
+        for j in range(AIR_SLOTS):
+            used = state[CUT_AIR_TABLE + j * AIR_SLOT + AIR_USED]
+            if state[CUT_AIR_TABLE + j * AIR_SLOT + AIR_N] == 0.0:
+                i = j
+                break
+            if used < oldest:
+                i, oldest = j, used
+        o = CUT_AIR_TABLE + i * AIR_SLOT
+        state[o : o + AIR_SLOT] = 0.0
+        state[o + AIR_W] = w
+    o = CUT_AIR_TABLE + i * AIR_SLOT
+    n = state[o + AIR_N] + 1.0
+    d = m - state[o + AIR_MEAN]
+    state[o + AIR_MEAN] += d / n
+    state[o + AIR_M2] += d * (m - state[o + AIR_MEAN])
+    state[o + AIR_N] = n
+    state[o + AIR_USED] = state[CUT_COUNT]
+
+
+@numba.njit(cache=True)
+def air_reference(
+    state: NDArray[np.float64], w: float, min_air: int
+) -> tuple[bool, bool, float, float, float]:
+    """The air's torque at speed ``w`` (decision 1723): (known, own, mean a, standard deviation
+    s of the revolutions' means, half-width h of what the drag may be).
+
+    - ``own``: the level learnt at this speed from at least ``min_air`` revolutions, h = 0;
+    - else from the levels learnt at other speeds (each from at least ``min_air``
+      revolutions): between two of them, the straight line through the nearest below and
+      above (drag = Coulomb + viscous, linear in speed), h = 0; beyond them, the nearest one's
+      level a₁ at speed w₁ scaled by anything from 1 (all Coulomb) to w/w₁ (all viscous):
+      a = a₁(1 + w/w₁)/2, h = |a₁|·|w/w₁ − 1|/2. s is the larger of the levels' own.
+    - unknown (no level learnt yet): (False, False, 0, 0, 0).
+    """
+    i = _air_slot(state, w)
+    if i >= 0:
+        o = CUT_AIR_TABLE + i * AIR_SLOT
+        n = state[o + AIR_N]
+        if n >= min_air:
+            return True, True, state[o + AIR_MEAN], math.sqrt(state[o + AIR_M2] / (n - 1.0)), 0.0
+    lo, hi = -1, -1
+    for j in range(AIR_SLOTS):
+        o = CUT_AIR_TABLE + j * AIR_SLOT
+        if j == i or state[o + AIR_N] < min_air:
+            continue
+        wj = state[o + AIR_W]
+        if wj < w and (lo < 0 or wj > state[CUT_AIR_TABLE + lo * AIR_SLOT + AIR_W]):
+            lo = j
+        elif wj > w and (hi < 0 or wj < state[CUT_AIR_TABLE + hi * AIR_SLOT + AIR_W]):
+            hi = j
+    if lo < 0 and hi < 0:
+        return False, False, 0.0, 0.0, 0.0
+    s = 0.0
+    for j in (lo, hi):
+        if j >= 0:
+            o = CUT_AIR_TABLE + j * AIR_SLOT
+            s = max(s, math.sqrt(state[o + AIR_M2] / (state[o + AIR_N] - 1.0)))
+    if lo >= 0 and hi >= 0:
+        ol, oh = CUT_AIR_TABLE + lo * AIR_SLOT, CUT_AIR_TABLE + hi * AIR_SLOT
+        wl, al = state[ol + AIR_W], state[ol + AIR_MEAN]
+        frac = (w - wl) / (state[oh + AIR_W] - wl)
+        return True, False, al + frac * (state[oh + AIR_MEAN] - al), s, 0.0
+    o = CUT_AIR_TABLE + (lo if lo >= 0 else hi) * AIR_SLOT
+    a1, r = state[o + AIR_MEAN], w / state[o + AIR_W]
+    return True, False, 0.5 * a1 * (1.0 + r), s, 0.5 * abs(a1) * abs(r - 1.0)
 
 
 @numba.njit(cache=True)
@@ -271,78 +366,79 @@ def torque_cut_gate_kernel(
     rel_tol: float,
     out: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """One chunk of :class:`~millsense.online.gates.TorqueCutGate` (decision 1706).
+    """One chunk of :class:`~millsense.online.gates.TorqueCutGate` (decisions 1706, 1723).
 
     The spindle's revolutions are counted by integrating |speed|; a revolution every sample of
-    which is at speed gives its mean torque m, judged at its end (the verdict holds for the
-    samples after it):
-    - in air (after the spindle's start): with at least ``min_air`` air revolutions (mean
-      a, standard deviation s of their means), m > a + max(``k_sigma``·s, ``rel_tol``·|a|) is
-      a rise (a cut's onset); otherwise m joins the air's statistics;
+    which is at speed gives its mean torque m and its speed w, judged at its end (the verdict
+    holds for the samples after it). The air's torque at w is :func:`air_reference`'s (a, s,
+    h: learnt at w, or from the air learnt at other speeds); margin = max(``k_sigma``·s,
+    ``rel_tol``·|a|) + h:
+    - in air (after the spindle's start): m > a + margin is a rise (a cut's onset); otherwise m
+      joins the air learnt at w; with no air known at any speed yet, m joins it (``min_air``
+      revolutions give the air's first spread); m < a − margin below the air learnt at w says
+      that level was a cut's (one that began within ``min_air`` revolutions of the spindle
+      reaching speed): the level at w restarts from m;
     - after a rise: the next revolution within ``rel_tol``·(m − a) of the previous one opens the
       gate (the cut is steady), one back at the air level returns to air;
     - open: a revolution back at the air level closes it (an exit, a retract).
-    A sample off speed restarts the revolution, and in air the air's statistics (another speed
-    has another drag torque). A spindle that ran below half its new speed while off speed (a
-    stop, a tool change) has started again: in the air, whatever the gate was. The output is
-    the at-speed flag where the gate is open or where the stream started with the spindle at
-    speed (no air seen: the first revolutions are the cut's, seed 002's premise), else 0.
+    A sample off speed restarts the revolution. A spindle that ran below ``START_BELOW`` of its
+    new speed while off speed (a stop, a tool change) has started again: in the air, whatever
+    the gate was, and the air levels are forgotten. The output is the at-speed flag where the
+    gate is open or where the stream started with the spindle at speed (no air seen: the first
+    revolutions are the cut's, seed 002's premise), else 0.
     """
-    mode = int(state[0])
+    mode = int(state[CUT_MODE])
     for k in range(torque.shape[0]):
         w = abs(speed[k])
         on = at_speed[k] > 0.5
         if not on:
             # the lowest speed since the spindle was last at speed
-            state[8] = min(state[8], w)
-            state[1:4] = 0.0  # the revolution restarts
-            if mode == CUT_AIR:
-                state[4:7] = 0.0  # another speed, another drag torque
+            state[CUT_LOWEST] = min(state[CUT_LOWEST], w)
+            state[CUT_ANGLE : CUT_SAMPLES + 1] = 0.0  # the revolution restarts
             out[k] = 0.0
             continue
-        if state[8] < math.inf:
-            # back at speed: after a start (below half this speed before) the tool is in the
+        if state[CUT_LOWEST] < math.inf:
+            # back at speed: after a start (below START_BELOW of it before) the tool is in the
             # air; a speed change keeps the gate's state; the stream's first samples at speed
             # without a start before them keep seed 002's premise
-            if state[8] < 0.5 * w:
+            if state[CUT_LOWEST] < START_BELOW * w:
                 mode = CUT_AIR
-                state[4:7] = 0.0
+                state[CUT_AIR_TABLE:] = 0.0
             elif mode == CUT_UNDECIDED:
                 mode = CUT_PREMISE
-            state[8] = math.inf
+            state[CUT_LOWEST] = math.inf
         if mode == CUT_PREMISE or mode == CUT_UNDECIDED:
             out[k] = 1.0
             continue
         out[k] = 1.0 if mode == CUT_OPEN else 0.0
-        state[1] += w
-        state[2] += torque[k]
-        state[3] += 1.0
-        if state[1] < 2.0 * math.pi:
+        state[CUT_ANGLE] += w
+        state[CUT_SUM] += torque[k]
+        state[CUT_SAMPLES] += 1.0
+        if state[CUT_ANGLE] < 2.0 * math.pi:
             continue
-        m = state[2] / state[3]
-        state[1] -= 2.0 * math.pi
-        state[2:4] = 0.0
-        n_air = state[4]
-        a = state[5]
-        s = math.sqrt(state[6] / (n_air - 1.0)) if n_air > 1.0 else 0.0
-        margin = max(k_sigma * s, rel_tol * abs(a))
-        at_air = n_air >= min_air and m <= a + margin
+        m = state[CUT_SUM] / state[CUT_SAMPLES]
+        w_rev = state[CUT_ANGLE] / state[CUT_SAMPLES]
+        state[CUT_ANGLE] -= 2.0 * math.pi
+        state[CUT_SUM : CUT_SAMPLES + 1] = 0.0
+        state[CUT_COUNT] += 1.0
+        known, own, a, s, h = air_reference(state, w_rev, min_air)
+        margin = max(k_sigma * s, rel_tol * abs(a)) + h
+        at_air = known and m <= a + margin
         if mode == CUT_AIR:
-            if n_air >= min_air and m > a + margin:
+            if known and m > a + margin:
                 mode = CUT_ONSET
+            elif own and m < a - margin:
+                i = _air_slot(state, w_rev)
+                state[CUT_AIR_TABLE + i * AIR_SLOT + AIR_N] = 0.0  # a cut's level, not air
+                _air_join(state, w_rev, m)
             else:
-                n_air += 1.0
-                d = m - a
-                a += d / n_air
-                state[6] += d * (m - a)
-                state[4] = n_air
-                state[5] = a
+                _air_join(state, w_rev, m)
         elif mode == CUT_ONSET:
             if at_air:
                 mode = CUT_AIR
-            elif abs(m - state[7]) <= rel_tol * (m - a):
+            elif abs(m - state[CUT_PREVIOUS]) <= rel_tol * (m - a):
                 mode = CUT_OPEN
         elif mode == CUT_OPEN and at_air:
             mode = CUT_AIR
-        state[7] = m
-    state[0] = mode
+        state[CUT_PREVIOUS] = m
+    state[CUT_MODE] = mode

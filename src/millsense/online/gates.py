@@ -15,6 +15,7 @@ from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.online._sync_kernels import (
     CUT_GATE_STATE,
+    CUT_LOWEST,
     air_reference_kernel,
     at_speed_kernel,
     torque_cut_gate_kernel,
@@ -175,6 +176,14 @@ class TorqueCutGate(Block):
     1681's steady-revolution tolerance; ``k_sigma`` = 5 keeps a rise of the air's noise out
     (one revolution in 3.5 million of Gaussian noise); ``min_air`` = 3 revolutions give the air's
     first spread.
+
+    The air's level is learnt per spindle speed and kept across speed changes (decision 1723):
+    at a speed it has not seen in the air the gate judges against the line through the levels
+    learnt at the speeds around it, or beyond them against the nearest level with the band a
+    drag between all Coulomb and all viscous allows, so a cut that begins during the ramp to a
+    new speed is seen as a rise; and a revolution below the level learnt at its speed says that
+    level was a cut's, which is learnt again. A start (in the air, the levels forgotten) is a
+    spindle that ran below a tenth of its new speed, a stop; an S word's ramp is not one.
     """
 
     def __init__(
@@ -204,7 +213,7 @@ class TorqueCutGate(Block):
 
     def reset(self, sample_rate_hz: float) -> None:
         self._state = np.zeros(CUT_GATE_STATE)
-        self._state[8] = np.inf
+        self._state[CUT_LOWEST] = np.inf
         self.fs = float(sample_rate_hz)
 
     def process(self, chunk: Chunk) -> BlockOutput:

@@ -21,25 +21,15 @@ class ProgramSession:
     plan: Any  # plan.virtual_plan.VirtualPlan
 
 
-def program_session(
-    program: Path,
-    tool: Any,
-    *,
-    material: str = "al7050",
-    stock: Path = STOCK,
-    events: Sequence[Any] = (),
-    seed: int = 0,
-    duration_s: float | None = None,
-    out: Path | None = None,
-    keep: Sequence[str] | None = (),
-) -> ProgramSession:
-    """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
-    through the default session on the virtual quaser-ux600; ``events``: process events of the
-    virtual machine (a :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
+def _program_machine(
+    program: Path, tool: Any, material: str, stock: Path, events: Sequence[Any], seed: int,
+    duration_s: float | None,
+) -> tuple[Any, Any]:  # fmt: skip
+    """The session's plan of ``program`` (0.2 mm z-map) and the virtual quaser-ux600 cutting
+    its own plan of it (decision 1740) with the process ``events``."""
     from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
-    from millsense.core.presets import commissioned_machine, load_preset
+    from millsense.core.presets import load_preset
     from millsense.core.units import MM
-    from millsense.online.session import SessionOptions, run_session, session_blocks
     from millsense.plan.gcode import interpret_file
     from millsense.plan.stock import ZMapStock
     from millsense.plan.virtual_plan import plan_program
@@ -65,9 +55,65 @@ def program_session(
     sim_cfg = simulator_machine(MACHINE)
     job, proc, _, _ = plan_job(plant, sim_cfg, program.name, events=list(events))
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=seed), duration_s=duration_s)
+    return plan, sim
+
+
+def program_session(
+    program: Path,
+    tool: Any,
+    *,
+    material: str = "al7050",
+    stock: Path = STOCK,
+    events: Sequence[Any] = (),
+    seed: int = 0,
+    duration_s: float | None = None,
+    out: Path | None = None,
+    keep: Sequence[str] | None = (),
+) -> ProgramSession:
+    """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
+    through the default session on the virtual quaser-ux600; ``events``: process events of the
+    virtual machine (a :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
+    from millsense.core.presets import commissioned_machine
+    from millsense.online.session import SessionOptions, run_session, session_blocks
+
+    plan, sim = _program_machine(program, tool, material, stock, events, seed, duration_s)
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     belief, where = shipped
     built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
                            channels=sim.channel_names)  # fmt: skip
     return ProgramSession(run_session(sim, built.blocks, out=out, keep=keep), plan)
+
+
+def program_recording(
+    program: Path,
+    tool: Any,
+    out: Path,
+    *,
+    material: str = "al7050",
+    stock: Path = STOCK,
+    events: Sequence[Any] = (),
+    seed: int = 0,
+) -> None:
+    """The virtual quaser-ux600 running ``program`` open loop (no session, the CNC as
+    programmed) with the process ``events``, recorded to ``out`` as a CNC records it: every
+    channel but the simulator's truth, no plan."""
+    import numpy as np
+
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+
+    _, sim = _program_machine(program, tool, material, stock, events, seed, None)
+    keep = [c for c in sim.channel_info if not c.name.startswith("truth/")]
+    parts: dict[str, list[np.ndarray]] = {c.name: [] for c in keep}
+    while (chunk := sim.read(10000)) is not None:
+        for c in keep:
+            parts[c.name].append(np.asarray(chunk.data[c.name], dtype=np.float64))
+    flutes = int(tool.flutes) if hasattr(tool, "flutes") else None
+    meta: dict[str, Any] = {"program": program.name}
+    if flutes is not None:
+        meta["flutes"] = flutes
+    rec = Recording(sim.sample_rate_hz, 0.0, meta)
+    for c in keep:
+        rec.add_channel(c.name, np.concatenate(parts[c.name]), c.unit)
+    write_recording(out, rec)

@@ -12,6 +12,9 @@ spindle's start. The monitor reads what a CNC records and the commissioned machi
 sees no plan. The slots hold a depth step, two crossings, a cavity and two exits: every change
 of the cut a shop's part has. Issue 15: "both residuals exceed their thresholds at the
 breakage and only there"; breakage effect to event ≤ 3 tooth periods.
+
+A second recording (decision 1723): a slot whose program changes the spindle's speed right
+before the entry, the cut beginning during the ramp, as a shop's programs and overrides do.
 """
 
 from __future__ import annotations
@@ -55,13 +58,26 @@ class PlanFreeRun:
         return "\n".join(rows) + f"\n\nFlute 0 breaks at {self.break_s:.3f} s (SLOT3)."
 
 
+def _monitor(path: Path) -> list[Event]:
+    """`millsense monitor` on the recording ``path`` without a plan, as a shop runs it (the
+    commissioned machine file, :data:`METHODS`), in its own process: validation sits below the
+    command line and may not import it. Its event log."""
+    import subprocess
+    import sys
+
+    log = path.with_suffix(".events.parquet")
+    cmd = [sys.executable, "-m", "millsense", "monitor", str(path), "--machine",
+           str(MACHINE_FILE), "--methods", ",".join(METHODS), "-o", str(log)]  # fmt: skip
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
+    return read_event_log(log)
+
+
 @functools.lru_cache(maxsize=1)
 def plan_free_run() -> PlanFreeRun:
     """V7's plant run to its end (seed 7, as the V7 case), recorded as a CNC records it, then
     `millsense monitor` without a plan, in its own process (≈ 30 s)."""
-    import subprocess
-    import sys
-
     from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
@@ -82,14 +98,7 @@ def plan_free_run() -> PlanFreeRun:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "v7.h5"
         write_recording(path, rec)
-        # the command as a shop runs it (validation sits below the CLI: run, not imported)
-        log = Path(tmp) / "events.parquet"
-        cmd = [sys.executable, "-m", "millsense", "monitor", str(path), "--machine",
-               str(MACHINE_FILE), "--methods", ",".join(METHODS), "-o", str(log)]  # fmt: skip
-        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
-        logged = read_event_log(log)
+        logged = _monitor(path)
     events = {mth: [e for e in logged if e.source == mth and e.name == "breakage"]
               for mth in METHODS}  # fmt: skip
     return PlanFreeRun(break_s, events)
@@ -128,3 +137,86 @@ def _false() -> Measured:
 def _latency() -> Measured:
     run = plan_free_run()
     return Measured(run.latency_periods("breakage-dual"), run.table())
+
+
+#: Decision 1723: a program whose S word comes right before the entry, as many do (the spindle
+#: ramps from 1500 to 3000 rev/min while the Ø12 mm 2-flute end mill enters a 4 mm slot of the
+#: demo part's Al7050 block); flute 0 breaks at ``SPEED_BREAK_S``. Decision 1706's gate forgot
+#: the air at the speed change and took the cut for it: the detectors judged nothing.
+SPEED_PROGRAM = (
+    "%\nO1 (S WORD BEFORE THE ENTRY)\nG21 G90 G17\nS1500 M3\nG0 X-12 Y30 Z5\nG1 Z-4 F600\n"
+    "G1 X-6.5 F900\nS3000\nG1 X90\nG0 Z10\nM30\n%\n"
+)
+SPEED_BREAK_S = 3.0
+SPEED_TOOTH_S = 60.0 / (3000 * 2)
+
+
+@functools.lru_cache(maxsize=1)
+def speed_change_runs() -> dict[str, list[Event]]:
+    """`monitor`'s breakage alarms on :data:`SPEED_PROGRAM` run by the virtual machine open
+    loop, with flute 0 broken at :data:`SPEED_BREAK_S` (``broken``) and intact (``intact``)."""
+    from millsense.core.config import ToolConfig
+    from millsense.simulator.process_coupling import ToothBreak
+    from millsense.validation.cases._program_session import program_recording
+
+    tool = ToolConfig(diameter_mm=12.0, flutes=2, helix_deg=35.0)
+    runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        prog = Path(tmp) / "s_word_before_entry.nc"
+        prog.write_text(SPEED_PROGRAM)
+        for label, events in (("broken", (ToothBreak(SPEED_BREAK_S, 0),)), ("intact", ())):
+            path = Path(tmp) / f"{label}.h5"
+            program_recording(prog, tool, path, events=events)
+            runs[label] = [e for e in _monitor(path) if e.name == "breakage"]
+    return runs
+
+
+def _speed_table(runs: dict[str, list[Event]]) -> str:
+    rows = ["| run | detector | alarms |", "|---|---|---|"]
+    for label, events in runs.items():
+        for m in METHODS:
+            times = [f"{e.time_s:.4f} s" for e in events if e.source == m]
+            rows.append(f"| {label} | {m} | {', '.join(times) or 'none'} |")
+    return "\n".join(rows) + (
+        f"\n\nS1500 -> S3000 right before the entry; flute 0 breaks at {SPEED_BREAK_S} s in the "
+        f"broken run (tooth period {1e3 * SPEED_TOOTH_S:g} ms)."
+    )
+
+
+@case(
+    "monitoring.breakage.plan_free_speed_change_latency_periods",
+    source="issue 15 acceptance: breakage effect to event ≤ 3 tooth periods (seed 002's "
+    "dual-residual detector, no plan; the spindle's speed changed as the tool entered the cut)",
+    reference=1.5,
+    abs_tol=1.5,
+    unit="tooth periods",
+    quick=False,
+    description="first dual-residual alarm after the break, in tooth periods (inf: missed), "
+    "`monitor` without a plan on a program whose S word comes right before the entry "
+    "(decision 1723)",
+    issue=15,
+)
+def _speed_latency() -> Measured:
+    runs = speed_change_runs()
+    after = [e.time_s for e in runs["broken"]
+             if e.source == "breakage-dual" and e.time_s >= SPEED_BREAK_S]  # fmt: skip
+    lat = (min(after) - SPEED_BREAK_S) / SPEED_TOOTH_S if after else math.inf
+    return Measured(lat, _speed_table(runs))
+
+
+@case(
+    "monitoring.breakage.plan_free_speed_change_false_alarms",
+    source="issue 15: no false alarm (air cuts, speed changes, an entry and an exit), without a "
+    "plan",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="alarms",
+    quick=False,
+    description="breakage alarms of `monitor`'s dual and constant detectors on the intact run "
+    "and before the break, the program with its S word right before the entry (decision 1723)",
+    issue=15,
+)
+def _speed_false() -> Measured:
+    runs = speed_change_runs()
+    n = len(runs["intact"]) + sum(e.time_s < SPEED_BREAK_S for e in runs["broken"])
+    return Measured(float(n), _speed_table(runs))

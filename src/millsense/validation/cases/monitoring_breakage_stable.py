@@ -13,16 +13,17 @@ the observer's coloured noise, 1.8 N·m RMS a sample on the held-out streams) as
   torque as the plan's expectation (a plan without error: the plan's error is the general
   cuts' subject), judged at speed (``SpindleAtSpeed`` on the ramped command) where the expected
   tooth-period torque is at least 0.3 of the stream's largest (``online.session.MIN_JUDGED``);
-- seed 002's dual-residual detector without a plan, learning and judging where the torque
-  has risen from the air and is steady (``TorqueCutGate``, decision 1706).
+- seed 002's dual-residual detector without a plan, with decision 1707's flute check as
+  ``monitor`` runs it, learning and judging where the torque has risen from the air and is
+  steady (``TorqueCutGate``, decisions 1706 and 1723).
 
 Light cuts whose expected torque lies inside the noise band are reported as not seen
 (decision 1553), and the table gives that time. It also gives the time the plan-free gate let
-the dual detector judge: the streams change the spindle speed at the start of each segment,
-cut or air, and the gate of decision 1706, in the air, restarts its air statistics after a
-speed change, so a cut that begins during the ramp to a new speed is taken for the air (a CNC
-ramps its spindle before the approach); the seed-3 stream is judged in 22 of its 500 s in the
-cut.
+the dual detector judge. The streams change the spindle speed at the start of each segment,
+cut or air. Decision 1706's gate restarted its air statistics after a speed change in the air,
+so a cut that began during the ramp to a new speed was taken for the air: the seed-3 stream was
+judged in 22 of its 500 s in the cut. With the air kept per speed (decision 1723) it is judged
+in 399 s.
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
                        expected_channel="expected", min_expected_nm=MIN_JUDGED * largest,
                        enable_channel="spindle/at_speed", name="virtual"),
         BreakageBlock(flutes, "dual", signal_channels=("torque",), enable_channel="gate/steady",
-                      name="dual"),
+                      flute_check=True, name="dual"),
     ])  # fmt: skip
     pipe.reset(fs)
     n = len(data["torque"])
