@@ -170,6 +170,16 @@ def band_power(amp: FloatArray, mask: BoolArray, b0: int, b1: int) -> float:  # 
 
 
 @numba.njit(cache=True, nogil=True)
+def near_harmonics(
+    f: FloatArray, f_rev: float, half_width: float, out: BoolArray
+) -> None:  # pragma: no cover - compiled
+    """``out = |f − f_rev·rint(f / f_rev)| ≤ half_width``: the bins within ``half_width`` Hz
+    of a spindle harmonic (the NumPy expression's steps per bin, the same booleans)."""
+    for i in range(f.shape[0]):
+        out[i] = abs(f[i] - f_rev * np.rint(f[i] / f_rev)) <= half_width
+
+
+@numba.njit(cache=True, nogil=True)
 def novelty(
     comb: FloatArray, background: FloatArray, factor: float, mask: BoolArray, out: FloatArray
 ) -> None:  # pragma: no cover - compiled

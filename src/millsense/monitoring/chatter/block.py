@@ -793,10 +793,15 @@ class ChatterMonitor(Block):
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
         comb's notch half-width ``f_rev / 20`` or 2 bins of one are not searched."""
         if f_rev > 0 and abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
-            f = self._f
-            off = np.abs(f - f_rev * np.rint(f / f_rev))
-            self._harm_mask = off <= self._mask_half_width(f_rev)
+            self._harm_mask = self._near_harmonics(f_rev, self._mask_half_width(f_rev))
             self._mask_f_rev = f_rev
+
+    def _near_harmonics(self, f_rev: float, half_width: float) -> np.ndarray:
+        """A new mask of the bins within ``half_width`` Hz of a spindle harmonic (compiled:
+        :func:`._kernels.near_harmonics`)."""
+        out = np.empty(self._f.shape[0], dtype=np.bool_)
+        _kn.near_harmonics(self._f, float(f_rev), float(half_width), out)
+        return out
 
     def _mask_half_width(self, f_rev: float) -> float:
         """Half-width of the band around each spindle harmonic that is not searched, Hz."""
@@ -892,8 +897,7 @@ class ChatterMonitor(Block):
         if self._load_fell(level + mean, tooth, b0, b1) or self._drop_settling > 0:
             mask = mask | self._known  # the part after a fall of the load (decision 1545)
         if short:  # an entry's short part: the band left out widened to f_s / L
-            f = self._f
-            mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
+            mask = mask | self._near_harmonics(f_rev, self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
