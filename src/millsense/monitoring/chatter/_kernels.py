@@ -180,6 +180,29 @@ def near_harmonics(
 
 
 @numba.njit(cache=True, nogil=True)
+def widened_maximum(
+    values: FloatArray, gains: FloatArray, out: FloatArray
+) -> None:  # pragma: no cover - compiled
+    """``out[i]`` = the largest of ``values[i]`` and ``gains[d − 1]·values[i ± d]`` for ``d`` =
+    1 … len(gains) within the array (NaN if any of them is, as ``np.maximum``): each bin's
+    reference from its neighbours' lines seen through a part's main lobe (decision 1546)."""
+    n = values.shape[0]
+    for i in range(n):
+        r = values[i]
+        for d in range(1, gains.shape[0] + 1):
+            g = gains[d - 1]
+            if i >= d:
+                v = g * values[i - d]
+                if v > r or v != v:
+                    r = v
+            if i + d < n:
+                v = g * values[i + d]
+                if v > r or v != v:
+                    r = v
+        out[i] = r
+
+
+@numba.njit(cache=True, nogil=True)
 def novelty(
     comb: FloatArray, background: FloatArray, factor: float, mask: BoolArray, out: FloatArray
 ) -> None:  # pragma: no cover - compiled

@@ -1078,7 +1078,8 @@ def _detrend(y: np.ndarray) -> None:
     if m < 2:
         return
     t = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)
-    y -= y.mean() + t * (float(t @ y) / float(t @ t))
+    # (the mean as ndarray.mean takes it, the same pairwise sum, without its Python layer)
+    y -= np.add.reduce(y) / m + t * (float(t @ y) / float(t @ t))
 
 
 def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
@@ -1091,11 +1092,11 @@ def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
     widen = math.ceil(1.0 / frac) - 1
     if widen <= 0:
         return background
-    ref = background.copy()
-    for d in range(1, widen + 1):
-        g = abs(math.sin(math.pi * d * frac) / (math.pi * d * frac))
-        np.maximum(ref[d:], g * background[:-d], out=ref[d:])
-        np.maximum(ref[:-d], g * background[d:], out=ref[:-d])
+    gains = np.array(
+        [abs(math.sin(math.pi * d * frac) / (math.pi * d * frac)) for d in range(1, widen + 1)]
+    )
+    ref = np.empty_like(background)
+    _kn.widened_maximum(background, gains, ref)
     return ref
 
 
