@@ -882,11 +882,11 @@ class AdaptiveFeedBlock(Block):
         if self.plan is None:
             return 0, None, False
         lp = self.loop
-        tcp = np.array([[float(np.asarray(chunk.data[c])[e]) for c in self.tcp_channels]])
+        xyz = [float(np.asarray(chunk.data[c])[e]) for c in self.tcp_channels]
         lp.matched = False
-        if not np.all(np.isfinite(tcp)):
+        if not all(map(math.isfinite, xyz)):
             return lp.flag, None, False
-        row = int(self.plan.match(tcp, from_row=lp.row)[0])
+        row = int(self.plan.match(np.array([xyz]), from_row=lp.row)[0])
         if row >= 0:
             lp.row = row
             lp.matched = True
@@ -913,30 +913,23 @@ class AdaptiveFeedBlock(Block):
         the common factor κ, or |α_E·E + u·α_S·S| = F_r once the two-part calibration has been
         fitted (decision 1656)."""
         lp = self.loop
-        t = self._plan_cols["t_s"]
+        cols = self._plan_cols
+        t = cols["t_s"]
         rev_s = self._last_interval_len / self.fs if self._last_interval_len else 0.06
         end = int(np.searchsorted(t, t[row] + lp.u * self.opts.feedforward_revs * rev_s, "right"))
-        sl = slice(row, max(end, row + 2))
-        ex, ey = self._plan_cols["edge_x"][sl], self._plan_cols["edge_y"][sl]
-        sx, sy = self._plan_cols["shear_x"][sl], self._plan_cols["shear_y"][sl]
         if lp.parts is not None:
             # two-part calibration: |α_E·E + u·α_S·S| = F_r (decision 1656)
             a_e, a_s = lp.parts
-            ex, ey, sx, sy = a_e * ex, a_e * ey, a_s * sx, a_s * sy
             c = self.opts.reference
         else:
+            a_e = a_s = 1.0  # (a product by 1.0 is exact: the plan's parts as they are)
             kappa = lp.kappa_sum / lp.kappa_n if lp.kappa_n else 1.0
             c = self.opts.reference / max(kappa, 1e-6)
-        # |E + u S| = c  →  (S·S) u² + 2 (E·S) u + (E·E − c²) = 0, largest root
-        aa = sx * sx + sy * sy
-        bb = ex * sx + ey * sy
-        cc = ex * ex + ey * ey - c * c
-        ok = aa > 1e-12
-        if not ok.any():
+        found, u = _lowest_root(cols["edge_x"], cols["edge_y"], cols["shear_x"], cols["shear_y"],
+                                row, max(end, row + 2), a_e, a_s, float(c))  # fmt: skip
+        if not found:
             return None
-        disc = np.maximum(bb[ok] ** 2 - aa[ok] * cc[ok], 0.0)
-        u = (-bb[ok] + np.sqrt(disc)) / aa[ok]
-        return float(max(np.min(u), 0.0))
+        return float(max(u, 0.0))
 
     def _calibrate(self, y: float, flag: int) -> None:
         """Calibration of the plan's force to the measurement over the first
@@ -1050,7 +1043,53 @@ def _plan_force_columns(
         sx = np.abs(np.asarray(plan[f"{key}_shear_nm"], dtype=np.float64)) * scale
         fy = np.zeros(len(plan))
         sy = np.zeros(len(plan))
-    return {"t_s": t, "edge_x": fx - sx, "edge_y": fy - sy, "shear_x": sx, "shear_y": sy}
+    cols = {"t_s": t, "edge_x": fx - sx, "edge_y": fy - sy, "shear_x": sx, "shear_y": sy}
+    # contiguous: the ceiling's kernel (:func:`_lowest_root`) is compiled for these only
+    return {k: np.ascontiguousarray(v) for k, v in cols.items()}
+
+
+@numba.njit(cache=True)
+def _lowest_root(
+    ex: FloatArray,
+    ey: FloatArray,
+    sx: FloatArray,
+    sy: FloatArray,
+    lo: int,
+    hi: int,
+    a_e: float,
+    a_s: float,
+    c: float,
+) -> tuple[bool, float]:
+    """The flag-1 ceiling's override over the plan rows ``lo:hi`` (:meth:`AdaptiveFeedBlock.
+    _ceiling`, decisions 1613, 1656): per row the largest root u of |α_E·E + u·α_S·S| = c,
+    i.e. (S·S) u² + 2 (E·S) u + (E·E − c²) = 0 with the discriminant floored at 0, over the
+    rows whose S·S > 1e-12; their smallest (NaN if any root is). (False, NaN) when no row has
+    a shear part. One pass in the order numpy's element-wise steps took them, so the value is
+    theirs bit for bit (the ceiling runs every revolution; a dozen small-array calls cost ≈
+    30 µs)."""
+    hi = min(hi, ex.shape[0])
+    found = False
+    low = np.nan
+    for r in range(lo, hi):
+        e_x = a_e * ex[r]
+        e_y = a_e * ey[r]
+        s_x = a_s * sx[r]
+        s_y = a_s * sy[r]
+        aa = s_x * s_x + s_y * s_y
+        if not aa > 1e-12:
+            continue
+        bb = e_x * s_x + e_y * s_y
+        cc = e_x * e_x + e_y * e_y - c * c
+        disc = bb * bb - aa * cc
+        if disc < 0.0:  # np.maximum(disc, 0.0): a NaN stays NaN
+            disc = 0.0
+        u = (-bb + np.sqrt(disc)) / aa
+        if not found:
+            low = u
+            found = True
+        elif low == low and (u < low or u != u):  # np.min: the smallest, NaN if any is
+            low = u
+    return found, low
 
 
 @numba.njit(cache=True)

@@ -251,6 +251,48 @@ def expected_kernel(
         floor[k] = floor_edge[k] + scale[k] * floor_shear[k] if ok and not steady[k] else 0.0
 
 
+@numba.njit(cache=True)
+def calibration_kernel(
+    speed: NDArray[np.float64],
+    torque: NDArray[np.float64],
+    in_cut: NDArray[np.bool_],
+    edge: NDArray[np.float64],
+    shear: NDArray[np.float64],
+    min_cal: float,
+    per_rev: float,
+    revs: float,
+    settle: float,
+    end: float,
+    gate: NDArray[np.float64],
+    use: NDArray[np.bool_],
+) -> tuple[int, float]:  # pragma: no cover - compiled
+    """The K_tc calibration's window over one chunk (:meth:`~millsense.online.plan_sync.
+    PlanSync._calibrate`): the revolutions in cut counted from ``revs`` (``|speed| / per_rev``
+    per sample in cut with ``edge + shear`` at least ``min_cal``, summed in sample order as
+    ``cumsum`` sums), and ``use`` the samples to average: in cut, heavy, beyond ``settle``
+    revolutions, a finite ``torque``, the spindle ``gate`` (empty: none) not below 0.5, and
+    before the window's ``end`` is reached. Returns the sample where the count reaches ``end``
+    (−1: not in this chunk) and the count at the chunk's last sample."""
+    gated = gate.shape[0] > 0
+    k_done = -1
+    total = 0.0
+    counted = revs
+    for k in range(speed.shape[0]):
+        take = in_cut[k] and edge[k] + shear[k] >= min_cal
+        total += abs(speed[k]) / per_rev if take else 0.0
+        counted = revs + total
+        if k_done < 0 and counted >= end:
+            k_done = k
+        use[k] = (
+            take
+            and counted > settle
+            and math.isfinite(torque[k])
+            and not (gated and gate[k] < 0.5)
+            and k_done < 0
+        )
+    return k_done, counted
+
+
 #: :func:`torque_cut_gate_kernel`'s state: [mode, angle in the revolution, Σ torque, samples,
 #: previous revolution's mean, lowest |speed| before the spindle was first at speed, revolutions
 #: counted], then ``AIR_SLOTS`` air levels of ``AIR_SLOT`` values each: [speed (rad a sample),

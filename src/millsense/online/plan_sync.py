@@ -39,6 +39,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics
 from millsense.online._sync_kernels import (
     OVERRIDE_STATE,
+    calibration_kernel,
     expected_kernel,
     override_transient_kernel,
     plan_rows_kernel,
@@ -361,9 +362,15 @@ class PlanSync(Block):
             assert self.torque_channel is not None and self.at_speed_channel is not None
             extra = self.air.run(d[self.torque_channel], in_cut_f, d[self.at_speed_channel])
             torque = extra[f"{self.name}/cutting_torque"]
+        gate = (
+            np.ascontiguousarray(d[self.at_speed_channel], dtype=np.float64)
+            if self.at_speed_channel is not None
+            else _NO_GATE
+        )
         k_cal = 0
         if calibrating:
-            k_done = self._calibrate(chunk, in_cut & plan_steady, edge, shear, events, torque)
+            k_done = self._calibrate(chunk, in_cut & plan_steady, edge, shear, gate, events,
+                                     torque)  # fmt: skip
             if k_done >= 0:
                 scale[k_done:] = self.scale
             k_cal = k_done if k_done >= 0 else n
@@ -375,11 +382,6 @@ class PlanSync(Block):
         if self.torque_channel is not None:
             ready_from = max(k_cal, 0) if self.calibrated else n
         expected, judged, floor = values[6], values[7], values[10]
-        gate = (
-            np.ascontiguousarray(d[self.at_speed_channel], dtype=np.float64)
-            if self.at_speed_channel is not None
-            else _NO_GATE
-        )
         expected_kernel(edge, shear, values[8], values[9], scale, steady, ready_from, gate,
                         expected, judged, floor)  # fmt: skip
         name = self.name
@@ -404,6 +406,7 @@ class PlanSync(Block):
         in_cut: np.ndarray,
         edge: np.ndarray,
         shear: np.ndarray,
+        gate: np.ndarray,
         events: list[Event],
         torque: np.ndarray | None = None,
     ) -> int:
@@ -411,29 +414,29 @@ class PlanSync(Block):
 
         ``in_cut``: the samples that may be calibrated on, in cut where the plan is steady
         (decision 1556: a plunge, an entry or a step is a transient where measurement and plan
-        differ by their timing and by what the side-milling model leaves out).
+        differ by their timing and by what the side-milling model leaves out). ``gate``: the
+        spindle's at-speed channel (1/0, float64; empty: none), samples below 0.5 left out
+        (decision 1550: the acceleration torque). The count and the samples come from
+        :func:`~millsense.online._sync_kernels.calibration_kernel`.
         ``torque``: the cutting torque with the air-cut reference subtracted (decision 1622:
         the reference is subtracted before the torque is calibrated on); None without an air
         reference (the torque channel as it is)."""
         assert self.torque_channel is not None
         d = chunk.data
-        speed = np.abs(np.asarray(d[self.speed_channel], dtype=np.float64))
-        tq = np.asarray(d[self.torque_channel] if torque is None else torque, dtype=np.float64)
-        heavy = (edge + shear) >= self._min_cal
-        drev = np.where(in_cut & heavy, speed / (2 * math.pi * self.fs), 0.0)
-        revs = self._revs_in_cut + np.cumsum(drev)
-        use = in_cut & heavy & (revs > self.settle_revs) & np.isfinite(tq)
-        if self.at_speed_channel is not None:
-            use &= np.asarray(d[self.at_speed_channel]) >= 0.5  # no acceleration torque
-        end = self.settle_revs + self.cal_revs
-        done = (revs >= end).nonzero()[0]
-        k_done = int(done[0]) if done.size else -1
-        if k_done >= 0:
-            use[k_done:] = False
+        speed = np.ascontiguousarray(d[self.speed_channel], dtype=np.float64)
+        tq = np.ascontiguousarray(d[self.torque_channel] if torque is None else torque,
+                                  dtype=np.float64)  # fmt: skip
+        # the window's count of revolutions and the samples it averages, in one compiled pass;
+        # the spindle gate: no acceleration torque
+        use = np.empty(chunk.n, dtype=np.bool_)
+        k_done, revs = calibration_kernel(
+            speed, tq, in_cut, edge, shear, self._min_cal, 2 * math.pi * self.fs,
+            self._revs_in_cut, self.settle_revs, self.settle_revs + self.cal_revs, gate, use,
+        )  # fmt: skip
         # (the sums as ndarray.sum takes them, without its Python layer)
         add = np.add.reduce
         self._acc += [add(tq[use]), add(edge[use]), add(shear[use]), np.count_nonzero(use)]
-        self._revs_in_cut = float(revs[-1])
+        self._revs_in_cut = revs
         if k_done < 0:
             return -1
         m, e, s, cnt = self._acc

@@ -28,6 +28,7 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from operator import is_, itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -102,6 +103,8 @@ _INT_COLUMNS = frozenset({"tool", "nc_line", "source_line", "n_intervals"})
 _BOOL_COLUMNS = frozenset({"rapid", "in_cut"})
 #: The columns the look-ahead reads (:meth:`VirtualPlan.look_ahead`).
 _LOOK_COLUMNS = ("t_s", "in_cut", "engaged_area_mm2", "chip_load_mm")
+#: Those columns of a column mapping, as a tuple (one C call per look-ahead).
+_look_columns_of = itemgetter(*_LOOK_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -387,7 +390,9 @@ class VirtualPlan:
         while travelling from r to r+1), or r+1 at the segment's end. Compiled loop over
         samples and rows.
         """
-        p = np.atleast_2d(np.asarray(tcp_xyz_m, dtype=float))
+        p = np.asarray(tcp_xyz_m, dtype=float)
+        if p.ndim < 2:  # (3,) → (1, 3), as np.atleast_2d gives it (without its Python layer)
+            p = p.reshape(1, -1)
         if p.shape[1] != 3:
             raise InputDataError(f"plan: tcp_xyz_m must be (m, 3), got {p.shape}")
         if not (0 <= from_row < len(self)):
@@ -472,10 +477,9 @@ class VirtualPlan:
     def _look_columns(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """The columns :meth:`look_ahead` reads, as contiguous float64 arrays, converted once
         per plan (the verdict runs every revolution; the plan may have 10⁵ rows)."""
-        cols = tuple(self.columns[c] for c in _LOOK_COLUMNS)
-        if self._look_cols is None or any(
-            a is not b for a, b in zip(self._look_cols[0], cols, strict=True)
-        ):
+        cols = _look_columns_of(self.columns)
+        # (the same arrays as last time: compared by identity, in C)
+        if self._look_cols is None or not all(map(is_, self._look_cols[0], cols)):
             conv = tuple(np.ascontiguousarray(c, dtype=np.float64) for c in cols)
             self._look_cols = (cols, conv)
         t, cut, area, chip = self._look_cols[1]

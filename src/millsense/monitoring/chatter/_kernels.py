@@ -170,6 +170,39 @@ def band_power(amp: FloatArray, mask: BoolArray, b0: int, b1: int) -> float:  # 
 
 
 @numba.njit(cache=True, nogil=True)
+def near_harmonics(
+    f: FloatArray, f_rev: float, half_width: float, out: BoolArray
+) -> None:  # pragma: no cover - compiled
+    """``out = |f − f_rev·rint(f / f_rev)| ≤ half_width``: the bins within ``half_width`` Hz
+    of a spindle harmonic (the NumPy expression's steps per bin, the same booleans)."""
+    for i in range(f.shape[0]):
+        out[i] = abs(f[i] - f_rev * np.rint(f[i] / f_rev)) <= half_width
+
+
+@numba.njit(cache=True, nogil=True)
+def widened_maximum(
+    values: FloatArray, gains: FloatArray, out: FloatArray
+) -> None:  # pragma: no cover - compiled
+    """``out[i]`` = the largest of ``values[i]`` and ``gains[d − 1]·values[i ± d]`` for ``d`` =
+    1 … len(gains) within the array (NaN if any of them is, as ``np.maximum``): each bin's
+    reference from its neighbours' lines seen through a part's main lobe (decision 1546)."""
+    n = values.shape[0]
+    for i in range(n):
+        r = values[i]
+        for d in range(1, gains.shape[0] + 1):
+            g = gains[d - 1]
+            if i >= d:
+                v = g * values[i - d]
+                if v > r or v != v:
+                    r = v
+            if i + d < n:
+                v = g * values[i + d]
+                if v > r or v != v:
+                    r = v
+        out[i] = r
+
+
+@numba.njit(cache=True, nogil=True)
 def novelty(
     comb: FloatArray, background: FloatArray, factor: float, mask: BoolArray, out: FloatArray
 ) -> None:  # pragma: no cover - compiled

@@ -793,10 +793,15 @@ class ChatterMonitor(Block):
         """Chatter is never on a spindle harmonic (that is forced vibration): bins within the
         comb's notch half-width ``f_rev / 20`` or 2 bins of one are not searched."""
         if f_rev > 0 and abs(f_rev - self._mask_f_rev) > 1e-6 * f_rev:
-            f = self._f
-            off = np.abs(f - f_rev * np.rint(f / f_rev))
-            self._harm_mask = off <= self._mask_half_width(f_rev)
+            self._harm_mask = self._near_harmonics(f_rev, self._mask_half_width(f_rev))
             self._mask_f_rev = f_rev
+
+    def _near_harmonics(self, f_rev: float, half_width: float) -> np.ndarray:
+        """A new mask of the bins within ``half_width`` Hz of a spindle harmonic (compiled:
+        :func:`._kernels.near_harmonics`)."""
+        out = np.empty(self._f.shape[0], dtype=np.bool_)
+        _kn.near_harmonics(self._f, float(f_rev), float(half_width), out)
+        return out
 
     def _mask_half_width(self, f_rev: float) -> float:
         """Half-width of the band around each spindle harmonic that is not searched, Hz."""
@@ -892,8 +897,7 @@ class ChatterMonitor(Block):
         if self._load_fell(level + mean, tooth, b0, b1) or self._drop_settling > 0:
             mask = mask | self._known  # the part after a fall of the load (decision 1545)
         if short:  # an entry's short part: the band left out widened to f_s / L
-            f = self._f
-            mask = mask | (np.abs(f - f_rev * np.rint(f / f_rev)) <= self._fs / m)
+            mask = mask | self._near_harmonics(f_rev, self._fs / m)
         _kn.amplitude(spectra[1], 2.0 / c_sum, comb)
         factor = NOVELTY_HOLD if self._flag else NOVELTY_FACTOR
         _kn.novelty(comb, _seen_through(self._background, m / n), factor * grow, mask, novel)
@@ -1074,7 +1078,8 @@ def _detrend(y: np.ndarray) -> None:
     if m < 2:
         return
     t = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)
-    y -= y.mean() + t * (float(t @ y) / float(t @ t))
+    # (the mean as ndarray.mean takes it, the same pairwise sum, without its Python layer)
+    y -= np.add.reduce(y) / m + t * (float(t @ y) / float(t @ t))
 
 
 def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
@@ -1087,11 +1092,11 @@ def _seen_through(background: np.ndarray, frac: float) -> np.ndarray:
     widen = math.ceil(1.0 / frac) - 1
     if widen <= 0:
         return background
-    ref = background.copy()
-    for d in range(1, widen + 1):
-        g = abs(math.sin(math.pi * d * frac) / (math.pi * d * frac))
-        np.maximum(ref[d:], g * background[:-d], out=ref[d:])
-        np.maximum(ref[:-d], g * background[d:], out=ref[:-d])
+    gains = np.array(
+        [abs(math.sin(math.pi * d * frac) / (math.pi * d * frac)) for d in range(1, widen + 1)]
+    )
+    ref = np.empty_like(background)
+    _kn.widened_maximum(background, gains, ref)
     return ref
 
 
