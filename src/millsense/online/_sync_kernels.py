@@ -287,7 +287,7 @@ def calibration_kernel(
             take
             and counted > settle
             and math.isfinite(torque[k])
-            and not (gated and gate[k] < 0.5)
+            and not (gated and not gate[k] >= 0.5)  # as `gate >= 0.5` (NaN: not at speed)
             and k_done < 0
         )
     return k_done, counted
