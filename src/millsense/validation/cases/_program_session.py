@@ -98,22 +98,29 @@ def program_recording(
     """The virtual quaser-ux600 running ``program`` open loop (no session, the CNC as
     programmed) with the process ``events``, recorded to ``out`` as a CNC records it: every
     channel but the simulator's truth, no plan."""
-    import numpy as np
-
-    from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
 
     _, sim = _program_machine(program, tool, material, stock, events, seed, None)
+    meta: dict[str, Any] = {"program": program.name}
+    if hasattr(tool, "flutes"):
+        meta["flutes"] = int(tool.flutes)
+    write_recording(out, cnc_recording(sim, meta))
+
+
+def cnc_recording(sim: Any, metadata: dict[str, Any]) -> Any:
+    """The virtual machine ``sim`` (a ``MachineSimulator``) run to its end and recorded as a
+    CNC records it: every channel but the simulator's truth (a ``core.recording.Recording``
+    with ``metadata``)."""
+    import numpy as np
+
+    from millsense.core.recording import Recording
+
     keep = [c for c in sim.channel_info if not c.name.startswith("truth/")]
     parts: dict[str, list[np.ndarray]] = {c.name: [] for c in keep}
     while (chunk := sim.read(10000)) is not None:
         for c in keep:
             parts[c.name].append(np.asarray(chunk.data[c.name], dtype=np.float64))
-    flutes = int(tool.flutes) if hasattr(tool, "flutes") else None
-    meta: dict[str, Any] = {"program": program.name}
-    if flutes is not None:
-        meta["flutes"] = flutes
-    rec = Recording(sim.sample_rate_hz, 0.0, meta)
+    rec = Recording(sim.sample_rate_hz, 0.0, metadata)
     for c in keep:
         rec.add_channel(c.name, np.concatenate(parts[c.name]), c.unit)
-    write_recording(out, rec)
+    return rec

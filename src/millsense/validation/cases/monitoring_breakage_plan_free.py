@@ -25,8 +25,6 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from millsense.streaming.block import Event
 from millsense.streaming.event_log import read_event_log
 from millsense.validation import Measured, case
@@ -78,23 +76,16 @@ def _monitor(path: Path) -> list[Event]:
 def plan_free_run() -> PlanFreeRun:
     """V7's plant run to its end (seed 7, as the V7 case), recorded as a CNC records it, then
     `millsense monitor` without a plan, in its own process (≈ 30 s)."""
-    from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
+    from millsense.validation.cases._program_session import cnc_recording
     from millsense.validation.cases.monitoring_breakage import v7_plant
     from millsense.validation.cases.simulator_plan import machine_3axis
 
     m = machine_3axis()
     job, proc, break_s, _ = v7_plant()
     sim = MachineSimulator(m, job, proc, SimulatorOptions(seed=7))
-    keep = [c for c in sim.channel_info if not c.name.startswith("truth/")]
-    parts: dict[str, list[np.ndarray]] = {c.name: [] for c in keep}
-    while (chunk := sim.read(10000)) is not None:
-        for c in keep:
-            parts[c.name].append(np.asarray(chunk.data[c.name], dtype=np.float64))
-    rec = Recording(m.sample_rate_hz, 0.0, {"flutes": 2, "program": "demo_part_slots.nc"})
-    for c in keep:
-        rec.add_channel(c.name, np.concatenate(parts[c.name]), c.unit)
+    rec = cnc_recording(sim, {"flutes": 2, "program": "demo_part_slots.nc"})
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "v7.h5"
         write_recording(path, rec)
