@@ -124,7 +124,8 @@ recs = sorted(Path({str(folder)!r}).glob("*.h5"))
 killed = []
 def progress(done, _total):
     if done >= 1 and not killed:
-        row = pq.read_table(next((out / "runs").glob("*.parquet"))).to_pylist()[0]
+        # a finished fragment, not a writer's hidden temporary (renamed under the glob's feet)
+        row = pq.read_table(next((out / "runs").glob("[!.]*.parquet"))).to_pylist()[0]
         pid = int(row["worker_pid"])
         ppid = int(Path(f"/proc/{{pid}}/stat").read_text().rsplit(")", 1)[1].split()[1])
         os.kill(pid, signal.SIGKILL)
