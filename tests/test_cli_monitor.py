@@ -790,9 +790,6 @@ def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
     is the at-speed gate from its first sample (seed 002's premise) until the spindle stops
     and starts again (a tool change at 2.2 s): then it waits for the cut again (at 2.8 s); a
     speed change in the cut keeps it open. The same in 10-sample and 7000-sample chunks."""
-    from millsense.online.gates import TorqueCutGate
-    from millsense.streaming.block import Chunk
-
     fs, rev = 10000.0, 600
     w = 2 * np.pi * fs / rev
     n = 60 * rev
@@ -810,12 +807,7 @@ def test_torque_cut_gate_keeps_the_seed_premise_and_follows_the_cut() -> None:
     at_speed = ((t >= 0.2) & ~((t >= 2.2) & (t < 2.5)) & ~((t >= 3.1) & (t < 3.2))).astype(float)
 
     def gate(speed: np.ndarray, at_speed: np.ndarray, chunk: int) -> np.ndarray:
-        g = TorqueCutGate("tq", "w", "ok", out="g")
-        g.reset(fs)
-        data = {"tq": tq, "w": speed, "ok": at_speed}
-        return np.concatenate([g.process(Chunk(a, fs, 0.0, {k: v[a : a + chunk]
-                                                          for k, v in data.items()})).channels["g"]
-                               for a in range(0, n, chunk)])  # fmt: skip
+        return _gate_run(t, tq, speed, at_speed, chunk, fs)
 
     r = rev / fs
     for chunk in (10, 7000):

@@ -24,9 +24,9 @@ class ProgramSession:
 def _program_machine(
     program: Path, tool: Any, material: str, stock: Path, events: Sequence[Any], seed: int,
     duration_s: float | None,
-) -> tuple[Any, Any]:  # fmt: skip
-    """The session's plan of ``program`` (0.2 mm z-map) and the virtual quaser-ux600 cutting
-    its own plan of it (decision 1740) with the process ``events``."""
+) -> tuple[Any, Any, Any]:  # fmt: skip
+    """The session's plan of ``program`` (0.2 mm z-map), the virtual quaser-ux600 cutting its
+    own plan of it (decision 1740) with the process ``events``, and the tool's ``ToolConfig``."""
     from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
     from millsense.core.presets import load_preset
     from millsense.core.units import MM
@@ -55,7 +55,7 @@ def _program_machine(
     sim_cfg = simulator_machine(MACHINE)
     job, proc, _, _ = plan_job(plant, sim_cfg, program.name, events=list(events))
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=seed), duration_s=duration_s)
-    return plan, sim
+    return plan, sim, tool_cfg
 
 
 def program_session(
@@ -76,7 +76,7 @@ def program_session(
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
 
-    plan, sim = _program_machine(program, tool, material, stock, events, seed, duration_s)
+    plan, sim, _ = _program_machine(program, tool, material, stock, events, seed, duration_s)
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     belief, where = shipped
@@ -100,11 +100,9 @@ def program_recording(
     channel but the simulator's truth, no plan."""
     from millsense.io.recording_file import write_recording
 
-    _, sim = _program_machine(program, tool, material, stock, events, seed, None)
-    meta: dict[str, Any] = {"program": program.name}
-    if hasattr(tool, "flutes"):
-        meta["flutes"] = int(tool.flutes)
-    write_recording(out, cnc_recording(sim, meta))
+    _, sim, tool_cfg = _program_machine(program, tool, material, stock, events, seed, None)
+    write_recording(out, cnc_recording(sim, {"program": program.name,
+                                             "flutes": int(tool_cfg.flutes)}))  # fmt: skip
 
 
 def cnc_recording(sim: Any, metadata: dict[str, Any]) -> Any:
