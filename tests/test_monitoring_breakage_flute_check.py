@@ -119,4 +119,96 @@ def test_a_pair_completed_by_a_period_inside_the_thresholds_alarms_there() -> No
     assert ev.values["tooth_period"] == AT + 1
     assert abs(ev.values["residual2_nm"]) < ev.values["limit2_nm"]  # the rise's own
     assert abs(ev.values["violation_residual2_nm"]) > ev.values["limit2_nm"]  # the drop's
-    assert "at the period before" in ev.message
+    assert "at the violating period before" in ev.message
+
+
+def _flute_levels(n_flutes: int, changes: dict[int, float]) -> np.ndarray:
+    """Tooth-period levels of an N-flute tool in a steady 3 N·m cut; from period AT on, the
+    periods AT + j of every revolution change by ``changes[j]`` N·m (a break's lasting
+    pattern: one revolution later the lag-N differences are back at zero)."""
+    p = np.arange(100 * n_flutes)
+    levels = np.full(p.size, 3.0)
+    for j, d in changes.items():
+        levels[(p >= AT) & ((p - AT) % n_flutes == j)] += d
+    return levels
+
+
+def _flute_events(n_flutes: int, levels: np.ndarray, check: bool = True) -> list:
+    tooth = round(FS * 60.0 / RPM / n_flutes)
+    period = np.arange(levels.size * tooth) // tooth
+    rng = np.random.default_rng(5)
+    data = {
+        "tq": levels[period] + 0.02 * rng.standard_normal(period.size),
+        "w": np.full(period.size, RPM * 2 * math.pi / 60),
+    }
+    blk = BreakageBlock(n_flutes, "dual", signal_channels=("tq",), speed_channel="w",
+                        flute_check=check)  # fmt: skip
+    events, _ = run_block(blk, data, 100)
+    return events
+
+
+@pytest.mark.parametrize("n_flutes", [3, 4])
+def test_the_next_flutes_rise_may_come_a_period_later(n_flutes: int) -> None:
+    """Decision 1724: a flute's torque in a slot spans half a revolution, more than one tooth
+    period of a 3- or 4-flute tool. The broken flute's drop (−2 N·m) and the next flute's rise
+    (+1 N·m) then fall in periods two apart, the period between them keeping its torque (the
+    rest of the drop and the start of the rise cancel), as the virtual machine's 3-flute slot
+    at 1500 rev/min shows (−2.0, +0.0, +0.9 N·m). The pair alarms at the rise; decision
+    1707's consecutive pair saw none."""
+    levels = _flute_levels(n_flutes, {0: -2.0, 2: 1.0})
+    seed = _flute_events(n_flutes, levels, check=False)
+    assert seed[0].values["tooth_period"] == AT  # the seed's first, at the drop
+    (ev,) = _flute_events(n_flutes, levels)
+    assert ev.values["tooth_period"] == AT + 2
+    assert abs(ev.values["residual2_nm"]) > ev.values["limit2_nm"]  # the rise's own
+    assert "the next flute's rise" in ev.message
+
+
+def test_a_pair_beyond_half_a_revolution_is_no_breakage() -> None:
+    """Decision 1724's reach is ⌈N/2⌉ periods: a 4-flute tool's drop and a rise three periods
+    later (the flute before it, not the next one) is no broken flute's pattern; the seed's
+    detector alarms at the drop."""
+    levels = _flute_levels(4, {0: -2.0, 3: 1.0})
+    assert _flute_events(4, levels, check=False)
+    assert _flute_events(4, levels) == []
+
+
+def test_the_reach_is_half_the_flutes() -> None:
+    """⌈N/2⌉ periods, consecutive (1) for a 2-flute tool as decision 1707 had it."""
+    from millsense.monitoring._tooth_kernels import pair_reach
+
+    assert [pair_reach(n) for n in (1, 2, 3, 4, 5, 6)] == [1, 1, 2, 2, 3, 3]
+
+
+def test_a_rise_inside_the_thresholds_completes_a_drop_two_periods_before() -> None:
+    """Decision 1724 with decision 1707's waiting violation: a 3-flute tool's drop violates,
+    the period after it keeps its torque, and the rise two periods after the drop is no
+    violation (φ̂1 = 0.5 held: ε1 = Δx − φ̂1·Δx(m−1) = 1 − 0.5·2 = 0, inside a threshold of
+    0.1 N·m). The rise completes the
+    drop's pair and alarms, with the drop's residuals."""
+    from millsense.monitoring import _tooth_kernels as k
+    from millsense.streaming.block import Chunk
+
+    n = 3
+    tooth = round(FS * 60.0 / RPM / n)
+    levels = _flute_levels(n, {0: -2.0, 2: 1.0})
+    period = np.arange(levels.size * tooth) // tooth
+    rng = np.random.default_rng(5)
+    data = {"tq": levels[period] + 0.02 * rng.standard_normal(period.size),
+            "w": np.full(period.size, RPM * 2 * math.pi / 60)}  # fmt: skip
+    blk = BreakageBlock(n, "dual", signal_channels=("tq",), speed_channel="w", flute_check=True)
+    blk.reset(FS)
+    split = (AT - 4) * tooth
+    blk.process(Chunk(0, FS, 0.0, {c: v[:split] for c, v in data.items()}))
+    blk._det[k.DET_PHI1] = 0.5
+    blk._det[k.DET_P1] = 1e-9
+    blk._det[k.DET_THR1] = blk._det[k.DET_THR2] = 0.1  # the noise's 0.01 N·m would be too fine
+    events = []
+    for i in range(split, period.size, 100):
+        events += blk.process(Chunk(i, FS, 0.0, {c: v[i : i + 100] for c, v in data.items()})).events
+    (ev,) = events
+    assert ev.values["tooth_period"] == AT + 2
+    assert abs(ev.values["residual1_nm"]) < ev.values["limit1_nm"]  # the rise's own
+    assert abs(ev.values["violation_residual1_nm"]) > ev.values["limit1_nm"]  # the drop's
+    assert abs(ev.values["violation_residual2_nm"]) > ev.values["limit2_nm"]
+    assert "at the violating period before" in ev.message

@@ -186,16 +186,15 @@ DET_PRUN = 21  # flute pattern (decision 1684): two-sided judged periods in a ro
 DET_PN = 22  # |contrast| values held in the pattern's scale windows (≤ NOISE_WINDOW)
 DET_PPOS = 23  # next slot of the pattern's scale windows
 DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (pattern on)
-DET_DROP = 25  # plan-free flute check (decision 1707): a held violation's Δ_N x (0: none)
-DET_PE1 = 26  # that violation's residuals
-DET_PE2 = 27
-DET_NOISE_SLOW = 28  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
-DET_NOISE_NAN = 29  # NaN values held in the noise window (not in its sorted copy)
-DET_BASE = 30  # ring buffers: the last N period values, the noise window, then the last N
+DET_NOISE_SLOW = 25  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
+DET_NOISE_NAN = 26  # NaN values held in the noise window (not in its sorted copy)
+DET_BASE = 27  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
-# PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW; last, the
-# noise window's values but NaN in ascending order (its median without a selection per period)
+# PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW; then the
+# noise window's values but NaN in ascending order (its median without a selection per period);
+# last, the plan-free flute check's (decisions 1707, 1724) rings of the last N periods: Δ_N x,
+# 1 where the period is a violation waiting for its pair (else 0), and its residuals ε1, ε2
 
 #: Decision 1550: the noise of the tooth-period average is judged from the median |x(m) −
 #: x(m−N)| of the last NOISE_WINDOW periods (same flute one revolution apart: runout and a
@@ -278,9 +277,26 @@ def sorted_noise_base(n_flutes: int) -> int:
     return pattern_base(n_flutes) + (2 + 2 * PATTERN_REVS) * n_flutes + 2 * NOISE_WINDOW
 
 
+@numba.njit(cache=True)
+def lag_ring_base(n_flutes: int) -> int:
+    """Index of the flute check's rings in the detector state (decisions 1707, 1724): Δ_N x,
+    the waiting violation's flag, ε1 and ε2 of the last N periods, N values each."""
+    return sorted_noise_base(n_flutes) + NOISE_WINDOW
+
+
+@numba.njit(cache=True)
+def pair_reach(n_flutes: int) -> int:
+    """Periods that may lie between a broken flute's drop and the next flute's rise, ⌈N/2⌉
+    (decision 1724): a flute's torque in a slot spans half a revolution, N/2 tooth periods,
+    so the drop (the broken flute's first period) and the rise (the period after the next
+    flute's last, which cuts the broken flute's chip) lie up to that far apart; 1 for N = 2
+    (decision 1707's consecutive periods)."""
+    return max(1, (n_flutes + 1) // 2)
+
+
 def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     """Initial detector state (Munasinghe §2.5: φ₀ = 0.01, P₀ = 10, histories 0)."""
-    st = np.zeros(sorted_noise_base(n_flutes) + NOISE_WINDOW)
+    st = np.zeros(lag_ring_base(n_flutes) + 4 * n_flutes)
     st[DET_BASE + n_flutes + NOISE_WINDOW : DET_BASE + 2 * n_flutes + NOISE_WINDOW] = math.nan
     st[DET_PHI1] = phi0
     st[DET_PHI2] = phi0
@@ -596,10 +612,11 @@ def detect_periods(
     until a period not judged two-sided or a re-arm.
 
     With the plan-free flute check (dual mode, ``iparams[8]``, decision 1707) an alarm needs a
-    broken flute's drop and the next flute's rise in two consecutive periods
-    (:func:`_flute_pair`, share 1 − edge_share − tol, the larger at least the learnt lag-N
-    threshold): a violating period that completes such a pair with the previous one, or the
-    period after a violation that completes it (rows 15-16: the violation's residuals).
+    broken flute's drop and the next flute's rise (:func:`_flute_pair`, share 1 − edge_share −
+    tol, the larger at least the learnt lag-N threshold) at most :func:`pair_reach` periods
+    apart (decision 1724; consecutive for N = 2): a violating period that completes such a
+    pair with one of the periods before it, or one of the periods after a violation, up to
+    that reach, that completes it (rows 15-16: the violation's residuals).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
@@ -618,6 +635,8 @@ def detect_periods(
     lost_periods = iparams[6]
     pattern = iparams[7] != 0 and mode == MODE_VIRTUAL
     pair_check = iparams[8] != 0 and mode == MODE_DUAL
+    reach = pair_reach(nf)
+    ring = lag_ring_base(nf)
     # a broken flute's chip is cut by the next flute: it rises by at least the share of the
     # drop that is not the broken flute's edge force, less the tolerance (decision 1707)
     rise_share = 1.0 - edge_share - rev_tol
@@ -669,7 +688,6 @@ def detect_periods(
             state[DET_GAP] = 1.0
             state[DET_ALARMED] = 0.0
             state[DET_LOW] = 0.0
-            state[DET_DROP] = 0.0
             _pattern_reset(state, nf)
             if mode == MODE_DUAL:
                 # seed 002 learns its thresholds on the first revolutions of the cut: the gate
@@ -699,7 +717,6 @@ def detect_periods(
             state[DET_P2] = p2
         else:
             e2 = 0.0
-        dn_prev = state[DET_DN_PREV] if seen >= nf + 1 else 0.0  # Δ_N x(m − 1)
         state[DET_D1_PREV] = d1
         state[DET_DN_PREV] = dn
         state[DET_BASE + seen % nf] = xm
@@ -834,24 +851,40 @@ def detect_periods(
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
         if pair_check:
             # without a plan (decision 1707): a broken flute drops and the next flute, cutting
-            # its chip too, rises (:func:`_flute_pair`). A violation alarms where it and the
-            # previous period are such a pair; otherwise it is held for the next period, which
-            # alarms where it completes the pair, violating or not (after a flute's change the
-            # next residual ε2 = Δ_N x − φ̂2·Δ_N x(m−1) can be small: the AR(1) of the lag-N
-            # differences has φ̂2 < 0)
+            # its chip too, rises (:func:`_flute_pair`), up to `reach` periods later or earlier
+            # (decision 1724). A violation alarms where it and one of the `reach` periods
+            # before it are such a pair; otherwise it waits for the next `reach` periods, the
+            # first of which to complete the pair alarms, violating or not (after a flute's
+            # change the next residual ε2 = Δ_N x − φ̂2·Δ_N x(m−1) can be small: the AR(1) of
+            # the lag-N differences has φ̂2 < 0)
             size = state[DET_THR2]  # the lag-N residual's threshold, 2·max|ε2| of the cut
-            held = state[DET_DROP]
-            state[DET_DROP] = 0.0
-            if fire and not _flute_pair(dn_prev, dn, rise_share, size):
+            waits = fire
+            by = -1  # the waiting violation's slot whose pair this period completes
+            for j in range(1, reach + 1):
+                if seen - j < nf:
+                    break
+                r = ring + (seen - j) % nf
+                if _flute_pair(state[r], dn, rise_share, size):
+                    if fire:
+                        waits = False
+                        break
+                    if state[r + nf] != 0.0 and state[DET_ALARMED] == 0.0:
+                        by = r
+                        break
+            if waits:
                 fire = False
-                state[DET_DROP] = dn
-                state[DET_PE1] = e1
-                state[DET_PE2] = e2
-            elif not fire and held != 0.0 and state[DET_ALARMED] == 0.0:
-                if _flute_pair(held, dn, rise_share, size):
-                    fire = True
-                    ce1_out[m] = state[DET_PE1]
-                    ce2_out[m] = state[DET_PE2]
+            elif by >= 0:
+                fire = True
+                ce1_out[m] = state[by + 2 * nf]
+                ce2_out[m] = state[by + 3 * nf]
+            if fire:  # the waiting violations are answered
+                for j in range(nf):
+                    state[ring + nf + j] = 0.0
+            r = ring + seen % nf
+            state[r] = dn
+            state[r + nf] = 1.0 if waits else 0.0
+            state[r + 2 * nf] = e1
+            state[r + 3 * nf] = e2
         if pattern:
             # the flute pattern's path (decision 1684): its evidence at the threshold set from
             # the false-alarm rate, the revolution keeping a broken flute's share; one alarm

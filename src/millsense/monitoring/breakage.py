@@ -199,12 +199,12 @@ class BreakageBlock(Block):
         deviations, with the revolution keeping a broken flute's share as above; at most one
         alarm of either way until a period not judged two-sided or a re-arm.
     pattern_z : the pattern's threshold in standard deviations (:data:`PATTERN_Z`).
-    flute_check : the plan-free ``dual`` detector alarms only where two consecutive tooth
-        periods show a broken flute's drop and the next flute's rise over one revolution ago,
-        in either order, the smaller at least 1 − ``edge_share`` − ``revolution_tol`` of the
-        larger (the next flute cuts the broken flute's chip); an entry, a step, an exit or a
-        cavity moves neighbouring flutes the same way (decision 1707; off: seed 002's
-        detector as it is).
+    flute_check : the plan-free ``dual`` detector alarms only where two tooth periods at
+        most ⌈N/2⌉ apart (consecutive for N = 2; decision 1724) show a broken flute's drop and
+        the next flute's rise over one revolution ago, in either order, the smaller at least
+        1 − ``edge_share`` − ``revolution_tol`` of the larger (the next flute cuts the broken
+        flute's chip); an entry, a step, an exit or a cavity moves neighbouring flutes the
+        same way (decision 1707; off: seed 002's detector as it is).
     name : block name (channel prefix and event source).
     """
 
@@ -575,7 +575,7 @@ class BreakageBlock(Block):
             values[f"same_flute_deviation_{s}"] = signature[1]
         if pattern == pattern:  # the flute pattern confirmed the alarm (decision 1684)
             values["pattern_evidence"] = pattern
-        after = drop[0] == drop[0]  # the period after the violation completed the pair (1707)
+        after = drop[0] == drop[0]  # a period after the violation completed the pair (1707)
         if after:
             values[f"violation_residual1_{s}"] = drop[0]
             values[f"violation_residual2_{s}"] = drop[1]
@@ -588,7 +588,7 @@ class BreakageBlock(Block):
         u = self.unit
         message = f"tool breakage ({self.method}): flute {tooth} at tooth period {period}"
         if self.method == "dual":
-            at_prev = " at the period before" if after else ""
+            at_prev = " at the violating period before" if after else ""
             r1, r2 = drop if after else (e1, e2)
             message += (f", |residual1| {abs(r1):.3g} > {l1:.3g} and |residual2| "
                         f"{abs(r2):.3g} > {l2:.3g} {u}{at_prev}")  # fmt: skip
