@@ -205,7 +205,8 @@ def test_a_rise_inside_the_thresholds_completes_a_drop_two_periods_before() -> N
     blk._det[k.DET_THR1] = blk._det[k.DET_THR2] = 0.1  # the noise's 0.01 N·m would be too fine
     events = []
     for i in range(split, period.size, 100):
-        events += blk.process(Chunk(i, FS, 0.0, {c: v[i : i + 100] for c, v in data.items()})).events
+        chunk = Chunk(i, FS, 0.0, {c: v[i : i + 100] for c, v in data.items()})
+        events += blk.process(chunk).events
     (ev,) = events
     assert ev.values["tooth_period"] == AT + 2
     assert abs(ev.values["residual1_nm"]) < ev.values["limit1_nm"]  # the rise's own
