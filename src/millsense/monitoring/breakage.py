@@ -346,12 +346,8 @@ class BreakageBlock(Block):
             ChannelInfo(f"{self.name}/limit1", u, "threshold of residual 1 (NaN: none yet)"),
             ChannelInfo(f"{self.name}/residual2", u, "AR(1) residual of the lag-N difference"),
             ChannelInfo(f"{self.name}/limit2", u, "threshold of residual 2 (NaN: none yet)"),
-            ChannelInfo(
-                f"{self.name}/band",
-                u,
-                "half-width of the signal's band around its "
-                "reference, noise floor included (virtual, constant; NaN: not judged)",
-            ),
+            ChannelInfo(f"{self.name}/band", u, "half-width of the signal's band around its "
+                        "reference, noise floor included (virtual, constant; NaN: not judged)"),
         ]
 
     def rearm(self) -> None:

@@ -241,12 +241,8 @@ def _breakage_factory(method: str) -> Factory:
                                   floor_channel=floor, **options)  # fmt: skip
         # seed 002's detector on a shop's part: an alarm needs a broken flute's drop and the
         # next flute's rise (decision 1707; the seed's case runs it bare)
-        return BreakageBlock(
-            ctx.n_flutes,
-            method=method,  # type: ignore[arg-type]
-            flute_check=method == "dual",
-            **options,
-        )
+        return BreakageBlock(ctx.n_flutes, method=method,  # type: ignore[arg-type]
+                             flute_check=method == "dual", **options)
 
     return make
 
