@@ -213,3 +213,39 @@ def test_a_rise_inside_the_thresholds_completes_a_drop_two_periods_before() -> N
     assert abs(ev.values["violation_residual1_nm"]) > ev.values["limit1_nm"]  # the drop's
     assert abs(ev.values["violation_residual2_nm"]) > ev.values["limit2_nm"]
     assert "at the violating period before" in ev.message
+
+
+def _constant_events(levels: np.ndarray, check: bool) -> list:
+    blk = BreakageBlock(2, "constant", signal_channels=("tq",), speed_channel="w",
+                        flute_check=check)  # fmt: skip
+    events, _ = run_block(blk, _data(levels), 100)
+    return events
+
+
+def _sudden(kind: str) -> np.ndarray:
+    """The whole cut changed within a period: a G0 retract out of a slot (3.0 -> 0.1 N·m), or a
+    jump into more material (3.0 -> 4.5 N·m)."""
+    p = np.arange(200)
+    after, between = (0.1, 1.5) if kind == "retract" else (4.5, 4.5)
+    return np.where(p > AT, after, np.where(p == AT, between, 3.0))
+
+
+@pytest.mark.parametrize("kind", ["retract", "jump"])
+def test_the_constant_reference_takes_no_whole_cut_for_a_breakage(kind: str) -> None:
+    """Decision 1724: the constant reference alarms at a retract and at a sudden jump of the
+    cut, where every flute's torque leaves the reference's band on the same side (seed 000's
+    false alarm, which `monitor` without a plan gave at every retract of a 3-flute cut); with
+    the flute check, none: no flute moves the other way."""
+    assert _constant_events(_sudden(kind), check=False)
+    assert _constant_events(_sudden(kind), check=True) == []
+
+
+def test_the_constant_reference_alarms_at_a_broken_flute_with_the_check() -> None:
+    """Decision 1724: a broken flute's drop and the next flute's rise over one revolution ago
+    start the constant reference's running violation: the checked detector alarms at the same
+    period as the seed's, its third violating period."""
+    seed = _constant_events(_levels("break"), check=False)
+    checked = _constant_events(_levels("break"), check=True)
+    assert seed
+    assert [e.values["tooth_period"] for e in checked] == [seed[0].values["tooth_period"]]
+    assert "the next flute's rise" in checked[0].message

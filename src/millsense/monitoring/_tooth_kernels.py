@@ -188,7 +188,8 @@ DET_PPOS = 23  # next slot of the pattern's scale windows
 DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (pattern on)
 DET_NOISE_SLOW = 25  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
 DET_NOISE_NAN = 26  # NaN values held in the noise window (not in its sorted copy)
-DET_BASE = 27  # ring buffers: the last N period values, the noise window, then the last N
+DET_PAIRED = 27  # plan-free constant reference: 1 once its running violation held a flute pair
+DET_BASE = 28  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
 # PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW; then the
@@ -611,12 +612,14 @@ def detect_periods(
     signature's bound above), it alarms where the seed's rule does not (row 14: 1.0), once
     until a period not judged two-sided or a re-arm.
 
-    With the plan-free flute check (dual mode, ``iparams[8]``, decision 1707) an alarm needs a
-    broken flute's drop and the next flute's rise (:func:`_flute_pair`, share 1 − edge_share −
-    tol, the larger at least the learnt lag-N threshold) at most :func:`pair_reach` periods
-    apart (decision 1724; consecutive for N = 2): a violating period that completes such a
-    pair with one of the periods before it, or one of the periods after a violation, up to
-    that reach, that completes it (rows 15-16: the violation's residuals).
+    With the plan-free flute check (dual and constant modes, ``iparams[8]``, decisions 1707 and
+    1724) an alarm needs a broken flute's drop and the next flute's rise in Δ_N x
+    (:func:`_flute_pair`, share 1 − edge_share − tol) at most :func:`pair_reach` periods apart
+    (consecutive for N = 2), the larger at least the learnt lag-N threshold (dual) or the band
+    (constant, whose running violation alarms from its confirming period on once such a pair
+    lay in it). The dual alarms at a violating period that completes such a pair with one of
+    the periods before it, or at one of the periods after a violation, up to that reach, that
+    completes it (rows 15-16: the violation's residuals).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
     ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
@@ -635,6 +638,7 @@ def detect_periods(
     lost_periods = iparams[6]
     pattern = iparams[7] != 0 and mode == MODE_VIRTUAL
     pair_check = iparams[8] != 0 and mode == MODE_DUAL
+    run_pair_check = iparams[8] != 0 and mode == MODE_CONSTANT
     reach = pair_reach(nf)
     ring = lag_ring_base(nf)
     # a broken flute's chip is cut by the next flute: it rises by at least the share of the
@@ -747,6 +751,9 @@ def detect_periods(
         ready = learn >= learn_periods
         band_out[m] = math.nan
         below = False  # judged one-sided, against the plan's transient floor (decision 1674)
+        # a breakage's size in the plan-free flute check: the dual's learnt lag-N threshold
+        # (decision 1707), the constant's band where it judges (decision 1724)
+        pair_size = state[DET_THR2] if mode == MODE_DUAL else math.inf
         if mode == MODE_DUAL:
             thr1 = state[DET_THR1]
             thr2 = state[DET_THR2]
@@ -786,6 +793,7 @@ def detect_periods(
                 if k_noise > 0.0 and state[DET_NOISE_N] >= NOISE_MIN:
                     band = max(limit, k_noise * _noise_sigma(state, nf))
                 band_out[m] = band
+                pair_size = band
                 v_res = abs(e1) > limit
                 v_tq = (ex - xm if below else abs(xm - ex)) > band
                 if check_deviation:
@@ -850,21 +858,20 @@ def detect_periods(
         # the first violation from there on where the signature holds (decision 1681)
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
         if pair_check:
-            # without a plan (decision 1707): a broken flute drops and the next flute, cutting
-            # its chip too, rises (:func:`_flute_pair`), up to `reach` periods later or earlier
-            # (decision 1724). A violation alarms where it and one of the `reach` periods
+            # without a plan (decisions 1707, 1724): a broken flute drops and the next flute,
+            # cutting its chip too, rises (:func:`_flute_pair` of their changes over one
+            # revolution), up to `reach` periods later or earlier. A violation alarms where it and one of the `reach` periods
             # before it are such a pair; otherwise it waits for the next `reach` periods, the
             # first of which to complete the pair alarms, violating or not (after a flute's
             # change the next residual ε2 = Δ_N x − φ̂2·Δ_N x(m−1) can be small: the AR(1) of
             # the lag-N differences has φ̂2 < 0)
-            size = state[DET_THR2]  # the lag-N residual's threshold, 2·max|ε2| of the cut
             waits = fire
             by = -1  # the waiting violation's slot whose pair this period completes
             for j in range(1, reach + 1):
                 if seen - j < nf:
                     break
                 r = ring + (seen - j) % nf
-                if _flute_pair(state[r], dn, rise_share, size):
+                if _flute_pair(state[r], dn, rise_share, pair_size):
                     if fire:
                         waits = False
                         break
@@ -885,6 +892,24 @@ def detect_periods(
             state[r + nf] = 1.0 if waits else 0.0
             state[r + 2 * nf] = e1
             state[r + 3 * nf] = e2
+        elif run_pair_check:
+            # the constant reference without a plan (decision 1724): its running violation
+            # alarms once it holds a broken flute's drop and the next flute's rise over one
+            # revolution ago, up to `reach` periods apart (the pair comes in the break's first
+            # revolution, before the run's confirming period); a retract, an exit or a jump
+            # of the whole cut moves every flute the same way
+            if run == 0:
+                state[DET_PAIRED] = 0.0
+            else:
+                for j in range(1, reach + 1):
+                    if seen - j < nf:
+                        break
+                    if _flute_pair(state[ring + (seen - j) % nf], dn, rise_share, pair_size):
+                        state[DET_PAIRED] = 1.0
+                        break
+            if state[DET_PAIRED] == 0.0:
+                fire = False
+            state[ring + seen % nf] = dn
         if pattern:
             # the flute pattern's path (decision 1684): its evidence at the threshold set from
             # the false-alarm rate, the revolution keeping a broken flute's share; one alarm

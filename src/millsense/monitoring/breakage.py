@@ -199,12 +199,14 @@ class BreakageBlock(Block):
         deviations, with the revolution keeping a broken flute's share as above; at most one
         alarm of either way until a period not judged two-sided or a re-arm.
     pattern_z : the pattern's threshold in standard deviations (:data:`PATTERN_Z`).
-    flute_check : the plan-free ``dual`` detector alarms only where two tooth periods at
-        most ⌈N/2⌉ apart (consecutive for N = 2; decision 1724) show a broken flute's drop and
-        the next flute's rise over one revolution ago, in either order, the smaller at least
-        1 − ``edge_share`` − ``revolution_tol`` of the larger (the next flute cuts the broken
-        flute's chip); an entry, a step, an exit or a cavity moves neighbouring flutes the
-        same way (decision 1707; off: seed 002's detector as it is).
+    flute_check : the plan-free ``dual`` and ``constant`` detectors alarm only where two
+        tooth periods at most ⌈N/2⌉ apart (consecutive for N = 2) show a broken flute's drop
+        and the next flute's rise, in either order, the smaller at least 1 − ``edge_share`` −
+        ``revolution_tol`` of the larger (the next flute cuts the broken flute's chip): the
+        dual's changes over one revolution ago, at least its learnt lag-N threshold (decision
+        1707), the constant's deviations from its reference, at least its band (decision
+        1724). An entry, a step, an exit, a retract or a cavity moves neighbouring flutes the
+        same way. Off: the seeds' detectors as they are.
     name : block name (channel prefix and event source).
     """
 
@@ -276,7 +278,7 @@ class BreakageBlock(Block):
             raise ConfigError(f"breakage: pattern_z must be positive, got {pattern_z!r}")
         self.flute_signature = bool(flute_signature) and method == "virtual"
         self.flute_pattern = bool(flute_pattern) and method == "virtual"
-        self.flute_check = bool(flute_check) and method == "dual"
+        self.flute_check = bool(flute_check) and method in ("dual", "constant")
         self.pattern_z = float(pattern_z)
         self.edge_share = float(edge_share)
         self.revolution_tol = float(revolution_tol)

@@ -239,10 +239,11 @@ def _breakage_factory(method: str) -> Factory:
                 floor = None
             return PhasedBreakage(ctx.n_flutes, method="virtual", expected_channel=expected,
                                   floor_channel=floor, **options)  # fmt: skip
-        # seed 002's detector on a shop's part: an alarm needs a broken flute's drop and the
-        # next flute's rise (decision 1707; the seed's case runs it bare)
+        # seed 002's detector and the constant reference on a shop's part: an alarm needs a
+        # broken flute's drop and the next flute's rise (decisions 1707, 1724; the seeds'
+        # cases run them bare)
         return BreakageBlock(ctx.n_flutes, method=method,  # type: ignore[arg-type]
-                             flute_check=method == "dual", **options)
+                             flute_check=True, **options)
 
     return make
 

@@ -14,7 +14,8 @@ of the cut a shop's part has. Issue 15: "both residuals exceed their thresholds 
 breakage and only there"; breakage effect to event ≤ 3 tooth periods.
 
 A second recording (decision 1723): a slot whose program changes the spindle's speed right
-before the entry, the cut beginning during the ramp, as a shop's programs and overrides do.
+before the entry, the cut beginning during the ramp, as a shop's programs and overrides do;
+with a 2-flute and a 3-flute end mill (decision 1724).
 """
 
 from __future__ import annotations
@@ -139,18 +140,24 @@ SPEED_PROGRAM = (
     "G1 X-6.5 F900\nS3000\nG1 X90\nG0 Z10\nM30\n%\n"
 )
 SPEED_BREAK_S = 3.0
-SPEED_TOOTH_S = 60.0 / (3000 * 2)
+SPEED_RPM = 3000.0
 
 
-@functools.lru_cache(maxsize=1)
-def speed_change_runs() -> dict[str, list[Event]]:
+def speed_tooth_s(flutes: int) -> float:
+    """A tooth period at the program's cutting speed, s."""
+    return 60.0 / (SPEED_RPM * flutes)
+
+
+@functools.lru_cache(maxsize=2)
+def speed_change_runs(flutes: int = 2) -> dict[str, list[Event]]:
     """`monitor`'s breakage alarms on :data:`SPEED_PROGRAM` run by the virtual machine open
-    loop, with flute 0 broken at :data:`SPEED_BREAK_S` (``broken``) and intact (``intact``)."""
+    loop with a Ø12 mm end mill of ``flutes`` flutes, with flute 0 broken at
+    :data:`SPEED_BREAK_S` (``broken``) and intact (``intact``)."""
     from millsense.core.config import ToolConfig
     from millsense.simulator.process_coupling import ToothBreak
     from millsense.validation.cases._program_session import program_recording
 
-    tool = ToolConfig(diameter_mm=12.0, flutes=2, helix_deg=35.0)
+    tool = ToolConfig(diameter_mm=12.0, flutes=flutes, helix_deg=35.0)
     runs = {}
     with tempfile.TemporaryDirectory() as tmp:
         prog = Path(tmp) / "s_word_before_entry.nc"
@@ -162,7 +169,7 @@ def speed_change_runs() -> dict[str, list[Event]]:
     return runs
 
 
-def _speed_table(runs: dict[str, list[Event]]) -> str:
+def _speed_table(runs: dict[str, list[Event]], flutes: int = 2) -> str:
     rows = ["| run | detector | alarms |", "|---|---|---|"]
     for label, events in runs.items():
         for m in METHODS:
@@ -170,7 +177,7 @@ def _speed_table(runs: dict[str, list[Event]]) -> str:
             rows.append(f"| {label} | {m} | {', '.join(times) or 'none'} |")
     return "\n".join(rows) + (
         f"\n\nS1500 -> S3000 right before the entry; flute 0 breaks at {SPEED_BREAK_S} s in the "
-        f"broken run (tooth period {1e3 * SPEED_TOOTH_S:g} ms)."
+        f"broken run ({flutes} flutes, tooth period {1e3 * speed_tooth_s(flutes):.3g} ms)."
     )
 
 
@@ -188,11 +195,25 @@ def _speed_table(runs: dict[str, list[Event]]) -> str:
     issue=15,
 )
 def _speed_latency() -> Measured:
-    runs = speed_change_runs()
+    return _dual_latency(2)
+
+
+def _dual_latency(flutes: int) -> Measured:
+    """The dual detector's first alarm after the break, in tooth periods, on
+    :func:`speed_change_runs` (inf: missed)."""
+    runs = speed_change_runs(flutes)
     after = [e.time_s for e in runs["broken"]
              if e.source == "breakage-dual" and e.time_s >= SPEED_BREAK_S]  # fmt: skip
-    lat = (min(after) - SPEED_BREAK_S) / SPEED_TOOTH_S if after else math.inf
-    return Measured(lat, _speed_table(runs))
+    lat = (min(after) - SPEED_BREAK_S) / speed_tooth_s(flutes) if after else math.inf
+    return Measured(lat, _speed_table(runs, flutes))
+
+
+def _false_alarms(flutes: int) -> Measured:
+    """Alarms of either detector on the intact run and before the break (:func:`speed_change_
+    runs`)."""
+    runs = speed_change_runs(flutes)
+    n = len(runs["intact"]) + sum(e.time_s < SPEED_BREAK_S for e in runs["broken"])
+    return Measured(float(n), _speed_table(runs, flutes))
 
 
 @case(
@@ -208,6 +229,37 @@ def _speed_latency() -> Measured:
     issue=15,
 )
 def _speed_false() -> Measured:
-    runs = speed_change_runs()
-    n = len(runs["intact"]) + sum(e.time_s < SPEED_BREAK_S for e in runs["broken"])
-    return Measured(float(n), _speed_table(runs))
+    return _false_alarms(2)
+
+
+@case(
+    "monitoring.breakage.plan_free_three_flutes_latency_periods",
+    source="issue 15 acceptance: breakage effect to event ≤ 3 tooth periods (seed 002's "
+    "dual-residual detector, no plan; a 3-flute end mill, whose broken flute's drop and the "
+    "next flute's rise lie two tooth periods apart in a slot)",
+    reference=1.5,
+    abs_tol=1.5,
+    unit="tooth periods",
+    quick=False,
+    description="first dual-residual alarm after the break, in tooth periods (inf: missed), "
+    "`monitor` without a plan, the S-word program with a 3-flute end mill (decision 1724)",
+    issue=15,
+)
+def _three_latency() -> Measured:
+    return _dual_latency(3)
+
+
+@case(
+    "monitoring.breakage.plan_free_three_flutes_false_alarms",
+    source="issue 15: no false alarm (air cuts, speed changes, an entry and a retract), "
+    "without a plan, a 3-flute end mill",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="alarms",
+    quick=False,
+    description="breakage alarms of `monitor`'s dual and constant detectors on the intact run "
+    "and before the break, the S-word program with a 3-flute end mill (decision 1724)",
+    issue=15,
+)
+def _three_false() -> Measured:
+    return _false_alarms(3)
