@@ -860,11 +860,11 @@ def detect_periods(
         if pair_check:
             # without a plan (decisions 1707, 1724): a broken flute drops and the next flute,
             # cutting its chip too, rises (:func:`_flute_pair` of their changes over one
-            # revolution), up to `reach` periods later or earlier. A violation alarms where it and one of the `reach` periods
-            # before it are such a pair; otherwise it waits for the next `reach` periods, the
-            # first of which to complete the pair alarms, violating or not (after a flute's
-            # change the next residual ε2 = Δ_N x − φ̂2·Δ_N x(m−1) can be small: the AR(1) of
-            # the lag-N differences has φ̂2 < 0)
+            # revolution), up to `reach` periods later or earlier. A violation alarms where it
+            # and one of the `reach` periods before it are such a pair; otherwise it waits for
+            # the next `reach` periods, the first of which to complete the pair alarms,
+            # violating or not (after a flute's change the next residual ε2 = Δ_N x −
+            # φ̂2·Δ_N x(m−1) can be small: the AR(1) of the lag-N differences has φ̂2 < 0)
             waits = fire
             by = -1  # the waiting violation's slot whose pair this period completes
             for j in range(1, reach + 1):

@@ -244,6 +244,9 @@ def _speed_false() -> Measured:
     description="first dual-residual alarm after the break, in tooth periods (inf: missed), "
     "`monitor` without a plan, the S-word program with a 3-flute end mill (decision 1724)",
     issue=15,
+    gap="the flute check waits for the next flute's rise, two tooth periods after the broken "
+    "flute's drop for a 3-flute end mill in a slot (decision 1724): 3.0 periods counted from "
+    "the drop's period, 3.33 from the break",
 )
 def _three_latency() -> Measured:
     return _dual_latency(3)
