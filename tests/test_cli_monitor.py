@@ -7,6 +7,7 @@ The recordings are synthetic (tests/test_monitoring_chatter.py's signal: a 4-flu
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -386,7 +387,8 @@ def test_monitor_breakage_skips_the_spindle_run_up(
     and alarms within 3 tooth periods of the break; learnt on the run-up (the block without the
     gate) it would be blind to it. Decision 1706: after a spindle start the level at speed is
     the air's; a cut there from the first revolution at speed (no air) is taken for the air and
-    not judged."""
+    not judged, which the summary says (decision 1724's line: 'no alarm' alone would read as an
+    intact tool)."""
     rng = np.random.default_rng(4)
     n = int(6.0 * FS)
     t = np.arange(n) / FS
@@ -404,15 +406,25 @@ def test_monitor_breakage_skips_the_spindle_run_up(
         rec.add_channel("spindle/speed_cmd", np.full(n, w), "rad/s")
         rec.add_channel("est/spindle/spindle/load", np.where(t < 0.3, 80.0, cut) + noise, "N*m")
         write_recording(tmp_path / "run.h5", rec)
-        code, _stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
-                                      "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
+        code, stdout, err = run_cli(["monitor", str(tmp_path / "run.h5"), "--methods",
+                                     "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
         assert code == 0, err
         ev = read_event_log(out)
+        # the summary says where the detectors judged: the gate's steady cut against the time
+        # at speed (the spindle within 3 % of its command from 0.29 s, at speed 0.1 s later)
+        (gate,) = [ln for ln in stdout.splitlines() if "breakage without a plan" in ln]
+        opened, at_speed = (float(v) for v in re.findall(r"([\d.]+) s", gate)[:2])
+        assert at_speed == pytest.approx(5.6, abs=0.05)
         if not air:
             assert ev == []
+            assert opened == 0.0 and "nothing judged" in gate  # not an intact tool's silence
             continue
         assert len(ev) == 1
         assert 4.2 < ev[0].time_s <= 4.2 + 3 * 0.03 + 1e-9
+        # the cut from 0.8 s, steady after its onset revolution and one more (0.06 s each),
+        # judged to the end: 5.2 s less those revolutions and the gate's one of 3 air ones
+        assert 4.9 <= opened <= 5.2
+        assert "nothing judged" not in gate
 
 
 def test_monitor_engagement_not_determined_on_noise(

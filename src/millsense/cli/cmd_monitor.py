@@ -287,6 +287,7 @@ def _run(
 
     pre: list[Any] = []
     signal = channel
+    torque_gate = False  # the plan-free breakage detectors' gate from the torque (1706)
     if (
         machine is not None
         and "spindle/current_cmd" in channels
@@ -368,6 +369,7 @@ def _run(
         if torque is not None and speed_channel is not None and speed_unit == "rad/s":
             pre.append(TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE))
             channels[BREAKAGE_STEADY_GATE] = "1"
+            torque_gate = True
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config
@@ -420,7 +422,15 @@ def _run(
     # the monitors' held outputs are kept every `step` samples (≈ 2 kHz) for the figure
     step = max(1, int(fs // 2000))
 
+    # samples at speed and in the torque gate's steady cut, where the plan-free breakage
+    # detectors judge (the summary says how much of the recording they saw)
+    gated = [0, 0]
+
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
+        if torque_gate:
+            gated[0] += int(np.count_nonzero(outputs[AT_SPEED] > 0.5)) if AT_SPEED in outputs \
+                else int(np.count_nonzero(np.asarray(ch.data[AT_SPEED]) > 0.5))
+            gated[1] += int(np.count_nonzero(outputs[BREAKAGE_STEADY_GATE] > 0.5))
         if plot is None:
             return
         if sig_name is not None:
@@ -472,6 +482,8 @@ def _run(
             at = ", ".join(f"{e.time_s:.2f} s" for e in blind[:5])
             lines.append(f"  {b.name}: blind (noise band ≥ the expected torque) from {at}"
                          f"{f' (+{len(blind) - 5} more)' if len(blind) > 5 else ''}")  # fmt: skip
+    if torque_gate:
+        lines.append(_torque_gate_line(gated[1] / fs, gated[0] / fs))
     lines += skipped
     if plot is not None:
         from millsense.report.monitor_plots import plot_monitor
@@ -490,6 +502,19 @@ def _run(
                      res.events, units)  # fmt: skip
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
+
+
+def _torque_gate_line(open_s: float, at_speed_s: float) -> str:
+    """The summary's line on where the plan-free breakage detectors judged: the torque gate's
+    steady cut (decisions 1706, 1723) against the time at speed. A gate that never opened is
+    said as such: 'no alarm' would otherwise read as an intact tool."""
+    line = (f"  breakage without a plan: judged where the torque showed a steady cut, "
+            f"{open_s:.1f} s of {at_speed_s:.1f} s at speed")  # fmt: skip
+    if open_s == 0.0 and at_speed_s > 0.0:
+        line += (" (no steady cut seen after air: nothing judged; a cut from the spindle's "
+                 "first revolutions at speed reads as its drag; `millsense replay` with the "
+                 "part's plan judges it)")  # fmt: skip
+    return line
 
 
 def _reliable(e: Any) -> bool:
