@@ -1815,9 +1815,17 @@ def _sum_run(
     """Add the samples a … b − 1 (``zr``, ``zi``: their phasors e^{−iφ}) to the sums."""
     if b <= a:
         return
+    # local sums (the same additions in the same order): through ``acc`` every addition
+    # waited on the store of the previous one
+    sum_x = acc[ACC_SUM_X]
+    sum_speed = acc[ACC_SUM_SPEED]
+    sum_feed = acc[ACC_SUM_FEED]
     for s in range(a, b):
-        acc[ACC_SUM_X] += x[s]
-        acc[ACC_SUM_SPEED] += abs(speed[s])
-        acc[ACC_SUM_FEED] += abs(feed[s])
+        sum_x += x[s]
+        sum_speed += abs(speed[s])
+        sum_feed += abs(feed[s])
+    acc[ACC_SUM_X] = sum_x
+    acc[ACC_SUM_SPEED] = sum_speed
+    acc[ACC_SUM_FEED] = sum_feed
     _add_harmonics(x, zr, zi, a, b, n_flutes, sums)
     acc[ACC_COUNT] += b - a
