@@ -295,20 +295,20 @@ class EngagementBlock(Block):
             return np.ones((2, 1), dtype=np.complex128), np.array([1.0, math.inf])
         return r.table, np.array([r.step_hz, r.switch_rad_s])
 
-    def _finish(self, t_end: float, row: int, status: float) -> None:
-        """The estimate of row ``row`` of the revolutions finished, whose status is
-        ``status`` (module notes)."""
+    def _finish(self, t_end: float, row: int, done: list[float]) -> None:
+        """The estimate of row ``row`` of the revolutions finished, ``done`` that row of
+        :attr:`_done` as a list (module notes)."""
         self._held_views = None
+        status = done[_sk.DONE_STATUS]
         if status == _sk.REV_NONE:
             self._log.append((t_end, None))
             self._harm.append(None)
             self._held = _NOT_EVALUATED
             return
-        done = self._done[row]
         # the coefficients and what the fit took with them, for a cut's average (decision 1698)
         self._harm.append(
-            (self._done_sums[row].copy(), float(done[_sk.DONE_FEED]),
-             float(done[_sk.DONE_T0_NET]), float(done[_sk.DONE_MEAN_VAR]))
+            (self._done_sums[row].copy(), done[_sk.DONE_FEED], done[_sk.DONE_T0_NET],
+             done[_sk.DONE_MEAN_VAR])
         )  # fmt: skip
         out = self._est[row]
         ident = self._ident
@@ -319,9 +319,9 @@ class EngagementBlock(Block):
             out[:] = ident.identify_array(
                 coeff[1:],
                 complex(coeff[0]),
-                float(done[_sk.DONE_FEED]),
-                float(done[_sk.DONE_T0_NET]),
-                float(done[_sk.DONE_MEAN_VAR]),
+                done[_sk.DONE_FEED],
+                done[_sk.DONE_T0_NET],
+                done[_sk.DONE_MEAN_VAR],
                 # the scan's fit from the previous solution, which missed the accept misfit
                 warm=(out[:3].copy(), float(out[_sk.EST_COST])) if has_prev else None,
             )
@@ -415,7 +415,7 @@ class EngagementBlock(Block):
             for row, done in enumerate(self._done[:nd].tolist()):
                 s = int(done[_sk.DONE_AT])
                 out[:, pos:s] = self._held[:, None]
-                self._finish(t0 + (start + s) / fs, row, done[_sk.DONE_STATUS])
+                self._finish(t0 + (start + s) / fs, row, done)
                 pos = s
             if i >= n:
                 break
