@@ -256,28 +256,31 @@ class EngagementBlock(Block):
         ident = self._ident = SpectrumIdentifier(
             self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
         )
-        self._acc = np.zeros(_sk.ACC_SIZE)
-        self._acc[_sk.ACC_REV] = -1.0
-        self._acc[_sk.ACC_STEP_SPEED] = math.nan  # no rotation cached yet
-        self._sums = np.zeros(self._k.size, dtype=np.complex128)
-        self._prev = np.zeros(3)
-        # the running mean of the cut's harmonics and its fit (decision 1704)
-        self._anchor = np.zeros(_sk.AST_SIZE)
-        self._hmean = np.zeros(self.n_harmonics, dtype=np.complex128)
+        acc = np.zeros(_sk.ACC_SIZE)
+        acc[_sk.ACC_REV] = -1.0
+        acc[_sk.ACC_STEP_SPEED] = math.nan  # no rotation cached yet
         g = self.geom
         fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
         fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
         fpar += [math.nan if self.air_torque_nm is None else float(self.air_torque_nm)]
-        self._fpar = np.array(fpar)  # layout: _spectrum_kernels.FPAR_*
-        self._done = np.empty((16, _sk.DONE_SIZE))
-        self._done_sums = np.empty((16, self._k.size), dtype=np.complex128)
-        self._est = np.empty((16, _sk.EST_SIZE))
-        # the arguments of every compiled call after (x, speed, feed, first sample)
-        self._args = (
-            self.fs, g.n_flutes, self.edge, self._acc, self._sums, self._prev, self._fpar,
-            ident.k, ident._lo, ident._hi, ident._scl, self._done, self._done_sums, self._est,
-            self._k, *self._equaliser(), ident._mstate, self._anchor, self._hmean,
+        fpar += [self.fs, g.n_flutes, 1.0 if self.edge else 0.0]  # layout: _sk.FPAR_*
+        eq, eqp = self._equaliser()
+        nk = self._k.size
+        # the compiled scan's state, packed (parts in the order of _sk.PK_*), and the views of
+        # its parts read and written here; the running mean of the cut's harmonics and its fit
+        # are _anchor and _hmean (decision 1704)
+        self._fst, self._cst, views = _sk.pack_state(
+            [acc, np.zeros(3), np.array(fpar), ident.k, ident._lo, ident._hi, ident._scl,
+             np.zeros((16, _sk.DONE_SIZE)), np.zeros((16, _sk.EST_SIZE)), self._k, eqp,
+             np.zeros(_sk.AST_SIZE)],
+            [np.zeros(nk, dtype=np.complex128), np.zeros((16, nk), dtype=np.complex128), eq,
+             np.zeros(self.n_harmonics, dtype=np.complex128)],
         )  # fmt: skip
+        v = views
+        self._acc, self._prev, self._anchor = v[_sk.PK_ACC], v[_sk.PK_PREV], v[_sk.PK_ANCHOR]
+        self._done, self._est, self._hmean = v[_sk.PK_DONE], v[_sk.PK_EST], v[_sk.PK_HMEAN]
+        self._done_sums = v[_sk.PK_DONE_SUMS]
+        self._mstate = ident._mstate
         self._held = np.full(len(_FIELDS), math.nan)
         self._held_views: HeldViews | None = None
         self._log = []
@@ -292,20 +295,20 @@ class EngagementBlock(Block):
             return np.ones((2, 1), dtype=np.complex128), np.array([1.0, math.inf])
         return r.table, np.array([r.step_hz, r.switch_rad_s])
 
-    def _finish(self, t_end: float, row: int, status: float) -> None:
-        """The estimate of row ``row`` of the revolutions finished, whose status is
-        ``status`` (module notes)."""
+    def _finish(self, t_end: float, row: int, done: list[float]) -> None:
+        """The estimate of row ``row`` of the revolutions finished, ``done`` that row of
+        :attr:`_done` as a list (module notes)."""
         self._held_views = None
+        status = done[_sk.DONE_STATUS]
         if status == _sk.REV_NONE:
             self._log.append((t_end, None))
             self._harm.append(None)
             self._held = _NOT_EVALUATED
             return
-        done = self._done[row]
         # the coefficients and what the fit took with them, for a cut's average (decision 1698)
         self._harm.append(
-            (self._done_sums[row].copy(), float(done[_sk.DONE_FEED]),
-             float(done[_sk.DONE_T0_NET]), float(done[_sk.DONE_MEAN_VAR]))
+            (self._done_sums[row].copy(), done[_sk.DONE_FEED], done[_sk.DONE_T0_NET],
+             done[_sk.DONE_MEAN_VAR])
         )  # fmt: skip
         out = self._est[row]
         ident = self._ident
@@ -316,9 +319,9 @@ class EngagementBlock(Block):
             out[:] = ident.identify_array(
                 coeff[1:],
                 complex(coeff[0]),
-                float(done[_sk.DONE_FEED]),
-                float(done[_sk.DONE_T0_NET]),
-                float(done[_sk.DONE_MEAN_VAR]),
+                done[_sk.DONE_FEED],
+                done[_sk.DONE_T0_NET],
+                done[_sk.DONE_MEAN_VAR],
                 # the scan's fit from the previous solution, which missed the accept misfit
                 warm=(out[:3].copy(), float(out[_sk.EST_COST])) if has_prev else None,
             )
@@ -399,7 +402,7 @@ class EngagementBlock(Block):
         sp = np.asarray(d[self.speed_channel], dtype=np.float64)
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
-        nd, i = _sk.ingest_revolutions(x, sp, fd, 0, *self._args)
+        nd, i = _sk.ingest_chunk(x, sp, fd, 0, self._fst, self._cst, self._mstate)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             views = self._held_views
             if views is not None and views[0] == n:  # nothing ended since: the same views
@@ -412,11 +415,11 @@ class EngagementBlock(Block):
             for row, done in enumerate(self._done[:nd].tolist()):
                 s = int(done[_sk.DONE_AT])
                 out[:, pos:s] = self._held[:, None]
-                self._finish(t0 + (start + s) / fs, row, done[_sk.DONE_STATUS])
+                self._finish(t0 + (start + s) / fs, row, done)
                 pos = s
             if i >= n:
                 break
-            nd, i = _sk.ingest_revolutions(x, sp, fd, i, *self._args)
+            nd, i = _sk.ingest_chunk(x, sp, fd, i, self._fst, self._cst, self._mstate)
         out[:, pos:] = self._held[:, None]
         return BlockOutput(dict(zip(self._names, out, strict=True)))
 
