@@ -427,9 +427,9 @@ def _run(
     gated = [0, 0]
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
-        if torque_gate:
-            gated[0] += int(np.count_nonzero(outputs[AT_SPEED] > 0.5)) if AT_SPEED in outputs \
-                else int(np.count_nonzero(np.asarray(ch.data[AT_SPEED]) > 0.5))
+        if torque_gate:  # the at-speed gate is a block's output or a recorded channel
+            at_speed = outputs.get(AT_SPEED, ch.data.get(AT_SPEED))
+            gated[0] += int(np.count_nonzero(np.asarray(at_speed) > 0.5))
             gated[1] += int(np.count_nonzero(outputs[BREAKAGE_STEADY_GATE] > 0.5))
         if plot is None:
             return

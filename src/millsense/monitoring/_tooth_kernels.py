@@ -561,6 +561,23 @@ def _flute_pair(a: float, b: float, share: float, size: float) -> bool:
     return a * b < 0.0 and big >= size and min(abs(a), abs(b)) >= share * big
 
 
+@numba.njit(cache=True, inline="always")
+def _pair_slot(
+    state: FloatArray, ring: int, seen: int, nf: int, reach: int, dn: float, share: float,
+    size: float, waiting: bool,
+) -> int:
+    """The ring slot (:func:`lag_ring_base`) of the nearest of the ``reach`` periods before
+    period ``seen`` whose Δ_N x forms a flute pair with ``dn`` (:func:`_flute_pair`), only
+    among violations waiting for their pair where ``waiting``; −1: none (decision 1724)."""
+    for j in range(1, reach + 1):
+        if seen - j < nf:  # Δ_N x not known there
+            return -1
+        r = ring + (seen - j) % nf
+        if (not waiting or state[r + nf] != 0.0) and _flute_pair(state[r], dn, share, size):
+            return r
+    return -1
+
+
 @numba.njit(cache=True)
 def detect_periods(
     pp: FloatArray,
@@ -865,19 +882,12 @@ def detect_periods(
             # the next `reach` periods, the first of which to complete the pair alarms,
             # violating or not (after a flute's change the next residual ε2 = Δ_N x −
             # φ̂2·Δ_N x(m−1) can be small: the AR(1) of the lag-N differences has φ̂2 < 0)
-            waits = fire
-            by = -1  # the waiting violation's slot whose pair this period completes
-            for j in range(1, reach + 1):
-                if seen - j < nf:
-                    break
-                r = ring + (seen - j) % nf
-                if _flute_pair(state[r], dn, rise_share, pair_size):
-                    if fire:
-                        waits = False
-                        break
-                    if state[r + nf] != 0.0 and state[DET_ALARMED] == 0.0:
-                        by = r
-                        break
+            waits, by = False, -1  # by: the waiting violation whose pair this period completes
+            if fire:
+                waits = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size,
+                                   False) < 0  # fmt: skip
+            elif state[DET_ALARMED] == 0.0:
+                by = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, True)
             if waits:
                 fire = False
             elif by >= 0:
@@ -900,13 +910,8 @@ def detect_periods(
             # of the whole cut moves every flute the same way
             if run == 0:
                 state[DET_PAIRED] = 0.0
-            else:
-                for j in range(1, reach + 1):
-                    if seen - j < nf:
-                        break
-                    if _flute_pair(state[ring + (seen - j) % nf], dn, rise_share, pair_size):
-                        state[DET_PAIRED] = 1.0
-                        break
+            elif _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, False) >= 0:
+                state[DET_PAIRED] = 1.0
             if state[DET_PAIRED] == 0.0:
                 fire = False
             state[ring + seen % nf] = dn
