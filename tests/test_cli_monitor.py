@@ -427,6 +427,46 @@ def test_monitor_breakage_skips_the_spindle_run_up(
         assert "nothing judged" not in gate
 
 
+def test_monitor_says_when_it_judged_on_the_seed_premise(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Decision 1725: a recording that starts with the spindle already at speed (a trace
+    started during a rapid move) keeps seed 002's premise: its first revolutions are taken as
+    cut, in the air or not (decision 1706). The summary said 'judged where the torque showed a
+    steady cut, 5.9 s of 5.9 s', although the torque showed nothing: 0.8 s of air (0.2 N·m),
+    then the cut. It now says that time apart, as judged on the premise; a recording that
+    starts with the run-up says nothing of a premise."""
+    n = int(6.0 * FS)
+    t = np.arange(n) / FS
+    w = 1000 * 2 * np.pi / 60
+    rng = np.random.default_rng(5)
+    tq = np.where(t < 0.8, 0.2, 3.0) + 0.05 * np.sqrt(300) * rng.standard_normal(n)
+    out = tmp_path / "ev.parquet"
+    lines = {}
+    for start in ("at_speed", "run_up"):
+        speed = np.full(n, w) if start == "at_speed" else np.minimum(t / 0.3, 1.0) * w
+        rec = Recording(FS, 0.0, {"flutes": 2})
+        rec.add_channel("spindle/speed", speed, "rad/s")
+        rec.add_channel("spindle/speed_cmd", np.full(n, w), "rad/s")
+        rec.add_channel("est/spindle/spindle/load", tq, "N*m")
+        write_recording(tmp_path / f"{start}.h5", rec)
+        code, stdout, err = run_cli(["monitor", str(tmp_path / f"{start}.h5"), "--methods",
+                                     "breakage-constant", "-o", str(out)], capsys)  # fmt: skip
+        assert code == 0, err
+        (lines[start],) = [ln for ln in stdout.splitlines() if "breakage without a plan" in ln]
+    steady, at_speed, premise = (float(v) for v in
+                                 re.findall(r"([\d.]+) s", lines["at_speed"])[:3])  # fmt: skip
+    # at speed from its first samples, never stopped: every second at speed on the premise
+    assert at_speed == pytest.approx(6.0, abs=0.15)
+    assert premise == pytest.approx(at_speed, abs=1e-9)
+    assert steady == 0.0
+    assert "seed 002's premise" in lines["at_speed"]
+    # after a run-up the gate waits for the cut (0.8 s), steady 2 revolutions later, to the end
+    steady_run_up = float(re.findall(r"([\d.]+) s", lines["run_up"])[0])
+    assert 4.9 <= steady_run_up <= 5.2
+    assert "premise" not in lines["run_up"]
+
+
 def test_monitor_engagement_not_determined_on_noise(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -15,12 +15,15 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import typer
 
 from millsense.cli.main import app
+
+if TYPE_CHECKING:
+    from millsense.online.gates import TorqueCutGate
 
 #: Spindle-speed channels, preferred first.
 SPEED_CHANNELS = ("spindle/speed", "spindle/speed_cmd")
@@ -287,7 +290,8 @@ def _run(
 
     pre: list[Any] = []
     signal = channel
-    torque_gate = False  # the plan-free breakage detectors' gate from the torque (1706)
+    # the plan-free breakage detectors' gate from the torque (decision 1706), if built
+    torque_gate: TorqueCutGate | None = None
     if (
         machine is not None
         and "spindle/current_cmd" in channels
@@ -367,9 +371,9 @@ def _run(
 
         torque = signal or next((c for c in BREAKAGE_SIGNALS_SESSION if c in channels), None)
         if torque is not None and speed_channel is not None and speed_unit == "rad/s":
-            pre.append(TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE))
+            torque_gate = TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE)
+            pre.append(torque_gate)
             channels[BREAKAGE_STEADY_GATE] = "1"
-            torque_gate = True
     nc_channel = "cnc/nc_line" if "cnc/nc_line" in channels else None
     if tool_cfg is None and vp is not None and isinstance(vp.metadata.get("tool"), dict):
         from millsense.core.config import ToolConfig, parse_config
@@ -427,7 +431,7 @@ def _run(
     gated = [0, 0]
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
-        if torque_gate:  # the at-speed gate is a block's output or a recorded channel
+        if torque_gate is not None:  # the at-speed gate is a block's output or a recorded channel
             at_speed = outputs.get(AT_SPEED, ch.data.get(AT_SPEED))
             gated[0] += int(np.count_nonzero(np.asarray(at_speed) > 0.5))
             gated[1] += int(np.count_nonzero(outputs[BREAKAGE_STEADY_GATE] > 0.5))
@@ -482,8 +486,9 @@ def _run(
             at = ", ".join(f"{e.time_s:.2f} s" for e in blind[:5])
             lines.append(f"  {b.name}: blind (noise band ≥ the expected torque) from {at}"
                          f"{f' (+{len(blind) - 5} more)' if len(blind) > 5 else ''}")  # fmt: skip
-    if torque_gate:
-        lines.append(_torque_gate_line(gated[1] / fs, gated[0] / fs))
+    if torque_gate is not None:
+        lines.append(_torque_gate_line(gated[1] / fs, gated[0] / fs,
+                                       torque_gate.premise_samples / fs))  # fmt: skip
     lines += skipped
     if plot is not None:
         from millsense.report.monitor_plots import plot_monitor
@@ -504,12 +509,21 @@ def _run(
     return {"events": res.events, "lines": lines, "wall_s": wall}
 
 
-def _torque_gate_line(open_s: float, at_speed_s: float) -> str:
+def _torque_gate_line(open_s: float, at_speed_s: float, premise_s: float = 0.0) -> str:
     """The summary's line on where the plan-free breakage detectors judged: the torque gate's
     steady cut (decisions 1706, 1723) against the time at speed. A gate that never opened is
-    said as such: 'no alarm' would otherwise read as an intact tool."""
+    said as such: 'no alarm' would otherwise read as an intact tool. Time judged on seed 002's
+    premise (``premise_s``: the recording started with the spindle at speed, so its first
+    revolutions were taken as cut, in the air or not) is said apart (decision 1725): the
+    torque did not show a cut there."""
+    steady_s = max(open_s - premise_s, 0.0)
     line = (f"  breakage without a plan: judged where the torque showed a steady cut, "
-            f"{open_s:.1f} s of {at_speed_s:.1f} s at speed")  # fmt: skip
+            f"{steady_s:.1f} s of {at_speed_s:.1f} s at speed")  # fmt: skip
+    if premise_s > 0.0:
+        line += (f"; {premise_s:.1f} s judged from the start on seed 002's premise (the "
+                 "recording starts with the spindle at speed: its first revolutions were taken "
+                 "as cut, in the air or not, and the thresholds learnt there)")  # fmt: skip
+        return line
     if open_s == 0.0 and at_speed_s > 0.0:
         line += (" (no steady cut seen after air: nothing judged; a cut from the spindle's "
                  "first revolutions at speed reads as its drag; `millsense replay` with the "

@@ -296,12 +296,14 @@ def calibration_kernel(
 #: :func:`torque_cut_gate_kernel`'s state: [mode, angle in the revolution, Σ torque, samples,
 #: previous revolution's mean, lowest |speed| before the spindle was first at speed, revolutions
 #: counted], then ``AIR_SLOTS`` air levels of ``AIR_SLOT`` values each: [speed (rad a sample),
-#: revolutions, mean, M2 (Welford), revolution count when last used] (decision 1723).
+#: revolutions, mean, M2 (Welford), revolution count when last used] (decision 1723), then the
+#: samples opened on seed 002's premise (a stream that started at speed; decision 1725).
 CUT_MODE, CUT_ANGLE, CUT_SUM, CUT_SAMPLES, CUT_PREVIOUS, CUT_LOWEST, CUT_COUNT = range(7)
 AIR_SLOTS, AIR_SLOT = 6, 5
 AIR_W, AIR_N, AIR_MEAN, AIR_M2, AIR_USED = range(AIR_SLOT)
 CUT_AIR_TABLE = 7
-CUT_GATE_STATE = CUT_AIR_TABLE + AIR_SLOTS * AIR_SLOT
+CUT_PREMISE_SAMPLES = CUT_AIR_TABLE + AIR_SLOTS * AIR_SLOT
+CUT_GATE_STATE = CUT_PREMISE_SAMPLES + 1
 #: Its modes: start undecided; the stream started at speed (seed 002's premise: the gate is the
 #: spindle's); air after the spindle's start; a rise above the air seen; in the steady cut.
 CUT_UNDECIDED, CUT_PREMISE, CUT_AIR, CUT_ONSET, CUT_OPEN = 0, 1, 2, 3, 4
@@ -445,12 +447,13 @@ def torque_cut_gate_kernel(
             # without a start before them keep seed 002's premise
             if state[CUT_LOWEST] < START_BELOW * w:
                 mode = CUT_AIR
-                state[CUT_AIR_TABLE:] = 0.0
+                state[CUT_AIR_TABLE:CUT_PREMISE_SAMPLES] = 0.0
             elif mode == CUT_UNDECIDED:
                 mode = CUT_PREMISE
             state[CUT_LOWEST] = math.inf
         if mode == CUT_PREMISE or mode == CUT_UNDECIDED:
             out[k] = 1.0
+            state[CUT_PREMISE_SAMPLES] += 1.0
             continue
         out[k] = 1.0 if mode == CUT_OPEN else 0.0
         state[CUT_ANGLE] += w

@@ -16,6 +16,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.online._sync_kernels import (
     CUT_GATE_STATE,
     CUT_LOWEST,
+    CUT_PREMISE_SAMPLES,
     air_reference_kernel,
     at_speed_kernel,
     torque_cut_gate_kernel,
@@ -215,6 +216,13 @@ class TorqueCutGate(Block):
         self._state = np.zeros(CUT_GATE_STATE)
         self._state[CUT_LOWEST] = np.inf
         self.fs = float(sample_rate_hz)
+
+    @property
+    def premise_samples(self) -> int:
+        """Samples the gate held open on seed 002's premise since the reset: the stream started
+        with the spindle at speed, and its revolutions were taken as cut until the spindle
+        stopped, whatever the torque (decision 1725: said so in `monitor`'s summary)."""
+        return int(self._state[CUT_PREMISE_SAMPLES])
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
