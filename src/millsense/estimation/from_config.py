@@ -185,6 +185,28 @@ def spindle_observer_from_config(
     )
 
 
+def spindle_dob_from_config(machine: MachineConfig, where: str) -> Block:
+    """The spindle's disturbance observer for tooth-period averages (seed 001 Eq. 2-15,
+    decision 1726: :class:`~millsense.estimation.spindle_dob.SpindleDobTorque`) from
+    ``[spindle]``: K_tS of both speed ranges, J_eS and the friction the LQE observer of
+    :func:`spindle_observer_from_config` subtracts."""
+    from millsense.estimation.spindle_dob import SpindleDobTorque
+    from millsense.models.friction import CoulombViscous
+    from millsense.models.spindle_plant import SpindleDriveParams
+
+    reason = spindle_unavailable_reason(machine, where)
+    if reason is not None:
+        raise ConfigError(reason)
+    cfg = machine.spindle
+    assert cfg is not None
+    params = SpindleDriveParams.from_config(cfg)
+    friction = CoulombViscous(cfg.coulomb_nm, cfg.coulomb_nm, cfg.viscous_nm_s_rad,
+                              cfg.viscous_nm_s_rad, params.friction_smoothing_rad_s)  # fmt: skip
+    r1, r2 = params.ranges
+    return SpindleDobTorque((r1.torque_constant, r2.torque_constant), params.switch_rad_s,
+                            params.inertia, friction)  # fmt: skip
+
+
 def _spindle_designs(
     machine: MachineConfig, where: str
 ) -> tuple[Any, list[tuple[Any, Any]], float]:

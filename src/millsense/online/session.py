@@ -39,7 +39,7 @@ from millsense.control.arbitration import Supervisor, SupervisorOptions
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.monitoring.breakage_phased import PhasedBreakage
-from millsense.online.gates import SpindleAtSpeed
+from millsense.online.gates import AirReference, SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
 from millsense.online.plan_sync import PlanSync, TcpFromAxes, feed_time_constant_s
 from millsense.plan.virtual_plan import VirtualPlan
@@ -51,6 +51,11 @@ from millsense.streaming.sources import Source, SourceWrapper
 TORQUE_CHANNEL = "est/spindle/spindle/load"
 #: The same less its air-cut reference (:class:`~millsense.online.gates.AirReference`).
 CUTTING_TORQUE = "plan/cutting_torque"
+#: The spindle's disturbance observer for tooth-period averages (decision 1726) less its own
+#: air-cut reference: what the breakage monitor averages by default.
+DOB_CUTTING_TORQUE = "plan/dob_cutting_torque"
+#: What the breakage monitor may average (:attr:`SessionOptions.breakage_torque`).
+BREAKAGE_TORQUES = ("dob", "observer")
 FORCE_SOURCES = ("estimate", "dynamometer")
 #: Expected torques below this fraction of the plan's largest are not judged for breakage: the
 #: tooth-period average of an observer's estimate is too noisy there (decision 1622).
@@ -79,6 +84,9 @@ class SessionOptions:
     chatter : run the chatter monitor; ``chatter_method`` which one; ``avoid_chatter``: act
         (spindle override) rather than recommend.
     breakage : run the breakage monitor (virtual threshold); ``hold_on_breakage``: feed hold.
+    breakage_torque : what the breakage monitor averages per tooth period: ``dob`` (the
+        spindle's disturbance observer, seed 001 Eq. 2-15, decision 1726) or ``observer`` (the
+        machine file's LQE observer, Aslan Eq. 5.17-5.21, as chatter and the adaptive feed).
     period_s : control period of the supervisor, s.
     stability_case : the lobes' case (:class:`~millsense.stability.cases.
         MillingStabilityCase`: tool modes, flutes, coefficients, immersion) the chatter
@@ -96,10 +104,14 @@ class SessionOptions:
     avoid_chatter: bool = True
     breakage: bool = True
     hold_on_breakage: bool = True
+    breakage_torque: str = "dob"
     period_s: float = 0.01
     stability_case: Any = None
 
     def __post_init__(self) -> None:
+        if self.breakage_torque not in BREAKAGE_TORQUES:
+            raise ConfigError(f"--breakage-torque: one of {', '.join(BREAKAGE_TORQUES)}, got "
+                              f"{self.breakage_torque!r}")  # fmt: skip
         if self.force_from not in FORCE_SOURCES:
             raise ConfigError(
                 f"--force-from: one of {', '.join(FORCE_SOURCES)}, got {self.force_from!r}"
@@ -202,11 +214,22 @@ def session_blocks(
         notes.append("adaptive feed off: the plan never has the tool in the material (nothing "
                      "to regulate; give --reference for a set point)")  # fmt: skip
     if o.breakage and cuts:
+        breakage_signal = CUTTING_TORQUE
+        if o.breakage_torque == "dob":
+            from millsense.estimation.from_config import spindle_dob_from_config
+            from millsense.estimation.spindle_dob import DOB_TORQUE
+
+            # the tooth periods' mean torque with the encoder's quantisation averaged out of
+            # the inertial term, less its air as the observer's (decision 1726)
+            blocks.append(spindle_dob_from_config(machine, where))
+            blocks.append(AirReference(DOB_TORQUE, "plan/in_cut", "spindle/at_speed",
+                                       out=DOB_CUTTING_TORQUE, name="plan/dob_air"))  # fmt: skip
+            breakage_signal = DOB_CUTTING_TORQUE
         children.append(
             PhasedBreakage(
                 flutes,
                 method="virtual",
-                signal_channels=(CUTTING_TORQUE,),
+                signal_channels=(breakage_signal,),
                 expected_channel="plan/judged_torque",
                 # a drop below the plan's lowest torque across its transients (decision 1674)
                 floor_channel="plan/torque_floor",
