@@ -31,6 +31,14 @@ _MACHINE_FILE = typer.Option(
     "(default: the commissioned file millsense ships for the machine).",
 )
 
+_BREAKAGE_TORQUE = typer.Option(
+    "dob",
+    "--breakage-torque",
+    help="What the breakage monitor averages per tooth period: dob (the spindle's disturbance "
+    "observer, its encoder speed averaged over 0.9 ms; decision 1726) or observer (the machine "
+    "file's spindle observer, as the chatter monitor and the adaptive feed).",
+)
+
 
 def _options(
     adaptive: bool,
@@ -41,6 +49,7 @@ def _options(
     chatter: bool,
     act_on_chatter: bool,
     breakage: bool,
+    breakage_torque: str = "dob",
 ) -> Any:
     from millsense.control.adaptive_feed import QUANTITIES
     from millsense.core.errors import ConfigError
@@ -53,6 +62,7 @@ def _options(
     return SessionOptions(
         adaptive=adaptive, quantity=regulate, reference=reference, force_from=force_from,
         look_ahead=look_ahead, chatter=chatter, avoid_chatter=act_on_chatter, breakage=breakage,
+        breakage_torque=breakage_torque,
     )  # fmt: skip
 
 
@@ -98,6 +108,7 @@ def run(
         True, "--avoid-chatter/--recommend-only", help="Change the spindle speed on chatter."
     ),
     breakage: bool = typer.Option(True, "--breakage/--no-breakage", help="Breakage monitor."),
+    breakage_torque: str = _BREAKAGE_TORQUE,
     break_at_s: float | None = typer.Option(
         None, "--break-at-s", help="Break a tooth of the virtual tool at this time [s]."
     ),
@@ -173,7 +184,7 @@ def run(
         SESSION_SUFFIXES,
     )  # fmt: skip
     opts = _options(adaptive, regulate, reference, force_from, look_ahead, chatter,
-                    act_on_chatter, breakage)  # fmt: skip
+                    act_on_chatter, breakage, breakage_torque)  # fmt: skip
     _check_times(duration_s, break_at_s, break_flute)
     if source is not None:
         given = [k for k, v in (("--fault", fault), ("--break-at-s", break_at_s),
@@ -220,6 +231,7 @@ def replay(
     ),
     force_from: str = typer.Option("estimate", "--force-from", help="estimate or dynamometer."),
     chunk: int = typer.Option(100, "--chunk", help="Samples per chunk (the control period)."),
+    breakage_torque: str = _BREAKAGE_TORQUE,
     report: Path | None = typer.Option(
         None, "--report", help="HTML report of the replay (default with -o: beside it, .html)."
     ),
@@ -236,7 +248,8 @@ def replay(
         {"-o": out, "--events": events_out, "--report": report},
         SESSION_SUFFIXES,
     )
-    opts = _options(True, regulate, reference, force_from, True, True, True, True)
+    opts = _options(True, regulate, reference, force_from, True, True, True, True,
+                    breakage_torque)  # fmt: skip
     try:
         summary = replay_online(recording, plan, machine_file, out, events_out, opts, chunk)
     except KeyboardInterrupt:

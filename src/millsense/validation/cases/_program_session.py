@@ -69,10 +69,12 @@ def program_session(
     duration_s: float | None = None,
     out: Path | None = None,
     keep: Sequence[str] | None = (),
+    options: Any = None,
 ) -> ProgramSession:
     """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
-    through the default session on the virtual quaser-ux600; ``events``: process events of the
-    virtual machine (a :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
+    through the session of ``options`` (a ``SessionOptions``; None: the default) on the
+    virtual quaser-ux600; ``events``: process events of the virtual machine (a
+    :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
 
@@ -80,7 +82,8 @@ def program_session(
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     belief, where = shipped
-    built = session_blocks(plan, belief, sim.sample_rate_hz, SessionOptions(), where=where,
+    opts = options if options is not None else SessionOptions()
+    built = session_blocks(plan, belief, sim.sample_rate_hz, opts, where=where,
                            channels=sim.channel_names)  # fmt: skip
     return ProgramSession(run_session(sim, built.blocks, out=out, keep=keep), plan)
 

@@ -270,13 +270,15 @@ def v7_run() -> V7Run:
     res = run_session(_Open(sim), built.blocks, stop_after_hold_s=None, observer=keep)
     data = {k: np.concatenate(v) for k, v in parts.items()}
     run = V7Run(data, plan, break_s, m.sample_rate_hz, notes=list(notes) + list(built.notes))
-    # the session's detector (seed 000's rule and the flute pattern, decision 1684), and seed
-    # 000's rule alone replayed on the same channels: V7's figures are the seed's
+    # the session's detector (seed 000's rule and the flute pattern, decision 1684, on the
+    # spindle DOB's torque, decision 1726), and seed 000's rule alone replayed on the LQE
+    # observer's compensated torque (Aslan's sensory spindle): V7's figures are the seed's
     run.events["session"] = [e for e in res.events if e.name == "breakage"]
     session_det = next(c for b in built.blocks for c in getattr(b, "children", ())
                        if isinstance(c, PhasedBreakage))  # fmt: skip
     seed = PhasedBreakage(session_det.n_flutes, phases=session_det.phases, name=session_det.name,
-                          **{**session_det.options, "flute_pattern": False})  # fmt: skip
+                          **{**session_det.options, "flute_pattern": False,
+                             "signal_channels": (CUTTING_TORQUE,)})  # fmt: skip
     run.events["virtual"] = run_block(seed, data, 100, m.sample_rate_hz)[0]
     run.events["ktc"] = [e for e in res.events if e.name == "ktc_calibrated"]
     tcp = ("tcp/x", "tcp/y", "tcp/z")
