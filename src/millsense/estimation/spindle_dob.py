@@ -25,11 +25,13 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
-from millsense.models.friction import CoulombViscous
+from millsense.models.friction import CoulombViscous, coulomb_viscous_torque
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 #: The pseudo-differentiation's window (decision 1726): 0.9 ms, 9 samples at 10 kHz. The
@@ -39,6 +41,63 @@ from millsense.streaming.block import Block, BlockOutput, Chunk
 WINDOW_S = 0.9e-3
 #: The output channel.
 DOB_TORQUE = "spindle/dob_torque"
+
+
+#: :func:`dob_kernel`'s state: [started, position in the speed ring, in the current ring],
+#: then the rings: ``window`` speeds, then ``delay`` currents and ``delay`` speed commands.
+DOB_STARTED, DOB_POS_W, DOB_POS_I, DOB_RINGS = 0, 1, 2, 3
+
+
+@numba.njit(cache=True)
+def dob_kernel(
+    current: NDArray[np.float64],
+    speed: NDArray[np.float64],
+    speed_cmd: NDArray[np.float64],
+    state: NDArray[np.float64],
+    m: int,
+    params: NDArray[np.float64],
+    friction: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """One chunk of :class:`SpindleDobTorque` (seed 001 Eq. 2-15): ``out[k]`` = K_tS·I[k − h]
+    − J·(Ω[k] − Ω[k − m])·f_s/m − τ_fric(Ω[k − h]), h = (m − 1)/2, K_tS of range 2 where
+    |Ω_cmd[k − h]| ≥ the switch speed. ``params`` = [K_t1, K_t2, switch rad/s, J, f_s];
+    ``friction`` = :meth:`~millsense.models.friction.CoulombViscous.as_array` (empty: none).
+    Before the stream's first sample the rings hold its first values (at rest before it)."""
+    h = (m - 1) // 2
+    ring_w = DOB_RINGS
+    ring_i = ring_w + m
+    ring_c = ring_i + h
+    kt1, kt2, switch, inertia, fs = params[0], params[1], params[2], params[3], params[4]
+    if current.shape[0] and state[DOB_STARTED] == 0.0:
+        state[ring_w : ring_w + m] = speed[0]
+        state[ring_i : ring_i + h] = current[0]
+        state[ring_c : ring_c + h] = speed_cmd[0]
+        state[DOB_STARTED] = 1.0
+    pw = int(state[DOB_POS_W])
+    pi = int(state[DOB_POS_I])
+    has_friction = friction.shape[0] > 0
+    for k in range(current.shape[0]):
+        w_old = state[ring_w + pw]  # Ω[k − m]
+        state[ring_w + pw] = speed[k]
+        w_mid = state[ring_w + (pw - h) % m]  # Ω[k − h]
+        pw = (pw + 1) % m
+        if h > 0:
+            i_del = state[ring_i + pi]
+            c_del = state[ring_c + pi]
+            state[ring_i + pi] = current[k]
+            state[ring_c + pi] = speed_cmd[k]
+            pi = (pi + 1) % h
+        else:
+            i_del = current[k]
+            c_del = speed_cmd[k]
+        kt = kt2 if abs(c_del) >= switch else kt1
+        tau = kt * i_del - inertia * (speed[k] - w_old) * (fs / m)
+        if has_friction:
+            tau -= coulomb_viscous_torque(w_mid, friction)
+        out[k] = tau
+    state[DOB_POS_W] = pw
+    state[DOB_POS_I] = pi
 
 
 class SpindleDobTorque(Block):
@@ -101,36 +160,16 @@ class SpindleDobTorque(Block):
             m = max(1, 2 * round((WINDOW_S * self.fs - 1) / 2) + 1)
         self.window = int(m)
         self.delay = (self.window - 1) // 2
-        # the last `window` speeds and `delay` currents and speed commands before the chunk
-        # (the stream's first sample repeated until there are as many)
-        self._w: np.ndarray | None = None
-        self._i = np.empty(0)
-        self._c = np.empty(0)
+        self._state = np.zeros(DOB_RINGS + self.window + 2 * self.delay)
+        self._params = np.array([*self.kt, self.switch, self.inertia, self.fs])
+        self._friction = self.friction.as_array() if self.friction is not None else np.empty(0)
 
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
-        i = np.asarray(d[self.inputs[0]], dtype=np.float64)
-        w = np.asarray(d[self.inputs[1]], dtype=np.float64)
-        c = np.asarray(d[self.inputs[2]], dtype=np.float64)
-        n, m, h = w.size, self.window, self.delay
-        if n == 0:
-            return BlockOutput({self.out: np.empty(0)})
-        if self._w is None:  # the stream's start: at rest before it, at its first values
-            self._w = np.full(m, w[0])
-            self._i = np.full(h, i[0])
-            self._c = np.full(h, c[0])
-        ww = np.concatenate([self._w, w])
-        ii = np.concatenate([self._i, i])[:n]  # I_ref delayed by h samples
-        cc = np.concatenate([self._c, c])[:n]
-        # mean over m samples ending at k minus the one ending at k − 1: (Ω[k] − Ω[k − m])/m
-        acc = (ww[m:] - ww[:n]) * (self.fs / m)
-        kt = np.where(np.abs(cc) >= self.switch, self.kt[1], self.kt[0])
-        tau = kt * ii - self.inertia * acc
-        if self.friction is not None:
-            # the speed at the window's centre, as the current
-            tau -= self.friction.torque(ww[m - h : m - h + n])
-        self._w = ww[-m:]
-        if h:
-            self._i = np.concatenate([self._i, i])[-h:]
-            self._c = np.concatenate([self._c, c])[-h:]
-        return BlockOutput({self.out: tau})
+        i = np.ascontiguousarray(d[self.inputs[0]], dtype=np.float64)
+        out = np.empty(i.size)
+        # the rings, the range's K_tS and the friction in one compiled loop
+        dob_kernel(i, np.ascontiguousarray(d[self.inputs[1]], dtype=np.float64),
+                   np.ascontiguousarray(d[self.inputs[2]], dtype=np.float64), self._state,
+                   self.window, self._params, self._friction, out)  # fmt: skip
+        return BlockOutput({self.out: out})
