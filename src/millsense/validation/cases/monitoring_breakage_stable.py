@@ -13,9 +13,11 @@ the observer's coloured noise, 1.8 N·m RMS a sample on the held-out streams) as
   torque as the plan's expectation (a plan without error: the plan's error is the general
   cuts' subject), judged at speed (``SpindleAtSpeed`` on the ramped command) where the expected
   tooth-period torque is at least 0.3 of the stream's largest (``online.session.MIN_JUDGED``);
-- seed 002's dual-residual detector without a plan, with decision 1707's flute check as
-  ``monitor`` runs it, learning and judging where the torque has risen from the air and is
-  steady (``TorqueCutGate``, decisions 1706 and 1723).
+- seed 002's dual-residual detector without a plan, with decision 1707's flute check,
+  learning and judging where the torque has risen from the air and is steady
+  (``TorqueCutGate``, decisions 1706 and 1723): on the observer's torque, and on the spindle
+  DOB's torque (K_tS, J_eS and friction of the commissioned machine file; decision 1726), which
+  ``monitor --machine`` gives it.
 
 Light cuts whose expected torque lies inside the noise band are reported as not seen
 (decision 1553), and the table gives that time. It also gives the time the plan-free gate let
@@ -51,10 +53,15 @@ class StreamAlarms:
     blind_s: float  # time in the cut the virtual detector reported a break could not be seen
     cut_s: float  # time in the cut (the stream's cutting torque > 0)
     dual_s: float  # time the plan-free gate let the dual detector judge
+    dual_dob: int  # the same detector on the spindle DOB's torque (decision 1726)
+    dual_dob_s: float
 
 
 def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
     """The breakage alarms of the virtual and dual detectors on one stable stream."""
+    from millsense.core.presets import commissioned_machine
+    from millsense.estimation.from_config import spindle_dob_from_config
+    from millsense.estimation.spindle_dob import DOB_TORQUE
     from millsense.monitoring.breakage import BreakageBlock
     from millsense.monitoring.breakage_phased import PhasedBreakage
     from millsense.online.gates import SpindleAtSpeed, TorqueCutGate
@@ -71,7 +78,10 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
         "expected": d["truth/spindle/torque"],
         "spindle/speed": d["spindle/speed"],
         "spindle/speed_cmd": d["spindle/speed_cmd"],
+        "spindle/current_cmd": d["spindle/current_cmd"],
     }
+    shipped = commissioned_machine("quaser-ux600")
+    assert shipped is not None
     # the largest 0.1 s mean of the expected torque (the plan's largest row average)
     window = int(0.1 * fs)
     sums = np.cumsum(data["expected"])
@@ -85,15 +95,22 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
                        enable_channel="spindle/at_speed", name="virtual"),
         BreakageBlock(flutes, "dual", signal_channels=("torque",), enable_channel="gate/steady",
                       flute_check=True, name="dual"),
+        spindle_dob_from_config(*shipped),
+        TorqueCutGate(DOB_TORQUE, "spindle/speed", "spindle/at_speed", "gate/dob_steady",
+                      name="torque_cut_gate_dob"),
+        BreakageBlock(flutes, "dual", signal_channels=(DOB_TORQUE,),
+                      enable_channel="gate/dob_steady", flute_check=True, name="dual_dob"),
     ])  # fmt: skip
     pipe.reset(fs)
     n = len(data["torque"])
     events = []
     gate_open = 0
+    dob_open = 0
     for i in range(0, n, CHUNK):
         out, ev = pipe.process(Chunk(i, fs, 0.0, {k: v[i : i + CHUNK] for k, v in data.items()}))
         events += ev
         gate_open += int(np.count_nonzero(out["gate/steady"] > 0.5))
+        dob_open += int(np.count_nonzero(out["gate/dob_steady"] > 0.5))
     alarms = [e for e in events if e.kind == EventKind.ALARM]
     blind = np.zeros(n, dtype=bool)  # from a breakage_blind note to the next breakage_seen
     since = None
@@ -109,7 +126,8 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
     return StreamAlarms(label, seconds, sum(e.source == "virtual" for e in alarms),
                         sum(e.source == "dual" for e in alarms),
                         float(np.count_nonzero(blind & in_cut)) / fs,
-                        float(np.count_nonzero(in_cut)) / fs, gate_open / fs)  # fmt: skip
+                        float(np.count_nonzero(in_cut)) / fs, gate_open / fs,
+                        sum(e.source == "dual_dob" for e in alarms), dob_open / fs)  # fmt: skip
 
 
 @functools.cache
@@ -119,11 +137,12 @@ def stable_alarms() -> tuple[StreamAlarms, ...]:
 
 def _table(rows: tuple[StreamAlarms, ...]) -> str:
     out = ["| stream | length | in the cut | virtual alarms | break not seen (noise band) | "
-           "dual alarms | dual judged (plan-free gate) |",
-           "|---|---|---|---|---|---|---|"]  # fmt: skip
+           "dual alarms | dual judged (plan-free gate) | dual alarms, DOB | dual judged, DOB |",
+           "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         out.append(f"| {r.label} | {r.seconds:.0f} s | {r.cut_s:.0f} s | {r.virtual} | "
-                   f"{r.blind_s:.0f} s | {r.dual} | {r.dual_s:.0f} s |")  # fmt: skip
+                   f"{r.blind_s:.0f} s | {r.dual} | {r.dual_s:.0f} s | {r.dual_dob} | "
+                   f"{r.dual_dob_s:.0f} s |")  # fmt: skip
     return "\n".join(out)
 
 
@@ -137,10 +156,10 @@ def _table(rows: tuple[StreamAlarms, ...]) -> str:
     quick=False,
     description="breakage alarms of the virtual threshold (three phases, the stream's own "
     "torque as the plan) and the plan-free dual-residual detector on the compensated spindle "
-    "torque of the chatter cases' stable streams: 600 s of seed 3 and the held-out a and b "
-    "(300 s each)",
+    "torque, and of the dual detector on the spindle DOB's torque (decision 1726), over the "
+    "chatter cases' stable streams: 600 s of seed 3 and the held-out a and b (300 s each)",
     issue=15,
 )
 def _stable() -> Measured:
     rows = stable_alarms()
-    return Measured(float(sum(r.virtual + r.dual for r in rows)), _table(rows))
+    return Measured(float(sum(r.virtual + r.dual + r.dual_dob for r in rows)), _table(rows))
