@@ -123,4 +123,13 @@ def test_commission_identify_writes_the_shipped_spindle_table(
     assert code == 0, err
     got = tomllib.loads((Path("c") / "machine.toml").read_text())["spindle"]
     entry = resources.files("millsense.data").joinpath("commissioned", "quaser-ux600.toml")
-    assert got == tomllib.loads(entry.read_text(encoding="utf-8"))["spindle"]
+    shipped = tomllib.loads(entry.read_text(encoding="utf-8"))["spindle"]
+    assert got.keys() == shipped.keys()
+    for key, value in shipped.items():
+        if isinstance(value, float):
+            # written to 6 significant digits, whose last one differs between processors (an
+            # Intel host gave 0.032251 for the AMD host's 0.0322509 kg·m²): one unit of it, at
+            # most 1e-5 of the value
+            assert got[key] == pytest.approx(value, rel=1e-5), key
+        else:
+            assert got[key] == value, key
