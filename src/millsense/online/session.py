@@ -52,10 +52,10 @@ TORQUE_CHANNEL = "est/spindle/spindle/load"
 #: The same less its air-cut reference (:class:`~millsense.online.gates.AirReference`).
 CUTTING_TORQUE = "plan/cutting_torque"
 #: The spindle's disturbance observer for tooth-period averages (decision 1726) less its own
-#: air-cut reference: what the breakage monitor averages by default.
+#: air-cut reference: what the breakage monitor averages with ``breakage_torque="dob"``.
 DOB_CUTTING_TORQUE = "plan/dob_cutting_torque"
 #: What the breakage monitor may average (:attr:`SessionOptions.breakage_torque`).
-BREAKAGE_TORQUES = ("dob", "observer")
+BREAKAGE_TORQUES = ("observer", "dob")
 FORCE_SOURCES = ("estimate", "dynamometer")
 #: Expected torques below this fraction of the plan's largest are not judged for breakage: the
 #: tooth-period average of an observer's estimate is too noisy there (decision 1622).
@@ -84,9 +84,11 @@ class SessionOptions:
     chatter : run the chatter monitor; ``chatter_method`` which one; ``avoid_chatter``: act
         (spindle override) rather than recommend.
     breakage : run the breakage monitor (virtual threshold); ``hold_on_breakage``: feed hold.
-    breakage_torque : what the breakage monitor averages per tooth period: ``dob`` (the
-        spindle's disturbance observer, seed 001 Eq. 2-15, decision 1726) or ``observer`` (the
-        machine file's LQE observer, Aslan Eq. 5.17-5.21, as chatter and the adaptive feed).
+    breakage_torque : what the breakage monitor averages per tooth period: ``observer`` (the
+        machine file's LQE observer, Aslan Eq. 5.17-5.21, as chatter and the adaptive feed) or
+        ``dob`` (the spindle's disturbance observer, seed 001 Eq. 2-15: a multi-flute tool's
+        break found in its first revolution, but a chatter onset can read as one; decision
+        1726).
     period_s : control period of the supervisor, s.
     stability_case : the lobes' case (:class:`~millsense.stability.cases.
         MillingStabilityCase`: tool modes, flutes, coefficients, immersion) the chatter
@@ -104,7 +106,7 @@ class SessionOptions:
     avoid_chatter: bool = True
     breakage: bool = True
     hold_on_breakage: bool = True
-    breakage_torque: str = "dob"
+    breakage_torque: str = "observer"
     period_s: float = 0.01
     stability_case: Any = None
 

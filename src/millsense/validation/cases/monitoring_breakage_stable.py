@@ -16,8 +16,8 @@ the observer's coloured noise, 1.8 N·m RMS a sample on the held-out streams) as
 - seed 002's dual-residual detector without a plan, with decision 1707's flute check,
   learning and judging where the torque has risen from the air and is steady
   (``TorqueCutGate``, decisions 1706 and 1723): on the observer's torque, and on the spindle
-  DOB's torque (K_tS, J_eS and friction of the commissioned machine file; decision 1726), which
-  ``monitor --machine`` gives it.
+  DOB's torque (K_tS, J_eS and friction of the commissioned machine file; decision 1726: what
+  a session averages with ``--breakage-torque dob``).
 
 Light cuts whose expected torque lies inside the noise band are reported as not seen
 (decision 1553), and the table gives that time. It also gives the time the plan-free gate let
