@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,6 +35,10 @@ from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk
+
+if TYPE_CHECKING:
+    from millsense.models.friction import CoulombViscous
+    from millsense.models.spindle_plant import SpindleDriveParams
 
 METHODS = ("feed", "raw", "medob", "spindle")
 
@@ -161,18 +165,9 @@ def spindle_observer_from_config(
         RangeSwitchedSpindleObserver,
         SpindleTorqueObserver,
     )
-    from millsense.models.friction import CoulombViscous
 
     params, ranges, _ = _spindle_designs(machine, where)
-    cfg = machine.spindle
-    assert cfg is not None
-    friction = CoulombViscous(
-        cfg.coulomb_nm,
-        cfg.coulomb_nm,
-        cfg.viscous_nm_s_rad,
-        cfg.viscous_nm_s_rad,
-        params.friction_smoothing_rad_s,
-    )
+    friction = _spindle_friction(machine, params)
     obs = [SpindleTorqueObserver(design, sample_rate_hz, friction=friction)
            for _, design in ranges]  # fmt: skip
     block: Block = obs[0]
@@ -191,20 +186,34 @@ def spindle_dob_from_config(machine: MachineConfig, where: str) -> Block:
     ``[spindle]``: K_tS of both speed ranges, J_eS and the friction the LQE observer of
     :func:`spindle_observer_from_config` subtracts."""
     from millsense.estimation.spindle_dob import SpindleDobTorque
-    from millsense.models.friction import CoulombViscous
+
+    params = _spindle_params(machine, where)
+    r1, r2 = params.ranges
+    return SpindleDobTorque((r1.torque_constant, r2.torque_constant), params.switch_rad_s,
+                            params.inertia, _spindle_friction(machine, params))  # fmt: skip
+
+
+def _spindle_params(machine: MachineConfig, where: str) -> SpindleDriveParams:
+    """The ``[spindle]`` drive's parameters (``SpindleDriveParams``), or the one-line error
+    naming what the file lacks."""
     from millsense.models.spindle_plant import SpindleDriveParams
 
     reason = spindle_unavailable_reason(machine, where)
     if reason is not None:
         raise ConfigError(reason)
+    assert machine.spindle is not None
+    return SpindleDriveParams.from_config(machine.spindle)
+
+
+def _spindle_friction(machine: MachineConfig, params: SpindleDriveParams) -> CoulombViscous:
+    """The configured spindle friction τ_coul + B_eS·Ω (one value for both directions), with
+    the drive's smoothing of sgn(Ω): what the LQE observer and the DOB subtract."""
+    from millsense.models.friction import CoulombViscous
+
     cfg = machine.spindle
     assert cfg is not None
-    params = SpindleDriveParams.from_config(cfg)
-    friction = CoulombViscous(cfg.coulomb_nm, cfg.coulomb_nm, cfg.viscous_nm_s_rad,
-                              cfg.viscous_nm_s_rad, params.friction_smoothing_rad_s)  # fmt: skip
-    r1, r2 = params.ranges
-    return SpindleDobTorque((r1.torque_constant, r2.torque_constant), params.switch_rad_s,
-                            params.inertia, friction)  # fmt: skip
+    return CoulombViscous(cfg.coulomb_nm, cfg.coulomb_nm, cfg.viscous_nm_s_rad,
+                          cfg.viscous_nm_s_rad, params.friction_smoothing_rad_s)  # fmt: skip
 
 
 def _spindle_designs(
@@ -224,14 +233,10 @@ def _spindle_designs(
     returned parameters keep the key: :func:`spindle_estimate_response` takes the drive's
     exact response with it."""
     from millsense.estimation.spindle_observer import disturbance_model_per_sample, tune_spindle_q
-    from millsense.models.spindle_plant import SpindleDriveParams
 
-    reason = spindle_unavailable_reason(machine, where)
-    if reason is not None:
-        raise ConfigError(reason)
+    base = _spindle_params(machine, where)
     cfg = machine.spindle
     assert cfg is not None
-    base = SpindleDriveParams.from_config(cfg)
     modes = np.zeros((0, 4))
     feedthrough = 0.0
     if cfg.residual_modes is not None:
