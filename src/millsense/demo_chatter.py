@@ -150,11 +150,13 @@ def _plant_plan() -> Any:
 
 def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
          on_progress: Callable[[int], None] | None,
-         wrap: Callable[[Any], Any] | None = None, seed: int = 0) -> Any:  # fmt: skip
+         wrap: Callable[[Any], Any] | None = None, seed: int = 0,
+         breakage_torque: str = "observer") -> Any:  # fmt: skip
     """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
     machine cutting its own plan ``plant``; the session's result. ``wrap``: put in front of
     the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`); ``seed``:
-    added to the virtual machine's seed of the pass (:data:`CHATTER_SEED`)."""
+    added to the virtual machine's seed of the pass (:data:`CHATTER_SEED`);
+    ``breakage_torque``: what the breakage monitor averages (decision 1726)."""
     from millsense.bench.tap_test import tap_tested_case
     from millsense.core.presets import commissioned_machine
     from millsense.demo_online import _Open
@@ -177,7 +179,7 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
         case = tap_tested_case(load_case(modes_path), modes)
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_chatter.nc", modes=modes)
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=CHATTER_SEED + seed))
-    opts = SessionOptions(adaptive=False, stability_case=case)
+    opts = SessionOptions(adaptive=False, stability_case=case, breakage_torque=breakage_torque)
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts,
                            where=where, channels=sim.channel_names)  # fmt: skip
     source: Source = sim if controlled else _Open(sim)

@@ -15,10 +15,11 @@ speed from one encoder difference carries whole into each end (0.06 rad/s a coun
 0.032 kg·m²), is divided by the window.
 
 This is not a per-sample torque: the window's mean follows the speed's tooth-frequency ripple
-only in part, and no low-pass follows (Eq. 2-15's g_cut): its per-sample noise is large. It is
-what the breakage monitor averages per tooth period (decision 1726); the machine file's LQE
-observer (Aslan Eq. 5.17-5.21), tuned for the per-sample torque chatter and the adaptive feed
-read, keeps that role.
+only in part, and no low-pass follows (Eq. 2-15's g_cut): its per-sample noise is large. A
+session's breakage monitor averages it per tooth period on request (``--breakage-torque dob``,
+decision 1726: not by default, because a chatter onset reads as a break on it); the machine
+file's LQE observer (Aslan Eq. 5.17-5.21), tuned for the per-sample torque chatter and the
+adaptive feed read, keeps every other role.
 """
 
 from __future__ import annotations
@@ -35,9 +36,10 @@ from millsense.models.friction import CoulombViscous, coulomb_viscous_torque
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 #: The pseudo-differentiation's window (decision 1726): 0.9 ms, 9 samples at 10 kHz. The
-#: tooth-period contrasts' noise fell from 0.25 N·m (one encoder difference) to 0.15 (5
-#: samples) and 0.08 (9 samples) on the six general cuts; a window of 0.6 of the shortest of
-#: their tooth periods (15 samples: 4 flutes at 10 000 rev/min).
+#: tooth-period contrasts' robust scatter on the six general cuts was 0.25-0.75 N·m with one
+#: encoder difference, 0.10-0.23 with 5 samples and 0.075-0.13 with 9 (0.11-0.39 on the LQE
+#: observer's torque); 0.6 of the shortest of their tooth periods (15 samples: 4 flutes at
+#: 10 000 rev/min).
 WINDOW_S = 0.9e-3
 #: The output channel.
 DOB_TORQUE = "spindle/dob_torque"

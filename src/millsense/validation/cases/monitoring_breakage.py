@@ -270,9 +270,10 @@ def v7_run() -> V7Run:
     res = run_session(_Open(sim), built.blocks, stop_after_hold_s=None, observer=keep)
     data = {k: np.concatenate(v) for k, v in parts.items()}
     run = V7Run(data, plan, break_s, m.sample_rate_hz, notes=list(notes) + list(built.notes))
-    # the session's detector (seed 000's rule and the flute pattern, decision 1684, on the
-    # spindle DOB's torque, decision 1726), and seed 000's rule alone replayed on the LQE
-    # observer's compensated torque (Aslan's sensory spindle): V7's figures are the seed's
+    # the session's detector (seed 000's rule and the flute pattern, decision 1684), and seed
+    # 000's rule alone replayed on the LQE observer's compensated torque (Aslan's sensory
+    # spindle; also where a session averages the DOB's, decision 1726): V7's figures are the
+    # seed's
     run.events["session"] = [e for e in res.events if e.name == "breakage"]
     session_det = next(c for b in built.blocks for c in getattr(b, "children", ())
                        if isinstance(c, PhasedBreakage))  # fmt: skip
