@@ -105,10 +105,10 @@ def test_dob_refuses_bad_parameters() -> None:
         SpindleDobTorque((1.0, -1.0), math.inf, J)
 
 
-def test_session_breakage_averages_the_dob_torque_on_request() -> None:
-    """Decision 1726: the session's breakage monitor averages the LQE observer's cutting torque
-    by default and the DOB's (less its own air reference, a DOB block added) with
-    ``breakage_torque="dob"``; anything else is a one-line error."""
+def test_session_breakage_averages_the_dob_torque_by_default() -> None:
+    """Decisions 1726, 1727: the session's breakage monitor averages the DOB's cutting torque
+    (less its own air reference, a DOB block added) by default and the LQE observer's with
+    ``breakage_torque="observer"``; anything else is a one-line error."""
     from pathlib import Path
 
     from millsense.core.config import MachineConfig
@@ -125,7 +125,7 @@ def test_session_breakage_averages_the_dob_torque_on_request() -> None:
         "examples/walkthrough/quaser-ux600-commissioned.toml"
     )
     cfg = load_preset(MachineConfig, str(machine))
-    assert SessionOptions().breakage_torque == "observer"
+    assert SessionOptions().breakage_torque == "dob"
     for which, signal in (("dob", DOB_CUTTING_TORQUE), ("observer", CUTTING_TORQUE)):
         built = session_blocks(step_plan(2.0, 3.0), cfg, FS, SessionOptions(breakage_torque=which))
         (brk,) = [c for b in built.blocks for c in getattr(b, "children", ())

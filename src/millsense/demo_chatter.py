@@ -151,7 +151,7 @@ def _plant_plan() -> Any:
 def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
          on_progress: Callable[[int], None] | None,
          wrap: Callable[[Any], Any] | None = None, seed: int = 0,
-         breakage_torque: str = "observer") -> Any:  # fmt: skip
+         breakage_torque: str = "dob") -> Any:  # fmt: skip
     """One closed-loop run of the session (on ``plan``) with the T1 modes on the virtual
     machine cutting its own plan ``plant``; the session's result. ``wrap``: put in front of
     the virtual machine (the warm-up's first seconds, :mod:`millsense.warm_up`); ``seed``:

@@ -185,8 +185,8 @@ def warm_up(
         out = Path(tmp)
         plan, plant = demo_online._plan(out), demo_online._plant_plan()
         for i, (seconds, opts) in enumerate(
-            # the second also averages the spindle DOB's torque for breakage (decision 1726)
-            ((online_s, None), (FORCE_S, SessionOptions(quantity="force", breakage_torque="dob")))
+            # the second regulates the force from the feed-drive estimators
+            ((online_s, None), (FORCE_S, SessionOptions(quantity="force")))
         ):
             demo_online._run(plan, plant, True, out / f"online{i}.h5",
                              out / f"online{i}.events.parquet", None,

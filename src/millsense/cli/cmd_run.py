@@ -32,12 +32,12 @@ _MACHINE_FILE = typer.Option(
 )
 
 _BREAKAGE_TORQUE = typer.Option(
-    "observer",
+    "dob",
     "--breakage-torque",
-    help="What the breakage monitor averages per tooth period: observer (the machine file's "
-    "spindle observer, as the chatter monitor and the adaptive feed) or dob (the spindle's "
-    "disturbance observer, its encoder speed averaged over 0.9 ms: a multi-flute tool's break "
-    "found in its first revolution, but a chatter onset can read as one; decision 1726).",
+    help="What the breakage monitor averages per tooth period: dob (the spindle's disturbance "
+    "observer, its encoder speed averaged over 0.9 ms: a multi-flute tool's break found in its "
+    "first revolution; decisions 1726, 1727) or observer (the machine file's spindle observer, "
+    "as the chatter monitor and the adaptive feed read it).",
 )
 
 
@@ -50,7 +50,7 @@ def _options(
     chatter: bool,
     act_on_chatter: bool,
     breakage: bool,
-    breakage_torque: str = "observer",
+    breakage_torque: str = "dob",
 ) -> Any:
     from millsense.control.adaptive_feed import QUANTITIES
     from millsense.core.errors import ConfigError

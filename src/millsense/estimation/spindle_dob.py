@@ -16,10 +16,11 @@ speed from one encoder difference carries whole into each end (0.06 rad/s a coun
 
 This is not a per-sample torque: the window's mean follows the speed's tooth-frequency ripple
 only in part, and no low-pass follows (Eq. 2-15's g_cut): its per-sample noise is large. A
-session's breakage monitor averages it per tooth period on request (``--breakage-torque dob``,
-decision 1726: not by default, because a chatter onset reads as a break on it); the machine
-file's LQE observer (Aslan Eq. 5.17-5.21), tuned for the per-sample torque chatter and the
-adaptive feed read, keeps every other role.
+session's breakage monitor averages it per tooth period (decision 1726; by default since
+decision 1727 told a chatter onset, which grows, from a break, which steps; ``--breakage-torque
+observer`` averages the LQE observer's instead); the machine file's LQE observer (Aslan
+Eq. 5.17-5.21), tuned for the per-sample torque chatter and the adaptive feed read, keeps every
+other role.
 """
 
 from __future__ import annotations

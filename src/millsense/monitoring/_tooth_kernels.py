@@ -219,6 +219,9 @@ PATTERN_WARM = 8
 PATTERN_REVS = 4
 #: Decision 1685: revolutions before a pattern's first drop whose spread it is judged against.
 PATTERN_BEFORE = 2
+#: Decision 1727: the spread of the newer of those revolutions over the older's at which the
+#: contrast counts as growing (chatter's onset), and the spread then extrapolated to the drop.
+PATTERN_GROWTH = 1.5
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
@@ -451,6 +454,24 @@ def _scale_before(state: FloatArray, window: int, n: int, first: int, count: int
 
 
 @numba.njit(cache=True)
+def _growing_spread(
+    state: FloatArray, window: int, n: int, first: int, nf: int, scale: float
+) -> float:
+    """The spread a pattern's drop is judged against (decisions 1685, 1727): the contrast's
+    RMS over the PATTERN_BEFORE revolutions from ``first`` periods back (:func:`_scale_before`)
+    or, where the newer of the two revolutions spreads PATTERN_GROWTH times the older's or more
+    (an oscillation growing: chatter's onset, regenerative and exponential, not a break, which
+    comes as a step into a steady cut), the newer's RMS grown at that rate over the
+    ``first // nf`` revolutions from it to the current period."""
+    before = _scale_before(state, window, n, first, PATTERN_BEFORE * nf)
+    newer = _scale_before(state, window, n, first, nf)
+    older = _scale_before(state, window, n, first + nf, nf)
+    if newer > PATTERN_GROWTH * max(older, scale) and older > 0.0:
+        return max(before, newer * (newer / older) ** (first // nf))
+    return before
+
+
+@numba.njit(cache=True)
 def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float) -> float:
     """A broken flute's pattern on a two-sided judged period (decision 1684; seed 002 §2.5:
     the broken flute k loses its chip, the next flute k + 1 cuts it as well): the evidence, in
@@ -533,7 +554,7 @@ def _flute_pattern(state: FloatArray, nf: int, slot: int, r: float, size: float)
                         e = acc / math.sqrt(i + 1.0)
                         first = (i + 1) * nf + (1 if ring == qr else 0)
                         window = dw if ring == qr else cw
-                        before = _scale_before(state, window, n, first, PATTERN_BEFORE * nf)
+                        before = _growing_spread(state, window, n, first, nf, scale)
                         if before > scale > 0.0:
                             e *= scale / before
                         evidence = max(evidence, e)

@@ -52,7 +52,8 @@ TORQUE_CHANNEL = "est/spindle/spindle/load"
 #: The same less its air-cut reference (:class:`~millsense.online.gates.AirReference`).
 CUTTING_TORQUE = "plan/cutting_torque"
 #: The spindle's disturbance observer for tooth-period averages (decision 1726) less its own
-#: air-cut reference: what the breakage monitor averages with ``breakage_torque="dob"``.
+#: air-cut reference: what the breakage monitor averages by default (``breakage_torque="dob"``,
+#: decision 1727).
 DOB_CUTTING_TORQUE = "plan/dob_cutting_torque"
 #: What the breakage monitor may average (:attr:`SessionOptions.breakage_torque`).
 BREAKAGE_TORQUES = ("observer", "dob")
@@ -84,11 +85,10 @@ class SessionOptions:
     chatter : run the chatter monitor; ``chatter_method`` which one; ``avoid_chatter``: act
         (spindle override) rather than recommend.
     breakage : run the breakage monitor (virtual threshold); ``hold_on_breakage``: feed hold.
-    breakage_torque : what the breakage monitor averages per tooth period: ``observer`` (the
-        machine file's LQE observer, Aslan Eq. 5.17-5.21, as chatter and the adaptive feed) or
-        ``dob`` (the spindle's disturbance observer, seed 001 Eq. 2-15: a multi-flute tool's
-        break found in its first revolution, but a chatter onset can read as one; decision
-        1726).
+    breakage_torque : what the breakage monitor averages per tooth period: ``dob`` (the
+        spindle's disturbance observer, seed 001 Eq. 2-15: a multi-flute tool's break found in
+        its first revolution; decisions 1726, 1727) or ``observer`` (the machine file's LQE
+        observer, Aslan Eq. 5.17-5.21, as chatter and the adaptive feed read it).
     period_s : control period of the supervisor, s.
     stability_case : the lobes' case (:class:`~millsense.stability.cases.
         MillingStabilityCase`: tool modes, flutes, coefficients, immersion) the chatter
@@ -106,7 +106,7 @@ class SessionOptions:
     avoid_chatter: bool = True
     breakage: bool = True
     hold_on_breakage: bool = True
-    breakage_torque: str = "observer"
+    breakage_torque: str = "dob"
     period_s: float = 0.01
     stability_case: Any = None
 

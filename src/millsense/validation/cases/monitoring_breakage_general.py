@@ -64,7 +64,7 @@ class CutRun:
 
 
 @functools.lru_cache(maxsize=2)
-def general_runs(breakage_torque: str = "observer") -> tuple[CutRun, ...]:
+def general_runs(breakage_torque: str = "dob") -> tuple[CutRun, ...]:
     """The six cuts, broken and intact, through `run`'s session; ``breakage_torque``: what its
     breakage monitor averages (decision 1726)."""
     from millsense.core.config import ToolConfig
@@ -151,32 +151,17 @@ def _false() -> Measured:
     unit="tooth periods",
     quick=False,
     description="the largest delay from the break to its first alarm over the six cuts, in "
-    "tooth periods (inf where a break is missed)",
-    gap="seed 000's rule confirms its third violating tooth period within 3 periods only where "
-    "the broken flute's period and the next flute's double chip both leave the band (a "
-    "2-flute slot); the flute pattern of decision 1684 confirms from the physics instead "
-    "(the broken flute's drop against the other flutes and its own past, the next flute's "
-    "rise), at 7σ of its evidence, a threshold set from the intact cuts' false-alarm rate "
-    "(one per 7 h at 10 000 rev/min, 4 flutes). The tooth period holding most of the broken "
-    "flute's drop ends up to 4 periods after the break (the 4-flute slot: 3.2-3.9, by the "
-    "phase; the effect in the truth's torque starts 0-0.6 periods after the break), and the "
-    "drop and the rise must stand 7σ above the noise of the tooth average (its own scatter "
-    "and that of the flute's reference): that holds in one revolution where the flute's "
-    "share of the torque is large (2 flutes: 2.3, 3.0 periods), and needs the drop repeated "
-    "one or two revolutions on where it is small against the noise: the 3-flute slot (6.0), "
-    "the 3-flute half immersion (6.0; 12.0 with the held-torque observer before decision "
-    "1699), the 4-flute slot (11.6, seed 000's rule first) and the 4-flute half immersion at "
-    "10 000 rev/min (9.9, seed 000's rule first). With the observer built on the commissioning "
-    "sweep's inertia and admittance (decision 1708) the slots' pattern evidence in the first "
-    "revolutions is lower than with the nameplate's (the 3-flute slot 4.0 -> 6.0, the "
-    "4-flute slot 7.6 -> 11.6 periods; the 3-flute half 7.0 -> 6.0): the figure is the "
-    "observer's noise against a flute's share, not a threshold to move. The pattern is on by "
-    "default since decision 1685 (without it the 4-flute slot took 43.9, seed 000's rule). "
-    "With `run --breakage-torque dob` (the spindle DOB's torque, the encoder's "
-    "quantisation averaged out of the tooth periods' mean; decision 1726) every cut is "
-    "confirmed in the first revolution: 1.9, 4.0, 4.6, 2.7, 3.6, 2.9 periods; it is not the "
-    "default, because a chatter onset reads as a break on it (the demo's chatter-prone "
-    "pass: 7.2σ at 1.42 s, before the chatter monitor's 1.60 s)",
+    "tooth periods (inf where a break is missed), the session's breakage monitor averaging the "
+    "spindle DOB's torque (seed 001 Eq. 2-15, the encoder's speed averaged over 0.9 ms; "
+    "decisions 1726, 1727, the default); the table also gives the alarms before the break and "
+    "on the intact runs",
+    gap="every cut is confirmed by the flute pattern (decision 1684) in the first revolution "
+    "after the break: 1.9, 4.0, 4.6, 2.7, 3.6, 2.9 periods. In a slot a flute cuts over half "
+    "a revolution: in the 4-flute slot the tooth period holding most of the broken flute's drop "
+    "ends 3.2-3.9 periods after the break, and the next flute's rise, which confirms a single "
+    "revolution, one later; the 3-flute slot and half immersion likewise wait for the rise. "
+    "The evidence must stand 7σ above the noise of the tooth average, a threshold set from the "
+    "intact cuts' false-alarm rate (decision 1684), not a figure to move",
     issue=15,
 )
 def _latency() -> Measured:
@@ -185,60 +170,72 @@ def _latency() -> Measured:
 
 
 @case(
-    "monitoring.breakage.general_cuts_dob_latency_periods",
+    "monitoring.breakage.general_cuts_observer_latency_periods",
     source="issue 15 acceptance: breakage effect to event ≤ 3 tooth periods (seed 000 C17), "
-    "the session averaging the spindle DOB's torque (`--breakage-torque dob`)",
+    "the session averaging the LQE spindle observer's torque (`--breakage-torque observer`)",
     reference=1.5,
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
     description="the largest delay from the break to its first alarm over the six cuts, in "
-    "tooth periods (inf where a break is missed), with the breakage monitor on the spindle "
-    "DOB's torque (seed 001 Eq. 2-15, the encoder's speed averaged over 0.9 ms; decision 1726); "
-    "the table also gives the alarms before the break and on the intact runs",
+    "tooth periods (inf where a break is missed), with the breakage monitor on the machine "
+    "file's LQE spindle observer's torque (Aslan Eq. 5.17-5.21; the default before decision "
+    "1727); the table also gives the alarms before the break and on the intact runs",
     issue=15,
-    gap="every cut is confirmed by the flute pattern in the first revolution after the break, "
-    "but in the 4-flute slot the tooth period holding most of the broken flute's drop ends "
-    "3.2-3.9 periods after the break and the next flute's rise, which confirms a single "
-    "revolution, one later (decision 1726)",
+    gap="the tooth period's mean of the observer's torque carries the spindle encoder's "
+    "quantisation through its inertial term (one count of 2^20 per revolution at 10 kHz is "
+    "0.8 N·m of a 2.5 ms period's mean on the quaser-ux600; decision 1726): the broken flute's "
+    "drop stands 7σ above it in one revolution only where the flute's share of the torque is "
+    "large (2 flutes: 2.3, 3.0 periods), and needs it repeated one or two revolutions on where "
+    "it is small: the 3-flute slot (6.0), the 3-flute half immersion (6.0), the 4-flute slot "
+    "(11.6, seed 000's rule first) and the 4-flute half immersion at 10 000 rev/min (9.9, seed "
+    "000's rule first). This is why the DOB is the default (decision 1727)",
 )
-def _dob_latency() -> Measured:
-    runs = general_runs("dob")
+def _observer_latency() -> Measured:
+    runs = general_runs("observer")
     return Measured(max(r.latency_periods() for r in runs), _table(runs))
 
 
 @case(
-    "monitoring.breakage.dob_chatter_onset_false_alarms",
+    "monitoring.breakage.chatter_onset_false_alarms",
     source="issue 15: no breakage alarm where the cut chatters (seed 000 Fig. 6.16: chatter "
-    "first), the session averaging the spindle DOB's torque",
+    "first), the session averaging the spindle DOB's torque (the default)",
     reference=0.0,
     abs_tol=0.0,
     unit="alarms",
     quick=False,
-    description="breakage alarms of the session with `--breakage-torque dob` on the demo's "
-    "chatter-prone pass (seed 000's T1, 5 flutes, 4500 rev/min, chatter avoidance on; the run "
-    "ends 0.5 s after a feed hold)",
+    description="breakage alarms of the default session (the DOB's torque, decisions 1726, "
+    "1727) on the demo's chatter-prone pass (seed 000's T1, 5 flutes, 4500 rev/min), with the "
+    "chatter avoidance on (the run ends 0.5 s after a feed hold, if any) and off (the chatter "
+    "grows to its limit cycle and stays)",
     issue=15,
-    gap="on the DOB's quiet torque a chatter onset reads as a broken flute's pattern: the "
-    "chatter (511 Hz against 75 Hz of rotation) drifts 0.19 cycle a revolution per flute, "
-    "nearly locked to one for a few revolutions; it moves several flutes at once, which a "
-    "broken flute does not. This is why `dob` is not the default (decision 1726)",
 )
-def _dob_chatter() -> Measured:
+def _chatter_onset() -> Measured:
     import tempfile as _tempfile
 
     from millsense.demo_chatter import _plan, _plant_plan, _run
     from millsense.online.session import StopAfterHold
 
+    rows = ["| chatter avoidance | breakage alarm, s | confirmed by |", "|---|---|---|"]
+    count = 0
     with _tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        res = _run(_plan(out), _plant_plan(), True, out / "c.h5", out / "c.events.parquet", None,
-                   wrap=lambda s: StopAfterHold(s, 0.5), breakage_torque="dob")  # fmt: skip
-    alarms = [e for e in res.events if e.name == "breakage"]
-    rows = ["| breakage alarm, s | confirmed by |", "|---|---|"]
-    for e in alarms:
-        ev = e.values.get("pattern_evidence")
-        rows.append(f"| {e.time_s:.4f} | "
-                    f"{f'the flute pattern, {ev:.2f}σ' if ev is not None else 'seed 000 rule'} |")
-    return Measured(float(len(alarms)), "\n".join(rows) + "\n\nWithout the DOB (the demo's "
-                    "own run) no breakage alarm; its chatter monitor alarms at 1.60 s.")
+        for controlled in (True, False):
+            res = _run(_plan(out), _plant_plan(), controlled, out / "c.h5",
+                       out / "c.events.parquet", None,
+                       wrap=lambda s: StopAfterHold(s, 0.5))  # fmt: skip
+            alarms = [e for e in res.events if e.name == "breakage"]
+            count += len(alarms)
+            chatter = next((e.time_s for e in res.events if e.name == "chatter"), None)
+            label = "on" if controlled else "off"
+            for e in alarms:
+                ev = e.values.get("pattern_evidence")
+                how = f"the flute pattern, {ev:.2f}σ" if ev is not None else "seed 000 rule"
+                rows.append(f"| {label} | {e.time_s:.4f} | {how} |")
+            if not alarms:
+                first = "none" if chatter is None else f"none (chatter alarm at {chatter:.2f} s)"
+                rows.append(f"| {label} | {first} | |")
+    return Measured(float(count), "\n".join(rows) + "\n\nBefore decision 1727 the flute "
+                    "pattern confirmed a break at 1.4213 s (7.22σ) on the DOB's torque, before "
+                    "the chatter monitor's 1.60 s: the chatter grew 1.5-4× a revolution in the "
+                    "revolutions before the drop.")
