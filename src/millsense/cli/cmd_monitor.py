@@ -290,6 +290,8 @@ def _run(
 
     pre: list[Any] = []
     signal = channel
+    # what the breakage detectors average where it is not `signal` (decision 1728)
+    breakage_signal: str | None = None
     # the plan-free breakage detectors' gate from the torque (decision 1706), if built
     torque_gate: TorqueCutGate | None = None
     if (
@@ -311,6 +313,15 @@ def _run(
         channels[OBSERVER_CHANNEL] = "N*m"
         signal = OBSERVER_CHANNEL
         observer_machine: tuple[Any, str] | None = (mcfg, machine)
+        if any(n.startswith("breakage-") for n in names):
+            # the breakage detectors average the spindle DOB's torque: the encoder's
+            # quantisation averaged out of the tooth periods' mean (decisions 1726, 1728)
+            from millsense.estimation.from_config import spindle_dob_from_config
+            from millsense.estimation.spindle_dob import DOB_TORQUE
+
+            pre.append(spindle_dob_from_config(mcfg, machine))
+            channels[DOB_TORQUE] = "N*m"
+            breakage_signal = DOB_TORQUE
     else:
         observer_machine = _session_machine(rec) if OBSERVER_CHANNEL in channels else None
     spindle_file = observer_machine[0] if observer_machine is not None else None
@@ -346,6 +357,16 @@ def _run(
 
         pre.append(SpindleAtSpeed())
         channels[AT_SPEED] = "1"
+    if breakage_signal is not None and IN_CUT in channels and AT_SPEED in channels:
+        # a session's recording: the DOB's torque less its air where the plan says air, as the
+        # session's (decisions 1726, 1728), for the plan's expected torque
+        from millsense.online.gates import AirReference
+        from millsense.online.session import DOB_CUTTING_TORQUE
+
+        pre.append(AirReference(breakage_signal, IN_CUT, AT_SPEED, out=DOB_CUTTING_TORQUE,
+                                name="monitor/dob_air"))  # fmt: skip
+        channels[DOB_CUTTING_TORQUE] = "N*m"
+        breakage_signal = DOB_CUTTING_TORQUE
     if AT_SPEED in channels and IN_CUT in channels:
         # a session's recording: breakage is judged where the plan has the tool in the cut too
         # (the dual and constant detectors learn their thresholds and reference on the cut,
@@ -369,7 +390,8 @@ def _run(
         from millsense.monitoring.registry import BREAKAGE_SIGNALS_SESSION
         from millsense.online.gates import TorqueCutGate
 
-        torque = signal or next((c for c in BREAKAGE_SIGNALS_SESSION if c in channels), None)
+        known = next((c for c in BREAKAGE_SIGNALS_SESSION if c in channels), None)
+        torque = breakage_signal or signal or known
         if torque is not None and speed_channel is not None and speed_unit == "rad/s":
             torque_gate = TorqueCutGate(torque, speed_channel, AT_SPEED, BREAKAGE_STEADY_GATE)
             pre.append(torque_gate)
@@ -390,6 +412,8 @@ def _run(
     def read(name: str, i0: int, i1: int) -> np.ndarray:
         return np.asarray(channel_window(rec, name, i0, i1), dtype=np.float64)
 
+    if breakage_signal is not None:
+        options = {**(options or {}), "breakage.signal": breakage_signal}
     ctx = MonitorContext(
         channels=channels, sample_rate_hz=fs, signal=signal, speed_channel=speed_channel,
         speed_unit=speed_unit, speed_rpm=spindle_rpm, n_flutes=n_flutes,

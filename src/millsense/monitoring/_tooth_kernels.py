@@ -189,7 +189,9 @@ DET_PALARMED = 24  # 1: an alarm was raised since the last gap or re-arm (patter
 DET_NOISE_SLOW = 25  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, decision 1718)
 DET_NOISE_NAN = 26  # NaN values held in the noise window (not in its sorted copy)
 DET_PAIRED = 27  # plan-free constant reference: 1 once its running violation held a flute pair
-DET_BASE = 28  # ring buffers: the last N period values, the noise window, then the last N
+DET_CHANGED = 28  # virtual: 1 once the running violation held a change (decision 1729)
+DET_UNJUDGED = 29  # virtual: 1 where the previous period was not judged at all (decision 1729)
+DET_BASE = 30  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
 # PATTERN_REVS × N drop-then-rise scores, and two scale windows of NOISE_WINDOW; then the
@@ -219,9 +221,18 @@ PATTERN_WARM = 8
 PATTERN_REVS = 4
 #: Decision 1685: revolutions before a pattern's first drop whose spread it is judged against.
 PATTERN_BEFORE = 2
+#: Decision 1729: a change of the cut over one revolution, |Δ_N x|, counts for the virtual
+#: threshold's run from this many standard deviations of that difference's noise (√2 σ̂).
+CHANGE_K = 3.0
+#: Decision 1728: a plan-free flute pair's larger change over one revolution must stand this
+#: many times the RMS of those changes over the PATTERN_BEFORE revolutions before it (3σ).
+PAIR_OUTLIER = 3.0
 #: Decision 1727: the spread of the newer of those revolutions over the older's at which the
 #: contrast counts as growing (chatter's onset), and the spread then extrapolated to the drop.
 PATTERN_GROWTH = 1.5
+#: ... each spread taken over one revolution or this many periods, whichever is longer: the
+#: RMS of a 2-flute revolution's two contrasts grew 1.5× by chance (decisions 1727, 1728).
+GROWTH_PERIODS = 8
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
@@ -308,6 +319,7 @@ def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     st[DET_P2] = p0
     st[DET_LEARN] = -1.0
     st[DET_GAP] = 1.0
+    st[DET_UNJUDGED] = 1.0
     return st
 
 
@@ -459,15 +471,17 @@ def _growing_spread(
 ) -> float:
     """The spread a pattern's drop is judged against (decisions 1685, 1727): the contrast's
     RMS over the PATTERN_BEFORE revolutions from ``first`` periods back (:func:`_scale_before`)
-    or, where the newer of the two revolutions spreads PATTERN_GROWTH times the older's or more
-    (an oscillation growing: chatter's onset, regenerative and exponential, not a break, which
-    comes as a step into a steady cut), the newer's RMS grown at that rate over the
-    ``first // nf`` revolutions from it to the current period."""
+    or, where of two windows of w = max(N, GROWTH_PERIODS) periods from there back the newer
+    spreads PATTERN_GROWTH times the older and the contrast's ``scale`` or more (an oscillation
+    growing: chatter's onset, regenerative and exponential, not a break, which comes as a step
+    into a steady cut), the newer's RMS grown at that rate over the ``first`` periods from it
+    to the current one, newer · (newer/older)^(first/w)."""
     before = _scale_before(state, window, n, first, PATTERN_BEFORE * nf)
-    newer = _scale_before(state, window, n, first, nf)
-    older = _scale_before(state, window, n, first + nf, nf)
+    w = max(nf, GROWTH_PERIODS)
+    newer = _scale_before(state, window, n, first, w)
+    older = _scale_before(state, window, n, first + w, w)
     if newer > PATTERN_GROWTH * max(older, scale) and older > 0.0:
-        return max(before, newer * (newer / older) ** (first // nf))
+        return max(before, newer * (newer / older) ** (first / w))
     return before
 
 
@@ -600,6 +614,37 @@ def _pair_slot(
 
 
 @numba.njit(cache=True)
+def _lag_n_spread(state: FloatArray, nf: int, back: int) -> float:
+    """The RMS of the cut's changes over one revolution, |Δ_N x|, over the PATTERN_BEFORE
+    revolutions (at least GROWTH_PERIODS periods) before the last ``back`` periods (the noise
+    window's ring, decision 1550); NaN until the window holds them or where one is NaN
+    (decision 1728)."""
+    n = int(state[DET_NOISE_N])
+    count = max(PATTERN_BEFORE * nf, GROWTH_PERIODS)
+    if back + count > n:
+        return math.nan
+    noise0 = DET_BASE + nf
+    pos = int(state[DET_NOISE_POS])
+    ss = 0.0
+    for j in range(back + 1, back + count + 1):  # j periods back: 1 is the newest held
+        v = state[noise0 + (pos - j) % NOISE_WINDOW]
+        ss += v * v
+    return math.sqrt(ss / count)
+
+
+@numba.njit(cache=True)
+def _stands_out(state: FloatArray, nf: int, reach: int, dn: float, mate: int) -> bool:
+    """Whether a flute pair (this period's Δ_N x ``dn`` and that in ring slot ``mate``) stands
+    out of the cut's changes before it (decision 1728): its larger change at least PAIR_OUTLIER
+    times their RMS over the PATTERN_BEFORE revolutions before the pair's reach
+    (:func:`_lag_n_spread`); True where that spread is not known. A break comes as a step into
+    a steady cut; chatter's onset has changed the cut for revolutions before."""
+    spread = _lag_n_spread(state, nf, reach + 1)
+    big = max(abs(dn), abs(state[mate]))
+    return not (spread == spread) or big >= PAIR_OUTLIER * spread
+
+
+@numba.njit(cache=True)
 def detect_periods(
     pp: FloatArray,
     pb: FlagArray,
@@ -728,6 +773,7 @@ def detect_periods(
             state[DET_RUN] = 0.0
             state[DET_MISS] = 0.0
             state[DET_GAP] = 1.0
+            state[DET_UNJUDGED] = 1.0
             state[DET_ALARMED] = 0.0
             state[DET_LOW] = 0.0
             _pattern_reset(state, nf)
@@ -792,6 +838,10 @@ def detect_periods(
         # a breakage's size in the plan-free flute check: the dual's learnt lag-N threshold
         # (decision 1707), the constant's band where it judges (decision 1724)
         pair_size = state[DET_THR2] if mode == MODE_DUAL else math.inf
+        unjudged_before = state[DET_UNJUDGED] != 0.0  # the period before was not judged
+        judge = False  # (virtual, constant) the period is judged against its band
+        sigma_now = 0.0  # σ̂ of a tooth average where the band uses it (virtual, constant)
+        limit = 0.0  # (virtual, constant) the seed's band σ_TB·τ_ref
         if mode == MODE_DUAL:
             thr1 = state[DET_THR1]
             thr2 = state[DET_THR2]
@@ -829,7 +879,8 @@ def detect_periods(
             if judge:
                 band = limit
                 if k_noise > 0.0 and state[DET_NOISE_N] >= NOISE_MIN:
-                    band = max(limit, k_noise * _noise_sigma(state, nf))
+                    sigma_now = _noise_sigma(state, nf)
+                    band = max(limit, k_noise * sigma_now)
                 band_out[m] = band
                 pair_size = band
                 v_res = abs(e1) > limit
@@ -895,6 +946,22 @@ def detect_periods(
         # one alarm per run, at its confirm-th violation or, with the flute signature, at
         # the first violation from there on where the signature holds (decision 1681)
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
+        if mode == MODE_VIRTUAL:
+            # a break changes the cut: the run must hold a violating period whose change over
+            # one revolution is a breakage's size (half the seed's band), or begin right after
+            # periods not judged (the change may lie in them, decision 1625); a flute that has
+            # deviated from the plan for revolutions (runout, the plan's error at that flute,
+            # in a light cut whose band the noise no longer widens) is not broken (decision 1729)
+            if run == 0:
+                state[DET_CHANGED] = 0.0
+            elif v and (
+                (run == 1.0 and unjudged_before)
+                or abs(dn) >= max(0.5 * limit, CHANGE_K * math.sqrt(2.0) * sigma_now)
+            ):
+                state[DET_CHANGED] = 1.0
+            if state[DET_CHANGED] == 0.0:
+                fire = False
+            state[DET_UNJUDGED] = 0.0 if judge else 1.0
         if pair_check:
             # without a plan (decisions 1707, 1724): a broken flute drops and the next flute,
             # cutting its chip too, rises (:func:`_flute_pair` of their changes over one
@@ -904,17 +971,25 @@ def detect_periods(
             # violating or not (after a flute's change the next residual ε2 = Δ_N x −
             # φ̂2·Δ_N x(m−1) can be small: the AR(1) of the lag-N differences has φ̂2 < 0)
             waits, by = False, -1  # by: the waiting violation whose pair this period completes
+            mate = -1  # the ring slot of the period it pairs with
             if fire:
-                waits = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size,
-                                   False) < 0  # fmt: skip
+                mate = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, False)
+                waits = mate < 0
             elif state[DET_ALARMED] == 0.0:
                 by = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, True)
             if waits:
                 fire = False
             elif by >= 0:
                 fire = True
+                mate = by
                 ce1_out[m] = state[by + 2 * nf]
                 ce2_out[m] = state[by + 3 * nf]
+            if fire and not _stands_out(state, nf, reach, dn, mate):
+                # the pair does not stand out of the changes before it: chatter's onset, no
+                # broken flute (decision 1728); the violations keep waiting
+                fire = False
+                ce1_out[m] = math.nan
+                ce2_out[m] = math.nan
             if fire:  # the waiting violations are answered
                 for j in range(nf):
                     state[ring + nf + j] = 0.0
@@ -931,8 +1006,10 @@ def detect_periods(
             # of the whole cut moves every flute the same way
             if run == 0:
                 state[DET_PAIRED] = 0.0
-            elif _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, False) >= 0:
-                state[DET_PAIRED] = 1.0
+            else:
+                r = _pair_slot(state, ring, seen, nf, reach, dn, rise_share, pair_size, False)
+                if r >= 0 and _stands_out(state, nf, reach, dn, r):  # decision 1728
+                    state[DET_PAIRED] = 1.0
             if state[DET_PAIRED] == 0.0:
                 fire = False
             state[ring + seen % nf] = dn

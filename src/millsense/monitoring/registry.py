@@ -44,7 +44,9 @@ class MonitorContext:
         ``engagement.air_torque_nm``, ``engagement.response`` (the observer's
         :class:`~millsense.monitoring.engagement.TorqueResponse`),
         ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
-        ``breakage.expected_channel``, ``<chatter method>.threshold``,
+        ``breakage.expected_channel``, ``breakage.signal`` (what the breakage detectors average
+        where it is not ``signal``: ``monitor --machine``'s spindle DOB, decision 1728),
+        ``<chatter method>.threshold``,
         ``chatter.encoder_counts_rev`` (the machine file's spindle encoder, decision 1697)).
     tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
         None.
@@ -165,8 +167,9 @@ for _m in ("chatter-comb", "chatter-sdft", "chatter-threshold"):
 #: observer's compensated load (``monitor --machine``), an estimated spindle torque.
 BREAKAGE_SIGNALS = ("est/spindle/spindle/load", "spindle/torque_est")
 #: What the breakage monitors read when nothing is chosen: a session's (``millsense run``)
-#: cutting torque, less its air-cut reference, first.
-BREAKAGE_SIGNALS_SESSION = ("plan/cutting_torque", *BREAKAGE_SIGNALS)
+#: cutting torque, less its air-cut reference, first: its spindle DOB's (decision 1727), then its
+#: LQE observer's.
+BREAKAGE_SIGNALS_SESSION = ("plan/dob_cutting_torque", "plan/cutting_torque", *BREAKAGE_SIGNALS)
 #: 1 where the spindle is settled at its commanded speed (a session's output, or made by
 #: ``millsense monitor`` from spindle/speed and spindle/speed_cmd): breakage is judged only there
 #: (decision 1550).
@@ -193,7 +196,8 @@ def _breakage_factory(method: str) -> Factory:
         from millsense.monitoring.breakage import BreakageBlock
         from millsense.monitoring.breakage_phased import PhasedBreakage
 
-        signal = ctx.signal or next(
+        # `monitor --machine` gives its spindle DOB's torque (decision 1728)
+        signal = ctx.options.get("breakage.signal") or ctx.signal or next(
             (c for c in BREAKAGE_SIGNALS_SESSION if c in ctx.channels), None
         )
         if signal is None:
