@@ -225,7 +225,8 @@ PATTERN_BEFORE = 2
 #: threshold's run from this many standard deviations of that difference's noise (√2 σ̂).
 CHANGE_K = 3.0
 #: Decision 1728: a plan-free flute pair's larger change over one revolution must stand this
-#: many times the RMS of those changes over the PATTERN_BEFORE revolutions before it (3σ).
+#: many times the RMS of those changes over the PATTERN_BEFORE revolutions (at least
+#: GROWTH_PERIODS periods) before it (3σ).
 PAIR_OUTLIER = 3.0
 #: Decision 1727: the spread of the newer of those revolutions over the older's at which the
 #: contrast counts as growing (chatter's onset), and the spread then extrapolated to the drop.
@@ -636,9 +637,10 @@ def _lag_n_spread(state: FloatArray, nf: int, back: int) -> float:
 def _stands_out(state: FloatArray, nf: int, reach: int, dn: float, mate: int) -> bool:
     """Whether a flute pair (this period's Δ_N x ``dn`` and that in ring slot ``mate``) stands
     out of the cut's changes before it (decision 1728): its larger change at least PAIR_OUTLIER
-    times their RMS over the PATTERN_BEFORE revolutions before the pair's reach
-    (:func:`_lag_n_spread`); True where that spread is not known. A break comes as a step into
-    a steady cut; chatter's onset has changed the cut for revolutions before."""
+    times their RMS over the PATTERN_BEFORE revolutions (at least GROWTH_PERIODS periods)
+    before the pair's reach (:func:`_lag_n_spread`); True where that spread is not known. A
+    break comes as a step into a steady cut; chatter's onset has changed the cut for
+    revolutions before."""
     spread = _lag_n_spread(state, nf, reach + 1)
     big = max(abs(dn), abs(state[mate]))
     return not (spread == spread) or big >= PAIR_OUTLIER * spread
@@ -948,8 +950,9 @@ def detect_periods(
         fire = v and run >= confirm and state[DET_ALARMED] == 0.0 and flute
         if mode == MODE_VIRTUAL:
             # a break changes the cut: the run must hold a violating period whose change over
-            # one revolution is a breakage's size (half the seed's band), or begin right after
-            # periods not judged (the change may lie in them, decision 1625); a flute that has
+            # one revolution is a breakage's size beyond that change's noise (half the seed's
+            # band and CHANGE_K σ of the difference), or begin right after a period not judged
+            # (the change may lie in the periods not judged, decision 1625); a flute that has
             # deviated from the plan for revolutions (runout, the plan's error at that flute,
             # in a light cut whose band the noise no longer widens) is not broken (decision 1729)
             if run == 0:
