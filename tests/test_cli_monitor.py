@@ -413,6 +413,7 @@ def test_monitor_breakage_skips_the_spindle_run_up(
         # the summary says where the detectors judged: the gate's steady cut against the time
         # at speed (the spindle within 3 % of its command from 0.29 s, at speed 0.1 s later)
         (gate,) = [ln for ln in stdout.splitlines() if "breakage without a plan" in ln]
+        assert "on est/spindle/spindle/load:" in gate  # the recording's estimate, no --machine
         opened, at_speed = (float(v) for v in re.findall(r"([\d.]+) s", gate)[:2])
         assert at_speed == pytest.approx(5.6, abs=0.05)
         if not air:
@@ -817,10 +818,12 @@ def test_plan_free_detectors_wait_for_the_cut_after_the_spindle_start(
     for brk in (None, 1.5):
         rec = _slot_from_spindle_start(tmp_path / f"slot_{brk}.h5", brk)
         out = tmp_path / f"ev_{brk}.parquet"
-        code, _stdout, err = run_cli(["monitor", str(rec), "--machine", machine, "--methods",
-                                      "breakage-dual,breakage-constant", "-o", str(out)],
-                                     capsys)  # fmt: skip
+        code, stdout, err = run_cli(["monitor", str(rec), "--machine", machine, "--methods",
+                                     "breakage-dual,breakage-constant", "-o", str(out)],
+                                    capsys)  # fmt: skip
         assert code == 0, err
+        # the summary names the torque they averaged: the DOB's (decision 1728)
+        assert "breakage without a plan on spindle/dob_torque:" in stdout
         ev = read_event_log(out)
         if brk is None:
             assert ev == []

@@ -512,7 +512,8 @@ def _run(
                          f"{f' (+{len(blind) - 5} more)' if len(blind) > 5 else ''}")  # fmt: skip
     if torque_gate is not None:
         lines.append(_torque_gate_line(gated[1] / fs, gated[0] / fs,
-                                       torque_gate.premise_samples / fs))  # fmt: skip
+                                       torque_gate.premise_samples / fs,
+                                       torque_gate.inputs[0]))  # fmt: skip
     lines += skipped
     if plot is not None:
         from millsense.report.monitor_plots import plot_monitor
@@ -533,15 +534,19 @@ def _run(
     return {"events": res.events, "lines": lines, "wall_s": wall}
 
 
-def _torque_gate_line(open_s: float, at_speed_s: float, premise_s: float = 0.0) -> str:
+def _torque_gate_line(
+    open_s: float, at_speed_s: float, premise_s: float = 0.0, torque: str = ""
+) -> str:
     """The summary's line on where the plan-free breakage detectors judged: the torque gate's
-    steady cut (decisions 1706, 1723) against the time at speed. A gate that never opened is
-    said as such: 'no alarm' would otherwise read as an intact tool. Time judged on seed 002's
-    premise (``premise_s``: the recording started with the spindle at speed, so its first
-    revolutions were taken as cut, in the air or not) is said apart (decision 1725): the
-    torque did not show a cut there."""
+    steady cut (decisions 1706, 1723) against the time at speed, and on which torque
+    (``torque``, the channel: with ``--machine`` the spindle DOB's, decision 1728). A gate that
+    never opened is said as such: 'no alarm' would otherwise read as an intact tool. Time
+    judged on seed 002's premise (``premise_s``: the recording started with the spindle at
+    speed, so its first revolutions were taken as cut, in the air or not) is said apart
+    (decision 1725): the torque did not show a cut there."""
     steady_s = max(open_s - premise_s, 0.0)
-    line = (f"  breakage without a plan: judged where the torque showed a steady cut, "
+    on = f" on {torque}" if torque else ""
+    line = (f"  breakage without a plan{on}: judged where the torque showed a steady cut, "
             f"{steady_s:.1f} s of {at_speed_s:.1f} s at speed")  # fmt: skip
     if premise_s > 0.0:
         line += (f"; {premise_s:.1f} s judged from the start on seed 002's premise (the "
