@@ -109,7 +109,7 @@ def _interp() -> list[Metric]:
 @benchmark("estimation.spindle_dob_speed")
 def _spindle_dob() -> list[Metric]:
     """The spindle DOB for breakage (decision 1726) with its air reference, as a session runs
-    them with ``--breakage-torque dob``: 60 s at 10 kHz of the commissioned quaser-ux600's
+    them by default (decision 1727): 60 s at 10 kHz of the commissioned quaser-ux600's
     spindle, in 10 ms and 0.1 s chunks, after compilation, best of 3."""
     from millsense.core.presets import commissioned_machine
     from millsense.estimation.from_config import spindle_dob_from_config

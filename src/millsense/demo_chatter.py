@@ -148,18 +148,20 @@ def _plant_plan() -> Any:
                       step_m=1.0 * MM, metadata={"material_name": mat.name})  # fmt: skip
 
 
-def pass_machine(plant: Any, seed: int = 0) -> tuple[Any, dict[str, Any]]:
+def pass_machine(plant: Any, seed: int = 0, modes: Any = None) -> tuple[Any, dict[str, Any]]:
     """The virtual machine of the pass (the quaser-ux600's simulator file, 3 axes, the T1
-    modes, seed :data:`CHATTER_SEED` + ``seed``) cutting its own plan ``plant``
-    (:func:`_plant_plan`), and its job's metadata."""
+    modes ``modes``, a ``ToolModes``; None: read from :func:`tool_modes_file`; seed
+    :data:`CHATTER_SEED` + ``seed``) cutting its own plan ``plant`` (:func:`_plant_plan`), and
+    its job's metadata."""
     from millsense.simulator.machine import MachineSimulator, SimulatorOptions
     from millsense.simulator.machine_file import simulator_machine
     from millsense.simulator.plan_job import plan_job
     from millsense.simulator.process_coupling import ToolModes
 
     sim_cfg = simulator_machine(MACHINE).with_axes("xyz", "3-axis")
-    with resources.as_file(tool_modes_file()) as modes_path:
-        modes = ToolModes.from_toml(modes_path)
+    if modes is None:
+        with resources.as_file(tool_modes_file()) as modes_path:
+            modes = ToolModes.from_toml(modes_path)
     job, proc, meta, _ = plan_job(plant, sim_cfg, "online_chatter.nc", modes=modes)
     return MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=CHATTER_SEED + seed)), meta
 
@@ -185,10 +187,11 @@ def _run(plan: Any, plant: Any, controlled: bool, out: Path, events_out: Path,
     assert shipped is not None
     belief, where = shipped[0].with_axes("xyz", "3-axis"), shipped[1]
     with resources.as_file(tool_modes_file()) as modes_path:
+        modes = ToolModes.from_toml(modes_path)
         # the session's lobes: the file's coefficients and lobe settings, the structure fitted
         # to a simulated tap test of the plant's tool (decision 1750)
-        case = tap_tested_case(load_case(modes_path), ToolModes.from_toml(modes_path))
-    sim, meta = pass_machine(plant, seed)
+        case = tap_tested_case(load_case(modes_path), modes)
+    sim, meta = pass_machine(plant, seed, modes)
     opts = SessionOptions(adaptive=False, stability_case=case, breakage_torque=breakage_torque)
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts,
                            where=where, channels=sim.channel_names)  # fmt: skip

@@ -453,17 +453,24 @@ def _pattern_reset(state: FloatArray, nf: int) -> None:
 
 
 @numba.njit(cache=True)
+def _ring_rms(state: FloatArray, ring: int, pos: int, n: int, first: int, count: int) -> float:
+    """The RMS of ``count`` values of a NOISE_WINDOW ring at ``ring`` (next slot ``pos``,
+    ``n`` values held) from the ``first``-th before ``pos`` back (1: the newest); NaN where not
+    all are held (or one is NaN)."""
+    if first + count - 1 > n:
+        return math.nan
+    ss = 0.0
+    for j in range(first, first + count):
+        v = state[ring + (pos - j) % NOISE_WINDOW]
+        ss += v * v
+    return math.sqrt(ss / count)
+
+
+@numba.njit(cache=True)
 def _scale_before(state: FloatArray, window: int, n: int, first: int, count: int) -> float:
     """The RMS of a contrast over ``count`` periods from ``first`` periods before the current
     one back (its scale window's ring at ``window``, decision 1685); NaN where not all held."""
-    if first + count - 1 > n:
-        return math.nan
-    pos = int(state[DET_PPOS])
-    ss = 0.0
-    for j in range(first, first + count):
-        v = state[window + (pos - j) % NOISE_WINDOW]
-        ss += v * v
-    return math.sqrt(ss / count)
+    return _ring_rms(state, window, int(state[DET_PPOS]), n, first, count)
 
 
 @numba.njit(cache=True)
@@ -620,17 +627,9 @@ def _lag_n_spread(state: FloatArray, nf: int, back: int) -> float:
     revolutions (at least GROWTH_PERIODS periods) before the last ``back`` periods (the noise
     window's ring, decision 1550); NaN until the window holds them or where one is NaN
     (decision 1728)."""
-    n = int(state[DET_NOISE_N])
     count = max(PATTERN_BEFORE * nf, GROWTH_PERIODS)
-    if back + count > n:
-        return math.nan
-    noise0 = DET_BASE + nf
-    pos = int(state[DET_NOISE_POS])
-    ss = 0.0
-    for j in range(back + 1, back + count + 1):  # j periods back: 1 is the newest held
-        v = state[noise0 + (pos - j) % NOISE_WINDOW]
-        ss += v * v
-    return math.sqrt(ss / count)
+    return _ring_rms(state, DET_BASE + nf, int(state[DET_NOISE_POS]), int(state[DET_NOISE_N]),
+                     back + 1, count)  # fmt: skip
 
 
 @numba.njit(cache=True)

@@ -56,7 +56,7 @@ CUTTING_TORQUE = "plan/cutting_torque"
 #: decision 1727).
 DOB_CUTTING_TORQUE = "plan/dob_cutting_torque"
 #: What the breakage monitor may average (:attr:`SessionOptions.breakage_torque`).
-BREAKAGE_TORQUES = ("observer", "dob")
+BREAKAGE_TORQUES = ("dob", "observer")
 FORCE_SOURCES = ("estimate", "dynamometer")
 #: Expected torques below this fraction of the plan's largest are not judged for breakage: the
 #: tooth-period average of an observer's estimate is too noisy there (decision 1622).

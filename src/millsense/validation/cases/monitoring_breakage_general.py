@@ -165,7 +165,11 @@ def _false() -> Measured:
     issue=15,
 )
 def _latency() -> Measured:
-    runs = general_runs()
+    return _worst_latency(general_runs())
+
+
+def _worst_latency(runs: tuple[CutRun, ...]) -> Measured:
+    """The largest first-alarm delay of ``runs``, in tooth periods, with their table."""
     return Measured(max(r.latency_periods() for r in runs), _table(runs))
 
 
@@ -192,8 +196,7 @@ def _latency() -> Measured:
     "000's rule first). This is why the DOB is the default (decision 1727)",
 )
 def _observer_latency() -> Measured:
-    runs = general_runs("observer")
-    return Measured(max(r.latency_periods() for r in runs), _table(runs))
+    return _worst_latency(general_runs("observer"))
 
 
 @case(
