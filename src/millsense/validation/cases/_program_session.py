@@ -70,11 +70,13 @@ def program_session(
     out: Path | None = None,
     keep: Sequence[str] | None = (),
     options: Any = None,
+    observer: Any = None,
 ) -> ProgramSession:
     """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
     through the session of ``options`` (a ``SessionOptions``; None: the default) on the
     virtual quaser-ux600; ``events``: process events of the virtual machine (a
-    :class:`~millsense.simulator.process_coupling.ToothBreak`)."""
+    :class:`~millsense.simulator.process_coupling.ToothBreak`); ``observer``: called with
+    every chunk as ``run_session``'s (reads the simulator's truth)."""
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
 
@@ -85,7 +87,9 @@ def program_session(
     opts = options if options is not None else SessionOptions()
     built = session_blocks(plan, belief, sim.sample_rate_hz, opts, where=where,
                            channels=sim.channel_names)  # fmt: skip
-    return ProgramSession(run_session(sim, built.blocks, out=out, keep=keep), plan)
+    return ProgramSession(
+        run_session(sim, built.blocks, out=out, keep=keep, observer=observer), plan
+    )
 
 
 def program_recording(
@@ -97,21 +101,24 @@ def program_recording(
     stock: Path = STOCK,
     events: Sequence[Any] = (),
     seed: int = 0,
+    observer: Any = None,
 ) -> None:
     """The virtual quaser-ux600 running ``program`` open loop (no session, the CNC as
     programmed) with the process ``events``, recorded to ``out`` as a CNC records it: every
-    channel but the simulator's truth, no plan."""
+    channel but the simulator's truth, no plan; ``observer``: called with every chunk (reads
+    the truth)."""
     from millsense.io.recording_file import write_recording
 
     _, sim, tool_cfg = _program_machine(program, tool, material, stock, events, seed, None)
     write_recording(out, cnc_recording(sim, {"program": program.name,
-                                             "flutes": int(tool_cfg.flutes)}))  # fmt: skip
+                                             "flutes": int(tool_cfg.flutes)},
+                                      observer))  # fmt: skip
 
 
-def cnc_recording(sim: Any, metadata: dict[str, Any]) -> Any:
+def cnc_recording(sim: Any, metadata: dict[str, Any], observer: Any = None) -> Any:
     """The virtual machine ``sim`` (a ``MachineSimulator``) run to its end and recorded as a
     CNC records it: every channel but the simulator's truth (a ``core.recording.Recording``
-    with ``metadata``)."""
+    with ``metadata``); ``observer``: called with every chunk (the truth included)."""
     import numpy as np
 
     from millsense.core.recording import Recording
@@ -119,6 +126,8 @@ def cnc_recording(sim: Any, metadata: dict[str, Any]) -> Any:
     keep = [c for c in sim.channel_info if not c.name.startswith("truth/")]
     parts: dict[str, list[np.ndarray]] = {c.name: [] for c in keep}
     while (chunk := sim.read(10000)) is not None:
+        if observer is not None:
+            observer(chunk, {}, [])
         for c in keep:
             parts[c.name].append(np.asarray(chunk.data[c.name], dtype=np.float64))
     rec = Recording(sim.sample_rate_hz, 0.0, metadata)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from millsense.streaming.block import Event
 from millsense.validation import Measured, case
+from millsense.validation.cases._breakage_effect import EFFECT_DROP
 
 #: (flutes, rev/min, "slot" or "half", feed mm/min, depth mm); chosen before the first run of
 #: these cases (the cuts `millsense run --break-at-s 3` was first tried on, 2026-11-29).
@@ -52,15 +53,26 @@ class CutRun:
     rpm: int
     broken: list[Event]  # breakage alarms of the run with the break
     intact: list[Event]  # false alarms of the intact run
+    effect_s: float  # when the break shows in the tooth period's mean torque (decision 1731)
 
     @property
     def tooth_s(self) -> float:
         return 60.0 / (self.rpm * self.flutes)
 
+    def first_alarm_s(self) -> float:
+        """The first alarm at or after the break, s (inf: none)."""
+        return min((e.time_s for e in self.broken if e.time_s >= BREAK_S), default=math.inf)
+
     def latency_periods(self) -> float:
-        """First alarm at or after the break, in tooth periods after it (inf: none)."""
-        after = [e.time_s for e in self.broken if e.time_s >= BREAK_S]
-        return (min(after) - BREAK_S) / self.tooth_s if after else math.inf
+        """First alarm after the breakage's effect (decision 1731), in tooth periods (inf:
+        none; negative: an alarm after the break but before it showed)."""
+        if math.isinf(self.effect_s):
+            return math.inf
+        return (self.first_alarm_s() - self.effect_s) / self.tooth_s
+
+    def break_latency_periods(self) -> float:
+        """First alarm after the break instant, in tooth periods (inf: none)."""
+        return (self.first_alarm_s() - BREAK_S) / self.tooth_s
 
 
 @functools.lru_cache(maxsize=2)
@@ -70,6 +82,7 @@ def general_runs(breakage_torque: str = "dob") -> tuple[CutRun, ...]:
     from millsense.core.config import ToolConfig
     from millsense.online.session import SessionOptions
     from millsense.simulator.process_coupling import ToothBreak
+    from millsense.validation.cases._breakage_effect import TruthTorque, effect_onset_s
     from millsense.validation.cases._program_session import program_session
 
     runs = []
@@ -80,30 +93,42 @@ def general_runs(breakage_torque: str = "dob") -> tuple[CutRun, ...]:
             prog.write_text(_program(rpm, kind, feed, depth))
             tool = ToolConfig(diameter_mm=DIAMETER_MM, flutes=flutes, helix_deg=HELIX_DEG)
             opts = SessionOptions(breakage_torque=breakage_torque)
+            truth_b, truth_i = TruthTorque(), TruthTorque()
             broken = program_session(prog, tool, events=(ToothBreak(BREAK_S, 0),),
-                                     duration_s=BREAK_S + 1.0, options=opts).result.events
-            intact = program_session(prog, tool, options=opts).result.events
+                                     duration_s=BREAK_S + 1.0, options=opts,
+                                     observer=truth_b).result  # fmt: skip
+            intact = program_session(prog, tool, options=opts, observer=truth_i).result
+            effect = effect_onset_s(truth_b.torque, truth_i.torque, broken.sample_rate_hz,
+                                    60.0 / (rpm * flutes), BREAK_S)  # fmt: skip
             runs.append(CutRun(label, flutes, rpm,
-                               [e for e in broken if e.name == "breakage"],
-                               [e for e in intact if e.name in FALSE]))  # fmt: skip
+                               [e for e in broken.events if e.name == "breakage"],
+                               [e for e in intact.events if e.name in FALSE], effect))  # fmt: skip
     return tuple(runs)
 
 
 def _table(runs: tuple[CutRun, ...]) -> str:
-    rows = ["| cut | alarms before the break | first alarm after (tooth periods, revolutions; "
-            "path) "
-            "| false alarms, intact run |", "|---|---|---|---|"]  # fmt: skip
+    rows = ["| cut | alarms before the break | effect after the break (tooth periods) "
+            "| first alarm after the effect (tooth periods; path) | after the break (tooth "
+            "periods, revolutions) | false alarms, intact run |",
+            "|---|---|---|---|---|---|"]  # fmt: skip
     for r in runs:
         before = [f"{e.time_s:.3f} s" for e in r.broken if e.time_s < BREAK_S] or ["none"]
-        lat = r.latency_periods()
-        after = "none" if math.isinf(lat) else f"{lat:.1f}, {lat / r.flutes:.2f}"
+        effect = (r.effect_s - BREAK_S) / r.tooth_s
+        lat, lat_b = r.latency_periods(), r.break_latency_periods()
+        after = "none" if math.isinf(lat) else f"{lat:.2f}"
         first = next((e for e in r.broken if e.time_s >= BREAK_S), None)
         if first is not None:  # which path confirmed it (decision 1684)
             ev = first.values.get("pattern_evidence")
             after += f" (flute pattern, {ev:.1f}σ)" if ev is not None else " (seed 000's rule)"
+        since = "none" if math.isinf(lat_b) else f"{lat_b:.2f}, {lat_b / r.flutes:.2f}"
         false = ", ".join(f"{e.time_s:.2f} s {e.name}" for e in r.intact) or "none"
-        rows.append(f"| {r.label} | {', '.join(before)} | {after} | {false} |")
-    return "\n".join(rows) + f"\n\nFlute 0 breaks at {BREAK_S} s; Ø{DIAMETER_MM:g} mm end mill."
+        rows.append(f"| {r.label} | {', '.join(before)} | {effect:.2f} | {after} | {since} "
+                    f"| {false} |")  # fmt: skip
+    return "\n".join(rows) + (
+        f"\n\nFlute 0 breaks at {BREAK_S} s; Ø{DIAMETER_MM:g} mm end mill. The effect: the "
+        f"tooth period's mean cutting torque {100 * EFFECT_DROP:g} % below the intact run's "
+        "(the simulator's truth, decision 1731)."
+    )
 
 
 @case(
@@ -150,18 +175,14 @@ def _false() -> Measured:
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
-    description="the largest delay from the break to its first alarm over the six cuts, in "
-    "tooth periods (inf where a break is missed), the session's breakage monitor averaging the "
-    "spindle DOB's torque (seed 001 Eq. 2-15, the encoder's speed averaged over 0.9 ms; "
-    "decisions 1726, 1727, the default); the table also gives the alarms before the break and "
-    "on the intact runs",
-    gap="every cut is confirmed by the flute pattern (decision 1684) in the first revolution "
-    "after the break: 1.9, 4.0, 4.6, 2.7, 3.6, 2.9 periods. In a slot a flute cuts over half "
-    "a revolution: in the 4-flute slot the tooth period holding most of the broken flute's drop "
-    "ends 3.2-3.9 periods after the break, and the next flute's rise, which confirms a single "
-    "revolution, one later; the 3-flute slot and half immersion likewise wait for the rise. "
-    "The evidence must stand 7σ above the noise of the tooth average, a threshold set from the "
-    "intact cuts' false-alarm rate (decision 1684), not a figure to move",
+    description="the largest delay from the breakage's effect to its first alarm over the six "
+    "cuts, in tooth periods (inf where a break is missed; the effect: the tooth period's mean "
+    "cutting torque 5 % below the intact run's, from the simulator's truth, decision 1731), the "
+    "session's breakage monitor averaging the spindle DOB's torque (seed 001 Eq. 2-15, the "
+    "encoder's speed averaged over 0.9 ms; decisions 1726, 1727, the default); the table also "
+    "gives the delay from the break instant (4.56 periods in the 4-flute slot, whose flute 0 "
+    "breaks at the end of its arc and cuts again 2.5 periods later), the alarms before the "
+    "break and on the intact runs",
     issue=15,
 )
 def _latency() -> Measured:
@@ -181,19 +202,21 @@ def _worst_latency(runs: tuple[CutRun, ...]) -> Measured:
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
-    description="the largest delay from the break to its first alarm over the six cuts, in "
-    "tooth periods (inf where a break is missed), with the breakage monitor on the machine "
-    "file's LQE spindle observer's torque (Aslan Eq. 5.17-5.21; the default before decision "
-    "1727); the table also gives the alarms before the break and on the intact runs",
+    description="the largest delay from the breakage's effect (decision 1731) to its first "
+    "alarm over the six cuts, in tooth periods (inf where a break is missed), with the breakage "
+    "monitor on the machine file's LQE spindle observer's torque (Aslan Eq. 5.17-5.21; the "
+    "default before decision 1727); the table also gives the delay from the break instant, "
+    "the alarms before the break and on the intact runs",
     issue=15,
     gap="the tooth period's mean of the observer's torque carries the spindle encoder's "
     "quantisation through its inertial term (one count of 2^20 per revolution at 10 kHz is "
     "0.8 N·m of a 2.5 ms period's mean on the quaser-ux600; decision 1726): the broken flute's "
     "drop stands 7σ above it in one revolution only where the flute's share of the torque is "
-    "large (2 flutes: 2.3, 3.0 periods), and needs it repeated one or two revolutions on where "
-    "it is small: the 3-flute slot (6.0), the 3-flute half immersion (6.0), the 4-flute slot "
-    "(11.6, seed 000's rule first) and the 4-flute half immersion at 10 000 rev/min (9.9, seed "
-    "000's rule first). This is why the DOB is the default (decision 1727)",
+    "large (2 flutes: 1.6 periods after the effect), and needs it repeated one or two "
+    "revolutions on where it is small: the 3-flute slot (4.0), the 3-flute half immersion (4.1) "
+    "the 4-flute slot (9.0, seed 000's rule first) and the 4-flute half immersion at 10 000 "
+    "rev/min (9.2, seed 000's rule first). This is why the DOB is the default "
+    "(decision 1727)",
 )
 def _observer_latency() -> Measured:
     return _worst_latency(general_runs("observer"))

@@ -29,6 +29,7 @@ from pathlib import Path
 from millsense.streaming.block import Event
 from millsense.streaming.event_log import read_event_log
 from millsense.validation import Measured, case
+from millsense.validation.cases._breakage_effect import EFFECT_DROP
 from millsense.validation.cases.monitoring_breakage import MACHINE_FILE, TOOTH_S_V7
 
 METHODS = ("breakage-dual", "breakage-constant")
@@ -148,37 +149,67 @@ def speed_tooth_s(flutes: int) -> float:
     return 60.0 / (SPEED_RPM * flutes)
 
 
+@dataclass
+class SpeedRuns:
+    """`monitor`'s breakage alarms on the broken and the intact run of :data:`SPEED_PROGRAM`,
+    and when the break showed (decision 1731)."""
+
+    runs: dict[str, list[Event]]  # "broken", "intact"
+    effect_s: float
+    flutes: int
+
+    def latency_periods(self, method: str = "breakage-dual", since: float | None = None) -> float:
+        """The first alarm of ``method`` at or after the break, in tooth periods after
+        ``since`` (None: the breakage's effect, decision 1731; inf: none)."""
+        after = [e.time_s for e in self.runs["broken"]
+                 if e.source == method and e.time_s >= SPEED_BREAK_S]  # fmt: skip
+        start = self.effect_s if since is None else since
+        if not after or math.isinf(start):
+            return math.inf
+        return (min(after) - start) / speed_tooth_s(self.flutes)
+
+    def table(self) -> str:
+        rows = ["| run | detector | alarms |", "|---|---|---|"]
+        for label, events in self.runs.items():
+            for m in METHODS:
+                times = [f"{e.time_s:.4f} s" for e in events if e.source == m]
+                rows.append(f"| {label} | {m} | {', '.join(times) or 'none'} |")
+        tooth = speed_tooth_s(self.flutes)
+        lat, lat_b = self.latency_periods(), self.latency_periods(since=SPEED_BREAK_S)
+        return "\n".join(rows) + (
+            f"\n\nS1500 -> S3000 right before the entry; flute 0 breaks at {SPEED_BREAK_S} s in "
+            f"the broken run ({self.flutes} flutes, tooth period {1e3 * tooth:.3g} ms). The break "
+            f"shows {(self.effect_s - SPEED_BREAK_S) / tooth:.2f} tooth periods after it (the "
+            f"tooth period's mean cutting torque {100 * EFFECT_DROP:g} % below the intact run's, "
+            f"decision 1731); the first dual alarm comes {lat:.2f} tooth periods after that, "
+            f"{lat_b:.2f} after the break."
+        )
+
+
 @functools.lru_cache(maxsize=8)
-def speed_change_runs(flutes: int = 2) -> dict[str, list[Event]]:
+def speed_change_runs(flutes: int = 2) -> SpeedRuns:
     """`monitor`'s breakage alarms on :data:`SPEED_PROGRAM` run by the virtual machine open
     loop with a Ø12 mm end mill of ``flutes`` flutes, with flute 0 broken at
-    :data:`SPEED_BREAK_S` (``broken``) and intact (``intact``)."""
+    :data:`SPEED_BREAK_S` (``broken``) and intact (``intact``), and the break's effect."""
     from millsense.core.config import ToolConfig
     from millsense.simulator.process_coupling import ToothBreak
+    from millsense.validation.cases._breakage_effect import TruthTorque, effect_onset_s
     from millsense.validation.cases._program_session import program_recording
 
     tool = ToolConfig(diameter_mm=12.0, flutes=flutes, helix_deg=35.0)
     runs = {}
+    truth = {"broken": TruthTorque(), "intact": TruthTorque()}
     with tempfile.TemporaryDirectory() as tmp:
         prog = Path(tmp) / "s_word_before_entry.nc"
         prog.write_text(SPEED_PROGRAM)
         for label, events in (("broken", (ToothBreak(SPEED_BREAK_S, 0),)), ("intact", ())):
             path = Path(tmp) / f"{label}.h5"
-            program_recording(prog, tool, path, events=events)
+            program_recording(prog, tool, path, events=events, observer=truth[label])
             runs[label] = [e for e in _monitor(path) if e.name == "breakage"]
-    return runs
-
-
-def _speed_table(runs: dict[str, list[Event]], flutes: int = 2) -> str:
-    rows = ["| run | detector | alarms |", "|---|---|---|"]
-    for label, events in runs.items():
-        for m in METHODS:
-            times = [f"{e.time_s:.4f} s" for e in events if e.source == m]
-            rows.append(f"| {label} | {m} | {', '.join(times) or 'none'} |")
-    return "\n".join(rows) + (
-        f"\n\nS1500 -> S3000 right before the entry; flute 0 breaks at {SPEED_BREAK_S} s in the "
-        f"broken run ({flutes} flutes, tooth period {1e3 * speed_tooth_s(flutes):.3g} ms)."
-    )
+    effect = effect_onset_s(truth["broken"].torque, truth["intact"].torque,
+                            truth["broken"].sample_rate_hz,
+                            speed_tooth_s(flutes), SPEED_BREAK_S)  # fmt: skip
+    return SpeedRuns(runs, effect, flutes)
 
 
 @case(
@@ -189,9 +220,9 @@ def _speed_table(runs: dict[str, list[Event]], flutes: int = 2) -> str:
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
-    description="first dual-residual alarm after the break, in tooth periods (inf: missed), "
-    "`monitor` without a plan on a program whose S word comes right before the entry "
-    "(decision 1723)",
+    description="first dual-residual alarm after the breakage's effect (decision 1731), in "
+    "tooth periods (inf: missed), `monitor` without a plan on a program whose S word comes "
+    "right before the entry (decision 1723)",
     issue=15,
 )
 def _speed_latency() -> Measured:
@@ -199,21 +230,18 @@ def _speed_latency() -> Measured:
 
 
 def _dual_latency(flutes: int) -> Measured:
-    """The dual detector's first alarm after the break, in tooth periods, on
+    """The dual detector's first alarm after the break's effect, in tooth periods, on
     :func:`speed_change_runs` (inf: missed)."""
     runs = speed_change_runs(flutes)
-    after = [e.time_s for e in runs["broken"]
-             if e.source == "breakage-dual" and e.time_s >= SPEED_BREAK_S]  # fmt: skip
-    lat = (min(after) - SPEED_BREAK_S) / speed_tooth_s(flutes) if after else math.inf
-    return Measured(lat, _speed_table(runs, flutes))
+    return Measured(runs.latency_periods(), runs.table())
 
 
 def _false_alarms(flutes: int) -> Measured:
     """Alarms of either detector on the intact run and before the break (:func:`speed_change_
     runs`)."""
     runs = speed_change_runs(flutes)
-    n = len(runs["intact"]) + sum(e.time_s < SPEED_BREAK_S for e in runs["broken"])
-    return Measured(float(n), _speed_table(runs, flutes))
+    n = len(runs.runs["intact"]) + sum(e.time_s < SPEED_BREAK_S for e in runs.runs["broken"])
+    return Measured(float(n), runs.table())
 
 
 @case(
@@ -241,12 +269,11 @@ def _speed_false() -> Measured:
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
-    description="first dual-residual alarm after the break, in tooth periods (inf: missed), "
-    "`monitor` without a plan, the S-word program with a 3-flute end mill (decision 1724)",
+    description="first dual-residual alarm after the breakage's effect (decision 1731), in "
+    "tooth periods (inf: missed), `monitor` without a plan, the S-word program with a 3-flute "
+    "end mill (decision 1724); the flute check waits for the next flute's rise, two tooth "
+    "periods after the broken flute's drop in a slot: 3.33 periods after the break instant",
     issue=15,
-    gap="the flute check waits for the next flute's rise, two tooth periods after the broken "
-    "flute's drop for a 3-flute end mill in a slot (decision 1724): 3.0 periods counted from "
-    "the drop's period, 3.33 from the break",
 )
 def _three_latency() -> Measured:
     return _dual_latency(3)
@@ -281,20 +308,19 @@ MANY_FLUTES = (4, 5, 6)
     abs_tol=1.5,
     unit="tooth periods",
     quick=False,
-    description="the largest first dual-residual alarm after the break over 4, 5 and 6 flutes, "
-    "in tooth periods (inf: missed), `monitor --machine` without a plan (the spindle DOB's "
-    "torque, decision 1728) on the S-word program",
+    description="the largest first dual-residual alarm after the breakage's effect (decision "
+    "1731) over 4, 5 and 6 flutes, in tooth periods (inf: missed), `monitor --machine` without "
+    "a plan (the spindle DOB's torque, decision 1728) on the S-word program",
     issue=15,
     gap="every break is found (on the LQE observer's torque the 6-flute one was missed, "
-    "decision 1726), 3.44, 4.55 and 4.68 periods after it with 4, 5 and 6 flutes: the flute "
-    "check waits for the next flute's rise, up to ⌈N/2⌉ periods after the broken flute's "
-    "drop in a slot (decision 1724), and the broken flute's drop itself comes when it next "
-    "cuts, up to N periods after the break",
+    "decision 1726), 2.68, 3.60 and 3.54 periods after its effect with 4, 5 and 6 flutes "
+    "(3.44, 4.55, 4.68 after the break instant): the flute check waits for the next flute's "
+    "rise, up to ⌈N/2⌉ periods after the broken flute's drop in a slot (decision 1724)",
 )
 def _many_latency() -> Measured:
     rows = [(f, _dual_latency(f)) for f in MANY_FLUTES]
     text = "\n\n".join(f"**{f} flutes** (first dual alarm {m.value:.2f} tooth periods after "
-                         f"the break)\n\n{m.details}" for f, m in rows)  # fmt: skip
+                         f"the break's effect)\n\n{m.details}" for f, m in rows)  # fmt: skip
     return Measured(max(m.value for _, m in rows), text)
 
 
