@@ -58,3 +58,14 @@ def test_truth_torque_keeps_the_chunks_in_order():
         grab(Chunk(i, FS, 0.0, {TruthTorque.CHANNEL: x[i : i + 100]}), {}, [])
     assert np.array_equal(grab.torque, x)
     assert grab.sample_rate_hz == FS
+
+
+def test_latency_counts_the_first_alarm_after_the_break_from_the_origin():
+    from millsense.validation.cases._breakage_effect import latency_periods
+
+    alarms = [0.5, 1.004, 1.010]  # one before the break (not this break's), then two
+    assert latency_periods(alarms, 1.0, 1.001, 0.001) == pytest.approx(3.0)
+    assert latency_periods(alarms, 1.0, 1.0, 0.001) == pytest.approx(4.0)
+    assert latency_periods(alarms, 1.0, 1.006, 0.001) == pytest.approx(-2.0)  # before it showed
+    assert math.isinf(latency_periods([0.5], 1.0, 1.0, 0.001))
+    assert math.isinf(latency_periods(alarms, 1.0, math.inf, 0.001))

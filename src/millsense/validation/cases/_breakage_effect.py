@@ -13,6 +13,7 @@ the two are identical up to the break).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -45,6 +46,17 @@ def effect_onset_s(
     start = max(math.ceil(break_s * fs), math.ceil(width))
     short = np.nonzero(mi[start:] - mb[start:] >= EFFECT_DROP * np.abs(mi[start:]))[0]
     return (start + short[0]) / fs if len(short) else math.inf
+
+
+def latency_periods(alarms_s: Iterable[float], break_s: float, origin_s: float,
+                    tooth_s: float) -> float:  # fmt: skip
+    """The first of ``alarms_s`` at or after ``break_s``, in tooth periods ``tooth_s`` after
+    ``origin_s`` (the effect's onset, or the break instant); inf where there is none or the
+    origin is inf; negative for an alarm after the break but before the origin."""
+    first = min((t for t in alarms_s if t >= break_s), default=math.inf)
+    if math.isinf(first) or math.isinf(origin_s):
+        return math.inf
+    return (first - origin_s) / tooth_s
 
 
 class TruthTorque:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from millsense.streaming.block import Event
 from millsense.validation import Measured, case
-from millsense.validation.cases._breakage_effect import EFFECT_DROP
+from millsense.validation.cases._breakage_effect import EFFECT_DROP, latency_periods
 
 #: (flutes, rev/min, "slot" or "half", feed mm/min, depth mm); chosen before the first run of
 #: these cases (the cuts `millsense run --break-at-s 3` was first tried on, 2026-11-29).
@@ -59,20 +59,15 @@ class CutRun:
     def tooth_s(self) -> float:
         return 60.0 / (self.rpm * self.flutes)
 
-    def first_alarm_s(self) -> float:
-        """The first alarm at or after the break, s (inf: none)."""
-        return min((e.time_s for e in self.broken if e.time_s >= BREAK_S), default=math.inf)
-
     def latency_periods(self) -> float:
         """First alarm after the breakage's effect (decision 1731), in tooth periods (inf:
         none; negative: an alarm after the break but before it showed)."""
-        if math.isinf(self.effect_s):
-            return math.inf
-        return (self.first_alarm_s() - self.effect_s) / self.tooth_s
+        return latency_periods((e.time_s for e in self.broken), BREAK_S, self.effect_s,
+                               self.tooth_s)  # fmt: skip
 
     def break_latency_periods(self) -> float:
         """First alarm after the break instant, in tooth periods (inf: none)."""
-        return (self.first_alarm_s() - BREAK_S) / self.tooth_s
+        return latency_periods((e.time_s for e in self.broken), BREAK_S, BREAK_S, self.tooth_s)
 
 
 @functools.lru_cache(maxsize=2)
@@ -213,8 +208,8 @@ def _worst_latency(runs: tuple[CutRun, ...]) -> Measured:
     "0.8 N·m of a 2.5 ms period's mean on the quaser-ux600; decision 1726): the broken flute's "
     "drop stands 7σ above it in one revolution only where the flute's share of the torque is "
     "large (2 flutes: 1.6 periods after the effect), and needs it repeated one or two "
-    "revolutions on where it is small: the 3-flute slot (4.0), the 3-flute half immersion (4.1) "
-    "the 4-flute slot (9.0, seed 000's rule first) and the 4-flute half immersion at 10 000 "
+    "revolutions on where it is small: the 3-flute slot (4.0), the 3-flute half immersion "
+    "(4.1), the 4-flute slot (9.0, seed 000's rule first) and the 4-flute half immersion at 10 000 "
     "rev/min (9.2, seed 000's rule first). This is why the DOB is the default "
     "(decision 1727)",
 )

@@ -29,7 +29,7 @@ from pathlib import Path
 from millsense.streaming.block import Event
 from millsense.streaming.event_log import read_event_log
 from millsense.validation import Measured, case
-from millsense.validation.cases._breakage_effect import EFFECT_DROP
+from millsense.validation.cases._breakage_effect import EFFECT_DROP, latency_periods
 from millsense.validation.cases.monitoring_breakage import MACHINE_FILE, TOOTH_S_V7
 
 METHODS = ("breakage-dual", "breakage-constant")
@@ -44,8 +44,8 @@ class PlanFreeRun:
         return sum(e.time_s < self.break_s for ev in self.events.values() for e in ev)
 
     def latency_periods(self, method: str) -> float:
-        after = [e.time_s for e in self.events[method] if e.time_s >= self.break_s]
-        return (min(after) - self.break_s) / TOOTH_S_V7 if after else math.inf
+        alarms = (e.time_s for e in self.events[method])
+        return latency_periods(alarms, self.break_s, self.break_s, TOOTH_S_V7)
 
     def table(self) -> str:
         rows = ["| detector | alarms before the break | first alarm after it (tooth periods) |",
@@ -161,12 +161,9 @@ class SpeedRuns:
     def latency_periods(self, method: str = "breakage-dual", since: float | None = None) -> float:
         """The first alarm of ``method`` at or after the break, in tooth periods after
         ``since`` (None: the breakage's effect, decision 1731; inf: none)."""
-        after = [e.time_s for e in self.runs["broken"]
-                 if e.source == method and e.time_s >= SPEED_BREAK_S]  # fmt: skip
+        alarms = (e.time_s for e in self.runs["broken"] if e.source == method)
         start = self.effect_s if since is None else since
-        if not after or math.isinf(start):
-            return math.inf
-        return (min(after) - start) / speed_tooth_s(self.flutes)
+        return latency_periods(alarms, SPEED_BREAK_S, start, speed_tooth_s(self.flutes))
 
     def table(self) -> str:
         rows = ["| run | detector | alarms |", "|---|---|---|"]
