@@ -292,6 +292,7 @@ def _run(
     signal = channel
     # what the breakage detectors average where it is not `signal` (decision 1728)
     breakage_signal: str | None = None
+    dob_resolution = 0.0  # the DOB's tooth-period resolution, N·m·s (decision 1732)
     # the plan-free breakage detectors' gate from the torque (decision 1706), if built
     torque_gate: TorqueCutGate | None = None
     if (
@@ -319,9 +320,12 @@ def _run(
             from millsense.estimation.from_config import spindle_dob_from_config
             from millsense.estimation.spindle_dob import DOB_TORQUE
 
-            pre.append(spindle_dob_from_config(mcfg, machine))
+            dob = spindle_dob_from_config(mcfg, machine)
+            pre.append(dob)
             channels[DOB_TORQUE] = "N*m"
             breakage_signal = DOB_TORQUE
+            # its tooth-period means move in steps of an encoder count (decision 1732)
+            dob_resolution = dob.mean_resolution_nms(fs)
     else:
         observer_machine = _session_machine(rec) if OBSERVER_CHANNEL in channels else None
     spindle_file = observer_machine[0] if observer_machine is not None else None
@@ -413,7 +417,8 @@ def _run(
         return np.asarray(channel_window(rec, name, i0, i1), dtype=np.float64)
 
     if breakage_signal is not None:
-        options = {**(options or {}), "breakage.signal": breakage_signal}
+        options = {**(options or {}), "breakage.signal": breakage_signal,
+                   "breakage.mean_resolution": dob_resolution}  # fmt: skip
     ctx = MonitorContext(
         channels=channels, sample_rate_hz=fs, signal=signal, speed_channel=speed_channel,
         speed_unit=speed_unit, speed_rpm=spindle_rpm, n_flutes=n_flutes,

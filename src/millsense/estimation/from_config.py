@@ -37,6 +37,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk
 
 if TYPE_CHECKING:
+    from millsense.estimation.spindle_dob import SpindleDobTorque
     from millsense.models.friction import CoulombViscous
     from millsense.models.spindle_plant import SpindleDriveParams
 
@@ -180,17 +181,20 @@ def spindle_observer_from_config(
     )
 
 
-def spindle_dob_from_config(machine: MachineConfig, where: str) -> Block:
+def spindle_dob_from_config(machine: MachineConfig, where: str) -> SpindleDobTorque:
     """The spindle's disturbance observer for tooth-period averages (seed 001 Eq. 2-15,
     decision 1726: :class:`~millsense.estimation.spindle_dob.SpindleDobTorque`) from
     ``[spindle]``: K_tS of both speed ranges, J_eS and the friction the LQE observer of
-    :func:`spindle_observer_from_config` subtracts."""
+    :func:`spindle_observer_from_config` subtracts, and the encoder's counts (the resolution of
+    its tooth-period means, decision 1732)."""
     from millsense.estimation.spindle_dob import SpindleDobTorque
 
     params = _spindle_params(machine, where)
     r1, r2 = params.ranges
+    assert machine.spindle is not None
     return SpindleDobTorque((r1.torque_constant, r2.torque_constant), params.switch_rad_s,
-                            params.inertia, _spindle_friction(machine, params))  # fmt: skip
+                            params.inertia, _spindle_friction(machine, params),
+                            encoder_counts_rev=machine.spindle.encoder_counts_rev)  # fmt: skip
 
 
 def _spindle_params(machine: MachineConfig, where: str) -> SpindleDriveParams:

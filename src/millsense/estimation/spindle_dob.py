@@ -121,6 +121,8 @@ class SpindleDobTorque(Block):
         rate).
     prefix : reads ``{prefix}/current_cmd`` (A), ``{prefix}/speed`` and ``{prefix}/speed_cmd``
         (rad/s).
+    encoder_counts_rev : the spindle encoder's counts per revolution, where known: the speed
+        channel's resolution, whence :meth:`mean_resolution_nms`.
     """
 
     def __init__(
@@ -133,6 +135,7 @@ class SpindleDobTorque(Block):
         prefix: str = "spindle",
         out: str = DOB_TORQUE,
         name: str = "spindle_dob",
+        encoder_counts_rev: int | None = None,
     ) -> None:
         kt = tuple(float(k) for k in torque_constants)
         if not (len(kt) == 2 and all(math.isfinite(k) and k > 0 for k in kt)):
@@ -141,6 +144,9 @@ class SpindleDobTorque(Block):
             raise ConfigError(f"spindle DOB: inertia must be > 0, got {inertia}")
         if window is not None and not (window >= 1 and window % 2 == 1):
             raise ConfigError(f"spindle DOB: the window must be odd and ≥ 1, got {window}")
+        if encoder_counts_rev is not None and not encoder_counts_rev >= 1:
+            raise ConfigError(f"spindle DOB: encoder counts must be ≥ 1, got {encoder_counts_rev}")
+        self.encoder_counts_rev = encoder_counts_rev
         self.kt = kt
         self.switch = float(switch_rad_s)
         self.inertia = float(inertia)
@@ -156,12 +162,27 @@ class SpindleDobTorque(Block):
         return [ChannelInfo(self.out, "N*m", "spindle cutting torque by a disturbance observer "
                             "(seed 001 Eq. 2-15) for tooth-period averages")]  # fmt: skip
 
-    def reset(self, sample_rate_hz: float) -> None:
-        self.fs = float(sample_rate_hz)
+    def _window(self, sample_rate_hz: float) -> int:
         m = self.window_given
         if m is None:
-            m = max(1, 2 * round((WINDOW_S * self.fs - 1) / 2) + 1)
-        self.window = int(m)
+            m = max(1, 2 * round((WINDOW_S * sample_rate_hz - 1) / 2) + 1)
+        return int(m)
+
+    def mean_resolution_nms(self, sample_rate_hz: float) -> float:
+        """The resolution of the output's mean over a span T, times T (N·m·s; 0 where the
+        encoder's counts are not known): the inertial term's mean telescopes to J·(Ω̄_end −
+        Ω̄_start)/T (module notes), and a window's mean speed Ω̄ moves in steps of one encoder
+        count over the window, 2π/(counts·m/f_s), so the mean moves in steps of
+        J·2π·f_s/(counts·m)/T (decision 1732). A step holds while the speed holds the encoder's
+        phase at that end: on a tooth period it is no white noise that averages away."""
+        if self.encoder_counts_rev is None:
+            return 0.0
+        m = self._window(sample_rate_hz)
+        return self.inertia * 2.0 * math.pi * sample_rate_hz / (self.encoder_counts_rev * m)
+
+    def reset(self, sample_rate_hz: float) -> None:
+        self.fs = float(sample_rate_hz)
+        self.window = self._window(self.fs)
         self.delay = (self.window - 1) // 2
         self._state = np.zeros(DOB_RINGS + self.window + 2 * self.delay)
         self._params = np.array([*self.kt, self.switch, self.inertia, self.fs])

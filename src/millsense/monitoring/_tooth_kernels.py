@@ -58,12 +58,13 @@ def segment_periods(
     out_mean_e: FloatArray,
     out_mean_g: FloatArray,
     out_mean_f: FloatArray,
+    out_count: FloatArray,
     out_end: IntArray,
     out_index: IntArray,
 ) -> int:
     """Average ``a`` (and ``b``, ``expected``, the 1/0 ``gate``, the plan's transient
     ``floor`` when non-empty; the gate's mean is 1 without one, the floor's 0) over complete
-    tooth periods.
+    tooth periods; ``out_count``: each period's samples.
 
     ``out_*`` are sized ≥ the number of periods that can end in the chunk; ``out_end`` is the
     chunk sample at which each period is reported (strictly increasing), ``out_index`` its
@@ -93,6 +94,7 @@ def segment_periods(
             out_mean_e[m] = se / cnt if has_e else 0.0
             out_mean_g[m] = sg / cnt if has_g else 1.0
             out_mean_f[m] = sf / cnt if has_f else 0.0
+            out_count[m] = cnt
             out_end[m] = k
             out_index[m] = int(idx)
             m += 1
@@ -140,7 +142,8 @@ def segment_group(
     """:func:`segment_periods` for several detectors on one speed channel in one call:
     detector ``j`` averages the rows ``istate[j, I_ROWS:I_ROWS + 5]`` = (a, b, expected, gate,
     floor) of ``x`` (−1: none) with its segment state ``fstate[j, F_SEG:F_HELD]`` into
-    ``means[j, 0:3]``, ``means[j, PP_GATE]`` and ``means[j, PP_FLOOR]``, ``ends[j, 0:2]``;
+    ``means[j, 0:3]``, ``means[j, PP_GATE]``, ``means[j, PP_FLOOR]`` and ``means[j, PP_COUNT]``,
+    ``ends[j, 0:2]``;
     ``istate[j, I_COUNT]`` ← its periods completed. Returns the largest count (the group's
     packed layout: :data:`F_SEG`, :data:`I_ROWS`)."""
     empty = x[0, :0]
@@ -154,7 +157,8 @@ def segment_group(
         f = x[rows[4]] if rows[4] >= 0 else empty
         k = segment_periods(a, b, e, g, f, speed, fs, n_flutes, fstate[j, F_SEG:F_HELD],
                             means[j, 0], means[j, 1], means[j, 2], means[j, PP_GATE],
-                            means[j, PP_FLOOR], ends[j, 0], ends[j, 1])  # fmt: skip
+                            means[j, PP_FLOOR], means[j, PP_COUNT], ends[j, 0],
+                            ends[j, 1])  # fmt: skip
         istate[j, I_COUNT] = k
         top = max(top, k)
     return top
@@ -234,14 +238,18 @@ PATTERN_GROWTH = 1.5
 #: ... each spread taken over one revolution or this many periods, whichever is longer: the
 #: RMS of a 2-flute revolution's two contrasts grew 1.5× by chance (decisions 1727, 1728).
 GROWTH_PERIODS = 8
+#: Steps of the signal's resolution within which no deviation, change or drop is a breakage's
+#: (decision 1732): a quantisation-only period's innovation reaches two steps (a count flipped
+#: at each end of the period); the third leaves one for the noise on top.
+RESOLUTION_K = 3.0
 
 #: Rows of ``pp`` (per-period values: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2,
 #: 7 limit2, 8 band, 9 the gate's mean, 10 the plan's transient floor's mean, 11 the revolution
 #: mean's ratio to the plan's, 12 the same flute's deviation one revolution earlier, 13 the
 #: flute pattern's evidence (decision 1684), 14 1.0 where the pattern confirmed the alarm, 15-16
-#: the residuals of the violation before a plan-free flute check's alarm (decision 1707);
-#: NaN where not known) and of a detector's outputs (rows 3 … 8).
-PP_ROWS = 17
+#: the residuals of the violation before a plan-free flute check's alarm (decision 1707), 17
+#: the period's samples; NaN where not known) and of a detector's outputs (rows 3 … 8).
+PP_ROWS = 18
 PP_GATE = 9
 PP_FLOOR = 10
 PP_REV = 11
@@ -250,6 +258,7 @@ PP_PAT = 13
 PP_BY = 14
 PP_CE1 = 15  # the residuals of the violation before an alarm of the plan-free flute check at
 PP_CE2 = 16  # the next period, which completed the pair (decision 1707); NaN elsewhere
+PP_COUNT = 17
 OUT_ROWS = 6
 
 MODE_VIRTUAL = 0  # seed 000: |ε1| > σ_TB τ_sim and |τ − τ_sim| > σ_TB τ_sim, confirm
@@ -257,7 +266,7 @@ MODE_CONSTANT = 1  # the same with a constant τ_ref (given, or the mean of the 
 MODE_DUAL = 2  # seed 002: |ε1| > thr1 and |ε2| > thr2 in the same period
 
 #: Lengths of a detector's ``params`` and ``iparams`` (:func:`detect_periods`).
-N_PARAMS = 11
+N_PARAMS = 12
 N_IPARAMS = 9
 #: A group's packed state (one compiled call per chunk with few arguments: each array argument
 #: costs its unboxing at every call). Row j of ``fstate`` (float) holds detector j's segment
@@ -696,6 +705,11 @@ def detect_periods(
     signature's bound above), it alarms where the seed's rule does not (row 14: 1.0), once
     until a period not judged two-sided or a re-arm.
 
+    With a resolution ``params[11]`` > 0 (the signal's step summed over a period, in its unit ×
+    samples: a period's mean moves in steps of it over the period's samples, decision 1732) no
+    deviation, change, drop or threshold is smaller than RESOLUTION_K such steps: the band,
+    the dual's thresholds, the change a virtual run needs and the flute pattern's drop.
+
     With the plan-free flute check (dual and constant modes, ``iparams[8]``, decisions 1707 and
     1724) an alarm needs a broken flute's drop and the next flute's rise in Δ_N x
     (:func:`_flute_pair`, share 1 − edge_share − tol) at most :func:`pair_reach` periods apart
@@ -706,10 +720,10 @@ def detect_periods(
     completes it (rows 15-16: the violation's residuals).
 
     Packed arguments (few arguments keep the compiled call cheap at 100 calls per second):
-    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor
-    (columns :k); ``pb``
+    ``pp`` rows 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band, 9 gate, 10 floor,
+    17 samples (columns :k); ``pb``
     rows 0 violation, 1 alarm; ``params`` = (λ, P_max, σ_TB, min expected, reference, α,
-    learn_from, k_noise, edge_share, tol, pattern threshold); ``iparams`` = (N, mode,
+    learn_from, k_noise, edge_share, tol, pattern threshold, resolution); ``iparams`` = (N, mode,
     check_deviation, learn_periods, confirm, flute signature, lost_periods, flute pattern,
     plan-free flute check).
     """
@@ -729,6 +743,7 @@ def detect_periods(
     # drop that is not the broken flute's edge force, less the tolerance (decision 1707)
     rise_share = 1.0 - edge_share - rev_tol
     pattern_z = params[10]
+    resolution = params[11]
     # a broken flute's revolution keeps at least this share of the plan's; under the other
     # flutes' shares more than one flute's torque is missing (decision 1681)
     rev_low = 1.0 - edge_share / nf - rev_tol
@@ -750,6 +765,7 @@ def detect_periods(
     by_out = pp[PP_BY]
     ce1_out = pp[PP_CE1]
     ce2_out = pp[PP_CE2]
+    count = pp[PP_COUNT]
     for m in range(k):
         rev_out[m] = math.nan
         lag_out[m] = math.nan
@@ -790,6 +806,10 @@ def detect_periods(
             continue
         seen = int(state[DET_SEEN])
         xm = x[m]
+        # nothing within RESOLUTION_K steps of the signal's resolution is a breakage's
+        # (decision 1732): the DOB's mean moves by a step where an encoder count flips at an
+        # end of the period, and a flip holds for revolutions while the speed holds
+        floor_q = RESOLUTION_K * resolution / count[m] if resolution > 0.0 else 0.0
         x1 = state[DET_BASE + (seen - 1) % nf] if seen >= 1 else 0.0
         xn = state[DET_BASE + (seen - nf) % nf] if seen >= nf else 0.0
         d1 = xm - x1 if seen >= 1 else 0.0
@@ -855,6 +875,10 @@ def detect_periods(
                     floor_d = k_noise * math.sqrt(2.0) * _noise_sigma(state, nf)
                     thr1 = max(thr1, floor_d)
                     thr2 = max(thr2, floor_d)
+            if ready:
+                thr1 = max(thr1, floor_q)
+                thr2 = max(thr2, floor_q)
+                pair_size = max(pair_size, floor_q)
             lim1[m] = thr1 if ready else math.nan
             lim2[m] = thr2 if ready else math.nan
             v = ready and abs(e1) > thr1 and abs(e2) > thr2
@@ -882,6 +906,7 @@ def detect_periods(
                 if k_noise > 0.0 and state[DET_NOISE_N] >= NOISE_MIN:
                     sigma_now = _noise_sigma(state, nf)
                     band = max(limit, k_noise * sigma_now)
+                band = max(band, floor_q)
                 band_out[m] = band
                 pair_size = band
                 v_res = abs(e1) > limit
@@ -907,7 +932,8 @@ def detect_periods(
                 keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
                 if pattern:
                     if judge and not below:
-                        evidence = _flute_pattern(state, nf, seen % nf, xm - ex, 0.5 * limit)
+                        evidence = _flute_pattern(state, nf, seen % nf, xm - ex,
+                                                   max(0.5 * limit, floor_q))  # fmt: skip
                     else:  # a transient or a period not judged: the pattern starts afresh
                         _pattern_reset(state, nf)
                 if signature:
@@ -958,7 +984,7 @@ def detect_periods(
                 state[DET_CHANGED] = 0.0
             elif v and (
                 (run == 1.0 and unjudged_before)
-                or abs(dn) >= max(0.5 * limit, CHANGE_K * math.sqrt(2.0) * sigma_now)
+                or abs(dn) >= max(0.5 * limit, CHANGE_K * math.sqrt(2.0) * sigma_now, floor_q)
             ):
                 state[DET_CHANGED] = 1.0
             if state[DET_CHANGED] == 0.0:

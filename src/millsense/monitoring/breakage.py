@@ -207,6 +207,12 @@ class BreakageBlock(Block):
         1707), the constant's deviations from its reference, at least its band (decision
         1724). An entry, a step, an exit, a retract or a cavity moves neighbouring flutes the
         same way. Off: the seeds' detectors as they are.
+    mean_resolution : the signal's resolution over a tooth period, in its unit × s: a tooth
+        period's mean moves in steps of it divided by the period's duration (the spindle DOB's
+        torque: an encoder count at an end of the period,
+        :meth:`~millsense.estimation.spindle_dob.SpindleDobTorque.mean_resolution_nms`); no
+        band, dual threshold, change or flute-pattern drop is smaller than three such steps
+        (decision 1732). 0: none.
     name : block name (channel prefix and event source).
     """
 
@@ -240,6 +246,7 @@ class BreakageBlock(Block):
         flute_pattern: bool = True,
         pattern_z: float = PATTERN_Z,
         flute_check: bool = False,
+        mean_resolution: float = 0.0,
         name: str | None = None,
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -274,12 +281,17 @@ class BreakageBlock(Block):
             raise ConfigError(
                 f"breakage: lost_revolutions must be an integer ≥ 0, got {lost_revolutions!r}"
             )
+        if not (mean_resolution >= 0 and math.isfinite(mean_resolution)):
+            raise ConfigError(
+                f"breakage: mean_resolution must be ≥ 0 (0: none), got {mean_resolution!r}"
+            )
         if not (pattern_z > 0 and math.isfinite(pattern_z)):
             raise ConfigError(f"breakage: pattern_z must be positive, got {pattern_z!r}")
         self.flute_signature = bool(flute_signature) and method == "virtual"
         self.flute_pattern = bool(flute_pattern) and method == "virtual"
         self.flute_check = bool(flute_check) and method in ("dual", "constant")
         self.pattern_z = float(pattern_z)
+        self.mean_resolution = float(mean_resolution)
         self.edge_share = float(edge_share)
         self.revolution_tol = float(revolution_tol)
         self.lost_revolutions = int(lost_revolutions)
@@ -392,6 +404,7 @@ class BreakageBlock(Block):
                 self.edge_share,
                 self.revolution_tol,
                 self.pattern_z,
+                self.mean_resolution * self.fs,  # the step summed over a period's samples
             ]
         )
         self._iparams = np.array(
@@ -412,7 +425,8 @@ class BreakageBlock(Block):
         self._pi = np.empty((2, 0), dtype=np.int64)
         self._pb = np.empty((2, 0), dtype=np.bool_)
         self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
-                      self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
+                      self._pp[_k.PP_FLOOR], self._pp[_k.PP_COUNT], self._pi[0],
+                      self._pi[1])  # fmt: skip
         self._n_last = -1
         self._ch_a = self.signal_channels[0]
         self._ch_b = self.signal_channels[1] if len(self.signal_channels) == 2 else None
@@ -449,11 +463,11 @@ class BreakageBlock(Block):
         f = self._empty if self._ch_f is None else np.asarray(d[self._ch_f], dtype=np.float64)
         if n != self._n_last:
             self._size(n)
-        r0, r1, r2, rg, rf, r3, r4 = self._bufs
+        r0, r1, r2, rg, rf, rc, r3, r4 = self._bufs
         # rows of pp: 0 mean0, 1 mean1, 2 expected, 3 x, 4 ε1, 5 limit1, 6 ε2, 7 limit2, 8 band,
-        # 9 the gate's mean, 10 the floor's mean
+        # 9 the gate's mean, 10 the floor's mean, 17 the samples
         k: int = _k.segment_periods(a, b, e, g, f, speed, self.fs, self.n_flutes, self._seg, r0,
-                                    r1, r2, rg, rf, r3, r4)  # fmt: skip
+                                    r1, r2, rg, rf, rc, r3, r4)  # fmt: skip
         return k, n
 
     def _periods(self, chunk: Chunk, k: int, n: int) -> BlockOutput:
@@ -510,7 +524,8 @@ class BreakageBlock(Block):
             self._pi = np.empty((2, 2 * cap), dtype=np.int64)
             self._pb = np.empty((2, 2 * cap), dtype=np.bool_)
             self._bufs = (self._pp[0], self._pp[1], self._pp[2], self._pp[_k.PP_GATE],
-                          self._pp[_k.PP_FLOOR], self._pi[0], self._pi[1])  # fmt: skip
+                          self._pp[_k.PP_FLOOR], self._pp[_k.PP_COUNT], self._pi[0],
+                          self._pi[1])  # fmt: skip
         self._n_last = n
 
     # ------------------------------------------------------------------ helpers
@@ -743,7 +758,8 @@ class BreakageGroup(Block):
         for j, m in enumerate(ms):
             pp, pi = self._pp[j], self._pi[j]
             m._pp, m._pi, m._pb = pp, pi[:2], pi[2:]
-            m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pi[0], pi[1])
+            m._bufs = (pp[0], pp[1], pp[2], pp[_k.PP_GATE], pp[_k.PP_FLOOR], pp[_k.PP_COUNT],
+                       pi[0], pi[1])  # fmt: skip
         self._x = np.empty((len(self._chans), n))
         # (row, channel) pairs, copied per chunk
         self._x_rows = tuple(zip(self._x, self._chans, strict=True))

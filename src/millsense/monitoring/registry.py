@@ -46,7 +46,8 @@ class MonitorContext:
         ``contact.air_s`` (start, end) s, ``contact.cut_s`` s, ``contact.position_channel``,
         ``breakage.expected_channel``, ``breakage.signal`` (what the breakage detectors average
         where it is not ``signal``: ``monitor --machine``'s spindle DOB, decision 1728),
-        ``<chatter method>.threshold``,
+        ``breakage.mean_resolution`` (that signal's resolution over a tooth period, its unit ×
+        s: the DOB's encoder count, decision 1732), ``<chatter method>.threshold``,
         ``chatter.encoder_counts_rev`` (the machine file's spindle encoder, decision 1697)).
     tool : the tool (:class:`~millsense.core.config.ToolConfig`: ``--tool`` or the plan's), or
         None.
@@ -235,6 +236,7 @@ def _breakage_factory(method: str) -> Factory:
             signal_channels=(signal,),
             speed_channel=ctx.speed_channel,
             enable_channel=next((c for c in gates if c in ctx.channels), None),
+            mean_resolution=float(ctx.options.get("breakage.mean_resolution", 0.0)),
             name=name,
         )
         if method == "virtual":  # at several phases of the tooth period (decision 1552)

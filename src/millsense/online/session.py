@@ -217,13 +217,17 @@ def session_blocks(
                      "to regulate; give --reference for a set point)")  # fmt: skip
     if o.breakage and cuts:
         breakage_signal = CUTTING_TORQUE
+        resolution = 0.0  # the LQE observer's: its filter dithers the encoder's counts
         if o.breakage_torque == "dob":
             from millsense.estimation.from_config import spindle_dob_from_config
             from millsense.estimation.spindle_dob import DOB_TORQUE
 
             # the tooth periods' mean torque with the encoder's quantisation averaged out of
             # the inertial term, less its air as the observer's (decision 1726)
-            blocks.append(spindle_dob_from_config(machine, where))
+            dob = spindle_dob_from_config(machine, where)
+            blocks.append(dob)
+            # the encoder's count at a period's end, held while the speed holds (decision 1732)
+            resolution = dob.mean_resolution_nms(sample_rate_hz)
             blocks.append(AirReference(DOB_TORQUE, "plan/in_cut", "spindle/at_speed",
                                        out=DOB_CUTTING_TORQUE, name="plan/dob_air"))  # fmt: skip
             breakage_signal = DOB_CUTTING_TORQUE
@@ -238,6 +242,7 @@ def session_blocks(
                 min_expected_nm=MIN_JUDGED * _largest(plan, "torque_avg_nm"),
                 # a tooth period with a sample off the gate is not judged (decision 1559)
                 enable_channel="spindle/at_speed",
+                mean_resolution=resolution,
                 name="breakage",
             )
         )
