@@ -136,6 +136,8 @@ def plan_rows_kernel(
     matched: NDArray[np.int64],
     row: int,
     u: NDArray[np.float64],
+    feed: NDArray[np.float64],
+    feed_table: NDArray[np.float64],
     in_cut_table: NDArray[np.bool_],
     edge_table: NDArray[np.float64],
     shear_table: NDArray[np.float64],
@@ -156,7 +158,10 @@ def plan_rows_kernel(
     match at or before it, else ``row`` (the previous chunk's). Row −1 reads the tables' last
     entry ("no row yet"). ``values`` (≥ 10, n): rows 0–5 = [row, NC line, in cut, edge torque,
     shear torque × ``u``, axial depth], rows 8–9 = the transient floor's edge and shear × ``u``
-    parts (decision 1674).
+    parts (decision 1674). Where the CNC's path ``feed`` is given (non-empty) and the row's
+    programmed feed ``feed_table`` is positive, ``u[k]`` is overwritten with their ratio: the
+    feed the chip follows, the override and the path's own accelerations and decelerations
+    (decision 1733).
     """
     n = rows.shape[0]
     hold = np.full(n, -1, dtype=np.int64)
@@ -164,11 +169,14 @@ def plan_rows_kernel(
         hold[at[i]] = matched[i]
     last = edge_table.shape[0] - 1
     cur = row
+    path = feed.shape[0] == n
     for k in range(n):
         if hold[k] >= 0:
             cur = hold[k]
         rows[k] = cur
         r = cur if cur >= 0 else last
+        if path and feed_table[r] > 0.0:
+            u[k] = abs(feed[k]) / feed_table[r]
         in_cut[k] = in_cut_table[r]
         steady[k] = steady_table[r]
         values[0, k] = cur

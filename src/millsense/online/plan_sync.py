@@ -181,6 +181,11 @@ class PlanSync(Block):
         or None (no calibration: s = 1).
     speed_channel : spindle speed (rad/s), to count revolutions.
     override_channel : effective feed override (fraction), or None (1).
+    feed_channel : the CNC's path feed (m/s), where it reports it: the feed ratio u is then the
+        path feed over the matched row's programmed feed (the override and the path's own
+        accelerations and decelerations; a move that stops in the material thins the chip to
+        nothing over its last fraction of a millimetre, decision 1733), the override where the
+        row has no programmed feed; None: the override alone.
     at_speed_channel : 1/0 "spindle settled at speed" (:class:`~millsense.online.gates.
         SpindleAtSpeed`); given with ``torque_channel``, the air-cut reference of the torque is
         learned where the plan says air (:class:`~millsense.online.gates.AirReference`) and
@@ -205,6 +210,7 @@ class PlanSync(Block):
         torque_channel: str | None = "est/spindle/spindle/load",
         speed_channel: str = "spindle/speed",
         override_channel: str | None = "cnc/feed_override",
+        feed_channel: str | None = None,
         at_speed_channel: str | None = None,
         decimate: int = 30,
         calibration_revs: float = 10.0,
@@ -227,6 +233,7 @@ class PlanSync(Block):
         self.torque_channel = torque_channel
         self.speed_channel = speed_channel
         self.override_channel = override_channel
+        self.feed_channel = feed_channel
         self.decimate = int(decimate)
         self.cal_revs = float(calibration_revs)
         self.settle_revs = float(settle_revs)
@@ -236,6 +243,8 @@ class PlanSync(Block):
             ins.append(torque_channel)
         if override_channel is not None:
             ins.append(override_channel)
+        if feed_channel is not None:
+            ins.append(feed_channel)
         self.air: AirReference | None = None
         self.at_speed_channel: str | None = None
         if at_speed_channel is not None and torque_channel is not None:
@@ -250,6 +259,10 @@ class PlanSync(Block):
         self._shear = np.append(np.nan_to_num(sh), 0.0)
         self._edge = np.append(np.nan_to_num(tq - sh), 0.0)
         self._in_cut = np.append(np.asarray(plan["in_cut"], dtype=bool), False)
+        # the programmed path feed of each row, m/s (0: a rapid, or none: the override alone)
+        prog = np.nan_to_num(np.asarray(plan["feed_mm_min"], dtype=np.float64)) / 60e3
+        rapid = np.asarray(plan["rapid"], dtype=bool)
+        self._feed = np.append(np.where(rapid | (prog <= 0.0), 0.0, prog), 0.0)
         steady = steady_rows(plan, transient_revs)
         self._steady = np.append(steady, False)
         floor_edge, floor_shear = transient_floor(plan, transient_revs, steady=steady)
@@ -324,9 +337,14 @@ class PlanSync(Block):
             if ok.any():
                 matched[ok] = self.plan.match(tcp[:, ok].T, from_row=max(self.row, 0))
         u = (
-            np.ascontiguousarray(d[self.override_channel], dtype=np.float64)
+            np.array(d[self.override_channel], dtype=np.float64)  # a copy: the kernel writes it
             if self.override_channel is not None
             else np.ones(n)
+        )
+        feed = (
+            np.ascontiguousarray(d[self.feed_channel], dtype=np.float64)
+            if self.feed_channel is not None
+            else _NO_GATE
         )
         # each sample holds the last match at or before it (through unmatched ones), and
         # reads the per-row tables there (row −1: their last entry, "no row yet"); one
@@ -335,13 +353,14 @@ class PlanSync(Block):
         values = np.empty((11, n))
         flags = np.empty((2, n), dtype=bool)
         in_cut, steady = flags[0], flags[1]
-        plan_rows_kernel(at, matched, self.row, u, self._in_cut, self._edge, self._shear,
-                         self._nc, self._steady, self._depth, self._floor_edge,
+        plan_rows_kernel(at, matched, self.row, u, feed, self._feed, self._in_cut, self._edge,
+                         self._shear, self._nc, self._steady, self._depth, self._floor_edge,
                          self._floor_shear, rows, values, in_cut, steady)  # fmt: skip
         # the plan's own steadiness, where the K_tc calibration averages (decision 1714: an
         # override change is a transient of the judging only)
         plan_steady = steady
-        if self.override_channel is not None:  # an override change is a transient too
+        if self.override_channel is not None or self.feed_channel is not None:
+            # an override change, or the path's own deceleration, is a transient too
             plan_steady = steady.copy()
             override_transient_kernel(u, self._ovr_alpha, OVERRIDE_TRANSIENT_TOL,
                                       self._ovr_state, steady, values)  # fmt: skip

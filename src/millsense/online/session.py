@@ -55,6 +55,9 @@ CUTTING_TORQUE = "plan/cutting_torque"
 #: air-cut reference: what the breakage monitor averages by default (``breakage_torque="dob"``,
 #: decision 1727).
 DOB_CUTTING_TORQUE = "plan/dob_cutting_torque"
+#: The CNC's interpolated path feed (m/s): the plan's expected torque follows it (decision
+#: 1733).
+PATH_FEED = "cnc/feed"
 #: What the breakage monitor may average (:attr:`SessionOptions.breakage_torque`).
 BREAKAGE_TORQUES = ("dob", "observer")
 FORCE_SOURCES = ("estimate", "dynamometer")
@@ -197,8 +200,11 @@ def session_blocks(
     blocks.append(SpindleAtSpeed(fault_channel=FAULT_CHANNEL))
     axes_pos = [f"{a}/position_cmd" for a in machine.axes]
     blocks.append(TcpFromAxes(kinematics_for(machine.kinematics), axes_pos))
+    # the CNC's path feed, where it reports it: a move's deceleration thins the chip as an
+    # override cut does (decision 1733)
     sync = PlanSync(plan, torque_channel=TORQUE_CHANNEL, at_speed_channel="spindle/at_speed",
                     transient_revs=TRANSIENT_REVS,
+                    feed_channel=PATH_FEED if PATH_FEED in have else None,
                     feed_time_constant_s=feed_time_constant_s(machine))  # fmt: skip
     blocks.append(sync)
     flutes = int(plan.metadata.get("tool", {}).get("flutes", 2))
