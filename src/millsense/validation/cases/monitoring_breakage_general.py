@@ -16,8 +16,10 @@ from __future__ import annotations
 import functools
 import math
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from millsense.streaming.block import Event
 from millsense.validation import Measured, case
@@ -44,6 +46,19 @@ def _program(rpm: int, kind: str, feed: int, depth: float) -> str:
     y = 30 if kind == "slot" else 80  # the demo block is 0..80 mm in Y: centre on its edge
     return (f"%\nO1 (BREAKAGE {kind.upper()})\nG21 G90 G17\nS{rpm} M3\nG0 X-12 Y{y} Z5\n"
             f"G1 Z-{depth:g} F600\nG1 X90 F{feed}\nG0 Z10\nM30\n%\n")  # fmt: skip
+
+
+def _cuts(tmp: Path) -> Iterator[tuple[int, int, str, Path, Any]]:
+    """Each of :data:`CUTS` as (flutes, rev/min, label, its program written in ``tmp``, its
+    ``ToolConfig``)."""
+    from millsense.core.config import ToolConfig
+
+    for flutes, rpm, kind, feed, depth in CUTS:
+        label = f"{flutes} flutes, {kind}, {rpm} rev/min, {depth:g} mm, F{feed}"
+        prog = tmp / f"cut_{flutes}_{rpm}_{kind}.nc"
+        prog.write_text(_program(rpm, kind, feed, depth))
+        yield flutes, rpm, label, prog, ToolConfig(diameter_mm=DIAMETER_MM, flutes=flutes,
+                                                   helix_deg=HELIX_DEG)  # fmt: skip
 
 
 @dataclass
@@ -74,7 +89,6 @@ class CutRun:
 def general_runs(breakage_torque: str = "dob") -> tuple[CutRun, ...]:
     """The six cuts, broken and intact, through `run`'s session; ``breakage_torque``: what its
     breakage monitor averages (decision 1726)."""
-    from millsense.core.config import ToolConfig
     from millsense.online.session import SessionOptions
     from millsense.simulator.process_coupling import ToothBreak
     from millsense.validation.cases._breakage_effect import TruthTorque, effect_onset_s
@@ -82,11 +96,7 @@ def general_runs(breakage_torque: str = "dob") -> tuple[CutRun, ...]:
 
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
-        for flutes, rpm, kind, feed, depth in CUTS:
-            label = f"{flutes} flutes, {kind}, {rpm} rev/min, {depth:g} mm, F{feed}"
-            prog = Path(tmp) / f"cut_{flutes}_{rpm}_{kind}.nc"
-            prog.write_text(_program(rpm, kind, feed, depth))
-            tool = ToolConfig(diameter_mm=DIAMETER_MM, flutes=flutes, helix_deg=HELIX_DEG)
+        for flutes, rpm, label, prog, tool in _cuts(Path(tmp)):
             opts = SessionOptions(breakage_torque=breakage_torque)
             truth_b, truth_i = TruthTorque(), TruthTorque()
             broken = program_session(prog, tool, events=(ToothBreak(BREAK_S, 0),),
@@ -184,18 +194,12 @@ HELD_OUT_SEEDS = range(40, 80)
     issue=15,
 )
 def _held_out_false() -> Measured:
-    import tempfile as _tempfile
-
-    from millsense.core.config import ToolConfig
     from millsense.validation.cases._program_session import program_session
 
     rows = ["| cut | runs | false alarms (seed: time, evidence) |", "|---|---|---|"]
     total = 0
-    with _tempfile.TemporaryDirectory() as tmp:
-        for flutes, rpm, kind, feed, depth in CUTS:
-            prog = Path(tmp) / f"cut_{flutes}_{rpm}_{kind}.nc"
-            prog.write_text(_program(rpm, kind, feed, depth))
-            tool = ToolConfig(diameter_mm=DIAMETER_MM, flutes=flutes, helix_deg=HELIX_DEG)
+    with tempfile.TemporaryDirectory() as tmp:
+        for _, _, label, prog, tool in _cuts(Path(tmp)):
             found = []
             for seed in HELD_OUT_SEEDS:
                 res = program_session(prog, tool, seed=seed).result
@@ -205,7 +209,6 @@ def _held_out_false() -> Measured:
                         how = f", {ev:.1f}σ" if ev is not None else ""
                         found.append(f"{seed}: {e.time_s:.3f} s {e.name}{how}")
             total += len(found)
-            label = f"{flutes} flutes, {kind}, {rpm} rev/min, {depth:g} mm, F{feed}"
             rows.append(f"| {label} | {len(HELD_OUT_SEEDS)} | {'; '.join(found) or 'none'} |")
     return Measured(float(total), "\n".join(rows))
 
