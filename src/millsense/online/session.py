@@ -223,7 +223,9 @@ def session_blocks(
                      "to regulate; give --reference for a set point)")  # fmt: skip
     if o.breakage and cuts:
         breakage_signal = CUTTING_TORQUE
-        resolution = 0.0  # the LQE observer's: its filter dithers the encoder's counts
+        # the LQE observer's step is not derived (its gain spreads a count over the filter's
+        # dynamics): none (decision 1732)
+        resolution = 0.0
         if o.breakage_torque == "dob":
             from millsense.estimation.from_config import spindle_dob_from_config
             from millsense.estimation.spindle_dob import DOB_TORQUE
