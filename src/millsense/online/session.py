@@ -230,8 +230,8 @@ def session_blocks(
             from millsense.estimation.from_config import spindle_dob_from_config
             from millsense.estimation.spindle_dob import DOB_TORQUE
 
-            # the tooth periods' mean torque with the encoder's quantisation averaged out of
-            # the inertial term, less its air as the observer's (decision 1726)
+            # the tooth periods' mean torque with the encoder's quantisation of the inertial
+            # term divided by the speed window, less its air as the observer's (decision 1726)
             dob = spindle_dob_from_config(machine, where)
             blocks.append(dob)
             # the encoder's count at a period's end, held while the speed holds (decision 1732)

@@ -90,6 +90,9 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
     sums = np.cumsum(data["expected"])
     largest = float((sums[window:] - sums[:-window]).max()) / window
     flutes = profile.flutes
+    dob = spindle_dob_from_config(*shipped)
+    # as the session and `monitor --machine`: nothing within the DOB's resolution (decision 1732)
+    resolution = dob.mean_resolution_nms(fs)
     pipe = Pipeline([
         SpindleAtSpeed(),
         TorqueCutGate("torque", "spindle/speed", "spindle/at_speed", "gate/steady"),
@@ -98,16 +101,18 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
                        enable_channel="spindle/at_speed", name="virtual"),
         BreakageBlock(flutes, "dual", signal_channels=("torque",), enable_channel="gate/steady",
                       flute_check=True, name="dual"),
-        spindle_dob_from_config(*shipped),
+        dob,
         TorqueCutGate(DOB_TORQUE, "spindle/speed", "spindle/at_speed", "gate/dob_steady",
                       name="torque_cut_gate_dob"),
         BreakageBlock(flutes, "dual", signal_channels=(DOB_TORQUE,),
-                      enable_channel="gate/dob_steady", flute_check=True, name="dual_dob"),
+                      enable_channel="gate/dob_steady", flute_check=True,
+                      mean_resolution=resolution, name="dual_dob"),
         # as the session: the DOB's torque less its air reference (decision 1727)
         AirReference(DOB_TORQUE, "in_cut", "spindle/at_speed", out="dob_cut", name="dob_air"),
         PhasedBreakage(flutes, method="virtual", signal_channels=("dob_cut",),
                        expected_channel="expected", min_expected_nm=MIN_JUDGED * largest,
-                       enable_channel="spindle/at_speed", name="virtual_dob"),
+                       enable_channel="spindle/at_speed", mean_resolution=resolution,
+                       name="virtual_dob"),
     ])  # fmt: skip
     pipe.reset(fs)
     n = len(data["torque"])
@@ -120,9 +125,11 @@ def stream_alarms(label: str, name: str | None, seconds: float) -> StreamAlarms:
         gate_open += int(np.count_nonzero(out["gate/steady"] > 0.5))
         dob_open += int(np.count_nonzero(out["gate/dob_steady"] > 0.5))
     alarms = [e for e in events if e.kind == EventKind.ALARM]
-    blind = np.zeros(n, dtype=bool)  # from a breakage_blind note to the next breakage_seen
+    # the virtual detector's (on the observer's torque) from a breakage_blind note to its next
+    # breakage_seen; the DOB's detector has notes of its own
+    blind = np.zeros(n, dtype=bool)
     since = None
-    for e in sorted(events, key=lambda e: e.time_s):
+    for e in sorted((e for e in events if e.source == "virtual"), key=lambda e: e.time_s):
         if e.name == "breakage_blind" and since is None:
             since = int(e.time_s * fs)
         elif e.name == "breakage_seen" and since is not None:
