@@ -336,12 +336,12 @@ class PlanSync(Block):
             ok = np.all(np.isfinite(tcp), axis=0)
             if ok.any():
                 matched[ok] = self.plan.match(tcp[:, ok].T, from_row=max(self.row, 0))
-        if self.override_channel is None:
-            u = np.ones(n)
-        elif self.feed_channel is None:
-            u = np.ascontiguousarray(d[self.override_channel], dtype=np.float64)
-        else:  # a copy: the kernel writes the path's ratio into it
-            u = np.array(d[self.override_channel], dtype=np.float64)
+        u = (  # a copy: the kernel may write the path's ratio into it (and a recording's
+            # channel can be read-only, which the compiled kernel cannot take for a written array)
+            np.array(d[self.override_channel], dtype=np.float64)
+            if self.override_channel is not None
+            else np.ones(n)
+        )
         feed = (
             np.ascontiguousarray(d[self.feed_channel], dtype=np.float64)
             if self.feed_channel is not None
