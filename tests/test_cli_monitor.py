@@ -23,10 +23,13 @@ from test_monitoring_chatter import FS, _signal
 
 
 def _recording(path: Path, *, speed: bool = True, zero_speed: bool = False,
-               program: str = "part.nc", **metadata: object) -> Path:  # fmt: skip
+               program: str = "part.nc", truth: bool = False,
+               **metadata: object) -> Path:  # fmt: skip
     x, spd = _signal()
     rec = Recording(FS, 0.0, {"program": program, "flutes": 4, **metadata})
     rec.add_channel("mic/pressure", x, "Pa", "microphone")
+    if truth:  # a simulator's recording keeps its ground truth beside the CNC's channels
+        rec.add_channel("truth/mic/pressure", x, "Pa")
     if speed:
         rec.add_channel("spindle/speed", 0.0 * spd if zero_speed else spd, "rad/s")
         nc = np.where(np.arange(len(x)) < 2.0 * FS, 10, 12)
@@ -119,15 +122,19 @@ def test_monitor_with_plan_locates_the_event(
         ("other-plan", "other.nc"),
         ("bad-method", "unknown monitor 'chatter-fft'"),
         ("zero-rpm-option", "--spindle-rpm: must be > 0, got 0"),
+        ("truth-channel", "--channel 'truth/mic/pressure' is the simulator's ground truth"),
     ],
 )
 def test_monitor_bad_input_one_line_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str, needle: str
 ) -> None:
-    rec = _recording(tmp_path / "run.h5", speed=kind != "no-speed", zero_speed=kind == "zero-speed")
+    rec = _recording(tmp_path / "run.h5", speed=kind != "no-speed", zero_speed=kind == "zero-speed",
+                     truth=kind == "truth-channel")  # fmt: skip
     args = ["monitor", str(rec), "-o", str(tmp_path / "ev.parquet")]
     if kind == "bad-channel":
         args += ["--channel", "accel/x"]
+    if kind == "truth-channel":  # decision 1734's note: a one-line error, not a traceback
+        args += ["--channel", "truth/mic/pressure"]
     if kind == "other-plan":
         args += ["--plan", str(_plan(tmp_path / "p.parquet", program="other.nc"))]
     if kind == "bad-method":

@@ -250,6 +250,11 @@ def _run(
             f"{where}: --channel '{channel}' is not in the recording (it holds: "
             f"{', '.join(sorted(channels))})"
         )
+    if channel is not None and channel.startswith("truth/"):
+        raise InputDataError(
+            f"{where}: --channel '{channel}' is the simulator's ground truth, which monitors "
+            "may not read (only what a CNC or an added sensor records)"
+        )
     vp = None
     locate = None
     if plan is not None:
@@ -497,7 +502,7 @@ def _run(
             lines.append(f"  {b.name}: contact at {e.time_s:.5f} s, position {e.value:.6g}")
         elif b.name == "engagement":
             verdicts[b.name] = _engagement_verdict(b, _steady_cut(rec), fs)
-            lines.append(_engagement_summary(b, verdict=verdicts[b.name]))
+            lines.append(_engagement_summary(b, fs=fs, verdict=verdicts[b.name]))
         elif alarms:
             unit = {"chatter": " Hz"}
             f = ", ".join(
@@ -687,12 +692,37 @@ def _engagement_summary(
 ) -> str:
     """One line: revolutions evaluated and the engagement over them (decisions 1807, 1558,
     1698), as :func:`_engagement_verdict` decides (``verdict``: already decided)."""
+    v = verdict if verdict is not None else _engagement_verdict(block, steady, fs)
+    return _engagement_line(block, v) + _harmonics_note(block, fs)
+
+
+def _harmonics_note(block: Any, fs: float) -> str:
+    """What the summary adds where the harmonics were limited by the Nyquist frequency
+    (decision 1734): the harmonics fitted where fewer than the default, and the revolutions
+    left unevaluated because theirs reached it."""
+    from millsense.monitoring.engagement import DEFAULT_HARMONICS
+
+    note = ""
+    k = int(getattr(block, "n_harmonics", DEFAULT_HARMONICS))
+    if k < DEFAULT_HARMONICS:
+        note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
+                 f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
+    aliased = int(getattr(block, "aliased_revolutions", 0))
+    if aliased:
+        note += (f"; {aliased} revolutions in the cut not evaluated: their tooth harmonics "
+                 f"reach the Nyquist frequency ({0.5 * fs:g} Hz)")  # fmt: skip
+    return note
+
+
+def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
+    """The summary's line on the engagement as ``v`` decides it."""
     from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
 
-    v = verdict if verdict is not None else _engagement_verdict(block, steady, fs)
     where, est, avg = v.where, v.reliable, v.avg
     every = [e for _, _, e in v.timed]
     if v.kind == "none":
+        if getattr(block, "aliased_revolutions", 0):
+            return f"  {block.name}: no revolution evaluated{where}"
         return f"  {block.name}: no revolution evaluated{where} (no cut, or the torque is too low)"
 
     def med(v: list[float]) -> float:

@@ -808,10 +808,12 @@ ACC_SIZE = 15
 #: cutting torque T_0 − T_air and its variance factor (:func:`mean_cut_torque`) and the
 #: status: :data:`REV_NONE` (not evaluated: air, no speed, no feed), :data:`REV_DONE` (the
 #: estimate is in its row of ``est``), :data:`REV_GRID` (the previous revolution's solution
-#: does not explain it: the caller runs the grid search, then resumes the scan).
+#: does not explain it: the caller runs the grid search, then resumes the scan),
+#: :data:`REV_ALIASED` (not evaluated: its highest tooth harmonic is not below the Nyquist
+#: frequency, decision 1734).
 DONE_AT, DONE_OMEGA, DONE_FEED, DONE_STATUS, DONE_T0_NET, DONE_MEAN_VAR = range(6)
 DONE_SIZE = 6
-REV_NONE, REV_DONE, REV_GRID = 0.0, 1.0, 2.0
+REV_NONE, REV_DONE, REV_GRID, REV_ALIASED = 0.0, 1.0, 2.0, 3.0
 #: ``fpar`` of :func:`ingest_revolutions`: minimum mean torque, feed per tooth (m; ≤ 0: from
 #: the feed channel), tanβ/r, the accept misfit, radius, axial pitch, the runout cut-off and
 #: the air torque given as a setting (N·m; NaN: learnt from the air revolutions, decision 1806).
@@ -1659,11 +1661,15 @@ def ingest_revolutions(
             done[nd, DONE_T0_NET] = t0_net
             done[nd, DONE_MEAN_VAR] = mean_var
             status = REV_NONE
+            # a harmonic at or above the Nyquist frequency is another one's alias (decision
+            # 1734): the revolution is not evaluated (orders ascend: the last is the highest)
+            aliased = omega * orders[nk - 1] >= math.pi * fs
             if (
                 mean_x >= fpar[FPAR_MIN_TORQUE]
                 and omega > 0
                 and c > 0
                 and (abs(done_sums[nd, 1]) > 0)
+                and not aliased
             ):
                 status = REV_GRID
                 note_mean(anchor, hmean, done_sums[nd, 1:])
@@ -1693,6 +1699,8 @@ def ingest_revolutions(
                         prev[2] = row[EST_EXIT]
             else:
                 forget_mean(anchor, hmean)
+                if aliased and mean_x >= fpar[FPAR_MIN_TORQUE]:
+                    status = REV_ALIASED
             done[nd, DONE_STATUS] = status
             acc[ACC_COUNT] = 0.0
             acc[ACC_SUM_X] = 0.0

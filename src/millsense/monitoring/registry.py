@@ -283,6 +283,36 @@ def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
     return float(np.median(feed[ok] / (flutes * rpm[ok])))
 
 
+def _engagement_harmonics(ctx: MonitorContext, n_flutes: int, name: str) -> int:
+    """The tooth harmonics the engagement monitor fits: the default, or those below the
+    Nyquist frequency at the recording's top spindle speed where fewer (decision 1734); a
+    one-line error where fewer than the fit needs lie below it. Without the recording's speed
+    samples (a live stream): the default, and the block leaves a revolution whose harmonics
+    reach the Nyquist frequency unevaluated."""
+    from millsense.monitoring.engagement import (
+        DEFAULT_HARMONICS,
+        MIN_HARMONICS,
+        harmonics_below_nyquist,
+    )
+
+    if ctx.read is None or ctx.speed_channel is None or ctx.n_samples <= 0:
+        return DEFAULT_HARMONICS
+    speed = np.abs(np.asarray(ctx.read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
+    speed = speed[np.isfinite(speed)]
+    top_rpm = float(speed.max()) * 60.0 / (2.0 * np.pi) if speed.size else 0.0
+    if not top_rpm > 0:
+        return DEFAULT_HARMONICS
+    k = harmonics_below_nyquist(n_flutes, top_rpm, ctx.sample_rate_hz)
+    if k < MIN_HARMONICS:
+        raise InputDataError(
+            f"{ctx.source}: monitor '{name}' needs {MIN_HARMONICS} tooth-passing harmonics below "
+            f"the Nyquist frequency ({0.5 * ctx.sample_rate_hz:g} Hz); at the recording's top "
+            f"speed of {top_rpm:.0f} rev/min a {n_flutes}-flute tool's tooth-passing frequency "
+            f"is {n_flutes * top_rpm / 60.0:.0f} Hz, which leaves {k}: record at a higher rate"
+        )
+    return k
+
+
 def _engagement(ctx: MonitorContext) -> Block:
     """Seed 004 ch. 2 (Lee Fig. 2.9) from the registry: tool from ``--tool`` or the plan, feed
     per tooth from ``--feed-per-tooth-mm``, else the recorded path feed (``cnc/feed``: the feed
@@ -325,6 +355,7 @@ def _engagement(ctx: MonitorContext) -> Block:
         int(tool.flutes),
         float(tool.diameter_mm),
         float(tool.helix_deg),
+        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name),
         torque_channel=signal,
         speed_channel=ctx.speed_channel,
         feed_channel=feed,
