@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import pytest
 
 from millsense.online._sync_kernels import plan_rows_kernel
 
@@ -53,13 +53,26 @@ def test_u_is_the_path_feed_over_the_rows_programmed_feed() -> None:
     assert np.allclose(_rows(np.full(10, 0.8), np.empty(0), table), 0.8)
 
 
-def _false_alarms(seed: int, feed_channel: bool) -> list[float]:
+#: The NC line of the cut's retract in :func:`~millsense.validation.cases.
+#: monitoring_breakage_general._program` (the 8th line of the file: the G1 X90 cut is the 7th).
+RETRACT_LINE = 8
+
+
+def _false_alarms(seed: int, feed_channel: bool) -> tuple[list[float], float]:
     """Breakage alarms of `run`'s session on the intact 4-flute slot at 6000 rev/min (a general
-    cut), virtual machine seed ``seed``, with or without the path feed in the plan sync."""
+    cut), virtual machine seed ``seed``, with or without the path feed in the plan sync, and
+    the time the CNC left the cut's move for the retract (s)."""
     from millsense.core.config import ToolConfig
     from millsense.online import session
     from millsense.validation.cases._program_session import program_session
     from millsense.validation.cases.monitoring_breakage_general import _program
+
+    left: list[float] = []
+
+    def watch(chunk: Any, _out: Any, _events: Any) -> None:
+        at = np.flatnonzero(np.asarray(chunk.data["cnc/nc_line"]) == RETRACT_LINE)
+        if at.size and not left:
+            left.append((chunk.start + int(at[0])) / chunk.sample_rate_hz)
 
     path = session.PATH_FEED
     try:
@@ -69,17 +82,27 @@ def _false_alarms(seed: int, feed_channel: bool) -> list[float]:
             prog = Path(tmp) / "slot.nc"
             prog.write_text(_program(6000, "slot", 1500, 4.0))
             tool = ToolConfig(diameter_mm=12.0, flutes=4, helix_deg=35.0)
-            res = program_session(prog, tool, seed=seed).result
+            res = program_session(prog, tool, seed=seed, observer=watch).result
     finally:
         session.PATH_FEED = path
-    return [e.time_s for e in res.events if e.name == "breakage"]
+    return [e.time_s for e in res.events if e.name == "breakage"], left[0]
 
 
-@pytest.mark.parametrize("seed", [24, 36])
-def test_a_move_stopping_in_the_material_is_no_broken_flute(seed: int) -> None:
-    """Two of the finding's runs (the flute pattern at 11.05σ and 8.4σ at 7.906 s, where the
-    path decelerated to X90): without the path feed the alarm comes back at the move's end
-    (after 7.85 s: the cut's last 0.3 mm), and with it there is no alarm."""
-    without = _false_alarms(seed, feed_channel=False)
-    assert without and all(7.85 < t < 7.95 for t in without), without
-    assert _false_alarms(seed, feed_channel=True) == []
+#: Two of the finding's runs (the flute pattern at 11.05σ and 8.4σ, 0.03 s before the move's
+#: end on an AMD EPYC host, where the path decelerated to X90). Which of them alarms again
+#: without the path feed depends on the host's floating point (seed 36 gives none on an Intel
+#: Xeon): the test needs one of them to.
+FINDING_SEEDS = (24, 36)
+
+
+def test_a_move_stopping_in_the_material_is_no_broken_flute() -> None:
+    """Without the path feed the alarm comes back at the move's end in one of the finding's
+    runs at least, and only there (from 0.1 s before the CNC leaves the move, the cut's last
+    0.3 mm at 1500 mm/min and the deceleration, to 0.03 s after it); with it neither run
+    alarms."""
+    without = {seed: _false_alarms(seed, feed_channel=False) for seed in FINDING_SEEDS}
+    assert any(times for times, _ in without.values()), without
+    for times, end in without.values():
+        assert all(end - 0.1 < t < end + 0.03 for t in times), without
+    for seed in FINDING_SEEDS:
+        assert _false_alarms(seed, feed_channel=True)[0] == [], seed
