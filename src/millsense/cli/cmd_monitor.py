@@ -55,7 +55,8 @@ def monitor(
         None,
         "--spindle-rpm",
         help="Spindle speed [rev/min] when the recording has no speed channel (default: the "
-        "recording's metadata spindle_rpm, else the plan's programmed speed).",
+        "recording's metadata spindle_rpm, else the plan's programmed speed); the engagement "
+        "monitor refines it from the torque's own revolutions.",
     ),
     plot: Path | None = typer.Option(None, "--plot", help="PNG: spectrogram with chatter marked."),
     chunk: int = typer.Option(1000, "--chunk", help="Samples per chunk."),
@@ -699,7 +700,8 @@ def _engagement_summary(
 def _harmonics_note(block: Any, fs: float) -> str:
     """What the summary adds where the harmonics were limited by the Nyquist frequency
     (decision 1734): the harmonics fitted where fewer than the default, and the revolutions
-    left unevaluated because theirs reached it."""
+    left unevaluated because theirs reached it; and where the spindle angle came from a set
+    speed (decision 1737)."""
     from millsense.monitoring.engagement import DEFAULT_HARMONICS
 
     note = ""
@@ -707,6 +709,11 @@ def _harmonics_note(block: Any, fs: float) -> str:
     if k < DEFAULT_HARMONICS:
         note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
                  f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
+    rpm = getattr(block, "speed_rpm", None)
+    if rpm is not None:
+        source = getattr(block, "speed_source", "") or f"the set speed of {rpm:g} rev/min"
+        note += (f"; no speed channel: the spindle angle from {source} (the runout angle's "
+                 "reference is the record's first sample)")  # fmt: skip
     aliased = int(getattr(block, "aliased_revolutions", 0))
     if aliased:
         note += (f"; {aliased} revolutions in the cut not evaluated: their tooth harmonics "

@@ -190,7 +190,13 @@ class EngagementBlock(Block):
     Parameters
     ----------
     n_flutes, diameter_mm, helix_deg : the tool (field units).
-    torque_channel, speed_channel : N·m and rad/s.
+    torque_channel, speed_channel : N·m and the spindle speed in ``speed_unit``.
+    speed_unit : ``rad/s`` or ``rev/min``.
+    speed_rpm : a constant spindle speed (rev/min) instead of a speed channel (a laboratory
+        cut at a set speed recorded with a dynamometer alone; decision 1737): the spindle
+        angle is then that speed's, which must be the actual one to a few ppm (0.02 % off read
+        a 2 mm depth as 2.10 mm); ``millsense monitor`` refines the set speed from the torque's
+        own revolutions (:func:`~millsense.monitoring.revolution_period.refined_speed_rpm`).
     feed_channel : path feed, m/s (feed per tooth c = 2π v/(N Ω)); or give
         ``feed_per_tooth_mm``.
     n_harmonics : tooth-passing harmonics used.
@@ -219,6 +225,8 @@ class EngagementBlock(Block):
         helix_deg: float,
         torque_channel: str = "spindle/torque_est",
         speed_channel: str = "spindle/speed",
+        speed_unit: str = "rad/s",
+        speed_rpm: float | None = None,
         feed_channel: str | None = None,
         feed_per_tooth_mm: float | None = None,
         n_harmonics: int = DEFAULT_HARMONICS,
@@ -257,7 +265,19 @@ class EngagementBlock(Block):
         self.edge = bool(edge)
         self.max_depth_fraction = float(max_depth_fraction)
         self.torque_channel = torque_channel
+        if speed_unit not in ("rad/s", "rev/min"):
+            raise ConfigError(
+                f"engagement: speed_unit must be rad/s or rev/min, got {speed_unit!r}"
+            )
+        if speed_rpm is not None and not (speed_rpm > 0 and math.isfinite(speed_rpm)):
+            raise ConfigError(f"engagement: speed_rpm must be positive, got {speed_rpm!r}")
         self.speed_channel = speed_channel
+        self.speed_rpm = None if speed_rpm is None else float(speed_rpm)
+        #: rad/s per unit of the speed channel
+        self._speed_scale = 1.0 if speed_unit == "rad/s" else 2.0 * math.pi / 60.0
+        self._constant_speed = np.empty(0)
+        #: where a constant speed came from, for the summary (``millsense monitor`` sets it)
+        self.speed_source = ""
         self.feed_channel = feed_channel
         self.c_m = None if feed_per_tooth_mm is None else 1e-3 * feed_per_tooth_mm
         self.min_torque_nm = float(min_torque_nm)
@@ -266,7 +286,7 @@ class EngagementBlock(Block):
         self.air_torque_nm = air_torque_nm
         self.response = response
         self.name = name
-        ins = [torque_channel, speed_channel]
+        ins = [torque_channel] if self.speed_rpm is not None else [torque_channel, speed_channel]
         if feed_channel is not None:
             ins.append(feed_channel)
         self.inputs = tuple(ins)
@@ -435,10 +455,20 @@ class EngagementBlock(Block):
         self._held_views, out = held_views(self._names, self._held, self._held_views, n)
         return out
 
+    def _speed(self, d: Any, n: int) -> np.ndarray:
+        """The chunk's spindle speed in rad/s: the channel's, or the constant ``speed_rpm``
+        (decision 1737)."""
+        if self.speed_rpm is None:
+            sp = np.asarray(d[self.speed_channel], dtype=np.float64)
+            return sp if self._speed_scale == 1.0 else sp * self._speed_scale
+        if self._constant_speed.shape[0] != n:
+            self._constant_speed = np.full(n, self.speed_rpm * 2.0 * math.pi / 60.0)
+        return self._constant_speed
+
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
-        sp = np.asarray(d[self.speed_channel], dtype=np.float64)
+        sp = self._speed(d, x.shape[0])
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
         nd, i = _sk.ingest_chunk(x, sp, fd, 0, self._fst, self._cst, self._mstate)

@@ -295,11 +295,15 @@ def _engagement_harmonics(ctx: MonitorContext, n_flutes: int, name: str) -> int:
         harmonics_below_nyquist,
     )
 
-    if ctx.read is None or ctx.speed_channel is None or ctx.n_samples <= 0:
+    if ctx.speed_channel is None:  # the constant speed (decision 1737)
+        top_rpm = float(ctx.speed_rpm or 0.0)
+    elif ctx.read is None or ctx.n_samples <= 0:
         return DEFAULT_HARMONICS
-    speed = np.abs(np.asarray(ctx.read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
-    speed = speed[np.isfinite(speed)]
-    top_rpm = float(speed.max()) * 60.0 / (2.0 * np.pi) if speed.size else 0.0
+    else:
+        speed = np.abs(np.asarray(ctx.read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
+        speed = speed[np.isfinite(speed)]
+        per_unit = 60.0 / (2.0 * np.pi) if ctx.speed_unit == "rad/s" else 1.0
+        top_rpm = float(speed.max()) * per_unit if speed.size else 0.0
     if not top_rpm > 0:
         return DEFAULT_HARMONICS
     k = harmonics_below_nyquist(n_flutes, top_rpm, ctx.sample_rate_hz)
@@ -328,12 +332,13 @@ def _engagement(ctx: MonitorContext) -> Block:
             "--channel)"
         )
     ctx.require([signal], name)
-    if ctx.speed_channel is None or ctx.speed_unit != "rad/s":
+    if ctx.speed_channel is None and not (ctx.speed_rpm and ctx.speed_rpm > 0):
         raise InputDataError(
-            f"{ctx.source}: monitor '{name}' needs a spindle-speed channel in rad/s "
-            "(spindle/speed) for the spindle angle"
+            f"{ctx.source}: monitor '{name}' needs the spindle speed for the spindle angle: a "
+            "spindle-speed channel (spindle/speed) or, for a cut at a set speed, --spindle-rpm"
         )
-    ctx.require([ctx.speed_channel], name)
+    if ctx.speed_channel is not None:
+        ctx.require([ctx.speed_channel], name)
     tool = ctx.tool
     if tool is None:
         raise InputDataError(
@@ -351,13 +356,18 @@ def _engagement(ctx: MonitorContext) -> Block:
             f"(mm), a --plan with the programmed feed, or record the path feed ({PATH_FEED}, "
             "m/s)"
         )
-    return EngagementBlock(
+    # without a speed channel: the set speed, refined from the torque's own revolutions
+    # (decision 1737)
+    set_rpm, speed_source = _set_speed(ctx, signal)
+    block = EngagementBlock(
         int(tool.flutes),
         float(tool.diameter_mm),
         float(tool.helix_deg),
         n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name),
         torque_channel=signal,
-        speed_channel=ctx.speed_channel,
+        speed_channel=ctx.speed_channel or "spindle/speed",
+        speed_unit=ctx.speed_unit,
+        speed_rpm=set_rpm,
         feed_channel=feed,
         feed_per_tooth_mm=None if fz is None else float(fz),
         # the spindle observer's response, where the signal is its estimate (decision 1554)
@@ -365,6 +375,30 @@ def _engagement(ctx: MonitorContext) -> Block:
         air_torque_nm=ctx.options.get("engagement.air_torque_nm"),
         name=name,
     )
+    block.speed_source = speed_source
+    return block
+
+
+def _set_speed(ctx: MonitorContext, signal: str) -> tuple[float | None, str]:
+    """Without a speed channel, the engagement monitor's constant speed (rev/min) and where
+    it came from (decision 1737): the set speed refined from the torque record's own
+    revolutions (:func:`~millsense.monitoring.revolution_period.refined_speed_rpm`), or the set
+    speed as given where the record does not show it (a live stream, fewer than 4
+    revolutions, no revolution in the torque). (None, "") with a speed channel."""
+    from millsense.monitoring.revolution_period import MAX_SAMPLES, refined_speed_rpm
+
+    if ctx.speed_channel is not None or not ctx.speed_rpm:
+        return None, ""
+    set_rpm = float(ctx.speed_rpm)
+    if ctx.read is None or ctx.n_samples <= 0:
+        return set_rpm, f"the set speed of {set_rpm:g} rev/min"
+    x = np.asarray(ctx.read(signal, 0, min(ctx.n_samples, MAX_SAMPLES)), dtype=float)
+    rpm = refined_speed_rpm(x, ctx.sample_rate_hz, set_rpm)
+    if rpm is None:
+        return set_rpm, (f"the set speed of {set_rpm:g} rev/min, which the torque's "
+                         "revolutions did not refine")  # fmt: skip
+    return rpm, (f"{rpm:.4f} rev/min, the set {set_rpm:g} rev/min refined from the torque's "
+                 "own revolutions")  # fmt: skip
 
 
 register("engagement", _engagement)

@@ -1,0 +1,112 @@
+"""Decision 1737: the engagement monitor takes the spindle speed from a channel in rad/s or
+rev/min, or, for a cut at a set speed recorded without one (a dynamometer alone, as Lee's),
+from ``--spindle-rpm`` or the recording's metadata."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli_run import run_cli
+from millsense.core.recording import Recording
+from millsense.io.recording_file import write_recording
+from test_engagement_nyquist import FS, _band_limited_torque, _tool
+
+ACTUAL_RPM = 1002.0
+
+
+def _recording(path: Path, rpm: float, speed: str | None, **metadata: object) -> Path:
+    """2 s of a 2-flute Ø20 mm cut (2 mm axial, 5 mm radial, 0.1 mm a tooth) turning at
+    ``rpm``; its speed channel in ``speed`` units (None: no speed channel)."""
+    data = _band_limited_torque(rpm, 2.0, 2)
+    rec = Recording(FS, 0.0, {"program": "part.nc", **metadata})
+    rec.add_channel("dynamometer/torque", data["spindle/torque_est"], "N*m")
+    if speed == "rad/s":
+        rec.add_channel("spindle/speed", data["spindle/speed"], "rad/s")
+    elif speed == "rev/min":
+        rec.add_channel("spindle/speed", data["spindle/speed"] * 60 / (2 * math.pi), "rev/min")
+    write_recording(path, rec)
+    return path
+
+
+def _depths(tmp_path: Path, rec: Path, capsys: pytest.CaptureFixture[str],
+            *extra: str) -> tuple[int, str]:  # fmt: skip
+    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--channel",
+                                 "dynamometer/torque", "--tool", str(_tool(tmp_path / "t.toml", 2)),
+                                 "--feed-per-tooth-mm", "0.1", *extra, "-o",
+                                 str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
+    if code != 0:
+        return code, err
+    return code, next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+
+
+def _axial_mm(line: str) -> float:
+    words = line.replace(",", "").split()
+    return float(words[words.index("axial") + 2])
+
+
+@pytest.mark.parametrize("unit", ["rad/s", "rev/min"])
+def test_the_speed_channel_in_either_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], unit: str
+) -> None:
+    """A speed channel in rev/min (a CNC trace's) gives the depth as one in rad/s: 2 mm
+    within 2 %."""
+    code, line = _depths(tmp_path, _recording(tmp_path / "r.h5", 1000.0, unit), capsys)
+    assert code == 0, line
+    assert _axial_mm(line) == pytest.approx(2.0, rel=0.02)
+    assert "no speed channel" not in line
+
+
+@pytest.mark.parametrize("source", ["option", "metadata"])
+def test_a_cut_at_a_set_speed_without_a_speed_channel(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], source: str
+) -> None:
+    """A dynamometer's torque alone, the set speed from --spindle-rpm or the recording's
+    metadata, the spindle turning 0.2 % faster than set (1002 rev/min): the monitor refines
+    the speed from the torque's own revolutions, the depth is within 2 % of 2 mm, and the
+    summary says where the angle came from. (At the set speed itself, 0.02 % off already read
+    2.10 mm: decision 1737.)"""
+    meta = {"spindle_rpm": 1000.0} if source == "metadata" else {}
+    rec = _recording(tmp_path / "r.h5", ACTUAL_RPM, None, **meta)
+    extra = ("--spindle-rpm", "1000") if source == "option" else ()
+    code, line = _depths(tmp_path, rec, capsys, *extra)
+    assert code == 0, line
+    assert _axial_mm(line) == pytest.approx(2.0, rel=0.02)
+    assert "the set 1000 rev/min refined from the torque's own revolutions" in line
+
+
+def test_no_speed_at_all_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Neither a speed channel nor a set speed: one line naming both ways, exit 2."""
+    code, err = _depths(tmp_path, _recording(tmp_path / "r.h5", 1000.0, None), capsys)
+    assert code == 2
+    msg = err.strip().splitlines()[-1]
+    assert "spindle/speed" in msg and "--spindle-rpm" in msg
+    assert not (tmp_path / "ev.parquet").exists()
+
+
+@pytest.mark.parametrize("actual", [1000.0, 1002.0, 1009.0])
+def test_the_speed_from_the_torques_own_revolutions(actual: float) -> None:
+    """2 s of the cut (33 revolutions) with 0.05 N·m of noise, set to 1000 rev/min: the
+    speed within 10 ppm (the phase slope at the strongest order over the record; a 1 % error
+    is the range searched)."""
+    from millsense.monitoring.revolution_period import refined_speed_rpm
+
+    x = _band_limited_torque(actual, 2.0, 2)["spindle/torque_est"]
+    x = x + 0.05 * np.random.default_rng(3).standard_normal(x.size)
+    rpm = refined_speed_rpm(x, FS, 1000.0)
+    assert rpm is not None
+    assert rpm == pytest.approx(actual, rel=1e-5)
+
+
+def test_no_refined_speed_without_revolutions() -> None:
+    """A flat record, fewer than 4 revolutions, or a speed beyond the 1 % searched: None."""
+    from millsense.monitoring.revolution_period import refined_speed_rpm
+
+    assert refined_speed_rpm(np.zeros(20000), FS, 1000.0) is None
+    short = _band_limited_torque(1000.0, 0.2, 2)["spindle/torque_est"]  # 3.3 revolutions
+    assert refined_speed_rpm(short, FS, 1000.0) is None
+    far = _band_limited_torque(1030.0, 2.0, 2)["spindle/torque_est"]  # 3 % faster
+    assert refined_speed_rpm(far, FS, 1000.0) is None
