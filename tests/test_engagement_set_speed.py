@@ -24,7 +24,10 @@ def _recording(path: Path, rpm: float, speed: str | None, **metadata: object) ->
     data = _band_limited_torque(rpm, 2.0, 2)
     rec = Recording(FS, 0.0, {"program": "part.nc", **metadata})
     rec.add_channel("dynamometer/torque", data["spindle/torque_est"], "N*m")
-    if speed == "rad/s":
+    if speed == "angle":  # a rotary encoder's angle, wrapped into [0, 2π) as one records it
+        ang = np.cumsum(data["spindle/speed"]) / FS
+        rec.add_channel("spindle/angle", np.mod(ang + 1.0, 2 * math.pi), "rad")
+    elif speed == "rad/s":
         rec.add_channel("spindle/speed", data["spindle/speed"], "rad/s")
     elif speed == "rev/min":
         rec.add_channel("spindle/speed", data["spindle/speed"] * 60 / (2 * math.pi), "rev/min")
@@ -110,3 +113,45 @@ def test_no_refined_speed_without_revolutions() -> None:
     assert refined_speed_rpm(short, FS, 1000.0) is None
     far = _band_limited_torque(1030.0, 2.0, 2)["spindle/torque_est"]  # 3 % faster
     assert refined_speed_rpm(far, FS, 1000.0) is None
+
+
+def test_the_spindle_angle_channel(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A dynamometer's torque with the spindle encoder's wrapped angle (Lee's revolution
+    reference), the spindle at 1002 rev/min, no speed channel and no set speed: the depth
+    within 2 % of 2 mm, the summary naming the angle channel."""
+    code, line = _depths(tmp_path, _recording(tmp_path / "r.h5", 1002.0, "angle"), capsys)
+    assert code == 0, line
+    assert _axial_mm(line) == pytest.approx(2.0, rel=0.02)
+    assert "the spindle angle from the channel spindle/angle" in line
+
+
+def test_an_angle_channel_is_an_angle() -> None:
+    """The import map refuses a spindle angle in a length unit (one-line ConfigError)."""
+    from millsense.core.errors import ConfigError
+    from millsense.io.importers.mapfile import check_channel_unit
+
+    check_channel_unit("spindle/angle", "deg", "rad", "map")
+    with pytest.raises(ConfigError, match="spindle/angle"):
+        check_channel_unit("spindle/angle", "mm", "m", "map")
+
+
+def test_the_angle_channel_is_chunk_invariant() -> None:
+    """The speed from the angle's steps carries the last angle across chunks: 10 ms and 0.1 s
+    chunks give the same estimates, bit for bit."""
+    from millsense.monitoring.engagement import EngagementBlock
+    from millsense.streaming.block import Chunk
+
+    data = _band_limited_torque(1002.0, 1.0, 2)
+    n = data["spindle/speed"].size
+    angle = np.mod(np.cumsum(data["spindle/speed"]) / FS, 2 * math.pi)
+    feed = {"spindle/torque_est": data["spindle/torque_est"], "spindle/angle": angle}
+    got = []
+    for chunk in (100, 1000):
+        block = EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.1,
+                                angle_channel="spindle/angle")  # fmt: skip
+        block.reset(FS)
+        for a in range(0, n, chunk):
+            block.process(Chunk(a, FS, 0.0, {k: v[a : a + chunk] for k, v in feed.items()}))
+        got.append([(t, None if e is None else e.axial_depth_m) for t, e in block.estimates])
+    assert len(got[0]) >= 15
+    assert got[0] == got[1]

@@ -709,6 +709,9 @@ def _harmonics_note(block: Any, fs: float) -> str:
     if k < DEFAULT_HARMONICS:
         note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
                  f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
+    angle = getattr(block, "angle_channel", None)
+    if angle is not None:
+        note += f"; the spindle angle from the channel {angle}"
     rpm = getattr(block, "speed_rpm", None)
     if rpm is not None:
         source = getattr(block, "speed_source", "") or f"the set speed of {rpm:g} rev/min"

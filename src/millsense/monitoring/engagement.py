@@ -192,6 +192,10 @@ class EngagementBlock(Block):
     n_flutes, diameter_mm, helix_deg : the tool (field units).
     torque_channel, speed_channel : N·m and the spindle speed in ``speed_unit``.
     speed_unit : ``rad/s`` or ``rev/min``.
+    angle_channel : the spindle's angle (rad, wrapped or not; a rotary encoder's, as Lee
+        recorded beside the dynamometer) instead of a speed channel: the speed is its
+        difference from sample to sample (wrapped into (−π, π]), so the angle the block
+        integrates is the channel's (decision 1737).
     speed_rpm : a constant spindle speed (rev/min) instead of a speed channel (a laboratory
         cut at a set speed recorded with a dynamometer alone; decision 1737): the spindle
         angle is then that speed's, which must be the actual one to a few ppm (0.02 % off read
@@ -227,6 +231,7 @@ class EngagementBlock(Block):
         speed_channel: str = "spindle/speed",
         speed_unit: str = "rad/s",
         speed_rpm: float | None = None,
+        angle_channel: str | None = None,
         feed_channel: str | None = None,
         feed_per_tooth_mm: float | None = None,
         n_harmonics: int = DEFAULT_HARMONICS,
@@ -271,8 +276,12 @@ class EngagementBlock(Block):
             )
         if speed_rpm is not None and not (speed_rpm > 0 and math.isfinite(speed_rpm)):
             raise ConfigError(f"engagement: speed_rpm must be positive, got {speed_rpm!r}")
+        if speed_rpm is not None and angle_channel is not None:
+            raise ConfigError("engagement: give a set speed_rpm or an angle_channel, not both")
         self.speed_channel = speed_channel
         self.speed_rpm = None if speed_rpm is None else float(speed_rpm)
+        self.angle_channel = angle_channel
+        self._last_angle = math.nan
         #: rad/s per unit of the speed channel
         self._speed_scale = 1.0 if speed_unit == "rad/s" else 2.0 * math.pi / 60.0
         self._constant_speed = np.empty(0)
@@ -286,7 +295,12 @@ class EngagementBlock(Block):
         self.air_torque_nm = air_torque_nm
         self.response = response
         self.name = name
-        ins = [torque_channel] if self.speed_rpm is not None else [torque_channel, speed_channel]
+        if angle_channel is not None:
+            ins = [torque_channel, angle_channel]
+        elif self.speed_rpm is not None:
+            ins = [torque_channel]
+        else:
+            ins = [torque_channel, speed_channel]
         if feed_channel is not None:
             ins.append(feed_channel)
         self.inputs = tuple(ins)
@@ -307,6 +321,7 @@ class EngagementBlock(Block):
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
         self.fs = float(sample_rate_hz)
+        self._last_angle = math.nan  # the angle channel's last sample (decision 1737)
         ident = self._ident = SpectrumIdentifier(
             self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
         )
@@ -456,8 +471,18 @@ class EngagementBlock(Block):
         return out
 
     def _speed(self, d: Any, n: int) -> np.ndarray:
-        """The chunk's spindle speed in rad/s: the channel's, or the constant ``speed_rpm``
-        (decision 1737)."""
+        """The chunk's spindle speed in rad/s: the channel's, the angle channel's differences
+        (the previous chunk's last angle carried; a stream's first sample repeats the next
+        difference), or the constant ``speed_rpm`` (decision 1737)."""
+        if self.angle_channel is not None:
+            a = np.asarray(d[self.angle_channel], dtype=np.float64)
+            step = np.diff(a, prepend=self._last_angle if n else math.nan)
+            if n and not math.isfinite(step[0]):
+                step[0] = step[1] if n > 1 else 0.0
+            self._last_angle = float(a[-1]) if n else self._last_angle
+            # wrapped into (−π, π]: a wrapped encoder angle's jump of 2π is no motion
+            step = step - 2.0 * math.pi * np.ceil((step - math.pi) / (2.0 * math.pi))
+            return step * self.fs
         if self.speed_rpm is None:
             sp = np.asarray(d[self.speed_channel], dtype=np.float64)
             return sp if self._speed_scale == 1.0 else sp * self._speed_scale

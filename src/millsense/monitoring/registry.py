@@ -283,7 +283,22 @@ def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
     return float(np.median(feed[ok] / (flutes * rpm[ok])))
 
 
-def _engagement_harmonics(ctx: MonitorContext, n_flutes: int, name: str) -> int:
+#: The spindle's angle (rad), which the engagement monitor prefers to a speed (decision 1737).
+SPINDLE_ANGLE = "spindle/angle"
+
+
+def _top_rpm_of_angle(ctx: MonitorContext, channel: str) -> float:
+    """The highest speed (rev/min) of an angle channel's sample-to-sample steps."""
+    assert ctx.read is not None
+    a = np.asarray(ctx.read(channel, 0, ctx.n_samples), dtype=float)
+    step = np.abs(np.diff(a[np.isfinite(a)]))
+    step = np.minimum(step, 2.0 * np.pi - step)  # a wrapped angle's jump of 2π is no motion
+    return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
+
+
+def _engagement_harmonics(
+    ctx: MonitorContext, n_flutes: int, name: str, angle: str | None = None
+) -> int:
     """The tooth harmonics the engagement monitor fits: the default, or those below the
     Nyquist frequency at the recording's top spindle speed where fewer (decision 1734); a
     one-line error where fewer than the fit needs lie below it. Without the recording's speed
@@ -295,7 +310,9 @@ def _engagement_harmonics(ctx: MonitorContext, n_flutes: int, name: str) -> int:
         harmonics_below_nyquist,
     )
 
-    if ctx.speed_channel is None:  # the constant speed (decision 1737)
+    if angle is not None and ctx.read is not None and ctx.n_samples > 0:
+        top_rpm = _top_rpm_of_angle(ctx, angle)
+    elif ctx.speed_channel is None or angle is not None:  # the constant speed (decision 1737)
         top_rpm = float(ctx.speed_rpm or 0.0)
     elif ctx.read is None or ctx.n_samples <= 0:
         return DEFAULT_HARMONICS
@@ -332,12 +349,14 @@ def _engagement(ctx: MonitorContext) -> Block:
             "--channel)"
         )
     ctx.require([signal], name)
-    if ctx.speed_channel is None and not (ctx.speed_rpm and ctx.speed_rpm > 0):
+    angle = SPINDLE_ANGLE if ctx.channels.get(SPINDLE_ANGLE) == "rad" else None
+    if angle is None and ctx.speed_channel is None and not (ctx.speed_rpm and ctx.speed_rpm > 0):
         raise InputDataError(
-            f"{ctx.source}: monitor '{name}' needs the spindle speed for the spindle angle: a "
-            "spindle-speed channel (spindle/speed) or, for a cut at a set speed, --spindle-rpm"
+            f"{ctx.source}: monitor '{name}' needs the spindle angle: a spindle-angle channel "
+            f"({SPINDLE_ANGLE}, rad), a spindle-speed channel (spindle/speed) or, for a cut at a "
+            "set speed, --spindle-rpm"
         )
-    if ctx.speed_channel is not None:
+    if angle is None and ctx.speed_channel is not None:
         ctx.require([ctx.speed_channel], name)
     tool = ctx.tool
     if tool is None:
@@ -358,16 +377,17 @@ def _engagement(ctx: MonitorContext) -> Block:
         )
     # without a speed channel: the set speed, refined from the torque's own revolutions
     # (decision 1737)
-    set_rpm, speed_source = _set_speed(ctx, signal)
+    set_rpm, speed_source = (None, "") if angle is not None else _set_speed(ctx, signal)
     block = EngagementBlock(
         int(tool.flutes),
         float(tool.diameter_mm),
         float(tool.helix_deg),
-        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name),
+        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, angle),
         torque_channel=signal,
         speed_channel=ctx.speed_channel or "spindle/speed",
         speed_unit=ctx.speed_unit,
         speed_rpm=set_rpm,
+        angle_channel=angle,
         feed_channel=feed,
         feed_per_tooth_mm=None if fz is None else float(fz),
         # the spindle observer's response, where the signal is its estimate (decision 1554)

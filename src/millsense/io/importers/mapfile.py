@@ -136,6 +136,7 @@ CHANNEL_SI: dict[str, tuple[str, ...]] = {
     "current": ("A",),
     "current_cmd": ("A",),
     "motor_angle": ("rad",),
+    "angle": ("rad",),
     "motor_speed": ("rad/s",),
     "position_cmd": ("m", "rad"),
     "speed": ("rad/s",),
