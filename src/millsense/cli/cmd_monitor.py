@@ -710,8 +710,12 @@ def _harmonics_note(block: Any, fs: float) -> str:
         note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
                  f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
     angle = getattr(block, "angle_channel", None)
+    index = getattr(block, "index_channel", None)
     if angle is not None:
         note += f"; the spindle angle from the channel {angle}"
+    elif index is not None:
+        note += (f"; the spindle angle from the index pulse {index} (reset at each mark, the "
+                 "last revolution's speed between marks)")  # fmt: skip
     rpm = getattr(block, "speed_rpm", None)
     if rpm is not None:
         source = getattr(block, "speed_source", "") or f"the set speed of {rpm:g} rev/min"

@@ -38,6 +38,7 @@ import numpy as np
 from millsense.core.errors import ConfigError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _spectrum_kernels as _sk
+from millsense.monitoring.index_pulse import index_angle, index_state
 from millsense.monitoring.torque_spectrum import (
     RUNOUT_RCOND,
     AveragedEstimate,
@@ -196,6 +197,10 @@ class EngagementBlock(Block):
         recorded beside the dynamometer) instead of a speed channel: the speed is its
         difference from sample to sample (wrapped into (−π, π]), so the angle the block
         integrates is the channel's (decision 1737).
+    index_channel, index_threshold : a once-per-revolution index pulse (a keyphasor, an
+        encoder's zero mark) instead of a speed channel, a mark where it rises through the
+        threshold: the angle advances at the last revolution's speed between marks and is
+        reset at each (:mod:`~millsense.monitoring.index_pulse`; decision 1737).
     speed_rpm : a constant spindle speed (rev/min) instead of a speed channel (a laboratory
         cut at a set speed recorded with a dynamometer alone; decision 1737): the spindle
         angle is then that speed's, which must be the actual one to a few ppm (0.02 % off read
@@ -232,6 +237,8 @@ class EngagementBlock(Block):
         speed_unit: str = "rad/s",
         speed_rpm: float | None = None,
         angle_channel: str | None = None,
+        index_channel: str | None = None,
+        index_threshold: float = 0.5,
         feed_channel: str | None = None,
         feed_per_tooth_mm: float | None = None,
         n_harmonics: int = DEFAULT_HARMONICS,
@@ -276,8 +283,15 @@ class EngagementBlock(Block):
             )
         if speed_rpm is not None and not (speed_rpm > 0 and math.isfinite(speed_rpm)):
             raise ConfigError(f"engagement: speed_rpm must be positive, got {speed_rpm!r}")
-        if speed_rpm is not None and angle_channel is not None:
-            raise ConfigError("engagement: give a set speed_rpm or an angle_channel, not both")
+        if sum(v is not None for v in (speed_rpm, angle_channel, index_channel)) > 1:
+            raise ConfigError(
+                "engagement: give one of a set speed_rpm, an angle_channel or an index_channel"
+            )
+        if not math.isfinite(index_threshold):
+            raise ConfigError(f"engagement: index_threshold must be finite, got {index_threshold}")
+        self.index_channel = index_channel
+        self.index_threshold = float(index_threshold)
+        self._index_state = index_state()
         self.speed_channel = speed_channel
         self.speed_rpm = None if speed_rpm is None else float(speed_rpm)
         self.angle_channel = angle_channel
@@ -295,8 +309,8 @@ class EngagementBlock(Block):
         self.air_torque_nm = air_torque_nm
         self.response = response
         self.name = name
-        if angle_channel is not None:
-            ins = [torque_channel, angle_channel]
+        if angle_channel is not None or index_channel is not None:
+            ins = [torque_channel, str(angle_channel or index_channel)]
         elif self.speed_rpm is not None:
             ins = [torque_channel]
         else:
@@ -322,6 +336,10 @@ class EngagementBlock(Block):
             raise ConfigError(f"{self.name}: sample rate must be positive, got {sample_rate_hz}")
         self.fs = float(sample_rate_hz)
         self._last_angle = math.nan  # the angle channel's last sample (decision 1737)
+        self._index_state = index_state()
+        #: samples of the next chunk not to scan: until an angle or index channel's angle is
+        #: first known (1 = not known yet; 0 once known, and always without such a channel)
+        self._skip = 1 if (self.angle_channel or self.index_channel) else 0
         ident = self._ident = SpectrumIdentifier(
             self.geom, self.n_harmonics, self.edge, self.max_depth_fraction
         )
@@ -474,15 +492,13 @@ class EngagementBlock(Block):
         """The chunk's spindle speed in rad/s: the channel's, the angle channel's differences
         (the previous chunk's last angle carried; a stream's first sample repeats the next
         difference), or the constant ``speed_rpm`` (decision 1737)."""
+        if self.index_channel is not None:
+            a = np.empty(n)
+            pulse = np.ascontiguousarray(d[self.index_channel], dtype=np.float64)
+            index_angle(pulse, self.index_threshold, self._index_state, a)
+            return self._angle_speed(a, n)
         if self.angle_channel is not None:
-            a = np.asarray(d[self.angle_channel], dtype=np.float64)
-            step = np.diff(a, prepend=self._last_angle if n else math.nan)
-            if n and not math.isfinite(step[0]):
-                step[0] = step[1] if n > 1 else 0.0
-            self._last_angle = float(a[-1]) if n else self._last_angle
-            # wrapped into (−π, π]: a wrapped encoder angle's jump of 2π is no motion
-            step = step - 2.0 * math.pi * np.ceil((step - math.pi) / (2.0 * math.pi))
-            return step * self.fs
+            return self._angle_speed(np.asarray(d[self.angle_channel], dtype=np.float64), n)
         if self.speed_rpm is None:
             sp = np.asarray(d[self.speed_channel], dtype=np.float64)
             return sp if self._speed_scale == 1.0 else sp * self._speed_scale
@@ -490,13 +506,34 @@ class EngagementBlock(Block):
             self._constant_speed = np.full(n, self.speed_rpm * 2.0 * math.pi / 60.0)
         return self._constant_speed
 
+    def _angle_speed(self, a: np.ndarray, n: int) -> np.ndarray:
+        """The speed (rad/s) of the angle's steps, wrapped into (−π, π] (a wrapped encoder
+        angle's jump of 2π is no motion), the previous chunk's last angle carried; a step
+        from or to an unknown (NaN) angle is no motion (decision 1737)."""
+        if n == 0:
+            return np.zeros(0)
+        if self._skip > 0:
+            # the samples before the angle is first known are not scanned (a revolution that
+            # holds the cut's torque without turning poisons the fits after it)
+            known = np.flatnonzero(np.isfinite(a))
+            self._skip = n if known.size == 0 else int(known[0])
+        step = np.diff(a, prepend=self._last_angle)
+        self._last_angle = float(a[-1])
+        step = step - 2.0 * math.pi * np.ceil((step - math.pi) / (2.0 * math.pi))
+        step[~np.isfinite(step)] = 0.0
+        return step * self.fs
+
     def process(self, chunk: Chunk) -> BlockOutput:
         d = chunk.data
         x = np.asarray(d[self.torque_channel], dtype=np.float64)
         sp = self._speed(d, x.shape[0])
         fd = np.asarray(d[self.feed_channel], dtype=np.float64) if self.feed_channel else sp
         n = x.shape[0]
-        nd, i = _sk.ingest_chunk(x, sp, fd, 0, self._fst, self._cst, self._mstate)
+        # from the first sample whose angle is known (an angle or index channel; decision 1737)
+        first = min(self._skip, n)
+        if first >= n:
+            return BlockOutput(self._held_outputs(n))
+        nd, i = _sk.ingest_chunk(x, sp, fd, first, self._fst, self._cst, self._mstate)
         if nd == 0:  # no revolution ends in this chunk (the common case for short chunks)
             views = self._held_views
             if views is not None and views[0] == n:  # nothing ended since: the same views

@@ -285,6 +285,31 @@ def _plan_feed_per_tooth_mm(plan: Any, flutes: int) -> float | None:
 
 #: The spindle's angle (rad), which the engagement monitor prefers to a speed (decision 1737).
 SPINDLE_ANGLE = "spindle/angle"
+#: A once-per-revolution index pulse, its next choice (decision 1737).
+SPINDLE_INDEX = "spindle/index"
+
+
+def _index_threshold(ctx: MonitorContext, index: str | None) -> float:
+    """An index pulse's mark level: 0.5 on a 0/1 channel (unit 1), else half its largest
+    value over the recording (a TTL pulse in volts), or 0.5 where it cannot be read."""
+    if index is None or ctx.channels.get(index) == "1" or ctx.read is None or ctx.n_samples <= 0:
+        return 0.5
+    x = np.asarray(ctx.read(index, 0, ctx.n_samples), dtype=float)
+    x = x[np.isfinite(x)]
+    return 0.5 * float(x.max()) if x.size and x.max() > 0 else 0.5
+
+
+def _top_rpm_of_index(ctx: MonitorContext, channel: str) -> float:
+    """The highest speed (rev/min) of an index pulse's revolutions over the recording."""
+    from millsense.monitoring.index_pulse import index_angle, index_state
+
+    assert ctx.read is not None
+    x = np.ascontiguousarray(ctx.read(channel, 0, ctx.n_samples), dtype=np.float64)
+    a = np.empty(x.size)
+    index_angle(x, _index_threshold(ctx, channel), index_state(), a)
+    step = np.diff(a)
+    step = step[np.isfinite(step)]
+    return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
 
 
 def _top_rpm_of_angle(ctx: MonitorContext, channel: str) -> float:
@@ -297,8 +322,9 @@ def _top_rpm_of_angle(ctx: MonitorContext, channel: str) -> float:
 
 
 def _engagement_harmonics(
-    ctx: MonitorContext, n_flutes: int, name: str, angle: str | None = None
-) -> int:
+    ctx: MonitorContext, n_flutes: int, name: str, angle: str | None = None,
+    index: str | None = None,
+) -> int:  # fmt: skip
     """The tooth harmonics the engagement monitor fits: the default, or those below the
     Nyquist frequency at the recording's top spindle speed where fewer (decision 1734); a
     one-line error where fewer than the fit needs lie below it. Without the recording's speed
@@ -310,9 +336,13 @@ def _engagement_harmonics(
         harmonics_below_nyquist,
     )
 
-    if angle is not None and ctx.read is not None and ctx.n_samples > 0:
+    readable = ctx.read is not None and ctx.n_samples > 0
+    if angle is not None and readable:
         top_rpm = _top_rpm_of_angle(ctx, angle)
-    elif ctx.speed_channel is None or angle is not None:  # the constant speed (decision 1737)
+    elif index is not None and readable:
+        top_rpm = _top_rpm_of_index(ctx, index)
+    elif ctx.speed_channel is None or angle is not None or index is not None:
+        # the constant speed (decision 1737)
         top_rpm = float(ctx.speed_rpm or 0.0)
     elif ctx.read is None or ctx.n_samples <= 0:
         return DEFAULT_HARMONICS
@@ -350,13 +380,15 @@ def _engagement(ctx: MonitorContext) -> Block:
         )
     ctx.require([signal], name)
     angle = SPINDLE_ANGLE if ctx.channels.get(SPINDLE_ANGLE) == "rad" else None
-    if angle is None and ctx.speed_channel is None and not (ctx.speed_rpm and ctx.speed_rpm > 0):
+    index = SPINDLE_INDEX if angle is None and SPINDLE_INDEX in ctx.channels else None
+    if (angle is None and index is None and ctx.speed_channel is None
+            and not (ctx.speed_rpm and ctx.speed_rpm > 0)):  # fmt: skip
         raise InputDataError(
             f"{ctx.source}: monitor '{name}' needs the spindle angle: a spindle-angle channel "
-            f"({SPINDLE_ANGLE}, rad), a spindle-speed channel (spindle/speed) or, for a cut at a "
-            "set speed, --spindle-rpm"
+            f"({SPINDLE_ANGLE}, rad), an index pulse ({SPINDLE_INDEX}), a spindle-speed "
+            "channel (spindle/speed) or, for a cut at a set speed, --spindle-rpm"
         )
-    if angle is None and ctx.speed_channel is not None:
+    if angle is None and index is None and ctx.speed_channel is not None:
         ctx.require([ctx.speed_channel], name)
     tool = ctx.tool
     if tool is None:
@@ -377,17 +409,20 @@ def _engagement(ctx: MonitorContext) -> Block:
         )
     # without a speed channel: the set speed, refined from the torque's own revolutions
     # (decision 1737)
-    set_rpm, speed_source = (None, "") if angle is not None else _set_speed(ctx, signal)
+    reference = angle or index  # a revolution reference beats a speed (decision 1737)
+    set_rpm, speed_source = (None, "") if reference is not None else _set_speed(ctx, signal)
     block = EngagementBlock(
         int(tool.flutes),
         float(tool.diameter_mm),
         float(tool.helix_deg),
-        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, angle),
+        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, angle, index),
         torque_channel=signal,
         speed_channel=ctx.speed_channel or "spindle/speed",
         speed_unit=ctx.speed_unit,
         speed_rpm=set_rpm,
         angle_channel=angle,
+        index_channel=index,
+        index_threshold=_index_threshold(ctx, index),
         feed_channel=feed,
         feed_per_tooth_mm=None if fz is None else float(fz),
         # the spindle observer's response, where the signal is its estimate (decision 1554)
