@@ -703,7 +703,9 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     from millsense.report.monitor_plots import monitor_figure
 
     def est(sigma: float, kt: float, ke: float) -> SimpleNamespace:
-        return SimpleNamespace(reliability=sigma, kt_n_m2=kt, edge_n_m=ke)
+        # a down-milling window (decision 1738's side cut)
+        return SimpleNamespace(reliability=sigma, kt_n_m2=kt, edge_n_m=ke, entry_rad=2.0,
+                               exit_rad=math.pi)  # fmt: skip
 
     fs, step = 1000.0, 10
     revs = [est(0.9, 8e8, 1e4), est(0.9, 8e8, -5e3), est(0.5, 8e8, 1e4), est(0.95, 8e8, 1e4)]

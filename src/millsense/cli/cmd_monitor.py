@@ -573,10 +573,12 @@ def _torque_gate_line(
 
 def _reliable(e: Any) -> bool:
     """A revolution's estimate is reported: σ ≥ RELIABLE_SIGMA and physical coefficients
-    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807)."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA
+    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807), on a side
+    cut's window (decision 1738)."""
+    from millsense.monitoring.engagement import RELIABLE_SIGMA, side_cut_window
 
-    return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0)
+    return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0
+                and side_cut_window(e.entry_rad, e.exit_rad))  # fmt: skip
 
 
 def _steady_cut(rec: Any) -> np.ndarray | None:
@@ -709,6 +711,10 @@ def _harmonics_note(block: Any, fs: float) -> str:
     if k < DEFAULT_HARMONICS:
         note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
                  f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
+    offset = float(getattr(block, "angle_offset_rad", 0.0))
+    if offset != 0.0:
+        note += (f"; flute 0 at {np.degrees(offset):.1f}° at the record's first sample, from the "
+                 "steady cut's harmonics (decision 1738)")  # fmt: skip
     angle = getattr(block, "angle_channel", None)
     index = getattr(block, "index_channel", None)
     if angle is not None:
@@ -769,12 +775,22 @@ def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
         basin = "" if avg.connected else " or in another basin"
         allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere "
                    f"{depth_span(lo, hi)}{basin}")  # fmt: skip
+    from millsense.monitoring.engagement import side_cut_window
+
+    inside = [e for e in every if not side_cut_window(e.entry_rad, e.exit_rad)]
+    why = ("the torque's tooth harmonics do not fix the engagement here (e.g. a full slot with 3 "
+           "or more flutes, or a light cut in the signal's noise)")  # fmt: skip
+    if 2 * len(inside) > len(every):
+        # decision 1738: most windows inside the half-turn
+        entry = float(np.degrees(med([e.entry_rad for e in inside])))
+        exit_ = float(np.degrees(med([e.exit_rad for e in inside])))
+        why = (f"most revolutions' engagement window lies inside the half-turn (median "
+               f"{entry:.0f}° to {exit_:.0f}°), which no steady side cut gives: a transient, "
+               "or a spindle angle whose zero is not the tool's reference (decision 1738)")
     return (
         f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
-        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0; "
-        f"median σ {med([e.reliability for e in every]):.2f}){allowed}; the torque's tooth "
-        "harmonics do not fix the engagement here (e.g. a full slot with 3 or more flutes, or a "
-        "light cut in the signal's noise)"
+        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0, a side cut's "
+        f"window; median σ {med([e.reliability for e in every]):.2f}){allowed}; {why}"
     )
 
 

@@ -84,15 +84,31 @@ RELIABLE_SIGMA = 0.8
 DEPTH_REL_TOL = 0.1
 
 
+#: How far from 0 or π a steady side cut's fitted window may start or end, rad (10°; decision
+#: 1738): the fits of steady up, down and slot cuts on the virtual machine land within 1°.
+SIDE_CUT_TOL_RAD = math.radians(10.0)
+
+
+def side_cut_window(entry_rad: float, exit_rad: float) -> bool:
+    """Whether a fitted engagement window is a steady side cut's in the spindle angle's frame
+    (decision 1738): it starts at 0 (up milling, a slot) or ends at π (down milling, a slot),
+    within :data:`SIDE_CUT_TOL_RAD` (Lee Eq. 2.6 takes θ_ex ≈ π). A window inside the half-turn
+    is a transient (an entry, an exit, a corner), or the spindle angle's zero is not the tool's
+    reference, where the depths read wrong."""
+    return bool(entry_rad <= SIDE_CUT_TOL_RAD or exit_rad >= math.pi - SIDE_CUT_TOL_RAD)
+
+
 def determined(avg: AveragedEstimate) -> bool:
     """The averaged harmonics determine the cut's engagement (decision 1698): their estimate
-    passes decision 1807's test (σ ≥ :data:`RELIABLE_SIGMA`, K_t > 0, K_e ≥ 0), the profile
+    passes decision 1807's test (σ ≥ :data:`RELIABLE_SIGMA`, K_t > 0, K_e ≥ 0) and decision
+    1738's (a side cut's window, :func:`side_cut_window`), the profile
     set of d_a is one interval (no second basin within the noise) inside the search range,
     and its half-width (two standard deviations) is at most :data:`DEPTH_REL_TOL` of d_a."""
     e = avg.estimate
     lo, hi = avg.depth_low_m, avg.depth_high_m
     return bool(
         e.reliability >= RELIABLE_SIGMA
+        and side_cut_window(e.entry_rad, e.exit_rad)
         and e.kt_n_m2 > 0
         and e.edge_n_m >= 0
         and avg.connected
@@ -201,6 +217,9 @@ class EngagementBlock(Block):
         encoder's zero mark) instead of a speed channel, a mark where it rises through the
         threshold: the angle advances at the last revolution's speed between marks and is
         reset at each (:mod:`~millsense.monitoring.index_pulse`; decision 1737).
+    angle_offset_rad : the tool's angle (flute 0's, in the feed's frame) at the stream's
+        first sample: the spindle angle starts there (decision 1738;
+        :func:`~millsense.monitoring.angle_origin.tool_angle_offset` finds it from a cut).
     speed_rpm : a constant spindle speed (rev/min) instead of a speed channel (a laboratory
         cut at a set speed recorded with a dynamometer alone; decision 1737): the spindle
         angle is then that speed's, which must be the actual one to a few ppm (0.02 % off read
@@ -239,6 +258,7 @@ class EngagementBlock(Block):
         angle_channel: str | None = None,
         index_channel: str | None = None,
         index_threshold: float = 0.5,
+        angle_offset_rad: float = 0.0,
         feed_channel: str | None = None,
         feed_per_tooth_mm: float | None = None,
         n_harmonics: int = DEFAULT_HARMONICS,
@@ -289,6 +309,11 @@ class EngagementBlock(Block):
             )
         if not math.isfinite(index_threshold):
             raise ConfigError(f"engagement: index_threshold must be finite, got {index_threshold}")
+        if not math.isfinite(angle_offset_rad):
+            raise ConfigError(
+                f"engagement: angle_offset_rad must be finite, got {angle_offset_rad}"
+            )
+        self.angle_offset_rad = float(angle_offset_rad)
         self.index_channel = index_channel
         self.index_threshold = float(index_threshold)
         self._index_state = index_state()
@@ -345,6 +370,8 @@ class EngagementBlock(Block):
         )
         acc = np.zeros(_sk.ACC_SIZE)
         acc[_sk.ACC_REV] = -1.0
+        # the spindle angle starts at the tool's angle at the first sample (decision 1738)
+        acc[_sk.ACC_FRAC] = (self.angle_offset_rad / (2.0 * math.pi)) % 1.0
         acc[_sk.ACC_STEP_SPEED] = math.nan  # no rotation cached yet
         g = self.geom
         fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]

@@ -411,10 +411,7 @@ def _engagement(ctx: MonitorContext) -> Block:
     # (decision 1737)
     reference = angle or index  # a revolution reference beats a speed (decision 1737)
     set_rpm, speed_source = (None, "") if reference is not None else _set_speed(ctx, signal)
-    block = EngagementBlock(
-        int(tool.flutes),
-        float(tool.diameter_mm),
-        float(tool.helix_deg),
+    settings: dict[str, Any] = dict(
         n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, angle, index),
         torque_channel=signal,
         speed_channel=ctx.speed_channel or "spindle/speed",
@@ -430,8 +427,45 @@ def _engagement(ctx: MonitorContext) -> Block:
         air_torque_nm=ctx.options.get("engagement.air_torque_nm"),
         name=name,
     )
+    shape = (int(tool.flutes), float(tool.diameter_mm), float(tool.helix_deg))
+    block = EngagementBlock(*shape, **settings)
+    # the tool's angle at the record's zero, from its steady cut's harmonics (decision 1738)
+    offset = _tool_angle(ctx, block)
+    if offset != 0.0:
+        block = EngagementBlock(*shape, **settings, angle_offset_rad=offset)
     block.speed_source = speed_source
     return block
+
+
+def _tool_angle(ctx: MonitorContext, probe: Block) -> float:
+    """The tool's angle at the recording's first sample (decision 1738): ``probe`` (the
+    engagement block, its angle from the record's zero) is run over the recording, and
+    :func:`~millsense.monitoring.angle_origin.tool_angle_offset` searches the longest steady
+    cut's averaged harmonics. 0 for a live stream or fewer than the averaged fit's revolutions
+    in one steady cut."""
+    from millsense.monitoring.angle_origin import steady_rows, tool_angle_offset
+    from millsense.monitoring.engagement import EngagementBlock
+    from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
+
+    if ctx.read is None or ctx.n_samples <= 0 or not isinstance(probe, EngagementBlock):
+        return 0.0
+    fs = ctx.sample_rate_hz
+    probe.reset(fs)
+    step = 1 << 16
+    for a in range(0, ctx.n_samples, step):
+        b = min(a + step, ctx.n_samples)
+        data = {c: np.asarray(ctx.read(c, a, b), dtype=np.float64) for c in probe.inputs}
+        probe.process(Chunk(a, fs, ctx.t0_s, data))
+    harm = probe._harm
+    rows = steady_rows([None if h is None else h[0] for h in harm])
+    if len(rows) < AVERAGED_MIN_REVS:
+        return 0.0
+    kept = [h for h in (harm[i] for i in rows) if h is not None]
+    offset, _, _ = tool_angle_offset(
+        probe.geom, probe.n_harmonics, probe.edge, probe.max_depth_fraction, probe._k,
+        [h[0] for h in kept], [h[1] for h in kept], [h[2] for h in kept], [h[3] for h in kept],
+    )  # fmt: skip
+    return offset
 
 
 def _set_speed(ctx: MonitorContext, signal: str) -> tuple[float | None, str]:

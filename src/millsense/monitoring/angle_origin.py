@@ -1,0 +1,116 @@
+"""The tool's angle at a record's spindle-angle zero, from its cut's harmonics (decision 1738).
+
+Lee's model (seed 004 Eqs. 2.2-2.12) puts flute 0 at θ = 0 of the spindle angle and the
+entry and exit angles in the feed's frame. The chip h_s = c·sin θ makes the tooth harmonics'
+magnitudes depend on where the window lies in that frame. A record whose angle zero lies φ₀
+past flute 0 (a real spindle is not stopped at flute 0 when the trace starts) multiplies
+harmonic k by e^{−ikφ₀}. The fit then absorbs that phase into wrong angles and depths. The
+2-flute down-milling cut read 5.08 mm for 2 mm at σ 0.86 with φ₀ = 60°.
+
+:func:`tool_angle_offset` turns a cut's averaged harmonics (revolutions of one steady cut, in
+the record's frame) by candidate angles φ over one tooth pitch (the tooth harmonics repeat
+there). It fits each candidate globally and keeps the φ whose relative misfit is smallest:
+the grid of :data:`STEP_DEG`, then a golden-section refinement within a step. The offset is
+adopted only where its misfit is below :data:`ADOPT_RATIO` of the record's own frame (φ = 0),
+so a record whose zero already is the tool's keeps it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millsense.monitoring import _spectrum_kernels as _sk
+from millsense.monitoring.torque_spectrum import SpectrumIdentifier, ToolGeometry
+
+#: Grid step of the candidate offsets over one tooth pitch, degrees.
+STEP_DEG = 5.0
+#: An offset is adopted where its misfit is below this share of the record's own frame's.
+ADOPT_RATIO = 0.5
+#: Golden-section steps within ±one grid step of the best candidate (0.618^20 ≈ 7e-5 steps).
+REFINE_STEPS = 20
+#: Consecutive revolutions whose first tooth harmonic stays within this fraction of their mean
+#: magnitude count as one steady cut.
+STEADY_BAND = 0.15
+
+
+def _misfit(
+    geom: ToolGeometry, n_harmonics: int, edge: bool, max_depth_fraction: float,
+    coeff: NDArray[np.complex128], feed_m: float, t0_net: float, mean_var: float,
+) -> float:  # fmt: skip
+    """The relative misfit 2·cost/|x|² of a global fit to ``coeff`` ([k = 1, tooth
+    harmonics])."""
+    ident = SpectrumIdentifier(geom, n_harmonics, edge, max_depth_fraction)
+    x = np.ascontiguousarray(coeff[1:])
+    out = ident.identify_array(x, complex(coeff[0]), feed_m, t0_net, mean_var)
+    _, norm = _sk.normalised(x)
+    return 2.0 * float(out[_sk.EST_COST]) / norm if norm > 0 else math.inf
+
+
+def steady_rows(coeffs: Sequence[NDArray[np.complex128] | None]) -> list[int]:
+    """The longest run of consecutive evaluated revolutions (None: not evaluated, which ends a
+    run) whose first tooth harmonic's magnitude stays within :data:`STEADY_BAND` of the
+    run's mean: one steady cut, whose windows share one frame."""
+    best: list[int] = []
+    run: list[int] = []
+    total = 0.0
+    for i, c in enumerate(coeffs):
+        m = abs(c[1]) if c is not None else math.nan
+        if run and math.isfinite(m) and abs(m - total / len(run)) <= STEADY_BAND * total / len(run):
+            run.append(i)
+            total += m
+            continue
+        if len(run) > len(best):
+            best = run
+        run, total = ([i], m) if math.isfinite(m) and m > 0 else ([], 0.0)
+    return run if len(run) > len(best) else best
+
+
+def tool_angle_offset(
+    geom: ToolGeometry, n_harmonics: int, edge: bool, max_depth_fraction: float,
+    orders: NDArray[np.float64], coeffs: Sequence[NDArray[np.complex128]],
+    feeds: Sequence[float], t0s: Sequence[float], mean_vars: Sequence[float],
+) -> tuple[float, float, float]:  # fmt: skip
+    """(φ₀ rad, misfit at 0, misfit at φ₀) from the revolutions' coefficients ``coeffs`` (each
+    at ``orders`` = [1, N, 2N, …]); φ₀ = 0 where no offset fits clearly better (module notes).
+    Raises ValueError without revolutions."""
+    if not coeffs:
+        raise ValueError("tool_angle_offset: no revolution")
+    mean = np.mean(np.stack(coeffs), axis=0)
+    feed = float(np.mean(feeds))
+    t0 = float(np.mean(t0s)) if np.all(np.isfinite(t0s)) else math.nan
+    var = float(np.mean(mean_vars))
+    k = np.asarray(orders, dtype=np.float64)
+
+    def cost(phi: float) -> float:
+        return _misfit(geom, n_harmonics, edge, max_depth_fraction,
+                       mean * np.exp(-1j * k * phi), feed, t0, var)  # fmt: skip
+
+    pitch = 2.0 * math.pi / geom.n_flutes
+    step = math.radians(STEP_DEG)
+    grid = np.arange(0.0, pitch, step)
+    costs = [cost(float(p)) for p in grid]
+    at0 = costs[0]
+    best = float(grid[int(np.argmin(costs))])
+    a, b = best - step, best + step
+    r = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - r * (b - a), a + r * (b - a)
+    fc, fd = cost(c), cost(d)
+    for _ in range(REFINE_STEPS):
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - r * (b - a)
+            fc = cost(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + r * (b - a)
+            fd = cost(d)
+    phi, found = (c, fc) if fc <= fd else (d, fd)
+    if float(np.min(costs)) < found:
+        phi, found = best, float(np.min(costs))
+    if not found < ADOPT_RATIO * at0:
+        return 0.0, at0, at0
+    return float(phi % pitch), at0, found
