@@ -36,7 +36,9 @@ def test_harmonics_below_nyquist_closed_form() -> None:
         harmonics_below_nyquist(2, 0.0, FS)
 
 
-def _band_limited_torque(rpm: float, seconds: float, n_flutes: int = 4) -> dict[str, np.ndarray]:
+def _band_limited_torque(
+    rpm: float, seconds: float, n_flutes: int = 4, axial_m: float = 2e-3
+) -> dict[str, np.ndarray]:
     """A Ø20 mm 30° down-milling cut (5 mm radial, 2 mm axial, 0.1 mm a
     tooth) of ``n_flutes`` flutes at ``rpm``, its torque synthesised from the revolution's
     harmonics below the Nyquist frequency only (what an anti-aliased channel holds)."""
@@ -44,7 +46,7 @@ def _band_limited_torque(rpm: float, seconds: float, n_flutes: int = 4) -> dict[
     co = CuttingCoefficients(ktc=758e6, krc=379e6, kte=25e3, kre=35e3)
     m = 720
     phi = 2 * math.pi * np.arange(m) / m
-    rev = milling_forces(tool, co, Engagement.radial(5e-3, 20e-3, "down"), 0.1e-3, 2e-3,
+    rev = milling_forces(tool, co, Engagement.radial(5e-3, 20e-3, "down"), 0.1e-3, axial_m,
                          phi).torque_nm  # fmt: skip
     coeff = np.fft.rfft(rev) / m
     omega = rpm * 2 * math.pi / 60

@@ -632,6 +632,9 @@ def _engagement_verdict(
     every = [e for _, _, e in timed]
     if not every:
         return _EngagementVerdict(timed, [], None, "none", where)
+    if getattr(block, "frame_unresolved", None) is not None:
+        # the record's zero is not flute 0's and no offset fixes the depths (decision 1738)
+        return _EngagementVerdict(timed, [], None, "misaligned", where)
     est = [e for e in every if _reliable(e)]
     avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
     if 2 * len(est) >= len(every):
@@ -734,12 +737,33 @@ def _harmonics_note(block: Any, fs: float) -> str:
     return note
 
 
+def _times_words(ratio: float) -> str:
+    """A misfit ratio in the summary's words."""
+    return f"{ratio:.0f} times" if ratio < 1000 else "over 1000 times"
+
+
+def _notch_words(index: float) -> str:
+    """A notch index in the summary's words (the fit caps a depth too small to place it)."""
+    return f"{index:.0f}" if index < 100 else "above 100"
+
+
 def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
     """The summary's line on the engagement as ``v`` decides it."""
     from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
 
     where, est, avg = v.where, v.reliable, v.avg
     every = [e for _, _, e in v.timed]
+    if v.kind == "misaligned":
+        found = block.frame_unresolved
+        return (
+            f"  {block.name}: engagement not determined: the record's spindle-angle zero is not "
+            f"flute 0's (the steady cut's harmonics fit {np.degrees(found.offset_rad):.0f}° "
+            f"further on {_times_words(found.misfit_at_zero / max(found.misfit, 1e-300))} "
+            "better), "
+            f"and the depth's notch (harmonic {_notch_words(found.notch_index)}) lies beyond the "
+            f"{block.n_harmonics} fitted, where an angle offset and a depth trade phase: only a "
+            "spindle angle whose zero is flute 0 fixes the depths here (decision 1738)"
+        )
     if v.kind == "none":
         if getattr(block, "aliased_revolutions", 0):
             return f"  {block.name}: no revolution evaluated{where}"

@@ -326,6 +326,9 @@ class EngagementBlock(Block):
         self._constant_speed = np.empty(0)
         #: where a constant speed came from, for the summary (``millsense monitor`` sets it)
         self.speed_source = ""
+        #: ``millsense monitor``'s finding that the record's zero is not flute 0's and no offset
+        #: fixes the depths (an ``angle_origin.ToolAngle``; decision 1738): nothing is reported
+        self.frame_unresolved: Any = None
         self.feed_channel = feed_channel
         self.c_m = None if feed_per_tooth_mm is None else 1e-3 * feed_per_tooth_mm
         self.min_torque_nm = float(min_torque_nm)

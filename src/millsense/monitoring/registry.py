@@ -14,13 +14,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from millsense.core.errors import InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.streaming.block import Block, BlockOutput, Chunk
+
+if TYPE_CHECKING:
+    from millsense.monitoring.angle_origin import ToolAngle
 
 
 @dataclass(frozen=True)
@@ -430,25 +433,28 @@ def _engagement(ctx: MonitorContext) -> Block:
     shape = (int(tool.flutes), float(tool.diameter_mm), float(tool.helix_deg))
     block = EngagementBlock(*shape, **settings)
     # the tool's angle at the record's zero, from its steady cut's harmonics (decision 1738)
-    offset = _tool_angle(ctx, block)
-    if offset != 0.0:
-        block = EngagementBlock(*shape, **settings, angle_offset_rad=offset)
+    found = _tool_angle(ctx, block)
+    if found is not None and found.misaligned and found.resolved(block.n_harmonics):
+        block = EngagementBlock(*shape, **settings, angle_offset_rad=found.offset_rad)
+    elif found is not None and found.misaligned:
+        block = EngagementBlock(*shape, **settings)
+        block.frame_unresolved = found
     block.speed_source = speed_source
     return block
 
 
-def _tool_angle(ctx: MonitorContext, probe: Block) -> float:
+def _tool_angle(ctx: MonitorContext, probe: Block) -> ToolAngle | None:
     """The tool's angle at the recording's first sample (decision 1738): ``probe`` (the
     engagement block, its angle from the record's zero) is run over the recording, and
     :func:`~millsense.monitoring.angle_origin.tool_angle_offset` searches the longest steady
-    cut's averaged harmonics. 0 for a live stream or fewer than the averaged fit's revolutions
-    in one steady cut."""
+    cut's averaged harmonics. None for a live stream or fewer than the averaged fit's
+    revolutions in one steady cut."""
     from millsense.monitoring.angle_origin import steady_rows, tool_angle_offset
     from millsense.monitoring.engagement import EngagementBlock
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
     if ctx.read is None or ctx.n_samples <= 0 or not isinstance(probe, EngagementBlock):
-        return 0.0
+        return None
     fs = ctx.sample_rate_hz
     probe.reset(fs)
     step = 1 << 16
@@ -459,13 +465,12 @@ def _tool_angle(ctx: MonitorContext, probe: Block) -> float:
     harm = probe._harm
     rows = steady_rows([None if h is None else h[0] for h in harm])
     if len(rows) < AVERAGED_MIN_REVS:
-        return 0.0
+        return None
     kept = [h for h in (harm[i] for i in rows) if h is not None]
-    offset, _, _ = tool_angle_offset(
+    return tool_angle_offset(
         probe.geom, probe.n_harmonics, probe.edge, probe.max_depth_fraction, probe._k,
         [h[0] for h in kept], [h[1] for h in kept], [h[2] for h in kept], [h[3] for h in kept],
     )  # fmt: skip
-    return offset
 
 
 def _set_speed(ctx: MonitorContext, signal: str) -> tuple[float | None, str]:
