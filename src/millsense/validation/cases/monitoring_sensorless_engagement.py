@@ -151,3 +151,85 @@ def _estimate() -> Measured:
 def _truth() -> Measured:
     res = sensorless_slot()
     return Measured(res["truth"][0], _table(res))
+
+
+#: Where the cropped records of :func:`cropped_summaries` start, s: arbitrary angles of the
+#: spindle (decision 1738), the first the recording's own start.
+CROP_STARTS_S = (0.0, 0.5137, 1.2345, 2.0101, 2.7777)
+
+
+@functools.lru_cache(maxsize=1)
+def cropped_summaries() -> list[tuple[float, str]]:
+    """`millsense monitor --methods engagement` (the commissioned machine file, in its own
+    process: validation sits below the command line) on the slot's recording cropped to
+    start at each of :data:`CROP_STARTS_S`: (start, the summary's engagement line)."""
+    import subprocess
+    import sys
+
+    from millsense.core.recording import Recording
+    from millsense.io.recording_file import write_recording
+    from millsense.io.recording_reader import opened_recording
+    from millsense.validation.cases._program_session import program_session
+    from millsense.validation.cases.monitoring_breakage import MACHINE_FILE
+
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        prog = Path(tmp) / "slot.nc"
+        prog.write_text(PROGRAM)
+        full = Path(tmp) / "slot.h5"
+        program_session(prog, "aslan-d20-2flute", out=full, keep=None)
+        for start in CROP_STARTS_S:
+            path = Path(tmp) / f"from_{start:g}.h5"
+            with opened_recording(full) as rec:
+                k = round(start * rec.sample_rate_hz)
+                crop = Recording(rec.sample_rate_hz, rec.t0_s + k / rec.sample_rate_hz,
+                                 dict(rec.metadata))  # fmt: skip
+                for c in rec.channel_names:
+                    if not c.startswith("truth/"):
+                        crop.add_channel(c, np.asarray(rec.channel(c))[k:], rec.info(c).unit)
+            write_recording(path, crop)
+            cmd = [sys.executable, "-m", "millsense", "monitor", str(path), "--machine",
+                   str(MACHINE_FILE), "--methods", "engagement", "--tool", "aslan-d20-2flute",
+                   "-o", str(path.with_suffix(".parquet"))]  # fmt: skip
+            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            if done.returncode != 0:
+                raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
+            line = next(ln.strip() for ln in done.stdout.splitlines()
+                        if ln.strip().startswith("engagement:"))  # fmt: skip
+            out.append((start, line))
+    return out
+
+
+def _reported_depth_mm(line: str) -> float | None:
+    """The axial depth a summary line reports (the revolutions' median or the averaged
+    harmonics'), or None where it reports none."""
+    for key in ("median axial depth ", "averaged: axial depth "):
+        if key in line:
+            return float(line.split(key)[1].split(" mm")[0])
+    return None
+
+
+@case(
+    "monitoring.sensorless_engagement.cropped_slot_wrong_depths",
+    source="issue 15 item 3 on a record that starts at an arbitrary spindle angle, as a real "
+    "trace does (decision 1738): a depth reported is within about ±10 % of the cut's",
+    reference=0.0,
+    abs_tol=0.0,
+    unit="records",
+    quick=False,
+    description="records of the sensorless 3 mm slot (monitoring.sensorless_engagement's, "
+    "cropped to start at 0, 0.51, 1.23, 2.01 and 2.78 s) on which `millsense monitor` reports "
+    "an axial depth more than 10 % off 3 mm; a record may report none (not determined)",
+    issue=15,
+)
+def _cropped() -> Measured:
+    rows = cropped_summaries()
+    wrong = 0
+    table = ["| record starts at | depth reported | summary |", "|---|---|---|"]
+    for start, line in rows:
+        depth = _reported_depth_mm(line)
+        if depth is not None and abs(depth / DEPTH_MM - 1.0) > 0.10:
+            wrong += 1
+        shown = "none" if depth is None else f"{depth:.3f} mm"
+        table.append(f"| {start:g} s | {shown} | {line[:160]}… |")
+    return Measured(float(wrong), "\n".join(table))
