@@ -543,8 +543,8 @@ class EngagementBlock(Block):
         if n == 0:
             return np.zeros(0)
         if self._skip > 0:
-            # the samples before the angle is first known are not scanned (a revolution that
-            # holds the cut's torque without turning poisons the fits after it)
+            # the samples before the angle is first known are not scanned (a first
+            # revolution that holds the cut's torque without turning is no revolution)
             known = np.flatnonzero(np.isfinite(a))
             self._skip = n if known.size == 0 else int(known[0])
         step = np.diff(a, prepend=self._last_angle)

@@ -4,11 +4,11 @@ Lee recorded his dynamometer with a revolution reference, "the spindle angle or 
 pulse" (seed 004 digest, A3). A pulse channel (a keyphasor, a laser tachometer, an encoder's
 zero mark) marks the same angle once a revolution. Sampled at 10 kHz, a revolution of 600
 samples puts each mark up to a sample late, which is 0.6° at the fundamental and 14° at the
-24th order. Reset at each mark and advanced at the last revolution's speed, such an angle read
-a 2 mm depth as 2.12 mm. The angle is therefore the least-squares line of the mark count
-against the marks' sample positions over the last :data:`FIT_MARKS` marks: the sample
-quantisation averages out, and a change of speed is followed within those revolutions. This
-is causal, sample by sample, so any chunking gives the same angle:
+24th order, where a reset at each mark would carry it. The angle is therefore the
+least-squares line of the mark count against the marks' sample positions over the last
+:data:`FIT_MARKS` marks: the sample quantisation averages out, and a change of speed is
+followed within those revolutions. This is causal, sample by sample, so any chunking gives the
+same angle:
 
 - a mark is the first sample of a rising crossing of ``threshold``;
 - the angle is NaN until two marks have been seen;
