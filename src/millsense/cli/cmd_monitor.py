@@ -705,8 +705,8 @@ def _engagement_summary(
 def _harmonics_note(block: Any, fs: float) -> str:
     """What the summary adds where the harmonics were limited by the Nyquist frequency
     (decision 1734): the harmonics fitted where fewer than the default, and the revolutions
-    left unevaluated because theirs reached it; and where the spindle angle came from a set
-    speed (decision 1737)."""
+    left unevaluated because theirs reached it; flute 0's angle where it was found (decision
+    1738); and where the spindle angle came from (decision 1737)."""
     from millsense.monitoring.engagement import DEFAULT_HARMONICS
 
     note = ""
@@ -723,13 +723,12 @@ def _harmonics_note(block: Any, fs: float) -> str:
     if angle is not None:
         note += f"; the spindle angle from the channel {angle}"
     elif index is not None:
-        note += (f"; the spindle angle from the index pulse {index} (reset at each mark, the "
-                 "last revolution's speed between marks)")  # fmt: skip
+        note += (f"; the spindle angle from the index pulse {index} (the line through its "
+                 "last 8 marks)")  # fmt: skip
     rpm = getattr(block, "speed_rpm", None)
     if rpm is not None:
         source = getattr(block, "speed_source", "") or f"the set speed of {rpm:g} rev/min"
-        note += (f"; no speed channel: the spindle angle from {source} (the runout angle's "
-                 "reference is the record's first sample)")  # fmt: skip
+        note += f"; no speed channel: the spindle angle from {source}"
     aliased = int(getattr(block, "aliased_revolutions", 0))
     if aliased:
         note += (f"; {aliased} revolutions in the cut not evaluated: their tooth harmonics "
@@ -749,7 +748,7 @@ def _notch_words(index: float) -> str:
 
 def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
     """The summary's line on the engagement as ``v`` decides it."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary
+    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, side_cut_window
 
     where, est, avg = v.where, v.reliable, v.avg
     every = [e for _, _, e in v.timed]
@@ -799,8 +798,6 @@ def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
         basin = "" if avg.connected else " or in another basin"
         allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere "
                    f"{depth_span(lo, hi)}{basin}")  # fmt: skip
-    from millsense.monitoring.engagement import side_cut_window
-
     inside = [e for e in every if not side_cut_window(e.entry_rad, e.exit_rad)]
     why = ("the torque's tooth harmonics do not fix the engagement here (e.g. a full slot with 3 "
            "or more flutes, or a light cut in the signal's noise)")  # fmt: skip

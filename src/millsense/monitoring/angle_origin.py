@@ -10,7 +10,7 @@ harmonic k by e^{−ikφ₀}. The fit then absorbs that phase into wrong angles 
 :func:`tool_angle_offset` turns a cut's averaged harmonics (revolutions of one steady cut, in
 the record's frame) by candidate angles φ over one tooth pitch (the tooth harmonics repeat
 there). It fits each candidate globally and keeps the φ whose relative misfit is smallest:
-the grid of :data:`STEP_DEG`, then a golden-section refinement within a step. A record is
+the grid of :data:`STEP_DEG`, then scipy's bounded scalar minimiser within a step. A record is
 misaligned where that misfit is below :data:`ADOPT_RATIO` of its own frame's (φ = 0). The
 offset fixes the depths only where the fit's notch lies within the fitted harmonics
 (:meth:`ToolAngle.resolved`); beyond it an offset and a depth trade phase slopes, and a
@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import optimize
 
 from millsense.monitoring import _spectrum_kernels as _sk
 from millsense.monitoring.torque_spectrum import SpectrumIdentifier, ToolGeometry
@@ -34,8 +35,6 @@ from millsense.monitoring.torque_spectrum import SpectrumIdentifier, ToolGeometr
 STEP_DEG = 5.0
 #: An offset is adopted where its misfit is below this share of the record's own frame's.
 ADOPT_RATIO = 0.5
-#: Golden-section steps within ±one grid step of the best candidate (0.618^20 ≈ 7e-5 steps).
-REFINE_STEPS = 20
 #: Consecutive revolutions whose first tooth harmonic stays within this fraction of their mean
 #: magnitude count as one steady cut.
 STEADY_BAND = 0.15
@@ -122,21 +121,8 @@ def tool_angle_offset(
     costs = [cost(float(p)) for p in grid]
     at0 = costs[0]
     best = float(grid[int(np.argmin(costs))])
-    a, b = best - step, best + step
-    r = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - r * (b - a), a + r * (b - a)
-    fc, fd = cost(c), cost(d)
-    for _ in range(REFINE_STEPS):
-        if fc <= fd:
-            b, d, fd = d, c, fc
-            c = b - r * (b - a)
-            fc = cost(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + r * (b - a)
-            fd = cost(d)
-    phi, found = (c, fc) if fc <= fd else (d, fd)
-    if float(np.min(costs)) < found:
-        phi, found = best, float(np.min(costs))
+    res = optimize.minimize_scalar(cost, bounds=(best - step, best + step), method="bounded",
+                                   options={"xatol": math.radians(0.01)})  # fmt: skip
+    phi, found = (float(res.x), float(res.fun)) if res.fun < min(costs) else (best, min(costs))
     phi = float(phi % pitch)
     return ToolAngle(phi, at0, found, fit(mean * np.exp(-1j * k * phi), feed, t0, var)[1])

@@ -484,6 +484,17 @@ class EngagementBlock(Block):
         st[_sk.AST_MISFIT] = 2.0 * cost / norm
 
     @property
+    def orders(self) -> np.ndarray:
+        """The orders of the revolutions' coefficients: [1, N, 2N, …, KN]."""
+        return self._k
+
+    @property
+    def revolution_harmonics(self) -> list[tuple[np.ndarray, float, float, float] | None]:
+        """Per revolution so far: its coefficients (at :attr:`orders`), feed per tooth, mean
+        cutting torque and variance factor (None: not evaluated)."""
+        return self._harm
+
+    @property
     def estimates(self) -> list[tuple[float, EngagementEstimate | None]]:
         """(end time of the revolution, its estimate or None) for every revolution so far."""
         made = self._made

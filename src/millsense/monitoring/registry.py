@@ -302,23 +302,16 @@ def _index_threshold(ctx: MonitorContext, index: str | None) -> float:
     return 0.5 * float(x.max()) if x.size and x.max() > 0 else 0.5
 
 
-def _top_rpm_of_index(ctx: MonitorContext, channel: str) -> float:
-    """The highest speed (rev/min) of an index pulse's revolutions over the recording."""
+def _top_rpm_of_angle(ctx: MonitorContext, channel: str, index: bool) -> float:
+    """The highest speed (rev/min) of an angle channel's sample-to-sample steps, or of the
+    angle an index pulse gives (``index``)."""
     from millsense.monitoring.index_pulse import index_angle, index_state
 
     assert ctx.read is not None
-    x = np.ascontiguousarray(ctx.read(channel, 0, ctx.n_samples), dtype=np.float64)
-    a = np.empty(x.size)
-    index_angle(x, _index_threshold(ctx, channel), index_state(), a)
-    step = np.diff(a)
-    step = step[np.isfinite(step)]
-    return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
-
-
-def _top_rpm_of_angle(ctx: MonitorContext, channel: str) -> float:
-    """The highest speed (rev/min) of an angle channel's sample-to-sample steps."""
-    assert ctx.read is not None
-    a = np.asarray(ctx.read(channel, 0, ctx.n_samples), dtype=float)
+    a = np.ascontiguousarray(ctx.read(channel, 0, ctx.n_samples), dtype=np.float64)
+    if index:
+        pulse, a = a, np.empty(a.size)
+        index_angle(pulse, _index_threshold(ctx, channel), index_state(), a)
     step = np.abs(np.diff(a[np.isfinite(a)]))
     step = np.minimum(step, 2.0 * np.pi - step)  # a wrapped angle's jump of 2π is no motion
     return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
@@ -339,18 +332,15 @@ def _engagement_harmonics(
         harmonics_below_nyquist,
     )
 
-    readable = ctx.read is not None and ctx.n_samples > 0
-    if angle is not None and readable:
-        top_rpm = _top_rpm_of_angle(ctx, angle)
-    elif index is not None and readable:
-        top_rpm = _top_rpm_of_index(ctx, index)
-    elif ctx.speed_channel is None or angle is not None or index is not None:
-        # the constant speed (decision 1737)
+    read = ctx.read if ctx.n_samples > 0 else None
+    reference = angle or index
+    if read is not None and reference is not None:
+        top_rpm = _top_rpm_of_angle(ctx, reference, index is not None)
+    elif read is None or ctx.speed_channel is None:
+        # a set speed (decision 1737); none on a live stream with a speed channel: the default
         top_rpm = float(ctx.speed_rpm or 0.0)
-    elif ctx.read is None or ctx.n_samples <= 0:
-        return DEFAULT_HARMONICS
     else:
-        speed = np.abs(np.asarray(ctx.read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
+        speed = np.abs(np.asarray(read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
         speed = speed[np.isfinite(speed)]
         per_unit = 60.0 / (2.0 * np.pi) if ctx.speed_unit == "rad/s" else 1.0
         top_rpm = float(speed.max()) * per_unit if speed.size else 0.0
@@ -437,8 +427,7 @@ def _engagement(ctx: MonitorContext) -> Block:
     if found is not None and found.misaligned and found.resolved(block.n_harmonics):
         block = EngagementBlock(*shape, **settings, angle_offset_rad=found.offset_rad)
     elif found is not None and found.misaligned:
-        block = EngagementBlock(*shape, **settings)
-        block.frame_unresolved = found
+        block.frame_unresolved = found  # (the pipeline resets the block before its run)
     block.speed_source = speed_source
     return block
 
@@ -462,13 +451,13 @@ def _tool_angle(ctx: MonitorContext, probe: Block) -> ToolAngle | None:
         b = min(a + step, ctx.n_samples)
         data = {c: np.asarray(ctx.read(c, a, b), dtype=np.float64) for c in probe.inputs}
         probe.process(Chunk(a, fs, ctx.t0_s, data))
-    harm = probe._harm
+    harm = probe.revolution_harmonics
     rows = steady_rows([None if h is None else h[0] for h in harm])
     if len(rows) < AVERAGED_MIN_REVS:
         return None
     kept = [h for h in (harm[i] for i in rows) if h is not None]
     return tool_angle_offset(
-        probe.geom, probe.n_harmonics, probe.edge, probe.max_depth_fraction, probe._k,
+        probe.geom, probe.n_harmonics, probe.edge, probe.max_depth_fraction, probe.orders,
         [h[0] for h in kept], [h[1] for h in kept], [h[2] for h in kept], [h[3] for h in kept],
     )  # fmt: skip
 
