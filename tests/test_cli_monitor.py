@@ -562,7 +562,8 @@ def test_monitor_engagement_summary_over_the_plans_steady_cut(
     counts only the revolutions that end where the plan is steady. 6 s of a Ø20 mm 2-flute
     cut at 1000 rev/min, 5 mm deep where the plan is not steady (judged 0, the first 3.6 s)
     and 2 mm where it is: the median is the steady cut's 2 mm (within its standard error × 3
-    and 5 %), of the 40 revolutions there, not the 5 mm of the majority."""
+    and 5 %), of the 40 revolutions there, not the 5 mm of the majority, less the first: it
+    began in the 5 mm part, and its level is no steady cut's (decision 1739)."""
     import math
     import re
 
@@ -597,7 +598,7 @@ def test_monitor_engagement_summary_over_the_plans_steady_cut(
     m = re.search(r"of (\d+) revolutions in the plan's steady cut reliable .* median axial depth "
                   r"([\d.]+) mm \(standard error ([\d.]+) mm", line)  # fmt: skip
     assert m, line
-    assert int(m.group(1)) == 40
+    assert int(m.group(1)) == 39
     median, se = float(m.group(2)), float(m.group(3))
     assert abs(median - 2.0) < 3 * se and median == pytest.approx(2.0, rel=0.05)
 
@@ -699,7 +700,7 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     2 (one has K_e < 0): the depth line holds 20 steps, 2 circles mark the rest."""
     from types import SimpleNamespace
 
-    from millsense.cli.cmd_monitor import _depth_panel, _engagement_verdict
+    from millsense.cli.monitor_engagement import depth_panel, engagement_verdict
     from millsense.report.monitor_plots import monitor_figure
 
     def est(sigma: float, kt: float, ke: float) -> SimpleNamespace:
@@ -712,7 +713,7 @@ def test_depth_panel_shows_as_results_only_the_revolutions_the_summary_reports()
     block = SimpleNamespace(name="engagement",
                             estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)])
     n = 50  # steps of 10 samples: 0.5 s; revolution k is held from 0.1 (k + 1) s on
-    panel = _depth_panel(block, _engagement_verdict(block), n, step, fs)
+    panel = depth_panel(block, engagement_verdict(block), n, step, fs)
     assert set(panel) == {"engagement/reported"}  # the medians: no averaged band
     reported = panel["engagement/reported"]
     held = np.searchsorted([0.1, 0.2, 0.3, 0.4], np.arange(n) * step / fs, side="right") - 1
@@ -746,7 +747,7 @@ def test_depth_panel_shades_the_averaged_depth_where_the_summary_reports_it(
     (1.50–2.80 mm: ±32 %), a hatched band of the depths allowed and no depth line."""
     from types import SimpleNamespace
 
-    from millsense.cli.cmd_monitor import _depth_panel, _engagement_summary, _engagement_verdict
+    from millsense.cli.monitor_engagement import depth_panel, engagement_summary, engagement_verdict
     from millsense.monitoring.torque_spectrum import AveragedEstimate, EngagementEstimate
     from millsense.report.monitor_plots import monitor_figure
 
@@ -762,12 +763,12 @@ def test_depth_panel_shades_the_averaged_depth_where_the_summary_reports_it(
         averaged=lambda which: avg,
         estimates=[(0.1 * (k + 1), e) for k, e in enumerate(revs)],
     )
-    verdict = _engagement_verdict(block)
+    verdict = engagement_verdict(block)
     assert verdict.kind == ("averaged" if determined else "undetermined")
-    line = _engagement_summary(block, verdict=verdict)
+    line = engagement_summary(block, verdict=verdict)
     assert ("harmonics averaged: axial depth 2.065 mm" in line) == determined, line
     fs, step, n = 1000.0, 10, 120  # 1.2 s; revolution k is held from 0.1 (k + 1) s on
-    panel = _depth_panel(block, verdict, n, step, fs)
+    panel = depth_panel(block, verdict, n, step, fs)
     assert not panel["engagement/reported"].any()
     held = np.arange(n) * step / fs >= 0.1 - 1e-12
     np.testing.assert_array_equal(np.isfinite(panel["engagement/averaged_low"]), held)

@@ -526,10 +526,10 @@ def test_depth_summary_median_within_its_standard_error(rpm):
     sample; the command's reliability test) puts the 2 mm depth within 3 standard errors of
     its median (2.041 ± 0.029 and 2.027 ± 0.027 mm measured), and the revolutions' own standard
     deviations agree with their scatter (within 0.8-1.4)."""
-    from millsense.cli.cmd_monitor import _reliable
+    from millsense.cli.monitor_engagement import reliable
     from millsense.monitoring.engagement import depth_summary
 
-    depth = depth_summary([e for e in _noisy_cut_estimates(rpm, 0.5) if _reliable(e)])
+    depth = depth_summary([e for e in _noisy_cut_estimates(rpm, 0.5) if reliable(e)])
     assert abs(depth.median_m - 2e-3) < 3 * depth.standard_error_m
     assert 0.8 < depth.predicted_sd_m / depth.scatter_m < 1.4
 
@@ -716,9 +716,9 @@ def test_fit_stops_at_the_optimum_its_model_predicts():
 
 
 def _line(block: EngagementBlock) -> str:
-    from millsense.cli.cmd_monitor import _engagement_summary
+    from millsense.cli.monitor_engagement import engagement_summary
 
-    return _engagement_summary(block)
+    return engagement_summary(block)
 
 
 def _summary_depth_mm(line: str) -> float:
@@ -869,7 +869,7 @@ def test_undetermined_depth_span_reads_in_words_and_millimetres():
     """The "not determined" line's depth interval: numbers in mm where the averaged profile
     bounds it, the search's own ends in words where it does not (it printed "from the smallest
     depth searched to the largest depth searched mm")."""
-    from millsense.cli.cmd_monitor import depth_span
+    from millsense.cli.monitor_engagement import depth_span
 
     assert depth_span(0.5e-3, 1.25e-3) == "from 0.50 to 1.25 mm"
     assert depth_span(0.5e-3, math.inf) == "from 0.50 mm to the largest depth searched"

@@ -13,7 +13,6 @@ import contextlib
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,6 +20,15 @@ import numpy as np
 import typer
 
 from millsense.cli.main import app
+from millsense.cli.monitor_engagement import (
+    EngagementCut,
+    Place,
+    depth_panel_of_cuts,
+    engagement_cuts,
+    engagement_events,
+    engagement_lines,
+    steady_cut_mask,
+)
 
 if TYPE_CHECKING:
     from millsense.online.gates import TorqueCutGate
@@ -486,6 +494,13 @@ def _run(
     res = run(source, pipeline, chunk, sink=sink, collect=False,
               on_progress=(lambda k: on_progress(k / total)) if on_progress else None)  # fmt: skip
     wall = time.perf_counter() - t0
+    # the engagement's steady cuts, each judged apart (decision 1739): summary lines and events
+    cuts: dict[str, list[EngagementCut]] = {}
+    place = _cut_place(rec, nc_channel, locate, fs)
+    for b in blocks:
+        if b.name == "engagement" and hasattr(b, "estimates"):
+            cuts[b.name] = engagement_cuts(b, steady_cut_mask(rec), fs)
+            res.events.extend(engagement_events(b, cuts[b.name], fs, float(rec.t0_s), place))
     write_event_log(out, res.events, recording=recording)
     seconds = rec.n_samples / fs
     speed = seconds / max(wall, 1e-9)
@@ -494,16 +509,14 @@ def _run(
         f"{seconds:.1f} s of {recording.name} in {wall:.2f} s "
         f"({speed:.{0 if speed >= 10 else 1}f}x real time)"
     ]
-    verdicts: dict[str, _EngagementVerdict] = {}  # what the summary reports, for the plot
     for b in blocks:
         alarms = [e for e in res.events if e.source == b.name and e.kind == EventKind.ALARM]
         contacts = [e for e in res.events if e.source == b.name and e.name == "contact"]
         if contacts:
             e = contacts[0]
             lines.append(f"  {b.name}: contact at {e.time_s:.5f} s, position {e.value:.6g}")
-        elif b.name == "engagement":
-            verdicts[b.name] = _engagement_verdict(b, _steady_cut(rec), fs)
-            lines.append(_engagement_summary(b, fs=fs, verdict=verdicts[b.name]))
+        elif b.name in cuts:
+            lines += engagement_lines(b, cuts[b.name], fs, float(rec.t0_s), place)
         elif alarms:
             unit = {"chatter": " Hz"}
             f = ", ".join(
@@ -531,10 +544,9 @@ def _run(
 
         data = {k: np.concatenate(v) for k, v in keep.items()}
         for b in blocks:  # what the summary reports, for the depth panel (decision 1704)
-            if f"{b.name}/axial_depth" in data and hasattr(b, "estimates"):
+            if f"{b.name}/axial_depth" in data and b.name in cuts:
                 n_steps = len(data[f"{b.name}/axial_depth"])
-                verdict = verdicts.get(b.name) or _engagement_verdict(b, _steady_cut(rec), fs)
-                data.update(_depth_panel(b, verdict, n_steps, step, fs))
+                data.update(depth_panel_of_cuts(b, cuts[b.name], n_steps, step, fs))
         # a breakage detector's axis in the unit of the torque it judges (phased: its members')
         judged = {b.name: getattr(getattr(b, "members", [b])[0], "signal_channels", ())
                   for b in blocks}  # fmt: skip
@@ -571,292 +583,27 @@ def _torque_gate_line(
     return line
 
 
-def _reliable(e: Any) -> bool:
-    """A revolution's estimate is reported: σ ≥ RELIABLE_SIGMA and physical coefficients
-    (K_t > 0, K_e ≥ 0: a cutting force never pulls the tool along; decision 1807), on a side
-    cut's window (decision 1738)."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA, side_cut_window
-
-    return bool(e.reliability >= RELIABLE_SIGMA and e.kt_n_m2 > 0 and e.edge_n_m >= 0
-                and side_cut_window(e.entry_rad, e.exit_rad))  # fmt: skip
-
-
-def _steady_cut(rec: Any) -> np.ndarray | None:
-    """Where a session's recording says the plan is steady in the cut (``plan/judged_torque``
-    > 0: in cut, at speed, away from entries, steps and exits; decision 1622), or None."""
-    if "plan/judged_torque" not in rec.channel_names:
+def _cut_place(rec: Any, nc_channel: str | None, locate: Any, fs: float) -> Place | None:
+    """Where an engagement cut lies (decision 1739): the recorded NC line at a sample, and the
+    plan's tool-tip position on that line nearest the sample's time (``locate``); None where
+    the recording has no NC line and there is no plan."""
+    if nc_channel is None and locate is None:
         return None
-    return np.asarray(rec.channel("plan/judged_torque"), dtype=np.float64) > 0
+    n = int(rec.n_samples)
 
+    def place(sample: int) -> tuple[int | None, float | None, float | None, float | None]:
+        k = min(max(sample, 0), max(n - 1, 0))
+        from millsense.io.recording_reader import channel_window
 
-@dataclass(frozen=True)
-class _EngagementVerdict:
-    """What :func:`_engagement_summary` reports of an engagement block's revolutions
-    (decisions 1807, 1558, 1698): the evaluated revolutions it counts (index into the block's
-    estimates, end time s, estimate), the reliable ones among them, the averaged harmonics'
-    estimate (None: fewer than AVERAGED_MIN_REVS revolutions), and ``kind``: ``"medians"``
-    (the reliable revolutions' medians), ``"averaged"`` (the averaged fit, determined),
-    ``"undetermined"`` or ``"none"`` (no revolution evaluated); ``where`` qualifies the
-    counts (the plan's steady cut)."""
+        nc = None
+        if nc_channel is not None and n > 0:
+            line = float(np.asarray(channel_window(rec, nc_channel, k, k + 1))[0])
+            nc = int(line) if math.isfinite(line) and line >= 0 else None
+        if locate is None:
+            return nc, None, None, None
+        return locate(float(rec.t0_s) + k / fs, nc)
 
-    timed: list[tuple[int, float, Any]]
-    reliable: list[Any]
-    avg: Any
-    kind: str
-    where: str
-
-
-def _engagement_verdict(
-    block: Any, steady: np.ndarray | None = None, fs: float = 1.0
-) -> _EngagementVerdict:
-    """:class:`_EngagementVerdict` of ``block``. With ``steady`` (per sample,
-    :func:`_steady_cut`) only the revolutions that end where the plan is steady count: an
-    entry's or an exit's revolutions are a changing engagement, not the cut's (decision 1558).
-
-    The medians of the reliable revolutions (:func:`_reliable`) where at least half are and
-    the revolutions' averaged harmonics (√n less noise than one revolution's) allow their
-    median depth: within their depth interval (one interval: no second basin) widened by three
-    standard errors of the median; else the averaged harmonics' estimate where they determine
-    the depth; else not determined (a few revolutions of noise can pass the test by chance;
-    decision 1807)."""
-    from millsense.monitoring.engagement import depth_summary, determined
-    from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
-
-    timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
-             if e is not None]  # fmt: skip
-    where = ""
-    if steady is not None and steady.any():
-        n = steady.size
-        timed = [(i, t, e) for i, t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
-        where = " in the plan's steady cut"
-    every = [e for _, _, e in timed]
-    if not every:
-        return _EngagementVerdict(timed, [], None, "none", where)
-    if getattr(block, "frame_unresolved", None) is not None:
-        # the record's zero is not flute 0's and no offset fixes the depths (decision 1738)
-        return _EngagementVerdict(timed, [], None, "misaligned", where)
-    est = [e for e in every if _reliable(e)]
-    avg = block.averaged([i for i, _, _ in timed]) if len(every) >= AVERAGED_MIN_REVS else None
-    if 2 * len(est) >= len(every):
-        if avg is None:
-            return _EngagementVerdict(timed, est, avg, "medians", where)
-        depth = depth_summary(est)
-        se3 = 3 * depth.standard_error_m
-        if avg.connected and (
-            (not math.isfinite(avg.depth_low_m) or avg.depth_low_m - se3 <= depth.median_m)
-            and depth.median_m <= avg.depth_high_m + se3
-        ):  # fmt: skip
-            return _EngagementVerdict(timed, est, avg, "medians", where)
-    kind = "averaged" if avg is not None and determined(avg) else "undetermined"
-    return _EngagementVerdict(timed, est, avg, kind, where)
-
-
-def _depth_panel(
-    block: Any, verdict: _EngagementVerdict, n_steps: int, step: int, fs: float
-) -> dict[str, np.ndarray]:
-    """Per plotted step (every ``step`` samples), what the depth panel marks as the summary's
-    result (decision 1704): ``{name}/reported``, whether the revolution held there is one whose
-    value the summary's medians take (``verdict.kind`` "medians": counted and
-    :func:`_reliable`); where the summary reports the averaged harmonics (``"averaged"``) or
-    the depths they allow (``"undetermined"``), no revolution is reported alone and
-    ``{name}/averaged_depth`` and ``{name}/averaged_radial`` (the averaged fit's axial and
-    radial depth; NaN where not determined), ``{name}/averaged_low`` and
-    ``{name}/averaged_high`` (m; NaN/inf at the search range's ends) are given over the steps
-    the averaged revolutions hold."""
-    name = block.name
-    out = {f"{name}/reported": np.zeros(n_steps, dtype=bool)}
-    revs = list(getattr(block, "estimates", []))
-    if not verdict.timed or not revs:
-        return out
-    t_end = np.array([t for t, _ in revs], dtype=np.float64)
-    counted = np.zeros(t_end.size, dtype=bool)
-    counted[[i for i, _, _ in verdict.timed]] = True
-    held = np.searchsorted(t_end, np.arange(n_steps) * step / fs, side="right") - 1
-    at = np.maximum(held, 0)
-    if verdict.kind == "medians":
-        ok = counted & np.array([e is not None and _reliable(e) for _, e in revs], dtype=bool)
-        out[f"{name}/reported"] = (held >= 0) & ok[at]
-        return out
-    avg = verdict.avg
-    if avg is None:
-        return out
-    span = (held >= 0) & counted[at]
-    ok = verdict.kind == "averaged"
-    depth = avg.estimate.axial_depth_m if ok else math.nan
-    radial = avg.estimate.radial_depth_m if ok else math.nan
-    for key, val in (("averaged_depth", depth), ("averaged_low", avg.depth_low_m),
-                     ("averaged_high", avg.depth_high_m), ("averaged_radial", radial)):  # fmt: skip
-        out[f"{name}/{key}"] = np.where(span, val, np.nan)
-    return out
-
-
-def _engagement_summary(
-    block: Any,
-    steady: np.ndarray | None = None,
-    fs: float = 1.0,
-    verdict: _EngagementVerdict | None = None,
-) -> str:
-    """One line: revolutions evaluated and the engagement over them (decisions 1807, 1558,
-    1698), as :func:`_engagement_verdict` decides (``verdict``: already decided)."""
-    v = verdict if verdict is not None else _engagement_verdict(block, steady, fs)
-    return _engagement_line(block, v) + _harmonics_note(block, fs)
-
-
-def _harmonics_note(block: Any, fs: float) -> str:
-    """What the summary adds where the harmonics were limited by the Nyquist frequency
-    (decision 1734): the harmonics fitted where fewer than the default, and the revolutions
-    left unevaluated because theirs reached it; flute 0's angle where it was found (decision
-    1738); and where the spindle angle came from (decision 1737)."""
-    from millsense.monitoring.engagement import DEFAULT_HARMONICS
-
-    note = ""
-    k = int(getattr(block, "n_harmonics", DEFAULT_HARMONICS))
-    if k < DEFAULT_HARMONICS:
-        note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
-                 f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
-    offset = float(getattr(block, "angle_offset_rad", 0.0))
-    if offset != 0.0:
-        note += (f"; flute 0 at {np.degrees(offset):.1f}° at the record's first sample, from the "
-                 "steady cut's harmonics (decision 1738)")  # fmt: skip
-    angle = getattr(block, "angle_channel", None)
-    index = getattr(block, "index_channel", None)
-    if angle is not None:
-        note += f"; the spindle angle from the channel {angle}"
-    elif index is not None:
-        note += (f"; the spindle angle from the index pulse {index} (the line through its "
-                 "last 8 marks)")  # fmt: skip
-    rpm = getattr(block, "speed_rpm", None)
-    if rpm is not None:
-        source = getattr(block, "speed_source", "") or f"the set speed of {rpm:g} rev/min"
-        note += f"; no speed channel: the spindle angle from {source}"
-    aliased = int(getattr(block, "aliased_revolutions", 0))
-    if aliased:
-        note += (f"; {aliased} revolutions in the cut not evaluated: their tooth harmonics "
-                 f"reach the Nyquist frequency ({0.5 * fs:g} Hz)")  # fmt: skip
-    return note
-
-
-def _times_words(ratio: float) -> str:
-    """A misfit ratio in the summary's words."""
-    return f"{ratio:.0f} times" if ratio < 1000 else "over 1000 times"
-
-
-def _notch_words(index: float) -> str:
-    """A notch index in the summary's words (the fit caps a depth too small to place it)."""
-    return f"{index:.0f}" if index < 100 else "above 100"
-
-
-def _engagement_line(block: Any, v: _EngagementVerdict) -> str:
-    """The summary's line on the engagement as ``v`` decides it."""
-    from millsense.monitoring.engagement import RELIABLE_SIGMA, depth_summary, side_cut_window
-
-    where, est, avg = v.where, v.reliable, v.avg
-    every = [e for _, _, e in v.timed]
-    if v.kind == "misaligned":
-        found = block.frame_unresolved
-        return (
-            f"  {block.name}: engagement not determined: the record's spindle-angle zero is not "
-            f"flute 0's (the steady cut's harmonics fit {np.degrees(found.offset_rad):.0f}° "
-            f"further on {_times_words(found.misfit_at_zero / max(found.misfit, 1e-300))} "
-            "better), "
-            f"and the depth's notch (harmonic {_notch_words(found.notch_index)}) lies beyond the "
-            f"{block.n_harmonics} fitted, where an angle offset and a depth trade phase: only a "
-            "spindle angle whose zero is flute 0 fixes the depths here (decision 1738)"
-        )
-    if v.kind == "none":
-        if getattr(block, "aliased_revolutions", 0):
-            return f"  {block.name}: no revolution evaluated{where}"
-        return f"  {block.name}: no revolution evaluated{where} (no cut, or the torque is too low)"
-
-    def med(v: list[float]) -> float:
-        return float(np.median(v))
-
-    head = f"  {block.name}: {len(est)} of {len(every)} revolutions{where} reliable"
-    if v.kind == "medians":
-        depth = depth_summary(est)
-        return (
-            f"{head} (σ ≥ {RELIABLE_SIGMA}): median axial depth "
-            f"{1e3 * depth.median_m:.3f} mm (standard error "
-            f"{1e3 * depth.standard_error_m:.3f} mm, a revolution's scatter "
-            f"{1e3 * depth.scatter_m:.3f} mm), "
-            + _engagement_values([e.radial_depth_m for e in est], [e.kt_n_m2 for e in est],
-                                 [e.runout_m for e in est], [e.reliability for e in est],
-                                 [e.edge_n_m for e in est], [e.edge_source for e in est])
-        )  # fmt: skip
-    if v.kind == "averaged":
-        a = avg.estimate
-        return (
-            f"{head} alone; the {avg.n} revolutions' harmonics averaged: axial depth "
-            f"{1e3 * a.axial_depth_m:.3f} mm "
-            f"(profile interval {1e3 * avg.depth_low_m:.3f}–{1e3 * avg.depth_high_m:.3f} mm), "
-            + _engagement_values([a.radial_depth_m], [a.kt_n_m2], [a.runout_m],
-                                 [a.reliability], [a.edge_n_m], [a.edge_source])
-        )  # fmt: skip
-    allowed = ""
-    if avg is not None:
-        lo, hi = avg.depth_low_m, avg.depth_high_m
-        basin = "" if avg.connected else " or in another basin"
-        allowed = (f"; averaged over the {avg.n} revolutions the axial depth lies anywhere "
-                   f"{depth_span(lo, hi)}{basin}")  # fmt: skip
-    inside = [e for e in every if not side_cut_window(e.entry_rad, e.exit_rad)]
-    why = ("the torque's tooth harmonics do not fix the engagement here (e.g. a full slot with 3 "
-           "or more flutes, or a light cut in the signal's noise)")  # fmt: skip
-    if 2 * len(inside) > len(every):
-        # decision 1738: most windows inside the half-turn
-        entry = float(np.degrees(med([e.entry_rad for e in inside])))
-        exit_ = float(np.degrees(med([e.exit_rad for e in inside])))
-        why = (f"most revolutions' engagement window lies inside the half-turn (median "
-               f"{entry:.0f}° to {exit_:.0f}°), which no steady side cut gives: a transient, "
-               "or a spindle angle whose zero is not the tool's reference (decision 1738)")
-    return (
-        f"  {block.name}: engagement not determined: {len(est)} of {len(every)} "
-        f"revolutions{where} reliable (σ ≥ {RELIABLE_SIGMA}, K_t > 0, K_e ≥ 0, a side cut's "
-        f"window; median σ {med([e.reliability for e in every]):.2f}){allowed}; {why}"
-    )
-
-
-def depth_span(low_m: float, high_m: float) -> str:
-    """The depths an undetermined engagement allows, in words (an infinite bound: the search's
-    own end)."""
-    if math.isfinite(low_m) and math.isfinite(high_m):
-        return f"from {1e3 * low_m:.2f} to {1e3 * high_m:.2f} mm"
-    if math.isfinite(low_m):
-        return f"from {1e3 * low_m:.2f} mm to the largest depth searched"
-    if math.isfinite(high_m):
-        return f"from the smallest depth searched to {1e3 * high_m:.2f} mm"
-    return "in the whole range searched"
-
-
-def _engagement_values(
-    dr: list[float], kt: list[float], runout: list[float], sigma: list[float],
-    ke: list[float], source: list[float],
-) -> str:  # fmt: skip
-    """The summary's radial depth, K_t, runout, reliability and K_e (medians), in words."""
-
-    def med(v: list[float]) -> float:
-        return float(np.median(v))
-
-    return (
-        f"radial depth {1e3 * med(dr):.3f} mm, K_t {1e-6 * med(kt):.0f} N/mm², runout "
-        f"{1e6 * med(runout):.1f} µm, reliability {med(sigma):.3f}, K_e "
-        f"{1e-3 * med(ke):.1f} N/mm ({_edge_source(source)})"
-    )
-
-
-#: Where the engagement monitor's K_e came from (``EngagementEstimate.edge_source``, decision
-#: 1806), as the summary line says it.
-_EDGE_SOURCES = {
-    0: "not fitted",
-    1: "from the tooth harmonics",
-    2: "from the mean torque",
-    3: "harmonics only, no air torque known: less reliable",
-}
-
-
-def _edge_source(sources: list[float]) -> str:
-    """The most frequent source of K_e over the revolutions, in words."""
-    vals, counts = np.unique(np.asarray(sources, dtype=int), return_counts=True)
-    return _EDGE_SOURCES.get(int(vals[np.argmax(counts)]), "unknown")
+    return place
 
 
 def _grouped(blocks: list[Any]) -> list[Any]:

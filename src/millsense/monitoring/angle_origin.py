@@ -35,9 +35,6 @@ from millsense.monitoring.torque_spectrum import SpectrumIdentifier, ToolGeometr
 STEP_DEG = 5.0
 #: An offset is adopted where its misfit is below this share of the record's own frame's.
 ADOPT_RATIO = 0.5
-#: Consecutive revolutions whose first tooth harmonic stays within this fraction of their mean
-#: magnitude count as one steady cut.
-STEADY_BAND = 0.15
 
 
 def _fit(
@@ -75,25 +72,6 @@ class ToolAngle:
         carries the depth, and an offset's slope trades for a depth's (−kNφ against
         −kN·d_a·tanβ/2r): only an angle reference separates them."""
         return bool(self.notch_index <= n_harmonics)
-
-
-def steady_rows(coeffs: Sequence[NDArray[np.complex128] | None]) -> list[int]:
-    """The longest run of consecutive evaluated revolutions (None: not evaluated, which ends a
-    run) whose first tooth harmonic's magnitude stays within :data:`STEADY_BAND` of the
-    run's mean: one steady cut, whose windows share one frame."""
-    best: list[int] = []
-    run: list[int] = []
-    total = 0.0
-    for i, c in enumerate(coeffs):
-        m = abs(c[1]) if c is not None else math.nan
-        if run and math.isfinite(m) and abs(m - total / len(run)) <= STEADY_BAND * total / len(run):
-            run.append(i)
-            total += m
-            continue
-        if len(run) > len(best):
-            best = run
-        run, total = ([i], m) if math.isfinite(m) and m > 0 else ([], 0.0)
-    return run if len(run) > len(best) else best
 
 
 def tool_angle_offset(

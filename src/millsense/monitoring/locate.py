@@ -1,7 +1,8 @@
 """Where an event happened on the tool path, from the virtual plan.
 
-The CNC's NC-line channel (when the recording has one) names the block being executed; the
-plan's rows of that line closest in planned time give the tool-tip position. Without an
+The CNC's NC-line channel (when the recording has one) names the block being executed (its N
+number, or its line in the program where it has none); the plan's rows of that line closest in
+planned time give the tool-tip position. Without an
 NC-line channel the planned time alone is used. Planned and actual time differ by overrides
 and the spindle run-up, so with overrides the position is that of the nearest row of the
 right NC line (decision 1505).
@@ -19,7 +20,12 @@ class PlanLocator:
 
     def __init__(self, plan: VirtualPlan) -> None:
         self.t = np.asarray(plan["t_s"], dtype=float)
-        self.nc = np.asarray(plan["nc_line"], dtype=np.int64)
+        # the line the CNC names: the N number, else the source line (as the virtual machine
+        # and a CNC without N words report it; decision 1739)
+        nc = np.asarray(plan["nc_line"], dtype=np.int64)
+        if "source_line" in plan.columns:
+            nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
+        self.nc = nc
         self.xyz = np.column_stack(
             [np.asarray(plan[c], dtype=float) for c in ("x_mm", "y_mm", "z_mm")]
         )

@@ -438,8 +438,9 @@ def _tool_angle(ctx: MonitorContext, probe: Block) -> ToolAngle | None:
     :func:`~millsense.monitoring.angle_origin.tool_angle_offset` searches the longest steady
     cut's averaged harmonics. None for a live stream or fewer than the averaged fit's
     revolutions in one steady cut."""
-    from millsense.monitoring.angle_origin import steady_rows, tool_angle_offset
+    from millsense.monitoring.angle_origin import tool_angle_offset
     from millsense.monitoring.engagement import EngagementBlock
+    from millsense.monitoring.steady_cuts import steady_rows
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
     if ctx.read is None or ctx.n_samples <= 0 or not isinstance(probe, EngagementBlock):
