@@ -11,7 +11,11 @@ import numpy as np
 
 from millsense.monitoring.breakage import BreakageBlock
 from millsense.monitoring.breakage_phased import PhasedBreakage
-from millsense.monitoring.engagement import EngagementBlock
+from millsense.monitoring.engagement import (
+    EngagementBlock,
+    cycle_revolutions,
+    harmonics_below_nyquist,
+)
 from millsense.process.coefficients import CuttingCoefficients
 from millsense.process.engagement import Engagement
 from millsense.process.forces import milling_forces
@@ -50,10 +54,12 @@ def _stream(seconds: float, rpm: float = 1000.0, noise_nm: float = 0.05) -> dict
     }
 
 
-def _blocks(engagement: bool, grouped: bool = False) -> list[Block]:
+def _blocks(engagement: bool, grouped: bool = False, rpm: float = 1000.0) -> list[Block]:
     """The three breakage detectors, the virtual one at three phases of the tooth period
     (decision 1552; the other two in its compiled call if ``grouped``, as ``millsense monitor``
-    runs them), and the engagement monitor if ``engagement``."""
+    runs them), and the engagement monitor if ``engagement`` (15 tooth harmonics or those below
+    the Nyquist frequency, decision 1734, and the monitoring cycle `millsense monitor` takes at
+    ``rpm``, decision 1717: 1 revolution at 1000 rev/min)."""
     virtual = PhasedBreakage(2, method="virtual", expected_channel="plan/torque")
     others = [
         BreakageBlock(2, "constant"),
@@ -61,7 +67,11 @@ def _blocks(engagement: bool, grouped: bool = False) -> list[Block]:
     ]
     out: list[Block] = [virtual.with_companions(others)] if grouped else [virtual, *others]
     if engagement:
-        out.append(EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=15))
+        out.append(
+            EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2,
+                            n_harmonics=harmonics_below_nyquist(2, rpm, FS, 15),
+                            cycle_revolutions=cycle_revolutions(rpm))
+        )  # fmt: skip
     return out
 
 

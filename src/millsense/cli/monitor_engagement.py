@@ -316,7 +316,8 @@ def engagement_summary(
 def _harmonics_note(block: Any, fs: float) -> str:
     """What the summary adds where the harmonics were limited by the Nyquist frequency
     (decision 1734): the harmonics fitted where fewer than the default, and the revolutions
-    left unevaluated because theirs reached it; flute 0's angle where it was found (decision
+    left unevaluated because theirs reached it; the monitoring cycle where it is longer than a
+    revolution (decision 1717); flute 0's angle where it was found (decision
     1738); and where the spindle angle came from (decision 1737)."""
     from millsense.monitoring.engagement import DEFAULT_HARMONICS
 
@@ -325,6 +326,11 @@ def _harmonics_note(block: Any, fs: float) -> str:
     if k < DEFAULT_HARMONICS:
         note += (f"; fitted on {k} tooth harmonics, those below the Nyquist frequency "
                  f"({0.5 * fs:g} Hz) at the recording's top speed")  # fmt: skip
+    cycle = int(getattr(block, "cycle_revolutions", 1))
+    if cycle > 1:
+        note += (f"; one estimate per monitoring cycle of {cycle} revolutions, the whole number "
+                 "nearest Lee's 50 ms at the running speed: the revolutions counted are cycles "
+                 "(decision 1717)")  # fmt: skip
     offset = float(getattr(block, "angle_offset_rad", 0.0))
     if offset != 0.0:
         note += (f"; flute 0 at {np.degrees(offset):.1f}° at the record's first sample, from the "

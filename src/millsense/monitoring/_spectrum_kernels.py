@@ -822,7 +822,11 @@ FPAR_AIR_TORQUE = 7
 #: ... then the sample rate (Hz), the tool's flutes and 1.0 with the edge term (0.0 without):
 #: the scalars of :func:`ingest_revolutions` that :func:`ingest_chunk` reads from ``fpar``.
 FPAR_FS, FPAR_FLUTES, FPAR_EDGE = 8, 9, 10
-FPAR_SIZE = 11
+#: ... then the revolutions of one monitoring cycle (Lee: "one monitoring cycle for 3 tool
+#: revolutions"; decision 1717): the harmonics are summed over that many revolutions before a
+#: fit (1.0: one estimate a revolution).
+FPAR_CYCLE = 11
+FPAR_SIZE = 12
 #: Relative speed difference within which a learnt air-cut torque is used (decision 1806: the
 #: air torque depends on the speed, viscous friction; a reference serves the speed it was
 #: taken at, and a new speed needs a new air revolution).
@@ -1611,7 +1615,10 @@ def ingest_revolutions(
     sample, means, mean cutting torque (:func:`mean_cut_torque`, which also learns the air
     reference from an air revolution; decision 1806) and status to a row of ``done`` and, if
     the fit from ``prev`` is accepted (:func:`identify_from`), its estimate to that row of
-    ``est`` (``prev`` ← its solution).
+    ``est`` (``prev`` ← its solution). With a monitoring cycle of ``fpar[FPAR_CYCLE]`` = n > 1
+    revolutions (decision 1717) the cycle is finished instead: the revolution index's
+    ⌊index/n⌋ changes, and its coefficients are the sums over its n revolutions' samples over
+    their count, the mean of the revolutions' own (the phasors repeat every revolution).
     With an equaliser (``eqp`` = (grid step Hz, range-switch speed rad/s), ``eq`` the torque
     channel's response on that grid per speed range, rows 0 and 1; decision 1554) each
     coefficient is divided by the response at its frequency ``orders[j]·Ω/2π`` (linear
@@ -1628,10 +1635,13 @@ def ingest_revolutions(
     # the angle and revolution of every sample (they do not depend on the estimates)
     ang, revs, zr, zi = revolution_phasors(speed, i0, fs, acc)
     nd = 0
-    cur = acc[ACC_REV]
+    # a cycle of `cyc` revolutions ends where the revolution index's cycle changes
+    cyc = fpar[FPAR_CYCLE]
+    cur = acc[ACC_REV] if cyc == 1.0 else float(math.floor(acc[ACC_REV] / cyc))
     run = i0  # first sample not yet summed
     for i in range(i0, n):
-        if revs[i] != cur and acc[ACC_COUNT] + (i - run) > 0:
+        now = revs[i] if cyc == 1.0 else float(math.floor(revs[i] / cyc))
+        if now != cur and acc[ACC_COUNT] + (i - run) > 0:
             _sum_run(x, speed, feed, zr, zi, run, i, n_flutes, acc, sums)
             run = i
             if nd == cap or (nd > 0 and done[nd - 1, DONE_STATUS] == REV_GRID):
@@ -1707,7 +1717,7 @@ def ingest_revolutions(
             acc[ACC_SUM_SPEED] = 0.0
             acc[ACC_SUM_FEED] = 0.0
             nd += 1
-        cur = revs[i]
+        cur = now
     _sum_run(x, speed, feed, zr, zi, run, n, n_flutes, acc, sums)
     if n > i0:
         acc[ACC_FRAC] = ang[n - 1]

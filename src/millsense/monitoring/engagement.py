@@ -143,6 +143,21 @@ def harmonics_below_nyquist(
     return int(max(0, min(wanted, k)))
 
 
+#: Lee's monitoring cycle, s: one revolution at his 1200 min⁻¹ (seed 004 digest A3: "one
+#: estimate per revolution, or per n revolutions"). ``millsense monitor`` takes the whole number
+#: of revolutions nearest it at the recording's top speed (decision 1717).
+MONITORING_CYCLE_S = 0.05
+
+
+def cycle_revolutions(speed_rpm: float, cycle_s: float = MONITORING_CYCLE_S) -> int:
+    """The revolutions of one monitoring cycle at ``speed_rpm``: the whole number nearest
+    ``cycle_s`` of them, at least 1 (decision 1717: 1 below 1800 rev/min, 5 at 6000, 8 at
+    10 000)."""
+    if not (speed_rpm > 0 and math.isfinite(speed_rpm) and cycle_s > 0):
+        raise ValueError(f"cycle_revolutions: need a positive speed, got {speed_rpm}")
+    return max(1, round(speed_rpm / 60.0 * cycle_s))
+
+
 @dataclass(frozen=True)
 class DepthSummary:
     """The axial depth over many revolutions (decision 1558), in m: the median of the reliable
@@ -238,6 +253,11 @@ class EngagementBlock(Block):
         flagged (``EngagementEstimate.edge_source`` = 3).
     edge, max_depth_fraction : see :class:`~millsense.monitoring.torque_spectrum.
         SpectrumIdentifier`.
+    cycle_revolutions : revolutions of one monitoring cycle (Lee's "one monitoring cycle for 3
+        tool revolutions"; decision 1717): one estimate from the mean of the cycle's
+        revolutions' harmonics (√n less noise, n times fewer fits); 1, the default, is one a
+        revolution. Every "revolution" of :attr:`estimates` and
+        :attr:`revolution_harmonics` is then a cycle.
     response : the torque channel's response to the cutting torque, as
         :class:`TorqueResponse` (an estimator's known frequency response, e.g. the spindle
         observer's from its machine file): each revolution's coefficients are divided by it
@@ -267,6 +287,7 @@ class EngagementBlock(Block):
         edge: bool = True,
         max_depth_fraction: float = 0.5,
         response: TorqueResponse | None = None,
+        cycle_revolutions: int = 1,
         name: str = "engagement",
     ) -> None:
         if int(n_flutes) != n_flutes or n_flutes < 1:
@@ -288,6 +309,11 @@ class EngagementBlock(Block):
             raise ConfigError(
                 f"engagement: n_harmonics must be ≥ {MIN_HARMONICS}, got {n_harmonics}"
             )
+        if int(cycle_revolutions) != cycle_revolutions or cycle_revolutions < 1:
+            raise ConfigError(
+                f"engagement: cycle_revolutions must be an integer ≥ 1, got {cycle_revolutions!r}"
+            )
+        self.cycle_revolutions = int(cycle_revolutions)
         self.geom = ToolGeometry(int(n_flutes), 0.5e-3 * diameter_mm, math.radians(helix_deg))
         self.n_harmonics = int(n_harmonics)
         if not (0 < max_depth_fraction < 1):
@@ -380,7 +406,8 @@ class EngagementBlock(Block):
         fpar = [self.min_torque_nm, -1.0 if self.c_m is None else self.c_m, ident._kb]
         fpar += [ident.accept, g.radius_m, g.axial_pitch_m, RUNOUT_RCOND]
         fpar += [math.nan if self.air_torque_nm is None else float(self.air_torque_nm)]
-        fpar += [self.fs, g.n_flutes, 1.0 if self.edge else 0.0]  # layout: _sk.FPAR_*
+        fpar += [self.fs, g.n_flutes, 1.0 if self.edge else 0.0]
+        fpar += [float(self.cycle_revolutions)]  # layout: _sk.FPAR_*
         eq, eqp = self._equaliser()
         nk = self._k.size
         # the compiled scan's state, packed (parts in the order of _sk.PK_*), and the views of

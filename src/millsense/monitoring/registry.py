@@ -317,33 +317,53 @@ def _top_rpm_of_angle(ctx: MonitorContext, channel: str, index: bool) -> float:
     return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
 
 
+def _spindle_speeds_rpm(
+    ctx: MonitorContext, angle: str | None = None, index: str | None = None
+) -> np.ndarray:
+    """The recording's spindle speed samples (rev/min, finite, ≥ 0) from the engagement
+    monitor's angle reference (an angle channel's or an index pulse's steps) or its speed
+    channel, or the set speed alone; empty without the recording's samples and a set speed (a
+    live stream with a speed channel)."""
+    read = ctx.read if ctx.n_samples > 0 else None
+    reference = angle or index
+    if read is not None and reference is not None:
+        return np.array([_top_rpm_of_angle(ctx, reference, index is not None)])
+    if read is None or ctx.speed_channel is None:
+        # a set speed (decision 1737); none on a live stream with a speed channel
+        return np.array([float(ctx.speed_rpm)]) if ctx.speed_rpm else np.zeros(0)
+    speed = np.abs(np.asarray(read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
+    per_unit = 60.0 / (2.0 * np.pi) if ctx.speed_unit == "rad/s" else 1.0
+    return speed[np.isfinite(speed)] * per_unit
+
+
+def _engagement_cycle(speeds_rpm: np.ndarray) -> int:
+    """The engagement monitor's monitoring cycle (decision 1717): the revolutions nearest
+    Lee's 50 ms at the recording's running speed (the median of its speeds above a tenth of
+    the top: the spindle turning, not its run-up), 1 without one."""
+    from millsense.monitoring.engagement import cycle_revolutions
+
+    top = float(speeds_rpm.max()) if speeds_rpm.size else 0.0
+    if not top > 0:
+        return 1
+    return cycle_revolutions(float(np.median(speeds_rpm[speeds_rpm > 0.1 * top])))
+
+
 def _engagement_harmonics(
-    ctx: MonitorContext, n_flutes: int, name: str, angle: str | None = None,
-    index: str | None = None,
-) -> int:  # fmt: skip
+    ctx: MonitorContext, n_flutes: int, name: str, speeds_rpm: np.ndarray
+) -> int:
     """The tooth harmonics the engagement monitor fits: the default, or those below the
-    Nyquist frequency at the recording's top spindle speed where fewer (decision 1734); a
-    one-line error where fewer than the fit needs lie below it. Without the recording's speed
-    samples (a live stream): the default, and the block leaves a revolution whose harmonics
-    reach the Nyquist frequency unevaluated."""
+    Nyquist frequency at the recording's top spindle speed (of ``speeds_rpm``,
+    :func:`_spindle_speeds_rpm`) where fewer (decision 1734); a one-line error where fewer than
+    the fit needs lie below it. Without the recording's speed samples (a live stream): the
+    default, and the block leaves a revolution whose harmonics reach the Nyquist frequency
+    unevaluated."""
     from millsense.monitoring.engagement import (
         DEFAULT_HARMONICS,
         MIN_HARMONICS,
         harmonics_below_nyquist,
     )
 
-    read = ctx.read if ctx.n_samples > 0 else None
-    reference = angle or index
-    if read is not None and reference is not None:
-        top_rpm = _top_rpm_of_angle(ctx, reference, index is not None)
-    elif read is None or ctx.speed_channel is None:
-        # a set speed (decision 1737); none on a live stream with a speed channel: the default
-        top_rpm = float(ctx.speed_rpm or 0.0)
-    else:
-        speed = np.abs(np.asarray(read(ctx.speed_channel, 0, ctx.n_samples), dtype=float))
-        speed = speed[np.isfinite(speed)]
-        per_unit = 60.0 / (2.0 * np.pi) if ctx.speed_unit == "rad/s" else 1.0
-        top_rpm = float(speed.max()) * per_unit if speed.size else 0.0
+    top_rpm = float(speeds_rpm.max()) if speeds_rpm.size else 0.0
     if not top_rpm > 0:
         return DEFAULT_HARMONICS
     k = harmonics_below_nyquist(n_flutes, top_rpm, ctx.sample_rate_hz)
@@ -404,8 +424,10 @@ def _engagement(ctx: MonitorContext) -> Block:
     # (decision 1737)
     reference = angle or index  # a revolution reference beats a speed (decision 1737)
     set_rpm, speed_source = (None, "") if reference is not None else _set_speed(ctx, signal)
+    speeds = _spindle_speeds_rpm(ctx, angle, index)
     settings: dict[str, Any] = dict(
-        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, angle, index),
+        n_harmonics=_engagement_harmonics(ctx, int(tool.flutes), name, speeds),
+        cycle_revolutions=_engagement_cycle(speeds),
         torque_channel=signal,
         speed_channel=ctx.speed_channel or "spindle/speed",
         speed_unit=ctx.speed_unit,
