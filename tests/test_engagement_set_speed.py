@@ -126,8 +126,12 @@ def test_no_refined_speed_without_revolutions() -> None:
 def test_the_spindle_angle_channel(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A dynamometer's torque with the spindle encoder's wrapped angle (Lee's revolution
     reference), the spindle at 1002 rev/min, no speed channel and no set speed: the depth
-    within 2 % of 2 mm, the summary naming the angle channel."""
-    code, line = _depths(tmp_path, _recording(tmp_path / "r.h5", 1002.0, "angle"), capsys)
+    within 2 % of 2 mm, the summary naming the angle channel. The encoder reads 1 rad and a
+    sample's turn (its angle is the speed's running sum to the sample) where flute 0 is at 0:
+    at its zero flute 0 is at −57.9° (decision 1694), which ``--flute0-deg`` gives."""
+    rec = _recording(tmp_path / "r.h5", 1002.0, "angle")
+    zero = -math.degrees(1.0 + 1002.0 * 2 * math.pi / 60 / FS)
+    code, line = _depths(tmp_path, rec, capsys, "--flute0-deg", f"{zero!r}")
     assert code == 0, line
     assert _axial_mm(line) == pytest.approx(2.0, rel=0.02)
     assert "the spindle angle from the channel spindle/angle" in line

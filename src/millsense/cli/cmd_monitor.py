@@ -83,6 +83,13 @@ def monitor(
         help="The torque channel's mean with the tool out of the cut [N·m] (engagement: 0 for "
         "a tared dynamometer; default: learnt from the recording's air revolutions).",
     ),
+    flute0: float | None = typer.Option(
+        None,
+        "--flute0-deg",
+        help="Engagement: flute 0's angle [deg] where the spindle-angle channel reads 0 or at "
+        "the index mark (a clamping's constant: the 'flute 0 at' of an earlier record's "
+        "summary); default: found from the steady cut's harmonics.",
+    ),
     cut_s: float | None = typer.Option(
         None, "--cut-s", help="Start of the cut motion [s] (contact; default: end of --air-s)."
     ),
@@ -105,7 +112,7 @@ def monitor(
             recording=recording, out=out, plan=plan, machine=machine, methods=methods,
             channel=channel, flutes=flutes, spindle_rpm=spindle_rpm, plot=plot, chunk=chunk,
             tool=tool, feed_per_tooth=feed_per_tooth, air_s=air_s, cut_s=cut_s,
-            position=position, air_torque=air_torque, on_progress=update,
+            position=position, air_torque=air_torque, flute0_deg=flute0, on_progress=update,
         )  # fmt: skip
     for line in summary["lines"]:
         typer.echo(line)
@@ -158,6 +165,7 @@ def run_monitor(
     position: str | None = None,
     segment: tuple[int, int] | None = None,
     air_torque: float | None = None,
+    flute0_deg: float | None = None,
     on_progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Run the monitors over ``recording``; write the event log ``out`` (and ``plot``).
@@ -178,7 +186,7 @@ def run_monitor(
     if chunk < 1:
         raise InputDataError(f"--chunk: must be ≥ 1, got {chunk}")
     names = _methods(methods)
-    options = _monitor_options(feed_per_tooth, air_s, cut_s, position, air_torque)
+    options = _monitor_options(feed_per_tooth, air_s, cut_s, position, air_torque, flute0_deg)
     tool_cfg = None
     if tool is not None:
         from millsense.core.config import ToolConfig
@@ -199,11 +207,16 @@ def _monitor_options(
     cut_s: float | None,
     position: str | None,
     air_torque: float | None = None,
+    flute0_deg: float | None = None,
 ) -> dict[str, Any]:
     """The options of the engagement and contact monitors, checked (one-line errors)."""
     from millsense.core.errors import ConfigError
 
     opts: dict[str, Any] = {}
+    if flute0_deg is not None:
+        if not np.isfinite(flute0_deg):
+            raise ConfigError(f"--flute0-deg: must be a finite angle in degrees, got {flute0_deg}")
+        opts["engagement.flute0_deg"] = float(flute0_deg)
     if air_torque is not None:
         if not np.isfinite(air_torque):
             raise ConfigError(f"--air-torque-nm: must be a finite torque in N·m, got {air_torque}")

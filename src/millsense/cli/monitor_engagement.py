@@ -332,11 +332,20 @@ def _harmonics_note(block: Any, fs: float) -> str:
                  "nearest Lee's 50 ms at the running speed: the revolutions counted are cycles "
                  "(decision 1717)")  # fmt: skip
     offset = float(getattr(block, "angle_offset_rad", 0.0))
-    if offset != 0.0:
-        note += (f"; flute 0 at {np.degrees(offset):.1f}° at the record's first sample, from the "
-                 "steady cut's harmonics (decision 1738)")  # fmt: skip
+    source = getattr(block, "offset_source", "")
     angle = getattr(block, "angle_channel", None)
     index = getattr(block, "index_channel", None)
+    where = ("at the record's first sample" if angle is None and index is None
+             else "where the spindle angle reads 0")  # fmt: skip
+    if source == "given":
+        note += f"; flute 0 at {np.degrees(offset):.1f}° {where}, as given (--flute0-deg)"
+    elif offset != 0.0:
+        note += (f"; flute 0 at {np.degrees(offset):.1f}° {where}, from the steady cut's "
+                 "harmonics (decision 1738)")  # fmt: skip
+        if angle is not None or index is not None:
+            # the reference's zero is the clamping's: the angle serves its other records
+            note += (f": --flute0-deg {np.degrees(offset):.1f} gives it to the tool's other "
+                     "records in this clamping (decision 1694)")  # fmt: skip
     if angle is not None:
         note += f"; the spindle angle from the channel {angle}"
     elif index is not None:
@@ -383,7 +392,8 @@ def _verdict_text(block: Any, v: EngagementVerdict) -> str:
             "better), "
             f"and the depth's notch (harmonic {_notch_words(found.notch_index)}) lies beyond the "
             f"{block.n_harmonics} fitted, where an angle offset and a depth trade phase: only a "
-            "spindle angle whose zero is flute 0 fixes the depths here (decision 1738)"
+            "spindle angle whose zero is flute 0, or an angle or index channel with flute 0's "
+            "angle given (--flute0-deg, decision 1694), fixes the depths here (decision 1738)"
         )
     if v.kind == "none":
         if getattr(block, "aliased_revolutions", 0):

@@ -232,9 +232,11 @@ class EngagementBlock(Block):
         encoder's zero mark) instead of a speed channel, a mark where it rises through the
         threshold: the angle advances at the last revolution's speed between marks and is
         reset at each (:mod:`~millsense.monitoring.index_pulse`; decision 1737).
-    angle_offset_rad : the tool's angle (flute 0's, in the feed's frame) at the stream's
-        first sample: the spindle angle starts there (decision 1738;
-        :func:`~millsense.monitoring.angle_origin.tool_angle_offset` finds it from a cut).
+    angle_offset_rad : the tool's angle (flute 0's, in the feed's frame) where the spindle
+        angle reads 0: at the stream's first sample with a speed, where the angle channel
+        reads 0 or at the index mark with an angle or index channel (whose own angle starts
+        the frame, decision 1694; :func:`~millsense.monitoring.angle_origin.tool_angle_offset`
+        finds it from a cut, decision 1738).
     speed_rpm : a constant spindle speed (rev/min) instead of a speed channel (a laboratory
         cut at a set speed recorded with a dynamometer alone; decision 1737): the spindle
         angle is then that speed's, which must be the actual one to a few ppm (0.02 % off read
@@ -355,6 +357,9 @@ class EngagementBlock(Block):
         #: ``millsense monitor``'s finding that the record's zero is not flute 0's and no offset
         #: fixes the depths (an ``angle_origin.ToolAngle``; decision 1738): nothing is reported
         self.frame_unresolved: Any = None
+        #: where ``angle_offset_rad`` came from, for the summary: "" (not set), "found" (the
+        #: steady cut's harmonics, decision 1738) or "given" (``--flute0-deg``, decision 1694)
+        self.offset_source = ""
         self.feed_channel = feed_channel
         self.c_m = None if feed_per_tooth_mm is None else 1e-3 * feed_per_tooth_mm
         self.min_torque_nm = float(min_torque_nm)
@@ -585,6 +590,12 @@ class EngagementBlock(Block):
             # revolution that holds the cut's torque without turning is no revolution)
             known = np.flatnonzero(np.isfinite(a))
             self._skip = n if known.size == 0 else int(known[0])
+            if known.size and self._acc[_sk.ACC_REV] < 0:  # (the scan has not started)
+                # the frame starts at the reference's own angle there, not at 0: flute 0 is
+                # at ``angle_offset_rad`` where the reference reads 0 (its zero, the index
+                # mark), in every record of the tool's clamping (decision 1694)
+                start = (float(a[known[0]]) + self.angle_offset_rad) / (2.0 * math.pi)
+                self._acc[_sk.ACC_FRAC] = start % 1.0
         step = np.diff(a, prepend=self._last_angle)
         self._last_angle = float(a[-1])
         step = step - 2.0 * math.pi * np.ceil((step - math.pi) / (2.0 * math.pi))

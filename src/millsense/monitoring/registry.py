@@ -12,6 +12,7 @@ with :func:`register`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -302,9 +303,9 @@ def _index_threshold(ctx: MonitorContext, index: str | None) -> float:
     return 0.5 * float(x.max()) if x.size and x.max() > 0 else 0.5
 
 
-def _top_rpm_of_angle(ctx: MonitorContext, channel: str, index: bool) -> float:
-    """The highest speed (rev/min) of an angle channel's sample-to-sample steps, or of the
-    angle an index pulse gives (``index``)."""
+def _angle_speeds_rpm(ctx: MonitorContext, channel: str, index: bool) -> np.ndarray:
+    """The speeds (rev/min) of an angle channel's sample-to-sample steps, or of the angle an
+    index pulse gives (``index``)."""
     from millsense.monitoring.index_pulse import index_angle, index_state
 
     assert ctx.read is not None
@@ -314,7 +315,7 @@ def _top_rpm_of_angle(ctx: MonitorContext, channel: str, index: bool) -> float:
         index_angle(pulse, _index_threshold(ctx, channel), index_state(), a)
     step = np.abs(np.diff(a[np.isfinite(a)]))
     step = np.minimum(step, 2.0 * np.pi - step)  # a wrapped angle's jump of 2π is no motion
-    return float(step.max()) * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi) if step.size else 0.0
+    return np.asarray(step * ctx.sample_rate_hz * 60.0 / (2.0 * np.pi), dtype=np.float64)
 
 
 def _spindle_speeds_rpm(
@@ -327,7 +328,7 @@ def _spindle_speeds_rpm(
     read = ctx.read if ctx.n_samples > 0 else None
     reference = angle or index
     if read is not None and reference is not None:
-        return np.array([_top_rpm_of_angle(ctx, reference, index is not None)])
+        return _angle_speeds_rpm(ctx, reference, index is not None)
     if read is None or ctx.speed_channel is None:
         # a set speed (decision 1737); none on a live stream with a speed channel
         return np.array([float(ctx.speed_rpm)]) if ctx.speed_rpm else np.zeros(0)
@@ -339,7 +340,8 @@ def _spindle_speeds_rpm(
 def _engagement_cycle(speeds_rpm: np.ndarray) -> int:
     """The engagement monitor's monitoring cycle (decision 1717): the revolutions nearest
     Lee's 50 ms at the recording's running speed (the median of its speeds above a tenth of
-    the top: the spindle turning, not its run-up), 1 without one."""
+    the top: the spindle turning, not its run-up; an index pulse's first line is no running
+    speed, 1.8× the 1000 rev/min of a test's), 1 without one."""
     from millsense.monitoring.engagement import cycle_revolutions
 
     top = float(speeds_rpm.max()) if speeds_rpm.size else 0.0
@@ -443,11 +445,26 @@ def _engagement(ctx: MonitorContext) -> Block:
         name=name,
     )
     shape = (int(tool.flutes), float(tool.diameter_mm), float(tool.helix_deg))
+    given = ctx.options.get("engagement.flute0_deg")
+    if given is not None:
+        # flute 0's angle where the reference reads 0, known for the tool's clamping: no
+        # search (decision 1694)
+        if reference is None:
+            raise InputDataError(
+                f"{ctx.source}: --flute0-deg needs a spindle-angle reference ({SPINDLE_ANGLE} or "
+                f"{SPINDLE_INDEX}): without one the record's zero is wherever the spindle was "
+                "when it started"
+            )
+        block = EngagementBlock(*shape, **settings, angle_offset_rad=math.radians(given))
+        block.offset_source = "given"
+        block.speed_source = speed_source
+        return block
     block = EngagementBlock(*shape, **settings)
     # the tool's angle at the record's zero, from its steady cut's harmonics (decision 1738)
     found = _tool_angle(ctx, block)
     if found is not None and found.misaligned and found.resolved(block.n_harmonics):
         block = EngagementBlock(*shape, **settings, angle_offset_rad=found.offset_rad)
+        block.offset_source = "found"
     elif found is not None and found.misaligned:
         block.frame_unresolved = found  # (the pipeline resets the block before its run)
     block.speed_source = speed_source
