@@ -153,3 +153,29 @@ def test_plan_locator_reads_the_source_line_where_the_program_has_no_n_words() -
     assert locate(2.6, 5) == (5, 10.0, 0.0, -3.0)  # line 5's nearest row in planned time
     assert locate(0.2, 6) == (6, 20.0, 0.0, 5.0)
     assert locate(2.6, None) == (6, 30.0, 0.0, 5.0)
+
+
+@pytest.mark.parametrize("width_deg, why", [(0.0, "collapse to no engagement window"),
+                                            (40.0, "lies inside the half-turn")])  # fmt: skip
+def test_a_cut_whose_fits_collapse_says_its_harmonics_are_in_the_noise(
+    width_deg: float, why: str
+) -> None:
+    """The shop pocket's 3 mm cuts at 8000 rev/min on the sensorless estimate: every fit's
+    window shrank to nothing (median 42° to 42°), and the summary blamed a misaligned spindle
+    angle (decision 1738's words for windows inside the half-turn). A median window narrower
+    than 5° is the fits' collapse in the noise, and is said so; a real window inside the
+    half-turn keeps decision 1738's words."""
+    from types import SimpleNamespace
+
+    from millsense.cli.monitor_engagement import EngagementCut, engagement_lines, engagement_verdict
+
+    entry = math.radians(42.0)
+    revs = [SimpleNamespace(reliability=-0.5, kt_n_m2=8e8, edge_n_m=1e4, entry_rad=entry,
+                            exit_rad=entry + math.radians(width_deg), axial_depth_m=1e-3)
+            for _ in range(4)]  # fmt: skip
+    block = SimpleNamespace(name="engagement", estimates=[(0.1 * (k + 1), e)
+                                                          for k, e in enumerate(revs)])  # fmt: skip
+    v = engagement_verdict(block)
+    assert v.kind == "undetermined"
+    line = engagement_lines(block, [EngagementCut((0, 1, 2, 3), 0.1, 0.4, v)], 1e4)[0]
+    assert why in line, line

@@ -110,6 +110,10 @@ def engagement_verdict(
     return EngagementVerdict(timed, est, avg, kind, where)
 
 
+#: A median engagement window narrower than this (degrees) is the fits' collapse in noise, not
+#: a window (decision 1739).
+COLLAPSED_WINDOW_DEG = 5.0
+
 #: Where a cut lies: (NC line, x, y, z mm) at a stream sample, each None where unknown.
 Place = Callable[[int], tuple[int | None, float | None, float | None, float | None]]
 
@@ -433,7 +437,14 @@ def _verdict_text(block: Any, v: EngagementVerdict) -> str:
     inside = [e for e in every if not side_cut_window(e.entry_rad, e.exit_rad)]
     why = ("the torque's tooth harmonics do not fix the engagement here (e.g. a full slot with 3 "
            "or more flutes, or a light cut in the signal's noise)")  # fmt: skip
-    if 2 * len(inside) > len(every):
+    width = float(np.degrees(med([e.exit_rad - e.entry_rad for e in every])))
+    if width < COLLAPSED_WINDOW_DEG:
+        # the fits shrink the window to nothing: no engagement explains the harmonics better
+        # than their noise (decision 1739)
+        why = (f"the revolutions' fits collapse to no engagement window (median width "
+               f"{width:.1f}°): the torque's tooth harmonics are in its noise here (a light cut, "
+               "or an estimate's noise at these frequencies)")  # fmt: skip
+    elif 2 * len(inside) > len(every):
         # decision 1738: most windows inside the half-turn
         entry = float(np.degrees(med([e.entry_rad for e in inside])))
         exit_ = float(np.degrees(med([e.exit_rad for e in inside])))
