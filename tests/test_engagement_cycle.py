@@ -15,11 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_run import run_cli
 from millsense.core.errors import ConfigError
 from millsense.monitoring.engagement import EngagementBlock, cycle_revolutions
 from millsense.streaming.block import Chunk
-from test_engagement_nyquist import _band_limited_torque, _recording, _tool
+from test_engagement_nyquist import _band_limited_torque, fast_cut_summary
 
 FS = 10000.0
 
@@ -91,12 +90,7 @@ def test_monitor_takes_the_cycle_of_the_running_speed_and_says_so(
     """At 10 000 rev/min `monitor` takes cycles of 8 revolutions (48 ms), says so, counts the
     0.5 s record's 10 whole cycles (83.3 revolutions) and the 4-flute cut still reads its 2 mm
     (decision 1734's case)."""
-    rec = _recording(tmp_path / "fast.h5", 10000.0, 4)
-    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
-                                 str(_tool(tmp_path / "t.toml", 4)), "--feed-per-tooth-mm", "0.1",
-                                 "-o", str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
-    assert code == 0, err
-    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    line = fast_cut_summary(tmp_path, capsys)
     assert "one estimate per monitoring cycle of 8 revolutions" in line, line
     words = line.replace(",", "").split()
     assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, rel=0.02)

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_run import run_cli
 from millsense.core.recording import Recording
 from millsense.io.recording_file import write_recording
-from test_engagement_nyquist import FS, _band_limited_torque, _tool
+from test_engagement_nyquist import FS, _band_limited_torque
+from test_engagement_set_speed import _depths as _summary
 
 RPM = 1000.0
 
@@ -37,17 +37,6 @@ def _encoder_record(path: Path, axial_m: float, zero_rad: float, start: int = 0)
     rec.add_channel("spindle/angle", np.mod(ang + zero_rad, 2 * math.pi)[start:], "rad")
     write_recording(path, rec)
     return path
-
-
-def _summary(tmp_path: Path, rec: Path, capsys: pytest.CaptureFixture[str],
-             *extra: str) -> tuple[int, str]:  # fmt: skip
-    code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--channel",
-                                 "dynamometer/torque", "--tool", str(_tool(tmp_path / "t.toml", 2)),
-                                 "--feed-per-tooth-mm", "0.1", *extra, "-o",
-                                 str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
-    if code != 0:
-        return code, err
-    return code, next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
 
 
 def _axial_mm(line: str) -> float:

@@ -119,17 +119,23 @@ def _tool(path: Path, flutes: int) -> Path:
     return path
 
 
-def test_monitor_fits_the_harmonics_below_the_nyquist_frequency(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """`monitor` takes the harmonics below the Nyquist frequency at the recording's top speed
-    and says so; the 4-flute cut at 10 000 rev/min gives its 2 mm depth."""
+def fast_cut_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    """`monitor --methods engagement`'s summary line on 0.5 s of the 4-flute cut at 10 000
+    rev/min (:func:`_recording`)."""
     rec = _recording(tmp_path / "fast.h5", 10000.0, 4)
     code, stdout, err = run_cli(["monitor", str(rec), "--methods", "engagement", "--tool",
                                  str(_tool(tmp_path / "t.toml", 4)), "--feed-per-tooth-mm", "0.1",
                                  "-o", str(tmp_path / "ev.parquet")], capsys)  # fmt: skip
     assert code == 0, err
-    line = next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+    return next(ln for ln in stdout.splitlines() if ln.strip().startswith("engagement:"))
+
+
+def test_monitor_fits_the_harmonics_below_the_nyquist_frequency(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`monitor` takes the harmonics below the Nyquist frequency at the recording's top speed
+    and says so; the 4-flute cut at 10 000 rev/min gives its 2 mm depth."""
+    line = fast_cut_summary(tmp_path, capsys)
     assert "fitted on 7 tooth harmonics, those below the Nyquist frequency (5000 Hz)" in line
     words = line.replace(",", "").split()
     assert float(words[words.index("axial") + 2]) == pytest.approx(2.0, rel=0.02)
