@@ -145,7 +145,7 @@ def harmonics_below_nyquist(
 
 #: Lee's monitoring cycle, s: one revolution at his 1200 min⁻¹ (seed 004 digest A3: "one
 #: estimate per revolution, or per n revolutions"). ``millsense monitor`` takes the whole number
-#: of revolutions nearest it at the recording's top speed (decision 1717).
+#: of revolutions nearest it at the recording's running speed (decision 1717).
 MONITORING_CYCLE_S = 0.05
 
 
