@@ -174,13 +174,15 @@ def shop_breaks() -> tuple[ShopBreak, ...]:
         "periods (2.5 ms; inf where a break is missed or shows no effect within 2.5 s)"
     ),
     issue=15,
-    gap="found on 2026-12-02 and not yet analysed: the break at 9 s, as the tool runs from the "
-    "arc into the first pocket wall (line 13, the plan's torque rising from 0 to 1.43 N·m over "
-    "1.3 s), is alarmed 2.0 s (807 tooth periods) after its effect, on line 14; on the last "
-    "wall (14 s) 4.2 tooth periods after it; in the slot 1.6. On the wall the phase-0 "
-    "tooth-period averages of the broken tool read about 1.0, 1.8 and 0.8 N·m a revolution "
-    "against 1.43 N·m expected: no period falls below seed 000's 40 % (0.57 N·m) in most "
-    "revolutions",
+    gap="the break at 9 s falls where the tool runs from the arc into the first pocket wall "
+    "(line 13: the plan's torque rising from 0 to 1.43 N·m over 1.3 s); it is alarmed 2.0 s "
+    "(807 tooth periods) after its effect, on line 14; on the last wall (14 s) 4.2 tooth "
+    "periods after it; in the slot 1.6. "
+    "Found on 2026-12-02: the same detector on the recorded torques alarms at 9.44 s where it "
+    "judges from 0.5 N·m of expected torque on (the block's default) and only at 11.02 s from "
+    "the session's 0.40 N·m: judged from the ramp's start, the run of violations begins with "
+    "the flute already broken, and seemingly holds no change of the cut over one revolution "
+    "(decision 1729) for 1.6 s",
 )
 def _shop_break_latency() -> Measured:
     import math
