@@ -32,6 +32,7 @@ UNIT_SUFFIXES = (
     ("-w", "[W]"),
     ("-s", "[s]"),
     ("-rpm", "[rev/min]"),
+    ("-deg", "[deg]"),
 )
 
 #: float options without a unit suffix, and why
