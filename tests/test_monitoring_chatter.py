@@ -216,7 +216,7 @@ def test_masked_argmax_is_numpys_argmax_of_the_masked_copy() -> None:
 
 def test_peak_frequency_on_python_floats_is_the_numpy_scalar_form() -> None:
     """``peak_frequency`` computes on Python floats (decision 1538): the same numbers as the
-    former arithmetic on NumPy scalars."""
+    former arithmetic on NumPy scalars, its offset held to half a bin (decision 1693)."""
     from millsense.monitoring.chatter.methods import peak_frequency
 
     rng = np.random.default_rng(13)
@@ -229,8 +229,29 @@ def test_peak_frequency_on_python_floats_is_the_numpy_scalar_form() -> None:
             a, b, c = np.log(amp[k - 1 : k + 2])
             den = a - 2 * b + c
             if den < 0:
-                want = float(f[k] + 0.5 * (a - c) / den * (f[1] - f[0]))
+                off = min(max(0.5 * (a - c) / den, -0.5), 0.5)
+                want = float(f[k] + off * (f[1] - f[0]))
         assert peak_frequency(f, amp, k) == want
+
+
+def test_peak_frequency_stays_within_half_a_bin_of_a_band_edge() -> None:
+    """Decision 1693: the threshold criterion's 256-point window (39 Hz bins at 10 kHz) on the
+    demo part read its 50 Hz band edge's bin (78 Hz), the band's largest but below its lower
+    neighbour, as chatter at −5.0 Hz. Held to half a bin: 58.6 Hz, toward the neighbour; at a
+    local maximum the interpolation is unchanged (a line 0.3 bins above bin 20 is read there
+    within 0.05 bins)."""
+    from millsense.monitoring.chatter.methods import peak_frequency
+
+    f = np.fft.rfftfreq(256, 1e-4)
+    df = float(f[1])
+    amp = np.full(f.size, 1e-3)
+    amp[1], amp[2], amp[3] = 10.0, 3.0, 0.5  # content below the band, leaking into its edge
+    got = peak_frequency(f, amp, 2)
+    assert got == pytest.approx(f[2] - 0.5 * df, abs=1e-9) and got > 0
+    # a Gaussian line (parabolic in log amplitude) 0.3 bins above bin 20
+    k = np.arange(f.size)
+    line = np.exp(-0.5 * ((k - 20.3) / 1.2) ** 2) + 1e-6
+    assert peak_frequency(f, line, 20) == pytest.approx(f[20] + 0.3 * df, abs=0.05 * df)
 
 
 def test_band_median_is_numpys_median() -> None:

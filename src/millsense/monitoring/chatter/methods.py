@@ -302,7 +302,14 @@ def _sinc(x: float) -> float:
 def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
     """Frequency of the peak at bin ``k`` by parabolic interpolation of log amplitudes (the
     logarithms by NumPy, the arithmetic on Python floats: the same IEEE operations as on NumPy
-    scalars, at a fifth of the cost; decision 1538)."""
+    scalars, at a fifth of the cost; decision 1538), within half a bin of bin ``k``.
+
+    At a local maximum the parabola's vertex lies within half a bin. A bin that is a band's
+    largest but not a local maximum (the band's edge, a larger neighbour outside it) put it
+    anywhere: the threshold criterion's 256-point window read the demo part's low-frequency
+    content at its 50 Hz band edge as "chatter at −5.0 Hz", with a spindle speed of −151 rev/min
+    suggested. The offset is held to ±½ bin: toward the larger neighbour, where the line is
+    (decision 1693)."""
     if not 0 < k < len(amp) - 1:
         return float(f_hz[k])
     trio = amp[k - 1 : k + 2]
@@ -312,7 +319,9 @@ def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
         den = a - 2 * b + c
         if den < 0:
             fk, f0, f1 = float(f_hz[k]), float(f_hz[0]), float(f_hz[1])
-            return fk + 0.5 * (a - c) / den * (f1 - f0)
+            off = 0.5 * (a - c) / den
+            off = 0.5 if off > 0.5 else -0.5 if off < -0.5 else off
+            return fk + off * (f1 - f0)
     return float(f_hz[k])
 
 
