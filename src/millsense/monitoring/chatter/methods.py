@@ -308,10 +308,16 @@ def peak_frequency(f_hz: FloatArray, amp: FloatArray, k: int) -> float:
     largest but not a local maximum (the band's edge, a larger neighbour outside it) put it
     anywhere: the threshold criterion's 256-point window read the demo part's low-frequency
     content at its 50 Hz band edge as "chatter at −5.0 Hz", with a spindle speed of −151 rev/min
-    suggested. The offset is held to ±½ bin: toward the larger neighbour, where the line is
+    suggested. Where a neighbour is larger, the line is nearer it: the parabola is taken through
+    that neighbour and its own neighbours (one step), and its offset is held to ±½ bin
     (decision 1693)."""
     if not 0 < k < len(amp) - 1:
         return float(f_hz[k])
+    lo, mid, hi = amp[k - 1 : k + 2].tolist()
+    if mid < max(lo, hi):  # no local maximum: the line lies toward the larger neighbour
+        j = k - 1 if lo > hi else k + 1
+        if 0 < j < len(amp) - 1:
+            k = j
     trio = amp[k - 1 : k + 2]
     lo, mid, hi = trio.tolist()  # compared as Python floats, not NumPy scalars
     if lo > 0 and mid > 0 and hi > 0:
