@@ -67,12 +67,19 @@ def _blocks(engagement: bool, grouped: bool = False, rpm: float = 1000.0) -> lis
     ]
     out: list[Block] = [virtual.with_companions(others)] if grouped else [virtual, *others]
     if engagement:
-        out.append(
-            EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2,
-                            n_harmonics=harmonics_below_nyquist(2, rpm, FS, 15),
-                            cycle_revolutions=cycle_revolutions(rpm))
-        )  # fmt: skip
+        out.append(_engagement_block(rpm))
     return out
+
+
+def _engagement_block(rpm: float, cycle: int | None = None) -> EngagementBlock:
+    """The engagement monitor on the stream's 2-flute Ø20 mm cut at ``rpm``: 15 tooth
+    harmonics or those below the Nyquist frequency (decision 1734, as `millsense monitor` fits
+    them), one estimate per ``cycle`` revolutions (None: the cycle `millsense monitor` takes,
+    decision 1717)."""
+    return EngagementBlock(
+        2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=harmonics_below_nyquist(2, rpm, FS, 15),
+        cycle_revolutions=cycle_revolutions(rpm) if cycle is None else cycle,
+    )  # fmt: skip
 
 
 def _time_blocks(

@@ -15,7 +15,13 @@ import time
 import numpy as np
 
 from _harness import Metric, benchmark
-from _monitoring_stream import OBSERVER_NOISE_NM, _blocks, _stream, _time_blocks
+from _monitoring_stream import (
+    OBSERVER_NOISE_NM,
+    _blocks,
+    _engagement_block,
+    _stream,
+    _time_blocks,
+)
 from millsense.monitoring.chatter import METHODS, ChatterGroup, ChatterMonitor, ChatterSettings
 from millsense.streaming.block import Block, Chunk
 from millsense.streaming.engine import Pipeline
@@ -121,24 +127,16 @@ def _engagement_speed() -> list[Metric]:
     at 1000, 6000 and 10 000 rev/min, 0.1 s chunks. With noise the previous revolution's
     solution never explains the next one to the accept misfit, which is what makes the global
     search run."""
-    from millsense.monitoring.engagement import (
-        EngagementBlock,
-        cycle_revolutions,
-        harmonics_below_nyquist,
-    )
+    from millsense.monitoring.engagement import cycle_revolutions
 
     def block(rpm: float, cycle: int) -> list[Block]:
-        # 15 harmonics, or those below the Nyquist frequency (decision 1734: 14 at 10 000
-        # rev/min, as `millsense monitor` fits them)
-        k = harmonics_below_nyquist(2, rpm, FS, 15)
-        return [EngagementBlock(2, 20.0, 30.0, feed_per_tooth_mm=0.2, n_harmonics=k,
-                                cycle_revolutions=cycle)]  # fmt: skip
+        return [_engagement_block(rpm, cycle)]
 
     _time_blocks(block(6000.0, 5), _stream(1.0, 6000.0, OBSERVER_NOISE_NM), 1000, repeats=1)
     seconds = 10.0
     out = []
     for rpm in (1000.0, 6000.0, 10000.0):
-        k = harmonics_below_nyquist(2, rpm, FS, 15)
+        k = _engagement_block(rpm).n_harmonics
         # one fit a revolution, and (above 1800 rev/min) `millsense monitor`'s cycle of the
         # revolutions nearest 50 ms (decision 1717)
         for cycle in sorted({1, cycle_revolutions(rpm)}):
@@ -165,8 +163,9 @@ def _monitor_engagement() -> list[Metric]:
     """`millsense monitor --methods engagement` end to end (``run_monitor``: the recording
     read, the tool-angle search's pass over it, decision 1738, the streaming pass, the steady
     cuts' verdicts and events, decision 1739, the event log written) on 60 s of two cuts of the
-    2-flute Ø20 mm tool at 1000 rev/min (2 mm deep, then 4 mm, with the sensorless estimate's
-    noise), against its streaming pass alone (the command's own ``wall_s``)."""
+    2-flute Ø20 mm tool at 1000 rev/min (the 2 mm cut's torque, then that torque doubled, with
+    the sensorless estimate's noise), against its streaming pass alone (the command's own
+    ``wall_s``)."""
     import tempfile
     from pathlib import Path
 

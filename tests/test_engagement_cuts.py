@@ -177,5 +177,5 @@ def test_a_cut_whose_fits_collapse_says_its_harmonics_are_in_the_noise(
                                                           for k, e in enumerate(revs)])  # fmt: skip
     v = engagement_verdict(block)
     assert v.kind == "undetermined"
-    line = engagement_lines(block, [EngagementCut((0, 1, 2, 3), 0.1, 0.4, v)], 1e4)[0]
+    line = engagement_lines(block, [EngagementCut(0.1, 0.4, v)], 1e4)[0]
     assert why in line, line

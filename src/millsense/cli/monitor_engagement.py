@@ -78,13 +78,7 @@ def engagement_verdict(
     from millsense.monitoring.engagement import depth_summary, determined
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
-    timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
-             if e is not None]  # fmt: skip
-    where = ""
-    if steady is not None and steady.any():
-        n = steady.size
-        timed = [(i, t, e) for i, t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
-        where = " in the plan's steady cut"
+    timed, where = _counted(block, steady, fs)
     if rows is not None:
         keep = set(rows)
         timed = [r for r in timed if r[0] in keep]
@@ -110,6 +104,21 @@ def engagement_verdict(
     return EngagementVerdict(timed, est, avg, kind, where)
 
 
+def _counted(
+    block: Any, steady: np.ndarray | None, fs: float
+) -> tuple[list[tuple[int, float, Any]], str]:
+    """The evaluated revolutions that count (index into the block's estimates, end time s,
+    estimate): those ending where the plan is steady, with ``steady`` (decision 1558); and the
+    words that say so ("" without)."""
+    timed = [(i, t, e) for i, (t, e) in enumerate(getattr(block, "estimates", []))
+             if e is not None]  # fmt: skip
+    if steady is None or not steady.any():
+        return timed, ""
+    n = steady.size
+    timed = [(i, t, e) for i, t, e in timed if steady[min(max(round(t * fs), 0), n - 1)]]
+    return timed, " in the plan's steady cut"
+
+
 #: A median engagement window narrower than this (degrees) is the fits' collapse in noise, not
 #: a window (decision 1739).
 COLLAPSED_WINDOW_DEG = 5.0
@@ -120,11 +129,9 @@ Place = Callable[[int], tuple[int | None, float | None, float | None, float | No
 
 @dataclass(frozen=True)
 class EngagementCut:
-    """One steady cut of the record (decision 1739): its revolutions (indices into the block's
-    estimates), the end times of its first and last (s from the stream's first sample) and the
-    verdict on them."""
+    """One steady cut of the record (decision 1739): the end times of its first and last
+    revolution (s from the stream's first sample) and the verdict on its revolutions."""
 
-    rows: tuple[int, ...]
     first_s: float
     last_s: float
     verdict: EngagementVerdict
@@ -132,8 +139,7 @@ class EngagementCut:
 
 def _as_cut(v: EngagementVerdict) -> EngagementCut:
     times = [t for _, t, _ in v.timed]
-    return EngagementCut(tuple(i for i, _, _ in v.timed), times[0] if times else math.nan,
-                         times[-1] if times else math.nan, v)  # fmt: skip
+    return EngagementCut(times[0] if times else math.nan, times[-1] if times else math.nan, v)
 
 
 def engagement_cuts(
@@ -152,16 +158,16 @@ def engagement_cuts(
     from millsense.monitoring.steady_cuts import steady_cuts
     from millsense.monitoring.torque_spectrum import AVERAGED_MIN_REVS
 
-    whole = engagement_verdict(block, steady, fs)
+    timed, _ = _counted(block, steady, fs)
     harm = list(getattr(block, "revolution_harmonics", []))
-    if whole.kind in ("none", "misaligned") or not harm:
-        return [_as_cut(whole)]
-    counted = {i for i, _, _ in whole.timed}
-    coeffs = [h[0] if h is not None and i in counted else None for i, h in enumerate(harm)]
-    means = [h[2] if h is not None else math.nan for h in harm]
-    runs = steady_cuts(coeffs, means, AVERAGED_MIN_REVS)
-    if not runs:
-        return [_as_cut(whole)]
+    runs: list[list[int]] = []
+    if timed and harm and getattr(block, "frame_unresolved", None) is None:
+        counted = {i for i, _, _ in timed}
+        coeffs = [h[0] if h is not None and i in counted else None for i, h in enumerate(harm)]
+        means = [h[2] if h is not None else math.nan for h in harm]
+        runs = steady_cuts(coeffs, means, AVERAGED_MIN_REVS)
+    if not runs:  # the one verdict over every revolution that counts
+        return [_as_cut(engagement_verdict(block, steady, fs))]
     return [_as_cut(engagement_verdict(block, steady, fs, rows=r)) for r in runs]
 
 
@@ -173,11 +179,10 @@ def engagement_lines(
     record has one cut; else a line counting the cuts, then one per cut: the end times of its
     revolutions, the NC line and the plan's position at its middle (``place``, where known),
     and its verdict."""
-    note = _harmonics_note(block, fs)
     if len(cuts) == 1:
-        return [_engagement_line(block, cuts[0].verdict) + note]
+        return [engagement_summary(block, fs=fs, verdict=cuts[0].verdict)]
     lines = [f"  {block.name}: {len(cuts)} steady cuts, each judged apart (decision 1739)"
-             f"{note}"]  # fmt: skip
+             f"{_harmonics_note(block, fs)}"]  # fmt: skip
     for k, c in enumerate(cuts, 1):
         lines.append(f"    cut {k} (revolutions ending {t0_s + c.first_s:.2f}-"
                      f"{t0_s + c.last_s:.2f} s{_place_words(c, fs, place)}): "

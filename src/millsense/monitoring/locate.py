@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from millsense.plan.path import cnc_line
 from millsense.plan.virtual_plan import VirtualPlan
 
 
@@ -20,12 +21,9 @@ class PlanLocator:
 
     def __init__(self, plan: VirtualPlan) -> None:
         self.t = np.asarray(plan["t_s"], dtype=float)
-        # the line the CNC names: the N number, else the source line (as the virtual machine
-        # and a CNC without N words report it; decision 1739)
+        # the line the CNC names: the N number, else the source line (decision 1739)
         nc = np.asarray(plan["nc_line"], dtype=np.int64)
-        if "source_line" in plan.columns:
-            nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
-        self.nc = nc
+        self.nc = cnc_line(nc, plan["source_line"]) if "source_line" in plan.columns else nc
         self.xyz = np.column_stack(
             [np.asarray(plan[c], dtype=float) for c in ("x_mm", "y_mm", "z_mm")]
         )

@@ -77,8 +77,20 @@ def steady_runs(
     stay within :data:`STEADY_BAND` of the run's means (or within ``noise_k`` standard
     deviations of a revolution's level, :func:`level_noise`), in order."""
     levels = _levels(coeffs, means)
-    nm = noise_k * level_noise([m for m, _ in levels])
-    nt = noise_k * level_noise([t for _, t in levels])
+    return _runs(levels, *_tolerances(levels, noise_k))
+
+
+def _tolerances(levels: list[tuple[float, float]], noise_k: float) -> tuple[float, float]:
+    """``noise_k`` standard deviations of a revolution's tooth harmonic and mean torque
+    (:func:`level_noise`), 0 with ``noise_k`` = 0."""
+    if noise_k == 0.0:
+        return 0.0, 0.0
+    return (noise_k * level_noise([m for m, _ in levels]),
+            noise_k * level_noise([t for _, t in levels]))  # fmt: skip
+
+
+def _runs(levels: list[tuple[float, float]], nm: float, nt: float) -> list[list[int]]:
+    """:func:`steady_runs` of the revolutions' ``levels`` with the tolerances ``nm``, ``nt``."""
     runs: list[list[int]] = []
     run: list[int] = []
     total_m = total_t = 0.0
@@ -124,11 +136,10 @@ def steady_cuts(
     them, a spike, are passed over); the cuts of at least ``min_revolutions`` revolutions, in
     order. The revolutions between joined runs are not part of the cut."""
     levels = _levels(coeffs, means)
-    nm = NOISE_K * level_noise([m for m, _ in levels])
-    nt = NOISE_K * level_noise([t for _, t in levels])
+    nm, nt = _tolerances(levels, NOISE_K)
     cuts: list[list[int]] = []
     short: list[list[int]] = []  # runs of MERGE_GAP revolutions or fewer since the last cut
-    for run in steady_runs(coeffs, means, NOISE_K):
+    for run in _runs(levels, nm, nt):
         if len(run) <= MERGE_GAP:
             short.append(run)
             continue
@@ -147,5 +158,4 @@ def steady_cuts(
         cuts += [*short, list(run)]
         short = []
     cuts += short
-    cuts.sort(key=lambda c: c[0])
     return [c for c in cuts if len(c) >= min_revolutions]

@@ -167,6 +167,13 @@ class Toolpath:
         return out
 
 
+def cnc_line(nc_line: IntArray, source_line: IntArray) -> IntArray:
+    """The line a CNC names a block by: its N number, else (``nc_line`` < 0: none) its line in
+    the program, as the virtual machine's ``cnc/nc_line`` reports it (decision 1739)."""
+    nc = np.asarray(nc_line, dtype=np.int64)
+    return np.where(nc >= 0, nc, np.asarray(source_line, dtype=np.int64))
+
+
 @dataclass(frozen=True)
 class SampledPath:
     """The toolpath sampled at a fixed arc length, one entry per sample, SI units.

@@ -47,6 +47,7 @@ from millsense.core.recording import ChannelInfo
 from millsense.models.kinematics import Kinematics, TrunnionACMachine, kinematics_for
 from millsense.models.modal_ss import ModalStateSpace
 from millsense.models.spindle_plant import SpindleDriveParams
+from millsense.plan.path import cnc_line
 from millsense.simulator.crash import CrashMonitor
 from millsense.simulator.fast_block import (
     block_errors,
@@ -166,7 +167,7 @@ class Job:
         idx = np.nonzero(keep)[0]
         if len(idx) < 2:
             raise InputDataError("job: the program has no motion")
-        nc = np.where(sp.nc_line >= 0, sp.nc_line, sp.source_line)  # type: ignore[attr-defined]
+        nc = cnc_line(sp.nc_line, sp.source_line)  # type: ignore[attr-defined]
         return cls(
             pts[idx],
             np.maximum(np.asarray(sp.feed, dtype=np.float64)[idx[1:]], 1e-6),  # type: ignore[attr-defined]

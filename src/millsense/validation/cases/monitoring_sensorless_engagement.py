@@ -17,6 +17,7 @@ import functools
 import math
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -154,6 +155,37 @@ def _truth() -> Measured:
     return Measured(res["truth"][0], _table(res))
 
 
+def _engagement_summary(path: Path, events: Path, *extra: str) -> list[str]:
+    """`millsense monitor --methods engagement` with the Ø20 mm 2-flute tool and ``extra`` on
+    the recording ``path``, in its own process (validation sits below the command line): its
+    summary's engagement line, then the line of each cut where it judged several (decision
+    1739)."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "millsense", "monitor", str(path), *extra, "--methods",
+           "engagement", "--tool", "aslan-d20-2flute", "-o", str(events)]  # fmt: skip
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
+    text = [ln.strip() for ln in done.stdout.splitlines()]
+    first = next(i for i, ln in enumerate(text) if ln.startswith("engagement:"))
+    return [text[first], *(ln for ln in text[first + 1 :] if ln.startswith("cut "))]
+
+
+def _cnc_copy(rec: Any, start: int = 0) -> Any:
+    """A recording's channels but the simulator's ``truth/`` ones (what a CNC records, which
+    `millsense monitor` reads), from sample ``start`` on."""
+    from millsense.core.recording import Recording
+
+    out = Recording(rec.sample_rate_hz, rec.t0_s + start / rec.sample_rate_hz,
+                    dict(rec.metadata))  # fmt: skip
+    for c in rec.channel_names:
+        if not c.startswith("truth/"):
+            out.add_channel(c, np.asarray(rec.channel(c))[start:], rec.info(c).unit)
+    return out
+
+
 #: Where the cropped records of :func:`cropped_summaries` start, s: arbitrary angles of the
 #: spindle (decision 1738), the first the recording's own start.
 CROP_STARTS_S = (0.0, 0.5137, 1.2345, 2.0101, 2.7777)
@@ -164,10 +196,7 @@ def cropped_summaries() -> list[tuple[float, str]]:
     """`millsense monitor --methods engagement` (the commissioned machine file, in its own
     process: validation sits below the command line) on the slot's recording cropped to
     start at each of :data:`CROP_STARTS_S`: (start, the summary's engagement line)."""
-    import subprocess
-    import sys
 
-    from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
     from millsense.io.recording_reader import opened_recording
     from millsense.validation.cases._program_session import program_session
@@ -182,22 +211,11 @@ def cropped_summaries() -> list[tuple[float, str]]:
         for start in CROP_STARTS_S:
             path = Path(tmp) / f"from_{start:g}.h5"
             with opened_recording(full) as rec:
-                k = round(start * rec.sample_rate_hz)
-                crop = Recording(rec.sample_rate_hz, rec.t0_s + k / rec.sample_rate_hz,
-                                 dict(rec.metadata))  # fmt: skip
-                for c in rec.channel_names:
-                    if not c.startswith("truth/"):
-                        crop.add_channel(c, np.asarray(rec.channel(c))[k:], rec.info(c).unit)
+                crop = _cnc_copy(rec, round(start * rec.sample_rate_hz))
             write_recording(path, crop)
-            cmd = [sys.executable, "-m", "millsense", "monitor", str(path), "--machine",
-                   str(MACHINE_FILE), "--methods", "engagement", "--tool", "aslan-d20-2flute",
-                   "-o", str(path.with_suffix(".parquet"))]  # fmt: skip
-            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            if done.returncode != 0:
-                raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
-            line = next(ln.strip() for ln in done.stdout.splitlines()
-                        if ln.strip().startswith("engagement:"))  # fmt: skip
-            out.append((start, line))
+            lines = _engagement_summary(path, path.with_suffix(".parquet"), "--machine",
+                                        str(MACHINE_FILE))  # fmt: skip
+            out.append((start, lines[0]))
     return out
 
 
@@ -255,10 +273,7 @@ def two_cut_summaries() -> dict[str, list[str]]:
     :data:`TWO_CUTS_PROGRAM` through `millsense run`'s default session: the summary's
     engagement lines, on the observer's estimate with the commissioned machine file
     (``"estimate"``) and on the truth's torque copied to :data:`DYNAMOMETER` (``"truth"``)."""
-    import subprocess
-    import sys
 
-    from millsense.core.recording import Recording
     from millsense.io.recording_file import write_recording
     from millsense.io.recording_reader import opened_recording
     from millsense.validation.cases._program_session import program_session
@@ -272,23 +287,12 @@ def two_cut_summaries() -> dict[str, list[str]]:
         program_session(prog, "aslan-d20-2flute", out=full, keep=None)
         path = Path(tmp) / "two.h5"
         with opened_recording(full) as rec:
-            copy = Recording(rec.sample_rate_hz, rec.t0_s, dict(rec.metadata))
-            for c in rec.channel_names:
-                if not c.startswith("truth/"):
-                    copy.add_channel(c, np.asarray(rec.channel(c)), rec.info(c).unit)
+            copy = _cnc_copy(rec)
             copy.add_channel(DYNAMOMETER, np.asarray(rec.channel("truth/spindle/torque")), "N*m")
         write_recording(path, copy)
         for key, extra in (("estimate", ["--machine", str(MACHINE_FILE)]),
                            ("truth", ["--channel", DYNAMOMETER])):  # fmt: skip
-            cmd = [sys.executable, "-m", "millsense", "monitor", str(path), *extra, "--methods",
-                   "engagement", "--tool", "aslan-d20-2flute", "-o",
-                   str(Path(tmp) / f"{key}.parquet")]  # fmt: skip
-            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            if done.returncode != 0:
-                raise RuntimeError(f"millsense monitor failed: {done.stderr.strip()[-500:]}")
-            text = [ln.strip() for ln in done.stdout.splitlines()]
-            first = next(i for i, ln in enumerate(text) if ln.startswith("engagement:"))
-            out[key] = [text[first], *(ln for ln in text[first + 1 :] if ln.startswith("cut "))]
+            out[key] = _engagement_summary(path, Path(tmp) / f"{key}.parquet", *extra)
     return out
 
 

@@ -21,6 +21,7 @@ adaptive feed regulates, the supervisor holds the feed only on a real breakage.
 from __future__ import annotations
 
 import functools
+import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -136,8 +137,6 @@ def shop_breaks() -> tuple[ShopBreak, ...]:
     """The shop pocket through `run`'s default session with flute 0 broken at each of
     :data:`SHOP_BREAKS_S` (2.5 s after it), against the intact run's truth torque for the
     breakage's effect (decision 1731)."""
-    import math
-
     from millsense.simulator.process_coupling import ToothBreak
     from millsense.validation.cases._breakage_effect import TruthTorque, effect_onset_s
     from millsense.validation.cases._program_session import program_session
@@ -185,8 +184,6 @@ def shop_breaks() -> tuple[ShopBreak, ...]:
     "(decision 1729) for 1.6 s",
 )
 def _shop_break_latency() -> Measured:
-    import math
-
     runs = shop_breaks()
     rows = ["| break [s] | effect after the break [tooth periods] | alarm after the effect "
             "[tooth periods] | line |", "|---|---|---|---|"]  # fmt: skip
