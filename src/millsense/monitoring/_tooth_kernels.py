@@ -194,7 +194,7 @@ DET_NOISE_SLOW = 25  # the band's slow noise floor: σ̂ averaged (NOISE_SLOW, d
 DET_NOISE_NAN = 26  # NaN values held in the noise window (not in its sorted copy)
 DET_PAIRED = 27  # plan-free constant reference: 1 once its running violation held a flute pair
 DET_CHANGED = 28  # virtual: 1 once the running violation held a change (decision 1729)
-DET_UNJUDGED = 29  # virtual: 1 where the previous period was not judged at all (decision 1729)
+DET_JUDGED = 29  # virtual: judged periods in a row before this one (decisions 1729, 1672)
 DET_BASE = 30  # ring buffers: the last N period values, the noise window, then the last N
 # references (NaN: not judged) and one-sided flags of the flute signature (decision 1681), then
 # the flute pattern's (decision 1684): N references, N innovations, PATTERN_REVS × N drop and
@@ -329,7 +329,6 @@ def detector_state(n_flutes: int, phi0: float, p0: float) -> FloatArray:
     st[DET_P2] = p0
     st[DET_LEARN] = -1.0
     st[DET_GAP] = 1.0
-    st[DET_UNJUDGED] = 1.0
     return st
 
 
@@ -790,7 +789,7 @@ def detect_periods(
             state[DET_RUN] = 0.0
             state[DET_MISS] = 0.0
             state[DET_GAP] = 1.0
-            state[DET_UNJUDGED] = 1.0
+            state[DET_JUDGED] = 0.0
             state[DET_ALARMED] = 0.0
             state[DET_LOW] = 0.0
             _pattern_reset(state, nf)
@@ -859,7 +858,9 @@ def detect_periods(
         # a breakage's size in the plan-free flute check: the dual's learnt lag-N threshold
         # (decision 1707), the constant's band where it judges (decision 1724)
         pair_size = state[DET_THR2] if mode == MODE_DUAL else math.inf
-        unjudged_before = state[DET_UNJUDGED] != 0.0  # the period before was not judged
+        # the same flute's period one revolution before was not judged: this period's change
+        # over one revolution may lie in the periods not judged (decision 1672)
+        unjudged_before = state[DET_JUDGED] < nf
         judge = False  # (virtual, constant) the period is judged against its band
         sigma_now = 0.0  # σ̂ of a tooth average where the band uses it (virtual, constant)
         limit = 0.0  # (virtual, constant) the seed's band σ_TB·τ_ref
@@ -976,8 +977,10 @@ def detect_periods(
         if mode == MODE_VIRTUAL:
             # a break changes the cut: the run must hold a violating period whose change over
             # one revolution is a breakage's size beyond that change's noise (half the seed's
-            # band and CHANGE_K σ of the difference), or begin right after a period not judged
-            # (the change may lie in the periods not judged, decision 1625); a flute that has
+            # band and CHANGE_K σ of the difference), or begin within a revolution of a period
+            # not judged (the change may lie in the periods not judged, decision 1625: a flute
+            # broken while the plan's torque ramps up under the judged level shows its deficit
+            # at once, against the same flute's unjudged period; decision 1672); a flute that has
             # deviated from the plan for revolutions (runout, the plan's error at that flute,
             # in a light cut whose band the noise no longer widens) is not broken (decision 1729)
             if run == 0:
@@ -989,7 +992,7 @@ def detect_periods(
                 state[DET_CHANGED] = 1.0
             if state[DET_CHANGED] == 0.0:
                 fire = False
-            state[DET_UNJUDGED] = 0.0 if judge else 1.0
+            state[DET_JUDGED] = state[DET_JUDGED] + 1.0 if judge else 0.0
         if pair_check:
             # without a plan (decisions 1707, 1724): a broken flute drops and the next flute,
             # cutting its chip too, rises (:func:`_flute_pair` of their changes over one
