@@ -397,3 +397,12 @@ def test_run_of_a_program_with_two_tools_names_the_line_and_the_remedy(
     assert code == 2 and err.strip().count("\n") == 0, err
     assert "two.nc:8: tool change to T2" in err and "--tool T1=TOOL --tool T2=TOOL" in err
     assert not out.exists()
+    # the per-tool form gets the same remedy (decision 1683): before, `--tool T1=TOOL` was
+    # asked for `--tool T2=TOOL`, which the one-tool command cannot take (a repeated --tool
+    # keeps its last value, and T1 was then missing)
+    args[-1] = "T1=aslan-d20-2flute"
+    code, _, err = _run([*args, "--material", "al7050", "-o", str(out)], capsys)
+    assert code == 2 and err.strip().count("\n") == 0, err
+    assert "two.nc:8: tool change to T2" in err and "this command runs one tool" in err
+    assert "--tool T1=TOOL --tool T2=TOOL" in err and "no --tool T2" not in err
+    assert not out.exists()

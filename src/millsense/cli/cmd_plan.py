@@ -122,7 +122,8 @@ def _build(
     """Plan a program of one tool (:func:`_build_plans`; a program with tool changes to
     several tools is refused naming the line of the second one)."""
     plans, toolpath, findings = _build_plans(
-        program, stock, [str(tool)], material, step_mm, resolution_mm, home_mm, machine
+        program, stock, [str(tool)], material, step_mm, resolution_mm, home_mm, machine,
+        one_tool=True,
     )
     return plans[0][1], toolpath, findings
 
@@ -136,11 +137,13 @@ def _build_plans(
     resolution_mm: float,
     home_mm: str | None,
     machine: str | None = None,
+    one_tool: bool = False,
 ) -> tuple[list[tuple[int, VirtualPlan]], Any, Findings]:
     """Plan the program, each tool's moves with its tool on one stock (``tools``: the
     ``--tool`` options, :func:`millsense.plan.tools.assign_tools`; decision 1683): the tool
     number and plan of every segment in program order. Impossible input raises one line,
-    implausible input is a warning (printed, and kept in the plans' metadata ``warnings``)."""
+    implausible input is a warning (printed, and kept in the plans' metadata ``warnings``).
+    ``one_tool``: the command takes one tool (``assign_tools``)."""
     import functools
     import hashlib
 
@@ -168,7 +171,7 @@ def _build_plans(
     home = _home(home_mm)
     toolpath = interpret_file(program, home_mm=home)
     segments = tool_segments(toolpath)
-    names = assign_tools(segments, tools, toolpath.source)
+    names = assign_tools(segments, tools, toolpath.source, one_tool)
     tool_cfgs = {name: load_preset(ToolConfig, Path(name)) for name in dict.fromkeys(names)}
     for name, tool_cfg in tool_cfgs.items():
         if 1.5 * resolution_mm >= tool_cfg.diameter_mm:

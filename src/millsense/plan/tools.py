@@ -69,11 +69,17 @@ def tool_segments(path: Toolpath) -> list[ToolSegment]:
     return out
 
 
-def assign_tools(segments: list[ToolSegment], specs: list[str], source: str) -> list[str]:
+def assign_tools(
+    segments: list[ToolSegment], specs: list[str], source: str, one_tool: bool = False
+) -> list[str]:
     """The tool (preset or file) of every segment from the ``--tool`` options.
 
     ``specs``: one tool for a program with one tool (``--tool aslan-d20-2flute``), or one
     ``Tn=TOOL`` per tool of the program (``--tool T1=aslan-d20-2flute --tool T2=t2.toml``).
+    ``one_tool``: the command takes one tool (``run --program``, ``schedule``): a program with
+    several is refused with the per-tool plan as remedy in whichever form the tool was given
+    (decision 1683; a ``Tn=TOOL`` form there would otherwise ask for the other tools, which
+    the command cannot take).
 
     Raises
     ------
@@ -90,18 +96,19 @@ def assign_tools(segments: list[ToolSegment], specs: list[str], source: str) -> 
     for s in segments:
         first.setdefault(s.tool, s.first_line)
     pairs = [spec for spec in specs if "=" in spec]
+    if (not pairs or one_tool) and len(used) > 1:
+        t = segments[1].tool
+        what = f"--tool {specs[0]} is one tool" if not one_tool else "this command runs one tool"
+        raise ProgramError(
+            f"{source}:{first[t]}: tool change to T{t} (the program uses {shown}); {what}: "
+            "`millsense plan` plans each with its own ("
+            + " ".join(f"--tool T{u}=TOOL" for u in used)
+            + ": one plan per tool, on one stock; simulate and run take each with --plan)"
+        )
     if not pairs:
         if len(specs) != 1:
             raise ConfigError(
                 f"--tool given {len(specs)} times: one tool, or one Tn=TOOL per tool change"
-            )
-        if len(used) > 1:
-            t = segments[1].tool
-            raise ProgramError(
-                f"{source}:{first[t]}: tool change to T{t} (the program uses {shown}); "
-                f"--tool {specs[0]} is one tool: `millsense plan` plans each with its own ("
-                + " ".join(f"--tool T{u}=TOOL" for u in used)
-                + ": one plan per tool, on one stock; simulate and run take each with --plan)"
             )
         return [specs[0]] * len(segments)
     if len(pairs) != len(specs):
