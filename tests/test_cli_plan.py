@@ -335,6 +335,20 @@ def test_plan_each_tool_of_a_program_with_its_tool_on_one_stock(
     assert "p_T1.parquet" in std and "p_T2.parquet" in std
 
 
+def test_a_program_note_is_printed_once_for_all_tools(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every tool's plan keeps the program's notes; `plan` printed each once per tool (an M1
+    of a two-tool program: its note twice)."""
+    stock, prog, t2 = _two_tools(tmp_path)
+    prog.write_text(_TWO_TOOLS.replace("G0 Z5\nT2 M6", "G0 Z5\nM1\nT2 M6"))
+    args = ["plan", str(prog), "--stock", str(stock), "--tool", "T1=aslan-d20-2flute"]
+    args += ["--tool", f"T2={t2}", "--material", "al7050", "--resolution-mm", "0.25"]
+    code, _, err = _run([*args, "-o", str(tmp_path / "p.parquet")], capsys)
+    assert code == 0, err
+    assert err.count("two.nc:8: optional stop M1 ignored") == 1, err
+
+
 def test_plot_of_one_tools_plan_names_the_tool(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -195,6 +195,7 @@ def _build_plans(
     console = Console(stderr=True, soft_wrap=True)
     sha = hashlib.sha256(program.read_bytes()).hexdigest()
     plans: list[tuple[int, VirtualPlan]] = []
+    printed: set[str] = set()
     for seg, name in zip(segments, names, strict=True):
         tool_cfg = tool_cfgs[name]
         label = program.name if len(segments) == 1 else f"{program.name} T{seg.tool}"
@@ -229,8 +230,11 @@ def _build_plans(
             plan.metadata["segment_first_line"] = seg.first_line
         if machine is not None:
             plan.metadata["machine"] = machine
+        # each segment keeps the program's notes: each printed once
         for note in plan.metadata.get("notes", []):
-            console.print(f"millsense: note: {note}", markup=False)
+            if note not in printed:
+                printed.add(note)
+                console.print(f"millsense: note: {note}", markup=False)
         plans.append((seg.tool, plan))
     return plans, toolpath, findings
 
