@@ -273,6 +273,29 @@ def test_spindle_stop_watchdog() -> None:
     assert al[0].time_s == pytest.approx(last_end + REV + 0.1, abs=2 / FS)
 
 
+def test_spindle_stopped_out_of_the_material_pauses_without_an_alarm() -> None:
+    """Decision 1686: the tool leaves the cut at 0.7 s (air: seed 002's rule sets 150 %) and
+    the spindle stops at 1.0 s (a program's M5): at the watchdog's deadline (the last
+    revolution's end + one revolution + 0.1 s, as above) a NOTE, no ALARM (the shop pocket's
+    and every program's M5 after its last cut raised a warning fault), and the override back
+    to 100 % (the safe action kept: nothing enters the material faster than programmed)."""
+    t = np.arange(int(2.0 * FS)) / FS
+    # the air's noise (a signal constant to the bit is a frozen one)
+    noise = np.random.default_rng(5).normal(0.0, 0.5, t.size)
+    f = np.where(t < 0.7, 250.0 * tooth_shape(t), 0.0) + 1.0 + noise
+    w = np.where(t < 1.0, OMEGA, 0.0)
+    data = {"force_x": f, "force_y": 0 * f, "spindle/speed": w}
+    ev, ch = feed(AdaptiveFeedBlock(), data, 100)
+    assert [e for e in ev if e.kind is EventKind.ALARM] == []
+    notes = [e for e in ev if e.name == "adaptive_feed_paused"]
+    assert len(notes) == 1 and notes[0].kind is EventKind.NOTE
+    last_end = int(np.floor(1.0 / REV)) * REV
+    assert notes[0].time_s == pytest.approx(last_end + REV + 0.1, abs=2 / FS)
+    ov = ch["adaptive_feed/override"]
+    assert ov[notes[0].sample - 1] == pytest.approx(1.5)  # the air rule's V_max before
+    assert ov[-1] == pytest.approx(1.0)
+
+
 def test_bad_options() -> None:
     with pytest.raises(ConfigError, match="quantity"):
         AdaptiveFeedOptions(quantity="speed")

@@ -504,7 +504,41 @@ class AdaptiveFeedBlock(Block):
     def _apply_fault(self, chunk: Chunk, at: int, events: list[Event]) -> None:
         if self._why == "no spindle revolution":
             self._watch_fired = True
+            if self._out_of_material():
+                self._pause(chunk, at, events)
+                return
         self._safe(chunk, at, self._why, events)
+
+    def _out_of_material(self) -> bool:
+        """The tool was out of the material at the last decision: the plan's row (with the
+        look-ahead) is not in cut, or, without it, the last revolution read air."""
+        in_cut = self._plan_row_in_cut()
+        return not in_cut if in_cut is not None else self.loop.air
+
+    def _pause(self, chunk: Chunk, at: int, events: list[Event]) -> None:
+        """No spindle revolution with the tool out of the material (decision 1686): a spindle
+        stopped by the program (M5 after the last cut, before a tool change) is no fault. The
+        safe override is still taken (min(override, 100 %): nothing enters the material faster
+        than programmed if the spindle signal, not the spindle, was lost), but said as a NOTE;
+        control resumes at the next clean revolution as after a fault."""
+        lp = self.loop
+        lp.fault = True
+        t = chunk.t0_s + (chunk.start + at) / chunk.sample_rate_hz
+        events.append(
+            Event(
+                t,
+                EventKind.NOTE,
+                self.name,
+                f"adaptive feed paused: no spindle revolution on '{self._signal_name()}' with "
+                "the tool out of the material (a spindle stop); feed held at 100 % at most",
+                name="adaptive_feed_paused",
+                value=None,
+                sample=chunk.start + at,
+                severity=Severity.INFO,
+            )
+        )
+        self._command(chunk, at, min(lp.u, 1.0), events, Severity.INFO,
+                      why="paused: spindle stopped out of the material")  # fmt: skip
 
     def _safe(self, chunk: Chunk, at: int, why: str, events: list[Event]) -> None:
         """The safe action: min(override, 100 %) and an alarm (decision 1615)."""
