@@ -174,14 +174,16 @@ def shop_breaks() -> tuple[ShopBreak, ...]:
     ),
     issue=15,
     gap="the break at 9 s falls where the tool runs from the arc into the first pocket wall "
-    "(line 13: the plan's torque rising from 0 to 1.43 N·m over 1.3 s); it is alarmed 2.0 s "
-    "(807 tooth periods) after its effect, on line 14; on the last wall (14 s) 4.2 tooth "
-    "periods after it; in the slot 1.6. "
-    "Found on 2026-12-02: the same detector on the recorded torques alarms at 9.44 s where it "
-    "judges from 0.5 N·m of expected torque on (the block's default) and only at 11.02 s from "
-    "the session's 0.40 N·m: judged from the ramp's start, the run of violations begins with "
-    "the flute already broken, and seemingly holds no change of the cut over one revolution "
-    "(decision 1729) for 1.6 s",
+    "(line 13: the plan's torque rising from 0.09 to 1.43 N·m over 1.3 s); its effect (decision "
+    "1731, 5 % of the intact tooth mean) begins at 9.0 s, where the missing torque is 0.09 N·m, "
+    "under the DOB's noise on a tooth average (σ̂ ≈ 0.06 N·m) and under the level the session "
+    "judges (0.40 N·m, 0.3 of the plan's largest, reached at 9.342 s): alarmed 141 tooth periods "
+    "after its effect, 7 after judging starts (the broken flute's third revolution, decision "
+    "1552). Before decision 1672 (2026-12-02) it was alarmed at 11.02 s, 807 periods: the "
+    "broken flute's run began at the second judged period and held no change of the cut "
+    "(decision 1729). On the last wall (14 s) 4.2 tooth periods: the effect's onset is the end "
+    "of flute 0's arc as it breaks, about 2.5 tooth periods before its first whole missing "
+    "pulse; in the slot 1.6",
 )
 def _shop_break_latency() -> Measured:
     runs = shop_breaks()
