@@ -541,7 +541,7 @@ def _run(
             kinds = "/".join(sorted({e.name for e in alarms}))
             lines.append(f"  {b.name}: {len(alarms)} {kinds} alarm(s): {f}{more}")
         else:
-            lines.append(f"  {b.name}: no alarm")
+            lines.append(f"  {b.name}: no alarm{_chatter_seen(b)}")
         blind = [e for e in res.events if e.source == b.name and e.name == "breakage_blind"]
         if blind:
             at = ", ".join(f"{e.time_s:.2f} s" for e in blind[:5])
@@ -568,6 +568,27 @@ def _run(
                      res.events, units)  # fmt: skip
         lines.append(f"wrote {plot}")
     return {"events": res.events, "lines": lines, "wall_s": wall}
+
+
+def _chatter_seen(b: object) -> str:
+    """What a chatter monitor without an alarm judged (decision 1689): nothing where no
+    window was decided or its cutting gate never opened ("no alarm" alone would read as a
+    stable cut), the windows judged where the gate closed on some; "" for another monitor or
+    where every window was judged."""
+    decided = getattr(b, "windows_decided", None)
+    judged = getattr(b, "windows_judged", 0)
+    if decided is None or (decided > 0 and judged == decided):
+        return ""
+    if decided == 0:
+        return (" (no window decided: the spindle speed was never steady over a window, or the "
+                "record is shorter than one)")  # fmt: skip
+    if judged == 0:
+        return (f", but nothing judged: in none of its {decided} windows did the tooth-passing "
+                "line stand out of the spectrum or the mean off the air (the cutting gate, "
+                "decision 1531): no cut, or a cut in the signal's noise")  # fmt: skip
+    hop = float(getattr(getattr(b, "settings", None), "hop_s", math.nan))
+    return (f" (judged {judged * hop:.1f} s of the {decided * hop:.1f} s decided: the windows "
+            "the cutting gate took for a cut)")  # fmt: skip
 
 
 def _torque_gate_line(

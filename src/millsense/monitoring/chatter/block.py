@@ -390,6 +390,11 @@ class ChatterMonitor(Block):
         self._flag = 0.0
         self._freq = math.nan
         self._ratio = 0.0
+        # windows decided, and among them judged as a cut (the cutting gate open; every one
+        # for the threshold criterion, which has no gate): a summary that reads "no alarm"
+        # says how much it saw (decision 1689)
+        self.windows_decided = 0
+        self.windows_judged = 0
         self._run_start: float | None = None  # time of the first window of a rising run
         self._calib: list[float] = []
         self._calibrated: float | None = None
@@ -952,6 +957,9 @@ class ChatterMonitor(Block):
         t = chunk.t0_s + k / chunk.sample_rate_hz
         if sp is None:
             return []
+        self.windows_decided += 1
+        if sp.cutting or not self.method.learns_background:
+            self.windows_judged += 1
         v: Verdict
         if self.method.name == "chatter-threshold" and self.method.threshold is None:
             if t < chunk.t0_s + CALIBRATION_S and sp.f_rev_hz * 60 >= self.settings.min_speed_rpm:
