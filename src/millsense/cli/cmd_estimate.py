@@ -364,6 +364,7 @@ def _run_estimate(
     import numpy as np
 
     from millsense.core.errors import InputDataError
+    from millsense.core.plausibility import HeldLoad
     from millsense.estimation.from_config import build_estimators
     from millsense.ident.idle_table import DIRECTIONS
     from millsense.io import RecordingWriter
@@ -459,9 +460,9 @@ def _run_estimate(
         )
     writer = RecordingWriter(out, rec.sample_rate_hz, infos, metadata=meta, flush_every_s=0.5)
     total = max(rec.n_samples, 1)
-    # running peak |estimate| (and its time, s) and non-finite count per estimate, for the
-    # plausibility checks
-    peaks: dict[str, tuple[float, float]] = {}
+    # the largest |mean| of each estimate over 10 ms windows (and its time, s) and its
+    # non-finite count, for the plausibility checks (decision 1690)
+    held = {c: HeldLoad(rec.sample_rate_hz) for _, _, c, _ in all_estimates}
     bad: dict[str, int] = {}
 
     def sink(ch: Any, outputs: dict[str, np.ndarray], _ev: Any) -> None:
@@ -474,11 +475,7 @@ def _run_estimate(
                 continue
             fin = np.isfinite(v)
             bad[c] = bad.get(c, 0) + int(v.size - fin.sum())
-            if fin.any():
-                mag = np.where(fin, np.abs(v), 0.0)
-                k = int(np.argmax(mag))
-                if mag[k] > peaks.get(c, (0.0, 0.0))[0]:
-                    peaks[c] = (float(mag[k]), ch.t0_s + (ch.start + k) / ch.sample_rate_hz)
+            held[c].add(ch.start, np.where(fin, v, 0.0))
         if streamed is not None:
             streamed.add(ch.start, data)
         if traces is not None:
@@ -497,6 +494,8 @@ def _run_estimate(
     finally:
         writer.close()
     wall = time.perf_counter() - t0
+    peaks = {c: (h.peak, rec.t0_s + h.at / rec.sample_rate_hz) for c, h in held.items()
+             if h.at >= 0}  # fmt: skip
     findings = _estimate_findings(mcfg, all_estimates, peaks, bad, str(recording))
     for w in pre_warnings:
         findings.warn(w)
@@ -529,10 +528,10 @@ def _estimate_findings(
     bad: dict[str, int],
     where: str,
 ) -> Any:
-    """Plausibility of the estimates (decision 0941): non-finite samples, and the peak load
-    of a linear axis against the machine's ``limits.axis_force_n`` (an estimate beyond what the
-    drives can push points at a wrong machine file: K_t, lead, or the recording of another
-    machine)."""
+    """Plausibility of the estimates (decision 0941): non-finite samples, and the load a
+    linear axis holds (``peaks``: the largest |mean| over 10 ms and its time, decision 1690)
+    against the machine's ``limits.axis_force_n`` (an estimate beyond what the drives can push
+    points at a wrong machine file: K_t, lead, or the recording of another machine)."""
     from millsense.core.plausibility import Findings, check_against_limits
 
     findings = Findings()
@@ -543,7 +542,8 @@ def _estimate_findings(
         if cfg is not None and cfg.kind == "linear" and c in peaks:
             check_against_limits(
                 mcfg.limits,
-                f"{where}: {m} estimate of axis {a} (largest at {peaks[c][1]:.3f} s)",
+                f"{where}: {m} estimate of axis {a} (over 10 ms, largest at "
+                f"{peaks[c][1]:.3f} s)",
                 findings,
                 peak_force_n=peaks[c][0],
             )
