@@ -349,12 +349,14 @@ def _rls_ar1(
 @numba.njit(cache=True)
 def _flute_signature(
     state: FloatArray, nf: int, seen: int, x_lag: float, ref: float, one_sided: bool
-) -> tuple[float, float, bool]:
+) -> tuple[float, float, bool, float, float]:
     """The revolution and the flute of a period (decision 1681): store its reference ``ref``
     (NaN: not judged) and one-sided flag in the signature's rings, and return the ratio of the
     last N periods' torque to their references (one revolution: NaN unless all N judged), the
     deviation x − ref of the same flute one revolution earlier (``x_lag`` its torque; NaN
-    unless judged) and whether a period of the revolution is one-sided (decision 1674)."""
+    unless judged), whether a period of the revolution is one-sided (decision 1674) and the
+    largest and smallest deviations x − ref of the revolution's periods (NaN unless all N
+    judged; decision 1742)."""
     r_ex = DET_BASE + nf + NOISE_WINDOW
     r_one = r_ex + nf
     slot = seen % nf
@@ -364,18 +366,22 @@ def _flute_signature(
     state[r_ex + slot] = ref
     state[r_one + slot] = 1.0 if one_sided else 0.0
     if seen + 1 < nf:
-        return math.nan, lag, False
+        return math.nan, lag, False, math.nan, math.nan
     sx = 0.0
     se = 0.0
     one = False
+    top = -math.inf
+    bottom = math.inf
     for i in range(nf):
         e = state[r_ex + i]
         if e != e:
-            return math.nan, lag, False
+            return math.nan, lag, False, math.nan, math.nan
         sx += state[DET_BASE + i]
         se += e
+        top = max(top, state[DET_BASE + i] - e)
+        bottom = min(bottom, state[DET_BASE + i] - e)
         one = one or state[r_one + i] > 0.0
-    return sx / se, lag, one
+    return sx / se, lag, one, top, bottom
 
 
 @numba.njit(cache=True)
@@ -926,8 +932,9 @@ def detect_periods(
             elif seen >= 2:
                 state[DET_GAP] = 1.0
             if mode == MODE_VIRTUAL:
-                ratio, lag, one = _flute_signature(state, nf, seen, xn, ex if judge else math.nan,
-                                                   below)  # fmt: skip
+                ratio, lag, one, top, bottom = _flute_signature(
+                    state, nf, seen, xn, ex if judge else math.nan, below
+                )
                 rev_out[m] = ratio
                 lag_out[m] = lag
                 keeps = ratio >= rev_low and (one or ratio <= 1.0 + rev_tol)
@@ -950,7 +957,16 @@ def detect_periods(
                     state[DET_LOW] = state[DET_LOW] + 1.0 if low else 0.0
                     locked = lag * (xm - ex) > 0.0  # False where NaN
                     lost = lost_periods > 0 and state[DET_LOW] >= lost_periods
-                    flute = (keeps and locked) or lost
+                    # one flute's (decision 1742): the revolution is not below the plan at
+                    # every flute by half the band or more (the plan's error moves every flute
+                    # together); with two flutes, whose revolution bound (1 − edge_share/2 −
+                    # tol, 65 %) a plan's error or a flute losing its chip to runout passes,
+                    # the other flute has risen by the share of the drop it cuts (decision
+                    # 1707's, 1 − edge_share − tol): it cuts the broken flute's chip
+                    single = judge and top >= -0.5 * band_out[m]  # False where NaN
+                    if nf == 2:
+                        single = single and top >= rise_share * max(-bottom, 0.0)
+                    flute = (keeps and locked and single) or lost
         pat_out[m] = evidence
         expected[m] = ex if mode != MODE_DUAL else 0.0
         # a broken flute of N shows once a revolution at least (its own period; the next
