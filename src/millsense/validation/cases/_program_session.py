@@ -23,10 +23,11 @@ class ProgramSession:
 
 def _program_machine(
     program: Path, tool: Any, material: str, stock: Path, events: Sequence[Any], seed: int,
-    duration_s: float | None,
+    duration_s: float | None, home_mm: tuple[float, float, float] | None = None,
 ) -> tuple[Any, Any, Any]:  # fmt: skip
     """The session's plan of ``program`` (0.2 mm z-map), the virtual quaser-ux600 cutting its
-    own plan of it (decision 1740) with the process ``events``, and the tool's ``ToolConfig``."""
+    own plan of it (decision 1740) with the process ``events``, and the tool's ``ToolConfig``
+    (``home_mm``: the machine reference position of a program's G28, ``--home-mm``)."""
     from millsense.core.config import MaterialConfig, StockConfig, ToolConfig, load_config
     from millsense.core.presets import load_preset
     from millsense.core.units import MM
@@ -50,8 +51,9 @@ def _program_machine(
     tool_cfg = tool if isinstance(tool, ToolConfig) else load_preset(ToolConfig, tool)
     end_mill = EndMill.from_config(tool_cfg)
     coeffs = CuttingCoefficients.from_config(load_preset(MaterialConfig, material))
-    plan = plan_program(interpret_file(program), make_stock(0.2 * MM), end_mill, coeffs)
-    plant = plant_plan([interpret_file(program)], make_stock, end_mill, coeffs)
+    plan = plan_program(interpret_file(program, home_mm=home_mm), make_stock(0.2 * MM),
+                        end_mill, coeffs)  # fmt: skip
+    plant = plant_plan([interpret_file(program, home_mm=home_mm)], make_stock, end_mill, coeffs)
     sim_cfg = simulator_machine(MACHINE)
     job, proc, _, _ = plan_job(plant, sim_cfg, program.name, events=list(events))
     sim = MachineSimulator(sim_cfg, job, proc, SimulatorOptions(seed=seed), duration_s=duration_s)
@@ -71,16 +73,19 @@ def program_session(
     keep: Sequence[str] | None = (),
     options: Any = None,
     observer: Any = None,
+    home_mm: tuple[float, float, float] | None = None,
 ) -> ProgramSession:
     """Run ``program`` with ``tool`` (a tool TOML path, a preset name or a ``ToolConfig``)
     through the session of ``options`` (a ``SessionOptions``; None: the default) on the
     virtual quaser-ux600; ``events``: process events of the virtual machine (a
     :class:`~millsense.simulator.process_coupling.ToothBreak`); ``observer``: called with
-    every chunk as ``run_session``'s (reads the simulator's truth)."""
+    every chunk as ``run_session``'s (reads the simulator's truth); ``home_mm``: the machine
+    reference position of a program's G28."""
     from millsense.core.presets import commissioned_machine
     from millsense.online.session import SessionOptions, run_session, session_blocks
 
-    plan, sim, _ = _program_machine(program, tool, material, stock, events, seed, duration_s)
+    plan, sim, _ = _program_machine(program, tool, material, stock, events, seed, duration_s,
+                                    home_mm)  # fmt: skip
     shipped = commissioned_machine(MACHINE)
     assert shipped is not None
     belief, where = shipped
