@@ -199,6 +199,39 @@ def test_plan_path_segments_take_the_next_row(cross_plan: VirtualPlan) -> None:
     assert np.allclose(pp.spindle_rad_s[~pp.rapid], 1000 * 2 * math.pi / 60, rtol=1e-12)
 
 
+def test_a_rotary_only_move_turns_at_its_rate_on_a_five_axis_machine() -> None:
+    """Decision 1743: ``G0 A30 C90`` holds no row of the plan; its rotation falls into the
+    segment to the next row (a 5 mm rapid in Y), whose plan time holds the rotation's at the
+    rotary rapid rate (20 rev/min: 90° in 0.75 s). That segment's feed is its length over the
+    plan's time: C turns at 20 rev/min (1e-9), not 90° over the rapid's 15 ms. The other
+    segments keep the rows' feeds."""
+    from millsense.core.units import MM_PER_MIN
+    from millsense.plan.path import DEFAULT_RAPID_ROTARY_RATE
+
+    text = ("G21 G90 G17\nT1 M6\nS1000 M3\nG0 X-15 Y20 Z5 A0 C0\nG0 A30 C90\nG0 Y25\n"
+            "G1 Z-2 F400\nX10\nG0 Z5\nM30\n")  # fmt: skip
+    plan = _plan(text)
+    pp = plan_path(plan, five_axis=True)
+    rot = np.linalg.norm(np.diff(pp.path[:, 3:], axis=0), axis=1)
+    lin = np.linalg.norm(np.diff(pp.path[:, :3], axis=0), axis=1)
+    turning = np.flatnonzero(rot > 1e-9)
+    assert turning.size == 1
+    j = int(turning[0])
+    assert rot[j] == pytest.approx(math.hypot(math.radians(30), math.radians(90)), rel=1e-9)
+    # the segment lasts the plan's time, the rotation's at the rotary rapid rate (the larger
+    # axis turn, C's 90°, at 20 rev/min) and the rapid's few milliseconds
+    duration = lin[j] / pp.feed_m_s[j]
+    t = np.asarray(plan["t_s"])
+    assert duration == pytest.approx(t[pp.rows[j + 1]] - t[pp.rows[j]], rel=1e-9)
+    c_rate = math.radians(90) / duration
+    assert 0.97 * DEFAULT_RAPID_ROTARY_RATE <= c_rate <= DEFAULT_RAPID_ROTARY_RATE
+    others = np.delete(np.arange(len(pp.feed_m_s)), j)
+    rows = pp.rows[1:][others]
+    assert np.array_equal(pp.feed_m_s[others], np.asarray(plan["feed_mm_min"])[rows] * MM_PER_MIN)
+    # a 3-axis machine's path keeps the rows' feed (no rotary columns)
+    assert plan_path(plan).feed_m_s.min() > 0.9 * 400 * MM / 60
+
+
 def test_quick_plan_cases_pass() -> None:
     ids = {c.id for c in select_cases("simulator.plan_*", quick_only=True)}
     assert ids == {"simulator.plan_slot_average_force", "simulator.plan_slot_peak_resultant"}

@@ -73,6 +73,13 @@ def plan_path(plan: VirtualPlan, five_axis: bool = False) -> PlanPath:
     row (less than 1 pm, and no rotary motion on a 5-axis machine) are dropped. The rows are
     the path: corners between 0.4 mm rows are cut by the chord (at most step/2 · sin(θ/2)
     from the programmed vertex), which the plan's engagement shares.
+
+    A rotary-only move (``G0 A30 C90`` of a 3+2 set-up, ``G1 C90 F3600``) holds no row of the
+    plan (:func:`~millsense.plan.path.sample_path`): its rotation falls into the segment to
+    the next row, whose plan time (``t_s``) includes the rotation's at its rate. On a 5-axis
+    machine a segment that turns the rotary axes takes at least that time: its feed is lowered
+    to its length over the plan's time (decision 1743; at the row's feed the rotation came in
+    a few milliseconds, and the virtual machine's C axis ran at 100 rad/s and diverged).
     """
     xyz = plan.xyz_m
     cols = [xyz]
@@ -91,10 +98,20 @@ def plan_path(plan: VirtualPlan, five_axis: bool = False) -> PlanPath:
         raise InputDataError("plan: the rows do not move, nothing to run")
     nc = np.where(plan["nc_line"] >= 0, plan["nc_line"], plan["source_line"]).astype(np.int64)
     nxt = idx[1:]
+    feed = np.maximum(np.asarray(plan["feed_mm_min"], dtype=np.float64)[nxt], 1e-6) * MM_PER_MIN
+    if five_axis:
+        # a segment that turns the rotary axes lasts at least the plan's time (decision 1743)
+        kept = np.diff(pts[idx], axis=0)
+        rot = np.linalg.norm(kept[:, 3:], axis=1)
+        lin = np.linalg.norm(kept[:, :3], axis=1)
+        turns = rot > 1e-12
+        dt = np.diff(np.asarray(plan["t_s"], dtype=np.float64)[idx])
+        size = np.where(lin > 1e-12, lin, rot)  # the interpolator's length (m, else rad)
+        slow = turns & (dt > 0.0) & (size < (1.0 - 1e-9) * feed * dt)
+        feed = np.where(slow, size / np.where(slow, dt, 1.0), feed)
     return PlanPath(
         path=pts[idx],
-        feed_m_s=np.maximum(np.asarray(plan["feed_mm_min"], dtype=np.float64)[nxt], 1e-6)
-        * MM_PER_MIN,
+        feed_m_s=feed,
         spindle_rad_s=np.asarray(plan["spindle_rpm"], dtype=np.float64)[nxt] * RPM,
         nc_line=nc[nxt],
         rapid=np.asarray(plan["rapid"], dtype=np.bool_)[nxt],
