@@ -482,6 +482,8 @@ def test_a_signal_drowned_in_air_holds_the_programmed_feed() -> None:
     ev, ch = feed(blk, data, 100)
     alarms = [e for e in ev if e.name == "adaptive_feed_noise"]
     assert len(alarms) == 1 and alarms[0].value > 0.5 * 325.0
+    # a force estimate's remedy: the spindle's signal (the quieter one) or a dynamometer
+    assert "(regulate the spindle power, or use a dynamometer)" in alarms[0].message
     at = alarms[0].sample
     assert at <= 9 * int(REV * FS) + 1  # the 8th air revolution (the first ends at 600)
     assert np.all(ch["adaptive_feed/override"][at:] == 1.0)
@@ -489,6 +491,23 @@ def test_a_signal_drowned_in_air_holds_the_programmed_feed() -> None:
     ev, ch = feed(blk, data, 100)
     assert not [e for e in ev if e.name == "adaptive_feed_noise"]
     assert ch["adaptive_feed/override"][int(0.5 * FS)] == pytest.approx(1.5)
+
+
+def test_the_spindle_signal_drowned_in_air_is_not_told_to_regulate_itself() -> None:
+    """The same stream's noise read as the spindle torque (N·m = N × 0.01): the alarm does not
+    advise regulating the spindle power, which it regulates; the cut is too light for it."""
+    from millsense.validation.cases import control_adaptive as ca
+
+    _, data = _v8_stream(300.0)
+    plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
+    tq = 0.01 * np.hypot(data["force_x"], data["force_y"])
+    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=0.01 * ca.F_REF_V8,
+                                                quantity="torque", statistic="peak"), plan)  # fmt: skip
+    ev, _ = feed(blk, {**data, "spindle/torque_est": tq}, 100)
+    alarms = [e for e in ev if e.name == "adaptive_feed_noise"]
+    assert len(alarms) == 1
+    assert "regulate the spindle power" not in alarms[0].message
+    assert "(the cut is too light for this signal; a dynamometer shows it)" in alarms[0].message
 
 
 def test_plan_air_before_the_first_engagement_is_air_whatever_the_signal_reads() -> None:

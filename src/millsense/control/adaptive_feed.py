@@ -822,12 +822,19 @@ class AdaptiveFeedBlock(Block):
         t = chunk.t0_s + (chunk.start + e) / chunk.sample_rate_hz
         if not self._drowned and floor >= AIR_LIMIT * ref:
             self._drowned = True
+            # a force (the feed drives' estimate): the spindle's signal is the quieter one; the
+            # spindle's own torque or power: a cut this light is within its noise
+            remedy = (
+                "regulate the spindle power, or use a dynamometer"
+                if self.opts.quantity == "force"
+                else "the cut is too light for this signal; a dynamometer shows it"
+            )
             events.append(Event(
                 t, EventKind.ALARM, self.name,
                 f"adaptive feed: in air '{self._signal_name()}' reads {floor:.4g} {unit} "
                 f"(median of {len(self._air_vals)} intervals), {floor / ref:.2g} × the "
                 f"{ref:.4g} {unit} reference: it cannot show the cut; the programmed feed is "
-                "held (regulate the spindle power, or use a dynamometer)",
+                f"held ({remedy})",
                 name="adaptive_feed_noise", value=floor, sample=chunk.start + e,
                 severity=Severity.WARNING,
             ))  # fmt: skip
