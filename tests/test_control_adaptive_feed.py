@@ -501,8 +501,8 @@ def test_the_spindle_signal_drowned_in_air_is_not_told_to_regulate_itself() -> N
     _, data = _v8_stream(300.0)
     plan = ca.step_plan(ca.DEPTH_LOW_MM, ca.DEPTH_HIGH_MM)
     tq = 0.01 * np.hypot(data["force_x"], data["force_y"])
-    blk = AdaptiveFeedBlock(AdaptiveFeedOptions(reference=0.01 * ca.F_REF_V8,
-                                                quantity="torque", statistic="peak"), plan)  # fmt: skip
+    opts = AdaptiveFeedOptions(reference=0.01 * ca.F_REF_V8, quantity="torque", statistic="peak")
+    blk = AdaptiveFeedBlock(opts, plan)
     ev, _ = feed(blk, {**data, "spindle/torque_est": tq}, 100)
     alarms = [e for e in ev if e.name == "adaptive_feed_noise"]
     assert len(alarms) == 1
