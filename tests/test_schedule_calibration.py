@@ -68,6 +68,31 @@ def test_schedule_replan_holds_force_limit(tmp_path: Path) -> None:
     assert np.all(f[at] >= limit * 0.97)
 
 
+@pytest.mark.parametrize("end", ["45.2", "45.3"])
+def test_a_moves_last_row_keeps_the_feed_of_its_cut(end: str, tmp_path: Path) -> None:
+    """Decision 1744: the 3 mm slot ends at X45.2 (or X45.3) and a G2 turns back from there; its
+    last row (X45.105) faces the arc (decision 0066) and read out of the cut (X45.2) or at a
+    third of the slot's engagement (X45.3): its feed, from it to the slot's end, was the
+    programmed 400 mm/min or 626.5 mm/min where the slot holds 325 N at 162 mm/min. Now the
+    slot's block is written at one feed, the slot's."""
+    prog = PROGRAM.replace("X45.\nG2 X55. Y30. I0. J10.",
+                           f"X{end}\nG2 X{float(end) + 10:.2f} Y30. I0. J10.")  # fmt: skip
+    plan = _plan(prog)
+    sched = schedule_feed(plan, 325.0, max_feed_m_s=800 / 60e3, accel_m_s2=1.0)
+    line = np.asarray(plan["source_line"])
+    rows = np.flatnonzero(line == 10)
+    slot = rows[np.asarray(plan["in_cut"])[rows]]
+    assert sched.feed_m_s[rows[-1]] == sched.feed_m_s[slot[-2]]
+    assert sched.feed_m_s[rows[-1]] * 60e3 == pytest.approx(162.0, rel=0.01)
+    out = tmp_path / "opt.nc"
+    write_scheduled_program(prog, interpret(prog), plan, sched, out)
+    text = out.read_text().splitlines()
+    # the slot's end at the slot's feed (no block split 1 µm before its last row), and the
+    # arc's last block without a leading blank
+    assert f"X{end} F162." in text, text
+    assert not [ln for ln in text if ln.startswith(" ")]
+
+
 def test_schedule_power_limit_closed_form() -> None:
     # mean power is linear in the feed: P = Ω (s c T_shear + T_edge) → exact at the limit
     plan = _plan(PROGRAM)

@@ -120,6 +120,23 @@ def _smooth(v: np.ndarray, ds: np.ndarray, chain: np.ndarray, accel: float) -> N
                 v[k] = cap
 
 
+def _hold_to_the_move_end(
+    plan: VirtualPlan, feed: FloatArray, status: NDArray[np.int8], rapid: NDArray[np.bool_]
+) -> None:
+    """The last row of a move faces the next move (its engagement is the chord's to the next
+    row, decision 0066), but its feed runs from it to the move's end first, through the cut
+    of the rows before it: it takes at most their feed (decision 1744). A slot's last row
+    0.095 mm before an arc that turns back read out of the cut, and its piece of the slot
+    was written at the programmed feed, 5 × the scheduled one."""
+    line = np.asarray(plan["source_line"])
+    if line.size < 3:
+        return
+    k = np.flatnonzero(line[1:-1] != line[2:]) + 1  # rows whose next row is another line
+    k = k[(line[k] == line[k - 1]) & ~rapid[k] & ~rapid[k - 1] & (feed[k - 1] < feed[k])]
+    feed[k] = feed[k - 1]
+    status[k] = status[k - 1]
+
+
 def schedule_feed(
     plan: VirtualPlan,
     limit: float,
@@ -200,6 +217,7 @@ def schedule_feed(
     status[sched] = np.where(
         target[sched] >= hi[sched], AT_MAX, np.where(target[sched] <= lo[sched], AT_MIN, AT_LIMIT)
     )
+    _hold_to_the_move_end(plan, feed, status, rapid)
     # runs of nearly equal feed share the smallest value
     run_start = 0
     n = len(plan)
@@ -262,7 +280,8 @@ def _with_words(line: str, words: str) -> str:
         if m.group(0).startswith(";"):
             head = line[: m.start()].rstrip()
             return f"{head} {words} {m.group(0)}" if head else f"{words} {m.group(0)}"
-    return f"{line} {words}"
+    # (an arc's last block keeps no word of its line but its words: no leading blank)
+    return f"{line} {words}" if line.strip() else words
 
 
 def _inch_blocks(lines: list[str]) -> list[bool]:
