@@ -49,7 +49,10 @@ def test_kill_and_restart_the_server(tmp_path: Path) -> None:
     pki = make_pki(tmp_path / "pki")
     plan = make_plan(tmp_path)
     port = free_port()
-    procs = [_serve(plan, pki, port, 1.5)]
+    # the first machine streams 4 s (2 s of wall time at --speed 2): the kill after 0.5 s of
+    # stream comes before its end even where the client is slowed down (under a parallel
+    # load its 1.5 s stream had ended before the client held 0.5 s: no interruption at all)
+    procs = [_serve(plan, pki, port, 4.0)]
     src = OpcUaSource(f"opc.tcp://127.0.0.1:{port}", load_node_map(), user="op",
                       password=PASSWORD, pki=pki, reconnect_s=60.0)  # fmt: skip
     killed: list[float] = []

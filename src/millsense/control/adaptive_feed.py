@@ -505,7 +505,7 @@ class AdaptiveFeedBlock(Block):
         if self._why == "no spindle revolution":
             self._watch_fired = True
             if self._out_of_material():
-                self._pause(chunk, at, events)
+                self._safe(chunk, at, self._why, events, paused=True)
                 return
         self._safe(chunk, at, self._why, events)
 
@@ -515,50 +515,40 @@ class AdaptiveFeedBlock(Block):
         in_cut = self._plan_row_in_cut()
         return not in_cut if in_cut is not None else self.loop.air
 
-    def _pause(self, chunk: Chunk, at: int, events: list[Event]) -> None:
-        """No spindle revolution with the tool out of the material (decision 1686): a spindle
-        stopped by the program (M5 after the last cut, before a tool change) is no fault. The
-        safe override is still taken (min(override, 100 %): nothing enters the material faster
-        than programmed if the spindle signal, not the spindle, was lost), but said as a NOTE;
-        control resumes at the next clean revolution as after a fault."""
+    def _safe(
+        self, chunk: Chunk, at: int, why: str, events: list[Event], paused: bool = False
+    ) -> None:
+        """The safe action: min(override, 100 %) and an alarm (decision 1615); ``paused``: no
+        spindle revolution with the tool out of the material (decision 1686), a spindle stopped
+        by the program (M5 after the last cut, before a tool change), which is no fault: the
+        same override (nothing enters the material faster than programmed if the spindle
+        signal, not the spindle, was lost), said as a NOTE. Control resumes at the next clean
+        revolution."""
         lp = self.loop
         lp.fault = True
         t = chunk.t0_s + (chunk.start + at) / chunk.sample_rate_hz
+        signal = self._signal_name()
         events.append(
             Event(
                 t,
-                EventKind.NOTE,
+                EventKind.NOTE if paused else EventKind.ALARM,
                 self.name,
-                f"adaptive feed paused: no spindle revolution on '{self._signal_name()}' with "
-                "the tool out of the material (a spindle stop); feed held at 100 % at most",
-                name="adaptive_feed_paused",
+                f"adaptive feed paused: {why} on '{signal}' with the tool out of the material "
+                "(a spindle stop); feed held at 100 % at most"
+                if paused
+                else f"adaptive feed: {why} on '{signal}'; safe feed held",
+                name="adaptive_feed_paused" if paused else "adaptive_feed_fault",
                 value=None,
                 sample=chunk.start + at,
-                severity=Severity.INFO,
+                severity=Severity.INFO if paused else Severity.WARNING,
             )
         )
-        self._command(chunk, at, min(lp.u, 1.0), events, Severity.INFO,
-                      why="paused: spindle stopped out of the material")  # fmt: skip
-
-    def _safe(self, chunk: Chunk, at: int, why: str, events: list[Event]) -> None:
-        """The safe action: min(override, 100 %) and an alarm (decision 1615)."""
-        lp = self.loop
-        lp.fault = True
-        t = chunk.t0_s + (chunk.start + at) / chunk.sample_rate_hz
-        events.append(
-            Event(
-                t,
-                EventKind.ALARM,
-                self.name,
-                f"adaptive feed: {why} on '{self._signal_name()}'; safe feed held",
-                name="adaptive_feed_fault",
-                value=None,
-                sample=chunk.start + at,
-                severity=Severity.WARNING,
-            )
-        )
-        self._command(chunk, at, min(lp.u, 1.0), events, Severity.WARNING, force=True,
-                      why=f"safe action: {why}")  # fmt: skip
+        if paused:
+            self._command(chunk, at, min(lp.u, 1.0), events, Severity.INFO,
+                          why="paused: spindle stopped out of the material")  # fmt: skip
+        else:
+            self._command(chunk, at, min(lp.u, 1.0), events, Severity.WARNING, force=True,
+                          why=f"safe action: {why}")  # fmt: skip
 
     def _signal_name(self) -> str:
         if self.opts.quantity == "force":
