@@ -35,6 +35,9 @@ __all__ = ["TRUTH_PREFIX", "ChannelInfo", "Recording", "Stream", "check_name", "
 
 #: Prefix of ground-truth channels of a simulation; estimators never read these.
 TRUTH_PREFIX = "truth/"
+#: Metadata key of a recording: the channels millsense computed from the data (a session's
+#: block outputs), which data-quality checks skip (decision 1745).
+COMPUTED_CHANNELS = "computed_channels"
 
 #: Tolerance, in samples, when converting a time to a sample index (absorbs float rounding of
 #: ``t0 + k / fs`` so that slicing at exactly a sample's time includes that sample).

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from millsense.core.recording import TRUTH_PREFIX, Recording
+from millsense.core.recording import COMPUTED_CHANNELS, TRUTH_PREFIX, Recording
 
 __all__ = [
     "CHANCE_RUN_PROBABILITY",
@@ -552,14 +552,20 @@ def check_recording(
     channels: Sequence[str] | None = None,
     stated_hz: float | None = None,
 ) -> QualityReport:
-    """Run every check on the measured channels of ``rec`` (truth channels are skipped).
+    """Run every check on the measured channels of ``rec`` (truth channels and the channels
+    the metadata's ``computed_channels`` lists are skipped).
 
     ``stated_hz``: the rate the source stated (default: the recording's rate); the rate is
     measured from every ``<axis>/motor_angle`` + ``<axis>/motor_speed`` pair that moves.
     """
     rep = report if report is not None else QualityReport()
     src = rec.source
-    names = [c for c in (channels or rec.channel_names) if not c.startswith(TRUTH_PREFIX)]
+    # what millsense computed from the data (a session's block outputs, where NaN means
+    # "none": no chatter frequency, no threshold yet) is not the data (decision 1745)
+    listed = rec.metadata.get(COMPUTED_CHANNELS)
+    computed = {str(c) for c in listed} if isinstance(listed, list) else set()
+    names = [c for c in (channels or rec.channel_names)
+             if not c.startswith(TRUTH_PREFIX) and c not in computed]  # fmt: skip
     fs = rec.sample_rate_hz
     cols = {c: np.asarray(rec.channel(c), dtype=np.float64) for c in names}
     for c, x in cols.items():

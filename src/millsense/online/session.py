@@ -38,6 +38,7 @@ from millsense.control.adaptive_feed import (
 from millsense.control.arbitration import Supervisor, SupervisorOptions
 from millsense.core.config import MachineConfig
 from millsense.core.errors import ConfigError
+from millsense.core.recording import COMPUTED_CHANNELS
 from millsense.monitoring.breakage_phased import PhasedBreakage
 from millsense.online.gates import AirReference, SpindleAtSpeed
 from millsense.online.guard import FAULT_CHANNEL, GuardedSource
@@ -399,11 +400,16 @@ def run_session(
     kept = [c for c in infos if keep is None or c.name in keep or c.name == FAULT_CHANNEL]
     writer = None
     if out is not None:
+        computed = pipe.output_channels()
         writer = RecordingWriter(
             out,
             src.sample_rate_hz,
-            kept + pipe.output_channels(),
-            metadata=dict(metadata or {}),
+            kept + computed,
+            # the blocks' outputs, apart from what the source measured: `check` judges the
+            # data, not what millsense computed from it (decision 1745)
+            metadata={**(metadata or {}), COMPUTED_CHANNELS: [
+                c.name for c in kept + computed if c.name == FAULT_CHANNEL or c in computed
+            ]},
             flush_every_s=0.5,
         )
     names = [c.name for c in kept]
