@@ -699,7 +699,9 @@ def detect_periods(
     violating period from the ``confirm``-th on where the last revolution looks like a broken
     flute (:func:`_flute_signature`): its torque within [1 − edge_share/N − tol, 1 + tol] of
     the references (no upper bound where a period of it is one-sided) and the same flute one
-    revolution earlier deviating the same way; or once the revolution's torque has stayed under
+    revolution earlier deviating the same way, and not every flute of the revolution below the
+    plan by half the band, with two flutes the other flute risen by 1 − edge_share − tol of the
+    drop (decision 1742); or once the revolution's torque has stayed under
     1 − 1/N − tol (more than one flute's share missing) for ``lost_periods`` judged periods in a
     row (the whole cut lost). Rows 11 and 12 of ``pp`` get the revolution's ratio and the same
     flute's earlier deviation (virtual mode).

@@ -190,7 +190,9 @@ class BreakageBlock(Block):
         the revolution mean within [1 − ``edge_share``/N − ``revolution_tol``,
         1 + ``revolution_tol``] of the plan's (no upper bound where a period of the revolution
         is one-sided) and the deviation's sign repeated by the same flute one revolution
-        earlier; or the revolution mean under 1 − 1/N − ``revolution_tol`` for
+        earlier, not every flute below the plan by half the band and, with two flutes, the
+        other flute risen by 1 − ``edge_share`` − ``revolution_tol`` of the drop (decision
+        1742); or the revolution mean under 1 − 1/N − ``revolution_tol`` for
         ``lost_revolutions`` revolutions in a row (0: never without the signature).
     flute_pattern : a second way to confirm (``virtual``; decision 1684): a broken flute's
         pattern, the flute's drop against the other flutes (or the drop of one and the rise
