@@ -14,6 +14,7 @@ one Parquet file (``OUT/summary.parquet``, queryable with duckdb, polars or pand
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import sys
@@ -369,6 +370,11 @@ def local_cluster(workers: int) -> Any:
     }
     if forked:  # decision 2008 (a worker restarted after the start is spawned, as before)
         quiet["distributed.worker.multiprocessing-method"] = "forkserver"
+    # this process's Dask logs at WARNING for good (decision 2009): LocalCluster silences them
+    # on its handlers and restores INFO in its close while its comms are still closing, and a
+    # "Batched Comm Closed" INFO line with its traceback reached the batch's stderr; the
+    # logger's own level outlasts that (the workers keep the cluster's silencing)
+    logging.getLogger("distributed").setLevel(logging.WARNING)
     with dask.config.set(quiet):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             host="127.0.0.1", dashboard_address="127.0.0.1:0",
