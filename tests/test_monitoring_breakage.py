@@ -493,3 +493,29 @@ def test_flute_pattern_confirms_a_drop_at_the_band_edge_in_two_revolutions() -> 
     # no period of seed 000's run had left the band: no first violating period (decision 1684;
     # it read -1, an index that does not exist)
     assert math.isnan(v["first_violation_period"])
+
+
+def test_an_alarm_located_on_a_plan_without_n_words_names_the_program_line() -> None:
+    """A detector matched to its plan (``plan=``, V7's) reported NC line −1 for every block
+    without an N word; the line a CNC names (the N word, else the program line,
+    ``plan.path.cnc_line``) as the session's plan sync and locator do (decision 1739)."""
+    from millsense.plan.gcode import interpret
+    from millsense.plan.stock import ZMapStock
+    from millsense.plan.virtual_plan import plan_program
+
+    text = "G21 G90 G17\nS1000 M3\nG0 X-15 Y20 Z5\nG1 Z-2 F400\nX45\nG0 Z5\nM30\n"
+    stock = ZMapStock.from_box([0.0, 0.0, -0.02], [0.04, 0.04, 0.0], 0.5e-3)
+    from millsense.process.coefficients import CuttingCoefficients
+    from millsense.process.geometry import EndMill
+
+    plan = plan_program(interpret(text, source="t.nc"), stock, EndMill(20e-3, 2),
+                        CuttingCoefficients(758e6, 379e6, 25e3, 35e3))  # fmt: skip
+    row = int(np.flatnonzero(np.asarray(plan["source_line"]) == 5)[10])
+    assert plan["nc_line"][row] < 0  # no N word
+    blk = BreakageBlock(2, "virtual", plan=plan, tcp_channels=("tx", "ty", "tz"))
+    blk.reset(FS)
+    xyz = plan.xyz_m[row]
+    data = {"tx": np.full(10, xyz[0]), "ty": np.full(10, xyz[1]), "tz": np.full(10, xyz[2])}
+    ev = blk._event(Chunk(0, FS, 0.0, data), 5, 0, -1, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                    signature=(0.9, -0.5))  # fmt: skip
+    assert ev.nc_line == 5

@@ -57,6 +57,7 @@ from millsense.control.rls import ConstantTraceRLS, force_model_constraints
 from millsense.core.errors import ConfigError
 from millsense.core.noise import sigma_from_abs_differences, window_median
 from millsense.core.recording import ChannelInfo
+from millsense.plan.path import cnc_line
 from millsense.plan.virtual_plan import LOOK_AHEAD_S, RISE_FRACTION, VirtualPlan
 from millsense.streaming.block import (
     Block,
@@ -882,9 +883,7 @@ class AdaptiveFeedBlock(Block):
         nc = x = y = z = None
         if self.plan is not None:
             r = lp.row
-            nc = int(self.plan["nc_line"][r])
-            if nc < 0:  # a block without an N number: its source line
-                nc = int(self.plan["source_line"][r])
+            nc = int(cnc_line(self.plan["nc_line"][r], self.plan["source_line"][r]))
             x, y, z = (float(self.plan[c][r]) for c in ("x_mm", "y_mm", "z_mm"))
         events.append(
             Event(

@@ -86,6 +86,7 @@ import numpy as np
 from millsense.core.errors import ConfigError, InputDataError
 from millsense.core.recording import ChannelInfo
 from millsense.monitoring import _tooth_kernels as _k
+from millsense.plan.path import cnc_line
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import (
     Block,
@@ -644,7 +645,8 @@ class BreakageBlock(Block):
             )
             if row < 0:
                 row = self._row
-            nc_line = int(self.plan["nc_line"][row])
+            # the N word, else the program line (a block without one read −1)
+            nc_line = int(cnc_line(self.plan["nc_line"][row], self.plan["source_line"][row]))
             x_mm = float(self.plan["x_mm"][row])
             y_mm = float(self.plan["y_mm"][row])
             z_mm = float(self.plan["z_mm"][row])

@@ -45,6 +45,7 @@ from millsense.online._sync_kernels import (
     plan_rows_kernel,
 )
 from millsense.online.gates import AirReference
+from millsense.plan.path import cnc_line
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.streaming.block import (
     Block,
@@ -278,9 +279,7 @@ class PlanSync(Block):
         self._min_cal = MIN_CALIBRATION * float(
             np.nanmax(np.abs(tq[steady_cut] if steady_cut.any() else tq), initial=0.0)
         )
-        nc = np.asarray(plan["nc_line"], dtype=np.int64)
-        nc = np.where(nc >= 0, nc, np.asarray(plan["source_line"], dtype=np.int64))
-        self._nc = np.append(nc, -1)
+        self._nc = np.append(cnc_line(plan["nc_line"], plan["source_line"]), -1)
         self.reset(10000.0)
 
     def output_channels(self) -> list[ChannelInfo]:

@@ -408,7 +408,7 @@ def run_session(
             # the blocks' outputs, apart from what the source measured: `check` judges the
             # data, not what millsense computed from it (decision 1745)
             metadata={**(metadata or {}), COMPUTED_CHANNELS: [
-                c.name for c in kept + computed if c.name == FAULT_CHANNEL or c in computed
+                *(c.name for c in kept if c.name == FAULT_CHANNEL), *(c.name for c in computed)
             ]},
             flush_every_s=0.5,
         )

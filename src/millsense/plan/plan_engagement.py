@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from millsense.core.errors import InputDataError
 from millsense.core.units import MM, MM_PER_MIN, RPM
+from millsense.plan.path import cnc_line
 from millsense.plan.virtual_plan import VirtualPlan
 from millsense.process.engagement import Engagement
 
@@ -96,7 +97,7 @@ def plan_path(plan: VirtualPlan, five_axis: bool = False) -> PlanPath:
     idx = np.nonzero(keep)[0]
     if len(idx) < 2:
         raise InputDataError("plan: the rows do not move, nothing to run")
-    nc = np.where(plan["nc_line"] >= 0, plan["nc_line"], plan["source_line"]).astype(np.int64)
+    nc = cnc_line(plan["nc_line"], plan["source_line"])
     nxt = idx[1:]
     feed = np.maximum(np.asarray(plan["feed_mm_min"], dtype=np.float64)[nxt], 1e-6) * MM_PER_MIN
     if five_axis:

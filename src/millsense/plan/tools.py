@@ -96,6 +96,10 @@ def assign_tools(
     for s in segments:
         first.setdefault(s.tool, s.first_line)
     pairs = [spec for spec in specs if "=" in spec]
+    if not pairs and len(specs) != 1:
+        raise ConfigError(
+            f"--tool given {len(specs)} times: one tool, or one Tn=TOOL per tool change"
+        )
     if (not pairs or one_tool) and len(used) > 1:
         t = segments[1].tool
         what = f"--tool {specs[0]} is one tool" if not one_tool else "this command runs one tool"
@@ -106,10 +110,6 @@ def assign_tools(
             + ": one plan per tool, on one stock; simulate and run take each with --plan)"
         )
     if not pairs:
-        if len(specs) != 1:
-            raise ConfigError(
-                f"--tool given {len(specs)} times: one tool, or one Tn=TOOL per tool change"
-            )
         return [specs[0]] * len(segments)
     if len(pairs) != len(specs):
         raise ConfigError("--tool: give one tool, or Tn=TOOL for every tool (not both)")
